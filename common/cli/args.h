@@ -1,0 +1,56 @@
+// A small, strict command-line parser for the vsurg tools.
+//
+// Options are `--name value`, `--name=value` or boolean `--name`. Every value is checked when
+// parsed (numbers must be finite and consume the whole token), unknown or repeated options and
+// stray positional arguments are errors, and every error names the option. A value may start
+// with '-' (negative numbers), because an option that takes a value always takes the next token.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/core/expected.h"
+
+namespace vsurg::cli {
+
+class ArgParser {
+ public:
+  enum class Kind { kDouble, kInt, kString, kFlag };
+
+  // `command` prefixes help and errors ("vsurg-sim coil"); `summary` is one line of help.
+  ArgParser(std::string command, std::string summary);
+
+  // `default_value` empty and `required` false: the option is optional with no default.
+  ArgParser& Option(const std::string& name, Kind kind, const std::string& help, bool required = false,
+                    const std::string& default_value = "");
+
+  // Parses args (without the program and command names). `--help` is always accepted.
+  Status Parse(const std::vector<std::string>& args);
+
+  bool HelpRequested() const { return help_; }
+  std::string Help() const;
+  const std::string& command() const { return command_; }
+
+  bool Has(const std::string& name) const;
+  double Double(const std::string& name) const;  // after a successful Parse
+  int Int(const std::string& name) const;
+  std::string String(const std::string& name) const;
+  bool Flag(const std::string& name) const { return Has(name); }
+
+ private:
+  struct Spec {
+    Kind kind;
+    std::string help;
+    bool required;
+    std::string default_value;
+  };
+  std::string command_, summary_;
+  std::vector<std::string> order_;
+  std::map<std::string, Spec> specs_;
+  std::map<std::string, std::string> values_;
+  bool help_ = false;
+};
+
+}  // namespace vsurg::cli

@@ -1,0 +1,135 @@
+#include "common/tissue/coil_deformation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include <Eigen/Geometry>
+
+namespace vsurg::tissue {
+
+using geometry::Vec3;
+
+namespace {
+// Vertices whose ρ differ by less than this share one angle (1 nm: far below any mesh spacing;
+// the angle error it allows is slope × 1 nm).
+constexpr double kGroupTolerance = 1e-9;
+}  // namespace
+
+void CoilDeformer::Bind(const std::vector<Vec3>& rest, const std::vector<double>& rho,
+                        const std::vector<Vec3>& foot, const std::vector<Vec3>& axis) {
+  const int n = static_cast<int>(rest.size());
+  rest_ = rest;
+  deformed_ = rest;
+  rho_by_vertex_ = rho;
+  state_ = model_.MakeState();
+  std::vector<int32_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return rho[a] < rho[b]; });
+  vertex_ = order;
+  for (auto* v : {&dx_, &dy_, &dz_, &qx_, &qy_, &qz_}) v->resize(n);
+  group_rho_.clear();
+  group_begin_.clear();
+  for (int row = 0; row < n; ++row) {
+    const int v = order[row];
+    Vec3 d = rest[v] - foot[v];
+    d -= d.dot(axis[v]) * axis[v];  // keep only the part ⊥ axis: the rotation preserves |d|
+    const Vec3 q = axis[v].cross(d);
+    dx_[row] = d.x(), dy_[row] = d.y(), dz_[row] = d.z();
+    qx_[row] = q.x(), qy_[row] = q.y(), qz_[row] = q.z();
+    if (group_rho_.empty() || !(rho[v] - group_rho_.back() <= kGroupTolerance)) {
+      group_rho_.push_back(rho[v]);
+      group_begin_.push_back(row);
+    }
+  }
+  group_begin_.push_back(n);
+  moved_groups_ = 0;
+}
+
+Expected<CoilDeformer> CoilDeformer::CreateForLimb(const CoilSpringModel& model,
+                                                   const std::vector<Vec3>& rest,
+                                                   const std::vector<Vec3>& centreline,
+                                                   double grasp_arc_length) {
+  if (rest.empty()) return InvalidArgument("mesh", "mesh has no vertices");
+  auto proj = geometry::ProjectOntoPolyline(rest, centreline);
+  if (!proj.ok()) return proj.error();
+  const double length = geometry::ArcLengths(centreline).back();
+  if (!std::isfinite(grasp_arc_length) || grasp_arc_length < 0 || grasp_arc_length > length) {
+    return InvalidArgument("grasp", "grasp position along the centreline must be in [0, " +
+                                        std::to_string(length) + "] m");
+  }
+  const int n = static_cast<int>(rest.size());
+  std::vector<double> rho(n);
+  std::vector<Vec3> foot(n), axis(n);
+  for (int v = 0; v < n; ++v) {
+    if (!rest[v].allFinite()) return InvalidArgument("mesh", "vertex " + std::to_string(v) + " is not finite");
+    rho[v] = std::abs((*proj)[v].s - grasp_arc_length);
+    foot[v] = (*proj)[v].point;
+    axis[v] = (*proj)[v].tangent;
+  }
+  CoilDeformer d(model, TwistMode::kLimb);
+  d.Bind(rest, rho, foot, axis);
+  return d;
+}
+
+Expected<CoilDeformer> CoilDeformer::CreateForSurface(const CoilSpringModel& model,
+                                                      const geometry::TriMesh& rest,
+                                                      const geometry::SurfacePoint& grasp,
+                                                      geometry::GeodesicMethod method) {
+  auto dist = geometry::GeodesicDistances(rest, grasp, method);
+  if (!dist.ok()) return dist.error();
+  const Vec3 g = geometry::PositionOf(rest, grasp);
+  const Vec3 axis_dir = geometry::NormalOf(rest, grasp);
+  if (!(axis_dir.norm() > 0.5)) {
+    return InvalidArgument("grasp", "the grasp triangle is degenerate: no surface normal");
+  }
+  const int n = rest.VertexCount();
+  std::vector<Vec3> foot(n), axis(n, axis_dir);
+  for (int v = 0; v < n; ++v) foot[v] = g + (rest.positions[v] - g).dot(axis_dir) * axis_dir;
+  CoilDeformer d(model, TwistMode::kSurface);
+  d.Bind(rest.positions, *dist, foot, axis);
+  return d;
+}
+
+DeformStats CoilDeformer::Update(double torque) {
+  model_.Forward(torque, state_);
+  return Apply(state_);
+}
+
+DeformStats CoilDeformer::Apply(const CoilState& state) {
+  if (&state != &state_) state_ = state;  // same sizes: no allocation
+  const int p = state.cutoff;
+  const double cutoff_radius = p > 0 ? model_.RingRadius(p) : 0.0;
+  // Groups strictly inside R_P turn (θ(R_P) = 0); a zero twist moves nothing.
+  int groups = 0;
+  if (p > 0 && state.total_twist != 0) {
+    groups = static_cast<int>(std::lower_bound(group_rho_.begin(), group_rho_.end(), cutoff_radius) -
+                              group_rho_.begin());
+  }
+  for (int g = 0; g < groups; ++g) {
+    const double theta = model_.TwistAt(group_rho_[g], state);
+    const double cm1 = std::cos(theta) - 1.0, sn = std::sin(theta);
+    for (int row = group_begin_[g]; row < group_begin_[g + 1]; ++row) {
+      const Vec3& x = rest_[vertex_[row]];
+      deformed_[vertex_[row]] = Vec3(x.x() + dx_[row] * cm1 + qx_[row] * sn,
+                                     x.y() + dy_[row] * cm1 + qy_[row] * sn,
+                                     x.z() + dz_[row] * cm1 + qz_[row] * sn);
+    }
+  }
+  // Put back at rest what the previous update moved and this one does not.
+  for (int row = group_begin_[groups]; row < group_begin_[std::max(groups, moved_groups_)]; ++row) {
+    deformed_[vertex_[row]] = rest_[vertex_[row]];
+  }
+  DeformStats stats;
+  stats.cutoff = p;
+  stats.overload = state.overload;
+  stats.torque = state.torque;
+  stats.total_twist = state.total_twist;
+  stats.moved_vertices = group_begin_[groups];
+  stats.touched_vertices = group_begin_[std::max(groups, moved_groups_)];
+  moved_groups_ = groups;
+  return stats;
+}
+
+}  // namespace vsurg::tissue

@@ -1,0 +1,97 @@
+// Mesh deformation by the coil-spring model (DESIGN.md "Model 1", step 7).
+//
+// Every vertex turns about the twist axis by the twist angle at its distance ρ from the grasp:
+// Φ inside the core, the linear interpolation of the boundary angles inside ring k, nothing
+// beyond the cutoff radius R_P. The rotation is about the vertex's own foot point on the axis,
+// so it keeps each vertex's distance to the axis exactly.
+//
+//   limb mode:    ρ = |s − s_grasp|, s the arc length of the vertex's closest centreline point;
+//                 the axis is the centreline (its local tangent through that point).
+//   surface mode: ρ = geodesic distance on the surface from the grasp point; the axis is the
+//                 surface normal at the grasp point, through it.
+//
+// Cost. Binding (Create*) precomputes, per vertex, ρ, the offset d from the axis and q = â × d,
+// and sorts vertices by ρ into groups of equal ρ (a limb's cross-sections). An update then
+// evaluates one angle, one sine and one cosine per group, and x' = x + d·(cos θ − 1) + q·sin θ
+// per vertex, for the groups inside R_P only; vertices that moved at the previous update and
+// are now outside are put back at rest. Nothing beyond the cutoff layer is touched, and nothing
+// allocates.
+//
+// Layout (hot data): the per-vertex rows are in ρ order, structure-of-arrays of doubles
+// (d and q, 48 B/vertex, plus a 4-byte index), so an update streams them front to back;
+// array-of-structs with Eigen vectors measured the same, but SoA keeps the loop vectorisable.
+//
+// Threads: one deformer belongs to one thread (the deformation thread); Update writes its own
+// position buffer, which a reader copies or double-buffers.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/geometry/distances.h"
+#include "common/geometry/mesh.h"
+#include "common/tissue/coil_spring.h"
+
+namespace vsurg::tissue {
+
+enum class TwistMode { kLimb, kSurface };
+
+struct DeformStats {
+  int cutoff = 0;            // P
+  bool overload = false;
+  double torque = 0;         // N·m applied (clamped)
+  double total_twist = 0;    // Φ, rad
+  int moved_vertices = 0;    // vertices with a non-zero rotation after this update
+  int touched_vertices = 0;  // vertices written by this update (moved plus put back at rest)
+};
+
+class CoilDeformer {
+ public:
+  // Limb: rest positions, the centreline polyline and the grasp's arc length along it (m).
+  static Expected<CoilDeformer> CreateForLimb(const CoilSpringModel& model,
+                                              const std::vector<geometry::Vec3>& rest,
+                                              const std::vector<geometry::Vec3>& centreline,
+                                              double grasp_arc_length);
+  // Surface: the mesh at rest, the grasp point on it and the geodesic method.
+  static Expected<CoilDeformer> CreateForSurface(const CoilSpringModel& model,
+                                                 const geometry::TriMesh& rest,
+                                                 const geometry::SurfacePoint& grasp,
+                                                 geometry::GeodesicMethod method);
+
+  // Deforms for a new torque (N·m, signed). Deformation thread; no allocation.
+  DeformStats Update(double torque);
+  // Deforms for a state already evaluated by the same model (e.g. by the haptic path).
+  DeformStats Apply(const CoilState& state);
+
+  const std::vector<geometry::Vec3>& positions() const { return deformed_; }
+  const std::vector<geometry::Vec3>& rest_positions() const { return rest_; }
+  const std::vector<double>& distances() const { return rho_by_vertex_; }  // ρ per vertex, m
+  const CoilState& state() const { return state_; }
+  TwistMode mode() const { return mode_; }
+  const CoilSpringModel& model() const { return model_; }
+
+ private:
+  CoilDeformer(const CoilSpringModel& model, TwistMode mode) : model_(model), mode_(mode) {}
+  // Builds the sorted rows from per-vertex ρ, foot points and axis directions.
+  void Bind(const std::vector<geometry::Vec3>& rest, const std::vector<double>& rho,
+            const std::vector<geometry::Vec3>& foot, const std::vector<geometry::Vec3>& axis);
+
+  CoilSpringModel model_;
+  TwistMode mode_;
+  CoilState state_;
+  std::vector<geometry::Vec3> rest_;
+  std::vector<geometry::Vec3> deformed_;
+  std::vector<double> rho_by_vertex_;
+
+  // Rows in ascending ρ.
+  std::vector<int32_t> vertex_;               // mesh index of row
+  std::vector<double> dx_, dy_, dz_;          // offset from the axis, ⊥ axis, m
+  std::vector<double> qx_, qy_, qz_;          // axis × offset, m
+  // Groups of rows with equal ρ: rows [group_begin_[g], group_begin_[g+1]).
+  std::vector<double> group_rho_;
+  std::vector<int32_t> group_begin_;
+  int moved_groups_ = 0;  // groups written with a non-zero angle by the last update
+};
+
+}  // namespace vsurg::tissue
