@@ -38,7 +38,7 @@ LimbScene Calf() {
   c.max_force = 6.0 / (2.0 * std::numbers::pi * (c.coils * c.core_radius + c.thickness * c.coils * (c.coils + 1) / 2.0));
   c.friction = 1.25;
   // 2.07 N·m turns the ankle end by 30° (0.524 rad). Checked by LimbSceneTest.
-  c.modulus = 2.0250e8;
+  c.modulus = 6.0131e8;
   s.reference = tissue::TaperedShaft{s.limb.length, s.limb.radius_proximal, s.limb.radius_distal, 12e3};
   return s;
 }

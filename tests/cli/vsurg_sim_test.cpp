@@ -1,0 +1,221 @@
+#include "common/cli/vsurg_sim.h"
+
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/geometry/mesh_generators.h"
+#include "common/geometry/obj_io.h"
+
+namespace vsurg::cli {
+namespace {
+
+using json = nlohmann::json;
+
+struct SimRun {
+  int code;
+  std::string out, err;
+};
+
+SimRun Sim(const std::vector<std::string>& args) {
+  std::ostringstream out, err;
+  const int code = RunVsurgSim(args, out, err);
+  return {code, out.str(), err.str()};
+}
+
+const std::vector<std::string> kArm = {"--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06",
+                                       "--coils", "23", "--modulus", "4.253e8", "--max-force", "0.163"};
+
+std::vector<std::string> With(std::vector<std::string> head, const std::vector<std::string>& tail) {
+  head.insert(head.end(), tail.begin(), tail.end());
+  return head;
+}
+
+int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+TEST(VsurgSimTest, CoilJsonHasTheContractKeysConsistentWithEachOther) {
+  const SimRun r = Sim(With({"coil", "--torque", "2.07", "--json"}, kArm));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  for (const char* key : {"P", "overload", "coil_torques", "twist_turns", "twist_angles", "total_twist_rad",
+                          "boundary_angles"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  const int p = j["P"];
+  EXPECT_EQ(p, 18);
+  EXPECT_FALSE(j["overload"].get<bool>());
+  ASSERT_EQ(j["coil_torques"].size(), static_cast<size_t>(p));
+  ASSERT_EQ(j["boundary_angles"].size(), static_cast<size_t>(p + 1));
+  double torque = 0, twist = 0;
+  for (int i = 0; i < p; ++i) {
+    torque += j["coil_torques"][i].get<double>();
+    twist += j["twist_angles"][i].get<double>();
+  }
+  EXPECT_NEAR(torque, 2.07, 1e-12);
+  EXPECT_NEAR(twist, j["total_twist_rad"].get<double>(), 1e-12);
+  EXPECT_EQ(j["boundary_angles"][0].get<double>(), j["total_twist_rad"].get<double>());
+  EXPECT_EQ(j["boundary_angles"][p].get<double>(), 0.0);
+}
+
+TEST(VsurgSimTest, CoilInverseUndoesCoil) {
+  const json fwd = json::parse(Sim(With({"coil", "--torque", "-1.5", "--json"}, kArm)).out);
+  const double twist = fwd["total_twist_rad"];
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", twist);
+  const SimRun r = Sim(With({"coil-inverse", "--twist", buf, "--json"}, kArm));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_NEAR(j["torque"].get<double>(), -1.5, 1e-12);
+  EXPECT_GT(j["stiffness"].get<double>(), 0);
+  EXPECT_EQ(j["P"], fwd["P"]);
+  EXPECT_FALSE(j["overload"].get<bool>());
+  const json over = json::parse(Sim(With({"coil-inverse", "--twist", "100", "--json"}, kArm)).out);
+  EXPECT_TRUE(over["overload"].get<bool>());
+  EXPECT_EQ(over["stiffness"].get<double>(), 0.0);
+}
+
+TEST(VsurgSimTest, FrictionDefaultsToThePapersValue) {
+  const json a = json::parse(Sim(With({"coil", "--torque", "1", "--json"}, kArm)).out);
+  const json b = json::parse(Sim(With({"coil", "--torque", "1", "--json", "--friction", "1.25"}, kArm)).out);
+  const json c = json::parse(Sim(With({"coil", "--torque", "1", "--json", "--friction=2.5"}, kArm)).out);
+  EXPECT_EQ(a["total_twist_rad"], b["total_twist_rad"]);
+  EXPECT_NEAR(c["total_twist_rad"].get<double>(), 2 * a["total_twist_rad"].get<double>(), 1e-12);
+}
+
+TEST(VsurgSimTest, BadArgumentsExitTwoWithOneLineNamingTheArgument) {
+  struct Case {
+    std::vector<std::string> args;
+    std::string expect;  // must appear in the one stderr line
+  };
+  const Case cases[] = {
+      {With({"coil", "--torque", "1"}, {"--thickness", "0.01"}), "--core-radius"},
+      {With({"coil", "--torque", "abc"}, kArm), "--torque: 'abc' is not a finite number"},
+      {With({"coil", "--torque", "nan"}, kArm), "--torque"},
+      {With({"coil", "--torque", "1", "--bogus", "2"}, kArm), "--bogus: unknown option"},
+      {With({"coil", "--torque", "1", "--torque", "2"}, kArm), "--torque: given more than once"},
+      {With({"coil", "--torque", "1", "stray"}, kArm), "unexpected argument 'stray'"},
+      {With({"coil", "--torque"}, {}), "--torque: needs a value"},
+      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "-0.01", "--width", "0.06", "--coils",
+        "23", "--modulus", "4e8", "--max-force", "0.16"},
+       "--thickness: coil thickness h (m) must be finite and > 0"},
+      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06", "--coils",
+        "0", "--modulus", "4e8", "--max-force", "0.16"},
+       "--coils"},
+      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06", "--coils",
+        "2.5", "--modulus", "4e8", "--max-force", "0.16"},
+       "--coils: '2.5' is not an integer"},
+      {With({"coil-inverse", "--twist", "1"}, {"--core-radius", "0.02"}), "--thickness"},
+      {{"deform", "--scene", "spleen", "--out", "x.obj"}, "--scene: unknown scene 'spleen'"},
+      {{"deform", "--scene", "arm"}, "--out: is required"},
+      {{"deform", "--out", "x.obj", "--steps", "0"}, "--steps"},
+      {{"calibrate", "--shear-modulus", "-5"}, "--shear-modulus"},
+      {{"frobnicate"}, "unknown command 'frobnicate'"},
+      {{}, "a command is required"},
+  };
+  for (const Case& c : cases) {
+    const SimRun r = Sim(c.args);
+    EXPECT_EQ(r.code, 2) << c.expect;
+    EXPECT_EQ(Lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << "stderr: " << r.err;
+    EXPECT_TRUE(r.out.empty());
+  }
+}
+
+TEST(VsurgSimTest, EveryCommandHasHelp) {
+  for (const char* cmd : {"coil", "coil-inverse", "deform", "calibrate"}) {
+    const SimRun r = Sim({cmd, "--help"});
+    EXPECT_EQ(r.code, 0);
+    EXPECT_NE(r.out.find(std::string("usage: vsurg-sim ") + cmd), std::string::npos);
+    EXPECT_TRUE(r.err.empty());
+  }
+  const SimRun top = Sim({"--help"});
+  EXPECT_EQ(top.code, 0);
+  EXPECT_NE(top.out.find("coil-inverse"), std::string::npos);
+}
+
+TEST(VsurgSimTest, DeformWritesTheTwistedArmAndReportsEachStep) {
+  const std::string path = (std::filesystem::temp_directory_path() / "vsurg_cli_arm.obj").string();
+  const SimRun r = Sim({"deform", "--scene", "arm", "--torque", "2.07", "--steps", "4", "--out", path, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  ASSERT_EQ(j["steps"].size(), 4u);
+  int prev_p = 0;
+  double prev_twist = 0;
+  for (const json& s : j["steps"]) {
+    EXPECT_GE(s["P"].get<int>(), prev_p);
+    EXPECT_GT(s["total_twist_rad"].get<double>(), prev_twist);
+    EXPECT_FALSE(s["overload"].get<bool>());
+    EXPECT_GT(s["moved_vertices"].get<int>(), 0);
+    prev_p = s["P"];
+    prev_twist = s["total_twist_rad"];
+  }
+  auto mesh = geometry::ReadObj(path);
+  ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+  auto rest = geometry::MakeLimb(geometry::ForearmPreset());
+  ASSERT_EQ(mesh->VertexCount(), rest->surface.VertexCount());
+  EXPECT_EQ(mesh->triangles, rest->surface.triangles);
+  // The wrist ring turned by the reported twist; the elbow ring did not move.
+  const double twist = j["steps"][3]["total_twist_rad"];
+  const int n = rest->params.segments_around, last = (rest->params.rings_along - 1) * n;
+  const geometry::Vec3 w0 = rest->surface.positions[last], w1 = mesh->positions[last];
+  EXPECT_NEAR(std::atan2(w1.y(), w1.x()) - std::atan2(w0.y(), w0.x()), twist, 1e-6);
+  EXPECT_NEAR((mesh->positions[0] - rest->surface.positions[0]).norm(), 0, 1e-9);
+  std::filesystem::remove(path);
+}
+
+TEST(VsurgSimTest, DeformToAnUnwritablePathFailsWithExitOne) {
+  const SimRun r = Sim({"deform", "--out", "/nonexistent/dir/arm.obj"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--out"), std::string::npos);
+}
+
+TEST(VsurgSimTest, CalibrateReportsBothFits) {
+  const SimRun r = Sim({"calibrate", "--scene", "arm", "--max-torque", "0.1", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  const double paper = j["two_parameter"]["profile_rms"], ring = j["per_ring"]["profile_rms"];
+  EXPECT_GT(paper, 0.1);
+  EXPECT_LT(ring, paper);
+  EXPECT_EQ(j["per_ring"]["coil_rigidity"].size(), 23u);
+}
+
+// The real binary, as other tools call it: exit status and streams.
+int RunBinary(const std::string& args, std::string& out, std::string& err) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string o = (dir / "vsurg_sim_out.txt").string(), e = (dir / "vsurg_sim_err.txt").string();
+  const int status = std::system((std::string(VSURG_SIM_BINARY) + " " + args + " >" + o + " 2>" + e).c_str());
+  auto slurp = [](const std::string& p) {
+    std::ifstream in(p);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  out = slurp(o);
+  err = slurp(e);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(VsurgSimBinaryTest, ExitCodesAndStreams) {
+  std::string out, err;
+  EXPECT_EQ(RunBinary("coil --torque 2.07 --core-radius 0.02 --thickness 0.01 --width 0.06 --coils 23 "
+                      "--modulus 4.253e8 --max-force 0.163 --json",
+                      out, err),
+            0);
+  EXPECT_EQ(json::parse(out)["P"], 18);
+  EXPECT_EQ(RunBinary("coil --torque 1 --core-radius 0 --thickness 0.01 --width 0.06 --coils 23 "
+                      "--modulus 4e8 --max-force 0.1",
+                      out, err),
+            2);
+  EXPECT_EQ(Lines(err), 1);
+  EXPECT_NE(err.find("--core-radius"), std::string::npos);
+  EXPECT_EQ(RunBinary("deform --help", out, err), 0);
+  EXPECT_NE(out.find("--scene"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vsurg::cli
