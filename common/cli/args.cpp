@@ -24,8 +24,8 @@ bool ToInt(const std::string& s, int& out) {
 ArgParser::ArgParser(std::string command, std::string summary)
     : command_(std::move(command)), summary_(std::move(summary)) {}
 
-ArgParser& ArgParser::Option(const std::string& name, Kind kind, const std::string& help, bool required,
-                             const std::string& default_value) {
+ArgParser& ArgParser::Option(const std::string& name, Kind kind, const std::string& help,
+                             bool required, const std::string& default_value) {
   order_.push_back(name);
   specs_[name] = Spec{kind, help, required, default_value};
   return *this;
@@ -65,10 +65,12 @@ Status ArgParser::Parse(const std::vector<std::string>& args) {
     }
     if (spec.kind == Kind::kDouble) {
       double d;
-      if (!ToDouble(value, d)) return InvalidArgument("--" + name, "'" + value + "' is not a finite number");
+      if (!ToDouble(value, d))
+        return InvalidArgument("--" + name, "'" + value + "' is not a finite number");
     } else if (spec.kind == Kind::kInt) {
       int n;
-      if (!ToInt(value, n)) return InvalidArgument("--" + name, "'" + value + "' is not an integer");
+      if (!ToInt(value, n))
+        return InvalidArgument("--" + name, "'" + value + "' is not an integer");
     } else if (value.empty()) {
       return InvalidArgument("--" + name, "needs a non-empty value");
     }
@@ -82,7 +84,9 @@ Status ArgParser::Parse(const std::vector<std::string>& args) {
   return Status::Ok();
 }
 
-bool ArgParser::Has(const std::string& name) const { return values_.count(name) > 0; }
+bool ArgParser::Has(const std::string& name) const {
+  return values_.count(name) > 0;
+}
 
 std::string ArgParser::String(const std::string& name) const {
   const auto it = values_.find(name);

@@ -23,8 +23,8 @@ class ArgParser {
   ArgParser(std::string command, std::string summary);
 
   // `default_value` empty and `required` false: the option is optional with no default.
-  ArgParser& Option(const std::string& name, Kind kind, const std::string& help, bool required = false,
-                    const std::string& default_value = "");
+  ArgParser& Option(const std::string& name, Kind kind, const std::string& help,
+                    bool required = false, const std::string& default_value = "");
 
   // Parses args (without the program and command names). `--help` is always accepted.
   Status Parse(const std::vector<std::string>& args);

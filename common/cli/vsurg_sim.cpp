@@ -28,8 +28,12 @@ constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
 // Model parameter field → the option that sets it, so model validation errors name the option.
 const std::map<std::string, std::string> kCoilFieldToOption = {
-    {"core_radius", "--core-radius"}, {"thickness", "--thickness"}, {"width", "--width"},
-    {"coils", "--coils"},             {"modulus", "--modulus"},     {"max_force", "--max-force"},
+    {"core_radius", "--core-radius"},
+    {"thickness", "--thickness"},
+    {"width", "--width"},
+    {"coils", "--coils"},
+    {"modulus", "--modulus"},
+    {"max_force", "--max-force"},
     {"friction", "--friction"},
 };
 
@@ -61,7 +65,8 @@ Expected<tissue::CoilSpringModel> CoilFromArgs(const ArgParser& p) {
   auto model = tissue::CoilSpringModel::Create(c);
   if (!model.ok()) {
     Error e = model.error();
-    if (auto it = kCoilFieldToOption.find(e.field); it != kCoilFieldToOption.end()) e.field = it->second;
+    if (auto it = kCoilFieldToOption.find(e.field); it != kCoilFieldToOption.end())
+      e.field = it->second;
     return e;
   }
   return model;
@@ -69,7 +74,8 @@ Expected<tissue::CoilSpringModel> CoilFromArgs(const ArgParser& p) {
 
 // Parses; on --help prints help and returns 0; on error prints one line and returns 2.
 // Returns -1 when the command should go on.
-int ParseOrExit(ArgParser& p, const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+int ParseOrExit(ArgParser& p, const std::vector<std::string>& args, std::ostream& out,
+                std::ostream& err) {
   if (Status s = p.Parse(args); !s.ok()) return UsageError(err, p.command(), s.error());
   if (p.HelpRequested()) {
     out << p.Help();
@@ -78,12 +84,15 @@ int ParseOrExit(ArgParser& p, const std::vector<std::string>& args, std::ostream
   return -1;
 }
 
-std::vector<double> Head(const std::vector<double>& v, int n) { return {v.begin(), v.begin() + n}; }
+std::vector<double> Head(const std::vector<double>& v, int n) {
+  return {v.begin(), v.begin() + n};
+}
 
 int Coil(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-sim coil",
-              "Forward coil-spring torsion model (seed 000 eq. 1-7): the cutoff layer, per-coil torques,\n"
-              "turns and twist angles, and the boundary angles for a torque M (N*m, signed).");
+  ArgParser p(
+      "vsurg-sim coil",
+      "Forward coil-spring torsion model (seed 000 eq. 1-7): the cutoff layer, per-coil torques,\n"
+      "turns and twist angles, and the boundary angles for a torque M (N*m, signed).");
   p.Option("torque", Kind::kDouble, "applied torque M, N*m", true);
   AddCoilOptions(p);
   if (int rc = ParseOrExit(p, args, out, err); rc >= 0) return rc;
@@ -108,12 +117,15 @@ int Coil(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     return 0;
   }
   char line[256];
-  std::snprintf(line, sizeof line, "cutoff layer P = %d of %d (R_P = %.4g m)%s\n", n, model->coils(),
-                n > 0 ? model->RingRadius(n) : 0.0, st.overload ? "  OVERLOAD: torque clamped to capacity" : "");
+  std::snprintf(line, sizeof line, "cutoff layer P = %d of %d (R_P = %.4g m)%s\n", n,
+                model->coils(), n > 0 ? model->RingRadius(n) : 0.0,
+                st.overload ? "  OVERLOAD: torque clamped to capacity" : "");
   out << line;
-  std::snprintf(line, sizeof line, "torque %.6g N*m applied (capacity %.6g N*m)\n", st.torque, model->Capacity());
+  std::snprintf(line, sizeof line, "torque %.6g N*m applied (capacity %.6g N*m)\n", st.torque,
+                model->Capacity());
   out << line;
-  std::snprintf(line, sizeof line, "total twist %.6g rad (%.3f deg)\n", st.total_twist, st.total_twist * kRadToDeg);
+  std::snprintf(line, sizeof line, "total twist %.6g rad (%.3f deg)\n", st.total_twist,
+                st.total_twist * kRadToDeg);
   out << line;
   out << "coil  torque_Nm      turns          angle_rad\n";
   for (int i = 0; i < n; ++i) {
@@ -125,9 +137,10 @@ int Coil(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
 }
 
 int CoilInverse(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-sim coil-inverse",
-              "Inverse coil-spring model: the torque (N*m) and stiffness (N*m/rad) the tissue answers\n"
-              "to an imposed twist PHI (rad, signed), in closed form.");
+  ArgParser p(
+      "vsurg-sim coil-inverse",
+      "Inverse coil-spring model: the torque (N*m) and stiffness (N*m/rad) the tissue answers\n"
+      "to an imposed twist PHI (rad, signed), in closed form.");
   p.Option("twist", Kind::kDouble, "imposed twist PHI, rad", true);
   AddCoilOptions(p);
   if (int rc = ParseOrExit(p, args, out, err); rc >= 0) return rc;
@@ -145,8 +158,8 @@ int CoilInverse(const std::vector<std::string>& args, std::ostream& out, std::os
     return 0;
   }
   char line[256];
-  std::snprintf(line, sizeof line, "torque %.6g N*m, stiffness %.6g N*m/rad, P = %d%s\n", r.torque, r.stiffness,
-                r.cutoff, r.overload ? "  OVERLOAD: twist past capacity" : "");
+  std::snprintf(line, sizeof line, "torque %.6g N*m, stiffness %.6g N*m/rad, P = %d%s\n", r.torque,
+                r.stiffness, r.cutoff, r.overload ? "  OVERLOAD: twist past capacity" : "");
   out << line;
   return 0;
 }
@@ -162,14 +175,16 @@ Expected<sim::LimbScene> SceneFromArgs(const ArgParser& p) {
 }
 
 int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-sim deform",
-              "Twists a built-in limb scene with the coil-spring model, grasped at its distal end and\n"
-              "fixed at its proximal end, ramping the torque in equal steps; prints per step the cutoff\n"
-              "layer, the total twist, the overload flag and how many vertices moved, then writes the\n"
-              "deformed mesh as OBJ.");
+  ArgParser p(
+      "vsurg-sim deform",
+      "Twists a built-in limb scene with the coil-spring model, grasped at its distal end and\n"
+      "fixed at its proximal end, ramping the torque in equal steps; prints per step the cutoff\n"
+      "layer, the total twist, the overload flag and how many vertices moved, then writes the\n"
+      "deformed mesh as OBJ.");
   p.Option("scene", Kind::kString, "built-in scene: arm or calf", false, "arm")
       .Option("torque", Kind::kDouble, "final torque, N*m", false, "the scene's, 2.07")
-      .Option("steps", Kind::kInt, "torque steps from torque/steps to torque, 1..100000", false, "1")
+      .Option("steps", Kind::kInt, "torque steps from torque/steps to torque, 1..100000", false,
+              "1")
       .Option("out", Kind::kString, "OBJ file to write the deformed mesh to", true)
       .Option("json", Kind::kFlag, "print one JSON object");
   if (int rc = ParseOrExit(p, args, out, err); rc >= 0) return rc;
@@ -182,16 +197,18 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
   const double torque = p.Has("torque") ? p.Double("torque") : scene->default_torque;
   auto inst = sim::Instantiate(*scene);
   if (!inst.ok()) {
-    err << p.command() << ": cannot build scene '" << scene->name << "': " << inst.error().message << "\n";
+    err << p.command() << ": cannot build scene '" << scene->name << "': " << inst.error().message
+        << "\n";
     return kExitRuntime;
   }
   const bool as_json = p.Flag("json");
   json j_steps = json::array();
   if (!as_json) {
     char line[256];
-    std::snprintf(line, sizeof line, "scene %s: %d vertices, %d triangles, %d coils, capacity %.4g N*m\n",
-                  scene->name.c_str(), inst->limb.surface.VertexCount(), inst->limb.surface.TriangleCount(),
-                  inst->model.coils(), inst->model.Capacity());
+    std::snprintf(line, sizeof line,
+                  "scene %s: %d vertices, %d triangles, %d coils, capacity %.4g N*m\n",
+                  scene->name.c_str(), inst->limb.surface.VertexCount(),
+                  inst->limb.surface.TriangleCount(), inst->model.coils(), inst->model.Capacity());
     out << line << "step  torque_Nm   P   twist_rad   twist_deg  overload  moved_vertices\n";
   }
   tissue::DeformStats stats;
@@ -200,7 +217,8 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
     const double m = torque * k / steps;
     const auto t0 = std::chrono::steady_clock::now();
     stats = inst->deformer.Update(m);
-    update_us_total += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+    update_us_total +=
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
     if (as_json) {
       j_steps.push_back({{"step", k},
                          {"torque", stats.torque},
@@ -211,8 +229,8 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
                          {"moved_vertices", stats.moved_vertices}});
     } else {
       char line[256];
-      std::snprintf(line, sizeof line, "%4d  %-10.4g  %2d  %-10.5g  %-9.3f  %-8s  %d\n", k, stats.torque,
-                    stats.cutoff, stats.total_twist, stats.total_twist * kRadToDeg,
+      std::snprintf(line, sizeof line, "%4d  %-10.4g  %2d  %-10.5g  %-9.3f  %-8s  %d\n", k,
+                    stats.torque, stats.cutoff, stats.total_twist, stats.total_twist * kRadToDeg,
                     stats.overload ? "yes" : "no", stats.moved_vertices);
       out << line;
     }
@@ -222,8 +240,10 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
   geometry::ComputeVertexNormals(deformed);
   const std::string path = p.String("out");
   char comment[256];
-  std::snprintf(comment, sizeof comment, "vsurg %s twisted by %.6g N*m: P=%d twist=%.6g rad overload=%s",
-                scene->name.c_str(), stats.torque, stats.cutoff, stats.total_twist, stats.overload ? "yes" : "no");
+  std::snprintf(comment, sizeof comment,
+                "vsurg %s twisted by %.6g N*m: P=%d twist=%.6g rad overload=%s",
+                scene->name.c_str(), stats.torque, stats.cutoff, stats.total_twist,
+                stats.overload ? "yes" : "no");
   if (Status s = geometry::WriteObj(deformed, path, comment); !s.ok()) {
     err << p.command() << ": --out: " << s.error().message << "\n";
     return kExitRuntime;
@@ -244,13 +264,14 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
   return 0;
 }
 
-// Saint-Venant reference for the scene's limb: the torque–twist curve at 8 torques up to
-// max_torque and the profile along the limb at each of them.
-tissue::CalibrationReference SaintVenantReference(const tissue::TaperedShaft& shaft, double max_torque) {
+// Saint-Venant reference for the scene's limb: the torque–twist curve at `torques` torques
+// evenly up to max_torque and the profile along the limb (26 samples) at each of them.
+tissue::CalibrationReference SaintVenantReference(const tissue::TaperedShaft& shaft,
+                                                  double max_torque, int torques) {
   tissue::CalibrationReference ref;
-  constexpr int kTorques = 8, kSamples = 26;
-  for (int k = 1; k <= kTorques; ++k) {
-    const double m = max_torque * k / kTorques;
+  constexpr int kSamples = 26;
+  for (int k = 1; k <= torques; ++k) {
+    const double m = max_torque * k / torques;
     ref.curve_torque.push_back(m);
     ref.curve_twist.push_back(tissue::SaintVenantTwistFromGrasp(shaft, m, 0.0));
     tissue::TwistProfile prof;
@@ -279,13 +300,17 @@ json FitJson(const tissue::CalibrationFit& f) {
 }
 
 int Calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-sim calibrate",
-              "Fits the coil model of a built-in limb scene to Saint-Venant torsion of the same tapered\n"
-              "limb (fixed proximal end, torque at the distal end), twice: the paper's two parameters\n"
-              "(E*I and F_t) and a per-ring rigidity. Prints the fitted values and the residuals\n"
-              "(relative to the reference's largest twist) of the torque-twist curve and the profiles.");
+  ArgParser p(
+      "vsurg-sim calibrate",
+      "Fits the coil model of a built-in limb scene to Saint-Venant torsion of the same tapered\n"
+      "limb (fixed proximal end, torque at the distal end), twice: the paper's two parameters\n"
+      "(E*I and F_t) and a per-ring rigidity. Prints the fitted values and the residuals\n"
+      "(relative to the reference's largest twist) of the torque-twist curve and the profiles.");
   p.Option("scene", Kind::kString, "built-in scene: arm or calf", false, "arm")
-      .Option("max-torque", Kind::kDouble, "largest reference torque, N*m", false, "the scene's, 2.07")
+      .Option("max-torque", Kind::kDouble, "largest reference torque, N*m", false,
+              "the scene's, 2.07")
+      .Option("torques", Kind::kInt, "reference torques, evenly up to the largest, 1..1000", false,
+              "8")
       .Option("shear-modulus", Kind::kDouble, "reference shear modulus G, Pa", false, "12000")
       .Option("json", Kind::kFlag, "print one JSON object");
   if (int rc = ParseOrExit(p, args, out, err); rc >= 0) return rc;
@@ -297,12 +322,18 @@ int Calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostr
     return UsageError(err, p.command(), InvalidArgument("--shear-modulus", "must be > 0 Pa"));
   }
   const double max_torque = p.Has("max-torque") ? p.Double("max-torque") : scene->default_torque;
-  if (!(max_torque > 0)) return UsageError(err, p.command(), InvalidArgument("--max-torque", "must be > 0 N*m"));
-  const tissue::CalibrationReference ref = SaintVenantReference(shaft, max_torque);
+  if (!(max_torque > 0))
+    return UsageError(err, p.command(), InvalidArgument("--max-torque", "must be > 0 N*m"));
+  const int torques = p.Has("torques") ? p.Int("torques") : 8;
+  if (torques < 1 || torques > 1000) {
+    return UsageError(err, p.command(), InvalidArgument("--torques", "must be in 1..1000"));
+  }
+  const tissue::CalibrationReference ref = SaintVenantReference(shaft, max_torque, torques);
   auto paper = tissue::CalibrateTwoParameter(scene->coil, ref);
   auto per_ring = tissue::CalibratePerRing(scene->coil, ref);
   if (!paper.ok() || !per_ring.ok()) {
-    err << p.command() << ": calibration failed: " << (paper.ok() ? per_ring.error() : paper.error()).message
+    err << p.command()
+        << ": calibration failed: " << (paper.ok() ? per_ring.error() : paper.error()).message
         << "\n";
     return kExitRuntime;
   }
@@ -312,6 +343,7 @@ int Calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostr
     j["reference"] = {{"model", "saint-venant"},
                       {"shear_modulus", shaft.shear_modulus},
                       {"max_torque", max_torque},
+                      {"torques", torques},
                       {"twist_at_max_torque", ref.curve_twist.back()}};
     j["two_parameter"] = FitJson(*paper);
     j["per_ring"] = FitJson(*per_ring);
@@ -319,14 +351,17 @@ int Calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostr
     return 0;
   }
   char line[320];
-  std::snprintf(line, sizeof line, "reference: Saint-Venant, G = %.6g Pa, torques up to %.4g N*m (twist %.4g rad)\n",
-                shaft.shear_modulus, max_torque, ref.curve_twist.back());
+  std::snprintf(
+      line, sizeof line,
+      "reference: Saint-Venant, G = %.6g Pa, %d torques up to %.4g N*m (twist %.4g rad)\n",
+      shaft.shear_modulus, torques, max_torque, ref.curve_twist.back());
   out << line;
   auto row = [&](const char* name, const tissue::CalibrationFit& f) {
     std::snprintf(line, sizeof line,
-                  "%-13s E*I %.4g N*m^2, F_t %.4g N: curve rms %.1f%% max %.1f%%; profile rms %.1f%% max %.1f%%\n",
-                  name, f.flexural_rigidity, f.max_force, 100 * f.curve_rms, 100 * f.curve_max, 100 * f.profile_rms,
-                  100 * f.profile_max);
+                  "%-13s E*I %.4g N*m^2, F_t %.4g N: curve rms %.1f%% max %.1f%%; profile rms "
+                  "%.1f%% max %.1f%%\n",
+                  name, f.flexural_rigidity, f.max_force, 100 * f.curve_rms, 100 * f.curve_max,
+                  100 * f.profile_rms, 100 * f.profile_max);
     out << line;
   };
   row("two-parameter", *paper);
@@ -361,7 +396,8 @@ int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cmd == "coil-inverse") return CoilInverse(rest, out, err);
   if (cmd == "deform") return Deform(rest, out, err);
   if (cmd == "calibrate") return Calibrate(rest, out, err);
-  err << "vsurg-sim: unknown command '" << cmd << "' (coil, coil-inverse, deform, calibrate; see --help)\n";
+  err << "vsurg-sim: unknown command '" << cmd
+      << "' (coil, coil-inverse, deform, calibrate; see --help)\n";
   return kExitUsage;
 }
 

@@ -80,7 +80,8 @@ std::vector<double> DijkstraFrom(const TriMesh& mesh, const VertexAdjacency& adj
 std::vector<std::pair<int, double>> Seeds(const TriMesh& mesh, const SurfacePoint& source) {
   const Vec3 p = PositionOf(mesh, source);
   std::vector<std::pair<int, double>> seeds;
-  for (int v : mesh.triangles[source.triangle]) seeds.emplace_back(v, (mesh.positions[v] - p).norm());
+  for (int v : mesh.triangles[source.triangle])
+    seeds.emplace_back(v, (mesh.positions[v] - p).norm());
   return seeds;
 }
 
@@ -107,7 +108,8 @@ Expected<std::vector<double>> HeatFrom(const TriMesh& mesh, const SurfacePoint& 
     if (!(twice_area > 1e-300)) continue;  // a zero-area face carries no diffusion
     for (int k = 0; k < 3; ++k) {
       const int i = t[k], j = t[(k + 1) % 3], o = t[(k + 2) % 3];
-      const Vec3 u = mesh.positions[i] - mesh.positions[o], w = mesh.positions[j] - mesh.positions[o];
+      const Vec3 u = mesh.positions[i] - mesh.positions[o],
+                 w = mesh.positions[j] - mesh.positions[o];
       const double cot = u.dot(w) / twice_area;  // cot of the angle at o, opposite edge ij
       cots[f][(k + 2) % 3] = cot;
       lap.emplace_back(i, j, -0.5 * cot);
@@ -167,7 +169,8 @@ Expected<std::vector<double>> HeatFrom(const TriMesh& mesh, const SurfacePoint& 
   }
   const Eigen::VectorXd phi = poisson_solver.solve(-div);
   double at_source = 0;
-  for (int k = 0; k < 3; ++k) at_source += source.barycentric[k] * phi[mesh.triangles[source.triangle][k]];
+  for (int k = 0; k < 3; ++k)
+    at_source += source.barycentric[k] * phi[mesh.triangles[source.triangle][k]];
   std::vector<double> dist(n);
   for (int i = 0; i < n; ++i) {
     if (!std::isfinite(reachable_dijkstra[i])) {
@@ -186,18 +189,20 @@ Expected<std::vector<double>> HeatFrom(const TriMesh& mesh, const SurfacePoint& 
 
 std::vector<double> ArcLengths(const std::vector<Vec3>& polyline) {
   std::vector<double> s(polyline.size(), 0.0);
-  for (size_t i = 1; i < polyline.size(); ++i) s[i] = s[i - 1] + (polyline[i] - polyline[i - 1]).norm();
+  for (size_t i = 1; i < polyline.size(); ++i)
+    s[i] = s[i - 1] + (polyline[i] - polyline[i - 1]).norm();
   return s;
 }
 
 Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vector<Vec3>& points,
-                                                                 const std::vector<Vec3>& polyline) {
-  if (polyline.size() < 2) return InvalidArgument("centreline", "centreline needs at least 2 points");
+                                                                const std::vector<Vec3>& polyline) {
+  if (polyline.size() < 2)
+    return InvalidArgument("centreline", "centreline needs at least 2 points");
   const std::vector<double> s = ArcLengths(polyline);
   for (size_t i = 0; i + 1 < polyline.size(); ++i) {
     if (!((polyline[i + 1] - polyline[i]).norm() > 0)) {
-      return InvalidArgument("centreline", "centreline point " + std::to_string(i + 1) +
-                                               " repeats the one before it");
+      return InvalidArgument(
+          "centreline", "centreline point " + std::to_string(i + 1) + " repeats the one before it");
     }
   }
   std::vector<CentrelineProjection> out(points.size());
@@ -226,8 +231,10 @@ Expected<SurfacePoint> ClosestSurfacePoint(const TriMesh& mesh, const Vec3& p) {
   double best_d2 = kInf;
   for (int f = 0; f < mesh.TriangleCount(); ++f) {
     const Triangle& t = mesh.triangles[f];
-    const Vec3 w = ClosestBarycentric(p, mesh.positions[t[0]], mesh.positions[t[1]], mesh.positions[t[2]]);
-    const Vec3 c = w[0] * mesh.positions[t[0]] + w[1] * mesh.positions[t[1]] + w[2] * mesh.positions[t[2]];
+    const Vec3 w =
+        ClosestBarycentric(p, mesh.positions[t[0]], mesh.positions[t[1]], mesh.positions[t[2]]);
+    const Vec3 c =
+        w[0] * mesh.positions[t[0]] + w[1] * mesh.positions[t[1]] + w[2] * mesh.positions[t[2]];
     const double d2 = (c - p).squaredNorm();
     if (d2 < best_d2) {
       best_d2 = d2;
@@ -243,7 +250,9 @@ Vec3 PositionOf(const TriMesh& mesh, const SurfacePoint& sp) {
          sp.barycentric[2] * mesh.positions[t[2]];
 }
 
-Vec3 NormalOf(const TriMesh& mesh, const SurfacePoint& sp) { return TriangleNormal(mesh, sp.triangle); }
+Vec3 NormalOf(const TriMesh& mesh, const SurfacePoint& sp) {
+  return TriangleNormal(mesh, sp.triangle);
+}
 
 Expected<std::vector<double>> GeodesicDistances(const TriMesh& mesh, const SurfacePoint& source,
                                                 GeodesicMethod method) {

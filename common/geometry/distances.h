@@ -28,7 +28,7 @@ std::vector<double> ArcLengths(const std::vector<Vec3>& polyline);
 // Projects every point onto the polyline (at least two distinct vertices). Brute force over
 // segments: O(points × segments), fine at set-up for limbs of a few hundred rings.
 Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vector<Vec3>& points,
-                                                                 const std::vector<Vec3>& polyline);
+                                                                const std::vector<Vec3>& polyline);
 
 // A point on a surface: a triangle and barycentric weights (w0 + w1 + w2 = 1).
 struct SurfacePoint {

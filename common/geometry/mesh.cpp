@@ -11,7 +11,9 @@
 namespace vsurg::geometry {
 namespace {
 
-bool Finite(const Vec3& p) { return std::isfinite(p.x()) && std::isfinite(p.y()) && std::isfinite(p.z()); }
+bool Finite(const Vec3& p) {
+  return std::isfinite(p.x()) && std::isfinite(p.y()) && std::isfinite(p.z());
+}
 
 Status CheckPositions(const std::vector<Vec3>& positions) {
   for (size_t i = 0; i < positions.size(); ++i) {
@@ -36,7 +38,8 @@ Status Validate(const TriMesh& mesh) {
     for (int k = 0; k < 3; ++k) {
       if (tri[k] < 0 || tri[k] >= n) {
         return InvalidArgument("triangles", "triangle " + std::to_string(t) + " refers to vertex " +
-                                                std::to_string(tri[k]) + " of " + std::to_string(n));
+                                                std::to_string(tri[k]) + " of " +
+                                                std::to_string(n));
       }
     }
     if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {

@@ -21,16 +21,16 @@ using Triangle = std::array<int, 3>;
 using Tetrahedron = std::array<int, 4>;
 
 struct TriMesh {
-  std::vector<Vec3> positions;       // m
-  std::vector<Triangle> triangles;   // indices into positions, counter-clockwise from outside
-  std::vector<Vec3> normals;         // per vertex, unit; empty until ComputeVertexNormals
+  std::vector<Vec3> positions;      // m
+  std::vector<Triangle> triangles;  // indices into positions, counter-clockwise from outside
+  std::vector<Vec3> normals;        // per vertex, unit; empty until ComputeVertexNormals
 
   int VertexCount() const { return static_cast<int>(positions.size()); }
   int TriangleCount() const { return static_cast<int>(triangles.size()); }
 };
 
 struct TetMesh {
-  std::vector<Vec3> positions;         // m
+  std::vector<Vec3> positions;          // m
   std::vector<Tetrahedron> tetrahedra;  // positive orientation (see above)
 
   int VertexCount() const { return static_cast<int>(positions.size()); }
@@ -68,10 +68,10 @@ std::vector<std::array<int, 2>> UniqueEdges(const TriMesh& mesh);
 // Topology report: a closed, consistently oriented 2-manifold has every undirected edge in
 // exactly two triangles that traverse it in opposite directions.
 struct TopologyReport {
-  int boundary_edges = 0;       // edges used by one triangle
-  int non_manifold_edges = 0;   // edges used by three or more triangles
-  int misoriented_edges = 0;    // edges two triangles traverse in the same direction
-  int euler_characteristic = 0; // V − E + F
+  int boundary_edges = 0;        // edges used by one triangle
+  int non_manifold_edges = 0;    // edges used by three or more triangles
+  int misoriented_edges = 0;     // edges two triangles traverse in the same direction
+  int euler_characteristic = 0;  // V − E + F
   bool Closed() const { return boundary_edges == 0 && non_manifold_edges == 0; }
   bool ConsistentlyOriented() const { return misoriented_edges == 0; }
 };

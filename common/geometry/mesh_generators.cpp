@@ -13,7 +13,7 @@ constexpr int kMaxSphereLevels = 8;  // 262146 vertices from an octahedron: far 
 
 TriMesh BaseOctahedron() {
   TriMesh m;
-  m.positions = {Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 1, 0),
+  m.positions = {Vec3(1, 0, 0),  Vec3(-1, 0, 0), Vec3(0, 1, 0),
                  Vec3(0, -1, 0), Vec3(0, 0, 1),  Vec3(0, 0, -1)};
   m.triangles = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
                  {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
@@ -80,8 +80,8 @@ Expected<TriMesh> MakeSubdividedSphere(const SphereParams& params) {
     return InvalidArgument("radius", "sphere radius must be a positive finite length in m");
   }
   if (params.levels < 0 || params.levels > kMaxSphereLevels) {
-    return InvalidArgument("levels", "subdivision levels must be in 0.." +
-                                         std::to_string(kMaxSphereLevels));
+    return InvalidArgument("levels",
+                           "subdivision levels must be in 0.." + std::to_string(kMaxSphereLevels));
   }
   if (!params.centre.allFinite()) return InvalidArgument("centre", "sphere centre must be finite");
   TriMesh m = params.base == SphereBase::kOctahedron ? BaseOctahedron() : BaseIcosahedron();
@@ -91,7 +91,9 @@ Expected<TriMesh> MakeSubdividedSphere(const SphereParams& params) {
   return m;
 }
 
-LimbParams ForearmPreset() { return LimbParams{}; }
+LimbParams ForearmPreset() {
+  return LimbParams{};
+}
 
 LimbParams CalfPreset() {
   LimbParams p;
@@ -104,9 +106,11 @@ LimbParams CalfPreset() {
 }
 
 LimbParams WithResolution(LimbParams params, int target_vertices) {
-  const double scale = std::sqrt(std::max(8.0, static_cast<double>(target_vertices - 2)) /
-                                 (static_cast<double>(params.segments_around) * params.rings_along));
-  params.segments_around = std::max(3, static_cast<int>(std::lround(params.segments_around * scale)));
+  const double scale =
+      std::sqrt(std::max(8.0, static_cast<double>(target_vertices - 2)) /
+                (static_cast<double>(params.segments_around) * params.rings_along));
+  params.segments_around =
+      std::max(3, static_cast<int>(std::lround(params.segments_around * scale)));
   params.rings_along = std::max(2, static_cast<int>(std::lround(params.rings_along * scale)));
   return params;
 }

@@ -21,7 +21,8 @@ constexpr size_t kMaxFaceCorners = 1024;
 
 std::string_view Trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r'))
+    s.remove_suffix(1);
   return s;
 }
 
@@ -65,13 +66,15 @@ Expected<TriMesh> ParseObj(std::istream& in, const std::string& source_name) {
     ++line_no;
     if (line.size() > kMaxLineLength) return fail("line longer than 65536 characters");
     std::string_view s = Trim(line);
-    if (const size_t hash = s.find('#'); hash != std::string_view::npos) s = Trim(s.substr(0, hash));
+    if (const size_t hash = s.find('#'); hash != std::string_view::npos)
+      s = Trim(s.substr(0, hash));
     if (s.empty()) continue;
     const auto tok = Tokens(s);
     const std::string_view key = tok[0];
     if (key == "v") {
       if (tok.size() != 4 && tok.size() != 5) {
-        return fail("vertex needs 3 coordinates (optionally w), got " + std::to_string(tok.size() - 1));
+        return fail("vertex needs 3 coordinates (optionally w), got " +
+                    std::to_string(tok.size() - 1));
       }
       double c[4] = {0, 0, 0, 1};
       for (size_t k = 1; k < tok.size(); ++k) {
@@ -104,7 +107,8 @@ Expected<TriMesh> ParseObj(std::istream& in, const std::string& source_name) {
       }
       for (size_t k = 0; k < corners.size(); ++k) {
         for (size_t q = k + 1; q < corners.size(); ++q) {
-          if (corners[k] == corners[q]) return fail("face repeats vertex " + std::to_string(corners[k] + 1));
+          if (corners[k] == corners[q])
+            return fail("face repeats vertex " + std::to_string(corners[k] + 1));
         }
       }
       for (size_t k = 1; k + 1 < corners.size(); ++k) {

@@ -27,8 +27,8 @@ struct LimbScene {
   tissue::CoilSpringParams coil;
   tissue::TaperedShaft reference;  // Saint-Venant shaft of the same limb, soft tissue only
   double poisson_ratio = 0.47;
-  double density = 1050;            // kg/m³
-  double default_torque = 2.07;     // N·m, seed 000 §3
+  double density = 1050;         // kg/m³
+  double default_torque = 2.07;  // N·m, seed 000 §3
 };
 
 // "arm" (forearm) or "calf"; kNotFound otherwise.

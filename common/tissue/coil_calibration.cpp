@@ -21,8 +21,9 @@ struct Sample {
 Expected<std::vector<Sample>> Samples(const CalibrationReference& ref) {
   std::vector<Sample> out;
   if (ref.curve_torque.size() != ref.curve_twist.size()) {
-    return InvalidArgument("curve", "torque–twist curve has " + std::to_string(ref.curve_torque.size()) +
-                                        " torques but " + std::to_string(ref.curve_twist.size()) + " twists");
+    return InvalidArgument("curve", "torque–twist curve has " +
+                                        std::to_string(ref.curve_torque.size()) + " torques but " +
+                                        std::to_string(ref.curve_twist.size()) + " twists");
   }
   auto finite = [](double x) { return std::isfinite(x); };
   double curve_scale = 0;
@@ -41,22 +42,27 @@ Expected<std::vector<Sample>> Samples(const CalibrationReference& ref) {
   for (size_t k = 0; k < ref.profiles.size(); ++k) {
     const TwistProfile& p = ref.profiles[k];
     if (p.rho.size() != p.twist.size()) {
-      return InvalidArgument("profiles", "profile " + std::to_string(k) + " has unequal rho and twist sizes");
+      return InvalidArgument("profiles",
+                             "profile " + std::to_string(k) + " has unequal rho and twist sizes");
     }
     double scale = 0;
     for (double t : p.twist) scale = std::max(scale, std::abs(t));
-    if (!finite(p.torque)) return InvalidArgument("profiles", "profile " + std::to_string(k) + " torque is not finite");
+    if (!finite(p.torque))
+      return InvalidArgument("profiles", "profile " + std::to_string(k) + " torque is not finite");
     for (size_t i = 0; i < p.rho.size(); ++i) {
       if (!finite(p.rho[i]) || !finite(p.twist[i]) || p.rho[i] < 0) {
-        return InvalidArgument("profiles", "profile " + std::to_string(k) + " sample " + std::to_string(i) +
+        return InvalidArgument("profiles", "profile " + std::to_string(k) + " sample " +
+                                               std::to_string(i) +
                                                " is not a finite twist at a distance ≥ 0");
       }
       if (scale > 0) {
-        out.push_back({p.torque, p.rho[i], p.twist[i], 1.0 / (scale * scale * profile_samples), false});
+        out.push_back(
+            {p.torque, p.rho[i], p.twist[i], 1.0 / (scale * scale * profile_samples), false});
       }
     }
   }
-  if (out.empty()) return InvalidArgument("reference", "the reference has no non-zero twist to fit");
+  if (out.empty())
+    return InvalidArgument("reference", "the reference has no non-zero twist to fit");
   return out;
 }
 
@@ -102,7 +108,8 @@ Eigen::VectorXd Nnls(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
     passive[j] = true;
     for (int inner = 0; inner < 3 * n + 10; ++inner) {
       std::vector<int> idx;
-      for (int i = 0; i < n; ++i) if (passive[i]) idx.push_back(i);
+      for (int i = 0; i < n; ++i)
+        if (passive[i]) idx.push_back(i);
       Eigen::MatrixXd Ap(A.rows(), idx.size());
       for (size_t c = 0; c < idx.size(); ++c) Ap.col(c) = A.col(idx[c]);
       const Eigen::VectorXd sp = Ap.completeOrthogonalDecomposition().solve(b);
@@ -171,20 +178,24 @@ Trial FitAt(const CoilSpringParams& geometry, double max_force, const std::vecto
   return trial;
 }
 
-Expected<CalibrationFit> Calibrate(const CoilSpringParams& geometry, const CalibrationReference& ref,
-                                   bool per_ring) {
+Expected<CalibrationFit> Calibrate(const CoilSpringParams& geometry,
+                                   const CalibrationReference& ref, bool per_ring) {
   if (auto check = CoilSpringModel::Create(geometry); !check.ok()) return check.error();
   auto samples = Samples(ref);
   if (!samples.ok()) return samples.error();
   double max_torque = 0;
   for (const Sample& s : *samples) max_torque = std::max(max_torque, std::abs(s.torque));
-  if (!(max_torque > 0)) return InvalidArgument("reference", "the reference has no non-zero torque");
+  if (!(max_torque > 0))
+    return InvalidArgument("reference", "the reference has no non-zero torque");
   double sum_r = 0;
   for (int i = 1; i <= geometry.coils; ++i) sum_r += geometry.core_radius + i * geometry.thickness;
   // F_t from "capacity is 30% of the largest torque" to "coil 1 alone holds 3× the largest".
   const double lo = std::log(0.3 * max_torque / (kTwoPi * sum_r));
-  const double hi = std::log(3.0 * max_torque / (kTwoPi * (geometry.core_radius + geometry.thickness)));
-  auto objective = [&](double log_f) { return FitAt(geometry, std::exp(log_f), *samples, per_ring).objective; };
+  const double hi =
+      std::log(3.0 * max_torque / (kTwoPi * (geometry.core_radius + geometry.thickness)));
+  auto objective = [&](double log_f) {
+    return FitAt(geometry, std::exp(log_f), *samples, per_ring).objective;
+  };
   constexpr int kScan = 160;
   int best = 0;
   std::vector<double> values(kScan + 1);

@@ -28,9 +28,9 @@
 namespace vsurg::tissue {
 
 struct TwistProfile {
-  double torque = 0;         // N·m
-  std::vector<double> rho;   // distance from the grasp, m
-  std::vector<double> twist; // rad
+  double torque = 0;          // N·m
+  std::vector<double> rho;    // distance from the grasp, m
+  std::vector<double> twist;  // rad
 };
 
 struct CalibrationReference {
@@ -40,9 +40,9 @@ struct CalibrationReference {
 };
 
 struct CalibrationFit {
-  CoilSpringParams params;      // the fitted model's parameters
-  double flexural_rigidity = 0; // E·I of the two-parameter fit (N·m²); per-ring: their median
-  double max_force = 0;         // F_t, N
+  CoilSpringParams params;       // the fitted model's parameters
+  double flexural_rigidity = 0;  // E·I of the two-parameter fit (N·m²); per-ring: their median
+  double max_force = 0;          // F_t, N
   double curve_rms = 0, curve_max = 0;      // relative residuals of the torque–twist curve
   double profile_rms = 0, profile_max = 0;  // relative residuals of the profiles
 };

@@ -63,7 +63,8 @@ Expected<CoilDeformer> CoilDeformer::CreateForLimb(const CoilSpringModel& model,
   std::vector<double> rho(n);
   std::vector<Vec3> foot(n), axis(n);
   for (int v = 0; v < n; ++v) {
-    if (!rest[v].allFinite()) return InvalidArgument("mesh", "vertex " + std::to_string(v) + " is not finite");
+    if (!rest[v].allFinite())
+      return InvalidArgument("mesh", "vertex " + std::to_string(v) + " is not finite");
     rho[v] = std::abs((*proj)[v].s - grasp_arc_length);
     foot[v] = (*proj)[v].point;
     axis[v] = (*proj)[v].tangent;
@@ -104,17 +105,17 @@ DeformStats CoilDeformer::Apply(const CoilState& state) {
   // Groups strictly inside R_P turn (θ(R_P) = 0); a zero twist moves nothing.
   int groups = 0;
   if (p > 0 && state.total_twist != 0) {
-    groups = static_cast<int>(std::lower_bound(group_rho_.begin(), group_rho_.end(), cutoff_radius) -
-                              group_rho_.begin());
+    groups = static_cast<int>(
+        std::lower_bound(group_rho_.begin(), group_rho_.end(), cutoff_radius) - group_rho_.begin());
   }
   for (int g = 0; g < groups; ++g) {
     const double theta = model_.TwistAt(group_rho_[g], state);
     const double cm1 = std::cos(theta) - 1.0, sn = std::sin(theta);
     for (int row = group_begin_[g]; row < group_begin_[g + 1]; ++row) {
       const Vec3& x = rest_[vertex_[row]];
-      deformed_[vertex_[row]] = Vec3(x.x() + dx_[row] * cm1 + qx_[row] * sn,
-                                     x.y() + dy_[row] * cm1 + qy_[row] * sn,
-                                     x.z() + dz_[row] * cm1 + qz_[row] * sn);
+      deformed_[vertex_[row]] =
+          Vec3(x.x() + dx_[row] * cm1 + qx_[row] * sn, x.y() + dy_[row] * cm1 + qy_[row] * sn,
+               x.z() + dz_[row] * cm1 + qz_[row] * sn);
     }
   }
   // Put back at rest what the previous update moved and this one does not.

@@ -38,7 +38,7 @@ namespace vsurg::tissue {
 enum class TwistMode { kLimb, kSurface };
 
 struct DeformStats {
-  int cutoff = 0;            // P
+  int cutoff = 0;  // P
   bool overload = false;
   double torque = 0;         // N·m applied (clamped)
   double total_twist = 0;    // Φ, rad
@@ -85,9 +85,9 @@ class CoilDeformer {
   std::vector<double> rho_by_vertex_;
 
   // Rows in ascending ρ.
-  std::vector<int32_t> vertex_;               // mesh index of row
-  std::vector<double> dx_, dy_, dz_;          // offset from the axis, ⊥ axis, m
-  std::vector<double> qx_, qy_, qz_;          // axis × offset, m
+  std::vector<int32_t> vertex_;       // mesh index of row
+  std::vector<double> dx_, dy_, dz_;  // offset from the axis, ⊥ axis, m
+  std::vector<double> qx_, qy_, qz_;  // axis × offset, m
   // Groups of rows with equal ρ: rows [group_begin_[g], group_begin_[g+1]).
   std::vector<double> group_rho_;
   std::vector<int32_t> group_begin_;

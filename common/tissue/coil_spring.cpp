@@ -10,7 +10,9 @@ namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
-bool PositiveFinite(double x) { return std::isfinite(x) && x > 0; }
+bool PositiveFinite(double x) {
+  return std::isfinite(x) && x > 0;
+}
 
 std::string Num(double x) {
   char buf[64];
@@ -42,7 +44,8 @@ Expected<CoilSpringModel> CoilSpringModel::Create(const CoilSpringParams& p) {
   };
   for (const Check& c : checks) {
     if (!PositiveFinite(c.value)) {
-      return InvalidArgument(c.field, std::string(c.what) + " must be finite and > 0, got " + Num(c.value));
+      return InvalidArgument(c.field,
+                             std::string(c.what) + " must be finite and > 0, got " + Num(c.value));
     }
   }
   if (p.coils < 1 || p.coils > kMaxCoils) {
@@ -50,8 +53,9 @@ Expected<CoilSpringModel> CoilSpringModel::Create(const CoilSpringParams& p) {
                                         ", got " + std::to_string(p.coils));
   }
   if (!p.coil_rigidity.empty() && static_cast<int>(p.coil_rigidity.size()) != p.coils) {
-    return InvalidArgument("coil_rigidity", "per-coil rigidity needs S = " + std::to_string(p.coils) +
-                                                " values, got " + std::to_string(p.coil_rigidity.size()));
+    return InvalidArgument("coil_rigidity",
+                           "per-coil rigidity needs S = " + std::to_string(p.coils) +
+                               " values, got " + std::to_string(p.coil_rigidity.size()));
   }
   const double ei = p.modulus * p.width * p.thickness * p.thickness * p.thickness / 12.0;  // eq. 2
   if (!PositiveFinite(ei)) {
@@ -111,7 +115,8 @@ CoilState CoilSpringModel::Forward(double torque) const {
 void CoilSpringModel::Forward(double torque, CoilState& out) const {
   const int s = params_.coils;
   if (static_cast<int>(out.boundary_angles.size()) != s + 1 ||
-      static_cast<int>(out.coil_torques.size()) != s || static_cast<int>(out.twist_turns.size()) != s ||
+      static_cast<int>(out.coil_torques.size()) != s ||
+      static_cast<int>(out.twist_turns.size()) != s ||
       static_cast<int>(out.twist_angles.size()) != s) {
     out = MakeState();  // a foreign or default state: size it once (allocates)
   }
@@ -140,7 +145,8 @@ void CoilSpringModel::Forward(double torque, CoilState& out) const {
     out.twist_angles[i - 1] = sign * kTwoPi * n_i;
   }
   out.boundary_angles[p] = 0;
-  for (int k = p - 1; k >= 0; --k) out.boundary_angles[k] = out.boundary_angles[k + 1] + out.twist_angles[k];
+  for (int k = p - 1; k >= 0; --k)
+    out.boundary_angles[k] = out.boundary_angles[k + 1] + out.twist_angles[k];
   out.total_twist = out.boundary_angles[0];
 }
 
@@ -180,7 +186,8 @@ double CoilSpringModel::TwistAt(double rho, const CoilState& st) const {
   if (rho <= params_.core_radius) return st.boundary_angles[0];
   if (rho >= ring_radius_[p]) return 0;
   // Ring k spans [R_{k−1}, R_k]; linear interpolation of the boundary angles inside it.
-  const int k = std::clamp(static_cast<int>(std::ceil((rho - params_.core_radius) / params_.thickness)), 1, p);
+  const int k = std::clamp(
+      static_cast<int>(std::ceil((rho - params_.core_radius) / params_.thickness)), 1, p);
   const double t = std::clamp((rho - ring_radius_[k - 1]) / params_.thickness, 0.0, 1.0);
   return st.boundary_angles[k - 1] + t * (st.boundary_angles[k] - st.boundary_angles[k - 1]);
 }

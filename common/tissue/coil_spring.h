@@ -27,13 +27,13 @@
 namespace vsurg::tissue {
 
 struct CoilSpringParams {
-  double core_radius = 0.02;   // r, m
-  double thickness = 0.01;     // h, m
-  double width = 0.05;         // b, m
-  int coils = 23;              // S
-  double modulus = 35.3e3;     // E, Pa (E = 2G(1+ν), G = 12 kPa, ν = 0.47)
-  double max_force = 0.163;    // F_t, N
-  double friction = 1.25;      // κ (seed 000 eq. 6)
+  double core_radius = 0.02;  // r, m
+  double thickness = 0.01;    // h, m
+  double width = 0.05;        // b, m
+  int coils = 23;             // S
+  double modulus = 35.3e3;    // E, Pa (E = 2G(1+ν), G = 12 kPa, ν = 0.47)
+  double max_force = 0.163;   // F_t, N
+  double friction = 1.25;     // κ (seed 000 eq. 6)
   // Optional per-coil flexural rigidity E·I_i in N·m², size S; empty → E·b·h³/12 for all.
   std::vector<double> coil_rigidity;
 };
@@ -41,12 +41,12 @@ struct CoilSpringParams {
 // Result of a forward evaluation. The arrays are sized for S coils when made by MakeState();
 // only the first P (coil arrays) and P+1 (boundary angles) entries are meaningful.
 struct CoilState {
-  double requested_torque = 0;  // N·m, as asked
-  double torque = 0;            // N·m, applied: the request clamped to ±capacity
-  int cutoff = 0;               // P, the cutoff layer; 0 when the torque is zero
-  bool overload = false;        // |request| exceeded the capacity Σ C_i and was clamped
-  bool invalid_input = false;   // the request was NaN or infinite; treated as zero
-  double total_twist = 0;       // Φ = Σ φ_i = Θ_0, rad
+  double requested_torque = 0;          // N·m, as asked
+  double torque = 0;                    // N·m, applied: the request clamped to ±capacity
+  int cutoff = 0;                       // P, the cutoff layer; 0 when the torque is zero
+  bool overload = false;                // |request| exceeded the capacity Σ C_i and was clamped
+  bool invalid_input = false;           // the request was NaN or infinite; treated as zero
+  double total_twist = 0;               // Φ = Σ φ_i = Θ_0, rad
   std::vector<double> coil_torques;     // M_i, N·m, i = 1..P at [i−1]
   std::vector<double> twist_turns;      // n_i, turns
   std::vector<double> twist_angles;     // φ_i, rad
@@ -55,10 +55,10 @@ struct CoilState {
 
 // Result of an inverse query: the torque the tissue answers to an imposed twist.
 struct CoilTorque {
-  double torque = 0;       // N·m, same sign as the twist
-  double stiffness = 0;    // dM/dΦ, N·m/rad; 0 past capacity (the torque no longer grows)
-  int cutoff = 0;          // P at that torque
-  bool overload = false;   // |twist| exceeded the twist at full capacity
+  double torque = 0;           // N·m, same sign as the twist
+  double stiffness = 0;        // dM/dΦ, N·m/rad; 0 past capacity (the torque no longer grows)
+  int cutoff = 0;              // P at that torque
+  bool overload = false;       // |twist| exceeded the twist at full capacity
   bool invalid_input = false;  // the twist was NaN or infinite; the answer is zero torque
 };
 
@@ -85,11 +85,11 @@ class CoilSpringModel {
 
   int coils() const { return params_.coils; }
   const CoilSpringParams& params() const { return params_; }
-  double RingRadius(int i) const { return ring_radius_[i]; }  // R_i, i = 0..S (R_0 = r)
-  double CoilCapacity(int i) const { return capacity_[i]; }   // C_i, i = 1..S
-  double Capacity() const { return cum_capacity_.back(); }    // Σ C_i, N·m
+  double RingRadius(int i) const { return ring_radius_[i]; }    // R_i, i = 0..S (R_0 = r)
+  double CoilCapacity(int i) const { return capacity_[i]; }     // C_i, i = 1..S
+  double Capacity() const { return cum_capacity_.back(); }      // Σ C_i, N·m
   double TwistAtCapacity() const { return cum_twist_.back(); }  // Φ(Σ C_i), rad
-  double CoilRigidity(int i) const { return rigidity_[i]; }   // E·I_i, N·m², i = 1..S
+  double CoilRigidity(int i) const { return rigidity_[i]; }     // E·I_i, N·m², i = 1..S
   // dΦ/dM on segment p (p = 1..S): κ·2π·R_p / (E·I_p), rad/(N·m).
   double SegmentCompliance(int p) const { return segment_compliance_[p]; }
 

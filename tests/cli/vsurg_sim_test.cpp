@@ -30,22 +30,25 @@ SimRun Sim(const std::vector<std::string>& args) {
   return {code, out.str(), err.str()};
 }
 
-const std::vector<std::string> kArm = {"--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06",
-                                       "--coils", "23", "--modulus", "4.253e8", "--max-force", "0.163"};
+const std::vector<std::string> kArm = {"--core-radius", "0.02",    "--thickness", "0.01",
+                                       "--width",       "0.06",    "--coils",     "23",
+                                       "--modulus",     "4.253e8", "--max-force", "0.163"};
 
 std::vector<std::string> With(std::vector<std::string> head, const std::vector<std::string>& tail) {
   head.insert(head.end(), tail.begin(), tail.end());
   return head;
 }
 
-int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+int Lines(const std::string& s) {
+  return static_cast<int>(std::count(s.begin(), s.end(), '\n'));
+}
 
 TEST(VsurgSimTest, CoilJsonHasTheContractKeysConsistentWithEachOther) {
   const SimRun r = Sim(With({"coil", "--torque", "2.07", "--json"}, kArm));
   ASSERT_EQ(r.code, 0) << r.err;
   const json j = json::parse(r.out);
-  for (const char* key : {"P", "overload", "coil_torques", "twist_turns", "twist_angles", "total_twist_rad",
-                          "boundary_angles"}) {
+  for (const char* key : {"P", "overload", "coil_torques", "twist_turns", "twist_angles",
+                          "total_twist_rad", "boundary_angles"}) {
     EXPECT_TRUE(j.contains(key)) << key;
   }
   const int p = j["P"];
@@ -83,8 +86,10 @@ TEST(VsurgSimTest, CoilInverseUndoesCoil) {
 
 TEST(VsurgSimTest, FrictionDefaultsToThePapersValue) {
   const json a = json::parse(Sim(With({"coil", "--torque", "1", "--json"}, kArm)).out);
-  const json b = json::parse(Sim(With({"coil", "--torque", "1", "--json", "--friction", "1.25"}, kArm)).out);
-  const json c = json::parse(Sim(With({"coil", "--torque", "1", "--json", "--friction=2.5"}, kArm)).out);
+  const json b =
+      json::parse(Sim(With({"coil", "--torque", "1", "--json", "--friction", "1.25"}, kArm)).out);
+  const json c =
+      json::parse(Sim(With({"coil", "--torque", "1", "--json", "--friction=2.5"}, kArm)).out);
   EXPECT_EQ(a["total_twist_rad"], b["total_twist_rad"]);
   EXPECT_NEAR(c["total_twist_rad"].get<double>(), 2 * a["total_twist_rad"].get<double>(), 1e-12);
 }
@@ -102,20 +107,21 @@ TEST(VsurgSimTest, BadArgumentsExitTwoWithOneLineNamingTheArgument) {
       {With({"coil", "--torque", "1", "--torque", "2"}, kArm), "--torque: given more than once"},
       {With({"coil", "--torque", "1", "stray"}, kArm), "unexpected argument 'stray'"},
       {With({"coil", "--torque"}, {}), "--torque: needs a value"},
-      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "-0.01", "--width", "0.06", "--coils",
-        "23", "--modulus", "4e8", "--max-force", "0.16"},
+      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "-0.01", "--width", "0.06",
+        "--coils", "23", "--modulus", "4e8", "--max-force", "0.16"},
        "--thickness: coil thickness h (m) must be finite and > 0"},
-      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06", "--coils",
-        "0", "--modulus", "4e8", "--max-force", "0.16"},
+      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06",
+        "--coils", "0", "--modulus", "4e8", "--max-force", "0.16"},
        "--coils"},
-      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06", "--coils",
-        "2.5", "--modulus", "4e8", "--max-force", "0.16"},
+      {{"coil", "--torque", "1", "--core-radius", "0.02", "--thickness", "0.01", "--width", "0.06",
+        "--coils", "2.5", "--modulus", "4e8", "--max-force", "0.16"},
        "--coils: '2.5' is not an integer"},
       {With({"coil-inverse", "--twist", "1"}, {"--core-radius", "0.02"}), "--thickness"},
       {{"deform", "--scene", "spleen", "--out", "x.obj"}, "--scene: unknown scene 'spleen'"},
       {{"deform", "--scene", "arm"}, "--out: is required"},
       {{"deform", "--out", "x.obj", "--steps", "0"}, "--steps"},
       {{"calibrate", "--shear-modulus", "-5"}, "--shear-modulus"},
+      {{"calibrate", "--torques", "0"}, "--torques"},
       {{"frobnicate"}, "unknown command 'frobnicate'"},
       {{}, "a command is required"},
   };
@@ -142,7 +148,8 @@ TEST(VsurgSimTest, EveryCommandHasHelp) {
 
 TEST(VsurgSimTest, DeformWritesTheTwistedArmAndReportsEachStep) {
   const std::string path = (std::filesystem::temp_directory_path() / "vsurg_cli_arm.obj").string();
-  const SimRun r = Sim({"deform", "--scene", "arm", "--torque", "2.07", "--steps", "4", "--out", path, "--json"});
+  const SimRun r = Sim(
+      {"deform", "--scene", "arm", "--torque", "2.07", "--steps", "4", "--out", path, "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const json j = json::parse(r.out);
   ASSERT_EQ(j["steps"].size(), 4u);
@@ -184,13 +191,21 @@ TEST(VsurgSimTest, CalibrateReportsBothFits) {
   EXPECT_GT(paper, 0.1);
   EXPECT_LT(ring, paper);
   EXPECT_EQ(j["per_ring"]["coil_rigidity"].size(), 23u);
+  // At a single operating torque the per-ring model is a close reduced-order model.
+  const json one =
+      json::parse(Sim({"calibrate", "--max-torque", "0.1", "--torques", "1", "--json"}).out);
+  EXPECT_EQ(one["reference"]["torques"], 1);
+  EXPECT_LT(one["per_ring"]["profile_rms"].get<double>(),
+            0.2 * one["two_parameter"]["profile_rms"].get<double>());
 }
 
 // The real binary, as other tools call it: exit status and streams.
 int RunBinary(const std::string& args, std::string& out, std::string& err) {
   const auto dir = std::filesystem::temp_directory_path();
-  const std::string o = (dir / "vsurg_sim_out.txt").string(), e = (dir / "vsurg_sim_err.txt").string();
-  const int status = std::system((std::string(VSURG_SIM_BINARY) + " " + args + " >" + o + " 2>" + e).c_str());
+  const std::string o = (dir / "vsurg_sim_out.txt").string(),
+                    e = (dir / "vsurg_sim_err.txt").string();
+  const int status =
+      std::system((std::string(VSURG_SIM_BINARY) + " " + args + " >" + o + " 2>" + e).c_str());
   auto slurp = [](const std::string& p) {
     std::ifstream in(p);
     return std::string(std::istreambuf_iterator<char>(in), {});
@@ -202,10 +217,11 @@ int RunBinary(const std::string& args, std::string& out, std::string& err) {
 
 TEST(VsurgSimBinaryTest, ExitCodesAndStreams) {
   std::string out, err;
-  EXPECT_EQ(RunBinary("coil --torque 2.07 --core-radius 0.02 --thickness 0.01 --width 0.06 --coils 23 "
-                      "--modulus 4.253e8 --max-force 0.163 --json",
-                      out, err),
-            0);
+  EXPECT_EQ(
+      RunBinary("coil --torque 2.07 --core-radius 0.02 --thickness 0.01 --width 0.06 --coils 23 "
+                "--modulus 4.253e8 --max-force 0.163 --json",
+                out, err),
+      0);
   EXPECT_EQ(json::parse(out)["P"], 18);
   EXPECT_EQ(RunBinary("coil --torque 1 --core-radius 0 --thickness 0.01 --width 0.06 --coils 23 "
                       "--modulus 4e8 --max-force 0.1",

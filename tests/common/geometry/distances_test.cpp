@@ -78,7 +78,8 @@ TEST(GeodesicTest, HeatMethodIsAccurateAndBeatsDijkstraOnASphere) {
 }
 
 TEST(GeodesicTest, HeatMethodConvergesUnderRefinement) {
-  EXPECT_LT(GeodesicErrors(GeodesicMethod::kHeat, 5).mean_rel, GeodesicErrors(GeodesicMethod::kHeat, 3).mean_rel);
+  EXPECT_LT(GeodesicErrors(GeodesicMethod::kHeat, 5).mean_rel,
+            GeodesicErrors(GeodesicMethod::kHeat, 3).mean_rel);
 }
 
 // A flat square grid, each cell split along one diagonal: the true geodesic is the Euclidean
@@ -120,7 +121,7 @@ TEST(GeodesicTest, OnAPlaneDijkstraIsNeverShortAndHeatIsClose) {
   double worst_heat = 0, worst_dijkstra = 0;
   for (int v = 0; v < grid.VertexCount(); ++v) {
     const double exact = (grid.positions[v] - grid.positions[centre]).norm();
-    EXPECT_GE((*dijkstra)[v], exact - 1e-12);  // a path on the mesh is never shorter
+    EXPECT_GE((*dijkstra)[v], exact - 1e-12);     // a path on the mesh is never shorter
     if (exact < 0.01 || exact > 0.035) continue;  // away from the source and the border
     worst_heat = std::max(worst_heat, std::abs((*heat)[v] - exact) / exact);
     worst_dijkstra = std::max(worst_dijkstra, std::abs((*dijkstra)[v] - exact) / exact);
@@ -138,7 +139,8 @@ TEST(GeodesicTest, OtherComponentsAreInfinitelyFar) {
   TriMesh both = *a;
   const int offset = both.VertexCount();
   for (const Vec3& p : b->positions) both.positions.push_back(p);
-  for (Triangle t : b->triangles) both.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  for (Triangle t : b->triangles)
+    both.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
   for (GeodesicMethod m : {GeodesicMethod::kDijkstra, GeodesicMethod::kHeat}) {
     auto d = GeodesicDistances(both, SurfacePoint{0, Vec3(1, 0, 0)}, m);
     ASSERT_TRUE(d.ok());
@@ -152,7 +154,8 @@ TEST(GeodesicTest, BadSourcesAreRejected) {
   auto s = MakeSubdividedSphere({});
   EXPECT_FALSE(GeodesicDistances(*s, SurfacePoint{-1, Vec3(1, 0, 0)}, GeodesicMethod::kHeat).ok());
   EXPECT_FALSE(GeodesicDistances(*s, SurfacePoint{0, Vec3(2, 0, 0)}, GeodesicMethod::kHeat).ok());
-  EXPECT_FALSE(GeodesicDistances(*s, SurfacePoint{0, Vec3(NAN, 0, 1)}, GeodesicMethod::kDijkstra).ok());
+  EXPECT_FALSE(
+      GeodesicDistances(*s, SurfacePoint{0, Vec3(NAN, 0, 1)}, GeodesicMethod::kDijkstra).ok());
 }
 
 }  // namespace

@@ -11,7 +11,8 @@ namespace {
 void ExpectClosedAndOutward(const TriMesh& m) {
   ASSERT_TRUE(Validate(m).ok());
   const TopologyReport r = CheckTopology(m);
-  EXPECT_TRUE(r.Closed()) << r.boundary_edges << " boundary, " << r.non_manifold_edges << " non-manifold";
+  EXPECT_TRUE(r.Closed()) << r.boundary_edges << " boundary, " << r.non_manifold_edges
+                          << " non-manifold";
   EXPECT_TRUE(r.ConsistentlyOriented()) << r.misoriented_edges << " misoriented edges";
   EXPECT_EQ(r.euler_characteristic, 2);  // a sphere-like surface
   EXPECT_GT(SignedVolume(m), 0);         // outward
@@ -89,8 +90,8 @@ TEST(LimbTest, VolumeMatchesTheFrustumAndRadiusTapers) {
     const double a0 = p.radius_proximal, a1 = p.radius_distal;
     const double frustum = std::numbers::pi * p.length / 3.0 * (a0 * a0 + a0 * a1 + a1 * a1);
     // An inscribed n-gon has area (n/2)·sin(2π/n)·a², slightly less than πa².
-    const double polygon = p.segments_around / 2.0 * std::sin(2 * std::numbers::pi / p.segments_around) /
-                           std::numbers::pi;
+    const double polygon = p.segments_around / 2.0 *
+                           std::sin(2 * std::numbers::pi / p.segments_around) / std::numbers::pi;
     EXPECT_NEAR(SignedVolume(limb->surface), frustum * polygon, 1e-9);
     EXPECT_DOUBLE_EQ(limb->RadiusAt(0), a0);
     EXPECT_DOUBLE_EQ(limb->RadiusAt(p.length), a1);

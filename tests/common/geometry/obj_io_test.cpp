@@ -25,7 +25,8 @@ std::string ErrorOf(const std::string& text) {
 TEST(ObjIoTest, RoundTripKeepsPositionsAndFaces) {
   auto sphere = MakeSubdividedSphere({0.05, 3, SphereBase::kOctahedron, Vec3(0.01, 0.02, 0.03)});
   ASSERT_TRUE(sphere.ok());
-  const std::string path = (std::filesystem::temp_directory_path() / "vsurg_obj_roundtrip.obj").string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "vsurg_obj_roundtrip.obj").string();
   ASSERT_TRUE(WriteObj(*sphere, path, "round trip").ok());
   auto back = ReadObj(path);
   ASSERT_TRUE(back.ok()) << back.error().message;
@@ -63,7 +64,8 @@ TEST(ObjIoTest, HomogeneousWeightDividesTheCoordinates) {
 }
 
 TEST(ObjIoTest, MalformedFilesGiveLineAndReason) {
-  EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0\n"), "test.obj:2: vertex needs 3 coordinates (optionally w), got 2");
+  EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0\n"),
+            "test.obj:2: vertex needs 3 coordinates (optionally w), got 2");
   EXPECT_EQ(ErrorOf("v 0 0 zero\n"), "test.obj:1: vertex coordinate 'zero' is not a number");
   EXPECT_EQ(ErrorOf("v 0 0 nan\n"), "test.obj:1: vertex coordinate is not finite");
   EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"),
@@ -72,12 +74,14 @@ TEST(ObjIoTest, MalformedFilesGiveLineAndReason) {
             "test.obj:4: face index 0 is invalid (OBJ indices start at 1)");
   EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0 0\nf 1 2\n"), "test.obj:3: face needs at least 3 vertices");
   EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 2\n"), "test.obj:4: face repeats vertex 2");
-  EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 x 3\n"), "test.obj:4: face vertex 'x' is not an index");
+  EXPECT_EQ(ErrorOf("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 x 3\n"),
+            "test.obj:4: face vertex 'x' is not an index");
   EXPECT_EQ(ErrorOf("v 0 0 0\nbogus 1 2\n"), "test.obj:2: unknown statement 'bogus'");
   EXPECT_EQ(ErrorOf("v 0 0 0 0\n"), "test.obj:1: vertex weight w is zero");
   EXPECT_EQ(ErrorOf("v 0 0 0\n"), "test.obj: no faces in the file");
   EXPECT_EQ(ErrorOf(""), "test.obj: no faces in the file");
-  EXPECT_EQ(ErrorOf("v 0 0 0\nf " + std::string(70000, '1') + "\n"), "test.obj:2: line longer than 65536 characters");
+  EXPECT_EQ(ErrorOf("v 0 0 0\nf " + std::string(70000, '1') + "\n"),
+            "test.obj:2: line longer than 65536 characters");
 }
 
 TEST(ObjIoTest, MissingFileAndUnwritablePathAreIoErrors) {

@@ -80,7 +80,9 @@ TEST(CoilCalibrationTest, PerRingFitRecoversPerCoilRigidities) {
   EXPECT_LT(fit->profile_rms, 1e-3);
   EXPECT_LT(fit->curve_rms, 1e-3);
   // The coils the reference reaches with full data are recovered.
-  for (int i = 0; i < 15; ++i) EXPECT_NEAR(fit->params.coil_rigidity[i], truth.coil_rigidity[i], 0.02 * truth.coil_rigidity[i]) << i;
+  for (int i = 0; i < 15; ++i)
+    EXPECT_NEAR(fit->params.coil_rigidity[i], truth.coil_rigidity[i], 0.02 * truth.coil_rigidity[i])
+        << i;
 }
 
 // DESIGN.md: against Saint-Venant the paper's model keeps a large error (its profile is close to
@@ -101,8 +103,10 @@ TEST(CoilCalibrationTest, SaintVenantResidualsAreLargeForThePaperModelAndSmallPe
       ASSERT_TRUE(ring.ok());
       EXPECT_GT(paper->profile_rms, 0.10);
       EXPECT_LT(paper->profile_rms, 0.40);
-      // At one torque what is left is the rigid core (ρ ≤ r turns by Φ; Saint-Venant keeps twisting).
-      EXPECT_LT(ring->profile_rms, torques == 1 ? 0.2 * paper->profile_rms : 0.8 * paper->profile_rms);
+      // At one torque what is left is the rigid core (ρ ≤ r turns by Φ; Saint-Venant keeps
+      // twisting).
+      EXPECT_LT(ring->profile_rms,
+                torques == 1 ? 0.2 * paper->profile_rms : 0.8 * paper->profile_rms);
       EXPECT_LE(ring->curve_rms, paper->curve_rms + 1e-6);
       // Residuals are what the fitted model really does.
       const CalibrationFit again = Residuals(*CoilSpringModel::Create(ring->params), ref);

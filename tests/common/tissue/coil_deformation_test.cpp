@@ -32,15 +32,22 @@ LimbFixture MakeLimbFixture() {
   cp.modulus = 4e8;
   cp.max_force = 0.2;
   auto model = CoilSpringModel::Create(cp);
-  auto def = CoilDeformer::CreateForLimb(*model, limb->surface.positions, limb->centreline, lp.length);
+  auto def =
+      CoilDeformer::CreateForLimb(*model, limb->surface.positions, limb->centreline, lp.length);
   EXPECT_TRUE(def.ok()) << def.error().message;
   return {*limb, *model, *def};
 }
 
 // Distance from p to the limb axis (the z axis) and its angle about it.
-double AxisDistance(const Vec3& p) { return std::hypot(p.x(), p.y()); }
-double AxisAngle(const Vec3& p) { return std::atan2(p.y(), p.x()); }
-double WrapPi(double a) { return std::remainder(a, 2 * std::numbers::pi); }
+double AxisDistance(const Vec3& p) {
+  return std::hypot(p.x(), p.y());
+}
+double AxisAngle(const Vec3& p) {
+  return std::atan2(p.y(), p.x());
+}
+double WrapPi(double a) {
+  return std::remainder(a, 2 * std::numbers::pi);
+}
 
 TEST(CoilDeformationTest, LimbVerticesTurnByTheTwistAtTheirDistanceAndKeepTheirRadius) {
   LimbFixture f = MakeLimbFixture();
@@ -121,7 +128,8 @@ TEST(CoilDeformationTest, OverloadedTorqueDeformsAsTheCapacity) {
 }
 
 TEST(CoilDeformationTest, SurfaceModeTurnsAboutTheGraspNormalWithinTheGeodesicCutoff) {
-  auto sphere = geometry::MakeSubdividedSphere({0.05, 4, geometry::SphereBase::kOctahedron, Vec3::Zero()});
+  auto sphere =
+      geometry::MakeSubdividedSphere({0.05, 4, geometry::SphereBase::kOctahedron, Vec3::Zero()});
   ASSERT_TRUE(sphere.ok());
   auto grasp = geometry::ClosestSurfacePoint(*sphere, Vec3(0, 0, 1));
   ASSERT_TRUE(grasp.ok());
@@ -134,7 +142,8 @@ TEST(CoilDeformationTest, SurfaceModeTurnsAboutTheGraspNormalWithinTheGeodesicCu
   cp.max_force = 0.5;
   auto model = CoilSpringModel::Create(cp);
   ASSERT_TRUE(model.ok());
-  auto def = CoilDeformer::CreateForSurface(*model, *sphere, *grasp, geometry::GeodesicMethod::kHeat);
+  auto def =
+      CoilDeformer::CreateForSurface(*model, *sphere, *grasp, geometry::GeodesicMethod::kHeat);
   ASSERT_TRUE(def.ok()) << def.error().message;
   const DeformStats stats = def->Update(0.05);
   ASSERT_GT(stats.cutoff, 1);
@@ -156,9 +165,12 @@ TEST(CoilDeformationTest, SurfaceModeTurnsAboutTheGraspNormalWithinTheGeodesicCu
 TEST(CoilDeformationTest, BadBindingsAreRejected) {
   LimbFixture f = MakeLimbFixture();
   EXPECT_FALSE(CoilDeformer::CreateForLimb(f.model, {}, f.limb.centreline, 0).ok());
-  EXPECT_FALSE(CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, f.limb.centreline, -0.1).ok());
-  EXPECT_FALSE(CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, f.limb.centreline, 1.0).ok());
-  EXPECT_FALSE(CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, {Vec3::Zero()}, 0).ok());
+  EXPECT_FALSE(
+      CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, f.limb.centreline, -0.1).ok());
+  EXPECT_FALSE(
+      CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, f.limb.centreline, 1.0).ok());
+  EXPECT_FALSE(
+      CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, {Vec3::Zero()}, 0).ok());
 }
 
 }  // namespace

@@ -188,9 +188,19 @@ TEST(CoilSpringTest, ParametersAreValidatedWithTheFieldNamed) {
       {"coils", [](CoilSpringParams& p) { p.coils = 0; }},
       {"coils", [](CoilSpringParams& p) { p.coils = -3; }},
       {"coils", [](CoilSpringParams& p) { p.coils = CoilSpringModel::kMaxCoils + 1; }},
-      {"coil_rigidity", [](CoilSpringParams& p) { p.coil_rigidity = {1.0, 2.0}; }},
-      {"coil_rigidity", [](CoilSpringParams& p) { p.coil_rigidity = {1.0, 0.0, 1.0}; }},
-      {"modulus", [](CoilSpringParams& p) { p.modulus = 1e-320; p.width = 1e-10; }},
+      {"coil_rigidity",
+       [](CoilSpringParams& p) {
+         p.coil_rigidity = {1.0, 2.0};
+       }},
+      {"coil_rigidity",
+       [](CoilSpringParams& p) {
+         p.coil_rigidity = {1.0, 0.0, 1.0};
+       }},
+      {"modulus",
+       [](CoilSpringParams& p) {
+         p.modulus = 1e-320;
+         p.width = 1e-10;
+       }},
   };
   for (const Case& c : cases) {
     CoilSpringParams p = HandParams();
@@ -249,7 +259,8 @@ TEST(CoilSpringTest, RandomParametersKeepTheInvariants) {
       sum += st.coil_torques[i];
       turns += st.twist_turns[i];
       EXPECT_LE(std::abs(st.coil_torques[i]), m.CoilCapacity(i + 1) * (1 + 1e-12));
-      EXPECT_NEAR(st.twist_angles[i], 2 * kPi * st.twist_turns[i], 1e-12 * std::abs(st.twist_angles[i]));
+      EXPECT_NEAR(st.twist_angles[i], 2 * kPi * st.twist_turns[i],
+                  1e-12 * std::abs(st.twist_angles[i]));
     }
     EXPECT_NEAR(sum, st.torque, 1e-10 * cap);
     EXPECT_NEAR(2 * kPi * turns, st.total_twist, 1e-10 * std::abs(st.total_twist));

@@ -12,7 +12,8 @@ TEST(SaintVenantTest, UniformShaftTwistsLinearly) {
   // θ(z) = T·z/(G·J), J = π·a⁴/2.
   const TaperedShaft s{0.3, 0.02, 0.02, 1e4};
   const double j = std::numbers::pi * std::pow(0.02, 4) / 2;
-  for (double z : {0.0, 0.1, 0.3}) EXPECT_NEAR(SaintVenantTwistAt(s, 0.5, z), 0.5 * z / (1e4 * j), 1e-9);
+  for (double z : {0.0, 0.1, 0.3})
+    EXPECT_NEAR(SaintVenantTwistAt(s, 0.5, z), 0.5 * z / (1e4 * j), 1e-9);
   EXPECT_NEAR(SaintVenantTwistFromGrasp(s, 0.5, 0.0), 0.5 * 0.3 / (1e4 * j), 1e-9);
 }
 
@@ -31,7 +32,8 @@ TEST(SaintVenantTest, TaperedShaftMatchesNumericalIntegrationOfTheTwistRate) {
   EXPECT_NEAR(SaintVenantTwistAt(s, torque, s.length), integral, 1e-9 * integral);
   // Twist is monotone along the shaft and linear in torque.
   EXPECT_LT(SaintVenantTwistAt(s, torque, 0.1), SaintVenantTwistAt(s, torque, 0.2));
-  EXPECT_NEAR(SaintVenantTwistAt(s, 2 * torque, 0.2), 2 * SaintVenantTwistAt(s, torque, 0.2), 1e-12);
+  EXPECT_NEAR(SaintVenantTwistAt(s, 2 * torque, 0.2), 2 * SaintVenantTwistAt(s, torque, 0.2),
+              1e-12);
 }
 
 }  // namespace

@@ -1,0 +1,38 @@
+# Shared by deploy/test.sh and deploy/demo.sh: Debian packages and the build. Source it.
+#
+# The packages the project needs today (the foundation: core, tests, benchmarks). Later parts
+# (gRPC, protobuf, Asio, OpenSSL, OpenGL) add theirs here.
+VSURG_PACKAGES=(
+  cmake ninja-build g++ pkg-config
+  libeigen3-dev nlohmann-json3-dev
+  libgtest-dev libbenchmark-dev
+)
+
+vsurg_root() { cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd; }
+
+# Installs only the missing packages; needs root (or sudo) when something is missing.
+vsurg_install_packages() {
+  local missing=() p
+  for p in "${VSURG_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -eq 0 ]; then
+    echo "vsurg: all ${#VSURG_PACKAGES[@]} Debian packages present"
+    return 0
+  fi
+  echo "vsurg: installing ${missing[*]}"
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "vsurg: need root to install: ${missing[*]}" >&2; return 1; }
+    sudo="sudo"
+  fi
+  $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q
+  $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"
+}
+
+# Configures and builds into build/ with two jobs (the machine has two cores).
+vsurg_build() {
+  local root; root="$(vsurg_root)"
+  cmake -S "$root" -B "$root/build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@"
+  cmake --build "$root/build" -j2
+}
