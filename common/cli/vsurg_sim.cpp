@@ -209,7 +209,8 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
                   "scene %s: %d vertices, %d triangles, %d coils, capacity %.4g N*m\n",
                   scene->name.c_str(), inst->limb.surface.VertexCount(),
                   inst->limb.surface.TriangleCount(), inst->model.coils(), inst->model.Capacity());
-    out << line << "step  torque_Nm   P   twist_rad   twist_deg  overload  moved_vertices\n";
+    out << line
+        << "step  requested_Nm  applied_Nm   P   twist_rad   twist_deg  overload  moved_vertices\n";
   }
   tissue::DeformStats stats;
   double update_us_total = 0;
@@ -229,8 +230,8 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
                          {"moved_vertices", stats.moved_vertices}});
     } else {
       char line[256];
-      std::snprintf(line, sizeof line, "%4d  %-10.4g  %2d  %-10.5g  %-9.3f  %-8s  %d\n", k,
-                    stats.torque, stats.cutoff, stats.total_twist, stats.total_twist * kRadToDeg,
+      std::snprintf(line, sizeof line, "%4d  %-12.4g  %-10.4g  %2d  %-10.5g  %-9.3f  %-8s  %d\n", k,
+                    m, stats.torque, stats.cutoff, stats.total_twist, stats.total_twist * kRadToDeg,
                     stats.overload ? "yes" : "no", stats.moved_vertices);
       out << line;
     }

@@ -18,8 +18,10 @@
 // allocates.
 //
 // Layout (hot data): the per-vertex rows are in ρ order, structure-of-arrays of doubles
-// (d and q, 48 B/vertex, plus a 4-byte index), so an update streams them front to back;
-// array-of-structs with Eigen vectors measured the same, but SoA keeps the loop vectorisable.
+// (d and q, 48 B/vertex, plus a 4-byte mesh index), so an update streams them front to back with
+// no Eigen temporaries in the inner loop. The output is scattered into mesh order because
+// positions belong to the mesh (renderers and OBJ export index them). Rejected: per-vertex
+// angles with an axis–angle rotation (16× slower on the default arm, bench/coil_bench.cpp).
 //
 // Threads: one deformer belongs to one thread (the deformation thread); Update writes its own
 // position buffer, which a reader copies or double-buffers.
