@@ -14,7 +14,6 @@
 #include "common/sim/limb_scene.h"
 #include "common/tissue/coil_calibration.h"
 #include "common/tissue/coil_spring.h"
-#include "common/tissue/torsion_reference.h"
 
 namespace vsurg::cli {
 namespace {
@@ -265,28 +264,6 @@ int Deform(const std::vector<std::string>& args, std::ostream& out, std::ostream
   return 0;
 }
 
-// Saint-Venant reference for the scene's limb: the torque–twist curve at `torques` torques
-// evenly up to max_torque and the profile along the limb (26 samples) at each of them.
-tissue::CalibrationReference SaintVenantReference(const tissue::TaperedShaft& shaft,
-                                                  double max_torque, int torques) {
-  tissue::CalibrationReference ref;
-  constexpr int kSamples = 26;
-  for (int k = 1; k <= torques; ++k) {
-    const double m = max_torque * k / torques;
-    ref.curve_torque.push_back(m);
-    ref.curve_twist.push_back(tissue::SaintVenantTwistFromGrasp(shaft, m, 0.0));
-    tissue::TwistProfile prof;
-    prof.torque = m;
-    for (int i = 0; i < kSamples; ++i) {
-      const double rho = shaft.length * i / (kSamples - 1);
-      prof.rho.push_back(rho);
-      prof.twist.push_back(tissue::SaintVenantTwistFromGrasp(shaft, m, rho));
-    }
-    ref.profiles.push_back(std::move(prof));
-  }
-  return ref;
-}
-
 json FitJson(const tissue::CalibrationFit& f) {
   auto model = tissue::CoilSpringModel::Create(f.params);  // a fit's parameters are valid
   return {{"flexural_rigidity", f.flexural_rigidity},
@@ -329,7 +306,8 @@ int Calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostr
   if (torques < 1 || torques > 1000) {
     return UsageError(err, p.command(), InvalidArgument("--torques", "must be in 1..1000"));
   }
-  const tissue::CalibrationReference ref = SaintVenantReference(shaft, max_torque, torques);
+  const tissue::CalibrationReference ref =
+      tissue::SaintVenantCalibrationReference(shaft, max_torque, torques);
   auto paper = tissue::CalibrateTwoParameter(scene->coil, ref);
   auto per_ring = tissue::CalibratePerRing(scene->coil, ref);
   if (!paper.ok() || !per_ring.ok()) {

@@ -246,6 +246,23 @@ Expected<CalibrationFit> Calibrate(const CoilSpringParams& geometry,
 
 }  // namespace
 
+CalibrationReference SaintVenantCalibrationReference(const TaperedShaft& shaft, double max_torque,
+                                                     int torques, int samples) {
+  CalibrationReference ref;
+  for (int k = 1; k <= torques; ++k) {
+    const double m = max_torque * k / torques;
+    ref.curve_torque.push_back(m);
+    ref.curve_twist.push_back(SaintVenantTwistFromGrasp(shaft, m, 0.0));
+    TwistProfile prof{m, {}, {}};
+    for (int i = 0; i < samples; ++i) {
+      prof.rho.push_back(samples > 1 ? shaft.length * i / (samples - 1) : 0.0);
+      prof.twist.push_back(SaintVenantTwistFromGrasp(shaft, m, prof.rho.back()));
+    }
+    ref.profiles.push_back(std::move(prof));
+  }
+  return ref;
+}
+
 CalibrationFit Residuals(const CoilSpringModel& model, const CalibrationReference& ref) {
   CalibrationFit fit;
   CoilState st = model.MakeState();

@@ -24,6 +24,7 @@
 
 #include "common/core/expected.h"
 #include "common/tissue/coil_spring.h"
+#include "common/tissue/torsion_reference.h"
 
 namespace vsurg::tissue {
 
@@ -53,6 +54,12 @@ Expected<CalibrationFit> CalibrateTwoParameter(const CoilSpringParams& geometry,
                                                const CalibrationReference& reference);
 Expected<CalibrationFit> CalibratePerRing(const CoilSpringParams& geometry,
                                           const CalibrationReference& reference);
+
+// A Saint-Venant reference for a shaft grasped at its distal end: the torque–twist curve at
+// `torques` torques evenly up to max_torque (N·m) and, at each, the profile at `samples` distances
+// evenly from the grasp (ρ = 0) to the fixed end (ρ = L).
+CalibrationReference SaintVenantCalibrationReference(const TaperedShaft& shaft, double max_torque,
+                                                     int torques, int samples = 26);
 
 // Relative residuals of a given model against a reference (what the fits report).
 CalibrationFit Residuals(const CoilSpringModel& model, const CalibrationReference& reference);

@@ -40,19 +40,7 @@ CalibrationReference FromModel(const CoilSpringModel& m, double max_torque) {
 }
 
 CalibrationReference SaintVenant(const TaperedShaft& s, double max_torque, int torques = 8) {
-  CalibrationReference ref;
-  for (int k = 1; k <= torques; ++k) {
-    const double torque = max_torque * k / torques;
-    ref.curve_torque.push_back(torque);
-    ref.curve_twist.push_back(SaintVenantTwistFromGrasp(s, torque, 0));
-    TwistProfile prof{torque, {}, {}};
-    for (int i = 0; i < 26; ++i) {
-      prof.rho.push_back(s.length * i / 25);
-      prof.twist.push_back(SaintVenantTwistFromGrasp(s, torque, prof.rho.back()));
-    }
-    ref.profiles.push_back(prof);
-  }
-  return ref;
+  return SaintVenantCalibrationReference(s, max_torque, torques);
 }
 
 TEST(CoilCalibrationTest, TwoParameterFitRecoversTheParametersOfAModelReference) {
@@ -112,6 +100,21 @@ TEST(CoilCalibrationTest, SaintVenantResidualsAreLargeForThePaperModelAndSmallPe
       const CalibrationFit again = Residuals(*CoilSpringModel::Create(ring->params), ref);
       EXPECT_DOUBLE_EQ(again.profile_rms, ring->profile_rms);
     }
+  }
+}
+
+TEST(CoilCalibrationTest, SaintVenantReferenceSpansTheLimb) {
+  const TaperedShaft shaft{0.25, 0.04, 0.03, 12e3};
+  const CalibrationReference ref = SaintVenant(shaft, 0.2, 4);
+  ASSERT_EQ(ref.curve_torque, (std::vector<double>{0.05, 0.1, 0.15, 0.2}));
+  ASSERT_EQ(ref.profiles.size(), 4u);
+  for (size_t k = 0; k < 4; ++k) {
+    const TwistProfile& p = ref.profiles[k];
+    ASSERT_EQ(p.rho.size(), 26u);
+    EXPECT_EQ(p.rho.front(), 0.0);
+    EXPECT_DOUBLE_EQ(p.rho.back(), shaft.length);
+    EXPECT_EQ(p.twist.front(), ref.curve_twist[k]);  // the curve is the twist at the grasp
+    EXPECT_NEAR(p.twist.back(), 0.0, 1e-12);         // the fixed end does not turn
   }
 }
 
