@@ -3,7 +3,7 @@
 # The packages the project needs today (the foundation: core, tests, benchmarks). Later parts
 # (gRPC, protobuf, Asio, OpenSSL, OpenGL) add theirs here.
 VSURG_PACKAGES=(
-  cmake ninja-build g++ pkg-config
+  cmake ninja-build g++
   libeigen3-dev nlohmann-json3-dev
   libgtest-dev libbenchmark-dev
 )
