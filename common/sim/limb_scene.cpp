@@ -50,10 +50,6 @@ LimbScene Calf() {
 
 }  // namespace
 
-std::vector<std::string> BuiltinLimbSceneNames() {
-  return {"arm", "calf"};
-}
-
 Expected<LimbScene> BuiltinLimbScene(std::string_view name) {
   if (name == "arm") return Arm();
   if (name == "calf") return Calf();

@@ -33,7 +33,6 @@ struct LimbScene {
 
 // "arm" (forearm) or "calf"; kNotFound otherwise.
 Expected<LimbScene> BuiltinLimbScene(std::string_view name);
-std::vector<std::string> BuiltinLimbSceneNames();
 
 // A scene made concrete: its mesh, its model and a deformer bound to the mesh (grasp at the
 // distal end, limb mode).
