@@ -1,0 +1,188 @@
+// Mass-spring soft tissue with spring-damper springs (seed 001 §3.3, eq. 3-4 to 3-9, as
+// DESIGN.md "Model 2" reads them).
+//
+// Particle i has mass m_i; spring s = (i, j) has stiffness k_s, damping c_s and rest length L_s.
+// With l = x_j − x_i, l̂ = l/|l|:
+//   force on i:  f_i = + [k_s (|l| − L_s) + c_s ((v_j − v_i)·l̂)] l̂,   f_j = −f_i      (eq. 3-5,
+//   3-6)
+// so a stretched spring pulls its ends together and the damper opposes the relative velocity
+// along the spring (the paper's absolute value in eq. 3-6 is a typo: with it the damper would
+// always push apart). m_i a_i = f_ext,i + m_i g + Σ f_i (eq. 3-4, 3-9). A spring shorter than
+// 1e-12 m has no direction and exerts no force (coincident particles never give NaN).
+//
+// Units: m, kg, s, N; stiffness N/m, damping N·s/m.
+//
+// Integrators (seed 001 §1 compares them and picks the midpoint method):
+//   explicit-euler     x += h v;  v += h a(x, v)                                  order 1
+//   symplectic-euler   v += h a(x, v);  x += h v                                  order 1
+//   midpoint           RK2: a half Euler step, then the full step from the midpoint  order 2
+//   rk4                classical Runge–Kutta                                      order 4
+//   verlet             velocity Verlet; the damper sees an Euler-predicted end velocity  order 2
+//   implicit-euler     Baraff & Witkin 1998: one Newton step of backward Euler,
+//                      (M + h C + h² K) Δv = h (f + h ∂f/∂x v), by preconditioned
+//                      conjugate gradient, warm-started from the previous Δv    order 1
+// K is the spring stiffness matrix with the compressive transverse term clamped at zero
+// (Choi & Ko 2002), so the system is symmetric positive definite and CG applies.
+//
+// Boundary: fixed particles never move; kinematic particles follow a position the caller sets
+// for the end of each step (the pressing tool), linearly within the step, and report the force
+// the tissue exerts on them.
+//
+// Threads: a model belongs to one thread (the deformation thread). Step() never allocates.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+
+namespace vsurg::tissue {
+
+using geometry::Vec3;
+
+enum class Integrator : uint8_t {
+  kExplicitEuler,
+  kSymplecticEuler,
+  kMidpoint,
+  kRk4,
+  kVerlet,
+  kImplicitEuler,
+};
+inline constexpr Integrator kAllIntegrators[] = {
+    Integrator::kExplicitEuler, Integrator::kSymplecticEuler, Integrator::kMidpoint,
+    Integrator::kRk4,           Integrator::kVerlet,          Integrator::kImplicitEuler};
+
+// The command-line names: explicit-euler, symplectic-euler, midpoint, rk4, verlet, implicit-euler.
+const char* IntegratorName(Integrator integrator);
+Expected<Integrator> ParseIntegrator(std::string_view name);
+
+struct Spring {
+  int32_t i = 0, j = 0;
+  double stiffness = 0;    // k, N/m, > 0
+  double damping = 0;      // c, N·s/m, ≥ 0
+  double rest_length = 0;  // L, m, ≥ 0 (zero-length springs are allowed)
+};
+
+enum class SpringKind : uint8_t { kStructural, kBending, kVolume };
+
+// Plain data: particles and springs. Build it with the functions below or by hand.
+struct MassSpringSystem {
+  std::vector<Vec3> rest_positions;  // m
+  std::vector<double> masses;        // kg, > 0
+  std::vector<Spring> springs;
+  std::vector<SpringKind> kinds;  // per spring (what built it), for reports
+  int surface_particles = 0;      // the first n particles are the surface mesh's vertices
+};
+
+enum class VolumeMode : uint8_t {
+  kNone,        // surface springs only (seed 001's model)
+  kInnerLayer,  // a copy of the surface moved inward along the normals, joined to it
+};
+
+struct MassSpringBuildParams {
+  double total_mass = 0.5;             // kg, shared equally by the particles
+  double structural_stiffness = 50.0;  // N/m, springs on mesh edges
+  double bending_stiffness = 5.0;  // N/m, springs across the two triangles of each edge; 0: none
+  double volume_stiffness = 50.0;  // N/m, inner-layer springs
+  double damping = 0.05;           // N·s/m, every spring
+  VolumeMode volume = VolumeMode::kNone;
+  double layer_depth = 0.01;  // m, how far inward the inner layer sits
+};
+
+// Springs on every edge, bending springs across every interior edge, and optionally an inner
+// layer (its own edges, one radial spring per vertex and two shear springs per edge).
+Expected<MassSpringSystem> BuildMassSpring(const geometry::TriMesh& mesh,
+                                           const MassSpringBuildParams& params);
+// Springs on every edge of a tetrahedral mesh (the volumetric variant); masses lumped from the
+// tetrahedra's volumes at the given density (kg/m³).
+Expected<MassSpringSystem> BuildMassSpring(const geometry::TetMesh& mesh, double density,
+                                           double stiffness, double damping);
+
+struct MassSpringStepParams {
+  Integrator integrator = Integrator::kMidpoint;
+  Vec3 gravity = Vec3::Zero();  // m/s², added to every free particle
+  int cg_max_iterations = 50;   // implicit Euler
+  double cg_tolerance = 1e-6;   // relative residual of the implicit solve
+  // A step that leaves a position non-finite or farther than this from rest is a divergence.
+  double divergence_distance = 1.0;  // m
+};
+
+class MassSpringModel {
+ public:
+  // Validates: masses finite and > 0, stiffness finite and > 0, damping finite and ≥ 0, rest
+  // lengths finite and ≥ 0, indices in range and distinct, positions finite. Errors name the
+  // first offending particle or spring.
+  static Expected<MassSpringModel> Create(MassSpringSystem system,
+                                          const MassSpringStepParams& params);
+
+  // Boundary conditions (set-up; not during a step).
+  void SetFixed(int particle, bool fixed);
+  // A kinematic particle is driven by SetKinematicTarget; it starts at its current position.
+  void SetKinematic(int particle, bool kinematic);
+  // Position the kinematic particle reaches at the end of the next step (m).
+  void SetKinematicTarget(int particle, const Vec3& target);
+  void SetExternalForce(int particle, const Vec3& force);  // N, held until changed
+  void ClearExternalForces();
+  void SetIntegrator(Integrator integrator);
+
+  // Advances by dt seconds in `substeps` equal steps. Returns false, leaves the state at rest
+  // and sets diverged() when the motion diverged (non-finite or beyond divergence_distance).
+  bool Step(double dt, int substeps = 1);
+  // Back to rest: positions at rest, velocities zero, divergence flag cleared.
+  void Reset();
+
+  const std::vector<Vec3>& positions() const { return x_; }
+  const std::vector<Vec3>& velocities() const { return v_; }
+  const MassSpringSystem& system() const { return sys_; }
+  bool diverged() const { return diverged_; }
+  int last_cg_iterations() const { return cg_iterations_; }
+
+  double KineticEnergy() const;    // J, ½ Σ m v²
+  double PotentialEnergy() const;  // J, ½ Σ k (|l| − L)² (+ gravity: −Σ m g·x)
+  double MaxDisplacement() const;  // m, max |x − x_rest|
+  // The force the springs and dampers exert on particle i (N): on a kinematic particle, the
+  // reaction the driving tool feels is its negative.
+  Vec3 InternalForceOn(int particle) const;
+  // Largest ω = sqrt(λ_max(M⁻¹K)) at rest (rad/s), by power iteration: the explicit step limit
+  // is 2/ω (symplectic Euler) and 2√2/ω (RK4).
+  double MaxAngularFrequency(int iterations = 200) const;
+
+ private:
+  enum class Role : uint8_t { kFree, kFixed, kKinematic };
+
+  MassSpringModel() = default;
+  // a = M⁻¹ f(x, v) for free particles, 0 for the others.
+  void Accelerations(const std::vector<Vec3>& x, const std::vector<Vec3>& v,
+                     std::vector<Vec3>& a) const;
+  void Forces(const std::vector<Vec3>& x, const std::vector<Vec3>& v, std::vector<Vec3>& f) const;
+  // Kinematic particles at fraction `alpha` of the current step.
+  void PlaceKinematic(std::vector<Vec3>& x, std::vector<Vec3>& v, double alpha, double h) const;
+  void StepOnce(double h);
+  void StepImplicit(double h);
+  bool CheckFinite() const;
+
+  MassSpringSystem sys_;
+  MassSpringStepParams params_;
+  std::vector<Role> role_;
+  std::vector<double> inv_mass_;
+  std::vector<Vec3> x_, v_, f_ext_;
+  std::vector<Vec3> kin_start_, kin_target_;
+  std::vector<int> kinematic_;  // indices of kinematic particles
+  bool diverged_ = false;
+  int cg_iterations_ = 0;
+  bool verlet_primed_ = false;
+
+  // Scratch, sized once at Create: no allocation per step.
+  std::vector<Vec3> a_, tx_, tv_, k1v_, k2x_, k2v_, k3x_, k3v_, kin_final_;
+  // Implicit Euler: per-spring block B_s = a_s l̂l̂ᵀ + b_s I of h C_s + h² K_s.
+  std::vector<Vec3> dir_;
+  std::vector<double> blk_a_, blk_b_;
+  std::vector<Vec3> rhs_, dv_, r_, z_, p_, q_, precond_;
+};
+
+}  // namespace vsurg::tissue

@@ -1,0 +1,372 @@
+#include "common/tissue/mass_spring.h"
+
+#include <cmath>
+#include <numbers>
+
+#include <gtest/gtest.h>
+
+#include "common/geometry/mesh_generators.h"
+
+namespace vsurg::tissue {
+namespace {
+
+constexpr double kRest = 0.1;  // m, rest length of the oscillator spring
+
+// A particle on a spring to a fixed particle, moving along the spring: a 1-D damped
+// oscillator m ẍ + c ẋ + k x = 0 with x the stretch.
+MassSpringModel Oscillator(Integrator integrator, double k, double c, double m, double stretch) {
+  MassSpringSystem s;
+  s.rest_positions = {Vec3::Zero(), Vec3(kRest, 0, 0)};
+  s.masses = {1.0, m};
+  s.springs = {{0, 1, k, c, kRest}};
+  MassSpringStepParams p;
+  p.integrator = integrator;
+  p.divergence_distance = 1e6;
+  auto model = MassSpringModel::Create(s, p);
+  EXPECT_TRUE(model.ok());
+  model->SetFixed(0, true);
+  // Start stretched, at rest: place the state by one kinematic jump.
+  model->SetKinematic(1, true);
+  model->SetKinematicTarget(1, Vec3(kRest + stretch, 0, 0));
+  model->Step(1.0);
+  model->SetKinematic(1, false);  // released with zero velocity
+  return *model;
+}
+
+// Exact stretch at time t of the underdamped oscillator released from x0 at rest.
+double Exact(double k, double c, double m, double x0, double t) {
+  const double w0 = std::sqrt(k / m), zeta = c / (2 * std::sqrt(k * m));
+  const double wd = w0 * std::sqrt(1 - zeta * zeta);
+  return std::exp(-zeta * w0 * t) *
+         (x0 * std::cos(wd * t) + zeta * w0 * x0 / wd * std::sin(wd * t));
+}
+
+// Largest error along the trajectory (a single end time can sit on a zero crossing of the error).
+double ErrorAt(Integrator integrator, int steps) {
+  const double k = 4 * std::numbers::pi * std::numbers::pi, c = 0.5, m = 1.0, x0 = 0.01,
+               t_end = 1.3;
+  MassSpringModel model = Oscillator(integrator, k, c, m, x0);
+  const double h = t_end / steps;
+  double worst = 0;
+  for (int i = 1; i <= steps; ++i) {
+    model.Step(h);
+    worst = std::max(worst, std::abs(model.positions()[1].x() - kRest - Exact(k, c, m, x0, i * h)));
+  }
+  return worst;
+}
+
+TEST(MassSpringTest, IntegratorsConvergeAtTheirOrders) {
+  struct Case {
+    Integrator integrator;
+    double order;
+    int steps;
+  };
+  const Case cases[] = {
+      {Integrator::kExplicitEuler, 1, 800}, {Integrator::kSymplecticEuler, 1, 800},
+      {Integrator::kMidpoint, 2, 400},      {Integrator::kRk4, 4, 50},
+      {Integrator::kVerlet, 2, 400},        {Integrator::kImplicitEuler, 1, 800}};
+  for (const Case& c : cases) {
+    const double e1 = ErrorAt(c.integrator, c.steps), e2 = ErrorAt(c.integrator, 2 * c.steps);
+    const double slope = std::log2(e1 / e2);
+    EXPECT_NEAR(slope, c.order, 0.2)
+        << IntegratorName(c.integrator) << ": errors " << e1 << ", " << e2;
+  }
+}
+
+struct EnergyTrace {
+  double first = 0, last = 0, min = 1e300, max = 0;
+};
+
+EnergyTrace UndampedEnergy(Integrator integrator, double omega_dt, int steps) {
+  MassSpringModel model = Oscillator(integrator, 1.0, 0.0, 1.0, 1e-3);  // ω = 1 rad/s
+  EnergyTrace e;
+  e.first = model.KineticEnergy() + model.PotentialEnergy();
+  for (int i = 0; i < steps; ++i) {
+    model.Step(omega_dt);
+    const double now = model.KineticEnergy() + model.PotentialEnergy();
+    e.min = std::min(e.min, now);
+    e.max = std::max(e.max, now);
+  }
+  e.last = model.KineticEnergy() + model.PotentialEnergy();
+  return e;
+}
+
+// DESIGN.md "Model 2": the known energy behaviour, over 10⁵ steps at ω·dt = 0.01.
+TEST(MassSpringTest, EnergyOfAnUndampedSpringBehavesAsEachIntegratorPromises) {
+  constexpr int kSteps = 100000;
+  const EnergyTrace explicit_euler = UndampedEnergy(Integrator::kExplicitEuler, 0.01, kSteps);
+  EXPECT_GT(explicit_euler.last / explicit_euler.first, 1000.0);  // (1 + (ωh)²)^n = e^10
+  const EnergyTrace midpoint = UndampedEnergy(Integrator::kMidpoint, 0.01, kSteps);
+  EXPECT_GT(midpoint.last / midpoint.first, 1.0 + 1e-4);  // (1 + (ωh)⁴/4)^n − 1 ≈ 2.5e-4
+  EXPECT_LT(midpoint.last / midpoint.first, 1.0 + 1e-3);
+  const EnergyTrace symplectic = UndampedEnergy(Integrator::kSymplecticEuler, 0.01, kSteps);
+  EXPECT_LT(symplectic.max / symplectic.first, 1.01);  // oscillates by about ωh/2, no drift
+  EXPECT_GT(symplectic.min / symplectic.first, 0.99);
+  const EnergyTrace verlet = UndampedEnergy(Integrator::kVerlet, 0.01, kSteps);
+  EXPECT_LT(verlet.max / verlet.first, 1.0 + 1e-4);
+  EXPECT_GT(verlet.min / verlet.first, 1.0 - 1e-4);
+  const EnergyTrace implicit = UndampedEnergy(Integrator::kImplicitEuler, 0.01, kSteps);
+  EXPECT_LT(implicit.last / implicit.first, 1e-3);  // (1 + (ωh)²)^−n = e^−10
+}
+
+// The largest step (ω = 1) for which 2000 steps stay bounded, by bisection.
+double StableStepLimit(Integrator integrator) {
+  double lo = 0.5, hi = 5.0;
+  for (int it = 0; it < 40; ++it) {
+    const double h = 0.5 * (lo + hi);
+    MassSpringModel model = Oscillator(integrator, 1.0, 0.0, 1.0, 1e-3);
+    bool bounded = true;
+    for (int i = 0; i < 2000 && bounded; ++i) {
+      bounded = model.Step(h) && std::abs(model.positions()[1].x() - kRest) < 1e-1;
+    }
+    (bounded ? lo : hi) = h;
+  }
+  return lo;
+}
+
+TEST(MassSpringTest, MeasuredStableStepsMatchTheory) {
+  EXPECT_NEAR(StableStepLimit(Integrator::kSymplecticEuler), 2.0, 0.05 * 2.0);
+  EXPECT_NEAR(StableStepLimit(Integrator::kRk4), 2 * std::sqrt(2.0), 0.05 * 2 * std::sqrt(2.0));
+}
+
+// A 66-particle sphere, bottom fixed.
+MassSpringModel Sphere(Integrator integrator, double stiffness, int levels = 2,
+                       VolumeMode volume = VolumeMode::kNone, double damping = 0.02) {
+  auto mesh = geometry::MakeSubdividedSphere(
+      {0.05, levels, geometry::SphereBase::kOctahedron, Vec3::Zero()});
+  MassSpringBuildParams bp;
+  bp.total_mass = 0.5;
+  bp.structural_stiffness = stiffness;
+  bp.bending_stiffness = 0.1 * stiffness;
+  bp.volume_stiffness = stiffness;
+  bp.damping = damping;
+  bp.volume = volume;
+  auto sys = BuildMassSpring(*mesh, bp);
+  EXPECT_TRUE(sys.ok());
+  MassSpringStepParams sp;
+  sp.integrator = integrator;
+  auto model = MassSpringModel::Create(*sys, sp);
+  EXPECT_TRUE(model.ok());
+  for (int i = 0; i < static_cast<int>(sys->rest_positions.size()); ++i) {
+    if (sys->rest_positions[i].z() < -0.03) model->SetFixed(i, true);
+  }
+  return *model;
+}
+
+// On a mesh, the symplectic Euler limit is 2/ω_max, ω_max² the largest eigenvalue of M⁻¹K.
+TEST(MassSpringTest, SymplecticStepLimitOnAMeshIsTwoOverTheLargestFrequency) {
+  const double omega = Sphere(Integrator::kSymplecticEuler, 50.0).MaxAngularFrequency(500);
+  ASSERT_GT(omega, 0);
+  double lo = 0.2 / omega, hi = 5.0 / omega;
+  for (int it = 0; it < 30; ++it) {
+    const double h = 0.5 * (lo + hi);
+    MassSpringModel model = Sphere(Integrator::kSymplecticEuler, 50.0);
+    for (int i = 0; i < model.system().surface_particles; ++i) {
+      model.SetExternalForce(i, Vec3(std::sin(i), std::cos(3.0 * i), std::sin(7.0 * i)) * 1e-4);
+    }
+    model.Step(h);
+    model.ClearExternalForces();
+    bool bounded = true;
+    for (int i = 0; i < 3000 && bounded; ++i)
+      bounded = model.Step(h) && model.MaxDisplacement() < 1e-2;
+    (bounded ? lo : hi) = h;
+  }
+  EXPECT_NEAR(lo * omega, 2.0, 0.1);
+}
+
+TEST(MassSpringTest, ImplicitEulerStaysBoundedFarBeyondTheExplicitLimitOnStiffSprings) {
+  MassSpringModel probe = Sphere(Integrator::kImplicitEuler, 1e5);
+  const double h = 100 * 2.0 / probe.MaxAngularFrequency(500);  // 100× the explicit limit
+  for (Integrator integrator : {Integrator::kImplicitEuler, Integrator::kSymplecticEuler}) {
+    MassSpringModel model = Sphere(integrator, 1e5);
+    const int top = 4;  // the +z pole of the octahedron
+    ASSERT_GT(model.system().rest_positions[top].z(), 0.049);
+    model.SetExternalForce(top, Vec3(0, 0, -5.0));
+    bool ok = true;
+    for (int i = 0; i < 200 && ok; ++i) ok = model.Step(h);
+    if (integrator == Integrator::kImplicitEuler) {
+      EXPECT_TRUE(ok);
+      EXPECT_FALSE(model.diverged());
+      EXPECT_LT(model.MaxDisplacement(), 0.01);  // 5 N on 1e5 N/m springs: sub-millimetre
+    } else {
+      // The explicit method diverges, and says so instead of returning NaN.
+      EXPECT_FALSE(ok);
+      EXPECT_TRUE(model.diverged());
+      for (const Vec3& x : model.positions()) EXPECT_TRUE(x.allFinite());
+    }
+  }
+}
+
+TEST(MassSpringTest, CoincidentParticlesAndZeroLengthSpringsGiveNoNan) {
+  for (Integrator integrator : kAllIntegrators) {
+    MassSpringSystem s;
+    s.rest_positions = {Vec3::Zero(), Vec3::Zero(), Vec3(0.01, 0, 0), Vec3(0.01, 0, 0)};
+    s.masses = {0.01, 0.01, 0.01, 0.01};
+    s.springs = {{0, 1, 10, 0.1, 0.0},    // zero length between coincident particles
+                 {2, 3, 10, 0.1, 0.005},  // coincident particles that want to be apart
+                 {1, 2, 10, 0.1, 0.01}};
+    MassSpringStepParams p;
+    p.integrator = integrator;
+    auto model = MassSpringModel::Create(s, p);
+    ASSERT_TRUE(model.ok());
+    model->SetExternalForce(0, Vec3(0.001, 0, 0));
+    for (int i = 0; i < 100; ++i) ASSERT_TRUE(model->Step(1e-3)) << IntegratorName(integrator);
+    for (const Vec3& x : model->positions())
+      EXPECT_TRUE(x.allFinite()) << IntegratorName(integrator);
+    EXPECT_TRUE(std::isfinite(model->PotentialEnergy()));
+  }
+}
+
+TEST(MassSpringTest, BadMassesStiffnessAndSpringsAreRejectedByName) {
+  MassSpringSystem good;
+  good.rest_positions = {Vec3::Zero(), Vec3(0.01, 0, 0)};
+  good.masses = {0.1, 0.1};
+  good.springs = {{0, 1, 10, 0.1, 0.01}};
+  ASSERT_TRUE(MassSpringModel::Create(good, {}).ok());
+  auto expect_error = [&](MassSpringSystem s, const std::string& field, const std::string& text) {
+    auto m = MassSpringModel::Create(s, {});
+    ASSERT_FALSE(m.ok()) << text;
+    EXPECT_EQ(m.error().field, field);
+    EXPECT_NE(m.error().message.find(text), std::string::npos) << m.error().message;
+  };
+  MassSpringSystem s = good;
+  s.masses[1] = 0;
+  expect_error(s, "masses", "particle 1 mass must be finite and > 0");
+  s.masses[1] = -1;
+  expect_error(s, "masses", "particle 1 mass");
+  s = good;
+  s.springs[0].stiffness = 0;
+  expect_error(s, "springs", "spring 0 stiffness must be finite and > 0");
+  s.springs[0].stiffness = -5;
+  expect_error(s, "springs", "spring 0 stiffness");
+  s = good;
+  s.springs[0].damping = -0.1;
+  expect_error(s, "springs", "spring 0 damping");
+  s = good;
+  s.springs[0].j = 0;
+  expect_error(s, "springs", "two distinct particles");
+  s = good;
+  s.springs[0].j = 7;
+  expect_error(s, "springs", "two distinct particles");
+  s = good;
+  s.masses.pop_back();
+  expect_error(s, "masses", "one mass per particle");
+  MassSpringBuildParams bp;
+  bp.structural_stiffness = -1;
+  auto mesh = geometry::MakeSubdividedSphere({});
+  EXPECT_EQ(BuildMassSpring(*mesh, bp).error().field, "structural_stiffness");
+  bp = {};
+  bp.total_mass = 0;
+  EXPECT_EQ(BuildMassSpring(*mesh, bp).error().field, "total_mass");
+}
+
+TEST(MassSpringTest, DivergenceIsDetectedReportedAndLeavesAFiniteState) {
+  MassSpringModel model = Oscillator(Integrator::kExplicitEuler, 1e4, 0.0, 1e-3, 0.01);
+  bool ok = true;
+  int steps = 0;
+  while (ok && steps < 1000) ok = model.Step(0.05), ++steps;  // ω·h ≈ 158
+  EXPECT_FALSE(ok);
+  EXPECT_TRUE(model.diverged());
+  for (const Vec3& x : model.positions()) EXPECT_TRUE(x.allFinite());
+  EXPECT_FALSE(model.Step(1e-6));  // stays stopped until reset
+  model.Reset();
+  EXPECT_FALSE(model.diverged());
+  EXPECT_TRUE(model.Step(1e-6));
+}
+
+TEST(MassSpringTest, SpringBuildCountsMatchTheMeshTopology) {
+  auto mesh =
+      geometry::MakeSubdividedSphere({0.05, 3, geometry::SphereBase::kOctahedron, Vec3::Zero()});
+  const int v = mesh->VertexCount(), e = static_cast<int>(geometry::UniqueEdges(*mesh).size());
+  MassSpringBuildParams bp;
+  auto sys = BuildMassSpring(*mesh, bp);
+  ASSERT_TRUE(sys.ok());
+  EXPECT_EQ(static_cast<int>(sys->springs.size()), 2 * e);  // structural + one bending per edge
+  bp.volume = VolumeMode::kInnerLayer;
+  auto layered = BuildMassSpring(*mesh, bp);
+  ASSERT_TRUE(layered.ok());
+  EXPECT_EQ(static_cast<int>(layered->rest_positions.size()), 2 * v);
+  EXPECT_EQ(static_cast<int>(layered->springs.size()), 2 * e + 3 * e + v);
+  double mass = 0;
+  for (double m : layered->masses) mass += m;
+  EXPECT_NEAR(mass, bp.total_mass, 1e-12);
+  for (const Spring& s : layered->springs) {
+    EXPECT_NEAR(s.rest_length, (layered->rest_positions[s.j] - layered->rest_positions[s.i]).norm(),
+                1e-15);
+  }
+}
+
+TEST(MassSpringTest, TetMeshEdgesBecomeSpringsWithLumpedMass) {
+  // A unit cube split into five tetrahedra.
+  geometry::TetMesh cube;
+  for (int i = 0; i < 8; ++i) cube.positions.emplace_back(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+  cube.tetrahedra = {{0, 1, 2, 4}, {1, 3, 2, 7}, {1, 2, 4, 7}, {2, 4, 7, 6}, {1, 4, 5, 7}};
+  for (int t = 0; t < cube.TetCount(); ++t) {
+    if (geometry::TetVolume(cube, t) < 0) std::swap(cube.tetrahedra[t][2], cube.tetrahedra[t][3]);
+  }
+  auto sys = BuildMassSpring(cube, 1000.0, 100.0, 0.1);
+  ASSERT_TRUE(sys.ok()) << sys.error().message;
+  EXPECT_EQ(sys->springs.size(), 18u);  // 12 cube edges + 6 face diagonals
+  double mass = 0;
+  for (double m : sys->masses) mass += m;
+  EXPECT_NEAR(mass, 1000.0, 1e-9);
+}
+
+// Newton's third law: at equilibrium the tool's push on the pressed particle is carried by the
+// fixed base, and the reaction the tool feels points back out of the tissue.
+TEST(MassSpringTest, PressedSphereSettlesWithTheToolForceCarriedByTheBase) {
+  MassSpringModel model = Sphere(Integrator::kImplicitEuler, 50.0, 3, VolumeMode::kNone, 0.5);
+  const int top = 4;
+  const Vec3 rest = model.system().rest_positions[top];
+  model.SetKinematic(top, true);
+  for (int i = 1; i <= 2000; ++i) {
+    model.SetKinematicTarget(top, rest - Vec3(0, 0, 0.005 * std::min(1.0, i / 500.0)));
+    ASSERT_TRUE(model.Step(1e-3));
+  }
+  EXPECT_LT(model.KineticEnergy(), 1e-9);
+  const Vec3 on_top = model.InternalForceOn(top);
+  EXPECT_GT(on_top.z(), 1e-3);  // the tissue pushes the tool back up
+  Vec3 base = Vec3::Zero();
+  for (int i = 0; i < static_cast<int>(model.positions().size()); ++i) {
+    if (model.system().rest_positions[i].z() < -0.03) base += model.InternalForceOn(i);
+  }
+  EXPECT_NEAR((on_top + base).norm(), 0.0, 1e-3 * on_top.norm());
+  EXPECT_NEAR((model.positions()[top] - rest).norm(), 0.005, 1e-12);
+}
+
+TEST(MassSpringTest, InnerLayerKeepsMoreVolumeUnderTheSamePress) {
+  double loss[2];
+  for (int k = 0; k < 2; ++k) {
+    MassSpringModel model = Sphere(Integrator::kImplicitEuler, 50.0, 3,
+                                   k ? VolumeMode::kInnerLayer : VolumeMode::kNone);
+    model.SetExternalForce(4, Vec3(0, 0, -0.5));
+    for (int i = 0; i < 3000; ++i) ASSERT_TRUE(model.Step(1e-3));
+    auto mesh =
+        geometry::MakeSubdividedSphere({0.05, 3, geometry::SphereBase::kOctahedron, Vec3::Zero()});
+    const double v0 = geometry::SignedVolume(*mesh);
+    mesh->positions.assign(model.positions().begin(),
+                           model.positions().begin() + mesh->VertexCount());
+    loss[k] = (v0 - geometry::SignedVolume(*mesh)) / v0;
+  }
+  EXPECT_GT(loss[0], 0.0);
+  EXPECT_LT(loss[1], 0.5 * loss[0]);
+}
+
+TEST(MassSpringTest, SubstepsEqualSmallerSteps) {
+  MassSpringModel a = Sphere(Integrator::kMidpoint, 50.0), b = Sphere(Integrator::kMidpoint, 50.0);
+  a.SetExternalForce(4, Vec3(0, 0, -0.1));
+  b.SetExternalForce(4, Vec3(0, 0, -0.1));
+  for (int i = 0; i < 10; ++i) a.Step(4e-3, 4);
+  for (int i = 0; i < 40; ++i) b.Step(1e-3);
+  for (size_t i = 0; i < a.positions().size(); ++i) EXPECT_EQ(a.positions()[i], b.positions()[i]);
+}
+
+TEST(MassSpringTest, IntegratorNamesRoundTrip) {
+  for (Integrator i : kAllIntegrators) EXPECT_EQ(*ParseIntegrator(IntegratorName(i)), i);
+  auto bad = ParseIntegrator("leapfrog");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("implicit-euler"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vsurg::tissue
