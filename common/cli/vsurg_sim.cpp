@@ -10,10 +10,12 @@
 #include <nlohmann/json.hpp>
 
 #include "common/cli/args.h"
+#include "common/geometry/mesh_generators.h"
 #include "common/geometry/obj_io.h"
 #include "common/sim/limb_scene.h"
 #include "common/tissue/coil_calibration.h"
 #include "common/tissue/coil_spring.h"
+#include "common/tissue/mass_spring.h"
 
 namespace vsurg::cli {
 namespace {
@@ -348,6 +350,198 @@ int Calibrate(const std::vector<std::string>& args, std::ostream& out, std::ostr
   return 0;
 }
 
+// A mesh to press: the subdivided sphere, a limb, or an OBJ file. `press` is the vertex the tool
+// drives, `direction` the way it pushes, `fixed` the support.
+struct PressScene {
+  geometry::TriMesh mesh;
+  int press = 0;
+  geometry::Vec3 direction = geometry::Vec3(0, 0, -1);
+  std::vector<int> fixed;
+};
+
+Expected<PressScene> MakePressScene(const std::string& name, int particles, double radius) {
+  PressScene s;
+  const bool limb = name == "arm" || name == "calf";
+  if (name == "sphere") {
+    const int levels =
+        geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron, particles);
+    auto m =
+        geometry::MakeSubdividedSphere({radius, levels, geometry::SphereBase::kOctahedron, {}});
+    if (!m.ok()) return m.error();
+    s.mesh = std::move(*m);
+  } else if (limb) {
+    const geometry::LimbParams preset =
+        name == "arm" ? geometry::ForearmPreset() : geometry::CalfPreset();
+    auto l = geometry::MakeLimb(geometry::WithResolution(preset, particles));
+    if (!l.ok()) return l.error();
+    s.mesh = std::move(l->surface);
+  } else {
+    auto m = geometry::ReadObj(name);
+    if (!m.ok()) return m.error();
+    s.mesh = std::move(*m);
+  }
+  // Limbs lie along z: press the top (+y) of the middle and hold both ends. Anything else:
+  // press the top (+z) and rest the bottom fifth on a table.
+  Eigen::Vector3d lo = s.mesh.positions[0], hi = lo;
+  for (const auto& p : s.mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double mid_z = 0.5 * (lo.z() + hi.z()), length = hi.z() - lo.z();
+  double best = -1e300;
+  for (int v = 0; v < s.mesh.VertexCount(); ++v) {
+    const auto& p = s.mesh.positions[v];
+    const double score = limb ? p.y() - 10 * std::abs(p.z() - mid_z) : p.z();
+    if (score > best) best = score, s.press = v;
+    const bool support = limb ? (p.z() < lo.z() + 0.01 * length || p.z() > hi.z() - 0.01 * length)
+                              : p.z() < lo.z() + 0.2 * length;
+    if (support) s.fixed.push_back(v);
+  }
+  if (limb) s.direction = geometry::Vec3(0, -1, 0);
+  return s;
+}
+
+int Msm(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ArgParser p(
+      "vsurg-sim msm",
+      "Presses a mass-spring tissue at a point (seed 001): the tool drives the top vertex in by\n"
+      "--press metres over the first half of the run and holds it; the support is fixed (the\n"
+      "sphere's bottom fifth, a limb's ends). Prints the final kinetic and potential energy (J),\n"
+      "the largest displacement (m), the contact force the tool feels (N), steps per second\n"
+      "and whether the run diverged.");
+  p.Option("mesh", Kind::kString, "sphere, arm, calf or an OBJ file", false, "sphere")
+      .Option("particles", Kind::kInt, "about this many surface particles (sphere, limbs)", false,
+              "1024")
+      .Option("radius", Kind::kDouble, "sphere radius, m", false, "0.05")
+      .Option("integrator", Kind::kString,
+              "explicit-euler, symplectic-euler, midpoint, rk4, verlet or implicit-euler", false,
+              "midpoint")
+      .Option("dt", Kind::kDouble, "time step, s", false, "0.001")
+      .Option("steps", Kind::kInt, "number of steps", false, "1000")
+      .Option("substeps", Kind::kInt, "substeps per step", false, "1")
+      .Option("press", Kind::kDouble, "press depth, m", false, "0.005")
+      .Option("stiffness", Kind::kDouble, "structural spring stiffness, N/m", false, "50")
+      .Option("bending", Kind::kDouble, "bending spring stiffness, N/m (0: none)", false, "5")
+      .Option("damping", Kind::kDouble, "spring damping, N*s/m", false, "0.05")
+      .Option("density", Kind::kDouble, "tissue density for the mass, kg/m^3", false, "1050")
+      .Option("volume", Kind::kString, "none or inner-layer", false, "none")
+      .Option("json", Kind::kFlag, "print one JSON object");
+  if (int rc = ParseOrExit(p, args, out, err); rc >= 0) return rc;
+  auto integrator = tissue::ParseIntegrator(p.String("integrator"));
+  if (!integrator.ok()) {
+    return UsageError(err, p.command(),
+                      InvalidArgument("--integrator", integrator.error().message));
+  }
+  const double dt = p.Double("dt"), press = p.Double("press"), radius = p.Double("radius");
+  const int steps = p.Int("steps"), substeps = p.Int("substeps"), particles = p.Int("particles");
+  if (!(dt > 0 && dt <= 1))
+    return UsageError(err, p.command(), InvalidArgument("--dt", "must be in (0, 1] s"));
+  if (steps < 1 || steps > 10'000'000) {
+    return UsageError(err, p.command(), InvalidArgument("--steps", "must be in 1..10000000"));
+  }
+  if (substeps < 1 || substeps > 1000) {
+    return UsageError(err, p.command(), InvalidArgument("--substeps", "must be in 1..1000"));
+  }
+  if (particles < 6 || particles > 300000) {
+    return UsageError(err, p.command(), InvalidArgument("--particles", "must be in 6..300000"));
+  }
+  if (!(radius > 0))
+    return UsageError(err, p.command(), InvalidArgument("--radius", "must be > 0 m"));
+  if (!(std::abs(press) < 0.1)) {
+    return UsageError(err, p.command(), InvalidArgument("--press", "must be within ±0.1 m"));
+  }
+  if (!(p.Double("density") > 0))
+    return UsageError(err, p.command(), InvalidArgument("--density", "must be > 0"));
+  const std::string volume = p.String("volume");
+  if (volume != "none" && volume != "inner-layer") {
+    return UsageError(err, p.command(), InvalidArgument("--volume", "must be none or inner-layer"));
+  }
+  auto scene = MakePressScene(p.String("mesh"), particles, radius);
+  if (!scene.ok()) {
+    Error e = scene.error();
+    if (e.code == ErrorCode::kIoError || e.code == ErrorCode::kParseError) {
+      err << p.command() << ": --mesh: " << e.message << "\n";
+      return kExitUsage;
+    }
+    e.field = "--mesh";
+    return UsageError(err, p.command(), e);
+  }
+  tissue::MassSpringBuildParams bp;
+  bp.total_mass = p.Double("density") * std::abs(geometry::SignedVolume(scene->mesh));
+  bp.structural_stiffness = p.Double("stiffness");
+  bp.bending_stiffness = p.Double("bending");
+  bp.volume_stiffness = bp.structural_stiffness;
+  bp.damping = p.Double("damping");
+  bp.volume = volume == "inner-layer" ? tissue::VolumeMode::kInnerLayer : tissue::VolumeMode::kNone;
+  bp.layer_depth = 0.2 * radius;
+  auto system = tissue::BuildMassSpring(scene->mesh, bp);
+  if (!system.ok()) {
+    const std::map<std::string, std::string> option = {{"structural_stiffness", "--stiffness"},
+                                                       {"bending_stiffness", "--bending"},
+                                                       {"damping", "--damping"},
+                                                       {"total_mass", "--density"},
+                                                       {"volume_stiffness", "--stiffness"}};
+    Error e = system.error();
+    e.field = option.count(e.field) ? option.at(e.field) : "--mesh";
+    return UsageError(err, p.command(), e);
+  }
+  const int n_particles = static_cast<int>(system->rest_positions.size());
+  const int n_springs = static_cast<int>(system->springs.size());
+  tissue::MassSpringStepParams sp;
+  sp.integrator = *integrator;
+  auto model = tissue::MassSpringModel::Create(std::move(*system), sp);
+  if (!model.ok()) return UsageError(err, p.command(), model.error());
+  for (int v : scene->fixed) model->SetFixed(v, true);
+  if (bp.volume == tissue::VolumeMode::kInnerLayer) {
+    const int n = scene->mesh.VertexCount();
+    for (int v : scene->fixed) model->SetFixed(n + v, true);
+  }
+  model->SetKinematic(scene->press, true);
+  const geometry::Vec3 rest = scene->mesh.positions[scene->press];
+  const int ramp = std::max(1, steps / 2);
+  const auto t0 = std::chrono::steady_clock::now();
+  int done = 0;
+  for (; done < steps; ++done) {
+    const double depth = press * std::min(1.0, static_cast<double>(done + 1) / ramp);
+    model->SetKinematicTarget(scene->press, rest + depth * scene->direction);
+    if (!model->Step(dt, substeps)) break;
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // The tissue's push on the tool, as a force along the outward direction (−press direction).
+  const geometry::Vec3 on_tool = model->InternalForceOn(scene->press);
+  const double contact = on_tool.dot(-scene->direction);
+  const double rate = seconds > 0 ? done / seconds : 0.0;
+  if (p.Flag("json")) {
+    json j;
+    j["mesh"] = p.String("mesh");
+    j["particles"] = n_particles;
+    j["springs"] = n_springs;
+    j["integrator"] = tissue::IntegratorName(*integrator);
+    j["dt"] = dt;
+    j["steps"] = done;
+    j["kinetic_energy"] = model->KineticEnergy();
+    j["potential_energy"] = model->PotentialEnergy();
+    j["max_displacement"] = model->MaxDisplacement();
+    j["contact_force"] = contact;
+    j["contact_force_vector"] = {on_tool.x(), on_tool.y(), on_tool.z()};
+    j["steps_per_second"] = rate;
+    j["diverged"] = model->diverged();
+    if (*integrator == tissue::Integrator::kImplicitEuler)
+      j["cg_iterations_last"] = model->last_cg_iterations();
+    out << j.dump() << "\n";
+    return 0;
+  }
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "%s: %d particles, %d springs, %s, dt %.3g s x %d steps\n"
+                "kinetic %.6g J, potential %.6g J, max displacement %.6g m, contact force %.6g N\n"
+                "%.0f steps/s%s\n",
+                p.String("mesh").c_str(), n_particles, n_springs,
+                tissue::IntegratorName(*integrator), dt, done, model->KineticEnergy(),
+                model->PotentialEnergy(), model->MaxDisplacement(), contact, rate,
+                model->diverged() ? "  DIVERGED: the state was reset to rest" : "");
+  out << line;
+  return 0;
+}
+
 const char* kTopHelp =
     "usage: vsurg-sim <command> [options]\n\n"
     "The headless front of the vsurg simulation core.\n\n"
@@ -355,14 +549,17 @@ const char* kTopHelp =
     "  coil          forward coil-spring torsion model: torque -> cutoff layer, twist\n"
     "  coil-inverse  inverse coil-spring model: twist -> torque and stiffness\n"
     "  deform        twist a built-in limb scene and write the deformed mesh as OBJ\n"
-    "  calibrate     fit the coil model to Saint-Venant torsion and report the residuals\n\n"
+    "  calibrate     fit the coil model to Saint-Venant torsion and report the residuals\n"
+    "  msm           press a mass-spring tissue (sphere, limb or OBJ) and report energies and "
+    "force\n\n"
     "`vsurg-sim <command> --help` describes each command's options.\n";
 
 }  // namespace
 
 int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   if (args.empty()) {
-    err << "vsurg-sim: a command is required (coil, coil-inverse, deform, calibrate; see --help)\n";
+    err << "vsurg-sim: a command is required (coil, coil-inverse, deform, calibrate, msm; see "
+           "--help)\n";
     return kExitUsage;
   }
   const std::string& cmd = args[0];
@@ -375,8 +572,9 @@ int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cmd == "coil-inverse") return CoilInverse(rest, out, err);
   if (cmd == "deform") return Deform(rest, out, err);
   if (cmd == "calibrate") return Calibrate(rest, out, err);
+  if (cmd == "msm") return Msm(rest, out, err);
   err << "vsurg-sim: unknown command '" << cmd
-      << "' (coil, coil-inverse, deform, calibrate; see --help)\n";
+      << "' (coil, coil-inverse, deform, calibrate, msm; see --help)\n";
   return kExitUsage;
 }
 
