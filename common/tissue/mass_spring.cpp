@@ -250,8 +250,9 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   }
   const size_t ns = sys.springs.size();
   m.blocks_.resize(ns);
-  for (size_t s = 0; s < ns; ++s)
-    m.blocks_[s] = {sys.springs[s].i, sys.springs[s].j, 0.0, 0.0, Vec3::Zero()};
+  for (size_t s = 0; s < ns; ++s) {
+    m.blocks_[s] = {sys.springs[s].i, sys.springs[s].j, 0.0, 0.0, Vec3::Zero(), 0.0, 0.0};
+  }
   m.constrained_.reserve(n);
   m.kinematic_.reserve(n);
   m.sys_ = std::move(sys);
@@ -492,7 +493,22 @@ void MassSpringModel::StepImplicit(double h) {
   double* R = rhs_.data()->data();
   double* KV = kv.data()->data();
   double* P = precond_.data()->data();
-  // Running sums for particle `cur` (springs are sorted by their first particle).
+  // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, stretch and
+  // the block scalars. Pass 2 sums into the particles.
+  for (size_t s = 0; s < ns; ++s) {
+    const Spring& sp = sys_.springs[s];
+    SpringBlock& blk = blocks_[s];
+    const int i = 3 * sp.i, j = 3 * sp.j;
+    const double lx = X[j] - X[i], ly = X[j + 1] - X[i + 1], lz = X[j + 2] - X[i + 2];
+    const double len = std::sqrt(lx * lx + ly * ly + lz * lz);
+    const double inv = len < kMinLength ? 0.0 : 1.0 / len;
+    const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
+    blk.dir = Vec3(lx * inv, ly * inv, lz * inv);
+    blk.stretch = inv > 0 ? len - sp.rest_length : 0.0;
+    blk.alpha = alpha;
+    blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
+    blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
+  }
   int cur = -1;
   double r_x = 0, r_y = 0, r_z = 0, k_x = 0, k_y = 0, k_z = 0, p_x = 0, p_y = 0, p_z = 0;
   auto flush = [&] {
@@ -503,39 +519,26 @@ void MassSpringModel::StepImplicit(double h) {
   };
   for (size_t s = 0; s < ns; ++s) {
     const Spring& sp = sys_.springs[s];
-    SpringBlock& blk = blocks_[s];
+    const SpringBlock& blk = blocks_[s];
     const int i = 3 * sp.i, j = 3 * sp.j;
     if (i != cur) {
       flush();
       cur = i;
       r_x = r_y = r_z = k_x = k_y = k_z = p_x = p_y = p_z = 0;
     }
-    const double lx = X[j] - X[i], ly = X[j + 1] - X[i + 1], lz = X[j + 2] - X[i + 2];
-    const double len = std::sqrt(lx * lx + ly * ly + lz * lz);
-    if (len < kMinLength) {
-      blk.a = blk.b = 0;
-      blk.dir.setZero();
-      continue;
-    }
-    const double inv = 1.0 / len;
-    const double dx = lx * inv, dy = ly * inv, dz = lz * inv;
+    const double dx = blk.dir.x(), dy = blk.dir.y(), dz = blk.dir.z();
     const double wx = V[j] - V[i], wy = V[j + 1] - V[i + 1], wz = V[j + 2] - V[i + 2];
     const double along = wx * dx + wy * dy + wz * dz;
-    const double mag = sp.stiffness * (len - sp.rest_length) + sp.damping * along;
+    const double mag = sp.stiffness * blk.stretch + sp.damping * along;
     r_x += mag * dx, r_y += mag * dy, r_z += mag * dz;
     R[j] -= mag * dx, R[j + 1] -= mag * dy, R[j + 2] -= mag * dz;
-    const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
     // K_s (v_i − v_j) = −K_s w, K_s = k [(1 − α) l̂l̂ᵀ + α I].
-    const double ka = sp.stiffness * (1.0 - alpha) * along, kb = sp.stiffness * alpha;
+    const double ka = sp.stiffness * (1.0 - blk.alpha) * along, kb = sp.stiffness * blk.alpha;
     const double kx = ka * dx + kb * wx, ky = ka * dy + kb * wy, kz = ka * dz + kb * wz;
     k_x -= kx, k_y -= ky, k_z -= kz;
     KV[j] += kx, KV[j + 1] += ky, KV[j + 2] += kz;
-    const double a = h * sp.damping + h2 * sp.stiffness * (1.0 - alpha);
-    const double b = h2 * sp.stiffness * alpha;
-    blk.a = a;
-    blk.b = b;
-    blk.dir = Vec3(dx, dy, dz);
-    const double px = a * dx * dx + b, py = a * dy * dy + b, pz = a * dz * dz + b;
+    const double px = blk.a * dx * dx + blk.b, py = blk.a * dy * dy + blk.b,
+                 pz = blk.a * dz * dz + blk.b;
     p_x += px, p_y += py, p_z += pz;
     P[j] += px, P[j + 1] += py, P[j + 2] += pz;
   }
@@ -544,6 +547,7 @@ void MassSpringModel::StepImplicit(double h) {
   for (int i = 0; i < n; ++i) {
     if (role_[i] != Role::kFree) constrained_.push_back(i);  // capacity reserved: no allocation
   }
+  // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   auto apply = [&](const std::vector<Vec3>& u, std::vector<Vec3>& y) {
     for (int i = 0; i < n; ++i) y[i] = sys_.masses[i] * u[i];
@@ -570,7 +574,10 @@ void MassSpringModel::StepImplicit(double h) {
   double rhs_norm2 = 0;
   for (int i = 0; i < n; ++i) {
     rhs_[i] = h * (rhs_[i] - h * kv[i]);
-    precond_[i] = precond_[i].cwiseInverse();
+    // Jacobi: the three reciprocals from one division.
+    const double px = precond_[i].x(), py = precond_[i].y(), pz = precond_[i].z();
+    const double inv = 1.0 / (px * py * pz);
+    precond_[i] = Vec3(py * pz * inv, px * pz * inv, px * py * inv);
   }
   for (int i : constrained_) {
     rhs_[i].setZero();
