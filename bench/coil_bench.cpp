@@ -75,8 +75,8 @@ BENCHMARK(BM_CoilDeformArmPerVertexBaseline)
 
 // Surface mode on the 1026-vertex sphere (geodesic distances, one angle per vertex).
 void BM_CoilDeformSphereSurface(benchmark::State& state) {
-  auto sphere = vsurg::geometry::MakeSubdividedSphere(
-      {0.05, 4, vsurg::geometry::SphereBase::kOctahedron, {}});
+  auto sphere =
+      vsurg::geometry::MakeSubdividedSphere({0.05, 4, vsurg::geometry::SphereBase::kOctahedron});
   auto grasp = vsurg::geometry::ClosestSurfacePoint(*sphere, vsurg::geometry::Vec3(0, 0, 1));
   vsurg::tissue::CoilSpringParams p;
   p.core_radius = 0.004;

@@ -365,8 +365,7 @@ Expected<PressScene> MakePressScene(const std::string& name, int particles, doub
   if (name == "sphere") {
     const int levels =
         geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron, particles);
-    auto m =
-        geometry::MakeSubdividedSphere({radius, levels, geometry::SphereBase::kOctahedron, {}});
+    auto m = geometry::MakeSubdividedSphere({radius, levels, geometry::SphereBase::kOctahedron});
     if (!m.ok()) return m.error();
     s.mesh = std::move(*m);
   } else if (limb) {

@@ -19,7 +19,8 @@ struct SphereParams {
   double radius = 0.05;  // m
   int levels = 3;        // subdivision levels, 0..8
   SphereBase base = SphereBase::kOctahedron;
-  Vec3 centre = Vec3::Zero();
+  Vec3 centre = Vec3::Zero();  // omit it in aggregate initialisation: `{}` leaves an Eigen vector
+                               // uninitialised rather than zero
 };
 
 Expected<TriMesh> MakeSubdividedSphere(const SphereParams& params);

@@ -135,7 +135,7 @@ TEST(VsurgSimTest, BadArgumentsExitTwoWithOneLineNamingTheArgument) {
 }
 
 TEST(VsurgSimTest, EveryCommandHasHelp) {
-  for (const char* cmd : {"coil", "coil-inverse", "deform", "calibrate"}) {
+  for (const char* cmd : {"coil", "coil-inverse", "deform", "calibrate", "msm"}) {
     const SimRun r = Sim({cmd, "--help"});
     EXPECT_EQ(r.code, 0);
     EXPECT_NE(r.out.find(std::string("usage: vsurg-sim ") + cmd), std::string::npos);
@@ -197,6 +197,58 @@ TEST(VsurgSimTest, CalibrateReportsBothFits) {
   EXPECT_EQ(one["reference"]["torques"], 1);
   EXPECT_LT(one["per_ring"]["profile_rms"].get<double>(),
             0.2 * one["two_parameter"]["profile_rms"].get<double>());
+}
+
+TEST(VsurgSimTest, MsmPressesTheSphereWithEveryIntegrator) {
+  double force_midpoint = 0;
+  for (const char* integrator :
+       {"explicit-euler", "symplectic-euler", "midpoint", "rk4", "verlet", "implicit-euler"}) {
+    const SimRun r =
+        Sim({"msm", "--mesh", "sphere", "--particles", "256", "--integrator", integrator, "--dt",
+             "0.001", "--steps", "600", "--press", "0.005", "--json"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const json j = json::parse(r.out);
+    for (const char* key : {"kinetic_energy", "potential_energy", "max_displacement",
+                            "contact_force", "steps_per_second", "diverged"}) {
+      EXPECT_TRUE(j.contains(key)) << key;
+    }
+    EXPECT_FALSE(j["diverged"].get<bool>()) << integrator;
+    EXPECT_EQ(j["particles"], 258);
+    EXPECT_NEAR(j["max_displacement"].get<double>(), 0.005, 1e-3) << integrator;
+    EXPECT_GT(j["potential_energy"].get<double>(), 0);
+    EXPECT_GT(j["contact_force"].get<double>(), 0) << integrator;  // the tissue pushes back
+    EXPECT_GT(j["steps_per_second"].get<double>(), 0);
+    if (std::string(integrator) == "midpoint") force_midpoint = j["contact_force"];
+    if (std::string(integrator) == "rk4") {
+      // Two second-order-or-better methods agree on the pressed state.
+      EXPECT_NEAR(j["contact_force"].get<double>(), force_midpoint, 0.02 * force_midpoint);
+    }
+  }
+}
+
+TEST(VsurgSimTest, MsmReportsDivergenceInsteadOfNan) {
+  const SimRun r = Sim({"msm", "--integrator", "explicit-euler", "--dt", "0.01", "--stiffness",
+                        "5000", "--steps", "200", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_TRUE(j["diverged"].get<bool>());
+  EXPECT_LT(j["steps"].get<int>(), 200);
+  EXPECT_TRUE(std::isfinite(j["kinetic_energy"].get<double>()));
+}
+
+TEST(VsurgSimTest, MsmBadArgumentsExitTwo) {
+  for (const auto& [args, expect] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"msm", "--integrator", "leapfrog"}, "--integrator: unknown integrator 'leapfrog'"},
+           {{"msm", "--dt", "0"}, "--dt"},
+           {{"msm", "--steps", "-1"}, "--steps"},
+           {{"msm", "--mesh", "/nonexistent/x.obj"}, "--mesh: /nonexistent/x.obj: cannot open"},
+           {{"msm", "--stiffness", "-5"}, "--stiffness"},
+           {{"msm", "--volume", "solid"}, "--volume"}}) {
+    const SimRun r = Sim(args);
+    EXPECT_EQ(r.code, 2) << expect;
+    EXPECT_EQ(Lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(expect), std::string::npos) << r.err;
+  }
 }
 
 // The real binary, as other tools call it: exit status and streams.
