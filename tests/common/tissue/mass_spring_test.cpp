@@ -361,6 +361,23 @@ TEST(MassSpringTest, SubstepsEqualSmallerSteps) {
   for (size_t i = 0; i < a.positions().size(); ++i) EXPECT_EQ(a.positions()[i], b.positions()[i]);
 }
 
+TEST(MassSpringTest, AHangingMassSettlesAtWeightOverStiffness) {
+  MassSpringSystem s;
+  s.rest_positions = {Vec3::Zero(), Vec3(0, 0, -0.1)};
+  s.masses = {1.0, 0.2};
+  s.springs = {{0, 1, 40.0, 2.0, 0.1}};
+  MassSpringStepParams p;
+  p.integrator = Integrator::kImplicitEuler;
+  p.gravity = Vec3(0, 0, -9.81);
+  auto model = MassSpringModel::Create(s, p);
+  ASSERT_TRUE(model.ok());
+  model->SetFixed(0, true);
+  for (int i = 0; i < 5000; ++i) ASSERT_TRUE(model->Step(1e-3));
+  EXPECT_NEAR(model->positions()[1].z(), -0.1 - 0.2 * 9.81 / 40.0, 1e-9);  // x = mg/k
+  // Potential energy: spring ½kx² minus the work gravity did, −mgx: total −½ (mg)²/k.
+  EXPECT_NEAR(model->PotentialEnergy(), -0.5 * std::pow(0.2 * 9.81, 2) / 40.0, 1e-9);
+}
+
 TEST(MassSpringTest, IntegratorNamesRoundTrip) {
   for (Integrator i : kAllIntegrators) EXPECT_EQ(*ParseIntegrator(IntegratorName(i)), i);
   auto bad = ParseIntegrator("leapfrog");
