@@ -1,0 +1,209 @@
+#include "common/geometry/bvh.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+namespace vsurg::geometry {
+namespace {
+
+constexpr int kLeafSize = 4;
+constexpr int kStackSize = 128;  // depth of a median-split tree over < 2^60 triangles
+
+double BoxDistance2(const Vec3& p, const Vec3& lo, const Vec3& hi) {
+  const Vec3 d = (lo - p).cwiseMax(Vec3::Zero()).cwiseMax(p - hi);
+  return d.squaredNorm();
+}
+
+// Slab test of segment a + t·d, t ∈ [0, t_max], against a box.
+bool SegmentHitsBox(const Vec3& a, const Vec3& inv_d, double t_max, const Vec3& lo, const Vec3& hi) {
+  double t0 = 0, t1 = t_max;
+  for (int k = 0; k < 3; ++k) {
+    double ta = (lo[k] - a[k]) * inv_d[k], tb = (hi[k] - a[k]) * inv_d[k];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Vec3 ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return Vec3(1, 0, 0);
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return Vec3(0, 1, 0);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return Vec3(1 - v, v, 0);
+  }
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return Vec3(0, 0, 1);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return Vec3(1 - w, 0, w);
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return Vec3(0, 1 - w, w);
+  }
+  const double denom = va + vb + vc;
+  if (!(std::abs(denom) > 0)) return Vec3(1, 0, 0);  // degenerate: its first corner
+  const double v = vb / denom, w = vc / denom;
+  return Vec3(1 - v - w, v, w);
+}
+
+Bvh::Bvh(const TriMesh& mesh) : triangles_(mesh.triangles) {
+  const int n = mesh.TriangleCount();
+  order_.resize(n);
+  std::vector<Vec3> centroid(n);
+  for (int t = 0; t < n; ++t) {
+    order_[t] = t;
+    const Triangle& tri = triangles_[t];
+    centroid[t] = (mesh.positions[tri[0]] + mesh.positions[tri[1]] + mesh.positions[tri[2]]) / 3.0;
+  }
+  nodes_.reserve(n > 0 ? 2 * ((n + kLeafSize - 1) / kLeafSize) : 0);
+  if (n > 0) Build(0, n, centroid, mesh.positions);
+}
+
+int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid, const std::vector<Vec3>& positions) {
+  const int index = static_cast<int>(nodes_.size());
+  nodes_.push_back(Node{});
+  if (count <= kLeafSize) {
+    nodes_[index].first = first;
+    nodes_[index].count = count;
+    LeafBox(nodes_[index], positions);
+    return index;
+  }
+  Vec3 lo = centroid[order_[first]], hi = lo;
+  for (int k = first; k < first + count; ++k) lo = lo.cwiseMin(centroid[order_[k]]), hi = hi.cwiseMax(centroid[order_[k]]);
+  int axis = 0;
+  (hi - lo).maxCoeff(&axis);
+  const int half = count / 2;
+  std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
+                   [&](int a, int b) { return centroid[a][axis] < centroid[b][axis]; });
+  const int left = Build(first, half, centroid, positions);
+  const int right = Build(first + half, count - half, centroid, positions);
+  Node& node = nodes_[index];
+  node.left = left;
+  node.right = right;
+  node.lo = nodes_[left].lo.cwiseMin(nodes_[right].lo);
+  node.hi = nodes_[left].hi.cwiseMax(nodes_[right].hi);
+  return index;
+}
+
+void Bvh::LeafBox(Node& node, const std::vector<Vec3>& positions) const {
+  node.lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  node.hi = -node.lo;
+  for (int k = node.first; k < node.first + node.count; ++k) {
+    for (int v : triangles_[order_[k]]) node.lo = node.lo.cwiseMin(positions[v]), node.hi = node.hi.cwiseMax(positions[v]);
+  }
+}
+
+void Bvh::Refit(const std::vector<Vec3>& positions) {
+  for (int i = static_cast<int>(nodes_.size()) - 1; i >= 0; --i) {
+    Node& node = nodes_[i];
+    if (node.left < 0) {
+      LeafBox(node, positions);
+    } else {
+      node.lo = nodes_[node.left].lo.cwiseMin(nodes_[node.right].lo);
+      node.hi = nodes_[node.left].hi.cwiseMax(nodes_[node.right].hi);
+    }
+  }
+}
+
+ClosestHit Bvh::Closest(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
+                        const Vec3& normal_hint, double min_normal_dot) const {
+  ClosestHit best;
+  if (nodes_.empty() || !p.allFinite()) return best;
+  double best_d2 = max_distance * max_distance;
+  const bool filter = min_normal_dot > -1.0 && normal_hint.squaredNorm() > 0;
+  int stack[kStackSize];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (BoxDistance2(p, node.lo, node.hi) > best_d2) continue;
+    if (node.left >= 0) {
+      // Nearer child last, so it is popped first.
+      const double dl = BoxDistance2(p, nodes_[node.left].lo, nodes_[node.left].hi);
+      const double dr = BoxDistance2(p, nodes_[node.right].lo, nodes_[node.right].hi);
+      if (top + 2 > kStackSize) continue;  // unreachable for any real mesh; never overflow
+      stack[top++] = dl < dr ? node.right : node.left;
+      stack[top++] = dl < dr ? node.left : node.right;
+      continue;
+    }
+    for (int k = node.first; k < node.first + node.count; ++k) {
+      const int t = order_[k];
+      const Vec3& a = positions[triangles_[t][0]];
+      const Vec3& b = positions[triangles_[t][1]];
+      const Vec3& c = positions[triangles_[t][2]];
+      if (filter) {
+        const Vec3 n = (b - a).cross(c - a);
+        const double len = n.norm();
+        if (!(len > 0) || n.dot(normal_hint) < min_normal_dot * len * normal_hint.norm()) continue;
+      }
+      const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
+      const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
+      const double d2 = (q - p).squaredNorm();
+      if (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2)) {
+        best_d2 = d2;
+        best = ClosestHit{t, w, q, std::sqrt(d2)};
+      }
+    }
+  }
+  return best;
+}
+
+// Möller–Trumbore against each triangle in the boxes the segment crosses.
+RayHit Bvh::FirstHit(const std::vector<Vec3>& positions, const Vec3& a, const Vec3& b) const {
+  RayHit best;
+  if (nodes_.empty() || !a.allFinite() || !b.allFinite()) return best;
+  const Vec3 d = b - a;
+  const Vec3 inv_d(1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z());  // ±inf where d is 0: the slab test copes
+  double t_best = 1.0;
+  int stack[kStackSize];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    if (!SegmentHitsBox(a, inv_d, t_best, node.lo, node.hi)) continue;
+    if (node.left >= 0) {
+      if (top + 2 > kStackSize) continue;
+      stack[top++] = node.right;
+      stack[top++] = node.left;
+      continue;
+    }
+    for (int k = node.first; k < node.first + node.count; ++k) {
+      const int t = order_[k];
+      const Vec3& p0 = positions[triangles_[t][0]];
+      const Vec3 e1 = positions[triangles_[t][1]] - p0, e2 = positions[triangles_[t][2]] - p0;
+      const Vec3 pv = d.cross(e2);
+      const double det = e1.dot(pv);
+      if (std::abs(det) < 1e-300) continue;  // parallel or degenerate
+      const double inv = 1.0 / det;
+      const Vec3 tv = a - p0;
+      const double u = tv.dot(pv) * inv;
+      if (u < 0 || u > 1) continue;
+      const Vec3 qv = tv.cross(e1);
+      const double v = d.dot(qv) * inv;
+      if (v < 0 || u + v > 1) continue;
+      const double s = e2.dot(qv) * inv;
+      if (s < 0 || s > t_best) continue;
+      t_best = s;
+      best = RayHit{t, s, Vec3(1 - u - v, u, v), a + s * d, det < 0};
+    }
+  }
+  return best;
+}
+
+}  // namespace vsurg::geometry

@@ -1,0 +1,75 @@
+// Bounding-volume hierarchy (axis-aligned boxes) over the triangles of a deforming surface.
+//
+// Built once over a mesh's topology (median split on the longest axis, ≤ 4 triangles a leaf);
+// as the surface deforms, Refit() recomputes the boxes bottom-up over new positions (same
+// topology, O(n), no allocation). Queries take the positions they run against, so one tree can
+// serve any snapshot of the same mesh; they use a fixed stack and never allocate.
+//
+// Threads: queries are const and may run on any thread against positions nobody is writing;
+// Refit writes the boxes (the deformation thread refits its own copy, see sim/simulation.h).
+// Units: metres.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "common/geometry/mesh.h"
+
+namespace vsurg::geometry {
+
+struct ClosestHit {
+  int triangle = -1;            // −1: nothing within range
+  Vec3 barycentric = Vec3::Zero();
+  Vec3 point = Vec3::Zero();
+  double distance = std::numeric_limits<double>::infinity();
+};
+
+struct RayHit {
+  int triangle = -1;            // −1: no hit
+  double t = 0;                 // along the segment, 0..1 (or the ray, in its length units)
+  Vec3 barycentric = Vec3::Zero();
+  Vec3 point = Vec3::Zero();
+  bool front_face = false;      // the segment enters through the outward side
+};
+
+class Bvh {
+ public:
+  Bvh() = default;
+  explicit Bvh(const TriMesh& mesh);
+
+  void Refit(const std::vector<Vec3>& positions);
+
+  // The closest surface point within max_distance. Triangles whose unit normal n has
+  // n·normal_hint < min_normal_dot are skipped (with the default hint none is).
+  ClosestHit Closest(const std::vector<Vec3>& positions, const Vec3& p,
+                     double max_distance = std::numeric_limits<double>::infinity(),
+                     const Vec3& normal_hint = Vec3::Zero(), double min_normal_dot = -2.0) const;
+
+  // The first triangle the segment a→b crosses (t ∈ [0, 1]).
+  RayHit FirstHit(const std::vector<Vec3>& positions, const Vec3& a, const Vec3& b) const;
+
+  int node_count() const { return static_cast<int>(nodes_.size()); }
+  const std::vector<Triangle>& triangles() const { return triangles_; }
+
+ private:
+  struct Node {
+    Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
+    int32_t left = -1;   // child index, −1 for a leaf
+    int32_t right = -1;
+    int32_t first = 0;   // leaf: first entry in order_
+    int32_t count = 0;   // leaf: number of triangles
+  };
+  int Build(int first, int count, const std::vector<Vec3>& centroid, const std::vector<Vec3>& positions);
+  void LeafBox(Node& node, const std::vector<Vec3>& positions) const;
+
+  std::vector<Triangle> triangles_;
+  std::vector<int32_t> order_;  // triangle indices grouped by leaf
+  std::vector<Node> nodes_;     // children after their parent: refit runs backwards
+};
+
+// Closest point on triangle abc to p, as barycentric weights (Ericson §5.1.5).
+Vec3 ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+}  // namespace vsurg::geometry

@@ -1,0 +1,73 @@
+#include "common/scoring/trial_metrics.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace vsurg::scoring {
+
+void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity, double force, bool overload) {
+  if (!std::isfinite(time) || !tip.allFinite() || !std::isfinite(quantity) || !std::isfinite(force)) return;
+  if (samples_ > 0 && !(time > t_last_)) return;  // out of order or repeated: ignore
+  if (samples_ == 0) t0_ = time;
+  const double dt = samples_ > 0 ? time - t_last_ : 0.0;
+  if (samples_ > 0) {
+    path_ += (tip - x_[0]).norm();
+    if (force > task_.force_limit) over_ += dt;
+  }
+  for (int k = 3; k > 0; --k) x_[k] = x_[k - 1], t_[k] = t_[k - 1];
+  x_[0] = tip;
+  t_[0] = time;
+  ++samples_;
+  if (samples_ >= 4) {
+    const double h = (t_[0] - t_[3]) / 3.0;  // mean spacing of the last three intervals
+    const Eigen::Vector3d jerk = (x_[0] - 3.0 * x_[1] + 3.0 * x_[2] - x_[3]) / (h * h * h);
+    jerk2_ += jerk.squaredNorm() * dt;
+  }
+  peak_ = std::max(peak_, force);
+  if (overload && !was_overloaded_) ++overloads_;
+  was_overloaded_ = overload;
+  const double error = std::abs(quantity - task_.target);
+  const bool ok = error <= task_.tolerance && force <= task_.force_limit;
+  if (ok && !in_window_) in_window_ = true, window_start_ = time;
+  if (!ok) in_window_ = false;
+  if (!completed_ && in_window_ && time - window_start_ >= task_.hold_s) {
+    completed_ = true;
+    completion_ = time - t0_;
+    error_at_completion_ = error;
+  }
+  last_quantity_ = quantity;
+  t_last_ = time;
+}
+
+TrialMetrics TrialRecorder::Finish() const {
+  TrialMetrics m;
+  if (samples_ == 0) {
+    m.caps = kCapNotCompleted;
+    return m;
+  }
+  m.completed = completed_;
+  m.completion_time = completed_ ? completion_ : 0.0;
+  m.task_error = completed_ ? error_at_completion_ : std::abs(last_quantity_ - task_.target);
+  m.peak_force = peak_;
+  m.time_over_force_limit = over_;
+  m.path_length = path_;
+  m.duration = t_last_ - t0_;
+  m.overload_events = overloads_;
+  if (path_ > 0 && m.duration > 0) {
+    m.normalized_jerk = std::sqrt(0.5 * jerk2_ * std::pow(m.duration, 5) / (path_ * path_));
+  }
+  auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
+  const double accuracy = unit(1.0 - m.task_error / (2.0 * task_.tolerance));
+  const double efficiency =
+      completed_ ? unit((task_.time_limit - m.completion_time) / std::max(1e-9, task_.time_limit - task_.hold_s)) : 0.0;
+  const double force = unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task_.force_limit ? 0.5 : 1.0);
+  const double smooth = m.normalized_jerk > 0 ? unit(1.0 - std::log10(std::max(1.0, m.normalized_jerk / 19.0)) / 2.0) : 1.0;
+  m.raw_score = 10.0 * (0.4 * accuracy + 0.2 * efficiency + 0.2 * force + 0.2 * smooth);
+  m.score = m.raw_score;
+  if (!completed_) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);
+  if (m.time_over_force_limit > 0.5) m.caps |= kCapForceLimit, m.score = std::min(m.score, 4.0);
+  if (m.overload_events > 0) m.caps |= kCapOverload, m.score = std::min(m.score, 3.0);
+  return m;
+}
+
+}  // namespace vsurg::scoring

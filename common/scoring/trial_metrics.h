@@ -1,0 +1,89 @@
+// Automatic trial metrics and the 0–10 proficiency score (DESIGN.md "Scoring").
+//
+// Fed one sample per haptic update: time, tip position, the task's quantity (twist in rad for a
+// twist task, press depth in m for a press task), the force magnitude sent to the device (N,
+// after its limits) and whether the tissue was overloaded.
+//
+// Metrics: completion time (first moment the quantity has been within tolerance of the target,
+// under the force limit, for hold_s; measured from the first sample), task error (|quantity −
+// target| at completion, or at the end if never completed), peak force, time over the force
+// limit, path length of the tip, normalised jerk (Teulings et al. 1997:
+// √(½·∫|d³x/dt³|²dt · T⁵ / L²), dimensionless; a minimum-jerk reach scores about 19), and overload
+// events (each onset counts once).
+//
+// Score, 0–10, weights: accuracy 0.4 (1 − error/(2·tolerance)), efficiency 0.2 (time left of
+// the time limit, 0 if not completed), force control 0.2 (1 − time over limit/1 s, halved if the
+// peak exceeded the limit), smoothness 0.2 (1 − log10(NJ/19)/2), each clamped to [0, 1].
+// Non-compensatory safety gates, as proficiency-based curricula use: not completed caps the
+// score at 5; more than 0.5 s over the force limit caps it at 4; any overload caps it at 3.
+//
+// Threads: a recorder belongs to the haptic thread; Add never allocates.
+#pragma once
+
+#include <cstdint>
+
+#include <Eigen/Core>
+
+namespace vsurg::scoring {
+
+enum class TaskKind { kTwist, kPress };
+
+struct TaskSpec {
+  TaskKind kind = TaskKind::kTwist;
+  double target = 0.785398;    // rad (twist) or m (press)
+  double tolerance = 0.0872665;  // same unit
+  double hold_s = 2.0;         // s
+  double force_limit = 3.0;    // N
+  double time_limit = 60.0;    // s
+};
+
+enum ScoreCap : uint32_t {
+  kCapNotCompleted = 1u << 0,
+  kCapForceLimit = 1u << 1,
+  kCapOverload = 1u << 2,
+};
+
+struct TrialMetrics {
+  bool completed = false;
+  double completion_time = 0;      // s (0 when not completed)
+  double task_error = 0;           // rad or m
+  double peak_force = 0;           // N
+  double time_over_force_limit = 0;  // s
+  double path_length = 0;          // m
+  double normalized_jerk = 0;      // 1
+  int overload_events = 0;
+  double duration = 0;             // s, first to last sample
+  double score = 0;                // 0–10 after the gates
+  double raw_score = 0;            // 0–10 before the gates
+  uint32_t caps = 0;               // ScoreCap bits that applied
+};
+
+class TrialRecorder {
+ public:
+  explicit TrialRecorder(const TaskSpec& task) : task_(task) {}
+
+  void Add(double time, const Eigen::Vector3d& tip, double quantity, double force, bool overload);
+  TrialMetrics Finish() const;
+  const TaskSpec& task() const { return task_; }
+
+ private:
+  TaskSpec task_;
+  int samples_ = 0;
+  double t0_ = 0, t_last_ = 0;
+  double last_quantity_ = 0;
+  Eigen::Vector3d x_[4];  // the last four tip positions, newest first
+  double t_[4] = {0, 0, 0, 0};
+  double jerk2_ = 0;      // ∫|j|² dt
+  double path_ = 0;
+  double peak_ = 0;
+  double over_ = 0;
+  bool was_overloaded_ = false;
+  int overloads_ = 0;
+  bool in_window_ = false;
+  double window_start_ = 0;
+  bool completed_ = false;
+  double completion_ = 0;
+  double error_at_completion_ = 0;
+};
+
+}  // namespace vsurg::scoring

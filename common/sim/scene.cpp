@@ -1,0 +1,350 @@
+#include "common/sim/scene.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+namespace vsurg::sim {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// Typed field access with errors that name the field by its path.
+class Reader {
+ public:
+  Reader(const json& j, std::string path) : j_(j), path_(std::move(path)) {}
+
+  bool Has(const char* key) const { return j_.contains(key); }
+  std::string Path(const char* key) const { return path_.empty() ? key : path_ + "." + key; }
+
+  Expected<Reader> Object(const char* key) const {
+    if (!j_.contains(key)) return Missing(key);
+    if (!j_[key].is_object()) return Bad(key, "must be an object");
+    return Reader(j_[key], Path(key));
+  }
+  Expected<double> Number(const char* key, double lo, double hi, const double* fallback = nullptr) const {
+    if (!j_.contains(key)) {
+      if (fallback) return *fallback;
+      return Missing(key);
+    }
+    if (!j_[key].is_number()) return Bad(key, "must be a number");
+    const double v = j_[key].get<double>();
+    if (!std::isfinite(v) || v < lo || v > hi) {
+      std::ostringstream why;
+      why << "must be in [" << lo << ", " << hi << "], got " << v;
+      return Bad(key, why.str());
+    }
+    return v;
+  }
+  Expected<double> NumberOr(const char* key, double fallback, double lo, double hi) const {
+    return Number(key, lo, hi, &fallback);
+  }
+  Expected<int> Integer(const char* key, int lo, int hi, const int* fallback = nullptr) const {
+    if (!j_.contains(key)) {
+      if (fallback) return *fallback;
+      return Missing(key);
+    }
+    if (!j_[key].is_number_integer()) return Bad(key, "must be an integer");
+    const long long v = j_[key].get<long long>();
+    if (v < lo || v > hi) return Bad(key, "must be in " + std::to_string(lo) + ".." + std::to_string(hi));
+    return static_cast<int>(v);
+  }
+  Expected<int> IntegerOr(const char* key, int fallback, int lo, int hi) const {
+    return Integer(key, lo, hi, &fallback);
+  }
+  Expected<std::string> String(const char* key, const std::string* fallback = nullptr) const {
+    if (!j_.contains(key)) {
+      if (fallback) return *fallback;
+      return Missing(key);
+    }
+    if (!j_[key].is_string() || j_[key].get<std::string>().empty()) return Bad(key, "must be a non-empty string");
+    return j_[key].get<std::string>();
+  }
+  Expected<std::string> StringOr(const char* key, const std::string& fallback) const { return String(key, &fallback); }
+
+  Error Missing(const char* key) const { return InvalidArgument(Path(key), Path(key) + ": is required"); }
+  Error Bad(const char* key, const std::string& why) const { return InvalidArgument(Path(key), Path(key) + ": " + why); }
+  const json& raw() const { return j_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  const json& j_;
+  std::string path_;
+};
+
+#define VSURG_TRY(var, expr)            \
+  auto var##_result = (expr);           \
+  if (!var##_result.ok()) return var##_result.error(); \
+  auto var = std::move(*var##_result)
+
+Status ParseMesh(const Reader& r, const std::string& scene_dir, MeshSpec& m) {
+  VSURG_TRY(type, r.String("type"));
+  if (type == "limb") {
+    m.kind = MeshKind::kLimb;
+    VSURG_TRY(preset, r.StringOr("preset", "forearm"));
+    if (preset == "forearm") {
+      m.limb = geometry::ForearmPreset();
+    } else if (preset == "calf") {
+      m.limb = geometry::CalfPreset();
+    } else {
+      return r.Bad("preset", "must be forearm or calf");
+    }
+    VSURG_TRY(length, r.NumberOr("length", m.limb.length, 0.01, 2.0));
+    VSURG_TRY(r0, r.NumberOr("radius_proximal", m.limb.radius_proximal, 1e-3, 0.5));
+    VSURG_TRY(r1, r.NumberOr("radius_distal", m.limb.radius_distal, 1e-3, 0.5));
+    VSURG_TRY(segments, r.IntegerOr("segments", m.limb.segments_around, 3, 4096));
+    VSURG_TRY(rings, r.IntegerOr("rings", m.limb.rings_along, 2, 8192));
+    m.limb = {length, r0, r1, segments, rings};
+  } else if (type == "sphere") {
+    m.kind = MeshKind::kSphere;
+    VSURG_TRY(radius, r.Number("radius", 1e-3, 1.0));
+    VSURG_TRY(particles, r.Integer("particles", 6, 300000));
+    m.radius = radius;
+    m.particles = particles;
+  } else if (type == "obj") {
+    m.kind = MeshKind::kObj;
+    VSURG_TRY(path, r.String("path"));
+    m.path = fs::path(path).is_absolute() ? path : (fs::path(scene_dir) / path).string();
+  } else {
+    return r.Bad("type", "must be limb, sphere or obj, got '" + type + "'");
+  }
+  return Status::Ok();
+}
+
+Status ParseModel(const Reader& r, RegionSpec& g) {
+  VSURG_TRY(type, r.String("type"));
+  if (type == "coil") {
+    g.kind = ModelKind::kCoil;
+    VSURG_TRY(mode, r.StringOr("mode", "limb"));
+    if (mode != "limb" && mode != "surface") return r.Bad("mode", "must be limb or surface");
+    g.coil_mode = mode == "limb" ? tissue::TwistMode::kLimb : tissue::TwistMode::kSurface;
+    tissue::CoilSpringParams& c = g.coil;
+    VSURG_TRY(core, r.Number("core_radius", 1e-6, 10));
+    VSURG_TRY(thickness, r.Number("thickness", 1e-6, 10));
+    VSURG_TRY(width, r.Number("width", 1e-6, 10));
+    VSURG_TRY(coils, r.Integer("coils", 1, tissue::CoilSpringModel::kMaxCoils));
+    VSURG_TRY(modulus, r.Number("modulus", 1e-3, 1e13));
+    VSURG_TRY(max_force, r.Number("max_force", 1e-9, 1e6));
+    VSURG_TRY(friction, r.NumberOr("friction", 1.25, 1e-3, 100));
+    c = {core, thickness, width, coils, modulus, max_force, friction, {}};
+    if (auto m = tissue::CoilSpringModel::Create(c); !m.ok()) return r.Bad(m.error().field.c_str(), m.error().message);
+  } else if (type == "mass-spring" || type == "ring-layer") {
+    VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
+    g.dt = dt;
+    VSURG_TRY(support, r.StringOr("support", "bottom"));
+    if (support == "none") {
+      g.support = Support::kNone;
+    } else if (support == "bottom") {
+      g.support = Support::kBottom;
+    } else if (support == "ends") {
+      g.support = Support::kEnds;
+    } else {
+      return r.Bad("support", "must be none, bottom or ends");
+    }
+    if (type == "mass-spring") {
+      g.kind = ModelKind::kMassSpring;
+      VSURG_TRY(integrator, r.StringOr("integrator", "implicit-euler"));
+      auto parsed = tissue::ParseIntegrator(integrator);
+      if (!parsed.ok()) return r.Bad("integrator", parsed.error().message);
+      g.integrator = *parsed;
+      tissue::MassSpringBuildParams& b = g.mass_spring;
+      VSURG_TRY(ks, r.Number("structural_stiffness", 1e-9, 1e9));
+      VSURG_TRY(kb, r.NumberOr("bending_stiffness", 0.0, 0, 1e9));
+      VSURG_TRY(kv, r.NumberOr("volume_stiffness", ks, 1e-9, 1e9));
+      VSURG_TRY(damping, r.NumberOr("damping", 0.05, 0, 1e6));
+      VSURG_TRY(volume, r.StringOr("volume", "none"));
+      if (volume != "none" && volume != "inner-layer") return r.Bad("volume", "must be none or inner-layer");
+      VSURG_TRY(depth, r.NumberOr("layer_depth", 0.01, 1e-6, 1));
+      b.structural_stiffness = ks;
+      b.bending_stiffness = kb;
+      b.volume_stiffness = kv;
+      b.damping = damping;
+      b.volume = volume == "inner-layer" ? tissue::VolumeMode::kInnerLayer : tissue::VolumeMode::kNone;
+      b.layer_depth = depth;
+    } else {
+      g.kind = ModelKind::kRingLayer;
+      tissue::RingLayerParams& q = g.ring;
+      VSURG_TRY(spacing, r.Number("ring_spacing", 1e-5, 1));
+      VSURG_TRY(rings, r.Integer("rings", 1, 10000));
+      VSURG_TRY(kc, r.Number("chain_stiffness", 1e-9, 1e9));
+      VSURG_TRY(cc, r.NumberOr("chain_damping", 0.05, 0, 1e6));
+      VSURG_TRY(kt, r.NumberOr("tether_stiffness", 0.0, 0, 1e9));
+      q = {spacing, rings, kc, cc, kt};
+    }
+  } else {
+    return r.Bad("type", "must be coil, mass-spring or ring-layer, got '" + type + "'");
+  }
+  return Status::Ok();
+}
+
+Status ParseHaptics(const Reader& r, HapticsSpec& h) {
+  VSURG_TRY(device, r.StringOr("device", "touch"));
+  auto limits = haptics::DeviceLimitsByName(device);
+  if (!limits.ok()) return r.Bad("device", limits.error().message);
+  h.device = device;
+  h.limits = *limits;
+  VSURG_TRY(k, r.NumberOr("stiffness", 300.0, 0, 1e5));
+  VSURG_TRY(d, r.NumberOr("damping", 1.0, 0, 1e3));
+  VSURG_TRY(mu, r.NumberOr("friction", 0.0, 0, 10));
+  VSURG_TRY(scale, r.NumberOr("force_scale", 1.0, 1e-6, 1e3));
+  VSURG_TRY(hold, r.NumberOr("hold_stiffness", 200.0, 0, 1e5));
+  VSURG_TRY(lever, r.NumberOr("min_lever_m", 0.005, 1e-4, 1.0));
+  h.min_lever = lever;
+  h.proxy.stiffness = k;
+  h.proxy.damping = d;
+  h.proxy.friction = mu;
+  h.force_scale = scale;
+  h.hold_stiffness = hold;
+  return Status::Ok();
+}
+
+Status ParseTask(const Reader& r, scoring::TaskSpec& t) {
+  VSURG_TRY(type, r.String("type"));
+  if (type == "twist") {
+    t.kind = scoring::TaskKind::kTwist;
+    VSURG_TRY(target, r.Number("target_deg", -720, 720));
+    VSURG_TRY(tol, r.Number("tolerance_deg", 1e-3, 180));
+    t.target = target * kDeg;
+    t.tolerance = tol * kDeg;
+  } else if (type == "press") {
+    t.kind = scoring::TaskKind::kPress;
+    VSURG_TRY(target, r.Number("target_depth_m", 0, 0.5));
+    VSURG_TRY(tol, r.Number("tolerance_m", 1e-6, 0.5));
+    t.target = target;
+    t.tolerance = tol;
+  } else {
+    return r.Bad("type", "must be twist or press, got '" + type + "'");
+  }
+  VSURG_TRY(hold, r.NumberOr("hold_s", 2.0, 0, 600));
+  VSURG_TRY(limit, r.NumberOr("force_limit_n", 3.0, 0, 1000));
+  VSURG_TRY(time_limit, r.NumberOr("time_limit_s", 60.0, 1e-3, 86400));
+  if (!(time_limit > hold)) return r.Bad("time_limit_s", "must exceed hold_s");
+  t.hold_s = hold;
+  t.force_limit = limit;
+  t.time_limit = time_limit;
+  return Status::Ok();
+}
+
+}  // namespace
+
+Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    return Error{ErrorCode::kParseError, source + ": not valid JSON: " + e.what(), "scene"};
+  }
+  if (!root.is_object()) return Error{ErrorCode::kParseError, source + ": the scene must be a JSON object", "scene"};
+  auto with_source = [&](Error e) {
+    e.message = source + ": " + e.message;
+    return e;
+  };
+  const Reader r(root, "");
+  Scene s;
+  s.source = source;
+  const std::string dir = fs::path(source).parent_path().string();
+  auto name = r.String("name");
+  if (!name.ok()) return with_source(name.error());
+  s.name = *name;
+  s.description = root.value("description", "");
+  auto mesh = r.Object("mesh");
+  if (!mesh.ok()) return with_source(mesh.error());
+  if (Status st = ParseMesh(*mesh, dir, s.mesh); !st.ok()) return with_source(st.error());
+  if (r.Has("tissue")) {
+    auto t = r.Object("tissue");
+    if (!t.ok()) return with_source(t.error());
+    auto g = t->NumberOr("shear_modulus", 12e3, 1, 1e10);
+    auto nu = t->NumberOr("poisson_ratio", 0.47, 0, 0.4999);
+    auto rho = t->NumberOr("density", 1050, 1, 1e5);
+    for (auto* e : {&g, &nu, &rho}) {
+      if (!e->ok()) return with_source(e->error());
+    }
+    s.shear_modulus = *g, s.poisson_ratio = *nu, s.density = *rho;
+  }
+  if (!root.contains("regions")) return with_source(r.Missing("regions"));
+  if (!root["regions"].is_array() || root["regions"].size() != 1) {
+    return with_source(r.Bad("regions", "must be an array with exactly one deformable region"));
+  }
+  const Reader region(root["regions"][0], "regions[0]");
+  auto region_name = region.StringOr("name", "tissue");
+  if (!region_name.ok()) return with_source(region_name.error());
+  s.region.name = *region_name;
+  auto model = region.Object("model");
+  if (!model.ok()) return with_source(model.error());
+  if (Status st = ParseModel(*model, s.region); !st.ok()) return with_source(st.error());
+  if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb && s.region.support == Support::kBottom) {
+    s.region.support = Support::kEnds;  // a limb rests on its ends
+  }
+  if (r.Has("haptics")) {
+    auto h = r.Object("haptics");
+    if (!h.ok()) return with_source(h.error());
+    if (Status st = ParseHaptics(*h, s.haptics); !st.ok()) return with_source(st.error());
+  }
+  auto task = r.Object("task");
+  if (!task.ok()) return with_source(task.error());
+  if (Status st = ParseTask(*task, s.task); !st.ok()) return with_source(st.error());
+  if ((s.task.kind == scoring::TaskKind::kTwist) != (s.region.kind == ModelKind::kCoil)) {
+    return with_source(InvalidArgument("task.type", "task.type: a twist task needs a coil model, a press task a "
+                                                    "mass-spring or ring-layer model"));
+  }
+  auto budget = r.Object("error_budget");
+  if (!budget.ok()) return with_source(budget.error());
+  auto rms = budget->Number("rms", 0, 10);
+  if (!rms.ok()) return with_source(rms.error());
+  s.error_budget_rms = *rms;
+  auto reference = budget->StringOr("reference", "fem");
+  if (!reference.ok()) return with_source(reference.error());
+  s.error_reference = *reference;
+  return s;
+}
+
+Expected<Scene> LoadScene(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Error{ErrorCode::kNotFound, path + ": cannot open the scene file", "scene"};
+  std::stringstream text;
+  text << in.rdbuf();
+  return ParseScene(text.str(), path);
+}
+
+std::string ScenesDirectory() {
+  if (const char* env = std::getenv("VSURG_SCENES"); env && *env) return env;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    for (const fs::path& candidate : {exe.parent_path() / ".." / ".." / "scenes",
+                                      exe.parent_path() / ".." / "share" / "vsurg" / "scenes"}) {
+      if (fs::is_directory(candidate, ec)) return fs::weakly_canonical(candidate, ec).string();
+    }
+  }
+#ifdef VSURG_SOURCE_SCENES_DIR
+  return VSURG_SOURCE_SCENES_DIR;
+#else
+  return "scenes";
+#endif
+}
+
+Expected<Scene> LoadSceneByName(const std::string& name) {
+  if (name.size() > 5 && name.substr(name.size() - 5) == ".json") return LoadScene(name);
+  for (char c : name) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_')) {
+      return InvalidArgument("scene", "scene name '" + name + "' may hold only letters, digits, - and _");
+    }
+  }
+  const std::string path = ScenesDirectory() + "/" + name + ".json";
+  if (!fs::exists(path)) {
+    return Error{ErrorCode::kNotFound, "no scene '" + name + "' in " + ScenesDirectory(), "scene"};
+  }
+  return LoadScene(path);
+}
+
+}  // namespace vsurg::sim

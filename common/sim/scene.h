@@ -1,0 +1,97 @@
+// Scene files (DESIGN.md "Scenes: model only what a scene needs").
+//
+// A scene is a JSON file in the scenes/ folder: its mesh, the tissue, the model of its
+// deformable region, the haptic coupling and device, the task, and the error budget the chosen
+// model meets. Example (scenes/arm-torsion.json):
+//
+//   { "name": "arm-torsion",
+//     "mesh":   { "type": "limb", "preset": "forearm" },
+//     "tissue": { "shear_modulus": 12000, "poisson_ratio": 0.47, "density": 1050 },
+//     "regions": [ { "name": "forearm",
+//                    "model": { "type": "coil", "mode": "limb", "core_radius": 0.02, ... } } ],
+//     "haptics": { "device": "touch", "stiffness": 300, "damping": 1.0, "force_scale": 0.05 },
+//     "task":   { "type": "twist", "target_deg": 45, "tolerance_deg": 5, "hold_s": 2,
+//                 "force_limit_n": 3.0, "time_limit_s": 60 },
+//     "error_budget": { "rms": 0.30, "reference": "saint-venant" } }
+//
+// Mesh types: limb (preset forearm or calf, or length/radius_proximal/radius_distal/segments/
+// rings), sphere (radius, particles), obj (path, relative to the scene file). Model types: coil
+// (mode limb or surface), mass-spring (integrator, dt, stiffness, damping, volume, support),
+// ring-layer (ring_spacing, rings, chain_stiffness, chain_damping, tether_stiffness, dt).
+// Exactly one deformable region per scene: what lies outside its reach is at rest and costs
+// nothing. Every error names the field, as a path: "regions[0].model.coils: must be ≥ 1".
+//
+// Set-up code: allocates, reads files.
+#pragma once
+
+#include <string>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh_generators.h"
+#include "common/haptics/proxy.h"
+#include "common/haptics/safety.h"
+#include "common/scoring/trial_metrics.h"
+#include "common/tissue/coil_deformation.h"
+#include "common/tissue/coil_spring.h"
+#include "common/tissue/mass_spring.h"
+#include "common/tissue/ring_layer.h"
+
+namespace vsurg::sim {
+
+enum class MeshKind { kLimb, kSphere, kObj };
+enum class ModelKind { kCoil, kMassSpring, kRingLayer };
+enum class Support { kNone, kBottom, kEnds };  // what is fixed: nothing, the bottom fifth, limb ends
+
+struct MeshSpec {
+  MeshKind kind = MeshKind::kLimb;
+  geometry::LimbParams limb;
+  double radius = 0.05;  // m, sphere
+  int particles = 256;   // sphere
+  std::string path;      // obj, absolute after loading
+};
+
+struct RegionSpec {
+  std::string name;
+  ModelKind kind = ModelKind::kCoil;
+  tissue::CoilSpringParams coil;
+  tissue::TwistMode coil_mode = tissue::TwistMode::kLimb;
+  tissue::MassSpringBuildParams mass_spring;
+  tissue::Integrator integrator = tissue::Integrator::kImplicitEuler;
+  double dt = 1e-3;  // s, mass-spring and ring-layer step
+  Support support = Support::kBottom;
+  tissue::RingLayerParams ring;
+};
+
+struct HapticsSpec {
+  std::string device = "touch";
+  haptics::DeviceLimits limits = haptics::TouchLimits();
+  haptics::ProxyParams proxy;
+  double force_scale = 1.0;      // rendered force = tissue force × scale (desktop devices cannot
+                                 // render limb torques at true scale)
+  double hold_stiffness = 200.0; // N/m, the grasp holds the tip on the grasped point
+  double min_lever = 0.005;      // m, the twist force's lever when the tip is on the axis
+                                 // (forceps jaws in surface mode)
+};
+
+struct Scene {
+  std::string name, description;
+  std::string source;  // the file it was read from
+  MeshSpec mesh;
+  double shear_modulus = 12e3, poisson_ratio = 0.47, density = 1050;
+  RegionSpec region;
+  HapticsSpec haptics;
+  scoring::TaskSpec task;
+  double error_budget_rms = 0.1;  // relative RMS displacement error the model meets
+  std::string error_reference;    // what that error is measured against
+};
+
+Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
+Expected<Scene> LoadScene(const std::string& path);
+
+// The scenes folder: $VSURG_SCENES, else scenes/ beside the executable's ../../ (the build tree)
+// or ../share/vsurg/scenes (an install), else the source tree's scenes/ compiled in.
+std::string ScenesDirectory();
+// "arm-torsion" → <scenes>/arm-torsion.json; a path ending in .json is loaded as is.
+Expected<Scene> LoadSceneByName(const std::string& name_or_path);
+
+}  // namespace vsurg::sim
