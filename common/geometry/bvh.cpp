@@ -200,7 +200,7 @@ RayHit Bvh::FirstHit(const std::vector<Vec3>& positions, const Vec3& a, const Ve
       const double s = e2.dot(qv) * inv;
       if (s < 0 || s > t_best) continue;
       t_best = s;
-      best = RayHit{t, s, Vec3(1 - u - v, u, v), a + s * d, det < 0};
+      best = RayHit{t, s, Vec3(1 - u - v, u, v), a + s * d, det > 0};  // det = −d·n: entering
     }
   }
   return best;

@@ -1,0 +1,402 @@
+#include "common/sim/simulation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "common/geometry/distances.h"
+#include "common/geometry/obj_io.h"
+
+namespace vsurg::sim {
+
+using geometry::Vec3;
+using haptics::ForceCommand;
+using haptics::StylusSample;
+
+namespace {
+
+// Closest point of a polyline (no allocation): foot, unit tangent and arc length.
+void ProjectOnPolyline(const std::vector<Vec3>& line, const Vec3& p, Vec3& foot, Vec3& tangent, double& s) {
+  double best = INFINITY, acc = 0;
+  for (size_t i = 0; i + 1 < line.size(); ++i) {
+    const Vec3 seg = line[i + 1] - line[i];
+    const double len = seg.norm();
+    if (!(len > 0)) continue;
+    const Vec3 dir = seg / len;
+    const double along = std::clamp((p - line[i]).dot(dir), 0.0, len);
+    const Vec3 c = line[i] + along * dir;
+    const double d2 = (p - c).squaredNorm();
+    if (d2 < best) best = d2, foot = c, tangent = dir, s = acc + along;
+    acc += len;
+  }
+}
+
+Vec3 AnyPerpendicular(const Vec3& a) {
+  const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  return a.cross(t).normalized();
+}
+
+}  // namespace
+
+Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene, const SimulationOptions& options) {
+  geometry::TriMesh rest;
+  std::vector<Vec3> centreline;
+  switch (scene.mesh.kind) {
+    case MeshKind::kLimb: {
+      auto limb = geometry::MakeLimb(scene.mesh.limb);
+      if (!limb.ok()) return limb.error();
+      rest = std::move(limb->surface);
+      centreline = std::move(limb->centreline);
+      break;
+    }
+    case MeshKind::kSphere: {
+      const int levels = geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron, scene.mesh.particles);
+      auto sphere = geometry::MakeSubdividedSphere({scene.mesh.radius, levels, geometry::SphereBase::kOctahedron});
+      if (!sphere.ok()) return sphere.error();
+      rest = std::move(*sphere);
+      break;
+    }
+    case MeshKind::kObj: {
+      auto mesh = geometry::ReadObj(scene.mesh.path);
+      if (!mesh.ok()) return mesh.error();
+      rest = std::move(*mesh);
+      break;
+    }
+  }
+  std::unique_ptr<Simulation> sim(new Simulation(scene, std::move(rest), options));
+  sim->centreline_points_ = std::move(centreline);
+  if (Status s = sim->Build(); !s.ok()) return s.error();
+  if (options.threaded) sim->thread_ = std::thread([p = sim.get()] { p->DeformationLoop(); });
+  return sim;
+}
+
+Simulation::Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options)
+    : scene_(scene),
+      rest_(std::move(rest)),
+      options_(options),
+      proxy_(*haptics::ProxyContact::Create({})),
+      safety_(*haptics::SafetyFilter::Create(haptics::TouchLimits())),
+      recorder_(scene.task) {}
+
+Simulation::~Simulation() {
+  stop_.store(true);
+  if (thread_.joinable()) thread_.join();
+}
+
+Status Simulation::Build() {
+  if (Status s = geometry::Validate(rest_); !s.ok()) return s;
+  haptics::ProxyParams pp = scene_.haptics.proxy;
+  pp.stiffness = std::min(pp.stiffness, scene_.haptics.limits.max_stiffness);  // the device's limit
+  auto proxy = haptics::ProxyContact::Create(pp);
+  if (!proxy.ok()) return proxy.error();
+  proxy_ = *proxy;
+  auto safety = haptics::SafetyFilter::Create(scene_.haptics.limits);
+  if (!safety.ok()) return safety.error();
+  safety_ = *safety;
+  const RegionSpec& region = scene_.region;
+  const double mass = scene_.density * std::abs(geometry::SignedVolume(rest_));
+  if (region.kind == ModelKind::kCoil) {
+    auto coil = tissue::CoilSpringModel::Create(region.coil);
+    if (!coil.ok()) return coil.error();
+    coil_ = std::make_unique<tissue::CoilSpringModel>(std::move(*coil));
+    if (region.coil_mode == tissue::TwistMode::kLimb && centreline_points_.size() < 2) {
+      return InvalidArgument("regions[0].model.mode", "limb mode needs a limb mesh (with a centreline)");
+    }
+  } else {
+    // What the support fixes.
+    Vec3 lo = rest_.positions[0], hi = lo;
+    for (const Vec3& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const double height = hi.z() - lo.z();
+    auto fixed = [&](const Vec3& p) {
+      switch (region.support) {
+        case Support::kNone:
+          return false;
+        case Support::kBottom:
+          return p.z() < lo.z() + 0.2 * height;
+        case Support::kEnds:
+          return p.z() < lo.z() + 0.01 * height || p.z() > hi.z() - 0.01 * height;
+      }
+      return false;
+    };
+    if (region.kind == ModelKind::kMassSpring) {
+      tissue::MassSpringBuildParams bp = region.mass_spring;
+      bp.total_mass = mass;
+      auto sys = tissue::BuildMassSpring(rest_, bp);
+      if (!sys.ok()) return sys.error();
+      tissue::MassSpringStepParams sp;
+      sp.integrator = region.integrator;
+      auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
+      if (!model.ok()) return model.error();
+      msm_ = std::make_unique<tissue::MassSpringModel>(std::move(*model));
+      const int n = rest_.VertexCount();
+      for (int v = 0; v < n; ++v) {
+        if (!fixed(rest_.positions[v])) continue;
+        msm_->SetFixed(v, true);
+        if (bp.volume == tissue::VolumeMode::kInnerLayer) msm_->SetFixed(n + v, true);
+      }
+      loaded_.reserve(3);
+    } else {
+      masses_.assign(rest_.VertexCount(), mass / rest_.VertexCount());
+    }
+  }
+  const geometry::Bvh bvh(rest_);
+  surface_.ForEachSlot([&](Snapshot& s) {
+    s.positions = rest_.positions;
+    s.bvh = bvh;
+  });
+  visual_.ForEachSlot([&](VisualPositions& v) { v.positions = rest_.positions; });
+  last_sent_ = rest_.positions;
+  return Status::Ok();
+}
+
+ForceCommand Simulation::Zero(const StylusSample& s, uint32_t events) {
+  ForceCommand c;
+  c.time = std::isfinite(s.time) ? s.time : last_time_;
+  c.events = events;
+  c.local.position0 = s.position.allFinite() ? s.position : Vec3::Zero();
+  return c;
+}
+
+ForceCommand Simulation::OnStylus(const StylusSample& s) {
+  uint32_t events = 0;
+  if (!safety_.AcceptInput(s, events)) {
+    // Zero force, let go of everything; the next good sample passes the start-up gate again.
+    if (grasping_) events |= haptics::kEventGraspEnd;
+    grasping_ = false;
+    last_contact_ = false;
+    proxy_.Reset();
+    safety_.Disarm();
+    input_.grasping = false;
+    input_.torque = 0;
+    input_.triangle = -1;
+    input_.force_on_tissue.setZero();
+    inputs_.Back() = input_;
+    inputs_.Publish();
+    return Zero(s, events);
+  }
+  double dt = has_time_ ? s.time - last_time_ : 1e-3;
+  if (!(dt > 0 && dt < 0.1)) dt = 1e-3;  // repeated, reordered or after a pause
+  last_time_ = s.time;
+  has_time_ = true;
+  surface_.Acquire();
+  const Snapshot& snap = surface_.Front();
+  const bool button = (s.buttons & haptics::kButtonGrasp) != 0;
+  const scoring::TaskKind task = scene_.task.kind;
+
+  ForceCommand cmd;
+  cmd.time = s.time;
+  Vec3 force = Vec3::Zero();
+  Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();
+  double quantity = 0;
+  bool overload = snap.overload;
+  if (grasping_ && !button) {
+    grasping_ = false;
+    events |= haptics::kEventGraspEnd;
+    input_.grasping = false;
+    input_.torque = 0;
+    proxy_.Reset();
+  }
+  if (grasping_) {
+    // The twist about the axis is the twist part of the rotation since the grasp (swing-twist).
+    const Eigen::Quaterniond rel = s.orientation.normalized() * grasp_q0_.conjugate();
+    double twist = 2.0 * std::atan2(rel.vec().dot(axis_), rel.w());
+    twist = std::remainder(twist, 2.0 * std::numbers::pi);
+    const tissue::CoilTorque answer = coil_->Inverse(twist);
+    overload = overload || answer.overload;
+    const Vec3 arm = input_.grasp_point - axis_point_;
+    const Vec3 turned = axis_point_ + Eigen::AngleAxisd(twist, axis_) * arm;
+    const Vec3 radial = turned - axis_point_;
+    const Vec3 tangent = radial.norm() > 1e-9 ? Vec3(axis_.cross(radial).normalized()) : AnyPerpendicular(axis_);
+    const double hold = scene_.haptics.hold_stiffness;
+    force = scene_.haptics.force_scale * (-answer.torque / lever_) * tangent + hold * (turned - s.position);
+    jacobian = -hold * Eigen::Matrix3d::Identity();
+    input_.torque = answer.torque;
+    quantity = twist;
+    cmd.grasping = true;
+    cmd.contact = true;
+    cmd.proxy = turned;
+    cmd.twist = twist;
+    cmd.torque = answer.torque;
+  } else {
+    const haptics::ProxyState& ps = proxy_.Update(snap.positions, snap.bvh, s.position, dt);
+    if (ps.contact) {
+      const geometry::Triangle& tri = rest_.triangles[ps.triangle];
+      if (!last_contact_) {
+        ++input_.contact_id;
+        rest_contact_ = ps.barycentric[0] * rest_.positions[tri[0]] + ps.barycentric[1] * rest_.positions[tri[1]] +
+                        ps.barycentric[2] * rest_.positions[tri[2]];
+        rest_normal_ = geometry::TriangleNormal(rest_, ps.triangle);
+      }
+      if (button && coil_) {
+        // Grasp the point under the proxy.
+        grasping_ = true;
+        events |= haptics::kEventGraspStart;
+        ++input_.grasp_id;
+        input_.grasping = true;
+        input_.grasp_point = ps.scp;
+        grasp_q0_ = s.orientation.normalized();
+        if (scene_.region.coil_mode == tissue::TwistMode::kLimb) {
+          double arc = 0;
+          ProjectOnPolyline(centreline_points_, ps.scp, axis_point_, axis_, arc);
+          lever_ = std::max(scene_.haptics.min_lever, (ps.scp - axis_point_).norm());
+        } else {
+          axis_ = ps.normal;
+          axis_point_ = ps.scp;
+          lever_ = scene_.haptics.min_lever;
+        }
+      }
+      force = ps.force;
+      jacobian = ps.jacobian;
+      input_.triangle = ps.triangle;
+      input_.barycentric = ps.barycentric;
+      input_.force_on_tissue = -ps.force;
+      if (task == scoring::TaskKind::kPress) quantity = std::max(0.0, (rest_contact_ - s.position).dot(rest_normal_));
+    } else {
+      input_.triangle = -1;
+      input_.force_on_tissue.setZero();
+    }
+    last_contact_ = ps.contact;
+    cmd.contact = ps.contact;
+    cmd.proxy = ps.scp;
+  }
+  inputs_.Back() = input_;
+  inputs_.Publish();
+
+  const Vec3 out = safety_.Filter(force, dt, events);
+  cmd.force = out;
+  cmd.local.position0 = s.position;
+  cmd.local.jacobian = jacobian;
+  safety_.LimitLocalModel(cmd.local, out, events);
+  if (overload) events |= haptics::kEventOverload;
+  cmd.events = events;
+  recorder_.Add(s.time, s.position, quantity, out.norm(), overload);
+  return cmd;
+}
+
+void Simulation::Publish(const std::vector<Vec3>& positions, bool overload) {
+  const size_t n = rest_.positions.size();
+  Snapshot& back = surface_.Back();
+  std::copy(positions.begin(), positions.begin() + n, back.positions.begin());
+  back.bvh.Refit(back.positions);
+  back.id = ++publish_id_;
+  back.overload = overload;
+  surface_.Publish();
+  VisualPositions& v = visual_.Back();
+  std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
+  v.id = publish_id_;
+  visual_.Publish();
+  updates_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void Simulation::Deform(const DeformInput& in) {
+  const RegionSpec& region = scene_.region;
+  switch (region.kind) {
+    case ModelKind::kCoil: {
+      if (in.grasping && in.grasp_id != seen_grasp_) {
+        // A new grasp: bind a deformer around it (set-up work, on this thread).
+        seen_grasp_ = in.grasp_id;
+        Expected<tissue::CoilDeformer> d = InvalidArgument("grasp", "no grasp");
+        if (region.coil_mode == tissue::TwistMode::kLimb) {
+          Vec3 foot, tangent;
+          double arc = 0;
+          ProjectOnPolyline(centreline_points_, in.grasp_point, foot, tangent, arc);
+          d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_.positions, centreline_points_, arc);
+        } else {
+          auto sp = geometry::ClosestSurfacePoint(rest_, in.grasp_point);
+          if (sp.ok()) d = tissue::CoilDeformer::CreateForSurface(*coil_, rest_, *sp, geometry::GeodesicMethod::kHeat);
+        }
+        if (d.ok()) {
+          if (deformer_) deformer_->Update(0.0);
+          deformer_ = std::make_unique<tissue::CoilDeformer>(std::move(*d));
+          applied_torque_ = NAN;
+        }
+      }
+      if (!deformer_) return;
+      const double torque = in.grasping ? in.torque : 0.0;
+      if (torque == applied_torque_ && in.grasping == applied_grasp_) return;  // nothing new
+      const tissue::DeformStats stats = deformer_->Update(torque);
+      applied_torque_ = torque;
+      applied_grasp_ = in.grasping;
+      Publish(deformer_->positions(), stats.overload);
+      return;
+    }
+    case ModelKind::kMassSpring: {
+      for (int v : loaded_) msm_->SetExternalForce(v, Vec3::Zero());
+      loaded_.clear();
+      if (in.triangle >= 0) {
+        for (int k = 0; k < 3; ++k) {
+          const int v = rest_.triangles[in.triangle][k];
+          msm_->SetExternalForce(v, in.barycentric[k] * in.force_on_tissue);
+          loaded_.push_back(v);
+        }
+      }
+      if (!msm_->Step(region.dt)) msm_->Reset();  // a divergence is reset to rest, never NaN
+      Publish(msm_->positions(), false);
+      return;
+    }
+    case ModelKind::kRingLayer: {
+      if (in.triangle >= 0 && in.contact_id != seen_contact_) {
+        seen_contact_ = in.contact_id;
+        const geometry::Triangle& tri = rest_.triangles[in.triangle];
+        const Vec3 p = in.barycentric[0] * rest_.positions[tri[0]] + in.barycentric[1] * rest_.positions[tri[1]] +
+                       in.barycentric[2] * rest_.positions[tri[2]];
+        std::vector<double> rho(rest_.VertexCount());
+        for (int v = 0; v < rest_.VertexCount(); ++v) rho[v] = (rest_.positions[v] - p).norm();
+        auto ring = tissue::RingLayerModel::Create(rest_.positions, rho, masses_,
+                                                   -geometry::TriangleNormal(rest_, in.triangle), region.ring);
+        if (ring.ok()) ring_ = std::make_unique<tissue::RingLayerModel>(std::move(*ring));
+      }
+      if (!ring_) return;
+      ring_->SetContactForce(in.triangle >= 0 ? in.force_on_tissue.dot(-geometry::TriangleNormal(rest_, in.triangle))
+                                              : 0.0);
+      ring_->Step(region.dt);
+      ring_->Apply();
+      Publish(ring_->positions(), false);
+      return;
+    }
+  }
+}
+
+void Simulation::StepDeformation() {
+  inputs_.Acquire();
+  Deform(inputs_.Front());
+}
+
+void Simulation::DeformationLoop() {
+  using Clock = std::chrono::steady_clock;
+  const bool paced = scene_.region.kind != ModelKind::kCoil;
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
+  auto next = Clock::now();
+  while (!stop_.load(std::memory_order_relaxed)) {
+    inputs_.Acquire();
+    Deform(inputs_.Front());
+    if (paced) {
+      next += period;
+      const auto now = Clock::now();
+      if (now - next > std::chrono::milliseconds(50)) next = now;  // fell behind: do not burst
+      std::this_thread::sleep_until(next);
+    } else {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));  // the coil updates on change
+    }
+  }
+}
+
+bool Simulation::TakeVisualFrame(VisualFrame& out) {
+  if (!visual_.Acquire()) return false;
+  const VisualPositions& v = visual_.Front();
+  out.frame_id = v.id;
+  out.indices.clear();
+  out.positions.clear();
+  constexpr double kMoved2 = 1e-12;  // (1 µm)²: below that a vertex did not move
+  for (size_t i = 0; i < v.positions.size(); ++i) {
+    if ((v.positions[i] - last_sent_[i]).squaredNorm() > kMoved2) {
+      out.indices.push_back(static_cast<int32_t>(i));
+      out.positions.push_back(v.positions[i]);
+      last_sent_[i] = v.positions[i];
+    }
+  }
+  return true;
+}
+
+}  // namespace vsurg::sim

@@ -1,0 +1,153 @@
+// One trainee's simulation: stylus samples in, force commands out (DESIGN.md "Haptic
+// interaction"; STYLE.md: the handler never sees a socket).
+//
+// Two loops share a session's scene:
+//
+//   haptic path, OnStylus()            deformation, its own thread (or StepDeformation())
+//   ---------------------------------  ---------------------------------------------------
+//   latest surface snapshot ───────────  deforms: coil deformer / mass-spring / ring layer
+//   proxy contact, grasp-and-twist       refits a BVH over the new surface, publishes it
+//   coil inverse (twist → torque)        reads the latest DeformInput: torque, grasp, contact
+//   safety filter, local model           force on the tissue
+//   trial metrics
+//   publishes a DeformInput ──────────
+//
+// Hand-offs are TripleBuffers (lock-free, latest-wins); all buffers are sized at Create, so the
+// haptic path never allocates and never waits. Visual frames (TakeVisualFrame, at ~60 Hz from a
+// third thread) carry only the vertices that moved since the previous frame.
+//
+// Grasp-and-twist (coil scenes): in contact, pressing the grasp button grasps the surface point
+// under the proxy. The twist axis is the limb centreline there (limb mode) or the surface normal
+// (surface mode). The stylus's rotation about that axis since the grasp is the imposed twist Φ;
+// the coil model's closed-form inverse gives the torque M; the device feels −M/lever along the
+// tangent (lever = the grasp point's distance from the axis, at least min_lever), scaled by the
+// scene's force_scale, plus a holding spring to the grasped point turned by Φ. Releasing lets go
+// and the tissue relaxes.
+//
+// Palpation (mass-spring, ring-layer): the proxy's force pushes the stylus back; its opposite is
+// applied to the tissue at the contact point, and the tissue deforms under it.
+//
+// Threads: OnStylus and Metrics from one haptic thread; TakeVisualFrame from one other thread;
+// the deformation thread is owned. Create/destroy from anywhere (the destructor joins).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/geometry/bvh.h"
+#include "common/haptics/proxy.h"
+#include "common/haptics/safety.h"
+#include "common/haptics/types.h"
+#include "common/scoring/trial_metrics.h"
+#include "common/sim/scene.h"
+#include "common/sim/triple_buffer.h"
+
+namespace vsurg::sim {
+
+struct SimulationOptions {
+  bool threaded = true;  // false: the caller drives StepDeformation() (replays, tests)
+};
+
+struct VisualFrame {
+  uint64_t frame_id = 0;             // counts published deformations
+  std::vector<int32_t> indices;      // vertices that moved since the previous frame taken
+  std::vector<geometry::Vec3> positions;  // their positions, m
+};
+
+class Simulation {
+ public:
+  static Expected<std::unique_ptr<Simulation>> Create(const Scene& scene, const SimulationOptions& options = {});
+  ~Simulation();
+  Simulation(const Simulation&) = delete;
+  Simulation& operator=(const Simulation&) = delete;
+
+  // Haptic thread, ≥ 1 kHz. Never allocates, never blocks.
+  haptics::ForceCommand OnStylus(const haptics::StylusSample& sample);
+  // Non-threaded mode: one deformation update from the latest input (the caller's thread).
+  void StepDeformation();
+  // Visual thread: fills `out` with the vertices that moved since the previous call; false when
+  // nothing new was published. Reuses out's capacity.
+  bool TakeVisualFrame(VisualFrame& out);
+
+  scoring::TrialMetrics Metrics() const { return recorder_.Finish(); }
+  const Scene& scene() const { return scene_; }
+  const geometry::TriMesh& rest_mesh() const { return rest_; }
+  // Deformation updates published so far (any thread).
+  uint64_t deformation_updates() const { return updates_.load(std::memory_order_relaxed); }
+
+ private:
+  struct Snapshot {
+    std::vector<geometry::Vec3> positions;
+    geometry::Bvh bvh;
+    uint64_t id = 0;
+    bool overload = false;
+  };
+  // What the haptic path asks of the deformation.
+  struct DeformInput {
+    uint64_t grasp_id = 0;      // changes at every new grasp
+    bool grasping = false;
+    double torque = 0;          // N·m, coil scenes
+    geometry::Vec3 grasp_point = geometry::Vec3::Zero();
+    int triangle = -1;          // contact triangle, −1: no contact
+    geometry::Vec3 barycentric = geometry::Vec3::Zero();
+    geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
+    uint64_t contact_id = 0;    // changes at every new contact
+  };
+  struct VisualPositions {
+    std::vector<geometry::Vec3> positions;
+    uint64_t id = 0;
+  };
+
+  Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options);
+  Status Build();
+  void DeformationLoop();
+  void Deform(const DeformInput& in);
+  void Publish(const std::vector<geometry::Vec3>& positions, bool overload);
+  haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
+
+  Scene scene_;
+  geometry::TriMesh rest_;
+  SimulationOptions options_;
+
+  // Haptic side.
+  haptics::ProxyContact proxy_;
+  haptics::SafetyFilter safety_;
+  scoring::TrialRecorder recorder_;
+  std::unique_ptr<tissue::CoilSpringModel> coil_;  // coil scenes: the inverse runs here
+  std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex
+  std::vector<geometry::Vec3> centreline_points_;
+  DeformInput input_;
+  double last_time_ = 0;
+  bool has_time_ = false;
+  bool grasping_ = false;
+  Eigen::Quaterniond grasp_q0_ = Eigen::Quaterniond::Identity();
+  geometry::Vec3 axis_ = geometry::Vec3::UnitZ(), axis_point_ = geometry::Vec3::Zero();
+  double lever_ = 0.03;
+  geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
+  bool last_contact_ = false;
+
+  // Deformation side.
+  std::unique_ptr<tissue::CoilDeformer> deformer_;
+  std::unique_ptr<tissue::MassSpringModel> msm_;
+  std::unique_ptr<tissue::RingLayerModel> ring_;
+  std::vector<double> masses_;  // per surface vertex, ring layer
+  uint64_t seen_grasp_ = 0, seen_contact_ = 0;
+  double applied_torque_ = 0;
+  bool applied_grasp_ = false;
+  std::vector<int> loaded_;  // mass-spring vertices carrying the contact force
+
+  TripleBuffer<Snapshot> surface_;
+  TripleBuffer<DeformInput> inputs_;
+  TripleBuffer<VisualPositions> visual_;
+  std::vector<geometry::Vec3> last_sent_;  // visual thread
+  uint64_t publish_id_ = 0;
+  std::atomic<uint64_t> updates_{0};
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace vsurg::sim
