@@ -561,7 +561,7 @@ json MetricsJson(const scoring::TrialMetrics& m) {
           {"peak_force", m.peak_force},
           {"time_over_force_limit", m.time_over_force_limit},
           {"path_length", m.path_length},
-          {"normalized_jerk", m.normalized_jerk},
+          {"rms_jerk", m.rms_jerk},
           {"overload_events", m.overload_events},
           {"duration", m.duration},
           {"score", m.score},
@@ -644,10 +644,10 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
   std::snprintf(line, sizeof line,
                 "%s: %zu samples, peak force %.3f N (after device limits), mean %.3f N\n"
                 "completed %s in %.2f s, task error %.4g, %.2f s over the force limit, overloads %d\n"
-                "path %.3f m, normalised jerk %.3g, score %.1f / 10 (before gates %.1f)\n",
+                "path %.3f m, RMS jerk %.3g m/s^3, score %.1f / 10 (before gates %.1f)\n",
                 scene->name.c_str(), samples->size(), peak, forces ? force_sum / forces : 0.0,
                 m.completed ? "yes" : "no", m.completion_time, m.task_error, m.time_over_force_limit,
-                m.overload_events, m.path_length, m.normalized_jerk, m.score, m.raw_score);
+                m.overload_events, m.path_length, m.rms_jerk, m.score, m.raw_score);
   out << line;
   return 0;
 }

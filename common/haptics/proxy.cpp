@@ -47,6 +47,22 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x, con
       state_.barycentric = hit.barycentric;
       state_.normal = FaceNormal(x, tris[hit.triangle]);
       last_x_ = state_.scp - hip;
+    } else {
+      // The surface may have moved over a resting tip (deforming tissue springing back): a tip
+      // just under its closest face is inside. A tip beyond a thin sheet sees the sheet's near
+      // face, whose normal points at it, so this never catches the far side.
+      const geometry::ClosestHit c = bvh.Closest(x, hip, params_.max_step);
+      if (c.triangle >= 0) {
+        const Vec3 n = FaceNormal(x, tris[c.triangle]);
+        if ((hip - c.point).dot(n) < 0) {
+          state_.contact = true;
+          state_.scp = c.point;
+          state_.triangle = c.triangle;
+          state_.barycentric = c.barycentric;
+          state_.normal = n;
+          last_x_ = state_.scp - hip;
+        }
+      }
     }
   } else if (state_.contact) {
     // Closest point to the tip among faces still facing the contact side, near the proxy.

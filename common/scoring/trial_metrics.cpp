@@ -11,11 +11,14 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
   if (samples_ == 0) t0_ = time;
   const double dt = samples_ > 0 ? time - t_last_ : 0.0;
   if (samples_ > 0) {
-    path_ += (tip - x_[0]).norm();
+    path_ += (tip - last_tip_).norm();
     if (force > task_.force_limit) over_ += dt;
   }
+  // One-pole low-pass at 10 Hz before differentiating three times.
+  const double alpha = samples_ == 0 ? 1.0 : 1.0 - std::exp(-2.0 * 3.14159265358979 * 10.0 * dt);
+  filtered_ += alpha * (tip - filtered_);
   for (int k = 3; k > 0; --k) x_[k] = x_[k - 1], t_[k] = t_[k - 1];
-  x_[0] = tip;
+  x_[0] = filtered_;
   t_[0] = time;
   ++samples_;
   if (samples_ >= 4) {
@@ -23,6 +26,7 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
     const Eigen::Vector3d jerk = (x_[0] - 3.0 * x_[1] + 3.0 * x_[2] - x_[3]) / (h * h * h);
     jerk2_ += jerk.squaredNorm() * dt;
   }
+  last_tip_ = tip;
   peak_ = std::max(peak_, force);
   if (overload && !was_overloaded_) ++overloads_;
   was_overloaded_ = overload;
@@ -53,15 +57,12 @@ TrialMetrics TrialRecorder::Finish() const {
   m.path_length = path_;
   m.duration = t_last_ - t0_;
   m.overload_events = overloads_;
-  if (path_ > 0 && m.duration > 0) {
-    m.normalized_jerk = std::sqrt(0.5 * jerk2_ * std::pow(m.duration, 5) / (path_ * path_));
-  }
+  if (m.duration > 0) m.rms_jerk = std::sqrt(jerk2_ / m.duration);
   auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
   const double accuracy = unit(1.0 - m.task_error / (2.0 * task_.tolerance));
-  const double efficiency =
-      completed_ ? unit((task_.time_limit - m.completion_time) / std::max(1e-9, task_.time_limit - task_.hold_s)) : 0.0;
+  const double efficiency = completed_ ? unit(task_.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
   const double force = unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task_.force_limit ? 0.5 : 1.0);
-  const double smooth = m.normalized_jerk > 0 ? unit(1.0 - std::log10(std::max(1.0, m.normalized_jerk / 19.0)) / 2.0) : 1.0;
+  const double smooth = unit(1.0 - std::log10(std::max(1.0, m.rms_jerk / 5.0)) / 2.0);
   m.raw_score = 10.0 * (0.4 * accuracy + 0.2 * efficiency + 0.2 * force + 0.2 * smooth);
   m.score = m.raw_score;
   if (!completed_) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);

@@ -7,13 +7,15 @@
 // Metrics: completion time (first moment the quantity has been within tolerance of the target,
 // under the force limit, for hold_s; measured from the first sample), task error (|quantity −
 // target| at completion, or at the end if never completed), peak force, time over the force
-// limit, path length of the tip, normalised jerk (Teulings et al. 1997:
-// √(½·∫|d³x/dt³|²dt · T⁵ / L²), dimensionless; a minimum-jerk reach scores about 19), and overload
-// events (each onset counts once).
+// limit, path length of the tip, RMS jerk of the tip (m/s³; the third derivative of the position
+// low-passed at 10 Hz, above the band of voluntary movement, so sensor noise does not count), and
+// overload events (each onset counts once). The normalised jerk of Teulings et al. was tried and
+// dropped: it assumes one reach, and a trial's holds and approach made it ~10⁴ for everyone.
 //
-// Score, 0–10, weights: accuracy 0.4 (1 − error/(2·tolerance)), efficiency 0.2 (time left of
-// the time limit, 0 if not completed), force control 0.2 (1 − time over limit/1 s, halved if the
-// peak exceeded the limit), smoothness 0.2 (1 − log10(NJ/19)/2), each clamped to [0, 1].
+// Score, 0–10, weights: accuracy 0.4 (1 − error/(2·tolerance)), efficiency 0.2 (expert time /
+// completion time, 0 if not completed), force control 0.2 (1 − time over limit/1 s, halved if the
+// peak exceeded the limit), smoothness 0.2 (1 − log10(RMS jerk / 5 m/s³)/2: a smooth 2-s twist
+// with a 0.4-s approach scores 1), each clamped to [0, 1].
 // Non-compensatory safety gates, as proficiency-based curricula use: not completed caps the
 // score at 5; more than 0.5 s over the force limit caps it at 4; any overload caps it at 3.
 //
@@ -35,6 +37,7 @@ struct TaskSpec {
   double hold_s = 2.0;         // s
   double force_limit = 3.0;    // N
   double time_limit = 60.0;    // s
+  double expert_time = 5.0;    // s, an expert's completion time (the efficiency reference)
 };
 
 enum ScoreCap : uint32_t {
@@ -50,7 +53,7 @@ struct TrialMetrics {
   double peak_force = 0;           // N
   double time_over_force_limit = 0;  // s
   double path_length = 0;          // m
-  double normalized_jerk = 0;      // 1
+  double rms_jerk = 0;             // m/s³
   int overload_events = 0;
   double duration = 0;             // s, first to last sample
   double score = 0;                // 0–10 after the gates
@@ -71,8 +74,10 @@ class TrialRecorder {
   int samples_ = 0;
   double t0_ = 0, t_last_ = 0;
   double last_quantity_ = 0;
-  Eigen::Vector3d x_[4];  // the last four tip positions, newest first
+  Eigen::Vector3d filtered_ = Eigen::Vector3d::Zero();  // tip low-passed at 10 Hz
+  Eigen::Vector3d x_[4];  // the last four filtered positions, newest first
   double t_[4] = {0, 0, 0, 0};
+  Eigen::Vector3d last_tip_ = Eigen::Vector3d::Zero();
   double jerk2_ = 0;      // ∫|j|² dt
   double path_ = 0;
   double peak_ = 0;

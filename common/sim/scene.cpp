@@ -229,6 +229,9 @@ Status ParseTask(const Reader& r, scoring::TaskSpec& t) {
   VSURG_TRY(limit, r.NumberOr("force_limit_n", 3.0, 0, 1000));
   VSURG_TRY(time_limit, r.NumberOr("time_limit_s", 60.0, 1e-3, 86400));
   if (!(time_limit > hold)) return r.Bad("time_limit_s", "must exceed hold_s");
+  VSURG_TRY(expert, r.NumberOr("expert_time_s", hold + 3.0, 1e-3, 86400));
+  if (!(expert >= hold)) return r.Bad("expert_time_s", "must be at least hold_s");
+  t.expert_time = expert;
   t.hold_s = hold;
   t.force_limit = limit;
   t.time_limit = time_limit;

@@ -135,7 +135,6 @@ Status Simulation::Build() {
         msm_->SetFixed(v, true);
         if (bp.volume == tissue::VolumeMode::kInnerLayer) msm_->SetFixed(n + v, true);
       }
-      loaded_.reserve(3);
     } else {
       masses_.assign(rest_.VertexCount(), mass / rest_.VertexCount());
     }
@@ -251,6 +250,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;
       input_.force_on_tissue = -ps.force;
+      input_.hip = s.position;
       if (task == scoring::TaskKind::kPress) quantity = std::max(0.0, (rest_contact_ - s.position).dot(rest_normal_));
     } else {
       input_.triangle = -1;
@@ -322,13 +322,15 @@ void Simulation::Deform(const DeformInput& in) {
       return;
     }
     case ModelKind::kMassSpring: {
-      for (int v : loaded_) msm_->SetExternalForce(v, Vec3::Zero());
-      loaded_.clear();
+      msm_->ClearAnchors();
       if (in.triangle >= 0) {
+        const auto& x = msm_->positions();
+        const geometry::Triangle& tri = rest_.triangles[in.triangle];
+        const Vec3 scp = in.barycentric[0] * x[tri[0]] + in.barycentric[1] * x[tri[1]] + in.barycentric[2] * x[tri[2]];
+        const Vec3 offset = in.hip - scp;
+        const haptics::ProxyParams& pp = proxy_.params();
         for (int k = 0; k < 3; ++k) {
-          const int v = rest_.triangles[in.triangle][k];
-          msm_->SetExternalForce(v, in.barycentric[k] * in.force_on_tissue);
-          loaded_.push_back(v);
+          msm_->SetAnchor(tri[k], x[tri[k]] + offset, in.barycentric[k] * pp.stiffness, in.barycentric[k] * pp.damping);
         }
       }
       if (!msm_->Step(region.dt)) msm_->Reset();  // a divergence is reset to rest, never NaN

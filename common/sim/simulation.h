@@ -24,8 +24,11 @@
 // scene's force_scale, plus a holding spring to the grasped point turned by Φ. Releasing lets go
 // and the tissue relaxes.
 //
-// Palpation (mass-spring, ring-layer): the proxy's force pushes the stylus back; its opposite is
-// applied to the tissue at the contact point, and the tissue deforms under it.
+// Palpation (mass-spring, ring-layer): the proxy's force pushes the stylus back; its opposite
+// acts on the tissue at the contact point. For the mass-spring model it enters as zero-length
+// spring-dampers from the contact triangle's vertices towards the tip (barycentric shares of the
+// coupling's K and D), inside the implicit solve: a coupling stiffer than the tissue applied as
+// an explicit force made the 1026-particle sphere chatter at the device's rate limit.
 //
 // Threads: OnStylus and Metrics from one haptic thread; TakeVisualFrame from one other thread;
 // the deformation thread is owned. Create/destroy from anywhere (the destructor joins).
@@ -95,6 +98,7 @@ class Simulation {
     int triangle = -1;          // contact triangle, −1: no contact
     geometry::Vec3 barycentric = geometry::Vec3::Zero();
     geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
+    geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
     uint64_t contact_id = 0;    // changes at every new contact
   };
   struct VisualPositions {
@@ -138,7 +142,6 @@ class Simulation {
   uint64_t seen_grasp_ = 0, seen_contact_ = 0;
   double applied_torque_ = 0;
   bool applied_grasp_ = false;
-  std::vector<int> loaded_;  // mass-spring vertices carrying the contact force
 
   TripleBuffer<Snapshot> surface_;
   TripleBuffer<DeformInput> inputs_;

@@ -255,6 +255,7 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   }
   m.constrained_.reserve(n);
   m.kinematic_.reserve(n);
+  m.anchors_.reserve(64);
   m.sys_ = std::move(sys);
   return m;
 }
@@ -290,6 +291,20 @@ void MassSpringModel::ClearExternalForces() {
   verlet_primed_ = false;
 }
 
+void MassSpringModel::SetAnchor(int i, const Vec3& target, double stiffness, double damping) {
+  if (!target.allFinite() || !(stiffness >= 0) || !(damping >= 0) || !std::isfinite(stiffness) ||
+      !std::isfinite(damping)) {
+    return;  // NaN never enters the state
+  }
+  if (anchors_.size() < anchors_.capacity()) anchors_.push_back({i, target, stiffness, damping});
+  verlet_primed_ = false;
+}
+
+void MassSpringModel::ClearAnchors() {
+  anchors_.clear();
+  verlet_primed_ = false;
+}
+
 void MassSpringModel::SetIntegrator(Integrator integrator) {
   params_.integrator = integrator;
   verlet_primed_ = false;
@@ -300,6 +315,7 @@ void MassSpringModel::Forces(const std::vector<Vec3>& x, const std::vector<Vec3>
                              std::vector<Vec3>& f) const {
   const int n = static_cast<int>(x.size());
   for (int i = 0; i < n; ++i) f[i] = f_ext_[i] + sys_.masses[i] * params_.gravity;
+  for (const Anchor& a : anchors_) f[a.i] += a.k * (a.target - x[a.i]) - a.c * v[a.i];
   // Scalar kernel over raw doubles: Eigen's 3-vectors cost about twice the instructions here.
   const double* X = x.data()->data();
   const double* V = v.data()->data();
@@ -485,6 +501,12 @@ void MassSpringModel::StepImplicit(double h) {
     precond_[i] = Vec3::Constant(sys_.masses[i]);            // diag(A), completed below
     q_[i].setZero();                                         // K v₀, below
   }
+  for (const Anchor& a : anchors_) {
+    // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
+    rhs_[a.i] += a.k * (a.target - x_[a.i]) - a.c * v_[a.i];
+    q_[a.i] += a.k * v_[a.i];
+    precond_[a.i] += Vec3::Constant(h * a.c + h * h * a.k);
+  }
   std::vector<Vec3>& kv = q_;
   const size_t ns = sys_.springs.size();
   const double h2 = h * h;
@@ -569,6 +591,7 @@ void MassSpringModel::StepImplicit(double h) {
       Y[j] -= tx, Y[j + 1] -= ty, Y[j + 2] -= tz;
     }
     if (at >= 0) Y[at] += ax, Y[at + 1] += ay, Y[at + 2] += az;
+    for (const Anchor& a : anchors_) y[a.i] += (h * a.c + h * h * a.k) * u[a.i];
     for (int i : constrained_) y[i].setZero();
   };
   double rhs_norm2 = 0;

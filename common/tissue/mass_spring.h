@@ -130,6 +130,11 @@ class MassSpringModel {
   void SetKinematicTarget(int particle, const Vec3& target);
   void SetExternalForce(int particle, const Vec3& force);  // N, held until changed
   void ClearExternalForces();
+  // A zero-length spring-damper from a particle to a fixed point (N/m, N·s/m): how a tool
+  // couples to the tissue. Unlike an external force it is part of the implicit solve, so a
+  // coupling stiffer than the tissue stays stable. Held until ClearAnchors.
+  void SetAnchor(int particle, const Vec3& target, double stiffness, double damping);
+  void ClearAnchors();
   void SetIntegrator(Integrator integrator);
 
   // Advances by dt seconds in `substeps` equal steps. Returns false, leaves the state at rest
@@ -175,6 +180,12 @@ class MassSpringModel {
   std::vector<Vec3> x_, v_, f_ext_;
   std::vector<Vec3> kin_start_, kin_target_;
   std::vector<int> kinematic_;  // indices of kinematic particles
+  struct Anchor {
+    int i;
+    Vec3 target;
+    double k, c;
+  };
+  std::vector<Anchor> anchors_;  // capacity reserved at Create
   bool diverged_ = false;
   int cg_iterations_ = 0;
   bool verlet_primed_ = false;
