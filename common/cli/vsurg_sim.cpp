@@ -572,11 +572,13 @@ json MetricsJson(const scoring::TrialMetrics& m) {
 }
 
 int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-sim run",
-              "Replays a stylus trajectory headless through a scene's simulation (contact, grasp-and-twist,\n"
-              "device safety, deformation, scoring) and prints the trial metrics and force statistics.\n"
-              "The trajectory is a CSV with the header t,x,y,z,qw,qx,qy,qz,buttons (s, m, unit\n"
-              "quaternion, button bits: 1 = grasp); `vsurg-sim trainee` writes scripted ones.");
+  ArgParser p(
+      "vsurg-sim run",
+      "Replays a stylus trajectory headless through a scene's simulation (contact, "
+      "grasp-and-twist,\n"
+      "device safety, deformation, scoring) and prints the trial metrics and force statistics.\n"
+      "The trajectory is a CSV with the header t,x,y,z,qw,qx,qy,qz,buttons (s, m, unit\n"
+      "quaternion, button bits: 1 = grasp); `vsurg-sim trainee` writes scripted ones.");
   p.Option("scene", Kind::kString, "scene name in scenes/ (e.g. arm-torsion) or a .json path", true)
       .Option("trajectory", Kind::kString, "trajectory CSV", true)
       .Option("json", Kind::kFlag, "print one JSON object");
@@ -592,7 +594,8 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
   options.threaded = false;  // deterministic replay: deformation stepped in simulated time
   auto simulation = sim::Simulation::Create(*scene, options);
   if (!simulation.ok()) {
-    err << p.command() << ": cannot build scene '" << scene->name << "': " << simulation.error().message << "\n";
+    err << p.command() << ": cannot build scene '" << scene->name
+        << "': " << simulation.error().message << "\n";
     return kExitRuntime;
   }
   sim::Simulation& s = **simulation;
@@ -603,9 +606,12 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
   int forces = 0, contacts = 0, grasps = 0;
   std::map<std::string, int> events;
   const std::pair<uint32_t, const char*> kEvents[] = {
-      {haptics::kEventNonFiniteInput, "non_finite_input"}, {haptics::kEventOutOfWorkspace, "out_of_workspace"},
-      {haptics::kEventForceClamped, "force_clamped"},      {haptics::kEventRateLimited, "rate_limited"},
-      {haptics::kEventGated, "gated"},                     {haptics::kEventStiffnessClamped, "stiffness_clamped"},
+      {haptics::kEventNonFiniteInput, "non_finite_input"},
+      {haptics::kEventOutOfWorkspace, "out_of_workspace"},
+      {haptics::kEventForceClamped, "force_clamped"},
+      {haptics::kEventRateLimited, "rate_limited"},
+      {haptics::kEventGated, "gated"},
+      {haptics::kEventStiffnessClamped, "stiffness_clamped"},
       {haptics::kEventOverload, "overload"}};
   double peak = 0;
   for (const haptics::StylusSample& sample : *samples) {
@@ -641,22 +647,24 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     return 0;
   }
   char line[400];
-  std::snprintf(line, sizeof line,
-                "%s: %zu samples, peak force %.3f N (after device limits), mean %.3f N\n"
-                "completed %s in %.2f s, task error %.4g, %.2f s over the force limit, overloads %d\n"
-                "path %.3f m, RMS jerk %.3g m/s^3, score %.1f / 10 (before gates %.1f)\n",
-                scene->name.c_str(), samples->size(), peak, forces ? force_sum / forces : 0.0,
-                m.completed ? "yes" : "no", m.completion_time, m.task_error, m.time_over_force_limit,
-                m.overload_events, m.path_length, m.rms_jerk, m.score, m.raw_score);
+  std::snprintf(
+      line, sizeof line,
+      "%s: %zu samples, peak force %.3f N (after device limits), mean %.3f N\n"
+      "completed %s in %.2f s, task error %.4g, %.2f s over the force limit, overloads %d\n"
+      "path %.3f m, RMS jerk %.3g m/s^3, score %.1f / 10 (before gates %.1f)\n",
+      scene->name.c_str(), samples->size(), peak, forces ? force_sum / forces : 0.0,
+      m.completed ? "yes" : "no", m.completion_time, m.task_error, m.time_over_force_limit,
+      m.overload_events, m.path_length, m.rms_jerk, m.score, m.raw_score);
   out << line;
   return 0;
 }
 
 int Trainee(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-sim trainee",
-              "Writes a scripted trainee's stylus trajectory for a scene's task, as the CSV `run` reads:\n"
-              "good (smooth, on target), hesitant (slow, stepwise corrections), rough (fast, jerky,\n"
-              "overshooting, over the force limit).");
+  ArgParser p(
+      "vsurg-sim trainee",
+      "Writes a scripted trainee's stylus trajectory for a scene's task, as the CSV `run` reads:\n"
+      "good (smooth, on target), hesitant (slow, stepwise corrections), rough (fast, jerky,\n"
+      "overshooting, over the force limit).");
   p.Option("scene", Kind::kString, "scene name or .json path", true)
       .Option("style", Kind::kString, "good, hesitant or rough", false, "good")
       .Option("rate", Kind::kDouble, "samples per second", false, "1000")
@@ -666,9 +674,12 @@ int Trainee(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   auto scene = SceneOption(p);
   if (!scene.ok()) return UsageError(err, p.command(), scene.error());
   auto style = sim::ParseTraineeStyle(p.String("style"));
-  if (!style.ok()) return UsageError(err, p.command(), InvalidArgument("--style", style.error().message));
-  auto samples = sim::ScriptedTrainee(*scene, *style, p.Double("rate"), static_cast<unsigned>(p.Int("seed")));
-  if (!samples.ok()) return UsageError(err, p.command(), InvalidArgument("--rate", samples.error().message));
+  if (!style.ok())
+    return UsageError(err, p.command(), InvalidArgument("--style", style.error().message));
+  auto samples =
+      sim::ScriptedTrainee(*scene, *style, p.Double("rate"), static_cast<unsigned>(p.Int("seed")));
+  if (!samples.ok())
+    return UsageError(err, p.command(), InvalidArgument("--rate", samples.error().message));
   if (Status st = sim::WriteTrajectoryCsv(*samples, p.String("out")); !st.ok()) {
     err << p.command() << ": --out: " << st.error().message << "\n";
     return kExitRuntime;

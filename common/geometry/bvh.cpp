@@ -17,7 +17,8 @@ double BoxDistance2(const Vec3& p, const Vec3& lo, const Vec3& hi) {
 }
 
 // Slab test of segment a + t·d, t ∈ [0, t_max], against a box.
-bool SegmentHitsBox(const Vec3& a, const Vec3& inv_d, double t_max, const Vec3& lo, const Vec3& hi) {
+bool SegmentHitsBox(const Vec3& a, const Vec3& inv_d, double t_max, const Vec3& lo,
+                    const Vec3& hi) {
   double t0 = 0, t1 = t_max;
   for (int k = 0; k < 3; ++k) {
     double ta = (lo[k] - a[k]) * inv_d[k], tb = (hi[k] - a[k]) * inv_d[k];
@@ -75,7 +76,8 @@ Bvh::Bvh(const TriMesh& mesh) : triangles_(mesh.triangles) {
   if (n > 0) Build(0, n, centroid, mesh.positions);
 }
 
-int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid, const std::vector<Vec3>& positions) {
+int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid,
+               const std::vector<Vec3>& positions) {
   const int index = static_cast<int>(nodes_.size());
   nodes_.push_back(Node{});
   if (count <= kLeafSize) {
@@ -85,11 +87,13 @@ int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid, const st
     return index;
   }
   Vec3 lo = centroid[order_[first]], hi = lo;
-  for (int k = first; k < first + count; ++k) lo = lo.cwiseMin(centroid[order_[k]]), hi = hi.cwiseMax(centroid[order_[k]]);
+  for (int k = first; k < first + count; ++k)
+    lo = lo.cwiseMin(centroid[order_[k]]), hi = hi.cwiseMax(centroid[order_[k]]);
   int axis = 0;
   (hi - lo).maxCoeff(&axis);
   const int half = count / 2;
-  std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
+  std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                   order_.begin() + first + count,
                    [&](int a, int b) { return centroid[a][axis] < centroid[b][axis]; });
   const int left = Build(first, half, centroid, positions);
   const int right = Build(first + half, count - half, centroid, positions);
@@ -105,7 +109,8 @@ void Bvh::LeafBox(Node& node, const std::vector<Vec3>& positions) const {
   node.lo = Vec3::Constant(std::numeric_limits<double>::infinity());
   node.hi = -node.lo;
   for (int k = node.first; k < node.first + node.count; ++k) {
-    for (int v : triangles_[order_[k]]) node.lo = node.lo.cwiseMin(positions[v]), node.hi = node.hi.cwiseMax(positions[v]);
+    for (int v : triangles_[order_[k]])
+      node.lo = node.lo.cwiseMin(positions[v]), node.hi = node.hi.cwiseMax(positions[v]);
   }
 }
 
@@ -169,7 +174,8 @@ RayHit Bvh::FirstHit(const std::vector<Vec3>& positions, const Vec3& a, const Ve
   RayHit best;
   if (nodes_.empty() || !a.allFinite() || !b.allFinite()) return best;
   const Vec3 d = b - a;
-  const Vec3 inv_d(1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z());  // ±inf where d is 0: the slab test copes
+  const Vec3 inv_d(1.0 / d.x(), 1.0 / d.y(),
+                   1.0 / d.z());  // ±inf where d is 0: the slab test copes
   double t_best = 1.0;
   int stack[kStackSize];
   int top = 0;

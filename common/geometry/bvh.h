@@ -20,18 +20,18 @@
 namespace vsurg::geometry {
 
 struct ClosestHit {
-  int triangle = -1;            // −1: nothing within range
+  int triangle = -1;  // −1: nothing within range
   Vec3 barycentric = Vec3::Zero();
   Vec3 point = Vec3::Zero();
   double distance = std::numeric_limits<double>::infinity();
 };
 
 struct RayHit {
-  int triangle = -1;            // −1: no hit
-  double t = 0;                 // along the segment, 0..1 (or the ray, in its length units)
+  int triangle = -1;  // −1: no hit
+  double t = 0;       // along the segment, 0..1 (or the ray, in its length units)
   Vec3 barycentric = Vec3::Zero();
   Vec3 point = Vec3::Zero();
-  bool front_face = false;      // the segment enters through the outward side
+  bool front_face = false;  // the segment enters through the outward side
 };
 
 class Bvh {
@@ -56,12 +56,13 @@ class Bvh {
  private:
   struct Node {
     Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
-    int32_t left = -1;   // child index, −1 for a leaf
+    int32_t left = -1;  // child index, −1 for a leaf
     int32_t right = -1;
-    int32_t first = 0;   // leaf: first entry in order_
-    int32_t count = 0;   // leaf: number of triangles
+    int32_t first = 0;  // leaf: first entry in order_
+    int32_t count = 0;  // leaf: number of triangles
   };
-  int Build(int first, int count, const std::vector<Vec3>& centroid, const std::vector<Vec3>& positions);
+  int Build(int first, int count, const std::vector<Vec3>& centroid,
+            const std::vector<Vec3>& positions);
   void LeafBox(Node& node, const std::vector<Vec3>& positions) const;
 
   std::vector<Triangle> triangles_;

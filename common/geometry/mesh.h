@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross products on Vec3 everywhere the type is used
 
 #include "common/core/expected.h"
 

@@ -15,10 +15,14 @@ Vec3 FaceNormal(const std::vector<geometry::Vec3>& x, const geometry::Triangle& 
 
 Expected<ProxyContact> ProxyContact::Create(const ProxyParams& p) {
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0; };
-  if (!non_negative(p.stiffness)) return InvalidArgument("stiffness", "proxy stiffness must be ≥ 0 N/m");
-  if (!non_negative(p.damping)) return InvalidArgument("damping", "proxy damping must be ≥ 0 N·s/m");
-  if (!non_negative(p.friction)) return InvalidArgument("friction", "friction coefficient must be ≥ 0");
-  if (!(std::isfinite(p.max_step) && p.max_step > 0)) return InvalidArgument("max_step", "max proxy step must be > 0 m");
+  if (!non_negative(p.stiffness))
+    return InvalidArgument("stiffness", "proxy stiffness must be ≥ 0 N/m");
+  if (!non_negative(p.damping))
+    return InvalidArgument("damping", "proxy damping must be ≥ 0 N·s/m");
+  if (!non_negative(p.friction))
+    return InvalidArgument("friction", "friction coefficient must be ≥ 0");
+  if (!(std::isfinite(p.max_step) && p.max_step > 0))
+    return InvalidArgument("max_step", "max proxy step must be > 0 m");
   if (!(p.min_normal_dot >= -1 && p.min_normal_dot <= 1)) {
     return InvalidArgument("min_normal_dot", "min normal dot must be in [-1, 1]");
   }
@@ -31,8 +35,8 @@ void ProxyContact::Reset() {
   last_x_.setZero();
 }
 
-const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x, const geometry::Bvh& bvh,
-                                       const Vec3& hip, double dt) {
+const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
+                                       const geometry::Bvh& bvh, const Vec3& hip, double dt) {
   if (!hip.allFinite()) {  // the caller gates NaN already; stay safe regardless
     Reset();
     return state_;
@@ -76,8 +80,9 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x, con
       Vec3 target = c.point;
       const Vec3 travel = target - state_.scp;
       if (travel.norm() > params_.max_step) {
-        const geometry::ClosestHit s = bvh.Closest(x, state_.scp + travel * (params_.max_step / travel.norm()),
-                                                   params_.max_step, state_.normal, params_.min_normal_dot);
+        const geometry::ClosestHit s =
+            bvh.Closest(x, state_.scp + travel * (params_.max_step / travel.norm()),
+                        params_.max_step, state_.normal, params_.min_normal_dot);
         if (s.triangle >= 0) c = s;
         target = c.point;
       }

@@ -7,9 +7,9 @@
 // that keep facing the way the contact face did (n·n_prev ≥ min_normal_dot), so pushing through a
 // thin sheet never pops the proxy to the far side, and by at most max_step per update. Contact
 // ends when the tip is back outside; it also starts when a deforming surface moves over a
-// resting tip (the tip lies within max_step under its closest face). The force is seed 001's spring-damper, F = K·x + D·ẋ with
-// x = SCP − HIP; optional Coulomb friction keeps the proxy where it is while the tangential
-// force stays inside the cone μ·|F_n|.
+// resting tip (the tip lies within max_step under its closest face). The force is seed 001's
+// spring-damper, F = K·x + D·ẋ with x = SCP − HIP; optional Coulomb friction keeps the proxy where
+// it is while the tangential force stays inside the cone μ·|F_n|.
 //
 // Local model: in contact F ≈ F₀ − K n nᵀ (x − x₀) (sliding along the face costs nothing);
 // free: zero.
@@ -26,21 +26,22 @@
 namespace vsurg::haptics {
 
 struct ProxyParams {
-  double stiffness = 300.0;     // K, N/m
-  double damping = 1.0;         // D, N·s/m
-  double friction = 0.0;        // μ, Coulomb coefficient (0: frictionless)
-  double max_step = 0.01;       // m the proxy may travel per update
-  double min_normal_dot = 0.0;  // faces turning more than 90° away from the contact face are skipped
+  double stiffness = 300.0;  // K, N/m
+  double damping = 1.0;      // D, N·s/m
+  double friction = 0.0;     // μ, Coulomb coefficient (0: frictionless)
+  double max_step = 0.01;    // m the proxy may travel per update
+  double min_normal_dot =
+      0.0;  // faces turning more than 90° away from the contact face are skipped
 };
 
 struct ProxyState {
   bool contact = false;
-  Vec3 scp = Vec3::Zero();        // m
-  Vec3 normal = Vec3::UnitZ();    // outward unit normal at the SCP (valid in contact)
+  Vec3 scp = Vec3::Zero();      // m
+  Vec3 normal = Vec3::UnitZ();  // outward unit normal at the SCP (valid in contact)
   int triangle = -1;
   Vec3 barycentric = Vec3::Zero();
-  double penetration = 0;         // m, (SCP − HIP)·n, ≥ 0 in contact
-  Vec3 force = Vec3::Zero();      // N, before device limits
+  double penetration = 0;                              // m, (SCP − HIP)·n, ≥ 0 in contact
+  Vec3 force = Vec3::Zero();                           // N, before device limits
   Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();  // N/m
 };
 

@@ -30,8 +30,10 @@ Expected<DeviceLimits> DeviceLimitsByName(const std::string& name) {
 Expected<SafetyFilter> SafetyFilter::Create(const DeviceLimits& l, const GateParams& g) {
   auto positive = [](double x) { return std::isfinite(x) && x > 0; };
   if (!positive(l.max_force)) return InvalidArgument("max_force", "device max force must be > 0 N");
-  if (!positive(l.max_force_rate)) return InvalidArgument("max_force_rate", "device max force rate must be > 0 N/s");
-  if (!positive(l.max_stiffness)) return InvalidArgument("max_stiffness", "device max stiffness must be > 0 N/m");
+  if (!positive(l.max_force_rate))
+    return InvalidArgument("max_force_rate", "device max force rate must be > 0 N/s");
+  if (!positive(l.max_stiffness))
+    return InvalidArgument("max_stiffness", "device max stiffness must be > 0 N/m");
   if (!l.workspace_min.allFinite() || !l.workspace_max.allFinite() ||
       !(l.workspace_min.array() < l.workspace_max.array()).all()) {
     return InvalidArgument("workspace", "device workspace must be a finite box with min < max");

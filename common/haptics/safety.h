@@ -19,9 +19,9 @@
 namespace vsurg::haptics {
 
 struct DeviceLimits {
-  double max_force = 3.3;          // N
-  double max_force_rate = 1000.0;  // N/s
-  double max_stiffness = 400.0;    // N/m
+  double max_force = 3.3;                       // N
+  double max_force_rate = 1000.0;               // N/s
+  double max_stiffness = 400.0;                 // N/m
   Vec3 workspace_min = Vec3(-0.5, -0.5, -0.5);  // m, scene frame
   Vec3 workspace_max = Vec3(0.5, 0.5, 0.5);
 };

@@ -18,17 +18,17 @@ enum StylusButton : uint32_t {
 };
 
 struct StylusSample {
-  double time = 0;                                          // s, the station's clock
-  Vec3 position = Vec3::Zero();                             // m, the tip (HIP)
+  double time = 0;                                                  // s, the station's clock
+  Vec3 position = Vec3::Zero();                                     // m, the tip (HIP)
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // stylus frame in scene frame
-  uint32_t buttons = 0;                                     // StylusButton bits
+  uint32_t buttons = 0;                                             // StylusButton bits
 };
 
 // F(x) = force0 + jacobian · (x − position0): what a station renders between server updates
 // (OpenSurgSim's virtual coupler sends the same).
 struct LocalModel {
-  Vec3 force0 = Vec3::Zero();                   // N
-  Vec3 position0 = Vec3::Zero();                // m
+  Vec3 force0 = Vec3::Zero();                          // N
+  Vec3 position0 = Vec3::Zero();                       // m
   Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();  // N/m, ∂F/∂x (negative semi-definite)
 
   Vec3 ForceAt(const Vec3& x) const { return force0 + jacobian * (x - position0); }
@@ -36,13 +36,13 @@ struct LocalModel {
 
 // Safety and interaction events, as bits (several may be set by one sample).
 enum HapticEvent : uint32_t {
-  kEventNonFiniteInput = 1u << 0,   // the sample had NaN or infinite values: zero force
-  kEventOutOfWorkspace = 1u << 1,   // the tip left the device workspace: zero force
-  kEventForceClamped = 1u << 2,     // the requested force exceeded the device maximum
-  kEventRateLimited = 1u << 3,      // the force changed faster than the device allows
-  kEventGated = 1u << 4,            // output held at zero until the request stays small (start-up)
-  kEventStiffnessClamped = 1u << 5, // the local model was stiffer than the device allows
-  kEventOverload = 1u << 6,         // the tissue was loaded past its capacity (coil model)
+  kEventNonFiniteInput = 1u << 0,    // the sample had NaN or infinite values: zero force
+  kEventOutOfWorkspace = 1u << 1,    // the tip left the device workspace: zero force
+  kEventForceClamped = 1u << 2,      // the requested force exceeded the device maximum
+  kEventRateLimited = 1u << 3,       // the force changed faster than the device allows
+  kEventGated = 1u << 4,             // output held at zero until the request stays small (start-up)
+  kEventStiffnessClamped = 1u << 5,  // the local model was stiffer than the device allows
+  kEventOverload = 1u << 6,          // the tissue was loaded past its capacity (coil model)
   kEventGraspStart = 1u << 7,
   kEventGraspEnd = 1u << 8,
 };

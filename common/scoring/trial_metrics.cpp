@@ -5,8 +5,10 @@
 
 namespace vsurg::scoring {
 
-void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity, double force, bool overload) {
-  if (!std::isfinite(time) || !tip.allFinite() || !std::isfinite(quantity) || !std::isfinite(force)) return;
+void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity, double force,
+                        bool overload) {
+  if (!std::isfinite(time) || !tip.allFinite() || !std::isfinite(quantity) || !std::isfinite(force))
+    return;
   if (samples_ > 0 && !(time > t_last_)) return;  // out of order or repeated: ignore
   if (samples_ == 0) t0_ = time;
   const double dt = samples_ > 0 ? time - t_last_ : 0.0;
@@ -60,8 +62,10 @@ TrialMetrics TrialRecorder::Finish() const {
   if (m.duration > 0) m.rms_jerk = std::sqrt(jerk2_ / m.duration);
   auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
   const double accuracy = unit(1.0 - m.task_error / (2.0 * task_.tolerance));
-  const double efficiency = completed_ ? unit(task_.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
-  const double force = unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task_.force_limit ? 0.5 : 1.0);
+  const double efficiency =
+      completed_ ? unit(task_.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
+  const double force =
+      unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task_.force_limit ? 0.5 : 1.0);
   const double smooth = unit(1.0 - std::log10(std::max(1.0, m.rms_jerk / 5.0)) / 2.0);
   m.raw_score = 10.0 * (0.4 * accuracy + 0.2 * efficiency + 0.2 * force + 0.2 * smooth);
   m.score = m.raw_score;

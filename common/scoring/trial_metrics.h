@@ -32,12 +32,12 @@ enum class TaskKind { kTwist, kPress };
 
 struct TaskSpec {
   TaskKind kind = TaskKind::kTwist;
-  double target = 0.785398;    // rad (twist) or m (press)
+  double target = 0.785398;      // rad (twist) or m (press)
   double tolerance = 0.0872665;  // same unit
-  double hold_s = 2.0;         // s
-  double force_limit = 3.0;    // N
-  double time_limit = 60.0;    // s
-  double expert_time = 5.0;    // s, an expert's completion time (the efficiency reference)
+  double hold_s = 2.0;           // s
+  double force_limit = 3.0;      // N
+  double time_limit = 60.0;      // s
+  double expert_time = 5.0;      // s, an expert's completion time (the efficiency reference)
 };
 
 enum ScoreCap : uint32_t {
@@ -48,17 +48,17 @@ enum ScoreCap : uint32_t {
 
 struct TrialMetrics {
   bool completed = false;
-  double completion_time = 0;      // s (0 when not completed)
-  double task_error = 0;           // rad or m
-  double peak_force = 0;           // N
+  double completion_time = 0;        // s (0 when not completed)
+  double task_error = 0;             // rad or m
+  double peak_force = 0;             // N
   double time_over_force_limit = 0;  // s
-  double path_length = 0;          // m
-  double rms_jerk = 0;             // m/s³
+  double path_length = 0;            // m
+  double rms_jerk = 0;               // m/s³
   int overload_events = 0;
-  double duration = 0;             // s, first to last sample
-  double score = 0;                // 0–10 after the gates
-  double raw_score = 0;            // 0–10 before the gates
-  uint32_t caps = 0;               // ScoreCap bits that applied
+  double duration = 0;   // s, first to last sample
+  double score = 0;      // 0–10 after the gates
+  double raw_score = 0;  // 0–10 before the gates
+  uint32_t caps = 0;     // ScoreCap bits that applied
 };
 
 class TrialRecorder {
@@ -78,7 +78,7 @@ class TrialRecorder {
   Eigen::Vector3d x_[4];  // the last four filtered positions, newest first
   double t_[4] = {0, 0, 0, 0};
   Eigen::Vector3d last_tip_ = Eigen::Vector3d::Zero();
-  double jerk2_ = 0;      // ∫|j|² dt
+  double jerk2_ = 0;  // ∫|j|² dt
   double path_ = 0;
   double peak_ = 0;
   double over_ = 0;

@@ -32,7 +32,8 @@ class Reader {
     if (!j_[key].is_object()) return Bad(key, "must be an object");
     return Reader(j_[key], Path(key));
   }
-  Expected<double> Number(const char* key, double lo, double hi, const double* fallback = nullptr) const {
+  Expected<double> Number(const char* key, double lo, double hi,
+                          const double* fallback = nullptr) const {
     if (!j_.contains(key)) {
       if (fallback) return *fallback;
       return Missing(key);
@@ -56,7 +57,8 @@ class Reader {
     }
     if (!j_[key].is_number_integer()) return Bad(key, "must be an integer");
     const long long v = j_[key].get<long long>();
-    if (v < lo || v > hi) return Bad(key, "must be in " + std::to_string(lo) + ".." + std::to_string(hi));
+    if (v < lo || v > hi)
+      return Bad(key, "must be in " + std::to_string(lo) + ".." + std::to_string(hi));
     return static_cast<int>(v);
   }
   Expected<int> IntegerOr(const char* key, int fallback, int lo, int hi) const {
@@ -67,13 +69,20 @@ class Reader {
       if (fallback) return *fallback;
       return Missing(key);
     }
-    if (!j_[key].is_string() || j_[key].get<std::string>().empty()) return Bad(key, "must be a non-empty string");
+    if (!j_[key].is_string() || j_[key].get<std::string>().empty())
+      return Bad(key, "must be a non-empty string");
     return j_[key].get<std::string>();
   }
-  Expected<std::string> StringOr(const char* key, const std::string& fallback) const { return String(key, &fallback); }
+  Expected<std::string> StringOr(const char* key, const std::string& fallback) const {
+    return String(key, &fallback);
+  }
 
-  Error Missing(const char* key) const { return InvalidArgument(Path(key), Path(key) + ": is required"); }
-  Error Bad(const char* key, const std::string& why) const { return InvalidArgument(Path(key), Path(key) + ": " + why); }
+  Error Missing(const char* key) const {
+    return InvalidArgument(Path(key), Path(key) + ": is required");
+  }
+  Error Bad(const char* key, const std::string& why) const {
+    return InvalidArgument(Path(key), Path(key) + ": " + why);
+  }
   const json& raw() const { return j_; }
   const std::string& path() const { return path_; }
 
@@ -82,8 +91,8 @@ class Reader {
   std::string path_;
 };
 
-#define VSURG_TRY(var, expr)            \
-  auto var##_result = (expr);           \
+#define VSURG_TRY(var, expr)                           \
+  auto var##_result = (expr);                          \
   if (!var##_result.ok()) return var##_result.error(); \
   auto var = std::move(*var##_result)
 
@@ -137,7 +146,8 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
     VSURG_TRY(max_force, r.Number("max_force", 1e-9, 1e6));
     VSURG_TRY(friction, r.NumberOr("friction", 1.25, 1e-3, 100));
     c = {core, thickness, width, coils, modulus, max_force, friction, {}};
-    if (auto m = tissue::CoilSpringModel::Create(c); !m.ok()) return r.Bad(m.error().field.c_str(), m.error().message);
+    if (auto m = tissue::CoilSpringModel::Create(c); !m.ok())
+      return r.Bad(m.error().field.c_str(), m.error().message);
   } else if (type == "mass-spring" || type == "ring-layer") {
     VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
     g.dt = dt;
@@ -163,13 +173,15 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
       VSURG_TRY(kv, r.NumberOr("volume_stiffness", ks, 1e-9, 1e9));
       VSURG_TRY(damping, r.NumberOr("damping", 0.05, 0, 1e6));
       VSURG_TRY(volume, r.StringOr("volume", "none"));
-      if (volume != "none" && volume != "inner-layer") return r.Bad("volume", "must be none or inner-layer");
+      if (volume != "none" && volume != "inner-layer")
+        return r.Bad("volume", "must be none or inner-layer");
       VSURG_TRY(depth, r.NumberOr("layer_depth", 0.01, 1e-6, 1));
       b.structural_stiffness = ks;
       b.bending_stiffness = kb;
       b.volume_stiffness = kv;
       b.damping = damping;
-      b.volume = volume == "inner-layer" ? tissue::VolumeMode::kInnerLayer : tissue::VolumeMode::kNone;
+      b.volume =
+          volume == "inner-layer" ? tissue::VolumeMode::kInnerLayer : tissue::VolumeMode::kNone;
       b.layer_depth = depth;
     } else {
       g.kind = ModelKind::kRingLayer;
@@ -247,7 +259,8 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   } catch (const json::parse_error& e) {
     return Error{ErrorCode::kParseError, source + ": not valid JSON: " + e.what(), "scene"};
   }
-  if (!root.is_object()) return Error{ErrorCode::kParseError, source + ": the scene must be a JSON object", "scene"};
+  if (!root.is_object())
+    return Error{ErrorCode::kParseError, source + ": the scene must be a JSON object", "scene"};
   auto with_source = [&](Error e) {
     e.message = source + ": " + e.message;
     return e;
@@ -285,7 +298,8 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   auto model = region.Object("model");
   if (!model.ok()) return with_source(model.error());
   if (Status st = ParseModel(*model, s.region); !st.ok()) return with_source(st.error());
-  if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb && s.region.support == Support::kBottom) {
+  if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
+      s.region.support == Support::kBottom) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
   }
   if (r.Has("haptics")) {
@@ -297,8 +311,9 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   if (!task.ok()) return with_source(task.error());
   if (Status st = ParseTask(*task, s.task); !st.ok()) return with_source(st.error());
   if ((s.task.kind == scoring::TaskKind::kTwist) != (s.region.kind == ModelKind::kCoil)) {
-    return with_source(InvalidArgument("task.type", "task.type: a twist task needs a coil model, a press task a "
-                                                    "mass-spring or ring-layer model"));
+    return with_source(InvalidArgument("task.type",
+                                       "task.type: a twist task needs a coil model, a press task a "
+                                       "mass-spring or ring-layer model"));
   }
   auto budget = r.Object("error_budget");
   if (!budget.ok()) return with_source(budget.error());
@@ -340,7 +355,8 @@ Expected<Scene> LoadSceneByName(const std::string& name) {
   if (name.size() > 5 && name.substr(name.size() - 5) == ".json") return LoadScene(name);
   for (char c : name) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_')) {
-      return InvalidArgument("scene", "scene name '" + name + "' may hold only letters, digits, - and _");
+      return InvalidArgument("scene",
+                             "scene name '" + name + "' may hold only letters, digits, - and _");
     }
   }
   const std::string path = ScenesDirectory() + "/" + name + ".json";

@@ -40,7 +40,11 @@ namespace vsurg::sim {
 
 enum class MeshKind { kLimb, kSphere, kObj };
 enum class ModelKind { kCoil, kMassSpring, kRingLayer };
-enum class Support { kNone, kBottom, kEnds };  // what is fixed: nothing, the bottom fifth, limb ends
+enum class Support {
+  kNone,
+  kBottom,
+  kEnds
+};  // what is fixed: nothing, the bottom fifth, limb ends
 
 struct MeshSpec {
   MeshKind kind = MeshKind::kLimb;
@@ -66,11 +70,11 @@ struct HapticsSpec {
   std::string device = "touch";
   haptics::DeviceLimits limits = haptics::TouchLimits();
   haptics::ProxyParams proxy;
-  double force_scale = 1.0;      // rendered force = tissue force × scale (desktop devices cannot
-                                 // render limb torques at true scale)
-  double hold_stiffness = 200.0; // N/m, the grasp holds the tip on the grasped point
-  double min_lever = 0.005;      // m, the twist force's lever when the tip is on the axis
-                                 // (forceps jaws in surface mode)
+  double force_scale = 1.0;       // rendered force = tissue force × scale (desktop devices cannot
+                                  // render limb torques at true scale)
+  double hold_stiffness = 200.0;  // N/m, the grasp holds the tip on the grasped point
+  double min_lever = 0.005;       // m, the twist force's lever when the tip is on the axis
+                                  // (forceps jaws in surface mode)
 };
 
 struct Scene {

@@ -17,7 +17,8 @@ using haptics::StylusSample;
 namespace {
 
 // Closest point of a polyline (no allocation): foot, unit tangent and arc length.
-void ProjectOnPolyline(const std::vector<Vec3>& line, const Vec3& p, Vec3& foot, Vec3& tangent, double& s) {
+void ProjectOnPolyline(const std::vector<Vec3>& line, const Vec3& p, Vec3& foot, Vec3& tangent,
+                       double& s) {
   double best = INFINITY, acc = 0;
   for (size_t i = 0; i + 1 < line.size(); ++i) {
     const Vec3 seg = line[i + 1] - line[i];
@@ -39,7 +40,8 @@ Vec3 AnyPerpendicular(const Vec3& a) {
 
 }  // namespace
 
-Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene, const SimulationOptions& options) {
+Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene,
+                                                         const SimulationOptions& options) {
   geometry::TriMesh rest;
   std::vector<Vec3> centreline;
   switch (scene.mesh.kind) {
@@ -51,8 +53,10 @@ Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene, con
       break;
     }
     case MeshKind::kSphere: {
-      const int levels = geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron, scene.mesh.particles);
-      auto sphere = geometry::MakeSubdividedSphere({scene.mesh.radius, levels, geometry::SphereBase::kOctahedron});
+      const int levels = geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
+                                                              scene.mesh.particles);
+      auto sphere = geometry::MakeSubdividedSphere(
+          {scene.mesh.radius, levels, geometry::SphereBase::kOctahedron});
       if (!sphere.ok()) return sphere.error();
       rest = std::move(*sphere);
       break;
@@ -101,7 +105,8 @@ Status Simulation::Build() {
     if (!coil.ok()) return coil.error();
     coil_ = std::make_unique<tissue::CoilSpringModel>(std::move(*coil));
     if (region.coil_mode == tissue::TwistMode::kLimb && centreline_points_.size() < 2) {
-      return InvalidArgument("regions[0].model.mode", "limb mode needs a limb mesh (with a centreline)");
+      return InvalidArgument("regions[0].model.mode",
+                             "limb mode needs a limb mesh (with a centreline)");
     }
   } else {
     // What the support fixes.
@@ -206,9 +211,11 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     const Vec3 arm = input_.grasp_point - axis_point_;
     const Vec3 turned = axis_point_ + Eigen::AngleAxisd(twist, axis_) * arm;
     const Vec3 radial = turned - axis_point_;
-    const Vec3 tangent = radial.norm() > 1e-9 ? Vec3(axis_.cross(radial).normalized()) : AnyPerpendicular(axis_);
+    const Vec3 tangent =
+        radial.norm() > 1e-9 ? Vec3(axis_.cross(radial).normalized()) : AnyPerpendicular(axis_);
     const double hold = scene_.haptics.hold_stiffness;
-    force = scene_.haptics.force_scale * (-answer.torque / lever_) * tangent + hold * (turned - s.position);
+    force = scene_.haptics.force_scale * (-answer.torque / lever_) * tangent +
+            hold * (turned - s.position);
     jacobian = -hold * Eigen::Matrix3d::Identity();
     input_.torque = answer.torque;
     quantity = twist;
@@ -223,7 +230,8 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       const geometry::Triangle& tri = rest_.triangles[ps.triangle];
       if (!last_contact_) {
         ++input_.contact_id;
-        rest_contact_ = ps.barycentric[0] * rest_.positions[tri[0]] + ps.barycentric[1] * rest_.positions[tri[1]] +
+        rest_contact_ = ps.barycentric[0] * rest_.positions[tri[0]] +
+                        ps.barycentric[1] * rest_.positions[tri[1]] +
                         ps.barycentric[2] * rest_.positions[tri[2]];
         rest_normal_ = geometry::TriangleNormal(rest_, ps.triangle);
       }
@@ -251,7 +259,8 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       input_.barycentric = ps.barycentric;
       input_.force_on_tissue = -ps.force;
       input_.hip = s.position;
-      if (task == scoring::TaskKind::kPress) quantity = std::max(0.0, (rest_contact_ - s.position).dot(rest_normal_));
+      if (task == scoring::TaskKind::kPress)
+        quantity = std::max(0.0, (rest_contact_ - s.position).dot(rest_normal_));
     } else {
       input_.triangle = -1;
       input_.force_on_tissue.setZero();
@@ -304,7 +313,9 @@ void Simulation::Deform(const DeformInput& in) {
           d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_.positions, centreline_points_, arc);
         } else {
           auto sp = geometry::ClosestSurfacePoint(rest_, in.grasp_point);
-          if (sp.ok()) d = tissue::CoilDeformer::CreateForSurface(*coil_, rest_, *sp, geometry::GeodesicMethod::kHeat);
+          if (sp.ok())
+            d = tissue::CoilDeformer::CreateForSurface(*coil_, rest_, *sp,
+                                                       geometry::GeodesicMethod::kHeat);
         }
         if (d.ok()) {
           if (deformer_) deformer_->Update(0.0);
@@ -326,11 +337,13 @@ void Simulation::Deform(const DeformInput& in) {
       if (in.triangle >= 0) {
         const auto& x = msm_->positions();
         const geometry::Triangle& tri = rest_.triangles[in.triangle];
-        const Vec3 scp = in.barycentric[0] * x[tri[0]] + in.barycentric[1] * x[tri[1]] + in.barycentric[2] * x[tri[2]];
+        const Vec3 scp = in.barycentric[0] * x[tri[0]] + in.barycentric[1] * x[tri[1]] +
+                         in.barycentric[2] * x[tri[2]];
         const Vec3 offset = in.hip - scp;
         const haptics::ProxyParams& pp = proxy_.params();
         for (int k = 0; k < 3; ++k) {
-          msm_->SetAnchor(tri[k], x[tri[k]] + offset, in.barycentric[k] * pp.stiffness, in.barycentric[k] * pp.damping);
+          msm_->SetAnchor(tri[k], x[tri[k]] + offset, in.barycentric[k] * pp.stiffness,
+                          in.barycentric[k] * pp.damping);
         }
       }
       if (!msm_->Step(region.dt)) msm_->Reset();  // a divergence is reset to rest, never NaN
@@ -341,17 +354,20 @@ void Simulation::Deform(const DeformInput& in) {
       if (in.triangle >= 0 && in.contact_id != seen_contact_) {
         seen_contact_ = in.contact_id;
         const geometry::Triangle& tri = rest_.triangles[in.triangle];
-        const Vec3 p = in.barycentric[0] * rest_.positions[tri[0]] + in.barycentric[1] * rest_.positions[tri[1]] +
+        const Vec3 p = in.barycentric[0] * rest_.positions[tri[0]] +
+                       in.barycentric[1] * rest_.positions[tri[1]] +
                        in.barycentric[2] * rest_.positions[tri[2]];
         std::vector<double> rho(rest_.VertexCount());
         for (int v = 0; v < rest_.VertexCount(); ++v) rho[v] = (rest_.positions[v] - p).norm();
         auto ring = tissue::RingLayerModel::Create(rest_.positions, rho, masses_,
-                                                   -geometry::TriangleNormal(rest_, in.triangle), region.ring);
+                                                   -geometry::TriangleNormal(rest_, in.triangle),
+                                                   region.ring);
         if (ring.ok()) ring_ = std::make_unique<tissue::RingLayerModel>(std::move(*ring));
       }
       if (!ring_) return;
-      ring_->SetContactForce(in.triangle >= 0 ? in.force_on_tissue.dot(-geometry::TriangleNormal(rest_, in.triangle))
-                                              : 0.0);
+      ring_->SetContactForce(
+          in.triangle >= 0 ? in.force_on_tissue.dot(-geometry::TriangleNormal(rest_, in.triangle))
+                           : 0.0);
       ring_->Step(region.dt);
       ring_->Apply();
       Publish(ring_->positions(), false);
@@ -368,7 +384,8 @@ void Simulation::StepDeformation() {
 void Simulation::DeformationLoop() {
   using Clock = std::chrono::steady_clock;
   const bool paced = scene_.region.kind != ModelKind::kCoil;
-  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
   auto next = Clock::now();
   while (!stop_.load(std::memory_order_relaxed)) {
     inputs_.Acquire();

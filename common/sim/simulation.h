@@ -56,14 +56,15 @@ struct SimulationOptions {
 };
 
 struct VisualFrame {
-  uint64_t frame_id = 0;             // counts published deformations
-  std::vector<int32_t> indices;      // vertices that moved since the previous frame taken
+  uint64_t frame_id = 0;                  // counts published deformations
+  std::vector<int32_t> indices;           // vertices that moved since the previous frame taken
   std::vector<geometry::Vec3> positions;  // their positions, m
 };
 
 class Simulation {
  public:
-  static Expected<std::unique_ptr<Simulation>> Create(const Scene& scene, const SimulationOptions& options = {});
+  static Expected<std::unique_ptr<Simulation>> Create(const Scene& scene,
+                                                      const SimulationOptions& options = {});
   ~Simulation();
   Simulation(const Simulation&) = delete;
   Simulation& operator=(const Simulation&) = delete;
@@ -91,15 +92,15 @@ class Simulation {
   };
   // What the haptic path asks of the deformation.
   struct DeformInput {
-    uint64_t grasp_id = 0;      // changes at every new grasp
+    uint64_t grasp_id = 0;  // changes at every new grasp
     bool grasping = false;
-    double torque = 0;          // N·m, coil scenes
+    double torque = 0;  // N·m, coil scenes
     geometry::Vec3 grasp_point = geometry::Vec3::Zero();
-    int triangle = -1;          // contact triangle, −1: no contact
+    int triangle = -1;  // contact triangle, −1: no contact
     geometry::Vec3 barycentric = geometry::Vec3::Zero();
     geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
     geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
-    uint64_t contact_id = 0;    // changes at every new contact
+    uint64_t contact_id = 0;                                  // changes at every new contact
   };
   struct VisualPositions {
     std::vector<geometry::Vec3> positions;
@@ -121,7 +122,7 @@ class Simulation {
   haptics::ProxyContact proxy_;
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
-  std::unique_ptr<tissue::CoilSpringModel> coil_;  // coil scenes: the inverse runs here
+  std::unique_ptr<tissue::CoilSpringModel> coil_;           // coil scenes: the inverse runs here
   std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex
   std::vector<geometry::Vec3> centreline_points_;
   DeformInput input_;

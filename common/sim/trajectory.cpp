@@ -52,12 +52,14 @@ double PlanDuration(const std::vector<Phase>& plan) {
 
 }  // namespace
 
-Expected<std::vector<StylusSample>> ParseTrajectoryCsv(const std::string& text, const std::string& source) {
+Expected<std::vector<StylusSample>> ParseTrajectoryCsv(const std::string& text,
+                                                       const std::string& source) {
   std::istringstream in(text);
   std::string line;
   long line_no = 0;
   auto fail = [&](const std::string& why) {
-    return Error{ErrorCode::kParseError, source + ":" + std::to_string(line_no) + ": " + why, "trajectory"};
+    return Error{ErrorCode::kParseError, source + ":" + std::to_string(line_no) + ": " + why,
+                 "trajectory"};
   };
   std::vector<StylusSample> out;
   while (std::getline(in, line)) {
@@ -72,13 +74,15 @@ Expected<std::vector<StylusSample>> ParseTrajectoryCsv(const std::string& text, 
     size_t pos = 0;
     for (int c = 0; c < 9; ++c) {
       const size_t end = c < 8 ? line.find(',', pos) : line.size();
-      if (end == std::string::npos) return fail("expected 9 columns, found " + std::to_string(c + 1));
+      if (end == std::string::npos)
+        return fail("expected 9 columns, found " + std::to_string(c + 1));
       const char* b = line.data() + pos;
       const char* e = line.data() + end;
       auto [ptr, ec] = std::from_chars(b, e, v[c]);
       if (ec != std::errc() || ptr != e) {
         static const char* kNames[] = {"t", "x", "y", "z", "qw", "qx", "qy", "qz", "buttons"};
-        return fail(std::string("column ") + kNames[c] + ": '" + std::string(b, e) + "' is not a number");
+        return fail(std::string("column ") + kNames[c] + ": '" + std::string(b, e) +
+                    "' is not a number");
       }
       pos = end + 1;
     }
@@ -96,7 +100,8 @@ Expected<std::vector<StylusSample>> ParseTrajectoryCsv(const std::string& text, 
     s.buttons = static_cast<uint32_t>(v[8]);
     out.push_back(s);  // NaN and infinities are kept: the simulation's safety deals with them
   }
-  if (line_no == 0) return Error{ErrorCode::kParseError, source + ": empty file, no header", "trajectory"};
+  if (line_no == 0)
+    return Error{ErrorCode::kParseError, source + ": empty file, no header", "trajectory"};
   return out;
 }
 
@@ -117,14 +122,16 @@ Status WriteTrajectoryCsv(const std::vector<StylusSample>& samples, const std::s
     char buf[256];
     for (const StylusSample& s : samples) {
       const auto& q = s.orientation;
-      std::snprintf(buf, sizeof buf, "%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u\n", s.time, s.position.x(),
-                    s.position.y(), s.position.z(), q.w(), q.x(), q.y(), q.z(), s.buttons);
+      std::snprintf(buf, sizeof buf, "%.6f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u\n", s.time,
+                    s.position.x(), s.position.y(), s.position.z(), q.w(), q.x(), q.y(), q.z(),
+                    s.buttons);
       out << buf;
     }
     out.flush();
     if (!out) return Error{ErrorCode::kIoError, path + ": write failed", "out"};
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) return Error{ErrorCode::kIoError, path + ": cannot rename", "out"};
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return Error{ErrorCode::kIoError, path + ": cannot rename", "out"};
   return Status::Ok();
 }
 
@@ -138,19 +145,22 @@ Expected<TraineeStyle> ParseTraineeStyle(const std::string& name) {
 // The trainee approaches the surface along its normal, sinks 2 mm in, then either twists about
 // the task's axis with the grasp held (twist tasks) or presses along the normal (press tasks),
 // holds, and leaves.
-Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeStyle style, double rate_hz,
-                                                    unsigned seed) {
-  if (!(rate_hz >= 10 && rate_hz <= 100000)) return InvalidArgument("rate", "rate must be in 10..100000 Hz");
+Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeStyle style,
+                                                    double rate_hz, unsigned seed) {
+  if (!(rate_hz >= 10 && rate_hz <= 100000))
+    return InvalidArgument("rate", "rate must be in 10..100000 Hz");
   // Where to touch: a limb's side 3 cm from the distal end, or a sphere's top.
   Vec3 surface_point, normal, axis_point, axis;
   if (scene.mesh.kind == MeshKind::kLimb) {
     const double z = scene.mesh.limb.length - 0.03;
     const double a = scene.mesh.limb.radius_proximal +
-                     (scene.mesh.limb.radius_distal - scene.mesh.limb.radius_proximal) * z / scene.mesh.limb.length;
+                     (scene.mesh.limb.radius_distal - scene.mesh.limb.radius_proximal) * z /
+                         scene.mesh.limb.length;
     // Between two vertices of the ring so the contact is on a face; the faceted surface sits
     // inside the circle by a·(1 − cos(π/n)).
     const double half = std::numbers::pi / scene.mesh.limb.segments_around;
-    surface_point = Vec3(a * std::cos(half) * std::cos(half), a * std::cos(half) * std::sin(half), z);
+    surface_point =
+        Vec3(a * std::cos(half) * std::cos(half), a * std::cos(half) * std::sin(half), z);
     normal = Vec3(std::cos(half), std::sin(half), 0);
     axis_point = Vec3(0, 0, z);
     axis = Vec3::UnitZ();
@@ -172,7 +182,10 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
   const double sink = 0.002;  // m below the surface while grasping
   switch (style) {
     case TraineeStyle::kGood:
-      plan = {{0.5, 0, 0, true}, {2.0, 0, target, true}, {hold + 1.0, target, target, true}, {0.8, target, 0, true}};
+      plan = {{0.5, 0, 0, true},
+              {2.0, 0, target, true},
+              {hold + 1.0, target, target, true},
+              {0.8, target, 0, true}};
       break;
     case TraineeStyle::kHesitant:
       plan = {{1.0, 0, 0, true},
@@ -219,7 +232,8 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
         const Eigen::AngleAxisd turn(value, axis);
         s.position = axis_point + turn * (inside - axis_point);
         s.orientation = Eigen::Quaterniond(turn) * q0;
-        s.buttons = t - approach > 0.1 ? uint32_t{haptics::kButtonGrasp} : 0u;  // grasp once in contact
+        s.buttons =
+            t - approach > 0.1 ? uint32_t{haptics::kButtonGrasp} : 0u;  // grasp once in contact
       } else {
         s.position = surface_point - std::max(sink, value) * normal;
       }

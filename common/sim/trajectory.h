@@ -20,8 +20,10 @@
 namespace vsurg::sim {
 
 Expected<std::vector<haptics::StylusSample>> ReadTrajectoryCsv(const std::string& path);
-Expected<std::vector<haptics::StylusSample>> ParseTrajectoryCsv(const std::string& text, const std::string& source);
-Status WriteTrajectoryCsv(const std::vector<haptics::StylusSample>& samples, const std::string& path);
+Expected<std::vector<haptics::StylusSample>> ParseTrajectoryCsv(const std::string& text,
+                                                                const std::string& source);
+Status WriteTrajectoryCsv(const std::vector<haptics::StylusSample>& samples,
+                          const std::string& path);
 
 enum class TraineeStyle { kGood, kHesitant, kRough };
 Expected<TraineeStyle> ParseTraineeStyle(const std::string& name);  // good, hesitant, rough
@@ -29,6 +31,7 @@ Expected<TraineeStyle> ParseTraineeStyle(const std::string& name);  // good, hes
 // A trajectory at rate_hz samples per second that performs the scene's task. `seed` varies the
 // tremor of the rough trainee; the others are deterministic.
 Expected<std::vector<haptics::StylusSample>> ScriptedTrainee(const Scene& scene, TraineeStyle style,
-                                                             double rate_hz = 1000.0, unsigned seed = 1);
+                                                             double rate_hz = 1000.0,
+                                                             unsigned seed = 1);
 
 }  // namespace vsurg::sim

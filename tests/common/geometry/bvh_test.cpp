@@ -1,0 +1,99 @@
+#include "common/geometry/bvh.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "common/geometry/mesh_generators.h"
+
+namespace vsurg::geometry {
+namespace {
+
+ClosestHit BruteClosest(const TriMesh& m, const Vec3& p) {
+  ClosestHit best;
+  for (int t = 0; t < m.TriangleCount(); ++t) {
+    const auto& tri = m.triangles[t];
+    const Vec3 w =
+        ClosestPointOnTriangle(p, m.positions[tri[0]], m.positions[tri[1]], m.positions[tri[2]]);
+    const Vec3 q =
+        w[0] * m.positions[tri[0]] + w[1] * m.positions[tri[1]] + w[2] * m.positions[tri[2]];
+    if ((q - p).norm() < best.distance) best = ClosestHit{t, w, q, (q - p).norm()};
+  }
+  return best;
+}
+
+double BruteFirstHit(const TriMesh& m, const Vec3& a, const Vec3& b) {
+  double best = 2;
+  const Vec3 d = b - a;
+  for (const auto& tri : m.triangles) {
+    const Vec3 p0 = m.positions[tri[0]], e1 = m.positions[tri[1]] - p0,
+               e2 = m.positions[tri[2]] - p0;
+    const Vec3 n = e1.cross(e2);
+    const double denom = n.dot(d);
+    if (std::abs(denom) < 1e-300) continue;
+    const double t = n.dot(p0 - a) / denom;
+    if (t < 0 || t > 1) continue;
+    const Vec3 q = a + t * d - p0;
+    // Barycentric of q in (e1, e2).
+    const double d00 = e1.dot(e1), d01 = e1.dot(e2), d11 = e2.dot(e2), d20 = q.dot(e1),
+                 d21 = q.dot(e2);
+    const double den = d00 * d11 - d01 * d01;
+    const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+    if (v >= 0 && w >= 0 && v + w <= 1) best = std::min(best, t);
+  }
+  return best;
+}
+
+TEST(BvhTest, ClosestPointAndFirstHitMatchBruteForceOnRandomQueries) {
+  TriMesh m = MakeLimb(WithResolution(ForearmPreset(), 1500))->surface;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-0.06, 0.06), z(-0.05, 0.3);
+  // Deform it a little so the refit is exercised, then refit.
+  Bvh bvh(m);
+  for (Vec3& p : m.positions)
+    p += Vec3(0.005 * std::sin(40 * p.z()), 0.003 * std::cos(30 * p.z()), 0);
+  bvh.Refit(m.positions);
+  for (int q = 0; q < 400; ++q) {
+    const Vec3 p(u(rng), u(rng), z(rng));
+    const ClosestHit fast = bvh.Closest(m.positions, p);
+    const ClosestHit slow = BruteClosest(m, p);
+    ASSERT_GE(fast.triangle, 0);
+    EXPECT_NEAR(fast.distance, slow.distance, 1e-12) << q;
+    const Vec3 b(u(rng), u(rng), z(rng));
+    const RayHit hit = bvh.FirstHit(m.positions, p, b);
+    const double brute = BruteFirstHit(m, p, b);
+    if (brute <= 1) {
+      ASSERT_GE(hit.triangle, 0) << q;
+      EXPECT_NEAR(hit.t, brute, 1e-9) << q;
+    } else {
+      EXPECT_EQ(hit.triangle, -1) << q;
+    }
+  }
+}
+
+TEST(BvhTest, FrontFaceMeansEnteringAndTheNormalFilterSkipsFacesTurnedAway) {
+  auto sphere = MakeSubdividedSphere({0.05, 3, SphereBase::kOctahedron});
+  Bvh bvh(*sphere);
+  const RayHit in = bvh.FirstHit(sphere->positions, Vec3(0.001, 0.002, 0.1), Vec3(0.001, 0.002, 0));
+  ASSERT_GE(in.triangle, 0);
+  EXPECT_TRUE(in.front_face);
+  const RayHit out =
+      bvh.FirstHit(sphere->positions, Vec3(0.001, 0.002, 0), Vec3(0.001, 0.002, 0.1));
+  ASSERT_GE(out.triangle, 0);
+  EXPECT_FALSE(out.front_face);
+  // From just under the north pole, the closest face is on top; asking only for faces whose
+  // normal points down (n_z ≤ −0.5) finds the nearest of those, below latitude −30°.
+  const ClosestHit top = bvh.Closest(sphere->positions, Vec3(0, 0, 0.045));
+  EXPECT_GT(top.point.z(), 0.04);
+  const ClosestHit down =
+      bvh.Closest(sphere->positions, Vec3(0, 0, 0.045), INFINITY, Vec3(0, 0, -1), 0.5);
+  ASSERT_GE(down.triangle, 0);
+  EXPECT_LE(TriangleNormal(*sphere, down.triangle).z(), -0.5);
+  EXPECT_LT(down.point.z(), -0.015);
+  // A range limit: nothing within 1 mm of the centre.
+  EXPECT_EQ(bvh.Closest(sphere->positions, Vec3::Zero(), 0.001).triangle, -1);
+  EXPECT_EQ(bvh.Closest(sphere->positions, Vec3(NAN, 0, 0)).triangle, -1);
+}
+
+}  // namespace
+}  // namespace vsurg::geometry

@@ -1,0 +1,88 @@
+#include "common/scoring/trial_metrics.h"
+
+#include <gtest/gtest.h>
+
+namespace vsurg::scoring {
+namespace {
+
+TaskSpec Twist() {
+  TaskSpec t;
+  t.kind = TaskKind::kTwist;
+  t.target = 1.0;
+  t.tolerance = 0.1;
+  t.hold_s = 2.0;
+  t.force_limit = 3.0;
+  t.time_limit = 60;
+  t.expert_time = 4.0;
+  return t;
+}
+
+TEST(TrialMetricsTest, CompletionNeedsTheHoldWithinToleranceAndUnderTheForceLimit) {
+  TrialRecorder r(Twist());
+  // 0–1 s ramp to target, then hold; at 1.5 s a force spike breaks the hold window.
+  for (int i = 0; i <= 6000; ++i) {
+    const double t = i * 1e-3;
+    const double q = std::min(1.0, t);
+    const double force = (t > 1.5 && t < 1.6) ? 3.5 : 1.0;
+    r.Add(t, Eigen::Vector3d(0.01 * q, 0, 0), q, force, false);
+  }
+  const TrialMetrics m = r.Finish();
+  ASSERT_TRUE(m.completed);
+  // The window restarts at 1.6 s (q is within tolerance from 0.9 s): done at 3.6 s.
+  EXPECT_NEAR(m.completion_time, 3.6, 2e-3);
+  EXPECT_NEAR(m.time_over_force_limit, 0.1, 2e-3);
+  EXPECT_EQ(m.peak_force, 3.5);
+  EXPECT_NEAR(m.path_length, 0.01, 1e-12);
+  EXPECT_EQ(m.task_error, 0.0);
+  EXPECT_EQ(m.caps, 0u);
+  EXPECT_GT(m.score, 7.0);
+}
+
+TEST(TrialMetricsTest, SafetyGatesCapTheScore) {
+  TrialRecorder overload(Twist()), over_limit(Twist()), never(Twist());
+  for (int i = 0; i <= 6000; ++i) {
+    const double t = i * 1e-3;
+    overload.Add(t, Eigen::Vector3d::Zero(), 1.0, 1.0, t > 5.0 && t < 5.1);
+    over_limit.Add(t, Eigen::Vector3d::Zero(), 1.0, t > 4.0 ? 3.5 : 1.0, false);
+    never.Add(t, Eigen::Vector3d::Zero(), 0.5, 1.0, false);
+  }
+  const TrialMetrics a = overload.Finish(), b = over_limit.Finish(), c = never.Finish();
+  EXPECT_EQ(a.overload_events, 1);
+  EXPECT_LE(a.score, 3.0);
+  EXPECT_TRUE(a.caps & kCapOverload);
+  EXPECT_GT(a.raw_score, a.score);
+  EXPECT_LE(b.score, 4.0);
+  EXPECT_TRUE(b.caps & kCapForceLimit);
+  EXPECT_FALSE(c.completed);
+  EXPECT_LE(c.score, 5.0);
+  EXPECT_NEAR(c.task_error, 0.5, 1e-12);
+}
+
+TEST(TrialMetricsTest, JerkSeparatesSmoothFromShakyMovement) {
+  TrialRecorder smooth(Twist()), shaky(Twist());
+  for (int i = 0; i <= 3000; ++i) {
+    const double t = i * 1e-3, u = t / 3.0;
+    const double s = u * u * u * (10 - 15 * u + 6 * u * u);  // minimum jerk
+    smooth.Add(t, Eigen::Vector3d(0.05 * s, 0, 0), 0, 0, false);
+    shaky.Add(t, Eigen::Vector3d(0.05 * s + 0.0005 * std::sin(2 * M_PI * 8 * t), 0, 0), 0, 0,
+              false);
+  }
+  EXPECT_LT(smooth.Finish().rms_jerk, 1.0);
+  EXPECT_GT(shaky.Finish().rms_jerk, 5 * smooth.Finish().rms_jerk);
+}
+
+TEST(TrialMetricsTest, BadSamplesAreIgnored) {
+  TrialRecorder r(Twist());
+  r.Add(0, Eigen::Vector3d::Zero(), 0, 0, false);
+  r.Add(NAN, Eigen::Vector3d::Zero(), 0, 0, false);
+  r.Add(0.001, Eigen::Vector3d(NAN, 0, 0), 0, 0, false);
+  r.Add(-0.0005, Eigen::Vector3d::Zero(), 0, 99, false);  // older than the last: dropped
+  r.Add(0.002, Eigen::Vector3d(0.001, 0, 0), 0, 1, false);
+  const TrialMetrics m = r.Finish();
+  EXPECT_EQ(m.peak_force, 1.0);
+  EXPECT_NEAR(m.path_length, 0.001, 1e-15);
+  EXPECT_NEAR(m.duration, 0.002, 1e-15);
+}
+
+}  // namespace
+}  // namespace vsurg::scoring

@@ -1,0 +1,117 @@
+#include "common/sim/scene.h"
+
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "common/sim/limb_scene.h"
+
+namespace vsurg::sim {
+namespace {
+
+TEST(SceneTest, EveryShippedSceneLoads) {
+  int count = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(ScenesDirectory())) {
+    if (entry.path().extension() != ".json") continue;
+    auto scene = LoadScene(entry.path().string());
+    EXPECT_TRUE(scene.ok()) << (scene.ok() ? "" : scene.error().message);
+    if (scene.ok()) {
+      EXPECT_EQ(scene->name + ".json", entry.path().filename().string());
+    }
+    ++count;
+  }
+  EXPECT_GE(count, 6);
+}
+
+TEST(SceneTest, ArmAndCalfFilesMatchTheBuiltInDefaults) {
+  for (const auto& [file, builtin] :
+       {std::pair{"arm-torsion", "arm"}, std::pair{"calf-torsion", "calf"}}) {
+    auto scene = LoadSceneByName(file);
+    auto limb = BuiltinLimbScene(builtin);
+    ASSERT_TRUE(scene.ok() && limb.ok());
+    const tissue::CoilSpringParams& a = scene->region.coil;
+    const tissue::CoilSpringParams& b = limb->coil;
+    EXPECT_EQ(a.core_radius, b.core_radius);
+    EXPECT_EQ(a.thickness, b.thickness);
+    EXPECT_EQ(a.width, b.width);
+    EXPECT_EQ(a.coils, b.coils);
+    EXPECT_EQ(a.modulus, b.modulus);
+    EXPECT_NEAR(a.max_force, b.max_force, 1e-15);
+    EXPECT_EQ(scene->mesh.limb.length, limb->limb.length);
+  }
+}
+
+TEST(SceneTest, TaskAndModelAreRead) {
+  auto arm = LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(arm.ok());
+  EXPECT_EQ(arm->region.kind, ModelKind::kCoil);
+  EXPECT_NEAR(arm->task.target, 45 * M_PI / 180, 1e-12);
+  EXPECT_NEAR(arm->task.tolerance, 5 * M_PI / 180, 1e-12);
+  EXPECT_EQ(arm->haptics.device, "touch");
+  auto sphere = LoadSceneByName("sphere-palpation-1024");
+  ASSERT_TRUE(sphere.ok());
+  EXPECT_EQ(sphere->region.kind, ModelKind::kMassSpring);
+  EXPECT_EQ(sphere->region.integrator, tissue::Integrator::kImplicitEuler);
+  EXPECT_EQ(sphere->mesh.particles, 1024);
+  EXPECT_EQ(sphere->task.kind, scoring::TaskKind::kPress);
+}
+
+std::string Minimal() {
+  return R"({"name": "t", "mesh": {"type": "sphere", "radius": 0.05, "particles": 256},
+    "regions": [{"name": "r", "model": {"type": "mass-spring", "structural_stiffness": 50}}],
+    "task": {"type": "press", "target_depth_m": 0.005, "tolerance_m": 0.001},
+    "error_budget": {"rms": 0.2}})";
+}
+
+std::string Field(const std::string& text) {
+  auto s = ParseScene(text, "x.json");
+  EXPECT_FALSE(s.ok()) << text;
+  return s.ok() ? "" : s.error().message;
+}
+
+std::string Replace(std::string s, const std::string& from, const std::string& to) {
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return s.replace(at, from.size(), to);
+}
+
+TEST(SceneTest, BadScenesNameTheField) {
+  ASSERT_TRUE(ParseScene(Minimal(), "x.json").ok())
+      << ParseScene(Minimal(), "x.json").error().message;
+  EXPECT_NE(Field("{ not json").find("x.json: not valid JSON"), std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("name": "t", )", "")).find("x.json: name: is required"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("radius": 0.05)", R"("radius": "big")"))
+                .find("mesh.radius: must be a number"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("particles": 256)", R"("particles": 2)"))
+                .find("mesh.particles: must be in"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("type": "mass-spring")", R"("type": "magic")"))
+                .find("regions[0].model.type: must be coil, mass-spring or ring-layer"),
+            std::string::npos);
+  EXPECT_NE(
+      Field(Replace(Minimal(), R"("structural_stiffness": 50)", R"("structural_stiffness": -5)"))
+          .find("regions[0].model.structural_stiffness"),
+      std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("structural_stiffness": 50)",
+                          R"("structural_stiffness": 50, "integrator": "euler")"))
+                .find("regions[0].model.integrator"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("type": "press")", R"("type": "twist")"))
+                .find("task.target_deg: is required"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("rms": 0.2)", R"("rms": -1)")).find("error_budget.rms"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("regions": [)",
+                          R"("regions": [{"model": {"type": "ring-layer"}}, )"))
+                .find("regions: must be an array with exactly one"),
+            std::string::npos);
+  auto missing = LoadSceneByName("no-such-scene");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
+  EXPECT_FALSE(LoadSceneByName("../etc/passwd").ok());
+}
+
+}  // namespace
+}  // namespace vsurg::sim

@@ -1,0 +1,195 @@
+#include "common/sim/simulation.h"
+
+#include <chrono>
+#include <random>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "common/sim/trajectory.h"
+
+namespace vsurg::sim {
+namespace {
+
+scoring::TrialMetrics Replay(const std::string& scene_name, TraineeStyle style,
+                             double* peak = nullptr) {
+  auto scene = LoadSceneByName(scene_name);
+  EXPECT_TRUE(scene.ok());
+  auto samples = ScriptedTrainee(*scene, style);
+  EXPECT_TRUE(samples.ok());
+  auto sim = Simulation::Create(*scene, {false});
+  EXPECT_TRUE(sim.ok()) << (sim.ok() ? "" : sim.error().message);
+  double max_force = 0, t_sim = 0;
+  for (const auto& s : *samples) {
+    const haptics::ForceCommand c = (*sim)->OnStylus(s);
+    if (scene->region.kind == ModelKind::kCoil) {
+      (*sim)->StepDeformation();
+    } else {
+      while (t_sim + scene->region.dt <= s.time)
+        (*sim)->StepDeformation(), t_sim += scene->region.dt;
+    }
+    max_force = std::max(max_force, c.force.norm());
+  }
+  if (peak) *peak = max_force;
+  return (*sim)->Metrics();
+}
+
+TEST(SimulationTest, ScriptedTraineesOnTheArmGiveTheExpectedMetrics) {
+  double peak = 0;
+  const scoring::TrialMetrics good = Replay("arm-torsion", TraineeStyle::kGood, &peak);
+  ASSERT_TRUE(good.completed);
+  // Approach 0.4 s + pause 0.5 s + 2 s twist (enters the 5° band about 1.6 s in) + 2 s hold.
+  EXPECT_NEAR(good.completion_time, 0.4 + 0.5 + 1.5 + 2.0, 0.3);
+  EXPECT_LT(good.task_error, 5 * M_PI / 180);
+  EXPECT_LE(peak, 3.3 + 1e-9);
+  EXPECT_LT(good.peak_force, 3.0);  // under the task's force limit
+  EXPECT_EQ(good.overload_events, 0);
+  EXPECT_GE(good.score, 8.0);
+  const scoring::TrialMetrics hesitant = Replay("arm-torsion", TraineeStyle::kHesitant);
+  ASSERT_TRUE(hesitant.completed);
+  EXPECT_GT(hesitant.completion_time, good.completion_time + 3.0);
+  EXPECT_LT(hesitant.score, good.score);
+  EXPECT_GT(hesitant.path_length, 0.9 * good.path_length);
+  const scoring::TrialMetrics rough = Replay("arm-torsion", TraineeStyle::kRough, &peak);
+  EXPECT_GT(rough.time_over_force_limit, 0.5);  // overshooting a limb twist loads it hard
+  EXPECT_TRUE(rough.caps & scoring::kCapForceLimit);
+  EXPECT_LE(rough.score, 4.0);
+  EXPECT_GT(rough.rms_jerk, 100 * good.rms_jerk);
+  EXPECT_LE(peak, 3.3 + 1e-9);  // the device limit holds whatever the trainee does
+}
+
+TEST(SimulationTest, ScriptedTraineesPalpateTheSphere) {
+  for (const char* scene : {"sphere-palpation-256", "sphere-palpation-rings"}) {
+    SCOPED_TRACE(scene);
+    const scoring::TrialMetrics good = Replay(scene, TraineeStyle::kGood);
+    ASSERT_TRUE(good.completed);
+    EXPECT_LT(good.task_error, 0.001);
+    EXPECT_GT(good.peak_force, 0.02);  // the tissue pushes back
+    EXPECT_GE(good.score, 8.0);
+    const scoring::TrialMetrics rough = Replay(scene, TraineeStyle::kRough);
+    EXPECT_LT(rough.score, good.score - 3.0);
+  }
+}
+
+TEST(SimulationTest, BadSamplesGiveZeroForceAndAnEventThenTheGateRearms) {
+  auto scene = LoadSceneByName("sphere-palpation-256");
+  auto sim = Simulation::Create(*scene, {false});
+  ASSERT_TRUE(sim.ok());
+  haptics::StylusSample s;
+  s.position = Eigen::Vector3d(0.001, 0.001, 0.06);
+  for (int i = 0; i < 100; ++i) s.time = i * 1e-3, (*sim)->OnStylus(s);
+  s.time = 0.1;
+  s.position = Eigen::Vector3d(0.001, 0.001, 0.045);  // inside
+  EXPECT_TRUE((*sim)->OnStylus(s).contact);
+  s.position.x() = NAN;
+  haptics::ForceCommand c = (*sim)->OnStylus(s);
+  EXPECT_EQ(c.force, Eigen::Vector3d::Zero());
+  EXPECT_TRUE(c.events & haptics::kEventNonFiniteInput);
+  EXPECT_TRUE(c.local.jacobian.isZero());
+  s.position = Eigen::Vector3d(3.0, 0, 0);
+  c = (*sim)->OnStylus(s);
+  EXPECT_EQ(c.force, Eigen::Vector3d::Zero());
+  EXPECT_TRUE(c.events & haptics::kEventOutOfWorkspace);
+  // Back inside the tissue: the gate holds the force at zero (no kick) until it is quiet.
+  s.position = Eigen::Vector3d(0.001, 0.001, 0.045);
+  c = (*sim)->OnStylus(s);
+  EXPECT_TRUE(c.events & haptics::kEventGated);
+  EXPECT_EQ(c.force, Eigen::Vector3d::Zero());
+}
+
+TEST(SimulationTest, AdversarialStylusInputNeverExceedsTheDeviceLimits) {
+  auto scene = LoadSceneByName("arm-torsion");
+  auto sim = Simulation::Create(*scene, {false});
+  ASSERT_TRUE(sim.ok());
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> pos(-0.1, 0.35), ang(-1, 1), dt(-1e-3, 3e-3);
+  std::bernoulli_distribution coin(0.3);
+  double t = 0;
+  for (int i = 0; i < 20000; ++i) {
+    haptics::StylusSample s;
+    t += dt(rng);
+    s.time = i % 1000 == 7 ? NAN : t;
+    s.position = Eigen::Vector3d(pos(rng) * 0.3, pos(rng) * 0.3, pos(rng));
+    s.orientation = Eigen::Quaterniond(ang(rng), ang(rng), ang(rng), ang(rng));
+    if (i % 500 == 3) s.orientation.coeffs().setZero();
+    s.buttons = coin(rng) ? haptics::kButtonGrasp : 0u;
+    const haptics::ForceCommand c = (*sim)->OnStylus(s);
+    (*sim)->StepDeformation();
+    ASSERT_TRUE(c.force.allFinite());
+    ASSERT_LE(c.force.norm(), 3.3 * (1 + 1e-12));
+    ASSERT_TRUE(c.local.jacobian.allFinite());
+    ASSERT_EQ(c.local.force0, c.force);
+  }
+}
+
+TEST(SimulationTest, ThreadedDeformationPublishesOnlyMovedVertices) {
+  auto scene = LoadSceneByName("arm-torsion");
+  auto samples = ScriptedTrainee(*scene, TraineeStyle::kGood);
+  auto sim = Simulation::Create(*scene, {true});
+  ASSERT_TRUE(sim.ok());
+  VisualFrame frame;
+  // Play up to the end of the twist (t ≈ 2.9 s), as fast as we can.
+  for (const auto& s : *samples) {
+    if (s.time > 2.9) break;
+    (*sim)->OnStylus(s);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while ((*sim)->deformation_updates() == 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  std::this_thread::sleep_for(
+      std::chrono::milliseconds(50));  // let it catch up with the last torque
+  ASSERT_GT((*sim)->deformation_updates(), 0u);
+  ASSERT_TRUE((*sim)->TakeVisualFrame(frame));
+  ASSERT_FALSE(frame.indices.empty());
+  EXPECT_LT(frame.indices.size(), (*sim)->rest_mesh().positions.size());  // the elbow end stays
+  const auto& rest = (*sim)->rest_mesh().positions;
+  for (size_t k = 0; k < frame.indices.size(); ++k) {
+    const auto& p0 = rest[frame.indices[k]];
+    EXPECT_GT((frame.positions[k] - p0).norm(), 1e-6);
+    EXPECT_NEAR(std::hypot(frame.positions[k].x(), frame.positions[k].y()),
+                std::hypot(p0.x(), p0.y()), 1e-9);
+  }
+  // Nothing new published: no frame, or an empty one.
+  VisualFrame again;
+  if ((*sim)->TakeVisualFrame(again)) {
+    EXPECT_TRUE(again.indices.empty());
+  }
+}
+
+TEST(TripleBufferTest, ReaderAlwaysSeesACompleteNewerValue) {
+  struct Value {
+    uint64_t n = 0;
+    uint64_t twice = 0;
+    std::array<uint64_t, 64> pad{};
+  };
+  TripleBuffer<Value> buffer;
+  std::atomic<bool> done{false};
+  std::thread writer([&] {
+    for (uint64_t n = 1; n <= 300000; ++n) {
+      Value& v = buffer.Back();
+      v.n = n;
+      v.pad.fill(n);
+      v.twice = 2 * n;
+      buffer.Publish();
+    }
+    done = true;
+  });
+  uint64_t last = 0, seen = 0;
+  while (!done || buffer.Acquire()) {
+    if (!buffer.Acquire() && !done) continue;
+    const Value& v = buffer.Front();
+    ASSERT_EQ(v.twice, 2 * v.n);
+    ASSERT_EQ(v.pad[63], v.n);
+    ASSERT_GE(v.n, last);
+    last = v.n;
+    ++seen;
+  }
+  writer.join();
+  buffer.Acquire();
+  EXPECT_EQ(buffer.Front().n, 300000u);
+  EXPECT_GT(seen, 0u);
+}
+
+}  // namespace
+}  // namespace vsurg::sim
