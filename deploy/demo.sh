@@ -2,7 +2,8 @@
 # The main job end to end on the embedded defaults: the arm-torsion scene of seed 000. Loads the
 # default forearm, applies 2.07 N·m in ten steps with the coil-spring model (per step: cutoff layer,
 # total twist, overload flag, vertices moved), writes the deformed mesh as OBJ, then shows what
-# happens past the limb's capacity and how far the model is from Saint-Venant torsion.
+# happens past the limb's capacity, how far the model is from Saint-Venant torsion, and three
+# scripted trainees performing the arm-torsion task through the full haptic simulation.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -29,4 +30,12 @@ echo "== Coil model against Saint-Venant torsion of the same forearm (G = 12 kPa
 "$sim" calibrate --scene arm --max-torque 0.1
 
 echo
-echo "demo: deformed meshes in $out"
+echo "== Three scripted trainees twist the forearm 45 degrees (arm-torsion scene): metrics and score =="
+for style in good hesitant rough; do
+  "$sim" trainee --scene arm-torsion --style "$style" --out "$out/twist-$style.csv" > /dev/null
+  echo "-- $style"
+  "$sim" run --scene arm-torsion --trajectory "$out/twist-$style.csv"
+done
+
+echo
+echo "demo: deformed meshes and trajectories in $out"

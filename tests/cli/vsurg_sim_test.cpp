@@ -135,7 +135,7 @@ TEST(VsurgSimTest, BadArgumentsExitTwoWithOneLineNamingTheArgument) {
 }
 
 TEST(VsurgSimTest, EveryCommandHasHelp) {
-  for (const char* cmd : {"coil", "coil-inverse", "deform", "calibrate", "msm"}) {
+  for (const char* cmd : {"coil", "coil-inverse", "deform", "calibrate", "msm", "run", "trainee"}) {
     const SimRun r = Sim({cmd, "--help"});
     EXPECT_EQ(r.code, 0);
     EXPECT_NE(r.out.find(std::string("usage: vsurg-sim ") + cmd), std::string::npos);
@@ -249,6 +249,56 @@ TEST(VsurgSimTest, MsmBadArgumentsExitTwo) {
     EXPECT_EQ(Lines(r.err), 1) << r.err;
     EXPECT_NE(r.err.find(expect), std::string::npos) << r.err;
   }
+}
+
+TEST(VsurgSimTest, TraineeAndRunReplayAScene) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "vsurg_cli_twist.csv").string();
+  SimRun r = Sim({"trainee", "--scene", "arm-torsion", "--style", "good", "--out", path});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = Sim({"run", "--scene", "arm-torsion", "--trajectory", path, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j["scene"], "arm-torsion");
+  EXPECT_GT(j["samples"].get<int>(), 5000);
+  const double peak = j["peak_force"];
+  EXPECT_GT(peak, 1.0);
+  EXPECT_LE(peak, 3.3 + 1e-9);  // newtons, after the Touch-class limit
+  const json& m = j["metrics"];
+  for (const char* key :
+       {"completed", "completion_time", "task_error", "peak_force", "time_over_force_limit",
+        "path_length", "rms_jerk", "overload_events", "score"}) {
+    EXPECT_TRUE(m.contains(key)) << key;
+  }
+  EXPECT_TRUE(m["completed"].get<bool>());
+  EXPECT_GE(m["score"].get<double>(), 8.0);
+  EXPECT_EQ(j["grasps"], 1);
+  std::filesystem::remove(path);
+}
+
+TEST(VsurgSimTest, RunRejectsBadTrajectoriesAndScenes) {
+  const std::string path = (std::filesystem::temp_directory_path() / "vsurg_cli_bad.csv").string();
+  {
+    std::ofstream f(path);
+    f << "t,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.1,1,0,0,0,0\n0.001,0,zero,0.1,1,0,0,0,0\n";
+  }
+  SimRun r = Sim({"run", "--scene", "arm-torsion", "--trajectory", path});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(path + ":3: column y: 'zero' is not a number"), std::string::npos) << r.err;
+  {
+    std::ofstream f(path);
+    f << "time,x,y,z\n";
+  }
+  r = Sim({"run", "--scene", "arm-torsion", "--trajectory", path});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("the header must be"), std::string::npos) << r.err;
+  r = Sim({"run", "--scene", "no-such-scene", "--trajectory", path});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--scene: no scene 'no-such-scene'"), std::string::npos) << r.err;
+  r = Sim({"trainee", "--scene", "arm-torsion", "--style", "lazy", "--out", path});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--style"), std::string::npos);
+  std::filesystem::remove(path);
 }
 
 // The real binary, as other tools call it: exit status and streams.

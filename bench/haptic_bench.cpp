@@ -1,0 +1,94 @@
+// Haptic path micro-benchmarks (issue: haptic interaction and scenes).
+//
+// BM_HapticPath: stylus sample in → force command out through Simulation::OnStylus, with the
+// scene's deformation thread running in parallel on the other core. The trajectory is the good
+// scripted trainee, replayed in a loop (grasp, twist, hold, release; or press and hold), so the
+// deformation thread is busy publishing new surfaces while the haptic path reads them. Each call
+// is timed on its own; the counters are the median and the 99th and 99.9th percentiles (µs), and
+// how many surfaces the deformation thread published meanwhile.
+//
+// BM_RingLayerStep vs BM_MsmStep/5/1: the same palpation of the 1026-particle sphere by the
+// ring-layer model (only the rings around the contact move) and by the full mass-spring model.
+//
+//   build/bin/vsurg-microbench --benchmark_filter='HapticPath|RingLayer'
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <vector>
+
+#include "common/geometry/mesh_generators.h"
+#include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
+#include "common/tissue/ring_layer.h"
+
+namespace {
+
+void BM_HapticPath(benchmark::State& state) {
+  static const char* kScenes[] = {"arm-torsion", "sphere-palpation-1024", "organ-surface-twist"};
+  const char* name = kScenes[state.range(0)];
+  auto scene = vsurg::sim::LoadSceneByName(name);
+  auto samples = vsurg::sim::ScriptedTrainee(*scene, vsurg::sim::TraineeStyle::kGood);
+  auto sim = vsurg::sim::Simulation::Create(*scene, {true});
+  if (!scene.ok() || !samples.ok() || !sim.ok()) {
+    state.SkipWithError("scene set-up failed");
+    return;
+  }
+  // 20 000 calls paced 100 µs apart (10 kHz of wall time, 2 s): the deformation thread keeps
+  // publishing while the haptic path runs; sample times advance 1 ms per call as at 1 kHz.
+  constexpr int kCalls = 20000;
+  const auto period = std::chrono::microseconds(100);
+  std::vector<double> us;
+  us.reserve(kCalls);
+  double time_offset = 0;
+  const double span = samples->back().time + 1e-3;
+  for (auto _ : state) {
+    auto next = std::chrono::steady_clock::now();
+    for (int i = 0; i < kCalls; ++i) {
+      next += period;
+      while (std::chrono::steady_clock::now() < next) {
+      }
+      vsurg::haptics::StylusSample s = (*samples)[i % samples->size()];
+      s.time += time_offset + span * static_cast<double>(i / samples->size());
+      const auto t0 = std::chrono::steady_clock::now();
+      const vsurg::haptics::ForceCommand c = (*sim)->OnStylus(s);
+      const auto t1 = std::chrono::steady_clock::now();
+      benchmark::DoNotOptimize(c);
+      us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+    }
+  }
+  std::sort(us.begin(), us.end());
+  state.counters["p50_us"] = us[us.size() / 2];
+  state.counters["p99_us"] = us[us.size() * 99 / 100];
+  state.counters["p999_us"] = us[us.size() * 999 / 1000];
+  state.counters["deform_updates"] = static_cast<double>((*sim)->deformation_updates());
+  state.SetLabel(name);
+}
+BENCHMARK(BM_HapticPath)->Arg(0)->Arg(1)->Arg(2)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+void BM_RingLayerStep(benchmark::State& state) {
+  auto mesh =
+      vsurg::geometry::MakeSubdividedSphere({0.05, 4, vsurg::geometry::SphereBase::kOctahedron});
+  const vsurg::geometry::Vec3 contact = mesh->positions[4];
+  std::vector<double> rho(mesh->VertexCount()),
+      mass(mesh->VertexCount(), 0.55 / mesh->VertexCount());
+  for (int v = 0; v < mesh->VertexCount(); ++v) rho[v] = (mesh->positions[v] - contact).norm();
+  vsurg::tissue::RingLayerParams p;
+  p.ring_spacing = 0.008;
+  p.rings = 6;
+  p.chain_stiffness = 40;
+  p.tether_stiffness = 0.5;
+  auto ring =
+      vsurg::tissue::RingLayerModel::Create(mesh->positions, rho, mass, -contact.normalized(), p);
+  ring->SetContactForce(0.2);
+  int moved = 0;
+  for (auto _ : state) {
+    ring->Step(2e-4);
+    moved = ring->Apply();
+    benchmark::DoNotOptimize(ring->positions().data());
+  }
+  state.counters["moved_vertices"] = moved;
+}
+BENCHMARK(BM_RingLayerStep)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
