@@ -1,12 +1,30 @@
 #include "common/sim/simulation.h"
 
+#include <atomic>
 #include <chrono>
+#include <cstdlib>
+#include <new>
 #include <random>
 #include <thread>
 
 #include <gtest/gtest.h>
 
 #include "common/sim/trajectory.h"
+
+// Counts heap allocations made by the thread that sets the flag (the deformation thread and the
+// test framework are not counted).
+namespace {
+thread_local bool g_counting = false;
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t n) {
+  if (g_counting) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace vsurg::sim {
 namespace {
@@ -154,6 +172,30 @@ TEST(SimulationTest, ThreadedDeformationPublishesOnlyMovedVertices) {
   VisualFrame again;
   if ((*sim)->TakeVisualFrame(again)) {
     EXPECT_TRUE(again.indices.empty());
+  }
+}
+
+TEST(SimulationTest, TheHapticPathNeverAllocates) {
+  // The counter sees an allocation when there is one.
+  g_allocations = 0;
+  g_counting = true;
+  auto* probe = new std::vector<double>(100);
+  g_counting = false;
+  delete probe;
+  ASSERT_GE(g_allocations.load(), 2);
+  for (const char* name : {"arm-torsion", "sphere-palpation-256", "sphere-palpation-rings", "organ-surface-twist"}) {
+    auto scene = LoadSceneByName(name);
+    auto samples = ScriptedTrainee(*scene, TraineeStyle::kRough);
+    auto sim = Simulation::Create(*scene, {true});
+    ASSERT_TRUE(sim.ok());
+    haptics::StylusSample bad;
+    bad.position.x() = NAN;
+    g_allocations = 0;
+    g_counting = true;
+    for (const auto& s : *samples) (*sim)->OnStylus(s);
+    (*sim)->OnStylus(bad);
+    g_counting = false;
+    EXPECT_EQ(g_allocations.load(), 0) << name;
   }
 }
 
