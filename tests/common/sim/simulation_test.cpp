@@ -18,6 +18,8 @@ thread_local bool g_counting = false;
 std::atomic<long> g_allocations{0};
 }  // namespace
 
+// The replacements pair malloc with free themselves; GCC cannot see that through inlining.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 void* operator new(std::size_t n) {
   if (g_counting) g_allocations.fetch_add(1);
   if (void* p = std::malloc(n ? n : 1)) return p;
