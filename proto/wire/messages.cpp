@@ -1,0 +1,125 @@
+#include "proto/wire/messages.h"
+
+#include <cmath>
+
+#include "vsurg/v1/haptic.pb.h"
+
+namespace vsurg::wire {
+namespace {
+
+void Put(const Eigen::Vector3d& v, v1::Vec3* m) {
+  m->set_x(v.x());
+  m->set_y(v.y());
+  m->set_z(v.z());
+}
+Eigen::Vector3d Get(const v1::Vec3& m) {
+  return {m.x(), m.y(), m.z()};
+}
+
+}  // namespace
+
+struct Codec::Impl {
+  v1::StylusState stylus;
+  v1::ForceFeedback force;
+  std::array<uint8_t, kMaxPayload> payload;
+};
+
+Codec::Codec() : impl_(std::make_unique<Impl>()) {}
+Codec::~Codec() = default;
+Codec::Codec(Codec&&) noexcept = default;
+Codec& Codec::operator=(Codec&&) noexcept = default;
+
+size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authenticator& auth,
+                           std::span<uint8_t> out) {
+  v1::StylusState& s = impl_->stylus;
+  s.set_time(m.sample.time);
+  Put(m.sample.position, s.mutable_position());
+  const Eigen::Quaterniond& q = m.sample.orientation;
+  s.mutable_orientation()->set_w(q.w());
+  s.mutable_orientation()->set_x(q.x());
+  s.mutable_orientation()->set_y(q.y());
+  s.mutable_orientation()->set_z(q.z());
+  Put(m.velocity, s.mutable_velocity());
+  s.set_buttons(m.sample.buttons);
+  const size_t n = s.ByteSizeLong();
+  if (n > kMaxPayload || !s.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
+  Header header = h;
+  header.type = PayloadType::kStylusState;
+  return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+}
+
+size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenticator& auth,
+                          std::span<uint8_t> out) {
+  v1::ForceFeedback& f = impl_->force;
+  const haptics::ForceCommand& c = m.command;
+  f.set_echo_sequence(m.echo_sequence);
+  f.set_echo_time(m.echo_time);
+  f.set_server_time(m.server_time);
+  Put(c.force, f.mutable_force());
+  Put(Eigen::Vector3d::Zero(), f.mutable_torque());
+  f.set_contact(c.contact);
+  f.set_grasping(c.grasping);
+  Put(c.proxy, f.mutable_proxy());
+  v1::LocalModel* local = f.mutable_local();
+  Put(c.local.force0, local->mutable_force0());
+  Put(c.local.position0, local->mutable_position0());
+  local->mutable_jacobian()->Resize(9, 0.0);  // keeps its capacity: no allocation after the first
+  for (int r = 0; r < 3; ++r) {
+    for (int k = 0; k < 3; ++k) local->set_jacobian(3 * r + k, c.local.jacobian(r, k));
+  }
+  f.set_events(c.events);
+  f.set_twist(c.twist);
+  const size_t n = f.ByteSizeLong();
+  if (n > kMaxPayload || !f.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
+  Header header = h;
+  header.type = PayloadType::kForceFeedback;
+  return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+}
+
+DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& out) {
+  v1::StylusState& s = impl_->stylus;
+  if (!s.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
+    return DropReason::kBadPayload;
+  out.sample.time = s.time();
+  out.sample.position = Get(s.position());
+  out.sample.orientation = Eigen::Quaterniond(s.orientation().w(), s.orientation().x(),
+                                              s.orientation().y(), s.orientation().z());
+  out.sample.buttons = s.buttons();
+  out.velocity = Get(s.velocity());
+  // Non-finite values are passed on: the simulation's safety turns them into zero force and an
+  // event, which the station then sees.
+  return DropReason::kNone;
+}
+
+DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& out) {
+  v1::ForceFeedback& f = impl_->force;
+  if (!f.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
+    return DropReason::kBadPayload;
+  haptics::ForceCommand& c = out.command;
+  out.echo_sequence = f.echo_sequence();
+  out.echo_time = f.echo_time();
+  out.server_time = f.server_time();
+  c.force = Get(f.force());
+  c.contact = f.contact();
+  c.grasping = f.grasping();
+  c.proxy = Get(f.proxy());
+  c.local.force0 = Get(f.local().force0());
+  c.local.position0 = Get(f.local().position0());
+  if (f.local().jacobian_size() == 9) {
+    for (int r = 0; r < 3; ++r) {
+      for (int k = 0; k < 3; ++k) c.local.jacobian(r, k) = f.local().jacobian(3 * r + k);
+    }
+  } else {
+    c.local.jacobian.setZero();
+  }
+  c.events = f.events();
+  c.twist = f.twist();
+  // A station renders these at 1 kHz: anything non-finite is refused here.
+  if (!c.force.allFinite() || !c.local.force0.allFinite() || !c.local.position0.allFinite() ||
+      !c.local.jacobian.allFinite()) {
+    return DropReason::kBadPayload;
+  }
+  return DropReason::kNone;
+}
+
+}  // namespace vsurg::wire

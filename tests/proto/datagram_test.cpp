@@ -1,0 +1,147 @@
+#include "proto/wire/datagram.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "proto/wire/messages.h"
+
+namespace vsurg::wire {
+namespace {
+
+SessionKey Key(uint8_t seed) {
+  SessionKey k;
+  for (size_t i = 0; i < k.size(); ++i) k[i] = static_cast<uint8_t>(seed * 31 + i * 7);
+  return k;
+}
+
+StylusMessage Stylus() {
+  StylusMessage m;
+  m.sample.time = 12.345;
+  m.sample.position = Eigen::Vector3d(0.01, -0.02, 0.2);
+  m.sample.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  m.sample.buttons = 1;
+  m.velocity = Eigen::Vector3d(0.1, 0, 0);
+  return m;
+}
+
+TEST(DatagramTest, HmacMatchesRfc4231TestCase2) {
+  // RFC 4231 §4.3 uses key "Jefe"; ours are 32 bytes, zero-padded the same way HMAC pads.
+  SessionKey key{};
+  std::memcpy(key.data(), "Jefe", 4);
+  const std::string data = "what do ya want for nothing?";
+  const auto tag = Authenticator(key).Tag(
+      std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(data.data()), data.size()));
+  const uint8_t expected[16] = {0x5b, 0xdc, 0xc1, 0x46, 0xbf, 0x60, 0x75, 0x4e,
+                                0x6a, 0x04, 0x24, 0x26, 0x08, 0x95, 0x75, 0xc7};
+  EXPECT_EQ(0, std::memcmp(tag.data(), expected, 16));
+}
+
+TEST(DatagramTest, StylusRoundTripIsSmallAndExact) {
+  const Authenticator auth(Key(1));
+  Codec codec;
+  std::array<uint8_t, kMaxDatagram> buf;
+  const size_t n = codec.EncodeStylus(
+      Stylus(), {kProtocolVersion, PayloadType::kStylusState, 42, 7, 123456}, auth, buf);
+  ASSERT_GT(n, 64u);
+  EXPECT_LE(n, 200u);  // DESIGN.md: typically 64–200 bytes
+  Opened opened;
+  ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, opened), DropReason::kNone);
+  EXPECT_EQ(opened.header.session, 42u);
+  EXPECT_EQ(opened.header.sequence, 7u);
+  EXPECT_EQ(opened.header.time_us, 123456u);
+  StylusMessage back;
+  ASSERT_EQ(codec.DecodeStylus(opened.payload, back), DropReason::kNone);
+  EXPECT_EQ(back.sample.position, Stylus().sample.position);
+  EXPECT_EQ(back.sample.buttons, 1u);
+  EXPECT_NEAR(back.sample.orientation.angularDistance(Stylus().sample.orientation), 0, 1e-15);
+}
+
+TEST(DatagramTest, ForceRoundTripCarriesTheLocalModel) {
+  const Authenticator auth(Key(2));
+  Codec codec;
+  ForceMessage m;
+  m.echo_sequence = 99;
+  m.echo_time = 1.5;
+  m.command.force = Eigen::Vector3d(0, 0, 1.25);
+  m.command.local.force0 = m.command.force;
+  m.command.local.position0 = Eigen::Vector3d(0.01, 0, 0.04);
+  m.command.local.jacobian = -300.0 * Eigen::Matrix3d::Identity();
+  m.command.local.jacobian(0, 2) = 5;
+  m.command.contact = true;
+  m.command.events = 0x12;
+  std::array<uint8_t, kMaxDatagram> buf;
+  const size_t n =
+      codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1, 0}, auth, buf);
+  ASSERT_GT(n, 0u);
+  EXPECT_LE(n, 300u);
+  Opened o;
+  ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
+  ForceMessage back;
+  ASSERT_EQ(codec.DecodeForce(o.payload, back), DropReason::kNone);
+  EXPECT_EQ(back.echo_sequence, 99u);
+  EXPECT_EQ(back.command.local.jacobian, m.command.local.jacobian);
+  EXPECT_EQ(back.command.force, m.command.force);
+  EXPECT_TRUE(back.command.contact);
+  EXPECT_EQ(back.command.events, 0x12u);
+}
+
+TEST(DatagramTest, WrongKeyEveryFlippedByteTruncationAndOversizeAreRejected) {
+  const Authenticator auth(Key(3)), other(Key(4));
+  Codec codec;
+  std::array<uint8_t, kMaxDatagram> buf;
+  const size_t n = codec.EncodeStylus(
+      Stylus(), {kProtocolVersion, PayloadType::kStylusState, 1, 1, 0}, auth, buf);
+  Opened o;
+  EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &other, o), DropReason::kBadTag);
+  EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), nullptr, o), DropReason::kUnknownSession);
+  for (size_t i = 0; i < n; ++i) {
+    for (uint8_t bit : {0x01, 0x80}) {
+      std::array<uint8_t, kMaxDatagram> bad = buf;
+      bad[i] ^= bit;
+      EXPECT_NE(Open(std::span<const uint8_t>(bad.data(), n), &auth, o), DropReason::kNone)
+          << "byte " << i;
+    }
+  }
+  for (size_t cut = 0; cut < n; ++cut) {
+    EXPECT_NE(Open(std::span<const uint8_t>(buf.data(), cut), &auth, o), DropReason::kNone) << cut;
+  }
+  std::vector<uint8_t> big(kMaxDatagram + 1, 0);
+  EXPECT_EQ(Open(big, &auth, o), DropReason::kTooLong);
+  std::array<uint8_t, kMaxPayload + 1> huge{};
+  EXPECT_EQ(Seal({}, huge, auth, buf), 0u);
+}
+
+TEST(DatagramTest, RandomGarbageNeverOpensAndNeverCrashes) {
+  const Authenticator auth(Key(5));
+  std::mt19937_64 rng(17);
+  std::uniform_int_distribution<int> len(0, 1300), byte(0, 255);
+  Opened o;
+  for (int i = 0; i < 20000; ++i) {
+    std::vector<uint8_t> d(len(rng));
+    for (auto& b : d) b = static_cast<uint8_t>(byte(rng));
+    if (i % 3 == 0 && d.size() >= 4) d[0] = 'V', d[1] = 'S', d[2] = kProtocolVersion, d[3] = 1;
+    ASSERT_NE(Open(d, &auth, o), DropReason::kNone);
+  }
+}
+
+TEST(DatagramTest, AuthenticGarbagePayloadAndNonFiniteForcesAreBadPayload) {
+  const Authenticator auth(Key(6));
+  Codec codec;
+  std::array<uint8_t, kMaxDatagram> buf;
+  const uint8_t junk[] = {0xff, 0xff, 0xff, 0xff, 0xff};
+  const size_t n = Seal({kProtocolVersion, PayloadType::kForceFeedback, 1, 1, 0}, junk, auth, buf);
+  Opened o;
+  ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
+  ForceMessage f;
+  EXPECT_EQ(codec.DecodeForce(o.payload, f), DropReason::kBadPayload);
+  ForceMessage nan_force;
+  nan_force.command.force.x() = NAN;
+  const size_t m = codec.EncodeForce(
+      nan_force, {kProtocolVersion, PayloadType::kForceFeedback, 1, 2, 0}, auth, buf);
+  ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), m), &auth, o), DropReason::kNone);
+  EXPECT_EQ(codec.DecodeForce(o.payload, f), DropReason::kBadPayload);  // never rendered
+}
+
+}  // namespace
+}  // namespace vsurg::wire
