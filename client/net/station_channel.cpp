@@ -1,0 +1,248 @@
+#include "client/net/station_channel.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "common/sim/triple_buffer.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
+
+namespace vsurg::client {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+using Clock = std::chrono::steady_clock;
+using Vec3 = Eigen::Vector3d;
+
+struct StationChannel::Impl {
+  struct Latest {
+    wire::ForceMessage message;
+    double received_s = -1;  // station clock
+  };
+
+  StationOptions options;
+  HapticDevice* device = nullptr;
+  asio::io_context io;
+  udp::socket socket{io};
+  udp::endpoint server;
+  udp::endpoint from;
+  wire::Authenticator auth;
+  std::thread net_thread, device_thread;
+  std::atomic<bool> stop{false};
+  Clock::time_point start = Clock::now();
+  sim::TripleBuffer<Latest> latest;
+
+  // Network thread.
+  std::array<uint8_t, wire::kMaxDatagram + 1> rx{};
+  wire::Codec rx_codec;
+  wire::ForceMessage rx_message;
+  uint64_t last_rx_sequence = 0;
+  // RTT ring (network thread writes, stats() reads under the mutex).
+  mutable std::mutex stats_mutex;
+  std::vector<double> rtt_us;
+  size_t rtt_next = 0;
+  double jitter_sum = 0, last_rtt = -1;
+  uint64_t jitter_n = 0;
+  std::atomic<uint64_t> received{0}, dropped{0}, stale{0};
+
+  // Device thread.
+  std::array<uint8_t, wire::kMaxDatagram> tx{};
+  wire::Codec tx_codec;
+  std::atomic<uint64_t> sent{0}, fades{0};
+  std::atomic<double> dissipated{0}, max_force{0};
+  std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
+
+  explicit Impl(const StationOptions& o) : options(o), auth(o.key) {}
+
+  double Now() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+  void Receive() {
+    socket.async_receive_from(asio::buffer(rx), from,
+                              [this](const boost::system::error_code& ec, size_t n) {
+                                if (ec == asio::error::operation_aborted || stop) return;
+                                if (!ec) Handle(n);
+                                Receive();
+                              });
+  }
+
+  void Handle(size_t n) {
+    wire::Opened o;
+    const std::span<const uint8_t> d(rx.data(), n);
+    if (wire::Open(d, &auth, o) != wire::DropReason::kNone || o.header.session != options.session ||
+        o.header.type != wire::PayloadType::kForceFeedback) {
+      dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    if (o.header.sequence <= last_rx_sequence) {
+      stale.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    if (rx_codec.DecodeForce(o.payload, rx_message) != wire::DropReason::kNone) {
+      dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    last_rx_sequence = o.header.sequence;
+    const double now = Now();
+    Latest& back = latest.Back();
+    back.message = rx_message;
+    back.received_s = now;
+    latest.Publish();
+    received.fetch_add(1, std::memory_order_relaxed);
+    const double rtt = (now - rx_message.echo_time) * 1e6;
+    if (rtt >= 0 && rtt < 10e6) {
+      std::lock_guard<std::mutex> lock(stats_mutex);
+      rtt_us[rtt_next++ % rtt_us.size()] = rtt;
+      if (last_rtt >= 0) jitter_sum += std::abs(rtt - last_rtt), ++jitter_n;
+      last_rtt = rtt;
+    }
+  }
+
+  void DeviceLoop() {
+    auto safety = *haptics::SafetyFilter::Create(device->limits());
+    const auto period = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / options.rate_hz));
+    auto next = Clock::now();
+    uint64_t sequence = 0;
+    Vec3 last_x = Vec3::Zero();
+    bool have_x = false, fading = false;
+    double energy = 0;  // passivity observer: energy the environment has absorbed (J)
+    wire::StylusMessage m;
+    while (!stop.load(std::memory_order_relaxed)) {
+      const double now = Now();
+      const double dt = 1.0 / options.rate_hz;
+      haptics::StylusSample s = device->Read();
+      s.time = now;  // the station clock: the server echoes it back for the round trip
+      const Vec3 v =
+          have_x && s.position.allFinite() ? Vec3((s.position - last_x) / dt) : Vec3::Zero();
+      if (s.position.allFinite()) last_x = s.position, have_x = true;
+      m.sample = s;
+      m.velocity = v.allFinite() ? v : Vec3::Zero();
+      const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
+                           ++sequence, static_cast<uint64_t>(now * 1e6)};
+      const size_t size = tx_codec.EncodeStylus(m, h, auth, tx);
+      boost::system::error_code ec;
+      if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
+      if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
+
+      // Render from the newest local model, independent of network timing.
+      latest.Acquire();
+      const Latest& l = latest.Front();
+      Vec3 f = Vec3::Zero();
+      if (l.received_s >= 0 && s.position.allFinite()) {
+        f = l.message.command.local.ForceAt(s.position);
+        const double age = now - l.received_s;
+        if (age > options.watchdog_s) {
+          if (!fading) fades.fetch_add(1, std::memory_order_relaxed);
+          fading = true;
+          f *= std::max(0.0, 1.0 - (age - options.watchdog_s) / options.fade_s);
+        } else {
+          fading = false;
+        }
+      }
+      // Passivity observer/controller: the coupling must not put energy into the hand.
+      if (options.passivity && f.allFinite()) {
+        energy -= f.dot(v) * dt;  // energy absorbed by the environment
+        const double v2 = v.squaredNorm();
+        if (energy < 0 && v2 > 1e-12) {
+          const double alpha = std::min(options.max_damping, -energy / (v2 * dt));
+          f -= alpha * v;
+          energy += alpha * v2 * dt;
+          dissipated.store(dissipated.load() + alpha * v2 * dt, std::memory_order_relaxed);
+        }
+      }
+      uint32_t events = 0;
+      const Vec3 out = safety.Filter(f, dt, events);
+      device->WriteForce(out);
+      last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
+      if (out.norm() > max_force.load()) max_force = out.norm();
+
+      next += period;
+      const auto t = Clock::now();
+      if (t - next > std::chrono::milliseconds(20)) next = t;  // fell behind: no burst
+      std::this_thread::sleep_until(next);
+    }
+  }
+};
+
+Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOptions& options,
+                                                                 HapticDevice* device) {
+  if (device == nullptr) return InvalidArgument("device", "a station needs a device");
+  if (!(options.rate_hz >= 100 && options.rate_hz <= 20000))
+    return InvalidArgument("rate_hz", "must be in 100..20000");
+  if (!(options.watchdog_s > 0 && options.fade_s > 0))
+    return InvalidArgument("watchdog", "times must be > 0");
+  auto impl = std::make_unique<Impl>(options);
+  impl->device = device;
+  impl->rtt_us.assign(1 << 16, 0.0);
+  boost::system::error_code ec;
+  const auto address = asio::ip::make_address(options.server_address, ec);
+  if (ec)
+    return InvalidArgument("server_address",
+                           "'" + options.server_address + "' is not an IP address");
+  impl->server = udp::endpoint(address, options.server_port);
+  impl->socket.open(address.is_v6() ? udp::v6() : udp::v4(), ec);
+  if (!ec) impl->socket.bind(udp::endpoint(address.is_v6() ? udp::v6() : udp::v4(), 0), ec);
+  if (ec)
+    return Error{ErrorCode::kIoError, "cannot open the station's UDP socket: " + ec.message(),
+                 "socket"};
+  Impl* p = impl.get();
+  p->Receive();
+  p->net_thread = std::thread([p] { p->io.run(); });
+  p->device_thread = std::thread([p] { p->DeviceLoop(); });
+  return std::unique_ptr<StationChannel>(new StationChannel(std::move(impl)));
+}
+
+StationChannel::StationChannel(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+StationChannel::~StationChannel() {
+  Stop();
+}
+
+void StationChannel::Stop() {
+  if (!impl_ || impl_->stop.exchange(true)) return;
+  if (impl_->device_thread.joinable()) impl_->device_thread.join();
+  asio::post(impl_->io, [p = impl_.get()] {
+    boost::system::error_code ec;
+    p->socket.close(ec);
+  });
+  if (impl_->net_thread.joinable()) impl_->net_thread.join();
+}
+
+StationStats StationChannel::stats() const {
+  StationStats s;
+  s.sent = impl_->sent.load();
+  s.received = impl_->received.load();
+  s.dropped = impl_->dropped.load();
+  s.stale = impl_->stale.load();
+  s.watchdog_fades = impl_->fades.load();
+  s.passivity_energy_dissipated = impl_->dissipated.load();
+  s.max_force = impl_->max_force.load();
+  s.loss = s.sent > 0
+               ? std::max(0.0, 1.0 - static_cast<double>(s.received) / static_cast<double>(s.sent))
+               : 0.0;
+  std::vector<double> rtt;
+  {
+    std::lock_guard<std::mutex> lock(impl_->stats_mutex);
+    const size_t n = std::min(impl_->rtt_next, impl_->rtt_us.size());
+    rtt.assign(impl_->rtt_us.begin(), impl_->rtt_us.begin() + n);
+    s.jitter_us = impl_->jitter_n ? impl_->jitter_sum / impl_->jitter_n : 0.0;
+  }
+  if (!rtt.empty()) {
+    std::sort(rtt.begin(), rtt.end());
+    s.rtt_p50_us = rtt[rtt.size() / 2];
+    s.rtt_p99_us = rtt[rtt.size() * 99 / 100];
+    s.rtt_p999_us = rtt[rtt.size() * 999 / 1000];
+  }
+  return s;
+}
+
+Eigen::Vector3d StationChannel::last_force() const {
+  return {impl_->last_fx.load(), impl_->last_fy.load(), impl_->last_fz.load()};
+}
+
+}  // namespace vsurg::client

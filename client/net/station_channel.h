@@ -1,0 +1,66 @@
+// The station side of the UDP haptic channel (DESIGN.md "Haptic interaction", "Network").
+//
+// Two threads:
+//   device thread, at rate_hz (1 kHz): read the device; send a StylusState datagram; render the
+//     force from the latest local model, F = F₀ + J·(x − x₀), whatever the network is doing;
+//     watchdog (no server update for watchdog_s → the force fades linearly to zero over fade_s);
+//     passivity observer and controller (Hannaford & Ryu 2002: the energy the rendered force has
+//     put into the hand; when the coupling has generated energy, a damping that dissipates it);
+//     the station's own safety filter (device limits, start-up gate, ramp-in, rate limit);
+//     write the force.
+//   network thread: receive ForceFeedback datagrams, authenticate, drop stale ones (latest
+//     wins), hand the newest to the device thread through a lock-free triple buffer, and
+//     measure the round trip from the echoed send time.
+// UDP needs no connection: when the server comes back the station's next datagrams are answered
+// again (the force was faded meanwhile), which is all a reconnect is here.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "client/device/device.h"
+#include "common/core/expected.h"
+#include "proto/wire/datagram.h"
+
+namespace vsurg::client {
+
+struct StationOptions {
+  std::string server_address = "127.0.0.1";
+  uint16_t server_port = 0;
+  uint64_t session = 0;
+  wire::SessionKey key{};
+  double rate_hz = 1000;
+  double watchdog_s = 0.020;  // no update for this long: start fading
+  double fade_s = 0.050;      // from full force to zero
+  bool passivity = true;
+  double max_damping = 5.0;  // N·s/m the passivity controller may add
+};
+
+struct StationStats {
+  uint64_t sent = 0, received = 0, dropped = 0, stale = 0;
+  double rtt_p50_us = 0, rtt_p99_us = 0, rtt_p999_us = 0;
+  double jitter_us = 0;                    // mean |RTT_i − RTT_{i−1}|
+  double loss = 0;                         // 1 − received / sent
+  uint64_t watchdog_fades = 0;             // times the watchdog started fading
+  double passivity_energy_dissipated = 0;  // J the controller removed
+  double max_force = 0;                    // N rendered
+};
+
+class StationChannel {
+ public:
+  static Expected<std::unique_ptr<StationChannel>> Create(const StationOptions& options,
+                                                          HapticDevice* device);
+  ~StationChannel();  // stops and joins
+
+  void Stop();
+  StationStats stats() const;  // any thread
+  Eigen::Vector3d last_force() const;
+
+ private:
+  struct Impl;
+  explicit StationChannel(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vsurg::client

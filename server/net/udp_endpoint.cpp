@@ -1,0 +1,240 @@
+#include "server/net/udp_endpoint.h"
+
+#include <chrono>
+#include <future>
+#include <unordered_map>
+
+#include "common/sim/simulation.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
+
+namespace vsurg::server {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+using Clock = std::chrono::steady_clock;
+
+const char* SessionStateName(SessionState s) {
+  switch (s) {
+    case SessionState::kRunning:
+      return "running";
+    case SessionState::kStalled:
+      return "stalled";
+    case SessionState::kDisconnected:
+      return "disconnected";
+  }
+  return "?";
+}
+
+struct UdpEndpoint::Impl {
+  struct Session {
+    Session(const wire::SessionKey& key, sim::Simulation* sim, double tokens_at_start)
+        : auth(key),
+          simulation(sim),
+          last_seen(Clock::now()),
+          tokens(tokens_at_start),
+          refill(last_seen) {}
+    wire::Authenticator auth;
+    sim::Simulation* simulation = nullptr;
+    uint64_t last_sequence = 0;
+    uint64_t sent_sequence = 0;
+    Clock::time_point last_seen;
+    bool seen = false;
+    SessionState state = SessionState::kRunning;
+    double tokens = 0;
+    Clock::time_point refill;
+  };
+
+  EndpointOptions options;
+  asio::io_context io;
+  udp::socket socket{io};
+  asio::steady_timer timer{io};
+  std::thread thread;
+  Clock::time_point start = Clock::now();
+  std::unordered_map<uint64_t, Session> sessions;  // I/O thread only
+  std::array<uint8_t, wire::kMaxDatagram + 1> rx{};
+  std::array<uint8_t, wire::kMaxDatagram> tx{};
+  udp::endpoint sender;
+  wire::Codec codec;
+  wire::StylusMessage stylus;
+  wire::ForceMessage force;
+
+  std::atomic<uint64_t> received{0}, answered{0};
+  std::array<std::atomic<uint64_t>, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
+  std::mutex events_mutex;
+  std::vector<SessionEvent> events;
+
+  double Now() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+  void Drop(wire::DropReason r) {
+    dropped[static_cast<size_t>(r)].fetch_add(1, std::memory_order_relaxed);
+  }
+
+  void Record(uint64_t id, SessionState state) {
+    std::lock_guard<std::mutex> lock(events_mutex);  // control-plane side; not on the force path
+    events.push_back({id, state, Now()});
+  }
+
+  void Receive() {
+    socket.async_receive_from(asio::buffer(rx), sender,
+                              [this](const boost::system::error_code& ec, size_t n) {
+                                if (ec == asio::error::operation_aborted) return;
+                                if (!ec) Handle(n);
+                                Receive();
+                              });
+  }
+
+  void Handle(size_t n) {
+    received.fetch_add(1, std::memory_order_relaxed);
+    const std::span<const uint8_t> d(rx.data(), n);
+    wire::Header header;
+    if (const wire::DropReason r = wire::PeekHeader(d, header); r != wire::DropReason::kNone)
+      return Drop(r);
+    if (header.type != wire::PayloadType::kStylusState) return Drop(wire::DropReason::kBadType);
+    const auto it = sessions.find(header.session);
+    if (it == sessions.end()) return Drop(wire::DropReason::kUnknownSession);
+    Session& s = it->second;
+    wire::Opened opened;
+    if (const wire::DropReason r = wire::Open(d, &s.auth, opened); r != wire::DropReason::kNone)
+      return Drop(r);
+    if (s.seen && header.sequence <= s.last_sequence) return Drop(wire::DropReason::kStale);
+    const Clock::time_point now = Clock::now();
+    // Token bucket: max_packets_per_s, bursts of a tenth of a second.
+    s.tokens = std::min(options.max_packets_per_s * 0.1,
+                        s.tokens + options.max_packets_per_s *
+                                       std::chrono::duration<double>(now - s.refill).count());
+    s.refill = now;
+    if (s.tokens < 1.0) return Drop(wire::DropReason::kRateLimited);
+    s.tokens -= 1.0;
+    if (const wire::DropReason r = codec.DecodeStylus(opened.payload, stylus);
+        r != wire::DropReason::kNone)
+      return Drop(r);
+    s.last_sequence = header.sequence;
+    s.last_seen = now;
+    s.seen = true;
+    if (s.state != SessionState::kRunning) {
+      s.state = SessionState::kRunning;
+      Record(header.session, SessionState::kRunning);
+    }
+    force.command = s.simulation->OnStylus(stylus.sample);
+    force.echo_sequence = header.sequence;
+    force.echo_time = stylus.sample.time;
+    force.server_time = Now();
+    const wire::Header out{wire::kProtocolVersion, wire::PayloadType::kForceFeedback,
+                           header.session, ++s.sent_sequence,
+                           static_cast<uint64_t>(force.server_time * 1e6)};
+    const size_t size = codec.EncodeForce(force, out, s.auth, tx);
+    if (size == 0) return;
+    boost::system::error_code ec;
+    socket.send_to(asio::buffer(tx.data(), size), sender, 0, ec);
+    if (!ec) answered.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  void Tick() {
+    timer.expires_after(std::chrono::milliseconds(50));
+    timer.async_wait([this](const boost::system::error_code& ec) {
+      if (ec) return;
+      const Clock::time_point now = Clock::now();
+      for (auto& [id, s] : sessions) {
+        const double quiet = std::chrono::duration<double>(now - s.last_seen).count();
+        SessionState next = s.state;
+        if (quiet > options.disconnect_after_s) {
+          next = SessionState::kDisconnected;
+        } else if (quiet > options.stall_after_s) {
+          next = SessionState::kStalled;
+        }
+        if (next != s.state &&
+            (next == SessionState::kDisconnected || s.state == SessionState::kRunning)) {
+          s.state = next;
+          Record(id, next);
+        }
+      }
+      Tick();
+    });
+  }
+};
+
+Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions& options) {
+  if (!(options.stall_after_s > 0 && options.disconnect_after_s > options.stall_after_s)) {
+    return InvalidArgument("timeouts", "need 0 < stall_after_s < disconnect_after_s");
+  }
+  if (!(options.max_packets_per_s >= 10))
+    return InvalidArgument("max_packets_per_s", "must be ≥ 10");
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  boost::system::error_code ec;
+  const auto address = asio::ip::make_address(options.address, ec);
+  if (ec) return InvalidArgument("address", "'" + options.address + "' is not an IP address");
+  impl->socket.open(address.is_v6() ? udp::v6() : udp::v4(), ec);
+  if (!ec) impl->socket.bind(udp::endpoint(address, options.port), ec);
+  if (ec) {
+    return Error{ErrorCode::kIoError,
+                 "cannot bind UDP " + options.address + ":" + std::to_string(options.port) + ": " +
+                     ec.message(),
+                 "port"};
+  }
+  impl->sessions.reserve(1024);
+  Impl* p = impl.get();
+  p->Receive();
+  p->Tick();
+  p->thread = std::thread([p] { p->io.run(); });
+  return std::unique_ptr<UdpEndpoint>(new UdpEndpoint(std::move(impl)));
+}
+
+UdpEndpoint::UdpEndpoint(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+UdpEndpoint::~UdpEndpoint() {
+  Stop();
+}
+
+uint16_t UdpEndpoint::port() const {
+  boost::system::error_code ec;
+  return impl_->socket.local_endpoint(ec).port();
+}
+
+void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key,
+                             sim::Simulation* simulation) {
+  std::promise<void> done;
+  asio::post(impl_->io, [this, id, key, simulation, &done] {
+    impl_->sessions.insert_or_assign(
+        id, Impl::Session(key, simulation, impl_->options.max_packets_per_s * 0.1));
+    done.set_value();
+  });
+  if (impl_->thread.joinable()) done.get_future().wait();
+}
+
+void UdpEndpoint::RemoveSession(uint64_t id) {
+  std::promise<void> done;
+  asio::post(impl_->io, [this, id, &done] {
+    impl_->sessions.erase(id);
+    done.set_value();
+  });
+  if (impl_->thread.joinable()) done.get_future().wait();
+}
+
+void UdpEndpoint::Stop() {
+  if (!impl_ || !impl_->thread.joinable()) return;
+  asio::post(impl_->io, [p = impl_.get()] {
+    boost::system::error_code ec;
+    p->timer.cancel();
+    p->socket.close(ec);
+  });
+  impl_->thread.join();
+}
+
+EndpointCounters UdpEndpoint::counters() const {
+  EndpointCounters c;
+  c.received = impl_->received.load();
+  c.answered = impl_->answered.load();
+  for (size_t i = 0; i < c.dropped.size(); ++i) c.dropped[i] = impl_->dropped[i].load();
+  return c;
+}
+
+std::vector<SessionEvent> UdpEndpoint::TakeEvents() {
+  std::lock_guard<std::mutex> lock(impl_->events_mutex);
+  std::vector<SessionEvent> out;
+  out.swap(impl_->events);
+  return out;
+}
+
+}  // namespace vsurg::server

@@ -1,0 +1,82 @@
+// The server's UDP haptic endpoint (DESIGN.md "Network", STYLE.md: the domain handler never sees
+// a socket).
+//
+// One I/O thread owns the socket and the session table. Per datagram: framing and size checks,
+// the session's key, the tag, latest-wins (a sequence not newer than the last applied is stale:
+// reordered or replayed), a per-session rate limit, the payload; then Simulation::OnStylus and a
+// ForceFeedback datagram back to the sender at once. Anything that fails is dropped and counted
+// by reason; nothing unauthenticated is ever answered.
+//
+// Session life cycle (a timer checks every 50 ms):
+//
+//   added ──stylus──▶ running ──no stylus 0.5 s──▶ stalled ──no stylus 5 s──▶ disconnected
+//                        ▲                            │                          │
+//                        └────────stylus again────────┴──────────────────────────┘
+//
+// Transitions are recorded as events for the control plane (TakeEvents). Sessions are added and
+// removed by posting onto the I/O thread, so the hot path takes no lock.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "proto/wire/datagram.h"
+
+namespace vsurg::sim {
+class Simulation;
+}
+
+namespace vsurg::server {
+
+enum class SessionState { kRunning, kStalled, kDisconnected };
+const char* SessionStateName(SessionState s);
+
+struct EndpointOptions {
+  std::string address = "127.0.0.1";  // loopback unless configured otherwise
+  uint16_t port = 0;                  // 0: an ephemeral port (see port())
+  double stall_after_s = 0.5;
+  double disconnect_after_s = 5.0;
+  double max_packets_per_s = 4000;  // per session; a 1 kHz station never comes near
+};
+
+struct EndpointCounters {
+  uint64_t received = 0;
+  uint64_t answered = 0;
+  std::array<uint64_t, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
+  uint64_t Dropped(wire::DropReason r) const { return dropped[static_cast<size_t>(r)]; }
+};
+
+struct SessionEvent {
+  uint64_t session = 0;
+  SessionState state = SessionState::kRunning;
+  double at_s = 0;  // seconds since the endpoint started
+};
+
+class UdpEndpoint {
+ public:
+  static Expected<std::unique_ptr<UdpEndpoint>> Create(const EndpointOptions& options);
+  ~UdpEndpoint();  // stops and joins
+
+  uint16_t port() const;
+  // Any thread. The simulation must outlive the session's removal (RemoveSession waits for it).
+  void AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation);
+  void RemoveSession(uint64_t id);
+  void Stop();
+
+  EndpointCounters counters() const;  // any thread
+  std::vector<SessionEvent> TakeEvents();
+
+ private:
+  struct Impl;
+  explicit UdpEndpoint(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vsurg::server

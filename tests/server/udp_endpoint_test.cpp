@@ -1,0 +1,175 @@
+#include "server/net/udp_endpoint.h"
+
+#include <chrono>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "common/sim/simulation.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
+
+namespace vsurg::server {
+namespace {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+using wire::DropReason;
+
+wire::SessionKey Key(uint8_t seed) {
+  wire::SessionKey k;
+  for (size_t i = 0; i < k.size(); ++i) k[i] = static_cast<uint8_t>(seed + 13 * i);
+  return k;
+}
+
+// A raw client socket that speaks the wire format by hand.
+struct RawClient {
+  asio::io_context io;
+  udp::socket socket{io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)};
+  udp::endpoint server;
+  wire::Codec codec;
+  explicit RawClient(uint16_t port) : server(asio::ip::make_address("127.0.0.1"), port) {}
+
+  std::vector<uint8_t> Stylus(uint64_t session, uint64_t seq, const wire::SessionKey& key,
+                              double z = 0.06) {
+    wire::StylusMessage m;
+    m.sample.time = seq * 1e-3;
+    m.sample.position = Eigen::Vector3d(0.001, 0.001, z);
+    std::vector<uint8_t> buf(wire::kMaxDatagram);
+    const size_t n = codec.EncodeStylus(
+        m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, session, seq, seq},
+        wire::Authenticator(key), buf);
+    buf.resize(n);
+    return buf;
+  }
+  void Send(const std::vector<uint8_t>& d) { socket.send_to(asio::buffer(d), server); }
+  // Waits up to `ms` for one datagram.
+  std::optional<std::vector<uint8_t>> Receive(int ms) {
+    socket.non_blocking(true);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+    std::vector<uint8_t> buf(2048);
+    while (std::chrono::steady_clock::now() < deadline) {
+      boost::system::error_code ec;
+      udp::endpoint from;
+      const size_t n = socket.receive_from(asio::buffer(buf), from, 0, ec);
+      if (!ec) {
+        buf.resize(n);
+        return buf;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return std::nullopt;
+  }
+};
+
+struct Fixture {
+  std::unique_ptr<sim::Simulation> simulation;
+  std::unique_ptr<UdpEndpoint> endpoint;
+  explicit Fixture(EndpointOptions options = {}) {
+    auto scene = sim::LoadSceneByName("sphere-palpation-256");
+    simulation = std::move(*sim::Simulation::Create(*scene, {true}));
+    endpoint = std::move(*UdpEndpoint::Create(options));
+    endpoint->AddSession(7, Key(1), simulation.get());
+  }
+};
+
+TEST(UdpEndpointTest, AnswersEachStylusDatagramWithAnAuthenticatedForce) {
+  Fixture f;
+  RawClient c(f.endpoint->port());
+  for (uint64_t seq = 1; seq <= 20; ++seq) {
+    c.Send(c.Stylus(7, seq, Key(1)));
+    auto reply = c.Receive(1000);
+    ASSERT_TRUE(reply.has_value()) << seq;
+    wire::Opened o;
+    const wire::Authenticator auth(Key(1));
+    ASSERT_EQ(wire::Open(*reply, &auth, o), DropReason::kNone);
+    EXPECT_EQ(o.header.type, wire::PayloadType::kForceFeedback);
+    wire::ForceMessage m;
+    ASSERT_EQ(c.codec.DecodeForce(o.payload, m), DropReason::kNone);
+    EXPECT_EQ(m.echo_sequence, seq);
+    EXPECT_NEAR(m.echo_time, seq * 1e-3, 1e-12);
+  }
+  const EndpointCounters n = f.endpoint->counters();
+  EXPECT_EQ(n.received, 20u);
+  EXPECT_EQ(n.answered, 20u);
+}
+
+TEST(UdpEndpointTest, RejectsWhatIsNotAuthenticAndNeverAnswersIt) {
+  Fixture f;
+  RawClient c(f.endpoint->port());
+  const auto good = c.Stylus(7, 1, Key(1));
+  c.Send(c.Stylus(7, 1, Key(2)));  // wrong key
+  auto flipped = good;
+  flipped[40] ^= 0x10;
+  c.Send(flipped);
+  c.Send(std::vector<uint8_t>(good.begin(), good.begin() + 20));  // truncated
+  c.Send(std::vector<uint8_t>(1300, 0x56));                       // oversize garbage
+  c.Send(std::vector<uint8_t>{'h', 'e', 'l', 'l', 'o'});
+  c.Send(c.Stylus(99, 1, Key(1)));  // unknown session
+  EXPECT_FALSE(c.Receive(100).has_value());
+  c.Send(good);
+  EXPECT_TRUE(c.Receive(1000).has_value());
+  c.Send(good);  // replayed
+  EXPECT_FALSE(c.Receive(100).has_value());
+  const EndpointCounters n = f.endpoint->counters();
+  EXPECT_EQ(n.Dropped(DropReason::kBadTag), 2u);
+  EXPECT_EQ(n.Dropped(DropReason::kTooShort), 2u);
+  EXPECT_EQ(n.Dropped(DropReason::kTooLong), 1u);
+  EXPECT_EQ(n.Dropped(DropReason::kUnknownSession), 1u);
+  EXPECT_EQ(n.Dropped(DropReason::kStale), 1u);
+  EXPECT_EQ(n.answered, 1u);
+}
+
+TEST(UdpEndpointTest, ReorderedDatagramsAreStaleAndTheRateIsLimited) {
+  EndpointOptions o;
+  o.max_packets_per_s = 100;  // bursts of 10
+  Fixture f(o);
+  RawClient c(f.endpoint->port());
+  c.Send(c.Stylus(7, 5, Key(1)));
+  ASSERT_TRUE(c.Receive(1000).has_value());
+  c.Send(c.Stylus(7, 4, Key(1)));  // older than the last applied
+  EXPECT_FALSE(c.Receive(100).has_value());
+  for (uint64_t seq = 6; seq < 40; ++seq) c.Send(c.Stylus(7, seq, Key(1)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const EndpointCounters n = f.endpoint->counters();
+  EXPECT_EQ(n.Dropped(DropReason::kStale), 1u);
+  EXPECT_GT(n.Dropped(DropReason::kRateLimited), 10u);
+  EXPECT_LT(n.answered, 25u);
+}
+
+TEST(UdpEndpointTest, SilentSessionsStallThenDisconnectAndResume) {
+  EndpointOptions o;
+  o.stall_after_s = 0.1;
+  o.disconnect_after_s = 0.3;
+  Fixture f(o);
+  RawClient c(f.endpoint->port());
+  c.Send(c.Stylus(7, 1, Key(1)));
+  ASSERT_TRUE(c.Receive(1000).has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  auto events = f.endpoint->TakeEvents();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].state, SessionState::kStalled);
+  EXPECT_EQ(events[1].state, SessionState::kDisconnected);
+  EXPECT_GE(events[1].at_s - events[0].at_s, 0.15);
+  c.Send(c.Stylus(7, 2, Key(1)));
+  ASSERT_TRUE(c.Receive(1000).has_value());
+  events = f.endpoint->TakeEvents();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].state, SessionState::kRunning);
+}
+
+TEST(UdpEndpointTest, BadOptionsAndPortsInUseAreErrors) {
+  EndpointOptions o;
+  o.address = "not-an-ip";
+  EXPECT_FALSE(UdpEndpoint::Create(o).ok());
+  auto first = UdpEndpoint::Create({});
+  ASSERT_TRUE(first.ok());
+  EndpointOptions same;
+  same.port = (*first)->port();
+  auto second = UdpEndpoint::Create(same);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.error().code, ErrorCode::kIoError);
+}
+
+}  // namespace
+}  // namespace vsurg::server
