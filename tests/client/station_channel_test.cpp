@@ -1,0 +1,130 @@
+#include "client/net/station_channel.h"
+
+#include <chrono>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "common/sim/simulation.h"
+#include "server/net/udp_endpoint.h"
+#include "tests/net/udp_relay.h"
+
+namespace vsurg::client {
+namespace {
+
+wire::SessionKey Key() {
+  wire::SessionKey k;
+  for (size_t i = 0; i < k.size(); ++i) k[i] = static_cast<uint8_t>(3 * i + 1);
+  return k;
+}
+
+// Approach the sphere's top, sink 3 mm in and hold: a steady contact force.
+std::vector<haptics::StylusSample> PressAndHold(double seconds) {
+  std::vector<haptics::StylusSample> out;
+  const Eigen::Vector3d dir = Eigen::Vector3d(0.02, 0.03, 1.0).normalized();
+  const Eigen::Vector3d above = 0.06 * dir, inside = (0.05 * 0.9 - 0.003) * dir;
+  for (int k = 0; k < static_cast<int>(seconds * 1000); ++k) {
+    haptics::StylusSample s;
+    const double u = std::min(1.0, k / 300.0);
+    s.position = above + (inside - above) * u;
+    out.push_back(s);
+  }
+  return out;
+}
+
+struct Server {
+  std::unique_ptr<sim::Simulation> simulation;
+  std::unique_ptr<server::UdpEndpoint> endpoint;
+  Server() {
+    simulation = *sim::Simulation::Create(*sim::LoadSceneByName("sphere-palpation-256"), {true});
+    endpoint = *server::UdpEndpoint::Create({});
+    endpoint->AddSession(11, Key(), simulation.get());
+  }
+};
+
+StationOptions Options(uint16_t port) {
+  StationOptions o;
+  o.server_port = port;
+  o.session = 11;
+  o.key = Key();
+  return o;
+}
+
+void WaitFor(const ReplayDevice& device) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (!device.finished() && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+TEST(StationChannelTest, RoundTripsOnLoopbackAndRendersTheTissueForce) {
+  Server server;
+  ReplayDevice device(PressAndHold(1.5));
+  auto station = StationChannel::Create(Options(server.endpoint->port()), &device);
+  ASSERT_TRUE(station.ok()) << station.error().message;
+  WaitFor(device);
+  (*station)->Stop();
+  const StationStats s = (*station)->stats();
+  EXPECT_GT(s.sent, 1000u);
+  EXPECT_LT(s.loss, 0.02);  // loopback: none, bar the last datagrams in flight at Stop
+  EXPECT_GT(s.rtt_p50_us, 0);
+  EXPECT_LT(s.rtt_p50_us, 5000);
+  const std::vector<Eigen::Vector3d> f = device.forces();
+  ASSERT_GT(f.size(), 1000u);
+  EXPECT_GT(f.back().z(),
+            0.1);  // pushed back up out of the sphere (K·3 mm ≈ 0.9 N before it gives)
+  for (const auto& x : f) EXPECT_LE(x.norm(), 3.3 + 1e-9);
+}
+
+TEST(StationChannelTest, ABadNetworkKeepsForcesBoundedAndContinuous) {
+  Server server;
+  test::Impairment bad;
+  bad.drop = 0.2;
+  bad.duplicate = 0.1;
+  bad.reorder = 0.1;
+  bad.max_delay_ms = 5;
+  test::UdpRelay relay(server.endpoint->port(), bad);
+  ReplayDevice device(PressAndHold(2.0));
+  auto station = StationChannel::Create(Options(relay.port()), &device);
+  ASSERT_TRUE(station.ok());
+  WaitFor(device);
+  (*station)->Stop();
+  const StationStats s = (*station)->stats();
+  // 20% lost each way, and 0–5 ms jitter at 1 ms spacing reorders many: latest-wins drops those.
+  EXPECT_GT(s.received, 0.2 * s.sent);
+  EXPECT_GT(s.stale, 0u);  // duplicates and reordering reached the station and were dropped
+  const std::vector<Eigen::Vector3d> f = device.forces();
+  const double rate_step = device.limits().max_force_rate * 1e-3 * 1.0001;  // per 1 ms cycle
+  for (size_t i = 1; i < f.size(); ++i) {
+    ASSERT_LE(f[i].norm(), 3.3 + 1e-9);
+    ASSERT_LE((f[i] - f[i - 1]).norm(), rate_step) << i;
+  }
+  EXPECT_GT(f.back().z(), 0.1);
+  EXPECT_GT(server.endpoint->counters().Dropped(wire::DropReason::kStale), 0u);
+}
+
+TEST(StationChannelTest, TheWatchdogFadesTheForceWhenTheServerGoesQuiet) {
+  Server server;
+  test::UdpRelay relay(server.endpoint->port(), {});
+  ReplayDevice device(PressAndHold(3.0));
+  auto station = StationChannel::Create(Options(relay.port()), &device);
+  ASSERT_TRUE(station.ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+  const size_t before = device.forces().size();
+  ASSERT_GT(device.forces().back().norm(), 0.1);  // steady contact
+  relay.SetBlackhole(true);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::vector<Eigen::Vector3d> f = device.forces();
+  // 20 ms of silence, then a 50 ms fade: zero by 70 ms (+ a few cycles of scheduling slack).
+  ASSERT_GT(f.size(), before + 150);
+  for (size_t i = before + 100; i < f.size(); ++i) EXPECT_EQ(f[i].norm(), 0.0) << i - before;
+  EXPECT_GE((*station)->stats().watchdog_fades, 1u);
+  // The server answers again: the station picks up (UDP needs no reconnect handshake).
+  relay.SetBlackhole(false);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_GT(device.forces().back().norm(), 0.1);
+  (*station)->Stop();
+}
+
+}  // namespace
+}  // namespace vsurg::client
