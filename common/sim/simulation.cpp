@@ -396,7 +396,9 @@ void Simulation::DeformationLoop() {
       if (now - next > std::chrono::milliseconds(50)) next = now;  // fell behind: do not burst
       std::this_thread::sleep_until(next);
     } else {
-      std::this_thread::sleep_for(std::chrono::microseconds(200));  // the coil updates on change
+      // The coil updates on a new torque; polling every millisecond keeps the visual latency far
+      // below a 60 Hz frame and leaves the cores to the haptic path when many sessions run.
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
   }
 }

@@ -1,5 +1,7 @@
 #include "server/net/udp_endpoint.h"
 
+#include <time.h>
+
 #include <chrono>
 #include <future>
 #include <unordered_map>
@@ -61,6 +63,7 @@ struct UdpEndpoint::Impl {
 
   std::atomic<uint64_t> received{0}, answered{0};
   std::array<std::atomic<uint64_t>, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
+  std::atomic<double> io_cpu{0};
   std::mutex events_mutex;
   std::vector<SessionEvent> events;
 
@@ -134,6 +137,9 @@ struct UdpEndpoint::Impl {
     timer.expires_after(std::chrono::milliseconds(50));
     timer.async_wait([this](const boost::system::error_code& ec) {
       if (ec) return;
+      timespec cpu{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+      io_cpu.store(static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec));
       const Clock::time_point now = Clock::now();
       for (auto& [id, s] : sessions) {
         const double quiet = std::chrono::duration<double>(now - s.last_seen).count();
@@ -229,6 +235,8 @@ EndpointCounters UdpEndpoint::counters() const {
   for (size_t i = 0; i < c.dropped.size(); ++i) c.dropped[i] = impl_->dropped[i].load();
   return c;
 }
+
+double UdpEndpoint::io_cpu_seconds() const { return impl_->io_cpu.load(); }
 
 std::vector<SessionEvent> UdpEndpoint::TakeEvents() {
   std::lock_guard<std::mutex> lock(impl_->events_mutex);

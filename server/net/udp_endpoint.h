@@ -71,6 +71,8 @@ class UdpEndpoint {
   void Stop();
 
   EndpointCounters counters() const;  // any thread
+  // CPU time the I/O thread has used (s), sampled every 50 ms.
+  double io_cpu_seconds() const;
   std::vector<SessionEvent> TakeEvents();
 
  private:

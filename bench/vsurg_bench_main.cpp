@@ -1,0 +1,181 @@
+// vsurg-bench: whole-system measurements (micro-benchmarks are in vsurg-microbench).
+//
+//   vsurg-bench haptic-rtt --stations N --seconds S [--scene arm-torsion] [--json]
+//     N simulated stations at 1 kHz against a real UDP endpoint on loopback, each with its own
+//     session and simulation (deformation thread included); prints rtt_p50_us, rtt_p99_us,
+//     rtt_p999_us, loss and server_cpu_per_station (the endpoint I/O thread's CPU time per
+//     station, as a fraction of one core).
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/cli/args.h"
+#include "common/sim/simulation.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
+#include "server/net/udp_endpoint.h"
+
+namespace {
+
+namespace asio = boost::asio;
+using asio::ip::udp;
+using vsurg::cli::ArgParser;
+using Clock = std::chrono::steady_clock;
+
+struct Station {
+  udp::socket socket;
+  udp::endpoint from;
+  std::array<uint8_t, 2048> rx{};
+  vsurg::wire::Authenticator auth;
+  uint64_t session;
+  uint64_t sequence = 0;
+  Station(asio::io_context& io, uint64_t id, const vsurg::wire::SessionKey& key)
+      : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
+};
+
+int HapticRtt(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-bench haptic-rtt",
+              "Round trip of stylus datagram -> force datagram for N stations at 1 kHz on loopback.");
+  p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
+      .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
+      .Option("scene", ArgParser::Kind::kString, "scene each session runs", false, "arm-torsion")
+      .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
+  if (vsurg::Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) {
+    std::cout << p.Help();
+    return 0;
+  }
+  const int n = p.Has("stations") ? p.Int("stations") : 1;
+  const double seconds = p.Has("seconds") ? p.Double("seconds") : 10.0;
+  if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
+  if (!(seconds > 0 && seconds <= 3600)) return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
+  auto scene = vsurg::sim::LoadSceneByName(p.String("scene"));
+  if (!scene.ok()) return std::cerr << p.command() << ": --scene: " << scene.error().message << "\n", 2;
+
+  auto endpoint = vsurg::server::UdpEndpoint::Create({});
+  if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
+  std::vector<std::unique_ptr<vsurg::sim::Simulation>> sims;
+  asio::io_context io;
+  std::vector<std::unique_ptr<Station>> stations;
+  for (int i = 0; i < n; ++i) {
+    vsurg::wire::SessionKey key;
+    for (size_t k = 0; k < key.size(); ++k) key[k] = static_cast<uint8_t>(i * 7 + k);
+    auto sim = vsurg::sim::Simulation::Create(*scene, {true});
+    if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
+    sims.push_back(std::move(*sim));
+    (*endpoint)->AddSession(1000 + i, key, sims.back().get());
+    stations.push_back(std::make_unique<Station>(io, 1000 + i, key));
+  }
+  const udp::endpoint server(asio::ip::make_address("127.0.0.1"), (*endpoint)->port());
+  const Clock::time_point start = Clock::now();
+  auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  std::vector<double> rtt;
+  rtt.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1));
+  uint64_t sent = 0, received = 0;
+  const double warmup = 0.5;  // s: sessions' start-up gates and caches
+  vsurg::wire::Codec codec;
+  vsurg::wire::ForceMessage reply;
+  std::function<void(Station&)> receive = [&](Station& st) {
+    st.socket.async_receive_from(asio::buffer(st.rx), st.from, [&, sp = &st](auto ec, size_t len) {
+      if (ec) return;
+      vsurg::wire::Opened o;
+      if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) == vsurg::wire::DropReason::kNone &&
+          codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone && reply.echo_time >= warmup) {
+        ++received;
+        rtt.push_back((now_s() - reply.echo_time) * 1e6);
+      }
+      receive(*sp);
+    });
+  };
+  for (auto& st : stations) receive(*st);
+  // The stylus rests 3 mm inside the limb's side (or the sphere's top): every answer runs the
+  // full contact path.
+  vsurg::wire::StylusMessage m;
+  m.sample.position = scene->mesh.kind == vsurg::sim::MeshKind::kLimb
+                          ? Eigen::Vector3d(scene->mesh.limb.radius_distal - 0.004, 0.0005, scene->mesh.limb.length - 0.03)
+                          : Eigen::Vector3d(0.0005, 0.0005, scene->mesh.radius - 0.004);
+  std::array<uint8_t, vsurg::wire::kMaxDatagram> tx{};
+  asio::steady_timer timer(io);
+  Clock::time_point next = Clock::now();
+  const double total = warmup + seconds;
+  std::function<void()> tick = [&] {
+    const double t = now_s();
+    if (t > total + 0.05) return io.stop();
+    if (t <= total) {
+      for (auto& st : stations) {
+        m.sample.time = now_s();
+        // Approach from outside during the warm-up so the proxy enters through the surface.
+        const double in = std::min(1.0, t / 0.2);
+        vsurg::wire::StylusMessage msg = m;
+        msg.sample.position += (1.0 - in) * 0.02 * (scene->mesh.kind == vsurg::sim::MeshKind::kLimb
+                                                        ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1));
+        const size_t size = codec.EncodeStylus(
+            msg, {vsurg::wire::kProtocolVersion, vsurg::wire::PayloadType::kStylusState, st->session, ++st->sequence,
+                  static_cast<uint64_t>(m.sample.time * 1e6)},
+            st->auth, tx);
+        boost::system::error_code ec;
+        st->socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
+        if (t >= warmup && !ec) ++sent;
+      }
+    }
+    next += std::chrono::milliseconds(1);
+    timer.expires_at(next);
+    timer.async_wait([&](auto ec) {
+      if (!ec) tick();
+    });
+  };
+  const double cpu0 = (*endpoint)->io_cpu_seconds();
+  tick();
+  io.run();
+  const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
+  (*endpoint)->Stop();
+  std::sort(rtt.begin(), rtt.end());
+  auto pct = [&](double q) { return rtt.empty() ? 0.0 : rtt[std::min(rtt.size() - 1, static_cast<size_t>(q * rtt.size()))]; };
+  nlohmann::json j;
+  j["stations"] = n;
+  j["seconds"] = seconds;
+  j["scene"] = scene->name;
+  j["sent"] = sent;
+  j["received"] = received;
+  j["loss"] = sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
+  j["rtt_p50_us"] = pct(0.5);
+  j["rtt_p99_us"] = pct(0.99);
+  j["rtt_p999_us"] = pct(0.999);
+  j["server_cpu_per_station"] = cpu / total / n;
+  if (p.Flag("json")) {
+    std::cout << j.dump() << "\n";
+  } else {
+    std::printf("%d stations, %.1f s: rtt p50 %.1f us, p99 %.1f us, p99.9 %.1f us, loss %.4f, server cpu/station %.4f\n",
+                n, seconds, pct(0.5), pct(0.99), pct(0.999), j["loss"].get<double>(), j["server_cpu_per_station"].get<double>());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.empty() || args[0] == "--help") {
+    std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--json]\n";
+    return args.empty() ? 2 : 0;
+  }
+  try {
+    if (args[0] == "haptic-rtt") return HapticRtt({args.begin() + 1, args.end()});
+  } catch (const std::exception& e) {
+    std::cerr << "vsurg-bench: " << e.what() << "\n";
+    return 1;
+  }
+  std::cerr << "vsurg-bench: unknown command '" << args[0] << "' (haptic-rtt)\n";
+  return 2;
+}
