@@ -42,8 +42,9 @@ struct Station {
 };
 
 int HapticRtt(const std::vector<std::string>& args) {
-  ArgParser p("vsurg-bench haptic-rtt",
-              "Round trip of stylus datagram -> force datagram for N stations at 1 kHz on loopback.");
+  ArgParser p(
+      "vsurg-bench haptic-rtt",
+      "Round trip of stylus datagram -> force datagram for N stations at 1 kHz on loopback.");
   p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
       .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
       .Option("scene", ArgParser::Kind::kString, "scene each session runs", false, "arm-torsion")
@@ -59,9 +60,11 @@ int HapticRtt(const std::vector<std::string>& args) {
   const int n = p.Has("stations") ? p.Int("stations") : 1;
   const double seconds = p.Has("seconds") ? p.Double("seconds") : 10.0;
   if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
-  if (!(seconds > 0 && seconds <= 3600)) return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
+  if (!(seconds > 0 && seconds <= 3600))
+    return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
   auto scene = vsurg::sim::LoadSceneByName(p.String("scene"));
-  if (!scene.ok()) return std::cerr << p.command() << ": --scene: " << scene.error().message << "\n", 2;
+  if (!scene.ok())
+    return std::cerr << p.command() << ": --scene: " << scene.error().message << "\n", 2;
 
   auto endpoint = vsurg::server::UdpEndpoint::Create({});
   if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
@@ -90,8 +93,10 @@ int HapticRtt(const std::vector<std::string>& args) {
     st.socket.async_receive_from(asio::buffer(st.rx), st.from, [&, sp = &st](auto ec, size_t len) {
       if (ec) return;
       vsurg::wire::Opened o;
-      if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) == vsurg::wire::DropReason::kNone &&
-          codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone && reply.echo_time >= warmup) {
+      if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) ==
+              vsurg::wire::DropReason::kNone &&
+          codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone &&
+          reply.echo_time >= warmup) {
         ++received;
         rtt.push_back((now_s() - reply.echo_time) * 1e6);
       }
@@ -103,33 +108,43 @@ int HapticRtt(const std::vector<std::string>& args) {
   // full contact path.
   vsurg::wire::StylusMessage m;
   m.sample.position = scene->mesh.kind == vsurg::sim::MeshKind::kLimb
-                          ? Eigen::Vector3d(scene->mesh.limb.radius_distal - 0.004, 0.0005, scene->mesh.limb.length - 0.03)
+                          ? Eigen::Vector3d(scene->mesh.limb.radius_distal - 0.004, 0.0005,
+                                            scene->mesh.limb.length - 0.03)
                           : Eigen::Vector3d(0.0005, 0.0005, scene->mesh.radius - 0.004);
   std::array<uint8_t, vsurg::wire::kMaxDatagram> tx{};
   asio::steady_timer timer(io);
   Clock::time_point next = Clock::now();
   const double total = warmup + seconds;
+  // Stations are spread over the millisecond in 8 slots of 125 µs, as independent stations
+  // would be, rather than sent as one burst the server must queue.
+  constexpr int kSlots = 8;
+  int slot = 0;
   std::function<void()> tick = [&] {
     const double t = now_s();
     if (t > total + 0.05) return io.stop();
     if (t <= total) {
-      for (auto& st : stations) {
-        m.sample.time = now_s();
+      for (int k = slot; k < n; k += kSlots) {
+        Station& st = *stations[k];
+        vsurg::wire::StylusMessage msg = m;
+        msg.sample.time = now_s();
         // Approach from outside during the warm-up so the proxy enters through the surface.
         const double in = std::min(1.0, t / 0.2);
-        vsurg::wire::StylusMessage msg = m;
-        msg.sample.position += (1.0 - in) * 0.02 * (scene->mesh.kind == vsurg::sim::MeshKind::kLimb
-                                                        ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1));
+        msg.sample.position +=
+            (1.0 - in) * 0.02 *
+            (scene->mesh.kind == vsurg::sim::MeshKind::kLimb ? Eigen::Vector3d(1, 0, 0)
+                                                             : Eigen::Vector3d(0, 0, 1));
         const size_t size = codec.EncodeStylus(
-            msg, {vsurg::wire::kProtocolVersion, vsurg::wire::PayloadType::kStylusState, st->session, ++st->sequence,
-                  static_cast<uint64_t>(m.sample.time * 1e6)},
-            st->auth, tx);
+            msg,
+            {vsurg::wire::kProtocolVersion, vsurg::wire::PayloadType::kStylusState, st.session,
+             ++st.sequence, static_cast<uint64_t>(msg.sample.time * 1e6)},
+            st.auth, tx);
         boost::system::error_code ec;
-        st->socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
+        st.socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
         if (t >= warmup && !ec) ++sent;
       }
     }
-    next += std::chrono::milliseconds(1);
+    slot = (slot + 1) % kSlots;
+    next += std::chrono::microseconds(1000 / kSlots);
     timer.expires_at(next);
     timer.async_wait([&](auto ec) {
       if (!ec) tick();
@@ -141,14 +156,17 @@ int HapticRtt(const std::vector<std::string>& args) {
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
   (*endpoint)->Stop();
   std::sort(rtt.begin(), rtt.end());
-  auto pct = [&](double q) { return rtt.empty() ? 0.0 : rtt[std::min(rtt.size() - 1, static_cast<size_t>(q * rtt.size()))]; };
+  auto pct = [&](double q) {
+    return rtt.empty() ? 0.0 : rtt[std::min(rtt.size() - 1, static_cast<size_t>(q * rtt.size()))];
+  };
   nlohmann::json j;
   j["stations"] = n;
   j["seconds"] = seconds;
   j["scene"] = scene->name;
   j["sent"] = sent;
   j["received"] = received;
-  j["loss"] = sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
+  j["loss"] =
+      sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
   j["rtt_p50_us"] = pct(0.5);
   j["rtt_p99_us"] = pct(0.99);
   j["rtt_p999_us"] = pct(0.999);
@@ -156,8 +174,11 @@ int HapticRtt(const std::vector<std::string>& args) {
   if (p.Flag("json")) {
     std::cout << j.dump() << "\n";
   } else {
-    std::printf("%d stations, %.1f s: rtt p50 %.1f us, p99 %.1f us, p99.9 %.1f us, loss %.4f, server cpu/station %.4f\n",
-                n, seconds, pct(0.5), pct(0.99), pct(0.999), j["loss"].get<double>(), j["server_cpu_per_station"].get<double>());
+    std::printf(
+        "%d stations, %.1f s: rtt p50 %.1f us, p99 %.1f us, p99.9 %.1f us, loss %.4f, server "
+        "cpu/station %.4f\n",
+        n, seconds, pct(0.5), pct(0.99), pct(0.999), j["loss"].get<double>(),
+        j["server_cpu_per_station"].get<double>());
   }
   return 0;
 }

@@ -85,6 +85,8 @@ Simulation::Simulation(const Scene& scene, geometry::TriMesh rest, const Simulat
 
 Simulation::~Simulation() {
   stop_.store(true);
+  input_version_.fetch_add(1);
+  input_version_.notify_all();
   if (thread_.joinable()) thread_.join();
 }
 
@@ -175,8 +177,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     input_.torque = 0;
     input_.triangle = -1;
     input_.force_on_tissue.setZero();
-    inputs_.Back() = input_;
-    inputs_.Publish();
+    PublishInput();
     return Zero(s, events);
   }
   double dt = has_time_ ? s.time - last_time_ : 1e-3;
@@ -269,8 +270,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     cmd.contact = ps.contact;
     cmd.proxy = ps.scp;
   }
-  inputs_.Back() = input_;
-  inputs_.Publish();
+  PublishInput();
 
   const Vec3 out = safety_.Filter(force, dt, events);
   cmd.force = out;
@@ -281,6 +281,21 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
   cmd.events = events;
   recorder_.Add(s.time, s.position, quantity, out.norm(), overload);
   return cmd;
+}
+
+void Simulation::PublishInput() {
+  const DeformInput& a = input_;
+  const DeformInput& b = published_;
+  const bool same = a.grasp_id == b.grasp_id && a.grasping == b.grasping && a.torque == b.torque &&
+                    a.triangle == b.triangle && a.contact_id == b.contact_id &&
+                    a.barycentric == b.barycentric && a.force_on_tissue == b.force_on_tissue &&
+                    a.hip == b.hip && a.grasp_point == b.grasp_point;
+  if (same && input_version_.load(std::memory_order_relaxed) > 0) return;  // nothing new to ask for
+  published_ = input_;
+  inputs_.Back() = input_;
+  inputs_.Publish();
+  input_version_.fetch_add(1, std::memory_order_release);
+  input_version_.notify_one();
 }
 
 void Simulation::Publish(const std::vector<Vec3>& positions, bool overload) {
@@ -387,7 +402,14 @@ void Simulation::DeformationLoop() {
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
   auto next = Clock::now();
+  uint64_t seen = 0;
   while (!stop_.load(std::memory_order_relaxed)) {
+    if (!paced) {
+      // Coil: an update only follows a new request; sleep until there is one.
+      input_version_.wait(seen, std::memory_order_acquire);
+      seen = input_version_.load(std::memory_order_acquire);
+      if (stop_.load(std::memory_order_relaxed)) break;
+    }
     inputs_.Acquire();
     Deform(inputs_.Front());
     if (paced) {
@@ -395,10 +417,6 @@ void Simulation::DeformationLoop() {
       const auto now = Clock::now();
       if (now - next > std::chrono::milliseconds(50)) next = now;  // fell behind: do not burst
       std::this_thread::sleep_until(next);
-    } else {
-      // The coil updates on a new torque; polling every millisecond keeps the visual latency far
-      // below a 60 Hz frame and leaves the cores to the haptic path when many sessions run.
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
   }
 }

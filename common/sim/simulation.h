@@ -112,6 +112,7 @@ class Simulation {
   void DeformationLoop();
   void Deform(const DeformInput& in);
   void Publish(const std::vector<geometry::Vec3>& positions, bool overload);
+  void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
 
   Scene scene_;
@@ -150,6 +151,10 @@ class Simulation {
   std::vector<geometry::Vec3> last_sent_;  // visual thread
   uint64_t publish_id_ = 0;
   std::atomic<uint64_t> updates_{0};
+  // Coil scenes: the deformation thread sleeps on this until the haptic path asks for something
+  // new (C++20 atomic wait: no lock; the haptic side's notify is a no-op without a waiter).
+  std::atomic<uint64_t> input_version_{0};
+  DeformInput published_;  // haptic thread: what was last handed over
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -236,7 +236,9 @@ EndpointCounters UdpEndpoint::counters() const {
   return c;
 }
 
-double UdpEndpoint::io_cpu_seconds() const { return impl_->io_cpu.load(); }
+double UdpEndpoint::io_cpu_seconds() const {
+  return impl_->io_cpu.load();
+}
 
 std::vector<SessionEvent> UdpEndpoint::TakeEvents() {
   std::lock_guard<std::mutex> lock(impl_->events_mutex);
