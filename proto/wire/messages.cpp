@@ -21,6 +21,7 @@ Eigen::Vector3d Get(const v1::Vec3& m) {
 struct Codec::Impl {
   v1::StylusState stylus;
   v1::ForceFeedback force;
+  v1::SceneFrame frame;
   std::array<uint8_t, kMaxPayload> payload;
 };
 
@@ -74,6 +75,78 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   Header header = h;
   header.type = PayloadType::kForceFeedback;
   return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+}
+
+namespace {
+
+size_t VarintSize(uint64_t v) {
+  size_t n = 1;
+  while (v >= 0x80) v >>= 7, ++n;
+  return n;
+}
+uint64_t ZigZag(int64_t v) { return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63); }
+constexpr double kMicro = 1e6;
+constexpr double kMaxMetres = 2000.0;  // sint32 µm covers ±2147 m
+constexpr size_t kFrameOverhead = 48;  // frame id, chunk fields, two packed-field headers
+
+}  // namespace
+
+size_t Codec::PlanSceneChunks(const SceneFrameView& f) {
+  chunk_start_.clear();
+  if (f.indices.empty() || f.indices.size() != f.positions.size()) return 0;
+  const size_t budget = kMaxPayload - kFrameOverhead;
+  size_t used = budget + 1;
+  for (size_t i = 0; i < f.indices.size(); ++i) {
+    const Eigen::Vector3d& p = f.positions[i];
+    if (!p.allFinite() || p.cwiseAbs().maxCoeff() > kMaxMetres || f.indices[i] < 0) return 0;
+    size_t size = VarintSize(static_cast<uint64_t>(f.indices[i]));
+    for (int k = 0; k < 3; ++k) size += VarintSize(ZigZag(std::llround(p[k] * kMicro)));
+    if (used + size > budget) {
+      chunk_start_.push_back(i);
+      used = 0;
+    }
+    used += size;
+  }
+  chunk_start_.push_back(f.indices.size());
+  return chunk_start_.size() - 1;
+}
+
+size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chunks, const Header& base,
+                               const Authenticator& auth, std::span<uint8_t> out) {
+  v1::SceneFrame& m = impl_->frame;
+  m.Clear();
+  m.set_frame_id(f.frame_id);
+  m.set_chunk_index(static_cast<uint32_t>(chunk));
+  m.set_chunk_count(static_cast<uint32_t>(chunks));
+  for (size_t i = chunk_start_[chunk]; i < chunk_start_[chunk + 1]; ++i) {
+    m.add_indices(static_cast<uint32_t>(f.indices[i]));
+    for (int k = 0; k < 3; ++k) m.add_positions_um(static_cast<int32_t>(std::llround(f.positions[i][k] * kMicro)));
+  }
+  const size_t n = m.ByteSizeLong();
+  if (n > kMaxPayload || !m.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
+  Header h = base;
+  h.type = PayloadType::kSceneFrame;
+  h.sequence = base.sequence + chunk;
+  return Seal(h, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+}
+
+DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out) {
+  v1::SceneFrame& m = impl_->frame;
+  if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) return DropReason::kBadPayload;
+  if (m.positions_um_size() != 3 * m.indices_size() || m.chunk_count() == 0 || m.chunk_index() >= m.chunk_count()) {
+    return DropReason::kBadPayload;
+  }
+  out.frame_id = m.frame_id();
+  out.chunk_index = m.chunk_index();
+  out.chunk_count = m.chunk_count();
+  out.indices.resize(m.indices_size());
+  out.positions.resize(m.indices_size());
+  for (int i = 0; i < m.indices_size(); ++i) {
+    if (m.indices(i) > 0x7fffffffu) return DropReason::kBadPayload;
+    out.indices[i] = static_cast<int32_t>(m.indices(i));
+    out.positions[i] = Eigen::Vector3d(m.positions_um(3 * i), m.positions_um(3 * i + 1), m.positions_um(3 * i + 2)) / kMicro;
+  }
+  return DropReason::kNone;
 }
 
 DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& out) {

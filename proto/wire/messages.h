@@ -28,6 +28,21 @@ struct ForceMessage {
   haptics::ForceCommand command;
 };
 
+// A visual frame's moved vertices, as the simulation produces them.
+struct SceneFrameView {
+  uint64_t frame_id = 0;
+  std::span<const int32_t> indices;
+  std::span<const Eigen::Vector3d> positions;  // m, one per index
+};
+
+// One received chunk of a frame: positions back in metres (quantised to 1 µm on the wire).
+struct SceneChunk {
+  uint64_t frame_id = 0;
+  uint32_t chunk_index = 0, chunk_count = 0;
+  std::vector<int32_t> indices;
+  std::vector<Eigen::Vector3d> positions;
+};
+
 class Codec {
  public:
   Codec();
@@ -41,11 +56,31 @@ class Codec {
   size_t EncodeForce(const ForceMessage& m, const Header& h, const Authenticator& auth,
                      std::span<uint8_t> out);
 
+  // Split a frame into as few datagrams of at most kMaxDatagram bytes as fit it (greedy, by the
+  // exact varint sizes), each sealed, and hand each to `sink`. Returns the chunk count; 0 when
+  // there is nothing to send or a position is out of the ±2 km the µm encoding covers.
+  template <class Sink>
+  size_t EncodeSceneFrame(const SceneFrameView& frame, const Header& base, const Authenticator& auth,
+                          std::span<uint8_t> out, Sink&& sink) {
+    const size_t chunks = PlanSceneChunks(frame);
+    for (size_t c = 0; c < chunks; ++c) {
+      const size_t n = EncodeSceneChunk(frame, c, chunks, base, auth, out);
+      if (n == 0) return 0;
+      sink(std::span<const uint8_t>(out.data(), n));
+    }
+    return chunks;
+  }
+  DropReason DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out);
+
   // Parse an opened payload. kBadPayload when it does not parse or holds non-finite numbers.
   DropReason DecodeStylus(std::span<const uint8_t> payload, StylusMessage& out);
   DropReason DecodeForce(std::span<const uint8_t> payload, ForceMessage& out);
 
  private:
+  size_t PlanSceneChunks(const SceneFrameView& frame);  // fills the chunk boundaries
+  size_t EncodeSceneChunk(const SceneFrameView& frame, size_t chunk, size_t chunks, const Header& base,
+                          const Authenticator& auth, std::span<uint8_t> out);
+  std::vector<size_t> chunk_start_;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

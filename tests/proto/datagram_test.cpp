@@ -143,5 +143,44 @@ TEST(DatagramTest, AuthenticGarbagePayloadAndNonFiniteForcesAreBadPayload) {
   EXPECT_EQ(codec.DecodeForce(o.payload, f), DropReason::kBadPayload);  // never rendered
 }
 
+TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
+  const Authenticator auth(Key(7));
+  Codec codec;
+  std::vector<int32_t> indices;
+  std::vector<Eigen::Vector3d> positions;
+  for (int i = 0; i < 4921; ++i) {  // the arm's moved vertices at 2.07 N·m
+    indices.push_back(i * 1 + 3);
+    positions.emplace_back(0.03 * std::cos(i * 0.1), 0.03 * std::sin(i * 0.1), 0.25 * i / 4921.0);
+  }
+  std::array<uint8_t, kMaxDatagram> buf;
+  std::vector<SceneChunk> chunks;
+  const size_t count = codec.EncodeSceneFrame({42, indices, positions}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 100, 0},
+                                              auth, buf, [&](std::span<const uint8_t> d) {
+                                                ASSERT_LE(d.size(), kMaxDatagram);
+                                                Opened o;
+                                                ASSERT_EQ(Open(d, &auth, o), DropReason::kNone);
+                                                EXPECT_EQ(o.header.type, PayloadType::kSceneFrame);
+                                                SceneChunk c;
+                                                ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+                                                chunks.push_back(c);
+                                              });
+  ASSERT_GT(count, 1u);
+  ASSERT_EQ(chunks.size(), count);
+  EXPECT_LT(count, 4921u / 60);  // tightly packed: more than 60 vertices a datagram
+  size_t k = 0;
+  for (const SceneChunk& c : chunks) {
+    EXPECT_EQ(c.frame_id, 42u);
+    EXPECT_EQ(c.chunk_count, count);
+    for (size_t i = 0; i < c.indices.size(); ++i, ++k) {
+      EXPECT_EQ(c.indices[i], indices[k]);
+      EXPECT_LE((c.positions[i] - positions[k]).cwiseAbs().maxCoeff(), 0.5e-6);
+    }
+  }
+  EXPECT_EQ(k, indices.size());
+  std::vector<Eigen::Vector3d> bad = {Eigen::Vector3d(NAN, 0, 0)};
+  std::vector<int32_t> one = {0};
+  EXPECT_EQ(codec.EncodeSceneFrame({1, one, bad}, {}, auth, buf, [](auto) {}), 0u);
+}
+
 }  // namespace
 }  // namespace vsurg::wire
