@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -48,7 +49,11 @@ struct StationChannel::Impl {
   size_t rtt_next = 0;
   double jitter_sum = 0, last_rtt = -1;
   uint64_t jitter_n = 0;
-  std::atomic<uint64_t> received{0}, dropped{0}, stale{0};
+  std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, scene_chunks{0};
+  uint64_t last_frame_sequence = 0;
+  wire::SceneChunk chunk;
+  std::mutex scene_mutex;  // network thread and the render thread, never the device thread
+  std::deque<wire::SceneChunk> scene;
 
   // Device thread.
   std::array<uint8_t, wire::kMaxDatagram> tx{};
@@ -73,8 +78,24 @@ struct StationChannel::Impl {
   void Handle(size_t n) {
     wire::Opened o;
     const std::span<const uint8_t> d(rx.data(), n);
-    if (wire::Open(d, &auth, o) != wire::DropReason::kNone || o.header.session != options.session ||
-        o.header.type != wire::PayloadType::kForceFeedback) {
+    if (wire::Open(d, &auth, o) != wire::DropReason::kNone || o.header.session != options.session) {
+      dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    if (o.header.type == wire::PayloadType::kSceneFrame) {
+      if (o.header.sequence <= last_frame_sequence ||
+          rx_codec.DecodeSceneChunk(o.payload, chunk) != wire::DropReason::kNone) {
+        dropped.fetch_add(1, std::memory_order_relaxed);
+        return;
+      }
+      last_frame_sequence = o.header.sequence;
+      scene_chunks.fetch_add(1, std::memory_order_relaxed);
+      std::lock_guard<std::mutex> lock(scene_mutex);
+      if (scene.size() >= 4096) scene.pop_front();
+      scene.push_back(chunk);
+      return;
+    }
+    if (o.header.type != wire::PayloadType::kForceFeedback) {
       dropped.fetch_add(1, std::memory_order_relaxed);
       return;
     }
@@ -220,6 +241,7 @@ StationStats StationChannel::stats() const {
   s.dropped = impl_->dropped.load();
   s.stale = impl_->stale.load();
   s.watchdog_fades = impl_->fades.load();
+  s.scene_chunks = impl_->scene_chunks.load();
   s.passivity_energy_dissipated = impl_->dissipated.load();
   s.max_force = impl_->max_force.load();
   s.loss = s.sent > 0
@@ -239,6 +261,14 @@ StationStats StationChannel::stats() const {
     s.rtt_p999_us = rtt[rtt.size() * 999 / 1000];
   }
   return s;
+}
+
+std::vector<wire::SceneChunk> StationChannel::TakeSceneChunks() {
+  std::lock_guard<std::mutex> lock(impl_->scene_mutex);
+  std::vector<wire::SceneChunk> out(std::make_move_iterator(impl_->scene.begin()),
+                                    std::make_move_iterator(impl_->scene.end()));
+  impl_->scene.clear();
+  return out;
 }
 
 Eigen::Vector3d StationChannel::last_force() const {

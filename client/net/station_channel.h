@@ -10,7 +10,7 @@
 //     write the force.
 //   network thread: receive ForceFeedback datagrams, authenticate, drop stale ones (latest
 //     wins), hand the newest to the device thread through a lock-free triple buffer, and
-//     measure the round trip from the echoed send time.
+//     measure the round trip from the echoed send time; queue SceneFrame chunks for rendering.
 // UDP needs no connection: when the server comes back the station's next datagrams are answered
 // again (the force was faded meanwhile), which is all a reconnect is here.
 #pragma once
@@ -22,6 +22,7 @@
 #include "client/device/device.h"
 #include "common/core/expected.h"
 #include "proto/wire/datagram.h"
+#include "proto/wire/messages.h"
 
 namespace vsurg::client {
 
@@ -43,6 +44,7 @@ struct StationStats {
   double jitter_us = 0;                    // mean |RTT_i − RTT_{i−1}|
   double loss = 0;                         // 1 − received / sent
   uint64_t watchdog_fades = 0;             // times the watchdog started fading
+  uint64_t scene_chunks = 0;               // SceneFrame datagrams received
   double passivity_energy_dissipated = 0;  // J the controller removed
   double max_force = 0;                    // N rendered
 };
@@ -55,6 +57,9 @@ class StationChannel {
 
   void Stop();
   StationStats stats() const;  // any thread
+  // Render thread: the scene chunks received since the previous call (moved vertices, m).
+  // At most 4096 are kept between calls; older ones are dropped first.
+  std::vector<wire::SceneChunk> TakeSceneChunks();
   Eigen::Vector3d last_force() const;
 
  private:

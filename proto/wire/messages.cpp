@@ -84,7 +84,9 @@ size_t VarintSize(uint64_t v) {
   while (v >= 0x80) v >>= 7, ++n;
   return n;
 }
-uint64_t ZigZag(int64_t v) { return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63); }
+uint64_t ZigZag(int64_t v) {
+  return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63);
+}
 constexpr double kMicro = 1e6;
 constexpr double kMaxMetres = 2000.0;  // sint32 µm covers ±2147 m
 constexpr size_t kFrameOverhead = 48;  // frame id, chunk fields, two packed-field headers
@@ -111,8 +113,9 @@ size_t Codec::PlanSceneChunks(const SceneFrameView& f) {
   return chunk_start_.size() - 1;
 }
 
-size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chunks, const Header& base,
-                               const Authenticator& auth, std::span<uint8_t> out) {
+size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chunks,
+                               const Header& base, const Authenticator& auth,
+                               std::span<uint8_t> out) {
   v1::SceneFrame& m = impl_->frame;
   m.Clear();
   m.set_frame_id(f.frame_id);
@@ -120,7 +123,8 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
   m.set_chunk_count(static_cast<uint32_t>(chunks));
   for (size_t i = chunk_start_[chunk]; i < chunk_start_[chunk + 1]; ++i) {
     m.add_indices(static_cast<uint32_t>(f.indices[i]));
-    for (int k = 0; k < 3; ++k) m.add_positions_um(static_cast<int32_t>(std::llround(f.positions[i][k] * kMicro)));
+    for (int k = 0; k < 3; ++k)
+      m.add_positions_um(static_cast<int32_t>(std::llround(f.positions[i][k] * kMicro)));
   }
   const size_t n = m.ByteSizeLong();
   if (n > kMaxPayload || !m.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
@@ -132,8 +136,10 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
 
 DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out) {
   v1::SceneFrame& m = impl_->frame;
-  if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) return DropReason::kBadPayload;
-  if (m.positions_um_size() != 3 * m.indices_size() || m.chunk_count() == 0 || m.chunk_index() >= m.chunk_count()) {
+  if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
+    return DropReason::kBadPayload;
+  if (m.positions_um_size() != 3 * m.indices_size() || m.chunk_count() == 0 ||
+      m.chunk_index() >= m.chunk_count()) {
     return DropReason::kBadPayload;
   }
   out.frame_id = m.frame_id();
@@ -144,7 +150,9 @@ DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk&
   for (int i = 0; i < m.indices_size(); ++i) {
     if (m.indices(i) > 0x7fffffffu) return DropReason::kBadPayload;
     out.indices[i] = static_cast<int32_t>(m.indices(i));
-    out.positions[i] = Eigen::Vector3d(m.positions_um(3 * i), m.positions_um(3 * i + 1), m.positions_um(3 * i + 2)) / kMicro;
+    out.positions[i] = Eigen::Vector3d(m.positions_um(3 * i), m.positions_um(3 * i + 1),
+                                       m.positions_um(3 * i + 2)) /
+                       kMicro;
   }
   return DropReason::kNone;
 }

@@ -60,8 +60,8 @@ class Codec {
   // exact varint sizes), each sealed, and hand each to `sink`. Returns the chunk count; 0 when
   // there is nothing to send or a position is out of the ±2 km the µm encoding covers.
   template <class Sink>
-  size_t EncodeSceneFrame(const SceneFrameView& frame, const Header& base, const Authenticator& auth,
-                          std::span<uint8_t> out, Sink&& sink) {
+  size_t EncodeSceneFrame(const SceneFrameView& frame, const Header& base,
+                          const Authenticator& auth, std::span<uint8_t> out, Sink&& sink) {
     const size_t chunks = PlanSceneChunks(frame);
     for (size_t c = 0; c < chunks; ++c) {
       const size_t n = EncodeSceneChunk(frame, c, chunks, base, auth, out);
@@ -78,8 +78,8 @@ class Codec {
 
  private:
   size_t PlanSceneChunks(const SceneFrameView& frame);  // fills the chunk boundaries
-  size_t EncodeSceneChunk(const SceneFrameView& frame, size_t chunk, size_t chunks, const Header& base,
-                          const Authenticator& auth, std::span<uint8_t> out);
+  size_t EncodeSceneChunk(const SceneFrameView& frame, size_t chunk, size_t chunks,
+                          const Header& base, const Authenticator& auth, std::span<uint8_t> out);
   std::vector<size_t> chunk_start_;
   struct Impl;
   std::unique_ptr<Impl> impl_;

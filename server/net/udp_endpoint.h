@@ -15,6 +15,10 @@
 //
 // Transitions are recorded as events for the control plane (TakeEvents). Sessions are added and
 // removed by posting onto the I/O thread, so the hot path takes no lock.
+//
+// Visual frames: a second thread, with its own socket so it never delays a force, sends each
+// session's moved vertices (Simulation::TakeVisualFrame) as SceneFrame datagrams at visual_hz to
+// the address the session's stylus data last came from.
 #pragma once
 
 #include <array>
@@ -44,11 +48,14 @@ struct EndpointOptions {
   double stall_after_s = 0.5;
   double disconnect_after_s = 5.0;
   double max_packets_per_s = 4000;  // per session; a 1 kHz station never comes near
+  double visual_hz = 60;            // scene frames per second (0: none)
 };
 
 struct EndpointCounters {
   uint64_t received = 0;
   uint64_t answered = 0;
+  uint64_t frames = 0;        // visual frames sent
+  uint64_t frame_chunks = 0;  // their datagrams
   std::array<uint64_t, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
   uint64_t Dropped(wire::DropReason r) const { return dropped[static_cast<size_t>(r)]; }
 };

@@ -5,7 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
+#include "common/geometry/mesh_generators.h"
 #include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
 #include "server/net/udp_endpoint.h"
 #include "tests/net/udp_relay.h"
 
@@ -124,6 +128,42 @@ TEST(StationChannelTest, TheWatchdogFadesTheForceWhenTheServerGoesQuiet) {
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
   EXPECT_GT(device.forces().back().norm(), 0.1);
   (*station)->Stop();
+}
+
+TEST(StationChannelTest, SceneFramesCarryTheTwistedVerticesToTheStation) {
+  auto scene = sim::LoadSceneByName("arm-torsion");
+  auto simulation = *sim::Simulation::Create(*scene, {true});
+  auto endpoint = *server::UdpEndpoint::Create({});
+  endpoint->AddSession(11, Key(), simulation.get());
+  auto trajectory = *sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+  trajectory.resize(3000);  // approach, grasp and twist to 45°
+  ReplayDevice device(trajectory);
+  auto station = StationChannel::Create(Options(endpoint->port()), &device);
+  ASSERT_TRUE(station.ok());
+  WaitFor(device);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  (*station)->Stop();
+  const auto chunks = (*station)->TakeSceneChunks();
+  ASSERT_FALSE(chunks.empty()) << "frames sent " << endpoint->counters().frames << ", station saw "
+                               << (*station)->stats().scene_chunks << " chunks, dropped "
+                               << (*station)->stats().dropped << ", deformation updates "
+                               << simulation->deformation_updates();
+  EXPECT_GT(endpoint->counters().frames, 10u);
+  const auto rest = geometry::MakeLimb(geometry::ForearmPreset())->surface.positions;
+  std::set<int> moved;
+  for (const auto& c : chunks) {
+    for (size_t i = 0; i < c.indices.size(); ++i) {
+      ASSERT_LT(c.indices[i], static_cast<int>(rest.size()));
+      const auto& p0 = rest[c.indices[i]];
+      // A twist about the limb axis: same height and distance from the axis, to the µm.
+      EXPECT_NEAR(c.positions[i].z(), p0.z(), 1e-6);
+      EXPECT_NEAR(std::hypot(c.positions[i].x(), c.positions[i].y()), std::hypot(p0.x(), p0.y()),
+                  2e-6);
+      moved.insert(c.indices[i]);
+    }
+  }
+  EXPECT_GT(moved.size(), 1000u);
+  EXPECT_LT(moved.size(), rest.size());  // the elbow end never moves
 }
 
 }  // namespace

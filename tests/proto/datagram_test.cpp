@@ -154,16 +154,17 @@ TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
   }
   std::array<uint8_t, kMaxDatagram> buf;
   std::vector<SceneChunk> chunks;
-  const size_t count = codec.EncodeSceneFrame({42, indices, positions}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 100, 0},
-                                              auth, buf, [&](std::span<const uint8_t> d) {
-                                                ASSERT_LE(d.size(), kMaxDatagram);
-                                                Opened o;
-                                                ASSERT_EQ(Open(d, &auth, o), DropReason::kNone);
-                                                EXPECT_EQ(o.header.type, PayloadType::kSceneFrame);
-                                                SceneChunk c;
-                                                ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
-                                                chunks.push_back(c);
-                                              });
+  const size_t count = codec.EncodeSceneFrame(
+      {42, indices, positions}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 100, 0}, auth, buf,
+      [&](std::span<const uint8_t> d) {
+        ASSERT_LE(d.size(), kMaxDatagram);
+        Opened o;
+        ASSERT_EQ(Open(d, &auth, o), DropReason::kNone);
+        EXPECT_EQ(o.header.type, PayloadType::kSceneFrame);
+        SceneChunk c;
+        ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+        chunks.push_back(c);
+      });
   ASSERT_GT(count, 1u);
   ASSERT_EQ(chunks.size(), count);
   EXPECT_LT(count, 4921u / 60);  // tightly packed: more than 60 vertices a datagram
