@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include "client/net/passivity.h"
 #include "common/sim/triple_buffer.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
@@ -131,7 +132,7 @@ struct StationChannel::Impl {
     uint64_t sequence = 0;
     Vec3 last_x = Vec3::Zero();
     bool have_x = false, fading = false;
-    double energy = 0;  // passivity observer: energy the environment has absorbed (J)
+    PassivityController passivity(options.max_damping);
     wire::StylusMessage m;
     while (!stop.load(std::memory_order_relaxed)) {
       const double now = Now();
@@ -166,15 +167,9 @@ struct StationChannel::Impl {
         }
       }
       // Passivity observer/controller: the coupling must not put energy into the hand.
-      if (options.passivity && f.allFinite()) {
-        energy -= f.dot(v) * dt;  // energy absorbed by the environment
-        const double v2 = v.squaredNorm();
-        if (energy < 0 && v2 > 1e-12) {
-          const double alpha = std::min(options.max_damping, -energy / (v2 * dt));
-          f -= alpha * v;
-          energy += alpha * v2 * dt;
-          dissipated.store(dissipated.load() + alpha * v2 * dt, std::memory_order_relaxed);
-        }
+      if (options.passivity) {
+        f = passivity.Apply(f, v, dt);
+        dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
       }
       uint32_t events = 0;
       const Vec3 out = safety.Filter(f, dt, events);
