@@ -3,7 +3,8 @@
 # default forearm, applies 2.07 N·m in ten steps with the coil-spring model (per step: cutoff layer,
 # total twist, overload flag, vertices moved), writes the deformed mesh as OBJ, then shows what
 # happens past the limb's capacity, how far the model is from Saint-Venant torsion, and three
-# scripted trainees performing the arm-torsion task through the full haptic simulation.
+# scripted trainees performing the arm-torsion task through the full haptic simulation, and the
+# authenticated UDP channel's round trip with eight stations on loopback.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -36,6 +37,10 @@ for style in good hesitant rough; do
   echo "-- $style"
   "$sim" run --scene arm-torsion --trajectory "$out/twist-$style.csv"
 done
+
+echo
+echo "== The UDP haptic channel: 8 stations at 1 kHz against a real endpoint on loopback, 2 s =="
+"$root/build/bin/vsurg-bench" haptic-rtt --stations 8 --seconds 2
 
 echo
 echo "demo: deformed meshes and trajectories in $out"
