@@ -1,5 +1,7 @@
 #include "common/geometry/distances.h"
 
+#include "common/geometry/bvh.h"
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -15,39 +17,6 @@ namespace vsurg::geometry {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection §5.1.5), returned
-// as barycentric weights.
-Vec3 ClosestBarycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return Vec3(1, 0, 0);
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return Vec3(0, 1, 0);
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double v = d1 / (d1 - d3);
-    return Vec3(1 - v, v, 0);
-  }
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return Vec3(0, 0, 1);
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double w = d2 / (d2 - d6);
-    return Vec3(1 - w, 0, w);
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return Vec3(0, 1 - w, w);
-  }
-  const double denom = va + vb + vc;
-  if (!(std::abs(denom) > 0)) return Vec3(1, 0, 0);  // degenerate triangle: its first corner
-  const double v = vb / denom, w = vc / denom;
-  return Vec3(1 - v - w, v, w);
-}
 
 // Multi-source Dijkstra over mesh edges; seeds carry their initial distance.
 std::vector<double> DijkstraFrom(const TriMesh& mesh, const VertexAdjacency& adj,
@@ -194,11 +163,30 @@ std::vector<double> ArcLengths(const std::vector<Vec3>& polyline) {
   return s;
 }
 
+CentrelineProjection ProjectPointOntoPolyline(const std::vector<Vec3>& polyline, const Vec3& p) {
+  CentrelineProjection best;
+  double best_d2 = kInf, arc = 0;
+  for (size_t i = 0; i + 1 < polyline.size(); ++i) {
+    const Vec3 seg = polyline[i + 1] - polyline[i];
+    const double len = seg.norm();
+    if (!(len > 0)) continue;
+    const Vec3 dir = seg / len;
+    const double along = std::clamp((p - polyline[i]).dot(dir), 0.0, len);
+    const Vec3 c = polyline[i] + along * dir;
+    const double d2 = (p - c).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best = CentrelineProjection{arc + along, c, dir};
+    }
+    arc += len;
+  }
+  return best;
+}
+
 Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vector<Vec3>& points,
                                                                 const std::vector<Vec3>& polyline) {
   if (polyline.size() < 2)
     return InvalidArgument("centreline", "centreline needs at least 2 points");
-  const std::vector<double> s = ArcLengths(polyline);
   for (size_t i = 0; i + 1 < polyline.size(); ++i) {
     if (!((polyline[i + 1] - polyline[i]).norm() > 0)) {
       return InvalidArgument(
@@ -206,21 +194,7 @@ Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vecto
     }
   }
   std::vector<CentrelineProjection> out(points.size());
-  for (size_t p = 0; p < points.size(); ++p) {
-    double best = kInf;
-    for (size_t i = 0; i + 1 < polyline.size(); ++i) {
-      const Vec3 seg = polyline[i + 1] - polyline[i];
-      const double len = seg.norm();
-      const Vec3 dir = seg / len;
-      const double along = std::clamp((points[p] - polyline[i]).dot(dir), 0.0, len);
-      const Vec3 c = polyline[i] + along * dir;
-      const double d2 = (points[p] - c).squaredNorm();
-      if (d2 < best) {
-        best = d2;
-        out[p] = CentrelineProjection{s[i] + along, c, dir};
-      }
-    }
-  }
+  for (size_t k = 0; k < points.size(); ++k) out[k] = ProjectPointOntoPolyline(polyline, points[k]);
   return out;
 }
 
@@ -232,7 +206,7 @@ Expected<SurfacePoint> ClosestSurfacePoint(const TriMesh& mesh, const Vec3& p) {
   for (int f = 0; f < mesh.TriangleCount(); ++f) {
     const Triangle& t = mesh.triangles[f];
     const Vec3 w =
-        ClosestBarycentric(p, mesh.positions[t[0]], mesh.positions[t[1]], mesh.positions[t[2]]);
+        ClosestPointOnTriangle(p, mesh.positions[t[0]], mesh.positions[t[1]], mesh.positions[t[2]]);
     const Vec3 c =
         w[0] * mesh.positions[t[0]] + w[1] * mesh.positions[t[1]] + w[2] * mesh.positions[t[2]];
     const double d2 = (c - p).squaredNorm();

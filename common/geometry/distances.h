@@ -25,6 +25,9 @@ struct CentrelineProjection {
 // Arc length of each polyline vertex (size = polyline size; first is 0).
 std::vector<double> ArcLengths(const std::vector<Vec3>& polyline);
 
+// One point (no allocation; any thread): zero-length segments are skipped.
+CentrelineProjection ProjectPointOntoPolyline(const std::vector<Vec3>& polyline, const Vec3& p);
+
 // Projects every point onto the polyline (at least two distinct vertices). Brute force over
 // segments: O(points × segments), fine at set-up for limbs of a few hundred rings.
 Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vector<Vec3>& points,

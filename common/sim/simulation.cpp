@@ -16,23 +16,6 @@ using haptics::StylusSample;
 
 namespace {
 
-// Closest point of a polyline (no allocation): foot, unit tangent and arc length.
-void ProjectOnPolyline(const std::vector<Vec3>& line, const Vec3& p, Vec3& foot, Vec3& tangent,
-                       double& s) {
-  double best = INFINITY, acc = 0;
-  for (size_t i = 0; i + 1 < line.size(); ++i) {
-    const Vec3 seg = line[i + 1] - line[i];
-    const double len = seg.norm();
-    if (!(len > 0)) continue;
-    const Vec3 dir = seg / len;
-    const double along = std::clamp((p - line[i]).dot(dir), 0.0, len);
-    const Vec3 c = line[i] + along * dir;
-    const double d2 = (p - c).squaredNorm();
-    if (d2 < best) best = d2, foot = c, tangent = dir, s = acc + along;
-    acc += len;
-  }
-}
-
 Vec3 AnyPerpendicular(const Vec3& a) {
   const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
   return a.cross(t).normalized();
@@ -245,8 +228,10 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
         input_.grasp_point = ps.scp;
         grasp_q0_ = s.orientation.normalized();
         if (scene_.region.coil_mode == tissue::TwistMode::kLimb) {
-          double arc = 0;
-          ProjectOnPolyline(centreline_points_, ps.scp, axis_point_, axis_, arc);
+          const geometry::CentrelineProjection on_axis =
+              geometry::ProjectPointOntoPolyline(centreline_points_, ps.scp);
+          axis_point_ = on_axis.point;
+          axis_ = on_axis.tangent;
           lever_ = std::max(scene_.haptics.min_lever, (ps.scp - axis_point_).norm());
         } else {
           axis_ = ps.normal;
@@ -322,9 +307,8 @@ void Simulation::Deform(const DeformInput& in) {
         seen_grasp_ = in.grasp_id;
         Expected<tissue::CoilDeformer> d = InvalidArgument("grasp", "no grasp");
         if (region.coil_mode == tissue::TwistMode::kLimb) {
-          Vec3 foot, tangent;
-          double arc = 0;
-          ProjectOnPolyline(centreline_points_, in.grasp_point, foot, tangent, arc);
+          const double arc =
+              geometry::ProjectPointOntoPolyline(centreline_points_, in.grasp_point).s;
           d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_.positions, centreline_points_, arc);
         } else {
           auto sp = geometry::ClosestSurfacePoint(rest_, in.grasp_point);
