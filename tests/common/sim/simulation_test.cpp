@@ -12,7 +12,8 @@
 #include "common/sim/trajectory.h"
 
 // Counts heap allocations made by the thread that sets the flag (the deformation thread and the
-// test framework are not counted).
+// test framework are not counted). Every form of new and delete is replaced, so each pair meets
+// malloc with free, under sanitizers too.
 namespace {
 thread_local bool g_counting = false;
 std::atomic<long> g_allocations{0};
@@ -25,8 +26,18 @@ void* operator new(std::size_t n) {
   if (void* p = std::malloc(n ? n : 1)) return p;
   throw std::bad_alloc();
 }
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+  if (g_counting) g_allocations.fetch_add(1);
+  return std::malloc(n ? n : 1);
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void* operator new[](std::size_t n, const std::nothrow_t& t) noexcept { return operator new(n, t); }
 void operator delete(void* p) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
 
 namespace vsurg::sim {
 namespace {
