@@ -72,7 +72,6 @@ TEST(StationChannelTest, RoundTripsOnLoopbackAndRendersTheTissueForce) {
   EXPECT_GT(s.sent, 1000u);
   EXPECT_LT(s.loss, 0.02);  // loopback: none, bar the last datagrams in flight at Stop
   EXPECT_GT(s.rtt_p50_us, 0);
-  EXPECT_LT(s.rtt_p50_us, 5000);
   const std::vector<Eigen::Vector3d> f = device.forces();
   ASSERT_GT(f.size(), 1000u);
   EXPECT_GT(f.back().z(),
