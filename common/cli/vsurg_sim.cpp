@@ -599,9 +599,6 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     return kExitRuntime;
   }
   sim::Simulation& s = **simulation;
-  const bool paced = scene->region.kind != sim::ModelKind::kCoil;
-  const double dt = scene->region.dt;
-  double sim_time = samples->empty() ? 0.0 : samples->front().time;
   double force_sum = 0;
   int forces = 0, contacts = 0, grasps = 0;
   std::map<std::string, int> events;
@@ -614,13 +611,7 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
       {haptics::kEventStiffnessClamped, "stiffness_clamped"},
       {haptics::kEventOverload, "overload"}};
   double peak = 0;
-  for (const haptics::StylusSample& sample : *samples) {
-    const haptics::ForceCommand c = s.OnStylus(sample);
-    if (paced && std::isfinite(sample.time)) {
-      while (sim_time + dt <= sample.time) s.StepDeformation(), sim_time += dt;  // its own rate
-    } else {
-      s.StepDeformation();
-    }
+  s.Replay(*samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
     const double f = c.force.norm();
     peak = std::max(peak, f);
     force_sum += f;
@@ -630,7 +621,7 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     for (const auto& [bit, name] : kEvents) {
       if (c.events & bit) ++events[name];
     }
-  }
+  });
   const scoring::TrialMetrics m = s.Metrics();
   if (p.Flag("json")) {
     json j;

@@ -375,6 +375,23 @@ void Simulation::Deform(const DeformInput& in) {
   }
 }
 
+void Simulation::Replay(
+    const std::vector<StylusSample>& samples,
+    const std::function<void(const StylusSample&, const ForceCommand&)>& on_command) {
+  const bool paced = scene_.region.kind != ModelKind::kCoil;
+  const double dt = scene_.region.dt;
+  double sim_time = samples.empty() ? 0.0 : samples.front().time;
+  for (const StylusSample& sample : samples) {
+    const ForceCommand c = OnStylus(sample);
+    if (paced && std::isfinite(sample.time)) {
+      while (sim_time + dt <= sample.time) StepDeformation(), sim_time += dt;
+    } else {
+      StepDeformation();
+    }
+    if (on_command) on_command(sample, c);
+  }
+}
+
 void Simulation::StepDeformation() {
   inputs_.Acquire();
   Deform(inputs_.Front());

@@ -36,6 +36,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -73,6 +74,12 @@ class Simulation {
   haptics::ForceCommand OnStylus(const haptics::StylusSample& sample);
   // Non-threaded mode: one deformation update from the latest input (the caller's thread).
   void StepDeformation();
+  // Non-threaded mode: plays samples through OnStylus in their own time. The deformation steps
+  // at the scene's dt (mass-spring, ring layer: as many steps as the samples' clock advanced) or
+  // once after each sample (coil: it updates on a new torque). `on_command` sees every answer.
+  void Replay(const std::vector<haptics::StylusSample>& samples,
+              const std::function<void(const haptics::StylusSample&, const haptics::ForceCommand&)>&
+                  on_command);
   // Visual thread: fills `out` with the vertices that moved since the previous call; false when
   // nothing new was published. Reuses out's capacity.
   bool TakeVisualFrame(VisualFrame& out);

@@ -66,17 +66,10 @@ scoring::TrialMetrics Replay(const std::string& scene_name, TraineeStyle style,
   EXPECT_TRUE(samples.ok());
   auto sim = Simulation::Create(*scene, {false});
   EXPECT_TRUE(sim.ok()) << (sim.ok() ? "" : sim.error().message);
-  double max_force = 0, t_sim = 0;
-  for (const auto& s : *samples) {
-    const haptics::ForceCommand c = (*sim)->OnStylus(s);
-    if (scene->region.kind == ModelKind::kCoil) {
-      (*sim)->StepDeformation();
-    } else {
-      while (t_sim + scene->region.dt <= s.time)
-        (*sim)->StepDeformation(), t_sim += scene->region.dt;
-    }
+  double max_force = 0;
+  (*sim)->Replay(*samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
     max_force = std::max(max_force, c.force.norm());
-  }
+  });
   if (peak) *peak = max_force;
   return (*sim)->Metrics();
 }
