@@ -365,36 +365,33 @@ struct PressScene {
 Expected<PressScene> MakePressScene(const std::string& name, int particles, double radius) {
   PressScene s;
   const bool limb = name == "arm" || name == "calf";
+  sim::MeshSpec spec;
   if (name == "sphere") {
-    const int levels =
-        geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron, particles);
-    auto m = geometry::MakeSubdividedSphere({radius, levels, geometry::SphereBase::kOctahedron});
-    if (!m.ok()) return m.error();
-    s.mesh = std::move(*m);
+    spec.kind = sim::MeshKind::kSphere;
+    spec.radius = radius;
+    spec.particles = particles;
   } else if (limb) {
-    const geometry::LimbParams preset =
-        name == "arm" ? geometry::ForearmPreset() : geometry::CalfPreset();
-    auto l = geometry::MakeLimb(geometry::WithResolution(preset, particles));
-    if (!l.ok()) return l.error();
-    s.mesh = std::move(l->surface);
+    spec.kind = sim::MeshKind::kLimb;
+    spec.limb = geometry::WithResolution(
+        name == "arm" ? geometry::ForearmPreset() : geometry::CalfPreset(), particles);
   } else {
-    auto m = geometry::ReadObj(name);
-    if (!m.ok()) return m.error();
-    s.mesh = std::move(*m);
+    spec.kind = sim::MeshKind::kObj;
+    spec.path = name;
   }
+  auto mesh = sim::BuildSceneMesh(spec);
+  if (!mesh.ok()) return mesh.error();
+  s.mesh = std::move(mesh->surface);
   // Limbs lie along z: press the top (+y) of the middle and hold both ends. Anything else:
   // press the top (+z) and rest the bottom fifth on a table.
+  s.fixed = sim::SupportedVertices(s.mesh, limb ? sim::Support::kEnds : sim::Support::kBottom);
   Eigen::Vector3d lo = s.mesh.positions[0], hi = lo;
   for (const auto& p : s.mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-  const double mid_z = 0.5 * (lo.z() + hi.z()), length = hi.z() - lo.z();
+  const double mid_z = 0.5 * (lo.z() + hi.z());
   double best = -1e300;
   for (int v = 0; v < s.mesh.VertexCount(); ++v) {
     const auto& p = s.mesh.positions[v];
     const double score = limb ? p.y() - 10 * std::abs(p.z() - mid_z) : p.z();
     if (score > best) best = score, s.press = v;
-    const bool support = limb ? (p.z() < lo.z() + 0.01 * length || p.z() > hi.z() - 0.01 * length)
-                              : p.z() < lo.z() + 0.2 * length;
-    if (support) s.fixed.push_back(v);
   }
   if (limb) s.direction = geometry::Vec3(0, -1, 0);
   return s;

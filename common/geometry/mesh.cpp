@@ -70,12 +70,14 @@ Status Validate(const TetMesh& mesh, double min_volume) {
   return Status::Ok();
 }
 
-Vec3 TriangleNormal(const TriMesh& mesh, int t) {
-  const Triangle& tri = mesh.triangles[t];
-  const Vec3 n = (mesh.positions[tri[1]] - mesh.positions[tri[0]])
-                     .cross(mesh.positions[tri[2]] - mesh.positions[tri[0]]);
+Vec3 TriangleNormal(const std::vector<Vec3>& x, const Triangle& t) {
+  const Vec3 n = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]);
   const double len = n.norm();
   return len > 0 ? Vec3(n / len) : Vec3::Zero();
+}
+
+Vec3 TriangleNormal(const TriMesh& mesh, int t) {
+  return TriangleNormal(mesh.positions, mesh.triangles[t]);
 }
 
 double TriangleArea(const TriMesh& mesh, int t) {

@@ -50,8 +50,10 @@ Status Validate(const TetMesh& mesh, double min_volume = 0.0);
 // Area-weighted vertex normals, unit length; an isolated vertex gets (0, 0, 0).
 void ComputeVertexNormals(TriMesh& mesh);
 
-// Unit normal of triangle t and twice its area.
+// Unit normal of triangle t (zero for a degenerate one); its area.
 Vec3 TriangleNormal(const TriMesh& mesh, int t);
+// The normal over any positions (a deformed snapshot of the mesh).
+Vec3 TriangleNormal(const std::vector<Vec3>& positions, const Triangle& t);
 double TriangleArea(const TriMesh& mesh, int t);
 
 // Compressed vertex→vertex adjacency (the one-ring), neighbours sorted ascending.

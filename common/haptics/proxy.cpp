@@ -5,10 +5,10 @@
 namespace vsurg::haptics {
 namespace {
 
+// A degenerate face still needs a direction to push along; +z is as good as any.
 Vec3 FaceNormal(const std::vector<geometry::Vec3>& x, const geometry::Triangle& t) {
-  const Vec3 n = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]);
-  const double len = n.norm();
-  return len > 0 ? Vec3(n / len) : Vec3::UnitZ();
+  const Vec3 n = geometry::TriangleNormal(x, t);
+  return n.isZero() ? Vec3(Vec3::UnitZ()) : n;
 }
 
 }  // namespace

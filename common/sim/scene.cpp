@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/geometry/obj_io.h"
+
 namespace vsurg::sim {
 namespace {
 
@@ -332,6 +334,51 @@ Expected<Scene> LoadScene(const std::string& path) {
   std::stringstream text;
   text << in.rdbuf();
   return ParseScene(text.str(), path);
+}
+
+Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec) {
+  SceneMesh out;
+  switch (spec.kind) {
+    case MeshKind::kLimb: {
+      auto limb = geometry::MakeLimb(spec.limb);
+      if (!limb.ok()) return limb.error();
+      out.surface = std::move(limb->surface);
+      out.centreline = std::move(limb->centreline);
+      break;
+    }
+    case MeshKind::kSphere: {
+      const int levels =
+          geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron, spec.particles);
+      auto sphere =
+          geometry::MakeSubdividedSphere({spec.radius, levels, geometry::SphereBase::kOctahedron});
+      if (!sphere.ok()) return sphere.error();
+      out.surface = std::move(*sphere);
+      break;
+    }
+    case MeshKind::kObj: {
+      auto mesh = geometry::ReadObj(spec.path);
+      if (!mesh.ok()) return mesh.error();
+      out.surface = std::move(*mesh);
+      break;
+    }
+  }
+  return out;
+}
+
+std::vector<int> SupportedVertices(const geometry::TriMesh& mesh, Support support) {
+  std::vector<int> fixed;
+  if (mesh.positions.empty() || support == Support::kNone) return fixed;
+  geometry::Vec3 lo = mesh.positions[0], hi = lo;
+  for (const geometry::Vec3& p : mesh.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double height = hi.z() - lo.z();
+  for (int v = 0; v < mesh.VertexCount(); ++v) {
+    const double z = mesh.positions[v].z();
+    const bool held = support == Support::kBottom
+                          ? z < lo.z() + 0.2 * height
+                          : z < lo.z() + 0.01 * height || z > hi.z() - 0.01 * height;
+    if (held) fixed.push_back(v);
+  }
+  return fixed;
 }
 
 std::string ScenesDirectory() {

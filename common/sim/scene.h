@@ -25,6 +25,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "common/core/expected.h"
 #include "common/geometry/mesh_generators.h"
@@ -91,6 +92,17 @@ struct Scene {
 
 Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
 Expected<Scene> LoadScene(const std::string& path);
+
+// A scene's mesh made concrete: the surface, and the centreline for limbs (empty otherwise).
+struct SceneMesh {
+  geometry::TriMesh surface;
+  std::vector<geometry::Vec3> centreline;
+};
+Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec);
+
+// The vertices a support holds fixed: nothing; the bottom fifth of the height (resting on a
+// table); or the ends, 1% of the length at each end of a limb lying along z.
+std::vector<int> SupportedVertices(const geometry::TriMesh& mesh, Support support);
 
 // The scenes folder: $VSURG_SCENES, else scenes/ beside the executable's ../../ (the build tree)
 // or ../share/vsurg/scenes (an install), else the source tree's scenes/ compiled in.

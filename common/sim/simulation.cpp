@@ -6,7 +6,6 @@
 #include <numbers>
 
 #include "common/geometry/distances.h"
-#include "common/geometry/obj_io.h"
 
 namespace vsurg::sim {
 
@@ -25,32 +24,10 @@ Vec3 AnyPerpendicular(const Vec3& a) {
 
 Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene,
                                                          const SimulationOptions& options) {
-  geometry::TriMesh rest;
-  std::vector<Vec3> centreline;
-  switch (scene.mesh.kind) {
-    case MeshKind::kLimb: {
-      auto limb = geometry::MakeLimb(scene.mesh.limb);
-      if (!limb.ok()) return limb.error();
-      rest = std::move(limb->surface);
-      centreline = std::move(limb->centreline);
-      break;
-    }
-    case MeshKind::kSphere: {
-      const int levels = geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
-                                                              scene.mesh.particles);
-      auto sphere = geometry::MakeSubdividedSphere(
-          {scene.mesh.radius, levels, geometry::SphereBase::kOctahedron});
-      if (!sphere.ok()) return sphere.error();
-      rest = std::move(*sphere);
-      break;
-    }
-    case MeshKind::kObj: {
-      auto mesh = geometry::ReadObj(scene.mesh.path);
-      if (!mesh.ok()) return mesh.error();
-      rest = std::move(*mesh);
-      break;
-    }
-  }
+  auto mesh = BuildSceneMesh(scene.mesh);
+  if (!mesh.ok()) return mesh.error();
+  geometry::TriMesh rest = std::move(mesh->surface);
+  std::vector<Vec3> centreline = std::move(mesh->centreline);
   std::unique_ptr<Simulation> sim(new Simulation(scene, std::move(rest), options));
   sim->centreline_points_ = std::move(centreline);
   if (Status s = sim->Build(); !s.ok()) return s.error();
@@ -94,21 +71,6 @@ Status Simulation::Build() {
                              "limb mode needs a limb mesh (with a centreline)");
     }
   } else {
-    // What the support fixes.
-    Vec3 lo = rest_.positions[0], hi = lo;
-    for (const Vec3& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    const double height = hi.z() - lo.z();
-    auto fixed = [&](const Vec3& p) {
-      switch (region.support) {
-        case Support::kNone:
-          return false;
-        case Support::kBottom:
-          return p.z() < lo.z() + 0.2 * height;
-        case Support::kEnds:
-          return p.z() < lo.z() + 0.01 * height || p.z() > hi.z() - 0.01 * height;
-      }
-      return false;
-    };
     if (region.kind == ModelKind::kMassSpring) {
       tissue::MassSpringBuildParams bp = region.mass_spring;
       bp.total_mass = mass;
@@ -120,8 +82,7 @@ Status Simulation::Build() {
       if (!model.ok()) return model.error();
       msm_ = std::make_unique<tissue::MassSpringModel>(std::move(*model));
       const int n = rest_.VertexCount();
-      for (int v = 0; v < n; ++v) {
-        if (!fixed(rest_.positions[v])) continue;
+      for (int v : SupportedVertices(rest_, region.support)) {
         msm_->SetFixed(v, true);
         if (bp.volume == tissue::VolumeMode::kInnerLayer) msm_->SetFixed(n + v, true);
       }
