@@ -135,7 +135,8 @@ TEST(VsurgSimTest, BadArgumentsExitTwoWithOneLineNamingTheArgument) {
 }
 
 TEST(VsurgSimTest, EveryCommandHasHelp) {
-  for (const char* cmd : {"coil", "coil-inverse", "deform", "calibrate", "msm", "run", "trainee"}) {
+  for (const char* cmd :
+       {"coil", "coil-inverse", "deform", "calibrate", "msm", "run", "trainee", "score"}) {
     const SimRun r = Sim({cmd, "--help"});
     EXPECT_EQ(r.code, 0);
     EXPECT_NE(r.out.find(std::string("usage: vsurg-sim ") + cmd), std::string::npos);
@@ -144,6 +145,49 @@ TEST(VsurgSimTest, EveryCommandHasHelp) {
   const SimRun top = Sim({"--help"});
   EXPECT_EQ(top.code, 0);
   EXPECT_NE(top.out.find("coil-inverse"), std::string::npos);
+}
+
+std::string WriteTemp(const std::string& name, const std::string& text) {
+  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+TEST(VsurgSimTest, ScoreReportsTheWeightedMeansAndReliability) {
+  const std::string path = WriteTemp("vsurg_cli_ratings.csv",
+                                     "evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9\n"
+                                     "a1,intern,6,6,6,6,6,6,6,6,6\n"
+                                     "b1,associate_chief,7,7,7,7,7,7,7,7,8\n"
+                                     "c1,chief,8,8,8,8,8,8,8,8,9\n"
+                                     "c2,chief,10,10,10,10,10,10,10,10,10\n");
+  const SimRun r = Sim({"score", "--input", path, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  for (const char* key : {"index_means", "index_variances", "comprehensive", "icc2k",
+                          "cronbach_alpha", "weights", "raters_per_group"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  // i1: 0.2·6 + 0.3·7 + 0.5·mean(8, 10)
+  const double m1 = 0.2 * 6 + 0.3 * 7 + 0.5 * 9;
+  EXPECT_NEAR(j["index_means"][0].get<double>(), m1, 1e-12);
+  const double s1 =
+      ((6 - m1) * (6 - m1) + (7 - m1) * (7 - m1) + (8 - m1) * (8 - m1) + (10 - m1) * (10 - m1)) / 4;
+  EXPECT_NEAR(j["index_variances"][0].get<double>(), s1, 1e-12);
+  EXPECT_EQ(j["index_means"].size(), 9u);
+  EXPECT_GT(j["cronbach_alpha"].get<double>(), 0.9);  // the raters rank the indexes alike
+
+  const std::string bad = WriteTemp("vsurg_cli_ratings_bad.csv", "a1,intern,6,6,6,6,6,6,6,6,12\n");
+  const SimRun b = Sim({"score", "--input", bad, "--json"});
+  EXPECT_EQ(b.code, 2);
+  EXPECT_EQ(Lines(b.err), 1);
+  EXPECT_NE(b.err.find("i9"), std::string::npos) << b.err;
+  EXPECT_TRUE(b.out.empty());
+  const std::string weights =
+      WriteTemp("vsurg_cli_weights.json",
+                R"({"name":"x","group":{"intern":0.5,"associate_chief":0.5,"chief":0.5},)"
+                R"("index":[0.15,0.15,0.15,0.15,0.1,0.1,0.1,0.05,0.05]})");
+  const SimRun w = Sim({"score", "--input", path, "--weights", weights});
+  EXPECT_EQ(w.code, 2);
+  EXPECT_NE(w.err.find("group_weights"), std::string::npos) << w.err;
 }
 
 TEST(VsurgSimTest, DeformWritesTheTwistedArmAndReportsEachStep) {

@@ -1,0 +1,117 @@
+#include "common/scoring/report_json.h"
+
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+namespace vsurg::scoring {
+namespace {
+
+using json = nlohmann::json;
+
+json Number(double v) {
+  return std::isfinite(v) ? json(v) : json(nullptr);
+}
+
+json Array9(const std::array<double, kIndexCount>& a) {
+  json out = json::array();
+  for (double v : a) out.push_back(Number(v));
+  return out;
+}
+
+}  // namespace
+
+json WeightSetToJson(const WeightSet& w) {
+  json group = json::object();
+  for (int g = 0; g < kGroupCount; ++g)
+    group[GroupName(static_cast<EvaluatorGroup>(g))] = w.group[g];
+  return {{"name", w.name}, {"group", group}, {"index", Array9(w.index)}};
+}
+
+Expected<WeightSet> WeightSetFromJson(const json& j) {
+  if (!j.is_object()) return InvalidArgument("weights", "must be a JSON object");
+  WeightSet w;
+  if (!j.contains("name") || !j["name"].is_string())
+    return InvalidArgument("weights.name", "a string is required");
+  w.name = j["name"].get<std::string>();
+  if (!j.contains("group") || !j["group"].is_object())
+    return InvalidArgument("weights.group", "an object {intern, associate_chief, chief}");
+  for (auto it = j["group"].begin(); it != j["group"].end(); ++it)
+    if (!ParseGroup(it.key()))
+      return InvalidArgument("weights.group." + it.key(), "unknown evaluator group");
+  for (int g = 0; g < kGroupCount; ++g) {
+    const char* name = GroupName(static_cast<EvaluatorGroup>(g));
+    if (!j["group"].contains(name) || !j["group"][name].is_number())
+      return InvalidArgument(std::string("weights.group.") + name, "a number is required");
+    w.group[g] = j["group"][name].get<double>();
+  }
+  if (!j.contains("index") || !j["index"].is_array() || j["index"].size() != kIndexCount)
+    return InvalidArgument("weights.index", "an array of 9 numbers is required");
+  for (int i = 0; i < kIndexCount; ++i) {
+    if (!j["index"][i].is_number())
+      return InvalidArgument("weights.index[" + std::to_string(i) + "]", "must be a number");
+    w.index[i] = j["index"][i].get<double>();
+  }
+  if (Status s = ValidateWeights(w); !s.ok()) {
+    Error e = s.error();
+    e.field = "weights." + e.field;
+    return e;
+  }
+  return w;
+}
+
+Expected<WeightSet> WeightSetFromJsonText(const std::string& text) {
+  json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded())
+    return Error{ErrorCode::kParseError, "weight set is not valid JSON", "weights"};
+  return WeightSetFromJson(j);
+}
+
+json ReportToJson(const EvaluationReport& r) {
+  json per_group = json::object(), used = json::object();
+  for (int g = 0; g < kGroupCount; ++g) {
+    const char* name = GroupName(static_cast<EvaluatorGroup>(g));
+    per_group[name] = r.raters_per_group[g];
+    used[name] = r.group_weights_used[g];
+  }
+  json names = json::array();
+  for (int j = 0; j < kIndexCount; ++j) names.push_back(IndexName(j));
+  return {{"raters", r.raters},
+          {"raters_per_group", per_group},
+          {"group_weights_used", used},
+          {"renormalised", r.renormalised},
+          {"absent_groups", r.absent_groups},
+          {"index_names", names},
+          {"index_means", Array9(r.index_means)},
+          {"index_variances", Array9(r.index_variances)},
+          {"comprehensive", Number(r.comprehensive)},
+          {"icc2k", Number(r.icc2k_indexes)},
+          {"icc2k_targets", "indexes"},
+          {"cronbach_alpha", Number(r.cronbach_alpha)},
+          {"weights", WeightSetToJson(r.weights)}};
+}
+
+json ComparisonToJson(const ComparisonReport& r, const std::vector<std::string>& subject_names) {
+  json subjects = json::array();
+  for (size_t s = 0; s < r.subjects.size(); ++s) {
+    json one = ReportToJson(r.subjects[s]);
+    one["subject"] = s < subject_names.size() ? subject_names[s] : "";
+    subjects.push_back(std::move(one));
+  }
+  return {{"subjects", subjects},
+          {"common_raters", r.common_raters},
+          {"icc2k_per_index", Array9(r.icc2k_per_index)}};
+}
+
+json TrainingToJson(const std::vector<TrainingCell>& cells) {
+  json out = json::array();
+  for (const TrainingCell& c : cells)
+    out.push_back({{"trainee_group", c.trainee_group},
+                   {"moment_min", c.moment_min},
+                   {"trainees", c.trainees},
+                   {"mean", Number(c.mean)},
+                   {"variance", Number(c.variance)}});
+  return out;
+}
+
+}  // namespace vsurg::scoring
