@@ -1,12 +1,13 @@
 # Shared by deploy/test.sh and deploy/demo.sh: Debian packages and the build. Source it.
 #
 # The packages the project needs today: core, tests, benchmarks, and the UDP channel (Asio from
-# Boost, protobuf, OpenSSL). Later parts (gRPC, SQLite, OpenGL) add theirs here.
+# Boost, protobuf, OpenSSL), the control plane (gRPC, SQLite). OpenGL comes with the stations.
 VSURG_PACKAGES=(
   cmake ninja-build g++
   libeigen3-dev nlohmann-json3-dev
   libgtest-dev libbenchmark-dev
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
+  libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev
 )
 
 vsurg_root() { cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd; }

@@ -18,6 +18,10 @@ enum class ErrorCode {
   kNotFound,         // a named thing does not exist (scene, session, file)
   kFailedPrecondition,  // the call is valid but not in this state (e.g. mesh has no vertices)
   kNumerical,           // a computation did not converge or produced a non-finite value
+  kAlreadyExists,       // a unique thing exists already (a user name, a second evaluation)
+  kUnavailable,         // a resource is busy or shutting down; retrying may succeed
+  kUnauthenticated,     // no valid credentials
+  kPermissionDenied,    // valid credentials, not allowed
 };
 
 struct Error {

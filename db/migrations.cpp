@@ -1,0 +1,152 @@
+#include "db/migrations.h"
+
+#include <string>
+
+#include "db/sqlite.h"
+
+namespace vsurg::db {
+
+const std::vector<const char*>& Migrations() {
+  static const std::vector<const char*> kMigrations = {
+      // 1: the initial schema.
+      R"sql(
+CREATE TABLE users (
+  id          INTEGER PRIMARY KEY,
+  name        TEXT NOT NULL UNIQUE CHECK (length(name) BETWEEN 1 AND 128),
+  role        TEXT NOT NULL CHECK (role IN ('trainee', 'instructor', 'evaluator', 'admin')),
+  created_us  INTEGER NOT NULL,
+  disabled    INTEGER NOT NULL DEFAULT 0 CHECK (disabled IN (0, 1))
+);
+CREATE TABLE tokens (
+  id          INTEGER PRIMARY KEY,
+  user_id     INTEGER NOT NULL REFERENCES users(id) ON DELETE CASCADE,
+  hash        BLOB NOT NULL UNIQUE CHECK (length(hash) = 32),
+  label       TEXT NOT NULL DEFAULT '',
+  created_us  INTEGER NOT NULL,
+  revoked     INTEGER NOT NULL DEFAULT 0 CHECK (revoked IN (0, 1))
+);
+CREATE TABLE trainees (
+  id            INTEGER PRIMARY KEY,
+  name          TEXT NOT NULL UNIQUE,
+  trainee_group TEXT NOT NULL DEFAULT '',
+  user_id       INTEGER UNIQUE REFERENCES users(id)
+);
+CREATE TABLE evaluators (
+  id              INTEGER PRIMARY KEY,
+  name            TEXT NOT NULL UNIQUE,
+  evaluator_group TEXT NOT NULL CHECK (evaluator_group IN ('intern', 'associate_chief', 'chief')),
+  user_id         INTEGER UNIQUE REFERENCES users(id)
+);
+CREATE TABLE scenes (
+  name        TEXT PRIMARY KEY,
+  first_used_us INTEGER NOT NULL
+);
+CREATE TABLE sessions (
+  id          INTEGER PRIMARY KEY,
+  trainee_id  INTEGER NOT NULL REFERENCES trainees(id),
+  scene       TEXT NOT NULL REFERENCES scenes(name),
+  state       TEXT NOT NULL CHECK (state IN ('created', 'running', 'stalled', 'ended',
+                                             'disconnected', 'aborted')),
+  created_us  INTEGER NOT NULL,
+  started_us  INTEGER,
+  ended_us    INTEGER,
+  end_reason  TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX sessions_by_trainee ON sessions(trainee_id);
+CREATE TABLE trial_metrics (
+  session_id              INTEGER PRIMARY KEY REFERENCES sessions(id),
+  completed               INTEGER NOT NULL,
+  completion_time_s       REAL NOT NULL,
+  task_error              REAL NOT NULL,
+  peak_force_n            REAL NOT NULL,
+  time_over_force_limit_s REAL NOT NULL,
+  path_length_m           REAL NOT NULL,
+  rms_jerk                REAL NOT NULL,
+  overload_events         INTEGER NOT NULL,
+  duration_s              REAL NOT NULL,
+  score                   REAL NOT NULL CHECK (score BETWEEN 0 AND 10),
+  raw_score               REAL NOT NULL,
+  caps                    INTEGER NOT NULL,
+  recorded_us             INTEGER NOT NULL
+);
+CREATE TABLE training_moments (
+  id          INTEGER PRIMARY KEY,
+  trainee_id  INTEGER NOT NULL REFERENCES trainees(id),
+  moment_min  REAL NOT NULL CHECK (moment_min >= 0),
+  session_id  INTEGER REFERENCES sessions(id),
+  recorded_us INTEGER NOT NULL,
+  UNIQUE (trainee_id, moment_min)
+);
+CREATE TABLE submissions (
+  id              INTEGER PRIMARY KEY,
+  idempotency_key TEXT NOT NULL UNIQUE CHECK (length(idempotency_key) BETWEEN 1 AND 128),
+  evaluator_id    INTEGER NOT NULL REFERENCES evaluators(id),
+  evaluator_group TEXT NOT NULL CHECK (evaluator_group IN ('intern', 'associate_chief', 'chief')),
+  subject_kind    TEXT NOT NULL CHECK (subject_kind IN ('session', 'trainee', 'model')),
+  subject         TEXT NOT NULL CHECK (length(subject) BETWEEN 1 AND 256),
+  moment_min      REAL CHECK (moment_min IS NULL OR moment_min >= 0),
+  submitted_us    INTEGER NOT NULL,
+  submitted_by    INTEGER NOT NULL REFERENCES users(id)
+);
+CREATE UNIQUE INDEX one_submission_per_rater
+  ON submissions(evaluator_id, subject_kind, subject, ifnull(moment_min, -1));
+CREATE INDEX submissions_by_time ON submissions(submitted_us);
+CREATE INDEX submissions_by_subject ON submissions(subject_kind, subject);
+-- One row per evaluator per subject per index: the raw scores.
+CREATE TABLE evaluations (
+  submission_id INTEGER NOT NULL REFERENCES submissions(id) ON DELETE CASCADE,
+  index_no      INTEGER NOT NULL CHECK (index_no BETWEEN 1 AND 9),
+  score         REAL NOT NULL CHECK (score BETWEEN 0 AND 10),
+  PRIMARY KEY (submission_id, index_no)
+) WITHOUT ROWID;
+CREATE TABLE weight_sets (
+  name        TEXT PRIMARY KEY,
+  json        TEXT NOT NULL CHECK (json_valid(json)),
+  created_us  INTEGER NOT NULL
+);
+CREATE TABLE reports (
+  id           INTEGER PRIMARY KEY,
+  subject_kind TEXT NOT NULL,
+  subject      TEXT NOT NULL,
+  weights_json TEXT NOT NULL CHECK (json_valid(weights_json)),
+  report_json  TEXT NOT NULL CHECK (json_valid(report_json)),
+  created_us   INTEGER NOT NULL
+);
+)sql",
+  };
+  return kMigrations;
+}
+
+Status Migrate(Connection& c) {
+  auto version_stmt = c.Prepare("PRAGMA user_version");
+  if (!version_stmt.ok()) return version_stmt.error();
+  auto row = (*version_stmt)->Step();
+  if (!row.ok()) return row.error();
+  const int64_t version = (*version_stmt)->Int(0);
+  (*version_stmt)->Reset();
+  const auto& migrations = Migrations();
+  if (version > static_cast<int64_t>(migrations.size()))
+    return Error{ErrorCode::kFailedPrecondition,
+                 "the database is at schema version " + std::to_string(version) +
+                     ", newer than this binary's " + std::to_string(migrations.size()) +
+                     "; use a newer vsurg",
+                 "user_version"};
+  for (size_t v = static_cast<size_t>(version); v < migrations.size(); ++v) {
+    if (Status s = c.Exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+    Status s = c.Exec(migrations[v]);
+    if (s.ok()) {
+      // PRAGMA takes no bound values; the number is ours, not input.
+      const std::string bump = "PRAGMA user_version=" + std::to_string(v + 1);
+      s = c.Exec(bump.c_str());
+    }
+    if (s.ok()) s = c.Exec("COMMIT");
+    if (!s.ok()) {
+      (void)c.Exec("ROLLBACK");
+      return Error{s.error().code, "migration " + std::to_string(v + 1) + ": " + s.error().message,
+                   "user_version"};
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace vsurg::db

@@ -1,0 +1,150 @@
+#include "db/sqlite.h"
+
+#include <sqlite3.h>
+
+namespace vsurg::db {
+
+Error SqliteError(sqlite3* db, int rc, std::string_view what) {
+  const int primary = rc & 0xff;
+  std::string message = std::string(what) + ": " + (db ? sqlite3_errmsg(db) : sqlite3_errstr(rc));
+  ErrorCode code = ErrorCode::kIoError;
+  if (rc == SQLITE_CONSTRAINT_UNIQUE || rc == SQLITE_CONSTRAINT_PRIMARYKEY) {
+    code = ErrorCode::kAlreadyExists;
+  } else if (primary == SQLITE_CONSTRAINT) {
+    code = ErrorCode::kInvalidArgument;
+  } else if (primary == SQLITE_BUSY || primary == SQLITE_LOCKED) {
+    code = ErrorCode::kUnavailable;
+  }
+  return Error{code, std::move(message), ""};
+}
+
+Statement::~Statement() {
+  if (stmt_) sqlite3_finalize(stmt_);
+}
+
+Statement& Statement::operator=(Statement&& o) noexcept {
+  if (this != &o) {
+    if (stmt_) sqlite3_finalize(stmt_);
+    db_ = o.db_;
+    stmt_ = o.stmt_;
+    o.stmt_ = nullptr;
+  }
+  return *this;
+}
+
+Statement& Statement::Bind(int i, int64_t v) {
+  sqlite3_bind_int64(stmt_, i, v);
+  return *this;
+}
+Statement& Statement::Bind(int i, double v) {
+  sqlite3_bind_double(stmt_, i, v);
+  return *this;
+}
+Statement& Statement::Bind(int i, std::string_view v) {
+  sqlite3_bind_text(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
+  return *this;
+}
+Statement& Statement::BindBlob(int i, const void* data, int size) {
+  sqlite3_bind_blob(stmt_, i, data, size, SQLITE_TRANSIENT);
+  return *this;
+}
+Statement& Statement::BindNull(int i) {
+  sqlite3_bind_null(stmt_, i);
+  return *this;
+}
+
+Expected<bool> Statement::Step() {
+  const int rc = sqlite3_step(stmt_);
+  if (rc == SQLITE_ROW) return true;
+  if (rc == SQLITE_DONE) return false;
+  Error e = SqliteError(db_, rc, "step");
+  sqlite3_reset(stmt_);
+  return e;
+}
+
+Status Statement::Run() {
+  auto r = Step();
+  Reset();
+  if (!r.ok()) return r.error();
+  return Status::Ok();
+}
+
+void Statement::Reset() {
+  sqlite3_reset(stmt_);
+  sqlite3_clear_bindings(stmt_);
+}
+
+int64_t Statement::Int(int col) const {
+  return sqlite3_column_int64(stmt_, col);
+}
+double Statement::Double(int col) const {
+  return sqlite3_column_double(stmt_, col);
+}
+bool Statement::IsNull(int col) const {
+  return sqlite3_column_type(stmt_, col) == SQLITE_NULL;
+}
+std::string_view Statement::Text(int col) const {
+  const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, col));
+  return p ? std::string_view(p, static_cast<size_t>(sqlite3_column_bytes(stmt_, col)))
+           : std::string_view();
+}
+
+Expected<std::unique_ptr<Connection>> Connection::Open(const std::string& path, Mode mode,
+                                                       int busy_timeout_ms) {
+  sqlite3* db = nullptr;
+  const int flags = (mode == Mode::kReadWrite ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE
+                                              : SQLITE_OPEN_READONLY) |
+                    SQLITE_OPEN_NOMUTEX;
+  const int rc = sqlite3_open_v2(path.c_str(), &db, flags, nullptr);
+  if (rc != SQLITE_OK) {
+    Error e = SqliteError(db, rc, "open " + path);
+    sqlite3_close(db);
+    return e;
+  }
+  std::unique_ptr<Connection> c(new Connection(db));
+  sqlite3_busy_timeout(db, busy_timeout_ms);
+  sqlite3_extended_result_codes(db, 1);
+  // WAL: readers never block the writer; FULL: a commit is on disk (WAL fsync) before it
+  // returns, so nothing acknowledged is lost on a crash or power cut.
+  for (const char* pragma : {"PRAGMA foreign_keys=ON", "PRAGMA synchronous=FULL"})
+    if (Status s = c->Exec(pragma); !s.ok()) return s.error();
+  if (mode == Mode::kReadWrite) {
+    if (Status s = c->Exec("PRAGMA journal_mode=WAL"); !s.ok()) return s.error();
+  }
+  return c;
+}
+
+Connection::~Connection() {
+  cache_.clear();  // statements finalised before the close
+  sqlite3_close(db_);
+}
+
+Expected<Statement*> Connection::Prepare(const std::string& sql) {
+  if (auto it = cache_.find(sql); it != cache_.end()) return &it->second;
+  sqlite3_stmt* stmt = nullptr;
+  const int rc = sqlite3_prepare_v3(db_, sql.c_str(), static_cast<int>(sql.size()),
+                                    SQLITE_PREPARE_PERSISTENT, &stmt, nullptr);
+  if (rc != SQLITE_OK) return SqliteError(db_, rc, "prepare");
+  auto [it, added] = cache_.emplace(sql, Statement(db_, stmt));
+  return &it->second;
+}
+
+Status Connection::Exec(const char* sql) {
+  char* message = nullptr;
+  const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &message);
+  if (rc != SQLITE_OK) {
+    Error e = SqliteError(db_, rc, sql);
+    sqlite3_free(message);
+    return e;
+  }
+  return Status::Ok();
+}
+
+int64_t Connection::LastInsertId() const {
+  return sqlite3_last_insert_rowid(db_);
+}
+int Connection::Changes() const {
+  return sqlite3_changes(db_);
+}
+
+}  // namespace vsurg::db

@@ -1,0 +1,201 @@
+// The SQLite evaluation store (DESIGN.md "Storage"): users and token hashes, trainees and
+// evaluators with their groups, scenes, sessions, trial metrics, evaluations, training moments,
+// weight sets and recorded reports. Knows nothing of physics or of the network.
+//
+// Design notes
+//  1. One file, WAL, synchronous=FULL, foreign keys on, busy timeout. Schema changes are
+//     forward-only migrations numbered by PRAGMA user_version (db/migrations.cpp); a file newer
+//     than this binary is refused, never "downgraded".
+//  2. One writer thread owns the only read-write connection. Every write is a job; the writer
+//     takes all queued jobs (up to max_batch), runs them inside one BEGIN IMMEDIATE transaction,
+//     each inside its own SAVEPOINT (a failing job rolls back alone: nothing partly written),
+//     then COMMITs once — group commit: one fsync for the whole batch. A job's completion is
+//     reported only after that COMMIT returned, so an acknowledged write is durable.
+//  3. Reads use a small pool of read-only connections (WAL: they never block the writer and see
+//     the last committed state).
+//  4. Only prepared statements with bound values; no SQL text is built from input.
+//  5. Tokens are 256-bit random secrets; only their SHA-256 is stored. (A slow password hash
+//     buys nothing for secrets this long, and authentication stays a single indexed lookup.)
+//  6. Times are integers, microseconds since the Unix epoch, UTC; exports print ISO-8601.
+//
+// Thread safety: every public member may be called from any thread.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/core/expected.h"
+
+namespace vsurg::db {
+
+enum class Role { kTrainee, kInstructor, kEvaluator, kAdmin };
+const char* RoleName(Role r);
+std::optional<Role> ParseRole(std::string_view name);
+
+inline constexpr int kIndexes = 9;
+
+struct UserRecord {
+  int64_t id = 0;
+  std::string name;
+  Role role = Role::kTrainee;
+  std::string group;  // trainee group, or evaluator group (intern, associate_chief, chief)
+  int64_t created_us = 0;
+  bool disabled = false;
+};
+
+struct Principal {  // who a token belongs to
+  int64_t user_id = 0;
+  std::string name;
+  Role role = Role::kTrainee;
+  std::string group;
+};
+
+struct SessionRecord {
+  int64_t id = 0;
+  std::string trainee;
+  std::string scene;
+  std::string state;  // created, running, stalled, ended, disconnected, aborted
+  int64_t created_us = 0, started_us = 0, ended_us = 0;
+  std::string end_reason;
+};
+
+// Trial metrics as the scoring loop reports them (units as in common/scoring/trial_metrics.h).
+struct TrialMetricsRecord {
+  bool completed = false;
+  double completion_time_s = 0, task_error = 0, peak_force_n = 0, time_over_force_limit_s = 0,
+         path_length_m = 0, rms_jerk = 0, duration_s = 0, score = 0, raw_score = 0;
+  int overload_events = 0;
+  uint32_t caps = 0;
+};
+
+enum class SubjectKind { kSession, kTrainee, kModel };
+const char* SubjectKindName(SubjectKind k);
+std::optional<SubjectKind> ParseSubjectKind(std::string_view name);
+
+struct Submission {
+  std::string idempotency_key;  // the client's; a retry with the same key is not a second row
+  std::string evaluator;
+  std::string evaluator_group;  // intern, associate_chief, chief
+  SubjectKind subject_kind = SubjectKind::kSession;
+  std::string subject;               // session id, trainee name, or simulator model name
+  std::optional<double> moment_min;  // training moment (trainee subjects), minutes
+  std::array<double, kIndexes> scores{};
+  std::string submitted_by;  // the user who sent it (the evaluator, or an admin importing)
+};
+
+struct SubmitResult {
+  int64_t submission_id = 0;
+  int64_t submitted_us = 0;
+  bool duplicate = false;  // the idempotency key was seen: this is the original's result
+};
+
+struct RatingRow {  // one evaluator's nine scores on one subject
+  std::string evaluator;
+  std::string evaluator_group;
+  std::optional<double> moment_min;
+  std::array<double, kIndexes> scores{};
+};
+
+struct ExportFilter {
+  std::optional<int64_t> from_us = std::nullopt;  // submitted in [from, to)
+  std::optional<int64_t> to_us = std::nullopt;
+  std::optional<std::string> trainee = std::nullopt;  // trainee subjects, and their sessions
+  std::optional<int64_t> session = std::nullopt;
+};
+enum class ExportFormat { kCsv, kJsonLines, kXapi };
+std::optional<ExportFormat> ParseExportFormat(std::string_view name);
+
+struct StoreOptions {
+  std::string path = "";
+  int max_batch = 1024;      // jobs per group commit
+  int read_connections = 4;  // pool size
+  int busy_timeout_ms = 5000;
+};
+
+struct StoreStats {
+  uint64_t commits = 0;
+  uint64_t jobs = 0;
+  uint64_t failed_jobs = 0;
+};
+
+class Connection;
+
+class Store {
+ public:
+  // Opens or creates the file and migrates it to the current schema.
+  static Expected<std::unique_ptr<Store>> Open(const StoreOptions& options);
+  ~Store();  // finishes the queued writes, then closes
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  static int SchemaVersion();  // the user_version this binary migrates to
+
+  // --- Writes (through the writer thread; durable when they return or call back) ---
+  // A write job runs on the writer thread inside its own savepoint. Its Status decides whether
+  // the savepoint is kept.
+  using Job = std::function<Status(Connection&)>;
+  Status Write(Job job);
+  void WriteAsync(Job job, std::function<void(Status)> done);
+
+  Expected<UserRecord> CreateUser(const std::string& name, Role role, const std::string& group);
+  Status SetUserDisabled(const std::string& name, bool disabled);
+  // A new token for the user; the plain token is returned once and never stored.
+  Expected<std::string> IssueToken(const std::string& user, const std::string& label);
+  Status RevokeTokens(const std::string& user);
+  // `vsurg-admin init`: creates the first admin and a token; fails when any admin exists.
+  Expected<std::string> InitAdmin(const std::string& name);
+
+  Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene);
+  Status SetSessionState(int64_t id, const std::string& state, int64_t at_us,
+                         const std::string& reason = "");
+  Status RecordTrialMetrics(int64_t session_id, const TrialMetricsRecord& m);
+  Status RecordTrainingMoment(const std::string& trainee, double moment_min,
+                              std::optional<int64_t> session_id);
+
+  // Validates (scores 0–10 and finite, group, subject exists, evaluator's group) and stores one
+  // row per index. The same idempotency key again → the first result with duplicate = true; the
+  // same evaluator on the same subject and moment with another key → kAlreadyExists.
+  Expected<SubmitResult> SubmitEvaluation(const Submission& s);
+  void SubmitEvaluationAsync(Submission s, std::function<void(Expected<SubmitResult>)> done);
+
+  Status PutWeightSet(const std::string& name, const std::string& json);
+  Status RecordReport(const std::string& subject_kind, const std::string& subject,
+                      const std::string& weights_json, const std::string& report_json);
+
+  // --- Reads (pooled read-only connections) ---
+  Expected<Principal> Authenticate(std::string_view token);
+  Expected<std::vector<UserRecord>> ListUsers();
+  Expected<SessionRecord> GetSession(int64_t id);
+  Expected<std::vector<SessionRecord>> ListSessions(const std::optional<std::string>& trainee);
+  Expected<std::optional<TrialMetricsRecord>> GetTrialMetrics(int64_t session_id);
+  Expected<std::string> GetWeightSet(const std::string& name);  // JSON; kNotFound
+  Expected<std::vector<std::string>> ListWeightSets();
+  Expected<std::vector<RatingRow>> LoadRatings(SubjectKind kind, const std::string& subject);
+  Expected<int64_t> CountEvaluationRows();
+  // Streams one line per stored score (CSV with a header, JSON lines) or one xAPI statement
+  // per submission (JSON lines) to `sink` in chunks; `sink` returning false stops the export.
+  Status Export(const ExportFilter& filter, ExportFormat format,
+                const std::function<bool(std::string_view)>& sink);
+  // Online backup to a new file (the store stays usable meanwhile).
+  Status Backup(const std::string& destination);
+  Expected<std::string> IntegrityCheck();  // "ok" when sound
+
+  StoreStats stats() const;
+
+ private:
+  struct Impl;
+  explicit Store(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// Helpers shared with the exporters and the tests.
+std::string IsoTimeUtc(int64_t us);  // 2026-11-21T23:59:01.123456Z
+int64_t NowUs();
+
+}  // namespace vsurg::db

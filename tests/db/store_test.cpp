@@ -1,0 +1,357 @@
+#include "db/store.h"
+
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/core/csv.h"
+#include "db/sqlite.h"
+
+namespace vsurg::db {
+namespace {
+
+namespace fs = std::filesystem;
+
+class StoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("vsurg_store_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    path_ = (dir_ / "vsurg.db").string();
+    auto s = Store::Open({.path = path_});
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    store_ = std::move(s).value();
+  }
+  void TearDown() override {
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+
+  Submission Valid(const std::string& key, const std::string& evaluator = "dr-a",
+                   const std::string& subject = "coil-spring") {
+    Submission s;
+    s.idempotency_key = key;
+    s.evaluator = evaluator;
+    s.evaluator_group = "chief";
+    s.subject_kind = SubjectKind::kModel;
+    s.subject = subject;
+    s.scores = {8, 7, 9, 8, 7, 8, 9, 6, 7};
+    s.submitted_by = "root";
+    return s;
+  }
+
+  int64_t Rows() { return store_->CountEvaluationRows().value(); }
+
+  fs::path dir_;
+  std::string path_;
+  std::unique_ptr<Store> store_;
+};
+
+int64_t PragmaInt(Connection& c, const char* pragma) {
+  auto st = c.Prepare(pragma);
+  EXPECT_TRUE(st.ok());
+  EXPECT_TRUE((*st)->Step().value());
+  const int64_t v = (*st)->Int(0);
+  (*st)->Reset();
+  return v;
+}
+
+TEST_F(StoreTest, OpensWithWalFullSyncForeignKeysAndTheCurrentSchema) {
+  int64_t sync = -1, fk = -1, version = -1;
+  std::string mode;
+  ASSERT_TRUE(store_
+                  ->Write([&](Connection& c) {
+                    sync = PragmaInt(c, "PRAGMA synchronous");
+                    fk = PragmaInt(c, "PRAGMA foreign_keys");
+                    version = PragmaInt(c, "PRAGMA user_version");
+                    auto st = c.Prepare("PRAGMA journal_mode");
+                    EXPECT_TRUE((*st)->Step().value());
+                    mode = (*st)->String(0);
+                    (*st)->Reset();
+                    return Status::Ok();
+                  })
+                  .ok());
+  EXPECT_EQ(sync, 2);  // FULL
+  EXPECT_EQ(fk, 1);
+  EXPECT_EQ(mode, "wal");
+  EXPECT_EQ(version, Store::SchemaVersion());
+  EXPECT_EQ(store_->IntegrityCheck().value(), "ok");
+}
+
+TEST_F(StoreTest, ReopeningKeepsDataAndAFileFromTheFutureIsRefused) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  store_.reset();
+  auto again = Store::Open({.path = path_});
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ((*again)->ListUsers().value().size(), 1u);
+  again->reset();
+
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path_.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version=99", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  auto future = Store::Open({.path = path_});
+  ASSERT_FALSE(future.ok());
+  EXPECT_NE(future.error().message.find("newer than this binary"), std::string::npos);
+}
+
+TEST_F(StoreTest, TokensAreStoredHashedAndAuthenticateToTheirUser) {
+  auto admin = store_->InitAdmin("root");
+  ASSERT_TRUE(admin.ok()) << admin.error().message;
+  EXPECT_EQ(store_->InitAdmin("root2").error().code, ErrorCode::kAlreadyExists);
+  ASSERT_TRUE(store_->CreateUser("dr-a", Role::kEvaluator, "chief").ok());
+  EXPECT_EQ(store_->CreateUser("dr-a", Role::kEvaluator, "chief").error().code,
+            ErrorCode::kAlreadyExists);
+  EXPECT_EQ(store_->CreateUser("dr-b", Role::kEvaluator, "resident").error().field, "group");
+  auto token = store_->IssueToken("dr-a", "laptop");
+  ASSERT_TRUE(token.ok());
+
+  auto p = store_->Authenticate(*token);
+  ASSERT_TRUE(p.ok()) << p.error().message;
+  EXPECT_EQ(p->name, "dr-a");
+  EXPECT_EQ(p->role, Role::kEvaluator);
+  EXPECT_EQ(p->group, "chief");
+  EXPECT_EQ(store_->Authenticate(*admin)->role, Role::kAdmin);
+  EXPECT_EQ(store_->Authenticate("vst_00000000000000000000").error().code,
+            ErrorCode::kUnauthenticated);
+  EXPECT_EQ(store_->Authenticate("").error().code, ErrorCode::kUnauthenticated);
+
+  // The secret itself is nowhere in the file (or its WAL).
+  store_.reset();
+  for (const char* suffix : {"", "-wal"}) {
+    std::ifstream in(path_ + suffix, std::ios::binary);
+    std::stringstream bytes;
+    bytes << in.rdbuf();
+    EXPECT_EQ(bytes.str().find(token->substr(4)), std::string::npos) << suffix;
+  }
+  store_ = std::move(Store::Open({.path = path_})).value();
+  ASSERT_TRUE(store_->RevokeTokens("dr-a").ok());
+  EXPECT_EQ(store_->Authenticate(*token).error().code, ErrorCode::kUnauthenticated);
+  ASSERT_TRUE(store_->SetUserDisabled("root", true).ok());
+  EXPECT_EQ(store_->Authenticate(*admin).error().code, ErrorCode::kUnauthenticated);
+}
+
+TEST_F(StoreTest, ASubmissionIsNineRawRowsAndARetryIsNotASecond) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  auto r = store_->SubmitEvaluation(Valid("k1"));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_FALSE(r->duplicate);
+  EXPECT_EQ(Rows(), 9);
+  auto again = store_->SubmitEvaluation(Valid("k1"));
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again->duplicate);
+  EXPECT_EQ(again->submission_id, r->submission_id);
+  EXPECT_EQ(Rows(), 9);
+  // The same rater on the same subject under another key is a second opinion: refused.
+  auto second = store_->SubmitEvaluation(Valid("k2"));
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.error().code, ErrorCode::kAlreadyExists);
+  // A key reused for a different submission is refused, not silently matched.
+  auto reused = store_->SubmitEvaluation(Valid("k1", "dr-b"));
+  ASSERT_FALSE(reused.ok());
+  EXPECT_EQ(reused.error().field, "idempotency_key");
+  auto ratings = store_->LoadRatings(SubjectKind::kModel, "coil-spring");
+  ASSERT_TRUE(ratings.ok());
+  ASSERT_EQ(ratings->size(), 1u);
+  EXPECT_EQ((*ratings)[0].scores[2], 9);
+  EXPECT_EQ((*ratings)[0].evaluator_group, "chief");
+}
+
+TEST_F(StoreTest, BadSubmissionsWriteNothing) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  Submission s = Valid("bad1");
+  s.scores[4] = 10.01;
+  EXPECT_EQ(store_->SubmitEvaluation(s).error().field, "scores[4]");
+  s = Valid("bad2");
+  s.scores[0] = std::nan("");
+  EXPECT_FALSE(store_->SubmitEvaluation(s).ok());
+  s = Valid("bad3");
+  s.evaluator_group = "resident";
+  EXPECT_EQ(store_->SubmitEvaluation(s).error().field, "evaluator_group");
+  s = Valid("bad4");
+  s.subject_kind = SubjectKind::kSession;
+  s.subject = "4711";
+  EXPECT_EQ(store_->SubmitEvaluation(s).error().code, ErrorCode::kNotFound);
+  s.subject = "12; DROP TABLE evaluations";
+  EXPECT_EQ(store_->SubmitEvaluation(s).error().code, ErrorCode::kInvalidArgument);
+  s = Valid("bad5");
+  s.subject_kind = SubjectKind::kTrainee;
+  s.subject = "nobody";
+  EXPECT_EQ(store_->SubmitEvaluation(s).error().code, ErrorCode::kNotFound);
+  EXPECT_EQ(Rows(), 0);
+  // The evaluator keeps one group: a later row claiming another is refused.
+  ASSERT_TRUE(store_->SubmitEvaluation(Valid("ok")).ok());
+  s = Valid("bad6", "dr-a", "msm");
+  s.evaluator_group = "intern";
+  EXPECT_EQ(store_->SubmitEvaluation(s).error().field, "evaluator_group");
+  EXPECT_EQ(Rows(), 9);
+  EXPECT_EQ(store_->IntegrityCheck().value(), "ok");
+}
+
+TEST_F(StoreTest, GroupCommitBatchesABurstAndAFailedJobRollsBackAlone) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  constexpr int kN = 600;
+  std::atomic<int> ok{0}, failed{0};
+  std::promise<void> all;
+  std::atomic<int> left{kN};
+  for (int i = 0; i < kN; ++i) {
+    Submission s = Valid("burst-" + std::to_string(i), "dr-" + std::to_string(i));
+    if (i % 10 == 3) s.subject_kind = SubjectKind::kSession, s.subject = "999";  // no session
+    store_->SubmitEvaluationAsync(s, [&](Expected<SubmitResult> r) {
+      (r.ok() ? ok : failed).fetch_add(1);
+      if (left.fetch_sub(1) == 1) all.set_value();
+    });
+  }
+  all.get_future().wait();
+  EXPECT_EQ(ok.load(), kN - kN / 10);
+  EXPECT_EQ(failed.load(), kN / 10);
+  EXPECT_EQ(Rows(), 9 * (kN - kN / 10));
+  const StoreStats st = store_->stats();
+  EXPECT_LT(st.commits, st.jobs / 4) << "a burst should share commits";
+}
+
+TEST_F(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
+  auto s = store_->CreateSession("trainee-1", "arm-torsion");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  ASSERT_TRUE(store_->SetSessionState(s->id, "running", 100).ok());
+  ASSERT_TRUE(store_->SetSessionState(s->id, "ended", 200, "stopped by trainee").ok());
+  EXPECT_EQ(store_->SetSessionState(s->id, "exploded", 300).error().code,
+            ErrorCode::kInvalidArgument);
+  EXPECT_EQ(store_->SetSessionState(777, "ended", 300).error().code, ErrorCode::kNotFound);
+  TrialMetricsRecord m;
+  m.completed = true;
+  m.score = 8.5;
+  m.peak_force_n = 2.5;
+  ASSERT_TRUE(store_->RecordTrialMetrics(s->id, m).ok());
+  auto got = store_->GetSession(s->id);
+  ASSERT_TRUE(got.ok());
+  EXPECT_EQ(got->state, "ended");
+  EXPECT_EQ(got->started_us, 100);
+  EXPECT_EQ(got->ended_us, 200);
+  EXPECT_EQ(got->end_reason, "stopped by trainee");
+  EXPECT_EQ(store_->GetTrialMetrics(s->id).value()->score, 8.5);
+  EXPECT_EQ(store_->ListSessions(std::string("trainee-1")).value().size(), 1u);
+  EXPECT_EQ(store_->ListSessions(std::string("someone")).value().size(), 0u);
+  ASSERT_TRUE(store_->RecordTrainingMoment("trainee-1", 20, s->id).ok());
+  EXPECT_FALSE(store_->RecordTrainingMoment("trainee-1", 20, s->id).ok());  // once per moment
+}
+
+TEST_F(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  auto session = store_->CreateSession("trainee-1", "arm-torsion");
+  Submission s = Valid("e1", "=HYPERLINK(\"http://evil\")");
+  s.subject_kind = SubjectKind::kSession;
+  s.subject = std::to_string(session->id);
+  ASSERT_TRUE(store_->SubmitEvaluation(s).ok());
+  ASSERT_TRUE(store_->SubmitEvaluation(Valid("e2", "dr, comma", "msm")).ok());
+  std::string out;
+  ASSERT_TRUE(store_
+                  ->Export({}, ExportFormat::kCsv,
+                           [&](std::string_view chunk) {
+                             out.append(chunk);
+                             return true;
+                           })
+                  .ok());
+  auto rows = csv::Parse(out, "export");
+  ASSERT_TRUE(rows.ok()) << rows.error().message;
+  ASSERT_EQ(rows->size(), 1u + 18u);
+  EXPECT_EQ((*rows)[0].fields[0], "submission_id");
+  const auto& first = (*rows)[1].fields;
+  ASSERT_EQ(first.size(), 11u);
+  EXPECT_EQ(first[2], "'=HYPERLINK(\"http://evil\")");
+  EXPECT_EQ(first[6], "trainee-1");  // the session's trainee
+  EXPECT_EQ(first[9], "effectiveness");
+  EXPECT_EQ(first[10], "8");
+  EXPECT_EQ(first[1].size(), 27u);  // 2026-11-21T23:59:01.123456Z
+  EXPECT_EQ(first[1].back(), 'Z');
+  EXPECT_EQ((*rows)[10].fields[2], "dr, comma");
+
+  // Filters: by session, by trainee, by time.
+  auto count = [&](const ExportFilter& f) {
+    int lines = 0;
+    EXPECT_TRUE(store_
+                    ->Export(f, ExportFormat::kJsonLines,
+                             [&](std::string_view chunk) {
+                               for (char c : chunk) lines += c == '\n';
+                               return true;
+                             })
+                    .ok());
+    return lines;
+  };
+  EXPECT_EQ(count({}), 18);
+  EXPECT_EQ(count({.session = session->id}), 9);
+  EXPECT_EQ(count({.trainee = std::string("trainee-1")}), 9);
+  EXPECT_EQ(count({.trainee = std::string("nobody")}), 0);
+  EXPECT_EQ(count({.from_us = NowUs() + 1000000}), 0);
+  EXPECT_EQ(count({.to_us = NowUs() + 1000000}), 18);
+}
+
+TEST_F(StoreTest, JsonLinesAndXapiParse) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  ASSERT_TRUE(store_->SubmitEvaluation(Valid("e1", "dr \"quoted\"\n")).ok());
+  for (ExportFormat f : {ExportFormat::kJsonLines, ExportFormat::kXapi}) {
+    std::string out;
+    ASSERT_TRUE(store_
+                    ->Export({}, f,
+                             [&](std::string_view c) {
+                               out.append(c);
+                               return true;
+                             })
+                    .ok());
+    std::istringstream lines(out);
+    std::string line;
+    int n = 0;
+    while (std::getline(lines, line)) {
+      const auto j = nlohmann::json::parse(line);
+      if (f == ExportFormat::kXapi) {
+        EXPECT_EQ(j["verb"]["id"], "http://adlnet.gov/expapi/verbs/scored");
+        EXPECT_EQ(j["actor"]["account"]["name"], "dr \"quoted\"\n");
+        EXPECT_NEAR(j["result"]["score"]["raw"].get<double>(), 69.0 / 9, 1e-12);
+        EXPECT_EQ(j["result"]["extensions"]["urn:vsurg:index-scores"].size(), 9u);
+      } else {
+        EXPECT_EQ(j["evaluator"], "dr \"quoted\"\n");
+      }
+      ++n;
+    }
+    EXPECT_EQ(n, f == ExportFormat::kXapi ? 1 : 9);
+  }
+}
+
+TEST_F(StoreTest, OnlineBackupIsACompleteSoundCopy) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  for (int i = 0; i < 50; ++i)
+    ASSERT_TRUE(
+        store_->SubmitEvaluation(Valid("b" + std::to_string(i), "dr-" + std::to_string(i))).ok());
+  const std::string copy = (dir_ / "backup.db").string();
+  ASSERT_TRUE(store_->Backup(copy).ok());
+  auto b = Store::Open({.path = copy});
+  ASSERT_TRUE(b.ok()) << b.error().message;
+  EXPECT_EQ((*b)->CountEvaluationRows().value(), 450);
+  EXPECT_EQ((*b)->IntegrityCheck().value(), "ok");
+  EXPECT_FALSE(store_->Backup((dir_ / "no/such/dir/x.db").string()).ok());
+}
+
+TEST_F(StoreTest, WeightSetsAndReportsAreKept) {
+  const std::string w =
+      R"({"name":"equal","group":{"intern":0.34,"associate_chief":0.33,"chief":0.33},"index":[0.2,0.1,0.1,0.1,0.1,0.1,0.1,0.1,0.1]})";
+  ASSERT_TRUE(store_->PutWeightSet("equal", w).ok());
+  EXPECT_EQ(store_->GetWeightSet("equal").value(), w);
+  EXPECT_EQ(store_->GetWeightSet("nope").error().code, ErrorCode::kNotFound);
+  EXPECT_FALSE(store_->PutWeightSet("broken", "{not json").ok());
+  EXPECT_EQ(store_->ListWeightSets().value(), std::vector<std::string>{"equal"});
+  EXPECT_TRUE(store_->RecordReport("model", "coil", w, R"({"comprehensive":8})").ok());
+}
+
+}  // namespace
+}  // namespace vsurg::db
