@@ -49,6 +49,7 @@ struct StationChannel::Impl {
   std::vector<double> rtt_us;
   size_t rtt_next = 0;
   double jitter_sum = 0, last_rtt = -1;
+  std::atomic<double> reported_rtt_us{0};  // receive thread → device thread (telemetry)
   uint64_t jitter_n = 0;
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, scene_chunks{0};
   uint64_t last_frame_sequence = 0;
@@ -121,6 +122,7 @@ struct StationChannel::Impl {
       rtt_us[rtt_next++ % rtt_us.size()] = rtt;
       if (last_rtt >= 0) jitter_sum += std::abs(rtt - last_rtt), ++jitter_n;
       last_rtt = rtt;
+      reported_rtt_us.store(rtt, std::memory_order_relaxed);
     }
   }
 
@@ -143,6 +145,7 @@ struct StationChannel::Impl {
           have_x && s.position.allFinite() ? Vec3((s.position - last_x) / dt) : Vec3::Zero();
       if (s.position.allFinite()) last_x = s.position, have_x = true;
       m.sample = s;
+      m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
       m.velocity = v.allFinite() ? v : Vec3::Zero();
       const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
                            ++sequence, static_cast<uint64_t>(now * 1e6)};

@@ -226,7 +226,29 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
   if (overload) events |= haptics::kEventOverload;
   cmd.events = events;
   recorder_.Add(s.time, s.position, quantity, out.norm(), overload);
+  ++samples_;
+  // Telemetry for instructors (30 Hz): every 8th sample is plenty at ≥ 1 kHz and keeps the
+  // metrics summary off most haptic cycles. Never allocates (TrialMetrics is plain data).
+  if ((samples_ & 7) == 1 || cmd.grasping != telemetry_grasping_) {
+    telemetry_grasping_ = cmd.grasping;
+    Telemetry& t = telemetry_.Back();
+    t.time = s.time;
+    t.force = out;
+    t.twist = cmd.twist;
+    t.torque = cmd.torque;
+    t.contact = cmd.contact;
+    t.grasping = cmd.grasping;
+    t.samples = samples_;
+    t.metrics = recorder_.Finish();
+    telemetry_.Publish();
+  }
   return cmd;
+}
+
+bool Simulation::TakeTelemetry(Telemetry& out) {
+  const bool fresh = telemetry_.Acquire();
+  out = telemetry_.Front();
+  return fresh;
 }
 
 void Simulation::PublishInput() {

@@ -62,6 +62,17 @@ struct VisualFrame {
   std::vector<geometry::Vec3> positions;  // their positions, m
 };
 
+// What an instructor's monitor shows of a session (units as in haptics::ForceCommand).
+struct Telemetry {
+  double time = 0;                                // s, the station's clock of the last sample
+  geometry::Vec3 force = geometry::Vec3::Zero();  // N, sent to the device
+  double twist = 0;                               // rad
+  double torque = 0;                              // N·m
+  bool contact = false, grasping = false;
+  uint64_t samples = 0;           // stylus samples handled
+  scoring::TrialMetrics metrics;  // so far
+};
+
 class Simulation {
  public:
   static Expected<std::unique_ptr<Simulation>> Create(const Scene& scene,
@@ -84,7 +95,11 @@ class Simulation {
   // nothing new was published. Reuses out's capacity.
   bool TakeVisualFrame(VisualFrame& out);
 
+  // The haptic thread's own view, or after it stopped (not concurrently with OnStylus).
   scoring::TrialMetrics Metrics() const { return recorder_.Finish(); }
+  // One reader thread (the control plane's sampler): the latest telemetry, published by the
+  // haptic thread every few samples. False when nothing new since the previous call.
+  bool TakeTelemetry(Telemetry& out);
   const Scene& scene() const { return scene_; }
   const geometry::TriMesh& rest_mesh() const { return rest_; }
   // Deformation updates published so far (any thread).
@@ -130,6 +145,9 @@ class Simulation {
   haptics::ProxyContact proxy_;
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
+  uint64_t samples_ = 0;
+  bool telemetry_grasping_ = false;
+  TripleBuffer<Telemetry> telemetry_;
   std::unique_ptr<tissue::CoilSpringModel> coil_;           // coil scenes: the inverse runs here
   std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex
   std::vector<geometry::Vec3> centreline_points_;

@@ -42,6 +42,7 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
   s.mutable_orientation()->set_z(q.z());
   Put(m.velocity, s.mutable_velocity());
   s.set_buttons(m.sample.buttons);
+  s.set_rtt_us(static_cast<float>(m.rtt_us));
   const size_t n = s.ByteSizeLong();
   if (n > kMaxPayload || !s.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
   Header header = h;
@@ -167,6 +168,7 @@ DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& 
                                               s.orientation().y(), s.orientation().z());
   out.sample.buttons = s.buttons();
   out.velocity = Get(s.velocity());
+  out.rtt_us = std::isfinite(s.rtt_us()) && s.rtt_us() > 0 ? s.rtt_us() : 0.0;
   // Non-finite values are passed on: the simulation's safety turns them into zero force and an
   // event, which the station then sees.
   return DropReason::kNone;

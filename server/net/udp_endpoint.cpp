@@ -30,14 +30,17 @@ const char* SessionStateName(SessionState s) {
 
 struct UdpEndpoint::Impl {
   struct Session {
-    Session(const wire::SessionKey& key, sim::Simulation* sim, double tokens_at_start)
+    Session(const wire::SessionKey& key, sim::Simulation* sim, LinkStats* stats,
+            double tokens_at_start)
         : auth(key),
           simulation(sim),
+          link(stats),
           last_seen(Clock::now()),
           tokens(tokens_at_start),
           refill(last_seen) {}
     wire::Authenticator auth;
     sim::Simulation* simulation = nullptr;
+    LinkStats* link = nullptr;
     uint64_t last_sequence = 0;
     uint64_t sent_sequence = 0;
     Clock::time_point last_seen;
@@ -161,6 +164,13 @@ struct UdpEndpoint::Impl {
     if (const wire::DropReason r = codec.DecodeStylus(opened.payload, stylus);
         r != wire::DropReason::kNone)
       return Drop(r);
+    if (s.link) {
+      if (s.seen && header.sequence > s.last_sequence + 1)
+        s.link->lost.fetch_add(header.sequence - s.last_sequence - 1, std::memory_order_relaxed);
+      s.link->applied.fetch_add(1, std::memory_order_relaxed);
+      if (stylus.rtt_us > 0) s.link->rtt_us.store(stylus.rtt_us, std::memory_order_relaxed);
+      s.link->last_seen_s.store(Now(), std::memory_order_relaxed);
+    }
     s.last_sequence = header.sequence;
     s.last_seen = now;
     s.seen = true;
@@ -259,12 +269,12 @@ uint16_t UdpEndpoint::port() const {
   return impl_->socket.local_endpoint(ec).port();
 }
 
-void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key,
-                             sim::Simulation* simulation) {
+void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation,
+                             LinkStats* link) {
   std::promise<void> done;
-  asio::post(impl_->io, [this, id, key, simulation, &done] {
+  asio::post(impl_->io, [this, id, key, simulation, link, &done] {
     impl_->sessions.insert_or_assign(
-        id, Impl::Session(key, simulation, impl_->options.max_packets_per_s * 0.1));
+        id, Impl::Session(key, simulation, link, impl_->options.max_packets_per_s * 0.1));
     {
       std::lock_guard<std::mutex> lock(impl_->visual_mutex);
       std::erase_if(impl_->visual, [id](const Impl::VisualSession& v) { return v.id == id; });

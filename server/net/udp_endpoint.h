@@ -60,6 +60,15 @@ struct EndpointCounters {
   uint64_t Dropped(wire::DropReason r) const { return dropped[static_cast<size_t>(r)]; }
 };
 
+// A session's link figures for the control plane's telemetry. Owned by the caller of AddSession,
+// written by the I/O thread only (relaxed atomics: each figure is independent), read by any.
+struct LinkStats {
+  std::atomic<uint64_t> applied{0};    // stylus datagrams applied
+  std::atomic<uint64_t> lost{0};       // sequence numbers skipped (lost or still in flight)
+  std::atomic<double> rtt_us{0};       // the station's last reported round trip
+  std::atomic<double> last_seen_s{0};  // endpoint clock, s
+};
+
 struct SessionEvent {
   uint64_t session = 0;
   SessionState state = SessionState::kRunning;
@@ -72,8 +81,10 @@ class UdpEndpoint {
   ~UdpEndpoint();  // stops and joins
 
   uint16_t port() const;
-  // Any thread. The simulation must outlive the session's removal (RemoveSession waits for it).
-  void AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation);
+  // Any thread. The simulation (and `link`, when given) must outlive the session's removal
+  // (RemoveSession waits for it).
+  void AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation,
+                  LinkStats* link = nullptr);
   void RemoveSession(uint64_t id);
   void Stop();
 
