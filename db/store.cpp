@@ -862,6 +862,39 @@ Expected<std::vector<RatingRow>> Store::LoadRatings(SubjectKind kind, const std:
   return out;
 }
 
+Expected<std::vector<TrainingRow>> Store::LoadTrainingRows() {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare(
+      "SELECT s.id, s.subject, t.trainee_group, s.moment_min, e.name, v.index_no, v.score "
+      "FROM submissions s JOIN evaluators e ON e.id = s.evaluator_id "
+      "JOIN trainees t ON t.name = s.subject JOIN evaluations v ON v.submission_id = s.id "
+      "WHERE s.subject_kind = 'trainee' AND s.moment_min IS NOT NULL "
+      "ORDER BY s.id, v.index_no");
+  if (!st.ok()) return st.error();
+  std::vector<TrainingRow> out;
+  int64_t current = -1;
+  for (;;) {
+    auto row = (*st)->Step();
+    if (!row.ok()) return row.error();
+    if (!*row) break;
+    Statement& q = **st;
+    if (q.Int(0) != current) {
+      current = q.Int(0);
+      TrainingRow t;
+      t.trainee = q.String(1);
+      t.trainee_group = q.String(2);
+      t.moment_min = q.Double(3);
+      t.evaluator = q.String(4);
+      out.push_back(std::move(t));
+    }
+    const int64_t j = q.Int(5);
+    if (j >= 1 && j <= kIndexes) out.back().scores[j - 1] = q.Double(6);
+  }
+  (*st)->Reset();
+  return out;
+}
+
 Expected<int64_t> Store::CountEvaluationRows() {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();

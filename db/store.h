@@ -102,6 +102,14 @@ struct RatingRow {  // one evaluator's nine scores on one subject
   std::array<double, kIndexes> scores{};
 };
 
+struct TrainingRow {  // one evaluator's scores of a trainee at a training moment
+  std::string trainee;
+  std::string trainee_group;
+  double moment_min = 0;
+  std::string evaluator;
+  std::array<double, kIndexes> scores{};
+};
+
 struct ExportFilter {
   std::optional<int64_t> from_us = std::nullopt;  // submitted in [from, to)
   std::optional<int64_t> to_us = std::nullopt;
@@ -177,6 +185,7 @@ class Store {
   Expected<std::string> GetWeightSet(const std::string& name);  // JSON; kNotFound
   Expected<std::vector<std::string>> ListWeightSets();
   Expected<std::vector<RatingRow>> LoadRatings(SubjectKind kind, const std::string& subject);
+  Expected<std::vector<TrainingRow>> LoadTrainingRows();  // trainee subjects with a moment
   Expected<int64_t> CountEvaluationRows();
   // Streams one line per stored score (CSV with a header, JSON lines) or one xAPI statement
   // per submission (JSON lines) to `sink` in chunks; `sink` returning false stops the export.

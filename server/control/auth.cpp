@@ -1,0 +1,62 @@
+#include "server/control/auth.h"
+
+#include <array>
+#include <cctype>
+
+namespace vsurg::server {
+namespace {
+
+using db::Role;
+constexpr uint32_t Bit(Role r) { return 1u << static_cast<int>(r); }
+constexpr uint32_t kTrainee = Bit(Role::kTrainee), kInstructor = Bit(Role::kInstructor),
+                   kEvaluator = Bit(Role::kEvaluator), kAdmin = Bit(Role::kAdmin);
+
+struct Row {
+  const char* name;
+  uint32_t roles;
+};
+
+// The matrix. Trainees run their own sessions; instructors run and watch anyone's; evaluators
+// find sessions to score, submit, and read reports; administrators do everything.
+constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
+    {"SessionService/Create", kTrainee | kInstructor | kAdmin},
+    {"SessionService/Start", kTrainee | kInstructor | kAdmin},
+    {"SessionService/Stop", kTrainee | kInstructor | kAdmin},
+    {"SessionService/Get", kTrainee | kInstructor | kEvaluator | kAdmin},
+    {"SessionService/List", kTrainee | kInstructor | kEvaluator | kAdmin},
+    {"MonitorService/Watch", kInstructor | kAdmin},
+    {"EvaluationService/Submit", kEvaluator | kAdmin},
+    {"EvaluationService/Report", kInstructor | kEvaluator | kAdmin},
+    {"EvaluationService/TrainingEffect", kInstructor | kEvaluator | kAdmin},
+    {"AdminService/CreateUser", kAdmin},
+    {"AdminService/IssueToken", kAdmin},
+    {"AdminService/RevokeTokens", kAdmin},
+    {"AdminService/SetDisabled", kAdmin},
+    {"AdminService/ListUsers", kAdmin},
+    {"AdminService/PutWeightSet", kAdmin},
+    {"AdminService/ListWeightSets", kInstructor | kEvaluator | kAdmin},
+    {"AdminService/Export", kAdmin},
+    {"AdminService/Backup", kAdmin},
+}};
+
+}  // namespace
+
+const char* MethodName(Method m) { return kMatrix[static_cast<size_t>(m)].name; }
+
+bool RoleMay(Role role, Method m) {
+  const auto i = static_cast<size_t>(m);
+  return i < kMatrix.size() && (kMatrix[i].roles & Bit(role)) != 0;
+}
+
+std::optional<std::string_view> BearerToken(std::string_view a) {
+  constexpr std::string_view kScheme = "bearer ";
+  if (a.size() <= kScheme.size()) return std::nullopt;
+  for (size_t i = 0; i < kScheme.size(); ++i)
+    if (std::tolower(static_cast<unsigned char>(a[i])) != kScheme[i]) return std::nullopt;
+  std::string_view token = a.substr(kScheme.size());
+  for (char c : token)
+    if (std::isspace(static_cast<unsigned char>(c)) || c == '\0') return std::nullopt;
+  return token;
+}
+
+}  // namespace vsurg::server

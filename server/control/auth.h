@@ -1,0 +1,44 @@
+// Who may call what (the control plane's permission matrix), and the bearer-token header.
+//
+// Authentication (a token in `authorization: Bearer …`, looked up by hash in the store) decides
+// UNAUTHENTICATED; this matrix decides PERMISSION_DENIED. Row ownership (a trainee sees only
+// their own sessions, an evaluator submits only as themself) is checked in the service, after
+// the matrix.
+#pragma once
+
+#include <optional>
+#include <string_view>
+
+#include "db/store.h"
+
+namespace vsurg::server {
+
+enum class Method {
+  kSessionCreate,
+  kSessionStart,
+  kSessionStop,
+  kSessionGet,
+  kSessionList,
+  kMonitorWatch,
+  kEvaluationSubmit,
+  kEvaluationReport,
+  kEvaluationTrainingEffect,
+  kAdminCreateUser,
+  kAdminIssueToken,
+  kAdminRevokeTokens,
+  kAdminSetDisabled,
+  kAdminListUsers,
+  kAdminPutWeightSet,
+  kAdminListWeightSets,
+  kAdminExport,
+  kAdminBackup,
+  kCount
+};
+
+const char* MethodName(Method m);
+bool RoleMay(db::Role role, Method m);
+
+// "Bearer <token>" (scheme case-insensitive, one space) → the token; nullopt when malformed.
+std::optional<std::string_view> BearerToken(std::string_view authorization);
+
+}  // namespace vsurg::server

@@ -1,0 +1,195 @@
+// vsurg-server: the simulation server. The SQLite store, the sessions (one Simulation each),
+// the UDP haptic endpoint and the gRPC control plane, in one process.
+//
+// Shutdown: SIGINT or SIGTERM → the control plane stops taking calls (streams are cancelled),
+// live sessions are aborted with their trial metrics recorded, the endpoint stops, the store's
+// writer drains its queue and closes the file. Exit code 0.
+#include <signal.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/cli/args.h"
+#include "db/store.h"
+#include "server/control/control_plane.h"
+#include "server/net/udp_endpoint.h"
+#include "server/session/session_manager.h"
+
+namespace {
+
+using vsurg::Status;
+using vsurg::cli::ArgParser;
+using Kind = ArgParser::Kind;
+
+void Log(const std::string& event, const std::string& fields = "") {
+  std::cerr << "ts=" << vsurg::db::IsoTimeUtc(vsurg::db::NowUs()) << " component=vsurg-server"
+            << " event=" << event << (fields.empty() ? "" : " ") << fields << std::endl;
+}
+
+// A JSON config's keys are the long option names; the command line wins over the file.
+bool MergeConfig(const std::string& path, std::vector<std::string>& args, std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = "--config: cannot read " + path;
+    return false;
+  }
+  std::stringstream text;
+  text << in.rdbuf();
+  const auto j = nlohmann::json::parse(text.str(), nullptr, false);
+  if (j.is_discarded() || !j.is_object()) {
+    error = "--config: " + path + " is not a JSON object";
+    return false;
+  }
+  std::set<std::string> given;
+  for (const std::string& a : args)
+    if (a.rfind("--", 0) == 0) given.insert(a.substr(2, a.find('=') - 2));
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (given.count(it.key()) || it.key() == "config") continue;
+    if (it->is_boolean()) {
+      if (it->get<bool>()) args.push_back("--" + it.key());
+    } else if (it->is_string()) {
+      args.push_back("--" + it.key());
+      args.push_back(it->get<std::string>());
+    } else if (it->is_number()) {
+      args.push_back("--" + it.key());
+      args.push_back(it->dump());
+    } else {
+      error = "--config: " + it.key() + ": a string, number or boolean is expected";
+      return false;
+    }
+  }
+  return true;
+}
+
+int Main(std::vector<std::string> args) {
+  ArgParser p("vsurg-server",
+              "The vsurg simulation server: sessions and their tissue physics, the UDP haptic\n"
+              "channel, the gRPC control plane (sessions, monitoring, evaluations, admin) and the\n"
+              "SQLite store. Stops cleanly on SIGINT/SIGTERM.");
+  p.Option("db", Kind::kString, "SQLite database file (created when missing)", true)
+      .Option("listen", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
+      .Option("udp-address", Kind::kString, "UDP haptic endpoint address", false, "127.0.0.1")
+      .Option("udp-port", Kind::kInt, "UDP port (0: any free one)", false, "50052")
+      .Option("public-host", Kind::kString, "host stations are told to send to (default: udp-address)")
+      .Option("tls-cert", Kind::kString, "PEM certificate for gRPC TLS")
+      .Option("tls-key", Kind::kString, "PEM private key for gRPC TLS")
+      .Option("allow-insecure", Kind::kFlag, "allow plaintext gRPC off loopback (not advised)")
+      .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
+      .Option("ready-file", Kind::kString, "write {grpc_port, udp_port} here once serving")
+      .Option("config", Kind::kString, "JSON file of these options (flags win)");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << "vsurg-server: " << (s.error().field.empty() ? "" : s.error().field + ": ")
+              << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) {
+    std::cout << p.Help();
+    return 0;
+  }
+  if (p.Has("config")) {
+    std::string error;
+    if (!MergeConfig(p.String("config"), args, error)) {
+      std::cerr << "vsurg-server: " << error << "\n";
+      return 2;
+    }
+    if (Status s = p.Parse(args); !s.ok()) {
+      std::cerr << "vsurg-server: " << s.error().field << ": " << s.error().message << "\n";
+      return 2;
+    }
+  }
+  const int udp_port = p.Int("udp-port");
+  const double telemetry_hz = p.Double("telemetry-hz");
+  if (udp_port < 0 || udp_port > 65535) {
+    std::cerr << "vsurg-server: --udp-port: must be within 0..65535\n";
+    return 2;
+  }
+  if (!(telemetry_hz >= 1 && telemetry_hz <= 120)) {
+    std::cerr << "vsurg-server: --telemetry-hz: must be within 1..120\n";
+    return 2;
+  }
+
+  // Signals go to the main thread only: block them before any thread starts, sigwait below.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  auto store = vsurg::db::Store::Open({.path = p.String("db")});
+  if (!store.ok()) {
+    std::cerr << "vsurg-server: --db: " << store.error().message << "\n";
+    return 1;
+  }
+  vsurg::server::EndpointOptions eo;
+  eo.address = p.String("udp-address");
+  eo.port = static_cast<uint16_t>(udp_port);
+  auto endpoint = vsurg::server::UdpEndpoint::Create(eo);
+  if (!endpoint.ok()) {
+    std::cerr << "vsurg-server: --udp-port: " << endpoint.error().message << "\n";
+    return 1;
+  }
+  vsurg::server::SessionManagerOptions so;
+  so.udp_host = p.Has("public-host") ? p.String("public-host") : eo.address;
+  so.telemetry_hz = telemetry_hz;
+  auto sessions =
+      std::make_unique<vsurg::server::SessionManager>(**store, endpoint->get(), so);
+  vsurg::server::ControlPlaneOptions co;
+  co.listen = p.String("listen");
+  if (p.Has("tls-cert")) co.tls_cert_file = p.String("tls-cert");
+  if (p.Has("tls-key")) co.tls_key_file = p.String("tls-key");
+  co.allow_insecure = p.Flag("allow-insecure");
+  auto control = vsurg::server::ControlPlane::Start(**store, *sessions, co);
+  if (!control.ok()) {
+    std::cerr << "vsurg-server: --" << (control.error().field.empty() ? "listen" : control.error().field)
+              << ": " << control.error().message << "\n";
+    return 1;
+  }
+  const int grpc_port = (*control)->port();
+  const int bound_udp = (*endpoint)->port();
+  Log("serving", "grpc_port=" + std::to_string(grpc_port) + " udp_port=" +
+                     std::to_string(bound_udp) + " tls=" + ((*control)->tls() ? "on" : "off") +
+                     " db=" + p.String("db"));
+  if (p.Has("ready-file")) {
+    const std::string path = p.String("ready-file"), tmp = path + ".tmp";
+    {
+      std::ofstream out(tmp);
+      out << nlohmann::json{{"grpc_port", grpc_port}, {"udp_port", bound_udp}, {"pid", getpid()}}
+                 .dump()
+          << "\n";
+    }
+    std::rename(tmp.c_str(), path.c_str());  // atomically: a reader sees all of it or nothing
+  }
+
+  int sig = 0;
+  sigwait(&signals, &sig);
+  Log("stopping", std::string("signal=") + (sig == SIGINT ? "SIGINT" : "SIGTERM"));
+  (*control)->Shutdown();
+  sessions->Shutdown();
+  (*endpoint)->Stop();
+  const auto stats = (*store)->stats();
+  control->reset();
+  sessions.reset();
+  endpoint->reset();
+  store->reset();  // drains the writer
+  Log("stopped", "commits=" + std::to_string(stats.commits) + " jobs=" + std::to_string(stats.jobs));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return Main(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const std::exception& e) {
+    std::cerr << "vsurg-server: fatal: " << e.what() << "\n";
+    return 1;
+  }
+}

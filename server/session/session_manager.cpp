@@ -1,0 +1,255 @@
+#include "server/session/session_manager.h"
+
+#include <openssl/rand.h>
+
+#include <chrono>
+#include <condition_variable>
+
+#include "common/sim/scene.h"
+
+namespace vsurg::server {
+namespace {
+
+bool IsSceneName(const std::string& s) {
+  if (s.empty() || s.size() > 64) return false;
+  for (char c : s)
+    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-')) return false;
+  return true;
+}
+
+double SteadyNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+db::TrialMetricsRecord ToRecord(const scoring::TrialMetrics& m) {
+  db::TrialMetricsRecord r;
+  r.completed = m.completed;
+  r.completion_time_s = m.completion_time;
+  r.task_error = m.task_error;
+  r.peak_force_n = m.peak_force;
+  r.time_over_force_limit_s = m.time_over_force_limit;
+  r.path_length_m = m.path_length;
+  r.rms_jerk = m.rms_jerk;
+  r.overload_events = m.overload_events;
+  r.duration_s = m.duration;
+  r.score = m.score;
+  r.raw_score = m.raw_score;
+  r.caps = m.caps;
+  return r;
+}
+
+}  // namespace
+
+SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
+                               const SessionManagerOptions& options)
+    : store_(store), endpoint_(endpoint), options_(options) {
+  sampler_ = std::thread([this] { SamplerLoop(); });
+}
+
+SessionManager::~SessionManager() { Shutdown(); }
+
+Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
+                                                const std::string& scene_name) {
+  if (!IsSceneName(scene_name))
+    return InvalidArgument("scene", "a scene name (letters, digits and '-'), not a path");
+  {
+    std::lock_guard lock(mutex_);
+    if (static_cast<int>(live_.size()) >= options_.max_live_sessions)
+      return Error{ErrorCode::kUnavailable, "the server runs its maximum of sessions", "scene"};
+  }
+  auto scene = sim::LoadSceneByName(scene_name);
+  if (!scene.ok()) return Error{ErrorCode::kNotFound, scene.error().message, "scene"};
+  auto simulation = sim::Simulation::Create(*scene);
+  if (!simulation.ok())
+    return Error{ErrorCode::kFailedPrecondition,
+                 "scene '" + scene_name + "' does not build: " + simulation.error().message,
+                 "scene"};
+  CreatedSession out;
+  if (RAND_bytes(out.key.data(), static_cast<int>(out.key.size())) != 1)
+    return Error{ErrorCode::kIoError, "the system random generator failed", "key"};
+  auto record = store_.CreateSession(trainee, scene_name);
+  if (!record.ok()) return record.error();
+  out.record = *record;
+  out.udp_host = options_.udp_host;
+  out.udp_port = endpoint_ ? endpoint_->port() : 0;
+  auto live = std::make_unique<Live>();
+  live->simulation = std::move(simulation).value();
+  live->state = "created";
+  live->record = *record;
+  live->latest.id = static_cast<uint64_t>(record->id);
+  live->latest.state = "created";
+  live->key = out.key;
+  std::lock_guard lock(mutex_);
+  live_[static_cast<uint64_t>(record->id)] = std::move(live);
+  return out;
+}
+
+Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
+  if (!endpoint_)
+    return Error{ErrorCode::kFailedPrecondition, "this server has no haptic channel", "id"};
+  sim::Simulation* simulation = nullptr;
+  LinkStats* link = nullptr;
+  wire::SessionKey key{};
+  {
+    std::lock_guard lock(mutex_);
+    auto it = live_.find(id);
+    if (it == live_.end()) {
+      auto rec = store_.GetSession(static_cast<int64_t>(id));
+      if (!rec.ok()) return rec.error();
+      return Error{ErrorCode::kFailedPrecondition,
+                   "session " + std::to_string(id) + " is " + rec->state + ", not live", "id"};
+    }
+    Live& l = *it->second;
+    if (l.state == "created") {
+      l.state = "running";
+      l.latest.state = "running";
+      simulation = l.simulation.get();
+      link = &l.link;
+      key = l.key;
+    }
+  }
+  if (!simulation) return Get(id);  // already started: idempotent
+  endpoint_->AddSession(id, key, simulation, link);
+  if (Status s = store_.SetSessionState(static_cast<int64_t>(id), "running", db::NowUs());
+      !s.ok())
+    return s.error();
+  return Get(id);
+}
+
+Status SessionManager::End(uint64_t id, const std::string& state, const std::string& reason) {
+  std::unique_ptr<Live> live;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = live_.find(id);
+    if (it == live_.end()) return Error{ErrorCode::kNotFound, "no live session", "id"};
+    live = std::move(it->second);
+    live_.erase(it);
+  }
+  if (endpoint_ && live->state != "created") endpoint_->RemoveSession(id);
+  const scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
+  live->simulation.reset();
+  Status s = store_.RecordTrialMetrics(static_cast<int64_t>(id), ToRecord(metrics));
+  Status t = store_.SetSessionState(static_cast<int64_t>(id), state, db::NowUs(), reason);
+  {
+    std::lock_guard lock(subscribers_mutex_);
+    for (auto& [token, sub] : subscribers_)
+      if (sub.first == id) sub.second({}, true);
+  }
+  return s.ok() ? t : s;
+}
+
+Expected<db::SessionRecord> SessionManager::Stop(uint64_t id, const std::string& reason) {
+  Status s = End(id, "ended", reason.empty() ? "stopped" : reason);
+  if (!s.ok() && s.error().code != ErrorCode::kNotFound) return s.error();
+  return Get(id);  // stopping an ended session is idempotent: its record
+}
+
+Expected<db::SessionRecord> SessionManager::Get(uint64_t id) {
+  auto rec = store_.GetSession(static_cast<int64_t>(id));
+  if (!rec.ok()) return rec;
+  std::lock_guard lock(mutex_);
+  if (auto it = live_.find(id); it != live_.end()) rec->state = it->second->state;
+  return rec;
+}
+
+bool SessionManager::IsLive(uint64_t id) const {
+  std::lock_guard lock(mutex_);
+  return live_.count(id) > 0;
+}
+
+uint64_t SessionManager::Subscribe(uint64_t session, Subscriber fn) {
+  std::lock_guard lock(subscribers_mutex_);
+  const uint64_t token = next_token_++;
+  subscribers_[token] = {session, std::move(fn)};
+  return token;
+}
+
+void SessionManager::Unsubscribe(uint64_t token) {
+  std::lock_guard lock(subscribers_mutex_);  // waits for a running delivery
+  subscribers_.erase(token);
+}
+
+void SessionManager::Pump() {
+  if (!endpoint_) return;
+  for (const SessionEvent& e : endpoint_->TakeEvents()) {
+    const char* state = SessionStateName(e.state);
+    if (e.state == SessionState::kDisconnected) {
+      (void)End(e.session, "disconnected", "no stylus data for 5 s");
+      continue;
+    }
+    {
+      std::lock_guard lock(mutex_);
+      auto it = live_.find(e.session);
+      if (it == live_.end() || it->second->state == state) continue;
+      it->second->state = state;
+      it->second->latest.state = state;
+    }
+    // Stalls and resumptions are rare; the sampler waits for their commit (a few ms of delayed
+    // telemetry at most), and the single writer keeps their order.
+    (void)store_.SetSessionState(static_cast<int64_t>(e.session), state, db::NowUs());
+  }
+}
+
+void SessionManager::SamplerLoop() {
+  const auto period = std::chrono::duration<double>(1.0 / options_.telemetry_hz);
+  std::vector<SessionTelemetry> all;
+  for (;;) {
+    {
+      std::unique_lock lock(stop_mutex_);
+      if (stop_cv_.wait_for(lock, period, [this] { return stopping_; })) return;
+    }
+    Pump();
+    all.clear();
+    const double now = SteadyNow();
+    {
+      std::lock_guard lock(mutex_);
+      for (auto& [id, l] : live_) {
+        SessionTelemetry& t = l->latest;
+        l->simulation->TakeTelemetry(t.sim);
+        t.server_time_us = db::NowUs();
+        const uint64_t applied = l->link.applied.load(std::memory_order_relaxed);
+        const uint64_t lost = l->link.lost.load(std::memory_order_relaxed);
+        t.packets = applied;
+        t.packet_loss = applied + lost > 0 ? static_cast<double>(lost) / (applied + lost) : 0.0;
+        t.rtt_us = l->link.rtt_us.load(std::memory_order_relaxed);
+        if (l->last_sample_s > 0 && now > l->last_sample_s)
+          t.haptic_rate_hz = static_cast<double>(t.sim.samples - l->last_samples) /
+                             (now - l->last_sample_s);
+        l->last_samples = t.sim.samples;
+        l->last_sample_s = now;
+        all.push_back(t);
+      }
+    }
+    std::lock_guard lock(subscribers_mutex_);
+    std::vector<SessionTelemetry> one;
+    for (auto& [token, sub] : subscribers_) {
+      if (sub.first == 0) {
+        sub.second(all, false);
+        continue;
+      }
+      one.clear();
+      for (const SessionTelemetry& t : all)
+        if (t.id == sub.first) one.push_back(t);
+      if (!one.empty()) sub.second(one, false);
+    }
+  }
+}
+
+void SessionManager::Shutdown() {
+  {
+    std::lock_guard lock(stop_mutex_);
+    if (stopping_ && !sampler_.joinable()) return;
+    stopping_ = true;
+  }
+  stop_cv_.notify_all();
+  if (sampler_.joinable()) sampler_.join();
+  std::vector<uint64_t> ids;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [id, l] : live_) ids.push_back(id);
+  }
+  for (uint64_t id : ids) (void)End(id, "aborted", "server shut down");
+}
+
+}  // namespace vsurg::server

@@ -1,0 +1,130 @@
+// The server's sessions: one Simulation per session, registered with the UDP endpoint while it
+// runs, recorded in the store. The control plane (gRPC) calls this; it never sees a socket.
+//
+// Life cycle (DESIGN.md "Network"; STYLE.md: the SQLite way of documenting a state machine)
+//
+//   created ──Start──▶ running ◀──stylus again──▶ stalled      (endpoint events)
+//      │                  │                          │
+//      │                Stop                  no stylus 5 s
+//      │                  ▼                          ▼
+//      └──────Stop────▶ ended                  disconnected
+//   any live state ──server shutdown──▶ aborted
+//
+//  transition                        function
+//  ─────────────────────────────     ───────────────────────────────
+//  (none) → created                  Create     (scene built, key issued, row written)
+//  created → running                 Start      (added to the endpoint; stylus accepted)
+//  running ⇄ stalled, → disconnected Pump       (the endpoint's events, every tick)
+//  live → ended                      Stop       (removed from the endpoint, metrics recorded)
+//  live → aborted                    Shutdown
+//
+// Invariants
+//  1. A session is in the endpoint exactly while it is running or stalled.
+//  2. Every state change is written to the store before the call that made it returns (Pump
+//     writes asynchronously; its order is kept by the single writer).
+//  3. A session's trial metrics are recorded once, when it leaves the live states.
+//  4. The Simulation outlives its registration with the endpoint (RemoveSession waits).
+//
+// Threads: Create/Start/Stop/Get/List from any thread (gRPC); one sampler thread runs Pump and
+// Sample at the telemetry rate and is the only reader of each simulation's telemetry.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/sim/simulation.h"
+#include "db/store.h"
+#include "proto/wire/datagram.h"
+#include "server/net/udp_endpoint.h"
+
+namespace vsurg::server {
+
+struct SessionTelemetry {
+  uint64_t id = 0;
+  std::string state;
+  int64_t server_time_us = 0;
+  sim::Telemetry sim;
+  double rtt_us = 0;
+  double packet_loss = 0;  // lost / (applied + lost)
+  uint64_t packets = 0;
+  double haptic_rate_hz = 0;
+};
+
+struct CreatedSession {
+  db::SessionRecord record;
+  wire::SessionKey key{};
+  std::string udp_host;
+  uint16_t udp_port = 0;
+};
+
+struct SessionManagerOptions {
+  std::string udp_host = "127.0.0.1";  // what stations are told to send to
+  double telemetry_hz = 30;
+  int max_live_sessions = 256;
+};
+
+class SessionManager {
+ public:
+  // `endpoint` may be null (a control plane without a haptic channel: sessions cannot start).
+  SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
+  ~SessionManager();  // Shutdown()
+  SessionManager(const SessionManager&) = delete;
+  SessionManager& operator=(const SessionManager&) = delete;
+
+  // `scene` is a scene name from scenes/ (letters, digits, '-'), never a path.
+  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene);
+  Expected<db::SessionRecord> Start(uint64_t id);
+  Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason);
+  Expected<db::SessionRecord> Get(uint64_t id);  // the store's row with the live state
+  bool IsLive(uint64_t id) const;
+
+  // Telemetry subscribers: `fn` runs on the sampler thread at the telemetry rate with the
+  // latest figures of every live session (or of `session` only, when not 0), and once more with
+  // an empty list when that session leaves the live states. Unsubscribe waits for a running
+  // call to finish, so after it returns `fn` is never called again.
+  using Subscriber = std::function<void(const std::vector<SessionTelemetry>&, bool ended)>;
+  uint64_t Subscribe(uint64_t session, Subscriber fn);
+  void Unsubscribe(uint64_t token);
+
+  // Aborts every live session (metrics recorded), stops the sampler. Idempotent.
+  void Shutdown();
+
+ private:
+  struct Live {
+    std::unique_ptr<sim::Simulation> simulation;
+    LinkStats link;
+    wire::SessionKey key{};
+    std::string state;  // created, running, stalled
+    db::SessionRecord record;
+    SessionTelemetry latest;
+    uint64_t last_samples = 0;
+    double last_sample_s = 0;
+  };
+  Status End(uint64_t id, const std::string& state, const std::string& reason);
+  void SamplerLoop();
+  void Pump();
+
+  db::Store& store_;
+  UdpEndpoint* endpoint_;
+  SessionManagerOptions options_;
+  mutable std::mutex mutex_;  // live_
+  std::map<uint64_t, std::unique_ptr<Live>> live_;
+  std::mutex subscribers_mutex_;  // held while subscribers run (see Unsubscribe)
+  std::map<uint64_t, std::pair<uint64_t, Subscriber>> subscribers_;
+  uint64_t next_token_ = 1;
+  std::mutex stop_mutex_;
+  std::condition_variable stop_cv_;
+  bool stopping_ = false;
+  std::thread sampler_;
+};
+
+}  // namespace vsurg::server
