@@ -78,7 +78,8 @@ int Main(std::vector<std::string> args) {
       .Option("listen", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
       .Option("udp-address", Kind::kString, "UDP haptic endpoint address", false, "127.0.0.1")
       .Option("udp-port", Kind::kInt, "UDP port (0: any free one)", false, "50052")
-      .Option("public-host", Kind::kString, "host stations are told to send to (default: udp-address)")
+      .Option("public-host", Kind::kString,
+              "host stations are told to send to (default: udp-address)")
       .Option("tls-cert", Kind::kString, "PEM certificate for gRPC TLS")
       .Option("tls-key", Kind::kString, "PEM private key for gRPC TLS")
       .Option("allow-insecure", Kind::kFlag, "allow plaintext gRPC off loopback (not advised)")
@@ -139,8 +140,7 @@ int Main(std::vector<std::string> args) {
   vsurg::server::SessionManagerOptions so;
   so.udp_host = p.Has("public-host") ? p.String("public-host") : eo.address;
   so.telemetry_hz = telemetry_hz;
-  auto sessions =
-      std::make_unique<vsurg::server::SessionManager>(**store, endpoint->get(), so);
+  auto sessions = std::make_unique<vsurg::server::SessionManager>(**store, endpoint->get(), so);
   vsurg::server::ControlPlaneOptions co;
   co.listen = p.String("listen");
   if (p.Has("tls-cert")) co.tls_cert_file = p.String("tls-cert");
@@ -148,15 +148,16 @@ int Main(std::vector<std::string> args) {
   co.allow_insecure = p.Flag("allow-insecure");
   auto control = vsurg::server::ControlPlane::Start(**store, *sessions, co);
   if (!control.ok()) {
-    std::cerr << "vsurg-server: --" << (control.error().field.empty() ? "listen" : control.error().field)
-              << ": " << control.error().message << "\n";
+    std::cerr << "vsurg-server: --"
+              << (control.error().field.empty() ? "listen" : control.error().field) << ": "
+              << control.error().message << "\n";
     return 1;
   }
   const int grpc_port = (*control)->port();
   const int bound_udp = (*endpoint)->port();
-  Log("serving", "grpc_port=" + std::to_string(grpc_port) + " udp_port=" +
-                     std::to_string(bound_udp) + " tls=" + ((*control)->tls() ? "on" : "off") +
-                     " db=" + p.String("db"));
+  Log("serving", "grpc_port=" + std::to_string(grpc_port) +
+                     " udp_port=" + std::to_string(bound_udp) +
+                     " tls=" + ((*control)->tls() ? "on" : "off") + " db=" + p.String("db"));
   if (p.Has("ready-file")) {
     const std::string path = p.String("ready-file"), tmp = path + ".tmp";
     {
@@ -179,7 +180,8 @@ int Main(std::vector<std::string> args) {
   sessions.reset();
   endpoint->reset();
   store->reset();  // drains the writer
-  Log("stopped", "commits=" + std::to_string(stats.commits) + " jobs=" + std::to_string(stats.jobs));
+  Log("stopped",
+      "commits=" + std::to_string(stats.commits) + " jobs=" + std::to_string(stats.jobs));
   return 0;
 }
 

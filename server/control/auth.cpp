@@ -7,7 +7,9 @@ namespace vsurg::server {
 namespace {
 
 using db::Role;
-constexpr uint32_t Bit(Role r) { return 1u << static_cast<int>(r); }
+constexpr uint32_t Bit(Role r) {
+  return 1u << static_cast<int>(r);
+}
 constexpr uint32_t kTrainee = Bit(Role::kTrainee), kInstructor = Bit(Role::kInstructor),
                    kEvaluator = Bit(Role::kEvaluator), kAdmin = Bit(Role::kAdmin);
 
@@ -41,7 +43,9 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
 
 }  // namespace
 
-const char* MethodName(Method m) { return kMatrix[static_cast<size_t>(m)].name; }
+const char* MethodName(Method m) {
+  return kMatrix[static_cast<size_t>(m)].name;
+}
 
 bool RoleMay(Role role, Method m) {
   const auto i = static_cast<size_t>(m);

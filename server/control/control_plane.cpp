@@ -34,15 +34,31 @@ grpc::Status ToGrpcStatus(const Error& e) {
   grpc::StatusCode code = grpc::StatusCode::INTERNAL;
   switch (e.code) {
     case ErrorCode::kInvalidArgument:
-    case ErrorCode::kParseError: code = grpc::StatusCode::INVALID_ARGUMENT; break;
-    case ErrorCode::kNotFound: code = grpc::StatusCode::NOT_FOUND; break;
-    case ErrorCode::kAlreadyExists: code = grpc::StatusCode::ALREADY_EXISTS; break;
-    case ErrorCode::kFailedPrecondition: code = grpc::StatusCode::FAILED_PRECONDITION; break;
-    case ErrorCode::kUnavailable: code = grpc::StatusCode::UNAVAILABLE; break;
-    case ErrorCode::kUnauthenticated: code = grpc::StatusCode::UNAUTHENTICATED; break;
-    case ErrorCode::kPermissionDenied: code = grpc::StatusCode::PERMISSION_DENIED; break;
+    case ErrorCode::kParseError:
+      code = grpc::StatusCode::INVALID_ARGUMENT;
+      break;
+    case ErrorCode::kNotFound:
+      code = grpc::StatusCode::NOT_FOUND;
+      break;
+    case ErrorCode::kAlreadyExists:
+      code = grpc::StatusCode::ALREADY_EXISTS;
+      break;
+    case ErrorCode::kFailedPrecondition:
+      code = grpc::StatusCode::FAILED_PRECONDITION;
+      break;
+    case ErrorCode::kUnavailable:
+      code = grpc::StatusCode::UNAVAILABLE;
+      break;
+    case ErrorCode::kUnauthenticated:
+      code = grpc::StatusCode::UNAUTHENTICATED;
+      break;
+    case ErrorCode::kPermissionDenied:
+      code = grpc::StatusCode::PERMISSION_DENIED;
+      break;
     case ErrorCode::kIoError:
-    case ErrorCode::kNumerical: code = grpc::StatusCode::INTERNAL; break;
+    case ErrorCode::kNumerical:
+      code = grpc::StatusCode::INTERNAL;
+      break;
   }
   return grpc::Status(code, e.field.empty() ? e.message : e.field + ": " + e.message);
 }
@@ -51,7 +67,9 @@ grpc::Status ToGrpcStatus(const Status& s) {
   return s.ok() ? grpc::Status::OK : ToGrpcStatus(s.error());
 }
 
-Error Denied(const std::string& what) { return Error{ErrorCode::kPermissionDenied, what, ""}; }
+Error Denied(const std::string& what) {
+  return Error{ErrorCode::kPermissionDenied, what, ""};
+}
 
 struct Shared {
   db::Store& store;
@@ -75,8 +93,7 @@ Expected<db::Principal> Authorize(Shared& sh, CallbackServerContext* ctx, Method
     return Error{ErrorCode::kUnavailable, "cannot check credentials: " + p.error().message, ""};
   }
   if (!RoleMay(p->role, m))
-    return Denied(std::string("role ") + db::RoleName(p->role) + " may not call " +
-                  MethodName(m));
+    return Denied(std::string("role ") + db::RoleName(p->role) + " may not call " + MethodName(m));
   return p;
 }
 
@@ -95,8 +112,8 @@ ServerUnaryReactor* Unary(Shared& sh, CallbackServerContext* ctx, Method m, Body
 
 v1::SessionState StateToProto(const std::string& s) {
   static const std::map<std::string, v1::SessionState> kStates = {
-      {"created", v1::SESSION_STATE_CREATED},   {"running", v1::SESSION_STATE_RUNNING},
-      {"stalled", v1::SESSION_STATE_STALLED},   {"ended", v1::SESSION_STATE_ENDED},
+      {"created", v1::SESSION_STATE_CREATED},           {"running", v1::SESSION_STATE_RUNNING},
+      {"stalled", v1::SESSION_STATE_STALLED},           {"ended", v1::SESSION_STATE_ENDED},
       {"disconnected", v1::SESSION_STATE_DISCONNECTED}, {"aborted", v1::SESSION_STATE_ABORTED}};
   const auto it = kStates.find(s);
   return it == kStates.end() ? v1::SESSION_STATE_UNSPECIFIED : it->second;
@@ -333,8 +350,8 @@ class MonitorServiceImpl final : public v1::MonitorService::CallbackService {
     if (s.ok() && req->session_id() != 0 && !sh_.sessions.IsLive(req->session_id())) {
       auto r = sh_.store.GetSession(static_cast<int64_t>(req->session_id()));
       s = r.ok() ? Status(Error{ErrorCode::kFailedPrecondition,
-                                "session " + std::to_string(req->session_id()) + " is " +
-                                    r->state + ", not live",
+                                "session " + std::to_string(req->session_id()) + " is " + r->state +
+                                    ", not live",
                                 "session_id"})
                  : Status(r.error());
     }
@@ -446,8 +463,8 @@ class EvaluationServiceImpl final : public v1::EvaluationService::CallbackServic
         auto rows = sh_.store.LoadRatings(*kind, subject);
         if (!rows.ok()) return rows.error();
         if (rows->empty())
-          return Error{ErrorCode::kNotFound, "no evaluations of " + req->subject_kind() + " '" +
-                                                 subject + "'",
+          return Error{ErrorCode::kNotFound,
+                       "no evaluations of " + req->subject_kind() + " '" + subject + "'",
                        "subjects"};
         auto ratings = ToRatings(*rows);
         if (!ratings.ok()) return ratings.error();
@@ -508,20 +525,29 @@ class EvaluationServiceImpl final : public v1::EvaluationService::CallbackServic
 
 std::optional<db::Role> RoleFromProto(v1::Role r) {
   switch (r) {
-    case v1::ROLE_TRAINEE: return db::Role::kTrainee;
-    case v1::ROLE_INSTRUCTOR: return db::Role::kInstructor;
-    case v1::ROLE_EVALUATOR: return db::Role::kEvaluator;
-    case v1::ROLE_ADMIN: return db::Role::kAdmin;
-    default: return std::nullopt;
+    case v1::ROLE_TRAINEE:
+      return db::Role::kTrainee;
+    case v1::ROLE_INSTRUCTOR:
+      return db::Role::kInstructor;
+    case v1::ROLE_EVALUATOR:
+      return db::Role::kEvaluator;
+    case v1::ROLE_ADMIN:
+      return db::Role::kAdmin;
+    default:
+      return std::nullopt;
   }
 }
 
 v1::Role RoleToProto(db::Role r) {
   switch (r) {
-    case db::Role::kTrainee: return v1::ROLE_TRAINEE;
-    case db::Role::kInstructor: return v1::ROLE_INSTRUCTOR;
-    case db::Role::kEvaluator: return v1::ROLE_EVALUATOR;
-    case db::Role::kAdmin: return v1::ROLE_ADMIN;
+    case db::Role::kTrainee:
+      return v1::ROLE_TRAINEE;
+    case db::Role::kInstructor:
+      return v1::ROLE_INSTRUCTOR;
+    case db::Role::kEvaluator:
+      return v1::ROLE_EVALUATOR;
+    case db::Role::kAdmin:
+      return v1::ROLE_ADMIN;
   }
   return v1::ROLE_UNSPECIFIED;
 }
@@ -706,8 +732,8 @@ bool IsLoopbackHost(const std::string& listen) {
   std::string host = listen;
   if (!host.empty() && host.front() == '[') {
     host = host.substr(1, host.find(']') - 1);
-  } else if (const auto colon = host.rfind(':'); colon != std::string::npos &&
-                                                 host.find(':') == colon) {
+  } else if (const auto colon = host.rfind(':');
+             colon != std::string::npos && host.find(':') == colon) {
     host = host.substr(0, colon);
   }
   return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
@@ -728,9 +754,15 @@ struct ControlPlane::Impl {
 };
 
 ControlPlane::ControlPlane(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-ControlPlane::~ControlPlane() { Shutdown(); }
-int ControlPlane::port() const { return impl_->port; }
-bool ControlPlane::tls() const { return impl_->tls; }
+ControlPlane::~ControlPlane() {
+  Shutdown();
+}
+int ControlPlane::port() const {
+  return impl_->port;
+}
+bool ControlPlane::tls() const {
+  return impl_->tls;
+}
 
 Expected<std::unique_ptr<ControlPlane>> ControlPlane::Start(db::Store& store,
                                                             SessionManager& sessions,
@@ -750,8 +782,9 @@ Expected<std::unique_ptr<ControlPlane>> ControlPlane::Start(db::Store& store,
     impl->tls = true;
   } else {
     if (!IsLoopbackHost(options.listen) && !options.allow_insecure)
-      return InvalidArgument("listen", "plaintext gRPC only on loopback; configure a TLS "
-                                       "certificate (or allow insecure explicitly)");
+      return InvalidArgument("listen",
+                             "plaintext gRPC only on loopback; configure a TLS "
+                             "certificate (or allow insecure explicitly)");
     creds = grpc::InsecureServerCredentials();
   }
   grpc::EnableDefaultHealthCheckService(true);

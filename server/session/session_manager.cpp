@@ -18,8 +18,7 @@ bool IsSceneName(const std::string& s) {
 }
 
 double SteadyNow() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 db::TrialMetricsRecord ToRecord(const scoring::TrialMetrics& m) {
@@ -47,7 +46,9 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
   sampler_ = std::thread([this] { SamplerLoop(); });
 }
 
-SessionManager::~SessionManager() { Shutdown(); }
+SessionManager::~SessionManager() {
+  Shutdown();
+}
 
 Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
                                                 const std::string& scene_name) {
@@ -111,8 +112,7 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   }
   if (!simulation) return Get(id);  // already started: idempotent
   endpoint_->AddSession(id, key, simulation, link);
-  if (Status s = store_.SetSessionState(static_cast<int64_t>(id), "running", db::NowUs());
-      !s.ok())
+  if (Status s = store_.SetSessionState(static_cast<int64_t>(id), "running", db::NowUs()); !s.ok())
     return s.error();
   return Get(id);
 }
@@ -214,8 +214,8 @@ void SessionManager::SamplerLoop() {
         t.packet_loss = applied + lost > 0 ? static_cast<double>(lost) / (applied + lost) : 0.0;
         t.rtt_us = l->link.rtt_us.load(std::memory_order_relaxed);
         if (l->last_sample_s > 0 && now > l->last_sample_s)
-          t.haptic_rate_hz = static_cast<double>(t.sim.samples - l->last_samples) /
-                             (now - l->last_sample_s);
+          t.haptic_rate_hz =
+              static_cast<double>(t.sim.samples - l->last_samples) / (now - l->last_sample_s);
         l->last_samples = t.sim.samples;
         l->last_sample_s = now;
         all.push_back(t);

@@ -1,0 +1,497 @@
+// vsurg-admin: the administrators' tool. `init` works on the database file directly (there is
+// no administrator to authenticate yet); everything else goes through the server's gRPC
+// AdminService / EvaluationService with a bearer token (--token, --token-file or $VSURG_TOKEN),
+// and every call has a deadline. `export --db FILE` can also read a store file directly.
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/cli/args.h"
+#include "common/scoring/ratings_csv.h"
+#include "db/store.h"
+#include "vsurg/v1/services.grpc.pb.h"
+
+namespace {
+
+namespace v1 = vsurg::v1;
+using vsurg::Error;
+using vsurg::Expected;
+using vsurg::Status;
+using vsurg::cli::ArgParser;
+using Kind = ArgParser::Kind;
+
+constexpr int kExitRuntime = 1, kExitUsage = 2;
+
+int Usage(std::ostream& err, const std::string& cmd, const std::string& field,
+          const std::string& msg) {
+  err << cmd << ": " << (field.empty() ? "" : field + ": ") << msg << "\n";
+  return kExitUsage;
+}
+
+void AddRemote(ArgParser& p) {
+  p.Option("server", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
+      .Option("token", Kind::kString, "bearer token (default: $VSURG_TOKEN)")
+      .Option("token-file", Kind::kString, "file holding the bearer token")
+      .Option("tls-ca", Kind::kString, "PEM CA certificate: use TLS and trust this CA")
+      .Option("timeout", Kind::kDouble, "deadline per call, s", false, "10");
+}
+
+struct Remote {
+  std::shared_ptr<grpc::Channel> channel;
+  std::string token;
+  double timeout_s = 10;
+  void Prepare(grpc::ClientContext& ctx, double timeout = 0) const {
+    ctx.AddMetadata("authorization", "Bearer " + token);
+    ctx.set_deadline(std::chrono::system_clock::now() +
+                     std::chrono::milliseconds(
+                         static_cast<int64_t>(1000 * (timeout > 0 ? timeout : timeout_s))));
+  }
+};
+
+Expected<std::string> ReadText(const std::string& path, const std::string& field) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{vsurg::ErrorCode::kIoError, "cannot read " + path, field};
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+Expected<Remote> Connect(const ArgParser& p) {
+  Remote r;
+  if (p.Has("token")) {
+    r.token = p.String("token");
+  } else if (p.Has("token-file")) {
+    auto t = ReadText(p.String("token-file"), "--token-file");
+    if (!t.ok()) return t.error();
+    r.token = *t;
+  } else if (const char* env = std::getenv("VSURG_TOKEN")) {
+    r.token = env;
+  }
+  while (!r.token.empty() && std::isspace(static_cast<unsigned char>(r.token.back())))
+    r.token.pop_back();
+  if (r.token.empty())
+    return vsurg::InvalidArgument("--token",
+                                  "a token is required (--token, --token-file or "
+                                  "$VSURG_TOKEN)");
+  r.timeout_s = p.Double("timeout");
+  if (!(r.timeout_s > 0 && r.timeout_s <= 3600))
+    return vsurg::InvalidArgument("--timeout", "must be within (0, 3600] s");
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (p.Has("tls-ca")) {
+    auto ca = ReadText(p.String("tls-ca"), "--tls-ca");
+    if (!ca.ok()) return ca.error();
+    grpc::SslCredentialsOptions o;
+    o.pem_root_certs = *ca;
+    creds = grpc::SslCredentials(o);
+  } else {
+    creds = grpc::InsecureChannelCredentials();
+  }
+  r.channel = grpc::CreateChannel(p.String("server"), creds);
+  return r;
+}
+
+int RpcError(std::ostream& err, const std::string& cmd, const grpc::Status& s) {
+  err << cmd << ": " << s.error_message() << " (gRPC " << static_cast<int>(s.error_code()) << ")\n";
+  return kExitRuntime;
+}
+
+// ISO-8601 UTC date or time ("2026-11-21" or "2026-11-21T10:00:00Z") → µs since the epoch.
+Expected<int64_t> ParseIsoUtc(const std::string& s, const std::string& field) {
+  std::tm tm{};
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, sec = 0;
+  char tail = 0;
+  const int n =
+      std::sscanf(s.c_str(), "%4d-%2d-%2dT%2d:%2d:%2d%c", &y, &mo, &d, &h, &mi, &sec, &tail);
+  const bool date_only = n == 3 && s.size() == 10;
+  if (!date_only && !(n == 7 && tail == 'Z' && s.size() == 20))
+    return vsurg::InvalidArgument(field, "expected 2026-11-21 or 2026-11-21T10:00:00Z");
+  if (mo < 1 || mo > 12 || d < 1 || d > 31 || h > 23 || mi > 59 || sec > 60)
+    return vsurg::InvalidArgument(field, "not a valid date/time");
+  tm.tm_year = y - 1900;
+  tm.tm_mon = mo - 1;
+  tm.tm_mday = d;
+  tm.tm_hour = h;
+  tm.tm_min = mi;
+  tm.tm_sec = sec;
+  return static_cast<int64_t>(timegm(&tm)) * 1000000;
+}
+
+int Init(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ArgParser p("vsurg-admin init",
+              "Creates the database (when missing) and its first administrator, and prints the\n"
+              "administrator's token once on stdout. Refuses when an administrator exists.");
+  p.Option("db", Kind::kString, "SQLite database file", true)
+      .Option("name", Kind::kString, "administrator user name", false, "admin");
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  auto store = vsurg::db::Store::Open({.path = p.String("db")});
+  if (!store.ok()) return Usage(err, p.command(), "--db", store.error().message);
+  auto token = (*store)->InitAdmin(p.String("name"));
+  if (!token.ok()) {
+    err << p.command() << ": " << token.error().message << "\n";
+    return kExitRuntime;
+  }
+  out << *token << "\n";
+  err << "vsurg-admin: administrator '" << p.String("name")
+      << "' created; the token above is shown only once\n";
+  return 0;
+}
+
+int UserAdd(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ArgParser p("vsurg-admin user-add", "Creates a user (trainee, instructor, evaluator, admin).");
+  p.Option("name", Kind::kString, "user name", true)
+      .Option("role", Kind::kString, "trainee, instructor, evaluator or admin", true)
+      .Option("group", Kind::kString,
+              "trainee group, or evaluator group (intern, "
+              "associate_chief, chief)",
+              false, "")
+      .Option("issue-token", Kind::kFlag, "also issue a token and print it");
+  AddRemote(p);
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  const auto role = vsurg::db::ParseRole(p.String("role"));
+  if (!role) return Usage(err, p.command(), "--role", "trainee, instructor, evaluator or admin");
+  auto remote = Connect(p);
+  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
+  auto stub = v1::AdminService::NewStub(remote->channel);
+  v1::CreateUserRequest req;
+  req.set_name(p.String("name"));
+  req.set_role(static_cast<v1::Role>(static_cast<int>(*role) + 1));
+  req.set_group(p.String("group"));
+  v1::User user;
+  grpc::ClientContext ctx;
+  remote->Prepare(ctx);
+  if (grpc::Status s = stub->CreateUser(&ctx, req, &user); !s.ok())
+    return RpcError(err, p.command(), s);
+  if (p.Flag("issue-token")) {
+    v1::IssueTokenRequest t;
+    t.set_user(user.name());
+    v1::IssueTokenResponse tr;
+    grpc::ClientContext c2;
+    remote->Prepare(c2);
+    if (grpc::Status s = stub->IssueToken(&c2, t, &tr); !s.ok())
+      return RpcError(err, p.command(), s);
+    out << tr.token() << "\n";
+  } else {
+    out << "created " << user.name() << "\n";
+  }
+  return 0;
+}
+
+int Token(const std::vector<std::string>& args, std::ostream& out, std::ostream& err, bool revoke) {
+  ArgParser p(revoke ? "vsurg-admin token-revoke" : "vsurg-admin token-issue",
+              revoke ? "Revokes every token of a user."
+                     : "Issues a new token for a user and "
+                       "prints it once.");
+  p.Option("user", Kind::kString, "user name", true)
+      .Option("label", Kind::kString, "note", false, "");
+  AddRemote(p);
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  auto remote = Connect(p);
+  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
+  auto stub = v1::AdminService::NewStub(remote->channel);
+  grpc::ClientContext ctx;
+  remote->Prepare(ctx);
+  if (revoke) {
+    v1::UserRef ref;
+    ref.set_name(p.String("user"));
+    v1::Empty e;
+    if (grpc::Status s = stub->RevokeTokens(&ctx, ref, &e); !s.ok())
+      return RpcError(err, p.command(), s);
+    out << "revoked\n";
+    return 0;
+  }
+  v1::IssueTokenRequest req;
+  req.set_user(p.String("user"));
+  req.set_label(p.String("label"));
+  v1::IssueTokenResponse resp;
+  if (grpc::Status s = stub->IssueToken(&ctx, req, &resp); !s.ok())
+    return RpcError(err, p.command(), s);
+  out << resp.token() << "\n";
+  return 0;
+}
+
+int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ArgParser p("vsurg-admin import",
+              "Submits evaluations from a ratings CSV (evaluator_id,group,i1..i9[,subject]).\n"
+              "Idempotent: each row's key is derived from its subject and evaluator, so running\n"
+              "an import twice stores nothing twice.");
+  p.Option("input", Kind::kString, "ratings CSV", true)
+      .Option("subject-kind", Kind::kString, "session, trainee or model", true)
+      .Option("subject", Kind::kString, "the subject, for rows without a subject column")
+      .Option("moment", Kind::kDouble, "training moment, minutes (trainee subjects)");
+  AddRemote(p);
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  auto text = ReadText(p.String("input"), "--input");
+  if (!text.ok()) return Usage(err, p.command(), "--input", text.error().message);
+  auto subjects = vsurg::scoring::ParseRatingsCsv(*text, p.String("input"));
+  if (!subjects.ok()) return Usage(err, p.command(), "--input", subjects.error().message);
+  auto remote = Connect(p);
+  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
+  auto stub = v1::EvaluationService::NewStub(remote->channel);
+  int stored = 0, repeated = 0;
+  for (const auto& subject : *subjects) {
+    const std::string name =
+        subject.subject.empty() ? (p.Has("subject") ? p.String("subject") : "") : subject.subject;
+    if (name.empty())
+      return Usage(err, p.command(), "--subject", "rows without a subject need --subject");
+    for (const auto& r : subject.ratings) {
+      v1::SubmitEvaluationRequest req;
+      std::string key = "import:" + p.String("subject-kind") + ":" + name + ":" + r.evaluator;
+      if (p.Has("moment")) key += ":" + std::to_string(p.Double("moment"));
+      req.set_idempotency_key(key.substr(0, 128));
+      req.set_evaluator(r.evaluator);
+      req.set_evaluator_group(vsurg::scoring::GroupName(r.group));
+      req.set_subject_kind(p.String("subject-kind"));
+      req.set_subject(name);
+      if (p.Has("moment")) req.set_moment_min(p.Double("moment"));
+      for (double s : r.scores) req.add_scores(s);
+      v1::SubmitEvaluationResponse resp;
+      grpc::ClientContext ctx;
+      remote->Prepare(ctx);
+      if (grpc::Status s = stub->Submit(&ctx, req, &resp); !s.ok()) {
+        err << p.command() << ": " << r.evaluator << " on " << name << ": ";
+        return RpcError(err, p.command(), s);
+      }
+      (resp.duplicate() ? repeated : stored)++;
+    }
+  }
+  out << "imported " << stored << " evaluations (" << repeated << " already stored)\n";
+  return 0;
+}
+
+int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ArgParser p("vsurg-admin report",
+              "The weighted evaluation report of seed 000 (eq. 9-11) for one subject, or a\n"
+              "comparison of several (comma-separated) with the raters' agreement per index.");
+  p.Option("subject-kind", Kind::kString, "session, trainee or model", true)
+      .Option("subjects", Kind::kString, "subject, or subjects separated by commas", true)
+      .Option("weights", Kind::kString, "a stored weight set (default: seed 000)", false, "")
+      .Option("training", Kind::kFlag, "print the training effect table instead");
+  AddRemote(p);
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  auto remote = Connect(p);
+  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
+  auto stub = v1::EvaluationService::NewStub(remote->channel);
+  grpc::ClientContext ctx;
+  remote->Prepare(ctx);
+  if (p.Flag("training")) {
+    v1::TrainingEffectRequest req;
+    req.set_weight_set(p.String("weights"));
+    v1::TrainingEffectResponse resp;
+    if (grpc::Status s = stub->TrainingEffect(&ctx, req, &resp); !s.ok())
+      return RpcError(err, p.command(), s);
+    out << resp.cells_json() << "\n";
+    return 0;
+  }
+  v1::ReportRequest req;
+  req.set_subject_kind(p.String("subject-kind"));
+  std::stringstream list(p.String("subjects"));
+  for (std::string s; std::getline(list, s, ',');)
+    if (!s.empty()) req.add_subjects(s);
+  req.set_weight_set(p.String("weights"));
+  v1::ReportResponse resp;
+  if (grpc::Status s = stub->Report(&ctx, req, &resp); !s.ok())
+    return RpcError(err, p.command(), s);
+  out << resp.report_json() << "\n";
+  return 0;
+}
+
+int Export(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  ArgParser p("vsurg-admin export",
+              "Exports the stored evaluations, streamed: one row per evaluator, subject and index\n"
+              "(CSV per RFC 4180 with ISO-8601 UTC times, or JSON lines), or one xAPI statement\n"
+              "per submission. Written to a temporary file and renamed when complete.");
+  p.Option("format", Kind::kString, "csv, jsonl or xapi", false, "csv")
+      .Option("out", Kind::kString, "output file", true)
+      .Option("from", Kind::kString, "submitted at or after (2026-11-21 or ...T10:00:00Z)")
+      .Option("to", Kind::kString, "submitted before")
+      .Option("trainee", Kind::kString, "only this trainee (trainee subjects and their sessions)")
+      .Option("session", Kind::kInt, "only this session")
+      .Option("db", Kind::kString, "read this store file directly instead of asking the server");
+  AddRemote(p);
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  const auto format = vsurg::db::ParseExportFormat(p.String("format"));
+  if (!format) return Usage(err, p.command(), "--format", "csv, jsonl or xapi");
+  vsurg::db::ExportFilter f;
+  for (const char* opt : {"from", "to"}) {
+    if (!p.Has(opt)) continue;
+    auto t = ParseIsoUtc(p.String(opt), std::string("--") + opt);
+    if (!t.ok()) return Usage(err, p.command(), t.error().field, t.error().message);
+    (std::string(opt) == "from" ? f.from_us : f.to_us) = *t;
+  }
+  if (p.Has("trainee")) f.trainee = p.String("trainee");
+  if (p.Has("session")) {
+    if (p.Int("session") <= 0) return Usage(err, p.command(), "--session", "a session id > 0");
+    f.session = p.Int("session");
+  }
+  const std::string path = p.String("out"), tmp = path + ".part";
+  std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
+  if (!file) return Usage(err, p.command(), "--out", "cannot write " + path);
+  uint64_t bytes = 0;
+  auto fail = [&](int code) {
+    file.close();
+    std::remove(tmp.c_str());
+    return code;
+  };
+  if (p.Has("db")) {
+    auto store =
+        vsurg::db::Store::Open({.path = p.String("db"), .max_batch = 1, .read_connections = 1});
+    if (!store.ok()) return fail(Usage(err, p.command(), "--db", store.error().message));
+    Status s = (*store)->Export(f, *format, [&](std::string_view chunk) {
+      file.write(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+      bytes += chunk.size();
+      return static_cast<bool>(file);
+    });
+    if (!s.ok()) {
+      err << p.command() << ": " << s.error().message << "\n";
+      return fail(kExitRuntime);
+    }
+  } else {
+    auto remote = Connect(p);
+    if (!remote.ok())
+      return fail(Usage(err, p.command(), remote.error().field, remote.error().message));
+    auto stub = v1::AdminService::NewStub(remote->channel);
+    v1::ExportRequest req;
+    req.set_format(p.String("format"));
+    if (f.from_us) req.set_from_us(*f.from_us);
+    if (f.to_us) req.set_to_us(*f.to_us);
+    if (f.trainee) req.set_trainee(*f.trainee);
+    if (f.session) req.set_session(static_cast<uint64_t>(*f.session));
+    grpc::ClientContext ctx;
+    remote->Prepare(ctx, std::max(600.0, remote->timeout_s));
+    auto reader = stub->Export(&ctx, req);
+    v1::ExportChunk chunk;
+    while (reader->Read(&chunk)) {
+      file.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
+      bytes += chunk.data().size();
+      if (!file) {
+        ctx.TryCancel();
+        break;
+      }
+    }
+    grpc::Status s = reader->Finish();
+    if (!s.ok()) return fail(RpcError(err, p.command(), s));
+  }
+  file.flush();
+  if (!file) {
+    err << p.command() << ": write to " << tmp << " failed\n";
+    return fail(kExitRuntime);
+  }
+  file.close();
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    err << p.command() << ": cannot rename " << tmp << " to " << path << "\n";
+    return fail(kExitRuntime);
+  }
+  err << "vsurg-admin: wrote " << bytes << " bytes to " << path << "\n";
+  return 0;
+}
+
+int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
+           const std::string& cmd) {
+  ArgParser p("vsurg-admin " + cmd,
+              cmd == "users"    ? "Lists the users."
+              : cmd == "backup" ? "Online backup of the server's store to a new file on the server."
+                                : "Stores a weight set (JSON {name, group{...}, index[9]}).");
+  if (cmd == "backup") p.Option("out", Kind::kString, "absolute path on the server", true);
+  if (cmd == "weights-put") p.Option("file", Kind::kString, "weight set JSON", true);
+  AddRemote(p);
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  auto remote = Connect(p);
+  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
+  auto stub = v1::AdminService::NewStub(remote->channel);
+  grpc::ClientContext ctx;
+  remote->Prepare(ctx);
+  v1::Empty empty;
+  grpc::Status s;
+  if (cmd == "users") {
+    v1::ListUsersResponse resp;
+    s = stub->ListUsers(&ctx, v1::ListUsersRequest(), &resp);
+    if (s.ok())
+      for (const v1::User& u : resp.users())
+        out << u.name() << "\t" << v1::Role_Name(u.role()) << "\t" << u.group()
+            << (u.disabled() ? "\tdisabled" : "") << "\n";
+  } else if (cmd == "backup") {
+    v1::BackupRequest req;
+    req.set_path(p.String("out"));
+    s = stub->Backup(&ctx, req, &empty);
+    if (s.ok()) out << "backed up to " << p.String("out") << "\n";
+  } else {
+    auto json = ReadText(p.String("file"), "--file");
+    if (!json.ok()) return Usage(err, p.command(), "--file", json.error().message);
+    v1::WeightSet w;
+    w.set_json(*json);
+    s = stub->PutWeightSet(&ctx, w, &empty);
+    if (s.ok()) out << "stored\n";
+  }
+  return s.ok() ? 0 : RpcError(err, p.command(), s);
+}
+
+const char* kHelp =
+    "usage: vsurg-admin <command> [options]\n\n"
+    "commands:\n"
+    "  init          create the database's first administrator; prints its token once\n"
+    "  user-add      create a user (trainee, instructor, evaluator, admin)\n"
+    "  users         list users\n"
+    "  token-issue   issue a token for a user (printed once)\n"
+    "  token-revoke  revoke a user's tokens\n"
+    "  weights-put   store a weight set\n"
+    "  import        submit evaluations from a ratings CSV\n"
+    "  report        weighted evaluation report (seed 000 eq. 9-11), or --training\n"
+    "  export        export evaluations: --format csv|jsonl|xapi --out FILE\n"
+    "  backup        online backup of the server's store\n\n"
+    "Remote commands take --server HOST:PORT and a token (--token, --token-file, $VSURG_TOKEN).\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const std::vector<std::string> all(argv + 1, argv + argc);
+    if (all.empty()) {
+      std::cerr << "vsurg-admin: a command is required (see --help)\n";
+      return kExitUsage;
+    }
+    const std::string& cmd = all[0];
+    const std::vector<std::string> rest(all.begin() + 1, all.end());
+    auto& out = std::cout;
+    auto& err = std::cerr;
+    if (cmd == "--help" || cmd == "-h" || cmd == "help") return out << kHelp, 0;
+    if (cmd == "init") return Init(rest, out, err);
+    if (cmd == "user-add") return UserAdd(rest, out, err);
+    if (cmd == "token-issue") return Token(rest, out, err, false);
+    if (cmd == "token-revoke") return Token(rest, out, err, true);
+    if (cmd == "import") return Import(rest, out, err);
+    if (cmd == "report") return Report(rest, out, err);
+    if (cmd == "export") return Export(rest, out, err);
+    if (cmd == "users" || cmd == "backup" || cmd == "weights-put")
+      return Simple(rest, out, err, cmd);
+    std::cerr << "vsurg-admin: unknown command '" << cmd << "' (see --help)\n";
+    return kExitUsage;
+  } catch (const std::exception& e) {
+    std::cerr << "vsurg-admin: fatal: " << e.what() << "\n";
+    return kExitRuntime;
+  }
+}
