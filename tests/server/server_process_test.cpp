@@ -1,0 +1,206 @@
+// vsurg-server as a real process: SIGKILL during a burst of submissions loses nothing that was
+// acknowledged and leaves a sound database; SIGTERM shuts down cleanly and records the sessions
+// it aborts.
+#include <fcntl.h>
+#include <grpcpp/grpcpp.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "db/store.h"
+#include "vsurg/v1/services.grpc.pb.h"
+
+extern char** environ;
+
+namespace vsurg {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ServerProcess {
+  pid_t pid = -1;
+  int grpc_port = 0;
+
+  // Starts vsurg-server on `db` and waits for its ready file.
+  static ServerProcess Start(const fs::path& dir, const fs::path& db) {
+    ServerProcess p;
+    const std::string ready = (dir / "ready.json").string();
+    fs::remove(ready);
+    std::vector<std::string> args = {
+        VSURG_SERVER_BINARY, "--db", db.string(),    "--listen", "127.0.0.1:0",
+        "--udp-port",        "0",    "--ready-file", ready};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    const std::string log = (dir / "server.log").string();
+    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    const int rc = posix_spawn(&p.pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    EXPECT_EQ(rc, 0);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (std::chrono::steady_clock::now() < deadline) {
+      std::ifstream in(ready);
+      std::stringstream text;
+      text << in.rdbuf();
+      const auto j = nlohmann::json::parse(text.str(), nullptr, false);
+      if (!j.is_discarded() && j.contains("grpc_port")) {
+        p.grpc_port = j["grpc_port"].get<int>();
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    EXPECT_GT(p.grpc_port, 0) << "vsurg-server did not become ready";
+    return p;
+  }
+
+  int Signal(int sig) {
+    kill(pid, sig);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    pid = -1;
+    return status;
+  }
+
+  ~ServerProcess() {
+    if (pid > 0) Signal(SIGKILL);
+  }
+};
+
+std::unique_ptr<grpc::ClientContext> Ctx(const std::string& token) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->AddMetadata("authorization", "Bearer " + token);
+  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  return ctx;
+}
+
+v1::SubmitEvaluationRequest Submission(const std::string& evaluator) {
+  v1::SubmitEvaluationRequest r;
+  r.set_idempotency_key("crash-" + evaluator);
+  r.set_evaluator(evaluator);
+  r.set_evaluator_group("chief");
+  r.set_subject_kind("model");
+  r.set_subject("crash-model");
+  for (int j = 0; j < 9; ++j) r.add_scores(5 + 0.5 * (j % 3));
+  return r;
+}
+
+TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
+  const fs::path dir = fs::temp_directory_path() / ("vsurg_crash_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path db = dir / "vsurg.db";
+  std::string token;
+  {
+    auto store = db::Store::Open({.path = db.string()});
+    ASSERT_TRUE(store.ok());
+    token = (*store)->InitAdmin("root").value();
+  }
+
+  auto server = ServerProcess::Start(dir, db);
+  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(server.grpc_port),
+                                     grpc::InsecureChannelCredentials());
+  std::mutex mutex;
+  std::set<std::string> acknowledged;
+  std::atomic<bool> stop{false};
+  std::atomic<int> next{0}, failures{0};
+  std::vector<std::thread> clients;
+  for (int c = 0; c < 16; ++c) {
+    clients.emplace_back([&] {
+      auto stub = v1::EvaluationService::NewStub(channel);
+      while (!stop.load()) {
+        const std::string who = "rater-" + std::to_string(next.fetch_add(1));
+        v1::SubmitEvaluationResponse resp;
+        if (stub->Submit(Ctx(token).get(), Submission(who), &resp).ok()) {
+          std::lock_guard lock(mutex);
+          acknowledged.insert(who);
+        } else if (failures.fetch_add(1) > 200) {
+          return;  // the server is gone
+        }
+      }
+    });
+  }
+  // Kill it in the middle of the burst.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  for (;;) {
+    {
+      std::lock_guard lock(mutex);
+      if (acknowledged.size() >= 500) break;
+    }
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the burst did not get going";
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  const int status = server.Signal(SIGKILL);
+  EXPECT_TRUE(WIFSIGNALED(status));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  stop = true;
+  for (auto& t : clients) t.join();
+
+  {
+    auto store = db::Store::Open({.path = db.string()});
+    ASSERT_TRUE(store.ok()) << store.error().message;
+    EXPECT_EQ((*store)->IntegrityCheck().value(), "ok");
+    auto rows = (*store)->LoadRatings(db::SubjectKind::kModel, "crash-model");
+    ASSERT_TRUE(rows.ok());
+    std::set<std::string> stored;
+    for (const auto& r : *rows) {
+      stored.insert(r.evaluator);
+      EXPECT_EQ(r.scores[1], 5.5);  // every stored submission is whole
+    }
+    size_t missing = 0;
+    for (const std::string& who : acknowledged) missing += stored.count(who) == 0;
+    EXPECT_EQ(missing, 0u) << "acknowledged but lost";
+    EXPECT_GE(stored.size(), acknowledged.size());
+    EXPECT_EQ((*store)->CountEvaluationRows().value(), static_cast<int64_t>(9 * stored.size()));
+  }
+
+  // Restarted on the same file: serving, and an acknowledged key is still known.
+  auto again = ServerProcess::Start(dir, db);
+  channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(again.grpc_port),
+                                grpc::InsecureChannelCredentials());
+  auto stub = v1::EvaluationService::NewStub(channel);
+  v1::SubmitEvaluationResponse resp;
+  ASSERT_TRUE(stub->Submit(Ctx(token).get(), Submission(*acknowledged.begin()), &resp).ok());
+  EXPECT_TRUE(resp.duplicate());
+
+  // SIGTERM with a live session: a clean exit, the session recorded as aborted.
+  auto sessions = v1::SessionService::NewStub(channel);
+  v1::CreateSessionRequest create;
+  create.set_trainee("tina");
+  create.set_scene("sphere-palpation-256");
+  v1::CreateSessionResponse created;
+  ASSERT_TRUE(sessions->Create(Ctx(token).get(), create, &created).ok());
+  v1::SessionRef ref;
+  ref.set_id(created.session().id());
+  v1::Session s;
+  ASSERT_TRUE(sessions->Start(Ctx(token).get(), ref, &s).ok());
+  const int term = again.Signal(SIGTERM);
+  ASSERT_TRUE(WIFEXITED(term));
+  EXPECT_EQ(WEXITSTATUS(term), 0);
+  auto store = db::Store::Open({.path = db.string()});
+  ASSERT_TRUE(store.ok());
+  auto rec = (*store)->GetSession(static_cast<int64_t>(created.session().id()));
+  ASSERT_TRUE(rec.ok());
+  EXPECT_EQ(rec->state, "aborted");
+  EXPECT_GT(rec->ended_us, 0);
+  EXPECT_TRUE((*store)->GetTrialMetrics(rec->id).value().has_value());
+  store->reset();
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace vsurg
