@@ -5,6 +5,11 @@
 //     session and simulation (deformation thread included); prints rtt_p50_us, rtt_p99_us,
 //     rtt_p999_us, loss and server_cpu_per_station (the endpoint I/O thread's CPU time per
 //     station, as a fraction of one core).
+//
+//   vsurg-bench grpc-submit [--clients 32] [--seconds 5] [--batches 1,1024] [--json]
+//     durable evaluation submissions per second through gRPC, per writer batch limit.
+//   vsurg-bench export [--rows 1000000] [--format csv] [--json]
+//     export of N evaluation rows from the store and streamed through gRPC.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -17,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/control_bench.h"
 #include "common/cli/args.h"
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
@@ -188,15 +194,20 @@ int HapticRtt(const std::vector<std::string>& args) {
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "--help") {
-    std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--json]\n";
+    std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--json]\n"
+                 "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
+                 "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n";
     return args.empty() ? 2 : 0;
   }
   try {
     if (args[0] == "haptic-rtt") return HapticRtt({args.begin() + 1, args.end()});
+    if (args[0] == "grpc-submit") return vsurg::bench::GrpcSubmit({args.begin() + 1, args.end()});
+    if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
   } catch (const std::exception& e) {
     std::cerr << "vsurg-bench: " << e.what() << "\n";
     return 1;
   }
-  std::cerr << "vsurg-bench: unknown command '" << args[0] << "' (haptic-rtt)\n";
+  std::cerr << "vsurg-bench: unknown command '" << args[0]
+            << "' (haptic-rtt, grpc-submit, export)\n";
   return 2;
 }

@@ -1,0 +1,320 @@
+// Control-plane measurements for vsurg-bench (see vsurg_bench_main.cpp for the commands).
+#include "bench/control_bench.h"
+
+#include <grpcpp/grpcpp.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "common/cli/args.h"
+#include "db/sqlite.h"
+#include "db/store.h"
+#include "server/control/control_plane.h"
+#include "server/session/session_manager.h"
+#include "vsurg/v1/services.grpc.pb.h"
+
+namespace vsurg::bench {
+namespace {
+
+namespace fs = std::filesystem;
+using cli::ArgParser;
+using Clock = std::chrono::steady_clock;
+using json = nlohmann::json;
+
+fs::path TempDir(const std::string& tag) {
+  const fs::path d =
+      fs::temp_directory_path() / ("vsurg_bench_" + tag + "_" + std::to_string(getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+}
+
+struct SubmitResult {
+  int max_batch = 0;
+  double per_s = 0, p50_ms = 0, p99_ms = 0, jobs_per_commit = 0;
+  uint64_t ok = 0, failed = 0;
+};
+
+// In-flight calls ("lanes") on the callback client API: each lane issues its next submission
+// from the previous one's completion, so `clients` calls are always outstanding.
+SubmitResult RunSubmit(int max_batch, int clients, double seconds) {
+  const fs::path dir = TempDir("submit_" + std::to_string(max_batch));
+  SubmitResult out;
+  out.max_batch = max_batch;
+  {
+    auto store =
+        std::move(db::Store::Open({.path = (dir / "vsurg.db").string(), .max_batch = max_batch}))
+            .value();
+    const std::string token = store->InitAdmin("root").value();
+    server::SessionManager sessions(*store, nullptr, {});
+    auto cp = std::move(server::ControlPlane::Start(*store, sessions, {})).value();
+    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(cp->port()),
+                                       grpc::InsecureChannelCredentials());
+    auto stub = v1::EvaluationService::NewStub(channel);
+
+    struct Lane {
+      std::unique_ptr<grpc::ClientContext> ctx;
+      v1::SubmitEvaluationRequest req;
+      v1::SubmitEvaluationResponse resp;
+      Clock::time_point sent;
+    };
+    std::vector<Lane> lanes(clients);
+    std::atomic<bool> stop{false};
+    std::atomic<uint64_t> next{0}, ok{0}, failed{0};
+    std::mutex m;
+    std::condition_variable cv;
+    int running = clients;
+    std::vector<double> latency_ms;
+    latency_ms.reserve(1 << 20);
+    std::function<void(Lane&)> start = [&](Lane& lane) {
+      const uint64_t n = next.fetch_add(1);
+      lane.ctx = std::make_unique<grpc::ClientContext>();
+      lane.ctx->AddMetadata("authorization", "Bearer " + token);
+      lane.ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+      lane.req.set_idempotency_key("bench-" + std::to_string(n));
+      lane.req.set_evaluator("rater-" + std::to_string(n));
+      lane.sent = Clock::now();
+      stub->async()->Submit(
+          lane.ctx.get(), &lane.req, &lane.resp, [&, lane_ptr = &lane](grpc::Status s) {
+            const double ms =
+                std::chrono::duration<double, std::milli>(Clock::now() - lane_ptr->sent).count();
+            if (s.ok()) {
+              ok.fetch_add(1);
+              std::lock_guard lock(m);
+              latency_ms.push_back(ms);
+            } else {
+              failed.fetch_add(1);
+            }
+            if (!stop.load()) {
+              start(*lane_ptr);
+            } else {
+              std::lock_guard lock(m);
+              if (--running == 0) cv.notify_all();
+            }
+          });
+    };
+    for (Lane& lane : lanes) {
+      lane.req.set_evaluator_group("chief");
+      lane.req.set_subject_kind("model");
+      lane.req.set_subject("bench-model");
+      for (int j = 0; j < 9; ++j) lane.req.add_scores(7);
+    }
+    // Warm-up, then the measured window.
+    for (Lane& lane : lanes) start(lane);
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    const uint64_t ok0 = ok.load();
+    {
+      std::lock_guard lock(m);
+      latency_ms.clear();
+    }
+    const db::StoreStats s0 = store->stats();
+    const auto t0 = Clock::now();
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
+    const uint64_t ok1 = ok.load();
+    const db::StoreStats s1 = store->stats();
+    stop = true;
+    {
+      std::unique_lock lock(m);
+      cv.wait(lock, [&] { return running == 0; });
+      out.p50_ms = Percentile(latency_ms, 0.5);
+      out.p99_ms = Percentile(latency_ms, 0.99);
+    }
+    out.ok = ok1 - ok0;
+    out.failed = failed.load();
+    out.per_s = static_cast<double>(out.ok) / elapsed;
+    out.jobs_per_commit = s1.commits > s0.commits
+                              ? static_cast<double>(s1.jobs - s0.jobs) / (s1.commits - s0.commits)
+                              : 0;
+    cp->Shutdown();
+  }
+  fs::remove_all(dir);
+  return out;
+}
+
+// Fills a store with `rows` evaluation rows (rows / 9 submissions) in one transaction.
+Status Fill(db::Store& store, int64_t rows) {
+  return store.Write([rows](db::Connection& c) -> Status {
+    const int64_t now = db::NowUs();
+    if (Status s = c.Exec("INSERT INTO users(name, role, created_us) VALUES ('bench', 'admin', 0)");
+        !s.ok())
+      return s;
+    auto ev = c.Prepare("INSERT INTO evaluators(name, evaluator_group) VALUES (?1, ?2)");
+    auto sub = c.Prepare(
+        "INSERT INTO submissions(idempotency_key, evaluator_id, evaluator_group, subject_kind, "
+        "subject, submitted_us, submitted_by) VALUES (?1, ?2, ?3, 'model', ?4, ?5, 1)");
+    auto val =
+        c.Prepare("INSERT INTO evaluations(submission_id, index_no, score) VALUES (?1, ?2, ?3)");
+    if (!ev.ok() || !sub.ok() || !val.ok()) return Error{ErrorCode::kIoError, "prepare", ""};
+    const char* groups[] = {"intern", "associate_chief", "chief"};
+    const int evaluators = 1000;
+    for (int e = 0; e < evaluators; ++e) {
+      (*ev)->Bind(1, "rater-" + std::to_string(e)).Bind(2, groups[e % 3]);
+      if (Status s = (*ev)->Run(); !s.ok()) return s;
+    }
+    const int64_t submissions = (rows + 8) / 9;
+    for (int64_t i = 0; i < submissions; ++i) {
+      const int64_t e = i % evaluators;
+      (*sub)->Bind(1, "k" + std::to_string(i)).Bind(2, e + 1).Bind(3, groups[e % 3]);
+      (*sub)->Bind(4, "model-" + std::to_string(i / evaluators)).Bind(5, now - (submissions - i));
+      if (Status s = (*sub)->Run(); !s.ok()) return s;
+      const int64_t id = c.LastInsertId();
+      for (int j = 1; j <= 9; ++j) {
+        (*val)->Bind(1, id).Bind(2, int64_t{j}).Bind(3, 0.5 * static_cast<double>((i + j) % 21));
+        if (Status s = (*val)->Run(); !s.ok()) return s;
+      }
+    }
+    return Status::Ok();
+  });
+}
+
+}  // namespace
+
+int GrpcSubmit(const std::vector<std::string>& args) {
+  ArgParser p(
+      "vsurg-bench grpc-submit",
+      "Durable evaluation submissions per second through gRPC on loopback (in-process\n"
+      "server, real SQLite file with synchronous=FULL), for each writer batch limit side by\n"
+      "side: 1 = one commit (fsync) per submission, larger = group commit.");
+  p.Option("clients", ArgParser::Kind::kInt, "calls in flight", false, "32")
+      .Option("seconds", ArgParser::Kind::kDouble, "measured time per setting, s", false, "5")
+      .Option("batches", ArgParser::Kind::kString, "writer batch limits, comma-separated", false,
+              "1,1024")
+      .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  const int clients = p.Int("clients");
+  const double seconds = p.Double("seconds");
+  if (clients < 1 || clients > 1024 || !(seconds > 0 && seconds <= 600)) {
+    std::cerr << p.command() << ": --clients 1..1024, --seconds (0, 600]\n";
+    return 2;
+  }
+  std::vector<int> batches;
+  std::stringstream list(p.String("batches"));
+  for (std::string b; std::getline(list, b, ',');) batches.push_back(std::stoi(b));
+  json results = json::array();
+  for (int b : batches) {
+    const SubmitResult r = RunSubmit(b, clients, seconds);
+    results.push_back({{"max_batch", r.max_batch},
+                       {"submissions_per_s", r.per_s},
+                       {"p50_ms", r.p50_ms},
+                       {"p99_ms", r.p99_ms},
+                       {"jobs_per_commit", r.jobs_per_commit},
+                       {"ok", r.ok},
+                       {"failed", r.failed}});
+    if (!p.Flag("json"))
+      std::printf("max_batch %5d: %8.0f submissions/s  p50 %.2f ms  p99 %.2f ms  %.1f per commit\n",
+                  r.max_batch, r.per_s, r.p50_ms, r.p99_ms, r.jobs_per_commit);
+  }
+  if (p.Flag("json")) std::cout << json{{"clients", clients}, {"results", results}}.dump() << "\n";
+  return 0;
+}
+
+int ExportBench(const std::vector<std::string>& args) {
+  ArgParser p(
+      "vsurg-bench export",
+      "Exports N evaluation rows (one per evaluator, subject and index) from a real SQLite\n"
+      "file: directly from the store, and streamed through gRPC AdminService/Export.");
+  p.Option("rows", ArgParser::Kind::kInt, "evaluation rows", false, "1000000")
+      .Option("format", ArgParser::Kind::kString, "csv, jsonl or xapi", false, "csv")
+      .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  const auto format = db::ParseExportFormat(p.String("format"));
+  if (!format || p.Int("rows") < 9) {
+    std::cerr << p.command() << ": --format csv|jsonl|xapi, --rows >= 9\n";
+    return 2;
+  }
+  const fs::path dir = TempDir("export");
+  json out;
+  {
+    auto store = std::move(db::Store::Open({.path = (dir / "vsurg.db").string()})).value();
+    auto t0 = Clock::now();
+    if (Status s = Fill(*store, p.Int("rows")); !s.ok()) {
+      std::cerr << p.command() << ": fill: " << s.error().message << "\n";
+      return 1;
+    }
+    const double fill_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    const int64_t rows = store->CountEvaluationRows().value();
+
+    std::ofstream file(dir / "local.out", std::ios::binary);
+    uint64_t local_bytes = 0;
+    t0 = Clock::now();
+    (void)store->Export({}, *format, [&](std::string_view c) {
+      file.write(c.data(), static_cast<std::streamsize>(c.size()));
+      local_bytes += c.size();
+      return true;
+    });
+    file.close();
+    const double local_s = std::chrono::duration<double>(Clock::now() - t0).count();
+
+    const std::string token = store->IssueToken("bench", "").value();
+    server::SessionManager sessions(*store, nullptr, {});
+    auto cp = std::move(server::ControlPlane::Start(*store, sessions, {})).value();
+    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(cp->port()),
+                                       grpc::InsecureChannelCredentials());
+    auto stub = v1::AdminService::NewStub(channel);
+    grpc::ClientContext ctx;
+    ctx.AddMetadata("authorization", "Bearer " + token);
+    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
+    v1::ExportRequest req;
+    req.set_format(p.String("format"));
+    std::ofstream remote_file(dir / "remote.out", std::ios::binary);
+    uint64_t remote_bytes = 0;
+    t0 = Clock::now();
+    auto reader = stub->Export(&ctx, req);
+    v1::ExportChunk chunk;
+    while (reader->Read(&chunk)) {
+      remote_file.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
+      remote_bytes += chunk.data().size();
+    }
+    const grpc::Status st = reader->Finish();
+    const double remote_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    cp->Shutdown();
+    out = {{"rows", rows},
+           {"format", p.String("format")},
+           {"fill_s", fill_s},
+           {"store_export_s", local_s},
+           {"store_export_bytes", local_bytes},
+           {"grpc_export_s", remote_s},
+           {"grpc_export_bytes", remote_bytes},
+           {"grpc_ok", st.ok()},
+           {"rows_per_s_grpc", static_cast<double>(rows) / remote_s}};
+  }
+  fs::remove_all(dir);
+  if (p.Flag("json")) {
+    std::cout << out.dump() << "\n";
+  } else {
+    std::printf("%lld rows (%s): store export %.2f s (%.1f MB), gRPC export %.2f s (%.1f MB)%s\n",
+                static_cast<long long>(out["rows"].get<int64_t>()), p.String("format").c_str(),
+                out["store_export_s"].get<double>(), out["store_export_bytes"].get<double>() / 1e6,
+                out["grpc_export_s"].get<double>(), out["grpc_export_bytes"].get<double>() / 1e6,
+                out["grpc_ok"].get<bool>() ? "" : " (gRPC FAILED)");
+  }
+  return out["grpc_ok"].get<bool>() ? 0 : 1;
+}
+
+}  // namespace vsurg::bench

@@ -1,0 +1,12 @@
+// vsurg-bench control-plane commands: durable gRPC submissions per second, and export speed.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace vsurg::bench {
+
+int GrpcSubmit(const std::vector<std::string>& args);
+int ExportBench(const std::vector<std::string>& args);
+
+}  // namespace vsurg::bench
