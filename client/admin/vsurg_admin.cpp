@@ -277,6 +277,31 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
   return 0;
 }
 
+std::string Fixed(const nlohmann::json& v, int digits = 3) {
+  if (!v.is_number()) return "n/a";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v.get<double>());
+  return buf;
+}
+
+// The seed 000 table of one subject's report (Fig. 12-14: M_j, s_j, N) with the agreement.
+void PrintReport(std::ostream& out, const nlohmann::json& r) {
+  out << "subject " << r.value("subject", std::string("?")) << ": " << r["raters"] << " raters ("
+      << "intern " << r["raters_per_group"]["intern"] << ", associate_chief "
+      << r["raters_per_group"]["associate_chief"] << ", chief " << r["raters_per_group"]["chief"]
+      << "), weights '" << r["weights"]["name"].get<std::string>() << "'"
+      << (r["renormalised"].get<bool>() ? " (absent groups renormalised)" : "") << "\n";
+  for (size_t j = 0; j < r["index_names"].size(); ++j) {
+    char line[160];
+    std::snprintf(line, sizeof line, "  %-24s M %6s  s %6s\n",
+                  r["index_names"][j].get<std::string>().c_str(),
+                  Fixed(r["index_means"][j]).c_str(), Fixed(r["index_variances"][j]).c_str());
+    out << line;
+  }
+  out << "  comprehensive N " << Fixed(r["comprehensive"]) << ", ICC(2,k) over indexes "
+      << Fixed(r["icc2k"]) << ", Cronbach alpha " << Fixed(r["cronbach_alpha"]) << "\n";
+}
+
 int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   ArgParser p("vsurg-admin report",
               "The weighted evaluation report of seed 000 (eq. 9-11) for one subject, or a\n"
@@ -284,7 +309,8 @@ int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream
   p.Option("subject-kind", Kind::kString, "session, trainee or model", true)
       .Option("subjects", Kind::kString, "subject, or subjects separated by commas", true)
       .Option("weights", Kind::kString, "a stored weight set (default: seed 000)", false, "")
-      .Option("training", Kind::kFlag, "print the training effect table instead");
+      .Option("training", Kind::kFlag, "print the training effect table instead")
+      .Option("json", Kind::kFlag, "print the report as JSON");
   AddRemote(p);
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
@@ -312,7 +338,20 @@ int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream
   v1::ReportResponse resp;
   if (grpc::Status s = stub->Report(&ctx, req, &resp); !s.ok())
     return RpcError(err, p.command(), s);
-  out << resp.report_json() << "\n";
+  if (p.Flag("json")) {
+    out << resp.report_json() << "\n";
+    return 0;
+  }
+  const auto j = nlohmann::json::parse(resp.report_json(), nullptr, false);
+  if (j.is_discarded()) return out << resp.report_json() << "\n", 0;
+  if (!j.contains("subjects")) {
+    PrintReport(out, j);
+    return 0;
+  }
+  for (const auto& one : j["subjects"]) PrintReport(out, one);
+  out << "ICC(2,k) per index across subjects (" << j["common_raters"] << " common raters):";
+  for (const auto& v : j["icc2k_per_index"]) out << " " << Fixed(v);
+  out << "\n";
   return 0;
 }
 
