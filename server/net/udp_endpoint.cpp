@@ -307,6 +307,9 @@ void UdpEndpoint::Stop() {
     boost::system::error_code ec;
     p->timer.cancel();
     p->socket.close(ec);
+    // A timer that had already fired is not cancelled: its handler would re-arm it and run()
+    // would never run out of work. Stop the loop outright.
+    p->io.stop();
   });
   impl_->thread.join();
 }

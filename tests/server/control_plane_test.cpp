@@ -447,6 +447,38 @@ TEST_F(ControlPlaneTest, SubmissionsAreValidatedIdempotentAndReportedWithTheirWe
             StatusCode::NOT_FOUND);
 }
 
+TEST_F(ControlPlaneTest, TrainingEffectGroupsTraineesByMoment) {
+  auto ev = v1::EvaluationService::NewStub(channel_);
+  // (trainee, moment, evaluator, uniform score): tina is in group virtual-40, tom in real-40.
+  const std::vector<std::tuple<std::string, double, std::string, double>> rows = {
+      {"tina", 0, "c1", 4}, {"tina", 0, "c2", 6}, {"tina", 20, "c1", 7},
+      {"tom", 0, "c1", 5},  {"tom", 0, "c2", 5},
+  };
+  for (const auto& [trainee, moment, evaluator, score] : rows) {
+    v1::SubmitEvaluationRequest r;
+    r.set_idempotency_key(trainee + std::to_string(moment) + evaluator);
+    r.set_evaluator(evaluator);
+    r.set_evaluator_group("chief");
+    r.set_subject_kind("trainee");
+    r.set_subject(trainee);
+    r.set_moment_min(moment);
+    for (int j = 0; j < 9; ++j) r.add_scores(score);
+    v1::SubmitEvaluationResponse resp;
+    ASSERT_TRUE(ev->Submit(Ctx(db::Role::kAdmin).get(), r, &resp).ok());
+  }
+  v1::TrainingEffectResponse resp;
+  ASSERT_TRUE(ev->TrainingEffect(Ctx(db::Role::kInstructor).get(), {}, &resp).ok());
+  const auto cells = nlohmann::json::parse(resp.cells_json());
+  ASSERT_EQ(cells.size(), 3u);  // sorted by group, then moment
+  EXPECT_EQ(cells[0]["trainee_group"], "real-40");
+  EXPECT_NEAR(cells[0]["mean"].get<double>(), 5.0, 1e-12);
+  EXPECT_EQ(cells[1]["trainee_group"], "virtual-40");
+  EXPECT_EQ(cells[1]["moment_min"], 0.0);
+  EXPECT_NEAR(cells[1]["mean"].get<double>(), 5.0, 1e-12);  // mean of the evaluators 4 and 6
+  EXPECT_NEAR(cells[2]["mean"].get<double>(), 7.0, 1e-12);
+  EXPECT_EQ(cells[2]["moment_min"], 20.0);
+}
+
 TEST_F(ControlPlaneTest, ExportStreamsEveryRowAsTheStoreHasIt) {
   auto ev = v1::EvaluationService::NewStub(channel_);
   for (int i = 0; i < 300; ++i) {

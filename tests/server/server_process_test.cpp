@@ -202,5 +202,85 @@ TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
   fs::remove_all(dir);
 }
 
+struct ShellRun {
+  int code = -1;
+  std::string out;
+};
+
+// Runs a command line through the shell, capturing stdout.
+ShellRun Shell(const std::string& command) {
+  ShellRun r;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  size_t n = 0;
+  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, n);
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("vsurg_admin_cli_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path db = dir / "vsurg.db";
+  const std::string admin = VSURG_ADMIN_BINARY;
+  const ShellRun init = Shell(admin + " init --db " + db.string() + " 2>/dev/null");
+  ASSERT_EQ(init.code, 0);
+  const std::string token = init.out.substr(0, init.out.find('\n'));
+  EXPECT_EQ(token.rfind("vst_", 0), 0u);
+  EXPECT_EQ(Shell(admin + " init --db " + db.string() + " 2>/dev/null").code, 1);  // once only
+
+  auto server = ServerProcess::Start(dir, db);
+  const std::string remote =
+      " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " + token;
+  const ShellRun import =
+      Shell(admin + " import" + remote +
+            " --input " VSURG_SAMPLES_DIR "/ratings-three-models.csv --subject-kind model");
+  ASSERT_EQ(import.code, 0) << import.out;
+  EXPECT_NE(import.out.find("imported 120"), std::string::npos) << import.out;
+  const ShellRun report =
+      Shell(admin + " report" + remote + " --subject-kind model --subjects coil-spring --json");
+  ASSERT_EQ(report.code, 0);
+  const auto j = nlohmann::json::parse(report.out);
+  EXPECT_EQ(j["raters"], 40);
+  EXPECT_EQ(j["index_means"].size(), 9u);
+
+  const fs::path csv = dir / "scores.csv";
+  ASSERT_EQ(
+      Shell(admin + " export" + remote + " --format csv --out " + csv.string() + " 2>/dev/null")
+          .code,
+      0);
+  std::ifstream in(csv);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header.rfind("submission_id,submitted_at,evaluator,evaluator_group", 0), 0u);
+  int lines = 0;
+  for (std::string line; std::getline(in, line);) ++lines;
+  EXPECT_EQ(lines, 120 * 9);
+  // The same export from the store file directly, without the server.
+  const fs::path local = dir / "local.csv";
+  ASSERT_EQ(Shell(admin + " export --db " + db.string() + " --format csv --out " + local.string() +
+                  " 2>/dev/null")
+                .code,
+            0);
+  EXPECT_EQ(fs::file_size(local), fs::file_size(csv));
+
+  // Bad arguments exit 2; a bad token exits 1 and names the cause.
+  EXPECT_EQ(Shell(admin + " export" + remote + " --format pdf --out x 2>/dev/null").code, 2);
+  EXPECT_EQ(Shell(admin + " export" + remote + " --from yesterday --out x 2>/dev/null").code, 2);
+  EXPECT_EQ(Shell(admin + " frobnicate 2>/dev/null").code, 2);
+  const ShellRun bad =
+      Shell(admin + " users --server 127.0.0.1:" + std::to_string(server.grpc_port) +
+            " --token vst_wrong 2>&1");
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.out.find("unknown token"), std::string::npos) << bad.out;
+  EXPECT_FALSE(fs::exists(dir / "x"));
+  server.Signal(SIGTERM);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace vsurg
