@@ -1,0 +1,136 @@
+#include "common/geometry/tet_generators.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace vsurg::geometry {
+namespace {
+
+// Positive orientation: swap two vertices when the signed volume is negative.
+void AddOriented(TetMesh& m, int a, int b, int c, int d) {
+  const Vec3& p = m.positions[a];
+  const double v =
+      (m.positions[b] - p).cross(m.positions[c] - p).dot(m.positions[d] - p);
+  if (v < 0) std::swap(c, d);
+  m.tetrahedra.push_back({a, b, c, d});
+}
+
+// Prism (bottom a, b, c; top = bottom + offset) into three tetrahedra; diagonal of every quad
+// face from its lower-numbered bottom vertex to its higher-numbered top vertex.
+void SplitPrism(TetMesh& m, int a, int b, int c, int offset) {
+  std::array<int, 3> s = {a, b, c};
+  std::sort(s.begin(), s.end());
+  const int A = s[0] + offset, B = s[1] + offset, C = s[2] + offset;
+  AddOriented(m, s[0], s[1], s[2], C);
+  AddOriented(m, s[0], s[1], B, C);
+  AddOriented(m, s[0], A, B, C);
+}
+
+}  // namespace
+
+Expected<TetCylinder> MakeTetCylinder(const TetCylinderParams& p) {
+  if (!(p.length > 0) || !std::isfinite(p.length))
+    return InvalidArgument("length", "must be > 0 m");
+  if (!(p.radius_base > 0) || !(p.radius_tip > 0) || !std::isfinite(p.radius_base) ||
+      !std::isfinite(p.radius_tip))
+    return InvalidArgument("radius", "radii must be > 0 m");
+  if (p.rings < 1 || p.rings > 64) return InvalidArgument("rings", "must be within 1..64");
+  if (p.layers < 1 || p.layers > 4096) return InvalidArgument("layers", "must be within 1..4096");
+
+  // The cross-section: unit disc, centre + rings of 6k points, triangles between rings.
+  std::vector<Eigen::Vector2d> disc = {Eigen::Vector2d::Zero()};
+  std::vector<int> ring_start = {0};
+  std::vector<std::array<int, 3>> tris;
+  for (int k = 1; k <= p.rings; ++k) {
+    ring_start.push_back(static_cast<int>(disc.size()));
+    const int n = 6 * k;
+    const double r = static_cast<double>(k) / p.rings;
+    for (int i = 0; i < n; ++i) {
+      const double t = 2.0 * std::numbers::pi * i / n;
+      disc.emplace_back(r * std::cos(t), r * std::sin(t));
+    }
+  }
+  for (int i = 0; i < 6; ++i) tris.push_back({0, 1 + i, 1 + (i + 1) % 6});
+  for (int k = 2; k <= p.rings; ++k) {
+    // Merge the inner ring (6(k−1) points) and the outer (6k) by angle.
+    const int ni = 6 * (k - 1), no = 6 * k, si = ring_start[k - 1], so = ring_start[k];
+    int i = 0, o = 0;
+    while (i < ni || o < no) {
+      const double ti = 2.0 * std::numbers::pi * (i + 1) / ni;  // angle of the next inner
+      const double to = 2.0 * std::numbers::pi * (o + 1) / no;  // angle of the next outer
+      const int ci = si + i % ni, co = so + o % no;
+      if (o < no && (i >= ni || to <= ti + 1e-12)) {
+        tris.push_back({ci, co, so + (o + 1) % no});
+        ++o;
+      } else {
+        tris.push_back({ci, co, si + (i + 1) % ni});
+        ++i;
+      }
+    }
+  }
+
+  TetCylinder out;
+  out.params = p;
+  const int per_layer = static_cast<int>(disc.size());
+  for (int l = 0; l <= p.layers; ++l) {
+    const double z = p.length * l / p.layers;
+    const double a = p.radius_base + (p.radius_tip - p.radius_base) * z / p.length;
+    for (const auto& q : disc) out.mesh.positions.emplace_back(a * q.x(), a * q.y(), z);
+  }
+  for (int l = 0; l < p.layers; ++l)
+    for (const auto& t : tris)
+      SplitPrism(out.mesh, l * per_layer + t[0], l * per_layer + t[1], l * per_layer + t[2],
+                 per_layer);
+  out.tip_area.assign(per_layer, 0.0);
+  for (int v = 0; v < per_layer; ++v) {
+    out.base.push_back(v);
+    out.tip.push_back(p.layers * per_layer + v);
+  }
+  for (const auto& t : tris) {
+    const auto& a = disc[t[0]];
+    const auto& b = disc[t[1]];
+    const auto& c = disc[t[2]];
+    const double area = 0.5 * std::abs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()) *
+                        p.radius_tip * p.radius_tip;
+    for (int v : t) out.tip_area[v] += area / 3.0;
+  }
+  if (Status s = Validate(out.mesh, 0.0); !s.ok()) return s.error();
+  return out;
+}
+
+Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
+  if (!(p.radius > 0) || !std::isfinite(p.radius)) return InvalidArgument("radius", "must be > 0 m");
+  if (p.cells < 2 || p.cells > 128 || p.cells % 2 != 0)
+    return InvalidArgument("cells", "must be even, within 2..128");
+  const int n = p.cells, m1 = n + 1;
+  TetMesh mesh;
+  auto id = [m1](int i, int j, int k) { return (k * m1 + j) * m1 + i; };
+  for (int k = 0; k <= n; ++k)
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) {
+        const Vec3 x(2.0 * i / n - 1.0, 2.0 * j / n - 1.0, 2.0 * k / n - 1.0);
+        const double l2 = x.norm();
+        mesh.positions.push_back(l2 > 0 ? Vec3(p.radius * x * x.cwiseAbs().maxCoeff() / l2)
+                                        : Vec3::Zero());
+      }
+  // Kuhn: six tetrahedra along the diagonal 0 → 7 of each cube, one per permutation of axes.
+  static const int kPaths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (const auto& path : kPaths) {
+          int c[3] = {i, j, k};
+          int v[4];
+          v[0] = id(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[path[s]];
+            v[s + 1] = id(c[0], c[1], c[2]);
+          }
+          AddOriented(mesh, v[0], v[1], v[2], v[3]);
+        }
+  if (Status s = Validate(mesh, 0.0); !s.ok()) return s.error();
+  return mesh;
+}
+
+}  // namespace vsurg::geometry

@@ -1,0 +1,480 @@
+#include "common/tissue/fem.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+
+namespace vsurg::tissue {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+
+// Müller et al. 2016, Algorithm 1: the rotation R maximising tr(Rᵀ A), by rotating R towards A
+// with ω = Σ_i r_i × a_i / (|Σ_i r_i · a_i| + ε). Always a proper rotation. Warm-started from
+// the previous step, one or two iterations usually suffice; a small ω is applied to first order
+// (q ← q + ½·(0, ω)·q, then normalised), saving the sine and cosine of the axis–angle form.
+void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations) {
+  for (int it = 0; it < max_iterations; ++it) {
+    const Mat3 r = q.toRotationMatrix();
+    const Vec3 omega = (r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) +
+                        r.col(2).cross(a.col(2))) *
+                       (1.0 / (std::abs(r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) +
+                                        r.col(2).dot(a.col(2))) +
+                               1e-9));
+    const double w = omega.norm();
+    if (!(w > 1e-7)) break;  // converged (1e-7 rad); also stops on a non-finite input
+    if (w < 1e-2) {
+      const Eigen::Quaterniond dq(0.0, 0.5 * omega.x(), 0.5 * omega.y(), 0.5 * omega.z());
+      q.coeffs() += (dq * q).coeffs();
+    } else {
+      q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * q;
+    }
+    q.normalize();
+  }
+}
+
+}  // namespace
+
+struct FemModel::Impl {
+  FemParams params;
+  geometry::TetMesh rest;
+  std::vector<Vec3> x, v, f_ext;
+  std::vector<double> mass;          // lumped, kg per vertex
+  std::vector<uint8_t> is_fixed;
+  // Per element: rest shape inverse, shape gradients g_a (rest), V·λ and V·μ, rotation.
+  // (The 12×12 stiffness is never stored: K_ab = V·(λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I)
+  // costs less to rebuild from g than to load, and the forces need only σ·g_a.)
+  std::vector<Mat3> dm_inverse;
+  std::vector<std::array<Vec3, 4>> grad;
+  std::vector<double> v_lambda, v_mu;
+  std::vector<Eigen::Quaterniond> rotation;
+  std::vector<Mat3> rotation_matrix;
+  // Block CSR of the vertex adjacency: row r's blocks are [row_start[r], row_start[r+1]).
+  std::vector<int> row_start, col;
+  std::vector<Mat3> blocks;           // K (corotated), assembled each step
+  std::vector<int> diag_slot;         // slot of (r, r)
+  std::vector<std::array<int, 16>> slot;  // element (a, b) → block index
+  // CG scratch.
+  std::vector<Vec3> dv, rhs, r, z, p, ap, tmp;
+  std::vector<Mat3> precond;
+  int inverted = 0;
+
+  int n() const { return static_cast<int>(x.size()); }
+
+  // `iterations`: the rotation iteration's limit. A dynamic step (warm-started, small change per
+  // step) uses a few; the static solve converges them fully.
+  void UpdateRotations(int iterations = 20) {
+    inverted = 0;
+    const int te = static_cast<int>(rest.tetrahedra.size());
+    for (int e = 0; e < te; ++e) {
+      const auto& t = rest.tetrahedra[e];
+      Mat3 ds;
+      ds.col(0) = x[t[1]] - x[t[0]];
+      ds.col(1) = x[t[2]] - x[t[0]];
+      ds.col(2) = x[t[3]] - x[t[0]];
+      const Mat3 f = ds * dm_inverse[e];
+      if (f.determinant() <= 0) ++inverted;
+      if (params.corotational) {
+        ExtractRotation(f, rotation[e], iterations);
+        rotation_matrix[e] = rotation[e].matrix();
+      }
+    }
+  }
+
+  // Rotated small strain of element e: H = Σ_b u_b g_bᵀ with u_b = Rᵀ x_b − X_b, ε = sym(H),
+  // and the stress σ·V = V·(λ tr(ε) I + 2μ ε).
+  Mat3 StressVolume(int e) const {
+    const auto& t = rest.tetrahedra[e];
+    const Mat3& rot = rotation_matrix[e];
+    Mat3 h = Mat3::Zero();
+    for (int b = 0; b < 4; ++b)
+      h.noalias() += (rot.transpose() * x[t[b]] - rest.positions[t[b]]) * grad[e][b].transpose();
+    const Mat3 eps = 0.5 * (h + h.transpose());
+    return v_lambda[e] * eps.trace() * Mat3::Identity() + 2.0 * v_mu[e] * eps;
+  }
+
+  // Elastic forces f_a = −R·σ·V·g_a (N) into out, and, when `assemble`, the corotated
+  // stiffness blocks R·K_ab·Rᵀ = V·(λ h_a h_bᵀ + μ h_b h_aᵀ + μ (g_a·g_b) I), h = R·g.
+  void ForcesAndStiffness(std::vector<Vec3>& out, bool assemble) {
+    std::fill(out.begin(), out.end(), Vec3::Zero());
+    if (assemble) std::fill(blocks.begin(), blocks.end(), Mat3::Zero());
+    const int te = static_cast<int>(rest.tetrahedra.size());
+    for (int e = 0; e < te; ++e) {
+      const auto& t = rest.tetrahedra[e];
+      const Mat3& rot = rotation_matrix[e];
+      const Mat3 rs = rot * StressVolume(e);
+      Vec3 hg[4];
+      for (int a = 0; a < 4; ++a) {
+        out[t[a]].noalias() -= rs * grad[e][a];
+        hg[a] = rot * grad[e][a];
+      }
+      if (!assemble) continue;
+      const double vl = v_lambda[e], vm = v_mu[e];
+      for (int a = 0; a < 4; ++a) {
+        for (int b = a; b < 4; ++b) {
+          Mat3 k = vl * hg[a] * hg[b].transpose() + vm * hg[b] * hg[a].transpose();
+          k.diagonal().array() += vm * grad[e][a].dot(grad[e][b]);
+          blocks[slot[e][a * 4 + b]] += k;
+          if (b != a) blocks[slot[e][b * 4 + a]] += k.transpose();
+        }
+      }
+    }
+  }
+  void Forces(std::vector<Vec3>& out) { ForcesAndStiffness(out, false); }
+  void Assemble() { ForcesAndStiffness(tmp, true); }
+
+  // out = (c_m·M + c_k·K)·in on free vertices; fixed rows are zero.
+  void Apply(double c_m, double c_k, const std::vector<Vec3>& in, std::vector<Vec3>& out) const {
+    const int nv = n();
+    for (int i = 0; i < nv; ++i) {
+      if (is_fixed[i]) {
+        out[i].setZero();
+        continue;
+      }
+      Vec3 s = c_m * mass[i] * in[i];
+      Vec3 ks = Vec3::Zero();
+      // Fixed vertices' entries of `in` are zero in every call (CG keeps them at zero).
+      for (int k = row_start[i]; k < row_start[i + 1]; ++k) ks.noalias() += blocks[k] * in[col[k]];
+      out[i] = s + c_k * ks;
+    }
+  }
+
+  // Block-Jacobi PCG on (c_m·M + c_k·K)·sol = b, warm-started from sol.
+  std::pair<int, double> Solve(double c_m, double c_k, const std::vector<Vec3>& b,
+                               std::vector<Vec3>& sol) {
+    const int nv = n();
+    for (int i = 0; i < nv; ++i) {
+      if (is_fixed[i]) {
+        precond[i].setZero();
+        sol[i].setZero();
+        continue;
+      }
+      const Mat3 d = c_m * mass[i] * Mat3::Identity() + c_k * blocks[diag_slot[i]];
+      precond[i] = d.inverse();
+      if (!precond[i].allFinite()) precond[i] = Mat3::Identity() / std::max(1e-12, d.trace() / 3);
+    }
+    double bnorm = 0;
+    for (int i = 0; i < nv; ++i)
+      if (!is_fixed[i]) bnorm += b[i].squaredNorm();
+    bnorm = std::sqrt(bnorm);
+    if (!(bnorm > 0)) {
+      std::fill(sol.begin(), sol.end(), Vec3::Zero());
+      return {0, 0.0};
+    }
+    Apply(c_m, c_k, sol, ap);
+    double rz = 0;
+    for (int i = 0; i < nv; ++i) {
+      r[i] = is_fixed[i] ? Vec3::Zero() : Vec3(b[i] - ap[i]);
+      z[i] = precond[i] * r[i];
+      p[i] = z[i];
+      rz += r[i].dot(z[i]);
+    }
+    int it = 0;
+    double rel = 1;
+    for (; it < params.max_cg_iterations; ++it) {
+      double rn = 0;
+      for (int i = 0; i < nv; ++i) rn += r[i].squaredNorm();
+      rel = std::sqrt(rn) / bnorm;
+      if (rel < params.cg_tolerance) break;
+      Apply(c_m, c_k, p, ap);
+      double pap = 0;
+      for (int i = 0; i < nv; ++i) pap += p[i].dot(ap[i]);
+      if (!(pap > 0)) break;  // not positive definite along p (should not happen): stop
+      const double alpha = rz / pap;
+      double rz_new = 0;
+      for (int i = 0; i < nv; ++i) {
+        sol[i] += alpha * p[i];
+        r[i] -= alpha * ap[i];
+        z[i] = precond[i] * r[i];
+        rz_new += r[i].dot(z[i]);
+      }
+      const double beta = rz_new / rz;
+      rz = rz_new;
+      for (int i = 0; i < nv; ++i) p[i] = z[i] + beta * p[i];
+    }
+    return {it, rel};
+  }
+};
+
+FemModel::FemModel(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+FemModel::FemModel(FemModel&&) noexcept = default;
+FemModel& FemModel::operator=(FemModel&&) noexcept = default;
+FemModel::~FemModel() = default;
+
+Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemParams& params,
+                                    const std::vector<int>& fixed) {
+  if (!(params.young > 0) || !std::isfinite(params.young))
+    return InvalidArgument("young", "Young's modulus must be > 0 Pa");
+  if (!(params.poisson > -1.0 && params.poisson < 0.5))
+    return InvalidArgument("poisson", "Poisson's ratio must be within (-1, 0.5)");
+  if (!(params.density > 0) || !std::isfinite(params.density))
+    return InvalidArgument("density", "must be > 0 kg/m³");
+  if (!(params.mass_damping >= 0) || !(params.stiffness_damping >= 0))
+    return InvalidArgument("damping", "Rayleigh coefficients must be >= 0");
+  if (params.max_cg_iterations < 1 || !(params.cg_tolerance > 0))
+    return InvalidArgument("cg", "iterations >= 1 and tolerance > 0");
+  if (Status s = geometry::Validate(mesh, 1e-15); !s.ok()) return s.error();
+  const int nv = mesh.VertexCount(), te = mesh.TetCount();
+  if (te == 0) return InvalidArgument("mesh", "no tetrahedra");
+
+  auto impl = std::make_unique<Impl>();
+  Impl& m = *impl;
+  m.params = params;
+  m.rest = mesh;
+  m.x = mesh.positions;
+  m.v.assign(nv, Vec3::Zero());
+  m.f_ext.assign(nv, Vec3::Zero());
+  m.mass.assign(nv, 0.0);
+  m.is_fixed.assign(nv, 0);
+  for (int f : fixed) {
+    if (f < 0 || f >= nv) return InvalidArgument("fixed", "vertex index out of range");
+    m.is_fixed[f] = 1;
+  }
+  const double e_mod = params.young, nu = params.poisson;
+  const double lambda = e_mod * nu / ((1 + nu) * (1 - 2 * nu));
+  const double mu = e_mod / (2 * (1 + nu));
+  m.dm_inverse.resize(te);
+  m.grad.resize(te);
+  m.v_lambda.resize(te);
+  m.v_mu.resize(te);
+  m.rotation.assign(te, Eigen::Quaterniond::Identity());
+  m.rotation_matrix.assign(te, Mat3::Identity());
+  for (int e = 0; e < te; ++e) {
+    const auto& t = mesh.tetrahedra[e];
+    Mat3 dm;
+    dm.col(0) = mesh.positions[t[1]] - mesh.positions[t[0]];
+    dm.col(1) = mesh.positions[t[2]] - mesh.positions[t[0]];
+    dm.col(2) = mesh.positions[t[3]] - mesh.positions[t[0]];
+    const double volume = dm.determinant() / 6.0;
+    const Mat3 inv = dm.inverse();
+    m.dm_inverse[e] = inv;
+    // Shape gradients: rows of D_m⁻¹ for vertices 1..3, minus their sum for vertex 0.
+    Vec3 g[4];
+    for (int a = 1; a < 4; ++a) g[a] = inv.row(a - 1).transpose();
+    g[0] = -(g[1] + g[2] + g[3]);
+    for (int a = 0; a < 4; ++a) m.grad[e][a] = g[a];
+    m.v_lambda[e] = volume * lambda;
+    m.v_mu[e] = volume * mu;
+    for (int a = 0; a < 4; ++a) m.mass[t[a]] += params.density * volume / 4.0;
+  }
+  // Block pattern: every vertex pair sharing an element.
+  std::vector<std::vector<int>> adj(nv);
+  for (const auto& t : mesh.tetrahedra)
+    for (int a : t)
+      for (int b : t) adj[a].push_back(b);
+  m.row_start.assign(nv + 1, 0);
+  for (int i = 0; i < nv; ++i) {
+    auto& row = adj[i];
+    row.push_back(i);
+    std::sort(row.begin(), row.end());
+    row.erase(std::unique(row.begin(), row.end()), row.end());
+    m.row_start[i + 1] = m.row_start[i] + static_cast<int>(row.size());
+    m.col.insert(m.col.end(), row.begin(), row.end());
+  }
+  m.blocks.assign(m.col.size(), Mat3::Zero());
+  auto find_slot = [&](int r, int c) {
+    const auto first = m.col.begin() + m.row_start[r], last = m.col.begin() + m.row_start[r + 1];
+    return static_cast<int>(std::lower_bound(first, last, c) - m.col.begin());
+  };
+  m.diag_slot.resize(nv);
+  for (int i = 0; i < nv; ++i) m.diag_slot[i] = find_slot(i, i);
+  m.slot.resize(te);
+  for (int e = 0; e < te; ++e)
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        m.slot[e][a * 4 + b] = find_slot(mesh.tetrahedra[e][a], mesh.tetrahedra[e][b]);
+  for (auto* s : {&m.dv, &m.rhs, &m.r, &m.z, &m.p, &m.ap, &m.tmp}) s->assign(nv, Vec3::Zero());
+  m.precond.assign(nv, Mat3::Identity());
+  return FemModel(std::move(impl));
+}
+
+void FemModel::SetExternalForce(int vertex, const Eigen::Vector3d& f) {
+  if (vertex >= 0 && vertex < impl_->n() && f.allFinite()) impl_->f_ext[vertex] = f;
+}
+
+void FemModel::ClearExternalForces() {
+  std::fill(impl_->f_ext.begin(), impl_->f_ext.end(), Vec3::Zero());
+}
+
+FemStepStats FemModel::StepImplicit(double h) {
+  Impl& m = *impl_;
+  FemStepStats stats;
+  if (!(h > 0) || !std::isfinite(h)) return stats;
+  m.UpdateRotations(3);
+  stats.inverted = m.inverted;
+  const double alpha = m.params.mass_damping, beta = m.params.stiffness_damping;
+  // rhs = h·(f + f_ext − α·M·v − (β + h)·K·v)
+  m.ForcesAndStiffness(m.rhs, true);
+  m.Apply(alpha, beta + h, m.v, m.tmp);
+  const int nv = m.n();
+  for (int i = 0; i < nv; ++i)
+    m.rhs[i] = m.is_fixed[i] ? Vec3::Zero() : Vec3(h * (m.rhs[i] + m.f_ext[i] - m.tmp[i]));
+  // A = (1 + h·α)·M + (h·β + h²)·K; Δv warm-started from the previous step's.
+  const auto [iterations, residual] = m.Solve(1.0 + h * alpha, h * beta + h * h, m.rhs, m.dv);
+  stats.cg_iterations = iterations;
+  stats.residual = residual;
+  stats.converged = residual < m.params.cg_tolerance;
+  bool finite = true;
+  for (int i = 0; i < nv; ++i) finite = finite && m.dv[i].allFinite();
+  if (!finite) {  // never let a NaN into the state: drop this step's change
+    std::fill(m.dv.begin(), m.dv.end(), Vec3::Zero());
+    stats.converged = false;
+    return stats;
+  }
+  for (int i = 0; i < nv; ++i) {
+    if (m.is_fixed[i]) continue;
+    m.v[i] += m.dv[i];
+    m.x[i] += h * m.v[i];
+  }
+  return stats;
+}
+
+FemStaticStats FemModel::SolveStatic(int max_iterations, double tolerance) {
+  Impl& m = *impl_;
+  FemStaticStats stats;
+  const int nv = m.n();
+  double ext = 0;
+  for (int i = 0; i < nv; ++i)
+    if (!m.is_fixed[i]) ext += m.f_ext[i].squaredNorm();
+  ext = std::sqrt(ext);
+  if (!(ext > 0)) ext = 1;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(m.blocks.size() * 9);
+  bool factorised = false;
+  double last_residual = 0;
+  for (int it = 0; it < max_iterations; ++it) {
+    m.UpdateRotations();
+    m.Forces(m.rhs);
+    double res = 0;
+    Eigen::VectorXd b(3 * nv);
+    for (int i = 0; i < nv; ++i) {
+      const Vec3 g = m.is_fixed[i] ? Vec3::Zero() : Vec3(m.rhs[i] + m.f_ext[i]);
+      b.segment<3>(3 * i) = g;
+      res += g.squaredNorm();
+    }
+    stats.residual = std::sqrt(res) / ext;
+    stats.iterations = it;
+    if (stats.residual < tolerance) {
+      stats.converged = true;
+      return stats;
+    }
+    // Modified Newton: keep the factorisation while it still cuts the residual tenfold per
+    // iteration (small rotations); re-assemble and re-factorise when it does not.
+    if (!factorised || stats.residual > 0.1 * last_residual) {
+      m.Assemble();
+      triplets.clear();
+      for (int i = 0; i < nv; ++i) {
+        for (int s = m.row_start[i]; s < m.row_start[i + 1]; ++s) {
+          const int j = m.col[s];
+          if (m.is_fixed[i] || m.is_fixed[j]) continue;
+          for (int a = 0; a < 3; ++a)
+            for (int c = 0; c < 3; ++c)
+              triplets.emplace_back(3 * i + a, 3 * j + c, m.blocks[s](a, c));
+        }
+        if (m.is_fixed[i])
+          for (int a = 0; a < 3; ++a) triplets.emplace_back(3 * i + a, 3 * i + a, 1.0);
+      }
+      k.setFromTriplets(triplets.begin(), triplets.end());
+      if (!factorised) solver.analyzePattern(k);
+      solver.factorize(k);
+      if (solver.info() != Eigen::Success) return stats;
+      factorised = true;
+    }
+    last_residual = stats.residual;
+    const Eigen::VectorXd dx = solver.solve(b);
+    if (!dx.allFinite()) return stats;
+    for (int i = 0; i < nv; ++i)
+      if (!m.is_fixed[i]) m.x[i] += dx.segment<3>(3 * i);
+  }
+  m.UpdateRotations();
+  m.Forces(m.rhs);
+  double res = 0;
+  for (int i = 0; i < nv; ++i)
+    if (!m.is_fixed[i]) res += (m.rhs[i] + m.f_ext[i]).squaredNorm();
+  stats.residual = std::sqrt(res) / ext;
+  stats.iterations = max_iterations;
+  stats.converged = stats.residual < tolerance;
+  return stats;
+}
+
+void FemModel::SetPosition(int vertex, const Eigen::Vector3d& x) {
+  if (vertex >= 0 && vertex < impl_->n() && x.allFinite()) impl_->x[vertex] = x;
+}
+
+void FemModel::Reset() {
+  Impl& m = *impl_;
+  m.x = m.rest.positions;
+  std::fill(m.v.begin(), m.v.end(), Vec3::Zero());
+  std::fill(m.dv.begin(), m.dv.end(), Vec3::Zero());
+  std::fill(m.rotation.begin(), m.rotation.end(), Eigen::Quaterniond::Identity());
+  std::fill(m.rotation_matrix.begin(), m.rotation_matrix.end(), Mat3::Identity());
+}
+
+const std::vector<Eigen::Vector3d>& FemModel::positions() const { return impl_->x; }
+const std::vector<Eigen::Vector3d>& FemModel::velocities() const { return impl_->v; }
+const geometry::TetMesh& FemModel::rest() const { return impl_->rest; }
+int FemModel::TetCount() const { return impl_->rest.TetCount(); }
+int FemModel::VertexCount() const { return impl_->n(); }
+
+double FemModel::KineticEnergy() const {
+  double e = 0;
+  for (int i = 0; i < impl_->n(); ++i) e += 0.5 * impl_->mass[i] * impl_->v[i].squaredNorm();
+  return e;
+}
+
+double FemModel::ElasticEnergy() const {
+  // ½·Σ_e V·σ:ε of the rotated small strain.
+  const Impl& m = *impl_;
+  double e = 0;
+  for (int t = 0; t < m.rest.TetCount(); ++t) {
+    const auto& tet = m.rest.tetrahedra[t];
+    const Mat3& rot = m.rotation_matrix[t];
+    Mat3 h = Mat3::Zero();
+    for (int b = 0; b < 4; ++b)
+      h += (rot.transpose() * m.x[tet[b]] - m.rest.positions[tet[b]]) * m.grad[t][b].transpose();
+    const Mat3 eps = 0.5 * (h + h.transpose());
+    e += 0.5 * (m.v_lambda[t] * eps.trace() * eps.trace() + 2.0 * m.v_mu[t] * eps.squaredNorm());
+  }
+  return e;
+}
+
+int FemModel::InvertedCount() const {
+  const Impl& m = *impl_;
+  int n = 0;
+  for (int e = 0; e < m.rest.TetCount(); ++e) {
+    const auto& t = m.rest.tetrahedra[e];
+    Mat3 ds;
+    ds.col(0) = m.x[t[1]] - m.x[t[0]];
+    ds.col(1) = m.x[t[2]] - m.x[t[0]];
+    ds.col(2) = m.x[t[3]] - m.x[t[0]];
+    if ((ds * m.dm_inverse[e]).determinant() <= 0) ++n;
+  }
+  return n;
+}
+
+std::vector<Eigen::Vector3d> TorqueNodalForces(const std::vector<Eigen::Vector3d>& positions,
+                                               const std::vector<int>& face_vertices,
+                                               const std::vector<double>& area,
+                                               const Eigen::Vector3d& centre,
+                                               const Eigen::Vector3d& axis, double torque) {
+  std::vector<Eigen::Vector3d> out(face_vertices.size(), Vec3::Zero());
+  const Vec3 n = axis.normalized();
+  double polar = 0;  // Σ A_i |r_i|² ≈ J
+  std::vector<Vec3> radial(face_vertices.size());
+  for (size_t i = 0; i < face_vertices.size(); ++i) {
+    const Vec3 d = positions[face_vertices[i]] - centre;
+    radial[i] = d - d.dot(n) * n;
+    polar += (i < area.size() ? area[i] : 1.0) * radial[i].squaredNorm();
+  }
+  if (!(polar > 0)) return out;
+  for (size_t i = 0; i < face_vertices.size(); ++i)
+    out[i] = torque * (i < area.size() ? area[i] : 1.0) * n.cross(radial[i]) / polar;
+  return out;
+}
+
+}  // namespace vsurg::tissue

@@ -1,0 +1,112 @@
+// The FEM reference (DESIGN.md "Model 3"): linear tetrahedra, corotational (large rotations),
+// lumped mass, Rayleigh damping; implicit Euler with a warm-started conjugate gradient, and a
+// static equilibrium solve with a sparse Cholesky factorisation.
+//
+// Legend (SI): X rest positions (m), x current, v velocities (m/s), M lumped mass (kg), K
+// stiffness (N/m), D = α·M + β·K Rayleigh damping, h step (s), f_ext external forces (N).
+//
+// Element e with vertices 0..3 (Müller & Gross 2004, "Interactive virtual materials"):
+//   shape gradients g_a from the rest edge matrix, V rest volume, Lamé λ, μ from E, ν;
+//   K_ab = V·(λ·g_a g_bᵀ + μ·g_b g_aᵀ + μ·(g_a·g_b)·I)            (3×3 block of the 12×12 Ke)
+//   R = the rotation of the deformation gradient F = D_s·D_m⁻¹, extracted by the iteration of
+//       Müller et al. 2016 ("A robust method to extract the rotational part of deformations"),
+//       warm-started from the previous step: it always returns a rotation, also for a flat or
+//       inverted element (where a polar decomposition's R would be a reflection or undefined),
+//       so an inverted element is pushed back instead of producing NaN.
+//   f_a = −R·Σ_b K_ab·(Rᵀ x_b − X_b),   stiffness blocks R·K_ab·Rᵀ.
+//
+// Implicit Euler, linearised (one Newton step, Baraff & Witkin 1998):
+//   (M + h·D + h²·K)·Δv = h·(f(x) + f_ext − D·v − h·K·v),  v ← v + Δv,  x ← x + h·v.
+// The matrix is assembled each step into a block-CSR of 3×3 blocks whose pattern and element →
+// slot map are precomputed, then solved by block-Jacobi preconditioned CG warm-started from the
+// previous Δv. Fixed vertices are Dirichlet: their rows are projected out of the CG.
+//
+// Static: K(x)·Δx = f(x) + f_ext, repeated (corotated quasi-Newton) until the residual is below
+// tolerance; Eigen's SimplicialLDLT with the pattern analysed once, the factorisation kept while
+// it still cuts the residual tenfold per iteration.
+//
+// Threads: a model belongs to one thread; nothing here allocates after Create except SolveStatic.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+
+namespace vsurg::tissue {
+
+struct FemParams {
+  double young = 34800;           // Pa (G = 12 kPa with ν = 0.45, DESIGN.md default tissue)
+  double poisson = 0.45;          // < 0.5
+  double density = 1050;          // kg/m³
+  // Rayleigh D = α·M + β·K. The defaults damp a forearm's first torsion mode (≈ 20 rad/s) at
+  // ζ ≈ α/(2ω) ≈ 0.12 and leave β small: β·h·ω_max² would dominate the step matrix and slow CG.
+  double mass_damping = 5.0;         // α, 1/s
+  double stiffness_damping = 0.001;  // β, s
+  bool corotational = true;          // false: small-strain linear FEM (R = I)
+  int max_cg_iterations = 400;
+  double cg_tolerance = 1e-4;  // relative residual ‖r‖/‖b‖ of each step's Δv
+};
+
+struct FemStepStats {
+  int cg_iterations = 0;
+  double residual = 0;  // relative
+  bool converged = false;
+  int inverted = 0;     // elements with det F ≤ 0 at the start of the step
+};
+
+struct FemStaticStats {
+  int iterations = 0;
+  double residual = 0;  // ‖f + f_ext‖ on free vertices / ‖f_ext‖
+  bool converged = false;
+};
+
+class FemModel {
+ public:
+  // `fixed`: Dirichlet vertices (held at their rest positions). Elements of volume ≤ 1e-15 m³
+  // (flat or inverted in the rest mesh) are rejected naming the element.
+  static Expected<FemModel> Create(const geometry::TetMesh& mesh, const FemParams& params,
+                                   const std::vector<int>& fixed);
+  FemModel(FemModel&&) noexcept;
+  FemModel& operator=(FemModel&&) noexcept;
+  ~FemModel();
+
+  void SetExternalForce(int vertex, const Eigen::Vector3d& f);  // N
+  void ClearExternalForces();
+  FemStepStats StepImplicit(double h);
+  FemStaticStats SolveStatic(int max_iterations = 20, double tolerance = 1e-8);
+  // Moves a vertex (tests: invert an element on purpose); velocity untouched.
+  void SetPosition(int vertex, const Eigen::Vector3d& x);
+  void Reset();  // back to rest, at rest
+
+  const std::vector<Eigen::Vector3d>& positions() const;
+  const std::vector<Eigen::Vector3d>& velocities() const;
+  const geometry::TetMesh& rest() const;
+  double KineticEnergy() const;  // J
+  double ElasticEnergy() const;  // J, corotated linear
+  int TetCount() const;
+  int VertexCount() const;
+  int InvertedCount() const;  // elements with det F ≤ 0 now
+
+ private:
+  struct Impl;
+  explicit FemModel(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// Nodal forces on `face_vertices` (a cross-section normal to `axis` through `centre`) with
+// moment `torque` (N·m) about the axis: the linear shear traction of Saint-Venant torsion,
+// τ = T·r/J, lumped with each vertex's face area `area` (m²):
+//   f_i = T·A_i·(axis × r_i) / Σ_j A_j·|r_j|².
+// Σ r_i × f_i = T·axis exactly; the resultant is zero when the face is symmetric.
+std::vector<Eigen::Vector3d> TorqueNodalForces(const std::vector<Eigen::Vector3d>& positions,
+                                               const std::vector<int>& face_vertices,
+                                               const std::vector<double>& area,
+                                               const Eigen::Vector3d& centre,
+                                               const Eigen::Vector3d& axis, double torque);
+
+}  // namespace vsurg::tissue
