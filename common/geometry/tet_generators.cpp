@@ -10,8 +10,7 @@ namespace {
 // Positive orientation: swap two vertices when the signed volume is negative.
 void AddOriented(TetMesh& m, int a, int b, int c, int d) {
   const Vec3& p = m.positions[a];
-  const double v =
-      (m.positions[b] - p).cross(m.positions[c] - p).dot(m.positions[d] - p);
+  const double v = (m.positions[b] - p).cross(m.positions[c] - p).dot(m.positions[d] - p);
   if (v < 0) std::swap(c, d);
   m.tetrahedra.push_back({a, b, c, d});
 }
@@ -100,7 +99,8 @@ Expected<TetCylinder> MakeTetCylinder(const TetCylinderParams& p) {
 }
 
 Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
-  if (!(p.radius > 0) || !std::isfinite(p.radius)) return InvalidArgument("radius", "must be > 0 m");
+  if (!(p.radius > 0) || !std::isfinite(p.radius))
+    return InvalidArgument("radius", "must be > 0 m");
   if (p.cells < 2 || p.cells > 128 || p.cells % 2 != 0)
     return InvalidArgument("cells", "must be even, within 2..128");
   const int n = p.cells, m1 = n + 1;
@@ -115,7 +115,8 @@ Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
                                         : Vec3::Zero());
       }
   // Kuhn: six tetrahedra along the diagonal 0 → 7 of each cube, one per permutation of axes.
-  static const int kPaths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  static const int kPaths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
+                                   {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i)

@@ -32,8 +32,8 @@ struct TetCylinderParams {
 
 struct TetCylinder {
   TetMesh mesh;
-  std::vector<int> base;  // vertices on z = 0
-  std::vector<int> tip;   // vertices on z = length
+  std::vector<int> base;         // vertices on z = 0
+  std::vector<int> tip;          // vertices on z = length
   std::vector<double> tip_area;  // m², each tip vertex's share of the end face (a third of
                                  // each adjacent triangle): weights for end tractions
   TetCylinderParams params;

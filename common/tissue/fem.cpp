@@ -19,13 +19,12 @@ using Mat3 = Eigen::Matrix3d;
 void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations) {
   for (int it = 0; it < max_iterations; ++it) {
     const Mat3 r = q.toRotationMatrix();
-    const Vec3 omega = (r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) +
-                        r.col(2).cross(a.col(2))) *
-                       (1.0 / (std::abs(r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) +
-                                        r.col(2).dot(a.col(2))) +
-                               1e-9));
+    const Vec3 omega =
+        (r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) + r.col(2).cross(a.col(2))) *
+        (1.0 / (std::abs(r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) + r.col(2).dot(a.col(2))) +
+                1e-9));
     const double w = omega.norm();
-    if (!(w > 1e-7)) break;  // converged (1e-7 rad); also stops on a non-finite input
+    if (!(w > 1e-6)) break;  // converged (1e-6 rad); also stops on a non-finite input
     if (w < 1e-2) {
       const Eigen::Quaterniond dq(0.0, 0.5 * omega.x(), 0.5 * omega.y(), 0.5 * omega.z());
       q.coeffs() += (dq * q).coeffs();
@@ -42,7 +41,7 @@ struct FemModel::Impl {
   FemParams params;
   geometry::TetMesh rest;
   std::vector<Vec3> x, v, f_ext;
-  std::vector<double> mass;          // lumped, kg per vertex
+  std::vector<double> mass;  // lumped, kg per vertex
   std::vector<uint8_t> is_fixed;
   // Per element: rest shape inverse, shape gradients g_a (rest), V·λ and V·μ, rotation.
   // (The 12×12 stiffness is never stored: K_ab = V·(λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I)
@@ -54,8 +53,8 @@ struct FemModel::Impl {
   std::vector<Mat3> rotation_matrix;
   // Block CSR of the vertex adjacency: row r's blocks are [row_start[r], row_start[r+1]).
   std::vector<int> row_start, col;
-  std::vector<Mat3> blocks;           // K (corotated), assembled each step
-  std::vector<int> diag_slot;         // slot of (r, r)
+  std::vector<Mat3> blocks;               // K (corotated), assembled each step
+  std::vector<int> diag_slot;             // slot of (r, r)
   std::vector<std::array<int, 16>> slot;  // element (a, b) → block index
   // CG scratch.
   std::vector<Vec3> dv, rhs, r, z, p, ap, tmp;
@@ -64,8 +63,8 @@ struct FemModel::Impl {
 
   int n() const { return static_cast<int>(x.size()); }
 
-  // `iterations`: the rotation iteration's limit. A dynamic step (warm-started, small change per
-  // step) uses a few; the static solve converges them fully.
+  // `iterations`: the rotation iteration's limit; warm-started, a dynamic step usually needs one
+  // or two, a sudden large rotation more.
   void UpdateRotations(int iterations = 20) {
     inverted = 0;
     const int te = static_cast<int>(rest.tetrahedra.size());
@@ -303,7 +302,7 @@ FemStepStats FemModel::StepImplicit(double h) {
   Impl& m = *impl_;
   FemStepStats stats;
   if (!(h > 0) || !std::isfinite(h)) return stats;
-  m.UpdateRotations(3);
+  m.UpdateRotations(30);
   stats.inverted = m.inverted;
   const double alpha = m.params.mass_damping, beta = m.params.stiffness_damping;
   // rhs = h·(f + f_ext − α·M·v − (β + h)·K·v)
@@ -415,11 +414,21 @@ void FemModel::Reset() {
   std::fill(m.rotation_matrix.begin(), m.rotation_matrix.end(), Mat3::Identity());
 }
 
-const std::vector<Eigen::Vector3d>& FemModel::positions() const { return impl_->x; }
-const std::vector<Eigen::Vector3d>& FemModel::velocities() const { return impl_->v; }
-const geometry::TetMesh& FemModel::rest() const { return impl_->rest; }
-int FemModel::TetCount() const { return impl_->rest.TetCount(); }
-int FemModel::VertexCount() const { return impl_->n(); }
+const std::vector<Eigen::Vector3d>& FemModel::positions() const {
+  return impl_->x;
+}
+const std::vector<Eigen::Vector3d>& FemModel::velocities() const {
+  return impl_->v;
+}
+const geometry::TetMesh& FemModel::rest() const {
+  return impl_->rest;
+}
+int FemModel::TetCount() const {
+  return impl_->rest.TetCount();
+}
+int FemModel::VertexCount() const {
+  return impl_->n();
+}
 
 double FemModel::KineticEnergy() const {
   double e = 0;

@@ -40,9 +40,9 @@
 namespace vsurg::tissue {
 
 struct FemParams {
-  double young = 34800;           // Pa (G = 12 kPa with ν = 0.45, DESIGN.md default tissue)
-  double poisson = 0.45;          // < 0.5
-  double density = 1050;          // kg/m³
+  double young = 34800;   // Pa (G = 12 kPa with ν = 0.45, DESIGN.md default tissue)
+  double poisson = 0.45;  // < 0.5
+  double density = 1050;  // kg/m³
   // Rayleigh D = α·M + β·K. The defaults damp a forearm's first torsion mode (≈ 20 rad/s) at
   // ζ ≈ α/(2ω) ≈ 0.12 and leave β small: β·h·ω_max² would dominate the step matrix and slow CG.
   double mass_damping = 5.0;         // α, 1/s
@@ -56,7 +56,7 @@ struct FemStepStats {
   int cg_iterations = 0;
   double residual = 0;  // relative
   bool converged = false;
-  int inverted = 0;     // elements with det F ≤ 0 at the start of the step
+  int inverted = 0;  // elements with det F ≤ 0 at the start of the step
 };
 
 struct FemStaticStats {
