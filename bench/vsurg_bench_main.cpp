@@ -10,6 +10,9 @@
 //     durable evaluation submissions per second through gRPC, per writer batch limit.
 //   vsurg-bench export [--rows 1000000] [--format csv] [--json]
 //     export of N evaluation rows from the store and streamed through gRPC.
+//   vsurg-bench speed-vs-error [--quick] [--out docs]
+//     every model against the same references: time per update vs marker error (see
+//     speed_vs_error.h).
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -23,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench/control_bench.h"
+#include "bench/speed_vs_error.h"
 #include "common/cli/args.h"
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
@@ -196,18 +200,21 @@ int main(int argc, char** argv) {
   if (args.empty() || args[0] == "--help") {
     std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--json]\n"
                  "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
-                 "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n";
+                 "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
+                 "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n";
     return args.empty() ? 2 : 0;
   }
   try {
     if (args[0] == "haptic-rtt") return HapticRtt({args.begin() + 1, args.end()});
     if (args[0] == "grpc-submit") return vsurg::bench::GrpcSubmit({args.begin() + 1, args.end()});
     if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
+    if (args[0] == "speed-vs-error")
+      return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
   } catch (const std::exception& e) {
     std::cerr << "vsurg-bench: " << e.what() << "\n";
     return 1;
   }
   std::cerr << "vsurg-bench: unknown command '" << args[0]
-            << "' (haptic-rtt, grpc-submit, export)\n";
+            << "' (haptic-rtt, grpc-submit, export, speed-vs-error)\n";
   return 2;
 }

@@ -7,7 +7,7 @@ VSURG_PACKAGES=(
   libeigen3-dev nlohmann-json3-dev
   libgtest-dev libbenchmark-dev
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
-  libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev
+  libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev zlib1g-dev
 )
 
 vsurg_root() { cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd; }

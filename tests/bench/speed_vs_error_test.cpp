@@ -1,0 +1,89 @@
+// The study's command contract, run in its --quick form (what CI exercises).
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "common/core/csv.h"
+
+namespace vsurg {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Read(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
+  const fs::path dir = fs::temp_directory_path() / ("vsurg_sve_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string cmd = std::string(VSURG_BENCH_BINARY) + " speed-vs-error --quick --out " +
+                          dir.string() + " 2>/dev/null";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string out;
+  char buf[4096];
+  size_t n = 0;
+  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+  const int status = pclose(pipe);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0) << out;
+
+  auto rows = csv::Parse(Read(dir / "speed-vs-error.csv"), "speed-vs-error.csv");
+  ASSERT_TRUE(rows.ok()) << rows.error().message;
+  ASSERT_GT(rows->size(), 20u);
+  const auto& header = (*rows)[0].fields;
+  std::map<std::string, size_t> col;
+  for (size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
+  for (const char* c :
+       {"model", "scene", "setting", "time_per_update_us", "rms_error", "max_error"})
+    ASSERT_TRUE(col.count(c)) << c;
+  std::set<std::string> scenes, models;
+  std::map<std::string, std::map<std::string, double>> rms;  // scene → model → best RMS
+  for (size_t r = 1; r < rows->size(); ++r) {
+    const auto& f = (*rows)[r].fields;
+    scenes.insert(f[col["scene"]]);
+    models.insert(f[col["model"]]);
+    if (f[col["model"]] == "fem" || f[col["model"]].rfind("coil", 0) == 0) {
+      ASSERT_FALSE(f[col["rms_error"]].empty()) << f[col["model"]] << " " << f[col["setting"]];
+      const double row_rms = std::stod(f[col["rms_error"]]);
+      EXPECT_GT(row_rms, 0.0);
+      EXPECT_LT(row_rms, 1.0);
+      EXPECT_LE(row_rms, std::stod(f[col["max_error"]]));
+    }
+    if (!f[col["rms_error"]].empty()) {
+      double& best = rms[f[col["scene"]]][f[col["model"]]];
+      const double v = std::stod(f[col["rms_error"]]);
+      best = best == 0 ? v : std::min(best, v);
+    }
+  }
+  EXPECT_EQ(scenes,
+            (std::set<std::string>{"arm-ramp", "arm-haptic", "calf-ramp", "sphere-palpation"}));
+  for (const char* m : {"coil-paper", "coil-per-ring", "fem", "mass-spring", "ring-layer"})
+    EXPECT_TRUE(models.count(m)) << m;
+  // The per-ring calibration goes beyond the paper: closer to Saint-Venant on every limb scene.
+  for (const char* scene : {"arm-ramp", "arm-haptic", "calf-ramp"})
+    EXPECT_LT(rms[scene]["coil-per-ring"], rms[scene]["coil-paper"]) << scene;
+  for (const char* png : {"speed-vs-error.png", "marker8.png"}) {
+    const std::string bytes = Read(dir / png);
+    ASSERT_GT(bytes.size(), 1000u) << png;
+    EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << png;
+  }
+  EXPECT_NE(out.find("cheapest within it"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "BENCHMARKS.md"));  // only written for docs/ or --benchmarks
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace vsurg
