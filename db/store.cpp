@@ -807,6 +807,32 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
 
 }  // namespace
 
+namespace {
+
+// Rows ordered by submission then index_no, with the submission id in column 0 and
+// (index_no, score) in columns `index_col`, `index_col + 1`: calls `first(q)` at each new
+// submission (it appends a record and returns its scores) and fills the nine scores.
+template <class First>
+Status CollectScores(Statement& q, int index_col, First&& first) {
+  int64_t current = -1;
+  std::array<double, kIndexes>* scores = nullptr;
+  for (;;) {
+    auto row = q.Step();
+    if (!row.ok()) return row.error();
+    if (!*row) break;
+    if (q.Int(0) != current) {
+      current = q.Int(0);
+      scores = &first(q);
+    }
+    const int64_t j = q.Int(index_col);
+    if (j >= 1 && j <= kIndexes) (*scores)[j - 1] = q.Double(index_col + 1);
+  }
+  q.Reset();
+  return Status::Ok();
+}
+
+}  // namespace
+
 void Store::SubmitEvaluationAsync(Submission s, std::function<void(Expected<SubmitResult>)> done) {
   if (Status v = ValidateSubmission(s); !v.ok()) {
     done(v.error());
@@ -841,24 +867,14 @@ Expected<std::vector<RatingRow>> Store::LoadRatings(SubjectKind kind, const std:
   if (!st.ok()) return st.error();
   (*st)->Bind(1, SubjectKindName(kind)).Bind(2, subject);
   std::vector<RatingRow> out;
-  int64_t current = -1;
-  for (;;) {
-    auto row = (*st)->Step();
-    if (!row.ok()) return row.error();
-    if (!*row) break;
-    Statement& q = **st;
-    if (q.Int(0) != current) {
-      current = q.Int(0);
-      RatingRow rr;
-      rr.evaluator = q.String(1);
-      rr.evaluator_group = q.String(2);
-      if (!q.IsNull(3)) rr.moment_min = q.Double(3);
-      out.push_back(std::move(rr));
-    }
-    const int64_t j = q.Int(4);
-    if (j >= 1 && j <= kIndexes) out.back().scores[j - 1] = q.Double(5);
-  }
-  (*st)->Reset();
+  Status s = CollectScores(**st, 4, [&](Statement& q) -> std::array<double, kIndexes>& {
+    RatingRow& rr = out.emplace_back();
+    rr.evaluator = q.String(1);
+    rr.evaluator_group = q.String(2);
+    if (!q.IsNull(3)) rr.moment_min = q.Double(3);
+    return rr.scores;
+  });
+  if (!s.ok()) return s.error();
   return out;
 }
 
@@ -873,25 +889,15 @@ Expected<std::vector<TrainingRow>> Store::LoadTrainingRows() {
       "ORDER BY s.id, v.index_no");
   if (!st.ok()) return st.error();
   std::vector<TrainingRow> out;
-  int64_t current = -1;
-  for (;;) {
-    auto row = (*st)->Step();
-    if (!row.ok()) return row.error();
-    if (!*row) break;
-    Statement& q = **st;
-    if (q.Int(0) != current) {
-      current = q.Int(0);
-      TrainingRow t;
-      t.trainee = q.String(1);
-      t.trainee_group = q.String(2);
-      t.moment_min = q.Double(3);
-      t.evaluator = q.String(4);
-      out.push_back(std::move(t));
-    }
-    const int64_t j = q.Int(5);
-    if (j >= 1 && j <= kIndexes) out.back().scores[j - 1] = q.Double(6);
-  }
-  (*st)->Reset();
+  Status s = CollectScores(**st, 5, [&](Statement& q) -> std::array<double, kIndexes>& {
+    TrainingRow& t = out.emplace_back();
+    t.trainee = q.String(1);
+    t.trainee_group = q.String(2);
+    t.moment_min = q.Double(3);
+    t.evaluator = q.String(4);
+    return t.scores;
+  });
+  if (!s.ok()) return s.error();
   return out;
 }
 

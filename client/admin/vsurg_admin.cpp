@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -99,6 +100,19 @@ Expected<Remote> Connect(const ArgParser& p) {
   }
   r.channel = grpc::CreateChannel(p.String("server"), creds);
   return r;
+}
+
+// Parses a remote command's options and connects. Returns the exit code to stop with (help
+// printed, or a usage error), or nothing when the command should go on with `remote`.
+std::optional<int> Begin(ArgParser& p, const std::vector<std::string>& args, std::ostream& out,
+                         std::ostream& err, Remote& remote) {
+  if (Status s = p.Parse(args); !s.ok())
+    return Usage(err, p.command(), s.error().field, s.error().message);
+  if (p.HelpRequested()) return out << p.Help(), 0;
+  auto r = Connect(p);
+  if (!r.ok()) return Usage(err, p.command(), r.error().field, r.error().message);
+  remote = std::move(r).value();
+  return std::nullopt;
 }
 
 int RpcError(std::ostream& err, const std::string& cmd, const grpc::Status& s) {
@@ -199,14 +213,11 @@ int Token(const std::vector<std::string>& args, std::ostream& out, std::ostream&
   p.Option("user", Kind::kString, "user name", true)
       .Option("label", Kind::kString, "note", false, "");
   AddRemote(p);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
-  auto remote = Connect(p);
-  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
-  auto stub = v1::AdminService::NewStub(remote->channel);
+  Remote remote;
+  if (auto stop = Begin(p, args, out, err, remote)) return *stop;
+  auto stub = v1::AdminService::NewStub(remote.channel);
   grpc::ClientContext ctx;
-  remote->Prepare(ctx);
+  remote.Prepare(ctx);
   if (revoke) {
     v1::UserRef ref;
     ref.set_name(p.String("user"));
@@ -312,14 +323,11 @@ int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("training", Kind::kFlag, "print the training effect table instead")
       .Option("json", Kind::kFlag, "print the report as JSON");
   AddRemote(p);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
-  auto remote = Connect(p);
-  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
-  auto stub = v1::EvaluationService::NewStub(remote->channel);
+  Remote remote;
+  if (auto stop = Begin(p, args, out, err, remote)) return *stop;
+  auto stub = v1::EvaluationService::NewStub(remote.channel);
   grpc::ClientContext ctx;
-  remote->Prepare(ctx);
+  remote.Prepare(ctx);
   if (p.Flag("training")) {
     v1::TrainingEffectRequest req;
     req.set_weight_set(p.String("weights"));
@@ -456,14 +464,11 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
   if (cmd == "backup") p.Option("out", Kind::kString, "absolute path on the server", true);
   if (cmd == "weights-put") p.Option("file", Kind::kString, "weight set JSON", true);
   AddRemote(p);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
-  auto remote = Connect(p);
-  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
-  auto stub = v1::AdminService::NewStub(remote->channel);
+  Remote remote;
+  if (auto stop = Begin(p, args, out, err, remote)) return *stop;
+  auto stub = v1::AdminService::NewStub(remote.channel);
   grpc::ClientContext ctx;
-  remote->Prepare(ctx);
+  remote.Prepare(ctx);
   v1::Empty empty;
   grpc::Status s;
   if (cmd == "users") {
