@@ -286,7 +286,8 @@ struct TetLimb {
 
 TetLimb MakeTetLimb(const tissue::TaperedShaft& s, int rings) {
   const double a = 0.5 * (s.radius_proximal + s.radius_distal);
-  const int layers = rings * static_cast<int>(std::ceil(2.0 * s.length / a));
+  // Linear tetrahedra need thin slices in torsion: about 3 layers per radius of length.
+  const int layers = rings * static_cast<int>(std::ceil(3.0 * s.length / a));
   auto c = geometry::MakeTetCylinder({s.length, s.radius_proximal, s.radius_distal, rings, layers});
   return {*c, rings};
 }
@@ -298,10 +299,16 @@ tissue::FemParams FemFor(const tissue::TaperedShaft& s, double poisson) {
   return p;
 }
 
-void ApplyTorque(tissue::FemModel& fem, const TetLimb& m, const tissue::TaperedShaft& s, double t) {
-  const auto f =
-      tissue::TorqueNodalForces(m.cylinder.mesh.positions, m.cylinder.tip, m.cylinder.tip_area,
-                                Vec3(0, 0, s.length), Vec3::UnitZ(), t);
+// The end torque as a follower load: the nodal forces are recomputed from the current tip face
+// (its centre vertex is tip[0]), so they stay tangential as the face turns. Dead loads would lose
+// torque as cos θ and push the face outward at large twists.
+std::vector<Vec3> FollowerTorque(const std::vector<Vec3>& x, const TetLimb& m, double t) {
+  return tissue::TorqueNodalForces(x, m.cylinder.tip, m.cylinder.tip_area, x[m.cylinder.tip[0]],
+                                   Vec3::UnitZ(), t);
+}
+
+void ApplyTorque(tissue::FemModel& fem, const TetLimb& m, double t) {
+  const auto f = FollowerTorque(fem.positions(), m, t);
   for (size_t i = 0; i < f.size(); ++i) fem.SetExternalForce(m.cylinder.tip[i], f[i]);
 }
 
@@ -327,12 +334,13 @@ void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& prog
       continue;
     }
     row.size = fem->VertexCount();
-    // Static equilibrium at the final torque, reached in increments (large twists).
+    // Static equilibrium at the final torque, in increments with the follower load updated
+    // between them (large twists); the last increment repeated until the load stops moving.
     bool converged = true;
-    const int increments = c.torque > 0.5 ? 2 : 1;
-    for (int k = 1; k <= increments; ++k) {
-      ApplyTorque(*fem, m, c.shaft, c.torque * k / increments);
-      converged = fem->SolveStatic(30, 1e-7).converged && converged;
+    const int increments = c.torque > 0.5 ? 4 : 1;
+    for (int k = 1; k <= increments + (c.torque > 0.5 ? 2 : 0); ++k) {
+      ApplyTorque(*fem, m, c.torque * std::min(k, increments) / increments);
+      converged = fem->SolveStatic(40, 1e-6).converged;
     }
     const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
     Score(row, m.cylinder.mesh.positions, fem->positions(), markers, ref);
@@ -351,7 +359,7 @@ void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& prog
   const int steps = cfg.quick ? 600 : 3000;
   for (int k = 0; k <= steps; ++k) {
     const double t = k * 1e-3;
-    ApplyTorque(*fem, m, c.shaft, c.torque * Ramp(t, 1.0));
+    ApplyTorque(*fem, m, c.torque * Ramp(t, 1.0));
     if (k % 20 == 0) {
       tr.t.push_back(t);
       tr.d.push_back((fem->positions()[markers[7]] - m.cylinder.mesh.positions[markers[7]]).norm());
@@ -370,9 +378,10 @@ void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Pro
     return SaintVenantDisplacement(c.shaft, c.torque, x);
   };
   const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
-  const auto forces =
-      tissue::TorqueNodalForces(m.cylinder.mesh.positions, m.cylinder.tip, m.cylinder.tip_area,
-                                Vec3(0, 0, c.shaft.length), Vec3::UnitZ(), 1.0);
+  auto apply = [&](tissue::MassSpringModel& model, double torque) {
+    const auto f = FollowerTorque(model.positions(), m, torque);
+    for (size_t i = 0; i < f.size(); ++i) model.SetExternalForce(m.cylinder.tip[i], f[i]);
+  };
   auto build = [&](double k, double c_damp) -> Expected<tissue::MassSpringModel> {
     auto sys = tissue::BuildMassSpring(m.cylinder.mesh, c.limb.density, k, c_damp);
     if (!sys.ok()) return sys.error();
@@ -386,10 +395,11 @@ void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Pro
     return model;
   };
   auto settle = [&](tissue::MassSpringModel& model, double torque) {
-    for (size_t i = 0; i < forces.size(); ++i)
-      model.SetExternalForce(m.cylinder.tip[i], torque * forces[i]);
     model.SetIntegrator(tissue::Integrator::kImplicitEuler);
-    for (int k = 0; k < 400; ++k) model.Step(0.05);
+    for (int k = 0; k < 400; ++k) {
+      if (k % 10 == 0) apply(model, torque * std::min(1.0, (k + 10) / 200.0));
+      model.Step(0.05);
+    }
   };
   // Fit k: twist at marker 10 scales as 1/k for small twists; two corrections.
   const int tip_marker = markers[9];
@@ -454,8 +464,7 @@ void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Pro
     bool ok = true;
     for (int s = 0; s <= steps && ok; ++s) {
       const double t = s * 1e-3;
-      for (size_t i = 0; i < forces.size(); ++i)
-        model->SetExternalForce(m.cylinder.tip[i], c.torque * Ramp(t, 1.0) * forces[i]);
+      apply(*model, c.torque * Ramp(t, 1.0));
       if (s % 20 == 0) {
         tr.t.push_back(t);
         tr.d.push_back(
@@ -543,15 +552,36 @@ std::vector<int> SphereMarkerVertices(const std::vector<Vec3>& rest) {
   return out;
 }
 
-// The press: total force F straight down, spread evenly over the surface vertices within the cap.
-std::vector<std::pair<int, Vec3>> CapLoad(const std::vector<Vec3>& rest, double force) {
-  std::vector<int> cap;
-  for (int i = 0; i < static_cast<int>(rest.size()); ++i)
-    if (rest[i].norm() > 0.98 * kBallRadius && rest[i].z() > 0 &&
-        rest[i].head<2>().norm() <= kCapRadius + 1e-9)
-      cap.push_back(i);
+// The press: a uniform pressure F/(π a²) straight down on the top cap |xy| ≤ a, turned into
+// nodal forces by sampling every surface triangle (28 barycentric points) and lumping each
+// sample's share of the triangle's area onto its vertices by its barycentric weights, so every
+// mesh carries the same load however fine it is (a point load would not converge).
+std::vector<std::pair<int, Vec3>> CapLoad(const geometry::TriMesh& surface, double force) {
+  const double pressure = force / (std::numbers::pi * kCapRadius * kCapRadius);
+  std::map<int, Vec3> nodal;
+  constexpr int kN = 6;  // (kN+1)(kN+2)/2 = 28 samples
+  for (const auto& t : surface.triangles) {
+    const Vec3& a = surface.positions[t[0]];
+    const Vec3& b = surface.positions[t[1]];
+    const Vec3& c = surface.positions[t[2]];
+    if (std::max({a.z(), b.z(), c.z()}) <= 0) continue;
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    const double w = area / ((kN + 1) * (kN + 2) / 2);
+    for (int i = 0; i <= kN; ++i)
+      for (int j = 0; i + j <= kN; ++j) {
+        const double u = static_cast<double>(i) / kN, v = static_cast<double>(j) / kN;
+        const Vec3 p = (1 - u - v) * a + u * b + v * c;
+        if (p.z() <= 0 || p.head<2>().norm() > kCapRadius) continue;
+        nodal[t[0]] += Vec3(0, 0, -pressure * w * (1 - u - v));
+        nodal[t[1]] += Vec3(0, 0, -pressure * w * u);
+        nodal[t[2]] += Vec3(0, 0, -pressure * w * v);
+      }
+  }
+  // The samples' area only approximates the cap's: scale to the exact total force.
+  double total = 0;
+  for (const auto& [i, f] : nodal) total -= f.z();
   std::vector<std::pair<int, Vec3>> out;
-  for (int i : cap) out.emplace_back(i, Vec3(0, 0, -force / static_cast<double>(cap.size())));
+  for (const auto& [i, f] : nodal) out.emplace_back(i, total > 0 ? Vec3(f * force / total) : f);
   return out;
 }
 
@@ -578,7 +608,7 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
   const int ref_cells = cfg.quick ? 8 : 16;
   auto ref_mesh = geometry::MakeTetBall({kBallRadius, ref_cells});
   auto ref_fem = tissue::FemModel::Create(*ref_mesh, BallTissue(), BottomCap(ref_mesh->positions));
-  for (const auto& [i, f] : CapLoad(ref_mesh->positions, kPressForce))
+  for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(*ref_mesh), kPressForce))
     ref_fem->SetExternalForce(i, f);
   ref_fem->SolveStatic(30, 1e-8);
   std::vector<Vec3> ref_surface_rest, ref_surface_disp;
@@ -599,7 +629,8 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     Row row{"fem", out.scene,
             "cells " + std::to_string(cells) + " (" + std::to_string(mesh->TetCount()) + " tets)"};
     row.size = fem->VertexCount();
-    for (const auto& [i, f] : CapLoad(mesh->positions, kPressForce)) fem->SetExternalForce(i, f);
+    for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(*mesh), kPressForce))
+      fem->SetExternalForce(i, f);
     fem->SolveStatic(30, 1e-8);
     Score(row, mesh->positions, fem->positions(), SphereMarkerVertices(mesh->positions), ref);
     row.time_us = TimeUs(cfg.quick ? 3 : 7, [&](int) { fem->StepImplicit(1e-3); });
@@ -625,11 +656,7 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
       auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
       if (!model.ok()) return model.error();
       for (int i : BottomCap(model->system().rest_positions)) model->SetFixed(i, true);
-      for (const auto& [i, f] : CapLoad(std::vector<Vec3>(model->system().rest_positions.begin(),
-                                                          model->system().rest_positions.begin() +
-                                                              model->system().surface_particles),
-                                        kPressForce))
-        model->SetExternalForce(i, f);
+      for (const auto& [i, f] : CapLoad(*surface, kPressForce)) model->SetExternalForce(i, f);
       return model;
     };
     const int pole = Nearest(surface->positions, Vec3(0, 0, kBallRadius));

@@ -114,22 +114,34 @@ Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
         mesh.positions.push_back(l2 > 0 ? Vec3(p.radius * x * x.cwiseAbs().maxCoeff() / l2)
                                         : Vec3::Zero());
       }
-  // Kuhn: six tetrahedra along the diagonal 0 → 7 of each cube, one per permutation of axes.
+  // Kuhn: six tetrahedra along a main diagonal of each cube, one per order of the three axes.
+  // The cube is mirrored along every axis on which its index is odd, so neighbours are mirror
+  // images across their shared face (which therefore is cut the same way from both sides) and
+  // the diagonals alternate: one fixed diagonal everywhere makes the mesh anisotropic (a
+  // vertical press on the pole then moves it sideways along the diagonal by a fifth as much).
   static const int kPaths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
                                    {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
+      for (int i = 0; i < n; ++i) {
+        const int base[3] = {i, j, k};
+        int start[3], step[3];
+        for (int a = 0; a < 3; ++a) {
+          const bool mirrored = base[a] % 2 == 1;
+          start[a] = base[a] + (mirrored ? 1 : 0);
+          step[a] = mirrored ? -1 : 1;
+        }
         for (const auto& path : kPaths) {
-          int c[3] = {i, j, k};
+          int c[3] = {start[0], start[1], start[2]};
           int v[4];
           v[0] = id(c[0], c[1], c[2]);
           for (int s = 0; s < 3; ++s) {
-            ++c[path[s]];
+            c[path[s]] += step[path[s]];
             v[s + 1] = id(c[0], c[1], c[2]);
           }
           AddOriented(mesh, v[0], v[1], v[2], v[3]);
         }
+      }
   if (Status s = Validate(mesh, 0.0); !s.ok()) return s.error();
   return mesh;
 }

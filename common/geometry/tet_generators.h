@@ -8,8 +8,9 @@
 // prisms sharing a face cut it the same way and the mesh is conforming.
 //
 // Ball (sphere palpation): a cube grid mapped onto the ball by the concentric map
-// x ↦ R·x·‖x‖∞/‖x‖₂, every cube split into six tetrahedra around its main diagonal (Kuhn), the
-// same split in every cube, so conforming too.
+// x ↦ R·x·‖x‖∞/‖x‖₂, every cube split into six tetrahedra around a main diagonal (Kuhn), cubes
+// mirrored by index parity so the diagonals alternate (isotropic on average) and neighbours cut
+// their shared face alike (conforming).
 //
 // Both reject parameters that would make degenerate elements, and orient every tetrahedron
 // positively (Validate passes with min_volume > 0).

@@ -216,6 +216,26 @@ TEST(FemTest, AnInvertedElementIsPushedBackWithoutNan) {
   EXPECT_NEAR(fem->positions()[centre_top].z(), 0.05, 2e-3);  // back near its rest place
 }
 
+TEST(FemTest, ABallPressedAtThePoleMovesStraightDown) {
+  // The ball's tetrahedra alternate their diagonals; with one diagonal everywhere the pole moved
+  // sideways by a fifth of its depth.
+  auto ball = geometry::MakeTetBall({0.05, 8});
+  ASSERT_TRUE(ball.ok());
+  std::vector<int> fixed;
+  int pole = 0;
+  for (int i = 0; i < ball->VertexCount(); ++i) {
+    if (ball->positions[i].z() < -0.035) fixed.push_back(i);
+    if (ball->positions[i].z() > ball->positions[pole].z()) pole = i;
+  }
+  auto fem = FemModel::Create(*ball, Tissue(0.45), fixed);
+  ASSERT_TRUE(fem.ok());
+  fem->SetExternalForce(pole, Vec3(0, 0, -0.2));
+  ASSERT_TRUE(fem->SolveStatic().converged);
+  const Vec3 d = fem->positions()[pole] - ball->positions[pole];
+  EXPECT_LT(d.z(), -1e-4);
+  EXPECT_LT(d.head<2>().norm(), 1e-3 * std::abs(d.z()));
+}
+
 TEST(FemTest, DegenerateElementsAndBadParametersAreRejected) {
   geometry::TetMesh flat;
   flat.positions = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(1, 1, 0)};
