@@ -559,6 +559,8 @@ std::vector<int> SphereMarkerVertices(const std::vector<Vec3>& rest) {
 std::vector<std::pair<int, Vec3>> CapLoad(const geometry::TriMesh& surface, double force) {
   const double pressure = force / (std::numbers::pi * kCapRadius * kCapRadius);
   std::map<int, Vec3> nodal;
+  // (Eigen vectors are not zeroed by default construction: never `nodal[i] +=`.)
+  auto add = [&](int i, double fz) { nodal.try_emplace(i, Vec3::Zero()).first->second.z() += fz; };
   constexpr int kN = 6;  // (kN+1)(kN+2)/2 = 28 samples
   for (const auto& t : surface.triangles) {
     const Vec3& a = surface.positions[t[0]];
@@ -572,9 +574,9 @@ std::vector<std::pair<int, Vec3>> CapLoad(const geometry::TriMesh& surface, doub
         const double u = static_cast<double>(i) / kN, v = static_cast<double>(j) / kN;
         const Vec3 p = (1 - u - v) * a + u * b + v * c;
         if (p.z() <= 0 || p.head<2>().norm() > kCapRadius) continue;
-        nodal[t[0]] += Vec3(0, 0, -pressure * w * (1 - u - v));
-        nodal[t[1]] += Vec3(0, 0, -pressure * w * u);
-        nodal[t[2]] += Vec3(0, 0, -pressure * w * v);
+        add(t[0], -pressure * w * (1 - u - v));
+        add(t[1], -pressure * w * u);
+        add(t[2], -pressure * w * v);
       }
   }
   // The samples' area only approximates the cap's: scale to the exact total force.
