@@ -12,6 +12,7 @@
 #include "common/sim/trajectory.h"
 #include "server/net/udp_endpoint.h"
 #include "tests/net/udp_relay.h"
+#include "tests/support/press_and_hold.h"
 
 namespace vsurg::client {
 namespace {
@@ -22,19 +23,7 @@ wire::SessionKey Key() {
   return k;
 }
 
-// Approach the sphere's top, sink 3 mm in and hold: a steady contact force.
-std::vector<haptics::StylusSample> PressAndHold(double seconds) {
-  std::vector<haptics::StylusSample> out;
-  const Eigen::Vector3d dir = Eigen::Vector3d(0.02, 0.03, 1.0).normalized();
-  const Eigen::Vector3d above = 0.06 * dir, inside = (0.05 * 0.9 - 0.003) * dir;
-  for (int k = 0; k < static_cast<int>(seconds * 1000); ++k) {
-    haptics::StylusSample s;
-    const double u = std::min(1.0, k / 300.0);
-    s.position = above + (inside - above) * u;
-    out.push_back(s);
-  }
-  return out;
-}
+using test::PressAndHold;
 
 struct Server {
   std::unique_ptr<sim::Simulation> simulation;

@@ -27,6 +27,7 @@
 #include "server/control/auth.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
+#include "tests/support/press_and_hold.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::server {
@@ -272,17 +273,7 @@ TEST_F(ControlPlaneTest, HealthServiceReportsServing) {
   EXPECT_EQ(bytes, std::string("\x08\x01", 2));  // status: SERVING
 }
 
-std::vector<haptics::StylusSample> PressAndHold(double seconds) {
-  std::vector<haptics::StylusSample> out;
-  const Eigen::Vector3d dir = Eigen::Vector3d(0.02, 0.03, 1.0).normalized();
-  const Eigen::Vector3d above = 0.06 * dir, inside = (0.05 * 0.9 - 0.003) * dir;
-  for (int k = 0; k < static_cast<int>(seconds * 1000); ++k) {
-    haptics::StylusSample s;
-    s.position = above + (inside - above) * std::min(1.0, k / 300.0);
-    out.push_back(s);
-  }
-  return out;
-}
+using test::PressAndHold;
 
 TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   auto sessions = v1::SessionService::NewStub(channel_);
