@@ -313,9 +313,9 @@ void ApplyTorque(tissue::FemModel& fem, const TetLimb& m, double t) {
 }
 
 void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& progress) {
-  // Full: up to level 6 (≈ 60k tets) where Saint-Venant is exact (small torque); the ramps stop
-  // at level 5, their static solves need two load increments (sparse LDLT ≈ 10 s each at level 6).
-  std::vector<int> levels = {2, 3, 4, c.torque > 0.5 ? 5 : 6};
+  // Full: up to level 7 (≈ 136k tets) where Saint-Venant is exact (small torque); the ramps stop
+  // at level 5: their static solves take several follower-load increments.
+  std::vector<int> levels = {2, 3, 4, c.torque > 0.5 ? 5 : 7};
   if (cfg.quick) levels = {1, 2};
   const Reference ref = [&](const Vec3& x) {
     return SaintVenantDisplacement(c.shaft, c.torque, x);
@@ -337,8 +337,8 @@ void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& prog
     // Static equilibrium at the final torque, in increments with the follower load updated
     // between them (large twists); the last increment repeated until the load stops moving.
     bool converged = true;
-    const int increments = c.torque > 0.5 ? 4 : 1;
-    for (int k = 1; k <= increments + (c.torque > 0.5 ? 2 : 0); ++k) {
+    const int increments = c.torque > 0.5 ? 3 : 1;
+    for (int k = 1; k <= increments + (c.torque > 0.5 ? 1 : 0); ++k) {
       ApplyTorque(*fem, m, c.torque * std::min(k, increments) / increments);
       converged = fem->SolveStatic(40, 1e-6).converged;
     }
@@ -692,7 +692,7 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
           ", " + std::to_string(substeps) + " substep" + (substeps > 1 ? "s" : "") + "/ms";
       std::vector<double> times;
       bool ok = true;
-      for (int s = 0; s < (cfg.quick ? 300 : 800) && ok; ++s) {
+      for (int s = 0; s < (cfg.quick ? 300 : 500) && ok; ++s) {
         const auto t0 = Clock::now();
         ok = model->Step(1e-3, substeps);
         times.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
