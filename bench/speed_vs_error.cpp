@@ -37,6 +37,7 @@
 
 #include "bench/png_plot.h"
 #include "common/cli/args.h"
+#include "common/core/csv.h"
 #include "common/geometry/distances.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/tet_generators.h"
@@ -783,11 +784,11 @@ std::string Num(double v, int digits = 4) {
   return buf;
 }
 
+// One CSV text field (RFC 4180 quoting), through the project's writer.
 std::string CsvField(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return out + "\"";
+  std::string out;
+  csv::AppendText(out, s);
+  return out;
 }
 
 Status WriteCsv(const std::string& path, const std::vector<SceneOut>& scenes) {

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/cli/args.h"
+#include "common/core/file.h"
 #include "common/scoring/ratings_csv.h"
 #include "db/store.h"
 #include "vsurg/v1/services.grpc.pb.h"
@@ -28,6 +29,7 @@ namespace {
 namespace v1 = vsurg::v1;
 using vsurg::Error;
 using vsurg::Expected;
+using vsurg::ReadTextFile;
 using vsurg::Status;
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
@@ -60,20 +62,12 @@ struct Remote {
   }
 };
 
-Expected<std::string> ReadText(const std::string& path, const std::string& field) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{vsurg::ErrorCode::kIoError, "cannot read " + path, field};
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 Expected<Remote> Connect(const ArgParser& p) {
   Remote r;
   if (p.Has("token")) {
     r.token = p.String("token");
   } else if (p.Has("token-file")) {
-    auto t = ReadText(p.String("token-file"), "--token-file");
+    auto t = ReadTextFile(p.String("token-file"), "--token-file");
     if (!t.ok()) return t.error();
     r.token = *t;
   } else if (const char* env = std::getenv("VSURG_TOKEN")) {
@@ -90,7 +84,7 @@ Expected<Remote> Connect(const ArgParser& p) {
     return vsurg::InvalidArgument("--timeout", "must be within (0, 3600] s");
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (p.Has("tls-ca")) {
-    auto ca = ReadText(p.String("tls-ca"), "--tls-ca");
+    auto ca = ReadTextFile(p.String("tls-ca"), "--tls-ca");
     if (!ca.ok()) return ca.error();
     grpc::SslCredentialsOptions o;
     o.pem_root_certs = *ca;
@@ -250,7 +244,7 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
-  auto text = ReadText(p.String("input"), "--input");
+  auto text = ReadTextFile(p.String("input"), "--input");
   if (!text.ok()) return Usage(err, p.command(), "--input", text.error().message);
   auto subjects = vsurg::scoring::ParseRatingsCsv(*text, p.String("input"));
   if (!subjects.ok()) return Usage(err, p.command(), "--input", subjects.error().message);
@@ -484,7 +478,7 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
     s = stub->Backup(&ctx, req, &empty);
     if (s.ok()) out << "backed up to " << p.String("out") << "\n";
   } else {
-    auto json = ReadText(p.String("file"), "--file");
+    auto json = ReadTextFile(p.String("file"), "--file");
     if (!json.ok()) return Usage(err, p.command(), "--file", json.error().message);
     v1::WeightSet w;
     w.set_json(*json);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/cli/args.h"
+#include "common/core/file.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/obj_io.h"
 #include "common/scoring/ratings_csv.h"
@@ -681,15 +682,6 @@ int Trainee(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   return 0;
 }
 
-Expected<std::string> ReadWholeFile(const std::string& path, const std::string& field) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{ErrorCode::kIoError, path + ": cannot open", field};
-  std::stringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Error{ErrorCode::kIoError, path + ": read failed", field};
-  return text.str();
-}
-
 void PrintReportTable(std::ostream& out, const scoring::EvaluationReport& r) {
   out << std::fixed << std::setprecision(3);
   out << "raters " << r.raters << " (intern " << r.raters_per_group[0] << ", associate_chief "
@@ -725,7 +717,7 @@ int Score(const std::vector<std::string>& args, std::ostream& out, std::ostream&
   if (int rc = ParseOrExit(p, args, out, err); rc >= 0) return rc;
   scoring::WeightSet weights;
   if (p.Has("weights")) {
-    auto text = ReadWholeFile(p.String("weights"), "--weights");
+    auto text = ReadTextFile(p.String("weights"), "--weights");
     if (!text.ok()) return UsageError(err, p.command(), text.error());
     auto w = scoring::WeightSetFromJsonText(*text);
     if (!w.ok())
@@ -733,7 +725,7 @@ int Score(const std::vector<std::string>& args, std::ostream& out, std::ostream&
                         Error{w.error().code, w.error().message, "--weights: " + w.error().field});
     weights = *w;
   }
-  auto text = ReadWholeFile(p.String("input"), "--input");
+  auto text = ReadTextFile(p.String("input"), "--input");
   if (!text.ok()) return UsageError(err, p.command(), text.error());
   auto subjects = scoring::ParseRatingsCsv(*text, p.String("input"));
   if (!subjects.ok()) {

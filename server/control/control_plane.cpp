@@ -7,14 +7,13 @@
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <mutex>
-#include <sstream>
 #include <thread>
 
 #include <nlohmann/json.hpp>
 
+#include "common/core/file.h"
 #include "common/scoring/evaluation.h"
 #include "common/scoring/report_json.h"
 #include "db/store.h"
@@ -157,6 +156,14 @@ void ToProto(const SessionTelemetry& t, v1::Telemetry* out) {
   out->set_packets(t.packets);
   out->set_haptic_rate_hz(t.haptic_rate_hz);
 }
+
+// A server-streaming call refused before it starts: it only reports the status.
+template <class Message>
+class Refuse final : public grpc::ServerWriteReactor<Message> {
+ public:
+  explicit Refuse(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
 
 // A trainee may touch only their own sessions.
 Status OwnSession(const db::Principal& p, const db::SessionRecord& r) {
@@ -356,13 +363,7 @@ class MonitorServiceImpl final : public v1::MonitorService::CallbackService {
                  : Status(r.error());
     }
     if (!s.ok()) {
-      // A reactor that only reports the error.
-      class Refuse final : public grpc::ServerWriteReactor<v1::Telemetry> {
-       public:
-        explicit Refuse(const grpc::Status& st) { Finish(st); }
-        void OnDone() override { delete this; }
-      };
-      return new Refuse(ToGrpcStatus(s));
+      return new Refuse<v1::Telemetry>(ToGrpcStatus(s));
     }
     return new WatchReactor(sh_.sessions, req->session_id(), hz);
   }
@@ -685,15 +686,12 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
 
   grpc::ServerWriteReactor<v1::ExportChunk>* Export(CallbackServerContext* ctx,
                                                     const v1::ExportRequest* req) override {
-    class Refuse final : public grpc::ServerWriteReactor<v1::ExportChunk> {
-     public:
-      explicit Refuse(const grpc::Status& st) { Finish(st); }
-      void OnDone() override { delete this; }
-    };
     auto p = Authorize(sh_, ctx, Method::kAdminExport);
-    if (!p.ok()) return new Refuse(ToGrpcStatus(p.error()));
+    if (!p.ok()) return new Refuse<v1::ExportChunk>(ToGrpcStatus(p.error()));
     const auto format = db::ParseExportFormat(req->format().empty() ? "csv" : req->format());
-    if (!format) return new Refuse(ToGrpcStatus(InvalidArgument("format", "csv, jsonl or xapi")));
+    if (!format)
+      return new Refuse<v1::ExportChunk>(
+          ToGrpcStatus(InvalidArgument("format", "csv, jsonl or xapi")));
     db::ExportFilter f;
     if (req->from_us() != 0) f.from_us = req->from_us();
     if (req->to_us() != 0) f.to_us = req->to_us();
@@ -717,14 +715,6 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
  private:
   Shared& sh_;
 };
-
-Expected<std::string> ReadFile(const std::string& path, const char* field) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{ErrorCode::kIoError, "cannot read " + path, field};
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 }  // namespace
 
@@ -772,9 +762,9 @@ Expected<std::unique_ptr<ControlPlane>> ControlPlane::Start(db::Store& store,
   if (options.tls_cert_file.empty() != options.tls_key_file.empty())
     return InvalidArgument("tls", "a certificate and its key are both required");
   if (!options.tls_cert_file.empty()) {
-    auto cert = ReadFile(options.tls_cert_file, "tls_cert");
+    auto cert = ReadTextFile(options.tls_cert_file, "tls_cert");
     if (!cert.ok()) return cert.error();
-    auto key = ReadFile(options.tls_key_file, "tls_key");
+    auto key = ReadTextFile(options.tls_key_file, "tls_key");
     if (!key.ok()) return key.error();
     grpc::SslServerCredentialsOptions ssl;
     ssl.pem_key_cert_pairs.push_back({*key, *cert});
