@@ -1,6 +1,6 @@
 #include "bench/png_plot.h"
 
-#include <zlib.h>
+#include "common/core/image.h"
 
 #include <algorithm>
 #include <array>
@@ -11,62 +11,6 @@
 
 namespace vsurg::bench {
 namespace {
-
-// 5×7 glyphs, one string per row, '#' = ink. Upper case is drawn with the lower-case glyphs.
-const std::map<char, std::array<const char*, 7>>& Font() {
-  static const std::map<char, std::array<const char*, 7>> kFont = {
-      {'0', {".###.", "#...#", "#..##", "#.#.#", "##..#", "#...#", ".###."}},
-      {'1', {"..#..", ".##..", "..#..", "..#..", "..#..", "..#..", ".###."}},
-      {'2', {".###.", "#...#", "....#", "...#.", "..#..", ".#...", "#####"}},
-      {'3', {"####.", "....#", "....#", ".###.", "....#", "....#", "####."}},
-      {'4', {"...#.", "..##.", ".#.#.", "#..#.", "#####", "...#.", "...#."}},
-      {'5', {"#####", "#....", "####.", "....#", "....#", "#...#", ".###."}},
-      {'6', {"..##.", ".#...", "#....", "####.", "#...#", "#...#", ".###."}},
-      {'7', {"#####", "....#", "...#.", "..#..", ".#...", ".#...", ".#..."}},
-      {'8', {".###.", "#...#", "#...#", ".###.", "#...#", "#...#", ".###."}},
-      {'9', {".###.", "#...#", "#...#", ".####", "....#", "...#.", ".##.."}},
-      {'a', {".....", ".....", ".###.", "....#", ".####", "#...#", ".####"}},
-      {'b', {"#....", "#....", "####.", "#...#", "#...#", "#...#", "####."}},
-      {'c', {".....", ".....", ".###.", "#....", "#....", "#...#", ".###."}},
-      {'d', {"....#", "....#", ".####", "#...#", "#...#", "#...#", ".####"}},
-      {'e', {".....", ".....", ".###.", "#...#", "#####", "#....", ".###."}},
-      {'f', {"..##.", ".#..#", ".#...", "###..", ".#...", ".#...", ".#..."}},
-      {'g', {".....", ".####", "#...#", "#...#", ".####", "....#", ".###."}},
-      {'h', {"#....", "#....", "#.##.", "##..#", "#...#", "#...#", "#...#"}},
-      {'i', {"..#..", ".....", ".##..", "..#..", "..#..", "..#..", ".###."}},
-      {'j', {"...#.", ".....", "..##.", "...#.", "...#.", "#..#.", ".##.."}},
-      {'k', {"#....", "#....", "#..#.", "#.#..", "##...", "#.#..", "#..#."}},
-      {'l', {".##..", "..#..", "..#..", "..#..", "..#..", "..#..", ".###."}},
-      {'m', {".....", ".....", "##.#.", "#.#.#", "#.#.#", "#...#", "#...#"}},
-      {'n', {".....", ".....", "#.##.", "##..#", "#...#", "#...#", "#...#"}},
-      {'o', {".....", ".....", ".###.", "#...#", "#...#", "#...#", ".###."}},
-      {'p', {".....", ".....", "####.", "#...#", "####.", "#....", "#...."}},
-      {'q', {".....", ".....", ".####", "#...#", ".####", "....#", "....#"}},
-      {'r', {".....", ".....", "#.##.", "##..#", "#....", "#....", "#...."}},
-      {'s', {".....", ".....", ".####", "#....", ".###.", "....#", "####."}},
-      {'t', {".#...", ".#...", "###..", ".#...", ".#...", ".#..#", "..##."}},
-      {'u', {".....", ".....", "#...#", "#...#", "#...#", "#..##", ".##.#"}},
-      {'v', {".....", ".....", "#...#", "#...#", "#...#", ".#.#.", "..#.."}},
-      {'w', {".....", ".....", "#...#", "#...#", "#.#.#", "#.#.#", ".#.#."}},
-      {'x', {".....", ".....", "#...#", ".#.#.", "..#..", ".#.#.", "#...#"}},
-      {'y', {".....", ".....", "#...#", "#...#", ".####", "....#", ".###."}},
-      {'z', {".....", ".....", "#####", "...#.", "..#..", ".#...", "#####"}},
-      {'.', {".....", ".....", ".....", ".....", ".....", ".##..", ".##.."}},
-      {',', {".....", ".....", ".....", ".....", ".##..", "..#..", ".#..."}},
-      {'-', {".....", ".....", ".....", "#####", ".....", ".....", "....."}},
-      {'+', {".....", "..#..", "..#..", "#####", "..#..", "..#..", "....."}},
-      {'*', {".....", "#.#.#", ".###.", "#####", ".###.", "#.#.#", "....."}},
-      {'/', {"....#", "....#", "...#.", "..#..", ".#...", "#....", "#...."}},
-      {'(', {"...#.", "..#..", ".#...", ".#...", ".#...", "..#..", "...#."}},
-      {')', {".#...", "..#..", "...#.", "...#.", "...#.", "..#..", ".#..."}},
-      {':', {".....", ".##..", ".##..", ".....", ".##..", ".##..", "....."}},
-      {'%', {"##...", "##..#", "...#.", "..#..", ".#...", "#..##", "...##"}},
-      {'=', {".....", ".....", "#####", ".....", "#####", ".....", "....."}},
-      {'_', {".....", ".....", ".....", ".....", ".....", ".....", "#####"}},
-      {'\'', {"..#..", "..#..", ".#...", ".....", ".....", ".....", "....."}},
-  };
-  return kFont;
-}
 
 struct Rgb {
   unsigned char r, g, b;
@@ -101,14 +45,11 @@ class Canvas {
   int Text(int x, int y, const std::string& s, Rgb c, int scale = 1) {
     int cx = x;
     for (char ch : s) {
-      const char key = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-      const auto it = Font().find(key);
-      if (it != Font().end())
-        for (int row = 0; row < 7; ++row)
-          for (int col = 0; col < 5; ++col)
-            if (it->second[row][col] == '#')
-              Rect(cx + col * scale, y + row * scale, cx + col * scale + scale - 1,
-                   y + row * scale + scale - 1, c);
+      for (int row = 0; row < 7; ++row)
+        for (int col = 0; col < 5; ++col)
+          if (GlyphInk(ch, row, col))
+            Rect(cx + col * scale, y + row * scale, cx + col * scale + scale - 1,
+                 y + row * scale + scale - 1, c);
       cx += 6 * scale;
     }
     return cx - x;
@@ -122,19 +63,6 @@ class Canvas {
   int w_, h_;
   std::vector<unsigned char> px_;
 };
-
-void PutBe32(std::string& out, uint32_t v) {
-  for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<char>((v >> s) & 0xff));
-}
-
-void Chunk(std::string& png, const char* type, const std::string& data) {
-  PutBe32(png, static_cast<uint32_t>(data.size()));
-  std::string body(type, 4);
-  body += data;
-  png += body;
-  PutBe32(png, static_cast<uint32_t>(crc32(0, reinterpret_cast<const Bytef*>(body.data()),
-                                           static_cast<uInt>(body.size()))));
-}
 
 std::string TickLabel(double v, bool log) {
   char buf[32];
@@ -176,43 +104,6 @@ std::vector<double> Ticks(double lo, double hi, bool log) {
 }
 
 }  // namespace
-
-Status WriteRgbPng(const std::string& path, int width, int height,
-                   const std::vector<unsigned char>& rgb) {
-  if (width <= 0 || height <= 0 || rgb.size() != static_cast<size_t>(width) * height * 3)
-    return InvalidArgument("image", "size does not match the pixels");
-  std::string raw;
-  raw.reserve(static_cast<size_t>(height) * (width * 3 + 1));
-  for (int y = 0; y < height; ++y) {
-    raw.push_back(0);  // filter: none
-    raw.append(reinterpret_cast<const char*>(&rgb[static_cast<size_t>(y) * width * 3]),
-               static_cast<size_t>(width) * 3);
-  }
-  uLongf packed_size = compressBound(static_cast<uLong>(raw.size()));
-  std::string packed(packed_size, '\0');
-  if (compress2(reinterpret_cast<Bytef*>(packed.data()), &packed_size,
-                reinterpret_cast<const Bytef*>(raw.data()), static_cast<uLong>(raw.size()),
-                9) != Z_OK)
-    return Error{ErrorCode::kIoError, "zlib compression failed", "png"};
-  packed.resize(packed_size);
-  std::string png = "\x89PNG\r\n\x1a\n";
-  std::string ihdr;
-  PutBe32(ihdr, static_cast<uint32_t>(width));
-  PutBe32(ihdr, static_cast<uint32_t>(height));
-  ihdr += std::string("\x08\x02\x00\x00\x00", 5);  // 8 bits, RGB, deflate, no filter, no interlace
-  Chunk(png, "IHDR", ihdr);
-  Chunk(png, "IDAT", packed);
-  Chunk(png, "IEND", "");
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(png.data(), static_cast<std::streamsize>(png.size()));
-    if (!out) return Error{ErrorCode::kIoError, "cannot write " + path, "png"};
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    return Error{ErrorCode::kIoError, "cannot rename " + tmp, "png"};
-  return Status::Ok();
-}
 
 Plot::Plot(std::string title, std::string x_label, std::string y_label, bool log_x, bool log_y)
     : title_(std::move(title)),

@@ -32,8 +32,4 @@ class Plot {
   Series& At(int series, const std::string& label);
 };
 
-// Writes an 8-bit RGB image (row-major, 3 bytes per pixel) as PNG.
-Status WriteRgbPng(const std::string& path, int width, int height,
-                   const std::vector<unsigned char>& rgb);
-
 }  // namespace vsurg::bench

@@ -1,0 +1,55 @@
+// Where the stations and the monitor draw: a GLFW window, or an offscreen framebuffer in an EGL
+// context on Mesa's surfaceless platform (no display needed: tests, CI, docs screenshots).
+// Both give a legacy-compatible OpenGL context (the renderer uses fixed-function lighting and
+// vertex arrays, which every driver and llvmpipe have).
+//
+// Threads: one render thread creates, draws with and destroys a surface (OpenGL contexts are
+// current on one thread). Input() may be read from any thread.
+#pragma once
+
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "common/core/expected.h"
+#include "common/core/image.h"
+
+namespace vsurg::client {
+
+// What the window's keyboard and mouse did; the keyboard-and-mouse device reads it.
+struct WindowInput {
+  // Keys held now: W/S along the view depth (y), A/D sideways (x), Q/E up and down (z).
+  bool forward = false, back = false, left = false, right = false, up = false, down = false;
+  bool grasp = false;                 // space bar or the left mouse button
+  double twist_rad = 0;               // accumulated by dragging with the right mouse button
+  double cursor_x = 0, cursor_y = 0;  // px, window coordinates
+};
+
+class GlSurface {
+ public:
+  static Expected<std::unique_ptr<GlSurface>> CreateHeadless(int width, int height);
+  static Expected<std::unique_ptr<GlSurface>> CreateWindow(const std::string& title, int width,
+                                                           int height);
+  ~GlSurface();
+  GlSurface(const GlSurface&) = delete;
+  GlSurface& operator=(const GlSurface&) = delete;
+
+  int width() const;
+  int height() const;
+  bool headless() const;
+  // Window: closed by the user (or Escape). Headless: never.
+  bool ShouldClose() const;
+  // Presents the frame (window: swap and poll events; headless: finish).
+  void EndFrame();
+  // The frame just drawn (call before EndFrame for a window), top row first.
+  RgbImage ReadPixels() const;
+  WindowInput Input() const;
+
+  struct Impl;  // public only for the window's C callbacks in gl_surface.cpp
+
+ private:
+  explicit GlSurface(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vsurg::client

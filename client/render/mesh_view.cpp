@@ -1,0 +1,255 @@
+#include "client/render/mesh_view.h"
+
+#include <GL/gl.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/core/image.h"
+
+namespace vsurg::client {
+namespace {
+
+// The view matrix looking from `eye` at `centre` (what gluLookAt builds).
+Eigen::Matrix4d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& centre,
+                       const Eigen::Vector3d& up) {
+  const Eigen::Vector3d f = (centre - eye).normalized();
+  const Eigen::Vector3d s = f.cross(up).normalized();
+  const Eigen::Vector3d u = s.cross(f);
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.block<1, 3>(0, 0) = s.transpose();
+  m.block<1, 3>(1, 0) = u.transpose();
+  m.block<1, 3>(2, 0) = -f.transpose();
+  m(0, 3) = -s.dot(eye);
+  m(1, 3) = -u.dot(eye);
+  m(2, 3) = f.dot(eye);
+  return m;
+}
+
+// What glFrustum builds: a 35° vertical field of view.
+Eigen::Matrix4d Frustum(double aspect, double near_plane, double far_plane) {
+  const double t = near_plane * std::tan(0.5 * 35.0 * M_PI / 180.0), r = t * aspect;
+  Eigen::Matrix4d m = Eigen::Matrix4d::Zero();
+  m(0, 0) = near_plane / r;
+  m(1, 1) = near_plane / t;
+  m(2, 2) = -(far_plane + near_plane) / (far_plane - near_plane);
+  m(2, 3) = -2 * far_plane * near_plane / (far_plane - near_plane);
+  m(3, 2) = -1;
+  return m;
+}
+
+void DrawText(double x, double y, const std::string& text, double scale) {
+  glBegin(GL_QUADS);
+  for (size_t k = 0; k < text.size(); ++k)
+    for (int row = 0; row < 7; ++row)
+      for (int col = 0; col < 5; ++col)
+        if (GlyphInk(text[k], row, col)) {
+          const double x0 = x + (static_cast<double>(k) * 6 + col) * scale, y0 = y + row * scale;
+          glVertex2d(x0, y0);
+          glVertex2d(x0 + scale, y0);
+          glVertex2d(x0 + scale, y0 + scale);
+          glVertex2d(x0, y0 + scale);
+        }
+  glEnd();
+}
+
+}  // namespace
+
+MeshView::MeshView(const geometry::TriMesh& rest) : rest_(rest), positions_(rest.positions) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+  for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  if (rest_.positions.empty()) lo = hi = Eigen::Vector3d::Zero();
+  centre_ = 0.5 * (lo + hi);
+  radius_ = std::max(0.5 * (hi - lo).norm(), 1e-3);
+  // Longest extent across the screen; "up" the next longest; look along the shortest, raised.
+  const Eigen::Vector3d extent = hi - lo;
+  int axes[3] = {0, 1, 2};
+  std::sort(axes, axes + 3, [&](int a, int b) { return extent[a] > extent[b]; });
+  Eigen::Vector3d across = Eigen::Vector3d::Unit(axes[0]);
+  up_ = Eigen::Vector3d::Unit(axes[1]);
+  if (extent[axes[0]] < 1.5 * extent[axes[2]]) up_ = Eigen::Vector3d::UnitZ();  // round: z up
+  if (std::abs(up_.dot(across)) > 0.9) across = up_.unitOrthogonal();
+  const Eigen::Vector3d view = up_.cross(across).normalized();
+  eye_ = centre_ + radius_ * 2.4 * (view + 0.45 * up_).normalized();
+  // A 1 cm checker in rest coordinates, two skin tones.
+  colours_.resize(rest_.positions.size() * 3);
+  for (size_t i = 0; i < rest_.positions.size(); ++i) {
+    const Eigen::Vector3d& p = rest_.positions[i];
+    const long parity = static_cast<long>(std::floor(p.x() / 0.01)) +
+                        static_cast<long>(std::floor(p.y() / 0.01)) +
+                        static_cast<long>(std::floor(p.z() / 0.01));
+    const bool dark = (parity & 1) != 0;
+    colours_[3 * i] = dark ? 176 : 236;
+    colours_[3 * i + 1] = dark ? 104 : 178;
+    colours_[3 * i + 2] = dark ? 92 : 150;
+  }
+  indices_.reserve(rest_.triangles.size() * 3);
+  for (const auto& t : rest_.triangles)
+    for (int v : t) indices_.push_back(static_cast<unsigned int>(v));
+  vertex_buffer_.resize(positions_.size() * 3);
+  normal_buffer_.resize(positions_.size() * 3);
+}
+
+int MeshView::Apply(const std::vector<int32_t>& indices,
+                    const std::vector<Eigen::Vector3f>& positions) {
+  int applied = 0;
+  const size_t n = std::min(indices.size(), positions.size());
+  for (size_t k = 0; k < n; ++k) {
+    const int32_t i = indices[k];
+    if (i < 0 || static_cast<size_t>(i) >= positions_.size() || !positions[k].allFinite()) continue;
+    positions_[i] = positions[k].cast<double>();
+    ++applied;
+  }
+  return applied;
+}
+
+int MeshView::Apply(const std::vector<int32_t>& indices,
+                    const std::vector<geometry::Vec3>& positions) {
+  int applied = 0;
+  const size_t n = std::min(indices.size(), positions.size());
+  for (size_t k = 0; k < n; ++k) {
+    const int32_t i = indices[k];
+    if (i < 0 || static_cast<size_t>(i) >= positions_.size() || !positions[k].allFinite()) continue;
+    positions_[i] = positions[k];
+    ++applied;
+  }
+  return applied;
+}
+
+Eigen::Matrix4d MeshView::Projection(int width, int height) const {
+  return Frustum(static_cast<double>(width) / std::max(height, 1), radius_ * 0.1, radius_ * 10);
+}
+
+Eigen::Matrix4d MeshView::View() const {
+  return LookAt(eye_, centre_, up_);
+}
+
+Eigen::Vector2d MeshView::Project(const geometry::Vec3& p, int width, int height) const {
+  const Eigen::Vector4d clip = Projection(width, height) * View() * p.homogeneous();
+  const Eigen::Vector2d ndc = clip.head<2>() / clip.w();
+  return {(ndc.x() + 1) * 0.5 * width, (1 - ndc.y()) * 0.5 * height};
+}
+
+void MeshView::ResetToRest() {
+  positions_ = rest_.positions;
+}
+
+void MeshView::ComputeNormals() {
+  std::vector<Eigen::Vector3d> normals(positions_.size(), Eigen::Vector3d::Zero());
+  for (const auto& t : rest_.triangles) {
+    // Area-weighted: the cross product's length is twice the triangle's area.
+    const Eigen::Vector3d n =
+        (positions_[t[1]] - positions_[t[0]]).cross(positions_[t[2]] - positions_[t[0]]);
+    for (int v : t) normals[v] += n;
+  }
+  for (size_t i = 0; i < positions_.size(); ++i) {
+    const double length = normals[i].norm();
+    const Eigen::Vector3d n = length > 0 ? Eigen::Vector3d(normals[i] / length) : up_;
+    for (int k = 0; k < 3; ++k) {
+      vertex_buffer_[3 * i + k] = static_cast<float>(positions_[i][k]);
+      normal_buffer_[3 * i + k] = static_cast<float>(n[k]);
+    }
+  }
+}
+
+void MeshView::Draw(int width, int height, const Overlay& overlay) {
+  glViewport(0, 0, width, height);
+  glClearColor(0.13f, 0.15f, 0.19f, 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  glEnable(GL_DEPTH_TEST);
+
+  const Eigen::Matrix4d projection = Projection(width, height), view = View();
+  glMatrixMode(GL_PROJECTION);
+  glLoadMatrixd(projection.data());
+  glMatrixMode(GL_MODELVIEW);
+  glLoadMatrixd(view.data());
+
+  // A head light and a fill light, in eye coordinates, set after the view is loaded.
+  glEnable(GL_LIGHTING);
+  glEnable(GL_LIGHT0);
+  glEnable(GL_LIGHT1);
+  glEnable(GL_NORMALIZE);
+  glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
+  const Eigen::Vector3f key_dir = (eye_ - centre_ + radius_ * up_).cast<float>().normalized();
+  const GLfloat key[] = {key_dir.x(), key_dir.y(), key_dir.z(), 0.0f};
+  const GLfloat key_colour[] = {0.85f, 0.85f, 0.85f, 1.0f};
+  const GLfloat fill[] = {static_cast<GLfloat>(-up_.x()), static_cast<GLfloat>(-up_.y()),
+                          static_cast<GLfloat>(-up_.z()), 0.0f};
+  const GLfloat fill_colour[] = {0.25f, 0.25f, 0.3f, 1.0f};
+  const GLfloat ambient[] = {0.25f, 0.25f, 0.25f, 1.0f};
+  glLightfv(GL_LIGHT0, GL_POSITION, key);
+  glLightfv(GL_LIGHT0, GL_DIFFUSE, key_colour);
+  glLightfv(GL_LIGHT1, GL_POSITION, fill);
+  glLightfv(GL_LIGHT1, GL_DIFFUSE, fill_colour);
+  glLightModelfv(GL_LIGHT_MODEL_AMBIENT, ambient);
+  glEnable(GL_COLOR_MATERIAL);
+  glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
+  glShadeModel(GL_SMOOTH);
+
+  ComputeNormals();
+  glEnableClientState(GL_VERTEX_ARRAY);
+  glEnableClientState(GL_NORMAL_ARRAY);
+  glEnableClientState(GL_COLOR_ARRAY);
+  glVertexPointer(3, GL_FLOAT, 0, vertex_buffer_.data());
+  glNormalPointer(GL_FLOAT, 0, normal_buffer_.data());
+  glColorPointer(3, GL_UNSIGNED_BYTE, 0, colours_.data());
+  glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices_.size()), GL_UNSIGNED_INT,
+                 indices_.data());
+  glDisableClientState(GL_COLOR_ARRAY);
+  glDisableClientState(GL_NORMAL_ARRAY);
+  glDisableClientState(GL_VERTEX_ARRAY);
+  glDisable(GL_LIGHTING);
+
+  if (overlay.show_stylus && overlay.tip.allFinite()) {
+    // The stylus: a shaft 8 cm back along its own z axis, the tip a dot (green in contact,
+    // orange while grasping); the force on the hand from the tip, yellow, 2 cm per newton.
+    const Eigen::Vector3d back = overlay.tip + overlay.orientation * Eigen::Vector3d(0, 0, 0.08);
+    glLineWidth(4.0f);
+    glColor3f(0.75f, 0.78f, 0.85f);
+    glBegin(GL_LINES);
+    glVertex3dv(overlay.tip.data());
+    glVertex3dv(back.data());
+    glEnd();
+    glPointSize(9.0f);
+    if (overlay.grasping)
+      glColor3f(1.0f, 0.55f, 0.1f);
+    else if (overlay.contact)
+      glColor3f(0.2f, 0.9f, 0.3f);
+    else
+      glColor3f(0.3f, 0.6f, 1.0f);
+    glBegin(GL_POINTS);
+    glVertex3dv(overlay.tip.data());
+    glEnd();
+    if (overlay.force.allFinite() && overlay.force.norm() > 1e-3) {
+      const Eigen::Vector3d head = overlay.tip + 0.02 * overlay.force;
+      glLineWidth(3.0f);
+      glColor3f(1.0f, 0.9f, 0.1f);
+      glBegin(GL_LINES);
+      glVertex3dv(overlay.tip.data());
+      glVertex3dv(head.data());
+      glEnd();
+    }
+  }
+
+  if (!overlay.hud.empty()) {
+    glDisable(GL_DEPTH_TEST);
+    glMatrixMode(GL_PROJECTION);
+    glLoadIdentity();
+    glOrtho(0, width, height, 0, -1, 1);  // pixels, y down
+    glMatrixMode(GL_MODELVIEW);
+    glLoadIdentity();
+    const double scale = height >= 600 ? 2 : 1;
+    size_t longest = 0;
+    for (const auto& line : overlay.hud) longest = std::max(longest, line.size());
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glColor4f(0.0f, 0.0f, 0.0f, 0.55f);
+    glRectd(4, 4, 12 + longest * 6 * scale, 12 + overlay.hud.size() * 9 * scale);
+    glDisable(GL_BLEND);
+    glColor3f(0.95f, 0.95f, 0.95f);
+    for (size_t k = 0; k < overlay.hud.size(); ++k)
+      DrawText(8, 8 + k * 9 * scale, overlay.hud[k], scale);
+  }
+}
+
+}  // namespace vsurg::client
