@@ -234,6 +234,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     Telemetry& t = telemetry_.Back();
     t.time = s.time;
     t.force = out;
+    t.tip = s.position;
     t.twist = cmd.twist;
     t.torque = cmd.torque;
     t.contact = cmd.contact;
@@ -419,7 +420,27 @@ bool Simulation::TakeVisualFrame(VisualFrame& out) {
       last_sent_[i] = v.positions[i];
     }
   }
+  if (!out.indices.empty()) {
+    std::lock_guard lock(shown_mutex_);
+    shown_.positions = last_sent_;
+    shown_.id = v.id;
+  }
   return true;
+}
+
+uint64_t Simulation::ShownSurface(std::vector<int32_t>& indices,
+                                  std::vector<geometry::Vec3>& positions) const {
+  indices.clear();
+  positions.clear();
+  std::lock_guard lock(shown_mutex_);
+  if (shown_.positions.size() != rest_.positions.size()) return shown_.id;
+  constexpr double kMoved2 = 1e-12;  // (1 µm)², as for visual frames
+  for (size_t i = 0; i < shown_.positions.size(); ++i)
+    if ((shown_.positions[i] - rest_.positions[i]).squaredNorm() > kMoved2) {
+      indices.push_back(static_cast<int32_t>(i));
+      positions.push_back(shown_.positions[i]);
+    }
+  return shown_.id;
 }
 
 }  // namespace vsurg::sim

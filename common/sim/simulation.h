@@ -38,6 +38,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -66,6 +67,7 @@ struct VisualFrame {
 struct Telemetry {
   double time = 0;                                // s, the station's clock of the last sample
   geometry::Vec3 force = geometry::Vec3::Zero();  // N, sent to the device
+  geometry::Vec3 tip = geometry::Vec3::Zero();    // m, the stylus tip of that sample
   double twist = 0;                               // rad
   double torque = 0;                              // N·m
   bool contact = false, grasping = false;
@@ -95,6 +97,11 @@ class Simulation {
   // nothing new was published. Reuses out's capacity.
   bool TakeVisualFrame(VisualFrame& out);
 
+  // Any thread (the control plane's sampler, for monitors): the surface as the visual thread
+  // last sent it, as the vertices more than 1 µm from rest. Returns that frame's id (0: none
+  // yet). Copies under a lock the visual thread takes only when a frame moved something.
+  uint64_t ShownSurface(std::vector<int32_t>& indices,
+                        std::vector<geometry::Vec3>& positions) const;
   // The haptic thread's own view, or after it stopped (not concurrently with OnStylus).
   scoring::TrialMetrics Metrics() const { return recorder_.Finish(); }
   // One reader thread (the control plane's sampler): the latest telemetry, published by the
@@ -174,6 +181,8 @@ class Simulation {
   TripleBuffer<DeformInput> inputs_;
   TripleBuffer<VisualPositions> visual_;
   std::vector<geometry::Vec3> last_sent_;  // visual thread
+  mutable std::mutex shown_mutex_;         // guards shown_
+  VisualPositions shown_;                  // what the visual thread last sent
   uint64_t publish_id_ = 0;
   std::atomic<uint64_t> updates_{0};
   // Coil scenes: the deformation thread sleeps on this until the haptic path asks for something

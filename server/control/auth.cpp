@@ -39,6 +39,7 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
     {"AdminService/ListWeightSets", kInstructor | kEvaluator | kAdmin},
     {"AdminService/Export", kAdmin},
     {"AdminService/Backup", kAdmin},
+    {"SessionService/ListScenes", kTrainee | kInstructor | kEvaluator | kAdmin},
 }};
 
 }  // namespace

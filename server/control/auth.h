@@ -32,6 +32,7 @@ enum class Method {
   kAdminListWeightSets,
   kAdminExport,
   kAdminBackup,
+  kSessionListScenes,
   kCount
 };
 

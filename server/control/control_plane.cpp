@@ -4,6 +4,7 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include "common/core/file.h"
 #include "common/scoring/evaluation.h"
 #include "common/scoring/report_json.h"
+#include "common/sim/scene.h"
 #include "db/store.h"
 #include "server/control/auth.h"
 #include "server/session/session_manager.h"
@@ -155,6 +157,39 @@ void ToProto(const SessionTelemetry& t, v1::Telemetry* out) {
   out->set_packet_loss(t.packet_loss);
   out->set_packets(t.packets);
   out->set_haptic_rate_hz(t.haptic_rate_hz);
+  out->mutable_tip()->set_x(t.sim.tip.x());
+  out->mutable_tip()->set_y(t.sim.tip.y());
+  out->mutable_tip()->set_z(t.sim.tip.z());
+  out->set_scene(t.scene);
+  if (t.has_surface) {
+    v1::SurfaceState* surface = out->mutable_surface();
+    surface->set_frame_id(t.surface_frame);
+    surface->mutable_indices()->Assign(t.surface_indices.begin(), t.surface_indices.end());
+    auto* p = surface->mutable_positions();
+    p->Reserve(static_cast<int>(3 * t.surface_positions.size()));
+    for (const geometry::Vec3& v : t.surface_positions)
+      for (int k = 0; k < 3; ++k) p->Add(static_cast<float>(v[k]));
+  }
+}
+
+// The scoring loop's metrics of an ended session, when recorded.
+Status AddMetrics(db::Store& store, v1::Session* out) {
+  auto m = store.GetTrialMetrics(static_cast<int64_t>(out->id()));
+  if (!m.ok()) return m.error();
+  if (!m->has_value()) return Status::Ok();
+  const db::TrialMetricsRecord& r = **m;
+  v1::TrialMetrics* t = out->mutable_metrics();
+  t->set_completed(r.completed);
+  t->set_completion_time_s(r.completion_time_s);
+  t->set_task_error(r.task_error);
+  t->set_peak_force_n(r.peak_force_n);
+  t->set_time_over_force_limit_s(r.time_over_force_limit_s);
+  t->set_path_length_m(r.path_length_m);
+  t->set_rms_jerk(r.rms_jerk);
+  t->set_overload_events(r.overload_events);
+  t->set_duration_s(r.duration_s);
+  t->set_score(r.score);
+  return Status::Ok();
 }
 
 // A server-streaming call refused before it starts: it only reports the status.
@@ -218,7 +253,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
       auto r = sh_.sessions.Stop(req->id(), req->reason());
       if (!r.ok()) return r.error();
       ToProto(*r, resp);
-      return Status::Ok();
+      return AddMetrics(sh_.store, resp);
     });
   }
 
@@ -229,7 +264,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
       if (!r.ok()) return r.error();
       if (Status s = OwnSession(p, *r); !s.ok()) return s;
       ToProto(*r, resp);
-      return Status::Ok();
+      return AddMetrics(sh_.store, resp);
     });
   }
 
@@ -251,7 +286,35 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
         }
         const bool is_live = r.state == "created" || r.state == "running" || r.state == "stalled";
         if (req->live_only() && !is_live) continue;
-        ToProto(r, resp->add_sessions());
+        v1::Session* out = resp->add_sessions();
+        ToProto(r, out);
+        if (!is_live)
+          if (Status s = AddMetrics(sh_.store, out); !s.ok()) return s;
+      }
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* ListScenes(CallbackServerContext* ctx, const v1::ListScenesRequest*,
+                                 v1::ListScenesResponse* resp) override {
+    return Unary(sh_, ctx, Method::kSessionListScenes, [&](const db::Principal&) -> Status {
+      std::error_code ec;
+      std::vector<std::filesystem::path> files;
+      for (const auto& entry : std::filesystem::directory_iterator(sim::ScenesDirectory(), ec))
+        if (entry.path().extension() == ".json") files.push_back(entry.path());
+      if (ec) return Error{ErrorCode::kUnavailable, "cannot read the scenes folder", "scenes"};
+      std::sort(files.begin(), files.end());
+      for (const auto& file : files) {
+        auto scene = sim::LoadScene(file.string());
+        if (!scene.ok()) continue;  // a broken file is the server log's business, not the list's
+        v1::SceneInfo* info = resp->add_scenes();
+        info->set_name(scene->name);
+        info->set_description(scene->description);
+        info->set_model(scene->region.kind == sim::ModelKind::kCoil         ? "coil"
+                        : scene->region.kind == sim::ModelKind::kMassSpring ? "mass-spring"
+                                                                            : "ring-layer");
+        info->set_task(scene->task.kind == scoring::TaskKind::kTwist ? "twist" : "press");
+        info->set_error_budget_rms(scene->error_budget_rms);
       }
       return Status::Ok();
     });

@@ -194,7 +194,7 @@ void SessionManager::Pump() {
 void SessionManager::SamplerLoop() {
   const auto period = std::chrono::duration<double>(1.0 / options_.telemetry_hz);
   std::vector<SessionTelemetry> all;
-  for (;;) {
+  for (uint64_t tick = 0;; ++tick) {
     {
       std::unique_lock lock(stop_mutex_);
       if (stop_cv_.wait_for(lock, period, [this] { return stopping_; })) return;
@@ -218,6 +218,12 @@ void SessionManager::SamplerLoop() {
               static_cast<double>(t.sim.samples - l->last_samples) / (now - l->last_sample_s);
         l->last_samples = t.sim.samples;
         l->last_sample_s = now;
+        t.scene = l->record.scene;
+        t.has_surface = tick % 3 == 0;
+        if (t.has_surface)
+          t.surface_frame = l->simulation->ShownSurface(t.surface_indices, t.surface_positions);
+        else
+          t.surface_indices.clear(), t.surface_positions.clear();
         all.push_back(t);
       }
     }

@@ -57,6 +57,13 @@ struct SessionTelemetry {
   double packet_loss = 0;  // lost / (applied + lost)
   uint64_t packets = 0;
   double haptic_rate_hz = 0;
+  std::string scene;
+  // Every third sample (10 Hz at the default rate): the deformed surface for monitors, as the
+  // vertices away from rest (sim::Simulation::ShownSurface).
+  bool has_surface = false;
+  uint64_t surface_frame = 0;
+  std::vector<int32_t> surface_indices;
+  std::vector<geometry::Vec3> surface_positions;
 };
 
 struct CreatedSession {

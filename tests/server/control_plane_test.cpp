@@ -210,6 +210,10 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
     }
     case Method::kAdminBackup:
       return ad->Backup(ctx().get(), {}, &empty).error_code();
+    case Method::kSessionListScenes: {
+      v1::ListScenesResponse r;
+      return s->ListScenes(ctx().get(), {}, &r).error_code();
+    }
     case Method::kCount:
       break;
   }
@@ -221,15 +225,16 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
   const std::map<db::Role, std::set<Method>> allowed = {
       {db::Role::kTrainee,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
-        Method::kSessionList}},
+        Method::kSessionList, Method::kSessionListScenes}},
       {db::Role::kInstructor,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
         Method::kSessionList, Method::kMonitorWatch, Method::kEvaluationReport,
-        Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets}},
+        Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets,
+        Method::kSessionListScenes}},
       {db::Role::kEvaluator,
        {Method::kSessionGet, Method::kSessionList, Method::kEvaluationSubmit,
-        Method::kEvaluationReport, Method::kEvaluationTrainingEffect,
-        Method::kAdminListWeightSets}},
+        Method::kEvaluationReport, Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets,
+        Method::kSessionListScenes}},
   };
   for (db::Role role :
        {db::Role::kTrainee, db::Role::kInstructor, db::Role::kEvaluator, db::Role::kAdmin}) {
@@ -321,9 +326,14 @@ TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   ASSERT_TRUE(station.ok()) << station.error().message;
 
   v1::Telemetry t, best;
-  int messages = 0;
+  int messages = 0, surfaces = 0, most_moved = 0;
   while (reader->Read(&t)) {
     ++messages;
+    if (t.has_surface()) {
+      ++surfaces;
+      most_moved = std::max(most_moved, t.surface().indices_size());
+      EXPECT_EQ(t.surface().positions_size(), 3 * t.surface().indices_size());
+    }
     if (t.packets() > best.packets()) best = t;
     if (device.finished()) break;
   }
@@ -338,6 +348,12 @@ TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   EXPECT_GT(best.rtt_us(), 0.0);
   EXPECT_GT(best.haptic_rate_hz(), 500.0);
   EXPECT_EQ(best.state(), v1::SESSION_STATE_RUNNING);
+  EXPECT_FALSE(best.scene().empty());
+  EXPECT_GT(std::abs(best.tip().x()) + std::abs(best.tip().y()) + std::abs(best.tip().z()), 0.0);
+  // The monitor's view of the tissue: about every third message, the pressed vertices.
+  EXPECT_GT(surfaces, 2);
+  EXPECT_LT(surfaces, messages);
+  EXPECT_GT(most_moved, 0) << "the press must show on the monitor's surface";
 
   // Stopping ends the instructor's stream with OK and records the trial.
   v1::StopSessionRequest stop;
@@ -346,6 +362,8 @@ TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   ASSERT_TRUE(sessions->Stop(Ctx(db::Role::kTrainee).get(), stop, &s).ok());
   EXPECT_EQ(s.state(), v1::SESSION_STATE_ENDED);
   EXPECT_EQ(s.end_reason(), "done");
+  ASSERT_TRUE(s.has_metrics()) << "Stop answers with the recorded trial metrics";
+  EXPECT_GT(s.metrics().peak_force_n(), 0.1);
   while (reader->Read(&t)) {
   }
   EXPECT_TRUE(reader->Finish().ok());
