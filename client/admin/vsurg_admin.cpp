@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "client/net/remote.h"
 #include "common/cli/args.h"
 #include "common/core/file.h"
 #include "common/scoring/ratings_csv.h"
@@ -42,59 +43,7 @@ int Usage(std::ostream& err, const std::string& cmd, const std::string& field,
   return kExitUsage;
 }
 
-void AddRemote(ArgParser& p) {
-  p.Option("server", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
-      .Option("token", Kind::kString, "bearer token (default: $VSURG_TOKEN)")
-      .Option("token-file", Kind::kString, "file holding the bearer token")
-      .Option("tls-ca", Kind::kString, "PEM CA certificate: use TLS and trust this CA")
-      .Option("timeout", Kind::kDouble, "deadline per call, s", false, "10");
-}
-
-struct Remote {
-  std::shared_ptr<grpc::Channel> channel;
-  std::string token;
-  double timeout_s = 10;
-  void Prepare(grpc::ClientContext& ctx, double timeout = 0) const {
-    ctx.AddMetadata("authorization", "Bearer " + token);
-    ctx.set_deadline(std::chrono::system_clock::now() +
-                     std::chrono::milliseconds(
-                         static_cast<int64_t>(1000 * (timeout > 0 ? timeout : timeout_s))));
-  }
-};
-
-Expected<Remote> Connect(const ArgParser& p) {
-  Remote r;
-  if (p.Has("token")) {
-    r.token = p.String("token");
-  } else if (p.Has("token-file")) {
-    auto t = ReadTextFile(p.String("token-file"), "--token-file");
-    if (!t.ok()) return t.error();
-    r.token = *t;
-  } else if (const char* env = std::getenv("VSURG_TOKEN")) {
-    r.token = env;
-  }
-  while (!r.token.empty() && std::isspace(static_cast<unsigned char>(r.token.back())))
-    r.token.pop_back();
-  if (r.token.empty())
-    return vsurg::InvalidArgument("--token",
-                                  "a token is required (--token, --token-file or "
-                                  "$VSURG_TOKEN)");
-  r.timeout_s = p.Double("timeout");
-  if (!(r.timeout_s > 0 && r.timeout_s <= 3600))
-    return vsurg::InvalidArgument("--timeout", "must be within (0, 3600] s");
-  std::shared_ptr<grpc::ChannelCredentials> creds;
-  if (p.Has("tls-ca")) {
-    auto ca = ReadTextFile(p.String("tls-ca"), "--tls-ca");
-    if (!ca.ok()) return ca.error();
-    grpc::SslCredentialsOptions o;
-    o.pem_root_certs = *ca;
-    creds = grpc::SslCredentials(o);
-  } else {
-    creds = grpc::InsecureChannelCredentials();
-  }
-  r.channel = grpc::CreateChannel(p.String("server"), creds);
-  return r;
-}
+using vsurg::client::Remote;
 
 // Parses a remote command's options and connects. Returns the exit code to stop with (help
 // printed, or a usage error), or nothing when the command should go on with `remote`.
@@ -103,15 +52,14 @@ std::optional<int> Begin(ArgParser& p, const std::vector<std::string>& args, std
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
-  auto r = Connect(p);
+  auto r = vsurg::client::ConnectRemote(p);
   if (!r.ok()) return Usage(err, p.command(), r.error().field, r.error().message);
   remote = std::move(r).value();
   return std::nullopt;
 }
 
 int RpcError(std::ostream& err, const std::string& cmd, const grpc::Status& s) {
-  err << cmd << ": " << s.error_message() << " (gRPC " << static_cast<int>(s.error_code()) << ")\n";
-  return kExitRuntime;
+  return vsurg::client::ReportRpcError(err, cmd, s);
 }
 
 // ISO-8601 UTC date or time ("2026-11-21" or "2026-11-21T10:00:00Z") → µs since the epoch.
@@ -166,13 +114,13 @@ int UserAdd(const std::vector<std::string>& args, std::ostream& out, std::ostrea
               "associate_chief, chief)",
               false, "")
       .Option("issue-token", Kind::kFlag, "also issue a token and print it");
-  AddRemote(p);
+  vsurg::client::AddRemoteOptions(p);
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
   const auto role = vsurg::db::ParseRole(p.String("role"));
   if (!role) return Usage(err, p.command(), "--role", "trainee, instructor, evaluator or admin");
-  auto remote = Connect(p);
+  auto remote = vsurg::client::ConnectRemote(p);
   if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
   auto stub = v1::AdminService::NewStub(remote->channel);
   v1::CreateUserRequest req;
@@ -206,7 +154,7 @@ int Token(const std::vector<std::string>& args, std::ostream& out, std::ostream&
                        "prints it once.");
   p.Option("user", Kind::kString, "user name", true)
       .Option("label", Kind::kString, "note", false, "");
-  AddRemote(p);
+  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::AdminService::NewStub(remote.channel);
@@ -240,7 +188,7 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("subject-kind", Kind::kString, "session, trainee or model", true)
       .Option("subject", Kind::kString, "the subject, for rows without a subject column")
       .Option("moment", Kind::kDouble, "training moment, minutes (trainee subjects)");
-  AddRemote(p);
+  vsurg::client::AddRemoteOptions(p);
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
@@ -248,7 +196,7 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
   if (!text.ok()) return Usage(err, p.command(), "--input", text.error().message);
   auto subjects = vsurg::scoring::ParseRatingsCsv(*text, p.String("input"));
   if (!subjects.ok()) return Usage(err, p.command(), "--input", subjects.error().message);
-  auto remote = Connect(p);
+  auto remote = vsurg::client::ConnectRemote(p);
   if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
   auto stub = v1::EvaluationService::NewStub(remote->channel);
   int stored = 0, repeated = 0;
@@ -316,7 +264,7 @@ int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("weights", Kind::kString, "a stored weight set (default: seed 000)", false, "")
       .Option("training", Kind::kFlag, "print the training effect table instead")
       .Option("json", Kind::kFlag, "print the report as JSON");
-  AddRemote(p);
+  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::EvaluationService::NewStub(remote.channel);
@@ -369,7 +317,7 @@ int Export(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("trainee", Kind::kString, "only this trainee (trainee subjects and their sessions)")
       .Option("session", Kind::kInt, "only this session")
       .Option("db", Kind::kString, "read this store file directly instead of asking the server");
-  AddRemote(p);
+  vsurg::client::AddRemoteOptions(p);
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
@@ -410,7 +358,7 @@ int Export(const std::vector<std::string>& args, std::ostream& out, std::ostream
       return fail(kExitRuntime);
     }
   } else {
-    auto remote = Connect(p);
+    auto remote = vsurg::client::ConnectRemote(p);
     if (!remote.ok())
       return fail(Usage(err, p.command(), remote.error().field, remote.error().message));
     auto stub = v1::AdminService::NewStub(remote->channel);
@@ -457,7 +405,7 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
                                 : "Stores a weight set (JSON {name, group{...}, index[9]}).");
   if (cmd == "backup") p.Option("out", Kind::kString, "absolute path on the server", true);
   if (cmd == "weights-put") p.Option("file", Kind::kString, "weight set JSON", true);
-  AddRemote(p);
+  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::AdminService::NewStub(remote.channel);

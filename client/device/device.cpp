@@ -1,5 +1,7 @@
 #include "client/device/device.h"
 
+#include <chrono>
+
 namespace vsurg::client {
 
 ReplayDevice::ReplayDevice(std::vector<haptics::StylusSample> samples, haptics::DeviceLimits limits)
@@ -33,6 +35,44 @@ size_t ReplayDevice::position() const {
 bool ReplayDevice::finished() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return next_ >= samples_.size();
+}
+
+KeyboardMouseDevice::KeyboardMouseDevice(std::function<WindowInput()> input, Eigen::Vector3d start,
+                                         Eigen::Vector3d twist_axis, double speed,
+                                         haptics::DeviceLimits limits)
+    : input_(std::move(input)),
+      position_(start),
+      axis_(twist_axis.normalized()),
+      speed_(speed),
+      limits_(limits) {}
+
+haptics::StylusSample KeyboardMouseDevice::Read() {
+  const double now =
+      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const double dt = last_time_ < 0 ? 0.0 : std::min(now - last_time_, 0.05);
+  last_time_ = now;
+  const WindowInput in = input_ ? input_() : WindowInput{};
+  const Eigen::Vector3d velocity(double(in.right) - double(in.left),
+                                 double(in.forward) - double(in.back),
+                                 double(in.up) - double(in.down));
+  position_ += speed_ * dt * velocity;
+  position_ = position_.cwiseMax(limits_.workspace_min).cwiseMin(limits_.workspace_max);
+  haptics::StylusSample s;
+  s.time = now;
+  s.position = position_;
+  s.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(in.twist_rad, axis_));
+  s.buttons = in.grasp ? haptics::kButtonGrasp : 0u;
+  return s;
+}
+
+void KeyboardMouseDevice::WriteForce(const Eigen::Vector3d& force) {
+  std::lock_guard lock(mutex_);
+  force_ = force;
+}
+
+Eigen::Vector3d KeyboardMouseDevice::last_force() const {
+  std::lock_guard lock(mutex_);
+  return force_;
 }
 
 }  // namespace vsurg::client

@@ -1,21 +1,44 @@
-// The haptic device a station drives (a 3- or 6-DoF stylus with force output).
+// The haptic device a station drives (a 3- or 6-DoF stylus with force output), after
+// OpenSurgSim's input/output contract (SurgSim/Input/OutputProducerInterface.h).
 //
-// Units: positions in metres in the scene frame, orientation a unit quaternion, time in
-// seconds, force in newtons (3-DoF force output). Read and WriteForce are called from the
-// station's device thread only, at its rate (1 kHz or more); neither may block for long.
+// Units: positions in metres in the scene frame, orientation a unit quaternion (the stylus
+// frame in the scene frame; its +z runs from the tip back along the shaft), time in seconds,
+// force in newtons (3-DoF force output), buttons as haptics::StylusButton bits. A device maps
+// its own workspace (millimetres, its own axes) into the scene frame itself.
+//
+// Threads: Read and WriteForce are called from the station's device thread only, at its rate
+// (1 kHz or more), and neither may block for long. info() from any thread.
+//
+// Backends: ReplayDevice (a trajectory; deterministic: tests, the demo, benchmarks),
+// KeyboardMouseDevice (the station's window), and the real devices in device_registry.h,
+// compiled only when their SDK is found (docs/DEVICES.md).
 #pragma once
 
+#include <functional>
+#include <memory>
 #include <mutex>
+#include <string>
 #include <vector>
 
+#include "client/device/window_input.h"
 #include "common/haptics/safety.h"
 #include "common/haptics/types.h"
 
 namespace vsurg::client {
 
+// What a device is and may do.
+struct DeviceInfo {
+  std::string name;              // "replay", "keyboard-mouse", "openhaptics", …
+  int input_dof = 6;             // 3: position only; 6: position and orientation
+  int output_dof = 3;            // force axes (no device here renders torque)
+  haptics::DeviceLimits limits;  // max force (N), force rate (N/s), stiffness (N/m), workspace (m)
+  double rate_hz = 1000;         // the servo rate it is meant to run at
+};
+
 class HapticDevice {
  public:
   virtual ~HapticDevice() = default;
+  virtual DeviceInfo info() const { return {"device", 6, 3, limits(), 1000}; }
   // The stylus now; `time` is filled by the caller's clock if the device has none.
   virtual haptics::StylusSample Read() = 0;
   // The force to render now (N), already within limits().
@@ -32,6 +55,7 @@ class ReplayDevice : public HapticDevice {
   haptics::StylusSample Read() override;
   void WriteForce(const Eigen::Vector3d& force) override;
   haptics::DeviceLimits limits() const override { return limits_; }
+  DeviceInfo info() const override { return {"replay", 6, 3, limits_, 1000}; }
 
   // Any thread.
   std::vector<Eigen::Vector3d> forces() const;
@@ -44,6 +68,32 @@ class ReplayDevice : public HapticDevice {
   mutable std::mutex mutex_;  // guards the recorded forces and the cursor for readers
   size_t next_ = 0;
   std::vector<Eigen::Vector3d> forces_;
+};
+
+// The window's keyboard and mouse as a 6-DoF stylus without force output (the force is only
+// drawn): keys move the tip at `speed` m/s along the scene axes, a right-button drag twists the
+// stylus about `twist_axis`, space or the left button holds the grasp button. `input` is polled
+// on the device thread (GlSurface::Input is thread-safe).
+
+class KeyboardMouseDevice : public HapticDevice {
+ public:
+  KeyboardMouseDevice(std::function<WindowInput()> input, Eigen::Vector3d start,
+                      Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ(), double speed = 0.05,
+                      haptics::DeviceLimits limits = haptics::TouchLimits());
+  haptics::StylusSample Read() override;
+  void WriteForce(const Eigen::Vector3d& force) override;
+  haptics::DeviceLimits limits() const override { return limits_; }
+  DeviceInfo info() const override { return {"keyboard-mouse", 6, 0, limits_, 1000}; }
+  Eigen::Vector3d last_force() const;
+
+ private:
+  std::function<WindowInput()> input_;
+  Eigen::Vector3d position_, axis_;
+  double speed_;
+  haptics::DeviceLimits limits_;
+  double last_time_ = -1;
+  mutable std::mutex mutex_;
+  Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace vsurg::client

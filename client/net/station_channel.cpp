@@ -63,6 +63,7 @@ struct StationChannel::Impl {
   std::atomic<uint64_t> sent{0}, fades{0};
   std::atomic<double> dissipated{0}, max_force{0};
   std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
+  sim::TripleBuffer<StationView> view;  // device thread → render thread
 
   explicit Impl(const StationOptions& o) : options(o), auth(o.key) {}
 
@@ -178,6 +179,12 @@ struct StationChannel::Impl {
       const Vec3 out = safety.Filter(f, dt, events);
       device->WriteForce(out);
       last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
+      StationView& shown = view.Back();
+      shown.sample = s;
+      shown.force = out;
+      shown.command = l.message.command;
+      shown.update_age_s = l.received_s >= 0 ? now - l.received_s : -1;
+      view.Publish();
       if (out.norm() > max_force.load()) max_force = out.norm();
 
       next += period;
@@ -225,6 +232,8 @@ StationChannel::~StationChannel() {
 void StationChannel::Stop() {
   if (!impl_ || impl_->stop.exchange(true)) return;
   if (impl_->device_thread.joinable()) impl_->device_thread.join();
+  impl_->device->WriteForce(Vec3::Zero());  // the hand is not left holding the last force
+  impl_->last_fx = 0, impl_->last_fy = 0, impl_->last_fz = 0;
   asio::post(impl_->io, [p = impl_.get()] {
     boost::system::error_code ec;
     p->socket.close(ec);
@@ -267,6 +276,12 @@ std::vector<wire::SceneChunk> StationChannel::TakeSceneChunks() {
                                     std::make_move_iterator(impl_->scene.end()));
   impl_->scene.clear();
   return out;
+}
+
+bool StationChannel::TakeView(StationView& out) {
+  const bool fresh = impl_->view.Acquire();
+  out = impl_->view.Front();
+  return fresh;
 }
 
 Eigen::Vector3d StationChannel::last_force() const {

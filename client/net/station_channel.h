@@ -49,18 +49,29 @@ struct StationStats {
   double max_force = 0;                    // N rendered
 };
 
+// What the station's screen shows of the haptic loop (device thread → render thread).
+struct StationView {
+  haptics::StylusSample sample;                     // the device, as last read (station clock)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // N, as last written to the device
+  haptics::ForceCommand command;  // the server's latest answer (twist, contact, live score)
+  double update_age_s = -1;       // since that answer arrived; −1: none yet
+};
+
 class StationChannel {
  public:
   static Expected<std::unique_ptr<StationChannel>> Create(const StationOptions& options,
                                                           HapticDevice* device);
   ~StationChannel();  // stops and joins
 
+  // Stops both threads and writes a zero force to the device (idempotent).
   void Stop();
   StationStats stats() const;  // any thread
   // Render thread: the scene chunks received since the previous call (moved vertices, m).
   // At most 4096 are kept between calls; older ones are dropped first.
   std::vector<wire::SceneChunk> TakeSceneChunks();
   Eigen::Vector3d last_force() const;
+  // Render thread (one reader): the device thread's latest view; false when nothing new.
+  bool TakeView(StationView& out);
 
  private:
   struct Impl;

@@ -11,19 +11,11 @@
 #include <mutex>
 #include <string>
 
+#include "client/device/window_input.h"
 #include "common/core/expected.h"
 #include "common/core/image.h"
 
 namespace vsurg::client {
-
-// What the window's keyboard and mouse did; the keyboard-and-mouse device reads it.
-struct WindowInput {
-  // Keys held now: W/S along the view depth (y), A/D sideways (x), Q/E up and down (z).
-  bool forward = false, back = false, left = false, right = false, up = false, down = false;
-  bool grasp = false;                 // space bar or the left mouse button
-  double twist_rad = 0;               // accumulated by dragging with the right mouse button
-  double cursor_x = 0, cursor_y = 0;  // px, window coordinates
-};
 
 class GlSurface {
  public:

@@ -56,6 +56,7 @@ struct ForceCommand {
   Vec3 proxy = Vec3::Zero();  // m, surface contact point (the tip when free)
   double twist = 0;           // rad, imposed twist while grasping
   double torque = 0;          // N·m, the tissue's answer to it
+  double score = 0;           // 0–10, the trial's score so far (updated every few samples)
   uint32_t events = 0;        // HapticEvent bits
 };
 

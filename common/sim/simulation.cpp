@@ -241,8 +241,10 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     t.grasping = cmd.grasping;
     t.samples = samples_;
     t.metrics = recorder_.Finish();
+    live_score_ = t.metrics.score;
     telemetry_.Publish();
   }
+  cmd.score = live_score_;
   return cmd;
 }
 

@@ -154,6 +154,7 @@ class Simulation {
   scoring::TrialRecorder recorder_;
   uint64_t samples_ = 0;
   bool telemetry_grasping_ = false;
+  double live_score_ = 0;  // the trial's score as of the last telemetry
   TripleBuffer<Telemetry> telemetry_;
   std::unique_ptr<tissue::CoilSpringModel> coil_;           // coil scenes: the inverse runs here
   std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex

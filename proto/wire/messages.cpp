@@ -1,5 +1,6 @@
 #include "proto/wire/messages.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "vsurg/v1/haptic.pb.h"
@@ -71,6 +72,7 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   }
   f.set_events(c.events);
   f.set_twist(c.twist);
+  f.set_score(static_cast<float>(c.score));
   const size_t n = f.ByteSizeLong();
   if (n > kMaxPayload || !f.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
   Header header = h;
@@ -197,6 +199,7 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   }
   c.events = f.events();
   c.twist = f.twist();
+  c.score = std::isfinite(f.score()) ? std::clamp(static_cast<double>(f.score()), 0.0, 10.0) : 0.0;
   // A station renders these at 1 kHz: anything non-finite is refused here.
   if (!c.force.allFinite() || !c.local.force0.allFinite() || !c.local.position0.allFinite() ||
       !c.local.jacobian.allFinite()) {

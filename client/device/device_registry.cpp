@@ -1,0 +1,59 @@
+#include "client/device/device_registry.h"
+
+#include "common/sim/trajectory.h"
+
+namespace vsurg::client {
+
+std::vector<std::string> AvailableDeviceKinds() {
+  std::vector<std::string> kinds = {"replay", "keyboard-mouse"};
+#ifdef VSURG_HAVE_OPENHAPTICS
+  kinds.push_back("openhaptics");
+#endif
+#ifdef VSURG_HAVE_NIFALCON
+  kinds.push_back("falcon");
+#endif
+  return kinds;
+}
+
+Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
+  if (r.kind == "replay" || r.kind == "keyboard-mouse") {
+    auto limits = haptics::DeviceLimitsByName(r.limits);
+    if (!limits.ok()) return limits.error();
+    if (r.kind == "replay") {
+      if (r.trajectory.empty())
+        return InvalidArgument("--trajectory", "the replay device needs a trajectory CSV");
+      auto samples = sim::ReadTrajectoryCsv(r.trajectory);
+      if (!samples.ok()) return samples.error();
+      if (samples->empty()) return InvalidArgument("--trajectory", "the trajectory is empty");
+      return std::unique_ptr<HapticDevice>(new ReplayDevice(std::move(*samples), *limits));
+    }
+    if (!r.window_input)
+      return InvalidArgument("--device", "keyboard-mouse needs a window (not --headless)");
+    return std::unique_ptr<HapticDevice>(
+        new KeyboardMouseDevice(r.window_input, r.start, r.twist_axis, 0.05, *limits));
+  }
+  if (r.kind == "openhaptics") {
+#ifdef VSURG_HAVE_OPENHAPTICS
+    return OpenOpenHapticsDevice(r);
+#else
+    return Error{ErrorCode::kUnavailable,
+                 "this build has no OpenHaptics support (the SDK was not found when it was "
+                 "configured; see docs/DEVICES.md)",
+                 "--device"};
+#endif
+  }
+  if (r.kind == "falcon") {
+#ifdef VSURG_HAVE_NIFALCON
+    return OpenFalconDevice(r);
+#else
+    return Error{ErrorCode::kUnavailable,
+                 "this build has no Novint Falcon support (libnifalcon was not found when it was "
+                 "configured; see docs/DEVICES.md)",
+                 "--device"};
+#endif
+  }
+  return InvalidArgument(
+      "--device", "unknown device '" + r.kind + "' (replay, keyboard-mouse, openhaptics, falcon)");
+}
+
+}  // namespace vsurg::client

@@ -1,0 +1,69 @@
+#include "client/net/remote.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include <cctype>
+#include <chrono>
+#include <cstdlib>
+
+#include "common/core/file.h"
+
+namespace vsurg::client {
+
+using Kind = cli::ArgParser::Kind;
+
+void AddRemoteOptions(cli::ArgParser& p) {
+  p.Option("server", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
+      .Option("token", Kind::kString, "bearer token (default: $VSURG_TOKEN)")
+      .Option("token-file", Kind::kString, "file holding the bearer token")
+      .Option("tls-ca", Kind::kString, "PEM CA certificate: use TLS and trust this CA")
+      .Option("timeout", Kind::kDouble, "deadline per call, s", false, "10");
+}
+
+void Remote::Prepare(grpc::ClientContext& ctx, double timeout) const {
+  ctx.AddMetadata("authorization", "Bearer " + token);
+  ctx.set_deadline(
+      std::chrono::system_clock::now() +
+      std::chrono::milliseconds(static_cast<int64_t>(1000 * (timeout > 0 ? timeout : timeout_s))));
+}
+
+Expected<Remote> ConnectRemote(const cli::ArgParser& p) {
+  Remote r;
+  if (p.Has("token")) {
+    r.token = p.String("token");
+  } else if (p.Has("token-file")) {
+    auto t = ReadTextFile(p.String("token-file"), "--token-file");
+    if (!t.ok()) return t.error();
+    r.token = *t;
+  } else if (const char* env = std::getenv("VSURG_TOKEN")) {
+    r.token = env;
+  }
+  while (!r.token.empty() && std::isspace(static_cast<unsigned char>(r.token.back())))
+    r.token.pop_back();
+  if (r.token.empty())
+    return InvalidArgument("--token",
+                           "a token is required (--token, --token-file or $VSURG_TOKEN)");
+  r.timeout_s = p.Double("timeout");
+  if (!(r.timeout_s > 0 && r.timeout_s <= 3600))
+    return InvalidArgument("--timeout", "must be within (0, 3600] s");
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (p.Has("tls-ca")) {
+    auto ca = ReadTextFile(p.String("tls-ca"), "--tls-ca");
+    if (!ca.ok()) return ca.error();
+    grpc::SslCredentialsOptions o;
+    o.pem_root_certs = *ca;
+    creds = grpc::SslCredentials(o);
+  } else {
+    creds = grpc::InsecureChannelCredentials();
+  }
+  r.channel = grpc::CreateChannel(p.String("server"), creds);
+  return r;
+}
+
+int ReportRpcError(std::ostream& err, const std::string& command, const grpc::Status& s) {
+  err << command << ": " << s.error_message() << " (gRPC " << static_cast<int>(s.error_code())
+      << ")\n";
+  return 1;
+}
+
+}  // namespace vsurg::client

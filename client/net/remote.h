@@ -1,0 +1,37 @@
+// How the client tools reach the control plane: the shared options (--server, --token,
+// --token-file, $VSURG_TOKEN, --tls-ca, --timeout), the channel, and a bearer token and a
+// deadline on every call.
+#pragma once
+
+#include <memory>
+#include <ostream>
+#include <string>
+
+#include "common/cli/args.h"
+#include "common/core/expected.h"
+
+namespace grpc {
+class Channel;
+class ClientContext;
+class Status;
+}  // namespace grpc
+
+namespace vsurg::client {
+
+void AddRemoteOptions(cli::ArgParser& parser);
+
+struct Remote {
+  std::shared_ptr<grpc::Channel> channel;
+  std::string token;
+  double timeout_s = 10;
+  // Adds the token and a deadline (timeout_s, or `timeout` seconds when > 0).
+  void Prepare(grpc::ClientContext& ctx, double timeout = 0) const;
+};
+
+// After a successful Parse of a parser given AddRemoteOptions.
+Expected<Remote> ConnectRemote(const cli::ArgParser& parser);
+
+// "<command>: <message> (gRPC <code>)"; returns exit code 1.
+int ReportRpcError(std::ostream& err, const std::string& command, const grpc::Status& status);
+
+}  // namespace vsurg::client
