@@ -71,14 +71,19 @@ MeshView::MeshView(const geometry::TriMesh& rest) : rest_(rest), positions_(rest
   if (std::abs(up_.dot(across)) > 0.9) across = up_.unitOrthogonal();
   const Eigen::Vector3d view = up_.cross(across).normalized();
   eye_ = centre_ + radius_ * 2.4 * (view + 0.45 * up_).normalized();
-  // A 1 cm checker in rest coordinates, two skin tones.
+  // A checker in cylindrical coordinates about the long axis (a sphere: about z), painted at
+  // rest: 12 sectors around (30°: the 45° task twist shows as a half-cell shift), 2 cm along.
+  const Eigen::Vector3d axis = extent[axes[0]] < 1.5 * extent[axes[2]]
+                                   ? Eigen::Vector3d::UnitZ()
+                                   : Eigen::Vector3d::Unit(axes[0]);
+  const Eigen::Vector3d e1 = axis.unitOrthogonal(), e2 = axis.cross(e1);
   colours_.resize(rest_.positions.size() * 3);
   for (size_t i = 0; i < rest_.positions.size(); ++i) {
-    const Eigen::Vector3d& p = rest_.positions[i];
-    const long parity = static_cast<long>(std::floor(p.x() / 0.01)) +
-                        static_cast<long>(std::floor(p.y() / 0.01)) +
-                        static_cast<long>(std::floor(p.z() / 0.01));
-    const bool dark = (parity & 1) != 0;
+    const Eigen::Vector3d d = rest_.positions[i] - centre_;
+    const double angle = std::atan2(d.dot(e2), d.dot(e1)) + M_PI;  // 0..2π
+    const long sector = static_cast<long>(std::floor(angle / (2 * M_PI) * 12));
+    const long ring = static_cast<long>(std::floor(d.dot(axis) / 0.02));
+    const bool dark = ((sector + ring) & 1) != 0;
     colours_[3 * i] = dark ? 176 : 236;
     colours_[3 * i + 1] = dark ? 104 : 178;
     colours_[3 * i + 2] = dark ? 92 : 150;

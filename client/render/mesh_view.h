@@ -1,6 +1,7 @@
 // Draws a session's tissue as the trainee and the instructor see it: the deformed surface,
-// smooth-shaded, with a 1 cm checker painted on it at rest (a surface of revolution twisted
-// about its own axis would otherwise look unchanged), the stylus, the force vector and a HUD.
+// smooth-shaded, with a checker of sectors and rings painted on it at rest (a surface of
+// revolution twisted about its own axis would otherwise look unchanged), the stylus, the force
+// vector and a HUD.
 //
 // Units: positions in metres in the scene frame; force in newtons (drawn 2 cm per newton).
 // Threads: the render thread that owns the current OpenGL context.

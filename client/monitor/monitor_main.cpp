@@ -1,0 +1,350 @@
+// vsurg-monitor: for instructors. `list` shows the live sessions; `follow` streams one session's
+// telemetry (MonitorService.Watch, 30 Hz) and shows it as plain text lines for terminals
+// (--text), or draws the trainee's tissue as the server has deformed it in an OpenGL window (or
+// offscreen with --headless --screenshot). Needs an instructor's or an administrator's token.
+//
+// Exit codes: 0 done (the session ended, or --duration passed), 1 refused or the server failed,
+// 2 usage.
+#include <grpcpp/grpcpp.h>
+#include <signal.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include "client/net/remote.h"
+#include "client/render/gl_surface.h"
+#include "client/render/mesh_view.h"
+#include "common/cli/args.h"
+#include "common/sim/scene.h"
+#include "vsurg/v1/services.grpc.pb.h"
+
+namespace {
+
+namespace v1 = vsurg::v1;
+namespace client = vsurg::client;
+using vsurg::cli::ArgParser;
+using Kind = ArgParser::Kind;
+
+std::atomic<bool> g_interrupted{false};
+void OnSignal(int) {
+  g_interrupted = true;
+}
+
+std::string Fixed(double v, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, v);
+  return text;
+}
+
+std::string StateName(v1::SessionState s) {
+  std::string name = v1::SessionState_Name(s);
+  const std::string prefix = "SESSION_STATE_";
+  if (name.rfind(prefix, 0) == 0) name = name.substr(prefix.size());
+  for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return name;
+}
+
+int Usage(const ArgParser& p, const vsurg::Error& e) {
+  std::cerr << p.command() << ": " << (e.field.empty() ? "" : e.field + ": ") << e.message << "\n";
+  return 2;
+}
+
+int List(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-monitor list", "Lists the live sessions (created, running, stalled).");
+  client::AddRemoteOptions(p);
+  p.Option("all", Kind::kFlag, "also the ended ones, with their scores");
+  if (auto s = p.Parse(args); !s.ok()) return Usage(p, s.error());
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  auto remote = client::ConnectRemote(p);
+  if (!remote.ok()) return Usage(p, remote.error());
+  auto stub = v1::SessionService::NewStub(remote->channel);
+  grpc::ClientContext ctx;
+  remote->Prepare(ctx);
+  v1::ListSessionsRequest req;
+  req.set_live_only(!p.Flag("all"));
+  v1::ListSessionsResponse resp;
+  const grpc::Status s = stub->List(&ctx, req, &resp);
+  if (!s.ok()) return client::ReportRpcError(std::cerr, p.command(), s);
+  std::cout << "id\ttrainee\tscene\tstate\tscore\n";
+  for (const v1::Session& session : resp.sessions())
+    std::cout << session.id() << "\t" << session.trainee() << "\t" << session.scene() << "\t"
+              << StateName(session.state()) << "\t"
+              << (session.has_metrics() ? Fixed(session.metrics().score(), 1) : "-") << "\n";
+  return 0;
+}
+
+std::string TextLine(const v1::Telemetry& t, double since_s) {
+  const double f = std::sqrt(t.force().x() * t.force().x() + t.force().y() * t.force().y() +
+                             t.force().z() * t.force().z());
+  return "t=" + Fixed(since_s, 1) + "s session=" + std::to_string(t.session_id()) +
+         " state=" + StateName(t.state()) + " twist=" + Fixed(t.twist() * 180 / M_PI, 1) +
+         "deg torque=" + Fixed(t.torque(), 3) + "Nm force=" + Fixed(f, 2) +
+         "N contact=" + (t.contact() ? "1" : "0") + " grasp=" + (t.grasping() ? "1" : "0") +
+         " rtt=" + Fixed(t.rtt_us(), 0) + "us loss=" + Fixed(100 * t.packet_loss(), 2) +
+         "% rate=" + Fixed(t.haptic_rate_hz(), 0) + "Hz packets=" + std::to_string(t.packets()) +
+         " score=" + Fixed(t.metrics().score(), 1);
+}
+
+// The Watch stream on its own thread; the main thread takes the newest message (latest wins).
+class Follower {
+ public:
+  Follower(const client::Remote& remote, uint64_t session) {
+    stub_ = v1::MonitorService::NewStub(remote.channel);
+    context_.AddMetadata("authorization", "Bearer " + remote.token);
+    v1::WatchRequest req;
+    req.set_session_id(session);
+    thread_ = std::thread([this, req] {
+      auto reader = stub_->Watch(&context_, req);
+      v1::Telemetry t;
+      while (reader->Read(&t)) {
+        std::lock_guard lock(mutex_);
+        if (t.has_surface()) surface_ = t.surface();
+        latest_ = t;
+        ++messages_;
+      }
+      const grpc::Status s = reader->Finish();
+      std::lock_guard lock(mutex_);
+      status_ = s;
+    });
+  }
+  ~Follower() {
+    context_.TryCancel();
+    if (thread_.joinable()) thread_.join();
+  }
+  // The newest telemetry since the last call, and the newest surface state if one came.
+  bool Take(v1::Telemetry& out, std::optional<v1::SurfaceState>& surface) {
+    std::lock_guard lock(mutex_);
+    if (surface_) surface = std::move(surface_), surface_.reset();
+    if (messages_ == taken_) return false;
+    taken_ = messages_;
+    out = latest_;
+    return true;
+  }
+  std::optional<grpc::Status> finished() {
+    std::lock_guard lock(mutex_);
+    return status_;
+  }
+  uint64_t messages() {
+    std::lock_guard lock(mutex_);
+    return messages_;
+  }
+
+ private:
+  std::unique_ptr<v1::MonitorService::Stub> stub_;
+  grpc::ClientContext context_;
+  std::mutex mutex_;
+  v1::Telemetry latest_;
+  std::optional<v1::SurfaceState> surface_;
+  uint64_t messages_ = 0, taken_ = 0;
+  std::optional<grpc::Status> status_;
+  std::thread thread_;
+};
+
+// The first live session, waiting up to `wait_s` for one to appear.
+std::optional<uint64_t> FirstLive(const client::Remote& remote, double wait_s, std::string& error) {
+  auto stub = v1::SessionService::NewStub(remote.channel);
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
+  do {
+    grpc::ClientContext ctx;
+    remote.Prepare(ctx);
+    v1::ListSessionsRequest req;
+    req.set_live_only(true);
+    v1::ListSessionsResponse resp;
+    const grpc::Status s = stub->List(&ctx, req, &resp);
+    if (!s.ok()) {
+      error = s.error_message() + " (gRPC " + std::to_string(int(s.error_code())) + ")";
+      if (s.error_code() != grpc::StatusCode::UNAVAILABLE) return std::nullopt;
+    } else {
+      for (const v1::Session& session : resp.sessions())
+        if (session.state() == v1::SESSION_STATE_RUNNING ||
+            session.state() == v1::SESSION_STATE_STALLED)
+          return session.id();
+      error = "no live session";
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  } while (std::chrono::steady_clock::now() < until && !g_interrupted);
+  return std::nullopt;
+}
+
+int Follow(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-monitor follow",
+              "Follows one session live: text lines (--text), or the trainee's tissue in a window "
+              "(or offscreen with --headless).");
+  client::AddRemoteOptions(p);
+  p.Option("session", Kind::kInt, "session id (default: the first running one)")
+      .Option("wait", Kind::kDouble, "without --session: wait this long for one, s", false, "30")
+      .Option("text", Kind::kFlag, "plain text lines, no OpenGL")
+      .Option("print-hz", Kind::kDouble, "text lines per second", false, "2")
+      .Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
+      .Option("width", Kind::kInt, "image width, px", false, "960")
+      .Option("height", Kind::kInt, "image height, px", false, "600")
+      .Option("screenshot", Kind::kString, "PNG of the view when following ends")
+      .Option("duration", Kind::kDouble, "stop after this many seconds (0: when the session ends)",
+              false, "0");
+  if (auto s = p.Parse(args); !s.ok()) return Usage(p, s.error());
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  auto remote = client::ConnectRemote(p);
+  if (!remote.ok()) return Usage(p, remote.error());
+  const double print_hz = p.Double("print-hz");
+  if (!(print_hz > 0 && print_hz <= 60))
+    return std::cerr << p.command() << ": --print-hz: (0, 60]\n", 2;
+  const bool text = p.Flag("text");
+  if (text && p.Has("screenshot"))
+    return std::cerr << p.command() << ": --screenshot needs the OpenGL view (not --text)\n", 2;
+
+  uint64_t session = 0;
+  if (p.Has("session")) {
+    if (p.Int("session") <= 0) return std::cerr << p.command() << ": --session: must be > 0\n", 2;
+    session = static_cast<uint64_t>(p.Int("session"));
+  } else {
+    std::string error;
+    auto first = FirstLive(*remote, p.Double("wait"), error);
+    if (!first) return std::cerr << p.command() << ": " << error << "\n", 1;
+    session = *first;
+  }
+
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+
+  std::unique_ptr<client::GlSurface> gl;
+  if (!text) {
+    auto surface =
+        p.Flag("headless")
+            ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
+            : client::GlSurface::CreateWindow("vsurg monitor", p.Int("width"), p.Int("height"));
+    if (!surface.ok())
+      return std::cerr << p.command() << ": " << surface.error().message << "\n", 1;
+    gl = std::move(*surface);
+  }
+  std::unique_ptr<client::MeshView> view;
+  std::string scene_name;
+
+  Follower follower(*remote, session);
+  std::cout << "following session " << session << "\n" << std::flush;
+  const auto started = std::chrono::steady_clock::now();
+  auto seconds = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  };
+  double next_print = 0;
+  v1::Telemetry latest;
+  bool have = false;
+  int exit_code = 0;
+  for (;;) {
+    std::optional<v1::SurfaceState> surface;
+    if (follower.Take(latest, surface)) have = true;
+    if (have && text && seconds() >= next_print) {
+      std::cout << TextLine(latest, seconds()) << "\n" << std::flush;
+      next_print = seconds() + 1.0 / print_hz;
+    }
+    if (gl) {
+      if (have && latest.scene() != scene_name) {
+        auto scene = vsurg::sim::LoadSceneByName(latest.scene());
+        auto mesh = scene.ok() ? vsurg::sim::BuildSceneMesh(scene->mesh)
+                               : vsurg::Expected<vsurg::sim::SceneMesh>(scene.error());
+        if (!mesh.ok()) {
+          std::cerr << p.command() << ": scene '" << latest.scene() << "': " << mesh.error().message
+                    << "\n";
+          return 1;
+        }
+        view = std::make_unique<client::MeshView>(mesh->surface);
+        scene_name = latest.scene();
+      }
+      if (view && surface) {
+        view->ResetToRest();
+        std::vector<int32_t> indices(surface->indices().begin(), surface->indices().end());
+        std::vector<Eigen::Vector3f> positions;
+        for (int k = 0; k + 2 < surface->positions_size(); k += 3)
+          positions.emplace_back(surface->positions(k), surface->positions(k + 1),
+                                 surface->positions(k + 2));
+        view->Apply(indices, positions);
+      }
+      client::Overlay overlay;
+      if (have) {
+        overlay.show_stylus = true;
+        overlay.tip = {latest.tip().x(), latest.tip().y(), latest.tip().z()};
+        overlay.force = {latest.force().x(), latest.force().y(), latest.force().z()};
+        overlay.contact = latest.contact();
+        overlay.grasping = latest.grasping();
+        overlay.hud = {"vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() +
+                           "  " + StateName(latest.state()),
+                       "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
+                           Fixed(latest.torque(), 2) + " nm",
+                       "haptic " + Fixed(latest.haptic_rate_hz(), 0) + " hz   rtt " +
+                           Fixed(latest.rtt_us(), 0) + " us   loss " +
+                           Fixed(100 * latest.packet_loss(), 1) + "%",
+                       "score so far " + Fixed(latest.metrics().score(), 1) + " / 10"};
+      } else {
+        overlay.hud = {"vsurg monitor  session " + std::to_string(session), "waiting ..."};
+      }
+      if (view) {
+        view->Draw(gl->width(), gl->height(), overlay);
+      }
+    }
+    const auto finished = follower.finished();
+    const double duration = p.Double("duration");
+    const bool done = finished.has_value() || g_interrupted || (gl && gl->ShouldClose()) ||
+                      (duration > 0 && seconds() >= duration);
+    if (done) {
+      if (gl && view && p.Has("screenshot")) {
+        const vsurg::RgbImage image = gl->ReadPixels();
+        if (auto s =
+                vsurg::WriteRgbPng(p.String("screenshot"), image.width, image.height, image.rgb);
+            !s.ok()) {
+          std::cerr << p.command() << ": " << s.error().message << "\n";
+          return 1;
+        }
+      }
+      if (finished && !finished->ok()) {
+        std::cerr << p.command() << ": refused or failed: " << finished->error_message()
+                  << " (gRPC " << static_cast<int>(finished->error_code()) << ")\n";
+        exit_code = 1;
+      } else if (have) {
+        const auto& m = latest.metrics();
+        std::cout << "session " << session << " " << (finished ? "ended" : "left") << ": "
+                  << follower.messages()
+                  << " telemetry messages; last: " << TextLine(latest, seconds()) << "; completed "
+                  << (m.completed() ? "yes" : "no") << ", peak force " << Fixed(m.peak_force_n(), 2)
+                  << " N\n";
+      }
+      break;
+    }
+    if (gl) gl->EndFrame();
+    std::this_thread::sleep_for(std::chrono::milliseconds(gl ? 16 : 20));
+  }
+  return exit_code;
+}
+
+const char* kHelp =
+    "usage: vsurg-monitor <command> [options]\n\n"
+    "commands:\n"
+    "  list     the live sessions (--all: every session, with scores)\n"
+    "  follow   follow one session live: --text for a terminal, else an OpenGL view\n\n"
+    "Takes --server HOST:PORT and an instructor's or administrator's token (--token, "
+    "--token-file, $VSURG_TOKEN).\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const std::vector<std::string> all(argv + 1, argv + argc);
+    if (all.empty()) return std::cerr << "vsurg-monitor: a command is required (see --help)\n", 2;
+    const std::vector<std::string> rest(all.begin() + 1, all.end());
+    if (all[0] == "--help" || all[0] == "-h" || all[0] == "help") return std::cout << kHelp, 0;
+    if (all[0] == "list") return List(rest);
+    if (all[0] == "follow") return Follow(rest);
+    std::cerr << "vsurg-monitor: unknown command '" << all[0] << "' (see --help)\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "vsurg-monitor: fatal: " << e.what() << "\n";
+    return 1;
+  }
+}

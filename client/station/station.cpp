@@ -1,0 +1,255 @@
+#include "client/station/station.h"
+
+#include <grpcpp/grpcpp.h>
+#include <netdb.h>
+#include <sys/socket.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "vsurg/v1/services.grpc.pb.h"
+
+namespace vsurg::client {
+namespace {
+
+// The UDP host the server named (an address, or a name to resolve), as an IP address.
+Expected<std::string> ResolveHost(const std::string& host) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_DGRAM;
+  addrinfo* found = nullptr;
+  if (getaddrinfo(host.c_str(), nullptr, &hints, &found) != 0 || found == nullptr)
+    return Error{ErrorCode::kUnavailable, "cannot resolve the UDP host '" + host + "'", "udp_host"};
+  char text[NI_MAXHOST] = {0};
+  const int rc =
+      getnameinfo(found->ai_addr, found->ai_addrlen, text, sizeof text, nullptr, 0, NI_NUMERICHOST);
+  freeaddrinfo(found);
+  if (rc != 0) return Error{ErrorCode::kUnavailable, "cannot resolve '" + host + "'", "udp_host"};
+  return std::string(text);
+}
+
+std::string Describe(const grpc::Status& s) {
+  return s.error_message() + " (gRPC " + std::to_string(static_cast<int>(s.error_code())) + ")";
+}
+
+bool IsLive(v1::SessionState s) {
+  return s == v1::SESSION_STATE_CREATED || s == v1::SESSION_STATE_RUNNING ||
+         s == v1::SESSION_STATE_STALLED;
+}
+
+void Add(StationStats& sum, const StationStats& s) {
+  sum.sent += s.sent;
+  sum.received += s.received;
+  sum.dropped += s.dropped;
+  sum.stale += s.stale;
+  sum.watchdog_fades += s.watchdog_fades;
+  sum.scene_chunks += s.scene_chunks;
+  sum.passivity_energy_dissipated += s.passivity_energy_dissipated;
+  sum.max_force = std::max(sum.max_force, s.max_force);
+}
+
+}  // namespace
+
+const char* StationStateName(StationState s) {
+  switch (s) {
+    case StationState::kConnecting:
+      return "connecting";
+    case StationState::kLive:
+      return "live";
+    case StationState::kReconnecting:
+      return "reconnecting";
+    case StationState::kFinished:
+      return "finished";
+    case StationState::kFailed:
+      return "failed";
+  }
+  return "unknown";
+}
+
+Station::Station(Remote remote, HapticDevice* device, StationConfig config)
+    : remote_(std::move(remote)), device_(device), config_(std::move(config)) {}
+
+Station::~Station() {
+  if (channel_) channel_->Stop();
+}
+
+double Station::Now() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+Status Station::Connect() {
+  auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::CreateSessionRequest create;
+  create.set_scene(config_.scene);
+  v1::CreateSessionResponse created;
+  {
+    grpc::ClientContext ctx;
+    remote_.Prepare(ctx, config_.rpc_timeout_s);
+    const grpc::Status s = stub->Create(&ctx, create, &created);
+    if (!s.ok()) {
+      // A refusal (bad token, unknown scene) will not get better by retrying.
+      const bool fatal = s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+                         s.error_code() == grpc::StatusCode::PERMISSION_DENIED ||
+                         s.error_code() == grpc::StatusCode::NOT_FOUND ||
+                         s.error_code() == grpc::StatusCode::INVALID_ARGUMENT;
+      return Error{fatal ? ErrorCode::kPermissionDenied : ErrorCode::kUnavailable,
+                   "cannot create a session: " + Describe(s), "session"};
+    }
+  }
+  if (created.session_key().size() != 32)
+    return Error{ErrorCode::kUnavailable, "the server sent no usable session key", "session"};
+  v1::SessionRef ref;
+  ref.set_id(created.session().id());
+  v1::Session started;
+  {
+    grpc::ClientContext ctx;
+    remote_.Prepare(ctx, config_.rpc_timeout_s);
+    const grpc::Status s = stub->Start(&ctx, ref, &started);
+    if (!s.ok())
+      return Error{ErrorCode::kUnavailable, "cannot start the session: " + Describe(s), "session"};
+  }
+  auto host = ResolveHost(created.udp_host());
+  if (!host.ok()) return host.error();
+  StationOptions options;
+  options.server_address = *host;
+  options.server_port = static_cast<uint16_t>(created.udp_port());
+  options.session = created.session().id();
+  std::copy(created.session_key().begin(), created.session_key().end(), options.key.begin());
+  options.rate_hz = config_.rate_hz;
+  auto channel = StationChannel::Create(options, device_);
+  if (!channel.ok()) return channel.error();
+  channel_ = std::move(*channel);
+  status_.session = options.session;
+  ++status_.generation;
+  status_.state = StationState::kLive;
+  last_received_ = 0;
+  last_progress_ = Now();
+  return Status::Ok();
+}
+
+void Station::Drop(const std::string& why) {
+  if (channel_) {
+    channel_->Stop();  // the device is left at zero force
+    Add(finished_stats_, channel_->stats());
+    channel_.reset();
+  }
+  status_.last_error = why;
+  if (!config_.reconnect) {
+    status_.state = StationState::kFailed;
+    return;
+  }
+  status_.state = StationState::kReconnecting;
+  next_attempt_ = Now();
+}
+
+void Station::Probe(double now) {
+  auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::SessionRef ref;
+  ref.set_id(status_.session);
+  v1::Session session;
+  grpc::ClientContext ctx;
+  remote_.Prepare(ctx, std::min(config_.rpc_timeout_s, 1.0));
+  const grpc::Status s = stub->Get(&ctx, ref, &session);
+  if (!s.ok()) return Drop("the server does not answer: " + Describe(s));
+  if (!IsLive(session.state()))
+    return Drop("session " + std::to_string(status_.session) + " is " +
+                v1::SessionState_Name(session.state()));
+  last_progress_ = now;  // the server is there and the session live: slow, not gone
+}
+
+void Station::Tick() {
+  const double now = Now();
+  switch (status_.state) {
+    case StationState::kConnecting:
+    case StationState::kReconnecting: {
+      if (now < next_attempt_) return;
+      const bool again = status_.state == StationState::kReconnecting;
+      if (Status s = Connect(); !s.ok()) {
+        status_.last_error = s.error().message;
+        if (s.error().code == ErrorCode::kPermissionDenied) {
+          status_.state = StationState::kFailed;
+          return;
+        }
+        next_attempt_ = now + config_.retry_s;
+        return;
+      }
+      if (again) ++status_.reconnects;
+      return;
+    }
+    case StationState::kLive: {
+      const uint64_t received = channel_->stats().received;
+      if (received != last_received_) {
+        last_received_ = received;
+        last_progress_ = now;
+      } else if (now - last_progress_ > config_.silence_s) {
+        Probe(now);
+      }
+      return;
+    }
+    case StationState::kFinished:
+    case StationState::kFailed:
+      return;
+  }
+}
+
+Expected<SessionSummary> Station::Finish(const std::string& reason) {
+  if (channel_) {
+    channel_->Stop();
+    Add(finished_stats_, channel_->stats());
+    channel_.reset();
+  }
+  const bool had_session = status_.session != 0;
+  status_.state = StationState::kFinished;
+  if (!had_session) return Error{ErrorCode::kUnavailable, "no session was started", "session"};
+  auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::StopSessionRequest stop;
+  stop.set_id(status_.session);
+  stop.set_reason(reason);
+  v1::Session session;
+  grpc::ClientContext ctx;
+  remote_.Prepare(ctx, config_.rpc_timeout_s);
+  grpc::Status s = stub->Stop(&ctx, stop, &session);
+  if (s.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
+    // Already ended (stalled into disconnected, or aborted): read it as it is.
+    grpc::ClientContext get_ctx;
+    remote_.Prepare(get_ctx, config_.rpc_timeout_s);
+    v1::SessionRef ref;
+    ref.set_id(status_.session);
+    s = stub->Get(&get_ctx, ref, &session);
+  }
+  if (!s.ok())
+    return Error{ErrorCode::kUnavailable, "cannot stop the session: " + Describe(s), "session"};
+  SessionSummary out;
+  out.id = session.id();
+  out.state = v1::SessionState_Name(session.state());
+  out.end_reason = session.end_reason();
+  out.has_metrics = session.has_metrics();
+  const v1::TrialMetrics& m = session.metrics();
+  out.metrics.completed = m.completed();
+  out.metrics.completion_time = m.completion_time_s();
+  out.metrics.task_error = m.task_error();
+  out.metrics.peak_force = m.peak_force_n();
+  out.metrics.time_over_force_limit = m.time_over_force_limit_s();
+  out.metrics.path_length = m.path_length_m();
+  out.metrics.rms_jerk = m.rms_jerk();
+  out.metrics.overload_events = m.overload_events();
+  out.metrics.duration = m.duration_s();
+  out.metrics.score = m.score();
+  return out;
+}
+
+StationStats Station::total_stats() const {
+  StationStats sum = finished_stats_;
+  if (channel_) {
+    const StationStats now = channel_->stats();
+    Add(sum, now);
+    sum.rtt_p50_us = now.rtt_p50_us;
+    sum.rtt_p99_us = now.rtt_p99_us;
+    sum.rtt_p999_us = now.rtt_p999_us;
+    sum.jitter_us = now.jitter_us;
+  }
+  sum.loss = sum.sent > 0 ? std::max(0.0, 1.0 - double(sum.received) / double(sum.sent)) : 0.0;
+  return sum;
+}
+
+}  // namespace vsurg::client

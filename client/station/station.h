@@ -1,0 +1,93 @@
+// A trainee's station, without its screen: logs in with a bearer token, creates and starts a
+// session on the control plane, runs the UDP haptic channel with the device, and keeps the
+// trainee going when the server goes away.
+//
+// Life of a station (Tick drives it; nothing here blocks longer than one RPC deadline):
+//
+//   connecting ──Create+Start ok──▶ live ──no answer for silence_s, and the server──▶ reconnecting
+//       ▲   │                        │       is gone or the session is no longer live       │
+//       │   └── fails: retry_s ──────┘                                                      │
+//       └───────────────────────────────── every retry_s ───────────────────────────────────┘
+//   any ──Finish──▶ finished (the session stopped and recorded; the device at zero force)
+//
+// Meanwhile the channel's watchdog has faded the force to zero (20 ms + 50 ms), and while
+// reconnecting no channel runs and the device holds zero force. A session is not resumed
+// across a server restart: the server aborted it and recorded it; the station starts a new one
+// (a new session id and key), and the render side resets the tissue (generation()).
+//
+// Threads: one thread (the station's main/render thread) calls everything.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "client/device/device.h"
+#include "client/net/remote.h"
+#include "client/net/station_channel.h"
+#include "common/core/expected.h"
+#include "common/scoring/trial_metrics.h"
+
+namespace vsurg::client {
+
+struct StationConfig {
+  std::string scene = "arm-torsion";
+  double rate_hz = 1000;     // device thread
+  double rpc_timeout_s = 3;  // per control-plane call
+  double silence_s = 0.5;    // no force update this long: ask the server how it is
+  double retry_s = 0.5;      // between connection attempts
+  bool reconnect = true;     // false: a lost server ends the station with an error
+};
+
+enum class StationState { kConnecting, kLive, kReconnecting, kFinished, kFailed };
+const char* StationStateName(StationState s);
+
+struct StationStatus {
+  StationState state = StationState::kConnecting;
+  uint64_t session = 0;     // the current (or last) session id
+  uint64_t generation = 0;  // counts sessions started by this station
+  int reconnects = 0;       // sessions started again after the server went away
+  std::string last_error;   // why the last attempt or probe failed
+};
+
+struct SessionSummary {
+  uint64_t id = 0;
+  std::string state, end_reason;
+  bool has_metrics = false;
+  scoring::TrialMetrics metrics;
+};
+
+class Station {
+ public:
+  Station(Remote remote, HapticDevice* device, StationConfig config);
+  ~Station();  // stops the channel (the session is left to the server's stall/disconnect timers)
+  Station(const Station&) = delete;
+  Station& operator=(const Station&) = delete;
+
+  void Tick();
+  // Stops the session on the server (recorded with `reason`) and returns it with its metrics.
+  Expected<SessionSummary> Finish(const std::string& reason);
+
+  StationStatus status() const { return status_; }
+  // The running channel (null while connecting); for its view, stats and scene chunks.
+  StationChannel* channel() { return channel_.get(); }
+  // Datagrams answered over all sessions, and the channel statistics summed the same way.
+  StationStats total_stats() const;
+
+ private:
+  Status Connect();
+  void Probe(double now);
+  void Drop(const std::string& why);
+  double Now() const;
+
+  Remote remote_;
+  HapticDevice* device_;
+  StationConfig config_;
+  StationStatus status_;
+  std::unique_ptr<StationChannel> channel_;
+  StationStats finished_stats_;  // of the channels already dropped
+  double next_attempt_ = 0, last_progress_ = 0;
+  uint64_t last_received_ = 0;
+};
+
+}  // namespace vsurg::client

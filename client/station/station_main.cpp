@@ -1,0 +1,297 @@
+// vsurg-station: a trainee's station. Logs in (bearer token), creates and starts a session on
+// the server's control plane, streams the device over the UDP haptic channel at 1 kHz, and draws
+// the deformed tissue with OpenGL: a GLFW window, or offscreen with --headless (EGL, no display)
+// for tests and screenshots. Survives the server restarting (see client/station/station.h).
+//
+// Exit codes: 0 done, 1 runtime error (cannot connect in time, session refused), 2 usage.
+#include <signal.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "client/device/device_registry.h"
+#include "client/net/remote.h"
+#include "client/render/gl_surface.h"
+#include "client/render/mesh_view.h"
+#include "client/station/station.h"
+#include "common/cli/args.h"
+#include "common/sim/scene.h"
+
+namespace {
+
+using vsurg::cli::ArgParser;
+using Kind = ArgParser::Kind;
+namespace client = vsurg::client;
+
+std::atomic<bool> g_interrupted{false};
+void OnSignal(int) {
+  g_interrupted = true;
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+std::string Fixed(double v, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, v);
+  return text;
+}
+
+int Fail(const std::string& what) {
+  std::cerr << "vsurg-station: " << what << "\n";
+  return 1;
+}
+
+int Run(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-station",
+              "A trainee's station: joins a session on the server, streams the stylus over UDP "
+              "at 1 kHz and draws the tissue (window, or --headless offscreen).");
+  client::AddRemoteOptions(p);
+  p.Option("scene", Kind::kString, "scene to train on", false, "arm-torsion")
+      .Option("device", Kind::kString, "replay, keyboard-mouse, openhaptics or falcon", false,
+              "replay")
+      .Option("trajectory", Kind::kString, "replay: trajectory CSV (vsurg-sim trainee --out)")
+      .Option("limits", Kind::kString, "replay, keyboard-mouse: touch or omni", false, "touch")
+      .Option("rate", Kind::kDouble, "haptic rate, Hz", false, "1000")
+      .Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
+      .Option("width", Kind::kInt, "image width, px", false, "960")
+      .Option("height", Kind::kInt, "image height, px", false, "600")
+      .Option("fps", Kind::kDouble, "frames per second", false, "60")
+      .Option("screenshot", Kind::kString, "PNG of the last frame (or at --screenshot-at)")
+      .Option("screenshot-at", Kind::kDouble, "seconds after the session starts for --screenshot")
+      .Option("screenshot-before", Kind::kString, "PNG of the first frame, before any input")
+      .Option("duration", Kind::kDouble, "stop after this many seconds live (0: replay end)", false,
+              "0")
+      .Option("settle", Kind::kDouble, "seconds to run on after the replay ends", false, "0.5")
+      .Option("connect-timeout", Kind::kDouble, "give up when never connected within, s", false,
+              "30")
+      .Option("no-reconnect", Kind::kFlag, "end with an error when the server goes away")
+      .Option("json", Kind::kFlag, "print the summary as one JSON object");
+  if (vsurg::Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  auto remote = client::ConnectRemote(p);
+  if (!remote.ok()) {
+    std::cerr << p.command() << ": " << remote.error().field << ": " << remote.error().message
+              << "\n";
+    return 2;
+  }
+  const double fps = p.Double("fps");
+  if (!(fps >= 1 && fps <= 240)) return std::cerr << "vsurg-station: --fps: 1..240\n", 2;
+  if (p.Has("screenshot-at") && !(p.Double("screenshot-at") >= 0))
+    return std::cerr << "vsurg-station: --screenshot-at: must be ≥ 0\n", 2;
+
+  // The scene, as the server will run it: the same file gives the same vertex order.
+  auto scene = vsurg::sim::LoadSceneByName(p.String("scene"));
+  if (!scene.ok()) return Fail("scene: " + scene.error().message);
+  auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
+  if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
+
+  auto surface = p.Flag("headless")
+                     ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
+                     : client::GlSurface::CreateWindow("vsurg station: " + scene->name,
+                                                       p.Int("width"), p.Int("height"));
+  if (!surface.ok()) return Fail(surface.error().message);
+  client::GlSurface* gl = surface->get();
+  client::MeshView view(mesh->surface);
+
+  client::DeviceRequest request;
+  request.kind = p.String("device");
+  if (p.Has("trajectory")) request.trajectory = p.String("trajectory");
+  request.limits = p.String("limits");
+  if (!gl->headless()) request.window_input = [gl] { return gl->Input(); };
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+  for (const auto& v : mesh->surface.positions) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  Eigen::Index longest = 0;
+  (hi - lo).maxCoeff(&longest);
+  request.twist_axis = Eigen::Vector3d::Unit(longest);
+  request.start = 0.5 * (lo + hi);
+  request.start.z() = hi.z() + 0.02;  // above the tissue
+  auto device = client::OpenDevice(request);
+  if (!device.ok()) {
+    std::cerr << "vsurg-station: " << device.error().field << ": " << device.error().message
+              << "\n";
+    return 2;
+  }
+  auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
+
+  client::StationConfig config;
+  config.scene = p.String("scene");
+  config.rate_hz = p.Double("rate");
+  config.reconnect = !p.Flag("no-reconnect");
+  client::Station station(*remote, device->get(), config);
+
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+
+  const auto started = std::chrono::steady_clock::now();
+  double live_now = 0;  // seconds live, summed over sessions
+  double last_tick = 0;
+  bool screenshot_taken = false, before_taken = false, ended_by_replay = false;
+  double replay_done_at = -1;
+  uint64_t generation = 0, last_sent = 0;
+  double rate_hz = 0, last_rate_at = 0;
+  client::StationView shown;
+  const auto frame = std::chrono::duration<double>(1.0 / fps);
+  auto next_frame = std::chrono::steady_clock::now();
+  client::StationState last_state = client::StationState::kConnecting;
+  for (;;) {
+    station.Tick();
+    const client::StationStatus st = station.status();
+    if (st.state != last_state) {
+      std::cerr << "vsurg-station: state=" << client::StationStateName(st.state)
+                << " session=" << st.session
+                << (st.last_error.empty() ? "" : " reason=\"" + st.last_error + "\"") << "\n";
+      last_state = st.state;
+    }
+    if (st.state == client::StationState::kFailed) return Fail(st.last_error);
+    if (st.generation == 0 && Seconds(started) > p.Double("connect-timeout"))
+      return Fail("no session within --connect-timeout: " + st.last_error);
+    const bool live = st.state == client::StationState::kLive;
+    const double tick = Seconds(started);
+    if (live) live_now += tick - last_tick;
+    last_tick = tick;
+    if (live && st.generation != generation) {
+      generation = st.generation;
+      view.ResetToRest();  // a new session starts from the tissue at rest
+    }
+
+    client::Overlay overlay;
+    if (client::StationChannel* channel = station.channel()) {
+      for (const auto& chunk : channel->TakeSceneChunks())
+        view.Apply(chunk.indices, chunk.positions);
+      channel->TakeView(shown);
+      const client::StationStats s = channel->stats();
+      const double now = Seconds(started);
+      if (now - last_rate_at >= 0.5) {
+        rate_hz = last_rate_at > 0 ? (s.sent - last_sent) / (now - last_rate_at) : 0;
+        last_sent = s.sent;
+        last_rate_at = now;
+      }
+      overlay.show_stylus = true;
+      overlay.tip = shown.sample.position;
+      overlay.orientation = shown.sample.orientation;
+      overlay.force = shown.force;
+      overlay.contact = shown.command.contact;
+      overlay.grasping = shown.command.grasping;
+      overlay.hud = {"vsurg station  " + scene->name + "  session " + std::to_string(st.session),
+                     "haptic " + Fixed(rate_hz, 0) + " hz   rtt " + Fixed(s.rtt_p50_us, 0) +
+                         " us   loss " + Fixed(100 * s.loss, 1) + "%",
+                     "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
+                         Fixed(shown.force.norm(), 2) + " n",
+                     "score " + Fixed(shown.command.score, 1) + " / 10"};
+    } else {
+      overlay.hud = {"vsurg station  " + scene->name,
+                     std::string(client::StationStateName(st.state)) + " ...",
+                     st.last_error.substr(0, 60)};
+    }
+    view.Draw(gl->width(), gl->height(), overlay);
+
+    if (live && !before_taken && p.Has("screenshot-before")) {
+      before_taken = true;
+      const vsurg::RgbImage image = gl->ReadPixels();
+      if (auto s = vsurg::WriteRgbPng(p.String("screenshot-before"), image.width, image.height,
+                                      image.rgb);
+          !s.ok())
+        return Fail(s.error().message);
+    }
+    const bool at_time = p.Has("screenshot-at") && live && live_now >= p.Double("screenshot-at");
+    if (p.Has("screenshot") && !screenshot_taken && at_time) {
+      screenshot_taken = true;
+      const vsurg::RgbImage image = gl->ReadPixels();
+      if (auto s = vsurg::WriteRgbPng(p.String("screenshot"), image.width, image.height, image.rgb);
+          !s.ok())
+        return Fail(s.error().message);
+    }
+
+    // When to stop: the replay played out (and settled), the time is up, the window closed, or
+    // a signal. The last frame is kept for --screenshot without --screenshot-at.
+    if (live && replay && replay->finished() && replay_done_at < 0) replay_done_at = live_now;
+    const double duration = p.Double("duration");
+    bool done = g_interrupted || gl->ShouldClose();
+    if (duration > 0 && live && live_now >= duration) done = true;
+    if (duration <= 0 && replay_done_at >= 0 && live_now - replay_done_at >= p.Double("settle"))
+      done = ended_by_replay = true;
+    if (done) {
+      if (p.Has("screenshot") && !screenshot_taken) {
+        const vsurg::RgbImage image = gl->ReadPixels();
+        if (auto s =
+                vsurg::WriteRgbPng(p.String("screenshot"), image.width, image.height, image.rgb);
+            !s.ok())
+          return Fail(s.error().message);
+      }
+      gl->EndFrame();
+      break;
+    }
+    gl->EndFrame();
+    next_frame += std::chrono::duration_cast<std::chrono::steady_clock::duration>(frame);
+    const auto now = std::chrono::steady_clock::now();
+    if (now > next_frame) next_frame = now;
+    std::this_thread::sleep_until(next_frame);
+  }
+
+  const client::StationStatus st = station.status();
+  const client::StationStats stats = station.total_stats();
+  auto summary = station.Finish(ended_by_replay ? "completed"
+                                : g_interrupted ? "interrupted"
+                                                : "stopped");
+  if (!summary.ok()) return Fail(summary.error().message);
+  const auto& m = summary->metrics;
+  if (p.Flag("json")) {
+    nlohmann::json j = {{"session", summary->id},
+                        {"state", summary->state},
+                        {"end_reason", summary->end_reason},
+                        {"reconnects", st.reconnects},
+                        {"sessions", st.generation},
+                        {"sent", stats.sent},
+                        {"received", stats.received},
+                        {"loss", stats.loss},
+                        {"rtt_p50_us", stats.rtt_p50_us},
+                        {"rtt_p99_us", stats.rtt_p99_us},
+                        {"watchdog_fades", stats.watchdog_fades},
+                        {"scene_chunks", stats.scene_chunks},
+                        {"max_force_n", stats.max_force},
+                        {"metrics",
+                         {{"recorded", summary->has_metrics},
+                          {"completed", m.completed},
+                          {"completion_time_s", m.completion_time},
+                          {"task_error", m.task_error},
+                          {"peak_force_n", m.peak_force},
+                          {"time_over_force_limit_s", m.time_over_force_limit},
+                          {"path_length_m", m.path_length},
+                          {"rms_jerk", m.rms_jerk},
+                          {"overload_events", m.overload_events},
+                          {"duration_s", m.duration},
+                          {"score", m.score}}}};
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << "session " << summary->id << " " << summary->state << " (" << summary->end_reason
+              << "): score " << Fixed(m.score, 1) << "/10, completed "
+              << (m.completed ? "yes" : "no") << ", peak force " << Fixed(m.peak_force, 2) << " N, "
+              << stats.received << "/" << stats.sent << " datagrams answered, RTT p50 "
+              << Fixed(stats.rtt_p50_us, 0) << " us, " << st.reconnects << " reconnects\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return Run(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const std::exception& e) {
+    std::cerr << "vsurg-station: fatal: " << e.what() << "\n";
+    return 1;
+  }
+}
