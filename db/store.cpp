@@ -557,6 +557,20 @@ Status Store::SetSessionState(int64_t id, const std::string& state, int64_t at_u
   });
 }
 
+Expected<int> Store::AbortOrphanedSessions(int64_t at_us, const std::string& reason) {
+  int changed = 0;
+  Status s = Write([=, &changed](Connection& c) -> Status {
+    Status st = RunSql(c,
+                       "UPDATE sessions SET state = 'aborted', ended_us = ?1, end_reason = ?2 "
+                       "WHERE state IN ('created', 'running', 'stalled')",
+                       [&](Statement& q) { q.Bind(1, at_us).Bind(2, reason); });
+    if (st.ok()) changed = c.Changes();
+    return st;
+  });
+  if (!s.ok()) return s.error();
+  return changed;
+}
+
 Status Store::RecordTrialMetrics(int64_t session_id, const TrialMetricsRecord& m) {
   return Write([=](Connection& c) {
     return RunSql(

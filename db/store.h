@@ -163,6 +163,9 @@ class Store {
   Status SetSessionState(int64_t id, const std::string& state, int64_t at_us,
                          const std::string& reason = "");
   Status RecordTrialMetrics(int64_t session_id, const TrialMetricsRecord& m);
+  // At start-up: sessions a previous process left live (it was killed, or the machine failed)
+  // cannot go on; they become aborted with `reason`. Returns how many.
+  Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason);
   Status RecordTrainingMoment(const std::string& trainee, double moment_min,
                               std::optional<int64_t> session_id);
 

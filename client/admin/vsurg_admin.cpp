@@ -436,6 +436,77 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
   return s.ok() ? 0 : RpcError(err, p.command(), s);
 }
 
+// The scenes the server runs, and the sessions with the scoring loop's trial metrics.
+int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
+           const std::string& cmd) {
+  ArgParser p("vsurg-admin " + cmd, cmd == "scenes"
+                                        ? "Lists the scenes the server can run."
+                                        : "Lists sessions with their trial metrics (ended ones).");
+  if (cmd == "sessions") {
+    p.Option("trainee", Kind::kString, "only this trainee's")
+        .Option("json", Kind::kFlag, "one JSON object per line");
+  }
+  vsurg::client::AddRemoteOptions(p);
+  Remote remote;
+  if (auto stop = Begin(p, args, out, err, remote)) return *stop;
+  auto stub = v1::SessionService::NewStub(remote.channel);
+  grpc::ClientContext ctx;
+  remote.Prepare(ctx);
+  if (cmd == "scenes") {
+    v1::ListScenesResponse resp;
+    const grpc::Status s = stub->ListScenes(&ctx, v1::ListScenesRequest(), &resp);
+    if (!s.ok()) return RpcError(err, p.command(), s);
+    out << "scene\tmodel\ttask\terror budget (RMS)\n";
+    for (const v1::SceneInfo& i : resp.scenes())
+      out << i.name() << "\t" << i.model() << "\t" << i.task() << "\t"
+          << Fixed(i.error_budget_rms(), 2) << "\n";
+    return 0;
+  }
+  v1::ListSessionsRequest req;
+  if (p.Has("trainee")) req.set_trainee(p.String("trainee"));
+  v1::ListSessionsResponse resp;
+  const grpc::Status s = stub->List(&ctx, req, &resp);
+  if (!s.ok()) return RpcError(err, p.command(), s);
+  if (!p.Flag("json"))
+    out << "id\ttrainee\tscene\tstate\tscore\tcompleted\ttime_s\ttask_error\tpeak_force_n\t"
+           "over_limit_s\tpath_m\trms_jerk\toverloads\n";
+  for (const v1::Session& x : resp.sessions()) {
+    const v1::TrialMetrics& m = x.metrics();
+    std::string state =
+        v1::SessionState_Name(x.state()).substr(std::string("SESSION_STATE_").size());
+    for (char& c : state) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (p.Flag("json")) {
+      nlohmann::json j = {{"id", x.id()},
+                          {"trainee", x.trainee()},
+                          {"scene", x.scene()},
+                          {"state", state},
+                          {"end_reason", x.end_reason()}};
+      if (x.has_metrics())
+        j["metrics"] = {{"score", m.score()},
+                        {"completed", m.completed()},
+                        {"completion_time_s", m.completion_time_s()},
+                        {"task_error", m.task_error()},
+                        {"peak_force_n", m.peak_force_n()},
+                        {"time_over_force_limit_s", m.time_over_force_limit_s()},
+                        {"path_length_m", m.path_length_m()},
+                        {"rms_jerk", m.rms_jerk()},
+                        {"overload_events", m.overload_events()},
+                        {"duration_s", m.duration_s()}};
+      out << j.dump() << "\n";
+      continue;
+    }
+    out << x.id() << "\t" << x.trainee() << "\t" << x.scene() << "\t" << state;
+    if (x.has_metrics())
+      out << "\t" << Fixed(m.score(), 1) << "\t" << (m.completed() ? "yes" : "no") << "\t"
+          << Fixed(m.completion_time_s(), 2) << "\t" << Fixed(m.task_error(), 4) << "\t"
+          << Fixed(m.peak_force_n(), 2) << "\t" << Fixed(m.time_over_force_limit_s(), 2) << "\t"
+          << Fixed(m.path_length_m(), 3) << "\t" << Fixed(m.rms_jerk(), 0) << "\t"
+          << m.overload_events();
+    out << "\n";
+  }
+  return 0;
+}
+
 const char* kHelp =
     "usage: vsurg-admin <command> [options]\n\n"
     "commands:\n"
@@ -445,6 +516,8 @@ const char* kHelp =
     "  token-issue   issue a token for a user (printed once)\n"
     "  token-revoke  revoke a user's tokens\n"
     "  weights-put   store a weight set\n"
+    "  scenes        the scenes the server runs\n"
+    "  sessions      sessions with the scoring loop's trial metrics\n"
     "  import        submit evaluations from a ratings CSV\n"
     "  report        weighted evaluation report (seed 000 eq. 9-11), or --training\n"
     "  export        export evaluations: --format csv|jsonl|xapi --out FILE\n"
@@ -472,6 +545,7 @@ int main(int argc, char** argv) {
     if (cmd == "import") return Import(rest, out, err);
     if (cmd == "report") return Report(rest, out, err);
     if (cmd == "export") return Export(rest, out, err);
+    if (cmd == "scenes" || cmd == "sessions") return Scenes(rest, out, err, cmd);
     if (cmd == "users" || cmd == "backup" || cmd == "weights-put")
       return Simple(rest, out, err, cmd);
     std::cerr << "vsurg-admin: unknown command '" << cmd << "' (see --help)\n";

@@ -56,8 +56,26 @@ Expected<Remote> ConnectRemote(const cli::ArgParser& p) {
   } else {
     creds = grpc::InsecureChannelCredentials();
   }
-  r.channel = grpc::CreateChannel(p.String("server"), creds);
+  r.address = p.String("server");
+  r.credentials = creds;
+  r.channel = MakeChannel(r.address, creds);
   return r;
+}
+
+void Remote::Renew() {
+  if (!address.empty()) channel = MakeChannel(address, credentials);
+}
+
+std::shared_ptr<grpc::Channel> MakeChannel(const std::string& address,
+                                           std::shared_ptr<grpc::ChannelCredentials> credentials) {
+  // gRPC's default reconnect backoff grows to two minutes: a station whose server restarted
+  // would wait that long. Stations retry on their own schedule; keep the channel's at ≤ 1 s.
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  return grpc::CreateCustomChannel(
+      address, credentials ? credentials : grpc::InsecureChannelCredentials(), args);
 }
 
 int ReportRpcError(std::ostream& err, const std::string& command, const grpc::Status& s) {

@@ -12,6 +12,7 @@
 
 namespace grpc {
 class Channel;
+class ChannelCredentials;
 class ClientContext;
 class Status;
 }  // namespace grpc
@@ -24,9 +25,19 @@ struct Remote {
   std::shared_ptr<grpc::Channel> channel;
   std::string token;
   double timeout_s = 10;
+  std::string address;                                    // host:port
+  std::shared_ptr<grpc::ChannelCredentials> credentials;  // null: plaintext
+  // A new channel to the same server: after the server went away, gRPC 1.51 can leave a
+  // channel's subchannel failing fast with the old error long after the server is back.
+  void Renew();
   // Adds the token and a deadline (timeout_s, or `timeout` seconds when > 0).
   void Prepare(grpc::ClientContext& ctx, double timeout = 0) const;
 };
+
+// A channel of its own (a local subchannel pool) that retries a lost server within a second
+// (plaintext when `credentials` is null).
+std::shared_ptr<grpc::Channel> MakeChannel(const std::string& address,
+                                           std::shared_ptr<grpc::ChannelCredentials> credentials);
 
 // After a successful Parse of a parser given AddRemoteOptions.
 Expected<Remote> ConnectRemote(const cli::ArgParser& parser);

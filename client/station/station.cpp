@@ -122,6 +122,7 @@ Status Station::Connect() {
   status_.session = options.session;
   ++status_.generation;
   status_.state = StationState::kLive;
+  status_.last_error.clear();
   last_received_ = 0;
   last_progress_ = Now();
   return Status::Ok();
@@ -140,6 +141,7 @@ void Station::Drop(const std::string& why) {
   }
   status_.state = StationState::kReconnecting;
   next_attempt_ = Now();
+  remote_.Renew();
 }
 
 void Station::Probe(double now) {
@@ -171,6 +173,7 @@ void Station::Tick() {
           return;
         }
         next_attempt_ = now + config_.retry_s;
+        remote_.Renew();  // the next attempt on a fresh channel
         return;
       }
       if (again) ++status_.reconnects;

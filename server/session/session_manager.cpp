@@ -43,6 +43,8 @@ db::TrialMetricsRecord ToRecord(const scoring::TrialMetrics& m) {
 SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
                                const SessionManagerOptions& options)
     : store_(store), endpoint_(endpoint), options_(options) {
+  // Nothing is live in a new process: what the store says is live was left by one that died.
+  (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted");
   sampler_ = std::thread([this] { SamplerLoop(); });
 }
 

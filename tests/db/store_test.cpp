@@ -247,6 +247,25 @@ TEST_F(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   EXPECT_FALSE(store_->RecordTrainingMoment("trainee-1", 20, s->id).ok());  // once per moment
 }
 
+TEST_F(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
+  auto ended = store_->CreateSession("trainee-1", "arm-torsion");
+  auto running = store_->CreateSession("trainee-1", "arm-torsion");
+  auto created = store_->CreateSession("trainee-2", "sphere-palpation-256");
+  ASSERT_TRUE(ended.ok() && running.ok() && created.ok());
+  ASSERT_TRUE(store_->SetSessionState(ended->id, "ended", 200, "done").ok());
+  ASSERT_TRUE(store_->SetSessionState(running->id, "running", 300).ok());
+  EXPECT_EQ(store_->AbortOrphanedSessions(900, "server restarted").value(), 2);
+  EXPECT_EQ(store_->GetSession(ended->id)->state, "ended");
+  EXPECT_EQ(store_->GetSession(ended->id)->end_reason, "done");
+  for (int64_t id : {running->id, created->id}) {
+    const auto r = store_->GetSession(id);
+    EXPECT_EQ(r->state, "aborted");
+    EXPECT_EQ(r->ended_us, 900);
+    EXPECT_EQ(r->end_reason, "server restarted");
+  }
+  EXPECT_EQ(store_->AbortOrphanedSessions(901, "again").value(), 0);
+}
+
 TEST_F(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   auto session = store_->CreateSession("trainee-1", "arm-torsion");

@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "db/store.h"
+#include "tests/support/processes.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 extern char** environ;
@@ -30,54 +31,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ServerProcess {
-  pid_t pid = -1;
-  int grpc_port = 0;
+using test::Shell;
+using test::ShellRun;
 
-  // Starts vsurg-server on `db` and waits for its ready file.
-  static ServerProcess Start(const fs::path& dir, const fs::path& db) {
-    ServerProcess p;
-    const std::string ready = (dir / "ready.json").string();
-    fs::remove(ready);
-    std::vector<std::string> args = {
-        VSURG_SERVER_BINARY, "--db", db.string(),    "--listen", "127.0.0.1:0",
-        "--udp-port",        "0",    "--ready-file", ready};
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    const std::string log = (dir / "server.log").string();
-    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    const int rc = posix_spawn(&p.pid, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    EXPECT_EQ(rc, 0);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      std::ifstream in(ready);
-      std::stringstream text;
-      text << in.rdbuf();
-      const auto j = nlohmann::json::parse(text.str(), nullptr, false);
-      if (!j.is_discarded() && j.contains("grpc_port")) {
-        p.grpc_port = j["grpc_port"].get<int>();
-        break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    EXPECT_GT(p.grpc_port, 0) << "vsurg-server did not become ready";
-    return p;
-  }
-
-  int Signal(int sig) {
-    kill(pid, sig);
-    int status = 0;
-    waitpid(pid, &status, 0);
-    pid = -1;
-    return status;
-  }
-
-  ~ServerProcess() {
-    if (pid > 0) Signal(SIGKILL);
+struct ServerProcess : test::ServerProcess {
+  static test::ServerProcess Start(const fs::path& dir, const fs::path& db) {
+    return test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
   }
 };
 
@@ -200,24 +159,6 @@ TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
   EXPECT_TRUE((*store)->GetTrialMetrics(rec->id).value().has_value());
   store->reset();
   fs::remove_all(dir);
-}
-
-struct ShellRun {
-  int code = -1;
-  std::string out;
-};
-
-// Runs a command line through the shell, capturing stdout.
-ShellRun Shell(const std::string& command) {
-  ShellRun r;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  size_t n = 0;
-  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.out.append(buf, n);
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
 }
 
 TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {

@@ -1,0 +1,236 @@
+// The station against a real vsurg-server process: it survives the server restarting (the force
+// fades while the server is gone, a new session starts when it is back), and the station and
+// monitor binaries behave at their edges (a trainee's token cannot monitor; headless
+// screenshots show the arm, twisted where it was grasped).
+#include "client/station/station.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "common/core/image.h"
+#include "db/store.h"
+#include "tests/support/press_and_hold.h"
+#include "tests/support/processes.h"
+
+namespace vsurg::client {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Tokens {
+  std::string admin, trainee, instructor;
+};
+
+// A fresh store with an administrator, a trainee and an instructor.
+Tokens MakeStore(const fs::path& db) {
+  Tokens t;
+  auto store = db::Store::Open({.path = db.string()});
+  EXPECT_TRUE(store.ok());
+  t.admin = (*store)->InitAdmin("root").value();
+  EXPECT_TRUE((*store)->CreateUser("tia", db::Role::kTrainee, "A").ok());
+  EXPECT_TRUE((*store)->CreateUser("ivo", db::Role::kInstructor, "").ok());
+  t.trainee = (*store)->IssueToken("tia", "test").value();
+  t.instructor = (*store)->IssueToken("ivo", "test").value();
+  return t;
+}
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+Remote RemoteTo(int port, const std::string& token) {
+  Remote r;
+  r.address = "127.0.0.1:" + std::to_string(port);
+  r.channel = MakeChannel(r.address, nullptr);
+  r.token = token;
+  r.timeout_s = 3;
+  return r;
+}
+
+// Ticks the station every 10 ms until `done` or `seconds` pass; true when done.
+template <typename F>
+bool TickUntil(Station& station, double seconds, F done) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < until) {
+    station.Tick();
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
+}
+
+TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
+  const fs::path dir = FreshDir("vsurg_station_restart");
+  const fs::path db = dir / "vsurg.db";
+  const Tokens tokens = MakeStore(db);
+  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  ASSERT_GT(server.grpc_port, 0);
+  const int grpc_port = server.grpc_port, udp_port = server.udp_port;
+
+  // Presses repeated for a minute (2 s each: in, hold, out): a new session after the restart
+  // starts with the tissue at rest and the tip outside, as the proxy needs.
+  std::vector<haptics::StylusSample> presses;
+  const std::vector<haptics::StylusSample> one = test::PressAndHold(1.8);
+  for (int k = 0; k < 30; ++k) {
+    presses.insert(presses.end(), one.begin(), one.end());
+    presses.insert(presses.end(), 200, one.front());  // lifted
+  }
+  ReplayDevice device(presses);
+  StationConfig config;
+  config.scene = "sphere-palpation-256";
+  Station station(RemoteTo(grpc_port, tokens.trainee), &device, config);
+  ASSERT_TRUE(TickUntil(station, 20, [&] {
+    return station.channel() && station.channel()->stats().received > 800 &&
+           station.channel()->last_force().norm() > 0.3;
+  })) << station.status().last_error;
+  const uint64_t first_session = station.status().session;
+  EXPECT_EQ(station.status().generation, 1u);
+
+  // The server goes down while the hand is pressing (a clean stop: the session is recorded as
+  // aborted).
+  ASSERT_TRUE(TickUntil(station, 5, [&] { return station.channel()->last_force().norm() > 0.4; }));
+  const size_t written_before = device.forces().size();
+  EXPECT_EQ(server.Signal(SIGTERM), 0);
+  ASSERT_TRUE(TickUntil(station, 10,
+                        [&] { return station.status().state == StationState::kReconnecting; }));
+  // The force never jumps, and the watchdog faded it to zero (20 ms silence, then 50 ms) well
+  // before the station gave up on the server (0.5 s of silence and a failed probe) and stopped
+  // the channel: the last non-zero force is hundreds of device cycles before the end.
+  const std::vector<Eigen::Vector3d> forces = device.forces();
+  EXPECT_GT(forces[written_before - 1].norm(), 0.3);
+  const double step = device.limits().max_force_rate * 1e-3 * 1.0001;
+  size_t last_nonzero = 0;
+  for (size_t i = written_before; i < forces.size(); ++i) {
+    ASSERT_LE((forces[i] - forces[i - 1]).norm(), step) << i;
+    if (forces[i].norm() > 0) last_nonzero = i;
+  }
+  EXPECT_LT(last_nonzero + 300, forces.size()) << "faded by the watchdog, not cut at the stop";
+  EXPECT_EQ(forces.back().norm(), 0.0);
+  EXPECT_EQ(station.channel(), nullptr);
+
+  // Meanwhile attempts fail and are retried; then the server is back on the same ports.
+  EXPECT_FALSE(
+      TickUntil(station, 1.0, [&] { return station.status().state == StationState::kLive; }));
+  server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db, grpc_port, udp_port);
+  ASSERT_EQ(server.grpc_port, grpc_port);
+  ASSERT_TRUE(TickUntil(station, 20, [&] {
+    return station.status().state == StationState::kLive && station.channel() &&
+           station.channel()->stats().received > 300 &&
+           station.channel()->last_force().norm() > 0.3;
+  })) << station.status().last_error;
+  EXPECT_EQ(station.status().reconnects, 1);
+  EXPECT_EQ(station.status().generation, 2u);
+  EXPECT_NE(station.status().session, first_session);
+
+  auto summary = station.Finish("test over");
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->state, "SESSION_STATE_ENDED");
+  EXPECT_TRUE(summary->has_metrics);
+  EXPECT_GT(summary->metrics.peak_force, 0.1);
+  server.Signal(SIGTERM);
+  auto store = db::Store::Open({.path = db.string()});
+  ASSERT_TRUE(store.ok());
+  EXPECT_EQ((*store)->GetSession(static_cast<int64_t>(first_session))->state, "aborted");
+}
+
+TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
+  const fs::path dir = FreshDir("vsurg_station_refused");
+  const fs::path db = dir / "vsurg.db";
+  const Tokens tokens = MakeStore(db);
+  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  ReplayDevice device(test::PressAndHold(1));
+  Station bad_token(RemoteTo(server.grpc_port, "vst_not-a-token"), &device, {});
+  EXPECT_TRUE(
+      TickUntil(bad_token, 10, [&] { return bad_token.status().state == StationState::kFailed; }));
+  EXPECT_NE(bad_token.status().last_error.find("create"), std::string::npos);
+  StationConfig unknown;
+  unknown.scene = "no-such-scene";
+  Station bad_scene(RemoteTo(server.grpc_port, tokens.trainee), &device, unknown);
+  EXPECT_TRUE(
+      TickUntil(bad_scene, 10, [&] { return bad_scene.status().state == StationState::kFailed; }));
+  EXPECT_EQ(device.forces().size(), 0u) << "no channel ran";
+}
+
+// The binaries, as the demo runs them.
+TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstructor) {
+  const fs::path dir = FreshDir("vsurg_station_binary");
+  const fs::path db = dir / "vsurg.db";
+  const Tokens tokens = MakeStore(db);
+  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  const std::string remote = " --server 127.0.0.1:" + std::to_string(server.grpc_port);
+  const std::string trajectory = (dir / "good.csv").string();
+  ASSERT_EQ(test::Shell(std::string(VSURG_SIM_BINARY) + " trainee --scene arm-torsion --out " +
+                        trajectory + " >/dev/null")
+                .code,
+            0);
+
+  // An instructor follows in text while the trainee twists the arm.
+  const std::string monitor_log = (dir / "monitor.txt").string();
+  const std::string monitor = std::string(VSURG_MONITOR_BINARY) + " follow --text --print-hz 5" +
+                              remote + " --token " + tokens.instructor + " > " + monitor_log +
+                              " 2>&1 &";
+  ASSERT_EQ(std::system(monitor.c_str()), 0);
+  const std::string before = (dir / "before.png").string(), after = (dir / "after.png").string();
+  const test::ShellRun station = test::Shell(
+      std::string(VSURG_STATION_BINARY) + remote + " --token " + tokens.trainee +
+      " --scene arm-torsion --trajectory " + trajectory + " --headless --width 480 --height 300" +
+      " --screenshot-before " + before + " --screenshot " + after + " --screenshot-at 4.5 --json");
+  ASSERT_EQ(station.code, 0) << station.out;
+  const auto summary = nlohmann::json::parse(station.out);
+  EXPECT_EQ(summary["state"], "SESSION_STATE_ENDED");
+  EXPECT_TRUE(summary["metrics"]["completed"].get<bool>());
+  EXPECT_GT(summary["metrics"]["score"].get<double>(), 5.0);
+  EXPECT_GT(summary["scene_chunks"].get<int>(), 100);
+
+  auto a = ReadRgbPng(before), b = ReadRgbPng(after);
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a->rgb.size(), size_t{480} * 300 * 3);
+  // Not blank: the background is one colour; the arm covers a good part of the image.
+  const unsigned char* corner = a->rgb.data() + (299 * 480 + 479) * 3;
+  size_t not_background = 0, changed = 0;
+  for (size_t i = 0; i < a->rgb.size(); i += 3) {
+    if (std::abs(a->rgb[i] - corner[0]) + std::abs(a->rgb[i + 1] - corner[1]) +
+            std::abs(a->rgb[i + 2] - corner[2]) >
+        30)
+      ++not_background;
+    if (std::abs(a->rgb[i] - b->rgb[i]) + std::abs(a->rgb[i + 1] - b->rgb[i + 1]) +
+            std::abs(a->rgb[i + 2] - b->rgb[i + 2]) >
+        30)
+      ++changed;
+  }
+  EXPECT_GT(not_background, a->rgb.size() / 3 / 5) << "the arm fills over a fifth of the view";
+  EXPECT_GT(changed, 1000u) << "the twisted arm (and the HUD) must differ from the rest state";
+
+  // The monitor saw the session end and printed live telemetry with the twist.
+  std::string log;
+  for (int i = 0; i < 100 && log.find(" ended:") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::ifstream in(monitor_log);
+    log.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  EXPECT_NE(log.find("state=running"), std::string::npos) << log;
+  EXPECT_NE(log.find("twist=45.0deg"), std::string::npos) << log;
+  EXPECT_NE(log.find(" ended:"), std::string::npos) << log;
+
+  // A trainee's token is refused by the monitor, with the reason and exit code 1.
+  const test::ShellRun refused = test::Shell(
+      std::string(VSURG_MONITOR_BINARY) + " follow --text" + remote + " --token " + tokens.trainee +
+      " --session " + std::to_string(summary["session"].get<int>()) + " 2>&1");
+  EXPECT_EQ(refused.code, 1);
+  EXPECT_NE(refused.out.find("may not call MonitorService/Watch"), std::string::npos)
+      << refused.out;
+  EXPECT_EQ(test::Shell(std::string(VSURG_MONITOR_BINARY) + " list" + remote + " --token " +
+                        tokens.trainee + " >/dev/null 2>&1")
+                .code,
+            0)
+      << "a trainee may list their own sessions";
+}
+
+}  // namespace
+}  // namespace vsurg::client
