@@ -4,9 +4,11 @@
 # total twist, overload flag, vertices moved), writes the deformed mesh as OBJ, then shows what
 # happens past the limb's capacity, how far the model is from Saint-Venant torsion, and three
 # scripted trainees performing the arm-torsion task through the full haptic simulation, and the
-# authenticated UDP channel's round trip with eight stations on loopback, and the control plane:
-# vsurg-server on a temporary SQLite file, three evaluator groups scoring three simulator models
-# (seed 000 §4.4), the weighted reports, and the administrator's CSV export.
+# authenticated UDP channel's round trip with eight stations on loopback; then the platform as its
+# users touch it (deploy/demo_flow.sh): vsurg-server on a temporary SQLite file, a trainee's
+# headless station twisting the arm over UDP, an instructor's monitor following it live, three
+# evaluator groups scoring the session, the weighted report, the trial metrics and the CSV
+# export; screenshots of the station before and after the twist (and the monitor) go to docs/.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -49,36 +51,9 @@ echo "== Weighted evaluation offline (seed 000 eq. 9-11): 40 raters score the co
 "$sim" score --input "$root/deploy/samples/ratings-coil-spring.csv"
 
 echo
-echo "== Control plane: vsurg-server on a temporary SQLite file; evaluators score three models =="
-admin="$root/build/bin/vsurg-admin"
-tmp="$(mktemp -d)"
-server_pid=""
-cleanup() {
-  if [ -n "$server_pid" ]; then kill "$server_pid" 2>/dev/null || true; wait "$server_pid" 2>/dev/null || true; fi
-  rm -rf "$tmp"
-}
-trap cleanup EXIT
-VSURG_TOKEN="$("$admin" init --db "$tmp/vsurg.db" 2>/dev/null)"
-export VSURG_TOKEN
-"$root/build/bin/vsurg-server" --db "$tmp/vsurg.db" --listen 127.0.0.1:0 --udp-port 0 \
-  --ready-file "$tmp/ready.json" 2> "$tmp/server.log" &
-server_pid=$!
-for _ in $(seq 100); do [ -s "$tmp/ready.json" ] && break; sleep 0.1; done
-port="$(sed -n 's/.*"grpc_port":\([0-9]*\).*/\1/p' "$tmp/ready.json")"
-[ -n "$port" ] || { echo "demo: vsurg-server did not start" >&2; cat "$tmp/server.log" >&2; exit 1; }
-server="127.0.0.1:$port"
-"$admin" user-add --server "$server" --name dr-chief --role evaluator --group chief > /dev/null
-"$admin" import --server "$server" --input "$root/deploy/samples/ratings-three-models.csv" \
-  --subject-kind model
-"$admin" report --server "$server" --subject-kind model --subjects coil-spring,mass-spring,fem
-"$admin" export --server "$server" --format csv --out "$out/scores.csv"
-echo "-- first rows of $out/scores.csv"
-head -4 "$out/scores.csv"
-kill -TERM "$server_pid"
-wait "$server_pid"
-server_pid=""
-echo "-- server log"
-cat "$tmp/server.log"
+echo "==== The platform end to end: server, a trainee's station, an instructor's monitor, evaluators, administrator ===="
+"$root/deploy/demo_flow.sh" "$root/build/bin" "$out/flow" "$root/docs"
 
 echo
-echo "demo: deformed meshes, trajectories and scores.csv in $out"
+echo "demo: deformed meshes and trajectories in $out; the platform run's logs and scores.csv in $out/flow;"
+echo "      screenshots in docs/ (station-before.png, station-twisted.png, monitor-view.png)"

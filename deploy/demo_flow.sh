@@ -1,0 +1,117 @@
+#!/usr/bin/env bash
+# The platform end to end, as its three kinds of users touch it (issue: stations, monitor, admin):
+#   an administrator starts vsurg-server on a temporary SQLite file and creates the users;
+#   a trainee's station (headless, a replayed stylus) twists the forearm 45 degrees over UDP;
+#   an instructor's monitor follows the session live (text, and an OpenGL view);
+#   three evaluators (intern, associate chief, chief) score the session with their own tokens;
+#   the administrator prints the weighted report (seed 000 eq. 9-11) and the trial metrics and
+#   exports the evaluations as CSV.
+# Screenshots of the station before and after the twist, and of the monitor, go to SHOTS_DIR.
+# Exits 0 when every step worked, and leaves no process behind.
+#
+# usage: deploy/demo_flow.sh BIN_DIR OUT_DIR [SHOTS_DIR]   (deploy/demo.sh and the e2e test run it)
+set -euo pipefail
+bin="$(cd "${1:?BIN_DIR}" && pwd)"
+out="${2:?OUT_DIR}"
+shots="${3:-$out}"
+mkdir -p "$out" "$shots"
+out="$(cd "$out" && pwd)"
+shots="$(cd "$shots" && pwd)"
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export VSURG_SCENES="$root/scenes"
+
+tmp="$(mktemp -d)"
+pids=()
+cleanup() {
+  local p
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+step() { echo; echo "== $* =="; }
+
+step "Administrator: vsurg-server on a temporary SQLite file"
+admin_token="$("$bin/vsurg-admin" init --db "$tmp/vsurg.db" 2>/dev/null)"
+"$bin/vsurg-server" --db "$tmp/vsurg.db" --listen 127.0.0.1:0 --udp-port 0 \
+  --ready-file "$tmp/ready.json" 2> "$out/server.log" &
+server_pid=$!
+pids+=("$server_pid")
+for _ in $(seq 300); do [ -s "$tmp/ready.json" ] && break; sleep 0.1; done
+port="$(sed -n 's/.*"grpc_port":\([0-9]*\).*/\1/p' "$tmp/ready.json")"
+[ -n "$port" ] || { echo "demo: vsurg-server did not start" >&2; cat "$out/server.log" >&2; exit 1; }
+server="127.0.0.1:$port"
+echo "vsurg-server pid $server_pid serving gRPC on $server"
+adm() { "$bin/vsurg-admin" "$@" --server "$server" --token "$admin_token"; }
+token_of() { adm user-add --name "$1" --role "$2" ${3:+--group "$3"} --issue-token | tail -1; }
+trainee_token="$(token_of tia trainee group-a)"
+instructor_token="$(token_of ivo instructor)"
+intern_token="$(token_of dr-intern evaluator intern)"
+associate_token="$(token_of dr-associate evaluator associate_chief)"
+chief_token="$(token_of dr-chief evaluator chief)"
+adm users
+adm scenes
+
+step "Trainee: a scripted, smooth 45-degree twist of the forearm (replay device)"
+"$bin/vsurg-sim" trainee --scene arm-torsion --style good --out "$out/twist-good.csv"
+
+step "Instructor: vsurg-monitor follows the first live session (text, 2 lines/s)"
+"$bin/vsurg-monitor" follow --server "$server" --token "$instructor_token" --text --print-hz 2 \
+  --wait 60 > "$out/monitor.log" 2>&1 &
+monitor_pid=$!
+pids+=("$monitor_pid")
+"$bin/vsurg-monitor" follow --server "$server" --token "$instructor_token" --headless \
+  --width 960 --height 600 --wait 60 --duration 5 --screenshot "$shots/monitor-view.png" \
+  > "$out/monitor-view.log" 2>&1 &
+monitor_view_pid=$!
+pids+=("$monitor_view_pid")
+
+step "Station: vsurg-station, headless, the twist over UDP at 1 kHz"
+"$bin/vsurg-station" --server "$server" --token "$trainee_token" --scene arm-torsion \
+  --device replay --trajectory "$out/twist-good.csv" --headless --width 960 --height 600 \
+  --screenshot-before "$shots/station-before.png" --screenshot "$shots/station-twisted.png" \
+  --screenshot-at 4.5 --json > "$out/station.json" 2> "$out/station.log"
+cat "$out/station.log"
+cat "$out/station.json"
+session="$(sed -n 's/.*"session":\([0-9]*\).*/\1/p' "$out/station.json")"
+[ -n "$session" ] || { echo "demo: the station reported no session" >&2; exit 1; }
+
+wait "$monitor_pid"
+wait "$monitor_view_pid"
+echo "-- the instructor's terminal (every line: twist, torque, force, round trip, loss, rate, score)"
+cat "$out/monitor.log"
+
+step "Evaluators: three groups score session $session (9 indexes, 0-10), each with their own token"
+header="evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9"
+printf '%s\ndr-intern,intern,8,8.5,9,8.5,8,7.5,8,7,6.5\n' "$header" > "$tmp/intern.csv"
+printf '%s\ndr-associate,associate_chief,8.5,8,9,9,8,8,8.5,7.5,7\n' "$header" > "$tmp/associate.csv"
+printf '%s\ndr-chief,chief,9,8.5,9.5,9,8.5,8,8,7.5,7\n' "$header" > "$tmp/chief.csv"
+"$bin/vsurg-admin" import --server "$server" --token "$intern_token" --input "$tmp/intern.csv" \
+  --subject-kind session --subject "$session"
+"$bin/vsurg-admin" import --server "$server" --token "$associate_token" \
+  --input "$tmp/associate.csv" --subject-kind session --subject "$session"
+"$bin/vsurg-admin" import --server "$server" --token "$chief_token" --input "$tmp/chief.csv" \
+  --subject-kind session --subject "$session"
+
+step "Administrator: the weighted report of session $session (seed 000 eq. 9-11)"
+adm report --subject-kind session --subjects "$session"
+step "Administrator: the scoring loop's trial metrics"
+adm sessions
+step "Administrator: the simulator models compared by 120 raters (synthetic sample ratings)"
+adm import --input "$root/deploy/samples/ratings-three-models.csv" --subject-kind model
+adm report --subject-kind model --subjects coil-spring,mass-spring,fem
+step "Administrator: export of every evaluation as CSV"
+adm export --format csv --out "$out/scores.csv"
+echo "-- first rows of $out/scores.csv"
+head -4 "$out/scores.csv"
+
+step "Shutdown: SIGTERM, the store drained"
+kill -TERM "$server_pid"
+wait "$server_pid"
+pids=()
+tail -3 "$out/server.log"
+left="$(pgrep -f "$tmp/vsurg.db" || true)"
+[ -z "$left" ] || { echo "demo: processes left behind: $left" >&2; exit 1; }
+echo
+echo "demo flow: screenshots in $shots (station-before.png, station-twisted.png, monitor-view.png);"
+echo "           logs, station.json, monitor.log and scores.csv in $out"
