@@ -7,6 +7,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <filesystem>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -230,6 +231,34 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
                 .code,
             0)
       << "a trainee may list their own sessions";
+}
+
+// The GLFW window itself, under a virtual X server (Xvfb): the same view as headless.
+TEST(StationBinaryTest, OpensItsWindowUnderXvfb) {
+  if (test::Shell("command -v xvfb-run >/dev/null").code != 0) GTEST_SKIP() << "no xvfb-run";
+  const fs::path dir = FreshDir("vsurg_station_window");
+  const fs::path db = dir / "vsurg.db";
+  const Tokens tokens = MakeStore(db);
+  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  const std::string trajectory = (dir / "good.csv").string(), shot = (dir / "window.png").string();
+  ASSERT_EQ(test::Shell(std::string(VSURG_SIM_BINARY) + " trainee --scene arm-torsion --out " +
+                        trajectory + " >/dev/null")
+                .code,
+            0);
+  const test::ShellRun run =
+      test::Shell("xvfb-run -a -s '-screen 0 1024x768x24' " + std::string(VSURG_STATION_BINARY) +
+                  " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " +
+                  tokens.trainee + " --trajectory " + trajectory +
+                  " --duration 1.5 --width 400 --height 300 --screenshot " + shot + " 2>&1");
+  ASSERT_EQ(run.code, 0) << run.out;
+  EXPECT_NE(run.out.find("SESSION_STATE_ENDED"), std::string::npos) << run.out;
+  auto image = ReadRgbPng(shot);
+  ASSERT_TRUE(image.ok()) << image.error().message;
+  EXPECT_EQ(image->width, 400);
+  std::set<int> colours;
+  for (size_t i = 0; i + 2 < image->rgb.size(); i += 3)
+    colours.insert(image->rgb[i] << 16 | image->rgb[i + 1] << 8 | image->rgb[i + 2]);
+  EXPECT_GT(colours.size(), 50u) << "a shaded arm, not an empty window";
 }
 
 }  // namespace

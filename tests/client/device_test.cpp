@@ -1,0 +1,100 @@
+#include "client/device/device_registry.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+namespace vsurg::client {
+namespace {
+
+TEST(KeyboardMouseDeviceTest, KeysMoveTheTipDragTwistsAndTheWorkspaceHolds) {
+  WindowInput input;
+  haptics::DeviceLimits limits = haptics::TouchLimits();
+  limits.workspace_min = Eigen::Vector3d(-0.1, -0.1, -0.1);
+  limits.workspace_max = Eigen::Vector3d(0.1, 0.1, 0.1);
+  KeyboardMouseDevice device([&] { return input; }, Eigen::Vector3d::Zero(),
+                             Eigen::Vector3d::UnitZ(), 0.05, limits);
+  EXPECT_EQ(device.info().output_dof, 0) << "it renders no force, only draws it";
+  const haptics::StylusSample rest = device.Read();
+  EXPECT_EQ(rest.position, Eigen::Vector3d::Zero());
+  EXPECT_EQ(rest.buttons, 0u);
+
+  input.right = input.up = true;  // +x and +z at 5 cm/s
+  std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  const haptics::StylusSample moved = device.Read();
+  EXPECT_GT(moved.position.x(), 0.0005);
+  EXPECT_NEAR(moved.position.x(), moved.position.z(), 1e-12);
+  EXPECT_EQ(moved.position.y(), 0.0);
+  EXPECT_LE(moved.position.x(), 0.05 * 0.05 + 1e-12) << "one read moves at most 50 ms worth";
+
+  input = {};
+  input.twist_rad = 0.5;
+  input.grasp = true;
+  const haptics::StylusSample twisted = device.Read();
+  EXPECT_EQ(twisted.buttons, static_cast<uint32_t>(haptics::kButtonGrasp));
+  EXPECT_NEAR(Eigen::AngleAxisd(twisted.orientation).angle(), 0.5, 1e-12);
+  EXPECT_NEAR(std::abs(Eigen::AngleAxisd(twisted.orientation).axis().z()), 1.0, 1e-12);
+
+  // Held against the workspace (a fast 1 m/s device): the tip stops at its edge.
+  input = {};
+  input.forward = true;
+  KeyboardMouseDevice fast([&] { return input; }, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(),
+                           1.0, limits);
+  for (int i = 0; i < 10; ++i) {
+    fast.Read();
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  }
+  EXPECT_DOUBLE_EQ(fast.Read().position.y(), 0.1);
+  device.WriteForce(Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(device.last_force(), Eigen::Vector3d(1, 2, 3));
+}
+
+TEST(DeviceRegistryTest, OpensReplaysAndRefusesWhatItCannotOpen) {
+  const std::string path = testing::TempDir() + "/device_test.csv";
+  std::ofstream(path)
+      << "t,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.1,1,0,0,0,0\n0.001,0,0,0.099,1,0,0,0,1\n";
+  DeviceRequest replay;
+  replay.trajectory = path;
+  auto device = OpenDevice(replay);
+  ASSERT_TRUE(device.ok()) << device.error().message;
+  EXPECT_EQ((*device)->info().name, "replay");
+  EXPECT_DOUBLE_EQ((*device)->Read().position.z(), 0.1);
+  EXPECT_EQ((*device)->Read().buttons, 1u);
+
+  DeviceRequest missing;
+  missing.trajectory = testing::TempDir() + "/no-such.csv";
+  EXPECT_FALSE(OpenDevice(missing).ok());
+  DeviceRequest no_file;
+  EXPECT_EQ(OpenDevice(no_file).error().field, "--trajectory");
+  DeviceRequest omni = replay;
+  omni.limits = "omni";
+  EXPECT_DOUBLE_EQ((*OpenDevice(omni))->limits().max_stiffness,
+                   haptics::OmniLimits().max_stiffness);
+  omni.limits = "phantom-of-the-opera";
+  EXPECT_FALSE(OpenDevice(omni).ok());
+
+  DeviceRequest keyboard;
+  keyboard.kind = "keyboard-mouse";
+  EXPECT_NE(OpenDevice(keyboard).error().message.find("window"), std::string::npos);
+  DeviceRequest unknown;
+  unknown.kind = "telepathy";
+  EXPECT_EQ(OpenDevice(unknown).error().field, "--device");
+
+  // Real devices without their SDK: a clear error that names the reason, not a crash.
+  const auto kinds = AvailableDeviceKinds();
+  for (const char* real : {"openhaptics", "falcon"}) {
+    DeviceRequest r;
+    r.kind = real;
+    if (std::find(kinds.begin(), kinds.end(), real) == kinds.end()) {
+      const auto opened = OpenDevice(r);
+      ASSERT_FALSE(opened.ok());
+      EXPECT_EQ(opened.error().code, ErrorCode::kUnavailable);
+      EXPECT_NE(opened.error().message.find("DEVICES.md"), std::string::npos);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace vsurg::client
