@@ -84,6 +84,8 @@ int Main(std::vector<std::string> args) {
       .Option("tls-key", Kind::kString, "PEM private key for gRPC TLS")
       .Option("allow-insecure", Kind::kFlag, "allow plaintext gRPC off loopback (not advised)")
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
+      .Option("realtime-priority", Kind::kInt,
+              "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off)", false, "20")
       .Option("ready-file", Kind::kString, "write {grpc_port, udp_port} here once serving")
       .Option("config", Kind::kString, "JSON file of these options (flags win)");
   if (Status s = p.Parse(args); !s.ok()) {
@@ -132,6 +134,11 @@ int Main(std::vector<std::string> args) {
   vsurg::server::EndpointOptions eo;
   eo.address = p.String("udp-address");
   eo.port = static_cast<uint16_t>(udp_port);
+  eo.realtime_priority = p.Int("realtime-priority");
+  if (eo.realtime_priority < 0 || eo.realtime_priority > 99) {
+    std::cerr << "vsurg-server: --realtime-priority: must be within 0..99\n";
+    return 2;
+  }
   auto endpoint = vsurg::server::UdpEndpoint::Create(eo);
   if (!endpoint.ok()) {
     std::cerr << "vsurg-server: --udp-port: " << endpoint.error().message << "\n";

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "client/net/passivity.h"
+#include "common/core/realtime.h"
 #include "common/sim/triple_buffer.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
@@ -218,8 +219,14 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
                  "socket"};
   Impl* p = impl.get();
   p->Receive();
-  p->net_thread = std::thread([p] { p->io.run(); });
-  p->device_thread = std::thread([p] { p->DeviceLoop(); });
+  p->net_thread = std::thread([p] {
+    TrySetRealtimePriority(p->options.realtime_priority);
+    p->io.run();
+  });
+  p->device_thread = std::thread([p] {
+    TrySetRealtimePriority(p->options.realtime_priority);
+    p->DeviceLoop();
+  });
   return std::unique_ptr<StationChannel>(new StationChannel(std::move(impl)));
 }
 

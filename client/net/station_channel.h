@@ -35,7 +35,8 @@ struct StationOptions {
   double watchdog_s = 0.020;  // no update for this long: start fading
   double fade_s = 0.050;      // from full force to zero
   bool passivity = true;
-  double max_damping = 5.0;  // N·s/m the passivity controller may add
+  int realtime_priority = 0;  // > 0: SCHED_FIFO at this priority for both threads, if permitted
+  double max_damping = 5.0;   // N·s/m the passivity controller may add
 };
 
 struct StationStats {

@@ -228,6 +228,10 @@ void GlSurface::EndFrame() {
   }
 }
 
+void GlSurface::Finish() {
+  glFinish();
+}
+
 RgbImage GlSurface::ReadPixels() const {
   RgbImage image;
   image.width = width();

@@ -31,6 +31,8 @@ class GlSurface {
   bool headless() const;
   // Window: closed by the user (or Escape). Headless: never.
   bool ShouldClose() const;
+  // Waits until the drawing so far is done (for timing a frame).
+  void Finish();
   // Presents the frame (window: swap and poll events; headless: finish).
   void EndFrame();
   // The frame just drawn (call before EndFrame for a window), top row first.

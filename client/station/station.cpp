@@ -116,6 +116,7 @@ Status Station::Connect() {
   options.session = created.session().id();
   std::copy(created.session_key().begin(), created.session_key().end(), options.key.begin());
   options.rate_hz = config_.rate_hz;
+  options.realtime_priority = config_.realtime_priority;
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
   channel_ = std::move(*channel);

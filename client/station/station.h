@@ -32,11 +32,12 @@ namespace vsurg::client {
 
 struct StationConfig {
   std::string scene = "arm-torsion";
-  double rate_hz = 1000;     // device thread
-  double rpc_timeout_s = 3;  // per control-plane call
-  double silence_s = 0.5;    // no force update this long: ask the server how it is
-  double retry_s = 0.5;      // between connection attempts
-  bool reconnect = true;     // false: a lost server ends the station with an error
+  double rate_hz = 1000;       // device thread
+  double rpc_timeout_s = 3;    // per control-plane call
+  double silence_s = 0.5;      // no force update this long: ask the server how it is
+  double retry_s = 0.5;        // between connection attempts
+  bool reconnect = true;       // false: a lost server ends the station with an error
+  int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
 };
 
 enum class StationState { kConnecting, kLive, kReconnecting, kFinished, kFailed };

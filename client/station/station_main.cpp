@@ -6,6 +6,7 @@
 // Exit codes: 0 done, 1 runtime error (cannot connect in time, session refused), 2 usage.
 #include <signal.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -44,6 +45,12 @@ std::string Fixed(double v, int digits) {
   return text;
 }
 
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(q * (v.size() - 1))];
+}
+
 int Fail(const std::string& what) {
   std::cerr << "vsurg-station: " << what << "\n";
   return 1;
@@ -73,6 +80,8 @@ int Run(const std::vector<std::string>& args) {
       .Option("connect-timeout", Kind::kDouble, "give up when never connected within, s", false,
               "30")
       .Option("no-reconnect", Kind::kFlag, "end with an error when the server goes away")
+      .Option("realtime-priority", Kind::kInt,
+              "SCHED_FIFO priority of the haptic threads when permitted (0: off)", false, "20")
       .Option("json", Kind::kFlag, "print the summary as one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -96,19 +105,12 @@ int Run(const std::vector<std::string>& args) {
   auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
   if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
 
-  auto surface = p.Flag("headless")
-                     ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
-                     : client::GlSurface::CreateWindow("vsurg station: " + scene->name,
-                                                       p.Int("width"), p.Int("height"));
-  if (!surface.ok()) return Fail(surface.error().message);
-  client::GlSurface* gl = surface->get();
-  client::MeshView view(mesh->surface);
-
+  // The device first (bad options are reported before any window opens); the keyboard and
+  // mouse need the window, so that one is opened after it.
   client::DeviceRequest request;
   request.kind = p.String("device");
   if (p.Has("trajectory")) request.trajectory = p.String("trajectory");
   request.limits = p.String("limits");
-  if (!gl->headless()) request.window_input = [gl] { return gl->Input(); };
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
   for (const auto& v : mesh->surface.positions) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
   Eigen::Index longest = 0;
@@ -116,11 +118,30 @@ int Run(const std::vector<std::string>& args) {
   request.twist_axis = Eigen::Vector3d::Unit(longest);
   request.start = 0.5 * (lo + hi);
   request.start.z() = hi.z() + 0.02;  // above the tissue
-  auto device = client::OpenDevice(request);
+  const bool needs_window = request.kind == "keyboard-mouse";
+  if (needs_window && p.Flag("headless"))
+    return std::cerr << "vsurg-station: --device: keyboard-mouse needs a window (not --headless)\n",
+           2;
+  vsurg::Expected<std::unique_ptr<client::HapticDevice>> device =
+      needs_window ? vsurg::Expected<std::unique_ptr<client::HapticDevice>>(nullptr)
+                   : client::OpenDevice(request);
   if (!device.ok()) {
     std::cerr << "vsurg-station: " << device.error().field << ": " << device.error().message
               << "\n";
     return 2;
+  }
+
+  auto surface = p.Flag("headless")
+                     ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
+                     : client::GlSurface::CreateWindow("vsurg station: " + scene->name,
+                                                       p.Int("width"), p.Int("height"));
+  if (!surface.ok()) return Fail(surface.error().message);
+  client::GlSurface* gl = surface->get();
+  client::MeshView view(mesh->surface);
+  if (needs_window) {
+    request.window_input = [gl] { return gl->Input(); };
+    device = client::OpenDevice(request);
+    if (!device.ok()) return Fail(device.error().message);
   }
   auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
 
@@ -128,6 +149,9 @@ int Run(const std::vector<std::string>& args) {
   config.scene = p.String("scene");
   config.rate_hz = p.Double("rate");
   config.reconnect = !p.Flag("no-reconnect");
+  config.realtime_priority = p.Int("realtime-priority");
+  if (config.realtime_priority < 0 || config.realtime_priority > 99)
+    return std::cerr << "vsurg-station: --realtime-priority: must be within 0..99\n", 2;
   client::Station station(*remote, device->get(), config);
 
   struct sigaction action {};
@@ -143,6 +167,7 @@ int Run(const std::vector<std::string>& args) {
   uint64_t generation = 0, last_sent = 0;
   double rate_hz = 0, last_rate_at = 0;
   client::StationView shown;
+  std::vector<double> draw_ms;  // per frame: draw and finish, ms
   const auto frame = std::chrono::duration<double>(1.0 / fps);
   auto next_frame = std::chrono::steady_clock::now();
   client::StationState last_state = client::StationState::kConnecting;
@@ -196,7 +221,10 @@ int Run(const std::vector<std::string>& args) {
                      std::string(client::StationStateName(st.state)) + " ...",
                      st.last_error.substr(0, 60)};
     }
+    const auto draw_start = std::chrono::steady_clock::now();
     view.Draw(gl->width(), gl->height(), overlay);
+    gl->Finish();  // the frame's whole cost, not just the commands queued
+    draw_ms.push_back(1e3 * Seconds(draw_start));
 
     if (live && !before_taken && p.Has("screenshot-before")) {
       before_taken = true;
@@ -262,6 +290,9 @@ int Run(const std::vector<std::string>& args) {
                         {"watchdog_fades", stats.watchdog_fades},
                         {"scene_chunks", stats.scene_chunks},
                         {"max_force_n", stats.max_force},
+                        {"frames", draw_ms.size()},
+                        {"draw_ms_p50", Percentile(draw_ms, 0.5)},
+                        {"draw_ms_p99", Percentile(draw_ms, 0.99)},
                         {"metrics",
                          {{"recorded", summary->has_metrics},
                           {"completed", m.completed},

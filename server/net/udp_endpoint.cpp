@@ -1,5 +1,7 @@
 #include "server/net/udp_endpoint.h"
 
+#include "common/core/realtime.h"
+
 #include <time.h>
 
 #include <chrono>
@@ -249,7 +251,10 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
   Impl* p = impl.get();
   p->Receive();
   p->Tick();
-  p->thread = std::thread([p] { p->io.run(); });
+  p->thread = std::thread([p] {
+    TrySetRealtimePriority(p->options.realtime_priority);  // the stylus → force path
+    p->io.run();
+  });
   if (options.visual_hz > 0) {
     p->visual_socket.open(address.is_v6() ? udp::v6() : udp::v4(), ec);
     if (!ec) p->visual_socket.bind(udp::endpoint(address, 0), ec);

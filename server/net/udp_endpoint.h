@@ -49,6 +49,7 @@ struct EndpointOptions {
   double disconnect_after_s = 5.0;
   double max_packets_per_s = 4000;  // per session; a 1 kHz station never comes near
   double visual_hz = 60;            // scene frames per second (0: none)
+  int realtime_priority = 0;        // > 0: SCHED_FIFO for the I/O thread, when permitted
 };
 
 struct EndpointCounters {

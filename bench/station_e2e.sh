@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The platform path end to end (vsurg-server + a headless vsurg-station rendering at 60 fps on the
+# same machine): the station's round trip with and without SCHED_FIFO haptic threads,
+# alternating, 3 runs each (server and station restarted per setting). usage: bench/station_e2e.sh [BIN_DIR]
+set -euo pipefail
+B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); cd "$d"
+$B/vsurg-admin init --db vs.db > admin.out 2>/dev/null
+$B/vsurg-sim trainee --scene arm-torsion --out good.csv > /dev/null
+for rep in 1 2 3; do for prio in 0 20; do
+  $B/vsurg-server --db vs.db --listen 127.0.0.1:0 --udp-port 0 --ready-file ready.json --realtime-priority $prio 2>/dev/null & spid=$!
+  for _ in $(seq 100); do [ -s ready.json ] && break; sleep 0.1; done
+  PORT=$(python3 -c "import json;print(json.load(open('ready.json'))['grpc_port'])")
+  [ -s t.tok ] || $B/vsurg-admin user-add --server 127.0.0.1:$PORT --token $(head -1 admin.out) --name ana --role trainee --issue-token | tail -1 > t.tok
+  $B/vsurg-station --server 127.0.0.1:$PORT --token-file t.tok --trajectory good.csv --headless --realtime-priority $prio --json 2>/dev/null \
+    | python3 -c "import json,sys; j=json.load(sys.stdin); print('priority=$prio rtt_p50_us=%.0f rtt_p99_us=%.0f loss=%.4f draw_ms_p50=%.1f frames=%d' % (j['rtt_p50_us'], j['rtt_p99_us'], j['loss'], j['draw_ms_p50'], j['frames']))"
+  kill $spid; wait $spid || true; rm -f ready.json
+done; done
+rm -rf $d

@@ -1,0 +1,19 @@
+// Running a haptic thread ahead of everything else on the machine: SCHED_FIFO at `priority`
+// (1–99) for the calling thread, as OpenHaptics runs its servo loop. Needs root or CAP_SYS_NICE;
+// without them the thread keeps the normal policy and this returns false. Only for threads that
+// sleep or block every cycle (the 1 kHz loops), which therefore cannot starve the machine.
+#pragma once
+
+#include <pthread.h>
+#include <sched.h>
+
+namespace vsurg {
+
+inline bool TrySetRealtimePriority(int priority) {
+  if (priority <= 0) return false;
+  sched_param param{};
+  param.sched_priority = priority;
+  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
+}
+
+}  // namespace vsurg
