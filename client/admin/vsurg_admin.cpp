@@ -18,10 +18,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "client/net/proto_convert.h"
 #include "client/net/remote.h"
 #include "common/cli/args.h"
 #include "common/core/file.h"
 #include "common/scoring/ratings_csv.h"
+#include "common/scoring/report_json.h"
 #include "db/store.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -482,16 +484,7 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
                           {"state", state},
                           {"end_reason", x.end_reason()}};
       if (x.has_metrics())
-        j["metrics"] = {{"score", m.score()},
-                        {"completed", m.completed()},
-                        {"completion_time_s", m.completion_time_s()},
-                        {"task_error", m.task_error()},
-                        {"peak_force_n", m.peak_force_n()},
-                        {"time_over_force_limit_s", m.time_over_force_limit_s()},
-                        {"path_length_m", m.path_length_m()},
-                        {"rms_jerk", m.rms_jerk()},
-                        {"overload_events", m.overload_events()},
-                        {"duration_s", m.duration_s()}};
+        j["metrics"] = vsurg::scoring::TrialMetricsToJson(vsurg::client::TrialMetricsFromProto(m));
       out << j.dump() << "\n";
       continue;
     }

@@ -37,6 +37,22 @@ bool ReplayDevice::finished() const {
   return next_ >= samples_.size();
 }
 
+Eigen::Vector3d ServoMailbox::Exchange(const haptics::StylusSample& sample) {
+  std::lock_guard lock(mutex_);
+  sample_ = sample;
+  return force_;
+}
+
+haptics::StylusSample ServoMailbox::sample() const {
+  std::lock_guard lock(mutex_);
+  return sample_;
+}
+
+void ServoMailbox::set_force(const Eigen::Vector3d& force) {
+  std::lock_guard lock(mutex_);
+  force_ = force;
+}
+
 KeyboardMouseDevice::KeyboardMouseDevice(std::function<WindowInput()> input, Eigen::Vector3d start,
                                          Eigen::Vector3d twist_axis, double speed,
                                          haptics::DeviceLimits limits)

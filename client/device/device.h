@@ -46,6 +46,22 @@ class HapticDevice {
   virtual haptics::DeviceLimits limits() const = 0;
 };
 
+// What a real device's own servo thread (its SDK's) and the station's device thread share: the
+// newest pose one way, the newest force the other, under a mutex held for a copy.
+class ServoMailbox {
+ public:
+  // The SDK's servo thread: publishes the pose it read, takes the force to output (N).
+  Eigen::Vector3d Exchange(const haptics::StylusSample& sample);
+  // The station's device thread.
+  haptics::StylusSample sample() const;
+  void set_force(const Eigen::Vector3d& force);
+
+ private:
+  mutable std::mutex mutex_;
+  haptics::StylusSample sample_;
+  Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
+};
+
 // A recorded or scripted trajectory played back one sample per Read (deterministic: tests,
 // demos, benchmarks). Past the end it holds the last sample. It records every force written.
 class ReplayDevice : public HapticDevice {

@@ -11,7 +11,6 @@
 #include <falcon/kinematic/FalconKinematicStamper.h>
 
 #include <atomic>
-#include <mutex>
 #include <thread>
 
 #include "client/device/device_registry.h"
@@ -50,14 +49,8 @@ class FalconHapticDevice final : public HapticDevice {
     falcon_.close();
   }
 
-  haptics::StylusSample Read() override {
-    std::lock_guard lock(mutex_);
-    return sample_;
-  }
-  void WriteForce(const Eigen::Vector3d& force) override {
-    std::lock_guard lock(mutex_);
-    force_ = force;
-  }
+  haptics::StylusSample Read() override { return mailbox_.sample(); }
+  void WriteForce(const Eigen::Vector3d& force) override { mailbox_.set_force(force); }
   haptics::DeviceLimits limits() const override { return limits_; }
   DeviceInfo info() const override { return {"falcon", 3, 3, limits_, 1000}; }
 
@@ -69,13 +62,10 @@ class FalconHapticDevice final : public HapticDevice {
       if (falcon_.runIOLoop()) {
         const std::array<double, 3> p = falcon_.getPosition();
         const unsigned buttons = falcon_.getFalconGrip()->getDigitalInputs();
-        Eigen::Vector3d f;
-        {
-          std::lock_guard lock(mutex_);
-          sample_.position = Eigen::Vector3d(p[0], -(p[2] - kRestZ), p[1]) + offset_;
-          sample_.buttons = (buttons & 1u) ? haptics::kButtonGrasp : 0u;
-          f = force_;
-        }
+        haptics::StylusSample sample;
+        sample.position = Eigen::Vector3d(p[0], -(p[2] - kRestZ), p[1]) + offset_;
+        sample.buttons = (buttons & 1u) ? haptics::kButtonGrasp : 0u;
+        const Eigen::Vector3d f = mailbox_.Exchange(sample);
         falcon_.setForce({f.x(), f.z(), -f.y()});
       }
       std::this_thread::sleep_for(std::chrono::microseconds(1000));
@@ -85,9 +75,7 @@ class FalconHapticDevice final : public HapticDevice {
   Eigen::Vector3d offset_;
   libnifalcon::FalconDevice falcon_;
   haptics::DeviceLimits limits_;
-  std::mutex mutex_;
-  haptics::StylusSample sample_;
-  Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
+  ServoMailbox mailbox_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

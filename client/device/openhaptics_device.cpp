@@ -3,13 +3,11 @@
 // file is built by the few that do, not by CI.
 //
 // The HD scheduler runs Servo() in its own thread at 1 kHz; Read and WriteForce exchange the
-// latest pose and force with it under a mutex held for a few copies. Units at the boundary:
+// latest pose and force with it through a ServoMailbox. Units at the boundary:
 // HD gives millimetres in its device frame (x right, y up, z towards the user) and takes
 // newtons; we give metres in the scene frame (z up), so device (x, y, z) mm → scene
 // (x, −z, y) / 1000 m + offset, and forces the other way.
 #include <HD/hd.h>
-
-#include <mutex>
 
 #include "client/device/device_registry.h"
 
@@ -49,14 +47,8 @@ class OpenHapticsDevice final : public HapticDevice {
     hdDisableDevice(hhd_);
   }
 
-  haptics::StylusSample Read() override {
-    std::lock_guard lock(mutex_);
-    return sample_;
-  }
-  void WriteForce(const Eigen::Vector3d& force) override {
-    std::lock_guard lock(mutex_);
-    force_ = force;
-  }
+  haptics::StylusSample Read() override { return mailbox_.sample(); }
+  void WriteForce(const Eigen::Vector3d& force) override { mailbox_.set_force(force); }
   haptics::DeviceLimits limits() const override { return limits_; }
   DeviceInfo info() const override { return {"openhaptics", 6, 3, limits_, 1000}; }
 
@@ -80,14 +72,11 @@ class OpenHapticsDevice final : public HapticDevice {
       for (int r = 0; r < 3; ++r) device_rotation(r, c) = transform[4 * c + r];
     Eigen::Matrix3d to_scene;
     to_scene << 1, 0, 0, 0, 0, -1, 0, 1, 0;
-    Eigen::Vector3d force;
-    {
-      std::lock_guard lock(self->mutex_);
-      self->sample_.position = self->ToScene({position[0], position[1], position[2]});
-      self->sample_.orientation = Eigen::Quaterniond(to_scene * device_rotation).normalized();
-      self->sample_.buttons = (buttons & HD_DEVICE_BUTTON_1) ? haptics::kButtonGrasp : 0u;
-      force = self->force_;
-    }
+    haptics::StylusSample sample;
+    sample.position = self->ToScene({position[0], position[1], position[2]});
+    sample.orientation = Eigen::Quaterniond(to_scene * device_rotation).normalized();
+    sample.buttons = (buttons & HD_DEVICE_BUTTON_1) ? haptics::kButtonGrasp : 0u;
+    const Eigen::Vector3d force = self->mailbox_.Exchange(sample);
     const HDdouble out[3] = {force.x(), force.z(), -force.y()};  // scene → device axes, N
     hdSetDoublev(HD_CURRENT_FORCE, out);
     hdEndFrame(self->hhd_);
@@ -99,9 +88,7 @@ class OpenHapticsDevice final : public HapticDevice {
   HHD hhd_ = HD_INVALID_HANDLE;
   HDSchedulerHandle callback_ = HD_INVALID_HANDLE;
   haptics::DeviceLimits limits_;
-  std::mutex mutex_;
-  haptics::StylusSample sample_;
-  Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
+  ServoMailbox mailbox_;
 };
 
 }  // namespace

@@ -95,30 +95,33 @@ MeshView::MeshView(const geometry::TriMesh& rest) : rest_(rest), positions_(rest
   normal_buffer_.resize(positions_.size() * 3);
 }
 
-int MeshView::Apply(const std::vector<int32_t>& indices,
-                    const std::vector<Eigen::Vector3f>& positions) {
+namespace {
+
+// Moved vertices into `positions`: out-of-range indices and non-finite positions are skipped.
+template <typename Point>
+int ApplyMoved(std::vector<geometry::Vec3>& positions, const std::vector<int32_t>& indices,
+               const std::vector<Point>& moved) {
   int applied = 0;
-  const size_t n = std::min(indices.size(), positions.size());
+  const size_t n = std::min(indices.size(), moved.size());
   for (size_t k = 0; k < n; ++k) {
     const int32_t i = indices[k];
-    if (i < 0 || static_cast<size_t>(i) >= positions_.size() || !positions[k].allFinite()) continue;
-    positions_[i] = positions[k].cast<double>();
+    if (i < 0 || static_cast<size_t>(i) >= positions.size() || !moved[k].allFinite()) continue;
+    positions[i] = moved[k].template cast<double>();
     ++applied;
   }
   return applied;
 }
 
+}  // namespace
+
+int MeshView::Apply(const std::vector<int32_t>& indices,
+                    const std::vector<Eigen::Vector3f>& positions) {
+  return ApplyMoved(positions_, indices, positions);
+}
+
 int MeshView::Apply(const std::vector<int32_t>& indices,
                     const std::vector<geometry::Vec3>& positions) {
-  int applied = 0;
-  const size_t n = std::min(indices.size(), positions.size());
-  for (size_t k = 0; k < n; ++k) {
-    const int32_t i = indices[k];
-    if (i < 0 || static_cast<size_t>(i) >= positions_.size() || !positions[k].allFinite()) continue;
-    positions_[i] = positions[k];
-    ++applied;
-  }
-  return applied;
+  return ApplyMoved(positions_, indices, positions);
 }
 
 Eigen::Matrix4d MeshView::Projection(int width, int height) const {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "client/net/proto_convert.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::client {
@@ -228,17 +229,7 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
   out.state = v1::SessionState_Name(session.state());
   out.end_reason = session.end_reason();
   out.has_metrics = session.has_metrics();
-  const v1::TrialMetrics& m = session.metrics();
-  out.metrics.completed = m.completed();
-  out.metrics.completion_time = m.completion_time_s();
-  out.metrics.task_error = m.task_error();
-  out.metrics.peak_force = m.peak_force_n();
-  out.metrics.time_over_force_limit = m.time_over_force_limit_s();
-  out.metrics.path_length = m.path_length_m();
-  out.metrics.rms_jerk = m.rms_jerk();
-  out.metrics.overload_events = m.overload_events();
-  out.metrics.duration = m.duration_s();
-  out.metrics.score = m.score();
+  out.metrics = TrialMetricsFromProto(session.metrics());
   return out;
 }
 

@@ -22,6 +22,7 @@
 #include "client/render/mesh_view.h"
 #include "client/station/station.h"
 #include "common/cli/args.h"
+#include "common/scoring/report_json.h"
 #include "common/sim/scene.h"
 
 namespace {
@@ -293,18 +294,8 @@ int Run(const std::vector<std::string>& args) {
                         {"frames", draw_ms.size()},
                         {"draw_ms_p50", Percentile(draw_ms, 0.5)},
                         {"draw_ms_p99", Percentile(draw_ms, 0.99)},
-                        {"metrics",
-                         {{"recorded", summary->has_metrics},
-                          {"completed", m.completed},
-                          {"completion_time_s", m.completion_time},
-                          {"task_error", m.task_error},
-                          {"peak_force_n", m.peak_force},
-                          {"time_over_force_limit_s", m.time_over_force_limit},
-                          {"path_length_m", m.path_length},
-                          {"rms_jerk", m.rms_jerk},
-                          {"overload_events", m.overload_events},
-                          {"duration_s", m.duration},
-                          {"score", m.score}}}};
+                        {"metrics_recorded", summary->has_metrics},
+                        {"metrics", vsurg::scoring::TrialMetricsToJson(m)}};
     std::cout << j.dump() << "\n";
   } else {
     std::cout << "session " << summary->id << " " << summary->state << " (" << summary->end_reason

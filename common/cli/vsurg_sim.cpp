@@ -557,23 +557,6 @@ Expected<sim::Scene> SceneOption(const ArgParser& p) {
   return scene;
 }
 
-json MetricsJson(const scoring::TrialMetrics& m) {
-  return {{"completed", m.completed},
-          {"completion_time", m.completion_time},
-          {"task_error", m.task_error},
-          {"peak_force", m.peak_force},
-          {"time_over_force_limit", m.time_over_force_limit},
-          {"path_length", m.path_length},
-          {"rms_jerk", m.rms_jerk},
-          {"overload_events", m.overload_events},
-          {"duration", m.duration},
-          {"score", m.score},
-          {"raw_score", m.raw_score},
-          {"capped_not_completed", (m.caps & scoring::kCapNotCompleted) != 0},
-          {"capped_force_limit", (m.caps & scoring::kCapForceLimit) != 0},
-          {"capped_overload", (m.caps & scoring::kCapOverload) != 0}};
-}
-
 int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   ArgParser p(
       "vsurg-sim run",
@@ -630,7 +613,7 @@ int Run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     json j;
     j["scene"] = scene->name;
     j["samples"] = samples->size();
-    j["metrics"] = MetricsJson(m);
+    j["metrics"] = scoring::TrialMetricsToJson(m);
     j["peak_force"] = peak;
     j["mean_force"] = forces ? force_sum / forces : 0.0;
     j["contact_samples"] = contacts;

@@ -114,4 +114,21 @@ json TrainingToJson(const std::vector<TrainingCell>& cells) {
   return out;
 }
 
+nlohmann::json TrialMetricsToJson(const TrialMetrics& m) {
+  return {{"completed", m.completed},
+          {"completion_time", m.completion_time},
+          {"task_error", m.task_error},
+          {"peak_force", m.peak_force},
+          {"time_over_force_limit", m.time_over_force_limit},
+          {"path_length", m.path_length},
+          {"rms_jerk", m.rms_jerk},
+          {"overload_events", m.overload_events},
+          {"duration", m.duration},
+          {"score", m.score},
+          {"raw_score", m.raw_score},
+          {"capped_not_completed", (m.caps & kCapNotCompleted) != 0},
+          {"capped_force_limit", (m.caps & kCapForceLimit) != 0},
+          {"capped_overload", (m.caps & kCapOverload) != 0}};
+}
+
 }  // namespace vsurg::scoring

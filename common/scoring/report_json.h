@@ -8,6 +8,7 @@
 
 #include "common/core/expected.h"
 #include "common/scoring/evaluation.h"
+#include "common/scoring/trial_metrics.h"
 
 namespace vsurg::scoring {
 
@@ -21,5 +22,9 @@ nlohmann::json ReportToJson(const EvaluationReport& r);
 nlohmann::json ComparisonToJson(const ComparisonReport& r,
                                 const std::vector<std::string>& subject_names);
 nlohmann::json TrainingToJson(const std::vector<TrainingCell>& cells);
+
+// A trial's metrics (s, rad or m, N, m/s³; score 0–10 and the caps that applied), as
+// `vsurg-sim run --json`, `vsurg-station --json` and `vsurg-admin sessions --json` print them.
+nlohmann::json TrialMetricsToJson(const TrialMetrics& m);
 
 }  // namespace vsurg::scoring

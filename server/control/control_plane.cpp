@@ -153,6 +153,8 @@ void ToProto(const SessionTelemetry& t, v1::Telemetry* out) {
   m->set_overload_events(t.sim.metrics.overload_events);
   m->set_duration_s(t.sim.metrics.duration);
   m->set_score(t.sim.metrics.score);
+  m->set_raw_score(t.sim.metrics.raw_score);
+  m->set_caps(t.sim.metrics.caps);
   out->set_rtt_us(t.rtt_us);
   out->set_packet_loss(t.packet_loss);
   out->set_packets(t.packets);
@@ -189,6 +191,8 @@ Status AddMetrics(db::Store& store, v1::Session* out) {
   t->set_overload_events(r.overload_events);
   t->set_duration_s(r.duration_s);
   t->set_score(r.score);
+  t->set_raw_score(r.raw_score);
+  t->set_caps(r.caps);
   return Status::Ok();
 }
 

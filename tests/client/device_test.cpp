@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -49,6 +50,29 @@ TEST(KeyboardMouseDeviceTest, KeysMoveTheTipDragTwistsAndTheWorkspaceHolds) {
   EXPECT_DOUBLE_EQ(fast.Read().position.y(), 0.1);
   device.WriteForce(Eigen::Vector3d(1, 2, 3));
   EXPECT_EQ(device.last_force(), Eigen::Vector3d(1, 2, 3));
+}
+
+TEST(ServoMailboxTest, TheServoThreadGetsTheNewestForceAndTheStationTheNewestPose) {
+  ServoMailbox mailbox;
+  haptics::StylusSample s;
+  s.position = Eigen::Vector3d(0.01, 0.02, 0.03);
+  s.buttons = haptics::kButtonGrasp;
+  EXPECT_EQ(mailbox.Exchange(s), Eigen::Vector3d::Zero()) << "no force before the station's first";
+  EXPECT_EQ(mailbox.sample().position, s.position);
+  mailbox.set_force(Eigen::Vector3d(0, 0, 1.5));
+  mailbox.set_force(Eigen::Vector3d(0, 0, 2.0));
+  EXPECT_EQ(mailbox.Exchange(s), Eigen::Vector3d(0, 0, 2.0));
+  std::thread servo([&] {
+    for (int i = 0; i < 10000; ++i) {
+      s.position.x() = i;
+      (void)mailbox.Exchange(s);
+    }
+  });
+  for (int i = 0; i < 10000; ++i) {
+    const double x = mailbox.sample().position.x();
+    ASSERT_TRUE(x == 0.01 || (x >= 0 && x < 10000 && x == std::floor(x))) << "torn read " << x;
+  }
+  servo.join();
 }
 
 TEST(DeviceRegistryTest, OpensReplaysAndRefusesWhatItCannotOpen) {

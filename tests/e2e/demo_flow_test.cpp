@@ -43,7 +43,7 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   const auto station = nlohmann::json::parse(Slurp(out / "station.json"));
   EXPECT_EQ(station["state"], "SESSION_STATE_ENDED");
   EXPECT_EQ(station["end_reason"], "completed");
-  EXPECT_TRUE(station["metrics"]["recorded"].get<bool>());
+  EXPECT_TRUE(station["metrics_recorded"].get<bool>());
   EXPECT_TRUE(station["metrics"]["completed"].get<bool>());
   EXPECT_LT(station["metrics"]["task_error"].get<double>(), 0.0873);  // within 5°
   EXPECT_GT(station["received"].get<double>(), 0.95 * station["sent"].get<double>());

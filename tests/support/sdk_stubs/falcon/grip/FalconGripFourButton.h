@@ -1,0 +1,1 @@
+namespace libnifalcon { class FalconGripFourButton {}; }
