@@ -493,10 +493,7 @@ void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Pro
 std::pair<double, std::string> SceneBudget(const std::string& file) {
   auto scene = sim::LoadSceneByName(file);
   if (!scene.ok()) return {0.1, "?"};
-  const char* family = scene->region.kind == sim::ModelKind::kCoil         ? "coil"
-                       : scene->region.kind == sim::ModelKind::kMassSpring ? "mass-spring"
-                                                                           : "ring-layer";
-  return {scene->error_budget_rms, family};
+  return {scene->error_budget_rms, sim::ModelKindName(scene->region.kind)};
 }
 
 LimbCase MakeLimbCase(const std::string& scene, const std::string& builtin,

@@ -254,6 +254,18 @@ Status ParseTask(const Reader& r, scoring::TaskSpec& t) {
 
 }  // namespace
 
+const char* ModelKindName(ModelKind kind) {
+  switch (kind) {
+    case ModelKind::kCoil:
+      return "coil";
+    case ModelKind::kMassSpring:
+      return "mass-spring";
+    case ModelKind::kRingLayer:
+      return "ring-layer";
+  }
+  return "unknown";
+}
+
 Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   json root;
   try {

@@ -41,6 +41,8 @@ namespace vsurg::sim {
 
 enum class MeshKind { kLimb, kSphere, kObj };
 enum class ModelKind { kCoil, kMassSpring, kRingLayer };
+// As scene files spell it: "coil", "mass-spring", "ring-layer".
+const char* ModelKindName(ModelKind kind);
 enum class Support {
   kNone,
   kBottom,

@@ -310,13 +310,11 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
       std::sort(files.begin(), files.end());
       for (const auto& file : files) {
         auto scene = sim::LoadScene(file.string());
-        if (!scene.ok()) continue;  // a broken file is the server log's business, not the list's
+        if (!scene.ok()) continue;  // a station could not load it either: not offered
         v1::SceneInfo* info = resp->add_scenes();
-        info->set_name(scene->name);
+        info->set_name(file.stem().string());  // what Create and the stations resolve
         info->set_description(scene->description);
-        info->set_model(scene->region.kind == sim::ModelKind::kCoil         ? "coil"
-                        : scene->region.kind == sim::ModelKind::kMassSpring ? "mass-spring"
-                                                                            : "ring-layer");
+        info->set_model(sim::ModelKindName(scene->region.kind));
         info->set_task(scene->task.kind == scoring::TaskKind::kTwist ? "twist" : "press");
         info->set_error_budget_rms(scene->error_budget_rms);
       }

@@ -1,13 +1,12 @@
 #include "server/net/udp_endpoint.h"
 
-#include "common/core/realtime.h"
-
 #include <time.h>
 
 #include <chrono>
 #include <future>
 #include <unordered_map>
 
+#include "common/core/realtime.h"
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
