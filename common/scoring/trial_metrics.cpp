@@ -16,18 +16,27 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
     path_ += (tip - last_tip_).norm();
     if (force > task_.force_limit) over_ += dt;
   }
-  // One-pole low-pass at 10 Hz before differentiating three times.
+  // One-pole low-pass at 10 Hz (exact for any step), then the filtered tip on a uniform grid of
+  // kGrid = 10 ms, then the third difference: jerk ≈ (x₀ − 3x₁ + 3x₂ − x₃) / kGrid³. The grid is
+  // well above the filter's band, and a sample's timing jitter δ moves a grid value by only
+  // about |v|·δ, where a third difference over the raw 1 ms spacing amplified it by 10⁹.
+  constexpr double kGrid = 0.01;  // s
+  const Eigen::Vector3d previous = filtered_;
   const double alpha = samples_ == 0 ? 1.0 : 1.0 - std::exp(-2.0 * 3.14159265358979 * 10.0 * dt);
   filtered_ += alpha * (tip - filtered_);
-  for (int k = 3; k > 0; --k) x_[k] = x_[k - 1], t_[k] = t_[k - 1];
-  x_[0] = filtered_;
-  t_[0] = time;
-  ++samples_;
-  if (samples_ >= 4) {
-    const double h = (t_[0] - t_[3]) / 3.0;  // mean spacing of the last three intervals
-    const Eigen::Vector3d jerk = (x_[0] - 3.0 * x_[1] + 3.0 * x_[2] - x_[3]) / (h * h * h);
-    jerk2_ += jerk.squaredNorm() * dt;
+  if (samples_ == 0) next_grid_ = time;
+  while (next_grid_ <= time) {
+    const double w = dt > 0 ? 1.0 - (time - next_grid_) / dt : 1.0;
+    for (int k = 3; k > 0; --k) x_[k] = x_[k - 1];
+    x_[0] = previous + w * (filtered_ - previous);
+    if (++grid_ >= 4) {
+      const Eigen::Vector3d jerk =
+          (x_[0] - 3.0 * x_[1] + 3.0 * x_[2] - x_[3]) / (kGrid * kGrid * kGrid);
+      jerk2_ += jerk.squaredNorm() * kGrid;
+    }
+    next_grid_ += kGrid;
   }
+  ++samples_;
   last_tip_ = tip;
   peak_ = std::max(peak_, force);
   if (overload && !was_overloaded_) ++overloads_;

@@ -8,7 +8,8 @@
 // under the force limit, for hold_s; measured from the first sample), task error (|quantity −
 // target| at completion, or at the end if never completed), peak force, time over the force
 // limit, path length of the tip, RMS jerk of the tip (m/s³; the third derivative of the position
-// low-passed at 10 Hz, above the band of voluntary movement, so sensor noise does not count), and
+// low-passed at 10 Hz, above the band of voluntary movement, so sensor noise does not count, and
+// read on a uniform 10 ms grid, so the jitter of a station's sample clock does not either), and
 // overload events (each onset counts once). The normalised jerk of Teulings et al. was tried and
 // dropped: it assumes one reach, and a trial's holds and approach made it ~10⁴ for everyone.
 //
@@ -75,8 +76,12 @@ class TrialRecorder {
   double t0_ = 0, t_last_ = 0;
   double last_quantity_ = 0;
   Eigen::Vector3d filtered_ = Eigen::Vector3d::Zero();  // tip low-passed at 10 Hz
-  Eigen::Vector3d x_[4];  // the last four filtered positions, newest first
-  double t_[4] = {0, 0, 0, 0};
+  // The filtered tip resampled on a uniform 100 Hz grid (linear interpolation between samples),
+  // newest first: the jerk's third difference needs even spacing, and stylus samples stamped by
+  // a station's clock are not (a late cycle, then a quick one).
+  Eigen::Vector3d x_[4];
+  int grid_ = 0;          // grid points emitted
+  double next_grid_ = 0;  // s, the next grid time
   Eigen::Vector3d last_tip_ = Eigen::Vector3d::Zero();
   double jerk2_ = 0;  // ∫|j|² dt
   double path_ = 0;

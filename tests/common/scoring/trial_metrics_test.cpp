@@ -71,6 +71,31 @@ TEST(TrialMetricsTest, JerkSeparatesSmoothFromShakyMovement) {
   EXPECT_GT(shaky.Finish().rms_jerk, 5 * smooth.Finish().rms_jerk);
 }
 
+// A station stamps samples with its own clock: late cycles, then quick ones. The same movement
+// must score the same smoothness whatever the stamps' jitter (a 1 ms grid differenced three
+// times turned 50 µs of jitter into 10⁵–10⁶ m/s³ of "jerk").
+TEST(TrialMetricsTest, JerkDoesNotSeeTheSampleClocksJitter) {
+  TrialRecorder even(Twist()), jittered(Twist());
+  unsigned state = 12345;
+  auto jitter = [&] {  // uniform in ±0.4 ms, deterministic
+    state = state * 1103515245u + 12345u;
+    return ((state >> 8) % 801 - 400.0) * 1e-6;
+  };
+  for (int i = 0; i <= 3000; ++i) {
+    const double t = i * 1e-3, u = t / 3.0;
+    const double s = u * u * u * (10 - 15 * u + 6 * u * u);  // minimum jerk, 5 cm in 3 s
+    const double t_jittered = t + (i > 0 && i < 3000 ? jitter() : 0.0);
+    const double uj = t_jittered / 3.0;
+    const double sj = uj * uj * uj * (10 - 15 * uj + 6 * uj * uj);  // sampled when stamped
+    even.Add(t, Eigen::Vector3d(0.05 * s, 0, 0), 0, 0, false);
+    jittered.Add(t_jittered, Eigen::Vector3d(0.05 * sj, 0, 0), 0, 0, false);
+  }
+  const TrialMetrics a = even.Finish(), b = jittered.Finish();
+  EXPECT_LT(a.rms_jerk, 1.0);
+  EXPECT_LT(b.rms_jerk, 1.0);
+  EXPECT_NEAR(a.raw_score, b.raw_score, 1e-6);
+}
+
 TEST(TrialMetricsTest, BadSamplesAreIgnored) {
   TrialRecorder r(Twist());
   r.Add(0, Eigen::Vector3d::Zero(), 0, 0, false);

@@ -94,7 +94,10 @@ TEST(SimulationTest, ScriptedTraineesOnTheArmGiveTheExpectedMetrics) {
   EXPECT_GT(rough.time_over_force_limit, 0.5);  // overshooting a limb twist loads it hard
   EXPECT_TRUE(rough.caps & scoring::kCapForceLimit);
   EXPECT_LE(rough.score, 4.0);
-  EXPECT_GT(rough.rms_jerk, 100 * good.rms_jerk);
+  // Jerk is read on a 10 ms grid (trial_metrics.cpp: robust to the station clock's jitter), which
+  // sees hand motion up to 50 Hz: the rough trainee's is 80× the good one's (its content above
+  // 50 Hz counted for more on the former 1 ms differences, with the jitter).
+  EXPECT_GT(rough.rms_jerk, 50 * good.rms_jerk);
   EXPECT_LE(peak, 3.3 + 1e-9);  // the device limit holds whatever the trainee does
 }
 
