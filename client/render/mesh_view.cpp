@@ -3,6 +3,7 @@
 #include <GL/gl.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "common/core/image.h"
@@ -72,27 +73,50 @@ MeshView::MeshView(const geometry::TriMesh& rest) : rest_(rest), positions_(rest
   const Eigen::Vector3d view = up_.cross(across).normalized();
   eye_ = centre_ + radius_ * 2.4 * (view + 0.45 * up_).normalized();
   // A checker in cylindrical coordinates about the long axis (a sphere: about z), painted at
-  // rest: 12 sectors around (30°: the 45° task twist shows as a half-cell shift), 2 cm along.
+  // rest as texture coordinates: 12 sectors around (30°: the 45° task twist shows as a half-cell
+  // shift), 2 cm along. A 2×2 texture, nearest-sampled and repeated, gives crisp cell edges
+  // wherever they fall between vertices.
   const Eigen::Vector3d axis = extent[axes[0]] < 1.5 * extent[axes[2]]
                                    ? Eigen::Vector3d::UnitZ()
                                    : Eigen::Vector3d::Unit(axes[0]);
   const Eigen::Vector3d e1 = axis.unitOrthogonal(), e2 = axis.cross(e1);
-  colours_.resize(rest_.positions.size() * 3);
+  constexpr double kSectors = 12, kCell = 0.02;  // sectors around, m along
+  std::vector<std::array<float, 2>> uv(rest_.positions.size());
   for (size_t i = 0; i < rest_.positions.size(); ++i) {
     const Eigen::Vector3d d = rest_.positions[i] - centre_;
     const double angle = std::atan2(d.dot(e2), d.dot(e1)) + M_PI;  // 0..2π
-    const long sector = static_cast<long>(std::floor(angle / (2 * M_PI) * 12));
-    const long ring = static_cast<long>(std::floor(d.dot(axis) / 0.02));
-    const bool dark = ((sector + ring) & 1) != 0;
-    colours_[3 * i] = dark ? 176 : 236;
-    colours_[3 * i + 1] = dark ? 104 : 178;
-    colours_[3 * i + 2] = dark ? 92 : 150;
+    // Texture cells are 2×2 checker squares: half a texture unit per sector or ring.
+    uv[i] = {static_cast<float>(angle / (2 * M_PI) * kSectors / 2),
+             static_cast<float>(d.dot(axis) / kCell / 2)};
   }
+  // Triangles across the angle's seam (u from about kSectors/2 back to 0) take copies of their
+  // low-u vertices with u one turn on, so no triangle stretches over the whole texture.
+  std::vector<int> copy_of(rest_.positions.size(), -1);
+  render_vertex_.resize(rest_.positions.size());
+  for (size_t i = 0; i < render_vertex_.size(); ++i) render_vertex_[i] = static_cast<int>(i);
+  tex_coords_.clear();
+  for (const auto& t : uv) tex_coords_.insert(tex_coords_.end(), {t[0], t[1]});
+  const float turn = static_cast<float>(kSectors / 2);
   indices_.reserve(rest_.triangles.size() * 3);
-  for (const auto& t : rest_.triangles)
-    for (int v : t) indices_.push_back(static_cast<unsigned int>(v));
-  vertex_buffer_.resize(positions_.size() * 3);
-  normal_buffer_.resize(positions_.size() * 3);
+  for (const auto& t : rest_.triangles) {
+    const float u_min = std::min({uv[t[0]][0], uv[t[1]][0], uv[t[2]][0]});
+    const float u_max = std::max({uv[t[0]][0], uv[t[1]][0], uv[t[2]][0]});
+    const bool seam = u_max - u_min > turn / 2;
+    for (int v : t) {
+      int r = v;
+      if (seam && uv[v][0] < turn / 2) {
+        if (copy_of[v] < 0) {
+          copy_of[v] = static_cast<int>(render_vertex_.size());
+          render_vertex_.push_back(v);
+          tex_coords_.insert(tex_coords_.end(), {uv[v][0] + turn, uv[v][1]});
+        }
+        r = copy_of[v];
+      }
+      indices_.push_back(static_cast<unsigned int>(r));
+    }
+  }
+  vertex_buffer_.resize(render_vertex_.size() * 3);
+  normal_buffer_.resize(render_vertex_.size() * 3);
 }
 
 namespace {
@@ -150,12 +174,13 @@ void MeshView::ComputeNormals() {
         (positions_[t[1]] - positions_[t[0]]).cross(positions_[t[2]] - positions_[t[0]]);
     for (int v : t) normals[v] += n;
   }
-  for (size_t i = 0; i < positions_.size(); ++i) {
+  for (size_t r = 0; r < render_vertex_.size(); ++r) {
+    const int i = render_vertex_[r];
     const double length = normals[i].norm();
     const Eigen::Vector3d n = length > 0 ? Eigen::Vector3d(normals[i] / length) : up_;
     for (int k = 0; k < 3; ++k) {
-      vertex_buffer_[3 * i + k] = static_cast<float>(positions_[i][k]);
-      normal_buffer_[3 * i + k] = static_cast<float>(n[k]);
+      vertex_buffer_[3 * r + k] = static_cast<float>(positions_[i][k]);
+      normal_buffer_[3 * r + k] = static_cast<float>(n[k]);
     }
   }
 }
@@ -194,18 +219,36 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
   glShadeModel(GL_SMOOTH);
 
+  if (texture_ == 0) {
+    // Two skin tones in a 2×2 checker; the lit white material modulates it.
+    const unsigned char texels[] = {236, 178, 150, 176, 104, 92, 176, 104, 92, 236, 178, 150};
+    glGenTextures(1, &texture_);
+    glBindTexture(GL_TEXTURE_2D, texture_);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, 2, 2, 0, GL_RGB, GL_UNSIGNED_BYTE, texels);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+  }
+  glEnable(GL_TEXTURE_2D);
+  glBindTexture(GL_TEXTURE_2D, texture_);
+  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
+  glColor3f(1.0f, 1.0f, 1.0f);
+
   ComputeNormals();
   glEnableClientState(GL_VERTEX_ARRAY);
   glEnableClientState(GL_NORMAL_ARRAY);
-  glEnableClientState(GL_COLOR_ARRAY);
+  glEnableClientState(GL_TEXTURE_COORD_ARRAY);
   glVertexPointer(3, GL_FLOAT, 0, vertex_buffer_.data());
   glNormalPointer(GL_FLOAT, 0, normal_buffer_.data());
-  glColorPointer(3, GL_UNSIGNED_BYTE, 0, colours_.data());
+  glTexCoordPointer(2, GL_FLOAT, 0, tex_coords_.data());
   glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices_.size()), GL_UNSIGNED_INT,
                  indices_.data());
-  glDisableClientState(GL_COLOR_ARRAY);
+  glDisableClientState(GL_TEXTURE_COORD_ARRAY);
   glDisableClientState(GL_NORMAL_ARRAY);
   glDisableClientState(GL_VERTEX_ARRAY);
+  glDisable(GL_TEXTURE_2D);
   glDisable(GL_LIGHTING);
 
   if (overlay.show_stylus && overlay.tip.allFinite()) {

@@ -4,7 +4,8 @@
 // vector and a HUD.
 //
 // Units: positions in metres in the scene frame; force in newtons (drawn 2 cm per newton).
-// Threads: the render thread that owns the current OpenGL context.
+// Threads: the render thread that owns the current OpenGL context (one context per MeshView:
+// the checker texture is made in the first one drawn with).
 #pragma once
 
 #include <cstdint>
@@ -52,9 +53,12 @@ class MeshView {
 
   geometry::TriMesh rest_;
   std::vector<geometry::Vec3> positions_;
-  std::vector<float> vertex_buffer_, normal_buffer_;
-  std::vector<unsigned char> colours_;  // RGB per vertex
+  // What is drawn: mesh vertices plus copies along the checker's seam (render_vertex_ maps each
+  // drawn vertex to its mesh vertex), with their texture coordinates.
+  std::vector<int> render_vertex_;
+  std::vector<float> vertex_buffer_, normal_buffer_, tex_coords_;
   std::vector<unsigned int> indices_;
+  unsigned int texture_ = 0;  // the checker, made at the first Draw (needs the context)
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::UnitY(),
                   up_ = Eigen::Vector3d::UnitZ();
   double radius_ = 0.1;
