@@ -4,14 +4,32 @@
 
 namespace vsurg::client {
 
-ReplayDevice::ReplayDevice(std::vector<haptics::StylusSample> samples, haptics::DeviceLimits limits)
-    : samples_(std::move(samples)), limits_(limits) {
+ReplayDevice::ReplayDevice(std::vector<haptics::StylusSample> samples, haptics::DeviceLimits limits,
+                           Clock clock)
+    : samples_(std::move(samples)), limits_(limits), clock_(clock) {
   forces_.reserve(samples_.size() + 1024);
 }
 
 haptics::StylusSample ReplayDevice::Read() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (samples_.empty()) return {};
+  if (clock_ == Clock::kRealTime) {
+    const double now =
+        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    if (start_s_ < 0) start_s_ = now;
+    const double t = samples_.front().time + (now - start_s_);
+    while (next_ < samples_.size() && samples_[next_].time <= t) ++next_;
+    if (next_ == 0) return samples_.front();
+    if (next_ == samples_.size()) return samples_.back();
+    const haptics::StylusSample& a = samples_[next_ - 1];
+    const haptics::StylusSample& b = samples_[next_];
+    const double w = b.time > a.time ? (t - a.time) / (b.time - a.time) : 1.0;
+    haptics::StylusSample s = a;
+    s.time = t;
+    s.position = a.position + w * (b.position - a.position);
+    s.orientation = a.orientation.slerp(w, b.orientation);
+    return s;
+  }
   const size_t k = std::min(next_, samples_.size() - 1);
   if (next_ < samples_.size()) ++next_;
   return samples_[k];

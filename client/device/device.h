@@ -62,12 +62,19 @@ class ServoMailbox {
   Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
 };
 
-// A recorded or scripted trajectory played back one sample per Read (deterministic: tests,
-// demos, benchmarks). Past the end it holds the last sample. It records every force written.
+// A recorded or scripted trajectory played back. Two clocks:
+//  - kPerRead: one sample per Read, whatever the time (deterministic: tests, benchmarks);
+//  - kRealTime: by the samples' own times from the first Read, the pose interpolated between
+//    samples (linear, slerp; buttons of the earlier one), as a hand would have moved: a station
+//    whose loop runs late reads where the hand is now, not the next sample in the file (which
+//    would put a late cycle's catch-up burst into the trial's velocity and jerk).
+// Past the end it holds the last sample. It records every force written.
 class ReplayDevice : public HapticDevice {
  public:
+  enum class Clock { kPerRead, kRealTime };
   ReplayDevice(std::vector<haptics::StylusSample> samples,
-               haptics::DeviceLimits limits = haptics::TouchLimits());
+               haptics::DeviceLimits limits = haptics::TouchLimits(),
+               Clock clock = Clock::kPerRead);
   haptics::StylusSample Read() override;
   void WriteForce(const Eigen::Vector3d& force) override;
   haptics::DeviceLimits limits() const override { return limits_; }
@@ -81,8 +88,10 @@ class ReplayDevice : public HapticDevice {
  private:
   std::vector<haptics::StylusSample> samples_;
   haptics::DeviceLimits limits_;
+  Clock clock_;
   mutable std::mutex mutex_;  // guards the recorded forces and the cursor for readers
-  size_t next_ = 0;
+  size_t next_ = 0;           // kPerRead: the next sample; kRealTime: the first one not yet due
+  double start_s_ = -1;       // kRealTime: the steady clock at the first Read
   std::vector<Eigen::Vector3d> forces_;
 };
 

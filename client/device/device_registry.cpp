@@ -25,7 +25,9 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
       auto samples = sim::ReadTrajectoryCsv(r.trajectory);
       if (!samples.ok()) return samples.error();
       if (samples->empty()) return InvalidArgument("--trajectory", "the trajectory is empty");
-      return std::unique_ptr<HapticDevice>(new ReplayDevice(std::move(*samples), *limits));
+      // A station replays a recording in the recording's own time.
+      return std::unique_ptr<HapticDevice>(
+          new ReplayDevice(std::move(*samples), *limits, ReplayDevice::Clock::kRealTime));
     }
     if (!r.window_input)
       return InvalidArgument("--device", "keyboard-mouse needs a window (not --headless)");

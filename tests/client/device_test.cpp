@@ -52,6 +52,29 @@ TEST(KeyboardMouseDeviceTest, KeysMoveTheTipDragTwistsAndTheWorkspaceHolds) {
   EXPECT_EQ(device.last_force(), Eigen::Vector3d(1, 2, 3));
 }
 
+TEST(ReplayDeviceTest, PerReadStepsOneSampleARealTimeFollowsTheClockAndInterpolates) {
+  std::vector<haptics::StylusSample> two(2);
+  two[1].time = 1.0;
+  two[1].position = Eigen::Vector3d(1, 0, 0);
+  two[1].orientation = Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ()));
+  two[1].buttons = 1;
+  ReplayDevice per_read(two);
+  EXPECT_EQ(per_read.Read().position.x(), 0.0);
+  EXPECT_EQ(per_read.Read().position.x(), 1.0);
+  EXPECT_TRUE(per_read.finished());
+
+  ReplayDevice real_time(two, haptics::TouchLimits(), ReplayDevice::Clock::kRealTime);
+  EXPECT_EQ(real_time.Read().position.x(), 0.0);  // the clock starts at the first Read
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const haptics::StylusSample mid = real_time.Read();
+  EXPECT_GT(mid.position.x(), 0.19);  // at least 200 ms into the 1 m/s segment
+  EXPECT_LT(mid.position.x(), 1.0);
+  EXPECT_EQ(mid.buttons, 0u) << "the earlier sample's buttons until the next is due";
+  // The orientation is interpolated along with the position: angle = x (1 rad per metre).
+  EXPECT_NEAR(Eigen::AngleAxisd(mid.orientation).angle(), mid.position.x(), 0.02);
+  EXPECT_FALSE(real_time.finished());
+}
+
 TEST(ServoMailboxTest, TheServoThreadGetsTheNewestForceAndTheStationTheNewestPose) {
   ServoMailbox mailbox;
   haptics::StylusSample s;
@@ -85,7 +108,10 @@ TEST(DeviceRegistryTest, OpensReplaysAndRefusesWhatItCannotOpen) {
   ASSERT_TRUE(device.ok()) << device.error().message;
   EXPECT_EQ((*device)->info().name, "replay");
   EXPECT_DOUBLE_EQ((*device)->Read().position.z(), 0.1);
-  EXPECT_EQ((*device)->Read().buttons, 1u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));  // past the last sample (1 ms)
+  const haptics::StylusSample last = (*device)->Read();
+  EXPECT_DOUBLE_EQ(last.position.z(), 0.099);
+  EXPECT_EQ(last.buttons, 1u);
 
   DeviceRequest missing;
   missing.trajectory = testing::TempDir() + "/no-such.csv";
