@@ -7,6 +7,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <filesystem>
+#include <fstream>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -259,6 +260,40 @@ TEST(StationBinaryTest, OpensItsWindowUnderXvfb) {
   for (size_t i = 0; i + 2 < image->rgb.size(); i += 3)
     colours.insert(image->rgb[i] << 16 | image->rgb[i + 1] << 8 | image->rgb[i + 2]);
   EXPECT_GT(colours.size(), 50u) << "a shaded arm, not an empty window";
+}
+
+// The keyboard-and-mouse device in the real window: X key events (xdotool under Xvfb) move the
+// stylus, and the server's trial sees the path: D held about 1 s, then E about 0.5 s, at 5 cm/s.
+TEST(StationBinaryTest, KeysInTheWindowMoveTheStylus) {
+  if (test::Shell("command -v xvfb-run >/dev/null && command -v xdotool >/dev/null").code != 0)
+    GTEST_SKIP() << "no xvfb-run or xdotool";
+  const fs::path dir = FreshDir("vsurg_station_keys");
+  const fs::path db = dir / "vsurg.db";
+  const Tokens tokens = MakeStore(db);
+  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  const std::string summary = (dir / "summary.json").string(), script = (dir / "keys.sh").string();
+  std::ofstream(script) << VSURG_STATION_BINARY << " --server 127.0.0.1:" << server.grpc_port
+                        << " --token " << tokens.trainee
+                        << " --device keyboard-mouse --duration 4 --width 400 --height 300"
+                        << " --json > " << summary << " &\n"
+                        << "pid=$!\n"
+                        << "w=$(timeout 20 xdotool search --sync --name 'vsurg station')\n"
+                        << "sleep 0.8\n"
+                        << "xdotool windowactivate --sync $w 2>/dev/null || xdotool windowfocus "
+                           "--sync $w\n"
+                        << "xdotool keydown d; sleep 1; xdotool keyup d\n"
+                        << "xdotool keydown e; sleep 0.5; xdotool keyup e\n"
+                        << "wait $pid\n";
+  const test::ShellRun run =
+      test::Shell("xvfb-run -a -s '-screen 0 1024x768x24' bash " + script + " 2>&1");
+  ASSERT_EQ(run.code, 0) << run.out;
+  std::ifstream in(summary);
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << run.out;
+  EXPECT_EQ(j["state"], "SESSION_STATE_ENDED");
+  const double path = j["metrics"]["path_length"].get<double>();
+  EXPECT_GT(path, 0.03) << "the keys must have moved the stylus (expected about 7.5 cm)";
+  EXPECT_LT(path, 0.2);
 }
 
 }  // namespace
