@@ -474,9 +474,7 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
            "over_limit_s\tpath_m\trms_jerk\toverloads\n";
   for (const v1::Session& x : resp.sessions()) {
     const v1::TrialMetrics& m = x.metrics();
-    std::string state =
-        v1::SessionState_Name(x.state()).substr(std::string("SESSION_STATE_").size());
-    for (char& c : state) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const std::string state = vsurg::client::SessionStateName(x.state());
     if (p.Flag("json")) {
       nlohmann::json j = {{"id", x.id()},
                           {"trainee", x.trainee()},

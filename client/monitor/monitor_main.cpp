@@ -18,6 +18,7 @@
 #include <optional>
 #include <thread>
 
+#include "client/net/proto_convert.h"
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
@@ -41,14 +42,6 @@ std::string Fixed(double v, int digits) {
   char text[64];
   std::snprintf(text, sizeof text, "%.*f", digits, v);
   return text;
-}
-
-std::string StateName(v1::SessionState s) {
-  std::string name = v1::SessionState_Name(s);
-  const std::string prefix = "SESSION_STATE_";
-  if (name.rfind(prefix, 0) == 0) name = name.substr(prefix.size());
-  for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return name;
 }
 
 int Usage(const ArgParser& p, const vsurg::Error& e) {
@@ -75,7 +68,7 @@ int List(const std::vector<std::string>& args) {
   std::cout << "id\ttrainee\tscene\tstate\tscore\n";
   for (const v1::Session& session : resp.sessions())
     std::cout << session.id() << "\t" << session.trainee() << "\t" << session.scene() << "\t"
-              << StateName(session.state()) << "\t"
+              << client::SessionStateName(session.state()) << "\t"
               << (session.has_metrics() ? Fixed(session.metrics().score(), 1) : "-") << "\n";
   return 0;
 }
@@ -84,12 +77,12 @@ std::string TextLine(const v1::Telemetry& t, double since_s) {
   const double f = std::sqrt(t.force().x() * t.force().x() + t.force().y() * t.force().y() +
                              t.force().z() * t.force().z());
   return "t=" + Fixed(since_s, 1) + "s session=" + std::to_string(t.session_id()) +
-         " state=" + StateName(t.state()) + " twist=" + Fixed(t.twist() * 180 / M_PI, 1) +
-         "deg torque=" + Fixed(t.torque(), 3) + "Nm force=" + Fixed(f, 2) +
-         "N contact=" + (t.contact() ? "1" : "0") + " grasp=" + (t.grasping() ? "1" : "0") +
-         " rtt=" + Fixed(t.rtt_us(), 0) + "us loss=" + Fixed(100 * t.packet_loss(), 2) +
-         "% rate=" + Fixed(t.haptic_rate_hz(), 0) + "Hz packets=" + std::to_string(t.packets()) +
-         " score=" + Fixed(t.metrics().score(), 1);
+         " state=" + client::SessionStateName(t.state()) +
+         " twist=" + Fixed(t.twist() * 180 / M_PI, 1) + "deg torque=" + Fixed(t.torque(), 3) +
+         "Nm force=" + Fixed(f, 2) + "N contact=" + (t.contact() ? "1" : "0") +
+         " grasp=" + (t.grasping() ? "1" : "0") + " rtt=" + Fixed(t.rtt_us(), 0) +
+         "us loss=" + Fixed(100 * t.packet_loss(), 2) + "% rate=" + Fixed(t.haptic_rate_hz(), 0) +
+         "Hz packets=" + std::to_string(t.packets()) + " score=" + Fixed(t.metrics().score(), 1);
 }
 
 // The Watch stream on its own thread; the main thread takes the newest message (latest wins).
@@ -275,7 +268,7 @@ int Follow(const std::vector<std::string>& args) {
         overlay.contact = latest.contact();
         overlay.grasping = latest.grasping();
         overlay.hud = {"vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() +
-                           "  " + StateName(latest.state()),
+                           "  " + client::SessionStateName(latest.state()),
                        "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
                            Fixed(latest.torque(), 2) + " nm",
                        "haptic " + Fixed(latest.haptic_rate_hz(), 0) + " hz   rtt " +
@@ -295,10 +288,7 @@ int Follow(const std::vector<std::string>& args) {
                       (duration > 0 && seconds() >= duration);
     if (done) {
       if (gl && view && p.Has("screenshot")) {
-        const vsurg::RgbImage image = gl->ReadPixels();
-        if (auto s =
-                vsurg::WriteRgbPng(p.String("screenshot"), image.width, image.height, image.rgb);
-            !s.ok()) {
+        if (auto s = gl->SaveScreenshot(p.String("screenshot")); !s.ok()) {
           std::cerr << p.command() << ": " << s.error().message << "\n";
           return 1;
         }

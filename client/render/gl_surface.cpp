@@ -247,6 +247,11 @@ RgbImage GlSurface::ReadPixels() const {
   return image;
 }
 
+Status GlSurface::SaveScreenshot(const std::string& path) const {
+  const RgbImage image = ReadPixels();
+  return WriteRgbPng(path, image.width, image.height, image.rgb);
+}
+
 WindowInput GlSurface::Input() const {
   std::lock_guard lock(impl_->input_mutex);
   return impl_->input;

@@ -37,6 +37,8 @@ class GlSurface {
   void EndFrame();
   // The frame just drawn (call before EndFrame for a window), top row first.
   RgbImage ReadPixels() const;
+  // ReadPixels written as a PNG file.
+  Status SaveScreenshot(const std::string& path) const;
   WindowInput Input() const;
 
   struct Impl;  // public only for the window's C callbacks in gl_surface.cpp

@@ -130,12 +130,15 @@ Status Station::Connect() {
   return Status::Ok();
 }
 
+void Station::StopChannel() {
+  if (!channel_) return;
+  channel_->Stop();  // the device is left at zero force
+  Add(finished_stats_, channel_->stats());
+  channel_.reset();
+}
+
 void Station::Drop(const std::string& why) {
-  if (channel_) {
-    channel_->Stop();  // the device is left at zero force
-    Add(finished_stats_, channel_->stats());
-    channel_.reset();
-  }
+  StopChannel();
   status_.last_error = why;
   if (!config_.reconnect) {
     status_.state = StationState::kFailed;
@@ -198,11 +201,7 @@ void Station::Tick() {
 }
 
 Expected<SessionSummary> Station::Finish(const std::string& reason) {
-  if (channel_) {
-    channel_->Stop();
-    Add(finished_stats_, channel_->stats());
-    channel_.reset();
-  }
+  StopChannel();
   const bool had_session = status_.session != 0;
   status_.state = StationState::kFinished;
   if (!had_session) return Error{ErrorCode::kUnavailable, "no session was started", "session"};

@@ -78,6 +78,7 @@ class Station {
  private:
   Status Connect();
   void Probe(double now);
+  void StopChannel();  // keeps its statistics in finished_stats_
   void Drop(const std::string& why);
   double Now() const;
 

@@ -229,18 +229,13 @@ int Run(const std::vector<std::string>& args) {
 
     if (live && !before_taken && p.Has("screenshot-before")) {
       before_taken = true;
-      const vsurg::RgbImage image = gl->ReadPixels();
-      if (auto s = vsurg::WriteRgbPng(p.String("screenshot-before"), image.width, image.height,
-                                      image.rgb);
-          !s.ok())
+      if (auto s = gl->SaveScreenshot(p.String("screenshot-before")); !s.ok())
         return Fail(s.error().message);
     }
     const bool at_time = p.Has("screenshot-at") && live && live_now >= p.Double("screenshot-at");
     if (p.Has("screenshot") && !screenshot_taken && at_time) {
       screenshot_taken = true;
-      const vsurg::RgbImage image = gl->ReadPixels();
-      if (auto s = vsurg::WriteRgbPng(p.String("screenshot"), image.width, image.height, image.rgb);
-          !s.ok())
+      if (auto s = gl->SaveScreenshot(p.String("screenshot")); !s.ok())
         return Fail(s.error().message);
     }
 
@@ -253,13 +248,9 @@ int Run(const std::vector<std::string>& args) {
     if (duration <= 0 && replay_done_at >= 0 && live_now - replay_done_at >= p.Double("settle"))
       done = ended_by_replay = true;
     if (done) {
-      if (p.Has("screenshot") && !screenshot_taken) {
-        const vsurg::RgbImage image = gl->ReadPixels();
-        if (auto s =
-                vsurg::WriteRgbPng(p.String("screenshot"), image.width, image.height, image.rgb);
-            !s.ok())
+      if (p.Has("screenshot") && !screenshot_taken)
+        if (auto s = gl->SaveScreenshot(p.String("screenshot")); !s.ok())
           return Fail(s.error().message);
-      }
       gl->EndFrame();
       break;
     }
