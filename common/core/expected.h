@@ -20,6 +20,7 @@ enum class ErrorCode {
   kNumerical,           // a computation did not converge or produced a non-finite value
   kAlreadyExists,       // a unique thing exists already (a user name, a second evaluation)
   kUnavailable,         // a resource is busy or shutting down; retrying may succeed
+  kResourceExhausted,   // a quota is used up (e.g. a user's live sessions); free some first
   kUnauthenticated,     // no valid credentials
   kPermissionDenied,    // valid credentials, not allowed
 };

@@ -45,6 +45,9 @@ enum HapticEvent : uint32_t {
   kEventOverload = 1u << 6,          // the tissue was loaded past its capacity (coil model)
   kEventGraspStart = 1u << 7,
   kEventGraspEnd = 1u << 8,
+  // The station's clock jumped (forward by more than sim::kMaxClockStepS, or backwards): the
+  // session's trial clock advanced by at most that bound, so one sample's work stays bounded.
+  kEventClockJump = 1u << 9,
 };
 
 struct ForceCommand {

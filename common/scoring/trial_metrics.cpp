@@ -24,8 +24,12 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
   const Eigen::Vector3d previous = filtered_;
   const double alpha = samples_ == 0 ? 1.0 : 1.0 - std::exp(-2.0 * 3.14159265358979 * 10.0 * dt);
   filtered_ += alpha * (tip - filtered_);
-  if (samples_ == 0) next_grid_ = time;
-  while (next_grid_ <= time) {
+  // Bounded work per sample whatever the clock does: a gap longer than kMaxGridSteps grid
+  // points restarts the grid at this sample (the jerk's history restarts with it), and the walk
+  // counts its steps, so a time so large that next_grid_ + kGrid == next_grid_ cannot spin.
+  constexpr int kMaxGridSteps = 128;
+  if (samples_ == 0 || time - next_grid_ > kMaxGridSteps * kGrid) next_grid_ = time, grid_ = 0;
+  for (int steps = 0; next_grid_ <= time && steps <= kMaxGridSteps; ++steps) {
     const double w = dt > 0 ? 1.0 - (time - next_grid_) / dt : 1.0;
     for (int k = 3; k > 0; --k) x_[k] = x_[k - 1];
     x_[0] = previous + w * (filtered_ - previous);

@@ -20,7 +20,8 @@
 // Non-compensatory safety gates, as proficiency-based curricula use: not completed caps the
 // score at 5; more than 0.5 s over the force limit caps it at 4; any overload caps it at 3.
 //
-// Threads: a recorder belongs to the haptic thread; Add never allocates.
+// Threads: a recorder belongs to the haptic thread; Add never allocates and does bounded work
+// (at most 129 grid points, whatever the times it is given).
 #pragma once
 
 #include <cstdint>

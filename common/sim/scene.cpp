@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +21,15 @@ using json = nlohmann::json;
 namespace fs = std::filesystem;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
+
+// Per-vertex memory of a session by model (EstimatedSessionBytes), bytes. Measured 2026-11-22:
+// resident memory after Simulation::Create and 3 s of a scripted trainee, over the vertex count;
+// coil 1,024 B (arm, 6,182 vertices), 773 (65,538-vertex limb), 801 (16,386-vertex organ
+// surface); mass-spring 4,623 (1,026), 3,326 (16,386); ring layer 2,052 (1,026), 690 (16,386).
+// Small scenes carry fixed costs; the budget is about large ones: the asymptote with margin.
+constexpr size_t kCoilBytesPerVertex = 1536;
+constexpr size_t kMassSpringBytesPerVertex = 4096;
+constexpr size_t kRingLayerBytesPerVertex = 1536;
 
 // Typed field access with errors that name the field by its path.
 class Reader {
@@ -266,6 +276,41 @@ const char* ModelKindName(ModelKind kind) {
   return "unknown";
 }
 
+// Per-vertex costs (the constants above): positions, the BVH and their triple buffers, visual
+// frames, the model's own state (mass-spring: springs, inner layer, CG scratch; coil: centreline
+// projections and the deformer).
+size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices) {
+  size_t per_vertex = 0;
+  switch (model) {
+    case ModelKind::kCoil:
+      per_vertex = kCoilBytesPerVertex;
+      break;
+    case ModelKind::kMassSpring:
+      per_vertex = kMassSpringBytesPerVertex;
+      break;
+    case ModelKind::kRingLayer:
+      per_vertex = kRingLayerBytesPerVertex;
+      break;
+  }
+  return surface_vertices * per_vertex;
+}
+
+Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::string& field) {
+  const size_t need = EstimatedSessionBytes(model, surface_vertices);
+  if (need <= kSessionMemoryBudgetBytes) return Status::Ok();
+  char why[256];
+  std::snprintf(why, sizeof why,
+                "%s: %zu surface vertices with the %s model need about %.0f MiB per session, over "
+                "the budget of %zu MiB: use a coarser mesh",
+                field.c_str(), surface_vertices, ModelKindName(model),
+                static_cast<double>(need) / (1 << 20), kSessionMemoryBudgetBytes >> 20);
+  return Error{ErrorCode::kResourceExhausted, why, field};
+}
+
+namespace {
+Expected<Scene> ParseSceneObject(const json& root, const std::string& source);
+}  // namespace
+
 Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   json root;
   try {
@@ -275,6 +320,19 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   }
   if (!root.is_object())
     return Error{ErrorCode::kParseError, source + ": the scene must be a JSON object", "scene"};
+  // Every field is type-checked by Reader with a message naming it; this catch is the net under
+  // that rule, so a field read without a check is a clear error for its file, never a crash.
+  try {
+    return ParseSceneObject(root, source);
+  } catch (const json::exception& e) {
+    return Error{ErrorCode::kParseError, source + ": a field has the wrong type: " + e.what(),
+                 "scene"};
+  }
+}
+
+namespace {
+
+Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   auto with_source = [&](Error e) {
     e.message = source + ": " + e.message;
     return e;
@@ -286,7 +344,11 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   auto name = r.String("name");
   if (!name.ok()) return with_source(name.error());
   s.name = *name;
-  s.description = root.value("description", "");
+  if (r.Has("description")) {
+    if (!root["description"].is_string())
+      return with_source(r.Bad("description", "must be a string"));
+    s.description = root["description"].get<std::string>();
+  }
   auto mesh = r.Object("mesh");
   if (!mesh.ok()) return with_source(mesh.error());
   if (Status st = ParseMesh(*mesh, dir, s.mesh); !st.ok()) return with_source(st.error());
@@ -316,6 +378,17 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
       s.region.support == Support::kBottom) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
   }
+  if (s.mesh.kind != MeshKind::kObj) {  // a file's size is known when it is read (Simulation)
+    const size_t vertices =
+        s.mesh.kind == MeshKind::kLimb
+            ? static_cast<size_t>(s.mesh.limb.segments_around) * s.mesh.limb.rings_along + 2
+            : static_cast<size_t>(geometry::SphereVertexCount(
+                  geometry::SphereBase::kOctahedron,
+                  geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
+                                                       s.mesh.particles)));
+    if (Status st = CheckSessionMemory(s.region.kind, vertices, "mesh"); !st.ok())
+      return with_source(st.error());
+  }
   if (r.Has("haptics")) {
     auto h = r.Object("haptics");
     if (!h.ok()) return with_source(h.error());
@@ -339,6 +412,8 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   s.error_reference = *reference;
   return s;
 }
+
+}  // namespace
 
 Expected<Scene> LoadScene(const std::string& path) {
   std::ifstream in(path);

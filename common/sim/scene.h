@@ -92,6 +92,16 @@ struct Scene {
   std::string error_reference;    // what that error is measured against
 };
 
+// One user can never deny the others service: a scene may not ask for more memory per session
+// than this. Checked when a scene is read (from the mesh parameters) and again when a session is
+// built (from the real vertex count, for meshes read from files).
+inline constexpr size_t kSessionMemoryBudgetBytes = size_t{512} << 20;
+// The memory one session of a scene with `surface_vertices` needs, estimated from per-vertex
+// costs measured on the shipped scenes (scene.cpp), bytes.
+size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices);
+// kResourceExhausted, naming `field`, when the estimate is over the budget.
+Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::string& field);
+
 Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
 Expected<Scene> LoadScene(const std::string& path);
 

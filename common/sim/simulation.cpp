@@ -24,14 +24,29 @@ Vec3 AnyPerpendicular(const Vec3& a) {
 
 Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene,
                                                          const SimulationOptions& options) {
+  // Sizes are checked against the memory budget before anything big is made; should memory
+  // still run out (other sessions, a small machine), it is an error for this session only.
+  try {
+    return CreateChecked(scene, options);
+  } catch (const std::bad_alloc&) {
+    return Error{ErrorCode::kResourceExhausted, "out of memory building scene '" + scene.name + "'",
+                 "scene"};
+  }
+}
+
+Expected<std::unique_ptr<Simulation>> Simulation::CreateChecked(const Scene& scene,
+                                                                const SimulationOptions& options) {
   auto mesh = BuildSceneMesh(scene.mesh);
   if (!mesh.ok()) return mesh.error();
+  if (Status s = CheckSessionMemory(scene.region.kind, mesh->surface.positions.size(), "mesh");
+      !s.ok())
+    return s.error();
   geometry::TriMesh rest = std::move(mesh->surface);
   std::vector<Vec3> centreline = std::move(mesh->centreline);
   std::unique_ptr<Simulation> sim(new Simulation(scene, std::move(rest), options));
   sim->centreline_points_ = std::move(centreline);
   if (Status s = sim->Build(); !s.ok()) return s.error();
-  if (options.threaded) sim->thread_ = std::thread([p = sim.get()] { p->DeformationLoop(); });
+  if (options.threaded && options.start_deformation) sim->SetDeformationRunning(true);
   return sim;
 }
 
@@ -44,10 +59,21 @@ Simulation::Simulation(const Scene& scene, geometry::TriMesh rest, const Simulat
       recorder_(scene.task) {}
 
 Simulation::~Simulation() {
+  SetDeformationRunning(false);
+}
+
+void Simulation::SetDeformationRunning(bool running) {
+  if (running == thread_.joinable()) return;
+  if (running) {
+    if (!options_.threaded) return;
+    stop_.store(false);
+    thread_ = std::thread([this] { DeformationLoop(); });
+    return;
+  }
   stop_.store(true);
   input_version_.fetch_add(1);
   input_version_.notify_all();
-  if (thread_.joinable()) thread_.join();
+  thread_.join();
 }
 
 Status Simulation::Build() {
@@ -124,8 +150,23 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     PublishInput();
     return Zero(s, events);
   }
-  double dt = has_time_ ? s.time - last_time_ : 1e-3;
-  if (!(dt > 0 && dt < 0.1)) dt = 1e-3;  // repeated, reordered or after a pause
+  // The trial clock follows the station's time in steps of at most kMaxClockStepS; a longer
+  // step forward advances it by the bound, a step backwards by a nominal millisecond, and both
+  // count as clock jumps. A repeated stamp does not advance it.
+  double step = 0;
+  if (has_time_) {
+    const double station_dt = s.time - last_time_;  // may overflow to ±inf: still ordered
+    if (station_dt >= 0 && station_dt <= kMaxClockStepS) {
+      step = station_dt;
+    } else {
+      step = station_dt > 0 ? kMaxClockStepS : 1e-3;
+      events |= haptics::kEventClockJump;
+      ++clock_jumps_;
+    }
+  }
+  trial_time_ += step;
+  double dt = step;
+  if (!(dt > 0 && dt < 0.1)) dt = 1e-3;  // repeated, or after a pause or a jump
   last_time_ = s.time;
   has_time_ = true;
   surface_.Acquire();
@@ -225,7 +266,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
   safety_.LimitLocalModel(cmd.local, out, events);
   if (overload) events |= haptics::kEventOverload;
   cmd.events = events;
-  recorder_.Add(s.time, s.position, quantity, out.norm(), overload);
+  recorder_.Add(trial_time_, s.position, quantity, out.norm(), overload);
   ++samples_;
   // Telemetry for instructors (30 Hz): every 8th sample is plenty at ≥ 1 kHz and keeps the
   // metrics summary off most haptic cycles. Never allocates (TrialMetrics is plain data).
@@ -240,6 +281,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     t.contact = cmd.contact;
     t.grasping = cmd.grasping;
     t.samples = samples_;
+    t.clock_jumps = clock_jumps_;
     t.metrics = recorder_.Finish();
     live_score_ = t.metrics.score;
     telemetry_.Publish();
@@ -366,11 +408,13 @@ void Simulation::Replay(
     const std::function<void(const StylusSample&, const ForceCommand&)>& on_command) {
   const bool paced = scene_.region.kind != ModelKind::kCoil;
   const double dt = scene_.region.dt;
-  double sim_time = samples.empty() ? 0.0 : samples.front().time;
+  // Deformation time follows the trial clock, which advances at most kMaxClockStepS per sample:
+  // a recording whose clock jumps costs at most that many steps per sample, never a hang.
+  double sim_time = trial_time_;
   for (const StylusSample& sample : samples) {
     const ForceCommand c = OnStylus(sample);
-    if (paced && std::isfinite(sample.time)) {
-      while (sim_time + dt <= sample.time) StepDeformation(), sim_time += dt;
+    if (paced) {
+      while (sim_time + dt <= trial_time_) StepDeformation(), sim_time += dt;
     } else {
       StepDeformation();
     }

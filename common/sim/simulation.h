@@ -53,8 +53,19 @@
 
 namespace vsurg::sim {
 
+// The largest step of a session's trial clock, s. A station's clock may jump (a bad device, a
+// faulty sync, or an attacker with a valid key): the trial clock follows the station's time
+// steps up to this bound and no further, so the work one sample can cause (the trial recorder's
+// grid, a replay's deformation steps) is bounded, and a jump costs no other session anything.
+// It is above the endpoint's stall time (0.5 s), so a real pause still counts in full.
+inline constexpr double kMaxClockStepS = 1.0;
+
 struct SimulationOptions {
   bool threaded = true;  // false: the caller drives StepDeformation() (replays, tests)
+  // Threaded only: start the deformation thread at Create. The server leaves it off and turns it
+  // on only while a station drives the session (SetDeformationRunning), so a session nobody
+  // drives costs no thread and no CPU.
+  bool start_deformation = true;
 };
 
 struct VisualFrame {
@@ -72,6 +83,7 @@ struct Telemetry {
   double torque = 0;                              // N·m
   bool contact = false, grasping = false;
   uint64_t samples = 0;           // stylus samples handled
+  uint64_t clock_jumps = 0;       // samples whose time jumped (haptics::kEventClockJump)
   scoring::TrialMetrics metrics;  // so far
 };
 
@@ -85,6 +97,11 @@ class Simulation {
 
   // Haptic thread, ≥ 1 kHz. Never allocates, never blocks.
   haptics::ForceCommand OnStylus(const haptics::StylusSample& sample);
+  // Threaded mode, from one control thread (never the haptic thread): starts or stops (joins)
+  // the deformation thread. The tissue keeps its state while the thread is off; the haptic path
+  // keeps answering from the last published surface.
+  void SetDeformationRunning(bool running);
+  bool deformation_running() const { return thread_.joinable(); }
   // Non-threaded mode: one deformation update from the latest input (the caller's thread).
   void StepDeformation();
   // Non-threaded mode: plays samples through OnStylus in their own time. The deformation steps
@@ -109,6 +126,10 @@ class Simulation {
   bool TakeTelemetry(Telemetry& out);
   const Scene& scene() const { return scene_; }
   const geometry::TriMesh& rest_mesh() const { return rest_; }
+  // The haptic thread's trial clock (s since the first sample; see kMaxClockStepS) and how many
+  // samples jumped. Not concurrently with OnStylus.
+  double trial_time() const { return trial_time_; }
+  uint64_t clock_jumps() const { return clock_jumps_; }
   // Deformation updates published so far (any thread).
   uint64_t deformation_updates() const { return updates_.load(std::memory_order_relaxed); }
 
@@ -136,6 +157,8 @@ class Simulation {
     uint64_t id = 0;
   };
 
+  static Expected<std::unique_ptr<Simulation>> CreateChecked(const Scene& scene,
+                                                             const SimulationOptions& options);
   Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options);
   Status Build();
   void DeformationLoop();
@@ -160,7 +183,9 @@ class Simulation {
   std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex
   std::vector<geometry::Vec3> centreline_points_;
   DeformInput input_;
-  double last_time_ = 0;
+  double last_time_ = 0;   // s, the station's time of the last accepted sample
+  double trial_time_ = 0;  // s, the trial clock: bounded steps of the station's time
+  uint64_t clock_jumps_ = 0;
   bool has_time_ = false;
   bool grasping_ = false;
   Eigen::Quaterniond grasp_q0_ = Eigen::Quaterniond::Identity();

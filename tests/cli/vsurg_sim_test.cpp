@@ -13,6 +13,8 @@
 
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/obj_io.h"
+#include "common/sim/scene.h"
+#include "tests/support/deadline.h"
 
 namespace vsurg::cli {
 namespace {
@@ -343,6 +345,42 @@ TEST(VsurgSimTest, RunRejectsBadTrajectoriesAndScenes) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--style"), std::string::npos);
   std::filesystem::remove(path);
+}
+
+// A two-row trajectory (0 s, then 1e308 s) hung `vsurg-sim run` in the trial recorder's grid walk;
+// a time jump in a mass-spring replay did too; a scene whose description was a number gave
+// "internal error" and exit 1.
+TEST(VsurgSimTest, RunSurvivesClockJumpsAndBadSceneFieldTypes) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string path = (dir / "vsurg_cli_jump.csv").string();
+  {
+    std::ofstream f(path);
+    f << "t,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.3,1,0,0,0,0\n1e308,0,0,0.3,1,0,0,0,0\n"
+         "1e7,0,0,0.06,1,0,0,0,0\n1.0000001e7,0,0,0.045,1,0,0,0,0\n";
+  }
+  for (const char* scene : {"arm-torsion", "sphere-palpation-256"}) {
+    SimRun r;
+    test::ReturnsWithin(60, "vsurg-sim run", [&] {
+      r = Sim({"run", "--scene", scene, "--trajectory", path, "--json"});
+    });
+    EXPECT_EQ(r.code, 0) << scene << ": " << r.err;
+    const json j = json::parse(r.out);
+    EXPECT_LE(j["metrics"]["duration"].get<double>(), 3.0) << scene;
+  }
+  const std::string bad = (dir / "vsurg_cli_bad_scene.json").string();
+  {
+    std::ifstream in(sim::ScenesDirectory() + "/arm-torsion.json");
+    json j = json::parse(in);
+    j["description"] = 3;
+    std::ofstream(bad) << j.dump();
+  }
+  const SimRun r = Sim({"run", "--scene", bad, "--trajectory", path});
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(Lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("description: must be a string"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
+  std::filesystem::remove(path);
+  std::filesystem::remove(bad);
 }
 
 // The real binary, as other tools call it: exit status and streams.

@@ -1,5 +1,6 @@
 #include "server/net/udp_endpoint.h"
 
+#include <atomic>
 #include <chrono>
 #include <thread>
 
@@ -31,9 +32,9 @@ struct RawClient {
   explicit RawClient(uint16_t port) : server(asio::ip::make_address("127.0.0.1"), port) {}
 
   std::vector<uint8_t> Stylus(uint64_t session, uint64_t seq, const wire::SessionKey& key,
-                              double z = 0.06) {
+                              double z = 0.06, double time = -1) {
     wire::StylusMessage m;
-    m.sample.time = seq * 1e-3;
+    m.sample.time = time >= 0 ? time : seq * 1e-3;
     m.sample.position = Eigen::Vector3d(0.001, 0.001, z);
     std::vector<uint8_t> buf(wire::kMaxDatagram);
     const size_t n = codec.EncodeStylus(
@@ -161,6 +162,55 @@ TEST(UdpEndpointTest, SilentSessionsStallThenDisconnectAndResume) {
   events = f.endpoint->TakeEvents();
   ASSERT_EQ(events.size(), 1u);
   EXPECT_EQ(events[0].state, SessionState::kRunning);
+}
+
+// One authenticated datagram whose station time jumps (1e7 s; 1e308 s, finite, so the input check
+// passes) stalled the I/O thread for 5 s or for ever, and with it every other session's answers.
+TEST(UdpEndpointTest, OneSessionsClockJumpNeverDelaysAnotherSessionsAnswers) {
+  auto scene = sim::LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok());
+  auto a = std::move(*sim::Simulation::Create(*scene, {true}));
+  auto b = std::move(*sim::Simulation::Create(*scene, {true}));
+  auto endpoint = std::move(*UdpEndpoint::Create({}));
+  endpoint->AddSession(1, Key(1), a.get());
+  endpoint->AddSession(2, Key(2), b.get());
+  RawClient attacker(endpoint->port()), station(endpoint->port());
+  std::atomic<bool> done{false};
+  std::thread jumps([&] {
+    uint64_t seq = 1;
+    for (; seq <= 50; ++seq) attacker.Send(attacker.Stylus(1, seq, Key(1)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    for (double t : {1e7, 1e308, 1.5e308, 2e7, -1.0}) {
+      attacker.Send(attacker.Stylus(1, seq++, Key(1), 0.06, t));
+      std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    }
+    done = true;
+  });
+  // The other station: a datagram every millisecond, each answered before the next goes.
+  double worst_ms = 0;
+  int unanswered = 0, sent = 0;
+  for (uint64_t seq = 1; !done || sent < 400; ++seq, ++sent) {
+    const auto t0 = std::chrono::steady_clock::now();
+    station.Send(station.Stylus(2, seq, Key(2)));
+    if (!station.Receive(1000)) ++unanswered;
+    worst_ms = std::max(
+        worst_ms,
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (unanswered > 3) break;
+    std::this_thread::sleep_until(t0 + std::chrono::milliseconds(1));
+  }
+  jumps.join();
+  EXPECT_EQ(unanswered, 0);
+  // Generous for a loaded 2-core CI machine; the failure it guards against is seconds or never.
+  EXPECT_LT(worst_ms, 250.0);
+  // The attacker's own session is still answered, and its jumps were counted.
+  while (attacker.Receive(50)) {
+  }
+  attacker.Send(attacker.Stylus(1, 1000, Key(1), 0.06, 5.0));
+  EXPECT_TRUE(attacker.Receive(1000).has_value());
+  endpoint->RemoveSession(1);
+  endpoint->RemoveSession(2);
+  EXPECT_GE(a->clock_jumps(), 4u);
 }
 
 TEST(UdpEndpointTest, BadOptionsAndPortsInUseAreErrors) {

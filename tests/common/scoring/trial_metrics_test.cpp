@@ -1,6 +1,10 @@
 #include "common/scoring/trial_metrics.h"
 
+#include <cmath>
+
 #include <gtest/gtest.h>
+
+#include "tests/support/deadline.h"
 
 namespace vsurg::scoring {
 namespace {
@@ -107,6 +111,23 @@ TEST(TrialMetricsTest, BadSamplesAreIgnored) {
   EXPECT_EQ(m.peak_force, 1.0);
   EXPECT_NEAR(m.path_length, 0.001, 1e-15);
   EXPECT_NEAR(m.duration, 0.002, 1e-15);
+}
+
+TEST(TrialMetricsTest, AClockJumpCostsBoundedWorkAndNeverHangs) {
+  // A sample stamped 1e308 s (finite): the 10 ms grid walk would never reach it, and at that
+  // magnitude next + 0.01 == next. Both must return at once.
+  test::ReturnsWithin(10, "TrialRecorder::Add", [] {
+    TrialRecorder r(Twist());
+    for (int i = 0; i < 50; ++i) r.Add(i * 1e-3, Eigen::Vector3d(i * 1e-4, 0, 0), 0, 0, false);
+    r.Add(1e7, Eigen::Vector3d::Zero(), 0, 0, false);
+    r.Add(1e308, Eigen::Vector3d::Zero(), 0, 0, false);
+    r.Add(1e308, Eigen::Vector3d::Zero(), 0, 0, false);  // repeated: ignored
+    const TrialMetrics m = r.Finish();
+    EXPECT_TRUE(std::isfinite(m.rms_jerk));
+    EXPECT_TRUE(std::isfinite(m.score));
+    EXPECT_GE(m.score, 0.0);
+    EXPECT_LE(m.score, 10.0);
+  });
 }
 
 }  // namespace

@@ -1,8 +1,11 @@
 #include "common/sim/scene.h"
 
 #include <filesystem>
+#include <fstream>
+#include <set>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "common/sim/limb_scene.h"
 
@@ -111,6 +114,80 @@ TEST(SceneTest, BadScenesNameTheField) {
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
   EXPECT_FALSE(LoadSceneByName("../etc/passwd").ok());
+}
+
+// A description that was a number escaped as a JSON type_error ("internal error", exit 1) and in
+// the server's scenes folder broke ListScenes and Create for everyone. Every field is checked.
+TEST(SceneTest, EveryFieldsTypeIsCheckedNamingIt) {
+  EXPECT_NE(Field(Replace(Minimal(), R"("name": "t", )", R"("name": "t", "description": 5, )"))
+                .find("x.json: description: must be a string"),
+            std::string::npos);
+  EXPECT_TRUE(
+      ParseScene(Replace(Minimal(), R"("name": "t", )", R"("name": "t", "description": "", )"),
+                 "x.json")
+          .ok());
+  // Each value of the wrong JSON type, at every path of two scenes (every leaf and every object
+  // or array above one): one error naming the file, never a throw.
+  std::ifstream arm_file(ScenesDirectory() + "/arm-torsion.json");
+  std::set<std::string> paths;
+  std::vector<nlohmann::json> bases = {nlohmann::json::parse(Minimal()),
+                                       nlohmann::json::parse(arm_file)};
+  for (const nlohmann::json& base : bases) {
+    const nlohmann::json flat = base.flatten();
+    for (const auto& [leaf, value] : flat.items()) {
+      paths.insert(leaf);
+      for (size_t slash = leaf.rfind('/'); slash != 0 && slash != std::string::npos;
+           slash = leaf.rfind('/', slash - 1))
+        paths.insert(leaf.substr(0, slash));
+    }
+  }
+  for (const auto& wrong :
+       {nlohmann::json(5), nlohmann::json("s"), nlohmann::json::array(), nlohmann::json::object(),
+        nlohmann::json(nullptr), nlohmann::json(true)}) {
+    for (const nlohmann::json& base : bases) {
+      for (const std::string& key : paths) {
+        const nlohmann::json::json_pointer at(key);
+        if (!base.contains(at)) continue;
+        nlohmann::json j = base;
+        j[at] = wrong;
+        Expected<Scene> parsed = InvalidArgument("", "");
+        ASSERT_NO_THROW(parsed = ParseScene(j.dump(), "x.json")) << key << " = " << wrong.dump();
+        if (!parsed.ok()) {
+          EXPECT_NE(parsed.error().message.find("x.json: "), std::string::npos);
+        }
+      }
+    }
+  }
+  EXPECT_GT(paths.size(), 30u);
+}
+
+// A limb of 4,096 segments × 8,192 rings passed validation and ended in std::bad_alloc.
+TEST(SceneTest, ASceneMustFitTheSessionMemoryBudget) {
+  std::ifstream arm_file(ScenesDirectory() + "/arm-torsion.json");
+  nlohmann::json arm = nlohmann::json::parse(arm_file);
+  arm["mesh"]["segments"] = 4096;
+  arm["mesh"]["rings"] = 8192;
+  auto big = ParseScene(arm.dump(), "big.json");
+  ASSERT_FALSE(big.ok());
+  EXPECT_EQ(big.error().code, ErrorCode::kResourceExhausted);
+  EXPECT_EQ(big.error().field, "mesh");
+  EXPECT_NE(big.error().message.find("33554434 surface vertices"), std::string::npos)
+      << big.error().message;
+  EXPECT_NE(big.error().message.find("budget of 512 MiB"), std::string::npos);
+  // A mass-spring sphere at the largest particle count the reader accepts costs too much; a
+  // coil limb of 256 × 256 fits.
+  EXPECT_EQ(Field(Replace(Minimal(), R"("particles": 256)", R"("particles": 300000)"))
+                .find("x.json: mesh: 262146 surface vertices with the mass-spring model"),
+            0u);
+  arm["mesh"]["segments"] = 256;
+  arm["mesh"]["rings"] = 256;
+  EXPECT_TRUE(ParseScene(arm.dump(), "ok.json").ok());
+  EXPECT_LE(EstimatedSessionBytes(ModelKind::kCoil, 6182), size_t{16} << 20);
+  // Every shipped scene is far inside the budget.
+  for (const auto& entry : std::filesystem::directory_iterator(ScenesDirectory())) {
+    auto scene = LoadScene(entry.path().string());
+    EXPECT_TRUE(scene.ok()) << entry.path();
+  }
 }
 
 }  // namespace

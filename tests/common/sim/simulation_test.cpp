@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "common/sim/trajectory.h"
+#include "tests/support/deadline.h"
 
 // Counts heap allocations made by the thread that sets the flag (the deformation thread and the
 // test framework are not counted). Every form of new and delete is replaced, so each pair meets
@@ -162,6 +163,39 @@ TEST(SimulationTest, AdversarialStylusInputNeverExceedsTheDeviceLimits) {
     ASSERT_LE(c.force.norm(), 3.3 * (1 + 1e-12));
     ASSERT_TRUE(c.local.jacobian.allFinite());
     ASSERT_EQ(c.local.force0, c.force);
+  }
+}
+
+// A station clock that jumps (a bad device, a faulty sync, an attacker with the session key) must
+// cost bounded work: the trial clock steps at most kMaxClockStepS per sample, the jump is flagged,
+// and the trial's duration grows by no more than that bound per jump.
+TEST(SimulationTest, AStationClockJumpIsBoundedAndFlagged) {
+  for (const char* name : {"arm-torsion", "sphere-palpation-256"}) {
+    SCOPED_TRACE(name);
+    auto scene = LoadSceneByName(name);
+    ASSERT_TRUE(scene.ok());
+    test::ReturnsWithin(30, "OnStylus after a clock jump", [&] {
+      auto sim = Simulation::Create(*scene, {false});
+      ASSERT_TRUE(sim.ok());
+      std::vector<haptics::StylusSample> samples;
+      haptics::StylusSample s;
+      s.position = Eigen::Vector3d(0.001, 0.001, 0.3);
+      for (int i = 0; i < 100; ++i) s.time = i * 1e-3, samples.push_back(s);
+      for (double t : {1e7, 1e308, 1.5e308, -5.0, -4.999}) s.time = t, samples.push_back(s);
+      uint32_t flagged = 0;
+      (*sim)->Replay(samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
+        if (c.events & haptics::kEventClockJump) ++flagged;
+        ASSERT_TRUE(c.force.allFinite());
+      });
+      // 1e7, 1e308, 1.5e308 (forward) and −5.0 (backwards) jumped; −4.999 is a 1 ms step.
+      EXPECT_EQ((*sim)->clock_jumps(), 4u);
+      EXPECT_EQ(flagged, 4u);
+      const scoring::TrialMetrics m = (*sim)->Metrics();
+      // 99 ms of samples, three jumps forward of at most 1 s, one back of 1 ms, then 1 ms.
+      EXPECT_LE(m.duration, 0.099 + 3 * kMaxClockStepS + 2e-3 + 1e-9);
+      EXPECT_GE(m.duration, 0.099 + 3 * kMaxClockStepS);
+      EXPECT_NEAR((*sim)->trial_time(), m.duration, 1e-9);
+    });
   }
 }
 
