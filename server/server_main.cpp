@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <set>
@@ -86,6 +87,12 @@ int Main(std::vector<std::string> args) {
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off)", false, "20")
+      .Option("max-sessions", Kind::kInt, "live sessions on this server", false, "256")
+      .Option("max-sessions-per-user", Kind::kInt, "live sessions per trainee", false, "2")
+      .Option("start-timeout", Kind::kDouble,
+              "seconds a created session may wait for Start before it is aborted", false, "60")
+      .Option("backup-dir", Kind::kString,
+              "the only folder AdminService/Backup writes to (default: backups/ beside --db)")
       .Option("ready-file", Kind::kString, "write {grpc_port, udp_port} here once serving")
       .Option("config", Kind::kString, "JSON file of these options (flags win)");
   if (Status s = p.Parse(args); !s.ok()) {
@@ -118,6 +125,20 @@ int Main(std::vector<std::string> args) {
     std::cerr << "vsurg-server: --telemetry-hz: must be within 1..120\n";
     return 2;
   }
+  const int max_sessions = p.Int("max-sessions"), per_user = p.Int("max-sessions-per-user");
+  const double start_timeout = p.Double("start-timeout");
+  if (max_sessions < 1 || max_sessions > 4096) {
+    std::cerr << "vsurg-server: --max-sessions: must be within 1..4096\n";
+    return 2;
+  }
+  if (per_user < 1 || per_user > max_sessions) {
+    std::cerr << "vsurg-server: --max-sessions-per-user: must be within 1..--max-sessions\n";
+    return 2;
+  }
+  if (!(start_timeout >= 0.1 && start_timeout <= 3600)) {
+    std::cerr << "vsurg-server: --start-timeout: must be within 0.1..3600 s\n";
+    return 2;
+  }
 
   // Signals go to the main thread only: block them before any thread starts, sigwait below.
   sigset_t signals;
@@ -147,12 +168,19 @@ int Main(std::vector<std::string> args) {
   vsurg::server::SessionManagerOptions so;
   so.udp_host = p.Has("public-host") ? p.String("public-host") : eo.address;
   so.telemetry_hz = telemetry_hz;
+  so.max_live_sessions = max_sessions;
+  so.max_sessions_per_user = per_user;
+  so.start_timeout_s = start_timeout;
   auto sessions = std::make_unique<vsurg::server::SessionManager>(**store, endpoint->get(), so);
   vsurg::server::ControlPlaneOptions co;
   co.listen = p.String("listen");
   if (p.Has("tls-cert")) co.tls_cert_file = p.String("tls-cert");
   if (p.Has("tls-key")) co.tls_key_file = p.String("tls-key");
   co.allow_insecure = p.Flag("allow-insecure");
+  co.backup_dir =
+      p.Has("backup-dir")
+          ? p.String("backup-dir")
+          : (std::filesystem::absolute(p.String("db")).parent_path() / "backups").string();
   auto control = vsurg::server::ControlPlane::Start(**store, *sessions, co);
   if (!control.ok()) {
     std::cerr << "vsurg-server: --"

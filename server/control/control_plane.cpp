@@ -50,6 +50,9 @@ grpc::Status ToGrpcStatus(const Error& e) {
     case ErrorCode::kUnavailable:
       code = grpc::StatusCode::UNAVAILABLE;
       break;
+    case ErrorCode::kResourceExhausted:
+      code = grpc::StatusCode::RESOURCE_EXHAUSTED;
+      break;
     case ErrorCode::kUnauthenticated:
       code = grpc::StatusCode::UNAUTHENTICATED;
       break;
@@ -310,7 +313,11 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
       std::sort(files.begin(), files.end());
       for (const auto& file : files) {
         auto scene = sim::LoadScene(file.string());
-        if (!scene.ok()) continue;  // a station could not load it either: not offered
+        if (!scene.ok()) {
+          // Not offered (a station could not load it either), and said why; the rest still are.
+          resp->add_unusable(file.filename().string() + ": " + scene.error().message);
+          continue;
+        }
         v1::SceneInfo* info = resp->add_scenes();
         info->set_name(file.stem().string());  // what Create and the stations resolve
         info->set_description(scene->description);
@@ -700,8 +707,12 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
 
   ServerUnaryReactor* RevokeTokens(CallbackServerContext* ctx, const v1::UserRef* req,
                                    v1::Empty*) override {
-    return Unary(sh_, ctx, Method::kAdminRevokeTokens,
-                 [&](const db::Principal&) { return sh_.store.RevokeTokens(req->name()); });
+    return Unary(sh_, ctx, Method::kAdminRevokeTokens, [&](const db::Principal&) -> Status {
+      if (Status s = sh_.store.RevokeTokens(req->name()); !s.ok()) return s;
+      // Access ends with the tokens: the user's live sessions too (their UDP key is a credential).
+      sh_.sessions.EndSessionsOf(req->name(), "access revoked");
+      return Status::Ok();
+    });
   }
 
   ServerUnaryReactor* SetDisabled(CallbackServerContext* ctx, const v1::SetDisabledRequest* req,
@@ -709,7 +720,9 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
     return Unary(sh_, ctx, Method::kAdminSetDisabled, [&](const db::Principal& p) -> Status {
       if (req->name() == p.name && req->disabled())
         return InvalidArgument("name", "an administrator cannot disable themself");
-      return sh_.store.SetUserDisabled(req->name(), req->disabled());
+      if (Status s = sh_.store.SetUserDisabled(req->name(), req->disabled()); !s.ok()) return s;
+      if (req->disabled()) sh_.sessions.EndSessionsOf(req->name(), "account disabled");
+      return Status::Ok();
     });
   }
 
@@ -768,12 +781,9 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
   ServerUnaryReactor* Backup(CallbackServerContext* ctx, const v1::BackupRequest* req,
                              v1::Empty*) override {
     return Unary(sh_, ctx, Method::kAdminBackup, [&](const db::Principal&) -> Status {
-      const std::filesystem::path path(req->path());
-      if (!path.is_absolute()) return InvalidArgument("path", "an absolute path on the server");
-      std::error_code ec;
-      if (std::filesystem::exists(path, ec))
-        return Error{ErrorCode::kAlreadyExists, "will not overwrite " + req->path(), "path"};
-      return sh_.store.Backup(req->path());
+      auto path = BackupPath(sh_.options.backup_dir, req->path());
+      if (!path.ok()) return path.error();
+      return sh_.store.Backup(path->string());
     });
   }
 
@@ -782,6 +792,42 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
 };
 
 }  // namespace
+
+Expected<std::filesystem::path> BackupPath(const std::string& backup_dir, const std::string& name) {
+  namespace fs = std::filesystem;
+  if (backup_dir.empty())
+    return Error{ErrorCode::kFailedPrecondition,
+                 "backups are off on this server (start it with --backup-dir DIR)", "path"};
+  std::error_code ec;
+  const fs::path dir = fs::weakly_canonical(fs::path(backup_dir), ec);
+  if (ec) return Error{ErrorCode::kIoError, "cannot resolve the backup directory", "path"};
+  // A bare file name in the backup directory, or an absolute path whose folder is that directory.
+  fs::path file(name);
+  if (file.is_absolute()) {
+    if (fs::weakly_canonical(file.parent_path(), ec) != dir || ec)
+      return Error{ErrorCode::kPermissionDenied,
+                   "backups are written only to the server's backup directory " + dir.string() +
+                       "; give a file name",
+                   "path"};
+    file = file.filename();
+  }
+  const std::string base = file.string();
+  bool plain = !base.empty() && base.size() <= 128 && base.front() != '.';
+  for (char c : base)
+    plain = plain && ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                      c == '.' || c == '_' || c == '-');
+  if (!plain)
+    return InvalidArgument("path",
+                           "a file name of letters, digits, '.', '_' and '-' (not starting with "
+                           "'.'), written to the server's backup directory");
+  fs::create_directories(dir, ec);
+  if (ec)
+    return Error{ErrorCode::kIoError, "cannot create the backup directory " + dir.string(), "path"};
+  const fs::path out = dir / base;
+  if (fs::symlink_status(out, ec).type() != fs::file_type::not_found)
+    return Error{ErrorCode::kAlreadyExists, "will not overwrite " + out.string(), "path"};
+  return out;
+}
 
 bool IsLoopbackHost(const std::string& listen) {
   std::string host = listen;

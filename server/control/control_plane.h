@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -34,6 +35,8 @@ struct ControlPlaneOptions {
   std::string tls_key_file;
   bool allow_insecure = false;
   int max_export_chunk = 1 << 16;  // bytes per ExportChunk
+  // AdminService/Backup writes only here (created when missing); empty: backups refused.
+  std::string backup_dir;
 };
 
 class ControlPlane {
@@ -51,6 +54,10 @@ class ControlPlane {
   explicit ControlPlane(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
+
+// Where AdminService/Backup may write `name`: a plain file name (or an absolute path whose folder
+// is `backup_dir`) that does not exist yet, inside `backup_dir` (created when missing).
+Expected<std::filesystem::path> BackupPath(const std::string& backup_dir, const std::string& name);
 
 // Is this host a loopback address (127.0.0.0/8, ::1, localhost)?
 bool IsLoopbackHost(const std::string& listen);

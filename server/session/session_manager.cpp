@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 
 #include "common/sim/scene.h"
 
@@ -56,14 +57,20 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
                                                 const std::string& scene_name) {
   if (!IsSceneName(scene_name))
     return InvalidArgument("scene", "a scene name (letters, digits and '-'), not a path");
-  {
-    std::lock_guard lock(mutex_);
-    if (static_cast<int>(live_.size()) >= options_.max_live_sessions)
-      return Error{ErrorCode::kUnavailable, "the server runs its maximum of sessions", "scene"};
-  }
+  // The limits are checked again when the session is inserted (two concurrent creates).
+  if (Status s = CheckLimits(trainee); !s.ok()) return s.error();
   auto scene = sim::LoadSceneByName(scene_name);
-  if (!scene.ok()) return Error{ErrorCode::kNotFound, scene.error().message, "scene"};
-  auto simulation = sim::Simulation::Create(*scene);
+  if (!scene.ok()) {
+    // A missing scene is NOT_FOUND; a scene file that does not load is the server's problem to
+    // fix, refused with why (FAILED_PRECONDITION), and touches no other scene.
+    const bool missing = scene.error().code == ErrorCode::kNotFound;
+    return Error{missing ? ErrorCode::kNotFound : ErrorCode::kFailedPrecondition,
+                 missing ? scene.error().message
+                         : "scene '" + scene_name + "' is unusable: " + scene.error().message,
+                 "scene"};
+  }
+  // No deformation thread until a station drives the session (invariant 5).
+  auto simulation = sim::Simulation::Create(*scene, {.threaded = true, .start_deformation = false});
   if (!simulation.ok())
     return Error{ErrorCode::kFailedPrecondition,
                  "scene '" + scene_name + "' does not build: " + simulation.error().message,
@@ -83,9 +90,51 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   live->latest.id = static_cast<uint64_t>(record->id);
   live->latest.state = "created";
   live->key = out.key;
+  live->created_s = SteadyNow();
+  {
+    std::lock_guard lock(mutex_);
+    if (Status s = CheckLimitsLocked(trainee); s.ok()) {
+      live_[static_cast<uint64_t>(record->id)] = std::move(live);
+      return out;
+    }
+  }
+  // Lost the race for the last slot: the row exists, so record it as aborted.
+  (void)store_.SetSessionState(record->id, "aborted", db::NowUs(), "session limit reached");
+  return CheckLimits(trainee).error();
+}
+
+Status SessionManager::CheckLimits(const std::string& trainee) const {
   std::lock_guard lock(mutex_);
-  live_[static_cast<uint64_t>(record->id)] = std::move(live);
-  return out;
+  return CheckLimitsLocked(trainee);
+}
+
+Status SessionManager::CheckLimitsLocked(const std::string& trainee) const {
+  if (static_cast<int>(live_.size()) >= options_.max_live_sessions)
+    return Error{ErrorCode::kUnavailable,
+                 "the server runs its maximum of " + std::to_string(options_.max_live_sessions) +
+                     " sessions",
+                 "scene"};
+  int mine = 0;
+  for (const auto& [id, l] : live_) mine += l->record.trainee == trainee;
+  if (mine >= options_.max_sessions_per_user)
+    return Error{ErrorCode::kResourceExhausted,
+                 "trainee '" + trainee + "' already has " + std::to_string(mine) +
+                     " live sessions (the limit is " +
+                     std::to_string(options_.max_sessions_per_user) + "); stop one first",
+                 "trainee"};
+  return Status::Ok();
+}
+
+int SessionManager::EndSessionsOf(const std::string& user, const std::string& reason) {
+  std::vector<uint64_t> ids;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [id, l] : live_)
+      if (l->record.trainee == user) ids.push_back(id);
+  }
+  int ended = 0;
+  for (uint64_t id : ids) ended += End(id, "aborted", reason).ok();
+  return ended;
 }
 
 Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
@@ -173,6 +222,22 @@ void SessionManager::Unsubscribe(uint64_t token) {
 }
 
 void SessionManager::Pump() {
+  // Sessions never started expire; a deformation thread runs only for a driven session.
+  std::vector<uint64_t> expired;
+  {
+    const double now = SteadyNow();
+    std::lock_guard lock(mutex_);
+    for (auto& [id, l] : live_) {
+      if (l->state == "created" && now - l->created_s > options_.start_timeout_s)
+        expired.push_back(id);
+      l->simulation->SetDeformationRunning(l->state == "running" && l->latest.sim.samples > 0);
+    }
+  }
+  for (uint64_t id : expired) {
+    char reason[64];
+    std::snprintf(reason, sizeof reason, "not started within %g s", options_.start_timeout_s);
+    (void)End(id, "aborted", reason);
+  }
   if (!endpoint_) return;
   for (const SessionEvent& e : endpoint_->TakeEvents()) {
     const char* state = SessionStateName(e.state);

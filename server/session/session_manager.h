@@ -15,8 +15,9 @@
 //  (none) → created                  Create     (scene built, key issued, row written)
 //  created → running                 Start      (added to the endpoint; stylus accepted)
 //  running ⇄ stalled, → disconnected Pump       (the endpoint's events, every tick)
+//  created → aborted                 Pump       (not started within start_timeout_s)
 //  live → ended                      Stop       (removed from the endpoint, metrics recorded)
-//  live → aborted                    Shutdown
+//  live → aborted                    Shutdown, EndSessionsOf (the user lost access)
 //
 // Invariants
 //  1. A session is in the endpoint exactly while it is running or stalled.
@@ -24,6 +25,11 @@
 //     writes asynchronously; its order is kept by the single writer).
 //  3. A session's trial metrics are recorded once, when it leaves the live states.
 //  4. The Simulation outlives its registration with the endpoint (RemoveSession waits).
+//  5. A session's deformation thread runs only while a station drives it (running, with stylus
+//     samples); created and stalled sessions cost memory, bounded by the limits, and no CPU.
+//  6. A trainee has at most max_sessions_per_user live sessions; the server at most
+//     max_live_sessions. A session never started expires; one started and never driven is
+//     disconnected by the endpoint (no stylus for 5 s).
 //
 // Threads: Create/Start/Stop/Get/List from any thread (gRPC); one sampler thread runs Pump and
 // Sample at the telemetry rate and is the only reader of each simulation's telemetry.
@@ -77,6 +83,8 @@ struct SessionManagerOptions {
   std::string udp_host = "127.0.0.1";  // what stations are told to send to
   double telemetry_hz = 30;
   int max_live_sessions = 256;
+  int max_sessions_per_user = 2;  // live sessions per trainee (a reconnect may overlap one)
+  double start_timeout_s = 60;    // a created session not started by then is aborted
 };
 
 class SessionManager {
@@ -93,6 +101,9 @@ class SessionManager {
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason);
   Expected<db::SessionRecord> Get(uint64_t id);  // the store's row with the live state
   bool IsLive(uint64_t id) const;
+  // Aborts every live session of `user` (its trainee), e.g. when their tokens are revoked or the
+  // account is disabled: access ends with the account, on the UDP channel too. Returns how many.
+  int EndSessionsOf(const std::string& user, const std::string& reason);
 
   // Telemetry subscribers: `fn` runs on the sampler thread at the telemetry rate with the
   // latest figures of every live session (or of `session` only, when not 0), and once more with
@@ -115,8 +126,11 @@ class SessionManager {
     SessionTelemetry latest;
     uint64_t last_samples = 0;
     double last_sample_s = 0;
+    double created_s = 0;  // steady clock, for start_timeout_s
   };
   Status End(uint64_t id, const std::string& state, const std::string& reason);
+  Status CheckLimits(const std::string& trainee) const;
+  Status CheckLimitsLocked(const std::string& trainee) const;  // mutex_ held
   void SamplerLoop();
   void Pump();
 

@@ -47,7 +47,9 @@ class ControlPlaneTest : public ::testing::Test {
     store_ = std::move(db::Store::Open({.path = (dir_ / "vsurg.db").string()})).value();
     endpoint_ = std::move(UdpEndpoint::Create({})).value();
     sessions_ = std::make_unique<SessionManager>(*store_, endpoint_.get(), SessionManagerOptions{});
-    auto cp = ControlPlane::Start(*store_, *sessions_, {});
+    ControlPlaneOptions co;
+    co.backup_dir = (dir_ / "backups").string();
+    auto cp = ControlPlane::Start(*store_, *sessions_, co);
     ASSERT_TRUE(cp.ok()) << cp.error().message;
     control_ = std::move(cp).value();
     channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(control_->port()),
@@ -617,6 +619,284 @@ TEST(ControlPlaneTlsTest, ACertificateInTheConfigTurnsOnTls) {
   (*cp)->Shutdown();
   sessions.Shutdown();
   fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace vsurg::server
+
+namespace vsurg::server {
+namespace {
+
+namespace fs = std::filesystem;
+using grpc::StatusCode;
+using test::PressAndHold;
+
+int ThreadCount() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator("/proc/self/task")) ++n;
+  return n;
+}
+
+v1::CreateSessionRequest CreateFor(const std::string& trainee, const std::string& scene) {
+  v1::CreateSessionRequest r;
+  r.set_trainee(trainee);
+  r.set_scene(scene);
+  return r;
+}
+
+// One trainee could create sessions until the server refused everyone (UNAVAILABLE for all).
+TEST_F(ControlPlaneTest, ATraineeHasALimitOfLiveSessionsAndCannotLockOutOthers) {
+  auto sessions = v1::SessionService::NewStub(channel_);
+  v1::CreateSessionResponse created;
+  std::vector<uint64_t> mine;
+  for (int i = 0; i < 2; ++i) {
+    ASSERT_TRUE(
+        sessions
+            ->Create(Ctx(db::Role::kTrainee).get(), CreateFor("", "sphere-palpation-256"), &created)
+            .ok());
+    mine.push_back(created.session().id());
+  }
+  for (int i = 0; i < 20; ++i) {
+    const grpc::Status refused = sessions->Create(Ctx(db::Role::kTrainee).get(),
+                                                  CreateFor("", "sphere-palpation-256"), &created);
+    ASSERT_EQ(refused.error_code(), StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_NE(refused.error_message().find("limit is 2"), std::string::npos)
+        << refused.error_message();
+  }
+  // An instructor cannot raise it by creating for her either.
+  EXPECT_EQ(
+      sessions->Create(Ctx(db::Role::kInstructor).get(), CreateFor("tina", "arm-torsion"), &created)
+          .error_code(),
+      StatusCode::RESOURCE_EXHAUSTED);
+  // Everyone else still gets sessions.
+  grpc::ClientContext other;
+  other.AddMetadata("authorization", "Bearer " + tom_);
+  other.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  ASSERT_TRUE(sessions->Create(&other, CreateFor("", "sphere-palpation-256"), &created).ok());
+  // Stopping one frees a slot.
+  v1::StopSessionRequest stop;
+  stop.set_id(mine[0]);
+  v1::Session s;
+  ASSERT_TRUE(sessions->Stop(Ctx(db::Role::kTrainee).get(), stop, &s).ok());
+  EXPECT_TRUE(
+      sessions
+          ->Create(Ctx(db::Role::kTrainee).get(), CreateFor("", "sphere-palpation-256"), &created)
+          .ok());
+}
+
+// Never-started sessions used to cost a deformation thread each (twelve mass-spring sessions
+// took both cores) and never expired.
+TEST_F(ControlPlaneTest, SessionsNobodyDrivesCostNoThreadAndNeverStartedOnesExpire) {
+  SessionManagerOptions o;
+  o.max_sessions_per_user = 16;
+  o.start_timeout_s = 1.0;
+  SessionManager manager(*store_, endpoint_.get(), o);
+  const int before = ThreadCount();
+  std::vector<uint64_t> ids;
+  for (int i = 0; i < 8; ++i) {
+    auto c = manager.Create("tina", "sphere-palpation-256");
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    ids.push_back(static_cast<uint64_t>(c->record.id));
+  }
+  EXPECT_LT(ThreadCount() - before, 4) << "a created session must not run a thread";
+
+  // One is started and driven: it gets its deformation thread; the others still have none.
+  auto c = manager.Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(c.ok());
+  const uint64_t driven = static_cast<uint64_t>(c->record.id);
+  ASSERT_TRUE(manager.Start(driven).ok());
+  const int idle = ThreadCount();
+  client::ReplayDevice device(PressAndHold(1.0));
+  client::StationOptions so;
+  so.server_port = endpoint_->port();
+  so.session = driven;
+  so.key = c->key;
+  auto station = client::StationChannel::Create(so, &device);
+  ASSERT_TRUE(station.ok());
+  int most = idle;
+  while (!device.finished()) {
+    most = std::max(most, ThreadCount());
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  (*station)->Stop();
+  // The station's own two threads, and exactly one deformation thread.
+  EXPECT_EQ(most, idle + 2 + 1);
+
+  // The eight never started expire (start_timeout_s = 1 s), recorded as aborted with why.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  for (uint64_t id : ids) {
+    EXPECT_FALSE(manager.IsLive(id));
+    auto rec = store_->GetSession(static_cast<int64_t>(id));
+    ASSERT_TRUE(rec.ok());
+    EXPECT_EQ(rec->state, "aborted");
+    EXPECT_NE(rec->end_reason.find("not started within"), std::string::npos) << rec->end_reason;
+  }
+  EXPECT_TRUE(manager.IsLive(driven));
+}
+
+// A retry that reuses an idempotency key with another payload was acknowledged as a duplicate
+// and its values silently lost.
+TEST_F(ControlPlaneTest, AReusedIdempotencyKeyWithAnotherPayloadIsRefused) {
+  auto ev = v1::EvaluationService::NewStub(channel_);
+  v1::SubmitEvaluationResponse first, r;
+  ASSERT_TRUE(
+      ev->Submit(Ctx(db::Role::kEvaluator).get(), Submission("key-1", "coil"), &first).ok());
+  auto scores = Submission("key-1", "coil");
+  scores.set_scores(8, 2.0);
+  const grpc::Status differs = ev->Submit(Ctx(db::Role::kEvaluator).get(), scores, &r);
+  EXPECT_EQ(differs.error_code(), StatusCode::ALREADY_EXISTS);
+  EXPECT_NE(differs.error_message().find("texture score differs"), std::string::npos)
+      << differs.error_message();
+  auto subject = Submission("key-1", "msm");
+  EXPECT_EQ(ev->Submit(Ctx(db::Role::kEvaluator).get(), subject, &r).error_code(),
+            StatusCode::ALREADY_EXISTS);
+  auto moment = Submission("key-1", "coil");
+  moment.set_moment_min(20);
+  EXPECT_EQ(ev->Submit(Ctx(db::Role::kEvaluator).get(), moment, &r).error_code(),
+            StatusCode::ALREADY_EXISTS);
+  // An admin importing the same key for another evaluator group.
+  auto group = Submission("imp-key", "coil");
+  group.set_evaluator("ext");
+  group.set_evaluator_group("intern");
+  ASSERT_TRUE(ev->Submit(Ctx(db::Role::kAdmin).get(), group, &r).ok());
+  group.set_evaluator_group("chief");
+  EXPECT_EQ(ev->Submit(Ctx(db::Role::kAdmin).get(), group, &r).error_code(),
+            StatusCode::ALREADY_EXISTS);
+  // Only the identical submission is a duplicate; the stored scores are the first ones.
+  ASSERT_TRUE(ev->Submit(Ctx(db::Role::kEvaluator).get(), Submission("key-1", "coil"), &r).ok());
+  EXPECT_TRUE(r.duplicate());
+  EXPECT_EQ(r.submission_id(), first.submission_id());
+  EXPECT_EQ(store_->CountEvaluationRows().value(), 18);
+  v1::ReportRequest rq;
+  rq.set_subject_kind("model");
+  rq.add_subjects("coil");
+  v1::ReportResponse rep;
+  ASSERT_TRUE(ev->Report(Ctx(db::Role::kInstructor).get(), rq, &rep).ok());
+  const auto j = nlohmann::json::parse(rep.report_json());
+  EXPECT_NEAR(j["index_means"][8].get<double>(), (0.2 * 7 + 0.5 * 7) / 0.7, 1e-12);
+}
+
+// Access ends with the account: a trainee whose tokens are revoked, or who is disabled, kept a
+// working UDP session.
+TEST_F(ControlPlaneTest, RevokingOrDisablingAUserEndsTheirLiveSessions) {
+  auto sessions = v1::SessionService::NewStub(channel_);
+  auto admin = v1::AdminService::NewStub(channel_);
+  struct Case {
+    std::string user, token;
+    bool disable;
+  };
+  for (const Case& c :
+       {Case{"tina", tokens_[db::Role::kTrainee], false}, Case{"tom", tom_, true}}) {
+    SCOPED_TRACE(c.user);
+    v1::CreateSessionResponse created;
+    ASSERT_TRUE(
+        sessions->Create(Ctx(c.token).get(), CreateFor("", "sphere-palpation-256"), &created).ok());
+    v1::SessionRef ref;
+    ref.set_id(created.session().id());
+    v1::Session s;
+    ASSERT_TRUE(sessions->Start(Ctx(c.token).get(), ref, &s).ok());
+    client::ReplayDevice device(PressAndHold(3.0));
+    client::StationOptions so;
+    so.server_port = endpoint_->port();
+    so.session = created.session().id();
+    std::copy(created.session_key().begin(), created.session_key().end(), so.key.begin());
+    auto station = client::StationChannel::Create(so, &device);
+    ASSERT_TRUE(station.ok());
+    const auto answered = [&] { return (*station)->stats().received; };
+    while (answered() < 200) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    v1::Empty e;
+    if (c.disable) {
+      v1::SetDisabledRequest d;
+      d.set_name(c.user);
+      d.set_disabled(true);
+      ASSERT_TRUE(admin->SetDisabled(Ctx(db::Role::kAdmin).get(), d, &e).ok());
+    } else {
+      v1::UserRef u;
+      u.set_name(c.user);
+      ASSERT_TRUE(admin->RevokeTokens(Ctx(db::Role::kAdmin).get(), u, &e).ok());
+    }
+    EXPECT_FALSE(sessions_->IsLive(created.session().id()));
+    auto rec = store_->GetSession(static_cast<int64_t>(created.session().id()));
+    ASSERT_TRUE(rec.ok());
+    EXPECT_EQ(rec->state, "aborted");
+    EXPECT_EQ(rec->end_reason, c.disable ? "account disabled" : "access revoked");
+    // The UDP channel stops answering at once.
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const uint64_t after = answered();
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    EXPECT_EQ(answered(), after) << "the endpoint still answers a revoked user's station";
+    (*station)->Stop();
+  }
+}
+
+// Backup wrote to any absolute path the server could write.
+TEST_F(ControlPlaneTest, BackupWritesOnlyIntoTheBackupDirectory) {
+  auto admin = v1::AdminService::NewStub(channel_);
+  v1::Empty e;
+  v1::BackupRequest req;
+  for (const std::string& outside :
+       {(dir_ / "elsewhere.db").string(), std::string("/tmp/vsurg-escape.db"),
+        (dir_ / "backups" / ".." / "up.db").string()}) {
+    req.set_path(outside);
+    const grpc::Status s = admin->Backup(Ctx(db::Role::kAdmin).get(), req, &e);
+    EXPECT_EQ(s.error_code(), StatusCode::PERMISSION_DENIED) << outside;
+    EXPECT_FALSE(fs::exists(outside)) << outside;
+  }
+  for (const char* bad : {"../up.db", "sub/dir.db", ".hidden", ""}) {
+    req.set_path(bad);
+    EXPECT_EQ(admin->Backup(Ctx(db::Role::kAdmin).get(), req, &e).error_code(),
+              StatusCode::INVALID_ARGUMENT)
+        << bad;
+  }
+  req.set_path("nightly-1.db");
+  ASSERT_TRUE(admin->Backup(Ctx(db::Role::kAdmin).get(), req, &e).ok());
+  EXPECT_GT(fs::file_size(dir_ / "backups" / "nightly-1.db"), 0u);
+  EXPECT_EQ(admin->Backup(Ctx(db::Role::kAdmin).get(), req, &e).error_code(),
+            StatusCode::ALREADY_EXISTS);
+  // The absolute path of a file inside the directory is the same thing.
+  req.set_path((dir_ / "backups" / "nightly-2.db").string());
+  EXPECT_TRUE(admin->Backup(Ctx(db::Role::kAdmin).get(), req, &e).ok());
+  // A symlink planted in the directory is not followed.
+  fs::create_symlink(dir_ / "target.db", dir_ / "backups" / "link.db");
+  req.set_path("link.db");
+  EXPECT_EQ(admin->Backup(Ctx(db::Role::kAdmin).get(), req, &e).error_code(),
+            StatusCode::ALREADY_EXISTS);
+  EXPECT_FALSE(fs::exists(dir_ / "target.db"));
+}
+
+// A scene whose description was a number made ListScenes and Create fail for everyone.
+TEST_F(ControlPlaneTest, ABadSceneFileIsSkippedAndReportedAndTheOthersStayAvailable) {
+  const fs::path scenes = dir_ / "scenes";
+  fs::create_directories(scenes);
+  const std::string source = sim::ScenesDirectory();
+  for (const char* name : {"arm-torsion.json", "sphere-palpation-256.json"})
+    fs::copy_file(fs::path(source) / name, scenes / name);
+  {
+    std::ifstream in(fs::path(source) / "arm-torsion.json");
+    auto j = nlohmann::json::parse(in);
+    j["description"] = 42;
+    std::ofstream(scenes / "broken.json") << j.dump();
+  }
+  ::setenv("VSURG_SCENES", scenes.c_str(), 1);
+  auto sessions = v1::SessionService::NewStub(channel_);
+  v1::ListScenesResponse list;
+  const grpc::Status listed = sessions->ListScenes(Ctx(db::Role::kTrainee).get(), {}, &list);
+  v1::CreateSessionResponse created;
+  const grpc::Status good = sessions->Create(Ctx(db::Role::kTrainee).get(),
+                                             CreateFor("", "sphere-palpation-256"), &created);
+  const grpc::Status bad =
+      sessions->Create(Ctx(db::Role::kTrainee).get(), CreateFor("", "broken"), &created);
+  ::unsetenv("VSURG_SCENES");
+  ASSERT_TRUE(listed.ok()) << listed.error_message();
+  ASSERT_EQ(list.scenes_size(), 2);
+  EXPECT_EQ(list.scenes(0).name(), "arm-torsion");
+  ASSERT_EQ(list.unusable_size(), 1);
+  EXPECT_NE(list.unusable(0).find("broken.json"), std::string::npos);
+  EXPECT_NE(list.unusable(0).find("description: must be a string"), std::string::npos)
+      << list.unusable(0);
+  EXPECT_TRUE(good.ok()) << good.error_message();
+  EXPECT_EQ(bad.error_code(), StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(bad.error_message().find("description"), std::string::npos) << bad.error_message();
 }
 
 }  // namespace
