@@ -716,29 +716,67 @@ Status ValidateSubmission(const Submission& s) {
   return Status::Ok();
 }
 
+// What differs between a stored submission and a retry that reuses its key, or "" when the
+// retry is the identical submission (only then is it a duplicate).
+std::string SubmissionDifference(Connection& c, int64_t id, const Submission& s) {
+  auto st = c.Prepare(
+      "SELECT e.name, s.evaluator_group, s.subject_kind, s.subject, s.moment_min FROM submissions "
+      "s JOIN evaluators e ON e.id = s.evaluator_id WHERE s.id = ?1");
+  if (!st.ok()) return "it cannot be read back";
+  (*st)->Bind(1, id);
+  auto row = (*st)->Step();
+  if (!row.ok() || !*row) return (*st)->Reset(), "it cannot be read back";
+  std::string diff;
+  if ((*st)->Text(0) != s.evaluator)
+    diff = "the evaluator";
+  else if ((*st)->Text(1) != s.evaluator_group)
+    diff = "the evaluator group";
+  else if ((*st)->Text(2) != SubjectKindName(s.subject_kind) || (*st)->Text(3) != s.subject)
+    diff = "the subject";
+  else if ((*st)->IsNull(4) != !s.moment_min || (s.moment_min && (*st)->Double(4) != *s.moment_min))
+    diff = "the training moment";
+  (*st)->Reset();
+  if (!diff.empty()) return diff;
+  auto sc = c.Prepare("SELECT index_no, score FROM evaluations WHERE submission_id = ?1");
+  if (!sc.ok()) return "it cannot be read back";
+  (*sc)->Bind(1, id);
+  for (;;) {
+    auto r = (*sc)->Step();
+    if (!r.ok()) return (*sc)->Reset(), "it cannot be read back";
+    if (!*r) break;
+    const int64_t j = (*sc)->Int(0) - 1;
+    if (j >= 0 && j < kIndexes && (*sc)->Double(1) != s.scores[j]) {
+      diff = std::string("the ") + kIndexNames[j] + " score";
+      break;
+    }
+  }
+  (*sc)->Reset();
+  return diff;
+}
+
 // The body of one submission, inside the writer's savepoint.
 Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
-  // A retry: the same key returns the first result (and must be the same submission).
+  // A retry: the same key returns the first result, but only for the identical submission; a
+  // reused key with another payload is refused, never acknowledged and dropped.
   {
-    auto st = c.Prepare(
-        "SELECT s.id, s.submitted_us, e.name, s.subject_kind, s.subject FROM submissions s "
-        "JOIN evaluators e ON e.id = s.evaluator_id WHERE s.idempotency_key = ?1");
+    auto st = c.Prepare("SELECT id, submitted_us FROM submissions WHERE idempotency_key = ?1");
     if (!st.ok()) return st.error();
     (*st)->Bind(1, s.idempotency_key);
     auto row = (*st)->Step();
     if (!row.ok()) return row.error();
     if (*row) {
-      const bool same = (*st)->Text(2) == s.evaluator &&
-                        (*st)->Text(3) == SubjectKindName(s.subject_kind) &&
-                        (*st)->Text(4) == s.subject;
-      out.submission_id = (*st)->Int(0);
-      out.submitted_us = (*st)->Int(1);
-      out.duplicate = true;
+      const int64_t id = (*st)->Int(0), at = (*st)->Int(1);
       (*st)->Reset();
-      if (!same)
+      const std::string diff = SubmissionDifference(c, id, s);
+      if (!diff.empty())
         return Error{ErrorCode::kAlreadyExists,
-                     "idempotency key '" + s.idempotency_key + "' was used for another submission",
+                     "idempotency key '" + s.idempotency_key +
+                         "' was used for a different submission (" + diff +
+                         " differs); stored evaluations are not changed",
                      "idempotency_key"};
+      out.submission_id = id;
+      out.submitted_us = at;
+      out.duplicate = true;
       return Status::Ok();
     }
     (*st)->Reset();

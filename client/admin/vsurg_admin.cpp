@@ -2,6 +2,8 @@
 // no administrator to authenticate yet); everything else goes through the server's gRPC
 // AdminService / EvaluationService with a bearer token (--token, --token-file or $VSURG_TOKEN),
 // and every call has a deadline. `export --db FILE` can also read a store file directly.
+#include <openssl/evp.h>
+
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
@@ -181,11 +183,29 @@ int Token(const std::vector<std::string>& args, std::ostream& out, std::ostream&
   return 0;
 }
 
+// An import row's idempotency key: a SHA-256 of the whole (kind, subject, evaluator, moment)
+// tuple, so keys never collide however long the subject (they were cut at 128 characters).
+std::string ImportKey(const std::string& kind, const std::string& subject,
+                      const std::string& evaluator, const std::string& moment) {
+  std::string tuple = kind + '\0' + subject + '\0' + evaluator;
+  if (!moment.empty()) tuple += '\0' + moment;
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int n = 0;
+  EVP_Digest(tuple.data(), tuple.size(), digest, &n, EVP_sha256(), nullptr);
+  static const char* kHex = "0123456789abcdef";
+  std::string key = "import:";
+  for (unsigned int i = 0; i < n; ++i) key += kHex[digest[i] >> 4], key += kHex[digest[i] & 15];
+  return key;
+}
+
 int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   ArgParser p("vsurg-admin import",
               "Submits evaluations from a ratings CSV (evaluator_id,group,i1..i9[,subject]).\n"
               "Idempotent: each row's key is derived from its subject and evaluator, so running\n"
-              "an import twice stores nothing twice.");
+              "an import twice stores nothing twice. Stored evaluations are records and are never\n"
+              "changed: a row whose scores differ from the stored ones (a correction) is refused\n"
+              "and reported, and the other rows still go in. Prints one line per row: stored,\n"
+              "unchanged (already stored) or refused, with the reason; exit 1 if any was refused.");
   p.Option("input", Kind::kString, "ratings CSV", true)
       .Option("subject-kind", Kind::kString, "session, trainee or model", true)
       .Option("subject", Kind::kString, "the subject, for rows without a subject column")
@@ -198,38 +218,56 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
   if (!text.ok()) return Usage(err, p.command(), "--input", text.error().message);
   auto subjects = vsurg::scoring::ParseRatingsCsv(*text, p.String("input"));
   if (!subjects.ok()) return Usage(err, p.command(), "--input", subjects.error().message);
+  for (const auto& subject : *subjects)
+    if (subject.subject.empty() && !p.Has("subject"))
+      return Usage(err, p.command(), "--subject", "rows without a subject need --subject");
   auto remote = vsurg::client::ConnectRemote(p);
   if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
   auto stub = v1::EvaluationService::NewStub(remote->channel);
-  int stored = 0, repeated = 0;
+  // (An std::optional<double> here trips GCC 12's -Wmaybe-uninitialized in the generated setter.)
+  const bool has_moment = p.Has("moment");
+  const double moment = has_moment ? p.Double("moment") : 0.0;
+  int stored = 0, repeated = 0, refused = 0;
   for (const auto& subject : *subjects) {
-    const std::string name =
-        subject.subject.empty() ? (p.Has("subject") ? p.String("subject") : "") : subject.subject;
-    if (name.empty())
-      return Usage(err, p.command(), "--subject", "rows without a subject need --subject");
+    const std::string name = subject.subject.empty() ? p.String("subject") : subject.subject;
     for (const auto& r : subject.ratings) {
       v1::SubmitEvaluationRequest req;
-      std::string key = "import:" + p.String("subject-kind") + ":" + name + ":" + r.evaluator;
-      if (p.Has("moment")) key += ":" + std::to_string(p.Double("moment"));
-      req.set_idempotency_key(key.substr(0, 128));
+      req.set_idempotency_key(ImportKey(p.String("subject-kind"), name, r.evaluator,
+                                        has_moment ? std::to_string(moment) : ""));
       req.set_evaluator(r.evaluator);
       req.set_evaluator_group(vsurg::scoring::GroupName(r.group));
       req.set_subject_kind(p.String("subject-kind"));
       req.set_subject(name);
-      if (p.Has("moment")) req.set_moment_min(p.Double("moment"));
+      if (has_moment) req.set_moment_min(moment);
       for (double s : r.scores) req.add_scores(s);
       v1::SubmitEvaluationResponse resp;
       grpc::ClientContext ctx;
       remote->Prepare(ctx);
-      if (grpc::Status s = stub->Submit(&ctx, req, &resp); !s.ok()) {
-        err << p.command() << ": " << r.evaluator << " on " << name << ": ";
+      const std::string row =
+          "line " + std::to_string(r.line) + " (" + r.evaluator + " on " + name + ")";
+      const grpc::Status s = stub->Submit(&ctx, req, &resp);
+      if (s.ok()) {
+        out << row << ": " << (resp.duplicate() ? "unchanged (already stored)" : "stored") << "\n";
+        (resp.duplicate() ? repeated : stored)++;
+        continue;
+      }
+      // The server is gone or refuses us altogether: stop, the rest would fail the same way.
+      const grpc::StatusCode code = s.error_code();
+      if (code == grpc::StatusCode::UNAVAILABLE || code == grpc::StatusCode::UNAUTHENTICATED ||
+          code == grpc::StatusCode::PERMISSION_DENIED ||
+          code == grpc::StatusCode::DEADLINE_EXCEEDED) {
+        out << "imported " << stored << " evaluations (" << repeated << " unchanged, " << refused
+            << " refused) before the error\n";
+        err << p.command() << ": " << row << ": ";
         return RpcError(err, p.command(), s);
       }
-      (resp.duplicate() ? repeated : stored)++;
+      out << row << ": refused: " << s.error_message() << "\n";
+      ++refused;
     }
   }
-  out << "imported " << stored << " evaluations (" << repeated << " already stored)\n";
-  return 0;
+  out << "imported " << stored << " evaluations (" << repeated << " unchanged, " << refused
+      << " refused)\n";
+  return refused > 0 ? 1 : 0;
 }
 
 std::string Fixed(const nlohmann::json& v, int digits = 3) {
@@ -405,7 +443,9 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
               cmd == "users"    ? "Lists the users."
               : cmd == "backup" ? "Online backup of the server's store to a new file on the server."
                                 : "Stores a weight set (JSON {name, group{...}, index[9]}).");
-  if (cmd == "backup") p.Option("out", Kind::kString, "absolute path on the server", true);
+  if (cmd == "backup")
+    p.Option("out", Kind::kString,
+             "file name in the server's backup directory (vsurg-server --backup-dir)", true);
   if (cmd == "weights-put") p.Option("file", Kind::kString, "weight set JSON", true);
   vsurg::client::AddRemoteOptions(p);
   Remote remote;
@@ -426,7 +466,7 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
     v1::BackupRequest req;
     req.set_path(p.String("out"));
     s = stub->Backup(&ctx, req, &empty);
-    if (s.ok()) out << "backed up to " << p.String("out") << "\n";
+    if (s.ok()) out << "backed up to " << p.String("out") << " in the server's backup directory\n";
   } else {
     auto json = ReadTextFile(p.String("file"), "--file");
     if (!json.ok()) return Usage(err, p.command(), "--file", json.error().message);
@@ -462,6 +502,7 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
     for (const v1::SceneInfo& i : resp.scenes())
       out << i.name() << "\t" << i.model() << "\t" << i.task() << "\t"
           << Fixed(i.error_budget_rms(), 2) << "\n";
+    for (const std::string& why : resp.unusable()) err << "unusable scene file " << why << "\n";
     return 0;
   }
   v1::ListSessionsRequest req;

@@ -61,6 +61,7 @@ struct Rating {
   std::string evaluator;
   EvaluatorGroup group = EvaluatorGroup::kIntern;
   std::array<double, kIndexCount> scores{};  // 0–10
+  int line = 0;                              // where it was read from (CSV line), 0: not read
 };
 // Scores finite and within 0–10, an evaluator id; the error names the field ("scores[3]").
 Status ValidateRating(const Rating& r);

@@ -31,6 +31,7 @@ Expected<std::vector<SubjectRatings>> ParseRatingsCsv(std::string_view text,
       return fail("row", "expected 11 fields (evaluator_id,group,i1..i9) or 12 (…,subject), got " +
                              std::to_string(rec.fields.size()));
     Rating r;
+    r.line = rec.line;
     r.evaluator = rec.fields[0];
     if (r.evaluator.empty()) return fail("evaluator_id", "empty");
     auto group = ParseGroup(rec.fields[1]);

@@ -223,5 +223,57 @@ TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
   fs::remove_all(dir);
 }
 
+// Import keys cover the whole (kind, subject, evaluator) tuple: a long subject no longer makes
+// two evaluators collide (their keys were cut at 128 characters), and a re-import says what
+// happened to each row: identical rows are unchanged, corrected ones are refused and reported.
+TEST(AdminCliTest, ImportSaysWhatHappenedToEachRowAndLongSubjectsNeverCollide) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("vsurg_admin_import_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path db = dir / "vsurg.db";
+  const std::string admin = VSURG_ADMIN_BINARY;
+  const ShellRun init = Shell(admin + " init --db " + db.string() + " 2>/dev/null");
+  ASSERT_EQ(init.code, 0);
+  const std::string token = init.out.substr(0, init.out.find('\n'));
+  auto server = ServerProcess::Start(dir, db);
+  const std::string remote =
+      " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " + token;
+  const std::string subject(200, 'm');
+  auto write_csv = [&](const fs::path& path, double chief_first) {
+    std::ofstream out(path);
+    out << "evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9,subject\n";
+    out << "dr-a,intern,7,7,7,7,7,7,7,7,7," << subject << "\n";
+    out << "dr-b,chief," << chief_first << ",8,8,8,8,8,8,8,8," << subject << "\n";
+  };
+  write_csv(dir / "first.csv", 8);
+  write_csv(dir / "corrected.csv", 9);
+  const std::string import = admin + " import" + remote + " --subject-kind model --input ";
+  const ShellRun first = Shell(import + (dir / "first.csv").string() + " 2>&1");
+  EXPECT_EQ(first.code, 0) << first.out;
+  EXPECT_NE(first.out.find("imported 2 evaluations (0 unchanged, 0 refused)"), std::string::npos)
+      << first.out;
+  const ShellRun again = Shell(import + (dir / "first.csv").string() + " 2>&1");
+  EXPECT_EQ(again.code, 0) << again.out;
+  EXPECT_NE(again.out.find("line 2 (dr-a on " + subject + "): unchanged"), std::string::npos)
+      << again.out;
+  EXPECT_NE(again.out.find("imported 0 evaluations (2 unchanged, 0 refused)"), std::string::npos);
+  const ShellRun corrected = Shell(import + (dir / "corrected.csv").string() + " 2>&1");
+  EXPECT_EQ(corrected.code, 1) << corrected.out;
+  EXPECT_NE(corrected.out.find("line 3 (dr-b on " + subject + "): refused:"), std::string::npos)
+      << corrected.out;
+  EXPECT_NE(corrected.out.find("differs"), std::string::npos) << corrected.out;
+  EXPECT_NE(corrected.out.find("(1 unchanged, 1 refused)"), std::string::npos) << corrected.out;
+  // The stored scores are the first ones: nothing was silently replaced or dropped.
+  const ShellRun report =
+      Shell(admin + " report" + remote + " --subject-kind model --subjects " + subject + " --json");
+  ASSERT_EQ(report.code, 0) << report.out;
+  const auto j = nlohmann::json::parse(report.out);
+  EXPECT_EQ(j["raters"], 2);
+  EXPECT_NEAR(j["index_means"][0].get<double>(), (0.2 * 7 + 0.5 * 8) / 0.7, 1e-9);
+  server.Signal(SIGTERM);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace vsurg
