@@ -12,16 +12,24 @@ VSURG_PACKAGES=(
   libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth xdotool
 )
 
+# The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's
+# runtime, and llvm-symbolizer for readable reports. GCC's sanitizer runtimes come with g++.
+VSURG_FUZZ_PACKAGES=(clang libclang-rt-14-dev llvm)
+
 vsurg_root() { cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd; }
 
 # Installs only the missing packages; needs root (or sudo) when something is missing.
-vsurg_install_packages() {
+vsurg_install_packages() { vsurg_install_packages_of VSURG_PACKAGES; }
+
+# Same, for the list named by $1 (an array variable's name).
+vsurg_install_packages_of() {
+  local -n wanted="$1"
   local missing=() p
-  for p in "${VSURG_PACKAGES[@]}"; do
+  for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
   done
   if [ ${#missing[@]} -eq 0 ]; then
-    echo "vsurg: all ${#VSURG_PACKAGES[@]} Debian packages present"
+    echo "vsurg: all ${#wanted[@]} Debian packages of $1 present"
     return 0
   fi
   echo "vsurg: installing ${missing[*]}"

@@ -34,6 +34,9 @@ Codec& Codec::operator=(Codec&&) noexcept = default;
 size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authenticator& auth,
                            std::span<uint8_t> out) {
   v1::StylusState& s = impl_->stylus;
+  // The message object is shared with DecodeStylus: clear what a decoded datagram left in it
+  // (unknown fields kept by the parser would otherwise ride along in what we send).
+  s.Clear();
   s.set_time(m.sample.time);
   Put(m.sample.position, s.mutable_position());
   const Eigen::Quaterniond& q = m.sample.orientation;
@@ -54,6 +57,7 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
 size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenticator& auth,
                           std::span<uint8_t> out) {
   v1::ForceFeedback& f = impl_->force;
+  f.Clear();  // shared with DecodeForce, as for the stylus
   const haptics::ForceCommand& c = m.command;
   f.set_echo_sequence(m.echo_sequence);
   f.set_echo_time(m.echo_time);

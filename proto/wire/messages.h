@@ -73,7 +73,10 @@ class Codec {
   }
   DropReason DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out);
 
-  // Parse an opened payload. kBadPayload when it does not parse or holds non-finite numbers.
+  // Parse an opened payload. kBadPayload when it does not parse. A force whose force or local
+  // model is non-finite is refused too (a station renders it at 1 kHz); a stylus sample's
+  // non-finite values are passed on, for the simulation's input check to refuse with an event
+  // the station sees.
   DropReason DecodeStylus(std::span<const uint8_t> payload, StylusMessage& out);
   DropReason DecodeForce(std::span<const uint8_t> payload, ForceMessage& out);
 

@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# Fuzzes one target (or all) with libFuzzer for SECONDS each, from the kept corpus.
+#
+#   deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- extra libFuzzer flags]
+#
+# Targets (tests/fuzz/): datagram messages scene_json obj ratings_csv trajectory_csv.
+# Builds build-fuzz/ with clang (libFuzzer, AddressSanitizer + UndefinedBehaviorSanitizer); reads
+# the kept corpus tests/fuzz/corpus/TARGET and writes what it finds new to build-fuzz/corpus/
+# TARGET (never into the repository unless --merge, which minimises the new inputs into the kept
+# corpus for a commit). A crash, a leak, a property failure or an input slower than 10 s stops the
+# run with exit 1 and leaves the input in build-fuzz/crashes/. Prints each target's executions.
+set -euo pipefail
+source "$(dirname "$0")/lib.sh"
+root="$(vsurg_root)"
+targets_all=(datagram messages scene_json obj ratings_csv trajectory_csv)
+if [ $# -lt 2 ]; then
+  echo "usage: deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- libFuzzer flags]" >&2
+  echo "targets: ${targets_all[*]}" >&2
+  exit 2
+fi
+target="$1" seconds="$2"
+shift 2
+merge=0
+extra=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --merge) merge=1 ;;
+    --) shift; extra=("$@"); break ;;
+    *) echo "deploy/fuzz.sh: unknown option $1" >&2; exit 2 ;;
+  esac
+  shift
+done
+if ! [[ "$seconds" =~ ^[0-9]+$ ]] || [ "$seconds" -lt 1 ]; then
+  echo "deploy/fuzz.sh: SECONDS must be a positive whole number" >&2
+  exit 2
+fi
+if [ "$target" = all ]; then
+  targets=("${targets_all[@]}")
+elif [[ " ${targets_all[*]} " == *" $target "* ]]; then
+  targets=("$target")
+else
+  echo "deploy/fuzz.sh: unknown target '$target' (${targets_all[*]} or all)" >&2
+  exit 2
+fi
+
+vsurg_install_packages
+vsurg_install_packages_of VSURG_FUZZ_PACKAGES
+out="$root/build-fuzz"
+CC=clang CXX=clang++ cmake -S "$root" -B "$out" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DVSURG_FUZZ=ON -DVSURG_SANITIZE=ON -DVSURG_TESTS=OFF -DVSURG_BENCH=OFF -DVSURG_WERROR=OFF \
+  >/dev/null
+cmake --build "$out" -j2 --target $(printf 'fuzz_%s ' "${targets[@]}")
+mkdir -p "$out/crashes"
+export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:symbolize=1"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+for t in "${targets[@]}"; do
+  mkdir -p "$out/corpus/$t"
+  echo "fuzz: $t for ${seconds}s"
+  log="$out/fuzz-$t.log"
+  set +e
+  "$out/bin/fuzz_$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=8192 \
+    -print_final_stats=1 -artifact_prefix="$out/crashes/$t-" ${extra[@]+"${extra[@]}"} \
+    "$out/corpus/$t" "$root/tests/fuzz/corpus/$t" >"$log" 2>&1
+  rc=$?
+  set -e
+  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || true)
+  echo "fuzz: $t executions=${runs:-?} exit=$rc"
+  if [ $rc -ne 0 ]; then
+    tail -40 "$log" >&2
+    echo "fuzz: $t FAILED; the input is in $out/crashes/" >&2
+    exit 1
+  fi
+  if [ $merge -eq 1 ]; then
+    "$out/bin/fuzz_$t" -merge=1 -max_len=8192 "$root/tests/fuzz/corpus/$t" "$out/corpus/$t" \
+      >>"$log" 2>&1
+    echo "fuzz: $t corpus merged into tests/fuzz/corpus/$t ($(ls "$root/tests/fuzz/corpus/$t" | wc -l) files)"
+  fi
+done
