@@ -1,6 +1,10 @@
 #include "client/net/station_channel.h"
 
 #include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <random>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -95,6 +99,116 @@ TEST(StationChannelTest, ABadNetworkKeepsForcesBoundedAndContinuous) {
   }
   EXPECT_GT(f[f.size() - 2].z(), 0.1);
   EXPECT_GT(server.endpoint->counters().Dropped(wire::DropReason::kStale), 0u);
+}
+
+// The mocked device (we have no hardware here) misbehaves: NaN and infinite positions and
+// orientations, zero quaternions, teleports, leaving the workspace, grasp-button chatter, on top
+// of a trainee's real trial. Through the real station channel and the real server endpoint over
+// loopback, every force the device is asked to render stays finite, within its limit and its
+// rate limit per 1 ms cycle, and the server keeps answering.
+class AdversarialDevice : public HapticDevice {
+ public:
+  AdversarialDevice(std::vector<haptics::StylusSample> base, uint64_t seed, int cycles)
+      : base_(std::move(base)), rng_(seed), cycles_(cycles) {}
+  haptics::StylusSample Read() override {
+    std::lock_guard lock(mutex_);
+    haptics::StylusSample s = base_[std::min(i_, base_.size() - 1)];
+    ++i_;
+    s.position += offset_;
+    if (chatter_ > 0) --chatter_, s.buttons = (chatter_ & 1) ? haptics::kButtonGrasp : 0u;
+    const double nan = std::nan(""), inf = std::numeric_limits<double>::infinity();
+    switch (std::uniform_int_distribution<int>(0, 59)(rng_)) {
+      case 0:
+        s.position.x() = nan;
+        break;
+      case 1:
+        s.position.z() = -inf;
+        break;
+      case 2:
+        s.orientation.coeffs().setZero();
+        break;
+      case 3:
+        s.orientation.coeffs().w() = nan;
+        break;
+      case 4:
+        offset_ = Eigen::Vector3d::Random() * 0.05;  // a teleport that stays
+        break;
+      case 5:
+        offset_.setZero();
+        break;
+      case 6:
+        s.position = Eigen::Vector3d(3, 3, 3);  // far outside the workspace
+        break;
+      case 7:
+        chatter_ = 30;
+        break;
+      default:
+        break;
+    }
+    return s;
+  }
+  void WriteForce(const Eigen::Vector3d& f) override {
+    std::lock_guard lock(mutex_);
+    forces_.push_back(f);
+  }
+  haptics::DeviceLimits limits() const override { return haptics::TouchLimits(); }
+  bool finished() const {
+    std::lock_guard lock(mutex_);
+    return i_ >= static_cast<size_t>(cycles_);
+  }
+  std::vector<Eigen::Vector3d> forces() const {
+    std::lock_guard lock(mutex_);
+    return forces_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<haptics::StylusSample> base_;
+  std::mt19937_64 rng_;
+  int cycles_;
+  size_t i_ = 0;
+  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
+  int chatter_ = 0;
+  std::vector<Eigen::Vector3d> forces_;
+};
+
+TEST(StationChannelTest, AMisbehavingDeviceNeverGetsAForceBeyondItsLimits) {
+  for (const char* name : {"sphere-palpation-256", "arm-torsion"}) {
+    SCOPED_TRACE(name);
+    auto scene = sim::LoadSceneByName(name);
+    ASSERT_TRUE(scene.ok());
+    auto base = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+    ASSERT_TRUE(base.ok());
+    auto simulation = *sim::Simulation::Create(*scene, {true});
+    auto endpoint = *server::UdpEndpoint::Create({});
+    endpoint->AddSession(11, Key(), simulation.get());
+    AdversarialDevice device(*base, 17, 3000);
+    auto station = StationChannel::Create(Options(endpoint->port()), &device);
+    ASSERT_TRUE(station.ok());
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!device.finished() && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    (*station)->Stop();
+    const StationStats stats = (*station)->stats();
+    endpoint->RemoveSession(11);
+    const std::vector<Eigen::Vector3d> f = device.forces();
+    ASSERT_GT(f.size(), 2000u);
+    const haptics::DeviceLimits limits = device.limits();
+    const double rate_step = limits.max_force_rate * 1e-3 * 1.0001;  // per 1 ms cycle
+    double strongest = 0;
+    for (size_t i = 0; i < f.size(); ++i) {
+      ASSERT_TRUE(f[i].allFinite()) << i;
+      ASSERT_LE(f[i].norm(), limits.max_force + 1e-9) << i;
+      // The last write is Stop's zero: the hand is not left holding a force (by design).
+      if (i > 0 && i + 1 < f.size()) {
+        ASSERT_LE((f[i] - f[i - 1]).norm(), rate_step) << i;
+      }
+      strongest = std::max(strongest, f[i].norm());
+    }
+    EXPECT_GT(strongest, 0.05) << "the trial did reach the tissue";
+    EXPECT_GT(stats.received, 0.9 * stats.sent) << "the server kept answering";
+    EXPECT_GT(endpoint->counters().answered, 2000u);
+  }
 }
 
 TEST(StationChannelTest, TheWatchdogFadesTheForceWhenTheServerGoesQuiet) {
