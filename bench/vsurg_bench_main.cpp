@@ -1,6 +1,7 @@
 // vsurg-bench: whole-system measurements (micro-benchmarks are in vsurg-microbench).
 //
-//   vsurg-bench haptic-rtt --stations N --seconds S [--scene arm-torsion] [--json]
+//   vsurg-bench haptic-rtt --stations N --seconds S [--scene arm-torsion] [--idle N
+//                          [--idle-scene NAME] [--idle-threads]] [--json]
 //     N simulated stations at 1 kHz against a real UDP endpoint on loopback, each with its own
 //     session and simulation (deformation thread included); prints rtt_p50_us, rtt_p99_us,
 //     rtt_p999_us, loss and server_cpu_per_station (the endpoint I/O thread's CPU time per
@@ -58,6 +59,12 @@ int HapticRtt(const std::vector<std::string>& args) {
   p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
       .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
       .Option("scene", ArgParser::Kind::kString, "scene each session runs", false, "arm-torsion")
+      .Option("idle", ArgParser::Kind::kInt,
+              "sessions that exist but nobody drives (never-started ones)", false, "0")
+      .Option("idle-scene", ArgParser::Kind::kString, "their scene", false, "sphere-palpation-256")
+      .Option("idle-threads", ArgParser::Kind::kFlag,
+              "give idle sessions a running deformation thread, as before the server started "
+              "one only for a driven session (for comparison)")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -75,6 +82,20 @@ int HapticRtt(const std::vector<std::string>& args) {
   auto scene = vsurg::sim::LoadSceneByName(p.String("scene"));
   if (!scene.ok())
     return std::cerr << p.command() << ": --scene: " << scene.error().message << "\n", 2;
+
+  const int idle = p.Int("idle");
+  if (idle < 0 || idle > 1024)
+    return std::cerr << p.command() << ": --idle: must be in 0..1024\n", 2;
+  auto idle_scene = vsurg::sim::LoadSceneByName(p.String("idle-scene"));
+  if (!idle_scene.ok())
+    return std::cerr << p.command() << ": --idle-scene: " << idle_scene.error().message << "\n", 2;
+  std::vector<std::unique_ptr<vsurg::sim::Simulation>> idle_sims;
+  for (int i = 0; i < idle; ++i) {
+    auto sim = vsurg::sim::Simulation::Create(
+        *idle_scene, {.threaded = true, .start_deformation = p.Flag("idle-threads")});
+    if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
+    idle_sims.push_back(std::move(*sim));
+  }
 
   auto endpoint = vsurg::server::UdpEndpoint::Create({});
   if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
@@ -181,14 +202,17 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["rtt_p99_us"] = pct(0.99);
   j["rtt_p999_us"] = pct(0.999);
   j["server_cpu_per_station"] = cpu / total / n;
+  j["idle_sessions"] = idle;
+  j["idle_threads"] = p.Flag("idle-threads");
   if (p.Flag("json")) {
     std::cout << j.dump() << "\n";
   } else {
     std::printf(
         "%d stations, %.1f s: rtt p50 %.1f us, p99 %.1f us, p99.9 %.1f us, loss %.4f, server "
-        "cpu/station %.4f\n",
+        "cpu/station %.4f, idle sessions %d%s\n",
         n, seconds, pct(0.5), pct(0.99), pct(0.999), j["loss"].get<double>(),
-        j["server_cpu_per_station"].get<double>());
+        j["server_cpu_per_station"].get<double>(), idle,
+        p.Flag("idle-threads") ? " (with deformation threads)" : "");
   }
   return 0;
 }
@@ -198,7 +222,8 @@ int HapticRtt(const std::vector<std::string>& args) {
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "--help") {
-    std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--json]\n"
+    std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--idle N "
+                 "[--idle-scene NAME] [--idle-threads]] [--json]\n"
                  "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n";

@@ -98,7 +98,7 @@ adm report --subject-kind session --subjects "$session"
 step "Administrator: the scoring loop's trial metrics"
 adm sessions
 step "Administrator: the simulator models compared by 120 raters (synthetic sample ratings)"
-adm import --input "$root/deploy/samples/ratings-three-models.csv" --subject-kind model
+adm import --input "$root/deploy/samples/ratings-three-models.csv" --subject-kind model --quiet
 adm report --subject-kind model --subjects coil-spring,mass-spring,fem
 step "Administrator: export of every evaluation as CSV"
 adm export --format csv --out "$out/scores.csv"

@@ -4,11 +4,12 @@
 #   deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- extra libFuzzer flags]
 #
 # Targets (tests/fuzz/): datagram messages scene_json obj ratings_csv trajectory_csv.
-# Builds build-fuzz/ with clang (libFuzzer, AddressSanitizer + UndefinedBehaviorSanitizer); reads
-# the kept corpus tests/fuzz/corpus/TARGET and writes what it finds new to build-fuzz/corpus/
-# TARGET (never into the repository unless --merge, which minimises the new inputs into the kept
-# corpus for a commit). A crash, a leak, a property failure or an input slower than 10 s stops the
-# run with exit 1 and leaves the input in build-fuzz/crashes/. Prints each target's executions.
+# Builds the targets in build-asan/ (clang: libFuzzer, AddressSanitizer + UndefinedBehaviorSanitizer;
+# the same build deploy/sanitize.sh tests); reads the kept corpus tests/fuzz/corpus/TARGET and
+# writes what it finds new to build-asan/corpus/TARGET (never into the repository unless --merge,
+# which minimises the new inputs into the kept corpus for a commit). A crash, a leak, a property
+# failure or an input slower than 10 s stops the run with exit 1 and leaves the input in
+# build-asan/crashes/. Prints each target's executions.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -45,10 +46,8 @@ fi
 
 vsurg_install_packages
 vsurg_install_packages_of VSURG_FUZZ_PACKAGES
-out="$root/build-fuzz"
-CC=clang CXX=clang++ cmake -S "$root" -B "$out" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DVSURG_FUZZ=ON -DVSURG_SANITIZE=ON -DVSURG_TESTS=OFF -DVSURG_BENCH=OFF -DVSURG_WERROR=OFF \
-  >/dev/null
+out="$root/build-asan"  # shared with deploy/sanitize.sh: one clang build for both
+vsurg_configure_asan
 cmake --build "$out" -j2 --target $(printf 'fuzz_%s ' "${targets[@]}")
 mkdir -p "$out/crashes"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:symbolize=1"

@@ -16,6 +16,15 @@ VSURG_PACKAGES=(
 # runtime, and llvm-symbolizer for readable reports. GCC's sanitizer runtimes come with g++.
 VSURG_FUZZ_PACKAGES=(clang libclang-rt-14-dev llvm)
 
+# The sanitizer build (clang, -O1, AddressSanitizer + UBSan, libFuzzer coverage) in build-asan/:
+# deploy/sanitize.sh runs the tests from it, deploy/fuzz.sh the fuzz targets.
+vsurg_configure_asan() {
+  local root; root="$(vsurg_root)"
+  CC=clang CXX=clang++ cmake -S "$root" -B "$root/build-asan" -G Ninja \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
+    -DVSURG_BENCH=OFF -DVSURG_SANITIZE=ON -DVSURG_FUZZ=ON -DVSURG_WERROR=OFF >/dev/null
+}
+
 vsurg_root() { cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd; }
 
 # Installs only the missing packages; needs root (or sudo) when something is missing.

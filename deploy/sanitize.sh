@@ -2,12 +2,13 @@
 # The sanitizer builds of the tests, each in its own build folder (deploy/test.sh runs this after
 # the main build; it can also run alone):
 #
-#   build-asan/  AddressSanitizer + UndefinedBehaviorSanitizer (GCC), every unit and integration
-#                test (not the speed-vs-error study, a numerical run the physics tests cover, and
-#                not the e2e demo flow, which the main build runs);
-#   build-tsan/  ThreadSanitizer (GCC) on the threaded suites: the simulation and its deformation
-#                thread, the UDP endpoint, the station channel, the store's writer.
+#   build-asan/  AddressSanitizer + UndefinedBehaviorSanitizer (clang, -O1), the unit and
+#                integration tests (bar five long numerical runs, below); the same build holds
+#                the libFuzzer targets (deploy/fuzz.sh);
+#   build-tsan/  ThreadSanitizer (clang, -O1) on the threaded suites: the simulation and its
+#                deformation thread, the UDP endpoint, the station channel, the store's writer.
 #
+# Clang, not GCC: the same checks, and the project builds in 8 minutes instead of 17 here.
 # Usage: deploy/sanitize.sh [asan|tsan|all]   (default all). Exits non-zero on any report.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
@@ -15,23 +16,36 @@ root="$(vsurg_root)"
 which="${1:-all}"
 case "$which" in asan|tsan|all) ;; *) echo "usage: deploy/sanitize.sh [asan|tsan|all]" >&2; exit 2 ;; esac
 vsurg_install_packages
+vsurg_install_packages_of VSURG_FUZZ_PACKAGES
 supp="$root/tests/sanitizers"
-# -O1: sanitizer builds are about finding faults; they compile faster and still run briskly.
-common=(-G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g"
-        -DVSURG_BENCH=OFF)
 
 if [ "$which" = asan ] || [ "$which" = all ]; then
-  cmake -S "$root" -B "$root/build-asan" "${common[@]}" -DVSURG_SANITIZE=ON >/dev/null
+  vsurg_configure_asan
   cmake --build "$root/build-asan" -j2
-  ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1" \
-  LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0" \
-  UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1" \
-    ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 600 -L 'unit|integration'
+  export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
+  export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0"
+  export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+  # Processes that load Mesa's OpenGL driver (the renderer's tests, the station binaries) run
+  # without the leak check: the driver is unloaded before LeakSanitizer looks, so its blocks show
+  # as "<unknown module>" and cannot be told from ours or suppressed. Their memory errors are
+  # still caught; the same code without OpenGL is leak-checked by the other suites.
+  gl='MeshViewTest|StationBinaryTest'
+  # Five long numerical runs (whole scripted trials, FEM convergence and energy studies: 15 of the
+  # 25 minutes the suite takes here) run in the main build only; the same code runs under the
+  # sanitizers in the shorter tests (replays, clock jumps, adversarial streams, FEM steps).
+  long='SimulationTest.ScriptedTrainees|FemTest.UndampedImplicitEuler|FemTest.ConvergesToSaintVenant'
+  long+='|FemTest.CantileverConverges|FemTest.StiffMaterialAtLargeSteps'
+  ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 600 -L 'unit|integration' \
+    -E "$gl|$long"
+  ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
+    ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 600 -R "$gl"
 fi
 
 if [ "$which" = tsan ] || [ "$which" = all ]; then
   suites=(simulation_test server_net_test station_channel_test db_test)
-  cmake -S "$root" -B "$root/build-tsan" "${common[@]}" -DVSURG_TSAN=ON >/dev/null
+  CC=clang CXX=clang++ cmake -S "$root" -B "$root/build-tsan" -G Ninja \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
+    -DVSURG_BENCH=OFF -DVSURG_TSAN=ON -DVSURG_WERROR=OFF >/dev/null
   cmake --build "$root/build-tsan" -j2 --target "${suites[@]}"
   # Only those suites were built: run them directly (gtest), not through ctest's whole list.
   for s in "${suites[@]}"; do

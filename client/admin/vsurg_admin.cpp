@@ -209,11 +209,13 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
   p.Option("input", Kind::kString, "ratings CSV", true)
       .Option("subject-kind", Kind::kString, "session, trainee or model", true)
       .Option("subject", Kind::kString, "the subject, for rows without a subject column")
-      .Option("moment", Kind::kDouble, "training moment, minutes (trainee subjects)");
+      .Option("moment", Kind::kDouble, "training moment, minutes (trainee subjects)")
+      .Option("quiet", Kind::kFlag, "print only refused rows and the summary");
   vsurg::client::AddRemoteOptions(p);
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
+  const bool quiet = p.Flag("quiet");
   auto text = ReadTextFile(p.String("input"), "--input");
   if (!text.ok()) return Usage(err, p.command(), "--input", text.error().message);
   auto subjects = vsurg::scoring::ParseRatingsCsv(*text, p.String("input"));
@@ -247,7 +249,9 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
           "line " + std::to_string(r.line) + " (" + r.evaluator + " on " + name + ")";
       const grpc::Status s = stub->Submit(&ctx, req, &resp);
       if (s.ok()) {
-        out << row << ": " << (resp.duplicate() ? "unchanged (already stored)" : "stored") << "\n";
+        if (!quiet)
+          out << row << ": " << (resp.duplicate() ? "unchanged (already stored)" : "stored")
+              << "\n";
         (resp.duplicate() ? repeated : stored)++;
         continue;
       }

@@ -315,7 +315,10 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
         auto scene = sim::LoadScene(file.string());
         if (!scene.ok()) {
           // Not offered (a station could not load it either), and said why; the rest still are.
-          resp->add_unusable(file.filename().string() + ": " + scene.error().message);
+          // Named by its file name: the message's own prefix is the server's full path.
+          std::string why = scene.error().message;
+          if (why.rfind(file.string() + ": ", 0) == 0) why.erase(0, file.string().size() + 2);
+          resp->add_unusable(file.filename().string() + ": " + why);
           continue;
         }
         v1::SceneInfo* info = resp->add_scenes();

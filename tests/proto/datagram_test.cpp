@@ -1,6 +1,8 @@
 #include "proto/wire/datagram.h"
 
+#include <cstring>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -55,6 +57,28 @@ TEST(DatagramTest, StylusRoundTripIsSmallAndExact) {
   EXPECT_EQ(back.sample.position, Stylus().sample.position);
   EXPECT_EQ(back.sample.buttons, 1u);
   EXPECT_NEAR(back.sample.orientation.angularDistance(Stylus().sample.orientation), 0, 1e-15);
+}
+
+// Found by fuzz_messages: the codec's message object is shared by decode and encode, and a
+// decoded payload's unknown fields (kept by the protobuf parser) rode along in the next encode:
+// a peer could make us send its bytes, and oversized ones made the encode fail (no answer).
+TEST(DatagramTest, AnEncodeCarriesNothingADecodedPayloadLeftBehind) {
+  const Authenticator auth(Key(1));
+  Codec fresh, shared;
+  std::array<uint8_t, kMaxDatagram> a, b;
+  const size_t clean = fresh.EncodeStylus(Stylus(), {}, auth, a);
+  ASSERT_GT(clean, 0u);
+  Opened o;
+  ASSERT_EQ(Open(std::span<const uint8_t>(a.data(), clean), &auth, o), DropReason::kNone);
+  // The same payload with an unknown field 99 (a 600-byte string) appended.
+  std::vector<uint8_t> payload(o.payload.begin(), o.payload.end());
+  payload.insert(payload.end(), {0x9a, 0x06, 0xd8, 0x04});  // field 99, length-delimited, 600
+  payload.insert(payload.end(), 600, 'x');
+  StylusMessage decoded;
+  ASSERT_EQ(shared.DecodeStylus(payload, decoded), DropReason::kNone);
+  const size_t n = shared.EncodeStylus(Stylus(), {}, auth, b);
+  EXPECT_EQ(n, clean);
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), clean), 0);
 }
 
 TEST(DatagramTest, ForceRoundTripCarriesTheLocalModel) {

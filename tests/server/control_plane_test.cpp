@@ -891,7 +891,9 @@ TEST_F(ControlPlaneTest, ABadSceneFileIsSkippedAndReportedAndTheOthersStayAvaila
   ASSERT_EQ(list.scenes_size(), 2);
   EXPECT_EQ(list.scenes(0).name(), "arm-torsion");
   ASSERT_EQ(list.unusable_size(), 1);
-  EXPECT_NE(list.unusable(0).find("broken.json"), std::string::npos);
+  EXPECT_EQ(list.unusable(0).rfind("broken.json: ", 0), 0u) << list.unusable(0);
+  EXPECT_EQ(list.unusable(0).find(scenes.string()), std::string::npos)
+      << "a trainee is not shown the server's paths";
   EXPECT_NE(list.unusable(0).find("description: must be a string"), std::string::npos)
       << list.unusable(0);
   EXPECT_TRUE(good.ok()) << good.error_message();
