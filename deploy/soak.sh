@@ -94,6 +94,7 @@ stored_submissions=$((stored / 9))
     END { if (n==0) { print "no samples after warm-up"; exit }
       mr=sr/n; mf=sf/n; minr=r[1]; maxr=r[1]; minf=f[1]; maxf=f[1]
       for (i=1;i<=n;i++) { if(r[i]<minr)minr=r[i]; if(r[i]>maxr)maxr=r[i]; if(f[i]<minf)minf=f[i]; if(f[i]>maxf)maxf=f[i] }
+      printf "%d samples after a %d s warm-up\n", n, warm
       printf "server RSS after warm-up: mean %.1f MB, min %.1f, max %.1f (%+.1f%% / %+.1f%%), first %.1f, last %.1f\n", mr/1024, minr/1024, maxr/1024, 100*(minr-mr)/mr, 100*(maxr-mr)/mr, r[1]/1024, r[n]/1024
       printf "server open descriptors: mean %.1f, min %d, max %d (%+.1f%% / %+.1f%%); threads %d..%d\n", mf, minf, maxf, 100*(minf-mf)/mf, 100*(maxf-mf)/mf, t[1], t[n]
       ok = (maxr-mr)/mr <= 0.05 && (mr-minr)/mr <= 0.05 && (maxf-mf)/mf <= 0.05 && (mf-minf)/mf <= 0.05
@@ -109,7 +110,7 @@ stored_submissions=$((stored / 9))
   cat "$out"/monitor-*.log 2>/dev/null | sed -n 's/^t=\([0-9.]*\)s .* rtt=\([0-9]*\).*/\1 \2/p' |
     awk '{ m=int($1/60); v[m]=v[m] " " $2 } END { for (m in v) print m, v[m] }' | sort -n |
     while read -r minute values; do
-      printf '  minute %d: p99 %s\n' "$minute" "$(echo $values | tr ' ' '\n' | sort -n | awk '{a[NR]=$1} END{print a[int(NR*0.99)>0?int(NR*0.99):1]}')"
+      printf '  minute %d: p99 %s\n' "$minute" "$(echo $values | tr ' ' '\n' | sort -n | awk '{a[NR]=$1} END{i=int(NR*0.99); if (i<1) i=1; print a[i]}')"
     done
   echo "evaluations: $acked acknowledged, $failed import rounds failed, $stored_submissions stored"
   lost=$(grep -L '"session"' "$out"/station-*.json | wc -l)

@@ -91,6 +91,19 @@ class ControlPlaneTest : public ::testing::Test {
     return r;
   }
 
+  // EvaluationService/Report on model subjects, as an instructor sees it.
+  nlohmann::json ModelReport(const std::string& subject, const std::string& weight_set = "") {
+    auto ev = v1::EvaluationService::NewStub(channel_);
+    v1::ReportRequest rq;
+    rq.set_subject_kind("model");
+    rq.add_subjects(subject);
+    if (!weight_set.empty()) rq.set_weight_set(weight_set);
+    v1::ReportResponse rep;
+    const grpc::Status s = ev->Report(Ctx(db::Role::kInstructor).get(), rq, &rep);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+    return s.ok() ? nlohmann::json::parse(rep.report_json()) : nlohmann::json();
+  }
+
   fs::path dir_;
   std::unique_ptr<db::Store> store_;
   std::unique_ptr<UdpEndpoint> endpoint_;
@@ -767,12 +780,7 @@ TEST_F(ControlPlaneTest, AReusedIdempotencyKeyWithAnotherPayloadIsRefused) {
   EXPECT_TRUE(r.duplicate());
   EXPECT_EQ(r.submission_id(), first.submission_id());
   EXPECT_EQ(store_->CountEvaluationRows().value(), 18);
-  v1::ReportRequest rq;
-  rq.set_subject_kind("model");
-  rq.add_subjects("coil");
-  v1::ReportResponse rep;
-  ASSERT_TRUE(ev->Report(Ctx(db::Role::kInstructor).get(), rq, &rep).ok());
-  const auto j = nlohmann::json::parse(rep.report_json());
+  const auto j = ModelReport("coil");
   EXPECT_NEAR(j["index_means"][8].get<double>(), (0.2 * 7 + 0.5 * 7) / 0.7, 1e-12);
 }
 

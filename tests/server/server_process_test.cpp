@@ -161,22 +161,39 @@ TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
   fs::remove_all(dir);
 }
 
+// A fresh store initialised by `vsurg-admin init` (its first administrator's token) and a
+// vsurg-server on it; `remote` is the options every vsurg-admin call against it takes.
+struct AdminCliSetup {
+  fs::path dir, db;
+  std::string admin = VSURG_ADMIN_BINARY, token, remote;
+  test::ServerProcess server;
+  explicit AdminCliSetup(const std::string& name)
+      : dir(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))),
+        db(dir / "vsurg.db") {
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const ShellRun init = Shell(admin + " init --db " + db.string() + " 2>/dev/null");
+    EXPECT_EQ(init.code, 0);
+    token = init.out.substr(0, init.out.find('\n'));
+    server = ServerProcess::Start(dir, db);
+    remote = " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " + token;
+  }
+  ~AdminCliSetup() {
+    server.Signal(SIGTERM);
+    fs::remove_all(dir);
+  }
+};
+
 TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("vsurg_admin_cli_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const fs::path db = dir / "vsurg.db";
-  const std::string admin = VSURG_ADMIN_BINARY;
-  const ShellRun init = Shell(admin + " init --db " + db.string() + " 2>/dev/null");
-  ASSERT_EQ(init.code, 0);
-  const std::string token = init.out.substr(0, init.out.find('\n'));
+  AdminCliSetup setup("vsurg_admin_cli");
+  const fs::path& dir = setup.dir;
+  const fs::path& db = setup.db;
+  const std::string& admin = setup.admin;
+  const std::string& token = setup.token;
+  const std::string& remote = setup.remote;
+  test::ServerProcess& server = setup.server;
   EXPECT_EQ(token.rfind("vst_", 0), 0u);
   EXPECT_EQ(Shell(admin + " init --db " + db.string() + " 2>/dev/null").code, 1);  // once only
-
-  auto server = ServerProcess::Start(dir, db);
-  const std::string remote =
-      " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " + token;
   const ShellRun import =
       Shell(admin + " import" + remote +
             " --input " VSURG_SAMPLES_DIR "/ratings-three-models.csv --subject-kind model");
@@ -219,26 +236,16 @@ TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
   EXPECT_EQ(bad.code, 1);
   EXPECT_NE(bad.out.find("unknown token"), std::string::npos) << bad.out;
   EXPECT_FALSE(fs::exists(dir / "x"));
-  server.Signal(SIGTERM);
-  fs::remove_all(dir);
 }
 
 // Import keys cover the whole (kind, subject, evaluator) tuple: a long subject no longer makes
 // two evaluators collide (their keys were cut at 128 characters), and a re-import says what
 // happened to each row: identical rows are unchanged, corrected ones are refused and reported.
 TEST(AdminCliTest, ImportSaysWhatHappenedToEachRowAndLongSubjectsNeverCollide) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("vsurg_admin_import_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const fs::path db = dir / "vsurg.db";
-  const std::string admin = VSURG_ADMIN_BINARY;
-  const ShellRun init = Shell(admin + " init --db " + db.string() + " 2>/dev/null");
-  ASSERT_EQ(init.code, 0);
-  const std::string token = init.out.substr(0, init.out.find('\n'));
-  auto server = ServerProcess::Start(dir, db);
-  const std::string remote =
-      " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " + token;
+  AdminCliSetup setup("vsurg_admin_import");
+  const fs::path& dir = setup.dir;
+  const std::string& admin = setup.admin;
+  const std::string& remote = setup.remote;
   const std::string subject(200, 'm');
   auto write_csv = [&](const fs::path& path, double chief_first) {
     std::ofstream out(path);
@@ -271,8 +278,6 @@ TEST(AdminCliTest, ImportSaysWhatHappenedToEachRowAndLongSubjectsNeverCollide) {
   const auto j = nlohmann::json::parse(report.out);
   EXPECT_EQ(j["raters"], 2);
   EXPECT_NEAR(j["index_means"][0].get<double>(), (0.2 * 7 + 0.5 * 8) / 0.7, 1e-9);
-  server.Signal(SIGTERM);
-  fs::remove_all(dir);
 }
 
 }  // namespace
