@@ -48,7 +48,7 @@ for i in $(seq -w 1 "$stations"); do
   token="$(token_of "soak-t$i" trainee group-a)"
   if [ $((10#$i % 2)) -eq 0 ]; then scene=arm-torsion traj=arm.csv; else scene=sphere-palpation-256 traj=sphere.csv; fi
   "$bin/vsurg-station" --server "$server" --token "$token" --scene "$scene" --device replay \
-    --trajectory "$tmp/$traj" --headless --width 160 --height 100 --fps 2 --duration "$seconds" \
+    --trajectory "$tmp/$traj" --headless --width 160 --height 100 --fps 2 --duration "$((seconds + 20))" \
     --realtime-priority 0 --json > "$out/station-$i.json" 2> "$out/station-$i.log" &
   pids+=($!)
   station_pids+=($!)
@@ -61,7 +61,8 @@ for s in $(adm sessions 2>/dev/null | awk -F'\t' '$4=="running"{print $1}' | hea
   pids+=($!)
 done
 
-# Evaluators all along; the server's resources every 5 s.
+# Evaluators all along; the server's resources every 5 s, for SECONDS (the stations run 20 s
+# longer, so their ending is never in the figures).
 echo "t_s,rss_kb,fds,threads" > "$out/soak-timeline.csv"
 acked=0 failed=0
 start=$(date +%s)
