@@ -315,7 +315,8 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // parse_error, and out_of_range for a number beyond a double (1e400): found by fuzz_scene_json.
     return Error{ErrorCode::kParseError, source + ": not valid JSON: " + e.what(), "scene"};
   }
   if (!root.is_object())

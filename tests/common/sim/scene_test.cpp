@@ -82,6 +82,10 @@ TEST(SceneTest, BadScenesNameTheField) {
   ASSERT_TRUE(ParseScene(Minimal(), "x.json").ok())
       << ParseScene(Minimal(), "x.json").error().message;
   EXPECT_NE(Field("{ not json").find("x.json: not valid JSON"), std::string::npos);
+  // A number beyond a double threw out_of_range past the parse_error catch (fuzz_scene_json).
+  EXPECT_NE(Field(Replace(Minimal(), R"("radius": 0.05)", R"("radius": 1e400)"))
+                .find("x.json: not valid JSON"),
+            std::string::npos);
   EXPECT_NE(Field(Replace(Minimal(), R"("name": "t", )", "")).find("x.json: name: is required"),
             std::string::npos);
   EXPECT_NE(Field(Replace(Minimal(), R"("radius": 0.05)", R"("radius": "big")"))
