@@ -31,14 +31,15 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/core/session_state.h"
+#include "common/scoring/metrics.h"
+#include "common/scoring/vocabulary.h"
 
 namespace vsurg::db {
 
 enum class Role { kTrainee, kInstructor, kEvaluator, kAdmin };
 const char* RoleName(Role r);
 std::optional<Role> ParseRole(std::string_view name);
-
-inline constexpr int kIndexes = 9;
 
 struct UserRecord {
   int64_t id = 0;
@@ -60,18 +61,9 @@ struct SessionRecord {
   int64_t id = 0;
   std::string trainee;
   std::string scene;
-  std::string state;  // created, running, stalled, ended, disconnected, aborted
+  SessionState state = SessionState::kCreated;  // stored by name
   int64_t created_us = 0, started_us = 0, ended_us = 0;
   std::string end_reason;
-};
-
-// Trial metrics as the scoring loop reports them (units as in common/scoring/trial_metrics.h).
-struct TrialMetricsRecord {
-  bool completed = false;
-  double completion_time_s = 0, task_error = 0, peak_force_n = 0, time_over_force_limit_s = 0,
-         path_length_m = 0, rms_jerk = 0, duration_s = 0, score = 0, raw_score = 0;
-  int overload_events = 0;
-  uint32_t caps = 0;
 };
 
 enum class SubjectKind { kSession, kTrainee, kModel };
@@ -85,7 +77,7 @@ struct Submission {
   SubjectKind subject_kind = SubjectKind::kSession;
   std::string subject;               // session id, trainee name, or simulator model name
   std::optional<double> moment_min;  // training moment (trainee subjects), minutes
-  std::array<double, kIndexes> scores{};
+  std::array<double, scoring::kIndexCount> scores{};
   std::string submitted_by;  // the user who sent it (the evaluator, or an admin importing)
 };
 
@@ -99,7 +91,7 @@ struct RatingRow {  // one evaluator's nine scores on one subject
   std::string evaluator;
   std::string evaluator_group;
   std::optional<double> moment_min;
-  std::array<double, kIndexes> scores{};
+  std::array<double, scoring::kIndexCount> scores{};
 };
 
 struct TrainingRow {  // one evaluator's scores of a trainee at a training moment
@@ -107,7 +99,7 @@ struct TrainingRow {  // one evaluator's scores of a trainee at a training momen
   std::string trainee_group;
   double moment_min = 0;
   std::string evaluator;
-  std::array<double, kIndexes> scores{};
+  std::array<double, scoring::kIndexCount> scores{};
 };
 
 struct ExportFilter {
@@ -136,8 +128,15 @@ class Connection;
 
 class Store {
  public:
-  // Opens or creates the file and migrates it to the current schema.
+  // Opens or creates the file and migrates it to the current schema: the server's open, the
+  // only writer.
   static Expected<std::unique_ptr<Store>> Open(const StoreOptions& options);
+  // Opens an existing file for reading only: never creates it (a mistyped path is kNotFound),
+  // never migrates it (a file at another schema version is kFailedPrecondition), starts no
+  // writer; every write fails with kFailedPrecondition. Safe beside a live server (WAL readers
+  // never block its writer). For offline exports and inspection.
+  static Expected<std::unique_ptr<Store>> OpenReadOnly(const std::string& path);
+  bool read_only() const;
   ~Store();  // finishes the queued writes, then closes
   Store(const Store&) = delete;
   Store& operator=(const Store&) = delete;
@@ -160,9 +159,9 @@ class Store {
   Expected<std::string> InitAdmin(const std::string& name);
 
   Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene);
-  Status SetSessionState(int64_t id, const std::string& state, int64_t at_us,
+  Status SetSessionState(int64_t id, SessionState state, int64_t at_us,
                          const std::string& reason = "");
-  Status RecordTrialMetrics(int64_t session_id, const TrialMetricsRecord& m);
+  Status RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m);
   // At start-up: sessions a previous process left live (it was killed, or the machine failed)
   // cannot go on; they become aborted with `reason`. Returns how many.
   Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason);
@@ -184,7 +183,7 @@ class Store {
   Expected<std::vector<UserRecord>> ListUsers();
   Expected<SessionRecord> GetSession(int64_t id);
   Expected<std::vector<SessionRecord>> ListSessions(const std::optional<std::string>& trainee);
-  Expected<std::optional<TrialMetricsRecord>> GetTrialMetrics(int64_t session_id);
+  Expected<std::optional<scoring::TrialMetrics>> GetTrialMetrics(int64_t session_id);
   Expected<std::string> GetWeightSet(const std::string& name);  // JSON; kNotFound
   Expected<std::vector<std::string>> ListWeightSets();
   Expected<std::vector<RatingRow>> LoadRatings(SubjectKind kind, const std::string& subject);

@@ -20,13 +20,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "client/net/proto_convert.h"
 #include "client/net/remote.h"
 #include "common/cli/args.h"
 #include "common/core/file.h"
 #include "common/scoring/ratings_csv.h"
 #include "common/scoring/report_json.h"
 #include "db/store.h"
+#include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace {
@@ -519,7 +519,7 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
            "over_limit_s\tpath_m\trms_jerk\toverloads\n";
   for (const v1::Session& x : resp.sessions()) {
     const v1::TrialMetrics& m = x.metrics();
-    const std::string state = vsurg::client::SessionStateName(x.state());
+    const std::string state = vsurg::convert::StateName(x.state());
     if (p.Flag("json")) {
       nlohmann::json j = {{"id", x.id()},
                           {"trainee", x.trainee()},
@@ -527,7 +527,7 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
                           {"state", state},
                           {"end_reason", x.end_reason()}};
       if (x.has_metrics())
-        j["metrics"] = vsurg::scoring::TrialMetricsToJson(vsurg::client::TrialMetricsFromProto(m));
+        j["metrics"] = vsurg::scoring::TrialMetricsToJson(vsurg::convert::FromProto(m));
       out << j.dump() << "\n";
       continue;
     }

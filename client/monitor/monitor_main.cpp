@@ -18,18 +18,19 @@
 #include <optional>
 #include <thread>
 
-#include "client/net/proto_convert.h"
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
 #include "common/cli/args.h"
 #include "common/sim/scene.h"
+#include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace {
 
 namespace v1 = vsurg::v1;
 namespace client = vsurg::client;
+namespace convert = vsurg::convert;
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 
@@ -68,7 +69,7 @@ int List(const std::vector<std::string>& args) {
   std::cout << "id\ttrainee\tscene\tstate\tscore\n";
   for (const v1::Session& session : resp.sessions())
     std::cout << session.id() << "\t" << session.trainee() << "\t" << session.scene() << "\t"
-              << client::SessionStateName(session.state()) << "\t"
+              << convert::StateName(session.state()) << "\t"
               << (session.has_metrics() ? Fixed(session.metrics().score(), 1) : "-") << "\n";
   return 0;
 }
@@ -77,12 +78,12 @@ std::string TextLine(const v1::Telemetry& t, double since_s) {
   const double f = std::sqrt(t.force().x() * t.force().x() + t.force().y() * t.force().y() +
                              t.force().z() * t.force().z());
   return "t=" + Fixed(since_s, 1) + "s session=" + std::to_string(t.session_id()) +
-         " state=" + client::SessionStateName(t.state()) +
-         " twist=" + Fixed(t.twist() * 180 / M_PI, 1) + "deg torque=" + Fixed(t.torque(), 3) +
-         "Nm force=" + Fixed(f, 2) + "N contact=" + (t.contact() ? "1" : "0") +
-         " grasp=" + (t.grasping() ? "1" : "0") + " rtt=" + Fixed(t.rtt_us(), 0) +
-         "us loss=" + Fixed(100 * t.packet_loss(), 2) + "% rate=" + Fixed(t.haptic_rate_hz(), 0) +
-         "Hz packets=" + std::to_string(t.packets()) + " score=" + Fixed(t.metrics().score(), 1);
+         " state=" + convert::StateName(t.state()) + " twist=" + Fixed(t.twist() * 180 / M_PI, 1) +
+         "deg torque=" + Fixed(t.torque(), 3) + "Nm force=" + Fixed(f, 2) +
+         "N contact=" + (t.contact() ? "1" : "0") + " grasp=" + (t.grasping() ? "1" : "0") +
+         " rtt=" + Fixed(t.rtt_us(), 0) + "us loss=" + Fixed(100 * t.packet_loss(), 2) +
+         "% rate=" + Fixed(t.haptic_rate_hz(), 0) + "Hz packets=" + std::to_string(t.packets()) +
+         " score=" + Fixed(t.metrics().score(), 1);
 }
 
 // The Watch stream on its own thread; the main thread takes the newest message (latest wins).
@@ -268,7 +269,7 @@ int Follow(const std::vector<std::string>& args) {
         overlay.contact = latest.contact();
         overlay.grasping = latest.grasping();
         overlay.hud = {"vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() +
-                           "  " + client::SessionStateName(latest.state()),
+                           "  " + convert::StateName(latest.state()),
                        "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
                            Fixed(latest.torque(), 2) + " nm",
                        "haptic " + Fixed(latest.haptic_rate_hz(), 0) + " hz   rtt " +

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <chrono>
 
-#include "client/net/proto_convert.h"
+#include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::client {
@@ -34,8 +34,8 @@ std::string Describe(const grpc::Status& s) {
 }
 
 bool IsLive(v1::SessionState s) {
-  return s == v1::SESSION_STATE_CREATED || s == v1::SESSION_STATE_RUNNING ||
-         s == v1::SESSION_STATE_STALLED;
+  const auto state = convert::FromProto(s);
+  return state && vsurg::IsLive(*state);
 }
 
 void Add(StationStats& sum, const StationStats& s) {
@@ -160,7 +160,7 @@ void Station::Probe(double now) {
   if (!s.ok()) return Drop("the server does not answer: " + Describe(s));
   if (!IsLive(session.state()))
     return Drop("session " + std::to_string(status_.session) + " is " +
-                v1::SessionState_Name(session.state()));
+                convert::StateName(session.state()));
   last_progress_ = now;  // the server is there and the session live: slow, not gone
 }
 
@@ -225,10 +225,10 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
     return Error{ErrorCode::kUnavailable, "cannot stop the session: " + Describe(s), "session"};
   SessionSummary out;
   out.id = session.id();
-  out.state = v1::SessionState_Name(session.state());
+  out.state = convert::FromProto(session.state()).value_or(SessionState::kAborted);
   out.end_reason = session.end_reason();
   out.has_metrics = session.has_metrics();
-  out.metrics = TrialMetricsFromProto(session.metrics());
+  out.metrics = convert::FromProto(session.metrics());
   return out;
 }
 

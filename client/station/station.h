@@ -26,6 +26,7 @@
 #include "client/net/remote.h"
 #include "client/net/station_channel.h"
 #include "common/core/expected.h"
+#include "common/core/session_state.h"
 #include "common/scoring/trial_metrics.h"
 
 namespace vsurg::client {
@@ -53,7 +54,8 @@ struct StationStatus {
 
 struct SessionSummary {
   uint64_t id = 0;
-  std::string state, end_reason;
+  SessionState state = SessionState::kEnded;
+  std::string end_reason;
   bool has_metrics = false;
   scoring::TrialMetrics metrics;
 };

@@ -270,7 +270,7 @@ int Run(const std::vector<std::string>& args) {
   const auto& m = summary->metrics;
   if (p.Flag("json")) {
     nlohmann::json j = {{"session", summary->id},
-                        {"state", summary->state},
+                        {"state", SessionStateName(summary->state)},
                         {"end_reason", summary->end_reason},
                         {"reconnects", st.reconnects},
                         {"sessions", st.generation},
@@ -289,8 +289,8 @@ int Run(const std::vector<std::string>& args) {
                         {"metrics", vsurg::scoring::TrialMetricsToJson(m)}};
     std::cout << j.dump() << "\n";
   } else {
-    std::cout << "session " << summary->id << " " << summary->state << " (" << summary->end_reason
-              << "): score " << Fixed(m.score, 1) << "/10, completed "
+    std::cout << "session " << summary->id << " " << SessionStateName(summary->state) << " ("
+              << summary->end_reason << "): score " << Fixed(m.score, 1) << "/10, completed "
               << (m.completed ? "yes" : "no") << ", peak force " << Fixed(m.peak_force, 2) << " N, "
               << stats.received << "/" << stats.sent << " datagrams answered, RTT p50 "
               << Fixed(stats.rtt_p50_us, 0) << " us, " << st.reconnects << " reconnects\n";

@@ -12,10 +12,6 @@ namespace vsurg::scoring {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr const char* kGroupNames[kGroupCount] = {"intern", "associate_chief", "chief"};
-constexpr const char* kIndexNames[kIndexCount] = {
-    "effectiveness", "force_feedback", "real_time", "stability", "deformation_efficiency",
-    "fidelity",      "visual_fluency", "immersion", "texture"};
 
 Status ValidateFamily(std::span<const double> w, const char* field) {
   double sum = 0;
@@ -33,20 +29,6 @@ Status ValidateFamily(std::span<const double> w, const char* field) {
 
 }  // namespace
 
-const char* GroupName(EvaluatorGroup g) {
-  return kGroupNames[static_cast<int>(g)];
-}
-
-std::optional<EvaluatorGroup> ParseGroup(std::string_view name) {
-  for (int g = 0; g < kGroupCount; ++g)
-    if (name == kGroupNames[g]) return static_cast<EvaluatorGroup>(g);
-  return std::nullopt;
-}
-
-const char* IndexName(int j) {
-  return j >= 0 && j < kIndexCount ? kIndexNames[j] : "unknown";
-}
-
 Status ValidateWeights(const WeightSet& w) {
   if (w.name.empty()) return InvalidArgument("name", "a weight set needs a name");
   if (Status s = ValidateFamily(w.group, "group_weights"); !s.ok()) return s;
@@ -58,8 +40,7 @@ Status ValidateRating(const Rating& r) {
   const int g = static_cast<int>(r.group);
   if (g < 0 || g >= kGroupCount) return InvalidArgument("group", "unknown evaluator group");
   for (int j = 0; j < kIndexCount; ++j) {
-    const double s = r.scores[j];
-    if (!std::isfinite(s) || s < kMinScore || s > kMaxScore)
+    if (!IsValidScore(r.scores[j]))
       return InvalidArgument("scores[" + std::to_string(j) + "]",
                              std::string(kIndexNames[j]) + " score must be within 0..10");
   }

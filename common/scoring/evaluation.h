@@ -34,20 +34,9 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/scoring/vocabulary.h"
 
 namespace vsurg::scoring {
-
-inline constexpr int kIndexCount = 9;
-inline constexpr int kGroupCount = 3;
-inline constexpr double kMinScore = 0.0, kMaxScore = 10.0;
-
-// Stored as text ("intern", "associate_chief", "chief"): never renumbered.
-enum class EvaluatorGroup { kIntern = 0, kAssociateChief = 1, kChief = 2 };
-
-const char* GroupName(EvaluatorGroup g);
-std::optional<EvaluatorGroup> ParseGroup(std::string_view name);
-// Index j in 0..8 → "effectiveness", "force_feedback", …
-const char* IndexName(int j);
 
 struct WeightSet {
   std::string name = "seed000";

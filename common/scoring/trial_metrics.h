@@ -28,6 +28,8 @@
 
 #include <Eigen/Core>
 
+#include "common/scoring/metrics.h"
+
 namespace vsurg::scoring {
 
 enum class TaskKind { kTwist, kPress };
@@ -40,27 +42,6 @@ struct TaskSpec {
   double force_limit = 3.0;      // N
   double time_limit = 60.0;      // s
   double expert_time = 5.0;      // s, an expert's completion time (the efficiency reference)
-};
-
-enum ScoreCap : uint32_t {
-  kCapNotCompleted = 1u << 0,
-  kCapForceLimit = 1u << 1,
-  kCapOverload = 1u << 2,
-};
-
-struct TrialMetrics {
-  bool completed = false;
-  double completion_time = 0;        // s (0 when not completed)
-  double task_error = 0;             // rad or m
-  double peak_force = 0;             // N
-  double time_over_force_limit = 0;  // s
-  double path_length = 0;            // m
-  double rms_jerk = 0;               // m/s³
-  int overload_events = 0;
-  double duration = 0;   // s, first to last sample
-  double score = 0;      // 0–10 after the gates
-  double raw_score = 0;  // 0–10 before the gates
-  uint32_t caps = 0;     // ScoreCap bits that applied
 };
 
 class TrialRecorder {

@@ -1,12 +1,13 @@
 // The gRPC control plane: SessionService, MonitorService, EvaluationService, AdminService, the
 // standard health service and server reflection (proto/vsurg/v1/services.proto).
 //
-// Callback API, thin reactors over domain functions (SessionManager, db::Store, common/scoring).
+// Callback API, thin reactors over the domain functions of server/domain/api.h (the rules, shared
+// with the HTTP API): a service translates the request, calls one function, translates the result.
 // Every call: the bearer token is authenticated against the store (UNAUTHENTICATED), then the
 // permission matrix decides (PERMISSION_DENIED), then ownership, then validation
 // (INVALID_ARGUMENT naming the field). Errors are mapped to gRPC codes in one place
-// (ToGrpcStatus). No lock is held across a reactor callback: evaluation submissions finish from
-// the store's writer thread after the group commit; monitor streams are fed by the sessions'
+// (grpcapi::ToGrpcStatus). No lock is held across a reactor callback: evaluation submissions finish
+// from the store's writer thread after the group commit; monitor streams are fed by the sessions'
 // sampler thread through a one-slot mailbox per stream.
 //
 // No gRPC or protobuf type appears in this header.
@@ -54,10 +55,6 @@ class ControlPlane {
   explicit ControlPlane(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
-
-// Where AdminService/Backup may write `name`: a plain file name (or an absolute path whose folder
-// is `backup_dir`) that does not exist yet, inside `backup_dir` (created when missing).
-Expected<std::filesystem::path> BackupPath(const std::string& backup_dir, const std::string& name);
 
 // Is this host a loopback address (127.0.0.0/8, ::1, localhost)?
 bool IsLoopbackHost(const std::string& listen);

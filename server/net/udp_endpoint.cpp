@@ -17,18 +17,6 @@ namespace asio = boost::asio;
 using asio::ip::udp;
 using Clock = std::chrono::steady_clock;
 
-const char* SessionStateName(SessionState s) {
-  switch (s) {
-    case SessionState::kRunning:
-      return "running";
-    case SessionState::kStalled:
-      return "stalled";
-    case SessionState::kDisconnected:
-      return "disconnected";
-  }
-  return "?";
-}
-
 struct UdpEndpoint::Impl {
   struct Session {
     Session(const wire::SessionKey& key, sim::Simulation* sim, LinkStats* stats,

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/core/session_state.h"
 #include "proto/wire/datagram.h"
 
 namespace vsurg::sim {
@@ -38,9 +39,6 @@ class Simulation;
 }
 
 namespace vsurg::server {
-
-enum class SessionState { kRunning, kStalled, kDisconnected };
-const char* SessionStateName(SessionState s);
 
 struct EndpointOptions {
   std::string address = "127.0.0.1";  // loopback unless configured otherwise
@@ -72,8 +70,8 @@ struct LinkStats {
 
 struct SessionEvent {
   uint64_t session = 0;
-  SessionState state = SessionState::kRunning;
-  double at_s = 0;  // seconds since the endpoint started
+  SessionState state = SessionState::kRunning;  // running, stalled or disconnected
+  double at_s = 0;                              // seconds since the endpoint started
 };
 
 class UdpEndpoint {

@@ -22,23 +22,6 @@ double SteadyNow() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-db::TrialMetricsRecord ToRecord(const scoring::TrialMetrics& m) {
-  db::TrialMetricsRecord r;
-  r.completed = m.completed;
-  r.completion_time_s = m.completion_time;
-  r.task_error = m.task_error;
-  r.peak_force_n = m.peak_force;
-  r.time_over_force_limit_s = m.time_over_force_limit;
-  r.path_length_m = m.path_length;
-  r.rms_jerk = m.rms_jerk;
-  r.overload_events = m.overload_events;
-  r.duration_s = m.duration;
-  r.score = m.score;
-  r.raw_score = m.raw_score;
-  r.caps = m.caps;
-  return r;
-}
-
 }  // namespace
 
 SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
@@ -85,10 +68,10 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   out.udp_port = endpoint_ ? endpoint_->port() : 0;
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
-  live->state = "created";
+  live->state = SessionState::kCreated;
   live->record = *record;
   live->latest.id = static_cast<uint64_t>(record->id);
-  live->latest.state = "created";
+  live->latest.state = SessionState::kCreated;
   live->key = out.key;
   live->created_s = SteadyNow();
   {
@@ -99,7 +82,8 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
     }
   }
   // Lost the race for the last slot: the row exists, so record it as aborted.
-  (void)store_.SetSessionState(record->id, "aborted", db::NowUs(), "session limit reached");
+  (void)store_.SetSessionState(record->id, SessionState::kAborted, db::NowUs(),
+                               "session limit reached");
   return CheckLimits(trainee).error();
 }
 
@@ -133,7 +117,7 @@ int SessionManager::EndSessionsOf(const std::string& user, const std::string& re
       if (l->record.trainee == user) ids.push_back(id);
   }
   int ended = 0;
-  for (uint64_t id : ids) ended += End(id, "aborted", reason).ok();
+  for (uint64_t id : ids) ended += End(id, SessionState::kAborted, reason).ok();
   return ended;
 }
 
@@ -149,13 +133,15 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
     if (it == live_.end()) {
       auto rec = store_.GetSession(static_cast<int64_t>(id));
       if (!rec.ok()) return rec.error();
-      return Error{ErrorCode::kFailedPrecondition,
-                   "session " + std::to_string(id) + " is " + rec->state + ", not live", "id"};
+      return Error{
+          ErrorCode::kFailedPrecondition,
+          "session " + std::to_string(id) + " is " + SessionStateName(rec->state) + ", not live",
+          "id"};
     }
     Live& l = *it->second;
-    if (l.state == "created") {
-      l.state = "running";
-      l.latest.state = "running";
+    if (l.state == SessionState::kCreated) {
+      l.state = SessionState::kRunning;
+      l.latest.state = SessionState::kRunning;
       simulation = l.simulation.get();
       link = &l.link;
       key = l.key;
@@ -163,12 +149,14 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   }
   if (!simulation) return Get(id);  // already started: idempotent
   endpoint_->AddSession(id, key, simulation, link);
-  if (Status s = store_.SetSessionState(static_cast<int64_t>(id), "running", db::NowUs()); !s.ok())
+  if (Status s =
+          store_.SetSessionState(static_cast<int64_t>(id), SessionState::kRunning, db::NowUs());
+      !s.ok())
     return s.error();
   return Get(id);
 }
 
-Status SessionManager::End(uint64_t id, const std::string& state, const std::string& reason) {
+Status SessionManager::End(uint64_t id, SessionState state, const std::string& reason) {
   std::unique_ptr<Live> live;
   {
     std::lock_guard lock(mutex_);
@@ -177,10 +165,10 @@ Status SessionManager::End(uint64_t id, const std::string& state, const std::str
     live = std::move(it->second);
     live_.erase(it);
   }
-  if (endpoint_ && live->state != "created") endpoint_->RemoveSession(id);
+  if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
   const scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   live->simulation.reset();
-  Status s = store_.RecordTrialMetrics(static_cast<int64_t>(id), ToRecord(metrics));
+  Status s = store_.RecordTrialMetrics(static_cast<int64_t>(id), metrics);
   Status t = store_.SetSessionState(static_cast<int64_t>(id), state, db::NowUs(), reason);
   {
     std::lock_guard lock(subscribers_mutex_);
@@ -191,7 +179,7 @@ Status SessionManager::End(uint64_t id, const std::string& state, const std::str
 }
 
 Expected<db::SessionRecord> SessionManager::Stop(uint64_t id, const std::string& reason) {
-  Status s = End(id, "ended", reason.empty() ? "stopped" : reason);
+  Status s = End(id, SessionState::kEnded, reason.empty() ? "stopped" : reason);
   if (!s.ok() && s.error().code != ErrorCode::kNotFound) return s.error();
   return Get(id);  // stopping an ended session is idempotent: its record
 }
@@ -228,21 +216,22 @@ void SessionManager::Pump() {
     const double now = SteadyNow();
     std::lock_guard lock(mutex_);
     for (auto& [id, l] : live_) {
-      if (l->state == "created" && now - l->created_s > options_.start_timeout_s)
+      if (l->state == SessionState::kCreated && now - l->created_s > options_.start_timeout_s)
         expired.push_back(id);
-      l->simulation->SetDeformationRunning(l->state == "running" && l->latest.sim.samples > 0);
+      l->simulation->SetDeformationRunning(l->state == SessionState::kRunning &&
+                                           l->latest.sim.samples > 0);
     }
   }
   for (uint64_t id : expired) {
     char reason[64];
     std::snprintf(reason, sizeof reason, "not started within %g s", options_.start_timeout_s);
-    (void)End(id, "aborted", reason);
+    (void)End(id, SessionState::kAborted, reason);
   }
   if (!endpoint_) return;
   for (const SessionEvent& e : endpoint_->TakeEvents()) {
-    const char* state = SessionStateName(e.state);
-    if (e.state == SessionState::kDisconnected) {
-      (void)End(e.session, "disconnected", "no stylus data for 5 s");
+    const SessionState state = e.state;
+    if (state == SessionState::kDisconnected) {
+      (void)End(e.session, SessionState::kDisconnected, "no stylus data for 5 s");
       continue;
     }
     {
@@ -322,7 +311,7 @@ void SessionManager::Shutdown() {
     std::lock_guard lock(mutex_);
     for (const auto& [id, l] : live_) ids.push_back(id);
   }
-  for (uint64_t id : ids) (void)End(id, "aborted", "server shut down");
+  for (uint64_t id : ids) (void)End(id, SessionState::kAborted, "server shut down");
 }
 
 }  // namespace vsurg::server

@@ -56,7 +56,7 @@ namespace vsurg::server {
 
 struct SessionTelemetry {
   uint64_t id = 0;
-  std::string state;
+  SessionState state = SessionState::kCreated;
   int64_t server_time_us = 0;
   sim::Telemetry sim;
   double rtt_us = 0;
@@ -121,14 +121,14 @@ class SessionManager {
     std::unique_ptr<sim::Simulation> simulation;
     LinkStats link;
     wire::SessionKey key{};
-    std::string state;  // created, running, stalled
+    SessionState state = SessionState::kCreated;  // a live state
     db::SessionRecord record;
     SessionTelemetry latest;
     uint64_t last_samples = 0;
     double last_sample_s = 0;
     double created_s = 0;  // steady clock, for start_timeout_s
   };
-  Status End(uint64_t id, const std::string& state, const std::string& reason);
+  Status End(uint64_t id, SessionState state, const std::string& reason);
   Status CheckLimits(const std::string& trainee) const;
   Status CheckLimitsLocked(const std::string& trainee) const;  // mutex_ held
   void SamplerLoop();

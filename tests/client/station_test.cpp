@@ -132,13 +132,14 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
 
   auto summary = station.Finish("test over");
   ASSERT_TRUE(summary.ok()) << summary.error().message;
-  EXPECT_EQ(summary->state, "SESSION_STATE_ENDED");
+  EXPECT_EQ(summary->state, SessionState::kEnded);
   EXPECT_TRUE(summary->has_metrics);
   EXPECT_GT(summary->metrics.peak_force, 0.1);
   server.Signal(SIGTERM);
   auto store = db::Store::Open({.path = db.string()});
   ASSERT_TRUE(store.ok());
-  EXPECT_EQ((*store)->GetSession(static_cast<int64_t>(first_session))->state, "aborted");
+  EXPECT_EQ((*store)->GetSession(static_cast<int64_t>(first_session))->state,
+            SessionState::kAborted);
 }
 
 TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
@@ -185,7 +186,7 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
       " --screenshot-before " + before + " --screenshot " + after + " --screenshot-at 4.5 --json");
   ASSERT_EQ(station.code, 0) << station.out;
   const auto summary = nlohmann::json::parse(station.out);
-  EXPECT_EQ(summary["state"], "SESSION_STATE_ENDED");
+  EXPECT_EQ(summary["state"], "ended");
   EXPECT_TRUE(summary["metrics"]["completed"].get<bool>());
   EXPECT_GT(summary["metrics"]["score"].get<double>(), 5.0);
   EXPECT_GT(summary["scene_chunks"].get<int>(), 100);
@@ -252,7 +253,7 @@ TEST(StationBinaryTest, OpensItsWindowUnderXvfb) {
                   tokens.trainee + " --trajectory " + trajectory +
                   " --duration 1.5 --width 400 --height 300 --screenshot " + shot + " 2>&1");
   ASSERT_EQ(run.code, 0) << run.out;
-  EXPECT_NE(run.out.find("SESSION_STATE_ENDED"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("ended"), std::string::npos) << run.out;
   auto image = ReadRgbPng(shot);
   ASSERT_TRUE(image.ok()) << image.error().message;
   EXPECT_EQ(image->width, 400);
@@ -290,7 +291,7 @@ TEST(StationBinaryTest, KeysInTheWindowMoveTheStylus) {
   std::ifstream in(summary);
   const auto j = nlohmann::json::parse(in, nullptr, false);
   ASSERT_FALSE(j.is_discarded()) << run.out;
-  EXPECT_EQ(j["state"], "SESSION_STATE_ENDED");
+  EXPECT_EQ(j["state"], "ended");
   const double path = j["metrics"]["path_length"].get<double>();
   EXPECT_GT(path, 0.03) << "the keys must have moved the stylus (expected about 7.5 cm)";
   EXPECT_LT(path, 0.2);

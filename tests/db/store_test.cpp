@@ -3,6 +3,7 @@
 #include <sqlite3.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -224,19 +225,18 @@ TEST_F(StoreTest, GroupCommitBatchesABurstAndAFailedJobRollsBackAlone) {
 TEST_F(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   auto s = store_->CreateSession("trainee-1", "arm-torsion");
   ASSERT_TRUE(s.ok()) << s.error().message;
-  ASSERT_TRUE(store_->SetSessionState(s->id, "running", 100).ok());
-  ASSERT_TRUE(store_->SetSessionState(s->id, "ended", 200, "stopped by trainee").ok());
-  EXPECT_EQ(store_->SetSessionState(s->id, "exploded", 300).error().code,
-            ErrorCode::kInvalidArgument);
-  EXPECT_EQ(store_->SetSessionState(777, "ended", 300).error().code, ErrorCode::kNotFound);
-  TrialMetricsRecord m;
+  ASSERT_TRUE(store_->SetSessionState(s->id, SessionState::kRunning, 100).ok());
+  ASSERT_TRUE(store_->SetSessionState(s->id, SessionState::kEnded, 200, "stopped by trainee").ok());
+  EXPECT_EQ(store_->SetSessionState(777, SessionState::kEnded, 300).error().code,
+            ErrorCode::kNotFound);
+  scoring::TrialMetrics m;
   m.completed = true;
   m.score = 8.5;
-  m.peak_force_n = 2.5;
+  m.peak_force = 2.5;
   ASSERT_TRUE(store_->RecordTrialMetrics(s->id, m).ok());
   auto got = store_->GetSession(s->id);
   ASSERT_TRUE(got.ok());
-  EXPECT_EQ(got->state, "ended");
+  EXPECT_EQ(got->state, SessionState::kEnded);
   EXPECT_EQ(got->started_us, 100);
   EXPECT_EQ(got->ended_us, 200);
   EXPECT_EQ(got->end_reason, "stopped by trainee");
@@ -252,14 +252,14 @@ TEST_F(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
   auto running = store_->CreateSession("trainee-1", "arm-torsion");
   auto created = store_->CreateSession("trainee-2", "sphere-palpation-256");
   ASSERT_TRUE(ended.ok() && running.ok() && created.ok());
-  ASSERT_TRUE(store_->SetSessionState(ended->id, "ended", 200, "done").ok());
-  ASSERT_TRUE(store_->SetSessionState(running->id, "running", 300).ok());
+  ASSERT_TRUE(store_->SetSessionState(ended->id, SessionState::kEnded, 200, "done").ok());
+  ASSERT_TRUE(store_->SetSessionState(running->id, SessionState::kRunning, 300).ok());
   EXPECT_EQ(store_->AbortOrphanedSessions(900, "server restarted").value(), 2);
-  EXPECT_EQ(store_->GetSession(ended->id)->state, "ended");
+  EXPECT_EQ(store_->GetSession(ended->id)->state, SessionState::kEnded);
   EXPECT_EQ(store_->GetSession(ended->id)->end_reason, "done");
   for (int64_t id : {running->id, created->id}) {
     const auto r = store_->GetSession(id);
-    EXPECT_EQ(r->state, "aborted");
+    EXPECT_EQ(r->state, SessionState::kAborted);
     EXPECT_EQ(r->ended_us, 900);
     EXPECT_EQ(r->end_reason, "server restarted");
   }
@@ -370,6 +370,84 @@ TEST_F(StoreTest, WeightSetsAndReportsAreKept) {
   EXPECT_FALSE(store_->PutWeightSet("broken", "{not json").ok());
   EXPECT_EQ(store_->ListWeightSets().value(), std::vector<std::string>{"equal"});
   EXPECT_TRUE(store_->RecordReport("model", "coil", w, R"({"comprehensive":8})").ok());
+}
+
+TEST_F(StoreTest, ReadOnlyOpenNeverCreatesMigratesOrWrites) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  ASSERT_TRUE(store_->SubmitEvaluation(Valid("k1")).ok());
+  // A mistyped path is an error, and no file appears.
+  const fs::path typo = dir_ / "vsurg-typo.db";
+  auto missing = Store::OpenReadOnly(typo.string());
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
+  EXPECT_FALSE(fs::exists(typo));
+  // Beside the live writer: reads see what it committed; writes are refused, the file unchanged.
+  auto ro = Store::OpenReadOnly(path_);
+  ASSERT_TRUE(ro.ok()) << ro.error().message;
+  EXPECT_TRUE((*ro)->read_only());
+  EXPECT_EQ((*ro)->CountEvaluationRows().value(), 9);
+  std::string csv;
+  ASSERT_TRUE((*ro)
+                  ->Export({}, ExportFormat::kCsv,
+                           [&](std::string_view c) {
+                             csv.append(c);
+                             return true;
+                           })
+                  .ok());
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 10);
+  auto w = (*ro)->CreateUser("mallory", Role::kAdmin, "");
+  ASSERT_FALSE(w.ok());
+  EXPECT_EQ(w.error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_EQ((*ro)->SubmitEvaluation(Valid("k2", "dr-b")).error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->ListUsers().value().size(), 1u);
+  EXPECT_EQ(Rows(), 9);
+  // A writer's commit after the read-only open is seen by its next read.
+  ASSERT_TRUE(store_->SubmitEvaluation(Valid("k3", "dr-c")).ok());
+  EXPECT_EQ((*ro)->CountEvaluationRows().value(), 18);
+}
+
+TEST_F(StoreTest, ReadOnlyOpenRefusesAFileAtAnotherSchemaVersion) {
+  store_.reset();
+  auto set_version = [&](int v) {
+    auto c = Connection::Open(path_, Connection::Mode::kReadWrite);
+    ASSERT_TRUE(c.ok());
+    ASSERT_TRUE((*c)->Exec(("PRAGMA user_version=" + std::to_string(v)).c_str()).ok());
+  };
+  auto version = [&] {
+    auto c = Connection::Open(path_, Connection::Mode::kReadOnly);
+    auto v = (*c)->Prepare("PRAGMA user_version");
+    EXPECT_TRUE(v.ok() && (*v)->Step().value());
+    const int64_t out = (*v)->Int(0);
+    (*v)->Reset();
+    return out;
+  };
+  for (const int v : {0, Store::SchemaVersion() + 1}) {
+    set_version(v);
+    auto other = Store::OpenReadOnly(path_);
+    ASSERT_FALSE(other.ok()) << v;
+    EXPECT_EQ(other.error().code, ErrorCode::kFailedPrecondition);
+    EXPECT_NE(other.error().message.find("schema version " + std::to_string(v)), std::string::npos)
+        << other.error().message;
+    EXPECT_EQ(version(), v) << "no migration ran";
+  }
+  // An empty file that is not a database yet (a path created by mistake) is refused too.
+  std::ofstream(dir_ / "empty.db").close();
+  EXPECT_FALSE(Store::OpenReadOnly((dir_ / "empty.db").string()).ok());
+}
+
+TEST(SessionStateTest, NamesAndWireNumbersRoundTrip) {
+  for (int n = 1; n <= 6; ++n) {
+    const auto s = SessionStateFromNumber(n);
+    ASSERT_TRUE(s.has_value());
+    EXPECT_EQ(static_cast<int>(*s), n);
+    EXPECT_EQ(ParseSessionState(SessionStateName(*s)), s);
+  }
+  EXPECT_FALSE(SessionStateFromNumber(0).has_value());
+  EXPECT_FALSE(SessionStateFromNumber(7).has_value());
+  EXPECT_FALSE(ParseSessionState("exploded").has_value());
+  EXPECT_TRUE(IsLive(SessionState::kStalled));
+  EXPECT_FALSE(IsLive(SessionState::kDisconnected));
 }
 
 }  // namespace

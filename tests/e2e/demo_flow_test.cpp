@@ -41,7 +41,7 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
 
   // The station: one session, twisted to the target and held, every datagram answered.
   const auto station = nlohmann::json::parse(Slurp(out / "station.json"));
-  EXPECT_EQ(station["state"], "SESSION_STATE_ENDED");
+  EXPECT_EQ(station["state"], "ended");
   EXPECT_EQ(station["end_reason"], "completed");
   EXPECT_TRUE(station["metrics_recorded"].get<bool>());
   EXPECT_TRUE(station["metrics"]["completed"].get<bool>());

@@ -1,6 +1,7 @@
 // The gRPC control plane with real parts: a gRPC server on a loopback port, a real SQLite file,
 // the UDP endpoint and a station over loopback UDP.
 #include "server/control/control_plane.h"
+#include "server/domain/api.h"
 
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
@@ -24,7 +25,7 @@
 #include "client/net/station_channel.h"
 #include "common/scoring/evaluation.h"
 #include "db/store.h"
-#include "server/control/auth.h"
+#include "server/domain/auth.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
 #include "tests/support/press_and_hold.h"
@@ -385,8 +386,8 @@ TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   auto metrics = store_->GetTrialMetrics(static_cast<int64_t>(id));
   ASSERT_TRUE(metrics.ok());
   ASSERT_TRUE(metrics->has_value());
-  EXPECT_GT((*metrics)->peak_force_n, 0.1);
-  EXPECT_GT((*metrics)->duration_s, 1.0);
+  EXPECT_GT((*metrics)->peak_force, 0.1);
+  EXPECT_GT((*metrics)->duration, 1.0);
 
   // A trainee cannot watch, even their own session.
   auto trainee_watch = Ctx(db::Role::kTrainee);
@@ -741,7 +742,7 @@ TEST_F(ControlPlaneTest, SessionsNobodyDrivesCostNoThreadAndNeverStartedOnesExpi
     EXPECT_FALSE(manager.IsLive(id));
     auto rec = store_->GetSession(static_cast<int64_t>(id));
     ASSERT_TRUE(rec.ok());
-    EXPECT_EQ(rec->state, "aborted");
+    EXPECT_EQ(rec->state, SessionState::kAborted);
     EXPECT_NE(rec->end_reason.find("not started within"), std::string::npos) << rec->end_reason;
   }
   EXPECT_TRUE(manager.IsLive(driven));
@@ -826,7 +827,7 @@ TEST_F(ControlPlaneTest, RevokingOrDisablingAUserEndsTheirLiveSessions) {
     EXPECT_FALSE(sessions_->IsLive(created.session().id()));
     auto rec = store_->GetSession(static_cast<int64_t>(created.session().id()));
     ASSERT_TRUE(rec.ok());
-    EXPECT_EQ(rec->state, "aborted");
+    EXPECT_EQ(rec->state, SessionState::kAborted);
     EXPECT_EQ(rec->end_reason, c.disable ? "account disabled" : "access revoked");
     // The UDP channel stops answering at once.
     std::this_thread::sleep_for(std::chrono::milliseconds(50));

@@ -154,7 +154,7 @@ TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
   ASSERT_TRUE(store.ok());
   auto rec = (*store)->GetSession(static_cast<int64_t>(created.session().id()));
   ASSERT_TRUE(rec.ok());
-  EXPECT_EQ(rec->state, "aborted");
+  EXPECT_EQ(rec->state, SessionState::kAborted);
   EXPECT_GT(rec->ended_us, 0);
   EXPECT_TRUE((*store)->GetTrialMetrics(rec->id).value().has_value());
   store->reset();

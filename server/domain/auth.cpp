@@ -1,4 +1,4 @@
-#include "server/control/auth.h"
+#include "server/domain/auth.h"
 
 #include <array>
 #include <cctype>

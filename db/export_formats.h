@@ -1,0 +1,57 @@
+// The export formats as pure writers: rows in, text out, no database (unit-tested alone in
+// tests/db/export_formats_test.cpp).
+//
+//   csv    one line per stored score, RFC 4180, a header line, CRLF; times ISO-8601 UTC
+//   jsonl  one JSON object per stored score and line
+//   xapi   one xAPI statement per submission (actor: the evaluator's account on urn:vsurg; verb:
+//          ADL "scored"; object: the rated subject; result: mean score 0–10 and the nine index
+//          scores as an extension), one per line
+//
+// JSON is escaped by hand here, not by nlohmann::json: the export is a measured hot path
+// (docs/BENCHMARKS.md, 10⁶ rows) and a json object per row would allocate for every field. The
+// tests parse every line back with nlohmann::json.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "db/store.h"
+
+namespace vsurg::db {
+
+struct ExportRow {  // one stored score with its submission
+  int64_t submission_id = 0;
+  int64_t submitted_us = 0;
+  std::string_view evaluator, evaluator_group, subject_kind, subject, trainee;
+  std::optional<double> moment_min;
+  int64_t index_no = 0;  // 1..9
+  double score = 0;
+};
+
+class ExportFormatter {
+ public:
+  explicit ExportFormatter(ExportFormat format) : format_(format) {}
+  void Begin(std::string& out);                      // the CSV header
+  void Add(const ExportRow& row, std::string& out);  // rows in submission, index order
+  void End(std::string& out);                        // the last xAPI statement
+
+ private:
+  void AddCsv(const ExportRow& row, std::string& out);
+  void AddJsonLine(const ExportRow& row, std::string& out);
+  void AddXapi(const ExportRow& row, std::string& out);
+  void FlushXapi(std::string& out);
+
+  ExportFormat format_;
+  // xAPI: one statement per submission, gathered over its rows.
+  int64_t xapi_id_ = -1;
+  std::string xapi_head_, xapi_scores_;
+  double xapi_sum_ = 0;
+  int xapi_n_ = 0;
+};
+
+// `s` as the inside of a JSON string (quotes, backslashes and control characters escaped).
+void AppendJsonEscaped(std::string& out, std::string_view s);
+
+}  // namespace vsurg::db

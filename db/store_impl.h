@@ -1,0 +1,88 @@
+// The store's private parts, shared by its source files (db/store.cpp: opening, the writer
+// thread, backup; store_users.cpp, store_sessions.cpp, store_evaluations.cpp, store_export.cpp:
+// one concept each). Not installed, not included outside db/.
+#pragma once
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "db/sqlite.h"
+#include "db/store.h"
+
+namespace vsurg::db {
+
+struct Store::Impl {
+  struct Pending {
+    Job job;
+    std::function<void(Status)> done;
+  };
+
+  StoreOptions options;
+  bool read_only = false;              // OpenReadOnly: no writer, no writes
+  std::unique_ptr<Connection> writer;  // writer thread only (after Open)
+  std::mutex queue_mutex;
+  std::condition_variable queue_cv;
+  std::deque<Pending> queue;
+  bool stopping = false;
+  std::thread thread;
+
+  std::mutex pool_mutex;
+  std::vector<std::unique_ptr<Connection>> pool;
+
+  mutable std::mutex stats_mutex;
+  StoreStats stats;
+
+  void WriterLoop();
+  void RunBatch(std::vector<Pending>& batch);
+
+  // A pooled read connection, returned on scope exit.
+  struct Reader {
+    Impl* impl;
+    std::unique_ptr<Connection> c;
+    Reader(Impl* i, std::unique_ptr<Connection> conn) : impl(i), c(std::move(conn)) {}
+    Reader(Reader&& o) noexcept : impl(o.impl), c(std::move(o.c)) {}
+    Reader& operator=(Reader&&) = delete;
+    ~Reader() {
+      if (c) {
+        std::lock_guard lock(impl->pool_mutex);
+        impl->pool.push_back(std::move(c));
+      }
+    }
+    Connection& operator*() { return *c; }
+  };
+  Expected<Reader> Read() {
+    {
+      std::lock_guard lock(pool_mutex);
+      if (!pool.empty()) {
+        Reader r{this, std::move(pool.back())};
+        pool.pop_back();
+        return r;
+      }
+    }
+    auto c = Connection::Open(options.path, Connection::Mode::kReadOnly, options.busy_timeout_ms);
+    if (!c.ok()) return c.error();
+    return Reader{this, std::move(c).value()};
+  }
+};
+
+// Runs a prepared statement with binds; convenience for the many one-shot writes.
+template <class Bind>
+Status RunSql(Connection& c, const std::string& sql, Bind&& bind) {
+  auto st = c.Prepare(sql);
+  if (!st.ok()) return st.error();
+  bind(**st);
+  return (*st)->Run();
+}
+
+// The id in column 0 of the first row of `sql` bound to `key`, if any.
+Expected<std::optional<int64_t>> LookupId(Connection& c, const std::string& sql,
+                                          std::string_view key);
+
+}  // namespace vsurg::db

@@ -1,0 +1,24 @@
+// The control plane's messages (vsurg/v1/services.proto) to and from the core's types: the one
+// mapping of each type at the gRPC boundary, shared by the server's services and the clients.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "common/core/session_state.h"
+#include "common/scoring/metrics.h"
+#include "vsurg/v1/services.pb.h"
+
+namespace vsurg::convert {
+
+// Same numbers on both sides (common/core/session_state.h); UNSPECIFIED and numbers a newer
+// server may add are not a state.
+v1::SessionState ToProto(SessionState s);
+std::optional<SessionState> FromProto(v1::SessionState s);
+// "running", "ended", … ("unspecified" for a state this client does not know).
+std::string StateName(v1::SessionState s);
+
+void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out);
+scoring::TrialMetrics FromProto(const v1::TrialMetrics& m);
+
+}  // namespace vsurg::convert

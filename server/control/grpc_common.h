@@ -1,0 +1,53 @@
+// What the four gRPC services share: the one mapping of our errors to gRPC statuses, the bearer
+// token from call metadata, the unary-call shape, and the session messages. Private to
+// server/control/ (generated types appear here, never in a header outside this folder).
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include "server/domain/api.h"
+#include "vsurg/v1/services.grpc.pb.h"
+
+namespace vsurg::server::grpcapi {
+
+namespace v1 = vsurg::v1;
+
+grpc::Status ToGrpcStatus(const Error& e);
+grpc::Status ToGrpcStatus(const Status& s);
+
+// The caller of this call (its `authorization` metadata), when their role may call `m`.
+Expected<db::Principal> Authorize(Domain& d, grpc::CallbackServerContext* ctx, Method m);
+
+// A unary call whose body (a domain call and the response's translation) runs on the calling
+// thread: authenticated and checked against the matrix first.
+template <class Body>
+grpc::ServerUnaryReactor* Unary(Domain& d, grpc::CallbackServerContext* ctx, Method m,
+                                Body&& body) {
+  grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
+  auto p = Authorize(d, ctx, m);
+  r->Finish(p.ok() ? ToGrpcStatus(body(*p)) : ToGrpcStatus(p.error()));
+  return r;
+}
+
+// A server-streaming call refused before it starts: it only reports the status.
+template <class Message>
+class Refuse final : public grpc::ServerWriteReactor<Message> {
+ public:
+  explicit Refuse(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+void ToProto(const db::SessionRecord& r, v1::Session* out);
+void ToProto(const SessionView& v, v1::Session* out);
+void ToProto(const SessionTelemetry& t, v1::Telemetry* out);
+std::optional<db::Role> RoleFromProto(v1::Role r);
+v1::Role RoleToProto(db::Role r);
+void ToProto(const db::UserRecord& u, v1::User* out);
+
+// The services, registered by ControlPlane::Start; each lives as long as `d`.
+std::unique_ptr<grpc::Service> NewSessionService(Domain& d);
+std::unique_ptr<grpc::Service> NewMonitorService(Domain& d);
+std::unique_ptr<grpc::Service> NewEvaluationService(Domain& d);
+std::unique_ptr<grpc::Service> NewAdminService(Domain& d);
+
+}  // namespace vsurg::server::grpcapi

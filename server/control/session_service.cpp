@@ -1,0 +1,92 @@
+// SessionService over gRPC: requests to server/domain/api.h calls, results to messages.
+#include "server/control/grpc_common.h"
+#include "server/domain/scene_catalog.h"
+
+namespace vsurg::server::grpcapi {
+namespace {
+
+using grpc::CallbackServerContext;
+using grpc::ServerUnaryReactor;
+
+class SessionServiceImpl final : public v1::SessionService::CallbackService {
+ public:
+  explicit SessionServiceImpl(Domain& d) : d_(d) {}
+
+  ServerUnaryReactor* Create(CallbackServerContext* ctx, const v1::CreateSessionRequest* req,
+                             v1::CreateSessionResponse* resp) override {
+    return Unary(d_, ctx, Method::kSessionCreate, [&](const db::Principal& p) -> Status {
+      auto created = CreateSession(d_, p, req->trainee(), req->scene());
+      if (!created.ok()) return created.error();
+      ToProto(created->record, resp->mutable_session());
+      resp->set_udp_host(created->udp_host);
+      resp->set_udp_port(created->udp_port);
+      resp->set_session_key(std::string(created->key.begin(), created->key.end()));
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* Start(CallbackServerContext* ctx, const v1::SessionRef* req,
+                            v1::Session* resp) override {
+    return Unary(d_, ctx, Method::kSessionStart, [&](const db::Principal& p) {
+      return Answer(StartSession(d_, p, req->id()), resp);
+    });
+  }
+
+  ServerUnaryReactor* Stop(CallbackServerContext* ctx, const v1::StopSessionRequest* req,
+                           v1::Session* resp) override {
+    return Unary(d_, ctx, Method::kSessionStop, [&](const db::Principal& p) {
+      return Answer(StopSession(d_, p, req->id(), req->reason()), resp);
+    });
+  }
+
+  ServerUnaryReactor* Get(CallbackServerContext* ctx, const v1::SessionRef* req,
+                          v1::Session* resp) override {
+    return Unary(d_, ctx, Method::kSessionGet, [&](const db::Principal& p) {
+      return Answer(GetSession(d_, p, req->id()), resp);
+    });
+  }
+
+  ServerUnaryReactor* List(CallbackServerContext* ctx, const v1::ListSessionsRequest* req,
+                           v1::ListSessionsResponse* resp) override {
+    return Unary(d_, ctx, Method::kSessionList, [&](const db::Principal& p) -> Status {
+      auto list = ListSessions(d_, p, req->trainee(), req->live_only());
+      if (!list.ok()) return list.error();
+      for (const SessionView& v : *list) ToProto(v, resp->add_sessions());
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* ListScenes(CallbackServerContext* ctx, const v1::ListScenesRequest*,
+                                 v1::ListScenesResponse* resp) override {
+    return Unary(d_, ctx, Method::kSessionListScenes, [&](const db::Principal& p) -> Status {
+      auto listing = server::ListScenes(d_, p);
+      if (!listing.ok()) return listing.error();
+      for (const SceneInfo& s : listing->scenes) {
+        v1::SceneInfo* info = resp->add_scenes();
+        info->set_name(s.name);
+        info->set_description(s.description);
+        info->set_model(s.model);
+        info->set_task(s.task);
+        info->set_error_budget_rms(s.error_budget_rms);
+      }
+      for (const std::string& why : listing->unusable) resp->add_unusable(why);
+      return Status::Ok();
+    });
+  }
+
+ private:
+  static Status Answer(const Expected<SessionView>& v, v1::Session* resp) {
+    if (!v.ok()) return v.error();
+    ToProto(*v, resp);
+    return Status::Ok();
+  }
+  Domain& d_;
+};
+
+}  // namespace
+
+std::unique_ptr<grpc::Service> NewSessionService(Domain& d) {
+  return std::make_unique<SessionServiceImpl>(d);
+}
+
+}  // namespace vsurg::server::grpcapi

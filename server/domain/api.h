@@ -1,0 +1,115 @@
+// The control plane's rules, once, for every transport: the gRPC services (server/control/) and
+// the HTTP API call these and only translate messages and status codes.
+//
+// Every function takes the caller (a Principal the transport authenticated with Authorize) and
+// applies, in this order: the permission matrix (kPermissionDenied), ownership (a trainee touches
+// only their own sessions; an evaluator submits only as themself), validation (kInvalidArgument
+// naming the field), then the domain call (SessionManager, db::Store, common/scoring). No gRPC,
+// protobuf or HTTP type appears here.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/scoring/metrics.h"
+#include "db/store.h"
+#include "server/domain/auth.h"
+#include "server/session/session_manager.h"
+
+namespace vsurg::server {
+
+class SceneCatalog;
+
+// What the rules need: the store, the sessions, the scene catalogue, the backup folder.
+struct Domain {
+  db::Store& store;
+  SessionManager& sessions;
+  SceneCatalog& scenes;
+  std::string backup_dir;  // AdminService/Backup writes only here; empty: backups refused
+};
+
+// The bearer token of `authorization` ("Bearer <token>"; nullopt: no header) → who calls, when
+// their role may call `m` (kUnauthenticated, kPermissionDenied; kUnavailable when the store
+// cannot say).
+Expected<db::Principal> Authorize(db::Store& store, std::optional<std::string_view> authorization,
+                                  Method m);
+// Same for a caller already identified (a web session): the matrix only.
+Status Permit(const db::Principal& p, Method m);
+
+// --- sessions ---
+
+struct SessionView {
+  db::SessionRecord record;                      // with the live state while live
+  std::optional<scoring::TrialMetrics> metrics;  // once ended, when recorded
+};
+
+// `trainee` empty: the caller (a trainee creating their own session).
+Expected<CreatedSession> CreateSession(Domain& d, const db::Principal& p, std::string trainee,
+                                       const std::string& scene);
+Expected<SessionView> StartSession(Domain& d, const db::Principal& p, uint64_t id);
+Expected<SessionView> StopSession(Domain& d, const db::Principal& p, uint64_t id,
+                                  const std::string& reason);
+Expected<SessionView> GetSession(Domain& d, const db::Principal& p, uint64_t id);
+// A trainee lists only their own (`trainee` empty or their name).
+Expected<std::vector<SessionView>> ListSessions(Domain& d, const db::Principal& p,
+                                                const std::string& trainee, bool live_only);
+// May `p` watch `session` (0: every live session) at `rate_hz` (0: 30)? Returns the rate.
+Expected<double> CheckWatch(Domain& d, const db::Principal& p, uint64_t session, double rate_hz);
+
+// The usable scenes (what Create and the stations resolve) and why the others are not.
+struct SceneListing;
+Expected<SceneListing> ListScenes(Domain& d, const db::Principal& p);
+
+// --- evaluations ---
+
+struct SubmissionRequest {  // as a transport received it
+  std::string idempotency_key, evaluator, evaluator_group, subject_kind, subject;
+  std::optional<double> moment_min;
+  std::vector<double> scores;  // exactly scoring::kIndexCount
+};
+// The submission to store: an evaluator submits as themself in their own group; an admin
+// imports on an evaluator's behalf (evaluator required).
+Expected<db::Submission> PrepareSubmission(const db::Principal& p, const SubmissionRequest& r);
+// The weighted report (seed 000 eqs. 9–11) of one subject, or the comparison of up to 32, as
+// JSON text; recorded in the store with the weights it used.
+Expected<std::string> Report(Domain& d, const db::Principal& p, const std::string& subject_kind,
+                             const std::vector<std::string>& subjects,
+                             const std::string& weight_set);
+// The training-effect cells (trainee group × moment) as JSON text.
+Expected<std::string> TrainingEffect(Domain& d, const db::Principal& p,
+                                     const std::string& weight_set);
+
+// --- administration ---
+
+Expected<db::UserRecord> CreateUser(Domain& d, const db::Principal& p, const std::string& name,
+                                    std::optional<db::Role> role, const std::string& group);
+Expected<std::string> IssueToken(Domain& d, const db::Principal& p, const std::string& user,
+                                 const std::string& label);
+// Access ends with the tokens: the user's live sessions too (their UDP key is a credential).
+Status RevokeTokens(Domain& d, const db::Principal& p, const std::string& user);
+Status SetDisabled(Domain& d, const db::Principal& p, const std::string& user, bool disabled);
+Expected<std::vector<db::UserRecord>> ListUsers(Domain& d, const db::Principal& p);
+Status PutWeightSet(Domain& d, const db::Principal& p, const std::string& json);
+Expected<std::vector<std::string>> ListWeightSets(Domain& d, const db::Principal& p);
+Status Backup(Domain& d, const db::Principal& p, const std::string& name);
+
+struct ExportPlan {
+  db::ExportFilter filter;
+  db::ExportFormat format = db::ExportFormat::kCsv;
+};
+// An export's filter and format from a request (0 and "" mean "not given"; format "" is csv);
+// the transport then streams db::Store::Export.
+Expected<ExportPlan> PlanExport(const db::Principal& p, const std::string& format, int64_t from_us,
+                                int64_t to_us, const std::string& trainee, uint64_t session);
+
+// Where a backup may write `name`: a plain file name (or an absolute path whose folder is
+// `backup_dir`) that does not exist yet, inside `backup_dir` (created when missing).
+Expected<std::filesystem::path> BackupPath(const std::string& backup_dir, const std::string& name);
+
+}  // namespace vsurg::server
