@@ -4,7 +4,7 @@
 # alternating, 3 runs each (server and station restarted per setting). usage: bench/station_e2e.sh [BIN_DIR]
 set -euo pipefail
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); cd "$d"
-$B/vsurg-admin init --db vs.db > admin.out 2>/dev/null
+$B/vsurg-server init --db vs.db > admin.out 2>/dev/null
 $B/vsurg-sim trainee --scene arm-torsion --out good.csv > /dev/null
 for rep in 1 2 3; do for prio in 0 20; do
   $B/vsurg-server --db vs.db --listen 127.0.0.1:0 --udp-port 0 --ready-file ready.json --realtime-priority $prio 2>/dev/null & spid=$!

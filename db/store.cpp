@@ -2,8 +2,6 @@
 
 #include <sqlite3.h>
 
-#include <chrono>
-#include <ctime>
 #include <filesystem>
 #include <future>
 
@@ -11,12 +9,6 @@
 #include "db/store_impl.h"
 
 namespace vsurg::db {
-namespace {
-
-constexpr const char* kRoleNames[] = {"trainee", "instructor", "evaluator", "admin"};
-constexpr const char* kSubjectKinds[] = {"session", "trainee", "model"};
-
-}  // namespace
 
 Expected<std::optional<int64_t>> LookupId(Connection& c, const std::string& sql,
                                           std::string_view key) {
@@ -29,47 +21,6 @@ Expected<std::optional<int64_t>> LookupId(Connection& c, const std::string& sql,
   if (*row) id = (*st)->Int(0);
   (*st)->Reset();
   return id;
-}
-
-const char* RoleName(Role r) {
-  return kRoleNames[static_cast<int>(r)];
-}
-std::optional<Role> ParseRole(std::string_view name) {
-  for (int i = 0; i < 4; ++i)
-    if (name == kRoleNames[i]) return static_cast<Role>(i);
-  return std::nullopt;
-}
-const char* SubjectKindName(SubjectKind k) {
-  return kSubjectKinds[static_cast<int>(k)];
-}
-std::optional<SubjectKind> ParseSubjectKind(std::string_view name) {
-  for (int i = 0; i < 3; ++i)
-    if (name == kSubjectKinds[i]) return static_cast<SubjectKind>(i);
-  return std::nullopt;
-}
-std::optional<ExportFormat> ParseExportFormat(std::string_view name) {
-  if (name == "csv") return ExportFormat::kCsv;
-  if (name == "jsonl") return ExportFormat::kJsonLines;
-  if (name == "xapi") return ExportFormat::kXapi;
-  return std::nullopt;
-}
-
-int64_t NowUs() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-std::string IsoTimeUtc(int64_t us) {
-  const int64_t secs = us >= 0 ? us / 1000000 : (us - 999999) / 1000000;
-  const auto frac = static_cast<int>(us - secs * 1000000);
-  const std::time_t t = static_cast<std::time_t>(secs);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[96];
-  std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%06dZ", tm.tm_year + 1900,
-                tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, frac);
-  return buf;
 }
 
 void Store::Impl::WriterLoop() {

@@ -32,14 +32,12 @@
 
 #include "common/core/expected.h"
 #include "common/core/session_state.h"
+#include "common/core/time.h"
 #include "common/scoring/metrics.h"
 #include "common/scoring/vocabulary.h"
+#include "db/vocabulary.h"
 
 namespace vsurg::db {
-
-enum class Role { kTrainee, kInstructor, kEvaluator, kAdmin };
-const char* RoleName(Role r);
-std::optional<Role> ParseRole(std::string_view name);
 
 struct UserRecord {
   int64_t id = 0;
@@ -65,10 +63,6 @@ struct SessionRecord {
   int64_t created_us = 0, started_us = 0, ended_us = 0;
   std::string end_reason;
 };
-
-enum class SubjectKind { kSession, kTrainee, kModel };
-const char* SubjectKindName(SubjectKind k);
-std::optional<SubjectKind> ParseSubjectKind(std::string_view name);
 
 struct Submission {
   std::string idempotency_key;  // the client's; a retry with the same key is not a second row
@@ -108,8 +102,6 @@ struct ExportFilter {
   std::optional<std::string> trainee = std::nullopt;  // trainee subjects, and their sessions
   std::optional<int64_t> session = std::nullopt;
 };
-enum class ExportFormat { kCsv, kJsonLines, kXapi };
-std::optional<ExportFormat> ParseExportFormat(std::string_view name);
 
 struct StoreOptions {
   std::string path = "";
@@ -205,8 +197,8 @@ class Store {
   std::unique_ptr<Impl> impl_;
 };
 
-// Helpers shared with the exporters and the tests.
-std::string IsoTimeUtc(int64_t us);  // 2026-11-21T23:59:01.123456Z
-int64_t NowUs();
+// The store's clock and time format (common/core/time.h), under the names its callers use.
+using vsurg::IsoTimeUtc;
+using vsurg::NowUs;
 
 }  // namespace vsurg::db

@@ -32,7 +32,7 @@ trap cleanup EXIT
 step() { echo; echo "== $* =="; }
 
 step "Administrator: vsurg-server on a temporary SQLite file"
-admin_token="$("$bin/vsurg-admin" init --db "$tmp/vsurg.db" 2>/dev/null)"
+admin_token="$("$bin/vsurg-server" init --db "$tmp/vsurg.db" 2>/dev/null)"
 "$bin/vsurg-server" --db "$tmp/vsurg.db" --listen 127.0.0.1:0 --udp-port 0 \
   --ready-file "$tmp/ready.json" 2> "$out/server.log" &
 server_pid=$!

@@ -28,7 +28,7 @@ cleanup() {
 }
 trap cleanup EXIT
 
-admin_token="$("$bin/vsurg-admin" init --db "$tmp/vsurg.db" 2>/dev/null)"
+admin_token="$("$bin/vsurg-server" init --db "$tmp/vsurg.db" 2>/dev/null)"
 "$bin/vsurg-server" --db "$tmp/vsurg.db" --listen 127.0.0.1:0 --udp-port 0 \
   --max-sessions $((stations + 8)) --ready-file "$tmp/ready.json" 2> "$out/server.log" &
 server_pid=$!

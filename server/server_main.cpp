@@ -1,6 +1,9 @@
 // vsurg-server: the simulation server. The SQLite store, the sessions (one Simulation each),
 // the UDP haptic endpoint and the gRPC control plane, in one process.
 //
+//   vsurg-server [serve] --db FILE [options]   serve (the default)
+//   vsurg-server init|export|backup --db FILE  work on the store file (server/store_commands.h)
+//
 // Shutdown: SIGINT or SIGTERM → the control plane stops taking calls (streams are cancelled),
 // live sessions are aborted with their trial metrics recorded, the endpoint stops, the store's
 // writer drains its queue and closes the file. Exit code 0.
@@ -23,6 +26,7 @@
 #include "server/control/control_plane.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
+#include "server/store_commands.h"
 
 namespace {
 
@@ -74,7 +78,9 @@ int Main(std::vector<std::string> args) {
   ArgParser p("vsurg-server",
               "The vsurg simulation server: sessions and their tissue physics, the UDP haptic\n"
               "channel, the gRPC control plane (sessions, monitoring, evaluations, admin) and the\n"
-              "SQLite store. Stops cleanly on SIGINT/SIGTERM.");
+              "SQLite store. Stops cleanly on SIGINT/SIGTERM.\n\n"
+              "Commands on the store file: vsurg-server init|export|backup --db FILE ...\n"
+              "(init creates the first administrator; export and backup open the file read-only).");
   p.Option("db", Kind::kString, "SQLite database file (created when missing)", true)
       .Option("listen", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
       .Option("udp-address", Kind::kString, "UDP haptic endpoint address", false, "127.0.0.1")
@@ -224,7 +230,12 @@ int Main(std::vector<std::string> args) {
 
 int main(int argc, char** argv) {
   try {
-    return Main(std::vector<std::string>(argv + 1, argv + argc));
+    std::vector<std::string> args(argv + 1, argv + argc);
+    if (!args.empty() && vsurg::server::IsStoreCommand(args[0]))
+      return vsurg::server::RunStoreCommand(
+          args[0], std::vector<std::string>(args.begin() + 1, args.end()), std::cout, std::cerr);
+    if (!args.empty() && args[0] == "serve") args.erase(args.begin());
+    return Main(std::move(args));
   } catch (const std::exception& e) {
     std::cerr << "vsurg-server: fatal: " << e.what() << "\n";
     return 1;

@@ -1,7 +1,8 @@
-// vsurg-admin: the administrators' tool. `init` works on the database file directly (there is
-// no administrator to authenticate yet); everything else goes through the server's gRPC
-// AdminService / EvaluationService with a bearer token (--token, --token-file or $VSURG_TOKEN),
-// and every call has a deadline. `export --db FILE` can also read a store file directly.
+// vsurg-admin: the administrators' tool, a pure gRPC client: every command goes through the
+// server's AdminService / EvaluationService / SessionService with a bearer token (--token,
+// --token-file or $VSURG_TOKEN), and every call has a deadline. It never opens the store file:
+// the operations that need the file (init, offline export, backup to a path) are vsurg-server's
+// subcommands.
 #include <openssl/evp.h>
 
 #include <grpcpp/grpcpp.h>
@@ -23,9 +24,10 @@
 #include "client/net/remote.h"
 #include "common/cli/args.h"
 #include "common/core/file.h"
+#include "common/core/time.h"
 #include "common/scoring/ratings_csv.h"
 #include "common/scoring/report_json.h"
-#include "db/store.h"
+#include "db/vocabulary.h"
 #include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -64,49 +66,6 @@ std::optional<int> Begin(ArgParser& p, const std::vector<std::string>& args, std
 
 int RpcError(std::ostream& err, const std::string& cmd, const grpc::Status& s) {
   return vsurg::client::ReportRpcError(err, cmd, s);
-}
-
-// ISO-8601 UTC date or time ("2026-11-21" or "2026-11-21T10:00:00Z") → µs since the epoch.
-Expected<int64_t> ParseIsoUtc(const std::string& s, const std::string& field) {
-  std::tm tm{};
-  int y = 0, mo = 0, d = 0, h = 0, mi = 0, sec = 0;
-  char tail = 0;
-  const int n =
-      std::sscanf(s.c_str(), "%4d-%2d-%2dT%2d:%2d:%2d%c", &y, &mo, &d, &h, &mi, &sec, &tail);
-  const bool date_only = n == 3 && s.size() == 10;
-  if (!date_only && !(n == 7 && tail == 'Z' && s.size() == 20))
-    return vsurg::InvalidArgument(field, "expected 2026-11-21 or 2026-11-21T10:00:00Z");
-  if (mo < 1 || mo > 12 || d < 1 || d > 31 || h > 23 || mi > 59 || sec > 60)
-    return vsurg::InvalidArgument(field, "not a valid date/time");
-  tm.tm_year = y - 1900;
-  tm.tm_mon = mo - 1;
-  tm.tm_mday = d;
-  tm.tm_hour = h;
-  tm.tm_min = mi;
-  tm.tm_sec = sec;
-  return static_cast<int64_t>(timegm(&tm)) * 1000000;
-}
-
-int Init(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-admin init",
-              "Creates the database (when missing) and its first administrator, and prints the\n"
-              "administrator's token once on stdout. Refuses when an administrator exists.");
-  p.Option("db", Kind::kString, "SQLite database file", true)
-      .Option("name", Kind::kString, "administrator user name", false, "admin");
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
-  auto store = vsurg::db::Store::Open({.path = p.String("db")});
-  if (!store.ok()) return Usage(err, p.command(), "--db", store.error().message);
-  auto token = (*store)->InitAdmin(p.String("name"));
-  if (!token.ok()) {
-    err << p.command() << ": " << token.error().message << "\n";
-    return kExitRuntime;
-  }
-  out << *token << "\n";
-  err << "vsurg-admin: administrator '" << p.String("name")
-      << "' created; the token above is shown only once\n";
-  return 0;
 }
 
 int UserAdd(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -350,94 +309,58 @@ int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream
 }
 
 int Export(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-admin export",
-              "Exports the stored evaluations, streamed: one row per evaluator, subject and index\n"
-              "(CSV per RFC 4180 with ISO-8601 UTC times, or JSON lines), or one xAPI statement\n"
-              "per submission. Written to a temporary file and renamed when complete.");
+  ArgParser p(
+      "vsurg-admin export",
+      "Exports the stored evaluations through the server, streamed: one row per evaluator,\n"
+      "subject and index (CSV per RFC 4180 with ISO-8601 UTC times, or JSON lines), or one\n"
+      "xAPI statement per submission. Written to a temporary file and renamed when\n"
+      "complete. (Offline, from the store file: vsurg-server export --db FILE.)");
   p.Option("format", Kind::kString, "csv, jsonl or xapi", false, "csv")
       .Option("out", Kind::kString, "output file", true)
       .Option("from", Kind::kString, "submitted at or after (2026-11-21 or ...T10:00:00Z)")
       .Option("to", Kind::kString, "submitted before")
       .Option("trainee", Kind::kString, "only this trainee (trainee subjects and their sessions)")
-      .Option("session", Kind::kInt, "only this session")
-      .Option("db", Kind::kString, "read this store file directly instead of asking the server");
+      .Option("session", Kind::kInt, "only this session");
   vsurg::client::AddRemoteOptions(p);
   if (Status s = p.Parse(args); !s.ok())
     return Usage(err, p.command(), s.error().field, s.error().message);
   if (p.HelpRequested()) return out << p.Help(), 0;
-  const auto format = vsurg::db::ParseExportFormat(p.String("format"));
-  if (!format) return Usage(err, p.command(), "--format", "csv, jsonl or xapi");
-  vsurg::db::ExportFilter f;
+  v1::ExportRequest req;
+  req.set_format(p.String("format"));
+  if (!vsurg::db::ParseExportFormat(req.format()))
+    return Usage(err, p.command(), "--format", "csv, jsonl or xapi");
   for (const char* opt : {"from", "to"}) {
     if (!p.Has(opt)) continue;
-    auto t = ParseIsoUtc(p.String(opt), std::string("--") + opt);
+    auto t = vsurg::ParseIsoUtc(p.String(opt), std::string("--") + opt);
     if (!t.ok()) return Usage(err, p.command(), t.error().field, t.error().message);
-    (std::string(opt) == "from" ? f.from_us : f.to_us) = *t;
+    std::string(opt) == "from" ? req.set_from_us(*t) : req.set_to_us(*t);
   }
-  if (p.Has("trainee")) f.trainee = p.String("trainee");
+  if (p.Has("trainee")) req.set_trainee(p.String("trainee"));
   if (p.Has("session")) {
     if (p.Int("session") <= 0) return Usage(err, p.command(), "--session", "a session id > 0");
-    f.session = p.Int("session");
+    req.set_session(static_cast<uint64_t>(p.Int("session")));
   }
-  const std::string path = p.String("out"), tmp = path + ".part";
-  std::ofstream file(tmp, std::ios::binary | std::ios::trunc);
-  if (!file) return Usage(err, p.command(), "--out", "cannot write " + path);
-  uint64_t bytes = 0;
-  auto fail = [&](int code) {
-    file.close();
-    std::remove(tmp.c_str());
-    return code;
-  };
-  if (p.Has("db")) {
-    auto store =
-        vsurg::db::Store::Open({.path = p.String("db"), .max_batch = 1, .read_connections = 1});
-    if (!store.ok()) return fail(Usage(err, p.command(), "--db", store.error().message));
-    Status s = (*store)->Export(f, *format, [&](std::string_view chunk) {
-      file.write(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-      bytes += chunk.size();
-      return static_cast<bool>(file);
-    });
-    if (!s.ok()) {
-      err << p.command() << ": " << s.error().message << "\n";
-      return fail(kExitRuntime);
+  auto remote = vsurg::client::ConnectRemote(p);
+  if (!remote.ok()) return Usage(err, p.command(), remote.error().field, remote.error().message);
+  auto file = vsurg::AtomicFile::Open(p.String("out"), "--out");
+  if (!file.ok()) return Usage(err, p.command(), "--out", file.error().message);
+  auto stub = v1::AdminService::NewStub(remote->channel);
+  grpc::ClientContext ctx;
+  remote->Prepare(ctx, std::max(600.0, remote->timeout_s));
+  auto reader = stub->Export(&ctx, req);
+  v1::ExportChunk chunk;
+  while (reader->Read(&chunk)) {
+    if (!file->Write(chunk.data())) {
+      ctx.TryCancel();
+      break;
     }
-  } else {
-    auto remote = vsurg::client::ConnectRemote(p);
-    if (!remote.ok())
-      return fail(Usage(err, p.command(), remote.error().field, remote.error().message));
-    auto stub = v1::AdminService::NewStub(remote->channel);
-    v1::ExportRequest req;
-    req.set_format(p.String("format"));
-    if (f.from_us) req.set_from_us(*f.from_us);
-    if (f.to_us) req.set_to_us(*f.to_us);
-    if (f.trainee) req.set_trainee(*f.trainee);
-    if (f.session) req.set_session(static_cast<uint64_t>(*f.session));
-    grpc::ClientContext ctx;
-    remote->Prepare(ctx, std::max(600.0, remote->timeout_s));
-    auto reader = stub->Export(&ctx, req);
-    v1::ExportChunk chunk;
-    while (reader->Read(&chunk)) {
-      file.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
-      bytes += chunk.data().size();
-      if (!file) {
-        ctx.TryCancel();
-        break;
-      }
-    }
-    grpc::Status s = reader->Finish();
-    if (!s.ok()) return fail(RpcError(err, p.command(), s));
   }
-  file.flush();
-  if (!file) {
-    err << p.command() << ": write to " << tmp << " failed\n";
-    return fail(kExitRuntime);
+  if (grpc::Status s = reader->Finish(); !s.ok()) return RpcError(err, p.command(), s);
+  if (Status s = file->Commit(); !s.ok()) {
+    err << p.command() << ": " << s.error().message << "\n";
+    return kExitRuntime;
   }
-  file.close();
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    err << p.command() << ": cannot rename " << tmp << " to " << path << "\n";
-    return fail(kExitRuntime);
-  }
-  err << "vsurg-admin: wrote " << bytes << " bytes to " << path << "\n";
+  err << "vsurg-admin: wrote " << file->bytes() << " bytes to " << p.String("out") << "\n";
   return 0;
 }
 
@@ -546,7 +469,6 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
 const char* kHelp =
     "usage: vsurg-admin <command> [options]\n\n"
     "commands:\n"
-    "  init          create the database's first administrator; prints its token once\n"
     "  user-add      create a user (trainee, instructor, evaluator, admin)\n"
     "  users         list users\n"
     "  token-issue   issue a token for a user (printed once)\n"
@@ -574,7 +496,12 @@ int main(int argc, char** argv) {
     auto& out = std::cout;
     auto& err = std::cerr;
     if (cmd == "--help" || cmd == "-h" || cmd == "help") return out << kHelp, 0;
-    if (cmd == "init") return Init(rest, out, err);
+    if (cmd == "init") {
+      // Moved: vsurg-admin is a pure gRPC client and never opens the store file.
+      err << "vsurg-admin: 'init' works on the store file and moved to the server: "
+             "vsurg-server init --db FILE [--name admin]\n";
+      return kExitUsage;
+    }
     if (cmd == "user-add") return UserAdd(rest, out, err);
     if (cmd == "token-issue") return Token(rest, out, err, false);
     if (cmd == "token-revoke") return Token(rest, out, err, true);

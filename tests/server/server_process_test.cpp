@@ -161,18 +161,18 @@ TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
   fs::remove_all(dir);
 }
 
-// A fresh store initialised by `vsurg-admin init` (its first administrator's token) and a
+// A fresh store initialised by `vsurg-server init` (its first administrator's token) and a
 // vsurg-server on it; `remote` is the options every vsurg-admin call against it takes.
 struct AdminCliSetup {
   fs::path dir, db;
-  std::string admin = VSURG_ADMIN_BINARY, token, remote;
+  std::string admin = VSURG_ADMIN_BINARY, server_bin = VSURG_SERVER_BINARY, token, remote;
   test::ServerProcess server;
   explicit AdminCliSetup(const std::string& name)
       : dir(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))),
         db(dir / "vsurg.db") {
     fs::remove_all(dir);
     fs::create_directories(dir);
-    const ShellRun init = Shell(admin + " init --db " + db.string() + " 2>/dev/null");
+    const ShellRun init = Shell(server_bin + " init --db " + db.string() + " 2>/dev/null");
     EXPECT_EQ(init.code, 0);
     token = init.out.substr(0, init.out.find('\n'));
     server = ServerProcess::Start(dir, db);
@@ -193,7 +193,13 @@ TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
   const std::string& remote = setup.remote;
   test::ServerProcess& server = setup.server;
   EXPECT_EQ(token.rfind("vst_", 0), 0u);
-  EXPECT_EQ(Shell(admin + " init --db " + db.string() + " 2>/dev/null").code, 1);  // once only
+  EXPECT_EQ(Shell(setup.server_bin + " init --db " + db.string() + " 2>/dev/null").code,
+            1);  // once only
+  // vsurg-admin is a pure gRPC client: it says where init went and touches no file.
+  const ShellRun moved = Shell(admin + " init --db " + (dir / "other.db").string() + " 2>&1");
+  EXPECT_EQ(moved.code, 2);
+  EXPECT_NE(moved.out.find("vsurg-server init"), std::string::npos) << moved.out;
+  EXPECT_FALSE(fs::exists(dir / "other.db"));
   const ShellRun import =
       Shell(admin + " import" + remote +
             " --input " VSURG_SAMPLES_DIR "/ratings-three-models.csv --subject-kind model");
@@ -218,13 +224,31 @@ TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
   int lines = 0;
   for (std::string line; std::getline(in, line);) ++lines;
   EXPECT_EQ(lines, 120 * 9);
-  // The same export from the store file directly, without the server.
+  // The same export from the store file directly, read-only beside the running server.
   const fs::path local = dir / "local.csv";
-  ASSERT_EQ(Shell(admin + " export --db " + db.string() + " --format csv --out " + local.string() +
-                  " 2>/dev/null")
-                .code,
-            0);
+  const std::string offline = setup.server_bin + " export --db ";
+  ASSERT_EQ(
+      Shell(offline + db.string() + " --format csv --out " + local.string() + " 2>/dev/null").code,
+      0);
   EXPECT_EQ(fs::file_size(local), fs::file_size(csv));
+  // A mistyped store path is an error and creates nothing; vsurg-admin has no --db any more.
+  const fs::path typo = dir / "vsurg-typo.db";
+  const ShellRun mistyped =
+      Shell(offline + typo.string() + " --out " + (dir / "t.csv").string() + " 2>&1");
+  EXPECT_EQ(mistyped.code, 2);
+  EXPECT_NE(mistyped.out.find("no database file"), std::string::npos) << mistyped.out;
+  EXPECT_FALSE(fs::exists(typo));
+  EXPECT_FALSE(fs::exists(dir / "t.csv"));
+  EXPECT_EQ(Shell(admin + " export --db " + db.string() + " --out y 2>/dev/null").code, 2);
+  // An offline backup is a complete copy, and never overwrites.
+  const fs::path copy = dir / "copy.db";
+  const std::string backup = setup.server_bin + " backup --db " + db.string() + " --out ";
+  ASSERT_EQ(Shell(backup + copy.string() + " 2>/dev/null").code, 0);
+  const fs::path from_copy = dir / "from-copy.csv";
+  ASSERT_EQ(Shell(offline + copy.string() + " --out " + from_copy.string() + " 2>/dev/null").code,
+            0);
+  EXPECT_EQ(fs::file_size(from_copy), fs::file_size(csv));
+  EXPECT_EQ(Shell(backup + copy.string() + " 2>/dev/null").code, 2);
 
   // Bad arguments exit 2; a bad token exits 1 and names the cause.
   EXPECT_EQ(Shell(admin + " export" + remote + " --format pdf --out x 2>/dev/null").code, 2);
