@@ -21,7 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "db/store.h"
 #include "server/control/control_plane.h"
 #include "server/net/udp_endpoint.h"

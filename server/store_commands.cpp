@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <ostream>
 
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "common/core/file.h"
 #include "common/core/time.h"
 #include "db/store.h"
@@ -14,16 +14,17 @@ namespace {
 using cli::ArgParser;
 using Kind = ArgParser::Kind;
 
-constexpr int kExitRuntime = 1, kExitUsage = 2;
+using cli::kExitRuntime;
+using cli::kExitUsage;
+using cli::ParseOrExit;
 
 int Usage(std::ostream& err, const std::string& cmd, const std::string& field,
           const std::string& msg) {
-  err << cmd << ": " << (field.empty() ? "" : field + ": ") << msg << "\n";
-  return kExitUsage;
+  return cli::UsageError(err, cmd, Error{ErrorCode::kInvalidArgument, msg, field});
 }
 
 int Fail(std::ostream& err, const std::string& cmd, const Error& e) {
-  err << cmd << ": " << (e.field.empty() ? "" : e.field + ": ") << e.message << "\n";
+  cli::UsageError(err, cmd, e);
   return kExitRuntime;
 }
 
@@ -33,9 +34,7 @@ int Init(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
               "administrator's token once on stdout. Refuses when an administrator exists.");
   p.Option("db", Kind::kString, "SQLite database file", true)
       .Option("name", Kind::kString, "administrator user name", false, "admin");
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   auto store = db::Store::Open({.path = p.String("db")});
   if (!store.ok()) return Usage(err, p.command(), "--db", store.error().message);
   auto token = (*store)->InitAdmin(p.String("name"));
@@ -59,9 +58,7 @@ int Export(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("to", Kind::kString, "submitted before")
       .Option("trainee", Kind::kString, "only this trainee (trainee subjects and their sessions)")
       .Option("session", Kind::kInt, "only this session");
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   const auto format = db::ParseExportFormat(p.String("format"));
   if (!format) return Usage(err, p.command(), "--format", "csv, jsonl or xapi");
   db::ExportFilter f;
@@ -94,9 +91,7 @@ int Backup(const std::vector<std::string>& args, std::ostream& out, std::ostream
               "(SQLite's online backup from a read-only connection). Never overwrites.");
   p.Option("db", Kind::kString, "SQLite database file (never created or migrated)", true)
       .Option("out", Kind::kString, "the new file", true);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   const std::string dest = p.String("out");
   std::error_code ec;
   if (std::filesystem::symlink_status(dest, ec).type() != std::filesystem::file_type::not_found)

@@ -22,7 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/net/remote.h"
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "common/core/file.h"
 #include "common/core/time.h"
 #include "common/scoring/ratings_csv.h"
@@ -41,12 +41,14 @@ using vsurg::Status;
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 
-constexpr int kExitRuntime = 1, kExitUsage = 2;
+using vsurg::cli::kExitRuntime;
+using vsurg::cli::kExitUsage;
+using vsurg::cli::ParseOrExit;
 
 int Usage(std::ostream& err, const std::string& cmd, const std::string& field,
           const std::string& msg) {
-  err << cmd << ": " << (field.empty() ? "" : field + ": ") << msg << "\n";
-  return kExitUsage;
+  return vsurg::cli::UsageError(err, cmd,
+                                vsurg::Error{vsurg::ErrorCode::kInvalidArgument, msg, field});
 }
 
 using vsurg::client::Remote;
@@ -55,9 +57,7 @@ using vsurg::client::Remote;
 // printed, or a usage error), or nothing when the command should go on with `remote`.
 std::optional<int> Begin(ArgParser& p, const std::vector<std::string>& args, std::ostream& out,
                          std::ostream& err, Remote& remote) {
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return rc;
   auto r = vsurg::client::ConnectRemote(p);
   if (!r.ok()) return Usage(err, p.command(), r.error().field, r.error().message);
   remote = std::move(r).value();
@@ -78,9 +78,7 @@ int UserAdd(const std::vector<std::string>& args, std::ostream& out, std::ostrea
               false, "")
       .Option("issue-token", Kind::kFlag, "also issue a token and print it");
   vsurg::client::AddRemoteOptions(p);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   const auto role = vsurg::db::ParseRole(p.String("role"));
   if (!role) return Usage(err, p.command(), "--role", "trainee, instructor, evaluator or admin");
   auto remote = vsurg::client::ConnectRemote(p);
@@ -171,9 +169,7 @@ int Import(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("moment", Kind::kDouble, "training moment, minutes (trainee subjects)")
       .Option("quiet", Kind::kFlag, "print only refused rows and the summary");
   vsurg::client::AddRemoteOptions(p);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   const bool quiet = p.Flag("quiet");
   auto text = ReadTextFile(p.String("input"), "--input");
   if (!text.ok()) return Usage(err, p.command(), "--input", text.error().message);
@@ -322,9 +318,7 @@ int Export(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("trainee", Kind::kString, "only this trainee (trainee subjects and their sessions)")
       .Option("session", Kind::kInt, "only this session");
   vsurg::client::AddRemoteOptions(p);
-  if (Status s = p.Parse(args); !s.ok())
-    return Usage(err, p.command(), s.error().field, s.error().message);
-  if (p.HelpRequested()) return out << p.Help(), 0;
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   v1::ExportRequest req;
   req.set_format(p.String("format"));
   if (!vsurg::db::ParseExportFormat(req.format()))

@@ -21,7 +21,7 @@
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "common/sim/scene.h"
 #include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
@@ -46,16 +46,14 @@ std::string Fixed(double v, int digits) {
 }
 
 int Usage(const ArgParser& p, const vsurg::Error& e) {
-  std::cerr << p.command() << ": " << (e.field.empty() ? "" : e.field + ": ") << e.message << "\n";
-  return 2;
+  return vsurg::cli::UsageError(std::cerr, p.command(), e);
 }
 
 int List(const std::vector<std::string>& args) {
   ArgParser p("vsurg-monitor list", "Lists the live sessions (created, running, stalled).");
   client::AddRemoteOptions(p);
   p.Option("all", Kind::kFlag, "also the ended ones, with their scores");
-  if (auto s = p.Parse(args); !s.ok()) return Usage(p, s.error());
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   auto remote = client::ConnectRemote(p);
   if (!remote.ok()) return Usage(p, remote.error());
   auto stub = v1::SessionService::NewStub(remote->channel);
@@ -182,8 +180,7 @@ int Follow(const std::vector<std::string>& args) {
       .Option("screenshot", Kind::kString, "PNG of the view when following ends")
       .Option("duration", Kind::kDouble, "stop after this many seconds (0: when the session ends)",
               false, "0");
-  if (auto s = p.Parse(args); !s.ok()) return Usage(p, s.error());
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   auto remote = client::ConnectRemote(p);
   if (!remote.ok()) return Usage(p, remote.error());
   const double print_hz = p.Double("print-hz");

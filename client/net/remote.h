@@ -7,7 +7,7 @@
 #include <ostream>
 #include <string>
 
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "common/core/expected.h"
 
 namespace grpc {

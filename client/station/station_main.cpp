@@ -21,7 +21,7 @@
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
 #include "client/station/station.h"
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "common/scoring/report_json.h"
 #include "common/sim/scene.h"
 
@@ -84,17 +84,9 @@ int Run(const std::vector<std::string>& args) {
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the haptic threads when permitted (0: off)", false, "20")
       .Option("json", Kind::kFlag, "print the summary as one JSON object");
-  if (vsurg::Status s = p.Parse(args); !s.ok()) {
-    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
-    return 2;
-  }
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   auto remote = client::ConnectRemote(p);
-  if (!remote.ok()) {
-    std::cerr << p.command() << ": " << remote.error().field << ": " << remote.error().message
-              << "\n";
-    return 2;
-  }
+  if (!remote.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), remote.error());
   const double fps = p.Double("fps");
   if (!(fps >= 1 && fps <= 240)) return std::cerr << "vsurg-station: --fps: 1..240\n", 2;
   if (p.Has("screenshot-at") && !(p.Double("screenshot-at") >= 0))

@@ -6,6 +6,7 @@
 // with '-' (negative numbers), because an option that takes a value always takes the next token.
 #pragma once
 
+#include <iosfwd>
 #include <map>
 #include <optional>
 #include <string>
@@ -52,5 +53,16 @@ class ArgParser {
   std::map<std::string, std::string> values_;
   bool help_ = false;
 };
+
+// The tools' exit codes: 0 done, 1 failed at run time, 2 bad arguments.
+inline constexpr int kExitRuntime = 1, kExitUsage = 2;
+
+// "COMMAND: FIELD: message" on `err`; returns kExitUsage.
+int UsageError(std::ostream& err, const std::string& command, const Error& e);
+
+// Parses `args` into `p`. Returns the exit code to stop with (0 after printing --help on `out`,
+// kExitUsage after one line on `err` naming the option), or nullopt when the command goes on.
+std::optional<int> ParseOrExit(ArgParser& p, const std::vector<std::string>& args,
+                               std::ostream& out, std::ostream& err);
 
 }  // namespace vsurg::cli

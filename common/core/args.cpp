@@ -1,7 +1,8 @@
-#include "common/cli/args.h"
+#include "common/core/args.h"
 
 #include <charconv>
 #include <cmath>
+#include <ostream>
 #include <sstream>
 
 namespace vsurg::cli {
@@ -125,6 +126,21 @@ std::string ArgParser::Help() const {
   }
   out << "  --help             this help\n";
   return out.str();
+}
+
+int UsageError(std::ostream& err, const std::string& command, const Error& e) {
+  err << command << ": " << (e.field.empty() ? "" : e.field + ": ") << e.message << "\n";
+  return kExitUsage;
+}
+
+std::optional<int> ParseOrExit(ArgParser& p, const std::vector<std::string>& args,
+                               std::ostream& out, std::ostream& err) {
+  if (Status s = p.Parse(args); !s.ok()) return UsageError(err, p.command(), s.error());
+  if (p.HelpRequested()) {
+    out << p.Help();
+    return 0;
+  }
+  return std::nullopt;
 }
 
 }  // namespace vsurg::cli
