@@ -17,7 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "db/sqlite.h"
 #include "db/store.h"
 #include "server/control/control_plane.h"

@@ -28,7 +28,7 @@
 
 #include "bench/control_bench.h"
 #include "bench/speed_vs_error.h"
-#include "common/cli/args.h"
+#include "common/core/args.h"
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"

@@ -1,0 +1,95 @@
+// The speed-against-error study's report: the cheapest model within each scene's budget, the
+// CSV, and the Markdown table kept in docs/BENCHMARKS.md between the study's markers.
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "bench/study/study.h"
+#include "common/core/csv.h"
+
+namespace vsurg::bench::study {
+namespace {
+
+// One CSV text field (RFC 4180 quoting), through the project's writer.
+std::string CsvField(const std::string& s) {
+  std::string out;
+  csv::AppendText(out, s);
+  return out;
+}
+
+}  // namespace
+
+void ChooseCheapest(SceneOut& s) {
+  const Row* best = nullptr;
+  for (const Row& r : s.rows)
+    if (std::isfinite(r.rms) && r.rms <= s.budget && (!best || r.time_us < best->time_us))
+      best = &r;
+  s.chosen = best ? best->model + " (" + best->setting + ")" : "none within budget";
+  const bool same = best && best->model.rfind(s.scene_family, 0) == 0;
+  s.chosen += "; `scenes/" + s.scene_file + ".json` uses " + s.scene_family +
+              (same ? ": consistent" : ": **not** the cheapest within its budget");
+}
+
+std::string Num(double v, int digits) {
+  if (!std::isfinite(v)) return "";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+  return buf;
+}
+
+Status WriteCsv(const std::string& path, const std::vector<SceneOut>& scenes) {
+  std::ofstream out(path);
+  if (!out) return Error{ErrorCode::kIoError, "cannot write " + path, "out"};
+  out << "model,scene,setting,time_per_update_us,rms_error,max_error,size,budget,meets_budget,"
+         "note\n";
+  for (const SceneOut& s : scenes)
+    for (const Row& r : s.rows)
+      out << CsvField(r.model) << "," << s.scene << "," << CsvField(r.setting) << ","
+          << Num(r.time_us) << "," << Num(r.rms) << "," << Num(r.max) << "," << r.size << ","
+          << s.budget << "," << (std::isfinite(r.rms) && r.rms <= s.budget ? "yes" : "no") << ","
+          << CsvField(r.note) << "\n";
+  return out ? Status::Ok() : Status(Error{ErrorCode::kIoError, "write failed: " + path, "out"});
+}
+
+std::string MarkdownTable(const std::vector<SceneOut>& scenes, const std::string& command) {
+  std::ostringstream md;
+  md << "Command: `" << command << "`. Error: marker displacement error relative to the "
+     << "reference's largest marker displacement (RMS and max over the ten markers); time: median "
+     << "time per deformation update on this machine.\n\n";
+  for (const SceneOut& s : scenes) {
+    md << "**" << s.scene << "** (error budget " << Num(100 * s.budget, 3) << "% RMS from `scenes/"
+       << s.scene_file << ".json`; cheapest within it: " << s.chosen << ")\n\n";
+    md << "| model | setting | time per update | RMS error | max error | note |\n";
+    md << "| --- | --- | --- | --- | --- | --- |\n";
+    for (const Row& r : s.rows) {
+      const std::string t =
+          r.time_us >= 1000 ? Num(r.time_us / 1000, 3) + " ms" : Num(r.time_us, 3) + " µs";
+      md << "| " << r.model << " | " << r.setting << " | " << t << " | "
+         << (std::isfinite(r.rms) ? Num(100 * r.rms, 3) + "%" : "—") << " | "
+         << (std::isfinite(r.max) ? Num(100 * r.max, 3) + "%" : "—") << " | " << r.note << " |\n";
+    }
+    md << "\n";
+  }
+  return md.str();
+}
+
+Status UpdateBenchmarks(const std::string& path, const std::string& table) {
+  const std::string begin = "<!-- speed-vs-error:begin -->", end = "<!-- speed-vs-error:end -->";
+  std::ifstream in(path);
+  std::stringstream text;
+  if (in) text << in.rdbuf();
+  std::string s = text.str();
+  const std::string block = begin + "\n" + table + end;
+  const auto b = s.find(begin), e = s.find(end);
+  if (b != std::string::npos && e != std::string::npos && e > b) {
+    s.replace(b, e + end.size() - b, block);
+  } else {
+    s += "\n## Speed against error (FEM and speed-vs-error issue)\n\n" + block + "\n";
+  }
+  std::ofstream out(path);
+  out << s;
+  return out ? Status::Ok() : Status(Error{ErrorCode::kIoError, "cannot write " + path, "out"});
+}
+
+}  // namespace vsurg::bench::study

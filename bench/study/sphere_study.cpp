@@ -1,0 +1,271 @@
+// The sphere half of the speed-against-error study: a 5 cm ball pressed on its top cap, every
+// model against the finest FEM (bench/speed_vs_error.cpp).
+#include "bench/study/study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <sstream>
+#include <tuple>
+
+#include "bench/png_plot.h"
+#include "common/core/args.h"
+#include "common/core/csv.h"
+#include "common/geometry/distances.h"
+#include "common/geometry/mesh_generators.h"
+#include "common/geometry/tet_generators.h"
+#include "common/sim/limb_scene.h"
+#include "common/sim/scene.h"
+#include "common/tissue/coil_calibration.h"
+#include "common/tissue/coil_deformation.h"
+#include "common/tissue/fem.h"
+#include "common/tissue/mass_spring.h"
+#include "common/tissue/ring_layer.h"
+#include "common/tissue/torsion_reference.h"
+
+namespace vsurg::bench::study {
+namespace {
+
+constexpr double kBallRadius = 0.05, kPressForce = 0.2, kCapRadius = 0.01;
+
+std::vector<Vec3> SphereMarkers() {
+  std::vector<Vec3> m;
+  for (int k = 0; k < 10; ++k) {
+    const double a = (5.0 * k) * std::numbers::pi / 180.0;
+    m.emplace_back(kBallRadius * std::sin(a), 0.0, kBallRadius * std::cos(a));
+  }
+  return m;
+}
+
+std::vector<int> SphereMarkerVertices(const std::vector<Vec3>& rest) {
+  std::vector<Vec3> outer;
+  std::vector<int> index;
+  for (int i = 0; i < static_cast<int>(rest.size()); ++i)
+    if (rest[i].norm() > 0.98 * kBallRadius) outer.push_back(rest[i]), index.push_back(i);
+  std::vector<int> out;
+  for (const Vec3& m : SphereMarkers()) out.push_back(index[Nearest(outer, m)]);
+  return out;
+}
+
+// The press: a uniform pressure F/(π a²) straight down on the top cap |xy| ≤ a, turned into
+// nodal forces by sampling every surface triangle (28 barycentric points) and lumping each
+// sample's share of the triangle's area onto its vertices by its barycentric weights, so every
+// mesh carries the same load however fine it is (a point load would not converge).
+std::vector<std::pair<int, Vec3>> CapLoad(const geometry::TriMesh& surface, double force) {
+  const double pressure = force / (std::numbers::pi * kCapRadius * kCapRadius);
+  std::map<int, Vec3> nodal;
+  // (Eigen vectors are not zeroed by default construction: never `nodal[i] +=`.)
+  auto add = [&](int i, double fz) { nodal.try_emplace(i, Vec3::Zero()).first->second.z() += fz; };
+  constexpr int kN = 6;  // (kN+1)(kN+2)/2 = 28 samples
+  for (const auto& t : surface.triangles) {
+    const Vec3& a = surface.positions[t[0]];
+    const Vec3& b = surface.positions[t[1]];
+    const Vec3& c = surface.positions[t[2]];
+    if (std::max({a.z(), b.z(), c.z()}) <= 0) continue;
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    const double w = area / ((kN + 1) * (kN + 2) / 2);
+    for (int i = 0; i <= kN; ++i)
+      for (int j = 0; i + j <= kN; ++j) {
+        const double u = static_cast<double>(i) / kN, v = static_cast<double>(j) / kN;
+        const Vec3 p = (1 - u - v) * a + u * b + v * c;
+        if (p.z() <= 0 || p.head<2>().norm() > kCapRadius) continue;
+        add(t[0], -pressure * w * (1 - u - v));
+        add(t[1], -pressure * w * u);
+        add(t[2], -pressure * w * v);
+      }
+  }
+  // The samples' area only approximates the cap's: scale to the exact total force.
+  double total = 0;
+  for (const auto& [i, f] : nodal) total -= f.z();
+  std::vector<std::pair<int, Vec3>> out;
+  for (const auto& [i, f] : nodal) out.emplace_back(i, total > 0 ? Vec3(f * force / total) : f);
+  return out;
+}
+
+std::vector<int> BottomCap(const std::vector<Vec3>& rest) {
+  std::vector<int> fixed;
+  for (int i = 0; i < static_cast<int>(rest.size()); ++i)
+    if (rest[i].z() < -0.7 * kBallRadius) fixed.push_back(i);
+  return fixed;
+}
+
+tissue::FemParams BallTissue() {
+  tissue::FemParams p;
+  p.poisson = 0.45;
+  p.young = 2 * 12000 * 1.45;
+  return p;
+}
+
+}  // namespace
+
+SceneOut RunSphere(const Config& cfg, Progress& progress) {
+  SceneOut out;
+  out.scene = "sphere-palpation";
+  out.scene_file = "sphere-palpation-256";
+  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
+  // Reference: the finest FEM, static.
+  const int ref_cells = cfg.quick ? 8 : 16;
+  auto ref_mesh = geometry::MakeTetBall({kBallRadius, ref_cells});
+  auto ref_fem = tissue::FemModel::Create(*ref_mesh, BallTissue(), BottomCap(ref_mesh->positions));
+  for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(*ref_mesh), kPressForce))
+    ref_fem->SetExternalForce(i, f);
+  ref_fem->SolveStatic(30, 1e-8);
+  std::vector<Vec3> ref_surface_rest, ref_surface_disp;
+  for (int i = 0; i < ref_mesh->VertexCount(); ++i)
+    if (ref_mesh->positions[i].norm() > 0.98 * kBallRadius) {
+      ref_surface_rest.push_back(ref_mesh->positions[i]);
+      ref_surface_disp.push_back(ref_fem->positions()[i] - ref_mesh->positions[i]);
+    }
+  const Reference ref = [&](const Vec3& x) {
+    return ref_surface_disp[Nearest(ref_surface_rest, x)];
+  };
+  progress.Step("sphere reference fem");
+  const double pole_target = ref(Vec3(0, 0, kBallRadius)).norm();
+
+  for (int cells : cfg.quick ? std::vector<int>{4} : std::vector<int>{4, 6, 8, 12}) {
+    auto mesh = geometry::MakeTetBall({kBallRadius, cells});
+    auto fem = tissue::FemModel::Create(*mesh, BallTissue(), BottomCap(mesh->positions));
+    Row row{"fem", out.scene,
+            "cells " + std::to_string(cells) + " (" + std::to_string(mesh->TetCount()) + " tets)"};
+    row.size = fem->VertexCount();
+    for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(*mesh), kPressForce))
+      fem->SetExternalForce(i, f);
+    fem->SolveStatic(30, 1e-8);
+    Score(row, mesh->positions, fem->positions(), SphereMarkerVertices(mesh->positions), ref);
+    row.time_us = TimeUs(cfg.quick ? 3 : 7, [&](int) { fem->StepImplicit(1e-3); });
+    out.rows.push_back(row);
+    progress.Step("sphere fem " + std::to_string(cells));
+  }
+
+  // Mass-spring on the subdivided sphere (seed 001), one stiffness fitted to the pole's depth.
+  for (int level : cfg.quick ? std::vector<int>{3} : std::vector<int>{3, 4}) {
+    auto surface = geometry::MakeSubdividedSphere({kBallRadius, level});
+    auto build = [&](double k) -> Expected<tissue::MassSpringModel> {
+      tissue::MassSpringBuildParams bp;
+      bp.total_mass = 1050 * 4.0 / 3.0 * std::numbers::pi * std::pow(kBallRadius, 3);
+      bp.structural_stiffness = k;
+      bp.bending_stiffness = 0.1 * k;
+      bp.volume_stiffness = k;
+      bp.damping = 0.005 * k;
+      bp.volume = tissue::VolumeMode::kInnerLayer;
+      auto sys = tissue::BuildMassSpring(*surface, bp);
+      if (!sys.ok()) return sys.error();
+      tissue::MassSpringStepParams sp;
+      sp.integrator = tissue::Integrator::kImplicitEuler;
+      auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
+      if (!model.ok()) return model.error();
+      for (int i : BottomCap(model->system().rest_positions)) model->SetFixed(i, true);
+      for (const auto& [i, f] : CapLoad(*surface, kPressForce)) model->SetExternalForce(i, f);
+      return model;
+    };
+    const int pole = Nearest(surface->positions, Vec3(0, 0, kBallRadius));
+    double k = 20;
+    for (int it = 0; it < 3; ++it) {
+      auto model = build(k);
+      if (!model.ok()) break;
+      for (int s = 0; s < 300; ++s) model->Step(0.05);
+      const double got = (model->positions()[pole] - surface->positions[pole]).norm();
+      if (!(got > 0) || !std::isfinite(got)) break;
+      k *= got / pole_target;
+    }
+    const auto markers = SphereMarkerVertices(surface->positions);
+    for (tissue::Integrator integ : tissue::kAllIntegrators) {
+      Row row{
+          "mass-spring", out.scene,
+          std::to_string(surface->VertexCount()) + " particles, " + tissue::IntegratorName(integ)};
+      auto model = build(k);
+      if (!model.ok()) continue;
+      row.size = static_cast<int>(model->positions().size());
+      model->SetIntegrator(integ);
+      const double omega = model->MaxAngularFrequency(100);
+      double limit =
+          integ == tissue::Integrator::kImplicitEuler ? kInf
+          : (integ == tissue::Integrator::kRk4)       ? 2.5
+          : (integ == tissue::Integrator::kSymplecticEuler || integ == tissue::Integrator::kVerlet)
+              ? 1.8
+              : 0.5;
+      const int substeps = Substeps(omega, limit, 0.005);
+      row.setting +=
+          ", " + std::to_string(substeps) + " substep" + (substeps > 1 ? "s" : "") + "/ms";
+      std::vector<double> times;
+      bool ok = true;
+      for (int s = 0; s < (cfg.quick ? 300 : 500) && ok; ++s) {
+        const auto t0 = Clock::now();
+        ok = model->Step(1e-3, substeps);
+        times.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+      }
+      row.time_us = MedianUs(times);
+      if (!ok || model->diverged()) {
+        row.note = "diverged";
+      } else {
+        std::vector<Vec3> rest(model->system().rest_positions.begin(),
+                               model->system().rest_positions.begin() + surface->VertexCount());
+        std::vector<Vec3> now(model->positions().begin(),
+                              model->positions().begin() + surface->VertexCount());
+        Score(row, rest, now, markers, ref);
+      }
+      out.rows.push_back(row);
+      progress.Step("sphere msm " + std::string(tissue::IntegratorName(integ)));
+    }
+  }
+
+  // Ring layer (seed 001 §3.3) on the 258-particle sphere: chain stiffness fitted to the pole.
+  {
+    auto surface = geometry::MakeSubdividedSphere({kBallRadius, 4});
+    std::vector<double> dist(surface->positions.size());
+    const Vec3 pole(0, 0, kBallRadius);
+    for (size_t i = 0; i < dist.size(); ++i) {
+      const double c = std::clamp(surface->positions[i].normalized().dot(Vec3::UnitZ()), -1.0, 1.0);
+      dist[i] = kBallRadius * std::acos(c);  // geodesic on the sphere
+    }
+    const std::vector<double> masses(
+        surface->positions.size(), 1050 * 4.0 / 3.0 * std::numbers::pi * std::pow(kBallRadius, 3) /
+                                       static_cast<double>(surface->positions.size()));
+    auto build = [&](double k) {
+      tissue::RingLayerParams rp;
+      rp.rings = 8;
+      rp.ring_spacing = 0.5 * std::numbers::pi * kBallRadius / 8;
+      rp.chain_stiffness = k;
+      rp.chain_damping = 0.05 * k * 1e-2;
+      return tissue::RingLayerModel::Create(surface->positions, dist, masses, -Vec3::UnitZ(), rp);
+    };
+    double k = 10;
+    for (int it = 0; it < 3; ++it) {
+      auto model = build(k);
+      if (!model.ok()) break;
+      model->SetContactForce(kPressForce);
+      for (int s = 0; s < 2000; ++s) model->Step(1e-2);
+      model->Apply();
+      const int p = Nearest(surface->positions, pole);
+      const double got = (model->positions()[p] - surface->positions[p]).norm();
+      if (!(got > 0)) break;
+      k *= got / pole_target;
+    }
+    auto model = build(k);
+    Row row{"ring-layer", out.scene, "8 rings, 1026 particles"};
+    if (model.ok()) {
+      row.size = 9;
+      model->SetContactForce(kPressForce);
+      for (int s = 0; s < 4000; ++s) model->Step(1e-3);
+      row.time_us = TimeUs(cfg.repeats * 5, [&](int) {
+        model->Step(1e-3);
+        model->Apply();
+      });
+      Score(row, surface->positions, model->positions(), SphereMarkerVertices(surface->positions),
+            ref);
+    }
+    out.rows.push_back(row);
+    progress.Step("sphere ring layer");
+  }
+  return out;
+}
+
+}  // namespace vsurg::bench::study

@@ -1,0 +1,74 @@
+#include "bench/study/study.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "common/sim/scene.h"
+
+namespace vsurg::bench::study {
+
+void Progress::Step(const std::string& what) {
+  ++done_;
+  const int width = 30, filled = width * done_ / std::max(1, total_);
+  std::fprintf(stderr, "\r[%s%s] %3d%%  %-48.48s", std::string(filled, '#').c_str(),
+               std::string(width - filled, '.').c_str(), 100 * done_ / std::max(1, total_),
+               what.c_str());
+  if (done_ >= total_) std::fprintf(stderr, "\n");
+  std::fflush(stderr);
+}
+
+double MedianUs(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+int Nearest(const std::vector<Vec3>& points, const Vec3& p) {
+  int best = 0;
+  double d = kInf;
+  for (int i = 0; i < static_cast<int>(points.size()); ++i) {
+    const double e = (points[i] - p).squaredNorm();
+    if (e < d) d = e, best = i;
+  }
+  return best;
+}
+
+void Score(Row& row, const std::vector<Vec3>& rest, const std::vector<Vec3>& now,
+           const std::vector<int>& marker_vertices, const Reference& ref) {
+  double scale = 0;
+  std::vector<double> e;
+  for (int v : marker_vertices) scale = std::max(scale, ref(rest[v]).norm());
+  for (int v : marker_vertices) {
+    const Vec3 d = now[v] - rest[v];
+    if (!d.allFinite()) {
+      row.rms = row.max = kInf;
+      row.note = "diverged";
+      return;
+    }
+    e.push_back((d - ref(rest[v])).norm() / std::max(scale, 1e-12));
+  }
+  double s2 = 0, mx = 0;
+  for (double x : e) s2 += x * x, mx = std::max(mx, x);
+  row.rms = std::sqrt(s2 / static_cast<double>(e.size()));
+  row.max = mx;
+}
+
+double Ramp(double t, double ramp_s) {
+  return std::clamp(t / ramp_s, 0.0, 1.0);
+}
+
+int Substeps(double omega, double limit, double beta) {
+  if (!std::isfinite(limit)) return 1;
+  const double zeta = 0.5 * beta * omega;
+  const double h = limit / std::max(omega, 1e-9) * (std::sqrt(1 + zeta * zeta) - zeta) / 1.2;
+  return std::clamp(static_cast<int>(std::ceil(1e-3 / h)), 1, 100);
+}
+
+std::pair<double, std::string> SceneBudget(const std::string& file) {
+  auto scene = sim::LoadSceneByName(file);
+  if (!scene.ok()) return {0.1, "?"};
+  return {scene->error_budget_rms, sim::ModelKindName(scene->region.kind)};
+}
+
+}  // namespace vsurg::bench::study

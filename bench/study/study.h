@@ -1,0 +1,107 @@
+// The speed-against-error study (vsurg-bench speed-vs-error; DESIGN.md "Speed against error"):
+// what its halves share. bench/study/limb_study.cpp runs the limb scenes, sphere_study.cpp the
+// sphere palpation, report.cpp writes the CSV and the Markdown table; bench/speed_vs_error.cpp is
+// the command. Scenes, references, markers and the error measure: bench/speed_vs_error.cpp's
+// opening comment.
+#pragma once
+
+#include <chrono>
+#include <functional>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+
+namespace vsurg::bench::study {
+
+using geometry::Vec3;
+using Clock = std::chrono::steady_clock;
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
+
+struct Row {
+  std::string model = "", scene = "", setting = "";
+  double time_us = 0, rms = kInf, max = kInf;
+  int size = 0;  // particles / vertices / coils
+  std::string note = "";
+};
+
+struct Trajectory {
+  std::string label = "";
+  std::vector<double> t = {}, d = {};  // s, m (marker 8's displacement)
+};
+
+struct SceneOut {
+  std::string scene;
+  std::string scene_file;    // the scenes/ file whose budget applies
+  std::string scene_family;  // the model family that file uses
+  double budget = 0;
+  std::vector<Row> rows;
+  std::vector<Trajectory> trajectories;
+  std::string chosen;
+};
+
+struct Config {
+  bool quick = false;
+  int repeats = 9;
+};
+
+// A progress bar on stderr.
+class Progress {
+ public:
+  explicit Progress(int total) : total_(total) {}
+  void Step(const std::string& what);
+
+ private:
+  int total_, done_ = 0;
+};
+
+double MedianUs(std::vector<double> v);
+
+template <class F>
+double TimeUs(int repeats, F&& f) {
+  std::vector<double> t;
+  for (int i = 0; i < repeats; ++i) {
+    const auto t0 = Clock::now();
+    f(i);
+    t.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+  }
+  return MedianUs(t);
+}
+
+// The index of the point nearest to `p`.
+int Nearest(const std::vector<Vec3>& points, const Vec3& p);
+
+// Relative marker errors: reference displacement function at a rest point.
+using Reference = std::function<Vec3(const Vec3& rest)>;
+// Fills row.rms and row.max: marker errors relative to the reference's largest marker
+// displacement ("diverged" when a marker is not finite).
+void Score(Row& row, const std::vector<Vec3>& rest, const std::vector<Vec3>& now,
+           const std::vector<int>& marker_vertices, const Reference& ref);
+
+// 0 → 1 over ramp_s, then 1.
+double Ramp(double t, double ramp_s);
+// Substeps per 1 ms update that keep an explicit scheme inside its stability limit on the
+// stiffest mode ω (rad/s): undamped ω·h < limit; spring damping c = β·k gives that mode a damping
+// ratio ζ = β·ω/2, which shrinks the limit to limit·(√(1 + ζ²) − ζ). 1.2× margin; capped at 100
+// (a scheme that needs more is run at 100 and reported as it fares).
+int Substeps(double omega, double limit, double beta);
+
+// The error budget and the model family a scenes/ file declares.
+std::pair<double, std::string> SceneBudget(const std::string& file);
+
+// The halves of the study.
+std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // arm ×2, calf
+SceneOut RunSphere(const Config& cfg, Progress& progress);
+
+// The report.
+void ChooseCheapest(SceneOut& s);
+std::string Num(double v, int digits = 4);
+Status WriteCsv(const std::string& path, const std::vector<SceneOut>& scenes);
+std::string MarkdownTable(const std::vector<SceneOut>& scenes, const std::string& command);
+// Replaces the block between the study's markers in a Markdown file (or appends it).
+Status UpdateBenchmarks(const std::string& path, const std::string& table);
+
+}  // namespace vsurg::bench::study
