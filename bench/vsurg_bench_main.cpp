@@ -164,11 +164,11 @@ int HapticRtt(const std::vector<std::string>& args) {
             (1.0 - in) * 0.02 *
             (scene->mesh.kind == vsurg::sim::MeshKind::kLimb ? Eigen::Vector3d(1, 0, 0)
                                                              : Eigen::Vector3d(0, 0, 1));
-        const size_t size = codec.EncodeStylus(
-            msg,
-            {vsurg::wire::kProtocolVersion, vsurg::wire::PayloadType::kStylusState, st.session,
-             ++st.sequence, static_cast<uint64_t>(msg.sample.time * 1e6)},
-            st.auth, tx);
+        const size_t size =
+            codec.EncodeStylus(msg,
+                               {vsurg::wire::kProtocolVersion,
+                                vsurg::wire::PayloadType::kStylusState, st.session, ++st.sequence},
+                               st.auth, tx);
         boost::system::error_code ec;
         st.socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
         if (t >= warmup && !ec) ++sent;

@@ -148,9 +148,8 @@ struct StationChannel::Impl {
       if (s.position.allFinite()) last_x = s.position, have_x = true;
       m.sample = s;
       m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
-      m.velocity = v.allFinite() ? v : Vec3::Zero();
       const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
-                           ++sequence, static_cast<uint64_t>(now * 1e6)};
+                           ++sequence};
       const size_t size = tx_codec.EncodeStylus(m, h, auth, tx);
       boost::system::error_code ec;
       if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);

@@ -100,7 +100,7 @@ size_t Seal(const Header& h, std::span<const uint8_t> payload, const Authenticat
   p[3] = static_cast<uint8_t>(h.type);
   PutLe(p + 4, h.session, 8);
   PutLe(p + 12, h.sequence, 8);
-  PutLe(p + 20, h.time_us, 8);
+  PutLe(p + 20, 0, 8);  // reserved
   PutLe(p + 28, payload.size(), 2);
   PutLe(p + 30, 0, 2);
   if (!payload.empty()) std::memcpy(p + kHeaderSize, payload.data(), payload.size());
@@ -122,17 +122,21 @@ DropReason PeekHeader(std::span<const uint8_t> d, Header& h) {
   h.type = static_cast<PayloadType>(d[3]);
   h.session = GetLe(d.data() + 4, 8);
   h.sequence = GetLe(d.data() + 12, 8);
-  h.time_us = GetLe(d.data() + 20, 8);
   return DropReason::kNone;
 }
 
 DropReason Open(std::span<const uint8_t> d, const Authenticator* auth, Opened& out) {
   if (DropReason r = PeekHeader(d, out.header); r != DropReason::kNone) return r;
   if (auth == nullptr) return DropReason::kUnknownSession;
-  const size_t body = d.size() - kTagSize;
-  const auto tag = auth->Tag(d.first(body));
+  return Verify(d, *auth, out.payload);
+}
+
+DropReason Verify(std::span<const uint8_t> d, const Authenticator& auth,
+                  std::span<const uint8_t>& payload) {
+  const size_t body = d.size() - kTagSize;  // PeekHeader checked the size
+  const auto tag = auth.Tag(d.first(body));
   if (CRYPTO_memcmp(tag.data(), d.data() + body, kTagSize) != 0) return DropReason::kBadTag;
-  out.payload = d.subspan(kHeaderSize, body - kHeaderSize);
+  payload = d.subspan(kHeaderSize, body - kHeaderSize);
   return DropReason::kNone;
 }
 

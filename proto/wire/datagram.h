@@ -6,7 +6,8 @@
 //   3      1     payload type (PayloadType)
 //   4      8     session id            (little-endian)
 //   12     8     sequence number       (little-endian, per sender, strictly increasing)
-//   20     8     sender time, µs       (little-endian)
+//   20     8     reserved: sent as zero, ignored when read (was a sender time no one used;
+//                the sample's own time travels in the payload)
 //   28     2     payload length        (little-endian)
 //   30     2     reserved, zero
 //   32     n     payload (protobuf)
@@ -72,7 +73,6 @@ struct Header {
   PayloadType type = PayloadType::kStylusState;
   uint64_t session = 0;
   uint64_t sequence = 0;
-  uint64_t time_us = 0;
 };
 
 // Writes header, payload and tag into `out` (≥ kHeaderSize + payload + kTagSize). Returns the
@@ -89,5 +89,9 @@ struct Opened {
 };
 // Checks the framing and the tag. `auth` is the session's authenticator (nullptr: unknown).
 DropReason Open(std::span<const uint8_t> datagram, const Authenticator* auth, Opened& out);
+// The tag only, for a datagram whose header PeekHeader already read and checked (an endpoint
+// peeks to find the session's key, then verifies: the header is parsed once).
+DropReason Verify(std::span<const uint8_t> datagram, const Authenticator& auth,
+                  std::span<const uint8_t>& payload);
 
 }  // namespace vsurg::wire

@@ -44,7 +44,6 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
   s.mutable_orientation()->set_x(q.x());
   s.mutable_orientation()->set_y(q.y());
   s.mutable_orientation()->set_z(q.z());
-  Put(m.velocity, s.mutable_velocity());
   s.set_buttons(m.sample.buttons);
   s.set_rtt_us(static_cast<float>(m.rtt_us));
   const size_t n = s.ByteSizeLong();
@@ -63,7 +62,6 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   f.set_echo_time(m.echo_time);
   f.set_server_time(m.server_time);
   Put(c.force, f.mutable_force());
-  Put(Eigen::Vector3d::Zero(), f.mutable_torque());
   f.set_contact(c.contact);
   f.set_grasping(c.grasping);
   Put(c.proxy, f.mutable_proxy());
@@ -173,7 +171,6 @@ DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& 
   out.sample.orientation = Eigen::Quaterniond(s.orientation().w(), s.orientation().x(),
                                               s.orientation().y(), s.orientation().z());
   out.sample.buttons = s.buttons();
-  out.velocity = Get(s.velocity());
   out.rtt_us = std::isfinite(s.rtt_us()) && s.rtt_us() > 0 ? s.rtt_us() : 0.0;
   // Non-finite values are passed on: the simulation's safety turns them into zero force and an
   // event, which the station then sees.

@@ -18,7 +18,6 @@ namespace vsurg::wire {
 
 struct StylusMessage {
   haptics::StylusSample sample;
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // m/s
   double rtt_us = 0;  // the station's last measured round trip (telemetry), 0 if none yet
 };
 

@@ -89,7 +89,7 @@ struct UdpEndpoint::Impl {
           if (!v.has_dest || !v.simulation->TakeVisualFrame(frame) || frame.indices.empty())
             continue;
           const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, v.id,
-                                  v.sequence + 1, 0};
+                                  v.sequence + 1};
           const size_t chunks = frame_codec.EncodeSceneFrame(
               {frame.frame_id, frame.indices, frame.positions}, base, v.auth, out,
               [&](std::span<const uint8_t> d) {
@@ -138,8 +138,8 @@ struct UdpEndpoint::Impl {
     const auto it = sessions.find(header.session);
     if (it == sessions.end()) return Drop(wire::DropReason::kUnknownSession);
     Session& s = it->second;
-    wire::Opened opened;
-    if (const wire::DropReason r = wire::Open(d, &s.auth, opened); r != wire::DropReason::kNone)
+    std::span<const uint8_t> payload;  // the header was parsed once, above
+    if (const wire::DropReason r = wire::Verify(d, s.auth, payload); r != wire::DropReason::kNone)
       return Drop(r);
     if (s.seen && header.sequence <= s.last_sequence) return Drop(wire::DropReason::kStale);
     const Clock::time_point now = Clock::now();
@@ -150,7 +150,7 @@ struct UdpEndpoint::Impl {
     s.refill = now;
     if (s.tokens < 1.0) return Drop(wire::DropReason::kRateLimited);
     s.tokens -= 1.0;
-    if (const wire::DropReason r = codec.DecodeStylus(opened.payload, stylus);
+    if (const wire::DropReason r = codec.DecodeStylus(payload, stylus);
         r != wire::DropReason::kNone)
       return Drop(r);
     if (s.link) {
@@ -179,8 +179,7 @@ struct UdpEndpoint::Impl {
     force.echo_time = stylus.sample.time;
     force.server_time = Now();
     const wire::Header out{wire::kProtocolVersion, wire::PayloadType::kForceFeedback,
-                           header.session, ++s.sent_sequence,
-                           static_cast<uint64_t>(force.server_time * 1e6)};
+                           header.session, ++s.sent_sequence};
     const size_t size = codec.EncodeForce(force, out, s.auth, tx);
     if (size == 0) return;
     boost::system::error_code ec;

@@ -74,7 +74,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     h.type = static_cast<PayloadType>(1 + data[1] % 3);
     h.session = Read64(data + 2);
     h.sequence = Read64(data + 10);
-    h.time_us = Read64(data + 18);
     const std::span<const uint8_t> payload(data + 26, size - 26);
     const size_t n = Seal(h, payload, Auth(), sealed);
     if (n == 0) {

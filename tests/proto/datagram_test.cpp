@@ -23,7 +23,6 @@ StylusMessage Stylus() {
   m.sample.position = Eigen::Vector3d(0.01, -0.02, 0.2);
   m.sample.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
   m.sample.buttons = 1;
-  m.velocity = Eigen::Vector3d(0.1, 0, 0);
   return m;
 }
 
@@ -43,15 +42,24 @@ TEST(DatagramTest, StylusRoundTripIsSmallAndExact) {
   const Authenticator auth(Key(1));
   Codec codec;
   std::array<uint8_t, kMaxDatagram> buf;
-  const size_t n = codec.EncodeStylus(
-      Stylus(), {kProtocolVersion, PayloadType::kStylusState, 42, 7, 123456}, auth, buf);
+  const size_t n =
+      codec.EncodeStylus(Stylus(), {kProtocolVersion, PayloadType::kStylusState, 42, 7}, auth, buf);
   ASSERT_GT(n, 64u);
   EXPECT_LE(n, 200u);  // DESIGN.md: typically 64–200 bytes
   Opened opened;
   ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, opened), DropReason::kNone);
   EXPECT_EQ(opened.header.session, 42u);
   EXPECT_EQ(opened.header.sequence, 7u);
-  EXPECT_EQ(opened.header.time_us, 123456u);
+  // Bytes 20..27 are reserved: zero on the wire.
+  for (size_t i = 20; i < 28; ++i) EXPECT_EQ(buf[i], 0) << i;
+  // The endpoint's path: the header peeked once, then only the tag verified.
+  Header peeked;
+  std::span<const uint8_t> payload;
+  ASSERT_EQ(PeekHeader(std::span<const uint8_t>(buf.data(), n), peeked), DropReason::kNone);
+  ASSERT_EQ(Verify(std::span<const uint8_t>(buf.data(), n), auth, payload), DropReason::kNone);
+  EXPECT_EQ(payload.data(), opened.payload.data());
+  EXPECT_EQ(Verify(std::span<const uint8_t>(buf.data(), n), Authenticator(Key(2)), payload),
+            DropReason::kBadTag);
   StylusMessage back;
   ASSERT_EQ(codec.DecodeStylus(opened.payload, back), DropReason::kNone);
   EXPECT_EQ(back.sample.position, Stylus().sample.position);
@@ -96,7 +104,7 @@ TEST(DatagramTest, ForceRoundTripCarriesTheLocalModel) {
   m.command.events = 0x12;
   std::array<uint8_t, kMaxDatagram> buf;
   const size_t n =
-      codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1, 0}, auth, buf);
+      codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1}, auth, buf);
   ASSERT_GT(n, 0u);
   EXPECT_LE(n, 300u);
   Opened o;
@@ -114,8 +122,8 @@ TEST(DatagramTest, WrongKeyEveryFlippedByteTruncationAndOversizeAreRejected) {
   const Authenticator auth(Key(3)), other(Key(4));
   Codec codec;
   std::array<uint8_t, kMaxDatagram> buf;
-  const size_t n = codec.EncodeStylus(
-      Stylus(), {kProtocolVersion, PayloadType::kStylusState, 1, 1, 0}, auth, buf);
+  const size_t n =
+      codec.EncodeStylus(Stylus(), {kProtocolVersion, PayloadType::kStylusState, 1, 1}, auth, buf);
   Opened o;
   EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &other, o), DropReason::kBadTag);
   EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), nullptr, o), DropReason::kUnknownSession);
@@ -154,7 +162,7 @@ TEST(DatagramTest, AuthenticGarbagePayloadAndNonFiniteForcesAreBadPayload) {
   Codec codec;
   std::array<uint8_t, kMaxDatagram> buf;
   const uint8_t junk[] = {0xff, 0xff, 0xff, 0xff, 0xff};
-  const size_t n = Seal({kProtocolVersion, PayloadType::kForceFeedback, 1, 1, 0}, junk, auth, buf);
+  const size_t n = Seal({kProtocolVersion, PayloadType::kForceFeedback, 1, 1}, junk, auth, buf);
   Opened o;
   ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
   ForceMessage f;
@@ -162,7 +170,7 @@ TEST(DatagramTest, AuthenticGarbagePayloadAndNonFiniteForcesAreBadPayload) {
   ForceMessage nan_force;
   nan_force.command.force.x() = NAN;
   const size_t m = codec.EncodeForce(
-      nan_force, {kProtocolVersion, PayloadType::kForceFeedback, 1, 2, 0}, auth, buf);
+      nan_force, {kProtocolVersion, PayloadType::kForceFeedback, 1, 2}, auth, buf);
   ASSERT_EQ(Open(std::span<const uint8_t>(buf.data(), m), &auth, o), DropReason::kNone);
   EXPECT_EQ(codec.DecodeForce(o.payload, f), DropReason::kBadPayload);  // never rendered
 }
@@ -179,7 +187,7 @@ TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
   std::array<uint8_t, kMaxDatagram> buf;
   std::vector<SceneChunk> chunks;
   const size_t count = codec.EncodeSceneFrame(
-      {42, indices, positions}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 100, 0}, auth, buf,
+      {42, indices, positions}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 100}, auth, buf,
       [&](std::span<const uint8_t> d) {
         ASSERT_LE(d.size(), kMaxDatagram);
         Opened o;

@@ -38,7 +38,7 @@ struct RawClient {
     m.sample.position = Eigen::Vector3d(0.001, 0.001, z);
     std::vector<uint8_t> buf(wire::kMaxDatagram);
     const size_t n = codec.EncodeStylus(
-        m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, session, seq, seq},
+        m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, session, seq},
         wire::Authenticator(key), buf);
     buf.resize(n);
     return buf;
