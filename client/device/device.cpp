@@ -5,17 +5,19 @@
 namespace vsurg::client {
 
 ReplayDevice::ReplayDevice(std::vector<haptics::StylusSample> samples, haptics::DeviceLimits limits,
-                           Clock clock)
-    : samples_(std::move(samples)), limits_(limits), clock_(clock) {
+                           Pace pace, const Clock* clock)
+    : samples_(std::move(samples)),
+      limits_(limits),
+      pace_(pace),
+      clock_(clock ? *clock : DefaultClock()) {
   forces_.reserve(samples_.size() + 1024);
 }
 
 haptics::StylusSample ReplayDevice::Read() {
   std::lock_guard<std::mutex> lock(mutex_);
   if (samples_.empty()) return {};
-  if (clock_ == Clock::kRealTime) {
-    const double now =
-        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  if (pace_ == Pace::kRealTime) {
+    const double now = clock_.Now();
     if (start_s_ < 0) start_s_ = now;
     const double t = samples_.front().time + (now - start_s_);
     while (next_ < samples_.size() && samples_[next_].time <= t) ++next_;
@@ -73,16 +75,16 @@ void ServoMailbox::set_force(const Eigen::Vector3d& force) {
 
 KeyboardMouseDevice::KeyboardMouseDevice(std::function<WindowInput()> input, Eigen::Vector3d start,
                                          Eigen::Vector3d twist_axis, double speed,
-                                         haptics::DeviceLimits limits)
+                                         haptics::DeviceLimits limits, const Clock* clock)
     : input_(std::move(input)),
       position_(start),
       axis_(twist_axis.normalized()),
       speed_(speed),
-      limits_(limits) {}
+      limits_(limits),
+      clock_(clock ? *clock : DefaultClock()) {}
 
 haptics::StylusSample KeyboardMouseDevice::Read() {
-  const double now =
-      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const double now = clock_.Now();
   const double dt = last_time_ < 0 ? 0.0 : std::min(now - last_time_, 0.05);
   last_time_ = now;
   const WindowInput in = input_ ? input_() : WindowInput{};

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "client/device/window_input.h"
+#include "common/core/clock.h"
 #include "common/haptics/safety.h"
 #include "common/haptics/types.h"
 
@@ -62,7 +63,7 @@ class ServoMailbox {
   Eigen::Vector3d force_ = Eigen::Vector3d::Zero();
 };
 
-// A recorded or scripted trajectory played back. Two clocks:
+// A recorded or scripted trajectory played back. Two paces:
 //  - kPerRead: one sample per Read, whatever the time (deterministic: tests, benchmarks);
 //  - kRealTime: by the samples' own times from the first Read, the pose interpolated between
 //    samples (linear, slerp; buttons of the earlier one), as a hand would have moved: a station
@@ -71,10 +72,11 @@ class ServoMailbox {
 // Past the end it holds the last sample. It records every force written.
 class ReplayDevice : public HapticDevice {
  public:
-  enum class Clock { kPerRead, kRealTime };
+  enum class Pace { kPerRead, kRealTime };
+  // kRealTime reads `clock` (null: the steady clock), which must outlive the device.
   ReplayDevice(std::vector<haptics::StylusSample> samples,
-               haptics::DeviceLimits limits = haptics::TouchLimits(),
-               Clock clock = Clock::kPerRead);
+               haptics::DeviceLimits limits = haptics::TouchLimits(), Pace pace = Pace::kPerRead,
+               const Clock* clock = nullptr);
   haptics::StylusSample Read() override;
   void WriteForce(const Eigen::Vector3d& force) override;
   haptics::DeviceLimits limits() const override { return limits_; }
@@ -88,10 +90,11 @@ class ReplayDevice : public HapticDevice {
  private:
   std::vector<haptics::StylusSample> samples_;
   haptics::DeviceLimits limits_;
-  Clock clock_;
+  Pace pace_;
+  const Clock& clock_;
   mutable std::mutex mutex_;  // guards the recorded forces and the cursor for readers
   size_t next_ = 0;           // kPerRead: the next sample; kRealTime: the first one not yet due
-  double start_s_ = -1;       // kRealTime: the steady clock at the first Read
+  double start_s_ = -1;       // kRealTime: the clock at the first Read
   std::vector<Eigen::Vector3d> forces_;
 };
 
@@ -104,7 +107,8 @@ class KeyboardMouseDevice : public HapticDevice {
  public:
   KeyboardMouseDevice(std::function<WindowInput()> input, Eigen::Vector3d start,
                       Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ(), double speed = 0.05,
-                      haptics::DeviceLimits limits = haptics::TouchLimits());
+                      haptics::DeviceLimits limits = haptics::TouchLimits(),
+                      const Clock* clock = nullptr);  // null: the steady clock
   haptics::StylusSample Read() override;
   void WriteForce(const Eigen::Vector3d& force) override;
   haptics::DeviceLimits limits() const override { return limits_; }
@@ -116,6 +120,7 @@ class KeyboardMouseDevice : public HapticDevice {
   Eigen::Vector3d position_, axis_;
   double speed_;
   haptics::DeviceLimits limits_;
+  const Clock& clock_;
   double last_time_ = -1;
   mutable std::mutex mutex_;
   Eigen::Vector3d force_ = Eigen::Vector3d::Zero();

@@ -27,7 +27,7 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
       if (samples->empty()) return InvalidArgument("--trajectory", "the trajectory is empty");
       // A station replays a recording in the recording's own time.
       return std::unique_ptr<HapticDevice>(
-          new ReplayDevice(std::move(*samples), *limits, ReplayDevice::Clock::kRealTime));
+          new ReplayDevice(std::move(*samples), *limits, ReplayDevice::Pace::kRealTime));
     }
     if (!r.window_input)
       return InvalidArgument("--device", "keyboard-mouse needs a window (not --headless)");

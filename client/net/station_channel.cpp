@@ -19,7 +19,7 @@ namespace vsurg::client {
 
 namespace asio = boost::asio;
 using asio::ip::udp;
-using Clock = std::chrono::steady_clock;
+using SteadyTime = std::chrono::steady_clock;  // the device loop's real-time pacing
 using Vec3 = Eigen::Vector3d;
 
 struct StationChannel::Impl {
@@ -37,7 +37,8 @@ struct StationChannel::Impl {
   wire::Authenticator auth;
   std::thread net_thread, device_thread;
   std::atomic<bool> stop{false};
-  Clock::time_point start = Clock::now();
+  const Clock& clock;  // the station clock: watchdog, fade, round trips, sample times
+  double start = 0;
   sim::TripleBuffer<Latest> latest;
 
   // Network thread.
@@ -66,9 +67,10 @@ struct StationChannel::Impl {
   std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
   sim::TripleBuffer<StationView> view;  // device thread → render thread
 
-  explicit Impl(const StationOptions& o) : options(o), auth(o.key) {}
+  explicit Impl(const StationOptions& o)
+      : options(o), auth(o.key), clock(o.clock ? *o.clock : DefaultClock()), start(clock.Now()) {}
 
-  double Now() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
+  double Now() const { return clock.Now() - start; }
 
   void Receive() {
     socket.async_receive_from(asio::buffer(rx), from,
@@ -130,9 +132,9 @@ struct StationChannel::Impl {
 
   void DeviceLoop() {
     auto safety = *haptics::SafetyFilter::Create(device->limits());
-    const auto period = std::chrono::duration_cast<Clock::duration>(
+    const auto period = std::chrono::duration_cast<SteadyTime::duration>(
         std::chrono::duration<double>(1.0 / options.rate_hz));
-    auto next = Clock::now();
+    auto next = SteadyTime::now();
     uint64_t sequence = 0;
     Vec3 last_x = Vec3::Zero();
     bool have_x = false, fading = false;
@@ -188,7 +190,7 @@ struct StationChannel::Impl {
       if (out.norm() > max_force.load()) max_force = out.norm();
 
       next += period;
-      const auto t = Clock::now();
+      const auto t = SteadyTime::now();
       if (t - next > std::chrono::milliseconds(20)) next = t;  // fell behind: no burst
       std::this_thread::sleep_until(next);
     }

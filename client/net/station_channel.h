@@ -20,6 +20,7 @@
 #include <string>
 
 #include "client/device/device.h"
+#include "common/core/clock.h"
 #include "common/core/expected.h"
 #include "proto/wire/datagram.h"
 #include "proto/wire/messages.h"
@@ -37,6 +38,9 @@ struct StationOptions {
   bool passivity = true;
   int realtime_priority = 0;  // > 0: SCHED_FIFO at this priority for both threads, if permitted
   double max_damping = 5.0;   // N·s/m the passivity controller may add
+  // The station clock (sample times, round trips, the watchdog and its fade); null: the steady
+  // clock. The device loop itself is paced by real time at rate_hz whatever this clock says.
+  const Clock* clock = nullptr;
 };
 
 struct StationStats {

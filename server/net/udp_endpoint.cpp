@@ -15,28 +15,28 @@ namespace vsurg::server {
 
 namespace asio = boost::asio;
 using asio::ip::udp;
-using Clock = std::chrono::steady_clock;
+using SteadyTime = std::chrono::steady_clock;  // the visual thread's pacing
 
 struct UdpEndpoint::Impl {
   struct Session {
     Session(const wire::SessionKey& key, sim::Simulation* sim, LinkStats* stats,
-            double tokens_at_start)
+            double tokens_at_start, double now)
         : auth(key),
           simulation(sim),
           link(stats),
-          last_seen(Clock::now()),
+          last_seen(now),
           tokens(tokens_at_start),
-          refill(last_seen) {}
+          refill(now) {}
     wire::Authenticator auth;
     sim::Simulation* simulation = nullptr;
     LinkStats* link = nullptr;
     uint64_t last_sequence = 0;
     uint64_t sent_sequence = 0;
-    Clock::time_point last_seen;
+    double last_seen;  // s, the endpoint's clock
     bool seen = false;
     SessionState state = SessionState::kRunning;
     double tokens = 0;
-    Clock::time_point refill;
+    double refill;  // s
     udp::endpoint source;
   };
 
@@ -45,7 +45,8 @@ struct UdpEndpoint::Impl {
   udp::socket socket{io};
   asio::steady_timer timer{io};
   std::thread thread;
-  Clock::time_point start = Clock::now();
+  const Clock* clock = &DefaultClock();  // options.clock when given
+  double start = 0;
   std::unordered_map<uint64_t, Session> sessions;  // I/O thread only
   std::array<uint8_t, wire::kMaxDatagram + 1> rx{};
   std::array<uint8_t, wire::kMaxDatagram> tx{};
@@ -79,9 +80,9 @@ struct UdpEndpoint::Impl {
     sim::VisualFrame frame;
     wire::Codec frame_codec;
     std::array<uint8_t, wire::kMaxDatagram> out{};
-    const auto period = std::chrono::duration_cast<Clock::duration>(
+    const auto period = std::chrono::duration_cast<SteadyTime::duration>(
         std::chrono::duration<double>(1.0 / options.visual_hz));
-    auto next = Clock::now();
+    auto next = SteadyTime::now();
     while (!visual_stop.load()) {
       {
         std::lock_guard<std::mutex> lock(visual_mutex);
@@ -108,7 +109,7 @@ struct UdpEndpoint::Impl {
   std::mutex events_mutex;
   std::vector<SessionEvent> events;
 
-  double Now() const { return std::chrono::duration<double>(Clock::now() - start).count(); }
+  double Now() const { return clock->Now() - start; }
 
   void Drop(wire::DropReason r) {
     dropped[static_cast<size_t>(r)].fetch_add(1, std::memory_order_relaxed);
@@ -142,11 +143,10 @@ struct UdpEndpoint::Impl {
     if (const wire::DropReason r = wire::Verify(d, s.auth, payload); r != wire::DropReason::kNone)
       return Drop(r);
     if (s.seen && header.sequence <= s.last_sequence) return Drop(wire::DropReason::kStale);
-    const Clock::time_point now = Clock::now();
+    const double now = Now();
     // Token bucket: max_packets_per_s, bursts of a tenth of a second.
     s.tokens = std::min(options.max_packets_per_s * 0.1,
-                        s.tokens + options.max_packets_per_s *
-                                       std::chrono::duration<double>(now - s.refill).count());
+                        s.tokens + options.max_packets_per_s * std::max(0.0, now - s.refill));
     s.refill = now;
     if (s.tokens < 1.0) return Drop(wire::DropReason::kRateLimited);
     s.tokens -= 1.0;
@@ -158,7 +158,7 @@ struct UdpEndpoint::Impl {
         s.link->lost.fetch_add(header.sequence - s.last_sequence - 1, std::memory_order_relaxed);
       s.link->applied.fetch_add(1, std::memory_order_relaxed);
       if (stylus.rtt_us > 0) s.link->rtt_us.store(stylus.rtt_us, std::memory_order_relaxed);
-      s.link->last_seen_s.store(Now(), std::memory_order_relaxed);
+      s.link->last_seen_s.store(now, std::memory_order_relaxed);
     }
     s.last_sequence = header.sequence;
     s.last_seen = now;
@@ -177,7 +177,7 @@ struct UdpEndpoint::Impl {
     force.command = s.simulation->OnStylus(stylus.sample);
     force.echo_sequence = header.sequence;
     force.echo_time = stylus.sample.time;
-    force.server_time = Now();
+    force.server_time = now;
     const wire::Header out{wire::kProtocolVersion, wire::PayloadType::kForceFeedback,
                            header.session, ++s.sent_sequence};
     const size_t size = codec.EncodeForce(force, out, s.auth, tx);
@@ -194,23 +194,28 @@ struct UdpEndpoint::Impl {
       timespec cpu{};
       clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
       io_cpu.store(static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec));
-      const Clock::time_point now = Clock::now();
-      for (auto& [id, s] : sessions) {
-        const double quiet = std::chrono::duration<double>(now - s.last_seen).count();
-        SessionState next = s.state;
-        if (quiet > options.disconnect_after_s) {
-          next = SessionState::kDisconnected;
-        } else if (quiet > options.stall_after_s) {
-          next = SessionState::kStalled;
-        }
-        if (next != s.state &&
-            (next == SessionState::kDisconnected || s.state == SessionState::kRunning)) {
-          s.state = next;
-          Record(id, next);
-        }
-      }
+      CheckTimeouts();
       Tick();
     });
+  }
+
+  // Running → stalled → disconnected by the endpoint's clock. I/O thread.
+  void CheckTimeouts() {
+    const double now = Now();
+    for (auto& [id, s] : sessions) {
+      const double quiet = now - s.last_seen;
+      SessionState next = s.state;
+      if (quiet > options.disconnect_after_s) {
+        next = SessionState::kDisconnected;
+      } else if (quiet > options.stall_after_s) {
+        next = SessionState::kStalled;
+      }
+      if (next != s.state &&
+          (next == SessionState::kDisconnected || s.state == SessionState::kRunning)) {
+        s.state = next;
+        Record(id, next);
+      }
+    }
   }
 };
 
@@ -222,6 +227,8 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     return InvalidArgument("max_packets_per_s", "must be ≥ 10");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
+  if (options.clock) impl->clock = options.clock;
+  impl->start = impl->clock->Now();
   boost::system::error_code ec;
   const auto address = asio::ip::make_address(options.address, ec);
   if (ec) return InvalidArgument("address", "'" + options.address + "' is not an IP address");
@@ -265,7 +272,8 @@ void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key, sim::Simu
   std::promise<void> done;
   asio::post(impl_->io, [this, id, key, simulation, link, &done] {
     impl_->sessions.insert_or_assign(
-        id, Impl::Session(key, simulation, link, impl_->options.max_packets_per_s * 0.1));
+        id,
+        Impl::Session(key, simulation, link, impl_->options.max_packets_per_s * 0.1, impl_->Now()));
     {
       std::lock_guard<std::mutex> lock(impl_->visual_mutex);
       std::erase_if(impl_->visual, [id](const Impl::VisualSession& v) { return v.id == id; });
@@ -317,6 +325,15 @@ EndpointCounters UdpEndpoint::counters() const {
 
 double UdpEndpoint::io_cpu_seconds() const {
   return impl_->io_cpu.load();
+}
+
+void UdpEndpoint::CheckTimeoutsNow() {
+  std::promise<void> done;
+  asio::post(impl_->io, [this, &done] {
+    impl_->CheckTimeouts();
+    done.set_value();
+  });
+  if (impl_->thread.joinable()) done.get_future().wait();
 }
 
 std::vector<SessionEvent> UdpEndpoint::TakeEvents() {

@@ -30,6 +30,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/core/clock.h"
 #include "common/core/expected.h"
 #include "common/core/session_state.h"
 #include "proto/wire/datagram.h"
@@ -48,6 +49,9 @@ struct EndpointOptions {
   double max_packets_per_s = 4000;  // per session; a 1 kHz station never comes near
   double visual_hz = 60;            // scene frames per second (0: none)
   int realtime_priority = 0;        // > 0: SCHED_FIFO for the I/O thread, when permitted
+  // The endpoint's clock (timeouts, the rate limit, server_time); null: the steady clock. Must
+  // outlive the endpoint.
+  const Clock* clock = nullptr;
 };
 
 struct EndpointCounters {
@@ -91,6 +95,9 @@ class UdpEndpoint {
   // CPU time the I/O thread has used (s), sampled every 50 ms.
   double io_cpu_seconds() const;
   std::vector<SessionEvent> TakeEvents();
+  // Runs the stall/disconnect check now, on the I/O thread, and waits for it (it also runs every
+  // 50 ms of real time): with a ManualClock, a test advances the clock and calls this.
+  void CheckTimeoutsNow();
 
  private:
   struct Impl;

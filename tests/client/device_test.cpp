@@ -15,20 +15,23 @@ TEST(KeyboardMouseDeviceTest, KeysMoveTheTipDragTwistsAndTheWorkspaceHolds) {
   haptics::DeviceLimits limits = haptics::TouchLimits();
   limits.workspace_min = Eigen::Vector3d(-0.1, -0.1, -0.1);
   limits.workspace_max = Eigen::Vector3d(0.1, 0.1, 0.1);
+  ManualClock clock;
   KeyboardMouseDevice device([&] { return input; }, Eigen::Vector3d::Zero(),
-                             Eigen::Vector3d::UnitZ(), 0.05, limits);
+                             Eigen::Vector3d::UnitZ(), 0.05, limits, &clock);
   EXPECT_EQ(device.info().output_dof, 0) << "it renders no force, only draws it";
   const haptics::StylusSample rest = device.Read();
   EXPECT_EQ(rest.position, Eigen::Vector3d::Zero());
   EXPECT_EQ(rest.buttons, 0u);
 
   input.right = input.up = true;  // +x and +z at 5 cm/s
-  std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  clock.Advance(0.04);
   const haptics::StylusSample moved = device.Read();
-  EXPECT_GT(moved.position.x(), 0.0005);
+  EXPECT_NEAR(moved.position.x(), 0.05 * 0.04, 1e-12);
   EXPECT_NEAR(moved.position.x(), moved.position.z(), 1e-12);
   EXPECT_EQ(moved.position.y(), 0.0);
-  EXPECT_LE(moved.position.x(), 0.05 * 0.05 + 1e-12) << "one read moves at most 50 ms worth";
+  clock.Advance(1.0);  // a stalled loop: one read moves at most 50 ms worth
+  EXPECT_NEAR(device.Read().position.x(), 0.05 * 0.04 + 0.05 * 0.05, 1e-12);
+  input.right = input.up = false;
 
   input = {};
   input.twist_rad = 0.5;
@@ -42,10 +45,10 @@ TEST(KeyboardMouseDeviceTest, KeysMoveTheTipDragTwistsAndTheWorkspaceHolds) {
   input = {};
   input.forward = true;
   KeyboardMouseDevice fast([&] { return input; }, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(),
-                           1.0, limits);
+                           1.0, limits, &clock);
   for (int i = 0; i < 10; ++i) {
     fast.Read();
-    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    clock.Advance(0.03);
   }
   EXPECT_DOUBLE_EQ(fast.Read().position.y(), 0.1);
   device.WriteForce(Eigen::Vector3d(1, 2, 3));
@@ -63,15 +66,16 @@ TEST(ReplayDeviceTest, PerReadStepsOneSampleARealTimeFollowsTheClockAndInterpola
   EXPECT_EQ(per_read.Read().position.x(), 1.0);
   EXPECT_TRUE(per_read.finished());
 
-  ReplayDevice real_time(two, haptics::TouchLimits(), ReplayDevice::Clock::kRealTime);
+  ManualClock clock(100.0);
+  ReplayDevice real_time(two, haptics::TouchLimits(), ReplayDevice::Pace::kRealTime, &clock);
   EXPECT_EQ(real_time.Read().position.x(), 0.0);  // the clock starts at the first Read
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  clock.Advance(0.25);
   const haptics::StylusSample mid = real_time.Read();
-  EXPECT_GT(mid.position.x(), 0.19);  // at least 200 ms into the 1 m/s segment
-  EXPECT_LT(mid.position.x(), 1.0);
+  EXPECT_NEAR(mid.position.x(), 0.25, 1e-12);  // 250 ms into the 1 m/s segment, exactly
+  EXPECT_NEAR(mid.time, 0.25, 1e-12);
   EXPECT_EQ(mid.buttons, 0u) << "the earlier sample's buttons until the next is due";
   // The orientation is interpolated along with the position: angle = x (1 rad per metre).
-  EXPECT_NEAR(Eigen::AngleAxisd(mid.orientation).angle(), mid.position.x(), 0.02);
+  EXPECT_NEAR(Eigen::AngleAxisd(mid.orientation).angle(), 0.25, 1e-9);
   EXPECT_FALSE(real_time.finished());
 }
 

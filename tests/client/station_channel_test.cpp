@@ -11,6 +11,7 @@
 
 #include <set>
 
+#include "common/core/clock.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
@@ -211,25 +212,49 @@ TEST(StationChannelTest, AMisbehavingDeviceNeverGetsAForceBeyondItsLimits) {
   }
 }
 
+// Polls until the device has been written `n` more times (the loop's progress, whatever the
+// scheduler makes of 1 kHz), or fails after a generous deadline.
+void WaitForWrites(const ReplayDevice& device, size_t n) {
+  const size_t target = device.forces().size() + n;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (device.forces().size() < target && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::yield();
+  ASSERT_GE(device.forces().size(), target) << "the device loop stopped";
+}
+
 TEST(StationChannelTest, TheWatchdogFadesTheForceWhenTheServerGoesQuiet) {
   Server server;
   test::UdpRelay relay(server.endpoint->port(), {});
   ReplayDevice device(PressAndHold(3.0));
-  auto station = StationChannel::Create(Options(relay.port()), &device);
+  ManualClock clock;  // the station's: the watchdog and the fade read it
+  StationOptions o = Options(relay.port());
+  o.clock = &clock;
+  auto station = StationChannel::Create(o, &device);
   ASSERT_TRUE(station.ok());
-  std::this_thread::sleep_for(std::chrono::milliseconds(1200));
-  const size_t before = device.forces().size();
+  WaitForWrites(device, 1200);                    // pressed in, and the start-up ramp done
   ASSERT_GT(device.forces().back().norm(), 0.1);  // steady contact
   relay.SetBlackhole(true);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  WaitForWrites(device, 20);  // answers in flight have landed
+  ASSERT_GT(device.forces().back().norm(), 0.1)
+      << "silence alone, with no time passing, is no fade";
+  // 20 ms of silence starts the fade: halfway through its 50 ms, the force is about half.
+  clock.Advance(0.020 + 0.025);
+  WaitForWrites(device, 5);
+  const double half = device.forces().back().norm();
+  // Past the fade: zero on every cycle, once the safety filter's rate limit (1 N per 1 ms cycle)
+  // has brought it down.
+  clock.Advance(0.030);
+  WaitForWrites(device, 5);
+  const size_t from = device.forces().size();
+  WaitForWrites(device, 50);
   const std::vector<Eigen::Vector3d> f = device.forces();
-  // 20 ms of silence, then a 50 ms fade: zero by 70 ms (+ a few cycles of scheduling slack).
-  ASSERT_GT(f.size(), before + 150);
-  for (size_t i = before + 100; i < f.size(); ++i) EXPECT_EQ(f[i].norm(), 0.0) << i - before;
+  for (size_t i = from; i < f.size(); ++i) EXPECT_EQ(f[i].norm(), 0.0) << i - from;
+  EXPECT_GT(half, 0.0);
   EXPECT_GE((*station)->stats().watchdog_fades, 1u);
-  // The server answers again: the station picks up (UDP needs no reconnect handshake).
+  // The server answers again: the station picks up (UDP needs no reconnect handshake); the
+  // safety filter's ramp brings the force back over some cycles.
   relay.SetBlackhole(false);
-  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  WaitForWrites(device, 600);
   EXPECT_GT(device.forces().back().norm(), 0.1);
   (*station)->Stop();
 }

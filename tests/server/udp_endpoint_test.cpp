@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/core/clock.h"
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
@@ -126,37 +127,62 @@ TEST(UdpEndpointTest, RejectsWhatIsNotAuthenticAndNeverAnswersIt) {
   EXPECT_EQ(n.answered, 1u);
 }
 
+// Polls the endpoint's counters until it has taken `n` datagrams (or fails after a deadline).
+void WaitForReceived(const UdpEndpoint& endpoint, uint64_t n) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (endpoint.counters().received < n && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::yield();
+  ASSERT_GE(endpoint.counters().received, n);
+}
+
 TEST(UdpEndpointTest, ReorderedDatagramsAreStaleAndTheRateIsLimited) {
+  ManualClock clock;  // no time passes: the bucket never refills
   EndpointOptions o;
   o.max_packets_per_s = 100;  // bursts of 10
+  o.clock = &clock;
   Fixture f(o);
   RawClient c(f.endpoint->port());
   c.Send(c.Stylus(7, 5, Key(1)));
   ASSERT_TRUE(c.Receive(1000).has_value());
   c.Send(c.Stylus(7, 4, Key(1)));  // older than the last applied
-  EXPECT_FALSE(c.Receive(100).has_value());
   for (uint64_t seq = 6; seq < 40; ++seq) c.Send(c.Stylus(7, seq, Key(1)));
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  const EndpointCounters n = f.endpoint->counters();
+  WaitForReceived(*f.endpoint, 36);
+  EndpointCounters n = f.endpoint->counters();
   EXPECT_EQ(n.Dropped(DropReason::kStale), 1u);
-  EXPECT_GT(n.Dropped(DropReason::kRateLimited), 10u);
-  EXPECT_LT(n.answered, 25u);
+  EXPECT_EQ(n.answered, 10u) << "a burst of a tenth of a second at 100/s";
+  EXPECT_EQ(n.Dropped(DropReason::kRateLimited), 25u);
+  // A tenth of a second later the bucket holds ten again.
+  clock.Advance(0.1);
+  for (uint64_t seq = 40; seq < 52; ++seq) c.Send(c.Stylus(7, seq, Key(1)));
+  WaitForReceived(*f.endpoint, 48);
+  n = f.endpoint->counters();
+  EXPECT_EQ(n.answered, 20u);
+  EXPECT_EQ(n.Dropped(DropReason::kRateLimited), 27u);
 }
 
 TEST(UdpEndpointTest, SilentSessionsStallThenDisconnectAndResume) {
+  ManualClock clock;
   EndpointOptions o;
   o.stall_after_s = 0.1;
   o.disconnect_after_s = 0.3;
+  o.clock = &clock;
   Fixture f(o);
   RawClient c(f.endpoint->port());
   c.Send(c.Stylus(7, 1, Key(1)));
   ASSERT_TRUE(c.Receive(1000).has_value());
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_TRUE(f.endpoint->TakeEvents().empty()) << "a session starts running";
+  clock.Advance(0.1);
+  f.endpoint->CheckTimeoutsNow();
+  EXPECT_TRUE(f.endpoint->TakeEvents().empty()) << "quiet for exactly stall_after_s: not yet";
+  clock.Advance(0.05);
+  f.endpoint->CheckTimeoutsNow();
+  clock.Advance(0.2);
+  f.endpoint->CheckTimeoutsNow();
   auto events = f.endpoint->TakeEvents();
   ASSERT_EQ(events.size(), 2u);
   EXPECT_EQ(events[0].state, SessionState::kStalled);
   EXPECT_EQ(events[1].state, SessionState::kDisconnected);
-  EXPECT_GE(events[1].at_s - events[0].at_s, 0.15);
+  EXPECT_DOUBLE_EQ(events[1].at_s - events[0].at_s, 0.2);
   c.Send(c.Stylus(7, 2, Key(1)));
   ASSERT_TRUE(c.Receive(1000).has_value());
   events = f.endpoint->TakeEvents();
