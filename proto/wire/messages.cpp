@@ -19,11 +19,28 @@ Eigen::Vector3d Get(const v1::Vec3& m) {
 
 }  // namespace
 
+// Each encode or decode builds its message afresh on an arena whose only block is this struct's
+// own buffer: Reset() returns the whole block, so no call reaches the heap once the codec exists
+// (a reused message would not do: proto3 Clear() and Parse() delete and re-create every
+// submessage, eight heap allocations per stylus-and-force exchange), and nothing a previous
+// message left (unknown fields, repeated values) can ride along.
 struct Codec::Impl {
-  v1::StylusState stylus;
-  v1::ForceFeedback force;
-  v1::SceneFrame frame;
+  static constexpr size_t kArenaBytes = 64 * 1024;  // a SceneFrame chunk needs ~10 KiB at most
+  alignas(16) std::array<char, kArenaBytes> block;
+  google::protobuf::Arena arena{ArenaOptionsFor(block)};
   std::array<uint8_t, kMaxPayload> payload;
+
+  static google::protobuf::ArenaOptions ArenaOptionsFor(std::array<char, kArenaBytes>& b) {
+    google::protobuf::ArenaOptions o;
+    o.initial_block = b.data();
+    o.initial_block_size = b.size();
+    return o;
+  }
+  template <class Message>
+  Message& Fresh() {
+    arena.Reset();
+    return *google::protobuf::Arena::CreateMessage<Message>(&arena);
+  }
 };
 
 Codec::Codec() : impl_(std::make_unique<Impl>()) {}
@@ -33,10 +50,7 @@ Codec& Codec::operator=(Codec&&) noexcept = default;
 
 size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authenticator& auth,
                            std::span<uint8_t> out) {
-  v1::StylusState& s = impl_->stylus;
-  // The message object is shared with DecodeStylus: clear what a decoded datagram left in it
-  // (unknown fields kept by the parser would otherwise ride along in what we send).
-  s.Clear();
+  v1::StylusState& s = impl_->Fresh<v1::StylusState>();
   s.set_time(m.sample.time);
   Put(m.sample.position, s.mutable_position());
   const Eigen::Quaterniond& q = m.sample.orientation;
@@ -55,8 +69,7 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
 
 size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenticator& auth,
                           std::span<uint8_t> out) {
-  v1::ForceFeedback& f = impl_->force;
-  f.Clear();  // shared with DecodeForce, as for the stylus
+  v1::ForceFeedback& f = impl_->Fresh<v1::ForceFeedback>();
   const haptics::ForceCommand& c = m.command;
   f.set_echo_sequence(m.echo_sequence);
   f.set_echo_time(m.echo_time);
@@ -121,8 +134,7 @@ size_t Codec::PlanSceneChunks(const SceneFrameView& f) {
 size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chunks,
                                const Header& base, const Authenticator& auth,
                                std::span<uint8_t> out) {
-  v1::SceneFrame& m = impl_->frame;
-  m.Clear();
+  v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
   m.set_frame_id(f.frame_id);
   m.set_chunk_index(static_cast<uint32_t>(chunk));
   m.set_chunk_count(static_cast<uint32_t>(chunks));
@@ -140,7 +152,7 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
 }
 
 DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out) {
-  v1::SceneFrame& m = impl_->frame;
+  v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
   if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
     return DropReason::kBadPayload;
   if (m.positions_um_size() != 3 * m.indices_size() || m.chunk_count() == 0 ||
@@ -163,7 +175,7 @@ DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk&
 }
 
 DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& out) {
-  v1::StylusState& s = impl_->stylus;
+  v1::StylusState& s = impl_->Fresh<v1::StylusState>();
   if (!s.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
     return DropReason::kBadPayload;
   out.sample.time = s.time();
@@ -178,7 +190,7 @@ DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& 
 }
 
 DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& out) {
-  v1::ForceFeedback& f = impl_->force;
+  v1::ForceFeedback& f = impl_->Fresh<v1::ForceFeedback>();
   if (!f.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
     return DropReason::kBadPayload;
   haptics::ForceCommand& c = out.command;

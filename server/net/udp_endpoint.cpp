@@ -336,6 +336,10 @@ void UdpEndpoint::CheckTimeoutsNow() {
   if (impl_->thread.joinable()) done.get_future().wait();
 }
 
+std::thread::id UdpEndpoint::io_thread_id() const {
+  return impl_->thread.get_id();
+}
+
 std::vector<SessionEvent> UdpEndpoint::TakeEvents() {
   std::lock_guard<std::mutex> lock(impl_->events_mutex);
   std::vector<SessionEvent> out;

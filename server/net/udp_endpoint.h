@@ -94,6 +94,8 @@ class UdpEndpoint {
   EndpointCounters counters() const;  // any thread
   // CPU time the I/O thread has used (s), sampled every 50 ms.
   double io_cpu_seconds() const;
+  // The I/O thread (the stylus → force path), for diagnostics and the allocation test.
+  std::thread::id io_thread_id() const;
   std::vector<SessionEvent> TakeEvents();
   // Runs the stall/disconnect check now, on the I/O thread, and waits for it (it also runs every
   // 50 ms of real time): with a ManualClock, a test advances the clock and calls this.

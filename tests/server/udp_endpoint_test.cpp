@@ -10,6 +10,7 @@
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "tests/support/allocation_counter.h"
 
 namespace vsurg::server {
 namespace {
@@ -250,6 +251,63 @@ TEST(UdpEndpointTest, BadOptionsAndPortsInUseAreErrors) {
   auto second = UdpEndpoint::Create(same);
   ASSERT_FALSE(second.ok());
   EXPECT_EQ(second.error().code, ErrorCode::kIoError);
+}
+
+// The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
+// haptic update, encode, seal, send) allocates nothing once warm, for good and bad datagrams.
+TEST(UdpEndpointTest, TheReceivePathNeverAllocates) {
+  if (!test::CanCountAllocations())
+    GTEST_SKIP() << "operator new cannot be replaced under ThreadSanitizer";
+  ManualClock clock;  // 1 ms per stylus datagram: a 1 kHz station, however fast the test runs
+  EndpointOptions o;
+  o.clock = &clock;
+  o.visual_hz = 0;  // no scene frames on the client's socket: every datagram it reads is an answer
+  Fixture f(o);
+  RawClient c(f.endpoint->port());
+  // Built before counting (the test thread is not counted anyway; only the I/O thread is).
+  std::vector<std::vector<uint8_t>> good, bad;
+  for (uint64_t seq = 1; seq <= 600; ++seq) good.push_back(c.Stylus(7, seq, Key(1), 0.045));
+  for (uint64_t seq = 601; seq <= 700; ++seq) bad.push_back(c.Stylus(7, seq, Key(2)));  // bad tag
+  for (int i = 0; i < 100; ++i) bad.push_back(c.Stylus(99, 1000 + i, Key(1)));  // unknown session
+  // Lockstep: each datagram answered before the next, so none is lost to a full socket buffer.
+  auto exchange = [&](size_t i) {
+    clock.Advance(1e-3);
+    c.Send(good[i]);
+    ASSERT_TRUE(c.Receive(5000).has_value()) << i;
+  };
+  // Warm up: the first datagrams fill the codec's buffers and record the station's address.
+  for (size_t i = 0; i < 100; ++i) exchange(i);
+  test::ResetAllocations();
+  test::WatchThread(f.endpoint->io_thread_id());
+  for (size_t i = 100; i < good.size(); ++i) {
+    if (i % 2 == 0) c.Send(bad[i % bad.size()]);  // dropped, never answered
+    exchange(i);
+  }
+  // The counters are bumped after the answer is sent: let the last one land.
+  WaitForReceived(*f.endpoint, 850);
+  for (auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+       f.endpoint->counters().answered < 600 && std::chrono::steady_clock::now() < until;)
+    std::this_thread::yield();
+  test::WatchThread(std::thread::id());
+  EXPECT_EQ(test::Allocations(), 0);
+  {
+    const EndpointCounters n = f.endpoint->counters();
+    std::string drops;
+    for (size_t r = 1; r < n.dropped.size(); ++r)
+      drops += std::string(" ") + wire::DropReasonName(static_cast<DropReason>(r)) + "=" +
+               std::to_string(n.dropped[r]);
+    EXPECT_EQ(n.answered, 600u) << "received " << n.received << drops;
+  }
+  EXPECT_EQ(f.endpoint->counters().Dropped(DropReason::kBadTag) +
+                f.endpoint->counters().Dropped(DropReason::kUnknownSession),
+            250u);
+  // The counter does see the I/O thread when it allocates: a new session's registration.
+  test::WatchThread(f.endpoint->io_thread_id());
+  auto other = sim::Simulation::Create(*sim::LoadSceneByName("sphere-palpation-256"), {true});
+  f.endpoint->AddSession(8, Key(3), other->get());
+  test::WatchThread(std::thread::id());
+  EXPECT_GT(test::Allocations(), 0);
+  f.endpoint->RemoveSession(8);
 }
 
 }  // namespace

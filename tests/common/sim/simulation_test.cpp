@@ -10,65 +10,9 @@
 #include <gtest/gtest.h>
 
 #include "common/sim/trajectory.h"
+#include "tests/support/allocation_counter.h"
 #include "tests/support/deadline.h"
 #include "tests/support/sanitized.h"
-
-// Counts heap allocations made by the thread that sets the flag (the deformation thread and the
-// test framework are not counted). Every form of new and delete is replaced, so each pair meets
-// malloc with free, under sanitizers too.
-namespace {
-thread_local bool g_counting = false;
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-// ThreadSanitizer's runtime (clang) defines operator new and delete itself: no replacement there,
-// and the allocation test is skipped in that build (the main and ASan builds run it).
-#if defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-#define VSURG_NO_NEW_REPLACEMENT 1
-#endif
-#endif
-#if defined(__SANITIZE_THREAD__)
-#define VSURG_NO_NEW_REPLACEMENT 1
-#endif
-
-#ifndef VSURG_NO_NEW_REPLACEMENT
-// The replacements pair malloc with free themselves; GCC cannot see that through inlining.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t n) {
-  if (g_counting) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  if (g_counting) g_allocations.fetch_add(1);
-  return std::malloc(n ? n : 1);
-}
-void* operator new[](std::size_t n) {
-  return operator new(n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t& t) noexcept {
-  return operator new(n, t);
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, const std::nothrow_t&) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, std::size_t) noexcept {
-  std::free(p);
-}
-void operator delete[](void* p, const std::nothrow_t&) noexcept {
-  std::free(p);
-}
-#endif  // VSURG_NO_NEW_REPLACEMENT
 
 namespace vsurg::sim {
 namespace {
@@ -256,17 +200,16 @@ TEST(SimulationTest, ThreadedDeformationPublishesOnlyMovedVertices) {
 }
 
 TEST(SimulationTest, TheHapticPathNeverAllocates) {
-#ifdef VSURG_NO_NEW_REPLACEMENT
-  GTEST_SKIP() << "operator new cannot be replaced under ThreadSanitizer";
-#endif
+  if (!test::CanCountAllocations())
+    GTEST_SKIP() << "operator new cannot be replaced under ThreadSanitizer";
   // The counter sees an allocation when there is one.
-  g_allocations = 0;
-  g_counting = true;
+  test::ResetAllocations();
+  test::CountThisThread(true);
   static std::vector<double>* volatile probe = nullptr;  // escapes: the allocation cannot be elided
   probe = new std::vector<double>(100);
-  g_counting = false;
+  test::CountThisThread(false);
   delete probe;
-  ASSERT_GE(g_allocations.load(), 2);
+  ASSERT_GE(test::Allocations(), 2);
   for (const char* name :
        {"arm-torsion", "sphere-palpation-256", "sphere-palpation-rings", "organ-surface-twist"}) {
     auto scene = LoadSceneByName(name);
@@ -275,12 +218,12 @@ TEST(SimulationTest, TheHapticPathNeverAllocates) {
     ASSERT_TRUE(sim.ok());
     haptics::StylusSample bad;
     bad.position.x() = NAN;
-    g_allocations = 0;
-    g_counting = true;
+    test::ResetAllocations();
+    test::CountThisThread(true);
     for (const auto& s : *samples) (*sim)->OnStylus(s);
     (*sim)->OnStylus(bad);
-    g_counting = false;
-    EXPECT_EQ(g_allocations.load(), 0) << name;
+    test::CountThisThread(false);
+    EXPECT_EQ(test::Allocations(), 0) << name;
   }
 }
 
