@@ -18,15 +18,14 @@ bool IsSceneName(const std::string& s) {
   return true;
 }
 
-double SteadyNow() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 }  // namespace
 
 SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
                                const SessionManagerOptions& options)
-    : store_(store), endpoint_(endpoint), options_(options) {
+    : store_(store),
+      endpoint_(endpoint),
+      options_(options),
+      clock_(options.clock ? *options.clock : DefaultClock()) {
   // Nothing is live in a new process: what the store says is live was left by one that died.
   (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted");
   sampler_ = std::thread([this] { SamplerLoop(); });
@@ -73,7 +72,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   live->latest.id = static_cast<uint64_t>(record->id);
   live->latest.state = SessionState::kCreated;
   live->key = out.key;
-  live->created_s = SteadyNow();
+  live->created_s = clock_.Now();
   {
     std::lock_guard lock(mutex_);
     if (Status s = CheckLimitsLocked(trainee); s.ok()) {
@@ -213,7 +212,7 @@ void SessionManager::Pump() {
   // Sessions never started expire; a deformation thread runs only for a driven session.
   std::vector<uint64_t> expired;
   {
-    const double now = SteadyNow();
+    const double now = clock_.Now();
     std::lock_guard lock(mutex_);
     for (auto& [id, l] : live_) {
       if (l->state == SessionState::kCreated && now - l->created_s > options_.start_timeout_s)
@@ -257,7 +256,7 @@ void SessionManager::SamplerLoop() {
     }
     Pump();
     all.clear();
-    const double now = SteadyNow();
+    const double now = clock_.Now();
     {
       std::lock_guard lock(mutex_);
       for (auto& [id, l] : live_) {

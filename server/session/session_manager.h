@@ -46,6 +46,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/core/clock.h"
 #include "common/core/expected.h"
 #include "common/sim/simulation.h"
 #include "db/store.h"
@@ -85,6 +86,9 @@ struct SessionManagerOptions {
   int max_live_sessions = 256;
   int max_sessions_per_user = 2;  // live sessions per trainee (a reconnect may overlap one)
   double start_timeout_s = 60;    // a created session not started by then is aborted
+  // Start timeouts and haptic rates are measured on this clock (null: the steady clock); it must
+  // outlive the manager. The sampler itself runs at telemetry_hz of real time.
+  const Clock* clock = nullptr;
 };
 
 class SessionManager {
@@ -126,7 +130,7 @@ class SessionManager {
     SessionTelemetry latest;
     uint64_t last_samples = 0;
     double last_sample_s = 0;
-    double created_s = 0;  // steady clock, for start_timeout_s
+    double created_s = 0;  // clock_, for start_timeout_s
   };
   Status End(uint64_t id, SessionState state, const std::string& reason);
   Status CheckLimits(const std::string& trainee) const;
@@ -137,6 +141,7 @@ class SessionManager {
   db::Store& store_;
   UdpEndpoint* endpoint_;
   SessionManagerOptions options_;
+  const Clock& clock_;
   mutable std::mutex mutex_;  // live_
   std::map<uint64_t, std::unique_ptr<Live>> live_;
   std::mutex subscribers_mutex_;  // held while subscribers run (see Unsubscribe)

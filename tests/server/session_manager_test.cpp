@@ -1,0 +1,199 @@
+// The session manager's state machine, directly (server/session/session_manager.h): every
+// transition in its table, with a real store, a real UDP endpoint on loopback and a station
+// played by a raw socket; the endpoint's and the manager's clocks are manual, so stalls,
+// disconnections and start timeouts happen when the test says, not after real waits.
+#include "server/session/session_manager.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include "common/core/clock.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
+
+namespace vsurg::server {
+namespace {
+
+namespace fs = std::filesystem;
+namespace asio = boost::asio;
+using asio::ip::udp;
+
+class SessionManagerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("vsurg_sessions_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
+    EndpointOptions eo;
+    eo.clock = &endpoint_clock_;
+    eo.stall_after_s = 0.5;
+    eo.disconnect_after_s = 5;
+    eo.visual_hz = 0;
+    endpoint_ = UdpEndpoint::Create(eo).value();
+    SessionManagerOptions so;
+    so.clock = &clock_;
+    so.telemetry_hz = 100;  // Pump runs often: the test waits less
+    so.start_timeout_s = 60;
+    so.max_sessions_per_user = 2;
+    sessions_ = std::make_unique<SessionManager>(*store_, endpoint_.get(), so);
+  }
+  void TearDown() override {
+    sessions_.reset();
+    endpoint_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+
+  // The state the manager reports, once it is `want` (the sampler applies events on its tick).
+  SessionState WaitFor(uint64_t id, SessionState want) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    SessionState now = sessions_->Get(id)->state;
+    while (now != want && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      now = sessions_->Get(id)->state;
+    }
+    return now;
+  }
+  // One stylus datagram from the station, answered.
+  void Drive(const CreatedSession& s, uint64_t seq) {
+    wire::StylusMessage m;
+    m.sample.time = 1e-3 * static_cast<double>(seq);
+    m.sample.position = Eigen::Vector3d(0, 0, 0.2);
+    std::array<uint8_t, wire::kMaxDatagram> buf{};
+    const uint64_t id = static_cast<uint64_t>(s.record.id);
+    const size_t n =
+        codec_.EncodeStylus(m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, id, seq},
+                            wire::Authenticator(s.key), buf);
+    socket_.send_to(asio::buffer(buf.data(), n), udp::endpoint(loopback_, s.udp_port));
+    std::array<uint8_t, 2048> in{};
+    udp::endpoint from;
+    socket_.receive_from(asio::buffer(in), from);  // blocking: the endpoint answers at once
+  }
+  // Quiet for `s` seconds on the endpoint's clock, then its timeout check.
+  void Quiet(double s) {
+    endpoint_clock_.Advance(s);
+    endpoint_->CheckTimeoutsNow();
+  }
+
+  fs::path dir_;
+  ManualClock clock_, endpoint_clock_;
+  std::unique_ptr<db::Store> store_;
+  std::unique_ptr<UdpEndpoint> endpoint_;
+  std::unique_ptr<SessionManager> sessions_;
+  asio::io_context io_;
+  asio::ip::address loopback_ = asio::ip::make_address("127.0.0.1");
+  udp::socket socket_{io_, udp::endpoint(loopback_, 0)};
+  wire::Codec codec_;
+};
+
+TEST_F(SessionManagerTest, CreatedStartedRunningStalledResumedDisconnected) {
+  auto s = sessions_->Create("tina", "sphere-palpation-256");  // (none) → created
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  const uint64_t id = static_cast<uint64_t>(s->record.id);
+  EXPECT_EQ(sessions_->Get(id)->state, SessionState::kCreated);
+  EXPECT_EQ(store_->GetSession(s->record.id)->state, SessionState::kCreated);
+  auto started = sessions_->Start(id);  // created → running
+  ASSERT_TRUE(started.ok());
+  EXPECT_EQ(started->state, SessionState::kRunning);
+  EXPECT_EQ(store_->GetSession(s->record.id)->state, SessionState::kRunning);
+  EXPECT_GT(store_->GetSession(s->record.id)->started_us, 0);
+  EXPECT_EQ(sessions_->Start(id)->state, SessionState::kRunning) << "Start is idempotent";
+  Drive(*s, 1);
+  Quiet(0.6);  // running → stalled
+  EXPECT_EQ(WaitFor(id, SessionState::kStalled), SessionState::kStalled);
+  Drive(*s, 2);  // stalled → running
+  EXPECT_EQ(WaitFor(id, SessionState::kRunning), SessionState::kRunning);
+  Quiet(0.6);
+  EXPECT_EQ(WaitFor(id, SessionState::kStalled), SessionState::kStalled);
+  Quiet(5.0);  // stalled → disconnected: no longer live, metrics recorded
+  EXPECT_EQ(WaitFor(id, SessionState::kDisconnected), SessionState::kDisconnected);
+  EXPECT_FALSE(sessions_->IsLive(id));
+  const auto row = store_->GetSession(s->record.id);
+  EXPECT_EQ(row->state, SessionState::kDisconnected);
+  EXPECT_EQ(row->end_reason, "no stylus data for 5 s");
+  EXPECT_TRUE(store_->GetTrialMetrics(s->record.id)->has_value());
+  // An ended session cannot start again; stopping it is idempotent and keeps its state.
+  EXPECT_EQ(sessions_->Start(id).error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(sessions_->Stop(id, "")->state, SessionState::kDisconnected);
+}
+
+TEST_F(SessionManagerTest, StopEndsACreatedOrRunningSession) {
+  auto created = sessions_->Create("tina", "arm-torsion");
+  auto running = sessions_->Create("tina", "arm-torsion");
+  ASSERT_TRUE(created.ok() && running.ok());
+  const uint64_t a = static_cast<uint64_t>(created->record.id);
+  const uint64_t b = static_cast<uint64_t>(running->record.id);
+  ASSERT_TRUE(sessions_->Start(b).ok());
+  Drive(*running, 1);
+  for (uint64_t id : {a, b}) {  // created → ended, running → ended
+    auto r = sessions_->Stop(id, "done");
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->state, SessionState::kEnded);
+    EXPECT_EQ(r->end_reason, "done");
+    EXPECT_FALSE(sessions_->IsLive(id));
+    EXPECT_TRUE(store_->GetTrialMetrics(static_cast<int64_t>(id))->has_value());
+  }
+  // The running one left the endpoint: its key is no longer answered.
+  EXPECT_EQ(endpoint_->counters().Dropped(wire::DropReason::kUnknownSession), 0u);
+  socket_.non_blocking(true);
+  wire::StylusMessage m;
+  std::array<uint8_t, wire::kMaxDatagram> buf{};
+  const size_t n =
+      codec_.EncodeStylus(m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, b, 2},
+                          wire::Authenticator(running->key), buf);
+  socket_.send_to(asio::buffer(buf.data(), n), udp::endpoint(loopback_, running->udp_port));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (endpoint_->counters().Dropped(wire::DropReason::kUnknownSession) == 0 &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::yield();
+  EXPECT_EQ(endpoint_->counters().Dropped(wire::DropReason::kUnknownSession), 1u);
+}
+
+TEST_F(SessionManagerTest, ASessionNeverStartedExpiresAsAborted) {
+  auto s = sessions_->Create("tina", "arm-torsion");
+  ASSERT_TRUE(s.ok());
+  const uint64_t id = static_cast<uint64_t>(s->record.id);
+  clock_.Advance(59.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // several sampler ticks
+  EXPECT_EQ(sessions_->Get(id)->state, SessionState::kCreated) << "not yet 60 s";
+  clock_.Advance(2.0);  // created → aborted
+  EXPECT_EQ(WaitFor(id, SessionState::kAborted), SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(s->record.id)->end_reason, "not started within 60 s");
+}
+
+TEST_F(SessionManagerTest, LosingAccessOrAShutdownAbortsEveryLiveSession) {
+  auto mine = sessions_->Create("tina", "arm-torsion");
+  auto other = sessions_->Create("tom", "arm-torsion");
+  ASSERT_TRUE(mine.ok() && other.ok());
+  ASSERT_TRUE(sessions_->Start(static_cast<uint64_t>(mine->record.id)).ok());
+  // The limit: a third live session for tina is refused, and counts nothing.
+  ASSERT_TRUE(sessions_->Create("tina", "arm-torsion").ok());
+  EXPECT_EQ(sessions_->Create("tina", "arm-torsion").error().code, ErrorCode::kResourceExhausted);
+  EXPECT_EQ(sessions_->EndSessionsOf("tina", "access revoked"), 2);  // live → aborted
+  EXPECT_EQ(store_->GetSession(mine->record.id)->state, SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(mine->record.id)->end_reason, "access revoked");
+  EXPECT_TRUE(sessions_->IsLive(static_cast<uint64_t>(other->record.id)));
+  sessions_->Shutdown();  // live → aborted
+  EXPECT_EQ(store_->GetSession(other->record.id)->state, SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(other->record.id)->end_reason, "server shut down");
+  EXPECT_TRUE(store_->GetTrialMetrics(other->record.id)->has_value());
+}
+
+TEST_F(SessionManagerTest, WhatAKilledServerLeftLiveIsAbortedAtStartUp) {
+  auto s = sessions_->Create("tina", "arm-torsion");
+  ASSERT_TRUE(s.ok());
+  // A second manager on the same store stands for the next process after a crash.
+  SessionManager next(*store_, nullptr, {});
+  EXPECT_EQ(store_->GetSession(s->record.id)->state, SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(s->record.id)->end_reason, "server restarted");
+}
+
+}  // namespace
+}  // namespace vsurg::server
