@@ -27,7 +27,6 @@
 #include <iostream>
 #include <map>
 
-#include "bench/png_plot.h"
 #include "bench/study/study.h"
 #include "common/core/args.h"
 
@@ -39,13 +38,12 @@ using study::Config;
 using study::MarkdownTable;
 using study::Num;
 using study::Progress;
-using study::Row;
 using study::RunLimbScenes;
 using study::RunSphere;
 using study::SceneOut;
-using study::Trajectory;
 using study::UpdateBenchmarks;
 using study::WriteCsv;
+using study::WriteFigures;
 
 int SpeedVsError(const std::vector<std::string>& args) {
   cli::ArgParser p("vsurg-bench speed-vs-error",
@@ -87,33 +85,9 @@ int SpeedVsError(const std::vector<std::string>& args) {
     std::cerr << p.command() << ": " << s.error().message << "\n";
     return 1;
   }
-  // Pareto plot: time per update against RMS error, one colour per model family.
-  {
-    Plot plot("time per update (us) vs RMS marker error, all scenes", "time per update (us)",
-              "RMS error", true, true);
-    std::map<std::string, int> colour;
-    for (const SceneOut& s : scenes)
-      for (const Row& r : s.rows) {
-        if (!std::isfinite(r.rms) || !(r.time_us > 0)) continue;
-        const std::string key = r.model;
-        if (!colour.count(key)) colour[key] = static_cast<int>(colour.size());
-        plot.Point(colour[key], key, r.time_us, std::max(r.rms, 1e-4));
-      }
-    if (Status s = plot.WritePng((std::filesystem::path(dir) / "speed-vs-error.png").string());
-        !s.ok())
-      std::cerr << p.command() << ": " << s.error().message << "\n";
-  }
-  {
-    Plot plot("marker 8 during the arm ramp to 2.07 N*m (ramp 1 s, hold 2 s)", "time (s)",
-              "displacement (mm)", false, false);
-    int i = 0;
-    for (const Trajectory& tr : scenes[0].trajectories) {
-      std::vector<double> d;
-      for (double v : tr.d) d.push_back(1000 * v);
-      plot.Line(i++, tr.label, tr.t, d);
-    }
-    if (Status s = plot.WritePng((std::filesystem::path(dir) / "marker8.png").string()); !s.ok())
-      std::cerr << p.command() << ": " << s.error().message << "\n";
+  if (Status s = WriteFigures(dir, scenes); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().message << "\n";
+    return 1;
   }
   const std::string command = std::string("build/bin/vsurg-bench speed-vs-error") +
                               (cfg.quick ? " --quick" : "") +

@@ -17,7 +17,6 @@
 #include <sstream>
 #include <tuple>
 
-#include "bench/png_plot.h"
 #include "common/core/args.h"
 #include "common/core/csv.h"
 #include "common/geometry/distances.h"

@@ -101,6 +101,10 @@ void ChooseCheapest(SceneOut& s);
 std::string Num(double v, int digits = 4);
 Status WriteCsv(const std::string& path, const std::vector<SceneOut>& scenes);
 std::string MarkdownTable(const std::vector<SceneOut>& scenes, const std::string& command);
+// DIR/speed-vs-error.png (time per update against RMS error, log axes, one series per model)
+// and DIR/marker8.png (marker 8 during the arm ramp), drawn by gnuplot from data files and
+// scripts written beside them (bench/study/figures.cpp).
+Status WriteFigures(const std::string& dir, const std::vector<SceneOut>& scenes);
 // Replaces the block between the study's markers in a Markdown file (or appends it).
 Status UpdateBenchmarks(const std::string& path, const std::string& table);
 

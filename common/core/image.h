@@ -1,5 +1,5 @@
-// 8-bit RGB images: PNG in and out (zlib deflate, no other library), and the built-in 5×7 bitmap
-// font the study's plots and the stations' HUD draw text with.
+// 8-bit RGB images: PNG in and out through libpng's simplified API (any PNG it reads comes out
+// as 8-bit RGB), and the built-in 5×7 bitmap font the stations' HUD draws text with.
 #pragma once
 
 #include <string>
@@ -17,8 +17,7 @@ struct RgbImage {
 // Writes an 8-bit RGB image as PNG (through a temporary file renamed into place).
 Status WriteRgbPng(const std::string& path, int width, int height,
                    const std::vector<unsigned char>& rgb);
-// Reads an 8-bit RGB or RGBA, non-interlaced PNG (all five row filters); alpha is dropped.
-// Enough for our own screenshots and plots, and for most PNGs a test would compare with.
+// Reads any PNG (grey, palette, 8- or 16-bit, interlaced, with alpha) as 8-bit RGB.
 Expected<RgbImage> ReadRgbPng(const std::string& path);
 
 // The 5×7 font: true where glyph `c` (case-insensitive) has ink at row 0..6, column 0..4.
