@@ -3,7 +3,7 @@
 # The packages the project needs today: core, tests, benchmarks, and the UDP channel (Asio from
 # Boost, protobuf, OpenSSL), the control plane (gRPC, SQLite), the stations (OpenGL: GLFW for windows,
 # EGL on Mesa for headless rendering; Xvfb and xdotool to test the window and its keys), libpng for
-# screenshots, gnuplot for the study's figures.
+# screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD.
 VSURG_PACKAGES=(
   cmake ninja-build g++
   libeigen3-dev nlohmann-json3-dev
@@ -11,6 +11,7 @@ VSURG_PACKAGES=(
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
   libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev libpng-dev gnuplot-nox
   libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth xdotool
+  libimgui-dev
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's

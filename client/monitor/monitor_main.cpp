@@ -268,9 +268,9 @@ int Follow(const std::vector<std::string>& args) {
         overlay.hud = {"vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() +
                            "  " + convert::StateName(latest.state()),
                        "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
-                           Fixed(latest.torque(), 2) + " nm",
-                       "haptic " + Fixed(latest.haptic_rate_hz(), 0) + " hz   rtt " +
-                           Fixed(latest.rtt_us(), 0) + " us   loss " +
+                           Fixed(latest.torque(), 2) + " N·m",
+                       "haptic " + Fixed(latest.haptic_rate_hz(), 0) + " Hz   RTT " +
+                           Fixed(latest.rtt_us(), 0) + " µs   loss " +
                            Fixed(100 * latest.packet_loss(), 1) + "%",
                        "score so far " + Fixed(latest.metrics().score(), 1) + " / 10"};
       } else {

@@ -1,12 +1,13 @@
 #include "client/render/mesh_view.h"
 
+#include <imgui.h>
+#include <imgui_impl_opengl2.h>
+
 #include <GL/gl.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
-
-#include "common/core/image.h"
 
 namespace vsurg::client {
 namespace {
@@ -37,21 +38,6 @@ Eigen::Matrix4d Frustum(double aspect, double near_plane, double far_plane) {
   m(2, 3) = -2 * far_plane * near_plane / (far_plane - near_plane);
   m(3, 2) = -1;
   return m;
-}
-
-void DrawText(double x, double y, const std::string& text, double scale) {
-  glBegin(GL_QUADS);
-  for (size_t k = 0; k < text.size(); ++k)
-    for (int row = 0; row < 7; ++row)
-      for (int col = 0; col < 5; ++col)
-        if (GlyphInk(text[k], row, col)) {
-          const double x0 = x + (static_cast<double>(k) * 6 + col) * scale, y0 = y + row * scale;
-          glVertex2d(x0, y0);
-          glVertex2d(x0 + scale, y0);
-          glVertex2d(x0 + scale, y0 + scale);
-          glVertex2d(x0, y0 + scale);
-        }
-  glEnd();
 }
 
 }  // namespace
@@ -282,25 +268,58 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     }
   }
 
-  if (!overlay.hud.empty()) {
-    glDisable(GL_DEPTH_TEST);
-    glMatrixMode(GL_PROJECTION);
-    glLoadIdentity();
-    glOrtho(0, width, height, 0, -1, 1);  // pixels, y down
-    glMatrixMode(GL_MODELVIEW);
-    glLoadIdentity();
-    const double scale = height >= 600 ? 2 : 1;
-    size_t longest = 0;
-    for (const auto& line : overlay.hud) longest = std::max(longest, line.size());
-    glEnable(GL_BLEND);
-    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-    glColor4f(0.0f, 0.0f, 0.0f, 0.55f);
-    glRectd(4, 4, 12 + longest * 6 * scale, 12 + overlay.hud.size() * 9 * scale);
-    glDisable(GL_BLEND);
-    glColor3f(0.95f, 0.95f, 0.95f);
-    for (size_t k = 0; k < overlay.hud.size(); ++k)
-      DrawText(8, 8 + k * 9 * scale, overlay.hud[k], scale);
+  if (!overlay.hud.empty()) DrawHud(width, height, overlay.hud);
+}
+
+// The HUD as an ImGui panel. One ImGui context per view (a view belongs to one GL context); the
+// OpenGL 2 backend matches the fixed-function pipeline the scene is drawn with, and restores the
+// GL state it changes.
+struct MeshView::Hud {
+  ImGuiContext* context = nullptr;
+  Hud() {
+    context = ImGui::CreateContext();
+    ImGui::SetCurrentContext(context);
+    ImGuiIO& io = ImGui::GetIO();
+    io.IniFilename = nullptr;  // no imgui.ini written beside the binary
+    io.LogFilename = nullptr;
+    ImGui::StyleColorsDark();
+    ImGui_ImplOpenGL2_Init();
   }
+  ~Hud() {
+    ImGui::SetCurrentContext(context);
+    ImGui_ImplOpenGL2_Shutdown();
+    ImGui::DestroyContext(context);
+  }
+};
+
+MeshView::~MeshView() = default;
+
+void MeshView::DrawHud(int width, int height, const std::vector<std::string>& lines) {
+  if (!hud_) hud_ = std::make_unique<Hud>();
+  ImGui::SetCurrentContext(hud_->context);
+  ImGuiIO& io = ImGui::GetIO();
+  io.DisplaySize = ImVec2(static_cast<float>(width), static_cast<float>(height));
+  io.DeltaTime = 1.0f / 60.0f;
+  io.FontGlobalScale = height >= 600 ? 1.5f : 1.0f;
+  ImGui_ImplOpenGL2_NewFrame();
+  ImGui::NewFrame();
+  ImGui::SetNextWindowPos(ImVec2(6, 6));
+  ImGui::SetNextWindowBgAlpha(0.6f);
+  ImGui::Begin("hud", nullptr,
+               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
+                   ImGuiWindowFlags_NoInputs | ImGuiWindowFlags_NoSavedSettings |
+                   ImGuiWindowFlags_NoFocusOnAppearing | ImGuiWindowFlags_NoNav);
+  for (size_t k = 0; k < lines.size(); ++k) {
+    if (k == 0) {
+      ImGui::TextColored(ImVec4(0.55f, 0.85f, 1.0f, 1.0f), "%s", lines[k].c_str());
+      if (lines.size() > 1) ImGui::Separator();
+    } else {
+      ImGui::TextUnformatted(lines[k].c_str());
+    }
+  }
+  ImGui::End();
+  ImGui::Render();
+  ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
 }
 
 }  // namespace vsurg::client

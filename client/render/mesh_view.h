@@ -1,7 +1,7 @@
 // Draws a session's tissue as the trainee and the instructor see it: the deformed surface,
 // smooth-shaded, with a checker of sectors and rings painted on it at rest (a surface of
 // revolution twisted about its own axis would otherwise look unchanged), the stylus, the force
-// vector and a HUD.
+// vector and a HUD panel (Dear ImGui, drawn by its OpenGL 2 backend over the scene).
 //
 // Units: positions in metres in the scene frame; force in newtons (drawn 2 cm per newton).
 // Threads: the render thread that owns the current OpenGL context (one context per MeshView:
@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -24,7 +25,7 @@ struct Overlay {
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  // N, drawn from the tip
   bool grasping = false, contact = false;
-  std::vector<std::string> hud;  // lines, top left
+  std::vector<std::string> hud;  // the panel's lines, top left: a title line, then the figures
 };
 
 class MeshView {
@@ -32,6 +33,9 @@ class MeshView {
   // The camera is fitted to the rest mesh: its longest extent across the view, seen from the
   // side and a little above.
   explicit MeshView(const geometry::TriMesh& rest);
+  ~MeshView();  // with its context current, as for Draw
+  MeshView(const MeshView&) = delete;
+  MeshView& operator=(const MeshView&) = delete;
 
   // Vertices that moved (as a SceneFrame or a monitor's telemetry carries them); indices out of
   // range and non-finite positions are ignored. Returns how many were applied.
@@ -59,6 +63,9 @@ class MeshView {
   std::vector<float> vertex_buffer_, normal_buffer_, tex_coords_;
   std::vector<unsigned int> indices_;
   unsigned int texture_ = 0;  // the checker, made at the first Draw (needs the context)
+  struct Hud;                 // the panel's ImGui context, made at the first Draw with a HUD
+  std::unique_ptr<Hud> hud_;
+  void DrawHud(int width, int height, const std::vector<std::string>& lines);
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::UnitY(),
                   up_ = Eigen::Vector3d::UnitZ();
   double radius_ = 0.1;

@@ -204,10 +204,10 @@ int Run(const std::vector<std::string>& args) {
       overlay.contact = shown.command.contact;
       overlay.grasping = shown.command.grasping;
       overlay.hud = {"vsurg station  " + scene->name + "  session " + std::to_string(st.session),
-                     "haptic " + Fixed(rate_hz, 0) + " hz   rtt " + Fixed(s.rtt_p50_us, 0) +
-                         " us   loss " + Fixed(100 * s.loss, 1) + "%",
+                     "haptic " + Fixed(rate_hz, 0) + " Hz   RTT " + Fixed(s.rtt_p50_us, 0) +
+                         " µs   loss " + Fixed(100 * s.loss, 1) + "%",
                      "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
-                         Fixed(shown.force.norm(), 2) + " n",
+                         Fixed(shown.force.norm(), 2) + " N",
                      "score " + Fixed(shown.command.score, 1) + " / 10"};
     } else {
       overlay.hud = {"vsurg station  " + scene->name,

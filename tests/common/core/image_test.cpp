@@ -35,13 +35,5 @@ TEST(ImageTest, RejectsWhatIsNotAPng) {
   EXPECT_FALSE(ReadRgbPng(good).ok());
 }
 
-TEST(ImageTest, FontHasDigitsAndLettersButNoInkOutside) {
-  EXPECT_TRUE(GlyphInk('1', 0, 2));
-  EXPECT_EQ(GlyphInk('A', 3, 0), GlyphInk('a', 3, 0));
-  EXPECT_FALSE(GlyphInk(' ', 3, 2));
-  EXPECT_FALSE(GlyphInk('8', 7, 0));
-  EXPECT_FALSE(GlyphInk('8', 0, 5));
-}
-
 }  // namespace
 }  // namespace vsurg
