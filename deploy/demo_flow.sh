@@ -20,27 +20,12 @@ shots="$(cd "$shots" && pwd)"
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export VSURG_SCENES="$root/scenes"
 
-tmp="$(mktemp -d)"
-pids=()
-cleanup() {
-  local p
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
-  rm -rf "$tmp"
-}
-trap cleanup EXIT
+source "$root/deploy/processes.sh"
+vsurg_temp_and_cleanup
 step() { echo; echo "== $* =="; }
 
 step "Administrator: vsurg-server on a temporary SQLite file"
-admin_token="$("$bin/vsurg-server" init --db "$tmp/vsurg.db" 2>/dev/null)"
-"$bin/vsurg-server" --db "$tmp/vsurg.db" --listen 127.0.0.1:0 --udp-port 0 \
-  --ready-file "$tmp/ready.json" 2> "$out/server.log" &
-server_pid=$!
-pids+=("$server_pid")
-for _ in $(seq 300); do [ -s "$tmp/ready.json" ] && break; sleep 0.1; done
-port="$(sed -n 's/.*"grpc_port":\([0-9]*\).*/\1/p' "$tmp/ready.json")"
-[ -n "$port" ] || { echo "demo: vsurg-server did not start" >&2; cat "$out/server.log" >&2; exit 1; }
-server="127.0.0.1:$port"
+vsurg_start_server "$bin" "$out/server.log"
 echo "vsurg-server pid $server_pid serving gRPC on $server"
 adm() { "$bin/vsurg-admin" "$@" --server "$server" --token "$admin_token"; }
 token_of() { adm user-add --name "$1" --role "$2" ${3:+--group "$3"} --issue-token | tail -1; }

@@ -53,10 +53,11 @@ int Usage(std::ostream& err, const std::string& cmd, const std::string& field,
 
 using vsurg::client::Remote;
 
-// Parses a remote command's options and connects. Returns the exit code to stop with (help
+// Adds the remote options, parses and connects. Returns the exit code to stop with (help
 // printed, or a usage error), or nothing when the command should go on with `remote`.
 std::optional<int> Begin(ArgParser& p, const std::vector<std::string>& args, std::ostream& out,
                          std::ostream& err, Remote& remote) {
+  vsurg::client::AddRemoteOptions(p);
   if (auto rc = ParseOrExit(p, args, out, err)) return rc;
   auto r = vsurg::client::ConnectRemote(p);
   if (!r.ok()) return Usage(err, p.command(), r.error().field, r.error().message);
@@ -115,7 +116,6 @@ int Token(const std::vector<std::string>& args, std::ostream& out, std::ostream&
                        "prints it once.");
   p.Option("user", Kind::kString, "user name", true)
       .Option("label", Kind::kString, "note", false, "");
-  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::AdminService::NewStub(remote.channel);
@@ -263,7 +263,6 @@ int Report(const std::vector<std::string>& args, std::ostream& out, std::ostream
       .Option("weights", Kind::kString, "a stored weight set (default: seed 000)", false, "")
       .Option("training", Kind::kFlag, "print the training effect table instead")
       .Option("json", Kind::kFlag, "print the report as JSON");
-  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::EvaluationService::NewStub(remote.channel);
@@ -368,7 +367,6 @@ int Simple(const std::vector<std::string>& args, std::ostream& out, std::ostream
     p.Option("out", Kind::kString,
              "file name in the server's backup directory (vsurg-server --backup-dir)", true);
   if (cmd == "weights-put") p.Option("file", Kind::kString, "weight set JSON", true);
-  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::AdminService::NewStub(remote.channel);
@@ -409,7 +407,6 @@ int Scenes(const std::vector<std::string>& args, std::ostream& out, std::ostream
     p.Option("trainee", Kind::kString, "only this trainee's")
         .Option("json", Kind::kFlag, "one JSON object per line");
   }
-  vsurg::client::AddRemoteOptions(p);
   Remote remote;
   if (auto stop = Begin(p, args, out, err, remote)) return *stop;
   auto stub = v1::SessionService::NewStub(remote.channel);
