@@ -10,12 +10,12 @@
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "server/net/visual_sender.h"
 
 namespace vsurg::server {
 
 namespace asio = boost::asio;
 using asio::ip::udp;
-using SteadyTime = std::chrono::steady_clock;  // the visual thread's pacing
 
 struct UdpEndpoint::Impl {
   struct Session {
@@ -59,53 +59,7 @@ struct UdpEndpoint::Impl {
   std::array<std::atomic<uint64_t>, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
   std::atomic<double> io_cpu{0};
 
-  // Visual frames: their own thread and socket. `visual` mirrors the session table for it.
-  struct VisualSession {
-    uint64_t id;
-    wire::Authenticator auth;
-    sim::Simulation* simulation;
-    udp::endpoint dest;
-    bool has_dest = false;
-    uint64_t sequence = 0;
-  };
-  std::mutex visual_mutex;  // visual thread, Add/RemoveSession, and a source address change
-  std::vector<VisualSession> visual;
-  asio::io_context visual_io;
-  udp::socket visual_socket{visual_io};
-  std::thread visual_thread;
-  std::atomic<bool> visual_stop{false};
-  std::atomic<uint64_t> frames{0}, frame_chunks{0};
-
-  void VisualLoop() {
-    sim::VisualFrame frame;
-    wire::Codec frame_codec;
-    std::array<uint8_t, wire::kMaxDatagram> out{};
-    const auto period = std::chrono::duration_cast<SteadyTime::duration>(
-        std::chrono::duration<double>(1.0 / options.visual_hz));
-    auto next = SteadyTime::now();
-    while (!visual_stop.load()) {
-      {
-        std::lock_guard<std::mutex> lock(visual_mutex);
-        for (VisualSession& v : visual) {
-          if (!v.has_dest || !v.simulation->TakeVisualFrame(frame) || frame.indices.empty())
-            continue;
-          const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, v.id,
-                                  v.sequence + 1};
-          const size_t chunks = frame_codec.EncodeSceneFrame(
-              {frame.frame_id, frame.indices, frame.positions}, base, v.auth, out,
-              [&](std::span<const uint8_t> d) {
-                boost::system::error_code ec;
-                visual_socket.send_to(asio::buffer(d.data(), d.size()), v.dest, 0, ec);
-              });
-          v.sequence += chunks;
-          frames.fetch_add(1, std::memory_order_relaxed);
-          frame_chunks.fetch_add(chunks, std::memory_order_relaxed);
-        }
-      }
-      next += period;
-      std::this_thread::sleep_until(next);
-    }
-  }
+  std::unique_ptr<VisualSender> visual;  // null when visual_hz is 0
   std::mutex events_mutex;
   std::vector<SessionEvent> events;
 
@@ -165,10 +119,7 @@ struct UdpEndpoint::Impl {
     s.seen = true;
     if (sender != s.source) {  // first datagram, or the station moved (NAT rebinding): rare
       s.source = sender;
-      std::lock_guard<std::mutex> lock(visual_mutex);
-      for (VisualSession& v : visual) {
-        if (v.id == header.session) v.dest = sender, v.has_dest = true;
-      }
+      if (visual) visual->SetDestination(header.session, sender);
     }
     if (s.state != SessionState::kRunning) {
       s.state = SessionState::kRunning;
@@ -249,9 +200,8 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     p->io.run();
   });
   if (options.visual_hz > 0) {
-    p->visual_socket.open(address.is_v6() ? udp::v6() : udp::v4(), ec);
-    if (!ec) p->visual_socket.bind(udp::endpoint(address, 0), ec);
-    if (!ec) p->visual_thread = std::thread([p] { p->VisualLoop(); });
+    auto visual = VisualSender::Create(address, options.visual_hz);
+    if (visual.ok()) p->visual = std::move(visual).value();  // else: forces only, no frames
   }
   return std::unique_ptr<UdpEndpoint>(new UdpEndpoint(std::move(impl)));
 }
@@ -274,11 +224,7 @@ void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key, sim::Simu
     impl_->sessions.insert_or_assign(
         id,
         Impl::Session(key, simulation, link, impl_->options.max_packets_per_s * 0.1, impl_->Now()));
-    {
-      std::lock_guard<std::mutex> lock(impl_->visual_mutex);
-      std::erase_if(impl_->visual, [id](const Impl::VisualSession& v) { return v.id == id; });
-      impl_->visual.push_back({id, wire::Authenticator(key), simulation, {}, false, 0});
-    }
+    if (impl_->visual) impl_->visual->Add(id, key, simulation);
     done.set_value();
   });
   if (impl_->thread.joinable()) done.get_future().wait();
@@ -288,10 +234,7 @@ void UdpEndpoint::RemoveSession(uint64_t id) {
   std::promise<void> done;
   asio::post(impl_->io, [this, id, &done] {
     impl_->sessions.erase(id);
-    {
-      std::lock_guard<std::mutex> lock(impl_->visual_mutex);
-      std::erase_if(impl_->visual, [id](const Impl::VisualSession& v) { return v.id == id; });
-    }
+    if (impl_->visual) impl_->visual->Remove(id);
     done.set_value();
   });
   if (impl_->thread.joinable()) done.get_future().wait();
@@ -299,8 +242,7 @@ void UdpEndpoint::RemoveSession(uint64_t id) {
 
 void UdpEndpoint::Stop() {
   if (!impl_) return;
-  impl_->visual_stop = true;
-  if (impl_->visual_thread.joinable()) impl_->visual_thread.join();
+  impl_->visual.reset();  // stops and joins the sender thread
   if (!impl_->thread.joinable()) return;
   asio::post(impl_->io, [p = impl_.get()] {
     boost::system::error_code ec;
@@ -317,8 +259,8 @@ EndpointCounters UdpEndpoint::counters() const {
   EndpointCounters c;
   c.received = impl_->received.load();
   c.answered = impl_->answered.load();
-  c.frames = impl_->frames.load();
-  c.frame_chunks = impl_->frame_chunks.load();
+  c.frames = impl_->visual ? impl_->visual->frames() : 0;
+  c.frame_chunks = impl_->visual ? impl_->visual->chunks() : 0;
   for (size_t i = 0; i < c.dropped.size(); ++i) c.dropped[i] = impl_->dropped[i].load();
   return c;
 }

@@ -16,9 +16,9 @@
 // Transitions are recorded as events for the control plane (TakeEvents). Sessions are added and
 // removed by posting onto the I/O thread, so the hot path takes no lock.
 //
-// Visual frames: a second thread, with its own socket so it never delays a force, sends each
-// session's moved vertices (Simulation::TakeVisualFrame) as SceneFrame datagrams at visual_hz to
-// the address the session's stylus data last came from.
+// Visual frames: a VisualSender (server/net/visual_sender.h), with its own thread and socket so it
+// never delays a force, sends each session's moved vertices as SceneFrame datagrams at visual_hz
+// to the address the session's stylus data last came from.
 #pragma once
 
 #include <array>
