@@ -23,6 +23,7 @@
 
 #include "common/core/args.h"
 #include "db/store.h"
+#include "server/config.h"
 #include "server/control/control_plane.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
@@ -37,41 +38,6 @@ using Kind = ArgParser::Kind;
 void Log(const std::string& event, const std::string& fields = "") {
   std::cerr << "ts=" << vsurg::db::IsoTimeUtc(vsurg::db::NowUs()) << " component=vsurg-server"
             << " event=" << event << (fields.empty() ? "" : " ") << fields << std::endl;
-}
-
-// A JSON config's keys are the long option names; the command line wins over the file.
-bool MergeConfig(const std::string& path, std::vector<std::string>& args, std::string& error) {
-  std::ifstream in(path);
-  if (!in) {
-    error = "--config: cannot read " + path;
-    return false;
-  }
-  std::stringstream text;
-  text << in.rdbuf();
-  const auto j = nlohmann::json::parse(text.str(), nullptr, false);
-  if (j.is_discarded() || !j.is_object()) {
-    error = "--config: " + path + " is not a JSON object";
-    return false;
-  }
-  std::set<std::string> given;
-  for (const std::string& a : args)
-    if (a.rfind("--", 0) == 0) given.insert(a.substr(2, a.find('=') - 2));
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    if (given.count(it.key()) || it.key() == "config") continue;
-    if (it->is_boolean()) {
-      if (it->get<bool>()) args.push_back("--" + it.key());
-    } else if (it->is_string()) {
-      args.push_back("--" + it.key());
-      args.push_back(it->get<std::string>());
-    } else if (it->is_number()) {
-      args.push_back("--" + it.key());
-      args.push_back(it->dump());
-    } else {
-      error = "--config: " + it.key() + ": a string, number or boolean is expected";
-      return false;
-    }
-  }
-  return true;
 }
 
 int Main(std::vector<std::string> args) {
@@ -112,7 +78,7 @@ int Main(std::vector<std::string> args) {
   }
   if (p.Has("config")) {
     std::string error;
-    if (!MergeConfig(p.String("config"), args, error)) {
+    if (!vsurg::server::MergeConfig(p.String("config"), args, error)) {
       std::cerr << "vsurg-server: " << error << "\n";
       return 2;
     }
