@@ -128,12 +128,19 @@ TEST(UdpEndpointTest, RejectsWhatIsNotAuthenticAndNeverAnswersIt) {
   EXPECT_EQ(n.answered, 1u);
 }
 
-// Polls the endpoint's counters until it has taken `n` datagrams (or fails after a deadline).
+// Polls the endpoint's counters until it has taken `n` datagrams and finished with each (answered
+// or dropped: `received` is counted when a datagram is read, the outcome after), or fails after a
+// deadline.
 void WaitForReceived(const UdpEndpoint& endpoint, uint64_t n) {
+  auto settled = [&] {
+    const EndpointCounters c = endpoint.counters();
+    uint64_t done = c.answered;
+    for (uint64_t d : c.dropped) done += d;
+    return c.received >= n && done >= n;
+  };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (endpoint.counters().received < n && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::yield();
-  ASSERT_GE(endpoint.counters().received, n);
+  while (!settled() && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+  ASSERT_TRUE(settled()) << "received " << endpoint.counters().received << " of " << n;
 }
 
 TEST(UdpEndpointTest, ReorderedDatagramsAreStaleAndTheRateIsLimited) {
