@@ -192,6 +192,12 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
                  "port"};
   }
   impl->sessions.reserve(1024);
+  // The visual sender exists before the I/O thread starts and outlives it (Stop): the I/O thread
+  // reads the pointer on every new source address without a lock.
+  if (options.visual_hz > 0) {
+    auto visual = VisualSender::Create(address, options.visual_hz);
+    if (visual.ok()) impl->visual = std::move(visual).value();  // else: forces only, no frames
+  }
   Impl* p = impl.get();
   p->Receive();
   p->Tick();
@@ -199,10 +205,6 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     TrySetRealtimePriority(p->options.realtime_priority);  // the stylus → force path
     p->io.run();
   });
-  if (options.visual_hz > 0) {
-    auto visual = VisualSender::Create(address, options.visual_hz);
-    if (visual.ok()) p->visual = std::move(visual).value();  // else: forces only, no frames
-  }
   return std::unique_ptr<UdpEndpoint>(new UdpEndpoint(std::move(impl)));
 }
 
@@ -242,8 +244,10 @@ void UdpEndpoint::RemoveSession(uint64_t id) {
 
 void UdpEndpoint::Stop() {
   if (!impl_) return;
-  impl_->visual.reset();  // stops and joins the sender thread
-  if (!impl_->thread.joinable()) return;
+  if (!impl_->thread.joinable()) {
+    impl_->visual.reset();  // stops and joins the sender thread
+    return;
+  }
   asio::post(impl_->io, [p = impl_.get()] {
     boost::system::error_code ec;
     p->timer.cancel();
@@ -253,6 +257,7 @@ void UdpEndpoint::Stop() {
     p->io.stop();
   });
   impl_->thread.join();
+  impl_->visual.reset();  // after the I/O thread, the sender's one reader, has ended
 }
 
 EndpointCounters UdpEndpoint::counters() const {

@@ -8,10 +8,6 @@ namespace {
 thread_local bool g_counting = false;
 std::atomic<long> g_allocations{0};
 std::atomic<std::thread::id> g_watched{};
-
-bool Counted() {
-  return g_counting || std::this_thread::get_id() == g_watched.load(std::memory_order_relaxed);
-}
 }  // namespace
 
 // ThreadSanitizer's runtime (clang) defines operator new and delete itself: no replacement there,
@@ -26,6 +22,12 @@ bool Counted() {
 #endif
 
 #ifndef VSURG_NO_NEW_REPLACEMENT
+namespace {
+bool Counted() {
+  return g_counting || std::this_thread::get_id() == g_watched.load(std::memory_order_relaxed);
+}
+}  // namespace
+
 // The replacements pair malloc with free themselves; GCC cannot see that through inlining.
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 void* operator new(std::size_t n) {
