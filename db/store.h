@@ -96,6 +96,15 @@ struct TrainingRow {  // one evaluator's scores of a trainee at a training momen
   std::array<double, scoring::kIndexCount> scores{};
 };
 
+struct SubmittedRow {  // one of an evaluator's own submissions
+  int64_t id = 0;
+  SubjectKind subject_kind = SubjectKind::kSession;
+  std::string subject;
+  std::optional<double> moment_min;
+  int64_t submitted_us = 0;
+  std::array<double, scoring::kIndexCount> scores{};
+};
+
 struct ExportFilter {
   std::optional<int64_t> from_us = std::nullopt;  // submitted in [from, to)
   std::optional<int64_t> to_us = std::nullopt;
@@ -180,6 +189,10 @@ class Store {
   Expected<std::vector<std::string>> ListWeightSets();
   Expected<std::vector<RatingRow>> LoadRatings(SubjectKind kind, const std::string& subject);
   Expected<std::vector<TrainingRow>> LoadTrainingRows();  // trainee subjects with a moment
+  // An evaluator's own submissions, newest first (at most `limit`).
+  Expected<std::vector<SubmittedRow>> ListSubmissionsBy(const std::string& evaluator, int limit);
+  // The distinct subjects of a kind anyone has rated, by name.
+  Expected<std::vector<std::string>> ListRatedSubjects(SubjectKind kind);
   Expected<int64_t> CountEvaluationRows();
   // Streams one line per stored score (CSV with a header, JSON lines) or one xAPI statement
   // per submission (JSON lines) to `sink` in chunks; `sink` returning false stops the export.

@@ -244,6 +244,49 @@ Expected<std::vector<RatingRow>> Store::LoadRatings(SubjectKind kind, const std:
   return out;
 }
 
+Expected<std::vector<SubmittedRow>> Store::ListSubmissionsBy(const std::string& evaluator,
+                                                             int limit) {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare(
+      "SELECT s.id, s.subject_kind, s.subject, s.moment_min, s.submitted_us, v.index_no, v.score "
+      "FROM (SELECT s.* FROM submissions s JOIN evaluators e ON e.id = s.evaluator_id "
+      "      WHERE e.name = ?1 ORDER BY s.id DESC LIMIT ?2) s "
+      "JOIN evaluations v ON v.submission_id = s.id ORDER BY s.id DESC, v.index_no");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, evaluator).Bind(2, static_cast<int64_t>(limit));
+  std::vector<SubmittedRow> out;
+  Status s = CollectScores(**st, 5, [&](Statement& q) -> std::array<double, scoring::kIndexCount>& {
+    SubmittedRow& row = out.emplace_back();
+    row.id = q.Int(0);
+    row.subject_kind = ParseSubjectKind(q.Text(1)).value_or(SubjectKind::kSession);
+    row.subject = q.String(2);
+    if (!q.IsNull(3)) row.moment_min = q.Double(3);
+    row.submitted_us = q.Int(4);
+    return row.scores;
+  });
+  if (!s.ok()) return s.error();
+  return out;
+}
+
+Expected<std::vector<std::string>> Store::ListRatedSubjects(SubjectKind kind) {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare(
+      "SELECT DISTINCT subject FROM submissions WHERE subject_kind = ?1 ORDER BY subject");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, SubjectKindName(kind));
+  std::vector<std::string> out;
+  for (;;) {
+    auto row = (*st)->Step();
+    if (!row.ok()) return (*st)->Reset(), row.error();
+    if (!*row) break;
+    out.push_back((*st)->String(0));
+  }
+  (*st)->Reset();
+  return out;
+}
+
 Expected<std::vector<TrainingRow>> Store::LoadTrainingRows() {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();

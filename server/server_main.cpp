@@ -25,6 +25,7 @@
 #include "db/store.h"
 #include "server/config.h"
 #include "server/control/control_plane.h"
+#include "server/http/http_server.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
 #include "server/store_commands.h"
@@ -55,7 +56,11 @@ int Main(std::vector<std::string> args) {
               "host stations are told to send to (default: udp-address)")
       .Option("tls-cert", Kind::kString, "PEM certificate for gRPC TLS")
       .Option("tls-key", Kind::kString, "PEM private key for gRPC TLS")
-      .Option("allow-insecure", Kind::kFlag, "allow plaintext gRPC off loopback (not advised)")
+      .Option("allow-insecure", Kind::kFlag,
+              "allow plaintext gRPC and HTTP off loopback (not advised)")
+      .Option("http", Kind::kString,
+              "web dashboard address host:port (off unless given; port 0: any free one); HTTPS "
+              "with the gRPC certificate when TLS is configured")
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off)", false, "20")
@@ -65,7 +70,8 @@ int Main(std::vector<std::string> args) {
               "seconds a created session may wait for Start before it is aborted", false, "60")
       .Option("backup-dir", Kind::kString,
               "the only folder AdminService/Backup writes to (default: backups/ beside --db)")
-      .Option("ready-file", Kind::kString, "write {grpc_port, udp_port} here once serving")
+      .Option("ready-file", Kind::kString,
+              "write {grpc_port, udp_port, http_port} here once serving")
       .Option("config", Kind::kString, "JSON file of these options (flags win)");
   if (Status s = p.Parse(args); !s.ok()) {
     std::cerr << "vsurg-server: " << (s.error().field.empty() ? "" : s.error().field + ": ")
@@ -160,18 +166,35 @@ int Main(std::vector<std::string> args) {
               << control.error().message << "\n";
     return 1;
   }
+  std::unique_ptr<vsurg::server::HttpServer> web;
+  if (p.Has("http")) {
+    vsurg::server::HttpServerOptions ho;
+    ho.listen = p.String("http");
+    ho.tls_cert_file = co.tls_cert_file;
+    ho.tls_key_file = co.tls_key_file;
+    ho.allow_insecure = co.allow_insecure;
+    ho.backup_dir = co.backup_dir;
+    auto started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
+    if (!started.ok()) {
+      std::cerr << "vsurg-server: --http: " << started.error().message << "\n";
+      return 1;
+    }
+    web = std::move(started).value();
+  }
   const int grpc_port = (*control)->port();
   const int bound_udp = (*endpoint)->port();
+  const int http_port = web ? web->port() : 0;
   Log("serving", "grpc_port=" + std::to_string(grpc_port) +
                      " udp_port=" + std::to_string(bound_udp) +
+                     (web ? " http_port=" + std::to_string(http_port) : std::string()) +
                      " tls=" + ((*control)->tls() ? "on" : "off") + " db=" + p.String("db"));
   if (p.Has("ready-file")) {
     const std::string path = p.String("ready-file"), tmp = path + ".tmp";
     {
       std::ofstream out(tmp);
-      out << nlohmann::json{{"grpc_port", grpc_port}, {"udp_port", bound_udp}, {"pid", getpid()}}
-                 .dump()
-          << "\n";
+      nlohmann::json ready{{"grpc_port", grpc_port}, {"udp_port", bound_udp}, {"pid", getpid()}};
+      if (web) ready["http_port"] = http_port;
+      out << ready.dump() << "\n";
     }
     std::rename(tmp.c_str(), path.c_str());  // atomically: a reader sees all of it or nothing
   }
@@ -179,10 +202,12 @@ int Main(std::vector<std::string> args) {
   int sig = 0;
   sigwait(&signals, &sig);
   Log("stopping", std::string("signal=") + (sig == SIGINT ? "SIGINT" : "SIGTERM"));
+  if (web) web->Shutdown();  // ends the dashboard's streams and exports
   (*control)->Shutdown();
   sessions->Shutdown();
   (*endpoint)->Stop();
   const auto stats = (*store)->stats();
+  web.reset();
   control->reset();
   sessions.reset();
   endpoint->reset();

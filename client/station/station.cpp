@@ -83,10 +83,14 @@ Status Station::Connect() {
   v1::CreateSessionRequest create;
   create.set_scene(config_.scene);
   v1::CreateSessionResponse created;
+  const bool join = config_.join != 0 && status_.generation == 0;
   {
     grpc::ClientContext ctx;
     remote_.Prepare(ctx, config_.rpc_timeout_s);
-    const grpc::Status s = stub->Create(&ctx, create, &created);
+    v1::SessionRef prepared;
+    prepared.set_id(config_.join);
+    const grpc::Status s =
+        join ? stub->Join(&ctx, prepared, &created) : stub->Create(&ctx, create, &created);
     if (!s.ok()) {
       // A refusal (bad token, unknown scene) will not get better by retrying.
       const bool fatal = s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
@@ -94,9 +98,18 @@ Status Station::Connect() {
                          s.error_code() == grpc::StatusCode::NOT_FOUND ||
                          s.error_code() == grpc::StatusCode::INVALID_ARGUMENT;
       return Error{fatal ? ErrorCode::kPermissionDenied : ErrorCode::kUnavailable,
-                   "cannot create a session: " + Describe(s), "session"};
+                   std::string(join ? "cannot join session " + std::to_string(config_.join)
+                                    : "cannot create a session") +
+                       ": " + Describe(s),
+                   "session"};
     }
   }
+  if (join && created.session().scene() != config_.scene)
+    return Error{ErrorCode::kPermissionDenied,
+                 "session " + std::to_string(config_.join) + " is prepared for scene '" +
+                     created.session().scene() + "'; start the station with --scene " +
+                     created.session().scene(),
+                 "scene"};
   if (created.session_key().size() != 32)
     return Error{ErrorCode::kUnavailable, "the server sent no usable session key", "session"};
   v1::SessionRef ref;

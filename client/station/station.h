@@ -33,6 +33,9 @@ namespace vsurg::client {
 
 struct StationConfig {
   std::string scene = "arm-torsion";
+  // A session prepared for this trainee (by an instructor) to join instead of creating one; a
+  // reconnect after the server went away creates a new session as usual. 0: create.
+  uint64_t join = 0;
   double rate_hz = 1000;       // device thread
   double rpc_timeout_s = 3;    // per control-plane call
   double silence_s = 0.5;      // no force update this long: ask the server how it is

@@ -63,6 +63,7 @@ int Run(const std::vector<std::string>& args) {
               "at 1 kHz and draws the tissue (window, or --headless offscreen).");
   client::AddRemoteOptions(p);
   p.Option("scene", Kind::kString, "scene to train on", false, "arm-torsion")
+      .Option("join", Kind::kInt, "join this session, prepared for you by an instructor")
       .Option("device", Kind::kString, "replay, keyboard-mouse, openhaptics or falcon", false,
               "replay")
       .Option("trajectory", Kind::kString, "replay: trajectory CSV (vsurg-sim trainee --out)")
@@ -140,6 +141,13 @@ int Run(const std::vector<std::string>& args) {
 
   client::StationConfig config;
   config.scene = p.String("scene");
+  if (p.Has("join")) {
+    if (p.Int("join") < 1) {
+      std::cerr << "vsurg-station: --join: a session id (≥ 1) is required\n";
+      return 2;
+    }
+    config.join = static_cast<uint64_t>(p.Int("join"));
+  }
   config.rate_hz = p.Double("rate");
   config.reconnect = !p.Flag("no-reconnect");
   config.realtime_priority = p.Int("realtime-priority");

@@ -278,6 +278,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     t.tip = s.position;
     t.twist = cmd.twist;
     t.torque = cmd.torque;
+    t.depth = task == scoring::TaskKind::kPress ? quantity : 0;
     t.contact = cmd.contact;
     t.grasping = cmd.grasping;
     t.samples = samples_;

@@ -81,6 +81,7 @@ struct Telemetry {
   geometry::Vec3 tip = geometry::Vec3::Zero();    // m, the stylus tip of that sample
   double twist = 0;                               // rad
   double torque = 0;                              // N·m
+  double depth = 0;                               // m, press depth (press scenes; else 0)
   bool contact = false, grasping = false;
   uint64_t samples = 0;           // stylus samples handled
   uint64_t clock_jumps = 0;       // samples whose time jumped (haptics::kEventClockJump)

@@ -15,17 +15,6 @@
 
 namespace vsurg::server {
 
-bool IsLoopbackHost(const std::string& listen) {
-  std::string host = listen;
-  if (!host.empty() && host.front() == '[') {
-    host = host.substr(1, host.find(']') - 1);
-  } else if (const auto colon = host.rfind(':');
-             colon != std::string::npos && host.find(':') == colon) {
-    host = host.substr(0, colon);
-  }
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
-}
-
 struct ControlPlane::Impl {
   SceneCatalog scenes;  // follows sim::ScenesDirectory()
   Domain domain;

@@ -19,6 +19,7 @@
 #include <string>
 
 #include "common/core/expected.h"
+#include "server/domain/auth.h"  // IsLoopbackHost
 
 namespace vsurg::db {
 class Store;
@@ -55,8 +56,5 @@ class ControlPlane {
   explicit ControlPlane(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
-
-// Is this host a loopback address (127.0.0.0/8, ::1, localhost)?
-bool IsLoopbackHost(const std::string& listen);
 
 }  // namespace vsurg::server

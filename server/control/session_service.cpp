@@ -17,10 +17,17 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     return Unary(d_, ctx, Method::kSessionCreate, [&](const db::Principal& p) -> Status {
       auto created = CreateSession(d_, p, req->trainee(), req->scene());
       if (!created.ok()) return created.error();
-      ToProto(created->record, resp->mutable_session());
-      resp->set_udp_host(created->udp_host);
-      resp->set_udp_port(created->udp_port);
-      resp->set_session_key(std::string(created->key.begin(), created->key.end()));
+      Credentials(*created, resp);
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* Join(CallbackServerContext* ctx, const v1::SessionRef* req,
+                           v1::CreateSessionResponse* resp) override {
+    return Unary(d_, ctx, Method::kSessionJoin, [&](const db::Principal& p) -> Status {
+      auto joined = JoinSession(d_, p, req->id());
+      if (!joined.ok()) return joined.error();
+      Credentials(*joined, resp);
       return Status::Ok();
     });
   }
@@ -75,6 +82,12 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   }
 
  private:
+  static void Credentials(const CreatedSession& c, v1::CreateSessionResponse* resp) {
+    ToProto(c.record, resp->mutable_session());
+    resp->set_udp_host(c.udp_host);
+    resp->set_udp_port(c.udp_port);
+    resp->set_session_key(std::string(c.key.begin(), c.key.end()));
+  }
   static Status Answer(const Expected<SessionView>& v, v1::Session* resp) {
     if (!v.ok()) return v.error();
     ToProto(*v, resp);

@@ -1,5 +1,7 @@
 #include "server/domain/api.h"
 
+#include <set>
+
 #include <nlohmann/json.hpp>
 
 #include "common/scoring/evaluation.h"
@@ -124,6 +126,23 @@ Expected<SessionView> GetSession(Domain& d, const db::Principal& p, uint64_t id)
   return View(d, *r);
 }
 
+Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id) {
+  if (Status s = Permit(p, Method::kSessionJoin); !s.ok()) return s.error();
+  auto r = d.store.GetSession(static_cast<int64_t>(id));
+  if (!r.ok()) return r.error();
+  if (r->trainee != p.name)  // never another trainee's key, whatever the role
+    return Denied("session " + std::to_string(id) + " belongs to another trainee");
+  return d.sessions.Join(id);
+}
+
+Expected<RestSurface> SessionSurface(Domain& d, const db::Principal& p, uint64_t id) {
+  if (Status s = Permit(p, Method::kMonitorWatch); !s.ok()) return s.error();
+  RestSurface out;
+  if (Status s = d.sessions.RestSurface(id, out.positions, out.triangles); !s.ok())
+    return s.error();
+  return out;
+}
+
 Expected<std::vector<SessionView>> ListSessions(Domain& d, const db::Principal& p,
                                                 const std::string& trainee, bool live_only) {
   if (Status s = Permit(p, Method::kSessionList); !s.ok()) return s.error();
@@ -198,6 +217,35 @@ Expected<db::Submission> PrepareSubmission(const db::Principal& p, const Submiss
   s.subject_kind = *kind;
   for (int j = 0; j < scoring::kIndexCount; ++j) s.scores[j] = r.scores[j];
   return s;  // the store validates the rest (0–10, group, subject) inside its transaction
+}
+
+Expected<EvaluationQueue> ListOwnEvaluations(Domain& d, const db::Principal& p, int limit) {
+  if (Status s = Permit(p, Method::kEvaluationSubmit); !s.ok()) return s.error();
+  if (limit < 1 || limit > 1000) return InvalidArgument("limit", "must be within 1..1000");
+  EvaluationQueue q;
+  auto mine = d.store.ListSubmissionsBy(p.name, 100000);
+  if (!mine.ok()) return mine.error();
+  std::set<std::pair<db::SubjectKind, std::string>> done;
+  for (const db::SubmittedRow& r : *mine) done.insert({r.subject_kind, r.subject});
+  auto sessions = d.store.ListSessions(std::nullopt);
+  if (!sessions.ok()) return sessions.error();
+  for (auto it = sessions->rbegin(); it != sessions->rend(); ++it) {
+    if (it->state != SessionState::kEnded) continue;
+    if (done.count({db::SubjectKind::kSession, std::to_string(it->id)})) continue;
+    q.sessions.push_back(*it);
+    if (static_cast<int>(q.sessions.size()) == limit) break;
+  }
+  std::set<std::string> models;
+  if (auto listing = d.scenes.List(); listing.ok())
+    for (const SceneInfo& s : listing->scenes) models.insert(s.model);
+  auto rated = d.store.ListRatedSubjects(db::SubjectKind::kModel);
+  if (!rated.ok()) return rated.error();
+  models.insert(rated->begin(), rated->end());
+  for (const std::string& m : models)
+    if (!done.count({db::SubjectKind::kModel, m})) q.models.push_back(m);
+  mine->resize(std::min<size_t>(mine->size(), static_cast<size_t>(limit)));
+  q.submitted = std::move(*mine);
+  return q;
 }
 
 Expected<std::string> Report(Domain& d, const db::Principal& p, const std::string& subject_kind,
@@ -307,6 +355,13 @@ Status PutWeightSet(Domain& d, const db::Principal& p, const std::string& json) 
 Expected<std::vector<std::string>> ListWeightSets(Domain& d, const db::Principal& p) {
   if (Status s = Permit(p, Method::kAdminListWeightSets); !s.ok()) return s.error();
   return d.store.ListWeightSets();
+}
+
+Expected<std::string> GetWeightSet(Domain& d, const db::Principal& p, const std::string& name) {
+  if (Status s = Permit(p, Method::kAdminListWeightSets); !s.ok()) return s.error();
+  auto w = LoadWeights(d.store, name);
+  if (!w.ok()) return w.error();
+  return scoring::WeightSetToJson(*w).dump();
 }
 
 Status Backup(Domain& d, const db::Principal& p, const std::string& name) {

@@ -56,6 +56,15 @@ Expected<SessionView> StartSession(Domain& d, const db::Principal& p, uint64_t i
 Expected<SessionView> StopSession(Domain& d, const db::Principal& p, uint64_t id,
                                   const std::string& reason);
 Expected<SessionView> GetSession(Domain& d, const db::Principal& p, uint64_t id);
+// The trainee's station joins a session prepared for them (by an instructor): the key and UDP
+// address go only to that trainee, and only while the session is live.
+Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id);
+// A live session's surface at rest, for a watcher's 3D view (the monitors' permission).
+struct RestSurface {
+  std::vector<geometry::Vec3> positions;  // m
+  std::vector<int32_t> triangles;         // three vertex indices each
+};
+Expected<RestSurface> SessionSurface(Domain& d, const db::Principal& p, uint64_t id);
 // A trainee lists only their own (`trainee` empty or their name).
 Expected<std::vector<SessionView>> ListSessions(Domain& d, const db::Principal& p,
                                                 const std::string& trainee, bool live_only);
@@ -76,6 +85,15 @@ struct SubmissionRequest {  // as a transport received it
 // The submission to store: an evaluator submits as themself in their own group; an admin
 // imports on an evaluator's behalf (evaluator required).
 Expected<db::Submission> PrepareSubmission(const db::Principal& p, const SubmissionRequest& r);
+// What waits for this evaluator's scores: ended sessions they have not scored (newest first, at
+// most `limit`) and the simulator models (the scenes' models and any model rated before) they
+// have not scored; and their own submissions, newest first. Whoever may submit may ask.
+struct EvaluationQueue {
+  std::vector<db::SessionRecord> sessions;
+  std::vector<std::string> models;
+  std::vector<db::SubmittedRow> submitted;
+};
+Expected<EvaluationQueue> ListOwnEvaluations(Domain& d, const db::Principal& p, int limit);
 // The weighted report (seed 000 eqs. 9–11) of one subject, or the comparison of up to 32, as
 // JSON text; recorded in the store with the weights it used.
 Expected<std::string> Report(Domain& d, const db::Principal& p, const std::string& subject_kind,
@@ -97,6 +115,8 @@ Status SetDisabled(Domain& d, const db::Principal& p, const std::string& user, b
 Expected<std::vector<db::UserRecord>> ListUsers(Domain& d, const db::Principal& p);
 Status PutWeightSet(Domain& d, const db::Principal& p, const std::string& json);
 Expected<std::vector<std::string>> ListWeightSets(Domain& d, const db::Principal& p);
+// One weight set as JSON text (`name` empty: the built-in seed 000 weights).
+Expected<std::string> GetWeightSet(Domain& d, const db::Principal& p, const std::string& name);
 Status Backup(Domain& d, const db::Principal& p, const std::string& name);
 
 struct ExportPlan {

@@ -40,6 +40,9 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
     {"AdminService/Export", kAdmin},
     {"AdminService/Backup", kAdmin},
     {"SessionService/ListScenes", kTrainee | kInstructor | kEvaluator | kAdmin},
+    // The station's key goes only to the session's own trainee (ownership, in the domain, refuses
+    // every other caller, administrators too).
+    {"SessionService/Join", kTrainee | kAdmin},
 }};
 
 }  // namespace
@@ -62,6 +65,17 @@ std::optional<std::string_view> BearerToken(std::string_view a) {
   for (char c : token)
     if (std::isspace(static_cast<unsigned char>(c)) || c == '\0') return std::nullopt;
   return token;
+}
+
+bool IsLoopbackHost(const std::string& listen) {
+  std::string host = listen;
+  if (!host.empty() && host.front() == '[') {
+    host = host.substr(1, host.find(']') - 1);
+  } else if (const auto colon = host.rfind(':');
+             colon != std::string::npos && host.find(':') == colon) {
+    host = host.substr(0, colon);
+  }
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
 }
 
 }  // namespace vsurg::server

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <optional>
+#include <string>
 #include <string_view>
 
 #include "db/store.h"
@@ -33,6 +34,7 @@ enum class Method {
   kAdminExport,
   kAdminBackup,
   kSessionListScenes,
+  kSessionJoin,
   kCount
 };
 
@@ -41,5 +43,9 @@ bool RoleMay(db::Role role, Method m);
 
 // "Bearer <token>" (scheme case-insensitive, one space) → the token; nullopt when malformed.
 std::optional<std::string_view> BearerToken(std::string_view authorization);
+
+// Is the host of `listen` (host:port) a loopback address (127.0.0.0/8, ::1, localhost)?
+// Plaintext transports (gRPC, HTTP) listen only there unless allowed explicitly.
+bool IsLoopbackHost(const std::string& listen);
 
 }  // namespace vsurg::server

@@ -191,6 +191,35 @@ Expected<db::SessionRecord> SessionManager::Get(uint64_t id) {
   return rec;
 }
 
+Expected<CreatedSession> SessionManager::Join(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(id);
+  if (it == live_.end())
+    return Error{ErrorCode::kNotFound, "session " + std::to_string(id) + " is not live", "id"};
+  CreatedSession out;
+  out.record = it->second->record;
+  out.record.state = it->second->state;
+  out.key = it->second->key;
+  out.udp_host = options_.udp_host;
+  out.udp_port = endpoint_ ? endpoint_->port() : 0;
+  return out;
+}
+
+Status SessionManager::RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
+                                   std::vector<int32_t>& triangles) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(id);
+  if (it == live_.end())
+    return Error{ErrorCode::kNotFound, "session " + std::to_string(id) + " is not live", "id"};
+  const geometry::TriMesh& mesh = it->second->simulation->rest_mesh();  // immutable
+  positions = mesh.positions;
+  triangles.clear();
+  triangles.reserve(mesh.triangles.size() * 3);
+  for (const auto& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) triangles.push_back(static_cast<int32_t>(t[k]));
+  return Status::Ok();
+}
+
 bool SessionManager::IsLive(uint64_t id) const {
   std::lock_guard lock(mutex_);
   return live_.count(id) > 0;
@@ -274,6 +303,7 @@ void SessionManager::SamplerLoop() {
         l->last_samples = t.sim.samples;
         l->last_sample_s = now;
         t.scene = l->record.scene;
+        t.trainee = l->record.trainee;
         t.has_surface = tick % 3 == 0;
         if (t.has_surface)
           t.surface_frame = l->simulation->ShownSurface(t.surface_indices, t.surface_positions);

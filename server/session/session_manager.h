@@ -65,6 +65,7 @@ struct SessionTelemetry {
   uint64_t packets = 0;
   double haptic_rate_hz = 0;
   std::string scene;
+  std::string trainee;
   // Every third sample (10 Hz at the default rate): the deformed surface for monitors, as the
   // vertices away from rest (sim::Simulation::ShownSurface).
   bool has_surface = false;
@@ -104,6 +105,14 @@ class SessionManager {
   Expected<db::SessionRecord> Start(uint64_t id);
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason);
   Expected<db::SessionRecord> Get(uint64_t id);  // the store's row with the live state
+  // A live session's station credentials (a session an instructor prepared, joined by the
+  // trainee's station): the key and the UDP address, as Create returned them. kNotFound once it
+  // left the live states.
+  Expected<CreatedSession> Join(uint64_t id);
+  // A live session's surface at rest (the mesh the monitors' surface states move): positions in
+  // metres, triangles as vertex indices. kNotFound once it left the live states.
+  Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
+                     std::vector<int32_t>& triangles) const;
   bool IsLive(uint64_t id) const;
   // Aborts every live session of `user` (its trainee), e.g. when their tokens are revoked or the
   // account is disabled: access ends with the account, on the UDP channel too. Returns how many.

@@ -230,6 +230,12 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
       v1::ListScenesResponse r;
       return s->ListScenes(ctx().get(), {}, &r).error_code();
     }
+    case Method::kSessionJoin: {
+      v1::SessionRef ref;
+      ref.set_id(999);
+      v1::CreateSessionResponse r;
+      return s->Join(ctx().get(), ref, &r).error_code();
+    }
     case Method::kCount:
       break;
   }
@@ -241,7 +247,7 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
   const std::map<db::Role, std::set<Method>> allowed = {
       {db::Role::kTrainee,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
-        Method::kSessionList, Method::kSessionListScenes}},
+        Method::kSessionList, Method::kSessionListScenes, Method::kSessionJoin}},
       {db::Role::kInstructor,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
         Method::kSessionList, Method::kMonitorWatch, Method::kEvaluationReport,

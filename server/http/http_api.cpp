@@ -1,0 +1,753 @@
+#include "server/http/http_api.h"
+
+#include <cmath>
+#include <optional>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "common/core/time.h"
+#include "common/scoring/report_json.h"
+#include "common/scoring/vocabulary.h"
+#include "db/vocabulary.h"
+#include "server/domain/scene_catalog.h"
+#include "server/http/web_assets.h"
+
+namespace vsurg::server::http {
+namespace {
+
+using nlohmann::json;
+constexpr std::string_view kCookie = "vsurg_session";
+
+HttpReply Json(int status, const json& j) {
+  HttpReply r;
+  r.status = status;
+  r.body = j.dump(-1, ' ', false, json::error_handler_t::replace);
+  return r;
+}
+
+HttpReply Ok(const json& j) {
+  return Json(200, j);
+}
+
+HttpReply NoContent() {
+  HttpReply r;
+  r.status = 204;
+  r.content_type.clear();
+  return r;
+}
+
+std::string Iso(int64_t us) {
+  return us > 0 ? IsoTimeUtc(us) : std::string();
+}
+
+json RecordJson(const db::SessionRecord& r) {
+  return {{"id", r.id},
+          {"trainee", r.trainee},
+          {"scene", r.scene},
+          {"state", SessionStateName(r.state)},
+          {"created", Iso(r.created_us)},
+          {"started", Iso(r.started_us)},
+          {"ended", Iso(r.ended_us)},
+          {"end_reason", r.end_reason}};
+}
+
+json ViewJson(const SessionView& v) {
+  json j = RecordJson(v.record);
+  j["metrics"] = v.metrics ? scoring::TrialMetricsToJson(*v.metrics) : json(nullptr);
+  return j;
+}
+
+json UserJson(const db::UserRecord& u) {
+  return {{"name", u.name},
+          {"role", db::RoleName(u.role)},
+          {"group", u.group},
+          {"created", Iso(u.created_us)},
+          {"disabled", u.disabled}};
+}
+
+double Finite(double x) {
+  return std::isfinite(x) ? x : 0.0;
+}
+
+// The first value of a query parameter, or "".
+std::string Param(const std::multimap<std::string, std::string>& q, const std::string& name) {
+  const auto it = q.find(name);
+  return it == q.end() ? std::string() : it->second;
+}
+
+std::optional<uint64_t> ParseId(std::string_view s) {
+  if (s.empty() || s.size() > 19) return std::nullopt;
+  uint64_t v = 0;
+  for (char c : s) {
+    if (c < '0' || c > '9') return std::nullopt;
+    v = v * 10 + static_cast<uint64_t>(c - '0');
+  }
+  return v;
+}
+
+// Splits "/a/b/c" into {"a", "b", "c"}.
+std::vector<std::string_view> Segments(std::string_view path) {
+  std::vector<std::string_view> out;
+  while (!path.empty()) {
+    if (path.front() == '/') {
+      path.remove_prefix(1);
+      continue;
+    }
+    const size_t slash = path.find('/');
+    out.push_back(path.substr(0, slash));
+    if (slash == std::string_view::npos) break;
+    path.remove_prefix(slash);
+  }
+  return out;
+}
+
+// A JSON object body (POST with Content-Type application/json); an empty body is {}.
+Expected<json> Body(const HttpRequest& r) {
+  if (r.body.empty()) return json::object();
+  const std::string type = r.content_type.substr(0, r.content_type.find(';'));
+  if (type != "application/json")
+    return Error{ErrorCode::kInvalidArgument, "the body must be application/json", "content-type"};
+  json j = json::parse(r.body, nullptr, false);
+  if (j.is_discarded() || !j.is_object())
+    return Error{ErrorCode::kParseError, "the body is not a JSON object", "body"};
+  return j;
+}
+
+template <class T>
+const Error* Err(const Expected<T>& x) {
+  return x.ok() ? nullptr : &x.error();
+}
+
+template <class T>
+Expected<T> Field(const json& j, const char* name, T fallback) {
+  const auto it = j.find(name);
+  if (it == j.end() || it->is_null()) return fallback;
+  try {
+    return it->get<T>();
+  } catch (const json::exception&) {
+    return InvalidArgument(name, std::string("has the wrong type"));
+  }
+}
+
+std::string PageRole(std::string_view page, Method& m) {
+  if (page == "live" || page == "session") return m = Method::kMonitorWatch, "instructor";
+  if (page == "evaluate") return m = Method::kEvaluationSubmit, "evaluator";
+  if (page == "reports") return m = Method::kEvaluationReport, "instructor or evaluator";
+  if (page == "admin") return m = Method::kAdminListUsers, "administrator";
+  if (page == "mine") return m = Method::kSessionList, "trainee";
+  return "";
+}
+
+HttpReply Html(int status, std::string body) {
+  HttpReply r;
+  r.status = status;
+  r.content_type = "text/html; charset=utf-8";
+  r.body = std::move(body);
+  return r;
+}
+
+HttpReply Redirect(const std::string& to) {
+  HttpReply r;
+  r.status = 303;
+  r.content_type.clear();
+  r.headers.emplace_back("Location", to);
+  return r;
+}
+
+// The page shell with its name filled in (a constant from PageRole, never request text).
+HttpReply Shell(const std::string& page) {
+  const auto shell = FindAsset("/index.html");
+  std::string body(shell ? shell->body : "");
+  const std::string mark = "{{PAGE}}";
+  for (size_t at = body.find(mark); at != std::string::npos; at = body.find(mark))
+    body.replace(at, mark.size(), page);
+  HttpReply r = Html(200, std::move(body));
+  r.headers.emplace_back("Cache-Control", "no-store");
+  return r;
+}
+
+}  // namespace
+
+std::optional<std::string> UrlDecode(std::string_view s) {
+  std::string out;
+  out.reserve(s.size());
+  for (size_t i = 0; i < s.size(); ++i) {
+    const char c = s[i];
+    if (c == '+') {
+      out += ' ';
+    } else if (c == '%') {
+      if (i + 2 >= s.size()) return std::nullopt;
+      int v = 0;
+      for (int k = 1; k <= 2; ++k) {
+        const char h = s[i + k];
+        v <<= 4;
+        if (h >= '0' && h <= '9')
+          v |= h - '0';
+        else if (h >= 'a' && h <= 'f')
+          v |= h - 'a' + 10;
+        else if (h >= 'A' && h <= 'F')
+          v |= h - 'A' + 10;
+        else
+          return std::nullopt;
+      }
+      out += static_cast<char>(v);
+      i += 2;
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+std::optional<std::multimap<std::string, std::string>> ParseQuery(std::string_view q) {
+  std::multimap<std::string, std::string> out;
+  while (!q.empty()) {
+    const size_t amp = q.find('&');
+    const std::string_view pair = q.substr(0, amp);
+    q = amp == std::string_view::npos ? std::string_view() : q.substr(amp + 1);
+    if (pair.empty()) continue;
+    const size_t eq = pair.find('=');
+    auto name = UrlDecode(pair.substr(0, eq));
+    auto value = UrlDecode(eq == std::string_view::npos ? "" : pair.substr(eq + 1));
+    if (!name || !value) return std::nullopt;
+    out.emplace(std::move(*name), std::move(*value));
+  }
+  return out;
+}
+
+int HttpApi::StatusFor(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::kInvalidArgument:
+    case ErrorCode::kParseError:
+      return 400;
+    case ErrorCode::kUnauthenticated:
+      return 401;
+    case ErrorCode::kPermissionDenied:
+      return 403;
+    case ErrorCode::kNotFound:
+      return 404;
+    case ErrorCode::kAlreadyExists:
+    case ErrorCode::kFailedPrecondition:
+      return 409;
+    case ErrorCode::kResourceExhausted:
+      return 429;
+    case ErrorCode::kUnavailable:
+      return 503;
+    case ErrorCode::kIoError:
+    case ErrorCode::kNumerical:
+      return 500;
+  }
+  return 500;
+}
+
+HttpReply HttpApi::ErrorReply(const Error& e) {
+  return Json(StatusFor(e.code), {{"error", e.message}, {"field", e.field}});
+}
+
+std::string HttpApi::TelemetryJson(const SessionTelemetry& t, bool with_surface) {
+  const sim::Telemetry& s = t.sim;
+  json j = {{"id", t.id},
+            {"trainee", t.trainee},
+            {"scene", t.scene},
+            {"state", SessionStateName(t.state)},
+            {"time", Finite(s.time)},
+            {"force", {Finite(s.force.x()), Finite(s.force.y()), Finite(s.force.z())}},
+            {"force_n", Finite(s.force.norm())},
+            {"twist_deg", Finite(s.twist * 180.0 / M_PI)},
+            {"torque", Finite(s.torque)},
+            {"depth_mm", Finite(s.depth * 1000.0)},
+            {"contact", s.contact},
+            {"grasping", s.grasping},
+            {"samples", s.samples},
+            {"clock_jumps", s.clock_jumps},
+            {"score", Finite(s.metrics.score)},
+            {"overload_events", s.metrics.overload_events},
+            {"rtt_us", Finite(t.rtt_us)},
+            {"loss", Finite(t.packet_loss)},
+            {"packets", t.packets},
+            {"rate_hz", Finite(t.haptic_rate_hz)}};
+  if (with_surface && t.has_surface) {
+    json positions = json::array();
+    for (const geometry::Vec3& p : t.surface_positions)
+      for (int k = 0; k < 3; ++k) positions.push_back(std::round(Finite(p[k]) * 1e5) / 100.0);
+    j["surface"] = {{"frame", t.surface_frame},
+                    {"indices", t.surface_indices},
+                    {"positions_mm", std::move(positions)}};
+  }
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+HttpApi::HttpApi(Domain& domain, const HttpApiOptions& options)
+    : d_(domain),
+      options_(options),
+      clock_(options.clock ? *options.clock : DefaultClock()),
+      sessions_(clock_, options.session_ttl_s),
+      limiter_(clock_, options.sign_in_failures) {}
+
+// Who calls: the principal, the web session (when by cookie), whether a CSRF check applies.
+struct HttpApi::Caller {
+  db::Principal principal;
+  std::optional<WebSession> web;
+};
+
+HttpReply HttpApi::Handle(const HttpRequest& r) {
+  const size_t q = r.target.find('?');
+  const std::string path = r.target.substr(0, q);
+  auto query = ParseQuery(q == std::string::npos ? std::string_view()
+                                                 : std::string_view(r.target).substr(q + 1));
+  if (!query || path.empty() || path.front() != '/')
+    return ErrorReply(InvalidArgument("target", "a malformed request target"));
+  if (path.rfind("/api/v1/", 0) == 0) return Api(r, path.substr(7), *query);
+  if (path.rfind("/static/", 0) == 0) {
+    const auto asset = FindAsset(path.substr(7));
+    if (!asset || r.method != "GET")
+      return ErrorReply(Error{ErrorCode::kNotFound, "no such file", "path"});
+    HttpReply reply;
+    reply.content_type = asset->type;
+    reply.body.assign(asset->body);
+    reply.headers.emplace_back("Cache-Control", "no-cache");
+    return reply;
+  }
+  return Page(r, path);
+}
+
+HttpReply HttpApi::Page(const HttpRequest& r, const std::string& path) {
+  if (r.method != "GET" && r.method != "HEAD")
+    return ErrorReply(Error{ErrorCode::kNotFound, "no such page", "path"});
+  const auto seg = Segments(path);
+  if (!seg.empty() && seg[0] == "signin" && seg.size() == 1) return Shell("signin");
+  std::string page = seg.empty() ? "" : std::string(seg[0]);
+  // Who is signed in (pages use the cookie only).
+  std::optional<db::Principal> who;
+  if (auto id = CookieValue(r.cookie, kCookie))
+    if (auto web = sessions_.Find(*id)) {
+      auto p = d_.store.Authenticate(web->token);
+      if (p.ok())
+        who = *p;
+      else
+        sessions_.Remove(*id);
+    }
+  if (page.empty()) {
+    if (!who) return Redirect("/signin");
+    switch (who->role) {
+      case db::Role::kTrainee:
+        return Redirect("/mine");
+      case db::Role::kEvaluator:
+        return Redirect("/evaluate");
+      case db::Role::kInstructor:
+      case db::Role::kAdmin:
+        return Redirect("/live");
+    }
+  }
+  Method m{};
+  const std::string role = PageRole(page, m);
+  const bool shape_ok = role.empty()        ? false
+                        : page == "session" ? seg.size() == 2 && ParseId(seg[1]).has_value()
+                                            : seg.size() == 1;
+  if (!shape_ok) return Html(404, "<!doctype html><title>Not found</title><p>No such page.</p>");
+  if (!who) return Redirect("/signin?next=" + page);
+  if (!Permit(*who, m).ok())
+    return Html(403,
+                "<!doctype html><meta charset=utf-8><title>Forbidden</title>"
+                "<link rel=stylesheet href=/static/style.css><main><h1>Forbidden</h1><p>This page "
+                "is for the " +
+                    role + " role. <a href=/>Back</a></p></main>");
+  return Shell(page);
+}
+
+HttpReply HttpApi::SignIn(const HttpRequest& r) {
+  const double wait = limiter_.RetryAfter(r.remote);
+  if (wait > 0) {
+    HttpReply reply =
+        ErrorReply(Error{ErrorCode::kResourceExhausted,
+                         "too many failed sign-ins from this address; try later", ""});
+    reply.headers.emplace_back("Retry-After", std::to_string(static_cast<int>(std::ceil(wait))));
+    return reply;
+  }
+  auto body = Body(r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto token = Field<std::string>(*body, "token", "");
+  if (!token.ok()) return ErrorReply(token.error());
+  if (token->empty() || token->size() > 256) {
+    limiter_.Failed(r.remote);
+    return ErrorReply(Error{ErrorCode::kUnauthenticated, "a token is required", "token"});
+  }
+  auto p = d_.store.Authenticate(*token);
+  if (!p.ok()) {
+    if (p.error().code == ErrorCode::kUnavailable) return ErrorReply(p.error());
+    limiter_.Failed(r.remote);
+    return ErrorReply(Error{ErrorCode::kUnauthenticated, "unknown or revoked token", "token"});
+  }
+  const WebSession web = sessions_.Create(*token);
+  HttpReply reply = Ok({{"user", p->name},
+                        {"role", db::RoleName(p->role)},
+                        {"group", p->group},
+                        {"csrf", web.csrf},
+                        {"expires_in_s", static_cast<int64_t>(sessions_.ttl_s())}});
+  reply.headers.emplace_back(
+      "Set-Cookie", std::string(kCookie) + "=" + web.id + "; Path=/; HttpOnly; SameSite=Strict; " +
+                        "Max-Age=" + std::to_string(static_cast<int64_t>(sessions_.ttl_s())) +
+                        (options_.secure_cookies ? "; Secure" : ""));
+  return reply;
+}
+
+HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
+                       const std::multimap<std::string, std::string>& query) {
+  const auto seg = Segments(path);
+  const bool get = r.method == "GET" || r.method == "HEAD";
+  const bool post = r.method == "POST";
+  if (!get && !post)
+    return ErrorReply(Error{ErrorCode::kInvalidArgument, "method not allowed", "method"});
+  if (seg.size() == 1 && seg[0] == "signin" && post) return SignIn(r);
+
+  // Authentication: a bearer header (scripts), else the cookie (pages). Then CSRF for writes.
+  std::optional<WebSession> web;
+  std::string authorization = r.authorization;
+  if (authorization.empty()) {
+    if (auto id = CookieValue(r.cookie, kCookie)) web = sessions_.Find(*id);
+    if (!web) return ErrorReply(Error{ErrorCode::kUnauthenticated, "sign in first", "session"});
+    authorization = "Bearer " + web->token;
+    if (post && !SameSecret(r.csrf, web->csrf))
+      return ErrorReply(Error{ErrorCode::kPermissionDenied,
+                              "missing or wrong CSRF token (X-CSRF-Token)", "csrf"});
+  }
+  // The method the route needs decides the role; each domain function checks again.
+  auto caller = [&](Method m) { return Authorize(d_.store, authorization, m); };
+  auto fail = [](const Error& e) { return ErrorReply(e); };
+  const auto n = seg.size();
+  auto is = [&](std::initializer_list<std::string_view> parts) {
+    if (parts.size() != n) return false;
+    size_t i = 0;
+    for (std::string_view p : parts) {
+      if (p != "*" && p != seg[i]) return false;
+      ++i;
+    }
+    return true;
+  };
+
+  if (is({"signout"}) && post) {
+    if (web) sessions_.Remove(web->id);
+    HttpReply reply = NoContent();
+    reply.headers.emplace_back(
+        "Set-Cookie", std::string(kCookie) + "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0");
+    return reply;
+  }
+  if (is({"me"}) && get) {
+    auto p = caller(Method::kSessionListScenes);  // every role
+    if (!p.ok()) return fail(p.error());
+    return Ok({{"user", p->name},
+               {"role", db::RoleName(p->role)},
+               {"group", p->group},
+               {"csrf", web ? web->csrf : ""}});
+  }
+  if (is({"scenes"}) && get) {
+    auto p = caller(Method::kSessionListScenes);
+    if (!p.ok()) return fail(p.error());
+    auto listing = ListScenes(d_, *p);
+    if (!listing.ok()) return fail(listing.error());
+    json scenes = json::array();
+    for (const SceneInfo& s : listing->scenes)
+      scenes.push_back({{"name", s.name},
+                        {"description", s.description},
+                        {"model", s.model},
+                        {"task", s.task},
+                        {"error_budget_rms", s.error_budget_rms}});
+    return Ok({{"scenes", scenes}, {"unusable", listing->unusable}});
+  }
+  if (is({"sessions"})) {
+    if (get) {
+      auto p = caller(Method::kSessionList);
+      if (!p.ok()) return fail(p.error());
+      auto list = ListSessions(d_, *p, Param(query, "trainee"), Param(query, "live") == "1");
+      if (!list.ok()) return fail(list.error());
+      json out = json::array();
+      for (const SessionView& v : *list) out.push_back(ViewJson(v));
+      return Ok({{"sessions", out}});
+    }
+    auto p = caller(Method::kSessionCreate);
+    if (!p.ok()) return fail(p.error());
+    auto body = Body(r);
+    if (!body.ok()) return fail(body.error());
+    auto trainee = Field<std::string>(*body, "trainee", "");
+    auto scene = Field<std::string>(*body, "scene", "");
+    if (!trainee.ok()) return fail(trainee.error());
+    if (!scene.ok()) return fail(scene.error());
+    auto created = CreateSession(d_, *p, *trainee, *scene);
+    if (!created.ok()) return fail(created.error());
+    // The station's key is not sent here: the trainee's station joins with its own token.
+    return Json(201, {{"session", RecordJson(created->record)}});
+  }
+  if (n >= 2 && seg[0] == "sessions") {
+    const auto id = ParseId(seg[1]);
+    if (!id) return fail(InvalidArgument("id", "a session id is a positive integer"));
+    if (n == 2 && get) {
+      auto p = caller(Method::kSessionGet);
+      if (!p.ok()) return fail(p.error());
+      auto v = GetSession(d_, *p, *id);
+      if (!v.ok()) return fail(v.error());
+      return Ok(ViewJson(*v));
+    }
+    if (is({"sessions", "*", "stop"}) && post) {
+      auto p = caller(Method::kSessionStop);
+      if (!p.ok()) return fail(p.error());
+      auto body = Body(r);
+      if (!body.ok()) return fail(body.error());
+      auto reason = Field<std::string>(*body, "reason", "stopped from the dashboard");
+      if (!reason.ok()) return fail(reason.error());
+      auto v = StopSession(d_, *p, *id, *reason);
+      if (!v.ok()) return fail(v.error());
+      return Ok(ViewJson(*v));
+    }
+    if (is({"sessions", "*", "surface"}) && get) {
+      auto p = caller(Method::kMonitorWatch);
+      if (!p.ok()) return fail(p.error());
+      auto surface = SessionSurface(d_, *p, *id);
+      if (!surface.ok()) return fail(surface.error());
+      json positions = json::array();
+      for (const geometry::Vec3& v : surface->positions)
+        for (int k = 0; k < 3; ++k) positions.push_back(std::round(v[k] * 1e5) / 100.0);
+      HttpReply reply =
+          Ok({{"positions_mm", std::move(positions)}, {"triangles", surface->triangles}});
+      return reply;
+    }
+    if (is({"sessions", "*", "events"}) && get) {
+      auto p = caller(Method::kMonitorWatch);
+      if (!p.ok()) return fail(p.error());
+      auto hz = CheckWatch(d_, *p, *id, 10);
+      if (!hz.ok()) return fail(hz.error());
+      HttpReply reply;
+      reply.kind = HttpReply::Kind::kEvents;
+      reply.watch = {*id, *hz, true};
+      reply.still_allowed = [this, authorization] {
+        return Authorize(d_.store, authorization, Method::kMonitorWatch).ok();
+      };
+      return reply;
+    }
+  }
+  if (is({"live", "events"}) && get) {
+    auto p = caller(Method::kMonitorWatch);
+    if (!p.ok()) return fail(p.error());
+    auto hz = CheckWatch(d_, *p, 0, 4);
+    if (!hz.ok()) return fail(hz.error());
+    HttpReply reply;
+    reply.kind = HttpReply::Kind::kEvents;
+    reply.watch = {0, *hz, false};
+    reply.still_allowed = [this, authorization] {
+      return Authorize(d_.store, authorization, Method::kMonitorWatch).ok();
+    };
+    return reply;
+  }
+  if (is({"evaluations", "mine"}) && get) {
+    auto p = caller(Method::kEvaluationSubmit);
+    if (!p.ok()) return fail(p.error());
+    auto queue = ListOwnEvaluations(d_, *p, 200);
+    if (!queue.ok()) return fail(queue.error());
+    json sessions = json::array(), submitted = json::array();
+    for (const db::SessionRecord& s : queue->sessions) sessions.push_back(RecordJson(s));
+    for (const db::SubmittedRow& s : queue->submitted)
+      submitted.push_back({{"id", s.id},
+                           {"subject_kind", db::SubjectKindName(s.subject_kind)},
+                           {"subject", s.subject},
+                           {"moment_min", s.moment_min ? json(*s.moment_min) : json(nullptr)},
+                           {"submitted", Iso(s.submitted_us)},
+                           {"scores", s.scores}});
+    return Ok({{"sessions", sessions}, {"models", queue->models}, {"submitted", submitted}});
+  }
+  if (is({"evaluations"}) && post) {
+    auto p = caller(Method::kEvaluationSubmit);
+    if (!p.ok()) return fail(p.error());
+    auto body = Body(r);
+    if (!body.ok()) return fail(body.error());
+    SubmissionRequest in;
+    auto key = Field<std::string>(*body, "idempotency_key", "");
+    auto kind = Field<std::string>(*body, "subject_kind", "");
+    auto subject = Field<std::string>(*body, "subject", "");
+    auto evaluator = Field<std::string>(*body, "evaluator", "");
+    auto group = Field<std::string>(*body, "evaluator_group", "");
+    auto scores = Field<std::vector<double>>(*body, "scores", {});
+    auto moment = Field<double>(*body, "moment_min", -1);
+    for (const Error* e :
+         {Err(key), Err(kind), Err(subject), Err(evaluator), Err(group), Err(scores), Err(moment)})
+      if (e) return fail(*e);
+    in.idempotency_key = *key;
+    in.subject_kind = *kind;
+    in.subject = *subject;
+    in.evaluator = *evaluator;
+    in.evaluator_group = *group;
+    in.scores = *scores;
+    if (body->contains("moment_min") && !(*body)["moment_min"].is_null()) in.moment_min = *moment;
+    auto submission = PrepareSubmission(*p, in);
+    if (!submission.ok()) return fail(submission.error());
+    HttpReply reply;
+    reply.kind = HttpReply::Kind::kDeferred;
+    auto shared = std::make_shared<db::Submission>(std::move(submission).value());
+    reply.deferred = [this, shared](std::function<void(HttpReply)> done) {
+      // Answers from the store's writer thread once the group commit is on disk.
+      d_.store.SubmitEvaluationAsync(*shared, [done](Expected<db::SubmitResult> res) {
+        if (!res.ok()) return done(ErrorReply(res.error()));
+        done(Json(res->duplicate ? 200 : 201, {{"submission_id", res->submission_id},
+                                               {"submitted", Iso(res->submitted_us)},
+                                               {"duplicate", res->duplicate}}));
+      });
+    };
+    return reply;
+  }
+  if (is({"reports"}) && get) {
+    auto p = caller(Method::kEvaluationReport);
+    if (!p.ok()) return fail(p.error());
+    std::vector<std::string> subjects;
+    for (auto [it, end] = query.equal_range("subject"); it != end; ++it)
+      subjects.push_back(it->second);
+    auto report = Report(d_, *p, Param(query, "kind"), subjects, Param(query, "weights"));
+    if (!report.ok()) return fail(report.error());
+    HttpReply reply;
+    reply.body = *report;
+    return reply;
+  }
+  if (is({"training-effect"}) && get) {
+    auto p = caller(Method::kEvaluationTrainingEffect);
+    if (!p.ok()) return fail(p.error());
+    auto cells = TrainingEffect(d_, *p, Param(query, "weights"));
+    if (!cells.ok()) return fail(cells.error());
+    HttpReply reply;
+    reply.body = *cells;
+    return reply;
+  }
+  if (is({"weight-sets"})) {
+    if (get) {
+      auto p = caller(Method::kAdminListWeightSets);
+      if (!p.ok()) return fail(p.error());
+      auto names = ListWeightSets(d_, *p);
+      if (!names.ok()) return fail(names.error());
+      auto builtin = GetWeightSet(d_, *p, "");
+      if (!builtin.ok()) return fail(builtin.error());
+      json index_names = json::array(), groups = json::array();
+      for (const char* name : scoring::kIndexNames) index_names.push_back(name);
+      for (int g = 0; g < scoring::kGroupCount; ++g)
+        groups.push_back(scoring::GroupName(static_cast<scoring::EvaluatorGroup>(g)));
+      return Ok({{"names", *names},
+                 {"default", json::parse(*builtin)},
+                 {"index_names", index_names},
+                 {"groups", groups}});
+    }
+    auto p = caller(Method::kAdminPutWeightSet);
+    if (!p.ok()) return fail(p.error());
+    auto body = Body(r);  // checks the type and that it is an object
+    if (!body.ok()) return fail(body.error());
+    if (Status s = PutWeightSet(d_, *p, r.body); !s.ok()) return fail(s.error());
+    return NoContent();
+  }
+  if (is({"weight-sets", "*"}) && get) {
+    auto p = caller(Method::kAdminListWeightSets);
+    if (!p.ok()) return fail(p.error());
+    auto w = GetWeightSet(d_, *p, std::string(seg[1]));
+    if (!w.ok()) return fail(w.error());
+    HttpReply reply;
+    reply.body = *w;
+    return reply;
+  }
+  if (is({"users"})) {
+    if (get) {
+      auto p = caller(Method::kAdminListUsers);
+      if (!p.ok()) return fail(p.error());
+      auto users = ListUsers(d_, *p);
+      if (!users.ok()) return fail(users.error());
+      json out = json::array();
+      for (const db::UserRecord& u : *users) out.push_back(UserJson(u));
+      return Ok({{"users", out}});
+    }
+    auto p = caller(Method::kAdminCreateUser);
+    if (!p.ok()) return fail(p.error());
+    auto body = Body(r);
+    if (!body.ok()) return fail(body.error());
+    auto name = Field<std::string>(*body, "name", "");
+    auto role = Field<std::string>(*body, "role", "");
+    auto group = Field<std::string>(*body, "group", "");
+    if (!name.ok()) return fail(name.error());
+    if (!role.ok()) return fail(role.error());
+    if (!group.ok()) return fail(group.error());
+    auto u = CreateUser(d_, *p, *name, db::ParseRole(*role), *group);
+    if (!u.ok()) return fail(u.error());
+    return Json(201, UserJson(*u));
+  }
+  if (n == 3 && seg[0] == "users" && post) {
+    auto user = UrlDecode(seg[1]);
+    if (!user) return fail(InvalidArgument("user", "a malformed user name"));
+    auto body = Body(r);
+    if (!body.ok()) return fail(body.error());
+    if (seg[2] == "token") {
+      auto p = caller(Method::kAdminIssueToken);
+      if (!p.ok()) return fail(p.error());
+      auto label = Field<std::string>(*body, "label", "dashboard");
+      if (!label.ok()) return fail(label.error());
+      auto token = IssueToken(d_, *p, *user, *label);
+      if (!token.ok()) return fail(token.error());
+      HttpReply reply = Json(201, {{"user", *user}, {"token", *token}});
+      reply.headers.emplace_back("Cache-Control", "no-store");
+      return reply;
+    }
+    if (seg[2] == "revoke") {
+      auto p = caller(Method::kAdminRevokeTokens);
+      if (!p.ok()) return fail(p.error());
+      if (Status s = RevokeTokens(d_, *p, *user); !s.ok()) return fail(s.error());
+      return NoContent();
+    }
+    if (seg[2] == "disabled") {
+      auto p = caller(Method::kAdminSetDisabled);
+      if (!p.ok()) return fail(p.error());
+      auto disabled = Field<bool>(*body, "disabled", true);
+      if (!disabled.ok()) return fail(disabled.error());
+      if (Status s = SetDisabled(d_, *p, *user, *disabled); !s.ok()) return fail(s.error());
+      return NoContent();
+    }
+  }
+  if (is({"export"}) && get) {
+    auto p = caller(Method::kAdminExport);
+    if (!p.ok()) return fail(p.error());
+    auto number = [&](const char* name) -> std::optional<int64_t> {
+      const std::string v = Param(query, name);
+      if (v.empty()) return 0;
+      const auto id = ParseId(v);
+      if (!id || *id > static_cast<uint64_t>(INT64_MAX)) return std::nullopt;
+      return static_cast<int64_t>(*id);
+    };
+    // from/to: ISO times (2026-11-22T10:00:00Z) or microseconds since the epoch.
+    auto time = [&](const char* name) -> std::optional<int64_t> {
+      const std::string v = Param(query, name);
+      if (v.empty()) return 0;
+      if (auto iso = ParseIsoUtc(v, name); iso.ok()) return *iso;
+      return number(name);
+    };
+    const auto from = time("from"), to = time("to"), session = number("session");
+    if (!from) return fail(InvalidArgument("from", "an ISO time or microseconds"));
+    if (!to) return fail(InvalidArgument("to", "an ISO time or microseconds"));
+    if (!session) return fail(InvalidArgument("session", "a session id"));
+    auto plan = PlanExport(*p, Param(query, "format"), *from, *to, Param(query, "trainee"),
+                           static_cast<uint64_t>(*session));
+    if (!plan.ok()) return fail(plan.error());
+    HttpReply reply;
+    reply.kind = HttpReply::Kind::kExport;
+    reply.export_plan = *plan;
+    const bool csv = plan->format == db::ExportFormat::kCsv;
+    reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
+    reply.filename = plan->format == db::ExportFormat::kCsv    ? "vsurg-evaluations.csv"
+                     : plan->format == db::ExportFormat::kXapi ? "vsurg-evaluations-xapi.jsonl"
+                                                               : "vsurg-evaluations.jsonl";
+    return reply;
+  }
+  if (is({"backup"}) && post) {
+    auto p = caller(Method::kAdminBackup);
+    if (!p.ok()) return fail(p.error());
+    auto body = Body(r);
+    if (!body.ok()) return fail(body.error());
+    auto name = Field<std::string>(*body, "name", "");
+    if (!name.ok()) return fail(name.error());
+    if (Status s = Backup(d_, *p, *name); !s.ok()) return fail(s.error());
+    return Json(201, {{"backup", *name}});
+  }
+  return fail(
+      Error{ErrorCode::kNotFound, "no such API route: " + r.method + " /api/v1" + path, "path"});
+}
+
+}  // namespace vsurg::server::http

@@ -1,0 +1,114 @@
+// The dashboard's HTTP API and pages, without a socket: a request in, a reply out. The transport
+// (server/http/http_server.cpp, Boost.Beast) parses and writes; this file decides. Every route
+// calls the domain functions of server/domain/api.h — the same rules as the gRPC services — and
+// translates JSON and status codes once (ErrorCode → HTTP status in StatusFor).
+//
+//   /signin, /live, /session/ID, /evaluate, /reports, /admin, /mine   pages (role-checked; an
+//                                                                    anonymous visitor is sent to
+//                                                                    /signin, a forbidden one gets
+//                                                                    403)
+//   /static/…                                                        the page's script and style
+//   /api/v1/…                                                        JSON (docs/ARCHITECTURE.md);
+//                                                                    401 without a session, 403
+//                                                                    when the role may not
+//
+// Authentication: the web session cookie (web_auth.h) or an `Authorization: Bearer` header (API
+// scripts). With the cookie, every POST needs the session's CSRF token in X-CSRF-Token, and a
+// JSON body needs Content-Type application/json (a cross-site form cannot send either).
+//
+// Thread safety: Handle may be called from any thread (the server calls it from its I/O thread).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/core/clock.h"
+#include "server/domain/api.h"
+#include "server/http/web_auth.h"
+
+namespace vsurg::server::http {
+
+struct HttpRequest {
+  std::string method;  // GET, POST, …
+  std::string target;  // as sent: path and query
+  std::string cookie;  // the Cookie header
+  std::string authorization;
+  std::string csrf;  // X-CSRF-Token
+  std::string content_type;
+  std::string body;
+  std::string remote;  // the client's address (rate limits)
+};
+
+struct HttpReply {
+  int status = 200;
+  std::string content_type = "application/json";
+  std::string body;
+  std::vector<std::pair<std::string, std::string>> headers;  // beyond the type and length
+
+  enum class Kind {
+    kPlain,     // status, headers, body
+    kEvents,    // a server-sent event stream of telemetry (watch below)
+    kExport,    // a chunked download (export below)
+    kDeferred,  // the reply comes later from `deferred`
+  };
+  Kind kind = Kind::kPlain;
+  struct Watch {
+    uint64_t session = 0;  // 0: every live session
+    double rate_hz = 4;
+    bool surface = false;  // the deformed surface with each frame that has one
+  } watch;
+  ExportPlan export_plan;
+  std::string filename;  // kExport: the download's name
+  // kDeferred: starts the work; calls `done` exactly once, from any thread.
+  std::function<void(std::function<void(HttpReply)> done)> deferred;
+  // kEvents: is the caller still allowed to watch (their token not revoked)? Called now and then.
+  std::function<bool()> still_allowed;
+};
+
+struct HttpApiOptions {
+  double session_ttl_s = 8 * 3600;  // a web session's lifetime
+  bool secure_cookies = false;      // TLS: the cookie gets `Secure`
+  int sign_in_failures = 5;         // per address per minute
+  const Clock* clock = nullptr;     // null: the steady clock
+};
+
+class HttpApi {
+ public:
+  HttpApi(Domain& domain, const HttpApiOptions& options);
+  HttpReply Handle(const HttpRequest& request);
+
+  // One telemetry frame as the event streams send it (JSON object; the surface only when asked
+  // and present: moved vertex indices and positions in millimetres).
+  static std::string TelemetryJson(const SessionTelemetry& t, bool with_surface);
+  // An error reply: {"error": message, "field": field} with the status for its code.
+  static HttpReply ErrorReply(const Error& e);
+  static int StatusFor(ErrorCode code);
+
+  Domain& domain() { return d_; }
+
+ private:
+  struct Caller;
+  HttpReply Api(const HttpRequest& r, const std::string& path,
+                const std::multimap<std::string, std::string>& query);
+  HttpReply Page(const HttpRequest& r, const std::string& path);
+  HttpReply SignIn(const HttpRequest& r);
+
+  Domain& d_;
+  HttpApiOptions options_;
+  const Clock& clock_;
+  WebSessions sessions_;
+  SignInLimiter limiter_;
+};
+
+// Percent-decoding of a query component ('+' is a space); nullopt when malformed.
+std::optional<std::string> UrlDecode(std::string_view s);
+// The query's parameters in order (a repeated name appears once per value); nullopt when
+// malformed.
+std::optional<std::multimap<std::string, std::string>> ParseQuery(std::string_view query);
+
+}  // namespace vsurg::server::http

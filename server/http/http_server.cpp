@@ -1,0 +1,611 @@
+#include "server/http/http_server.h"
+
+#include <atomic>
+#include <chrono>
+#include <future>
+#include <list>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include <boost/asio.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+
+#include "server/domain/auth.h"
+#include "server/domain/scene_catalog.h"
+#include "server/http/http_api.h"
+#include "server/session/session_manager.h"
+
+namespace vsurg::server {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace bhttp = beast::http;
+using tcp = asio::ip::tcp;
+using http::HttpApi;
+using http::HttpReply;
+using http::HttpRequest;
+
+constexpr const char* kSecurityHeaders =
+    "Content-Security-Policy: default-src 'self'; img-src 'self' data:; style-src 'self'; "
+    "script-src 'self'; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; "
+    "form-action 'self'\r\n"
+    "X-Content-Type-Options: nosniff\r\n"
+    "X-Frame-Options: DENY\r\n"
+    "Referrer-Policy: no-referrer\r\n";
+
+// What outlives the server object while handlers are still queued: the I/O context (last, so it
+// is destroyed first and the connections its handlers hold find the counters still there).
+struct Shared {
+  HttpServerOptions options;
+  std::mutex mutex;  // per_address, open
+  std::map<std::string, int> per_address;
+  std::atomic<uint64_t> requests{0}, refused{0}, bad{0}, events{0};
+  std::atomic<int> open{0}, streams{0}, exports{0};
+  std::atomic<bool> stopping{false};
+  asio::io_context io;
+};
+
+class ConnectionBase {
+ public:
+  virtual ~ConnectionBase() = default;
+  virtual void Close() = 0;  // I/O thread
+};
+
+struct ExportThread {
+  std::thread thread;
+  std::shared_ptr<std::atomic<bool>> done;
+};
+
+struct Context {  // what a connection needs from the server
+  Shared* shared;
+  std::weak_ptr<Shared> owner;  // for callbacks that may outlive the server (a store commit)
+  HttpApi* api;
+  db::Store* store;
+  SessionManager* sessions;
+  std::mutex* exports_mutex;
+  std::list<ExportThread>* export_threads;
+  std::list<std::weak_ptr<ConnectionBase>>* connections;  // I/O thread only
+};
+
+template <class Stream>
+class Connection final : public ConnectionBase,
+                         public std::enable_shared_from_this<Connection<Stream>> {
+ public:
+  template <class... Args>
+  Connection(Context ctx, std::string remote, Args&&... args)
+      : ctx_(ctx), remote_(std::move(remote)), stream_(std::forward<Args>(args)...) {}
+
+  ~Connection() override {
+    if (subscription_) {  // never the sampler thread: it holds only a weak reference
+      ctx_.sessions->Unsubscribe(subscription_);
+      ctx_.shared->streams.fetch_sub(1);
+    }
+    std::lock_guard<std::mutex> lock(ctx_.shared->mutex);
+    if (--ctx_.shared->per_address[remote_] <= 0) ctx_.shared->per_address.erase(remote_);
+    ctx_.shared->open.fetch_sub(1);
+  }
+
+  void Begin() {
+    if constexpr (std::is_same_v<Stream, beast::ssl_stream<beast::tcp_stream>>) {
+      Lowest().expires_after(Seconds(ctx_.shared->options.request_timeout_s));
+      stream_.async_handshake(asio::ssl::stream_base::server,
+                              [self = this->shared_from_this()](beast::error_code ec) {
+                                if (ec) return self->Close();
+                                self->Read();
+                              });
+    } else {
+      Read();
+    }
+  }
+
+  void Close() override {
+    if (closed_) return;
+    closed_ = true;
+    if (subscription_) {
+      ctx_.sessions->Unsubscribe(subscription_);
+      subscription_ = 0;
+      ctx_.shared->streams.fetch_sub(1);
+    }
+    beast::error_code ec;
+    Lowest().socket().shutdown(tcp::socket::shutdown_both, ec);
+    Lowest().close();
+    keep_.reset();  // an event stream's own reference: the connection may go now
+  }
+
+ private:
+  static std::chrono::steady_clock::duration Seconds(double s) {
+    return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(s));
+  }
+  beast::tcp_stream& Lowest() { return beast::get_lowest_layer(stream_); }
+
+  void Read() {
+    if (closed_) return;
+    parser_.emplace();
+    parser_->header_limit(static_cast<uint32_t>(ctx_.shared->options.max_header_bytes));
+    parser_->body_limit(ctx_.shared->options.max_body_bytes);
+    // The whole request must arrive within the deadline, however slowly it trickles.
+    Lowest().expires_after(Seconds(served_ == 0 ? ctx_.shared->options.request_timeout_s
+                                                : ctx_.shared->options.idle_timeout_s));
+    bhttp::async_read(
+        stream_, buffer_, *parser_,
+        [self = this->shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
+  }
+
+  void OnRead(beast::error_code ec) {
+    if (closed_) return;
+    if (ec == bhttp::error::end_of_stream || ec == asio::error::operation_aborted) return Close();
+    if (ec == beast::error::timeout) {
+      // Idle keep-alive connections close quietly; a request that never finished is counted.
+      if (parser_->got_some()) ctx_.shared->bad.fetch_add(1);
+      return Close();
+    }
+    if (ec) {
+      ctx_.shared->bad.fetch_add(1);
+      if (ec == bhttp::error::header_limit) return Refuse(431, "the request's header is too large");
+      if (ec == bhttp::error::body_limit) return Refuse(413, "the request's body is too large");
+      if (Lowest().socket().is_open() && parser_->got_some())
+        return Refuse(400, "a malformed HTTP request");
+      return Close();
+    }
+    ++served_;
+    ctx_.shared->requests.fetch_add(1);
+    auto& req = parser_->get();
+    keep_alive_ = req.keep_alive();
+    if (req.method() != bhttp::verb::get && req.method() != bhttp::verb::post)
+      return Refuse(405, "only GET and POST");
+    HttpRequest r;
+    r.method = std::string(req.method_string());
+    r.target = std::string(req.target());
+    r.cookie = std::string(req[bhttp::field::cookie]);
+    r.authorization = std::string(req[bhttp::field::authorization]);
+    r.csrf = std::string(req["X-CSRF-Token"]);
+    r.content_type = std::string(req[bhttp::field::content_type]);
+    r.body = std::move(req.body());
+    r.remote = remote_;
+    HttpReply reply = ctx_.api->Handle(r);
+    switch (reply.kind) {
+      case HttpReply::Kind::kPlain:
+        return Write(std::move(reply));
+      case HttpReply::Kind::kDeferred: {
+        std::weak_ptr<Connection> weak = this->shared_from_this();
+        reply.deferred([weak, owner = ctx_.owner](HttpReply done) {
+          const auto shared = owner.lock();  // the server may have stopped meanwhile
+          if (!shared) return;
+          asio::post(shared->io, [weak, done = std::move(done)]() mutable {
+            if (auto self = weak.lock()) self->Write(std::move(done));
+          });
+        });
+        return;
+      }
+      case HttpReply::Kind::kEvents:
+        return StartEvents(std::move(reply));
+      case HttpReply::Kind::kExport:
+        return StartExport(std::move(reply));
+    }
+  }
+
+  // A status with a one-line JSON error, then the connection closes (the request was unusable).
+  void Refuse(int status, const std::string& why) {
+    keep_alive_ = false;
+    HttpReply r = HttpApi::ErrorReply(Error{ErrorCode::kInvalidArgument, why, "request"});
+    r.status = status;
+    Write(std::move(r));
+  }
+
+  void Write(HttpReply reply) {
+    if (closed_) return;
+    auto res = std::make_shared<bhttp::response<bhttp::string_body>>(
+        static_cast<bhttp::status>(reply.status), 11);
+    res->set(bhttp::field::server, "vsurg");
+    if (!reply.content_type.empty()) res->set(bhttp::field::content_type, reply.content_type);
+    for (auto& [name, value] : reply.headers) res->insert(name, value);
+    res->set("Content-Security-Policy",
+             "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; "
+             "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'");
+    res->set("X-Content-Type-Options", "nosniff");
+    res->set("X-Frame-Options", "DENY");
+    res->set("Referrer-Policy", "no-referrer");
+    if (reply.status == 401 || reply.status == 403 || reply.status >= 500 ||
+        reply.content_type.rfind("application/json", 0) == 0)
+      res->set(bhttp::field::cache_control, "no-store");
+    res->body() = std::move(reply.body);
+    res->keep_alive(keep_alive_);
+    res->prepare_payload();
+    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
+    bhttp::async_write(stream_, *res,
+                       [self = this->shared_from_this(), res](beast::error_code ec, size_t) {
+                         if (ec || !self->keep_alive_) return self->Close();
+                         self->Read();
+                       });
+  }
+
+  std::string StreamHeader(const std::string& type, const std::string& extra) {
+    return "HTTP/1.1 200 OK\r\nServer: vsurg\r\nContent-Type: " + type +
+           "\r\nCache-Control: no-store\r\nConnection: close\r\n" + kSecurityHeaders + extra +
+           "\r\n";
+  }
+
+  // --- server-sent events: latest frame wins, one write in flight ---
+
+  void StartEvents(HttpReply reply) {
+    keep_alive_ = false;
+    still_allowed_ = std::move(reply.still_allowed);
+    last_check_ = std::chrono::steady_clock::now();
+    ctx_.shared->streams.fetch_add(1);
+    // The stream lives until Close (client gone, write failed, session ended, server stopping);
+    // a read that can only end in an error tells when the client hangs up between frames.
+    keep_ = this->shared_from_this();
+    Lowest().socket().async_read_some(
+        asio::buffer(hangup_), [self = keep_](beast::error_code ec, size_t) {
+          if (ec) self->Close();  // a client sends nothing on an event stream; data is ignored
+        });
+    std::weak_ptr<Connection> weak = this->shared_from_this();
+    asio::io_context* io = &ctx_.shared->io;
+    const HttpReply::Watch watch = reply.watch;
+    auto last = std::make_shared<std::chrono::steady_clock::time_point>();
+    subscription_ = ctx_.sessions->Subscribe(
+        watch.session,
+        [weak, io, watch, last](const std::vector<SessionTelemetry>& list, bool ended) {
+          // The sessions' sampler thread: format, hand over, never wait.
+          std::string text;
+          if (ended) {
+            text = "event: ended\ndata: {}\n\n";
+          } else {
+            const auto now = std::chrono::steady_clock::now();
+            if (std::chrono::duration<double>(now - *last).count() < 0.9 / watch.rate_hz) return;
+            *last = now;
+            if (watch.session != 0 && list.empty()) return;
+            text = "data: ";
+            if (watch.session == 0) text += "[";
+            for (size_t i = 0; i < list.size(); ++i) {
+              if (i) text += ",";
+              text += HttpApi::TelemetryJson(list[i], watch.surface);
+            }
+            if (watch.session == 0) text += "]";
+            text += "\n\n";
+          }
+          asio::post(*io, [weak, text = std::move(text), ended]() mutable {
+            if (auto self = weak.lock()) self->Push(std::move(text), ended);
+          });
+        });
+    WriteRaw(std::make_shared<std::string>(
+        StreamHeader("text/event-stream", "X-Accel-Buffering: no\r\n") + "retry: 2000\n\n"));
+  }
+
+  void Push(std::string text, bool ended) {
+    if (closed_) return;
+    if (ended) ending_ = true;
+    if (writing_) {
+      pending_ = std::move(text);  // a slow reader gets the newest frame, never a backlog
+      return;
+    }
+    WriteRaw(std::make_shared<std::string>(std::move(text)));
+  }
+
+  void WriteRaw(std::shared_ptr<std::string> text) {
+    writing_ = true;
+    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
+    asio::async_write(stream_, asio::buffer(*text),
+                      [self = this->shared_from_this(), text](beast::error_code ec, size_t) {
+                        self->OnEventWritten(ec);
+                      });
+  }
+
+  void OnEventWritten(beast::error_code ec) {
+    writing_ = false;
+    if (ec || closed_) return Close();
+    ctx_.shared->events.fetch_add(1);
+    const auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_check_).count() > 5) {
+      last_check_ = now;  // a revoked token or a disabled account ends the stream
+      if (still_allowed_ && !still_allowed_()) return Close();
+    }
+    if (!pending_.empty()) {
+      auto next = std::make_shared<std::string>(std::move(pending_));
+      pending_.clear();
+      return WriteRaw(std::move(next));
+    }
+    if (ending_) return Close();
+    Lowest().expires_never();  // waiting for the next frame is not the client's fault
+  }
+
+  // --- exports: a thread runs the store's export; each chunk is written before the next ---
+
+  void StartExport(HttpReply reply) {
+    keep_alive_ = false;
+    if (ctx_.shared->exports.fetch_add(1) >= ctx_.shared->options.max_exports) {
+      ctx_.shared->exports.fetch_sub(1);
+      HttpReply busy = HttpApi::ErrorReply(
+          Error{ErrorCode::kUnavailable, "too many exports at once; try again shortly", ""});
+      busy.headers.emplace_back("Retry-After", "5");
+      return Write(std::move(busy));
+    }
+    ctx_.shared->streams.fetch_add(1);
+    writing_ = true;
+    auto header = std::make_shared<std::string>(
+        StreamHeader(reply.content_type,
+                     "Transfer-Encoding: chunked\r\nContent-Disposition: attachment; "
+                     "filename=\"" +
+                         reply.filename + "\"\r\n"));
+    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
+    auto self = this->shared_from_this();
+    asio::async_write(stream_, asio::buffer(*header),
+                      [self, header, plan = reply.export_plan](beast::error_code ec, size_t) {
+                        if (ec || self->closed_) {
+                          self->ctx_.shared->exports.fetch_sub(1);
+                          self->ctx_.shared->streams.fetch_sub(1);
+                          return self->Close();
+                        }
+                        self->RunExport(plan);
+                      });
+  }
+
+  void RunExport(const ExportPlan& plan) {
+    std::lock_guard<std::mutex> lock(*ctx_.exports_mutex);
+    auto& threads = *ctx_.export_threads;
+    for (auto it = threads.begin(); it != threads.end();) {  // reap finished ones
+      if (it->done->load()) {
+        it->thread.join();
+        it = threads.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    auto done = std::make_shared<std::atomic<bool>>(false);
+    auto self = this->shared_from_this();
+    threads.push_back(
+        {std::thread([self, plan, done] {
+           const Status s =
+               self->ctx_.store->Export(plan.filter, plan.format, [&](std::string_view chunk) {
+                 if (chunk.empty()) return true;
+                 char size[20];
+                 std::snprintf(size, sizeof size, "%zx\r\n", chunk.size());
+                 return self->WriteBlocking(std::string(size) + std::string(chunk) + "\r\n");
+               });
+           // The end of a chunked body only after a complete export: a failed
+           // one ends without it, so the client sees an incomplete download.
+           if (s.ok()) self->WriteBlocking("0\r\n\r\n");
+           asio::post(self->ctx_.shared->io, [self] { self->Close(); });
+           self->ctx_.shared->exports.fetch_sub(1);
+           self->ctx_.shared->streams.fetch_sub(1);
+           done->store(true);
+         }),
+         done});
+  }
+
+  // Export thread: writes one chunk through the I/O thread and waits until it is on the wire
+  // (bounded memory: one chunk in flight). False when the client went away or the server stops.
+  bool WriteBlocking(std::string bytes) {
+    auto text = std::make_shared<std::string>(std::move(bytes));
+    auto written = std::make_shared<std::promise<bool>>();
+    auto future = written->get_future();
+    auto self = this->shared_from_this();
+    asio::post(ctx_.shared->io, [self, text, written] {
+      if (self->closed_) return written->set_value(false);
+      self->Lowest().expires_after(Seconds(self->ctx_.shared->options.write_timeout_s));
+      asio::async_write(self->stream_, asio::buffer(*text),
+                        [text, written](beast::error_code ec, size_t) { written->set_value(!ec); });
+    });
+    while (future.wait_for(std::chrono::milliseconds(100)) != std::future_status::ready)
+      if (ctx_.shared->stopping.load()) return false;
+    return future.get();
+  }
+
+  Context ctx_;
+  std::string remote_;
+  Stream stream_;
+  beast::flat_buffer buffer_;
+  std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
+  bool keep_alive_ = true;
+  bool closed_ = false;
+  uint64_t served_ = 0;
+  // Event streams (I/O thread).
+  uint64_t subscription_ = 0;
+  bool writing_ = false, ending_ = false;
+  std::string pending_;
+  std::function<bool()> still_allowed_;
+  std::shared_ptr<Connection> keep_;  // an event stream keeps itself alive until Close
+  char hangup_[64];
+  std::chrono::steady_clock::time_point last_check_{};
+};
+
+}  // namespace
+
+struct HttpServer::Impl {
+  HttpServerOptions options;
+  db::Store& store;
+  SessionManager& sessions;
+  SceneCatalog scenes;
+  Domain domain;
+  std::unique_ptr<HttpApi> api;
+  std::shared_ptr<Shared> shared = std::make_shared<Shared>();
+  std::optional<asio::ssl::context> ssl;
+  std::optional<tcp::acceptor> acceptor;
+  std::list<std::weak_ptr<ConnectionBase>> connections;  // I/O thread only
+  std::mutex exports_mutex;
+  std::list<ExportThread> export_threads;
+  std::thread thread;
+  int port = 0;
+  std::once_flag shutdown_once;
+
+  Impl(db::Store& s, SessionManager& m, const HttpServerOptions& o)
+      : options(o), store(s), sessions(m), domain{s, m, scenes, o.backup_dir} {}
+
+  Context MakeContext() {
+    return Context{shared.get(), shared,         api.get(),       &store,
+                   &sessions,    &exports_mutex, &export_threads, &connections};
+  }
+
+  void Accept() {
+    acceptor->async_accept(shared->io, [this](beast::error_code ec, tcp::socket socket) {
+      if (ec == asio::error::operation_aborted || !acceptor->is_open()) return;
+      if (!ec) Admit(std::move(socket));
+      Accept();
+    });
+  }
+
+  void Admit(tcp::socket socket) {
+    beast::error_code ec;
+    const auto remote = socket.remote_endpoint(ec);
+    if (ec) return;
+    const std::string address = remote.address().to_string();
+    {
+      std::lock_guard<std::mutex> lock(shared->mutex);
+      if (shared->open.load() >= options.max_connections ||
+          shared->per_address[address] >= options.max_connections_per_address) {
+        shared->refused.fetch_add(1);
+        // Best effort, never blocking the I/O thread: a 503 if the socket takes it now.
+        static constexpr char kBusy[] =
+            "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\n"
+            "Retry-After: 5\r\nConnection: close\r\nContent-Length: 51\r\n\r\n"
+            "{\"error\":\"too many connections; try again shortly\"}";
+        socket.non_blocking(true, ec);
+        socket.write_some(asio::buffer(kBusy, sizeof kBusy - 1), ec);
+        socket.close(ec);
+        if (shared->per_address[address] == 0) shared->per_address.erase(address);
+        return;
+      }
+      ++shared->per_address[address];
+      shared->open.fetch_add(1);
+    }
+    socket.set_option(tcp::no_delay(true), ec);
+    std::shared_ptr<ConnectionBase> c;
+    if (ssl) {
+      auto conn = std::make_shared<Connection<beast::ssl_stream<beast::tcp_stream>>>(
+          MakeContext(), address, std::move(socket), *ssl);
+      conn->Begin();
+      c = conn;
+    } else {
+      auto conn = std::make_shared<Connection<beast::tcp_stream>>(MakeContext(), address,
+                                                                  std::move(socket));
+      conn->Begin();
+      c = conn;
+    }
+    connections.remove_if([](const std::weak_ptr<ConnectionBase>& w) { return w.expired(); });
+    connections.push_back(c);
+  }
+};
+
+HttpServer::HttpServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+HttpServer::~HttpServer() {
+  Shutdown();
+}
+int HttpServer::port() const {
+  return impl_->port;
+}
+bool HttpServer::tls() const {
+  return impl_->ssl.has_value();
+}
+
+HttpCounters HttpServer::counters() const {
+  const Shared& s = *impl_->shared;
+  HttpCounters c;
+  c.requests = s.requests.load();
+  c.refused_connections = s.refused.load();
+  c.bad_requests = s.bad.load();
+  c.events_sent = s.events.load();
+  c.open_connections = s.open.load();
+  c.open_streams = s.streams.load();
+  return c;
+}
+
+Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, SessionManager& sessions,
+                                                        const HttpServerOptions& options) {
+  auto impl = std::make_unique<Impl>(store, sessions, options);
+  impl->shared->options = options;
+  if (options.tls_cert_file.empty() != options.tls_key_file.empty())
+    return InvalidArgument("tls", "a certificate and its key are both required");
+  if (!options.tls_cert_file.empty()) {
+    impl->ssl.emplace(asio::ssl::context::tls_server);
+    beast::error_code ec;
+    impl->ssl->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::no_sslv2 |
+                               asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 |
+                               asio::ssl::context::no_tlsv1_1,
+                           ec);
+    impl->ssl->use_certificate_chain_file(options.tls_cert_file, ec);
+    if (ec)
+      return InvalidArgument("tls_cert",
+                             "cannot use " + options.tls_cert_file + ": " + ec.message());
+    impl->ssl->use_private_key_file(options.tls_key_file, asio::ssl::context::pem, ec);
+    if (ec)
+      return InvalidArgument("tls_key", "cannot use " + options.tls_key_file + ": " + ec.message());
+  } else if (!IsLoopbackHost(options.listen) && !options.allow_insecure) {
+    return InvalidArgument("http",
+                           "plaintext HTTP only on loopback; configure a TLS certificate "
+                           "(or allow insecure explicitly)");
+  }
+  // host:port, [v6]:port
+  const std::string& listen = options.listen;
+  const size_t colon = listen.rfind(':');
+  if (colon == std::string::npos || colon + 1 == listen.size())
+    return InvalidArgument("http", "'" + listen + "' is not HOST:PORT");
+  std::string host = listen.substr(0, colon);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  int port = -1;
+  try {
+    size_t used = 0;
+    port = std::stoi(listen.substr(colon + 1), &used);
+    if (used != listen.size() - colon - 1) port = -1;
+  } catch (const std::exception&) {
+    port = -1;
+  }
+  if (port < 0 || port > 65535) return InvalidArgument("http", "'" + listen + "': bad port");
+  beast::error_code ec;
+  asio::ip::address address;
+  if (host == "localhost") {
+    address = asio::ip::make_address("127.0.0.1");
+  } else {
+    address = asio::ip::make_address(host, ec);
+    if (ec) return InvalidArgument("http", "'" + host + "' is not an IP address");
+  }
+  http::HttpApiOptions ao;
+  ao.session_ttl_s = options.session_ttl_s;
+  ao.secure_cookies = impl->ssl.has_value();
+  ao.clock = options.clock;
+  impl->api = std::make_unique<HttpApi>(impl->domain, ao);
+  impl->acceptor.emplace(impl->shared->io);
+  const tcp::endpoint endpoint(address, static_cast<uint16_t>(port));
+  impl->acceptor->open(endpoint.protocol(), ec);
+  if (!ec) impl->acceptor->set_option(asio::socket_base::reuse_address(true), ec);
+  if (!ec) impl->acceptor->bind(endpoint, ec);
+  if (!ec) impl->acceptor->listen(asio::socket_base::max_listen_connections, ec);
+  if (ec)
+    return Error{ErrorCode::kIoError, "cannot listen on " + listen + ": " + ec.message(), "http"};
+  impl->port = impl->acceptor->local_endpoint().port();
+  Impl* p = impl.get();
+  p->Accept();
+  p->thread = std::thread([p] { p->shared->io.run(); });
+  return std::unique_ptr<HttpServer>(new HttpServer(std::move(impl)));
+}
+
+void HttpServer::Shutdown() {
+  std::call_once(impl_->shutdown_once, [this] {
+    Impl* p = impl_.get();
+    p->shared->stopping.store(true);
+    if (p->thread.joinable()) {
+      asio::post(p->shared->io, [p] {
+        beast::error_code ec;
+        p->acceptor->close(ec);
+        for (auto& w : p->connections)
+          if (auto c = w.lock()) c->Close();  // ends the event streams' subscriptions
+        p->connections.clear();
+        p->shared->io.stop();
+      });
+      p->thread.join();
+    }
+    std::lock_guard<std::mutex> lock(p->exports_mutex);
+    for (ExportThread& t : p->export_threads) t.thread.join();
+    p->export_threads.clear();
+  });
+}
+
+}  // namespace vsurg::server

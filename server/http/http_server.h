@@ -1,0 +1,79 @@
+// The dashboard's HTTP(S) listener in vsurg-server (--http HOST:PORT): Boost.Beast over Asio, on
+// its own I/O thread, beside the gRPC control plane and over the same domain functions
+// (http_api.h decides; this file only moves bytes).
+//
+// Threads: one I/O thread accepts, parses, calls HttpApi::Handle and writes. Live pages' event
+// streams are fed by the sessions' sampler thread, which only posts the latest frame to the I/O
+// thread (latest wins, one frame in flight per stream). Exports run on their own thread (at most
+// max_exports at once), one chunk in flight, so a million rows stream without buffering. None of
+// these threads touches the UDP haptic path.
+//
+// Limits (one client can never deny service to the others): header and body sizes (431, 413),
+// a deadline for a whole request (slowloris: the connection is closed), a write deadline (a
+// client that stops reading is dropped), connections in all and per address (503).
+//
+// No Beast, Asio or OpenSSL type appears in this header.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "common/core/clock.h"
+#include "common/core/expected.h"
+
+namespace vsurg::db {
+class Store;
+}
+
+namespace vsurg::server {
+
+class SessionManager;
+
+struct HttpServerOptions {
+  std::string listen = "127.0.0.1:0";  // host:port; port 0 picks a free one
+  // TLS (the same PEM files as gRPC): both or neither. Without TLS the address must be loopback
+  // unless allow_insecure is set.
+  std::string tls_cert_file;
+  std::string tls_key_file;
+  bool allow_insecure = false;
+  std::string backup_dir;           // as ControlPlaneOptions::backup_dir
+  double session_ttl_s = 8 * 3600;  // web sessions (cookies)
+  size_t max_header_bytes = 16 * 1024;
+  size_t max_body_bytes = 256 * 1024;
+  double request_timeout_s = 10;  // to receive a whole request (headers and body)
+  double idle_timeout_s = 60;     // keep-alive between requests
+  double write_timeout_s = 10;    // for each write
+  int max_connections = 512;
+  int max_connections_per_address = 64;
+  int max_exports = 2;
+  const Clock* clock = nullptr;  // web sessions and sign-in limits (null: the steady clock)
+};
+
+struct HttpCounters {
+  uint64_t requests = 0;
+  uint64_t refused_connections = 0;  // over the limits
+  uint64_t bad_requests = 0;         // malformed, too large, too slow
+  uint64_t events_sent = 0;          // event-stream frames written
+  int open_connections = 0;
+  int open_streams = 0;  // event streams and exports
+};
+
+class HttpServer {
+ public:
+  static Expected<std::unique_ptr<HttpServer>> Start(db::Store& store, SessionManager& sessions,
+                                                     const HttpServerOptions& options);
+  ~HttpServer();  // Shutdown()
+  int port() const;
+  bool tls() const;
+  HttpCounters counters() const;
+  // Closes the listener and every connection, ends the streams and exports, joins the threads.
+  void Shutdown();
+
+ private:
+  struct Impl;
+  explicit HttpServer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vsurg::server

@@ -1,0 +1,124 @@
+#include "server/http/web_auth.h"
+
+#include <openssl/rand.h>
+
+#include <algorithm>
+#include <stdexcept>
+#include <vector>
+
+namespace vsurg::server::http {
+
+std::string RandomHex32() {
+  unsigned char bytes[32];
+  if (RAND_bytes(bytes, sizeof bytes) != 1)
+    throw std::runtime_error("the system random generator failed");
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out(64, '0');
+  for (size_t i = 0; i < sizeof bytes; ++i) {
+    out[2 * i] = kHex[bytes[i] >> 4];
+    out[2 * i + 1] = kHex[bytes[i] & 15];
+  }
+  return out;
+}
+
+bool SameSecret(std::string_view a, std::string_view b) {
+  unsigned diff = a.size() == b.size() ? 0u : 1u;
+  const size_t n = std::min(a.size(), b.size());
+  for (size_t i = 0; i < n; ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0;
+}
+
+std::optional<std::string_view> CookieValue(std::string_view header, std::string_view name) {
+  while (!header.empty()) {
+    const size_t semi = header.find(';');
+    std::string_view pair = header.substr(0, semi);
+    header = semi == std::string_view::npos ? std::string_view() : header.substr(semi + 1);
+    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
+    while (!pair.empty() && pair.back() == ' ') pair.remove_suffix(1);
+    const size_t eq = pair.find('=');
+    if (eq == std::string_view::npos) continue;
+    if (pair.substr(0, eq) == name) return pair.substr(eq + 1);
+  }
+  return std::nullopt;
+}
+
+WebSessions::WebSessions(const Clock& clock, double ttl_s, size_t max_sessions)
+    : clock_(clock), ttl_s_(ttl_s), max_sessions_(std::max<size_t>(1, max_sessions)) {}
+
+WebSession WebSessions::Create(std::string token) {
+  WebSession s{RandomHex32(), RandomHex32(), std::move(token), clock_.Now() + ttl_s_};
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double now = clock_.Now();
+  std::erase_if(sessions_, [now](const auto& kv) { return kv.second.expires_s <= now; });
+  while (sessions_.size() >= max_sessions_) {  // the oldest (earliest expiry) goes
+    auto oldest = std::min_element(sessions_.begin(), sessions_.end(), [](auto& a, auto& b) {
+      return a.second.expires_s < b.second.expires_s;
+    });
+    sessions_.erase(oldest);
+  }
+  sessions_.emplace(s.id, s);
+  return s;
+}
+
+std::optional<WebSession> WebSessions::Find(std::string_view id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = sessions_.find(id);
+  if (it == sessions_.end()) return std::nullopt;
+  if (it->second.expires_s <= clock_.Now()) {
+    sessions_.erase(it);
+    return std::nullopt;
+  }
+  return it->second;
+}
+
+void WebSessions::Remove(std::string_view id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (const auto it = sessions_.find(id); it != sessions_.end()) sessions_.erase(it);
+}
+
+size_t WebSessions::size() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return sessions_.size();
+}
+
+SignInLimiter::SignInLimiter(const Clock& clock, int max_failures, double window_s,
+                             size_t max_addresses)
+    : clock_(clock),
+      max_failures_(std::max(1, max_failures)),
+      window_s_(window_s),
+      max_addresses_(std::max<size_t>(1, max_addresses)) {}
+
+double SignInLimiter::RetryAfter(const std::string& address) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = failures_.find(address);
+  if (it == failures_.end()) return 0;
+  const double now = clock_.Now();
+  std::vector<double>& times = it->second;
+  std::erase_if(times, [&](double t) { return t <= now - window_s_; });
+  if (times.empty()) {
+    failures_.erase(it);
+    return 0;
+  }
+  if (static_cast<int>(times.size()) < max_failures_) return 0;
+  return std::max(0.001, times.front() + window_s_ - now);
+}
+
+void SignInLimiter::Failed(const std::string& address) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double now = clock_.Now();
+  if (failures_.size() >= max_addresses_ && !failures_.count(address)) {
+    // Forget addresses whose failures all left the window; if none did, the oldest one.
+    std::erase_if(failures_, [&](const auto& kv) { return kv.second.back() <= now - window_s_; });
+    if (failures_.size() >= max_addresses_) {
+      auto oldest = std::min_element(failures_.begin(), failures_.end(), [](auto& a, auto& b) {
+        return a.second.back() < b.second.back();
+      });
+      failures_.erase(oldest);
+    }
+  }
+  std::vector<double>& times = failures_[address];
+  times.push_back(now);
+  if (static_cast<int>(times.size()) > max_failures_) times.erase(times.begin());
+}
+
+}  // namespace vsurg::server::http
