@@ -1,0 +1,361 @@
+// The dashboard's HTTP layer without a socket (server/http/http_api.h): routing, pages by role,
+// sign-in, cookies and their expiry, CSRF, the sign-in rate limit, JSON encoding and escaping.
+// A real SQLite store and session manager underneath, as for the gRPC services.
+#include "server/http/http_api.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <future>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "server/domain/scene_catalog.h"
+
+namespace vsurg::server::http {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string Header(const HttpReply& r, const std::string& name) {
+  for (const auto& [n, v] : r.headers)
+    if (n == name) return v;
+  return "";
+}
+
+class HttpApiTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("vsurg_http_api_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
+    sessions_ = std::make_unique<SessionManager>(*store_, nullptr, SessionManagerOptions{});
+    domain_ = std::make_unique<Domain>(
+        Domain{*store_, *sessions_, catalog_, (dir_ / "backups").string()});
+    admin_ = store_->InitAdmin("root").value();
+    for (auto [name, role, group] :
+         {std::tuple{"tina", db::Role::kTrainee, "novice"}, {"ian", db::Role::kInstructor, ""},
+          {"eve", db::Role::kEvaluator, "chief"},
+          {"<script>alert(1)</script>", db::Role::kTrainee, "novice"}}) {
+      ASSERT_TRUE(store_->CreateUser(name, role, group).ok());
+      tokens_[name] = store_->IssueToken(name, "test").value();
+    }
+    HttpApiOptions o;
+    o.clock = &clock_;
+    o.session_ttl_s = 3600;
+    api_ = std::make_unique<HttpApi>(*domain_, o);
+  }
+  void TearDown() override {
+    api_.reset();
+    domain_.reset();
+    sessions_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+
+  HttpReply Call(const std::string& method, const std::string& target, const std::string& body = "",
+                 const std::string& cookie = "", const std::string& csrf = "",
+                 const std::string& remote = "10.0.0.1") {
+    HttpRequest r;
+    r.method = method;
+    r.target = target;
+    r.body = body;
+    r.cookie = cookie;
+    r.csrf = csrf;
+    r.remote = remote;
+    if (!body.empty()) r.content_type = "application/json";
+    return api_->Handle(r);
+  }
+  struct Signed {
+    std::string cookie, csrf;
+  };
+  Signed SignIn(const std::string& token) {
+    const HttpReply r = Call("POST", "/api/v1/signin", json{{"token", token}}.dump());
+    EXPECT_EQ(r.status, 200) << r.body;
+    const std::string set = Header(r, "Set-Cookie");
+    return {set.substr(0, set.find(';')), json::parse(r.body)["csrf"].get<std::string>()};
+  }
+  // A deferred reply's final answer (an evaluation waits for the store's commit).
+  static HttpReply Finish(HttpReply r) {
+    if (r.kind != HttpReply::Kind::kDeferred) return r;
+    std::promise<HttpReply> done;
+    r.deferred([&](HttpReply x) { done.set_value(std::move(x)); });
+    return done.get_future().get();
+  }
+
+  fs::path dir_;
+  ManualClock clock_{100};
+  std::unique_ptr<db::Store> store_;
+  std::unique_ptr<SessionManager> sessions_;
+  SceneCatalog catalog_;
+  std::unique_ptr<Domain> domain_;
+  std::unique_ptr<HttpApi> api_;
+  std::string admin_;
+  std::map<std::string, std::string> tokens_;
+};
+
+TEST_F(HttpApiTest, SignInGivesAStrictHttpOnlyCookieThatExpiresAndSignOutForgetsIt) {
+  const HttpReply r = Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump());
+  ASSERT_EQ(r.status, 200) << r.body;
+  const std::string cookie = Header(r, "Set-Cookie");
+  EXPECT_NE(cookie.find("HttpOnly"), std::string::npos) << cookie;
+  EXPECT_NE(cookie.find("SameSite=Strict"), std::string::npos);
+  EXPECT_NE(cookie.find("Max-Age=3600"), std::string::npos);
+  EXPECT_NE(cookie.find("Path=/"), std::string::npos);
+  EXPECT_EQ(cookie.find(tokens_["ian"]), std::string::npos) << "the API token never leaves";
+  const json body = json::parse(r.body);
+  EXPECT_EQ(body["user"], "ian");
+  EXPECT_EQ(body["role"], "instructor");
+  EXPECT_EQ(body["csrf"].get<std::string>().size(), 64u);
+
+  const std::string jar = cookie.substr(0, cookie.find(';'));
+  EXPECT_EQ(Call("GET", "/api/v1/me", "", jar).status, 200);
+  clock_.Advance(3599);
+  EXPECT_EQ(Call("GET", "/api/v1/me", "", jar).status, 200);
+  clock_.Advance(2);  // past the expiry: no sliding renewal
+  EXPECT_EQ(Call("GET", "/api/v1/me", "", jar).status, 401);
+
+  const Signed again = SignIn(tokens_["ian"]);
+  const HttpReply out = Call("POST", "/api/v1/signout", "", again.cookie, again.csrf);
+  EXPECT_EQ(out.status, 204);
+  EXPECT_NE(Header(out, "Set-Cookie").find("Max-Age=0"), std::string::npos);
+  EXPECT_EQ(Call("GET", "/api/v1/me", "", again.cookie).status, 401);
+}
+
+TEST_F(HttpApiTest, FailedSignInsAreLimitedPerAddress) {
+  for (int i = 0; i < 5; ++i)
+    EXPECT_EQ(Call("POST", "/api/v1/signin", json{{"token", "vst_wrong"}}.dump()).status, 401);
+  // The sixth try from that address is refused even with a valid token; another address is not.
+  const HttpReply limited = Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump());
+  EXPECT_EQ(limited.status, 429);
+  EXPECT_GE(std::stoi(Header(limited, "Retry-After")), 1);
+  EXPECT_EQ(Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump(), "", "",
+                 "10.0.0.2")
+                .status,
+            200);
+  clock_.Advance(61);  // the failures left the window
+  EXPECT_EQ(Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump()).status, 200);
+}
+
+TEST_F(HttpApiTest, StateChangingRequestsNeedTheCsrfTokenOfTheirSession) {
+  const Signed admin = SignIn(admin_);
+  const std::string user = json{{"name", "nina"}, {"role", "trainee"}, {"group", "g"}}.dump();
+  EXPECT_EQ(Call("POST", "/api/v1/users", user, admin.cookie).status, 403);
+  EXPECT_EQ(Call("POST", "/api/v1/users", user, admin.cookie, std::string(64, '0')).status, 403);
+  const Signed other = SignIn(tokens_["ian"]);  // another session's token is not this one's
+  EXPECT_EQ(Call("POST", "/api/v1/users", user, admin.cookie, other.csrf).status, 403);
+  EXPECT_FALSE(store_->Authenticate(tokens_["ian"]).value().name.empty());
+  EXPECT_EQ(store_->ListUsers().value().size(), 5u) << "nothing was written";
+  EXPECT_EQ(Call("POST", "/api/v1/users", user, admin.cookie, admin.csrf).status, 201);
+  // A form post (not JSON) is refused even with the token.
+  HttpRequest form;
+  form.method = "POST";
+  form.target = "/api/v1/users";
+  form.cookie = admin.cookie;
+  form.csrf = admin.csrf;
+  form.content_type = "application/x-www-form-urlencoded";
+  form.body = "name=x&role=admin";
+  EXPECT_EQ(api_->Handle(form).status, 400);
+  // Scripts with a bearer header (never sent by a browser on its own) need no CSRF token.
+  HttpRequest bearer;
+  bearer.method = "POST";
+  bearer.target = "/api/v1/users";
+  bearer.authorization = "Bearer " + admin_;
+  bearer.content_type = "application/json";
+  bearer.body = json{{"name", "omar"}, {"role", "trainee"}, {"group", "g"}}.dump();
+  EXPECT_EQ(api_->Handle(bearer).status, 201);
+}
+
+TEST_F(HttpApiTest, EveryPageAndRouteChecksTheRole) {
+  // Anonymous: pages send to sign-in, the API says 401.
+  const HttpReply anon = Call("GET", "/live");
+  EXPECT_EQ(anon.status, 303);
+  EXPECT_EQ(Header(anon, "Location"), "/signin?next=live");
+  EXPECT_EQ(Call("GET", "/api/v1/users").status, 401);
+  EXPECT_EQ(Call("GET", "/signin").status, 200);
+
+  const Signed tina = SignIn(tokens_["tina"]);
+  for (const char* page : {"/live", "/session/1", "/evaluate", "/reports", "/admin"})
+    EXPECT_EQ(Call("GET", page, "", tina.cookie).status, 403) << page;
+  EXPECT_EQ(Call("GET", "/mine", "", tina.cookie).status, 200);
+  for (const char* route : {"/api/v1/users", "/api/v1/live/events", "/api/v1/export",
+                            "/api/v1/reports?kind=trainee&subject=tina",
+                            "/api/v1/evaluations/mine", "/api/v1/training-effect"})
+    EXPECT_EQ(Call("GET", route, "", tina.cookie).status, 403) << route;
+  EXPECT_EQ(Call("POST", "/api/v1/backup", json{{"name", "b.db"}}.dump(), tina.cookie, tina.csrf)
+                .status,
+            403);
+  EXPECT_EQ(Call("GET", "/", "", tina.cookie).status, 303);
+
+  const Signed ian = SignIn(tokens_["ian"]);
+  EXPECT_EQ(Call("GET", "/live", "", ian.cookie).status, 200);
+  EXPECT_EQ(Call("GET", "/reports", "", ian.cookie).status, 200);
+  EXPECT_EQ(Call("GET", "/admin", "", ian.cookie).status, 403);
+  EXPECT_EQ(Call("GET", "/evaluate", "", ian.cookie).status, 403);
+  const HttpReply live = Call("GET", "/api/v1/live/events", "", ian.cookie);
+  EXPECT_EQ(live.status, 200);
+  EXPECT_EQ(live.kind, HttpReply::Kind::kEvents);
+
+  const Signed admin = SignIn(admin_);
+  for (const char* page : {"/live", "/evaluate", "/reports", "/admin"})
+    EXPECT_EQ(Call("GET", page, "", admin.cookie).status, 200) << page;
+  const HttpReply shell = Call("GET", "/admin", "", admin.cookie);
+  EXPECT_NE(shell.body.find("data-page=\"admin\""), std::string::npos);
+  EXPECT_EQ(shell.content_type, "text/html; charset=utf-8");
+}
+
+TEST_F(HttpApiTest, RevokingTokensOrDisablingEndsTheWebSessionAtTheNextRequest) {
+  const Signed ian = SignIn(tokens_["ian"]);
+  const Signed admin = SignIn(admin_);
+  EXPECT_EQ(Call("GET", "/api/v1/me", "", ian.cookie).status, 200);
+  EXPECT_EQ(Call("POST", "/api/v1/users/ian/revoke", "", admin.cookie, admin.csrf).status, 204);
+  EXPECT_EQ(Call("GET", "/api/v1/me", "", ian.cookie).status, 401);
+  EXPECT_EQ(Call("GET", "/live", "", ian.cookie).status, 303);
+
+  const Signed eve = SignIn(tokens_["eve"]);
+  EXPECT_EQ(Call("POST", "/api/v1/users/eve/disabled", json{{"disabled", true}}.dump(),
+                 admin.cookie, admin.csrf)
+                .status,
+            204);
+  EXPECT_EQ(Call("GET", "/api/v1/evaluations/mine", "", eve.cookie).status, 401);
+}
+
+TEST_F(HttpApiTest, UnknownRoutesAndBadInputGetAClearStatusAndWriteNothing) {
+  const Signed admin = SignIn(admin_);
+  const HttpReply missing = Call("GET", "/api/v1/nothing/here", "", admin.cookie);
+  EXPECT_EQ(missing.status, 404);
+  EXPECT_NE(json::parse(missing.body)["error"].get<std::string>().find("no such API route"),
+            std::string::npos);
+  EXPECT_EQ(Call("GET", "/no-such-page", "", admin.cookie).status, 404);
+  EXPECT_EQ(Call("GET", "/session/abc", "", admin.cookie).status, 404);
+  EXPECT_EQ(Call("DELETE", "/api/v1/users", "", admin.cookie, admin.csrf).status, 400);
+  EXPECT_EQ(Call("GET", "/api/v1/sessions/12x", "", admin.cookie).status, 400);
+  EXPECT_EQ(Call("GET", "/api/v1/sessions/999", "", admin.cookie).status, 404);
+  EXPECT_EQ(Call("GET", "/api/v1/reports?kind=%zz", "", admin.cookie).status, 400);
+  for (const char* body : {"{", "[1,2]", "\"text\"", "{\"name\": 5}", "{\"name\": \"x\", "
+                                                                      "\"role\": \"king\"}"}) {
+    const HttpReply r = Call("POST", "/api/v1/users", body, admin.cookie, admin.csrf);
+    EXPECT_EQ(r.status, 400) << body << " " << r.body;
+    EXPECT_TRUE(json::parse(r.body).contains("error"));
+  }
+  EXPECT_EQ(store_->ListUsers().value().size(), 5u);
+  EXPECT_EQ(Call("GET", "/api/v1/export?format=pdf", "", admin.cookie).status, 400);
+  EXPECT_EQ(Call("GET", "/api/v1/export?from=yesterday", "", admin.cookie).status, 400);
+  EXPECT_EQ(Call("POST", "/api/v1/backup", json{{"name", "../x.db"}}.dump(), admin.cookie,
+                 admin.csrf)
+                .status,
+            400);
+}
+
+TEST_F(HttpApiTest, AnEvaluatorSubmitsOnceAndARetryIsTheSameSubmission) {
+  const Signed eve = SignIn(tokens_["eve"]);
+  json body = {{"idempotency_key", "web:1"},
+               {"subject_kind", "model"},
+               {"subject", "coil"},
+               {"scores", {7, 7, 7, 7, 7, 7, 7, 7, 7}}};
+  const HttpReply first =
+      Finish(Call("POST", "/api/v1/evaluations", body.dump(), eve.cookie, eve.csrf));
+  EXPECT_EQ(first.status, 201) << first.body;
+  const HttpReply retry =
+      Finish(Call("POST", "/api/v1/evaluations", body.dump(), eve.cookie, eve.csrf));
+  EXPECT_EQ(retry.status, 200);
+  EXPECT_TRUE(json::parse(retry.body)["duplicate"].get<bool>());
+  EXPECT_EQ(json::parse(retry.body)["submission_id"], json::parse(first.body)["submission_id"]);
+  body["scores"][0] = 11;  // out of 0..10: refused on the server too
+  body["idempotency_key"] = "web:2";
+  body["subject"] = "fem";
+  EXPECT_EQ(Finish(Call("POST", "/api/v1/evaluations", body.dump(), eve.cookie, eve.csrf)).status,
+            400);
+  const json mine = json::parse(Call("GET", "/api/v1/evaluations/mine", "", eve.cookie).body);
+  ASSERT_EQ(mine["submitted"].size(), 1u);
+  EXPECT_EQ(mine["submitted"][0]["subject"], "coil");
+  for (const auto& m : mine["models"]) EXPECT_NE(m, "coil") << "scored models leave the queue";
+  const HttpReply report =
+      Call("GET", "/api/v1/reports?kind=model&subject=coil", "", SignIn(admin_).cookie);
+  ASSERT_EQ(report.status, 200) << report.body;
+  EXPECT_EQ(json::parse(report.body)["raters"], 1);
+}
+
+TEST_F(HttpApiTest, JsonIsEscapedAndNeverCarriesNaN) {
+  const Signed admin = SignIn(admin_);
+  const json users = json::parse(Call("GET", "/api/v1/users", "", admin.cookie).body);
+  bool found = false;
+  for (const auto& u : users["users"]) found |= u["name"] == "<script>alert(1)</script>";
+  EXPECT_TRUE(found) << "the name round-trips as data";
+
+  SessionTelemetry t;
+  t.id = 7;
+  t.trainee = "a\"b\\c\n<script>";
+  t.scene = "arm-torsion";
+  t.sim.force = geometry::Vec3(std::numeric_limits<double>::quiet_NaN(), 1, 2);
+  t.sim.twist = std::numeric_limits<double>::infinity();
+  t.rtt_us = 120;
+  t.has_surface = true;
+  t.surface_indices = {3};
+  t.surface_positions = {geometry::Vec3(0.01, 0.02, 0.0305)};
+  const std::string text = HttpApi::TelemetryJson(t, true);
+  EXPECT_EQ(text.find("NaN"), std::string::npos);
+  EXPECT_EQ(text.find('\n'), std::string::npos) << "one line per server-sent event";
+  const json j = json::parse(text);
+  EXPECT_EQ(j["trainee"], t.trainee);
+  EXPECT_EQ(j["force"][0], 0.0);
+  EXPECT_EQ(j["twist_deg"], 0.0);
+  EXPECT_DOUBLE_EQ(j["surface"]["positions_mm"][2].get<double>(), 30.5);
+  EXPECT_FALSE(json::parse(HttpApi::TelemetryJson(t, false)).contains("surface"));
+}
+
+TEST_F(HttpApiTest, ErrorCodesMapToHttpStatusesOnce) {
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kInvalidArgument), 400);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kParseError), 400);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kUnauthenticated), 401);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kPermissionDenied), 403);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kNotFound), 404);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kAlreadyExists), 409);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kResourceExhausted), 429);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kUnavailable), 503);
+  EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kIoError), 500);
+}
+
+TEST(HttpHelpersTest, QueriesCookiesAndSecretsParseStrictly) {
+  EXPECT_EQ(UrlDecode("a%20b+c").value(), "a b c");
+  EXPECT_FALSE(UrlDecode("%4").has_value());
+  EXPECT_FALSE(UrlDecode("%zz").has_value());
+  const auto q = ParseQuery("subject=a&subject=b&kind=session&&x=").value();
+  EXPECT_EQ(q.count("subject"), 2u);
+  EXPECT_EQ(q.find("kind")->second, "session");
+  EXPECT_EQ(q.find("x")->second, "");
+  EXPECT_FALSE(ParseQuery("a=%").has_value());
+  EXPECT_EQ(CookieValue("a=1; vsurg_session=abc ; b=2", "vsurg_session").value(), "abc");
+  EXPECT_FALSE(CookieValue("xvsurg_session=abc", "vsurg_session").has_value());
+  EXPECT_FALSE(CookieValue("", "vsurg_session").has_value());
+  EXPECT_TRUE(SameSecret("abc", "abc"));
+  EXPECT_FALSE(SameSecret("abc", "abd"));
+  EXPECT_FALSE(SameSecret("abc", "abcd"));
+  EXPECT_FALSE(SameSecret("", "a"));
+  EXPECT_NE(RandomHex32(), RandomHex32());
+}
+
+TEST(WebSessionsTest, AreBoundedAndForgetTheOldestFirst) {
+  ManualClock clock(0);
+  WebSessions s(clock, 100, 3);
+  const WebSession a = s.Create("t1");
+  clock.Advance(1);
+  const WebSession b = s.Create("t2");
+  clock.Advance(1);
+  s.Create("t3");
+  s.Create("t4");
+  EXPECT_EQ(s.size(), 3u);
+  EXPECT_FALSE(s.Find(a.id).has_value());
+  EXPECT_EQ(s.Find(b.id)->token, "t2");
+  clock.Advance(100);
+  EXPECT_FALSE(s.Find(b.id).has_value());
+}
+
+}  // namespace
+}  // namespace vsurg::server::http
