@@ -39,10 +39,10 @@ class HttpApiTest : public ::testing::Test {
     domain_ = std::make_unique<Domain>(
         Domain{*store_, *sessions_, catalog_, (dir_ / "backups").string()});
     admin_ = store_->InitAdmin("root").value();
-    for (auto [name, role, group] :
-         {std::tuple{"tina", db::Role::kTrainee, "novice"}, {"ian", db::Role::kInstructor, ""},
-          {"eve", db::Role::kEvaluator, "chief"},
-          {"<script>alert(1)</script>", db::Role::kTrainee, "novice"}}) {
+    for (auto [name, role, group] : {std::tuple{"tina", db::Role::kTrainee, "novice"},
+                                     {"ian", db::Role::kInstructor, ""},
+                                     {"eve", db::Role::kEvaluator, "chief"},
+                                     {"<script>alert(1)</script>", db::Role::kTrainee, "novice"}}) {
       ASSERT_TRUE(store_->CreateUser(name, role, group).ok());
       tokens_[name] = store_->IssueToken(name, "test").value();
     }
@@ -135,10 +135,10 @@ TEST_F(HttpApiTest, FailedSignInsAreLimitedPerAddress) {
   const HttpReply limited = Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump());
   EXPECT_EQ(limited.status, 429);
   EXPECT_GE(std::stoi(Header(limited, "Retry-After")), 1);
-  EXPECT_EQ(Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump(), "", "",
-                 "10.0.0.2")
-                .status,
-            200);
+  EXPECT_EQ(
+      Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump(), "", "", "10.0.0.2")
+          .status,
+      200);
   clock_.Advance(61);  // the failures left the window
   EXPECT_EQ(Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump()).status, 200);
 }
@@ -185,12 +185,12 @@ TEST_F(HttpApiTest, EveryPageAndRouteChecksTheRole) {
     EXPECT_EQ(Call("GET", page, "", tina.cookie).status, 403) << page;
   EXPECT_EQ(Call("GET", "/mine", "", tina.cookie).status, 200);
   for (const char* route : {"/api/v1/users", "/api/v1/live/events", "/api/v1/export",
-                            "/api/v1/reports?kind=trainee&subject=tina",
-                            "/api/v1/evaluations/mine", "/api/v1/training-effect"})
+                            "/api/v1/reports?kind=trainee&subject=tina", "/api/v1/evaluations/mine",
+                            "/api/v1/training-effect"})
     EXPECT_EQ(Call("GET", route, "", tina.cookie).status, 403) << route;
-  EXPECT_EQ(Call("POST", "/api/v1/backup", json{{"name", "b.db"}}.dump(), tina.cookie, tina.csrf)
-                .status,
-            403);
+  EXPECT_EQ(
+      Call("POST", "/api/v1/backup", json{{"name", "b.db"}}.dump(), tina.cookie, tina.csrf).status,
+      403);
   EXPECT_EQ(Call("GET", "/", "", tina.cookie).status, 303);
 
   const Signed ian = SignIn(tokens_["ian"]);
@@ -238,8 +238,9 @@ TEST_F(HttpApiTest, UnknownRoutesAndBadInputGetAClearStatusAndWriteNothing) {
   EXPECT_EQ(Call("GET", "/api/v1/sessions/12x", "", admin.cookie).status, 400);
   EXPECT_EQ(Call("GET", "/api/v1/sessions/999", "", admin.cookie).status, 404);
   EXPECT_EQ(Call("GET", "/api/v1/reports?kind=%zz", "", admin.cookie).status, 400);
-  for (const char* body : {"{", "[1,2]", "\"text\"", "{\"name\": 5}", "{\"name\": \"x\", "
-                                                                      "\"role\": \"king\"}"}) {
+  for (const char* body : {"{", "[1,2]", "\"text\"", "{\"name\": 5}",
+                           "{\"name\": \"x\", "
+                           "\"role\": \"king\"}"}) {
     const HttpReply r = Call("POST", "/api/v1/users", body, admin.cookie, admin.csrf);
     EXPECT_EQ(r.status, 400) << body << " " << r.body;
     EXPECT_TRUE(json::parse(r.body).contains("error"));
@@ -247,10 +248,10 @@ TEST_F(HttpApiTest, UnknownRoutesAndBadInputGetAClearStatusAndWriteNothing) {
   EXPECT_EQ(store_->ListUsers().value().size(), 5u);
   EXPECT_EQ(Call("GET", "/api/v1/export?format=pdf", "", admin.cookie).status, 400);
   EXPECT_EQ(Call("GET", "/api/v1/export?from=yesterday", "", admin.cookie).status, 400);
-  EXPECT_EQ(Call("POST", "/api/v1/backup", json{{"name", "../x.db"}}.dump(), admin.cookie,
-                 admin.csrf)
-                .status,
-            400);
+  EXPECT_EQ(
+      Call("POST", "/api/v1/backup", json{{"name", "../x.db"}}.dump(), admin.cookie, admin.csrf)
+          .status,
+      400);
 }
 
 TEST_F(HttpApiTest, AnEvaluatorSubmitsOnceAndARetryIsTheSameSubmission) {

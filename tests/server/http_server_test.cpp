@@ -1,0 +1,353 @@
+// The dashboard's listener on loopback (server/http/http_server.h): real sockets, a real SQLite
+// file, the session manager; a Beast client for well-formed requests and raw sockets for the
+// bad ones. What one client does never stops the server from answering the others.
+#include "server/http/http_server.h"
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <boost/asio.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "db/store.h"
+#include "server/session/session_manager.h"
+#include "tests/support/self_signed.h"
+
+namespace vsurg::server {
+namespace {
+
+namespace fs = std::filesystem;
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace bhttp = beast::http;
+using nlohmann::json;
+using tcp = asio::ip::tcp;
+using Clock = std::chrono::steady_clock;
+
+struct Response {
+  int status = 0;
+  std::map<std::string, std::string> headers;
+  std::string body;
+  std::string Header(const std::string& name) const {
+    const auto it = headers.find(name);
+    return it == headers.end() ? std::string() : it->second;
+  }
+};
+
+template <class Stream>
+Response Exchange(Stream& stream, const std::string& method, const std::string& target,
+                  const std::map<std::string, std::string>& headers, const std::string& body) {
+  bhttp::request<bhttp::string_body> req(bhttp::string_to_verb(method), target, 11);
+  req.set(bhttp::field::host, "127.0.0.1");
+  for (const auto& [k, v] : headers) req.set(k, v);
+  if (!body.empty()) req.set(bhttp::field::content_type, "application/json");
+  req.body() = body;
+  req.prepare_payload();
+  bhttp::write(stream, req);
+  beast::flat_buffer buffer;
+  bhttp::response_parser<bhttp::string_body> parser;
+  parser.body_limit(64 << 20);
+  bhttp::read(stream, buffer, parser);
+  Response r;
+  r.status = static_cast<int>(parser.get().result_int());
+  for (const auto& f : parser.get())
+    r.headers[std::string(f.name_string())] = std::string(f.value());
+  r.body = parser.get().body();
+  return r;
+}
+
+Response Request(int port, const std::string& method, const std::string& target,
+                 const std::map<std::string, std::string>& headers = {},
+                 const std::string& body = "") {
+  asio::io_context io;
+  tcp::socket socket(io);
+  socket.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port)));
+  return Exchange(socket, method, target, headers, body);
+}
+
+// A raw TCP client: sends bytes, reads whatever comes until the server closes or `timeout_s`.
+class Raw {
+ public:
+  explicit Raw(int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<uint16_t>(port));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    connected_ = ::connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+  }
+  ~Raw() { ::close(fd_); }
+  bool connected() const { return connected_; }
+  bool Send(const std::string& s) {
+    return ::send(fd_, s.data(), s.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(s.size());
+  }
+  // Reads until the peer closes (true) or the time runs out (false); `out` gets the bytes.
+  bool ReadUntilClosed(double timeout_s, std::string& out) {
+    timeval tv{0, 100000};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    const auto end = Clock::now() + std::chrono::duration<double>(timeout_s);
+    char buf[4096];
+    while (Clock::now() < end) {
+      const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
+      if (n == 0) return true;
+      if (n > 0)
+        out.append(buf, static_cast<size_t>(n));
+      else if (errno != EAGAIN && errno != EWOULDBLOCK)
+        return true;  // reset: closed too
+    }
+    return false;
+  }
+
+ private:
+  int fd_ = -1;
+  bool connected_ = false;
+};
+
+class HttpServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("vsurg_http_server_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
+    admin_ = store_->InitAdmin("root").value();
+    ASSERT_TRUE(store_->CreateUser("tina", db::Role::kTrainee, "novice").ok());
+    ASSERT_TRUE(store_->CreateUser("eve", db::Role::kEvaluator, "chief").ok());
+    sessions_ = std::make_unique<SessionManager>(*store_, nullptr, SessionManagerOptions{});
+  }
+  void Start(HttpServerOptions o = {}) {
+    o.backup_dir = (dir_ / "backups").string();
+    auto s = HttpServer::Start(*store_, *sessions_, o);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    server_ = std::move(s).value();
+    port_ = server_->port();
+  }
+  void TearDown() override {
+    if (server_) server_->Shutdown();
+    server_.reset();
+    sessions_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+  std::map<std::string, std::string> Bearer() { return {{"Authorization", "Bearer " + admin_}}; }
+
+  fs::path dir_;
+  std::unique_ptr<db::Store> store_;
+  std::unique_ptr<SessionManager> sessions_;
+  std::unique_ptr<HttpServer> server_;
+  std::string admin_;
+  int port_ = 0;
+};
+
+TEST_F(HttpServerTest, SignsInServesPagesAndStreamsTheLiveSessions) {
+  Start();
+  const Response page = Request(port_, "GET", "/signin");
+  EXPECT_EQ(page.status, 200);
+  EXPECT_NE(page.Header("Content-Security-Policy").find("default-src 'self'"), std::string::npos);
+  EXPECT_EQ(page.Header("X-Frame-Options"), "DENY");
+  EXPECT_EQ(Request(port_, "GET", "/static/app.js").status, 200);
+  EXPECT_EQ(Request(port_, "GET", "/api/v1/users").status, 401);
+
+  const Response in = Request(port_, "POST", "/api/v1/signin", {}, json{{"token", admin_}}.dump());
+  ASSERT_EQ(in.status, 200) << in.body;
+  const std::string cookie = in.Header("Set-Cookie").substr(0, in.Header("Set-Cookie").find(';'));
+  EXPECT_EQ(Request(port_, "GET", "/live", {{"Cookie", cookie}}).status, 200);
+
+  // A session prepared for tina shows in the live stream with her name and its state.
+  const Response created = Request(
+      port_, "POST", "/api/v1/sessions",
+      {{"Cookie", cookie}, {"X-CSRF-Token", json::parse(in.body)["csrf"].get<std::string>()}},
+      json{{"trainee", "tina"}, {"scene", "arm-torsion"}}.dump());
+  ASSERT_EQ(created.status, 201) << created.body;
+  EXPECT_FALSE(json::parse(created.body).contains("session_key")) << "the key goes to the station";
+  asio::io_context io;
+  tcp::socket socket(io);
+  socket.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_)));
+  const std::string req =
+      "GET /api/v1/live/events HTTP/1.1\r\nHost: x\r\nCookie: " + cookie + "\r\n\r\n";
+  asio::write(socket, asio::buffer(req));
+  std::string got;
+  const auto end = Clock::now() + std::chrono::seconds(10);
+  int frames = 0;
+  while (Clock::now() < end && frames < 3) {
+    char buf[4096];
+    const size_t n = socket.read_some(asio::buffer(buf));
+    got.append(buf, n);
+    frames = 0;
+    for (size_t at = got.find("data: [{"); at != std::string::npos;
+         at = got.find("data: [{", at + 1))
+      ++frames;
+  }
+  EXPECT_NE(got.find("Content-Type: text/event-stream"), std::string::npos);
+  EXPECT_GE(frames, 3) << got;
+  EXPECT_NE(got.find("\"trainee\":\"tina\""), std::string::npos);
+  EXPECT_NE(got.find("\"state\":\"created\""), std::string::npos);
+  EXPECT_EQ(server_->counters().open_streams, 1);
+  socket.close();
+  const auto gone = Clock::now() + std::chrono::seconds(5);
+  while (server_->counters().open_streams != 0 && Clock::now() < gone)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(server_->counters().open_streams, 0) << "a client that hangs up ends its stream";
+}
+
+TEST_F(HttpServerTest, SlowOversizedAndMalformedRequestsAreCutOffWhileOthersAreServed) {
+  HttpServerOptions o;
+  o.request_timeout_s = 1;
+  o.max_header_bytes = 8192;
+  o.max_body_bytes = 4096;
+  Start(o);
+  // Slowloris: a header that never ends, one byte at a time.
+  Raw slow(port_);
+  ASSERT_TRUE(slow.Send("GET /signin HTTP/1.1\r\nHost: x\r\n"));
+  const auto t0 = Clock::now();
+  bool closed = false;
+  std::string ignored;
+  for (int i = 0; i < 40 && !closed; ++i) {
+    slow.Send("X");
+    closed = slow.ReadUntilClosed(0.1, ignored);
+  }
+  const double held = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_TRUE(closed) << "the server closes a request that takes longer than its deadline";
+  EXPECT_LT(held, 3.5);
+
+  Raw big_header(port_);
+  big_header.Send("GET /signin HTTP/1.1\r\nHost: x\r\nX-Pad: " + std::string(20000, 'a') +
+                  "\r\n\r\n");
+  std::string answer;
+  big_header.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 431", 0), 0u) << answer.substr(0, 80);
+
+  Raw big_body(port_);
+  big_body.Send(
+      "POST /api/v1/signin HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+      "Content-Length: 10000000\r\n\r\n{");
+  answer.clear();
+  big_body.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 413", 0), 0u) << answer.substr(0, 80);
+
+  Raw garbage(port_);
+  garbage.Send("HELLO THERE\r\n\r\n");
+  answer.clear();
+  garbage.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 400", 0), 0u) << answer.substr(0, 80);
+
+  Raw verb(port_);
+  verb.Send("DELETE /api/v1/users HTTP/1.1\r\nHost: x\r\n\r\n");
+  answer.clear();
+  verb.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 405", 0), 0u) << answer.substr(0, 80);
+
+  EXPECT_GE(server_->counters().bad_requests, 4u);
+  EXPECT_EQ(Request(port_, "GET", "/signin").status, 200);
+  EXPECT_EQ(store_->ListUsers().value().size(), 3u) << "nothing was written";
+}
+
+TEST_F(HttpServerTest, ConnectionsAreLimitedPerAddressAndFreedWhenClosed) {
+  HttpServerOptions o;
+  o.max_connections_per_address = 4;
+  o.request_timeout_s = 30;
+  Start(o);
+  std::vector<std::unique_ptr<Raw>> idle;
+  for (int i = 0; i < 4; ++i) idle.push_back(std::make_unique<Raw>(port_));
+  const auto until = Clock::now() + std::chrono::seconds(5);
+  while (server_->counters().open_connections < 4 && Clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  Raw fifth(port_);
+  std::string answer;
+  EXPECT_TRUE(fifth.ReadUntilClosed(5, answer));
+  EXPECT_EQ(answer.rfind("HTTP/1.1 503", 0), 0u) << answer;
+  EXPECT_GE(server_->counters().refused_connections, 1u);
+  idle.pop_back();  // one hangs up: there is room again
+  const auto freed = Clock::now() + std::chrono::seconds(5);
+  while (server_->counters().open_connections > 3 && Clock::now() < freed)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(Request(port_, "GET", "/signin").status, 200);
+}
+
+TEST_F(HttpServerTest, AnExportStreamsEveryRowAsTheStoreHasIt) {
+  Start();
+  for (int k = 0; k < 300; ++k) {
+    db::Submission s;
+    s.idempotency_key = "k" + std::to_string(k);
+    s.evaluator = "eve";
+    s.evaluator_group = "chief";
+    s.subject_kind = db::SubjectKind::kModel;
+    s.subject = "model-" + std::to_string(k);
+    s.submitted_by = "eve";
+    for (int j = 0; j < 9; ++j) s.scores[j] = (k + j) % 11;
+    ASSERT_TRUE(store_->SubmitEvaluation(s).ok());
+  }
+  for (const char* format : {"csv", "jsonl", "xapi"}) {
+    std::string expected;
+    ASSERT_TRUE(store_
+                    ->Export({}, db::ParseExportFormat(format).value(),
+                             [&](std::string_view c) {
+                               expected.append(c);
+                               return true;
+                             })
+                    .ok());
+    const Response r =
+        Request(port_, "GET", std::string("/api/v1/export?format=") + format, Bearer());
+    ASSERT_EQ(r.status, 200);
+    EXPECT_EQ(r.Header("Transfer-Encoding"), "chunked");
+    EXPECT_NE(r.Header("Content-Disposition").find("attachment"), std::string::npos);
+    EXPECT_EQ(r.body, expected) << format;
+    EXPECT_GT(r.body.size(), 10000u);
+  }
+  // Filtered, and a refused filter.
+  EXPECT_EQ(Request(port_, "GET", "/api/v1/export?format=csv&session=abc", Bearer()).status, 400);
+}
+
+TEST_F(HttpServerTest, HttpsWithTheGrpcCertificateAndNoPlaintextOffLoopback) {
+  const auto [cert, key] = test::SelfSigned();
+  std::ofstream(dir_ / "cert.pem") << cert;
+  std::ofstream(dir_ / "key.pem") << key;
+  HttpServerOptions plain;
+  plain.listen = "0.0.0.0:0";
+  EXPECT_EQ(HttpServer::Start(*store_, *sessions_, plain).error().code,
+            ErrorCode::kInvalidArgument);
+  HttpServerOptions half;
+  half.tls_cert_file = (dir_ / "cert.pem").string();
+  EXPECT_FALSE(HttpServer::Start(*store_, *sessions_, half).ok());
+
+  HttpServerOptions o;
+  o.tls_cert_file = (dir_ / "cert.pem").string();
+  o.tls_key_file = (dir_ / "key.pem").string();
+  Start(o);
+  EXPECT_TRUE(server_->tls());
+  asio::io_context io;
+  asio::ssl::context ctx(asio::ssl::context::tls_client);
+  ctx.add_certificate_authority(asio::buffer(cert));
+  ctx.set_verify_mode(asio::ssl::verify_peer);
+  beast::ssl_stream<tcp::socket> stream(io, ctx);
+  stream.next_layer().connect(
+      tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_)));
+  stream.handshake(asio::ssl::stream_base::client);
+  const Response in =
+      Exchange(stream, "POST", "/api/v1/signin", {}, json{{"token", admin_}}.dump());
+  EXPECT_EQ(in.status, 200);
+  EXPECT_NE(in.Header("Set-Cookie").find("; Secure"), std::string::npos);
+  // Plaintext on the TLS port gets no page.
+  Raw raw(port_);
+  raw.Send("GET /signin HTTP/1.1\r\nHost: x\r\n\r\n");
+  std::string answer;
+  raw.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.find("HTTP/1.1 200"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vsurg::server
