@@ -175,12 +175,18 @@ class Connection final : public ConnectionBase,
       case HttpReply::Kind::kPlain:
         return Write(std::move(reply));
       case HttpReply::Kind::kDeferred: {
-        std::weak_ptr<Connection> weak = this->shared_from_this();
+        // The connection waits for the answer (kept alive by itself until then, or until the
+        // server closes it); the callback holds only weak references.
+        keep_ = this->shared_from_this();
+        std::weak_ptr<Connection> weak = keep_;
         reply.deferred([weak, owner = ctx_.owner](HttpReply done) {
           const auto shared = owner.lock();  // the server may have stopped meanwhile
           if (!shared) return;
           asio::post(shared->io, [weak, done = std::move(done)]() mutable {
-            if (auto self = weak.lock()) self->Write(std::move(done));
+            if (auto self = weak.lock()) {
+              self->keep_.reset();
+              self->Write(std::move(done));
+            }
           });
         });
         return;
@@ -259,10 +265,15 @@ class Connection final : public ConnectionBase,
           if (ended) {
             text = "event: ended\ndata: {}\n\n";
           } else {
-            const auto now = std::chrono::steady_clock::now();
-            if (std::chrono::duration<double>(now - *last).count() < 0.9 / watch.rate_hz) return;
-            *last = now;
             if (watch.session != 0 && list.empty()) return;
+            const auto now = std::chrono::steady_clock::now();
+            if (watch.surface) {
+              // The surface comes with every third sample: send those, whatever the phase.
+              if (!list.front().has_surface) return;
+            } else if (std::chrono::duration<double>(now - *last).count() < 0.9 / watch.rate_hz) {
+              return;
+            }
+            *last = now;
             text = "data: ";
             if (watch.session == 0) text += "[";
             for (size_t i = 0; i < list.size(); ++i) {
@@ -412,7 +423,8 @@ class Connection final : public ConnectionBase,
   bool writing_ = false, ending_ = false;
   std::string pending_;
   std::function<bool()> still_allowed_;
-  std::shared_ptr<Connection> keep_;  // an event stream keeps itself alive until Close
+  // An event stream, or a request waiting for the store, keeps itself alive until Close.
+  std::shared_ptr<Connection> keep_;
   char hangup_[64];
   std::chrono::steady_clock::time_point last_check_{};
 };

@@ -263,7 +263,7 @@ async function pageLive(main) {
   const body = el('tbody', { id: 'live-rows' });
   const table = el('table', { id: 'live-table' },
     el('thead', {}, el('tr', {}, ['Trainee', 'Scene', 'State', 'Twist / depth', 'Force (N)', 'RTT (µs)',
-      'Loss (%)', 'Haptic (Hz)', 'Score', ''].map((h, i) => el('th', { class: i >= 4 && i <= 8 ? 'num' : '' }, h))))),
+      'Loss (%)', 'Haptic (Hz)', 'Score', ''].map((h, i) => el('th', { class: i >= 4 && i <= 8 ? 'num' : '' }, h)))),
     body);
   const note = el('div');
   const prepare = el('form', { class: 'inline', id: 'prepare' },
@@ -379,6 +379,7 @@ async function pageSession(main) {
   const t0 = performance.now();
   es.onmessage = (ev) => {
     const t = JSON.parse(ev.data), now = (performance.now() - t0) / 1000;
+    if (t.state !== s.state) { s.state = t.state; renderHead(s); }
     plots.force.add(now, [t.force_n]);
     plots.twist.add(now, press ? [t.depth_mm] : [t.twist_deg, t.torque * 1000]);
     plots.rtt.add(now, [t.rtt_us]);
