@@ -16,8 +16,13 @@
 //     speed_vs_error.h).
 #include <sys/resource.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <filesystem>
+#include <thread>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -32,7 +37,10 @@
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "db/store.h"
+#include "server/http/http_server.h"
 #include "server/net/udp_endpoint.h"
+#include "server/session/session_manager.h"
 
 namespace {
 
@@ -52,6 +60,101 @@ struct Station {
       : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
 };
 
+// --dashboard-clients: the server's stack around the endpoint (a store in a temporary folder, the
+// session manager, the HTTP dashboard) and web clients that each follow the live page (every
+// session, 4 Hz) and one session's page (10 Hz, with its deformed surface), reading as a browser
+// does.
+struct ServerStack {
+  std::filesystem::path dir;
+  std::unique_ptr<vsurg::db::Store> store;
+  std::unique_ptr<vsurg::server::SessionManager> sessions;
+  std::unique_ptr<vsurg::server::HttpServer> server;
+  std::string token;
+  std::vector<uint64_t> ids;
+  std::vector<vsurg::wire::SessionKey> keys;
+  asio::io_context io;
+  std::vector<std::unique_ptr<asio::ip::tcp::socket>> sockets;
+  std::vector<std::array<char, 65536>> buffers;
+  std::atomic<uint64_t> bytes{0};
+  std::thread thread;
+
+  static vsurg::Expected<std::unique_ptr<ServerStack>> Start(vsurg::server::UdpEndpoint& endpoint,
+                                                             const std::string& scene, int n) {
+    auto s = std::make_unique<ServerStack>();
+    s->dir = std::filesystem::temp_directory_path() /
+             ("vsurg_bench_stack_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(s->dir);
+    std::filesystem::create_directories(s->dir);
+    auto store = vsurg::db::Store::Open({.path = (s->dir / "vsurg.db").string()});
+    if (!store.ok()) return store.error();
+    s->store = std::move(store).value();
+    auto token = s->store->InitAdmin("admin");
+    if (!token.ok()) return token.error();
+    s->token = *token;
+    vsurg::server::SessionManagerOptions so;
+    so.max_live_sessions = std::max(256, n);
+    s->sessions = std::make_unique<vsurg::server::SessionManager>(*s->store, &endpoint, so);
+    auto server = vsurg::server::HttpServer::Start(*s->store, *s->sessions, {});
+    if (!server.ok()) return server.error();
+    s->server = std::move(server).value();
+    for (int i = 0; i < n; ++i) {
+      const std::string trainee = "trainee-" + std::to_string(i);
+      if (auto u = s->store->CreateUser(trainee, vsurg::db::Role::kTrainee, "bench"); !u.ok())
+        return u.error();
+      auto created = s->sessions->Create(trainee, scene);
+      if (!created.ok()) return created.error();
+      const auto id = static_cast<uint64_t>(created->record.id);
+      if (auto started = s->sessions->Start(id); !started.ok()) return started.error();
+      s->ids.push_back(id);
+      s->keys.push_back(created->key);
+    }
+    return s;
+  }
+
+  void Follow(int clients) {
+    const asio::ip::tcp::endpoint to(asio::ip::make_address("127.0.0.1"),
+                                     static_cast<uint16_t>(server->port()));
+    buffers.resize(static_cast<size_t>(2 * clients));
+    for (int c = 0; c < clients; ++c) {
+      for (const std::string& path :
+           {std::string("/api/v1/live/events"),
+            "/api/v1/sessions/" + std::to_string(ids[static_cast<size_t>(c) % ids.size()]) +
+                "/events"}) {
+        auto socket = std::make_unique<asio::ip::tcp::socket>(io);
+        socket->connect(to);
+        const std::string request = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n" +
+                                    "Authorization: Bearer " + token + "\r\n\r\n";
+        asio::write(*socket, asio::buffer(request));
+        sockets.push_back(std::move(socket));
+        Read(sockets.size() - 1);
+      }
+    }
+    thread = std::thread([this] { io.run(); });
+  }
+  void Read(size_t k) {
+    sockets[k]->async_read_some(asio::buffer(buffers[k]), [this, k](auto ec, size_t n) {
+      if (ec) return;
+      bytes.fetch_add(n, std::memory_order_relaxed);
+      Read(k);
+    });
+  }
+  void Stop() {
+    asio::post(io, [this] {
+      for (auto& s : sockets) {
+        boost::system::error_code ec;
+        s->close(ec);
+      }
+    });
+    if (thread.joinable()) thread.join();
+    server->Shutdown();
+    sessions->Shutdown();
+    sessions.reset();
+    server.reset();
+    store.reset();
+    std::filesystem::remove_all(dir);
+  }
+};
+
 int HapticRtt(const std::vector<std::string>& args) {
   ArgParser p(
       "vsurg-bench haptic-rtt",
@@ -65,6 +168,10 @@ int HapticRtt(const std::vector<std::string>& args) {
       .Option("idle-threads", ArgParser::Kind::kFlag,
               "give idle sessions a running deformation thread, as before the server started "
               "one only for a driven session (for comparison)")
+      .Option("dashboard-clients", ArgParser::Kind::kInt,
+              "run the server's own stack (store, session manager, web dashboard) and have this "
+              "many dashboard clients follow every session live (-1: the bare endpoint)",
+              false, "-1")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -102,7 +209,21 @@ int HapticRtt(const std::vector<std::string>& args) {
   std::vector<std::unique_ptr<vsurg::sim::Simulation>> sims;
   asio::io_context io;
   std::vector<std::unique_ptr<Station>> stations;
-  for (int i = 0; i < n; ++i) {
+  const int dashboard_clients = p.Int("dashboard-clients");
+  if (dashboard_clients > 256)
+    return std::cerr << p.command() << ": --dashboard-clients: must be in -1..256\n", 2;
+  std::unique_ptr<ServerStack> stack;
+  if (dashboard_clients >= 0) {
+    // The server as vsurg-server runs it: sessions created and started by the session manager
+    // (its sampler feeding telemetry), the dashboard listening beside it.
+    auto made = ServerStack::Start(**endpoint, scene->name, n);
+    if (!made.ok()) return std::cerr << made.error().message << "\n", 1;
+    stack = std::move(made).value();
+    for (int i = 0; i < n; ++i)
+      stations.push_back(std::make_unique<Station>(io, stack->ids[i], stack->keys[i]));
+    stack->Follow(dashboard_clients);
+  }
+  for (int i = 0; i < n && !stack; ++i) {
     vsurg::wire::SessionKey key;
     for (size_t k = 0; k < key.size(); ++k) key[k] = static_cast<uint8_t>(i * 7 + k);
     auto sim = vsurg::sim::Simulation::Create(*scene, {true});
@@ -185,6 +306,12 @@ int HapticRtt(const std::vector<std::string>& args) {
   tick();
   io.run();
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
+  uint64_t dashboard_bytes = 0, dashboard_events = 0;
+  if (stack) {
+    dashboard_bytes = stack->bytes.load();
+    dashboard_events = stack->server->counters().events_sent;
+    stack->Stop();
+  }
   (*endpoint)->Stop();
   std::sort(rtt.begin(), rtt.end());
   auto pct = [&](double q) {
@@ -204,15 +331,19 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["server_cpu_per_station"] = cpu / total / n;
   j["idle_sessions"] = idle;
   j["idle_threads"] = p.Flag("idle-threads");
+  j["dashboard_clients"] = dashboard_clients;
+  j["dashboard_bytes"] = dashboard_bytes;
+  j["dashboard_events"] = dashboard_events;
   if (p.Flag("json")) {
     std::cout << j.dump() << "\n";
   } else {
     std::printf(
         "%d stations, %.1f s: rtt p50 %.1f us, p99 %.1f us, p99.9 %.1f us, loss %.4f, server "
-        "cpu/station %.4f, idle sessions %d%s\n",
+        "cpu/station %.4f, idle sessions %d%s, dashboard clients %d (%.1f MB of events)\n",
         n, seconds, pct(0.5), pct(0.99), pct(0.999), j["loss"].get<double>(),
         j["server_cpu_per_station"].get<double>(), idle,
-        p.Flag("idle-threads") ? " (with deformation threads)" : "");
+        p.Flag("idle-threads") ? " (with deformation threads)" : "", dashboard_clients,
+        static_cast<double>(dashboard_bytes) / 1e6);
   }
   return 0;
 }
@@ -223,7 +354,7 @@ int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   if (args.empty() || args[0] == "--help") {
     std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--idle N "
-                 "[--idle-scene NAME] [--idle-threads]] [--json]\n"
+                 "[--idle-scene NAME] [--idle-threads]] [--dashboard-clients N] [--json]\n"
                  "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n";

@@ -55,5 +55,22 @@ echo "==== The platform end to end: server, a trainee's station, an instructor's
 "$root/deploy/demo_flow.sh" "$root/build/bin" "$out/flow" "$root/docs"
 
 echo
+echo "==== The web dashboard on the demo's store ===="
+http="127.0.0.1:${VSURG_HTTP_PORT:-8080}"
+rm -f "$out/flow/ready.json"
+VSURG_SCENES="$root/scenes" "$root/build/bin/vsurg-server" --db "$out/flow/vsurg.db" \
+  --listen 127.0.0.1:0 --udp-port 0 --http "$http" --ready-file "$out/flow/ready.json" \
+  2> "$out/flow/dashboard-server.log" &
+dashboard_pid=$!
+trap 'kill "$dashboard_pid" 2>/dev/null || true; wait "$dashboard_pid" 2>/dev/null || true' EXIT
+for _ in $(seq 100); do [ -s "$out/flow/ready.json" ] && break; sleep 0.1; done
+[ -s "$out/flow/ready.json" ] || { cat "$out/flow/dashboard-server.log" >&2; exit 1; }
+echo "web dashboard: http://$http/  (sign in with a token from $out/flow/tokens.txt:"
+echo "               instructor: live stations and sessions; evaluator: scoring; admin: everything)"
+echo
 echo "demo: deformed meshes and trajectories in $out; the platform run's logs and scores.csv in $out/flow;"
 echo "      screenshots in docs/ (station-before.png, station-twisted.png, monitor-view.png)"
+if [ -t 0 ]; then
+  echo "The dashboard runs until Ctrl-C."
+  wait "$dashboard_pid" || true
+fi

@@ -24,9 +24,18 @@ source "$root/deploy/processes.sh"
 vsurg_temp_and_cleanup
 step() { echo; echo "== $* =="; }
 
-step "Administrator: vsurg-server on a temporary SQLite file"
-vsurg_start_server "$bin" "$out/server.log"
+step "Administrator: vsurg-server on a temporary SQLite file, with the web dashboard"
+vsurg_start_server "$bin" "$out/server.log" --http 127.0.0.1:0
+http_port="$(sed -n 's/.*"http_port":\([0-9]*\).*/\1/p' "$tmp/ready.json")"
 echo "vsurg-server pid $server_pid serving gRPC on $server"
+echo "web dashboard: http://127.0.0.1:$http_port/ (sign in with a user's token)"
+# The dashboard answers (bash's /dev/tcp: no HTTP client needed): the sign-in page.
+exec 3<>"/dev/tcp/127.0.0.1/$http_port"
+printf 'GET /signin HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n' >&3
+status="$(head -1 <&3 | tr -d '\r')"
+exec 3<&-
+[ "$status" = "HTTP/1.1 200 OK" ] || { echo "demo: the dashboard answered '$status'" >&2; exit 1; }
+echo "the dashboard's sign-in page: $status"
 adm() { "$bin/vsurg-admin" "$@" --server "$server" --token "$admin_token"; }
 token_of() { adm user-add --name "$1" --role "$2" ${3:+--group "$3"} --issue-token | tail -1; }
 trainee_token="$(token_of tia trainee group-a)"
@@ -89,6 +98,14 @@ step "Administrator: export of every evaluation as CSV"
 adm export --format csv --out "$out/scores.csv"
 echo "-- first rows of $out/scores.csv"
 head -4 "$out/scores.csv"
+
+step "Administrator: a copy of the store for the dashboard after the demo (vsurg-server backup)"
+"$bin/vsurg-server" backup --db "$tmp/vsurg.db" --out "$tmp/demo-copy.db"
+mv "$tmp/demo-copy.db" "$out/vsurg.db"
+printf 'admin %s\ninstructor %s\nevaluator %s\ntrainee %s\n' "$admin_token" \
+  "$instructor_token" "$chief_token" "$trainee_token" > "$out/tokens.txt"
+chmod 600 "$out/tokens.txt"
+echo "store copy: $out/vsurg.db; the users' tokens: $out/tokens.txt"
 
 step "Shutdown: SIGTERM, the store drained"
 kill -TERM "$server_pid"

@@ -40,6 +40,39 @@ constexpr const char* kSecurityHeaders =
     "X-Frame-Options: DENY\r\n"
     "Referrer-Policy: no-referrer\r\n";
 
+// The event streams' frames, formatted once per sampler tick for every stream that watches the
+// same thing (20 instructors on one session cost one JSON encoding, not 20). Sampler thread only.
+class FrameCache {
+ public:
+  std::shared_ptr<const std::string> Get(uint64_t session, bool surface,
+                                         const std::vector<SessionTelemetry>& list) {
+    const int64_t stamp = list.empty() ? 0 : list.front().server_time_us;
+    std::lock_guard<std::mutex> lock(mutex_);
+    Entry& e = entries_[{session, surface}];
+    if (e.text && e.stamp == stamp && e.count == list.size() && stamp != 0) return e.text;
+    std::string text = "data: ";
+    if (session == 0) text += "[";
+    for (size_t i = 0; i < list.size(); ++i) {
+      if (i) text += ",";
+      text += HttpApi::TelemetryJson(list[i], surface);
+    }
+    if (session == 0) text += "]";
+    text += "\n\n";
+    e = {stamp, list.size(), std::make_shared<const std::string>(std::move(text))};
+    if (entries_.size() > 4096) entries_.clear();  // ended sessions' entries, now and then
+    return e.text;
+  }
+
+ private:
+  struct Entry {
+    int64_t stamp = 0;
+    size_t count = 0;
+    std::shared_ptr<const std::string> text;
+  };
+  std::mutex mutex_;
+  std::map<std::pair<uint64_t, bool>, Entry> entries_;
+};
+
 // What outlives the server object while handlers are still queued: the I/O context (last, so it
 // is destroyed first and the connections its handlers hold find the counters still there).
 struct Shared {
@@ -49,6 +82,7 @@ struct Shared {
   std::atomic<uint64_t> requests{0}, refused{0}, bad{0}, events{0};
   std::atomic<int> open{0}, streams{0}, exports{0};
   std::atomic<bool> stopping{false};
+  FrameCache frames;
   asio::io_context io;
 };
 
@@ -254,16 +288,17 @@ class Connection final : public ConnectionBase,
           if (ec) self->Close();  // a client sends nothing on an event stream; data is ignored
         });
     std::weak_ptr<Connection> weak = this->shared_from_this();
-    asio::io_context* io = &ctx_.shared->io;
+    Shared* shared = ctx_.shared;
     const HttpReply::Watch watch = reply.watch;
     auto last = std::make_shared<std::chrono::steady_clock::time_point>();
     subscription_ = ctx_.sessions->Subscribe(
         watch.session,
-        [weak, io, watch, last](const std::vector<SessionTelemetry>& list, bool ended) {
-          // The sessions' sampler thread: format, hand over, never wait.
-          std::string text;
+        [weak, shared, watch, last](const std::vector<SessionTelemetry>& list, bool ended) {
+          // The sessions' sampler thread: format (once per frame for all who watch the same
+          // thing), hand over, never wait.
+          std::shared_ptr<const std::string> text;
           if (ended) {
-            text = "event: ended\ndata: {}\n\n";
+            text = std::make_shared<const std::string>("event: ended\ndata: {}\n\n");
           } else {
             if (watch.session != 0 && list.empty()) return;
             const auto now = std::chrono::steady_clock::now();
@@ -274,34 +309,27 @@ class Connection final : public ConnectionBase,
               return;
             }
             *last = now;
-            text = "data: ";
-            if (watch.session == 0) text += "[";
-            for (size_t i = 0; i < list.size(); ++i) {
-              if (i) text += ",";
-              text += HttpApi::TelemetryJson(list[i], watch.surface);
-            }
-            if (watch.session == 0) text += "]";
-            text += "\n\n";
+            text = shared->frames.Get(watch.session, watch.surface, list);
           }
-          asio::post(*io, [weak, text = std::move(text), ended]() mutable {
-            if (auto self = weak.lock()) self->Push(std::move(text), ended);
+          asio::post(shared->io, [weak, text = std::move(text), ended] {
+            if (auto self = weak.lock()) self->Push(text, ended);
           });
         });
     WriteRaw(std::make_shared<std::string>(
         StreamHeader("text/event-stream", "X-Accel-Buffering: no\r\n") + "retry: 2000\n\n"));
   }
 
-  void Push(std::string text, bool ended) {
+  void Push(std::shared_ptr<const std::string> text, bool ended) {
     if (closed_) return;
     if (ended) ending_ = true;
     if (writing_) {
       pending_ = std::move(text);  // a slow reader gets the newest frame, never a backlog
       return;
     }
-    WriteRaw(std::make_shared<std::string>(std::move(text)));
+    WriteRaw(std::move(text));
   }
 
-  void WriteRaw(std::shared_ptr<std::string> text) {
+  void WriteRaw(std::shared_ptr<const std::string> text) {
     writing_ = true;
     Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
     asio::async_write(stream_, asio::buffer(*text),
@@ -319,9 +347,9 @@ class Connection final : public ConnectionBase,
       last_check_ = now;  // a revoked token or a disabled account ends the stream
       if (still_allowed_ && !still_allowed_()) return Close();
     }
-    if (!pending_.empty()) {
-      auto next = std::make_shared<std::string>(std::move(pending_));
-      pending_.clear();
+    if (pending_) {
+      auto next = std::move(pending_);
+      pending_.reset();
       return WriteRaw(std::move(next));
     }
     if (ending_) return Close();
@@ -421,7 +449,7 @@ class Connection final : public ConnectionBase,
   // Event streams (I/O thread).
   uint64_t subscription_ = 0;
   bool writing_ = false, ending_ = false;
-  std::string pending_;
+  std::shared_ptr<const std::string> pending_;
   std::function<bool()> still_allowed_;
   // An event stream, or a request waiting for the store, keeps itself alive until Close.
   std::shared_ptr<Connection> keep_;
