@@ -21,12 +21,12 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <filesystem>
-#include <thread>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -35,9 +35,9 @@
 #include "bench/speed_vs_error.h"
 #include "common/core/args.h"
 #include "common/sim/simulation.h"
+#include "db/store.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
-#include "db/store.h"
 #include "server/http/http_server.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
