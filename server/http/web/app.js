@@ -313,6 +313,7 @@ async function pageLive(main) {
       }
       if (now - entry.last > 15000) { entry.row.remove(); seen.delete(id); }
     }
+    if (!performance.getEntriesByName('vsurg-live-data').length) performance.mark('vsurg-live-data');
     status.className = 'status-line';
     status.textContent = `${list.length} live session${list.length === 1 ? '' : 's'} · updated ${new Date().toLocaleTimeString()}`;
   };
