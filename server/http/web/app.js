@@ -449,7 +449,7 @@ function reportView(r) {
       ['ICC(2,k)', fmt(x.icc2k, 3)], ["Cronbach's α", fmt(x.cronbach_alpha, 3)],
       ['Absent groups', x.absent_groups && x.absent_groups.length ? x.absent_groups.join(', ') + ' (weights renormalised)' : 'none'],
       ['Weights', x.weights ? x.weights.name : '']].flatMap(([k, v]) => [el('dt', {}, k), el('dd', { class: k === 'N (raters)' ? 'raters' : '' }, v)])),
-    el('table', {}, el('thead', {}, el('tr', {}, ['Index', 'M_j', 's_j', 'weight'].map((h) => el('th', {}, h)))),
+    el('table', {}, el('thead', {}, el('tr', {}, ['Index', 'M_j', 's_j', 'weight'].map((h, i) => el('th', { class: i ? 'num' : '' }, h)))),
       el('tbody', {}, x.index_names.map((n, j) => el('tr', {}, el('td', {}, n), el('td', { class: 'num' }, fmt(x.index_means[j], 2)),
         el('td', { class: 'num' }, fmt(Math.sqrt(x.index_variances[j]), 2)),
         el('td', { class: 'num' }, x.weights ? fmt(x.weights.index[j], 2) : '—'))))));
