@@ -280,6 +280,41 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
   }
 }
 
+TEST_F(ControlPlaneTest, OnlyTheTraineeJoinsASessionPreparedForThem) {
+  auto sessions = v1::SessionService::NewStub(channel_);
+  v1::CreateSessionRequest create;
+  create.set_trainee("tina");
+  create.set_scene("sphere-palpation-256");
+  v1::CreateSessionResponse prepared;
+  ASSERT_TRUE(sessions->Create(Ctx(db::Role::kInstructor).get(), create, &prepared).ok());
+  v1::SessionRef ref;
+  ref.set_id(prepared.session().id());
+  v1::CreateSessionResponse joined;
+  // Another trainee, the instructor who prepared it and an administrator get no key.
+  EXPECT_EQ(sessions->Join(Ctx(tom_).get(), ref, &joined).error_code(),
+            StatusCode::PERMISSION_DENIED);
+  EXPECT_EQ(sessions->Join(Ctx(db::Role::kInstructor).get(), ref, &joined).error_code(),
+            StatusCode::PERMISSION_DENIED);
+  EXPECT_EQ(sessions->Join(Ctx(db::Role::kAdmin).get(), ref, &joined).error_code(),
+            StatusCode::PERMISSION_DENIED);
+  const grpc::Status ok = sessions->Join(Ctx(db::Role::kTrainee).get(), ref, &joined);
+  ASSERT_TRUE(ok.ok()) << ok.error_message();
+  EXPECT_EQ(joined.session_key(), prepared.session_key());
+  EXPECT_EQ(joined.udp_port(), prepared.udp_port());
+  EXPECT_EQ(joined.session().scene(), "sphere-palpation-256");
+  EXPECT_EQ(joined.session().trainee(), "tina");
+  // Once it has ended there is nothing to join.
+  v1::StopSessionRequest stop;
+  stop.set_id(ref.id());
+  v1::Session s;
+  ASSERT_TRUE(sessions->Stop(Ctx(db::Role::kInstructor).get(), stop, &s).ok());
+  EXPECT_EQ(sessions->Join(Ctx(db::Role::kTrainee).get(), ref, &joined).error_code(),
+            StatusCode::NOT_FOUND);
+  ref.set_id(999);
+  EXPECT_EQ(sessions->Join(Ctx(db::Role::kTrainee).get(), ref, &joined).error_code(),
+            StatusCode::NOT_FOUND);
+}
+
 TEST_F(ControlPlaneTest, HealthServiceReportsServing) {
   grpc::GenericStub stub(channel_);
   grpc::ByteBuffer request, response;  // HealthCheckRequest{service: ""} is empty on the wire
