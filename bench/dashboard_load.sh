@@ -2,7 +2,7 @@
 # What the web dashboard costs the haptic path, side by side in one run: 8 stations' round trip
 # at 1 kHz through the server's own stack (store, session manager, dashboard listening) with no
 # dashboard client and with 20 clients each following the live page (every session, 4 Hz) and
-# one session's page (10 Hz, with the deformed surface), alternating, 3 runs each
+# one session's page (10 Hz, with the deformed surface), alternating, 3 runs each (REPS=N for more)
 # (vsurg-bench haptic-rtt --dashboard-clients). Then the live page's first paint and first data
 # in headless Chromium on loopback (bench/dashboard_paint.py), 5 loads.
 # usage: bench/dashboard_load.sh [BIN_DIR] [STATIONS=8] [CLIENTS=20] [SECONDS=10]
@@ -14,9 +14,10 @@ seconds="${4:-10}"
 root="$(cd "$(dirname "$0")/.." && pwd)"
 export VSURG_SCENES="$root/scenes"
 printf '%-22s %4s %10s %10s %11s %8s %12s\n' setting run p50_us p99_us p99.9_us loss events_MB
-for rep in 1 2 3; do
+for rep in $(seq "${REPS:-3}"); do
   for c in 0 "$clients"; do
     "$B/vsurg-bench" haptic-rtt --stations "$stations" --seconds "$seconds" --scene arm-torsion \
+      --realtime-priority "${PRIORITY:-20}" \
       --dashboard-clients "$c" --json |
       /usr/bin/python3 -c "
 import json, sys

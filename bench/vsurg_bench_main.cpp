@@ -34,6 +34,7 @@
 #include "bench/control_bench.h"
 #include "bench/speed_vs_error.h"
 #include "common/core/args.h"
+#include "common/core/realtime.h"
 #include "common/sim/simulation.h"
 #include "db/store.h"
 #include "proto/wire/asio.h"
@@ -168,6 +169,10 @@ int HapticRtt(const std::vector<std::string>& args) {
       .Option("idle-threads", ArgParser::Kind::kFlag,
               "give idle sessions a running deformation thread, as before the server started "
               "one only for a driven session (for comparison)")
+      .Option("realtime-priority", ArgParser::Kind::kInt,
+              "SCHED_FIFO priority of the endpoint's I/O thread and of the stations' thread, "
+              "when permitted, as vsurg-server and vsurg-station set theirs (default there: 20)",
+              false, "0")
       .Option("dashboard-clients", ArgParser::Kind::kInt,
               "run the server's own stack (store, session manager, web dashboard) and have this "
               "many dashboard clients follow every session live (-1: the bare endpoint)",
@@ -204,7 +209,10 @@ int HapticRtt(const std::vector<std::string>& args) {
     idle_sims.push_back(std::move(*sim));
   }
 
-  auto endpoint = vsurg::server::UdpEndpoint::Create({});
+  const int priority = p.Int("realtime-priority");
+  if (priority < 0 || priority > 99)
+    return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
+  auto endpoint = vsurg::server::UdpEndpoint::Create({.realtime_priority = priority});
   if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
   std::vector<std::unique_ptr<vsurg::sim::Simulation>> sims;
   asio::io_context io;
@@ -303,6 +311,7 @@ int HapticRtt(const std::vector<std::string>& args) {
     });
   };
   const double cpu0 = (*endpoint)->io_cpu_seconds();
+  const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
   tick();
   io.run();
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
@@ -332,6 +341,7 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["idle_sessions"] = idle;
   j["idle_threads"] = p.Flag("idle-threads");
   j["dashboard_clients"] = dashboard_clients;
+  j["realtime_priority"] = realtime ? priority : 0;
   j["dashboard_bytes"] = dashboard_bytes;
   j["dashboard_events"] = dashboard_events;
   if (p.Flag("json")) {
