@@ -6,7 +6,8 @@
 #                integration tests (bar five long numerical runs, below); the same build holds
 #                the libFuzzer targets (deploy/fuzz.sh);
 #   build-tsan/  ThreadSanitizer (clang, -O1) on the threaded suites: the simulation and its
-#                deformation thread, the UDP endpoint, the station channel, the store's writer.
+#                deformation thread, the UDP endpoint, the station channel, the store's writer,
+#                the dashboard's listener (its I/O thread, event streams, exports).
 #
 # Clang, not GCC: the same checks, and the project builds in 8 minutes instead of 17 here.
 # Usage: deploy/sanitize.sh [asan|tsan|all]   (default all). Exits non-zero on any report.
@@ -42,7 +43,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
 fi
 
 if [ "$which" = tsan ] || [ "$which" = all ]; then
-  suites=(simulation_test server_net_test station_channel_test db_test)
+  suites=(simulation_test server_net_test station_channel_test db_test http_server_test)
   CC=clang CXX=clang++ cmake -S "$root" -B "$root/build-tsan" -G Ninja \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
     -DVSURG_BENCH=OFF -DVSURG_TSAN=ON -DVSURG_WERROR=OFF >/dev/null
