@@ -32,13 +32,16 @@ using http::HttpApi;
 using http::HttpReply;
 using http::HttpRequest;
 
-constexpr const char* kSecurityHeaders =
-    "Content-Security-Policy: default-src 'self'; img-src 'self' data:; style-src 'self'; "
-    "script-src 'self'; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; "
-    "form-action 'self'\r\n"
-    "X-Content-Type-Options: nosniff\r\n"
-    "X-Frame-Options: DENY\r\n"
-    "Referrer-Policy: no-referrer\r\n";
+// Sent with every response, plain or streamed: scripts, styles and connections from this server
+// only, never framed, never sniffed, no referrer.
+constexpr std::pair<const char*, const char*> kSecurityHeaders[] = {
+    {"Content-Security-Policy",
+     "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; "
+     "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'"},
+    {"X-Content-Type-Options", "nosniff"},
+    {"X-Frame-Options", "DENY"},
+    {"Referrer-Policy", "no-referrer"},
+};
 
 // The event streams' frames, formatted once per sampler tick for every stream that watches the
 // same thing (20 instructors on one session cost one JSON encoding, not 20). Sampler thread only.
@@ -247,12 +250,7 @@ class Connection final : public ConnectionBase,
     res->set(bhttp::field::server, "vsurg");
     if (!reply.content_type.empty()) res->set(bhttp::field::content_type, reply.content_type);
     for (auto& [name, value] : reply.headers) res->insert(name, value);
-    res->set("Content-Security-Policy",
-             "default-src 'self'; img-src 'self' data:; style-src 'self'; script-src 'self'; "
-             "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'");
-    res->set("X-Content-Type-Options", "nosniff");
-    res->set("X-Frame-Options", "DENY");
-    res->set("Referrer-Policy", "no-referrer");
+    for (const auto& [name, value] : kSecurityHeaders) res->set(name, value);
     if (reply.status == 401 || reply.status == 403 || reply.status >= 500 ||
         reply.content_type.rfind("application/json", 0) == 0)
       res->set(bhttp::field::cache_control, "no-store");
@@ -268,9 +266,11 @@ class Connection final : public ConnectionBase,
   }
 
   std::string StreamHeader(const std::string& type, const std::string& extra) {
-    return "HTTP/1.1 200 OK\r\nServer: vsurg\r\nContent-Type: " + type +
-           "\r\nCache-Control: no-store\r\nConnection: close\r\n" + kSecurityHeaders + extra +
-           "\r\n";
+    std::string head = "HTTP/1.1 200 OK\r\nServer: vsurg\r\nContent-Type: " + type +
+                       "\r\nCache-Control: no-store\r\nConnection: close\r\n";
+    for (const auto& [name, value] : kSecurityHeaders)
+      head += std::string(name) + ": " + value + "\r\n";
+    return head + extra + "\r\n";
   }
 
   // --- server-sent events: latest frame wins, one write in flight ---
