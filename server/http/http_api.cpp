@@ -70,6 +70,15 @@ double Finite(double x) {
   return std::isfinite(x) ? x : 0.0;
 }
 
+// Positions in metres as one flat array of millimetres to 0.01 mm (x, y, z, x, …): the form the
+// page's 3D view reads for the rest surface and for the moved vertices alike.
+json Millimetres(const std::vector<geometry::Vec3>& positions) {
+  json out = json::array();
+  for (const geometry::Vec3& p : positions)
+    for (int k = 0; k < 3; ++k) out.push_back(std::round(Finite(p[k]) * 1e5) / 100.0);
+  return out;
+}
+
 // The first value of a query parameter, or "".
 std::string Param(const std::multimap<std::string, std::string>& q, const std::string& name) {
   const auto it = q.find(name);
@@ -268,12 +277,9 @@ std::string HttpApi::TelemetryJson(const SessionTelemetry& t, bool with_surface)
             {"packets", t.packets},
             {"rate_hz", Finite(t.haptic_rate_hz)}};
   if (with_surface && t.has_surface) {
-    json positions = json::array();
-    for (const geometry::Vec3& p : t.surface_positions)
-      for (int k = 0; k < 3; ++k) positions.push_back(std::round(Finite(p[k]) * 1e5) / 100.0);
     j["surface"] = {{"frame", t.surface_frame},
                     {"indices", t.surface_indices},
-                    {"positions_mm", std::move(positions)}};
+                    {"positions_mm", Millimetres(t.surface_positions)}};
   }
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
@@ -504,11 +510,8 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
       if (!p.ok()) return fail(p.error());
       auto surface = SessionSurface(d_, *p, *id);
       if (!surface.ok()) return fail(surface.error());
-      json positions = json::array();
-      for (const geometry::Vec3& v : surface->positions)
-        for (int k = 0; k < 3; ++k) positions.push_back(std::round(v[k] * 1e5) / 100.0);
-      HttpReply reply =
-          Ok({{"positions_mm", std::move(positions)}, {"triangles", surface->triangles}});
+      HttpReply reply = Ok(
+          {{"positions_mm", Millimetres(surface->positions)}, {"triangles", surface->triangles}});
       return reply;
     }
     if (is({"sessions", "*", "events"}) && get) {
