@@ -43,34 +43,50 @@ constexpr std::pair<const char*, const char*> kSecurityHeaders[] = {
     {"Referrer-Policy", "no-referrer"},
 };
 
+// One event-stream frame in two forms: with the session's surface (`full`) and without it
+// (`light`). A stream writes `full` only when the surface changed since it last wrote one (the
+// surface is a whole state, vertices away from rest, so a watcher keeps the last one it got): a
+// trainee holding a twist costs each page ~400 bytes a frame instead of ~125 KB.
+struct Frame {
+  std::shared_ptr<const std::string> full, light;
+  uint64_t surface_frame = 0;
+  bool has_surface = false;
+};
+
 // The event streams' frames, formatted once per sampler tick for every stream that watches the
 // same thing (20 instructors on one session cost one JSON encoding, not 20). Sampler thread only.
 class FrameCache {
  public:
-  std::shared_ptr<const std::string> Get(uint64_t session, bool surface,
-                                         const std::vector<SessionTelemetry>& list) {
+  Frame Get(uint64_t session, bool surface, const std::vector<SessionTelemetry>& list) {
     const int64_t stamp = list.empty() ? 0 : list.front().server_time_us;
     std::lock_guard<std::mutex> lock(mutex_);
     Entry& e = entries_[{session, surface}];
-    if (e.text && e.stamp == stamp && e.count == list.size() && stamp != 0) return e.text;
-    std::string text = "data: ";
-    if (session == 0) text += "[";
-    for (size_t i = 0; i < list.size(); ++i) {
-      if (i) text += ",";
-      text += HttpApi::TelemetryJson(list[i], surface);
-    }
-    if (session == 0) text += "]";
-    text += "\n\n";
-    e = {stamp, list.size(), std::make_shared<const std::string>(std::move(text))};
+    if (e.frame.full && e.stamp == stamp && e.count == list.size() && stamp != 0) return e.frame;
+    auto encode = [&](bool with_surface) {
+      std::string text = "data: ";
+      if (session == 0) text += "[";
+      for (size_t i = 0; i < list.size(); ++i) {
+        if (i) text += ",";
+        text += HttpApi::TelemetryJson(list[i], with_surface);
+      }
+      if (session == 0) text += "]";
+      return std::make_shared<const std::string>(text + "\n\n");
+    };
+    Frame f;
+    f.light = encode(false);
+    f.has_surface = surface && list.size() == 1 && list.front().has_surface;
+    f.full = f.has_surface ? encode(true) : f.light;
+    f.surface_frame = f.has_surface ? list.front().surface_frame : 0;
+    e = {stamp, list.size(), f};
     if (entries_.size() > 4096) entries_.clear();  // ended sessions' entries, now and then
-    return e.text;
+    return f;
   }
 
  private:
   struct Entry {
     int64_t stamp = 0;
     size_t count = 0;
-    std::shared_ptr<const std::string> text;
+    Frame frame;
   };
   std::mutex mutex_;
   std::map<std::pair<uint64_t, bool>, Entry> entries_;
@@ -296,9 +312,10 @@ class Connection final : public ConnectionBase,
         [weak, shared, watch, last](const std::vector<SessionTelemetry>& list, bool ended) {
           // The sessions' sampler thread: format (once per frame for all who watch the same
           // thing), hand over, never wait.
-          std::shared_ptr<const std::string> text;
+          Frame frame;
           if (ended) {
-            text = std::make_shared<const std::string>("event: ended\ndata: {}\n\n");
+            frame.full = frame.light =
+                std::make_shared<const std::string>("event: ended\ndata: {}\n\n");
           } else {
             if (watch.session != 0 && list.empty()) return;
             const auto now = std::chrono::steady_clock::now();
@@ -309,24 +326,34 @@ class Connection final : public ConnectionBase,
               return;
             }
             *last = now;
-            text = shared->frames.Get(watch.session, watch.surface, list);
+            frame = shared->frames.Get(watch.session, watch.surface, list);
           }
-          asio::post(shared->io, [weak, text = std::move(text), ended] {
-            if (auto self = weak.lock()) self->Push(text, ended);
+          asio::post(shared->io, [weak, frame = std::move(frame), ended] {
+            if (auto self = weak.lock()) self->Push(frame, ended);
           });
         });
     WriteRaw(std::make_shared<std::string>(
         StreamHeader("text/event-stream", "X-Accel-Buffering: no\r\n") + "retry: 2000\n\n"));
   }
 
-  void Push(std::shared_ptr<const std::string> text, bool ended) {
+  void Push(Frame frame, bool ended) {
     if (closed_) return;
     if (ended) ending_ = true;
     if (writing_) {
-      pending_ = std::move(text);  // a slow reader gets the newest frame, never a backlog
+      pending_ = std::move(frame);  // a slow reader gets the newest frame, never a backlog
       return;
     }
-    WriteRaw(std::move(text));
+    WriteFrame(std::move(frame));
+  }
+
+  // Chosen when written, not when queued: a frame that replaced a pending one still carries the
+  // newest surface to a stream that has not written it.
+  void WriteFrame(Frame frame) {
+    if (frame.has_surface && frame.surface_frame != surface_written_) {
+      surface_written_ = frame.surface_frame;
+      return WriteRaw(std::move(frame.full));
+    }
+    WriteRaw(std::move(frame.light));
   }
 
   void WriteRaw(std::shared_ptr<const std::string> text) {
@@ -348,9 +375,9 @@ class Connection final : public ConnectionBase,
       if (still_allowed_ && !still_allowed_()) return Close();
     }
     if (pending_) {
-      auto next = std::move(pending_);
+      Frame next = std::move(*pending_);
       pending_.reset();
-      return WriteRaw(std::move(next));
+      return WriteFrame(std::move(next));
     }
     if (ending_) return Close();
     Lowest().expires_never();  // waiting for the next frame is not the client's fault
@@ -449,7 +476,8 @@ class Connection final : public ConnectionBase,
   // Event streams (I/O thread).
   uint64_t subscription_ = 0;
   bool writing_ = false, ending_ = false;
-  std::shared_ptr<const std::string> pending_;
+  std::optional<Frame> pending_;
+  uint64_t surface_written_ = UINT64_MAX;  // the surface frame this stream last wrote
   std::function<bool()> still_allowed_;
   // An event stream, or a request waiting for the store, keeps itself alive until Close.
   std::shared_ptr<Connection> keep_;

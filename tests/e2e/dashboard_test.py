@@ -26,7 +26,7 @@ import time
 import urllib.request
 
 from selenium import webdriver
-from selenium.common.exceptions import NoAlertPresentException
+from selenium.common.exceptions import NoAlertPresentException, TimeoutException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
@@ -95,6 +95,16 @@ def main():
     trajectory = os.path.join(tmp, "twist.csv")
     subprocess.run([f"{BIN}/vsurg-sim", "trainee", "--scene", "arm-torsion", "--style", "good",
                     "--out", trajectory], check=True, capture_output=True, env=env)
+    # The recording twists to 45° by 3 s, holds until 5.75 s, then lets go. Cut it inside the hold:
+    # the replay device keeps its last pose, so the arm stays twisted until the test ends the
+    # station (SIGINT, after the live page), and the pages are read while the session runs and
+    # the twist lasts, however slowly a loaded machine takes the screenshots before them (a 4 s
+    # window, and then a fixed 30 s one, were missed that way).
+    with open(trajectory) as f:
+        rows = f.read().splitlines()
+    kept = [rows[0]] + [r for r in rows[1:] if float(r.split(",")[0]) <= 5.0]
+    with open(trajectory, "w") as f:
+        f.write("\n".join(kept) + "\n")
 
     options = webdriver.ChromeOptions()
     options.binary_location = "/usr/bin/chromium"
@@ -106,6 +116,7 @@ def main():
     os.makedirs(downloads)
     options.add_experimental_option("prefs", {"download.default_directory": downloads,
                                               "download.prompt_for_download": False})
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})  # console errors on failure
     service = Service(executable_path="/usr/bin/chromedriver")
     driver = webdriver.Chrome(options=options, service=service)
     wait = WebDriverWait(driver, 30)
@@ -153,7 +164,7 @@ def main():
             [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["tina"],
              "--join", str(session), "--scene", "arm-torsion", "--device", "replay",
              "--trajectory", trajectory, "--headless", "--width", "320", "--height", "200",
-             "--settle", "12", "--json"],
+             "--settle", "600", "--json"],
             stdout=open(station_json, "w"), stderr=open(os.path.join(tmp, "station.log"), "w"),
             env=env)
         procs.append(station)
@@ -170,7 +181,13 @@ def main():
                 "const dd = document.querySelectorAll('#live-figures dd');"
                 "return dd.length > 2 ? parseFloat(dd[2].textContent) : 0;")
             return deg is not None and abs(deg) > 30
-        WebDriverWait(driver, 30).until(twist)
+        try:
+            WebDriverWait(driver, 30).until(twist)
+        except TimeoutException:
+            figures = driver.find_element(By.ID, "live-figures").text.replace("\n", " | ")
+            for entry in driver.get_log("browser"):  # the page's own errors, if any
+                print("browser:", entry.get("level"), entry.get("message"), flush=True)
+            raise TimeoutException(f"no twist past 30 deg in 30 s; the page shows: {figures}")
         time.sleep(0.5)  # a surface frame after the twist (10 Hz)
         twisted_png = canvas_png("view3d")
         frames = driver.find_element(By.ID, "view3d").get_attribute("data-frames")
@@ -198,6 +215,7 @@ def main():
               "the live page shows the running session: " + row.text.replace("\n", " "))
         shot("live")
 
+        station.send_signal(signal.SIGINT)  # the trainee ends the trial at the station
         station.wait(timeout=90)
         summary = json.load(open(station_json))
         check(summary.get("state") == "ended" and summary.get("session") == session,
@@ -289,9 +307,11 @@ except Exception as e:  # report, then fail
     traceback.print_exc()
     failures.append(f"exception: {e}")
 finally:
-    logs = os.path.join(tmp, "server.log")
-    if failures and os.path.exists(logs):
-        print(open(logs).read()[-3000:])
+    for name in ("server.log", "station.log", "station.json"):  # what the failure needs read
+        logs = os.path.join(tmp, name)
+        if failures and os.path.exists(logs):
+            print(f"--- {name} (last 3000 characters)")
+            print(open(logs).read()[-3000:])
     cleanup()
 print("dashboard e2e:", "FAILED: " + "; ".join(failures) if failures else "all checks held")
 sys.exit(1 if failures else 0)

@@ -20,6 +20,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <vector>
 
 #include "db/store.h"
 #include "server/session/session_manager.h"
@@ -202,6 +203,51 @@ TEST_F(HttpServerTest, SignsInServesPagesAndStreamsTheLiveSessions) {
   while (server_->counters().open_streams != 0 && Clock::now() < gone)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_EQ(server_->counters().open_streams, 0) << "a client that hangs up ends its stream";
+}
+
+// A session page's stream carries the deformed surface (~125 KB for a twisted arm) only when it
+// changed since that stream last carried it; a watcher keeps the last one. A prepared session's
+// surface stays at rest, so each stream gets it once, first, and then frames without it.
+TEST_F(HttpServerTest, ASessionStreamSendsTheSurfaceOnlyWhenItChanged) {
+  Start();
+  const Response created = Request(port_, "POST", "/api/v1/sessions", Bearer(),
+                                   json{{"trainee", "tina"}, {"scene", "arm-torsion"}}.dump());
+  ASSERT_EQ(created.status, 201) << created.body;
+  const std::string id = std::to_string(json::parse(created.body)["session"]["id"].get<uint64_t>());
+  auto frames_of_one_stream = [&] {
+    asio::io_context io;
+    tcp::socket socket(io);
+    socket.connect(
+        tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_)));
+    const std::string req = "GET /api/v1/sessions/" + id +
+                            "/events HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " + admin_ +
+                            "\r\n\r\n";
+    asio::write(socket, asio::buffer(req));
+    std::string got;
+    std::vector<std::string> frames;
+    const auto end = Clock::now() + std::chrono::seconds(10);
+    while (Clock::now() < end && frames.size() < 5) {
+      char buf[4096];
+      got.append(buf, socket.read_some(asio::buffer(buf)));
+      frames.clear();
+      for (size_t at = got.find("data: {"); at != std::string::npos;) {
+        const size_t stop = got.find("\n\n", at);
+        if (stop == std::string::npos) break;
+        frames.push_back(got.substr(at, stop - at));
+        at = got.find("data: {", stop);
+      }
+    }
+    return frames;
+  };
+  for (int stream = 0; stream < 2; ++stream) {
+    const std::vector<std::string> frames = frames_of_one_stream();
+    ASSERT_GE(frames.size(), 5u) << "stream " << stream;
+    EXPECT_NE(frames[0].find("\"surface\""), std::string::npos) << "the first frame: " << frames[0];
+    for (size_t k = 1; k < frames.size(); ++k)
+      EXPECT_EQ(frames[k].find("\"surface\""), std::string::npos)
+          << "stream " << stream << " frame " << k << " repeats an unchanged surface";
+    EXPECT_NE(frames.back().find("\"state\":\"created\""), std::string::npos) << frames.back();
+  }
 }
 
 TEST_F(HttpServerTest, SlowOversizedAndMalformedRequestsAreCutOffWhileOthersAreServed) {

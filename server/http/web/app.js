@@ -188,12 +188,15 @@ class TissueView {
     this.frames = 0;
   }
   // Moved vertices (indices, positions in mm) as the server sends them; the others are at rest.
+  // The server sends a surface only when it changed, so the view keeps the last one between.
   apply(surface) {
     this.pos.set(this.rest);
     const idx = surface.indices, p = surface.positions_mm;
     for (let k = 0; k < idx.length; ++k) {
       const i = idx[k];
-      if (i >= 0 && 3 * i + 2 < this.pos.length) this.pos.set([p[3 * k], p[3 * k + 1], p[3 * k + 2]], 3 * i);
+      if (i >= 0 && 3 * i + 2 < this.pos.length) {
+        this.pos[3 * i] = p[3 * k]; this.pos[3 * i + 1] = p[3 * k + 1]; this.pos[3 * i + 2] = p[3 * k + 2];
+      }
     }
     this.draw();
   }
