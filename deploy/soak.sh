@@ -1,18 +1,22 @@
 #!/usr/bin/env bash
 # Soak test (not in CI): STATIONS headless stations for SECONDS against one vsurg-server, with
-# instructors' monitors attached and evaluators submitting all along. Records every 5 s the
-# server's resident memory, open descriptors and threads, and at the end each station's round
-# trip, the monitors' view of it minute by minute, and whether every acknowledged evaluation is
-# in the store. Prints a summary and writes OUT_DIR/soak-timeline.csv and OUT_DIR/summary.txt.
+# instructors' monitors and web dashboards attached and evaluators submitting all along. Records
+# every 5 s the server's resident memory, open descriptors and threads, and at the end each
+# station's round trip, the monitors' view of it minute by minute, what the dashboards received
+# (deploy/soak_dashboard.py: the live page's stream, one session page's stream, page and API
+# loads every 5 s), and whether every acknowledged evaluation is in the store. Prints a summary
+# and writes OUT_DIR/soak-timeline.csv and OUT_DIR/summary.txt.
 #
-# usage: deploy/soak.sh BIN_DIR [STATIONS=32] [SECONDS=600] [OUT_DIR=soak-out]
+# usage: [DASHBOARDS=4] deploy/soak.sh BIN_DIR [STATIONS=32] [SECONDS=600] [OUT_DIR=soak-out]
 # Pass: memory and descriptors flat (within ±5% of their mean after a 60 s warm-up), no station
-# lost its session, every acknowledged evaluation stored. Exit 0 on pass, 1 otherwise.
+# lost its session, every acknowledged evaluation stored, no dashboard stream broke and no page or
+# API request failed. Exit 0 on pass, 1 otherwise.
 set -euo pipefail
 bin="$(cd "${1:?BIN_DIR}" && pwd)"
 stations="${2:-32}"
 seconds="${3:-600}"
 out="${4:-soak-out}"
+dashboards="${DASHBOARDS:-4}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -20,7 +24,8 @@ export VSURG_SCENES="$root/scenes"
 source "$root/deploy/processes.sh"
 vsurg_temp_and_cleanup
 station_pids=()
-vsurg_start_server "$bin" "$out/server.log" --max-sessions $((stations + 8))
+vsurg_start_server "$bin" "$out/server.log" --max-sessions $((stations + 8)) --http 127.0.0.1:0
+http_port="$(sed -n 's/.*"http_port":\([0-9]*\).*/\1/p' "$tmp/ready.json")"
 adm() { "$bin/vsurg-admin" "$@" --server "$server" --token "$admin_token"; }
 token_of() { adm user-add --name "$1" --role "$2" ${3:+--group "$3"} --issue-token | tail -1; }
 instructor="$(token_of soak-instructor instructor)"
@@ -43,6 +48,15 @@ for s in $(adm sessions 2>/dev/null | awk -F'\t' '$4=="running"{print $1}' | hea
   "$bin/vsurg-monitor" follow --server "$server" --token "$instructor" --session "$s" --text \
     --print-hz 2 > "$out/monitor-$s.log" 2>&1 &
   pids+=($!)
+done
+# Instructors' dashboards in browsers' stead, each its own user; like the stations, they outlive
+# the sampling window, so their ending is never in the figures.
+dashboard_pids=()
+for d in $(seq 1 "$dashboards"); do
+  python3 "$root/deploy/soak_dashboard.py" "$http_port" "$(token_of "soak-web$d" instructor)" \
+    "$((seconds + 10))" "$out/dashboard-$d.json" 2> "$out/dashboard-$d.log" &
+  pids+=($!)
+  dashboard_pids+=($!)
 done
 
 # Evaluators all along; the server's resources every 5 s, for SECONDS (the stations run 20 s
@@ -69,9 +83,12 @@ while :; do
   fi
   sleep 5
 done
-for p in "${station_pids[@]}"; do wait "$p" || true; done
+for p in "${station_pids[@]}" "${dashboard_pids[@]}"; do wait "$p" || true; done
 stored=$(adm export --format csv --out "$tmp/export.csv" >/dev/null 2>&1 && tail -n +2 "$tmp/export.csv" | wc -l)
 stored_submissions=$((stored / 9))
+# Out here, not in the summary's { … } | tee: that block runs in a subshell, so a variable set
+# there is gone when the verdict below reads it (set -u ended the script there before).
+lost=$(grep -L '"session"' "$out"/station-*.json | wc -l)
 
 {
   echo "soak: $stations stations, ${seconds}s, server pid $server_pid"
@@ -97,8 +114,31 @@ stored_submissions=$((stored / 9))
     while read -r minute values; do
       printf '  minute %d: p99 %s\n' "$minute" "$(echo $values | tr ' ' '\n' | sort -n | awk '{a[NR]=$1} END{i=int(NR*0.99); if (i<1) i=1; print a[i]}')"
     done
+  echo "dashboards (live page + one session page each; frames and KiB per minute, all dashboards):"
+  python3 - "$out" "$dashboards" <<'PY'
+import json, sys, glob
+runs = [json.load(open(f)) for f in sorted(glob.glob(sys.argv[1] + "/dashboard-*.json"))]
+if len(runs) != int(sys.argv[2]):
+    print(f"  {len(runs)} of {sys.argv[2]} dashboards wrote a summary")
+frames = [sum(r["frames_per_minute"][m] for r in runs) for m in range(len(runs[0]["frames_per_minute"]))] if runs else []
+kib = [sum(r["kbytes_per_minute"][m] for r in runs) for m in range(len(runs[0]["kbytes_per_minute"]))] if runs else []
+print("  frames per minute:", " ".join(map(str, frames)))
+print("  KiB per minute:", " ".join(map(str, kib)))
+if runs:
+    p50 = max(r["request_ms_p50"] or 0 for r in runs)
+    p99 = max(r["request_ms_p99"] or 0 for r in runs)
+    print(f"  streams: {sum(r['streams'] for r in runs)}, requests: {sum(r['requests'] for r in runs)}, "
+          f"latency p50 {p50:.1f} ms, p99 {p99:.1f} ms (the worst dashboard's)")
+breaks = [b for r in runs for b in r["stream_breaks"]]
+errors = [e for r in runs for e in r["request_errors"]]
+print(f"dashboard stream breaks: {len(breaks)}", "; ".join(breaks[:5]))
+print(f"dashboard request errors: {len(errors)}", "; ".join(errors[:5]))
+print("dashboards complete:", "yes" if len(runs) == int(sys.argv[2]) else "NO")
+PY
   echo "evaluations: $acked acknowledged, $failed import rounds failed, $stored_submissions stored"
-  lost=$(grep -L '"session"' "$out"/station-*.json | wc -l)
   echo "stations without a session summary: $lost"
 } | tee "$out/summary.txt"
-grep -q "flat: yes" "$out/summary.txt" && [ "$acked" -eq "$stored_submissions" ] && [ "$lost" -eq 0 ]
+grep -q "flat: yes" "$out/summary.txt" && [ "$acked" -eq "$stored_submissions" ] && [ "$lost" -eq 0 ] &&
+  grep -q "^dashboard stream breaks: 0" "$out/summary.txt" &&
+  grep -q "^dashboard request errors: 0" "$out/summary.txt" &&
+  grep -q "^dashboards complete: yes" "$out/summary.txt"
