@@ -9,7 +9,9 @@
 // target| at completion, or at the end if never completed), peak force, time over the force
 // limit, path length of the tip, RMS jerk of the tip (m/s³; the third derivative of the position
 // low-passed at 10 Hz, above the band of voluntary movement, so sensor noise does not count, and
-// read on a uniform 10 ms grid, so the jitter of a station's sample clock does not either), and
+// read on a uniform 10 ms grid, so the jitter of a station's sample clock does not either; a gap
+// in the samples is bridged by the parabola that leaves the last sample with its velocity, so
+// a stalled station or a burst of lost datagrams does not read as a jerky hand either), and
 // overload events (each onset counts once). The normalised jerk of Teulings et al. was tried and
 // dropped: it assumes one reach, and a trial's holds and approach made it ~10⁴ for everyone.
 //
@@ -21,7 +23,7 @@
 // score at 5; more than 0.5 s over the force limit caps it at 4; any overload caps it at 3.
 //
 // Threads: a recorder belongs to the haptic thread; Add never allocates and does bounded work
-// (at most 129 grid points, whatever the times it is given).
+// (at most 100 pieces of a bridged gap and 129 grid points, whatever the times it is given).
 #pragma once
 
 #include <cstdint>
@@ -53,6 +55,11 @@ class TrialRecorder {
   const TaskSpec& task() const { return task_; }
 
  private:
+  // Low-passes a piece of path along which the tip moves linearly from u0 (t0) to u1 (t1);
+  // decay = e^(−ω·(t1 − t0)).
+  void FilterPiece(double t0, const Eigen::Vector3d& u0, double t1, const Eigen::Vector3d& u1,
+                   double decay);
+  void EmitGrid(double t1, const Eigen::Vector3d& previous, double dt);
   TaskSpec task_;
   int samples_ = 0;
   double t0_ = 0, t_last_ = 0;
@@ -65,6 +72,16 @@ class TrialRecorder {
   int grid_ = 0;          // grid points emitted
   double next_grid_ = 0;  // s, the next grid time
   Eigen::Vector3d last_tip_ = Eigen::Vector3d::Zero();
+  // The newest samples, for the velocity a gap's parabola leaves the last one with.
+  struct Sample {
+    double time = 0;
+    Eigen::Vector3d tip = Eigen::Vector3d::Zero();
+  };
+  static constexpr int kHistory = 32;
+  Sample history_[kHistory];
+  int history_size_ = 0, history_next_ = 0;
+  Eigen::Vector3d velocity_ = Eigen::Vector3d::Zero();  // m/s, at the last sample
+  bool velocity_known_ = false;
   double jerk2_ = 0;  // ∫|j|² dt
   double path_ = 0;
   double peak_ = 0;
