@@ -10,7 +10,7 @@
 namespace vsurg::tissue {
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kFullTurn = 2.0 * std::numbers::pi;  // rad
 
 struct Sample {
   double torque, rho, twist, weight;
@@ -88,7 +88,7 @@ void BasisRow(const CoilSpringModel& m, double torque, double rho,
       const double t = std::clamp((rho - m.RingRadius(k - 1)) / h, 0.0, 1.0);
       w = i > k ? 1.0 : (i == k ? 1.0 - t : 0.0);
     }
-    row[i - 1] = sign * m.params().friction * m_i * kTwoPi * m.RingRadius(i) * w;
+    row[i - 1] = sign * m.params().friction * m_i * kFullTurn * m.RingRadius(i) * w;
   }
 }
 
@@ -190,9 +190,9 @@ Expected<CalibrationFit> Calibrate(const CoilSpringParams& geometry,
   double sum_r = 0;
   for (int i = 1; i <= geometry.coils; ++i) sum_r += geometry.core_radius + i * geometry.thickness;
   // F_t from "capacity is 30% of the largest torque" to "coil 1 alone holds 3× the largest".
-  const double lo = std::log(0.3 * max_torque / (kTwoPi * sum_r));
+  const double lo = std::log(0.3 * max_torque / (kFullTurn * sum_r));
   const double hi =
-      std::log(3.0 * max_torque / (kTwoPi * (geometry.core_radius + geometry.thickness)));
+      std::log(3.0 * max_torque / (kFullTurn * (geometry.core_radius + geometry.thickness)));
   auto objective = [&](double log_f) {
     return FitAt(geometry, std::exp(log_f), *samples, per_ring).objective;
   };

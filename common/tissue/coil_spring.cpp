@@ -5,6 +5,8 @@
 #include <numbers>
 #include <string>
 
+#include "common/tissue/text.h"
+
 namespace vsurg::tissue {
 namespace {
 
@@ -14,11 +16,7 @@ bool PositiveFinite(double x) {
   return std::isfinite(x) && x > 0;
 }
 
-std::string Num(double x) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", x);
-  return buf;
-}
+using detail::Num;
 
 // The smallest p in 1..S with cum[p] ≥ x, for 0 < x ≤ cum[S] (cum ascending, cum[0] = 0).
 int FirstSegmentReaching(const std::vector<double>& cum, double x) {

@@ -5,6 +5,8 @@
 #include <map>
 #include <utility>
 
+#include "common/tissue/text.h"
+
 namespace vsurg::tissue {
 namespace {
 
@@ -15,11 +17,7 @@ bool Finite(double x) {
   return std::isfinite(x);
 }
 
-std::string Num(double x) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", x);
-  return buf;
-}
+using detail::Num;
 
 void AddSpring(MassSpringSystem& s, int i, int j, double k, double c, SpringKind kind) {
   s.springs.push_back({i, j, k, c, (s.rest_positions[j] - s.rest_positions[i]).norm()});
