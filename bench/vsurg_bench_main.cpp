@@ -7,6 +7,10 @@
 //     rtt_p999_us, loss and server_cpu_per_station (the endpoint I/O thread's CPU time per
 //     station, as a fraction of one core).
 //
+//   vsurg-bench udp-floor --stations N --seconds S [--realtime-priority P] [--json]
+//     the floor under haptic-rtt: the same stations, pacing and statistics against a plain UDP
+//     echo (one thread, a blocking socket); report haptic-rtt's figures as ratios to it.
+//
 //   vsurg-bench grpc-submit [--clients 32] [--seconds 5] [--batches 1,1024] [--json]
 //     durable evaluation submissions per second through gRPC, per writer batch limit.
 //   vsurg-bench export [--rows 1000000] [--format csv] [--json]
@@ -14,7 +18,11 @@
 //   vsurg-bench speed-vs-error [--quick] [--out docs]
 //     every model against the same references: time per update vs marker error (see
 //     speed_vs_error.h).
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/time.h>
 
 #include <unistd.h>
 
@@ -22,6 +30,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -60,6 +69,115 @@ struct Station {
   Station(asio::io_context& io, uint64_t id, const vsurg::wire::SessionKey& key)
       : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
 };
+
+// How long stations run before measuring: the sessions' start-up gates and caches.
+constexpr double kWarmupS = 0.5;
+
+// What a station's answers are: the server's force datagrams, or its own stylus datagrams
+// echoed back unchanged (the bare-UDP floor).
+enum class Answer { kForce, kEcho };
+
+struct RttRun {
+  uint64_t sent = 0, received = 0;
+  std::vector<double> rtt_us;  // sorted
+
+  double Percentile(double q) const {
+    return rtt_us.empty()
+               ? 0.0
+               : rtt_us[std::min(rtt_us.size() - 1, static_cast<size_t>(q * rtt_us.size()))];
+  }
+  nlohmann::json Summary(int stations, double seconds) const {
+    nlohmann::json j;
+    j["stations"] = stations;
+    j["seconds"] = seconds;
+    j["sent"] = sent;
+    j["received"] = received;
+    j["loss"] =
+        sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
+    j["rtt_p50_us"] = Percentile(0.5);
+    j["rtt_p99_us"] = Percentile(0.99);
+    j["rtt_p999_us"] = Percentile(0.999);
+    return j;
+  }
+};
+
+// The stations' side of haptic-rtt and udp-floor, the same for both: each station sends an
+// authenticated stylus datagram every millisecond (stamped with the send time, which the answer
+// echoes), spread over the millisecond in 8 slots of 125 µs as independent stations would be
+// rather than sent as one burst the server must queue; the stylus approaches from `outward` of
+// `rest` during the warm-up. Answers are opened and decoded; the round trip of each is kept.
+RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>& stations,
+                     const udp::endpoint& server, const Eigen::Vector3d& rest,
+                     const Eigen::Vector3d& outward, double seconds, Answer answer) {
+  const int n = static_cast<int>(stations.size());
+  const Clock::time_point start = Clock::now();
+  auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  RttRun run;
+  run.rtt_us.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1));
+  vsurg::wire::Codec codec;
+  vsurg::wire::ForceMessage reply;
+  vsurg::wire::StylusMessage echoed;
+  std::function<void(Station&)> receive = [&](Station& st) {
+    st.socket.async_receive_from(asio::buffer(st.rx), st.from, [&, sp = &st](auto ec, size_t len) {
+      if (ec) return;
+      vsurg::wire::Opened o;
+      double echo_time = -1;
+      if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) ==
+          vsurg::wire::DropReason::kNone) {
+        if (answer == Answer::kForce &&
+            codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone)
+          echo_time = reply.echo_time;
+        if (answer == Answer::kEcho &&
+            codec.DecodeStylus(o.payload, echoed) == vsurg::wire::DropReason::kNone)
+          echo_time = echoed.sample.time;
+      }
+      if (echo_time >= kWarmupS) {
+        ++run.received;
+        run.rtt_us.push_back((now_s() - echo_time) * 1e6);
+      }
+      receive(*sp);
+    });
+  };
+  for (auto& st : stations) receive(*st);
+  vsurg::wire::StylusMessage m;
+  m.sample.position = rest;
+  std::array<uint8_t, vsurg::wire::kMaxDatagram> tx{};
+  asio::steady_timer timer(io);
+  Clock::time_point next = Clock::now();
+  const double total = kWarmupS + seconds;
+  constexpr int kSlots = 8;
+  int slot = 0;
+  std::function<void()> tick = [&] {
+    const double t = now_s();
+    if (t > total + 0.05) return io.stop();
+    if (t <= total) {
+      for (int k = slot; k < n; k += kSlots) {
+        Station& st = *stations[k];
+        vsurg::wire::StylusMessage msg = m;
+        msg.sample.time = now_s();
+        msg.sample.position += (1.0 - std::min(1.0, t / 0.2)) * 0.02 * outward;
+        const size_t size =
+            codec.EncodeStylus(msg,
+                               {vsurg::wire::kProtocolVersion,
+                                vsurg::wire::PayloadType::kStylusState, st.session, ++st.sequence},
+                               st.auth, tx);
+        boost::system::error_code ec;
+        st.socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
+        if (t >= kWarmupS && !ec) ++run.sent;
+      }
+    }
+    slot = (slot + 1) % kSlots;
+    next += std::chrono::microseconds(1000 / kSlots);
+    timer.expires_at(next);
+    timer.async_wait([&](auto ec) {
+      if (!ec) tick();
+    });
+  };
+  tick();
+  io.run();
+  std::sort(run.rtt_us.begin(), run.rtt_us.end());
+  return run;
+}
 
 // --dashboard-clients: the server's stack around the endpoint (a store in a temporary folder, the
 // session manager, the HTTP dashboard) and web clients that each follow the live page (every
@@ -241,79 +359,17 @@ int HapticRtt(const std::vector<std::string>& args) {
     stations.push_back(std::make_unique<Station>(io, 1000 + i, key));
   }
   const udp::endpoint server(asio::ip::make_address("127.0.0.1"), (*endpoint)->port());
-  const Clock::time_point start = Clock::now();
-  auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
-  std::vector<double> rtt;
-  rtt.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1));
-  uint64_t sent = 0, received = 0;
-  const double warmup = 0.5;  // s: sessions' start-up gates and caches
-  vsurg::wire::Codec codec;
-  vsurg::wire::ForceMessage reply;
-  std::function<void(Station&)> receive = [&](Station& st) {
-    st.socket.async_receive_from(asio::buffer(st.rx), st.from, [&, sp = &st](auto ec, size_t len) {
-      if (ec) return;
-      vsurg::wire::Opened o;
-      if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) ==
-              vsurg::wire::DropReason::kNone &&
-          codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone &&
-          reply.echo_time >= warmup) {
-        ++received;
-        rtt.push_back((now_s() - reply.echo_time) * 1e6);
-      }
-      receive(*sp);
-    });
-  };
-  for (auto& st : stations) receive(*st);
   // The stylus rests 3 mm inside the limb's side (or the sphere's top): every answer runs the
-  // full contact path.
-  vsurg::wire::StylusMessage m;
-  m.sample.position = scene->mesh.kind == vsurg::sim::MeshKind::kLimb
-                          ? Eigen::Vector3d(scene->mesh.limb.radius_distal - 0.004, 0.0005,
-                                            scene->mesh.limb.length - 0.03)
-                          : Eigen::Vector3d(0.0005, 0.0005, scene->mesh.radius - 0.004);
-  std::array<uint8_t, vsurg::wire::kMaxDatagram> tx{};
-  asio::steady_timer timer(io);
-  Clock::time_point next = Clock::now();
-  const double total = warmup + seconds;
-  // Stations are spread over the millisecond in 8 slots of 125 µs, as independent stations
-  // would be, rather than sent as one burst the server must queue.
-  constexpr int kSlots = 8;
-  int slot = 0;
-  std::function<void()> tick = [&] {
-    const double t = now_s();
-    if (t > total + 0.05) return io.stop();
-    if (t <= total) {
-      for (int k = slot; k < n; k += kSlots) {
-        Station& st = *stations[k];
-        vsurg::wire::StylusMessage msg = m;
-        msg.sample.time = now_s();
-        // Approach from outside during the warm-up so the proxy enters through the surface.
-        const double in = std::min(1.0, t / 0.2);
-        msg.sample.position +=
-            (1.0 - in) * 0.02 *
-            (scene->mesh.kind == vsurg::sim::MeshKind::kLimb ? Eigen::Vector3d(1, 0, 0)
-                                                             : Eigen::Vector3d(0, 0, 1));
-        const size_t size =
-            codec.EncodeStylus(msg,
-                               {vsurg::wire::kProtocolVersion,
-                                vsurg::wire::PayloadType::kStylusState, st.session, ++st.sequence},
-                               st.auth, tx);
-        boost::system::error_code ec;
-        st.socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
-        if (t >= warmup && !ec) ++sent;
-      }
-    }
-    slot = (slot + 1) % kSlots;
-    next += std::chrono::microseconds(1000 / kSlots);
-    timer.expires_at(next);
-    timer.async_wait([&](auto ec) {
-      if (!ec) tick();
-    });
-  };
+  // full contact path. It approaches from outside during the warm-up so the proxy enters
+  // through the surface.
+  const bool limb = scene->mesh.kind == vsurg::sim::MeshKind::kLimb;
+  const Eigen::Vector3d rest = limb ? Eigen::Vector3d(scene->mesh.limb.radius_distal - 0.004,
+                                                      0.0005, scene->mesh.limb.length - 0.03)
+                                    : Eigen::Vector3d(0.0005, 0.0005, scene->mesh.radius - 0.004);
+  const Eigen::Vector3d outward = limb ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1);
   const double cpu0 = (*endpoint)->io_cpu_seconds();
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
-  tick();
-  io.run();
+  RttRun run = DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce);
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
   uint64_t dashboard_bytes = 0, dashboard_events = 0;
   if (stack) {
@@ -322,22 +378,10 @@ int HapticRtt(const std::vector<std::string>& args) {
     stack->Stop();
   }
   (*endpoint)->Stop();
-  std::sort(rtt.begin(), rtt.end());
-  auto pct = [&](double q) {
-    return rtt.empty() ? 0.0 : rtt[std::min(rtt.size() - 1, static_cast<size_t>(q * rtt.size()))];
-  };
-  nlohmann::json j;
-  j["stations"] = n;
-  j["seconds"] = seconds;
+  nlohmann::json j = run.Summary(n, seconds);
+  auto pct = [&](double q) { return run.Percentile(q); };
   j["scene"] = scene->name;
-  j["sent"] = sent;
-  j["received"] = received;
-  j["loss"] =
-      sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
-  j["rtt_p50_us"] = pct(0.5);
-  j["rtt_p99_us"] = pct(0.99);
-  j["rtt_p999_us"] = pct(0.999);
-  j["server_cpu_per_station"] = cpu / total / n;
+  j["server_cpu_per_station"] = cpu / (kWarmupS + seconds) / n;
   j["idle_sessions"] = idle;
   j["idle_threads"] = p.Flag("idle-threads");
   j["dashboard_clients"] = dashboard_clients;
@@ -358,6 +402,113 @@ int HapticRtt(const std::vector<std::string>& args) {
   return 0;
 }
 
+// The floor a UDP round trip allows on this machine: a plain echo on loopback, one thread on a
+// blocking socket answering each datagram with itself (no authentication, no decoding, no
+// physics, no event loop). POSIX calls, not Asio: the floor should carry nothing of ours.
+class UdpEcho {
+ public:
+  static vsurg::Expected<std::unique_ptr<UdpEcho>> Start(int priority) {
+    auto e = std::unique_ptr<UdpEcho>(new UdpEcho);
+    e->fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
+    if (e->fd_ < 0) return vsurg::Error{vsurg::ErrorCode::kIoError, "socket() failed", "socket"};
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof a;
+    timeval timeout{0, 50000};  // wakes to see a stop request
+    if (::bind(e->fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
+        ::getsockname(e->fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0 ||
+        ::setsockopt(e->fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout) != 0)
+      return vsurg::Error{vsurg::ErrorCode::kIoError, "cannot bind the echo socket", "socket"};
+    e->port_ = ntohs(a.sin_port);
+    e->thread_ = std::thread([p = e.get(), priority] {
+      if (priority > 0) vsurg::TrySetRealtimePriority(priority);
+      std::array<uint8_t, 2048> buf{};
+      while (!p->stop_.load(std::memory_order_relaxed)) {
+        sockaddr_in from{};
+        socklen_t from_len = sizeof from;
+        const ssize_t got = ::recvfrom(p->fd_, buf.data(), buf.size(), 0,
+                                       reinterpret_cast<sockaddr*>(&from), &from_len);
+        if (got > 0)
+          ::sendto(p->fd_, buf.data(), static_cast<size_t>(got), 0,
+                   reinterpret_cast<sockaddr*>(&from), from_len);
+      }
+      timespec cpu{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+      p->cpu_s_ = static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+    });
+    return e;
+  }
+  ~UdpEcho() {
+    Stop();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  void Stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  uint16_t port() const { return port_; }
+  double cpu_seconds() const { return cpu_s_; }  // the echo thread's, after Stop
+
+ private:
+  UdpEcho() = default;
+  int fd_ = -1;
+  uint16_t port_ = 0;
+  std::atomic<bool> stop_{false};
+  double cpu_s_ = 0;
+  std::thread thread_;
+};
+
+int UdpFloor(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-bench udp-floor",
+              "The bare-UDP floor under haptic-rtt: the same stations, pacing and statistics "
+              "against a plain echo on loopback.");
+  p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
+      .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
+      .Option("realtime-priority", ArgParser::Kind::kInt,
+              "SCHED_FIFO priority of the echo thread and of the stations' thread, when "
+              "permitted (as haptic-rtt's)",
+              false, "0")
+      .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
+  const int n = p.Int("stations");
+  const double seconds = p.Double("seconds");
+  if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
+  if (!(seconds > 0 && seconds <= 3600))
+    return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
+  const int priority = p.Int("realtime-priority");
+  if (priority < 0 || priority > 99)
+    return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
+  auto echo = UdpEcho::Start(priority);
+  if (!echo.ok()) return std::cerr << p.command() << ": " << echo.error().message << "\n", 1;
+  asio::io_context io;
+  std::vector<std::unique_ptr<Station>> stations;
+  for (int i = 0; i < n; ++i) {
+    vsurg::wire::SessionKey key;
+    for (size_t k = 0; k < key.size(); ++k) key[k] = static_cast<uint8_t>(i * 7 + k);
+    stations.push_back(std::make_unique<Station>(io, 1000 + i, key));
+  }
+  const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
+  const RttRun run = DriveStations(
+      io, stations, udp::endpoint(asio::ip::make_address("127.0.0.1"), (*echo)->port()),
+      Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), seconds, Answer::kEcho);
+  (*echo)->Stop();
+  nlohmann::json j = run.Summary(n, seconds);
+  j["server"] = "udp-echo";
+  j["server_cpu_per_station"] = (*echo)->cpu_seconds() / (kWarmupS + seconds) / n;
+  j["realtime_priority"] = realtime ? priority : 0;
+  if (p.Flag("json")) {
+    std::cout << j.dump() << "\n";
+  } else {
+    std::printf(
+        "%d stations, %.1f s, bare UDP echo: rtt p50 %.1f us, p99 %.1f us, p99.9 %.1f us, "
+        "loss %.4f\n",
+        n, seconds, run.Percentile(0.5), run.Percentile(0.99), run.Percentile(0.999),
+        j["loss"].get<double>());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -365,6 +516,7 @@ int main(int argc, char** argv) {
   if (args.empty() || args[0] == "--help") {
     std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--idle N "
                  "[--idle-scene NAME] [--idle-threads]] [--dashboard-clients N] [--json]\n"
+                 "       vsurg-bench udp-floor --stations N --seconds S [--json]\n"
                  "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n";
@@ -372,6 +524,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (args[0] == "haptic-rtt") return HapticRtt({args.begin() + 1, args.end()});
+    if (args[0] == "udp-floor") return UdpFloor({args.begin() + 1, args.end()});
     if (args[0] == "grpc-submit") return vsurg::bench::GrpcSubmit({args.begin() + 1, args.end()});
     if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
     if (args[0] == "speed-vs-error")
@@ -381,6 +534,6 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::cerr << "vsurg-bench: unknown command '" << args[0]
-            << "' (haptic-rtt, grpc-submit, export, speed-vs-error)\n";
+            << "' (haptic-rtt, udp-floor, grpc-submit, export, speed-vs-error)\n";
   return 2;
 }
