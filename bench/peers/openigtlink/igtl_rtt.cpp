@@ -33,12 +33,12 @@
 namespace {
 
 using Clock = std::chrono::steady_clock;
-const Clock::time_point kEpoch = Clock::now();
+Clock::time_point g_start;  // set once every connection is up, before the readers start
 constexpr double kWarmupS = 0.5;
 constexpr int kSlots = 8;
 
 double NowS() {
-  return std::chrono::duration<double>(Clock::now() - kEpoch).count();
+  return std::chrono::duration<double>(Clock::now() - g_start).count();
 }
 
 // Receives one whole message header from `socket`; false when the peer closed.
@@ -161,7 +161,8 @@ int main(int argc, char** argv) {
     c->rtt_us.reserve(static_cast<size_t>(seconds * 1100));
     clients.push_back(std::move(c));
   }
-  acceptor.join();
+  acceptor.join();  // (OpenIGTLink accepts slowly: seconds for tens of connections)
+  g_start = Clock::now();
   for (auto& c : clients) c->reader = std::thread(Read, c.get());
 
   // The pacing thread: as haptic-rtt's, slot k of 8 every 125 µs.
