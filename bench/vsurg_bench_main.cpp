@@ -70,6 +70,13 @@ struct Station {
       : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
 };
 
+// Station i's session key, the same in haptic-rtt and udp-floor (sessions 1000 + i).
+vsurg::wire::SessionKey BenchKey(int i) {
+  vsurg::wire::SessionKey key;
+  for (size_t k = 0; k < key.size(); ++k) key[k] = static_cast<uint8_t>(i * 7 + k);
+  return key;
+}
+
 // How long stations run before measuring: the sessions' start-up gates and caches.
 constexpr double kWarmupS = 0.5;
 
@@ -350,8 +357,7 @@ int HapticRtt(const std::vector<std::string>& args) {
     stack->Follow(dashboard_clients);
   }
   for (int i = 0; i < n && !stack; ++i) {
-    vsurg::wire::SessionKey key;
-    for (size_t k = 0; k < key.size(); ++k) key[k] = static_cast<uint8_t>(i * 7 + k);
+    const vsurg::wire::SessionKey key = BenchKey(i);
     auto sim = vsurg::sim::Simulation::Create(*scene, {true});
     if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
     sims.push_back(std::move(*sim));
@@ -483,11 +489,8 @@ int UdpFloor(const std::vector<std::string>& args) {
   if (!echo.ok()) return std::cerr << p.command() << ": " << echo.error().message << "\n", 1;
   asio::io_context io;
   std::vector<std::unique_ptr<Station>> stations;
-  for (int i = 0; i < n; ++i) {
-    vsurg::wire::SessionKey key;
-    for (size_t k = 0; k < key.size(); ++k) key[k] = static_cast<uint8_t>(i * 7 + k);
-    stations.push_back(std::make_unique<Station>(io, 1000 + i, key));
-  }
+  for (int i = 0; i < n; ++i)
+    stations.push_back(std::make_unique<Station>(io, 1000 + i, BenchKey(i)));
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
   const RttRun run = DriveStations(
       io, stations, udp::endpoint(asio::ip::make_address("127.0.0.1"), (*echo)->port()),

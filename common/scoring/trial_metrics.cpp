@@ -63,20 +63,16 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
   }
   // The velocity the next gap starts with: over the newest samples spanning ≥ kVelocityBase
   // (a burst's samples microseconds apart would turn a micrometre of sensor noise into m/s).
-  if (first) {
-    history_[0] = {time, tip}, history_size_ = 1, history_next_ = 1;
-  } else {
-    history_[history_next_] = {time, tip};
-    history_next_ = (history_next_ + 1) % kHistory;
-    history_size_ = std::min(history_size_ + 1, kHistory);
-    velocity_known_ = false;
-    for (int k = 2; k <= history_size_; ++k) {
-      const Sample& old = history_[(history_next_ - k + kHistory) % kHistory];
-      if (time - old.time >= kVelocityBase) {
-        velocity_ = (tip - old.tip) / (time - old.time);
-        velocity_known_ = true;
-        break;
-      }
+  history_[history_next_] = {time, tip};
+  history_next_ = (history_next_ + 1) % kHistory;
+  history_size_ = std::min(history_size_ + 1, kHistory);
+  velocity_known_ = false;
+  for (int k = 2; k <= history_size_; ++k) {
+    const Sample& old = history_[(history_next_ - k + kHistory) % kHistory];
+    if (time - old.time >= kVelocityBase) {
+      velocity_ = (tip - old.tip) / (time - old.time);
+      velocity_known_ = true;
+      break;
     }
   }
   ++samples_;
