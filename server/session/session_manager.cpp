@@ -275,6 +275,32 @@ void SessionManager::Pump() {
   }
 }
 
+// Counting arrivals in the sampler's 33 ms windows of the server's clock read a steady 1 kHz
+// station as 898–1111 Hz (±2 datagrams of network and scheduling jitter in 33); the station's
+// own stamps over a second measure the loop itself: a 1 kHz loop reads 1000 ± 1 Hz. Samples the
+// network lost count against the rate (it is the rate the server got). A station clock that goes
+// back, or a session that stops running, starts a new window.
+void SessionManager::UpdateHapticRate(Live& l, SessionTelemetry& t) {
+  const uint64_t n = t.sim.samples;
+  const double at = t.sim.time;
+  if (l.state != SessionState::kRunning || n == 0) {
+    t.haptic_rate_hz = 0;
+    l.rate_time = -1;
+    return;
+  }
+  if (l.rate_time < 0 || n < l.rate_samples || !(at >= l.rate_time)) {
+    l.rate_samples = n;
+    l.rate_time = at;
+    return;
+  }
+  constexpr double kWindowS = 1.0;
+  if (at - l.rate_time >= kWindowS) {
+    t.haptic_rate_hz = static_cast<double>(n - l.rate_samples) / (at - l.rate_time);
+    l.rate_samples = n;
+    l.rate_time = at;
+  }
+}
+
 void SessionManager::SamplerLoop() {
   const auto period = std::chrono::duration<double>(1.0 / options_.telemetry_hz);
   std::vector<SessionTelemetry> all;
@@ -285,7 +311,6 @@ void SessionManager::SamplerLoop() {
     }
     Pump();
     all.clear();
-    const double now = clock_.Now();
     {
       std::lock_guard lock(mutex_);
       for (auto& [id, l] : live_) {
@@ -297,11 +322,7 @@ void SessionManager::SamplerLoop() {
         t.packets = applied;
         t.packet_loss = applied + lost > 0 ? static_cast<double>(lost) / (applied + lost) : 0.0;
         t.rtt_us = l->link.rtt_us.load(std::memory_order_relaxed);
-        if (l->last_sample_s > 0 && now > l->last_sample_s)
-          t.haptic_rate_hz =
-              static_cast<double>(t.sim.samples - l->last_samples) / (now - l->last_sample_s);
-        l->last_samples = t.sim.samples;
-        l->last_sample_s = now;
+        UpdateHapticRate(*l, t);
         t.scene = l->record.scene;
         t.trainee = l->record.trainee;
         t.has_surface = tick % 3 == 0;

@@ -63,6 +63,8 @@ struct SessionTelemetry {
   double rtt_us = 0;
   double packet_loss = 0;  // lost / (applied + lost)
   uint64_t packets = 0;
+  // The station's haptic loop rate: stylus samples applied per second of the station's own clock
+  // (the stamps it sends), over windows of ≥ 1 s, refreshed once a window; 0 unless running.
   double haptic_rate_hz = 0;
   std::string scene;
   std::string trainee;
@@ -137,15 +139,16 @@ class SessionManager {
     SessionState state = SessionState::kCreated;  // a live state
     db::SessionRecord record;
     SessionTelemetry latest;
-    uint64_t last_samples = 0;
-    double last_sample_s = 0;
-    double created_s = 0;  // clock_, for start_timeout_s
+    uint64_t rate_samples = 0;  // the rate window's start: samples applied by then,
+    double rate_time = -1;      // and the station's clock (s); −1: none yet
+    double created_s = 0;       // clock_, for start_timeout_s
   };
   Status End(uint64_t id, SessionState state, const std::string& reason);
   Status CheckLimits(const std::string& trainee) const;
   Status CheckLimitsLocked(const std::string& trainee) const;  // mutex_ held
   void SamplerLoop();
   void Pump();
+  static void UpdateHapticRate(Live& l, SessionTelemetry& t);  // sampler thread
 
   db::Store& store_;
   UdpEndpoint* endpoint_;

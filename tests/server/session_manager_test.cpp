@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <mutex>
 #include <thread>
 
 #include "common/core/clock.h"
@@ -61,10 +62,11 @@ class SessionManagerTest : public ::testing::Test {
     }
     return now;
   }
-  // One stylus datagram from the station, answered.
-  void Drive(const CreatedSession& s, uint64_t seq) {
+  // One stylus datagram from the station, answered; stamped `time` on the station's clock (by
+  // default seq ms, a 1 kHz station).
+  void Drive(const CreatedSession& s, uint64_t seq, double time = -1) {
     wire::StylusMessage m;
-    m.sample.time = 1e-3 * static_cast<double>(seq);
+    m.sample.time = time >= 0 ? time : 1e-3 * static_cast<double>(seq);
     m.sample.position = Eigen::Vector3d(0, 0, 0.2);
     std::array<uint8_t, wire::kMaxDatagram> buf{};
     const uint64_t id = static_cast<uint64_t>(s.record.id);
@@ -122,6 +124,60 @@ TEST_F(SessionManagerTest, CreatedStartedRunningStalledResumedDisconnected) {
   // An ended session cannot start again; stopping it is idempotent and keeps its state.
   EXPECT_EQ(sessions_->Start(id).error().code, ErrorCode::kFailedPrecondition);
   EXPECT_EQ(sessions_->Stop(id, "")->state, SessionState::kDisconnected);
+}
+
+// The haptic rate instructors see is the station's loop, from its own stamps: datagrams that
+// arrive in bursts (here: as fast as loopback answers, 3 s of a 1 kHz station in a fraction of a
+// second of real time, with a manager clock that does not move) read 1000 Hz, not the burst's
+// arrival rate; a 500 Hz station reads 500; a stalled session reads 0. Counting arrivals per
+// sampler window on the server's clock read 0 here, and 898–1111 Hz for a steady station.
+TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) {
+  std::mutex m;
+  double rate = -1;
+  uint64_t samples = 0;
+  auto s = sessions_->Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  const uint64_t id = static_cast<uint64_t>(s->record.id);
+  ASSERT_TRUE(sessions_->Start(id).ok());
+  const uint64_t token =
+      sessions_->Subscribe(id, [&](const std::vector<SessionTelemetry>& all, bool) {
+        std::lock_guard lock(m);
+        if (!all.empty()) rate = all[0].haptic_rate_hz, samples = all[0].sim.samples;
+      });
+  // The rate the sampler shows once it has seen the last of `n` samples (the simulation publishes
+  // its telemetry every 8th).
+  auto rate_after = [&](uint64_t n) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (std::chrono::steady_clock::now() < deadline) {
+      {
+        std::lock_guard lock(m);
+        if (samples + 8 > n) return rate;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return -1.0;
+  };
+  // The endpoint's clock moves with the stamps (its rate limit allows a 4 kHz station); the
+  // manager's does not, and real time runs ~20× faster than the stamps.
+  uint64_t seq = 0;
+  for (int i = 0; i < 3000; ++i) endpoint_clock_.Advance(1e-3), Drive(*s, ++seq);
+  EXPECT_NEAR(rate_after(3000), 1000.0, 1.0);
+  // The same session's station slows to 500 Hz: its stamps go 2 ms apart from the next window.
+  const double t0 = 1e-3 * static_cast<double>(seq);
+  for (int i = 1; i <= 2000; ++i) endpoint_clock_.Advance(2e-3), Drive(*s, ++seq, t0 + 2e-3 * i);
+  EXPECT_NEAR(rate_after(5000), 500.0, 1.0);
+  Quiet(0.6);  // running → stalled
+  EXPECT_EQ(WaitFor(id, SessionState::kStalled), SessionState::kStalled);
+  Drive(*s, ++seq, t0 + 4.5);  // the station is back
+  EXPECT_EQ(WaitFor(id, SessionState::kRunning), SessionState::kRunning);
+  Quiet(0.6);
+  EXPECT_EQ(WaitFor(id, SessionState::kStalled), SessionState::kStalled);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // a few sampler ticks
+  {
+    std::lock_guard lock(m);
+    EXPECT_EQ(rate, 0.0);
+  }
+  sessions_->Unsubscribe(token);
 }
 
 TEST_F(SessionManagerTest, StopEndsACreatedOrRunningSession) {
