@@ -64,6 +64,8 @@ struct StationChannel::Impl {
   wire::Codec tx_codec;
   std::atomic<uint64_t> sent{0}, fades{0};
   std::atomic<double> dissipated{0}, max_force{0};
+  std::atomic<uint64_t> loop_iterations{0};
+  std::atomic<double> loop_seconds{0}, loop_hz_min{0}, loop_hz_max{0};
   std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
   sim::TripleBuffer<StationView> view;  // device thread → render thread
 
@@ -140,7 +142,22 @@ struct StationChannel::Impl {
     bool have_x = false, fading = false;
     PassivityController passivity(options.max_damping);
     wire::StylusMessage m;
+    const auto loop_start = SteadyTime::now();
+    auto second_start = loop_start;
+    uint64_t iterations = 0, second_start_iterations = 0;
     while (!stop.load(std::memory_order_relaxed)) {
+      // The loop's own rate, on real time: over the run, and per whole second.
+      const auto t_loop = SteadyTime::now();
+      loop_seconds.store(std::chrono::duration<double>(t_loop - loop_start).count(),
+                         std::memory_order_relaxed);
+      loop_iterations.store(iterations++, std::memory_order_relaxed);
+      if (const double w = std::chrono::duration<double>(t_loop - second_start).count(); w >= 1.0) {
+        const double hz = static_cast<double>(iterations - 1 - second_start_iterations) / w;
+        if (loop_hz_min.load() == 0 || hz < loop_hz_min.load()) loop_hz_min.store(hz);
+        if (hz > loop_hz_max.load()) loop_hz_max.store(hz);
+        second_start = t_loop;
+        second_start_iterations = iterations - 1;
+      }
       const double now = Now();
       const double dt = 1.0 / options.rate_hz;
       haptics::StylusSample s = device->Read();
@@ -259,6 +276,11 @@ StationStats StationChannel::stats() const {
   s.scene_chunks = impl_->scene_chunks.load();
   s.passivity_energy_dissipated = impl_->dissipated.load();
   s.max_force = impl_->max_force.load();
+  s.loop_iterations = impl_->loop_iterations.load();
+  s.loop_seconds = impl_->loop_seconds.load();
+  s.loop_hz = s.loop_seconds > 0 ? static_cast<double>(s.loop_iterations) / s.loop_seconds : 0.0;
+  s.loop_hz_min = impl_->loop_hz_min.load();
+  s.loop_hz_max = impl_->loop_hz_max.load();
   s.loss = s.sent > 0
                ? std::max(0.0, 1.0 - static_cast<double>(s.received) / static_cast<double>(s.sent))
                : 0.0;

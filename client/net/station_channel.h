@@ -52,6 +52,12 @@ struct StationStats {
   uint64_t scene_chunks = 0;               // SceneFrame datagrams received
   double passivity_energy_dissipated = 0;  // J the controller removed
   double max_force = 0;                    // N rendered
+  // The device loop, paced by real time at rate_hz: iterations over its running time, and the
+  // slowest and fastest whole second (0 before the first second ends).
+  uint64_t loop_iterations = 0;
+  double loop_seconds = 0;
+  double loop_hz = 0;  // loop_iterations / loop_seconds
+  double loop_hz_min = 0, loop_hz_max = 0;
 };
 
 // What the station's screen shows of the haptic loop (device thread → render thread).

@@ -47,6 +47,13 @@ void Add(StationStats& sum, const StationStats& s) {
   sum.scene_chunks += s.scene_chunks;
   sum.passivity_energy_dissipated += s.passivity_energy_dissipated;
   sum.max_force = std::max(sum.max_force, s.max_force);
+  sum.loop_iterations += s.loop_iterations;
+  sum.loop_seconds += s.loop_seconds;
+  if (s.loop_hz_min > 0 && (sum.loop_hz_min == 0 || s.loop_hz_min < sum.loop_hz_min))
+    sum.loop_hz_min = s.loop_hz_min;
+  sum.loop_hz_max = std::max(sum.loop_hz_max, s.loop_hz_max);
+  sum.loop_hz =
+      sum.loop_seconds > 0 ? static_cast<double>(sum.loop_iterations) / sum.loop_seconds : 0;
 }
 
 }  // namespace

@@ -66,6 +66,14 @@ TEST(StationChannelTest, RoundTripsOnLoopbackAndRendersTheTissueForce) {
   EXPECT_GT(s.sent, 1000u);
   EXPECT_LT(s.loss, 0.02);  // loopback: none, bar the last datagrams in flight at Stop
   EXPECT_GT(s.rtt_p50_us, 0);
+  // The loop's own count: one datagram per iteration (the last may be counted before its send),
+  // and a run over a second long has whole seconds that bracket its mean rate.
+  EXPECT_LE(s.loop_iterations, s.sent);
+  EXPECT_GE(s.loop_iterations + 1, s.sent);
+  EXPECT_GT(s.loop_seconds, 1.0);
+  EXPECT_GT(s.loop_hz_min, 0.0);
+  EXPECT_LE(s.loop_hz_min, s.loop_hz_max);
+  EXPECT_NEAR(s.loop_hz, static_cast<double>(s.loop_iterations) / s.loop_seconds, 1e-9);
   const std::vector<Eigen::Vector3d> f = device.forces();
   ASSERT_GT(f.size(), 1000u);
   // Pushed back up out of the sphere (K·3 mm ≈ 0.9 N before it gives) until the end; Stop then
