@@ -66,6 +66,7 @@ struct Station {
   vsurg::wire::Authenticator auth;
   uint64_t session;
   uint64_t sequence = 0;
+  uint64_t first_measured = UINT64_MAX;  // the first sequence number sent in the measured window
   Station(asio::io_context& io, uint64_t id, const vsurg::wire::SessionKey& key)
       : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
 };
@@ -129,16 +130,17 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
       if (ec) return;
       vsurg::wire::Opened o;
       double echo_time = -1;
+      uint64_t echo_sequence = 0;
       if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) ==
           vsurg::wire::DropReason::kNone) {
         if (answer == Answer::kForce &&
             codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone)
-          echo_time = reply.echo_time;
+          echo_time = reply.echo_time, echo_sequence = reply.echo_sequence;
         if (answer == Answer::kEcho &&
             codec.DecodeStylus(o.payload, echoed) == vsurg::wire::DropReason::kNone)
-          echo_time = echoed.sample.time;
+          echo_time = echoed.sample.time, echo_sequence = o.header.sequence;
       }
-      if (echo_time >= kWarmupS) {
+      if (echo_time >= 0 && echo_sequence >= sp->first_measured) {
         ++run.received;
         run.rtt_us.push_back((now_s() - echo_time) * 1e6);
       }
@@ -154,10 +156,14 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   const double total = kWarmupS + seconds;
   constexpr int kSlots = 8;
   int slot = 0;
+  // The measured window holds the datagrams *scheduled* in [warm-up, end): a pacer running late
+  // on a loaded machine catches up (at most 20 ms, as a station does) without adding any, and
+  // an answer counts when its echoed sequence is one of them.
   std::function<void()> tick = [&] {
     const double t = now_s();
     if (t > total + 0.05) return io.stop();
-    if (t <= total) {
+    const double scheduled = std::chrono::duration<double>(next - start).count();
+    if (scheduled < total) {
       for (int k = slot; k < n; k += kSlots) {
         Station& st = *stations[k];
         vsurg::wire::StylusMessage msg = m;
@@ -170,11 +176,17 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
                                st.auth, tx);
         boost::system::error_code ec;
         st.socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
-        if (t >= kWarmupS && !ec) ++run.sent;
+        if (scheduled >= kWarmupS && !ec) {
+          if (st.first_measured == UINT64_MAX) st.first_measured = st.sequence;
+          ++run.sent;
+        }
       }
     }
     slot = (slot + 1) % kSlots;
-    next += std::chrono::microseconds(1000 / kSlots);
+    constexpr auto kSlot = std::chrono::microseconds(1000 / kSlots);
+    next += kSlot;
+    if (const auto late = Clock::now() - next; late > std::chrono::milliseconds(20))
+      next += late / kSlot * kSlot;  // fell behind: skip whole slots, no burst
     timer.expires_at(next);
     timer.async_wait([&](auto ec) {
       if (!ec) tick();
