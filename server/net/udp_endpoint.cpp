@@ -1,8 +1,11 @@
 #include "server/net/udp_endpoint.h"
 
+#include <sys/socket.h>
+#include <sys/time.h>
 #include <time.h>
 
 #include <chrono>
+#include <functional>
 #include <future>
 #include <unordered_map>
 
@@ -17,7 +20,16 @@ namespace vsurg::server {
 namespace asio = boost::asio;
 using asio::ip::udp;
 
+// The I/O thread blocks in recvmmsg on the socket itself (no event loop): a lone datagram costs
+// two system calls, the receive and the answer's send, as the bare echo's do; under load one
+// receive returns up to kBatch datagrams, each answered at once. Work from other threads (add and
+// remove a session, a timeout check) is queued and the thread woken by an empty datagram from its
+// own waker socket; the 50 ms housekeeping (timeouts, the CPU sample) runs when a receive returns
+// after its deadline, and a quiet socket returns every 50 ms (SO_RCVTIMEO).
 struct UdpEndpoint::Impl {
+  static constexpr int kBatch = 16;
+  static constexpr double kTickS = 0.05;
+
   struct Session {
     Session(const wire::SessionKey& key, sim::Simulation* sim, LinkStats* stats,
             double tokens_at_start, double now)
@@ -41,19 +53,27 @@ struct UdpEndpoint::Impl {
   };
 
   EndpointOptions options;
-  asio::io_context io;
+  asio::io_context io;  // owns the sockets; never run
   udp::socket socket{io};
-  asio::steady_timer timer{io};
+  udp::socket waker{io};  // sends the empty datagrams that wake the I/O thread
+  udp::endpoint waker_address;
   std::thread thread;
   const Clock* clock = &DefaultClock();  // options.clock when given
   double start = 0;
   std::unordered_map<uint64_t, Session> sessions;  // I/O thread only
-  std::array<uint8_t, wire::kMaxDatagram + 1> rx{};
+  std::array<std::array<uint8_t, wire::kMaxDatagram + 1>, kBatch> rx{};
+  std::array<udp::endpoint, kBatch> senders;
+  std::array<iovec, kBatch> iov{};
+  std::array<mmsghdr, kBatch> headers{};
   std::array<uint8_t, wire::kMaxDatagram> tx{};
-  udp::endpoint sender;
   wire::Codec codec;
   wire::StylusMessage stylus;
   wire::ForceMessage force;
+
+  std::atomic<bool> stop{false};
+  std::mutex pending_mutex;
+  std::vector<std::function<void()>> pending;  // run on the I/O thread, in order
+  std::atomic<bool> has_pending{false};
 
   std::atomic<uint64_t> received{0}, answered{0};
   std::array<std::atomic<uint64_t>, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
@@ -74,18 +94,77 @@ struct UdpEndpoint::Impl {
     events.push_back({id, state, Now()});
   }
 
-  void Receive() {
-    socket.async_receive_from(asio::buffer(rx), sender,
-                              [this](const boost::system::error_code& ec, size_t n) {
-                                if (ec == asio::error::operation_aborted) return;
-                                if (!ec) Handle(n);
-                                Receive();
-                              });
+  // Any thread: runs `fn` on the I/O thread and waits for it (at once when the thread has not
+  // started or has ended).
+  void RunOnIoThread(std::function<void()> fn) {
+    if (!thread.joinable() || std::this_thread::get_id() == thread.get_id()) return fn();
+    std::promise<void> done;
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex);
+      pending.push_back([&] {
+        fn();
+        done.set_value();
+      });
+      has_pending.store(true, std::memory_order_release);
+    }
+    Wake();
+    done.get_future().wait();
   }
 
-  void Handle(size_t n) {
+  void Wake() {
+    boost::system::error_code ec;
+    waker.send(asio::buffer(tx.data(), 0), 0, ec);  // an empty datagram: see Loop
+  }
+
+  void RunPending() {
+    std::vector<std::function<void()>> work;
+    {
+      std::lock_guard<std::mutex> lock(pending_mutex);
+      work.swap(pending);
+      has_pending.store(false, std::memory_order_relaxed);
+    }
+    for (auto& fn : work) fn();
+  }
+
+  void Loop() {
+    TrySetRealtimePriority(options.realtime_priority);  // the stylus → force path
+    const int fd = socket.native_handle();
+    for (int i = 0; i < kBatch; ++i) {
+      iov[i] = {rx[i].data(), rx[i].size()};
+      headers[i].msg_hdr.msg_iov = &iov[i];
+      headers[i].msg_hdr.msg_iovlen = 1;
+    }
+    auto next_tick = std::chrono::steady_clock::now();
+    while (!stop.load(std::memory_order_acquire)) {
+      if (has_pending.load(std::memory_order_acquire)) RunPending();
+      for (int i = 0; i < kBatch; ++i) {
+        headers[i].msg_hdr.msg_name = senders[i].data();
+        headers[i].msg_hdr.msg_namelen = static_cast<socklen_t>(senders[i].capacity());
+      }
+      const int n = ::recvmmsg(fd, headers.data(), kBatch, MSG_WAITFORONE, nullptr);
+      for (int i = 0; i < n; ++i) {
+        senders[i].resize(headers[i].msg_hdr.msg_namelen);
+        const size_t len = headers[i].msg_len;
+        if (len == 0 && senders[i] == waker_address) continue;  // a wake-up, not traffic
+        Handle(i, len);
+      }
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= next_tick) {
+        next_tick = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(kTickS));
+        timespec cpu{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
+        io_cpu.store(static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec));
+        CheckTimeouts();
+      }
+    }
+    RunPending();  // whoever waits on a queued call is not left waiting
+  }
+
+  void Handle(int slot, size_t n) {
     received.fetch_add(1, std::memory_order_relaxed);
-    const std::span<const uint8_t> d(rx.data(), n);
+    const std::span<const uint8_t> d(rx[slot].data(), n);
+    const udp::endpoint& sender = senders[slot];
     wire::Header header;
     if (const wire::DropReason r = wire::PeekHeader(d, header); r != wire::DropReason::kNone)
       return Drop(r);
@@ -133,21 +212,9 @@ struct UdpEndpoint::Impl {
                            header.session, ++s.sent_sequence};
     const size_t size = codec.EncodeForce(force, out, s.auth, tx);
     if (size == 0) return;
-    boost::system::error_code ec;
-    socket.send_to(asio::buffer(tx.data(), size), sender, 0, ec);
-    if (!ec) answered.fetch_add(1, std::memory_order_relaxed);
-  }
-
-  void Tick() {
-    timer.expires_after(std::chrono::milliseconds(50));
-    timer.async_wait([this](const boost::system::error_code& ec) {
-      if (ec) return;
-      timespec cpu{};
-      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
-      io_cpu.store(static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec));
-      CheckTimeouts();
-      Tick();
-    });
+    if (::sendto(socket.native_handle(), tx.data(), size, 0, sender.data(), sender.size()) ==
+        static_cast<ssize_t>(size))
+      answered.fetch_add(1, std::memory_order_relaxed);
   }
 
   // Running → stalled → disconnected by the endpoint's clock. I/O thread.
@@ -191,7 +258,24 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
                      ec.message(),
                  "port"};
   }
+  // A quiet socket's receive returns every tick, for the housekeeping.
+  const timeval tick{0, static_cast<suseconds_t>(Impl::kTickS * 1e6)};
+  if (::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tick, sizeof tick) != 0)
+    return Error{ErrorCode::kIoError, "cannot set the UDP socket's receive timeout", "port"};
+  // The waker: a socket on the same address (loopback when the endpoint listens on every
+  // address), connected to the endpoint; its empty datagrams are recognised by their source.
+  asio::ip::address wake_to = address;
+  if (address.is_unspecified())
+    wake_to = address.is_v6() ? asio::ip::address(asio::ip::address_v6::loopback())
+                              : asio::ip::address(asio::ip::address_v4::loopback());
+  impl->waker.open(address.is_v6() ? udp::v6() : udp::v4(), ec);
+  if (!ec) impl->waker.bind(udp::endpoint(wake_to, 0), ec);
+  if (!ec) impl->waker.connect(udp::endpoint(wake_to, impl->socket.local_endpoint().port()), ec);
+  if (!ec) impl->waker_address = impl->waker.local_endpoint(ec);
+  if (ec)
+    return Error{ErrorCode::kIoError, "cannot open the endpoint's waker: " + ec.message(), "port"};
   impl->sessions.reserve(1024);
+  impl->pending.reserve(16);
   // The visual sender exists before the I/O thread starts and outlives it (Stop): the I/O thread
   // reads the pointer on every new source address without a lock.
   if (options.visual_hz > 0) {
@@ -199,12 +283,7 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     if (visual.ok()) impl->visual = std::move(visual).value();  // else: forces only, no frames
   }
   Impl* p = impl.get();
-  p->Receive();
-  p->Tick();
-  p->thread = std::thread([p] {
-    TrySetRealtimePriority(p->options.realtime_priority);  // the stylus → force path
-    p->io.run();
-  });
+  p->thread = std::thread([p] { p->Loop(); });
   return std::unique_ptr<UdpEndpoint>(new UdpEndpoint(std::move(impl)));
 }
 
@@ -221,42 +300,31 @@ uint16_t UdpEndpoint::port() const {
 
 void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation,
                              LinkStats* link) {
-  std::promise<void> done;
-  asio::post(impl_->io, [this, id, key, simulation, link, &done] {
-    impl_->sessions.insert_or_assign(
-        id,
-        Impl::Session(key, simulation, link, impl_->options.max_packets_per_s * 0.1, impl_->Now()));
-    if (impl_->visual) impl_->visual->Add(id, key, simulation);
-    done.set_value();
+  Impl* p = impl_.get();
+  p->RunOnIoThread([p, id, &key, simulation, link] {
+    p->sessions.insert_or_assign(
+        id, Impl::Session(key, simulation, link, p->options.max_packets_per_s * 0.1, p->Now()));
+    if (p->visual) p->visual->Add(id, key, simulation);
   });
-  if (impl_->thread.joinable()) done.get_future().wait();
 }
 
 void UdpEndpoint::RemoveSession(uint64_t id) {
-  std::promise<void> done;
-  asio::post(impl_->io, [this, id, &done] {
-    impl_->sessions.erase(id);
-    if (impl_->visual) impl_->visual->Remove(id);
-    done.set_value();
+  Impl* p = impl_.get();
+  p->RunOnIoThread([p, id] {
+    p->sessions.erase(id);
+    if (p->visual) p->visual->Remove(id);
   });
-  if (impl_->thread.joinable()) done.get_future().wait();
 }
 
 void UdpEndpoint::Stop() {
   if (!impl_) return;
-  if (!impl_->thread.joinable()) {
-    impl_->visual.reset();  // stops and joins the sender thread
-    return;
-  }
-  asio::post(impl_->io, [p = impl_.get()] {
+  if (impl_->thread.joinable()) {
+    impl_->stop.store(true, std::memory_order_release);
+    impl_->Wake();
+    impl_->thread.join();
     boost::system::error_code ec;
-    p->timer.cancel();
-    p->socket.close(ec);
-    // A timer that had already fired is not cancelled: its handler would re-arm it and run()
-    // would never run out of work. Stop the loop outright.
-    p->io.stop();
-  });
-  impl_->thread.join();
+    impl_->socket.close(ec);
+  }
   impl_->visual.reset();  // after the I/O thread, the sender's one reader, has ended
 }
 
@@ -275,12 +343,8 @@ double UdpEndpoint::io_cpu_seconds() const {
 }
 
 void UdpEndpoint::CheckTimeoutsNow() {
-  std::promise<void> done;
-  asio::post(impl_->io, [this, &done] {
-    impl_->CheckTimeouts();
-    done.set_value();
-  });
-  if (impl_->thread.joinable()) done.get_future().wait();
+  Impl* p = impl_.get();
+  p->RunOnIoThread([p] { p->CheckTimeouts(); });
 }
 
 std::thread::id UdpEndpoint::io_thread_id() const {

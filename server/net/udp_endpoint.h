@@ -1,20 +1,23 @@
 // The server's UDP haptic endpoint (DESIGN.md "Network", STYLE.md: the domain handler never sees
 // a socket).
 //
-// One I/O thread owns the socket and the session table. Per datagram: framing and size checks,
+// One I/O thread owns the socket and the session table; it blocks in recvmmsg on the socket (no
+// event loop: a lone datagram costs its receive and its answer's send, two system calls, as a
+// bare echo's; under load one receive takes up to 16). Per datagram: framing and size checks,
 // the session's key, the tag, latest-wins (a sequence not newer than the last applied is stale:
 // reordered or replayed), a per-session rate limit, the payload; then Simulation::OnStylus and a
 // ForceFeedback datagram back to the sender at once. Anything that fails is dropped and counted
 // by reason; nothing unauthenticated is ever answered.
 //
-// Session life cycle (a timer checks every 50 ms):
+// Session life cycle (checked every 50 ms: a quiet socket's receive times out then):
 //
 //   added ──stylus──▶ running ──no stylus 0.5 s──▶ stalled ──no stylus 5 s──▶ disconnected
 //                        ▲                            │                          │
 //                        └────────stylus again────────┴──────────────────────────┘
 //
 // Transitions are recorded as events for the control plane (TakeEvents). Sessions are added and
-// removed by posting onto the I/O thread, so the hot path takes no lock.
+// removed on the I/O thread (queued, the thread woken by an empty datagram from the endpoint's
+// own waker socket), so the hot path takes no lock.
 //
 // Visual frames: a VisualSender (server/net/visual_sender.h), with its own thread and socket so it
 // never delays a force, sends each session's moved vertices as SceneFrame datagrams at visual_hz
