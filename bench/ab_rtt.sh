@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# A change to the haptic path measured side by side: the bare-UDP floor, vsurg-bench haptic-rtt
+# built before the change (A) and after it (B), alternating, REPS rounds of SECONDS_EACH s per
+# station count. Build A from a worktree of the old commit (or copy its binary before rebuilding).
+#   usage: REPS=3 SECONDS_EACH=10 bench/ab_rtt.sh A_BENCH B_BENCH STATIONS...
+#   e.g.   bench/ab_rtt.sh /tmp/old/vsurg-bench build/bin/vsurg-bench 1 8 64
+set -euo pipefail
+[ $# -ge 3 ] || { sed -n 2,6p "$0"; exit 2; }
+A=$1; B=$2; shift 2
+REPS=${REPS:-3}; SECONDS_EACH=${SECONDS_EACH:-10}
+for n in "$@"; do for r in $(seq "$REPS"); do
+  for who in floor A B; do
+    case $who in
+      floor) out=$("$B" udp-floor --stations "$n" --seconds "$SECONDS_EACH" --json) ;;
+      A) out=$("$A" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --json) ;;
+      B) out=$("$B" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --json) ;;
+    esac
+    echo "$out" | python3 -c "import json,sys; j=json.load(sys.stdin); print('n=$n rep=$r who=$who p50=%.1f p99=%.1f p999=%.1f loss=%.4f cpu_per_station=%.4f' % (j['rtt_p50_us'], j['rtt_p99_us'], j['rtt_p999_us'], j['loss'], j['server_cpu_per_station']))"
+  done
+done; done
