@@ -15,6 +15,9 @@
 //     durable evaluation submissions per second through gRPC, per writer batch limit.
 //   vsurg-bench export [--rows 1000000] [--format csv] [--json]
 //     export of N evaluation rows from the store and streamed through gRPC.
+//   vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] [--export DIR] [--json]
+//     one corotational implicit FEM step on BM_FemStep's twisted bar (fem_step_command.h); with
+//     --export, the bar written as files VegaFEM reads (bench/peers/fem.sh).
 //   vsurg-bench speed-vs-error [--quick] [--out docs]
 //     every model against the same references: time per update vs marker error (see
 //     speed_vs_error.h).
@@ -41,6 +44,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench/control_bench.h"
+#include "bench/fem_step_command.h"
 #include "bench/speed_vs_error.h"
 #include "common/core/args.h"
 #include "common/core/realtime.h"
@@ -534,7 +538,9 @@ int main(int argc, char** argv) {
                  "       vsurg-bench udp-floor --stations N --seconds S [--json]\n"
                  "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
-                 "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n";
+                 "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n"
+                 "       vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] "
+                 "[--export DIR] [--json]\n";
     return args.empty() ? 2 : 0;
   }
   try {
@@ -544,11 +550,12 @@ int main(int argc, char** argv) {
     if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
     if (args[0] == "speed-vs-error")
       return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
+    if (args[0] == "fem-step") return vsurg::bench::FemStep({args.begin() + 1, args.end()});
   } catch (const std::exception& e) {
     std::cerr << "vsurg-bench: " << e.what() << "\n";
     return 1;
   }
   std::cerr << "vsurg-bench: unknown command '" << args[0]
-            << "' (haptic-rtt, udp-floor, grpc-submit, export, speed-vs-error)\n";
+            << "' (haptic-rtt, udp-floor, grpc-submit, export, speed-vs-error, fem-step)\n";
   return 2;
 }

@@ -1,8 +1,17 @@
-// vsurg-bench's round-trip commands on real sockets on loopback: the floor (udp-floor, a plain
-// echo) and ours (haptic-rtt, the UDP endpoint with a simulation per station), with the same
-// stations, pacing and JSON, so bench/peers/rtt.sh can set one against the other.
+// vsurg-bench's commands that bench/peers sets against the peers: the round trip on real sockets
+// on loopback, the floor (udp-floor, a plain echo) and ours (haptic-rtt, the UDP endpoint with a
+// simulation per station), with the same stations, pacing and JSON (bench/peers/rtt.sh); and
+// the FEM step with the bar it writes out for VegaFEM (fem-step, bench/peers/fem.sh).
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "tests/support/processes.h"
 
@@ -42,6 +51,85 @@ TEST(RttCommandsTest, BadArgumentsAreRefusedWithTheirName) {
                                 "--realtime-priority 120"}) {
     const test::ShellRun r =
         test::Shell(std::string(VSURG_BENCH_BINARY) + " udp-floor " + bad + " 2>&1");
+    EXPECT_EQ(r.code, 2) << bad;
+    EXPECT_NE(r.out.find(bad.substr(0, bad.find(' '))), std::string::npos) << r.out;
+  }
+}
+
+TEST(FemStepCommandTest, StepsTheBarAndATighterToleranceTakesMoreIterations) {
+  const nlohmann::json loose = RunBench("fem-step --rings 2 --steps 3 --json");
+  const nlohmann::json tight = RunBench("fem-step --rings 2 --steps 3 --tolerance 1e-6 --json");
+  ASSERT_TRUE(loose.contains("tets") && tight.contains("tets"));
+  EXPECT_GT(loose["tets"].get<int>(), 100);
+  EXPECT_GT(loose["ms_median"].get<double>(), 0.0);
+  EXPECT_GE(loose["ms_median"].get<double>(), loose["ms_min"].get<double>());
+  EXPECT_GT(loose["cg_iterations"].get<double>(), 0.0);
+  EXPECT_GT(tight["cg_iterations"].get<double>(), loose["cg_iterations"].get<double>());
+  // 23 steps of 1 ms under 2 mN·m: the tip has started to turn, by well under a centimetre.
+  const double moved = loose["max_displacement_m"];
+  EXPECT_GT(moved, 1e-6);
+  EXPECT_LT(moved, 1e-2);
+  EXPECT_NEAR(tight["max_displacement_m"].get<double>(), moved, 0.02 * moved);
+}
+
+// What VegaFEM reads is the bar we step: its vertex and element counts, a fixed base, and tip
+// forces that add up to the 2 mN·m torque about the bar's axis and no net force.
+TEST(FemStepCommandTest, ExportWritesTheBarItsBaseAndAPureTorque) {
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / ("vsurg_fem_export_" + std::to_string(::getpid())))
+          .string();
+  std::filesystem::remove_all(dir);
+  const test::ShellRun r =
+      test::Shell(std::string(VSURG_BENCH_BINARY) + " fem-step --rings 2 --export " + dir);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const int tets = RunBench("fem-step --rings 2 --steps 1 --json")["tets"];
+  std::ifstream veg(dir + "/mesh.veg");
+  std::string line;
+  std::vector<Eigen::Vector3d> x;
+  int elements = -1;
+  while (std::getline(veg, line)) {
+    if (line == "*VERTICES") {
+      int n = 0;
+      veg >> n;
+      std::getline(veg, line);
+      for (int i = 0; i < n; ++i) {
+        int index;
+        Eigen::Vector3d p;
+        veg >> index >> p.x() >> p.y() >> p.z();
+        EXPECT_EQ(index, i + 1);
+        x.push_back(p);
+      }
+    }
+    if (line == "TET") veg >> elements;
+  }
+  EXPECT_GT(x.size(), 100u);
+  EXPECT_EQ(elements, tets);
+  std::ifstream fixed(dir + "/fixed.txt");
+  int v, fixed_count = 0;
+  while (fixed >> v) {
+    ASSERT_LT(v, static_cast<int>(x.size()));
+    EXPECT_NEAR(x[v].z(), 0.0, 1e-12);  // the base
+    ++fixed_count;
+  }
+  EXPECT_GT(fixed_count, 3);
+  std::ifstream forces(dir + "/forces.txt");
+  Eigen::Vector3d total = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
+  Eigen::Vector3d f;
+  while (forces >> v >> f.x() >> f.y() >> f.z()) {
+    ASSERT_LT(v, static_cast<int>(x.size()));
+    total += f;
+    torque += x[v].cross(f);
+  }
+  EXPECT_LT(total.norm(), 1e-9);
+  EXPECT_NEAR(torque.z(), 2e-3, 1e-9);
+  EXPECT_LT(torque.head<2>().norm(), 1e-9);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(FemStepCommandTest, BadArgumentsAreRefusedWithTheirName) {
+  for (const std::string bad : {"--rings 0", "--steps 0", "--tolerance 2", "--bogus 1"}) {
+    const test::ShellRun r =
+        test::Shell(std::string(VSURG_BENCH_BINARY) + " fem-step " + bad + " 2>&1");
     EXPECT_EQ(r.code, 2) << bad;
     EXPECT_NE(r.out.find(bad.substr(0, bad.find(' '))), std::string::npos) << r.out;
   }

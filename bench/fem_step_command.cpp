@@ -1,0 +1,151 @@
+#include "bench/fem_step_command.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "common/core/args.h"
+#include "common/geometry/tet_generators.h"
+#include "common/tissue/fem.h"
+
+namespace vsurg::bench {
+namespace {
+
+// The bar and its load, exactly as BM_FemStep builds them: 20 cm long, radius 2 cm, `rings`
+// rings and 5·rings layers (4: 5 760 tetrahedra; 5: 11 250), the base fixed, 2 mN·m of torque
+// about the axis spread over the tip face (z = 0.2 m) as Saint-Venant's shear traction.
+struct Bar {
+  geometry::TetCylinder cylinder;
+  std::vector<Eigen::Vector3d> tip_forces;  // on cylinder.tip, N
+};
+
+Expected<Bar> MakeBar(int rings) {
+  auto c = geometry::MakeTetCylinder({0.2, 0.02, 0.02, rings, 5 * rings});
+  if (!c.ok()) return c.error();
+  Bar b{std::move(c).value(), {}};
+  b.tip_forces =
+      tissue::TorqueNodalForces(b.cylinder.mesh.positions, b.cylinder.tip, b.cylinder.tip_area,
+                                Eigen::Vector3d(0, 0, 0.2), Eigen::Vector3d::UnitZ(), 2e-3);
+  return b;
+}
+
+// The files a peer reads (bench/peers/vegafem/vega_fem_step.cpp): the mesh and its material in
+// VegaFEM's .veg text format (1-based), the fixed vertices and the tip forces (0-based), and the
+// step's settings.
+Status Export(const Bar& bar, const tissue::FemParams& p, double dt, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Error{ErrorCode::kIoError, "cannot create " + dir + ": " + ec.message(), "export"};
+  const geometry::TetMesh& m = bar.cylinder.mesh;
+  std::ofstream veg(dir + "/mesh.veg");
+  veg.precision(17);
+  veg << "# vsurg bar: " << m.VertexCount() << " vertices, " << m.TetCount() << " tetrahedra\n";
+  veg << "*VERTICES\n" << m.VertexCount() << " 3 0 0\n";
+  for (int v = 0; v < m.VertexCount(); ++v)
+    veg << v + 1 << " " << m.positions[v].x() << " " << m.positions[v].y() << " "
+        << m.positions[v].z() << "\n";
+  veg << "*ELEMENTS\nTET\n" << m.TetCount() << " 4 0\n";
+  for (int t = 0; t < m.TetCount(); ++t) {
+    veg << t + 1;
+    for (int k = 0; k < 4; ++k) veg << " " << m.tetrahedra[t][k] + 1;
+    veg << "\n";
+  }
+  veg << "*MATERIAL BODY\nENU, " << p.density << ", " << p.young << ", " << p.poisson << "\n";
+  veg << "*REGION\nallElements, BODY\n";
+  std::ofstream fixed(dir + "/fixed.txt");
+  for (int v : bar.cylinder.base) fixed << v << "\n";
+  std::ofstream forces(dir + "/forces.txt");
+  forces.precision(17);
+  for (size_t i = 0; i < bar.cylinder.tip.size(); ++i)
+    forces << bar.cylinder.tip[i] << " " << bar.tip_forces[i].x() << " " << bar.tip_forces[i].y()
+           << " " << bar.tip_forces[i].z() << "\n";
+  std::ofstream settings(dir + "/settings.txt");
+  settings.precision(17);
+  settings << "dt " << dt << "\nmass_damping " << p.mass_damping << "\nstiffness_damping "
+           << p.stiffness_damping << "\n";
+  if (!veg || !fixed || !forces || !settings)
+    return Error{ErrorCode::kIoError, "cannot write the bar's files in " + dir, "export"};
+  return Status::Ok();
+}
+
+}  // namespace
+
+int FemStep(const std::vector<std::string>& args) {
+  cli::ArgParser p("vsurg-bench fem-step",
+                   "One corotational implicit FEM step (h = 1 ms, one Newton step, block-Jacobi "
+                   "CG warm-started) on the twisted bar of BM_FemStep, timed over --steps steps "
+                   "after 20 in motion.");
+  p.Option("rings", cli::ArgParser::Kind::kInt, "rings of the bar (4: 5760 tets, 5: 11250)", false,
+           "5")
+      .Option("steps", cli::ArgParser::Kind::kInt, "timed steps", false, "50")
+      .Option("tolerance", cli::ArgParser::Kind::kDouble, "CG relative residual", false, "1e-4")
+      .Option("export", cli::ArgParser::Kind::kString,
+              "write the bar, its fixed vertices, tip forces and settings into this folder for a "
+              "peer (bench/peers/fem.sh) and exit")
+      .Option("json", cli::ArgParser::Kind::kFlag, "print one JSON object");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  const int rings = p.Int("rings"), steps = p.Int("steps");
+  const double tolerance = p.Double("tolerance");
+  if (rings < 1 || rings > 12) return std::cerr << p.command() << ": --rings: 1..12\n", 2;
+  if (steps < 1 || steps > 100000) return std::cerr << p.command() << ": --steps: 1..100000\n", 2;
+  if (!(tolerance > 0 && tolerance < 1))
+    return std::cerr << p.command() << ": --tolerance: must be in (0, 1)\n", 2;
+  auto bar = MakeBar(rings);
+  if (!bar.ok()) return std::cerr << bar.error().message << "\n", 1;
+  tissue::FemParams params;
+  params.cg_tolerance = tolerance;
+  constexpr double kDt = 1e-3;
+  if (p.Has("export")) {
+    if (Status s = Export(*bar, params, kDt, p.String("export")); !s.ok())
+      return std::cerr << p.command() << ": " << s.error().message << "\n", 1;
+    return 0;
+  }
+  auto fem = tissue::FemModel::Create(bar->cylinder.mesh, params, bar->cylinder.base);
+  if (!fem.ok()) return std::cerr << fem.error().message << "\n", 1;
+  for (size_t i = 0; i < bar->tip_forces.size(); ++i)
+    fem->SetExternalForce(bar->cylinder.tip[i], bar->tip_forces[i]);
+  for (int k = 0; k < 20; ++k) fem->StepImplicit(kDt);  // in motion, warm start established
+  std::vector<double> ms;
+  ms.reserve(steps);
+  long iterations = 0;
+  for (int k = 0; k < steps; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const tissue::FemStepStats s = fem->StepImplicit(kDt);
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    iterations += s.cg_iterations;
+  }
+  std::sort(ms.begin(), ms.end());
+  // A check that both sides move the bar alike: the largest displacement from rest, m.
+  double moved = 0;
+  for (int v = 0; v < fem->VertexCount(); ++v)
+    moved = std::max(moved, (fem->positions()[v] - fem->rest().positions[v]).cwiseAbs().maxCoeff());
+  nlohmann::json j = {{"who", "vsurg"},
+                      {"tets", fem->TetCount()},
+                      {"steps", steps},
+                      {"tolerance", tolerance},
+                      {"ms_median", ms[ms.size() / 2]},
+                      {"ms_min", ms.front()},
+                      {"cg_iterations", static_cast<double>(iterations) / steps},
+                      {"max_displacement_m", moved}};
+  if (p.Flag("json")) {
+    std::cout << j.dump() << "\n";
+  } else {
+    std::printf(
+        "vsurg: %d tets, %.3f ms per step (median of %d), %.1f CG iterations, tolerance %g\n",
+        fem->TetCount(), ms[ms.size() / 2], steps, static_cast<double>(iterations) / steps,
+        tolerance);
+  }
+  return 0;
+}
+
+}  // namespace vsurg::bench

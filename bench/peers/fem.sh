@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# The corotational FEM step side by side in one run: vsurg's (vsurg-bench fem-step: one implicit
+# Euler step, one Newton step, block-Jacobi CG warm-started, at our tolerance 1e-4 and at
+# VegaFEM's 1e-6) and VegaFEM's (bench/peers/vegafem: ImplicitBackwardEulerSparse, one Newton
+# iteration, Jacobi PCG to 1e-6 as Vega's source fixes it) on the same bar, written out by
+# vsurg-bench fem-step --export (mesh, material, fixed base, tip torque, h = 1 ms, Rayleigh
+# damping), run alternately REPS rounds per size. Prints one table: the median over the rounds of
+# each time per step, and VegaFEM's time over ours per round (then the median).
+#
+# usage: bench/peers/fem.sh BIN_DIR VEGAFEM_CHECKOUT [RINGS...]
+#   BIN_DIR: vsurg's build/bin; VEGAFEM_CHECKOUT: a checkout of
+#   https://github.com/dyollb/VegaFEM outside this repository (our harness compiles the Vega
+#   sources the step needs, without TBB: one thread, as ours, into CHECKOUT-harness). RINGS
+#   default: 4 5 (5 760 and 11 250 tetrahedra).
+#   Environment: REPS (default 5), STEPS (timed steps per run, default 50), OUT (raw JSON lines).
+set -euo pipefail
+bin="$(cd "${1:?BIN_DIR}" && pwd)"
+peer="$(cd "${2:?VEGAFEM_CHECKOUT}" && pwd)"
+shift 2
+rings=("$@")
+[ ${#rings[@]} -gt 0 ] || rings=(4 5)
+reps="${REPS:-5}"
+steps="${STEPS:-50}"
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+case "$peer" in "$(cd "$here/../.." && pwd)"/*)
+  echo "fem.sh: the peer's checkout must be outside this repository" >&2; exit 2 ;;
+esac
+out="${OUT:-$(mktemp -d)}"
+mkdir -p "$out"
+
+if [ ! -x "$peer-harness/vega_fem_step" ]; then
+  echo "fem.sh: building the harness with VegaFEM's sources in $peer-harness" >&2
+  cmake -S "$here/vegafem" -B "$peer-harness" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    "-DVEGA_SOURCE=$peer" >/dev/null
+  cmake --build "$peer-harness" -j2 >/dev/null
+fi
+
+lines="$out/fem.jsonl"
+: > "$lines"
+for r in "${rings[@]}"; do
+  "$bin/vsurg-bench" fem-step --rings "$r" --export "$out/bar$r"
+  for rep in $(seq "$reps"); do
+    for who in vsurg vsurg-1e-6 vegafem; do
+      case $who in
+        vsurg) j=$("$bin/vsurg-bench" fem-step --rings "$r" --steps "$steps" --json) ;;
+        vsurg-1e-6) j=$("$bin/vsurg-bench" fem-step --rings "$r" --steps "$steps" --tolerance 1e-6 --json) ;;
+        vegafem) j=$("$peer-harness/vega_fem_step" "$out/bar$r" "$steps") ;;
+      esac
+      echo "{\"rings\": $r, \"rep\": $rep, \"run\": \"$who\", \"result\": $j}" >> "$lines"
+    done
+  done
+done
+
+python3 - "$lines" <<'PY'
+import json, statistics, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+print("| tets | who | ms per step (median over rounds) | CG iterations | largest displacement after the run | VegaFEM / this (per round, median) |")
+print("| --- | --- | --- | --- | --- | --- |")
+for r in sorted({x["rings"] for x in rows}):
+    of = lambda who: [x for x in rows if x["rings"] == r and x["run"] == who]
+    vega = {x["rep"]: x["result"]["ms_median"] for x in of("vegafem")}
+    for who in ("vsurg", "vsurg-1e-6", "vegafem"):
+        xs = of(who)
+        ms = statistics.median(x["result"]["ms_median"] for x in xs)
+        it = xs[0]["result"].get("cg_iterations")
+        ratio = statistics.median(vega[x["rep"]] / x["result"]["ms_median"] for x in xs)
+        moved = statistics.median(x["result"]["max_displacement_m"] for x in xs)
+        print(f"| {xs[0]['result']['tets']} | {who} | {ms:.2f} | {'' if it is None else f'{it:.1f}'} | {moved * 1e3:.3f} mm | {ratio:.2f} |")
+PY
+echo "raw: $lines" >&2
