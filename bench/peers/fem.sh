@@ -14,19 +14,13 @@
 #   default: 4 5 (5 760 and 11 250 tetrahedra).
 #   Environment: REPS (default 5), STEPS (timed steps per run, default 50), OUT (raw JSON lines).
 set -euo pipefail
-bin="$(cd "${1:?BIN_DIR}" && pwd)"
-peer="$(cd "${2:?VEGAFEM_CHECKOUT}" && pwd)"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+peers_setup fem.sh "${1:?BIN_DIR}" "${2:?VEGAFEM_CHECKOUT}"
 shift 2
 rings=("$@")
 [ ${#rings[@]} -gt 0 ] || rings=(4 5)
 reps="${REPS:-5}"
 steps="${STEPS:-50}"
-here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-case "$peer" in "$(cd "$here/../.." && pwd)"/*)
-  echo "fem.sh: the peer's checkout must be outside this repository" >&2; exit 2 ;;
-esac
-out="${OUT:-$(mktemp -d)}"
-mkdir -p "$out"
 
 if [ ! -x "$peer-harness/vega_fem_step" ]; then
   echo "fem.sh: building the harness with VegaFEM's sources in $peer-harness" >&2

@@ -14,20 +14,14 @@
 #   Environment: REPS (default 5), SECONDS_EACH (default 10), PRIORITY (SCHED_FIFO priority for
 #   ours, default 0: none, as OpenIGTLink has none), OUT (a folder for the raw JSON lines).
 set -euo pipefail
-bin="$(cd "${1:?BIN_DIR}" && pwd)"
-peer="$(cd "${2:?OPENIGTLINK_CHECKOUT}" && pwd)"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+peers_setup rtt.sh "${1:?BIN_DIR}" "${2:?OPENIGTLINK_CHECKOUT}"
 shift 2
 stations=("$@")
 [ ${#stations[@]} -gt 0 ] || stations=(1 8 64)
 reps="${REPS:-5}"
 seconds="${SECONDS_EACH:-10}"
 priority="${PRIORITY:-0}"
-here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-case "$peer" in "$(cd "$here/../.." && pwd)"/*)
-  echo "rtt.sh: the peer's checkout must be outside this repository" >&2; exit 2 ;;
-esac
-out="${OUT:-$(mktemp -d)}"
-mkdir -p "$out"
 
 if [ ! -x "$peer-harness/igtl_rtt" ]; then
   echo "rtt.sh: building OpenIGTLink in $peer-build and the harness in $peer-harness" >&2
