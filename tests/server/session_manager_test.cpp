@@ -172,11 +172,15 @@ TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) 
   EXPECT_EQ(WaitFor(id, SessionState::kRunning), SessionState::kRunning);
   Quiet(0.6);
   EXPECT_EQ(WaitFor(id, SessionState::kStalled), SessionState::kStalled);
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // a few sampler ticks
-  {
+  // The sampler (real time, 100 Hz) shows the stall on its next tick; 10 s bounds the wait.
+  double shown = -1;
+  for (auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+       shown != 0.0 && std::chrono::steady_clock::now() < until;) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
     std::lock_guard lock(m);
-    EXPECT_EQ(rate, 0.0);
+    shown = rate;
   }
+  EXPECT_EQ(shown, 0.0);
   sessions_->Unsubscribe(token);
 }
 
