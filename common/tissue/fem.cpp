@@ -466,6 +466,72 @@ int FemModel::InvertedCount() const {
   return n;
 }
 
+struct FemStaticResponse::Impl {
+  explicit Impl(FemModel m) : model(std::move(m)) {}
+  FemModel model;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+};
+
+FemStaticResponse::FemStaticResponse(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+FemStaticResponse::FemStaticResponse(FemStaticResponse&&) noexcept = default;
+FemStaticResponse& FemStaticResponse::operator=(FemStaticResponse&&) noexcept = default;
+FemStaticResponse::~FemStaticResponse() = default;
+
+Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& mesh,
+                                                      const FemParams& params,
+                                                      const std::vector<int>& fixed) {
+  auto model = FemModel::Create(mesh, params, fixed);
+  if (!model.ok()) return model.error();
+  if (fixed.empty())
+    return InvalidArgument("fixed", "a static response needs fixed vertices (else K is singular)");
+  auto impl = std::make_unique<Impl>(std::move(*model));
+  FemModel::Impl& m = *impl->model.impl_;
+  m.Assemble();  // at rest: R = I, so these are K₀'s blocks
+  const int nv = m.n();
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(m.blocks.size() * 9);
+  for (int i = 0; i < nv; ++i) {
+    if (m.is_fixed[i]) {
+      for (int a = 0; a < 3; ++a) triplets.emplace_back(3 * i + a, 3 * i + a, 1.0);
+      continue;
+    }
+    for (int s = m.row_start[i]; s < m.row_start[i + 1]; ++s) {
+      const int j = m.col[s];
+      if (m.is_fixed[j]) continue;
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) triplets.emplace_back(3 * i + a, 3 * j + c, m.blocks[s](a, c));
+    }
+  }
+  Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
+  k.setFromTriplets(triplets.begin(), triplets.end());
+  impl->solver.compute(k);
+  if (impl->solver.info() != Eigen::Success)
+    return InvalidArgument("mesh",
+                           "the stiffness matrix could not be factorised (a part of the "
+                           "mesh is not held by any fixed vertex?)");
+  return FemStaticResponse(std::move(impl));
+}
+
+std::vector<Eigen::Vector3d> FemStaticResponse::Solve(const std::vector<Eigen::Vector3d>& f) const {
+  const FemModel::Impl& m = *impl_->model.impl_;
+  const int nv = m.n();
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(3 * nv);
+  for (int i = 0; i < nv && i < static_cast<int>(f.size()); ++i)
+    if (!m.is_fixed[i] && f[i].allFinite()) b.segment<3>(3 * i) = f[i];
+  const Eigen::VectorXd u = impl_->solver.solve(b);
+  std::vector<Eigen::Vector3d> out(nv, Vec3::Zero());
+  for (int i = 0; i < nv; ++i)
+    if (!m.is_fixed[i]) out[i] = u.segment<3>(3 * i);
+  return out;
+}
+
+int FemStaticResponse::VertexCount() const {
+  return impl_->model.VertexCount();
+}
+const geometry::TetMesh& FemStaticResponse::rest() const {
+  return impl_->model.rest();
+}
+
 std::vector<Eigen::Vector3d> TorqueNodalForces(const std::vector<Eigen::Vector3d>& positions,
                                                const std::vector<int>& face_vertices,
                                                const std::vector<double>& area,

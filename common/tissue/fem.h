@@ -94,7 +94,34 @@ class FemModel {
 
  private:
   struct Impl;
+  friend class FemStaticResponse;
   explicit FemModel(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// The small-strain (rest) stiffness K₀ of a FemModel's mesh, factorised once with a sparse
+// Cholesky (Eigen's SimplicialLDLT) and solved for as many static loads as asked: u = K₀⁻¹·f on
+// the free vertices, the fixed ones held. The precomputation of the reduced models
+// (common/tissue/reduced.h): each of their responses is one back-substitution. Linear in f, so
+// a response to a unit load scales to any load; it is the corotational FEM's tangent at rest,
+// which a small load's SolveStatic matches to its tolerance.
+class FemStaticResponse {
+ public:
+  static Expected<FemStaticResponse> Create(const geometry::TetMesh& mesh, const FemParams& params,
+                                            const std::vector<int>& fixed);
+  FemStaticResponse(FemStaticResponse&&) noexcept;
+  FemStaticResponse& operator=(FemStaticResponse&&) noexcept;
+  ~FemStaticResponse();
+
+  // Displacements (m) of every vertex under nodal loads (N) `f` (one per vertex; the fixed
+  // vertices' entries are ignored and their displacement is zero).
+  std::vector<Eigen::Vector3d> Solve(const std::vector<Eigen::Vector3d>& f) const;
+  int VertexCount() const;
+  const geometry::TetMesh& rest() const;
+
+ private:
+  struct Impl;
+  explicit FemStaticResponse(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -1,0 +1,406 @@
+#include "common/tissue/reduced.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
+#include "common/geometry/tet_embedding.h"
+
+namespace vsurg::tissue {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+// Two unit vectors completing `axis` to a right-handed frame.
+void Frame(const Vec3& axis, Vec3& e1, Vec3& e2) {
+  const Vec3 helper = std::abs(axis.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  e1 = axis.cross(helper).normalized();
+  e2 = axis.cross(e1);
+}
+
+// sin φ and cos φ − 1 for |φ| ≤ π, by the half angle: Taylor series of ψ = φ/2 (|ψ| ≤ π/2,
+// error < 4e-6 to ψ⁹), then sin φ = 2·sin ψ·cos ψ, cos φ − 1 = −2·sin²ψ (no cancellation at
+// small angles, where the displacement is small too). Branch-free float arithmetic, so the
+// per-vertex loop vectorises (std::sin/cos per vertex would cost about 20× more: the rejected
+// axis–angle variant of coil_deformation.h).
+inline void SinCosM1(float phi, float& s_out, float& cm1_out) {
+  const float x = 0.5f * phi, x2 = x * x;
+  const float s =
+      x * (1.f + x2 * (-1.f / 6 + x2 * (1.f / 120 + x2 * (-1.f / 5040 + x2 * (1.f / 362880)))));
+  s_out = 2.f * s * std::sqrt(std::max(0.f, 1.f - s * s));
+  cm1_out = -2.f * s * s;
+}
+
+}  // namespace
+
+// ---- 1. Twist field ---------------------------------------------------------------------------
+
+Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
+                                          const std::vector<int>& face,
+                                          const std::vector<double>& face_area, const Vec3& origin,
+                                          const Vec3& axis, const std::vector<Vec3>& display_rest) {
+  if (!origin.allFinite() || !axis.allFinite() || !(axis.norm() > 0))
+    return InvalidArgument("axis", "the twist axis needs a finite point and a non-zero direction");
+  if (face.empty()) return InvalidArgument("face", "no loaded face");
+  for (int v : face)
+    if (v < 0 || v >= fem.VertexCount())
+      return InvalidArgument("face", "vertex " + std::to_string(v) + " is not in the FEM mesh");
+  const Vec3 n = axis.normalized();
+  const auto& rest = fem.rest().positions;
+  // Unit torque about the axis through the face's own centre on the axis.
+  Vec3 centre = Vec3::Zero();
+  for (int v : face) centre += rest[v];
+  centre /= static_cast<double>(face.size());
+  centre = origin + (centre - origin).dot(n) * n;
+  const auto nodal = TorqueNodalForces(rest, face, face_area, centre, n, 1.0);
+  std::vector<Vec3> f(fem.VertexCount(), Vec3::Zero());
+  for (size_t i = 0; i < face.size(); ++i) f[face[i]] += nodal[i];
+  const std::vector<Vec3> u = fem.Solve(f);
+  for (const Vec3& x : u)
+    if (!x.allFinite())
+      return Error{ErrorCode::kNumerical, "the unit-torque solve is not finite", "fem"};
+
+  auto angle_of = [&](const Vec3& x, const Vec3& d) {
+    Vec3 r = x - origin;
+    r -= r.dot(n) * n;
+    const double r2 = r.squaredNorm();
+    return r2 > 1e-12 ? n.cross(r).dot(d) / r2 : 0.0;
+  };
+  TwistField out;
+  out.origin = origin;
+  out.axis = n;
+  double grasp = 0, weight = 0;
+  for (size_t i = 0; i < face.size(); ++i) {
+    const double w = i < face_area.size() ? face_area[i] : 1.0;
+    Vec3 r = rest[face[i]] - origin;
+    r -= r.dot(n) * n;
+    if (r.squaredNorm() < 1e-12) continue;
+    grasp += w * angle_of(rest[face[i]], u[face[i]]);
+    weight += w;
+  }
+  if (!(weight > 0)) return InvalidArgument("face", "the loaded face lies on the axis");
+  out.grasp_compliance = grasp / weight;
+  if (!(out.grasp_compliance > 0))
+    return Error{ErrorCode::kNumerical, "the loaded face does not turn with the torque", "fem"};
+
+  auto embedding = geometry::EmbedPoints(fem.rest(), display_rest);
+  if (!embedding.ok()) return embedding.error();
+  std::vector<Vec3> ud(display_rest.size());
+  for (size_t i = 0; i < ud.size(); ++i) ud[i] = geometry::Interpolate((*embedding)[i], u);
+  out.angle.resize(display_rest.size());
+  out.warp.resize(display_rest.size());
+  out.radial.resize(display_rest.size());
+  out.lateral.assign(display_rest.size(), Vec3::Zero());
+  for (size_t i = 0; i < display_rest.size(); ++i) {
+    out.angle[i] = static_cast<float>(angle_of(display_rest[i], ud[i]));
+    out.warp[i] = static_cast<float>(n.dot(ud[i]));
+    Vec3 r = display_rest[i] - origin;
+    r -= r.dot(n) * n;
+    if (r.squaredNorm() > 1e-12) {
+      out.radial[i] = static_cast<float>(r.dot(ud[i]) / r.squaredNorm());
+    } else {
+      out.radial[i] = 0.f;
+      out.lateral[i] = ud[i] - ud[i].dot(n) * n;
+    }
+    out.max_distance = std::max(out.max_distance, (*embedding)[i].distance);
+  }
+  return out;
+}
+
+Expected<ReducedTwistModel> ReducedTwistModel::Create(const TwistField& field,
+                                                      const std::vector<Vec3>& display_rest,
+                                                      double max_twist) {
+  const size_t nv = display_rest.size();
+  if (field.angle.size() != nv || field.warp.size() != nv || field.radial.size() != nv ||
+      field.lateral.size() != nv)
+    return InvalidArgument("field", "the twist field has " + std::to_string(field.angle.size()) +
+                                        " vertices, the surface " + std::to_string(nv));
+  if (!(max_twist > 0 && max_twist <= std::numbers::pi))
+    return InvalidArgument("max_twist", "must be within (0, π] rad");
+  if (!(field.grasp_compliance > 0) || !std::isfinite(field.grasp_compliance))
+    return InvalidArgument("field", "the grasp compliance must be > 0");
+  if (!field.axis.allFinite() || !(field.axis.norm() > 0) || !field.origin.allFinite())
+    return InvalidArgument("field", "the twist axis is not finite");
+  ReducedTwistModel m;
+  m.origin_ = field.origin;
+  m.axis_ = field.axis.normalized();
+  Frame(m.axis_, m.e1_, m.e2_);
+  double max_angle = 0;
+  for (size_t i = 0; i < nv; ++i) {
+    if (!std::isfinite(field.angle[i]) || !std::isfinite(field.warp[i]) ||
+        !std::isfinite(field.radial[i]) || !field.lateral[i].allFinite() ||
+        !display_rest[i].allFinite())
+      return InvalidArgument("field", "vertex " + std::to_string(i) + " is not finite");
+    const Vec3 d = display_rest[i] - m.origin_;
+    m.r1_.push_back(static_cast<float>(d.dot(m.e1_)));
+    m.r2_.push_back(static_cast<float>(d.dot(m.e2_)));
+    m.angle_.push_back(field.angle[i]);
+    m.warp_.push_back(field.warp[i]);
+    m.radial_.push_back(field.radial[i]);
+    m.l1_.push_back(static_cast<float>(field.lateral[i].dot(m.e1_)));
+    m.l2_.push_back(static_cast<float>(field.lateral[i].dot(m.e2_)));
+    max_angle = std::max(max_angle, std::abs(static_cast<double>(field.angle[i])));
+  }
+  m.rest_ = display_rest;
+  m.positions_ = display_rest;
+  m.grasp_compliance_ = field.grasp_compliance;
+  m.capacity_ = max_angle > 0 ? max_twist / max_angle : 0;
+  return m;
+}
+
+ReducedStats ReducedTwistModel::Update(double torque) {
+  ReducedStats stats;
+  if (!std::isfinite(torque)) {
+    stats.ok = false;
+    return stats;
+  }
+  if (std::abs(torque) > capacity_) {
+    torque = std::copysign(capacity_, torque);
+    stats.saturated = true;
+  }
+  stats.load = torque;
+  const float t = static_cast<float>(torque);
+  const int nv = VertexCount();
+  const float* r1 = r1_.data();
+  const float* r2 = r2_.data();
+  const float* a = angle_.data();
+  const float* w = warp_.data();
+  const float* q = radial_.data();
+  const float* l1 = l1_.data();
+  const float* l2 = l2_.data();
+  const double* rest = rest_.data()->data();  // Vec3 is 3 packed doubles
+  double* out = positions_.data()->data();
+  const float b1[3] = {static_cast<float>(e1_.x()), static_cast<float>(e1_.y()),
+                       static_cast<float>(e1_.z())};
+  const float b2[3] = {static_cast<float>(e2_.x()), static_cast<float>(e2_.y()),
+                       static_cast<float>(e2_.z())};
+  const float b3[3] = {static_cast<float>(axis_.x()), static_cast<float>(axis_.y()),
+                       static_cast<float>(axis_.z())};
+  // Displacements in float (relative precision of the displacement itself), added to the
+  // rest positions in double.
+  for (int i = 0; i < nv; ++i) {
+    float s, cm1;
+    SinCosM1(t * a[i], s, cm1);
+    // The radial strain is a small-strain response: held within ±50% so a torque far past the
+    // FEM's linear range cannot pull a vertex through the axis.
+    const float grow = std::clamp(1.f + t * q[i], 0.5f, 1.5f);
+    const float diag = (grow - 1.f) + grow * cm1;  // grow·cos φ − 1
+    const float dx = diag * r1[i] - grow * s * r2[i] + t * l1[i];
+    const float dy = grow * s * r1[i] + diag * r2[i] + t * l2[i];
+    const float dz = t * w[i];
+    for (int k = 0; k < 3; ++k)
+      out[3 * i + k] = rest[3 * i + k] + (b1[k] * dx + b2[k] * dy + b3[k] * dz);
+  }
+  return stats;
+}
+
+// ---- 2. Contact responses ---------------------------------------------------------------------
+
+namespace {
+
+// Nodal loads on the FEM's boundary for a unit total force in direction d spread over the disc
+// of radius a around p (normal n): every boundary triangle sampled at 28 barycentric points,
+// each sample inside the disc (distance ⊥ n ≤ a, and within a of the tangent plane) carrying its
+// share of the triangle's area to the triangle's vertices. When the disc catches no sample (a
+// footprint finer than the FEM), the nearest sample's triangle takes the whole load.
+std::vector<std::pair<int, double>> FootprintWeights(const geometry::TriMesh& boundary,
+                                                     const Vec3& p, const Vec3& n, double a) {
+  constexpr int kN = 6;
+  std::vector<std::pair<int, double>> w;
+  double best = std::numeric_limits<double>::infinity();
+  std::array<int, 3> best_tri = {0, 0, 0};
+  std::array<double, 3> best_bary = {1, 0, 0};
+  for (const auto& t : boundary.triangles) {
+    const Vec3& x0 = boundary.positions[t[0]];
+    const Vec3& x1 = boundary.positions[t[1]];
+    const Vec3& x2 = boundary.positions[t[2]];
+    const double lo = std::min({(x0 - p).norm(), (x1 - p).norm(), (x2 - p).norm()});
+    const double edge = std::max({(x1 - x0).norm(), (x2 - x1).norm(), (x0 - x2).norm()});
+    if (lo > std::max(a, best) + edge) continue;  // no sample of this triangle can count
+    const double area = 0.5 * (x1 - x0).cross(x2 - x0).norm();
+    const double share = area / ((kN + 1) * (kN + 2) / 2);
+    for (int i = 0; i <= kN; ++i)
+      for (int j = 0; i + j <= kN; ++j) {
+        const double u = static_cast<double>(i) / kN, v = static_cast<double>(j) / kN;
+        const Vec3 s = (1 - u - v) * x0 + u * x1 + v * x2;
+        const Vec3 d = s - p;
+        const double along = d.dot(n);
+        const double across = (d - along * n).norm();
+        if (across <= a && std::abs(along) <= a) {
+          w.emplace_back(t[0], share * (1 - u - v));
+          w.emplace_back(t[1], share * u);
+          w.emplace_back(t[2], share * v);
+        }
+        if (d.norm() < best) best = d.norm(), best_tri = t, best_bary = {1 - u - v, u, v};
+      }
+  }
+  if (w.empty())
+    for (int k = 0; k < 3; ++k) w.emplace_back(best_tri[k], best_bary[k]);
+  double total = 0;
+  for (const auto& [i, x] : w) total += x;
+  for (auto& [i, x] : w) x /= total;
+  return w;
+}
+
+}  // namespace
+
+Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem,
+                                                    const geometry::TriMesh& display,
+                                                    const std::vector<int>& reachable,
+                                                    const ContactResponseParams& params) {
+  const int nv = display.VertexCount();
+  if (nv == 0) return InvalidArgument("display", "no vertices");
+  if (!(params.footprint_radius > 0) || !std::isfinite(params.footprint_radius))
+    return InvalidArgument("footprint_radius", "must be > 0 m");
+  std::vector<int> contacts;
+  std::vector<uint8_t> pre(nv, 0);
+  for (int v : reachable) {
+    if (v < 0 || v >= nv)
+      return InvalidArgument("reachable", "vertex " + std::to_string(v) + " is not on the surface");
+    if (!pre[v]) contacts.push_back(v), pre[v] = 1;
+  }
+  if (contacts.empty()) return InvalidArgument("reachable", "no vertex a tool can reach");
+  const int64_t bytes = static_cast<int64_t>(contacts.size()) * nv * 9 * 4;
+  if (bytes > params.max_bytes)
+    return InvalidArgument("reachable", std::to_string(contacts.size()) + " contacts × " +
+                                            std::to_string(nv) + " vertices need " +
+                                            std::to_string(bytes >> 20) + " MB, over the " +
+                                            std::to_string(params.max_bytes >> 20) + " MB bound");
+  geometry::TriMesh normals_mesh = display;
+  geometry::ComputeVertexNormals(normals_mesh);
+  auto embedding = geometry::EmbedPoints(fem.rest(), display.positions);
+  if (!embedding.ok()) return embedding.error();
+  const geometry::TriMesh boundary = geometry::BoundarySurface(fem.rest());
+
+  ContactResponse out;
+  out.vertices = nv;
+  out.contacts = contacts;
+  out.precomputed = pre;
+  out.footprint_radius = params.footprint_radius;
+  for (const auto& e : *embedding) out.max_distance = std::max(out.max_distance, e.distance);
+  out.g.assign(contacts.size() * 9 * static_cast<size_t>(nv), 0.f);
+  std::vector<Vec3> f(fem.VertexCount());
+  for (size_t s = 0; s < contacts.size(); ++s) {
+    const int c = contacts[s];
+    const auto weights = FootprintWeights(boundary, display.positions[c], normals_mesh.normals[c],
+                                          params.footprint_radius);
+    for (int d = 0; d < 3; ++d) {
+      std::fill(f.begin(), f.end(), Vec3::Zero());
+      for (const auto& [i, w] : weights) f[i][d] += w;
+      const std::vector<Vec3> u = fem.Solve(f);
+      float* g = out.g.data() + (s * 3 + d) * 3 * static_cast<size_t>(nv);
+      for (int i = 0; i < nv; ++i) {
+        const Vec3 x = geometry::Interpolate((*embedding)[i], u);
+        if (!x.allFinite())
+          return Error{ErrorCode::kNumerical, "a unit-force solve is not finite", "fem"};
+        for (int k = 0; k < 3; ++k) g[3 * i + k] = static_cast<float>(x[k]);
+      }
+    }
+  }
+  // Vertices without their own slot: the nearest precomputed contact.
+  out.slot_of_vertex.assign(nv, 0);
+  for (int i = 0; i < nv; ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t s = 0; s < contacts.size(); ++s) {
+      const double d = (display.positions[contacts[s]] - display.positions[i]).squaredNorm();
+      if (d < best) best = d, out.slot_of_vertex[i] = static_cast<int>(s);
+    }
+  }
+  return out;
+}
+
+Expected<ReducedContactModel> ReducedContactModel::Create(ContactResponse response,
+                                                          const std::vector<Vec3>& display_rest,
+                                                          double max_force) {
+  const int nv = static_cast<int>(display_rest.size());
+  if (response.vertices != nv || response.slot_of_vertex.size() != display_rest.size() ||
+      response.precomputed.size() != display_rest.size() ||
+      response.g.size() != response.contacts.size() * 9 * static_cast<size_t>(nv))
+    return InvalidArgument("response", "the contact table does not match the surface (" +
+                                           std::to_string(response.vertices) + " against " +
+                                           std::to_string(nv) + " vertices)");
+  if (!(max_force > 0) || !std::isfinite(max_force))
+    return InvalidArgument("max_force", "must be > 0 N");
+  for (int s : response.slot_of_vertex)
+    if (s < 0 || s >= static_cast<int>(response.contacts.size()))
+      return InvalidArgument("response", "a vertex names a contact slot out of range");
+  for (float x : response.g)
+    if (!std::isfinite(x)) return InvalidArgument("response", "the table is not finite");
+  ReducedContactModel m;
+  m.rest_ = display_rest;
+  m.positions_ = display_rest;
+  m.max_force_ = max_force;
+  m.compliance_.resize(response.contacts.size());
+  for (size_t s = 0; s < response.contacts.size(); ++s) {
+    const int c = response.contacts[s];
+    Eigen::Matrix3d g;
+    for (int d = 0; d < 3; ++d)
+      for (int k = 0; k < 3; ++k) g(k, d) = response.g[((s * 3 + d) * nv + c) * 3 + k];
+    g = 0.5 * (g + g.transpose());  // Maxwell–Betti reciprocity: symmetric up to sampling
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(g);
+    if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 0))
+      return InvalidArgument("response", "contact vertex " + std::to_string(c) +
+                                             " does not yield to a force (fixed, or the table is "
+                                             "wrong)");
+    m.compliance_[s] = g;
+  }
+  m.response_ = std::move(response);
+  return m;
+}
+
+int ReducedContactModel::Slot(int contact, ReducedStats& stats) const {
+  if (contact < 0 || contact >= VertexCount()) return -1;
+  if (!response_.precomputed[contact]) stats.fallback = true;
+  return response_.slot_of_vertex[contact];
+}
+
+ReducedStats ReducedContactModel::Press(int contact, const Vec3& force) {
+  ReducedStats stats;
+  const int slot = Slot(contact, stats);
+  if (slot < 0 || !force.allFinite()) {
+    stats.ok = false;
+    return stats;
+  }
+  Vec3 f = force;
+  if (f.norm() > max_force_) {
+    f *= max_force_ / f.norm();
+    stats.saturated = true;
+  }
+  stats.load = f.norm();
+  const int nv = VertexCount();
+  const float fx = static_cast<float>(f.x()), fy = static_cast<float>(f.y()),
+              fz = static_cast<float>(f.z());
+  const float* gx = response_.g.data() + static_cast<size_t>(slot) * 9 * nv;
+  const float* gy = gx + 3 * static_cast<size_t>(nv);
+  const float* gz = gy + 3 * static_cast<size_t>(nv);
+  const double* rest = rest_.data()->data();
+  double* out = positions_.data()->data();
+  for (int j = 0; j < 3 * nv; ++j) out[j] = rest[j] + (fx * gx[j] + fy * gy[j] + fz * gz[j]);
+  return stats;
+}
+
+ReducedStats ReducedContactModel::Displace(int contact, const Vec3& displacement, Vec3* force_out) {
+  ReducedStats stats;
+  const int slot = Slot(contact, stats);
+  if (slot < 0 || !displacement.allFinite()) {
+    stats.ok = false;
+    return stats;
+  }
+  const Vec3 f = compliance_[slot].ldlt().solve(displacement);
+  stats = Press(contact, f);
+  if (force_out) *force_out = stats.saturated ? Vec3(f * (max_force_ / f.norm())) : f;
+  return stats;
+}
+
+Eigen::Matrix3d ReducedContactModel::StiffnessAt(int contact) const {
+  ReducedStats ignored;
+  const int slot = Slot(contact, ignored);
+  if (slot < 0) return Eigen::Matrix3d::Zero();
+  return compliance_[slot].inverse();
+}
+
+}  // namespace vsurg::tissue

@@ -1,0 +1,165 @@
+// Reduced models precomputed from the scene's own FEM (DESIGN.md "Model 3"): FEM accuracy at
+// haptic rate. Each is a linear response of the FEM at rest, computed once per scene by
+// FemStaticResponse (one sparse Cholesky factorisation, one back-substitution per response),
+// carried onto the display surface the station draws (geometry::EmbedPoints: the FEM's own
+// linear shape functions), and evaluated at run time as a few multiply-adds per vertex.
+//
+// Units: m, N, N·m, rad. Precision: the responses are kept in single precision (the display is
+// in float anyway; 7 digits is far below the FEM's discretisation error of 2–5%).
+//
+// 1. Twist field (torsion of limbs). Saint-Venant torsion is linear in the torque T: every
+//    point turns by T·a(x) about the axis and moves T·w(x) along it (the warping of a
+//    non-circular section). So one static FEM solve at a unit torque (the shear traction of
+//    TorqueNodalForces on the loaded face) gives a(x) = (â × r)·u / |r|² and w(x) = â·u per
+//    display vertex, and the radial part q(x) = r·u / |r|² (zero in Saint-Venant; the FEM's
+//    end effects near the loaded face), so that at a small torque the model is the FEM's
+//    response exactly. An update at torque T scales r by 1 + T·q, turns it by T·a about the
+//    axis and moves the vertex T·w along it (a vertex on the axis, where no angle is defined,
+//    moves by T·u⊥ instead): exact
+//    rotations, so a large twist keeps every vertex's distance to the axis (a linear
+//    displacement T·u would inflate the limb by 1/cos θ). The grasp's compliance a_g (rad per
+//    N·m, the loaded face's mean angle) gives the haptic path its stiffness dT/dΦ = 1/a_g.
+//    Choi & Ko's modal warping (IEEE TVCG 2005) is the route for loads that are not a pure
+//    twist; a limb twisted at the grasp is one.
+//
+// 2. Contact responses (palpation, pressing, pulling): Green's functions (Cotin, Delingette &
+//    Ayache, IEEE TVCG 1999). For every display vertex a tool can reach, the static response of
+//    every display vertex to a unit force in x, y and z spread over the tool's footprint (a disc
+//    of the tool's radius on the FEM's boundary, lumped by area like a pressure): 9 floats per
+//    (contact, vertex) pair. A press with force F at contact c moves vertex i by G_ic·F;
+//    several contacts superpose. A tool that imposes a position instead (the haptic proxy)
+//    gets the force from the contact's own 3×3 block: F = G_cc⁻¹·δ, the capacitance matrix of
+//    James & Pai (1999) for one contact, and that inverse is also the stiffness the station's
+//    local model needs. Memory: 36 B × reachable contacts × display vertices (1,026-vertex
+//    sphere, every vertex reachable: 37.9 MB); `Create` refuses more than max_bytes.
+//    Not done here: the rotation correction for large local deformation (a linear response
+//    pressed deep inflates the volume); it shows as error at the deep end of a press.
+//
+// Hard cases: a non-finite torque, force or displacement is refused (the positions keep the
+// last good state, the result says so); a torque or force past the model's capacity is clamped
+// to it and flagged (`saturated`); a contact at a vertex never precomputed uses the nearest
+// precomputed one and is flagged (`fallback`). Positions are always finite.
+//
+// Threads: a model belongs to one thread; Update/Press do not allocate.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+#include "common/tissue/fem.h"
+
+namespace vsurg::tissue {
+
+// ---- 1. Twist field ---------------------------------------------------------------------------
+
+struct TwistField {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // a point on the twist axis, m
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();   // unit
+  std::vector<float> angle;                          // rad per N·m, per display vertex
+  std::vector<float> warp;                           // m per N·m along the axis, per vertex
+  std::vector<float> radial;                         // 1 per N·m: radial strain, per vertex
+  std::vector<Eigen::Vector3d> lateral;  // m per N·m ⊥ axis, for vertices on the axis only
+  double grasp_compliance = 0;           // rad per N·m at the loaded face
+  double max_distance = 0;               // m: the display vertex farthest outside the FEM mesh
+};
+
+// The FEM's static response to a unit torque about (origin, axis) on `face` (vertex indices of
+// the FEM mesh with their areas, m²: TorqueNodalForces), sampled at `display_rest`.
+Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
+                                          const std::vector<int>& face,
+                                          const std::vector<double>& face_area,
+                                          const Eigen::Vector3d& origin,
+                                          const Eigen::Vector3d& axis,
+                                          const std::vector<Eigen::Vector3d>& display_rest);
+
+struct ReducedStats {
+  bool ok = true;          // false: the input was not finite; nothing changed
+  bool saturated = false;  // the load was clamped to the model's capacity
+  bool fallback = false;   // the contact vertex was not precomputed; the nearest one was used
+  double load = 0;         // torque (N·m) or force magnitude (N) actually applied
+};
+
+class ReducedTwistModel {
+ public:
+  // `max_twist`: the largest angle any vertex may turn (rad, ≤ π); the torque capacity follows
+  // from the field (max_twist / max |a|).
+  static Expected<ReducedTwistModel> Create(const TwistField& field,
+                                            const std::vector<Eigen::Vector3d>& display_rest,
+                                            double max_twist);
+  ReducedStats Update(double torque);  // N·m; no allocation
+  const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
+  double torque_capacity() const { return capacity_; }                // N·m
+  double grasp_stiffness() const { return 1.0 / grasp_compliance_; }  // N·m/rad, dT/dΦ
+  double grasp_twist(double torque) const { return torque * grasp_compliance_; }  // rad
+  int VertexCount() const { return static_cast<int>(positions_.size()); }
+
+ private:
+  ReducedTwistModel() = default;
+  Eigen::Vector3d origin_, e1_, e2_, axis_;
+  // Per vertex (structure of arrays, float): the rest offset from the axis in its frame (r1,
+  // r2), the field (angle, warp, radial, lateral l1, l2); rest and output positions in double.
+  std::vector<float> r1_, r2_, angle_, warp_, radial_, l1_, l2_;
+  std::vector<Eigen::Vector3d> rest_, positions_;
+  double capacity_ = 0, grasp_compliance_ = 0;
+};
+
+// ---- 2. Contact responses ---------------------------------------------------------------------
+
+struct ContactResponseParams {
+  double footprint_radius = 0.005;  // m: the tool tip's contact disc
+  int64_t max_bytes = 256ll << 20;  // refuse a table larger than this
+};
+
+struct ContactResponse {
+  int vertices = 0;                  // display vertices
+  std::vector<int> contacts;         // the precomputed contact vertices (display indices)
+  std::vector<int> slot_of_vertex;   // display vertex → its contact slot, or the nearest slot
+  std::vector<uint8_t> precomputed;  // display vertex → 1 when it has its own slot
+  // g[((slot·3 + d)·vertices + i)·3 + k]: vertex i's displacement k per unit force in d (m/N).
+  std::vector<float> g;
+  double footprint_radius = 0;
+  double max_distance = 0;  // m: the display vertex farthest outside the FEM mesh
+  int64_t Bytes() const { return static_cast<int64_t>(g.size()) * 4; }
+};
+
+// `reachable`: the display vertices a tool can touch (the scene's workspace; not the fixed
+// ones). Every one costs 3 back-substitutions.
+Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem,
+                                                    const geometry::TriMesh& display,
+                                                    const std::vector<int>& reachable,
+                                                    const ContactResponseParams& params);
+
+class ReducedContactModel {
+ public:
+  // `max_force`: the capacity (N); a larger press is clamped to it and flagged.
+  static Expected<ReducedContactModel> Create(ContactResponse response,
+                                              const std::vector<Eigen::Vector3d>& display_rest,
+                                              double max_force);
+  // One tool at display vertex `contact` pushing with `force` (N); the surface at rest
+  // elsewhere. No allocation.
+  ReducedStats Press(int contact, const Eigen::Vector3d& force);
+  // The force that moves the contact vertex by `displacement` (m): G_cc⁻¹·δ (clamped to the
+  // capacity), then the surface for it. The proxy's position-driven contact.
+  ReducedStats Displace(int contact, const Eigen::Vector3d& displacement,
+                        Eigen::Vector3d* force_out = nullptr);
+  // The tissue's stiffness at a contact, N/m (G_cc⁻¹; symmetric positive definite).
+  Eigen::Matrix3d StiffnessAt(int contact) const;
+  const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
+  const ContactResponse& response() const { return response_; }
+  int VertexCount() const { return static_cast<int>(positions_.size()); }
+
+ private:
+  ReducedContactModel() = default;
+  int Slot(int contact, ReducedStats& stats) const;
+  ContactResponse response_;
+  std::vector<Eigen::Vector3d> rest_, positions_;
+  std::vector<Eigen::Matrix3d> compliance_;  // G_cc per slot
+  double max_force_ = 0;
+};
+
+}  // namespace vsurg::tissue

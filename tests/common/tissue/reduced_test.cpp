@@ -1,0 +1,315 @@
+#include "common/tissue/reduced.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
+
+#include "common/geometry/mesh.h"
+#include "common/geometry/tet_generators.h"
+
+namespace vsurg::tissue::reduced_test {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+constexpr double kShear = 12000;  // Pa
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+
+FemParams Tissue(double poisson = 0.45) {
+  FemParams p;
+  p.poisson = poisson;
+  p.young = 2 * kShear * (1 + poisson);
+  return p;
+}
+
+struct Bar {
+  geometry::TetCylinder cylinder;
+  FemStaticResponse response;
+};
+
+Bar MakeBar(double a, double length, int rings, int layers) {
+  auto c = geometry::MakeTetCylinder({length, a, a, rings, layers});
+  EXPECT_TRUE(c.ok());
+  auto r = FemStaticResponse::Create(c->mesh, Tissue(), c->base);
+  EXPECT_TRUE(r.ok()) << r.error().message;
+  return {*c, std::move(r).value()};
+}
+
+TwistField FieldOn(const Bar& bar, const std::vector<Vec3>& display) {
+  auto f = PrecomputeTwistField(bar.response, bar.cylinder.tip, bar.cylinder.tip_area, Vec3::Zero(),
+                                Vec3::UnitZ(), display);
+  EXPECT_TRUE(f.ok()) << f.error().message;
+  return std::move(f).value();
+}
+
+TEST(FemStaticResponseTest, MatchesTheCorotationalStaticSolveAtASmallLoad) {
+  // The linear response is the corotational FEM's tangent at rest: at a load that turns the
+  // bar by 1e-4 rad the two agree to O(θ) relative.
+  auto c = geometry::MakeTetCylinder({0.1, 0.01, 0.01, 2, 10});
+  ASSERT_TRUE(c.ok());
+  auto linear = FemStaticResponse::Create(c->mesh, Tissue(), c->base);
+  auto full = FemModel::Create(c->mesh, Tissue(), c->base);
+  ASSERT_TRUE(linear.ok() && full.ok());
+  std::vector<Vec3> f(c->mesh.VertexCount(), Vec3::Zero());
+  for (int v : c->tip) f[v] = Vec3(1e-6, 0, -2e-6);
+  for (int v : c->tip) full->SetExternalForce(v, f[v]);
+  ASSERT_TRUE(full->SolveStatic(30, 1e-7).converged);
+  const auto u = linear->Solve(f);
+  double num = 0, den = 0;
+  for (int i = 0; i < c->mesh.VertexCount(); ++i) {
+    num += (u[i] - (full->positions()[i] - c->mesh.positions[i])).squaredNorm();
+    den += u[i].squaredNorm();
+  }
+  EXPECT_LT(std::sqrt(num / den), 1e-3);
+  for (int v : c->base) EXPECT_EQ(u[v].norm(), 0.0);
+  // Linear: twice the load, twice the response.
+  for (Vec3& x : f) x *= 2;
+  const auto u2 = linear->Solve(f);
+  for (int i = 0; i < c->mesh.VertexCount(); ++i) EXPECT_LT((u2[i] - 2 * u[i]).norm(), 1e-15);
+}
+
+TEST(FemStaticResponseTest, AMeshWithNothingFixedIsRefused) {
+  auto c = geometry::MakeTetCylinder({0.1, 0.01, 0.01, 1, 4});
+  ASSERT_TRUE(c.ok());
+  EXPECT_FALSE(FemStaticResponse::Create(c->mesh, Tissue(), {}).ok());
+}
+
+TEST(ReducedTwistTest, AgreesWithTheFullFemAtASmallTorque) {
+  Bar bar = MakeBar(0.01, 0.1, 2, 10);
+  const auto& rest = bar.cylinder.mesh.positions;
+  const TwistField field = FieldOn(bar, rest);
+  auto model = ReducedTwistModel::Create(field, rest, 1.0);
+  ASSERT_TRUE(model.ok()) << model.error().message;
+  const double torque = 2e-6;  // N·m: ≈ 3e-4 rad at the tip
+  auto full = FemModel::Create(bar.cylinder.mesh, Tissue(), bar.cylinder.base);
+  ASSERT_TRUE(full.ok());
+  const auto f = TorqueNodalForces(rest, bar.cylinder.tip, bar.cylinder.tip_area, Vec3(0, 0, 0.1),
+                                   Vec3::UnitZ(), torque);
+  for (size_t i = 0; i < f.size(); ++i) full->SetExternalForce(bar.cylinder.tip[i], f[i]);
+  ASSERT_TRUE(full->SolveStatic(30, 1e-7).converged);
+  EXPECT_TRUE(model->Update(torque).ok);
+  double num = 0, den = 0;
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const Vec3 uf = full->positions()[i] - rest[i];
+    num += (model->positions()[i] - full->positions()[i]).squaredNorm();
+    den += uf.squaredNorm();
+  }
+  // To the static solve's tolerance and the O(θ) between a rotation and its linearisation.
+  EXPECT_LT(std::sqrt(num / den), 1e-3) << std::sqrt(num / den);
+}
+
+TEST(ReducedTwistTest, ReproducesSaintVenantOnAFinerDisplaySurface) {
+  // θ(z) = T·z/(G·J) on a round bar; the display is a finer cylinder than the FEM, so every
+  // display vertex is interpolated (some lie just outside the faceted FEM boundary). The FEM at
+  // this size is ≈ 5% stiffer than Saint-Venant (linear tetrahedra; fem_test's convergence).
+  const double a = 0.02, length = 0.2, torque = 1e-2;
+  const double j = std::numbers::pi * std::pow(a, 4) / 2;
+  Bar bar = MakeBar(a, length, 4, 80);
+  auto display = geometry::MakeTetCylinder({length, a, a, 6, 120});
+  ASSERT_TRUE(display.ok());
+  const auto& rest = display->mesh.positions;
+  const TwistField field = FieldOn(bar, rest);
+  EXPECT_LT(field.max_distance, 0.002 * a * 6);
+  auto model = ReducedTwistModel::Create(field, rest, std::numbers::pi);
+  ASSERT_TRUE(model.ok());
+  model->Update(torque);
+  double sum2 = 0, worst = 0;
+  int n = 0;
+  const double tip = torque * length / (kShear * j);
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const Vec3& x0 = rest[i];
+    if (x0.head<2>().norm() < 0.5 * a) continue;
+    const Vec3& x = model->positions()[i];
+    const double got = std::atan2(x0.x() * x.y() - x0.y() * x.x(), x0.x() * x.x() + x0.y() * x.y());
+    const double e = (got - torque * x0.z() / (kShear * j)) / tip;
+    sum2 += e * e, worst = std::max(worst, std::abs(e)), ++n;
+  }
+  EXPECT_LT(std::sqrt(sum2 / n), 0.06) << "rms " << std::sqrt(sum2 / n) << " worst " << worst;
+  // The grasp's stiffness is the bar's G·J/L.
+  EXPECT_NEAR(model->grasp_stiffness(), kShear * j / length, 0.07 * kShear * j / length);
+  EXPECT_NEAR(model->grasp_twist(torque), tip, 0.07 * tip);
+}
+
+TEST(ReducedTwistTest, ALargeTwistKeepsEveryVertexsDistanceToTheAxis) {
+  Bar bar = MakeBar(0.01, 0.1, 2, 10);
+  const auto& rest = bar.cylinder.mesh.positions;
+  const TwistField field = FieldOn(bar, rest);
+  auto model = ReducedTwistModel::Create(field, rest, std::numbers::pi);
+  ASSERT_TRUE(model.ok());
+  // The vertex the field turns most turns by 0.9 π at 0.9 of the capacity.
+  const double torque = 0.9 * model->torque_capacity();
+  const ReducedStats s = model->Update(torque);
+  EXPECT_FALSE(s.saturated);
+  for (size_t i = 0; i < rest.size(); ++i) {
+    // The distance changes by the field's radial strain only (end effects near the face).
+    if (field.lateral[i].norm() > 0) continue;
+    EXPECT_NEAR(model->positions()[i].head<2>().norm(),
+                rest[i].head<2>().norm() * std::clamp(1 + torque * field.radial[i], 0.5, 1.5), 1e-6)
+        << i;
+  }
+  double most = 0;
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const Vec3& x0 = rest[i];
+    const Vec3& x = model->positions()[i];
+    if (x0.head<2>().norm() < 1e-3) continue;
+    most = std::max(most, std::abs(std::atan2(x0.x() * x.y() - x0.y() * x.x(),
+                                              x0.x() * x.x() + x0.y() * x.y())));
+  }
+  EXPECT_NEAR(most, 0.9 * std::numbers::pi, 1e-4);  // the polynomial sine and cosine
+}
+
+TEST(ReducedTwistTest, TorquePastCapacityIsClampedAndNanChangesNothing) {
+  Bar bar = MakeBar(0.01, 0.1, 1, 6);
+  const auto& rest = bar.cylinder.mesh.positions;
+  auto model = ReducedTwistModel::Create(FieldOn(bar, rest), rest, 0.5);
+  ASSERT_TRUE(model.ok());
+  const ReducedStats s = model->Update(-100 * model->torque_capacity());
+  EXPECT_TRUE(s.saturated);
+  EXPECT_DOUBLE_EQ(s.load, -model->torque_capacity());
+  const auto before = model->positions();
+  for (const Vec3& x : before) ASSERT_TRUE(x.allFinite());
+  for (double bad : {kNan, std::numeric_limits<double>::infinity()}) {
+    const ReducedStats n = model->Update(bad);
+    EXPECT_FALSE(n.ok);
+    EXPECT_EQ(model->positions(), before);
+  }
+  // A field that does not match the surface, or a capacity beyond π, is refused.
+  EXPECT_FALSE(ReducedTwistModel::Create(FieldOn(bar, rest), {rest[0]}, 0.5).ok());
+  EXPECT_FALSE(ReducedTwistModel::Create(FieldOn(bar, rest), rest, 4.0).ok());
+}
+
+// ---- contact ----
+
+struct Ball {
+  geometry::TetMesh mesh;
+  geometry::TriMesh surface;  // the FEM's boundary (same vertex indices)
+  std::vector<int> fixed, reachable;
+  FemStaticResponse response;
+};
+
+Ball MakeBall(int cells) {
+  auto mesh = geometry::MakeTetBall({0.05, cells});
+  EXPECT_TRUE(mesh.ok());
+  std::vector<int> fixed, reachable;
+  geometry::TriMesh surface = geometry::BoundarySurface(*mesh);
+  std::vector<uint8_t> on_surface(mesh->VertexCount(), 0);
+  for (const auto& t : surface.triangles)
+    for (int v : t) on_surface[v] = 1;
+  for (int i = 0; i < mesh->VertexCount(); ++i) {
+    if (mesh->positions[i].z() < -0.035) {
+      fixed.push_back(i);
+    } else if (on_surface[i] && mesh->positions[i].z() > 0) {
+      reachable.push_back(i);
+    }
+  }
+  auto r = FemStaticResponse::Create(*mesh, Tissue(), fixed);
+  EXPECT_TRUE(r.ok());
+  return {*mesh, surface, fixed, reachable, std::move(r).value()};
+}
+
+int Top(const Ball& b) {
+  int best = 0;
+  for (int i = 0; i < b.mesh.VertexCount(); ++i)
+    if (b.mesh.positions[i].z() > b.mesh.positions[best].z()) best = i;
+  return best;
+}
+
+TEST(ReducedContactTest, APointPressAgreesWithTheFullFemAndIsReciprocal) {
+  Ball b = MakeBall(4);
+  ContactResponseParams p;
+  p.footprint_radius = 1e-9;  // a point load on the contact vertex itself
+  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, p);
+  ASSERT_TRUE(table.ok()) << table.error().message;
+  auto model = ReducedContactModel::Create(*table, b.mesh.positions, 5.0);
+  ASSERT_TRUE(model.ok()) << model.error().message;
+  const int top = Top(b);
+  const Vec3 force(2e-4, -1e-4, -5e-4);  // N: ≈ 10 µm deep
+  EXPECT_TRUE(model->Press(top, force).ok);
+  auto full = FemModel::Create(b.mesh, Tissue(), b.fixed);
+  ASSERT_TRUE(full.ok());
+  full->SetExternalForce(top, force);
+  ASSERT_TRUE(full->SolveStatic(30, 1e-7).converged);
+  double num = 0, den = 0;
+  for (int i = 0; i < b.mesh.VertexCount(); ++i) {
+    num += (model->positions()[i] - full->positions()[i]).squaredNorm();
+    den += (full->positions()[i] - b.mesh.positions[i]).squaredNorm();
+  }
+  EXPECT_LT(std::sqrt(num / den), 1e-3);
+  // Maxwell–Betti: the response at i to a force at j is the transpose of j's to i.
+  const auto& t = model->response();
+  const int nv = t.vertices;
+  auto g = [&](int slot, int d, int vertex, int k) {
+    return t.g[((static_cast<size_t>(slot) * 3 + d) * nv + vertex) * 3 + k];
+  };
+  for (size_t s1 = 0; s1 < t.contacts.size(); s1 += 7)
+    for (size_t s2 = 0; s2 < t.contacts.size(); s2 += 5)
+      for (int d = 0; d < 3; ++d)
+        for (int k = 0; k < 3; ++k) {
+          const double a = g(s1, d, t.contacts[s2], k), c = g(s2, k, t.contacts[s1], d);
+          EXPECT_NEAR(a, c, 1e-4 * std::abs(g(s1, d, t.contacts[s1], d)));
+        }
+}
+
+TEST(ReducedContactTest, ADisplacedContactMovesByTheDisplacementWithAPositiveStiffness) {
+  Ball b = MakeBall(4);
+  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
+  ASSERT_TRUE(table.ok());
+  auto model = ReducedContactModel::Create(*table, b.mesh.positions, 5.0);
+  ASSERT_TRUE(model.ok());
+  const int top = Top(b);
+  const Vec3 delta(0.0005, 0, -0.002);
+  Vec3 force;
+  const ReducedStats s = model->Displace(top, delta, &force);
+  ASSERT_TRUE(s.ok);
+  EXPECT_FALSE(s.saturated);
+  EXPECT_LT((model->positions()[top] - b.mesh.positions[top] - delta).norm(), 1e-6);
+  EXPECT_LT(force.z(), 0);  // pressing down takes a downward push
+  const Eigen::Matrix3d k = model->StiffnessAt(top);
+  EXPECT_LT((k - k.transpose()).norm(), 1e-9 * k.norm());
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(k).eigenvalues().minCoeff(), 0);
+  EXPECT_LT((k * delta - force).norm(), 1e-9 * force.norm());
+}
+
+TEST(ReducedContactTest, HardCasesStayBoundedAndSaySo) {
+  Ball b = MakeBall(4);
+  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
+  ASSERT_TRUE(table.ok());
+  auto model = ReducedContactModel::Create(*table, b.mesh.positions, 1.0);
+  ASSERT_TRUE(model.ok());
+  const int top = Top(b);
+  // A press deeper than the ball: the force is clamped to capacity, nothing is NaN.
+  Vec3 force;
+  ReducedStats s = model->Displace(top, Vec3(0, 0, -0.2), &force);
+  EXPECT_TRUE(s.saturated);
+  EXPECT_NEAR(force.norm(), 1.0, 1e-9);
+  for (const Vec3& x : model->positions()) ASSERT_TRUE(x.allFinite());
+  // A vertex never precomputed (on the bottom, out of reach): the nearest contact, flagged.
+  int low = -1;
+  for (int i = 0; i < b.mesh.VertexCount(); ++i)
+    if (b.mesh.positions[i].z() < -0.02 && b.mesh.positions[i].norm() > 0.045) low = i;
+  ASSERT_GE(low, 0);
+  s = model->Press(low, Vec3(0, 0, 0.1));
+  EXPECT_TRUE(s.ok);
+  EXPECT_TRUE(s.fallback);
+  for (const Vec3& x : model->positions()) ASSERT_TRUE(x.allFinite());
+  // NaN and an index off the surface change nothing.
+  const auto before = model->positions();
+  EXPECT_FALSE(model->Press(top, Vec3(kNan, 0, 0)).ok);
+  EXPECT_FALSE(model->Displace(top, Vec3(0, kNan, 0)).ok);
+  EXPECT_FALSE(model->Press(-1, Vec3(0, 0, 1)).ok);
+  EXPECT_FALSE(model->Press(b.mesh.VertexCount(), Vec3(0, 0, 1)).ok);
+  EXPECT_EQ(model->positions(), before);
+  // The memory bound is enforced with a message that gives the size.
+  ContactResponseParams small;
+  small.max_bytes = 1 << 10;
+  auto refused = PrecomputeContactResponse(b.response, b.surface, b.reachable, small);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("MB"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vsurg::tissue::reduced_test
