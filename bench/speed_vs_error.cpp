@@ -72,8 +72,8 @@ int SpeedVsError(const std::vector<std::string>& args) {
   cfg.quick = p.Flag("quick");
   cfg.repeats = cfg.quick ? 5 : 9;
   const auto t0 = Clock::now();
-  const int per_limb = 3 + (cfg.quick ? 2 : 4) + 1 + 6;
-  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 6 : 12) + 1;
+  const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
+  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + (cfg.quick ? 6 : 12) + 1;
   Progress progress(3 * per_limb + sphere);
   std::vector<SceneOut> scenes = RunLimbScenes(cfg, progress);
   scenes.push_back(RunSphere(cfg, progress));

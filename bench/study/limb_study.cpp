@@ -28,6 +28,7 @@
 #include "common/tissue/coil_deformation.h"
 #include "common/tissue/fem.h"
 #include "common/tissue/mass_spring.h"
+#include "common/tissue/reduced.h"
 #include "common/tissue/ring_layer.h"
 #include "common/tissue/torsion_reference.h"
 
@@ -236,6 +237,51 @@ void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& prog
   progress.Step(c.scene + " fem dynamic");
 }
 
+// The reduced twist field (common/tissue/reduced.h) precomputed from the FEM at each level and
+// carried onto the limb's display surface, the mesh the coil model deforms: the same vertices,
+// markers and reference as the coil rows. The note gives the precomputation's time.
+void ReducedRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& progress) {
+  auto limb = geometry::MakeLimb(c.limb.limb);
+  if (!limb.ok()) return;
+  const auto& display = limb->surface.positions;
+  const std::vector<int> markers = MarkerVertices(display, c.shaft);
+  const Reference ref = [&](const Vec3& x) {
+    return SaintVenantDisplacement(c.shaft, c.torque, x);
+  };
+  for (int level : cfg.quick ? std::vector<int>{2} : std::vector<int>{4, 5}) {
+    const TetLimb m = MakeTetLimb(c.shaft, level);
+    Row row{"reduced", c.scene,
+            "twist field, FEM level " + std::to_string(level) + " (" +
+                std::to_string(m.cylinder.mesh.TetCount()) + " tets)"};
+    const auto t0 = Clock::now();
+    auto response = tissue::FemStaticResponse::Create(
+        m.cylinder.mesh, FemFor(c.shaft, c.limb.poisson_ratio), m.cylinder.base);
+    auto field = response.ok()
+                     ? tissue::PrecomputeTwistField(*response, m.cylinder.tip, m.cylinder.tip_area,
+                                                    Vec3::Zero(), Vec3::UnitZ(), display)
+                     : Expected<tissue::TwistField>(response.error());
+    auto model = field.ok() ? tissue::ReducedTwistModel::Create(*field, display, std::numbers::pi)
+                            : Expected<tissue::ReducedTwistModel>(field.error());
+    const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    if (!model.ok()) {
+      row.note = model.error().message;
+      out.rows.push_back(row);
+      progress.Step(c.scene + " reduced");
+      continue;
+    }
+    row.size = model->VertexCount();
+    row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+      model->Update(c.torque * (0.5 + 0.5 * ((i % 2) ? 1.0 : 0.97)));
+    });
+    const tissue::ReducedStats st = model->Update(c.torque);
+    Score(row, display, model->positions(), markers, ref);
+    row.note = "precomputed in " + Num(precompute_s, 2) + " s" +
+               (st.saturated ? "; torque past capacity, clamped" : "");
+    out.rows.push_back(row);
+    progress.Step(c.scene + " reduced level " + std::to_string(level));
+  }
+}
+
 // Mass-spring on the FEM's tetrahedra (one spring per edge), its single stiffness fitted so the
 // grasp's twist matches the reference at the final torque (the one free parameter the model has).
 void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& progress) {
@@ -380,6 +426,7 @@ SceneOut RunLimb(const LimbCase& c, const Config& cfg, Progress& progress) {
   out.scene_file = c.scene_file;
   std::tie(out.budget, out.scene_family) = SceneBudget(c.scene_file);
   CoilRows(c, cfg, out, progress);
+  ReducedRows(c, cfg, out, progress);
   FemRows(c, cfg, out, progress);
   MassSpringLimbRows(c, cfg, out, progress);
   return out;

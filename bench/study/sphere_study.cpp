@@ -27,6 +27,7 @@
 #include "common/tissue/coil_deformation.h"
 #include "common/tissue/fem.h"
 #include "common/tissue/mass_spring.h"
+#include "common/tissue/reduced.h"
 #include "common/tissue/ring_layer.h"
 #include "common/tissue/torsion_reference.h"
 
@@ -142,6 +143,58 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     row.time_us = TimeUs(cfg.quick ? 3 : 7, [&](int) { fem->StepImplicit(1e-3); });
     out.rows.push_back(row);
     progress.Step("sphere fem " + std::to_string(cells));
+  }
+
+  // Reduced: the Green's-function contact table (common/tissue/reduced.h) precomputed from the
+  // FEM at each refinement for every display vertex above the fixed cap, with the press's own
+  // footprint (the 1 cm cap), on the 1,026-vertex display sphere; one press at the pole.
+  {
+    auto display = geometry::MakeSubdividedSphere({kBallRadius, 4});
+    std::vector<int> reachable;
+    const std::vector<int> fixed_display = BottomCap(display->positions);
+    std::vector<uint8_t> is_fixed(display->positions.size(), 0);
+    for (int i : fixed_display) is_fixed[i] = 1;
+    for (int i = 0; i < display->VertexCount(); ++i)
+      if (!is_fixed[i]) reachable.push_back(i);
+    const int pole = Nearest(display->positions, Vec3(0, 0, kBallRadius));
+    for (int cells : cfg.quick ? std::vector<int>{4} : std::vector<int>{8, 12}) {
+      auto mesh = geometry::MakeTetBall({kBallRadius, cells});
+      Row row{"reduced", out.scene,
+              "contact table, FEM cells " + std::to_string(cells) + " (" +
+                  std::to_string(mesh->TetCount()) + " tets), " +
+                  std::to_string(display->VertexCount()) + " vertices"};
+      const auto t0 = Clock::now();
+      auto response =
+          tissue::FemStaticResponse::Create(*mesh, BallTissue(), BottomCap(mesh->positions));
+      tissue::ContactResponseParams cp;
+      cp.footprint_radius = kCapRadius;
+      auto table = response.ok()
+                       ? tissue::PrecomputeContactResponse(*response, *display, reachable, cp)
+                       : Expected<tissue::ContactResponse>(response.error());
+      const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+      const int64_t bytes = table.ok() ? table->Bytes() : 0;
+      auto model = table.ok() ? tissue::ReducedContactModel::Create(std::move(*table),
+                                                                    display->positions, 10.0)
+                              : Expected<tissue::ReducedContactModel>(table.error());
+      if (!model.ok()) {
+        row.note = model.error().message;
+        out.rows.push_back(row);
+        progress.Step("sphere reduced");
+        continue;
+      }
+      row.size = model->VertexCount();
+      row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+        model->Press(pole, Vec3(0, 0, -kPressForce * ((i % 2) ? 1.0 : 0.97)));
+      });
+      model->Press(pole, Vec3(0, 0, -kPressForce));
+      Score(row, display->positions, model->positions(), SphereMarkerVertices(display->positions),
+            ref);
+      row.note = "precomputed in " + Num(precompute_s, 2) + " s; " +
+                 std::to_string(reachable.size()) + " contacts, " + Num(bytes / 1048576.0, 3) +
+                 " MB";
+      out.rows.push_back(row);
+      progress.Step("sphere reduced " + std::to_string(cells));
+    }
   }
 
   // Mass-spring on the subdivided sphere (seed 001), one stiffness fitted to the pole's depth.

@@ -1,0 +1,299 @@
+#include "common/tissue/reduced_cache.h"
+
+#include <openssl/sha.h>
+
+#include <array>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <type_traits>
+
+#include "common/core/file.h"
+
+namespace vsurg::tissue {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+using Digest = std::array<unsigned char, SHA256_DIGEST_LENGTH>;
+using Clock = std::chrono::steady_clock;
+constexpr char kMagic[8] = {'V', 'S', 'U', 'R', 'G', 'R', 'M', '1'};
+constexpr int kHeader = 8 + 32 + 8 + 32;
+
+Digest Sha256(const std::string& bytes) {
+  Digest d;
+  SHA256(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), d.data());
+  return d;
+}
+
+// A byte stream in a fixed (little-endian host) order: the key's input and the payload.
+class Writer {
+ public:
+  template <class T>
+  void Put(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    out_.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  void Put(const Vec3& v) {
+    for (int k = 0; k < 3; ++k) Put(v[k]);
+  }
+  template <class T>
+  void PutVector(const std::vector<T>& v) {
+    Put(static_cast<uint64_t>(v.size()));
+    for (const T& x : v) Put(x);
+  }
+  void PutString(const std::string& s) {
+    Put(static_cast<uint64_t>(s.size()));
+    out_ += s;
+  }
+  const std::string& bytes() const { return out_; }
+
+ private:
+  std::string out_;
+};
+
+class Reader {
+ public:
+  explicit Reader(const std::string& s) : s_(s) {}
+  template <class T>
+  bool Get(T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    if (s_.size() - at_ < sizeof v) return false;
+    std::memcpy(&v, s_.data() + at_, sizeof v);
+    at_ += sizeof v;
+    return true;
+  }
+  bool Get(Vec3& v) { return Get(v[0]) && Get(v[1]) && Get(v[2]); }
+  template <class T>
+  bool GetVector(std::vector<T>& v, uint64_t expected_size) {
+    uint64_t n = 0;
+    if (!Get(n) || n != expected_size || n > (s_.size() - at_)) return false;
+    v.resize(n);
+    for (T& x : v)
+      if (!Get(x)) return false;
+    return true;
+  }
+  bool AtEnd() const { return at_ == s_.size(); }
+
+ private:
+  const std::string& s_;
+  size_t at_ = 0;
+};
+
+void PutCommon(Writer& w, const char* kind, const geometry::TetMesh& mesh, const FemParams& p,
+               const std::vector<int>& fixed) {
+  w.PutString("vsurg reduced model, format 1");
+  w.PutString(kind);
+  w.PutVector(mesh.positions);
+  w.Put(static_cast<uint64_t>(mesh.tetrahedra.size()));
+  for (const auto& t : mesh.tetrahedra) w.Put(t);
+  // Material and the solver settings that shape a static response (the dynamic ones do not).
+  w.Put(p.young);
+  w.Put(p.poisson);
+  w.Put(p.density);
+  w.Put(static_cast<uint8_t>(p.corotational));
+  w.PutVector(fixed);
+}
+
+bool ValidName(const std::string& name) {
+  if (name.empty() || name.size() > 128 || name[0] == '.') return false;
+  for (char c : name)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
+      return false;
+  return true;
+}
+
+// Reads DIR/NAME.vrm and returns its payload when its key is `key` and it is whole; otherwise
+// the report says why (miss, stale, corrupt).
+bool ReadPayload(const std::string& path, const Digest& key, std::string& payload, CacheReport& r) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    r.outcome = CacheOutcome::kMiss;
+    return false;
+  }
+  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (file.size() < kHeader || std::memcmp(file.data(), kMagic, 8) != 0) {
+    r.outcome = CacheOutcome::kCorrupt;
+    r.message = path + ": not a vsurg reduced-model file (or cut short in its header); rebuilding";
+    return false;
+  }
+  if (std::memcmp(file.data() + 8, key.data(), 32) != 0) {
+    r.outcome = CacheOutcome::kStale;
+    r.message = path + ": made for another mesh, material or setting; rebuilding";
+    return false;
+  }
+  uint64_t size = 0;
+  std::memcpy(&size, file.data() + 40, 8);
+  if (size != file.size() - kHeader) {
+    r.outcome = CacheOutcome::kCorrupt;
+    r.message = path + ": truncated (" + std::to_string(file.size() - kHeader) + " of " +
+                std::to_string(size) + " payload bytes); rebuilding";
+    return false;
+  }
+  payload = file.substr(kHeader);
+  const Digest d = Sha256(payload);
+  if (std::memcmp(file.data() + 48, d.data(), 32) != 0) {
+    r.outcome = CacheOutcome::kCorrupt;
+    r.message = path + ": its contents do not match their checksum (damaged or edited); rebuilding";
+    return false;
+  }
+  return true;
+}
+
+void WriteFile(const std::string& dir, const std::string& path, const Digest& key,
+               const std::string& payload, CacheReport& r) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  auto file = AtomicFile::Open(path, "cache");
+  if (!file.ok()) {
+    r.outcome = CacheOutcome::kUnwritable;
+    r.message += (r.message.empty() ? "" : "; ") + file.error().message + " (not cached)";
+    return;
+  }
+  std::string header(kMagic, 8);
+  header.append(reinterpret_cast<const char*>(key.data()), 32);
+  const uint64_t size = payload.size();
+  header.append(reinterpret_cast<const char*>(&size), 8);
+  const Digest d = Sha256(payload);
+  header.append(reinterpret_cast<const char*>(d.data()), 32);
+  const bool ok = file->Write(header) && file->Write(payload);
+  const Status s =
+      ok ? file->Commit() : Status(Error{ErrorCode::kIoError, "write failed", "cache"});
+  if (!s.ok()) {
+    r.outcome = CacheOutcome::kUnwritable;
+    r.message +=
+        (r.message.empty() ? "" : "; ") + path + ": " + s.error().message + " (not cached)";
+  }
+}
+
+template <class T, class Decode, class Compute, class Encode>
+Expected<T> Cached(const std::string& dir, const std::string& name, const std::string& key_bytes,
+                   CacheReport* report, Decode decode, Compute compute, Encode encode) {
+  CacheReport local;
+  CacheReport& r = report ? *report : local;
+  r = CacheReport{};
+  if (!ValidName(name))
+    return InvalidArgument(
+        "name", "a cache name is letters, digits, '-', '_' and '.'; got \"" + name + "\"");
+  r.path = (std::filesystem::path(dir) / (name + ".vrm")).string();
+  const Digest key = Sha256(key_bytes);
+  const auto t0 = Clock::now();
+  std::string payload;
+  if (ReadPayload(r.path, key, payload, r)) {
+    T value;
+    if (decode(payload, value)) {
+      r.outcome = CacheOutcome::kHit;
+      r.load_s = std::chrono::duration<double>(Clock::now() - t0).count();
+      return value;
+    }
+    r.outcome = CacheOutcome::kCorrupt;
+    r.message = r.path + ": its contents do not describe this model; rebuilding";
+  }
+  r.load_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const auto t1 = Clock::now();
+  Expected<T> value = compute();
+  r.compute_s = std::chrono::duration<double>(Clock::now() - t1).count();
+  if (!value.ok()) return value;
+  WriteFile(dir, r.path, key, encode(*value), r);
+  return value;
+}
+
+}  // namespace
+
+const char* CacheOutcomeName(CacheOutcome o) {
+  switch (o) {
+    case CacheOutcome::kHit:
+      return "hit";
+    case CacheOutcome::kMiss:
+      return "miss";
+    case CacheOutcome::kStale:
+      return "stale";
+    case CacheOutcome::kCorrupt:
+      return "corrupt";
+    case CacheOutcome::kUnwritable:
+      return "unwritable";
+  }
+  return "?";
+}
+
+Expected<TwistField> ReducedCache::TwistFieldFor(const std::string& name,
+                                                 const TwistFieldInputs& in,
+                                                 CacheReport* report) const {
+  Writer key;
+  PutCommon(key, "twist field", in.mesh, in.material, in.fixed);
+  key.PutVector(in.face);
+  key.PutVector(in.face_area);
+  key.Put(in.origin);
+  key.Put(in.axis);
+  key.PutVector(in.display);
+  const uint64_t n = in.display.size();
+  auto decode = [&](const std::string& payload, TwistField& f) {
+    Reader r(payload);
+    return r.Get(f.origin) && r.Get(f.axis) && r.Get(f.grasp_compliance) && r.Get(f.max_distance) &&
+           r.GetVector(f.angle, n) && r.GetVector(f.warp, n) && r.GetVector(f.radial, n) &&
+           r.GetVector(f.lateral, n) && r.AtEnd();
+  };
+  auto compute = [&]() -> Expected<TwistField> {
+    auto fem = FemStaticResponse::Create(in.mesh, in.material, in.fixed);
+    if (!fem.ok()) return fem.error();
+    return PrecomputeTwistField(*fem, in.face, in.face_area, in.origin, in.axis, in.display);
+  };
+  auto encode = [](const TwistField& f) {
+    Writer w;
+    w.Put(f.origin);
+    w.Put(f.axis);
+    w.Put(f.grasp_compliance);
+    w.Put(f.max_distance);
+    w.PutVector(f.angle);
+    w.PutVector(f.warp);
+    w.PutVector(f.radial);
+    w.PutVector(f.lateral);
+    return w.bytes();
+  };
+  return Cached<TwistField>(dir_, name, key.bytes(), report, decode, compute, encode);
+}
+
+Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& name,
+                                                           const ContactInputs& in,
+                                                           CacheReport* report) const {
+  Writer key;
+  PutCommon(key, "contact table", in.mesh, in.material, in.fixed);
+  key.PutVector(in.display.positions);
+  key.Put(static_cast<uint64_t>(in.display.triangles.size()));
+  for (const auto& t : in.display.triangles) key.Put(t);
+  key.PutVector(in.reachable);
+  key.Put(in.params.footprint_radius);
+  const uint64_t nv = in.display.positions.size();
+  auto decode = [&](const std::string& payload, ContactResponse& c) {
+    Reader r(payload);
+    int32_t vertices = 0;
+    uint64_t contacts = 0;
+    if (!r.Get(vertices) || static_cast<uint64_t>(vertices) != nv || !r.Get(c.footprint_radius) ||
+        !r.Get(c.max_distance) || !r.Get(contacts) || contacts > nv)
+      return false;
+    c.vertices = vertices;
+    return r.GetVector(c.contacts, contacts) && r.GetVector(c.slot_of_vertex, nv) &&
+           r.GetVector(c.precomputed, nv) && r.GetVector(c.g, contacts * 9 * nv) && r.AtEnd();
+  };
+  auto compute = [&]() -> Expected<ContactResponse> {
+    auto fem = FemStaticResponse::Create(in.mesh, in.material, in.fixed);
+    if (!fem.ok()) return fem.error();
+    return PrecomputeContactResponse(*fem, in.display, in.reachable, in.params);
+  };
+  auto encode = [](const ContactResponse& c) {
+    Writer w;
+    w.Put(static_cast<int32_t>(c.vertices));
+    w.Put(c.footprint_radius);
+    w.Put(c.max_distance);
+    w.Put(static_cast<uint64_t>(c.contacts.size()));
+    w.PutVector(c.contacts);
+    w.PutVector(c.slot_of_vertex);
+    w.PutVector(c.precomputed);
+    w.PutVector(c.g);
+    return w.bytes();
+  };
+  return Cached<ContactResponse>(dir_, name, key.bytes(), report, decode, compute, encode);
+}
+
+}  // namespace vsurg::tissue
