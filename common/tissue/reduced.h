@@ -105,6 +105,7 @@ class ReducedTwistModel {
   // r2), the field (angle, warp, radial, lateral l1, l2); rest and output positions in double.
   std::vector<float> r1_, r2_, angle_, warp_, radial_, l1_, l2_;
   std::vector<Eigen::Vector3d> rest_, positions_;
+  std::vector<float> dx_, dy_, dz_;  // scratch: the displacement in the axis frame
   double capacity_ = 0, grasp_compliance_ = 0;
 };
 
