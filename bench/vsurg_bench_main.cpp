@@ -345,7 +345,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   std::vector<std::unique_ptr<vsurg::sim::Simulation>> idle_sims;
   for (int i = 0; i < idle; ++i) {
     auto sim = vsurg::sim::Simulation::Create(
-        *idle_scene, {.threaded = true, .start_deformation = p.Flag("idle-threads")});
+        *idle_scene,
+        {.threaded = true, .start_deformation = p.Flag("idle-threads"), .cache_dir = {}});
     if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
     idle_sims.push_back(std::move(*sim));
   }

@@ -173,8 +173,9 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
                        : Expected<tissue::ContactResponse>(response.error());
       const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
       const int64_t bytes = table.ok() ? table->Bytes() : 0;
-      auto model = table.ok() ? tissue::ReducedContactModel::Create(std::move(*table),
-                                                                    display->positions, 10.0)
+      auto model = table.ok() ? tissue::ReducedContactModel::Create(
+                                    std::make_shared<tissue::ContactResponse>(std::move(*table)),
+                                    display->positions, 10.0)
                               : Expected<tissue::ReducedContactModel>(table.error());
       if (!model.ok()) {
         row.note = model.error().message;

@@ -30,6 +30,9 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr size_t kCoilBytesPerVertex = 1536;
 constexpr size_t kMassSpringBytesPerVertex = 4096;
 constexpr size_t kRingLayerBytesPerVertex = 1536;
+// Reduced contact: the per-vertex costs of a ring-layer scene plus the table, 36 B per
+// (contact, vertex) pair with every vertex a contact at worst (reduced.h).
+constexpr size_t kReducedBytesPerVertex = 1536, kReducedBytesPerVertexPair = 36;
 
 // Typed field access with errors that name the field by its path.
 class Reader {
@@ -160,7 +163,7 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
     c = {core, thickness, width, coils, modulus, max_force, friction, {}};
     if (auto m = tissue::CoilSpringModel::Create(c); !m.ok())
       return r.Bad(m.error().field.c_str(), m.error().message);
-  } else if (type == "mass-spring" || type == "ring-layer") {
+  } else if (type == "mass-spring" || type == "ring-layer" || type == "reduced") {
     VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
     g.dt = dt;
     VSURG_TRY(support, r.StringOr("support", "bottom"));
@@ -173,7 +176,17 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
     } else {
       return r.Bad("support", "must be none, bottom or ends");
     }
-    if (type == "mass-spring") {
+    if (type == "reduced") {
+      g.kind = ModelKind::kReduced;
+      VSURG_TRY(mode, r.StringOr("mode", "contact"));
+      if (mode != "contact")
+        return r.Bad("mode", "must be contact (a reduced twist model is not in scenes yet)");
+      VSURG_TRY(cells, r.IntegerOr("fem_cells", 8, 2, 24));
+      if (cells % 2 != 0) return r.Bad("fem_cells", "must be even");
+      VSURG_TRY(footprint, r.NumberOr("footprint_radius", 0.005, 1e-4, 0.1));
+      VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
+      g.reduced = {cells, footprint, max_force};
+    } else if (type == "mass-spring") {
       g.kind = ModelKind::kMassSpring;
       VSURG_TRY(integrator, r.StringOr("integrator", "implicit-euler"));
       auto parsed = tissue::ParseIntegrator(integrator);
@@ -206,7 +219,7 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
       q = {spacing, rings, kc, cc, kt};
     }
   } else {
-    return r.Bad("type", "must be coil, mass-spring or ring-layer, got '" + type + "'");
+    return r.Bad("type", "must be coil, mass-spring, ring-layer or reduced, got '" + type + "'");
   }
   return Status::Ok();
 }
@@ -272,6 +285,8 @@ const char* ModelKindName(ModelKind kind) {
       return "mass-spring";
     case ModelKind::kRingLayer:
       return "ring-layer";
+    case ModelKind::kReduced:
+      return "reduced";
   }
   return "unknown";
 }
@@ -290,6 +305,9 @@ size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices) {
       break;
     case ModelKind::kRingLayer:
       per_vertex = kRingLayerBytesPerVertex;
+      break;
+    case ModelKind::kReduced:
+      per_vertex = kReducedBytesPerVertex + kReducedBytesPerVertexPair * surface_vertices;
       break;
   }
   return surface_vertices * per_vertex;
@@ -375,6 +393,12 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   auto model = region.Object("model");
   if (!model.ok()) return with_source(model.error());
   if (Status st = ParseModel(*model, s.region); !st.ok()) return with_source(st.error());
+  if (s.region.kind == ModelKind::kReduced && s.mesh.kind != MeshKind::kSphere) {
+    return with_source(InvalidArgument(
+        "regions[0].model.type",
+        "regions[0].model.type: a reduced contact model needs a sphere mesh (its FEM is a "
+        "tetrahedral ball; other shapes need a tetrahedralised surface, not supported yet)"));
+  }
   if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
       s.region.support == Support::kBottom) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
@@ -401,7 +425,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if ((s.task.kind == scoring::TaskKind::kTwist) != (s.region.kind == ModelKind::kCoil)) {
     return with_source(InvalidArgument("task.type",
                                        "task.type: a twist task needs a coil model, a press task a "
-                                       "mass-spring or ring-layer model"));
+                                       "mass-spring, ring-layer or reduced model"));
   }
   auto budget = r.Object("error_budget");
   if (!budget.ok()) return with_source(budget.error());

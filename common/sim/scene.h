@@ -40,8 +40,8 @@
 namespace vsurg::sim {
 
 enum class MeshKind { kLimb, kSphere, kObj };
-enum class ModelKind { kCoil, kMassSpring, kRingLayer };
-// As scene files spell it: "coil", "mass-spring", "ring-layer".
+enum class ModelKind { kCoil, kMassSpring, kRingLayer, kReduced };
+// As scene files spell it: "coil", "mass-spring", "ring-layer", "reduced".
 const char* ModelKindName(ModelKind kind);
 enum class Support {
   kNone,
@@ -57,6 +57,14 @@ struct MeshSpec {
   std::string path;      // obj, absolute after loading
 };
 
+// A reduced model precomputed from the scene's own FEM (common/tissue/reduced.h). "contact": the
+// Green's-function table of a sphere, every vertex above the support reachable.
+struct ReducedSpec {
+  int fem_cells = 8;                // the FEM ball's cube cells per axis (even, 2..24)
+  double footprint_radius = 0.005;  // m, the tool's contact disc
+  double max_force = 10;            // N, the capacity: a larger press is clamped and flagged
+};
+
 struct RegionSpec {
   std::string name;
   ModelKind kind = ModelKind::kCoil;
@@ -67,6 +75,7 @@ struct RegionSpec {
   double dt = 1e-3;  // s, mass-spring and ring-layer step
   Support support = Support::kBottom;
   tissue::RingLayerParams ring;
+  ReducedSpec reduced;
 };
 
 struct HapticsSpec {

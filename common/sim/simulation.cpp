@@ -3,9 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <numbers>
 
 #include "common/geometry/distances.h"
+#include "common/geometry/tet_generators.h"
+#include "common/tissue/reduced_cache.h"
 
 namespace vsurg::sim {
 
@@ -14,6 +18,29 @@ using haptics::ForceCommand;
 using haptics::StylusSample;
 
 namespace {
+
+// Contact tables are read-only and large (36 B per vertex pair): the sessions of one scene share
+// one, found by the key of its inputs while any session holds it.
+std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::ContactInputs& in,
+                                                                  const std::string& cache_dir,
+                                                                  const std::string& name,
+                                                                  Status& status) {
+  static std::mutex mutex;
+  static std::map<std::string, std::weak_ptr<const tissue::ContactResponse>> tables;
+  const std::string key = tissue::ContactKey(in);
+  std::lock_guard<std::mutex> lock(mutex);
+  if (auto alive = tables[key].lock()) return alive;
+  tissue::ReducedCache cache(cache_dir.empty() ? tissue::DefaultCacheDirectory() : cache_dir);
+  tissue::CacheReport report;
+  auto table = cache.ContactResponseFor(name, in, &report);
+  if (!table.ok()) {
+    status = table.error();
+    return nullptr;
+  }
+  auto shared = std::make_shared<const tissue::ContactResponse>(std::move(*table));
+  tables[key] = shared;
+  return shared;
+}
 
 Vec3 AnyPerpendicular(const Vec3& a) {
   const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
@@ -112,6 +139,8 @@ Status Simulation::Build() {
         msm_->SetFixed(v, true);
         if (bp.volume == tissue::VolumeMode::kInnerLayer) msm_->SetFixed(n + v, true);
       }
+    } else if (region.kind == ModelKind::kReduced) {
+      if (Status st = BuildReduced(); !st.ok()) return st;
     } else {
       masses_.assign(rest_.VertexCount(), mass / rest_.VertexCount());
     }
@@ -123,6 +152,35 @@ Status Simulation::Build() {
   });
   visual_.ForEachSlot([&](VisualPositions& v) { v.positions = rest_.positions; });
   last_sent_ = rest_.positions;
+  return Status::Ok();
+}
+
+Status Simulation::BuildReduced() {
+  // The FEM: a tetrahedral ball of the scene sphere's radius, held by the same support rule.
+  const RegionSpec& region = scene_.region;
+  auto ball = geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
+  if (!ball.ok()) return ball.error();
+  tissue::ContactInputs in;
+  in.mesh = std::move(*ball);
+  in.material.poisson = scene_.poisson_ratio;
+  in.material.young = 2 * scene_.shear_modulus * (1 + scene_.poisson_ratio);
+  in.material.density = scene_.density;
+  geometry::TriMesh fem_points;
+  fem_points.positions = in.mesh.positions;
+  in.fixed = SupportedVertices(fem_points, region.support);
+  in.display = rest_;
+  std::vector<uint8_t> held(rest_.VertexCount(), 0);
+  for (int v : SupportedVertices(rest_, region.support)) held[v] = 1;
+  for (int v = 0; v < rest_.VertexCount(); ++v)
+    if (!held[v]) in.reachable.push_back(v);
+  in.params.footprint_radius = region.reduced.footprint_radius;
+  Status status = Status::Ok();
+  auto table = SharedContactTable(in, options_.cache_dir, scene_.name + "-contact", status);
+  if (!table) return status;
+  auto model =
+      tissue::ReducedContactModel::Create(table, rest_.positions, region.reduced.max_force);
+  if (!model.ok()) return model.error();
+  reduced_contact_ = std::make_unique<tissue::ReducedContactModel>(std::move(*model));
   return Status::Ok();
 }
 
@@ -243,6 +301,18 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       }
       force = ps.force;
       jacobian = ps.jacobian;
+      if (reduced_contact_) {
+        // The station's local model: the proxy's spring in series with the tissue behind it,
+        // k/(1 + k·nᵀGn) (the table is read-only: safe beside the deformation thread).
+        const double k = proxy_.params().stiffness;
+        if (k > 0) {
+          jacobian *=
+              reduced_contact_->SeriesStiffness(
+                  {tri[0], tri[1], tri[2]},
+                  {ps.barycentric[0], ps.barycentric[1], ps.barycentric[2]}, rest_normal_, k) /
+              k;
+        }
+      }
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;
       input_.force_on_tissue = -ps.force;
@@ -399,6 +469,34 @@ void Simulation::Deform(const DeformInput& in) {
       ring_->Step(region.dt);
       ring_->Apply();
       Publish(ring_->positions(), false);
+      return;
+    }
+    case ModelKind::kReduced: {
+      // Quasi-static: the surface is the table's answer to the tool pressing at the contact
+      // point, the proxy's spring and the tissue solved together (PressWithSpring: stable
+      // whatever the spring's stiffness), the force spread over the contact triangle by the
+      // contact point's barycentric coordinates.
+      if (in.triangle == seen_triangle_ && in.hip == applied_hip_ &&
+          in.barycentric == applied_barycentric_)
+        return;  // nothing new
+      seen_triangle_ = in.triangle;
+      applied_hip_ = in.hip;
+      applied_barycentric_ = in.barycentric;
+      bool overload = false;
+      if (in.triangle >= 0) {
+        const geometry::Triangle& tri = rest_.triangles[in.triangle];
+        const Vec3 p0 = in.barycentric[0] * rest_.positions[tri[0]] +
+                        in.barycentric[1] * rest_.positions[tri[1]] +
+                        in.barycentric[2] * rest_.positions[tri[2]];
+        const tissue::ReducedStats st = reduced_contact_->PressWithSpring(
+            {tri[0], tri[1], tri[2]}, {in.barycentric[0], in.barycentric[1], in.barycentric[2]},
+            in.hip, p0, geometry::TriangleNormal(rest_, in.triangle), proxy_.params().stiffness);
+        if (!st.ok) reduced_contact_->Release();
+        overload = st.saturated;
+      } else {
+        reduced_contact_->Release();
+      }
+      Publish(reduced_contact_->positions(), overload);
       return;
     }
   }

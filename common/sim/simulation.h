@@ -39,6 +39,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -50,6 +51,7 @@
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/scene.h"
 #include "common/sim/triple_buffer.h"
+#include "common/tissue/reduced.h"
 
 namespace vsurg::sim {
 
@@ -66,6 +68,9 @@ struct SimulationOptions {
   // on only while a station drives the session (SetDeformationRunning), so a session nobody
   // drives costs no thread and no CPU.
   bool start_deformation = true;
+  // Reduced models: where their precomputation is cached (tissue::ReducedCache); empty: the
+  // default (tissue::DefaultCacheDirectory()).
+  std::string cache_dir = "";
 };
 
 struct VisualFrame {
@@ -162,6 +167,7 @@ class Simulation {
                                                              const SimulationOptions& options);
   Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options);
   Status Build();
+  Status BuildReduced();  // the contact table, from the cache or computed (reduced scenes)
   void DeformationLoop();
   void Deform(const DeformInput& in);
   void Publish(const std::vector<geometry::Vec3>& positions, bool overload);
@@ -199,8 +205,12 @@ class Simulation {
   std::unique_ptr<tissue::CoilDeformer> deformer_;
   std::unique_ptr<tissue::MassSpringModel> msm_;
   std::unique_ptr<tissue::RingLayerModel> ring_;
+  std::unique_ptr<tissue::ReducedContactModel> reduced_contact_;
   std::vector<double> masses_;  // per surface vertex, ring layer
   uint64_t seen_grasp_ = 0, seen_contact_ = 0;
+  int seen_triangle_ = -2;  // reduced: the last contact applied (-2: none yet)
+  geometry::Vec3 applied_hip_ = geometry::Vec3::Zero();
+  geometry::Vec3 applied_barycentric_ = geometry::Vec3::Zero();
   double applied_torque_ = 0;
   bool applied_grasp_ = false;
 

@@ -346,9 +346,11 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
   return out;
 }
 
-Expected<ReducedContactModel> ReducedContactModel::Create(ContactResponse response,
-                                                          const std::vector<Vec3>& display_rest,
-                                                          double max_force) {
+Expected<ReducedContactModel> ReducedContactModel::Create(
+    std::shared_ptr<const ContactResponse> table, const std::vector<Vec3>& display_rest,
+    double max_force) {
+  if (!table) return InvalidArgument("response", "no contact table");
+  const ContactResponse& response = *table;
   const int nv = static_cast<int>(display_rest.size());
   if (response.vertices != nv || response.slot_of_vertex.size() != display_rest.size() ||
       response.precomputed.size() != display_rest.size() ||
@@ -381,20 +383,29 @@ Expected<ReducedContactModel> ReducedContactModel::Create(ContactResponse respon
                                              "wrong)");
     m.compliance_[s] = g;
   }
-  m.response_ = std::move(response);
+  m.response_ = std::move(table);
   return m;
 }
 
 int ReducedContactModel::Slot(int contact, ReducedStats& stats) const {
   if (contact < 0 || contact >= VertexCount()) return -1;
-  if (!response_.precomputed[contact]) stats.fallback = true;
-  return response_.slot_of_vertex[contact];
+  if (!response_->precomputed[contact]) stats.fallback = true;
+  return response_->slot_of_vertex[contact];
 }
 
 ReducedStats ReducedContactModel::Press(int contact, const Vec3& force) {
+  return Press({contact, contact, contact}, {1.0, 0.0, 0.0}, force);
+}
+
+ReducedStats ReducedContactModel::Press(const std::array<int, 3>& contacts,
+                                        const std::array<double, 3>& weights, const Vec3& force) {
   ReducedStats stats;
-  const int slot = Slot(contact, stats);
-  if (slot < 0 || !force.allFinite()) {
+  std::array<int, 3> slot;
+  for (int k = 0; k < 3; ++k) {
+    slot[k] = Slot(contacts[k], stats);
+    if (slot[k] < 0 || !(weights[k] >= 0) || !std::isfinite(weights[k])) stats.ok = false;
+  }
+  if (!stats.ok || !force.allFinite()) {
     stats.ok = false;
     return stats;
   }
@@ -405,15 +416,73 @@ ReducedStats ReducedContactModel::Press(int contact, const Vec3& force) {
   }
   stats.load = f.norm();
   const int nv = VertexCount();
-  const float fx = static_cast<float>(f.x()), fy = static_cast<float>(f.y()),
-              fz = static_cast<float>(f.z());
-  const float* gx = response_.g.data() + static_cast<size_t>(slot) * 9 * nv;
-  const float* gy = gx + 3 * static_cast<size_t>(nv);
-  const float* gz = gy + 3 * static_cast<size_t>(nv);
-  const double* rest = rest_.data()->data();
-  double* out = positions_.data()->data();
-  for (int j = 0; j < 3 * nv; ++j) out[j] = rest[j] + (fx * gx[j] + fy * gy[j] + fz * gz[j]);
+  const double sum = weights[0] + weights[1] + weights[2];
+  const double* __restrict rest = rest_.data()->data();
+  double* __restrict out = positions_.data()->data();
+  std::copy(rest, rest + 3 * nv, out);
+  for (int k = 0; k < 3; ++k) {
+    if (!(weights[k] > 0)) continue;
+    const double w = sum > 0 ? weights[k] / sum : 1.0;
+    const float fx = static_cast<float>(w * f.x()), fy = static_cast<float>(w * f.y()),
+                fz = static_cast<float>(w * f.z());
+    const float* __restrict gx = response_->g.data() + static_cast<size_t>(slot[k]) * 9 * nv;
+    const float* __restrict gy = gx + 3 * static_cast<size_t>(nv);
+    const float* __restrict gz = gy + 3 * static_cast<size_t>(nv);
+    for (int j = 0; j < 3 * nv; ++j) out[j] += fx * gx[j] + fy * gy[j] + fz * gz[j];
+  }
   return stats;
+}
+
+Eigen::Matrix3d ReducedContactModel::ComplianceAt(const std::array<int, 3>& contacts,
+                                                  const std::array<double, 3>& weights) const {
+  Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
+  const int nv = VertexCount();
+  const ContactResponse& r = *response_;
+  for (int k = 0; k < 3; ++k) {  // the force's share at vertex k (its slot)
+    if (contacts[k] < 0 || contacts[k] >= nv || !(weights[k] > 0)) continue;
+    const size_t slot = r.slot_of_vertex[contacts[k]];
+    for (int j = 0; j < 3; ++j) {  // the response at vertex j
+      if (contacts[j] < 0 || contacts[j] >= nv || !(weights[j] > 0)) continue;
+      for (int d = 0; d < 3; ++d)
+        for (int c = 0; c < 3; ++c)
+          g(c, d) += weights[j] * weights[k] * r.g[((slot * 3 + d) * nv + contacts[j]) * 3 + c];
+    }
+  }
+  return 0.5 * (g + g.transpose());
+}
+
+double ReducedContactModel::SeriesStiffness(const std::array<int, 3>& contacts,
+                                            const std::array<double, 3>& weights,
+                                            const Vec3& normal, double k) const {
+  const double g = std::max(0.0, normal.dot(ComplianceAt(contacts, weights) * normal));
+  return k / (1.0 + k * g);
+}
+
+ReducedStats ReducedContactModel::PressWithSpring(const std::array<int, 3>& contacts,
+                                                  const std::array<double, 3>& weights,
+                                                  const Vec3& tip, const Vec3& rest_point,
+                                                  const Vec3& normal, double k, Vec3* force_out) {
+  if (force_out) force_out->setZero();
+  ReducedStats stats;
+  if (!tip.allFinite() || !rest_point.allFinite() || !normal.allFinite() || !(k >= 0) ||
+      !std::isfinite(k) || !(normal.norm() > 0)) {
+    stats.ok = false;
+    return stats;
+  }
+  const Vec3 n = normal.normalized();
+  const double d = n.dot(tip - rest_point);
+  if (d >= 0) {
+    Release();
+    return stats;
+  }
+  const double f = SeriesStiffness(contacts, weights, n, k) * d;  // < 0: into the tissue
+  stats = Press(contacts, weights, f * n);
+  if (force_out && stats.ok) *force_out = stats.saturated ? Vec3(-max_force_ * n) : Vec3(f * n);
+  return stats;
+}
+
+void ReducedContactModel::Release() {
+  positions_ = rest_;
 }
 
 ReducedStats ReducedContactModel::Displace(int contact, const Vec3& displacement, Vec3* force_out) {

@@ -43,7 +43,9 @@
 // Threads: a model belongs to one thread; Update/Press do not allocate.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -137,13 +139,38 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
 
 class ReducedContactModel {
  public:
-  // `max_force`: the capacity (N); a larger press is clamped to it and flagged.
-  static Expected<ReducedContactModel> Create(ContactResponse response,
+  // `max_force`: the capacity (N); a larger press is clamped to it and flagged. The table is
+  // read-only and may be shared by many models (sessions of one scene).
+  static Expected<ReducedContactModel> Create(std::shared_ptr<const ContactResponse> response,
                                               const std::vector<Eigen::Vector3d>& display_rest,
                                               double max_force);
-  // One tool at display vertex `contact` pushing with `force` (N); the surface at rest
-  // elsewhere. No allocation.
+  // One tool at display vertex `contact` pushing with `force` (N). No allocation.
   ReducedStats Press(int contact, const Eigen::Vector3d& force);
+  // The same force spread over up to three vertices with weights summing to 1 (a point inside
+  // a triangle, by its barycentric coordinates): Σ_k w_k·G_k·F, so the surface does not jump
+  // as the tool slides from one vertex to the next.
+  ReducedStats Press(const std::array<int, 3>& contacts, const std::array<double, 3>& weights,
+                     const Eigen::Vector3d& force);
+  // A tool tip held against the surface by a spring of stiffness k (N/m) along the surface
+  // normal n (the haptic proxy's coupling), solved together with the tissue: the force on the
+  // tissue f = f·n satisfies f = k·nᵀ(tip − (p0 + G·f)) with p0 the contact point at rest and G
+  // the compliance there, so f = k·d / (1 + k·nᵀGn), d = nᵀ(tip − p0). Solving the coupling
+  // implicitly is what keeps it stable: applying the spring's force to a quasi-static tissue
+  // and letting the spring see the moved surface next step diverges whenever k·nᵀGn > 1 (a
+  // 300 N/m proxy on a soft 5 cm ball is 1.7). No force when the tip is outside (d ≥ 0).
+  ReducedStats PressWithSpring(const std::array<int, 3>& contacts,
+                               const std::array<double, 3>& weights, const Eigen::Vector3d& tip,
+                               const Eigen::Vector3d& rest_point, const Eigen::Vector3d& normal,
+                               double k, Eigen::Vector3d* force_out = nullptr);
+  // The compliance (m/N) at a point inside a triangle: nᵀ(Σ_jk w_j·w_k·G_jk)n's matrix, the
+  // displacement of the point per unit force spread over the triangle's vertices alike.
+  Eigen::Matrix3d ComplianceAt(const std::array<int, 3>& contacts,
+                               const std::array<double, 3>& weights) const;
+  // The stiffness a spring of k (N/m) along n feels at that point with the tissue behind it
+  // (in series), N/m: k / (1 + k·nᵀGn). What the station's local model should render.
+  double SeriesStiffness(const std::array<int, 3>& contacts, const std::array<double, 3>& weights,
+                         const Eigen::Vector3d& normal, double k) const;
+  void Release();  // back to rest
   // The force that moves the contact vertex by `displacement` (m): G_cc⁻¹·δ (clamped to the
   // capacity), then the surface for it. The proxy's position-driven contact.
   ReducedStats Displace(int contact, const Eigen::Vector3d& displacement,
@@ -151,13 +178,13 @@ class ReducedContactModel {
   // The tissue's stiffness at a contact, N/m (G_cc⁻¹; symmetric positive definite).
   Eigen::Matrix3d StiffnessAt(int contact) const;
   const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
-  const ContactResponse& response() const { return response_; }
+  const ContactResponse& response() const { return *response_; }
   int VertexCount() const { return static_cast<int>(positions_.size()); }
 
  private:
   ReducedContactModel() = default;
   int Slot(int contact, ReducedStats& stats) const;
-  ContactResponse response_;
+  std::shared_ptr<const ContactResponse> response_;
   std::vector<Eigen::Vector3d> rest_, positions_;
   std::vector<Eigen::Matrix3d> compliance_;  // G_cc per slot
   double max_force_ = 0;

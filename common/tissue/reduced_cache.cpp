@@ -4,6 +4,7 @@
 
 #include <array>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -199,7 +200,39 @@ Expected<T> Cached(const std::string& dir, const std::string& name, const std::s
   return value;
 }
 
+std::string ContactKeyBytes(const ContactInputs& in) {
+  Writer key;
+  PutCommon(key, "contact table", in.mesh, in.material, in.fixed);
+  key.PutVector(in.display.positions);
+  key.Put(static_cast<uint64_t>(in.display.triangles.size()));
+  for (const auto& t : in.display.triangles) key.Put(t);
+  key.PutVector(in.reachable);
+  key.Put(in.params.footprint_radius);
+  return key.bytes();
+}
+
 }  // namespace
+
+std::string DefaultCacheDirectory() {
+  for (const char* var : {"VSURG_CACHE_DIR", "XDG_CACHE_HOME", "HOME"}) {
+    const char* v = std::getenv(var);
+    if (!v || !*v) continue;
+    const std::string s(v);
+    if (std::string(var) == "VSURG_CACHE_DIR") return s;
+    if (std::string(var) == "XDG_CACHE_HOME") return (std::filesystem::path(s) / "vsurg").string();
+    return (std::filesystem::path(s) / ".cache" / "vsurg").string();
+  }
+  std::error_code ec;
+  return (std::filesystem::temp_directory_path(ec) / "vsurg-cache").string();
+}
+
+std::string ContactKey(const ContactInputs& in) {
+  const Digest d = Sha256(ContactKeyBytes(in));
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (unsigned char c : d) out += kHex[c >> 4], out += kHex[c & 15];
+  return out;
+}
 
 const char* CacheOutcomeName(CacheOutcome o) {
   switch (o) {
@@ -257,13 +290,6 @@ Expected<TwistField> ReducedCache::TwistFieldFor(const std::string& name,
 Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& name,
                                                            const ContactInputs& in,
                                                            CacheReport* report) const {
-  Writer key;
-  PutCommon(key, "contact table", in.mesh, in.material, in.fixed);
-  key.PutVector(in.display.positions);
-  key.Put(static_cast<uint64_t>(in.display.triangles.size()));
-  for (const auto& t : in.display.triangles) key.Put(t);
-  key.PutVector(in.reachable);
-  key.Put(in.params.footprint_radius);
   const uint64_t nv = in.display.positions.size();
   auto decode = [&](const std::string& payload, ContactResponse& c) {
     Reader r(payload);
@@ -293,7 +319,7 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
     w.PutVector(c.g);
     return w.bytes();
   };
-  return Cached<ContactResponse>(dir_, name, key.bytes(), report, decode, compute, encode);
+  return Cached<ContactResponse>(dir_, name, ContactKeyBytes(in), report, decode, compute, encode);
 }
 
 }  // namespace vsurg::tissue

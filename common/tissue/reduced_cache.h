@@ -58,6 +58,14 @@ struct ContactInputs {
   ContactResponseParams params;
 };
 
+// Where the files go by default: $VSURG_CACHE_DIR, else $XDG_CACHE_HOME/vsurg, else
+// $HOME/.cache/vsurg, else <temp>/vsurg-cache.
+std::string DefaultCacheDirectory();
+
+// The key (SHA-256, hex) of a contact table's inputs: what its file carries, and what lets the
+// sessions of one scene share one table in memory.
+std::string ContactKey(const ContactInputs& in);
+
 class ReducedCache {
  public:
   explicit ReducedCache(std::string dir) : dir_(std::move(dir)) {}

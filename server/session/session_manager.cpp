@@ -52,7 +52,10 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
                  "scene"};
   }
   // No deformation thread until a station drives the session (invariant 5).
-  auto simulation = sim::Simulation::Create(*scene, {.threaded = true, .start_deformation = false});
+  // Reduced scenes cache their precomputation in the default folder
+  // (tissue::DefaultCacheDirectory).
+  auto simulation = sim::Simulation::Create(
+      *scene, {.threaded = true, .start_deformation = false, .cache_dir = {}});
   if (!simulation.ok())
     return Error{ErrorCode::kFailedPrecondition,
                  "scene '" + scene_name + "' does not build: " + simulation.error().message,

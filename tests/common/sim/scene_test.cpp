@@ -51,11 +51,17 @@ TEST(SceneTest, TaskAndModelAreRead) {
   EXPECT_NEAR(arm->task.target, 45 * M_PI / 180, 1e-12);
   EXPECT_NEAR(arm->task.tolerance, 5 * M_PI / 180, 1e-12);
   EXPECT_EQ(arm->haptics.device, "touch");
-  auto sphere = LoadSceneByName("sphere-palpation-1024");
+  auto sphere = LoadSceneByName("sphere-palpation-256");
   ASSERT_TRUE(sphere.ok());
   EXPECT_EQ(sphere->region.kind, ModelKind::kMassSpring);
   EXPECT_EQ(sphere->region.integrator, tissue::Integrator::kImplicitEuler);
-  EXPECT_EQ(sphere->mesh.particles, 1024);
+  EXPECT_EQ(sphere->mesh.particles, 256);
+  auto reduced = LoadSceneByName("sphere-palpation-1024");
+  ASSERT_TRUE(reduced.ok());
+  EXPECT_EQ(reduced->region.kind, ModelKind::kReduced);
+  EXPECT_EQ(reduced->region.reduced.fem_cells, 8);
+  EXPECT_DOUBLE_EQ(reduced->region.reduced.footprint_radius, 0.005);
+  EXPECT_EQ(reduced->mesh.particles, 1024);
   EXPECT_EQ(sphere->task.kind, scoring::TaskKind::kPress);
 }
 
@@ -95,7 +101,24 @@ TEST(SceneTest, BadScenesNameTheField) {
                 .find("mesh.particles: must be in"),
             std::string::npos);
   EXPECT_NE(Field(Replace(Minimal(), R"("type": "mass-spring")", R"("type": "magic")"))
-                .find("regions[0].model.type: must be coil, mass-spring or ring-layer"),
+                .find("regions[0].model.type: must be coil, mass-spring, ring-layer or reduced"),
+            std::string::npos);
+  // Reduced models: odd or out-of-range FEM cells, an unknown mode, a mesh that is no sphere.
+  const std::string reduced =
+      Replace(Minimal(), R"("type": "mass-spring", "structural_stiffness": 50)",
+              R"("type": "reduced", "fem_cells": 8)");
+  ASSERT_TRUE(ParseScene(reduced, "x.json").ok()) << ParseScene(reduced, "x.json").error().message;
+  EXPECT_NE(Field(Replace(reduced, R"("fem_cells": 8)", R"("fem_cells": 7)")).find("must be even"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(reduced, R"("fem_cells": 8)", R"("fem_cells": 64)"))
+                .find("regions[0].model.fem_cells: must be in"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(reduced, R"("fem_cells": 8)", R"("fem_cells": 8, "mode": "twist")"))
+                .find("regions[0].model.mode"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(reduced, R"({"type": "sphere", "radius": 0.05, "particles": 256})",
+                          R"({"type": "limb", "preset": "forearm"})"))
+                .find("needs a sphere mesh"),
             std::string::npos);
   EXPECT_NE(
       Field(Replace(Minimal(), R"("structural_stiffness": 50)", R"("structural_stiffness": -5)"))

@@ -3,9 +3,12 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <new>
 #include <random>
 #include <thread>
+
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
@@ -61,7 +64,8 @@ TEST(SimulationTest, ScriptedTraineesOnTheArmGiveTheExpectedMetrics) {
 }
 
 TEST(SimulationTest, ScriptedTraineesPalpateTheSphere) {
-  for (const char* scene : {"sphere-palpation-256", "sphere-palpation-rings"}) {
+  for (const char* scene :
+       {"sphere-palpation-256", "sphere-palpation-rings", "sphere-palpation-1024"}) {
     SCOPED_TRACE(scene);
     const scoring::TrialMetrics good = Replay(scene, TraineeStyle::kGood);
     ASSERT_TRUE(good.completed);
@@ -71,6 +75,54 @@ TEST(SimulationTest, ScriptedTraineesPalpateTheSphere) {
     const scoring::TrialMetrics rough = Replay(scene, TraineeStyle::kRough);
     EXPECT_LT(rough.score, good.score - 3.0);
   }
+}
+
+TEST(SimulationTest, AReducedSphereSinksUnderTheToolAndCachesItsTable) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("vsurg_sim_cache_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  auto scene = LoadSceneByName("sphere-palpation-1024");
+  ASSERT_TRUE(scene.ok());
+  auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  EXPECT_TRUE(fs::exists(dir / "sphere-palpation-1024-contact.vrm"));
+  const auto& rest = (*sim)->rest_mesh().positions;
+  int pole = 0;
+  for (int i = 0; i < static_cast<int>(rest.size()); ++i)
+    if (rest[i].z() > rest[pole].z()) pole = i;
+  // Approach from above, then hold the tip 4 mm into the top for 0.3 s.
+  haptics::StylusSample s;
+  s.position = Eigen::Vector3d(0.0005, 0.0003, 0.06);
+  for (int i = 0; i < 100; ++i) s.time = i * 1e-3, (*sim)->OnStylus(s), (*sim)->StepDeformation();
+  haptics::ForceCommand c;
+  for (int i = 100; i < 400; ++i) {
+    s.time = i * 1e-3;
+    s.position.z() = std::max(0.046, 0.06 - (i - 100) * 1e-4);
+    c = (*sim)->OnStylus(s);
+    (*sim)->StepDeformation();
+  }
+  EXPECT_TRUE(c.contact);
+  ASSERT_TRUE(c.force.allFinite());
+  EXPECT_GT(c.force.z(), 0.1);  // the sphere pushes the tool back up
+  // The station's local model renders the proxy's 300 N/m in series with the soft tissue.
+  EXPECT_LT(-c.local.jacobian(2, 2), 0.8 * 300) << c.local.jacobian;
+  EXPECT_GT(-c.local.jacobian(2, 2), 10) << c.local.jacobian;
+  VisualFrame frame;
+  ASSERT_TRUE((*sim)->TakeVisualFrame(frame));
+  double pole_dz = 0;
+  for (size_t k = 0; k < frame.indices.size(); ++k)
+    if (frame.indices[k] == pole) pole_dz = frame.positions[k].z() - rest[pole].z();
+  // The surface gives way under the tool (the proxy sits on the moved surface, between the tip
+  // and where the surface was), and the far side does not move.
+  EXPECT_LT(pole_dz, -0.001);
+  EXPECT_GT(pole_dz, -0.004 - 1e-9);
+  for (size_t k = 0; k < frame.indices.size(); ++k)
+    EXPECT_LT((frame.positions[k] - rest[frame.indices[k]]).norm(), 0.0045);
+  // A second session of the scene reads the file (or shares the table in memory).
+  auto again = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
+  ASSERT_TRUE(again.ok());
+  fs::remove_all(dir);
 }
 
 TEST(SimulationTest, BadSamplesGiveZeroForceAndAnEventThenTheGateRearms) {

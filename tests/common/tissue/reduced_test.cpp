@@ -224,7 +224,8 @@ TEST(ReducedContactTest, APointPressAgreesWithTheFullFemAndIsReciprocal) {
   p.footprint_radius = 1e-9;  // a point load on the contact vertex itself
   auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, p);
   ASSERT_TRUE(table.ok()) << table.error().message;
-  auto model = ReducedContactModel::Create(*table, b.mesh.positions, 5.0);
+  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
+                                           b.mesh.positions, 5.0);
   ASSERT_TRUE(model.ok()) << model.error().message;
   const int top = Top(b);
   const Vec3 force(2e-4, -1e-4, -5e-4);  // N: ≈ 10 µm deep
@@ -258,7 +259,8 @@ TEST(ReducedContactTest, ADisplacedContactMovesByTheDisplacementWithAPositiveSti
   Ball b = MakeBall(4);
   auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
   ASSERT_TRUE(table.ok());
-  auto model = ReducedContactModel::Create(*table, b.mesh.positions, 5.0);
+  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
+                                           b.mesh.positions, 5.0);
   ASSERT_TRUE(model.ok());
   const int top = Top(b);
   const Vec3 delta(0.0005, 0, -0.002);
@@ -274,11 +276,61 @@ TEST(ReducedContactTest, ADisplacedContactMovesByTheDisplacementWithAPositiveSti
   EXPECT_LT((k * delta - force).norm(), 1e-9 * force.norm());
 }
 
+TEST(ReducedContactTest, ASpringCoupledToolReachesTheExactEquilibriumAtAnyStiffness) {
+  Ball b = MakeBall(4);
+  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
+  ASSERT_TRUE(table.ok());
+  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
+                                           b.mesh.positions, 100.0);
+  ASSERT_TRUE(model.ok());
+  const int top = Top(b);
+  const Vec3 p0 = b.mesh.positions[top], n = Vec3::UnitZ();
+  const Vec3 tip = p0 - 0.004 * n;
+  // Stiff and soft springs alike (k·nᵀGn from ≪ 1 to ≫ 1): the spring's force at the moved
+  // contact point is the force the tissue carries, the point lies between the rest surface and
+  // the tip, and a stiffer spring pushes the surface further.
+  double last_depth = 0;
+  for (double k : {10.0, 300.0, 1e4}) {
+    Vec3 f;
+    const ReducedStats st = model->PressWithSpring({top, top, top}, {1, 0, 0}, tip, p0, n, k, &f);
+    ASSERT_TRUE(st.ok);
+    const Vec3 p = model->positions()[top];
+    EXPECT_NEAR(k * n.dot(tip - p), f.dot(n), 1e-6 * std::abs(f.dot(n))) << k;
+    const double depth = n.dot(p0 - p);
+    EXPECT_GT(depth, last_depth) << k;
+    EXPECT_LT(depth, 0.004) << k;
+    last_depth = depth;
+    EXPECT_NEAR(model->SeriesStiffness({top, top, top}, {1, 0, 0}, n, k), -f.dot(n) / 0.004,
+                1e-9 * k);
+  }
+  // The tip outside: no force, the surface at rest.
+  Vec3 f;
+  EXPECT_TRUE(
+      model->PressWithSpring({top, top, top}, {1, 0, 0}, p0 + 0.001 * n, p0, n, 300, &f).ok);
+  EXPECT_EQ(f, Vec3::Zero());
+  EXPECT_EQ(model->positions(), b.mesh.positions);
+  // A force spread half-and-half over two vertices is the mean of the two presses.
+  int second = -1;
+  for (const auto& t : b.surface.triangles)
+    for (int k = 0; k < 3; ++k)
+      if (t[k] == top) second = t[(k + 1) % 3];
+  ASSERT_GE(second, 0);
+  const Vec3 force(0, 0, -0.05);
+  model->Press(top, force);
+  const auto a = model->positions();
+  model->Press(second, force);
+  const auto c = model->positions();
+  model->Press({top, second, top}, {0.5, 0.5, 0.0}, force);
+  for (size_t i = 0; i < a.size(); ++i)
+    EXPECT_LT((model->positions()[i] - 0.5 * (a[i] + c[i])).norm(), 1e-9) << i;
+}
+
 TEST(ReducedContactTest, HardCasesStayBoundedAndSaySo) {
   Ball b = MakeBall(4);
   auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
   ASSERT_TRUE(table.ok());
-  auto model = ReducedContactModel::Create(*table, b.mesh.positions, 1.0);
+  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
+                                           b.mesh.positions, 1.0);
   ASSERT_TRUE(model.ok());
   const int top = Top(b);
   // A press deeper than the ball: the force is clamped to capacity, nothing is NaN.
