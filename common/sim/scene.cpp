@@ -179,13 +179,19 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
     if (type == "reduced") {
       g.kind = ModelKind::kReduced;
       VSURG_TRY(mode, r.StringOr("mode", "contact"));
-      if (mode != "contact")
-        return r.Bad("mode", "must be contact (a reduced twist model is not in scenes yet)");
+      if (mode != "contact" && mode != "twist") return r.Bad("mode", "must be contact or twist");
+      g.reduced.mode = mode == "twist" ? ReducedMode::kTwist : ReducedMode::kContact;
       VSURG_TRY(cells, r.IntegerOr("fem_cells", 8, 2, 24));
       if (cells % 2 != 0) return r.Bad("fem_cells", "must be even");
+      VSURG_TRY(rings, r.IntegerOr("fem_rings", 4, 1, 8));
       VSURG_TRY(footprint, r.NumberOr("footprint_radius", 0.005, 1e-4, 0.1));
       VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
-      g.reduced = {cells, footprint, max_force};
+      VSURG_TRY(max_twist_deg, r.NumberOr("max_twist_deg", 90.0, 1.0, 180.0));
+      g.reduced.fem_cells = cells;
+      g.reduced.fem_rings = rings;
+      g.reduced.footprint_radius = footprint;
+      g.reduced.max_force = max_force;
+      g.reduced.max_twist = max_twist_deg * kDeg;
     } else if (type == "mass-spring") {
       g.kind = ModelKind::kMassSpring;
       VSURG_TRY(integrator, r.StringOr("integrator", "implicit-euler"));
@@ -294,7 +300,7 @@ const char* ModelKindName(ModelKind kind) {
 // Per-vertex costs (the constants above): positions, the BVH and their triple buffers, visual
 // frames, the model's own state (mass-spring: springs, inner layer, CG scratch; coil: centreline
 // projections and the deformer).
-size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices) {
+size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices, bool reduced_contact) {
   size_t per_vertex = 0;
   switch (model) {
     case ModelKind::kCoil:
@@ -307,14 +313,16 @@ size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices) {
       per_vertex = kRingLayerBytesPerVertex;
       break;
     case ModelKind::kReduced:
-      per_vertex = kReducedBytesPerVertex + kReducedBytesPerVertexPair * surface_vertices;
+      per_vertex = kReducedBytesPerVertex +
+                   (reduced_contact ? kReducedBytesPerVertexPair * surface_vertices : 0);
       break;
   }
   return surface_vertices * per_vertex;
 }
 
-Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::string& field) {
-  const size_t need = EstimatedSessionBytes(model, surface_vertices);
+Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::string& field,
+                          bool reduced_contact) {
+  const size_t need = EstimatedSessionBytes(model, surface_vertices, reduced_contact);
   if (need <= kSessionMemoryBudgetBytes) return Status::Ok();
   char why[256];
   std::snprintf(why, sizeof why,
@@ -393,11 +401,17 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   auto model = region.Object("model");
   if (!model.ok()) return with_source(model.error());
   if (Status st = ParseModel(*model, s.region); !st.ok()) return with_source(st.error());
-  if (s.region.kind == ModelKind::kReduced && s.mesh.kind != MeshKind::kSphere) {
-    return with_source(InvalidArgument(
-        "regions[0].model.type",
-        "regions[0].model.type: a reduced contact model needs a sphere mesh (its FEM is a "
-        "tetrahedral ball; other shapes need a tetrahedralised surface, not supported yet)"));
+  if (s.region.kind == ModelKind::kReduced) {
+    const bool twist = s.region.reduced.mode == ReducedMode::kTwist;
+    if (twist && s.mesh.kind != MeshKind::kLimb)
+      return with_source(
+          InvalidArgument("regions[0].model.mode",
+                          "regions[0].model.mode: a reduced twist model needs a limb mesh"));
+    if (!twist && s.mesh.kind != MeshKind::kSphere)
+      return with_source(InvalidArgument(
+          "regions[0].model.type",
+          "regions[0].model.type: a reduced contact model needs a sphere mesh (its FEM is a "
+          "tetrahedral ball; other shapes need a tetrahedralised surface, not supported yet)"));
   }
   if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
       s.region.support == Support::kBottom) {
@@ -411,7 +425,9 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
                   geometry::SphereBase::kOctahedron,
                   geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
                                                        s.mesh.particles)));
-    if (Status st = CheckSessionMemory(s.region.kind, vertices, "mesh"); !st.ok())
+    if (Status st = CheckSessionMemory(s.region.kind, vertices, "mesh",
+                                       s.region.reduced.mode == ReducedMode::kContact);
+        !st.ok())
       return with_source(st.error());
   }
   if (r.Has("haptics")) {
@@ -422,10 +438,14 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   auto task = r.Object("task");
   if (!task.ok()) return with_source(task.error());
   if (Status st = ParseTask(*task, s.task); !st.ok()) return with_source(st.error());
-  if ((s.task.kind == scoring::TaskKind::kTwist) != (s.region.kind == ModelKind::kCoil)) {
-    return with_source(InvalidArgument("task.type",
-                                       "task.type: a twist task needs a coil model, a press task a "
-                                       "mass-spring, ring-layer or reduced model"));
+  const bool twists =
+      s.region.kind == ModelKind::kCoil ||
+      (s.region.kind == ModelKind::kReduced && s.region.reduced.mode == ReducedMode::kTwist);
+  if ((s.task.kind == scoring::TaskKind::kTwist) != twists) {
+    return with_source(
+        InvalidArgument("task.type",
+                        "task.type: a twist task needs a coil or reduced twist model, a press "
+                        "task a mass-spring, ring-layer or reduced contact model"));
   }
   auto budget = r.Object("error_budget");
   if (!budget.ok()) return with_source(budget.error());

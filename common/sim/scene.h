@@ -58,11 +58,17 @@ struct MeshSpec {
 };
 
 // A reduced model precomputed from the scene's own FEM (common/tissue/reduced.h). "contact": the
-// Green's-function table of a sphere, every vertex above the support reachable.
+// Green's-function table of a sphere, every vertex above the support reachable. "twist": the
+// twist field of a limb (fixed at its proximal end, the torque on its distal face) for the
+// grasp-and-twist.
+enum class ReducedMode { kContact, kTwist };
 struct ReducedSpec {
-  int fem_cells = 8;                // the FEM ball's cube cells per axis (even, 2..24)
-  double footprint_radius = 0.005;  // m, the tool's contact disc
-  double max_force = 10;            // N, the capacity: a larger press is clamped and flagged
+  ReducedMode mode = ReducedMode::kContact;
+  int fem_cells = 8;                // contact: the FEM ball's cube cells per axis (even, 2..24)
+  int fem_rings = 4;                // twist: rings in the FEM cylinder's cross-section (1..8)
+  double footprint_radius = 0.005;  // m, contact: the tool's contact disc
+  double max_force = 10;            // N, contact: the capacity; a larger press is clamped
+  double max_twist = 1.5707963267948966;  // rad, twist: the largest turn any vertex may take
 };
 
 struct RegionSpec {
@@ -107,9 +113,12 @@ struct Scene {
 inline constexpr size_t kSessionMemoryBudgetBytes = size_t{512} << 20;
 // The memory one session of a scene with `surface_vertices` needs, estimated from per-vertex
 // costs measured on the shipped scenes (scene.cpp), bytes.
-size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices);
+// `reduced_contact`: a reduced model's contact table, quadratic in the vertices (its twist field
+// is linear, like the coil's).
+size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices, bool reduced_contact = true);
 // kResourceExhausted, naming `field`, when the estimate is over the budget.
-Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::string& field);
+Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::string& field,
+                          bool reduced_contact = true);
 
 Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
 Expected<Scene> LoadScene(const std::string& path);

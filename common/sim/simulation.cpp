@@ -65,7 +65,8 @@ Expected<std::unique_ptr<Simulation>> Simulation::CreateChecked(const Scene& sce
                                                                 const SimulationOptions& options) {
   auto mesh = BuildSceneMesh(scene.mesh);
   if (!mesh.ok()) return mesh.error();
-  if (Status s = CheckSessionMemory(scene.region.kind, mesh->surface.positions.size(), "mesh");
+  if (Status s = CheckSessionMemory(scene.region.kind, mesh->surface.positions.size(), "mesh",
+                                    scene.region.reduced.mode == ReducedMode::kContact);
       !s.ok())
     return s.error();
   geometry::TriMesh rest = std::move(mesh->surface);
@@ -156,8 +157,9 @@ Status Simulation::Build() {
 }
 
 Status Simulation::BuildReduced() {
-  // The FEM: a tetrahedral ball of the scene sphere's radius, held by the same support rule.
   const RegionSpec& region = scene_.region;
+  if (region.reduced.mode == ReducedMode::kTwist) return BuildReducedTwist();
+  // The FEM: a tetrahedral ball of the scene sphere's radius, held by the same support rule.
   auto ball = geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
   if (!ball.ok()) return ball.error();
   tissue::ContactInputs in;
@@ -181,6 +183,41 @@ Status Simulation::BuildReduced() {
       tissue::ReducedContactModel::Create(table, rest_.positions, region.reduced.max_force);
   if (!model.ok()) return model.error();
   reduced_contact_ = std::make_unique<tissue::ReducedContactModel>(std::move(*model));
+  return Status::Ok();
+}
+
+Status Simulation::BuildReducedTwist() {
+  // The FEM: the limb's tapered cylinder (its proximal end fixed at z = 0, the torque on the
+  // distal face), with about three element layers per mean radius of length per ring (linear
+  // tetrahedra need thin slices in torsion; bench/study/limb_study.cpp).
+  if (centreline_points_.size() < 2)
+    return InvalidArgument("regions[0].model.mode", "a reduced twist model needs a limb mesh");
+  const geometry::LimbParams& limb = scene_.mesh.limb;
+  const int rings = scene_.region.reduced.fem_rings;
+  const double mean_radius = 0.5 * (limb.radius_proximal + limb.radius_distal);
+  const int layers = rings * static_cast<int>(std::ceil(3.0 * limb.length / mean_radius));
+  auto cylinder = geometry::MakeTetCylinder(
+      {limb.length, limb.radius_proximal, limb.radius_distal, rings, layers});
+  if (!cylinder.ok()) return cylinder.error();
+  tissue::TwistFieldInputs in;
+  in.mesh = cylinder->mesh;
+  in.material.poisson = scene_.poisson_ratio;
+  in.material.young = 2 * scene_.shear_modulus * (1 + scene_.poisson_ratio);
+  in.material.density = scene_.density;
+  in.fixed = cylinder->base;
+  in.face = cylinder->tip;
+  in.face_area = cylinder->tip_area;
+  in.origin = Vec3::Zero();
+  in.axis = Vec3::UnitZ();
+  in.display = rest_.positions;
+  tissue::ReducedCache cache(options_.cache_dir.empty() ? tissue::DefaultCacheDirectory()
+                                                        : options_.cache_dir);
+  auto field = cache.TwistFieldFor(scene_.name + "-twist", in);
+  if (!field.ok()) return field.error();
+  auto model =
+      tissue::ReducedTwistModel::Create(*field, rest_.positions, scene_.region.reduced.max_twist);
+  if (!model.ok()) return model.error();
+  reduced_twist_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
   return Status::Ok();
 }
 
@@ -250,7 +287,16 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     const Eigen::Quaterniond rel = s.orientation.normalized() * grasp_q0_.conjugate();
     double twist = 2.0 * std::atan2(rel.vec().dot(axis_), rel.w());
     twist = std::remainder(twist, 2.0 * std::numbers::pi);
-    const tissue::CoilTorque answer = coil_->Inverse(twist);
+    tissue::CoilTorque answer;
+    if (reduced_twist_) {
+      // The FEM's twist field: linear, T = Φ·dT/dΦ up to the capacity.
+      const double capacity = reduced_twist_->torque_capacity();
+      answer.torque = twist * reduced_twist_->grasp_stiffness();
+      answer.overload = std::abs(answer.torque) > capacity;
+      answer.torque = std::clamp(answer.torque, -capacity, capacity);
+    } else {
+      answer = coil_->Inverse(twist);
+    }
     overload = overload || answer.overload;
     const Vec3 arm = input_.grasp_point - axis_point_;
     const Vec3 turned = axis_point_ + Eigen::AngleAxisd(twist, axis_) * arm;
@@ -279,7 +325,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
                         ps.barycentric[2] * rest_.positions[tri[2]];
         rest_normal_ = geometry::TriangleNormal(rest_, ps.triangle);
       }
-      if (button && coil_) {
+      if (button && (coil_ || reduced_twist_)) {
         // Grasp the point under the proxy.
         grasping_ = true;
         events |= haptics::kEventGraspStart;
@@ -287,7 +333,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
         input_.grasping = true;
         input_.grasp_point = ps.scp;
         grasp_q0_ = s.orientation.normalized();
-        if (scene_.region.coil_mode == tissue::TwistMode::kLimb) {
+        if (reduced_twist_ || scene_.region.coil_mode == tissue::TwistMode::kLimb) {
           const geometry::CentrelineProjection on_axis =
               geometry::ProjectPointOntoPolyline(centreline_points_, ps.scp);
           axis_point_ = on_axis.point;
@@ -472,6 +518,17 @@ void Simulation::Deform(const DeformInput& in) {
       return;
     }
     case ModelKind::kReduced: {
+      if (reduced_twist_) {
+        // The twist field turns the limb for the torque at the grasp (applied on the distal
+        // face, where the field was computed: a grasp elsewhere twists as if at the wrist).
+        const double torque = in.grasping ? in.torque : 0.0;
+        if (torque == applied_torque_ && in.grasping == applied_grasp_) return;  // nothing new
+        const tissue::ReducedStats st = reduced_twist_->Update(torque);
+        applied_torque_ = torque;
+        applied_grasp_ = in.grasping;
+        Publish(reduced_twist_->positions(), st.saturated);
+        return;
+      }
       // Quasi-static: the surface is the table's answer to the tool pressing at the contact
       // point, the proxy's spring and the tissue solved together (PressWithSpring: stable
       // whatever the spring's stiffness), the force spread over the contact triangle by the
@@ -505,7 +562,7 @@ void Simulation::Deform(const DeformInput& in) {
 void Simulation::Replay(
     const std::vector<StylusSample>& samples,
     const std::function<void(const StylusSample&, const ForceCommand&)>& on_command) {
-  const bool paced = scene_.region.kind != ModelKind::kCoil;
+  const bool paced = Paced();
   const double dt = scene_.region.dt;
   // Deformation time follows the trial clock, which advances at most kMaxClockStepS per sample:
   // a recording whose clock jumps costs at most that many steps per sample, never a hang.
@@ -521,6 +578,11 @@ void Simulation::Replay(
   }
 }
 
+bool Simulation::Paced() const {
+  return scene_.region.kind == ModelKind::kMassSpring ||
+         scene_.region.kind == ModelKind::kRingLayer;
+}
+
 void Simulation::StepDeformation() {
   inputs_.Acquire();
   Deform(inputs_.Front());
@@ -528,14 +590,15 @@ void Simulation::StepDeformation() {
 
 void Simulation::DeformationLoop() {
   using Clock = std::chrono::steady_clock;
-  const bool paced = scene_.region.kind != ModelKind::kCoil;
+  const bool paced = Paced();
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
   auto next = Clock::now();
   uint64_t seen = 0;
   while (!stop_.load(std::memory_order_relaxed)) {
     if (!paced) {
-      // Coil: an update only follows a new request; sleep until there is one.
+      // Coil and reduced (quasi-static): an update only follows a new request; sleep until there
+      // is one.
       input_version_.wait(seen, std::memory_order_acquire);
       seen = input_version_.load(std::memory_order_acquire);
       if (stop_.load(std::memory_order_relaxed)) break;

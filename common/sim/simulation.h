@@ -167,7 +167,9 @@ class Simulation {
                                                              const SimulationOptions& options);
   Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options);
   Status Build();
-  Status BuildReduced();  // the contact table, from the cache or computed (reduced scenes)
+  Status BuildReduced();       // the contact table, from the cache or computed (reduced scenes)
+  Status BuildReducedTwist();  // the twist field, likewise
+  bool Paced() const;  // dynamic models step on the clock; quasi-static ones follow requests
   void DeformationLoop();
   void Deform(const DeformInput& in);
   void Publish(const std::vector<geometry::Vec3>& positions, bool overload);
@@ -206,6 +208,7 @@ class Simulation {
   std::unique_ptr<tissue::MassSpringModel> msm_;
   std::unique_ptr<tissue::RingLayerModel> ring_;
   std::unique_ptr<tissue::ReducedContactModel> reduced_contact_;
+  std::unique_ptr<tissue::ReducedTwistModel> reduced_twist_;
   std::vector<double> masses_;  // per surface vertex, ring layer
   uint64_t seen_grasp_ = 0, seen_contact_ = 0;
   int seen_triangle_ = -2;  // reduced: the last contact applied (-2: none yet)

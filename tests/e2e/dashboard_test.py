@@ -148,6 +148,8 @@ def main():
         wait.until(lambda d: "live session" in d.find_element(By.ID, "live-status").text)
         first_paint_s = time.time() - t_first
         driver.find_element(By.CSS_SELECTOR, "#prepare input[name=trainee]").send_keys("tina")
+        driver.find_element(By.CSS_SELECTOR,
+                            "#prepare select[name=scene] option[value='arm-torsion']").click()
         driver.find_element(By.CSS_SELECTOR, "#prepare button").click()
         wait.until(lambda d: "prepared for" in d.find_element(By.ID, "main").text)
         sessions = api(http, "GET", "/sessions?live=1", admin)["sessions"]

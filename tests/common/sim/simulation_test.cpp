@@ -63,6 +63,24 @@ TEST(SimulationTest, ScriptedTraineesOnTheArmGiveTheExpectedMetrics) {
   EXPECT_LE(peak, 3.3 + 1e-9);  // the device limit holds whatever the trainee does
 }
 
+TEST(SimulationTest, TheReducedArmIsTwistedToTheTargetAndCachesItsField) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("vsurg_arm_cache_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  setenv("VSURG_CACHE_DIR", dir.c_str(), 1);
+  double peak = 0;
+  const scoring::TrialMetrics good = Replay("arm-torsion-reduced", TraineeStyle::kGood, &peak);
+  unsetenv("VSURG_CACHE_DIR");
+  EXPECT_TRUE(fs::exists(dir / "arm-torsion-reduced-twist.vrm"));
+  fs::remove_all(dir);
+  ASSERT_TRUE(good.completed);
+  EXPECT_LT(good.task_error, 5 * M_PI / 180);
+  EXPECT_LE(peak, 3.3 + 1e-9);
+  EXPECT_GE(good.score, 8.0);
+  EXPECT_EQ(good.overload_events, 0);
+}
+
 TEST(SimulationTest, ScriptedTraineesPalpateTheSphere) {
   for (const char* scene :
        {"sphere-palpation-256", "sphere-palpation-rings", "sphere-palpation-1024"}) {
