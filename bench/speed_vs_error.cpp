@@ -92,7 +92,8 @@ int SpeedVsError(const std::vector<std::string>& args) {
   const std::string command = std::string("build/bin/vsurg-bench speed-vs-error") +
                               (cfg.quick ? " --quick" : "") +
                               (dir == "docs" ? "" : " --out " + dir);
-  const std::string table = MarkdownTable(scenes, command);
+  const std::vector<study::BudgetVerdict> verdicts = study::CheckSceneBudgets(scenes);
+  const std::string table = MarkdownTable(scenes, command) + study::BudgetTable(verdicts);
   std::string bench_md = p.Has("benchmarks") ? p.String("benchmarks") : "";
   if (bench_md.empty() && std::filesystem::path(dir).filename() == "docs")
     bench_md = (std::filesystem::path(dir) / "BENCHMARKS.md").string();
@@ -101,11 +102,22 @@ int SpeedVsError(const std::vector<std::string>& args) {
       std::cerr << p.command() << ": " << s.error().message << "\n";
   }
   std::cout << table;
+  // A scene file whose own model misses its own budget fails the study, loudly (a --quick run's
+  // coarse levels only warn).
+  int over = 0;
+  for (const study::BudgetVerdict& v : verdicts) {
+    if (!v.in_study || v.meets) continue;
+    ++over;
+    std::cerr << p.command() << ": " << (cfg.quick ? "warning" : "FAILED") << ": scenes/" << v.file
+              << ".json: its model (" << (v.model.empty() ? "row missing" : v.setting) << ") is "
+              << Num(100 * v.rms, 3) << "% RMS from the reference, over its budget of "
+              << Num(100 * v.budget, 3) << "%\n";
+  }
   std::cout << "speed-vs-error: " << Num(seconds, 3) << " s; wrote " << csv << ", "
             << (std::filesystem::path(dir) / "speed-vs-error.png").string() << ", "
             << (std::filesystem::path(dir) / "marker8.png").string()
             << (bench_md.empty() ? "" : ", " + bench_md) << "\n";
-  return 0;
+  return over > 0 && !cfg.quick ? 3 : 0;
 }
 
 }  // namespace vsurg::bench

@@ -425,6 +425,10 @@ SceneOut RunLimb(const LimbCase& c, const Config& cfg, Progress& progress) {
   out.scene = c.scene;
   out.scene_file = c.scene_file;
   std::tie(out.budget, out.scene_family) = SceneBudget(c.scene_file);
+  out.checks.push_back({c.scene_file, "coil-scene", "scene parameters"});
+  if (c.scene_file == "arm-torsion")  // its FEM: 4 rings, level 4 (the quick run has level 2)
+    out.checks.push_back(
+        {"arm-torsion-reduced", "reduced", cfg.quick ? "twist field" : "twist field, FEM level 4"});
   CoilRows(c, cfg, out, progress);
   ReducedRows(c, cfg, out, progress);
   FemRows(c, cfg, out, progress);

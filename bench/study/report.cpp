@@ -1,12 +1,16 @@
 // The speed-against-error study's report: the cheapest model within each scene's budget, the
 // CSV, and the Markdown table kept in docs/BENCHMARKS.md between the study's markers.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "bench/study/study.h"
 #include "common/core/csv.h"
+#include "common/sim/scene.h"
 
 namespace vsurg::bench::study {
 namespace {
@@ -29,6 +33,65 @@ void ChooseCheapest(SceneOut& s) {
   const bool same = best && best->model.rfind(s.scene_family, 0) == 0;
   s.chosen += "; `scenes/" + s.scene_file + ".json` uses " + s.scene_family +
               (same ? ": consistent" : ": **not** the cheapest within its budget");
+}
+
+std::vector<BudgetVerdict> CheckSceneBudgets(const std::vector<SceneOut>& scenes) {
+  std::vector<BudgetVerdict> out;
+  std::set<std::string> seen;
+  for (const SceneOut& s : scenes)
+    for (const SceneModelCheck& c : s.checks) {
+      if (seen.count(c.file)) continue;  // a file's first (hardest) study scene decides
+      BudgetVerdict v;
+      v.file = c.file;
+      v.budget = SceneBudget(c.file).first;
+      v.in_study = true;
+      for (const Row& r : s.rows)
+        if (r.model == c.model && r.setting.rfind(c.setting_prefix, 0) == 0) {
+          v.model = r.model;
+          v.setting = r.setting + " (" + s.scene + ")";
+          v.rms = r.rms;
+          break;
+        }
+      v.meets = std::isfinite(v.rms) && v.rms <= v.budget;
+      seen.insert(c.file);
+      out.push_back(v);
+    }
+  // The scene files no study row reproduces.
+  std::error_code ec;
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(sim::ScenesDirectory(), ec))
+    if (e.path().extension() == ".json") files.push_back(e.path().stem().string());
+  std::sort(files.begin(), files.end());
+  for (const std::string& f : files)
+    if (!seen.count(f)) {
+      BudgetVerdict v;
+      v.file = f;
+      v.budget = SceneBudget(f).first;
+      out.push_back(v);
+    }
+  return out;
+}
+
+std::string BudgetTable(const std::vector<BudgetVerdict>& verdicts) {
+  std::ostringstream md;
+  md << "**Scene files against their own budgets** (the study's row that runs the file's own "
+        "model: coil and reduced rows with the file's parameters; the mass-spring row fits its "
+        "stiffness to the reference, the most favourable case of the file's model)\n\n| scene file "
+        "| model as the study runs it | RMS error | budget | verdict |\n"
+        "| --- | --- | --- | --- | --- |\n";
+  for (const BudgetVerdict& v : verdicts) {
+    md << "| `scenes/" << v.file << ".json` | "
+       << (v.in_study ? (v.model.empty() ? "(row missing)" : v.model + ", " + v.setting)
+                      : "not in the study")
+       << " | " << (std::isfinite(v.rms) ? Num(100 * v.rms, 3) + "%" : "—") << " | "
+       << Num(100 * v.budget, 3) << "% | "
+       << (!v.in_study ? "not checked"
+           : v.meets   ? "within"
+                       : "**over its budget**")
+       << " |\n";
+  }
+  md << "\n";
+  return md.str();
 }
 
 std::string Num(double v, int digits) {

@@ -33,6 +33,14 @@ struct Trajectory {
   std::vector<double> t = {}, d = {};  // s, m (marker 8's displacement)
 };
 
+// A scenes/ file whose own model one of the study's rows reproduces: that row's error against
+// the file's own budget.
+struct SceneModelCheck {
+  std::string file;            // scenes/FILE.json
+  std::string model;           // the row's model
+  std::string setting_prefix;  // the start of the row's setting
+};
+
 struct SceneOut {
   std::string scene;
   std::string scene_file;    // the scenes/ file whose budget applies
@@ -41,7 +49,17 @@ struct SceneOut {
   std::vector<Row> rows;
   std::vector<Trajectory> trajectories;
   std::string chosen;
+  std::vector<SceneModelCheck> checks;
 };
+
+// Every scenes/ file against its own budget: one line per file, a failure says so in words.
+struct BudgetVerdict {
+  std::string file, model, setting;
+  double rms = kInf, budget = 0;
+  bool in_study = false, meets = false;
+};
+std::vector<BudgetVerdict> CheckSceneBudgets(const std::vector<SceneOut>& scenes);
+std::string BudgetTable(const std::vector<BudgetVerdict>& verdicts);
 
 struct Config {
   bool quick = false;
