@@ -81,6 +81,14 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
     EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << png;
   }
   EXPECT_NE(out.find("cheapest within it"), std::string::npos);
+  // Every scene file appears against its own budget; the coil arm (32% against 30%) is over it
+  // whatever the refinement, the calf within it.
+  for (const auto& e : fs::directory_iterator(VSURG_SCENES_DIR))
+    EXPECT_NE(out.find("`scenes/" + e.path().filename().string() + "`"), std::string::npos)
+        << e.path();
+  EXPECT_NE(out.find("| `scenes/arm-torsion.json` | coil-scene"), std::string::npos);
+  EXPECT_NE(out.find("**over its budget**"), std::string::npos);
+  EXPECT_NE(out.find("| 30% | within |"), std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "BENCHMARKS.md"));  // only written for docs/ or --benchmarks
   fs::remove_all(dir);
 }
