@@ -435,9 +435,11 @@ ReducedStats ReducedContactModel::Press(const std::array<int, 3>& contacts,
 
 Eigen::Matrix3d ReducedContactModel::ComplianceAt(const std::array<int, 3>& contacts,
                                                   const std::array<double, 3>& weights) const {
+  // Reads only the immutable table (not positions_): the haptic thread calls this beside the
+  // deformation thread's presses.
   Eigen::Matrix3d g = Eigen::Matrix3d::Zero();
-  const int nv = VertexCount();
   const ContactResponse& r = *response_;
+  const int nv = r.vertices;
   for (int k = 0; k < 3; ++k) {  // the force's share at vertex k (its slot)
     if (contacts[k] < 0 || contacts[k] >= nv || !(weights[k] > 0)) continue;
     const size_t slot = r.slot_of_vertex[contacts[k]];
@@ -482,7 +484,7 @@ ReducedStats ReducedContactModel::PressWithSpring(const std::array<int, 3>& cont
 }
 
 void ReducedContactModel::Release() {
-  positions_ = rest_;
+  std::copy(rest_.begin(), rest_.end(), positions_.begin());  // (no reallocation, no resize)
 }
 
 ReducedStats ReducedContactModel::Displace(int contact, const Vec3& displacement, Vec3* force_out) {

@@ -218,15 +218,22 @@ int Top(const Ball& b) {
   return best;
 }
 
+// The contact model of a ball, every reachable vertex precomputed.
+ReducedContactModel BallModel(const Ball& b, double max_force,
+                              const ContactResponseParams& p = {}) {
+  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, p);
+  EXPECT_TRUE(table.ok()) << table.error().message;
+  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
+                                           b.mesh.positions, max_force);
+  EXPECT_TRUE(model.ok()) << model.error().message;
+  return std::move(model).value();
+}
+
 TEST(ReducedContactTest, APointPressAgreesWithTheFullFemAndIsReciprocal) {
   Ball b = MakeBall(4);
   ContactResponseParams p;
   p.footprint_radius = 1e-9;  // a point load on the contact vertex itself
-  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, p);
-  ASSERT_TRUE(table.ok()) << table.error().message;
-  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
-                                           b.mesh.positions, 5.0);
-  ASSERT_TRUE(model.ok()) << model.error().message;
+  auto model = std::make_unique<ReducedContactModel>(BallModel(b, 5.0, p));
   const int top = Top(b);
   const Vec3 force(2e-4, -1e-4, -5e-4);  // N: ≈ 10 µm deep
   EXPECT_TRUE(model->Press(top, force).ok);
@@ -257,11 +264,7 @@ TEST(ReducedContactTest, APointPressAgreesWithTheFullFemAndIsReciprocal) {
 
 TEST(ReducedContactTest, ADisplacedContactMovesByTheDisplacementWithAPositiveStiffness) {
   Ball b = MakeBall(4);
-  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
-  ASSERT_TRUE(table.ok());
-  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
-                                           b.mesh.positions, 5.0);
-  ASSERT_TRUE(model.ok());
+  auto model = std::make_unique<ReducedContactModel>(BallModel(b, 5.0));
   const int top = Top(b);
   const Vec3 delta(0.0005, 0, -0.002);
   Vec3 force;
@@ -278,11 +281,7 @@ TEST(ReducedContactTest, ADisplacedContactMovesByTheDisplacementWithAPositiveSti
 
 TEST(ReducedContactTest, ASpringCoupledToolReachesTheExactEquilibriumAtAnyStiffness) {
   Ball b = MakeBall(4);
-  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
-  ASSERT_TRUE(table.ok());
-  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
-                                           b.mesh.positions, 100.0);
-  ASSERT_TRUE(model.ok());
+  auto model = std::make_unique<ReducedContactModel>(BallModel(b, 100.0));
   const int top = Top(b);
   const Vec3 p0 = b.mesh.positions[top], n = Vec3::UnitZ();
   const Vec3 tip = p0 - 0.004 * n;
@@ -327,11 +326,7 @@ TEST(ReducedContactTest, ASpringCoupledToolReachesTheExactEquilibriumAtAnyStiffn
 
 TEST(ReducedContactTest, HardCasesStayBoundedAndSaySo) {
   Ball b = MakeBall(4);
-  auto table = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
-  ASSERT_TRUE(table.ok());
-  auto model = ReducedContactModel::Create(std::make_shared<ContactResponse>(std::move(*table)),
-                                           b.mesh.positions, 1.0);
-  ASSERT_TRUE(model.ok());
+  auto model = std::make_unique<ReducedContactModel>(BallModel(b, 1.0));
   const int top = Top(b);
   // A press deeper than the ball: the force is clamped to capacity, nothing is NaN.
   Vec3 force;
