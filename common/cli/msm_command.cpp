@@ -43,7 +43,9 @@ int Msm(const Args& args, std::ostream& out, std::ostream& err) {
       "sphere's bottom fifth, a limb's ends). Prints the final kinetic and potential energy (J),\n"
       "the largest displacement (m), the contact force the tool feels (N), steps per second\n"
       "and whether the run diverged.");
-  p.Option("mesh", Kind::kString, "sphere, arm, calf or an OBJ file", false, "sphere")
+  p.Option("mesh", Kind::kString,
+           "sphere, arm, calf or a mesh file in metres (OBJ, STL, PLY, glTF: assimp)", false,
+           "sphere")
       .Option("particles", Kind::kInt, "about this many surface particles (sphere, limbs)", false,
               "1024")
       .Option("radius", Kind::kDouble, "sphere radius, m", false, "0.05")

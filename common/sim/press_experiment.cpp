@@ -32,7 +32,7 @@ Expected<PressScene> MakePressScene(const std::string& name, int particles, doub
     spec.limb = geometry::WithResolution(
         name == "arm" ? geometry::ForearmPreset() : geometry::CalfPreset(), particles);
   } else {
-    spec.kind = sim::MeshKind::kObj;
+    spec.kind = sim::MeshKind::kFile;
     spec.path = name;
   }
   auto mesh = sim::BuildSceneMesh(spec);

@@ -12,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/geometry/obj_io.h"
+#include "common/geometry/mesh_import.h"
 
 namespace vsurg::sim {
 namespace {
@@ -135,12 +135,18 @@ Status ParseMesh(const Reader& r, const std::string& scene_dir, MeshSpec& m) {
     VSURG_TRY(particles, r.Integer("particles", 6, 300000));
     m.radius = radius;
     m.particles = particles;
-  } else if (type == "obj") {
-    m.kind = MeshKind::kObj;
+  } else if (type == "file" || type == "obj") {
+    // A surface mesh file read by assimp (OBJ, STL, PLY, glTF, ...: geometry/mesh_import.h);
+    // "obj" is the older spelling. Its units: the file does not say, the scene does.
+    m.kind = MeshKind::kFile;
     VSURG_TRY(path, r.String("path"));
     m.path = fs::path(path).is_absolute() ? path : (fs::path(scene_dir) / path).string();
+    VSURG_TRY(units, r.StringOr("units", "m"));
+    auto scale = geometry::UnitScale(units);
+    if (!scale.ok()) return r.Bad("units", scale.error().message);
+    m.metres_per_unit = *scale;
   } else {
-    return r.Bad("type", "must be limb, sphere or obj, got '" + type + "'");
+    return r.Bad("type", "must be limb, sphere or file, got '" + type + "'");
   }
   return Status::Ok();
 }
@@ -417,7 +423,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
       s.region.support == Support::kBottom) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
   }
-  if (s.mesh.kind != MeshKind::kObj) {  // a file's size is known when it is read (Simulation)
+  if (s.mesh.kind != MeshKind::kFile) {  // a file's size is known when it is read (Simulation)
     const size_t vertices =
         s.mesh.kind == MeshKind::kLimb
             ? static_cast<size_t>(s.mesh.limb.segments_around) * s.mesh.limb.rings_along + 2
@@ -487,8 +493,8 @@ Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec) {
       out.surface = std::move(*sphere);
       break;
     }
-    case MeshKind::kObj: {
-      auto mesh = geometry::ReadObj(spec.path);
+    case MeshKind::kFile: {
+      auto mesh = geometry::ImportSurfaceMesh(spec.path, spec.metres_per_unit);
       if (!mesh.ok()) return mesh.error();
       out.surface = std::move(*mesh);
       break;

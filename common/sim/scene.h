@@ -39,7 +39,7 @@
 
 namespace vsurg::sim {
 
-enum class MeshKind { kLimb, kSphere, kObj };
+enum class MeshKind { kLimb, kSphere, kFile };
 enum class ModelKind { kCoil, kMassSpring, kRingLayer, kReduced };
 // As scene files spell it: "coil", "mass-spring", "ring-layer", "reduced".
 const char* ModelKindName(ModelKind kind);
@@ -52,9 +52,10 @@ enum class Support {
 struct MeshSpec {
   MeshKind kind = MeshKind::kLimb;
   geometry::LimbParams limb;
-  double radius = 0.05;  // m, sphere
-  int particles = 256;   // sphere
-  std::string path;      // obj, absolute after loading
+  double radius = 0.05;          // m, sphere
+  int particles = 256;           // sphere
+  std::string path;              // file (also spelled "obj"), absolute after loading
+  double metres_per_unit = 1.0;  // file: its "units" (m, cm, mm, um), as a scale
 };
 
 // A reduced model precomputed from the scene's own FEM (common/tissue/reduced.h). "contact": the

@@ -287,7 +287,7 @@ TEST(VsurgSimTest, MsmBadArgumentsExitTwo) {
            {{"msm", "--integrator", "leapfrog"}, "--integrator: unknown integrator 'leapfrog'"},
            {{"msm", "--dt", "0"}, "--dt"},
            {{"msm", "--steps", "-1"}, "--steps"},
-           {{"msm", "--mesh", "/nonexistent/x.obj"}, "--mesh: /nonexistent/x.obj: cannot open"},
+           {{"msm", "--mesh", "/nonexistent/x.obj"}, "--mesh: /nonexistent/x.obj: no such file"},
            {{"msm", "--stiffness", "-5"}, "--stiffness"},
            {{"msm", "--volume", "solid"}, "--volume"}}) {
     const SimRun r = Sim(args);

@@ -1,5 +1,7 @@
 #include "common/sim/scene.h"
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -7,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/geometry/mesh_generators.h"
 #include "common/sim/limb_scene.h"
 
 namespace vsurg::sim {
@@ -42,6 +45,48 @@ TEST(SceneTest, ArmAndCalfFilesMatchTheBuiltInDefaults) {
     EXPECT_NEAR(a.max_force, b.max_force, 1e-15);
     EXPECT_EQ(scene->mesh.limb.length, limb->limb.length);
   }
+}
+
+TEST(SceneTest, AMeshFileInMillimetresIsReadThroughAssimp) {
+  // A 5 cm ball as 3D Slicer would export it: ASCII STL in millimetres, each facet's vertices
+  // repeated.
+  auto ball = geometry::MakeSubdividedSphere({50.0, 3, geometry::SphereBase::kOctahedron});
+  ASSERT_TRUE(ball.ok());
+  const std::filesystem::path dir = std::filesystem::temp_directory_path();
+  const std::string stl =
+      (dir / ("vsurg_scene_ball_" + std::to_string(::getpid()) + ".stl")).string();
+  {
+    std::ofstream out(stl);
+    out << "solid ball\n";
+    for (const auto& t : ball->triangles) {
+      out << "facet normal 0 0 0\nouter loop\n";
+      for (int v : t)
+        out << "vertex " << ball->positions[v].x() << " " << ball->positions[v].y() << " "
+            << ball->positions[v].z() << "\n";
+      out << "endloop\nendfacet\n";
+    }
+    out << "endsolid ball\n";
+  }
+  const std::string text = R"({"name": "t", "mesh": {"type": "file", "path": ")" + stl +
+                           R"(", "units": "mm"},
+    "regions": [{"name": "r", "model": {"type": "mass-spring", "structural_stiffness": 50}}],
+    "task": {"type": "press", "target_depth_m": 0.005, "tolerance_m": 0.001},
+    "error_budget": {"rms": 0.2}})";
+  auto scene = ParseScene(text, "x.json");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  EXPECT_EQ(scene->mesh.kind, MeshKind::kFile);
+  auto mesh = BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+  EXPECT_EQ(mesh->surface.VertexCount(), ball->VertexCount());  // the STL's repeats joined
+  double r = 0;
+  for (const auto& p : mesh->surface.positions) r = std::max(r, p.norm());
+  EXPECT_NEAR(r, 0.05, 1e-6);  // millimetres became metres
+  auto bad = ParseScene(
+      text.substr(0, text.find("\"mm\"")) + R"("inch"},)" + text.substr(text.find("\"mm\"") + 6),
+      "x.json");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("mesh.units"), std::string::npos) << bad.error().message;
+  std::filesystem::remove(stl);
 }
 
 TEST(SceneTest, TaskAndModelAreRead) {

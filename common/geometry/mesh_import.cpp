@@ -1,0 +1,104 @@
+#include "common/geometry/mesh_import.h"
+
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+namespace vsurg::geometry {
+namespace {
+
+constexpr unsigned kSteps = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                            aiProcess_PreTransformVertices | aiProcess_SortByPType |
+                            aiProcess_ValidateDataStructure;
+
+Expected<TriMesh> FromScene(const aiScene* scene, const std::string& source, double scale,
+                            ImportReport* report) {
+  if (!scene) return Error{ErrorCode::kParseError, source + ": " + aiGetErrorString(), "mesh"};
+  ImportReport local;
+  ImportReport& r = report ? *report : local;
+  r = ImportReport{};
+  r.meshes = static_cast<int>(scene->mNumMeshes);
+  TriMesh out;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    const int base = out.VertexCount();
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      const Vec3 x = scale * Vec3(p.x, p.y, p.z);
+      if (!x.allFinite())
+        return Error{ErrorCode::kParseError,
+                     source + ": vertex " + std::to_string(base + static_cast<int>(v)) +
+                         " is not a finite position",
+                     "mesh"};
+      out.positions.push_back(x);
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) {
+        ++r.dropped_faces;
+        continue;
+      }
+      const Triangle t = {base + static_cast<int>(face.mIndices[0]),
+                          base + static_cast<int>(face.mIndices[1]),
+                          base + static_cast<int>(face.mIndices[2])};
+      if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+        ++r.dropped_faces;
+        continue;
+      }
+      out.triangles.push_back(t);
+    }
+  }
+  if (out.triangles.empty())
+    return Error{ErrorCode::kParseError,
+                 source + ": no triangles" +
+                     (r.dropped_faces ? " (" + std::to_string(r.dropped_faces) +
+                                            " points, lines or repeated-vertex faces dropped)"
+                                      : ""),
+                 "mesh"};
+  if (Status s = Validate(out); !s.ok())
+    return Error{ErrorCode::kParseError, source + ": " + s.error().message, "mesh"};
+  return out;
+}
+
+}  // namespace
+
+Expected<double> UnitScale(const std::string& units) {
+  if (units == "m") return 1.0;
+  if (units == "cm") return 0.01;
+  if (units == "mm") return 0.001;
+  if (units == "um") return 1e-6;
+  return InvalidArgument("units", "must be m, cm, mm or um, got '" + units + "'");
+}
+
+Expected<TriMesh> ImportSurfaceMesh(const std::string& path, double metres_per_unit,
+                                    ImportReport* report) {
+  if (!(metres_per_unit > 0) || !std::isfinite(metres_per_unit))
+    return InvalidArgument("units", "the scale must be > 0");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    return Error{ErrorCode::kNotFound, path + ": no such file", "mesh"};
+  const aiScene* scene = aiImportFile(path.c_str(), kSteps);
+  auto out = FromScene(scene, path, metres_per_unit, report);
+  if (scene) aiReleaseImport(scene);
+  return out;
+}
+
+Expected<TriMesh> ImportSurfaceMeshFromMemory(const void* data, size_t size,
+                                              const std::string& format_hint,
+                                              const std::string& source_name,
+                                              double metres_per_unit, ImportReport* report) {
+  if (!(metres_per_unit > 0) || !std::isfinite(metres_per_unit))
+    return InvalidArgument("units", "the scale must be > 0");
+  if (size == 0) return Error{ErrorCode::kParseError, source_name + ": empty", "mesh"};
+  const aiScene* scene = aiImportFileFromMemory(
+      static_cast<const char*>(data), static_cast<unsigned>(size), kSteps, format_hint.c_str());
+  auto out = FromScene(scene, source_name, metres_per_unit, report);
+  if (scene) aiReleaseImport(scene);
+  return out;
+}
+
+}  // namespace vsurg::geometry
