@@ -13,7 +13,7 @@ VSURG_PACKAGES=(
   libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth xdotool
   chromium chromium-driver python3-selenium
   libimgui-dev
-  libassimp-dev
+  libassimp-dev libcgal-dev
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's
