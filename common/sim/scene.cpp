@@ -190,11 +190,13 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
       VSURG_TRY(cells, r.IntegerOr("fem_cells", 8, 2, 24));
       if (cells % 2 != 0) return r.Bad("fem_cells", "must be even");
       VSURG_TRY(rings, r.IntegerOr("fem_rings", 4, 1, 8));
+      VSURG_TRY(fem_size, r.NumberOr("fem_size", 0.0, 0.0, 1.0));
       VSURG_TRY(footprint, r.NumberOr("footprint_radius", 0.005, 1e-4, 0.1));
       VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
       VSURG_TRY(max_twist_deg, r.NumberOr("max_twist_deg", 90.0, 1.0, 180.0));
       g.reduced.fem_cells = cells;
       g.reduced.fem_rings = rings;
+      g.reduced.fem_size = fem_size;
       g.reduced.footprint_radius = footprint;
       g.reduced.max_force = max_force;
       g.reduced.max_twist = max_twist_deg * kDeg;
@@ -413,11 +415,10 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
       return with_source(
           InvalidArgument("regions[0].model.mode",
                           "regions[0].model.mode: a reduced twist model needs a limb mesh"));
-    if (!twist && s.mesh.kind != MeshKind::kSphere)
+    if (!twist && s.mesh.kind == MeshKind::kLimb)
       return with_source(InvalidArgument(
           "regions[0].model.type",
-          "regions[0].model.type: a reduced contact model needs a sphere mesh (its FEM is a "
-          "tetrahedral ball; other shapes need a tetrahedralised surface, not supported yet)"));
+          "regions[0].model.type: a reduced contact model needs a sphere or a closed mesh file"));
   }
   if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
       s.region.support == Support::kBottom) {

@@ -65,7 +65,9 @@ struct MeshSpec {
 enum class ReducedMode { kContact, kTwist };
 struct ReducedSpec {
   ReducedMode mode = ReducedMode::kContact;
-  int fem_cells = 8;                // contact: the FEM ball's cube cells per axis (even, 2..24)
+  int fem_cells = 8;                // contact on a sphere: the FEM ball's cells per axis (even)
+  double fem_size = 0;              // m, contact on a mesh file: the tetrahedra's size (CGAL);
+                                    // 0: a twelfth of the mesh's bounding-box diagonal
   int fem_rings = 4;                // twist: rings in the FEM cylinder's cross-section (1..8)
   double footprint_radius = 0.005;  // m, contact: the tool's contact disc
   double max_force = 10;            // N, contact: the capacity; a larger press is clamped

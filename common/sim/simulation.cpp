@@ -9,6 +9,7 @@
 
 #include "common/geometry/distances.h"
 #include "common/geometry/tet_generators.h"
+#include "common/geometry/tetrahedralize.h"
 #include "common/tissue/reduced_cache.h"
 
 namespace vsurg::sim {
@@ -159,11 +160,19 @@ Status Simulation::Build() {
 Status Simulation::BuildReduced() {
   const RegionSpec& region = scene_.region;
   if (region.reduced.mode == ReducedMode::kTwist) return BuildReducedTwist();
-  // The FEM: a tetrahedral ball of the scene sphere's radius, held by the same support rule.
-  auto ball = geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
-  if (!ball.ok()) return ball.error();
+  // The FEM: a tetrahedral ball of the scene sphere's radius, or the mesh file's closed surface
+  // tetrahedralised (CGAL), held by the same support rule as the surface.
+  Expected<geometry::TetMesh> fem = InvalidArgument("mesh", "no FEM mesh");
+  if (scene_.mesh.kind == MeshKind::kSphere) {
+    fem = geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
+  } else {
+    fem = geometry::Tetrahedralize(rest_, {region.reduced.fem_size, 0, 3.0});
+    if (!fem.ok())
+      return Error{fem.error().code, scene_.mesh.path + ": " + fem.error().message, "mesh"};
+  }
+  if (!fem.ok()) return fem.error();
   tissue::ContactInputs in;
-  in.mesh = std::move(*ball);
+  in.mesh = std::move(*fem);
   in.material.poisson = scene_.poisson_ratio;
   in.material.young = 2 * scene_.shear_modulus * (1 + scene_.poisson_ratio);
   in.material.density = scene_.density;
