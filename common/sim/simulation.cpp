@@ -21,16 +21,32 @@ using haptics::StylusSample;
 namespace {
 
 // Contact tables are read-only and large (36 B per vertex pair): the sessions of one scene share
-// one, found by the key of its inputs while any session holds it.
+// one, found by the key of its inputs while any session holds it. The map's lock is held only to
+// look up; a table being built holds its own key's lock, so a second session of the same scene
+// waits for it (and does not build it twice) while other scenes' sessions go on.
 std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::ContactInputs& in,
                                                                   const std::string& cache_dir,
                                                                   const std::string& name,
                                                                   Status& status) {
+  struct Entry {
+    std::weak_ptr<const tissue::ContactResponse> table;
+    std::shared_ptr<std::mutex> building = std::make_shared<std::mutex>();
+  };
   static std::mutex mutex;
-  static std::map<std::string, std::weak_ptr<const tissue::ContactResponse>> tables;
+  static std::map<std::string, Entry> tables;
   const std::string key = tissue::ContactKey(in);
-  std::lock_guard<std::mutex> lock(mutex);
-  if (auto alive = tables[key].lock()) return alive;
+  std::shared_ptr<std::mutex> building;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    Entry& e = tables[key];
+    if (auto alive = e.table.lock()) return alive;
+    building = e.building;
+  }
+  std::lock_guard<std::mutex> build_lock(*building);
+  {
+    std::lock_guard<std::mutex> lock(mutex);  // built while this one waited?
+    if (auto alive = tables[key].table.lock()) return alive;
+  }
   tissue::ReducedCache cache(cache_dir.empty() ? tissue::DefaultCacheDirectory() : cache_dir);
   tissue::CacheReport report;
   auto table = cache.ContactResponseFor(name, in, &report);
@@ -39,7 +55,8 @@ std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::
     return nullptr;
   }
   auto shared = std::make_shared<const tissue::ContactResponse>(std::move(*table));
-  tables[key] = shared;
+  std::lock_guard<std::mutex> lock(mutex);
+  tables[key].table = shared;
   return shared;
 }
 

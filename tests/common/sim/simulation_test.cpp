@@ -144,6 +144,30 @@ TEST(SimulationTest, AReducedSphereSinksUnderTheToolAndCachesItsTable) {
   fs::remove_all(dir);
 }
 
+TEST(SimulationTest, SessionsOfReducedScenesAreBuiltSideBySide) {
+  // Two sessions of one reduced scene and one of another, created at once with an empty cache:
+  // all three are built (one table computed per scene, the second session of the first scene
+  // waiting for it), nothing deadlocks.
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("vsurg_side_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  auto sphere = LoadSceneByName("sphere-palpation-1024");
+  auto kidney = LoadSceneByName("kidney-palpation");
+  ASSERT_TRUE(sphere.ok() && kidney.ok());
+  std::atomic<int> built{0};
+  std::vector<std::thread> threads;
+  for (const Scene* scene : {&*sphere, &*sphere, &*kidney})
+    threads.emplace_back([&, scene] {
+      auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
+      if (sim.ok()) ++built;
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(built.load(), 3);
+  EXPECT_TRUE(fs::exists(dir / "sphere-palpation-1024-contact.vrm"));
+  EXPECT_TRUE(fs::exists(dir / "kidney-palpation-contact.vrm"));
+  fs::remove_all(dir);
+}
+
 TEST(SimulationTest, TheLocalModelPredictsTheNextUpdateOnAReducedSphere) {
   // A station renders F₀ + J·(x − x₀) between two server updates. With a 5 ms network delay and
   // the tool pressing on at 5 cm/s, the tip goes 0.25 mm deeper before the next update: compare
