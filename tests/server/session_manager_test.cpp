@@ -134,7 +134,7 @@ TEST_F(SessionManagerTest, CreatedStartedRunningStalledResumedDisconnected) {
 TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) {
   std::mutex m;
   double rate = -1;
-  uint64_t samples = 0;
+  uint64_t samples = 0, ticks = 0;
   auto s = sessions_->Create("tina", "sphere-palpation-256");
   ASSERT_TRUE(s.ok()) << s.error().message;
   const uint64_t id = static_cast<uint64_t>(s->record.id);
@@ -142,26 +142,31 @@ TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) 
   const uint64_t token =
       sessions_->Subscribe(id, [&](const std::vector<SessionTelemetry>& all, bool) {
         std::lock_guard lock(m);
+        ++ticks;
         if (!all.empty()) rate = all[0].haptic_rate_hz, samples = all[0].sim.samples;
       });
-  // The rate the sampler shows once it has seen the last of `n` samples (the simulation publishes
-  // its telemetry every 8th).
-  // The rate is measured over windows of at least 1 s of the station's stamps, closed on the
-  // sampler's real-time ticks; stamps run ~20× faster than real time here, so the window that
-  // spans a change of rate can be long. Wait (10 s bound) until a window after the change shows
-  // `expected` (< 0: until the samples are in).
-  auto rate_after = [&](uint64_t n, double expected) {
+  // The sampler runs on real time (its own thread, no clock to step): wait for what it shows,
+  // polled under the lock, with a 10 s bound. Returns whether `shown` came true.
+  auto wait_until = [&](auto shown) {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    double last = -1;
     while (std::chrono::steady_clock::now() < deadline) {
       {
         std::lock_guard lock(m);
-        if (samples + 8 > n) last = rate;
-        if (samples + 8 > n && (expected < 0 || std::abs(rate - expected) <= 1.0)) return rate;
+        if (shown()) return true;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
-    return last;
+    return false;
+  };
+  // The rate the sampler shows once it has seen the last of `n` samples (the simulation publishes
+  // its telemetry every 8th). The rate is measured over windows of at least 1 s of the station's
+  // stamps, closed on the sampler's real-time ticks; stamps run ~20× faster than real time here,
+  // so the window that spans a change of rate can be long: wait until a window after the change
+  // shows `expected`.
+  auto rate_after = [&](uint64_t n, double expected) {
+    wait_until([&] { return samples + 8 > n && std::abs(rate - expected) <= 1.0; });
+    std::lock_guard lock(m);
+    return samples + 8 > n ? rate : -1.0;
   };
   // The endpoint's clock moves with the stamps (its rate limit allows a 4 kHz station); the
   // manager's does not, and real time runs ~20× faster than the stamps.
@@ -169,12 +174,16 @@ TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) 
   for (int i = 0; i < 3000; ++i) endpoint_clock_.Advance(1e-3), Drive(*s, ++seq);
   EXPECT_NEAR(rate_after(3000, 1000.0), 1000.0, 1.0);
   // The same session's station slows to 500 Hz: its stamps go 2 ms apart. The window open at
-  // the change mixes both rates; a pause for the sampler's ticks after 2 s of the new stamps
-  // closes it, so the next 2 s are a window of the new rate alone.
+  // the change mixes both rates; two sampler ticks after 2 s of the new stamps close it, so the
+  // next 2 s are a window of the new rate alone.
   const double t0 = 1e-3 * static_cast<double>(seq);
   for (int i = 1; i <= 1000; ++i) endpoint_clock_.Advance(2e-3), Drive(*s, ++seq, t0 + 2e-3 * i);
-  rate_after(4000, -1);  // (any rate: the samples are in)
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(wait_until([&] { return samples + 8 > 4000; }));
+  const uint64_t tick = [&] {
+    std::lock_guard lock(m);
+    return ticks;
+  }();
+  ASSERT_TRUE(wait_until([&] { return ticks >= tick + 2; }));
   for (int i = 1001; i <= 2000; ++i) endpoint_clock_.Advance(2e-3), Drive(*s, ++seq, t0 + 2e-3 * i);
   EXPECT_NEAR(rate_after(5000, 500.0), 500.0, 1.0);
   Quiet(0.6);  // running → stalled
@@ -183,15 +192,8 @@ TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) 
   EXPECT_EQ(WaitFor(id, SessionState::kRunning), SessionState::kRunning);
   Quiet(0.6);
   EXPECT_EQ(WaitFor(id, SessionState::kStalled), SessionState::kStalled);
-  // The sampler (real time, 100 Hz) shows the stall on its next tick; 10 s bounds the wait.
-  double shown = -1;
-  for (auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-       shown != 0.0 && std::chrono::steady_clock::now() < until;) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    std::lock_guard lock(m);
-    shown = rate;
-  }
-  EXPECT_EQ(shown, 0.0);
+  // The sampler shows the stall on its next tick.
+  EXPECT_TRUE(wait_until([&] { return rate == 0.0; })) << rate;
   sessions_->Unsubscribe(token);
 }
 
