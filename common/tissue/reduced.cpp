@@ -98,9 +98,12 @@ Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
     if (!x.allFinite())
       return Error{ErrorCode::kNumerical, "the unit-torque solve is not finite", "fem"};
 
+  auto off_axis = [&](const Vec3& x) {  // the offset from the axis, ⊥ to it
+    const Vec3 r = x - origin;
+    return Vec3(r - r.dot(n) * n);
+  };
   auto angle_of = [&](const Vec3& x, const Vec3& d) {
-    Vec3 r = x - origin;
-    r -= r.dot(n) * n;
+    const Vec3 r = off_axis(x);
     const double r2 = r.squaredNorm();
     return r2 > 1e-12 ? n.cross(r).dot(d) / r2 : 0.0;
   };
@@ -110,9 +113,7 @@ Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
   double grasp = 0, weight = 0;
   for (size_t i = 0; i < face.size(); ++i) {
     const double w = i < face_area.size() ? face_area[i] : 1.0;
-    Vec3 r = rest[face[i]] - origin;
-    r -= r.dot(n) * n;
-    if (r.squaredNorm() < 1e-12) continue;
+    if (off_axis(rest[face[i]]).squaredNorm() < 1e-12) continue;
     grasp += w * angle_of(rest[face[i]], u[face[i]]);
     weight += w;
   }
@@ -132,8 +133,7 @@ Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
   for (size_t i = 0; i < display_rest.size(); ++i) {
     out.angle[i] = static_cast<float>(angle_of(display_rest[i], ud[i]));
     out.warp[i] = static_cast<float>(n.dot(ud[i]));
-    Vec3 r = display_rest[i] - origin;
-    r -= r.dot(n) * n;
+    const Vec3 r = off_axis(display_rest[i]);
     if (r.squaredNorm() > 1e-12) {
       out.radial[i] = static_cast<float>(r.dot(ud[i]) / r.squaredNorm());
     } else {
@@ -279,6 +279,16 @@ std::vector<std::pair<int, double>> FootprintWeights(const geometry::TriMesh& bo
   return w;
 }
 
+// The 3×3 block of a contact table: the displacement of `vertex` (rows) per unit force in x, y
+// and z (columns) at the contact in `slot`, m/N.
+Eigen::Matrix3d Block(const ContactResponse& r, size_t slot, int vertex) {
+  Eigen::Matrix3d g;
+  const size_t nv = static_cast<size_t>(r.vertices);
+  for (int d = 0; d < 3; ++d)
+    for (int k = 0; k < 3; ++k) g(k, d) = r.g[((slot * 3 + d) * nv + vertex) * 3 + k];
+  return g;
+}
+
 }  // namespace
 
 Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem,
@@ -372,9 +382,7 @@ Expected<ReducedContactModel> ReducedContactModel::Create(
   m.compliance_.resize(response.contacts.size());
   for (size_t s = 0; s < response.contacts.size(); ++s) {
     const int c = response.contacts[s];
-    Eigen::Matrix3d g;
-    for (int d = 0; d < 3; ++d)
-      for (int k = 0; k < 3; ++k) g(k, d) = response.g[((s * 3 + d) * nv + c) * 3 + k];
+    Eigen::Matrix3d g = Block(response, s, c);
     g = 0.5 * (g + g.transpose());  // Maxwell–Betti reciprocity: symmetric up to sampling
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(g);
     if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 0))
@@ -445,9 +453,7 @@ Eigen::Matrix3d ReducedContactModel::ComplianceAt(const std::array<int, 3>& cont
     const size_t slot = r.slot_of_vertex[contacts[k]];
     for (int j = 0; j < 3; ++j) {  // the response at vertex j
       if (contacts[j] < 0 || contacts[j] >= nv || !(weights[j] > 0)) continue;
-      for (int d = 0; d < 3; ++d)
-        for (int c = 0; c < 3; ++c)
-          g(c, d) += weights[j] * weights[k] * r.g[((slot * 3 + d) * nv + contacts[j]) * 3 + c];
+      g += weights[j] * weights[k] * Block(r, slot, contacts[j]);
     }
   }
   return 0.5 * (g + g.transpose());
