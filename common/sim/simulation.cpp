@@ -47,7 +47,7 @@ std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::
     std::lock_guard<std::mutex> lock(mutex);  // built while this one waited?
     if (auto alive = tables[key].table.lock()) return alive;
   }
-  tissue::ReducedCache cache(cache_dir.empty() ? tissue::DefaultCacheDirectory() : cache_dir);
+  tissue::ReducedCache cache(cache_dir);
   tissue::CacheReport report;
   auto table = cache.ContactResponseFor(name, in, &report);
   if (!table.ok()) {
@@ -58,6 +58,22 @@ std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::
   std::lock_guard<std::mutex> lock(mutex);
   tables[key].table = shared;
   return shared;
+}
+
+// A point of the rest surface given by its triangle and barycentric coordinates.
+Vec3 RestPoint(const geometry::TriMesh& rest, int triangle, const Vec3& barycentric) {
+  const geometry::Triangle& t = rest.triangles[triangle];
+  return barycentric[0] * rest.positions[t[0]] + barycentric[1] * rest.positions[t[1]] +
+         barycentric[2] * rest.positions[t[2]];
+}
+
+// The scene's tissue as the FEM takes it (E = 2G(1 + ν)).
+tissue::FemParams SceneMaterial(const Scene& scene) {
+  tissue::FemParams p;
+  p.poisson = scene.poisson_ratio;
+  p.young = 2 * scene.shear_modulus * (1 + scene.poisson_ratio);
+  p.density = scene.density;
+  return p;
 }
 
 Vec3 AnyPerpendicular(const Vec3& a) {
@@ -190,9 +206,7 @@ Status Simulation::BuildReduced() {
   if (!fem.ok()) return fem.error();
   tissue::ContactInputs in;
   in.mesh = std::move(*fem);
-  in.material.poisson = scene_.poisson_ratio;
-  in.material.young = 2 * scene_.shear_modulus * (1 + scene_.poisson_ratio);
-  in.material.density = scene_.density;
+  in.material = SceneMaterial(scene_);
   geometry::TriMesh fem_points;
   fem_points.positions = in.mesh.positions;
   in.fixed = SupportedVertices(fem_points, region.support);
@@ -203,7 +217,7 @@ Status Simulation::BuildReduced() {
     if (!held[v]) in.reachable.push_back(v);
   in.params.footprint_radius = region.reduced.footprint_radius;
   Status status = Status::Ok();
-  auto table = SharedContactTable(in, options_.cache_dir, scene_.name + "-contact", status);
+  auto table = SharedContactTable(in, CacheDirectory(), scene_.name + "-contact", status);
   if (!table) return status;
   auto model =
       tissue::ReducedContactModel::Create(table, rest_.positions, region.reduced.max_force);
@@ -227,17 +241,14 @@ Status Simulation::BuildReducedTwist() {
   if (!cylinder.ok()) return cylinder.error();
   tissue::TwistFieldInputs in;
   in.mesh = cylinder->mesh;
-  in.material.poisson = scene_.poisson_ratio;
-  in.material.young = 2 * scene_.shear_modulus * (1 + scene_.poisson_ratio);
-  in.material.density = scene_.density;
+  in.material = SceneMaterial(scene_);
   in.fixed = cylinder->base;
   in.face = cylinder->tip;
   in.face_area = cylinder->tip_area;
   in.origin = Vec3::Zero();
   in.axis = Vec3::UnitZ();
   in.display = rest_.positions;
-  tissue::ReducedCache cache(options_.cache_dir.empty() ? tissue::DefaultCacheDirectory()
-                                                        : options_.cache_dir);
+  tissue::ReducedCache cache(CacheDirectory());
   auto field = cache.TwistFieldFor(scene_.name + "-twist", in);
   if (!field.ok()) return field.error();
   auto model =
@@ -346,9 +357,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       const geometry::Triangle& tri = rest_.triangles[ps.triangle];
       if (!last_contact_) {
         ++input_.contact_id;
-        rest_contact_ = ps.barycentric[0] * rest_.positions[tri[0]] +
-                        ps.barycentric[1] * rest_.positions[tri[1]] +
-                        ps.barycentric[2] * rest_.positions[tri[2]];
+        rest_contact_ = RestPoint(rest_, ps.triangle, ps.barycentric);
         rest_normal_ = geometry::TriangleNormal(rest_, ps.triangle);
       }
       if (button && (coil_ || reduced_twist_)) {
@@ -523,10 +532,7 @@ void Simulation::Deform(const DeformInput& in) {
     case ModelKind::kRingLayer: {
       if (in.triangle >= 0 && in.contact_id != seen_contact_) {
         seen_contact_ = in.contact_id;
-        const geometry::Triangle& tri = rest_.triangles[in.triangle];
-        const Vec3 p = in.barycentric[0] * rest_.positions[tri[0]] +
-                       in.barycentric[1] * rest_.positions[tri[1]] +
-                       in.barycentric[2] * rest_.positions[tri[2]];
+        const Vec3 p = RestPoint(rest_, in.triangle, in.barycentric);
         std::vector<double> rho(rest_.VertexCount());
         for (int v = 0; v < rest_.VertexCount(); ++v) rho[v] = (rest_.positions[v] - p).norm();
         auto ring = tissue::RingLayerModel::Create(rest_.positions, rho, masses_,
@@ -568,9 +574,7 @@ void Simulation::Deform(const DeformInput& in) {
       bool overload = false;
       if (in.triangle >= 0) {
         const geometry::Triangle& tri = rest_.triangles[in.triangle];
-        const Vec3 p0 = in.barycentric[0] * rest_.positions[tri[0]] +
-                        in.barycentric[1] * rest_.positions[tri[1]] +
-                        in.barycentric[2] * rest_.positions[tri[2]];
+        const Vec3 p0 = RestPoint(rest_, in.triangle, in.barycentric);
         const tissue::ReducedStats st = reduced_contact_->PressWithSpring(
             {tri[0], tri[1], tri[2]}, {in.barycentric[0], in.barycentric[1], in.barycentric[2]},
             in.hip, p0, geometry::TriangleNormal(rest_, in.triangle), proxy_.params().stiffness);
@@ -602,6 +606,10 @@ void Simulation::Replay(
     }
     if (on_command) on_command(sample, c);
   }
+}
+
+std::string Simulation::CacheDirectory() const {
+  return options_.cache_dir.empty() ? tissue::DefaultCacheDirectory() : options_.cache_dir;
 }
 
 bool Simulation::Paced() const {

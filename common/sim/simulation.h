@@ -169,6 +169,7 @@ class Simulation {
   Status Build();
   Status BuildReduced();       // the contact table, from the cache or computed (reduced scenes)
   Status BuildReducedTwist();  // the twist field, likewise
+  std::string CacheDirectory() const;  // the reduced models' cache (options or the default)
   bool Paced() const;  // dynamic models step on the clock; quasi-static ones follow requests
   void DeformationLoop();
   void Deform(const DeformInput& in);
