@@ -152,10 +152,8 @@ struct TetLimb {
 };
 
 TetLimb MakeTetLimb(const tissue::TaperedShaft& s, int rings) {
-  const double a = 0.5 * (s.radius_proximal + s.radius_distal);
-  // Linear tetrahedra need thin slices in torsion: about 3 layers per radius of length.
-  const int layers = rings * static_cast<int>(std::ceil(3.0 * s.length / a));
-  auto c = geometry::MakeTetCylinder({s.length, s.radius_proximal, s.radius_distal, rings, layers});
+  auto c = geometry::MakeTetCylinder(
+      geometry::TorsionCylinder(s.length, s.radius_proximal, s.radius_distal, rings));
   return {*c, rings};
 }
 

@@ -146,4 +146,10 @@ Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
   return mesh;
 }
 
+TetCylinderParams TorsionCylinder(double length, double radius_base, double radius_tip, int rings) {
+  const double mean_radius = 0.5 * (radius_base + radius_tip);
+  const int layers = rings * static_cast<int>(std::ceil(3.0 * length / mean_radius));
+  return {length, radius_base, radius_tip, rings, layers};
+}
+
 }  // namespace vsurg::geometry

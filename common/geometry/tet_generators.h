@@ -42,6 +42,10 @@ struct TetCylinder {
 
 Expected<TetCylinder> MakeTetCylinder(const TetCylinderParams& p);
 
+// A tapered cylinder meshed for torsion: linear tetrahedra need thin slices when twisted, about
+// three element layers per mean radius of length for each ring of the cross-section.
+TetCylinderParams TorsionCylinder(double length, double radius_base, double radius_tip, int rings);
+
 struct TetBallParams {
   double radius = 0.05;  // m
   int cells = 8;         // cube cells per axis (even, ≥ 2)

@@ -228,16 +228,12 @@ Status Simulation::BuildReduced() {
 
 Status Simulation::BuildReducedTwist() {
   // The FEM: the limb's tapered cylinder (its proximal end fixed at z = 0, the torque on the
-  // distal face), with about three element layers per mean radius of length per ring (linear
-  // tetrahedra need thin slices in torsion; bench/study/limb_study.cpp).
+  // distal face), meshed for torsion.
   if (centreline_points_.size() < 2)
     return InvalidArgument("regions[0].model.mode", "a reduced twist model needs a limb mesh");
   const geometry::LimbParams& limb = scene_.mesh.limb;
-  const int rings = scene_.region.reduced.fem_rings;
-  const double mean_radius = 0.5 * (limb.radius_proximal + limb.radius_distal);
-  const int layers = rings * static_cast<int>(std::ceil(3.0 * limb.length / mean_radius));
-  auto cylinder = geometry::MakeTetCylinder(
-      {limb.length, limb.radius_proximal, limb.radius_distal, rings, layers});
+  auto cylinder = geometry::MakeTetCylinder(geometry::TorsionCylinder(
+      limb.length, limb.radius_proximal, limb.radius_distal, scene_.region.reduced.fem_rings));
   if (!cylinder.ok()) return cylinder.error();
   tissue::TwistFieldInputs in;
   in.mesh = cylinder->mesh;
