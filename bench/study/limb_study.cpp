@@ -93,7 +93,16 @@ void CoilRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& pro
     variants.push_back({"coil-per-ring", "per-ring fit",
                         ring.ok() ? Expected<tissue::CoilSpringParams>(ring->params)
                                   : Expected<tissue::CoilSpringParams>(ring.error())});
-    variants.push_back({"coil-scene", "scene parameters", c.limb.coil});
+    // The scene file's own coil (with its per-coil rigidities when it has them), on the
+    // built-in limb the file names.
+    auto file = sim::LoadSceneByName(c.scene_file);
+    variants.push_back(
+        {"coil-scene", "scene parameters",
+         !file.ok() ? Expected<tissue::CoilSpringParams>(file.error())
+         : file->region.kind == sim::ModelKind::kCoil
+             ? Expected<tissue::CoilSpringParams>(file->region.coil)
+             : Expected<tissue::CoilSpringParams>(
+                   Error{ErrorCode::kInvalidArgument, "the scene file has no coil", "region"})});
   }
   const double grasp = geometry::ArcLengths(limb->centreline).back();
   const std::vector<int> markers = MarkerVertices(limb->surface.positions, c.shaft);

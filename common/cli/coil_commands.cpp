@@ -277,8 +277,10 @@ int Calibrate(const Args& args, std::ostream& out, std::ostream& err) {
       "vsurg-sim calibrate",
       "Fits the coil model of a built-in limb scene to Saint-Venant torsion of the same tapered\n"
       "limb (fixed proximal end, torque at the distal end), twice: the paper's two parameters\n"
-      "(E*I and F_t) and a per-ring rigidity. Prints the fitted values and the residuals\n"
-      "(relative to the reference's largest twist) of the torque-twist curve and the profiles.");
+      "(E*I and F_t) and a per-ring rigidity, the latter with F_t fitted and with the scene's\n"
+      "F_t held (its capacity kept: what a scene file's \"coil_rigidity\" comes from). Prints\n"
+      "the fitted values and the residuals (relative to the reference's largest twist) of the\n"
+      "torque-twist curve and the profiles.");
   p.Option("scene", Kind::kString, "built-in scene: arm or calf", false, "arm")
       .Option("max-torque", Kind::kDouble, "largest reference torque, N*m", false,
               "the scene's, 2.07")
@@ -305,12 +307,12 @@ int Calibrate(const Args& args, std::ostream& out, std::ostream& err) {
       tissue::SaintVenantCalibrationReference(shaft, max_torque, torques);
   auto paper = tissue::CalibrateTwoParameter(scene->coil, ref);
   auto per_ring = tissue::CalibratePerRing(scene->coil, ref);
-  if (!paper.ok() || !per_ring.ok()) {
-    err << p.command()
-        << ": calibration failed: " << (paper.ok() ? per_ring.error() : paper.error()).message
-        << "\n";
-    return kExitRuntime;
-  }
+  auto at_capacity = tissue::CalibratePerRingAtCapacity(scene->coil, ref);
+  for (const auto* fit : {&paper, &per_ring, &at_capacity})
+    if (!fit->ok()) {
+      err << p.command() << ": calibration failed: " << fit->error().message << "\n";
+      return kExitRuntime;
+    }
   if (p.Flag("json")) {
     json j;
     j["scene"] = scene->name;
@@ -321,6 +323,7 @@ int Calibrate(const Args& args, std::ostream& out, std::ostream& err) {
                       {"twist_at_max_torque", ref.curve_twist.back()}};
     j["two_parameter"] = FitJson(*paper);
     j["per_ring"] = FitJson(*per_ring);
+    j["per_ring_at_capacity"] = FitJson(*at_capacity);
     out << j.dump() << "\n";
     return 0;
   }
@@ -332,7 +335,7 @@ int Calibrate(const Args& args, std::ostream& out, std::ostream& err) {
   out << line;
   auto row = [&](const char* name, const tissue::CalibrationFit& f) {
     std::snprintf(line, sizeof line,
-                  "%-13s E*I %.4g N*m^2, F_t %.4g N: curve rms %.1f%% max %.1f%%; profile rms "
+                  "%-18s E*I %.4g N*m^2, F_t %.4g N: curve rms %.1f%% max %.1f%%; profile rms "
                   "%.1f%% max %.1f%%\n",
                   name, f.flexural_rigidity, f.max_force, 100 * f.curve_rms, 100 * f.curve_max,
                   100 * f.profile_rms, 100 * f.profile_max);
@@ -340,6 +343,7 @@ int Calibrate(const Args& args, std::ostream& out, std::ostream& err) {
   };
   row("two-parameter", *paper);
   row("per-ring", *per_ring);
+  row("per-ring, F_t held", *at_capacity);
   return 0;
 }
 

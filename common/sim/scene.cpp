@@ -30,9 +30,10 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr size_t kCoilBytesPerVertex = 1536;
 constexpr size_t kMassSpringBytesPerVertex = 4096;
 constexpr size_t kRingLayerBytesPerVertex = 1536;
-// Reduced contact: the per-vertex costs of a ring-layer scene plus the table, 36 B per
-// (contact, vertex) pair with every vertex a contact at worst (reduced.h).
-constexpr size_t kReducedBytesPerVertex = 1536, kReducedBytesPerVertexPair = 36;
+// Reduced contact: the per-vertex costs of a ring-layer scene plus the table, 72 B per
+// (contact, vertex) pair with every vertex a contact at worst (reduced.h: 36 B of displacement
+// and 36 B of rotation responses).
+constexpr size_t kReducedBytesPerVertex = 1536, kReducedBytesPerVertexPair = 72;
 
 // Typed field access with errors that name the field by its path.
 class Reader {
@@ -90,6 +91,25 @@ class Reader {
   }
   Expected<std::string> StringOr(const char* key, const std::string& fallback) const {
     return String(key, &fallback);
+  }
+  // An optional array of `size` numbers in [lo, hi]; absent → empty.
+  Expected<std::vector<double>> NumbersOr(const char* key, size_t size, double lo,
+                                          double hi) const {
+    if (!j_.contains(key)) return std::vector<double>{};
+    if (!j_[key].is_array() || j_[key].size() != size)
+      return Bad(key, "must be an array of " + std::to_string(size) + " numbers");
+    std::vector<double> out;
+    for (size_t i = 0; i < size; ++i) {
+      const json& v = j_[key][i];
+      const double x = v.is_number() ? v.get<double>() : NAN;
+      if (!std::isfinite(x) || x < lo || x > hi) {
+        std::ostringstream why;
+        why << "[" << i << "] must be a number in [" << lo << ", " << hi << "]";
+        return Bad(key, why.str());
+      }
+      out.push_back(x);
+    }
+    return out;
   }
 
   Error Missing(const char* key) const {
@@ -166,7 +186,10 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
     VSURG_TRY(modulus, r.Number("modulus", 1e-3, 1e13));
     VSURG_TRY(max_force, r.Number("max_force", 1e-9, 1e6));
     VSURG_TRY(friction, r.NumberOr("friction", 1.25, 1e-3, 100));
-    c = {core, thickness, width, coils, modulus, max_force, friction, {}};
+    // Per-coil flexural rigidities E·I_i (N·m², one per coil; `vsurg-sim calibrate` prints
+    // them): the per-ring fit that makes the paper's model a reduced model of Saint-Venant.
+    VSURG_TRY(rigidity, r.NumbersOr("coil_rigidity", static_cast<size_t>(coils), 1e-12, 1e12));
+    c = {core, thickness, width, coils, modulus, max_force, friction, std::move(rigidity)};
     if (auto m = tissue::CoilSpringModel::Create(c); !m.ok())
       return r.Bad(m.error().field.c_str(), m.error().message);
   } else if (type == "mass-spring" || type == "ring-layer" || type == "reduced") {

@@ -11,9 +11,11 @@
 //   * two-parameter (the paper's model): one u for all coils, in closed form, and F_t by a
 //     scan plus golden-section search on log F_t;
 //   * per-ring (beyond the paper): one u_i per coil by non-negative least squares (Lawson &
-//     Hanson 1974), same search on F_t. The model keeps its cost per update; it becomes a
-//     reduced-order model of the reference. Coils no load case reaches keep the two-parameter
-//     value; a zero fitted compliance is floored (the ring is then nearly rigid).
+//     Hanson 1974), same search on F_t, or F_t held (the capacity kept). The model keeps its cost
+//     per update; it becomes a reduced-order model of the reference. The NNLS carries a Tikhonov
+//     penalty on neighbouring coils' compliance differences (smooth, outward-growing rigidities
+//     instead of a 30× zig-zag), so coils no load case reaches continue the last reached one; a
+//     zero fitted compliance is floored (the ring is then nearly rigid).
 // Residuals are reported relative to the reference's largest |twist|: for the curve over all
 // its points, for each profile over that profile (RMS and max over all profile samples).
 //
@@ -54,6 +56,11 @@ Expected<CalibrationFit> CalibrateTwoParameter(const CoilSpringParams& geometry,
                                                const CalibrationReference& reference);
 Expected<CalibrationFit> CalibratePerRing(const CoilSpringParams& geometry,
                                           const CalibrationReference& reference);
+// Per ring with F_t held at the geometry's: the capacity Σ C_i (a scene's largest torque, e.g.
+// the forearm's 3.3 N·m) stays what the scene says, and only the compliances are fitted (one
+// NNLS). What a scene file's "coil_rigidity" comes from.
+Expected<CalibrationFit> CalibratePerRingAtCapacity(const CoilSpringParams& geometry,
+                                                    const CalibrationReference& reference);
 
 // A Saint-Venant reference for a shaft grasped at its distal end: the torque–twist curve at
 // `torques` torques evenly up to max_torque (N·m) and, at each, the profile at `samples` distances

@@ -243,6 +243,15 @@ TEST(VsurgSimTest, CalibrateReportsBothFits) {
   EXPECT_EQ(one["reference"]["torques"], 1);
   EXPECT_LT(one["per_ring"]["profile_rms"].get<double>(),
             0.2 * one["two_parameter"]["profile_rms"].get<double>());
+  // The per-ring fit with the scene's F_t held keeps the arm's 3.3 N·m capacity (what
+  // scenes/arm-torsion.json carries) and still beats the paper's two parameters over a ramp.
+  const json full =
+      json::parse(Sim({"calibrate", "--scene", "arm", "--shear-modulus", "224702", "--json"}).out);
+  const json& held = full["per_ring_at_capacity"];
+  EXPECT_NEAR(held["capacity"].get<double>(), 3.30, 1e-9);
+  EXPECT_EQ(held["coil_rigidity"].size(), 23u);
+  EXPECT_LT(held["profile_rms"].get<double>(),
+            0.8 * full["two_parameter"]["profile_rms"].get<double>());
 }
 
 TEST(VsurgSimTest, MsmPressesTheSphereWithEveryIntegrator) {

@@ -2,8 +2,10 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -45,6 +47,22 @@ TEST(SceneTest, ArmAndCalfFilesMatchTheBuiltInDefaults) {
     EXPECT_NEAR(a.max_force, b.max_force, 1e-15);
     EXPECT_EQ(scene->mesh.limb.length, limb->limb.length);
   }
+}
+
+// arm-torsion carries the per-ring fit with the capacity kept (`vsurg-sim calibrate`'s line
+// "per-ring, F_t held"): one rigidity per coil, growing outwards, the built-in arm's 3.3 N·m
+// capacity, and 60° at seed 000's 2.07 N·m within the fit's curve error.
+TEST(SceneTest, TheArmSceneCarriesPerCoilRigiditiesAndKeepsItsCapacity) {
+  auto scene = LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  const tissue::CoilSpringParams& c = scene->region.coil;
+  ASSERT_EQ(static_cast<int>(c.coil_rigidity.size()), c.coils);
+  for (int i = 1; i < c.coils; ++i) EXPECT_GE(c.coil_rigidity[i], 0.95 * c.coil_rigidity[i - 1]);
+  auto model = tissue::CoilSpringModel::Create(c);
+  ASSERT_TRUE(model.ok());
+  EXPECT_NEAR(model->Capacity(), 3.30, 1e-9);
+  EXPECT_NEAR(model->Forward(2.07).total_twist, 60.0 * std::numbers::pi / 180, 0.1);
+  for (int i = 1; i <= c.coils; ++i) EXPECT_EQ(model->CoilRigidity(i), c.coil_rigidity[i - 1]);
 }
 
 TEST(SceneTest, AMeshFileInMillimetresIsReadThroughAssimp) {
@@ -181,6 +199,25 @@ TEST(SceneTest, BadScenesNameTheField) {
   EXPECT_NE(Field(Replace(Minimal(), R"("regions": [)",
                           R"("regions": [{"model": {"type": "ring-layer"}}, )"))
                 .find("regions: must be an array with exactly one"),
+            std::string::npos);
+  // Per-coil rigidities: one per coil, each a positive number.
+  const std::string coil = Replace(
+      Replace(
+          Minimal(), R"("type": "mass-spring", "structural_stiffness": 50)",
+          R"("type": "coil", "mode": "surface", "core_radius": 0.004, "thickness": 0.004, "width": 0.01, )"
+          R"("coils": 3, "modulus": 1e8, "max_force": 0.1, "coil_rigidity": [1, 2, 3])"),
+      R"("type": "press")", R"("type": "twist", "target_deg": 30, "tolerance_deg": 5)");
+  ASSERT_TRUE(ParseScene(coil, "x.json").ok()) << ParseScene(coil, "x.json").error().message;
+  EXPECT_EQ(ParseScene(coil, "x.json")->region.coil.coil_rigidity, (std::vector<double>{1, 2, 3}));
+  EXPECT_NE(Field(Replace(coil, "[1, 2, 3]", "[1, 2]"))
+                .find("regions[0].model.coil_rigidity: must be an array of 3 numbers"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(coil, "[1, 2, 3]", R"([1, -2, 3])"))
+                .find("regions[0].model.coil_rigidity: [1] must be a number in"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(coil, "[1, 2, 3]", R"([1, "x", 3])")).find("coil_rigidity: [1]"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(coil, "[1, 2, 3]", "7")).find("coil_rigidity: must be an array"),
             std::string::npos);
   auto missing = LoadSceneByName("no-such-scene");
   ASSERT_FALSE(missing.ok());
