@@ -83,7 +83,8 @@ int Run(const Args& args, std::ostream& out, std::ostream& err) {
       {haptics::kEventRateLimited, "rate_limited"},
       {haptics::kEventGated, "gated"},
       {haptics::kEventStiffnessClamped, "stiffness_clamped"},
-      {haptics::kEventOverload, "overload"}};
+      {haptics::kEventOverload, "overload"},
+      {haptics::kEventOutsideModel, "outside_model"}};
   double peak = 0;
   s.Replay(*samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
     const double f = c.force.norm();

@@ -48,6 +48,9 @@ enum HapticEvent : uint32_t {
   // The station's clock jumped (forward by more than sim::kMaxClockStepS, or backwards): the
   // session's trial clock advanced by at most that bound, so one sample's work stays bounded.
   kEventClockJump = 1u << 9,
+  // The contact is where the reduced model has no precomputed response (e.g. next to the fixed
+  // support): the nearest precomputed contact answered, so the force is bounded but less exact.
+  kEventOutsideModel = 1u << 10,
 };
 
 struct ForceCommand {

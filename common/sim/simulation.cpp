@@ -412,6 +412,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
   cmd.local.jacobian = jacobian;
   safety_.LimitLocalModel(cmd.local, out, events);
   if (overload) events |= haptics::kEventOverload;
+  if (snap.outside_model && cmd.contact) events |= haptics::kEventOutsideModel;
   cmd.events = events;
   recorder_.Add(trial_time_, s.position, quantity, out.norm(), overload);
   ++samples_;
@@ -459,13 +460,14 @@ void Simulation::PublishInput() {
   input_version_.notify_one();
 }
 
-void Simulation::Publish(const std::vector<Vec3>& positions, bool overload) {
+void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model) {
   const size_t n = rest_.positions.size();
   Snapshot& back = surface_.Back();
   std::copy(positions.begin(), positions.begin() + n, back.positions.begin());
   back.bvh.Refit(back.positions);
   back.id = ++publish_id_;
   back.overload = overload;
+  back.outside_model = outside_model;
   surface_.Publish();
   VisualPositions& v = visual_.Back();
   std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
@@ -567,7 +569,7 @@ void Simulation::Deform(const DeformInput& in) {
       seen_triangle_ = in.triangle;
       applied_hip_ = in.hip;
       applied_barycentric_ = in.barycentric;
-      bool overload = false;
+      bool overload = false, outside_model = false;
       if (in.triangle >= 0) {
         const geometry::Triangle& tri = rest_.triangles[in.triangle];
         const Vec3 p0 = RestPoint(rest_, in.triangle, in.barycentric);
@@ -576,10 +578,11 @@ void Simulation::Deform(const DeformInput& in) {
             in.hip, p0, geometry::TriangleNormal(rest_, in.triangle), proxy_.params().stiffness);
         if (!st.ok) reduced_contact_->Release();
         overload = st.saturated;
+        outside_model = st.fallback;
       } else {
         reduced_contact_->Release();
       }
-      Publish(reduced_contact_->positions(), overload);
+      Publish(reduced_contact_->positions(), overload, outside_model);
       return;
     }
   }

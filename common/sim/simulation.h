@@ -145,6 +145,7 @@ class Simulation {
     geometry::Bvh bvh;
     uint64_t id = 0;
     bool overload = false;
+    bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
   };
   // What the haptic path asks of the deformation.
   struct DeformInput {
@@ -173,7 +174,8 @@ class Simulation {
   bool Paced() const;  // dynamic models step on the clock; quasi-static ones follow requests
   void DeformationLoop();
   void Deform(const DeformInput& in);
-  void Publish(const std::vector<geometry::Vec3>& positions, bool overload);
+  void Publish(const std::vector<geometry::Vec3>& positions, bool overload,
+               bool outside_model = false);
   void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
 

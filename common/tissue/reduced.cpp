@@ -71,6 +71,17 @@ void TwistDisplacements(int nv, float t, const float* __restrict r1, const float
 
 }  // namespace
 
+Vec3 WarpedDisplacement(const Vec3& w_in, const Vec3& u) {
+  Vec3 w = w_in;
+  const double kMax = std::numbers::pi / 2;
+  double theta = w.norm();
+  if (theta > kMax) w *= kMax / theta, theta = kMax;
+  if (theta < 1e-12) return u;
+  const double t2 = theta * theta;
+  const double a = (1 - std::cos(theta)) / t2, b = (theta - std::sin(theta)) / (t2 * theta);
+  return u + a * w.cross(u) + b * w.cross(w.cross(u));
+}
+
 // ---- 1. Twist field ---------------------------------------------------------------------------
 
 Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
@@ -279,6 +290,49 @@ std::vector<std::pair<int, double>> FootprintWeights(const geometry::TriMesh& bo
   return w;
 }
 
+// The linearised rotation w = ½∇×u (rad) at every vertex of a tet mesh displaced by u (m): the
+// axial vector of the skew part of each element's constant gradient H = Σ_a u_a ⊗ ∇N_a,
+// averaged at the vertices weighted by element volume. `grad` holds each element's shape
+// gradients ∇N_1..3 as the rows of Dm⁻¹ (∇N_0 = −their sum), `volume` its volume.
+std::vector<Vec3> NodalRotations(const geometry::TetMesh& mesh,
+                                 const std::vector<Eigen::Matrix3d>& grad,
+                                 const std::vector<double>& volume,
+                                 const std::vector<double>& vertex_volume,
+                                 const std::vector<Vec3>& u) {
+  std::vector<Vec3> w(mesh.positions.size(), Vec3::Zero());
+  for (size_t e = 0; e < mesh.tetrahedra.size(); ++e) {
+    const auto& t = mesh.tetrahedra[e];
+    Eigen::Matrix3d h = Eigen::Matrix3d::Zero();  // ∂u_i/∂x_j
+    const Vec3 u0 = u[t[0]];
+    for (int a = 1; a < 4; ++a) h += (u[t[a]] - u0) * grad[e].row(a - 1);
+    const Vec3 axial(h(2, 1) - h(1, 2), h(0, 2) - h(2, 0), h(1, 0) - h(0, 1));
+    for (int a = 0; a < 4; ++a) w[t[a]] += 0.5 * volume[e] * axial;
+  }
+  for (size_t i = 0; i < w.size(); ++i)
+    if (vertex_volume[i] > 0) w[i] /= vertex_volume[i];
+  return w;
+}
+
+// R̃(w)·u for one vertex in float (reduced.h, 3.): θ² held at (π/2)², A and B by their Taylor
+// series in θ² (errors < 2e-5 at π/2), no branch, so the loop over vertices vectorises.
+inline void Warp(float wx, float wy, float wz, float ux, float uy, float uz, float& ox, float& oy,
+                 float& oz) {
+  constexpr float kMax2 = 2.4674011f;  // (π/2)²
+  float t2 = wx * wx + wy * wy + wz * wz;
+  const float s = t2 > kMax2 ? std::sqrt(kMax2 / t2) : 1.f;
+  wx *= s, wy *= s, wz *= s;
+  t2 = std::min(t2, kMax2);
+  const float a =
+      0.5f + t2 * (-1.f / 24 + t2 * (1.f / 720 + t2 * (-1.f / 40320 + t2 * (1.f / 3628800))));
+  const float b = 1.f / 6 + t2 * (-1.f / 120 +
+                                  t2 * (1.f / 5040 + t2 * (-1.f / 362880 + t2 * (1.f / 39916800))));
+  const float c1x = wy * uz - wz * uy, c1y = wz * ux - wx * uz, c1z = wx * uy - wy * ux;
+  const float c2x = wy * c1z - wz * c1y, c2y = wz * c1x - wx * c1z, c2z = wx * c1y - wy * c1x;
+  ox = ux + a * c1x + b * c2x;
+  oy = uy + a * c1y + b * c2y;
+  oz = uz + a * c1z + b * c2z;
+}
+
 // The 3×3 block of a contact table: the displacement of `vertex` (rows) per unit force in x, y
 // and z (columns) at the contact in `slot`, m/N.
 Eigen::Matrix3d Block(const ContactResponse& r, size_t slot, int vertex) {
@@ -307,7 +361,8 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
     if (!pre[v]) contacts.push_back(v), pre[v] = 1;
   }
   if (contacts.empty()) return InvalidArgument("reachable", "no vertex a tool can reach");
-  const int64_t bytes = static_cast<int64_t>(contacts.size()) * nv * 9 * 4;
+  const int64_t bytes =
+      static_cast<int64_t>(contacts.size()) * nv * 9 * 4 * (params.rotation ? 2 : 1);
   if (bytes > params.max_bytes)
     return InvalidArgument("reachable", std::to_string(contacts.size()) + " contacts × " +
                                             std::to_string(nv) + " vertices need " +
@@ -326,6 +381,19 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
   out.footprint_radius = params.footprint_radius;
   for (const auto& e : *embedding) out.max_distance = std::max(out.max_distance, e.distance);
   out.g.assign(contacts.size() * 9 * static_cast<size_t>(nv), 0.f);
+  if (params.rotation) out.w.assign(out.g.size(), 0.f);
+  // The FEM's shape gradients and volumes, for the rotation responses.
+  const geometry::TetMesh& tets = fem.rest();
+  std::vector<Eigen::Matrix3d> grad(tets.tetrahedra.size());
+  std::vector<double> volume(tets.tetrahedra.size()), vertex_volume(tets.positions.size(), 0.0);
+  for (size_t e = 0; e < tets.tetrahedra.size() && params.rotation; ++e) {
+    const auto& t = tets.tetrahedra[e];
+    Eigen::Matrix3d dm;
+    for (int a = 1; a < 4; ++a) dm.col(a - 1) = tets.positions[t[a]] - tets.positions[t[0]];
+    volume[e] = std::abs(dm.determinant()) / 6.0;
+    grad[e] = dm.inverse();
+    for (int a = 0; a < 4; ++a) vertex_volume[t[a]] += volume[e];
+  }
   std::vector<Vec3> f(fem.VertexCount());
   for (size_t s = 0; s < contacts.size(); ++s) {
     const int c = contacts[s];
@@ -341,6 +409,15 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
         if (!x.allFinite())
           return Error{ErrorCode::kNumerical, "a unit-force solve is not finite", "fem"};
         for (int k = 0; k < 3; ++k) g[3 * i + k] = static_cast<float>(x[k]);
+      }
+      if (!params.rotation) continue;
+      const std::vector<Vec3> nodal = NodalRotations(tets, grad, volume, vertex_volume, u);
+      float* w = out.w.data() + (s * 3 + d) * 3 * static_cast<size_t>(nv);
+      for (int i = 0; i < nv; ++i) {
+        const Vec3 x = geometry::Interpolate((*embedding)[i], nodal);
+        if (!x.allFinite())
+          return Error{ErrorCode::kNumerical, "a unit-force rotation is not finite", "fem"};
+        for (int k = 0; k < 3; ++k) w[3 * i + k] = static_cast<float>(x[k]);
       }
     }
   }
@@ -373,12 +450,17 @@ Expected<ReducedContactModel> ReducedContactModel::Create(
   for (int s : response.slot_of_vertex)
     if (s < 0 || s >= static_cast<int>(response.contacts.size()))
       return InvalidArgument("response", "a vertex names a contact slot out of range");
-  for (float x : response.g)
-    if (!std::isfinite(x)) return InvalidArgument("response", "the table is not finite");
+  if (!response.w.empty() && response.w.size() != response.g.size())
+    return InvalidArgument("response", "the rotation table does not match the displacements");
+  for (const std::vector<float>* values : {&response.g, &response.w})
+    for (float x : *values)
+      if (!std::isfinite(x)) return InvalidArgument("response", "the table is not finite");
   ReducedContactModel m;
   m.rest_ = display_rest;
   m.positions_ = display_rest;
   m.max_force_ = max_force;
+  m.u_.assign(3 * static_cast<size_t>(nv), 0.f);
+  if (!response.w.empty()) m.w_.assign(3 * static_cast<size_t>(nv), 0.f);
   m.compliance_.resize(response.contacts.size());
   for (size_t s = 0; s < response.contacts.size(); ++s) {
     const int c = response.contacts[s];
@@ -425,18 +507,31 @@ ReducedStats ReducedContactModel::Press(const std::array<int, 3>& contacts,
   stats.load = f.norm();
   const int nv = VertexCount();
   const double sum = weights[0] + weights[1] + weights[2];
-  const double* __restrict rest = rest_.data()->data();
-  double* __restrict out = positions_.data()->data();
-  std::copy(rest, rest + 3 * nv, out);
+  const bool warp = !w_.empty();
+  float* __restrict u = u_.data();
+  float* __restrict rot = w_.data();
+  std::fill(u_.begin(), u_.end(), 0.f);
+  std::fill(w_.begin(), w_.end(), 0.f);
   for (int k = 0; k < 3; ++k) {
     if (!(weights[k] > 0)) continue;
     const double w = sum > 0 ? weights[k] / sum : 1.0;
     const float fx = static_cast<float>(w * f.x()), fy = static_cast<float>(w * f.y()),
                 fz = static_cast<float>(w * f.z());
-    const float* __restrict gx = response_->g.data() + static_cast<size_t>(slot[k]) * 9 * nv;
-    const float* __restrict gy = gx + 3 * static_cast<size_t>(nv);
-    const float* __restrict gz = gy + 3 * static_cast<size_t>(nv);
-    for (int j = 0; j < 3 * nv; ++j) out[j] += fx * gx[j] + fy * gy[j] + fz * gz[j];
+    const size_t at = static_cast<size_t>(slot[k]) * 9 * nv, col = 3 * static_cast<size_t>(nv);
+    const float* __restrict gx = response_->g.data() + at;
+    for (int j = 0; j < 3 * nv; ++j) u[j] += fx * gx[j] + fy * gx[col + j] + fz * gx[2 * col + j];
+    if (!warp) continue;
+    const float* __restrict px = response_->w.data() + at;
+    for (int j = 0; j < 3 * nv; ++j) rot[j] += fx * px[j] + fy * px[col + j] + fz * px[2 * col + j];
+  }
+  const double* __restrict rest = rest_.data()->data();
+  double* __restrict out = positions_.data()->data();
+  for (int i = 0; i < nv; ++i) {
+    float ox = u[3 * i], oy = u[3 * i + 1], oz = u[3 * i + 2];
+    if (warp) Warp(rot[3 * i], rot[3 * i + 1], rot[3 * i + 2], ox, oy, oz, ox, oy, oz);
+    out[3 * i] = rest[3 * i] + ox;
+    out[3 * i + 1] = rest[3 * i + 1] + oy;
+    out[3 * i + 2] = rest[3 * i + 2] + oz;
   }
   return stats;
 }

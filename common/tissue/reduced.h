@@ -31,9 +31,23 @@
 //    gets the force from the contact's own 3×3 block: F = G_cc⁻¹·δ, the capacitance matrix of
 //    James & Pai (1999) for one contact, and that inverse is also the stiffness the station's
 //    local model needs. Memory: 36 B × reachable contacts × display vertices (1,026-vertex
-//    sphere, every vertex reachable: 37.9 MB); `Create` refuses more than max_bytes.
-//    Not done here: the rotation correction for large local deformation (a linear response
-//    pressed deep inflates the volume); it shows as error at the deep end of a press.
+//    sphere, every vertex reachable: 37.9 MB), twice that with the rotation correction;
+//    `Create` refuses more than max_bytes.
+//
+// 3. Rotation correction of the contact responses (the static form of modal warping, Choi & Ko,
+//    IEEE TVCG 11(1) 2005, eq. 9–11). A linear response moves every point along a straight
+//    line, so material that turns (the surface tilting into a deep press) is stretched: a
+//    rotation by θ moves a point at distance r by r·θ instead of 2r·sin(θ/2) and lengthens it to
+//    r·√(1+θ²), inflating the volume. Beside each displacement response the table keeps the
+//    linearised rotation it carries, w = ½∇×u (the FEM's element gradients, volume-averaged at
+//    its vertices, interpolated like u), so a press gives per vertex u = G·F and w = Ψ·F, and
+//    the vertex moves by ũ = R̃(w)·u, the displacement integrated in a frame that turns
+//    uniformly from 0 to w:
+//      R̃(w) = ∫₀¹ R(s·w) ds = I + A(θ)·[w]× + B(θ)·[w]×²,  θ = |w|,
+//      A = (1 − cos θ)/θ², B = (θ − sin θ)/θ³.
+//    For a rigid turn (u = w × r) this is exactly (R(w) − I)·r: lengths are kept. The
+//    correction is second order in the load, so a small press is the FEM's linear response
+//    still; θ is held at ≤ π/2 (no press turns the surface further).
 //
 // Hard cases: a non-finite torque, force or displacement is refused (the positions keep the
 // last good state, the result says so); a torque or force past the model's capacity is clamped
@@ -86,6 +100,10 @@ struct ReducedStats {
   double load = 0;         // torque (N·m) or force magnitude (N) actually applied
 };
 
+// The rotation correction's operator R̃(w)·u (reduced.h, 3.) for one vertex, in double: the
+// reference the vectorised loop is tested against. w in rad (held at |w| ≤ π/2), u in m.
+Eigen::Vector3d WarpedDisplacement(const Eigen::Vector3d& w, const Eigen::Vector3d& u);
+
 class ReducedTwistModel {
  public:
   // `max_twist`: the largest angle any vertex may turn (rad, ≤ π); the torque capacity follows
@@ -116,6 +134,7 @@ class ReducedTwistModel {
 struct ContactResponseParams {
   double footprint_radius = 0.005;  // m: the tool tip's contact disc
   int64_t max_bytes = 256ll << 20;  // refuse a table larger than this
+  bool rotation = true;             // keep the rotation responses (3.): twice the memory
 };
 
 struct ContactResponse {
@@ -125,9 +144,12 @@ struct ContactResponse {
   std::vector<uint8_t> precomputed;  // display vertex → 1 when it has its own slot
   // g[((slot·3 + d)·vertices + i)·3 + k]: vertex i's displacement k per unit force in d (m/N).
   std::vector<float> g;
+  // The same layout: vertex i's linearised rotation k per unit force in d (rad/N, ½∇×u); empty
+  // without the rotation correction.
+  std::vector<float> w;
   double footprint_radius = 0;
   double max_distance = 0;  // m: the display vertex farthest outside the FEM mesh
-  int64_t Bytes() const { return static_cast<int64_t>(g.size()) * 4; }
+  int64_t Bytes() const { return static_cast<int64_t>(g.size() + w.size()) * 4; }
 };
 
 // `reachable`: the display vertices a tool can touch (the scene's workspace; not the fixed
@@ -186,6 +208,7 @@ class ReducedContactModel {
   int Slot(int contact, ReducedStats& stats) const;
   std::shared_ptr<const ContactResponse> response_;
   std::vector<Eigen::Vector3d> rest_, positions_;
+  std::vector<float> u_, w_;  // scratch (3 per vertex): the press's displacement and rotation
   std::vector<Eigen::Matrix3d> compliance_;  // G_cc per slot
   double max_force_ = 0;
 };

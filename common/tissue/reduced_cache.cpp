@@ -208,6 +208,7 @@ std::string ContactKeyBytes(const ContactInputs& in) {
   for (const auto& t : in.display.triangles) key.Put(t);
   key.PutVector(in.reachable);
   key.Put(in.params.footprint_radius);
+  key.Put(static_cast<uint8_t>(in.params.rotation));
   return key.bytes();
 }
 
@@ -299,8 +300,11 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
         !r.Get(c.max_distance) || !r.Get(contacts) || contacts > nv)
       return false;
     c.vertices = vertices;
+    uint8_t rotation = 0;
     return r.GetVector(c.contacts, contacts) && r.GetVector(c.slot_of_vertex, nv) &&
-           r.GetVector(c.precomputed, nv) && r.GetVector(c.g, contacts * 9 * nv) && r.AtEnd();
+           r.GetVector(c.precomputed, nv) && r.GetVector(c.g, contacts * 9 * nv) &&
+           r.Get(rotation) && rotation == static_cast<uint8_t>(in.params.rotation) &&
+           r.GetVector(c.w, rotation ? contacts * 9 * nv : 0) && r.AtEnd();
   };
   auto compute = [&]() -> Expected<ContactResponse> {
     auto fem = FemStaticResponse::Create(in.mesh, in.material, in.fixed);
@@ -317,6 +321,8 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
     w.PutVector(c.slot_of_vertex);
     w.PutVector(c.precomputed);
     w.PutVector(c.g);
+    w.Put(static_cast<uint8_t>(!c.w.empty()));
+    w.PutVector(c.w);
     return w.bytes();
   };
   return Cached<ContactResponse>(dir_, name, ContactKeyBytes(in), report, decode, compute, encode);

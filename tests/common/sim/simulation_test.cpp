@@ -214,6 +214,55 @@ TEST(SimulationTest, TheLocalModelPredictsTheNextUpdateOnAReducedSphere) {
   fs::remove_all(dir);
 }
 
+// A contact where the reduced table has no response of its own (next to the table the sphere
+// rests on, whose vertices are held): the nearest precomputed contact answers, the force stays
+// bounded and finite, and every such sample carries kEventOutsideModel; a contact on the top
+// does not.
+TEST(SimulationTest, AContactOutsideTheReducedModelIsBoundedAndFlagged) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("vsurg_om_cache_" + std::to_string(::getpid()));
+  auto scene = LoadSceneByName("sphere-palpation-1024");
+  ASSERT_TRUE(scene.ok());
+  auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  haptics::StylusSample s;
+  double t = 0;
+  // Press straight in along `dir` to `depth` past the rest surface at `at`; count the samples in
+  // contact and those flagged.
+  auto press = [&](const Eigen::Vector3d& at, const Eigen::Vector3d& inward, int& contact,
+                   int& flagged, double& peak) {
+    contact = flagged = 0;
+    peak = 0;
+    for (int i = 0; i <= 800; ++i) {
+      const double d = std::min(0.004, -0.01 + i * 2e-5);  // from 1 cm out to 4 mm in
+      s.position = at + d * inward;
+      s.time = (t += 1e-3);
+      const haptics::ForceCommand c = (*sim)->OnStylus(s);
+      (*sim)->StepDeformation();
+      ASSERT_TRUE(c.force.allFinite());
+      peak = std::max(peak, c.force.norm());
+      contact += c.contact;
+      flagged += (c.events & haptics::kEventOutsideModel) != 0;
+    }
+    s.position = at - 0.05 * inward;  // away, out of contact
+    for (int i = 0; i < 50; ++i)
+      s.time = (t += 1e-3), (*sim)->OnStylus(s), (*sim)->StepDeformation();
+  };
+  int contact = 0, flagged = 0;
+  double peak = 0;
+  // The side of the ball 4 cm below its centre (the held bottom fifth ends 3 cm below it).
+  const double z = -0.04, r = std::sqrt(0.05 * 0.05 - z * z);
+  press(Eigen::Vector3d(r, 0.0003, z), -Eigen::Vector3d::UnitX(), contact, flagged, peak);
+  EXPECT_GT(contact, 100);
+  EXPECT_GT(flagged, contact / 2);
+  EXPECT_LE(peak, scene->haptics.limits.max_force + 1e-9);
+  // The top: precomputed, never flagged.
+  press(Eigen::Vector3d(0.0005, 0.0003, 0.05), -Eigen::Vector3d::UnitZ(), contact, flagged, peak);
+  EXPECT_GT(contact, 100);
+  EXPECT_EQ(flagged, 0);
+  fs::remove_all(dir);
+}
+
 TEST(SimulationTest, BadSamplesGiveZeroForceAndAnEventThenTheGateRearms) {
   auto scene = LoadSceneByName("sphere-palpation-256");
   auto sim = Simulation::Create(*scene, {false});

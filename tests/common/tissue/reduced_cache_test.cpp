@@ -139,6 +139,8 @@ TEST_F(ReducedCacheTest, ContactTablesRoundTripAndBadNamesOrDirsAreReported) {
   ASSERT_TRUE(second.ok());
   EXPECT_EQ(r.outcome, CacheOutcome::kHit);
   EXPECT_EQ(first->g, second->g);
+  EXPECT_EQ(first->w.size(), first->g.size());  // the rotation responses are cached too
+  EXPECT_EQ(first->w, second->w);
   EXPECT_EQ(first->contacts, second->contacts);
   EXPECT_EQ(first->slot_of_vertex, second->slot_of_vertex);
   in.params.footprint_radius *= 2;
