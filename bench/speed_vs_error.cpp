@@ -9,16 +9,19 @@
 //   calf-ramp    the calf to 2.07 N·m, effective modulus as the calf scene (30°).
 //   sphere-palpation  a 5 cm ball fixed on its lower cap, pressed on top by 0.2 N spread over a
 //                1 cm cap. Reference: the finest FEM (no closed form exists).
+//   kidney-palpation  the kidney of scenes/kidney-palpation.json (an STL read by assimp,
+//                tetrahedralised by CGAL), held on its lower fifth, pressed on its top like the
+//                sphere. Reference: the FEM of the same surface at 4 mm tetrahedra.
 // Markers: ten, like seed 000 Fig. 8. Limbs: on the top of the limb at z = (k − ½)/10 · L from
 // the fixed end (marker 10 is next to the grasp); sphere: along a meridian from the pole,
-// polar angle 5°·(k − 1). Each model reads each marker at its own nearest surface vertex, and
-// the reference is evaluated at that same rest point. Error: |d_model − d_ref| (vectors),
-// relative to the reference's largest marker displacement; RMS over the ten and max.
-// Time per update: the median over repeats of what a deformation update costs the model in use:
-// coil — one deformation for a new torque; FEM — one implicit step (h = 1 ms); mass-spring —
-// advancing 1 ms (substeps where the integrator needs them to stay stable); ring layer — one
-// step. Dynamic models are judged after a ramp (1 s) and a hold (2 s) at 1 kHz, so lag and
-// ringing count against them; a diverged run is reported as such.
+// polar angle 5°·(k − 1); kidney: on its upper side from the top along x, 5 mm apart. Each model
+// reads each marker at its own nearest surface vertex, and the reference is evaluated at that same
+// rest point. Error: |d_model − d_ref| (vectors), relative to the reference's largest marker
+// displacement; RMS over the ten and max. Time per update: the median over repeats of what a
+// deformation update costs the model in use: coil — one deformation for a new torque; FEM — one
+// implicit step (h = 1 ms); mass-spring — advancing 1 ms (substeps where the integrator needs them
+// to stay stable); ring layer — one step. Dynamic models are judged after a ramp (1 s) and a hold
+// (2 s) at 1 kHz, so lag and ringing count against them; a diverged run is reported as such.
 #include "bench/speed_vs_error.h"
 
 #include <chrono>
@@ -39,6 +42,7 @@ using study::MarkdownTable;
 using study::Num;
 using study::Progress;
 using study::RunLimbScenes;
+using study::RunOrgan;
 using study::RunSphere;
 using study::SceneOut;
 using study::UpdateBenchmarks;
@@ -73,10 +77,12 @@ int SpeedVsError(const std::vector<std::string>& args) {
   cfg.repeats = cfg.quick ? 5 : 9;
   const auto t0 = Clock::now();
   const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
-  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + (cfg.quick ? 6 : 12) + 1;
-  Progress progress(3 * per_limb + sphere);
+  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 1;
+  const int organ = cfg.quick ? 3 : 6;
+  Progress progress(3 * per_limb + sphere + organ);
   std::vector<SceneOut> scenes = RunLimbScenes(cfg, progress);
   scenes.push_back(RunSphere(cfg, progress));
+  scenes.push_back(RunOrgan(cfg, progress));
   for (SceneOut& s : scenes) ChooseCheapest(s);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 

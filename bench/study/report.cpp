@@ -75,8 +75,7 @@ std::vector<BudgetVerdict> CheckSceneBudgets(const std::vector<SceneOut>& scenes
 std::string BudgetTable(const std::vector<BudgetVerdict>& verdicts) {
   std::ostringstream md;
   md << "**Scene files against their own budgets** (the study's row that runs the file's own "
-        "model: coil and reduced rows with the file's parameters; the mass-spring row fits its "
-        "stiffness to the reference, the most favourable case of the file's model)\n\n| scene file "
+        "model with the file's own parameters, under the study's load)\n\n| scene file "
         "| model as the study runs it | RMS error | budget | verdict |\n"
         "| --- | --- | --- | --- | --- |\n";
   for (const BudgetVerdict& v : verdicts) {

@@ -20,6 +20,8 @@ namespace vsurg::bench::study {
 using geometry::Vec3;
 using Clock = std::chrono::steady_clock;
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
+// The palpation scenes' press (sphere, kidney): 0.2 N straight down, spread over a 1 cm cap.
+inline constexpr double kPressForce = 0.2, kCapRadius = 0.01;  // N, m
 
 struct Row {
   std::string model = "", scene = "", setting = "";
@@ -113,6 +115,7 @@ std::pair<double, std::string> SceneBudget(const std::string& file);
 // The halves of the study.
 std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // arm ×2, calf
 SceneOut RunSphere(const Config& cfg, Progress& progress);
+SceneOut RunOrgan(const Config& cfg, Progress& progress);  // kidney-palpation (imported)
 
 // The report.
 void ChooseCheapest(SceneOut& s);
