@@ -12,6 +12,9 @@
 //   kidney-palpation  the kidney of scenes/kidney-palpation.json (an STL read by assimp,
 //                tetrahedralised by CGAL), held on its lower fifth, pressed on its top like the
 //                sphere. Reference: the FEM of the same surface at 4 mm tetrahedra.
+//   organ-twist  organ-surface-twist: forceps twist the top of the 5 cm ball (held on its lower
+//                fifth) to the task's 30°. Reference: the 20-cell FEM's twist field about the
+//                surface normal, turned exactly, at the modulus that matches the scene's grasp.
 // Markers: ten, like seed 000 Fig. 8. Limbs: on the top of the limb at z = (k − ½)/10 · L from
 // the fixed end (marker 10 is next to the grasp); sphere: along a meridian from the pole,
 // polar angle 5°·(k − 1); kidney: on its upper side from the top along x, 5 mm apart. Each model
@@ -44,6 +47,7 @@ using study::Progress;
 using study::RunLimbScenes;
 using study::RunOrgan;
 using study::RunSphere;
+using study::RunSurfaceTwist;
 using study::SceneOut;
 using study::UpdateBenchmarks;
 using study::WriteCsv;
@@ -77,12 +81,13 @@ int SpeedVsError(const std::vector<std::string>& args) {
   cfg.repeats = cfg.quick ? 5 : 9;
   const auto t0 = Clock::now();
   const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
-  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 1;
-  const int organ = cfg.quick ? 3 : 6;
+  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 2;
+  const int organ = cfg.quick ? 3 + 5 : 6 + 6;
   Progress progress(3 * per_limb + sphere + organ);
   std::vector<SceneOut> scenes = RunLimbScenes(cfg, progress);
   scenes.push_back(RunSphere(cfg, progress));
   scenes.push_back(RunOrgan(cfg, progress));
+  scenes.push_back(RunSurfaceTwist(cfg, progress));
   for (SceneOut& s : scenes) ChooseCheapest(s);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 

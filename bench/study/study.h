@@ -115,7 +115,8 @@ std::pair<double, std::string> SceneBudget(const std::string& file);
 // The halves of the study.
 std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // arm ×2, calf
 SceneOut RunSphere(const Config& cfg, Progress& progress);
-SceneOut RunOrgan(const Config& cfg, Progress& progress);  // kidney-palpation (imported)
+SceneOut RunOrgan(const Config& cfg, Progress& progress);         // kidney-palpation (imported)
+SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress);  // organ-surface-twist
 
 // The report.
 void ChooseCheapest(SceneOut& s);

@@ -41,9 +41,15 @@ Expected<std::vector<Sample>> Samples(const CalibrationReference& ref) {
   for (const TwistProfile& p : ref.profiles) profile_samples += p.rho.size();
   for (size_t k = 0; k < ref.profiles.size(); ++k) {
     const TwistProfile& p = ref.profiles[k];
-    if (p.rho.size() != p.twist.size()) {
-      return InvalidArgument("profiles",
-                             "profile " + std::to_string(k) + " has unequal rho and twist sizes");
+    if (p.rho.size() != p.twist.size() || (!p.weight.empty() && p.weight.size() != p.rho.size())) {
+      return InvalidArgument(
+          "profiles", "profile " + std::to_string(k) + " has unequal rho, twist and weight sizes");
+    }
+    double mean_weight = 0;
+    for (double w : p.weight) {
+      if (!(w >= 0) || !std::isfinite(w))
+        return InvalidArgument("profiles", "profile " + std::to_string(k) + " has a bad weight");
+      mean_weight += w / p.weight.size();
     }
     double scale = 0;
     for (double t : p.twist) scale = std::max(scale, std::abs(t));
@@ -55,9 +61,10 @@ Expected<std::vector<Sample>> Samples(const CalibrationReference& ref) {
                                                std::to_string(i) +
                                                " is not a finite twist at a distance ≥ 0");
       }
+      const double w = p.weight.empty() || !(mean_weight > 0) ? 1.0 : p.weight[i] / mean_weight;
       if (scale > 0) {
         out.push_back(
-            {p.torque, p.rho[i], p.twist[i], 1.0 / (scale * scale * profile_samples), false});
+            {p.torque, p.rho[i], p.twist[i], w / (scale * scale * profile_samples), false});
       }
     }
   }
@@ -289,7 +296,7 @@ CalibrationReference SaintVenantCalibrationReference(const TaperedShaft& shaft, 
     const double m = max_torque * k / torques;
     ref.curve_torque.push_back(m);
     ref.curve_twist.push_back(SaintVenantTwistFromGrasp(shaft, m, 0.0));
-    TwistProfile prof{m, {}, {}};
+    TwistProfile prof{m, {}, {}, {}};
     for (int i = 0; i < samples; ++i) {
       prof.rho.push_back(samples > 1 ? shaft.length * i / (samples - 1) : 0.0);
       prof.twist.push_back(SaintVenantTwistFromGrasp(shaft, m, prof.rho.back()));

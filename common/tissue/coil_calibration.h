@@ -34,6 +34,9 @@ struct TwistProfile {
   double torque = 0;          // N·m
   std::vector<double> rho;    // distance from the grasp, m
   std::vector<double> twist;  // rad
+  // Optional relative weights of the samples (empty: all 1). A surface grasp weights each
+  // sample by its squared lever arm, so the fit matches displacements rather than angles.
+  std::vector<double> weight;
 };
 
 struct CalibrationReference {

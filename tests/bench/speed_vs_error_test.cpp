@@ -69,7 +69,7 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
     }
   }
   EXPECT_EQ(scenes, (std::set<std::string>{"arm-ramp", "arm-haptic", "calf-ramp",
-                                           "sphere-palpation", "kidney-palpation"}));
+                                           "sphere-palpation", "kidney-palpation", "organ-twist"}));
   for (const char* m : {"coil-paper", "coil-per-ring", "fem", "mass-spring", "ring-layer"})
     EXPECT_TRUE(models.count(m)) << m;
   // The per-ring calibration goes beyond the paper: closer to Saint-Venant on every limb scene.

@@ -29,7 +29,7 @@ CalibrationReference FromModel(const CoilSpringModel& m, double max_torque) {
     m.Forward(torque, st);
     ref.curve_torque.push_back(torque);
     ref.curve_twist.push_back(st.total_twist);
-    TwistProfile prof{torque, {}, {}};
+    TwistProfile prof{torque, {}, {}, {}};
     for (int i = 0; i < 26; ++i) {
       prof.rho.push_back(0.25 * i / 25);
       prof.twist.push_back(m.TwistAt(prof.rho.back(), st));
@@ -153,8 +153,14 @@ TEST(CoilCalibrationTest, BadReferencesAreRejected) {
   ref.curve_twist = {0.1, NAN};
   EXPECT_EQ(CalibrateTwoParameter(Geometry(), ref).error().field, "curve");
   ref.curve_twist = {0.1, 0.2};
-  ref.profiles.push_back({1.0, {0.0, -0.1}, {0.1, 0.05}});
+  ref.profiles.push_back({1.0, {0.0, -0.1}, {0.1, 0.05}, {}});
   EXPECT_EQ(CalibratePerRing(Geometry(), ref).error().field, "profiles");
+  ref.profiles.back() = {1.0, {0.0, 0.1}, {0.1, 0.05}, {1.0}};  // one weight for two samples
+  EXPECT_EQ(CalibratePerRing(Geometry(), ref).error().field, "profiles");
+  ref.profiles.back().weight = {1.0, -1.0};
+  EXPECT_EQ(CalibratePerRing(Geometry(), ref).error().field, "profiles");
+  ref.profiles.back().weight = {1.0, 2.0};
+  EXPECT_TRUE(CalibratePerRing(Geometry(), ref).ok());
   CoilSpringParams bad = Geometry();
   bad.thickness = 0;
   EXPECT_EQ(CalibrateTwoParameter(bad, SaintVenant({}, 0.1)).error().field, "thickness");
