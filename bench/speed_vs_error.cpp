@@ -14,7 +14,7 @@
 //                sphere. Reference: the FEM of the same surface at 4 mm tetrahedra.
 //   organ-twist  organ-surface-twist: forceps twist the top of the 5 cm ball (held on its lower
 //                fifth) to the task's 30°. Reference: the 20-cell FEM's twist field about the
-//                surface normal, turned exactly, at the modulus that matches the scene's grasp.
+//                surface normal for a torque on the jaws' disc, turned exactly.
 // Markers: ten, like seed 000 Fig. 8. Limbs: on the top of the limb at z = (k − ½)/10 · L from
 // the fixed end (marker 10 is next to the grasp); sphere: along a meridian from the pole,
 // polar angle 5°·(k − 1); kidney: on its upper side from the top along x, 5 mm apart. Each model

@@ -208,8 +208,13 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
     if (type == "reduced") {
       g.kind = ModelKind::kReduced;
       VSURG_TRY(mode, r.StringOr("mode", "contact"));
-      if (mode != "contact" && mode != "twist") return r.Bad("mode", "must be contact or twist");
-      g.reduced.mode = mode == "twist" ? ReducedMode::kTwist : ReducedMode::kContact;
+      if (mode != "contact" && mode != "twist" && mode != "surface-twist")
+        return r.Bad("mode", "must be contact, twist or surface-twist");
+      g.reduced.mode = mode == "twist"           ? ReducedMode::kTwist
+                       : mode == "surface-twist" ? ReducedMode::kSurfaceTwist
+                                                 : ReducedMode::kContact;
+      VSURG_TRY(jaw, r.NumberOr("jaw_radius", 0.009, 1e-4, 0.1));
+      g.reduced.jaw_radius = jaw;
       VSURG_TRY(cells, r.IntegerOr("fem_cells", 8, 2, 24));
       if (cells % 2 != 0) return r.Bad("fem_cells", "must be even");
       VSURG_TRY(rings, r.IntegerOr("fem_rings", 4, 1, 8));
@@ -439,9 +444,10 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
           InvalidArgument("regions[0].model.mode",
                           "regions[0].model.mode: a reduced twist model needs a limb mesh"));
     if (!twist && s.mesh.kind == MeshKind::kLimb)
-      return with_source(InvalidArgument(
-          "regions[0].model.type",
-          "regions[0].model.type: a reduced contact model needs a sphere or a closed mesh file"));
+      return with_source(
+          InvalidArgument("regions[0].model.type",
+                          "regions[0].model.type: a reduced contact or surface-twist "
+                          "model needs a sphere or a closed mesh file"));
   }
   if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
       s.region.support == Support::kBottom) {
@@ -456,7 +462,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
                   geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
                                                        s.mesh.particles)));
     if (Status st = CheckSessionMemory(s.region.kind, vertices, "mesh",
-                                       s.region.reduced.mode == ReducedMode::kContact);
+                                       s.region.reduced.mode != ReducedMode::kTwist);
         !st.ok())
       return with_source(st.error());
   }
@@ -470,12 +476,12 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if (Status st = ParseTask(*task, s.task); !st.ok()) return with_source(st.error());
   const bool twists =
       s.region.kind == ModelKind::kCoil ||
-      (s.region.kind == ModelKind::kReduced && s.region.reduced.mode == ReducedMode::kTwist);
+      (s.region.kind == ModelKind::kReduced && s.region.reduced.mode != ReducedMode::kContact);
   if ((s.task.kind == scoring::TaskKind::kTwist) != twists) {
     return with_source(
         InvalidArgument("task.type",
-                        "task.type: a twist task needs a coil or reduced twist model, a press "
-                        "task a mass-spring, ring-layer or reduced contact model"));
+                        "task.type: a twist task needs a coil or reduced (surface-)twist model, a "
+                        "press task a mass-spring, ring-layer or reduced contact model"));
   }
   auto budget = r.Object("error_budget");
   if (!budget.ok()) return with_source(budget.error());

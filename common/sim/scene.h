@@ -62,7 +62,9 @@ struct MeshSpec {
 // Green's-function table of a sphere, every vertex above the support reachable. "twist": the
 // twist field of a limb (fixed at its proximal end, the torque on its distal face) for the
 // grasp-and-twist.
-enum class ReducedMode { kContact, kTwist };
+// contact: a tool presses (Green's functions); twist: a limb twisted at its distal end (the
+// twist field); surface-twist: forceps grasp anywhere on an organ and twist about the normal.
+enum class ReducedMode { kContact, kTwist, kSurfaceTwist };
 struct ReducedSpec {
   ReducedMode mode = ReducedMode::kContact;
   int fem_cells = 8;                // contact on a sphere: the FEM ball's cells per axis (even)
@@ -72,6 +74,7 @@ struct ReducedSpec {
   double footprint_radius = 0.005;  // m, contact: the tool's contact disc
   double max_force = 10;            // N, contact: the capacity; a larger press is clamped
   double max_twist = 1.5707963267948966;  // rad, twist: the largest turn any vertex may take
+  double jaw_radius = 0.009;              // m, surface twist: the disc the forceps hold
 };
 
 struct RegionSpec {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <numbers>
@@ -100,7 +101,7 @@ Expected<std::unique_ptr<Simulation>> Simulation::CreateChecked(const Scene& sce
   auto mesh = BuildSceneMesh(scene.mesh);
   if (!mesh.ok()) return mesh.error();
   if (Status s = CheckSessionMemory(scene.region.kind, mesh->surface.positions.size(), "mesh",
-                                    scene.region.reduced.mode == ReducedMode::kContact);
+                                    scene.region.reduced.mode != ReducedMode::kTwist);
       !s.ok())
     return s.error();
   geometry::TriMesh rest = std::move(mesh->surface);
@@ -190,20 +191,25 @@ Status Simulation::Build() {
   return Status::Ok();
 }
 
+// The FEM of a reduced contact or surface-twist model: a tetrahedral ball of the scene sphere's
+// radius, or the mesh file's closed surface tetrahedralised (CGAL).
+Expected<geometry::TetMesh> Simulation::ReducedFemMesh() const {
+  const RegionSpec& region = scene_.region;
+  if (scene_.mesh.kind == MeshKind::kSphere)
+    return geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
+  auto fem = geometry::Tetrahedralize(rest_, {region.reduced.fem_size, 0, 3.0});
+  if (!fem.ok())
+    return Error{fem.error().code, scene_.mesh.path + ": " + fem.error().message, "mesh"};
+  return fem;
+}
+
 Status Simulation::BuildReduced() {
   const RegionSpec& region = scene_.region;
   if (region.reduced.mode == ReducedMode::kTwist) return BuildReducedTwist();
-  // The FEM: a tetrahedral ball of the scene sphere's radius, or the mesh file's closed surface
-  // tetrahedralised (CGAL), held by the same support rule as the surface.
-  Expected<geometry::TetMesh> fem = InvalidArgument("mesh", "no FEM mesh");
-  if (scene_.mesh.kind == MeshKind::kSphere) {
-    fem = geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
-  } else {
-    fem = geometry::Tetrahedralize(rest_, {region.reduced.fem_size, 0, 3.0});
-    if (!fem.ok())
-      return Error{fem.error().code, scene_.mesh.path + ": " + fem.error().message, "mesh"};
-  }
+  auto fem = ReducedFemMesh();
   if (!fem.ok()) return fem.error();
+  if (region.reduced.mode == ReducedMode::kSurfaceTwist) return BuildSurfaceTwist(std::move(*fem));
+  // Held by the same support rule as the surface.
   tissue::ContactInputs in;
   in.mesh = std::move(*fem);
   in.material = SceneMaterial(scene_);
@@ -251,6 +257,29 @@ Status Simulation::BuildReducedTwist() {
       tissue::ReducedTwistModel::Create(*field, rest_.positions, scene_.region.reduced.max_twist);
   if (!model.ok()) return model.error();
   reduced_twist_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
+  return Status::Ok();
+}
+
+// Forceps may grasp any vertex above the support: one twist field per such vertex (reduced.h,
+// 4.), cached on disk. The FEM is held by the same support rule as the surface.
+Status Simulation::BuildSurfaceTwist(geometry::TetMesh fem) {
+  const RegionSpec& region = scene_.region;
+  tissue::SurfaceTwistInputs in;
+  in.mesh = std::move(fem);
+  in.material = SceneMaterial(scene_);
+  geometry::TriMesh fem_points;
+  fem_points.positions = in.mesh.positions;
+  in.fixed = SupportedVertices(fem_points, region.support);
+  in.display = rest_;
+  std::vector<uint8_t> held(rest_.VertexCount(), 0);
+  for (int v : SupportedVertices(rest_, region.support)) held[v] = 1;
+  for (int v = 0; v < rest_.VertexCount(); ++v)
+    if (!held[v]) in.reachable.push_back(v);
+  in.params.jaw_radius = region.reduced.jaw_radius;
+  tissue::ReducedCache cache(CacheDirectory());
+  auto table = cache.SurfaceTwistFor(scene_.name + "-surface-twist", in);
+  if (!table.ok()) return table.error();
+  surface_twist_ = std::make_shared<const tissue::SurfaceTwistTable>(std::move(*table));
   return Status::Ok();
 }
 
@@ -321,10 +350,12 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     double twist = 2.0 * std::atan2(rel.vec().dot(axis_), rel.w());
     twist = std::remainder(twist, 2.0 * std::numbers::pi);
     tissue::CoilTorque answer;
-    if (reduced_twist_) {
-      // The FEM's twist field: linear, T = Φ·dT/dΦ up to the capacity.
-      const double capacity = reduced_twist_->torque_capacity();
-      answer.torque = twist * reduced_twist_->grasp_stiffness();
+    if (reduced_twist_ || surface_twist_) {
+      // The FEM's twist field: linear, T = Φ·dT/dΦ up to the capacity (a surface grasp's were
+      // read from the table when it started).
+      const double capacity = reduced_twist_ ? reduced_twist_->torque_capacity() : grasp_capacity_;
+      answer.torque =
+          twist * (reduced_twist_ ? reduced_twist_->grasp_stiffness() : grasp_stiffness_);
       answer.overload = std::abs(answer.torque) > capacity;
       answer.torque = std::clamp(answer.torque, -capacity, capacity);
     } else {
@@ -356,7 +387,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
         rest_contact_ = RestPoint(rest_, ps.triangle, ps.barycentric);
         rest_normal_ = geometry::TriangleNormal(rest_, ps.triangle);
       }
-      if (button && (coil_ || reduced_twist_)) {
+      if (button && (coil_ || reduced_twist_ || surface_twist_)) {
         // Grasp the point under the proxy.
         grasping_ = true;
         events |= haptics::kEventGraspStart;
@@ -364,7 +395,18 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
         input_.grasping = true;
         input_.grasp_point = ps.scp;
         grasp_q0_ = s.orientation.normalized();
-        if (reduced_twist_ || scene_.region.coil_mode == tissue::TwistMode::kLimb) {
+        if (surface_twist_) {
+          // The jaws hold the contact triangle's nearest vertex; its stiffness and capacity are
+          // read-only table reads (no allocation).
+          int k = 0;
+          for (int j = 1; j < 3; ++j)
+            if (ps.barycentric[j] > ps.barycentric[k]) k = j;
+          input_.grasp_vertex = tri[k];
+          grasp_stiffness_ = tissue::SurfaceTwistStiffness(*surface_twist_, tri[k]);
+          grasp_capacity_ = tissue::SurfaceTwistCapacity(*surface_twist_, tri[k],
+                                                         scene_.region.reduced.max_twist);
+        }
+        if (reduced_twist_ || (coil_ && scene_.region.coil_mode == tissue::TwistMode::kLimb)) {
           const geometry::CentrelineProjection on_axis =
               geometry::ProjectPointOntoPolyline(centreline_points_, ps.scp);
           axis_point_ = on_axis.point;
@@ -548,6 +590,32 @@ void Simulation::Deform(const DeformInput& in) {
       return;
     }
     case ModelKind::kReduced: {
+      if (surface_twist_) {
+        // A new grasp builds its twist model (allocates: once per grasp, on this thread); then
+        // each new torque turns the organ about the normal at the jaws. Released: at rest.
+        if (!in.grasping) {
+          if (surface_grasp_) {
+            surface_grasp_.reset();
+            Publish(rest_.positions, false);
+          }
+          return;
+        }
+        if (!surface_grasp_ || in.grasp_id != surface_grasp_id_) {
+          const tissue::TwistField field = tissue::SurfaceTwistField(
+              *surface_twist_, in.grasp_vertex, rest_.positions, &surface_grasp_fallback_);
+          auto model =
+              tissue::ReducedTwistModel::Create(field, rest_.positions, region.reduced.max_twist);
+          if (!model.ok()) return;
+          surface_grasp_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
+          surface_grasp_id_ = in.grasp_id;
+          applied_torque_ = std::numeric_limits<double>::quiet_NaN();
+        }
+        if (in.torque == applied_torque_) return;  // nothing new
+        const tissue::ReducedStats st = surface_grasp_->Update(in.torque);
+        applied_torque_ = in.torque;
+        Publish(surface_grasp_->positions(), st.saturated, surface_grasp_fallback_);
+        return;
+      }
       if (reduced_twist_) {
         // The twist field turns the limb for the torque at the grasp (applied on the distal
         // face, where the field was computed: a grasp elsewhere twists as if at the wrist).

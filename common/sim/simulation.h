@@ -151,7 +151,8 @@ class Simulation {
   struct DeformInput {
     uint64_t grasp_id = 0;  // changes at every new grasp
     bool grasping = false;
-    double torque = 0;  // N·m, coil scenes
+    int grasp_vertex = -1;  // surface twist: the rest surface vertex the jaws hold
+    double torque = 0;      // N·m, coil scenes
     geometry::Vec3 grasp_point = geometry::Vec3::Zero();
     int triangle = -1;  // contact triangle, −1: no contact
     geometry::Vec3 barycentric = geometry::Vec3::Zero();
@@ -168,8 +169,10 @@ class Simulation {
                                                              const SimulationOptions& options);
   Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options);
   Status Build();
-  Status BuildReduced();       // the contact table, from the cache or computed (reduced scenes)
-  Status BuildReducedTwist();  // the twist field, likewise
+  Status BuildReduced();  // the contact table, from the cache or computed (reduced scenes)
+  Status BuildReducedTwist();
+  Status BuildSurfaceTwist(geometry::TetMesh fem);
+  Expected<geometry::TetMesh> ReducedFemMesh() const;  // the twist field, likewise
   std::string CacheDirectory() const;  // the reduced models' cache (options or the default)
   bool Paced() const;  // dynamic models step on the clock; quasi-static ones follow requests
   void DeformationLoop();
@@ -203,6 +206,7 @@ class Simulation {
   Eigen::Quaterniond grasp_q0_ = Eigen::Quaterniond::Identity();
   geometry::Vec3 axis_ = geometry::Vec3::UnitZ(), axis_point_ = geometry::Vec3::Zero();
   double lever_ = 0.03;
+  double grasp_stiffness_ = 0, grasp_capacity_ = 0;  // surface twist: N·m/rad, N·m
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
 
@@ -212,6 +216,12 @@ class Simulation {
   std::unique_ptr<tissue::RingLayerModel> ring_;
   std::unique_ptr<tissue::ReducedContactModel> reduced_contact_;
   std::unique_ptr<tissue::ReducedTwistModel> reduced_twist_;
+  // Surface twist (reduced, forceps): the table is immutable (any thread reads it); the model of
+  // the current grasp is the deformation thread's, built when a grasp starts.
+  std::shared_ptr<const tissue::SurfaceTwistTable> surface_twist_;
+  std::unique_ptr<tissue::ReducedTwistModel> surface_grasp_;
+  uint64_t surface_grasp_id_ = 0;
+  bool surface_grasp_fallback_ = false;
   std::vector<double> masses_;  // per surface vertex, ring layer
   uint64_t seen_grasp_ = 0, seen_contact_ = 0;
   int seen_triangle_ = -2;  // reduced: the last contact applied (-2: none yet)

@@ -84,10 +84,14 @@ Vec3 WarpedDisplacement(const Vec3& w_in, const Vec3& u) {
 
 // ---- 1. Twist field ---------------------------------------------------------------------------
 
-Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
-                                          const std::vector<int>& face,
-                                          const std::vector<double>& face_area, const Vec3& origin,
-                                          const Vec3& axis, const std::vector<Vec3>& display_rest) {
+namespace {
+
+// PrecomputeTwistField with the display's embedding in the FEM mesh given (computed once for
+// the many grasps of a surface twist table).
+Expected<TwistField> TwistFieldEmbedded(const FemStaticResponse& fem, const std::vector<int>& face,
+                                        const std::vector<double>& face_area, const Vec3& origin,
+                                        const Vec3& axis, const std::vector<Vec3>& display_rest,
+                                        const std::vector<geometry::EmbeddedPoint>& embedding) {
   if (!origin.allFinite() || !axis.allFinite() || !(axis.norm() > 0))
     return InvalidArgument("axis", "the twist axis needs a finite point and a non-zero direction");
   if (face.empty()) return InvalidArgument("face", "no loaded face");
@@ -131,12 +135,11 @@ Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
   if (!(weight > 0)) return InvalidArgument("face", "the loaded face lies on the axis");
   out.grasp_compliance = grasp / weight;
   if (!(out.grasp_compliance > 0))
-    return Error{ErrorCode::kNumerical, "the loaded face does not turn with the torque", "fem"};
+    return Error{ErrorCode::kFailedPrecondition,
+                 "the loaded face does not turn with the torque (held)", "fem"};
 
-  auto embedding = geometry::EmbedPoints(fem.rest(), display_rest);
-  if (!embedding.ok()) return embedding.error();
   std::vector<Vec3> ud(display_rest.size());
-  for (size_t i = 0; i < ud.size(); ++i) ud[i] = geometry::Interpolate((*embedding)[i], u);
+  for (size_t i = 0; i < ud.size(); ++i) ud[i] = geometry::Interpolate(embedding[i], u);
   out.angle.resize(display_rest.size());
   out.warp.resize(display_rest.size());
   out.radial.resize(display_rest.size());
@@ -151,9 +154,20 @@ Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
       out.radial[i] = 0.f;
       out.lateral[i] = ud[i] - ud[i].dot(n) * n;
     }
-    out.max_distance = std::max(out.max_distance, (*embedding)[i].distance);
+    out.max_distance = std::max(out.max_distance, embedding[i].distance);
   }
   return out;
+}
+
+}  // namespace
+
+Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
+                                          const std::vector<int>& face,
+                                          const std::vector<double>& face_area, const Vec3& origin,
+                                          const Vec3& axis, const std::vector<Vec3>& display_rest) {
+  auto embedding = geometry::EmbedPoints(fem.rest(), display_rest);
+  if (!embedding.ok()) return embedding.error();
+  return TwistFieldEmbedded(fem, face, face_area, origin, axis, display_rest, *embedding);
 }
 
 Expected<ReducedTwistModel> ReducedTwistModel::Create(const TwistField& field,
@@ -606,6 +620,157 @@ Eigen::Matrix3d ReducedContactModel::StiffnessAt(int contact) const {
   const int slot = Slot(contact, ignored);
   if (slot < 0) return Eigen::Matrix3d::Zero();
   return compliance_[slot].inverse();
+}
+
+// ---- 4. Surface twist ------------------------------------------------------------------------
+
+std::vector<int> JawFace(const geometry::TetMesh& mesh, const geometry::TriMesh& boundary,
+                         const Vec3& point, double jaw_radius, std::vector<double>* area_out) {
+  std::vector<double> area(mesh.positions.size(), 0.0);
+  for (const auto& t : boundary.triangles) {
+    const double a = 0.5 * (boundary.positions[t[1]] - boundary.positions[t[0]])
+                               .cross(boundary.positions[t[2]] - boundary.positions[t[0]])
+                               .norm();
+    for (int v : t) area[v] += a / 3;
+  }
+  // The boundary vertices by distance; the disc, or the four nearest when it catches fewer (a
+  // coarse mesh: the jaws still hold something that can turn about the axis).
+  std::vector<std::pair<double, int>> by_distance;
+  for (int v = 0; v < static_cast<int>(mesh.positions.size()); ++v)
+    if (area[v] > 0) by_distance.emplace_back((mesh.positions[v] - point).norm(), v);
+  std::sort(by_distance.begin(), by_distance.end());
+  std::vector<int> face;
+  for (size_t k = 0; k < by_distance.size(); ++k)
+    if (by_distance[k].first <= jaw_radius || k < 4) face.push_back(by_distance[k].second);
+  if (area_out) {
+    area_out->clear();
+    for (int v : face) area_out->push_back(area[v]);
+  }
+  return face;
+}
+
+Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
+                                                   const geometry::TriMesh& display,
+                                                   const std::vector<int>& reachable,
+                                                   const SurfaceTwistParams& params) {
+  const int nv = display.VertexCount();
+  if (nv == 0) return InvalidArgument("display", "no vertices");
+  if (!(params.jaw_radius > 0) || !std::isfinite(params.jaw_radius))
+    return InvalidArgument("jaw_radius", "must be > 0 m");
+  SurfaceTwistTable out;
+  out.vertices = nv;
+  out.jaw_radius = params.jaw_radius;
+  out.precomputed.assign(nv, 0);
+  for (int v : reachable) {
+    if (v < 0 || v >= nv)
+      return InvalidArgument("reachable", "vertex " + std::to_string(v) + " is not on the surface");
+    if (!out.precomputed[v]) out.grasps.push_back(v), out.precomputed[v] = 1;
+  }
+  if (out.grasps.empty()) return InvalidArgument("reachable", "no vertex a tool can grasp");
+  const int64_t bytes = static_cast<int64_t>(out.grasps.size()) * nv * 12;
+  if (bytes > params.max_bytes)
+    return InvalidArgument("reachable", std::to_string(out.grasps.size()) + " grasps × " +
+                                            std::to_string(nv) + " vertices need " +
+                                            std::to_string(bytes >> 20) + " MB, over the " +
+                                            std::to_string(params.max_bytes >> 20) + " MB bound");
+  geometry::TriMesh normals = display;
+  geometry::ComputeVertexNormals(normals);
+  auto embedding = geometry::EmbedPoints(fem.rest(), display.positions);
+  if (!embedding.ok()) return embedding.error();
+  const geometry::TriMesh boundary = geometry::BoundarySurface(fem.rest());
+  const size_t n = static_cast<size_t>(nv);
+  const std::vector<int> candidates = std::move(out.grasps);
+  out.grasps.clear();
+  std::fill(out.precomputed.begin(), out.precomputed.end(), 0);
+  Error last = InvalidArgument("reachable", "no vertex a tool can grasp");
+  for (const int c : candidates) {
+    std::vector<double> area;
+    const std::vector<int> face =
+        JawFace(fem.rest(), boundary, display.positions[c], params.jaw_radius, &area);
+    auto field = TwistFieldEmbedded(fem, face, area, display.positions[c], normals.normals[c],
+                                    display.positions, *embedding);
+    if (!field.ok()) {
+      // Jaws that hold only what the support holds turn nothing: not a grasp of its own (its
+      // nearest graspable neighbour stands in, flagged).
+      if (field.error().code != ErrorCode::kFailedPrecondition) return field.error();
+      last = field.error();
+      continue;
+    }
+    out.grasps.push_back(c);
+    out.precomputed[c] = 1;
+    out.angle.insert(out.angle.end(), field->angle.begin(), field->angle.end());
+    out.warp.insert(out.warp.end(), field->warp.begin(), field->warp.end());
+    out.radial.insert(out.radial.end(), field->radial.begin(), field->radial.end());
+    out.axis.push_back(field->axis);
+    out.grasp_compliance.push_back(field->grasp_compliance);
+    out.max_distance = std::max(out.max_distance, field->max_distance);
+  }
+  if (out.grasps.empty()) return last;
+  const size_t slots = out.grasps.size();
+  (void)n;
+  out.slot_of_vertex.assign(nv, 0);
+  for (int i = 0; i < nv; ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t s = 0; s < slots; ++s) {
+      const double d = (display.positions[out.grasps[s]] - display.positions[i]).squaredNorm();
+      if (d < best) best = d, out.slot_of_vertex[i] = static_cast<int>(s);
+    }
+  }
+  return out;
+}
+
+Status ValidateSurfaceTwist(const SurfaceTwistTable& t, size_t display_vertices) {
+  const size_t n = display_vertices, slots = t.grasps.size();
+  if (t.vertices != static_cast<int>(n) || t.slot_of_vertex.size() != n ||
+      t.precomputed.size() != n || slots == 0 || t.angle.size() != slots * n ||
+      t.warp.size() != slots * n || t.radial.size() != slots * n || t.axis.size() != slots ||
+      t.grasp_compliance.size() != slots)
+    return InvalidArgument("response", "the surface twist table does not match the surface (" +
+                                           std::to_string(t.vertices) + " against " +
+                                           std::to_string(n) + " vertices)");
+  for (int s : t.slot_of_vertex)
+    if (s < 0 || s >= static_cast<int>(slots))
+      return InvalidArgument("response", "a vertex names a grasp slot out of range");
+  for (size_t s = 0; s < slots; ++s)
+    if (!(t.grasp_compliance[s] > 0) || !std::isfinite(t.grasp_compliance[s]) ||
+        !t.axis[s].allFinite() || std::abs(t.axis[s].norm() - 1) > 1e-6)
+      return InvalidArgument("response", "grasp slot " + std::to_string(s) + " is not usable");
+  for (const std::vector<float>* values : {&t.angle, &t.warp, &t.radial})
+    for (float x : *values)
+      if (!std::isfinite(x)) return InvalidArgument("response", "the table is not finite");
+  return Status::Ok();
+}
+
+TwistField SurfaceTwistField(const SurfaceTwistTable& t, int vertex,
+                             const std::vector<Vec3>& display_rest, bool* fallback) {
+  const int clamped = std::clamp(vertex, 0, t.vertices - 1);
+  const size_t slot = static_cast<size_t>(t.slot_of_vertex[clamped]);
+  if (fallback) *fallback = !t.precomputed[clamped];
+  const size_t n = static_cast<size_t>(t.vertices);
+  TwistField f;
+  f.origin = display_rest[t.grasps[slot]];
+  f.axis = t.axis[slot];
+  f.angle.assign(t.angle.begin() + slot * n, t.angle.begin() + (slot + 1) * n);
+  f.warp.assign(t.warp.begin() + slot * n, t.warp.begin() + (slot + 1) * n);
+  f.radial.assign(t.radial.begin() + slot * n, t.radial.begin() + (slot + 1) * n);
+  f.lateral.assign(n, Vec3::Zero());  // the grasped vertex turns about itself
+  f.grasp_compliance = t.grasp_compliance[slot];
+  f.max_distance = t.max_distance;
+  return f;
+}
+
+double SurfaceTwistStiffness(const SurfaceTwistTable& t, int vertex) {
+  const int clamped = std::clamp(vertex, 0, t.vertices - 1);
+  return 1.0 / t.grasp_compliance[static_cast<size_t>(t.slot_of_vertex[clamped])];
+}
+
+double SurfaceTwistCapacity(const SurfaceTwistTable& t, int vertex, double max_twist) {
+  const int clamped = std::clamp(vertex, 0, t.vertices - 1);
+  const size_t n = static_cast<size_t>(t.vertices);
+  const size_t slot = static_cast<size_t>(t.slot_of_vertex[clamped]);
+  float most = 0;
+  for (size_t i = slot * n; i < (slot + 1) * n; ++i) most = std::max(most, std::abs(t.angle[i]));
+  return most > 0 ? max_twist / most : 0.0;  // as ReducedTwistModel::Create computes it
 }
 
 }  // namespace vsurg::tissue

@@ -49,6 +49,15 @@
 //    correction is second order in the load, so a small press is the FEM's linear response
 //    still; θ is held at ≤ π/2 (no press turns the surface further).
 //
+// 4. Surface twist (forceps grasping an organ's surface and twisting it about the normal there).
+//    The twist field of 1. for every display vertex a tool can grasp: the FEM's response to a
+//    unit torque about the vertex's outward normal, carried by the shear traction of
+//    TorqueNodalForces on the jaws' disc (the FEM's boundary within jaw_radius, at least its four
+//    nearest vertices), 12 B per (grasp, vertex) pair (angle, warp, radial; 1,026-vertex sphere,
+//    865 grasps: 10.6 MB). A grasp takes its vertex's field (or the nearest precomputed one's,
+//    flagged) into a ReducedTwistModel: exact rotations about that normal, the held organ turning
+//    as a whole where the coil model's cutoff layer would stop the twist.
+//
 // Hard cases: a non-finite torque, force or displacement is refused (the positions keep the
 // last good state, the result says so); a torque or force past the model's capacity is clamped
 // to it and flagged (`saturated`); a contact at a vertex never precomputed uses the nearest
@@ -212,5 +221,49 @@ class ReducedContactModel {
   std::vector<Eigen::Matrix3d> compliance_;  // G_cc per slot
   double max_force_ = 0;
 };
+
+// ---- 4. Surface twist --------------------------------------------------------------------------
+
+struct SurfaceTwistParams {
+  double jaw_radius = 0.009;        // m: the disc the forceps hold
+  int64_t max_bytes = 256ll << 20;  // refuse a table larger than this
+};
+
+struct SurfaceTwistTable {
+  int vertices = 0;                        // display vertices
+  std::vector<int> grasps;                 // the precomputed grasp vertices (display indices)
+  std::vector<int> slot_of_vertex;         // display vertex → its grasp slot, or the nearest slot
+  std::vector<uint8_t> precomputed;        // display vertex → 1 when it has its own slot
+  std::vector<float> angle, warp, radial;  // [slot·vertices + i]: TwistField's, per N·m
+  std::vector<Eigen::Vector3d> axis;       // per slot: the outward normal at the grasp
+  std::vector<double> grasp_compliance;    // per slot: rad per N·m at the jaws
+  double jaw_radius = 0;
+  double max_distance = 0;  // m: the display vertex farthest outside the FEM mesh
+  int64_t Bytes() const {
+    return static_cast<int64_t>(angle.size() + warp.size() + radial.size()) * 4;
+  }
+};
+
+// One FEM solve per reachable display vertex (its unit torque on the jaws' disc).
+Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
+                                                   const geometry::TriMesh& display,
+                                                   const std::vector<int>& reachable,
+                                                   const SurfaceTwistParams& params);
+// Sizes, slots, finiteness and unit axes (a table read from disk is checked before use).
+Status ValidateSurfaceTwist(const SurfaceTwistTable& table, size_t display_vertices);
+// The twist field of a grasp at display vertex `vertex` (its own slot's, or the nearest one's:
+// *fallback says which), for ReducedTwistModel::Create. Allocates: set-up at grasp time.
+TwistField SurfaceTwistField(const SurfaceTwistTable& table, int vertex,
+                             const std::vector<Eigen::Vector3d>& display_rest,
+                             bool* fallback = nullptr);
+// dT/dΦ at the jaws (N·m/rad) and the torque capacity for `max_twist` (rad, the largest angle
+// any vertex may turn) of a grasp at `vertex`. Read-only, no allocation: any thread.
+double SurfaceTwistStiffness(const SurfaceTwistTable& table, int vertex);
+double SurfaceTwistCapacity(const SurfaceTwistTable& table, int vertex, double max_twist);
+// The FEM boundary vertices the jaws hold around `point` (within jaw_radius, at least the four
+// nearest) and their lumped areas (m²): the loaded face of a surface grasp.
+std::vector<int> JawFace(const geometry::TetMesh& mesh, const geometry::TriMesh& boundary,
+                         const Eigen::Vector3d& point, double jaw_radius,
+                         std::vector<double>* area = nullptr);
 
 }  // namespace vsurg::tissue

@@ -328,4 +328,53 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
   return Cached<ContactResponse>(dir_, name, ContactKeyBytes(in), report, decode, compute, encode);
 }
 
+Expected<SurfaceTwistTable> ReducedCache::SurfaceTwistFor(const std::string& name,
+                                                          const SurfaceTwistInputs& in,
+                                                          CacheReport* report) const {
+  Writer key;
+  PutCommon(key, "surface twist table", in.mesh, in.material, in.fixed);
+  key.PutVector(in.display.positions);
+  key.Put(static_cast<uint64_t>(in.display.triangles.size()));
+  for (const auto& t : in.display.triangles) key.Put(t);
+  key.PutVector(in.reachable);
+  key.Put(in.params.jaw_radius);
+  const uint64_t nv = in.display.positions.size();
+  auto decode = [&](const std::string& payload, SurfaceTwistTable& t) {
+    Reader r(payload);
+    int32_t vertices = 0;
+    uint64_t grasps = 0;
+    if (!r.Get(vertices) || static_cast<uint64_t>(vertices) != nv || !r.Get(t.jaw_radius) ||
+        !r.Get(t.max_distance) || !r.Get(grasps) || grasps > nv)
+      return false;
+    t.vertices = vertices;
+    return r.GetVector(t.grasps, grasps) && r.GetVector(t.slot_of_vertex, nv) &&
+           r.GetVector(t.precomputed, nv) && r.GetVector(t.angle, grasps * nv) &&
+           r.GetVector(t.warp, grasps * nv) && r.GetVector(t.radial, grasps * nv) &&
+           r.GetVector(t.axis, grasps) && r.GetVector(t.grasp_compliance, grasps) && r.AtEnd() &&
+           ValidateSurfaceTwist(t, nv).ok();
+  };
+  auto compute = [&]() -> Expected<SurfaceTwistTable> {
+    auto fem = FemStaticResponse::Create(in.mesh, in.material, in.fixed);
+    if (!fem.ok()) return fem.error();
+    return PrecomputeSurfaceTwist(*fem, in.display, in.reachable, in.params);
+  };
+  auto encode = [](const SurfaceTwistTable& t) {
+    Writer w;
+    w.Put(static_cast<int32_t>(t.vertices));
+    w.Put(t.jaw_radius);
+    w.Put(t.max_distance);
+    w.Put(static_cast<uint64_t>(t.grasps.size()));
+    w.PutVector(t.grasps);
+    w.PutVector(t.slot_of_vertex);
+    w.PutVector(t.precomputed);
+    w.PutVector(t.angle);
+    w.PutVector(t.warp);
+    w.PutVector(t.radial);
+    w.PutVector(t.axis);
+    w.PutVector(t.grasp_compliance);
+    return w.bytes();
+  };
+  return Cached<SurfaceTwistTable>(dir_, name, key.bytes(), report, decode, compute, encode);
+}
+
 }  // namespace vsurg::tissue

@@ -58,6 +58,15 @@ struct ContactInputs {
   ContactResponseParams params;
 };
 
+struct SurfaceTwistInputs {
+  geometry::TetMesh mesh;
+  FemParams material;
+  std::vector<int> fixed;
+  geometry::TriMesh display;
+  std::vector<int> reachable;
+  SurfaceTwistParams params;
+};
+
 // Where the files go by default: $VSURG_CACHE_DIR, else $XDG_CACHE_HOME/vsurg, else
 // $HOME/.cache/vsurg, else <temp>/vsurg-cache.
 std::string DefaultCacheDirectory();
@@ -74,6 +83,8 @@ class ReducedCache {
                                      CacheReport* report = nullptr) const;
   Expected<ContactResponse> ContactResponseFor(const std::string& name, const ContactInputs& in,
                                                CacheReport* report = nullptr) const;
+  Expected<SurfaceTwistTable> SurfaceTwistFor(const std::string& name, const SurfaceTwistInputs& in,
+                                              CacheReport* report = nullptr) const;
   const std::string& dir() const { return dir_; }
 
  private:

@@ -83,7 +83,8 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
   EXPECT_NE(out.find("cheapest within it"), std::string::npos);
   // Every scene file appears against its own budget, run with its own parameters. Within it:
   // the coil arm with its per-coil rigidities (the paper's single rigidity was 32% against
-  // 30%), the mass-spring sphere's calibrated file (22% before), the kidney's reduced table.
+  // 30%), the mass-spring sphere's and the ring layer's calibrated files (22% and 18–34%
+  // before), the kidney's reduced table, the organ's surface twist (its coil was 34%).
   // Over it in a quick run: the reduced arm's 5% on the quick run's coarse FEM (level 2).
   std::map<std::string, std::string> verdict;  // file → its table line
   std::istringstream lines(out);
@@ -93,8 +94,9 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
     if (e.path().extension() != ".json") continue;  // (kidney.stl is a scene's mesh)
     EXPECT_TRUE(verdict.count(e.path().filename().string())) << e.path();
   }
-  for (const char* file : {"arm-torsion.json", "sphere-palpation-256.json", "kidney-palpation.json",
-                           "calf-torsion.json"}) {
+  for (const char* file :
+       {"arm-torsion.json", "sphere-palpation-256.json", "kidney-palpation.json",
+        "calf-torsion.json", "sphere-palpation-rings.json", "organ-surface-twist.json"}) {
     EXPECT_NE(verdict[file].find("| within |"), std::string::npos) << verdict[file];
   }
   EXPECT_NE(verdict["arm-torsion.json"].find("coil-scene, scene parameters"), std::string::npos);

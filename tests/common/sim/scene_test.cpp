@@ -183,6 +183,23 @@ TEST(SceneTest, BadScenesNameTheField) {
                           R"({"type": "limb", "preset": "forearm"})"))
                 .find("needs a sphere or a closed mesh file"),
             std::string::npos);
+  // Surface twist: on a sphere or a mesh file, with a twist task; jaws of 0.1 mm to 10 cm.
+  const std::string forceps =
+      Replace(Replace(reduced, R"("fem_cells": 8)", R"("fem_cells": 8, "mode": "surface-twist")"),
+              R"("type": "press")", R"("type": "twist", "target_deg": 30, "tolerance_deg": 5)");
+  ASSERT_TRUE(ParseScene(forceps, "x.json").ok()) << ParseScene(forceps, "x.json").error().message;
+  EXPECT_EQ(ParseScene(forceps, "x.json")->region.reduced.mode, ReducedMode::kSurfaceTwist);
+  EXPECT_NE(Field(Replace(forceps, R"("fem_cells": 8)", R"("fem_cells": 8, "jaw_radius": 1)"))
+                .find("regions[0].model.jaw_radius: must be in"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(forceps, R"({"type": "sphere", "radius": 0.05, "particles": 256})",
+                          R"({"type": "limb", "preset": "forearm"})"))
+                .find("surface-twist model needs a sphere or a closed mesh file"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(forceps, R"("type": "twist", "target_deg": 30, "tolerance_deg": 5)",
+                          R"("type": "press")"))
+                .find("task.type"),
+            std::string::npos);
   EXPECT_NE(
       Field(Replace(Minimal(), R"("structural_stiffness": 50)", R"("structural_stiffness": -5)"))
           .find("regions[0].model.structural_stiffness"),

@@ -158,5 +158,44 @@ TEST_F(ReducedCacheTest, ContactTablesRoundTripAndBadNamesOrDirsAreReported) {
   EXPECT_NE(r.message.find("not cached"), std::string::npos) << r.message;
 }
 
+TEST_F(ReducedCacheTest, SurfaceTwistTablesRoundTripAndGoStaleWithTheJaws) {
+  auto ball = geometry::MakeTetBall({0.05, 4});
+  ASSERT_TRUE(ball.ok());
+  SurfaceTwistInputs in;
+  in.mesh = *ball;
+  in.material = twist_.material;
+  in.display = geometry::BoundarySurface(*ball);
+  for (int i = 0; i < ball->VertexCount(); ++i) {
+    if (ball->positions[i].z() < -0.03) in.fixed.push_back(i);
+    if (ball->positions[i].z() > 0.03 && ball->positions[i].norm() > 0.049)
+      in.reachable.push_back(i);
+  }
+  in.params.jaw_radius = 0.015;
+  ReducedCache cache(dir_.string());
+  CacheReport r;
+  auto first = cache.SurfaceTwistFor("bar", in, &r);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  EXPECT_EQ(r.outcome, CacheOutcome::kMiss);
+  auto second = cache.SurfaceTwistFor("bar", in, &r);
+  ASSERT_TRUE(second.ok());
+  EXPECT_EQ(r.outcome, CacheOutcome::kHit);
+  EXPECT_EQ(first->angle, second->angle);
+  EXPECT_EQ(first->grasp_compliance, second->grasp_compliance);
+  EXPECT_EQ(first->axis, second->axis);
+  EXPECT_EQ(first->grasps, second->grasps);
+  // A tampered payload is rebuilt, never used.
+  std::string bytes = Contents();
+  bytes[bytes.size() / 2] ^= 0x10;
+  Overwrite(bytes);
+  auto third = cache.SurfaceTwistFor("bar", in, &r);
+  ASSERT_TRUE(third.ok());
+  EXPECT_EQ(r.outcome, CacheOutcome::kCorrupt);
+  EXPECT_EQ(third->angle, first->angle);
+  // Other jaws: another load, stale.
+  in.params.jaw_radius = 0.02;
+  ASSERT_TRUE(cache.SurfaceTwistFor("bar", in, &r).ok());
+  EXPECT_EQ(r.outcome, CacheOutcome::kStale);
+}
+
 }  // namespace
 }  // namespace vsurg::tissue::reduced_cache_test

@@ -451,5 +451,85 @@ TEST(ReducedContactTest, TheRotationCorrectionKeepsADraggedSurfaceCloseToTheCoro
   }
 }
 
+// ---- surface twist ----
+
+// A table of grasps on a ball held on its lower part: a grasp's field is the twist field of a
+// unit torque on the jaws' disc (the same as PrecomputeTwistField on JawFace), turns the ball
+// about the normal at the grasp, and a vertex never precomputed takes its nearest grasp's field,
+// flagged. A table read back with a wrong size, a NaN or a bent axis is refused.
+TEST(SurfaceTwistTest, EveryGraspIsTheTwistFieldOfItsJawsAndNeighboursStandIn) {
+  Ball b = MakeBall(6);
+  SurfaceTwistParams p;
+  p.jaw_radius = 0.012;
+  auto table = PrecomputeSurfaceTwist(b.response, b.surface, b.reachable, p);
+  ASSERT_TRUE(table.ok()) << table.error().message;
+  ASSERT_TRUE(ValidateSurfaceTwist(*table, b.mesh.positions.size()).ok());
+  EXPECT_EQ(table->grasps.size(), b.reachable.size());
+  EXPECT_EQ(table->Bytes(),
+            static_cast<int64_t>(12 * b.reachable.size() * b.mesh.positions.size()));
+  const int top = Top(b);
+  bool fallback = true;
+  const TwistField f = SurfaceTwistField(*table, top, b.mesh.positions, &fallback);
+  EXPECT_FALSE(fallback);
+  EXPECT_GT(f.axis.z(), 0.99);  // the outward normal at the top
+  std::vector<double> area;
+  const std::vector<int> face =
+      JawFace(b.mesh, b.surface, b.mesh.positions[top], p.jaw_radius, &area);
+  EXPECT_GE(face.size(), 4u);
+  auto direct =
+      PrecomputeTwistField(b.response, face, area, b.mesh.positions[top], f.axis, b.mesh.positions);
+  ASSERT_TRUE(direct.ok());
+  EXPECT_NEAR(f.grasp_compliance, direct->grasp_compliance, 1e-9 * direct->grasp_compliance);
+  for (size_t i = 0; i < f.angle.size(); ++i) EXPECT_FLOAT_EQ(f.angle[i], direct->angle[i]) << i;
+  EXPECT_NEAR(SurfaceTwistStiffness(*table, top), 1 / f.grasp_compliance, 1e-9);
+  // Turned by 30° at the jaws: the grasp's neighbours turn about the normal, the held bottom
+  // does not move, nothing leaves its distance to the axis.
+  auto model = ReducedTwistModel::Create(f, b.mesh.positions, std::numbers::pi / 2);
+  ASSERT_TRUE(model.ok());
+  EXPECT_NEAR(SurfaceTwistCapacity(*table, top, std::numbers::pi / 2), model->torque_capacity(),
+              1e-6 * model->torque_capacity());
+  model->Update(0.5236 / f.grasp_compliance);
+  double turned = 0;
+  for (int i = 0; i < b.mesh.VertexCount(); ++i) {
+    const Vec3& x0 = b.mesh.positions[i];
+    const Vec3& x = model->positions()[i];
+    if (x0.z() < -0.035) {
+      EXPECT_LT((x - x0).norm(), 1e-9) << i;  // held
+    }
+    const double r0 = (x0 - x0.z() * Vec3::UnitZ()).norm(), r = (x - x.z() * Vec3::UnitZ()).norm();
+    if (r0 > 0.005 && x0.z() > 0.04) {
+      turned = std::max(turned, std::atan2(Vec3(x0.x(), x0.y(), 0).cross(Vec3(x.x(), x.y(), 0)).z(),
+                                           Vec3(x0.x(), x0.y(), 0).dot(Vec3(x.x(), x.y(), 0))));
+      EXPECT_NEAR(r, r0, 0.6 * r0);  // radial strain only, no 1/cos θ inflation
+    }
+  }
+  EXPECT_GT(turned, 0.2);  // rad: the top turns with the jaws
+  // A vertex on the held bottom was never precomputed: its nearest grasp stands in, flagged.
+  int low = -1;
+  for (int i = 0; i < b.mesh.VertexCount(); ++i)
+    if (b.mesh.positions[i].z() < -0.045) low = i;
+  ASSERT_GE(low, 0);
+  SurfaceTwistField(*table, low, b.mesh.positions, &fallback);
+  EXPECT_TRUE(fallback);
+  // Corrupt tables are refused with a reason.
+  SurfaceTwistTable bad = *table;
+  bad.angle.pop_back();
+  EXPECT_FALSE(ValidateSurfaceTwist(bad, b.mesh.positions.size()).ok());
+  bad = *table;
+  bad.warp[7] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(ValidateSurfaceTwist(bad, b.mesh.positions.size()).ok());
+  bad = *table;
+  bad.axis[0] *= 2;
+  EXPECT_FALSE(ValidateSurfaceTwist(bad, b.mesh.positions.size()).ok());
+  bad = *table;
+  bad.slot_of_vertex[0] = 1 << 20;
+  EXPECT_FALSE(ValidateSurfaceTwist(bad, b.mesh.positions.size()).ok());
+  // The memory bound names the size.
+  p.max_bytes = 1 << 10;
+  auto refused = PrecomputeSurfaceTwist(b.response, b.surface, b.reachable, p);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("MB"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace vsurg::tissue::reduced_test
