@@ -6,7 +6,11 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
+
+#include "common/geometry/obj_io.h"
 
 namespace vsurg::geometry {
 namespace {
@@ -64,6 +68,23 @@ Expected<TriMesh> FromScene(const aiScene* scene, const std::string& source, dou
   return out;
 }
 
+// assimp's reasons carry no line ("OBJ: vertex index out of range" even for a bad number). When
+// it refuses an OBJ file, the project's own strict OBJ reader (obj_io.h) reads the same text for
+// a line-numbered reason; both are given. Only after a refusal: that reader refuses some files
+// assimp reads (vertex colours), so it never judges a file assimp accepts.
+Error WithObjLine(const Error& refused, std::istream& text, const std::string& source) {
+  auto strict = ParseObj(text, source);
+  if (strict.ok() || strict.error().code != ErrorCode::kParseError) return refused;
+  std::string why = refused.message;
+  if (why.rfind(source + ": ", 0) == 0) why = why.substr(source.size() + 2);
+  return Error{ErrorCode::kParseError, strict.error().message + " (assimp: " + why + ")", "mesh"};
+}
+
+bool IsObj(const std::string& name) {
+  const std::string ext = std::filesystem::path(name).extension().string();
+  return ext == ".obj" || ext == ".OBJ" || name == "obj";
+}
+
 }  // namespace
 
 Expected<double> UnitScale(const std::string& units) {
@@ -84,6 +105,10 @@ Expected<TriMesh> ImportSurfaceMesh(const std::string& path, double metres_per_u
   const aiScene* scene = aiImportFile(path.c_str(), kSteps);
   auto out = FromScene(scene, path, metres_per_unit, report);
   if (scene) aiReleaseImport(scene);
+  if (!scene && IsObj(path)) {
+    std::ifstream text(path);
+    return WithObjLine(out.error(), text, path);
+  }
   return out;
 }
 
@@ -98,6 +123,10 @@ Expected<TriMesh> ImportSurfaceMeshFromMemory(const void* data, size_t size,
       static_cast<const char*>(data), static_cast<unsigned>(size), kSteps, format_hint.c_str());
   auto out = FromScene(scene, source_name, metres_per_unit, report);
   if (scene) aiReleaseImport(scene);
+  if (!scene && IsObj(format_hint)) {
+    std::istringstream text(std::string(static_cast<const char*>(data), size));
+    return WithObjLine(out.error(), text, source_name);
+  }
   return out;
 }
 

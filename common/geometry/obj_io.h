@@ -1,4 +1,6 @@
-// Wavefront OBJ import and export for triangle meshes.
+// Wavefront OBJ import and export for triangle meshes. Scenes and tools read mesh files through
+// assimp (mesh_import.h); this strict reader reads back our own exports and, when assimp refuses
+// an OBJ file, finds the line and the reason (assimp gives neither).
 //
 // Import reads `v` (x y z [w]) and `f` (v, v/vt, v//vn, v/vt/vn; negative indices count back
 // from the latest vertex); polygons are fan-triangulated; `vn`, `vt`, groups, materials and

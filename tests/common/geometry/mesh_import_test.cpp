@@ -148,8 +148,17 @@ TEST_F(MeshImportTest, BrokenFilesGetAClearErrorNamingTheFile) {
     EXPECT_NE(m.error().message.find(says), std::string::npos) << m.error().message;
   };
   expect_error("empty.obj", "", "");
-  expect_error("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "");
-  expect_error("range.obj", "v 0 0 0\nv 1 0 0\nf 1 2 7\n", "");
+  expect_error("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces");
+  // An OBJ that assimp refuses gets the line and the reason (assimp says neither: "vertex index
+  // out of range" for a bad number too), then assimp's own words.
+  expect_error("range.obj", "v 0 0 0\nv 1 0 0\nf 1 2 7\n",
+               ":3: face index 7 is out of range (2 vertices so far) (assimp: ");
+  expect_error("number.obj", "v 0 0 0\nv 1 0 x\nv 0 1 0\nf 1 2 3\n",
+               ":2: vertex coordinate 'x' is not a number");
+  auto memory = ImportSurfaceMeshFromMemory("v 0 0 0\nf 1 2 3\n", 16, "obj", "upload.obj");
+  ASSERT_FALSE(memory.ok());
+  EXPECT_EQ(memory.error().message.rfind("upload.obj:2: face index 2 is out of range", 0), 0u)
+      << memory.error().message;
   expect_error("short.stl", std::string(84, '\0') + "garbage", "");
   auto missing = ImportSurfaceMesh((dir_ / "none.stl").string());
   ASSERT_FALSE(missing.ok());
