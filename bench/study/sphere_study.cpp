@@ -122,15 +122,10 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
   for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(*ref_mesh), kPressForce))
     ref_fem->SetExternalForce(i, f);
   ref_fem->SolveStatic(30, 1e-8);
-  std::vector<Vec3> ref_surface_rest, ref_surface_disp;
-  for (int i = 0; i < ref_mesh->VertexCount(); ++i)
-    if (ref_mesh->positions[i].norm() > 0.98 * kBallRadius) {
-      ref_surface_rest.push_back(ref_mesh->positions[i]);
-      ref_surface_disp.push_back(ref_fem->positions()[i] - ref_mesh->positions[i]);
-    }
-  const Reference ref = [&](const Vec3& x) {
-    return ref_surface_disp[Nearest(ref_surface_rest, x)];
-  };
+  std::vector<Vec3> ref_disp(ref_mesh->positions.size());
+  for (size_t i = 0; i < ref_disp.size(); ++i)
+    ref_disp[i] = ref_fem->positions()[i] - ref_mesh->positions[i];
+  const Reference ref = InterpolatedReference(*ref_mesh, std::move(ref_disp));
   progress.Step("sphere reference fem");
   const double pole_target = ref(Vec3(0, 0, kBallRadius)).norm();
 

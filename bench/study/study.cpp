@@ -54,6 +54,13 @@ void Score(Row& row, const std::vector<Vec3>& rest, const std::vector<Vec3>& now
   row.max = mx;
 }
 
+Reference InterpolatedReference(const geometry::TetMesh& mesh, std::vector<Vec3> displacement) {
+  return [mesh, u = std::move(displacement)](const Vec3& x) -> Vec3 {
+    auto e = geometry::EmbedPoints(mesh, {x});
+    return e.ok() ? geometry::Interpolate((*e)[0], u) : Vec3::Constant(kInf);
+  };
+}
+
 double Ramp(double t, double ramp_s) {
   return std::clamp(t / ramp_s, 0.0, 1.0);
 }

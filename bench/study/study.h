@@ -14,6 +14,7 @@
 
 #include "common/core/expected.h"
 #include "common/geometry/mesh.h"
+#include "common/geometry/tet_embedding.h"
 
 namespace vsurg::bench::study {
 
@@ -96,6 +97,12 @@ int Nearest(const std::vector<Vec3>& points, const Vec3& p);
 
 // Relative marker errors: reference displacement function at a rest point.
 using Reference = std::function<Vec3(const Vec3& rest)>;
+// A reference FEM's displacement at any rest point, interpolated by the FEM's own shape functions
+// (the point embedded in its tetrahedra; outside, the nearest element's nearest point): not the
+// nearest node's, whose distance (up to half an element) read as error where the press's
+// displacement varies fast.
+Reference InterpolatedReference(const geometry::TetMesh& mesh, std::vector<Vec3> displacement);
+
 // Fills row.rms and row.max: marker errors relative to the reference's largest marker
 // displacement ("diverged" when a marker is not finite).
 void Score(Row& row, const std::vector<Vec3>& rest, const std::vector<Vec3>& now,

@@ -258,8 +258,6 @@ ReducedStats ReducedTwistModel::Update(double torque) {
 
 // ---- 2. Contact responses ---------------------------------------------------------------------
 
-namespace {
-
 // Nodal loads on the FEM's boundary for a unit total force in direction d spread over the disc
 // of radius a around p (normal n): every boundary triangle sampled at 28 barycentric points,
 // each sample inside the disc (distance ⊥ n ≤ a, and within a of the tangent plane) carrying its
@@ -303,6 +301,8 @@ std::vector<std::pair<int, double>> FootprintWeights(const geometry::TriMesh& bo
   for (auto& [i, x] : w) x /= total;
   return w;
 }
+
+namespace {
 
 // The linearised rotation w = ½∇×u (rad) at every vertex of a tet mesh displaced by u (m): the
 // axial vector of the skew part of each element's constant gradient H = Σ_a u_a ⊗ ∇N_a,

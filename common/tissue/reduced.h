@@ -70,6 +70,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -160,6 +161,14 @@ struct ContactResponse {
   double max_distance = 0;  // m: the display vertex farthest outside the FEM mesh
   int64_t Bytes() const { return static_cast<int64_t>(g.size() + w.size()) * 4; }
 };
+
+// The nodal shares (summing to 1) of a force spread over a tool's footprint: the disc of radius a
+// (m) around p on the FEM's boundary (`boundary`: geometry::BoundarySurface of the FEM, its
+// vertex indices), perpendicular to n and within a of the tangent plane, lumped by area. What
+// one contact of the table stands for.
+std::vector<std::pair<int, double>> FootprintWeights(const geometry::TriMesh& boundary,
+                                                     const Eigen::Vector3d& p,
+                                                     const Eigen::Vector3d& n, double a);
 
 // `reachable`: the display vertices a tool can touch (the scene's workspace; not the fixed
 // ones). Every one costs 3 back-substitutions.
