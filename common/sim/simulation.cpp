@@ -77,6 +77,25 @@ tissue::FemParams SceneMaterial(const Scene& scene) {
   return p;
 }
 
+// A reduced table's inputs for a scene: its FEM held by the scene's support rule (as the surface
+// is), the display, and every display vertex above the support, which a tool can reach.
+template <class Params>
+tissue::TableInputs<Params> TableInputsFor(const Scene& scene, const geometry::TriMesh& rest,
+                                           geometry::TetMesh fem) {
+  tissue::TableInputs<Params> in;
+  in.mesh = std::move(fem);
+  in.material = SceneMaterial(scene);
+  geometry::TriMesh fem_points;
+  fem_points.positions = in.mesh.positions;
+  in.fixed = SupportedVertices(fem_points, scene.region.support);
+  in.display = rest;
+  std::vector<uint8_t> held(rest.VertexCount(), 0);
+  for (int v : SupportedVertices(rest, scene.region.support)) held[v] = 1;
+  for (int v = 0; v < rest.VertexCount(); ++v)
+    if (!held[v]) in.reachable.push_back(v);
+  return in;
+}
+
 Vec3 AnyPerpendicular(const Vec3& a) {
   const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
   return a.cross(t).normalized();
@@ -209,18 +228,7 @@ Status Simulation::BuildReduced() {
   auto fem = ReducedFemMesh();
   if (!fem.ok()) return fem.error();
   if (region.reduced.mode == ReducedMode::kSurfaceTwist) return BuildSurfaceTwist(std::move(*fem));
-  // Held by the same support rule as the surface.
-  tissue::ContactInputs in;
-  in.mesh = std::move(*fem);
-  in.material = SceneMaterial(scene_);
-  geometry::TriMesh fem_points;
-  fem_points.positions = in.mesh.positions;
-  in.fixed = SupportedVertices(fem_points, region.support);
-  in.display = rest_;
-  std::vector<uint8_t> held(rest_.VertexCount(), 0);
-  for (int v : SupportedVertices(rest_, region.support)) held[v] = 1;
-  for (int v = 0; v < rest_.VertexCount(); ++v)
-    if (!held[v]) in.reachable.push_back(v);
+  auto in = TableInputsFor<tissue::ContactResponseParams>(scene_, rest_, std::move(*fem));
   in.params.footprint_radius = region.reduced.footprint_radius;
   Status status = Status::Ok();
   auto table = SharedContactTable(in, CacheDirectory(), scene_.name + "-contact", status);
@@ -261,21 +269,10 @@ Status Simulation::BuildReducedTwist() {
 }
 
 // Forceps may grasp any vertex above the support: one twist field per such vertex (reduced.h,
-// 4.), cached on disk. The FEM is held by the same support rule as the surface.
+// 4.), cached on disk.
 Status Simulation::BuildSurfaceTwist(geometry::TetMesh fem) {
-  const RegionSpec& region = scene_.region;
-  tissue::SurfaceTwistInputs in;
-  in.mesh = std::move(fem);
-  in.material = SceneMaterial(scene_);
-  geometry::TriMesh fem_points;
-  fem_points.positions = in.mesh.positions;
-  in.fixed = SupportedVertices(fem_points, region.support);
-  in.display = rest_;
-  std::vector<uint8_t> held(rest_.VertexCount(), 0);
-  for (int v : SupportedVertices(rest_, region.support)) held[v] = 1;
-  for (int v = 0; v < rest_.VertexCount(); ++v)
-    if (!held[v]) in.reachable.push_back(v);
-  in.params.jaw_radius = region.reduced.jaw_radius;
+  auto in = TableInputsFor<tissue::SurfaceTwistParams>(scene_, rest_, std::move(fem));
+  in.params.jaw_radius = scene_.region.reduced.jaw_radius;
   tissue::ReducedCache cache(CacheDirectory());
   auto table = cache.SurfaceTwistFor(scene_.name + "-surface-twist", in);
   if (!table.ok()) return table.error();

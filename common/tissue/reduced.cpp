@@ -347,6 +347,19 @@ inline void Warp(float wx, float wy, float wz, float ux, float uy, float uz, flo
   oz = uz + a * c1z + b * c2z;
 }
 
+// For every display vertex, the slot (index into `slots`, display vertices) of the nearest one.
+std::vector<int> NearestSlots(const std::vector<Vec3>& positions, const std::vector<int>& slots) {
+  std::vector<int> out(positions.size(), 0);
+  for (size_t i = 0; i < positions.size(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t s = 0; s < slots.size(); ++s) {
+      const double d = (positions[slots[s]] - positions[i]).squaredNorm();
+      if (d < best) best = d, out[i] = static_cast<int>(s);
+    }
+  }
+  return out;
+}
+
 // The 3×3 block of a contact table: the displacement of `vertex` (rows) per unit force in x, y
 // and z (columns) at the contact in `slot`, m/N.
 Eigen::Matrix3d Block(const ContactResponse& r, size_t slot, int vertex) {
@@ -436,14 +449,7 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
     }
   }
   // Vertices without their own slot: the nearest precomputed contact.
-  out.slot_of_vertex.assign(nv, 0);
-  for (int i = 0; i < nv; ++i) {
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t s = 0; s < contacts.size(); ++s) {
-      const double d = (display.positions[contacts[s]] - display.positions[i]).squaredNorm();
-      if (d < best) best = d, out.slot_of_vertex[i] = static_cast<int>(s);
-    }
-  }
+  out.slot_of_vertex = NearestSlots(display.positions, contacts);
   return out;
 }
 
@@ -678,7 +684,6 @@ Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
   auto embedding = geometry::EmbedPoints(fem.rest(), display.positions);
   if (!embedding.ok()) return embedding.error();
   const geometry::TriMesh boundary = geometry::BoundarySurface(fem.rest());
-  const size_t n = static_cast<size_t>(nv);
   const std::vector<int> candidates = std::move(out.grasps);
   out.grasps.clear();
   std::fill(out.precomputed.begin(), out.precomputed.end(), 0);
@@ -706,16 +711,7 @@ Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
     out.max_distance = std::max(out.max_distance, field->max_distance);
   }
   if (out.grasps.empty()) return last;
-  const size_t slots = out.grasps.size();
-  (void)n;
-  out.slot_of_vertex.assign(nv, 0);
-  for (int i = 0; i < nv; ++i) {
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t s = 0; s < slots; ++s) {
-      const double d = (display.positions[out.grasps[s]] - display.positions[i]).squaredNorm();
-      if (d < best) best = d, out.slot_of_vertex[i] = static_cast<int>(s);
-    }
-  }
+  out.slot_of_vertex = NearestSlots(display.positions, out.grasps);
   return out;
 }
 

@@ -200,13 +200,20 @@ Expected<T> Cached(const std::string& dir, const std::string& name, const std::s
   return value;
 }
 
-std::string ContactKeyBytes(const ContactInputs& in) {
+// The key of a table's inputs, up to its own parameters.
+template <class Params>
+Writer TableKey(const char* kind, const TableInputs<Params>& in) {
   Writer key;
-  PutCommon(key, "contact table", in.mesh, in.material, in.fixed);
+  PutCommon(key, kind, in.mesh, in.material, in.fixed);
   key.PutVector(in.display.positions);
   key.Put(static_cast<uint64_t>(in.display.triangles.size()));
   for (const auto& t : in.display.triangles) key.Put(t);
   key.PutVector(in.reachable);
+  return key;
+}
+
+std::string ContactKeyBytes(const ContactInputs& in) {
+  Writer key = TableKey("contact table", in);
   key.Put(in.params.footprint_radius);
   key.Put(static_cast<uint8_t>(in.params.rotation));
   return key.bytes();
@@ -331,12 +338,7 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
 Expected<SurfaceTwistTable> ReducedCache::SurfaceTwistFor(const std::string& name,
                                                           const SurfaceTwistInputs& in,
                                                           CacheReport* report) const {
-  Writer key;
-  PutCommon(key, "surface twist table", in.mesh, in.material, in.fixed);
-  key.PutVector(in.display.positions);
-  key.Put(static_cast<uint64_t>(in.display.triangles.size()));
-  for (const auto& t : in.display.triangles) key.Put(t);
-  key.PutVector(in.reachable);
+  Writer key = TableKey("surface twist table", in);
   key.Put(in.params.jaw_radius);
   const uint64_t nv = in.display.positions.size();
   auto decode = [&](const std::string& payload, SurfaceTwistTable& t) {

@@ -49,23 +49,19 @@ struct TwistFieldInputs {
   std::vector<Eigen::Vector3d> display;
 };
 
-struct ContactInputs {
+// What a table of responses over a display surface is computed from (contact tables and
+// surface twist tables alike): the FEM, its support, the display and the vertices a tool reaches.
+template <class Params>
+struct TableInputs {
   geometry::TetMesh mesh;
   FemParams material;
   std::vector<int> fixed;
   geometry::TriMesh display;
   std::vector<int> reachable;
-  ContactResponseParams params;
+  Params params;
 };
-
-struct SurfaceTwistInputs {
-  geometry::TetMesh mesh;
-  FemParams material;
-  std::vector<int> fixed;
-  geometry::TriMesh display;
-  std::vector<int> reachable;
-  SurfaceTwistParams params;
-};
+using ContactInputs = TableInputs<ContactResponseParams>;
+using SurfaceTwistInputs = TableInputs<SurfaceTwistParams>;
 
 // Where the files go by default: $VSURG_CACHE_DIR, else $XDG_CACHE_HOME/vsurg, else
 // $HOME/.cache/vsurg, else <temp>/vsurg-cache.
