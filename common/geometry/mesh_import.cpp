@@ -4,20 +4,33 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <unordered_map>
 
 #include "common/geometry/obj_io.h"
 
 namespace vsurg::geometry {
 namespace {
 
+// Node transforms are applied by FromScene itself (aiProcess_PreTransformVertices would merge
+// the meshes of one material and lose their names, the groups a scene can hold fixed).
 constexpr unsigned kSteps = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                            aiProcess_PreTransformVertices | aiProcess_SortByPType |
-                            aiProcess_ValidateDataStructure;
+                            aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+
+struct PositionHash {
+  size_t operator()(const Vec3& p) const {
+    const std::hash<double> h;
+    return h(p.x()) ^ (h(p.y()) * 0x9e3779b97f4a7c15ull) ^ (h(p.z()) * 0xc2b2ae3d27d4eb4full);
+  }
+};
+struct PositionEqual {
+  bool operator()(const Vec3& a, const Vec3& b) const { return a == b; }
+};
 
 Expected<TriMesh> FromScene(const aiScene* scene, const std::string& source, double scale,
                             ImportReport* report) {
@@ -27,34 +40,54 @@ Expected<TriMesh> FromScene(const aiScene* scene, const std::string& source, dou
   r = ImportReport{};
   r.meshes = static_cast<int>(scene->mNumMeshes);
   TriMesh out;
-  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
-    const aiMesh* mesh = scene->mMeshes[m];
-    const int base = out.VertexCount();
-    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
-      const aiVector3D& p = mesh->mVertices[v];
-      const Vec3 x = scale * Vec3(p.x, p.y, p.z);
-      if (!x.allFinite())
-        return Error{ErrorCode::kParseError,
-                     source + ": vertex " + std::to_string(base + static_cast<int>(v)) +
-                         " is not a finite position",
-                     "mesh"};
-      out.positions.push_back(x);
-    }
-    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
-      const aiFace& face = mesh->mFaces[f];
-      if (face.mNumIndices != 3) {
-        ++r.dropped_faces;
-        continue;
+  std::unordered_map<Vec3, int, PositionHash, PositionEqual> index;  // welded positions
+  // Every mesh a node references, in the node's world transform (depth first from the root).
+  std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack;
+  if (scene->mRootNode) stack.emplace_back(scene->mRootNode, scene->mRootNode->mTransformation);
+  while (!stack.empty()) {
+    const auto [node, world] = stack.back();
+    stack.pop_back();
+    for (unsigned c = 0; c < node->mNumChildren; ++c)
+      stack.emplace_back(node->mChildren[c], world * node->mChildren[c]->mTransformation);
+    for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+      if (node->mMeshes[k] >= scene->mNumMeshes) continue;
+      const aiMesh* mesh = scene->mMeshes[node->mMeshes[k]];
+      const std::string name =
+          mesh->mName.length > 0 ? mesh->mName.C_Str() : std::string(node->mName.C_Str());
+      std::vector<int> local_index(mesh->mNumVertices);
+      std::vector<int>& group = r.groups[name];
+      for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+        const aiVector3D p = world * mesh->mVertices[v];
+        const Vec3 x = scale * Vec3(p.x, p.y, p.z);
+        if (!x.allFinite())
+          return Error{ErrorCode::kParseError,
+                       source + ": vertex " + std::to_string(v) + " of mesh '" + name +
+                           "' is not a finite position",
+                       "mesh"};
+        auto [it, added] = index.emplace(x, out.VertexCount());
+        if (added) out.positions.push_back(x);
+        local_index[v] = it->second;
+        group.push_back(it->second);
       }
-      const Triangle t = {base + static_cast<int>(face.mIndices[0]),
-                          base + static_cast<int>(face.mIndices[1]),
-                          base + static_cast<int>(face.mIndices[2])};
-      if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
-        ++r.dropped_faces;
-        continue;
+      for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+        const aiFace& face = mesh->mFaces[f];
+        if (face.mNumIndices != 3) {
+          ++r.dropped_faces;
+          continue;
+        }
+        const Triangle t = {local_index[face.mIndices[0]], local_index[face.mIndices[1]],
+                            local_index[face.mIndices[2]]};
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+          ++r.dropped_faces;
+          continue;
+        }
+        out.triangles.push_back(t);
       }
-      out.triangles.push_back(t);
     }
+  }
+  for (auto& [name, vertices] : r.groups) {
+    std::sort(vertices.begin(), vertices.end());
+    vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
   }
   if (out.triangles.empty())
     return Error{ErrorCode::kParseError,
@@ -63,8 +96,8 @@ Expected<TriMesh> FromScene(const aiScene* scene, const std::string& source, dou
                                             " points, lines or repeated-vertex faces dropped)"
                                       : ""),
                  "mesh"};
-  if (Status s = Validate(out); !s.ok())
-    return Error{ErrorCode::kParseError, source + ": " + s.error().message, "mesh"};
+  if (Status st = Validate(out); !st.ok())
+    return Error{ErrorCode::kParseError, source + ": " + st.error().message, "mesh"};
   return out;
 }
 

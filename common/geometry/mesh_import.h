@@ -4,10 +4,11 @@
 // A well-kept library instead of our own parsers: mesh formats are not our core, and a surgeon's
 // segmentation arrives in whichever of them the tool wrote.
 //
-// Every mesh in the file is taken, with its node transforms applied (aiProcess_
-// PreTransformVertices); polygons are triangulated (concave ones by ear clipping), vertices at
-// the same position within a mesh are joined (STL repeats them per facet), points, lines and
-// faces that repeat a vertex are dropped and counted. Positions are scaled by the file's unit
+// Every mesh in the file is taken, with its nodes' transforms applied; polygons are triangulated
+// (concave ones by ear clipping), vertices at the same position are joined, within a mesh and
+// across meshes (STL repeats them per facet; an OBJ's groups share their seams), points, lines
+// and faces that repeat a vertex are dropped and counted. Each named mesh (an OBJ group or
+// object, an STL solid, a glTF mesh) is a named group of vertices: a scene can hold one fixed. Positions are scaled by the file's unit
 // (the file does not say: the caller does, "units" in a scene). Errors are kParseError (or
 // kNotFound / kIoError for a missing or unreadable file) with a message that starts with the
 // path and says what is wrong: assimp's own reason for a broken file, "no triangles", a
@@ -18,7 +19,9 @@
 #pragma once
 
 #include <cstddef>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "common/core/expected.h"
 #include "common/geometry/mesh.h"
@@ -28,6 +31,8 @@ namespace vsurg::geometry {
 struct ImportReport {
   int meshes = 0;         // meshes in the file
   int dropped_faces = 0;  // points, lines and faces with a repeated vertex
+  // Named groups: the vertices of the file's meshes by name (a vertex on a seam is in both).
+  std::map<std::string, std::vector<int>> groups;
 };
 
 // Metres per file unit for "m", "cm", "mm" or "um"; kInvalidArgument otherwise.

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <sstream>
 
@@ -195,15 +196,37 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
   } else if (type == "mass-spring" || type == "ring-layer" || type == "reduced") {
     VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
     g.dt = dt;
-    VSURG_TRY(support, r.StringOr("support", "bottom"));
-    if (support == "none") {
-      g.support = Support::kNone;
-    } else if (support == "bottom") {
-      g.support = Support::kBottom;
-    } else if (support == "ends") {
-      g.support = Support::kEnds;
+    if (r.Has("support") && r.raw()["support"].is_object()) {
+      VSURG_TRY(sr, r.Object("support"));
+      if (sr.Has("plane")) {
+        VSURG_TRY(plane, sr.Object("plane"));
+        VSURG_TRY(point, plane.NumbersOr("point", 3, -100, 100));
+        VSURG_TRY(normal, plane.NumbersOr("normal", 3, -1e6, 1e6));
+        if (point.size() != 3) return plane.Bad("point", "is required: [x, y, z] in metres");
+        if (normal.size() != 3) return plane.Bad("normal", "is required: [x, y, z]");
+        const geometry::Vec3 n(normal[0], normal[1], normal[2]);
+        if (!(n.norm() > 1e-12)) return plane.Bad("normal", "must not be zero");
+        g.support = Support::kPlane;
+        g.support_point = geometry::Vec3(point[0], point[1], point[2]);
+        g.support_normal = n.normalized();
+      } else if (sr.Has("group")) {
+        VSURG_TRY(group, sr.String("group"));
+        g.support = Support::kGroup;
+        g.support_group = group;
+      } else {
+        return r.Bad("support", "an object must be {\"plane\": {...}} or {\"group\": \"name\"}");
+      }
     } else {
-      return r.Bad("support", "must be none, bottom or ends");
+      VSURG_TRY(support, r.StringOr("support", "bottom"));
+      if (support == "none") {
+        g.support = Support::kNone;
+      } else if (support == "bottom") {
+        g.support = Support::kBottom;
+      } else if (support == "ends") {
+        g.support = Support::kEnds;
+      } else {
+        return r.Bad("support", "must be none, bottom, ends, {\"plane\": ...} or {\"group\": ...}");
+      }
     }
     if (type == "reduced") {
       g.kind = ModelKind::kReduced;
@@ -449,6 +472,10 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
                           "regions[0].model.type: a reduced contact or surface-twist "
                           "model needs a sphere or a closed mesh file"));
   }
+  if (s.region.support == Support::kGroup && s.mesh.kind != MeshKind::kFile)
+    return with_source(
+        InvalidArgument("regions[0].model.support",
+                        "regions[0].model.support.group: only a mesh file has named groups"));
   if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
       s.region.support == Support::kBottom) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
@@ -524,9 +551,11 @@ Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec) {
       break;
     }
     case MeshKind::kFile: {
-      auto mesh = geometry::ImportSurfaceMesh(spec.path, spec.metres_per_unit);
+      geometry::ImportReport report;
+      auto mesh = geometry::ImportSurfaceMesh(spec.path, spec.metres_per_unit, &report);
       if (!mesh.ok()) return mesh.error();
       out.surface = std::move(*mesh);
+      out.groups = std::move(report.groups);
       break;
     }
   }
@@ -545,6 +574,67 @@ std::vector<int> SupportedVertices(const geometry::TriMesh& mesh, Support suppor
                           ? z < lo.z() + 0.2 * height
                           : z < lo.z() + 0.01 * height || z > hi.z() - 0.01 * height;
     if (held) fixed.push_back(v);
+  }
+  return fixed;
+}
+
+Expected<std::vector<int>> SupportedVertices(
+    const geometry::TriMesh& mesh, const RegionSpec& region,
+    const std::map<std::string, std::vector<int>>& groups) {
+  switch (region.support) {
+    case Support::kPlane: {
+      std::vector<int> fixed;
+      for (int v = 0; v < mesh.VertexCount(); ++v)
+        if ((mesh.positions[v] - region.support_point).dot(region.support_normal) <= 0)
+          fixed.push_back(v);
+      return fixed;
+    }
+    case Support::kGroup: {
+      const auto it = groups.find(region.support_group);
+      if (it == groups.end()) {
+        std::string have;
+        for (const auto& [name, vertices] : groups) have += (have.empty() ? "" : ", ") + name;
+        return InvalidArgument("regions[0].model.support",
+                               "regions[0].model.support.group: the mesh has no group '" +
+                                   region.support_group +
+                                   "' (it has: " + (have.empty() ? "none" : have) + ")");
+      }
+      for (int v : it->second)
+        if (v < 0 || v >= mesh.VertexCount())
+          return InvalidArgument("regions[0].model.support", "a group names a vertex off the mesh");
+      return it->second;
+    }
+    default:
+      return SupportedVertices(mesh, region.support);
+  }
+}
+
+std::vector<int> SupportedFemVertices(const geometry::TetMesh& fem,
+                                      const geometry::TriMesh& surface,
+                                      const std::vector<int>& surface_held,
+                                      const RegionSpec& region) {
+  geometry::TriMesh points;
+  points.positions = fem.positions;
+  if (region.support != Support::kGroup) {
+    auto held = SupportedVertices(points, region, {});
+    return held.ok() ? *held : std::vector<int>{};
+  }
+  std::vector<uint8_t> is_held(surface.positions.size(), 0);
+  for (int v : surface_held) is_held[v] = 1;
+  const geometry::TriMesh boundary = geometry::BoundarySurface(fem);
+  std::vector<uint8_t> on_boundary(fem.positions.size(), 0);
+  for (const auto& t : boundary.triangles)
+    for (int v : t) on_boundary[v] = 1;
+  std::vector<int> fixed;
+  for (int v = 0; v < fem.VertexCount(); ++v) {
+    if (!on_boundary[v]) continue;
+    int nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int s = 0; s < surface.VertexCount(); ++s) {
+      const double d = (surface.positions[s] - fem.positions[v]).squaredNorm();
+      if (d < best) best = d, nearest = s;
+    }
+    if (is_held[nearest]) fixed.push_back(v);
   }
   return fixed;
 }

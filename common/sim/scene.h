@@ -24,6 +24,7 @@
 // Set-up code: allocates, reads files.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -43,11 +44,11 @@ enum class MeshKind { kLimb, kSphere, kFile };
 enum class ModelKind { kCoil, kMassSpring, kRingLayer, kReduced };
 // As scene files spell it: "coil", "mass-spring", "ring-layer", "reduced".
 const char* ModelKindName(ModelKind kind);
-enum class Support {
-  kNone,
-  kBottom,
-  kEnds
-};  // what is fixed: nothing, the bottom fifth, limb ends
+// What is fixed: nothing, the bottom fifth, limb ends, everything on the far side of a plane
+// ("support": {"plane": {"point": [x, y, z], "normal": [x, y, z]}}, metres in the scene's frame,
+// the normal pointing into the free part), or a named group of a mesh file's vertices
+// ("support": {"group": "base"}: an OBJ group or object, an STL solid, a glTF mesh).
+enum class Support { kNone, kBottom, kEnds, kPlane, kGroup };
 
 struct MeshSpec {
   MeshKind kind = MeshKind::kLimb;
@@ -86,6 +87,9 @@ struct RegionSpec {
   tissue::Integrator integrator = tissue::Integrator::kImplicitEuler;
   double dt = 1e-3;  // s, mass-spring and ring-layer step
   Support support = Support::kBottom;
+  geometry::Vec3 support_point = geometry::Vec3::Zero();    // m, kPlane
+  geometry::Vec3 support_normal = geometry::Vec3::UnitZ();  // unit, kPlane
+  std::string support_group;                                // kGroup
   tissue::RingLayerParams ring;
   ReducedSpec reduced;
 };
@@ -133,12 +137,25 @@ Expected<Scene> LoadScene(const std::string& path);
 struct SceneMesh {
   geometry::TriMesh surface;
   std::vector<geometry::Vec3> centreline;
+  std::map<std::string, std::vector<int>> groups;  // a mesh file's named groups (vertices)
 };
 Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec);
 
 // The vertices a support holds fixed: nothing; the bottom fifth of the height (resting on a
 // table); or the ends, 1% of the length at each end of a limb lying along z.
 std::vector<int> SupportedVertices(const geometry::TriMesh& mesh, Support support);
+// A region's support, any kind: kInvalidArgument naming regions[0].model.support when its group
+// is not among `groups`.
+Expected<std::vector<int>> SupportedVertices(const geometry::TriMesh& mesh,
+                                             const RegionSpec& region,
+                                             const std::map<std::string, std::vector<int>>& groups);
+// The same support on a FEM mesh of the surface: a group holds the FEM's boundary vertices whose
+// nearest surface vertex the group holds (`surface_held`); the other kinds apply as to the
+// surface.
+std::vector<int> SupportedFemVertices(const geometry::TetMesh& fem,
+                                      const geometry::TriMesh& surface,
+                                      const std::vector<int>& surface_held,
+                                      const RegionSpec& region);
 
 // The scenes folder: $VSURG_SCENES, else scenes/ beside the executable's ../../ (the build tree)
 // or ../share/vsurg/scenes (an install), else the source tree's scenes/ compiled in.

@@ -77,22 +77,20 @@ tissue::FemParams SceneMaterial(const Scene& scene) {
   return p;
 }
 
-// A reduced table's inputs for a scene: its FEM held by the scene's support rule (as the surface
-// is), the display, and every display vertex above the support, which a tool can reach.
+// A reduced table's inputs for a scene: its FEM held by the scene's support (as the surface's
+// `held` vertices are), the display, and every display vertex not held, which a tool can reach.
 template <class Params>
 tissue::TableInputs<Params> TableInputsFor(const Scene& scene, const geometry::TriMesh& rest,
-                                           geometry::TetMesh fem) {
+                                           const std::vector<int>& held, geometry::TetMesh fem) {
   tissue::TableInputs<Params> in;
   in.mesh = std::move(fem);
   in.material = SceneMaterial(scene);
-  geometry::TriMesh fem_points;
-  fem_points.positions = in.mesh.positions;
-  in.fixed = SupportedVertices(fem_points, scene.region.support);
+  in.fixed = SupportedFemVertices(in.mesh, rest, held, scene.region);
   in.display = rest;
-  std::vector<uint8_t> held(rest.VertexCount(), 0);
-  for (int v : SupportedVertices(rest, scene.region.support)) held[v] = 1;
+  std::vector<uint8_t> is_held(rest.VertexCount(), 0);
+  for (int v : held) is_held[v] = 1;
   for (int v = 0; v < rest.VertexCount(); ++v)
-    if (!held[v]) in.reachable.push_back(v);
+    if (!is_held[v]) in.reachable.push_back(v);
   return in;
 }
 
@@ -127,6 +125,9 @@ Expected<std::unique_ptr<Simulation>> Simulation::CreateChecked(const Scene& sce
   std::vector<Vec3> centreline = std::move(mesh->centreline);
   std::unique_ptr<Simulation> sim(new Simulation(scene, std::move(rest), options));
   sim->centreline_points_ = std::move(centreline);
+  auto held = SupportedVertices(sim->rest_, scene.region, mesh->groups);
+  if (!held.ok()) return held.error();
+  sim->held_ = std::move(*held);
   if (Status s = sim->Build(); !s.ok()) return s.error();
   if (options.threaded && options.start_deformation) sim->SetDeformationRunning(true);
   return sim;
@@ -190,7 +191,7 @@ Status Simulation::Build() {
       if (!model.ok()) return model.error();
       msm_ = std::make_unique<tissue::MassSpringModel>(std::move(*model));
       const int n = rest_.VertexCount();
-      for (int v : SupportedVertices(rest_, region.support)) {
+      for (int v : held_) {
         msm_->SetFixed(v, true);
         if (bp.volume == tissue::VolumeMode::kInnerLayer) msm_->SetFixed(n + v, true);
       }
@@ -228,7 +229,7 @@ Status Simulation::BuildReduced() {
   auto fem = ReducedFemMesh();
   if (!fem.ok()) return fem.error();
   if (region.reduced.mode == ReducedMode::kSurfaceTwist) return BuildSurfaceTwist(std::move(*fem));
-  auto in = TableInputsFor<tissue::ContactResponseParams>(scene_, rest_, std::move(*fem));
+  auto in = TableInputsFor<tissue::ContactResponseParams>(scene_, rest_, held_, std::move(*fem));
   in.params.footprint_radius = region.reduced.footprint_radius;
   Status status = Status::Ok();
   auto table = SharedContactTable(in, CacheDirectory(), scene_.name + "-contact", status);
@@ -271,7 +272,7 @@ Status Simulation::BuildReducedTwist() {
 // Forceps may grasp any vertex above the support: one twist field per such vertex (reduced.h,
 // 4.), cached on disk.
 Status Simulation::BuildSurfaceTwist(geometry::TetMesh fem) {
-  auto in = TableInputsFor<tissue::SurfaceTwistParams>(scene_, rest_, std::move(fem));
+  auto in = TableInputsFor<tissue::SurfaceTwistParams>(scene_, rest_, held_, std::move(fem));
   in.params.jaw_radius = scene_.region.reduced.jaw_radius;
   tissue::ReducedCache cache(CacheDirectory());
   auto table = cache.SurfaceTwistFor(scene_.name + "-surface-twist", in);

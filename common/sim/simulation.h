@@ -197,6 +197,7 @@ class Simulation {
   std::unique_ptr<tissue::CoilSpringModel> coil_;           // coil scenes: the inverse runs here
   std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex
   std::vector<geometry::Vec3> centreline_points_;
+  std::vector<int> held_;  // the surface vertices the scene's support holds
   DeformInput input_;
   double last_time_ = 0;   // s, the station's time of the last accepted sample
   double trial_time_ = 0;  // s, the trial clock: bounded steps of the station's time

@@ -89,6 +89,39 @@ TEST_F(MeshImportTest, ObjWithColoursSignedNumbersAndAConcavePolygon) {
   EXPECT_GE(report.dropped_faces, 1);
 }
 
+// A closed cube whose faces are three OBJ groups: the groups' seams are welded (8 vertices, a
+// closed surface, not three patches of 16), and each group names its vertices; two ASCII STL
+// solids are two groups likewise.
+TEST_F(MeshImportTest, NamedGroupsShareTheirSeamsAndNameTheirVertices) {
+  const std::string cube =
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+      "g base\nf 1 3 2\nf 1 4 3\n"
+      "g sides\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n"
+      "g top\nf 5 6 7\nf 5 7 8\n";
+  ImportReport report;
+  auto m = ImportSurfaceMesh(Write("cube.obj", cube), 1.0, &report);
+  ASSERT_TRUE(m.ok()) << m.error().message;
+  EXPECT_EQ(m->VertexCount(), 8);
+  EXPECT_EQ(m->TriangleCount(), 12);
+  EXPECT_TRUE(CheckTopology(*m).Closed());
+  EXPECT_NEAR(SignedVolume(*m), 1.0, 1e-12);
+  ASSERT_EQ(report.groups.size(), 3u);
+  ASSERT_EQ(report.groups["base"].size(), 4u);
+  for (int v : report.groups["base"]) EXPECT_EQ(m->positions[v].z(), 0.0);
+  ASSERT_EQ(report.groups["top"].size(), 4u);
+  for (int v : report.groups["top"]) EXPECT_EQ(m->positions[v].z(), 1.0);
+  EXPECT_EQ(report.groups["sides"].size(), 8u);  // every vertex: the seams are shared
+  const std::string solids =
+      "solid base\nfacet normal 0 0 -1\nouter loop\nvertex 0 0 0\nvertex 1 1 0\nvertex 1 0 0\n"
+      "endloop\nendfacet\nendsolid base\nsolid lid\nfacet normal 0 0 1\nouter loop\n"
+      "vertex 0 0 0\nvertex 1 0 0\nvertex 1 1 1\nendloop\nendfacet\nendsolid lid\n";
+  auto two = ImportSurfaceMesh(Write("two.stl", solids), 1.0, &report);
+  ASSERT_TRUE(two.ok()) << two.error().message;
+  EXPECT_EQ(two->VertexCount(), 4);  // two shared corners
+  EXPECT_EQ(report.groups["base"].size(), 3u);
+  EXPECT_EQ(report.groups["lid"].size(), 3u);
+}
+
 TEST_F(MeshImportTest, SlicerStlInMillimetresAsciiAndBinary) {
   for (const auto& [name, bytes] : {std::pair{std::string("a.stl"), AsciiStl(10)},
                                     std::pair{std::string("b.stl"), BinaryStl(10)}}) {

@@ -2,6 +2,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +15,7 @@
 
 #include "common/geometry/mesh_generators.h"
 #include "common/sim/limb_scene.h"
+#include "common/sim/simulation.h"
 
 namespace vsurg::sim {
 namespace {
@@ -128,6 +131,12 @@ TEST(SceneTest, TaskAndModelAreRead) {
   EXPECT_EQ(sphere->task.kind, scoring::TaskKind::kPress);
 }
 
+// Positions compared as rounded keys (the OBJ text round-trips them to 6 digits).
+using Vec3Key = std::array<long, 3>;
+Vec3Key Key(const geometry::Vec3& p) {
+  return {std::lround(p.x() * 1e5), std::lround(p.y() * 1e5), std::lround(p.z() * 1e5)};
+}
+
 std::string Minimal() {
   return R"({"name": "t", "mesh": {"type": "sphere", "radius": 0.05, "particles": 256},
     "regions": [{"name": "r", "model": {"type": "mass-spring", "structural_stiffness": 50}}],
@@ -145,6 +154,101 @@ std::string Replace(std::string s, const std::string& from, const std::string& t
   const size_t at = s.find(from);
   EXPECT_NE(at, std::string::npos) << from;
   return s.replace(at, from.size(), to);
+}
+
+// The support as a named group of the file (an OBJ group "table" under a ball) or as a plane:
+// the surface's held vertices are the group's (the plane's far side); the FEM's are its boundary
+// vertices nearest a held surface vertex; a group the file lacks names the ones it has; a group
+// on a built-in mesh, a zero normal and a support object of neither kind are refused.
+TEST(SceneTest, ASupportCanBeANamedGroupOfTheFileOrAPlane) {
+  auto ball = geometry::MakeSubdividedSphere({0.05, 3, geometry::SphereBase::kOctahedron});
+  ASSERT_TRUE(ball.ok());
+  const std::string obj = (std::filesystem::temp_directory_path() /
+                           ("vsurg_scene_groups_" + std::to_string(::getpid()) + ".obj"))
+                              .string();
+  std::set<int> table;
+  {
+    std::ofstream out(obj);
+    for (const auto& p : ball->positions)
+      out << "v " << p.x() << " " << p.y() << " " << p.z() << "\n";
+    for (const bool low : {true, false}) {
+      out << "g " << (low ? "table" : "organ") << "\n";
+      for (const auto& t : ball->triangles) {
+        const double z =
+            (ball->positions[t[0]] + ball->positions[t[1]] + ball->positions[t[2]]).z() / 3;
+        if ((z < -0.04) != low) continue;
+        out << "f " << t[0] + 1 << " " << t[1] + 1 << " " << t[2] + 1 << "\n";
+        if (low) table.insert(t.begin(), t.end());
+      }
+    }
+  }
+  const std::string text = R"({"name": "t", "mesh": {"type": "file", "path": ")" + obj + R"("},
+    "regions": [{"name": "r", "model": {"type": "reduced", "fem_size": 0.012,
+                 "support": {"group": "table"}}}],
+    "task": {"type": "press", "target_depth_m": 0.005, "tolerance_m": 0.001},
+    "error_budget": {"rms": 0.2}})";
+  auto scene = ParseScene(text, "x.json");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  EXPECT_EQ(scene->region.support, Support::kGroup);
+  auto mesh = BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+  auto held = SupportedVertices(mesh->surface, scene->region, mesh->groups);
+  ASSERT_TRUE(held.ok()) << held.error().message;
+  std::set<Vec3Key> held_at, table_at;
+  for (int v : *held) held_at.insert(Key(mesh->surface.positions[v]));
+  for (int v : table) table_at.insert(Key(ball->positions[v]));
+  EXPECT_EQ(held_at, table_at);
+  geometry::TetMesh fem;
+  fem.positions = mesh->surface.positions;  // a stand-in FEM: a fan of tets from the centre
+  fem.positions.push_back(geometry::Vec3::Zero());
+  for (const auto& t : mesh->surface.triangles)
+    fem.tetrahedra.push_back({t[0], t[1], t[2], fem.VertexCount() - 1});
+  const std::vector<int> fem_held = SupportedFemVertices(fem, mesh->surface, *held, scene->region);
+  EXPECT_EQ(std::set<int>(fem_held.begin(), fem_held.end()),
+            std::set<int>(held->begin(), held->end()));
+  // A session builds on it (CGAL's tetrahedra held where the table group is), and a scene that
+  // names a group the file lacks fails at Create, naming the field.
+  const std::string cache = (std::filesystem::temp_directory_path() /
+                             ("vsurg_groups_cache_" + std::to_string(::getpid())))
+                                .string();
+  auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = cache});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  auto wrong = ParseScene(Replace(text, R"("group": "table")", R"("group": "base")"), "x.json");
+  ASSERT_TRUE(wrong.ok());
+  auto refused = Simulation::Create(*wrong, {.threaded = false, .cache_dir = cache});
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().field, "regions[0].model.support");
+  std::filesystem::remove_all(cache);
+  RegionSpec other = scene->region;
+  other.support_group = "base";
+  auto missing = SupportedVertices(mesh->surface, other, mesh->groups);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("no group 'base' (it has: organ, table)"),
+            std::string::npos)
+      << missing.error().message;
+  // A plane: everything at or below z = −3 cm, the normal pointing up into the free part.
+  const std::string plane = Replace(text, R"({"group": "table"})",
+                                    R"({"plane": {"point": [0, 0, -0.03], "normal": [0, 0, 2]}})");
+  auto by_plane = ParseScene(plane, "x.json");
+  ASSERT_TRUE(by_plane.ok()) << by_plane.error().message;
+  auto below = SupportedVertices(mesh->surface, by_plane->region, mesh->groups);
+  ASSERT_TRUE(below.ok());
+  EXPECT_FALSE(below->empty());
+  for (int v = 0; v < mesh->surface.VertexCount(); ++v)
+    EXPECT_EQ(std::count(below->begin(), below->end(), v) == 1,
+              mesh->surface.positions[v].z() <= -0.03)
+        << v;
+  EXPECT_NE(Field(Replace(plane, "[0, 0, 2]", "[0, 0, 0]")).find("support.plane.normal"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(plane, R"("point": [0, 0, -0.03], )", "")).find("support.plane.point"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(text, R"({"group": "table"})", R"({"edge": 1})")).find("support"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("structural_stiffness": 50)",
+                          R"("structural_stiffness": 50, "support": {"group": "table"})"))
+                .find("only a mesh file has named groups"),
+            std::string::npos);
+  std::filesystem::remove(obj);
 }
 
 TEST(SceneTest, BadScenesNameTheField) {
