@@ -219,6 +219,48 @@ std::string ContactKeyBytes(const ContactInputs& in) {
   return key.bytes();
 }
 
+// The part a contact table and a surface twist table share: the display's vertex count, the
+// tool's radius (footprint or jaws), the largest embedding distance and the slots (which display
+// vertex each precomputed slot is, each vertex's slot, which vertices have their own).
+struct SlotsView {
+  int& vertices;
+  double& radius;
+  double& max_distance;
+  std::vector<int>& slots;
+  std::vector<int>& slot_of_vertex;
+  std::vector<uint8_t>& precomputed;
+};
+
+template <class Table>
+void PutSlots(Writer& w, const Table& t, double radius, const std::vector<int>& slots) {
+  w.Put(static_cast<int32_t>(t.vertices));
+  w.Put(radius);
+  w.Put(t.max_distance);
+  w.Put(static_cast<uint64_t>(slots.size()));
+  w.PutVector(slots);
+  w.PutVector(t.slot_of_vertex);
+  w.PutVector(t.precomputed);
+}
+
+// Reads them for a display of `nv` vertices; `count` gets the number of slots.
+bool GetSlots(Reader& r, uint64_t nv, const SlotsView& s, uint64_t& count) {
+  int32_t vertices = 0;
+  if (!r.Get(vertices) || static_cast<uint64_t>(vertices) != nv || !r.Get(s.radius) ||
+      !r.Get(s.max_distance) || !r.Get(count) || count > nv)
+    return false;
+  s.vertices = vertices;
+  return r.GetVector(s.slots, count) && r.GetVector(s.slot_of_vertex, nv) &&
+         r.GetVector(s.precomputed, nv);
+}
+
+SlotsView Slots(ContactResponse& c) {
+  return {c.vertices, c.footprint_radius, c.max_distance,
+          c.contacts, c.slot_of_vertex,   c.precomputed};
+}
+SlotsView Slots(SurfaceTwistTable& t) {
+  return {t.vertices, t.jaw_radius, t.max_distance, t.grasps, t.slot_of_vertex, t.precomputed};
+}
+
 }  // namespace
 
 std::string DefaultCacheDirectory() {
@@ -301,15 +343,9 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
   const uint64_t nv = in.display.positions.size();
   auto decode = [&](const std::string& payload, ContactResponse& c) {
     Reader r(payload);
-    int32_t vertices = 0;
     uint64_t contacts = 0;
-    if (!r.Get(vertices) || static_cast<uint64_t>(vertices) != nv || !r.Get(c.footprint_radius) ||
-        !r.Get(c.max_distance) || !r.Get(contacts) || contacts > nv)
-      return false;
-    c.vertices = vertices;
     uint8_t rotation = 0;
-    return r.GetVector(c.contacts, contacts) && r.GetVector(c.slot_of_vertex, nv) &&
-           r.GetVector(c.precomputed, nv) && r.GetVector(c.g, contacts * 9 * nv) &&
+    return GetSlots(r, nv, Slots(c), contacts) && r.GetVector(c.g, contacts * 9 * nv) &&
            r.Get(rotation) && rotation == static_cast<uint8_t>(in.params.rotation) &&
            r.GetVector(c.w, rotation ? contacts * 9 * nv : 0) && r.AtEnd();
   };
@@ -320,13 +356,7 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
   };
   auto encode = [](const ContactResponse& c) {
     Writer w;
-    w.Put(static_cast<int32_t>(c.vertices));
-    w.Put(c.footprint_radius);
-    w.Put(c.max_distance);
-    w.Put(static_cast<uint64_t>(c.contacts.size()));
-    w.PutVector(c.contacts);
-    w.PutVector(c.slot_of_vertex);
-    w.PutVector(c.precomputed);
+    PutSlots(w, c, c.footprint_radius, c.contacts);
     w.PutVector(c.g);
     w.Put(static_cast<uint8_t>(!c.w.empty()));
     w.PutVector(c.w);
@@ -343,14 +373,8 @@ Expected<SurfaceTwistTable> ReducedCache::SurfaceTwistFor(const std::string& nam
   const uint64_t nv = in.display.positions.size();
   auto decode = [&](const std::string& payload, SurfaceTwistTable& t) {
     Reader r(payload);
-    int32_t vertices = 0;
     uint64_t grasps = 0;
-    if (!r.Get(vertices) || static_cast<uint64_t>(vertices) != nv || !r.Get(t.jaw_radius) ||
-        !r.Get(t.max_distance) || !r.Get(grasps) || grasps > nv)
-      return false;
-    t.vertices = vertices;
-    return r.GetVector(t.grasps, grasps) && r.GetVector(t.slot_of_vertex, nv) &&
-           r.GetVector(t.precomputed, nv) && r.GetVector(t.angle, grasps * nv) &&
+    return GetSlots(r, nv, Slots(t), grasps) && r.GetVector(t.angle, grasps * nv) &&
            r.GetVector(t.warp, grasps * nv) && r.GetVector(t.radial, grasps * nv) &&
            r.GetVector(t.axis, grasps) && r.GetVector(t.grasp_compliance, grasps) && r.AtEnd() &&
            ValidateSurfaceTwist(t, nv).ok();
@@ -362,13 +386,7 @@ Expected<SurfaceTwistTable> ReducedCache::SurfaceTwistFor(const std::string& nam
   };
   auto encode = [](const SurfaceTwistTable& t) {
     Writer w;
-    w.Put(static_cast<int32_t>(t.vertices));
-    w.Put(t.jaw_radius);
-    w.Put(t.max_distance);
-    w.Put(static_cast<uint64_t>(t.grasps.size()));
-    w.PutVector(t.grasps);
-    w.PutVector(t.slot_of_vertex);
-    w.PutVector(t.precomputed);
+    PutSlots(w, t, t.jaw_radius, t.grasps);
     w.PutVector(t.angle);
     w.PutVector(t.warp);
     w.PutVector(t.radial);
