@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -21,21 +22,21 @@ using haptics::StylusSample;
 
 namespace {
 
-// Contact tables are read-only and large (36 B per vertex pair): the sessions of one scene share
-// one, found by the key of its inputs while any session holds it. The map's lock is held only to
-// look up; a table being built holds its own key's lock, so a second session of the same scene
-// waits for it (and does not build it twice) while other scenes' sessions go on.
-std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::ContactInputs& in,
-                                                                  const std::string& cache_dir,
-                                                                  const std::string& name,
-                                                                  Status& status) {
+// Reduced tables (contact and surface twist) are read-only and large (72 and 12 B per vertex
+// pair): the sessions of one scene share one, found by the key of its inputs while any session
+// holds it (one map per table type). The map's lock is held only to look up; a table being built
+// holds its own key's lock, so a second session of the same scene waits for it (and does not
+// build it twice) while other scenes' sessions go on. `load` reads it from the cache or builds it.
+template <class Table>
+std::shared_ptr<const Table> SharedTable(const std::string& key,
+                                         const std::function<Expected<Table>()>& load,
+                                         Status& status) {
   struct Entry {
-    std::weak_ptr<const tissue::ContactResponse> table;
+    std::weak_ptr<const Table> table;
     std::shared_ptr<std::mutex> building = std::make_shared<std::mutex>();
   };
   static std::mutex mutex;
   static std::map<std::string, Entry> tables;
-  const std::string key = tissue::ContactKey(in);
   std::shared_ptr<std::mutex> building;
   {
     std::lock_guard<std::mutex> lock(mutex);
@@ -48,14 +49,12 @@ std::shared_ptr<const tissue::ContactResponse> SharedContactTable(const tissue::
     std::lock_guard<std::mutex> lock(mutex);  // built while this one waited?
     if (auto alive = tables[key].table.lock()) return alive;
   }
-  tissue::ReducedCache cache(cache_dir);
-  tissue::CacheReport report;
-  auto table = cache.ContactResponseFor(name, in, &report);
+  auto table = load();
   if (!table.ok()) {
     status = table.error();
     return nullptr;
   }
-  auto shared = std::make_shared<const tissue::ContactResponse>(std::move(*table));
+  auto shared = std::make_shared<const Table>(std::move(*table));
   std::lock_guard<std::mutex> lock(mutex);
   tables[key].table = shared;
   return shared;
@@ -232,7 +231,10 @@ Status Simulation::BuildReduced() {
   auto in = TableInputsFor<tissue::ContactResponseParams>(scene_, rest_, held_, std::move(*fem));
   in.params.footprint_radius = region.reduced.footprint_radius;
   Status status = Status::Ok();
-  auto table = SharedContactTable(in, CacheDirectory(), scene_.name + "-contact", status);
+  const tissue::ReducedCache cache(CacheDirectory());
+  auto table = SharedTable<tissue::ContactResponse>(
+      tissue::ContactKey(in),
+      [&] { return cache.ContactResponseFor(scene_.name + "-contact", in); }, status);
   if (!table) return status;
   auto model =
       tissue::ReducedContactModel::Create(table, rest_.positions, region.reduced.max_force);
@@ -274,11 +276,12 @@ Status Simulation::BuildReducedTwist() {
 Status Simulation::BuildSurfaceTwist(geometry::TetMesh fem) {
   auto in = TableInputsFor<tissue::SurfaceTwistParams>(scene_, rest_, held_, std::move(fem));
   in.params.jaw_radius = scene_.region.reduced.jaw_radius;
-  tissue::ReducedCache cache(CacheDirectory());
-  auto table = cache.SurfaceTwistFor(scene_.name + "-surface-twist", in);
-  if (!table.ok()) return table.error();
-  surface_twist_ = std::make_shared<const tissue::SurfaceTwistTable>(std::move(*table));
-  return Status::Ok();
+  const tissue::ReducedCache cache(CacheDirectory());
+  Status status = Status::Ok();
+  surface_twist_ = SharedTable<tissue::SurfaceTwistTable>(
+      tissue::SurfaceTwistKey(in),
+      [&] { return cache.SurfaceTwistFor(scene_.name + "-surface-twist", in); }, status);
+  return surface_twist_ ? Status::Ok() : status;
 }
 
 ForceCommand Simulation::Zero(const StylusSample& s, uint32_t events) {

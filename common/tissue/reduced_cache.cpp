@@ -219,6 +219,20 @@ std::string ContactKeyBytes(const ContactInputs& in) {
   return key.bytes();
 }
 
+std::string SurfaceTwistKeyBytes(const SurfaceTwistInputs& in) {
+  Writer key = TableKey("surface twist table", in);
+  key.Put(in.params.jaw_radius);
+  return key.bytes();
+}
+
+std::string Hex(const std::string& bytes) {
+  const Digest d = Sha256(bytes);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (unsigned char c : d) out += kHex[c >> 4], out += kHex[c & 15];
+  return out;
+}
+
 // The part a contact table and a surface twist table share: the display's vertex count, the
 // tool's radius (footprint or jaws), the largest embedding distance and the slots (which display
 // vertex each precomputed slot is, each vertex's slot, which vertices have their own).
@@ -277,11 +291,11 @@ std::string DefaultCacheDirectory() {
 }
 
 std::string ContactKey(const ContactInputs& in) {
-  const Digest d = Sha256(ContactKeyBytes(in));
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out;
-  for (unsigned char c : d) out += kHex[c >> 4], out += kHex[c & 15];
-  return out;
+  return Hex(ContactKeyBytes(in));
+}
+
+std::string SurfaceTwistKey(const SurfaceTwistInputs& in) {
+  return Hex(SurfaceTwistKeyBytes(in));
 }
 
 const char* CacheOutcomeName(CacheOutcome o) {
@@ -368,8 +382,6 @@ Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& na
 Expected<SurfaceTwistTable> ReducedCache::SurfaceTwistFor(const std::string& name,
                                                           const SurfaceTwistInputs& in,
                                                           CacheReport* report) const {
-  Writer key = TableKey("surface twist table", in);
-  key.Put(in.params.jaw_radius);
   const uint64_t nv = in.display.positions.size();
   auto decode = [&](const std::string& payload, SurfaceTwistTable& t) {
     Reader r(payload);
@@ -394,7 +406,8 @@ Expected<SurfaceTwistTable> ReducedCache::SurfaceTwistFor(const std::string& nam
     w.PutVector(t.grasp_compliance);
     return w.bytes();
   };
-  return Cached<SurfaceTwistTable>(dir_, name, key.bytes(), report, decode, compute, encode);
+  return Cached<SurfaceTwistTable>(dir_, name, SurfaceTwistKeyBytes(in), report, decode, compute,
+                                   encode);
 }
 
 }  // namespace vsurg::tissue

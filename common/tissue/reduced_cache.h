@@ -70,6 +70,7 @@ std::string DefaultCacheDirectory();
 // The key (SHA-256, hex) of a contact table's inputs: what its file carries, and what lets the
 // sessions of one scene share one table in memory.
 std::string ContactKey(const ContactInputs& in);
+std::string SurfaceTwistKey(const SurfaceTwistInputs& in);
 
 class ReducedCache {
  public:
