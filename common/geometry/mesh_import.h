@@ -8,8 +8,9 @@
 // (concave ones by ear clipping), vertices at the same position are joined, within a mesh and
 // across meshes (STL repeats them per facet; an OBJ's groups share their seams), points, lines
 // and faces that repeat a vertex are dropped and counted. Each named mesh (an OBJ group or
-// object, an STL solid, a glTF mesh) is a named group of vertices: a scene can hold one fixed. Positions are scaled by the file's unit
-// (the file does not say: the caller does, "units" in a scene). Errors are kParseError (or
+// object, an STL solid, a glTF mesh) is a named group of vertices: a scene can hold one fixed.
+// Positions are scaled by the file's unit (the file does not say: the caller does, "units" in a
+// scene). Errors are kParseError (or
 // kNotFound / kIoError for a missing or unreadable file) with a message that starts with the
 // path and says what is wrong: assimp's own reason for a broken file, "no triangles", a
 // position that is not finite.
