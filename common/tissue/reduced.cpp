@@ -630,8 +630,8 @@ Eigen::Matrix3d ReducedContactModel::StiffnessAt(int contact) const {
 
 // ---- 4. Surface twist ------------------------------------------------------------------------
 
-std::vector<int> JawFace(const geometry::TetMesh& mesh, const geometry::TriMesh& boundary,
-                         const Vec3& point, double jaw_radius, std::vector<double>* area_out) {
+std::vector<double> BoundaryAreas(const geometry::TetMesh& mesh) {
+  const geometry::TriMesh boundary = geometry::BoundarySurface(mesh);
   std::vector<double> area(mesh.positions.size(), 0.0);
   for (const auto& t : boundary.triangles) {
     const double a = 0.5 * (boundary.positions[t[1]] - boundary.positions[t[0]])
@@ -639,6 +639,11 @@ std::vector<int> JawFace(const geometry::TetMesh& mesh, const geometry::TriMesh&
                                .norm();
     for (int v : t) area[v] += a / 3;
   }
+  return area;
+}
+
+std::vector<int> JawFace(const geometry::TetMesh& mesh, const std::vector<double>& area,
+                         const Vec3& point, double jaw_radius, std::vector<double>* area_out) {
   // The boundary vertices by distance; the disc, or the four nearest when it catches fewer (a
   // coarse mesh: the jaws still hold something that can turn about the axis).
   std::vector<std::pair<double, int>> by_distance;
@@ -683,7 +688,7 @@ Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
   geometry::ComputeVertexNormals(normals);
   auto embedding = geometry::EmbedPoints(fem.rest(), display.positions);
   if (!embedding.ok()) return embedding.error();
-  const geometry::TriMesh boundary = geometry::BoundarySurface(fem.rest());
+  const std::vector<double> boundary_area = BoundaryAreas(fem.rest());
   const std::vector<int> candidates = std::move(out.grasps);
   out.grasps.clear();
   std::fill(out.precomputed.begin(), out.precomputed.end(), 0);
@@ -691,7 +696,7 @@ Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
   for (const int c : candidates) {
     std::vector<double> area;
     const std::vector<int> face =
-        JawFace(fem.rest(), boundary, display.positions[c], params.jaw_radius, &area);
+        JawFace(fem.rest(), boundary_area, display.positions[c], params.jaw_radius, &area);
     auto field = TwistFieldEmbedded(fem, face, area, display.positions[c], normals.normals[c],
                                     display.positions, *embedding);
     if (!field.ok()) {

@@ -269,10 +269,13 @@ TwistField SurfaceTwistField(const SurfaceTwistTable& table, int vertex,
 // any vertex may turn) of a grasp at `vertex`. Read-only, no allocation: any thread.
 double SurfaceTwistStiffness(const SurfaceTwistTable& table, int vertex);
 double SurfaceTwistCapacity(const SurfaceTwistTable& table, int vertex, double max_twist);
+// Each vertex's share of the FEM's boundary area (m², a third of each boundary triangle's; 0 for
+// interior vertices).
+std::vector<double> BoundaryAreas(const geometry::TetMesh& mesh);
 // The FEM boundary vertices the jaws hold around `point` (within jaw_radius, at least the four
-// nearest) and their lumped areas (m²): the loaded face of a surface grasp.
-std::vector<int> JawFace(const geometry::TetMesh& mesh, const geometry::TriMesh& boundary,
+// nearest; `area` from BoundaryAreas) and their areas: the loaded face of a surface grasp.
+std::vector<int> JawFace(const geometry::TetMesh& mesh, const std::vector<double>& area,
                          const Eigen::Vector3d& point, double jaw_radius,
-                         std::vector<double>* area = nullptr);
+                         std::vector<double>* face_area = nullptr);
 
 }  // namespace vsurg::tissue

@@ -474,7 +474,7 @@ TEST(SurfaceTwistTest, EveryGraspIsTheTwistFieldOfItsJawsAndNeighboursStandIn) {
   EXPECT_GT(f.axis.z(), 0.99);  // the outward normal at the top
   std::vector<double> area;
   const std::vector<int> face =
-      JawFace(b.mesh, b.surface, b.mesh.positions[top], p.jaw_radius, &area);
+      JawFace(b.mesh, BoundaryAreas(b.mesh), b.mesh.positions[top], p.jaw_radius, &area);
   EXPECT_GE(face.size(), 4u);
   auto direct =
       PrecomputeTwistField(b.response, face, area, b.mesh.positions[top], f.axis, b.mesh.positions);
