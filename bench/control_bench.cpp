@@ -175,7 +175,9 @@ Status Fill(db::Store& store, int64_t rows) {
       (*sub)->Bind(1, "k" + std::to_string(i)).Bind(2, e + 1).Bind(3, groups[e % 3]);
       (*sub)->Bind(4, "model-" + std::to_string(i / evaluators)).Bind(5, now - (submissions - i));
       if (Status s = (*sub)->Run(); !s.ok()) return s;
-      const int64_t id = c.LastInsertId();
+      auto id_or = c.LastInsertId();
+      if (!id_or.ok()) return id_or.error();
+      const int64_t id = *id_or;
       for (int j = 1; j <= 9; ++j) {
         (*val)->Bind(1, id).Bind(2, int64_t{j}).Bind(3, 0.5 * static_cast<double>((i + j) % 21));
         if (Status s = (*val)->Run(); !s.ok()) return s;

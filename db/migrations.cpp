@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "db/sqlite.h"
+#include "db/connection.h"
 
 namespace vsurg::db {
 
@@ -118,35 +118,38 @@ CREATE TABLE reports (
 }
 
 Status Migrate(Connection& c) {
-  auto version_stmt = c.Prepare("PRAGMA user_version");
-  if (!version_stmt.ok()) return version_stmt.error();
-  auto row = (*version_stmt)->Step();
-  if (!row.ok()) return row.error();
-  const int64_t version = (*version_stmt)->Int(0);
-  (*version_stmt)->Reset();
   const auto& migrations = Migrations();
-  if (version > static_cast<int64_t>(migrations.size()))
-    return Error{ErrorCode::kFailedPrecondition,
-                 "the database is at schema version " + std::to_string(version) +
-                     ", newer than this binary's " + std::to_string(migrations.size()) +
-                     "; use a newer vsurg",
-                 "user_version"};
-  for (size_t v = static_cast<size_t>(version); v < migrations.size(); ++v) {
-    if (Status s = c.Exec("BEGIN IMMEDIATE"); !s.ok()) return s;
-    Status s = c.Exec(migrations[v]);
-    if (s.ok()) {
-      // PRAGMA takes no bound values; the number is ours, not input.
-      const std::string bump = "PRAGMA user_version=" + std::to_string(v + 1);
-      s = c.Exec(bump.c_str());
+  const int latest = static_cast<int>(migrations.size());
+  // One transaction per migration, under the schema lock: control replicas that start together
+  // on one PostgreSQL apply each migration once, the others find it done.
+  for (;;) {
+    if (Status s = c.BeginWrite(); !s.ok()) return s;
+    Status s = c.LockSchema();
+    auto version = s.ok() ? c.SchemaVersion() : Expected<int>(s.error());
+    if (!version.ok()) {
+      (void)c.Exec("ROLLBACK");
+      return version.error();
     }
+    if (*version > latest) {
+      (void)c.Exec("ROLLBACK");
+      return Error{ErrorCode::kFailedPrecondition,
+                   "the database is at schema version " + std::to_string(*version) +
+                       ", newer than this binary's " + std::to_string(latest) +
+                       "; use a newer vsurg",
+                   "user_version"};
+    }
+    if (*version == latest) return c.Exec("COMMIT");
+    const std::string ddl = c.Dialect(migrations[static_cast<size_t>(*version)]);
+    s = c.Exec(ddl.c_str());
+    if (s.ok()) s = c.SetSchemaVersion(*version + 1);
     if (s.ok()) s = c.Exec("COMMIT");
     if (!s.ok()) {
       (void)c.Exec("ROLLBACK");
-      return Error{s.error().code, "migration " + std::to_string(v + 1) + ": " + s.error().message,
+      return Error{s.error().code,
+                   "migration " + std::to_string(*version + 1) + ": " + s.error().message,
                    "user_version"};
     }
   }
-  return Status::Ok();
 }
 
 }  // namespace vsurg::db

@@ -1,7 +1,5 @@
 #include "db/store.h"
 
-#include <sqlite3.h>
-
 #include <filesystem>
 #include <future>
 
@@ -42,7 +40,14 @@ void Store::Impl::WriterLoop() {
 
 void Store::Impl::RunBatch(std::vector<Pending>& batch) {
   std::vector<Status> results(batch.size());
-  Status begin = writer->Exec("BEGIN IMMEDIATE");
+  // A shared store's server may have restarted since the last batch: reconnect first (the jobs
+  // of a batch that met the loss failed with kUnavailable and were never acknowledged).
+  if (writer->Broken()) {
+    auto again =
+        Connection::Open(options.path, Connection::Mode::kReadWrite, options.busy_timeout_ms);
+    if (again.ok()) writer = std::move(again).value();
+  }
+  Status begin = writer->BeginWrite();
   uint64_t failed = 0;
   if (!begin.ok()) {
     for (auto& r : results) r = begin;
@@ -93,7 +98,8 @@ int Store::SchemaVersion() {
 }
 
 Expected<std::unique_ptr<Store>> Store::Open(const StoreOptions& options) {
-  if (options.path.empty()) return InvalidArgument("path", "a database file is required");
+  if (options.path.empty())
+    return InvalidArgument("path", "a database file or a postgresql:// URI is required");
   if (options.max_batch < 1 || options.read_connections < 1)
     return InvalidArgument("max_batch", "batch and pool sizes must be >= 1");
   auto impl = std::make_unique<Impl>();
@@ -109,21 +115,20 @@ Expected<std::unique_ptr<Store>> Store::Open(const StoreOptions& options) {
 }
 
 Expected<std::unique_ptr<Store>> Store::OpenReadOnly(const std::string& path) {
-  if (path.empty()) return InvalidArgument("path", "a database file is required");
+  if (path.empty())
+    return InvalidArgument("path", "a database file or a postgresql:// URI is required");
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
+  if (BackendOf(path) == Backend::kSqlite && !std::filesystem::is_regular_file(path, ec))
     return Error{ErrorCode::kNotFound, "no database file " + path, "db"};
   auto impl = std::make_unique<Impl>();
   impl->options.path = path;
   impl->read_only = true;
   auto c = Connection::Open(path, Connection::Mode::kReadOnly, impl->options.busy_timeout_ms);
   if (!c.ok()) return c.error();
-  auto version = c.value()->Prepare("PRAGMA user_version");
-  if (!version.ok()) return version.error();
-  auto row = (*version)->Step();
-  if (!row.ok()) return Error{row.error().code, path + ": " + row.error().message, "db"};
-  const int64_t v = *row ? (*version)->Int(0) : 0;
-  (*version)->Reset();
+  auto version = c.value()->SchemaVersion();
+  if (!version.ok())
+    return Error{version.error().code, path + ": " + version.error().message, "db"};
+  const int v = *version;
   if (v != SchemaVersion())
     return Error{ErrorCode::kFailedPrecondition,
                  path + " is at schema version " + std::to_string(v) + ", this binary reads " +
@@ -171,47 +176,17 @@ StoreStats Store::stats() const {
 Status Store::Backup(const std::string& destination) {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
-  sqlite3* dest = nullptr;
-  int rc = sqlite3_open_v2(destination.c_str(), &dest, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE,
-                           nullptr);
-  if (rc != SQLITE_OK) {
-    Error e = SqliteError(dest, rc, "backup to " + destination);
-    sqlite3_close(dest);
-    return e;
-  }
-  sqlite3_backup* b = sqlite3_backup_init(dest, "main", (**r).handle(), "main");
-  if (!b) {
-    Error e = SqliteError(dest, sqlite3_errcode(dest), "backup to " + destination);
-    sqlite3_close(dest);
-    return e;
-  }
-  // Copy in steps of 256 pages so writers are not held off for the whole copy.
-  do {
-    rc = sqlite3_backup_step(b, 256);
-    if (rc == SQLITE_BUSY || rc == SQLITE_LOCKED) sqlite3_sleep(5);
-  } while (rc == SQLITE_OK || rc == SQLITE_BUSY || rc == SQLITE_LOCKED);
-  sqlite3_backup_finish(b);
-  Status out = Status::Ok();
-  if (rc != SQLITE_DONE) out = SqliteError(dest, rc, "backup to " + destination);
-  sqlite3_close(dest);
-  return out;
+  return (**r).Backup(destination);
 }
 
 Expected<std::string> Store::IntegrityCheck() {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
-  auto st = (**r).Prepare("PRAGMA integrity_check");
-  if (!st.ok()) return st.error();
-  std::string out;
-  for (;;) {
-    auto row = (*st)->Step();
-    if (!row.ok()) return row.error();
-    if (!*row) break;
-    if (!out.empty()) out += "; ";
-    out += (*st)->Text(0);
-  }
-  (*st)->Reset();
-  return out;
+  return (**r).IntegrityCheck();
+}
+
+Backend Store::backend() const {
+  return BackendOf(impl_->options.path);
 }
 
 }  // namespace vsurg::db

@@ -1,17 +1,26 @@
-// The SQLite evaluation store (DESIGN.md "Storage"): users and token hashes, trainees and
-// evaluators with their groups, scenes, sessions, trial metrics, evaluations, training moments,
-// weight sets and recorded reports. Knows nothing of physics or of the network.
+// The evaluation store (DESIGN.md "Storage"): users and token hashes, trainees and evaluators
+// with their groups, scenes, sessions, trial metrics, evaluations, training moments, weight sets
+// and recorded reports. Knows nothing of physics or of the network.
+//
+// Two backends behind one interface (db/connection.h), chosen by the location: an SQLite file
+// (the embedded default) or a `postgresql://` URI (a shared store that several control replicas
+// write at once). Same schema, same migrations, same contract; the test suite runs on both.
 //
 // Design notes
-//  1. One file, WAL, synchronous=FULL, foreign keys on, busy timeout. Schema changes are
-//     forward-only migrations numbered by PRAGMA user_version (db/migrations.cpp); a file newer
-//     than this binary is refused, never "downgraded".
-//  2. One writer thread owns the only read-write connection. Every write is a job; the writer
-//     takes all queued jobs (up to max_batch), runs them inside one BEGIN IMMEDIATE transaction,
+//  1. SQLite: one file, WAL, synchronous=FULL, foreign keys on, busy timeout. PostgreSQL:
+//     synchronous_commit on, a lock timeout. Schema changes are forward-only migrations
+//     numbered by a schema version (db/migrations.cpp); a database newer than this binary is
+//     refused, never "downgraded".
+//  2. One writer thread owns this process's only read-write connection. Every write is a job;
+//     the writer takes all queued jobs (up to max_batch), runs them inside one transaction,
 //     each inside its own SAVEPOINT (a failing job rolls back alone: nothing partly written),
 //     then COMMITs once — group commit: one fsync for the whole batch. A job's completion is
 //     reported only after that COMMIT returned, so an acknowledged write is durable.
-//  3. Reads use a small pool of read-only connections (WAL: they never block the writer and see
+//     Several processes on one PostgreSQL each have their writer; unique constraints, not the
+//     writer, keep their jobs from contradicting each other (a lost race is kAlreadyExists).
+//     A lost PostgreSQL connection fails the batch with kUnavailable (nothing acknowledged) and
+//     the next batch reconnects.
+//  3. Reads use a small pool of read-only connections (they never block the writer and see
 //     the last committed state).
 //  4. Only prepared statements with bound values; no SQL text is built from input.
 //  5. Tokens are 256-bit random secrets; only their SHA-256 is stored. (A slow password hash
@@ -35,6 +44,7 @@
 #include "common/core/time.h"
 #include "common/scoring/metrics.h"
 #include "common/scoring/vocabulary.h"
+#include "db/connection.h"
 #include "db/vocabulary.h"
 
 namespace vsurg::db {
@@ -113,7 +123,7 @@ struct ExportFilter {
 };
 
 struct StoreOptions {
-  std::string path = "";
+  std::string path = "";     // an SQLite file, or a postgresql:// URI (db/connection.h)
   int max_batch = 1024;      // jobs per group commit
   int read_connections = 4;  // pool size
   int busy_timeout_ms = 5000;
@@ -124,8 +134,6 @@ struct StoreStats {
   uint64_t jobs = 0;
   uint64_t failed_jobs = 0;
 };
-
-class Connection;
 
 class Store {
  public:
@@ -198,9 +206,11 @@ class Store {
   // per submission (JSON lines) to `sink` in chunks; `sink` returning false stops the export.
   Status Export(const ExportFilter& filter, ExportFormat format,
                 const std::function<bool(std::string_view)>& sink);
-  // Online backup to a new file (the store stays usable meanwhile).
+  // Online backup to a new file (the store stays usable meanwhile). SQLite only: a PostgreSQL
+  // store is backed up by pg_dump or pg_basebackup (kFailedPrecondition here).
   Status Backup(const std::string& destination);
   Expected<std::string> IntegrityCheck();  // "ok" when sound
+  Backend backend() const;
 
   StoreStats stats() const;
 

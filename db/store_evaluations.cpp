@@ -101,7 +101,7 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
       const auto r = std::from_chars(s.subject.data(), s.subject.data() + s.subject.size(), id);
       if (r.ec != std::errc() || r.ptr != s.subject.data() + s.subject.size())
         return InvalidArgument("subject", "a session subject is a session id");
-      auto found = LookupId(c, "SELECT id FROM sessions WHERE id = CAST(?1 AS INTEGER)", s.subject);
+      auto found = LookupId(c, "SELECT id FROM sessions WHERE id = ?1", s.subject);
       if (!found.ok()) return found.error();
       if (!*found) return Error{ErrorCode::kNotFound, "no session " + s.subject, "subject"};
       break;
@@ -135,7 +135,9 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
       Status ins = RunSql(c, "INSERT INTO evaluators(name, evaluator_group) VALUES (?1, ?2)",
                           [&](Statement& q) { q.Bind(1, s.evaluator).Bind(2, s.evaluator_group); });
       if (!ins.ok()) return ins;
-      evaluator_id = c.LastInsertId();
+      auto id = c.LastInsertId();
+      if (!id.ok()) return id.error();
+      evaluator_id = *id;
     }
   }
   auto by = LookupId(c, "SELECT id FROM users WHERE name = ?1", s.submitted_by);
@@ -160,7 +162,9 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
                    "subject"};
     return ins;
   }
-  out.submission_id = c.LastInsertId();
+  auto submission_id = c.LastInsertId();
+  if (!submission_id.ok()) return submission_id.error();
+  out.submission_id = *submission_id;
   auto st =
       c.Prepare("INSERT INTO evaluations(submission_id, index_no, score) VALUES (?1, ?2, ?3)");
   if (!st.ok()) return st.error();

@@ -10,7 +10,7 @@ Status Store::Export(const ExportFilter& filter, ExportFormat format,
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
   // One read transaction: the export is a consistent snapshot even while writes go on.
-  if (Status s = (**r).Exec("BEGIN"); !s.ok()) return s;
+  if (Status s = (**r).BeginSnapshot(); !s.ok()) return s;
   struct EndRead {
     Connection& c;
     ~EndRead() { (void)c.Exec("COMMIT"); }
@@ -20,12 +20,15 @@ Status Store::Export(const ExportFilter& filter, ExportFormat format,
       "s.moment_min, v.index_no, v.score, coalesce(st.name, tt.name, '') "
       "FROM submissions s JOIN evaluators e ON e.id = s.evaluator_id "
       "JOIN evaluations v ON v.submission_id = s.id "
-      "LEFT JOIN sessions ss ON s.subject_kind = 'session' AND ss.id = CAST(s.subject AS INTEGER) "
+      "LEFT JOIN sessions ss ON s.subject_kind = 'session' AND CAST(ss.id AS TEXT) = s.subject "
       "LEFT JOIN trainees st ON st.id = ss.trainee_id "
       "LEFT JOIN trainees tt ON s.subject_kind = 'trainee' AND tt.name = s.subject "
-      "WHERE (?1 IS NULL OR s.submitted_us >= ?1) AND (?2 IS NULL OR s.submitted_us < ?2) "
-      "AND (?3 IS NULL OR coalesce(st.name, tt.name) = ?3) "
-      "AND (?4 IS NULL OR (s.subject_kind = 'session' AND s.subject = CAST(?4 AS TEXT))) "
+      // A parameter that may be NULL is typed where it is first seen (PostgreSQL infers none
+      // from IS NULL).
+      "WHERE (CAST(?1 AS BIGINT) IS NULL OR s.submitted_us >= ?1) "
+      "AND (CAST(?2 AS BIGINT) IS NULL OR s.submitted_us < ?2) "
+      "AND (CAST(?3 AS TEXT) IS NULL OR coalesce(st.name, tt.name) = ?3) "
+      "AND (CAST(?4 AS TEXT) IS NULL OR (s.subject_kind = 'session' AND s.subject = ?4)) "
       "ORDER BY s.id, v.index_no");
   if (!st.ok()) return st.error();
   Statement& q = **st;

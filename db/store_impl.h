@@ -13,7 +13,7 @@
 #include <thread>
 #include <vector>
 
-#include "db/sqlite.h"
+#include "db/connection.h"
 #include "db/store.h"
 
 namespace vsurg::db {
@@ -50,7 +50,7 @@ struct Store::Impl {
     Reader(Reader&& o) noexcept : impl(o.impl), c(std::move(o.c)) {}
     Reader& operator=(Reader&&) = delete;
     ~Reader() {
-      if (c) {
+      if (c && !c->Broken()) {  // a lost connection is dropped; the next read opens another
         std::lock_guard lock(impl->pool_mutex);
         impl->pool.push_back(std::move(c));
       }

@@ -58,7 +58,10 @@ Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const s
                   q.Bind(1, *tid).Bind(2, scene).Bind(3, SessionStateName(rec.state));
                   q.Bind(4, rec.created_us);
                 });
-    rec.id = c.LastInsertId();
+    if (!st.ok()) return st;
+    auto id = c.LastInsertId();
+    if (!id.ok()) return id.error();
+    rec.id = *id;
     return st;
   });
   if (!s.ok()) return s.error();
@@ -176,7 +179,7 @@ Expected<std::vector<SessionRecord>> Store::ListSessions(
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
   auto st = (**r).Prepare(std::string(kSessionColumns) +
-                          "WHERE (?1 IS NULL OR t.name = ?1) ORDER BY s.id");
+                          "WHERE (CAST(?1 AS TEXT) IS NULL OR t.name = ?1) ORDER BY s.id");
   if (!st.ok()) return st.error();
   if (trainee) {
     (*st)->Bind(1, *trainee);

@@ -41,7 +41,9 @@ Status InsertUser(Connection& c, const std::string& name, Role role, const std::
       return Error{ErrorCode::kAlreadyExists, "user '" + name + "' exists", "name"};
     return s;
   }
-  id_out = c.LastInsertId();
+  auto id = c.LastInsertId();
+  if (!id.ok()) return id.error();
+  id_out = *id;
   if (role == Role::kTrainee) {
     // A trainee known from earlier sessions or imports gets linked to the new login.
     s = RunSql(c,

@@ -3,7 +3,8 @@
 # The packages the project needs today: core, tests, benchmarks, and the UDP channel (Asio from
 # Boost, protobuf, OpenSSL), the control plane (gRPC, SQLite), the stations (OpenGL: GLFW for windows,
 # EGL on Mesa for headless rendering; Xvfb and xdotool to test the window and its keys), libpng for
-# screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD.
+# screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD,
+# PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start).
 VSURG_PACKAGES=(
   cmake ninja-build g++
   libeigen3-dev nlohmann-json3-dev
@@ -14,6 +15,7 @@ VSURG_PACKAGES=(
   chromium chromium-driver python3-selenium
   libimgui-dev
   libassimp-dev libcgal-dev
+  postgresql libpq-dev
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's

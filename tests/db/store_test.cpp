@@ -1,6 +1,5 @@
 #include "db/store.h"
 
-#include <sqlite3.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,29 +13,54 @@
 #include <nlohmann/json.hpp>
 
 #include "common/core/csv.h"
-#include "db/sqlite.h"
+#include "db/connection.h"
+#include "db/migrations.h"
+#include "db/postgres.h"
+#include "tests/support/postgres.h"
 
 namespace vsurg::db {
 namespace {
 
 namespace fs = std::filesystem;
 
-class StoreTest : public ::testing::Test {
+// Every store test runs on both backends: an SQLite file in a temporary folder, and a database
+// of its own on a real PostgreSQL (tests/support/postgres.h).
+class StoreTest : public ::testing::TestWithParam<Backend> {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_store_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    std::replace(name.begin(), name.end(), '/', '_');
+    dir_ = fs::temp_directory_path() / ("vsurg_store_" + std::to_string(::getpid()) + "_" + name);
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    path_ = (dir_ / "vsurg.db").string();
+    if (sqlite()) {
+      path_ = (dir_ / "vsurg.db").string();
+    } else {
+      pg_ = std::make_unique<test::PostgresDatabase>();
+      path_ = pg_->uri();
+    }
     auto s = Store::Open({.path = path_});
     ASSERT_TRUE(s.ok()) << s.error().message;
     store_ = std::move(s).value();
   }
   void TearDown() override {
     store_.reset();
+    pg_.reset();
     fs::remove_all(dir_);
+  }
+  bool sqlite() const { return GetParam() == Backend::kSqlite; }
+  // The schema version as the backend keeps it, read through a connection of its own.
+  int Version() {
+    auto c = Connection::Open(path_, Connection::Mode::kReadOnly);
+    EXPECT_TRUE(c.ok()) << c.error().message;
+    auto v = (*c)->SchemaVersion();
+    EXPECT_TRUE(v.ok());
+    return v.ok() ? *v : -1;
+  }
+  void SetVersion(int v) {
+    auto c = Connection::Open(path_, Connection::Mode::kReadWrite);
+    ASSERT_TRUE(c.ok());
+    ASSERT_TRUE((*c)->SetSchemaVersion(v).ok());
   }
 
   Submission Valid(const std::string& key, const std::string& evaluator = "dr-a",
@@ -56,10 +80,15 @@ class StoreTest : public ::testing::Test {
 
   fs::path dir_;
   std::string path_;
+  std::unique_ptr<test::PostgresDatabase> pg_;
   std::unique_ptr<Store> store_;
 };
 
-int64_t PragmaInt(Connection& c, const char* pragma) {
+INSTANTIATE_TEST_SUITE_P(Backends, StoreTest,
+                         ::testing::Values(Backend::kSqlite, Backend::kPostgres),
+                         [](const auto& p) { return std::string(BackendName(p.param)); });
+
+int64_t PragmaInt(Connection& c, const char* pragma) {  // SQLite
   auto st = c.Prepare(pragma);
   EXPECT_TRUE(st.ok());
   EXPECT_TRUE((*st)->Step().value());
@@ -68,7 +97,24 @@ int64_t PragmaInt(Connection& c, const char* pragma) {
   return v;
 }
 
-TEST_F(StoreTest, OpensWithWalFullSyncForeignKeysAndTheCurrentSchema) {
+TEST_P(StoreTest, OpensDurableWithTheCurrentSchema) {
+  EXPECT_EQ(store_->backend(), GetParam());
+  EXPECT_EQ(Version(), Store::SchemaVersion());
+  EXPECT_EQ(store_->IntegrityCheck().value(), "ok");
+  if (!sqlite()) {
+    std::string commit;
+    ASSERT_TRUE(store_
+                    ->Write([&](Connection& c) {
+                      auto st = c.Prepare("SHOW synchronous_commit");
+                      EXPECT_TRUE(st.ok() && (*st)->Step().value());
+                      commit = (*st)->String(0);
+                      (*st)->Reset();
+                      return Status::Ok();
+                    })
+                    .ok());
+    EXPECT_EQ(commit, "on");  // COMMIT returns after the WAL flush
+    return;
+  }
   int64_t sync = -1, fk = -1, version = -1;
   std::string mode;
   ASSERT_TRUE(store_
@@ -87,10 +133,9 @@ TEST_F(StoreTest, OpensWithWalFullSyncForeignKeysAndTheCurrentSchema) {
   EXPECT_EQ(fk, 1);
   EXPECT_EQ(mode, "wal");
   EXPECT_EQ(version, Store::SchemaVersion());
-  EXPECT_EQ(store_->IntegrityCheck().value(), "ok");
 }
 
-TEST_F(StoreTest, ReopeningKeepsDataAndAFileFromTheFutureIsRefused) {
+TEST_P(StoreTest, ReopeningKeepsDataAndAFileFromTheFutureIsRefused) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   store_.reset();
   auto again = Store::Open({.path = path_});
@@ -98,16 +143,13 @@ TEST_F(StoreTest, ReopeningKeepsDataAndAFileFromTheFutureIsRefused) {
   EXPECT_EQ((*again)->ListUsers().value().size(), 1u);
   again->reset();
 
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(path_.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version=99", nullptr, nullptr, nullptr), SQLITE_OK);
-  sqlite3_close(db);
+  SetVersion(99);
   auto future = Store::Open({.path = path_});
   ASSERT_FALSE(future.ok());
   EXPECT_NE(future.error().message.find("newer than this binary"), std::string::npos);
 }
 
-TEST_F(StoreTest, TokensAreStoredHashedAndAuthenticateToTheirUser) {
+TEST_P(StoreTest, TokensAreStoredHashedAndAuthenticateToTheirUser) {
   auto admin = store_->InitAdmin("root");
   ASSERT_TRUE(admin.ok()) << admin.error().message;
   EXPECT_EQ(store_->InitAdmin("root2").error().code, ErrorCode::kAlreadyExists);
@@ -128,9 +170,10 @@ TEST_F(StoreTest, TokensAreStoredHashedAndAuthenticateToTheirUser) {
             ErrorCode::kUnauthenticated);
   EXPECT_EQ(store_->Authenticate("").error().code, ErrorCode::kUnauthenticated);
 
-  // The secret itself is nowhere in the file (or its WAL).
+  // The secret itself is nowhere in the file (or its WAL); on PostgreSQL, nowhere in a row.
   store_.reset();
   for (const char* suffix : {"", "-wal"}) {
+    if (!sqlite()) break;
     std::ifstream in(path_ + suffix, std::ios::binary);
     std::stringstream bytes;
     bytes << in.rdbuf();
@@ -143,7 +186,7 @@ TEST_F(StoreTest, TokensAreStoredHashedAndAuthenticateToTheirUser) {
   EXPECT_EQ(store_->Authenticate(*admin).error().code, ErrorCode::kUnauthenticated);
 }
 
-TEST_F(StoreTest, ASubmissionIsNineRawRowsAndARetryIsNotASecond) {
+TEST_P(StoreTest, ASubmissionIsNineRawRowsAndARetryIsNotASecond) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   auto r = store_->SubmitEvaluation(Valid("k1"));
   ASSERT_TRUE(r.ok()) << r.error().message;
@@ -169,7 +212,7 @@ TEST_F(StoreTest, ASubmissionIsNineRawRowsAndARetryIsNotASecond) {
   EXPECT_EQ((*ratings)[0].evaluator_group, "chief");
 }
 
-TEST_F(StoreTest, BadSubmissionsWriteNothing) {
+TEST_P(StoreTest, BadSubmissionsWriteNothing) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   Submission s = Valid("bad1");
   s.scores[4] = 10.01;
@@ -200,7 +243,7 @@ TEST_F(StoreTest, BadSubmissionsWriteNothing) {
   EXPECT_EQ(store_->IntegrityCheck().value(), "ok");
 }
 
-TEST_F(StoreTest, GroupCommitBatchesABurstAndAFailedJobRollsBackAlone) {
+TEST_P(StoreTest, GroupCommitBatchesABurstAndAFailedJobRollsBackAlone) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   constexpr int kN = 600;
   std::atomic<int> ok{0}, failed{0};
@@ -222,7 +265,7 @@ TEST_F(StoreTest, GroupCommitBatchesABurstAndAFailedJobRollsBackAlone) {
   EXPECT_LT(st.commits, st.jobs / 4) << "a burst should share commits";
 }
 
-TEST_F(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
+TEST_P(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   auto s = store_->CreateSession("trainee-1", "arm-torsion");
   ASSERT_TRUE(s.ok()) << s.error().message;
   ASSERT_TRUE(store_->SetSessionState(s->id, SessionState::kRunning, 100).ok());
@@ -247,7 +290,7 @@ TEST_F(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   EXPECT_FALSE(store_->RecordTrainingMoment("trainee-1", 20, s->id).ok());  // once per moment
 }
 
-TEST_F(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
+TEST_P(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
   auto ended = store_->CreateSession("trainee-1", "arm-torsion");
   auto running = store_->CreateSession("trainee-1", "arm-torsion");
   auto created = store_->CreateSession("trainee-2", "sphere-palpation-256");
@@ -266,7 +309,7 @@ TEST_F(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
   EXPECT_EQ(store_->AbortOrphanedSessions(901, "again").value(), 0);
 }
 
-TEST_F(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
+TEST_P(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   auto session = store_->CreateSession("trainee-1", "arm-torsion");
   Submission s = Valid("e1", "=HYPERLINK(\"http://evil\")");
@@ -316,7 +359,7 @@ TEST_F(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
   EXPECT_EQ(count({.to_us = NowUs() + 1000000}), 18);
 }
 
-TEST_F(StoreTest, JsonLinesAndXapiParse) {
+TEST_P(StoreTest, JsonLinesAndXapiParse) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   ASSERT_TRUE(store_->SubmitEvaluation(Valid("e1", "dr \"quoted\"\n")).ok());
   for (ExportFormat f : {ExportFormat::kJsonLines, ExportFormat::kXapi}) {
@@ -347,12 +390,20 @@ TEST_F(StoreTest, JsonLinesAndXapiParse) {
   }
 }
 
-TEST_F(StoreTest, OnlineBackupIsACompleteSoundCopy) {
+TEST_P(StoreTest, OnlineBackupIsACompleteSoundCopy) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   for (int i = 0; i < 50; ++i)
     ASSERT_TRUE(
         store_->SubmitEvaluation(Valid("b" + std::to_string(i), "dr-" + std::to_string(i))).ok());
   const std::string copy = (dir_ / "backup.db").string();
+  if (!sqlite()) {  // PostgreSQL's own tools back it up; the store says so and writes nothing
+    const Status refused = store_->Backup(copy);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.error().code, ErrorCode::kFailedPrecondition);
+    EXPECT_NE(refused.error().message.find("pg_dump"), std::string::npos);
+    EXPECT_FALSE(fs::exists(copy));
+    return;
+  }
   ASSERT_TRUE(store_->Backup(copy).ok());
   auto b = Store::Open({.path = copy});
   ASSERT_TRUE(b.ok()) << b.error().message;
@@ -361,7 +412,7 @@ TEST_F(StoreTest, OnlineBackupIsACompleteSoundCopy) {
   EXPECT_FALSE(store_->Backup((dir_ / "no/such/dir/x.db").string()).ok());
 }
 
-TEST_F(StoreTest, WeightSetsAndReportsAreKept) {
+TEST_P(StoreTest, WeightSetsAndReportsAreKept) {
   const std::string w =
       R"({"name":"equal","group":{"intern":0.34,"associate_chief":0.33,"chief":0.33},"index":[0.2,0.1,0.1,0.1,0.1,0.1,0.1,0.1,0.1]})";
   ASSERT_TRUE(store_->PutWeightSet("equal", w).ok());
@@ -372,15 +423,24 @@ TEST_F(StoreTest, WeightSetsAndReportsAreKept) {
   EXPECT_TRUE(store_->RecordReport("model", "coil", w, R"({"comprehensive":8})").ok());
 }
 
-TEST_F(StoreTest, ReadOnlyOpenNeverCreatesMigratesOrWrites) {
+TEST_P(StoreTest, ReadOnlyOpenNeverCreatesMigratesOrWrites) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   ASSERT_TRUE(store_->SubmitEvaluation(Valid("k1")).ok());
-  // A mistyped path is an error, and no file appears.
-  const fs::path typo = dir_ / "vsurg-typo.db";
-  auto missing = Store::OpenReadOnly(typo.string());
-  ASSERT_FALSE(missing.ok());
-  EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
-  EXPECT_FALSE(fs::exists(typo));
+  // A mistyped path is an error, and no file (no database) appears.
+  if (sqlite()) {
+    const fs::path typo = dir_ / "vsurg-typo.db";
+    auto missing = Store::OpenReadOnly(typo.string());
+    ASSERT_FALSE(missing.ok());
+    EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
+    EXPECT_FALSE(fs::exists(typo));
+  } else {
+    const std::string typo = path_ + "_typo";
+    auto missing = Store::OpenReadOnly(typo);
+    ASSERT_FALSE(missing.ok());
+    EXPECT_NE(missing.error().message.find("does not exist"), std::string::npos)
+        << missing.error().message;
+    EXPECT_FALSE(Store::OpenReadOnly(typo).ok()) << "still not there";
+  }
   // Beside the live writer: reads see what it committed; writes are refused, the file unchanged.
   auto ro = Store::OpenReadOnly(path_);
   ASSERT_TRUE(ro.ok()) << ro.error().message;
@@ -407,33 +467,128 @@ TEST_F(StoreTest, ReadOnlyOpenNeverCreatesMigratesOrWrites) {
   EXPECT_EQ((*ro)->CountEvaluationRows().value(), 18);
 }
 
-TEST_F(StoreTest, ReadOnlyOpenRefusesAFileAtAnotherSchemaVersion) {
+TEST_P(StoreTest, ReadOnlyOpenRefusesAFileAtAnotherSchemaVersion) {
   store_.reset();
-  auto set_version = [&](int v) {
-    auto c = Connection::Open(path_, Connection::Mode::kReadWrite);
-    ASSERT_TRUE(c.ok());
-    ASSERT_TRUE((*c)->Exec(("PRAGMA user_version=" + std::to_string(v)).c_str()).ok());
-  };
-  auto version = [&] {
-    auto c = Connection::Open(path_, Connection::Mode::kReadOnly);
-    auto v = (*c)->Prepare("PRAGMA user_version");
-    EXPECT_TRUE(v.ok() && (*v)->Step().value());
-    const int64_t out = (*v)->Int(0);
-    (*v)->Reset();
-    return out;
-  };
   for (const int v : {0, Store::SchemaVersion() + 1}) {
-    set_version(v);
+    SetVersion(v);
     auto other = Store::OpenReadOnly(path_);
     ASSERT_FALSE(other.ok()) << v;
     EXPECT_EQ(other.error().code, ErrorCode::kFailedPrecondition);
     EXPECT_NE(other.error().message.find("schema version " + std::to_string(v)), std::string::npos)
         << other.error().message;
-    EXPECT_EQ(version(), v) << "no migration ran";
+    EXPECT_EQ(Version(), v) << "no migration ran";
   }
+  if (!sqlite()) return;
   // An empty file that is not a database yet (a path created by mistake) is refused too.
   std::ofstream(dir_ / "empty.db").close();
   EXPECT_FALSE(Store::OpenReadOnly((dir_ / "empty.db").string()).ok());
+}
+
+TEST(PostgresDialectTest, TheSchemaMapsToSixtyFourBitDoublePrecisionAndIdentityColumns) {
+  const std::string ddl = PgConnection::PostgresDialect(Migrations()[0]);
+  for (const char* gone : {"INTEGER", " REAL", "BLOB", "WITHOUT ROWID", "json_valid", "ifnull"})
+    EXPECT_EQ(ddl.find(gone), std::string::npos) << gone;
+  EXPECT_NE(ddl.find("id          BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY"),
+            std::string::npos);
+  EXPECT_NE(ddl.find("session_id              BIGINT PRIMARY KEY"), std::string::npos)
+      << "a key that is not a row id stays a plain column";
+  EXPECT_NE(ddl.find("hash        BYTEA"), std::string::npos);
+  EXPECT_NE(ddl.find("score         DOUBLE PRECISION"), std::string::npos);
+  EXPECT_NE(ddl.find("(json::jsonb IS NOT NULL)"), std::string::npos);
+
+  int params = 0;
+  EXPECT_EQ(PgConnection::Renumber("a = ?1 AND b = '?2' AND c = ?12", params).value(),
+            "a = $1 AND b = '?2' AND c = $12");
+  EXPECT_EQ(params, 12);
+  EXPECT_FALSE(PgConnection::Renumber("a = ?", params).ok());
+  EXPECT_FALSE(PgConnection::Renumber("a = ?0", params).ok());
+}
+
+// Several control replicas on one PostgreSQL: each opens the store (migrating it once between
+// them), and each has its own writer.
+class SharedStoreTest : public ::testing::Test {
+ protected:
+  static Submission Valid(const std::string& key, const std::string& evaluator) {
+    Submission s;
+    s.idempotency_key = key;
+    s.evaluator = evaluator;
+    s.evaluator_group = "chief";
+    s.subject_kind = SubjectKind::kModel;
+    s.subject = "coil-spring";
+    s.scores = {8, 7, 9, 8, 7, 8, 9, 6, 7};
+    s.submitted_by = "root";
+    return s;
+  }
+  test::PostgresDatabase db_;
+};
+
+TEST_F(SharedStoreTest, ReplicasMigrateOnceAndShareEveryAcknowledgedWrite) {
+  std::vector<std::future<Expected<std::unique_ptr<Store>>>> opening;
+  for (int i = 0; i < 3; ++i)
+    opening.push_back(
+        std::async(std::launch::async, [&] { return Store::Open({.path = db_.uri()}); }));
+  std::vector<std::unique_ptr<Store>> replicas;
+  for (auto& f : opening) {
+    auto s = f.get();
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    replicas.push_back(std::move(s).value());
+  }
+  ASSERT_TRUE(replicas[0]->InitAdmin("root").ok());
+  EXPECT_EQ(replicas[1]->InitAdmin("root2").error().code, ErrorCode::kAlreadyExists);
+
+  // Bursts through all three at once: every acknowledged submission is there, from any replica.
+  constexpr int kEach = 200;
+  std::atomic<int> acknowledged{0};
+  std::vector<std::thread> writers;
+  for (int r = 0; r < 3; ++r)
+    writers.emplace_back([&, r] {
+      std::vector<std::future<bool>> done;
+      for (int i = 0; i < kEach; ++i) {
+        auto p = std::make_shared<std::promise<bool>>();
+        done.push_back(p->get_future());
+        const std::string id = std::to_string(r) + "-" + std::to_string(i);
+        replicas[r]->SubmitEvaluationAsync(Valid("k" + id, "dr-" + id),
+                                           [p](Expected<SubmitResult> x) { p->set_value(x.ok()); });
+      }
+      for (auto& f : done) acknowledged += f.get() ? 1 : 0;
+    });
+  for (auto& t : writers) t.join();
+  EXPECT_EQ(acknowledged.load(), 3 * kEach);
+  for (auto& replica : replicas) EXPECT_EQ(replica->CountEvaluationRows().value(), 9 * 3 * kEach);
+
+  // A client retrying on another replica with the same key gets the first result.
+  auto first = replicas[0]->SubmitEvaluation(Valid("retry", "dr-retry"));
+  auto retry = replicas[2]->SubmitEvaluation(Valid("retry", "dr-retry"));
+  ASSERT_TRUE(first.ok() && retry.ok());
+  EXPECT_TRUE(retry->duplicate);
+  EXPECT_EQ(retry->submission_id, first->submission_id);
+}
+
+TEST_F(SharedStoreTest, ALostConnectionAcknowledgesNothingAndTheNextWriteReconnects) {
+  auto store = Store::Open({.path = db_.uri()});
+  ASSERT_TRUE(store.ok()) << store.error().message;
+  ASSERT_TRUE((*store)->InitAdmin("root").ok());
+  ASSERT_TRUE((*store)->SubmitEvaluation(Valid("before", "dr-a")).ok());
+  // The server drops every connection of this database (a restart or a failover looks the same).
+  test::PostgresAdmin("SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = '" +
+                      db_.uri().substr(db_.uri().rfind('/') + 1) + "' AND pid <> pg_backend_pid()");
+  // The first write after the loss fails (never acknowledged) or, when the loss was noticed
+  // first, succeeds on a new connection; in both cases what is acknowledged is stored.
+  int stored = 1;
+  for (int i = 0; i < 3; ++i) {
+    auto r =
+        (*store)->SubmitEvaluation(Valid("after" + std::to_string(i), "dr-" + std::to_string(i)));
+    if (r.ok()) {
+      ++stored;
+    } else {
+      EXPECT_EQ(r.error().code, ErrorCode::kUnavailable) << r.error().message;
+    }
+  }
+  EXPECT_GE(stored, 3) << "the store reconnects";
+  auto rows = (*store)->CountEvaluationRows();
+  if (!rows.ok()) rows = (*store)->CountEvaluationRows();  // a pooled reader met the loss
+  ASSERT_TRUE(rows.ok()) << rows.error().message;
+  EXPECT_EQ(*rows, 9 * stored);
 }
 
 TEST(SessionStateTest, NamesAndWireNumbersRoundTrip) {

@@ -1,0 +1,92 @@
+// The store's database seam: a connection and its prepared statements, the same for every
+// backend (DESIGN.md "Beyond one machine": one interface, two backends). db/sqlite.h is the
+// embedded default, db/postgres.h the shared store of a multi-node site. The store's SQL is
+// written once, with numbered parameters `?1`, `?2`, … (the PostgreSQL connection renumbers
+// them `$1`, `$2`, …); nothing is ever built from input.
+//
+// Not thread-safe: a Connection and its statements belong to one thread at a time.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "common/core/expected.h"
+
+namespace vsurg::db {
+
+enum class Backend { kSqlite, kPostgres };
+
+// A store location names its backend: a `postgresql://` or `postgres://` URI (libpq's
+// connection URI) is PostgreSQL; anything else is an SQLite file path.
+Backend BackendOf(std::string_view location);
+const char* BackendName(Backend b);
+
+class Statement {
+ public:
+  virtual ~Statement() = default;
+
+  // Binds are 1-based, as in the SQL's `?N`.
+  virtual Statement& Bind(int i, int64_t v) = 0;
+  virtual Statement& Bind(int i, double v) = 0;
+  virtual Statement& Bind(int i, std::string_view v) = 0;
+  Statement& Bind(int i, const char* v) { return Bind(i, std::string_view(v)); }
+  virtual Statement& BindBlob(int i, const void* data, int size) = 0;
+  virtual Statement& BindNull(int i) = 0;
+  Statement& Bind(int i, std::optional<double> v) { return v ? Bind(i, *v) : BindNull(i); }
+
+  // Step: true while a row is available, false when done; an error as Error.
+  virtual Expected<bool> Step() = 0;
+  // Steps to completion (for INSERT/UPDATE/DELETE) and resets.
+  Status Run();
+  virtual void Reset() = 0;  // clears bindings too
+
+  virtual int64_t Int(int col) const = 0;
+  virtual double Double(int col) const = 0;
+  virtual bool IsNull(int col) const = 0;
+  virtual std::string_view Text(int col) const = 0;
+  std::string String(int col) const { return std::string(Text(col)); }
+};
+
+class Connection {
+ public:
+  enum class Mode { kReadWrite, kReadOnly };
+  // Opens the location's backend. SQLite: creates the file for kReadWrite; WAL,
+  // synchronous=FULL, foreign keys, a busy timeout. PostgreSQL: connects; kReadOnly makes every
+  // transaction read-only; the busy timeout becomes the lock timeout.
+  static Expected<std::unique_ptr<Connection>> Open(const std::string& location, Mode mode,
+                                                    int busy_timeout_ms = 5000);
+  virtual ~Connection() = default;
+
+  virtual Backend backend() const = 0;
+  // Prepared once per SQL text and cached for the connection's life; the pointer stays valid.
+  virtual Expected<Statement*> Prepare(const std::string& sql) = 0;
+  // For DDL and statements without values only (migrations, transaction control).
+  virtual Status Exec(const char* sql) = 0;
+  // The id the last INSERT on this connection gave its row.
+  virtual Expected<int64_t> LastInsertId() = 0;
+  // Rows changed by the last INSERT/UPDATE/DELETE.
+  virtual int Changes() const = 0;
+  // A write transaction that holds the write lock from its start (SQLite: BEGIN IMMEDIATE).
+  virtual Status BeginWrite() = 0;
+  // A read transaction that sees one snapshot throughout (for exports).
+  virtual Status BeginSnapshot() = 0;
+  // Inside a write transaction: serialises schema changes between processes that migrate the
+  // same database at once (PostgreSQL: a transaction-scoped advisory lock; SQLite's
+  // BEGIN IMMEDIATE already does).
+  virtual Status LockSchema() = 0;
+  virtual Expected<int> SchemaVersion() = 0;
+  virtual Status SetSchemaVersion(int version) = 0;
+  // The schema text of a migration, in this backend's dialect (db/migrations.cpp).
+  virtual std::string Dialect(const char* ddl) const = 0;
+  // True when the connection is lost for good (the server went away); the store then opens a
+  // new one instead of reusing it.
+  virtual bool Broken() const = 0;
+  // Backend-specific maintenance.
+  virtual Status Backup(const std::string& destination) = 0;
+  virtual Expected<std::string> IntegrityCheck() = 0;
+};
+
+}  // namespace vsurg::db
