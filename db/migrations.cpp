@@ -113,6 +113,26 @@ CREATE TABLE reports (
   created_us   INTEGER NOT NULL
 );
 )sql",
+      // 2: several simulation nodes on one store (DESIGN.md "Beyond one machine"): the node a
+      // session runs on ('' in the all-in-one server), and the nodes' registry with their last
+      // heartbeat and load.
+      R"sql(
+ALTER TABLE sessions ADD COLUMN node TEXT NOT NULL DEFAULT '';
+CREATE INDEX sessions_by_node_state ON sessions(node, state);
+CREATE TABLE nodes (
+  name          TEXT PRIMARY KEY CHECK (length(name) BETWEEN 1 AND 64),
+  grpc_address  TEXT NOT NULL,
+  udp_host      TEXT NOT NULL,
+  udp_port      INTEGER NOT NULL CHECK (udp_port BETWEEN 1 AND 65535),
+  capacity      INTEGER NOT NULL CHECK (capacity >= 0),
+  sessions      INTEGER NOT NULL CHECK (sessions >= 0),
+  cpu           REAL NOT NULL,
+  draining      INTEGER NOT NULL DEFAULT 0 CHECK (draining IN (0, 1)),
+  down          INTEGER NOT NULL DEFAULT 0 CHECK (down IN (0, 1)),
+  started_us    INTEGER NOT NULL,
+  heartbeat_us  INTEGER NOT NULL
+);
+)sql",
   };
   return kMigrations;
 }

@@ -72,6 +72,21 @@ struct SessionRecord {
   SessionState state = SessionState::kCreated;  // stored by name
   int64_t created_us = 0, started_us = 0, ended_us = 0;
   std::string end_reason;
+  std::string node;  // the simulation node it runs on; "" in the all-in-one server
+};
+
+// A simulation node as its last heartbeat described it (DESIGN.md "Beyond one machine").
+struct NodeRecord {
+  std::string name;          // unique in the site (the StatefulSet's pod name)
+  std::string grpc_address;  // its internal API, host:port
+  std::string udp_host;      // what stations are told to send to
+  int udp_port = 0;
+  int capacity = 0;       // live sessions it takes (configuration, measured in docs/SCALING.md)
+  int sessions = 0;       // live sessions it reported
+  double cpu = 0;         // its process's CPU use over the last heartbeat period, in cores
+  bool draining = false;  // takes no new sessions
+  bool down = false;      // missed its heartbeats; its sessions were aborted
+  int64_t started_us = 0, heartbeat_us = 0;
 };
 
 struct Submission {
@@ -167,13 +182,26 @@ class Store {
   // `vsurg-admin init`: creates the first admin and a token; fails when any admin exists.
   Expected<std::string> InitAdmin(const std::string& name);
 
-  Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene);
+  Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene,
+                                        const std::string& node = "");
   Status SetSessionState(int64_t id, SessionState state, int64_t at_us,
                          const std::string& reason = "");
   Status RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m);
-  // At start-up: sessions a previous process left live (it was killed, or the machine failed)
-  // cannot go on; they become aborted with `reason`. Returns how many.
-  Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason);
+  // At start-up: sessions a previous process of `node` left live (it was killed, or the machine
+  // failed) cannot go on; they become aborted with `reason`. Returns how many.
+  Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason,
+                                      const std::string& node = "");
+
+  // The node registry. A heartbeat writes the node's row (a node that was down is up again).
+  Status PutNode(const NodeRecord& n);
+  Expected<std::vector<NodeRecord>> ListNodes();
+  // The node stopped answering: marked down unless a heartbeat came after `silent_since_us`,
+  // and its live sessions aborted with `reason` (once, whichever control replica sees it first).
+  // Returns how many sessions were aborted, or nullopt when the node was already down or alive.
+  Expected<std::optional<int>> MarkNodeDown(const std::string& name, int64_t silent_since_us,
+                                            int64_t at_us, const std::string& reason);
+  // Live sessions per node, from the sessions' own rows (what placement balances).
+  Expected<std::vector<std::pair<std::string, int>>> LiveSessionsByNode();
   Status RecordTrainingMoment(const std::string& trainee, double moment_min,
                               std::optional<int64_t> session_id);
 

@@ -28,16 +28,26 @@ void ReadSession(Statement& st, SessionRecord& s) {
   s.started_us = st.IsNull(5) ? 0 : st.Int(5);
   s.ended_us = st.IsNull(6) ? 0 : st.Int(6);
   s.end_reason = st.String(7);
+  s.node = st.String(8);
 }
 
 constexpr const char* kSessionColumns =
     "SELECT s.id, t.name, s.scene, s.state, s.created_us, s.started_us, s.ended_us, "
-    "s.end_reason FROM sessions s JOIN trainees t ON t.id = s.trainee_id ";
+    "s.end_reason, s.node FROM sessions s JOIN trainees t ON t.id = s.trainee_id ";
+
+// Binds the three live states' names at ?first, ?first+1, ?first+2.
+void BindLiveStates(Statement& q, int first) {
+  q.Bind(first, SessionStateName(SessionState::kCreated));
+  q.Bind(first + 1, SessionStateName(SessionState::kRunning));
+  q.Bind(first + 2, SessionStateName(SessionState::kStalled));
+}
 
 }  // namespace
 
-Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const std::string& scene) {
+Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const std::string& scene,
+                                             const std::string& node) {
   SessionRecord rec;
+  rec.node = node;
   rec.trainee = trainee;
   rec.scene = scene;
   rec.state = SessionState::kCreated;
@@ -52,11 +62,11 @@ Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const s
                        [&](Statement& q) { q.Bind(1, scene).Bind(2, rec.created_us); });
     if (!st.ok()) return st;
     st = RunSql(c,
-                "INSERT INTO sessions(trainee_id, scene, state, created_us) "
-                "VALUES (?1, ?2, ?3, ?4)",
+                "INSERT INTO sessions(trainee_id, scene, state, created_us, node) "
+                "VALUES (?1, ?2, ?3, ?4, ?5)",
                 [&](Statement& q) {
                   q.Bind(1, *tid).Bind(2, scene).Bind(3, SessionStateName(rec.state));
-                  q.Bind(4, rec.created_us);
+                  q.Bind(4, rec.created_us).Bind(5, node);
                 });
     if (!st.ok()) return st;
     auto id = c.LastInsertId();
@@ -88,24 +98,127 @@ Status Store::SetSessionState(int64_t id, SessionState state, int64_t at_us,
   });
 }
 
-Expected<int> Store::AbortOrphanedSessions(int64_t at_us, const std::string& reason) {
+namespace {
+
+// Aborts the live sessions of `node` inside a write job; their count.
+Expected<int> AbortLiveSessionsOf(Connection& c, const std::string& node, int64_t at_us,
+                                  const std::string& reason) {
+  Status st = RunSql(c,
+                     "UPDATE sessions SET state = ?3, ended_us = ?1, end_reason = ?2 "
+                     "WHERE node = ?4 AND state IN (?5, ?6, ?7)",
+                     [&](Statement& q) {
+                       q.Bind(1, at_us).Bind(2, reason);
+                       q.Bind(3, SessionStateName(SessionState::kAborted)).Bind(4, node);
+                       BindLiveStates(q, 5);
+                     });
+  if (!st.ok()) return st.error();
+  return c.Changes();
+}
+
+}  // namespace
+
+Expected<int> Store::AbortOrphanedSessions(int64_t at_us, const std::string& reason,
+                                           const std::string& node) {
   int changed = 0;
   Status s = Write([=, &changed](Connection& c) -> Status {
-    Status st = RunSql(c,
-                       "UPDATE sessions SET state = ?3, ended_us = ?1, end_reason = ?2 "
-                       "WHERE state IN (?4, ?5, ?6)",
-                       [&](Statement& q) {
-                         q.Bind(1, at_us).Bind(2, reason);
-                         q.Bind(3, SessionStateName(SessionState::kAborted));
-                         q.Bind(4, SessionStateName(SessionState::kCreated));
-                         q.Bind(5, SessionStateName(SessionState::kRunning));
-                         q.Bind(6, SessionStateName(SessionState::kStalled));
-                       });
-    if (st.ok()) changed = c.Changes();
-    return st;
+    auto n = AbortLiveSessionsOf(c, node, at_us, reason);
+    if (!n.ok()) return n.error();
+    changed = *n;
+    return Status::Ok();
   });
   if (!s.ok()) return s.error();
   return changed;
+}
+
+Status Store::PutNode(const NodeRecord& n) {
+  if (n.name.empty() || n.name.size() > 64)
+    return InvalidArgument("name", "a node name of 1 to 64 characters is required");
+  return Write([n](Connection& c) {
+    return RunSql(c,
+                  "INSERT INTO nodes(name, grpc_address, udp_host, udp_port, capacity, sessions, "
+                  "cpu, draining, down, started_us, heartbeat_us) "
+                  "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, 0, ?9, ?10) "
+                  "ON CONFLICT(name) DO UPDATE SET grpc_address = excluded.grpc_address, "
+                  "udp_host = excluded.udp_host, udp_port = excluded.udp_port, "
+                  "capacity = excluded.capacity, sessions = excluded.sessions, "
+                  "cpu = excluded.cpu, draining = excluded.draining, down = 0, "
+                  "started_us = excluded.started_us, heartbeat_us = excluded.heartbeat_us",
+                  [&](Statement& q) {
+                    q.Bind(1, n.name).Bind(2, n.grpc_address).Bind(3, n.udp_host);
+                    q.Bind(4, int64_t{n.udp_port}).Bind(5, int64_t{n.capacity});
+                    q.Bind(6, int64_t{n.sessions}).Bind(7, n.cpu);
+                    q.Bind(8, int64_t{n.draining ? 1 : 0}).Bind(9, n.started_us);
+                    q.Bind(10, n.heartbeat_us);
+                  });
+  });
+}
+
+Expected<std::vector<NodeRecord>> Store::ListNodes() {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare(
+      "SELECT name, grpc_address, udp_host, udp_port, capacity, sessions, cpu, draining, down, "
+      "started_us, heartbeat_us FROM nodes ORDER BY name");
+  if (!st.ok()) return st.error();
+  std::vector<NodeRecord> out;
+  for (;;) {
+    auto row = (*st)->Step();
+    if (!row.ok()) return row.error();
+    if (!*row) break;
+    Statement& q = **st;
+    NodeRecord& n = out.emplace_back();
+    n.name = q.String(0);
+    n.grpc_address = q.String(1);
+    n.udp_host = q.String(2);
+    n.udp_port = static_cast<int>(q.Int(3));
+    n.capacity = static_cast<int>(q.Int(4));
+    n.sessions = static_cast<int>(q.Int(5));
+    n.cpu = q.Double(6);
+    n.draining = q.Int(7) != 0;
+    n.down = q.Int(8) != 0;
+    n.started_us = q.Int(9);
+    n.heartbeat_us = q.Int(10);
+  }
+  (*st)->Reset();
+  return out;
+}
+
+Expected<std::optional<int>> Store::MarkNodeDown(const std::string& name, int64_t silent_since_us,
+                                                 int64_t at_us, const std::string& reason) {
+  std::optional<int> aborted;
+  Status s = Write([&](Connection& c) -> Status {
+    // Only the first to see the silence marks it, and only if no heartbeat came meanwhile.
+    Status st = RunSql(c,
+                       "UPDATE nodes SET down = 1 WHERE name = ?1 AND down = 0 AND "
+                       "heartbeat_us < ?2",
+                       [&](Statement& q) { q.Bind(1, name).Bind(2, silent_since_us); });
+    if (!st.ok() || c.Changes() == 0) return st;
+    auto n = AbortLiveSessionsOf(c, name, at_us, reason);
+    if (!n.ok()) return n.error();
+    aborted = *n;
+    return Status::Ok();
+  });
+  if (!s.ok()) return s.error();
+  return aborted;
+}
+
+Expected<std::vector<std::pair<std::string, int>>> Store::LiveSessionsByNode() {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare(
+      "SELECT node, count(*) FROM sessions WHERE state IN (?1, ?2, ?3) GROUP BY node "
+      "ORDER BY node");
+  if (!st.ok()) return st.error();
+  BindLiveStates(**st, 1);
+  std::vector<std::pair<std::string, int>> out;
+  for (;;) {
+    auto row = (*st)->Step();
+    if (!row.ok()) return row.error();
+    if (!*row) break;
+    out.emplace_back((*st)->String(0), static_cast<int>((*st)->Int(1)));
+  }
+  (*st)->Reset();
+  return out;
 }
 
 Status Store::RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m) {

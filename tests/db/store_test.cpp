@@ -309,6 +309,58 @@ TEST_P(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
   EXPECT_EQ(store_->AbortOrphanedSessions(901, "again").value(), 0);
 }
 
+TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
+  NodeRecord a{.name = "sim-0",
+               .grpc_address = "10.0.0.1:7000",
+               .udp_host = "10.0.0.1",
+               .udp_port = 7001,
+               .capacity = 24,
+               .sessions = 1,
+               .cpu = 0.25,
+               .draining = false,
+               .down = false,
+               .started_us = 10,
+               .heartbeat_us = 1000};
+  NodeRecord b = a;
+  b.name = "sim-1";
+  b.heartbeat_us = 5000;
+  ASSERT_TRUE(store_->PutNode(a).ok());
+  ASSERT_TRUE(store_->PutNode(b).ok());
+  EXPECT_EQ(store_->PutNode(NodeRecord{}).error().field, "name");
+  auto on_a = store_->CreateSession("trainee-1", "arm-torsion", "sim-0");
+  auto on_b = store_->CreateSession("trainee-2", "arm-torsion", "sim-1");
+  auto ended_on_a = store_->CreateSession("trainee-3", "arm-torsion", "sim-0");
+  ASSERT_TRUE(on_a.ok() && on_b.ok() && ended_on_a.ok());
+  EXPECT_EQ(on_a->node, "sim-0");
+  EXPECT_EQ(store_->GetSession(on_b->id)->node, "sim-1");
+  ASSERT_TRUE(store_->SetSessionState(ended_on_a->id, SessionState::kEnded, 50, "done").ok());
+  auto by_node = store_->LiveSessionsByNode();
+  ASSERT_TRUE(by_node.ok());
+  EXPECT_EQ(*by_node, (std::vector<std::pair<std::string, int>>{{"sim-0", 1}, {"sim-1", 1}}));
+
+  // sim-1 beat after the cut-off: not marked. sim-0 is silent: down, its live session aborted.
+  EXPECT_FALSE(store_->MarkNodeDown("sim-1", 3000, 6000, "silent").value().has_value());
+  EXPECT_EQ(store_->MarkNodeDown("sim-0", 3000, 6000, "node sim-0 stopped answering").value(), 1);
+  EXPECT_FALSE(store_->MarkNodeDown("sim-0", 3000, 6001, "again").value().has_value());
+  EXPECT_EQ(store_->GetSession(on_a->id)->state, SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(on_a->id)->end_reason, "node sim-0 stopped answering");
+  EXPECT_EQ(store_->GetSession(ended_on_a->id)->state, SessionState::kEnded);
+  EXPECT_EQ(store_->GetSession(on_b->id)->state, SessionState::kCreated);
+  auto nodes = store_->ListNodes();
+  ASSERT_TRUE(nodes.ok());
+  ASSERT_EQ(nodes->size(), 2u);
+  EXPECT_TRUE((*nodes)[0].down);
+  EXPECT_FALSE((*nodes)[1].down);
+  EXPECT_EQ((*nodes)[1].grpc_address, "10.0.0.1:7000");
+  EXPECT_EQ((*nodes)[1].cpu, 0.25);
+  // Its next heartbeat brings it back; a restarted node aborts only its own leftovers.
+  a.heartbeat_us = 7000;
+  ASSERT_TRUE(store_->PutNode(a).ok());
+  EXPECT_FALSE(store_->ListNodes().value()[0].down);
+  EXPECT_EQ(store_->AbortOrphanedSessions(8000, "node restarted", "sim-0").value(), 0);
+  EXPECT_EQ(store_->GetSession(on_b->id)->state, SessionState::kCreated);
+}
+
 TEST_P(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   auto session = store_->CreateSession("trainee-1", "arm-torsion");
