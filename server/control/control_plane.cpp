@@ -26,7 +26,7 @@ struct ControlPlane::Impl {
   int port = 0;
   bool tls = false;
   std::once_flag shutdown_once;
-  Impl(db::Store& store, SessionManager& sessions, const ControlPlaneOptions& o)
+  Impl(db::Store& store, Sessions& sessions, const ControlPlaneOptions& o)
       : domain{store, sessions, scenes, o.backup_dir} {}
 };
 
@@ -41,8 +41,7 @@ bool ControlPlane::tls() const {
   return impl_->tls;
 }
 
-Expected<std::unique_ptr<ControlPlane>> ControlPlane::Start(db::Store& store,
-                                                            SessionManager& sessions,
+Expected<std::unique_ptr<ControlPlane>> ControlPlane::Start(db::Store& store, Sessions& sessions,
                                                             const ControlPlaneOptions& options) {
   auto impl = std::make_unique<Impl>(store, sessions, options);
   std::shared_ptr<grpc::ServerCredentials> creds;

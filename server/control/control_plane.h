@@ -27,7 +27,7 @@ class Store;
 
 namespace vsurg::server {
 
-class SessionManager;
+class Sessions;
 
 struct ControlPlaneOptions {
   std::string listen = "127.0.0.1:0";  // host:port; port 0 picks a free one
@@ -43,7 +43,7 @@ struct ControlPlaneOptions {
 
 class ControlPlane {
  public:
-  static Expected<std::unique_ptr<ControlPlane>> Start(db::Store& store, SessionManager& sessions,
+  static Expected<std::unique_ptr<ControlPlane>> Start(db::Store& store, Sessions& sessions,
                                                        const ControlPlaneOptions& options);
   ~ControlPlane();  // Shutdown()
   int port() const;

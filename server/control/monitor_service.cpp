@@ -15,7 +15,7 @@ using grpc::CallbackServerContext;
 // callbacks take the mailbox mutex only to swap messages and never call into gRPC with it held.
 class WatchReactor final : public grpc::ServerWriteReactor<v1::Telemetry> {
  public:
-  WatchReactor(SessionManager& sessions, uint64_t session, double rate_hz)
+  WatchReactor(Sessions& sessions, uint64_t session, double rate_hz)
       : sessions_(sessions), interval_s_(1.0 / rate_hz) {
     token_ = sessions_.Subscribe(session, [this](const std::vector<SessionTelemetry>& list,
                                                  bool ended) { Deliver(list, ended); });
@@ -76,7 +76,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::Telemetry> {
     Finish(s);
   }
 
-  SessionManager& sessions_;
+  Sessions& sessions_;
   double interval_s_;
   uint64_t token_ = 0;
   std::mutex mutex_;

@@ -20,7 +20,7 @@
 #include "common/scoring/metrics.h"
 #include "db/store.h"
 #include "server/domain/auth.h"
-#include "server/session/session_manager.h"
+#include "server/session/sessions.h"
 
 namespace vsurg::server {
 
@@ -29,7 +29,7 @@ class SceneCatalog;
 // What the rules need: the store, the sessions, the scene catalogue, the backup folder.
 struct Domain {
   db::Store& store;
-  SessionManager& sessions;
+  Sessions& sessions;
   SceneCatalog& scenes;
   std::string backup_dir;  // AdminService/Backup writes only here; empty: backups refused
 };

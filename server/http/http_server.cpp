@@ -19,7 +19,7 @@
 #include "server/domain/auth.h"
 #include "server/domain/scene_catalog.h"
 #include "server/http/http_api.h"
-#include "server/session/session_manager.h"
+#include "server/session/sessions.h"
 
 namespace vsurg::server {
 namespace {
@@ -121,7 +121,7 @@ struct Context {  // what a connection needs from the server
   std::weak_ptr<Shared> owner;  // for callbacks that may outlive the server (a store commit)
   HttpApi* api;
   db::Store* store;
-  SessionManager* sessions;
+  Sessions* sessions;
   std::mutex* exports_mutex;
   std::list<ExportThread>* export_threads;
   std::list<std::weak_ptr<ConnectionBase>>* connections;  // I/O thread only
@@ -490,7 +490,7 @@ class Connection final : public ConnectionBase,
 struct HttpServer::Impl {
   HttpServerOptions options;
   db::Store& store;
-  SessionManager& sessions;
+  Sessions& sessions;
   SceneCatalog scenes;
   Domain domain;
   std::unique_ptr<HttpApi> api;
@@ -504,7 +504,7 @@ struct HttpServer::Impl {
   int port = 0;
   std::once_flag shutdown_once;
 
-  Impl(db::Store& s, SessionManager& m, const HttpServerOptions& o)
+  Impl(db::Store& s, Sessions& m, const HttpServerOptions& o)
       : options(o), store(s), sessions(m), domain{s, m, scenes, o.backup_dir} {}
 
   Context MakeContext() {
@@ -585,7 +585,7 @@ HttpCounters HttpServer::counters() const {
   return c;
 }
 
-Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, SessionManager& sessions,
+Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessions& sessions,
                                                         const HttpServerOptions& options) {
   auto impl = std::make_unique<Impl>(store, sessions, options);
   impl->shared->options = options;

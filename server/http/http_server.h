@@ -28,7 +28,7 @@ class Store;
 
 namespace vsurg::server {
 
-class SessionManager;
+class Sessions;
 
 struct HttpServerOptions {
   std::string listen = "127.0.0.1:0";  // host:port; port 0 picks a free one
@@ -61,7 +61,7 @@ struct HttpCounters {
 
 class HttpServer {
  public:
-  static Expected<std::unique_ptr<HttpServer>> Start(db::Store& store, SessionManager& sessions,
+  static Expected<std::unique_ptr<HttpServer>> Start(db::Store& store, Sessions& sessions,
                                                      const HttpServerOptions& options);
   ~HttpServer();  // Shutdown()
   int port() const;

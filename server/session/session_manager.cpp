@@ -27,7 +27,7 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()) {
   // Nothing is live in a new process: what the store says is live was left by one that died.
-  (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted");
+  (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted", options_.node);
   sampler_ = std::thread([this] { SamplerLoop(); });
 }
 
@@ -63,7 +63,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   CreatedSession out;
   if (RAND_bytes(out.key.data(), static_cast<int>(out.key.size())) != 1)
     return Error{ErrorCode::kIoError, "the system random generator failed", "key"};
-  auto record = store_.CreateSession(trainee, scene_name);
+  auto record = store_.CreateSession(trainee, scene_name, options_.node);
   if (!record.ok()) return record.error();
   out.record = *record;
   out.udp_host = options_.udp_host;
@@ -226,6 +226,11 @@ Status SessionManager::RestSurface(uint64_t id, std::vector<geometry::Vec3>& pos
 bool SessionManager::IsLive(uint64_t id) const {
   std::lock_guard lock(mutex_);
   return live_.count(id) > 0;
+}
+
+int SessionManager::LiveCount() const {
+  std::lock_guard lock(mutex_);
+  return static_cast<int>(live_.size());
 }
 
 uint64_t SessionManager::Subscribe(uint64_t session, Subscriber fn) {

@@ -52,36 +52,9 @@
 #include "db/store.h"
 #include "proto/wire/datagram.h"
 #include "server/net/udp_endpoint.h"
+#include "server/session/sessions.h"
 
 namespace vsurg::server {
-
-struct SessionTelemetry {
-  uint64_t id = 0;
-  SessionState state = SessionState::kCreated;
-  int64_t server_time_us = 0;
-  sim::Telemetry sim;
-  double rtt_us = 0;
-  double packet_loss = 0;  // lost / (applied + lost)
-  uint64_t packets = 0;
-  // The station's haptic loop rate: stylus samples applied per second of the station's own clock
-  // (the stamps it sends), over windows of ≥ 1 s, refreshed once a window; 0 unless running.
-  double haptic_rate_hz = 0;
-  std::string scene;
-  std::string trainee;
-  // Every third sample (10 Hz at the default rate): the deformed surface for monitors, as the
-  // vertices away from rest (sim::Simulation::ShownSurface).
-  bool has_surface = false;
-  uint64_t surface_frame = 0;
-  std::vector<int32_t> surface_indices;
-  std::vector<geometry::Vec3> surface_positions;
-};
-
-struct CreatedSession {
-  db::SessionRecord record;
-  wire::SessionKey key{};
-  std::string udp_host;
-  uint16_t udp_port = 0;
-};
 
 struct SessionManagerOptions {
   std::string udp_host = "127.0.0.1";  // what stations are told to send to
@@ -92,9 +65,12 @@ struct SessionManagerOptions {
   // Start timeouts and haptic rates are measured on this clock (null: the steady clock); it must
   // outlive the manager. The sampler itself runs at telemetry_hz of real time.
   const Clock* clock = nullptr;
+  // The simulation node this manager runs in (its sessions' rows say so; at start-up only this
+  // node's leftovers are aborted); "" in the all-in-one server.
+  std::string node;
 };
 
-class SessionManager {
+class SessionManager final : public Sessions {
  public:
   // `endpoint` may be null (a control plane without a haptic channel: sessions cannot start).
   SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
@@ -102,34 +78,22 @@ class SessionManager {
   SessionManager(const SessionManager&) = delete;
   SessionManager& operator=(const SessionManager&) = delete;
 
-  // `scene` is a scene name from scenes/ (letters, digits, '-'), never a path.
-  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene);
-  Expected<db::SessionRecord> Start(uint64_t id);
-  Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason);
-  Expected<db::SessionRecord> Get(uint64_t id);  // the store's row with the live state
-  // A live session's station credentials (a session an instructor prepared, joined by the
-  // trainee's station): the key and the UDP address, as Create returned them. kNotFound once it
-  // left the live states.
-  Expected<CreatedSession> Join(uint64_t id);
-  // A live session's surface at rest (the mesh the monitors' surface states move): positions in
-  // metres, triangles as vertex indices. kNotFound once it left the live states.
+  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene) override;
+  Expected<db::SessionRecord> Start(uint64_t id) override;
+  Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
+  Expected<db::SessionRecord> Get(uint64_t id) override;
+  Expected<CreatedSession> Join(uint64_t id) override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
-                     std::vector<int32_t>& triangles) const;
-  bool IsLive(uint64_t id) const;
-  // Aborts every live session of `user` (its trainee), e.g. when their tokens are revoked or the
-  // account is disabled: access ends with the account, on the UDP channel too. Returns how many.
-  int EndSessionsOf(const std::string& user, const std::string& reason);
-
-  // Telemetry subscribers: `fn` runs on the sampler thread at the telemetry rate with the
-  // latest figures of every live session (or of `session` only, when not 0), and once more with
-  // an empty list when that session leaves the live states. Unsubscribe waits for a running
-  // call to finish, so after it returns `fn` is never called again.
-  using Subscriber = std::function<void(const std::vector<SessionTelemetry>&, bool ended)>;
-  uint64_t Subscribe(uint64_t session, Subscriber fn);
-  void Unsubscribe(uint64_t token);
+                     std::vector<int32_t>& triangles) const override;
+  bool IsLive(uint64_t id) const override;
+  int EndSessionsOf(const std::string& user, const std::string& reason) override;
+  uint64_t Subscribe(uint64_t session, Subscriber fn) override;
+  void Unsubscribe(uint64_t token) override;
+  // Live sessions now (a simulation node's load report).
+  int LiveCount() const;
 
   // Aborts every live session (metrics recorded), stops the sampler. Idempotent.
-  void Shutdown();
+  void Shutdown() override;
 
  private:
   struct Live {

@@ -16,6 +16,7 @@
 
 #include "server/domain/scene_catalog.h"
 #include "server/http/http_api.h"
+#include "server/session/session_manager.h"
 #include "tests/fuzz/fuzz_check.h"
 
 namespace {

@@ -12,6 +12,7 @@
 #include "common/scoring/evaluation.h"
 #include "common/sim/scene.h"
 #include "server/domain/scene_catalog.h"
+#include "server/session/session_manager.h"
 
 namespace vsurg::server {
 namespace {

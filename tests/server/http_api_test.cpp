@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "server/domain/scene_catalog.h"
+#include "server/session/session_manager.h"
 
 namespace vsurg::server::http {
 namespace {

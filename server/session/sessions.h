@@ -1,0 +1,81 @@
+// The sessions as the control plane sees them (gRPC, HTTP, the domain rules): create, start, stop,
+// join, watch. Two implementations: SessionManager runs the sessions in this process (the
+// all-in-one server, and a simulation node); ClusterSessions (server/cluster/) places them on
+// simulation nodes and reaches them through their internal API (DESIGN.md "Beyond one machine").
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/sim/simulation.h"
+#include "db/store.h"
+#include "proto/wire/datagram.h"
+
+namespace vsurg::server {
+
+struct SessionTelemetry {
+  uint64_t id = 0;
+  SessionState state = SessionState::kCreated;
+  int64_t server_time_us = 0;
+  sim::Telemetry sim;
+  double rtt_us = 0;
+  double packet_loss = 0;  // lost / (applied + lost)
+  uint64_t packets = 0;
+  // The station's haptic loop rate: stylus samples applied per second of the station's own clock
+  // (the stamps it sends), over windows of ≥ 1 s, refreshed once a window; 0 unless running.
+  double haptic_rate_hz = 0;
+  std::string scene;
+  std::string trainee;
+  // Every third sample (10 Hz at the default rate): the deformed surface for monitors, as the
+  // vertices away from rest (sim::Simulation::ShownSurface).
+  bool has_surface = false;
+  uint64_t surface_frame = 0;
+  std::vector<int32_t> surface_indices;
+  std::vector<geometry::Vec3> surface_positions;
+};
+
+struct CreatedSession {
+  db::SessionRecord record;
+  wire::SessionKey key{};
+  std::string udp_host;
+  uint16_t udp_port = 0;
+};
+
+class Sessions {
+ public:
+  virtual ~Sessions() = default;
+
+  // `scene` is a scene name from scenes/ (letters, digits, '-'), never a path.
+  virtual Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene) = 0;
+  virtual Expected<db::SessionRecord> Start(uint64_t id) = 0;
+  virtual Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) = 0;
+  virtual Expected<db::SessionRecord> Get(uint64_t id) = 0;  // the store's row, live state
+  // A live session's station credentials (a session an instructor prepared, joined by the
+  // trainee's station): the key and the UDP address, as Create returned them. kNotFound once it
+  // left the live states.
+  virtual Expected<CreatedSession> Join(uint64_t id) = 0;
+  // A live session's surface at rest (the mesh the monitors' surface states move): positions in
+  // metres, triangles as vertex indices. kNotFound once it left the live states.
+  virtual Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
+                             std::vector<int32_t>& triangles) const = 0;
+  virtual bool IsLive(uint64_t id) const = 0;
+  // Aborts every live session of `user` (its trainee), e.g. when their tokens are revoked or the
+  // account is disabled: access ends with the account, on the UDP channel too. Returns how many.
+  virtual int EndSessionsOf(const std::string& user, const std::string& reason) = 0;
+
+  // Telemetry subscribers: `fn` runs on a sampler thread at the telemetry rate with the latest
+  // figures of every live session (or of `session` only, when not 0), and once more with an
+  // empty list when that session leaves the live states. Unsubscribe waits for a running call
+  // to finish, so after it returns `fn` is never called again.
+  using Subscriber = std::function<void(const std::vector<SessionTelemetry>&, bool ended)>;
+  virtual uint64_t Subscribe(uint64_t session, Subscriber fn) = 0;
+  virtual void Unsubscribe(uint64_t token) = 0;
+
+  // Ends what this process runs (live sessions aborted, threads stopped). Idempotent.
+  virtual void Shutdown() = 0;
+};
+
+}  // namespace vsurg::server
