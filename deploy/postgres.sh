@@ -38,7 +38,13 @@ case "$cmd" in
     "$0" stop "$dir"  # what an interrupted run left there
     mkdir -p "$dir"
     dir="$(cd "$dir" && pwd)"
-    [ "$(id -u)" -eq 0 ] && chown postgres: "$dir"
+    if [ "$(id -u)" -eq 0 ]; then
+      chown postgres: "$dir"
+      runuser -u postgres -- test -x "$dir" || {
+        echo "postgres.sh: the postgres user cannot reach $dir (a parent folder is private); use a folder under /tmp" >&2
+        exit 1
+      }
+    fi
     chmod 700 "$dir"
     as_owner "$bin/initdb" -D "$dir/data" -A trust -U vsurg -E UTF8 --locale=C.UTF-8 >"$dir/initdb.log" 2>&1 \
       || { cat "$dir/initdb.log" >&2; exit 1; }

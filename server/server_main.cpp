@@ -1,12 +1,17 @@
-// vsurg-server: the simulation server. The SQLite store, the sessions (one Simulation each),
-// the UDP haptic endpoint and the gRPC control plane, in one process.
+// vsurg-server: the simulation server. By default (--role all) the store, the sessions (one
+// Simulation each), the UDP haptic endpoint and the gRPC control plane, in one process. A site of
+// several machines runs the same binary in two more roles over a shared PostgreSQL store
+// (DESIGN.md "Beyond one machine", server/cluster/cluster.h, docs/SCALING.md):
+//   --role control   the gRPC and HTTP control plane, placement, the nodes' registry; stateless
+//   --role sim       a simulation node: sessions and the UDP endpoint, heartbeats to control
 //
-//   vsurg-server [serve] --db FILE [options]   serve (the default)
-//   vsurg-server init|export|backup --db FILE  work on the store file (server/store_commands.h)
+//   vsurg-server [serve] --db FILE|URI [options]   serve (the default)
+//   vsurg-server init|export|backup --db FILE|URI  work on the store (server/store_commands.h)
 //
 // Shutdown: SIGINT or SIGTERM → the control plane stops taking calls (streams are cancelled),
 // live sessions are aborted with their trial metrics recorded, the endpoint stops, the store's
-// writer drains its queue and closes the file. Exit code 0.
+// writer drains its queue and closes the file. Exit code 0. A sim node drains first on SIGTERM:
+// no new sessions, the live ones finish (up to --drain-timeout), then the same.
 #include <signal.h>
 #include <unistd.h>
 
@@ -23,6 +28,7 @@
 
 #include "common/core/args.h"
 #include "db/store.h"
+#include "server/cluster/cluster.h"
 #include "server/config.h"
 #include "server/control/control_plane.h"
 #include "server/http/http_server.h"
@@ -45,10 +51,31 @@ int Main(std::vector<std::string> args) {
   ArgParser p("vsurg-server",
               "The vsurg simulation server: sessions and their tissue physics, the UDP haptic\n"
               "channel, the gRPC control plane (sessions, monitoring, evaluations, admin) and the\n"
-              "SQLite store. Stops cleanly on SIGINT/SIGTERM.\n\n"
+              "store. Stops cleanly on SIGINT/SIGTERM. --role control|sim: one site over several\n"
+              "machines on a shared PostgreSQL store (docs/SCALING.md).\n\n"
               "Commands on the store file: vsurg-server init|export|backup --db FILE ...\n"
               "(init creates the first administrator; export and backup open the file read-only).");
-  p.Option("db", Kind::kString, "SQLite database file (created when missing)", true)
+  p.Option("db", Kind::kString,
+           "SQLite database file (created when missing), or a postgresql:// URI (the shared "
+           "store of control and sim roles)",
+           true)
+      .Option("role", Kind::kString,
+              "all (one process), control (control plane of a site) or sim (simulation node)",
+              false, "all")
+      .Option("cluster-listen", Kind::kString,
+              "control, sim: the internal API's host:port (port 0: any free one)", false,
+              "127.0.0.1:0")
+      .Option("cluster-token-file", Kind::kString,
+              "control, sim: file holding the site's shared secret (>= 16 characters)")
+      .Option("control", Kind::kString,
+              "sim: the control plane's internal API, host:port[,host:port...]")
+      .Option("node-name", Kind::kString, "sim: this node's name, unique in the site")
+      .Option("advertise", Kind::kString,
+              "sim: host:port the control plane reaches this node's internal API at "
+              "(default: --cluster-listen's host with its bound port)")
+      .Option("capacity", Kind::kInt, "sim: live sessions this node takes", false, "24")
+      .Option("drain-timeout", Kind::kDouble,
+              "sim: on SIGTERM, seconds the live sessions may take to finish", false, "600")
       .Option("listen", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
       .Option("udp-address", Kind::kString, "UDP haptic endpoint address", false, "127.0.0.1")
       .Option("udp-port", Kind::kInt, "UDP port (0: any free one)", false, "50052")
@@ -118,6 +145,38 @@ int Main(std::vector<std::string> args) {
     return 2;
   }
 
+  const std::string role = p.String("role");
+  if (role != "all" && role != "control" && role != "sim") {
+    std::cerr << "vsurg-server: --role: must be all, control or sim\n";
+    return 2;
+  }
+  vsurg::server::cluster::ClusterOptions cluster;
+  if (role != "all") {
+    if (vsurg::db::BackendOf(p.String("db")) != vsurg::db::Backend::kPostgres) {
+      std::cerr << "vsurg-server: --db: the " << role
+                << " role shares its store with the site: a postgresql:// URI is required\n";
+      return 2;
+    }
+    if (!p.Has("cluster-token-file")) {
+      std::cerr << "vsurg-server: --cluster-token-file: required by the " << role << " role\n";
+      return 2;
+    }
+    std::ifstream in(p.String("cluster-token-file"));
+    if (!in || !std::getline(in, cluster.token)) {
+      std::cerr << "vsurg-server: --cluster-token-file: cannot read "
+                << p.String("cluster-token-file") << "\n";
+      return 2;
+    }
+    cluster.listen = p.String("cluster-listen");
+    cluster.allow_insecure = p.Flag("allow-insecure");
+    cluster.telemetry_hz = telemetry_hz;
+    cluster.max_sessions_per_user = per_user;
+  }
+  if (role == "sim" && !p.Has("control")) {
+    std::cerr << "vsurg-server: --control: required by the sim role\n";
+    return 2;
+  }
+
   // Signals go to the main thread only: block them before any thread starts, sigwait below.
   sigset_t signals;
   sigemptyset(&signals);
@@ -130,70 +189,122 @@ int Main(std::vector<std::string> args) {
     std::cerr << "vsurg-server: --db: " << store.error().message << "\n";
     return 1;
   }
-  vsurg::server::EndpointOptions eo;
-  eo.address = p.String("udp-address");
-  eo.port = static_cast<uint16_t>(udp_port);
-  eo.realtime_priority = p.Int("realtime-priority");
-  if (eo.realtime_priority < 0 || eo.realtime_priority > 99) {
-    std::cerr << "vsurg-server: --realtime-priority: must be within 0..99\n";
-    return 2;
+  const bool shared_store = vsurg::db::BackendOf(p.String("db")) == vsurg::db::Backend::kPostgres;
+  std::unique_ptr<vsurg::server::UdpEndpoint> endpoint;
+  std::unique_ptr<vsurg::server::SessionManager> manager;
+  std::unique_ptr<vsurg::server::cluster::ClusterSessions> placed;
+  std::unique_ptr<vsurg::server::cluster::NodeAgent> agent;
+  vsurg::server::Sessions* sessions = nullptr;
+  if (role != "control") {  // this process runs sessions: the UDP endpoint and the manager
+    vsurg::server::EndpointOptions eo;
+    eo.address = p.String("udp-address");
+    eo.port = static_cast<uint16_t>(udp_port);
+    eo.realtime_priority = p.Int("realtime-priority");
+    if (eo.realtime_priority < 0 || eo.realtime_priority > 99) {
+      std::cerr << "vsurg-server: --realtime-priority: must be within 0..99\n";
+      return 2;
+    }
+    auto created = vsurg::server::UdpEndpoint::Create(eo);
+    if (!created.ok()) {
+      std::cerr << "vsurg-server: --udp-port: " << created.error().message << "\n";
+      return 1;
+    }
+    endpoint = std::move(created).value();
+    vsurg::server::SessionManagerOptions so;
+    so.udp_host = p.Has("public-host") ? p.String("public-host") : eo.address;
+    so.telemetry_hz = telemetry_hz;
+    so.max_live_sessions = max_sessions;
+    so.max_sessions_per_user = per_user;
+    so.start_timeout_s = start_timeout;
+    if (role == "sim") {
+      char host[256] = {};
+      gethostname(host, sizeof host - 1);
+      so.node = p.Has("node-name") ? p.String("node-name") : std::string(host);
+    }
+    manager = std::make_unique<vsurg::server::SessionManager>(**store, endpoint.get(), so);
+    sessions = manager.get();
+    if (role == "sim") {
+      vsurg::server::cluster::NodeOptions no;
+      no.name = so.node;
+      no.advertise = p.Has("advertise") ? p.String("advertise") : "";
+      no.control = p.String("control");
+      no.udp_host = so.udp_host;
+      no.udp_port = endpoint->port();
+      no.capacity = p.Int("capacity");
+      no.cluster = cluster;
+      auto started = vsurg::server::cluster::NodeAgent::Start(*manager, no);
+      if (!started.ok()) {
+        std::cerr << "vsurg-server: --" << started.error().field << ": " << started.error().message
+                  << "\n";
+        return 1;
+      }
+      agent = std::move(started).value();
+    }
+  } else {  // control: the sessions are the site's nodes'
+    auto started = vsurg::server::cluster::ClusterSessions::Start(**store, cluster);
+    if (!started.ok()) {
+      std::cerr << "vsurg-server: --" << started.error().field << ": " << started.error().message
+                << "\n";
+      return 1;
+    }
+    placed = std::move(started).value();
+    sessions = placed.get();
   }
-  auto endpoint = vsurg::server::UdpEndpoint::Create(eo);
-  if (!endpoint.ok()) {
-    std::cerr << "vsurg-server: --udp-port: " << endpoint.error().message << "\n";
-    return 1;
-  }
-  vsurg::server::SessionManagerOptions so;
-  so.udp_host = p.Has("public-host") ? p.String("public-host") : eo.address;
-  so.telemetry_hz = telemetry_hz;
-  so.max_live_sessions = max_sessions;
-  so.max_sessions_per_user = per_user;
-  so.start_timeout_s = start_timeout;
-  auto sessions = std::make_unique<vsurg::server::SessionManager>(**store, endpoint->get(), so);
+  std::unique_ptr<vsurg::server::ControlPlane> control;
+  std::unique_ptr<vsurg::server::HttpServer> web;
   vsurg::server::ControlPlaneOptions co;
   co.listen = p.String("listen");
   if (p.Has("tls-cert")) co.tls_cert_file = p.String("tls-cert");
   if (p.Has("tls-key")) co.tls_key_file = p.String("tls-key");
   co.allow_insecure = p.Flag("allow-insecure");
+  // A shared store is backed up by PostgreSQL's own tools: no backup folder, backups refused.
   co.backup_dir =
-      p.Has("backup-dir")
-          ? p.String("backup-dir")
+      p.Has("backup-dir") ? p.String("backup-dir")
+      : shared_store
+          ? std::string()
           : (std::filesystem::absolute(p.String("db")).parent_path() / "backups").string();
-  auto control = vsurg::server::ControlPlane::Start(**store, *sessions, co);
-  if (!control.ok()) {
-    std::cerr << "vsurg-server: --"
-              << (control.error().field.empty() ? "listen" : control.error().field) << ": "
-              << control.error().message << "\n";
-    return 1;
-  }
-  std::unique_ptr<vsurg::server::HttpServer> web;
-  if (p.Has("http")) {
-    vsurg::server::HttpServerOptions ho;
-    ho.listen = p.String("http");
-    ho.tls_cert_file = co.tls_cert_file;
-    ho.tls_key_file = co.tls_key_file;
-    ho.allow_insecure = co.allow_insecure;
-    ho.backup_dir = co.backup_dir;
-    auto started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
+  if (role != "sim") {  // a simulation node serves only the internal API
+    auto started = vsurg::server::ControlPlane::Start(**store, *sessions, co);
     if (!started.ok()) {
-      std::cerr << "vsurg-server: --http: " << started.error().message << "\n";
+      std::cerr << "vsurg-server: --"
+                << (started.error().field.empty() ? "listen" : started.error().field) << ": "
+                << started.error().message << "\n";
       return 1;
     }
-    web = std::move(started).value();
+    control = std::move(started).value();
+    if (p.Has("http")) {
+      vsurg::server::HttpServerOptions ho;
+      ho.listen = p.String("http");
+      ho.tls_cert_file = co.tls_cert_file;
+      ho.tls_key_file = co.tls_key_file;
+      ho.allow_insecure = co.allow_insecure;
+      ho.backup_dir = co.backup_dir;
+      auto web_started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
+      if (!web_started.ok()) {
+        std::cerr << "vsurg-server: --http: " << web_started.error().message << "\n";
+        return 1;
+      }
+      web = std::move(web_started).value();
+    }
   }
-  const int grpc_port = (*control)->port();
-  const int bound_udp = (*endpoint)->port();
+  const int grpc_port = control ? control->port() : 0;
+  const int bound_udp = endpoint ? endpoint->port() : 0;
   const int http_port = web ? web->port() : 0;
-  Log("serving", "grpc_port=" + std::to_string(grpc_port) +
+  const int cluster_port = placed ? placed->port() : agent ? agent->port() : 0;
+  Log("serving", "role=" + role + " grpc_port=" + std::to_string(grpc_port) +
                      " udp_port=" + std::to_string(bound_udp) +
                      (web ? " http_port=" + std::to_string(http_port) : std::string()) +
-                     " tls=" + ((*control)->tls() ? "on" : "off") + " db=" + p.String("db"));
+                     (cluster_port ? " cluster_port=" + std::to_string(cluster_port) : "") +
+                     " tls=" + (control && control->tls() ? "on" : "off") +
+                     " db=" + vsurg::db::BackendName(vsurg::db::BackendOf(p.String("db"))));
   if (p.Has("ready-file")) {
     const std::string path = p.String("ready-file"), tmp = path + ".tmp";
     {
       std::ofstream out(tmp);
-      nlohmann::json ready{{"grpc_port", grpc_port}, {"udp_port", bound_udp}, {"pid", getpid()}};
+      nlohmann::json ready{
+          {"grpc_port", grpc_port}, {"udp_port", bound_udp}, {"pid", getpid()}, {"role", role}};
       if (web) ready["http_port"] = http_port;
+      if (cluster_port) ready["cluster_port"] = cluster_port;
       out << ready.dump() << "\n";
     }
     std::rename(tmp.c_str(), path.c_str());  // atomically: a reader sees all of it or nothing
@@ -202,15 +313,21 @@ int Main(std::vector<std::string> args) {
   int sig = 0;
   sigwait(&signals, &sig);
   Log("stopping", std::string("signal=") + (sig == SIGINT ? "SIGINT" : "SIGTERM"));
+  // A node's rolling upgrade: SIGTERM lets its live sessions finish (Kubernetes sends it and
+  // waits terminationGracePeriodSeconds); SIGINT (an operator's ^C) does not wait.
+  if (agent && sig == SIGTERM) agent->Drain(p.Double("drain-timeout"));
   if (web) web->Shutdown();  // ends the dashboard's streams and exports
-  (*control)->Shutdown();
+  if (control) control->Shutdown();
+  if (agent) agent->Shutdown();
   sessions->Shutdown();
-  (*endpoint)->Stop();
+  if (endpoint) endpoint->Stop();
   const auto stats = (*store)->stats();
   web.reset();
-  control->reset();
-  sessions.reset();
-  endpoint->reset();
+  control.reset();
+  agent.reset();
+  manager.reset();
+  placed.reset();
+  endpoint.reset();
   store->reset();  // drains the writer
   Log("stopped",
       "commits=" + std::to_string(stats.commits) + " jobs=" + std::to_string(stats.jobs));

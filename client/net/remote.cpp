@@ -74,8 +74,22 @@ std::shared_ptr<grpc::Channel> MakeChannel(const std::string& address,
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
   args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-  return grpc::CreateCustomChannel(
-      address, credentials ? credentials : grpc::InsecureChannelCredentials(), args);
+  // A call that met a lost control replica (UNAVAILABLE before any answer) is sent again, to the
+  // next replica of the list: gRPC's own retry policy. Safe for our calls: submissions carry
+  // idempotency keys, and the rest are reads or state changes that say what they found.
+  args.SetServiceConfigJSON(R"({"methodConfig": [{
+      "name": [{"service": "vsurg.v1.SessionService"}, {"service": "vsurg.v1.MonitorService"},
+               {"service": "vsurg.v1.EvaluationService"}, {"service": "vsurg.v1.AdminService"}],
+      "retryPolicy": {"maxAttempts": 5, "initialBackoff": "0.05s", "maxBackoff": "0.5s",
+                      "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]}}]})");
+  // Several control replicas "host:port,host:port" (literal addresses): one channel over the
+  // list, pick_first, so a call after a replica is lost goes to the next one.
+  const bool list = address.find(',') != std::string::npos &&
+                    address.find("://") == std::string::npos && address.rfind("ipv4:", 0) != 0 &&
+                    address.rfind("ipv6:", 0) != 0;
+  return grpc::CreateCustomChannel(list ? "ipv4:" + address : address,
+                                   credentials ? credentials : grpc::InsecureChannelCredentials(),
+                                   args);
 }
 
 int ReportRpcError(std::ostream& err, const std::string& command, const grpc::Status& s) {

@@ -89,6 +89,7 @@ void ToProto(const SessionTelemetry& t, v1::Telemetry* out) {
   out->mutable_tip()->set_y(t.sim.tip.y());
   out->mutable_tip()->set_z(t.sim.tip.z());
   out->set_scene(t.scene);
+  out->set_trainee(t.trainee);
   if (t.has_surface) {
     v1::SurfaceState* surface = out->mutable_surface();
     surface->set_frame_id(t.surface_frame);

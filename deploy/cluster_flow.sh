@@ -1,0 +1,171 @@
+#!/usr/bin/env bash
+# One site on this machine, every part a real process on loopback (DESIGN.md "Beyond one
+# machine", docs/SCALING.md): PostgreSQL, two control replicas, three simulation nodes and
+# replaying trainee stations. Then the failures a site must survive:
+#   1. every session placed, spread over the nodes within one session of each other;
+#   2. SIGKILL one simulation node: its stations are back on other nodes (force faded by their
+#      watchdog meanwhile, never above the device limit), timed from the kill;
+#   3. SIGKILL one control replica during a burst of evaluation submissions: every acknowledged
+#      submission is in PostgreSQL;
+#   4. the surviving control plane still lists every live session (vsurg-monitor) and the
+#      dashboard's API too.
+# Prints what it measured, and writes it as JSON to $OUT/cluster.json. Exits non-zero when a
+# process does not start; the checks are the caller's (tests/e2e/cluster_test.cpp; deploy/demo.sh
+# prints them).
+#
+# Usage: deploy/cluster_flow.sh BIN_DIR OUT_DIR [STATIONS]   (STATIONS default 24)
+set -euo pipefail
+bin="$1"
+out="$2"
+stations="${3:-24}"
+root="$(cd "$(dirname "$0")/.." && pwd)"
+mkdir -p "$out"
+source "$root/deploy/processes.sh"
+vsurg_temp_and_cleanup
+pg_dir="$(mktemp -d -t vsurg-pg.XXXXXX)"  # its own folder: the server runs as another user
+trap 'vsurg_cleanup_all' EXIT
+vsurg_cleanup_all() {
+  vsurg_cleanup
+  "$root/deploy/postgres.sh" stop "$pg_dir" >/dev/null 2>&1 || true
+}
+step() { echo; echo "== $* =="; }
+now_ms() { date +%s%3N; }
+wait_file() { for _ in $(seq 300); do [ -s "$1" ] && return 0; sleep 0.1; done; echo "no $1" >&2; exit 1; }
+port_of() { sed -n "s/.*\"$2\":\([0-9]*\).*/\1/p" "$1"; }
+
+step "PostgreSQL on loopback, in $pg_dir"
+uri="$("$root/deploy/postgres.sh" start "$pg_dir" | tail -1)"
+psql_q() { psql -qAt "$uri" -c "$1"; }
+head -c 32 /dev/urandom | base64 | tr -d '\n' > "$tmp/cluster-token"
+admin_token="$("$bin/vsurg-server" init --db "$uri" 2>/dev/null)"
+
+step "Two control replicas (gRPC, HTTP, the nodes' registry)"
+declare -a control_pid
+for i in 0 1; do
+  "$bin/vsurg-server" --role control --db "$uri" --listen 127.0.0.1:0 --http 127.0.0.1:0 \
+    --cluster-listen 127.0.0.1:0 --cluster-token-file "$tmp/cluster-token" \
+    --ready-file "$tmp/control-$i.json" 2> "$out/control-$i.log" &
+  control_pid[$i]=$!
+  pids+=("${control_pid[$i]}")
+done
+for i in 0 1; do wait_file "$tmp/control-$i.json"; done
+grpc0="127.0.0.1:$(port_of "$tmp/control-0.json" grpc_port)"
+grpc1="127.0.0.1:$(port_of "$tmp/control-1.json" grpc_port)"
+http1="127.0.0.1:$(port_of "$tmp/control-1.json" http_port)"
+servers="$grpc0,$grpc1"  # clients fail over between the replicas
+internal="127.0.0.1:$(port_of "$tmp/control-0.json" cluster_port),127.0.0.1:$(port_of "$tmp/control-1.json" cluster_port)"
+echo "control: gRPC $servers, internal $internal"
+
+step "Three simulation nodes"
+declare -a sim_pid
+capacity=$(( (stations + 2) / 3 + 4 ))
+for i in 0 1 2; do
+  "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$i" --control "$internal" \
+    --cluster-token-file "$tmp/cluster-token" --udp-port 0 --capacity "$capacity" \
+    --ready-file "$tmp/sim-$i.json" 2> "$out/sim-$i.log" &
+  sim_pid[$i]=$!
+  pids+=("${sim_pid[$i]}")
+done
+for i in 0 1 2; do wait_file "$tmp/sim-$i.json"; done
+for _ in $(seq 100); do
+  [ "$(psql_q "SELECT count(*) FROM nodes WHERE down = 0")" = 3 ] && break
+  sleep 0.1
+done
+psql -q "$uri" -c "SELECT name, grpc_address, udp_port, capacity FROM nodes ORDER BY name"
+
+step "$stations trainees, each with a replaying headless station"
+adm() { "$bin/vsurg-admin" "$@" --server "$servers" --token "$admin_token"; }
+"$bin/vsurg-sim" trainee --scene arm-torsion --style good --out "$tmp/twist.csv" > /dev/null
+declare -a station_pid
+for i in $(seq 0 $((stations - 1))); do
+  token="$(adm user-add --name "trainee-$i" --role trainee --group group-a --issue-token | tail -1)"
+  "$bin/vsurg-station" --server "$servers" --token "$token" --scene arm-torsion --device replay \
+    --trajectory "$tmp/twist.csv" --headless --width 64 --height 48 --fps 10 --duration 40 \
+    --json > "$out/station-$i.json" 2> "$out/station-$i.log" &
+  station_pid[$i]=$!
+  pids+=("${station_pid[$i]}")
+done
+running() { psql_q "SELECT count(*) FROM sessions WHERE state = 'running'"; }
+for _ in $(seq 300); do [ "$(running)" -ge "$stations" ] && break; sleep 0.1; done
+spread="$(psql_q "SELECT node || '=' || count(*) FROM sessions WHERE state = 'running' GROUP BY node ORDER BY node" | tr '\n' ' ')"
+echo "running sessions per node: $spread"
+
+step "SIGKILL sim-0: its stations come back on the other nodes"
+victims="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-0'")"
+kill -KILL "${sim_pid[0]}"
+killed_at="$(now_ms)"
+# Wait until every station runs again, then read when each new session started from the
+# sessions' own rows (polling psql here would add its own latency to the figure).
+for _ in $(seq 300); do
+  [ "$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node <> 'sim-0'")" -ge "$stations" ] && break
+  sleep 0.05
+done
+back_ms="$(psql_q "SELECT coalesce(max(started_us) / 1000 - $killed_at, -1) FROM sessions WHERE created_us / 1000 > $killed_at AND state = 'running'")"
+moved="$(psql_q "SELECT count(*) FROM sessions WHERE created_us / 1000 > $killed_at AND state = 'running' AND node <> 'sim-0'")"
+aborted="$(psql_q "SELECT count(*) FROM sessions WHERE node = 'sim-0' AND state = 'aborted'")"
+echo "the new sessions, ms after the kill (created, started): $(psql_q "SELECT string_agg((created_us / 1000 - $killed_at) || '/' || (started_us / 1000 - $killed_at), ' ' ORDER BY id) FROM sessions WHERE created_us / 1000 > $killed_at")"
+echo "sim-0 had $victims sessions; aborted $aborted; the last of them started again on another node ${back_ms} ms after the kill"
+spread_after="$(psql_q "SELECT node || '=' || count(*) FROM sessions WHERE state = 'running' GROUP BY node ORDER BY node" | tr '\n' ' ')"
+echo "running sessions per node: $spread_after"
+
+step "SIGKILL control-0 during a burst of evaluation submissions"
+evaluator_token="$(adm user-add --name dr-burst --role evaluator --group chief --issue-token | tail -1)"
+{
+  echo "evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9,subject"
+  for i in $(seq 1 400); do echo "dr-burst,chief,8,7,9,8,7,8,9,6,7,model-$i"; done
+} > "$tmp/burst.csv"
+import() {
+  "$bin/vsurg-admin" import --server "$servers" --token "$evaluator_token" \
+    --input "$tmp/burst.csv" --subject-kind model --timeout 5 > "$1" 2>&1
+}
+import "$out/burst-1.log" &
+burst_pid=$!
+sleep 0.4
+kill -KILL "${control_pid[0]}"
+wait "$burst_pid" || true
+# Acknowledged: the rows the client was told were stored. Each must be in PostgreSQL.
+sed -n 's/.* on \(model-[0-9]*\)): stored$/\1/p' "$out/burst-1.log" | sort > "$tmp/acked"
+psql_q "SELECT subject FROM submissions WHERE subject LIKE 'model-%'" | sort > "$tmp/in-db"
+acked="$(wc -l < "$tmp/acked")"
+acked_missing="$(comm -23 "$tmp/acked" "$tmp/in-db" | wc -l)"
+echo "acknowledged before and around the kill: $acked; missing from PostgreSQL: $acked_missing"
+tail -2 "$out/burst-1.log"
+# The client retries against the other replica: the same import again stores the rest, and
+# stores nothing twice (idempotency keys).
+import "$out/burst-2.log" || true
+tail -1 "$out/burst-2.log"
+stored="$(psql_q "SELECT count(*) FROM submissions WHERE subject LIKE 'model-%'")"
+echo "submissions in PostgreSQL after the retry: $stored of 400"
+
+step "The surviving control plane still shows every live session"
+monitor_token="$(adm user-add --name ivo --role instructor --issue-token | tail -1)"
+listed="$("$bin/vsurg-monitor" list --server "$grpc1" --token "$monitor_token" | grep -c $'\trunning\t' || true)"
+echo "vsurg-monitor list via control-1: $listed running"
+dashboard="$(/usr/bin/python3 -c '
+import sys, urllib.request
+r = urllib.request.Request(sys.argv[1], headers={"Authorization": "Bearer " + sys.argv[2]})
+print(urllib.request.urlopen(r, timeout=10).read().decode())' \
+  "http://$http1/api/v1/sessions?live=1" "$monitor_token" || true)"
+dashboard_live="$(grep -o '"state":"running"' <<< "$dashboard" | wc -l)"
+echo "dashboard API via control-1: $dashboard_live running"
+
+step "The stations finish"
+for i in $(seq 0 $((stations - 1))); do kill -INT "${station_pid[$i]}" 2>/dev/null || true; done
+for i in $(seq 0 $((stations - 1))); do wait "${station_pid[$i]}" 2>/dev/null || true; done
+# Per station: did it reconnect, did its force fade meanwhile, the largest force it sent.
+read -r reconnected faded max_force < <(cat "$out"/station-*.json | /usr/bin/python3 -c '
+import json, sys
+rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
+back = [r for r in rows if r["reconnects"] > 0]
+print(len(back), sum(1 for r in back if r["watchdog_fades"] > 0),
+      max([r["max_force_n"] for r in rows] or [0]))')
+echo "stations reconnected: $reconnected (force faded meanwhile: $faded); largest force sent: $max_force N"
+
+cat > "$out/cluster.json" <<EOF
+{"stations": $stations, "spread": "$spread", "victims": $victims, "aborted": $aborted,
+ "moved": $moved, "back_ms": $back_ms, "spread_after": "$spread_after", "acked": $acked,
+ "acked_missing": $acked_missing, "stored": $stored,
+ "monitor_running": $listed, "dashboard_running": $dashboard_live,
+ "reconnected": $reconnected, "reconnected_faded": $faded, "max_force_n": $max_force}
+EOF
+cat "$out/cluster.json"

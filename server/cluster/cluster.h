@@ -1,0 +1,108 @@
+// Beyond one machine (DESIGN.md): the two roles besides the all-in-one server.
+//
+//   control  ClusterSessions: the control plane's Sessions for a site. New sessions are placed
+//            on a healthy simulation node with room (fewest live sessions for its capacity,
+//            then least CPU); the station gets that node's UDP address and the session key.
+//            Serves ClusterService (the nodes' heartbeats, written to the shared store) on an
+//            internal port; a watchdog marks a node silent for 2 s down and aborts its sessions
+//            (MarkNodeDown: once, whichever replica sees it first). Monitors and the dashboard
+//            get the nodes' telemetry through it (polled from the nodes while someone watches).
+//            Stateless: every fact is in the store, so replicas run side by side.
+//   sim      NodeAgent: a SessionManager's sessions offered to the control plane (NodeService on
+//            an internal port), and a heartbeat every 0.5 s with the node's load. Drain: no new
+//            sessions, the live ones finish (SIGTERM, a rolling upgrade).
+//
+// Internal calls carry the site's cluster token (`authorization: Bearer …`); users never reach
+// these ports. No gRPC or protobuf type appears in this header.
+//
+// Threads: ClusterSessions has a watchdog thread (0.5 s), a telemetry poller (telemetry_hz while
+// anyone subscribes) and gRPC's threads for heartbeats; every member may be called from any
+// thread. NodeAgent has a heartbeat thread and gRPC's threads.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "common/core/expected.h"
+#include "server/session/sessions.h"
+
+namespace vsurg::db {
+class Store;
+}
+
+namespace vsurg::server {
+class SessionManager;
+}
+
+namespace vsurg::server::cluster {
+
+struct ClusterOptions {
+  std::string token;            // the site's cluster secret (≥ 16 characters)
+  std::string listen;           // the internal API's host:port (port 0: any free one)
+  bool allow_insecure = false;  // plaintext off loopback (a cluster network; see SCALING.md)
+  double heartbeat_period_s = 0.5;
+  double heartbeat_timeout_s = 2;  // silent this long: down, sessions aborted
+  double telemetry_hz = 30;
+  int max_sessions_per_user = 2;  // live sessions per trainee, over the whole site
+  double create_timeout_s = 60;   // a node builds the scene before it answers Create
+  double call_timeout_s = 5;
+};
+
+class ClusterSessions final : public Sessions {
+ public:
+  static Expected<std::unique_ptr<ClusterSessions>> Start(db::Store& store,
+                                                          const ClusterOptions& options);
+  ~ClusterSessions() override;  // Shutdown()
+  int port() const;             // the internal API's
+
+  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene) override;
+  Expected<db::SessionRecord> Start(uint64_t id) override;
+  Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
+  Expected<db::SessionRecord> Get(uint64_t id) override;
+  Expected<CreatedSession> Join(uint64_t id) override;
+  Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
+                     std::vector<int32_t>& triangles) const override;
+  bool IsLive(uint64_t id) const override;
+  int EndSessionsOf(const std::string& user, const std::string& reason) override;
+  uint64_t Subscribe(uint64_t session, Subscriber fn) override;
+  void Unsubscribe(uint64_t token) override;
+  // Stops the internal API and the threads; the nodes' sessions go on (they are not ours).
+  void Shutdown() override;
+
+  struct Impl;
+
+ private:
+  explicit ClusterSessions(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+struct NodeOptions {
+  std::string name;       // unique in the site
+  std::string advertise;  // host:port the control plane reaches NodeService at
+  std::string control;    // the control plane's internal API: host:port[,host:port…]
+  std::string udp_host;   // what stations are told to send to
+  int udp_port = 0;
+  int capacity = 24;       // live sessions this node takes
+  ClusterOptions cluster;  // token, listen, heartbeat period
+};
+
+class NodeAgent {
+ public:
+  static Expected<std::unique_ptr<NodeAgent>> Start(SessionManager& sessions,
+                                                    const NodeOptions& options);
+  ~NodeAgent();  // Shutdown()
+  int port() const;
+  // No new sessions from now on (the heartbeat says so at once); returns when the live ones
+  // have finished or `timeout_s` passed (they are then left to the shutdown, which aborts them).
+  void Drain(double timeout_s);
+  void Shutdown();
+
+  struct Impl;
+
+ private:
+  explicit NodeAgent(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vsurg::server::cluster

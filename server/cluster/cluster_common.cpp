@@ -1,0 +1,155 @@
+#include "server/cluster/cluster_common.h"
+
+#include <algorithm>
+
+#include "proto/convert/services.h"
+#include "server/control/grpc_common.h"
+#include "server/domain/auth.h"
+
+namespace vsurg::server::cluster {
+
+Status CheckToken(const std::string& token) {
+  if (token.size() < 16)
+    return InvalidArgument("cluster-token", "the cluster token must have at least 16 characters");
+  return Status::Ok();
+}
+
+bool Authorized(const grpc::ServerContextBase& ctx, const std::string& token) {
+  const auto& md = ctx.client_metadata();
+  const auto it = md.find("authorization");
+  if (it == md.end()) return false;
+  const std::string expected = "Bearer " + token;
+  const std::string_view got(it->second.data(), it->second.size());
+  if (got.size() != expected.size()) return false;
+  unsigned char diff = 0;  // constant time: the comparison does not stop at the first mismatch
+  for (size_t i = 0; i < got.size(); ++i) diff |= static_cast<unsigned char>(got[i] ^ expected[i]);
+  return diff == 0;
+}
+
+std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, double timeout_s) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->AddMetadata("authorization", "Bearer " + token);
+  ctx->set_deadline(std::chrono::system_clock::now() +
+                    std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
+  return ctx;
+}
+
+std::shared_ptr<grpc::Channel> Channel(const std::string& target) {
+  grpc::ChannelArguments args;
+  // Reconnect fast after a replica or a node comes back (the default backs off to 2 minutes).
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  std::string t = target;
+  if (target.find(',') != std::string::npos && target.find(':') != std::string::npos &&
+      target.rfind("ipv4:", 0) != 0 && target.rfind("dns:", 0) != 0)
+    t = "ipv4:" + target;  // several literal addresses: one channel over all of them
+  return grpc::CreateCustomChannel(t, grpc::InsecureChannelCredentials(), args);
+}
+
+Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o) {
+  if (Status s = CheckToken(o.token); !s.ok()) return s.error();
+  if (!IsLoopbackHost(o.listen) && !o.allow_insecure)
+    return InvalidArgument("cluster-listen",
+                           "the internal API is plaintext: on loopback only, unless the site's "
+                           "network is private (allow insecure explicitly; docs/SCALING.md)");
+  return grpc::InsecureServerCredentials();
+}
+
+Error FromGrpc(const grpc::Status& s, const std::string& what) {
+  ErrorCode code = ErrorCode::kIoError;
+  switch (s.error_code()) {
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      code = ErrorCode::kInvalidArgument;
+      break;
+    case grpc::StatusCode::NOT_FOUND:
+      code = ErrorCode::kNotFound;
+      break;
+    case grpc::StatusCode::ALREADY_EXISTS:
+      code = ErrorCode::kAlreadyExists;
+      break;
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      code = ErrorCode::kFailedPrecondition;
+      break;
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      code = ErrorCode::kResourceExhausted;
+      break;
+    case grpc::StatusCode::UNAUTHENTICATED:
+      code = ErrorCode::kUnauthenticated;
+      break;
+    case grpc::StatusCode::PERMISSION_DENIED:
+      code = ErrorCode::kPermissionDenied;
+      break;
+    case grpc::StatusCode::UNAVAILABLE:
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+    case grpc::StatusCode::CANCELLED:
+      code = ErrorCode::kUnavailable;
+      break;
+    default:
+      break;
+  }
+  // The node's message already names the field ("field: message").
+  return Error{code, what + ": " + s.error_message(), ""};
+}
+
+db::SessionRecord FromProto(const v1::Session& s) {
+  db::SessionRecord r;
+  r.id = static_cast<int64_t>(s.id());
+  r.trainee = s.trainee();
+  r.scene = s.scene();
+  r.state = convert::FromProto(s.state()).value_or(SessionState::kAborted);
+  r.created_us = s.created_us();
+  r.started_us = s.started_us();
+  r.ended_us = s.ended_us();
+  r.end_reason = s.end_reason();
+  return r;
+}
+
+CreatedSession FromProto(const v1::NodeSession& s) {
+  CreatedSession c;
+  c.record = FromProto(s.session());
+  c.udp_host = s.udp_host();
+  c.udp_port = static_cast<uint16_t>(s.udp_port());
+  const std::string& key = s.session_key();
+  std::copy_n(key.begin(), std::min(key.size(), c.key.size()), c.key.begin());
+  return c;
+}
+
+void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out) {
+  grpcapi::ToProto(c.record, out->mutable_session());
+  out->set_udp_host(c.udp_host);
+  out->set_udp_port(c.udp_port);
+  if (with_key) out->set_session_key(std::string(c.key.begin(), c.key.end()));
+}
+
+SessionTelemetry FromProto(const v1::Telemetry& t) {
+  SessionTelemetry s;
+  s.id = t.session_id();
+  s.state = convert::FromProto(t.state()).value_or(SessionState::kAborted);
+  s.server_time_us = t.server_time_us();
+  s.sim.force = {t.force().x(), t.force().y(), t.force().z()};
+  s.sim.tip = {t.tip().x(), t.tip().y(), t.tip().z()};
+  s.sim.twist = t.twist();
+  s.sim.torque = t.torque();
+  s.sim.contact = t.contact();
+  s.sim.grasping = t.grasping();
+  s.sim.metrics = convert::FromProto(t.metrics());
+  s.rtt_us = t.rtt_us();
+  s.packet_loss = t.packet_loss();
+  s.packets = t.packets();
+  s.haptic_rate_hz = t.haptic_rate_hz();
+  s.scene = t.scene();
+  s.trainee = t.trainee();
+  if (t.has_surface()) {
+    s.has_surface = true;
+    s.surface_frame = t.surface().frame_id();
+    s.surface_indices.assign(t.surface().indices().begin(), t.surface().indices().end());
+    const auto& p = t.surface().positions();
+    s.surface_positions.reserve(static_cast<size_t>(p.size() / 3));
+    for (int i = 0; i + 2 < p.size(); i += 3)
+      s.surface_positions.push_back({p[i], p[i + 1], p[i + 2]});
+  }
+  return s;
+}
+
+}  // namespace vsurg::server::cluster

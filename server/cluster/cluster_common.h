@@ -1,0 +1,39 @@
+// What the two roles share: the cluster token on calls, channels to the other side, the status
+// mapping back from gRPC, and the internal messages to and from our types. Private to
+// server/cluster/.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+
+#include "server/cluster/cluster.h"
+#include "vsurg/v1/cluster.grpc.pb.h"
+
+namespace vsurg::server::cluster {
+
+namespace v1 = vsurg::v1;
+
+// A token a site may use: at least 16 characters (it is a shared secret between processes).
+Status CheckToken(const std::string& token);
+// Whether the call's `authorization` metadata carries `token` (compared in constant time).
+bool Authorized(const grpc::ServerContextBase& ctx, const std::string& token);
+// A client context with the token and a deadline `timeout_s` from now.
+std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, double timeout_s);
+// A channel to `target`: "host:port", or several "host:port,host:port" tried in turn
+// (pick_first over the list: a client fails over to the next replica).
+std::shared_ptr<grpc::Channel> Channel(const std::string& target);
+// Listening credentials: plaintext, on loopback unless allow_insecure (SCALING.md).
+Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o);
+
+// A failed internal call as our Error (UNAVAILABLE and DEADLINE_EXCEEDED: kUnavailable).
+Error FromGrpc(const grpc::Status& s, const std::string& what);
+
+db::SessionRecord FromProto(const v1::Session& s);
+CreatedSession FromProto(const v1::NodeSession& s);
+SessionTelemetry FromProto(const v1::Telemetry& t);
+void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out);
+
+}  // namespace vsurg::server::cluster

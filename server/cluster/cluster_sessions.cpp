@@ -1,0 +1,389 @@
+// The control role: placement, the nodes' registry and watchdog, the nodes' telemetry.
+#include <algorithm>
+#include <condition_variable>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "db/store.h"
+#include "server/cluster/cluster_common.h"
+
+namespace vsurg::server::cluster {
+namespace {
+
+void Log(const std::string& event, const std::string& fields = "") {
+  std::cerr << "ts=" << db::IsoTimeUtc(db::NowUs()) << " component=vsurg-control event=" << event
+            << (fields.empty() ? "" : " ") << fields << std::endl;
+}
+
+Error NotLive(uint64_t id) {
+  return Error{ErrorCode::kNotFound, "session " + std::to_string(id) + " is not live", "id"};
+}
+
+}  // namespace
+
+struct ClusterSessions::Impl final : public v1::ClusterService::Service {
+  db::Store& store;
+  ClusterOptions options;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+
+  std::mutex stubs_mutex;
+  std::map<std::string, std::unique_ptr<v1::NodeService::Stub>> stubs;  // by address
+
+  std::mutex subscribers_mutex;  // held while subscribers run (see Unsubscribe)
+  struct Subscription {
+    uint64_t session = 0;
+    Subscriber fn;
+    bool ended = false;
+  };
+  std::map<uint64_t, Subscription> subscribers;
+  uint64_t next_token = 1;
+
+  std::mutex stop_mutex;
+  std::condition_variable stop_cv;
+  bool stopping = false;
+  std::thread watchdog, poller;
+  std::once_flag shutdown_once;
+
+  Impl(db::Store& s, const ClusterOptions& o) : store(s), options(o) {}
+
+  int64_t TimeoutUs() const { return static_cast<int64_t>(options.heartbeat_timeout_s * 1e6); }
+
+  bool Healthy(const db::NodeRecord& n, int64_t now) const {
+    return !n.down && now - n.heartbeat_us <= TimeoutUs();
+  }
+
+  v1::NodeService::Stub& StubFor(const std::string& address) {
+    std::lock_guard lock(stubs_mutex);
+    auto& s = stubs[address];
+    if (!s) s = v1::NodeService::NewStub(Channel(address));
+    return *s;
+  }
+
+  // The node a session runs on, when it is up.
+  Expected<std::pair<db::SessionRecord, db::NodeRecord>> NodeOf(uint64_t id) {
+    auto row = store.GetSession(static_cast<int64_t>(id));
+    if (!row.ok()) return row.error();
+    auto nodes = store.ListNodes();
+    if (!nodes.ok()) return nodes.error();
+    for (const db::NodeRecord& n : *nodes)
+      if (n.name == row->node) {
+        if (n.down)
+          return Error{ErrorCode::kUnavailable,
+                       "session " + std::to_string(id) + "'s node " + n.name + " is down", "id"};
+        return std::make_pair(*row, n);
+      }
+    return Error{ErrorCode::kUnavailable,
+                 "session " + std::to_string(id) + " has no known node ('" + row->node + "')",
+                 "id"};
+  }
+
+  template <class Call>
+  Expected<db::SessionRecord> OnNode(uint64_t id, const char* what, Call&& call) {
+    auto at = NodeOf(id);
+    if (!at.ok()) return at.error();
+    v1::NodeSession reply;
+    auto ctx = CallContext(options.token, options.call_timeout_s);
+    const grpc::Status s = call(StubFor(at->second.grpc_address), ctx.get(), &reply);
+    if (!s.ok()) return FromGrpc(s, std::string(what) + " on node " + at->second.name);
+    db::SessionRecord r = FromProto(reply.session());
+    r.node = at->second.name;
+    return r;
+  }
+
+  // --- ClusterService ---
+  grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
+                         v1::HeartbeatReply*) override {
+    if (!Authorized(*ctx, options.token))
+      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
+    db::NodeRecord n;
+    n.name = req->name();
+    n.grpc_address = req->grpc_address();
+    n.udp_host = req->udp_host();
+    n.udp_port = static_cast<int>(req->udp_port());
+    n.capacity = req->capacity();
+    n.sessions = req->sessions();
+    n.cpu = req->cpu();
+    n.draining = req->draining();
+    n.started_us = req->started_us();
+    // This replica's clock, not the node's: liveness never depends on two machines' clocks.
+    n.heartbeat_us = db::NowUs();
+    if (Status s = store.PutNode(n); !s.ok())
+      return grpc::Status(s.error().code == ErrorCode::kInvalidArgument
+                              ? grpc::StatusCode::INVALID_ARGUMENT
+                              : grpc::StatusCode::UNAVAILABLE,
+                          s.error().message);
+    return grpc::Status::OK;
+  }
+
+  bool WaitFor(double seconds) {  // false once stopping
+    std::unique_lock lock(stop_mutex);
+    return !stop_cv.wait_for(lock, std::chrono::microseconds(static_cast<int64_t>(seconds * 1e6)),
+                             [&] { return stopping; });
+  }
+
+  void WatchdogLoop() {
+    // A fifth of the heartbeat period: a silent node is found within 2.1 s, not 2.5 s.
+    while (WaitFor(options.heartbeat_period_s / 5)) {
+      auto nodes = store.ListNodes();
+      if (!nodes.ok()) continue;
+      const int64_t now = db::NowUs();
+      for (const db::NodeRecord& n : *nodes) {
+        if (n.down || now - n.heartbeat_us <= TimeoutUs()) continue;
+        auto aborted = store.MarkNodeDown(n.name, now - TimeoutUs(), now,
+                                          "simulation node " + n.name + " stopped answering");
+        if (aborted.ok() && aborted->has_value())
+          Log("node_down", "node=" + n.name + " sessions_aborted=" + std::to_string(**aborted) +
+                               " silent_ms=" + std::to_string((now - n.heartbeat_us) / 1000));
+      }
+    }
+  }
+
+  void PollerLoop() {
+    const double period = 1.0 / options.telemetry_hz;
+    while (WaitFor(period)) {
+      {
+        std::lock_guard lock(subscribers_mutex);
+        if (subscribers.empty()) continue;
+      }
+      std::vector<SessionTelemetry> all;
+      auto nodes = store.ListNodes();
+      if (nodes.ok()) {
+        const int64_t now = db::NowUs();
+        for (const db::NodeRecord& n : *nodes) {
+          if (!Healthy(n, now)) continue;
+          v1::NodeTelemetry reply;
+          auto ctx = CallContext(options.token, std::max(0.2, period));
+          if (!StubFor(n.grpc_address).Telemetry(ctx.get(), {}, &reply).ok()) continue;
+          for (const v1::Telemetry& t : reply.sessions()) all.push_back(FromProto(t));
+        }
+      }
+      std::lock_guard lock(subscribers_mutex);
+      for (auto& [token, sub] : subscribers) {
+        if (sub.ended) continue;
+        if (sub.session == 0) {
+          sub.fn(all, false);
+          continue;
+        }
+        std::vector<SessionTelemetry> one;
+        for (const SessionTelemetry& t : all)
+          if (t.id == sub.session) one.push_back(t);
+        if (!one.empty()) {
+          sub.fn(one, false);
+          continue;
+        }
+        // Not on any node now: ended (or its node is gone), unless the store still says live
+        // (a node that missed one poll).
+        auto row = store.GetSession(static_cast<int64_t>(sub.session));
+        if (row.ok() && vsurg::IsLive(row->state)) continue;
+        sub.ended = true;
+        sub.fn({}, true);
+      }
+    }
+  }
+};
+
+ClusterSessions::ClusterSessions(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ClusterSessions::~ClusterSessions() {
+  Shutdown();
+}
+int ClusterSessions::port() const {
+  return impl_->port;
+}
+
+Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& store,
+                                                                  const ClusterOptions& options) {
+  if (!(options.telemetry_hz >= 1 && options.telemetry_hz <= 120))
+    return InvalidArgument("telemetry-hz", "must be within 1..120");
+  auto creds = ServerCredentials(options);
+  if (!creds.ok()) return creds.error();
+  auto impl = std::make_unique<Impl>(store, options);
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(options.listen, *creds, &impl->port);
+  builder.RegisterService(impl.get());
+  impl->server = builder.BuildAndStart();
+  if (!impl->server || impl->port == 0)
+    return Error{ErrorCode::kUnavailable, "cannot listen on " + options.listen, "cluster-listen"};
+  Impl* p = impl.get();
+  p->watchdog = std::thread([p] { p->WatchdogLoop(); });
+  p->poller = std::thread([p] { p->PollerLoop(); });
+  return std::unique_ptr<ClusterSessions>(new ClusterSessions(std::move(impl)));
+}
+
+Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
+                                                 const std::string& scene) {
+  Impl& d = *impl_;
+  // The per-trainee limit over the whole site (each node also keeps its own).
+  auto mine = d.store.ListSessions(trainee);
+  if (!mine.ok()) return mine.error();
+  const auto live = std::count_if(mine->begin(), mine->end(), [](const db::SessionRecord& r) {
+    return vsurg::IsLive(r.state);
+  });
+  if (live >= d.options.max_sessions_per_user)
+    return Error{ErrorCode::kResourceExhausted,
+                 "trainee '" + trainee + "' already has " + std::to_string(live) +
+                     " live sessions (the limit is " +
+                     std::to_string(d.options.max_sessions_per_user) + "); stop one first",
+                 "trainee"};
+  auto nodes = d.store.ListNodes();
+  if (!nodes.ok()) return nodes.error();
+  auto counts = d.store.LiveSessionsByNode();
+  if (!counts.ok()) return counts.error();
+  std::map<std::string, int> by_node(counts->begin(), counts->end());
+  const int64_t now = db::NowUs();
+  struct Candidate {
+    const db::NodeRecord* node;
+    int sessions;
+  };
+  std::vector<Candidate> candidates;
+  for (const db::NodeRecord& n : *nodes) {
+    const int sessions = by_node.count(n.name) ? by_node[n.name] : 0;
+    if (d.Healthy(n, now) && !n.draining && sessions < n.capacity)
+      candidates.push_back({&n, sessions});
+  }
+  // Least loaded first: live sessions for the capacity, then CPU, then the name (a stable order).
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    const double la = static_cast<double>(a.sessions) / a.node->capacity;
+    const double lb = static_cast<double>(b.sessions) / b.node->capacity;
+    if (la != lb) return la < lb;
+    if (a.node->cpu != b.node->cpu) return a.node->cpu < b.node->cpu;
+    return a.node->name < b.node->name;
+  });
+  std::string tried;
+  for (const Candidate& c : candidates) {
+    v1::NodeCreateRequest req;
+    req.set_trainee(trainee);
+    req.set_scene(scene);
+    v1::NodeSession reply;
+    auto ctx = CallContext(d.options.token, d.options.create_timeout_s);
+    const grpc::Status s = d.StubFor(c.node->grpc_address).Create(ctx.get(), req, &reply);
+    if (s.ok()) {
+      CreatedSession out = FromProto(reply);
+      out.record.node = c.node->name;
+      return out;
+    }
+    const Error e = FromGrpc(s, "create on node " + c.node->name);
+    if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted)
+      return e;  // the request itself is wrong (a scene that does not exist, …)
+    tried += (tried.empty() ? "" : "; ") + e.message;
+  }
+  return Error{ErrorCode::kUnavailable,
+               "no simulation node has room for a new session (" + std::to_string(nodes->size()) +
+                   " registered, " + std::to_string(candidates.size()) + " with room" +
+                   (tried.empty() ? "" : ": " + tried) + ")",
+               ""};
+}
+
+Expected<db::SessionRecord> ClusterSessions::Start(uint64_t id) {
+  return impl_->OnNode(
+      id, "start", [&](v1::NodeService::Stub& s, grpc::ClientContext* ctx, v1::NodeSession* out) {
+        v1::SessionRef req;
+        req.set_id(id);
+        return s.Start(ctx, req, out);
+      });
+}
+
+Expected<db::SessionRecord> ClusterSessions::Stop(uint64_t id, const std::string& reason) {
+  auto row = impl_->store.GetSession(static_cast<int64_t>(id));
+  if (!row.ok()) return row.error();
+  if (!vsurg::IsLive(row->state)) return row;  // ended already (or aborted with its node)
+  return impl_->OnNode(
+      id, "stop", [&](v1::NodeService::Stub& s, grpc::ClientContext* ctx, v1::NodeSession* out) {
+        v1::NodeStopRequest req;
+        req.set_id(id);
+        req.set_reason(reason);
+        return s.Stop(ctx, req, out);
+      });
+}
+
+Expected<db::SessionRecord> ClusterSessions::Get(uint64_t id) {
+  return impl_->store.GetSession(static_cast<int64_t>(id));
+}
+
+Expected<CreatedSession> ClusterSessions::Join(uint64_t id) {
+  auto at = impl_->NodeOf(id);
+  if (!at.ok()) return at.error();
+  if (!vsurg::IsLive(at->first.state)) return NotLive(id);
+  v1::SessionRef req;
+  req.set_id(id);
+  v1::NodeSession reply;
+  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  const grpc::Status s = impl_->StubFor(at->second.grpc_address).Join(ctx.get(), req, &reply);
+  if (!s.ok()) return FromGrpc(s, "join on node " + at->second.name);
+  CreatedSession out = FromProto(reply);
+  out.record.node = at->second.name;
+  return out;
+}
+
+Status ClusterSessions::RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
+                                    std::vector<int32_t>& triangles) const {
+  auto at = impl_->NodeOf(id);
+  if (!at.ok()) return at.error();
+  v1::SessionRef req;
+  req.set_id(id);
+  v1::NodeSurface reply;
+  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  const grpc::Status s =
+      impl_->StubFor(at->second.grpc_address).RestSurface(ctx.get(), req, &reply);
+  if (!s.ok()) return FromGrpc(s, "surface on node " + at->second.name);
+  positions.clear();
+  for (int i = 0; i + 2 < reply.positions_size(); i += 3)
+    positions.push_back({reply.positions(i), reply.positions(i + 1), reply.positions(i + 2)});
+  triangles.assign(reply.triangles().begin(), reply.triangles().end());
+  return Status::Ok();
+}
+
+bool ClusterSessions::IsLive(uint64_t id) const {
+  auto row = impl_->store.GetSession(static_cast<int64_t>(id));
+  return row.ok() && vsurg::IsLive(row->state);
+}
+
+int ClusterSessions::EndSessionsOf(const std::string& user, const std::string& reason) {
+  auto nodes = impl_->store.ListNodes();
+  if (!nodes.ok()) return 0;
+  int ended = 0;
+  const int64_t now = db::NowUs();
+  for (const db::NodeRecord& n : *nodes) {
+    if (!impl_->Healthy(n, now)) continue;
+    v1::NodeUserRequest req;
+    req.set_user(user);
+    req.set_reason(reason);
+    v1::NodeCount reply;
+    auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+    if (impl_->StubFor(n.grpc_address).EndSessionsOf(ctx.get(), req, &reply).ok())
+      ended += reply.count();
+  }
+  return ended;
+}
+
+uint64_t ClusterSessions::Subscribe(uint64_t session, Subscriber fn) {
+  std::lock_guard lock(impl_->subscribers_mutex);
+  const uint64_t token = impl_->next_token++;
+  impl_->subscribers[token] = {session, std::move(fn), false};
+  return token;
+}
+
+void ClusterSessions::Unsubscribe(uint64_t token) {
+  std::lock_guard lock(impl_->subscribers_mutex);  // waits for a delivery in progress
+  impl_->subscribers.erase(token);
+}
+
+void ClusterSessions::Shutdown() {
+  std::call_once(impl_->shutdown_once, [this] {
+    {
+      std::lock_guard lock(impl_->stop_mutex);
+      impl_->stopping = true;
+    }
+    impl_->stop_cv.notify_all();
+    if (impl_->watchdog.joinable()) impl_->watchdog.join();
+    if (impl_->poller.joinable()) impl_->poller.join();
+    if (impl_->server) {
+      impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+      impl_->server->Wait();
+    }
+  });
+}
+
+}  // namespace vsurg::server::cluster

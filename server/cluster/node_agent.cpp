@@ -1,0 +1,257 @@
+// The sim role: NodeService over this process's SessionManager, and the heartbeat thread.
+#include <sys/resource.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "server/cluster/cluster_common.h"
+#include "server/control/grpc_common.h"
+#include "server/session/session_manager.h"
+
+namespace vsurg::server::cluster {
+namespace {
+
+grpc::Status Unauthenticated() {
+  return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
+}
+
+double ProcessCpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+void Log(const std::string& node, const std::string& event, const std::string& fields = "") {
+  std::cerr << "ts=" << db::IsoTimeUtc(db::NowUs()) << " component=vsurg-sim node=" << node
+            << " event=" << event << (fields.empty() ? "" : " ") << fields << std::endl;
+}
+
+}  // namespace
+
+struct NodeAgent::Impl final : public v1::NodeService::Service {
+  SessionManager& sessions;
+  NodeOptions options;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+  std::atomic<bool> draining{false};
+  int64_t started_us = db::NowUs();
+
+  // The latest telemetry of every live session, from the manager's sampler, with each session's
+  // last surface state (the sampler sends one every third sample).
+  std::mutex telemetry_mutex;
+  std::map<uint64_t, SessionTelemetry> latest;
+  uint64_t subscription = 0;
+
+  std::mutex beat_mutex;
+  std::condition_variable beat_cv;
+  bool stopping = false, beat_now = false;
+  std::thread heartbeat;
+  std::once_flag shutdown_once;
+
+  Impl(SessionManager& s, const NodeOptions& o) : sessions(s), options(o) {}
+
+  void OnTelemetry(const std::vector<SessionTelemetry>& list) {
+    std::lock_guard lock(telemetry_mutex);
+    std::map<uint64_t, SessionTelemetry> next;
+    for (const SessionTelemetry& t : list) {
+      SessionTelemetry& n = next[t.id] = t;
+      const auto old = latest.find(t.id);
+      if (!t.has_surface && old != latest.end() && old->second.has_surface) {
+        n.has_surface = true;
+        n.surface_frame = old->second.surface_frame;
+        n.surface_indices = std::move(old->second.surface_indices);
+        n.surface_positions = std::move(old->second.surface_positions);
+      }
+    }
+    latest = std::move(next);
+  }
+
+  void HeartbeatLoop() {
+    auto stub = v1::ClusterService::NewStub(Channel(options.control));
+    double cpu0 = ProcessCpuSeconds();
+    auto t0 = std::chrono::steady_clock::now();
+    bool reachable = true;
+    std::unique_lock lock(beat_mutex);
+    while (!stopping) {
+      lock.unlock();
+      const double cpu1 = ProcessCpuSeconds();
+      const auto t1 = std::chrono::steady_clock::now();
+      const double wall = std::chrono::duration<double>(t1 - t0).count();
+      v1::NodeHeartbeat beat;
+      beat.set_name(options.name);
+      beat.set_grpc_address(options.advertise);
+      beat.set_udp_host(options.udp_host);
+      beat.set_udp_port(static_cast<uint32_t>(options.udp_port));
+      beat.set_capacity(options.capacity);
+      beat.set_sessions(sessions.LiveCount());
+      beat.set_cpu(wall > 0 ? (cpu1 - cpu0) / wall : 0);
+      beat.set_draining(draining.load());
+      beat.set_started_us(started_us);
+      cpu0 = cpu1;
+      t0 = t1;
+      v1::HeartbeatReply reply;
+      auto ctx = CallContext(options.cluster.token, options.cluster.heartbeat_period_s);
+      const grpc::Status s = stub->Heartbeat(ctx.get(), beat, &reply);
+      if (s.ok() != reachable) {
+        reachable = s.ok();
+        Log(options.name, reachable ? "control_reachable" : "control_unreachable",
+            reachable ? "" : "error=\"" + s.error_message() + "\"");
+      }
+      lock.lock();
+      beat_cv.wait_for(
+          lock,
+          std::chrono::microseconds(static_cast<int64_t>(options.cluster.heartbeat_period_s * 1e6)),
+          [&] { return stopping || beat_now; });
+      beat_now = false;
+    }
+  }
+
+  // --- NodeService ---
+  grpc::Status Create(grpc::ServerContext* ctx, const v1::NodeCreateRequest* req,
+                      v1::NodeSession* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (draining)
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "node " + options.name + " is draining: no new sessions");
+    const auto t0 = std::chrono::steady_clock::now();
+    auto c = sessions.Create(req->trainee(), req->scene());
+    if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
+    Log(options.name, "session_created",
+        "id=" + std::to_string(c->record.id) + " scene=" + req->scene() + " ms=" +
+            std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
+                               std::chrono::steady_clock::now() - t0)
+                               .count()));
+    ToProto(*c, true, out);
+    return grpc::Status::OK;
+  }
+  grpc::Status Start(grpc::ServerContext* ctx, const v1::SessionRef* req,
+                     v1::NodeSession* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    auto r = sessions.Start(req->id());
+    if (!r.ok()) return grpcapi::ToGrpcStatus(r.error());
+    grpcapi::ToProto(*r, out->mutable_session());
+    return grpc::Status::OK;
+  }
+  grpc::Status Stop(grpc::ServerContext* ctx, const v1::NodeStopRequest* req,
+                    v1::NodeSession* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    auto r = sessions.Stop(req->id(), req->reason());
+    if (!r.ok()) return grpcapi::ToGrpcStatus(r.error());
+    grpcapi::ToProto(*r, out->mutable_session());
+    return grpc::Status::OK;
+  }
+  grpc::Status Join(grpc::ServerContext* ctx, const v1::SessionRef* req,
+                    v1::NodeSession* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    auto c = sessions.Join(req->id());
+    if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
+    ToProto(*c, true, out);
+    return grpc::Status::OK;
+  }
+  grpc::Status RestSurface(grpc::ServerContext* ctx, const v1::SessionRef* req,
+                           v1::NodeSurface* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    std::vector<geometry::Vec3> positions;
+    std::vector<int32_t> triangles;
+    if (Status s = sessions.RestSurface(req->id(), positions, triangles); !s.ok())
+      return grpcapi::ToGrpcStatus(s.error());
+    out->mutable_positions()->Reserve(static_cast<int>(3 * positions.size()));
+    for (const auto& p : positions)
+      for (int k = 0; k < 3; ++k) out->add_positions(static_cast<float>(p[k]));
+    out->mutable_triangles()->Assign(triangles.begin(), triangles.end());
+    return grpc::Status::OK;
+  }
+  grpc::Status EndSessionsOf(grpc::ServerContext* ctx, const v1::NodeUserRequest* req,
+                             v1::NodeCount* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    out->set_count(sessions.EndSessionsOf(req->user(), req->reason()));
+    return grpc::Status::OK;
+  }
+  grpc::Status Telemetry(grpc::ServerContext* ctx, const v1::NodeTelemetryRequest*,
+                         v1::NodeTelemetry* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    std::lock_guard lock(telemetry_mutex);
+    for (const auto& [id, t] : latest) grpcapi::ToProto(t, out->add_sessions());
+    return grpc::Status::OK;
+  }
+};
+
+NodeAgent::NodeAgent(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+NodeAgent::~NodeAgent() {
+  Shutdown();
+}
+int NodeAgent::port() const {
+  return impl_->port;
+}
+
+Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
+                                                      const NodeOptions& options) {
+  if (options.name.empty() || options.name.size() > 64)
+    return InvalidArgument("node-name", "a node name of 1 to 64 characters is required");
+  if (options.control.empty())
+    return InvalidArgument("control", "the control plane's internal address is required");
+  if (options.capacity < 1 || options.capacity > 4096)
+    return InvalidArgument("capacity", "must be within 1..4096 sessions");
+  auto creds = ServerCredentials(options.cluster);
+  if (!creds.ok()) return creds.error();
+  auto impl = std::make_unique<Impl>(sessions, options);
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(options.cluster.listen, *creds, &impl->port);
+  builder.RegisterService(impl.get());
+  impl->server = builder.BuildAndStart();
+  if (!impl->server || impl->port == 0)
+    return Error{ErrorCode::kUnavailable, "cannot listen on " + options.cluster.listen,
+                 "cluster-listen"};
+  if (impl->options.advertise.empty()) {
+    const std::string& l = options.cluster.listen;
+    impl->options.advertise = l.substr(0, l.rfind(':') + 1) + std::to_string(impl->port);
+  }
+  Impl* p = impl.get();
+  p->subscription = sessions.Subscribe(
+      0, [p](const std::vector<SessionTelemetry>& list, bool) { p->OnTelemetry(list); });
+  p->heartbeat = std::thread([p] { p->HeartbeatLoop(); });
+  Log(options.name, "node_started",
+      "internal=" + p->options.advertise + " udp=" + options.udp_host + ":" +
+          std::to_string(options.udp_port) + " capacity=" + std::to_string(options.capacity));
+  return std::unique_ptr<NodeAgent>(new NodeAgent(std::move(impl)));
+}
+
+void NodeAgent::Drain(double timeout_s) {
+  impl_->draining = true;
+  {
+    std::lock_guard lock(impl_->beat_mutex);
+    impl_->beat_now = true;  // tell the control plane now, not at the next period
+  }
+  impl_->beat_cv.notify_all();
+  Log(impl_->options.name, "draining",
+      "live=" + std::to_string(impl_->sessions.LiveCount()) +
+          " timeout_s=" + std::to_string(timeout_s));
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6));
+  while (impl_->sessions.LiveCount() > 0 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  Log(impl_->options.name, "drained", "live=" + std::to_string(impl_->sessions.LiveCount()));
+}
+
+void NodeAgent::Shutdown() {
+  std::call_once(impl_->shutdown_once, [this] {
+    {
+      std::lock_guard lock(impl_->beat_mutex);
+      impl_->stopping = true;
+    }
+    impl_->beat_cv.notify_all();
+    if (impl_->heartbeat.joinable()) impl_->heartbeat.join();
+    impl_->sessions.Unsubscribe(impl_->subscription);
+    if (impl_->server) {
+      impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+      impl_->server->Wait();
+    }
+  });
+}
+
+}  // namespace vsurg::server::cluster
