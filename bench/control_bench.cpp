@@ -2,6 +2,7 @@
 #include "bench/control_bench.h"
 
 #include <grpcpp/grpcpp.h>
+#include <libpq-fe.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -47,6 +48,7 @@ double Percentile(std::vector<double> v, double q) {
 }
 
 struct SubmitResult {
+  std::string store;  // sqlite or postgresql
   int max_batch = 0;
   double per_s = 0, p50_ms = 0, p99_ms = 0, jobs_per_commit = 0;
   uint64_t ok = 0, failed = 0;
@@ -54,14 +56,32 @@ struct SubmitResult {
 
 // In-flight calls ("lanes") on the callback client API: each lane issues its next submission
 // from the previous one's completion, so `clients` calls are always outstanding.
-SubmitResult RunSubmit(int max_batch, int clients, double seconds) {
+// One statement on a PostgreSQL server's maintenance database (CREATE/DROP DATABASE).
+bool PostgresAdmin(const std::string& uri, const std::string& sql) {
+  PGconn* c = PQconnectdb(uri.c_str());
+  PGresult* r = PQexec(c, sql.c_str());
+  const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+  if (!ok) std::cerr << sql << ": " << PQerrorMessage(c);
+  PQclear(r);
+  PQfinish(c);
+  return ok;
+}
+
+// `postgres` empty: a new SQLite file; else a new database on that server (dropped after).
+SubmitResult RunSubmit(const std::string& postgres, int max_batch, int clients, double seconds) {
   const fs::path dir = TempDir("submit_" + std::to_string(max_batch));
   SubmitResult out;
+  out.store = postgres.empty() ? "sqlite" : "postgresql";
   out.max_batch = max_batch;
+  std::string location = (dir / "vsurg.db").string();
+  const std::string pg_name =
+      "vsurg_bench_" + std::to_string(getpid()) + "_" + std::to_string(max_batch);
+  if (!postgres.empty()) {
+    if (!PostgresAdmin(postgres, "CREATE DATABASE " + pg_name)) return out;
+    location = postgres.substr(0, postgres.rfind('/') + 1) + pg_name;
+  }
   {
-    auto store =
-        std::move(db::Store::Open({.path = (dir / "vsurg.db").string(), .max_batch = max_batch}))
-            .value();
+    auto store = std::move(db::Store::Open({.path = location, .max_batch = max_batch})).value();
     const std::string token = store->InitAdmin("root").value();
     server::SessionManager sessions(*store, nullptr, {});
     auto cp = std::move(server::ControlPlane::Start(*store, sessions, {})).value();
@@ -146,6 +166,7 @@ SubmitResult RunSubmit(int max_batch, int clients, double seconds) {
     cp->Shutdown();
   }
   fs::remove_all(dir);
+  if (!postgres.empty()) PostgresAdmin(postgres, "DROP DATABASE " + pg_name + " WITH (FORCE)");
   return out;
 }
 
@@ -193,12 +214,16 @@ int GrpcSubmit(const std::vector<std::string>& args) {
   ArgParser p(
       "vsurg-bench grpc-submit",
       "Durable evaluation submissions per second through gRPC on loopback (in-process\n"
-      "server, real SQLite file with synchronous=FULL), for each writer batch limit side by\n"
-      "side: 1 = one commit (fsync) per submission, larger = group commit.");
+      "server, real SQLite file with synchronous=FULL, and with --postgres a real PostgreSQL\n"
+      "database, synchronous_commit on), for each writer batch limit side by side: 1 = one\n"
+      "commit (fsync) per submission, larger = group commit.");
   p.Option("clients", ArgParser::Kind::kInt, "calls in flight", false, "32")
       .Option("seconds", ArgParser::Kind::kDouble, "measured time per setting, s", false, "5")
       .Option("batches", ArgParser::Kind::kString, "writer batch limits, comma-separated", false,
               "1,1024")
+      .Option("postgres", ArgParser::Kind::kString,
+              "also a PostgreSQL server (its maintenance database's URI, e.g. from "
+              "deploy/postgres.sh): each setting runs on SQLite and PostgreSQL alternately")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -215,19 +240,24 @@ int GrpcSubmit(const std::vector<std::string>& args) {
   std::stringstream list(p.String("batches"));
   for (std::string b; std::getline(list, b, ',');) batches.push_back(std::stoi(b));
   json results = json::array();
-  for (int b : batches) {
-    const SubmitResult r = RunSubmit(b, clients, seconds);
-    results.push_back({{"max_batch", r.max_batch},
-                       {"submissions_per_s", r.per_s},
-                       {"p50_ms", r.p50_ms},
-                       {"p99_ms", r.p99_ms},
-                       {"jobs_per_commit", r.jobs_per_commit},
-                       {"ok", r.ok},
-                       {"failed", r.failed}});
-    if (!p.Flag("json"))
-      std::printf("max_batch %5d: %8.0f submissions/s  p50 %.2f ms  p99 %.2f ms  %.1f per commit\n",
-                  r.max_batch, r.per_s, r.p50_ms, r.p99_ms, r.jobs_per_commit);
-  }
+  std::vector<std::string> stores = {""};
+  if (p.Has("postgres")) stores.push_back(p.String("postgres"));
+  for (int b : batches)
+    for (const std::string& pg : stores) {
+      const SubmitResult r = RunSubmit(pg, b, clients, seconds);
+      results.push_back({{"store", r.store},
+                         {"max_batch", r.max_batch},
+                         {"submissions_per_s", r.per_s},
+                         {"p50_ms", r.p50_ms},
+                         {"p99_ms", r.p99_ms},
+                         {"jobs_per_commit", r.jobs_per_commit},
+                         {"ok", r.ok},
+                         {"failed", r.failed}});
+      if (!p.Flag("json"))
+        std::printf(
+            "%-10s max_batch %5d: %8.0f submissions/s  p50 %.2f ms  p99 %.2f ms  %.1f per commit\n",
+            r.store.c_str(), r.max_batch, r.per_s, r.p50_ms, r.p99_ms, r.jobs_per_commit);
+    }
   if (p.Flag("json")) std::cout << json{{"clients", clients}, {"results", results}}.dump() << "\n";
   return 0;
 }

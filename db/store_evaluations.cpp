@@ -144,34 +144,38 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
   if (!by.ok()) return by.error();
   if (!*by) return Error{ErrorCode::kNotFound, "no user '" + s.submitted_by + "'", "submitted_by"};
   out.submitted_us = NowUs();
-  Status ins = RunSql(c,
-                      "INSERT INTO submissions(idempotency_key, evaluator_id, evaluator_group, "
-                      "subject_kind, subject, moment_min, submitted_us, submitted_by) "
-                      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
-                      [&](Statement& q) {
-                        q.Bind(1, s.idempotency_key).Bind(2, evaluator_id);
-                        q.Bind(3, s.evaluator_group).Bind(4, SubjectKindName(s.subject_kind));
-                        q.Bind(5, s.subject).Bind(6, s.moment_min).Bind(7, out.submitted_us);
-                        q.Bind(8, **by);
-                      });
-  if (!ins.ok()) {
-    if (ins.error().code == ErrorCode::kAlreadyExists)
+  // One statement each for the submission and its nine scores (a round trip each on
+  // PostgreSQL): RETURNING gives the new id on both backends.
+  auto sub = c.Prepare(
+      "INSERT INTO submissions(idempotency_key, evaluator_id, evaluator_group, "
+      "subject_kind, subject, moment_min, submitted_us, submitted_by) "
+      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8) RETURNING id");
+  if (!sub.ok()) return sub.error();
+  Statement& q = **sub;
+  q.Bind(1, s.idempotency_key).Bind(2, evaluator_id);
+  q.Bind(3, s.evaluator_group).Bind(4, SubjectKindName(s.subject_kind));
+  q.Bind(5, s.subject).Bind(6, s.moment_min).Bind(7, out.submitted_us);
+  q.Bind(8, **by);
+  auto row = q.Step();
+  if (row.ok() && *row) out.submission_id = q.Int(0);
+  q.Reset();
+  if (!row.ok()) {
+    if (row.error().code == ErrorCode::kAlreadyExists)
       return Error{ErrorCode::kAlreadyExists,
                    "evaluator '" + s.evaluator + "' has already rated this " +
                        SubjectKindName(s.subject_kind) + (s.moment_min ? " at this moment" : ""),
                    "subject"};
-    return ins;
+    return row.error();
   }
-  auto submission_id = c.LastInsertId();
-  if (!submission_id.ok()) return submission_id.error();
-  out.submission_id = *submission_id;
-  auto st =
-      c.Prepare("INSERT INTO evaluations(submission_id, index_no, score) VALUES (?1, ?2, ?3)");
+  static_assert(scoring::kIndexCount == 9, "the scores statement lists nine rows");
+  auto st = c.Prepare(
+      "INSERT INTO evaluations(submission_id, index_no, score) VALUES (?1, 1, ?2), (?1, 2, ?3), "
+      "(?1, 3, ?4), (?1, 4, ?5), (?1, 5, ?6), (?1, 6, ?7), (?1, 7, ?8), (?1, 8, ?9), "
+      "(?1, 9, ?10)");
   if (!st.ok()) return st.error();
-  for (int j = 0; j < scoring::kIndexCount; ++j) {
-    (*st)->Bind(1, out.submission_id).Bind(2, int64_t{j + 1}).Bind(3, s.scores[j]);
-    if (Status r = (*st)->Run(); !r.ok()) return r;
-  }
+  (*st)->Bind(1, out.submission_id);
+  for (int j = 0; j < scoring::kIndexCount; ++j) (*st)->Bind(j + 2, s.scores[j]);
+  if (Status r = (*st)->Run(); !r.ok()) return r;
   return Status::Ok();
 }
 
