@@ -4,7 +4,8 @@
 # Boost, protobuf, OpenSSL), the control plane (gRPC, SQLite), the stations (OpenGL: GLFW for windows,
 # EGL on Mesa for headless rendering; Xvfb and xdotool to test the window and its keys), libpng for
 # screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD,
-# PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start).
+# PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start),
+# PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py).
 VSURG_PACKAGES=(
   cmake ninja-build g++
   libeigen3-dev nlohmann-json3-dev
@@ -15,7 +16,7 @@ VSURG_PACKAGES=(
   chromium chromium-driver python3-selenium
   libimgui-dev
   libassimp-dev libcgal-dev
-  postgresql libpq-dev
+  postgresql libpq-dev python3-yaml
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's

@@ -6,6 +6,8 @@
 #include <mutex>
 #include <thread>
 
+#include <grpcpp/health_check_service_interface.h>
+
 #include "db/store.h"
 #include "server/cluster/cluster_common.h"
 
@@ -200,6 +202,7 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
   auto creds = ServerCredentials(options);
   if (!creds.ok()) return creds.error();
   auto impl = std::make_unique<Impl>(store, options);
+  grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
   builder.AddListeningPort(options.listen, *creds, &impl->port);
   builder.RegisterService(impl.get());

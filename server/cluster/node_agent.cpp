@@ -8,6 +8,8 @@
 #include <mutex>
 #include <thread>
 
+#include <grpcpp/health_check_service_interface.h>
+
 #include "server/cluster/cluster_common.h"
 #include "server/control/grpc_common.h"
 #include "server/session/session_manager.h"
@@ -200,6 +202,7 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   auto creds = ServerCredentials(options.cluster);
   if (!creds.ok()) return creds.error();
   auto impl = std::make_unique<Impl>(sessions, options);
+  grpc::EnableDefaultHealthCheckService(true);  // readiness (deploy/k8s/sim.yaml)
   grpc::ServerBuilder builder;
   builder.AddListeningPort(options.cluster.listen, *creds, &impl->port);
   builder.RegisterService(impl.get());
