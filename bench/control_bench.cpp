@@ -21,6 +21,7 @@
 #include "common/core/args.h"
 #include "db/sqlite.h"
 #include "db/store.h"
+#include "server/cluster/cluster.h"
 #include "server/control/control_plane.h"
 #include "server/session/session_manager.h"
 #include "vsurg/v1/services.grpc.pb.h"
@@ -347,6 +348,113 @@ int ExportBench(const std::vector<std::string>& args) {
                 out["grpc_ok"].get<bool>() ? "" : " (gRPC FAILED)");
   }
   return out["grpc_ok"].get<bool>() ? 0 : 1;
+}
+
+}  // namespace vsurg::bench
+
+namespace vsurg::bench {
+
+int Placement(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-bench placement",
+              "Session creation through the control role's placement (ClusterSessions over a real\n"
+              "PostgreSQL, sim nodes' NodeService on loopback gRPC) against the all-in-one path\n"
+              "(SessionManager::Create on an SQLite store), alternately in one run.");
+  p.Option("postgres", ArgParser::Kind::kString,
+           "a PostgreSQL server's maintenance database URI (deploy/postgres.sh)", true)
+      .Option("nodes", ArgParser::Kind::kInt, "simulation nodes", false, "3")
+      .Option("sessions", ArgParser::Kind::kInt, "sessions created on each path", false, "60")
+      .Option("scene", ArgParser::Kind::kString, "scene", false, "arm-torsion")
+      .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  const int nodes = p.Int("nodes"), sessions = p.Int("sessions");
+  if (nodes < 1 || nodes > 16 || sessions < 1 || sessions > 1000) {
+    std::cerr << p.command() << ": --nodes 1..16, --sessions 1..1000\n";
+    return 2;
+  }
+  const std::string admin = p.String("postgres");
+  const std::string name = "vsurg_placement_" + std::to_string(getpid());
+  if (!PostgresAdmin(admin, "CREATE DATABASE " + name)) return 1;
+  const std::string uri = admin.substr(0, admin.rfind('/') + 1) + name;
+  const fs::path dir = TempDir("placement");
+  const std::string token = "bench-cluster-token-0123456789";
+  std::vector<double> placed_ms, local_ms;
+  {
+    // Each role with a store of its own, as separate processes would have.
+    auto control_store = std::move(db::Store::Open({.path = uri})).value();
+    server::cluster::ClusterOptions co;
+    co.token = token;
+    co.listen = "127.0.0.1:0";
+    co.max_sessions_per_user = 1 << 20;
+    auto control = std::move(server::cluster::ClusterSessions::Start(*control_store, co)).value();
+    std::vector<std::unique_ptr<db::Store>> node_stores;
+    std::vector<std::unique_ptr<server::SessionManager>> managers;
+    std::vector<std::unique_ptr<server::cluster::NodeAgent>> agents;
+    for (int i = 0; i < nodes; ++i) {
+      node_stores.push_back(std::move(db::Store::Open({.path = uri})).value());
+      server::SessionManagerOptions so;
+      so.node = "sim-" + std::to_string(i);
+      so.max_live_sessions = 4096;
+      so.max_sessions_per_user = 4096;
+      managers.push_back(
+          std::make_unique<server::SessionManager>(*node_stores.back(), nullptr, so));
+      server::cluster::NodeOptions no;
+      no.name = so.node;
+      no.control = "127.0.0.1:" + std::to_string(control->port());
+      no.udp_host = "127.0.0.1";
+      no.udp_port = 1;
+      no.capacity = 4096;
+      no.cluster = co;
+      agents.push_back(std::move(server::cluster::NodeAgent::Start(*managers.back(), no)).value());
+    }
+    for (int i = 0;
+         i < 100 && control_store->ListNodes().value().size() < static_cast<size_t>(nodes); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    auto local_store = std::move(db::Store::Open({.path = (dir / "vsurg.db").string()})).value();
+    server::SessionManagerOptions lo;
+    lo.max_live_sessions = 4096;
+    lo.max_sessions_per_user = 4096;
+    server::SessionManager local(*local_store, nullptr, lo);
+    for (int k = 0; k < sessions; ++k) {
+      const std::string trainee = "trainee-" + std::to_string(k);
+      auto t0 = Clock::now();
+      auto a = control->Create(trainee, p.String("scene"));
+      placed_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      t0 = Clock::now();
+      auto b = local.Create(trainee, p.String("scene"));
+      local_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      if (!a.ok() || !b.ok()) {
+        std::cerr << p.command() << ": " << (a.ok() ? b.error().message : a.error().message)
+                  << "\n";
+        return 1;
+      }
+    }
+    local.Shutdown();
+    agents.clear();
+    managers.clear();
+    control->Shutdown();
+  }
+  fs::remove_all(dir);
+  PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
+  const json out = {{"nodes", nodes},
+                    {"sessions", sessions},
+                    {"scene", p.String("scene")},
+                    {"placed_p50_ms", Percentile(placed_ms, 0.5)},
+                    {"placed_p99_ms", Percentile(placed_ms, 0.99)},
+                    {"local_p50_ms", Percentile(local_ms, 0.5)},
+                    {"local_p99_ms", Percentile(local_ms, 0.99)}};
+  if (p.Flag("json")) {
+    std::cout << out.dump() << "\n";
+  } else {
+    std::printf("create through placement (%d nodes, PostgreSQL): p50 %.2f ms  p99 %.2f ms\n",
+                nodes, Percentile(placed_ms, 0.5), Percentile(placed_ms, 0.99));
+    std::printf("create in one process (SQLite):                   p50 %.2f ms  p99 %.2f ms\n",
+                Percentile(local_ms, 0.5), Percentile(local_ms, 0.99));
+  }
+  return 0;
 }
 
 }  // namespace vsurg::bench

@@ -8,5 +8,7 @@ namespace vsurg::bench {
 
 int GrpcSubmit(const std::vector<std::string>& args);
 int ExportBench(const std::vector<std::string>& args);
+// Session creation through the control role's placement against the all-in-one path.
+int Placement(const std::vector<std::string>& args);
 
 }  // namespace vsurg::bench

@@ -537,7 +537,9 @@ int main(int argc, char** argv) {
     std::cout << "usage: vsurg-bench haptic-rtt --stations N --seconds S [--scene NAME] [--idle N "
                  "[--idle-scene NAME] [--idle-threads]] [--dashboard-clients N] [--json]\n"
                  "       vsurg-bench udp-floor --stations N --seconds S [--json]\n"
-                 "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024]\n"
+                 "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024] "
+                 "[--postgres URI]\n"
+                 "       vsurg-bench placement --postgres URI [--nodes 3] [--sessions 60]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n"
                  "       vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] "
@@ -548,6 +550,7 @@ int main(int argc, char** argv) {
     if (args[0] == "haptic-rtt") return HapticRtt({args.begin() + 1, args.end()});
     if (args[0] == "udp-floor") return UdpFloor({args.begin() + 1, args.end()});
     if (args[0] == "grpc-submit") return vsurg::bench::GrpcSubmit({args.begin() + 1, args.end()});
+    if (args[0] == "placement") return vsurg::bench::Placement({args.begin() + 1, args.end()});
     if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
     if (args[0] == "speed-vs-error")
       return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
@@ -556,7 +559,8 @@ int main(int argc, char** argv) {
     std::cerr << "vsurg-bench: " << e.what() << "\n";
     return 1;
   }
-  std::cerr << "vsurg-bench: unknown command '" << args[0]
-            << "' (haptic-rtt, udp-floor, grpc-submit, export, speed-vs-error, fem-step)\n";
+  std::cerr
+      << "vsurg-bench: unknown command '" << args[0]
+      << "' (haptic-rtt, udp-floor, grpc-submit, placement, export, speed-vs-error, fem-step)\n";
   return 2;
 }
