@@ -8,7 +8,9 @@
 # users touch it (deploy/demo_flow.sh): vsurg-server on a temporary SQLite file, a trainee's
 # headless station twisting the arm over UDP, an instructor's monitor following it live, three
 # evaluator groups scoring the session, the weighted report, the trial metrics and the CSV
-# export; screenshots of the station before and after the twist (and the monitor) go to docs/.
+# export; screenshots of the station before and after the twist (and the monitor) go to docs/;
+# then one site over several processes (deploy/cluster_flow.sh, docs/SCALING.md): PostgreSQL, two
+# control replicas, three simulation nodes, 24 stations, a node and a replica killed.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -53,6 +55,10 @@ echo "== Weighted evaluation offline (seed 000 eq. 9-11): 40 raters score the co
 echo
 echo "==== The platform end to end: server, a trainee's station, an instructor's monitor, evaluators, administrator ===="
 "$root/deploy/demo_flow.sh" "$root/build/bin" "$out/flow" "$root/docs"
+
+echo
+echo "==== Beyond one machine: PostgreSQL, 2 control replicas, 3 simulation nodes, 24 stations; a node and a replica killed ===="
+"$root/deploy/cluster_flow.sh" "$root/build/bin" "$out/cluster" 24
 
 echo
 echo "==== The web dashboard on the demo's store ===="
