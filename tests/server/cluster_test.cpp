@@ -1,0 +1,223 @@
+// The control and sim roles in one process, over a real PostgreSQL and real gRPC on loopback:
+// placement, capacity, drain, a silent node, the cluster token, the site-wide per-trainee limit.
+#include "server/cluster/cluster.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <map>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "db/store.h"
+#include "server/net/udp_endpoint.h"
+#include "server/session/session_manager.h"
+#include "tests/support/postgres.h"
+#include "vsurg/v1/cluster.grpc.pb.h"
+
+namespace vsurg::server::cluster {
+namespace {
+
+constexpr const char* kToken = "test-cluster-token-0123456789";
+
+class ClusterTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    control_store_ = std::move(db::Store::Open({.path = db_.uri()})).value();
+    options_.token = kToken;
+    options_.listen = "127.0.0.1:0";
+    options_.max_sessions_per_user = 2;
+    auto c = ClusterSessions::Start(*control_store_, options_);
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    control_ = std::move(c).value();
+  }
+  void TearDown() override {
+    for (auto& n : nodes_) {  // the agent, then the sessions, then the endpoint they use
+      n->agent.reset();
+      n->sessions.reset();
+      n->endpoint.reset();
+    }
+    nodes_.clear();
+    control_.reset();
+  }
+
+  struct Node {
+    std::unique_ptr<db::Store> store;
+    std::unique_ptr<UdpEndpoint> endpoint;
+    std::unique_ptr<SessionManager> sessions;
+    std::unique_ptr<NodeAgent> agent;
+  };
+  Node& AddNode(const std::string& name, int capacity) {
+    auto n = std::make_unique<Node>();
+    n->store = std::move(db::Store::Open({.path = db_.uri()})).value();
+    SessionManagerOptions so;
+    so.node = name;
+    EndpointOptions eo;
+    eo.address = "127.0.0.1";
+    eo.port = 0;
+    eo.realtime_priority = 0;
+    n->endpoint = std::move(UdpEndpoint::Create(eo)).value();
+    n->sessions = std::make_unique<SessionManager>(*n->store, n->endpoint.get(), so);
+    NodeOptions no;
+    no.name = name;
+    no.control = "127.0.0.1:" + std::to_string(control_->port());
+    no.udp_host = "127.0.0.1";
+    no.udp_port = n->endpoint->port();
+    no.capacity = capacity;
+    no.cluster = options_;
+    auto agent = NodeAgent::Start(*n->sessions, no);
+    EXPECT_TRUE(agent.ok()) << agent.error().message;
+    n->agent = std::move(agent).value();
+    nodes_.push_back(std::move(n));
+    return *nodes_.back();
+  }
+  // Waits until the registry shows `count` nodes up.
+  void WaitForNodes(size_t count) {
+    for (int i = 0; i < 100; ++i) {
+      auto nodes = control_store_->ListNodes();
+      size_t up = 0;
+      for (const auto& n : nodes.value()) up += !n.down;
+      if (up == count) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    FAIL() << "the nodes did not register";
+  }
+  Node& NodeNamed(const std::string& name) { return *nodes_[name == "sim-a" ? 0 : 1]; }
+  std::map<std::string, int> PerNode() {
+    std::map<std::string, int> out;
+    const auto counts = control_store_->LiveSessionsByNode();  // kept: the loop reads into it
+    for (const auto& [node, n] : counts.value()) out[node] = n;
+    return out;
+  }
+
+  test::PostgresDatabase db_;
+  std::unique_ptr<db::Store> control_store_;
+  ClusterOptions options_;
+  std::unique_ptr<ClusterSessions> control_;
+  std::vector<std::unique_ptr<Node>> nodes_;
+};
+
+TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
+  AddNode("sim-a", 3);
+  AddNode("sim-b", 3);
+  WaitForNodes(2);
+  for (int i = 0; i < 6; ++i) {
+    auto c = control_->Create("trainee-" + std::to_string(i), "arm-torsion");
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    EXPECT_EQ(c->udp_host, "127.0.0.1");
+    EXPECT_EQ(c->udp_port, nodes_[c->record.node == "sim-a" ? 0 : 1]->endpoint->port());
+    EXPECT_EQ(control_store_->GetSession(c->record.id)->node, c->record.node);
+    auto counts = PerNode();
+    EXPECT_LE(std::abs(counts["sim-a"] - counts["sim-b"]), 1) << "after " << i + 1;
+  }
+  // Both full: refused with a reason, nothing created.
+  auto full = control_->Create("trainee-9", "arm-torsion");
+  ASSERT_FALSE(full.ok());
+  EXPECT_EQ(full.error().code, ErrorCode::kUnavailable);
+  EXPECT_NE(full.error().message.find("no simulation node has room"), std::string::npos);
+  // The session's calls go to its node: join gives the same key, stop ends it there.
+  auto first = control_store_->ListSessions(std::string("trainee-0")).value().at(0);
+  auto joined = control_->Join(static_cast<uint64_t>(first.id));
+  ASSERT_TRUE(joined.ok()) << joined.error().message;
+  auto stopped = control_->Stop(static_cast<uint64_t>(first.id), "done");
+  ASSERT_TRUE(stopped.ok()) << stopped.error().message;
+  EXPECT_EQ(stopped->state, SessionState::kEnded);
+  EXPECT_FALSE(control_->IsLive(static_cast<uint64_t>(first.id)));
+  // A scene that does not exist is the request's fault, not a node's: no other node is tried.
+  auto bad = control_->Create("trainee-10", "no-such-scene");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().code, ErrorCode::kNotFound);
+}
+
+TEST_F(ClusterTest, ADrainingNodeTakesNoNewSessionsAndItsLiveOnesFinish) {
+  AddNode("sim-a", 8);
+  AddNode("sim-b", 8);
+  WaitForNodes(2);
+  auto on_a = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(on_a.ok());
+  const std::string drained = on_a->record.node, other = drained == "sim-a" ? "sim-b" : "sim-a";
+  Node& a = NodeNamed(drained);
+  std::thread drain([&] { a.agent->Drain(10); });
+  auto draining = [&] {
+    const auto nodes = control_store_->ListNodes();  // kept: the loop reads into it
+    for (const auto& n : nodes.value())
+      if (n.name == drained) return n.draining;
+    return false;
+  };
+  for (int i = 0; i < 50 && !draining(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_TRUE(draining());
+  for (int i = 1; i <= 3; ++i) {  // the other node has 0, 1, 2: the draining one would be next
+    auto c = control_->Create("trainee-" + std::to_string(i), "arm-torsion");
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    EXPECT_EQ(c->record.node, other);
+  }
+  EXPECT_TRUE(control_->IsLive(on_a->record.id));  // the live one goes on
+  ASSERT_TRUE(control_->Stop(on_a->record.id, "finished").ok());
+  drain.join();  // returns once sim-a has no live session
+  EXPECT_EQ(a.sessions->LiveCount(), 0);
+}
+
+TEST_F(ClusterTest, ASilentNodeIsMarkedDownAndItsSessionsAborted) {
+  AddNode("sim-a", 8);
+  AddNode("sim-b", 8);
+  WaitForNodes(2);
+  auto s = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(s.ok());
+  const std::string silent = s->record.node, other = silent == "sim-a" ? "sim-b" : "sim-a";
+  NodeNamed(silent).agent->Shutdown();  // its heartbeats stop (as if the machine were gone)
+  const auto t0 = std::chrono::steady_clock::now();
+  while (control_->IsLive(s->record.id) &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto row = control_->Get(s->record.id);
+  ASSERT_TRUE(row.ok());
+  EXPECT_EQ(row->state, SessionState::kAborted);
+  EXPECT_NE(row->end_reason.find(silent + " stopped answering"), std::string::npos)
+      << row->end_reason;
+  EXPECT_GE(waited, 1.4) << "not before the heartbeat timeout (2 s after the last beat)";
+  // New sessions go to the node that answers.
+  auto next = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(next.ok()) << next.error().message;
+  EXPECT_EQ(next->record.node, other);
+}
+
+TEST_F(ClusterTest, InternalCallsWithoutTheTokenAreRefusedAndTheTraineeLimitIsSiteWide) {
+  AddNode("sim-a", 8);
+  AddNode("sim-b", 8);
+  WaitForNodes(2);
+  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(control_->port()),
+                                     grpc::InsecureChannelCredentials());
+  auto stub = v1::ClusterService::NewStub(channel);
+  v1::NodeHeartbeat forged;
+  forged.set_name("sim-evil");
+  forged.set_grpc_address("127.0.0.1:1");
+  forged.set_udp_host("127.0.0.1");
+  forged.set_udp_port(1);
+  forged.set_capacity(100);
+  for (const char* token :
+       {"", "Bearer wrong-token-0123456789", "Bearer test-cluster-token-012345678"}) {
+    grpc::ClientContext ctx;
+    if (*token) ctx.AddMetadata("authorization", token);
+    v1::HeartbeatReply reply;
+    EXPECT_EQ(stub->Heartbeat(&ctx, forged, &reply).error_code(), grpc::StatusCode::UNAUTHENTICATED)
+        << token;
+  }
+  EXPECT_EQ(control_store_->ListNodes().value().size(), 2u) << "no forged node registered";
+  // Two live sessions for one trainee, on two nodes: a third is refused by the control plane.
+  ASSERT_TRUE(control_->Create("tia", "arm-torsion").ok());
+  ASSERT_TRUE(control_->Create("tia", "arm-torsion").ok());
+  auto third = control_->Create("tia", "arm-torsion");
+  ASSERT_FALSE(third.ok());
+  EXPECT_EQ(third.error().code, ErrorCode::kResourceExhausted);
+  // A token shorter than 16 characters is refused at start.
+  ClusterOptions weak = options_;
+  weak.token = "short";
+  EXPECT_EQ(ClusterSessions::Start(*control_store_, weak).error().field, "cluster-token");
+}
+
+}  // namespace
+}  // namespace vsurg::server::cluster
