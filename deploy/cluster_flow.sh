@@ -80,7 +80,7 @@ declare -a station_pid
 for i in $(seq 0 $((stations - 1))); do
   token="$(adm user-add --name "trainee-$i" --role trainee --group group-a --issue-token | tail -1)"
   "$bin/vsurg-station" --server "$servers" --token "$token" --scene arm-torsion --device replay \
-    --trajectory "$tmp/twist.csv" --headless --width 64 --height 48 --fps 10 --duration 40 \
+    --trajectory "$tmp/twist.csv" --headless --width 64 --height 48 --fps 10 --duration 600 \
     --json > "$out/station-$i.json" 2> "$out/station-$i.log" &
   station_pid[$i]=$!
   pids+=("${station_pid[$i]}")
@@ -149,7 +149,7 @@ print(urllib.request.urlopen(r, timeout=10).read().decode())' \
 dashboard_live="$(grep -o '"state":"running"' <<< "$dashboard" | wc -l)"
 echo "dashboard API via control-1: $dashboard_live running"
 
-step "The stations finish"
+step "The stations finish (SIGINT: each stops its session and prints its summary)"
 for i in $(seq 0 $((stations - 1))); do kill -INT "${station_pid[$i]}" 2>/dev/null || true; done
 for i in $(seq 0 $((stations - 1))); do wait "${station_pid[$i]}" 2>/dev/null || true; done
 # Per station: did it reconnect, did its force fade meanwhile, the largest force it sent.
