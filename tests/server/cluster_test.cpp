@@ -5,7 +5,10 @@
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
+#include <condition_variable>
 #include <map>
+#include <mutex>
+#include <set>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -183,6 +186,52 @@ TEST_F(ClusterTest, ASilentNodeIsMarkedDownAndItsSessionsAborted) {
   auto next = control_->Create("trainee-0", "arm-torsion");
   ASSERT_TRUE(next.ok()) << next.error().message;
   EXPECT_EQ(next->record.node, other);
+}
+
+TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd) {
+  AddNode("sim-a", 8);
+  AddNode("sim-b", 8);
+  WaitForNodes(2);
+  auto one = control_->Create("trainee-0", "arm-torsion");
+  auto two = control_->Create("trainee-1", "arm-torsion");
+  ASSERT_TRUE(one.ok() && two.ok());
+  ASSERT_NE(one->record.node, two->record.node);  // one on each node
+  std::mutex m;
+  std::condition_variable cv;
+  std::set<uint64_t> seen_all;
+  int one_samples = 0;
+  bool one_ended = false;
+  const uint64_t all = control_->Subscribe(0, [&](const std::vector<SessionTelemetry>& list, bool) {
+    std::lock_guard lock(m);
+    for (const auto& t : list) seen_all.insert(t.id);
+    cv.notify_all();
+  });
+  const uint64_t mine = control_->Subscribe(
+      one->record.id, [&](const std::vector<SessionTelemetry>& list, bool ended) {
+        std::lock_guard lock(m);
+        for (const auto& t : list) {
+          EXPECT_EQ(t.id, static_cast<uint64_t>(one->record.id));
+          EXPECT_EQ(t.scene, "arm-torsion");
+          EXPECT_EQ(t.trainee, "trainee-0");
+          ++one_samples;
+        }
+        if (ended) one_ended = true;
+        cv.notify_all();
+      });
+  {
+    std::unique_lock lock(m);
+    EXPECT_TRUE(cv.wait_for(lock, std::chrono::seconds(5), [&] {
+      return seen_all.size() == 2 && one_samples > 0;
+    })) << "both nodes' sessions reach one watcher through the control plane";
+  }
+  ASSERT_TRUE(control_->Stop(one->record.id, "done").ok());
+  {
+    std::unique_lock lock(m);
+    EXPECT_TRUE(cv.wait_for(lock, std::chrono::seconds(5), [&] { return one_ended; }))
+        << "a watcher of one session is told when it ends";
+  }
+  control_->Unsubscribe(mine);
+  control_->Unsubscribe(all);
 }
 
 TEST_F(ClusterTest, InternalCallsWithoutTheTokenAreRefusedAndTheTraineeLimitIsSiteWide) {
