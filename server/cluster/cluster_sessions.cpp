@@ -110,7 +110,9 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     n.cpu = req->cpu();
     n.draining = req->draining();
     n.started_us = req->started_us();
-    // This replica's clock, not the node's: liveness never depends on two machines' clocks.
+    // A replica's clock, not the node's: a node's clock never decides its liveness. The
+    // replicas compare each other's stamps, so their clocks must agree well within the 2 s
+    // timeout (NTP; docs/SCALING.md).
     n.heartbeat_us = db::NowUs();
     if (Status s = store.PutNode(n); !s.ok())
       return grpc::Status(s.error().code == ErrorCode::kInvalidArgument
