@@ -45,6 +45,7 @@
 
 #include "bench/control_bench.h"
 #include "bench/fem_step_command.h"
+#include "bench/msm_step_command.h"
 #include "bench/speed_vs_error.h"
 #include "common/core/args.h"
 #include "common/core/realtime.h"
@@ -540,6 +541,7 @@ int main(int argc, char** argv) {
                  "       vsurg-bench grpc-submit [--clients N] [--seconds S] [--batches 1,1024] "
                  "[--postgres URI]\n"
                  "       vsurg-bench placement --postgres URI [--nodes 3] [--sessions 60]\n"
+                 "       vsurg-bench msm-step [--steps 2000] [--export DIR] [--json]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n"
                  "       vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] "
@@ -550,6 +552,7 @@ int main(int argc, char** argv) {
     if (args[0] == "haptic-rtt") return HapticRtt({args.begin() + 1, args.end()});
     if (args[0] == "udp-floor") return UdpFloor({args.begin() + 1, args.end()});
     if (args[0] == "grpc-submit") return vsurg::bench::GrpcSubmit({args.begin() + 1, args.end()});
+    if (args[0] == "msm-step") return vsurg::bench::MsmStep({args.begin() + 1, args.end()});
     if (args[0] == "placement") return vsurg::bench::Placement({args.begin() + 1, args.end()});
     if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
     if (args[0] == "speed-vs-error")
@@ -561,6 +564,7 @@ int main(int argc, char** argv) {
   }
   std::cerr
       << "vsurg-bench: unknown command '" << args[0]
-      << "' (haptic-rtt, udp-floor, grpc-submit, placement, export, speed-vs-error, fem-step)\n";
+      << "' (haptic-rtt, udp-floor, grpc-submit, placement, msm-step, export, speed-vs-error, "
+         "fem-step)\n";
   return 2;
 }
