@@ -44,6 +44,23 @@ void CoilDeformer::Bind(const std::vector<Vec3>& rest, const std::vector<double>
     }
   }
   group_begin_.push_back(n);
+  // Each group's coil and place in it, as TwistAt finds them (the state changes only the
+  // boundary angles; a group inside the cutoff R_P is in a coil k <= P).
+  const CoilSpringParams& cp = model_.params();
+  const int coils = model_.coils();
+  group_ring_.resize(group_rho_.size());
+  group_t_.resize(group_rho_.size());
+  for (size_t g = 0; g < group_rho_.size(); ++g) {
+    const double r = std::abs(group_rho_[g]);
+    if (r <= cp.core_radius) {
+      group_ring_[g] = 1, group_t_[g] = 0;  // the core turns with Θ_0
+      continue;
+    }
+    const int k =
+        std::clamp(static_cast<int>(std::ceil((r - cp.core_radius) / cp.thickness)), 1, coils);
+    group_ring_[g] = k;
+    group_t_[g] = std::clamp((r - model_.RingRadius(k - 1)) / cp.thickness, 0.0, 1.0);
+  }
   moved_groups_ = 0;
 }
 
@@ -108,8 +125,10 @@ DeformStats CoilDeformer::Apply(const CoilState& state) {
     groups = static_cast<int>(
         std::lower_bound(group_rho_.begin(), group_rho_.end(), cutoff_radius) - group_rho_.begin());
   }
+  const double* angles = state.boundary_angles.data();
   for (int g = 0; g < groups; ++g) {
-    const double theta = model_.TwistAt(group_rho_[g], state);
+    const int k = group_ring_[g];
+    const double theta = angles[k - 1] + group_t_[g] * (angles[k] - angles[k - 1]);
     const double cm1 = std::cos(theta) - 1.0, sn = std::sin(theta);
     for (int row = group_begin_[g]; row < group_begin_[g + 1]; ++row) {
       const Vec3& x = rest_[vertex_[row]];

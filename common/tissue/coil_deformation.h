@@ -93,6 +93,10 @@ class CoilDeformer {
   // Groups of rows with equal ρ: rows [group_begin_[g], group_begin_[g+1]).
   std::vector<double> group_rho_;
   std::vector<int32_t> group_begin_;
+  // Where each group sits among the coils, fixed at binding: θ_g = Θ_{k−1} + t·(Θ_k − Θ_{k−1})
+  // (CoilSpringModel::TwistAt for a group inside the cutoff, without its per-call search).
+  std::vector<int32_t> group_ring_;  // k, 1..S
+  std::vector<double> group_t_;      // t, 0..1 (0 in the core)
   int moved_groups_ = 0;  // groups written with a non-zero angle by the last update
 };
 
