@@ -2,7 +2,6 @@
 #include "bench/control_bench.h"
 
 #include <grpcpp/grpcpp.h>
-#include <libpq-fe.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/core/args.h"
+#include "db/postgres.h"
 #include "db/sqlite.h"
 #include "db/store.h"
 #include "server/cluster/cluster.h"
@@ -59,13 +59,9 @@ struct SubmitResult {
 // from the previous one's completion, so `clients` calls are always outstanding.
 // One statement on a PostgreSQL server's maintenance database (CREATE/DROP DATABASE).
 bool PostgresAdmin(const std::string& uri, const std::string& sql) {
-  PGconn* c = PQconnectdb(uri.c_str());
-  PGresult* r = PQexec(c, sql.c_str());
-  const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
-  if (!ok) std::cerr << sql << ": " << PQerrorMessage(c);
-  PQclear(r);
-  PQfinish(c);
-  return ok;
+  const Status s = db::RunPostgresStatement(uri, sql);
+  if (!s.ok()) std::cerr << sql << ": " << s.error().message << "\n";
+  return s.ok();
 }
 
 // `postgres` empty: a new SQLite file; else a new database on that server (dropped after).

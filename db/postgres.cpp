@@ -331,6 +331,12 @@ Expected<std::string> PgConnection::IntegrityCheck() {
   return out;
 }
 
+Status RunPostgresStatement(const std::string& uri, const std::string& sql) {
+  auto c = PgConnection::Open(uri, Connection::Mode::kReadWrite, 5000);
+  if (!c.ok()) return c.error();
+  return (*c)->Exec(sql.c_str());
+}
+
 std::string PgConnection::PostgresDialect(const char* ddl) {
   struct Rule {
     std::regex from;

@@ -110,6 +110,10 @@ class PgConnection final : public Connection {
   std::map<std::string, std::unique_ptr<PgStatement>, std::less<>> cache_;
 };
 
+// Runs one statement without values on the server at `uri` over a connection of its own (CREATE
+// or DROP DATABASE for the tests' and benchmarks' databases: not for the store's data).
+Status RunPostgresStatement(const std::string& uri, const std::string& sql);
+
 // Maps a failed libpq result (its SQLSTATE) to an Error: unique violations kAlreadyExists,
 // other integrity and data errors kInvalidArgument, lost connections, serialisation failures
 // and shutdowns kUnavailable (retrying may succeed), the rest kIoError.

@@ -43,8 +43,7 @@ using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 
 void Log(const std::string& event, const std::string& fields = "") {
-  std::cerr << "ts=" << vsurg::db::IsoTimeUtc(vsurg::db::NowUs()) << " component=vsurg-server"
-            << " event=" << event << (fields.empty() ? "" : " ") << fields << std::endl;
+  vsurg::LogEvent("vsurg-server", event, fields);
 }
 
 int Main(std::vector<std::string> args) {

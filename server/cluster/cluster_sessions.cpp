@@ -1,7 +1,6 @@
 // The control role: placement, the nodes' registry and watchdog, the nodes' telemetry.
 #include <algorithm>
 #include <condition_variable>
-#include <iostream>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -15,8 +14,7 @@ namespace vsurg::server::cluster {
 namespace {
 
 void Log(const std::string& event, const std::string& fields = "") {
-  std::cerr << "ts=" << db::IsoTimeUtc(db::NowUs()) << " component=vsurg-control event=" << event
-            << (fields.empty() ? "" : " ") << fields << std::endl;
+  LogEvent("vsurg-control", event, fields);
 }
 
 Error NotLive(uint64_t id) {

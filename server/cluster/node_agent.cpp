@@ -3,7 +3,6 @@
 
 #include <atomic>
 #include <condition_variable>
-#include <iostream>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -29,8 +28,7 @@ double ProcessCpuSeconds() {
 }
 
 void Log(const std::string& node, const std::string& event, const std::string& fields = "") {
-  std::cerr << "ts=" << db::IsoTimeUtc(db::NowUs()) << " component=vsurg-sim node=" << node
-            << " event=" << event << (fields.empty() ? "" : " ") << fields << std::endl;
+  LogEvent("vsurg-sim node=" + node, event, fields);
 }
 
 }  // namespace

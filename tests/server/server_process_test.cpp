@@ -304,5 +304,34 @@ TEST(AdminCliTest, ImportSaysWhatHappenedToEachRowAndLongSubjectsNeverCollide) {
   EXPECT_NEAR(j["index_means"][0].get<double>(), (0.2 * 7 + 0.5 * 8) / 0.7, 1e-9);
 }
 
+// The site roles refuse what cannot work, before opening anything: exit 2 with the flag named.
+TEST(ServerRolesCliTest, BadRoleSettingsExitTwoNamingTheFlag) {
+  const fs::path dir = fs::temp_directory_path() / ("vsurg_roles_cli_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string token = (dir / "token").string();
+  std::ofstream(token) << "a-cluster-token-of-32-characters\n";
+  const std::string server = std::string(VSURG_SERVER_BINARY) + " ";
+  const std::string pg = " --db postgresql://vsurg@127.0.0.1:1/vsurg";
+  struct Case {
+    std::string args, says;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"--role leader" + pg, "--role: must be all, control or sim"},
+           {"--role control --db " + (dir / "x.db").string() + " --cluster-token-file " + token,
+            "a postgresql:// URI is required"},
+           {"--role sim" + pg + " --control 127.0.0.1:7000", "--cluster-token-file: required"},
+           {"--role sim" + pg + " --cluster-token-file " + token, "--control: required"},
+           {"--role control" + pg + " --cluster-token-file " + (dir / "missing").string(),
+            "--cluster-token-file: cannot read"},
+       }) {
+    const ShellRun r = Shell(server + c.args + " 2>&1");
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.out;
+    EXPECT_NE(r.out.find(c.says), std::string::npos) << c.args << "\n" << r.out;
+  }
+  EXPECT_FALSE(fs::exists(dir / "x.db")) << "nothing was created";
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace vsurg

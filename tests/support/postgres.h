@@ -4,7 +4,6 @@
 // own (FreshDatabase), so tests never see each other's rows.
 #pragma once
 
-#include <libpq-fe.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -15,6 +14,8 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+
+#include "db/postgres.h"
 
 #ifndef VSURG_SOURCE_DIR
 #error "tests that use PostgreSQL are compiled with VSURG_SOURCE_DIR (the repository root)"
@@ -51,13 +52,8 @@ inline const std::string& PostgresUri() {
 
 // Runs one statement on the maintenance database; throws on failure.
 inline void PostgresAdmin(const std::string& sql) {
-  PGconn* c = PQconnectdb(PostgresUri().c_str());
-  PGresult* r = PQexec(c, sql.c_str());
-  const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK || PQresultStatus(r) == PGRES_TUPLES_OK;
-  const std::string message = PQerrorMessage(c);
-  PQclear(r);
-  PQfinish(c);
-  if (!ok) throw std::runtime_error(sql + ": " + message);
+  if (Status s = db::RunPostgresStatement(PostgresUri(), sql); !s.ok())
+    throw std::runtime_error(sql + ": " + s.error().message);
 }
 
 // A new empty database on the test server, dropped with this object (closing any connection
