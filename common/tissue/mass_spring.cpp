@@ -249,8 +249,9 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   const size_t ns = sys.springs.size();
   m.blocks_.resize(ns);
   for (size_t s = 0; s < ns; ++s) {
-    m.blocks_[s] = {sys.springs[s].i, sys.springs[s].j, 0.0, 0.0, Vec3::Zero(), 0.0, 0.0};
+    m.blocks_[s] = {sys.springs[s].i, sys.springs[s].j, 0.0, 0.0, 0.0, 0.0, 0.0};
   }
+  m.spring_impulse_.assign(ns, 0.0);
   m.constrained_.reserve(n);
   m.kinematic_.reserve(n);
   m.anchors_.reserve(64);
@@ -494,27 +495,37 @@ void MassSpringModel::StepOnce(double h) {
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
   PlaceKinematic(x_, v_, 0.0, h);
+  constrained_.clear();
   for (int i = 0; i < n; ++i) {
-    rhs_[i] = f_ext_[i] + sys_.masses[i] * params_.gravity;  // f₀, completed below
-    precond_[i] = Vec3::Constant(sys_.masses[i]);            // diag(A), completed below
-    q_[i].setZero();                                         // K v₀, below
+    if (role_[i] != Role::kFree) {
+      constrained_.push_back(i);  // capacity reserved: no allocation
+      dv_[i].setZero();           // warm start only where the unknowns are
+    }
+  }
+  // rhs_ = h (f₀ − h K v₀), q_ = A Δv₀ (the warm start's product) and precond_ = diag(A) are
+  // summed together: particle terms first, then the anchors, then one pass over the springs.
+  const double h2 = h * h;
+  for (int i = 0; i < n; ++i) {
+    rhs_[i] = h * (f_ext_[i] + sys_.masses[i] * params_.gravity);
+    q_[i] = sys_.masses[i] * dv_[i];
+    precond_[i] = Vec3::Constant(sys_.masses[i]);
   }
   for (const Anchor& a : anchors_) {
     // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
-    rhs_[a.i] += a.k * (a.target - x_[a.i]) - a.c * v_[a.i];
-    q_[a.i] += a.k * v_[a.i];
-    precond_[a.i] += Vec3::Constant(h * a.c + h * h * a.k);
+    const double d = h * a.c + h2 * a.k;
+    rhs_[a.i] += h * (a.k * (a.target - x_[a.i]) - a.c * v_[a.i]) - h2 * a.k * v_[a.i];
+    q_[a.i] += d * dv_[a.i];
+    precond_[a.i] += Vec3::Constant(d);
   }
-  std::vector<Vec3>& kv = q_;
   const size_t ns = sys_.springs.size();
-  const double h2 = h * h;
   const double* X = x_.data()->data();
   const double* V = v_.data()->data();
+  const double* DV = dv_.data()->data();
   double* R = rhs_.data()->data();
-  double* KV = kv.data()->data();
+  double* Q = q_.data()->data();
   double* P = precond_.data()->data();
-  // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, stretch and
-  // the block scalars. Pass 2 sums into the particles.
+  // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, the block's
+  // scalars a = h c + h² k (1 − α), b = h² k α, and h k (|l| − L).
   for (size_t s = 0; s < ns; ++s) {
     const Spring& sp = sys_.springs[s];
     SpringBlock& blk = blocks_[s];
@@ -523,51 +534,46 @@ void MassSpringModel::StepImplicit(double h) {
     const double len = std::sqrt(lx * lx + ly * ly + lz * lz);
     const double inv = len < kMinLength ? 0.0 : 1.0 / len;
     const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
-    blk.dir = Vec3(lx * inv, ly * inv, lz * inv);
-    blk.stretch = inv > 0 ? len - sp.rest_length : 0.0;
-    blk.alpha = alpha;
+    blk.dx = lx * inv, blk.dy = ly * inv, blk.dz = lz * inv;
     blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
     blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
+    spring_impulse_[s] = inv > 0 ? h * sp.stiffness * (len - sp.rest_length) : 0.0;
   }
+  // Pass 2 sums into the particles. With w = v_j − v_i, spring s adds to end i (end j: the
+  // negative) h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w) l̂ + b w to rhs, and
+  // B_s (Δv₀_i − Δv₀_j) to q; a l̂² + b to both ends' diagonals.
   int cur = -1;
-  double r_x = 0, r_y = 0, r_z = 0, k_x = 0, k_y = 0, k_z = 0, p_x = 0, p_y = 0, p_z = 0;
+  double r_x = 0, r_y = 0, r_z = 0, q_x = 0, q_y = 0, q_z = 0, p_x = 0, p_y = 0, p_z = 0;
   auto flush = [&] {
     if (cur < 0) return;
     R[cur] += r_x, R[cur + 1] += r_y, R[cur + 2] += r_z;
-    KV[cur] += k_x, KV[cur + 1] += k_y, KV[cur + 2] += k_z;
+    Q[cur] += q_x, Q[cur + 1] += q_y, Q[cur + 2] += q_z;
     P[cur] += p_x, P[cur + 1] += p_y, P[cur + 2] += p_z;
   };
   for (size_t s = 0; s < ns; ++s) {
-    const Spring& sp = sys_.springs[s];
     const SpringBlock& blk = blocks_[s];
-    const int i = 3 * sp.i, j = 3 * sp.j;
+    const int i = 3 * blk.i, j = 3 * blk.j;
     if (i != cur) {
       flush();
       cur = i;
-      r_x = r_y = r_z = k_x = k_y = k_z = p_x = p_y = p_z = 0;
+      r_x = r_y = r_z = q_x = q_y = q_z = p_x = p_y = p_z = 0;
     }
-    const double dx = blk.dir.x(), dy = blk.dir.y(), dz = blk.dir.z();
+    const double dx = blk.dx, dy = blk.dy, dz = blk.dz, a = blk.a, b = blk.b;
     const double wx = V[j] - V[i], wy = V[j + 1] - V[i + 1], wz = V[j + 2] - V[i + 2];
-    const double along = wx * dx + wy * dy + wz * dz;
-    const double mag = sp.stiffness * blk.stretch + sp.damping * along;
-    r_x += mag * dx, r_y += mag * dy, r_z += mag * dz;
-    R[j] -= mag * dx, R[j + 1] -= mag * dy, R[j + 2] -= mag * dz;
-    // K_s (v_i − v_j) = −K_s w, K_s = k [(1 − α) l̂l̂ᵀ + α I].
-    const double ka = sp.stiffness * (1.0 - blk.alpha) * along, kb = sp.stiffness * blk.alpha;
-    const double kx = ka * dx + kb * wx, ky = ka * dy + kb * wy, kz = ka * dz + kb * wz;
-    k_x -= kx, k_y -= ky, k_z -= kz;
-    KV[j] += kx, KV[j + 1] += ky, KV[j + 2] += kz;
-    const double px = blk.a * dx * dx + blk.b, py = blk.a * dy * dy + blk.b,
-                 pz = blk.a * dz * dz + blk.b;
+    const double g = spring_impulse_[s] + a * (wx * dx + wy * dy + wz * dz);
+    const double gx = g * dx + b * wx, gy = g * dy + b * wy, gz = g * dz + b * wz;
+    r_x += gx, r_y += gy, r_z += gz;
+    R[j] -= gx, R[j + 1] -= gy, R[j + 2] -= gz;
+    const double ex = DV[i] - DV[j], ey = DV[i + 1] - DV[j + 1], ez = DV[i + 2] - DV[j + 2];
+    const double c = a * (dx * ex + dy * ey + dz * ez);
+    const double tx = c * dx + b * ex, ty = c * dy + b * ey, tz = c * dz + b * ez;
+    q_x += tx, q_y += ty, q_z += tz;
+    Q[j] -= tx, Q[j + 1] -= ty, Q[j + 2] -= tz;
+    const double px = a * dx * dx + b, py = a * dy * dy + b, pz = a * dz * dz + b;
     p_x += px, p_y += py, p_z += pz;
     P[j] += px, P[j + 1] += py, P[j + 2] += pz;
   }
   flush();
-  constrained_.clear();
-  for (int i = 0; i < n; ++i) {
-    if (role_[i] != Role::kFree) constrained_.push_back(i);  // capacity reserved: no allocation
-  }
-  // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   auto apply = [&](const std::vector<Vec3>& u, std::vector<Vec3>& y) {
     for (int i = 0; i < n; ++i) y[i] = sys_.masses[i] * u[i];
@@ -582,19 +588,17 @@ void MassSpringModel::StepImplicit(double h) {
         at = i, ax = ay = az = 0;
       }
       const double ex = U[i] - U[j], ey = U[i + 1] - U[j + 1], ez = U[i + 2] - U[j + 2];
-      const double c = blk.a * (blk.dir.x() * ex + blk.dir.y() * ey + blk.dir.z() * ez);
-      const double tx = c * blk.dir.x() + blk.b * ex, ty = c * blk.dir.y() + blk.b * ey,
-                   tz = c * blk.dir.z() + blk.b * ez;
+      const double c = blk.a * (blk.dx * ex + blk.dy * ey + blk.dz * ez);
+      const double tx = c * blk.dx + blk.b * ex, ty = c * blk.dy + blk.b * ey,
+                   tz = c * blk.dz + blk.b * ez;
       ax += tx, ay += ty, az += tz;
       Y[j] -= tx, Y[j + 1] -= ty, Y[j + 2] -= tz;
     }
     if (at >= 0) Y[at] += ax, Y[at + 1] += ay, Y[at + 2] += az;
-    for (const Anchor& a : anchors_) y[a.i] += (h * a.c + h * h * a.k) * u[a.i];
+    for (const Anchor& a : anchors_) y[a.i] += (h * a.c + h2 * a.k) * u[a.i];
     for (int i : constrained_) y[i].setZero();
   };
-  double rhs_norm2 = 0;
   for (int i = 0; i < n; ++i) {
-    rhs_[i] = h * (rhs_[i] - h * kv[i]);
     // Jacobi: the three reciprocals from one division.
     const double px = precond_[i].x(), py = precond_[i].y(), pz = precond_[i].z();
     const double inv = 1.0 / (px * py * pz);
@@ -602,12 +606,12 @@ void MassSpringModel::StepImplicit(double h) {
   }
   for (int i : constrained_) {
     rhs_[i].setZero();
-    dv_[i].setZero();  // warm start only where the unknowns are
+    q_[i].setZero();
     precond_[i].setZero();
   }
+  double rhs_norm2 = 0;
   for (int i = 0; i < n; ++i) rhs_norm2 += rhs_[i].squaredNorm();
-  // Preconditioned conjugate gradient (Jacobi), warm-started from the previous Δv.
-  apply(dv_, q_);
+  // Preconditioned conjugate gradient (Jacobi), warm-started from the previous Δv (q_ = A Δv₀).
   double rz = 0, r2 = 0;
   for (int i = 0; i < n; ++i) {
     r_[i] = rhs_[i] - q_[i];

@@ -200,11 +200,11 @@ class MassSpringModel {
   struct SpringBlock {
     int32_t i, j;
     double a, b;
-    Vec3 dir;
-    double stretch, alpha;  // |l| − L and max(0, 1 − L/|l|), for the set-up pass
+    double dx, dy, dz;  // l̂
   };
   std::vector<SpringBlock> blocks_;
-  std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve
+  std::vector<double> spring_impulse_;  // h k (|l| − L) per spring, N·s
+  std::vector<int> constrained_;        // fixed and kinematic particles: Δv = 0 in the solve
   std::vector<Vec3> rhs_, dv_, r_, z_, p_, q_, precond_;
 };
 
