@@ -242,14 +242,17 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   m.f_ext_.assign(n, Vec3::Zero());
   m.kin_start_.assign(n, Vec3::Zero());
   m.kin_target_.assign(n, Vec3::Zero());
-  for (auto* buf : {&m.a_, &m.tx_, &m.tv_, &m.k1v_, &m.k2x_, &m.k2v_, &m.k3x_, &m.k3v_,
-                    &m.kin_final_, &m.rhs_, &m.dv_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_}) {
+  for (auto* buf :
+       {&m.a_, &m.tx_, &m.tv_, &m.k1v_, &m.k2x_, &m.k2v_, &m.k3x_, &m.k3v_, &m.kin_final_}) {
     buf->assign(n, Vec3::Zero());
+  }
+  for (auto* buf : {&m.rhs_, &m.dv_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.vel_}) {
+    buf->assign(4 * static_cast<size_t>(n), 0.0);
   }
   const size_t ns = sys.springs.size();
   m.blocks_.resize(ns);
   for (size_t s = 0; s < ns; ++s) {
-    m.blocks_[s] = {sys.springs[s].i, sys.springs[s].j, 0.0, 0.0, 0.0, 0.0, 0.0};
+    m.blocks_[s] = {{0.0, 0.0, 0.0, 0.0}, 0.0, 0.0, sys.springs[s].i, sys.springs[s].j};
   }
   m.spring_impulse_.assign(ns, 0.0);
   m.constrained_.reserve(n);
@@ -381,7 +384,7 @@ bool MassSpringModel::Step(double dt, int substeps) {
 void MassSpringModel::Reset() {
   std::copy(sys_.rest_positions.begin(), sys_.rest_positions.end(), x_.begin());
   std::fill(v_.begin(), v_.end(), Vec3::Zero());
-  std::fill(dv_.begin(), dv_.end(), Vec3::Zero());
+  std::fill(dv_.begin(), dv_.end(), 0.0);
   for (int i : kinematic_) kin_target_[i] = x_[i];
   verlet_primed_ = false;
   diverged_ = false;
@@ -492,38 +495,58 @@ void MassSpringModel::StepOnce(double h) {
 // Spring s contributes K_s = k [(1 − α) l̂l̂ᵀ + α I], α = max(0, 1 − L/|l|) (transverse term
 // clamped: SPD), and C_s = c l̂l̂ᵀ. The system is never assembled: each spring keeps its block
 // B_s = h C_s + h² K_s = a_s l̂l̂ᵀ + b_s I, and the product is a pass over the springs.
+//
+// The solver's per-particle vectors are 4 doubles (the fourth always 0) and its arithmetic is
+// written with GCC's vector extension, so one instruction does a 3-vector: AVX2 in the clone
+// the loader picks on CPUs that have it, two SSE2 halves in the baseline build.
+namespace {
+// A particle's 3-vector padded to 4 doubles (the fourth 0), read and written in place: may_alias
+// and 8-byte alignment make the solver's std::vector<double> storage legal to view this way.
+using V4 = double __attribute__((vector_size(32), aligned(8), may_alias));
+inline double Dot(const V4& a, const V4& b) {
+  const V4 m = a * b;
+  return (m[0] + m[2]) + (m[1] + m[3]);
+}
+}  // namespace
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+#endif
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
+  auto view = [](std::vector<double>& a) { return reinterpret_cast<V4*>(a.data()); };
+  V4 *const rhs = view(rhs_), *const dv = view(dv_), *const res = view(r_), *const z = view(z_),
+            *const p = view(p_), *const q = view(q_), *const pre = view(precond_),
+            *const vel = view(vel_);
   PlaceKinematic(x_, v_, 0.0, h);
   constrained_.clear();
   for (int i = 0; i < n; ++i) {
     if (role_[i] != Role::kFree) {
       constrained_.push_back(i);  // capacity reserved: no allocation
-      dv_[i].setZero();           // warm start only where the unknowns are
+      dv[i] = V4{};               // warm start only where the unknowns are
     }
   }
-  // rhs_ = h (f₀ − h K v₀), q_ = A Δv₀ (the warm start's product) and precond_ = diag(A) are
-  // summed together: particle terms first, then the anchors, then one pass over the springs.
+  // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
+  // together: particle terms first, then the anchors, then one pass over the springs.
   const double h2 = h * h;
   for (int i = 0; i < n; ++i) {
-    rhs_[i] = h * (f_ext_[i] + sys_.masses[i] * params_.gravity);
-    q_[i] = sys_.masses[i] * dv_[i];
-    precond_[i] = Vec3::Constant(sys_.masses[i]);
+    const Vec3 f = h * (f_ext_[i] + sys_.masses[i] * params_.gravity);
+    const double m = sys_.masses[i];
+    rhs[i] = V4{f.x(), f.y(), f.z(), 0.0};
+    q[i] = m * dv[i];
+    pre[i] = V4{m, m, m, 0.0};
+    vel[i] = V4{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
   }
   for (const Anchor& a : anchors_) {
     // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
     const double d = h * a.c + h2 * a.k;
-    rhs_[a.i] += h * (a.k * (a.target - x_[a.i]) - a.c * v_[a.i]) - h2 * a.k * v_[a.i];
-    q_[a.i] += d * dv_[a.i];
-    precond_[a.i] += Vec3::Constant(d);
+    const Vec3 f = h * (a.k * (a.target - x_[a.i]) - a.c * v_[a.i]) - h2 * a.k * v_[a.i];
+    rhs[a.i] += V4{f.x(), f.y(), f.z(), 0.0};
+    q[a.i] += d * dv[a.i];
+    pre[a.i] += V4{d, d, d, 0.0};
   }
   const size_t ns = sys_.springs.size();
   const double* X = x_.data()->data();
-  const double* V = v_.data()->data();
-  const double* DV = dv_.data()->data();
-  double* R = rhs_.data()->data();
-  double* Q = q_.data()->data();
-  double* P = precond_.data()->data();
   // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, the block's
   // scalars a = h c + h² k (1 − α), b = h² k α, and h k (|l| − L).
   for (size_t s = 0; s < ns; ++s) {
@@ -534,116 +557,104 @@ void MassSpringModel::StepImplicit(double h) {
     const double len = std::sqrt(lx * lx + ly * ly + lz * lz);
     const double inv = len < kMinLength ? 0.0 : 1.0 / len;
     const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
-    blk.dx = lx * inv, blk.dy = ly * inv, blk.dz = lz * inv;
+    blk.dir[0] = lx * inv, blk.dir[1] = ly * inv, blk.dir[2] = lz * inv, blk.dir[3] = 0.0;
     blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
     blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
     spring_impulse_[s] = inv > 0 ? h * sp.stiffness * (len - sp.rest_length) : 0.0;
   }
   // Pass 2 sums into the particles. With w = v_j − v_i, spring s adds to end i (end j: the
   // negative) h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w) l̂ + b w to rhs, and
-  // B_s (Δv₀_i − Δv₀_j) to q; a l̂² + b to both ends' diagonals.
-  int cur = -1;
-  double r_x = 0, r_y = 0, r_z = 0, q_x = 0, q_y = 0, q_z = 0, p_x = 0, p_y = 0, p_z = 0;
-  auto flush = [&] {
-    if (cur < 0) return;
-    R[cur] += r_x, R[cur + 1] += r_y, R[cur + 2] += r_z;
-    Q[cur] += q_x, Q[cur + 1] += q_y, Q[cur + 2] += q_z;
-    P[cur] += p_x, P[cur + 1] += p_y, P[cur + 2] += p_z;
-  };
-  for (size_t s = 0; s < ns; ++s) {
-    const SpringBlock& blk = blocks_[s];
-    const int i = 3 * blk.i, j = 3 * blk.j;
-    if (i != cur) {
-      flush();
-      cur = i;
-      r_x = r_y = r_z = q_x = q_y = q_z = p_x = p_y = p_z = 0;
-    }
-    const double dx = blk.dx, dy = blk.dy, dz = blk.dz, a = blk.a, b = blk.b;
-    const double wx = V[j] - V[i], wy = V[j + 1] - V[i + 1], wz = V[j + 2] - V[i + 2];
-    const double g = spring_impulse_[s] + a * (wx * dx + wy * dy + wz * dz);
-    const double gx = g * dx + b * wx, gy = g * dy + b * wy, gz = g * dz + b * wz;
-    r_x += gx, r_y += gy, r_z += gz;
-    R[j] -= gx, R[j + 1] -= gy, R[j + 2] -= gz;
-    const double ex = DV[i] - DV[j], ey = DV[i + 1] - DV[j + 1], ez = DV[i + 2] - DV[j + 2];
-    const double c = a * (dx * ex + dy * ey + dz * ez);
-    const double tx = c * dx + b * ex, ty = c * dy + b * ey, tz = c * dz + b * ez;
-    q_x += tx, q_y += ty, q_z += tz;
-    Q[j] -= tx, Q[j + 1] -= ty, Q[j + 2] -= tz;
-    const double px = a * dx * dx + b, py = a * dy * dy + b, pz = a * dz * dz + b;
-    p_x += px, p_y += py, p_z += pz;
-    P[j] += px, P[j + 1] += py, P[j + 2] += pz;
-  }
-  flush();
-  // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
-  auto apply = [&](const std::vector<Vec3>& u, std::vector<Vec3>& y) {
-    for (int i = 0; i < n; ++i) y[i] = sys_.masses[i] * u[i];
-    const double* U = u.data()->data();
-    double* Y = y.data()->data();
-    int at = -1;
-    double ax = 0, ay = 0, az = 0;  // running sum for particle `at`
-    for (const SpringBlock& blk : blocks_) {
-      const int i = 3 * blk.i, j = 3 * blk.j;
-      if (i != at) {
-        if (at >= 0) Y[at] += ax, Y[at + 1] += ay, Y[at + 2] += az;
-        at = i, ax = ay = az = 0;
+  // B_s (Δv₀_i − Δv₀_j) to q; a l̂² + b to both ends' diagonals. The first end's sums stay in
+  // registers while the springs (sorted by first end) share it.
+  const V4 xyz{1.0, 1.0, 1.0, 0.0};
+  {
+    int cur = -1;
+    V4 ri{}, qi{}, pi{};
+    for (size_t s = 0; s < ns; ++s) {
+      const SpringBlock& blk = blocks_[s];
+      if (blk.i != cur) {
+        if (cur >= 0) rhs[cur] += ri, q[cur] += qi, pre[cur] += pi;
+        cur = blk.i;
+        ri = qi = pi = V4{};
       }
-      const double ex = U[i] - U[j], ey = U[i + 1] - U[j + 1], ez = U[i + 2] - U[j + 2];
-      const double c = blk.a * (blk.dx * ex + blk.dy * ey + blk.dz * ez);
-      const double tx = c * blk.dx + blk.b * ex, ty = c * blk.dy + blk.b * ey,
-                   tz = c * blk.dz + blk.b * ez;
-      ax += tx, ay += ty, az += tz;
-      Y[j] -= tx, Y[j + 1] -= ty, Y[j + 2] -= tz;
+      const V4& d = *reinterpret_cast<const V4*>(blk.dir);
+      const double a = blk.a, b = blk.b;
+      const V4 w = vel[blk.j] - vel[blk.i];
+      const V4 g = (spring_impulse_[s] + a * Dot(w, d)) * d + b * w;
+      ri += g;
+      rhs[blk.j] -= g;
+      const V4 e = dv[blk.i] - dv[blk.j];
+      const V4 t = (a * Dot(e, d)) * d + b * e;
+      qi += t;
+      q[blk.j] -= t;
+      const V4 dg = a * d * d + b * xyz;
+      pi += dg;
+      pre[blk.j] += dg;
     }
-    if (at >= 0) Y[at] += ax, Y[at + 1] += ay, Y[at + 2] += az;
+    if (cur >= 0) rhs[cur] += ri, q[cur] += qi, pre[cur] += pi;
+  }
+  // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
+  auto apply = [&](const V4* u, V4* y) {
+    for (int i = 0; i < n; ++i) y[i] = sys_.masses[i] * u[i];
+    int at = -1;
+    V4 acc{};  // running sum for particle `at`
+    for (const SpringBlock& blk : blocks_) {
+      if (blk.i != at) {
+        if (at >= 0) y[at] += acc;
+        at = blk.i, acc = V4{};
+      }
+      const V4& d = *reinterpret_cast<const V4*>(blk.dir);
+      const V4 e = u[blk.i] - u[blk.j];
+      const V4 t = (blk.a * Dot(e, d)) * d + blk.b * e;
+      acc += t;
+      y[blk.j] -= t;
+    }
+    if (at >= 0) y[at] += acc;
     for (const Anchor& a : anchors_) y[a.i] += (h * a.c + h2 * a.k) * u[a.i];
-    for (int i : constrained_) y[i].setZero();
+    for (int i : constrained_) y[i] = V4{};
   };
   for (int i = 0; i < n; ++i) {
     // Jacobi: the three reciprocals from one division.
-    const double px = precond_[i].x(), py = precond_[i].y(), pz = precond_[i].z();
+    const double px = pre[i][0], py = pre[i][1], pz = pre[i][2];
     const double inv = 1.0 / (px * py * pz);
-    precond_[i] = Vec3(py * pz * inv, px * pz * inv, px * py * inv);
+    pre[i] = V4{py * pz * inv, px * pz * inv, px * py * inv, 0.0};
   }
-  for (int i : constrained_) {
-    rhs_[i].setZero();
-    q_[i].setZero();
-    precond_[i].setZero();
-  }
+  for (int i : constrained_) rhs[i] = q[i] = pre[i] = V4{};
   double rhs_norm2 = 0;
-  for (int i = 0; i < n; ++i) rhs_norm2 += rhs_[i].squaredNorm();
-  // Preconditioned conjugate gradient (Jacobi), warm-started from the previous Δv (q_ = A Δv₀).
+  for (int i = 0; i < n; ++i) rhs_norm2 += Dot(rhs[i], rhs[i]);
+  // Preconditioned conjugate gradient (Jacobi), warm-started from the previous Δv (q = A Δv₀).
   double rz = 0, r2 = 0;
   for (int i = 0; i < n; ++i) {
-    r_[i] = rhs_[i] - q_[i];
-    p_[i] = precond_[i].cwiseProduct(r_[i]);
-    rz += r_[i].dot(p_[i]);
-    r2 += r_[i].squaredNorm();
+    res[i] = rhs[i] - q[i];
+    p[i] = pre[i] * res[i];
+    rz += Dot(res[i], p[i]);
+    r2 += Dot(res[i], res[i]);
   }
   const double tol2 = params_.cg_tolerance * params_.cg_tolerance * rhs_norm2;
   int it = 0;
   for (; it < params_.cg_max_iterations && r2 > tol2; ++it) {
-    apply(p_, q_);
+    apply(p, q);
     double pq = 0;
-    for (int i = 0; i < n; ++i) pq += p_[i].dot(q_[i]);
+    for (int i = 0; i < n; ++i) pq += Dot(p[i], q[i]);
     if (!(pq > 0)) break;  // the search direction vanished (or the system lost definiteness)
     const double step = rz / pq;
     double rz_new = 0;
     r2 = 0;
     for (int i = 0; i < n; ++i) {
-      dv_[i] += step * p_[i];
-      r_[i] -= step * q_[i];
-      z_[i] = precond_[i].cwiseProduct(r_[i]);
-      rz_new += r_[i].dot(z_[i]);
-      r2 += r_[i].squaredNorm();
+      dv[i] += step * p[i];
+      res[i] -= step * q[i];
+      z[i] = pre[i] * res[i];
+      rz_new += Dot(res[i], z[i]);
+      r2 += Dot(res[i], res[i]);
     }
     const double beta = rz_new / rz;
     rz = rz_new;
-    for (int i = 0; i < n; ++i) p_[i] = z_[i] + beta * p_[i];
+    for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
   }
   cg_iterations_ = it;
   for (int i = 0; i < n; ++i) {
     if (role_[i] != Role::kFree) continue;
-    v_[i] += dv_[i];
+    v_[i] += Vec3(dv[i][0], dv[i][1], dv[i][2]);
     x_[i] += h * v_[i];
   }
 }

@@ -319,7 +319,9 @@ TEST(MassSpringTest, PressedSphereSettlesWithTheToolForceCarriedByTheBase) {
   const int top = 4;
   const Vec3 rest = model.system().rest_positions[top];
   model.SetKinematic(top, true);
-  for (int i = 1; i <= 2000; ++i) {
+  // 6 s: the slowest mode creeps for seconds after the kinetic energy is gone (at 2 s the tool's
+  // force is still 55% above its final value, and the balance holds only to rounding luck).
+  for (int i = 1; i <= 6000; ++i) {
     model.SetKinematicTarget(top, rest - Vec3(0, 0, 0.005 * std::min(1.0, i / 500.0)));
     ASSERT_TRUE(model.Step(1e-3));
   }
