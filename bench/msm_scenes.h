@@ -32,7 +32,7 @@ inline const char* MsmSceneName(int which) {
   return which == 0 ? "sphere258" : which == 1 ? "sphere1026" : "arm6182";
 }
 
-inline MsmScene MakeMsmScene(int which, tissue::Integrator integrator) {
+inline MsmScene MakeMsmScene(int which, tissue::Integrator integrator, double cg_tolerance = 1e-3) {
   geometry::TriMesh mesh;
   if (which < 2) {
     mesh = *geometry::MakeSubdividedSphere(
@@ -45,6 +45,7 @@ inline MsmScene MakeMsmScene(int which, tissue::Integrator integrator) {
   auto sys = tissue::BuildMassSpring(mesh, bp);
   tissue::MassSpringStepParams sp;
   sp.integrator = integrator;
+  sp.cg_tolerance = cg_tolerance;
   auto model = tissue::MassSpringModel::Create(*sys, sp);
   MsmScene s{std::move(*model), {}, {}, std::vector<bool>(mesh.positions.size(), false)};
   const double length = which == 2 ? geometry::ForearmPreset().length : 0;

@@ -17,7 +17,9 @@ namespace {
 
 // A scene as text (bench/peers/README.md "msm"): the step, then every particle as it is after the
 // drive's ramp (position in m, mass in kg, 0 free / 1 fixed / 2 kinematic), then every spring
-// (0-based ends, k in N/m, c in N·s/m, rest length in m).
+// (0-based ends, k in N/m, c in N·s/m, rest length in m), then every particle's rest position (m)
+// and velocity (m/s) for the peers that step displacements from rest (VegaFEM); readers that need
+// only the first parts stop before it.
 Status Export(const MsmScene& s, const std::string& path) {
   std::ofstream out(path);
   if (!out) return Error{ErrorCode::kIoError, "cannot write " + path, "export"};
@@ -39,6 +41,14 @@ Status Export(const MsmScene& s, const std::string& path) {
                   k.rest_length);
     out << line;
   }
+  const auto& v = s.model.velocities();
+  out << "rest " << x.size() << "\n";
+  for (size_t i = 0; i < x.size(); ++i) {
+    const geometry::Vec3& r = sys.rest_positions[i];
+    std::snprintf(line, sizeof line, "%.17g %.17g %.17g %.17g %.17g %.17g\n", r.x(), r.y(), r.z(),
+                  v[i].x(), v[i].y(), v[i].z());
+    out << line;
+  }
   return out ? Status::Ok() : Error{ErrorCode::kIoError, "cannot write " + path, "export"};
 }
 
@@ -47,11 +57,13 @@ Status Export(const MsmScene& s, const std::string& path) {
 int MsmStep(const std::vector<std::string>& args) {
   cli::ArgParser p(
       "vsurg-bench msm-step",
-      "The implicit-Euler mass-spring step (conjugate gradient, tolerance 1e-3) on\n"
+      "The implicit-Euler mass-spring step (conjugate gradient to --tolerance) on\n"
       "the 1026-particle sphere pressed 5 mm and the 6182-particle arm twisted 60°,\n"
       "at dt = 0.2 ms: the median time per step over --steps steps, after the drive's\n"
       "ramp. --export DIR writes each scene as DIR/<scene>.msm for the peers.");
   p.Option("steps", cli::ArgParser::Kind::kInt, "timed steps per scene", false, "2000")
+      .Option("tolerance", cli::ArgParser::Kind::kDouble,
+              "the conjugate gradient's relative residual", false, "1e-3")
       .Option("export", cli::ArgParser::Kind::kString, "write the scenes' files here")
       .Option("json", cli::ArgParser::Kind::kFlag, "print one JSON line per scene");
   if (auto rc = cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
@@ -60,8 +72,15 @@ int MsmStep(const std::vector<std::string>& args) {
     std::cerr << p.command() << ": --steps: must be within 10..1000000\n";
     return 2;
   }
+  const double tolerance = p.Double("tolerance");
+  if (!(tolerance >= 1e-12 && tolerance <= 0.1)) {
+    std::cerr << p.command() << ": --tolerance: must be within 1e-12..0.1\n";
+    return 2;
+  }
+  char method[64];
+  std::snprintf(method, sizeof method, "implicit Euler, CG %g", tolerance);
   for (int which : {1, 2}) {
-    MsmScene s = MakeMsmScene(which, tissue::Integrator::kImplicitEuler);
+    MsmScene s = MakeMsmScene(which, tissue::Integrator::kImplicitEuler, tolerance);
     if (p.Has("export")) {
       std::filesystem::create_directories(p.String("export"));
       const std::string path = p.String("export") + "/" + MsmSceneName(which) + ".msm";
@@ -86,7 +105,7 @@ int MsmStep(const std::vector<std::string>& args) {
                               {"scene", MsmSceneName(which)},
                               {"particles", s.model.positions().size()},
                               {"springs", s.model.system().springs.size()},
-                              {"method", "implicit Euler, CG 1e-3"},
+                              {"method", method},
                               {"step_us_median", median},
                               {"step_us_p90", p90},
                               {"cg_iterations", static_cast<double>(cg) / steps},

@@ -1,19 +1,33 @@
 #!/usr/bin/env bash
 # The mass-spring step side by side in one run: vsurg's implicit Euler (vsurg-bench msm-step:
-# conjugate gradient to 1e-3) and PositionBasedDynamics' XPBD (bench/peers/pbd: 10 iterations of
-# its distance constraint over every spring, compliance 1/k), on the same scenes written out by
+# conjugate gradient to 1e-3, and to VegaFEM's 1e-6), PositionBasedDynamics' XPBD
+# (bench/peers/pbd: 10 iterations of its distance constraint over every spring, compliance 1/k)
+# and, given its checkout, VegaFEM's implicit mass-spring step (bench/peers/vegafem: backward
+# Euler, one Newton iteration, Jacobi PCG to 1e-6), on the same scenes written out by
 # `vsurg-bench msm-step --export` (the 1026-particle sphere pressed 5 mm, the 6182-particle arm
 # twisted 60°, dt 0.2 ms), alternately, REPS rounds. Prints one table: the median time per step
-# over the rounds and PBD's time over ours per round (median).
+# over the rounds and each peer's time over this row's per round (median).
 #
-# usage: bench/peers/msm.sh BIN_DIR PBD_CHECKOUT
+# usage: bench/peers/msm.sh BIN_DIR PBD_CHECKOUT [VEGAFEM_CHECKOUT]
 #   PBD_CHECKOUT: a checkout of https://github.com/InteractiveComputerGraphics/PositionBasedDynamics
 #   outside this repository (only PositionBasedDynamics/ and Common/ are read; the harness is
-#   built beside it in CHECKOUT-harness). Environment: REPS (default 5), STEPS (default 2000),
-#   ITERATIONS (PBD's, default 10), OUT (raw JSON lines).
+#   built beside it in CHECKOUT-harness). VEGAFEM_CHECKOUT: https://github.com/dyollb/VegaFEM, the
+#   harness built in CHECKOUT-harness as fem.sh builds it. Environment: REPS (default 5), STEPS
+#   (default 2000), ITERATIONS (PBD's, default 10), OUT (raw JSON lines).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 peers_setup msm.sh "${1:?BIN_DIR}" "${2:?PBD_CHECKOUT}"
+vega="${3:-}"
+if [ -n "$vega" ]; then
+  [ -d "$vega/libraries" ] || { echo "msm.sh: $vega is not a VegaFEM checkout" >&2; exit 2; }
+  vega="$(cd "$vega" && pwd)"
+  if [ ! -x "$vega-harness/vega_msm_step" ]; then
+    echo "msm.sh: building the harness with VegaFEM's sources in $vega-harness" >&2
+    cmake -S "$here/vegafem" -B "$vega-harness" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+      "-DVEGA_SOURCE=$vega" >/dev/null
+    cmake --build "$vega-harness" -j2 >/dev/null
+  fi
+fi
 reps="${REPS:-5}"
 steps="${STEPS:-2000}"
 iterations="${ITERATIONS:-10}"
@@ -28,10 +42,17 @@ fi
 lines="$out/msm.jsonl"
 : > "$lines"
 for rep in $(seq "$reps"); do
-  "$bin/vsurg-bench" msm-step --steps "$steps" --json | sed "s/^/{\"rep\": $rep, \"result\": /; s/\$/}/" >> "$lines"
+  for tolerance in 1e-3 1e-6; do
+    "$bin/vsurg-bench" msm-step --steps "$steps" --tolerance "$tolerance" --json |
+      sed "s/^/{\"rep\": $rep, \"who\": \"vsurg $tolerance\", \"result\": /; s/\$/}/" >> "$lines"
+  done
   for scene in sphere1026 arm6182; do
     j="$("$peer-harness/pbd_step" "$out/scenes/$scene.msm" "$steps" "$iterations")"
-    echo "{\"rep\": $rep, \"result\": $j}" >> "$lines"
+    echo "{\"rep\": $rep, \"who\": \"pbd\", \"result\": $j}" >> "$lines"
+    if [ -n "$vega" ]; then
+      j="$("$vega-harness/vega_msm_step" "$out/scenes/$scene.msm" "$((steps / 10))")"
+      echo "{\"rep\": $rep, \"who\": \"vegafem\", \"result\": $j}" >> "$lines"
+    fi
   done
   echo "msm.sh: round $rep of $reps done" >&2
 done
@@ -39,16 +60,19 @@ done
 python3 - "$lines" <<'PY'
 import json, statistics, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
-print("| scene | particles | springs | who | method | µs per step (median over rounds) | PBD / this (per round, median) |")
-print("| --- | --- | --- | --- | --- | --- | --- |")
+print("| scene | particles | springs | who | method | µs per step (median over rounds) | PBD / this | VegaFEM / this |")
+print("| --- | --- | --- | --- | --- | --- | --- | --- |")
 for scene in ("sphere1026", "arm6182"):
-    of = lambda who: [x for x in rows if x["result"]["scene"] == scene and x["result"]["who"] == who]
-    pbd = {x["rep"]: x["result"]["step_us_median"] for x in of("pbd")}
-    for who in ("vsurg", "pbd"):
+    of = lambda who: [x for x in rows if x["result"]["scene"] == scene and x["who"] == who]
+    peers = {p: {x["rep"]: x["result"]["step_us_median"] for x in of(p)} for p in ("pbd", "vegafem")}
+    for who in ("vsurg 1e-3", "vsurg 1e-6", "pbd", "vegafem"):
         xs = of(who)
+        if not xs:
+            continue
         us = statistics.median(x["result"]["step_us_median"] for x in xs)
-        ratio = statistics.median(pbd[x["rep"]] / x["result"]["step_us_median"] for x in xs)
+        ratio = lambda p: (f"{statistics.median(peers[p][x['rep']] / x['result']['step_us_median'] for x in xs):.2f}"
+                           if peers[p] and who not in ("pbd", "vegafem") else "")
         r = xs[0]["result"]
-        print(f"| {scene} | {r['particles']} | {r['springs']} | {who} | {r['method']} | {us:.1f} | {ratio:.2f} |")
+        print(f"| {scene} | {r['particles']} | {r['springs']} | {who.split()[0]} | {r['method']} | {us:.1f} | {ratio('pbd')} | {ratio('vegafem')} |")
 PY
 echo "raw: $lines" >&2

@@ -548,19 +548,34 @@ void MassSpringModel::StepImplicit(double h) {
   const size_t ns = sys_.springs.size();
   const double* X = x_.data()->data();
   // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, the block's
-  // scalars a = h c + h² k (1 − α), b = h² k α, and h k (|l| − L).
-  for (size_t s = 0; s < ns; ++s) {
-    const Spring& sp = sys_.springs[s];
-    SpringBlock& blk = blocks_[s];
-    const int i = 3 * sp.i, j = 3 * sp.j;
-    const double lx = X[j] - X[i], ly = X[j + 1] - X[i + 1], lz = X[j + 2] - X[i + 2];
-    const double len = std::sqrt(lx * lx + ly * ly + lz * lz);
-    const double inv = len < kMinLength ? 0.0 : 1.0 / len;
-    const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
-    blk.dir[0] = lx * inv, blk.dir[1] = ly * inv, blk.dir[2] = lz * inv, blk.dir[3] = 0.0;
-    blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
-    blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
-    spring_impulse_[s] = inv > 0 ? h * sp.stiffness * (len - sp.rest_length) : 0.0;
+  // scalars a = h c + h² k (1 − α), b = h² k α, and h k (|l| − L). In chunks that stay in L1:
+  // the spring vectors first, then the reciprocal lengths in one loop the compiler vectorises
+  // (the square roots and divisions four at a time), then the rest.
+  constexpr size_t kChunk = 256;
+  double len2[kChunk], inv_len[kChunk];
+  for (size_t c0 = 0; c0 < ns; c0 += kChunk) {
+    const size_t cn = std::min(kChunk, ns - c0);
+    for (size_t k = 0; k < cn; ++k) {
+      const Spring& sp = sys_.springs[c0 + k];
+      SpringBlock& blk = blocks_[c0 + k];
+      const int i = 3 * sp.i, j = 3 * sp.j;
+      const double lx = X[j] - X[i], ly = X[j + 1] - X[i + 1], lz = X[j + 2] - X[i + 2];
+      blk.dir[0] = lx, blk.dir[1] = ly, blk.dir[2] = lz, blk.dir[3] = 0.0;
+      len2[k] = lx * lx + ly * ly + lz * lz;
+    }
+    // No select in this loop (with trapping math GCC will not vectorise one): 1e-300 keeps a
+    // zero length finite and is below the rounding of any length the next loop keeps.
+    for (size_t k = 0; k < cn; ++k) inv_len[k] = 1.0 / std::sqrt(len2[k] + 1e-300);
+    for (size_t k = 0; k < cn; ++k) {
+      const Spring& sp = sys_.springs[c0 + k];
+      SpringBlock& blk = blocks_[c0 + k];
+      const double inv = len2[k] < kMinLength * kMinLength ? 0.0 : inv_len[k];
+      const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
+      for (int c = 0; c < 3; ++c) blk.dir[c] *= inv;
+      blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
+      blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
+      spring_impulse_[c0 + k] = inv > 0 ? h * sp.stiffness * (len2[k] * inv - sp.rest_length) : 0.0;
+    }
   }
   // Pass 2 sums into the particles. With w = v_j − v_i, spring s adds to end i (end j: the
   // negative) h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w) l̂ + b w to rhs, and
