@@ -86,18 +86,20 @@ class CoilDeformer {
   std::vector<geometry::Vec3> deformed_;
   std::vector<double> rho_by_vertex_;
 
-  // Rows in ascending ρ.
-  std::vector<int32_t> vertex_;       // mesh index of row
-  std::vector<double> dx_, dy_, dz_;  // offset from the axis, ⊥ axis, m
-  std::vector<double> qx_, qy_, qz_;  // axis × offset, m
+  // Rows in ascending ρ, x y z interleaved: the rest position, the offset d from the axis (⊥ axis)
+  // and axis × d, m.
+  std::vector<double> rest_rows_, d_rows_, q_rows_;
   // Groups of rows with equal ρ: rows [group_begin_[g], group_begin_[g+1]).
   std::vector<double> group_rho_;
   std::vector<int32_t> group_begin_;
+  // Runs: rows [run_row_[r], run_row_[r+1]) are the vertices run_vertex_[r], +1, …; group g's
+  // runs are [group_run_[g], group_run_[g+1]).
+  std::vector<int32_t> run_row_, run_vertex_, group_run_;
   // Where each group sits among the coils, fixed at binding: θ_g = Θ_{k−1} + t·(Θ_k − Θ_{k−1})
   // (CoilSpringModel::TwistAt for a group inside the cutoff, without its per-call search).
   std::vector<int32_t> group_ring_;  // k, 1..S
   std::vector<double> group_t_;      // t, 0..1 (0 in the core)
-  int moved_groups_ = 0;  // groups written with a non-zero angle by the last update
+  int moved_groups_ = 0;             // groups written with a non-zero angle by the last update
 };
 
 }  // namespace vsurg::tissue
