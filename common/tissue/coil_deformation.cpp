@@ -7,6 +7,8 @@
 
 #include <Eigen/Geometry>
 
+#include "common/tissue/simd.h"
+
 namespace vsurg::tissue {
 
 using geometry::Vec3;
@@ -25,9 +27,7 @@ struct Rows {
   const int32_t *group_ring, *group_run, *run_row, *run_vertex;
   const double *group_t, *rest, *d, *q;
 };
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("arch=x86-64-v3", "default")))
-#endif
+VSURG_SIMD_CLONES
 void TurnGroups(int groups, const double* angles, const Rows& rows, double* __restrict out) {
   for (int g = 0; g < groups; ++g) {
     const int ring = rows.group_ring[g];

@@ -6,6 +6,8 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 
+#include "common/tissue/simd.h"
+
 namespace vsurg::tissue {
 namespace {
 
@@ -49,6 +51,34 @@ void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations, M
   r = q.toRotationMatrix();  // the iteration limit: the last update untested
 }
 
+// y_i = c_m·m_i·x_i + c_k·Σ_k B_k·x_col[k] over the block CSR, fixed rows 0: each 3×3 block
+// (column-major, 9 doubles) is three column loads and three multiply-adds of four lanes (the
+// fourth reads the next block's first entry and is dropped; the array has one block of padding
+// past its last).
+VSURG_SIMD_CLONES
+void BlockProduct(int nv, double c_m, double c_k, const int* row_start, const int* col,
+                  const double* blocks, const double* mass, const uint8_t* is_fixed,
+                  const double* in, double* out) {
+  using simd::V4;
+  for (int i = 0; i < nv; ++i) {
+    double* o = out + 3 * i;
+    if (is_fixed[i]) {
+      o[0] = o[1] = o[2] = 0.0;
+      continue;
+    }
+    V4 acc{};
+    for (int k = row_start[i]; k < row_start[i + 1]; ++k) {
+      const double* b = blocks + 9 * static_cast<ptrdiff_t>(k);
+      const double* x = in + 3 * col[k];
+      acc += *reinterpret_cast<const V4*>(b) * x[0] + *reinterpret_cast<const V4*>(b + 3) * x[1] +
+             *reinterpret_cast<const V4*>(b + 6) * x[2];
+    }
+    const double* x = in + 3 * i;
+    const double cm = c_m * mass[i];
+    for (int c = 0; c < 3; ++c) o[c] = cm * x[c] + c_k * acc[c];
+  }
+}
+
 }  // namespace
 
 struct FemModel::Impl {
@@ -67,7 +97,7 @@ struct FemModel::Impl {
   std::vector<Mat3> rotation_matrix;
   // Block CSR of the vertex adjacency: row r's blocks are [row_start[r], row_start[r+1]).
   std::vector<int> row_start, col;
-  std::vector<Mat3> blocks;               // K (corotated), assembled each step
+  std::vector<Mat3> blocks;  // K (corotated), assembled each step; one block of padding at the end
   std::vector<int> diag_slot;             // slot of (r, r)
   std::vector<std::array<int, 16>> slot;  // element (a, b) → block index
   // CG scratch.
@@ -138,18 +168,9 @@ struct FemModel::Impl {
 
   // out = (c_m·M + c_k·K)·in on free vertices; fixed rows are zero.
   void Apply(double c_m, double c_k, const std::vector<Vec3>& in, std::vector<Vec3>& out) const {
-    const int nv = n();
-    for (int i = 0; i < nv; ++i) {
-      if (is_fixed[i]) {
-        out[i].setZero();
-        continue;
-      }
-      Vec3 s = c_m * mass[i] * in[i];
-      Vec3 ks = Vec3::Zero();
-      // Fixed vertices' entries of `in` are zero in every call (CG keeps them at zero).
-      for (int k = row_start[i]; k < row_start[i + 1]; ++k) ks.noalias() += blocks[k] * in[col[k]];
-      out[i] = s + c_k * ks;
-    }
+    static_assert(sizeof(Mat3) == 9 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double));
+    BlockProduct(n(), c_m, c_k, row_start.data(), col.data(), blocks.data()->data(), mass.data(),
+                 is_fixed.data(), in.data()->data(), out.data()->data());
   }
 
   // Block-Jacobi PCG on (c_m·M + c_k·K)·sol = b, warm-started from sol.
@@ -284,7 +305,7 @@ Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemPara
     m.row_start[i + 1] = m.row_start[i] + static_cast<int>(row.size());
     m.col.insert(m.col.end(), row.begin(), row.end());
   }
-  m.blocks.assign(m.col.size(), Mat3::Zero());
+  m.blocks.assign(m.col.size() + 1, Mat3::Zero());  // + BlockProduct's padding
   auto find_slot = [&](int r, int c) {
     const auto first = m.col.begin() + m.row_start[r], last = m.col.begin() + m.row_start[r + 1];
     return static_cast<int>(std::lower_bound(first, last, c) - m.col.begin());

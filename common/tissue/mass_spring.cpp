@@ -5,6 +5,7 @@
 #include <map>
 #include <utility>
 
+#include "common/tissue/simd.h"
 #include "common/tissue/text.h"
 
 namespace vsurg::tissue {
@@ -499,19 +500,10 @@ void MassSpringModel::StepOnce(double h) {
 // The solver's per-particle vectors are 4 doubles (the fourth always 0) and its arithmetic is
 // written with GCC's vector extension, so one instruction does a 3-vector: AVX2 in the clone
 // the loader picks on CPUs that have it, two SSE2 halves in the baseline build.
-namespace {
-// A particle's 3-vector padded to 4 doubles (the fourth 0), read and written in place: may_alias
-// and 8-byte alignment make the solver's std::vector<double> storage legal to view this way.
-using V4 = double __attribute__((vector_size(32), aligned(8), may_alias));
-inline double Dot(const V4& a, const V4& b) {
-  const V4 m = a * b;
-  return (m[0] + m[2]) + (m[1] + m[3]);
-}
-}  // namespace
+using simd::Dot;
+using simd::V4;
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("arch=x86-64-v3", "default")))
-#endif
+VSURG_SIMD_CLONES
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
   auto view = [](std::vector<double>& a) { return reinterpret_cast<V4*>(a.data()); };
