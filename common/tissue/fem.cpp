@@ -151,15 +151,40 @@ struct FemModel::Impl {
         out[t[a]].noalias() -= rs * grad[e][a];
         hg[a] = rot * grad[e][a];
       }
-      if (!assemble) continue;
-      const double vl = v_lambda[e], vm = v_mu[e];
-      for (int a = 0; a < 4; ++a) {
-        for (int b = a; b < 4; ++b) {
-          Mat3 k = vl * hg[a] * hg[b].transpose() + vm * hg[b] * hg[a].transpose();
-          k.diagonal().array() += vm * grad[e][a].dot(grad[e][b]);
-          blocks[slot[e][a * 4 + b]] += k;
-          if (b != a) blocks[slot[e][b * 4 + a]] += k.transpose();
-        }
+      if (assemble) AddElementBlocks(e, hg);
+    }
+  }
+
+  // Element e's sixteen blocks into the CSR. A block's nine entries (column-major) are two
+  // four-lane vectors and one scalar: entry r + 3c of h_a h_bᵀ is h_a[r]·h_b[c], so with the
+  // lane patterns P1(h) = (h0 h1 h2 h0), P2(h) = (h1 h2 h0 h1) for the rows and Q1(h) =
+  // (h0 h0 h0 h1), Q2(h) = (h1 h1 h2 h2) for the columns, entries 0–3 are P1(h_a)·Q1(h_b) and
+  // 4–7 are P2(h_a)·Q2(h_b); the (b, a) block is the same with a and b swapped.
+  VSURG_SIMD_CLONES
+  void AddElementBlocks(int e, const Vec3 (&hg)[4]) {
+    using simd::V4;
+    V4 p1[4], p2[4], q1[4], q2[4];
+    for (int a = 0; a < 4; ++a) {
+      const Vec3& h = hg[a];
+      p1[a] = V4{h.x(), h.y(), h.z(), h.x()}, p2[a] = V4{h.y(), h.z(), h.x(), h.y()};
+      q1[a] = V4{h.x(), h.x(), h.x(), h.y()}, q2[a] = V4{h.y(), h.y(), h.z(), h.z()};
+    }
+    const double vl = v_lambda[e], vm = v_mu[e];
+    for (int a = 0; a < 4; ++a) {
+      for (int b = a; b < 4; ++b) {
+        const double d = vm * grad[e][a].dot(grad[e][b]);  // μV (g_a·g_b) on the diagonal
+        const V4 diag{d, 0.0, 0.0, 0.0};
+        const V4 x1 = p1[a] * q1[b], y1 = p1[b] * q1[a], x2 = p2[a] * q2[b], y2 = p2[b] * q2[a];
+        const double x3 = hg[a].z() * hg[b].z();
+        double* k = blocks[slot[e][a * 4 + b]].data();
+        *reinterpret_cast<V4*>(k) += vl * x1 + vm * y1 + diag;
+        *reinterpret_cast<V4*>(k + 4) += vl * x2 + vm * y2 + diag;
+        k[8] += (vl + vm) * x3 + d;
+        if (b == a) continue;
+        double* kt = blocks[slot[e][b * 4 + a]].data();
+        *reinterpret_cast<V4*>(kt) += vl * y1 + vm * x1 + diag;
+        *reinterpret_cast<V4*>(kt + 4) += vl * y2 + vm * x2 + diag;
+        kt[8] += (vl + vm) * x3 + d;
       }
     }
   }
