@@ -8,18 +8,20 @@
 // Element e with vertices 0..3 (Müller & Gross 2004, "Interactive virtual materials"):
 //   shape gradients g_a from the rest edge matrix, V rest volume, Lamé λ, μ from E, ν;
 //   K_ab = V·(λ·g_a g_bᵀ + μ·g_b g_aᵀ + μ·(g_a·g_b)·I)            (3×3 block of the 12×12 Ke)
-//   R = the rotation of the deformation gradient F = D_s·D_m⁻¹, extracted by the iteration of
-//       Müller et al. 2016 ("A robust method to extract the rotational part of deformations"),
-//       warm-started from the previous step: it always returns a rotation, also for a flat or
-//       inverted element (where a polar decomposition's R would be a reflection or undefined),
-//       so an inverted element is pushed back instead of producing NaN.
+//   R = the rotation of the deformation gradient F = D_s·D_m⁻¹, by Newton's iteration on
+//       tr(Rᵀ F) warm-started from the previous step, falling back to the iteration of Müller et
+//       al. 2016 ("A robust method to extract the rotational part of deformations") where
+//       Newton's matrix is not positive definite: it always returns a rotation, also for a flat
+//       or inverted element (where a polar decomposition's R would be a reflection or
+//       undefined), so an inverted element is pushed back instead of producing NaN.
 //   f_a = −R·Σ_b K_ab·(Rᵀ x_b − X_b),   stiffness blocks R·K_ab·Rᵀ.
 //
 // Implicit Euler, linearised (one Newton step, Baraff & Witkin 1998):
 //   (M + h·D + h²·K)·Δv = h·(f(x) + f_ext − D·v − h·K·v),  v ← v + Δv,  x ← x + h·v.
 // The matrix is assembled each step into a block-CSR of 3×3 blocks whose pattern and element →
-// slot map are precomputed, then solved by block-Jacobi preconditioned CG warm-started from the
-// previous Δv. Fixed vertices are Dirichlet: their rows are projected out of the CG.
+// slot map are precomputed, then solved by block-Jacobi preconditioned CG started from Δv
+// extrapolated from the last two steps'. Fixed vertices are Dirichlet: their rows are projected out
+// of the CG.
 //
 // Static: K(x)·Δx = f(x) + f_ext, repeated (corotated quasi-Newton) until the residual is below
 // tolerance; Eigen's SimplicialLDLT with the pattern analysed once, the factorisation kept while
