@@ -20,7 +20,8 @@
 //   verlet             velocity Verlet; the damper sees an Euler-predicted end velocity  order 2
 //   implicit-euler     Baraff & Witkin 1998: one Newton step of backward Euler,
 //                      (M + h C + h² K) Δv = h (f + h ∂f/∂x v), by preconditioned
-//                      conjugate gradient, warm-started from the previous Δv    order 1
+//                      conjugate gradient, started from Δv extrapolated from the
+//                      last two steps'                                           order 1
 // K is the spring stiffness matrix with the compressive transverse term clamped at zero
 // (Choi & Ko 2002), so the system is symmetric positive definite and CG applies.
 //
@@ -207,7 +208,7 @@ class MassSpringModel {
   std::vector<double> spring_impulse_;  // h k (|l| − L) per spring, N·s
   std::vector<int> constrained_;        // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0).
-  std::vector<double> rhs_, dv_, r_, z_, p_, q_, precond_, vel_;
+  std::vector<double> rhs_, dv_, dv_prev_, r_, z_, p_, q_, precond_, vel_;
 };
 
 }  // namespace vsurg::tissue
