@@ -258,6 +258,10 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
                      ec.message(),
                  "port"};
   }
+  if (options.receive_buffer_bytes > 0) {  // best effort: the kernel may cap it
+    const int bytes = options.receive_buffer_bytes;
+    ::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes);
+  }
   // A quiet socket's receive returns every tick, for the housekeeping.
   const timeval tick{0, static_cast<suseconds_t>(Impl::kTickS * 1e6)};
   if (::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tick, sizeof tick) != 0)
@@ -336,6 +340,14 @@ EndpointCounters UdpEndpoint::counters() const {
   c.frame_chunks = impl_->visual ? impl_->visual->chunks() : 0;
   for (size_t i = 0; i < c.dropped.size(); ++i) c.dropped[i] = impl_->dropped[i].load();
   return c;
+}
+
+int UdpEndpoint::receive_buffer_bytes() const {
+  int bytes = 0;
+  socklen_t size = sizeof bytes;
+  if (::getsockopt(impl_->socket.native_handle(), SOL_SOCKET, SO_RCVBUF, &bytes, &size) != 0)
+    return 0;
+  return bytes;
 }
 
 double UdpEndpoint::io_cpu_seconds() const {

@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <fstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -100,6 +101,26 @@ TEST(UdpEndpointTest, AnswersEachStylusDatagramWithAnAuthenticatedForce) {
   const EndpointCounters n = f.endpoint->counters();
   EXPECT_EQ(n.received, 20u);
   EXPECT_EQ(n.answered, 20u);
+}
+
+// A burst that finds the I/O thread off its core queues instead of being dropped: the socket's
+// buffer is raised from the kernel's default (~208 KiB) as far as net.core.rmem_max allows.
+TEST(UdpEndpointTest, TheReceiveBufferHoldsMillisecondsOfEveryStation) {
+  int rmem_max = 0, rmem_default = 0;
+  std::ifstream("/proc/sys/net/core/rmem_max") >> rmem_max;
+  std::ifstream("/proc/sys/net/core/rmem_default") >> rmem_default;
+  ASSERT_GT(rmem_max, 0);
+  ASSERT_GT(rmem_default, 0);
+  EndpointOptions options;
+  auto raised = UdpEndpoint::Create(options);
+  ASSERT_TRUE(raised.ok()) << raised.error().message;
+  // Linux doubles the request for its bookkeeping, after capping it at rmem_max.
+  EXPECT_EQ((*raised)->receive_buffer_bytes(),
+            2 * std::min(options.receive_buffer_bytes, rmem_max));
+  options.receive_buffer_bytes = 0;
+  auto plain = UdpEndpoint::Create(options);
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  EXPECT_EQ((*plain)->receive_buffer_bytes(), rmem_default);
 }
 
 TEST(UdpEndpointTest, RejectsWhatIsNotAuthenticAndNeverAnswersIt) {
