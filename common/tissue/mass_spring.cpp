@@ -513,22 +513,21 @@ void MassSpringModel::StepImplicit(double h) {
             *const p = view(p_), *const q = view(q_), *const pre = view(precond_),
             *const vel = view(vel_);
   PlaceKinematic(x_, v_, 0.0, h);
+  // Δv's first guess extrapolated from the last two steps' (2 Δv_{n−1} − Δv_{n−2}): the held
+  // arm needs 1.0 CG iterations instead of 2.0, the pressed sphere 0.5 instead of 1.1. Zero
+  // where there is no unknown (also for a particle fixed since the last step: the product
+  // with the first guess must not see its old Δv).
+  V4* const prev = view(dv_prev_);
   constrained_.clear();
   for (int i = 0; i < n; ++i) {
+    const V4 last = dv[i];
     if (role_[i] != Role::kFree) {
       constrained_.push_back(i);  // capacity reserved: no allocation
-      dv[i] = V4{};               // warm start only where the unknowns are
+      dv[i] = prev[i] = V4{};
+      continue;
     }
-  }
-  // Δv's first guess extrapolated from the last two steps' (2 Δv_{n−1} − Δv_{n−2}): the held
-  // arm needs 1.0 CG iterations instead of 2.0, the pressed sphere 0.5 instead of 1.1.
-  {
-    V4* const prev = view(dv_prev_);
-    for (int i = 0; i < n; ++i) {
-      const V4 last = dv[i];
-      dv[i] = 2.0 * last - prev[i];
-      prev[i] = last;
-    }
+    dv[i] = 2.0 * last - prev[i];
+    prev[i] = last;
   }
   // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
   // together: particle terms first, then the anchors, then one pass over the springs.
