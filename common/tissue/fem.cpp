@@ -70,8 +70,9 @@ void BlockProduct(int nv, double c_m, double c_k, const int* row_start, const in
     for (int k = row_start[i]; k < row_start[i + 1]; ++k) {
       const double* b = blocks + 9 * static_cast<ptrdiff_t>(k);
       const double* x = in + 3 * col[k];
-      acc += *reinterpret_cast<const V4*>(b) * x[0] + *reinterpret_cast<const V4*>(b + 3) * x[1] +
-             *reinterpret_cast<const V4*>(b + 6) * x[2];
+      V4 c0, c1, c2;
+      simd::Load(c0, b), simd::Load(c1, b + 3), simd::Load(c2, b + 6);
+      acc += c0 * x[0] + c1 * x[1] + c2 * x[2];
     }
     const double* x = in + 3 * i;
     const double cm = c_m * mass[i];
@@ -177,13 +178,13 @@ struct FemModel::Impl {
         const V4 x1 = p1[a] * q1[b], y1 = p1[b] * q1[a], x2 = p2[a] * q2[b], y2 = p2[b] * q2[a];
         const double x3 = hg[a].z() * hg[b].z();
         double* k = blocks[slot[e][a * 4 + b]].data();
-        *reinterpret_cast<V4*>(k) += vl * x1 + vm * y1 + diag;
-        *reinterpret_cast<V4*>(k + 4) += vl * x2 + vm * y2 + diag;
+        simd::AddTo(k, vl * x1 + vm * y1 + diag);
+        simd::AddTo(k + 4, vl * x2 + vm * y2 + diag);
         k[8] += (vl + vm) * x3 + d;
         if (b == a) continue;
         double* kt = blocks[slot[e][b * 4 + a]].data();
-        *reinterpret_cast<V4*>(kt) += vl * y1 + vm * x1 + diag;
-        *reinterpret_cast<V4*>(kt + 4) += vl * y2 + vm * x2 + diag;
+        simd::AddTo(kt, vl * y1 + vm * x1 + diag);
+        simd::AddTo(kt + 4, vl * y2 + vm * x2 + diag);
         kt[8] += (vl + vm) * x3 + d;
       }
     }

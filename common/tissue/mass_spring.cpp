@@ -249,7 +249,7 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   }
   for (auto* buf :
        {&m.rhs_, &m.dv_, &m.dv_prev_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.vel_}) {
-    buf->assign(4 * static_cast<size_t>(n), 0.0);
+    buf->assign(n, simd::Lane4{});
   }
   const size_t ns = sys.springs.size();
   m.blocks_.resize(ns);
@@ -386,8 +386,8 @@ bool MassSpringModel::Step(double dt, int substeps) {
 void MassSpringModel::Reset() {
   std::copy(sys_.rest_positions.begin(), sys_.rest_positions.end(), x_.begin());
   std::fill(v_.begin(), v_.end(), Vec3::Zero());
-  std::fill(dv_.begin(), dv_.end(), 0.0);
-  std::fill(dv_prev_.begin(), dv_prev_.end(), 0.0);
+  std::fill(dv_.begin(), dv_.end(), simd::Lane4{});
+  std::fill(dv_prev_.begin(), dv_prev_.end(), simd::Lane4{});
   for (int i : kinematic_) kin_target_[i] = x_[i];
   verlet_primed_ = false;
   diverged_ = false;
@@ -508,7 +508,7 @@ using simd::V4;
 VSURG_SIMD_CLONES
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
-  auto view = [](std::vector<double>& a) { return reinterpret_cast<V4*>(a.data()); };
+  auto view = [](std::vector<simd::Lane4>& a) { return reinterpret_cast<V4*>(a.data()); };
   V4 *const rhs = view(rhs_), *const dv = view(dv_), *const res = view(r_), *const z = view(z_),
             *const p = view(p_), *const q = view(q_), *const pre = view(precond_),
             *const vel = view(vel_);

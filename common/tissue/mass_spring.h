@@ -41,6 +41,7 @@
 
 #include "common/core/expected.h"
 #include "common/geometry/mesh.h"
+#include "common/tissue/simd.h"
 
 namespace vsurg::tissue {
 
@@ -194,21 +195,21 @@ class MassSpringModel {
   // Scratch, sized once at Create: no allocation per step.
   std::vector<Vec3> a_, tx_, tv_, k1v_, k2x_, k2v_, k3x_, k3v_, kin_final_;
   // Implicit Euler: per-spring block B_s = a l̂l̂ᵀ + b I of h C_s + h² K_s, with the spring's
-  // ends, in one 56-byte record so the CG product streams a single array (6144 springs of the
-  // 1026-particle sphere: 344 KB, inside L2; l̂ padded to four doubles, one AVX register).
+  // ends, in one 64-byte record so the CG product streams a single array (6144 springs of the
+  // 1026-particle sphere: 393 KB, inside L2; l̂ padded to four doubles, one AVX register).
   // h k (|l| − L) is apart: only the set-up passes read it. Measured alternatives: a gather product
   // per particle over a CSR incidence list (no read-after-store, but every spring done twice) was
   // 1.3× slower; fusing set-up into one scatter pass was 1.25× slower than the two passes.
   struct SpringBlock {
-    double dir[4];  // l̂, 0
+    alignas(32) double dir[4];  // l̂, 0 (aligned: read as one vector)
     double a, b;
     int32_t i, j;
   };
   std::vector<SpringBlock> blocks_;
   std::vector<double> spring_impulse_;  // h k (|l| − L) per spring, N·s
   std::vector<int> constrained_;        // fixed and kinematic particles: Δv = 0 in the solve
-  // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0).
-  std::vector<double> rhs_, dv_, dv_prev_, r_, z_, p_, q_, precond_, vel_;
+  // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
+  std::vector<simd::Lane4> rhs_, dv_, dv_prev_, r_, z_, p_, q_, precond_, vel_;
 };
 
 }  // namespace vsurg::tissue
