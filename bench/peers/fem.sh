@@ -22,12 +22,7 @@ rings=("$@")
 reps="${REPS:-5}"
 steps="${STEPS:-50}"
 
-if [ ! -x "$peer-harness/vega_fem_step" ]; then
-  echo "fem.sh: building the harness with VegaFEM's sources in $peer-harness" >&2
-  cmake -S "$here/vegafem" -B "$peer-harness" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-    "-DVEGA_SOURCE=$peer" >/dev/null
-  cmake --build "$peer-harness" -j2 >/dev/null
-fi
+peers_build_vega fem.sh "$peer"
 
 lines="$out/fem.jsonl"
 : > "$lines"

@@ -21,12 +21,8 @@ vega="${3:-}"
 if [ -n "$vega" ]; then
   [ -d "$vega/libraries" ] || { echo "msm.sh: $vega is not a VegaFEM checkout" >&2; exit 2; }
   vega="$(cd "$vega" && pwd)"
-  if [ ! -x "$vega-harness/vega_msm_step" ]; then
-    echo "msm.sh: building the harness with VegaFEM's sources in $vega-harness" >&2
-    cmake -S "$here/vegafem" -B "$vega-harness" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-      "-DVEGA_SOURCE=$vega" >/dev/null
-    cmake --build "$vega-harness" -j2 >/dev/null
-  fi
+  peers_outside msm.sh "$vega"
+  peers_build_vega msm.sh "$vega"
 fi
 reps="${REPS:-5}"
 steps="${STEPS:-2000}"
