@@ -35,7 +35,7 @@ void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations, M
     h.diagonal().array() += tr;
     // Positive definite (Sylvester): Newton; otherwise Müller's scalar step.
     const double minor2 = h(0, 0) * h(1, 1) - h(0, 1) * h(1, 0), det = h.determinant();
-    const Vec3 omega = h(0, 0) > 0 && minor2 > 0 && det > 1e-12 * tr * tr * tr
+    const Vec3 omega = tr > 0 && h(0, 0) > 0 && minor2 > 0 && det > 1e-12 * tr * tr * tr
                            ? Vec3(h.inverse() * g)
                            : Vec3(g * (1.0 / (std::abs(tr) + 1e-9)));
     const double w = omega.norm();
