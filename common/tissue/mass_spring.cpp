@@ -1,6 +1,7 @@
 #include "common/tissue/mass_spring.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <map>
 #include <utility>
@@ -247,10 +248,11 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
        {&m.a_, &m.tx_, &m.tv_, &m.k1v_, &m.k2x_, &m.k2v_, &m.k3x_, &m.k3v_, &m.kin_final_}) {
     buf->assign(n, Vec3::Zero());
   }
-  for (auto* buf :
-       {&m.rhs_, &m.dv_, &m.dv_prev_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.vel_}) {
+  for (auto* buf : {&m.dv_, &m.dv_prev_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.pos_}) {
     buf->assign(n, simd::Lane4{});
   }
+  m.state_.assign(n, simd::Lane8{});
+  m.sums_.assign(n, simd::Lane8{});
   const size_t ns = sys.springs.size();
   m.blocks_.resize(ns);
   for (size_t s = 0; s < ns; ++s) {
@@ -504,14 +506,16 @@ void MassSpringModel::StepOnce(double h) {
 // the loader picks on CPUs that have it, two SSE2 halves in the baseline build.
 using simd::Dot;
 using simd::V4;
+using simd::V8;
 
 VSURG_SIMD_CLONES
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
   auto view = [](std::vector<simd::Lane4>& a) { return reinterpret_cast<V4*>(a.data()); };
-  V4 *const rhs = view(rhs_), *const dv = view(dv_), *const res = view(r_), *const z = view(z_),
-            *const p = view(p_), *const q = view(q_), *const pre = view(precond_),
-            *const vel = view(vel_);
+  V4 *const dv = view(dv_), *const res = view(r_), *const z = view(z_), *const p = view(p_),
+            *const q = view(q_), *const pre = view(precond_), *const pos = view(pos_);
+  V8* const state = reinterpret_cast<V8*>(state_.data());
+  V8* const sums = reinterpret_cast<V8*>(sums_.data());
   PlaceKinematic(x_, v_, 0.0, h);
   // Δv's first guess extrapolated from the last two steps' (2 Δv_{n−1} − Δv_{n−2}): the held
   // arm needs 1.0 CG iterations instead of 2.0, the pressed sphere 0.5 instead of 1.1. Zero
@@ -530,26 +534,28 @@ void MassSpringModel::StepImplicit(double h) {
     prev[i] = last;
   }
   // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
-  // together: particle terms first, then the anchors, then one pass over the springs.
+  // together: particle terms first, then the anchors, then one pass over the springs. rhs and q
+  // are summed as the pair (rhs, −q), the particle state read as the pair (v₀, Δv₀).
   const double h2 = h * h;
   for (int i = 0; i < n; ++i) {
     const Vec3 f = h * (f_ext_[i] + sys_.masses[i] * params_.gravity);
     const double m = sys_.masses[i];
-    rhs[i] = V4{f.x(), f.y(), f.z(), 0.0};
-    q[i] = m * dv[i];
+    const V4 mdv = -m * dv[i];
+    sums[i] = V8{f.x(), f.y(), f.z(), 0.0, mdv[0], mdv[1], mdv[2], 0.0};
     pre[i] = V4{m, m, m, 0.0};
-    vel[i] = V4{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
+    const V4& d = dv[i];
+    state[i] = V8{v_[i].x(), v_[i].y(), v_[i].z(), 0.0, d[0], d[1], d[2], 0.0};
+    pos[i] = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
   }
   for (const Anchor& a : anchors_) {
     // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
     const double d = h * a.c + h2 * a.k;
     const Vec3 f = h * (a.k * (a.target - x_[a.i]) - a.c * v_[a.i]) - h2 * a.k * v_[a.i];
-    rhs[a.i] += V4{f.x(), f.y(), f.z(), 0.0};
-    q[a.i] += d * dv[a.i];
+    const V4 ddv = d * dv[a.i];
+    sums[a.i] += V8{f.x(), f.y(), f.z(), 0.0, -ddv[0], -ddv[1], -ddv[2], 0.0};
     pre[a.i] += V4{d, d, d, 0.0};
   }
   const size_t ns = sys_.springs.size();
-  const double* X = x_.data()->data();
   // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, the block's
   // scalars a = h c + h² k (1 − α), b = h² k α, and h k (|l| − L). In chunks that stay in L1:
   // the spring vectors first, then the reciprocal lengths in one loop the compiler vectorises
@@ -559,57 +565,68 @@ void MassSpringModel::StepImplicit(double h) {
   for (size_t c0 = 0; c0 < ns; c0 += kChunk) {
     const size_t cn = std::min(kChunk, ns - c0);
     for (size_t k = 0; k < cn; ++k) {
-      const Spring& sp = sys_.springs[c0 + k];
       SpringBlock& blk = blocks_[c0 + k];
-      const int i = 3 * sp.i, j = 3 * sp.j;
-      const double lx = X[j] - X[i], ly = X[j + 1] - X[i + 1], lz = X[j + 2] - X[i + 2];
-      blk.dir[0] = lx, blk.dir[1] = ly, blk.dir[2] = lz, blk.dir[3] = 0.0;
-      len2[k] = lx * lx + ly * ly + lz * lz;
+      const V4 l = pos[blk.j] - pos[blk.i];
+      *reinterpret_cast<V4*>(blk.dir) = l;
+      len2[k] = Dot(l, l);
     }
-    // No select in this loop (with trapping math GCC will not vectorise one): 1e-300 keeps a
-    // zero length finite and is below the rounding of any length the next loop keeps.
-    for (size_t k = 0; k < cn; ++k) inv_len[k] = 1.0 / std::sqrt(len2[k] + 1e-300);
+    // 1/sqrt by Newton's iteration from the exponent-halving first guess (relative error 3.4%,
+    // squared each iteration: after four, 3e-16, as close as sqrt and division give), in one
+    // loop the compiler vectorises: fourteen multiply-adds in place of a square root and a
+    // division. No select in the loop (with trapping math GCC will not vectorise one): 1e-300
+    // keeps a zero length finite and is below the rounding of any length the next loop keeps.
+    for (size_t k = 0; k < cn; ++k) {
+      const double x = len2[k] + 1e-300, half = 0.5 * x;
+      double y = std::bit_cast<double>(0x5FE6EB50C7B537A9u - (std::bit_cast<uint64_t>(x) >> 1));
+      for (int it = 0; it < 4; ++it) y *= 1.5 - half * y * y;
+      inv_len[k] = y;
+    }
     for (size_t k = 0; k < cn; ++k) {
       const Spring& sp = sys_.springs[c0 + k];
       SpringBlock& blk = blocks_[c0 + k];
       const double inv = len2[k] < kMinLength * kMinLength ? 0.0 : inv_len[k];
       const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
-      for (int c = 0; c < 3; ++c) blk.dir[c] *= inv;
+      *reinterpret_cast<V4*>(blk.dir) *= inv;
       blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
       blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
       spring_impulse_[c0 + k] = inv > 0 ? h * sp.stiffness * (len2[k] * inv - sp.rest_length) : 0.0;
     }
   }
-  // Pass 2 sums into the particles. With w = v_j − v_i, spring s adds to end i (end j: the
-  // negative) h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w) l̂ + b w to rhs, and
-  // B_s (Δv₀_i − Δv₀_j) to q; a l̂² + b to both ends' diagonals. The first end's sums stay in
-  // registers while the springs (sorted by first end) share it.
+  // Pass 2 sums into the particles. With w = v_j − v_i and e = Δv₀_i − Δv₀_j, spring s adds to
+  // end i (end j: the negative) g = h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w)
+  // l̂
+  // + b w to rhs, t = B_s e = a (l̂·e) l̂ + b e to q, and a l̂² + b to both ends' diagonals. One
+  // pair does both: (w, −e) is the difference of the ends' states, and (g, −t) comes out of
+  // the same three operations with the impulse only in the first half. The first end's sums stay
+  // in registers while the springs (sorted by first end) share it.
   const V4 xyz{1.0, 1.0, 1.0, 0.0};
   {
     int cur = -1;
-    V4 ri{}, qi{}, pi{};
+    V8 si{}, acc{};
+    V4 pi{};
     for (size_t s = 0; s < ns; ++s) {
       const SpringBlock& blk = blocks_[s];
       if (blk.i != cur) {
-        if (cur >= 0) rhs[cur] += ri, q[cur] += qi, pre[cur] += pi;
+        if (cur >= 0) sums[cur] += acc, pre[cur] += pi;
         cur = blk.i;
-        ri = qi = pi = V4{};
+        si = state[cur];
+        acc = V8{};
+        pi = V4{};
       }
       const V4& d = *reinterpret_cast<const V4*>(blk.dir);
-      const double a = blk.a, b = blk.b;
-      const V4 w = vel[blk.j] - vel[blk.i];
-      const V4 g = (spring_impulse_[s] + a * Dot(w, d)) * d + b * w;
-      ri += g;
-      rhs[blk.j] -= g;
-      const V4 e = dv[blk.i] - dv[blk.j];
-      const V4 t = (a * Dot(e, d)) * d + b * e;
-      qi += t;
-      q[blk.j] -= t;
+      const V8 d2 = __builtin_shufflevector(d, d, 0, 1, 2, 3, 0, 1, 2, 3);
+      const double a = blk.a, b = blk.b, imp = spring_impulse_[s];
+      const V8 w = state[blk.j] - si;
+      V8 dots;
+      simd::HalfDots(dots, w, d2);
+      const V8 g = (a * dots + V8{imp, imp, imp, imp, 0.0, 0.0, 0.0, 0.0}) * d2 + b * w;
+      acc += g;
+      sums[blk.j] -= g;
       const V4 dg = a * d * d + b * xyz;
       pi += dg;
       pre[blk.j] += dg;
     }
-    if (cur >= 0) rhs[cur] += ri, q[cur] += qi, pre[cur] += pi;
+    if (cur >= 0) sums[cur] += acc, pre[cur] += pi;
   }
   // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   auto apply = [&](const V4* u, V4* y) {
@@ -637,13 +654,15 @@ void MassSpringModel::StepImplicit(double h) {
     const double inv = 1.0 / (px * py * pz);
     pre[i] = V4{py * pz * inv, px * pz * inv, px * py * inv, 0.0};
   }
-  for (int i : constrained_) rhs[i] = q[i] = pre[i] = V4{};
-  double rhs_norm2 = 0;
-  for (int i = 0; i < n; ++i) rhs_norm2 += Dot(rhs[i], rhs[i]);
-  // Preconditioned conjugate gradient (Jacobi), warm-started from the previous Δv (q = A Δv₀).
-  double rz = 0, r2 = 0;
+  for (int i : constrained_) sums[i] = V8{}, pre[i] = V4{};
+  // Preconditioned conjugate gradient (Jacobi), warm-started from the extrapolated Δv: the
+  // residual rhs − A Δv₀ is the pair's sum.
+  double rhs_norm2 = 0, rz = 0, r2 = 0;
   for (int i = 0; i < n; ++i) {
-    res[i] = rhs[i] - q[i];
+    const V8& pair = sums[i];
+    const V4 rhs = __builtin_shufflevector(pair, pair, 0, 1, 2, 3);
+    rhs_norm2 += Dot(rhs, rhs);
+    res[i] = rhs + __builtin_shufflevector(pair, pair, 4, 5, 6, 7);
     p[i] = pre[i] * res[i];
     rz += Dot(res[i], p[i]);
     r2 += Dot(res[i], res[i]);

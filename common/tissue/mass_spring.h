@@ -209,7 +209,10 @@ class MassSpringModel {
   std::vector<double> spring_impulse_;  // h k (|l| − L) per spring, N·s
   std::vector<int> constrained_;        // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
-  std::vector<simd::Lane4> rhs_, dv_, dv_prev_, r_, z_, p_, q_, precond_, vel_;
+  std::vector<simd::Lane4> dv_, dv_prev_, r_, z_, p_, q_, precond_, pos_;
+  // The set-up pass's per-particle pairs: (v₀, Δv₀) it reads and (rhs, −A Δv₀) it sums, so one
+  // load and one sum per spring end serve both.
+  std::vector<simd::Lane8> state_, sums_;
 };
 
 }  // namespace vsurg::tissue
