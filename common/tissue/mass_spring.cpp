@@ -254,11 +254,16 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   m.state_.assign(n, simd::Lane8{});
   m.sums_.assign(n, simd::Lane8{});
   const size_t ns = sys.springs.size();
-  m.blocks_.resize(ns);
-  for (size_t s = 0; s < ns; ++s) {
-    m.blocks_[s] = {{0.0, 0.0, 0.0, 0.0}, 0.0, 0.0, sys.springs[s].i, sys.springs[s].j};
+  m.ends_.resize(ns);
+  m.dirs_.assign(ns, simd::Lane4{});
+  for (auto* buf : {&m.coef_a_, &m.coef_b_, &m.rest_, &m.stiffness_, &m.damping_}) {
+    buf->assign(ns, 0.0);
   }
-  m.spring_impulse_.assign(ns, 0.0);
+  for (size_t s = 0; s < ns; ++s) {
+    const Spring& sp = sys.springs[s];
+    m.ends_[s] = {sp.i, sp.j};
+    m.rest_[s] = sp.rest_length, m.stiffness_[s] = sp.stiffness, m.damping_[s] = sp.damping;
+  }
   m.constrained_.reserve(n);
   m.kinematic_.reserve(n);
   m.anchors_.reserve(64);
@@ -516,6 +521,13 @@ void MassSpringModel::StepImplicit(double h) {
             *const q = view(q_), *const pre = view(precond_), *const pos = view(pos_);
   V8* const state = reinterpret_cast<V8*>(state_.data());
   V8* const sums = reinterpret_cast<V8*>(sums_.data());
+  // Plain pointers: the vector types may alias anything, so a member's data() would be read
+  // again after every store through them.
+  const SpringEnds* const ends = ends_.data();
+  V4* const dirs = view(dirs_);
+  double *const coef_a = coef_a_.data(), *const coef_b = coef_b_.data();
+  const double *const rest = rest_.data(), *const stiffness = stiffness_.data(),
+                      *const damping = damping_.data(), *const mass = sys_.masses.data();
   PlaceKinematic(x_, v_, 0.0, h);
   // Δv's first guess extrapolated from the last two steps' (2 Δv_{n−1} − Δv_{n−2}): the held
   // arm needs 1.0 CG iterations instead of 2.0, the pressed sphere 0.5 instead of 1.1. Zero
@@ -538,11 +550,11 @@ void MassSpringModel::StepImplicit(double h) {
   // are summed as the pair (rhs, −q), the particle state read as the pair (v₀, Δv₀).
   const double h2 = h * h;
   for (int i = 0; i < n; ++i) {
-    const Vec3 f = h * (f_ext_[i] + sys_.masses[i] * params_.gravity);
-    const double m = sys_.masses[i];
+    const double m = mass[i];
+    const Vec3 f = h * (f_ext_[i] + m * params_.gravity);
     const V4 mdv = -m * dv[i];
     sums[i] = V8{f.x(), f.y(), f.z(), 0.0, mdv[0], mdv[1], mdv[2], 0.0};
-    pre[i] = V4{m, m, m, 0.0};
+    pre[i] = V4{m, m, m, 1.0};  // the fourth 1: the reciprocal below stays finite
     const V4& d = dv[i];
     state[i] = V8{v_[i].x(), v_[i].y(), v_[i].z(), 0.0, d[0], d[1], d[2], 0.0};
     pos[i] = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
@@ -556,25 +568,35 @@ void MassSpringModel::StepImplicit(double h) {
     pre[a.i] += V4{d, d, d, 0.0};
   }
   const size_t ns = sys_.springs.size();
-  // Pass 1, no scatter so consecutive springs overlap in the pipeline: direction, the block's
-  // scalars a = h c + h² k (1 − α), b = h² k α, and h k (|l| − L). In chunks that stay in L1:
-  // the spring vectors first, then the reciprocal lengths in one loop the compiler vectorises
-  // (the square roots and divisions four at a time), then the rest.
+  // One pass over the springs in chunks that stay in L1, four loops each. The first three have
+  // no scatter, so consecutive springs overlap in the pipeline, and the second and third are
+  // vectorised: the spring vectors l and |l|², then 1/|l|, then the block's scalars a = h c +
+  // h² k (1 − α), b = h² k α (α = max(0, 1 − L/|l|)) and the impulse h k (|l| − L). The fourth
+  // sums into the particles. With w = v_j − v_i and e = Δv₀_i − Δv₀_j, spring s adds to end i
+  // (end j: the negative) g = h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w) l̂
+  // + b w to rhs, t = B_s e = a (l̂·e) l̂ + b e to q, and a l̂² + b to both ends' diagonals. One
+  // pair does both: (w, −e) is the difference of the ends' states, and (g, −t) comes out of the
+  // same three operations with the impulse only in the first half. The first end's sums stay in
+  // registers while the springs (sorted by first end) share it.
   constexpr size_t kChunk = 256;
-  double len2[kChunk], inv_len[kChunk];
+  double len2[kChunk], inv_len[kChunk], impulse[kChunk];
+  const V4 xyz{1.0, 1.0, 1.0, 0.0};
+  int cur = -1;
+  V8 si{}, acc{};
+  V4 pi{};
   for (size_t c0 = 0; c0 < ns; c0 += kChunk) {
     const size_t cn = std::min(kChunk, ns - c0);
     for (size_t k = 0; k < cn; ++k) {
-      SpringBlock& blk = blocks_[c0 + k];
-      const V4 l = pos[blk.j] - pos[blk.i];
-      *reinterpret_cast<V4*>(blk.dir) = l;
+      const V4 l = pos[ends[c0 + k].j] - pos[ends[c0 + k].i];
+      dirs[c0 + k] = l;
       len2[k] = Dot(l, l);
     }
-    // 1/sqrt by Newton's iteration from the exponent-halving first guess (relative error 3.4%,
-    // squared each iteration: after four, 3e-16, as close as sqrt and division give), in one
-    // loop the compiler vectorises: fourteen multiply-adds in place of a square root and a
-    // division. No select in the loop (with trapping math GCC will not vectorise one): 1e-300
-    // keeps a zero length finite and is below the rounding of any length the next loop keeps.
+    // 1/|l| by Newton's iteration from the exponent-halving first guess (relative error 3.4%,
+    // squared each iteration: after four, 3e-16, as close as sqrt and division give): fourteen
+    // multiply-adds in place of a square root and a division. 1e-300 keeps a zero length finite
+    // and is below the rounding of any length the next loop keeps; that loop zeroes a spring
+    // shorter than kMinLength by a factor, since GCC (trapping math) vectorises no select of a
+    // computed value.
     for (size_t k = 0; k < cn; ++k) {
       const double x = len2[k] + 1e-300, half = 0.5 * x;
       double y = std::bit_cast<double>(0x5FE6EB50C7B537A9u - (std::bit_cast<uint64_t>(x) >> 1));
@@ -582,108 +604,103 @@ void MassSpringModel::StepImplicit(double h) {
       inv_len[k] = y;
     }
     for (size_t k = 0; k < cn; ++k) {
-      const Spring& sp = sys_.springs[c0 + k];
-      SpringBlock& blk = blocks_[c0 + k];
-      const double inv = len2[k] < kMinLength * kMinLength ? 0.0 : inv_len[k];
-      const double alpha = std::max(0.0, 1.0 - sp.rest_length * inv);
-      *reinterpret_cast<V4*>(blk.dir) *= inv;
-      blk.a = inv > 0 ? h * sp.damping + h2 * sp.stiffness * (1.0 - alpha) : 0.0;
-      blk.b = inv > 0 ? h2 * sp.stiffness * alpha : 0.0;
-      spring_impulse_[c0 + k] = inv > 0 ? h * sp.stiffness * (len2[k] * inv - sp.rest_length) : 0.0;
+      const size_t s = c0 + k;
+      const double on = len2[k] >= kMinLength * kMinLength ? 1.0 : 0.0;
+      const double inv = on * inv_len[k];
+      const double alpha = std::max(0.0, 1.0 - rest[s] * inv);
+      const double hk = h * stiffness[s];
+      inv_len[k] = inv;
+      coef_a[s] = on * (h * damping[s] + h * hk * (1.0 - alpha));
+      coef_b[s] = on * (h * hk * alpha);
+      impulse[k] = on * (hk * (len2[k] * inv - rest[s]));
     }
-  }
-  // Pass 2 sums into the particles. With w = v_j − v_i and e = Δv₀_i − Δv₀_j, spring s adds to
-  // end i (end j: the negative) g = h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w)
-  // l̂
-  // + b w to rhs, t = B_s e = a (l̂·e) l̂ + b e to q, and a l̂² + b to both ends' diagonals. One
-  // pair does both: (w, −e) is the difference of the ends' states, and (g, −t) comes out of
-  // the same three operations with the impulse only in the first half. The first end's sums stay
-  // in registers while the springs (sorted by first end) share it.
-  const V4 xyz{1.0, 1.0, 1.0, 0.0};
-  {
-    int cur = -1;
-    V8 si{}, acc{};
-    V4 pi{};
-    for (size_t s = 0; s < ns; ++s) {
-      const SpringBlock& blk = blocks_[s];
-      if (blk.i != cur) {
+    for (size_t k = 0; k < cn; ++k) {
+      const size_t s = c0 + k;
+      const int j = ends[s].j;
+      if (ends[s].i != cur) {
         if (cur >= 0) sums[cur] += acc, pre[cur] += pi;
-        cur = blk.i;
+        cur = ends[s].i;
         si = state[cur];
         acc = V8{};
         pi = V4{};
       }
-      const V4& d = *reinterpret_cast<const V4*>(blk.dir);
+      const V4 d = inv_len[k] * dirs[s];
+      dirs[s] = d;
       const V8 d2 = __builtin_shufflevector(d, d, 0, 1, 2, 3, 0, 1, 2, 3);
-      const double a = blk.a, b = blk.b, imp = spring_impulse_[s];
-      const V8 w = state[blk.j] - si;
+      const double a = coef_a[s], b = coef_b[s], imp = impulse[k];
+      const V8 w = state[j] - si;
       V8 dots;
       simd::HalfDots(dots, w, d2);
       const V8 g = (a * dots + V8{imp, imp, imp, imp, 0.0, 0.0, 0.0, 0.0}) * d2 + b * w;
       acc += g;
-      sums[blk.j] -= g;
+      sums[j] -= g;
       const V4 dg = a * d * d + b * xyz;
       pi += dg;
-      pre[blk.j] += dg;
+      pre[j] += dg;
     }
-    if (cur >= 0) sums[cur] += acc, pre[cur] += pi;
   }
+  if (cur >= 0) sums[cur] += acc, pre[cur] += pi;
   // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   auto apply = [&](const V4* u, V4* y) {
-    for (int i = 0; i < n; ++i) y[i] = sys_.masses[i] * u[i];
+    for (int i = 0; i < n; ++i) y[i] = mass[i] * u[i];
     int at = -1;
-    V4 acc{};  // running sum for particle `at`
-    for (const SpringBlock& blk : blocks_) {
-      if (blk.i != at) {
-        if (at >= 0) y[at] += acc;
-        at = blk.i, acc = V4{};
+    V4 sum{}, ui{};  // running sum for particle `at`, and its u
+    for (size_t s = 0; s < ns; ++s) {
+      const int j = ends[s].j;
+      if (ends[s].i != at) {
+        if (at >= 0) y[at] += sum;
+        at = ends[s].i, sum = V4{}, ui = u[at];
       }
-      const V4& d = *reinterpret_cast<const V4*>(blk.dir);
-      const V4 e = u[blk.i] - u[blk.j];
-      const V4 t = (blk.a * Dot(e, d)) * d + blk.b * e;
-      acc += t;
-      y[blk.j] -= t;
+      const V4& d = dirs[s];
+      const V4 e = ui - u[j];
+      const V4 t = (coef_a[s] * Dot(e, d)) * d + coef_b[s] * e;
+      sum += t;
+      y[j] -= t;
     }
-    if (at >= 0) y[at] += acc;
+    if (at >= 0) y[at] += sum;
     for (const Anchor& a : anchors_) y[a.i] += (h * a.c + h2 * a.k) * u[a.i];
     for (int i : constrained_) y[i] = V4{};
   };
-  for (int i = 0; i < n; ++i) {
-    // Jacobi: the three reciprocals from one division.
-    const double px = pre[i][0], py = pre[i][1], pz = pre[i][2];
-    const double inv = 1.0 / (px * py * pz);
-    pre[i] = V4{py * pz * inv, px * pz * inv, px * py * inv, 0.0};
-  }
+  for (int i = 0; i < n; ++i) pre[i] = xyz / pre[i];  // Jacobi (the fourth lane 0 again)
   for (int i : constrained_) sums[i] = V8{}, pre[i] = V4{};
   // Preconditioned conjugate gradient (Jacobi), warm-started from the extrapolated Δv: the
   // residual rhs − A Δv₀ is the pair's sum.
+  // The dot products are summed lane by lane and the lanes added at the end.
   double rhs_norm2 = 0, rz = 0, r2 = 0;
-  for (int i = 0; i < n; ++i) {
-    const V8& pair = sums[i];
-    const V4 rhs = __builtin_shufflevector(pair, pair, 0, 1, 2, 3);
-    rhs_norm2 += Dot(rhs, rhs);
-    res[i] = rhs + __builtin_shufflevector(pair, pair, 4, 5, 6, 7);
-    p[i] = pre[i] * res[i];
-    rz += Dot(res[i], p[i]);
-    r2 += Dot(res[i], res[i]);
+  {
+    V4 rhs2{}, rz4{}, r24{};
+    for (int i = 0; i < n; ++i) {
+      const V8& pair = sums[i];
+      const V4 rhs = __builtin_shufflevector(pair, pair, 0, 1, 2, 3);
+      const V4 r = rhs + __builtin_shufflevector(pair, pair, 4, 5, 6, 7);
+      res[i] = r;
+      p[i] = pre[i] * r;
+      rhs2 += rhs * rhs;
+      rz4 += r * p[i];
+      r24 += r * r;
+    }
+    rhs_norm2 = simd::Sum(rhs2), rz = simd::Sum(rz4), r2 = simd::Sum(r24);
   }
   const double tol2 = params_.cg_tolerance * params_.cg_tolerance * rhs_norm2;
   int it = 0;
   for (; it < params_.cg_max_iterations && r2 > tol2; ++it) {
     apply(p, q);
-    double pq = 0;
-    for (int i = 0; i < n; ++i) pq += Dot(p[i], q[i]);
+    V4 pq4{};
+    for (int i = 0; i < n; ++i) pq4 += p[i] * q[i];
+    const double pq = simd::Sum(pq4);
     if (!(pq > 0)) break;  // the search direction vanished (or the system lost definiteness)
     const double step = rz / pq;
-    double rz_new = 0;
-    r2 = 0;
+    V4 rz4{}, r24{};
     for (int i = 0; i < n; ++i) {
       dv[i] += step * p[i];
-      res[i] -= step * q[i];
-      z[i] = pre[i] * res[i];
-      rz_new += Dot(res[i], z[i]);
-      r2 += Dot(res[i], res[i]);
+      const V4 r = res[i] - step * q[i];
+      res[i] = r;
+      z[i] = pre[i] * r;
+      rz4 += r * z[i];
+      r24 += r * r;
     }
+    const double rz_new = simd::Sum(rz4);
+    r2 = simd::Sum(r24);
     const double beta = rz_new / rz;
     rz = rz_new;
     for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];

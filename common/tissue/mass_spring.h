@@ -194,20 +194,20 @@ class MassSpringModel {
 
   // Scratch, sized once at Create: no allocation per step.
   std::vector<Vec3> a_, tx_, tv_, k1v_, k2x_, k2v_, k3x_, k3v_, kin_final_;
-  // Implicit Euler: per-spring block B_s = a l̂l̂ᵀ + b I of h C_s + h² K_s, with the spring's
-  // ends, in one 64-byte record so the CG product streams a single array (6144 springs of the
-  // 1026-particle sphere: 393 KB, inside L2; l̂ padded to four doubles, one AVX register).
-  // h k (|l| − L) is apart: only the set-up passes read it. Measured alternatives: a gather product
-  // per particle over a CSR incidence list (no read-after-store, but every spring done twice) was
-  // 1.3× slower; fusing set-up into one scatter pass was 1.25× slower than the two passes.
-  struct SpringBlock {
-    alignas(32) double dir[4];  // l̂, 0 (aligned: read as one vector)
-    double a, b;
+  // Implicit Euler: per spring s, arrays the set-up pass streams and the compiler vectorises
+  // over: the ends, the block B_s = a l̂l̂ᵀ + b I of h C_s + h² K_s as l̂ (padded to four doubles,
+  // one AVX register) and the scalars a and b, and the spring's L, k and c. The CG product reads
+  // ends, l̂, a and b (56 bytes a spring: 344 KB for the 6144 springs of the 1026-particle
+  // sphere, inside L2). Measured alternatives: a gather product per particle over a CSR incidence
+  // list (no read-after-store, but every spring done twice) was 1.3× slower; one 64-byte record
+  // per spring was slower than these arrays once the set-up's scalar work vectorised.
+  struct SpringEnds {
     int32_t i, j;
   };
-  std::vector<SpringBlock> blocks_;
-  std::vector<double> spring_impulse_;  // h k (|l| − L) per spring, N·s
-  std::vector<int> constrained_;        // fixed and kinematic particles: Δv = 0 in the solve
+  std::vector<SpringEnds> ends_;
+  std::vector<simd::Lane4> dirs_;
+  std::vector<double> coef_a_, coef_b_, rest_, stiffness_, damping_;
+  std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
   std::vector<simd::Lane4> dv_, dv_prev_, r_, z_, p_, q_, precond_, pos_;
   // The set-up pass's per-particle pairs: (v₀, Δv₀) it reads and (rhs, −A Δv₀) it sums, so one

@@ -36,10 +36,14 @@ inline void AddTo(double* p, const V4& v) {
   __builtin_memcpy(p, &t, sizeof(V4));
 }
 
+// The sum of the four lanes.
+inline double Sum(const V4& a) {
+  return (a[0] + a[2]) + (a[1] + a[3]);
+}
+
 // The sum of the four products (a padded lane contributes 0 when either side has 0 there).
 inline double Dot(const V4& a, const V4& b) {
-  const V4 m = a * b;
-  return (m[0] + m[2]) + (m[1] + m[3]);
+  return Sum(a * b);
 }
 
 // Each half's three-term dot product, broadcast over that half: {a₀·b₀ ×4, a₁·b₁ ×4} (the
