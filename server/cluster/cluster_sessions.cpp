@@ -1,6 +1,7 @@
 // The control role: placement, the nodes' registry and watchdog, the nodes' telemetry.
 #include <algorithm>
 #include <condition_variable>
+#include <deque>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -40,6 +41,19 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   };
   std::map<uint64_t, Subscription> subscribers;
   uint64_t next_token = 1;
+
+  // This replica's placements the store's live counts may not show yet, so that a burst of
+  // stations placed at once does not pile onto the node that was emptiest when they all read
+  // the rows. In flight: a Create sent to the node and not answered (the node writes the row
+  // before it answers). Recent: answered, numbered in order; one answered after a placement
+  // began reading the store may be missing from what it read, so it counts those too (at worst
+  // a session counted twice for a moment: the node looks fuller, never emptier). The store is
+  // read outside the lock, so placements do not queue behind each other's queries.
+  std::mutex placing_mutex;
+  std::map<std::string, int> in_flight;
+  uint64_t answered = 0;                                // placements answered so far
+  std::deque<std::pair<uint64_t, std::string>> recent;  // (number, node), the last kRecent
+  static constexpr size_t kRecent = 1024;
 
   std::mutex stop_mutex;
   std::condition_variable stop_cv;
@@ -230,51 +244,80 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
                      " live sessions (the limit is " +
                      std::to_string(d.options.max_sessions_per_user) + "); stop one first",
                  "trainee"};
-  auto nodes = d.store.ListNodes();
-  if (!nodes.ok()) return nodes.error();
-  auto counts = d.store.LiveSessionsByNode();
-  if (!counts.ok()) return counts.error();
-  std::map<std::string, int> by_node(counts->begin(), counts->end());
-  const int64_t now = db::NowUs();
-  struct Candidate {
-    const db::NodeRecord* node;
-    int sessions;
-  };
-  std::vector<Candidate> candidates;
-  for (const db::NodeRecord& n : *nodes) {
-    const int sessions = by_node.count(n.name) ? by_node[n.name] : 0;
-    if (d.Healthy(n, now) && !n.draining && sessions < n.capacity)
-      candidates.push_back({&n, sessions});
-  }
-  // Least loaded first: live sessions for the capacity, then CPU, then the name (a stable order).
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
-    const double la = static_cast<double>(a.sessions) / a.node->capacity;
-    const double lb = static_cast<double>(b.sessions) / b.node->capacity;
-    if (la != lb) return la < lb;
-    if (a.node->cpu != b.node->cpu) return a.node->cpu < b.node->cpu;
-    return a.node->name < b.node->name;
-  });
+  // Least loaded first: live sessions (the store's, and this replica's it may not show yet) for
+  // the capacity, then CPU, then the name (a stable order). The choice is reserved before the
+  // lock is let go.
+  std::vector<std::string> tried_nodes;
   std::string tried;
-  for (const Candidate& c : candidates) {
+  size_t registered = 0, with_room = 0;
+  for (;;) {
+    uint64_t answered_before = 0;
+    {
+      std::lock_guard lock(d.placing_mutex);
+      answered_before = d.answered;
+    }
+    auto nodes = d.store.ListNodes();
+    if (!nodes.ok()) return nodes.error();
+    auto counts = d.store.LiveSessionsByNode();
+    if (!counts.ok()) return counts.error();
+    std::map<std::string, int> by_node(counts->begin(), counts->end());
+    const int64_t now = db::NowUs();
+    db::NodeRecord chosen;
+    {
+      std::lock_guard lock(d.placing_mutex);
+      for (const auto& [number, node] : d.recent)
+        if (number > answered_before) ++by_node[node];
+      for (const auto& [node, n] : d.in_flight) by_node[node] += n;
+      const db::NodeRecord* best = nullptr;
+      double best_load = 0;
+      registered = nodes->size();
+      with_room = 0;
+      for (const db::NodeRecord& n : *nodes) {
+        const int sessions = by_node[n.name];
+        if (!d.Healthy(n, now) || n.draining || sessions >= n.capacity) continue;
+        ++with_room;
+        if (std::find(tried_nodes.begin(), tried_nodes.end(), n.name) != tried_nodes.end())
+          continue;
+        const double load = static_cast<double>(sessions) / n.capacity;
+        if (!best || load < best_load ||
+            (load == best_load &&
+             (n.cpu < best->cpu || (n.cpu == best->cpu && n.name < best->name)))) {
+          best = &n;
+          best_load = load;
+        }
+      }
+      if (!best) break;
+      chosen = *best;
+      ++d.in_flight[chosen.name];
+    }
+    tried_nodes.push_back(chosen.name);
     v1::NodeCreateRequest req;
     req.set_trainee(trainee);
     req.set_scene(scene);
     v1::NodeSession reply;
     auto ctx = CallContext(d.options.token, d.options.create_timeout_s);
-    const grpc::Status s = d.StubFor(c.node->grpc_address).Create(ctx.get(), req, &reply);
+    const grpc::Status s = d.StubFor(chosen.grpc_address).Create(ctx.get(), req, &reply);
+    {
+      std::lock_guard lock(d.placing_mutex);
+      if (--d.in_flight[chosen.name] == 0) d.in_flight.erase(chosen.name);
+      if (s.ok()) {
+        d.recent.emplace_back(++d.answered, chosen.name);
+        if (d.recent.size() > Impl::kRecent) d.recent.pop_front();
+      }
+    }
     if (s.ok()) {
       CreatedSession out = FromProto(reply);
-      out.record.node = c.node->name;
+      out.record.node = chosen.name;
       return out;
     }
-    const Error e = FromGrpc(s, "create on node " + c.node->name);
+    const Error e = FromGrpc(s, "create on node " + chosen.name);
     if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted)
       return e;  // the request itself is wrong (a scene that does not exist, …)
     tried += (tried.empty() ? "" : "; ") + e.message;
   }
   return Error{ErrorCode::kUnavailable,
-               "no simulation node has room for a new session (" + std::to_string(nodes->size()) +
-                   " registered, " + std::to_string(candidates.size()) + " with room" +
+               "no simulation node has room for a new session (" + std::to_string(registered) +
+                   " registered, " + std::to_string(with_room) + " with room" +
                    (tried.empty() ? "" : ": " + tried) + ")",
                ""};
 }

@@ -4,6 +4,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <map>
@@ -131,6 +132,34 @@ TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
   auto bad = control_->Create("trainee-10", "no-such-scene");
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.error().code, ErrorCode::kNotFound);
+}
+
+// A burst of stations at once (a class starting together): each placement sees the ones still
+// in flight, so the nodes end within one session of each other, not piled onto the first.
+TEST_F(ClusterTest, ABurstOfConcurrentPlacementsStaysBalanced) {
+  AddNode("sim-a", 8);
+  AddNode("sim-b", 8);
+  AddNode("sim-c", 8);
+  WaitForNodes(3);
+  constexpr int kSessions = 15;
+  std::vector<std::thread> threads;
+  std::atomic<int> failed{0};
+  for (int i = 0; i < kSessions; ++i)
+    threads.emplace_back([&, i] {
+      if (!control_->Create("trainee-" + std::to_string(i), "arm-torsion").ok()) ++failed;
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(failed.load(), 0);
+  auto counts = PerNode();
+  int lo = kSessions, hi = 0, total = 0;
+  for (const char* name : {"sim-a", "sim-b", "sim-c"}) {
+    lo = std::min(lo, counts[name]);
+    hi = std::max(hi, counts[name]);
+    total += counts[name];
+  }
+  EXPECT_EQ(total, kSessions);
+  EXPECT_LE(hi - lo, 1) << "sim-a=" << counts["sim-a"] << " sim-b=" << counts["sim-b"]
+                        << " sim-c=" << counts["sim-c"];
 }
 
 TEST_F(ClusterTest, ADrainingNodeTakesNoNewSessionsAndItsLiveOnesFinish) {
