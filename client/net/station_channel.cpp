@@ -292,12 +292,22 @@ StationStats StationChannel::stats() const {
     s.jitter_us = impl_->jitter_n ? impl_->jitter_sum / impl_->jitter_n : 0.0;
   }
   if (!rtt.empty()) {
-    std::sort(rtt.begin(), rtt.end());
-    s.rtt_p50_us = rtt[rtt.size() / 2];
-    s.rtt_p99_us = rtt[rtt.size() * 99 / 100];
-    s.rtt_p999_us = rtt[rtt.size() * 999 / 1000];
+    // Selection, not a sort: each nth_element leaves the larger values above its rank, so
+    // the next one only searches those.
+    const auto at = [&](size_t rank) { return rtt.begin() + static_cast<std::ptrdiff_t>(rank); };
+    const size_t p50 = rtt.size() / 2, p99 = rtt.size() * 99 / 100, p999 = rtt.size() * 999 / 1000;
+    std::nth_element(rtt.begin(), at(p50), rtt.end());
+    std::nth_element(at(p50), at(p99), rtt.end());
+    std::nth_element(at(p99), at(p999), rtt.end());
+    s.rtt_p50_us = *at(p50);
+    s.rtt_p99_us = *at(p99);
+    s.rtt_p999_us = *at(p999);
   }
   return s;
+}
+
+uint64_t StationChannel::received() const {
+  return impl_->received.load();
 }
 
 std::vector<wire::SceneChunk> StationChannel::TakeSceneChunks() {

@@ -76,7 +76,10 @@ class StationChannel {
 
   // Stops both threads and writes a zero force to the device (idempotent).
   void Stop();
-  StationStats stats() const;  // any thread
+  // Any thread. Copies the round-trip ring (65 536 samples) and selects its percentiles:
+  // about a millisecond, so call it for a report, not every frame.
+  StationStats stats() const;
+  uint64_t received() const;  // any thread: force updates received (one atomic load)
   // Render thread: the scene chunks received since the previous call (moved vertices, m).
   // At most 4096 are kept between calls; older ones are dropped first.
   std::vector<wire::SceneChunk> TakeSceneChunks();

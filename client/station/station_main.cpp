@@ -167,6 +167,7 @@ int Run(const std::vector<std::string>& args) {
   double replay_done_at = -1;
   uint64_t generation = 0, last_sent = 0;
   double rate_hz = 0, last_rate_at = 0;
+  client::StationStats hud_stats;  // the HUD's figures, refreshed twice a second
   client::StationView shown;
   std::vector<double> draw_ms;  // per frame: draw and finish, ms
   const auto frame = std::chrono::duration<double>(1.0 / fps);
@@ -198,13 +199,17 @@ int Run(const std::vector<std::string>& args) {
       for (const auto& chunk : channel->TakeSceneChunks())
         view.Apply(chunk.indices, chunk.positions);
       channel->TakeView(shown);
-      const client::StationStats s = channel->stats();
       const double now = Seconds(started);
       if (now - last_rate_at >= 0.5) {
-        rate_hz = last_rate_at > 0 ? (s.sent - last_sent) / (now - last_rate_at) : 0;
-        last_sent = s.sent;
+        hud_stats = channel->stats();
+        // A new session's channel counts from zero again.
+        rate_hz = last_rate_at > 0 && hud_stats.sent >= last_sent
+                      ? static_cast<double>(hud_stats.sent - last_sent) / (now - last_rate_at)
+                      : 0;
+        last_sent = hud_stats.sent;
         last_rate_at = now;
       }
+      const client::StationStats& s = hud_stats;
       overlay.show_stylus = true;
       overlay.tip = shown.sample.position;
       overlay.orientation = shown.sample.orientation;
