@@ -181,7 +181,7 @@ void Station::Probe(double now) {
   if (!IsLive(session.state()))
     return Drop("session " + std::to_string(status_.session) + " is " +
                 convert::StateName(session.state()));
-  last_progress_ = now;  // the server is there and the session live: slow, not gone
+  last_probe_ = now;  // the server is there and the session live: slow, not gone (yet)
 }
 
 void Station::Tick() {
@@ -205,11 +205,11 @@ void Station::Tick() {
       return;
     }
     case StationState::kLive: {
-      const uint64_t received = channel_->stats().received;
+      const uint64_t received = channel_->received();
       if (received != last_received_) {
         last_received_ = received;
         last_progress_ = now;
-      } else if (now - last_progress_ > config_.silence_s) {
+      } else if (now - last_progress_ > config_.silence_s && now - last_probe_ >= config_.probe_s) {
         Probe(now);
       }
       return;

@@ -36,9 +36,13 @@ struct StationConfig {
   // A session prepared for this trainee (by an instructor) to join instead of creating one; a
   // reconnect after the server went away creates a new session as usual. 0: create.
   uint64_t join = 0;
-  double rate_hz = 1000;       // device thread
-  double rpc_timeout_s = 3;    // per control-plane call
-  double silence_s = 0.5;      // no force update this long: ask the server how it is
+  double rate_hz = 1000;     // device thread
+  double rpc_timeout_s = 3;  // per control-plane call
+  double silence_s = 0.5;    // no force update this long: ask the server how it is
+  // While still silent, ask again this often: a node's loss is declared by the control plane
+  // (2 s without its heartbeat), and the station should see it within a tenth of a second,
+  // not up to another silence_s later.
+  double probe_s = 0.1;
   double retry_s = 0.5;        // between connection attempts
   bool reconnect = true;       // false: a lost server ends the station with an error
   int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
@@ -93,7 +97,7 @@ class Station {
   StationStatus status_;
   std::unique_ptr<StationChannel> channel_;
   StationStats finished_stats_;  // of the channels already dropped
-  double next_attempt_ = 0, last_progress_ = 0;
+  double next_attempt_ = 0, last_progress_ = 0, last_probe_ = 0;
   uint64_t last_received_ = 0;
 };
 
