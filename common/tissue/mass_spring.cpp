@@ -254,16 +254,10 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   m.state_.assign(n, simd::Lane8{});
   m.sums_.assign(n, simd::Lane8{});
   const size_t ns = sys.springs.size();
-  m.ends_.resize(ns);
+  m.ends_.reserve(ns);
   m.dirs_.assign(ns, simd::Lane4{});
-  for (auto* buf : {&m.coef_a_, &m.coef_b_, &m.rest_, &m.stiffness_, &m.damping_}) {
-    buf->assign(ns, 0.0);
-  }
-  for (size_t s = 0; s < ns; ++s) {
-    const Spring& sp = sys.springs[s];
-    m.ends_[s] = {sp.i, sp.j};
-    m.rest_[s] = sp.rest_length, m.stiffness_[s] = sp.stiffness, m.damping_[s] = sp.damping;
-  }
+  for (auto* buf : {&m.coef_a_, &m.coef_b_}) buf->assign(ns, 0.0);
+  for (auto* buf : {&m.rest_, &m.stiffness_, &m.damping_}) buf->reserve(ns);
   m.constrained_.reserve(n);
   m.kinematic_.reserve(n);
   m.anchors_.reserve(64);
@@ -271,9 +265,21 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   return m;
 }
 
+void MassSpringModel::SelectSolverSprings() {
+  ends_.clear(), rest_.clear(), stiffness_.clear(), damping_.clear();  // capacity kept
+  for (const Spring& sp : sys_.springs) {
+    if (role_[sp.i] != Role::kFree && role_[sp.j] != Role::kFree) continue;
+    ends_.push_back({sp.i, sp.j});
+    rest_.push_back(sp.rest_length), stiffness_.push_back(sp.stiffness);
+    damping_.push_back(sp.damping);
+  }
+  solver_springs_stale_ = false;
+}
+
 void MassSpringModel::SetFixed(int i, bool fixed) {
   if (role_[i] == Role::kKinematic) SetKinematic(i, false);
   role_[i] = fixed ? Role::kFixed : Role::kFree;
+  solver_springs_stale_ = true;
   v_[i].setZero();
   verlet_primed_ = false;
 }
@@ -283,6 +289,7 @@ void MassSpringModel::SetKinematic(int i, bool kinematic) {
   if (kinematic && it == kinematic_.end()) kinematic_.push_back(i);
   if (!kinematic && it != kinematic_.end()) kinematic_.erase(it);
   role_[i] = kinematic ? Role::kKinematic : Role::kFree;
+  solver_springs_stale_ = true;
   kin_target_[i] = x_[i];
   v_[i].setZero();
   verlet_primed_ = false;
@@ -516,6 +523,7 @@ using simd::V8;
 VSURG_SIMD_CLONES
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
+  if (solver_springs_stale_) SelectSolverSprings();
   auto view = [](std::vector<simd::Lane4>& a) { return reinterpret_cast<V4*>(a.data()); };
   V4 *const dv = view(dv_), *const res = view(r_), *const z = view(z_), *const p = view(p_),
             *const q = view(q_), *const pre = view(precond_), *const pos = view(pos_);
@@ -533,30 +541,33 @@ void MassSpringModel::StepImplicit(double h) {
   // arm needs 1.0 CG iterations instead of 2.0, the pressed sphere 0.5 instead of 1.1. Zero
   // where there is no unknown (also for a particle fixed since the last step: the product
   // with the first guess must not see its old Δv).
+  //
+  // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
+  // together: particle terms first (in the same loop), then the anchors, then one pass over the
+  // springs. rhs and q are summed as the pair (rhs, −q), the particle state read as the pair
+  // (v₀, Δv₀).
   V4* const prev = view(dv_prev_);
+  const double h2 = h * h;
+  const V4 gravity{params_.gravity.x(), params_.gravity.y(), params_.gravity.z(), 0.0};
   constrained_.clear();
   for (int i = 0; i < n; ++i) {
     const V4 last = dv[i];
+    V4 d{};
     if (role_[i] != Role::kFree) {
       constrained_.push_back(i);  // capacity reserved: no allocation
-      dv[i] = prev[i] = V4{};
-      continue;
+      prev[i] = V4{};
+    } else {
+      d = 2.0 * last - prev[i];
+      prev[i] = last;
     }
-    dv[i] = 2.0 * last - prev[i];
-    prev[i] = last;
-  }
-  // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
-  // together: particle terms first, then the anchors, then one pass over the springs. rhs and q
-  // are summed as the pair (rhs, −q), the particle state read as the pair (v₀, Δv₀).
-  const double h2 = h * h;
-  for (int i = 0; i < n; ++i) {
+    dv[i] = d;
     const double m = mass[i];
-    const Vec3 f = h * (f_ext_[i] + m * params_.gravity);
-    const V4 mdv = -m * dv[i];
-    sums[i] = V8{f.x(), f.y(), f.z(), 0.0, mdv[0], mdv[1], mdv[2], 0.0};
+    const V4 f = h * (V4{f_ext_[i].x(), f_ext_[i].y(), f_ext_[i].z(), 0.0} + m * gravity);
+    const V4 mdv = -m * d;
+    sums[i] = __builtin_shufflevector(f, mdv, 0, 1, 2, 3, 4, 5, 6, 7);
     pre[i] = V4{m, m, m, 1.0};  // the fourth 1: the reciprocal below stays finite
-    const V4& d = dv[i];
-    state[i] = V8{v_[i].x(), v_[i].y(), v_[i].z(), 0.0, d[0], d[1], d[2], 0.0};
+    const V4 v{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
+    state[i] = __builtin_shufflevector(v, d, 0, 1, 2, 3, 4, 5, 6, 7);
     pos[i] = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
   }
   for (const Anchor& a : anchors_) {
@@ -567,7 +578,7 @@ void MassSpringModel::StepImplicit(double h) {
     sums[a.i] += V8{f.x(), f.y(), f.z(), 0.0, -ddv[0], -ddv[1], -ddv[2], 0.0};
     pre[a.i] += V4{d, d, d, 0.0};
   }
-  const size_t ns = sys_.springs.size();
+  const size_t ns = ends_.size();
   // One pass over the springs in chunks that stay in L1, four loops each. The first three have
   // no scatter, so consecutive springs overlap in the pipeline, and the second and third are
   // vectorised: the spring vectors l and |l|², then 1/|l|, then the block's scalars a = h c +
@@ -653,7 +664,9 @@ void MassSpringModel::StepImplicit(double h) {
       }
       const V4& d = dirs[s];
       const V4 e = ui - u[j];
-      const V4 t = (coef_a[s] * Dot(e, d)) * d + coef_b[s] * e;
+      V4 de;  // l̂·e in every lane
+      simd::Dots(de, e, d);
+      const V4 t = (coef_a[s] * de) * d + coef_b[s] * e;
       sum += t;
       y[j] -= t;
     }

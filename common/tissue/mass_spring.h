@@ -204,7 +204,13 @@ class MassSpringModel {
   struct SpringEnds {
     int32_t i, j;
   };
+  // Only the springs with a free end are in these arrays: a spring between two fixed or driven
+  // particles adds only to rows the solve filters to zero, so it costs nothing (the sphere's
+  // fixed base: a fifth of its springs). Rebuilt from sys_.springs, within the capacity
+  // reserved at Create, when a particle's role changes.
   std::vector<SpringEnds> ends_;
+  bool solver_springs_stale_ = true;
+  void SelectSolverSprings();
   std::vector<simd::Lane4> dirs_;
   std::vector<double> coef_a_, coef_b_, rest_, stiffness_, damping_;
   std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve

@@ -46,6 +46,13 @@ inline double Dot(const V4& a, const V4& b) {
   return Sum(a * b);
 }
 
+// The dot product broadcast over the four lanes (no scalar round trip).
+inline void Dots(V4& out, const V4& a, const V4& b) {
+  const V4 m = a * b;
+  const V4 s = m + __builtin_shufflevector(m, m, 1, 0, 3, 2);
+  out = s + __builtin_shufflevector(s, s, 2, 3, 0, 1);
+}
+
 // Each half's three-term dot product, broadcast over that half: {a₀·b₀ ×4, a₁·b₁ ×4} (the
 // padded lanes must be 0 on one side).
 inline void HalfDots(V8& out, const V8& a, const V8& b) {
