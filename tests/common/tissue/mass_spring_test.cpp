@@ -154,6 +154,40 @@ MassSpringModel Sphere(Integrator integrator, double stiffness, int levels = 2,
 }
 
 // On a mesh, the symplectic Euler limit is 2/ω_max, ω_max² the largest eigenvalue of M⁻¹K.
+// The implicit step leaves out a spring whose ends are both fixed or driven (it adds only to rows
+// the solve filters to zero): a stretched one there changes nothing, until one of its ends is
+// set free, when it must pull again.
+TEST(MassSpringTest, ImplicitStepIgnoresSpringsBetweenFixedParticlesUntilOneIsFreed) {
+  auto chain = [](bool with_fixed_spring) {
+    MassSpringSystem s;
+    s.rest_positions = {Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0.2, 0, 0), Vec3(0.3, 0, 0)};
+    s.masses = {0.01, 0.01, 0.01, 0.01};
+    s.springs = {{1, 2, 50.0, 0.05, 0.1}, {2, 3, 50.0, 0.05, 0.1}};
+    // Between the two fixed particles, stretched to twice its rest length.
+    if (with_fixed_spring) s.springs.push_back({0, 1, 80.0, 0.05, 0.05});
+    MassSpringStepParams p;
+    p.integrator = Integrator::kImplicitEuler;
+    p.gravity = Vec3(0, -9.81, 0);
+    p.cg_tolerance = 1e-9;
+    auto model = MassSpringModel::Create(s, p);
+    EXPECT_TRUE(model.ok());
+    model->SetFixed(0, true);
+    model->SetFixed(1, true);
+    return *model;
+  };
+  MassSpringModel with = chain(true), without = chain(false);
+  for (int k = 0; k < 200; ++k) with.Step(1e-3), without.Step(1e-3);
+  for (int i = 0; i < 4; ++i)
+    for (int c = 0; c < 3; ++c)
+      EXPECT_DOUBLE_EQ(with.positions()[i][c], without.positions()[i][c]) << i << " " << c;
+  EXPECT_LT(with.positions()[3].y(), -1e-3);  // the free end did fall
+
+  // Particle 1 set free: the stretched spring pulls it toward particle 0 only where it exists.
+  with.SetFixed(1, false), without.SetFixed(1, false);
+  for (int k = 0; k < 50; ++k) with.Step(1e-3), without.Step(1e-3);
+  EXPECT_LT(with.positions()[1].x(), without.positions()[1].x() - 1e-3);
+}
+
 TEST(MassSpringTest, SymplecticStepLimitOnAMeshIsTwoOverTheLargestFrequency) {
   const double omega = Sphere(Integrator::kSymplecticEuler, 50.0).MaxAngularFrequency(500);
   ASSERT_GT(omega, 0);
