@@ -202,6 +202,10 @@ class Store {
                                             int64_t at_us, const std::string& reason);
   // Live sessions per node, from the sessions' own rows (what placement balances).
   Expected<std::vector<std::pair<std::string, int>>> LiveSessionsByNode();
+  // Every live session as (node, id), in one statement: placement counts from it and tells
+  // which of its own just-answered placements the read already shows. Live sessions are bounded
+  // by the nodes' capacities.
+  Expected<std::vector<std::pair<std::string, int64_t>>> LiveSessionNodes();
   Status RecordTrainingMoment(const std::string& trainee, double moment_min,
                               std::optional<int64_t> session_id);
 

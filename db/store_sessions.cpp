@@ -221,6 +221,23 @@ Expected<std::vector<std::pair<std::string, int>>> Store::LiveSessionsByNode() {
   return out;
 }
 
+Expected<std::vector<std::pair<std::string, int64_t>>> Store::LiveSessionNodes() {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare("SELECT node, id FROM sessions WHERE state IN (?1, ?2, ?3)");
+  if (!st.ok()) return st.error();
+  BindLiveStates(**st, 1);
+  std::vector<std::pair<std::string, int64_t>> out;
+  for (;;) {
+    auto row = (*st)->Step();
+    if (!row.ok()) return row.error();
+    if (!*row) break;
+    out.emplace_back((*st)->String(0), (*st)->Int(1));
+  }
+  (*st)->Reset();
+  return out;
+}
+
 Status Store::RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m) {
   return Write([=](Connection& c) {
     return RunSql(

@@ -4,6 +4,7 @@
 #include <deque>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <grpcpp/health_check_service_interface.h>
@@ -42,18 +43,23 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   std::map<uint64_t, Subscription> subscribers;
   uint64_t next_token = 1;
 
-  // This replica's placements the store's live counts may not show yet, so that a burst of
-  // stations placed at once does not pile onto the node that was emptiest when they all read
-  // the rows. In flight: a Create sent to the node and not answered (the node writes the row
-  // before it answers). Recent: answered, numbered in order; one answered after a placement
-  // began reading the store may be missing from what it read, so it counts those too (at worst
-  // a session counted twice for a moment: the node looks fuller, never emptier). The store is
-  // read outside the lock, so placements do not queue behind each other's queries.
+  // This replica's placements the store may not show yet, so that a burst of stations placed at
+  // once does not pile onto the node that was emptiest when they all read the rows. In flight:
+  // a Create sent to the node and not answered (the node writes the row just before it
+  // answers). Answered: numbered in order with their session ids; one answered after a
+  // placement began its read, and missing from that read, is counted once (one answered before
+  // the read began is in it while it is live). The store is read outside the lock, so
+  // placements do not queue behind each other's queries.
   std::mutex placing_mutex;
   std::map<std::string, int> in_flight;
-  uint64_t answered = 0;                                // placements answered so far
-  std::deque<std::pair<uint64_t, std::string>> recent;  // (number, node), the last kRecent
-  static constexpr size_t kRecent = 1024;
+  struct Answered {
+    uint64_t number;
+    int64_t id;
+    std::string node;
+  };
+  uint64_t answered_count = 0;
+  std::deque<Answered> answered;  // the last kAnswered, oldest first
+  static constexpr size_t kAnswered = 1024;
 
   std::mutex stop_mutex;
   std::condition_variable stop_cv;
@@ -254,19 +260,21 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
     uint64_t answered_before = 0;
     {
       std::lock_guard lock(d.placing_mutex);
-      answered_before = d.answered;
+      answered_before = d.answered_count;
     }
     auto nodes = d.store.ListNodes();
     if (!nodes.ok()) return nodes.error();
-    auto counts = d.store.LiveSessionsByNode();
-    if (!counts.ok()) return counts.error();
-    std::map<std::string, int> by_node(counts->begin(), counts->end());
+    auto rows = d.store.LiveSessionNodes();
+    if (!rows.ok()) return rows.error();
+    std::map<std::string, int> by_node;
+    std::set<int64_t> listed;
+    for (const auto& [node, id] : *rows) ++by_node[node], listed.insert(id);
     const int64_t now = db::NowUs();
     db::NodeRecord chosen;
     {
       std::lock_guard lock(d.placing_mutex);
-      for (const auto& [number, node] : d.recent)
-        if (number > answered_before) ++by_node[node];
+      for (const Impl::Answered& a : d.answered)
+        if (a.number > answered_before && !listed.count(a.id)) ++by_node[a.node];
       for (const auto& [node, n] : d.in_flight) by_node[node] += n;
       const db::NodeRecord* best = nullptr;
       double best_load = 0;
@@ -301,8 +309,9 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
       std::lock_guard lock(d.placing_mutex);
       if (--d.in_flight[chosen.name] == 0) d.in_flight.erase(chosen.name);
       if (s.ok()) {
-        d.recent.emplace_back(++d.answered, chosen.name);
-        if (d.recent.size() > Impl::kRecent) d.recent.pop_front();
+        d.answered.push_back(
+            {++d.answered_count, static_cast<int64_t>(reply.session().id()), chosen.name});
+        if (d.answered.size() > Impl::kAnswered) d.answered.pop_front();
       }
     }
     if (s.ok()) {
