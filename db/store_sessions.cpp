@@ -1,4 +1,5 @@
 #include <cmath>
+#include <map>
 
 #include "db/store_impl.h"
 
@@ -202,25 +203,6 @@ Expected<std::optional<int>> Store::MarkNodeDown(const std::string& name, int64_
   return aborted;
 }
 
-Expected<std::vector<std::pair<std::string, int>>> Store::LiveSessionsByNode() {
-  auto r = impl_->Read();
-  if (!r.ok()) return r.error();
-  auto st = (**r).Prepare(
-      "SELECT node, count(*) FROM sessions WHERE state IN (?1, ?2, ?3) GROUP BY node "
-      "ORDER BY node");
-  if (!st.ok()) return st.error();
-  BindLiveStates(**st, 1);
-  std::vector<std::pair<std::string, int>> out;
-  for (;;) {
-    auto row = (*st)->Step();
-    if (!row.ok()) return row.error();
-    if (!*row) break;
-    out.emplace_back((*st)->String(0), static_cast<int>((*st)->Int(1)));
-  }
-  (*st)->Reset();
-  return out;
-}
-
 Expected<std::vector<std::pair<std::string, int64_t>>> Store::LiveSessionNodes() {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
@@ -236,6 +218,14 @@ Expected<std::vector<std::pair<std::string, int64_t>>> Store::LiveSessionNodes()
   }
   (*st)->Reset();
   return out;
+}
+
+Expected<std::vector<std::pair<std::string, int>>> Store::LiveSessionsByNode() {
+  auto rows = LiveSessionNodes();
+  if (!rows.ok()) return rows.error();
+  std::map<std::string, int> by_node;  // ordered by node
+  for (const auto& [node, id] : *rows) ++by_node[node];
+  return std::vector<std::pair<std::string, int>>(by_node.begin(), by_node.end());
 }
 
 Status Store::RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m) {

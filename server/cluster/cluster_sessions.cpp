@@ -4,6 +4,7 @@
 #include <deque>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -60,6 +61,58 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   uint64_t answered_count = 0;
   std::deque<Answered> answered;  // the last kAnswered, oldest first
   static constexpr size_t kAnswered = 1024;
+
+  uint64_t AnsweredCount() {
+    std::lock_guard lock(placing_mutex);
+    return answered_count;
+  }
+
+  // Least loaded first: live sessions (the store's `rows`, read after `answered_before`
+  // placements were answered, and this replica's it may not show yet) for the capacity, then
+  // CPU, then the name (a stable order); nodes in `tried` are skipped. The choice is reserved
+  // (in flight) before the lock is let go; Release ends the reservation. `with_room` counts the
+  // nodes that are up, not draining and below capacity, tried or not.
+  std::optional<db::NodeRecord> Reserve(const std::vector<db::NodeRecord>& nodes,
+                                        const std::vector<std::pair<std::string, int64_t>>& rows,
+                                        uint64_t answered_before,
+                                        const std::vector<std::string>& tried, size_t& with_room) {
+    std::map<std::string, int> by_node;
+    std::set<int64_t> listed;
+    for (const auto& [node, id] : rows) ++by_node[node], listed.insert(id);
+    const int64_t now = db::NowUs();
+    std::lock_guard lock(placing_mutex);
+    for (const Answered& a : answered)
+      if (a.number > answered_before && !listed.count(a.id)) ++by_node[a.node];
+    for (const auto& [node, n] : in_flight) by_node[node] += n;
+    const db::NodeRecord* best = nullptr;
+    double best_load = 0;
+    with_room = 0;
+    for (const db::NodeRecord& n : nodes) {
+      const int sessions = by_node[n.name];
+      if (!Healthy(n, now) || n.draining || sessions >= n.capacity) continue;
+      ++with_room;
+      if (std::find(tried.begin(), tried.end(), n.name) != tried.end()) continue;
+      const double load = static_cast<double>(sessions) / n.capacity;
+      if (!best || load < best_load ||
+          (load == best_load &&
+           (n.cpu < best->cpu || (n.cpu == best->cpu && n.name < best->name)))) {
+        best = &n;
+        best_load = load;
+      }
+    }
+    if (!best) return std::nullopt;
+    ++in_flight[best->name];
+    return *best;
+  }
+
+  // The node answered `node`'s Create: with the new session's id, or nullopt when it refused.
+  void Release(const std::string& node, std::optional<int64_t> session) {
+    std::lock_guard lock(placing_mutex);
+    if (--in_flight[node] == 0) in_flight.erase(node);
+    if (!session) return;
+    answered.push_back({++answered_count, *session, node});
+    if (answered.size() > kAnswered) answered.pop_front();
+  }
 
   std::mutex stop_mutex;
   std::condition_variable stop_cv;
@@ -250,54 +303,19 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
                      " live sessions (the limit is " +
                      std::to_string(d.options.max_sessions_per_user) + "); stop one first",
                  "trainee"};
-  // Least loaded first: live sessions (the store's, and this replica's it may not show yet) for
-  // the capacity, then CPU, then the name (a stable order). The choice is reserved before the
-  // lock is let go.
   std::vector<std::string> tried_nodes;
   std::string tried;
   size_t registered = 0, with_room = 0;
   for (;;) {
-    uint64_t answered_before = 0;
-    {
-      std::lock_guard lock(d.placing_mutex);
-      answered_before = d.answered_count;
-    }
+    const uint64_t answered_before = d.AnsweredCount();
     auto nodes = d.store.ListNodes();
     if (!nodes.ok()) return nodes.error();
     auto rows = d.store.LiveSessionNodes();
     if (!rows.ok()) return rows.error();
-    std::map<std::string, int> by_node;
-    std::set<int64_t> listed;
-    for (const auto& [node, id] : *rows) ++by_node[node], listed.insert(id);
-    const int64_t now = db::NowUs();
-    db::NodeRecord chosen;
-    {
-      std::lock_guard lock(d.placing_mutex);
-      for (const Impl::Answered& a : d.answered)
-        if (a.number > answered_before && !listed.count(a.id)) ++by_node[a.node];
-      for (const auto& [node, n] : d.in_flight) by_node[node] += n;
-      const db::NodeRecord* best = nullptr;
-      double best_load = 0;
-      registered = nodes->size();
-      with_room = 0;
-      for (const db::NodeRecord& n : *nodes) {
-        const int sessions = by_node[n.name];
-        if (!d.Healthy(n, now) || n.draining || sessions >= n.capacity) continue;
-        ++with_room;
-        if (std::find(tried_nodes.begin(), tried_nodes.end(), n.name) != tried_nodes.end())
-          continue;
-        const double load = static_cast<double>(sessions) / n.capacity;
-        if (!best || load < best_load ||
-            (load == best_load &&
-             (n.cpu < best->cpu || (n.cpu == best->cpu && n.name < best->name)))) {
-          best = &n;
-          best_load = load;
-        }
-      }
-      if (!best) break;
-      chosen = *best;
-      ++d.in_flight[chosen.name];
-    }
+    registered = nodes->size();
+    const auto reserved = d.Reserve(*nodes, *rows, answered_before, tried_nodes, with_room);
+    if (!reserved) break;
+    const db::NodeRecord& chosen = *reserved;
     tried_nodes.push_back(chosen.name);
     v1::NodeCreateRequest req;
     req.set_trainee(trainee);
@@ -305,15 +323,7 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
     v1::NodeSession reply;
     auto ctx = CallContext(d.options.token, d.options.create_timeout_s);
     const grpc::Status s = d.StubFor(chosen.grpc_address).Create(ctx.get(), req, &reply);
-    {
-      std::lock_guard lock(d.placing_mutex);
-      if (--d.in_flight[chosen.name] == 0) d.in_flight.erase(chosen.name);
-      if (s.ok()) {
-        d.answered.push_back(
-            {++d.answered_count, static_cast<int64_t>(reply.session().id()), chosen.name});
-        if (d.answered.size() > Impl::kAnswered) d.answered.pop_front();
-      }
-    }
+    d.Release(chosen.name, s.ok() ? std::optional<int64_t>(reply.session().id()) : std::nullopt);
     if (s.ok()) {
       CreatedSession out = FromProto(reply);
       out.record.node = chosen.name;
