@@ -61,6 +61,15 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   uint64_t answered_count = 0;
   std::deque<Answered> answered;  // the last kAnswered, oldest first
   static constexpr size_t kAnswered = 1024;
+  // A Create in flight may already have written its row (the node commits, then answers), so a
+  // read can list it while it is still counted in flight. Seen: live session ids read or
+  // answered before. A listed id not seen yet, on a node with placements in flight, is held as
+  // unexplained until those are answered; up to one unexplained row per Create in flight is
+  // taken to be that Create's and not counted twice. (Another replica's session placed on the
+  // same node at the same moment is taken for one of ours: one too few for that moment.)
+  std::set<int64_t> seen;
+  std::map<std::string, std::set<int64_t>> unexplained;  // by node
+  static constexpr size_t kSeen = 65536;
 
   uint64_t AnsweredCount() {
     std::lock_guard lock(placing_mutex);
@@ -83,7 +92,22 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     std::lock_guard lock(placing_mutex);
     for (const Answered& a : answered)
       if (a.number > answered_before && !listed.count(a.id)) ++by_node[a.node];
-    for (const auto& [node, n] : in_flight) by_node[node] += n;
+    for (const auto& [node, id] : rows)
+      if (!seen.count(id)) {
+        if (in_flight.count(node))
+          unexplained[node].insert(id);
+        else
+          seen.insert(id);
+      }
+    for (const auto& [node, n] : in_flight) {
+      size_t mine = 0;  // rows this read lists that are (taken to be) Creates still in flight
+      for (int64_t id : unexplained[node]) mine += listed.count(id);
+      by_node[node] += n - static_cast<int>(std::min<size_t>(mine, static_cast<size_t>(n)));
+    }
+    if (seen.size() > kSeen) {  // ended sessions never come back: keep the live and answered
+      seen = listed;
+      for (const Answered& a : answered) seen.insert(a.id);
+    }
     const db::NodeRecord* best = nullptr;
     double best_load = 0;
     with_room = 0;
@@ -108,8 +132,14 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   // The node answered `node`'s Create: with the new session's id, or nullopt when it refused.
   void Release(const std::string& node, std::optional<int64_t> session) {
     std::lock_guard lock(placing_mutex);
-    if (--in_flight[node] == 0) in_flight.erase(node);
+    if (--in_flight[node] == 0) {
+      in_flight.erase(node);
+      auto held = unexplained.extract(node);  // nothing in flight there: explained
+      if (!held.empty()) seen.merge(held.mapped());
+    }
     if (!session) return;
+    seen.insert(*session);
+    if (auto it = unexplained.find(node); it != unexplained.end()) it->second.erase(*session);
     answered.push_back({++answered_count, *session, node});
     if (answered.size() > kAnswered) answered.pop_front();
   }
@@ -275,6 +305,9 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
   auto creds = ServerCredentials(options);
   if (!creds.ok()) return creds.error();
   auto impl = std::make_unique<Impl>(store, options);
+  // The sessions live before this replica started are explained (see Impl::seen).
+  if (auto live = store.LiveSessionNodes(); live.ok())
+    for (const auto& [node, id] : *live) impl->seen.insert(id);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
   builder.AddListeningPort(options.listen, *creds, &impl->port);
