@@ -227,6 +227,11 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   if (!(params.cg_max_iterations >= 1 && Finite(params.cg_tolerance) && params.cg_tolerance > 0)) {
     return InvalidArgument("cg", "conjugate gradient needs ≥ 1 iteration and a tolerance > 0");
   }
+  if (!(params.cg_extrapolation >= 1 && params.cg_extrapolation <= 3)) {
+    return InvalidArgument("cg_extrapolation",
+                           "the first guess's degree must be 1 to 3, got " +
+                               std::to_string(params.cg_extrapolation));
+  }
   if (!params.gravity.allFinite()) return InvalidArgument("gravity", "gravity must be finite");
   if (!(params.divergence_distance > 0))
     return InvalidArgument("divergence_distance", "must be > 0 m");
@@ -248,7 +253,8 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
        {&m.a_, &m.tx_, &m.tv_, &m.k1v_, &m.k2x_, &m.k2v_, &m.k3x_, &m.k3v_, &m.kin_final_}) {
     buf->assign(n, Vec3::Zero());
   }
-  for (auto* buf : {&m.dv_, &m.dv_prev_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.pos_}) {
+  for (auto* buf : {&m.dv_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.pos_, &m.history_[0],
+                    &m.history_[1], &m.history_[2], &m.history_[3]}) {
     buf->assign(n, simd::Lane4{});
   }
   m.state_.assign(n, simd::Lane8{});
@@ -401,7 +407,8 @@ void MassSpringModel::Reset() {
   std::copy(sys_.rest_positions.begin(), sys_.rest_positions.end(), x_.begin());
   std::fill(v_.begin(), v_.end(), Vec3::Zero());
   std::fill(dv_.begin(), dv_.end(), simd::Lane4{});
-  std::fill(dv_prev_.begin(), dv_prev_.end(), simd::Lane4{});
+  for (auto& h : history_) std::fill(h.begin(), h.end(), simd::Lane4{});
+  extrapolation_ = last_extrapolation_ = 1;
   for (int i : kinematic_) kin_target_[i] = x_[i];
   verlet_primed_ = false;
   diverged_ = false;
@@ -537,28 +544,46 @@ void MassSpringModel::StepImplicit(double h) {
   const double *const rest = rest_.data(), *const stiffness = stiffness_.data(),
                       *const damping = damping_.data(), *const mass = sys_.masses.data();
   PlaceKinematic(x_, v_, 0.0, h);
-  // Δv's first guess extrapolated from the last two steps' (2 Δv_{n−1} − Δv_{n−2}): the held
-  // arm needs 1.0 CG iterations instead of 2.0, the pressed sphere 0.5 instead of 1.1. Zero
-  // where there is no unknown (also for a particle fixed since the last step: the product
-  // with the first guess must not see its old Δv).
+  // Δv's first guess, extrapolated from the last steps' Δv by the polynomial of the degree
+  // (1 to 3) that would have guessed the last step's Δv best: its error (over the free
+  // particles) is measured here for every degree against Δv₋₁ (still in dv) from Δv₋₂..Δv₋₅.
+  // Linear, 2 Δv₋₁ − Δv₋₂, halves the held arm's CG iterations against Δv₋₁ alone; the higher
+  // degrees are closer on a smooth drive but carry more of the last solves' residual, so they
+  // win at tight tolerances (at 1e-6 the arm needs 2.1 iterations instead of 4.1 with linear)
+  // and lose at loose ones (docs/BENCHMARKS.md). Zero where there is no unknown (also for a
+  // particle fixed since the last step: the product with the first guess must not see its old
+  // Δv).
   //
   // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
   // together: particle terms first (in the same loop), then the anchors, then one pass over the
   // springs. rhs and q are summed as the pair (rhs, −q), the particle state read as the pair
   // (v₀, Δv₀).
-  V4* const prev = view(dv_prev_);
+  // The history rotates: the oldest buffer (Δv₋₅) takes Δv₋₁ and becomes the newest.
+  V4* const o1 = view(history_[h_]);            // Δv₋₂
+  V4* const o2 = view(history_[(h_ + 3) % 4]);  // Δv₋₃
+  V4* const o3 = view(history_[(h_ + 2) % 4]);  // Δv₋₄
+  V4* const o4 = view(history_[(h_ + 1) % 4]);  // Δv₋₅, overwritten with Δv₋₁
+  h_ = (h_ + 1) % 4;
+  const int degree = last_extrapolation_ = extrapolation_;
   const double h2 = h * h;
   const V4 gravity{params_.gravity.x(), params_.gravity.y(), params_.gravity.z(), 0.0};
   constrained_.clear();
+  V4 miss1{}, miss2{}, miss3{};  // each degree's squared error on Δv₋₁
   for (int i = 0; i < n; ++i) {
     const V4 last = dv[i];
     V4 d{};
     if (role_[i] != Role::kFree) {
       constrained_.push_back(i);  // capacity reserved: no allocation
-      prev[i] = V4{};
+      o4[i] = V4{};
     } else {
-      d = 2.0 * last - prev[i];
-      prev[i] = last;
+      const V4 a = o1[i], b = o2[i], c = o3[i];
+      const V4 e1 = last - (2.0 * a - b), e2 = last - (3.0 * (a - b) + c),
+               e3 = last - (4.0 * (a + c) - 6.0 * b - o4[i]);
+      miss1 += e1 * e1, miss2 += e2 * e2, miss3 += e3 * e3;
+      d = degree == 1   ? 2.0 * last - a
+          : degree == 2 ? 3.0 * (last - a) + b
+                        : 4.0 * (last + b) - 6.0 * a - c;
+      o4[i] = last;
     }
     dv[i] = d;
     const double m = mass[i];
@@ -569,6 +594,12 @@ void MassSpringModel::StepImplicit(double h) {
     const V4 v{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
     state[i] = __builtin_shufflevector(v, d, 0, 1, 2, 3, 4, 5, 6, 7);
     pos[i] = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
+  }
+  {
+    // The next step's degree: the best of this step's, ties to the lower degree.
+    const double m1 = simd::Sum(miss1), m2 = simd::Sum(miss2), m3 = simd::Sum(miss3);
+    const int most = params_.cg_extrapolation;
+    extrapolation_ = most >= 3 && m3 < m2 && m3 < m1 ? 3 : most >= 2 && m2 < m1 ? 2 : 1;
   }
   for (const Anchor& a : anchors_) {
     // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.

@@ -32,6 +32,7 @@
 // Threads: a model belongs to one thread (the deformation thread). Step() never allocates.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -112,6 +113,11 @@ struct MassSpringStepParams {
   // Relative residual of the implicit solve. 1e-3 moves the pressed sphere's contact force by
   // 0.004% against 1e-6 and needs 2.8 instead of 7.8 iterations (docs/BENCHMARKS.md).
   double cg_tolerance = 1e-3;
+  // Highest degree (1 to 3) of the extrapolation from the last steps' Δv that starts each solve;
+  // each step uses the degree that would have guessed the last step's Δv best (1 is linear,
+  // 2Δv₋₁ − Δv₋₂). A smooth drive at a tight tolerance takes the higher degrees: at 1e-6 the
+  // arm needs 2.1 CG iterations instead of 4.1 (docs/BENCHMARKS.md).
+  int cg_extrapolation = 3;
   // A step that leaves a position non-finite or farther than this from rest is a divergence.
   double divergence_distance = 1.0;  // m
 };
@@ -150,6 +156,8 @@ class MassSpringModel {
   const MassSpringSystem& system() const { return sys_; }
   bool diverged() const { return diverged_; }
   int last_cg_iterations() const { return cg_iterations_; }
+  // The degree of the extrapolation that started the last implicit solve (1 to 3).
+  int last_extrapolation() const { return last_extrapolation_; }
 
   double KineticEnergy() const;    // J, ½ Σ m v²
   double PotentialEnergy() const;  // J, ½ Σ k (|l| − L)² (+ gravity: −Σ m g·x)
@@ -215,7 +223,14 @@ class MassSpringModel {
   std::vector<double> coef_a_, coef_b_, rest_, stiffness_, damping_;
   std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
-  std::vector<simd::Lane4> dv_, dv_prev_, r_, z_, p_, q_, precond_, pos_;
+  std::vector<simd::Lane4> dv_, r_, z_, p_, q_, precond_, pos_;
+  // The last four steps' Δv (history_[h_] the newest; the buffers rotate instead of being
+  // copied) for the solve's first guess: the polynomial extrapolation of degree
+  // extrapolation_ (1 to 3, at most params_.cg_extrapolation) whose guess for the last step's Δv
+  // was closest.
+  std::array<std::vector<simd::Lane4>, 4> history_;
+  int h_ = 0;
+  int extrapolation_ = 1, last_extrapolation_ = 1;
   // The set-up pass's per-particle pairs: (v₀, Δv₀) it reads and (rhs, −A Δv₀) it sums, so one
   // load and one sum per spring end serve both.
   std::vector<simd::Lane8> state_, sums_;
