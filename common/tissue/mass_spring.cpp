@@ -228,9 +228,8 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
     return InvalidArgument("cg", "conjugate gradient needs ≥ 1 iteration and a tolerance > 0");
   }
   if (!(params.cg_extrapolation >= 1 && params.cg_extrapolation <= 3)) {
-    return InvalidArgument("cg_extrapolation",
-                           "the first guess's degree must be 1 to 3, got " +
-                               std::to_string(params.cg_extrapolation));
+    return InvalidArgument("cg_extrapolation", "the first guess's degree must be 1 to 3, got " +
+                                                   std::to_string(params.cg_extrapolation));
   }
   if (!params.gravity.allFinite()) return InvalidArgument("gravity", "gravity must be finite");
   if (!(params.divergence_distance > 0))
