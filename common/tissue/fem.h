@@ -52,13 +52,17 @@ struct FemParams {
   bool corotational = true;          // false: small-strain linear FEM (R = I)
   int max_cg_iterations = 400;
   double cg_tolerance = 1e-4;  // relative residual ‖r‖/‖b‖ of each step's Δv
+  // Highest degree (1 to 3) of the extrapolation from the last steps' Δv that starts each
+  // step's CG; each step takes the degree that guessed the last step best (extrapolation.h).
+  int cg_extrapolation = 3;
 };
 
 struct FemStepStats {
   int cg_iterations = 0;
   double residual = 0;  // relative
   bool converged = false;
-  int inverted = 0;  // elements with det F ≤ 0 at the start of the step
+  int inverted = 0;       // elements with det F ≤ 0 at the start of the step
+  int extrapolation = 1;  // the degree of Δv's first guess (1 to 3)
 };
 
 struct FemStaticStats {

@@ -6,6 +6,7 @@
 #include <map>
 #include <utility>
 
+#include "common/tissue/extrapolation.h"
 #include "common/tissue/simd.h"
 #include "common/tissue/text.h"
 
@@ -575,13 +576,13 @@ void MassSpringModel::StepImplicit(double h) {
       constrained_.push_back(i);  // capacity reserved: no allocation
       o4[i] = V4{};
     } else {
-      const V4 a = o1[i], b = o2[i], c = o3[i];
-      const V4 e1 = last - (2.0 * a - b), e2 = last - (3.0 * (a - b) + c),
-               e3 = last - (4.0 * (a + c) - 6.0 * b - o4[i]);
+      V4 e1, e2, e3;
+      Extrapolate(e1, 1, o1[i], o2[i], o3[i], o4[i]);
+      Extrapolate(e2, 2, o1[i], o2[i], o3[i], o4[i]);
+      Extrapolate(e3, 3, o1[i], o2[i], o3[i], o4[i]);
+      e1 -= last, e2 -= last, e3 -= last;
       miss1 += e1 * e1, miss2 += e2 * e2, miss3 += e3 * e3;
-      d = degree == 1   ? 2.0 * last - a
-          : degree == 2 ? 3.0 * (last - a) + b
-                        : 4.0 * (last + b) - 6.0 * a - c;
+      Extrapolate(d, degree, last, o1[i], o2[i], o3[i]);
       o4[i] = last;
     }
     dv[i] = d;
@@ -594,12 +595,8 @@ void MassSpringModel::StepImplicit(double h) {
     state[i] = __builtin_shufflevector(v, d, 0, 1, 2, 3, 4, 5, 6, 7);
     pos[i] = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
   }
-  {
-    // The next step's degree: the best of this step's, ties to the lower degree.
-    const double m1 = simd::Sum(miss1), m2 = simd::Sum(miss2), m3 = simd::Sum(miss3);
-    const int most = params_.cg_extrapolation;
-    extrapolation_ = most >= 3 && m3 < m2 && m3 < m1 ? 3 : most >= 2 && m2 < m1 ? 2 : 1;
-  }
+  extrapolation_ = BestDegree(simd::Sum(miss1), simd::Sum(miss2), simd::Sum(miss3),
+                              params_.cg_extrapolation);  // the next step's
   for (const Anchor& a : anchors_) {
     // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
     const double d = h * a.c + h2 * a.k;

@@ -421,7 +421,6 @@ TEST(MassSpringTest, IntegratorNamesRoundTrip) {
   EXPECT_NE(bad.error().message.find("implicit-euler"), std::string::npos);
 }
 
-
 // The implicit solve starts from an extrapolation of the last steps' Δv whose degree (1 to 3)
 // follows how well each degree guessed the last step. On a smooth drive at a tight tolerance the
 // higher degrees start closer and the solve needs fewer CG iterations; through a jolt (a force
@@ -457,8 +456,8 @@ TEST(MassSpringTest, ImplicitFirstGuessDegreeFollowsTheDriveAndLeavesTheSolution
     const double t = k * h;
     for (int i = 0; i < static_cast<int>(sys->rest_positions.size()); ++i) {
       if (sys->rest_positions[i].z() < 0.045) continue;
-      const Vec3 f = k < 1000 ? Vec3(0.05 * std::sin(2 * std::numbers::pi * 5 * t), 0, 0)
-                              : Vec3(0, 0, -1.0);
+      const Vec3 f =
+          k < 1000 ? Vec3(0.05 * std::sin(2 * std::numbers::pi * 5 * t), 0, 0) : Vec3(0, 0, -1.0);
       linear.SetExternalForce(i, f), adaptive.SetExternalForce(i, f);
     }
     ASSERT_TRUE(linear.Step(h) && adaptive.Step(h)) << k;
