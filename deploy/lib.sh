@@ -7,7 +7,7 @@
 # PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start),
 # PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py).
 VSURG_PACKAGES=(
-  cmake ninja-build g++
+  cmake ninja-build g++ lld
   libeigen3-dev nlohmann-json3-dev
   libgtest-dev libbenchmark-dev
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
