@@ -253,8 +253,8 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
        {&m.a_, &m.tx_, &m.tv_, &m.k1v_, &m.k2x_, &m.k2v_, &m.k3x_, &m.k3v_, &m.kin_final_}) {
     buf->assign(n, Vec3::Zero());
   }
-  for (auto* buf : {&m.dv_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.pos_, &m.history_[0],
-                    &m.history_[1], &m.history_[2], &m.history_[3]}) {
+  for (auto* buf : {&m.dv_, &m.r_, &m.z_, &m.p_, &m.q_, &m.precond_, &m.pos_, &m.diag_,
+                    &m.history_[0], &m.history_[1], &m.history_[2], &m.history_[3]}) {
     buf->assign(n, simd::Lane4{});
   }
   m.state_.assign(n, simd::Lane8{});
@@ -409,6 +409,7 @@ void MassSpringModel::Reset() {
   std::fill(dv_.begin(), dv_.end(), simd::Lane4{});
   for (auto& h : history_) std::fill(h.begin(), h.end(), simd::Lane4{});
   extrapolation_ = last_extrapolation_ = 1;
+  diag_age_ = kDiagEvery;
   for (int i : kinematic_) kin_target_[i] = x_[i];
   verlet_primed_ = false;
   diverged_ = false;
@@ -530,10 +531,15 @@ using simd::V8;
 VSURG_SIMD_CLONES
 void MassSpringModel::StepImplicit(double h) {
   const int n = static_cast<int>(x_.size());
+  // The springs' part of the Jacobi diagonal again this step? (A preconditioner only has to be
+  // close: CG reaches the same tolerance from it. The diagonal moves with the springs' directions
+  // and stretch, slowly at haptic steps; the anchors' part is added fresh every step.)
+  const bool refresh_diag = solver_springs_stale_ || diag_age_ >= kDiagEvery || h != diag_h_;
   if (solver_springs_stale_) SelectSolverSprings();
   auto view = [](std::vector<simd::Lane4>& a) { return reinterpret_cast<V4*>(a.data()); };
   V4 *const dv = view(dv_), *const res = view(r_), *const z = view(z_), *const p = view(p_),
-            *const q = view(q_), *const pre = view(precond_), *const pos = view(pos_);
+            *const q = view(q_), *const pre = view(precond_), *const pos = view(pos_),
+            *const diag = view(diag_);
   V8* const state = reinterpret_cast<V8*>(state_.data());
   V8* const sums = reinterpret_cast<V8*>(sums_.data());
   // Plain pointers: the vector types may alias anything, so a member's data() would be read
@@ -555,8 +561,8 @@ void MassSpringModel::StepImplicit(double h) {
   // Δv).
   //
   // rhs = h (f₀ − h K v₀), q = A Δv₀ (the warm start's product) and pre = diag(A) are summed
-  // together: particle terms first (in the same loop), then the anchors, then one pass over the
-  // springs. rhs and q are summed as the pair (rhs, −q), the particle state read as the pair
+  // together: particle terms first (in the same loop), then one pass over the springs, then the
+  // anchors. rhs and q are summed as the pair (rhs, −q), the particle state read as the pair
   // (v₀, Δv₀).
   // The history rotates: the oldest buffer (Δv₋₅) takes Δv₋₁ and becomes the newest.
   V4* const o1 = view(history_[h_]);            // Δv₋₂
@@ -590,21 +596,17 @@ void MassSpringModel::StepImplicit(double h) {
     const V4 f = h * (V4{f_ext_[i].x(), f_ext_[i].y(), f_ext_[i].z(), 0.0} + m * gravity);
     const V4 mdv = -m * d;
     sums[i] = __builtin_shufflevector(f, mdv, 0, 1, 2, 3, 4, 5, 6, 7);
-    pre[i] = V4{m, m, m, 1.0};  // the fourth 1: the reciprocal below stays finite
+    if (refresh_diag) {
+      pre[i] = V4{m, m, m, 1.0};  // the fourth 1: the reciprocal below stays finite
+    } else {
+      pre[i] = diag[i];
+    }
     const V4 v{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
     state[i] = __builtin_shufflevector(v, d, 0, 1, 2, 3, 4, 5, 6, 7);
     pos[i] = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
   }
   extrapolation_ = BestDegree(simd::Sum(miss1), simd::Sum(miss2), simd::Sum(miss3),
                               params_.cg_extrapolation);  // the next step's
-  for (const Anchor& a : anchors_) {
-    // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
-    const double d = h * a.c + h2 * a.k;
-    const Vec3 f = h * (a.k * (a.target - x_[a.i]) - a.c * v_[a.i]) - h2 * a.k * v_[a.i];
-    const V4 ddv = d * dv[a.i];
-    sums[a.i] += V8{f.x(), f.y(), f.z(), 0.0, -ddv[0], -ddv[1], -ddv[2], 0.0};
-    pre[a.i] += V4{d, d, d, 0.0};
-  }
   const size_t ns = ends_.size();
   // One pass over the springs in chunks that stay in L1, four loops each. The first three have
   // no scatter, so consecutive springs overlap in the pipeline, and the second and third are
@@ -612,7 +614,8 @@ void MassSpringModel::StepImplicit(double h) {
   // h² k (1 − α), b = h² k α (α = max(0, 1 − L/|l|)) and the impulse h k (|l| − L). The fourth
   // sums into the particles. With w = v_j − v_i and e = Δv₀_i − Δv₀_j, spring s adds to end i
   // (end j: the negative) g = h [k (|l| − L) + c l̂·w] l̂ + h² K_s w = (h k (|l| − L) + a l̂·w) l̂
-  // + b w to rhs, t = B_s e = a (l̂·e) l̂ + b e to q, and a l̂² + b to both ends' diagonals. One
+  // + b w to rhs, t = B_s e = a (l̂·e) l̂ + b e to q, and a l̂² + b to both ends' diagonals (on
+  // the steps that refresh them). One
   // pair does both: (w, −e) is the difference of the ends' states, and (g, −t) comes out of the
   // same three operations with the impulse only in the first half. The first end's sums stay in
   // registers while the springs (sorted by first end) share it.
@@ -672,12 +675,27 @@ void MassSpringModel::StepImplicit(double h) {
       const V8 g = (a * dots + V8{imp, imp, imp, imp, 0.0, 0.0, 0.0, 0.0}) * d2 + b * w;
       acc += g;
       sums[j] -= g;
-      const V4 dg = a * d * d + b * xyz;
-      pi += dg;
-      pre[j] += dg;
+      if (refresh_diag) {
+        const V4 dg = a * d * d + b * xyz;
+        pi += dg;
+        pre[j] += dg;
+      }
     }
   }
   if (cur >= 0) sums[cur] += acc, pre[cur] += pi;
+  if (refresh_diag) {
+    std::copy(precond_.begin(), precond_.end(), diag_.begin());
+    diag_age_ = 0, diag_h_ = h;
+  }
+  ++diag_age_;
+  for (const Anchor& a : anchors_) {
+    // Zero-length spring-damper: f = k (target − x) − c v; K = k I, C = c I.
+    const double d = h * a.c + h2 * a.k;
+    const Vec3 f = h * (a.k * (a.target - x_[a.i]) - a.c * v_[a.i]) - h2 * a.k * v_[a.i];
+    const V4 ddv = d * dv[a.i];
+    sums[a.i] += V8{f.x(), f.y(), f.z(), 0.0, -ddv[0], -ddv[1], -ddv[2], 0.0};
+    pre[a.i] += V4{d, d, d, 0.0};
+  }
   // y = A u, with the rows of constrained particles filtered to zero (Baraff & Witkin's filter).
   auto apply = [&](const V4* u, V4* y) {
     for (int i = 0; i < n; ++i) y[i] = mass[i] * u[i];

@@ -224,6 +224,13 @@ class MassSpringModel {
   std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
   std::vector<simd::Lane4> dv_, r_, z_, p_, q_, precond_, pos_;
+  // diag(M + h C + h² K) of the springs (no anchors), summed by the set-up pass only every
+  // kDiagEvery steps and when h or the solver's springs change; in between the preconditioner
+  // starts from it (diag_age_ steps old, diag_h_ the h it was summed for).
+  static constexpr int kDiagEvery = 8;
+  std::vector<simd::Lane4> diag_;
+  int diag_age_ = kDiagEvery;
+  double diag_h_ = 0;
   // The last four steps' Δv (history_[h_] the newest; the buffers rotate instead of being
   // copied) for the solve's first guess: the polynomial extrapolation of degree
   // extrapolation_ (1 to 3, at most params_.cg_extrapolation) whose guess for the last step's Δv
