@@ -42,8 +42,8 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|PressExperimentTest.AStiffImplicitRunStaysFinite'
   # Four reduced scenes built from an empty cache (the organ's twist table, three sessions built
   # side by side, the reduced arm's field, the local model's and the out-of-model contact's
-  # sphere): 8 of the ASan stage's 16 test minutes (the organ alone 3.5) in a CI run that took
-  # 35 of its 30 minutes. The reduced models' code stays under ASan in tissue_test
+  # sphere): 8 of the ASan stage's 16 test minutes (the organ alone 3.5) in a CI run of 35
+  # minutes against the 30-minute aim. The reduced models' code stays under ASan in tissue_test
   # (ReducedTwistTest, ReducedContactTest) and SimulationTest.AReducedSphereSinks… (a reduced
   # scene built, cached and loaded again); the concurrent build runs under TSan below.
   long+='|SimulationTest.ForcepsTwistTheOrganOnItsSurfaceTwistTable'
