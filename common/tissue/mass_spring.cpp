@@ -332,6 +332,7 @@ void MassSpringModel::ClearAnchors() {
 void MassSpringModel::SetIntegrator(Integrator integrator) {
   params_.integrator = integrator;
   verlet_primed_ = false;
+  diag_age_ = kDiagEvery;  // the implicit step's diagonal may be from long ago: sum it again
 }
 
 // eq. 3-5, 3-6 with the damping sign of DESIGN.md; see the header.
