@@ -130,8 +130,9 @@ TEST(MassSpringTest, MeasuredStableStepsMatchTheory) {
 }
 
 // A 66-particle sphere, bottom fixed.
-MassSpringModel Sphere(Integrator integrator, double stiffness, int levels = 2,
-                       VolumeMode volume = VolumeMode::kNone, double damping = 0.02) {
+// The sphere's lower cap (z < −3 cm) fixed, stepped with `sp`.
+MassSpringModel SphereStepped(const MassSpringStepParams& sp, double stiffness, int levels = 2,
+                              VolumeMode volume = VolumeMode::kNone, double damping = 0.02) {
   auto mesh = geometry::MakeSubdividedSphere(
       {0.05, levels, geometry::SphereBase::kOctahedron, Vec3::Zero()});
   MassSpringBuildParams bp;
@@ -143,14 +144,19 @@ MassSpringModel Sphere(Integrator integrator, double stiffness, int levels = 2,
   bp.volume = volume;
   auto sys = BuildMassSpring(*mesh, bp);
   EXPECT_TRUE(sys.ok());
-  MassSpringStepParams sp;
-  sp.integrator = integrator;
   auto model = MassSpringModel::Create(*sys, sp);
   EXPECT_TRUE(model.ok());
   for (int i = 0; i < static_cast<int>(sys->rest_positions.size()); ++i) {
     if (sys->rest_positions[i].z() < -0.03) model->SetFixed(i, true);
   }
   return *model;
+}
+
+MassSpringModel Sphere(Integrator integrator, double stiffness, int levels = 2,
+                       VolumeMode volume = VolumeMode::kNone, double damping = 0.02) {
+  MassSpringStepParams sp;
+  sp.integrator = integrator;
+  return SphereStepped(sp, stiffness, levels, volume, damping);
 }
 
 // On a mesh, the symplectic Euler limit is 2/ω_max, ω_max² the largest eigenvalue of M⁻¹K.
@@ -426,36 +432,23 @@ TEST(MassSpringTest, IntegratorNamesRoundTrip) {
 // higher degrees start closer and the solve needs fewer CG iterations; through a jolt (a force
 // switched on at once) no degree guesses well, and the solve still ends at the same state.
 TEST(MassSpringTest, ImplicitFirstGuessDegreeFollowsTheDriveAndLeavesTheSolutionUnchanged) {
-  auto mesh = geometry::MakeSubdividedSphere({0.05, 3, geometry::SphereBase::kOctahedron, {}});
-  ASSERT_TRUE(mesh.ok());
-  MassSpringBuildParams bp;
-  bp.total_mass = 0.5;
-  bp.structural_stiffness = 200.0;
-  bp.bending_stiffness = 20.0;
-  bp.damping = 0.05;
-  auto sys = BuildMassSpring(*mesh, bp);
-  ASSERT_TRUE(sys.ok());
-  auto make = [&](int most) {
+  auto make = [](int most) {
     MassSpringStepParams sp;
     sp.integrator = Integrator::kImplicitEuler;
     sp.cg_tolerance = 1e-6;
     sp.cg_extrapolation = most;
-    auto model = MassSpringModel::Create(*sys, sp);
-    EXPECT_TRUE(model.ok());
-    for (int i = 0; i < static_cast<int>(sys->rest_positions.size()); ++i) {
-      if (sys->rest_positions[i].z() < -0.03) model->SetFixed(i, true);
-    }
-    return *model;
+    return SphereStepped(sp, 200.0, 3, VolumeMode::kNone, 0.05);  // bending springs 20 N/m
   };
   MassSpringModel linear = make(1), adaptive = make(3);
+  const MassSpringSystem& sys = linear.system();
   const double h = 2e-4;
   long its_linear = 0, its_adaptive = 0;
   int higher = 0;
   // 0.2 s of a smooth sideways push on the top cap (a 5 Hz sine), then a jolt: 1 N down at once.
   for (int k = 0; k < 1200; ++k) {
     const double t = k * h;
-    for (int i = 0; i < static_cast<int>(sys->rest_positions.size()); ++i) {
-      if (sys->rest_positions[i].z() < 0.045) continue;
+    for (int i = 0; i < static_cast<int>(sys.rest_positions.size()); ++i) {
+      if (sys.rest_positions[i].z() < 0.045) continue;
       const Vec3 f =
           k < 1000 ? Vec3(0.05 * std::sin(2 * std::numbers::pi * 5 * t), 0, 0) : Vec3(0, 0, -1.0);
       linear.SetExternalForce(i, f), adaptive.SetExternalForce(i, f);
@@ -482,7 +475,7 @@ TEST(MassSpringTest, ImplicitFirstGuessDegreeFollowsTheDriveAndLeavesTheSolution
     MassSpringStepParams sp;
     sp.integrator = Integrator::kImplicitEuler;
     sp.cg_extrapolation = most;
-    auto bad = MassSpringModel::Create(*sys, sp);
+    auto bad = MassSpringModel::Create(sys, sp);
     ASSERT_FALSE(bad.ok());
     EXPECT_NE(bad.error().message.find("1 to 3"), std::string::npos) << bad.error().message;
   }
