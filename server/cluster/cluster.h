@@ -5,9 +5,10 @@
 //            then least CPU); the station gets that node's UDP address and the session key.
 //            Serves ClusterService (the nodes' heartbeats, written to the shared store) on an
 //            internal port; a watchdog marks a node silent for 2 s down and aborts its sessions
-//            (MarkNodeDown: once, whichever replica sees it first). Monitors and the dashboard
-//            get the nodes' telemetry through it (polled from the nodes while someone watches).
-//            Stateless: every fact is in the store, so replicas run side by side.
+//            (MarkNodeDown: once, whichever replica sees it first), or at once when its
+//            heartbeat is late and its port refuses connections (its process is gone). Monitors and
+//            the dashboard get the nodes' telemetry through it (polled from the nodes while someone
+//            watches). Stateless: every fact is in the store, so replicas run side by side.
 //   sim      NodeAgent: a SessionManager's sessions offered to the control plane (NodeService on
 //            an internal port), and a heartbeat every 0.5 s with the node's load. Drain: no new
 //            sessions, the live ones finish (SIGTERM, a rolling upgrade).
@@ -15,9 +16,9 @@
 // Internal calls carry the site's cluster token (`authorization: Bearer …`); users never reach
 // these ports. No gRPC or protobuf type appears in this header.
 //
-// Threads: ClusterSessions has a watchdog thread (0.5 s), a telemetry poller (telemetry_hz while
-// anyone subscribes) and gRPC's threads for heartbeats; every member may be called from any
-// thread. NodeAgent has a heartbeat thread and gRPC's threads.
+// Threads: ClusterSessions has a watchdog thread (0.1 s), a prober for late nodes, a telemetry
+// poller (telemetry_hz while anyone subscribes) and gRPC's threads for heartbeats; every member may
+// be called from any thread. NodeAgent has a heartbeat thread and gRPC's threads.
 #pragma once
 
 #include <cstdint>

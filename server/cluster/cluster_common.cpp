@@ -1,6 +1,12 @@
 #include "server/cluster/cluster_common.h"
 
+#include <netdb.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 
 #include "proto/convert/services.h"
 #include "server/control/grpc_common.h"
@@ -60,6 +66,57 @@ Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const Clust
                            "the internal API is plaintext: on loopback only, unless the site's "
                            "network is private (allow insecure explicitly; docs/SCALING.md)");
   return grpc::InsecureServerCredentials();
+}
+
+// Plain POSIX rather than Asio: one connect with a deadline on the caller's thread, no
+// io_context to run; the name is resolved by getaddrinfo, which may block on DNS (the caller
+// is the watchdog's prober thread, which nothing else waits for).
+Listening ProbeListening(const std::string& host_port, double timeout_s) {
+  const auto colon = host_port.rfind(':');
+  if (colon == std::string::npos || colon + 1 == host_port.size()) return Listening::kUnknown;
+  std::string host = host_port.substr(0, colon);
+  const std::string port = host_port.substr(colon + 1);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  addrinfo hints{};
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_NUMERICSERV;
+  addrinfo* found = nullptr;
+  if (getaddrinfo(host.c_str(), port.c_str(), &hints, &found) != 0 || !found)
+    return Listening::kUnknown;
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6));
+  bool all_refused = true;
+  Listening out = Listening::kUnknown;
+  for (addrinfo* a = found; a && out != Listening::kYes; a = a->ai_next) {
+    const int fd =
+        ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
+    if (fd < 0) {
+      all_refused = false;
+      continue;
+    }
+    int err = ::connect(fd, a->ai_addr, a->ai_addrlen) == 0 ? 0 : errno;
+    if (err == EINPROGRESS) {
+      pollfd p{fd, POLLOUT, 0};
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      int ready;
+      do {
+        ready = ::poll(&p, 1, static_cast<int>(std::max<int64_t>(0, left.count())));
+      } while (ready < 0 && errno == EINTR);
+      err = ETIMEDOUT;
+      if (ready > 0) {
+        socklen_t len = sizeof(err);
+        if (::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len) != 0) err = errno;
+      }
+    }
+    ::close(fd);
+    if (err == 0) out = Listening::kYes;
+    if (err != ECONNREFUSED) all_refused = false;
+  }
+  freeaddrinfo(found);
+  if (out == Listening::kYes) return out;
+  return all_refused ? Listening::kRefused : Listening::kUnknown;
 }
 
 Error FromGrpc(const grpc::Status& s, const std::string& what) {

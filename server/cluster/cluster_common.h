@@ -28,6 +28,14 @@ std::shared_ptr<grpc::Channel> Channel(const std::string& target);
 // Listening credentials: plaintext, on loopback unless allow_insecure (SCALING.md).
 Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o);
 
+// Whether a process listens at "host:port" (a node's gRPC address), by one TCP connect that
+// waits at most `timeout_s`. kRefused only when every address of the host refused the
+// connection (nothing listens there: the node's process is gone, and its sessions with it);
+// kUnknown for a timeout, an unreachable host or a name that does not resolve (a machine that
+// is gone or cut off answers nothing: only the heartbeat timeout decides for it).
+enum class Listening { kYes, kRefused, kUnknown };
+Listening ProbeListening(const std::string& host_port, double timeout_s);
+
 // A failed internal call as our Error (UNAVAILABLE and DEADLINE_EXCEEDED: kUnavailable).
 Error FromGrpc(const grpc::Status& s, const std::string& what);
 

@@ -7,6 +7,7 @@
 #include <optional>
 #include <set>
 #include <thread>
+#include <vector>
 
 #include <grpcpp/health_check_service_interface.h>
 
@@ -147,7 +148,8 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   std::mutex stop_mutex;
   std::condition_variable stop_cv;
   bool stopping = false;
-  std::thread watchdog, poller;
+  std::vector<db::NodeRecord> to_probe;  // late nodes, for the prober (under stop_mutex)
+  std::thread watchdog, prober, poller;
   std::once_flag shutdown_once;
 
   Impl(db::Store& s, const ClusterOptions& o) : store(s), options(o) {}
@@ -235,16 +237,59 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
       auto nodes = store.ListNodes();
       if (!nodes.ok()) continue;
       const int64_t now = db::NowUs();
+      std::vector<db::NodeRecord> late;
       for (const db::NodeRecord& n : *nodes) {
-        if (n.down || now - n.heartbeat_us <= TimeoutUs()) continue;
+        if (n.down) continue;
+        const int64_t silent = now - n.heartbeat_us;
+        if (silent <= TimeoutUs()) {
+          if (silent > LateUs()) late.push_back(n);
+          continue;
+        }
         auto aborted = store.MarkNodeDown(n.name, now - TimeoutUs(), now,
                                           "simulation node " + n.name + " stopped answering");
         if (aborted.ok() && aborted->has_value())
           Log("node_down", "node=" + n.name + " sessions_aborted=" + std::to_string(**aborted) +
-                               " silent_ms=" + std::to_string((now - n.heartbeat_us) / 1000));
+                               " silent_ms=" + std::to_string(silent / 1000));
+      }
+      if (late.empty()) continue;
+      std::lock_guard lock(stop_mutex);
+      to_probe = std::move(late);
+      stop_cv.notify_all();
+    }
+  }
+
+  // A heartbeat late by half a period may be a loaded node, a slow network, or a process that
+  // is gone. The last is certain when its gRPC port refuses connections: nothing listens there,
+  // and the sessions lived in that process. Such a node is down at once (its stations are back
+  // about a second and a half sooner); any other answer, or none, leaves it to the timeout. The
+  // probes run on their own thread, so a slow one (DNS, a host that drops packets) never holds
+  // up the timeout's sweep.
+  int64_t LateUs() const { return static_cast<int64_t>(options.heartbeat_period_s * 1.5e6); }
+
+  void ProberLoop() {
+    for (;;) {
+      std::vector<db::NodeRecord> late;
+      {
+        std::unique_lock lock(stop_mutex);
+        stop_cv.wait(lock, [&] { return stopping || !to_probe.empty(); });
+        if (stopping) return;
+        late.swap(to_probe);
+      }
+      for (const db::NodeRecord& n : late) {
+        if (ProbeListening(n.grpc_address, kProbeTimeoutS) != Listening::kRefused) continue;
+        const int64_t now = db::NowUs();
+        // Down unless a heartbeat came after the one this decision read.
+        auto aborted = store.MarkNodeDown(
+            n.name, n.heartbeat_us + 1, now,
+            "simulation node " + n.name + " stopped answering (its port refuses connections)");
+        if (aborted.ok() && aborted->has_value())
+          Log("node_down", "node=" + n.name + " sessions_aborted=" + std::to_string(**aborted) +
+                               " silent_ms=" + std::to_string((now - n.heartbeat_us) / 1000) +
+                               " refused=1");
       }
     }
   }
+  static constexpr double kProbeTimeoutS = 0.2;
 
   void PollerLoop() {
     const double period = 1.0 / options.telemetry_hz;
@@ -317,6 +362,7 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
     return Error{ErrorCode::kUnavailable, "cannot listen on " + options.listen, "cluster-listen"};
   Impl* p = impl.get();
   p->watchdog = std::thread([p] { p->WatchdogLoop(); });
+  p->prober = std::thread([p] { p->ProberLoop(); });
   p->poller = std::thread([p] { p->PollerLoop(); });
   return std::unique_ptr<ClusterSessions>(new ClusterSessions(std::move(impl)));
 }
@@ -476,6 +522,7 @@ void ClusterSessions::Shutdown() {
     }
     impl_->stop_cv.notify_all();
     if (impl_->watchdog.joinable()) impl_->watchdog.join();
+    if (impl_->prober.joinable()) impl_->prober.join();
     if (impl_->poller.joinable()) impl_->poller.join();
     if (impl_->server) {
       impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
