@@ -78,7 +78,52 @@ Station::Station(Remote remote, HapticDevice* device, StationConfig config)
     : remote_(std::move(remote)), device_(device), config_(std::move(config)) {}
 
 Station::~Station() {
+  StopSupervisor();
   if (channel_) channel_->Stop();
+}
+
+void Station::StartSupervisor(std::function<void(const StationStatus&)> on_change) {
+  if (supervisor_.joinable()) return;
+  {
+    std::lock_guard lock(supervisor_mutex_);
+    supervising_ = true;
+  }
+  supervisor_ = std::thread([this, on_change = std::move(on_change)] {
+    StationStatus seen = status();
+    if (on_change) on_change(seen);
+    std::unique_lock lock(supervisor_mutex_);
+    while (supervising_) {
+      lock.unlock();
+      Tick();
+      const StationStatus now = status();
+      if (on_change && (now.state != seen.state || now.session != seen.session)) on_change(now);
+      seen = now;
+      lock.lock();
+      supervisor_cv_.wait_for(lock, std::chrono::duration<double>(config_.tick_s),
+                              [&] { return !supervising_; });
+    }
+  });
+}
+
+void Station::StopSupervisor() {
+  {
+    std::lock_guard lock(supervisor_mutex_);
+    supervising_ = false;
+  }
+  supervisor_cv_.notify_all();
+  if (supervisor_.joinable()) supervisor_.join();
+}
+
+StationStatus Station::status() const {
+  std::lock_guard lock(mutex_);
+  return status_;
+}
+
+bool Station::WithChannel(const std::function<void(StationChannel&, const StationStatus&)>& fn) {
+  std::lock_guard lock(mutex_);
+  if (!channel_) return false;
+  fn(*channel_, status_);
+  return true;
 }
 
 double Station::Now() const {
@@ -140,17 +185,22 @@ Status Station::Connect() {
   options.realtime_priority = config_.realtime_priority;
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
-  channel_ = std::move(*channel);
-  status_.session = options.session;
-  ++status_.generation;
-  status_.state = StationState::kLive;
-  status_.last_error.clear();
+  {
+    std::lock_guard lock(mutex_);
+    channel_ = std::move(*channel);
+    status_.session = options.session;
+    ++status_.generation;
+    if (status_.state == StationState::kReconnecting) ++status_.reconnects;
+    status_.state = StationState::kLive;
+    status_.last_error.clear();
+  }
   last_received_ = 0;
   last_progress_ = Now();
   return Status::Ok();
 }
 
 void Station::StopChannel() {
+  std::lock_guard lock(mutex_);
   if (!channel_) return;
   channel_->Stop();  // the device is left at zero force
   Add(finished_stats_, channel_->stats());
@@ -159,12 +209,12 @@ void Station::StopChannel() {
 
 void Station::Drop(const std::string& why) {
   StopChannel();
-  status_.last_error = why;
-  if (!config_.reconnect) {
-    status_.state = StationState::kFailed;
-    return;
+  {
+    std::lock_guard lock(mutex_);
+    status_.last_error = why;
+    status_.state = config_.reconnect ? StationState::kReconnecting : StationState::kFailed;
   }
-  status_.state = StationState::kReconnecting;
+  if (!config_.reconnect) return;
   next_attempt_ = Now();
   remote_.Renew();
 }
@@ -184,24 +234,25 @@ void Station::Probe(double now) {
   last_probe_ = now;  // the server is there and the session live: slow, not gone (yet)
 }
 
+// Only the ticking thread changes status_ and channel_ (under mutex_, for the readers), so it
+// reads them here without the lock.
 void Station::Tick() {
   const double now = Now();
   switch (status_.state) {
     case StationState::kConnecting:
     case StationState::kReconnecting: {
       if (now < next_attempt_) return;
-      const bool again = status_.state == StationState::kReconnecting;
       if (Status s = Connect(); !s.ok()) {
-        status_.last_error = s.error().message;
-        if (s.error().code == ErrorCode::kPermissionDenied) {
-          status_.state = StationState::kFailed;
-          return;
+        const bool fatal = s.error().code == ErrorCode::kPermissionDenied;
+        {
+          std::lock_guard lock(mutex_);
+          status_.last_error = s.error().message;
+          if (fatal) status_.state = StationState::kFailed;
         }
+        if (fatal) return;
         next_attempt_ = now + config_.retry_s;
         remote_.Renew();  // the next attempt on a fresh channel
-        return;
       }
-      if (again) ++status_.reconnects;
       return;
     }
     case StationState::kLive: {
@@ -221,9 +272,13 @@ void Station::Tick() {
 }
 
 Expected<SessionSummary> Station::Finish(const std::string& reason) {
+  StopSupervisor();
   StopChannel();
   const bool had_session = status_.session != 0;
-  status_.state = StationState::kFinished;
+  {
+    std::lock_guard lock(mutex_);
+    status_.state = StationState::kFinished;
+  }
   if (!had_session) return Error{ErrorCode::kUnavailable, "no session was started", "session"};
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::StopSessionRequest stop;
@@ -253,6 +308,7 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
 }
 
 StationStats Station::total_stats() const {
+  std::lock_guard lock(mutex_);
   StationStats sum = finished_stats_;
   if (channel_) {
     const StationStats now = channel_->stats();

@@ -15,12 +15,19 @@
 // across a server restart: the server aborted it and recorded it; the station starts a new one
 // (a new session id and key), and the render side resets the tissue (generation()).
 //
-// Threads: one thread (the station's main/render thread) calls everything.
+// Threads: Tick runs on one thread at a time: the station's supervisor thread (StartSupervisor:
+// every tick_s, so a render thread stalled for seconds by a first frame or a slow driver never
+// delays noticing a lost server), or the caller's (tests). status(), WithChannel() and
+// total_stats() may be called from any thread meanwhile; Finish from the owner's, once.
 #pragma once
 
+#include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 
 #include "client/device/device.h"
 #include "client/net/remote.h"
@@ -44,6 +51,7 @@ struct StationConfig {
   // not up to another silence_s later.
   double probe_s = 0.1;
   double retry_s = 0.5;        // between connection attempts
+  double tick_s = 0.01;        // the supervisor thread's period
   bool reconnect = true;       // false: a lost server ends the station with an error
   int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
 };
@@ -75,12 +83,18 @@ class Station {
   Station& operator=(const Station&) = delete;
 
   void Tick();
+  // Ticks on a thread of the station's own until Finish (or StopSupervisor); `on_change` is
+  // called on that thread with the first status and at every change of state or session.
+  void StartSupervisor(std::function<void(const StationStatus&)> on_change = {});
+  void StopSupervisor();
   // Stops the session on the server (recorded with `reason`) and returns it with its metrics.
   Expected<SessionSummary> Finish(const std::string& reason);
 
-  StationStatus status() const { return status_; }
-  // The running channel (null while connecting); for its view, stats and scene chunks.
-  StationChannel* channel() { return channel_.get(); }
+  StationStatus status() const;
+  // Runs `fn` on the running channel (for its view, stats and scene chunks) while holding it,
+  // so the supervisor cannot replace it meanwhile; false while there is none (connecting).
+  // `fn` also gets the status that goes with that channel (its session and generation).
+  bool WithChannel(const std::function<void(StationChannel&, const StationStatus&)>& fn);
   // Datagrams answered over all sessions, and the channel statistics summed the same way.
   StationStats total_stats() const;
 
@@ -94,9 +108,14 @@ class Station {
   Remote remote_;
   HapticDevice* device_;
   StationConfig config_;
+  mutable std::mutex mutex_;  // status_, channel_, finished_stats_ (written by the ticking thread)
   StationStatus status_;
   std::unique_ptr<StationChannel> channel_;
   StationStats finished_stats_;  // of the channels already dropped
+  std::mutex supervisor_mutex_;
+  std::condition_variable supervisor_cv_;
+  bool supervising_ = false;
+  std::thread supervisor_;
   double next_attempt_ = 0, last_progress_ = 0, last_probe_ = 0;
   uint64_t last_received_ = 0;
 };

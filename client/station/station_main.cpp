@@ -22,6 +22,7 @@
 #include "client/render/mesh_view.h"
 #include "client/station/station.h"
 #include "common/core/args.h"
+#include "common/core/time.h"
 #include "common/scoring/report_json.h"
 #include "common/sim/scene.h"
 
@@ -172,16 +173,16 @@ int Run(const std::vector<std::string>& args) {
   std::vector<double> draw_ms;  // per frame: draw and finish, ms
   const auto frame = std::chrono::duration<double>(1.0 / fps);
   auto next_frame = std::chrono::steady_clock::now();
-  client::StationState last_state = client::StationState::kConnecting;
+  // The session's life on its own thread: a frame that takes seconds (a first frame on a
+  // software renderer, a driver's stall) does not delay noticing a lost server.
+  station.StartSupervisor([](const client::StationStatus& st) {
+    vsurg::LogEvent("vsurg-station", "state",
+                    std::string("state=") + client::StationStateName(st.state) +
+                        " session=" + std::to_string(st.session) +
+                        (st.last_error.empty() ? "" : " reason=\"" + st.last_error + "\""));
+  });
   for (;;) {
-    station.Tick();
     const client::StationStatus st = station.status();
-    if (st.state != last_state) {
-      std::cerr << "vsurg-station: state=" << client::StationStateName(st.state)
-                << " session=" << st.session
-                << (st.last_error.empty() ? "" : " reason=\"" + st.last_error + "\"") << "\n";
-      last_state = st.state;
-    }
     if (st.state == client::StationState::kFailed) return Fail(st.last_error);
     if (st.generation == 0 && Seconds(started) > p.Double("connect-timeout"))
       return Fail("no session within --connect-timeout: " + st.last_error);
@@ -189,19 +190,26 @@ int Run(const std::vector<std::string>& args) {
     const double tick = Seconds(started);
     if (live) live_now += tick - last_tick;
     last_tick = tick;
-    if (live && st.generation != generation) {
-      generation = st.generation;
-      view.ResetToRest();  // a new session starts from the tissue at rest
-    }
 
     client::Overlay overlay;
-    if (client::StationChannel* channel = station.channel()) {
-      for (const auto& chunk : channel->TakeSceneChunks())
-        view.Apply(chunk.indices, chunk.positions);
-      channel->TakeView(shown);
+    uint64_t channel_generation = 0, channel_session = 0;
+    std::vector<vsurg::wire::SceneChunk> chunks;
+    const bool has_channel =
+        station.WithChannel([&](client::StationChannel& channel, const client::StationStatus& now) {
+          channel_generation = now.generation;
+          channel_session = now.session;
+          chunks = channel.TakeSceneChunks();
+          channel.TakeView(shown);
+          if (Seconds(started) - last_rate_at >= 0.5) hud_stats = channel.stats();
+        });
+    if (has_channel) {
+      if (channel_generation != generation) {
+        generation = channel_generation;
+        view.ResetToRest();  // a new session starts from the tissue at rest
+      }
+      for (const auto& chunk : chunks) view.Apply(chunk.indices, chunk.positions);
       const double now = Seconds(started);
       if (now - last_rate_at >= 0.5) {
-        hud_stats = channel->stats();
         // A new session's channel counts from zero again.
         rate_hz = last_rate_at > 0 && hud_stats.sent >= last_sent
                       ? static_cast<double>(hud_stats.sent - last_sent) / (now - last_rate_at)
@@ -216,12 +224,13 @@ int Run(const std::vector<std::string>& args) {
       overlay.force = shown.force;
       overlay.contact = shown.command.contact;
       overlay.grasping = shown.command.grasping;
-      overlay.hud = {"vsurg station  " + scene->name + "  session " + std::to_string(st.session),
-                     "haptic " + Fixed(rate_hz, 0) + " Hz   RTT " + Fixed(s.rtt_p50_us, 0) +
-                         " µs   loss " + Fixed(100 * s.loss, 1) + "%",
-                     "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
-                         Fixed(shown.force.norm(), 2) + " N",
-                     "score " + Fixed(shown.command.score, 1) + " / 10"};
+      overlay.hud = {
+          "vsurg station  " + scene->name + "  session " + std::to_string(channel_session),
+          "haptic " + Fixed(rate_hz, 0) + " Hz   RTT " + Fixed(s.rtt_p50_us, 0) + " µs   loss " +
+              Fixed(100 * s.loss, 1) + "%",
+          "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
+              Fixed(shown.force.norm(), 2) + " N",
+          "score " + Fixed(shown.command.score, 1) + " / 10"};
     } else {
       overlay.hud = {"vsurg station  " + scene->name,
                      std::string(client::StationStateName(st.state)) + " ...",

@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -67,6 +68,14 @@ bool TickUntil(Station& station, double seconds, F done) {
   return false;
 }
 
+// `fn` on the station's channel; false (and `fn` not run) while it has none.
+template <typename F>
+bool OnChannel(Station& station, F fn) {
+  bool out = false;
+  station.WithChannel([&](StationChannel& c, const StationStatus&) { out = fn(c); });
+  return out;
+}
+
 TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
   const fs::path dir = FreshDir("vsurg_station_restart");
   const fs::path db = dir / "vsurg.db";
@@ -88,15 +97,18 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
   config.scene = "sphere-palpation-256";
   Station station(RemoteTo(grpc_port, tokens.trainee), &device, config);
   ASSERT_TRUE(TickUntil(station, 20, [&] {
-    return station.channel() && station.channel()->stats().received > 800 &&
-           station.channel()->last_force().norm() > 0.3;
+    return OnChannel(station, [](StationChannel& c) {
+      return c.stats().received > 800 && c.last_force().norm() > 0.3;
+    });
   })) << station.status().last_error;
   const uint64_t first_session = station.status().session;
   EXPECT_EQ(station.status().generation, 1u);
 
   // The server goes down while the hand is pressing (a clean stop: the session is recorded as
   // aborted).
-  ASSERT_TRUE(TickUntil(station, 5, [&] { return station.channel()->last_force().norm() > 0.4; }));
+  ASSERT_TRUE(TickUntil(station, 5, [&] {
+    return OnChannel(station, [](StationChannel& c) { return c.last_force().norm() > 0.4; });
+  }));
   const size_t written_before = device.forces().size();
   EXPECT_EQ(server.Signal(SIGTERM), 0);
   ASSERT_TRUE(TickUntil(station, 10,
@@ -114,7 +126,7 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
   }
   EXPECT_LT(last_nonzero + 300, forces.size()) << "faded by the watchdog, not cut at the stop";
   EXPECT_EQ(forces.back().norm(), 0.0);
-  EXPECT_EQ(station.channel(), nullptr);
+  EXPECT_FALSE(station.WithChannel([](StationChannel&, const StationStatus&) {}));
 
   // Meanwhile attempts fail and are retried; then the server is back on the same ports.
   EXPECT_FALSE(
@@ -126,10 +138,10 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
   // surface (a session started mid-press sees the tissue only after the next lift).
   StationView view;
   ASSERT_TRUE(TickUntil(station, 20, [&] {
-    if (station.status().state != StationState::kLive || !station.channel()) return false;
-    station.channel()->TakeView(view);
-    return station.channel()->stats().received > 300 && view.command.contact &&
-           view.command.force.norm() > 0.3;
+    return OnChannel(station, [&](StationChannel& c) {
+      c.TakeView(view);
+      return c.stats().received > 300 && view.command.contact && view.command.force.norm() > 0.3;
+    });
   })) << station.status().last_error;
   EXPECT_EQ(station.status().reconnects, 1);
   EXPECT_EQ(station.status().generation, 2u);
@@ -145,6 +157,62 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
   ASSERT_TRUE(store.ok());
   EXPECT_EQ((*store)->GetSession(static_cast<int64_t>(first_session))->state,
             SessionState::kAborted);
+}
+
+// The render thread may stall for seconds (a first frame on a software renderer): the
+// station's own supervisor thread notices the lost server and starts a new session meanwhile,
+// with nobody calling Tick.
+TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
+  const fs::path dir = FreshDir("vsurg_station_supervisor");
+  const fs::path db = dir / "vsurg.db";
+  const Tokens tokens = MakeStore(db);
+  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  ASSERT_GT(server.grpc_port, 0);
+  const int grpc_port = server.grpc_port, udp_port = server.udp_port;
+  ReplayDevice device(std::vector<haptics::StylusSample>(60000, test::PressAndHold(1).front()));
+  StationConfig config;
+  config.scene = "sphere-palpation-256";
+  Station station(RemoteTo(grpc_port, tokens.trainee), &device, config);
+  std::mutex seen_mutex;
+  std::vector<std::pair<StationState, uint64_t>> seen;  // what on_change reported, in order
+  station.StartSupervisor([&](const StationStatus& st) {
+    std::lock_guard lock(seen_mutex);
+    seen.emplace_back(st.state, st.session);
+  });
+  const auto wait_for = [&](double seconds, auto done) {  // polls; never ticks
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (!done() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    return done();
+  };
+  ASSERT_TRUE(wait_for(20, [&] {
+    return OnChannel(station, [](StationChannel& c) { return c.stats().received > 200; });
+  })) << station.status().last_error;
+  const uint64_t first = station.status().session;
+
+  server.Signal(SIGKILL);  // a crash: the restarted server finds the session unfinished
+  server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db, grpc_port, udp_port);
+  ASSERT_EQ(server.grpc_port, grpc_port);
+  // The owner is busy for 5 s (as a stalled render thread would be).
+  std::this_thread::sleep_for(std::chrono::seconds(5));
+  const StationStatus now = station.status();
+  EXPECT_EQ(now.state, StationState::kLive) << now.last_error;
+  EXPECT_EQ(now.reconnects, 1);
+  EXPECT_NE(now.session, first);
+  EXPECT_TRUE(OnChannel(station, [](StationChannel& c) { return c.stats().received > 0; }));
+  {
+    std::lock_guard lock(seen_mutex);
+    ASSERT_GE(seen.size(), 4u);
+    EXPECT_EQ(seen[0].first, StationState::kConnecting);
+    EXPECT_EQ(seen[1], std::make_pair(StationState::kLive, first));
+    EXPECT_EQ(seen[2].first, StationState::kReconnecting);
+    EXPECT_EQ(seen.back(), std::make_pair(StationState::kLive, now.session));
+  }
+  auto summary = station.Finish("test over");
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->id, now.session);
+  EXPECT_EQ(station.status().state, StationState::kFinished);
+  server.Signal(SIGTERM);
 }
 
 TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
