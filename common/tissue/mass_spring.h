@@ -179,8 +179,10 @@ class MassSpringModel {
   void Forces(const std::vector<Vec3>& x, const std::vector<Vec3>& v, std::vector<Vec3>& f) const;
   // Kinematic particles at fraction `alpha` of the current step.
   void PlaceKinematic(std::vector<Vec3>& x, std::vector<Vec3>& v, double alpha, double h) const;
-  void StepOnce(double h);
-  void StepImplicit(double h);
+  // One step of h; false when it left a particle beyond divergence_distance or a velocity not
+  // finite (CheckFinite).
+  bool StepOnce(double h);
+  bool StepImplicit(double h);
   bool CheckFinite() const;
 
   MassSpringSystem sys_;
@@ -238,6 +240,8 @@ class MassSpringModel {
   std::array<std::vector<simd::Lane4>, 4> history_;
   int h_ = 0;
   int extrapolation_ = 1, last_extrapolation_ = 1;
+  static constexpr int kJudgeEvery = 4;
+  int judge_age_ = kJudgeEvery - 1;  // the first step compares
   // The set-up pass's per-particle pairs: (v₀, Δv₀) it reads and (rhs, −A Δv₀) it sums, so one
   // load and one sum per spring end serve both.
   std::vector<simd::Lane8> state_, sums_;

@@ -237,6 +237,32 @@ TEST(MassSpringTest, ImplicitEulerStaysBoundedFarBeyondTheExplicitLimitOnStiffSp
   }
 }
 
+// The implicit step is stable, but a force no tissue meets can still throw a particle beyond
+// divergence_distance (1 m): the step's own last pass notices, as CheckFinite did, for a free
+// particle and for a driven one.
+TEST(MassSpringTest, AnImplicitStepBeyondTheDivergenceDistanceIsReportedAndReset) {
+  for (const bool driven : {false, true}) {
+    MassSpringModel model = Sphere(Integrator::kImplicitEuler, 1e3);
+    const int top = 4;  // the +z pole of the octahedron
+    ASSERT_TRUE(model.Step(1e-3));
+    if (driven) {
+      model.SetKinematic(top, true);
+      model.SetKinematicTarget(top, Vec3(0, 0, 2.0));  // 1.95 m from rest
+    } else {
+      model.SetExternalForce(top, Vec3(0, 0, 1e9));
+    }
+    EXPECT_FALSE(model.Step(1e-3)) << driven;
+    EXPECT_TRUE(model.diverged());
+    for (size_t i = 0; i < model.positions().size(); ++i)
+      EXPECT_EQ(model.positions()[i], model.system().rest_positions[i]) << "reset to rest";
+    EXPECT_FALSE(model.Step(1e-3));  // stays stopped until reset
+    model.Reset();
+    model.ClearExternalForces();
+    if (driven) model.SetKinematic(top, false);
+    EXPECT_TRUE(model.Step(1e-3));
+  }
+}
+
 TEST(MassSpringTest, CoincidentParticlesAndZeroLengthSpringsGiveNoNan) {
   for (Integrator integrator : kAllIntegrators) {
     MassSpringSystem s;
