@@ -140,7 +140,8 @@ class MassSpringModel {
   void ClearExternalForces();
   // A zero-length spring-damper from a particle to a fixed point (N/m, N·s/m): how a tool
   // couples to the tissue. Unlike an external force it is part of the implicit solve, so a
-  // coupling stiffer than the tissue stays stable. Held until ClearAnchors.
+  // coupling stiffer than the tissue stays stable. Held until ClearAnchors; at most 64 (more are
+  // ignored).
   void SetAnchor(int particle, const Vec3& target, double stiffness, double damping);
   void ClearAnchors();
   void SetIntegrator(Integrator integrator);
@@ -197,6 +198,7 @@ class MassSpringModel {
     Vec3 target;
     double k, c;
   };
+  static constexpr size_t kMaxAnchors = 64;
   std::vector<Anchor> anchors_;  // capacity reserved at Create
   bool diverged_ = false;
   int cg_iterations_ = 0;
@@ -230,7 +232,7 @@ class MassSpringModel {
   // kDiagEvery steps and when h or the solver's springs change; in between the preconditioner
   // starts from it (diag_age_ steps old, diag_h_ the h it was summed for).
   static constexpr int kDiagEvery = 8;
-  std::vector<simd::Lane4> diag_;
+  std::vector<simd::Lane4> diag_, inv_diag_;  // and its reciprocal (the preconditioner)
   int diag_age_ = kDiagEvery;
   double diag_h_ = 0;
   // The last four steps' Δv (history_[h_] the newest; the buffers rotate instead of being

@@ -237,6 +237,35 @@ TEST(MassSpringTest, ImplicitEulerStaysBoundedFarBeyondTheExplicitLimitOnStiffSp
   }
 }
 
+// A tool's coupling: the anchored particle is pulled to the target, and two anchors on one
+// particle act as one with their summed stiffness and damping (the implicit step adds both to
+// the particle's diagonal before it takes the reciprocal, once).
+TEST(MassSpringTest, AnchorsPullTheirParticleAndTwoOnOneActAsTheirSum) {
+  MassSpringStepParams sp;
+  sp.integrator = Integrator::kImplicitEuler;
+  sp.cg_tolerance = 1e-10;  // both solves converged: equal to rounding, not to the tolerance
+  MassSpringModel one = SphereStepped(sp, 1e3);
+  MassSpringModel two = SphereStepped(sp, 1e3);
+  const int top = 4;  // the +z pole of the octahedron
+  const Vec3 rest = one.system().rest_positions[top];
+  const Vec3 target = rest + Vec3(0.004, 0, -0.006);
+  one.SetAnchor(top, target, 200.0, 1.0);
+  two.SetAnchor(top, target, 120.0, 0.6);
+  two.SetAnchor(top, target, 80.0, 0.4);
+  long iterations_one = 0, iterations_two = 0;  // equal too: the same preconditioner
+  for (int k = 0; k < 400; ++k) {
+    ASSERT_TRUE(one.Step(1e-3));
+    ASSERT_TRUE(two.Step(1e-3));
+    iterations_one += one.last_cg_iterations(), iterations_two += two.last_cg_iterations();
+  }
+  EXPECT_EQ(iterations_one, iterations_two);
+  for (size_t i = 0; i < one.positions().size(); ++i)
+    EXPECT_LT((one.positions()[i] - two.positions()[i]).norm(), 1e-9) << i;
+  // Pulled most of the way against the sphere's springs.
+  EXPECT_LT((one.positions()[top] - target).norm(), 0.5 * (rest - target).norm());
+  EXPECT_GT(one.InternalForceOn(top).norm(), 0.1) << "the tissue pulls back";
+}
+
 // The implicit step is stable, but a force no tissue meets can still throw a particle beyond
 // divergence_distance (1 m): the step's own last pass notices, as CheckFinite did, for a free
 // particle and for a driven one.
