@@ -194,13 +194,14 @@ int Run(const std::vector<std::string>& args) {
     client::Overlay overlay;
     uint64_t channel_generation = 0, channel_session = 0;
     std::vector<vsurg::wire::SceneChunk> chunks;
+    const bool refresh_hud = tick - last_rate_at >= 0.5;  // the HUD's figures, twice a second
     const bool has_channel =
-        station.WithChannel([&](client::StationChannel& channel, const client::StationStatus& now) {
-          channel_generation = now.generation;
-          channel_session = now.session;
+        station.WithChannel([&](client::StationChannel& channel, const client::StationStatus& at) {
+          channel_generation = at.generation;
+          channel_session = at.session;
           chunks = channel.TakeSceneChunks();
           channel.TakeView(shown);
-          if (Seconds(started) - last_rate_at >= 0.5) hud_stats = channel.stats();
+          if (refresh_hud) hud_stats = channel.stats();
         });
     if (has_channel) {
       if (channel_generation != generation) {
@@ -208,14 +209,13 @@ int Run(const std::vector<std::string>& args) {
         view.ResetToRest();  // a new session starts from the tissue at rest
       }
       for (const auto& chunk : chunks) view.Apply(chunk.indices, chunk.positions);
-      const double now = Seconds(started);
-      if (now - last_rate_at >= 0.5) {
+      if (refresh_hud) {
         // A new session's channel counts from zero again.
         rate_hz = last_rate_at > 0 && hud_stats.sent >= last_sent
-                      ? static_cast<double>(hud_stats.sent - last_sent) / (now - last_rate_at)
+                      ? static_cast<double>(hud_stats.sent - last_sent) / (tick - last_rate_at)
                       : 0;
         last_sent = hud_stats.sent;
-        last_rate_at = now;
+        last_rate_at = tick;
       }
       const client::StationStats& s = hud_stats;
       overlay.show_stylus = true;
