@@ -47,6 +47,19 @@ fs::path FreshDir(const std::string& name) {
   return dir;
 }
 
+// A fresh folder, a store with MakeStore's users in it, and a server on them (declared in that
+// order: each is made from the one before).
+struct Site {
+  fs::path dir, db;
+  Tokens tokens;
+  test::ServerProcess server;
+  explicit Site(const std::string& name)
+      : dir(FreshDir(name)),
+        db(dir / "vsurg.db"),
+        tokens(MakeStore(db)),
+        server(test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db)) {}
+};
+
 Remote RemoteTo(int port, const std::string& token) {
   Remote r;
   r.address = "127.0.0.1:" + std::to_string(port);
@@ -56,16 +69,24 @@ Remote RemoteTo(int port, const std::string& token) {
   return r;
 }
 
-// Ticks the station every 10 ms until `done` or `seconds` pass; true when done.
+// Asks `done` every 10 ms until it is true or `seconds` pass; true when done.
 template <typename F>
-bool TickUntil(Station& station, double seconds, F done) {
+bool PollUntil(double seconds, F done) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   while (std::chrono::steady_clock::now() < until) {
-    station.Tick();
     if (done()) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   return false;
+}
+
+// Ticks the station every 10 ms until `done` or `seconds` pass; true when done.
+template <typename F>
+bool TickUntil(Station& station, double seconds, F done) {
+  return PollUntil(seconds, [&] {
+    station.Tick();
+    return done();
+  });
 }
 
 // `fn` on the station's channel; false (and `fn` not run) while it has none.
@@ -77,10 +98,8 @@ bool OnChannel(Station& station, F fn) {
 }
 
 TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
-  const fs::path dir = FreshDir("vsurg_station_restart");
-  const fs::path db = dir / "vsurg.db";
-  const Tokens tokens = MakeStore(db);
-  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  Site site("vsurg_station_restart");
+  auto& [dir, db, tokens, server] = site;
   ASSERT_GT(server.grpc_port, 0);
   const int grpc_port = server.grpc_port, udp_port = server.udp_port;
 
@@ -163,10 +182,8 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
 // station's own supervisor thread notices the lost server and starts a new session meanwhile,
 // with nobody calling Tick.
 TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
-  const fs::path dir = FreshDir("vsurg_station_supervisor");
-  const fs::path db = dir / "vsurg.db";
-  const Tokens tokens = MakeStore(db);
-  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  Site site("vsurg_station_supervisor");
+  auto& [dir, db, tokens, server] = site;
   ASSERT_GT(server.grpc_port, 0);
   const int grpc_port = server.grpc_port, udp_port = server.udp_port;
   ReplayDevice device(std::vector<haptics::StylusSample>(60000, test::PressAndHold(1).front()));
@@ -179,13 +196,8 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
     std::lock_guard lock(seen_mutex);
     seen.emplace_back(st.state, st.session);
   });
-  const auto wait_for = [&](double seconds, auto done) {  // polls; never ticks
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    while (!done() && std::chrono::steady_clock::now() < until)
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    return done();
-  };
-  ASSERT_TRUE(wait_for(20, [&] {
+  // From here the test thread only polls: it never ticks.
+  ASSERT_TRUE(PollUntil(20, [&] {
     return OnChannel(station, [](StationChannel& c) { return c.stats().received > 200; });
   })) << station.status().last_error;
   const uint64_t first = station.status().session;
@@ -193,8 +205,11 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
   server.Signal(SIGKILL);  // a crash: the restarted server finds the session unfinished
   server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db, grpc_port, udp_port);
   ASSERT_EQ(server.grpc_port, grpc_port);
-  // The owner is busy for 5 s (as a stalled render thread would be).
-  std::this_thread::sleep_for(std::chrono::seconds(5));
+  // Within 5 s, while the owner is busy (as a stalled render thread would be).
+  PollUntil(5, [&] {
+    const StationStatus st = station.status();
+    return st.state == StationState::kLive && st.reconnects == 1;
+  });
   const StationStatus now = station.status();
   EXPECT_EQ(now.state, StationState::kLive) << now.last_error;
   EXPECT_EQ(now.reconnects, 1);
@@ -216,10 +231,8 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
 }
 
 TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
-  const fs::path dir = FreshDir("vsurg_station_refused");
-  const fs::path db = dir / "vsurg.db";
-  const Tokens tokens = MakeStore(db);
-  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  Site site("vsurg_station_refused");
+  auto& [dir, db, tokens, server] = site;
   ReplayDevice device(test::PressAndHold(1));
   Station bad_token(RemoteTo(server.grpc_port, "vst_not-a-token"), &device, {});
   EXPECT_TRUE(
@@ -235,10 +248,8 @@ TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
 
 // The binaries, as the demo runs them.
 TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstructor) {
-  const fs::path dir = FreshDir("vsurg_station_binary");
-  const fs::path db = dir / "vsurg.db";
-  const Tokens tokens = MakeStore(db);
-  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  Site site("vsurg_station_binary");
+  auto& [dir, db, tokens, server] = site;
   const std::string remote = " --server 127.0.0.1:" + std::to_string(server.grpc_port);
   const std::string trajectory = (dir / "good.csv").string();
   ASSERT_EQ(test::Shell(std::string(VSURG_SIM_BINARY) + " trainee --scene arm-torsion --out " +
@@ -311,10 +322,8 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
 // The GLFW window itself, under a virtual X server (Xvfb): the same view as headless.
 TEST(StationBinaryTest, OpensItsWindowUnderXvfb) {
   if (test::Shell("command -v xvfb-run >/dev/null").code != 0) GTEST_SKIP() << "no xvfb-run";
-  const fs::path dir = FreshDir("vsurg_station_window");
-  const fs::path db = dir / "vsurg.db";
-  const Tokens tokens = MakeStore(db);
-  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  Site site("vsurg_station_window");
+  auto& [dir, db, tokens, server] = site;
   const std::string trajectory = (dir / "good.csv").string(), shot = (dir / "window.png").string();
   ASSERT_EQ(test::Shell(std::string(VSURG_SIM_BINARY) + " trainee --scene arm-torsion --out " +
                         trajectory + " >/dev/null")
@@ -341,10 +350,8 @@ TEST(StationBinaryTest, OpensItsWindowUnderXvfb) {
 TEST(StationBinaryTest, KeysInTheWindowMoveTheStylus) {
   if (test::Shell("command -v xvfb-run >/dev/null && command -v xdotool >/dev/null").code != 0)
     GTEST_SKIP() << "no xvfb-run or xdotool";
-  const fs::path dir = FreshDir("vsurg_station_keys");
-  const fs::path db = dir / "vsurg.db";
-  const Tokens tokens = MakeStore(db);
-  auto server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db);
+  Site site("vsurg_station_keys");
+  auto& [dir, db, tokens, server] = site;
   const std::string summary = (dir / "summary.json").string(), script = (dir / "keys.sh").string();
   std::ofstream(script) << VSURG_STATION_BINARY << " --server 127.0.0.1:" << server.grpc_port
                         << " --token " << tokens.trainee
