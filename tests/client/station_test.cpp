@@ -205,16 +205,18 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
   server.Signal(SIGKILL);  // a crash: the restarted server finds the session unfinished
   server = test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db, grpc_port, udp_port);
   ASSERT_EQ(server.grpc_port, grpc_port);
-  // Within 5 s, while the owner is busy (as a stalled render thread would be).
-  PollUntil(5, [&] {
+  // Within 5 s, while the owner is busy (as a stalled render thread would be): live again and
+  // forces arriving on the new channel (live comes first: the first reply follows a tick later).
+  const bool back = PollUntil(5, [&] {
     const StationStatus st = station.status();
-    return st.state == StationState::kLive && st.reconnects == 1;
+    return st.state == StationState::kLive && st.reconnects == 1 &&
+           OnChannel(station, [](StationChannel& c) { return c.stats().received > 0; });
   });
   const StationStatus now = station.status();
+  EXPECT_TRUE(back) << "state " << static_cast<int>(now.state) << ": " << now.last_error;
   EXPECT_EQ(now.state, StationState::kLive) << now.last_error;
   EXPECT_EQ(now.reconnects, 1);
   EXPECT_NE(now.session, first);
-  EXPECT_TRUE(OnChannel(station, [](StationChannel& c) { return c.stats().received > 0; }));
   {
     std::lock_guard lock(seen_mutex);
     ASSERT_GE(seen.size(), 4u);
