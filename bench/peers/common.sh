@@ -12,6 +12,18 @@ peers_setup() {  # NAME BIN_DIR CHECKOUT
   mkdir -p "$out"
 }
 
+# The single-threaded steps (fem.sh, msm.sh) run pinned to one core, ours and the peers' alike:
+# on this machine kind the two cores differ (the same binary's sphere step 37 µs on one, 52 µs on
+# the other, and VegaFEM's 980 against 1 550 µs), so an unpinned run is a lottery per process.
+# PIN_CPU picks the core (default 0); PIN_CPU= runs unpinned.
+peers_pinned() {  # COMMAND ARGS...
+  if [ -n "${PIN_CPU-0}" ] && command -v taskset >/dev/null; then
+    taskset -c "${PIN_CPU-0}" "$@"
+  else
+    "$@"
+  fi
+}
+
 peers_outside() {  # NAME CHECKOUT: exits unless the checkout is outside this repository
   local root
   root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"

@@ -12,7 +12,8 @@
 #   https://github.com/dyollb/VegaFEM outside this repository (our harness compiles the Vega
 #   sources the step needs, without TBB: one thread, as ours, into CHECKOUT-harness). RINGS
 #   default: 4 5 (5 760 and 11 250 tetrahedra).
-#   Environment: REPS (default 5), STEPS (timed steps per run, default 50), OUT (raw JSON lines).
+#   Environment: REPS (default 5), STEPS (timed steps per run, default 50), OUT (raw JSON lines),
+#   PIN_CPU (the core every run is pinned to, default 0; empty: unpinned; common.sh).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 peers_setup fem.sh "${1:?BIN_DIR}" "${2:?VEGAFEM_CHECKOUT}"
@@ -31,9 +32,9 @@ for r in "${rings[@]}"; do
   for rep in $(seq "$reps"); do
     for who in vsurg vsurg-1e-6 vegafem; do
       case $who in
-        vsurg) j=$("$bin/vsurg-bench" fem-step --rings "$r" --steps "$steps" --json) ;;
-        vsurg-1e-6) j=$("$bin/vsurg-bench" fem-step --rings "$r" --steps "$steps" --tolerance 1e-6 --json) ;;
-        vegafem) j=$("$peer-harness/vega_fem_step" "$out/bar$r" "$steps") ;;
+        vsurg) j=$(peers_pinned "$bin/vsurg-bench" fem-step --rings "$r" --steps "$steps" --json) ;;
+        vsurg-1e-6) j=$(peers_pinned "$bin/vsurg-bench" fem-step --rings "$r" --steps "$steps" --tolerance 1e-6 --json) ;;
+        vegafem) j=$(peers_pinned "$peer-harness/vega_fem_step" "$out/bar$r" "$steps") ;;
       esac
       echo "{\"rings\": $r, \"rep\": $rep, \"run\": \"$who\", \"result\": $j}" >> "$lines"
     done

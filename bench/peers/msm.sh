@@ -13,7 +13,8 @@
 #   outside this repository (only PositionBasedDynamics/ and Common/ are read; the harness is
 #   built beside it in CHECKOUT-harness). VEGAFEM_CHECKOUT: https://github.com/dyollb/VegaFEM, the
 #   harness built in CHECKOUT-harness as fem.sh builds it. Environment: REPS (default 5), STEPS
-#   (default 2000), ITERATIONS (PBD's, default 10), OUT (raw JSON lines).
+#   (default 2000), ITERATIONS (PBD's, default 10), OUT (raw JSON lines), PIN_CPU (the core every
+#   run is pinned to, default 0; empty: unpinned; common.sh).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 peers_setup msm.sh "${1:?BIN_DIR}" "${2:?PBD_CHECKOUT}"
@@ -39,14 +40,14 @@ lines="$out/msm.jsonl"
 : > "$lines"
 for rep in $(seq "$reps"); do
   for tolerance in 1e-3 1e-6; do
-    "$bin/vsurg-bench" msm-step --steps "$steps" --tolerance "$tolerance" --json |
+    peers_pinned "$bin/vsurg-bench" msm-step --steps "$steps" --tolerance "$tolerance" --json |
       sed "s/^/{\"rep\": $rep, \"who\": \"vsurg $tolerance\", \"result\": /; s/\$/}/" >> "$lines"
   done
   for scene in sphere1026 arm6182; do
-    j="$("$peer-harness/pbd_step" "$out/scenes/$scene.msm" "$steps" "$iterations")"
+    j="$(peers_pinned "$peer-harness/pbd_step" "$out/scenes/$scene.msm" "$steps" "$iterations")"
     echo "{\"rep\": $rep, \"who\": \"pbd\", \"result\": $j}" >> "$lines"
     if [ -n "$vega" ]; then
-      j="$("$vega-harness/vega_msm_step" "$out/scenes/$scene.msm" "$((steps / 10))")"
+      j="$(peers_pinned "$vega-harness/vega_msm_step" "$out/scenes/$scene.msm" "$((steps / 10))")"
       echo "{\"rep\": $rep, \"who\": \"vegafem\", \"result\": $j}" >> "$lines"
     fi
   done
