@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # The platform path end to end (vsurg-server + a headless vsurg-station rendering at 60 fps on the
 # same machine): the station's round trip and its device loop's rate (over the run and the slowest
-# and fastest whole second) with and without SCHED_FIFO haptic threads, alternating, 3 runs each (server and station restarted per setting). usage: bench/station_e2e.sh [BIN_DIR]
+# and fastest whole second) with and without SCHED_FIFO haptic threads, alternating, 3 runs each (server and station restarted per setting).
+# usage: [STYLE=good|hesitant|rough] bench/station_e2e.sh [BIN_DIR]
+#   STYLE: the scripted trainee's trajectory (vsurg-sim trainee): good (default) lasts 7 s,
+#   hesitant 14 s (the performance issue's loop rate is over 10 s).
 set -euo pipefail
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); cd "$d"
 $B/vsurg-server init --db vs.db > admin.out 2>/dev/null
-$B/vsurg-sim trainee --scene arm-torsion --out good.csv > /dev/null
+$B/vsurg-sim trainee --scene arm-torsion --style "${STYLE:-good}" --out good.csv > /dev/null
 for rep in 1 2 3; do for prio in 0 20; do
   $B/vsurg-server --db vs.db --listen 127.0.0.1:0 --udp-port 0 --ready-file ready.json --realtime-priority $prio 2>/dev/null & spid=$!
   for _ in $(seq 100); do [ -s ready.json ] && break; sleep 0.1; done
