@@ -346,7 +346,7 @@ TEST(MassSpringTest, AnImplicitStepStartsFromTheStateAnythingElseLeft) {
     model.SetKinematicTarget(top, model.positions()[top] - Vec3(0, 0, 0.0004));
     ASSERT_TRUE(model.Step(h));
   }
-  model.SetKinematic(top, false);  // released at rest
+  model.SetKinematic(top, false);  // released: v zeroed, the copies still hold the driven v
   implicit_step_matches_fresh_twins("a driven particle set free");
   for (int k = 0; k < 5; ++k) ASSERT_TRUE(model.Step(h));
   model.SetFixed(top, true);  // stopped while moving
