@@ -253,8 +253,8 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
        {&m.a_, &m.tx_, &m.tv_, &m.k1v_, &m.k2x_, &m.k2v_, &m.k3x_, &m.k3v_, &m.kin_final_}) {
     buf->assign(n, Vec3::Zero());
   }
-  for (auto* buf : {&m.dv_, &m.r_, &m.p_, &m.q_, &m.precond_, &m.pos_, &m.vel_, &m.diag_,
-                    &m.inv_diag_, &m.history_[0], &m.history_[1], &m.history_[2], &m.history_[3]}) {
+  for (auto* buf : {&m.dv_, &m.r_, &m.p_, &m.q_, &m.precond_, &m.pos_, &m.diag_, &m.inv_diag_,
+                    &m.history_[0], &m.history_[1], &m.history_[2], &m.history_[3]}) {
     buf->assign(n, simd::Lane4{});
   }
   m.state_.assign(n, simd::Lane8{});
@@ -550,7 +550,7 @@ bool MassSpringModel::StepImplicit(double h) {
             *const pre = view(precond_), *const pos = view(pos_), *const diag = view(diag_),
             *const inv_diag = view(inv_diag_);
   V8* const state = reinterpret_cast<V8*>(state_.data());
-  V4* const vel = view(vel_);
+  V4* const state_v = reinterpret_cast<V4*>(state_.data());  // state[i]'s v₀ is state_v[2 i]
   const bool lanes = lanes_;
   V8* const sums = reinterpret_cast<V8*>(sums_.data());
   // Plain pointers: the vector types may alias anything, so a member's data() would be read
@@ -619,7 +619,7 @@ bool MassSpringModel::StepImplicit(double h) {
       pre[i] = inv_diag[i];
     }
     if (lanes && role_[i] == Role::kFree) {
-      state[i] = __builtin_shufflevector(vel[i], d, 0, 1, 2, 3, 4, 5, 6, 7);
+      state_v[2 * i + 1] = d;  // v₀ is there from the last update
     } else {  // placed by PlaceKinematic, or the lanes not kept since the last implicit step
       const V4 v{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
       state[i] = __builtin_shufflevector(v, d, 0, 1, 2, 3, 4, 5, 6, 7);
@@ -821,10 +821,10 @@ bool MassSpringModel::StepImplicit(double h) {
   // divergence_distance of rest (false for NaN) and every velocity finite (v·0 is 0 unless v
   // has an infinity or a NaN). As a pass of its own, after the step, the test cost the sphere's
   // step 13% and the arm's 10%. The pass leaves x and v in the four-lane copies too (pos_ and
-  // vel_), which the next step's set-up pass reads for the free particles instead of converting
-  // x_ and v_ again (lanes_, cleared by whatever else writes x_ or v_: a reset, the other
-  // integrators, a change of role, which zeroes v): with both passes in four lanes the sphere's
-  // step is 3.5% faster, the arm's 3%.
+  // state_'s v₀), which the next step's set-up pass reads for the free particles instead of
+  // converting x_ and v_ again (lanes_, cleared by whatever else writes x_ or v_: a reset, the
+  // other integrators, a change of role, which zeroes v): with both passes in four lanes the
+  // sphere's step is 3.5% faster, the arm's 3%.
   PlaceKinematic(x_, v_, 1.0, h);
   const double limit2 = params_.divergence_distance * params_.divergence_distance;
   const Vec3* const rest_x = sys_.rest_positions.data();
@@ -833,7 +833,7 @@ bool MassSpringModel::StepImplicit(double h) {
   for (int i = 0; i < n; ++i) {
     V4 xi, vi;
     if (role_[i] == Role::kFree) {
-      vi = (lanes ? vel[i] : V4{v_[i].x(), v_[i].y(), v_[i].z(), 0.0}) + dv[i];
+      vi = state_v[2 * i] + dv[i];  // v₀, as the set-up pass read it
       xi = pos[i] + h * vi;
       v_[i] = Vec3(vi[0], vi[1], vi[2]);
       x_[i] = Vec3(xi[0], xi[1], xi[2]);
@@ -841,7 +841,7 @@ bool MassSpringModel::StepImplicit(double h) {
       vi = V4{v_[i].x(), v_[i].y(), v_[i].z(), 0.0};
       xi = V4{x_[i].x(), x_[i].y(), x_[i].z(), 0.0};
     }
-    vel[i] = vi, pos[i] = xi;
+    state_v[2 * i] = vi, pos[i] = xi;
     const V4 r = xi - V4{rest_x[i].x(), rest_x[i].y(), rest_x[i].z(), 0.0};
     near &= Dot(r, r) <= limit2;
     zero += 0.0 * vi;

@@ -227,8 +227,9 @@ class MassSpringModel {
   std::vector<double> coef_a_, coef_b_, rest_, stiffness_, damping_;
   std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
-  std::vector<simd::Lane4> dv_, r_, p_, q_, precond_, pos_, vel_;
-  bool lanes_ = false;  // pos_ and vel_ hold the free particles' x and v (StepImplicit's update)
+  std::vector<simd::Lane4> dv_, r_, p_, q_, precond_, pos_;
+  // pos_ and state_'s first halves hold the free particles' x and v (StepImplicit's update).
+  bool lanes_ = false;
   // diag(M + h C + h² K) of the springs (no anchors), summed by the set-up pass only every
   // kDiagEvery steps and when h or the solver's springs change; in between the preconditioner
   // starts from it (diag_age_ steps old, diag_h_ the h it was summed for).
