@@ -133,6 +133,15 @@ CREATE TABLE nodes (
   heartbeat_us  INTEGER NOT NULL
 );
 )sql",
+      // 3: leases and fencing (DESIGN.md "Third wave: design notes"). A node name is held by
+      // one process at a time (`instance`); each acquisition of the name is a new `epoch`, and a
+      // session carries the epoch of the node process that created it. The store refuses a
+      // session write whose epoch is not its node's current one, or whose node is down.
+      R"sql(
+ALTER TABLE nodes ADD COLUMN epoch INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE nodes ADD COLUMN instance TEXT NOT NULL DEFAULT '';
+ALTER TABLE sessions ADD COLUMN epoch INTEGER NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }

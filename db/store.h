@@ -26,6 +26,14 @@
 //  5. Tokens are 256-bit random secrets; only their SHA-256 is stored. (A slow password hash
 //     buys nothing for secrets this long, and authentication stays a single indexed lookup.)
 //  6. Times are integers, microseconds since the Unix epoch, UTC; exports print ISO-8601.
+//  7. Fencing (a site's nodes): a node name is held by one process at a time (AcquireNode
+//     refuses while another instance's heartbeat is within the timeout); each acquisition is a
+//     new epoch. A session row records the epoch of the process that created it, and every
+//     write to it names that epoch: the write is refused (kFailedPrecondition) unless the node
+//     is up at that epoch. A session that has left the live states never changes again,
+//     whoever asks: an aborted session cannot be brought back by a node that comes back. The
+//     node's row is locked first (PostgreSQL: an UPDATE of it), then the session's, the order
+//     MarkNodeDown takes too, so a fenced write and a node's fall never interleave.
 //
 // Thread safety: every public member may be called from any thread.
 #pragma once
@@ -87,6 +95,24 @@ struct NodeRecord {
   bool draining = false;  // takes no new sessions
   bool down = false;      // missed its heartbeats; its sessions were aborted
   int64_t started_us = 0, heartbeat_us = 0;
+  // The lease (design note 7): the process that holds the name (random, per process) and the
+  // number of its acquisition. Every session write of that process carries the epoch.
+  std::string instance;
+  int64_t epoch = 0;
+};
+
+// Who may write a session's row: the node process that created it, while its lease holds. The
+// all-in-one server writes with the empty fence (node "", epoch 0).
+struct SessionFence {
+  std::string node;
+  int64_t epoch = 0;
+};
+
+// A node name acquired (AcquireNode): its new epoch, and how many live sessions an earlier
+// holder of the name had left (aborted in the same transaction).
+struct NodeLease {
+  int64_t epoch = 0;
+  int aborted = 0;
 };
 
 struct Submission {
@@ -182,18 +208,33 @@ class Store {
   // `vsurg-admin init`: creates the first admin and a token; fails when any admin exists.
   Expected<std::string> InitAdmin(const std::string& name);
 
+  // A new live session of `fence.node` (design note 7: refused unless that node is up at
+  // `fence.epoch`).
   Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene,
-                                        const std::string& node = "");
+                                        const SessionFence& fence = {});
+  // A live session's next state. kNotFound: no such session; kFailedPrecondition: it is no
+  // longer live, or `epoch` is not its node's current one (design note 7).
   Status SetSessionState(int64_t id, SessionState state, int64_t at_us,
-                         const std::string& reason = "");
-  Status RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m);
+                         const std::string& reason = "", int64_t epoch = 0);
+  // A live session ends (`state` not live) with its trial metrics, in one transaction, under the
+  // same fence as SetSessionState: a trial is recorded once, by the process that ran it.
+  Status EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
+                    const scoring::TrialMetrics& m, int64_t epoch = 0);
   // At start-up: sessions a previous process of `node` left live (it was killed, or the machine
   // failed) cannot go on; they become aborted with `reason`. Returns how many.
   Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason,
                                       const std::string& node = "");
 
-  // The node registry. A heartbeat writes the node's row (a node that was down is up again).
-  Status PutNode(const NodeRecord& n);
+  // The node registry and its leases (design note 7). AcquireNode: `n.instance` takes the name
+  // `n.name` at `n.heartbeat_us` unless another instance holds it (up, and its last heartbeat
+  // within `timeout_us`: kAlreadyExists, saying who holds it); the epoch goes up by one, and the
+  // live sessions earlier holders left are aborted with `reason`, in the same transaction.
+  Expected<NodeLease> AcquireNode(const NodeRecord& n, int64_t timeout_us,
+                                  const std::string& reason);
+  // A heartbeat of the holder at `n.epoch`: its load and time. kFailedPrecondition when that
+  // lease is lost (the node was marked down, or the name was taken by a newer instance): the
+  // node must stop serving and acquire the name again.
+  Status BeatNode(const NodeRecord& n);
   Expected<std::vector<NodeRecord>> ListNodes();
   // The node stopped answering: marked down unless a heartbeat came after `silent_since_us`,
   // and its live sessions aborted with `reason` (once, whichever control replica sees it first).

@@ -45,15 +45,87 @@ void BindLiveStates(Statement& q, int first) {
 
 }  // namespace
 
+namespace {
+
+// Design note 7: the node's row, locked (an UPDATE: PostgreSQL holds its row lock to COMMIT, so
+// a concurrent MarkNodeDown waits or is waited for), when `node` is up at `epoch`; else a refusal.
+// The all-in-one server's sessions (node "") have no lease.
+Status HoldFence(Connection& c, const std::string& node, int64_t epoch) {
+  if (node.empty()) {
+    if (epoch == 0) return Status::Ok();
+    return Error{ErrorCode::kFailedPrecondition, "an epoch without a node", "epoch"};
+  }
+  Status st =
+      RunSql(c, "UPDATE nodes SET epoch = epoch WHERE name = ?1 AND epoch = ?2 AND down = 0",
+             [&](Statement& q) { q.Bind(1, node).Bind(2, epoch); });
+  if (!st.ok()) return st;
+  if (c.Changes() == 0)
+    return Error{ErrorCode::kFailedPrecondition,
+                 "node " + node + " no longer holds the lease of epoch " + std::to_string(epoch) +
+                     " (marked down, or its name taken by a newer process): write refused",
+                 "epoch"};
+  return Status::Ok();
+}
+
+// The session's node and epoch, for a write to it; kNotFound when there is no such session.
+Expected<std::pair<std::string, int64_t>> SessionOwner(Connection& c, int64_t id) {
+  auto st = c.Prepare("SELECT node, epoch FROM sessions WHERE id = ?1");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, id);
+  auto row = (*st)->Step();
+  if (!row.ok()) return row.error();
+  if (!*row) {
+    (*st)->Reset();
+    return Error{ErrorCode::kNotFound, "no session " + std::to_string(id), "session"};
+  }
+  std::pair<std::string, int64_t> out{(*st)->String(0), (*st)->Int(1)};
+  (*st)->Reset();
+  return out;
+}
+
+// Inside a write job: the fence of session `id` for a writer at `epoch`, then the state change,
+// only from a live state. kFailedPrecondition when the session is no longer live.
+Status ChangeLiveSession(Connection& c, int64_t id, SessionState state, int64_t at_us,
+                         const std::string& reason, int64_t epoch) {
+  auto owner = SessionOwner(c, id);
+  if (!owner.ok()) return owner.error();
+  if (owner->second != epoch)
+    return Error{ErrorCode::kFailedPrecondition,
+                 "session " + std::to_string(id) + " belongs to epoch " +
+                     std::to_string(owner->second) + " of node '" + owner->first +
+                     "', not to epoch " + std::to_string(epoch) + ": write refused",
+                 "epoch"};
+  if (Status f = HoldFence(c, owner->first, epoch); !f.ok()) return f;
+  Status s = RunSql(
+      c,
+      "UPDATE sessions SET state = ?2, "
+      "started_us = CASE WHEN ?5 AND started_us IS NULL THEN ?3 ELSE started_us END, "
+      "ended_us = CASE WHEN ?6 THEN ?3 ELSE ended_us END, "
+      "end_reason = CASE WHEN ?4 <> '' THEN ?4 ELSE end_reason END "
+      "WHERE id = ?1 AND state IN (?7, ?8, ?9)",
+      [&](Statement& st) {
+        st.Bind(1, id).Bind(2, SessionStateName(state)).Bind(3, at_us).Bind(4, reason);
+        st.Bind(5, int64_t{state == SessionState::kRunning}).Bind(6, int64_t{!IsLive(state)});
+        BindLiveStates(st, 7);
+      });
+  if (s.ok() && c.Changes() == 0)
+    return Error{ErrorCode::kFailedPrecondition,
+                 "session " + std::to_string(id) + " has ended: it never changes again", "session"};
+  return s;
+}
+
+}  // namespace
+
 Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const std::string& scene,
-                                             const std::string& node) {
+                                             const SessionFence& fence) {
   SessionRecord rec;
-  rec.node = node;
+  rec.node = fence.node;
   rec.trainee = trainee;
   rec.scene = scene;
   rec.state = SessionState::kCreated;
   rec.created_us = NowUs();
   Status s = Write([&](Connection& c) -> Status {
+    if (Status f = HoldFence(c, fence.node, fence.epoch); !f.ok()) return f;
     auto tid = EnsureTrainee(c, trainee);
     if (!tid.ok()) return tid.error();
     if (scene.empty()) return InvalidArgument("scene", "a scene name is required");
@@ -63,11 +135,11 @@ Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const s
                        [&](Statement& q) { q.Bind(1, scene).Bind(2, rec.created_us); });
     if (!st.ok()) return st;
     st = RunSql(c,
-                "INSERT INTO sessions(trainee_id, scene, state, created_us, node) "
-                "VALUES (?1, ?2, ?3, ?4, ?5)",
+                "INSERT INTO sessions(trainee_id, scene, state, created_us, node, epoch) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
                 [&](Statement& q) {
                   q.Bind(1, *tid).Bind(2, scene).Bind(3, SessionStateName(rec.state));
-                  q.Bind(4, rec.created_us).Bind(5, node);
+                  q.Bind(4, rec.created_us).Bind(5, fence.node).Bind(6, fence.epoch);
                 });
     if (!st.ok()) return st;
     auto id = c.LastInsertId();
@@ -80,22 +152,32 @@ Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const s
 }
 
 Status Store::SetSessionState(int64_t id, SessionState state, int64_t at_us,
-                              const std::string& reason) {
+                              const std::string& reason, int64_t epoch) {
   return Write([=](Connection& c) -> Status {
-    Status s = RunSql(
+    return ChangeLiveSession(c, id, state, at_us, reason, epoch);
+  });
+}
+
+Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
+                         const scoring::TrialMetrics& m, int64_t epoch) {
+  if (IsLive(state))
+    return InvalidArgument(
+        "state", std::string("a session ends in a final state, not ") + SessionStateName(state));
+  return Write([=](Connection& c) -> Status {
+    if (Status s = ChangeLiveSession(c, id, state, at_us, reason, epoch); !s.ok()) return s;
+    return RunSql(
         c,
-        "UPDATE sessions SET state = ?2, "
-        "started_us = CASE WHEN ?5 AND started_us IS NULL THEN ?3 ELSE started_us END, "
-        "ended_us = CASE WHEN ?6 THEN ?3 ELSE ended_us END, "
-        "end_reason = CASE WHEN ?4 <> '' THEN ?4 ELSE end_reason END "
-        "WHERE id = ?1",
+        "INSERT INTO trial_metrics(session_id, completed, completion_time_s, task_error, "
+        "peak_force_n, time_over_force_limit_s, path_length_m, rms_jerk, overload_events, "
+        "duration_s, score, raw_score, caps, recorded_us) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
         [&](Statement& st) {
-          st.Bind(1, id).Bind(2, SessionStateName(state)).Bind(3, at_us).Bind(4, reason);
-          st.Bind(5, int64_t{state == SessionState::kRunning}).Bind(6, int64_t{!IsLive(state)});
+          st.Bind(1, id).Bind(2, int64_t{m.completed ? 1 : 0});
+          st.Bind(3, m.completion_time).Bind(4, m.task_error).Bind(5, m.peak_force);
+          st.Bind(6, m.time_over_force_limit).Bind(7, m.path_length).Bind(8, m.rms_jerk);
+          st.Bind(9, int64_t{m.overload_events}).Bind(10, m.duration).Bind(11, m.score);
+          st.Bind(12, m.raw_score).Bind(13, int64_t{m.caps}).Bind(14, NowUs());
         });
-    if (s.ok() && c.Changes() == 0)
-      return Error{ErrorCode::kNotFound, "no session " + std::to_string(id), "session"};
-    return s;
   });
 }
 
@@ -131,26 +213,114 @@ Expected<int> Store::AbortOrphanedSessions(int64_t at_us, const std::string& rea
   return changed;
 }
 
-Status Store::PutNode(const NodeRecord& n) {
+namespace {
+
+Status CheckNodeRecord(const NodeRecord& n) {
   if (n.name.empty() || n.name.size() > 64)
     return InvalidArgument("name", "a node name of 1 to 64 characters is required");
-  return Write([n](Connection& c) {
-    return RunSql(c,
-                  "INSERT INTO nodes(name, grpc_address, udp_host, udp_port, capacity, sessions, "
-                  "cpu, draining, down, started_us, heartbeat_us) "
-                  "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, 0, ?9, ?10) "
-                  "ON CONFLICT(name) DO UPDATE SET grpc_address = excluded.grpc_address, "
-                  "udp_host = excluded.udp_host, udp_port = excluded.udp_port, "
-                  "capacity = excluded.capacity, sessions = excluded.sessions, "
-                  "cpu = excluded.cpu, draining = excluded.draining, down = 0, "
-                  "started_us = excluded.started_us, heartbeat_us = excluded.heartbeat_us",
-                  [&](Statement& q) {
-                    q.Bind(1, n.name).Bind(2, n.grpc_address).Bind(3, n.udp_host);
-                    q.Bind(4, int64_t{n.udp_port}).Bind(5, int64_t{n.capacity});
-                    q.Bind(6, int64_t{n.sessions}).Bind(7, n.cpu);
-                    q.Bind(8, int64_t{n.draining ? 1 : 0}).Bind(9, n.started_us);
-                    q.Bind(10, n.heartbeat_us);
-                  });
+  if (n.instance.empty() || n.instance.size() > 64)
+    return InvalidArgument("instance", "a node instance of 1 to 64 characters is required");
+  return Status::Ok();
+}
+
+// The load a heartbeat reports, bound at ?3..?11 of a statement on the nodes row.
+void BindNodeLoad(Statement& q, const NodeRecord& n) {
+  q.Bind(3, n.grpc_address).Bind(4, n.udp_host).Bind(5, int64_t{n.udp_port});
+  q.Bind(6, int64_t{n.capacity}).Bind(7, int64_t{n.sessions}).Bind(8, n.cpu);
+  q.Bind(9, int64_t{n.draining ? 1 : 0}).Bind(10, n.started_us).Bind(11, n.heartbeat_us);
+}
+
+}  // namespace
+
+Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t timeout_us,
+                                       const std::string& reason) {
+  if (Status s = CheckNodeRecord(n); !s.ok()) return s.error();
+  NodeLease lease;
+  Status s = Write([&](Connection& c) -> Status {
+    // A new name starts at epoch 0 (taken by the UPDATE below, like any other).
+    Status st = RunSql(c,
+                       "INSERT INTO nodes(name, grpc_address, udp_host, udp_port, capacity, "
+                       "sessions, cpu, draining, down, started_us, heartbeat_us, epoch, instance) "
+                       "VALUES (?1, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 1, ?10, ?11, 0, ?2) "
+                       "ON CONFLICT(name) DO NOTHING",
+                       [&](Statement& q) {
+                         q.Bind(1, n.name).Bind(2, n.instance);
+                         BindNodeLoad(q, n);
+                       });
+    if (!st.ok()) return st;
+    // Taken when it is down, already ours, or its holder silent past the timeout. PostgreSQL
+    // re-checks the condition on the row's newest version after waiting for its lock, so two
+    // processes starting under one name cannot both take it.
+    st = RunSql(c,
+                "UPDATE nodes SET grpc_address = ?3, udp_host = ?4, udp_port = ?5, capacity = ?6, "
+                "sessions = ?7, cpu = ?8, draining = ?9, started_us = ?10, heartbeat_us = ?11, "
+                "down = 0, epoch = epoch + 1, instance = ?2 "
+                "WHERE name = ?1 AND (down = 1 OR instance = ?2 OR heartbeat_us < ?12)",
+                [&](Statement& q) {
+                  q.Bind(1, n.name).Bind(2, n.instance);
+                  BindNodeLoad(q, n);
+                  q.Bind(12, n.heartbeat_us - timeout_us);
+                });
+    if (!st.ok()) return st;
+    auto q = c.Prepare(
+        "SELECT epoch, instance, grpc_address, heartbeat_us FROM nodes "
+        "WHERE name = ?1");
+    if (!q.ok()) return q.error();
+    (*q)->Bind(1, n.name);
+    auto row = (*q)->Step();
+    if (!row.ok()) return row.error();
+    if (!*row) {
+      (*q)->Reset();
+      return Error{ErrorCode::kIoError, "node " + n.name + " vanished while acquired", "name"};
+    }
+    const int64_t epoch = (*q)->Int(0);
+    const std::string holder = (*q)->String(1), address = (*q)->String(2);
+    const int64_t beat = (*q)->Int(3);
+    (*q)->Reset();
+    if (holder != n.instance)
+      return Error{ErrorCode::kAlreadyExists,
+                   "node name '" + n.name + "' is held by another live process (instance " +
+                       holder + " at " + address + ", its last heartbeat " +
+                       std::to_string((n.heartbeat_us - beat) / 1000) +
+                       " ms ago); stop it first, or give this one another --node-name",
+                   "name"};
+    lease.epoch = epoch;
+    st = RunSql(c,
+                "UPDATE sessions SET state = ?3, ended_us = ?1, end_reason = ?2 "
+                "WHERE node = ?4 AND epoch < ?5 AND state IN (?6, ?7, ?8)",
+                [&](Statement& u) {
+                  u.Bind(1, n.heartbeat_us).Bind(2, reason);
+                  u.Bind(3, SessionStateName(SessionState::kAborted)).Bind(4, n.name);
+                  u.Bind(5, epoch);
+                  BindLiveStates(u, 6);
+                });
+    if (!st.ok()) return st;
+    lease.aborted = c.Changes();
+    return Status::Ok();
+  });
+  if (!s.ok()) return s.error();
+  return lease;
+}
+
+Status Store::BeatNode(const NodeRecord& n) {
+  if (Status s = CheckNodeRecord(n); !s.ok()) return s;
+  return Write([n](Connection& c) -> Status {
+    Status st = RunSql(c,
+                       "UPDATE nodes SET grpc_address = ?3, udp_host = ?4, udp_port = ?5, "
+                       "capacity = ?6, sessions = ?7, cpu = ?8, draining = ?9, started_us = ?10, "
+                       "heartbeat_us = ?11 "
+                       "WHERE name = ?1 AND instance = ?2 AND epoch = ?12 AND down = 0",
+                       [&](Statement& q) {
+                         q.Bind(1, n.name).Bind(2, n.instance);
+                         BindNodeLoad(q, n);
+                         q.Bind(12, n.epoch);
+                       });
+    if (st.ok() && c.Changes() == 0)
+      return Error{ErrorCode::kFailedPrecondition,
+                   "node " + n.name + " lost its lease of epoch " + std::to_string(n.epoch) +
+                       " (marked down, or its name taken by a newer process)",
+                   "epoch"};
+    return st;
   });
 }
 
@@ -159,7 +329,7 @@ Expected<std::vector<NodeRecord>> Store::ListNodes() {
   if (!r.ok()) return r.error();
   auto st = (**r).Prepare(
       "SELECT name, grpc_address, udp_host, udp_port, capacity, sessions, cpu, draining, down, "
-      "started_us, heartbeat_us FROM nodes ORDER BY name");
+      "started_us, heartbeat_us, instance, epoch FROM nodes ORDER BY name");
   if (!st.ok()) return st.error();
   std::vector<NodeRecord> out;
   for (;;) {
@@ -179,6 +349,8 @@ Expected<std::vector<NodeRecord>> Store::ListNodes() {
     n.down = q.Int(8) != 0;
     n.started_us = q.Int(9);
     n.heartbeat_us = q.Int(10);
+    n.instance = q.String(11);
+    n.epoch = q.Int(12);
   }
   (*st)->Reset();
   return out;
@@ -226,32 +398,6 @@ Expected<std::vector<std::pair<std::string, int>>> Store::LiveSessionsByNode() {
   std::map<std::string, int> by_node;  // ordered by node
   for (const auto& [node, id] : *rows) ++by_node[node];
   return std::vector<std::pair<std::string, int>>(by_node.begin(), by_node.end());
-}
-
-Status Store::RecordTrialMetrics(int64_t session_id, const scoring::TrialMetrics& m) {
-  return Write([=](Connection& c) {
-    return RunSql(
-        c,
-        "INSERT INTO trial_metrics(session_id, completed, completion_time_s, task_error, "
-        "peak_force_n, time_over_force_limit_s, path_length_m, rms_jerk, overload_events, "
-        "duration_s, score, raw_score, caps, recorded_us) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14) "
-        "ON CONFLICT(session_id) DO UPDATE SET completed = excluded.completed, "
-        "completion_time_s = excluded.completion_time_s, task_error = excluded.task_error, "
-        "peak_force_n = excluded.peak_force_n, "
-        "time_over_force_limit_s = excluded.time_over_force_limit_s, "
-        "path_length_m = excluded.path_length_m, rms_jerk = excluded.rms_jerk, "
-        "overload_events = excluded.overload_events, duration_s = excluded.duration_s, "
-        "score = excluded.score, raw_score = excluded.raw_score, caps = excluded.caps, "
-        "recorded_us = excluded.recorded_us",
-        [&](Statement& st) {
-          st.Bind(1, session_id).Bind(2, int64_t{m.completed ? 1 : 0});
-          st.Bind(3, m.completion_time).Bind(4, m.task_error).Bind(5, m.peak_force);
-          st.Bind(6, m.time_over_force_limit).Bind(7, m.path_length).Bind(8, m.rms_jerk);
-          st.Bind(9, int64_t{m.overload_events}).Bind(10, m.duration).Bind(11, m.score);
-          st.Bind(12, m.raw_score).Bind(13, int64_t{m.caps}).Bind(14, NowUs());
-        });
-  });
 }
 
 Status Store::RecordTrainingMoment(const std::string& trainee, double moment_min,

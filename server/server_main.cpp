@@ -194,7 +194,8 @@ int Main(std::vector<std::string> args) {
   std::unique_ptr<vsurg::server::cluster::ClusterSessions> placed;
   std::unique_ptr<vsurg::server::cluster::NodeAgent> agent;
   vsurg::server::Sessions* sessions = nullptr;
-  if (role != "control") {  // this process runs sessions: the UDP endpoint and the manager
+  vsurg::server::Lease lease;  // a node's (its agent renews it); unused by the all-in-one server
+  if (role != "control") {     // this process runs sessions: the UDP endpoint and the manager
     vsurg::server::EndpointOptions eo;
     eo.address = p.String("udp-address");
     eo.port = static_cast<uint16_t>(udp_port);
@@ -203,6 +204,7 @@ int Main(std::vector<std::string> args) {
       std::cerr << "vsurg-server: --realtime-priority: must be within 0..99\n";
       return 2;
     }
+    if (role == "sim") eo.lease = &lease;
     auto created = vsurg::server::UdpEndpoint::Create(eo);
     if (!created.ok()) {
       std::cerr << "vsurg-server: --udp-port: " << created.error().message << "\n";
@@ -219,6 +221,7 @@ int Main(std::vector<std::string> args) {
       char host[256] = {};
       gethostname(host, sizeof host - 1);
       so.node = p.Has("node-name") ? p.String("node-name") : std::string(host);
+      so.lease = &lease;
     }
     manager = std::make_unique<vsurg::server::SessionManager>(**store, endpoint.get(), so);
     sessions = manager.get();
@@ -231,6 +234,7 @@ int Main(std::vector<std::string> args) {
       no.udp_port = endpoint->port();
       no.capacity = p.Int("capacity");
       no.cluster = cluster;
+      no.lease = &lease;
       auto started = vsurg::server::cluster::NodeAgent::Start(*manager, no);
       if (!started.ok()) {
         std::cerr << "vsurg-server: --" << started.error().field << ": " << started.error().message

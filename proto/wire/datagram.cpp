@@ -52,6 +52,10 @@ const char* DropReasonName(DropReason r) {
       return "stale";
     case DropReason::kRateLimited:
       return "rate_limited";
+    case DropReason::kLate:
+      return "late";
+    case DropReason::kFenced:
+      return "fenced";
     case DropReason::kCount:
       break;
   }

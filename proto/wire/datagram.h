@@ -50,6 +50,8 @@ enum class DropReason : uint8_t {
   kBadPayload,
   kStale,  // sequence not newer than the last applied (replayed or reordered)
   kRateLimited,
+  kLate,    // waited in the receive queue longer than the bound (a frozen or stalled server)
+  kFenced,  // the node's lease has lapsed: it may no longer answer for its sessions
   kCount
 };
 const char* DropReasonName(DropReason r);

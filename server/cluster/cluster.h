@@ -13,6 +13,16 @@
 //            an internal port), and a heartbeat every 0.5 s with the node's load. Drain: no new
 //            sessions, the live ones finish (SIGTERM, a rolling upgrade).
 //
+// Leases and fencing (store.h design note 7, server/net/lease.h). A node first acquires its
+// name (ClusterService.Acquire: refused while another live process holds it; a new epoch, and
+// the sessions earlier holders left aborted); each heartbeat renews the lease for the heartbeat
+// timeout from when it was sent, less a margin. While the lease is lapsed the node answers no
+// stylus datagram and takes no session; when a heartbeat is refused (the site declared the node
+// down, or a newer process took the name) it drops every session without writing it and
+// acquires the name again. Every store write of a session carries the epoch it was created
+// under, and the store refuses a stale one: a node the site gave up on never serves or records
+// its old sessions again.
+//
 // Internal calls carry the site's cluster token (`authorization: Bearer …`); users never reach
 // these ports. No gRPC or protobuf type appears in this header.
 //
@@ -33,8 +43,9 @@ class Store;
 }
 
 namespace vsurg::server {
+class Lease;
 class SessionManager;
-}
+}  // namespace vsurg::server
 
 namespace vsurg::server::cluster {
 
@@ -43,7 +54,10 @@ struct ClusterOptions {
   std::string listen;           // the internal API's host:port (port 0: any free one)
   bool allow_insecure = false;  // plaintext off loopback (a cluster network; see SCALING.md)
   double heartbeat_period_s = 0.5;
-  double heartbeat_timeout_s = 2;  // silent this long: down, sessions aborted
+  double heartbeat_timeout_s = 2;  // silent this long: down, sessions aborted (= the lease)
+  // A node's lease ends this long before the control plane may declare it down (server/net/
+  // lease.h): the most the control replicas' clocks may disagree with each other.
+  double lease_margin_s = 0.25;
   double telemetry_hz = 30;
   int max_sessions_per_user = 2;  // live sessions per trainee, over the whole site
   double create_timeout_s = 60;   // a node builds the scene before it answers Create
@@ -85,7 +99,10 @@ struct NodeOptions {
   std::string udp_host;   // what stations are told to send to
   int udp_port = 0;
   int capacity = 24;       // live sessions this node takes
-  ClusterOptions cluster;  // token, listen, heartbeat period
+  ClusterOptions cluster;  // token, listen, heartbeat period, lease margin
+  // The lease this agent acquires and renews; the node's endpoint and session manager read it.
+  // Required; must outlive the agent.
+  Lease* lease = nullptr;
 };
 
 class NodeAgent {

@@ -199,29 +199,56 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   }
 
   // --- ClusterService ---
-  grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
-                         v1::HeartbeatReply*) override {
+  static db::NodeRecord FromBeat(const v1::NodeHeartbeat& req) {
+    db::NodeRecord n;
+    n.name = req.name();
+    n.grpc_address = req.grpc_address();
+    n.udp_host = req.udp_host();
+    n.udp_port = static_cast<int>(req.udp_port());
+    n.capacity = req.capacity();
+    n.sessions = req.sessions();
+    n.cpu = req.cpu();
+    n.draining = req.draining();
+    n.started_us = req.started_us();
+    n.instance = req.instance();
+    n.epoch = req.epoch();
+    // A replica's clock, not the node's: a node's clock never decides its liveness. The
+    // replicas compare each other's stamps, so their clocks must agree within the lease margin
+    // (NTP; docs/SCALING.md).
+    n.heartbeat_us = db::NowUs();
+    return n;
+  }
+  static grpc::Status ToGrpc(const Error& e) {
+    grpc::StatusCode code = grpc::StatusCode::UNAVAILABLE;
+    if (e.code == ErrorCode::kInvalidArgument) code = grpc::StatusCode::INVALID_ARGUMENT;
+    if (e.code == ErrorCode::kAlreadyExists) code = grpc::StatusCode::ALREADY_EXISTS;
+    if (e.code == ErrorCode::kFailedPrecondition) code = grpc::StatusCode::FAILED_PRECONDITION;
+    return grpc::Status(code, e.message);
+  }
+
+  grpc::Status Acquire(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
+                       v1::NodeLeaseReply* out) override {
     if (!Authorized(*ctx, options.token))
       return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
-    db::NodeRecord n;
-    n.name = req->name();
-    n.grpc_address = req->grpc_address();
-    n.udp_host = req->udp_host();
-    n.udp_port = static_cast<int>(req->udp_port());
-    n.capacity = req->capacity();
-    n.sessions = req->sessions();
-    n.cpu = req->cpu();
-    n.draining = req->draining();
-    n.started_us = req->started_us();
-    // A replica's clock, not the node's: a node's clock never decides its liveness. The
-    // replicas compare each other's stamps, so their clocks must agree well within the 2 s
-    // timeout (NTP; docs/SCALING.md).
-    n.heartbeat_us = db::NowUs();
-    if (Status s = store.PutNode(n); !s.ok())
-      return grpc::Status(s.error().code == ErrorCode::kInvalidArgument
-                              ? grpc::StatusCode::INVALID_ARGUMENT
-                              : grpc::StatusCode::UNAVAILABLE,
-                          s.error().message);
+    const db::NodeRecord n = FromBeat(*req);
+    auto lease = store.AcquireNode(
+        n, TimeoutUs(), "simulation node " + n.name + " restarted (its name was taken again)");
+    if (!lease.ok()) return ToGrpc(lease.error());
+    out->set_epoch(lease->epoch);
+    out->set_lease_s(options.heartbeat_timeout_s);
+    out->set_aborted(lease->aborted);
+    Log("node_acquired", "node=" + n.name + " epoch=" + std::to_string(lease->epoch) +
+                             " instance=" + n.instance + " address=" + n.grpc_address +
+                             " leftovers_aborted=" + std::to_string(lease->aborted));
+    return grpc::Status::OK;
+  }
+
+  grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
+                         v1::HeartbeatReply* out) override {
+    if (!Authorized(*ctx, options.token))
+      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
+    if (Status s = store.BeatNode(FromBeat(*req)); !s.ok()) return ToGrpc(s.error());
+    out->set_lease_s(options.heartbeat_timeout_s);
     return grpc::Status::OK;
   }
 

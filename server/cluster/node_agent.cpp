@@ -1,8 +1,11 @@
 // The sim role: NodeService over this process's SessionManager, and the heartbeat thread.
+#include <openssl/rand.h>
 #include <sys/resource.h>
 
+#include <array>
 #include <atomic>
 #include <condition_variable>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -11,6 +14,7 @@
 
 #include "server/cluster/cluster_common.h"
 #include "server/control/grpc_common.h"
+#include "server/net/lease.h"
 #include "server/session/session_manager.h"
 
 namespace vsurg::server::cluster {
@@ -29,6 +33,19 @@ double ProcessCpuSeconds() {
 
 void Log(const std::string& node, const std::string& event, const std::string& fields = "") {
   LogEvent("vsurg-sim node=" + node, event, fields);
+}
+
+// This process, among every process that ever ran under the node's name: 64 random bits.
+std::string NewInstance() {
+  std::array<unsigned char, 8> bytes{};
+  if (RAND_bytes(bytes.data(), static_cast<int>(bytes.size())) != 1) {
+    const auto t = std::chrono::steady_clock::now().time_since_epoch().count();
+    std::memcpy(bytes.data(), &t, sizeof t);
+  }
+  static const char* kHex = "0123456789abcdef";
+  std::string out;
+  for (unsigned char b : bytes) out += kHex[b >> 4], out += kHex[b & 15];
+  return out;
 }
 
 }  // namespace
@@ -53,7 +70,67 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   std::thread heartbeat;
   std::once_flag shutdown_once;
 
-  Impl(SessionManager& s, const NodeOptions& o) : sessions(s), options(o) {}
+  Lease& lease;
+  const std::string instance = NewInstance();
+  std::unique_ptr<v1::ClusterService::Stub> control;
+  double beat_cpu = ProcessCpuSeconds();  // the CPU use since the last heartbeat
+  std::chrono::steady_clock::time_point beat_time = std::chrono::steady_clock::now();
+
+  Impl(SessionManager& s, const NodeOptions& o) : sessions(s), options(o), lease(*o.lease) {}
+
+  v1::NodeHeartbeat Beat() {
+    const double cpu1 = ProcessCpuSeconds();
+    const auto t1 = std::chrono::steady_clock::now();
+    const double wall = std::chrono::duration<double>(t1 - beat_time).count();
+    v1::NodeHeartbeat beat;
+    beat.set_name(options.name);
+    beat.set_grpc_address(options.advertise);
+    beat.set_udp_host(options.udp_host);
+    beat.set_udp_port(static_cast<uint32_t>(options.udp_port));
+    beat.set_capacity(options.capacity);
+    beat.set_sessions(sessions.LiveCount());
+    beat.set_cpu(wall > 0 ? (cpu1 - beat_cpu) / wall : 0);
+    beat.set_draining(draining.load());
+    beat.set_started_us(started_us);
+    beat.set_instance(instance);
+    beat.set_epoch(lease.epoch());
+    beat_cpu = cpu1;
+    beat_time = t1;
+    return beat;
+  }
+
+  // The lease's end for an answer to a request sent at `sent` (server/net/lease.h).
+  Lease::Clock::time_point Until(Lease::Clock::time_point sent, double lease_s) const {
+    const double s = std::max(0.0, lease_s - options.cluster.lease_margin_s);
+    return sent +
+           std::chrono::duration_cast<Lease::Clock::duration>(std::chrono::duration<double>(s));
+  }
+
+  // One attempt to take the node's name. OK: the lease is held (a new epoch).
+  grpc::Status Acquire() {
+    v1::NodeHeartbeat beat = Beat();
+    beat.set_epoch(0);
+    v1::NodeLeaseReply reply;
+    const auto sent = Lease::Clock::now();
+    auto ctx = CallContext(options.cluster.token, options.cluster.heartbeat_period_s);
+    const grpc::Status s = control->Acquire(ctx.get(), beat, &reply);
+    if (!s.ok()) return s;
+    lease.Grant(reply.epoch(), Until(sent, reply.lease_s()));
+    Log(options.name, "lease_acquired",
+        "epoch=" + std::to_string(reply.epoch()) + " instance=" + instance +
+            " leftovers_aborted=" + std::to_string(reply.aborted()));
+    return s;
+  }
+
+  // The site no longer counts on this node's sessions: drop them, write nothing.
+  void LeaseLost(const std::string& why) {
+    const int64_t epoch = lease.epoch();
+    lease.Revoke();
+    const int dropped = sessions.AbandonAll("node " + options.name + " lost its lease: " + why);
+    Log(options.name, "lease_lost",
+        "epoch=" + std::to_string(epoch) + " sessions_dropped=" + std::to_string(dropped) +
+            " error=\"" + why + "\"");
+  }
 
   void OnTelemetry(const std::vector<SessionTelemetry>& list) {
     std::lock_guard lock(telemetry_mutex);
@@ -71,34 +148,34 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     latest = std::move(next);
   }
 
+  // Renews the lease every period; without one (lost, or never taken because the control plane
+  // was unreachable at start) acquires the name again.
   void HeartbeatLoop() {
-    auto stub = v1::ClusterService::NewStub(Channel(options.control));
-    double cpu0 = ProcessCpuSeconds();
-    auto t0 = std::chrono::steady_clock::now();
     bool reachable = true;
     std::unique_lock lock(beat_mutex);
     while (!stopping) {
       lock.unlock();
-      const double cpu1 = ProcessCpuSeconds();
-      const auto t1 = std::chrono::steady_clock::now();
-      const double wall = std::chrono::duration<double>(t1 - t0).count();
-      v1::NodeHeartbeat beat;
-      beat.set_name(options.name);
-      beat.set_grpc_address(options.advertise);
-      beat.set_udp_host(options.udp_host);
-      beat.set_udp_port(static_cast<uint32_t>(options.udp_port));
-      beat.set_capacity(options.capacity);
-      beat.set_sessions(sessions.LiveCount());
-      beat.set_cpu(wall > 0 ? (cpu1 - cpu0) / wall : 0);
-      beat.set_draining(draining.load());
-      beat.set_started_us(started_us);
-      cpu0 = cpu1;
-      t0 = t1;
-      v1::HeartbeatReply reply;
-      auto ctx = CallContext(options.cluster.token, options.cluster.heartbeat_period_s);
-      const grpc::Status s = stub->Heartbeat(ctx.get(), beat, &reply);
-      if (s.ok() != reachable) {
-        reachable = s.ok();
+      grpc::Status s;
+      if (!lease.held()) {
+        s = Acquire();
+        if (s.error_code() == grpc::StatusCode::ALREADY_EXISTS)
+          Log(options.name, "lease_refused", "error=\"" + s.error_message() + "\"");
+      } else {
+        v1::HeartbeatReply reply;
+        const auto sent = Lease::Clock::now();
+        auto ctx = CallContext(options.cluster.token, options.cluster.heartbeat_period_s);
+        s = control->Heartbeat(ctx.get(), Beat(), &reply);
+        if (s.ok()) {
+          lease.Extend(Until(sent, reply.lease_s()));
+        } else if (s.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
+          LeaseLost(s.error_message());
+          lock.lock();
+          continue;  // acquire again at once
+        }
+      }
+      const bool ok = s.ok() || s.error_code() == grpc::StatusCode::ALREADY_EXISTS;
+      if (ok != reachable) {
+        reachable = ok;
         Log(options.name, reachable ? "control_reachable" : "control_unreachable",
             reachable ? "" : "error=\"" + s.error_message() + "\"");
       }
@@ -118,6 +195,9 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     if (draining)
       return grpc::Status(grpc::StatusCode::UNAVAILABLE,
                           "node " + options.name + " is draining: no new sessions");
+    if (!lease.Valid())
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "node " + options.name + " holds no lease now: no new sessions");
     const auto t0 = std::chrono::steady_clock::now();
     auto c = sessions.Create(req->trainee(), req->scene());
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
@@ -197,6 +277,13 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
     return InvalidArgument("control", "the control plane's internal address is required");
   if (options.capacity < 1 || options.capacity > 4096)
     return InvalidArgument("capacity", "must be within 1..4096 sessions");
+  if (!options.lease) return InvalidArgument("lease", "a node needs a lease to hold");
+  const ClusterOptions& c = options.cluster;
+  if (!(c.lease_margin_s >= 0 &&
+        c.heartbeat_timeout_s - c.lease_margin_s >= 2 * c.heartbeat_period_s))
+    return InvalidArgument("lease-margin",
+                           "the lease (heartbeat timeout less the margin) must last at least two "
+                           "heartbeat periods");
   auto creds = ServerCredentials(options.cluster);
   if (!creds.ok()) return creds.error();
   auto impl = std::make_unique<Impl>(sessions, options);
@@ -213,6 +300,30 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
     impl->options.advertise = l.substr(0, l.rfind(':') + 1) + std::to_string(impl->port);
   }
   Impl* p = impl.get();
+  // The name first. Held by another live process: it may be one that has just died (its lease
+  // runs out within the heartbeat timeout), so ask until then, and refuse to start after. An
+  // unreachable control plane does not stop the start: the heartbeat thread keeps asking.
+  p->control = v1::ClusterService::NewStub(Channel(options.control));
+  const auto give_up = std::chrono::steady_clock::now() +
+                       std::chrono::microseconds(static_cast<int64_t>(
+                           (c.heartbeat_timeout_s + 2 * c.heartbeat_period_s) * 1e6));
+  for (;;) {
+    const grpc::Status s = p->Acquire();
+    if (s.ok()) break;
+    if (s.error_code() != grpc::StatusCode::ALREADY_EXISTS) {
+      if (s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+          s.error_code() == grpc::StatusCode::INVALID_ARGUMENT)
+        return FromGrpc(s, "acquire the node name");
+      Log(options.name, "control_unreachable", "error=\"" + s.error_message() + "\"");
+      break;
+    }
+    if (std::chrono::steady_clock::now() >= give_up) {
+      p->server->Shutdown();
+      return Error{ErrorCode::kAlreadyExists, s.error_message(), "node-name"};
+    }
+    std::this_thread::sleep_for(
+        std::chrono::microseconds(static_cast<int64_t>(c.heartbeat_period_s * 1e6)));
+  }
   p->subscription = sessions.Subscribe(
       0, [p](const std::vector<SessionTelemetry>& list, bool) { p->OnTelemetry(list); });
   p->heartbeat = std::thread([p] { p->HeartbeatLoop(); });

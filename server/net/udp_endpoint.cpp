@@ -5,6 +5,7 @@
 #include <time.h>
 
 #include <chrono>
+#include <cstring>
 #include <functional>
 #include <future>
 #include <unordered_map>
@@ -13,6 +14,7 @@
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "server/net/lease.h"
 #include "server/net/visual_sender.h"
 
 namespace vsurg::server {
@@ -65,6 +67,10 @@ struct UdpEndpoint::Impl {
   std::array<udp::endpoint, kBatch> senders;
   std::array<iovec, kBatch> iov{};
   std::array<mmsghdr, kBatch> headers{};
+  // Each datagram's control message: its kernel arrival stamp (SO_TIMESTAMPNS, CLOCK_REALTIME).
+  static constexpr size_t kControlSize = CMSG_SPACE(sizeof(timespec));
+  std::array<std::array<uint8_t, kControlSize>, kBatch> control{};
+  int64_t max_age_ns = 0;
   std::array<uint8_t, wire::kMaxDatagram> tx{};
   wire::Codec codec;
   wire::StylusMessage stylus;
@@ -140,13 +146,18 @@ struct UdpEndpoint::Impl {
       for (int i = 0; i < kBatch; ++i) {
         headers[i].msg_hdr.msg_name = senders[i].data();
         headers[i].msg_hdr.msg_namelen = static_cast<socklen_t>(senders[i].capacity());
+        headers[i].msg_hdr.msg_control = control[i].data();
+        headers[i].msg_hdr.msg_controllen = kControlSize;
       }
       const int n = ::recvmmsg(fd, headers.data(), kBatch, MSG_WAITFORONE, nullptr);
+      timespec wall{};
+      if (n > 0) clock_gettime(CLOCK_REALTIME, &wall);
+      const int64_t read_ns = static_cast<int64_t>(wall.tv_sec) * 1'000'000'000 + wall.tv_nsec;
       for (int i = 0; i < n; ++i) {
         senders[i].resize(headers[i].msg_hdr.msg_namelen);
         const size_t len = headers[i].msg_len;
         if (len == 0 && senders[i] == waker_address) continue;  // a wake-up, not traffic
-        Handle(i, len);
+        Handle(i, len, read_ns - ArrivalNs(headers[i].msg_hdr, read_ns));
       }
       const auto now = std::chrono::steady_clock::now();
       if (now >= next_tick) {
@@ -161,7 +172,22 @@ struct UdpEndpoint::Impl {
     RunPending();  // whoever waits on a queued call is not left waiting
   }
 
-  void Handle(int slot, size_t n) {
+  // The kernel's arrival stamp of a received datagram (ns, CLOCK_REALTIME); `fallback` when it
+  // carries none.
+  static int64_t ArrivalNs(const msghdr& h, int64_t fallback) {
+    for (const cmsghdr* c = CMSG_FIRSTHDR(&h); c;
+         c = CMSG_NXTHDR(const_cast<msghdr*>(&h), const_cast<cmsghdr*>(c))) {
+      if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
+      timespec t{};
+      std::memcpy(&t, CMSG_DATA(c), sizeof t);
+      return static_cast<int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
+    }
+    return fallback;
+  }
+
+  // `age_ns`: how long the datagram waited in the receive queue (negative when the wall clock
+  // was stepped back meanwhile: taken as fresh).
+  void Handle(int slot, size_t n, int64_t age_ns) {
     received.fetch_add(1, std::memory_order_relaxed);
     const std::span<const uint8_t> d(rx[slot].data(), n);
     const udp::endpoint& sender = senders[slot];
@@ -176,6 +202,8 @@ struct UdpEndpoint::Impl {
     if (const wire::DropReason r = wire::Verify(d, s.auth, payload); r != wire::DropReason::kNone)
       return Drop(r);
     if (s.seen && header.sequence <= s.last_sequence) return Drop(wire::DropReason::kStale);
+    if (age_ns > max_age_ns) return Drop(wire::DropReason::kLate);
+    if (options.lease && !options.lease->Valid()) return Drop(wire::DropReason::kFenced);
     const double now = Now();
     // Token bucket: max_packets_per_s, bursts of a tenth of a second.
     s.tokens = std::min(options.max_packets_per_s * 0.1,
@@ -243,6 +271,8 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
   }
   if (!(options.max_packets_per_s >= 10))
     return InvalidArgument("max_packets_per_s", "must be ≥ 10");
+  if (!(options.max_input_age_s >= 0.001 && options.max_input_age_s <= 10))
+    return InvalidArgument("max_input_age_s", "must be within 0.001..10 s");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
   if (options.clock) impl->clock = options.clock;
@@ -262,6 +292,11 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     const int bytes = options.receive_buffer_bytes;
     ::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes);
   }
+  impl->max_age_ns = static_cast<int64_t>(options.max_input_age_s * 1e9);
+  const int stamp = 1;  // each datagram's arrival time, for the age bound
+  if (::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &stamp,
+                   sizeof stamp) != 0)
+    return Error{ErrorCode::kIoError, "cannot ask for the UDP socket's arrival stamps", "port"};
   // A quiet socket's receive returns every tick, for the housekeeping.
   const timeval tick{0, static_cast<suseconds_t>(Impl::kTickS * 1e6)};
   if (::setsockopt(impl->socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tick, sizeof tick) != 0)
@@ -357,6 +392,10 @@ double UdpEndpoint::io_cpu_seconds() const {
 void UdpEndpoint::CheckTimeoutsNow() {
   Impl* p = impl_.get();
   p->RunOnIoThread([p] { p->CheckTimeouts(); });
+}
+
+void UdpEndpoint::RunOnIoThread(std::function<void()> fn) {
+  impl_->RunOnIoThread(std::move(fn));
 }
 
 std::thread::id UdpEndpoint::io_thread_id() const {

@@ -9,6 +9,11 @@
 // ForceFeedback datagram back to the sender at once. Anything that fails is dropped and counted
 // by reason; nothing unauthenticated is ever answered.
 //
+// Two more checks before a force is computed: the datagram's age in the receive queue (the
+// kernel's arrival stamp, SO_TIMESTAMPNS; older than max_input_age_s: dropped as late) and, on a
+// simulation node, the node's lease (lapsed: dropped as fenced, so a node the site gave up on
+// never answers its old stations).
+//
 // Session life cycle (checked every 50 ms: a quiet socket's receive times out then):
 //
 //   added ──stylus──▶ running ──no stylus 0.5 s──▶ stalled ──no stylus 5 s──▶ disconnected
@@ -27,6 +32,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -44,6 +50,8 @@ class Simulation;
 
 namespace vsurg::server {
 
+class Lease;
+
 struct EndpointOptions {
   std::string address = "127.0.0.1";  // loopback unless configured otherwise
   uint16_t port = 0;                  // 0: an ephemeral port (see port())
@@ -59,6 +67,14 @@ struct EndpointOptions {
   // The endpoint's clock (timeouts, the rate limit, server_time); null: the steady clock. Must
   // outlive the endpoint.
   const Clock* clock = nullptr;
+  // A stylus datagram that waited in this server's receive queue longer than this (the kernel's
+  // arrival stamp against the time it is read: a process that was frozen, or starved of a core)
+  // is dropped, never answered: its force would act on where the hand was, not where it is. The
+  // station's own watchdog has faded the force to zero by then (20 ms + 50 ms).
+  double max_input_age_s = 0.1;
+  // A simulation node's lease (server/net/lease.h): while it is not valid no force is sent for
+  // any session. Null: the all-in-one server, which needs none. Must outlive the endpoint.
+  const Lease* lease = nullptr;
 };
 
 struct EndpointCounters {
@@ -110,6 +126,9 @@ class UdpEndpoint {
   // Runs the stall/disconnect check now, on the I/O thread, and waits for it (it also runs every
   // 50 ms of real time): with a ManualClock, a test advances the clock and calls this.
   void CheckTimeoutsNow();
+  // Runs `fn` on the I/O thread and waits for it: a test holds the thread as a frozen or starved
+  // process would (the age bound), a diagnostic reads its state.
+  void RunOnIoThread(std::function<void()> fn);
 
  private:
   struct Impl;

@@ -27,7 +27,10 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()) {
   // Nothing is live in a new process: what the store says is live was left by one that died.
-  (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted", options_.node);
+  // (A node's leftovers are aborted when it acquires its name, not here: a second process
+  // started under a live node's name must not take that node's sessions away.)
+  if (options_.node.empty())
+    (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted", options_.node);
   sampler_ = std::thread([this] { SamplerLoop(); });
 }
 
@@ -63,7 +66,11 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   CreatedSession out;
   if (RAND_bytes(out.key.data(), static_cast<int>(out.key.size())) != 1)
     return Error{ErrorCode::kIoError, "the system random generator failed", "key"};
-  auto record = store_.CreateSession(trainee, scene_name, options_.node);
+  const int64_t epoch = options_.lease ? options_.lease->epoch() : 0;
+  if (options_.lease && !(options_.lease->Valid() && epoch > 0))
+    return Error{ErrorCode::kUnavailable,
+                 "node " + options_.node + " holds no lease now: it takes no session", "scene"};
+  auto record = store_.CreateSession(trainee, scene_name, {options_.node, epoch});
   if (!record.ok()) return record.error();
   out.record = *record;
   out.udp_host = options_.udp_host;
@@ -76,6 +83,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   live->latest.state = SessionState::kCreated;
   live->key = out.key;
   live->created_s = clock_.Now();
+  live->epoch = epoch;
   {
     std::lock_guard lock(mutex_);
     if (Status s = CheckLimitsLocked(trainee); s.ok()) {
@@ -85,7 +93,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   }
   // Lost the race for the last slot: the row exists, so record it as aborted.
   (void)store_.SetSessionState(record->id, SessionState::kAborted, db::NowUs(),
-                               "session limit reached");
+                               "session limit reached", epoch);
   return CheckLimits(trainee).error();
 }
 
@@ -129,6 +137,7 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   sim::Simulation* simulation = nullptr;
   LinkStats* link = nullptr;
   wire::SessionKey key{};
+  int64_t epoch = 0;
   {
     std::lock_guard lock(mutex_);
     auto it = live_.find(id);
@@ -147,12 +156,13 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
       simulation = l.simulation.get();
       link = &l.link;
       key = l.key;
+      epoch = l.epoch;
     }
   }
   if (!simulation) return Get(id);  // already started: idempotent
   endpoint_->AddSession(id, key, simulation, link);
-  if (Status s =
-          store_.SetSessionState(static_cast<int64_t>(id), SessionState::kRunning, db::NowUs());
+  if (Status s = store_.SetSessionState(static_cast<int64_t>(id), SessionState::kRunning,
+                                        db::NowUs(), "", epoch);
       !s.ok())
     return s.error();
   return Get(id);
@@ -170,14 +180,34 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
   const scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   live->simulation.reset();
-  Status s = store_.RecordTrialMetrics(static_cast<int64_t>(id), metrics);
-  Status t = store_.SetSessionState(static_cast<int64_t>(id), state, db::NowUs(), reason);
+  // The state and the trial in one transaction, under the session's epoch (invariant 3).
+  Status s =
+      store_.EndSession(static_cast<int64_t>(id), state, db::NowUs(), reason, metrics, live->epoch);
+  NotifyEnded(id);
+  return s;
+}
+
+void SessionManager::NotifyEnded(uint64_t id) {
+  std::lock_guard lock(subscribers_mutex_);
+  for (auto& [token, sub] : subscribers_)
+    if (sub.first == id) sub.second({}, true);
+}
+
+int SessionManager::AbandonAll(const std::string& reason) {
+  std::map<uint64_t, std::unique_ptr<Live>> dropped;
   {
-    std::lock_guard lock(subscribers_mutex_);
-    for (auto& [token, sub] : subscribers_)
-      if (sub.first == id) sub.second({}, true);
+    std::lock_guard lock(mutex_);
+    dropped.swap(live_);
   }
-  return s.ok() ? t : s;
+  for (auto& [id, live] : dropped) {
+    if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
+    live->simulation.reset();
+    NotifyEnded(id);
+  }
+  if (!dropped.empty())
+    std::fprintf(stderr, "vsurg: %zu live sessions dropped without a record: %s\n", dropped.size(),
+                 reason.c_str());
+  return static_cast<int>(dropped.size());
 }
 
 Expected<db::SessionRecord> SessionManager::Stop(uint64_t id, const std::string& reason) {
@@ -270,16 +300,19 @@ void SessionManager::Pump() {
       (void)End(e.session, SessionState::kDisconnected, "no stylus data for 5 s");
       continue;
     }
+    int64_t epoch = 0;
     {
       std::lock_guard lock(mutex_);
       auto it = live_.find(e.session);
       if (it == live_.end() || it->second->state == state) continue;
       it->second->state = state;
       it->second->latest.state = state;
+      epoch = it->second->epoch;
     }
     // Stalls and resumptions are rare; the sampler waits for their commit (a few ms of delayed
-    // telemetry at most), and the single writer keeps their order.
-    (void)store_.SetSessionState(static_cast<int64_t>(e.session), state, db::NowUs());
+    // telemetry at most), and the single writer keeps their order. A refusal (the node lost its
+    // lease) changes nothing here: the agent drops the sessions when it learns of the loss.
+    (void)store_.SetSessionState(static_cast<int64_t>(e.session), state, db::NowUs(), "", epoch);
   }
 }
 

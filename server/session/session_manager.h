@@ -18,11 +18,13 @@
 //  created → aborted                 Pump       (not started within start_timeout_s)
 //  live → ended                      Stop       (removed from the endpoint, metrics recorded)
 //  live → aborted                    Shutdown, EndSessionsOf (the user lost access)
+//  live → (dropped, not written)     AbandonAll (a node's lease lost: the site aborted them)
 //
 // Invariants
 //  1. A session is in the endpoint exactly while it is running or stalled.
 //  2. Every state change is written to the store before the call that made it returns (Pump
-//     writes asynchronously; its order is kept by the single writer).
+//     writes asynchronously; its order is kept by the single writer), under the session's
+//     epoch: the store refuses the writes of a node that lost its lease (store.h note 7).
 //  3. A session's trial metrics are recorded once, when it leaves the live states.
 //  4. The Simulation outlives its registration with the endpoint (RemoveSession waits).
 //  5. A session's deformation thread runs only while a station drives it (running, with stylus
@@ -51,6 +53,7 @@
 #include "common/sim/simulation.h"
 #include "db/store.h"
 #include "proto/wire/datagram.h"
+#include "server/net/lease.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/sessions.h"
 
@@ -65,9 +68,14 @@ struct SessionManagerOptions {
   // Start timeouts and haptic rates are measured on this clock (null: the steady clock); it must
   // outlive the manager. The sampler itself runs at telemetry_hz of real time.
   const Clock* clock = nullptr;
-  // The simulation node this manager runs in (its sessions' rows say so; at start-up only this
-  // node's leftovers are aborted); "" in the all-in-one server.
+  // The simulation node this manager runs in (its sessions' rows say so); "" in the all-in-one
+  // server, which aborts the sessions a previous process left live when it starts. A node does
+  // not: its leftovers are aborted when it acquires its name (store.h design note 7).
   std::string node;
+  // A node's lease (server/net/lease.h; its agent holds it): sessions are created only while it
+  // is valid, and every store write carries the epoch a session was created under. Null in the
+  // all-in-one server. Must outlive the manager.
+  const Lease* lease = nullptr;
 };
 
 class SessionManager final : public Sessions {
@@ -91,6 +99,11 @@ class SessionManager final : public Sessions {
   void Unsubscribe(uint64_t token) override;
   // Live sessions now (a simulation node's load report).
   int LiveCount() const;
+  // The node lost its lease (the control plane declared it down, or a newer process took its
+  // name): every live session is dropped here, without a store write (the store refuses them;
+  // the control plane has aborted those sessions already) and without trial metrics. Returns
+  // how many were dropped. Any thread.
+  int AbandonAll(const std::string& reason);
 
   // Aborts every live session (metrics recorded), stops the sampler. Idempotent.
   void Shutdown() override;
@@ -106,8 +119,10 @@ class SessionManager final : public Sessions {
     uint64_t rate_samples = 0;  // the rate window's start: samples applied by then,
     double rate_time = -1;      // and the station's clock (s); −1: none yet
     double created_s = 0;       // clock_, for start_timeout_s
+    int64_t epoch = 0;          // the lease's when created: every store write carries it
   };
   Status End(uint64_t id, SessionState state, const std::string& reason);
+  void NotifyEnded(uint64_t id);  // subscribers of `id` hear that it ended
   Status CheckLimits(const std::string& trainee) const;
   Status CheckLimitsLocked(const std::string& trainee) const;  // mutex_ held
   void SamplerLoop();

@@ -269,14 +269,22 @@ TEST_P(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   auto s = store_->CreateSession("trainee-1", "arm-torsion");
   ASSERT_TRUE(s.ok()) << s.error().message;
   ASSERT_TRUE(store_->SetSessionState(s->id, SessionState::kRunning, 100).ok());
-  ASSERT_TRUE(store_->SetSessionState(s->id, SessionState::kEnded, 200, "stopped by trainee").ok());
-  EXPECT_EQ(store_->SetSessionState(777, SessionState::kEnded, 300).error().code,
-            ErrorCode::kNotFound);
   scoring::TrialMetrics m;
   m.completed = true;
   m.score = 8.5;
   m.peak_force = 2.5;
-  ASSERT_TRUE(store_->RecordTrialMetrics(s->id, m).ok());
+  ASSERT_TRUE(store_->EndSession(s->id, SessionState::kEnded, 200, "stopped by trainee", m).ok());
+  EXPECT_EQ(store_->SetSessionState(777, SessionState::kEnded, 300).error().code,
+            ErrorCode::kNotFound);
+  // An ended session never changes again, and its trial is recorded once.
+  EXPECT_EQ(store_->SetSessionState(s->id, SessionState::kRunning, 250).error().code,
+            ErrorCode::kFailedPrecondition);
+  scoring::TrialMetrics again = m;
+  again.score = 10;
+  EXPECT_EQ(store_->EndSession(s->id, SessionState::kDisconnected, 300, "late", again).error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->EndSession(s->id, SessionState::kRunning, 300, "", m).error().code,
+            ErrorCode::kInvalidArgument);
   auto got = store_->GetSession(s->id);
   ASSERT_TRUE(got.ok());
   EXPECT_EQ(got->state, SessionState::kEnded);
@@ -320,23 +328,34 @@ TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
                .draining = false,
                .down = false,
                .started_us = 10,
-               .heartbeat_us = 1000};
+               .heartbeat_us = 1000,
+               .instance = "process-a",
+               .epoch = 0};
   NodeRecord b = a;
   b.name = "sim-1";
+  b.instance = "process-b";
   b.heartbeat_us = 5000;
-  ASSERT_TRUE(store_->PutNode(a).ok());
-  ASSERT_TRUE(store_->PutNode(b).ok());
-  EXPECT_EQ(store_->PutNode(NodeRecord{}).error().field, "name");
-  auto on_a = store_->CreateSession("trainee-1", "arm-torsion", "sim-0");
-  auto on_b = store_->CreateSession("trainee-2", "arm-torsion", "sim-1");
-  auto ended_on_a = store_->CreateSession("trainee-3", "arm-torsion", "sim-0");
+  const int64_t kTimeout = 2000;
+  a.epoch = store_->AcquireNode(a, kTimeout, "restarted").value().epoch;
+  b.epoch = store_->AcquireNode(b, kTimeout, "restarted").value().epoch;
+  EXPECT_EQ(a.epoch, 1);
+  EXPECT_EQ(store_->AcquireNode(NodeRecord{}, kTimeout, "").error().field, "name");
+  auto on_a = store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", a.epoch});
+  auto on_b = store_->CreateSession("trainee-2", "arm-torsion", {"sim-1", b.epoch});
+  auto ended_on_a = store_->CreateSession("trainee-3", "arm-torsion", {"sim-0", a.epoch});
   ASSERT_TRUE(on_a.ok() && on_b.ok() && ended_on_a.ok());
   EXPECT_EQ(on_a->node, "sim-0");
   EXPECT_EQ(store_->GetSession(on_b->id)->node, "sim-1");
-  ASSERT_TRUE(store_->SetSessionState(ended_on_a->id, SessionState::kEnded, 50, "done").ok());
+  ASSERT_TRUE(
+      store_->SetSessionState(ended_on_a->id, SessionState::kEnded, 50, "done", a.epoch).ok());
   auto by_node = store_->LiveSessionsByNode();
   ASSERT_TRUE(by_node.ok());
   EXPECT_EQ(*by_node, (std::vector<std::pair<std::string, int>>{{"sim-0", 1}, {"sim-1", 1}}));
+  // A session written without its node's epoch is refused.
+  EXPECT_EQ(store_->SetSessionState(on_a->id, SessionState::kRunning, 60).error().code,
+            ErrorCode::kFailedPrecondition);
+  b.heartbeat_us = 5500;
+  ASSERT_TRUE(store_->BeatNode(b).ok());
 
   // sim-1 beat after the cut-off: not marked. sim-0 is silent: down, its live session aborted.
   EXPECT_FALSE(store_->MarkNodeDown("sim-1", 3000, 6000, "silent").value().has_value());
@@ -353,11 +372,60 @@ TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
   EXPECT_FALSE((*nodes)[1].down);
   EXPECT_EQ((*nodes)[1].grpc_address, "10.0.0.1:7000");
   EXPECT_EQ((*nodes)[1].cpu, 0.25);
-  // Its next heartbeat brings it back; a restarted node aborts only its own leftovers.
+  EXPECT_EQ((*nodes)[1].instance, "process-b");
+
+  // The down node comes back (it was frozen): its heartbeat no longer brings it back, its
+  // writes are refused and the aborted session stays aborted, with no trial recorded.
   a.heartbeat_us = 7000;
-  ASSERT_TRUE(store_->PutNode(a).ok());
+  EXPECT_EQ(store_->BeatNode(a).error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_TRUE(store_->ListNodes().value()[0].down);
+  EXPECT_EQ(
+      store_->SetSessionState(on_a->id, SessionState::kStalled, 7000, "", a.epoch).error().code,
+      ErrorCode::kFailedPrecondition);
+  scoring::TrialMetrics ten;
+  ten.score = 10;
+  EXPECT_EQ(store_->EndSession(on_a->id, SessionState::kDisconnected, 7000, "", ten, a.epoch)
+                .error()
+                .code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->GetSession(on_a->id)->state, SessionState::kAborted);
+  EXPECT_FALSE(store_->GetTrialMetrics(on_a->id).value().has_value());
+  EXPECT_EQ(store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", a.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+
+  // It acquires its name again: a new epoch; the old epoch's writes stay refused.
+  const int64_t old_epoch = a.epoch;
+  a.epoch = store_->AcquireNode(a, kTimeout, "restarted").value().epoch;
+  EXPECT_EQ(a.epoch, old_epoch + 1);
   EXPECT_FALSE(store_->ListNodes().value()[0].down);
-  EXPECT_EQ(store_->AbortOrphanedSessions(8000, "node restarted", "sim-0").value(), 0);
+  EXPECT_EQ(store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", old_epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  auto fresh = store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", a.epoch});
+  ASSERT_TRUE(fresh.ok());
+  EXPECT_EQ(store_->GetSession(on_b->id)->state, SessionState::kCreated);
+
+  // A second process under a live node's name is refused, and takes nothing away.
+  NodeRecord twin = a;
+  twin.instance = "process-c";
+  twin.grpc_address = "10.0.0.9:7000";
+  twin.heartbeat_us = 7500;
+  auto refused = store_->AcquireNode(twin, kTimeout, "restarted");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kAlreadyExists);
+  EXPECT_NE(refused.error().message.find("process-a"), std::string::npos)
+      << refused.error().message;
+  EXPECT_EQ(store_->GetSession(fresh->id)->state, SessionState::kCreated);
+  EXPECT_EQ(store_->ListNodes().value()[0].grpc_address, "10.0.0.1:7000");
+  // Once the holder has been silent past the timeout, the name is taken: a new epoch, the
+  // leftovers aborted in the same transaction, the old holder fenced.
+  twin.heartbeat_us = 7000 + kTimeout + 1;
+  auto taken = store_->AcquireNode(twin, kTimeout, "node restarted");
+  ASSERT_TRUE(taken.ok()) << taken.error().message;
+  EXPECT_EQ(taken->epoch, a.epoch + 1);
+  EXPECT_EQ(taken->aborted, 1);
+  EXPECT_EQ(store_->GetSession(fresh->id)->state, SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(fresh->id)->end_reason, "node restarted");
+  EXPECT_EQ(store_->BeatNode(a).error().code, ErrorCode::kFailedPrecondition);
   EXPECT_EQ(store_->GetSession(on_b->id)->state, SessionState::kCreated);
 }
 

@@ -20,6 +20,9 @@
 #include <gtest/gtest.h>
 
 #include "db/store.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
+#include "server/net/lease.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
 #include "tests/support/postgres.h"
@@ -52,6 +55,7 @@ class ClusterTest : public ::testing::Test {
   }
 
   struct Node {
+    Lease lease;
     std::unique_ptr<db::Store> store;
     std::unique_ptr<UdpEndpoint> endpoint;
     std::unique_ptr<SessionManager> sessions;
@@ -62,10 +66,12 @@ class ClusterTest : public ::testing::Test {
     n->store = std::move(db::Store::Open({.path = db_.uri()})).value();
     SessionManagerOptions so;
     so.node = name;
+    so.lease = &n->lease;
     EndpointOptions eo;
     eo.address = "127.0.0.1";
     eo.port = 0;
     eo.realtime_priority = 0;
+    eo.lease = &n->lease;
     n->endpoint = std::move(UdpEndpoint::Create(eo)).value();
     n->sessions = std::make_unique<SessionManager>(*n->store, n->endpoint.get(), so);
     NodeOptions no;
@@ -75,6 +81,7 @@ class ClusterTest : public ::testing::Test {
     no.udp_port = n->endpoint->port();
     no.capacity = capacity;
     no.cluster = options_;
+    no.lease = &n->lease;
     auto agent = NodeAgent::Start(*n->sessions, no);
     EXPECT_TRUE(agent.ok()) << agent.error().message;
     n->agent = std::move(agent).value();
@@ -246,11 +253,14 @@ TEST_F(ClusterTest, ASilentNodeWhosePortStillAcceptsIsDownOnlyAfterTheTimeout) {
   beat.set_udp_host("127.0.0.1");
   beat.set_udp_port(1);
   beat.set_capacity(8);
+  beat.set_instance("frozen-process");
   grpc::ClientContext ctx;
   ctx.AddMetadata("authorization", std::string("Bearer ") + kToken);
-  v1::HeartbeatReply reply;
+  v1::NodeLeaseReply reply;
   const auto t0 = std::chrono::steady_clock::now();  // the beat is stamped after this
-  ASSERT_TRUE(stub->Heartbeat(&ctx, beat, &reply).ok());
+  ASSERT_TRUE(stub->Acquire(&ctx, beat, &reply).ok());
+  EXPECT_EQ(reply.epoch(), 1);
+  EXPECT_EQ(reply.lease_s(), options_.heartbeat_timeout_s);
   WaitForNodes(1);
   const auto down = [&] { return control_store_->ListNodes().value().at(0).down; };
   while (!down() && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5))
@@ -312,6 +322,110 @@ TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd)
   control_->Unsubscribe(all);
 }
 
+// The site gives up on a node (its heartbeats were late past the timeout: a frozen process, a cut
+// network) while the node itself goes on. When it next reaches the control plane it learns that
+// its lease is gone: it drops its sessions without writing them (the aborted session stays
+// aborted, with no trial recorded), its endpoint answers none of their stations, and it takes the
+// name again under a new epoch and serves new sessions.
+TEST_F(ClusterTest, ANodeTheSiteGaveUpOnDropsItsSessionsUnwrittenAndServesAgainUnderANewEpoch) {
+  Node& a = AddNode("sim-a", 8);
+  WaitForNodes(1);
+  ASSERT_EQ(a.lease.epoch(), 1);
+  auto s = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  ASSERT_TRUE(control_->Start(s->record.id).ok());
+  ASSERT_EQ(a.sessions->LiveCount(), 1);
+  // What the watchdog does to a node silent for 2 s, done now: the node is marked down and its
+  // session aborted, while the node process goes on.
+  const int64_t now = db::NowUs();
+  ASSERT_EQ(control_store_->MarkNodeDown("sim-a", now + 60'000'000, now, "declared down").value(),
+            1);
+  const auto t0 = std::chrono::steady_clock::now();
+  while ((a.sessions->LiveCount() > 0 || a.lease.epoch() != 2) &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(a.sessions->LiveCount(), 0) << "the node kept the session the site aborted";
+  EXPECT_EQ(a.lease.epoch(), 2) << "the node did not take its name again";
+  auto row = control_store_->GetSession(s->record.id);
+  ASSERT_TRUE(row.ok());
+  EXPECT_EQ(row->state, SessionState::kAborted);
+  EXPECT_EQ(row->end_reason, "declared down");
+  EXPECT_FALSE(control_store_->GetTrialMetrics(s->record.id).value().has_value());
+  // Its station's datagrams find no session there any more: never answered.
+  const auto before = a.endpoint->counters();
+  {
+    boost::asio::io_context io;
+    boost::asio::ip::udp::socket sock(io, boost::asio::ip::udp::v4());
+    wire::StylusMessage m;
+    m.sample.time = 1;
+    m.sample.position = Eigen::Vector3d(0, 0, 0.05);
+    std::vector<uint8_t> buf(wire::kMaxDatagram);
+    wire::Codec codec;
+    const size_t n = codec.EncodeStylus(m,
+                                        {wire::kProtocolVersion, wire::PayloadType::kStylusState,
+                                         static_cast<uint64_t>(s->record.id), 1},
+                                        wire::Authenticator(s->key), buf);
+    sock.send_to(boost::asio::buffer(buf.data(), n),
+                 {boost::asio::ip::make_address("127.0.0.1"), a.endpoint->port()});
+  }
+  for (int i = 0; i < 200 && a.endpoint->counters().received == before.received; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const auto after = a.endpoint->counters();
+  EXPECT_EQ(after.received, before.received + 1);
+  EXPECT_EQ(after.answered, before.answered);
+  // Up again under the new epoch: it takes new sessions.
+  WaitForNodes(1);
+  auto next = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(next.ok()) << next.error().message;
+  EXPECT_EQ(next->record.node, "sim-a");
+  EXPECT_EQ(control_->Get(next->record.id)->state, SessionState::kCreated);
+}
+
+// A second process started under a live node's name (a mistyped deployment, a pod started twice)
+// is refused with a clear error and takes nothing away: the live node keeps its session, its
+// address in the registry and its lease.
+TEST_F(ClusterTest, ASecondProcessUnderALiveNodesNameIsRefusedAndTakesNothing) {
+  Node& a = AddNode("sim-a", 8);
+  WaitForNodes(1);
+  auto s = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  const std::string address = control_store_->ListNodes().value().at(0).grpc_address;
+  Node twin;
+  twin.store = std::move(db::Store::Open({.path = db_.uri()})).value();
+  SessionManagerOptions so;
+  so.node = "sim-a";
+  so.lease = &twin.lease;
+  EndpointOptions eo;
+  eo.lease = &twin.lease;
+  twin.endpoint = std::move(UdpEndpoint::Create(eo)).value();
+  twin.sessions = std::make_unique<SessionManager>(*twin.store, twin.endpoint.get(), so);
+  NodeOptions no;
+  no.name = "sim-a";
+  no.control = "127.0.0.1:" + std::to_string(control_->port());
+  no.udp_host = "127.0.0.1";
+  no.udp_port = twin.endpoint->port();
+  no.capacity = 8;
+  no.cluster = options_;
+  no.lease = &twin.lease;
+  auto refused = NodeAgent::Start(*twin.sessions, no);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kAlreadyExists);
+  EXPECT_EQ(refused.error().field, "node-name");
+  EXPECT_NE(refused.error().message.find("held by another live process"), std::string::npos)
+      << refused.error().message;
+  EXPECT_FALSE(twin.lease.held());
+  EXPECT_EQ(control_->Get(s->record.id)->state, SessionState::kCreated);
+  EXPECT_TRUE(a.sessions->IsLive(static_cast<uint64_t>(s->record.id)));
+  const auto nodes = control_store_->ListNodes().value();
+  ASSERT_EQ(nodes.size(), 1u);
+  EXPECT_EQ(nodes[0].grpc_address, address);
+  EXPECT_EQ(nodes[0].epoch, 1);
+  EXPECT_TRUE(a.lease.Valid());
+  ASSERT_TRUE(control_->Start(s->record.id).ok());
+  twin.sessions.reset();
+  twin.endpoint.reset();
+}
+
 TEST_F(ClusterTest, InternalCallsWithoutTheTokenAreRefusedAndTheTraineeLimitIsSiteWide) {
   AddNode("sim-a", 8);
   AddNode("sim-b", 8);
@@ -331,6 +445,11 @@ TEST_F(ClusterTest, InternalCallsWithoutTheTokenAreRefusedAndTheTraineeLimitIsSi
     if (*token) ctx.AddMetadata("authorization", token);
     v1::HeartbeatReply reply;
     EXPECT_EQ(stub->Heartbeat(&ctx, forged, &reply).error_code(), grpc::StatusCode::UNAUTHENTICATED)
+        << token;
+    grpc::ClientContext ctx2;
+    if (*token) ctx2.AddMetadata("authorization", token);
+    v1::NodeLeaseReply lease;
+    EXPECT_EQ(stub->Acquire(&ctx2, forged, &lease).error_code(), grpc::StatusCode::UNAUTHENTICATED)
         << token;
   }
   EXPECT_EQ(control_store_->ListNodes().value().size(), 2u) << "no forged node registered";

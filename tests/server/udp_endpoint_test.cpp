@@ -11,6 +11,7 @@
 #include "common/sim/simulation.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "server/net/lease.h"
 #include "tests/support/allocation_counter.h"
 
 namespace vsurg::server {
@@ -101,6 +102,67 @@ TEST(UdpEndpointTest, AnswersEachStylusDatagramWithAnAuthenticatedForce) {
   const EndpointCounters n = f.endpoint->counters();
   EXPECT_EQ(n.received, 20u);
   EXPECT_EQ(n.answered, 20u);
+}
+
+// A server that was frozen (SIGSTOP, a paused VM) or starved finds its receive queue full of
+// inputs from where the hand was: none of them is answered with a force (they are counted as
+// late), and the first input sent after the thread is back is answered at once.
+TEST(UdpEndpointTest, InputsThatWaitedInTheQueuePastTheBoundAreNeverAnswered) {
+  EndpointOptions options;
+  options.max_input_age_s = 0.1;
+  Fixture f(options);
+  RawClient c(f.endpoint->port());
+  std::atomic<bool> held{false};
+  std::thread freeze([&] {
+    f.endpoint->RunOnIoThread([&] {
+      held = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(600));
+    });
+  });
+  while (!held) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  // 50 inputs while the thread is held; the last leaves at least 0.3 s before it is let go.
+  for (uint64_t seq = 1; seq <= 50; ++seq) c.Send(c.Stylus(7, seq, Key(1)));
+  const auto sent = std::chrono::steady_clock::now();
+  freeze.join();
+  ASSERT_GE(std::chrono::steady_clock::now() - sent, std::chrono::milliseconds(300))
+      << "the sends took the whole hold: nothing waited";
+  c.Send(c.Stylus(7, 51, Key(1)));
+  auto reply = c.Receive(5000);
+  ASSERT_TRUE(reply.has_value());
+  wire::Opened o;
+  const wire::Authenticator auth(Key(1));
+  ASSERT_EQ(wire::Open(*reply, &auth, o), DropReason::kNone);
+  wire::ForceMessage m;
+  ASSERT_EQ(c.codec.DecodeForce(o.payload, m), DropReason::kNone);
+  EXPECT_EQ(m.echo_sequence, 51u) << "an input that waited past the bound was answered";
+  EXPECT_FALSE(c.Receive(100).has_value());
+  const EndpointCounters n = f.endpoint->counters();
+  EXPECT_EQ(n.Dropped(DropReason::kLate), 50u);
+  EXPECT_EQ(n.received, 51u);
+}
+
+// A simulation node answers only while it holds its lease: before it is granted, after it
+// lapses and after it is revoked, stylus datagrams are dropped as fenced, never answered.
+TEST(UdpEndpointTest, ANodeAnswersOnlyWhileItsLeaseHolds) {
+  Lease lease;
+  EndpointOptions options;
+  options.lease = &lease;
+  Fixture f(options);
+  RawClient c(f.endpoint->port());
+  uint64_t seq = 0;
+  const auto answered = [&] {
+    c.Send(c.Stylus(7, ++seq, Key(1)));
+    return c.Receive(300).has_value();
+  };
+  EXPECT_FALSE(answered());  // never granted
+  lease.Grant(1, Lease::Clock::now() + std::chrono::seconds(30));
+  EXPECT_TRUE(answered());
+  lease.Revoke();
+  EXPECT_FALSE(answered());
+  lease.Grant(2, Lease::Clock::now() + std::chrono::milliseconds(50));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_FALSE(answered());  // lapsed on the node's own clock
+  EXPECT_EQ(f.endpoint->counters().Dropped(DropReason::kFenced), 3u);
 }
 
 // A burst that finds the I/O thread off its core queues instead of being dropped: the socket's
