@@ -195,7 +195,14 @@ struct StationChannel::Impl {
         dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
       }
       uint32_t events = 0;
-      const Vec3 out = safety.Filter(f, dt, events);
+      Vec3 out = safety.Filter(f, dt, events);
+      if (l.received_s < 0) {
+        // No answer from this session's server yet: nothing is requested, and the start-up gate
+        // must not count these cycles as quiet (else it opens and ramps before the first model
+        // arrives, and a session started or re-placed with the tip in tissue kicks).
+        safety.Disarm();
+        out.setZero();
+      }
       device->WriteForce(out);
       last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
       StationView& shown = view.Back();

@@ -92,6 +92,11 @@ Vec3 SafetyFilter::Filter(const Vec3& requested_in, double dt, uint32_t& events)
     out = last_ + step * (max_step / step.norm());
     events |= kEventRateLimited;
   }
+  // Scaling by max/|out| can leave |out| an ulp above max (3.3000000000000003 N): scale below it
+  // until the norm, as computed by anyone who checks it, is within the limit.
+  for (double n = out.norm(); n > limits_.max_force; n = out.norm())
+    out *= std::nextafter(limits_.max_force / n, 0.0);
+  ramp_ = armed_ ? ramp : 0.0;
   last_ = out;
   return out;
 }
@@ -110,11 +115,13 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     j *= limits_.max_stiffness / k;
     events |= kEventStiffnessClamped;
   }
+  j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
   local.force0 = output;  // the extrapolation starts from what the device actually outputs
 }
 
 void SafetyFilter::Disarm() {
   armed_ = false;
+  ramp_ = 0;
   quiet_ = 0;
   last_.setZero();
 }

@@ -4,7 +4,8 @@
 //   2. start-up gating: nothing is output until the requested force has stayed below
 //      gate_force for gate_cycles samples (no kick when a session starts with the tip inside
 //      tissue), then the output is ramped in over ramp_time;
-//   3. magnitude clamp to max_force; 4. rate limit |ΔF| ≤ max_force_rate·dt;
+//   3. magnitude clamp to max_force; 4. rate limit |ΔF| ≤ max_force_rate·dt (the output's
+//      magnitude is ≤ max_force exactly, in the double arithmetic a check of it uses);
 //   5. local-model stiffness clamped to max_stiffness (largest |eigenvalue| of the symmetric part).
 //
 // Presets: Touch-class 3.3 N peak, 400 N/m; Omni-class 3.3 N, 700 N/m (OpenHaptics figures).
@@ -46,7 +47,10 @@ class SafetyFilter {
   // Steps 2–4 for a request at a sample dt seconds after the previous one (dt ≤ 0 or non-finite:
   // 1 ms assumed). Returns the force to output.
   Vec3 Filter(const Vec3& requested, double dt, uint32_t& events);
-  // Step 5, and scales the local model's force consistently with the output.
+  // Step 5, and scales the local model consistently with the output: its force is the output,
+  // and its stiffness is scaled by the start-up gate and ramp as the force was (zero while
+  // gated), so that a station extrapolating it between updates never renders a force the gate
+  // held back (a session started, or re-placed after a node's loss, with the tip in tissue).
   void LimitLocalModel(LocalModel& local, const Vec3& output, uint32_t& events) const;
   // Output zero now and go back to the start-up gate (the next force is gated and ramped).
   void Disarm();
@@ -62,6 +66,7 @@ class SafetyFilter {
   int quiet_ = 0;
   bool armed_ = false;
   double armed_time_ = 0;  // s since arming
+  double ramp_ = 0;        // the last Filter's gate-and-ramp factor, 0..1
 };
 
 }  // namespace vsurg::haptics

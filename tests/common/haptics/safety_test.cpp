@@ -81,7 +81,10 @@ TEST(SafetyFilterTest, RejectsNonFiniteAndOutOfWorkspaceSamples) {
 }
 
 TEST(SafetyFilterTest, LocalModelStiffnessIsClampedToTheDevice) {
-  auto f = SafetyFilter::Create(TouchLimits());
+  auto f = SafetyFilter::Create(TouchLimits(), {.gate_force = 0.2, .gate_cycles = 0,
+                                                .ramp_time = 0});
+  uint32_t armed = 0;
+  f->Filter(Vec3::Zero(), 1e-3, armed);  // armed, no ramp
   LocalModel m;
   m.jacobian = -1000.0 * Eigen::Matrix3d::Identity();
   uint32_t ev = 0;
@@ -92,6 +95,51 @@ TEST(SafetyFilterTest, LocalModelStiffnessIsClampedToTheDevice) {
   m.jacobian(1, 2) = NAN;
   f->LimitLocalModel(m, Vec3::Zero(), ev);
   EXPECT_TRUE(m.jacobian.allFinite());
+}
+
+// A station extrapolates F₀ + J·(x − x₀) between updates: while the gate holds the force back,
+// the stiffness must be held back too, or a session that starts (or is re-placed after a node's
+// loss) with the tip in tissue renders J·Δx up to the device limit as the hand moves.
+TEST(SafetyFilterTest, WhileGatedOrRampingTheLocalStiffnessIsHeldBackLikeTheForce) {
+  auto f = SafetyFilter::Create(TouchLimits(), {.gate_force = 0.2, .gate_cycles = 10,
+                                                .ramp_time = 0.1});
+  uint32_t ev = 0;
+  LocalModel m;
+  m.jacobian = -300.0 * Eigen::Matrix3d::Identity();
+  const Vec3 out = f->Filter(Vec3(0, 0, 2), 1e-3, ev);  // deep in tissue: gated
+  EXPECT_EQ(out, Vec3::Zero());
+  f->LimitLocalModel(m, out, ev);
+  EXPECT_EQ(m.jacobian, Eigen::Matrix3d::Zero());
+  for (int i = 0; i < 10; ++i) f->Filter(Vec3::Zero(), 1e-3, ev);  // quiet: armed
+  f->Filter(Vec3(0, 0, 0.1), 0.05, ev);  // half-way through the 0.1 s ramp
+  m.jacobian = -300.0 * Eigen::Matrix3d::Identity();
+  f->LimitLocalModel(m, Vec3::Zero(), ev);
+  EXPECT_NEAR(m.jacobian(2, 2), -300.0 * 0.051 / 0.1, 1e-9);  // armed 1 ms, then 50 ms more
+  f->Disarm();
+  m.jacobian = -300.0 * Eigen::Matrix3d::Identity();
+  f->LimitLocalModel(m, Vec3::Zero(), ev);
+  EXPECT_EQ(m.jacobian, Eigen::Matrix3d::Zero());
+}
+
+// The clamp holds in the arithmetic a check uses: |out| ≤ max_force exactly, for requests where
+// scaling by max/|v| alone lands an ulp above the limit.
+TEST(SafetyFilterTest, AClampedForceIsWithinTheLimitExactly) {
+  const DeviceLimits limits = TouchLimits();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-10, 10);
+  int overshooting = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Vec3 v(u(rng), u(rng), u(rng));
+    if (v.norm() <= limits.max_force) continue;
+    overshooting += (v * (limits.max_force / v.norm())).norm() > limits.max_force;
+    auto f = SafetyFilter::Create(limits, {.gate_force = 0.2, .gate_cycles = 0, .ramp_time = 0});
+    uint32_t ev = 0;
+    f->Filter(Vec3::Zero(), 1e-3, ev);
+    const Vec3 out = f->Filter(v, 1.0, ev);  // a long step: no rate limit
+    ASSERT_LE(out.norm(), limits.max_force) << v.transpose();
+    EXPECT_GT(out.norm(), limits.max_force - 1e-12);
+  }
+  EXPECT_GT(overshooting, 0) << "no request overshot when scaled: the test checks nothing";
 }
 
 TEST(SafetyFilterTest, BadLimitsAreRejected) {
