@@ -9,6 +9,13 @@
 #      submission is in PostgreSQL;
 #   4. the surviving control plane still lists every live session (vsurg-monitor) and the
 #      dashboard's API too.
+# Before 2 and 3, two chaos steps (the fencing of docs/SCALING.md):
+#   a. SIGSTOP sim-1 past its lease and the control plane's timeout, then SIGCONT: its stations
+#      are back on other nodes; the resumed node answers none of them, writes none of its old
+#      sessions (they stay aborted, with no trial recorded) and takes its name again; no trainee
+#      ever has two live sessions;
+#   b. a second process started under sim-2's name is refused with a clear error and takes
+#      nothing from sim-2.
 # Prints what it measured, and writes it as JSON to $OUT/cluster.json. Exits non-zero when a
 # process does not start; the checks are the caller's (tests/e2e/cluster_test.cpp; deploy/demo.sh
 # prints them).
@@ -58,7 +65,7 @@ echo "control: gRPC $servers, internal $internal"
 
 step "Three simulation nodes"
 declare -a sim_pid
-capacity=$(( (stations + 2) / 3 + 4 ))
+capacity=$(( (stations + 2) / 3 + 8 ))
 for i in 0 1 2; do
   "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$i" --control "$internal" \
     --cluster-token-file "$tmp/cluster-token" --udp-port 0 --capacity "$capacity" \
@@ -94,6 +101,59 @@ running() { psql_q "SELECT count(*) FROM sessions WHERE state = 'running'"; }
 for _ in $(seq 300); do [ "$(running)" -ge "$stations" ] && break; sleep 0.1; done
 spread="$(psql_q "SELECT node || '=' || count(*) FROM sessions WHERE state = 'running' GROUP BY node ORDER BY node" | tr '\n' ' ')"
 echo "running sessions per node: $spread"
+
+# The most live sessions any one trainee has, now.
+max_live_per_trainee() {
+  psql_q "SELECT coalesce(max(c), 0) FROM (SELECT trainee_id, count(*) AS c FROM sessions
+          WHERE state IN ('created', 'running', 'stalled') GROUP BY trainee_id) AS live"
+}
+wait_all_running() {
+  for _ in $(seq 300); do [ "$(running)" -ge "$stations" ] && return 0; sleep 0.1; done
+  return 1
+}
+
+step "Chaos: sim-1 frozen past its lease (SIGSTOP 3.5 s), then resumed"
+frozen_ids="$(psql_q "SELECT string_agg(id::text, ',') FROM sessions WHERE state = 'running' AND node = 'sim-1'")"
+frozen_victims="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-1'")"
+kill -STOP "${sim_pid[1]}"
+stopped_at="$(now_ms)"
+max_live=0
+while [ $(( $(now_ms) - stopped_at )) -lt 3500 ]; do
+  m="$(max_live_per_trainee)"; [ "$m" -gt "$max_live" ] && max_live="$m"
+  sleep 0.2
+done
+kill -CONT "${sim_pid[1]}"
+resumed_at="$(now_ms)"
+wait_all_running || echo "not every station runs again after the freeze" >&2
+# Watch for 3 s after the resume: a node that came back must not bring its old sessions back.
+while [ $(( $(now_ms) - resumed_at )) -lt 3000 ]; do
+  m="$(max_live_per_trainee)"; [ "$m" -gt "$max_live" ] && max_live="$m"
+  sleep 0.2
+done
+frozen_not_aborted="$(psql_q "SELECT count(*) FROM sessions WHERE id IN (${frozen_ids:-0}) AND state <> 'aborted'")"
+frozen_trials="$(psql_q "SELECT count(*) FROM trial_metrics WHERE session_id IN (${frozen_ids:-0})")"
+for _ in $(seq 50); do grep -q "event=lease_acquired epoch=2" "$out/sim-1.log" && break; sleep 0.1; done
+lease_lost="$(grep -c "event=lease_lost" "$out/sim-1.log" || true)"
+reacquired="$(grep -c "event=lease_acquired epoch=2" "$out/sim-1.log" || true)"
+echo "sim-1 had $frozen_victims sessions; after the resume $frozen_not_aborted of them are not aborted, $frozen_trials have a trial recorded"
+echo "sim-1's log: lease_lost $lease_lost time(s), took its name again at epoch 2: $reacquired"
+echo "most live sessions of one trainee during and after the freeze: $max_live"
+
+step "Chaos: a second process under sim-2's name"
+sim2_running="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-2'")"
+sim2_address="$(psql_q "SELECT grpc_address FROM nodes WHERE name = 'sim-2'")"
+twin_rc=0
+timeout 30 "$bin/vsurg-server" --role sim --db "$uri" --node-name sim-2 --control "$internal" \
+  --cluster-token-file "$tmp/cluster-token" --udp-port 0 --capacity "$capacity" \
+  --ready-file "$tmp/sim-twin.json" 2> "$out/sim-twin.log" || twin_rc=$?
+twin_refused="$(grep -c "held by another live process" "$out/sim-twin.log" || true)"
+sleep 1  # a heartbeat of sim-2 after the twin's attempts
+sim2_running_after="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-2'")"
+sim2_address_after="$(psql_q "SELECT grpc_address FROM nodes WHERE name = 'sim-2' AND down = 0")"
+m="$(max_live_per_trainee)"; [ "$m" -gt "$max_live" ] && max_live="$m"
+echo "the twin exited with $twin_rc: $(tail -1 "$out/sim-twin.log")"
+echo "sim-2 ran $sim2_running sessions before, $sim2_running_after after; its address $sim2_address, after $sim2_address_after"
+twin_kept=$([ "$sim2_running" = "$sim2_running_after" ] && [ "$sim2_address" = "$sim2_address_after" ] && echo 1 || echo 0)
 
 step "SIGKILL sim-0: its stations come back on the other nodes"
 victims="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-0'")"
@@ -158,19 +218,24 @@ step "The stations finish (SIGINT: each stops its session and prints its summary
 for i in $(seq 0 $((stations - 1))); do kill -INT "${station_pid[$i]}" 2>/dev/null || true; done
 for i in $(seq 0 $((stations - 1))); do wait "${station_pid[$i]}" 2>/dev/null || true; done
 # Per station: did it reconnect, did its force fade meanwhile, the largest force it sent.
-read -r reconnected faded max_force < <(cat "$out"/station-*.json | /usr/bin/python3 -c '
+read -r reconnected faded max_force reconnects < <(cat "$out"/station-*.json | /usr/bin/python3 -c '
 import json, sys
 rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
 back = [r for r in rows if r["reconnects"] > 0]
 print(len(back), sum(1 for r in back if r["watchdog_fades"] > 0),
-      max([r["max_force_n"] for r in rows] or [0]))')
-echo "stations reconnected: $reconnected (force faded meanwhile: $faded); largest force sent: $max_force N"
+      repr(max([r["max_force_n"] for r in rows] or [0])), sum(r["reconnects"] for r in rows))')
+echo "stations reconnected: $reconnected ($reconnects reconnections; force faded meanwhile: $faded); largest force sent: $max_force N"
 
 cat > "$out/cluster.json" <<EOF
 {"stations": $stations, "spread": "$spread", "victims": $victims, "aborted": $aborted,
  "moved": $moved, "back_ms": $back_ms, "spread_after": "$spread_after", "acked": $acked,
  "acked_missing": $acked_missing, "stored": $stored,
  "monitor_running": $listed, "dashboard_running": $dashboard_live,
- "reconnected": $reconnected, "reconnected_faded": $faded, "max_force_n": $max_force}
+ "reconnected": $reconnected, "reconnected_faded": $faded, "max_force_n": $max_force,
+ "reconnects": $reconnects,
+ "frozen_victims": $frozen_victims, "frozen_not_aborted": $frozen_not_aborted,
+ "frozen_trials": $frozen_trials, "lease_lost": $lease_lost, "reacquired": $reacquired,
+ "max_live_per_trainee": $max_live, "twin_rc": $twin_rc, "twin_refused": $twin_refused,
+ "twin_kept": $twin_kept}
 EOF
 cat "$out/cluster.json"

@@ -14,6 +14,7 @@
 // no new sessions, the live ones finish (up to --drain-timeout), then the same.
 #include <signal.h>
 #include <unistd.h>
+#include <algorithm>
 
 #include <cstdio>
 #include <filesystem>
@@ -87,6 +88,9 @@ int Main(std::vector<std::string> args) {
       .Option("http", Kind::kString,
               "web dashboard address host:port (off unless given; port 0: any free one); HTTPS "
               "with the gRPC certificate when TLS is configured")
+      .Option("http-hosts", Kind::kString,
+              "host names the dashboard answers for, comma-separated, besides IP literals and "
+              "localhost (any other Host header gets 421: DNS rebinding)")
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off)", false, "20")
@@ -282,6 +286,14 @@ int Main(std::vector<std::string> args) {
       ho.tls_key_file = co.tls_key_file;
       ho.allow_insecure = co.allow_insecure;
       ho.backup_dir = co.backup_dir;
+      if (p.Has("http-hosts")) {
+        const std::string list = p.String("http-hosts");
+        for (size_t at = 0; at <= list.size();) {
+          const size_t comma = std::min(list.find(',', at), list.size());
+          if (comma > at) ho.hosts.push_back(list.substr(at, comma - at));
+          at = comma + 1;
+        }
+      }
       auto web_started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
       if (!web_started.ok()) {
         std::cerr << "vsurg-server: --http: " << web_started.error().message << "\n";

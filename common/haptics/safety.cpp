@@ -115,7 +115,7 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     j *= limits_.max_stiffness / k;
     events |= kEventStiffnessClamped;
   }
-  j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
+  j *= ramp_;             // gated: no stiffness either; ramping: as much as the force
   local.force0 = output;  // the extrapolation starts from what the device actually outputs
 }
 

@@ -289,7 +289,17 @@ HttpApi::HttpApi(Domain& domain, const HttpApiOptions& options)
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()),
       sessions_(clock_, options.session_ttl_s),
-      limiter_(clock_, options.sign_in_failures) {}
+      limiter_(clock_, options.sign_in_failures),
+      bearer_limiter_(clock_, options.bearer_failures) {}
+
+std::function<bool()> HttpApi::StillAllowed(const std::string& authorization,
+                                            const std::optional<WebSession>& web) {
+  std::string id = web ? web->id : std::string();
+  return [this, authorization, id] {
+    if (!id.empty() && !sessions_.Find(id)) return false;  // signed out (or expired)
+    return Authorize(d_.store, authorization, Method::kMonitorWatch).ok();
+  };
+}
 
 // Who calls: the principal, the web session (when by cookie), whether a CSRF check applies.
 struct HttpApi::Caller {
@@ -385,7 +395,7 @@ HttpReply HttpApi::SignIn(const HttpRequest& r) {
     limiter_.Failed(r.remote);
     return ErrorReply(Error{ErrorCode::kUnauthenticated, "unknown or revoked token", "token"});
   }
-  const WebSession web = sessions_.Create(*token);
+  const WebSession web = sessions_.Create(*token, p->name);
   HttpReply reply = Ok({{"user", p->name},
                         {"role", db::RoleName(p->role)},
                         {"group", p->group},
@@ -408,9 +418,20 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
   if (seg.size() == 1 && seg[0] == "signin" && post) return SignIn(r);
 
   // Authentication: a bearer header (scripts), else the cookie (pages). Then CSRF for writes.
+  // Tokens are 256-bit secrets, so guessing one is hopeless; failures are still counted, logged
+  // and limited per address (bearer_failures a minute), as sign-ins are.
   std::optional<WebSession> web;
   std::string authorization = r.authorization;
-  if (authorization.empty()) {
+  const bool bearer = !authorization.empty();
+  if (bearer) {
+    if (const double wait = bearer_limiter_.RetryAfter(r.remote); wait > 0) {
+      HttpReply reply = ErrorReply(Error{
+          ErrorCode::kResourceExhausted,
+          "too many requests with unknown tokens from this address; try later", "authorization"});
+      reply.headers.emplace_back("Retry-After", std::to_string(static_cast<int>(std::ceil(wait))));
+      return reply;
+    }
+  } else {
     if (auto id = CookieValue(r.cookie, kCookie)) web = sessions_.Find(*id);
     if (!web) return ErrorReply(Error{ErrorCode::kUnauthenticated, "sign in first", "session"});
     authorization = "Bearer " + web->token;
@@ -419,7 +440,17 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
                               "missing or wrong CSRF token (X-CSRF-Token)", "csrf"});
   }
   // The method the route needs decides the role; each domain function checks again.
-  auto caller = [&](Method m) { return Authorize(d_.store, authorization, m); };
+  auto caller = [&](Method m) {
+    auto p = Authorize(d_.store, authorization, m);
+    if (bearer && !p.ok() && p.error().code == ErrorCode::kUnauthenticated) {
+      bearer_limiter_.Failed(r.remote);
+      const uint64_t n = bearer_failures_.fetch_add(1) + 1;
+      if ((n & (n - 1)) == 0)  // the 1st, 2nd, 4th, 8th, …: a flood logs a few lines
+        LogEvent("vsurg-http", "bearer_token_refused",
+                 "remote=" + r.remote + " total=" + std::to_string(n));
+    }
+    return p;
+  };
   auto fail = [](const Error& e) { return ErrorReply(e); };
   const auto n = seg.size();
   auto is = [&](std::initializer_list<std::string_view> parts) {
@@ -522,9 +553,7 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
       HttpReply reply;
       reply.kind = HttpReply::Kind::kEvents;
       reply.watch = {*id, *hz, true};
-      reply.still_allowed = [this, authorization] {
-        return Authorize(d_.store, authorization, Method::kMonitorWatch).ok();
-      };
+      reply.still_allowed = StillAllowed(authorization, web);
       return reply;
     }
   }
@@ -536,9 +565,7 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
     HttpReply reply;
     reply.kind = HttpReply::Kind::kEvents;
     reply.watch = {0, *hz, false};
-    reply.still_allowed = [this, authorization] {
-      return Authorize(d_.store, authorization, Method::kMonitorWatch).ok();
-    };
+    reply.still_allowed = StillAllowed(authorization, web);
     return reply;
   }
   if (is({"evaluations", "mine"}) && get) {
@@ -732,6 +759,7 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
     HttpReply reply;
     reply.kind = HttpReply::Kind::kExport;
     reply.export_plan = *plan;
+    reply.owner = p->name;
     const bool csv = plan->format == db::ExportFormat::kCsv;
     reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
     reply.filename = plan->format == db::ExportFormat::kCsv    ? "vsurg-evaluations.csv"

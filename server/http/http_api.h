@@ -19,6 +19,7 @@
 // Thread safety: Handle may be called from any thread (the server calls it from its I/O thread).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -66,14 +67,18 @@ struct HttpReply {
   std::string filename;  // kExport: the download's name
   // kDeferred: starts the work; calls `done` exactly once, from any thread.
   std::function<void(std::function<void(HttpReply)> done)> deferred;
-  // kEvents: is the caller still allowed to watch (their token not revoked)? Called now and then.
+  // kEvents: is the caller still allowed to watch (their token not revoked, their web session
+  // not signed out)? Called now and then, and at once after any sign-out (HttpApi::signouts).
   std::function<bool()> still_allowed;
+  // kExport: who asked (export slots are shared out per user).
+  std::string owner;
 };
 
 struct HttpApiOptions {
   double session_ttl_s = 8 * 3600;  // a web session's lifetime
   bool secure_cookies = false;      // TLS: the cookie gets `Secure`
   int sign_in_failures = 5;         // per address per minute
+  int bearer_failures = 20;         // requests with an unknown bearer token, per address a minute
   const Clock* clock = nullptr;     // null: the steady clock
 };
 
@@ -90,6 +95,10 @@ class HttpApi {
   static int StatusFor(ErrorCode code);
 
   Domain& domain() { return d_; }
+  // Web sessions signed out (or dropped) so far: an event stream re-checks its caller when this
+  // moves, so signing out ends the web session's streams at their next frame.
+  uint64_t signouts() const { return sessions_.removals(); }
+  uint64_t bearer_failures() const { return bearer_failures_.load(); }
 
  private:
   struct Caller;
@@ -101,8 +110,13 @@ class HttpApi {
   Domain& d_;
   HttpApiOptions options_;
   const Clock& clock_;
+  std::function<bool()> StillAllowed(const std::string& authorization,
+                                     const std::optional<WebSession>& web);
+
   WebSessions sessions_;
   SignInLimiter limiter_;
+  SignInLimiter bearer_limiter_;
+  std::atomic<uint64_t> bearer_failures_{0};
 };
 
 // Percent-decoding of a query component ('+' is a space); nullopt when malformed.

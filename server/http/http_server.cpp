@@ -19,6 +19,7 @@
 #include "server/domain/auth.h"
 #include "server/domain/scene_catalog.h"
 #include "server/http/http_api.h"
+#include "server/http/request_checks.h"
 #include "server/session/sessions.h"
 
 namespace vsurg::server {
@@ -96,9 +97,10 @@ class FrameCache {
 // is destroyed first and the connections its handlers hold find the counters still there).
 struct Shared {
   HttpServerOptions options;
-  std::mutex mutex;  // per_address, open
+  std::mutex mutex;  // per_address, open, exports_by_user
   std::map<std::string, int> per_address;
-  std::atomic<uint64_t> requests{0}, refused{0}, bad{0}, events{0};
+  std::map<std::string, int> exports_by_user;
+  std::atomic<uint64_t> requests{0}, refused{0}, bad{0}, events{0}, evicted{0};
   std::atomic<int> open{0}, streams{0}, exports{0};
   std::atomic<bool> stopping{false};
   FrameCache frames;
@@ -109,6 +111,12 @@ class ConnectionBase {
  public:
   virtual ~ConnectionBase() = default;
   virtual void Close() = 0;  // I/O thread
+  // Waiting for a request (none yet, or between keep-alive requests, or a half-sent one): not
+  // streaming, exporting or waiting for the store. Such a connection may be closed to admit
+  // another client when every connection is taken. I/O thread.
+  virtual bool Idle() const = 0;
+  virtual const std::string& remote() const = 0;
+  std::chrono::steady_clock::time_point idle_since{};  // when it last started waiting
 };
 
 struct ExportThread {
@@ -179,17 +187,42 @@ class Connection final : public ConnectionBase,
   }
   beast::tcp_stream& Lowest() { return beast::get_lowest_layer(stream_); }
 
+  bool Idle() const override { return reading_ && !closed_; }
+  const std::string& remote() const override { return remote_; }
+
   void Read() {
     if (closed_) return;
+    reading_ = true;
+    idle_since = std::chrono::steady_clock::now();
     parser_.emplace();
     parser_->header_limit(static_cast<uint32_t>(ctx_.shared->options.max_header_bytes));
     parser_->body_limit(ctx_.shared->options.max_body_bytes);
     // The whole request must arrive within the deadline, however slowly it trickles.
     Lowest().expires_after(Seconds(served_ == 0 ? ctx_.shared->options.request_timeout_s
                                                 : ctx_.shared->options.idle_timeout_s));
+    // The header first: its framing is checked before any body byte is read.
+    bhttp::async_read_header(
+        stream_, buffer_, *parser_,
+        [self = this->shared_from_this()](beast::error_code ec, size_t) { self->OnHeader(ec); });
+  }
+
+  void OnHeader(beast::error_code ec) {
+    if (closed_) return;
+    if (ec) return OnRead(ec);
+    const auto& req = parser_->get();
+    std::vector<std::string_view> te;
+    for (auto it = req.find(bhttp::field::transfer_encoding);
+         it != req.end() && it->name() == bhttp::field::transfer_encoding; ++it)
+      te.emplace_back(it->value().data(), it->value().size());
+    const int lengths = static_cast<int>(req.count(bhttp::field::content_length));
+    if (const std::string why = http::FramingProblem(te, lengths); !why.empty()) {
+      ctx_.shared->bad.fetch_add(1);
+      return Refuse(400, why);
+    }
+    if (parser_->is_done()) return OnRead({});
     bhttp::async_read(
         stream_, buffer_, *parser_,
-        [self = this->shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
+        [self = this->shared_from_this()](beast::error_code ec2, size_t) { self->OnRead(ec2); });
   }
 
   void OnRead(beast::error_code ec) {
@@ -208,12 +241,20 @@ class Connection final : public ConnectionBase,
         return Refuse(400, "a malformed HTTP request");
       return Close();
     }
+    reading_ = false;
     ++served_;
     ctx_.shared->requests.fetch_add(1);
     auto& req = parser_->get();
     keep_alive_ = req.keep_alive();
     if (req.method() != bhttp::verb::get && req.method() != bhttp::verb::post)
       return Refuse(405, "only GET and POST");
+    const auto host = req[bhttp::field::host];
+    if (!http::HostAllowed(std::string_view(host.data(), host.size()),
+                           ctx_.shared->options.hosts)) {
+      ctx_.shared->bad.fetch_add(1);
+      return Refuse(421, "this server does not answer for the host name '" +
+                             std::string(host).substr(0, 100) + "'");
+    }
     HttpRequest r;
     r.method = std::string(req.method_string());
     r.target = std::string(req.target());
@@ -295,6 +336,7 @@ class Connection final : public ConnectionBase,
     keep_alive_ = false;
     still_allowed_ = std::move(reply.still_allowed);
     last_check_ = std::chrono::steady_clock::now();
+    signouts_ = ctx_.api->signouts();
     ctx_.shared->streams.fetch_add(1);
     // The stream lives until Close (client gone, write failed, session ended, server stopping);
     // a read that can only end in an error tells when the client hangs up between frames.
@@ -370,8 +412,12 @@ class Connection final : public ConnectionBase,
     if (ec || closed_) return Close();
     ctx_.shared->events.fetch_add(1);
     const auto now = std::chrono::steady_clock::now();
-    if (std::chrono::duration<double>(now - last_check_).count() > 5) {
-      last_check_ = now;  // a revoked token or a disabled account ends the stream
+    const uint64_t signouts = ctx_.api->signouts();
+    if (std::chrono::duration<double>(now - last_check_).count() > 5 || signouts != signouts_) {
+      // A revoked token or a disabled account ends the stream within 5 s; a sign-out (of this
+      // web session) at its next frame.
+      last_check_ = now;
+      signouts_ = signouts;
       if (still_allowed_ && !still_allowed_()) return Close();
     }
     if (pending_) {
@@ -385,15 +431,36 @@ class Connection final : public ConnectionBase,
 
   // --- exports: a thread runs the store's export; each chunk is written before the next ---
 
+  // An export slot: in all and per user (a user's stalled downloads hold only their own).
+  bool TakeExportSlot(const std::string& owner) {
+    std::lock_guard<std::mutex> lock(ctx_.shared->mutex);
+    int& mine = ctx_.shared->exports_by_user[owner];
+    if (ctx_.shared->exports.load() >= ctx_.shared->options.max_exports ||
+        mine >= ctx_.shared->options.max_exports_per_user) {
+      if (mine == 0) ctx_.shared->exports_by_user.erase(owner);
+      return false;
+    }
+    ++mine;
+    ctx_.shared->exports.fetch_add(1);
+    return true;
+  }
+  void ReleaseExportSlot() {
+    std::lock_guard<std::mutex> lock(ctx_.shared->mutex);
+    if (--ctx_.shared->exports_by_user[export_owner_] <= 0)
+      ctx_.shared->exports_by_user.erase(export_owner_);
+    ctx_.shared->exports.fetch_sub(1);
+  }
+
   void StartExport(HttpReply reply) {
     keep_alive_ = false;
-    if (ctx_.shared->exports.fetch_add(1) >= ctx_.shared->options.max_exports) {
-      ctx_.shared->exports.fetch_sub(1);
+    if (!TakeExportSlot(reply.owner)) {
       HttpReply busy = HttpApi::ErrorReply(
-          Error{ErrorCode::kUnavailable, "too many exports at once; try again shortly", ""});
+          Error{ErrorCode::kUnavailable,
+                "too many exports at once (yours or the server's); try again shortly", ""});
       busy.headers.emplace_back("Retry-After", "5");
       return Write(std::move(busy));
     }
+    export_owner_ = reply.owner;
     ctx_.shared->streams.fetch_add(1);
     writing_ = true;
     auto header = std::make_shared<std::string>(
@@ -406,7 +473,7 @@ class Connection final : public ConnectionBase,
     asio::async_write(stream_, asio::buffer(*header),
                       [self, header, plan = reply.export_plan](beast::error_code ec, size_t) {
                         if (ec || self->closed_) {
-                          self->ctx_.shared->exports.fetch_sub(1);
+                          self->ReleaseExportSlot();
                           self->ctx_.shared->streams.fetch_sub(1);
                           return self->Close();
                         }
@@ -440,7 +507,7 @@ class Connection final : public ConnectionBase,
            // one ends without it, so the client sees an incomplete download.
            if (s.ok()) self->WriteBlocking("0\r\n\r\n");
            asio::post(self->ctx_.shared->io, [self] { self->Close(); });
-           self->ctx_.shared->exports.fetch_sub(1);
+           self->ReleaseExportSlot();
            self->ctx_.shared->streams.fetch_sub(1);
            done->store(true);
          }),
@@ -456,7 +523,8 @@ class Connection final : public ConnectionBase,
     auto self = this->shared_from_this();
     asio::post(ctx_.shared->io, [self, text, written] {
       if (self->closed_) return written->set_value(false);
-      self->Lowest().expires_after(Seconds(self->ctx_.shared->options.write_timeout_s));
+      // A client that stops reading frees its slot after export_stall_s, not write_timeout_s.
+      self->Lowest().expires_after(Seconds(self->ctx_.shared->options.export_stall_s));
       asio::async_write(self->stream_, asio::buffer(*text),
                         [text, written](beast::error_code ec, size_t) { written->set_value(!ec); });
     });
@@ -479,6 +547,9 @@ class Connection final : public ConnectionBase,
   std::optional<Frame> pending_;
   uint64_t surface_written_ = UINT64_MAX;  // the surface frame this stream last wrote
   std::function<bool()> still_allowed_;
+  uint64_t signouts_ = 0;     // HttpApi::signouts when this stream last checked its caller
+  bool reading_ = false;      // waiting for a request (Idle)
+  std::string export_owner_;  // whose export slot this connection holds
   // An event stream, or a request waiting for the store, keeps itself alive until Close.
   std::shared_ptr<Connection> keep_;
   char hangup_[64];
@@ -520,6 +591,28 @@ struct HttpServer::Impl {
     });
   }
 
+  // Every connection is taken: closes the oldest idle connection of the address holding the
+  // most connections, when that address holds more than `held` (the newcomer's). shared->mutex
+  // held; I/O thread. Its counts fall when it is destroyed, moments later.
+  bool EvictIdleFor(int held) {
+    std::shared_ptr<ConnectionBase> victim;
+    int victim_held = held;
+    for (auto& w : connections) {
+      auto c = w.lock();
+      if (!c || !c->Idle()) continue;
+      const auto it = shared->per_address.find(c->remote());
+      const int n = it == shared->per_address.end() ? 0 : it->second;
+      if (n > victim_held || (victim && n == victim_held && c->idle_since < victim->idle_since)) {
+        victim = c;
+        victim_held = n;
+      }
+    }
+    if (!victim) return false;
+    shared->evicted.fetch_add(1);
+    victim->Close();
+    return true;
+  }
+
   void Admit(tcp::socket socket) {
     beast::error_code ec;
     const auto remote = socket.remote_endpoint(ec);
@@ -527,8 +620,15 @@ struct HttpServer::Impl {
     const std::string address = remote.address().to_string();
     {
       std::lock_guard<std::mutex> lock(shared->mutex);
-      if (shared->open.load() >= options.max_connections ||
-          shared->per_address[address] >= options.max_connections_per_address) {
+      const int open = shared->open.load();
+      const int held = shared->per_address[address];
+      // The share an address may hold falls as the total fills (see the header).
+      const int share = std::min(
+          options.max_connections_per_address,
+          std::max(options.min_connections_per_address, (options.max_connections - open) / 4));
+      bool admit = held < share && open < options.max_connections;
+      if (!admit && held < share && EvictIdleFor(held)) admit = true;
+      if (!admit) {
         shared->refused.fetch_add(1);
         // Best effort, never blocking the I/O thread: a 503 if the socket takes it now.
         static constexpr char kBusy[] =
@@ -580,6 +680,7 @@ HttpCounters HttpServer::counters() const {
   c.refused_connections = s.refused.load();
   c.bad_requests = s.bad.load();
   c.events_sent = s.events.load();
+  c.evicted_connections = s.evicted.load();
   c.open_connections = s.open.load();
   c.open_streams = s.streams.load();
   return c;

@@ -10,7 +10,16 @@
 //
 // Limits (one client can never deny service to the others): header and body sizes (431, 413),
 // a deadline for a whole request (slowloris: the connection is closed), a write deadline (a
-// client that stops reading is dropped), connections in all and per address (503).
+// client that stops reading is dropped), connections in all and per address (503), the
+// per-address share falling as the total fills (a few addresses cannot take every connection),
+// and when the total is full the oldest idle connection of the address holding the most is
+// closed to admit a newcomer from an address holding fewer. Exports: slots in all and per user;
+// an export whose client takes no chunk for export_stall_s is ended and its slot freed.
+//
+// Before a request is handed on (server/http/request_checks.h): its framing must be unambiguous
+// (Transfer-Encoding only as a lone `chunked`, never beside Content-Length: else 400 and the
+// connection closed, so no request can be smuggled inside another's body) and its Host one the
+// server answers for (421 otherwise: DNS rebinding).
 //
 // No Beast, Asio or OpenSSL type appears in this header.
 #pragma once
@@ -18,6 +27,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "common/core/clock.h"
 #include "common/core/expected.h"
@@ -46,14 +56,22 @@ struct HttpServerOptions {
   double write_timeout_s = 10;    // for each write
   int max_connections = 512;
   int max_connections_per_address = 64;
-  int max_exports = 2;
+  // The per-address share as the total fills: an address may open another connection while it
+  // holds fewer than max(min_connections_per_address, free connections / 4) (and the cap above).
+  int min_connections_per_address = 4;
+  int max_exports = 4;
+  int max_exports_per_user = 1;
+  double export_stall_s = 3;  // a client that takes no export chunk for this long is dropped
+  // Host names the server answers for, besides IP literals and localhost (DNS rebinding).
+  std::vector<std::string> hosts;
   const Clock* clock = nullptr;  // web sessions and sign-in limits (null: the steady clock)
 };
 
 struct HttpCounters {
   uint64_t requests = 0;
   uint64_t refused_connections = 0;  // over the limits
-  uint64_t bad_requests = 0;         // malformed, too large, too slow
+  uint64_t bad_requests = 0;         // malformed, too large, too slow, ambiguous, wrong host
+  uint64_t evicted_connections = 0;  // idle ones closed to admit a newcomer
   uint64_t events_sent = 0;          // event-stream frames written
   int open_connections = 0;
   int open_streams = 0;  // event streams and exports

@@ -42,20 +42,35 @@ std::optional<std::string_view> CookieValue(std::string_view header, std::string
   return std::nullopt;
 }
 
-WebSessions::WebSessions(const Clock& clock, double ttl_s, size_t max_sessions)
-    : clock_(clock), ttl_s_(ttl_s), max_sessions_(std::max<size_t>(1, max_sessions)) {}
+WebSessions::WebSessions(const Clock& clock, double ttl_s, size_t max_per_user)
+    : clock_(clock), ttl_s_(ttl_s), max_per_user_(std::max<size_t>(1, max_per_user)) {}
 
-WebSession WebSessions::Create(std::string token) {
-  WebSession s{RandomHex32(), RandomHex32(), std::move(token), clock_.Now() + ttl_s_};
+void WebSessions::EraseLocked(std::map<std::string, WebSession, std::less<>>::iterator it) {
+  if (auto u = by_user_.find(it->second.user); u != by_user_.end()) {
+    std::erase(u->second, it->first);
+    if (u->second.empty()) by_user_.erase(u);
+  }
+  sessions_.erase(it);
+}
+
+WebSession WebSessions::Create(std::string token, std::string user) {
+  WebSession s{RandomHex32(), RandomHex32(), std::move(token), std::move(user),
+               clock_.Now() + ttl_s_};
   std::lock_guard<std::mutex> lock(mutex_);
   const double now = clock_.Now();
-  std::erase_if(sessions_, [now](const auto& kv) { return kv.second.expires_s <= now; });
-  while (sessions_.size() >= max_sessions_) {  // the oldest (earliest expiry) goes
-    auto oldest = std::min_element(sessions_.begin(), sessions_.end(), [](auto& a, auto& b) {
-      return a.second.expires_s < b.second.expires_s;
-    });
-    sessions_.erase(oldest);
+  for (auto it = sessions_.begin(); it != sessions_.end();) {
+    const auto next = std::next(it);
+    if (it->second.expires_s <= now) EraseLocked(it);
+    it = next;
   }
+  std::vector<std::string>& mine = by_user_[s.user];
+  while (mine.size() >= max_per_user_) {  // this user's oldest goes, nobody else's
+    const std::string oldest = mine.front();
+    mine.erase(mine.begin());
+    sessions_.erase(oldest);
+    ++removals_;
+  }
+  mine.push_back(s.id);
   sessions_.emplace(s.id, s);
   return s;
 }
@@ -65,7 +80,7 @@ std::optional<WebSession> WebSessions::Find(std::string_view id) {
   const auto it = sessions_.find(id);
   if (it == sessions_.end()) return std::nullopt;
   if (it->second.expires_s <= clock_.Now()) {
-    sessions_.erase(it);
+    EraseLocked(it);
     return std::nullopt;
   }
   return it->second;
@@ -73,12 +88,26 @@ std::optional<WebSession> WebSessions::Find(std::string_view id) {
 
 void WebSessions::Remove(std::string_view id) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (const auto it = sessions_.find(id); it != sessions_.end()) sessions_.erase(it);
+  if (const auto it = sessions_.find(id); it != sessions_.end()) {
+    EraseLocked(it);
+    ++removals_;
+  }
 }
 
 size_t WebSessions::size() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return sessions_.size();
+}
+
+size_t WebSessions::size_of(std::string_view user) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = by_user_.find(user);
+  return it == by_user_.end() ? 0 : it->second.size();
+}
+
+uint64_t WebSessions::removals() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return removals_;
 }
 
 SignInLimiter::SignInLimiter(const Clock& clock, int max_failures, double window_s,

@@ -27,27 +27,38 @@ struct WebSession {
   std::string id;        // the cookie's value: 32 random bytes, hex
   std::string csrf;      // 32 random bytes, hex; sent back in X-CSRF-Token
   std::string token;     // the user's API token (never leaves the server)
+  std::string user;      // whose (the bound on web sessions is per user)
   double expires_s = 0;  // on the sessions' clock
 };
 
+// The table is bounded per user, not by sign-ins: a user holds at most `max_per_user` web
+// sessions (a new sign-in drops the oldest of *that user's*), so one user signing in again and
+// again never signs anyone else out; the table's size is then at most users × max_per_user.
 class WebSessions {
  public:
   // `ttl_s`: a web session's lifetime from sign-in (no sliding renewal: a stolen cookie expires).
-  WebSessions(const Clock& clock, double ttl_s, size_t max_sessions = 4096);
-  // A new web session for an authenticated token. At `max_sessions` the oldest is dropped.
-  WebSession Create(std::string token);
+  WebSessions(const Clock& clock, double ttl_s, size_t max_per_user = 16);
+  // A new web session of `user` for an authenticated token.
+  WebSession Create(std::string token, std::string user);
   // The live web session with this id; expired ones are forgotten here.
   std::optional<WebSession> Find(std::string_view id);
+  // Sign-out. Each removal counts (removals()): the server ends the web session's event
+  // streams at their next frame.
   void Remove(std::string_view id);
   size_t size() const;
+  size_t size_of(std::string_view user) const;
   double ttl_s() const { return ttl_s_; }
+  uint64_t removals() const;
 
  private:
   const Clock& clock_;
   double ttl_s_;
-  size_t max_sessions_;
+  size_t max_per_user_;
   mutable std::mutex mutex_;
   std::map<std::string, WebSession, std::less<>> sessions_;
+  std::map<std::string, std::vector<std::string>, std::less<>> by_user_;  // ids, oldest first
+  uint64_t removals_ = 0;
+  void EraseLocked(std::map<std::string, WebSession, std::less<>>::iterator it);
 };
 
 // Failed sign-ins per client address: at most `max_failures` in any `window_s`; then refused

@@ -126,7 +126,12 @@ class AdversarialDevice : public HapticDevice {
     s.position += offset_;
     if (chatter_ > 0) --chatter_, s.buttons = (chatter_ & 1) ? haptics::kButtonGrasp : 0u;
     const double nan = std::nan(""), inf = std::numeric_limits<double>::infinity();
-    switch (std::uniform_int_distribution<int>(0, 59)(rng_)) {
+    // One cycle in 75 misbehaves. Each bad sample closes the server's start-up gate, which
+    // opens again after 50 good ones, and while it is closed the local model carries no
+    // stiffness either (a station extrapolates nothing the gate held back): a device that
+    // misbehaved every 10th cycle would never be given a force at all, and the limits below
+    // would be checked on zeros.
+    switch (std::uniform_int_distribution<int>(0, 599)(rng_)) {
       case 0:
         s.position.x() = nan;
         break;

@@ -2,6 +2,7 @@
 // sign-in, cookies and their expiry, CSRF, the sign-in rate limit, JSON encoding and escaping.
 // A real SQLite store and session manager underneath, as for the gRPC services.
 #include "server/http/http_api.h"
+#include "server/http/request_checks.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -142,6 +143,44 @@ TEST_F(HttpApiTest, FailedSignInsAreLimitedPerAddress) {
       200);
   clock_.Advance(61);  // the failures left the window
   EXPECT_EQ(Call("POST", "/api/v1/signin", json{{"token", tokens_["ian"]}}.dump()).status, 200);
+}
+
+// Guesses through the Authorization header are counted and limited per address as sign-ins are
+// (harmless at 256 bits, but nobody should get unlimited tries); a known token is unaffected, and
+// another address is not limited by the guesser.
+TEST_F(HttpApiTest, BearerTokenGuessesAreCountedAndLimitedPerAddress) {
+  auto with = [&](const std::string& token, const std::string& remote) {
+    HttpRequest r;
+    r.method = "GET";
+    r.target = "/api/v1/sessions";
+    r.authorization = "Bearer " + token;
+    r.remote = remote;
+    return api_->Handle(r);
+  };
+  for (int i = 0; i < 20; ++i)
+    EXPECT_EQ(with("guess-" + std::to_string(i), "10.0.0.66").status, 401) << i;
+  EXPECT_EQ(api_->bearer_failures(), 20u);
+  const HttpReply limited = with("guess-20", "10.0.0.66");
+  EXPECT_EQ(limited.status, 429);
+  EXPECT_FALSE(Header(limited, "Retry-After").empty());
+  EXPECT_EQ(api_->bearer_failures(), 20u) << "a limited request is not even tried";
+  EXPECT_EQ(with(tokens_["ian"], "10.0.0.7").status, 200);
+  EXPECT_EQ(with("guess-21", "10.0.0.7").status, 401);
+  clock_.Advance(61);
+  EXPECT_EQ(with(tokens_["ian"], "10.0.0.66").status, 200);
+}
+
+// One user signing in again and again never signs anyone else out (the web-session table is
+// bounded per user), and signing out is counted, so that the server ends that web session's
+// event streams (HttpServerTest checks the streams themselves).
+TEST_F(HttpApiTest, ManySignInsOfOneUserLeaveOthersSignedIn) {
+  const Signed ian = SignIn(tokens_["ian"]);
+  for (int i = 0; i < 4100; ++i) SignIn(tokens_["tina"]);
+  EXPECT_EQ(Call("GET", "/api/v1/sessions", "", ian.cookie).status, 200);
+  const uint64_t before = api_->signouts();
+  EXPECT_EQ(Call("POST", "/api/v1/signout", "", ian.cookie, ian.csrf).status, 204);
+  EXPECT_GT(api_->signouts(), before);
+  EXPECT_EQ(Call("GET", "/api/v1/sessions", "", ian.cookie).status, 401);
 }
 
 TEST_F(HttpApiTest, StateChangingRequestsNeedTheCsrfTokenOfTheirSession) {
@@ -324,6 +363,29 @@ TEST_F(HttpApiTest, ErrorCodesMapToHttpStatusesOnce) {
   EXPECT_EQ(HttpApi::StatusFor(ErrorCode::kIoError), 500);
 }
 
+// RFC 9112 §6.3: a body's length must be unambiguous; and the Host must be ours.
+TEST(RequestChecksTest, OnlyALoneChunkedTransferEncodingAndKnownHostsPass) {
+  EXPECT_EQ(FramingProblem({}, 0), "");
+  EXPECT_EQ(FramingProblem({}, 1), "");
+  EXPECT_EQ(FramingProblem({"chunked"}, 0), "");
+  EXPECT_EQ(FramingProblem({" Chunked "}, 0), "");
+  for (const char* te : {"chunked, identity", "identity", "xchunked", "gzip, chunked", "",
+                         "chunked,", "chunked;q=1"})
+    EXPECT_NE(FramingProblem({te}, 0), "") << te;
+  EXPECT_NE(FramingProblem({"chunked"}, 1), "");
+  EXPECT_NE(FramingProblem({"identity"}, 1), "");
+  EXPECT_NE(FramingProblem({"chunked", "chunked"}, 0), "");
+  const std::vector<std::string> names = {"dashboard.example.org"};
+  for (const char* ok :
+       {"127.0.0.1", "127.0.0.1:8443", "10.1.2.3", "[::1]", "[::1]:80", "localhost",
+        "LOCALHOST:8080", "dashboard.example.org", "Dashboard.Example.org:443"})
+    EXPECT_TRUE(HostAllowed(ok, names)) << ok;
+  for (const char* bad :
+       {"", "evil.example", "evil.example:80", "dashboard.example.org.evil",
+        "127.0.0.1:", "127.0.0.1:x", "[::1", "[::1]x", "[nothost]", ":80", "1.2.3.4.5"})
+    EXPECT_FALSE(HostAllowed(bad, names)) << bad;
+}
+
 TEST(HttpHelpersTest, QueriesCookiesAndSecretsParseStrictly) {
   EXPECT_EQ(UrlDecode("a%20b+c").value(), "a b c");
   EXPECT_FALSE(UrlDecode("%4").has_value());
@@ -343,18 +405,28 @@ TEST(HttpHelpersTest, QueriesCookiesAndSecretsParseStrictly) {
   EXPECT_NE(RandomHex32(), RandomHex32());
 }
 
-TEST(WebSessionsTest, AreBoundedAndForgetTheOldestFirst) {
+TEST(WebSessionsTest, AreBoundedPerUserAndForgetThatUsersOldestFirst) {
   ManualClock clock(0);
   WebSessions s(clock, 100, 3);
-  const WebSession a = s.Create("t1");
+  const WebSession instructor = s.Create("t-ivo", "ivo");
+  const WebSession a = s.Create("t1", "tina");
   clock.Advance(1);
-  const WebSession b = s.Create("t2");
+  const WebSession b = s.Create("t2", "tina");
   clock.Advance(1);
-  s.Create("t3");
-  s.Create("t4");
-  EXPECT_EQ(s.size(), 3u);
+  s.Create("t3", "tina");
+  s.Create("t4", "tina");
+  EXPECT_EQ(s.size_of("tina"), 3u);
   EXPECT_FALSE(s.Find(a.id).has_value());
   EXPECT_EQ(s.Find(b.id)->token, "t2");
+  // One user signing in 4,100 times signs out only their own oldest sessions, never another's.
+  for (int i = 0; i < 4100; ++i) s.Create("t", "tina");
+  EXPECT_EQ(s.size_of("tina"), 3u);
+  EXPECT_EQ(s.size(), 4u);
+  ASSERT_TRUE(s.Find(instructor.id).has_value());
+  EXPECT_EQ(s.Find(instructor.id)->user, "ivo");
+  const uint64_t removed = s.removals();
+  s.Remove(instructor.id);
+  EXPECT_EQ(s.removals(), removed + 1);  // a sign-out is counted: its streams end
   clock.Advance(100);
   EXPECT_FALSE(s.Find(b.id).has_value());
 }

@@ -19,6 +19,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -81,8 +82,18 @@ Response Request(int port, const std::string& method, const std::string& target,
 // A raw TCP client: sends bytes, reads whatever comes until the server closes or `timeout_s`.
 class Raw {
  public:
-  explicit Raw(int port) {
+  // `from`: the loopback source address (127.0.0.0/8: every one of them is this machine's), so
+  // one test can be several clients; `rcvbuf`: a small receive buffer for a client that will
+  // not read (0: the kernel's).
+  explicit Raw(int port, const char* from = nullptr, int rcvbuf = 0) {
     fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (rcvbuf > 0) ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    if (from) {
+      sockaddr_in src{};
+      src.sin_family = AF_INET;
+      ::inet_pton(AF_INET, from, &src.sin_addr);
+      if (::bind(fd_, reinterpret_cast<sockaddr*>(&src), sizeof src) != 0) return;
+    }
     sockaddr_in a{};
     a.sin_family = AF_INET;
     a.sin_port = htons(static_cast<uint16_t>(port));
@@ -179,7 +190,7 @@ TEST_F(HttpServerTest, SignsInServesPagesAndStreamsTheLiveSessions) {
   tcp::socket socket(io);
   socket.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_)));
   const std::string req =
-      "GET /api/v1/live/events HTTP/1.1\r\nHost: x\r\nCookie: " + cookie + "\r\n\r\n";
+      "GET /api/v1/live/events HTTP/1.1\r\nHost: 127.0.0.1\r\nCookie: " + cookie + "\r\n\r\n";
   asio::write(socket, asio::buffer(req));
   std::string got;
   const auto end = Clock::now() + std::chrono::seconds(10);
@@ -220,8 +231,8 @@ TEST_F(HttpServerTest, ASessionStreamSendsTheSurfaceOnlyWhenItChanged) {
     socket.connect(
         tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port_)));
     const std::string req = "GET /api/v1/sessions/" + id +
-                            "/events HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " + admin_ +
-                            "\r\n\r\n";
+                            "/events HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer " +
+                            admin_ + "\r\n\r\n";
     asio::write(socket, asio::buffer(req));
     std::string got;
     std::vector<std::string> frames;
@@ -258,7 +269,7 @@ TEST_F(HttpServerTest, SlowOversizedAndMalformedRequestsAreCutOffWhileOthersAreS
   Start(o);
   // Slowloris: a header that never ends, one byte at a time.
   Raw slow(port_);
-  ASSERT_TRUE(slow.Send("GET /signin HTTP/1.1\r\nHost: x\r\n"));
+  ASSERT_TRUE(slow.Send("GET /signin HTTP/1.1\r\nHost: 127.0.0.1\r\n"));
   const auto t0 = Clock::now();
   bool closed = false;
   std::string ignored;
@@ -271,7 +282,7 @@ TEST_F(HttpServerTest, SlowOversizedAndMalformedRequestsAreCutOffWhileOthersAreS
   EXPECT_LT(held, 3.5);
 
   Raw big_header(port_);
-  big_header.Send("GET /signin HTTP/1.1\r\nHost: x\r\nX-Pad: " + std::string(20000, 'a') +
+  big_header.Send("GET /signin HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Pad: " + std::string(20000, 'a') +
                   "\r\n\r\n");
   std::string answer;
   big_header.ReadUntilClosed(5, answer);
@@ -279,7 +290,7 @@ TEST_F(HttpServerTest, SlowOversizedAndMalformedRequestsAreCutOffWhileOthersAreS
 
   Raw big_body(port_);
   big_body.Send(
-      "POST /api/v1/signin HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+      "POST /api/v1/signin HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
       "Content-Length: 10000000\r\n\r\n{");
   answer.clear();
   big_body.ReadUntilClosed(5, answer);
@@ -292,7 +303,7 @@ TEST_F(HttpServerTest, SlowOversizedAndMalformedRequestsAreCutOffWhileOthersAreS
   EXPECT_EQ(answer.rfind("HTTP/1.1 400", 0), 0u) << answer.substr(0, 80);
 
   Raw verb(port_);
-  verb.Send("DELETE /api/v1/users HTTP/1.1\r\nHost: x\r\n\r\n");
+  verb.Send("DELETE /api/v1/users HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
   answer.clear();
   verb.ReadUntilClosed(5, answer);
   EXPECT_EQ(answer.rfind("HTTP/1.1 405", 0), 0u) << answer.substr(0, 80);
@@ -358,6 +369,218 @@ TEST_F(HttpServerTest, AnExportStreamsEveryRowAsTheStoreHasIt) {
   EXPECT_EQ(Request(port_, "GET", "/api/v1/export?format=csv&session=abc", Bearer()).status, 400);
 }
 
+// RFC 9112 §6.3: a request whose body length is ambiguous is refused with 400 and its connection
+// closed, so a request hidden in its body (smuggled past a proxy that framed it otherwise) is
+// never served. A lone `Transfer-Encoding: chunked` still works.
+TEST_F(HttpServerTest, AmbiguouslyFramedRequestsAreRefusedAndNothingHiddenInThemIsServed) {
+  Start();
+  const std::string hidden =
+      "GET /api/v1/users HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer " + admin_ +
+      "\r\n\r\n";
+  for (const std::string framing :
+       {"Transfer-Encoding: chunked, identity\r\nContent-Length: 0\r\n",
+        "Transfer-Encoding: identity\r\nContent-Length: 0\r\n",
+        "Transfer-Encoding: xchunked\r\nContent-Length: 0\r\n",
+        "Transfer-Encoding: chunked\r\nContent-Length: 0\r\n",
+        "Transfer-Encoding: chunked\r\nTransfer-Encoding: chunked\r\n",
+        "Transfer-Encoding: gzip, chunked\r\n", "Transfer-Encoding: identity\r\n"}) {
+    SCOPED_TRACE(framing);
+    Raw raw(port_);
+    ASSERT_TRUE(raw.Send("POST /api/v1/signin HTTP/1.1\r\nHost: 127.0.0.1\r\n" + framing + "\r\n" +
+                         hidden));
+    std::string answer;
+    EXPECT_TRUE(raw.ReadUntilClosed(5, answer)) << "the connection is closed";
+    EXPECT_EQ(answer.rfind("HTTP/1.1 400", 0), 0u) << answer.substr(0, 120);
+    size_t responses = 0;
+    for (size_t at = answer.find("HTTP/1.1 "); at != std::string::npos;
+         at = answer.find("HTTP/1.1 ", at + 1))
+      ++responses;
+    EXPECT_EQ(responses, 1u) << "the hidden request was served: " << answer;
+    EXPECT_EQ(answer.find("\"users\""), std::string::npos);
+  }
+  // Chunked alone is fine: a sign-in in two chunks.
+  const std::string body = json{{"token", admin_}}.dump();
+  Raw chunked(port_);
+  std::ostringstream hex;
+  hex << std::hex << 5 << "\r\n"
+      << body.substr(0, 5) << "\r\n"
+      << (body.size() - 5) << "\r\n"
+      << body.substr(5) << "\r\n0\r\n\r\n";
+  ASSERT_TRUE(chunked.Send(
+      "POST /api/v1/signin HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+      "Transfer-Encoding: chunked\r\nConnection: close\r\n\r\n" +
+      hex.str()));
+  std::string answer;
+  chunked.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << answer.substr(0, 200);
+}
+
+// DNS rebinding: a page on evil.example that resolves to this server gets nothing; IP literals,
+// localhost and the configured names are served.
+TEST_F(HttpServerTest, OnlyConfiguredHostNamesAreServed) {
+  HttpServerOptions o;
+  o.hosts = {"dashboard.example.org"};
+  Start(o);
+  for (const char* host : {"evil.example", "evil.example:8080", "dashboard.example.org.evil"}) {
+    EXPECT_EQ(Request(port_, "GET", "/api/v1/users",
+                      {{"Host", host}, {"Authorization", "Bearer " + admin_}})
+                  .status,
+              421)
+        << host;
+  }
+  for (const char* host : {"127.0.0.1", "localhost:1234", "Dashboard.Example.org"})
+    EXPECT_EQ(Request(port_, "GET", "/signin", {{"Host", host}}).status, 200) << host;
+  Raw none(port_);
+  none.Send("GET /signin HTTP/1.0\r\n\r\n");
+  std::string answer;
+  none.ReadUntilClosed(5, answer);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 421", 0), 0u) << answer.substr(0, 80);
+}
+
+// A few addresses cannot take every connection: their share falls as the total fills, and when
+// it is full an idle connection of the address holding the most is closed for a newcomer. A
+// legitimate user still signs in, from an address of their own.
+TEST_F(HttpServerTest, AFewAddressesCannotTakeEveryConnection) {
+  HttpServerOptions o;
+  o.max_connections = 128;
+  o.max_connections_per_address = 64;
+  o.request_timeout_s = 60;
+  Start(o);
+  std::vector<std::unique_ptr<Raw>> held;
+  auto settle = [&] {
+    int last = -1;
+    for (int i = 0; i < 100 && server_->counters().open_connections != last; ++i) {
+      last = server_->counters().open_connections;
+      std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    }
+  };
+  // 8 addresses × 64 half-sent requests (the attack that took all 512 before).
+  for (int a = 2; a <= 9; ++a)
+    for (int i = 0; i < 64; ++i) {
+      const std::string from = "127.0.0." + std::to_string(a);
+      held.push_back(std::make_unique<Raw>(port_, from.c_str()));
+      held.back()->Send("GET /signin HTTP/1.1\r\nHost: 127.0.0.1\r\n");
+    }
+  settle();
+  const HttpCounters c = server_->counters();
+  EXPECT_LT(c.open_connections, o.max_connections) << "8 addresses took every connection";
+  EXPECT_GT(c.refused_connections, 0u);
+  auto sign_in = [&](const char* from) {
+    Raw user(port_, from);
+    user.Send(
+        "POST /api/v1/signin HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: "
+        "application/json\r\nConnection: close\r\nContent-Length: " +
+        std::to_string(json{{"token", admin_}}.dump().size()) + "\r\n\r\n" +
+        json{{"token", admin_}}.dump());
+    std::string answer;
+    user.ReadUntilClosed(10, answer);
+    return answer.substr(0, 12);
+  };
+  EXPECT_EQ(sign_in("127.0.0.100"), "HTTP/1.1 200");
+  // Many addresses, each within its share, fill the rest: a newcomer gets in by closing an idle
+  // connection of the address holding the most.
+  for (int a = 10; a <= 60; ++a)
+    for (int i = 0; i < 4; ++i) {
+      const std::string from = "127.0.0." + std::to_string(a);
+      held.push_back(std::make_unique<Raw>(port_, from.c_str()));
+    }
+  settle();
+  EXPECT_EQ(sign_in("127.0.0.101"), "HTTP/1.1 200");
+  EXPECT_GT(server_->counters().evicted_connections, 0u);
+}
+
+// An export whose client stops reading holds one slot of its user's only, and only until
+// export_stall_s: another user's export goes through meanwhile, and the same user's next one
+// after it.
+TEST_F(HttpServerTest, AStalledExportHoldsOnlyItsOwnersSlotAndOnlyBriefly) {
+  HttpServerOptions o;
+  o.export_stall_s = 1;
+  o.write_timeout_s = 30;
+  Start(o);
+  ASSERT_TRUE(store_->CreateUser("root2", db::Role::kAdmin, "").ok());
+  const std::string other = store_->IssueToken("root2", "test").value();
+  db::Submission first;
+  first.idempotency_key = "k0";
+  first.evaluator = "eve";
+  first.evaluator_group = "chief";
+  first.subject_kind = db::SubjectKind::kModel;
+  first.subject = "model-0";
+  first.submitted_by = "eve";
+  ASSERT_TRUE(store_->SubmitEvaluation(first).ok());
+  // 20,000 submissions (180,000 rows, ~15 MB of CSV): more than every socket buffer holds.
+  ASSERT_TRUE(store_
+                  ->Write([](db::Connection& c) {
+                    return c.Exec(
+                        "WITH RECURSIVE n(i) AS (SELECT 1 UNION ALL SELECT i + 1 FROM n WHERE i < "
+                        "20000) INSERT INTO submissions(idempotency_key, evaluator_id, "
+                        "evaluator_group, subject_kind, subject, moment_min, submitted_us, "
+                        "submitted_by) SELECT 'bulk-' || i, evaluator_id, evaluator_group, "
+                        "subject_kind, 'model-bulk-' || i, moment_min, submitted_us + i, "
+                        "submitted_by FROM n, submissions WHERE idempotency_key = 'k0'; "
+                        "INSERT INTO evaluations(submission_id, index_no, score) SELECT s.id, "
+                        "e.index_no, e.score FROM submissions s, evaluations e, submissions f "
+                        "WHERE s.idempotency_key LIKE 'bulk-%' AND f.idempotency_key = 'k0' AND "
+                        "e.submission_id = f.id");
+                  })
+                  .ok());
+  const std::string ask =
+      "GET /api/v1/export?format=csv HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+      "Authorization: Bearer " +
+      admin_ + "\r\n\r\n";
+  Raw stalled(port_, nullptr, 4096);
+  ASSERT_TRUE(stalled.Send(ask));  // and never reads
+  const auto t0 = Clock::now();
+  while (server_->counters().open_streams < 1 && Clock::now() - t0 < std::chrono::seconds(10))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_EQ(server_->counters().open_streams, 1);
+  // The same user again: refused at once (their one slot is taken).
+  EXPECT_EQ(Request(port_, "GET", "/api/v1/export?format=csv", Bearer()).status, 503);
+  // Another user: served in full meanwhile.
+  const Response theirs =
+      Request(port_, "GET", "/api/v1/export?format=csv", {{"Authorization", "Bearer " + other}});
+  EXPECT_EQ(theirs.status, 200);
+  EXPECT_GT(theirs.body.size(), 10'000'000u);
+  // The stalled one is dropped after export_stall_s, and the slot is its user's again.
+  const auto t1 = Clock::now();
+  while (server_->counters().open_streams > 0 && Clock::now() - t1 < std::chrono::seconds(20))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(server_->counters().open_streams, 0) << "a reader that stopped kept its slot";
+  EXPECT_EQ(Request(port_, "GET", "/api/v1/export?format=jsonl&session=1", Bearer()).status, 200);
+}
+
+// Signing out ends the web session's event streams at their next frame (the token itself stays
+// valid: another web session of the same user keeps streaming).
+TEST_F(HttpServerTest, SigningOutEndsThatWebSessionsEventStreams) {
+  Start();
+  auto sign_in = [&] {
+    const Response in =
+        Request(port_, "POST", "/api/v1/signin", {}, json{{"token", admin_}}.dump());
+    EXPECT_EQ(in.status, 200);
+    return std::pair{in.Header("Set-Cookie").substr(0, in.Header("Set-Cookie").find(';')),
+                     json::parse(in.body)["csrf"].get<std::string>()};
+  };
+  const auto [cookie, csrf] = sign_in();
+  const auto [other_cookie, other_csrf] = sign_in();
+  Raw mine(port_), theirs(port_);
+  ASSERT_TRUE(mine.Send("GET /api/v1/live/events HTTP/1.1\r\nHost: 127.0.0.1\r\nCookie: " + cookie +
+                        "\r\n\r\n"));
+  ASSERT_TRUE(theirs.Send("GET /api/v1/live/events HTTP/1.1\r\nHost: 127.0.0.1\r\nCookie: " +
+                          other_cookie + "\r\n\r\n"));
+  const auto t0 = Clock::now();
+  while (server_->counters().open_streams < 2 && Clock::now() - t0 < std::chrono::seconds(10))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_EQ(server_->counters().open_streams, 2);
+  EXPECT_EQ(Request(port_, "POST", "/api/v1/signout", {{"Cookie", cookie}, {"X-CSRF-Token", csrf}})
+                .status,
+            204);
+  std::string got;
+  EXPECT_TRUE(mine.ReadUntilClosed(3, got)) << "the signed-out stream went on";
+  const auto t1 = Clock::now();
+  while (server_->counters().open_streams > 1 && Clock::now() - t1 < std::chrono::seconds(5))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(server_->counters().open_streams, 1) << "the other web session's stream ended too";
+}
+
 TEST_F(HttpServerTest, HttpsWithTheGrpcCertificateAndNoPlaintextOffLoopback) {
   const auto [cert, key] = test::SelfSigned();
   std::ofstream(dir_ / "cert.pem") << cert;
@@ -389,7 +612,7 @@ TEST_F(HttpServerTest, HttpsWithTheGrpcCertificateAndNoPlaintextOffLoopback) {
   EXPECT_NE(in.Header("Set-Cookie").find("; Secure"), std::string::npos);
   // Plaintext on the TLS port gets no page.
   Raw raw(port_);
-  raw.Send("GET /signin HTTP/1.1\r\nHost: x\r\n\r\n");
+  raw.Send("GET /signin HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
   std::string answer;
   raw.ReadUntilClosed(5, answer);
   EXPECT_EQ(answer.find("HTTP/1.1 200"), std::string::npos);

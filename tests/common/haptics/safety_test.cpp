@@ -81,8 +81,8 @@ TEST(SafetyFilterTest, RejectsNonFiniteAndOutOfWorkspaceSamples) {
 }
 
 TEST(SafetyFilterTest, LocalModelStiffnessIsClampedToTheDevice) {
-  auto f = SafetyFilter::Create(TouchLimits(), {.gate_force = 0.2, .gate_cycles = 0,
-                                                .ramp_time = 0});
+  auto f =
+      SafetyFilter::Create(TouchLimits(), {.gate_force = 0.2, .gate_cycles = 0, .ramp_time = 0});
   uint32_t armed = 0;
   f->Filter(Vec3::Zero(), 1e-3, armed);  // armed, no ramp
   LocalModel m;
@@ -101,8 +101,8 @@ TEST(SafetyFilterTest, LocalModelStiffnessIsClampedToTheDevice) {
 // the stiffness must be held back too, or a session that starts (or is re-placed after a node's
 // loss) with the tip in tissue renders J·Δx up to the device limit as the hand moves.
 TEST(SafetyFilterTest, WhileGatedOrRampingTheLocalStiffnessIsHeldBackLikeTheForce) {
-  auto f = SafetyFilter::Create(TouchLimits(), {.gate_force = 0.2, .gate_cycles = 10,
-                                                .ramp_time = 0.1});
+  auto f =
+      SafetyFilter::Create(TouchLimits(), {.gate_force = 0.2, .gate_cycles = 10, .ramp_time = 0.1});
   uint32_t ev = 0;
   LocalModel m;
   m.jacobian = -300.0 * Eigen::Matrix3d::Identity();
