@@ -220,6 +220,15 @@ Status CheckNodeRecord(const NodeRecord& n) {
     return InvalidArgument("name", "a node name of 1 to 64 characters is required");
   if (n.instance.empty() || n.instance.size() > 64)
     return InvalidArgument("instance", "a node instance of 1 to 64 characters is required");
+  if (n.grpc_address.empty() || n.grpc_address.size() > 256 || n.udp_host.empty() ||
+      n.udp_host.size() > 256)
+    return InvalidArgument("address", "the node's addresses are required (at most 256 characters)");
+  if (n.udp_port < 1 || n.udp_port > 65535)
+    return InvalidArgument("udp_port", "must be within 1..65535");
+  if (n.capacity < 0 || n.capacity > 4096 || n.sessions < 0 || n.sessions > 1'000'000)
+    return InvalidArgument("capacity", "capacity within 0..4096 and a session count ≥ 0");
+  if (!std::isfinite(n.cpu) || n.cpu < 0 || n.cpu > 4096)
+    return InvalidArgument("cpu", "must be a finite number of cores ≥ 0");
   return Status::Ok();
 }
 

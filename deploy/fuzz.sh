@@ -3,7 +3,8 @@
 #
 #   deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- extra libFuzzer flags]
 #
-# Targets (tests/fuzz/): datagram messages scene_json obj ratings_csv trajectory_csv http_api.
+# Targets (tests/fuzz/): datagram messages scene_json obj ratings_csv trajectory_csv http_api
+# http_framing cluster_messages.
 # Builds the targets in build-asan/ (clang: libFuzzer, AddressSanitizer + UndefinedBehaviorSanitizer;
 # the same build deploy/sanitize.sh tests); reads the kept corpus tests/fuzz/corpus/TARGET and
 # writes what it finds new to build-asan/corpus/TARGET (never into the repository unless --merge,
@@ -13,7 +14,8 @@
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
-targets_all=(datagram messages scene_json obj ratings_csv trajectory_csv http_api)
+targets_all=(datagram messages scene_json obj ratings_csv trajectory_csv http_api http_framing
+  cluster_messages)
 if [ $# -lt 2 ]; then
   echo "usage: deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- libFuzzer flags]" >&2
   echo "targets: ${targets_all[*]}" >&2

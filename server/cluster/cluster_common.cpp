@@ -168,6 +168,23 @@ db::SessionRecord FromProto(const v1::Session& s) {
   return r;
 }
 
+db::NodeRecord FromProto(const v1::NodeHeartbeat& beat, int64_t received_us) {
+  db::NodeRecord n;
+  n.name = beat.name();
+  n.grpc_address = beat.grpc_address();
+  n.udp_host = beat.udp_host();
+  n.udp_port = static_cast<int>(beat.udp_port());
+  n.capacity = beat.capacity();
+  n.sessions = beat.sessions();
+  n.cpu = beat.cpu();
+  n.draining = beat.draining();
+  n.started_us = beat.started_us();
+  n.instance = beat.instance();
+  n.epoch = beat.epoch();
+  n.heartbeat_us = received_us;
+  return n;
+}
+
 CreatedSession FromProto(const v1::NodeSession& s) {
   CreatedSession c;
   c.record = FromProto(s.session());

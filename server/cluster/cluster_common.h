@@ -40,6 +40,10 @@ Listening ProbeListening(const std::string& host_port, double timeout_s);
 Error FromGrpc(const grpc::Status& s, const std::string& what);
 
 db::SessionRecord FromProto(const v1::Session& s);
+// A node's heartbeat (or acquisition) as its registry row, stamped `received_us` on the receiving
+// replica's clock: a node's own clock never decides its liveness. The replicas compare each
+// other's stamps, so their clocks must agree within the lease margin (NTP; docs/SCALING.md).
+db::NodeRecord FromProto(const v1::NodeHeartbeat& beat, int64_t received_us);
 CreatedSession FromProto(const v1::NodeSession& s);
 SessionTelemetry FromProto(const v1::Telemetry& t);
 void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out);

@@ -199,25 +199,6 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   }
 
   // --- ClusterService ---
-  static db::NodeRecord FromBeat(const v1::NodeHeartbeat& req) {
-    db::NodeRecord n;
-    n.name = req.name();
-    n.grpc_address = req.grpc_address();
-    n.udp_host = req.udp_host();
-    n.udp_port = static_cast<int>(req.udp_port());
-    n.capacity = req.capacity();
-    n.sessions = req.sessions();
-    n.cpu = req.cpu();
-    n.draining = req.draining();
-    n.started_us = req.started_us();
-    n.instance = req.instance();
-    n.epoch = req.epoch();
-    // A replica's clock, not the node's: a node's clock never decides its liveness. The
-    // replicas compare each other's stamps, so their clocks must agree within the lease margin
-    // (NTP; docs/SCALING.md).
-    n.heartbeat_us = db::NowUs();
-    return n;
-  }
   static grpc::Status ToGrpc(const Error& e) {
     grpc::StatusCode code = grpc::StatusCode::UNAVAILABLE;
     if (e.code == ErrorCode::kInvalidArgument) code = grpc::StatusCode::INVALID_ARGUMENT;
@@ -230,7 +211,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
                        v1::NodeLeaseReply* out) override {
     if (!Authorized(*ctx, options.token))
       return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
-    const db::NodeRecord n = FromBeat(*req);
+    const db::NodeRecord n = FromProto(*req, db::NowUs());
     auto lease = store.AcquireNode(
         n, TimeoutUs(), "simulation node " + n.name + " restarted (its name was taken again)");
     if (!lease.ok()) return ToGrpc(lease.error());
@@ -247,7 +228,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
                          v1::HeartbeatReply* out) override {
     if (!Authorized(*ctx, options.token))
       return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
-    if (Status s = store.BeatNode(FromBeat(*req)); !s.ok()) return ToGrpc(s.error());
+    if (Status s = store.BeatNode(FromProto(*req, db::NowUs())); !s.ok()) return ToGrpc(s.error());
     out->set_lease_s(options.heartbeat_timeout_s);
     return grpc::Status::OK;
   }
