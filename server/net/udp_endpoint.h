@@ -70,8 +70,10 @@ struct EndpointOptions {
   // A stylus datagram that waited in this server's receive queue longer than this (the kernel's
   // arrival stamp against the time it is read: a process that was frozen, or starved of a core)
   // is dropped, never answered: its force would act on where the hand was, not where it is. The
-  // station's own watchdog has faded the force to zero by then (20 ms + 50 ms).
-  double max_input_age_s = 0.1;
+  // station's own watchdog has faded the force to zero long before (20 ms + 50 ms); the bound is
+  // over three times that, so a server only descheduled for a moment on a loaded machine still
+  // answers, while a frozen one never does.
+  double max_input_age_s = 0.25;
   // A simulation node's lease (server/net/lease.h): while it is not valid no force is sent for
   // any session. Null: the all-in-one server, which needs none. Must outlive the endpoint.
   const Lease* lease = nullptr;
