@@ -10,7 +10,8 @@
 # evaluator groups scoring the session, the weighted report, the trial metrics and the CSV
 # export; screenshots of the station before and after the twist (and the monitor) go to docs/;
 # then one site over several processes (deploy/cluster_flow.sh, docs/SCALING.md): PostgreSQL, two
-# control replicas, three simulation nodes, 24 stations, a node and a replica killed.
+# control replicas, three simulation nodes, 24 stations; a node frozen past its lease and resumed,
+# a second process under a live node's name, then a node and a replica killed.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -57,7 +58,7 @@ echo "==== The platform end to end: server, a trainee's station, an instructor's
 "$root/deploy/demo_flow.sh" "$root/build/bin" "$out/flow" "$root/docs"
 
 echo
-echo "==== Beyond one machine: PostgreSQL, 2 control replicas, 3 simulation nodes, 24 stations; a node and a replica killed ===="
+echo "==== Beyond one machine: PostgreSQL, 2 control replicas, 3 simulation nodes, 24 stations; a node frozen and resumed, a duplicate node refused, a node and a replica killed ===="
 "$root/deploy/cluster_flow.sh" "$root/build/bin" "$out/cluster" 24
 
 echo
