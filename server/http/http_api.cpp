@@ -301,10 +301,45 @@ std::function<bool()> HttpApi::StillAllowed(const std::string& authorization,
   };
 }
 
-// Who calls: the principal, the web session (when by cookie), whether a CSRF check applies.
-struct HttpApi::Caller {
-  db::Principal principal;
-  std::optional<WebSession> web;
+// What a route's handler gets: the request, the caller (authorised for the route's method) and
+// the pattern's parameters.
+struct HttpApi::Call {
+  HttpApi& api;
+  const HttpRequest& r;
+  const std::multimap<std::string, std::string>& query;
+  const std::optional<WebSession>& web;
+  const std::string& authorization;
+  const db::Principal* p = nullptr;
+  uint64_t id = 0;   // {id}
+  std::string name;  // {name}, decoded
+};
+
+// The handlers, one per route (kRoutes below); private to this file.
+struct HttpApi::Routes {
+  static HttpReply Me(const Call& c);
+  static HttpReply Scenes(const Call& c);
+  static HttpReply SessionsList(const Call& c);
+  static HttpReply SessionCreate(const Call& c);
+  static HttpReply SessionGet(const Call& c);
+  static HttpReply SessionStop(const Call& c);
+  static HttpReply SessionSurface(const Call& c);
+  static HttpReply Events(const Call& c, uint64_t session, double max_hz);
+  static HttpReply SessionEvents(const Call& c);
+  static HttpReply LiveEvents(const Call& c);
+  static HttpReply EvaluationsMine(const Call& c);
+  static HttpReply EvaluationSubmit(const Call& c);
+  static HttpReply Reports(const Call& c);
+  static HttpReply TrainingEffectRoute(const Call& c);
+  static HttpReply WeightSetsList(const Call& c);
+  static HttpReply WeightSetPut(const Call& c);
+  static HttpReply WeightSetGet(const Call& c);
+  static HttpReply UsersList(const Call& c);
+  static HttpReply UserCreate(const Call& c);
+  static HttpReply UserToken(const Call& c);
+  static HttpReply UserRevoke(const Call& c);
+  static HttpReply UserDisabled(const Call& c);
+  static HttpReply Export(const Call& c);
+  static HttpReply BackupRoute(const Call& c);
 };
 
 HttpReply HttpApi::Handle(const HttpRequest& r) {
@@ -408,6 +443,311 @@ HttpReply HttpApi::SignIn(const HttpRequest& r) {
   return reply;
 }
 
+// --- The routes: one short function each, after its caller was authorised for its method. ---
+
+HttpReply HttpApi::Routes::Me(const Call& c) {
+  return Ok({{"user", c.p->name},
+             {"role", db::RoleName(c.p->role)},
+             {"group", c.p->group},
+             {"csrf", c.web ? c.web->csrf : ""}});
+}
+
+HttpReply HttpApi::Routes::Scenes(const Call& c) {
+  auto listing = ListScenes(c.api.d_, *c.p);
+  if (!listing.ok()) return ErrorReply(listing.error());
+  json scenes = json::array();
+  for (const SceneInfo& s : listing->scenes)
+    scenes.push_back({{"name", s.name},
+                      {"description", s.description},
+                      {"model", s.model},
+                      {"task", s.task},
+                      {"error_budget_rms", s.error_budget_rms}});
+  return Ok({{"scenes", scenes}, {"unusable", listing->unusable}});
+}
+
+HttpReply HttpApi::Routes::SessionsList(const Call& c) {
+  auto list =
+      ListSessions(c.api.d_, *c.p, Param(c.query, "trainee"), Param(c.query, "live") == "1");
+  if (!list.ok()) return ErrorReply(list.error());
+  json out = json::array();
+  for (const SessionView& v : *list) out.push_back(ViewJson(v));
+  return Ok({{"sessions", out}});
+}
+
+HttpReply HttpApi::Routes::SessionCreate(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto trainee = Field<std::string>(*body, "trainee", "");
+  auto scene = Field<std::string>(*body, "scene", "");
+  if (!trainee.ok()) return ErrorReply(trainee.error());
+  if (!scene.ok()) return ErrorReply(scene.error());
+  auto created = CreateSession(c.api.d_, *c.p, *trainee, *scene);
+  if (!created.ok()) return ErrorReply(created.error());
+  // The station's key is not sent here: the trainee's station joins with its own token.
+  return Json(201, {{"session", RecordJson(created->record)}});
+}
+
+HttpReply HttpApi::Routes::SessionGet(const Call& c) {
+  auto v = GetSession(c.api.d_, *c.p, c.id);
+  if (!v.ok()) return ErrorReply(v.error());
+  return Ok(ViewJson(*v));
+}
+
+HttpReply HttpApi::Routes::SessionStop(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto reason = Field<std::string>(*body, "reason", "stopped from the dashboard");
+  if (!reason.ok()) return ErrorReply(reason.error());
+  auto v = StopSession(c.api.d_, *c.p, c.id, *reason);
+  if (!v.ok()) return ErrorReply(v.error());
+  return Ok(ViewJson(*v));
+}
+
+HttpReply HttpApi::Routes::SessionSurface(const Call& c) {
+  auto surface = server::SessionSurface(c.api.d_, *c.p, c.id);
+  if (!surface.ok()) return ErrorReply(surface.error());
+  return Ok({{"positions_mm", Millimetres(surface->positions)}, {"triangles", surface->triangles}});
+}
+
+// An event stream: one session's (10 Hz, with its surface) or every live session's (4 Hz).
+HttpReply HttpApi::Routes::Events(const Call& c, uint64_t session, double max_hz) {
+  auto hz = CheckWatch(c.api.d_, *c.p, session, max_hz);
+  if (!hz.ok()) return ErrorReply(hz.error());
+  HttpReply reply;
+  reply.kind = HttpReply::Kind::kEvents;
+  reply.watch = {session, *hz, session != 0};
+  reply.still_allowed = c.api.StillAllowed(c.authorization, c.web);
+  return reply;
+}
+HttpReply HttpApi::Routes::SessionEvents(const Call& c) {
+  return Events(c, c.id, 10);
+}
+HttpReply HttpApi::Routes::LiveEvents(const Call& c) {
+  return Events(c, 0, 4);
+}
+
+HttpReply HttpApi::Routes::EvaluationsMine(const Call& c) {
+  auto queue = ListOwnEvaluations(c.api.d_, *c.p, 200);
+  if (!queue.ok()) return ErrorReply(queue.error());
+  json sessions = json::array(), submitted = json::array();
+  for (const db::SessionRecord& s : queue->sessions) sessions.push_back(RecordJson(s));
+  for (const db::SubmittedRow& s : queue->submitted)
+    submitted.push_back({{"id", s.id},
+                         {"subject_kind", db::SubjectKindName(s.subject_kind)},
+                         {"subject", s.subject},
+                         {"moment_min", s.moment_min ? json(*s.moment_min) : json(nullptr)},
+                         {"submitted", Iso(s.submitted_us)},
+                         {"scores", s.scores}});
+  return Ok({{"sessions", sessions}, {"models", queue->models}, {"submitted", submitted}});
+}
+
+HttpReply HttpApi::Routes::EvaluationSubmit(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  SubmissionRequest in;
+  auto key = Field<std::string>(*body, "idempotency_key", "");
+  auto kind = Field<std::string>(*body, "subject_kind", "");
+  auto subject = Field<std::string>(*body, "subject", "");
+  auto evaluator = Field<std::string>(*body, "evaluator", "");
+  auto group = Field<std::string>(*body, "evaluator_group", "");
+  auto scores = Field<std::vector<double>>(*body, "scores", {});
+  auto moment = Field<double>(*body, "moment_min", -1);
+  for (const Error* e :
+       {Err(key), Err(kind), Err(subject), Err(evaluator), Err(group), Err(scores), Err(moment)})
+    if (e) return ErrorReply(*e);
+  in.idempotency_key = *key;
+  in.subject_kind = *kind;
+  in.subject = *subject;
+  in.evaluator = *evaluator;
+  in.evaluator_group = *group;
+  in.scores = *scores;
+  if (body->contains("moment_min") && !(*body)["moment_min"].is_null()) in.moment_min = *moment;
+  auto submission = PrepareSubmission(*c.p, in);
+  if (!submission.ok()) return ErrorReply(submission.error());
+  HttpReply reply;
+  reply.kind = HttpReply::Kind::kDeferred;
+  auto shared = std::make_shared<db::Submission>(std::move(submission).value());
+  db::Store& store = c.api.d_.store;
+  reply.deferred = [&store, shared](std::function<void(HttpReply)> done) {
+    // Answers from the store's writer thread once the group commit is on disk.
+    store.SubmitEvaluationAsync(*shared, [done](Expected<db::SubmitResult> res) {
+      if (!res.ok()) return done(ErrorReply(res.error()));
+      done(Json(res->duplicate ? 200 : 201, {{"submission_id", res->submission_id},
+                                             {"submitted", Iso(res->submitted_us)},
+                                             {"duplicate", res->duplicate}}));
+    });
+  };
+  return reply;
+}
+
+HttpReply HttpApi::Routes::Reports(const Call& c) {
+  std::vector<std::string> subjects;
+  for (auto [it, end] = c.query.equal_range("subject"); it != end; ++it)
+    subjects.push_back(it->second);
+  auto report = Report(c.api.d_, *c.p, Param(c.query, "kind"), subjects, Param(c.query, "weights"));
+  if (!report.ok()) return ErrorReply(report.error());
+  HttpReply reply;
+  reply.body = *report;
+  return reply;
+}
+
+HttpReply HttpApi::Routes::TrainingEffectRoute(const Call& c) {
+  auto cells = TrainingEffect(c.api.d_, *c.p, Param(c.query, "weights"));
+  if (!cells.ok()) return ErrorReply(cells.error());
+  HttpReply reply;
+  reply.body = *cells;
+  return reply;
+}
+
+HttpReply HttpApi::Routes::WeightSetsList(const Call& c) {
+  auto names = ListWeightSets(c.api.d_, *c.p);
+  if (!names.ok()) return ErrorReply(names.error());
+  auto builtin = GetWeightSet(c.api.d_, *c.p, "");
+  if (!builtin.ok()) return ErrorReply(builtin.error());
+  json index_names = json::array(), groups = json::array();
+  for (const char* name : scoring::kIndexNames) index_names.push_back(name);
+  for (int g = 0; g < scoring::kGroupCount; ++g)
+    groups.push_back(scoring::GroupName(static_cast<scoring::EvaluatorGroup>(g)));
+  return Ok({{"names", *names},
+             {"default", json::parse(*builtin)},
+             {"index_names", index_names},
+             {"groups", groups}});
+}
+
+HttpReply HttpApi::Routes::WeightSetPut(const Call& c) {
+  auto body = Body(c.r);  // checks the type and that it is an object
+  if (!body.ok()) return ErrorReply(body.error());
+  if (Status s = PutWeightSet(c.api.d_, *c.p, c.r.body); !s.ok()) return ErrorReply(s.error());
+  return NoContent();
+}
+
+HttpReply HttpApi::Routes::WeightSetGet(const Call& c) {
+  auto w = GetWeightSet(c.api.d_, *c.p, c.name);
+  if (!w.ok()) return ErrorReply(w.error());
+  HttpReply reply;
+  reply.body = *w;
+  return reply;
+}
+
+HttpReply HttpApi::Routes::UsersList(const Call& c) {
+  auto users = ListUsers(c.api.d_, *c.p);
+  if (!users.ok()) return ErrorReply(users.error());
+  json out = json::array();
+  for (const db::UserRecord& u : *users) out.push_back(UserJson(u));
+  return Ok({{"users", out}});
+}
+
+HttpReply HttpApi::Routes::UserCreate(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto name = Field<std::string>(*body, "name", "");
+  auto role = Field<std::string>(*body, "role", "");
+  auto group = Field<std::string>(*body, "group", "");
+  if (!name.ok()) return ErrorReply(name.error());
+  if (!role.ok()) return ErrorReply(role.error());
+  if (!group.ok()) return ErrorReply(group.error());
+  auto u = CreateUser(c.api.d_, *c.p, *name, db::ParseRole(*role), *group);
+  if (!u.ok()) return ErrorReply(u.error());
+  return Json(201, UserJson(*u));
+}
+
+HttpReply HttpApi::Routes::UserToken(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto label = Field<std::string>(*body, "label", "dashboard");
+  if (!label.ok()) return ErrorReply(label.error());
+  auto token = IssueToken(c.api.d_, *c.p, c.name, *label);
+  if (!token.ok()) return ErrorReply(token.error());
+  HttpReply reply = Json(201, {{"user", c.name}, {"token", *token}});
+  reply.headers.emplace_back("Cache-Control", "no-store");
+  return reply;
+}
+
+HttpReply HttpApi::Routes::UserRevoke(const Call& c) {
+  if (auto body = Body(c.r); !body.ok()) return ErrorReply(body.error());
+  if (Status s = RevokeTokens(c.api.d_, *c.p, c.name); !s.ok()) return ErrorReply(s.error());
+  return NoContent();
+}
+
+HttpReply HttpApi::Routes::UserDisabled(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto disabled = Field<bool>(*body, "disabled", true);
+  if (!disabled.ok()) return ErrorReply(disabled.error());
+  if (Status s = SetDisabled(c.api.d_, *c.p, c.name, *disabled); !s.ok())
+    return ErrorReply(s.error());
+  return NoContent();
+}
+
+HttpReply HttpApi::Routes::Export(const Call& c) {
+  auto number = [&](const char* name) -> std::optional<int64_t> {
+    const std::string v = Param(c.query, name);
+    if (v.empty()) return 0;
+    const auto id = ParseId(v);
+    if (!id || *id > static_cast<uint64_t>(INT64_MAX)) return std::nullopt;
+    return static_cast<int64_t>(*id);
+  };
+  // from/to: ISO times (2026-11-22T10:00:00Z) or microseconds since the epoch.
+  auto time = [&](const char* name) -> std::optional<int64_t> {
+    const std::string v = Param(c.query, name);
+    if (v.empty()) return 0;
+    if (auto iso = ParseIsoUtc(v, name); iso.ok()) return *iso;
+    return number(name);
+  };
+  const auto from = time("from"), to = time("to"), session = number("session");
+  if (!from) return ErrorReply(InvalidArgument("from", "an ISO time or microseconds"));
+  if (!to) return ErrorReply(InvalidArgument("to", "an ISO time or microseconds"));
+  if (!session) return ErrorReply(InvalidArgument("session", "a session id"));
+  auto plan = PlanExport(*c.p, Param(c.query, "format"), *from, *to, Param(c.query, "trainee"),
+                         static_cast<uint64_t>(*session));
+  if (!plan.ok()) return ErrorReply(plan.error());
+  HttpReply reply;
+  reply.kind = HttpReply::Kind::kExport;
+  reply.export_plan = *plan;
+  reply.owner = c.p->name;
+  const bool csv = plan->format == db::ExportFormat::kCsv;
+  reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
+  reply.filename = plan->format == db::ExportFormat::kCsv    ? "vsurg-evaluations.csv"
+                   : plan->format == db::ExportFormat::kXapi ? "vsurg-evaluations-xapi.jsonl"
+                                                             : "vsurg-evaluations.jsonl";
+  return reply;
+}
+
+HttpReply HttpApi::Routes::BackupRoute(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto name = Field<std::string>(*body, "name", "");
+  if (!name.ok()) return ErrorReply(name.error());
+  if (Status s = Backup(c.api.d_, *c.p, *name); !s.ok()) return ErrorReply(s.error());
+  return Json(201, {{"backup", *name}});
+}
+
+const HttpApi::Route HttpApi::kRoutes[] = {
+    {"GET", "me", Method::kSessionListScenes, &Routes::Me},  // every role
+    {"GET", "scenes", Method::kSessionListScenes, &Routes::Scenes},
+    {"GET", "sessions", Method::kSessionList, &Routes::SessionsList},
+    {"POST", "sessions", Method::kSessionCreate, &Routes::SessionCreate},
+    {"GET", "sessions/{id}", Method::kSessionGet, &Routes::SessionGet},
+    {"POST", "sessions/{id}/stop", Method::kSessionStop, &Routes::SessionStop},
+    {"GET", "sessions/{id}/surface", Method::kMonitorWatch, &Routes::SessionSurface},
+    {"GET", "sessions/{id}/events", Method::kMonitorWatch, &Routes::SessionEvents},
+    {"GET", "live/events", Method::kMonitorWatch, &Routes::LiveEvents},
+    {"GET", "evaluations/mine", Method::kEvaluationSubmit, &Routes::EvaluationsMine},
+    {"POST", "evaluations", Method::kEvaluationSubmit, &Routes::EvaluationSubmit},
+    {"GET", "reports", Method::kEvaluationReport, &Routes::Reports},
+    {"GET", "training-effect", Method::kEvaluationTrainingEffect, &Routes::TrainingEffectRoute},
+    {"GET", "weight-sets", Method::kAdminListWeightSets, &Routes::WeightSetsList},
+    {"POST", "weight-sets", Method::kAdminPutWeightSet, &Routes::WeightSetPut},
+    {"GET", "weight-sets/{name}", Method::kAdminListWeightSets, &Routes::WeightSetGet},
+    {"GET", "users", Method::kAdminListUsers, &Routes::UsersList},
+    {"POST", "users", Method::kAdminCreateUser, &Routes::UserCreate},
+    {"POST", "users/{name}/token", Method::kAdminIssueToken, &Routes::UserToken},
+    {"POST", "users/{name}/revoke", Method::kAdminRevokeTokens, &Routes::UserRevoke},
+    {"POST", "users/{name}/disabled", Method::kAdminSetDisabled, &Routes::UserDisabled},
+    {"GET", "export", Method::kAdminExport, &Routes::Export},
+    {"POST", "backup", Method::kAdminBackup, &Routes::BackupRoute},
+};
+
 HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
                        const std::multimap<std::string, std::string>& query) {
   const auto seg = Segments(path);
@@ -439,346 +779,62 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
       return ErrorReply(Error{ErrorCode::kPermissionDenied,
                               "missing or wrong CSRF token (X-CSRF-Token)", "csrf"});
   }
-  // The method the route needs decides the role; each domain function checks again.
-  auto caller = [&](Method m) {
-    auto p = Authorize(d_.store, authorization, m);
-    if (bearer && !p.ok() && p.error().code == ErrorCode::kUnauthenticated) {
-      bearer_limiter_.Failed(r.remote);
-      const uint64_t n = bearer_failures_.fetch_add(1) + 1;
-      if ((n & (n - 1)) == 0)  // the 1st, 2nd, 4th, 8th, …: a flood logs a few lines
-        LogEvent("vsurg-http", "bearer_token_refused",
-                 "remote=" + r.remote + " total=" + std::to_string(n));
-    }
-    return p;
-  };
-  auto fail = [](const Error& e) { return ErrorReply(e); };
-  const auto n = seg.size();
-  auto is = [&](std::initializer_list<std::string_view> parts) {
-    if (parts.size() != n) return false;
-    size_t i = 0;
-    for (std::string_view p : parts) {
-      if (p != "*" && p != seg[i]) return false;
-      ++i;
-    }
-    return true;
-  };
-
-  if (is({"signout"}) && post) {
+  if (seg.size() == 1 && seg[0] == "signout" && post) {
     if (web) sessions_.Remove(web->id);
     HttpReply reply = NoContent();
     reply.headers.emplace_back(
         "Set-Cookie", std::string(kCookie) + "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0");
     return reply;
   }
-  if (is({"me"}) && get) {
-    auto p = caller(Method::kSessionListScenes);  // every role
-    if (!p.ok()) return fail(p.error());
-    return Ok({{"user", p->name},
-               {"role", db::RoleName(p->role)},
-               {"group", p->group},
-               {"csrf", web ? web->csrf : ""}});
-  }
-  if (is({"scenes"}) && get) {
-    auto p = caller(Method::kSessionListScenes);
-    if (!p.ok()) return fail(p.error());
-    auto listing = ListScenes(d_, *p);
-    if (!listing.ok()) return fail(listing.error());
-    json scenes = json::array();
-    for (const SceneInfo& s : listing->scenes)
-      scenes.push_back({{"name", s.name},
-                        {"description", s.description},
-                        {"model", s.model},
-                        {"task", s.task},
-                        {"error_budget_rms", s.error_budget_rms}});
-    return Ok({{"scenes", scenes}, {"unusable", listing->unusable}});
-  }
-  if (is({"sessions"})) {
-    if (get) {
-      auto p = caller(Method::kSessionList);
-      if (!p.ok()) return fail(p.error());
-      auto list = ListSessions(d_, *p, Param(query, "trainee"), Param(query, "live") == "1");
-      if (!list.ok()) return fail(list.error());
-      json out = json::array();
-      for (const SessionView& v : *list) out.push_back(ViewJson(v));
-      return Ok({{"sessions", out}});
+  // The route table: the first route whose verb and pattern match decides the method, which
+  // decides the role (each domain function checks again); a malformed parameter is 400.
+  for (const Route& route : kRoutes) {
+    if (std::string_view(route.verb) != (post ? "POST" : "GET")) continue;
+    Call call{*this, r, query, web, authorization, nullptr, 0, {}};
+    auto matched = Match(route.pattern, seg, call);
+    if (!matched.ok()) return ErrorReply(matched.error());
+    if (!*matched) continue;
+    auto p = Authorize(d_.store, authorization, route.method);
+    if (!p.ok()) {
+      if (bearer && p.error().code == ErrorCode::kUnauthenticated) BearerRefused(r.remote);
+      return ErrorReply(p.error());
     }
-    auto p = caller(Method::kSessionCreate);
-    if (!p.ok()) return fail(p.error());
-    auto body = Body(r);
-    if (!body.ok()) return fail(body.error());
-    auto trainee = Field<std::string>(*body, "trainee", "");
-    auto scene = Field<std::string>(*body, "scene", "");
-    if (!trainee.ok()) return fail(trainee.error());
-    if (!scene.ok()) return fail(scene.error());
-    auto created = CreateSession(d_, *p, *trainee, *scene);
-    if (!created.ok()) return fail(created.error());
-    // The station's key is not sent here: the trainee's station joins with its own token.
-    return Json(201, {{"session", RecordJson(created->record)}});
+    call.p = &*p;
+    return route.handler(call);
   }
-  if (n >= 2 && seg[0] == "sessions") {
-    const auto id = ParseId(seg[1]);
-    if (!id) return fail(InvalidArgument("id", "a session id is a positive integer"));
-    if (n == 2 && get) {
-      auto p = caller(Method::kSessionGet);
-      if (!p.ok()) return fail(p.error());
-      auto v = GetSession(d_, *p, *id);
-      if (!v.ok()) return fail(v.error());
-      return Ok(ViewJson(*v));
-    }
-    if (is({"sessions", "*", "stop"}) && post) {
-      auto p = caller(Method::kSessionStop);
-      if (!p.ok()) return fail(p.error());
-      auto body = Body(r);
-      if (!body.ok()) return fail(body.error());
-      auto reason = Field<std::string>(*body, "reason", "stopped from the dashboard");
-      if (!reason.ok()) return fail(reason.error());
-      auto v = StopSession(d_, *p, *id, *reason);
-      if (!v.ok()) return fail(v.error());
-      return Ok(ViewJson(*v));
-    }
-    if (is({"sessions", "*", "surface"}) && get) {
-      auto p = caller(Method::kMonitorWatch);
-      if (!p.ok()) return fail(p.error());
-      auto surface = SessionSurface(d_, *p, *id);
-      if (!surface.ok()) return fail(surface.error());
-      HttpReply reply = Ok(
-          {{"positions_mm", Millimetres(surface->positions)}, {"triangles", surface->triangles}});
-      return reply;
-    }
-    if (is({"sessions", "*", "events"}) && get) {
-      auto p = caller(Method::kMonitorWatch);
-      if (!p.ok()) return fail(p.error());
-      auto hz = CheckWatch(d_, *p, *id, 10);
-      if (!hz.ok()) return fail(hz.error());
-      HttpReply reply;
-      reply.kind = HttpReply::Kind::kEvents;
-      reply.watch = {*id, *hz, true};
-      reply.still_allowed = StillAllowed(authorization, web);
-      return reply;
-    }
-  }
-  if (is({"live", "events"}) && get) {
-    auto p = caller(Method::kMonitorWatch);
-    if (!p.ok()) return fail(p.error());
-    auto hz = CheckWatch(d_, *p, 0, 4);
-    if (!hz.ok()) return fail(hz.error());
-    HttpReply reply;
-    reply.kind = HttpReply::Kind::kEvents;
-    reply.watch = {0, *hz, false};
-    reply.still_allowed = StillAllowed(authorization, web);
-    return reply;
-  }
-  if (is({"evaluations", "mine"}) && get) {
-    auto p = caller(Method::kEvaluationSubmit);
-    if (!p.ok()) return fail(p.error());
-    auto queue = ListOwnEvaluations(d_, *p, 200);
-    if (!queue.ok()) return fail(queue.error());
-    json sessions = json::array(), submitted = json::array();
-    for (const db::SessionRecord& s : queue->sessions) sessions.push_back(RecordJson(s));
-    for (const db::SubmittedRow& s : queue->submitted)
-      submitted.push_back({{"id", s.id},
-                           {"subject_kind", db::SubjectKindName(s.subject_kind)},
-                           {"subject", s.subject},
-                           {"moment_min", s.moment_min ? json(*s.moment_min) : json(nullptr)},
-                           {"submitted", Iso(s.submitted_us)},
-                           {"scores", s.scores}});
-    return Ok({{"sessions", sessions}, {"models", queue->models}, {"submitted", submitted}});
-  }
-  if (is({"evaluations"}) && post) {
-    auto p = caller(Method::kEvaluationSubmit);
-    if (!p.ok()) return fail(p.error());
-    auto body = Body(r);
-    if (!body.ok()) return fail(body.error());
-    SubmissionRequest in;
-    auto key = Field<std::string>(*body, "idempotency_key", "");
-    auto kind = Field<std::string>(*body, "subject_kind", "");
-    auto subject = Field<std::string>(*body, "subject", "");
-    auto evaluator = Field<std::string>(*body, "evaluator", "");
-    auto group = Field<std::string>(*body, "evaluator_group", "");
-    auto scores = Field<std::vector<double>>(*body, "scores", {});
-    auto moment = Field<double>(*body, "moment_min", -1);
-    for (const Error* e :
-         {Err(key), Err(kind), Err(subject), Err(evaluator), Err(group), Err(scores), Err(moment)})
-      if (e) return fail(*e);
-    in.idempotency_key = *key;
-    in.subject_kind = *kind;
-    in.subject = *subject;
-    in.evaluator = *evaluator;
-    in.evaluator_group = *group;
-    in.scores = *scores;
-    if (body->contains("moment_min") && !(*body)["moment_min"].is_null()) in.moment_min = *moment;
-    auto submission = PrepareSubmission(*p, in);
-    if (!submission.ok()) return fail(submission.error());
-    HttpReply reply;
-    reply.kind = HttpReply::Kind::kDeferred;
-    auto shared = std::make_shared<db::Submission>(std::move(submission).value());
-    reply.deferred = [this, shared](std::function<void(HttpReply)> done) {
-      // Answers from the store's writer thread once the group commit is on disk.
-      d_.store.SubmitEvaluationAsync(*shared, [done](Expected<db::SubmitResult> res) {
-        if (!res.ok()) return done(ErrorReply(res.error()));
-        done(Json(res->duplicate ? 200 : 201, {{"submission_id", res->submission_id},
-                                               {"submitted", Iso(res->submitted_us)},
-                                               {"duplicate", res->duplicate}}));
-      });
-    };
-    return reply;
-  }
-  if (is({"reports"}) && get) {
-    auto p = caller(Method::kEvaluationReport);
-    if (!p.ok()) return fail(p.error());
-    std::vector<std::string> subjects;
-    for (auto [it, end] = query.equal_range("subject"); it != end; ++it)
-      subjects.push_back(it->second);
-    auto report = Report(d_, *p, Param(query, "kind"), subjects, Param(query, "weights"));
-    if (!report.ok()) return fail(report.error());
-    HttpReply reply;
-    reply.body = *report;
-    return reply;
-  }
-  if (is({"training-effect"}) && get) {
-    auto p = caller(Method::kEvaluationTrainingEffect);
-    if (!p.ok()) return fail(p.error());
-    auto cells = TrainingEffect(d_, *p, Param(query, "weights"));
-    if (!cells.ok()) return fail(cells.error());
-    HttpReply reply;
-    reply.body = *cells;
-    return reply;
-  }
-  if (is({"weight-sets"})) {
-    if (get) {
-      auto p = caller(Method::kAdminListWeightSets);
-      if (!p.ok()) return fail(p.error());
-      auto names = ListWeightSets(d_, *p);
-      if (!names.ok()) return fail(names.error());
-      auto builtin = GetWeightSet(d_, *p, "");
-      if (!builtin.ok()) return fail(builtin.error());
-      json index_names = json::array(), groups = json::array();
-      for (const char* name : scoring::kIndexNames) index_names.push_back(name);
-      for (int g = 0; g < scoring::kGroupCount; ++g)
-        groups.push_back(scoring::GroupName(static_cast<scoring::EvaluatorGroup>(g)));
-      return Ok({{"names", *names},
-                 {"default", json::parse(*builtin)},
-                 {"index_names", index_names},
-                 {"groups", groups}});
-    }
-    auto p = caller(Method::kAdminPutWeightSet);
-    if (!p.ok()) return fail(p.error());
-    auto body = Body(r);  // checks the type and that it is an object
-    if (!body.ok()) return fail(body.error());
-    if (Status s = PutWeightSet(d_, *p, r.body); !s.ok()) return fail(s.error());
-    return NoContent();
-  }
-  if (is({"weight-sets", "*"}) && get) {
-    auto p = caller(Method::kAdminListWeightSets);
-    if (!p.ok()) return fail(p.error());
-    auto w = GetWeightSet(d_, *p, std::string(seg[1]));
-    if (!w.ok()) return fail(w.error());
-    HttpReply reply;
-    reply.body = *w;
-    return reply;
-  }
-  if (is({"users"})) {
-    if (get) {
-      auto p = caller(Method::kAdminListUsers);
-      if (!p.ok()) return fail(p.error());
-      auto users = ListUsers(d_, *p);
-      if (!users.ok()) return fail(users.error());
-      json out = json::array();
-      for (const db::UserRecord& u : *users) out.push_back(UserJson(u));
-      return Ok({{"users", out}});
-    }
-    auto p = caller(Method::kAdminCreateUser);
-    if (!p.ok()) return fail(p.error());
-    auto body = Body(r);
-    if (!body.ok()) return fail(body.error());
-    auto name = Field<std::string>(*body, "name", "");
-    auto role = Field<std::string>(*body, "role", "");
-    auto group = Field<std::string>(*body, "group", "");
-    if (!name.ok()) return fail(name.error());
-    if (!role.ok()) return fail(role.error());
-    if (!group.ok()) return fail(group.error());
-    auto u = CreateUser(d_, *p, *name, db::ParseRole(*role), *group);
-    if (!u.ok()) return fail(u.error());
-    return Json(201, UserJson(*u));
-  }
-  if (n == 3 && seg[0] == "users" && post) {
-    auto user = UrlDecode(seg[1]);
-    if (!user) return fail(InvalidArgument("user", "a malformed user name"));
-    auto body = Body(r);
-    if (!body.ok()) return fail(body.error());
-    if (seg[2] == "token") {
-      auto p = caller(Method::kAdminIssueToken);
-      if (!p.ok()) return fail(p.error());
-      auto label = Field<std::string>(*body, "label", "dashboard");
-      if (!label.ok()) return fail(label.error());
-      auto token = IssueToken(d_, *p, *user, *label);
-      if (!token.ok()) return fail(token.error());
-      HttpReply reply = Json(201, {{"user", *user}, {"token", *token}});
-      reply.headers.emplace_back("Cache-Control", "no-store");
-      return reply;
-    }
-    if (seg[2] == "revoke") {
-      auto p = caller(Method::kAdminRevokeTokens);
-      if (!p.ok()) return fail(p.error());
-      if (Status s = RevokeTokens(d_, *p, *user); !s.ok()) return fail(s.error());
-      return NoContent();
-    }
-    if (seg[2] == "disabled") {
-      auto p = caller(Method::kAdminSetDisabled);
-      if (!p.ok()) return fail(p.error());
-      auto disabled = Field<bool>(*body, "disabled", true);
-      if (!disabled.ok()) return fail(disabled.error());
-      if (Status s = SetDisabled(d_, *p, *user, *disabled); !s.ok()) return fail(s.error());
-      return NoContent();
-    }
-  }
-  if (is({"export"}) && get) {
-    auto p = caller(Method::kAdminExport);
-    if (!p.ok()) return fail(p.error());
-    auto number = [&](const char* name) -> std::optional<int64_t> {
-      const std::string v = Param(query, name);
-      if (v.empty()) return 0;
-      const auto id = ParseId(v);
-      if (!id || *id > static_cast<uint64_t>(INT64_MAX)) return std::nullopt;
-      return static_cast<int64_t>(*id);
-    };
-    // from/to: ISO times (2026-11-22T10:00:00Z) or microseconds since the epoch.
-    auto time = [&](const char* name) -> std::optional<int64_t> {
-      const std::string v = Param(query, name);
-      if (v.empty()) return 0;
-      if (auto iso = ParseIsoUtc(v, name); iso.ok()) return *iso;
-      return number(name);
-    };
-    const auto from = time("from"), to = time("to"), session = number("session");
-    if (!from) return fail(InvalidArgument("from", "an ISO time or microseconds"));
-    if (!to) return fail(InvalidArgument("to", "an ISO time or microseconds"));
-    if (!session) return fail(InvalidArgument("session", "a session id"));
-    auto plan = PlanExport(*p, Param(query, "format"), *from, *to, Param(query, "trainee"),
-                           static_cast<uint64_t>(*session));
-    if (!plan.ok()) return fail(plan.error());
-    HttpReply reply;
-    reply.kind = HttpReply::Kind::kExport;
-    reply.export_plan = *plan;
-    reply.owner = p->name;
-    const bool csv = plan->format == db::ExportFormat::kCsv;
-    reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
-    reply.filename = plan->format == db::ExportFormat::kCsv    ? "vsurg-evaluations.csv"
-                     : plan->format == db::ExportFormat::kXapi ? "vsurg-evaluations-xapi.jsonl"
-                                                               : "vsurg-evaluations.jsonl";
-    return reply;
-  }
-  if (is({"backup"}) && post) {
-    auto p = caller(Method::kAdminBackup);
-    if (!p.ok()) return fail(p.error());
-    auto body = Body(r);
-    if (!body.ok()) return fail(body.error());
-    auto name = Field<std::string>(*body, "name", "");
-    if (!name.ok()) return fail(name.error());
-    if (Status s = Backup(d_, *p, *name); !s.ok()) return fail(s.error());
-    return Json(201, {{"backup", *name}});
-  }
-  return fail(
+  return ErrorReply(
       Error{ErrorCode::kNotFound, "no such API route: " + r.method + " /api/v1" + path, "path"});
+}
+
+void HttpApi::BearerRefused(const std::string& remote) {
+  bearer_limiter_.Failed(remote);
+  const uint64_t n = bearer_failures_.fetch_add(1) + 1;
+  if ((n & (n - 1)) == 0)  // the 1st, 2nd, 4th, 8th, …: a flood logs a few lines
+    LogEvent("vsurg-http", "bearer_token_refused",
+             "remote=" + remote + " total=" + std::to_string(n));
+}
+
+// A pattern's segments are literals, `{id}` (a session id: a positive integer) or `{name}` (a
+// percent-encoded name). true: matched (parameters in `call`); false: another route's; an error:
+// this route's shape with a malformed parameter.
+Expected<bool> HttpApi::Match(std::string_view pattern, const std::vector<std::string_view>& seg,
+                              Call& call) {
+  const std::vector<std::string_view> want = Segments(pattern);
+  if (want.size() != seg.size()) return false;
+  for (size_t i = 0; i < want.size(); ++i)
+    if (want[i].front() != '{' && want[i] != seg[i]) return false;
+  for (size_t i = 0; i < want.size(); ++i) {
+    if (want[i] == "{id}") {
+      const auto id = ParseId(seg[i]);
+      if (!id) return InvalidArgument("id", "a session id is a positive integer");
+      call.id = *id;
+    } else if (want[i] == "{name}") {
+      auto name = UrlDecode(seg[i]);
+      if (!name) return InvalidArgument("name", "a malformed name");
+      call.name = std::move(*name);
+    }
+  }
+  return true;
 }
 
 }  // namespace vsurg::server::http

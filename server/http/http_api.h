@@ -101,7 +101,19 @@ class HttpApi {
   uint64_t bearer_failures() const { return bearer_failures_.load(); }
 
  private:
-  struct Caller;
+  // The API's routes (http_api.cpp): {verb, pattern, method, handler}, one short function each.
+  struct Call;
+  struct Routes;
+  struct Route {
+    const char* verb;     // GET (HEAD too) or POST
+    const char* pattern;  // below /api/v1/: literals, {id} (a session id), {name} (decoded)
+    Method method;        // what the caller must be allowed (Authorize), before the handler
+    HttpReply (*handler)(const Call&);
+  };
+  static const Route kRoutes[];
+  static Expected<bool> Match(std::string_view pattern, const std::vector<std::string_view>& seg,
+                              Call& call);
+  void BearerRefused(const std::string& remote);  // an unknown bearer token: counted, limited
   HttpReply Api(const HttpRequest& r, const std::string& path,
                 const std::multimap<std::string, std::string>& query);
   HttpReply Page(const HttpRequest& r, const std::string& path);
