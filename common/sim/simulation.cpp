@@ -9,9 +9,7 @@
 #include <mutex>
 #include <numbers>
 
-#include "common/geometry/distances.h"
-#include "common/geometry/tet_generators.h"
-#include "common/geometry/tetrahedralize.h"
+#include "common/sim/rooms/room_support.h"
 #include "common/tissue/reduced_cache.h"
 
 namespace vsurg::sim {
@@ -21,77 +19,6 @@ using haptics::ForceCommand;
 using haptics::StylusSample;
 
 namespace {
-
-// Reduced tables (contact and surface twist) are read-only and large (72 and 12 B per vertex
-// pair): the sessions of one scene share one, found by the key of its inputs while any session
-// holds it (one map per table type). The map's lock is held only to look up; a table being built
-// holds its own key's lock, so a second session of the same scene waits for it (and does not
-// build it twice) while other scenes' sessions go on. `load` reads it from the cache or builds it.
-template <class Table>
-std::shared_ptr<const Table> SharedTable(const std::string& key,
-                                         const std::function<Expected<Table>()>& load,
-                                         Status& status) {
-  struct Entry {
-    std::weak_ptr<const Table> table;
-    std::shared_ptr<std::mutex> building = std::make_shared<std::mutex>();
-  };
-  static std::mutex mutex;
-  static std::map<std::string, Entry> tables;
-  std::shared_ptr<std::mutex> building;
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    Entry& e = tables[key];
-    if (auto alive = e.table.lock()) return alive;
-    building = e.building;
-  }
-  std::lock_guard<std::mutex> build_lock(*building);
-  {
-    std::lock_guard<std::mutex> lock(mutex);  // built while this one waited?
-    if (auto alive = tables[key].table.lock()) return alive;
-  }
-  auto table = load();
-  if (!table.ok()) {
-    status = table.error();
-    return nullptr;
-  }
-  auto shared = std::make_shared<const Table>(std::move(*table));
-  std::lock_guard<std::mutex> lock(mutex);
-  tables[key].table = shared;
-  return shared;
-}
-
-// A point of the rest surface given by its triangle and barycentric coordinates.
-Vec3 RestPoint(const geometry::TriMesh& rest, int triangle, const Vec3& barycentric) {
-  const geometry::Triangle& t = rest.triangles[triangle];
-  return barycentric[0] * rest.positions[t[0]] + barycentric[1] * rest.positions[t[1]] +
-         barycentric[2] * rest.positions[t[2]];
-}
-
-// The scene's tissue as the FEM takes it (E = 2G(1 + ν)).
-tissue::FemParams SceneMaterial(const Scene& scene) {
-  tissue::FemParams p;
-  p.poisson = scene.poisson_ratio;
-  p.young = 2 * scene.shear_modulus * (1 + scene.poisson_ratio);
-  p.density = scene.density;
-  return p;
-}
-
-// A reduced table's inputs for a scene: its FEM held by the scene's support (as the surface's
-// `held` vertices are), the display, and every display vertex not held, which a tool can reach.
-template <class Params>
-tissue::TableInputs<Params> TableInputsFor(const Scene& scene, const geometry::TriMesh& rest,
-                                           const std::vector<int>& held, geometry::TetMesh fem) {
-  tissue::TableInputs<Params> in;
-  in.mesh = std::move(fem);
-  in.material = SceneMaterial(scene);
-  in.fixed = SupportedFemVertices(in.mesh, rest, held, scene.region);
-  in.display = rest;
-  std::vector<uint8_t> is_held(rest.VertexCount(), 0);
-  for (int v : held) is_held[v] = 1;
-  for (int v = 0; v < rest.VertexCount(); ++v)
-    if (!is_held[v]) in.reachable.push_back(v);
-  return in;
-}
 
 Vec3 AnyPerpendicular(const Vec3& a) {
   const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
@@ -168,38 +95,17 @@ Status Simulation::Build() {
   auto safety = haptics::SafetyFilter::Create(scene_.haptics.limits);
   if (!safety.ok()) return safety.error();
   safety_ = *safety;
-  const RegionSpec& region = scene_.region;
-  const double mass = scene_.density * std::abs(geometry::SignedVolume(rest_));
-  if (region.kind == ModelKind::kCoil) {
-    auto coil = tissue::CoilSpringModel::Create(region.coil);
-    if (!coil.ok()) return coil.error();
-    coil_ = std::make_unique<tissue::CoilSpringModel>(std::move(*coil));
-    if (region.coil_mode == tissue::TwistMode::kLimb && centreline_points_.size() < 2) {
-      return InvalidArgument("regions[0].model.mode",
-                             "limb mode needs a limb mesh (with a centreline)");
-    }
-  } else {
-    if (region.kind == ModelKind::kMassSpring) {
-      tissue::MassSpringBuildParams bp = region.mass_spring;
-      bp.total_mass = mass;
-      auto sys = tissue::BuildMassSpring(rest_, bp);
-      if (!sys.ok()) return sys.error();
-      tissue::MassSpringStepParams sp;
-      sp.integrator = region.integrator;
-      auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
-      if (!model.ok()) return model.error();
-      msm_ = std::make_unique<tissue::MassSpringModel>(std::move(*model));
-      const int n = rest_.VertexCount();
-      for (int v : held_) {
-        msm_->SetFixed(v, true);
-        if (bp.volume == tissue::VolumeMode::kInnerLayer) msm_->SetFixed(n + v, true);
-      }
-    } else if (region.kind == ModelKind::kReduced) {
-      if (Status st = BuildReduced(); !st.ok()) return st;
-    } else {
-      masses_.assign(rest_.VertexCount(), mass / rest_.VertexCount());
-    }
-  }
+  const RoomInputs in{scene_,
+                      rest_,
+                      held_,
+                      centreline_points_,
+                      CacheDirectory(),
+                      scene_.density * std::abs(geometry::SignedVolume(rest_)),
+                      proxy_.params().stiffness,
+                      proxy_.params().damping};
+  auto room = BuildRoom(in);
+  if (!room.ok()) return room.error();
+  room_ = std::move(*room);
   const geometry::Bvh bvh(rest_);
   surface_.ForEachSlot([&](Snapshot& s) {
     s.positions = rest_.positions;
@@ -208,80 +114,6 @@ Status Simulation::Build() {
   visual_.ForEachSlot([&](VisualPositions& v) { v.positions = rest_.positions; });
   last_sent_ = rest_.positions;
   return Status::Ok();
-}
-
-// The FEM of a reduced contact or surface-twist model: a tetrahedral ball of the scene sphere's
-// radius, or the mesh file's closed surface tetrahedralised (CGAL).
-Expected<geometry::TetMesh> Simulation::ReducedFemMesh() const {
-  const RegionSpec& region = scene_.region;
-  if (scene_.mesh.kind == MeshKind::kSphere)
-    return geometry::MakeTetBall({scene_.mesh.radius, region.reduced.fem_cells});
-  auto fem = geometry::Tetrahedralize(rest_, {region.reduced.fem_size, 0, 3.0});
-  if (!fem.ok())
-    return Error{fem.error().code, scene_.mesh.path + ": " + fem.error().message, "mesh"};
-  return fem;
-}
-
-Status Simulation::BuildReduced() {
-  const RegionSpec& region = scene_.region;
-  if (region.reduced.mode == ReducedMode::kTwist) return BuildReducedTwist();
-  auto fem = ReducedFemMesh();
-  if (!fem.ok()) return fem.error();
-  if (region.reduced.mode == ReducedMode::kSurfaceTwist) return BuildSurfaceTwist(std::move(*fem));
-  auto in = TableInputsFor<tissue::ContactResponseParams>(scene_, rest_, held_, std::move(*fem));
-  in.params.footprint_radius = region.reduced.footprint_radius;
-  Status status = Status::Ok();
-  const tissue::ReducedCache cache(CacheDirectory());
-  auto table = SharedTable<tissue::ContactResponse>(
-      tissue::ContactKey(in),
-      [&] { return cache.ContactResponseFor(scene_.name + "-contact", in); }, status);
-  if (!table) return status;
-  auto model =
-      tissue::ReducedContactModel::Create(table, rest_.positions, region.reduced.max_force);
-  if (!model.ok()) return model.error();
-  reduced_contact_ = std::make_unique<tissue::ReducedContactModel>(std::move(*model));
-  return Status::Ok();
-}
-
-Status Simulation::BuildReducedTwist() {
-  // The FEM: the limb's tapered cylinder (its proximal end fixed at z = 0, the torque on the
-  // distal face), meshed for torsion.
-  if (centreline_points_.size() < 2)
-    return InvalidArgument("regions[0].model.mode", "a reduced twist model needs a limb mesh");
-  const geometry::LimbParams& limb = scene_.mesh.limb;
-  auto cylinder = geometry::MakeTetCylinder(geometry::TorsionCylinder(
-      limb.length, limb.radius_proximal, limb.radius_distal, scene_.region.reduced.fem_rings));
-  if (!cylinder.ok()) return cylinder.error();
-  tissue::TwistFieldInputs in;
-  in.mesh = cylinder->mesh;
-  in.material = SceneMaterial(scene_);
-  in.fixed = cylinder->base;
-  in.face = cylinder->tip;
-  in.face_area = cylinder->tip_area;
-  in.origin = Vec3::Zero();
-  in.axis = Vec3::UnitZ();
-  in.display = rest_.positions;
-  tissue::ReducedCache cache(CacheDirectory());
-  auto field = cache.TwistFieldFor(scene_.name + "-twist", in);
-  if (!field.ok()) return field.error();
-  auto model =
-      tissue::ReducedTwistModel::Create(*field, rest_.positions, scene_.region.reduced.max_twist);
-  if (!model.ok()) return model.error();
-  reduced_twist_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
-  return Status::Ok();
-}
-
-// Forceps may grasp any vertex above the support: one twist field per such vertex (reduced.h,
-// 4.), cached on disk.
-Status Simulation::BuildSurfaceTwist(geometry::TetMesh fem) {
-  auto in = TableInputsFor<tissue::SurfaceTwistParams>(scene_, rest_, held_, std::move(fem));
-  in.params.jaw_radius = scene_.region.reduced.jaw_radius;
-  const tissue::ReducedCache cache(CacheDirectory());
-  Status status = Status::Ok();
-  surface_twist_ = SharedTable<tissue::SurfaceTwistTable>(
-      tissue::SurfaceTwistKey(in),
-      [&] { return cache.SurfaceTwistFor(scene_.name + "-surface-twist", in); }, status);
-  return surface_twist_ ? Status::Ok() : status;
 }
 
 ForceCommand Simulation::Zero(const StylusSample& s, uint32_t events) {
@@ -350,18 +182,14 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     const Eigen::Quaterniond rel = s.orientation.normalized() * grasp_q0_.conjugate();
     double twist = 2.0 * std::atan2(rel.vec().dot(axis_), rel.w());
     twist = std::remainder(twist, 2.0 * std::numbers::pi);
-    tissue::CoilTorque answer;
-    if (reduced_twist_ || surface_twist_) {
-      // The FEM's twist field: linear, T = Φ·dT/dΦ up to the capacity (a surface grasp's were
-      // read from the table when it started).
-      const double capacity = reduced_twist_ ? reduced_twist_->torque_capacity() : grasp_capacity_;
-      answer.torque =
-          twist * (reduced_twist_ ? reduced_twist_->grasp_stiffness() : grasp_stiffness_);
-      answer.overload = std::abs(answer.torque) > capacity;
-      answer.torque = std::clamp(answer.torque, -capacity, capacity);
-    } else {
-      answer = coil_->Inverse(twist);
-    }
+    const TwistAnswer answer = std::visit(
+        [&](auto& room) -> TwistAnswer {
+          if constexpr (requires { room.Twist(0.0); })
+            return room.Twist(twist);
+          else
+            return {};
+        },
+        room_);
     overload = overload || answer.overload;
     const Vec3 arm = input_.grasp_point - axis_point_;
     const Vec3 turned = axis_point_ + Eigen::AngleAxisd(twist, axis_) * arm;
@@ -388,50 +216,44 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
         rest_contact_ = RestPoint(rest_, ps.triangle, ps.barycentric);
         rest_normal_ = geometry::TriangleNormal(rest_, ps.triangle);
       }
-      if (button && (coil_ || reduced_twist_ || surface_twist_)) {
-        // Grasp the point under the proxy.
-        grasping_ = true;
-        events |= haptics::kEventGraspStart;
-        ++input_.grasp_id;
-        input_.grasping = true;
-        input_.grasp_point = ps.scp;
-        grasp_q0_ = s.orientation.normalized();
-        if (surface_twist_) {
-          // The jaws hold the contact triangle's nearest vertex; its stiffness and capacity are
-          // read-only table reads (no allocation).
-          int k = 0;
-          for (int j = 1; j < 3; ++j)
-            if (ps.barycentric[j] > ps.barycentric[k]) k = j;
-          input_.grasp_vertex = tri[k];
-          grasp_stiffness_ = tissue::SurfaceTwistStiffness(*surface_twist_, tri[k]);
-          grasp_capacity_ = tissue::SurfaceTwistCapacity(*surface_twist_, tri[k],
-                                                         scene_.region.reduced.max_twist);
-        }
-        if (reduced_twist_ || (coil_ && scene_.region.coil_mode == tissue::TwistMode::kLimb)) {
-          const geometry::CentrelineProjection on_axis =
-              geometry::ProjectPointOntoPolyline(centreline_points_, ps.scp);
-          axis_point_ = on_axis.point;
-          axis_ = on_axis.tangent;
-          lever_ = std::max(scene_.haptics.min_lever, (ps.scp - axis_point_).norm());
-        } else {
-          axis_ = ps.normal;
-          axis_point_ = ps.scp;
-          lever_ = scene_.haptics.min_lever;
+      if (button) {
+        // Grasp the point under the proxy, where the tissue model can be grasped.
+        const GraspQuery q{ps.triangle, ps.barycentric, ps.scp, ps.normal,
+                           scene_.haptics.min_lever};
+        GraspFrame frame;
+        const bool grasped = std::visit(
+            [&](auto& room) {
+              if constexpr (requires { room.StartGrasp(q, frame); })
+                return room.StartGrasp(q, frame);
+              else
+                return false;
+            },
+            room_);
+        if (grasped) {
+          grasping_ = true;
+          events |= haptics::kEventGraspStart;
+          ++input_.grasp_id;
+          input_.grasping = true;
+          input_.grasp_point = ps.scp;
+          input_.grasp_vertex = frame.grasp_vertex;
+          grasp_q0_ = s.orientation.normalized();
+          axis_ = frame.axis;
+          axis_point_ = frame.axis_point;
+          lever_ = frame.lever;
         }
       }
       force = ps.force;
       jacobian = ps.jacobian;
-      if (reduced_contact_) {
-        // The station's local model: the proxy's spring in series with the tissue behind it,
-        // k/(1 + k·nᵀGn) (the table is read-only: safe beside the deformation thread).
-        const double k = proxy_.params().stiffness;
-        if (k > 0) {
-          jacobian *=
-              reduced_contact_->SeriesStiffness(
-                  {tri[0], tri[1], tri[2]},
-                  {ps.barycentric[0], ps.barycentric[1], ps.barycentric[2]}, rest_normal_, k) /
-              k;
-        }
+      // The station's local model: the tissue model's stiffness behind the proxy, where it has
+      // one (the reduced contact's series stiffness).
+      if (const double k = proxy_.params().stiffness; k > 0) {
+        const ContactQuery q{tri, ps.barycentric, rest_normal_, k};
+        std::visit(
+            [&](const auto& room) {
+              if constexpr (requires { room.ContactStiffness(q); })
+                jacobian *= room.ContactStiffness(q) / k;
+            },
+            room_);
       }
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;
@@ -520,141 +342,8 @@ void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool
 }
 
 void Simulation::Deform(const DeformInput& in) {
-  const RegionSpec& region = scene_.region;
-  switch (region.kind) {
-    case ModelKind::kCoil: {
-      if (in.grasping && in.grasp_id != seen_grasp_) {
-        // A new grasp: bind a deformer around it (set-up work, on this thread).
-        seen_grasp_ = in.grasp_id;
-        Expected<tissue::CoilDeformer> d = InvalidArgument("grasp", "no grasp");
-        if (region.coil_mode == tissue::TwistMode::kLimb) {
-          const double arc =
-              geometry::ProjectPointOntoPolyline(centreline_points_, in.grasp_point).s;
-          d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_.positions, centreline_points_, arc);
-        } else {
-          auto sp = geometry::ClosestSurfacePoint(rest_, in.grasp_point);
-          if (sp.ok())
-            d = tissue::CoilDeformer::CreateForSurface(*coil_, rest_, *sp,
-                                                       geometry::GeodesicMethod::kHeat);
-        }
-        if (d.ok()) {
-          if (deformer_) deformer_->Update(0.0);
-          deformer_ = std::make_unique<tissue::CoilDeformer>(std::move(*d));
-          applied_torque_ = NAN;
-        }
-      }
-      if (!deformer_) return;
-      const double torque = in.grasping ? in.torque : 0.0;
-      if (torque == applied_torque_ && in.grasping == applied_grasp_) return;  // nothing new
-      const tissue::DeformStats stats = deformer_->Update(torque);
-      applied_torque_ = torque;
-      applied_grasp_ = in.grasping;
-      Publish(deformer_->positions(), stats.overload);
-      return;
-    }
-    case ModelKind::kMassSpring: {
-      msm_->ClearAnchors();
-      if (in.triangle >= 0) {
-        const auto& x = msm_->positions();
-        const geometry::Triangle& tri = rest_.triangles[in.triangle];
-        const Vec3 scp = in.barycentric[0] * x[tri[0]] + in.barycentric[1] * x[tri[1]] +
-                         in.barycentric[2] * x[tri[2]];
-        const Vec3 offset = in.hip - scp;
-        const haptics::ProxyParams& pp = proxy_.params();
-        for (int k = 0; k < 3; ++k) {
-          msm_->SetAnchor(tri[k], x[tri[k]] + offset, in.barycentric[k] * pp.stiffness,
-                          in.barycentric[k] * pp.damping);
-        }
-      }
-      if (!msm_->Step(region.dt)) msm_->Reset();  // a divergence is reset to rest, never NaN
-      Publish(msm_->positions(), false);
-      return;
-    }
-    case ModelKind::kRingLayer: {
-      if (in.triangle >= 0 && in.contact_id != seen_contact_) {
-        seen_contact_ = in.contact_id;
-        const Vec3 p = RestPoint(rest_, in.triangle, in.barycentric);
-        std::vector<double> rho(rest_.VertexCount());
-        for (int v = 0; v < rest_.VertexCount(); ++v) rho[v] = (rest_.positions[v] - p).norm();
-        auto ring = tissue::RingLayerModel::Create(rest_.positions, rho, masses_,
-                                                   -geometry::TriangleNormal(rest_, in.triangle),
-                                                   region.ring);
-        if (ring.ok()) ring_ = std::make_unique<tissue::RingLayerModel>(std::move(*ring));
-      }
-      if (!ring_) return;
-      ring_->SetContactForce(
-          in.triangle >= 0 ? in.force_on_tissue.dot(-geometry::TriangleNormal(rest_, in.triangle))
-                           : 0.0);
-      ring_->Step(region.dt);
-      ring_->Apply();
-      Publish(ring_->positions(), false);
-      return;
-    }
-    case ModelKind::kReduced: {
-      if (surface_twist_) {
-        // A new grasp builds its twist model (allocates: once per grasp, on this thread); then
-        // each new torque turns the organ about the normal at the jaws. Released: at rest.
-        if (!in.grasping) {
-          if (surface_grasp_) {
-            surface_grasp_.reset();
-            Publish(rest_.positions, false);
-          }
-          return;
-        }
-        if (!surface_grasp_ || in.grasp_id != surface_grasp_id_) {
-          const tissue::TwistField field = tissue::SurfaceTwistField(
-              *surface_twist_, in.grasp_vertex, rest_.positions, &surface_grasp_fallback_);
-          auto model =
-              tissue::ReducedTwistModel::Create(field, rest_.positions, region.reduced.max_twist);
-          if (!model.ok()) return;
-          surface_grasp_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
-          surface_grasp_id_ = in.grasp_id;
-          applied_torque_ = std::numeric_limits<double>::quiet_NaN();
-        }
-        if (in.torque == applied_torque_) return;  // nothing new
-        const tissue::ReducedStats st = surface_grasp_->Update(in.torque);
-        applied_torque_ = in.torque;
-        Publish(surface_grasp_->positions(), st.saturated, surface_grasp_fallback_);
-        return;
-      }
-      if (reduced_twist_) {
-        // The twist field turns the limb for the torque at the grasp (applied on the distal
-        // face, where the field was computed: a grasp elsewhere twists as if at the wrist).
-        const double torque = in.grasping ? in.torque : 0.0;
-        if (torque == applied_torque_ && in.grasping == applied_grasp_) return;  // nothing new
-        const tissue::ReducedStats st = reduced_twist_->Update(torque);
-        applied_torque_ = torque;
-        applied_grasp_ = in.grasping;
-        Publish(reduced_twist_->positions(), st.saturated);
-        return;
-      }
-      // Quasi-static: the surface is the table's answer to the tool pressing at the contact
-      // point, the proxy's spring and the tissue solved together (PressWithSpring: stable
-      // whatever the spring's stiffness), the force spread over the contact triangle by the
-      // contact point's barycentric coordinates.
-      if (in.triangle == seen_triangle_ && in.hip == applied_hip_ &&
-          in.barycentric == applied_barycentric_)
-        return;  // nothing new
-      seen_triangle_ = in.triangle;
-      applied_hip_ = in.hip;
-      applied_barycentric_ = in.barycentric;
-      bool overload = false, outside_model = false;
-      if (in.triangle >= 0) {
-        const geometry::Triangle& tri = rest_.triangles[in.triangle];
-        const Vec3 p0 = RestPoint(rest_, in.triangle, in.barycentric);
-        const tissue::ReducedStats st = reduced_contact_->PressWithSpring(
-            {tri[0], tri[1], tri[2]}, {in.barycentric[0], in.barycentric[1], in.barycentric[2]},
-            in.hip, p0, geometry::TriangleNormal(rest_, in.triangle), proxy_.params().stiffness);
-        if (!st.ok) reduced_contact_->Release();
-        overload = st.saturated;
-        outside_model = st.fallback;
-      } else {
-        reduced_contact_->Release();
-      }
-      Publish(reduced_contact_->positions(), overload, outside_model);
-      return;
-    }
-  }
+  const std::optional<Deformed> d = std::visit([&](auto& room) { return room.Deform(in); }, room_);
+  if (d) Publish(*d->positions, d->overload, d->outside_model);
 }
 
 void Simulation::Replay(
@@ -681,8 +370,7 @@ std::string Simulation::CacheDirectory() const {
 }
 
 bool Simulation::Paced() const {
-  return scene_.region.kind == ModelKind::kMassSpring ||
-         scene_.region.kind == ModelKind::kRingLayer;
+  return std::visit([](const auto& room) { return std::decay_t<decltype(room)>::kPaced; }, room_);
 }
 
 void Simulation::StepDeformation() {

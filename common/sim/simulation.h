@@ -50,8 +50,8 @@
 #include "common/haptics/types.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/scene.h"
+#include "common/sim/tissue_room.h"
 #include "common/sim/triple_buffer.h"
-#include "common/tissue/reduced.h"
 
 namespace vsurg::sim {
 
@@ -147,19 +147,6 @@ class Simulation {
     bool overload = false;
     bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
   };
-  // What the haptic path asks of the deformation.
-  struct DeformInput {
-    uint64_t grasp_id = 0;  // changes at every new grasp
-    bool grasping = false;
-    int grasp_vertex = -1;  // surface twist: the rest surface vertex the jaws hold
-    double torque = 0;      // N·m, coil scenes
-    geometry::Vec3 grasp_point = geometry::Vec3::Zero();
-    int triangle = -1;  // contact triangle, −1: no contact
-    geometry::Vec3 barycentric = geometry::Vec3::Zero();
-    geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
-    geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
-    uint64_t contact_id = 0;                                  // changes at every new contact
-  };
   struct VisualPositions {
     std::vector<geometry::Vec3> positions;
     uint64_t id = 0;
@@ -169,10 +156,6 @@ class Simulation {
                                                              const SimulationOptions& options);
   Simulation(const Scene& scene, geometry::TriMesh rest, const SimulationOptions& options);
   Status Build();
-  Status BuildReduced();  // the contact table, from the cache or computed (reduced scenes)
-  Status BuildReducedTwist();
-  Status BuildSurfaceTwist(geometry::TetMesh fem);
-  Expected<geometry::TetMesh> ReducedFemMesh() const;  // the twist field, likewise
   std::string CacheDirectory() const;  // the reduced models' cache (options or the default)
   bool Paced() const;  // dynamic models step on the clock; quasi-static ones follow requests
   void DeformationLoop();
@@ -194,9 +177,7 @@ class Simulation {
   bool telemetry_grasping_ = false;
   double live_score_ = 0;  // the trial's score as of the last telemetry
   TripleBuffer<Telemetry> telemetry_;
-  std::unique_ptr<tissue::CoilSpringModel> coil_;           // coil scenes: the inverse runs here
-  std::vector<geometry::CentrelineProjection> centreline_;  // limb: per vertex
-  std::vector<geometry::Vec3> centreline_points_;
+  std::vector<geometry::Vec3> centreline_points_;  // limb meshes: the axis polyline
   std::vector<int> held_;  // the surface vertices the scene's support holds
   DeformInput input_;
   double last_time_ = 0;   // s, the station's time of the last accepted sample
@@ -207,29 +188,12 @@ class Simulation {
   Eigen::Quaterniond grasp_q0_ = Eigen::Quaterniond::Identity();
   geometry::Vec3 axis_ = geometry::Vec3::UnitZ(), axis_point_ = geometry::Vec3::Zero();
   double lever_ = 0.03;
-  double grasp_stiffness_ = 0, grasp_capacity_ = 0;  // surface twist: N·m/rad, N·m
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
 
-  // Deformation side.
-  std::unique_ptr<tissue::CoilDeformer> deformer_;
-  std::unique_ptr<tissue::MassSpringModel> msm_;
-  std::unique_ptr<tissue::RingLayerModel> ring_;
-  std::unique_ptr<tissue::ReducedContactModel> reduced_contact_;
-  std::unique_ptr<tissue::ReducedTwistModel> reduced_twist_;
-  // Surface twist (reduced, forceps): the table is immutable (any thread reads it); the model of
-  // the current grasp is the deformation thread's, built when a grasp starts.
-  std::shared_ptr<const tissue::SurfaceTwistTable> surface_twist_;
-  std::unique_ptr<tissue::ReducedTwistModel> surface_grasp_;
-  uint64_t surface_grasp_id_ = 0;
-  bool surface_grasp_fallback_ = false;
-  std::vector<double> masses_;  // per surface vertex, ring layer
-  uint64_t seen_grasp_ = 0, seen_contact_ = 0;
-  int seen_triangle_ = -2;  // reduced: the last contact applied (-2: none yet)
-  geometry::Vec3 applied_hip_ = geometry::Vec3::Zero();
-  geometry::Vec3 applied_barycentric_ = geometry::Vec3::Zero();
-  double applied_torque_ = 0;
-  bool applied_grasp_ = false;
+  // The tissue model (common/sim/tissue_room.h): its haptic-side queries run on the haptic
+  // thread, its Deform on the deformation side; each room keeps the two sides' state apart.
+  TissueRoom room_;
 
   TripleBuffer<Snapshot> surface_;
   TripleBuffer<DeformInput> inputs_;

@@ -1,0 +1,74 @@
+#include "common/sim/rooms/coil_room.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/geometry/distances.h"
+
+namespace vsurg::sim {
+
+Expected<CoilRoom> CoilRoom::Build(const RoomInputs& in) {
+  const RegionSpec& region = in.scene.region;
+  auto coil = tissue::CoilSpringModel::Create(region.coil);
+  if (!coil.ok()) return coil.error();
+  if (region.coil_mode == tissue::TwistMode::kLimb && in.centreline.size() < 2)
+    return InvalidArgument("regions[0].model.mode",
+                           "limb mode needs a limb mesh (with a centreline)");
+  CoilRoom room;
+  room.coil_ = std::make_shared<const tissue::CoilSpringModel>(std::move(*coil));
+  room.mode_ = region.coil_mode;
+  room.rest_ = &in.rest;
+  room.centreline_ = &in.centreline;
+  return room;
+}
+
+bool CoilRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
+  if (mode_ == tissue::TwistMode::kLimb) {
+    const geometry::CentrelineProjection on_axis =
+        geometry::ProjectPointOntoPolyline(*centreline_, q.point);
+    f.axis_point = on_axis.point;
+    f.axis = on_axis.tangent;
+    f.lever = std::max(q.min_lever, (q.point - f.axis_point).norm());
+  } else {
+    f.axis = q.normal;
+    f.axis_point = q.point;
+    f.lever = q.min_lever;
+  }
+  return true;
+}
+
+TwistAnswer CoilRoom::Twist(double twist) const {
+  const tissue::CoilTorque a = coil_->Inverse(twist);
+  return {a.torque, a.overload};
+}
+
+std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {
+  if (in.grasping && in.grasp_id != seen_grasp_) {
+    // A new grasp: bind a deformer around it (set-up work, on this thread).
+    seen_grasp_ = in.grasp_id;
+    Expected<tissue::CoilDeformer> d = InvalidArgument("grasp", "no grasp");
+    if (mode_ == tissue::TwistMode::kLimb) {
+      const double arc = geometry::ProjectPointOntoPolyline(*centreline_, in.grasp_point).s;
+      d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_->positions, *centreline_, arc);
+    } else {
+      auto sp = geometry::ClosestSurfacePoint(*rest_, in.grasp_point);
+      if (sp.ok())
+        d = tissue::CoilDeformer::CreateForSurface(*coil_, *rest_, *sp,
+                                                   geometry::GeodesicMethod::kHeat);
+    }
+    if (d.ok()) {
+      if (deformer_) deformer_->Update(0.0);
+      deformer_ = std::make_unique<tissue::CoilDeformer>(std::move(*d));
+      applied_torque_ = NAN;
+    }
+  }
+  if (!deformer_) return std::nullopt;
+  const double torque = in.grasping ? in.torque : 0.0;
+  if (torque == applied_torque_ && in.grasping == applied_grasp_) return std::nullopt;
+  const tissue::DeformStats stats = deformer_->Update(torque);
+  applied_torque_ = torque;
+  applied_grasp_ = in.grasping;
+  return Deformed{&deformer_->positions(), stats.overload, false};
+}
+
+}  // namespace vsurg::sim

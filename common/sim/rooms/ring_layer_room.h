@@ -1,0 +1,33 @@
+// The ring-layer reduced model's room (seed 001 §3.3; common/sim/tissue_room.h has the contract):
+// at each new contact, rings around the contact point that move together, joined by equal
+// springs; the contact force's normal part drives them.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/sim/rooms/room_types.h"
+#include "common/tissue/ring_layer.h"
+
+namespace vsurg::sim {
+
+class RingLayerRoom {
+ public:
+  static constexpr bool kPaced = true;  // steps at the scene's dt
+  static Expected<RingLayerRoom> Build(const RoomInputs& in);
+  // Deformation thread. A new contact builds its rings (allocates: once per contact).
+  std::optional<Deformed> Deform(const DeformInput& in);
+
+ private:
+  // Deformation thread only.
+  const geometry::TriMesh* rest_ = nullptr;
+  tissue::RingLayerParams params_;
+  double dt_ = 1e-3;             // s
+  std::vector<double> masses_;   // kg, per surface vertex
+  std::unique_ptr<tissue::RingLayerModel> ring_;
+  uint64_t seen_contact_ = 0;
+};
+
+}  // namespace vsurg::sim

@@ -1,0 +1,77 @@
+// The types of the tissue-room contract (common/sim/tissue_room.h), shared by every room.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/geometry/mesh.h"
+#include "common/sim/scene.h"
+
+namespace vsurg::sim {
+
+// What a room is built from: what Simulation::Create made of the scene.
+struct RoomInputs {
+  const Scene& scene;
+  const geometry::TriMesh& rest;                   // the display surface at rest
+  const std::vector<int>& held;                    // its vertices the scene's support holds
+  const std::vector<geometry::Vec3>& centreline;   // limb meshes: the axis polyline; else empty
+  std::string cache_dir;                           // reduced models' precomputation cache
+  double mass = 0;                                 // kg, the tissue's (density × volume)
+  double proxy_stiffness = 0, proxy_damping = 0;   // N/m, N·s/m: the coupling to the tool
+};
+
+// What the haptic path asks of the deformation (published lock-free, latest wins).
+struct DeformInput {
+  uint64_t grasp_id = 0;  // changes at every new grasp
+  bool grasping = false;
+  int grasp_vertex = -1;  // surface twist: the rest surface vertex the jaws hold
+  double torque = 0;      // N·m, twist scenes
+  geometry::Vec3 grasp_point = geometry::Vec3::Zero();
+  int triangle = -1;  // contact triangle, −1: no contact
+  geometry::Vec3 barycentric = geometry::Vec3::Zero();
+  geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
+  geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
+  uint64_t contact_id = 0;                                  // changes at every new contact
+};
+
+// A grasp asked for at the proxy (haptic thread).
+struct GraspQuery {
+  int triangle = -1;
+  geometry::Vec3 barycentric = geometry::Vec3::Zero();
+  geometry::Vec3 point = geometry::Vec3::Zero();   // m, the proxy on the surface
+  geometry::Vec3 normal = geometry::Vec3::UnitZ();
+  double min_lever = 0.03;  // m
+};
+
+// The grasp's twist axis, the point it passes through, the lever the torque acts on, and (surface
+// twist) the vertex the jaws hold.
+struct GraspFrame {
+  geometry::Vec3 axis = geometry::Vec3::UnitZ();
+  geometry::Vec3 axis_point = geometry::Vec3::Zero();
+  double lever = 0.03;  // m
+  int grasp_vertex = -1;
+};
+
+struct TwistAnswer {
+  double torque = 0;  // N·m
+  bool overload = false;
+};
+
+// The contact the local model is asked about (haptic thread).
+struct ContactQuery {
+  const geometry::Triangle& triangle;
+  const geometry::Vec3& barycentric;
+  const geometry::Vec3& rest_normal;
+  double proxy_stiffness = 0;  // N/m
+};
+
+// One deformation update to publish. `positions` is the room's own (valid until its next Deform).
+struct Deformed {
+  const std::vector<geometry::Vec3>* positions = nullptr;
+  bool overload = false;
+  bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
+};
+
+}  // namespace vsurg::sim
