@@ -23,6 +23,7 @@
 #include "db/store.h"
 #include "server/cluster/cluster.h"
 #include "server/control/control_plane.h"
+#include "server/net/lease.h"
 #include "server/session/session_manager.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -80,7 +81,8 @@ SubmitResult RunSubmit(const std::string& postgres, int max_batch, int clients, 
   {
     auto store = std::move(db::Store::Open({.path = location, .max_batch = max_batch})).value();
     const std::string token = store->InitAdmin("root").value();
-    server::SessionManager sessions(*store, nullptr, {});
+    auto sessions_owned = server::SessionManager::Open(*store, nullptr, {}).value();
+    server::SessionManager& sessions = *sessions_owned;
     auto cp = std::move(server::ControlPlane::Start(*store, sessions, {})).value();
     auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(cp->port()),
                                        grpc::InsecureChannelCredentials());
@@ -301,7 +303,8 @@ int ExportBench(const std::vector<std::string>& args) {
     const double local_s = std::chrono::duration<double>(Clock::now() - t0).count();
 
     const std::string token = store->IssueToken("bench", "").value();
-    server::SessionManager sessions(*store, nullptr, {});
+    auto sessions_owned = server::SessionManager::Open(*store, nullptr, {}).value();
+    server::SessionManager& sessions = *sessions_owned;
     auto cp = std::move(server::ControlPlane::Start(*store, sessions, {})).value();
     auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(cp->port()),
                                        grpc::InsecureChannelCredentials());
@@ -386,17 +389,20 @@ int Placement(const std::vector<std::string>& args) {
     co.listen = "127.0.0.1:0";
     co.max_sessions_per_user = 1 << 20;
     auto control = std::move(server::cluster::ClusterSessions::Start(*control_store, co)).value();
+    // Each node's lease (its agent renews it; declared first, so it outlives the agents).
+    std::vector<std::unique_ptr<server::Lease>> leases;
     std::vector<std::unique_ptr<db::Store>> node_stores;
     std::vector<std::unique_ptr<server::SessionManager>> managers;
     std::vector<std::unique_ptr<server::cluster::NodeAgent>> agents;
     for (int i = 0; i < nodes; ++i) {
       node_stores.push_back(std::move(db::Store::Open({.path = uri})).value());
+      leases.push_back(std::make_unique<server::Lease>());
       server::SessionManagerOptions so;
       so.node = "sim-" + std::to_string(i);
+      so.lease = leases.back().get();
       so.max_live_sessions = 4096;
       so.max_sessions_per_user = 4096;
-      managers.push_back(
-          std::make_unique<server::SessionManager>(*node_stores.back(), nullptr, so));
+      managers.push_back(server::SessionManager::Open(*node_stores.back(), nullptr, so).value());
       server::cluster::NodeOptions no;
       no.name = so.node;
       no.control = "127.0.0.1:" + std::to_string(control->port());
@@ -404,6 +410,7 @@ int Placement(const std::vector<std::string>& args) {
       no.udp_port = 1;
       no.capacity = 4096;
       no.cluster = co;
+      no.lease = leases.back().get();
       agents.push_back(std::move(server::cluster::NodeAgent::Start(*managers.back(), no)).value());
     }
     for (int i = 0;
@@ -413,7 +420,8 @@ int Placement(const std::vector<std::string>& args) {
     server::SessionManagerOptions lo;
     lo.max_live_sessions = 4096;
     lo.max_sessions_per_user = 4096;
-    server::SessionManager local(*local_store, nullptr, lo);
+    auto local_owned = server::SessionManager::Open(*local_store, nullptr, lo).value();
+    server::SessionManager& local = *local_owned;
     for (int k = 0; k < sessions; ++k) {
       const std::string trainee = "trainee-" + std::to_string(k);
       auto t0 = Clock::now();

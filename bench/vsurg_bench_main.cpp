@@ -236,7 +236,7 @@ struct ServerStack {
     s->token = *token;
     vsurg::server::SessionManagerOptions so;
     so.max_live_sessions = std::max(256, n);
-    s->sessions = std::make_unique<vsurg::server::SessionManager>(*s->store, &endpoint, so);
+    s->sessions = vsurg::server::SessionManager::Open(*s->store, &endpoint, so).value();
     auto server = vsurg::server::HttpServer::Start(*s->store, *s->sessions, {});
     if (!server.ok()) return server.error();
     s->server = std::move(server).value();

@@ -227,7 +227,13 @@ int Main(std::vector<std::string> args) {
       so.node = p.Has("node-name") ? p.String("node-name") : std::string(host);
       so.lease = &lease;
     }
-    manager = std::make_unique<vsurg::server::SessionManager>(**store, endpoint.get(), so);
+    auto opened = vsurg::server::SessionManager::Open(**store, endpoint.get(), so);
+    if (!opened.ok()) {
+      std::cerr << "vsurg-server: --" << opened.error().field << ": " << opened.error().message
+                << "\n";
+      return opened.error().code == vsurg::ErrorCode::kInvalidArgument ? 2 : 1;
+    }
+    manager = std::move(opened).value();
     sessions = manager.get();
     if (role == "sim") {
       vsurg::server::cluster::NodeOptions no;

@@ -178,7 +178,7 @@ class Simulation {
   double live_score_ = 0;  // the trial's score as of the last telemetry
   TripleBuffer<Telemetry> telemetry_;
   std::vector<geometry::Vec3> centreline_points_;  // limb meshes: the axis polyline
-  std::vector<int> held_;  // the surface vertices the scene's support holds
+  std::vector<int> held_;                          // the surface vertices the scene's support holds
   DeformInput input_;
   double last_time_ = 0;   // s, the station's time of the last accepted sample
   double trial_time_ = 0;  // s, the trial clock: bounded steps of the station's time

@@ -315,6 +315,7 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     return Error{ErrorCode::kIoError, "cannot open the endpoint's waker: " + ec.message(), "port"};
   impl->sessions.reserve(1024);
   impl->pending.reserve(16);
+  impl->events.reserve(4096);  // state changes between two takes (the sampler's 33 ms)
   // The visual sender exists before the I/O thread starts and outlives it (Stop): the I/O thread
   // reads the pointer on every new source address without a lock.
   if (options.visual_hz > 0) {
@@ -403,9 +404,11 @@ std::thread::id UdpEndpoint::io_thread_id() const {
 }
 
 std::vector<SessionEvent> UdpEndpoint::TakeEvents() {
+  // Copied out and cleared, not swapped: the I/O thread's vector keeps its capacity, so recording
+  // a stall or a resumption there never allocates (the copy allocates on the caller's thread).
   std::lock_guard<std::mutex> lock(impl_->events_mutex);
-  std::vector<SessionEvent> out;
-  out.swap(impl_->events);
+  std::vector<SessionEvent> out(impl_->events.begin(), impl_->events.end());
+  impl_->events.clear();
   return out;
 }
 

@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstdio>
 
+#include "common/core/time.h"
 #include "common/sim/scene.h"
 
 namespace vsurg::server {
@@ -20,18 +21,84 @@ bool IsSceneName(const std::string& s) {
 
 }  // namespace
 
+Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
+    db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options) {
+  const SessionManagerOptions& o = options;
+  if (o.udp_host.empty() || o.udp_host.size() > 253)
+    return InvalidArgument("udp_host", "the host stations are told to send to is required");
+  if (!(o.telemetry_hz >= 1 && o.telemetry_hz <= 1000))
+    return InvalidArgument("telemetry_hz", "must be within 1..1000 Hz");
+  if (o.max_live_sessions < 1 || o.max_live_sessions > 65536)
+    return InvalidArgument("max_live_sessions", "must be within 1..65536");
+  if (o.max_sessions_per_user < 1 || o.max_sessions_per_user > o.max_live_sessions)
+    return InvalidArgument("max_sessions_per_user", "must be within 1..max_live_sessions");
+  if (!(o.start_timeout_s > 0 && o.start_timeout_s <= 86400))
+    return InvalidArgument("start_timeout_s", "must be within 0..86400 s");
+  if (o.node.size() > 64) return InvalidArgument("node", "a node name has at most 64 characters");
+  if (!o.node.empty() && !o.lease)
+    return InvalidArgument("lease", "a simulation node's sessions need its lease");
+  // Nothing is live in a new process: what the store says is live was left by one that died.
+  // (A node's leftovers are aborted when it acquires its name, not here: a second process
+  // started under a live node's name must not take that node's sessions away.)
+  if (o.node.empty())
+    if (auto aborted = store.AbortOrphanedSessions(db::NowUs(), "server restarted", o.node);
+        !aborted.ok())
+      return Error{
+          aborted.error().code,
+          "cannot record the sessions a previous server left live: " + aborted.error().message,
+          "db"};
+  std::unique_ptr<SessionManager> m(new SessionManager(store, endpoint, options));
+  m->sampler_ = std::thread([p = m.get()] { p->SamplerLoop(); });
+  return m;
+}
+
 SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
                                const SessionManagerOptions& options)
     : store_(store),
       endpoint_(endpoint),
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()) {
-  // Nothing is live in a new process: what the store says is live was left by one that died.
-  // (A node's leftovers are aborted when it acquires its name, not here: a second process
-  // started under a live node's name must not take that node's sessions away.)
-  if (options_.node.empty())
-    (void)store_.AbortOrphanedSessions(db::NowUs(), "server restarted", options_.node);
-  sampler_ = std::thread([this] { SamplerLoop(); });
+  pending_.reserve(64);
+}
+
+Status SessionManager::Write(const PendingWrite& w) {
+  if (w.metrics) return store_.EndSession(w.id, w.state, w.at_us, w.reason, *w.metrics, w.epoch);
+  return store_.SetSessionState(w.id, w.state, w.at_us, w.reason, w.epoch);
+}
+
+void SessionManager::WriteOrKeep(PendingWrite w) {
+  const Status s = Write(w);
+  if (s.ok()) return;
+  if (s.error().code == ErrorCode::kUnavailable) {
+    if (pending_.size() >= kMaxPending) {
+      LogEvent("vsurg-sessions", "store_write_dropped",
+               "session=" + std::to_string(pending_.front().id) +
+                   " pending=" + std::to_string(pending_.size()));
+      pending_.erase(pending_.begin());
+    }
+    pending_.push_back(std::move(w));
+    return;
+  }
+  LogEvent("vsurg-sessions", "store_write_refused",
+           "session=" + std::to_string(w.id) + " state=" + SessionStateName(w.state) + " error=\"" +
+               s.error().message + "\"");
+}
+
+void SessionManager::RetryPending() {
+  if (pending_.empty()) return;
+  std::vector<PendingWrite> again;
+  again.swap(pending_);
+  for (size_t i = 0; i < again.size(); ++i) {
+    const Status s = Write(again[i]);
+    if (s.ok()) continue;
+    if (s.error().code == ErrorCode::kUnavailable) {  // still down: this and the rest, in order
+      pending_.insert(pending_.end(), std::make_move_iterator(again.begin() + i),
+                      std::make_move_iterator(again.end()));
+      return;
+    }
+    LogEvent("vsurg-sessions", "store_write_refused",
+             "session=" + std::to_string(again[i].id) + " error=\"" + s.error().message + "\"");
+  }
 }
 
 SessionManager::~SessionManager() {
@@ -181,8 +248,11 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   const scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   live->simulation.reset();
   // The state and the trial in one transaction, under the session's epoch (invariant 3).
-  Status s =
-      store_.EndSession(static_cast<int64_t>(id), state, db::NowUs(), reason, metrics, live->epoch);
+  const int64_t at = db::NowUs();
+  Status s = store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics, live->epoch);
+  if (!s.ok() && s.error().code == ErrorCode::kUnavailable &&
+      std::this_thread::get_id() == sampler_.get_id())  // the sampler writes it again next tick
+    pending_.push_back({static_cast<int64_t>(id), state, at, reason, metrics, live->epoch});
   NotifyEnded(id);
   return s;
 }
@@ -276,6 +346,7 @@ void SessionManager::Unsubscribe(uint64_t token) {
 }
 
 void SessionManager::Pump() {
+  RetryPending();
   // Sessions never started expire; a deformation thread runs only for a driven session.
   std::vector<uint64_t> expired;
   {
@@ -291,7 +362,7 @@ void SessionManager::Pump() {
   for (uint64_t id : expired) {
     char reason[64];
     std::snprintf(reason, sizeof reason, "not started within %g s", options_.start_timeout_s);
-    (void)End(id, SessionState::kAborted, reason);
+    (void)End(id, SessionState::kAborted, reason);  // a failed write is kept by End, retried
   }
   if (!endpoint_) return;
   for (const SessionEvent& e : endpoint_->TakeEvents()) {
@@ -312,7 +383,7 @@ void SessionManager::Pump() {
     // Stalls and resumptions are rare; the sampler waits for their commit (a few ms of delayed
     // telemetry at most), and the single writer keeps their order. A refusal (the node lost its
     // lease) changes nothing here: the agent drops the sessions when it learns of the loss.
-    (void)store_.SetSessionState(static_cast<int64_t>(e.session), state, db::NowUs(), "", epoch);
+    WriteOrKeep({static_cast<int64_t>(e.session), state, db::NowUs(), "", std::nullopt, epoch});
   }
 }
 

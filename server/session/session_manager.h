@@ -24,7 +24,8 @@
 //  1. A session is in the endpoint exactly while it is running or stalled.
 //  2. Every state change is written to the store before the call that made it returns (Pump
 //     writes asynchronously; its order is kept by the single writer), under the session's
-//     epoch: the store refuses the writes of a node that lost its lease (store.h note 7).
+//     epoch: the store refuses the writes of a node that lost its lease (store.h note 7). A
+//     write Pump could not make while the store was unavailable is made at the next ticks.
 //  3. A session's trial metrics are recorded once, when it leaves the live states.
 //  4. The Simulation outlives its registration with the endpoint (RemoveSession waits).
 //  5. A session's deformation thread runs only while a station drives it (running, with stylus
@@ -80,8 +81,12 @@ struct SessionManagerOptions {
 
 class SessionManager final : public Sessions {
  public:
-  // `endpoint` may be null (a control plane without a haptic channel: sessions cannot start).
-  SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
+  // Settings → object, validated once (a field that is out of range is kInvalidArgument, naming
+  // it); then the all-in-one server's leftovers are aborted (a store that cannot be written is
+  // an error here, not a silent start) and the sampler starts. `endpoint` may be null (a control
+  // plane without a haptic channel: sessions cannot start).
+  static Expected<std::unique_ptr<SessionManager>> Open(db::Store& store, UdpEndpoint* endpoint,
+                                                        const SessionManagerOptions& options);
   ~SessionManager();  // Shutdown()
   SessionManager(const SessionManager&) = delete;
   SessionManager& operator=(const SessionManager&) = delete;
@@ -121,8 +126,23 @@ class SessionManager final : public Sessions {
     double created_s = 0;       // clock_, for start_timeout_s
     int64_t epoch = 0;          // the lease's when created: every store write carries it
   };
+  SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
   Status End(uint64_t id, SessionState state, const std::string& reason);
-  void NotifyEnded(uint64_t id);  // subscribers of `id` hear that it ended
+  // A state change the sampler could not write (invariant 2): kept and written again at the next
+  // ticks while the store is unavailable; any other refusal (the node's lease is lost, the
+  // session ended elsewhere) is final and logged. Sampler thread only.
+  struct PendingWrite {
+    int64_t id = 0;
+    SessionState state = SessionState::kRunning;
+    int64_t at_us = 0;
+    std::string reason;
+    std::optional<scoring::TrialMetrics> metrics;  // an end's trial
+    int64_t epoch = 0;
+  };
+  Status Write(const PendingWrite& w);
+  void WriteOrKeep(PendingWrite w);  // sampler thread
+  void RetryPending();               // sampler thread
+  void NotifyEnded(uint64_t id);     // subscribers of `id` hear that it ended
   Status CheckLimits(const std::string& trainee) const;
   Status CheckLimitsLocked(const std::string& trainee) const;  // mutex_ held
   void SamplerLoop();
@@ -138,6 +158,8 @@ class SessionManager final : public Sessions {
   std::mutex subscribers_mutex_;  // held while subscribers run (see Unsubscribe)
   std::map<uint64_t, std::pair<uint64_t, Subscriber>> subscribers_;
   uint64_t next_token_ = 1;
+  std::vector<PendingWrite> pending_;  // sampler thread; at most kMaxPending
+  static constexpr size_t kMaxPending = 4096;
   std::mutex stop_mutex_;
   std::condition_variable stop_cv_;
   bool stopping_ = false;

@@ -41,7 +41,7 @@ struct World {
     admin = store->InitAdmin("root").value();
     (void)store->CreateUser("tina", db::Role::kTrainee, "g");
     trainee = store->IssueToken("tina", "fuzz").value();
-    sessions = std::make_unique<SessionManager>(*store, nullptr, SessionManagerOptions{});
+    sessions = SessionManager::Open(*store, nullptr, SessionManagerOptions{}).value();
     domain = std::make_unique<Domain>(Domain{*store, *sessions, scenes, (dir / "b").string()});
     api = std::make_unique<http::HttpApi>(*domain, http::HttpApiOptions{});
   }

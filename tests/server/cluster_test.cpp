@@ -73,7 +73,7 @@ class ClusterTest : public ::testing::Test {
     eo.realtime_priority = 0;
     eo.lease = &n->lease;
     n->endpoint = std::move(UdpEndpoint::Create(eo)).value();
-    n->sessions = std::make_unique<SessionManager>(*n->store, n->endpoint.get(), so);
+    n->sessions = SessionManager::Open(*n->store, n->endpoint.get(), so).value();
     NodeOptions no;
     no.name = name;
     no.control = "127.0.0.1:" + std::to_string(control_->port());
@@ -398,7 +398,7 @@ TEST_F(ClusterTest, ASecondProcessUnderALiveNodesNameIsRefusedAndTakesNothing) {
   EndpointOptions eo;
   eo.lease = &twin.lease;
   twin.endpoint = std::move(UdpEndpoint::Create(eo)).value();
-  twin.sessions = std::make_unique<SessionManager>(*twin.store, twin.endpoint.get(), so);
+  twin.sessions = SessionManager::Open(*twin.store, twin.endpoint.get(), so).value();
   NodeOptions no;
   no.name = "sim-a";
   no.control = "127.0.0.1:" + std::to_string(control_->port());

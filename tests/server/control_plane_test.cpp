@@ -45,7 +45,7 @@ class ControlPlaneTest : public ::testing::Test {
     fs::create_directories(dir_);
     store_ = std::move(db::Store::Open({.path = (dir_ / "vsurg.db").string()})).value();
     endpoint_ = std::move(UdpEndpoint::Create({})).value();
-    sessions_ = std::make_unique<SessionManager>(*store_, endpoint_.get(), SessionManagerOptions{});
+    sessions_ = SessionManager::Open(*store_, endpoint_.get(), SessionManagerOptions{}).value();
     ControlPlaneOptions co;
     co.backup_dir = (dir_ / "backups").string();
     auto cp = ControlPlane::Start(*store_, *sessions_, co);
@@ -584,7 +584,8 @@ TEST(ControlPlaneConfigTest, PlaintextOffLoopbackIsRefused) {
   const fs::path path = fs::temp_directory_path() / ("vsurg_cp_cfg_" + std::to_string(::getpid()));
   auto store = db::Store::Open({.path = path.string()});
   ASSERT_TRUE(store.ok());
-  SessionManager sessions(**store, nullptr, {});
+  auto sessions_owned = SessionManager::Open(**store, nullptr, {}).value();
+  SessionManager& sessions = *sessions_owned;
   ControlPlaneOptions o;
   o.listen = "0.0.0.0:0";
   auto cp = ControlPlane::Start(**store, sessions, o);
@@ -607,7 +608,8 @@ TEST(ControlPlaneTlsTest, ACertificateInTheConfigTurnsOnTls) {
   std::ofstream(dir / "key.pem") << key;
   auto store = std::move(db::Store::Open({.path = (dir / "vsurg.db").string()})).value();
   const std::string token = store->InitAdmin("root").value();
-  SessionManager sessions(*store, nullptr, {});
+  auto sessions_owned = SessionManager::Open(*store, nullptr, {}).value();
+  SessionManager& sessions = *sessions_owned;
   ControlPlaneOptions o;
   o.tls_cert_file = (dir / "cert.pem").string();
   o.tls_key_file = (dir / "key.pem").string();
@@ -702,7 +704,8 @@ TEST_F(ControlPlaneTest, SessionsNobodyDrivesCostNoThreadAndNeverStartedOnesExpi
   SessionManagerOptions o;
   o.max_sessions_per_user = 16;
   o.start_timeout_s = 1.0;
-  SessionManager manager(*store_, endpoint_.get(), o);
+  auto manager_owned = SessionManager::Open(*store_, endpoint_.get(), o).value();
+  SessionManager& manager = *manager_owned;
   const int before = ThreadCount();
   std::vector<uint64_t> ids;
   for (int i = 0; i < 8; ++i) {

@@ -37,7 +37,7 @@ class HttpApiTest : public ::testing::Test {
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
-    sessions_ = std::make_unique<SessionManager>(*store_, nullptr, SessionManagerOptions{});
+    sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
     domain_ = std::make_unique<Domain>(
         Domain{*store_, *sessions_, catalog_, (dir_ / "backups").string()});
     admin_ = store_->InitAdmin("root").value();

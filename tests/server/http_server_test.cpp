@@ -139,7 +139,7 @@ class HttpServerTest : public ::testing::Test {
     admin_ = store_->InitAdmin("root").value();
     ASSERT_TRUE(store_->CreateUser("tina", db::Role::kTrainee, "novice").ok());
     ASSERT_TRUE(store_->CreateUser("eve", db::Role::kEvaluator, "chief").ok());
-    sessions_ = std::make_unique<SessionManager>(*store_, nullptr, SessionManagerOptions{});
+    sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
   }
   void Start(HttpServerOptions o = {}) {
     o.backup_dir = (dir_ / "backups").string();

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <mutex>
 #include <thread>
@@ -43,7 +44,7 @@ class SessionManagerTest : public ::testing::Test {
     so.telemetry_hz = 100;  // Pump runs often: the test waits less
     so.start_timeout_s = 60;
     so.max_sessions_per_user = 2;
-    sessions_ = std::make_unique<SessionManager>(*store_, endpoint_.get(), so);
+    sessions_ = SessionManager::Open(*store_, endpoint_.get(), so).value();
   }
   void TearDown() override {
     sessions_.reset();
@@ -263,9 +264,39 @@ TEST_F(SessionManagerTest, WhatAKilledServerLeftLiveIsAbortedAtStartUp) {
   auto s = sessions_->Create("tina", "arm-torsion");
   ASSERT_TRUE(s.ok());
   // A second manager on the same store stands for the next process after a crash.
-  SessionManager next(*store_, nullptr, {});
+  auto next = SessionManager::Open(*store_, nullptr, {});
+  ASSERT_TRUE(next.ok()) << next.error().message;
   EXPECT_EQ(store_->GetSession(s->record.id)->state, SessionState::kAborted);
   EXPECT_EQ(store_->GetSession(s->record.id)->end_reason, "server restarted");
+}
+
+// Settings → object, validated once: each bad field is named, nothing is written and no thread
+// starts; a simulation node's manager needs its lease.
+TEST_F(SessionManagerTest, BadOptionsAreRefusedByNameBeforeAnythingStarts) {
+  auto s = sessions_->Create("tina", "arm-torsion");
+  ASSERT_TRUE(s.ok());
+  auto with = [](auto change) {
+    SessionManagerOptions o;
+    change(o);
+    return o;
+  };
+  const std::pair<SessionManagerOptions, const char*> bad[] = {
+      {with([](auto& o) { o.udp_host = ""; }), "udp_host"},
+      {with([](auto& o) { o.telemetry_hz = 0; }), "telemetry_hz"},
+      {with([](auto& o) { o.telemetry_hz = NAN; }), "telemetry_hz"},
+      {with([](auto& o) { o.max_live_sessions = 0; }), "max_live_sessions"},
+      {with([](auto& o) { o.max_sessions_per_user = 0; }), "max_sessions_per_user"},
+      {with([](auto& o) { o.start_timeout_s = -1; }), "start_timeout_s"},
+      {with([](auto& o) { o.node = "sim-0"; }), "lease"},
+  };
+  for (const auto& [options, field] : bad) {
+    auto m = SessionManager::Open(*store_, nullptr, options);
+    ASSERT_FALSE(m.ok()) << field;
+    EXPECT_EQ(m.error().code, ErrorCode::kInvalidArgument) << field;
+    EXPECT_EQ(m.error().field, field);
+  }
+  EXPECT_EQ(store_->GetSession(s->record.id)->state, SessionState::kCreated)
+      << "a refused manager aborted the live session";
 }
 
 }  // namespace

@@ -25,8 +25,8 @@ class MassSpringRoom {
   // Deformation thread only.
   std::unique_ptr<tissue::MassSpringModel> model_;
   const geometry::TriMesh* rest_ = nullptr;
-  double dt_ = 1e-3;                              // s
-  double coupling_k_ = 0, coupling_d_ = 0;        // N/m, N·s/m: the proxy's
+  double dt_ = 1e-3;                        // s
+  double coupling_k_ = 0, coupling_d_ = 0;  // N/m, N·s/m: the proxy's
 };
 
 }  // namespace vsurg::sim

@@ -47,8 +47,8 @@ std::optional<Deformed> ReducedContactRoom::Deform(const DeformInput& in) {
     const geometry::Triangle& tri = rest_->triangles[in.triangle];
     const geometry::Vec3 p0 = RestPoint(*rest_, in.triangle, in.barycentric);
     const tissue::ReducedStats st = model_->PressWithSpring(
-        {tri[0], tri[1], tri[2]}, {in.barycentric[0], in.barycentric[1], in.barycentric[2]},
-        in.hip, p0, geometry::TriangleNormal(*rest_, in.triangle), coupling_k_);
+        {tri[0], tri[1], tri[2]}, {in.barycentric[0], in.barycentric[1], in.barycentric[2]}, in.hip,
+        p0, geometry::TriangleNormal(*rest_, in.triangle), coupling_k_);
     if (!st.ok) model_->Release();
     overload = st.saturated;
     outside_model = st.fallback;

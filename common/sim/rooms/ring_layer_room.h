@@ -24,8 +24,8 @@ class RingLayerRoom {
   // Deformation thread only.
   const geometry::TriMesh* rest_ = nullptr;
   tissue::RingLayerParams params_;
-  double dt_ = 1e-3;             // s
-  std::vector<double> masses_;   // kg, per surface vertex
+  double dt_ = 1e-3;            // s
+  std::vector<double> masses_;  // kg, per surface vertex
   std::unique_ptr<tissue::RingLayerModel> ring_;
   uint64_t seen_contact_ = 0;
 };

@@ -14,12 +14,12 @@ namespace vsurg::sim {
 // What a room is built from: what Simulation::Create made of the scene.
 struct RoomInputs {
   const Scene& scene;
-  const geometry::TriMesh& rest;                   // the display surface at rest
-  const std::vector<int>& held;                    // its vertices the scene's support holds
-  const std::vector<geometry::Vec3>& centreline;   // limb meshes: the axis polyline; else empty
-  std::string cache_dir;                           // reduced models' precomputation cache
-  double mass = 0;                                 // kg, the tissue's (density × volume)
-  double proxy_stiffness = 0, proxy_damping = 0;   // N/m, N·s/m: the coupling to the tool
+  const geometry::TriMesh& rest;                  // the display surface at rest
+  const std::vector<int>& held;                   // its vertices the scene's support holds
+  const std::vector<geometry::Vec3>& centreline;  // limb meshes: the axis polyline; else empty
+  std::string cache_dir;                          // reduced models' precomputation cache
+  double mass = 0;                                // kg, the tissue's (density × volume)
+  double proxy_stiffness = 0, proxy_damping = 0;  // N/m, N·s/m: the coupling to the tool
 };
 
 // What the haptic path asks of the deformation (published lock-free, latest wins).
@@ -40,7 +40,7 @@ struct DeformInput {
 struct GraspQuery {
   int triangle = -1;
   geometry::Vec3 barycentric = geometry::Vec3::Zero();
-  geometry::Vec3 point = geometry::Vec3::Zero();   // m, the proxy on the surface
+  geometry::Vec3 point = geometry::Vec3::Zero();  // m, the proxy on the surface
   geometry::Vec3 normal = geometry::Vec3::UnitZ();
   double min_lever = 0.03;  // m
 };
