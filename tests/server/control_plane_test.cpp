@@ -27,6 +27,7 @@
 #include "server/session/session_manager.h"
 #include "tests/support/press_and_hold.h"
 #include "tests/support/self_signed.h"
+#include "tests/support/temp_dir.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::server {
@@ -38,11 +39,6 @@ using grpc::StatusCode;
 class ControlPlaneTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_cp_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     store_ = std::move(db::Store::Open({.path = (dir_ / "vsurg.db").string()})).value();
     endpoint_ = std::move(UdpEndpoint::Create({})).value();
     sessions_ = SessionManager::Open(*store_, endpoint_.get(), SessionManagerOptions{}).value();
@@ -68,7 +64,6 @@ class ControlPlaneTest : public ::testing::Test {
     sessions_.reset();
     endpoint_.reset();
     store_.reset();
-    fs::remove_all(dir_);
   }
 
   // Every client call carries a deadline.
@@ -103,7 +98,7 @@ class ControlPlaneTest : public ::testing::Test {
     return s.ok() ? nlohmann::json::parse(rep.report_json()) : nlohmann::json();
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"control"};  // first: it outlives the store in it
   std::unique_ptr<db::Store> store_;
   std::unique_ptr<UdpEndpoint> endpoint_;
   std::unique_ptr<SessionManager> sessions_;

@@ -13,6 +13,7 @@
 #include "common/sim/scene.h"
 #include "server/domain/scene_catalog.h"
 #include "server/session/session_manager.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::server {
 namespace {
@@ -22,11 +23,6 @@ namespace fs = std::filesystem;
 class DomainTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_domain_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
     sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
     domain_ = std::make_unique<Domain>(
@@ -42,7 +38,6 @@ class DomainTest : public ::testing::Test {
     domain_.reset();
     sessions_.reset();
     store_.reset();
-    fs::remove_all(dir_);
   }
   db::Principal As(const std::string& name) {
     const std::vector<db::UserRecord> users = store_->ListUsers().value();
@@ -61,7 +56,7 @@ class DomainTest : public ::testing::Test {
     return r;
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"domain"};  // first: it outlives the store in it
   std::unique_ptr<db::Store> store_;
   std::unique_ptr<SessionManager> sessions_;
   SceneCatalog catalog_;

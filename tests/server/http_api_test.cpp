@@ -15,6 +15,7 @@
 
 #include "server/domain/scene_catalog.h"
 #include "server/session/session_manager.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::server::http {
 namespace {
@@ -31,11 +32,6 @@ std::string Header(const HttpReply& r, const std::string& name) {
 class HttpApiTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_http_api_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
     sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
     domain_ = std::make_unique<Domain>(
@@ -58,7 +54,6 @@ class HttpApiTest : public ::testing::Test {
     domain_.reset();
     sessions_.reset();
     store_.reset();
-    fs::remove_all(dir_);
   }
 
   HttpReply Call(const std::string& method, const std::string& target, const std::string& body = "",
@@ -91,7 +86,7 @@ class HttpApiTest : public ::testing::Test {
     return done.get_future().get();
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"http_api"};  // first: it outlives the store in it
   ManualClock clock_{100};
   std::unique_ptr<db::Store> store_;
   std::unique_ptr<SessionManager> sessions_;

@@ -26,6 +26,7 @@
 #include "db/store.h"
 #include "server/session/session_manager.h"
 #include "tests/support/self_signed.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::server {
 namespace {
@@ -130,11 +131,6 @@ class Raw {
 class HttpServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_http_server_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
     admin_ = store_->InitAdmin("root").value();
     ASSERT_TRUE(store_->CreateUser("tina", db::Role::kTrainee, "novice").ok());
@@ -153,11 +149,10 @@ class HttpServerTest : public ::testing::Test {
     server_.reset();
     sessions_.reset();
     store_.reset();
-    fs::remove_all(dir_);
   }
   std::map<std::string, std::string> Bearer() { return {{"Authorization", "Bearer " + admin_}}; }
 
-  fs::path dir_;
+  test::TempDir dir_{"http_server"};  // first: it outlives the store in it
   std::unique_ptr<db::Store> store_;
   std::unique_ptr<SessionManager> sessions_;
   std::unique_ptr<HttpServer> server_;

@@ -16,6 +16,7 @@
 #include "common/core/clock.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::server {
 namespace {
@@ -27,11 +28,6 @@ using asio::ip::udp;
 class SessionManagerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_sessions_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
     EndpointOptions eo;
     eo.clock = &endpoint_clock_;
@@ -50,7 +46,6 @@ class SessionManagerTest : public ::testing::Test {
     sessions_.reset();
     endpoint_.reset();
     store_.reset();
-    fs::remove_all(dir_);
   }
 
   // The state the manager reports, once it is `want` (the sampler applies events on its tick).
@@ -85,7 +80,7 @@ class SessionManagerTest : public ::testing::Test {
     endpoint_->CheckTimeoutsNow();
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"sessions"};  // first: it outlives the store in it
   ManualClock clock_, endpoint_clock_;
   std::unique_ptr<db::Store> store_;
   std::unique_ptr<UdpEndpoint> endpoint_;
