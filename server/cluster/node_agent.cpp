@@ -2,6 +2,7 @@
 #include <openssl/rand.h>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <condition_variable>
@@ -112,7 +113,10 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     beat.set_epoch(0);
     v1::NodeLeaseReply reply;
     const auto sent = Lease::Clock::now();
-    auto ctx = CallContext(options.cluster.token, options.cluster.heartbeat_period_s);
+    // Longer than a heartbeat's deadline: an acquisition is a transaction that may wait on the
+    // name's row, and a node without a lease has nothing to renew meanwhile.
+    auto ctx = CallContext(options.cluster.token, std::min(options.cluster.call_timeout_s,
+                                                           options.cluster.heartbeat_timeout_s));
     const grpc::Status s = control->Acquire(ctx.get(), beat, &reply);
     if (!s.ok()) return s;
     lease.Grant(reply.epoch(), Until(sent, reply.lease_s()));
@@ -301,25 +305,34 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   }
   Impl* p = impl.get();
   // The name first. Held by another live process: it may be one that has just died (its lease
-  // runs out within the heartbeat timeout), so ask until then, and refuse to start after. An
-  // unreachable control plane does not stop the start: the heartbeat thread keeps asking.
+  // runs out within the heartbeat timeout), so ask until then, and refuse to start if it is
+  // still held. A control plane that does not answer (or answers too slowly, on a loaded
+  // machine) is asked again within the same window; one that never answers in it does not stop
+  // the start: the heartbeat thread keeps asking, and the node serves nothing until it holds the
+  // lease.
   p->control = v1::ClusterService::NewStub(Channel(options.control));
   const auto give_up = std::chrono::steady_clock::now() +
                        std::chrono::microseconds(static_cast<int64_t>(
                            (c.heartbeat_timeout_s + 2 * c.heartbeat_period_s) * 1e6));
+  bool held_elsewhere = false;
+  std::string last_error;
   for (;;) {
     const grpc::Status s = p->Acquire();
     if (s.ok()) break;
-    if (s.error_code() != grpc::StatusCode::ALREADY_EXISTS) {
-      if (s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
-          s.error_code() == grpc::StatusCode::INVALID_ARGUMENT)
-        return FromGrpc(s, "acquire the node name");
-      Log(options.name, "control_unreachable", "error=\"" + s.error_message() + "\"");
-      break;
-    }
+    if (s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
+        s.error_code() == grpc::StatusCode::INVALID_ARGUMENT)
+      return FromGrpc(s, "acquire the node name");
+    // A refusal is the last word until the control plane answers otherwise.
+    if (s.error_code() == grpc::StatusCode::ALREADY_EXISTS) held_elsewhere = true;
+    if (s.error_code() == grpc::StatusCode::ALREADY_EXISTS || !held_elsewhere)
+      last_error = s.error_message();
     if (std::chrono::steady_clock::now() >= give_up) {
-      p->server->Shutdown();
-      return Error{ErrorCode::kAlreadyExists, s.error_message(), "node-name"};
+      if (held_elsewhere) {
+        p->server->Shutdown();
+        return Error{ErrorCode::kAlreadyExists, last_error, "node-name"};
+      }
+      Log(options.name, "control_unreachable", "error=\"" + last_error + "\"");
+      break;
     }
     std::this_thread::sleep_for(
         std::chrono::microseconds(static_cast<int64_t>(c.heartbeat_period_s * 1e6)));
