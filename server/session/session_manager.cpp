@@ -235,7 +235,7 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   return Get(id);
 }
 
-Status SessionManager::End(uint64_t id, SessionState state, const std::string& reason) {
+Status SessionManager::End(uint64_t id, SessionState state, const std::string& reason, bool retry) {
   std::unique_ptr<Live> live;
   {
     std::lock_guard lock(mutex_);
@@ -250,8 +250,7 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   // The state and the trial in one transaction, under the session's epoch (invariant 3).
   const int64_t at = db::NowUs();
   Status s = store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics, live->epoch);
-  if (!s.ok() && s.error().code == ErrorCode::kUnavailable &&
-      std::this_thread::get_id() == sampler_.get_id())  // the sampler writes it again next tick
+  if (retry && !s.ok() && s.error().code == ErrorCode::kUnavailable)  // again next tick
     pending_.push_back({static_cast<int64_t>(id), state, at, reason, metrics, live->epoch});
   NotifyEnded(id);
   return s;
@@ -362,13 +361,13 @@ void SessionManager::Pump() {
   for (uint64_t id : expired) {
     char reason[64];
     std::snprintf(reason, sizeof reason, "not started within %g s", options_.start_timeout_s);
-    (void)End(id, SessionState::kAborted, reason);  // a failed write is kept by End, retried
+    (void)End(id, SessionState::kAborted, reason, /*retry=*/true);
   }
   if (!endpoint_) return;
   for (const SessionEvent& e : endpoint_->TakeEvents()) {
     const SessionState state = e.state;
     if (state == SessionState::kDisconnected) {
-      (void)End(e.session, SessionState::kDisconnected, "no stylus data for 5 s");
+      (void)End(e.session, SessionState::kDisconnected, "no stylus data for 5 s", /*retry=*/true);
       continue;
     }
     int64_t epoch = 0;

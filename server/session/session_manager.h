@@ -127,7 +127,9 @@ class SessionManager final : public Sessions {
     int64_t epoch = 0;          // the lease's when created: every store write carries it
   };
   SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
-  Status End(uint64_t id, SessionState state, const std::string& reason);
+  // `retry`: the sampler's own ends (Pump), whose write is kept and made again while the store is
+  // unavailable (sampler thread only).
+  Status End(uint64_t id, SessionState state, const std::string& reason, bool retry = false);
   // A state change the sampler could not write (invariant 2): kept and written again at the next
   // ticks while the store is unavailable; any other refusal (the node's lease is lost, the
   // session ended elsewhere) is final and logged. Sampler thread only.

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "common/geometry/distances.h"
+#include "common/sim/rooms/room_support.h"
 
 namespace vsurg::sim {
 
@@ -24,11 +25,7 @@ Expected<CoilRoom> CoilRoom::Build(const RoomInputs& in) {
 
 bool CoilRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
   if (mode_ == tissue::TwistMode::kLimb) {
-    const geometry::CentrelineProjection on_axis =
-        geometry::ProjectPointOntoPolyline(*centreline_, q.point);
-    f.axis_point = on_axis.point;
-    f.axis = on_axis.tangent;
-    f.lever = std::max(q.min_lever, (q.point - f.axis_point).norm());
+    f = LimbGraspFrame(*centreline_, q);
   } else {
     f.axis = q.normal;
     f.axis_point = q.point;

@@ -40,18 +40,12 @@ Expected<ReducedTwistRoom> ReducedTwistRoom::Build(const RoomInputs& in) {
 }
 
 bool ReducedTwistRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
-  const geometry::CentrelineProjection on_axis =
-      geometry::ProjectPointOntoPolyline(*centreline_, q.point);
-  f.axis_point = on_axis.point;
-  f.axis = on_axis.tangent;
-  f.lever = std::max(q.min_lever, (q.point - f.axis_point).norm());
+  f = LimbGraspFrame(*centreline_, q);
   return true;
 }
 
 TwistAnswer ReducedTwistRoom::Twist(double twist) const {
-  const double capacity = model_->torque_capacity();
-  const double torque = twist * model_->grasp_stiffness();
-  return {std::clamp(torque, -capacity, capacity), std::abs(torque) > capacity};
+  return LinearTwist(twist, model_->grasp_stiffness(), model_->torque_capacity());
 }
 
 std::optional<Deformed> ReducedTwistRoom::Deform(const DeformInput& in) {

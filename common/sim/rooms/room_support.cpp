@@ -1,8 +1,11 @@
 #include "common/sim/rooms/room_support.h"
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <mutex>
 
+#include "common/geometry/distances.h"
 #include "common/geometry/tet_generators.h"
 #include "common/geometry/tetrahedralize.h"
 
@@ -24,6 +27,21 @@ Expected<geometry::TetMesh> ReducedFemMesh(const Scene& scene, const geometry::T
   if (!fem.ok())
     return Error{fem.error().code, scene.mesh.path + ": " + fem.error().message, "mesh"};
   return fem;
+}
+
+GraspFrame LimbGraspFrame(const std::vector<geometry::Vec3>& centreline, const GraspQuery& q) {
+  const geometry::CentrelineProjection on_axis =
+      geometry::ProjectPointOntoPolyline(centreline, q.point);
+  GraspFrame f;
+  f.axis_point = on_axis.point;
+  f.axis = on_axis.tangent;
+  f.lever = std::max(q.min_lever, (q.point - f.axis_point).norm());
+  return f;
+}
+
+TwistAnswer LinearTwist(double twist, double stiffness, double capacity) {
+  const double torque = twist * stiffness;
+  return {std::clamp(torque, -capacity, capacity), std::abs(torque) > capacity};
 }
 
 geometry::Vec3 RestPoint(const geometry::TriMesh& rest, int triangle,

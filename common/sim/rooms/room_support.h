@@ -24,6 +24,14 @@ tissue::FemParams SceneMaterial(const Scene& scene);
 // radius, or the mesh file's closed surface tetrahedralised (CGAL).
 Expected<geometry::TetMesh> ReducedFemMesh(const Scene& scene, const geometry::TriMesh& rest);
 
+// A limb grasp's frame: the axis is the centreline where it passes the grasp, the lever the
+// grasp's distance from it (at least the scene's least lever). Haptic thread; no allocation.
+GraspFrame LimbGraspFrame(const std::vector<geometry::Vec3>& centreline, const GraspQuery& q);
+
+// A linear twist answer, T = Φ·k up to the capacity (overloaded beyond it): the FEM's twist
+// fields (reduced twist, surface twist). k in N·m/rad, capacity in N·m.
+TwistAnswer LinearTwist(double twist, double stiffness, double capacity);
+
 // A point of the rest surface given by its triangle and barycentric coordinates.
 geometry::Vec3 RestPoint(const geometry::TriMesh& rest, int triangle,
                          const geometry::Vec3& barycentric);

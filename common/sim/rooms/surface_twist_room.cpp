@@ -41,9 +41,7 @@ bool SurfaceTwistRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) {
 }
 
 TwistAnswer SurfaceTwistRoom::Twist(double twist) const {
-  const double torque = twist * grasp_stiffness_;
-  return {std::clamp(torque, -grasp_capacity_, grasp_capacity_),
-          std::abs(torque) > grasp_capacity_};
+  return LinearTwist(twist, grasp_stiffness_, grasp_capacity_);
 }
 
 std::optional<Deformed> SurfaceTwistRoom::Deform(const DeformInput& in) {
