@@ -81,6 +81,9 @@ int Main(std::vector<std::string> args) {
       .Option("udp-port", Kind::kInt, "UDP port (0: any free one)", false, "50052")
       .Option("public-host", Kind::kString,
               "host stations are told to send to (default: udp-address)")
+      .Option("public-port", Kind::kInt,
+              "UDP port stations are told to send to (default: the endpoint's; a relay or NAT in "
+              "front of it listens on another)")
       .Option("tls-cert", Kind::kString, "PEM certificate for gRPC TLS")
       .Option("tls-key", Kind::kString, "PEM private key for gRPC TLS")
       .Option("allow-insecure", Kind::kFlag,
@@ -217,6 +220,14 @@ int Main(std::vector<std::string> args) {
     endpoint = std::move(created).value();
     vsurg::server::SessionManagerOptions so;
     so.udp_host = p.Has("public-host") ? p.String("public-host") : eo.address;
+    if (p.Has("public-port")) {
+      const int public_port = p.Int("public-port");
+      if (public_port < 1 || public_port > 65535) {
+        std::cerr << "vsurg-server: --public-port: must be within 1..65535\n";
+        return 2;
+      }
+      so.udp_port = static_cast<uint16_t>(public_port);
+    }
     so.telemetry_hz = telemetry_hz;
     so.max_live_sessions = max_sessions;
     so.max_sessions_per_user = per_user;
@@ -241,7 +252,7 @@ int Main(std::vector<std::string> args) {
       no.advertise = p.Has("advertise") ? p.String("advertise") : "";
       no.control = p.String("control");
       no.udp_host = so.udp_host;
-      no.udp_port = endpoint->port();
+      no.udp_port = so.udp_port ? so.udp_port : endpoint->port();
       no.capacity = p.Int("capacity");
       no.cluster = cluster;
       no.lease = &lease;

@@ -1,11 +1,12 @@
 #include "client/device/device_registry.h"
 
+#include "client/device/virtual_hand.h"
 #include "common/sim/trajectory.h"
 
 namespace vsurg::client {
 
 std::vector<std::string> AvailableDeviceKinds() {
-  std::vector<std::string> kinds = {"replay", "keyboard-mouse"};
+  std::vector<std::string> kinds = {"replay", "virtual-hand", "keyboard-mouse"};
 #ifdef VSURG_HAVE_OPENHAPTICS
   kinds.push_back("openhaptics");
 #endif
@@ -34,6 +35,22 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
     return std::unique_ptr<HapticDevice>(
         new KeyboardMouseDevice(r.window_input, r.start, r.twist_axis, 0.05, *limits));
   }
+  if (r.kind == "virtual-hand") {
+    // The trajectory is the hand's plan; the station's force pushes the hand off it.
+    auto limits = haptics::DeviceLimitsByName(r.limits);
+    if (!limits.ok()) return limits.error();
+    if (r.trajectory.empty())
+      return InvalidArgument("--trajectory", "the virtual hand needs a plan (a trajectory CSV)");
+    auto plan = sim::ReadTrajectoryCsv(r.trajectory);
+    if (!plan.ok()) return plan.error();
+    auto grip = GripByName(r.grip);
+    if (!grip.ok()) return grip.error();
+    DeviceModel model;
+    model.limits = *limits;
+    auto hand = VirtualHandDevice::Create(std::move(*plan), *grip, model);
+    if (!hand.ok()) return hand.error();
+    return std::unique_ptr<HapticDevice>(std::move(*hand));
+  }
   if (r.kind == "openhaptics") {
 #ifdef VSURG_HAVE_OPENHAPTICS
     return OpenOpenHapticsDevice(r);
@@ -54,8 +71,9 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
                  "--device"};
 #endif
   }
-  return InvalidArgument(
-      "--device", "unknown device '" + r.kind + "' (replay, keyboard-mouse, openhaptics, falcon)");
+  return InvalidArgument("--device",
+                         "unknown device '" + r.kind +
+                             "' (replay, virtual-hand, keyboard-mouse, openhaptics, falcon)");
 }
 
 }  // namespace vsurg::client

@@ -1,6 +1,8 @@
 // Opening a device by name: the station's --device option. Real devices are plug-ins compiled
 // only when their SDK is found at configure time (docs/DEVICES.md):
 //   replay          a trajectory CSV (vsurg-sim trainee --out, or a recording)    always
+//   virtual-hand    a simulated hand following a plan (the same CSV), pushed back by the
+//                   rendered force: closed loop for tests and benchmarks            always
 //   keyboard-mouse  the station's window                                         always
 //   openhaptics     3D Systems Touch / Phantom through the OpenHaptics HD API
 //   VSURG_HAVE_OPENHAPTICS falcon          Novint Falcon through libnifalcon VSURG_HAVE_NIFALCON
@@ -18,9 +20,11 @@ namespace vsurg::client {
 
 struct DeviceRequest {
   std::string kind = "replay";
-  std::string trajectory;                     // replay: the CSV file
-  std::string limits = "touch";               // replay, keyboard-mouse: "touch" or "omni" presets
-  std::function<WindowInput()> window_input;  // keyboard-mouse
+  std::string trajectory;        // replay: the CSV file
+  std::string limits = "touch";  // replay, virtual-hand, keyboard-mouse: "touch" or "omni" presets
+  std::string grip =
+      "relaxed";  // virtual-hand: "relaxed" or "tensed" (client/device/virtual_hand.h)
+  std::function<WindowInput()> window_input;              // keyboard-mouse
   Eigen::Vector3d start = Eigen::Vector3d::Zero();        // keyboard-mouse: where the tip starts, m
   Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ();  // keyboard-mouse
   std::string device_name;  // openhaptics: the HD device name ("" = default)

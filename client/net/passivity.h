@@ -1,14 +1,27 @@
 // Passivity observer and controller (Hannaford & Ryu 2002, "Time-domain passivity control of
-// haptic interfaces").
+// haptic interfaces"), for a force held by a zero-order hold.
 //
-// The observer integrates the energy the rendered force has taken out of the hand,
-// E = −Σ F·v·Δt (F the force on the hand, v its velocity). A passive virtual environment keeps
-// E ≥ 0: it can give back no more than it was given. When E < 0 the coupling has generated
-// energy (a stale or extrapolated local model, a stiff spring sampled too slowly); the
-// controller then adds the damping α = −E/(|v|²Δt) for that sample, capped at max_damping, which
-// dissipates exactly the excess.
+// A device outputs the force F_k computed at cycle k for the whole servo interval that follows,
+// until F_{k+1} replaces it; over that interval the hand moves from x_k to x_{k+1}. The energy
+// the hand really exchanged with the environment is therefore
+//   E_k = −Σ_{j<k} F_j · (x_{j+1} − x_j)        (J; > 0: absorbed by the environment)
+// which pairs each force with the motion *after* it. Pairing F_k with the step *into* x_k
+// instead (F_k·(x_k − x_{k−1})) reads a sampled spring under tremor as absorbing when it is in
+// fact giving the hand energy (Σ k·Δx²/2 per cycle); that was this observer's first version.
+// A passive environment keeps E ≥ 0. When E < 0, the controller adds to the force about to be
+// held the damping α = −(E + E₀)/(|v|²·Δt) along the latest velocity v, capped at max_damping,
+// which dissipates the excess if the hand keeps moving as it did; the next observation measures
+// what it really dissipated. E₀ (reserve, default 0.1 mJ) is the initial energy of the passivity
+// definition E(t) ≥ −E₀: without it the controller acts on every sampled spring's sliver (a
+// 200 N/m spring under a 1 cm, 2 Hz stroke returns ~25 µJ more than it took per half stroke),
+// damping hardest where the hand moves fastest; with it, it acts only on energy that adds up.
 //
-// Threads: one per device loop; no allocation. Units: N, m/s, s, J, N·s/m.
+// In free space (a zero request) the balance restarts at zero: nothing is stored there, and a
+// controller that damped a free hand to settle an old debt would be felt as drag.
+//
+// Call order per servo cycle: Apply(f, x, dt) with the position read now and the force asked for
+// the coming interval, then Held(out) with the force actually written (after the safety filter).
+// Threads: one per device loop; no allocation. Units: N, m, s, J, N·s/m.
 #pragma once
 
 #include <algorithm>
@@ -19,30 +32,54 @@ namespace vsurg::client {
 
 class PassivityController {
  public:
-  explicit PassivityController(double max_damping = 5.0) : max_damping_(max_damping) {}
+  // max_damping 0: observe only.
+  explicit PassivityController(double max_damping = 5.0, double reserve_j = 1e-4)
+      : max_damping_(max_damping), reserve_(reserve_j) {}
 
-  Eigen::Vector3d Apply(const Eigen::Vector3d& force, const Eigen::Vector3d& velocity, double dt) {
-    if (!force.allFinite() || !velocity.allFinite() || !(dt > 0))
-      return force.allFinite() ? force : Eigen::Vector3d::Zero();
-    Eigen::Vector3d f = force;
-    energy_ -= f.dot(velocity) * dt;
-    const double v2 = velocity.squaredNorm();
-    if (energy_ < 0 && v2 > 1e-12) {
-      const double alpha = std::min(max_damping_, -energy_ / (v2 * dt));
-      f -= alpha * velocity;
-      energy_ += alpha * v2 * dt;
+  Eigen::Vector3d Apply(const Eigen::Vector3d& force, const Eigen::Vector3d& position, double dt) {
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    if (position.allFinite()) {
+      if (has_last_) {
+        const Eigen::Vector3d step = position - last_x_;
+        const double w = held_.dot(step);  // work the held force did on the hand
+        energy_ -= w;
+        (w > 0 ? to_hand_ : from_hand_) += std::abs(w);
+        if (dt > 0) v = step / dt;
+      }
+      last_x_ = position;
+      has_last_ = true;
+    }
+    Eigen::Vector3d f = force.allFinite() ? force : Eigen::Vector3d::Zero();
+    if (f.isZero(0.0)) {
+      // Free space (or the watchdog's fade has ended): the environment holds no energy, so its
+      // balance starts afresh at the next contact (Ryu et al. 2004) instead of the controller
+      // dragging a free hand to settle an old account. The totals below keep the whole record.
+      energy_ = 0;
+      held_ = f;
+      return f;
+    }
+    const double v2 = v.squaredNorm();
+    if (energy_ + reserve_ < 0 && v2 > 1e-12 && dt > 0 && max_damping_ > 0) {
+      const double alpha = std::min(max_damping_, -(energy_ + reserve_) / (v2 * dt));
+      f -= alpha * v;
       dissipated_ += alpha * v2 * dt;
     }
+    held_ = f;
     return f;
   }
+  // The force actually output for the interval Apply began (after any later filter).
+  void Held(const Eigen::Vector3d& out) { held_ = out.allFinite() ? out : Eigen::Vector3d::Zero(); }
 
   double energy() const { return energy_; }          // J absorbed by the environment so far
-  double dissipated() const { return dissipated_; }  // J the controller removed
+  double to_hand() const { return to_hand_; }        // J of positive work on the hand
+  double from_hand() const { return from_hand_; }    // J the hand put in
+  double dissipated() const { return dissipated_; }  // J the controller meant to remove
 
  private:
-  double max_damping_;
-  double energy_ = 0;
-  double dissipated_ = 0;
+  double max_damping_, reserve_;
+  double energy_ = 0, to_hand_ = 0, from_hand_ = 0, dissipated_ = 0;
+  Eigen::Vector3d held_ = Eigen::Vector3d::Zero(), last_x_ = Eigen::Vector3d::Zero();
+  bool has_last_ = false;
 };
 
 }  // namespace vsurg::client

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bitset>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <deque>
 #include <mutex>
 #include <thread>
@@ -21,6 +23,54 @@ namespace asio = boost::asio;
 using asio::ip::udp;
 using SteadyTime = std::chrono::steady_clock;  // the device loop's real-time pacing
 using Vec3 = Eigen::Vector3d;
+
+Expected<LocalRendering> ParseLocalRendering(const std::string& name) {
+  if (name == "server") return LocalRendering::kServerForce;
+  if (name == "linear") return LocalRendering::kLinear;
+  if (name == "model") return LocalRendering::kModel;
+  return InvalidArgument("local-model", "'" + name + "' is not one of server, linear, model");
+}
+
+namespace {
+
+// Which of the last 4096 sequence numbers were seen: tells a reordered datagram from a copy, and
+// counts the distinct ones (the rest, up to the newest, were lost).
+class SequenceWindow {
+ public:
+  enum class Kind { kNewest, kReordered, kDuplicate, kTooOld };
+  Kind Add(uint64_t seq) {
+    if (seq > newest_) {
+      if (seq - newest_ >= kSize) {
+        seen_.reset();
+      } else {
+        for (uint64_t s = newest_ + 1; s < seq; ++s) seen_.reset(s % kSize);
+      }
+      newest_ = seq;
+      seen_.set(seq % kSize);
+      ++distinct_;
+      return Kind::kNewest;
+    }
+    if (newest_ - seq >= kSize) return Kind::kTooOld;
+    if (seen_.test(seq % kSize)) return Kind::kDuplicate;
+    seen_.set(seq % kSize);
+    ++distinct_;
+    return Kind::kReordered;
+  }
+  uint64_t newest() const { return newest_; }
+  uint64_t missing() const { return newest_ - std::min(newest_, distinct_); }
+
+ private:
+  static constexpr uint64_t kSize = 4096;
+  std::bitset<kSize> seen_;
+  uint64_t newest_ = 0, distinct_ = 0;
+};
+
+// One servo cycle as the force log writes it (station_channel.h, StationOptions::force_log).
+struct LogRow {
+  double t, x, y, z, fx, fy, fz;
+};
+
+}  // namespace
 
 struct StationChannel::Impl {
   struct Latest {
@@ -45,7 +95,9 @@ struct StationChannel::Impl {
   std::array<uint8_t, wire::kMaxDatagram + 1> rx{};
   wire::Codec rx_codec;
   wire::ForceMessage rx_message;
-  uint64_t last_rx_sequence = 0;
+  SequenceWindow answers;   // the server's datagram sequence: reordered and duplicated answers
+  SequenceWindow answered;  // the echoed stylus sequences: what never came back
+  double last_applied_s = -1;
   // RTT ring (network thread writes, stats() reads under the mutex).
   mutable std::mutex stats_mutex;
   std::vector<double> rtt_us;
@@ -53,7 +105,8 @@ struct StationChannel::Impl {
   double jitter_sum = 0, last_rtt = -1;
   std::atomic<double> reported_rtt_us{0};  // receive thread → device thread (telemetry)
   uint64_t jitter_n = 0;
-  std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, scene_chunks{0};
+  std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
+      newest_answered{0}, scene_chunks{0};
   uint64_t last_frame_sequence = 0;
   wire::SceneChunk chunk;
   std::mutex scene_mutex;  // network thread and the render thread, never the device thread
@@ -63,7 +116,12 @@ struct StationChannel::Impl {
   std::array<uint8_t, wire::kMaxDatagram> tx{};
   wire::Codec tx_codec;
   std::atomic<uint64_t> sent{0}, fades{0};
-  std::atomic<double> dissipated{0}, max_force{0};
+  std::atomic<double> dissipated{0}, max_force{0}, to_hand{0}, from_hand{0};
+  // The force log: the device thread produces rows, the log thread writes them (SPSC ring).
+  std::FILE* log_file = nullptr;
+  std::vector<LogRow> log_ring;
+  std::atomic<uint64_t> log_head{0}, log_tail{0}, log_rows{0}, log_dropped{0};
+  std::thread log_thread;
   std::atomic<uint64_t> loop_iterations{0};
   std::atomic<double> loop_seconds{0}, loop_hz_min{0}, loop_hz_max{0};
   std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
@@ -107,16 +165,26 @@ struct StationChannel::Impl {
       dropped.fetch_add(1, std::memory_order_relaxed);
       return;
     }
-    if (o.header.sequence <= last_rx_sequence) {
-      stale.fetch_add(1, std::memory_order_relaxed);
-      return;
-    }
     if (rx_codec.DecodeForce(o.payload, rx_message) != wire::DropReason::kNone) {
       dropped.fetch_add(1, std::memory_order_relaxed);
       return;
     }
-    last_rx_sequence = o.header.sequence;
+    const SequenceWindow::Kind kind = answers.Add(o.header.sequence);
+    if (kind == SequenceWindow::Kind::kDuplicate) {
+      duplicates.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    answered.Add(rx_message.echo_sequence);
+    lost.store(answered.missing(), std::memory_order_relaxed);
+    newest_answered.store(answered.newest(), std::memory_order_relaxed);
+    if (kind != SequenceWindow::Kind::kNewest) {  // an older answer after a newer: latest wins
+      stale.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
     const double now = Now();
+    if (last_applied_s >= 0 && now - last_applied_s > options.watchdog_s)
+      late.fetch_add(1, std::memory_order_relaxed);
+    last_applied_s = now;
     Latest& back = latest.Back();
     back.message = rx_message;
     back.received_s = now;
@@ -132,15 +200,47 @@ struct StationChannel::Impl {
     }
   }
 
+  // Device thread: one row into the ring, or counted as dropped when the writer is behind.
+  void Log(const LogRow& row) {
+    const uint64_t head = log_head.load(std::memory_order_relaxed);
+    if (head - log_tail.load(std::memory_order_acquire) >= log_ring.size()) {
+      log_dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    log_ring[head % log_ring.size()] = row;
+    log_head.store(head + 1, std::memory_order_release);
+  }
+
+  // Log thread: writes what the device thread produced, every 20 ms, until stopped and drained.
+  void LogLoop() {
+    std::fseek(log_file, 0, SEEK_END);
+    if (std::ftell(log_file) == 0) std::fputs("t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n", log_file);
+    for (;;) {
+      const bool stopping = stop.load();
+      const uint64_t head = log_head.load(std::memory_order_acquire);
+      uint64_t tail = log_tail.load(std::memory_order_relaxed);
+      for (; tail < head; ++tail) {
+        const LogRow& r = log_ring[tail % log_ring.size()];
+        std::fprintf(log_file, "%.6f,%.7g,%.7g,%.7g,%.6g,%.6g,%.6g\n", r.t, r.x, r.y, r.z, r.fx,
+                     r.fy, r.fz);
+        log_rows.fetch_add(1, std::memory_order_relaxed);
+        log_tail.store(tail + 1, std::memory_order_release);
+      }
+      if (stopping && tail == log_head.load(std::memory_order_acquire)) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    std::fflush(log_file);
+  }
+
   void DeviceLoop() {
     auto safety = *haptics::SafetyFilter::Create(device->limits());
     const auto period = std::chrono::duration_cast<SteadyTime::duration>(
         std::chrono::duration<double>(1.0 / options.rate_hz));
     auto next = SteadyTime::now();
     uint64_t sequence = 0;
-    Vec3 last_x = Vec3::Zero();
-    bool have_x = false, fading = false;
-    PassivityController passivity(options.max_damping);
+    bool fading = false;
+    // Always observing; controlling only when asked.
+    PassivityController passivity(options.passivity ? options.max_damping : 0.0);
     wire::StylusMessage m;
     const auto loop_start = SteadyTime::now();
     auto second_start = loop_start;
@@ -162,9 +262,6 @@ struct StationChannel::Impl {
       const double dt = 1.0 / options.rate_hz;
       haptics::StylusSample s = device->Read();
       s.time = now;  // the station clock: the server echoes it back for the round trip
-      const Vec3 v =
-          have_x && s.position.allFinite() ? Vec3((s.position - last_x) / dt) : Vec3::Zero();
-      if (s.position.allFinite()) last_x = s.position, have_x = true;
       m.sample = s;
       m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
       const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
@@ -179,7 +276,18 @@ struct StationChannel::Impl {
       const Latest& l = latest.Front();
       Vec3 f = Vec3::Zero();
       if (l.received_s >= 0 && s.position.allFinite()) {
-        f = l.message.command.local.ForceAt(s.position);
+        const haptics::ForceCommand& answer = l.message.command;
+        switch (options.rendering) {
+          case LocalRendering::kServerForce:
+            f = answer.force;
+            break;
+          case LocalRendering::kLinear:
+            f = answer.local.ForceAt(s.position);
+            break;
+          case LocalRendering::kModel:
+            f = answer.local.Render(s.position, s.orientation, s.buttons);
+            break;
+        }
         const double age = now - l.received_s;
         if (age > options.watchdog_s) {
           if (!fading) fades.fetch_add(1, std::memory_order_relaxed);
@@ -190,10 +298,7 @@ struct StationChannel::Impl {
         }
       }
       // Passivity observer/controller: the coupling must not put energy into the hand.
-      if (options.passivity) {
-        f = passivity.Apply(f, v, dt);
-        dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
-      }
+      f = passivity.Apply(f, s.position, dt);
       uint32_t events = 0;
       Vec3 out = safety.Filter(f, dt, events);
       if (l.received_s < 0) {
@@ -204,6 +309,12 @@ struct StationChannel::Impl {
         out.setZero();
       }
       device->WriteForce(out);
+      passivity.Held(out);
+      dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
+      to_hand.store(passivity.to_hand(), std::memory_order_relaxed);
+      from_hand.store(passivity.from_hand(), std::memory_order_relaxed);
+      if (log_file)
+        Log({now, s.position.x(), s.position.y(), s.position.z(), out.x(), out.y(), out.z()});
       last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
       StationView& shown = view.Back();
       shown.sample = s;
@@ -230,6 +341,14 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
     return InvalidArgument("watchdog", "times must be > 0");
   auto impl = std::make_unique<Impl>(options);
   impl->device = device;
+  if (!options.force_log.empty()) {
+    // Appended: a station's channels (one per session, after a reconnect) share one log.
+    impl->log_file = std::fopen(options.force_log.c_str(), "a");
+    if (!impl->log_file)
+      return InvalidArgument("force_log", "cannot write '" + options.force_log + "'");
+    static_assert(sizeof(LogRow) == 56);
+    impl->log_ring.resize(1 << 15);  // 33 s of rows at 1 kHz: the writer never falls that far
+  }
   impl->rtt_us.assign(1 << 16, 0.0);
   boost::system::error_code ec;
   const auto address = asio::ip::make_address(options.server_address, ec);
@@ -252,6 +371,7 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
     TrySetRealtimePriority(p->options.realtime_priority);
     p->DeviceLoop();
   });
+  if (p->log_file) p->log_thread = std::thread([p] { p->LogLoop(); });
   return std::unique_ptr<StationChannel>(new StationChannel(std::move(impl)));
 }
 
@@ -264,6 +384,8 @@ StationChannel::~StationChannel() {
 void StationChannel::Stop() {
   if (!impl_ || impl_->stop.exchange(true)) return;
   if (impl_->device_thread.joinable()) impl_->device_thread.join();
+  if (impl_->log_thread.joinable()) impl_->log_thread.join();
+  if (impl_->log_file) std::fclose(impl_->log_file), impl_->log_file = nullptr;
   impl_->device->WriteForce(Vec3::Zero());  // the hand is not left holding the last force
   impl_->last_fx = 0, impl_->last_fy = 0, impl_->last_fz = 0;
   asio::post(impl_->io, [p = impl_.get()] {
@@ -279,6 +401,13 @@ StationStats StationChannel::stats() const {
   s.received = impl_->received.load();
   s.dropped = impl_->dropped.load();
   s.stale = impl_->stale.load();
+  s.duplicates = impl_->duplicates.load();
+  s.lost = impl_->lost.load();
+  s.late = impl_->late.load();
+  s.energy_to_hand = impl_->to_hand.load();
+  s.energy_from_hand = impl_->from_hand.load();
+  s.force_log_rows = impl_->log_rows.load();
+  s.force_log_dropped = impl_->log_dropped.load();
   s.watchdog_fades = impl_->fades.load();
   s.scene_chunks = impl_->scene_chunks.load();
   s.passivity_energy_dissipated = impl_->dissipated.load();
@@ -288,9 +417,8 @@ StationStats StationChannel::stats() const {
   s.loop_hz = s.loop_seconds > 0 ? static_cast<double>(s.loop_iterations) / s.loop_seconds : 0.0;
   s.loop_hz_min = impl_->loop_hz_min.load();
   s.loop_hz_max = impl_->loop_hz_max.load();
-  s.loss = s.sent > 0
-               ? std::max(0.0, 1.0 - static_cast<double>(s.received) / static_cast<double>(s.sent))
-               : 0.0;
+  const uint64_t newest = impl_->newest_answered.load();
+  s.loss = newest > 0 ? static_cast<double>(s.lost) / static_cast<double>(newest) : 0.0;
   std::vector<double> rtt;
   {
     std::lock_guard<std::mutex> lock(impl_->stats_mutex);

@@ -27,6 +27,16 @@
 
 namespace vsurg::client {
 
+// What the device thread renders between the server's answers (docs/BENCHMARKS.md compares
+// them side by side across network profiles):
+//   kServerForce  the latest answer's force, held (no local model);
+//   kLinear       F₀ + J·(x − x₀) everywhere, whatever the answer's kind (the second wave's);
+//   kModel        the answer's local model by its kind (haptics::LocalModel::Render): contact
+//                 only on the surface's side, grasp only while the button is held, the twist's
+//                 own stiffness; the surface ahead of contact.
+enum class LocalRendering { kServerForce, kLinear, kModel };
+Expected<LocalRendering> ParseLocalRendering(const std::string& name);  // server, linear, model
+
 struct StationOptions {
   std::string server_address = "127.0.0.1";
   uint16_t server_port = 0;
@@ -38,20 +48,38 @@ struct StationOptions {
   bool passivity = true;
   int realtime_priority = 0;  // > 0: SCHED_FIFO at this priority for both threads, if permitted
   double max_damping = 5.0;   // N·s/m the passivity controller may add
+  LocalRendering rendering = LocalRendering::kModel;
+  // Non-empty: one CSV row per servo cycle, `t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n` (station clock,
+  // stylus position, the force sent to the device after every filter), written by a thread of
+  // its own so the device loop never waits on the disk (rows that find the queue full are
+  // counted in StationStats::force_log_dropped, never waited for).
+  std::string force_log;
   // The station clock (sample times, round trips, the watchdog and its fade); null: the steady
   // clock. The device loop itself is paced by real time at rate_hz whatever this clock says.
   const Clock* clock = nullptr;
 };
 
 struct StationStats {
-  uint64_t sent = 0, received = 0, dropped = 0, stale = 0;
+  uint64_t sent = 0, received = 0, dropped = 0;
+  // Answers that arrived after a newer one (not applied: latest wins), and copies of one already
+  // seen. Neither is loss.
+  uint64_t stale = 0, duplicates = 0;
+  // Stylus datagrams never answered, up to the newest answered one (either direction's loss; the
+  // ones still in flight are not counted), and answers that came after the watchdog had begun to
+  // fade the force (late enough to be felt).
+  uint64_t lost = 0, late = 0;
   double rtt_p50_us = 0, rtt_p99_us = 0, rtt_p999_us = 0;
   double jitter_us = 0;                    // mean |RTT_i − RTT_{i−1}|
-  double loss = 0;                         // 1 − received / sent
+  double loss = 0;                         // lost / the newest answered stylus sequence
   uint64_t watchdog_fades = 0;             // times the watchdog started fading
   uint64_t scene_chunks = 0;               // SceneFrame datagrams received
   double passivity_energy_dissipated = 0;  // J the controller removed
-  double max_force = 0;                    // N rendered
+  // The passivity observer's record of the force held over each servo interval against that
+  // interval's motion: positive work on the hand, and work the hand put in (J). Their difference
+  // is the energy the rendering gave the hand; > 0 means the loop was active.
+  double energy_to_hand = 0, energy_from_hand = 0;
+  uint64_t force_log_rows = 0, force_log_dropped = 0;
+  double max_force = 0;  // N rendered
   // The device loop, paced by real time at rate_hz: iterations over its running time, and the
   // slowest and fastest whole second (0 before the first second ends).
   uint64_t loop_iterations = 0;

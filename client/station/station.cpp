@@ -43,6 +43,13 @@ void Add(StationStats& sum, const StationStats& s) {
   sum.received += s.received;
   sum.dropped += s.dropped;
   sum.stale += s.stale;
+  sum.duplicates += s.duplicates;
+  sum.lost += s.lost;
+  sum.late += s.late;
+  sum.energy_to_hand += s.energy_to_hand;
+  sum.energy_from_hand += s.energy_from_hand;
+  sum.force_log_rows += s.force_log_rows;
+  sum.force_log_dropped += s.force_log_dropped;
   sum.watchdog_fades += s.watchdog_fades;
   sum.scene_chunks += s.scene_chunks;
   sum.passivity_energy_dissipated += s.passivity_energy_dissipated;
@@ -183,6 +190,8 @@ Status Station::Connect() {
   std::copy(created.session_key().begin(), created.session_key().end(), options.key.begin());
   options.rate_hz = config_.rate_hz;
   options.realtime_priority = config_.realtime_priority;
+  options.rendering = config_.rendering;
+  options.force_log = config_.force_log;
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
   {
@@ -318,7 +327,9 @@ StationStats Station::total_stats() const {
     sum.rtt_p999_us = now.rtt_p999_us;
     sum.jitter_us = now.jitter_us;
   }
-  sum.loss = sum.sent > 0 ? std::max(0.0, 1.0 - double(sum.received) / double(sum.sent)) : 0.0;
+  // Loss over all sessions: what never came back, over what was sent (each channel counts its
+  // own up to its newest answer; the summed sends include the last in-flight few).
+  sum.loss = sum.sent > 0 ? std::min(1.0, double(sum.lost) / double(sum.sent)) : 0.0;
   return sum;
 }
 

@@ -54,6 +54,8 @@ struct StationConfig {
   double tick_s = 0.01;        // the supervisor thread's period
   bool reconnect = true;       // false: a lost server ends the station with an error
   int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
+  LocalRendering rendering = LocalRendering::kModel;  // between the server's answers
+  std::string force_log;  // non-empty: the rendered force per servo cycle (StationOptions)
 };
 
 enum class StationState { kConnecting, kLive, kReconnecting, kFinished, kFailed };

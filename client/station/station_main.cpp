@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/device/device_registry.h"
+#include "client/device/virtual_hand.h"
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
@@ -65,10 +66,20 @@ int Run(const std::vector<std::string>& args) {
   client::AddRemoteOptions(p);
   p.Option("scene", Kind::kString, "scene to train on", false, "arm-torsion")
       .Option("join", Kind::kInt, "join this session, prepared for you by an instructor")
-      .Option("device", Kind::kString, "replay, keyboard-mouse, openhaptics or falcon", false,
-              "replay")
-      .Option("trajectory", Kind::kString, "replay: trajectory CSV (vsurg-sim trainee --out)")
-      .Option("limits", Kind::kString, "replay, keyboard-mouse: touch or omni", false, "touch")
+      .Option("device", Kind::kString,
+              "replay, virtual-hand, keyboard-mouse, openhaptics or falcon", false, "replay")
+      .Option("trajectory", Kind::kString,
+              "replay: trajectory CSV (vsurg-sim trainee --out); virtual-hand: its plan")
+      .Option("limits", Kind::kString, "replay, virtual-hand, keyboard-mouse: touch or omni", false,
+              "touch")
+      .Option("grip", Kind::kString, "virtual-hand: relaxed or tensed", false, "relaxed")
+      .Option("local-model", Kind::kString,
+              "what is rendered between the server's answers: model (the answer's local model by "
+              "its kind: contact, grasp, the surface ahead), linear (F0 + J dx everywhere) or "
+              "server (the answer's force, held)",
+              false, "model")
+      .Option("force-log", Kind::kString,
+              "CSV of the force sent to the device per servo cycle: t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n")
       .Option("rate", Kind::kDouble, "haptic rate, Hz", false, "1000")
       .Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
       .Option("width", Kind::kInt, "image width, px", false, "960")
@@ -106,6 +117,9 @@ int Run(const std::vector<std::string>& args) {
   request.kind = p.String("device");
   if (p.Has("trajectory")) request.trajectory = p.String("trajectory");
   request.limits = p.String("limits");
+  request.grip = p.String("grip");
+  auto rendering = client::ParseLocalRendering(p.String("local-model"));
+  if (!rendering.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), rendering.error());
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
   for (const auto& v : mesh->surface.positions) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
   Eigen::Index longest = 0;
@@ -139,6 +153,10 @@ int Run(const std::vector<std::string>& args) {
     if (!device.ok()) return Fail(device.error().message);
   }
   auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
+  auto* hand = dynamic_cast<client::VirtualHandDevice*>(device->get());
+  const auto played_out = [&] {
+    return (replay && replay->finished()) || (hand && hand->finished());
+  };
 
   client::StationConfig config;
   config.scene = p.String("scene");
@@ -150,6 +168,16 @@ int Run(const std::vector<std::string>& args) {
     config.join = static_cast<uint64_t>(p.Int("join"));
   }
   config.rate_hz = p.Double("rate");
+  config.rendering = *rendering;
+  if (p.Has("force-log")) {
+    config.force_log = p.String("force-log");
+    // Truncated once here; each session's channel appends (one log across reconnects).
+    std::FILE* f = std::fopen(config.force_log.c_str(), "w");
+    if (!f)
+      return std::cerr << "vsurg-station: --force-log: cannot write '" << config.force_log << "'\n",
+             2;
+    std::fclose(f);
+  }
   config.reconnect = !p.Flag("no-reconnect");
   config.realtime_priority = p.Int("realtime-priority");
   if (config.realtime_priority < 0 || config.realtime_priority > 99)
@@ -255,7 +283,7 @@ int Run(const std::vector<std::string>& args) {
 
     // When to stop: the replay played out (and settled), the time is up, the window closed, or
     // a signal. The last frame is kept for --screenshot without --screenshot-at.
-    if (live && replay && replay->finished() && replay_done_at < 0) replay_done_at = live_now;
+    if (live && played_out() && replay_done_at < 0) replay_done_at = live_now;
     const double duration = p.Double("duration");
     bool done = g_interrupted || gl->ShouldClose();
     if (duration > 0 && live && live_now >= duration) done = true;
@@ -291,8 +319,20 @@ int Run(const std::vector<std::string>& args) {
                         {"sent", stats.sent},
                         {"received", stats.received},
                         {"loss", stats.loss},
+                        {"lost", stats.lost},
+                        {"stale", stats.stale},
+                        {"duplicates", stats.duplicates},
+                        {"late", stats.late},
+                        {"dropped", stats.dropped},
                         {"rtt_p50_us", stats.rtt_p50_us},
                         {"rtt_p99_us", stats.rtt_p99_us},
+                        {"rtt_p999_us", stats.rtt_p999_us},
+                        {"jitter_us", stats.jitter_us},
+                        {"energy_to_hand_j", stats.energy_to_hand},
+                        {"energy_from_hand_j", stats.energy_from_hand},
+                        {"passivity_dissipated_j", stats.passivity_energy_dissipated},
+                        {"force_log_rows", stats.force_log_rows},
+                        {"force_log_dropped", stats.force_log_dropped},
                         {"watchdog_fades", stats.watchdog_fades},
                         {"scene_chunks", stats.scene_chunks},
                         {"max_force_n", stats.max_force},

@@ -115,7 +115,14 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     j *= limits_.max_stiffness / k;
     events |= kEventStiffnessClamped;
   }
-  j *= ramp_;             // gated: no stiffness either; ramping: as much as the force
+  if (!local.dforce_dtwist.allFinite() || !local.axis.allFinite() ||
+      !local.orientation0.coeffs().allFinite() || !local.normal.allFinite()) {
+    local.kind = LocalModel::Kind::kLinear;
+    local.dforce_dtwist.setZero();
+    events |= kEventNonFiniteInput;
+  }
+  j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
+  local.dforce_dtwist *= ramp_;
   local.force0 = output;  // the extrapolation starts from what the device actually outputs
 }
 

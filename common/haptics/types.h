@@ -24,14 +24,35 @@ struct StylusSample {
   uint32_t buttons = 0;                                             // StylusButton bits
 };
 
-// F(x) = force0 + jacobian · (x − position0): what a station renders between server updates
-// (OpenSurgSim's virtual coupler sends the same).
+// What a station renders between server updates, so that the force follows the hand at the
+// device's rate whatever the network's delay (OpenSurgSim's virtual coupler sends the linear
+// part; model-mediated teleoperation, Mitra & Niemeyer 2008, the rest):
+//
+//   linear   F(x) = force0 + J·(x − position0), everywhere (the second wave's model);
+//   contact  the same, but unilateral: zero wherever n·F(x) ≤ 0, i.e. once the tool has left the
+//            local surface (normal n, outward). Sent in contact (F₀ the force, J the tissue's
+//            stiffness behind the proxy) and ahead of contact (position0 the nearest surface
+//            point, F₀ = 0, J = −k n nᵀ), so contact begins and ends at the station at the right
+//            place and depth whatever the delay;
+//   grasp    while the station's own grasp button is held: F(x, φ) = force0 + J·(x − position0)
+//            + g·Δφ, Δφ the stylus's twist about `axis` since `orientation0` (swing–twist, the
+//            server's own measure) and g = ∂F/∂φ (N/rad), which carries the tissue's torsional
+//            stiffness dM/dΦ; zero from the cycle the button is released.
 struct LocalModel {
-  Vec3 force0 = Vec3::Zero();                          // N
-  Vec3 position0 = Vec3::Zero();                       // m
+  enum class Kind : uint32_t { kLinear = 0, kContact = 1, kGrasp = 2 };  // wire values: keep
+  Vec3 force0 = Vec3::Zero();                                            // N
+  Vec3 position0 = Vec3::Zero();                                         // m
   Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();  // N/m, ∂F/∂x (negative semi-definite)
+  Kind kind = Kind::kLinear;
+  Vec3 normal = Vec3::UnitZ();  // contact: the surface's outward unit normal
+  Vec3 axis = Vec3::UnitZ();    // grasp: the twist axis (unit)
+  Eigen::Quaterniond orientation0 = Eigen::Quaterniond::Identity();  // grasp: stylus at position0
+  Vec3 dforce_dtwist = Vec3::Zero();                                 // grasp: g, N/rad
 
   Vec3 ForceAt(const Vec3& x) const { return force0 + jacobian * (x - position0); }
+  // The force the model gives a stylus at x, turned to q, with `buttons` held (the kinds above).
+  // Any thread; no allocation; a non-finite result is zero.
+  Vec3 Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons) const;
 };
 
 // Safety and interaction events, as bits (several may be set by one sample).

@@ -301,7 +301,9 @@ Status ParseHaptics(const Reader& r, HapticsSpec& h) {
   VSURG_TRY(scale, r.NumberOr("force_scale", 1.0, 1e-6, 1e3));
   VSURG_TRY(hold, r.NumberOr("hold_stiffness", 200.0, 0, 1e5));
   VSURG_TRY(lever, r.NumberOr("min_lever_m", 0.005, 1e-4, 1.0));
+  VSURG_TRY(lookahead, r.NumberOr("lookahead_m", 0.03, 0, 0.2));
   h.min_lever = lever;
+  h.lookahead = lookahead;
   h.proxy.stiffness = k;
   h.proxy.damping = d;
   h.proxy.friction = mu;

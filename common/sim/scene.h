@@ -103,6 +103,10 @@ struct HapticsSpec {
   double hold_stiffness = 200.0;  // N/m, the grasp holds the tip on the grasped point
   double min_lever = 0.005;       // m, the twist force's lever when the tip is on the axis
                                   // (forceps jaws in surface mode)
+  // m: a free tool this close to the surface gets the surface ahead of contact in its local
+  // model (model-mediated teleoperation), so a station behind a delay begins contact itself.
+  // 3 cm covers a 0.1 m/s approach over a 300 ms round trip. 0: never.
+  double lookahead = 0.03;
 };
 
 struct Scene {

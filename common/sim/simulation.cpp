@@ -124,6 +124,35 @@ ForceCommand Simulation::Zero(const StylusSample& s, uint32_t events) {
   return c;
 }
 
+// The surface ahead of contact (model-mediated teleoperation, Mitra & Niemeyer 2008): for a free
+// tip within the scene's lookahead, the plane of the nearest surface point with the stiffness the
+// contact would have there, F(x) = k·((p − x)·n)·n on the penetrating side only. The station then
+// begins the contact where the surface is, whatever the delay.
+void Simulation::SurfaceAhead(const Snapshot& snap, const Vec3& tip, haptics::LocalModel& local,
+                              Eigen::Matrix3d& jacobian) const {
+  const double reach = scene_.haptics.lookahead;
+  if (!(reach > 0) || !tip.allFinite()) return;
+  const geometry::ClosestHit c = snap.bvh.Closest(snap.positions, tip, reach);
+  if (c.triangle < 0) return;
+  const geometry::Triangle& tri = rest_.triangles[c.triangle];
+  const Vec3 n = geometry::TriangleNormal(snap.positions, tri);
+  if (!n.allFinite() || (tip - c.point).dot(n) < 0) return;  // behind the face: not ahead of it
+  double k = proxy_.params().stiffness;
+  if (k > 0) {
+    const Vec3 rest_normal = geometry::TriangleNormal(rest_, c.triangle);
+    const ContactQuery q{tri, c.barycentric, rest_normal, k};
+    std::visit(
+        [&](const auto& room) {
+          if constexpr (requires { room.ContactStiffness(q); }) k = room.ContactStiffness(q);
+        },
+        room_);
+  }
+  local.kind = haptics::LocalModel::Kind::kContact;
+  local.normal = n;
+  local.position0 = c.point;
+  jacobian = -k * n * n.transpose();
+}
+
 ForceCommand Simulation::OnStylus(const StylusSample& s) {
   uint32_t events = 0;
   if (!safety_.AcceptInput(s, events)) {
@@ -200,6 +229,19 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     force = scene_.haptics.force_scale * (-answer.torque / lever_) * tangent +
             hold * (turned - s.position);
     jacobian = -hold * Eigen::Matrix3d::Identity();
+    // ∂F/∂φ of the force above, so the station feels the tissue's torsional stiffness dT/dΦ
+    // between answers, not only the grip: with r⊥ the radial arm's part across the axis,
+    // ∂turned/∂φ = a × r = |r⊥|·t and ∂t/∂φ = −r⊥/|r⊥|, hence
+    //   g = (hold·|r⊥| − s·k_T/lever)·t + s·(T/lever)·r⊥/|r⊥|   (s the force scale).
+    const double s_f = scene_.haptics.force_scale;
+    const Vec3 across = radial - axis_ * axis_.dot(radial);
+    Vec3 g = -s_f * answer.stiffness / lever_ * tangent;
+    if (const double r = across.norm(); r > 1e-9)
+      g += hold * r * tangent + s_f * answer.torque / lever_ * (across / r);
+    cmd.local.kind = haptics::LocalModel::Kind::kGrasp;
+    cmd.local.axis = axis_;
+    cmd.local.orientation0 = s.orientation.normalized();
+    cmd.local.dforce_dtwist = g;
     input_.torque = answer.torque;
     quantity = twist;
     cmd.grasping = true;
@@ -255,6 +297,8 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
             },
             room_);
       }
+      cmd.local.kind = haptics::LocalModel::Kind::kContact;
+      cmd.local.normal = ps.normal;
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;
       input_.force_on_tissue = -ps.force;
@@ -264,6 +308,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     } else {
       input_.triangle = -1;
       input_.force_on_tissue.setZero();
+      SurfaceAhead(snap, s.position, cmd.local, jacobian);
     }
     last_contact_ = ps.contact;
     cmd.contact = ps.contact;
@@ -273,7 +318,8 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
 
   const Vec3 out = safety_.Filter(force, dt, events);
   cmd.force = out;
-  cmd.local.position0 = s.position;
+  if (cmd.local.kind != haptics::LocalModel::Kind::kContact || cmd.contact)
+    cmd.local.position0 = s.position;  // else SurfaceAhead placed it on the surface
   cmd.local.jacobian = jacobian;
   safety_.LimitLocalModel(cmd.local, out, events);
   if (overload) events |= haptics::kEventOverload;

@@ -164,6 +164,9 @@ class Simulation {
                bool outside_model = false);
   void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
+  // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
+  void SurfaceAhead(const Snapshot& snap, const geometry::Vec3& tip, haptics::LocalModel& local,
+                    Eigen::Matrix3d& jacobian) const;
 
   Scene scene_;
   geometry::TriMesh rest_;

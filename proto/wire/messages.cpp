@@ -85,6 +85,17 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   for (int r = 0; r < 3; ++r) {
     for (int k = 0; k < 3; ++k) local->set_jacobian(3 * r + k, c.local.jacobian(r, k));
   }
+  // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes, a contact by 27).
+  local->set_kind(static_cast<v1::LocalModel::Kind>(c.local.kind));
+  if (c.local.kind == haptics::LocalModel::Kind::kContact)
+    Put(c.local.normal, local->mutable_normal());
+  if (c.local.kind == haptics::LocalModel::Kind::kGrasp) {
+    Put(c.local.axis, local->mutable_axis());
+    Put(c.local.dforce_dtwist, local->mutable_dforce_dtwist());
+    const Eigen::Quaterniond& q0 = c.local.orientation0;
+    v1::Quat* q = local->mutable_orientation0();
+    q->set_w(q0.w()), q->set_x(q0.x()), q->set_y(q0.y()), q->set_z(q0.z());
+  }
   f.set_events(c.events);
   f.set_twist(c.twist);
   f.set_score(static_cast<float>(c.score));
@@ -209,6 +220,39 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
     }
   } else {
     c.local.jacobian.setZero();
+  }
+  // The kind-specific parts, normalised; an unknown kind (a newer server) renders as LINEAR, the
+  // oldest contract; a contact or grasp whose directions cannot be normalised is refused.
+  c.local.kind = haptics::LocalModel::Kind::kLinear;
+  c.local.normal = Eigen::Vector3d::UnitZ();
+  c.local.axis = Eigen::Vector3d::UnitZ();
+  c.local.orientation0 = Eigen::Quaterniond::Identity();
+  c.local.dforce_dtwist.setZero();
+  const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
+    const double n = v.norm();
+    if (!(n > 1e-9) || !std::isfinite(n)) return false;
+    unit_out = v / n;
+    return true;
+  };
+  switch (f.local().kind()) {
+    case v1::LocalModel::CONTACT:
+      if (!unit(Get(f.local().normal()), c.local.normal)) return DropReason::kBadPayload;
+      c.local.kind = haptics::LocalModel::Kind::kContact;
+      break;
+    case v1::LocalModel::GRASP: {
+      const v1::Quat& q = f.local().orientation0();
+      Eigen::Quaterniond q0(q.w(), q.x(), q.y(), q.z());
+      const double qn = q0.norm();
+      if (!unit(Get(f.local().axis()), c.local.axis) || !(qn > 1e-9) || !std::isfinite(qn))
+        return DropReason::kBadPayload;
+      c.local.orientation0 = Eigen::Quaterniond(q0.coeffs() / qn);
+      c.local.dforce_dtwist = Get(f.local().dforce_dtwist());
+      if (!c.local.dforce_dtwist.allFinite()) return DropReason::kBadPayload;
+      c.local.kind = haptics::LocalModel::Kind::kGrasp;
+      break;
+    }
+    default:
+      break;
   }
   c.events = f.events();
   c.twist = f.twist();

@@ -141,7 +141,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   if (!record.ok()) return record.error();
   out.record = *record;
   out.udp_host = options_.udp_host;
-  out.udp_port = endpoint_ ? endpoint_->port() : 0;
+  out.udp_port = options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
   live->state = SessionState::kCreated;
@@ -303,7 +303,7 @@ Expected<CreatedSession> SessionManager::Join(uint64_t id) {
   out.record.state = it->second->state;
   out.key = it->second->key;
   out.udp_host = options_.udp_host;
-  out.udp_port = endpoint_ ? endpoint_->port() : 0;
+  out.udp_port = options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
   return out;
 }
 

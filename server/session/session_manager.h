@@ -62,6 +62,9 @@ namespace vsurg::server {
 
 struct SessionManagerOptions {
   std::string udp_host = "127.0.0.1";  // what stations are told to send to
+  // ... and at which port (0: the endpoint's own). A relay or a NAT in front of the endpoint
+  // (bench/relay: network impairment) listens on another port than the endpoint's.
+  uint16_t udp_port = 0;
   double telemetry_hz = 30;
   int max_live_sessions = 256;
   int max_sessions_per_user = 2;  // live sessions per trainee (a reconnect may overlap one)

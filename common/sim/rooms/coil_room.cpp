@@ -36,7 +36,7 @@ bool CoilRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
 
 TwistAnswer CoilRoom::Twist(double twist) const {
   const tissue::CoilTorque a = coil_->Inverse(twist);
-  return {a.torque, a.overload};
+  return {a.torque, a.stiffness, a.overload};
 }
 
 std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {

@@ -41,7 +41,8 @@ GraspFrame LimbGraspFrame(const std::vector<geometry::Vec3>& centreline, const G
 
 TwistAnswer LinearTwist(double twist, double stiffness, double capacity) {
   const double torque = twist * stiffness;
-  return {std::clamp(torque, -capacity, capacity), std::abs(torque) > capacity};
+  const bool overload = std::abs(torque) > capacity;
+  return {std::clamp(torque, -capacity, capacity), overload ? 0.0 : stiffness, overload};
 }
 
 geometry::Vec3 RestPoint(const geometry::TriMesh& rest, int triangle,

@@ -55,7 +55,8 @@ struct GraspFrame {
 };
 
 struct TwistAnswer {
-  double torque = 0;  // N·m
+  double torque = 0;     // N·m
+  double stiffness = 0;  // N·m/rad, dT/dΦ there (the station's local model); 0 past capacity
   bool overload = false;
 };
 

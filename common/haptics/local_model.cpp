@@ -1,0 +1,33 @@
+// LocalModel::Render (common/haptics/types.h): the station's force between server updates.
+#include <cmath>
+#include <numbers>
+
+#include "common/haptics/types.h"
+
+namespace vsurg::haptics {
+
+Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons) const {
+  if (!x.allFinite()) return Vec3::Zero();
+  Vec3 f = ForceAt(x);
+  switch (kind) {
+    case Kind::kLinear:
+      break;
+    case Kind::kContact:
+      // Unilateral: the surface pushes, never pulls. Outside it (n·F ≤ 0) nothing is felt.
+      if (!(normal.dot(f) > 0)) return Vec3::Zero();
+      break;
+    case Kind::kGrasp: {
+      if ((buttons & kButtonGrasp) == 0) return Vec3::Zero();  // let go here, felt here
+      // The twist part of the rotation since the grasp answer (swing–twist decomposition, as
+      // Simulation measures the imposed twist), wrapped to (−π, π].
+      const Eigen::Quaterniond rel = q.normalized() * orientation0.conjugate();
+      const double dphi =
+          std::remainder(2.0 * std::atan2(rel.vec().dot(axis), rel.w()), 2.0 * std::numbers::pi);
+      if (std::isfinite(dphi)) f += dforce_dtwist * dphi;
+      break;
+    }
+  }
+  return f.allFinite() ? f : Vec3::Zero();
+}
+
+}  // namespace vsurg::haptics
