@@ -45,6 +45,10 @@
 
 #include "bench/control_bench.h"
 #include "bench/fem_step_command.h"
+
+namespace vsurg::bench {
+int Wan(const std::vector<std::string>& args);  // bench/wan/wan_command.cpp
+}
 #include "bench/msm_step_command.h"
 #include "bench/speed_vs_error.h"
 #include "common/core/args.h"
@@ -545,7 +549,9 @@ int main(int argc, char** argv) {
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n"
                  "       vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] "
-                 "[--export DIR] [--json]\n";
+                 "[--export DIR] [--json]\n"
+                 "       vsurg-bench wan [--profiles P,..] [--scenes S,..] [--methods "
+                 "server,linear,model] [--grip tensed] [--runs N] [--out DIR]\n";
     return args.empty() ? 2 : 0;
   }
   try {
@@ -558,6 +564,7 @@ int main(int argc, char** argv) {
     if (args[0] == "speed-vs-error")
       return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
     if (args[0] == "fem-step") return vsurg::bench::FemStep({args.begin() + 1, args.end()});
+    if (args[0] == "wan") return vsurg::bench::Wan({args.begin() + 1, args.end()});
   } catch (const std::exception& e) {
     std::cerr << "vsurg-bench: " << e.what() << "\n";
     return 1;
@@ -565,6 +572,6 @@ int main(int argc, char** argv) {
   std::cerr
       << "vsurg-bench: unknown command '" << args[0]
       << "' (haptic-rtt, udp-floor, grpc-submit, placement, msm-step, export, speed-vs-error, "
-         "fem-step)\n";
+         "fem-step, wan)\n";
   return 2;
 }

@@ -142,6 +142,16 @@ ALTER TABLE nodes ADD COLUMN epoch INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE nodes ADD COLUMN instance TEXT NOT NULL DEFAULT '';
 ALTER TABLE sessions ADD COLUMN epoch INTEGER NOT NULL DEFAULT 0;
 )sql",
+      // 4: what the station rendered and how the link held, beside the server's figures
+      // (scoring::LinkFigures; 0 for trials recorded before, and for stations that do not say).
+      R"sql(
+ALTER TABLE trial_metrics ADD COLUMN station_peak_force_n REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN station_time_over_limit_s REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN link_rtt_ms REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN link_jitter_ms REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN link_loss_ratio REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN link_rate_hz REAL NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }

@@ -169,14 +169,19 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
         c,
         "INSERT INTO trial_metrics(session_id, completed, completion_time_s, task_error, "
         "peak_force_n, time_over_force_limit_s, path_length_m, rms_jerk, overload_events, "
-        "duration_s, score, raw_score, caps, recorded_us) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+        "duration_s, score, raw_score, caps, recorded_us, station_peak_force_n, "
+        "station_time_over_limit_s, link_rtt_ms, link_jitter_ms, link_loss_ratio, link_rate_hz) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
+        "?19, ?20)",
         [&](Statement& st) {
           st.Bind(1, id).Bind(2, int64_t{m.completed ? 1 : 0});
           st.Bind(3, m.completion_time).Bind(4, m.task_error).Bind(5, m.peak_force);
           st.Bind(6, m.time_over_force_limit).Bind(7, m.path_length).Bind(8, m.rms_jerk);
           st.Bind(9, int64_t{m.overload_events}).Bind(10, m.duration).Bind(11, m.score);
           st.Bind(12, m.raw_score).Bind(13, int64_t{m.caps}).Bind(14, NowUs());
+          st.Bind(15, m.link.station_peak_force).Bind(16, m.link.station_time_over_limit);
+          st.Bind(17, m.link.rtt_ms).Bind(18, m.link.jitter_ms).Bind(19, m.link.loss);
+          st.Bind(20, m.link.rate_hz);
         });
   });
 }
@@ -477,8 +482,9 @@ Expected<std::optional<scoring::TrialMetrics>> Store::GetTrialMetrics(int64_t se
   if (!r.ok()) return r.error();
   auto st = (**r).Prepare(
       "SELECT completed, completion_time_s, task_error, peak_force_n, time_over_force_limit_s, "
-      "path_length_m, rms_jerk, overload_events, duration_s, score, raw_score, caps "
-      "FROM trial_metrics WHERE session_id = ?1");
+      "path_length_m, rms_jerk, overload_events, duration_s, score, raw_score, caps, "
+      "station_peak_force_n, station_time_over_limit_s, link_rtt_ms, link_jitter_ms, "
+      "link_loss_ratio, link_rate_hz FROM trial_metrics WHERE session_id = ?1");
   if (!st.ok()) return st.error();
   (*st)->Bind(1, session_id);
   auto row = (*st)->Step();
@@ -499,6 +505,12 @@ Expected<std::optional<scoring::TrialMetrics>> Store::GetTrialMetrics(int64_t se
     m.score = q.Double(9);
     m.raw_score = q.Double(10);
     m.caps = static_cast<uint32_t>(q.Int(11));
+    m.link.station_peak_force = q.Double(12);
+    m.link.station_time_over_limit = q.Double(13);
+    m.link.rtt_ms = q.Double(14);
+    m.link.jitter_ms = q.Double(15);
+    m.link.loss = q.Double(16);
+    m.link.rate_hz = q.Double(17);
     out = m;
   }
   (*st)->Reset();

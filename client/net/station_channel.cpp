@@ -65,6 +65,51 @@ class SequenceWindow {
   uint64_t newest_ = 0, distinct_ = 0;
 };
 
+// The perceptual deadband (Hinterseer et al., IEEE Trans. Signal Process. 56(2), 2008: a change
+// below the Weber fraction of what is felt is not perceived, so it need not be sent; with
+// passivity, Xu et al., IEEE ToH 2016). A stylus sample is sent when the force the station
+// renders has changed since the last sent sample by more than the fraction k of that force
+// (plus 0.02 N, about the force a hand holding a stylus just detects; Israr et al. 2006), when
+// the tip has moved more than position_m or turned more than angle_rad (free space, where no
+// force tells), when the buttons change, and at least every heartbeat_s. Loss-robust: a send
+// the deadband triggered is repeated once 5 ms later if nothing else was sent, so one lost
+// datagram costs 5 ms, not a heartbeat. k = 0: every cycle is sent.
+class Deadband {
+ public:
+  explicit Deadband(const StationOptions& o)
+      : k_(o.deadband),
+        position_(o.deadband_position_m),
+        angle_(o.deadband_angle_rad),
+        heartbeat_(o.heartbeat_s) {}
+  bool Due(double now, const haptics::StylusSample& s, const Eigen::Vector3d& force) {
+    bool due = k_ <= 0 || !sent_ || s.buttons != buttons_ || now - at_ >= heartbeat_;
+    bool triggered = false;
+    if (!due && s.position.allFinite() && force.allFinite()) {
+      triggered = (force - force_).norm() > k_ * force_.norm() + 0.02 ||
+                  (s.position - position_sent_).norm() > position_ ||
+                  s.orientation.angularDistance(orientation_) > angle_;
+      due = triggered || (repeat_at_ >= 0 && now >= repeat_at_);
+    }
+    if (!due) return false;
+    repeat_at_ = k_ > 0 && (triggered || s.buttons != buttons_) ? now + 0.005 : -1;
+    sent_ = true;
+    at_ = now;
+    buttons_ = s.buttons;
+    if (s.position.allFinite()) position_sent_ = s.position;
+    if (s.orientation.coeffs().allFinite()) orientation_ = s.orientation;
+    if (force.allFinite()) force_ = force;
+    return true;
+  }
+
+ private:
+  double k_, position_, angle_, heartbeat_;
+  bool sent_ = false;
+  double at_ = 0, repeat_at_ = -1;
+  uint32_t buttons_ = 0;
+  Eigen::Vector3d position_sent_ = Eigen::Vector3d::Zero(), force_ = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation_ = Eigen::Quaterniond::Identity();
+};
+
 // One servo cycle as the force log writes it (station_channel.h, StationOptions::force_log).
 struct LogRow {
   double t, x, y, z, fx, fy, fz;
@@ -104,6 +149,7 @@ struct StationChannel::Impl {
   size_t rtt_next = 0;
   double jitter_sum = 0, last_rtt = -1;
   std::atomic<double> reported_rtt_us{0};  // receive thread → device thread (telemetry)
+  std::atomic<double> reported_jitter_us{0};
   uint64_t jitter_n = 0;
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
       newest_answered{0}, scene_chunks{0};
@@ -127,8 +173,16 @@ struct StationChannel::Impl {
   std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
   sim::TripleBuffer<StationView> view;  // device thread → render thread
 
+  // With the deadband answers come at least every heartbeat, not every cycle: the watchdog waits
+  // for a heartbeat's answer and a jitter's margin before it fades.
+  double watchdog_s;
+
   explicit Impl(const StationOptions& o)
-      : options(o), auth(o.key), clock(o.clock ? *o.clock : DefaultClock()), start(clock.Now()) {}
+      : options(o),
+        auth(o.key),
+        clock(o.clock ? *o.clock : DefaultClock()),
+        start(clock.Now()),
+        watchdog_s(o.deadband > 0 ? std::max(o.watchdog_s, o.heartbeat_s + 0.035) : o.watchdog_s) {}
 
   double Now() const { return clock.Now() - start; }
 
@@ -182,7 +236,7 @@ struct StationChannel::Impl {
       return;
     }
     const double now = Now();
-    if (last_applied_s >= 0 && now - last_applied_s > options.watchdog_s)
+    if (last_applied_s >= 0 && now - last_applied_s > watchdog_s)
       late.fetch_add(1, std::memory_order_relaxed);
     last_applied_s = now;
     Latest& back = latest.Back();
@@ -194,7 +248,11 @@ struct StationChannel::Impl {
     if (rtt >= 0 && rtt < 10e6) {
       std::lock_guard<std::mutex> lock(stats_mutex);
       rtt_us[rtt_next++ % rtt_us.size()] = rtt;
-      if (last_rtt >= 0) jitter_sum += std::abs(rtt - last_rtt), ++jitter_n;
+      if (last_rtt >= 0) {
+        jitter_sum += std::abs(rtt - last_rtt), ++jitter_n;
+        reported_jitter_us.store(jitter_sum / static_cast<double>(jitter_n),
+                                 std::memory_order_relaxed);
+      }
       last_rtt = rtt;
       reported_rtt_us.store(rtt, std::memory_order_relaxed);
     }
@@ -239,6 +297,8 @@ struct StationChannel::Impl {
     auto next = SteadyTime::now();
     uint64_t sequence = 0;
     bool fading = false;
+    Deadband deadband(options);
+    double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     // Always observing; controlling only when asked.
     PassivityController passivity(options.passivity ? options.max_damping : 0.0);
     wire::StylusMessage m;
@@ -262,37 +322,29 @@ struct StationChannel::Impl {
       const double dt = 1.0 / options.rate_hz;
       haptics::StylusSample s = device->Read();
       s.time = now;  // the station clock: the server echoes it back for the round trip
-      m.sample = s;
-      m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
-      const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
-                           ++sequence};
-      const size_t size = tx_codec.EncodeStylus(m, h, auth, tx);
-      boost::system::error_code ec;
-      if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
-      if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
-
       // Render from the newest local model, independent of network timing.
       latest.Acquire();
       const Latest& l = latest.Front();
-      Vec3 f = Vec3::Zero();
+      Vec3 f = Vec3::Zero(), modelled = Vec3::Zero();
       if (l.received_s >= 0 && s.position.allFinite()) {
         const haptics::ForceCommand& answer = l.message.command;
         switch (options.rendering) {
           case LocalRendering::kServerForce:
             f = answer.force;
             break;
-          case LocalRendering::kLinear:
-            f = answer.local.ForceAt(s.position);
+          case LocalRendering::kLinear:  // the second wave's: nothing ahead of contact
+            if (answer.contact || answer.grasping) f = answer.local.ForceAt(s.position);
             break;
           case LocalRendering::kModel:
             f = answer.local.Render(s.position, s.orientation, s.buttons);
             break;
         }
+        modelled = f;
         const double age = now - l.received_s;
-        if (age > options.watchdog_s) {
+        if (age > watchdog_s) {
           if (!fading) fades.fetch_add(1, std::memory_order_relaxed);
           fading = true;
-          f *= std::max(0.0, 1.0 - (age - options.watchdog_s) / options.fade_s);
+          f *= std::max(0.0, 1.0 - (age - watchdog_s) / options.fade_s);
         } else {
           fading = false;
         }
@@ -310,6 +362,24 @@ struct StationChannel::Impl {
       }
       device->WriteForce(out);
       passivity.Held(out);
+      rendered_peak = std::max(rendered_peak, out.norm());
+      if (options.force_limit_n > 0 && out.norm() > options.force_limit_n)
+        rendered_over_limit += dt;
+      // The stylus to the server: every cycle, or with the deadband only what the hand would
+      // notice (and a heartbeat); the server answers each one, so both directions thin alike.
+      if (deadband.Due(now, s, modelled)) {
+        m.sample = s;
+        m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
+        m.rendered_peak_n = rendered_peak;
+        m.rendered_over_limit_s = rendered_over_limit;
+        m.jitter_us = reported_jitter_us.load(std::memory_order_relaxed);
+        const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState,
+                             options.session, ++sequence};
+        const size_t size = tx_codec.EncodeStylus(m, h, auth, tx);
+        boost::system::error_code ec;
+        if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
+        if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
+      }
       dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
       to_hand.store(passivity.to_hand(), std::memory_order_relaxed);
       from_hand.store(passivity.from_hand(), std::memory_order_relaxed);
@@ -339,6 +409,12 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
     return InvalidArgument("rate_hz", "must be in 100..20000");
   if (!(options.watchdog_s > 0 && options.fade_s > 0))
     return InvalidArgument("watchdog", "times must be > 0");
+  if (!(options.deadband >= 0 && options.deadband < 1) || !(options.heartbeat_s > 0.001) ||
+      !(options.heartbeat_s <= 0.25) || !(options.deadband_position_m > 0) ||
+      !(options.deadband_angle_rad > 0))
+    return InvalidArgument("deadband",
+                           "the fraction must be in [0, 1), the heartbeat within 1..250 ms and the "
+                           "thresholds > 0");
   auto impl = std::make_unique<Impl>(options);
   impl->device = device;
   if (!options.force_log.empty()) {

@@ -30,7 +30,8 @@ namespace vsurg::client {
 // What the device thread renders between the server's answers (docs/BENCHMARKS.md compares
 // them side by side across network profiles):
 //   kServerForce  the latest answer's force, held (no local model);
-//   kLinear       F₀ + J·(x − x₀) everywhere, whatever the answer's kind (the second wave's);
+//   kLinear       F₀ + J·(x − x₀) everywhere while the answer is in contact or grasping,
+//                 whatever its kind, and nothing ahead of contact (the second wave's);
 //   kModel        the answer's local model by its kind (haptics::LocalModel::Render): contact
 //                 only on the surface's side, grasp only while the button is held, the twist's
 //                 own stiffness; the surface ahead of contact.
@@ -49,6 +50,19 @@ struct StationOptions {
   int realtime_priority = 0;  // > 0: SCHED_FIFO at this priority for both threads, if permitted
   double max_damping = 5.0;   // N·s/m the passivity controller may add
   LocalRendering rendering = LocalRendering::kModel;
+  // The perceptual deadband (station_channel.cpp, Deadband): 0 sends the stylus every cycle;
+  // k > 0 sends it when the rendered force changed by more than k of itself (Weber fraction,
+  // ≈ 0.1), the tip moved more than deadband_position_m or turned more than deadband_angle_rad,
+  // the buttons changed, or heartbeat_s passed. The server answers each sample, so its answers
+  // thin alike; the watchdog then waits heartbeat_s + 35 ms before it fades.
+  double deadband = 0;
+  double deadband_position_m = 0.5e-3;
+  double deadband_angle_rad = 0.0175;  // 1°
+  double heartbeat_s = 0.025;
+  // The task's force limit (N): the station reports how long its rendered force was above it,
+  // beside the largest it rendered, in every stylus datagram (the trial record keeps both).
+  // 0: not counted.
+  double force_limit_n = 0;
   // Non-empty: one CSV row per servo cycle, `t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n` (station clock,
   // stylus position, the force sent to the device after every filter), written by a thread of
   // its own so the device loop never waits on the disk (rows that find the queue full are

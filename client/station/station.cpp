@@ -192,6 +192,8 @@ Status Station::Connect() {
   options.realtime_priority = config_.realtime_priority;
   options.rendering = config_.rendering;
   options.force_log = config_.force_log;
+  options.deadband = config_.deadband;
+  options.force_limit_n = config_.force_limit_n;
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
   {

@@ -78,6 +78,11 @@ int Run(const std::vector<std::string>& args) {
               "its kind: contact, grasp, the surface ahead), linear (F0 + J dx everywhere) or "
               "server (the answer's force, held)",
               false, "model")
+      .Option("deadband", Kind::kDouble,
+              "perceptual deadband: send the stylus only when the rendered force changed by more "
+              "than this fraction of itself (Weber, ~0.1), the tip moved 0.5 mm or turned 1 deg, "
+              "or 25 ms passed (0: every cycle)",
+              false, "0")
       .Option("force-log", Kind::kString,
               "CSV of the force sent to the device per servo cycle: t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n")
       .Option("rate", Kind::kDouble, "haptic rate, Hz", false, "1000")
@@ -169,6 +174,10 @@ int Run(const std::vector<std::string>& args) {
   }
   config.rate_hz = p.Double("rate");
   config.rendering = *rendering;
+  config.deadband = p.Double("deadband");
+  config.force_limit_n = scene->task.force_limit;
+  if (!(config.deadband >= 0 && config.deadband < 1))
+    return std::cerr << "vsurg-station: --deadband: a fraction in [0, 1)\n", 2;
   if (p.Has("force-log")) {
     config.force_log = p.String("force-log");
     // Truncated once here; each session's channel appends (one log across reconnects).
@@ -259,6 +268,13 @@ int Run(const std::vector<std::string>& args) {
           "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
               Fixed(shown.force.norm(), 2) + " N",
           "score " + Fixed(shown.command.score, 1) + " / 10"};
+      // Beyond what the local model holds faithfully (docs/BENCHMARKS.md "Haptics across
+      // networks": within 20% of the no-delay force up to 300 ms round trips, 1% loss), the
+      // trainee is told plainly instead of feeling a mushy tissue.
+      if (s.rtt_p50_us > 300e3 || s.loss > 0.10)
+        overlay.hud.push_back("LINK TOO POOR FOR FAITHFUL TOUCH: " + Fixed(s.rtt_p50_us / 1e3, 0) +
+                              " ms round trip, " + Fixed(100 * s.loss, 0) +
+                              "% lost (limits 300 ms, 10%)");
     } else {
       overlay.hud = {"vsurg station  " + scene->name,
                      std::string(client::StationStateName(st.state)) + " ...",

@@ -16,6 +16,18 @@ enum ScoreCap : uint32_t {
   kCapOverload = 1u << 2,
 };
 
+// What the station rendered and how the link held over the trial, recorded beside the server's
+// own figures so a score is never blind to what the trainee actually felt (issue: haptics across
+// networks). Zero when the station did not report them (one older than this field).
+struct LinkFigures {
+  double station_peak_force = 0;       // N, the largest force the station sent to its device
+  double station_time_over_limit = 0;  // s, … above the task's force limit
+  double rtt_ms = 0;                   // the station's last reported round trip
+  double jitter_ms = 0;                // mean |RTT_i − RTT_{i−1}|, as the station measured it
+  double loss = 0;                     // stylus datagrams the server never applied, 0..1
+  double rate_hz = 0;                  // stylus datagrams applied per second
+};
+
 struct TrialMetrics {
   bool completed = false;
   double completion_time = 0;        // s (0 when not completed)
@@ -29,6 +41,7 @@ struct TrialMetrics {
   double score = 0;      // 0–10 after the gates
   double raw_score = 0;  // 0–10 before the gates
   uint32_t caps = 0;     // ScoreCap bits that applied
+  LinkFigures link;      // filled by the server that ran the session (not by the recorder)
 };
 
 }  // namespace vsurg::scoring

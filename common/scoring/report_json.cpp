@@ -128,7 +128,14 @@ nlohmann::json TrialMetricsToJson(const TrialMetrics& m) {
           {"raw_score", m.raw_score},
           {"capped_not_completed", (m.caps & kCapNotCompleted) != 0},
           {"capped_force_limit", (m.caps & kCapForceLimit) != 0},
-          {"capped_overload", (m.caps & kCapOverload) != 0}};
+          {"capped_overload", (m.caps & kCapOverload) != 0},
+          {"link",
+           {{"station_peak_force_n", m.link.station_peak_force},
+            {"station_time_over_limit_s", m.link.station_time_over_limit},
+            {"rtt_ms", m.link.rtt_ms},
+            {"jitter_ms", m.link.jitter_ms},
+            {"loss_ratio", m.link.loss},
+            {"rate_hz", m.link.rate_hz}}}};
 }
 
 }  // namespace vsurg::scoring

@@ -28,6 +28,12 @@ void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out) {
   out->set_score(m.score);
   out->set_raw_score(m.raw_score);
   out->set_caps(m.caps);
+  out->set_station_peak_force_n(m.link.station_peak_force);
+  out->set_station_time_over_limit_s(m.link.station_time_over_limit);
+  out->set_link_rtt_ms(m.link.rtt_ms);
+  out->set_link_jitter_ms(m.link.jitter_ms);
+  out->set_link_loss_ratio(m.link.loss);
+  out->set_link_rate_hz(m.link.rate_hz);
 }
 
 scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
@@ -44,6 +50,12 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   out.score = m.score();
   out.raw_score = m.raw_score();
   out.caps = m.caps();
+  out.link.station_peak_force = m.station_peak_force_n();
+  out.link.station_time_over_limit = m.station_time_over_limit_s();
+  out.link.rtt_ms = m.link_rtt_ms();
+  out.link.jitter_ms = m.link_jitter_ms();
+  out.link.loss = m.link_loss_ratio();
+  out.link.rate_hz = m.link_rate_hz();
   return out;
 }
 

@@ -60,6 +60,9 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
   s.mutable_orientation()->set_z(q.z());
   s.set_buttons(m.sample.buttons);
   s.set_rtt_us(static_cast<float>(m.rtt_us));
+  s.set_rendered_peak_n(static_cast<float>(m.rendered_peak_n));
+  s.set_rendered_over_limit_s(static_cast<float>(m.rendered_over_limit_s));
+  s.set_jitter_us(static_cast<float>(m.jitter_us));
   const size_t n = s.ByteSizeLong();
   if (n > kMaxPayload || !s.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
   Header header = h;
@@ -195,6 +198,10 @@ DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& 
                                               s.orientation().y(), s.orientation().z());
   out.sample.buttons = s.buttons();
   out.rtt_us = std::isfinite(s.rtt_us()) && s.rtt_us() > 0 ? s.rtt_us() : 0.0;
+  const auto figure = [](float v) { return std::isfinite(v) && v > 0 ? double{v} : 0.0; };
+  out.rendered_peak_n = figure(s.rendered_peak_n());
+  out.rendered_over_limit_s = figure(s.rendered_over_limit_s());
+  out.jitter_us = figure(s.jitter_us());
   // Non-finite values are passed on: the simulation's safety turns them into zero force and an
   // event, which the station then sees.
   return DropReason::kNone;

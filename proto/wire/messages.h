@@ -19,6 +19,9 @@ namespace vsurg::wire {
 struct StylusMessage {
   haptics::StylusSample sample;
   double rtt_us = 0;  // the station's last measured round trip (telemetry), 0 if none yet
+  // The station's rendering so far (haptic.proto StylusState); 0: not reported. Decoding maps
+  // anything non-finite or negative to 0.
+  double rendered_peak_n = 0, rendered_over_limit_s = 0, jitter_us = 0;
 };
 
 struct ForceMessage {

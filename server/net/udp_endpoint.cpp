@@ -219,6 +219,17 @@ struct UdpEndpoint::Impl {
         s.link->lost.fetch_add(header.sequence - s.last_sequence - 1, std::memory_order_relaxed);
       s.link->applied.fetch_add(1, std::memory_order_relaxed);
       if (stylus.rtt_us > 0) s.link->rtt_us.store(stylus.rtt_us, std::memory_order_relaxed);
+      // The station's figures only grow within a session: a reordered datagram cannot lower them.
+      if (stylus.rendered_peak_n > s.link->rendered_peak_n.load(std::memory_order_relaxed))
+        s.link->rendered_peak_n.store(stylus.rendered_peak_n, std::memory_order_relaxed);
+      if (stylus.rendered_over_limit_s >
+          s.link->rendered_over_limit_s.load(std::memory_order_relaxed))
+        s.link->rendered_over_limit_s.store(stylus.rendered_over_limit_s,
+                                            std::memory_order_relaxed);
+      if (stylus.jitter_us > 0)
+        s.link->jitter_us.store(stylus.jitter_us, std::memory_order_relaxed);
+      if (s.link->first_seen_s.load(std::memory_order_relaxed) < 0)
+        s.link->first_seen_s.store(now, std::memory_order_relaxed);
       s.link->last_seen_s.store(now, std::memory_order_relaxed);
     }
     s.last_sequence = header.sequence;

@@ -91,10 +91,13 @@ struct EndpointCounters {
 // A session's link figures for the control plane's telemetry. Owned by the caller of AddSession,
 // written by the I/O thread only (relaxed atomics: each figure is independent), read by any.
 struct LinkStats {
-  std::atomic<uint64_t> applied{0};    // stylus datagrams applied
-  std::atomic<uint64_t> lost{0};       // sequence numbers skipped (lost or still in flight)
-  std::atomic<double> rtt_us{0};       // the station's last reported round trip
-  std::atomic<double> last_seen_s{0};  // endpoint clock, s
+  std::atomic<uint64_t> applied{0};      // stylus datagrams applied
+  std::atomic<uint64_t> lost{0};         // sequence numbers skipped (lost or still in flight)
+  std::atomic<double> rtt_us{0};         // the station's last reported round trip
+  std::atomic<double> last_seen_s{0};    // endpoint clock, s
+  std::atomic<double> first_seen_s{-1};  // endpoint clock, s; −1: nothing applied yet
+  // The station's own account of what it rendered, and its jitter (StylusMessage); 0: none.
+  std::atomic<double> rendered_peak_n{0}, rendered_over_limit_s{0}, jitter_us{0};
 };
 
 struct SessionEvent {

@@ -235,6 +235,26 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   return Get(id);
 }
 
+namespace {
+
+// The trial's link figures from the endpoint's counters (read after the session left it).
+scoring::LinkFigures LinkFiguresOf(const LinkStats& l) {
+  scoring::LinkFigures f;
+  const auto relaxed = std::memory_order_relaxed;
+  const uint64_t applied = l.applied.load(relaxed), lost = l.lost.load(relaxed);
+  f.station_peak_force = l.rendered_peak_n.load(relaxed);
+  f.station_time_over_limit = l.rendered_over_limit_s.load(relaxed);
+  f.rtt_ms = l.rtt_us.load(relaxed) / 1e3;
+  f.jitter_ms = l.jitter_us.load(relaxed) / 1e3;
+  f.loss = applied + lost > 0 ? static_cast<double>(lost) / static_cast<double>(applied + lost) : 0;
+  const double span = l.last_seen_s.load(relaxed) - l.first_seen_s.load(relaxed);
+  f.rate_hz =
+      l.first_seen_s.load(relaxed) >= 0 && span > 0 ? static_cast<double>(applied) / span : 0;
+  return f;
+}
+
+}  // namespace
+
 Status SessionManager::End(uint64_t id, SessionState state, const std::string& reason, bool retry) {
   std::unique_ptr<Live> live;
   {
@@ -245,7 +265,8 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
     live_.erase(it);
   }
   if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
-  const scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
+  scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
+  metrics.link = LinkFiguresOf(live->link);
   live->simulation.reset();
   // The state and the trial in one transaction, under the session's epoch (invariant 3).
   const int64_t at = db::NowUs();

@@ -273,7 +273,16 @@ TEST_P(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   m.completed = true;
   m.score = 8.5;
   m.peak_force = 2.5;
+  m.link = {3.25, 0.5, 112.5, 4.25, 0.02, 998};
   ASSERT_TRUE(store_->EndSession(s->id, SessionState::kEnded, 200, "stopped by trainee", m).ok());
+  const auto recorded = store_->GetTrialMetrics(s->id);
+  ASSERT_TRUE(recorded.ok() && recorded->has_value());
+  EXPECT_EQ((*recorded)->link.station_peak_force, 3.25);
+  EXPECT_EQ((*recorded)->link.station_time_over_limit, 0.5);
+  EXPECT_EQ((*recorded)->link.rtt_ms, 112.5);
+  EXPECT_EQ((*recorded)->link.jitter_ms, 4.25);
+  EXPECT_EQ((*recorded)->link.loss, 0.02);
+  EXPECT_EQ((*recorded)->link.rate_hz, 998);
   EXPECT_EQ(store_->SetSessionState(777, SessionState::kEnded, 300).error().code,
             ErrorCode::kNotFound);
   // An ended session never changes again, and its trial is recorded once.

@@ -116,6 +116,48 @@ TEST(DatagramTest, ForceRoundTripCarriesTheLocalModel) {
   EXPECT_EQ(back.command.force, m.command.force);
   EXPECT_TRUE(back.command.contact);
   EXPECT_EQ(back.command.events, 0x12u);
+  EXPECT_EQ(back.command.local.kind, haptics::LocalModel::Kind::kLinear);
+}
+
+TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRefused) {
+  const Authenticator auth(Key(2));
+  Codec codec;
+  std::array<uint8_t, kMaxDatagram> buf;
+  const auto round_trip = [&](const ForceMessage& m, ForceMessage& back) {
+    const size_t n =
+        codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1}, auth, buf);
+    EXPECT_GT(n, 0u);
+    EXPECT_LE(n, 400u);
+    Opened o;
+    EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
+    return codec.DecodeForce(o.payload, back);
+  };
+  ForceMessage contact;
+  contact.command.local.kind = haptics::LocalModel::Kind::kContact;
+  contact.command.local.normal = Eigen::Vector3d(0, 0.6, 0.8);
+  ForceMessage back;
+  ASSERT_EQ(round_trip(contact, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.kind, haptics::LocalModel::Kind::kContact);
+  EXPECT_TRUE(back.command.local.normal.isApprox(contact.command.local.normal));
+  ForceMessage grasp;
+  grasp.command.local.kind = haptics::LocalModel::Kind::kGrasp;
+  grasp.command.local.axis = Eigen::Vector3d(0, 0, 2);  // normalised on arrival
+  grasp.command.local.orientation0 =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()));
+  grasp.command.local.dforce_dtwist = Eigen::Vector3d(0.1, -8, 0);
+  ASSERT_EQ(round_trip(grasp, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.kind, haptics::LocalModel::Kind::kGrasp);
+  EXPECT_TRUE(back.command.local.axis.isApprox(Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(back.command.local.orientation0.isApprox(grasp.command.local.orientation0));
+  EXPECT_EQ(back.command.local.dforce_dtwist, grasp.command.local.dforce_dtwist);
+  // A contact without a usable normal, a grasp without an axis or orientation: never rendered.
+  contact.command.local.normal = Eigen::Vector3d::Zero();
+  EXPECT_EQ(round_trip(contact, back), DropReason::kBadPayload);
+  grasp.command.local.orientation0.coeffs().setZero();
+  EXPECT_EQ(round_trip(grasp, back), DropReason::kBadPayload);
+  grasp.command.local.orientation0 = Eigen::Quaterniond::Identity();
+  grasp.command.local.dforce_dtwist.x() = NAN;
+  EXPECT_EQ(round_trip(grasp, back), DropReason::kBadPayload);
 }
 
 TEST(DatagramTest, WrongKeyEveryFlippedByteTruncationAndOversizeAreRejected) {

@@ -60,8 +60,7 @@ class SessionManagerTest : public ::testing::Test {
   }
   // One stylus datagram from the station, answered; stamped `time` on the station's clock (by
   // default seq ms, a 1 kHz station).
-  void Drive(const CreatedSession& s, uint64_t seq, double time = -1) {
-    wire::StylusMessage m;
+  void Drive(const CreatedSession& s, uint64_t seq, double time = -1, wire::StylusMessage m = {}) {
     m.sample.time = time >= 0 ? time : 1e-3 * static_cast<double>(seq);
     m.sample.position = Eigen::Vector3d(0, 0, 0.2);
     std::array<uint8_t, wire::kMaxDatagram> buf{};
@@ -90,6 +89,36 @@ class SessionManagerTest : public ::testing::Test {
   udp::socket socket_{io_, udp::endpoint(loopback_, 0)};
   wire::Codec codec_;
 };
+
+TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHeld) {
+  auto s = sessions_->Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(s.ok());
+  const uint64_t id = static_cast<uint64_t>(s->record.id);
+  ASSERT_TRUE(sessions_->Start(id).ok());
+  const struct {
+    uint64_t seq;
+    double peak, over;
+  } sent[] = {{1, 0.5, 0}, {2, 1.7, 0.3}, {3, 1.2, 0.25}, {5, 1.6, 0.3}};  // 4 lost; 3 late
+  for (const auto& d : sent) {
+    wire::StylusMessage m;
+    m.rtt_us = 25000;
+    m.jitter_us = 1500;
+    m.rendered_peak_n = d.peak;
+    m.rendered_over_limit_s = d.over;
+    Drive(*s, d.seq, -1, m);
+    endpoint_clock_.Advance(0.01);
+  }
+  ASSERT_TRUE(sessions_->Stop(id, "done").ok());
+  const auto metrics = store_->GetTrialMetrics(s->record.id);
+  ASSERT_TRUE(metrics.ok() && metrics->has_value());
+  const scoring::LinkFigures& l = (*metrics)->link;
+  EXPECT_NEAR(l.station_peak_force, 1.7, 1e-6);  // a later, lower report does not lower it
+  EXPECT_NEAR(l.station_time_over_limit, 0.3, 1e-6);
+  EXPECT_NEAR(l.rtt_ms, 25, 1e-3);
+  EXPECT_NEAR(l.jitter_ms, 1.5, 1e-3);
+  EXPECT_NEAR(l.loss, 0.2, 1e-9);          // 4 applied, sequence 4 never seen
+  EXPECT_NEAR(l.rate_hz, 4 / 0.03, 1e-6);  // 4 applied over the 30 ms between first and last
+}
 
 TEST_F(SessionManagerTest, CreatedStartedRunningStalledResumedDisconnected) {
   auto s = sessions_->Create("tina", "sphere-palpation-256");  // (none) → created

@@ -339,6 +339,14 @@ function metricsList(m) {
     ['Capped: not completed', m.capped_not_completed ? 'yes' : 'no'],
     ['Capped: force limit', m.capped_force_limit ? 'yes' : 'no'], ['Capped: overload', m.capped_overload ? 'yes' : 'no'],
   ];
+  // What the station rendered and how the link held (0 when the station did not report them).
+  const l = m.link;
+  if (l && l.rate_hz > 0) {
+    rows.push(['Peak force felt at the station (N)', fmt(l.station_peak_force_n, 2)],
+      ['Time over force limit at the station (s)', fmt(l.station_time_over_limit_s, 2)],
+      ['Link: round trip (ms)', fmt(l.rtt_ms, 1)], ['Link: jitter (ms)', fmt(l.jitter_ms, 2)],
+      ['Link: loss (%)', fmt(100 * l.loss_ratio, 1)], ['Link: stylus datagrams (per s)', fmt(l.rate_hz, 0)]);
+  }
   return el('dl', { class: 'kv', id: 'metrics' }, rows.flatMap(([k, v]) => [el('dt', {}, k), el('dd', {}, v)]));
 }
 

@@ -1,0 +1,73 @@
+// Haptics across a network, measured in a closed loop: a simulated hand (client/device/
+// virtual_hand.h) at a real station channel, through the impairment relay (bench/relay), to a
+// real UDP endpoint running the scene's Simulation, all on loopback in one process. A run gives
+// what the hand lived (position and the force held, per servo cycle), the link's figures from
+// both ends, and the trial's score; Compare() sets a run against the same run without
+// impairment. `vsurg-bench wan` runs the grid (docs/BENCHMARKS.md "Haptics across networks");
+// tests/bench/wan_test.cpp runs two cells of it in CI.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bench/relay/impairment.h"
+#include "client/device/virtual_hand.h"
+#include "client/net/station_channel.h"
+#include "common/core/expected.h"
+#include "common/sim/scene.h"
+
+namespace vsurg::bench::wan {
+
+struct RunOptions {
+  sim::Scene scene;
+  // The hand's intended trajectory. RunOnce holds its first pose for lead_in_s first, so that
+  // the station's start-up gate (which waits for the first answer, 50 quiet cycles and a 0.5 s
+  // ramp) is open on every profile before the task begins; traces start after the lead-in.
+  std::vector<haptics::StylusSample> plan;
+  double lead_in_s = 1.0;
+  relay::Profile profile;
+  uint64_t seed = 1;
+  client::LocalRendering rendering = client::LocalRendering::kModel;
+  client::HandImpedance grip = client::RelaxedGrip();
+  bool passivity = true;
+  double deadband = 0;    // the station's Weber fraction (StationOptions::deadband); 0: every cycle
+  double settle_s = 0.5;  // run on after the plan ends
+  std::string cache_dir;  // reduced models' cache ("" = the default)
+};
+
+struct Run {
+  std::vector<client::HandSample> trace;  // one per servo cycle, device time
+  client::StationStats station;
+  uint64_t up_datagrams = 0, down_datagrams = 0;  // sent toward the relay, each way
+  double seconds = 0;                             // wall time of the exchange
+  double score = 0;                               // the server's trial score
+  double server_peak_force = 0;                   // N, what the server scored
+};
+
+Expected<Run> RunOnce(const RunOptions& options);
+
+struct Figures {
+  double rms_error_pct = 0;      // force RMS error, % of the reference's peak
+  double onset_delay_ms = 0;     // contact felt later than in the reference
+  double onset_extra_mm = 0;     // deeper along the contact normal when it was first felt
+  double stiffness_pct = 0;      // displayed stiffness (force over depth), % of the reference's
+  double energy_to_hand_mj = 0;  // Σ F·Δx over held intervals, mJ (> 0: the loop gave energy)
+  double energy_excess_mj = 0;   // … beyond the reference's
+  double oscillation_n = 0;      // RMS of the force above 30 Hz, N
+  double peak_force_n = 0;
+  // The tissue sticking to the tool after it has let go: the force beyond the reference's from
+  // 20 ms to 300 ms after the grasp's release, or (no grasp) the largest force from 20 ms after
+  // the reference last felt anything.
+  double phantom_n = 0;
+  double up_hz = 0, down_hz = 0;  // datagrams per second each way
+  double score = 0;
+};
+
+// `stiffness` is only meaningful for press scenes (0 otherwise); contact is a force ≥ 0.1 N.
+Figures Compare(const Run& run, const Run& reference, bool press_scene);
+
+// The scenes the grid runs: sphere-palpation-256 (soft), the same sphere at an Omni-class 700 N/m
+// ("sphere-palpation-256@700"), arm-torsion, organ-surface-twist; by name.
+Expected<sim::Scene> GridScene(const std::string& name);
+
+}  // namespace vsurg::bench::wan

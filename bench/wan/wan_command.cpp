@@ -1,0 +1,202 @@
+// vsurg-bench wan: the closed-loop network grid (bench/wan/wan.h) over profiles × scenes ×
+// methods, each cell against the same scene and method through the relay with no impairment.
+// Writes DIR/wan.csv (one row per cell and run), DIR/traces/*.csv (the force per servo cycle of
+// the first run of each cell) and gnuplot figures (force over time per profile; error and
+// datagram rate against the round trip). docs/BENCHMARKS.md "Haptics across networks".
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include "bench/wan/wan.h"
+#include "common/core/args.h"
+#include "common/sim/trajectory.h"
+
+namespace vsurg::bench {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> Split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream in(s);
+  for (std::string item; std::getline(in, item, ',');)
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+void Plot(const fs::path& dir, const std::string& name, const std::string& settings,
+          const std::string& plot) {
+  std::ofstream(dir / (name + ".gp"))
+      << "set terminal pngcairo noenhanced size 1100,640 font 'DejaVu Sans,10'\n"
+      << "set output '" << name << ".png'\n"
+      << settings << "set grid\nset key outside right top\n"
+      << plot << "\n";
+  const std::string cmd =
+      "cd '" + fs::absolute(dir).string() + "' && gnuplot '" + name + ".gp' > /dev/null 2>&1";
+  if (std::system(cmd.c_str()) != 0)
+    std::cerr << "vsurg-bench wan: gnuplot failed on " << name << "\n";
+}
+
+}  // namespace
+
+int Wan(const std::vector<std::string>& args) {
+  cli::ArgParser p("vsurg-bench wan",
+                   "haptics across networks: a simulated hand through the impairment relay");
+  p.Option("profiles", cli::ArgParser::Kind::kString, "comma-separated relay profiles", false,
+           "lan,metro,regional,continental,intercontinental,bad-wifi")
+      .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
+              "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist")
+      .Option("methods", cli::ArgParser::Kind::kString, "server, linear, model", false,
+              "server,linear,model")
+      .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
+      .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
+      .Option("deadbands", cli::ArgParser::Kind::kString,
+              "comma-separated Weber fractions to run each method at (0: every cycle)", false, "0")
+      .Option("runs", cli::ArgParser::Kind::kInt, "runs per cell (seeds 1..N)", false, "1")
+      .Option("out", cli::ArgParser::Kind::kString, "output folder", false, "wan-out");
+  if (auto rc = cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
+  const auto grip = client::GripByName(p.String("grip"));
+  if (!grip.ok()) return cli::UsageError(std::cerr, p.command(), grip.error());
+  const auto style = sim::ParseTraineeStyle(p.String("trainee"));
+  if (!style.ok()) return cli::UsageError(std::cerr, p.command(), style.error());
+  std::vector<relay::Profile> profiles;
+  for (const auto& name : Split(p.String("profiles"))) {
+    auto pr = relay::ProfileByName(name);
+    if (!pr.ok()) return cli::UsageError(std::cerr, p.command(), pr.error());
+    profiles.push_back(*pr);
+  }
+  struct Method {
+    std::string name;  // "model", or "model+db0.1" with a deadband
+    client::LocalRendering rendering;
+    double deadband;
+  };
+  std::vector<Method> methods;
+  for (const auto& name : Split(p.String("methods"))) {
+    auto m = client::ParseLocalRendering(name);
+    if (!m.ok()) return cli::UsageError(std::cerr, p.command(), m.error());
+    for (const auto& db : Split(p.String("deadbands"))) {
+      const double k = std::strtod(db.c_str(), nullptr);
+      if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, k});
+    }
+  }
+  const int runs = p.Int("runs");
+  if (runs < 1 || runs > 20) return std::cerr << "vsurg-bench wan: --runs: 1..20\n", 2;
+  const fs::path out = p.String("out");
+  fs::create_directories(out / "traces");
+  std::ofstream csv(out / "wan.csv");
+  csv << "scene,profile,method,run,rtt_ms,rms_error_pct,onset_delay_ms,onset_extra_mm,"
+         "stiffness_pct,energy_to_hand_mj,energy_excess_mj,oscillation_n,peak_force_n,phantom_n,"
+         "up_hz,down_hz,score,server_peak_n,lost,stale,late,watchdog_fades\n";
+  const relay::Profile none = *relay::ProfileByName("none");
+  std::map<std::string, std::vector<std::string>> trace_files;  // scene/method → files
+  for (const auto& scene_name : Split(p.String("scenes"))) {
+    auto scene = wan::GridScene(scene_name);
+    if (!scene.ok()) return cli::UsageError(std::cerr, p.command(), scene.error());
+    auto plan = sim::ScriptedTrainee(*scene, *style, 1000.0, 1);
+    if (!plan.ok()) return cli::UsageError(std::cerr, p.command(), plan.error());
+    const bool press = scene->task.kind == scoring::TaskKind::kPress;
+    for (const Method& method_entry : methods) {
+      const std::string& method_name = method_entry.name;
+      for (int r = 1; r <= runs; ++r) {
+        wan::RunOptions o;
+        o.scene = *scene;
+        o.plan = *plan;
+        o.profile = none;
+        o.seed = static_cast<uint64_t>(r);
+        o.rendering = method_entry.rendering;
+        o.deadband = method_entry.deadband;
+        o.grip = *grip;
+        // The reference: the same rendering at full rate through the relay, unimpaired.
+        wan::RunOptions ref_options = o;
+        ref_options.profile = none;
+        ref_options.deadband = 0;
+        auto ref = wan::RunOnce(ref_options);
+        if (!ref.ok()) return std::cerr << "vsurg-bench wan: " << ref.error().message << "\n", 1;
+        for (const relay::Profile& profile : profiles) {
+          o.profile = profile;
+          auto run = wan::RunOnce(o);
+          if (!run.ok()) return std::cerr << "vsurg-bench wan: " << run.error().message << "\n", 1;
+          const wan::Figures f = wan::Compare(*run, *ref, press);
+          const double rtt_ms = run->station.rtt_p50_us / 1e3;
+          char line[512];
+          std::snprintf(line, sizeof line,
+                        "%s,%s,%s,%d,%.2f,%.2f,%.0f,%.2f,%.1f,%.2f,%.2f,%.4f,%.3f,%.3f,%.0f,%.0f,"
+                        "%.2f,%.3f,%llu,%llu,%llu,%llu",
+                        scene_name.c_str(), profile.name.c_str(), method_name.c_str(), r, rtt_ms,
+                        f.rms_error_pct, f.onset_delay_ms, f.onset_extra_mm, f.stiffness_pct,
+                        f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n, f.peak_force_n,
+                        f.phantom_n, f.up_hz, f.down_hz, f.score, run->server_peak_force,
+                        static_cast<unsigned long long>(run->station.lost),
+                        static_cast<unsigned long long>(run->station.stale),
+                        static_cast<unsigned long long>(run->station.late),
+                        static_cast<unsigned long long>(run->station.watchdog_fades));
+          csv << line << "\n" << std::flush;
+          std::cout << line << "\n" << std::flush;
+          if (r == 1) {
+            const std::string file =
+                "traces/" + scene_name + "_" + profile.name + "_" + method_name + ".csv";
+            std::ofstream t(out / file);
+            t << "t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n";
+            for (const auto& c : run->trace)
+              t << c.t << "," << c.x.x() << "," << c.x.y() << "," << c.x.z() << "," << c.force.x()
+                << "," << c.force.y() << "," << c.force.z() << "\n";
+            trace_files[scene_name + "_" + method_name].push_back(file + "|" + profile.name);
+          }
+        }
+        if (r == 1) {
+          const std::string file = "traces/" + scene_name + "_none_" + method_name + ".csv";
+          std::ofstream t(out / file);
+          t << "t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n";
+          for (const auto& c : ref->trace)
+            t << c.t << "," << c.x.x() << "," << c.x.y() << "," << c.x.z() << "," << c.force.x()
+              << "," << c.force.y() << "," << c.force.z() << "\n";
+          trace_files[scene_name + "_" + method_name].insert(
+              trace_files[scene_name + "_" + method_name].begin(), file + "|no delay");
+        }
+      }
+    }
+  }
+  // Figures: the force magnitude over time per profile, one per scene and method.
+  for (const auto& [key, files] : trace_files) {
+    std::string plot = "plot ";
+    for (size_t i = 0; i < files.size(); ++i) {
+      const size_t bar = files[i].find('|');
+      plot += (i ? ", " : "") + std::string("'") + files[i].substr(0, bar) +
+              "' every ::1 using 1:(sqrt($5**2+$6**2+$7**2)) with lines title '" +
+              files[i].substr(bar + 1) + "'";
+    }
+    Plot(out, "force_" + key,
+         "set datafile separator ','\nset xlabel 'device time (s)'\nset ylabel '|F| at the hand "
+         "(N)'\nset title '" +
+             key + ": force the hand felt, per network profile'\n",
+         plot);
+  }
+  // Error and datagram rate against the round trip, per method (every scene).
+  std::string err_plot = "plot ", rate_plot = "plot ";
+  for (size_t i = 0; i < methods.size(); ++i) {
+    const std::string& m = methods[i].name;
+    const std::string sel = "(strcol(3) eq '" + m + "' ? $5 : 1/0)";
+    err_plot += (i ? ", " : "") + std::string("'wan.csv' every ::1 using ") + sel +
+                ":6 with points pt 7 title '" + m + "'";
+    rate_plot += (i ? ", " : "") + std::string("'wan.csv' every ::1 using ") + sel +
+                 ":16 with points pt 7 title '" + m + " (down)'";
+  }
+  Plot(out, "error_vs_rtt",
+       "set datafile separator ','\nset logscale x\nset xlabel 'round trip p50 (ms)'\nset "
+       "ylabel 'force RMS error (% of the no-delay peak)'\n",
+       err_plot);
+  Plot(out, "rate_vs_rtt",
+       "set datafile separator ','\nset logscale x\nset xlabel 'round trip p50 (ms)'\nset "
+       "ylabel 'datagrams per second, server to station'\n",
+       rate_plot);
+  std::cerr << "vsurg-bench wan: " << (out / "wan.csv").string() << "\n";
+  return 0;
+}
+
+}  // namespace vsurg::bench

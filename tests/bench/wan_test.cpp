@@ -1,0 +1,99 @@
+// The closed loop across a network, in CI: a simulated hand at its stiffest grip presses the
+// stiff (700 N/m, Omni-class) sphere through the impairment relay, each run against the same run
+// without impairment. Functional, not timed: the hand's own time is its servo cycles, so a loaded
+// machine slows the run, it does not change what is asserted.
+#include "bench/wan/wan.h"
+
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include "common/sim/trajectory.h"
+
+namespace vsurg::bench::wan {
+namespace {
+
+struct Cell {
+  Run run;
+  Figures figures;
+};
+
+class WanTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto scene = GridScene("sphere-palpation-256@700");
+    ASSERT_TRUE(scene.ok()) << scene.error().message;
+    auto plan = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+    ASSERT_TRUE(plan.ok());
+    options_ = new RunOptions;
+    options_->scene = *scene;
+    options_->plan = *plan;
+    options_->grip = client::TensedGrip();
+  }
+  static void TearDownTestSuite() { delete options_; }
+
+  static Cell RunAt(const std::string& profile, client::LocalRendering method,
+                    const wan::Run* ref) {
+    RunOptions o = *options_;
+    o.profile = *relay::ProfileByName(profile);
+    o.rendering = method;
+    auto run = RunOnce(o);
+    EXPECT_TRUE(run.ok()) << run.error().message;
+    Cell c{std::move(*run), {}};
+    c.figures = Compare(c.run, ref ? *ref : c.run, true);
+    const Figures& f = c.figures;
+    std::printf(
+        "%s: rtt %.1f ms, error %.2f%%, onset +%.0f ms %+.2f mm, stiffness %.0f%%, energy to hand "
+        "%.2f mJ (excess %+.2f), above 30 Hz %.4f N, peak %.2f N, phantom %.3f N, score %.2f\n",
+        profile.c_str(), c.run.station.rtt_p50_us / 1e3, f.rms_error_pct, f.onset_delay_ms,
+        f.onset_extra_mm, f.stiffness_pct, f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n,
+        f.peak_force_n, f.phantom_n, f.score);
+    return c;
+  }
+
+  static RunOptions* options_;
+};
+RunOptions* WanTest::options_ = nullptr;
+
+TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
+  const Cell ref = RunAt("none", client::LocalRendering::kModel, nullptr);
+  ASSERT_GT(ref.figures.peak_force_n, 0.3);  // the hand did press the tissue
+  // The bounds where this scene is hardest (docs/BENCHMARKS.md "Haptics across networks"):
+  // at 700 N/m the displayed stiffness falls with the delay (97% at metro, 82% at continental).
+  const struct {
+    const char* name;
+    double max_error_pct, min_stiffness_pct;
+  } profiles[] = {{"metro", 7, 90}, {"continental", 16, 70}};
+  for (const auto& [profile, max_error_pct, min_stiffness_pct] : profiles) {
+    const Cell c = RunAt(profile, client::LocalRendering::kModel, &ref.run);
+    const Figures& f = c.figures;
+    // Bounded: never past the device's limit.
+    EXPECT_LE(f.peak_force_n, options_->scene.haptics.limits.max_force + 1e-9) << profile;
+    // Passive: the loop gave the hand no more energy than the same run without delay did, beyond
+    // a millijoule of noise, and nothing buzzes.
+    EXPECT_LT(f.energy_excess_mj, 1.0) << profile;
+    EXPECT_LT(f.oscillation_n, 2 * Compare(ref.run, ref.run, true).oscillation_n + 0.02) << profile;
+    // Contact begins at the station, where the surface is, whatever the delay ...
+    EXPECT_LT(f.onset_delay_ms, 15) << profile;
+    EXPECT_LT(std::abs(f.onset_extra_mm), 0.5) << profile;
+    EXPECT_GT(f.stiffness_pct, min_stiffness_pct) << profile;
+    EXPECT_LT(f.stiffness_pct, 110) << profile;
+    // ... and ends there: no force once the tool has left the surface.
+    EXPECT_LT(f.phantom_n, 0.05) << profile;
+    EXPECT_LT(f.rms_error_pct, max_error_pct) << profile;
+    // The trial scores alike: the same hand, the same task (the goal's ±0.2 up to regional).
+    EXPECT_NEAR(f.score, ref.run.score, 0.2) << profile;
+  }
+}
+
+TEST_F(WanTest, TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork) {
+  // The contrast that shows the test above can fail: rendering the answer's linear model
+  // everywhere (the second wave's) holds the tool to the surface after it leaves, for a round trip.
+  const Cell ref = RunAt("none", client::LocalRendering::kLinear, nullptr);
+  const Cell c = RunAt("continental", client::LocalRendering::kLinear, &ref.run);
+  EXPECT_GT(c.figures.phantom_n, 0.5);
+  EXPECT_GT(c.figures.onset_delay_ms, 50);
+}
+
+}  // namespace
+}  // namespace vsurg::bench::wan

@@ -1,0 +1,130 @@
+// The local model a station renders between answers (common/haptics/types.h LocalModel) and
+// what Simulation sends in it: the surface ahead of contact, a contact that only pushes, a grasp
+// that ends with the button and carries the tissue's torsional stiffness (checked against finite
+// differences of the server's own force).
+#include <cmath>
+#include <numbers>
+
+#include <gtest/gtest.h>
+
+#include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
+
+namespace vsurg::sim {
+namespace {
+
+using haptics::LocalModel;
+using Vec3 = Eigen::Vector3d;
+
+TEST(LocalModelTest, AContactModelPushesAndNeverPulls) {
+  LocalModel m;
+  m.kind = LocalModel::Kind::kContact;
+  m.normal = Vec3::UnitZ();
+  m.position0 = Vec3(0, 0, 0.05);
+  m.jacobian = -300 * m.normal * m.normal.transpose();
+  const Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  EXPECT_EQ(m.Render(Vec3(0, 0, 0.06), q, 0), Vec3::Zero());  // outside: nothing at all
+  EXPECT_TRUE(m.Render(Vec3(0.01, 0, 0.049), q, 0).isApprox(Vec3(0, 0, 0.3)));  // 1 mm in
+  // The same model rendered linearly pulls the tool back to the surface from outside: the
+  // tissue "sticks to the tool".
+  EXPECT_LT(m.ForceAt(Vec3(0, 0, 0.06)).z(), -2.9);
+  EXPECT_EQ(m.Render(Vec3(NAN, 0, 0), q, 0), Vec3::Zero());
+}
+
+TEST(LocalModelTest, AGraspModelEndsWithTheButtonAndFollowsTheTwist) {
+  LocalModel m;
+  m.kind = LocalModel::Kind::kGrasp;
+  m.force0 = Vec3(0.5, 0, 0);
+  m.axis = Vec3::UnitZ();
+  m.orientation0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Vec3::UnitZ()));
+  m.dforce_dtwist = Vec3(0, -2, 0);  // N/rad
+  const Eigen::Quaterniond turned =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Vec3::UnitZ())) * m.orientation0;
+  EXPECT_TRUE(m.Render(Vec3::Zero(), turned, haptics::kButtonGrasp).isApprox(Vec3(0.5, -0.2, 0)));
+  EXPECT_EQ(m.Render(Vec3::Zero(), turned, 0), Vec3::Zero());  // let go: nothing held
+  // A swing about another axis is not a twist.
+  const Eigen::Quaterniond swung =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Vec3::UnitX())) * m.orientation0;
+  EXPECT_NEAR(m.Render(Vec3::Zero(), swung, haptics::kButtonGrasp).y(), 0.0, 1e-3);
+}
+
+TEST(LocalModelTest, AFreeToolGetsTheSurfaceAheadWithTheContactsStiffness) {
+  auto scene = LoadSceneByName("sphere-palpation-256");
+  ASSERT_TRUE(scene.ok());
+  auto sim = Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  haptics::StylusSample s;
+  s.position = Vec3(0.001, 0.002, 0.06);  // 1 cm above the top of the 5 cm ball
+  haptics::ForceCommand c;
+  for (int i = 0; i < 700; ++i) {  // past the start-up gate and ramp
+    s.time = (i + 1) * 1e-3;
+    c = (*sim)->OnStylus(s);
+  }
+  ASSERT_FALSE(c.contact);
+  ASSERT_EQ(c.local.kind, LocalModel::Kind::kContact);
+  EXPECT_NEAR(c.local.position0.z(), 0.05, 0.002);  // on the surface below
+  EXPECT_GT(c.local.normal.z(), 0.95);
+  EXPECT_EQ(c.local.Render(s.position, s.orientation, 0), Vec3::Zero());
+  // 1 mm into the surface the station renders what the server will answer there.
+  const Vec3 inside = c.local.position0 - 0.001 * c.local.normal;
+  const Vec3 predicted = c.local.Render(inside, s.orientation, 0);
+  EXPECT_NEAR(predicted.norm(), 0.3, 0.03);  // 300 N/m × 1 mm
+  for (double z = 0.06; z > inside.z(); z -= 2e-4) {
+    s.position.z() = z;
+    s.time += 1e-3;
+    c = (*sim)->OnStylus(s);
+  }
+  s.position = inside;
+  for (int i = 0; i < 50; ++i) {  // held still: the coupling's damping term dies away
+    s.time += 1e-3;
+    c = (*sim)->OnStylus(s);
+  }
+  ASSERT_TRUE(c.contact);
+  EXPECT_NEAR(c.force.norm(), predicted.norm(), 0.1 * predicted.norm());
+  // Beyond the lookahead nothing is sent.
+  scene->haptics.lookahead = 0.005;
+  auto near_only = Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(near_only.ok());
+  s.position = Vec3(0.001, 0.002, 0.06);
+  s.time = 1e-3;
+  EXPECT_EQ((*near_only)->OnStylus(s).local.kind, LocalModel::Kind::kLinear);
+}
+
+TEST(LocalModelTest, TheGraspModelCarriesTheTissuesTorsionalStiffness) {
+  // Mid-twist on the arm, the server's force 0.02 rad further on against what the local model
+  // predicts there: with ∂F/∂φ (the coil's dM/dΦ through the lever, and the hold spring's arm)
+  // against the grasp spring alone, which predicted no change at all.
+  auto scene = LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok());
+  auto plan = ScriptedTrainee(*scene, TraineeStyle::kGood);
+  ASSERT_TRUE(plan.ok());
+  auto sim = Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(sim.ok());
+  haptics::ForceCommand c;
+  haptics::StylusSample s;
+  for (const auto& sample : *plan) {
+    s = sample;
+    c = (*sim)->OnStylus(s);
+    (*sim)->StepDeformation();
+    if (c.grasping && c.twist > 20 * std::numbers::pi / 180) break;
+  }
+  ASSERT_TRUE(c.grasping);
+  ASSERT_EQ(c.local.kind, LocalModel::Kind::kGrasp);
+  const double delta = 0.02;
+  haptics::StylusSample next = s;
+  next.time += 1e-3;
+  next.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(delta, c.local.axis)) * s.orientation;
+  const Vec3 predicted = c.local.Render(next.position, next.orientation, next.buttons);
+  const haptics::ForceCommand answer = (*sim)->OnStylus(next);
+  const double err_model = (predicted - answer.force).norm();
+  const double err_grip_only = (c.force - answer.force).norm();
+  std::printf("twist step %.3f rad: force change %.4f N, model error %.5f N, grip-only %.4f N\n",
+              delta, (answer.force - c.force).norm(), err_model, err_grip_only);
+  EXPECT_GT(err_grip_only, 0.02);
+  EXPECT_LT(err_model, 0.1 * err_grip_only);
+  // Released at the station: nothing is rendered, whatever the answer said.
+  EXPECT_EQ(c.local.Render(next.position, next.orientation, 0), Vec3::Zero());
+}
+
+}  // namespace
+}  // namespace vsurg::sim
