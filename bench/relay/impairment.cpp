@@ -47,12 +47,12 @@ const std::vector<Profile>& Profiles() {
     v.push_back(Make("lan", "0.25 ms each way", 0.25, 0, 0, 1));
     v.push_back(Make("metro", "10 ± 1 ms", 10, 1, 0, 1));
     v.push_back(Make("regional", "25 ± 3 ms, 0.5% loss", 25, 3, 0.005, 1));
-    v.push_back(Make("continental", "50 ± 5 ms, 2% loss in bursts of 4", 50, 5, 0.02, 4));
+    v.push_back(Make("continental", "50 ± 5 ms, 2% loss in 4 ms bursts", 50, 5, 0.02, 4));
     v.push_back(Make("intercontinental", "150 ± 10 ms, 1% loss", 150, 10, 0.01, 1));
     // Wi-Fi: retransmissions at the link layer reorder, interference comes in bursts, and a
     // roam between access points is an outage.
     Profile wifi =
-        Make("bad-wifi", "3 ± 8 ms reordering, 5% loss in bursts of 8, a 500 ms outage at 4 s", 3,
+        Make("bad-wifi", "3 ± 8 ms reordering, 5% loss in 8 ms bursts, 1% duplicates, a 500 ms outage at 4 s", 3,
              8, 0.05, 8, true);
     wifi.up.duplicate = wifi.down.duplicate = 0.01;
     wifi.up.outage_at_s = wifi.down.outage_at_s = 4.0;
@@ -82,7 +82,18 @@ Fate Impairment::Decide(double arrival_s) {
   // change does not shift the others' sequences (two profiles differ only where they differ).
   const double u_state = u(rng_), u_loss = u(rng_), u_dup = u(rng_);
   const double z = std::clamp(n(rng_), -2.0, 2.0);
-  bad_ = bad_ ? !(u_state < params_.p_bad_to_good) : (u_state < params_.p_good_to_bad);
+  // Advance the chain by the milliseconds since the previous datagram (at least one step).
+  const double steps =
+      last_arrival_s_ < 0 ? 1.0 : std::max(1.0, std::round((arrival_s - last_arrival_s_) * 1e3));
+  last_arrival_s_ = arrival_s;
+  const double p = params_.p_good_to_bad, r = params_.p_bad_to_good;
+  if (steps <= 1.0 || p + r <= 0) {
+    bad_ = bad_ ? !(u_state < r) : (u_state < p);
+  } else {
+    const double pi_bad = p / (p + r);
+    const double p_bad = pi_bad + ((bad_ ? 1.0 : 0.0) - pi_bad) * std::pow(1.0 - p - r, steps);
+    bad_ = u_state < p_bad;
+  }
   Fate f;
   if (params_.outage_at_s >= 0 && arrival_s >= params_.outage_at_s &&
       arrival_s < params_.outage_at_s + params_.outage_s) {

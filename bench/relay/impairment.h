@@ -6,11 +6,15 @@
 //
 // Model, per datagram arriving at time t (s, the relay's clock):
 //   - outage: every datagram in [outage_at_s, outage_at_s + outage_s) is lost;
-//   - loss: Gilbert–Elliott (Gilbert 1960, Elliott 1963), a two-state Markov chain stepped once
-//     per datagram: good → bad with probability p, bad → good with r; a datagram is lost with
-//     probability loss_good in the good state and loss_bad in the bad one. Random (Bernoulli)
-//     loss is p = 0 with loss_good = the rate. From a mean rate L and a mean burst length B
-//     (datagrams): r = 1/B, p = r·L/(1 − L), loss_bad = 1, loss_good = 0 (BurstLoss());
+//   - loss: Gilbert–Elliott (Gilbert 1960, Elliott 1963), a two-state Markov chain that steps
+//     once per millisecond of the link's time (a flow at 1 kHz: once per datagram): good → bad
+//     with probability p, bad → good with r; a datagram is lost with probability loss_good in
+//     the good state and loss_bad in the bad one. Between two datagrams n ms apart the chain is
+//     advanced n steps at once, P(bad) = π + (s − π)·(1 − p − r)ⁿ (π = p/(p + r), s the state
+//     before), so a burst lasts as long in time for a sparse flow (a station behind the
+//     deadband) as for a full-rate one, rather than spanning as many of its sparse datagrams.
+//     Random (Bernoulli) loss is p = 0 with loss_good = the rate. From a mean rate L and a mean
+//     burst length B (ms): r = 1/B, p = r·L/(1 − L), loss_bad = 1, loss_good = 0 (BurstLoss());
 //   - delay: base_ms + jitter, the jitter normal with σ = jitter_ms truncated at ±2σ, never
 //     below zero in total; without reordering a datagram never leaves before the one sent
 //     before it (a FIFO queue: jitter stretches gaps but keeps the order), with reordering each
@@ -78,6 +82,7 @@ class Impairment {
   DirectionParams params_;
   std::mt19937_64 rng_;
   bool bad_ = false;
+  double last_arrival_s_ = -1;
   double last_release_s_ = 0;
 };
 

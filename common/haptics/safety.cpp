@@ -67,8 +67,12 @@ Vec3 SafetyFilter::Filter(const Vec3& requested_in, double dt, uint32_t& events)
   // Start-up gate, then ramp-in.
   double ramp = 1.0;
   if (!armed_) {
-    quiet_ = requested.norm() < gate_.gate_force ? quiet_ + 1 : 0;
-    if (quiet_ >= gate_.gate_cycles) {
+    // Quiet for gate_cycles samples, or as long as that many 1 ms cycles take: a station behind
+    // the perceptual deadband sends a sample only every few tens of milliseconds.
+    const bool quiet = requested.norm() < gate_.gate_force;
+    quiet_ = quiet ? quiet_ + 1 : 0;
+    quiet_time_ = quiet ? quiet_time_ + dt : 0.0;
+    if (quiet_ >= gate_.gate_cycles || quiet_time_ >= 1e-3 * gate_.gate_cycles) {
       armed_ = true;
       armed_time_ = 0;
     } else {
@@ -130,6 +134,7 @@ void SafetyFilter::Disarm() {
   armed_ = false;
   ramp_ = 0;
   quiet_ = 0;
+  quiet_time_ = 0;
   last_.setZero();
 }
 

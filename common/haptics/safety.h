@@ -2,7 +2,7 @@
 //
 //   1. input check: a non-finite or out-of-workspace sample gives zero force and an event;
 //   2. start-up gating: nothing is output until the requested force has stayed below
-//      gate_force for gate_cycles samples (no kick when a session starts with the tip inside
+//      gate_force for gate_cycles samples (or gate_cycles ms, when samples come sparser) (no kick when a session starts with the tip inside
 //      tissue), then the output is ramped in over ramp_time;
 //   3. magnitude clamp to max_force; 4. rate limit |ΔF| ≤ max_force_rate·dt (the output's
 //      magnitude is ≤ max_force exactly, in the double arithmetic a check of it uses);
@@ -64,6 +64,7 @@ class SafetyFilter {
   GateParams gate_;
   Vec3 last_ = Vec3::Zero();
   int quiet_ = 0;
+  double quiet_time_ = 0;  // s the request has been quiet (see Filter)
   bool armed_ = false;
   double armed_time_ = 0;  // s since arming
   double ramp_ = 0;        // the last Filter's gate-and-ramp factor, 0..1

@@ -46,6 +46,25 @@ TEST(ImpairmentTest, GilbertElliottGivesTheMeanRateInBurstsOfTheMeanLength) {
   EXPECT_NEAR(static_cast<double>(lost) / bursts, 4.0, 0.4);
 }
 
+TEST(ImpairmentTest, BurstsLastInTimeNotInDatagramsForASparseFlow) {
+  // A station behind the deadband sends every 25 ms: a 4 ms burst must not take four of its
+  // datagrams (100 ms) in a row, and the mean rate stays the profile's.
+  DirectionParams d;
+  BurstLoss(d, 0.02, 4);
+  Impairment imp(d, 5);
+  int lost = 0, pairs = 0;
+  bool previous = false;
+  const int n = 100000;
+  for (int i = 0; i < n; ++i) {
+    const bool l = imp.Decide(i * 0.025).lost;
+    lost += l;
+    pairs += l && previous;
+    previous = l;
+  }
+  EXPECT_NEAR(static_cast<double>(lost) / n, 0.02, 0.003);
+  EXPECT_LT(pairs, lost / 5);  // about independent at 25 ms apart (0.02 of them would be)
+}
+
 TEST(ImpairmentTest, JitterWithoutReorderingKeepsTheOrderAndWithItOvertakes) {
   DirectionParams d;
   d.base_ms = 25;
