@@ -52,8 +52,9 @@ const std::vector<Profile>& Profiles() {
     // Wi-Fi: retransmissions at the link layer reorder, interference comes in bursts, and a
     // roam between access points is an outage.
     Profile wifi =
-        Make("bad-wifi", "3 ± 8 ms reordering, 5% loss in 8 ms bursts, 1% duplicates, a 500 ms outage at 4 s", 3,
-             8, 0.05, 8, true);
+        Make("bad-wifi",
+             "3 ± 8 ms reordering, 5% loss in 8 ms bursts, 1% duplicates, a 500 ms outage at 4 s",
+             3, 8, 0.05, 8, true);
     wifi.up.duplicate = wifi.down.duplicate = 0.01;
     wifi.up.outage_at_s = wifi.down.outage_at_s = 4.0;
     wifi.up.outage_s = wifi.down.outage_s = 0.5;

@@ -68,7 +68,8 @@ int main(int argc, char** argv) {
       .Option("delay-ms", Kind::kDouble, "override: one-way delay, both directions")
       .Option("jitter-ms", Kind::kDouble, "override: σ of the delay, both directions")
       .Option("loss", Kind::kDouble, "override: mean loss rate 0..1, both directions")
-      .Option("burst", Kind::kDouble, "with --loss: mean burst length, ms (datagrams at 1 kHz)", false, "1")
+      .Option("burst", Kind::kDouble, "with --loss: mean burst length, ms (datagrams at 1 kHz)",
+              false, "1")
       .Option("reorder", Kind::kFlag, "override: jitter may reorder datagrams")
       .Option("duplicate", Kind::kDouble, "override: duplication probability")
       .Option("outage-at", Kind::kDouble, "override: an outage this many s after traffic starts")

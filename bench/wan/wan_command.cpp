@@ -42,6 +42,15 @@ void Plot(const fs::path& dir, const std::string& name, const std::string& setti
     std::cerr << "vsurg-bench wan: gnuplot failed on " << name << "\n";
 }
 
+// What the hand lived, per servo cycle, in the station's --force-log columns.
+void WriteTrace(const fs::path& file, const wan::Run& run) {
+  std::ofstream t(file);
+  t << "t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n";
+  for (const auto& c : run.trace)
+    t << c.t << "," << c.x.x() << "," << c.x.y() << "," << c.x.z() << "," << c.force.x() << ","
+      << c.force.y() << "," << c.force.z() << "\n";
+}
+
 }  // namespace
 
 int Wan(const std::vector<std::string>& args) {
@@ -141,21 +150,13 @@ int Wan(const std::vector<std::string>& args) {
           if (r == 1) {
             const std::string file =
                 "traces/" + scene_name + "_" + profile.name + "_" + method_name + ".csv";
-            std::ofstream t(out / file);
-            t << "t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n";
-            for (const auto& c : run->trace)
-              t << c.t << "," << c.x.x() << "," << c.x.y() << "," << c.x.z() << "," << c.force.x()
-                << "," << c.force.y() << "," << c.force.z() << "\n";
+            WriteTrace(out / file, *run);
             trace_files[scene_name + "_" + method_name].push_back(file + "|" + profile.name);
           }
         }
         if (r == 1) {
           const std::string file = "traces/" + scene_name + "_none_" + method_name + ".csv";
-          std::ofstream t(out / file);
-          t << "t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n";
-          for (const auto& c : ref->trace)
-            t << c.t << "," << c.x.x() << "," << c.x.y() << "," << c.x.z() << "," << c.force.x()
-              << "," << c.force.y() << "," << c.force.z() << "\n";
+          WriteTrace(out / file, *ref);
           trace_files[scene_name + "_" + method_name].insert(
               trace_files[scene_name + "_" + method_name].begin(), file + "|no delay");
         }

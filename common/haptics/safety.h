@@ -2,8 +2,9 @@
 //
 //   1. input check: a non-finite or out-of-workspace sample gives zero force and an event;
 //   2. start-up gating: nothing is output until the requested force has stayed below
-//      gate_force for gate_cycles samples (or gate_cycles ms, when samples come sparser) (no kick when a session starts with the tip inside
-//      tissue), then the output is ramped in over ramp_time;
+//      gate_force for gate_cycles samples (or gate_cycles ms, when samples come sparser) (no kick
+//      when a session starts with the tip inside tissue), then the output is ramped in over
+//      ramp_time;
 //   3. magnitude clamp to max_force; 4. rate limit |ΔF| ≤ max_force_rate·dt (the output's
 //      magnitude is ≤ max_force exactly, in the double arithmetic a check of it uses);
 //   5. local-model stiffness clamped to max_stiffness (largest |eigenvalue| of the symmetric part).

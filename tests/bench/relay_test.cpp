@@ -153,6 +153,24 @@ class Echo {
   std::thread thread_;
 };
 
+// A station's socket: sends to the relay on loopback, waits up to `timeout` for an answer.
+struct StationSocket {
+  StationSocket(uint16_t relay_port, timeval timeout) : fd(socket(AF_INET, SOCK_DGRAM, 0)) {
+    to.sin_family = AF_INET;
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    to.sin_port = htons(relay_port);
+    Timeout(timeout);
+  }
+  ~StationSocket() { close(fd); }
+  void Timeout(timeval t) { setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &t, sizeof t); }
+  ssize_t Send(int v) {
+    return sendto(fd, &v, sizeof v, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
+  }
+  ssize_t Receive(int& v) { return recv(fd, &v, sizeof v, 0); }
+  int fd;
+  sockaddr_in to{};
+};
+
 TEST(RelayTest, DelaysBothWaysOnLoopbackAndCountsWhatItDid) {
   Echo echo;
   RelayOptions o;
@@ -160,27 +178,19 @@ TEST(RelayTest, DelaysBothWaysOnLoopbackAndCountsWhatItDid) {
   o.profile = *ProfileByName("metro");  // 10 ± 1 ms each way
   auto relay = Relay::Start(o);
   ASSERT_TRUE(relay.ok()) << relay.error().message;
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in to{};
-  to.sin_family = AF_INET;
-  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  to.sin_port = htons((*relay)->port());
-  timeval tv{2, 0};
-  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  StationSocket station((*relay)->port(), {2, 0});
   int answered = 0;
   double min_rtt = 1e9;
   for (int i = 0; i < 20; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
-    ASSERT_EQ(sendto(fd, &i, sizeof i, 0, reinterpret_cast<sockaddr*>(&to), sizeof to),
-              static_cast<ssize_t>(sizeof i));
+    ASSERT_EQ(station.Send(i), static_cast<ssize_t>(sizeof i));
     int back = -1;
-    if (recv(fd, &back, sizeof back, 0) == static_cast<ssize_t>(sizeof back) && back == i) {
+    if (station.Receive(back) == static_cast<ssize_t>(sizeof back) && back == i) {
       ++answered;
       min_rtt = std::min(
           min_rtt, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
   }
-  close(fd);
   EXPECT_EQ(answered, 20);
   EXPECT_GE(min_rtt, 0.016);  // two one-way delays of at least 8 ms (10 − 2σ)
   (*relay)->Stop();
@@ -200,22 +210,14 @@ TEST(RelayTest, ABlackholeLosesEverythingUntilLifted) {
   auto relay = Relay::Start(o);
   ASSERT_TRUE(relay.ok());
   (*relay)->SetBlackhole(true);
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in to{};
-  to.sin_family = AF_INET;
-  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  to.sin_port = htons((*relay)->port());
-  timeval tv{0, 200000};
-  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  int x = 1, back = 0;
-  sendto(fd, &x, sizeof x, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
-  EXPECT_LT(recv(fd, &back, sizeof back, 0), 0);
+  StationSocket station((*relay)->port(), {0, 200000});
+  int back = 0;
+  station.Send(1);
+  EXPECT_LT(station.Receive(back), 0);
   (*relay)->SetBlackhole(false);
-  timeval longer{2, 0};
-  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &longer, sizeof longer);
-  sendto(fd, &x, sizeof x, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
-  EXPECT_EQ(recv(fd, &back, sizeof back, 0), static_cast<ssize_t>(sizeof back));
-  close(fd);
+  station.Timeout({2, 0});
+  station.Send(1);
+  EXPECT_EQ(station.Receive(back), static_cast<ssize_t>(sizeof back));
   EXPECT_EQ((*relay)->stats().up.lost_outage, 1u);
 }
 

@@ -303,7 +303,8 @@ async function pageLive(main) {
       entry.row.replaceChildren(
         el('td', {}, t.trainee), el('td', {}, t.scene), el('td', {}, stateBadge(t.state)),
         el('td', {}, taskCell(t)), el('td', { class: 'num' }, fmt(t.force_n, 2)),
-        el('td', { class: 'num' }, fmt(t.rtt_us, 0)), el('td', { class: 'num' }, fmt(t.loss * 100, 2)),
+        el('td', { class: 'num' }, fmt(t.rtt_us, 0)), el('td', { class: 'num' }, fmt(t.loss * 100, 2),
+          poorLink(t) ? [' ', el('span', { class: 'badge stalled', title: poorLinkWhy }, 'poor link')] : null),
         el('td', { class: 'num' }, fmt(t.rate_hz, 0)), el('td', { class: 'num' }, fmt(t.score, 1)),
         el('td', {}, el('a', { href: '/session/' + t.id }, 'Open')));
     }
@@ -327,6 +328,11 @@ async function pageLive(main) {
     }
   }, 1000);
 }
+
+// Beyond what the station's local model holds faithfully (docs/BENCHMARKS.md "Haptics across
+// networks"), the station tells its trainee and the live table flags the row.
+const poorLinkWhy = 'Round trip over 300 ms or over 10% lost: the station warns its trainee';
+function poorLink(t) { return t.rtt_us > 300e3 || t.loss > 0.10; }
 
 function metricsList(m) {
   if (!m) return el('p', { class: 'muted' }, 'No trial metrics recorded.');
