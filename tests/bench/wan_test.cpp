@@ -32,9 +32,10 @@ class WanTest : public ::testing::Test {
   }
   static void TearDownTestSuite() { delete options_; }
 
-  static Cell RunAt(const std::string& profile, client::LocalRendering method,
-                    const wan::Run* ref) {
+  static Cell RunAt(const std::string& profile, client::LocalRendering method, const wan::Run* ref,
+                    double deadband = 0) {
     RunOptions o = *options_;
+    o.deadband = deadband;
     o.profile = *relay::ProfileByName(profile);
     o.rendering = method;
     auto run = RunOnce(o);
@@ -84,6 +85,21 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
     // The trial scores alike: the same hand, the same task (the goal's ±0.2 up to regional).
     EXPECT_NEAR(f.score, ref.run.score, 0.2) << profile;
   }
+}
+
+TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
+  // At continental (the stiff sphere: 94.6% fewer, +0.65 points in docs/BENCHMARKS.md), side by
+  // side with the full-rate run on the same profile, both against the full-rate run unimpaired.
+  const Cell ref = RunAt("none", client::LocalRendering::kModel, nullptr);
+  const Cell full = RunAt("continental", client::LocalRendering::kModel, &ref.run);
+  const Cell thin = RunAt("continental", client::LocalRendering::kModel, &ref.run, 0.1);
+  EXPECT_LT(thin.run.up_datagrams, full.run.up_datagrams / 10);  // ≥ 90% fewer each way
+  EXPECT_LT(thin.run.down_datagrams, full.run.down_datagrams / 10);
+  EXPECT_LT(thin.figures.rms_error_pct, full.figures.rms_error_pct + 1.5);
+  EXPECT_LT(thin.figures.onset_delay_ms, 15);
+  EXPECT_LT(thin.figures.phantom_n, 0.05);
+  EXPECT_LT(thin.figures.energy_excess_mj, 1.0);
+  EXPECT_NEAR(thin.figures.score, full.figures.score, 0.2);
 }
 
 TEST_F(WanTest, TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork) {
