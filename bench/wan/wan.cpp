@@ -138,7 +138,7 @@ Figures Compare(const Run& run, const Run& ref, bool press_scene) {
       n && peak_ref > 0 ? 100 * std::sqrt(err2 / static_cast<double>(n)) / peak_ref : 0;
   const long ka = Onset(a), kb = Onset(b);
   if (ka >= 0 && kb >= 0) {
-    f.onset_delay_ms = static_cast<double>(ka - kb) * dt * 1e3;
+    f.onset_delay_cycles = static_cast<double>(ka - kb);
     const Vec3 normal = b[kb].force.normalized();  // the reference's push at its onset
     f.onset_extra_mm = 1e3 * (b[kb].x - a[ka].x).dot(normal);
   }

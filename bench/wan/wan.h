@@ -47,8 +47,10 @@ struct Run {
 Expected<Run> RunOnce(const RunOptions& options);
 
 struct Figures {
-  double rms_error_pct = 0;      // force RMS error, % of the reference's peak
-  double onset_delay_ms = 0;     // contact felt later than in the reference
+  double rms_error_pct = 0;  // force RMS error, % of the reference's peak
+  // Contact felt later than in the reference, in servo cycles (1 ms each) of the hand's own
+  // time: a functional figure, not a wall-clock one (the CSV's onset_delay_ms column).
+  double onset_delay_cycles = 0;
   double onset_extra_mm = 0;     // deeper along the contact normal when it was first felt
   double stiffness_pct = 0;      // displayed stiffness (force over depth), % of the reference's
   double energy_to_hand_mj = 0;  // Σ F·Δx over held intervals, mJ (> 0: the loop gave energy)

@@ -138,7 +138,7 @@ int Wan(const std::vector<std::string>& args) {
                         "%s,%s,%s,%d,%.2f,%.2f,%.0f,%.2f,%.1f,%.2f,%.2f,%.4f,%.3f,%.3f,%.0f,%.0f,"
                         "%.2f,%.3f,%llu,%llu,%llu,%llu",
                         scene_name.c_str(), profile.name.c_str(), method_name.c_str(), r, rtt_ms,
-                        f.rms_error_pct, f.onset_delay_ms, f.onset_extra_mm, f.stiffness_pct,
+                        f.rms_error_pct, f.onset_delay_cycles, f.onset_extra_mm, f.stiffness_pct,
                         f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n, f.peak_force_n,
                         f.phantom_n, f.up_hz, f.down_hz, f.score, run->server_peak_force,
                         static_cast<unsigned long long>(run->station.lost),

@@ -44,9 +44,10 @@ class WanTest : public ::testing::Test {
     c.figures = Compare(c.run, ref ? *ref : c.run, true);
     const Figures& f = c.figures;
     std::printf(
-        "%s: rtt %.1f ms, error %.2f%%, onset +%.0f ms %+.2f mm, stiffness %.0f%%, energy to hand "
+        "%s: rtt %.1f ms, error %.2f%%, onset +%.0f cycles %+.2f mm, stiffness %.0f%%, energy to "
+        "hand "
         "%.2f mJ (excess %+.2f), above 30 Hz %.4f N, peak %.2f N, phantom %.3f N, score %.2f\n",
-        profile.c_str(), c.run.station.rtt_p50_us / 1e3, f.rms_error_pct, f.onset_delay_ms,
+        profile.c_str(), c.run.station.rtt_p50_us / 1e3, f.rms_error_pct, f.onset_delay_cycles,
         f.onset_extra_mm, f.stiffness_pct, f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n,
         f.peak_force_n, f.phantom_n, f.score);
     return c;
@@ -75,7 +76,7 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
     EXPECT_LT(f.energy_excess_mj, 1.0) << profile;
     EXPECT_LT(f.oscillation_n, 2 * Compare(ref.run, ref.run, true).oscillation_n + 0.02) << profile;
     // Contact begins at the station, where the surface is, whatever the delay ...
-    EXPECT_LT(f.onset_delay_ms, 15) << profile;
+    EXPECT_LT(f.onset_delay_cycles, 15) << profile;
     EXPECT_LT(std::abs(f.onset_extra_mm), 0.5) << profile;
     EXPECT_GT(f.stiffness_pct, min_stiffness_pct) << profile;
     EXPECT_LT(f.stiffness_pct, 110) << profile;
@@ -96,7 +97,7 @@ TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
   EXPECT_LT(thin.run.up_datagrams, full.run.up_datagrams / 10);  // ≥ 90% fewer each way
   EXPECT_LT(thin.run.down_datagrams, full.run.down_datagrams / 10);
   EXPECT_LT(thin.figures.rms_error_pct, full.figures.rms_error_pct + 1.5);
-  EXPECT_LT(thin.figures.onset_delay_ms, 15);
+  EXPECT_LT(thin.figures.onset_delay_cycles, 15);
   EXPECT_LT(thin.figures.phantom_n, 0.05);
   EXPECT_LT(thin.figures.energy_excess_mj, 1.0);
   EXPECT_NEAR(thin.figures.score, full.figures.score, 0.2);
@@ -108,7 +109,7 @@ TEST_F(WanTest, TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork) {
   const Cell ref = RunAt("none", client::LocalRendering::kLinear, nullptr);
   const Cell c = RunAt("continental", client::LocalRendering::kLinear, &ref.run);
   EXPECT_GT(c.figures.phantom_n, 0.5);
-  EXPECT_GT(c.figures.onset_delay_ms, 50);
+  EXPECT_GT(c.figures.onset_delay_cycles, 50);
 }
 
 }  // namespace
