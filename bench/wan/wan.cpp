@@ -101,8 +101,8 @@ Expected<Run> RunOnce(const RunOptions& o) {
   // Wait on the hand's own progress (its device time), not on the wall clock: a loaded machine
   // slows the run, it does not cut it short.
   while (!(*hand)->finished()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  const auto settle_until = (*hand)->trace().size() + static_cast<size_t>(o.settle_s * 1000);
-  while ((*hand)->trace().size() < settle_until)
+  const auto settle_until = (*hand)->cycles() + static_cast<size_t>(o.settle_s * 1000);
+  while ((*hand)->cycles() < settle_until)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   (*station)->Stop();
   Run run;

@@ -106,6 +106,11 @@ bool VirtualHandDevice::finished() const {
   return t_ >= plan_duration();
 }
 
+size_t VirtualHandDevice::cycles() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return trace_.size();
+}
+
 std::vector<HandSample> VirtualHandDevice::trace() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return trace_;

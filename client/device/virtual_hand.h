@@ -78,6 +78,7 @@ class VirtualHandDevice : public HapticDevice {
 
   bool finished() const;                  // the plan has been played out
   std::vector<HandSample> trace() const;  // every cycle so far
+  size_t cycles() const;                  // how many: trace().size() without the copy
   double plan_duration() const;
 
  private:
