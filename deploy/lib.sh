@@ -3,7 +3,8 @@
 # The packages the project needs today: core, tests, benchmarks, and the UDP channel (Asio from
 # Boost, protobuf, OpenSSL), the control plane (gRPC, SQLite), the stations (OpenGL: GLFW for windows,
 # EGL on Mesa for headless rendering; Xvfb and xdotool to test the window and its keys), libpng for
-# screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD,
+# screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD (its
+# text in DejaVu Sans through FreeType),
 # PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start),
 # PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py).
 VSURG_PACKAGES=(
@@ -14,7 +15,7 @@ VSURG_PACKAGES=(
   libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev libpng-dev gnuplot-nox
   libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth xdotool
   chromium chromium-driver python3-selenium
-  libimgui-dev
+  libimgui-dev libfreetype-dev fonts-dejavu-core
   libassimp-dev libcgal-dev
   postgresql libpq-dev python3-yaml
 )

@@ -23,6 +23,7 @@
 #include "client/render/mesh_view.h"
 #include "common/core/args.h"
 #include "common/sim/scene.h"
+#include "common/sim/visual_model.h"
 #include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -246,7 +247,13 @@ int Follow(const std::vector<std::string>& args) {
                     << "\n";
           return 1;
         }
-        view = std::make_unique<client::MeshView>(mesh->surface);
+        auto visual = vsurg::sim::BuildVisualModel(*scene, mesh->surface);
+        if (!visual.ok()) {
+          std::cerr << p.command() << ": scene '" << latest.scene()
+                    << "': " << visual.error().message << "\n";
+          return 1;
+        }
+        view = std::make_unique<client::MeshView>(mesh->surface, std::move(*visual));
         scene_name = latest.scene();
       }
       if (view && surface) {

@@ -144,8 +144,18 @@ Expected<std::unique_ptr<GlSurface>> GlSurface::CreateHeadless(int width, int he
   EGLint configs = 0;
   if (!eglChooseConfig(impl->display, config_attributes, &config, 1, &configs) || configs < 1)
     config = nullptr;  // EGL_KHR_no_config_context: Mesa accepts a context without a config
-  impl->context = eglCreateContext(impl->display, config, EGL_NO_CONTEXT, nullptr);
-  if (impl->context == EGL_NO_CONTEXT) return GlError("EGL cannot create an OpenGL context");
+  // OpenGL 3.3 core (the renderer's GLSL 330); llvmpipe gives 4.5.
+  const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION,
+                                       3,
+                                       EGL_CONTEXT_MINOR_VERSION,
+                                       3,
+                                       EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                       EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                       EGL_NONE};
+  impl->context = eglCreateContext(impl->display, config, EGL_NO_CONTEXT, context_attributes);
+  if (impl->context == EGL_NO_CONTEXT)
+    return GlError(
+        "EGL cannot create an OpenGL 3.3 core context (is Mesa's libegl-mesa0 installed?)");
   if (!eglMakeCurrent(impl->display, EGL_NO_SURFACE, EGL_NO_SURFACE, impl->context))
     return GlError("EGL cannot make a surfaceless context current");
   // Framebuffer objects are OpenGL 3.0; take their entry points from the driver.
@@ -182,13 +192,15 @@ Expected<std::unique_ptr<GlSurface>> GlSurface::CreateWindow(const std::string& 
     return InvalidArgument("size", "the window must be 16–8192 pixels a side");
   if (!glfwInit()) return GlError("GLFW cannot start (no display? use --headless)");
   auto impl = std::make_unique<Impl>();
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 2);
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 1);
-  glfwWindowHint(GLFW_SAMPLES, 4);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  glfwWindowHint(GLFW_SAMPLES, 0);  // the view copies its cached background in with a blit
   impl->window = glfwCreateWindow(width, height, title.c_str(), nullptr, nullptr);
   if (!impl->window) {
     glfwTerminate();
-    return GlError("GLFW cannot open a window");
+    return GlError("GLFW cannot open a window with an OpenGL 3.3 core context");
   }
   impl->width = width;
   impl->height = height;

@@ -1,7 +1,7 @@
 // Where the stations and the monitor draw: a GLFW window, or an offscreen framebuffer in an EGL
 // context on Mesa's surfaceless platform (no display needed: tests, CI, docs screenshots).
-// Both give a legacy-compatible OpenGL context (the renderer uses fixed-function lighting and
-// vertex arrays, which every driver and llvmpipe have).
+// Both give an OpenGL 3.3 core context (the renderer's GLSL 330 shaders; Mesa's llvmpipe offers
+// 4.5, so CI renders what a GPU does).
 //
 // Threads: one render thread creates, draws with and destroys a surface (OpenGL contexts are
 // current on one thread). Input() may be read from any thread.

@@ -1,13 +1,20 @@
 #include "client/render/mesh_view.h"
 
-#include <imgui.h>
-#include <imgui_impl_opengl2.h>
-
+#define GL_GLEXT_PROTOTYPES 1
 #include <GL/gl.h>
+#include <GL/glext.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <map>
+#include <numbers>
+#include <random>
+#include <string>
+
+#include "client/render/shaders.h"
+#include "client/render/shapes.h"
 
 namespace vsurg::client {
 namespace {
@@ -40,69 +47,391 @@ Eigen::Matrix4d Frustum(double aspect, double near_plane, double far_plane) {
   return m;
 }
 
+// What glOrtho builds, symmetric across: half-extent `r`, depth [near, far].
+Eigen::Matrix4d Ortho(double r, double near_plane, double far_plane) {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m(0, 0) = 1 / r;
+  m(1, 1) = 1 / r;
+  m(2, 2) = -2 / (far_plane - near_plane);
+  m(2, 3) = -(far_plane + near_plane) / (far_plane - near_plane);
+  return m;
+}
+
+GLuint Compile(GLenum type, const char* source) {
+  const GLuint shader = glCreateShader(type);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048];
+    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
+    std::fprintf(stderr, "vsurg render: a shader does not compile: %s\n", log);
+  }
+  return shader;
+}
+
+GLuint Link(const char* vertex, const std::string& fragment) {
+  const GLuint vs = Compile(GL_VERTEX_SHADER, vertex),
+               fs = Compile(GL_FRAGMENT_SHADER, fragment.c_str());
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, vs);
+  glAttachShader(program, fs);
+  glLinkProgram(program);
+  GLint ok = 0;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048];
+    glGetProgramInfoLog(program, sizeof log, nullptr, log);
+    std::fprintf(stderr, "vsurg render: a shader program does not link: %s\n", log);
+  }
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  return program;
+}
+
+void SetMatrix(GLuint program, const char* name, const Eigen::Matrix4d& m) {
+  const Eigen::Matrix4f f = m.cast<float>();
+  glUniformMatrix4fv(glGetUniformLocation(program, name), 1, GL_FALSE, f.data());
+}
+void SetMatrix3(GLuint program, const char* name, const Eigen::Matrix3d& m) {
+  const Eigen::Matrix3f f = m.cast<float>();
+  glUniformMatrix3fv(glGetUniformLocation(program, name), 1, GL_FALSE, f.data());
+}
+void SetVec3(GLuint program, const char* name, const Eigen::Vector3d& v) {
+  glUniform3f(glGetUniformLocation(program, name), static_cast<float>(v.x()),
+              static_cast<float>(v.y()), static_cast<float>(v.z()));
+}
+void SetFloat(GLuint program, const char* name, double v) {
+  glUniform1f(glGetUniformLocation(program, name), static_cast<float>(v));
+}
+void SetInt(GLuint program, const char* name, int v) {
+  glUniform1i(glGetUniformLocation(program, name), v);
+}
+
+// A lit mesh on the GPU: interleaved position, normal, rest position (9 floats a vertex).
+struct Part {
+  GLuint vao = 0, vbo = 0, ebo = 0;
+  GLsizei count = 0;
+  // Vertices of 9 floats (position, normal, rest position), or 11 with the tissue's broad
+  // detail (tone, vessels) sampled once per vertex.
+  void Upload(const std::vector<float>& vertices, const std::vector<uint32_t>& indices,
+              GLenum usage, int floats_per_vertex = 9) {
+    if (!vao) {
+      glGenVertexArrays(1, &vao);
+      glGenBuffers(1, &vbo);
+      glGenBuffers(1, &ebo);
+    }
+    glBindVertexArray(vao);
+    glBindBuffer(GL_ARRAY_BUFFER, vbo);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(vertices.size() * sizeof(float)),
+                 vertices.data(), usage);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, ebo);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(indices.size() * 4),
+                 indices.data(), GL_STATIC_DRAW);
+    const GLsizei stride = floats_per_vertex * static_cast<GLsizei>(sizeof(float));
+    for (GLuint a = 0; a < 3; ++a) {
+      glEnableVertexAttribArray(a);
+      glVertexAttribPointer(
+          a, 3, GL_FLOAT, GL_FALSE, stride,
+          reinterpret_cast<const void*>(static_cast<uintptr_t>(a * 3 * sizeof(float))));
+    }
+    if (floats_per_vertex == 11) {
+      glEnableVertexAttribArray(3);
+      glVertexAttribPointer(
+          3, 2, GL_FLOAT, GL_FALSE, stride,
+          reinterpret_cast<const void*>(static_cast<uintptr_t>(9 * sizeof(float))));
+    }
+    glBindVertexArray(0);
+    count = static_cast<GLsizei>(indices.size());
+  }
+  void Draw() const {
+    if (!count) return;
+    glBindVertexArray(vao);
+    glDrawElements(GL_TRIANGLES, count, GL_UNSIGNED_INT, nullptr);
+  }
+  void Release() {
+    if (vao) glDeleteVertexArrays(1, &vao);
+    if (vbo) glDeleteBuffers(1, &vbo);
+    if (ebo) glDeleteBuffers(1, &ebo);
+    vao = vbo = ebo = 0;
+  }
+};
+
+std::vector<float> Interleave(const ShapeMesh& m) {
+  std::vector<float> out;
+  out.reserve(m.positions.size() * 9);
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    const auto &p = m.positions[i], &n = m.normals[i];
+    out.insert(out.end(), {p.x(), p.y(), p.z(), n.x(), n.y(), n.z(), p.x(), p.y(), p.z()});
+  }
+  return out;
+}
+
+// The detail texture: 64³ texels that tile, RGBA: r a broad tone (value-noise fBm, periods 16
+// and 8 texels), g pores (sparse dark spots, period 2–3 texels), b vessels (the ridges of a
+// noise of period 11: thin branching lines), a a height (fine fBm minus the pores). Made once
+// per process (about 20 ms), uploaded per context.
+constexpr int kDetailSize = 64;
+const std::vector<unsigned char>& DetailTexels() {
+  static const std::vector<unsigned char> texels = [] {
+    const int n = kDetailSize;
+    std::mt19937 random(20261125);
+    std::uniform_real_distribution<float> uniform(0, 1);
+    std::vector<float> lattice(static_cast<size_t>(n) * n * n);
+    for (float& v : lattice) v = uniform(random);
+    // Periodic value noise at `period` texels (period divides n), smoothstep-interpolated.
+    const auto noise = [&](float x, float y, float z, int period, int salt) {
+      const float step = static_cast<float>(n) / static_cast<float>(period);
+      const float fx = x / step, fy = y / step, fz = z / step;
+      const int ix = static_cast<int>(std::floor(fx)), iy = static_cast<int>(std::floor(fy)),
+                iz = static_cast<int>(std::floor(fz));
+      const auto s = [](float t) { return t * t * (3 - 2 * t); };
+      const float tx = s(fx - static_cast<float>(ix)), ty = s(fy - static_cast<float>(iy)),
+                  tz = s(fz - static_cast<float>(iz));
+      const auto at = [&](int a, int b, int c) {
+        a = ((a % period) + period) % period;
+        b = ((b % period) + period) % period;
+        c = ((c % period) + period) % period;
+        const size_t k = (static_cast<size_t>(a * 7 + salt) % n) * n * n +
+                         (static_cast<size_t>(b * 13 + salt * 3) % n) * n +
+                         static_cast<size_t>(c * 29 + salt * 5) % n;
+        return lattice[k];
+      };
+      float v = 0;
+      for (int c = 0; c < 2; ++c)
+        for (int b = 0; b < 2; ++b)
+          for (int a = 0; a < 2; ++a)
+            v += (a ? tx : 1 - tx) * (b ? ty : 1 - ty) * (c ? tz : 1 - tz) *
+                 at(ix + a, iy + b, iz + c);
+      return v;
+    };
+    std::vector<unsigned char> out(static_cast<size_t>(n) * n * n * 4);
+    for (int z = 0; z < n; ++z)
+      for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+          const float fx = static_cast<float>(x), fy = static_cast<float>(y),
+                      fz = static_cast<float>(z);
+          const float tone = 0.65f * noise(fx, fy, fz, 4, 1) + 0.35f * noise(fx, fy, fz, 8, 2);
+          const float pore_noise = noise(fx, fy, fz, 32, 3);
+          const float pores = std::clamp((pore_noise - 0.72f) / 0.2f, 0.0f, 1.0f);
+          const float ridge = 1 - std::abs(2 * noise(fx, fy, fz, 6, 4) - 1);
+          const float ridge2 = 1 - std::abs(2 * noise(fx, fy, fz, 12, 5) - 1);
+          const float vessels =
+              std::clamp(std::pow(ridge, 14.0f) + 0.6f * std::pow(ridge2, 18.0f), 0.0f, 1.0f);
+          const float height = 0.5f + 0.35f * (noise(fx, fy, fz, 16, 6) - 0.5f) +
+                               0.25f * (noise(fx, fy, fz, 32, 7) - 0.5f) - 0.35f * pores +
+                               0.15f * vessels;
+          unsigned char* t = &out[4 * ((static_cast<size_t>(z) * n + y) * n + x)];
+          const auto byte = [](float v) {
+            return static_cast<unsigned char>(std::clamp(v, 0.0f, 1.0f) * 255 + 0.5f);
+          };
+          t[0] = byte(tone);
+          t[1] = byte(pores);
+          t[2] = byte(vessels);
+          t[3] = byte(height);
+        }
+    return out;
+  }();
+  return texels;
+}
+
+// The detail texture sampled on the CPU (trilinear, repeating), at texture coordinates q.
+Eigen::Vector4f SampleDetail(const Eigen::Vector3d& q) {
+  const std::vector<unsigned char>& t = DetailTexels();
+  const int n = kDetailSize;
+  Eigen::Vector4f out = Eigen::Vector4f::Zero();
+  Eigen::Vector3d x = q * n - Eigen::Vector3d::Constant(0.5);
+  const Eigen::Vector3d base = x.array().floor();
+  const Eigen::Vector3d f = x - base;
+  for (int c = 0; c < 8; ++c) {
+    int index[3];
+    double weight = 1;
+    for (int k = 0; k < 3; ++k) {
+      const int bit = (c >> k) & 1;
+      index[k] = ((static_cast<int>(base[k]) + bit) % n + n) % n;
+      weight *= bit ? f[k] : 1 - f[k];
+    }
+    const unsigned char* texel =
+        &t[4 * ((static_cast<size_t>(index[2]) * n + index[1]) * n + index[0])];
+    for (int k = 0; k < 4; ++k) out[k] += static_cast<float>(weight * texel[k] / 255.0);
+  }
+  return out;
+}
+
+struct MaterialLook {
+  int shader;
+  Eigen::Vector3d albedo;
+  double roughness, detail_scale, bump_depth;  // -, repeats per metre, m
+};
+
+MaterialLook LookOf(sim::VisualMaterial m) {
+  switch (m) {
+    case sim::VisualMaterial::kSkin:
+      return {shaders::kSkin, {0.66, 0.41, 0.30}, 0.52, 75, 0.00025};
+    case sim::VisualMaterial::kOrgan:
+      return {shaders::kOrgan, {0.32, 0.075, 0.055}, 0.42, 40, 0.00012};
+    case sim::VisualMaterial::kKidney:
+      return {shaders::kKidney, {0.20, 0.042, 0.030}, 0.40, 45, 0.00010};
+  }
+  return {shaders::kSkin, {0.8, 0.56, 0.45}, 0.5, 75, 0.0002};
+}
+
 }  // namespace
 
-MeshView::MeshView(const geometry::TriMesh& rest) : rest_(rest), positions_(rest.positions) {
+const char* QualityName(Quality q) {
+  switch (q) {
+    case Quality::kLow:
+      return "low";
+    case Quality::kMedium:
+      return "medium";
+    case Quality::kHigh:
+      return "high";
+  }
+  return "high";
+}
+
+Quality QualityGovernor::Update(double frame_ms) {
+  window_.push_back(frame_ms);
+  if (window_.size() < 30) return level_;
+  std::vector<double> sorted = window_;
+  std::nth_element(sorted.begin(), sorted.begin() + 27, sorted.end());
+  const double p90 = sorted[27];
+  window_.clear();
+  int level = static_cast<int>(level_);
+  if (p90 > budget_ms_ && level > 0) {
+    ceiling_ = level - 1;  // this level was too slow: never again
+    --level;
+    fast_frames_ = 0;
+  } else if (p90 < 0.45 * budget_ms_ && level < ceiling_) {
+    fast_frames_ += 30;
+    if (fast_frames_ >= 120) ++level, fast_frames_ = 0;
+  } else {
+    fast_frames_ = 0;
+  }
+  level_ = static_cast<Quality>(level);
+  return level_;
+}
+
+struct MeshView::Gpu {
+  GLuint shadow = 0, flat = 0;
+  // The lit surfaces' program per variant: material, shadow taps, detail, ambient occlusion,
+  // albedo only (compiled when first drawn with).
+  std::map<std::array<int, 5>, GLuint> scene;
+  GLuint Scene(int material, int shadow_taps, bool with_detail, bool ao, bool albedo_only) {
+    const std::array<int, 5> key = {material, shadow_taps, with_detail, ao, albedo_only};
+    auto it = scene.find(key);
+    if (it != scene.end()) return it->second;
+    char defines[200];
+    std::snprintf(defines, sizeof defines,
+                  "#version 330 core\n#define MATERIAL %d\n#define SHADOW_TAPS %d\n"
+                  "#define DETAIL %d\n#define AO %d\n#define ALBEDO_ONLY %d\n",
+                  material, shadow_taps, with_detail ? 1 : 0, ao ? 1 : 0, albedo_only ? 1 : 0);
+    const GLuint program =
+        Link(shaders::kSceneVertex, defines + std::string(shaders::kSceneFragment));
+    scene.emplace(key, program);
+    return program;
+  }
+  Part tissue, table, steel, handle, jaw;
+  InstrumentParts instrument;
+  GLuint flat_vao = 0, flat_vbo = 0;
+  GLuint detail = 0;
+  GLuint shadow_fbo = 0, shadow_map = 0;
+  int shadow_size = 0;
+  // The background (the table and its drape, as they look while the camera, the frame's size and
+  // the quality stay), drawn once and copied into every frame.
+  GLuint background_fbo = 0, background_colour = 0, background_depth = 0;
+  std::array<double, 9> background_key{};  // width, height, quality, eye, centre
+  std::vector<float> upload;               // the tissue's interleaved vertices, reused every frame
+  std::vector<uint32_t> indices;
+  FlatMesh marks;
+
+  ~Gpu() {
+    for (Part* p : {&tissue, &table, &steel, &handle, &jaw}) p->Release();
+    for (const auto& [key, program] : scene) glDeleteProgram(program);
+    for (GLuint program : {shadow, flat})
+      if (program) glDeleteProgram(program);
+    if (flat_vao) glDeleteVertexArrays(1, &flat_vao);
+    if (flat_vbo) glDeleteBuffers(1, &flat_vbo);
+    if (detail) glDeleteTextures(1, &detail);
+    if (shadow_map) glDeleteTextures(1, &shadow_map);
+    if (shadow_fbo) glDeleteFramebuffers(1, &shadow_fbo);
+    if (background_fbo) glDeleteFramebuffers(1, &background_fbo);
+    if (background_colour) glDeleteRenderbuffers(1, &background_colour);
+    if (background_depth) glDeleteRenderbuffers(1, &background_depth);
+  }
+
+  void EnsureShadowMap(int size) {
+    if (shadow_size == size) return;
+    if (!shadow_map) {
+      glGenTextures(1, &shadow_map);
+      glGenFramebuffers(1, &shadow_fbo);
+    }
+    glBindTexture(GL_TEXTURE_2D, shadow_map);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, size, size, 0, GL_DEPTH_COMPONENT,
+                 GL_UNSIGNED_INT, nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+    GLint previous = 0;
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &previous);
+    glBindFramebuffer(GL_FRAMEBUFFER, shadow_fbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, shadow_map, 0);
+    glDrawBuffer(GL_NONE);
+    glReadBuffer(GL_NONE);
+    glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(previous));
+    shadow_size = size;
+  }
+};
+
+MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
+    : rest_(physics), positions_(physics.positions), visual_(std::move(visual)) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
   for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   if (rest_.positions.empty()) lo = hi = Eigen::Vector3d::Zero();
   centre_ = 0.5 * (lo + hi);
   radius_ = std::max(0.5 * (hi - lo).norm(), 1e-3);
-  // Longest extent across the screen; "up" the next longest; look along the shortest, raised.
+  // The table's up is the view's up; across the screen the longest extent at right angles to
+  // it; the camera looks from the side and above.
+  up_ = visual_.up.normalized();
   const Eigen::Vector3d extent = hi - lo;
-  int axes[3] = {0, 1, 2};
-  std::sort(axes, axes + 3, [&](int a, int b) { return extent[a] > extent[b]; });
-  Eigen::Vector3d across = Eigen::Vector3d::Unit(axes[0]);
-  up_ = Eigen::Vector3d::Unit(axes[1]);
-  if (extent[axes[0]] < 1.5 * extent[axes[2]]) up_ = Eigen::Vector3d::UnitZ();  // round: z up
-  if (std::abs(up_.dot(across)) > 0.9) across = up_.unitOrthogonal();
-  const Eigen::Vector3d view = up_.cross(across).normalized();
-  eye_ = centre_ + radius_ * 2.4 * (view + 0.45 * up_).normalized();
-  // A checker in cylindrical coordinates about the long axis (a sphere: about z), painted at
-  // rest as texture coordinates: 12 sectors around (30°: the 45° task twist shows as a half-cell
-  // shift), 2 cm along. A 2×2 texture, nearest-sampled and repeated, gives crisp cell edges
-  // wherever they fall between vertices.
-  const Eigen::Vector3d axis = extent[axes[0]] < 1.5 * extent[axes[2]]
-                                   ? Eigen::Vector3d::UnitZ()
-                                   : Eigen::Vector3d::Unit(axes[0]);
-  const Eigen::Vector3d e1 = axis.unitOrthogonal(), e2 = axis.cross(e1);
-  constexpr double kSectors = 12, kCell = 0.02;  // sectors around, m along
-  std::vector<std::array<float, 2>> uv(rest_.positions.size());
-  for (size_t i = 0; i < rest_.positions.size(); ++i) {
-    const Eigen::Vector3d d = rest_.positions[i] - centre_;
-    const double angle = std::atan2(d.dot(e2), d.dot(e1)) + M_PI;  // 0..2π
-    // Texture cells are 2×2 checker squares: half a texture unit per sector or ring.
-    uv[i] = {static_cast<float>(angle / (2 * M_PI) * kSectors / 2),
-             static_cast<float>(d.dot(axis) / kCell / 2)};
+  Eigen::Vector3d across = Eigen::Vector3d::UnitX();
+  double longest = -1;
+  for (int a = 0; a < 3; ++a) {
+    const Eigen::Vector3d axis = Eigen::Vector3d::Unit(a);
+    if (std::abs(axis.dot(up_)) > 0.9) continue;
+    if (extent[a] > longest + 1e-9) longest = extent[a], across = axis;
   }
-  // Triangles across the angle's seam (u from about kSectors/2 back to 0) take copies of their
-  // low-u vertices with u one turn on, so no triangle stretches over the whole texture.
-  std::vector<int> copy_of(rest_.positions.size(), -1);
-  render_vertex_.resize(rest_.positions.size());
-  for (size_t i = 0; i < render_vertex_.size(); ++i) render_vertex_[i] = static_cast<int>(i);
-  tex_coords_.clear();
-  for (const auto& t : uv) tex_coords_.insert(tex_coords_.end(), {t[0], t[1]});
-  const float turn = static_cast<float>(kSectors / 2);
-  indices_.reserve(rest_.triangles.size() * 3);
-  for (const auto& t : rest_.triangles) {
-    const float u_min = std::min({uv[t[0]][0], uv[t[1]][0], uv[t[2]][0]});
-    const float u_max = std::max({uv[t[0]][0], uv[t[1]][0], uv[t[2]][0]});
-    const bool seam = u_max - u_min > turn / 2;
-    for (int v : t) {
-      int r = v;
-      if (seam && uv[v][0] < turn / 2) {
-        if (copy_of[v] < 0) {
-          copy_of[v] = static_cast<int>(render_vertex_.size());
-          render_vertex_.push_back(v);
-          tex_coords_.insert(tex_coords_.end(), {uv[v][0] + turn, uv[v][1]});
-        }
-        r = copy_of[v];
-      }
-      indices_.push_back(static_cast<unsigned int>(r));
-    }
-  }
-  vertex_buffer_.resize(render_vertex_.size() * 3);
-  normal_buffer_.resize(render_vertex_.size() * 3);
+  // A limb is seen from the side its scripted grasp is on (+x); an organ from −y, where a
+  // kidney's hilum faces.
+  const Eigen::Vector3d view = visual_.instrument == sim::Instrument::kGrip
+                                   ? Eigen::Vector3d(up_.cross(across).normalized())
+                                   : Eigen::Vector3d(across.cross(up_).normalized());
+  centre_ += 0.2 * radius_ * up_;  // a little above the tissue: the instrument comes from there
+  // A limb is worked at its distal end (+z): the view turns toward it, so the wrist's end and
+  // the twist's dial are seen three-quarters on.
+  const Eigen::Vector3d toward_work = visual_.instrument == sim::Instrument::kGrip
+                                          ? Eigen::Vector3d(0.45 * across)
+                                          : Eigen::Vector3d::Zero();
+  eye_ = centre_ + radius_ * 2.9 * (view + 0.62 * up_ + toward_work).normalized();
+  // The key light from above and to one side: shadows fall beside the tool and the tissue,
+  // where the trainee sees them.
+  key_dir_ = (up_ + 0.30 * view - 0.55 * across).normalized();
+}
+
+MeshView::~MeshView() {
+  hud_.reset();
+  gpu_.reset();
+}
+
+void MeshView::SetCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& centre,
+                         const Eigen::Vector3d& up) {
+  eye_ = eye;
+  centre_ = centre;
+  up_ = up.normalized();
 }
 
 namespace {
@@ -126,20 +455,39 @@ int ApplyMoved(std::vector<geometry::Vec3>& positions, const std::vector<int32_t
 
 int MeshView::Apply(const std::vector<int32_t>& indices,
                     const std::vector<Eigen::Vector3f>& positions) {
-  return ApplyMoved(positions_, indices, positions);
+  const int applied = ApplyMoved(positions_, indices, positions);
+  dirty_ = dirty_ || applied > 0;
+  return applied;
 }
 
 int MeshView::Apply(const std::vector<int32_t>& indices,
                     const std::vector<geometry::Vec3>& positions) {
-  return ApplyMoved(positions_, indices, positions);
+  const int applied = ApplyMoved(positions_, indices, positions);
+  dirty_ = dirty_ || applied > 0;
+  return applied;
+}
+
+void MeshView::ResetToRest() {
+  positions_ = rest_.positions;
+  dirty_ = true;
 }
 
 Eigen::Matrix4d MeshView::Projection(int width, int height) const {
-  return Frustum(static_cast<double>(width) / std::max(height, 1), radius_ * 0.1, radius_ * 10);
+  return Frustum(static_cast<double>(width) / std::max(height, 1), radius_ * 0.1, radius_ * 12);
 }
 
 Eigen::Matrix4d MeshView::View() const {
   return LookAt(eye_, centre_, up_);
+}
+
+Eigen::Matrix4d MeshView::LightViewProjection() const {
+  // An orthographic box along the key light around the tissue, the instrument above it and the
+  // table's shadowed patch.
+  const double r = radius_ * 1.7;
+  const Eigen::Vector3d helper = std::abs(key_dir_.dot(Eigen::Vector3d::UnitZ())) > 0.9
+                                     ? Eigen::Vector3d::UnitX()
+                                     : Eigen::Vector3d::UnitZ();
+  return Ortho(r, 0.05 * r, 6 * r) * LookAt(centre_ + key_dir_ * 3 * r, centre_, helper);
 }
 
 Eigen::Vector2d MeshView::Project(const geometry::Vec3& p, int width, int height) const {
@@ -148,178 +496,369 @@ Eigen::Vector2d MeshView::Project(const geometry::Vec3& p, int width, int height
   return {(ndc.x() + 1) * 0.5 * width, (1 - ndc.y()) * 0.5 * height};
 }
 
-void MeshView::ResetToRest() {
-  positions_ = rest_.positions;
-}
-
-void MeshView::ComputeNormals() {
-  std::vector<Eigen::Vector3d> normals(positions_.size(), Eigen::Vector3d::Zero());
+void MeshView::UpdateVisual() {
+  // The physics surface's vertex normals, then the visual surface mapped from it and its own
+  // normals: only when a vertex moved.
+  coarse_normals_.assign(positions_.size(), geometry::Vec3::Zero());
   for (const auto& t : rest_.triangles) {
-    // Area-weighted: the cross product's length is twice the triangle's area.
-    const Eigen::Vector3d n =
+    const geometry::Vec3 n =
         (positions_[t[1]] - positions_[t[0]]).cross(positions_[t[2]] - positions_[t[0]]);
-    for (int v : t) normals[v] += n;
+    for (int v : t) coarse_normals_[v] += n;
   }
-  for (size_t r = 0; r < render_vertex_.size(); ++r) {
-    const int i = render_vertex_[r];
-    const double length = normals[i].norm();
-    const Eigen::Vector3d n = length > 0 ? Eigen::Vector3d(normals[i] / length) : up_;
-    for (int k = 0; k < 3; ++k) {
-      vertex_buffer_[3 * r + k] = static_cast<float>(positions_[i][k]);
-      normal_buffer_[3 * r + k] = static_cast<float>(n[k]);
-    }
+  for (auto& n : coarse_normals_) {
+    const double l = n.norm();
+    n = l > 0 ? geometry::Vec3(n / l) : up_;
   }
+  visual_.mapping.Apply(positions_, coarse_normals_, fine_);
+  geometry::VertexNormals(visual_.surface.triangles, fine_, fine_normals_, up_.cast<float>());
+  dirty_ = false;
 }
 
 void MeshView::Draw(int width, int height, const Overlay& overlay) {
-  glViewport(0, 0, width, height);
-  glClearColor(0.13f, 0.15f, 0.19f, 1.0f);
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  glEnable(GL_DEPTH_TEST);
-
-  const Eigen::Matrix4d projection = Projection(width, height), view = View();
-  glMatrixMode(GL_PROJECTION);
-  glLoadMatrixd(projection.data());
-  glMatrixMode(GL_MODELVIEW);
-  glLoadMatrixd(view.data());
-
-  // A head light and a fill light, in eye coordinates, set after the view is loaded.
-  glEnable(GL_LIGHTING);
-  glEnable(GL_LIGHT0);
-  glEnable(GL_LIGHT1);
-  glEnable(GL_NORMALIZE);
-  glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
-  const Eigen::Vector3f key_dir = (eye_ - centre_ + radius_ * up_).cast<float>().normalized();
-  const GLfloat key[] = {key_dir.x(), key_dir.y(), key_dir.z(), 0.0f};
-  const GLfloat key_colour[] = {0.85f, 0.85f, 0.85f, 1.0f};
-  const GLfloat fill[] = {static_cast<GLfloat>(-up_.x()), static_cast<GLfloat>(-up_.y()),
-                          static_cast<GLfloat>(-up_.z()), 0.0f};
-  const GLfloat fill_colour[] = {0.25f, 0.25f, 0.3f, 1.0f};
-  const GLfloat ambient[] = {0.25f, 0.25f, 0.25f, 1.0f};
-  glLightfv(GL_LIGHT0, GL_POSITION, key);
-  glLightfv(GL_LIGHT0, GL_DIFFUSE, key_colour);
-  glLightfv(GL_LIGHT1, GL_POSITION, fill);
-  glLightfv(GL_LIGHT1, GL_DIFFUSE, fill_colour);
-  glLightModelfv(GL_LIGHT_MODEL_AMBIENT, ambient);
-  glEnable(GL_COLOR_MATERIAL);
-  glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
-  glShadeModel(GL_SMOOTH);
-
-  if (texture_ == 0) {
-    // Two skin tones in a 2×2 checker; the lit white material modulates it.
-    const unsigned char texels[] = {236, 178, 150, 176, 104, 92, 176, 104, 92, 236, 178, 150};
-    glGenTextures(1, &texture_);
-    glBindTexture(GL_TEXTURE_2D, texture_);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, 2, 2, 0, GL_RGB, GL_UNSIGNED_BYTE, texels);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-  }
-  glEnable(GL_TEXTURE_2D);
-  glBindTexture(GL_TEXTURE_2D, texture_);
-  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_MODULATE);
-  glColor3f(1.0f, 1.0f, 1.0f);
-
-  ComputeNormals();
-  glEnableClientState(GL_VERTEX_ARRAY);
-  glEnableClientState(GL_NORMAL_ARRAY);
-  glEnableClientState(GL_TEXTURE_COORD_ARRAY);
-  glVertexPointer(3, GL_FLOAT, 0, vertex_buffer_.data());
-  glNormalPointer(GL_FLOAT, 0, normal_buffer_.data());
-  glTexCoordPointer(2, GL_FLOAT, 0, tex_coords_.data());
-  glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices_.size()), GL_UNSIGNED_INT,
-                 indices_.data());
-  glDisableClientState(GL_TEXTURE_COORD_ARRAY);
-  glDisableClientState(GL_NORMAL_ARRAY);
-  glDisableClientState(GL_VERTEX_ARRAY);
-  glDisable(GL_TEXTURE_2D);
-  glDisable(GL_LIGHTING);
-
-  if (overlay.show_stylus && overlay.tip.allFinite()) {
-    // The stylus: a shaft 8 cm back along its own z axis, the tip a dot (green in contact,
-    // orange while grasping); the force on the hand from the tip, yellow, 2 cm per newton.
-    const Eigen::Vector3d back = overlay.tip + overlay.orientation * Eigen::Vector3d(0, 0, 0.08);
-    glLineWidth(4.0f);
-    glColor3f(0.75f, 0.78f, 0.85f);
-    glBegin(GL_LINES);
-    glVertex3dv(overlay.tip.data());
-    glVertex3dv(back.data());
-    glEnd();
-    glPointSize(9.0f);
-    if (overlay.grasping)
-      glColor3f(1.0f, 0.55f, 0.1f);
-    else if (overlay.contact)
-      glColor3f(0.2f, 0.9f, 0.3f);
-    else
-      glColor3f(0.3f, 0.6f, 1.0f);
-    glBegin(GL_POINTS);
-    glVertex3dv(overlay.tip.data());
-    glEnd();
-    if (overlay.force.allFinite() && overlay.force.norm() > 1e-3) {
-      const Eigen::Vector3d head = overlay.tip + 0.02 * overlay.force;
-      glLineWidth(3.0f);
-      glColor3f(1.0f, 0.9f, 0.1f);
-      glBegin(GL_LINES);
-      glVertex3dv(overlay.tip.data());
-      glVertex3dv(head.data());
-      glEnd();
+  const bool first = !gpu_;
+  if (first) gpu_ = std::make_unique<Gpu>();
+  Gpu& g = *gpu_;
+  const size_t fine_count = visual_.surface.positions.size();
+  if (first) {
+    g.shadow = Link(shaders::kShadowVertex, shaders::kShadowFragment);
+    g.flat = Link(shaders::kFlatVertex, shaders::kFlatFragment);
+    // The tissue: rest positions fixed, positions and normals rewritten when they move.
+    g.indices.reserve(visual_.surface.triangles.size() * 3);
+    for (const auto& t : visual_.surface.triangles)
+      for (int v : t) g.indices.push_back(static_cast<uint32_t>(v));
+    // Per vertex: position and normal (rewritten as they move), rest position, and the broad
+    // detail (tone, vessels) read once from the detail texture at an eighth of its scale: it
+    // varies over centimetres, which the visual surface's vertices resolve, and a texture fetch
+    // fewer per pixel is what a software renderer feels most.
+    const double broad = LookOf(visual_.material).detail_scale * 0.125;
+    g.upload.assign(fine_count * 11, 0.0f);
+    for (size_t i = 0; i < fine_count; ++i) {
+      const Eigen::Vector3d& rest = visual_.surface.positions[i];
+      for (int k = 0; k < 3; ++k) g.upload[11 * i + 6 + k] = static_cast<float>(rest[k]);
+      const Eigen::Vector4f d = SampleDetail(rest * broad);
+      g.upload[11 * i + 9] = d[0];
+      g.upload[11 * i + 10] = d[2];
     }
+    dirty_ = true;
+    // The table: a square of drape under the tissue.
+    const Eigen::Vector3d centre = centre_ - (centre_.dot(up_) - visual_.table_height) * up_;
+    const Eigen::Vector3d e1 = up_.unitOrthogonal(), e2 = up_.cross(e1);
+    const double half = radius_ * 8;
+    ShapeMesh table;
+    for (int c = 0; c < 4; ++c) {
+      const Eigen::Vector3d p = centre + half * ((c == 1 || c == 2) ? e1 : -e1) +
+                                half * (c >= 2 ? e2 : -e2) - 0.0005 * up_;
+      table.positions.push_back(p.cast<float>());
+      table.normals.push_back(up_.cast<float>());
+    }
+    table.indices = {0, 1, 2, 0, 2, 3};
+    g.table.Upload(Interleave(table), table.indices, GL_STATIC_DRAW);
+    g.instrument = MakeInstrument(visual_.instrument);
+    g.steel.Upload(Interleave(g.instrument.steel), g.instrument.steel.indices, GL_STATIC_DRAW);
+    g.handle.Upload(Interleave(g.instrument.handle), g.instrument.handle.indices, GL_STATIC_DRAW);
+    g.jaw.Upload(Interleave(g.instrument.jaw), g.instrument.jaw.indices, GL_STATIC_DRAW);
+    glGenVertexArrays(1, &g.flat_vao);
+    glGenBuffers(1, &g.flat_vbo);
+    glBindVertexArray(g.flat_vao);
+    glBindBuffer(GL_ARRAY_BUFFER, g.flat_vbo);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 7 * sizeof(float), nullptr);
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 4, GL_FLOAT, GL_FALSE, 7 * sizeof(float),
+                          reinterpret_cast<const void*>(3 * sizeof(float)));
+    glBindVertexArray(0);
+    const std::vector<unsigned char>& texels = DetailTexels();
+    glGenTextures(1, &g.detail);
+    glBindTexture(GL_TEXTURE_3D, g.detail);
+    glTexImage3D(GL_TEXTURE_3D, 0, GL_RGBA8, kDetailSize, kDetailSize, kDetailSize, 0, GL_RGBA,
+                 GL_UNSIGNED_BYTE, texels.data());
+    glGenerateMipmap(GL_TEXTURE_3D);
+    // Bilinear within the nearer mip level: half the texels of trilinear filtering, and at the
+    // distance a trainee sees the tissue the levels' seams do not show.
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_NEAREST);
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    for (GLenum wrap : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
+      glTexParameteri(GL_TEXTURE_3D, wrap, GL_REPEAT);
   }
-
-  if (!overlay.hud.empty()) DrawHud(width, height, overlay.hud);
-}
-
-// The HUD as an ImGui panel. One ImGui context per view (a view belongs to one GL context); the
-// OpenGL 2 backend matches the fixed-function pipeline the scene is drawn with, and restores the
-// GL state it changes.
-struct MeshView::Hud {
-  ImGuiContext* context = nullptr;
-  Hud() {
-    context = ImGui::CreateContext();
-    ImGui::SetCurrentContext(context);
-    ImGuiIO& io = ImGui::GetIO();
-    io.IniFilename = nullptr;  // no imgui.ini written beside the binary
-    io.LogFilename = nullptr;
-    ImGui::StyleColorsDark();
-    ImGui_ImplOpenGL2_Init();
-  }
-  ~Hud() {
-    ImGui::SetCurrentContext(context);
-    ImGui_ImplOpenGL2_Shutdown();
-    ImGui::DestroyContext(context);
-  }
-};
-
-MeshView::~MeshView() = default;
-
-void MeshView::DrawHud(int width, int height, const std::vector<std::string>& lines) {
-  if (!hud_) hud_ = std::make_unique<Hud>();
-  ImGui::SetCurrentContext(hud_->context);
-  ImGuiIO& io = ImGui::GetIO();
-  io.DisplaySize = ImVec2(static_cast<float>(width), static_cast<float>(height));
-  io.DeltaTime = 1.0f / 60.0f;
-  io.FontGlobalScale = height >= 600 ? 1.5f : 1.0f;
-  ImGui_ImplOpenGL2_NewFrame();
-  ImGui::NewFrame();
-  ImGui::SetNextWindowPos(ImVec2(6, 6));
-  ImGui::SetNextWindowBgAlpha(0.6f);
-  ImGui::Begin("hud", nullptr,
-               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
-                   ImGuiWindowFlags_NoInputs | ImGuiWindowFlags_NoSavedSettings |
-                   ImGuiWindowFlags_NoFocusOnAppearing | ImGuiWindowFlags_NoNav);
-  for (size_t k = 0; k < lines.size(); ++k) {
-    if (k == 0) {
-      ImGui::TextColored(ImVec4(0.55f, 0.85f, 1.0f, 1.0f), "%s", lines[k].c_str());
-      if (lines.size() > 1) ImGui::Separator();
+  if (dirty_) {
+    UpdateVisual();
+    for (size_t i = 0; i < fine_count; ++i) {
+      float* v = &g.upload[11 * i];
+      for (int k = 0; k < 3; ++k) {
+        v[k] = fine_[i][k];
+        v[3 + k] = fine_normals_[i][k];
+      }
+    }
+    if (first || !g.tissue.vao) {
+      g.tissue.Upload(g.upload, g.indices, GL_DYNAMIC_DRAW, 11);
     } else {
-      ImGui::TextUnformatted(lines[k].c_str());
+      glBindBuffer(GL_ARRAY_BUFFER, g.tissue.vbo);
+      glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(g.upload.size() * sizeof(float)),
+                      g.upload.data());
     }
   }
-  ImGui::End();
-  ImGui::Render();
-  ImGui_ImplOpenGL2_RenderDrawData(ImGui::GetDrawData());
+
+  GLint target = 0;
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &target);
+  const bool stylus = overlay.show_stylus && overlay.tip.allFinite() &&
+                      overlay.orientation.coeffs().allFinite() && !overlay.albedo_only;
+  Eigen::Affine3d tool = Eigen::Affine3d::Identity();
+  if (stylus) tool = Eigen::Translation3d(overlay.tip) * overlay.orientation.normalized();
+  const float open = overlay.grasping ? 0.0f : g.instrument.open_rad;
+  const auto jaw_pose = [&](int side) {
+    const Eigen::Vector3f hinge = g.instrument.hinge;
+    Eigen::Affine3f local = Eigen::Translation3f(hinge) *
+                            Eigen::AngleAxisf(side ? -open : open, Eigen::Vector3f::UnitX()) *
+                            Eigen::Translation3f(-hinge);
+    if (side)
+      local = local * Eigen::AngleAxisf(std::numbers::pi_v<float>, Eigen::Vector3f::UnitZ());
+    return Eigen::Affine3d(tool.matrix() * local.matrix().cast<double>());
+  };
+  const Quality q = quality_;
+  const bool shadows = q != Quality::kLow && !overlay.albedo_only;
+  const Eigen::Matrix4d light = LightViewProjection();
+
+  // 1. The shadow map: depth from the key light of the tissue and the instrument.
+  if (shadows) {
+    const int size = q == Quality::kHigh ? 2048 : 1024;
+    g.EnsureShadowMap(size);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
+    glViewport(0, 0, size, size);
+    glClear(GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    glEnable(GL_POLYGON_OFFSET_FILL);
+    glPolygonOffset(1.5f, 2.0f);
+    glUseProgram(g.shadow);
+    SetMatrix(g.shadow, "uLightViewProj", light);
+    SetMatrix(g.shadow, "uModel", Eigen::Matrix4d::Identity());
+    glEnable(GL_CULL_FACE);  // the tissue's lit side is what casts (half the triangles)
+    glCullFace(GL_BACK);
+    g.tissue.Draw();
+    glDisable(GL_CULL_FACE);
+    if (stylus) {
+      SetMatrix(g.shadow, "uModel", tool.matrix());
+      g.steel.Draw();
+      g.handle.Draw();
+      if (g.instrument.has_jaws)
+        for (int side = 0; side < 2; ++side) {
+          SetMatrix(g.shadow, "uModel", jaw_pose(side).matrix());
+          g.jaw.Draw();
+        }
+    }
+    glDisable(GL_POLYGON_OFFSET_FILL);
+    glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
+  }
+
+  // 2. The scene.
+  glViewport(0, 0, width, height);
+  glEnable(GL_DEPTH_TEST);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  const Eigen::Matrix4d view_projection = Projection(width, height) * View();
+  const int taps = shadows ? (q == Quality::kHigh ? 9 : 1) : 0;
+  const bool detail = q != Quality::kLow || overlay.albedo_only, ao = q == Quality::kHigh;
+  // The footprint the table's occlusion darkens: the rest mesh's extent across the table.
+  Eigen::Vector3d foot_centre, foot_a = Eigen::Vector3d::Zero(), foot_b = Eigen::Vector3d::Zero();
+  {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+    for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const Eigen::Vector3d half = 0.5 * (hi - lo), mid = 0.5 * (lo + hi);
+    foot_centre = mid - (mid.dot(up_) - visual_.table_height) * up_;
+    for (int k = 0, used = 0; k < 3; ++k) {
+      if (std::abs(Eigen::Vector3d::Unit(k).dot(up_)) > 0.9) continue;
+      (used++ == 0 ? foot_a : foot_b) = Eigen::Vector3d::Unit(k) * std::max(half[k], 1e-3);
+    }
+  }
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, shadows ? g.shadow_map : 0);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_3D, g.detail);
+  glActiveTexture(GL_TEXTURE0);
+  const Eigen::Vector3d fill = ((eye_ - centre_).normalized() - 0.3 * up_).normalized();
+  const auto draw_part = [&](const Part& part, const Eigen::Affine3d& pose, int material,
+                             const Eigen::Vector3d& albedo, double roughness, double scale,
+                             double bump, int part_taps) {
+    const GLuint s = g.Scene(material, part_taps, detail && scale > 1, ao, overlay.albedo_only);
+    glUseProgram(s);
+    SetMatrix(s, "uViewProj", view_projection);
+    SetMatrix(s, "uLightViewProj", light);
+    SetVec3(s, "uEye", eye_);
+    SetVec3(s, "uKeyDir", key_dir_);
+    SetVec3(s, "uKeyColour", Eigen::Vector3d(1.36, 1.27, 1.14));
+    SetVec3(s, "uFillDir", fill);
+    SetVec3(s, "uFillColour", Eigen::Vector3d(0.20, 0.22, 0.28));
+    SetVec3(s, "uUp", up_);
+    SetVec3(s, "uSky", Eigen::Vector3d(0.24, 0.26, 0.31));
+    SetVec3(s, "uGround", Eigen::Vector3d(0.05, 0.07, 0.08));
+    SetFloat(s, "uShadowTexel", 1.0 / std::max(g.shadow_size, 1));
+    SetFloat(s, "uTableHeight", visual_.table_height);
+    SetInt(s, "uShadowMap", 0);
+    SetInt(s, "uDetail", 1);
+    SetVec3(s, "uFootCentre", foot_centre);
+    SetVec3(s, "uFootA", foot_a);
+    SetVec3(s, "uFootB", foot_b);
+    SetMatrix(s, "uModel", pose.matrix());
+    SetMatrix3(s, "uNormalMatrix", pose.linear().inverse().transpose());
+    SetVec3(s, "uAlbedo", albedo);
+    SetFloat(s, "uRoughness", roughness);
+    SetFloat(s, "uDetailScale", scale);
+    SetFloat(s, "uBumpDepth", bump);
+    part.Draw();
+  };
+  const Eigen::Vector3d drape(0.035, 0.15, 0.17);
+  if (overlay.albedo_only) {
+    glClearColor(0, 0, 0, 1);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  } else {
+    // The background: drawn again only when what it shows changed, else copied.
+    const std::array<double, 9> key = {double(width), double(height), double(q),
+                                       eye_.x(),      eye_.y(),       eye_.z(),
+                                       centre_.x(),   centre_.y(),    centre_.z()};
+    if (!g.background_fbo) {
+      glGenFramebuffers(1, &g.background_fbo);
+      glGenRenderbuffers(1, &g.background_colour);
+      glGenRenderbuffers(1, &g.background_depth);
+    }
+    if (key != g.background_key) {
+      glBindRenderbuffer(GL_RENDERBUFFER, g.background_colour);
+      glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
+      glBindRenderbuffer(GL_RENDERBUFFER, g.background_depth);
+      glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
+      glBindFramebuffer(GL_FRAMEBUFFER, g.background_fbo);
+      glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
+                                g.background_colour);
+      glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER,
+                                g.background_depth);
+      glClearColor(0.10f, 0.11f, 0.13f, 1.0f);
+      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+      draw_part(g.table, Eigen::Affine3d::Identity(), shaders::kDrape, drape, 0.85, 220, 0.0004, 0);
+      glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
+      g.background_key = key;
+    }
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, g.background_fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(target));
+    glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
+    glClear(GL_DEPTH_BUFFER_BIT);
+  }
+  const MaterialLook look = LookOf(visual_.material);
+  // The visual surface is closed and wound outward (tested): its back half is culled, which on a
+  // software renderer halves the triangles set up.
+  glEnable(GL_CULL_FACE);
+  glCullFace(GL_BACK);
+  draw_part(g.tissue, Eigen::Affine3d::Identity(), look.shader, look.albedo, look.roughness,
+            look.detail_scale, look.bump_depth, taps);
+  glDisable(GL_CULL_FACE);
+  if (!overlay.albedo_only) {
+    if (stylus) {
+      const Eigen::Vector3d steel(0.78, 0.78, 0.80);
+      draw_part(g.steel, tool, shaders::kMetal, steel, 0.28, 1, 0, taps);
+      draw_part(g.handle, tool, shaders::kPlastic, Eigen::Vector3d(0.035, 0.04, 0.05), 0.45, 1, 0,
+                taps);
+      if (g.instrument.has_jaws)
+        for (int side = 0; side < 2; ++side)
+          draw_part(g.jaw, jaw_pose(side), shaders::kMetal, Eigen::Vector3d(0.70, 0.71, 0.73), 0.38,
+                    1, 0, taps);
+    }
+    // The shadows on the table: blended over the background's table, only within the screen
+    // box of where the tissue's and the tool's shadows can fall (the table covers most of the
+    // frame; shading all of it for a shadow a fifth its size is what cost the most).
+    if (shadows) {
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+      for (const auto& p : fine_)
+        lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
+      std::vector<Eigen::Vector3d> casters;
+      for (int c = 0; c < 8; ++c)
+        casters.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
+                             c & 4 ? hi.z() : lo.z());
+      if (stylus)
+        for (double z : {0.0, 0.07, 0.14, 0.21})
+          for (double side : {-0.05, 0.05})
+            casters.push_back(tool * Eigen::Vector3d(side, side, z));
+      const double rise = key_dir_.dot(up_);
+      double x0 = width, y0 = height, x1 = 0, y1 = 0;
+      for (const Eigen::Vector3d& p : casters) {
+        const double above = p.dot(up_) - visual_.table_height;
+        if (rise <= 0.05 || !p.allFinite()) continue;
+        const Eigen::Vector2d at =
+            Project(p - key_dir_ * std::max(above, 0.0) / rise, width, height);
+        if (!at.allFinite()) continue;
+        x0 = std::min(x0, at.x()), x1 = std::max(x1, at.x());
+        y0 = std::min(y0, at.y()), y1 = std::max(y1, at.y());
+      }
+      x0 = std::clamp(x0 - 8, 0.0, double(width)), x1 = std::clamp(x1 + 8, 0.0, double(width));
+      y0 = std::clamp(y0 - 8, 0.0, double(height)), y1 = std::clamp(y1 + 8, 0.0, double(height));
+      if (x1 > x0 && y1 > y0) {
+        glEnable(GL_SCISSOR_TEST);
+        glScissor(static_cast<GLint>(x0), static_cast<GLint>(height - y1),
+                  static_cast<GLsizei>(x1 - x0), static_cast<GLsizei>(y1 - y0));
+        glEnable(GL_BLEND);
+        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+        glDepthMask(GL_FALSE);
+        draw_part(g.table, Eigen::Affine3d::Identity(), shaders::kShadowCatcher, drape, 1, 1, 0,
+                  taps);
+        glDepthMask(GL_TRUE);
+        glDisable(GL_BLEND);
+        glDisable(GL_SCISSOR_TEST);
+      }
+    }
+
+    // 3. Guidance marks, unlit: the twist target's band and the twist so far as arcs, the force
+    // on the hand as an arrow.
+    g.marks.Clear();
+    const Guidance& gd = overlay.guidance;
+    if (gd.show && gd.twist && visual_.twist_radius > 0) {
+      const bool at_tool = visual_.instrument == sim::Instrument::kGrasper;
+      if (!at_tool || stylus) {
+        const Eigen::Vector3d centre =
+            at_tool ? Eigen::Vector3d(overlay.tip + 0.004 * up_) : visual_.twist_centre;
+        const Eigen::Vector3d axis = visual_.twist_axis;
+        const Eigen::Vector3d zero = at_tool ? axis.unitOrthogonal() : up_;
+        const double sign = gd.current < 0 ? -1 : 1, r = visual_.twist_radius;
+        const double thick = std::max(0.0015, r * 0.05);
+        g.marks.Arc(centre, axis, zero, r, 0, sign * 2 * std::numbers::pi * 0.999, thick * 0.35,
+                    Eigen::Vector4f(0.85f, 0.88f, 0.92f, 0.35f));
+        g.marks.Arc(centre, axis, zero, r, sign * (gd.target - gd.tolerance),
+                    sign * (gd.target + gd.tolerance), thick * 1.6,
+                    Eigen::Vector4f(0.25f, 0.85f, 0.45f, 0.75f));
+        const bool within = std::abs(std::abs(gd.current) - gd.target) <= gd.tolerance;
+        g.marks.Arc(centre, axis, zero, r * 1.06, 0, gd.current, thick,
+                    within ? Eigen::Vector4f(0.3f, 0.95f, 0.5f, 1.0f)
+                           : Eigen::Vector4f(1.0f, 0.70f, 0.15f, 1.0f));
+      }
+    }
+    if (stylus && overlay.force.allFinite() && overlay.force.norm() > 0.05) {
+      const Eigen::Vector3d head = overlay.tip + 0.02 * overlay.force;
+      const Eigen::Vector3d neck = overlay.tip + 0.75 * (head - overlay.tip);
+      const Eigen::Vector4f yellow(1.0f, 0.86f, 0.15f, 0.9f);
+      g.marks.Tube(overlay.tip, neck, 0.0008, yellow);
+      g.marks.Cone(neck, head, 0.0022, yellow);
+    }
+    if (g.marks.vertices() > 0) {
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+      glDepthMask(GL_FALSE);
+      glUseProgram(g.flat);
+      SetMatrix(g.flat, "uViewProj", view_projection);
+      glBindVertexArray(g.flat_vao);
+      glBindBuffer(GL_ARRAY_BUFFER, g.flat_vbo);
+      glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(g.marks.data.size() * sizeof(float)),
+                   g.marks.data.data(), GL_STREAM_DRAW);
+      glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(g.marks.vertices()));
+      glDepthMask(GL_TRUE);
+      glDisable(GL_BLEND);
+    }
+  }
+  glBindVertexArray(0);
+  glUseProgram(0);
+
+  // 4. The HUD.
+  if (!overlay.albedo_only &&
+      (!overlay.hud.empty() || overlay.guidance.show || overlay.summary.show)) {
+    if (!hud_) hud_ = std::make_unique<Hud>();
+    hud_->Draw(width, height, overlay.hud, overlay.guidance, overlay.summary);
+  }
 }
 
 }  // namespace vsurg::client

@@ -1,11 +1,25 @@
-// Draws a session's tissue as the trainee and the instructor see it: the deformed surface,
-// smooth-shaded, with a checker of sectors and rings painted on it at rest (a surface of
-// revolution twisted about its own axis would otherwise look unchanged), the stylus, the force
-// vector and a HUD panel (Dear ImGui, drawn by its OpenGL 2 backend over the scene).
+// Draws a session's tissue as the trainee and the instructor see it, in an OpenGL 3.3 core
+// context (GLSL 330: client/render/shaders.cpp):
 //
-// Units: positions in metres in the scene frame; force in newtons (drawn 2 cm per newton).
-// Threads: the render thread that owns the current OpenGL context (one context per MeshView:
-// the checker texture is made in the first one drawn with).
+//   - the visual surface (common/sim/visual_model.h): a fine skin or organ carried by the coarse
+//     physics surface the server moves (SurfaceMapping, computed here from the moved vertices the
+//     channel already receives), shaded as skin (wrapped, warm subsurface diffuse) or wet organ
+//     (a second sharp lobe), with tone, pores and vessels from a 3D noise texture sampled at each
+//     point's rest position, so the pattern moves with the tissue and a twist is seen;
+//   - the instrument the task needs (probe, grasper whose jaws close with the button, grip),
+//     steel shaded as metal, posed from the stylus;
+//   - an operating table with a drape, the key light's shadow map over all of them, a cheap
+//     ambient occlusion term;
+//   - guidance in the scene (the twist target as an arc on the limb, the current twist, the
+//     force on the hand as an arrow) and the HUD (client/render/hud.h).
+//
+// Quality levels trade those for speed (Quality); the station lowers the level when its frames
+// run long (QualityGovernor). Per frame the CPU maps the moved vertices and recomputes normals
+// only when something moved.
+//
+// Units: positions in metres in the scene frame; force in newtons (the arrow 2 cm per newton).
+// Threads: the render thread that owns the current OpenGL context (one context per MeshView: the
+// GPU objects are made at the first Draw).
 #pragma once
 
 #include <cstdint>
@@ -15,7 +29,9 @@
 
 #include <Eigen/Geometry>
 
+#include "client/render/hud.h"
 #include "common/geometry/mesh.h"
+#include "common/sim/visual_model.h"
 
 namespace vsurg::client {
 
@@ -26,13 +42,41 @@ struct Overlay {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  // N, drawn from the tip
   bool grasping = false, contact = false;
   std::vector<std::string> hud;  // the panel's lines, top left: a title line, then the figures
+  Guidance guidance;             // the trial's gauges and the target drawn in the scene
+  TrialSummary summary;          // the end-of-trial panel
+  bool albedo_only = false;      // tests: the surface pattern without lighting or overlays
+};
+
+// kLow: no shadows, no detail texture (a software renderer on a slow machine); kMedium: the
+// shadow map (1024², one bilinear comparison) and the detail texture; kHigh: a 2048² shadow map
+// with a 3×3 filter, and the ambient occlusion term.
+enum class Quality { kLow, kMedium, kHigh };
+const char* QualityName(Quality q);
+
+// Chooses the level from measured frame times: down a level when the 90th percentile of the
+// last 30 frames is over the budget, up again only after 120 frames at under 45% of it, and
+// never back up to a level that was already too slow.
+class QualityGovernor {
+ public:
+  explicit QualityGovernor(Quality start = Quality::kHigh, double budget_ms = 16.7)
+      : level_(start), budget_ms_(budget_ms) {}
+  Quality Update(double frame_ms);
+  Quality level() const { return level_; }
+
+ private:
+  Quality level_;
+  double budget_ms_;
+  std::vector<double> window_;
+  int fast_frames_ = 0;
+  int ceiling_ = static_cast<int>(Quality::kHigh);
 };
 
 class MeshView {
  public:
-  // The camera is fitted to the rest mesh: its longest extent across the view, seen from the
-  // side and a little above.
-  explicit MeshView(const geometry::TriMesh& rest);
+  // `physics` is the physics surface at rest (what the moved indices refer to); `visual` what
+  // to draw over it (sim::BuildVisualModel). The camera is fitted to the rest mesh: its longest
+  // extent across the view, seen from the side and above the table.
+  MeshView(const geometry::TriMesh& physics, sim::VisualModel visual);
   ~MeshView();  // with its context current, as for Draw
   MeshView(const MeshView&) = delete;
   MeshView& operator=(const MeshView&) = delete;
@@ -43,6 +87,18 @@ class MeshView {
   int Apply(const std::vector<int32_t>& indices, const std::vector<geometry::Vec3>& positions);
   void ResetToRest();
   const std::vector<geometry::Vec3>& positions() const { return positions_; }
+  // The visual surface as last drawn (mapped from positions()).
+  const std::vector<Eigen::Vector3f>& visual_positions() const { return fine_; }
+  const sim::VisualModel& visual() const { return visual_; }
+
+  void SetQuality(Quality q) { quality_ = q; }
+  Quality quality() const { return quality_; }
+  // Looks from `eye` at `centre` (tests, screenshots); the fitted camera otherwise.
+  void SetCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& centre,
+                 const Eigen::Vector3d& up);
+  Eigen::Vector3d eye() const { return eye_; }
+  // Unit vector toward the key light (which casts the shadows).
+  Eigen::Vector3d light_direction() const { return key_dir_; }
 
   // Where a scene point lands in a width × height image (pixels, y down).
   Eigen::Vector2d Project(const geometry::Vec3& p, int width, int height) const;
@@ -51,23 +107,23 @@ class MeshView {
   void Draw(int width, int height, const Overlay& overlay);
 
  private:
-  void ComputeNormals();
+  struct Gpu;
+  void UpdateVisual();
   Eigen::Matrix4d Projection(int width, int height) const;
   Eigen::Matrix4d View() const;
+  Eigen::Matrix4d LightViewProjection() const;
 
   geometry::TriMesh rest_;
   std::vector<geometry::Vec3> positions_;
-  // What is drawn: mesh vertices plus copies along the checker's seam (render_vertex_ maps each
-  // drawn vertex to its mesh vertex), with their texture coordinates.
-  std::vector<int> render_vertex_;
-  std::vector<float> vertex_buffer_, normal_buffer_, tex_coords_;
-  std::vector<unsigned int> indices_;
-  unsigned int texture_ = 0;  // the checker, made at the first Draw (needs the context)
-  struct Hud;                 // the panel's ImGui context, made at the first Draw with a HUD
+  sim::VisualModel visual_;
+  bool dirty_ = true;
+  std::vector<Eigen::Vector3f> fine_, fine_normals_;
+  std::vector<geometry::Vec3> coarse_normals_;
+  std::unique_ptr<Gpu> gpu_;
   std::unique_ptr<Hud> hud_;
-  void DrawHud(int width, int height, const std::vector<std::string>& lines);
+  Quality quality_ = Quality::kHigh;
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::UnitY(),
-                  up_ = Eigen::Vector3d::UnitZ();
+                  up_ = Eigen::Vector3d::UnitZ(), key_dir_ = Eigen::Vector3d::UnitZ();
   double radius_ = 0.1;
 };
 

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -24,8 +25,11 @@
 #include "client/station/station.h"
 #include "common/core/args.h"
 #include "common/core/time.h"
+#include "common/geometry/bvh.h"
 #include "common/scoring/report_json.h"
+#include "common/scoring/trial_metrics.h"
 #include "common/sim/scene.h"
+#include "common/sim/visual_model.h"
 
 namespace {
 
@@ -52,6 +56,38 @@ double Percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
   return v[static_cast<size_t>(q * (v.size() - 1))];
+}
+
+// The trial's gauges from the scene's task, the station's latest view and its link figures.
+client::Guidance Guidance(const vsurg::sim::Scene& scene, const client::StationView& shown,
+                          const client::StationStats& s, double live_s) {
+  client::Guidance g;
+  g.show = true;
+  g.twist = scene.task.kind == vsurg::scoring::TaskKind::kTwist;
+  g.target = scene.task.target;
+  g.tolerance = scene.task.tolerance;
+  g.hold_s = scene.task.hold_s;
+  g.current = g.twist ? shown.command.twist : 0;
+  g.force_n = shown.force.norm();
+  g.force_limit_n = scene.task.force_limit;
+  g.device_limit_n = scene.haptics.limits.max_force;
+  g.elapsed_s = live_s;
+  g.time_limit_s = scene.task.time_limit;
+  // Good below the round trip at which a spring's delay is felt (2 × 36 ms one way: Rank et
+  // al. 2010); poor beyond what the local model holds (docs/BENCHMARKS.md).
+  const double rtt_ms = s.rtt_p50_us / 1e3;
+  g.link_level = rtt_ms > 300 || s.loss > 0.10 ? 2 : rtt_ms > 72 || s.loss > 0.02 ? 1 : 0;
+  g.link =
+      "RTT " + Fixed(rtt_ms, rtt_ms < 10 ? 1 : 0) + " ms, " + Fixed(100 * s.loss, 1) + "% lost";
+  return g;
+}
+
+// A press task's depth: how far the contact point lies below the tissue's surface at rest, m.
+double PressDepth(const vsurg::geometry::Bvh& bvh, const vsurg::geometry::TriMesh& rest,
+                  const client::StationView& shown) {
+  if (!shown.command.contact || !shown.command.proxy.allFinite()) return 0;
+  const auto hit = bvh.Closest(rest.positions, shown.command.proxy);
+  return hit.triangle >= 0 ? hit.distance : 0;
 }
 
 int Fail(const std::string& what) {
@@ -93,6 +129,11 @@ int Run(const std::vector<std::string>& args) {
       .Option("screenshot", Kind::kString, "PNG of the last frame (or at --screenshot-at)")
       .Option("screenshot-at", Kind::kDouble, "seconds after the session starts for --screenshot")
       .Option("screenshot-before", Kind::kString, "PNG of the first frame, before any input")
+      .Option("screenshot-summary", Kind::kString,
+              "PNG of the end-of-trial summary (the score and what lowered it)")
+      .Option("quality", Kind::kString,
+              "auto (from measured frame times), low (no shadows or detail), medium or high", false,
+              "auto")
       .Option("duration", Kind::kDouble, "stop after this many seconds live (0: replay end)", false,
               "0")
       .Option("settle", Kind::kDouble, "seconds to run on after the replay ends", false, "0.5")
@@ -115,6 +156,15 @@ int Run(const std::vector<std::string>& args) {
   if (!scene.ok()) return Fail("scene: " + scene.error().message);
   auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
   if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
+  auto visual = vsurg::sim::BuildVisualModel(*scene, mesh->surface);
+  if (!visual.ok()) return Fail("scene visual model: " + visual.error().message);
+  const std::string quality_name = p.String("quality");
+  std::optional<client::Quality> fixed_quality;
+  for (client::Quality q :
+       {client::Quality::kLow, client::Quality::kMedium, client::Quality::kHigh})
+    if (quality_name == client::QualityName(q)) fixed_quality = q;
+  if (!fixed_quality && quality_name != "auto")
+    return std::cerr << "vsurg-station: --quality: auto, low, medium or high\n", 2;
 
   // The device first (bad options are reported before any window opens); the keyboard and
   // mouse need the window, so that one is opened after it.
@@ -151,7 +201,11 @@ int Run(const std::vector<std::string>& args) {
                                                        p.Int("width"), p.Int("height"));
   if (!surface.ok()) return Fail(surface.error().message);
   client::GlSurface* gl = surface->get();
-  client::MeshView view(mesh->surface);
+  client::MeshView view(mesh->surface, std::move(*visual));
+  client::QualityGovernor governor(fixed_quality.value_or(client::Quality::kHigh));
+  view.SetQuality(governor.level());
+  // The press depth shown: how far the contact point lies below the tissue's rest surface.
+  const vsurg::geometry::Bvh rest_bvh(mesh->surface);
   if (needs_window) {
     request.window_input = [gl] { return gl->Input(); };
     device = client::OpenDevice(request);
@@ -207,7 +261,8 @@ int Run(const std::vector<std::string>& args) {
   double rate_hz = 0, last_rate_at = 0;
   client::StationStats hud_stats;  // the HUD's figures, refreshed twice a second
   client::StationView shown;
-  std::vector<double> draw_ms;  // per frame: draw and finish, ms
+  double held_s = 0, last_frame_at = 0;  // the task's quantity within tolerance, so far
+  std::vector<double> draw_ms;           // per frame: draw and finish, ms
   const auto frame = std::chrono::duration<double>(1.0 / fps);
   auto next_frame = std::chrono::steady_clock::now();
   // The session's life on its own thread: a frame that takes seconds (a first frame on a
@@ -255,6 +310,16 @@ int Run(const std::vector<std::string>& args) {
         last_rate_at = tick;
       }
       const client::StationStats& s = hud_stats;
+      overlay.guidance = Guidance(*scene, shown, s, live_now);
+      if (!overlay.guidance.twist)
+        overlay.guidance.current = PressDepth(rest_bvh, mesh->surface, shown);
+      {
+        const auto& g = overlay.guidance;
+        const bool within =
+            std::abs(std::abs(g.current) - g.target) <= g.tolerance && g.force_n <= g.force_limit_n;
+        held_s = within ? held_s + (tick - last_frame_at) : 0;
+        overlay.guidance.held_s = held_s;
+      }
       overlay.show_stylus = true;
       overlay.tip = shown.sample.position;
       overlay.orientation = shown.sample.orientation;
@@ -280,10 +345,12 @@ int Run(const std::vector<std::string>& args) {
                      std::string(client::StationStateName(st.state)) + " ...",
                      st.last_error.substr(0, 60)};
     }
+    last_frame_at = tick;
     const auto draw_start = std::chrono::steady_clock::now();
     view.Draw(gl->width(), gl->height(), overlay);
     gl->Finish();  // the frame's whole cost, not just the commands queued
     draw_ms.push_back(1e3 * Seconds(draw_start));
+    if (!fixed_quality) view.SetQuality(governor.Update(draw_ms.back()));
 
     if (live && !before_taken && p.Has("screenshot-before")) {
       before_taken = true;
@@ -326,6 +393,31 @@ int Run(const std::vector<std::string>& args) {
                                                 : "stopped");
   if (!summary.ok()) return Fail(summary.error().message);
   const auto& m = summary->metrics;
+  // The end-of-trial summary on screen: the score and what lowered it (a window keeps it until
+  // closed, or 15 s).
+  if (summary->has_metrics && (p.Has("screenshot-summary") || !gl->headless())) {
+    client::Overlay last;
+    last.hud = {"vsurg station  " + scene->name + "  session " + std::to_string(summary->id)};
+    last.summary.show = true;
+    last.summary.score = m.score;
+    last.summary.lines = vsurg::scoring::ExplainScore(m, scene->task);
+    if (last.summary.lines.empty()) last.summary.lines = {"Nothing lowered it: expert level"};
+    // A panel's size settles over its first frames (ImGui fits it to its text): the
+    // screenshot is of the third.
+    const auto shown_at = std::chrono::steady_clock::now();
+    for (int frames = 1;; ++frames) {
+      view.Draw(gl->width(), gl->height(), last);
+      if (frames == 3 && p.Has("screenshot-summary")) {
+        if (auto s = gl->SaveScreenshot(p.String("screenshot-summary")); !s.ok())
+          return Fail(s.error().message);
+      }
+      gl->EndFrame();
+      if (gl->headless() ? frames >= 3
+                         : gl->ShouldClose() || g_interrupted || Seconds(shown_at) > 15)
+        break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
   if (p.Flag("json")) {
     nlohmann::json j = {{"session", summary->id},
                         {"state", SessionStateName(summary->state)},

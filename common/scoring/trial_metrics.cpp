@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace vsurg::scoring {
 namespace {
@@ -123,6 +124,59 @@ void TrialRecorder::EmitGrid(double t1, const Eigen::Vector3d& previous, double 
   }
 }
 
+ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task) {
+  auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
+  ScoreParts p;
+  p.accuracy = unit(1.0 - m.task_error / (2.0 * task.tolerance));
+  p.efficiency = m.completed ? unit(task.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
+  p.force =
+      unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task.force_limit ? 0.5 : 1.0);
+  p.smoothness = unit(1.0 - std::log10(std::max(1.0, m.rms_jerk / 5.0)) / 2.0);
+  return p;
+}
+
+std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
+  const auto text = [](const char* format, double a, double b = 0) {
+    char line[200];
+    std::snprintf(line, sizeof line, format, a, b);
+    return std::string(line);
+  };
+  std::vector<std::string> out;
+  if (m.caps & kCapOverload)
+    out.push_back(
+        text("The tissue was overloaded %.0f time(s): score capped at 3", m.overload_events));
+  if (m.caps & kCapForceLimit)
+    out.push_back(text("%.1f s above the %.1f N force limit: score capped at 4",
+                       m.time_over_force_limit, task.force_limit));
+  if (m.caps & kCapNotCompleted)
+    out.push_back("The task was not completed (reach the target and hold it): score capped at 5");
+  const ScoreParts p = ScorePartsOf(m, task);
+  const bool twist = task.kind == TaskKind::kTwist;
+  const double unit = twist ? 180 / 3.14159265358979 : 1e3;
+  struct Loss {
+    double points;
+    std::string why;
+  };
+  std::vector<Loss> losses = {
+      {4 * (1 - p.accuracy),
+       text(twist ? "Accuracy: %.1f deg from the target" : "Accuracy: %.1f mm from the target",
+            m.task_error * unit) +
+           text(" (tolerance %.1f)", task.tolerance * unit)},
+      {2 * (1 - p.efficiency),
+       m.completed
+           ? text("Time: %.1f s, an expert takes %.1f s", m.completion_time, task.expert_time)
+           : std::string("Time: no credit without completing the task")},
+      {2 * (1 - p.force),
+       text("Force control: peak %.2f N against a %.1f N limit", m.peak_force, task.force_limit)},
+      {2 * (1 - p.smoothness), text("Smoothness: jerky motion (RMS jerk %.0f m/s³)", m.rms_jerk)},
+  };
+  std::sort(losses.begin(), losses.end(),
+            [](const Loss& a, const Loss& b) { return a.points > b.points; });
+  for (const Loss& l : losses)
+    if (l.points >= 0.3) out.push_back(l.why + text(": -%.1f points", l.points));
+  return out;
+}
+
 TrialMetrics TrialRecorder::Finish() const {
   TrialMetrics m;
   if (samples_ == 0) {
@@ -138,14 +192,9 @@ TrialMetrics TrialRecorder::Finish() const {
   m.duration = t_last_ - t0_;
   m.overload_events = overloads_;
   if (m.duration > 0) m.rms_jerk = std::sqrt(jerk2_ / m.duration);
-  auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
-  const double accuracy = unit(1.0 - m.task_error / (2.0 * task_.tolerance));
-  const double efficiency =
-      completed_ ? unit(task_.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
-  const double force =
-      unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task_.force_limit ? 0.5 : 1.0);
-  const double smooth = unit(1.0 - std::log10(std::max(1.0, m.rms_jerk / 5.0)) / 2.0);
-  m.raw_score = 10.0 * (0.4 * accuracy + 0.2 * efficiency + 0.2 * force + 0.2 * smooth);
+  const ScoreParts parts = ScorePartsOf(m, task_);
+  m.raw_score = 10.0 * (0.4 * parts.accuracy + 0.2 * parts.efficiency + 0.2 * parts.force +
+                        0.2 * parts.smoothness);
   m.score = m.raw_score;
   if (!completed_) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);
   if (m.time_over_force_limit > 0.5) m.caps |= kCapForceLimit, m.score = std::min(m.score, 4.0);

@@ -27,6 +27,8 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -45,6 +47,18 @@ struct TaskSpec {
   double time_limit = 60.0;      // s
   double expert_time = 5.0;      // s, an expert's completion time (the efficiency reference)
 };
+
+// The score's four parts, each in [0, 1] (the weights and formulas above), from a trial's
+// metrics: TrialRecorder::Finish scores with them, ExplainScore says what cost points.
+struct ScoreParts {
+  double accuracy = 0, efficiency = 0, force = 0, smoothness = 0;
+};
+ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task);
+
+// What lowered a trial's score, in the trainee's words, largest loss first: the gates that
+// capped it, then each part that cost at least 0.3 points (with the figure behind it). Empty
+// when nothing did. For the station's end-of-trial summary and the dashboard.
+std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task);
 
 class TrialRecorder {
  public:

@@ -512,6 +512,25 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
                         "task.type: a twist task needs a coil or reduced (surface-)twist model, a "
                         "press task a mass-spring, ring-layer or reduced contact model"));
   }
+  s.visual.material =
+      s.mesh.kind == MeshKind::kLimb ? VisualMaterial::kSkin : VisualMaterial::kOrgan;
+  if (r.Has("visual")) {
+    auto v = r.Object("visual");
+    if (!v.ok()) return with_source(v.error());
+    auto material = v->StringOr("material", VisualMaterialName(s.visual.material));
+    if (!material.ok()) return with_source(material.error());
+    bool known = false;
+    for (VisualMaterial m :
+         {VisualMaterial::kSkin, VisualMaterial::kOrgan, VisualMaterial::kKidney})
+      if (*material == VisualMaterialName(m)) s.visual.material = m, known = true;
+    if (!known)
+      return with_source(
+          InvalidArgument("visual.material",
+                          "visual.material: one of skin, organ, kidney; got '" + *material + "'"));
+    auto triangles = v->Integer("min_triangles", 1000, 500000, &s.visual.min_triangles);
+    if (!triangles.ok()) return with_source(triangles.error());
+    s.visual.min_triangles = *triangles;
+  }
   auto budget = r.Object("error_budget");
   if (!budget.ok()) return with_source(budget.error());
   auto rms = budget->Number("rms", 0, 10);
@@ -524,6 +543,18 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
 }
 
 }  // namespace
+
+const char* VisualMaterialName(VisualMaterial m) {
+  switch (m) {
+    case VisualMaterial::kSkin:
+      return "skin";
+    case VisualMaterial::kOrgan:
+      return "organ";
+    case VisualMaterial::kKidney:
+      return "kidney";
+  }
+  return "skin";
+}
 
 Expected<Scene> LoadScene(const std::string& path) {
   std::ifstream in(path);

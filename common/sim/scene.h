@@ -109,6 +109,16 @@ struct HapticsSpec {
   double lookahead = 0.03;
 };
 
+// How the station draws the tissue (never what the server simulates): its material, and the
+// visual surface's resolution. Scene files say "visual": {"material": "skin" | "organ" |
+// "kidney"}; without it a limb is skin and anything else an organ.
+enum class VisualMaterial { kSkin, kOrgan, kKidney };
+const char* VisualMaterialName(VisualMaterial m);
+struct VisualSpec {
+  VisualMaterial material = VisualMaterial::kSkin;
+  int min_triangles = 30000;  // the visual surface is refined until it has at least this many
+};
+
 struct Scene {
   std::string name, description;
   std::string source;  // the file it was read from
@@ -117,6 +127,7 @@ struct Scene {
   RegionSpec region;
   HapticsSpec haptics;
   scoring::TaskSpec task;
+  VisualSpec visual;
   double error_budget_rms = 0.1;  // relative RMS displacement error the model meets
   std::string error_reference;    // what that error is measured against
 };

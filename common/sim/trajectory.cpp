@@ -8,6 +8,7 @@
 #include <random>
 #include <sstream>
 
+#include "common/geometry/bvh.h"
 #include "common/geometry/mesh_generators.h"
 
 namespace vsurg::sim {
@@ -173,7 +174,24 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
     axis_point = surface_point;
     axis = normal;
   } else {
-    return InvalidArgument("scene", "scripted trainees need a limb or sphere scene");
+    // A mesh file (an organ): the surface straight above its middle, where a tool comes down
+    // from above, inside the face the vertical line meets.
+    auto mesh = BuildSceneMesh(scene.mesh);
+    if (!mesh.ok()) return mesh.error();
+    const geometry::TriMesh& surface = mesh->surface;
+    Vec3 lo = Vec3::Constant(1e30), hi = -lo;
+    for (const Vec3& p : surface.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const Vec3 middle = 0.5 * (lo + hi);
+    const geometry::Bvh bvh(surface);
+    const auto hit = bvh.FirstHit(surface.positions, Vec3(middle.x(), middle.y(), hi.z() + 0.05),
+                                  Vec3(middle.x(), middle.y(), lo.z() - 0.05));
+    if (hit.triangle < 0)
+      return InvalidArgument("scene", "scripted trainees need a surface above the mesh's middle");
+    normal = geometry::TriangleNormal(surface, hit.triangle);
+    if (normal.z() < 0) normal = -normal;
+    surface_point = hit.point;
+    axis_point = surface_point;
+    axis = normal;
   }
   const bool twist = scene.task.kind == scoring::TaskKind::kTwist;
   const double target = scene.task.target, hold = scene.task.hold_s;

@@ -63,6 +63,38 @@ TEST(TrialMetricsTest, SafetyGatesCapTheScore) {
   EXPECT_NEAR(c.task_error, 0.5, 1e-12);
 }
 
+TEST(TrialMetricsTest, ExplainScoreSaysWhatLoweredItLargestFirst) {
+  TrialRecorder overload(Twist()), clean(Twist());
+  for (int i = 0; i <= 6000; ++i) {
+    const double t = i * 1e-3;
+    overload.Add(t, Eigen::Vector3d::Zero(), 1.0, 1.0, t > 5.0 && t < 5.1);
+    clean.Add(t, Eigen::Vector3d::Zero(), Twist().target, 1.0, false);
+  }
+  const std::vector<std::string> why = ExplainScore(overload.Finish(), Twist());
+  ASSERT_FALSE(why.empty());
+  EXPECT_NE(why[0].find("overloaded 1 time"), std::string::npos) << why[0];
+  EXPECT_NE(why[0].find("capped at 3"), std::string::npos);
+  // The parts cost points in order: each line's points no larger than the one before.
+  double previous = 1e9;
+  for (const std::string& line : why) {
+    const size_t at = line.find(": -");
+    if (at == std::string::npos) continue;
+    const double points = std::stod(line.substr(at + 3));
+    EXPECT_LE(points, previous) << line;
+    EXPECT_GE(points, 0.3);
+    previous = points;
+  }
+  // A trial on target from the start, under every limit, held: nothing but the time it took
+  // (the expert's 5 s against the hold) and nothing capped.
+  const TrialMetrics good = clean.Finish();
+  for (const std::string& line : ExplainScore(good, Twist()))
+    EXPECT_EQ(line.find("capped"), std::string::npos) << line;
+  // The parts are the score's: 10 × the weighted sum is the raw score.
+  const ScoreParts p = ScorePartsOf(good, Twist());
+  EXPECT_NEAR(10 * (0.4 * p.accuracy + 0.2 * p.efficiency + 0.2 * p.force + 0.2 * p.smoothness),
+              good.raw_score, 1e-12);
+}
+
 TEST(TrialMetricsTest, JerkSeparatesSmoothFromShakyMovement) {
   TrialRecorder smooth(Twist()), shaky(Twist());
   for (int i = 0; i <= 3000; ++i) {

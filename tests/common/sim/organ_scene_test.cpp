@@ -16,6 +16,7 @@
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/mesh_import.h"
 #include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
 
 namespace vsurg::sim::organ_scene_test {
 namespace {
@@ -106,6 +107,32 @@ TEST(OrganSceneTest, TheKidneyIsTetrahedralisedAndSinksUnderThePress) {
     if (frame.indices[k] == top) top_dz = frame.positions[k].z() - rest[top].z();
   EXPECT_LT(top_dz, -0.0005);
   EXPECT_GT(top_dz, -0.004 - 1e-9);
+  fs::remove_all(dir);
+}
+
+TEST(OrganSceneTest, ScriptedTraineesPalpateTheKidney) {
+  // A scripted trainee for a mesh-file scene: the tool comes down above the organ's middle and
+  // presses to the target depth; the good one completes and scores well, the rough one worse.
+  const fs::path dir = fs::temp_directory_path() / ("vsurg_kidney_t_" + std::to_string(::getpid()));
+  auto scene = LoadSceneByName("kidney-palpation");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  const auto play = [&](TraineeStyle style) {
+    auto samples = ScriptedTrainee(*scene, style);
+    EXPECT_TRUE(samples.ok()) << samples.error().message;
+    auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
+    EXPECT_TRUE(sim.ok()) << sim.error().message;
+    (*sim)->Replay(*samples, [](const haptics::StylusSample&, const haptics::ForceCommand& c) {
+      ASSERT_TRUE(c.force.allFinite());
+    });
+    return (*sim)->Metrics();
+  };
+  const scoring::TrialMetrics good = play(TraineeStyle::kGood);
+  EXPECT_TRUE(good.completed);
+  EXPECT_LT(good.task_error, scene->task.tolerance);
+  EXPECT_GT(good.peak_force, 0.02);
+  EXPECT_GE(good.score, 7.0);
+  const scoring::TrialMetrics rough = play(TraineeStyle::kRough);
+  EXPECT_LT(rough.score, good.score - 2.0);
   fs::remove_all(dir);
 }
 

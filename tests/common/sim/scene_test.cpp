@@ -251,6 +251,27 @@ TEST(SceneTest, ASupportCanBeANamedGroupOfTheFileOrAPlane) {
   std::filesystem::remove(obj);
 }
 
+TEST(SceneTest, TheVisualMaterialIsReadWithADefaultByMesh) {
+  auto organ = ParseScene(Minimal(), "x.json");
+  ASSERT_TRUE(organ.ok());
+  EXPECT_EQ(organ->visual.material, VisualMaterial::kOrgan);  // a sphere without "visual"
+  auto kidney = ParseScene(
+      Replace(Minimal(), R"("error_budget")", R"("visual": {"material": "kidney"}, "error_budget")"),
+      "x.json");
+  ASSERT_TRUE(kidney.ok()) << kidney.error().message;
+  EXPECT_EQ(kidney->visual.material, VisualMaterial::kKidney);
+  EXPECT_EQ(LoadSceneByName("arm-torsion")->visual.material, VisualMaterial::kSkin);
+  EXPECT_EQ(LoadSceneByName("kidney-palpation")->visual.material, VisualMaterial::kKidney);
+  EXPECT_NE(Field(Replace(Minimal(), R"("error_budget")",
+                          R"("visual": {"material": "marble"}, "error_budget")"))
+                .find("visual.material: one of skin, organ, kidney"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(Minimal(), R"("error_budget")",
+                          R"("visual": {"min_triangles": 10}, "error_budget")"))
+                .find("min_triangles"),
+            std::string::npos);
+}
+
 TEST(SceneTest, BadScenesNameTheField) {
   ASSERT_TRUE(ParseScene(Minimal(), "x.json").ok())
       << ParseScene(Minimal(), "x.json").error().message;

@@ -1,0 +1,255 @@
+#include "client/render/shaders.h"
+
+namespace vsurg::client::shaders {
+
+const char* const kSceneVertex = R"(#version 330 core
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in vec3 aRest;
+layout(location = 3) in vec2 aBroad;  // the tissue's broad detail: tone, vessels
+uniform mat4 uViewProj;
+uniform mat4 uModel;
+uniform mat3 uNormalMatrix;
+uniform mat4 uLightViewProj;
+out vec3 vWorld;
+out vec3 vNormal;
+out vec3 vRest;
+out vec4 vLight;
+out vec2 vBroad;
+void main() {
+  vec4 world = uModel * vec4(aPosition, 1.0);
+  vBroad = aBroad;
+  vWorld = world.xyz;
+  vNormal = uNormalMatrix * aNormal;
+  vRest = aRest;
+  vLight = uLightViewProj * world;
+  gl_Position = uViewProj * world;
+}
+)";
+
+// Compiled once per variant (mesh_view.cpp prepends the #defines): MATERIAL (shaders.h),
+// SHADOW_TAPS (0, 1, 9), DETAIL, AO and ALBEDO_ONLY (0 or 1). A software renderer runs both sides
+// of a branch under a mask, so what a variant does not need is compiled out, not branched over.
+const char* const kSceneFragment = R"(
+in vec3 vWorld;
+in vec3 vNormal;
+in vec3 vRest;
+in vec4 vLight;
+in vec2 vBroad;
+uniform sampler2DShadow uShadowMap;
+uniform float uShadowTexel;   // 1 / shadow map size
+uniform sampler3D uDetail;    // r: tone, g: pores, b: veins, a: height (tiling)
+uniform float uDetailScale;   // texture repeats per metre of rest position
+uniform float uBumpDepth;     // m, the height's amplitude
+uniform vec3 uEye;
+uniform vec3 uKeyDir;         // unit, toward the key light
+uniform vec3 uKeyColour;
+uniform vec3 uFillDir;
+uniform vec3 uFillColour;
+uniform vec3 uUp;
+uniform vec3 uSky;
+uniform vec3 uGround;
+uniform vec3 uAlbedo;
+uniform float uRoughness;
+uniform float uTableHeight;   // m along uUp
+uniform vec3 uFootCentre;     // the tissue's footprint on the table: an ellipse
+uniform vec3 uFootA;
+uniform vec3 uFootB;
+out vec4 fragColour;
+
+const float PI = 3.14159265;
+#define TISSUE (MATERIAL == 0 || MATERIAL == 1 || MATERIAL == 2)
+#define WET (MATERIAL == 1 || MATERIAL == 2)
+#define POLISHED (MATERIAL == 3 || MATERIAL == 4)
+
+float DistributionGgx(float NoH, float a) {
+  float a2 = a * a;
+  float d = NoH * NoH * (a2 - 1.0) + 1.0;
+  return a2 / (PI * d * d);
+}
+float VisibilitySmith(float NoV, float NoL, float a) {
+  float a2 = a * a;
+  float gv = NoL * sqrt(NoV * NoV * (1.0 - a2) + a2);
+  float gl = NoV * sqrt(NoL * NoL * (1.0 - a2) + a2);
+  return 0.5 / max(gv + gl, 1e-5);
+}
+vec3 FresnelSchlick(vec3 f0, float VoH) {
+  float f = 1.0 - VoH;
+  float f2 = f * f;
+  return f0 + (1.0 - f0) * (f2 * f2 * f);
+}
+vec3 Specular(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness) {
+  vec3 h = normalize(v + l);
+  float NoL = max(dot(n, l), 0.0), NoV = max(dot(n, v), 1e-4);
+  float NoH = max(dot(n, h), 0.0), VoH = max(dot(v, h), 0.0);
+  float a = max(roughness * roughness, 0.002);
+  return DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * FresnelSchlick(f0, VoH) * NoL;
+}
+float Shadow() {
+#if SHADOW_TAPS == 0
+  return 1.0;
+#else
+  vec3 p = vLight.xyz / vLight.w * 0.5 + 0.5;
+  float bias = 0.002;
+#if SHADOW_TAPS == 1
+  float s = texture(uShadowMap, vec3(p.xy, p.z - bias));
+#else
+  float s = 0.0;
+  for (int i = -1; i <= 1; ++i)
+    for (int j = -1; j <= 1; ++j)
+      s += texture(uShadowMap, vec3(p.xy + vec2(i, j) * uShadowTexel * 1.5, p.z - bias));
+  s /= 9.0;
+#endif
+  // Outside the light's box: lit.
+  bool outside = p.z > 1.0 || p.x < 0.0 || p.y < 0.0 || p.x > 1.0 || p.y > 1.0;
+  return outside ? 1.0 : s;
+#endif
+}
+// What a polished surface reflects: the room's hemisphere and the theatre light's softbox.
+// The floor, the theatre's pale walls at the horizon, the ceiling, and the theatre light's
+// softbox overhead.
+vec3 Environment(vec3 dir, float roughness) {
+  float u = dot(dir, uUp);
+  vec3 walls = vec3(0.62, 0.66, 0.70);
+  vec3 c = mix(uGround * 3.0, walls, smoothstep(-0.35, 0.0, u));
+  c = mix(c, uSky * 1.6, smoothstep(0.1, 0.6, u));
+  float box = smoothstep(0.80 - roughness * 0.5, 0.95, u);
+  return c + vec3(1.6) * box * (1.0 - roughness);
+}
+vec3 Tonemap(vec3 x) {  // Narkowicz's fit of ACES, then display gamma
+  vec3 m = clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+  return sqrt(m);  // display gamma 2.0: a square root is a fraction of pow's cost on a CPU
+}
+
+void main() {
+#if MATERIAL == 6  // the table's shadows, blended over its picture
+  fragColour = vec4(0.0, 0.0, 0.0, (1.0 - Shadow()) * 0.6);
+#else
+  vec3 n = normalize(vNormal);
+  vec3 v = normalize(uEye - vWorld);
+  if (dot(n, v) < 0.0) n = -n;  // the inside of an open rim
+  vec4 d = vec4(0.5, 0.0, 0.0, 0.5);
+#if TISSUE
+  d.rb = vBroad;
+#endif
+#if DETAIL
+  // Pores and the bump from the texture; tone and vessels (the same texture at an eighth of
+  // the scale) sampled per vertex.
+  vec4 fine = texture(uDetail, vRest * uDetailScale);
+#if TISSUE
+  d.ga = fine.ga;
+#else
+  d = fine;
+#endif
+#if !ALBEDO_ONLY
+  // Bump by the surface gradient of the height (Mikkelsen 2010): no tangent frame needed.
+  float h = (d.a - 0.5) * uBumpDepth;
+  vec3 dpdx = dFdx(vWorld), dpdy = dFdy(vWorld);
+  vec3 r1 = cross(dpdy, n), r2 = cross(n, dpdx);
+  float det = dot(dpdx, r1);
+  vec3 grad = sign(det) * (dFdx(h) * r1 + dFdy(h) * r2);
+  vec3 bumped = abs(det) * n - grad;
+  n = abs(det) > 1e-14 && dot(bumped, bumped) > 0.0 ? normalize(bumped) : n;
+#endif
+#endif
+  vec3 albedo = uAlbedo;
+  float roughness = uRoughness;
+  vec3 f0 = vec3(0.028);
+#if MATERIAL == 0  // skin: tone, pores and faint veins
+  albedo *= mix(0.80, 1.12, d.r);
+  albedo *= 1.0 - 0.14 * d.g;
+  albedo = mix(albedo, albedo * vec3(0.78, 0.80, 1.02), 0.55 * d.b);
+#elif WET  // organ, kidney: mottling and vessels
+  albedo *= mix(0.80, 1.12, d.r);
+  vec3 vessel = MATERIAL == 2 ? vec3(0.22, 0.05, 0.08) : vec3(0.30, 0.06, 0.07);
+  albedo = mix(albedo, vessel, 0.6 * d.b);
+#elif MATERIAL == 3  // metal: the albedo is the reflectance
+  f0 = uAlbedo;
+#elif MATERIAL == 4
+  f0 = vec3(0.04);
+#elif MATERIAL == 5  // the drape's weave
+  albedo *= mix(0.85, 1.05, d.r);
+#endif
+#if ALBEDO_ONLY
+  fragColour = vec4(pow(clamp(albedo, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+#else
+  // Ambient occlusion, cheap: tissue near the table and facing it is darker; the table is
+  // darker under the tissue's footprint.
+  float ao = 1.0;
+#if AO && MATERIAL == 5
+  vec3 r = vWorld - uFootCentre;
+  float e = length(vec2(dot(r, uFootA) / dot(uFootA, uFootA), dot(r, uFootB) / dot(uFootB, uFootB)));
+  ao = 1.0 - 0.6 * exp(-max(e - 0.85, 0.0) * 5.0);
+#elif AO && TISSUE
+  float height = dot(vWorld, uUp) - uTableHeight;
+  ao = mix(0.45, 1.0, smoothstep(0.0, 0.03, height)) * (0.8 + 0.2 * dot(n, uUp));
+#endif
+  float shadow = Shadow();
+  float NoL = dot(n, uKeyDir);
+#if MATERIAL == 0
+  // Skin: wrapped diffuse, red reaching furthest past the terminator, and in the shadow the
+  // light still scattering in.
+  vec3 w = vec3(0.55, 0.30, 0.22);
+  vec3 wrapped = clamp((vec3(NoL) + w) / ((1.0 + w) * (1.0 + w)), 0.0, 1.0);
+  vec3 diffuse = albedo * uKeyColour * mix(wrapped * vec3(0.55, 0.35, 0.3), wrapped, shadow);
+#elif MATERIAL == 3
+  vec3 diffuse = vec3(0.0);
+#else
+  vec3 diffuse = albedo * uKeyColour * max(NoL, 0.0) * shadow;
+#endif
+#if MATERIAL == 5
+  vec3 spec = vec3(0.0);  // cloth: no highlight worth its cost
+#else
+  vec3 spec = Specular(n, v, uKeyDir, f0, roughness) * uKeyColour * shadow;
+#endif
+#if WET  // the wet film: a second, sharp lobe
+  spec += 0.9 * Specular(n, v, uKeyDir, vec3(0.02), 0.12) * uKeyColour * shadow;
+#endif
+#if MATERIAL == 3
+  vec3 lit_albedo = vec3(0.0);
+#else
+  vec3 lit_albedo = albedo;
+#endif
+  vec3 fill = lit_albedo * uFillColour * max(dot(n, uFillDir), 0.0);
+  vec3 hemi = mix(uGround, uSky, 0.5 + 0.5 * dot(n, uUp));
+  vec3 ambient = lit_albedo * hemi * ao;
+#if POLISHED  // a polished surface reflects the room
+  vec3 rv = reflect(-v, n);
+  float NoV = max(dot(n, v), 0.0);
+  ambient += Environment(rv, roughness) * FresnelSchlick(f0, NoV) * ao * (1.0 - roughness * 0.5);
+#endif
+  fragColour = vec4(Tonemap(diffuse + spec + fill + ambient), 1.0);
+#endif
+#endif
+}
+)";
+
+const char* const kShadowVertex = R"(#version 330 core
+layout(location = 0) in vec3 aPosition;
+uniform mat4 uLightViewProj;
+uniform mat4 uModel;
+void main() { gl_Position = uLightViewProj * uModel * vec4(aPosition, 1.0); }
+)";
+
+const char* const kShadowFragment = R"(#version 330 core
+void main() {}
+)";
+
+const char* const kFlatVertex = R"(#version 330 core
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec4 aColour;
+uniform mat4 uViewProj;
+out vec4 vColour;
+void main() {
+  vColour = aColour;
+  gl_Position = uViewProj * vec4(aPosition, 1.0);
+}
+)";
+
+const char* const kFlatFragment = R"(#version 330 core
+in vec4 vColour;
+out vec4 fragColour;
+void main() { fragColour = vColour; }
+)";
+
+}  // namespace vsurg::client::shaders

@@ -1,0 +1,74 @@
+#include "common/sim/visual_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace vsurg::sim {
+
+const char* InstrumentName(Instrument i) {
+  switch (i) {
+    case Instrument::kProbe:
+      return "probe";
+    case Instrument::kGrasper:
+      return "grasper";
+    case Instrument::kGrip:
+      return "grip";
+  }
+  return "probe";
+}
+
+Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMesh& physics) {
+  if (physics.positions.empty() || physics.triangles.empty())
+    return InvalidArgument("mesh", "the physics surface is empty");
+  VisualModel v;
+  v.material = scene.visual.material;
+  const bool limb = scene.mesh.kind == MeshKind::kLimb;
+  if (limb) {
+    // The skin at about the scene's resolution target: sides of around × along vertices with
+    // around : along as the limb's circumference to its length.
+    const geometry::LimbParams& p = scene.mesh.limb;
+    const double circumference = std::numbers::pi * (p.radius_proximal + p.radius_distal);
+    const double aspect = p.length / circumference;
+    const int vertices = scene.visual.min_triangles / 2 + 1;
+    const int around = std::clamp(static_cast<int>(std::sqrt(vertices / aspect)), 24, 1024);
+    const int along = std::clamp(vertices / around + 1, 8, 4096);
+    auto skin = geometry::MakeLimbSkin(p, around, along);
+    if (!skin.ok()) return skin.error();
+    v.surface = std::move(*skin);
+  } else {
+    int levels = 0;
+    while (levels < 4 && physics.TriangleCount() << (2 * levels) < scene.visual.min_triangles)
+      ++levels;
+    v.surface = geometry::PhongRefine(physics, levels);
+  }
+  v.mapping = geometry::SurfaceMapping::Build(physics, v.surface.positions);
+  // A limb lies along z with its back (+y) up; everything else rests on its bottom (−z).
+  v.up = limb ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
+  double lowest = 1e30;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+  for (const auto& q : physics.positions) {
+    lowest = std::min(lowest, q.dot(v.up));
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  v.table_height = lowest;
+  if (scene.task.kind == scoring::TaskKind::kPress) {
+    v.instrument = Instrument::kProbe;
+  } else if (limb) {
+    v.instrument = Instrument::kGrip;
+    v.twist_axis = Eigen::Vector3d::UnitZ();
+    v.twist_centre = Eigen::Vector3d(0, 0, scene.mesh.limb.length - 0.015);
+    v.twist_radius = scene.mesh.limb.radius_distal * 1.25;
+  } else {
+    // Forceps on an organ: the twist about the surface normal where they hold; the arc is
+    // drawn at the grasp (the renderer places it at the instrument), sized to the jaws.
+    v.instrument = Instrument::kGrasper;
+    v.twist_axis = Eigen::Vector3d::UnitZ();
+    v.twist_centre = Eigen::Vector3d(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), hi.z());
+    v.twist_radius = std::max(0.012, scene.region.reduced.jaw_radius * 1.6);
+  }
+  return v;
+}
+
+}  // namespace vsurg::sim

@@ -1,0 +1,41 @@
+// What the station draws for a scene, apart from what the server simulates: the fine visual
+// surface carried by the physics surface (common/geometry/visual_surface.h), its material, the
+// instrument the task is done with, and the table the tissue rests on.
+//
+// Built by the station (and the monitor, and the render tests) from the scene file it already
+// reads; nothing of it crosses the network. Units: metres.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+#include "common/geometry/visual_surface.h"
+#include "common/sim/scene.h"
+
+namespace vsurg::sim {
+
+// The instrument: a blunt probe for palpation (press tasks), a grasper whose jaws close with
+// the button for a twist anywhere on a surface (forceps), a grip for twisting a limb.
+enum class Instrument { kProbe, kGrasper, kGrip };
+const char* InstrumentName(Instrument i);
+
+struct VisualModel {
+  geometry::TriMesh surface;         // the fine surface at rest (normals included)
+  geometry::SurfaceMapping mapping;  // physics surface → `surface`
+  VisualMaterial material = VisualMaterial::kSkin;
+  Instrument instrument = Instrument::kProbe;
+  // The table under the tissue: its upward normal (the world's up) and its height along it.
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  double table_height = 0;  // m, along `up`
+  // The twist task's axis and the point on it where the instrument holds (a limb: its distal
+  // end); the target arc is drawn there. Zero for a press task.
+  Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d twist_centre = Eigen::Vector3d::Zero();
+  double twist_radius = 0;  // m, the arc's radius
+};
+
+// `physics` is the scene's physics surface at rest (BuildSceneMesh(scene.mesh).surface).
+Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMesh& physics);
+
+}  // namespace vsurg::sim
