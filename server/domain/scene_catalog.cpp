@@ -46,6 +46,8 @@ Expected<SceneListing> SceneCatalog::List() {
         e.info.model = sim::ModelKindName(scene->region.kind);
         e.info.task = scene->task.kind == scoring::TaskKind::kTwist ? "twist" : "press";
         e.info.error_budget_rms = scene->error_budget_rms;
+        e.info.material = sim::VisualMaterialName(scene->visual.material);
+        e.info.limb = scene->mesh.kind == sim::MeshKind::kLimb;
       } else {
         // Named by its file name: the message's own prefix is the server's full path.
         e.why = scene.error().message;

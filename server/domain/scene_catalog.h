@@ -22,6 +22,8 @@ struct SceneInfo {
   std::string model;  // coil, mass-spring, …
   std::string task;   // twist or press
   double error_budget_rms = 0;
+  std::string material;  // how stations draw it: skin, organ, kidney (sim::VisualMaterial)
+  bool limb = false;     // a limb along z, lying with +y up (else resting on −z)
 };
 
 struct SceneListing {

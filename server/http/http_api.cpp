@@ -461,7 +461,9 @@ HttpReply HttpApi::Routes::Scenes(const Call& c) {
                       {"description", s.description},
                       {"model", s.model},
                       {"task", s.task},
-                      {"error_budget_rms", s.error_budget_rms}});
+                      {"error_budget_rms", s.error_budget_rms},
+                      {"material", s.material},
+                      {"limb", s.limb}});
   return Ok({{"scenes", scenes}, {"unusable", listing->unusable}});
 }
 
