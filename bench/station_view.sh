@@ -5,8 +5,11 @@
 # Prints per scene and quality level the frame time (draw and finish, ms: p50, p99), the frames
 # drawn, and the device loop's rate (over the run; its slowest and fastest whole second), all from
 # the same run; with SHOTS=DIR writes DIR/<scene>.png (3.5 s in) and DIR/<scene>-summary.png.
+# BASE_BIN=DIR adds a row per scene for another build's vsurg-station (the previous renderer:
+# a worktree of an older commit built outside the repository), against the same server.
+# WIDTH and HEIGHT change the frame's size (1280x720).
 # usage: [SCENES="arm-torsion ..."] [QUALITIES="high medium low"] [STYLE=hesitant]
-#        [SHOTS=DIR] bench/station_view.sh [BIN_DIR]
+#        [SHOTS=DIR] [BASE_BIN=DIR] bench/station_view.sh [BIN_DIR]
 set -euo pipefail
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); trap 'kill $spid 2>/dev/null; rm -rf $d' EXIT
 SCENES=${SCENES:-"arm-torsion organ-surface-twist kidney-palpation sphere-palpation-256"}
@@ -20,13 +23,18 @@ PORT=$(python3 -c "import json;print(json.load(open('ready.json'))['grpc_port'])
 $B/vsurg-admin user-add --server 127.0.0.1:$PORT --token $(head -1 admin.out) --name ana --role trainee --issue-token | tail -1 > t.tok
 for scene in $SCENES; do
   $B/vsurg-sim trainee --scene $scene --style "${STYLE:-hesitant}" --out $scene.csv > /dev/null
+  if [ -n "${BASE_BIN:-}" ]; then
+    "$BASE_BIN/vsurg-station" --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
+        --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} --json 2>/dev/null \
+      | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=base draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score']))"
+  fi
   for q in $QUALITIES; do
     shots=()
     if [ -n "${SHOTS:-}" ] && [ "$q" = "$(echo $QUALITIES | cut -d' ' -f1)" ]; then
       shots=(--screenshot "$SHOTS/$scene.png" --screenshot-at 3.5 --screenshot-summary "$SHOTS/$scene-summary.png")
     fi
     $B/vsurg-station --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
-        --headless --width 1280 --height 720 --quality $q "${shots[@]}" --json 2>/dev/null \
+        --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} --quality $q "${shots[@]}" --json 2>/dev/null \
       | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=$q draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score']))"
   done
 done

@@ -169,7 +169,6 @@ void Hud::Draw(int width, int height, const std::vector<std::string>& lines, con
                   limit / 60, limit % 60);
     ImGui::TextUnformatted(clock);
     if (!g.link.empty()) {
-      ImGui::SameLine(gauge_w * 0.5f);
       const ImU32 colour = g.link_level == 0 ? kGood : g.link_level == 1 ? kWarn : kBad;
       const ImVec2 at = ImGui::GetCursorScreenPos();
       const float r = ImGui::GetFontSize() * 0.3f;

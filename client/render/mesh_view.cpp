@@ -342,6 +342,7 @@ struct MeshView::Gpu {
   // the quality stay), drawn once and copied into every frame.
   GLuint background_fbo = 0, background_colour = 0, background_depth = 0;
   std::array<double, 9> background_key{};  // width, height, quality, eye, centre
+  std::array<double, 18> shadow_key{};     // the tool's pose, its jaws, the quality
   std::vector<float> upload;               // the tissue's interleaved vertices, reused every frame
   std::vector<uint32_t> indices;
   FlatMesh marks;
@@ -581,6 +582,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       glTexParameteri(GL_TEXTURE_3D, wrap, GL_REPEAT);
   }
   if (dirty_) {
+    moved_since_shadow_ = true;
     UpdateVisual();
     for (size_t i = 0; i < fine_count; ++i) {
       float* v = &g.upload[11 * i];
@@ -618,8 +620,18 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   const bool shadows = q != Quality::kLow && !overlay.albedo_only;
   const Eigen::Matrix4d light = LightViewProjection();
 
-  // 1. The shadow map: depth from the key light of the tissue and the instrument.
-  if (shadows) {
+  // 1. The shadow map: depth from the key light of the tissue and the instrument; drawn again
+  // only when one of them moved (a trainee holding still costs no shadow pass).
+  std::array<double, 18> shadow_key{};
+  {
+    const Eigen::Matrix4d pose = stylus ? tool.matrix() : Eigen::Matrix4d::Zero();
+    std::copy(pose.data(), pose.data() + 16, shadow_key.begin());
+    shadow_key[16] = open;
+    shadow_key[17] = static_cast<double>(q);
+  }
+  if (shadows && (moved_since_shadow_ || shadow_key != g.shadow_key)) {
+    moved_since_shadow_ = false;
+    g.shadow_key = shadow_key;
     const int size = q == Quality::kHigh ? 2048 : 1024;
     g.EnsureShadowMap(size);
     glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
@@ -656,7 +668,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   glDisable(GL_CULL_FACE);
   glDisable(GL_BLEND);
   const Eigen::Matrix4d view_projection = Projection(width, height) * View();
-  const int taps = shadows ? (q == Quality::kHigh ? 9 : 1) : 0;
+  const int taps = shadows ? (q == Quality::kHigh ? 4 : 1) : 0;
   const bool detail = q != Quality::kLow || overlay.albedo_only, ao = q == Quality::kHigh;
   // The footprint the table's occlusion darkens: the rest mesh's extent across the table.
   Eigen::Vector3d foot_centre, foot_a = Eigen::Vector3d::Zero(), foot_b = Eigen::Vector3d::Zero();
@@ -816,7 +828,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
         const Eigen::Vector3d axis = visual_.twist_axis;
         const Eigen::Vector3d zero = at_tool ? axis.unitOrthogonal() : up_;
         const double sign = gd.current < 0 ? -1 : 1, r = visual_.twist_radius;
-        const double thick = std::max(0.0015, r * 0.05);
+        const double thick = std::max(0.0025, r * 0.07);
         g.marks.Arc(centre, axis, zero, r, 0, sign * 2 * std::numbers::pi * 0.999, thick * 0.35,
                     Eigen::Vector4f(0.85f, 0.88f, 0.92f, 0.35f));
         g.marks.Arc(centre, axis, zero, r, sign * (gd.target - gd.tolerance),

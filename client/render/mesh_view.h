@@ -49,7 +49,7 @@ struct Overlay {
 
 // kLow: no shadows, no detail texture (a software renderer on a slow machine); kMedium: the
 // shadow map (1024², one bilinear comparison) and the detail texture; kHigh: a 2048² shadow map
-// with a 3×3 filter, and the ambient occlusion term.
+// with four bilinear comparisons (a 4×4 kernel's softness), and the ambient occlusion term.
 enum class Quality { kLow, kMedium, kHigh };
 const char* QualityName(Quality q);
 
@@ -117,6 +117,7 @@ class MeshView {
   std::vector<geometry::Vec3> positions_;
   sim::VisualModel visual_;
   bool dirty_ = true;
+  bool moved_since_shadow_ = true;  // the tissue moved since the shadow map was drawn
   std::vector<Eigen::Vector3f> fine_, fine_normals_;
   std::vector<geometry::Vec3> coarse_normals_;
   std::unique_ptr<Gpu> gpu_;

@@ -116,7 +116,7 @@ enum class VisualMaterial { kSkin, kOrgan, kKidney };
 const char* VisualMaterialName(VisualMaterial m);
 struct VisualSpec {
   VisualMaterial material = VisualMaterial::kSkin;
-  int min_triangles = 30000;  // the visual surface is refined until it has at least this many
+  int min_triangles = 20000;  // the visual surface is refined until it has at least this many
 };
 
 struct Scene {
