@@ -30,8 +30,8 @@ void StationFrame(benchmark::State& state, const char* scene_name, Quality quali
   overlay.show_stylus = true;
   overlay.tip = 0.5 * (mesh->surface.positions.front() + mesh->surface.positions.back()) +
                 Eigen::Vector3d(0.03, 0.03, 0.03);
-  overlay.orientation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(),
-                                                           Eigen::Vector3d(1, 0.3, 0.4).normalized());
+  overlay.orientation = Eigen::Quaterniond::FromTwoVectors(
+      Eigen::Vector3d::UnitZ(), Eigen::Vector3d(1, 0.3, 0.4).normalized());
   overlay.guidance.show = true;
   overlay.guidance.target = scene->task.target;
   overlay.guidance.tolerance = scene->task.tolerance;

@@ -57,17 +57,23 @@ Eigen::Matrix4d Ortho(double r, double near_plane, double far_plane) {
   return m;
 }
 
+// A shader's or a program's build status; its log on stderr when it failed (the frame then
+// draws nothing with it rather than stopping the station).
+template <typename GetStatus, typename GetLog>
+void Report(GLuint object, GLenum status, GetStatus get_status, GetLog get_log, const char* what) {
+  GLint ok = 0;
+  get_status(object, status, &ok);
+  if (ok) return;
+  char log[2048];
+  get_log(object, sizeof log, nullptr, log);
+  std::fprintf(stderr, "vsurg render: %s: %s\n", what, log);
+}
+
 GLuint Compile(GLenum type, const char* source) {
   const GLuint shader = glCreateShader(type);
   glShaderSource(shader, 1, &source, nullptr);
   glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048];
-    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
-    std::fprintf(stderr, "vsurg render: a shader does not compile: %s\n", log);
-  }
+  Report(shader, GL_COMPILE_STATUS, glGetShaderiv, glGetShaderInfoLog, "a shader does not compile");
   return shader;
 }
 
@@ -78,13 +84,8 @@ GLuint Link(const char* vertex, const std::string& fragment) {
   glAttachShader(program, vs);
   glAttachShader(program, fs);
   glLinkProgram(program);
-  GLint ok = 0;
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048];
-    glGetProgramInfoLog(program, sizeof log, nullptr, log);
-    std::fprintf(stderr, "vsurg render: a shader program does not link: %s\n", log);
-  }
+  Report(program, GL_LINK_STATUS, glGetProgramiv, glGetProgramInfoLog,
+         "a shader program does not link");
   glDeleteShader(vs);
   glDeleteShader(fs);
   return program;

@@ -142,16 +142,38 @@ void FlatMesh::Vertex(const Eigen::Vector3d& p, const Eigen::Vector4f& c) {
                            static_cast<float>(p.z()), c[0], c[1], c[2], c[3]});
 }
 
+namespace {
+
+// The k-th of `segments` points around a circle of `radius` at right angles to the segment
+// from → to, as an offset from the circle's centre. MakeRing: false for a degenerate segment.
+struct Ring {
+  Eigen::Vector3d e1, e2;
+  double radius;
+  int segments;
+  Eigen::Vector3d operator()(int k) const {
+    const double t = 2 * std::numbers::pi * k / segments;
+    return radius * (std::cos(t) * e1 + std::sin(t) * e2);
+  }
+};
+bool MakeRing(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius, int segments,
+              Ring& ring) {
+  const Eigen::Vector3d axis = to - from;
+  if (!(axis.norm() > 0) || !from.allFinite() || !to.allFinite()) return false;
+  ring.e1 = axis.unitOrthogonal();
+  ring.e2 = axis.normalized().cross(ring.e1);
+  ring.radius = radius;
+  ring.segments = segments;
+  return true;
+}
+
+}  // namespace
+
 void FlatMesh::Tube(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double radius,
                     const Eigen::Vector4f& colour, int segments) {
-  const Eigen::Vector3d axis = b - a;
-  if (!(axis.norm() > 0) || !a.allFinite() || !b.allFinite()) return;
-  const Eigen::Vector3d e1 = axis.unitOrthogonal(), e2 = axis.normalized().cross(e1);
+  Ring ring;
+  if (!MakeRing(a, b, radius, segments, ring)) return;
   for (int k = 0; k < segments; ++k) {
-    const double t0 = 2 * std::numbers::pi * k / segments,
-                 t1 = 2 * std::numbers::pi * (k + 1) / segments;
-    const Eigen::Vector3d r0 = radius * (std::cos(t0) * e1 + std::sin(t0) * e2);
-    const Eigen::Vector3d r1 = radius * (std::cos(t1) * e1 + std::sin(t1) * e2);
+    const Eigen::Vector3d r0 = ring(k), r1 = ring(k + 1);
     Vertex(a + r0, colour);
     Vertex(a + r1, colour);
     Vertex(b + r0, colour);
@@ -163,14 +185,11 @@ void FlatMesh::Tube(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r
 
 void FlatMesh::Cone(const Eigen::Vector3d& base, const Eigen::Vector3d& apex, double radius,
                     const Eigen::Vector4f& colour, int segments) {
-  const Eigen::Vector3d axis = apex - base;
-  if (!(axis.norm() > 0) || !base.allFinite() || !apex.allFinite()) return;
-  const Eigen::Vector3d e1 = axis.unitOrthogonal(), e2 = axis.normalized().cross(e1);
+  Ring ring;
+  if (!MakeRing(base, apex, radius, segments, ring)) return;
   for (int k = 0; k < segments; ++k) {
-    const double t0 = 2 * std::numbers::pi * k / segments,
-                 t1 = 2 * std::numbers::pi * (k + 1) / segments;
-    Vertex(base + radius * (std::cos(t0) * e1 + std::sin(t0) * e2), colour);
-    Vertex(base + radius * (std::cos(t1) * e1 + std::sin(t1) * e2), colour);
+    Vertex(base + ring(k), colour);
+    Vertex(base + ring(k + 1), colour);
     Vertex(apex, colour);
   }
 }
