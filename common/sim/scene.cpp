@@ -530,6 +530,16 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
     auto triangles = v->Integer("min_triangles", 1000, 500000, &s.visual.min_triangles);
     if (!triangles.ok()) return with_source(triangles.error());
     s.visual.min_triangles = *triangles;
+    if (v->Has("mesh")) {
+      auto path = v->String("mesh");
+      if (!path.ok()) return with_source(path.error());
+      s.visual.mesh = fs::path(*path).is_absolute() ? *path : (fs::path(dir) / *path).string();
+      auto units = v->StringOr("units", "m");
+      if (!units.ok()) return with_source(units.error());
+      auto scale = geometry::UnitScale(*units);
+      if (!scale.ok()) return with_source(v->Bad("units", scale.error().message));
+      s.visual.metres_per_unit = *scale;
+    }
   }
   auto budget = r.Object("error_budget");
   if (!budget.ok()) return with_source(budget.error());

@@ -109,14 +109,19 @@ struct HapticsSpec {
   double lookahead = 0.03;
 };
 
-// How the station draws the tissue (never what the server simulates): its material, and the
-// visual surface's resolution. Scene files say "visual": {"material": "skin" | "organ" |
-// "kidney"}; without it a limb is skin and anything else an organ.
+// How the station draws the tissue (never what the server simulates): its material, and its
+// visual surface: a named file (a scan finer than the physics mesh, in the scene's frame), or
+// else one generated at about `min_triangles` (a limb's skin, an organ refined). Scene files
+// say "visual": {"material": "skin" | "organ" | "kidney", "mesh": "file", "units": "mm",
+// "min_triangles": N}, every field optional; without them a limb is skin and anything else an
+// organ.
 enum class VisualMaterial { kSkin, kOrgan, kKidney };
 const char* VisualMaterialName(VisualMaterial m);
 struct VisualSpec {
   VisualMaterial material = VisualMaterial::kSkin;
-  int min_triangles = 20000;  // the visual surface is refined until it has at least this many
+  int min_triangles = 20000;   // the visual surface is refined until it has at least this many
+  std::string mesh;            // a file of the visual surface (absolute after loading), or empty
+  double metres_per_unit = 1;  // its "units"
 };
 
 struct Scene {

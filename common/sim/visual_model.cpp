@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/geometry/mesh_import.h"
+
 namespace vsurg::sim {
 
 const char* InstrumentName(Instrument i) {
@@ -24,7 +26,13 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
   VisualModel v;
   v.material = scene.visual.material;
   const bool limb = scene.mesh.kind == MeshKind::kLimb;
-  if (limb) {
+  if (!scene.visual.mesh.empty()) {
+    auto fine = geometry::ImportSurfaceMesh(scene.visual.mesh, scene.visual.metres_per_unit);
+    if (!fine.ok()) return Error{fine.error().code, fine.error().message, "visual.mesh"};
+    v.surface = std::move(*fine);
+    if (v.surface.normals.size() != v.surface.positions.size())
+      geometry::ComputeVertexNormals(v.surface);
+  } else if (limb) {
     // The skin at about the scene's resolution target: sides of around × along vertices with
     // around : along as the limb's circumference to its length.
     const geometry::LimbParams& p = scene.mesh.limb;

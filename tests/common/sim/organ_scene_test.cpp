@@ -17,6 +17,7 @@
 #include "common/geometry/mesh_import.h"
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
+#include "common/sim/visual_model.h"
 
 namespace vsurg::sim::organ_scene_test {
 namespace {
@@ -108,6 +109,38 @@ TEST(OrganSceneTest, TheKidneyIsTetrahedralisedAndSinksUnderThePress) {
   EXPECT_LT(top_dz, -0.0005);
   EXPECT_GT(top_dz, -0.004 - 1e-9);
   fs::remove_all(dir);
+}
+
+TEST(OrganSceneTest, AVisualSurfaceCanBeAFileAndIsCarriedByThePhysicsOne) {
+  // The scene names its visual surface: here the kidney's own file, so every fine vertex lies
+  // on the physics surface and the mapping reproduces it at rest and moves it with it.
+  auto scene = LoadSceneByName("kidney-palpation");
+  ASSERT_TRUE(scene.ok());
+  auto mesh = BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok());
+  scene->visual.mesh = scene->mesh.path;
+  scene->visual.metres_per_unit = scene->mesh.metres_per_unit;
+  auto visual = BuildVisualModel(*scene, mesh->surface);
+  ASSERT_TRUE(visual.ok()) << visual.error().message;
+  EXPECT_EQ(visual->surface.VertexCount(), mesh->surface.VertexCount());
+  EXPECT_EQ(visual->material, VisualMaterial::kKidney);
+  EXPECT_EQ(visual->instrument, Instrument::kProbe);
+  EXPECT_LT(visual->mapping.max_normal_offset(), 1e-6);
+  geometry::TriMesh moved = mesh->surface;
+  for (Vec3& p : moved.positions) p += Vec3(0.01, -0.02, 0.005);
+  geometry::ComputeVertexNormals(moved);
+  std::vector<Eigen::Vector3f> fine;
+  visual->mapping.Apply(moved.positions, moved.normals, fine);
+  double worst = 0;
+  for (size_t i = 0; i < fine.size(); ++i)
+    worst = std::max(
+        worst,
+        (fine[i].cast<double>() - visual->surface.positions[i] - Vec3(0.01, -0.02, 0.005)).norm());
+  EXPECT_LT(worst, 1e-6);
+  scene->visual.mesh = "/nonexistent/organ.stl";
+  auto missing = BuildVisualModel(*scene, mesh->surface);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().field, "visual.mesh");
 }
 
 TEST(OrganSceneTest, ScriptedTraineesPalpateTheKidney) {

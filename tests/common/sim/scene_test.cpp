@@ -255,9 +255,9 @@ TEST(SceneTest, TheVisualMaterialIsReadWithADefaultByMesh) {
   auto organ = ParseScene(Minimal(), "x.json");
   ASSERT_TRUE(organ.ok());
   EXPECT_EQ(organ->visual.material, VisualMaterial::kOrgan);  // a sphere without "visual"
-  auto kidney = ParseScene(
-      Replace(Minimal(), R"("error_budget")", R"("visual": {"material": "kidney"}, "error_budget")"),
-      "x.json");
+  auto kidney = ParseScene(Replace(Minimal(), R"("error_budget")",
+                                   R"("visual": {"material": "kidney"}, "error_budget")"),
+                           "x.json");
   ASSERT_TRUE(kidney.ok()) << kidney.error().message;
   EXPECT_EQ(kidney->visual.material, VisualMaterial::kKidney);
   EXPECT_EQ(LoadSceneByName("arm-torsion")->visual.material, VisualMaterial::kSkin);
@@ -269,6 +269,17 @@ TEST(SceneTest, TheVisualMaterialIsReadWithADefaultByMesh) {
   EXPECT_NE(Field(Replace(Minimal(), R"("error_budget")",
                           R"("visual": {"min_triangles": 10}, "error_budget")"))
                 .find("min_triangles"),
+            std::string::npos);
+  auto scanned =
+      ParseScene(Replace(Minimal(), R"("error_budget")",
+                         R"("visual": {"mesh": "organ.stl", "units": "mm"}, "error_budget")"),
+                 "/scenes/x.json");
+  ASSERT_TRUE(scanned.ok()) << scanned.error().message;
+  EXPECT_EQ(scanned->visual.mesh, "/scenes/organ.stl");  // beside the scene file
+  EXPECT_DOUBLE_EQ(scanned->visual.metres_per_unit, 1e-3);
+  EXPECT_NE(Field(Replace(Minimal(), R"("error_budget")",
+                          R"("visual": {"mesh": "o.stl", "units": "furlong"}, "error_budget")"))
+                .find("visual.units"),
             std::string::npos);
 }
 
