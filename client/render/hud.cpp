@@ -121,9 +121,19 @@ void Hud::Draw(int width, int height, const std::vector<std::string>& lines, con
                                       ImGuiWindowFlags_NoInputs | ImGuiWindowFlags_NoSavedSettings |
                                       ImGuiWindowFlags_NoFocusOnAppearing | ImGuiWindowFlags_NoNav;
   if (!lines.empty()) {
+    // Sized from its text now: an auto-resized window takes its new size a frame late, and a
+    // screenshot of the first frame would cut the lines off.
+    const ImGuiStyle& style = ImGui::GetStyle();
+    float text_w = 0;
+    for (const std::string& line : lines)
+      text_w = std::max(text_w, ImGui::CalcTextSize(line.c_str()).x);
+    const float text_h = static_cast<float>(lines.size()) * ImGui::GetTextLineHeightWithSpacing() +
+                         (lines.size() > 1 ? style.ItemSpacing.y : 0);
     ImGui::SetNextWindowPos(ImVec2(10, 10));
+    ImGui::SetNextWindowSize(
+        ImVec2(text_w + 2 * style.WindowPadding.x, text_h + 2 * style.WindowPadding.y));
     ImGui::SetNextWindowBgAlpha(0.55f);
-    ImGui::Begin("status", nullptr, kPanel);
+    ImGui::Begin("status", nullptr, kPanel & ~ImGuiWindowFlags_AlwaysAutoResize);
     for (size_t k = 0; k < lines.size(); ++k) {
       if (k == 0) {
         ImGui::TextColored(ImVec4(0.55f, 0.85f, 1.0f, 1.0f), "%s", lines[k].c_str());
@@ -140,8 +150,17 @@ void Hud::Draw(int width, int height, const std::vector<std::string>& lines, con
     const float gauge_w = std::clamp(static_cast<float>(width) * 0.22f, 170.0f, 420.0f);
     ImGui::SetNextWindowPos(ImVec2(static_cast<float>(width) - 10, static_cast<float>(height) - 10),
                             ImGuiCond_Always, ImVec2(1.0f, 1.0f));
+    // Sized from its rows now (three gauges, the time, the link), not a frame late.
+    {
+      const ImGuiStyle& style = ImGui::GetStyle();
+      const float line = ImGui::GetTextLineHeight(), gap = style.ItemSpacing.y;
+      const float gauge = line + gap + ImGui::GetFontSize() * 0.75f + 4 + gap;
+      const float rows = 3 * gauge + (line + gap) + (g.link.empty() ? 0 : line + gap);
+      ImGui::SetNextWindowSize(
+          ImVec2(gauge_w + 8 + 2 * style.WindowPadding.x, rows - gap + 2 * style.WindowPadding.y));
+    }
     ImGui::SetNextWindowBgAlpha(0.55f);
-    ImGui::Begin("trial", nullptr, kPanel);
+    ImGui::Begin("trial", nullptr, kPanel & ~ImGuiWindowFlags_AlwaysAutoResize);
     // Force: the safe band up to the task's limit, red beyond, full scale the device's limit.
     const double full_force = std::max({g.device_limit_n, g.force_limit_n * 1.2, 0.5});
     const ImU32 force_colour = g.force_n > g.force_limit_n         ? kBad
