@@ -390,7 +390,7 @@ struct MeshView::Gpu {
 };
 
 MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
-    : rest_(physics), positions_(physics.positions), visual_(std::move(visual)) {
+    : rest_(physics), positions_(physics.positions), visual_(std::move(visual)), moved_(physics) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
   for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   if (rest_.positions.empty()) lo = hi = Eigen::Vector3d::Zero();
@@ -398,7 +398,8 @@ MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
   radius_ = std::max(0.5 * (hi - lo).norm(), 1e-3);
   // The table's up is the view's up; across the screen the longest extent at right angles to
   // it; the camera looks from the side and above.
-  up_ = visual_.up.normalized();
+  world_up_ = visual_.up.normalized();
+  up_ = world_up_;
   const Eigen::Vector3d extent = hi - lo;
   Eigen::Vector3d across = Eigen::Vector3d::UnitX();
   double longest = -1;
@@ -409,6 +410,15 @@ MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
   }
   // A limb is seen from the side its scripted grasp is on (+x); an organ from −y, where a
   // kidney's hilum faces.
+  // The footprint the table's occlusion darkens: the rest mesh's extent across the table.
+  {
+    const Eigen::Vector3d half = 0.5 * (hi - lo), mid = 0.5 * (lo + hi);
+    foot_centre_ = mid - (mid.dot(world_up_) - visual_.table_height) * world_up_;
+    for (int k = 0, used = 0; k < 3; ++k) {
+      if (std::abs(Eigen::Vector3d::Unit(k).dot(world_up_)) > 0.9) continue;
+      (used++ == 0 ? foot_a_ : foot_b_) = Eigen::Vector3d::Unit(k) * std::max(half[k], 1e-3);
+    }
+  }
   const Eigen::Vector3d view = visual_.instrument == sim::Instrument::kGrip
                                    ? Eigen::Vector3d(up_.cross(across).normalized())
                                    : Eigen::Vector3d(across.cross(up_).normalized());
@@ -421,7 +431,7 @@ MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
   eye_ = centre_ + radius_ * 2.9 * (view + 0.62 * up_ + toward_work).normalized();
   // The key light from above and to one side: shadows fall beside the tool and the tissue,
   // where the trainee sees them.
-  key_dir_ = (up_ + 0.30 * view - 0.55 * across).normalized();
+  key_dir_ = (world_up_ + 0.30 * view - 0.55 * across).normalized();
 }
 
 MeshView::~MeshView() {
@@ -501,18 +511,10 @@ Eigen::Vector2d MeshView::Project(const geometry::Vec3& p, int width, int height
 void MeshView::UpdateVisual() {
   // The physics surface's vertex normals, then the visual surface mapped from it and its own
   // normals: only when a vertex moved.
-  coarse_normals_.assign(positions_.size(), geometry::Vec3::Zero());
-  for (const auto& t : rest_.triangles) {
-    const geometry::Vec3 n =
-        (positions_[t[1]] - positions_[t[0]]).cross(positions_[t[2]] - positions_[t[0]]);
-    for (int v : t) coarse_normals_[v] += n;
-  }
-  for (auto& n : coarse_normals_) {
-    const double l = n.norm();
-    n = l > 0 ? geometry::Vec3(n / l) : up_;
-  }
-  visual_.mapping.Apply(positions_, coarse_normals_, fine_);
-  geometry::VertexNormals(visual_.surface.triangles, fine_, fine_normals_, up_.cast<float>());
+  moved_.positions = positions_;
+  geometry::ComputeVertexNormals(moved_);
+  visual_.mapping.Apply(moved_.positions, moved_.normals, fine_);
+  geometry::VertexNormals(visual_.surface.triangles, fine_, fine_normals_, world_up_.cast<float>());
   dirty_ = false;
 }
 
@@ -543,15 +545,16 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     }
     dirty_ = true;
     // The table: a square of drape under the tissue.
-    const Eigen::Vector3d centre = centre_ - (centre_.dot(up_) - visual_.table_height) * up_;
-    const Eigen::Vector3d e1 = up_.unitOrthogonal(), e2 = up_.cross(e1);
+    const Eigen::Vector3d centre =
+        centre_ - (centre_.dot(world_up_) - visual_.table_height) * world_up_;
+    const Eigen::Vector3d e1 = world_up_.unitOrthogonal(), e2 = world_up_.cross(e1);
     const double half = radius_ * 8;
     ShapeMesh table;
     for (int c = 0; c < 4; ++c) {
       const Eigen::Vector3d p = centre + half * ((c == 1 || c == 2) ? e1 : -e1) +
-                                half * (c >= 2 ? e2 : -e2) - 0.0005 * up_;
+                                half * (c >= 2 ? e2 : -e2) - 0.0005 * world_up_;
       table.positions.push_back(p.cast<float>());
-      table.normals.push_back(up_.cast<float>());
+      table.normals.push_back(world_up_.cast<float>());
     }
     table.indices = {0, 1, 2, 0, 2, 3};
     g.table.Upload(Interleave(table), table.indices, GL_STATIC_DRAW);
@@ -671,24 +674,12 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   const Eigen::Matrix4d view_projection = Projection(width, height) * View();
   const int taps = shadows ? (q == Quality::kHigh ? 4 : 1) : 0;
   const bool detail = q != Quality::kLow || overlay.albedo_only, ao = q == Quality::kHigh;
-  // The footprint the table's occlusion darkens: the rest mesh's extent across the table.
-  Eigen::Vector3d foot_centre, foot_a = Eigen::Vector3d::Zero(), foot_b = Eigen::Vector3d::Zero();
-  {
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
-    for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    const Eigen::Vector3d half = 0.5 * (hi - lo), mid = 0.5 * (lo + hi);
-    foot_centre = mid - (mid.dot(up_) - visual_.table_height) * up_;
-    for (int k = 0, used = 0; k < 3; ++k) {
-      if (std::abs(Eigen::Vector3d::Unit(k).dot(up_)) > 0.9) continue;
-      (used++ == 0 ? foot_a : foot_b) = Eigen::Vector3d::Unit(k) * std::max(half[k], 1e-3);
-    }
-  }
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, shadows ? g.shadow_map : 0);
   glActiveTexture(GL_TEXTURE1);
   glBindTexture(GL_TEXTURE_3D, g.detail);
   glActiveTexture(GL_TEXTURE0);
-  const Eigen::Vector3d fill = ((eye_ - centre_).normalized() - 0.3 * up_).normalized();
+  const Eigen::Vector3d fill = ((eye_ - centre_).normalized() - 0.3 * world_up_).normalized();
   const auto draw_part = [&](const Part& part, const Eigen::Affine3d& pose, int material,
                              const Eigen::Vector3d& albedo, double roughness, double scale,
                              double bump, int part_taps) {
@@ -701,16 +692,16 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     SetVec3(s, "uKeyColour", Eigen::Vector3d(1.36, 1.27, 1.14));
     SetVec3(s, "uFillDir", fill);
     SetVec3(s, "uFillColour", Eigen::Vector3d(0.20, 0.22, 0.28));
-    SetVec3(s, "uUp", up_);
+    SetVec3(s, "uUp", world_up_);
     SetVec3(s, "uSky", Eigen::Vector3d(0.24, 0.26, 0.31));
     SetVec3(s, "uGround", Eigen::Vector3d(0.05, 0.07, 0.08));
     SetFloat(s, "uShadowTexel", 1.0 / std::max(g.shadow_size, 1));
     SetFloat(s, "uTableHeight", visual_.table_height);
     SetInt(s, "uShadowMap", 0);
     SetInt(s, "uDetail", 1);
-    SetVec3(s, "uFootCentre", foot_centre);
-    SetVec3(s, "uFootA", foot_a);
-    SetVec3(s, "uFootB", foot_b);
+    SetVec3(s, "uFootCentre", foot_centre_);
+    SetVec3(s, "uFootA", foot_a_);
+    SetVec3(s, "uFootB", foot_b_);
     SetMatrix(s, "uModel", pose.matrix());
     SetMatrix3(s, "uNormalMatrix", pose.linear().inverse().transpose());
     SetVec3(s, "uAlbedo", albedo);
@@ -789,10 +780,10 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
         for (double z : {0.0, 0.07, 0.14, 0.21})
           for (double side : {-0.05, 0.05})
             casters.push_back(tool * Eigen::Vector3d(side, side, z));
-      const double rise = key_dir_.dot(up_);
+      const double rise = key_dir_.dot(world_up_);
       double x0 = width, y0 = height, x1 = 0, y1 = 0;
       for (const Eigen::Vector3d& p : casters) {
-        const double above = p.dot(up_) - visual_.table_height;
+        const double above = p.dot(world_up_) - visual_.table_height;
         if (rise <= 0.05 || !p.allFinite()) continue;
         const Eigen::Vector2d at =
             Project(p - key_dir_ * std::max(above, 0.0) / rise, width, height);
@@ -825,9 +816,9 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       const bool at_tool = visual_.instrument == sim::Instrument::kGrasper;
       if (!at_tool || stylus) {
         const Eigen::Vector3d centre =
-            at_tool ? Eigen::Vector3d(overlay.tip + 0.004 * up_) : visual_.twist_centre;
+            at_tool ? Eigen::Vector3d(overlay.tip + 0.004 * world_up_) : visual_.twist_centre;
         const Eigen::Vector3d axis = visual_.twist_axis;
-        const Eigen::Vector3d zero = at_tool ? axis.unitOrthogonal() : up_;
+        const Eigen::Vector3d zero = at_tool ? axis.unitOrthogonal() : world_up_;
         const double sign = gd.current < 0 ? -1 : 1, r = visual_.twist_radius;
         const double thick = std::max(0.0025, r * 0.07);
         g.marks.Arc(centre, axis, zero, r, 0, sign * 2 * std::numbers::pi * 0.999, thick * 0.35,

@@ -119,12 +119,17 @@ class MeshView {
   bool dirty_ = true;
   bool moved_since_shadow_ = true;  // the tissue moved since the shadow map was drawn
   std::vector<Eigen::Vector3f> fine_, fine_normals_;
-  std::vector<geometry::Vec3> coarse_normals_;
+  geometry::TriMesh moved_;  // the physics surface as last applied, with its normals
   std::unique_ptr<Gpu> gpu_;
   std::unique_ptr<Hud> hud_;
   Quality quality_ = Quality::kHigh;
+  // The camera (eye, centre, its up), the world's up (the table's normal) and the key light.
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::UnitY(),
-                  up_ = Eigen::Vector3d::UnitZ(), key_dir_ = Eigen::Vector3d::UnitZ();
+                  up_ = Eigen::Vector3d::UnitZ(), world_up_ = Eigen::Vector3d::UnitZ(),
+                  key_dir_ = Eigen::Vector3d::UnitZ();
+  // The tissue's footprint on the table (centre, half-axes), darkened by the occlusion term.
+  Eigen::Vector3d foot_centre_ = Eigen::Vector3d::Zero(), foot_a_ = Eigen::Vector3d::Zero(),
+                  foot_b_ = Eigen::Vector3d::Zero();
   double radius_ = 0.1;
 };
 
