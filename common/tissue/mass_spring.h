@@ -183,8 +183,18 @@ class MassSpringModel {
   // One step of h; false when it left a particle beyond divergence_distance or a velocity not
   // finite (CheckFinite).
   bool StepOnce(double h);
-  bool StepImplicit(double h);
   bool CheckFinite() const;
+  // Springs shorter than this (m) have no direction and exert no force.
+  static constexpr double kMinLength = 1e-12;
+
+  // Implicit Euler (mass_spring_implicit.cpp): the step, and its stages in order.
+  bool StepImplicit(double h);
+  void ImplicitGuess(double h, bool refresh_diag);           // Δv₀; the particles' terms
+  void ImplicitSprings(double h, bool refresh_diag);         // the springs' terms
+  void ImplicitPreconditioner(double h, bool refresh_diag);  // the anchors; the filter
+  int ImplicitSolve(double h);                               // CG; returns its iterations
+  double ImplicitProduct(double h, bool next, double beta);  // q = A p, returns pᵀA p
+  bool ImplicitUpdate(double h);                             // x₁, v₁; false when diverged
 
   MassSpringSystem sys_;
   MassSpringStepParams params_;
@@ -206,13 +216,12 @@ class MassSpringModel {
 
   // Scratch, sized once at Create: no allocation per step.
   std::vector<Vec3> a_, tx_, tv_, k1v_, k2x_, k2v_, k3x_, k3v_, kin_final_;
-  // Implicit Euler: per spring s, arrays the set-up pass streams and the compiler vectorises
-  // over: the ends, the block B_s = a l̂l̂ᵀ + b I of h C_s + h² K_s as l̂ (padded to four doubles,
-  // one AVX register) and the scalars a and b, and the spring's L, k and c. The CG product reads
-  // ends, l̂, a and b (56 bytes a spring: 344 KB for the 6144 springs of the 1026-particle
-  // sphere, inside L2). Measured alternatives: a gather product per particle over a CSR incidence
-  // list (no read-after-store, but every spring done twice) was 1.3× slower; one 64-byte record
-  // per spring was slower than these arrays once the set-up's scalar work vectorised.
+  // Implicit Euler: per spring s, arrays the springs' pass (ImplicitSprings) streams and the
+  // compiler vectorises over: the ends, the block B_s = a l̂l̂ᵀ + b I of h C_s + h² K_s as l̂ (padded
+  // to four doubles, one AVX register) and the scalars a and b, and the spring's L, k and c. The CG
+  // product reads ends, l̂, a and b (56 bytes a spring: 344 KB for the 6144 springs of the
+  // 1026-particle sphere, inside L2). The alternatives measured (a record per spring, a gather per
+  // particle) are in docs/BENCHMARKS.md, "The implicit step in five stages".
   struct SpringEnds {
     int32_t i, j;
   };
@@ -228,9 +237,9 @@ class MassSpringModel {
   std::vector<int> constrained_;  // fixed and kinematic particles: Δv = 0 in the solve
   // The solver's per-particle vectors: 4 doubles per particle (x, y, z, 0), 32-byte aligned.
   std::vector<simd::Lane4> dv_, r_, p_, q_, precond_, pos_;
-  // pos_ and state_'s first halves hold the free particles' x and v (StepImplicit's update).
+  // pos_ and state_'s first halves hold the free particles' x and v (ImplicitUpdate).
   bool lanes_ = false;
-  // diag(M + h C + h² K) of the springs (no anchors), summed by the set-up pass only every
+  // diag(M + h C + h² K) of the springs (no anchors), summed by the springs' pass only every
   // kDiagEvery steps and when h or the solver's springs change; in between the preconditioner
   // starts from it (diag_age_ steps old, diag_h_ the h it was summed for).
   static constexpr int kDiagEvery = 8;
@@ -246,8 +255,8 @@ class MassSpringModel {
   int extrapolation_ = 1, last_extrapolation_ = 1;
   static constexpr int kJudgeEvery = 4;
   int judge_age_ = kJudgeEvery - 1;  // the first step compares
-  // The set-up pass's per-particle pairs: (v₀, Δv₀) it reads and (rhs, −A Δv₀) it sums, so one
-  // load and one sum per spring end serve both.
+  // The guess's and the springs' per-particle pairs: (v₀, Δv₀) it reads and (rhs, −A Δv₀) it sums,
+  // so one load and one sum per spring end serve both.
   std::vector<simd::Lane8> state_, sums_;
 };
 
