@@ -2,7 +2,7 @@
 
 #include <atomic>
 #include <chrono>
-#include <future>
+#include <condition_variable>
 #include <list>
 #include <map>
 #include <mutex>
@@ -102,7 +102,6 @@ struct Shared {
   std::map<std::string, int> exports_by_user;
   std::atomic<uint64_t> requests{0}, refused{0}, bad{0}, events{0}, evicted{0};
   std::atomic<int> open{0}, streams{0}, exports{0};
-  std::atomic<bool> stopping{false};
   FrameCache frames;
   asio::io_context io;
 };
@@ -119,9 +118,12 @@ class ConnectionBase {
   std::chrono::steady_clock::time_point idle_since{};  // when it last started waiting
 };
 
-struct ExportThread {
-  std::thread thread;
-  std::shared_ptr<std::atomic<bool>> done;
+// A long exchange a connection hands its stream to after the request (an event stream, an
+// export). The connection holds it until it closes, and it holds the connection.
+class Exchange {
+ public:
+  virtual ~Exchange() = default;
+  virtual void Stop() = 0;  // I/O thread, from the connection's Close; idempotent
 };
 
 struct Context {  // what a connection needs from the server
@@ -130,11 +132,30 @@ struct Context {  // what a connection needs from the server
   HttpApi* api;
   db::Store* store;
   Sessions* sessions;
-  std::mutex* exports_mutex;
-  std::list<ExportThread>* export_threads;
+  asio::thread_pool* export_pool;                         // the store's exports run here
   std::list<std::weak_ptr<ConnectionBase>>* connections;  // I/O thread only
 };
 
+std::chrono::steady_clock::duration Seconds(double s) {
+  return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(s));
+}
+
+// The header of a streamed reply (an event stream, an export): never cached, the connection
+// closed at its end.
+std::shared_ptr<bhttp::response<bhttp::empty_body>> StreamHeader(const std::string& type) {
+  auto res = std::make_shared<bhttp::response<bhttp::empty_body>>(bhttp::status::ok, 11);
+  res->set(bhttp::field::server, "vsurg");
+  res->set(bhttp::field::content_type, type);
+  res->set(bhttp::field::cache_control, "no-store");
+  for (const auto& [name, value] : kSecurityHeaders) res->set(name, value);
+  res->keep_alive(false);
+  return res;
+}
+
+// The request/reply exchange: reads a request (its framing and host checked first), hands it to
+// HttpApi, and writes the plain or deferred reply, keeping the connection alive between
+// requests; an event stream or an export takes the connection over (EventStream, ExportStream).
 template <class Stream>
 class Connection final : public ConnectionBase,
                          public std::enable_shared_from_this<Connection<Stream>> {
@@ -144,10 +165,6 @@ class Connection final : public ConnectionBase,
       : ctx_(ctx), remote_(std::move(remote)), stream_(std::forward<Args>(args)...) {}
 
   ~Connection() override {
-    if (subscription_) {  // never the sampler thread: it holds only a weak reference
-      ctx_.sessions->Unsubscribe(subscription_);
-      ctx_.shared->streams.fetch_sub(1);
-    }
     std::lock_guard<std::mutex> lock(ctx_.shared->mutex);
     if (--ctx_.shared->per_address[remote_] <= 0) ctx_.shared->per_address.erase(remote_);
     ctx_.shared->open.fetch_sub(1);
@@ -169,24 +186,45 @@ class Connection final : public ConnectionBase,
   void Close() override {
     if (closed_) return;
     closed_ = true;
-    if (subscription_) {
-      ctx_.sessions->Unsubscribe(subscription_);
-      subscription_ = 0;
-      ctx_.shared->streams.fetch_sub(1);
-    }
     beast::error_code ec;
     Lowest().socket().shutdown(tcp::socket::shutdown_both, ec);
     Lowest().close();
-    keep_.reset();  // an event stream's own reference: the connection may go now
+    // Either may hold the last reference to this connection: released as the function returns.
+    const auto waiting = std::move(waiting_);
+    const auto exchange = std::move(exchange_);
+    if (exchange) exchange->Stop();
   }
+
+  // A plain reply, then the next request (or the end, without keep-alive).
+  void Write(HttpReply reply) {
+    if (closed_) return;
+    auto res = std::make_shared<bhttp::response<bhttp::string_body>>(
+        static_cast<bhttp::status>(reply.status), 11);
+    res->set(bhttp::field::server, "vsurg");
+    if (!reply.content_type.empty()) res->set(bhttp::field::content_type, reply.content_type);
+    for (auto& [name, value] : reply.headers) res->insert(name, value);
+    for (const auto& [name, value] : kSecurityHeaders) res->set(name, value);
+    if (reply.status == 401 || reply.status == 403 || reply.status >= 500 ||
+        reply.content_type.rfind("application/json", 0) == 0)
+      res->set(bhttp::field::cache_control, "no-store");
+    res->body() = std::move(reply.body);
+    res->keep_alive(keep_alive_);
+    res->prepare_payload();
+    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
+    bhttp::async_write(stream_, *res,
+                       [self = this->shared_from_this(), res](beast::error_code ec, size_t) {
+                         if (ec || !self->keep_alive_) return self->Close();
+                         self->Read();
+                       });
+  }
+
+  // For the exchanges that take the connection over.
+  Stream& stream() { return stream_; }
+  beast::tcp_stream& Lowest() { return beast::get_lowest_layer(stream_); }
+  const Context& ctx() const { return ctx_; }
+  bool closed() const { return closed_; }
 
  private:
-  static std::chrono::steady_clock::duration Seconds(double s) {
-    return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-        std::chrono::duration<double>(s));
-  }
-  beast::tcp_stream& Lowest() { return beast::get_lowest_layer(stream_); }
-
   bool Idle() const override { return reading_ && !closed_; }
   const std::string& remote() const override { return remote_; }
 
@@ -268,28 +306,33 @@ class Connection final : public ConnectionBase,
     switch (reply.kind) {
       case HttpReply::Kind::kPlain:
         return Write(std::move(reply));
-      case HttpReply::Kind::kDeferred: {
-        // The connection waits for the answer (kept alive by itself until then, or until the
-        // server closes it); the callback holds only weak references.
-        keep_ = this->shared_from_this();
-        std::weak_ptr<Connection> weak = keep_;
-        reply.deferred([weak, owner = ctx_.owner](HttpReply done) {
-          const auto shared = owner.lock();  // the server may have stopped meanwhile
-          if (!shared) return;
-          asio::post(shared->io, [weak, done = std::move(done)]() mutable {
-            if (auto self = weak.lock()) {
-              self->keep_.reset();
-              self->Write(std::move(done));
-            }
-          });
-        });
-        return;
-      }
+      case HttpReply::Kind::kDeferred:
+        return Defer(std::move(reply));
       case HttpReply::Kind::kEvents:
-        return StartEvents(std::move(reply));
       case HttpReply::Kind::kExport:
-        return StartExport(std::move(reply));
+        keep_alive_ = false;
+        exchange_ = StartExchange(std::move(reply));
+        return;
     }
+  }
+
+  std::shared_ptr<Exchange> StartExchange(HttpReply reply);  // below the exchanges
+
+  // The connection waits for the answer (kept alive by itself until then, or until the server
+  // closes it); the callback holds only weak references.
+  void Defer(HttpReply reply) {
+    waiting_ = this->shared_from_this();
+    std::weak_ptr<Connection> weak = waiting_;
+    reply.deferred([weak, owner = ctx_.owner](HttpReply done) {
+      const auto shared = owner.lock();  // the server may have stopped meanwhile
+      if (!shared) return;
+      asio::post(shared->io, [weak, done = std::move(done)]() mutable {
+        if (auto self = weak.lock()) {
+          self->waiting_.reset();
+          self->Write(std::move(done));
+        }
+      });
+    });
   }
 
   // A status with a one-line JSON error, then the connection closes (the request was unusable).
@@ -300,56 +343,50 @@ class Connection final : public ConnectionBase,
     Write(std::move(r));
   }
 
-  void Write(HttpReply reply) {
-    if (closed_) return;
-    auto res = std::make_shared<bhttp::response<bhttp::string_body>>(
-        static_cast<bhttp::status>(reply.status), 11);
-    res->set(bhttp::field::server, "vsurg");
-    if (!reply.content_type.empty()) res->set(bhttp::field::content_type, reply.content_type);
-    for (auto& [name, value] : reply.headers) res->insert(name, value);
-    for (const auto& [name, value] : kSecurityHeaders) res->set(name, value);
-    if (reply.status == 401 || reply.status == 403 || reply.status >= 500 ||
-        reply.content_type.rfind("application/json", 0) == 0)
-      res->set(bhttp::field::cache_control, "no-store");
-    res->body() = std::move(reply.body);
-    res->keep_alive(keep_alive_);
-    res->prepare_payload();
-    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
-    bhttp::async_write(stream_, *res,
-                       [self = this->shared_from_this(), res](beast::error_code ec, size_t) {
-                         if (ec || !self->keep_alive_) return self->Close();
-                         self->Read();
-                       });
-  }
+  Context ctx_;
+  std::string remote_;
+  Stream stream_;
+  beast::flat_buffer buffer_;
+  std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
+  bool keep_alive_ = true;
+  bool closed_ = false;
+  bool reading_ = false;  // waiting for a request (Idle)
+  uint64_t served_ = 0;
+  std::shared_ptr<Connection> waiting_;  // a deferred reply's connection, until the reply
+  std::shared_ptr<Exchange> exchange_;   // the event stream or export, until Close
+};
 
-  std::string StreamHeader(const std::string& type, const std::string& extra) {
-    std::string head = "HTTP/1.1 200 OK\r\nServer: vsurg\r\nContent-Type: " + type +
-                       "\r\nCache-Control: no-store\r\nConnection: close\r\n";
-    for (const auto& [name, value] : kSecurityHeaders)
-      head += std::string(name) + ": " + value + "\r\n";
-    return head + extra + "\r\n";
-  }
+// Server-sent events: the sessions' sampler thread formats a frame (FrameCache) and posts it; the
+// I/O thread writes the latest, one write in flight, so a slow reader gets the newest frame and
+// never a backlog. The stream ends when the client hangs up, a write fails, the session ends, the
+// caller loses the right to watch, or the server stops.
+template <class Stream>
+class EventStream final : public Exchange,
+                          public std::enable_shared_from_this<EventStream<Stream>> {
+ public:
+  EventStream(std::shared_ptr<Connection<Stream>> conn, HttpReply reply)
+      : conn_(std::move(conn)),
+        shared_(conn_->ctx().shared),
+        watch_(reply.watch),
+        still_allowed_(std::move(reply.still_allowed)) {}
+  ~EventStream() override { Unsubscribe(); }
 
-  // --- server-sent events: latest frame wins, one write in flight ---
-
-  void StartEvents(HttpReply reply) {
-    keep_alive_ = false;
-    still_allowed_ = std::move(reply.still_allowed);
+  void Start() {
     last_check_ = std::chrono::steady_clock::now();
-    signouts_ = ctx_.api->signouts();
-    ctx_.shared->streams.fetch_add(1);
-    // The stream lives until Close (client gone, write failed, session ended, server stopping);
-    // a read that can only end in an error tells when the client hangs up between frames.
-    keep_ = this->shared_from_this();
-    Lowest().socket().async_read_some(
-        asio::buffer(hangup_), [self = keep_](beast::error_code ec, size_t) {
-          if (ec) self->Close();  // a client sends nothing on an event stream; data is ignored
+    signouts_ = conn_->ctx().api->signouts();
+    shared_->streams.fetch_add(1);
+    counted_ = true;
+    // A read that can only end in an error tells when the client hangs up between frames (a
+    // client sends nothing on an event stream; data is ignored).
+    conn_->Lowest().socket().async_read_some(
+        asio::buffer(hangup_), [self = this->shared_from_this()](beast::error_code ec, size_t) {
+          if (ec) self->conn_->Close();
         });
-    std::weak_ptr<Connection> weak = this->shared_from_this();
-    Shared* shared = ctx_.shared;
-    const HttpReply::Watch watch = reply.watch;
+    std::weak_ptr<EventStream> weak = this->shared_from_this();
+    Shared* shared = shared_;
+    const HttpReply::Watch watch = watch_;
     auto last = std::make_shared<std::chrono::steady_clock::time_point>();
-    subscription_ = ctx_.sessions->Subscribe(
+    subscription_ = conn_->ctx().sessions->Subscribe(
         watch.session,
         [weak, shared, watch, last](const std::vector<SessionTelemetry>& list, bool ended) {
           // The sessions' sampler thread: format (once per frame for all who watch the same
@@ -374,15 +411,35 @@ class Connection final : public ConnectionBase,
             if (auto self = weak.lock()) self->Push(frame, ended);
           });
         });
-    WriteRaw(std::make_shared<std::string>(
-        StreamHeader("text/event-stream", "X-Accel-Buffering: no\r\n") + "retry: 2000\n\n"));
+    auto header = StreamHeader("text/event-stream");
+    header->set("X-Accel-Buffering", "no");
+    auto serializer = std::make_shared<bhttp::response_serializer<bhttp::empty_body>>(*header);
+    writing_ = true;
+    conn_->Lowest().expires_after(Seconds(shared_->options.write_timeout_s));
+    bhttp::async_write_header(
+        conn_->stream(), *serializer,
+        [self = this->shared_from_this(), header, serializer](beast::error_code ec, size_t) {
+          if (ec || self->conn_->closed()) return self->conn_->Close();
+          self->WriteRaw(std::make_shared<const std::string>("retry: 2000\n\n"));
+        });
+  }
+
+  void Stop() override { Unsubscribe(); }
+
+ private:
+  void Unsubscribe() {
+    if (subscription_) {  // never the sampler thread: it holds only a weak reference
+      conn_->ctx().sessions->Unsubscribe(subscription_);
+      subscription_ = 0;
+    }
+    if (counted_) shared_->streams.fetch_sub(1), counted_ = false;
   }
 
   void Push(Frame frame, bool ended) {
-    if (closed_) return;
+    if (conn_->closed()) return;
     if (ended) ending_ = true;
     if (writing_) {
-      pending_ = std::move(frame);  // a slow reader gets the newest frame, never a backlog
+      pending_ = std::move(frame);
       return;
     }
     WriteFrame(std::move(frame));
@@ -400,161 +457,187 @@ class Connection final : public ConnectionBase,
 
   void WriteRaw(std::shared_ptr<const std::string> text) {
     writing_ = true;
-    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
-    asio::async_write(stream_, asio::buffer(*text),
+    conn_->Lowest().expires_after(Seconds(shared_->options.write_timeout_s));
+    asio::async_write(conn_->stream(), asio::buffer(*text),
                       [self = this->shared_from_this(), text](beast::error_code ec, size_t) {
-                        self->OnEventWritten(ec);
+                        self->OnWritten(ec);
                       });
   }
 
-  void OnEventWritten(beast::error_code ec) {
+  void OnWritten(beast::error_code ec) {
     writing_ = false;
-    if (ec || closed_) return Close();
-    ctx_.shared->events.fetch_add(1);
+    if (ec || conn_->closed()) return conn_->Close();
+    shared_->events.fetch_add(1);
     const auto now = std::chrono::steady_clock::now();
-    const uint64_t signouts = ctx_.api->signouts();
+    const uint64_t signouts = conn_->ctx().api->signouts();
     if (std::chrono::duration<double>(now - last_check_).count() > 5 || signouts != signouts_) {
       // A revoked token or a disabled account ends the stream within 5 s; a sign-out (of this
       // web session) at its next frame.
       last_check_ = now;
       signouts_ = signouts;
-      if (still_allowed_ && !still_allowed_()) return Close();
+      if (still_allowed_ && !still_allowed_()) return conn_->Close();
     }
     if (pending_) {
       Frame next = std::move(*pending_);
       pending_.reset();
       return WriteFrame(std::move(next));
     }
-    if (ending_) return Close();
-    Lowest().expires_never();  // waiting for the next frame is not the client's fault
+    if (ending_) return conn_->Close();
+    conn_->Lowest().expires_never();  // waiting for the next frame is not the client's fault
   }
 
-  // --- exports: a thread runs the store's export; each chunk is written before the next ---
-
-  // An export slot: in all and per user (a user's stalled downloads hold only their own).
-  bool TakeExportSlot(const std::string& owner) {
-    std::lock_guard<std::mutex> lock(ctx_.shared->mutex);
-    int& mine = ctx_.shared->exports_by_user[owner];
-    if (ctx_.shared->exports.load() >= ctx_.shared->options.max_exports ||
-        mine >= ctx_.shared->options.max_exports_per_user) {
-      if (mine == 0) ctx_.shared->exports_by_user.erase(owner);
-      return false;
-    }
-    ++mine;
-    ctx_.shared->exports.fetch_add(1);
-    return true;
-  }
-  void ReleaseExportSlot() {
-    std::lock_guard<std::mutex> lock(ctx_.shared->mutex);
-    if (--ctx_.shared->exports_by_user[export_owner_] <= 0)
-      ctx_.shared->exports_by_user.erase(export_owner_);
-    ctx_.shared->exports.fetch_sub(1);
-  }
-
-  void StartExport(HttpReply reply) {
-    keep_alive_ = false;
-    if (!TakeExportSlot(reply.owner)) {
-      HttpReply busy = HttpApi::ErrorReply(
-          Error{ErrorCode::kUnavailable,
-                "too many exports at once (yours or the server's); try again shortly", ""});
-      busy.headers.emplace_back("Retry-After", "5");
-      return Write(std::move(busy));
-    }
-    export_owner_ = reply.owner;
-    ctx_.shared->streams.fetch_add(1);
-    writing_ = true;
-    auto header = std::make_shared<std::string>(
-        StreamHeader(reply.content_type,
-                     "Transfer-Encoding: chunked\r\nContent-Disposition: attachment; "
-                     "filename=\"" +
-                         reply.filename + "\"\r\n"));
-    Lowest().expires_after(Seconds(ctx_.shared->options.write_timeout_s));
-    auto self = this->shared_from_this();
-    asio::async_write(stream_, asio::buffer(*header),
-                      [self, header, plan = reply.export_plan](beast::error_code ec, size_t) {
-                        if (ec || self->closed_) {
-                          self->ReleaseExportSlot();
-                          self->ctx_.shared->streams.fetch_sub(1);
-                          return self->Close();
-                        }
-                        self->RunExport(plan);
-                      });
-  }
-
-  void RunExport(const ExportPlan& plan) {
-    std::lock_guard<std::mutex> lock(*ctx_.exports_mutex);
-    auto& threads = *ctx_.export_threads;
-    for (auto it = threads.begin(); it != threads.end();) {  // reap finished ones
-      if (it->done->load()) {
-        it->thread.join();
-        it = threads.erase(it);
-      } else {
-        ++it;
-      }
-    }
-    auto done = std::make_shared<std::atomic<bool>>(false);
-    auto self = this->shared_from_this();
-    threads.push_back(
-        {std::thread([self, plan, done] {
-           const Status s =
-               self->ctx_.store->Export(plan.filter, plan.format, [&](std::string_view chunk) {
-                 if (chunk.empty()) return true;
-                 char size[20];
-                 std::snprintf(size, sizeof size, "%zx\r\n", chunk.size());
-                 return self->WriteBlocking(std::string(size) + std::string(chunk) + "\r\n");
-               });
-           // The end of a chunked body only after a complete export: a failed
-           // one ends without it, so the client sees an incomplete download.
-           if (s.ok()) self->WriteBlocking("0\r\n\r\n");
-           asio::post(self->ctx_.shared->io, [self] { self->Close(); });
-           self->ReleaseExportSlot();
-           self->ctx_.shared->streams.fetch_sub(1);
-           done->store(true);
-         }),
-         done});
-  }
-
-  // Export thread: writes one chunk through the I/O thread and waits until it is on the wire
-  // (bounded memory: one chunk in flight). False when the client went away or the server stops.
-  bool WriteBlocking(std::string bytes) {
-    auto text = std::make_shared<std::string>(std::move(bytes));
-    auto written = std::make_shared<std::promise<bool>>();
-    auto future = written->get_future();
-    auto self = this->shared_from_this();
-    asio::post(ctx_.shared->io, [self, text, written] {
-      if (self->closed_) return written->set_value(false);
-      // A client that stops reading frees its slot after export_stall_s, not write_timeout_s.
-      self->Lowest().expires_after(Seconds(self->ctx_.shared->options.export_stall_s));
-      asio::async_write(self->stream_, asio::buffer(*text),
-                        [text, written](beast::error_code ec, size_t) { written->set_value(!ec); });
-    });
-    while (future.wait_for(std::chrono::milliseconds(100)) != std::future_status::ready)
-      if (ctx_.shared->stopping.load()) return false;
-    return future.get();
-  }
-
-  Context ctx_;
-  std::string remote_;
-  Stream stream_;
-  beast::flat_buffer buffer_;
-  std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
-  bool keep_alive_ = true;
-  bool closed_ = false;
-  uint64_t served_ = 0;
-  // Event streams (I/O thread).
+  std::shared_ptr<Connection<Stream>> conn_;
+  Shared* shared_;
+  HttpReply::Watch watch_;
+  std::function<bool()> still_allowed_;
   uint64_t subscription_ = 0;
+  bool counted_ = false;  // in shared_->streams
   bool writing_ = false, ending_ = false;
   std::optional<Frame> pending_;
   uint64_t surface_written_ = UINT64_MAX;  // the surface frame this stream last wrote
-  std::function<bool()> still_allowed_;
-  uint64_t signouts_ = 0;     // HttpApi::signouts when this stream last checked its caller
-  bool reading_ = false;      // waiting for a request (Idle)
-  std::string export_owner_;  // whose export slot this connection holds
-  // An event stream, or a request waiting for the store, keeps itself alive until Close.
-  std::shared_ptr<Connection> keep_;
-  char hangup_[64];
+  uint64_t signouts_ = 0;  // HttpApi::signouts when this stream last checked its caller
   std::chrono::steady_clock::time_point last_check_{};
+  char hangup_[64];
 };
+
+// An export: the store's export runs on the export pool (it blocks on the database, so never on
+// the I/O thread; the pool has max_exports workers, not a thread per export) and hands each chunk
+// to the I/O thread, which writes it in Beast's chunked encoding; the worker waits until the chunk
+// is on the wire before it reads on (one chunk in flight: a million rows stream in bounded
+// memory). A client that takes no chunk for export_stall_s is dropped and its slot freed.
+template <class Stream>
+class ExportStream final : public Exchange,
+                           public std::enable_shared_from_this<ExportStream<Stream>> {
+ public:
+  ExportStream(std::shared_ptr<Connection<Stream>> conn, HttpReply reply)
+      : conn_(std::move(conn)), shared_(conn_->ctx().shared), reply_(std::move(reply)) {}
+
+  // False when every export slot (in all or of this user) is taken.
+  bool Start() {
+    if (!TakeSlot()) return false;
+    shared_->streams.fetch_add(1);
+    auto header = StreamHeader(reply_.content_type);
+    header->set(bhttp::field::content_disposition,
+                "attachment; filename=\"" + reply_.filename + "\"");
+    header->chunked(true);
+    auto serializer = std::make_shared<bhttp::response_serializer<bhttp::empty_body>>(*header);
+    conn_->Lowest().expires_after(Seconds(shared_->options.write_timeout_s));
+    bhttp::async_write_header(
+        conn_->stream(), *serializer,
+        [self = this->shared_from_this(), header, serializer](beast::error_code ec, size_t) {
+          if (ec || self->conn_->closed()) {
+            self->Finish();
+            return self->conn_->Close();
+          }
+          asio::post(*self->conn_->ctx().export_pool, [self] { self->Run(); });
+        });
+    return true;
+  }
+
+  // The connection closed (client gone, stalled, server stopping): a waiting worker goes on.
+  void Stop() override {
+    std::lock_guard<std::mutex> lock(gate_mutex_);
+    stopped_ = true;
+    gate_.notify_all();
+  }
+
+ private:
+  enum class Chunk { kNone, kPending, kWritten, kFailed };
+
+  // Export pool.
+  void Run() {
+    const ExportPlan& plan = reply_.export_plan;
+    const Status s =
+        conn_->ctx().store->Export(plan.filter, plan.format, [&](std::string_view chunk) {
+          return chunk.empty() || Send(std::make_shared<const std::string>(chunk), false);
+        });
+    // The last chunk only after a complete export: a failed one ends without it, so the client
+    // sees an incomplete download.
+    if (s.ok()) Send(nullptr, true);
+    asio::post(shared_->io, [self = this->shared_from_this()] { self->conn_->Close(); });
+    Finish();
+  }
+
+  // Export pool: the chunk (or the last chunk) through the I/O thread; returns once it is on the
+  // wire (true) or cannot be (false).
+  bool Send(std::shared_ptr<const std::string> text, bool last) {
+    {
+      std::lock_guard<std::mutex> lock(gate_mutex_);
+      if (stopped_) return false;
+      chunk_ = Chunk::kPending;
+    }
+    asio::post(shared_->io, [self = this->shared_from_this(), text, last] {
+      if (self->conn_->closed()) return self->Settle(false);
+      // A client that stops reading frees its slot after export_stall_s, not write_timeout_s.
+      self->conn_->Lowest().expires_after(Seconds(self->shared_->options.export_stall_s));
+      auto done = [self, text](beast::error_code ec, size_t) { self->Settle(!ec); };
+      if (last)
+        asio::async_write(self->conn_->stream(), bhttp::make_chunk_last(), done);
+      else
+        asio::async_write(self->conn_->stream(), bhttp::make_chunk(asio::buffer(*text)), done);
+    });
+    std::unique_lock<std::mutex> lock(gate_mutex_);
+    gate_.wait(lock, [&] { return chunk_ != Chunk::kPending || stopped_; });
+    return chunk_ == Chunk::kWritten && !stopped_;
+  }
+
+  void Settle(bool written) {  // I/O thread
+    std::lock_guard<std::mutex> lock(gate_mutex_);
+    chunk_ = written ? Chunk::kWritten : Chunk::kFailed;
+    gate_.notify_all();
+  }
+
+  // An export slot: in all and per user (a user's stalled downloads hold only their own).
+  bool TakeSlot() {
+    std::lock_guard<std::mutex> lock(shared_->mutex);
+    int& mine = shared_->exports_by_user[reply_.owner];
+    if (shared_->exports.load() >= shared_->options.max_exports ||
+        mine >= shared_->options.max_exports_per_user) {
+      if (mine == 0) shared_->exports_by_user.erase(reply_.owner);
+      return false;
+    }
+    ++mine;
+    shared_->exports.fetch_add(1);
+    return true;
+  }
+  void Finish() {  // the slot back, once
+    if (finished_.exchange(true)) return;
+    {
+      std::lock_guard<std::mutex> lock(shared_->mutex);
+      if (--shared_->exports_by_user[reply_.owner] <= 0)
+        shared_->exports_by_user.erase(reply_.owner);
+      shared_->exports.fetch_sub(1);
+    }
+    shared_->streams.fetch_sub(1);
+  }
+
+  std::shared_ptr<Connection<Stream>> conn_;
+  Shared* shared_;
+  HttpReply reply_;
+  std::atomic<bool> finished_{false};
+  std::mutex gate_mutex_;
+  std::condition_variable gate_;
+  Chunk chunk_ = Chunk::kNone;
+  bool stopped_ = false;
+};
+
+template <class Stream>
+std::shared_ptr<Exchange> Connection<Stream>::StartExchange(HttpReply reply) {
+  auto self = this->shared_from_this();
+  if (reply.kind == HttpReply::Kind::kEvents) {
+    auto events = std::make_shared<EventStream<Stream>>(self, std::move(reply));
+    events->Start();
+    return events;
+  }
+  auto exporting = std::make_shared<ExportStream<Stream>>(self, std::move(reply));
+  if (exporting->Start()) return exporting;
+  HttpReply busy = HttpApi::ErrorReply(
+      Error{ErrorCode::kUnavailable,
+            "too many exports at once (yours or the server's); try again shortly", ""});
+  busy.headers.emplace_back("Retry-After", "5");
+  Write(std::move(busy));
+  return nullptr;
+}
 
 }  // namespace
 
@@ -569,8 +652,7 @@ struct HttpServer::Impl {
   std::optional<asio::ssl::context> ssl;
   std::optional<tcp::acceptor> acceptor;
   std::list<std::weak_ptr<ConnectionBase>> connections;  // I/O thread only
-  std::mutex exports_mutex;
-  std::list<ExportThread> export_threads;
+  std::optional<asio::thread_pool> export_pool;          // max_exports workers
   std::thread thread;
   int port = 0;
   std::once_flag shutdown_once;
@@ -579,8 +661,7 @@ struct HttpServer::Impl {
       : options(o), store(s), sessions(m), domain{s, m, scenes, o.backup_dir} {}
 
   Context MakeContext() {
-    return Context{shared.get(), shared,         api.get(),       &store,
-                   &sessions,    &exports_mutex, &export_threads, &connections};
+    return Context{shared.get(), shared, api.get(), &store, &sessions, &*export_pool, &connections};
   }
 
   void Accept() {
@@ -751,6 +832,7 @@ Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessio
     return Error{ErrorCode::kIoError, "cannot listen on " + listen + ": " + ec.message(), "http"};
   impl->port = impl->acceptor->local_endpoint().port();
   Impl* p = impl.get();
+  p->export_pool.emplace(static_cast<size_t>(std::max(1, options.max_exports)));
   p->Accept();
   p->thread = std::thread([p] { p->shared->io.run(); });
   return std::unique_ptr<HttpServer>(new HttpServer(std::move(impl)));
@@ -759,7 +841,6 @@ Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessio
 void HttpServer::Shutdown() {
   std::call_once(impl_->shutdown_once, [this] {
     Impl* p = impl_.get();
-    p->shared->stopping.store(true);
     if (p->thread.joinable()) {
       asio::post(p->shared->io, [p] {
         beast::error_code ec;
@@ -771,9 +852,8 @@ void HttpServer::Shutdown() {
       });
       p->thread.join();
     }
-    std::lock_guard<std::mutex> lock(p->exports_mutex);
-    for (ExportThread& t : p->export_threads) t.thread.join();
-    p->export_threads.clear();
+    // Every export's connection was closed above, so a worker waiting on a chunk goes on.
+    if (p->export_pool) p->export_pool->join();
   });
 }
 

@@ -4,9 +4,13 @@
 //
 // Threads: one I/O thread accepts, parses, calls HttpApi::Handle and writes. Live pages' event
 // streams are fed by the sessions' sampler thread, which only posts the latest frame to the I/O
-// thread (latest wins, one frame in flight per stream). Exports run on their own thread (at most
-// max_exports at once), one chunk in flight, so a million rows stream without buffering. None of
-// these threads touches the UDP haptic path.
+// thread (latest wins, one frame in flight per stream). The store's exports run on a pool of
+// max_exports workers (they block on the database), each chunk written by the I/O thread in
+// Beast's chunked encoding before the worker reads on, so a million rows stream without
+// buffering. None of these threads touches the UDP haptic path.
+//
+// Exchanges (http_server.cpp): a Connection reads requests and writes plain and deferred replies;
+// an EventStream or an ExportStream takes the connection over for a streamed reply.
 //
 // Limits (one client can never deny service to the others): header and body sizes (431, 413),
 // a deadline for a whole request (slowloris: the connection is closed), a write deadline (a

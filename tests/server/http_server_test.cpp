@@ -522,12 +522,21 @@ TEST_F(HttpServerTest, AStalledExportHoldsOnlyItsOwnersSlotAndOnlyBriefly) {
       "GET /api/v1/export?format=csv HTTP/1.1\r\nHost: 127.0.0.1\r\n"
       "Authorization: Bearer " +
       admin_ + "\r\n\r\n";
+  // The exports run on the server's pool: none starts a thread of its own.
+  const auto threads = [] {
+    size_t n = 0;
+    for ([[maybe_unused]] const auto& t : std::filesystem::directory_iterator("/proc/self/task"))
+      ++n;
+    return n;
+  };
+  const size_t threads_before = threads();
   Raw stalled(port_, nullptr, 4096);
   ASSERT_TRUE(stalled.Send(ask));  // and never reads
   const auto t0 = Clock::now();
   while (server_->counters().open_streams < 1 && Clock::now() - t0 < std::chrono::seconds(10))
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ASSERT_EQ(server_->counters().open_streams, 1);
+  EXPECT_EQ(threads(), threads_before) << "an export started a thread of its own";
   // The same user again: refused at once (their one slot is taken).
   EXPECT_EQ(Request(port_, "GET", "/api/v1/export?format=csv", Bearer()).status, 503);
   // Another user: served in full meanwhile.
