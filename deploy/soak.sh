@@ -109,7 +109,7 @@ lost=$(grep -L '"session"' "$out"/station-*.json | wc -l)
     END { if (n==0) { print "  no station summaries"; exit }
       printf "  %d stations: p99 median %.0f, worst %.0f; p50 median %.0f; mean loss %.4f%%\n", n, p99[int((n+1)/2)], p99[n], p50[int((n+1)/2)], 100*loss/n }'
   echo "monitored RTT per minute (instructors' telemetry, p99 of 2 Hz samples, µs):"
-  cat "$out"/monitor-*.log 2>/dev/null | sed -n 's/^t=\([0-9.]*\)s .* rtt=\([0-9]*\).*/\1 \2/p' |
+  cat "$out"/monitor-*.log 2>/dev/null | sed -n 's/^watch_s=\([0-9.]*\) .* rtt_us=\([0-9]*\).*/\1 \2/p' |
     awk '{ m=int($1/60); v[m]=v[m] " " $2 } END { for (m in v) print m, v[m] }' | sort -n |
     while read -r minute values; do
       printf '  minute %d: p99 %s\n' "$minute" "$(echo $values | tr ' ' '\n' | sort -n | awk '{a[NR]=$1} END{i=int(NR*0.99); if (i<1) i=1; print a[i]}')"

@@ -22,7 +22,9 @@
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
 #include "common/core/args.h"
+#include "common/core/format.h"
 #include "common/sim/scene.h"
+#include "common/sim/telemetry.h"
 #include "common/sim/visual_model.h"
 #include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
@@ -32,18 +34,14 @@ namespace {
 namespace v1 = vsurg::v1;
 namespace client = vsurg::client;
 namespace convert = vsurg::convert;
+namespace sim = vsurg::sim;
+using vsurg::Fixed;
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 
 std::atomic<bool> g_interrupted{false};
 void OnSignal(int) {
   g_interrupted = true;
-}
-
-std::string Fixed(double v, int digits) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.*f", digits, v);
-  return text;
 }
 
 int Usage(const ArgParser& p, const vsurg::Error& e) {
@@ -73,16 +71,12 @@ int List(const std::vector<std::string>& args) {
   return 0;
 }
 
+// The sample's fields as the dashboard names them (sim::TelemetryFields), after the monitor's
+// own clock, the session and its state.
 std::string TextLine(const v1::Telemetry& t, double since_s) {
-  const double f = std::sqrt(t.force().x() * t.force().x() + t.force().y() * t.force().y() +
-                             t.force().z() * t.force().z());
-  return "t=" + Fixed(since_s, 1) + "s session=" + std::to_string(t.session_id()) +
-         " state=" + convert::StateName(t.state()) + " twist=" + Fixed(t.twist() * 180 / M_PI, 1) +
-         "deg torque=" + Fixed(t.torque(), 3) + "Nm force=" + Fixed(f, 2) +
-         "N contact=" + (t.contact() ? "1" : "0") + " grasp=" + (t.grasping() ? "1" : "0") +
-         " rtt=" + Fixed(t.rtt_us(), 0) + "us loss=" + Fixed(100 * t.packet_loss(), 2) +
-         "% rate=" + Fixed(t.haptic_rate_hz(), 0) + "Hz packets=" + std::to_string(t.packets()) +
-         " score=" + Fixed(t.metrics().score(), 1);
+  return "watch_s=" + Fixed(since_s, 1) + " session=" + std::to_string(t.session_id()) +
+         " state=" + convert::StateName(t.state()) + " " +
+         sim::TelemetryText(convert::FromProto(t));
 }
 
 // The Watch stream on its own thread; the main thread takes the newest message (latest wins).
@@ -272,14 +266,13 @@ int Follow(const std::vector<std::string>& args) {
         overlay.force = {latest.force().x(), latest.force().y(), latest.force().z()};
         overlay.contact = latest.contact();
         overlay.grasping = latest.grasping();
-        overlay.hud = {"vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() +
-                           "  " + convert::StateName(latest.state()),
-                       "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
-                           Fixed(latest.torque(), 2) + " N·m",
-                       "haptic " + Fixed(latest.haptic_rate_hz(), 0) + " Hz   RTT " +
-                           Fixed(latest.rtt_us(), 0) + " µs   loss " +
-                           Fixed(100 * latest.packet_loss(), 1) + "%",
-                       "score so far " + Fixed(latest.metrics().score(), 1) + " / 10"};
+        overlay.hud = {
+            "vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() + "  " +
+                convert::StateName(latest.state()),
+            "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
+                Fixed(latest.torque(), 2) + " N·m",
+            sim::LinkStatus(latest.haptic_rate_hz(), latest.rtt_us(), latest.packet_loss()),
+            "score so far " + Fixed(latest.metrics().score(), 1) + " / 10"};
       } else {
         overlay.hud = {"vsurg monitor  session " + std::to_string(session), "waiting ..."};
       }

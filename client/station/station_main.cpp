@@ -24,11 +24,13 @@
 #include "client/render/mesh_view.h"
 #include "client/station/station.h"
 #include "common/core/args.h"
+#include "common/core/format.h"
 #include "common/core/time.h"
 #include "common/geometry/bvh.h"
 #include "common/scoring/report_json.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/scene.h"
+#include "common/sim/telemetry.h"
 #include "common/sim/visual_model.h"
 
 namespace {
@@ -36,6 +38,8 @@ namespace {
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 namespace client = vsurg::client;
+namespace sim = vsurg::sim;
+using vsurg::Fixed;
 
 std::atomic<bool> g_interrupted{false};
 void OnSignal(int) {
@@ -44,12 +48,6 @@ void OnSignal(int) {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-std::string Fixed(double v, int digits) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.*f", digits, v);
-  return text;
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -328,8 +326,7 @@ int Run(const std::vector<std::string>& args) {
       overlay.grasping = shown.command.grasping;
       overlay.hud = {
           "vsurg station  " + scene->name + "  session " + std::to_string(channel_session),
-          "haptic " + Fixed(rate_hz, 0) + " Hz   RTT " + Fixed(s.rtt_p50_us, 0) + " µs   loss " +
-              Fixed(100 * s.loss, 1) + "%",
+          sim::LinkStatus(rate_hz, s.rtt_p50_us, s.loss),
           "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
               Fixed(shown.force.norm(), 2) + " N",
           "score " + Fixed(shown.command.score, 1) + " / 10"};

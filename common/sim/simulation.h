@@ -50,6 +50,7 @@
 #include "common/haptics/types.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/scene.h"
+#include "common/sim/telemetry.h"
 #include "common/sim/tissue_room.h"
 #include "common/sim/triple_buffer.h"
 
@@ -77,20 +78,6 @@ struct VisualFrame {
   uint64_t frame_id = 0;                  // counts published deformations
   std::vector<int32_t> indices;           // vertices that moved since the previous frame taken
   std::vector<geometry::Vec3> positions;  // their positions, m
-};
-
-// What an instructor's monitor shows of a session (units as in haptics::ForceCommand).
-struct Telemetry {
-  double time = 0;                                // s, the station's clock of the last sample
-  geometry::Vec3 force = geometry::Vec3::Zero();  // N, sent to the device
-  geometry::Vec3 tip = geometry::Vec3::Zero();    // m, the stylus tip of that sample
-  double twist = 0;                               // rad
-  double torque = 0;                              // N·m
-  double depth = 0;                               // m, press depth (press scenes; else 0)
-  bool contact = false, grasping = false;
-  uint64_t samples = 0;           // stylus samples handled
-  uint64_t clock_jumps = 0;       // samples whose time jumped (haptics::kEventClockJump)
-  scoring::TrialMetrics metrics;  // so far
 };
 
 class Simulation {

@@ -59,4 +59,74 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   return out;
 }
 
+void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out) {
+  out->set_session_id(t.id);
+  out->set_server_time_us(t.server_time_us);
+  out->set_state(ToProto(t.state));
+  out->mutable_force()->set_x(t.sim.force.x());
+  out->mutable_force()->set_y(t.sim.force.y());
+  out->mutable_force()->set_z(t.sim.force.z());
+  out->set_twist(t.sim.twist);
+  out->set_torque(t.sim.torque);
+  out->set_contact(t.sim.contact);
+  out->set_grasping(t.sim.grasping);
+  ToProto(t.sim.metrics, out->mutable_metrics());
+  out->set_rtt_us(t.rtt_us);
+  out->set_packet_loss(t.packet_loss);
+  out->set_packets(t.packets);
+  out->set_haptic_rate_hz(t.haptic_rate_hz);
+  out->mutable_tip()->set_x(t.sim.tip.x());
+  out->mutable_tip()->set_y(t.sim.tip.y());
+  out->mutable_tip()->set_z(t.sim.tip.z());
+  out->set_scene(t.scene);
+  out->set_trainee(t.trainee);
+  out->set_time_s(t.sim.time);
+  out->set_depth(t.sim.depth);
+  out->set_samples(t.sim.samples);
+  out->set_clock_jumps(t.sim.clock_jumps);
+  if (t.has_surface) {
+    v1::SurfaceState* surface = out->mutable_surface();
+    surface->set_frame_id(t.surface_frame);
+    surface->mutable_indices()->Assign(t.surface_indices.begin(), t.surface_indices.end());
+    auto* p = surface->mutable_positions();
+    p->Reserve(static_cast<int>(3 * t.surface_positions.size()));
+    for (const geometry::Vec3& v : t.surface_positions)
+      for (int k = 0; k < 3; ++k) p->Add(static_cast<float>(v[k]));
+  }
+}
+
+sim::SessionTelemetry FromProto(const v1::Telemetry& t) {
+  sim::SessionTelemetry s;
+  s.id = t.session_id();
+  s.state = FromProto(t.state()).value_or(SessionState::kAborted);
+  s.server_time_us = t.server_time_us();
+  s.sim.force = {t.force().x(), t.force().y(), t.force().z()};
+  s.sim.tip = {t.tip().x(), t.tip().y(), t.tip().z()};
+  s.sim.twist = t.twist();
+  s.sim.torque = t.torque();
+  s.sim.contact = t.contact();
+  s.sim.grasping = t.grasping();
+  s.sim.metrics = FromProto(t.metrics());
+  s.rtt_us = t.rtt_us();
+  s.packet_loss = t.packet_loss();
+  s.packets = t.packets();
+  s.haptic_rate_hz = t.haptic_rate_hz();
+  s.scene = t.scene();
+  s.trainee = t.trainee();
+  s.sim.time = t.time_s();
+  s.sim.depth = t.depth();
+  s.sim.samples = t.samples();
+  s.sim.clock_jumps = t.clock_jumps();
+  if (t.has_surface()) {
+    s.has_surface = true;
+    s.surface_frame = t.surface().frame_id();
+    s.surface_indices.assign(t.surface().indices().begin(), t.surface().indices().end());
+    const auto& p = t.surface().positions();
+    s.surface_positions.reserve(static_cast<size_t>(p.size() / 3));
+    for (int i = 0; i + 2 < p.size(); i += 3)
+      s.surface_positions.push_back({p[i], p[i + 1], p[i + 2]});
+  }
+  return s;
+}
+
 }  // namespace vsurg::convert

@@ -7,6 +7,7 @@
 
 #include "common/core/session_state.h"
 #include "common/scoring/metrics.h"
+#include "common/sim/telemetry.h"
 #include "vsurg/v1/services.pb.h"
 
 namespace vsurg::convert {
@@ -20,5 +21,10 @@ std::string StateName(v1::SessionState s);
 
 void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out);
 scoring::TrialMetrics FromProto(const v1::TrialMetrics& m);
+
+// A live session's sample (the surface's positions as floats on the wire). A state this side
+// does not know reads as aborted.
+void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out);
+sim::SessionTelemetry FromProto(const v1::Telemetry& t);
 
 }  // namespace vsurg::convert

@@ -202,34 +202,4 @@ void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out) {
   if (with_key) out->set_session_key(std::string(c.key.begin(), c.key.end()));
 }
 
-SessionTelemetry FromProto(const v1::Telemetry& t) {
-  SessionTelemetry s;
-  s.id = t.session_id();
-  s.state = convert::FromProto(t.state()).value_or(SessionState::kAborted);
-  s.server_time_us = t.server_time_us();
-  s.sim.force = {t.force().x(), t.force().y(), t.force().z()};
-  s.sim.tip = {t.tip().x(), t.tip().y(), t.tip().z()};
-  s.sim.twist = t.twist();
-  s.sim.torque = t.torque();
-  s.sim.contact = t.contact();
-  s.sim.grasping = t.grasping();
-  s.sim.metrics = convert::FromProto(t.metrics());
-  s.rtt_us = t.rtt_us();
-  s.packet_loss = t.packet_loss();
-  s.packets = t.packets();
-  s.haptic_rate_hz = t.haptic_rate_hz();
-  s.scene = t.scene();
-  s.trainee = t.trainee();
-  if (t.has_surface()) {
-    s.has_surface = true;
-    s.surface_frame = t.surface().frame_id();
-    s.surface_indices.assign(t.surface().indices().begin(), t.surface().indices().end());
-    const auto& p = t.surface().positions();
-    s.surface_positions.reserve(static_cast<size_t>(p.size() / 3));
-    for (int i = 0; i + 2 < p.size(); i += 3)
-      s.surface_positions.push_back({p[i], p[i + 1], p[i + 2]});
-  }
-  return s;
-}
-
 }  // namespace vsurg::server::cluster

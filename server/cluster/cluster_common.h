@@ -45,7 +45,6 @@ db::SessionRecord FromProto(const v1::Session& s);
 // other's stamps, so their clocks must agree within the lease margin (NTP; docs/SCALING.md).
 db::NodeRecord FromProto(const v1::NodeHeartbeat& beat, int64_t received_us);
 CreatedSession FromProto(const v1::NodeSession& s);
-SessionTelemetry FromProto(const v1::Telemetry& t);
 void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out);
 
 }  // namespace vsurg::server::cluster

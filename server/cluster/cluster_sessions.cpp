@@ -315,7 +315,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
           v1::NodeTelemetry reply;
           auto ctx = CallContext(options.token, std::max(0.2, period));
           if (!StubFor(n.grpc_address).Telemetry(ctx.get(), {}, &reply).ok()) continue;
-          for (const v1::Telemetry& t : reply.sessions()) all.push_back(FromProto(t));
+          for (const v1::Telemetry& t : reply.sessions()) all.push_back(convert::FromProto(t));
         }
       }
       std::lock_guard lock(subscribers_mutex);

@@ -260,7 +260,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
                          v1::NodeTelemetry* out) override {
     if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
     std::lock_guard lock(telemetry_mutex);
-    for (const auto& [id, t] : latest) grpcapi::ToProto(t, out->add_sessions());
+    for (const auto& [id, t] : latest) convert::ToProto(t, out->add_sessions());
     return grpc::Status::OK;
   }
 };

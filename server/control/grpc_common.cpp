@@ -69,38 +69,6 @@ void ToProto(const SessionView& v, v1::Session* out) {
   if (v.metrics) convert::ToProto(*v.metrics, out->mutable_metrics());
 }
 
-void ToProto(const SessionTelemetry& t, v1::Telemetry* out) {
-  out->set_session_id(t.id);
-  out->set_server_time_us(t.server_time_us);
-  out->set_state(convert::ToProto(t.state));
-  out->mutable_force()->set_x(t.sim.force.x());
-  out->mutable_force()->set_y(t.sim.force.y());
-  out->mutable_force()->set_z(t.sim.force.z());
-  out->set_twist(t.sim.twist);
-  out->set_torque(t.sim.torque);
-  out->set_contact(t.sim.contact);
-  out->set_grasping(t.sim.grasping);
-  convert::ToProto(t.sim.metrics, out->mutable_metrics());
-  out->set_rtt_us(t.rtt_us);
-  out->set_packet_loss(t.packet_loss);
-  out->set_packets(t.packets);
-  out->set_haptic_rate_hz(t.haptic_rate_hz);
-  out->mutable_tip()->set_x(t.sim.tip.x());
-  out->mutable_tip()->set_y(t.sim.tip.y());
-  out->mutable_tip()->set_z(t.sim.tip.z());
-  out->set_scene(t.scene);
-  out->set_trainee(t.trainee);
-  if (t.has_surface) {
-    v1::SurfaceState* surface = out->mutable_surface();
-    surface->set_frame_id(t.surface_frame);
-    surface->mutable_indices()->Assign(t.surface_indices.begin(), t.surface_indices.end());
-    auto* p = surface->mutable_positions();
-    p->Reserve(static_cast<int>(3 * t.surface_positions.size()));
-    for (const geometry::Vec3& v : t.surface_positions)
-      for (int k = 0; k < 3; ++k) p->Add(static_cast<float>(v[k]));
-  }
-}
-
 std::optional<db::Role> RoleFromProto(v1::Role r) {
   switch (r) {
     case v1::ROLE_TRAINEE:

@@ -39,7 +39,6 @@ class Refuse final : public grpc::ServerWriteReactor<Message> {
 
 void ToProto(const db::SessionRecord& r, v1::Session* out);
 void ToProto(const SessionView& v, v1::Session* out);
-void ToProto(const SessionTelemetry& t, v1::Telemetry* out);
 std::optional<db::Role> RoleFromProto(v1::Role r);
 v1::Role RoleToProto(db::Role r);
 void ToProto(const db::UserRecord& u, v1::User* out);

@@ -51,7 +51,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::Telemetry> {
       const auto now = std::chrono::steady_clock::now();
       if (std::chrono::duration<double>(now - last_).count() < interval_s_ * 0.9) return;
       last_ = now;
-      for (const SessionTelemetry& t : list) ToProto(t, &pending_[t.id]);
+      for (const SessionTelemetry& t : list) convert::ToProto(t, &pending_[t.id]);
     }
     Pump(lock);
   }

@@ -260,22 +260,21 @@ std::string HttpApi::TelemetryJson(const SessionTelemetry& t, bool with_surface)
             {"trainee", t.trainee},
             {"scene", t.scene},
             {"state", SessionStateName(t.state)},
-            {"time", Finite(s.time)},
-            {"force", {Finite(s.force.x()), Finite(s.force.y()), Finite(s.force.z())}},
-            {"force_n", Finite(s.force.norm())},
-            {"twist_deg", Finite(s.twist * 180.0 / M_PI)},
-            {"torque", Finite(s.torque)},
-            {"depth_mm", Finite(s.depth * 1000.0)},
-            {"contact", s.contact},
-            {"grasping", s.grasping},
-            {"samples", s.samples},
-            {"clock_jumps", s.clock_jumps},
-            {"score", Finite(s.metrics.score)},
-            {"overload_events", s.metrics.overload_events},
-            {"rtt_us", Finite(t.rtt_us)},
-            {"loss", Finite(t.packet_loss)},
-            {"packets", t.packets},
-            {"rate_hz", Finite(t.haptic_rate_hz)}};
+            {"force_vector_n", {Finite(s.force.x()), Finite(s.force.y()), Finite(s.force.z())}}};
+  for (const sim::TelemetryField& f : sim::TelemetryFields(t)) {
+    const std::string name(f.name);
+    switch (f.kind) {
+      case sim::TelemetryField::Kind::kReal:
+        j[name] = Finite(f.value);
+        break;
+      case sim::TelemetryField::Kind::kCount:
+        j[name] = static_cast<uint64_t>(f.value);
+        break;
+      case sim::TelemetryField::Kind::kFlag:
+        j[name] = f.value != 0;
+        break;
+    }
+  }
   if (with_surface && t.has_surface) {
     j["surface"] = {{"frame", t.surface_frame},
                     {"indices", t.surface_indices},

@@ -16,26 +16,7 @@
 
 namespace vsurg::server {
 
-struct SessionTelemetry {
-  uint64_t id = 0;
-  SessionState state = SessionState::kCreated;
-  int64_t server_time_us = 0;
-  sim::Telemetry sim;
-  double rtt_us = 0;
-  double packet_loss = 0;  // lost / (applied + lost)
-  uint64_t packets = 0;
-  // The station's haptic loop rate: stylus samples applied per second of the station's own clock
-  // (the stamps it sends), over windows of ≥ 1 s, refreshed once a window; 0 unless running.
-  double haptic_rate_hz = 0;
-  std::string scene;
-  std::string trainee;
-  // Every third sample (10 Hz at the default rate): the deformed surface for monitors, as the
-  // vertices away from rest (sim::Simulation::ShownSurface).
-  bool has_surface = false;
-  uint64_t surface_frame = 0;
-  std::vector<int32_t> surface_indices;
-  std::vector<geometry::Vec3> surface_positions;
-};
+using sim::SessionTelemetry;
 
 struct CreatedSession {
   db::SessionRecord record;

@@ -304,7 +304,7 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
     log.assign(std::istreambuf_iterator<char>(in), {});
   }
   EXPECT_NE(log.find("state=running"), std::string::npos) << log;
-  EXPECT_NE(log.find("twist=45.0deg"), std::string::npos) << log;
+  EXPECT_NE(log.find("twist_deg=45.0"), std::string::npos) << log;
   EXPECT_NE(log.find(" ended:"), std::string::npos) << log;
 
   // A trainee's token is refused by the monitor, with the reason and exit code 1.

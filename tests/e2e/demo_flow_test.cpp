@@ -52,8 +52,8 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   // The instructor's terminal: live lines while twisting, then the end of the session.
   const std::string monitor = Slurp(out / "monitor.log");
   EXPECT_GT(Count(monitor, "state=running"), 5u) << monitor;
-  EXPECT_NE(monitor.find("twist=45.0deg"), std::string::npos) << monitor;
-  EXPECT_NE(monitor.find("grasp=1"), std::string::npos);
+  EXPECT_NE(monitor.find("twist_deg=45.0"), std::string::npos) << monitor;
+  EXPECT_NE(monitor.find("grasping=1"), std::string::npos);
   EXPECT_NE(monitor.find(" ended:"), std::string::npos);
 
   // The administrator's report of the session: three groups, each index, the comprehensive

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "db/store.h"
+#include "proto/convert/services.h"
 #include "server/cluster/cluster_common.h"
 #include "tests/fuzz/fuzz_check.h"
 
@@ -86,7 +87,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       v1::NodeTelemetry t;
       if (!t.ParseFromArray(body, n)) return 0;
       for (const v1::Telemetry& one : t.sessions()) {
-        const server::SessionTelemetry s = server::cluster::FromProto(one);
+        const sim::SessionTelemetry s = convert::FromProto(one);
         VSURG_FUZZ_CHECK(s.surface_positions.size() ==
                          static_cast<size_t>(one.surface().positions_size() / 3));
       }

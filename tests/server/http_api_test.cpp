@@ -340,8 +340,17 @@ TEST_F(HttpApiTest, JsonIsEscapedAndNeverCarriesNaN) {
   EXPECT_EQ(text.find('\n'), std::string::npos) << "one line per server-sent event";
   const json j = json::parse(text);
   EXPECT_EQ(j["trainee"], t.trainee);
-  EXPECT_EQ(j["force"][0], 0.0);
+  EXPECT_EQ(j["force_vector_n"][0], 0.0);
+  EXPECT_EQ(j["force_n"], 0.0);  // |(NaN, 1, 2)| is NaN too
   EXPECT_EQ(j["twist_deg"], 0.0);
+  EXPECT_EQ(j["rtt_us"], 120.0);
+  // Every number's name carries its unit (or is a count, a flag or the score).
+  for (const char* name : {"time_s", "force_n", "twist_deg", "torque_nm", "depth_mm", "rtt_us",
+                           "loss_ratio", "haptic_rate_hz", "peak_force_n", "score", "samples",
+                           "clock_jumps", "overload_events", "packets", "contact", "grasping"})
+    EXPECT_TRUE(j.contains(name)) << name;
+  for (const char* old : {"time", "force", "torque", "loss", "rate_hz"})
+    EXPECT_FALSE(j.contains(old)) << old;
   EXPECT_DOUBLE_EQ(j["surface"]["positions_mm"][2].get<double>(), 30.5);
   EXPECT_FALSE(json::parse(HttpApi::TelemetryJson(t, false)).contains("surface"));
 }

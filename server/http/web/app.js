@@ -407,9 +407,9 @@ async function pageLive(main) {
       entry.row.replaceChildren(
         el('td', {}, t.trainee), el('td', {}, t.scene), el('td', {}, stateBadge(t.state)),
         el('td', {}, taskCell(t)), el('td', { class: 'num' }, fmt(t.force_n, 2)),
-        el('td', { class: 'num' }, fmt(t.rtt_us, 0)), el('td', { class: 'num' }, fmt(t.loss * 100, 2),
+        el('td', { class: 'num' }, fmt(t.rtt_us, 0)), el('td', { class: 'num' }, fmt(t.loss_ratio * 100, 2),
           poorLink(t) ? [' ', el('span', { class: 'badge stalled', title: poorLinkWhy }, 'poor link')] : null),
-        el('td', { class: 'num' }, fmt(t.rate_hz, 0)), el('td', { class: 'num' }, fmt(t.score, 1)),
+        el('td', { class: 'num' }, fmt(t.haptic_rate_hz, 0)), el('td', { class: 'num' }, fmt(t.score, 1)),
         el('td', {}, el('a', { href: '/session/' + t.id }, 'Open')));
     }
     // Sessions that left the live list: shown as gone (disconnected or ended) for 15 s.
@@ -436,7 +436,7 @@ async function pageLive(main) {
 // Beyond what the station's local model holds faithfully (docs/BENCHMARKS.md "Haptics across
 // networks"), the station tells its trainee and the live table flags the row.
 const poorLinkWhy = 'Round trip over 300 ms or over 10% lost: the station warns its trainee';
-function poorLink(t) { return t.rtt_us > 300e3 || t.loss > 0.10; }
+function poorLink(t) { return t.rtt_us > 300e3 || t.loss_ratio > 0.10; }
 
 function metricsList(m) {
   if (!m) return el('p', { class: 'muted' }, 'No trial metrics recorded.');
@@ -503,12 +503,12 @@ async function pageSession(main) {
     const t = JSON.parse(ev.data), now = (performance.now() - t0) / 1000;
     if (t.state !== s.state) { s.state = t.state; renderHead(s); }
     plots.force.add(now, [t.force_n]);
-    plots.twist.add(now, press ? [t.depth_mm] : [t.twist_deg, t.torque * 1000]);
+    plots.twist.add(now, press ? [t.depth_mm] : [t.twist_deg, t.torque_nm * 1000]);
     plots.rtt.add(now, [t.rtt_us]);
     Object.values(plots).forEach((p) => p.draw());
     live.replaceChildren(...[['State', stateBadge(t.state)], ['Force (N)', fmt(t.force_n, 2)],
       [press ? 'Depth (mm)' : 'Twist (°)', press ? fmt(t.depth_mm, 1) : fmt(t.twist_deg, 1)],
-      ['RTT (µs)', fmt(t.rtt_us, 0)], ['Loss (%)', fmt(t.loss * 100, 2)], ['Haptic rate (Hz)', fmt(t.rate_hz, 0)],
+      ['RTT (µs)', fmt(t.rtt_us, 0)], ['Loss (%)', fmt(t.loss_ratio * 100, 2)], ['Haptic rate (Hz)', fmt(t.haptic_rate_hz, 0)],
       ['Score so far', fmt(t.score, 1)], ['Overload events', t.overload_events], ['Clock jumps', t.clock_jumps]]
       .flatMap(([k, v]) => [el('dt', {}, k), el('dd', {}, v)]));
     if (tissue && t.surface) tissue.apply(t.surface);
