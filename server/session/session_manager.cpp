@@ -159,8 +159,11 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
     }
   }
   // Lost the race for the last slot: the row exists, so record it as aborted.
-  (void)store_.SetSessionState(record->id, SessionState::kAborted, db::NowUs(),
-                               "session limit reached", epoch);
+  if (Status s = store_.SetSessionState(record->id, SessionState::kAborted, db::NowUs(),
+                                        "session limit reached", epoch);
+      !s.ok())
+    LogEvent("vsurg-sessions", "store_write_failed",
+             "session=" + std::to_string(record->id) + " " + s.error().message);
   return CheckLimits(trainee).error();
 }
 

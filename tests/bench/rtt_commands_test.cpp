@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "tests/support/processes.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg {
 namespace {
@@ -75,10 +76,8 @@ TEST(FemStepCommandTest, StepsTheBarAndATighterToleranceTakesMoreIterations) {
 // What VegaFEM reads is the bar we step: its vertex and element counts, a fixed base, and tip
 // forces that add up to the 2 mN·m torque about the bar's axis and no net force.
 TEST(FemStepCommandTest, ExportWritesTheBarItsBaseAndAPureTorque) {
-  const std::string dir =
-      (std::filesystem::temp_directory_path() / ("vsurg_fem_export_" + std::to_string(::getpid())))
-          .string();
-  std::filesystem::remove_all(dir);
+  const test::TempDir tmp("fem_export");
+  const std::string dir = (tmp / "out").string();
   const test::ShellRun r =
       test::Shell(std::string(VSURG_BENCH_BINARY) + " fem-step --rings 2 --export " + dir);
   ASSERT_EQ(r.code, 0) << r.out;

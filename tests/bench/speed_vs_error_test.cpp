@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "common/core/csv.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg {
 namespace {
@@ -26,8 +27,7 @@ std::string Read(const fs::path& p) {
 }
 
 TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_sve_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const test::TempDir dir("sve");
   const std::string cmd = std::string(VSURG_BENCH_BINARY) + " speed-vs-error --quick --out " +
                           dir.string() + " 2>/dev/null";
   FILE* pipe = popen(cmd.c_str(), "r");

@@ -15,6 +15,7 @@
 #include "common/geometry/obj_io.h"
 #include "common/sim/scene.h"
 #include "tests/support/deadline.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::cli {
 namespace {
@@ -149,14 +150,14 @@ TEST(VsurgSimTest, EveryCommandHasHelp) {
   EXPECT_NE(top.out.find("coil-inverse"), std::string::npos);
 }
 
-std::string WriteTemp(const std::string& name, const std::string& text) {
-  const std::string path = (std::filesystem::temp_directory_path() / name).string();
-  std::ofstream(path) << text;
-  return path;
+std::string WriteTemp(const std::filesystem::path& file, const std::string& text) {
+  std::ofstream(file) << text;
+  return file.string();
 }
 
 TEST(VsurgSimTest, ScoreReportsTheWeightedMeansAndReliability) {
-  const std::string path = WriteTemp("vsurg_cli_ratings.csv",
+  const test::TempDir tmp("cli");
+  const std::string path = WriteTemp(tmp / "ratings.csv",
                                      "evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9\n"
                                      "a1,intern,6,6,6,6,6,6,6,6,6\n"
                                      "b1,associate_chief,7,7,7,7,7,7,7,7,8\n"
@@ -177,14 +178,14 @@ TEST(VsurgSimTest, ScoreReportsTheWeightedMeansAndReliability) {
   EXPECT_EQ(j["index_means"].size(), 9u);
   EXPECT_GT(j["cronbach_alpha"].get<double>(), 0.9);  // the raters rank the indexes alike
 
-  const std::string bad = WriteTemp("vsurg_cli_ratings_bad.csv", "a1,intern,6,6,6,6,6,6,6,6,12\n");
+  const std::string bad = WriteTemp(tmp / "ratings_bad.csv", "a1,intern,6,6,6,6,6,6,6,6,12\n");
   const SimRun b = Sim({"score", "--input", bad, "--json"});
   EXPECT_EQ(b.code, 2);
   EXPECT_EQ(Lines(b.err), 1);
   EXPECT_NE(b.err.find("i9"), std::string::npos) << b.err;
   EXPECT_TRUE(b.out.empty());
   const std::string weights =
-      WriteTemp("vsurg_cli_weights.json",
+      WriteTemp(tmp / "weights.json",
                 R"({"name":"x","group":{"intern":0.5,"associate_chief":0.5,"chief":0.5},)"
                 R"("index":[0.15,0.15,0.15,0.15,0.1,0.1,0.1,0.05,0.05]})");
   const SimRun w = Sim({"score", "--input", path, "--weights", weights});
@@ -193,7 +194,8 @@ TEST(VsurgSimTest, ScoreReportsTheWeightedMeansAndReliability) {
 }
 
 TEST(VsurgSimTest, DeformWritesTheTwistedArmAndReportsEachStep) {
-  const std::string path = (std::filesystem::temp_directory_path() / "vsurg_cli_arm.obj").string();
+  const test::TempDir tmp("cli");
+  const std::string path = (tmp / "arm.obj").string();
   const SimRun r = Sim(
       {"deform", "--scene", "arm", "--torque", "2.07", "--steps", "4", "--out", path, "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
@@ -220,7 +222,6 @@ TEST(VsurgSimTest, DeformWritesTheTwistedArmAndReportsEachStep) {
   const geometry::Vec3 w0 = rest->surface.positions[last], w1 = mesh->positions[last];
   EXPECT_NEAR(std::atan2(w1.y(), w1.x()) - std::atan2(w0.y(), w0.x()), twist, 1e-6);
   EXPECT_NEAR((mesh->positions[0] - rest->surface.positions[0]).norm(), 0, 1e-9);
-  std::filesystem::remove(path);
 }
 
 TEST(VsurgSimTest, DeformToAnUnwritablePathFailsWithExitOne) {
@@ -307,8 +308,8 @@ TEST(VsurgSimTest, MsmBadArgumentsExitTwo) {
 }
 
 TEST(VsurgSimTest, TraineeAndRunReplayAScene) {
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "vsurg_cli_twist.csv").string();
+  const test::TempDir tmp("cli");
+  const std::string path = (tmp / "twist.csv").string();
   SimRun r = Sim({"trainee", "--scene", "arm-torsion", "--style", "good", "--out", path});
   ASSERT_EQ(r.code, 0) << r.err;
   r = Sim({"run", "--scene", "arm-torsion", "--trajectory", path, "--json"});
@@ -328,11 +329,11 @@ TEST(VsurgSimTest, TraineeAndRunReplayAScene) {
   EXPECT_TRUE(m["completed"].get<bool>());
   EXPECT_GE(m["score"].get<double>(), 8.0);
   EXPECT_EQ(j["grasps"], 1);
-  std::filesystem::remove(path);
 }
 
 TEST(VsurgSimTest, RunRejectsBadTrajectoriesAndScenes) {
-  const std::string path = (std::filesystem::temp_directory_path() / "vsurg_cli_bad.csv").string();
+  const test::TempDir tmp("cli");
+  const std::string path = (tmp / "bad.csv").string();
   {
     std::ofstream f(path);
     f << "t,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.1,1,0,0,0,0\n0.001,0,zero,0.1,1,0,0,0,0\n";
@@ -353,15 +354,14 @@ TEST(VsurgSimTest, RunRejectsBadTrajectoriesAndScenes) {
   r = Sim({"trainee", "--scene", "arm-torsion", "--style", "lazy", "--out", path});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--style"), std::string::npos);
-  std::filesystem::remove(path);
 }
 
 // A two-row trajectory (0 s, then 1e308 s) hung `vsurg-sim run` in the trial recorder's grid walk;
 // a time jump in a mass-spring replay did too; a scene whose description was a number gave
 // "internal error" and exit 1.
 TEST(VsurgSimTest, RunSurvivesClockJumpsAndBadSceneFieldTypes) {
-  const auto dir = std::filesystem::temp_directory_path();
-  const std::string path = (dir / "vsurg_cli_jump.csv").string();
+  const test::TempDir dir("cli");
+  const std::string path = (dir / "jump.csv").string();
   {
     std::ofstream f(path);
     f << "t,x,y,z,qw,qx,qy,qz,buttons\n0,0,0,0.3,1,0,0,0,0\n1e308,0,0,0.3,1,0,0,0,0\n"
@@ -388,15 +388,12 @@ TEST(VsurgSimTest, RunSurvivesClockJumpsAndBadSceneFieldTypes) {
   EXPECT_EQ(Lines(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("description: must be a string"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
-  std::filesystem::remove(path);
-  std::filesystem::remove(bad);
 }
 
 // The real binary, as other tools call it: exit status and streams.
 int RunBinary(const std::string& args, std::string& out, std::string& err) {
-  const auto dir = std::filesystem::temp_directory_path();
-  const std::string o = (dir / "vsurg_sim_out.txt").string(),
-                    e = (dir / "vsurg_sim_err.txt").string();
+  const test::TempDir dir("cli_streams");
+  const std::string o = (dir / "out.txt").string(), e = (dir / "err.txt").string();
   const int status =
       std::system((std::string(VSURG_SIM_BINARY) + " " + args + " >" + o + " 2>" + e).c_str());
   auto slurp = [](const std::string& p) {

@@ -17,6 +17,7 @@
 #include "db/store.h"
 #include "tests/support/press_and_hold.h"
 #include "tests/support/processes.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::client {
 namespace {
@@ -40,21 +41,15 @@ Tokens MakeStore(const fs::path& db) {
   return t;
 }
 
-fs::path FreshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
 // A fresh folder, a store with MakeStore's users in it, and a server on them (declared in that
 // order: each is made from the one before).
 struct Site {
-  fs::path dir, db;
+  test::TempDir dir;
+  fs::path db;
   Tokens tokens;
   test::ServerProcess server;
   explicit Site(const std::string& name)
-      : dir(FreshDir(name)),
+      : dir(name),
         db(dir / "vsurg.db"),
         tokens(MakeStore(db)),
         server(test::ServerProcess::Start(VSURG_SERVER_BINARY, dir, db)) {}

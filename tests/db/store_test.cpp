@@ -17,6 +17,7 @@
 #include "db/migrations.h"
 #include "db/postgres.h"
 #include "tests/support/postgres.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::db {
 namespace {
@@ -28,11 +29,6 @@ namespace fs = std::filesystem;
 class StoreTest : public ::testing::TestWithParam<Backend> {
  protected:
   void SetUp() override {
-    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    std::replace(name.begin(), name.end(), '/', '_');
-    dir_ = fs::temp_directory_path() / ("vsurg_store_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     if (sqlite()) {
       path_ = (dir_ / "vsurg.db").string();
     } else {
@@ -46,7 +42,6 @@ class StoreTest : public ::testing::TestWithParam<Backend> {
   void TearDown() override {
     store_.reset();
     pg_.reset();
-    fs::remove_all(dir_);
   }
   bool sqlite() const { return GetParam() == Backend::kSqlite; }
   // The schema version as the backend keeps it, read through a connection of its own.
@@ -78,7 +73,7 @@ class StoreTest : public ::testing::TestWithParam<Backend> {
 
   int64_t Rows() { return store_->CountEvaluationRows().value(); }
 
-  fs::path dir_;
+  test::TempDir dir_{"store"};
   std::string path_;
   std::unique_ptr<test::PostgresDatabase> pg_;
   std::unique_ptr<Store> store_;

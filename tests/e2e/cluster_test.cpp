@@ -13,6 +13,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "tests/support/temp_dir.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -30,15 +32,14 @@ std::map<std::string, int> Spread(const std::string& text) {
 }
 
 TEST(ClusterTest, PlacementNodeLossAndControlLossOnPostgres) {
-  const fs::path out = fs::temp_directory_path() / ("vsurg_cluster_" + std::to_string(::getpid()));
-  fs::remove_all(out);
+  const vsurg::test::TempDir out("cluster");
   const std::string cmd = std::string(VSURG_SOURCE_DIR) + "/deploy/cluster_flow.sh " +
-                          VSURG_BIN_DIR + " " + out.string() + " 24 > " + (out.string() + ".log") +
-                          " 2>&1";
-  ASSERT_EQ(std::system(cmd.c_str()), 0) << "see " << out.string() << ".log";
+                          VSURG_BIN_DIR + " " + out.string() + " 24 > " +
+                          (out / "flow.log").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << "see " << (out / "flow.log").string();
   std::ifstream in(out / "cluster.json");
   const auto j = nlohmann::json::parse(in, nullptr, false);
-  ASSERT_FALSE(j.is_discarded()) << "see " << out.string() << ".log";
+  ASSERT_FALSE(j.is_discarded()) << "see " << (out / "flow.log").string();
 
   // Every session placed, spread within one session of each other.
   const auto spread = Spread(j["spread"].get<std::string>());
@@ -92,8 +93,6 @@ TEST(ClusterTest, PlacementNodeLossAndControlLossOnPostgres) {
   // The surviving replica shows every live session to vsurg-monitor and the dashboard.
   EXPECT_EQ(j["monitor_running"].get<int>(), 24);
   EXPECT_EQ(j["dashboard_running"].get<int>(), 24);
-  fs::remove_all(out);
-  fs::remove(out.string() + ".log");
 }
 
 }  // namespace

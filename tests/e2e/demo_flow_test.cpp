@@ -13,6 +13,7 @@
 
 #include "common/core/image.h"
 #include "tests/support/processes.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg {
 namespace {
@@ -33,8 +34,7 @@ size_t Count(const std::string& text, const std::string& what) {
 }
 
 TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
-  const fs::path out = fs::temp_directory_path() / ("vsurg_e2e_" + std::to_string(::getpid()));
-  fs::remove_all(out);
+  const test::TempDir out("e2e");
   const test::ShellRun run = test::Shell(std::string(VSURG_SOURCE_DIR) + "/deploy/demo_flow.sh " +
                                          VSURG_BIN_DIR + " " + out.string() + " 2>&1");
   ASSERT_EQ(run.code, 0) << run.out;

@@ -576,7 +576,8 @@ TEST(ControlPlaneConfigTest, PlaintextOffLoopbackIsRefused) {
   EXPECT_TRUE(IsLoopbackHost("[::1]:50051"));
   EXPECT_FALSE(IsLoopbackHost("0.0.0.0:50051"));
   EXPECT_FALSE(IsLoopbackHost("10.1.2.3:50051"));
-  const fs::path path = fs::temp_directory_path() / ("vsurg_cp_cfg_" + std::to_string(::getpid()));
+  const test::TempDir tmp("cp_cfg");
+  const fs::path path = tmp / "vsurg.db";
   auto store = db::Store::Open({.path = path.string()});
   ASSERT_TRUE(store.ok());
   auto sessions_owned = SessionManager::Open(**store, nullptr, {}).value();
@@ -595,9 +596,7 @@ TEST(ControlPlaneConfigTest, PlaintextOffLoopbackIsRefused) {
 }
 
 TEST(ControlPlaneTlsTest, ACertificateInTheConfigTurnsOnTls) {
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_cp_tls_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const test::TempDir dir("cp_tls");
   const auto [cert, key] = test::SelfSigned();
   std::ofstream(dir / "cert.pem") << cert;
   std::ofstream(dir / "key.pem") << key;

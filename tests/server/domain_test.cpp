@@ -152,9 +152,7 @@ TEST_F(DomainTest, TrainingEffectUsesTheComprehensiveScorePerMoment) {
 }
 
 TEST(SceneCatalogTest, ListsUsableScenesSaysWhyNotAndReparsesOnlyChangedFiles) {
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_catalog_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const test::TempDir dir("catalog");
   fs::copy_file(fs::path(sim::ScenesDirectory()) / "arm-torsion.json", dir / "arm-torsion.json");
   std::ofstream(dir / "broken.json") << "{\"description\": 42";
   std::ofstream(dir / "notes.txt") << "not a scene";

@@ -22,6 +22,7 @@
 
 #include "db/store.h"
 #include "tests/support/processes.h"
+#include "tests/support/temp_dir.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 extern char** environ;
@@ -59,9 +60,7 @@ v1::SubmitEvaluationRequest Submission(const std::string& evaluator) {
 }
 
 TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_crash_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const test::TempDir dir("crash");
   const fs::path db = dir / "vsurg.db";
   std::string token;
   {
@@ -164,24 +163,18 @@ TEST(ServerProcessTest, SigkillDuringABurstLosesNothingAcknowledged) {
 // A fresh store initialised by `vsurg-server init` (its first administrator's token) and a
 // vsurg-server on it; `remote` is the options every vsurg-admin call against it takes.
 struct AdminCliSetup {
-  fs::path dir, db;
+  test::TempDir dir;
+  fs::path db;
   std::string admin = VSURG_ADMIN_BINARY, server_bin = VSURG_SERVER_BINARY, token, remote;
   test::ServerProcess server;
-  explicit AdminCliSetup(const std::string& name)
-      : dir(fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()))),
-        db(dir / "vsurg.db") {
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+  explicit AdminCliSetup(const std::string& name) : dir(name), db(dir / "vsurg.db") {
     const ShellRun init = Shell(server_bin + " init --db " + db.string() + " 2>/dev/null");
     EXPECT_EQ(init.code, 0);
     token = init.out.substr(0, init.out.find('\n'));
     server = ServerProcess::Start(dir, db);
     remote = " --server 127.0.0.1:" + std::to_string(server.grpc_port) + " --token " + token;
   }
-  ~AdminCliSetup() {
-    server.Signal(SIGTERM);
-    fs::remove_all(dir);
-  }
+  ~AdminCliSetup() { server.Signal(SIGTERM); }
 };
 
 TEST(AdminCliTest, InitImportReportAndExportThroughTheServer) {
@@ -306,9 +299,7 @@ TEST(AdminCliTest, ImportSaysWhatHappenedToEachRowAndLongSubjectsNeverCollide) {
 
 // The site roles refuse what cannot work, before opening anything: exit 2 with the flag named.
 TEST(ServerRolesCliTest, BadRoleSettingsExitTwoNamingTheFlag) {
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_roles_cli_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const test::TempDir dir("roles_cli");
   const std::string token = (dir / "token").string();
   std::ofstream(token) << "a-cluster-token-of-32-characters\n";
   const std::string server = std::string(VSURG_SERVER_BINARY) + " ";

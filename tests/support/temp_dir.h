@@ -1,11 +1,13 @@
 // A fresh folder for one test: under the system's temporary folder, named after the tag, this
 // process and the running test (so parallel ctest runs never share one), emptied if a crashed
-// run left it, and removed with everything in it when the test's fixture goes. Declare it before
-// whatever keeps files open inside it (a store), so that those close first.
+// run left it, and removed with everything in it when the test's fixture goes (kept, and its
+// path printed, when the test failed). Declare it before whatever keeps files open inside it (a
+// store), so that those close first.
 #pragma once
 
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <string>
 
@@ -26,6 +28,10 @@ class TempDir {
     std::filesystem::create_directories(path_);
   }
   ~TempDir() {
+    if (::testing::Test::HasFailure()) {  // what the failed test left, for whoever looks into it
+      std::fprintf(stderr, "kept for inspection: %s\n", path_.c_str());
+      return;
+    }
     std::error_code ec;
     std::filesystem::remove_all(path_, ec);
   }

@@ -1,4 +1,5 @@
 #include "common/geometry/mesh_import.h"
+#include "tests/support/temp_dir.h"
 
 #include <unistd.h>
 
@@ -19,19 +20,12 @@ namespace fs = std::filesystem;
 
 class MeshImportTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_import_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string Write(const std::string& name, const std::string& bytes) const {
     const std::string path = (dir_ / name).string();
     std::ofstream(path, std::ios::binary) << bytes;
     return path;
   }
-  fs::path dir_;
+  test::TempDir dir_{"import"};
 };
 
 double Area(const TriMesh& m) {

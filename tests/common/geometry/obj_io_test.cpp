@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "common/geometry/mesh_generators.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::geometry {
 namespace {
@@ -25,8 +26,8 @@ std::string ErrorOf(const std::string& text) {
 TEST(ObjIoTest, RoundTripKeepsPositionsAndFaces) {
   auto sphere = MakeSubdividedSphere({0.05, 3, SphereBase::kOctahedron, Vec3(0.01, 0.02, 0.03)});
   ASSERT_TRUE(sphere.ok());
-  const std::string path =
-      (std::filesystem::temp_directory_path() / "vsurg_obj_roundtrip.obj").string();
+  const test::TempDir tmp("obj");
+  const std::string path = (tmp / "roundtrip.obj").string();
   ASSERT_TRUE(WriteObj(*sphere, path, "round trip").ok());
   auto back = ReadObj(path);
   ASSERT_TRUE(back.ok()) << back.error().message;
@@ -36,7 +37,6 @@ TEST(ObjIoTest, RoundTripKeepsPositionsAndFaces) {
     // %.9g keeps 9 significant digits: below a nanometre at these sizes.
     EXPECT_NEAR((back->positions[v] - sphere->positions[v]).norm(), 0, 1e-10);
   }
-  std::filesystem::remove(path);
   EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
 }
 

@@ -18,6 +18,7 @@
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
 #include "common/sim/visual_model.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::sim::organ_scene_test {
 namespace {
@@ -75,7 +76,7 @@ TEST(OrganSceneTest, TheShippedKidneyIsThisGeneratorsOutput) {
 }
 
 TEST(OrganSceneTest, TheKidneyIsTetrahedralisedAndSinksUnderThePress) {
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_kidney_" + std::to_string(::getpid()));
+  const test::TempDir dir("kidney");
   auto scene = LoadSceneByName("kidney-palpation");
   ASSERT_TRUE(scene.ok()) << scene.error().message;
   EXPECT_EQ(scene->mesh.kind, MeshKind::kFile);
@@ -108,7 +109,6 @@ TEST(OrganSceneTest, TheKidneyIsTetrahedralisedAndSinksUnderThePress) {
     if (frame.indices[k] == top) top_dz = frame.positions[k].z() - rest[top].z();
   EXPECT_LT(top_dz, -0.0005);
   EXPECT_GT(top_dz, -0.004 - 1e-9);
-  fs::remove_all(dir);
 }
 
 TEST(OrganSceneTest, AVisualSurfaceCanBeAFileAndIsCarriedByThePhysicsOne) {
@@ -146,7 +146,7 @@ TEST(OrganSceneTest, AVisualSurfaceCanBeAFileAndIsCarriedByThePhysicsOne) {
 TEST(OrganSceneTest, ScriptedTraineesPalpateTheKidney) {
   // A scripted trainee for a mesh-file scene: the tool comes down above the organ's middle and
   // presses to the target depth; the good one completes and scores well, the rough one worse.
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_kidney_t_" + std::to_string(::getpid()));
+  const test::TempDir dir("kidney_t");
   auto scene = LoadSceneByName("kidney-palpation");
   ASSERT_TRUE(scene.ok()) << scene.error().message;
   const auto play = [&](TraineeStyle style) {
@@ -166,7 +166,6 @@ TEST(OrganSceneTest, ScriptedTraineesPalpateTheKidney) {
   EXPECT_GE(good.score, 7.0);
   const scoring::TrialMetrics rough = play(TraineeStyle::kRough);
   EXPECT_LT(rough.score, good.score - 2.0);
-  fs::remove_all(dir);
 }
 
 }  // namespace

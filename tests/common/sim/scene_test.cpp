@@ -16,6 +16,7 @@
 #include "common/geometry/mesh_generators.h"
 #include "common/sim/limb_scene.h"
 #include "common/sim/simulation.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::sim {
 namespace {
@@ -73,9 +74,8 @@ TEST(SceneTest, AMeshFileInMillimetresIsReadThroughAssimp) {
   // repeated.
   auto ball = geometry::MakeSubdividedSphere({50.0, 3, geometry::SphereBase::kOctahedron});
   ASSERT_TRUE(ball.ok());
-  const std::filesystem::path dir = std::filesystem::temp_directory_path();
-  const std::string stl =
-      (dir / ("vsurg_scene_ball_" + std::to_string(::getpid()) + ".stl")).string();
+  const test::TempDir dir("scene_ball");
+  const std::string stl = (dir / "ball.stl").string();
   {
     std::ofstream out(stl);
     out << "solid ball\n";
@@ -107,7 +107,6 @@ TEST(SceneTest, AMeshFileInMillimetresIsReadThroughAssimp) {
       "x.json");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("mesh.units"), std::string::npos) << bad.error().message;
-  std::filesystem::remove(stl);
 }
 
 TEST(SceneTest, TaskAndModelAreRead) {
@@ -163,9 +162,8 @@ std::string Replace(std::string s, const std::string& from, const std::string& t
 TEST(SceneTest, ASupportCanBeANamedGroupOfTheFileOrAPlane) {
   auto ball = geometry::MakeSubdividedSphere({0.05, 3, geometry::SphereBase::kOctahedron});
   ASSERT_TRUE(ball.ok());
-  const std::string obj = (std::filesystem::temp_directory_path() /
-                           ("vsurg_scene_groups_" + std::to_string(::getpid()) + ".obj"))
-                              .string();
+  const test::TempDir dir("scene_groups");
+  const std::string obj = (dir / "groups.obj").string();
   std::set<int> table;
   {
     std::ofstream out(obj);
@@ -208,9 +206,7 @@ TEST(SceneTest, ASupportCanBeANamedGroupOfTheFileOrAPlane) {
             std::set<int>(held->begin(), held->end()));
   // A session builds on it (CGAL's tetrahedra held where the table group is), and a scene that
   // names a group the file lacks fails at Create, naming the field.
-  const std::string cache = (std::filesystem::temp_directory_path() /
-                             ("vsurg_groups_cache_" + std::to_string(::getpid())))
-                                .string();
+  const std::string cache = (dir / "cache").string();
   auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = cache});
   ASSERT_TRUE(sim.ok()) << sim.error().message;
   auto wrong = ParseScene(Replace(text, R"("group": "table")", R"("group": "base")"), "x.json");
@@ -218,7 +214,6 @@ TEST(SceneTest, ASupportCanBeANamedGroupOfTheFileOrAPlane) {
   auto refused = Simulation::Create(*wrong, {.threaded = false, .cache_dir = cache});
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.error().field, "regions[0].model.support");
-  std::filesystem::remove_all(cache);
   RegionSpec other = scene->region;
   other.support_group = "base";
   auto missing = SupportedVertices(mesh->surface, other, mesh->groups);
@@ -248,7 +243,6 @@ TEST(SceneTest, ASupportCanBeANamedGroupOfTheFileOrAPlane) {
                           R"("structural_stiffness": 50, "support": {"group": "table"})"))
                 .find("only a mesh file has named groups"),
             std::string::npos);
-  std::filesystem::remove(obj);
 }
 
 TEST(SceneTest, TheVisualMaterialIsReadWithADefaultByMesh) {

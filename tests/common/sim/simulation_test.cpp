@@ -17,6 +17,7 @@
 #include "tests/support/allocation_counter.h"
 #include "tests/support/deadline.h"
 #include "tests/support/sanitized.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::sim {
 namespace {
@@ -66,15 +67,12 @@ TEST(SimulationTest, ScriptedTraineesOnTheArmGiveTheExpectedMetrics) {
 
 TEST(SimulationTest, TheReducedArmIsTwistedToTheTargetAndCachesItsField) {
   namespace fs = std::filesystem;
-  const fs::path dir =
-      fs::temp_directory_path() / ("vsurg_arm_cache_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  setenv("VSURG_CACHE_DIR", dir.c_str(), 1);
+  const test::TempDir dir("arm_cache");
+  setenv("VSURG_CACHE_DIR", dir.string().c_str(), 1);
   double peak = 0;
   const scoring::TrialMetrics good = Replay("arm-torsion-reduced", TraineeStyle::kGood, &peak);
   unsetenv("VSURG_CACHE_DIR");
   EXPECT_TRUE(fs::exists(dir / "arm-torsion-reduced-twist.vrm"));
-  fs::remove_all(dir);
   ASSERT_TRUE(good.completed);
   EXPECT_LT(good.task_error, 5 * M_PI / 180);
   EXPECT_LE(peak, 3.3 + 1e-9);
@@ -87,9 +85,8 @@ TEST(SimulationTest, TheReducedArmIsTwistedToTheTargetAndCachesItsField) {
 // about the normal at the jaws while the held bottom stays.
 TEST(SimulationTest, ForcepsTwistTheOrganOnItsSurfaceTwistTable) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_st_cache_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  setenv("VSURG_CACHE_DIR", dir.c_str(), 1);
+  const test::TempDir dir("st_cache");
+  setenv("VSURG_CACHE_DIR", dir.string().c_str(), 1);
   double peak = 0;
   const scoring::TrialMetrics good = Replay("organ-surface-twist", TraineeStyle::kGood, &peak);
   EXPECT_TRUE(fs::exists(dir / "organ-surface-twist-surface-twist.vrm"));
@@ -156,7 +153,6 @@ TEST(SimulationTest, ForcepsTwistTheOrganOnItsSurfaceTwistTable) {
   ASSERT_TRUE((*sim)->TakeVisualFrame(frame));
   for (size_t k = 0; k < frame.indices.size(); ++k)
     EXPECT_LT((frame.positions[k] - rest[frame.indices[k]]).norm(), 1e-9);
-  fs::remove_all(dir);
 }
 
 TEST(SimulationTest, ScriptedTraineesPalpateTheSphere) {
@@ -175,9 +171,7 @@ TEST(SimulationTest, ScriptedTraineesPalpateTheSphere) {
 
 TEST(SimulationTest, AReducedSphereSinksUnderTheToolAndCachesItsTable) {
   namespace fs = std::filesystem;
-  const fs::path dir =
-      fs::temp_directory_path() / ("vsurg_sim_cache_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const test::TempDir dir("sim_cache");
   auto scene = LoadSceneByName("sphere-palpation-1024");
   ASSERT_TRUE(scene.ok());
   auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
@@ -218,7 +212,6 @@ TEST(SimulationTest, AReducedSphereSinksUnderTheToolAndCachesItsTable) {
   // A second session of the scene reads the file (or shares the table in memory).
   auto again = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
   ASSERT_TRUE(again.ok());
-  fs::remove_all(dir);
 }
 
 TEST(SimulationTest, SessionsOfReducedScenesAreBuiltSideBySide) {
@@ -226,8 +219,7 @@ TEST(SimulationTest, SessionsOfReducedScenesAreBuiltSideBySide) {
   // all three are built (one table computed per scene, the second session of the first scene
   // waiting for it), nothing deadlocks.
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_side_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const test::TempDir dir("side");
   auto sphere = LoadSceneByName("sphere-palpation-1024");
   auto kidney = LoadSceneByName("kidney-palpation");
   ASSERT_TRUE(sphere.ok() && kidney.ok());
@@ -242,7 +234,6 @@ TEST(SimulationTest, SessionsOfReducedScenesAreBuiltSideBySide) {
   EXPECT_EQ(built.load(), 3);
   EXPECT_TRUE(fs::exists(dir / "sphere-palpation-1024-contact.vrm"));
   EXPECT_TRUE(fs::exists(dir / "kidney-palpation-contact.vrm"));
-  fs::remove_all(dir);
 }
 
 TEST(SimulationTest, TheLocalModelPredictsTheNextUpdateOnAReducedSphere) {
@@ -251,7 +242,7 @@ TEST(SimulationTest, TheLocalModelPredictsTheNextUpdateOnAReducedSphere) {
   // the force the local model predicts there with the force the server then answers, for the
   // series stiffness the simulation now sends (after) and the proxy spring alone (before).
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_lm_cache_" + std::to_string(::getpid()));
+  const test::TempDir dir("lm_cache");
   auto scene = LoadSceneByName("sphere-palpation-1024");
   ASSERT_TRUE(scene.ok());
   auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
@@ -288,7 +279,6 @@ TEST(SimulationTest, TheLocalModelPredictsTheNextUpdateOnAReducedSphere) {
       err_before, err_after, (at1.force - at0.force).norm());
   EXPECT_LT(err_after, 0.25 * err_before);
   EXPECT_LT(err_after, 0.1 * (at1.force - at0.force).norm());
-  fs::remove_all(dir);
 }
 
 // A contact where the reduced table has no response of its own (next to the table the sphere
@@ -297,7 +287,7 @@ TEST(SimulationTest, TheLocalModelPredictsTheNextUpdateOnAReducedSphere) {
 // does not.
 TEST(SimulationTest, AContactOutsideTheReducedModelIsBoundedAndFlagged) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("vsurg_om_cache_" + std::to_string(::getpid()));
+  const test::TempDir dir("om_cache");
   auto scene = LoadSceneByName("sphere-palpation-1024");
   ASSERT_TRUE(scene.ok());
   auto sim = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
@@ -337,7 +327,6 @@ TEST(SimulationTest, AContactOutsideTheReducedModelIsBoundedAndFlagged) {
   press(Eigen::Vector3d(0.0005, 0.0003, 0.05), -Eigen::Vector3d::UnitZ(), contact, flagged, peak);
   EXPECT_GT(contact, 100);
   EXPECT_EQ(flagged, 0);
-  fs::remove_all(dir);
 }
 
 TEST(SimulationTest, BadSamplesGiveZeroForceAndAnEventThenTheGateRearms) {

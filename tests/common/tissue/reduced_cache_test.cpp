@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "common/geometry/tet_generators.h"
+#include "tests/support/temp_dir.h"
 
 namespace vsurg::tissue::reduced_cache_test {
 namespace {
@@ -18,10 +19,6 @@ using Vec3 = Eigen::Vector3d;
 class ReducedCacheTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("vsurg_reduced_cache_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
     auto c = geometry::MakeTetCylinder({0.1, 0.01, 0.01, 2, 8});
     ASSERT_TRUE(c.ok());
     twist_.mesh = c->mesh;
@@ -32,7 +29,6 @@ class ReducedCacheTest : public ::testing::Test {
     twist_.face_area = c->tip_area;
     twist_.display = c->mesh.positions;
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   std::string File() const { return (dir_ / "bar.vrm").string(); }
   std::string Contents() const {
@@ -44,7 +40,7 @@ class ReducedCacheTest : public ::testing::Test {
     out << s;
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"reduced_cache"};
   TwistFieldInputs twist_;
 };
 
