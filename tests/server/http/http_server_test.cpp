@@ -26,6 +26,7 @@
 #include "db/store.h"
 #include "server/session/session_manager.h"
 #include "tests/support/self_signed.h"
+#include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
 
 namespace vsurg::server {
@@ -128,17 +129,14 @@ class Raw {
   bool connected_ = false;
 };
 
-class HttpServerTest : public ::testing::Test {
+class HttpServerTest : public test::SiteTest {
  protected:
   void SetUp() override {
-    store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
-    admin_ = store_->InitAdmin("root").value();
-    ASSERT_TRUE(store_->CreateUser("tina", db::Role::kTrainee, "novice").ok());
-    ASSERT_TRUE(store_->CreateUser("eve", db::Role::kEvaluator, "chief").ok());
-    sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
+    ASSERT_NO_FATAL_FAILURE(OpenSite());
+    AddUsers({{"tina", db::Role::kTrainee, "novice"}, {"eve", db::Role::kEvaluator, "chief"}});
   }
   void Start(HttpServerOptions o = {}) {
-    o.backup_dir = (dir_ / "backups").string();
+    o.backup_dir = backups();
     auto s = HttpServer::Start(*store_, *sessions_, o);
     ASSERT_TRUE(s.ok()) << s.error().message;
     server_ = std::move(s).value();
@@ -147,16 +145,11 @@ class HttpServerTest : public ::testing::Test {
   void TearDown() override {
     if (server_) server_->Shutdown();
     server_.reset();
-    sessions_.reset();
-    store_.reset();
+    SiteTest::TearDown();
   }
   std::map<std::string, std::string> Bearer() { return {{"Authorization", "Bearer " + admin_}}; }
 
-  test::TempDir dir_{"http_server"};  // first: it outlives the store in it
-  std::unique_ptr<db::Store> store_;
-  std::unique_ptr<SessionManager> sessions_;
   std::unique_ptr<HttpServer> server_;
-  std::string admin_;
   int port_ = 0;
 };
 

@@ -27,6 +27,7 @@
 #include "server/session/session_manager.h"
 #include "tests/support/press_and_hold.h"
 #include "tests/support/self_signed.h"
+#include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -36,34 +37,31 @@ namespace {
 namespace fs = std::filesystem;
 using grpc::StatusCode;
 
-class ControlPlaneTest : public ::testing::Test {
+class ControlPlaneTest : public test::SiteTest {
  protected:
   void SetUp() override {
-    store_ = std::move(db::Store::Open({.path = (dir_ / "vsurg.db").string()})).value();
     endpoint_ = std::move(UdpEndpoint::Create({})).value();
-    sessions_ = SessionManager::Open(*store_, endpoint_.get(), SessionManagerOptions{}).value();
+    ASSERT_NO_FATAL_FAILURE(OpenSite(endpoint_.get()));
     ControlPlaneOptions co;
-    co.backup_dir = (dir_ / "backups").string();
+    co.backup_dir = backups();
     auto cp = ControlPlane::Start(*store_, *sessions_, co);
     ASSERT_TRUE(cp.ok()) << cp.error().message;
     control_ = std::move(cp).value();
     channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(control_->port()),
                                    grpc::InsecureChannelCredentials());
-    tokens_[db::Role::kAdmin] = store_->InitAdmin("root").value();
-    ASSERT_TRUE(store_->CreateUser("tina", db::Role::kTrainee, "virtual-40").ok());
-    ASSERT_TRUE(store_->CreateUser("tom", db::Role::kTrainee, "real-40").ok());
-    ASSERT_TRUE(store_->CreateUser("ida", db::Role::kInstructor, "").ok());
-    ASSERT_TRUE(store_->CreateUser("eve", db::Role::kEvaluator, "chief").ok());
-    tokens_[db::Role::kTrainee] = store_->IssueToken("tina", "").value();
-    tokens_[db::Role::kInstructor] = store_->IssueToken("ida", "").value();
-    tokens_[db::Role::kEvaluator] = store_->IssueToken("eve", "").value();
-    tom_ = store_->IssueToken("tom", "").value();
+    AddUsers({{"tina", db::Role::kTrainee, "virtual-40"},
+              {"tom", db::Role::kTrainee, "real-40"},
+              {"ida", db::Role::kInstructor, ""},
+              {"eve", db::Role::kEvaluator, "chief"}});
+    role_tokens_ = {{db::Role::kAdmin, admin_},
+                    {db::Role::kTrainee, tokens_["tina"]},
+                    {db::Role::kInstructor, tokens_["ida"]},
+                    {db::Role::kEvaluator, tokens_["eve"]}};
+    tom_ = tokens_["tom"];
   }
   void TearDown() override {
     control_.reset();
-    sessions_.reset();
-    endpoint_.reset();
-    store_.reset();
+    SiteTest::TearDown();  // the sessions before the endpoint they send through
   }
 
   // Every client call carries a deadline.
@@ -74,7 +72,7 @@ class ControlPlaneTest : public ::testing::Test {
                       std::chrono::milliseconds(static_cast<int>(seconds * 1000)));
     return ctx;
   }
-  std::unique_ptr<grpc::ClientContext> Ctx(db::Role role) { return Ctx(tokens_[role]); }
+  std::unique_ptr<grpc::ClientContext> Ctx(db::Role role) { return Ctx(role_tokens_[role]); }
 
   v1::SubmitEvaluationRequest Submission(const std::string& key, const std::string& subject) {
     v1::SubmitEvaluationRequest r;
@@ -98,13 +96,10 @@ class ControlPlaneTest : public ::testing::Test {
     return s.ok() ? nlohmann::json::parse(rep.report_json()) : nlohmann::json();
   }
 
-  test::TempDir dir_{"control"};  // first: it outlives the store in it
-  std::unique_ptr<db::Store> store_;
   std::unique_ptr<UdpEndpoint> endpoint_;
-  std::unique_ptr<SessionManager> sessions_;
   std::unique_ptr<ControlPlane> control_;
   std::shared_ptr<grpc::Channel> channel_;
-  std::map<db::Role, std::string> tokens_;
+  std::map<db::Role, std::string> role_tokens_;
   std::string tom_;
 };
 
@@ -364,7 +359,7 @@ TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   auto monitor = v1::MonitorService::NewStub(channel_);
   v1::WatchRequest watch;
   watch.set_session_id(id);
-  auto watch_ctx = Ctx(tokens_[db::Role::kInstructor], 30);
+  auto watch_ctx = Ctx(role_tokens_[db::Role::kInstructor], 30);
   auto reader = monitor->Watch(watch_ctx.get(), watch);
 
   client::ReplayDevice device(PressAndHold(1.5));
@@ -790,7 +785,7 @@ TEST_F(ControlPlaneTest, RevokingOrDisablingAUserEndsTheirLiveSessions) {
     bool disable;
   };
   for (const Case& c :
-       {Case{"tina", tokens_[db::Role::kTrainee], false}, Case{"tom", tom_, true}}) {
+       {Case{"tina", role_tokens_[db::Role::kTrainee], false}, Case{"tom", tom_, true}}) {
     SCOPED_TRACE(c.user);
     v1::CreateSessionResponse created;
     ASSERT_TRUE(

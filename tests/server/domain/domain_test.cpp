@@ -13,6 +13,7 @@
 #include "common/sim/scene.h"
 #include "server/domain/scene_catalog.h"
 #include "server/session/session_manager.h"
+#include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
 
 namespace vsurg::server {
@@ -20,24 +21,19 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class DomainTest : public ::testing::Test {
+class DomainTest : public test::SiteTest {
  protected:
   void SetUp() override {
-    store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
-    sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
-    domain_ = std::make_unique<Domain>(
-        Domain{*store_, *sessions_, catalog_, (dir_ / "backups").string()});
-    ASSERT_TRUE(store_->InitAdmin("root").ok());
-    for (auto [name, role, group] : {std::tuple{"tina", db::Role::kTrainee, "novice"},
-                                     {"ian", db::Role::kInstructor, ""},
-                                     {"eve", db::Role::kEvaluator, "chief"},
-                                     {"ed", db::Role::kEvaluator, "intern"}})
-      ASSERT_TRUE(store_->CreateUser(name, role, group).ok());
+    ASSERT_NO_FATAL_FAILURE(OpenSite());
+    domain_ = std::make_unique<Domain>(Domain{*store_, *sessions_, catalog_, backups()});
+    AddUsers({{"tina", db::Role::kTrainee, "novice"},
+              {"ian", db::Role::kInstructor, ""},
+              {"eve", db::Role::kEvaluator, "chief"},
+              {"ed", db::Role::kEvaluator, "intern"}});
   }
   void TearDown() override {
     domain_.reset();
-    sessions_.reset();
-    store_.reset();
+    SiteTest::TearDown();
   }
   db::Principal As(const std::string& name) {
     const std::vector<db::UserRecord> users = store_->ListUsers().value();
@@ -56,9 +52,6 @@ class DomainTest : public ::testing::Test {
     return r;
   }
 
-  test::TempDir dir_{"domain"};  // first: it outlives the store in it
-  std::unique_ptr<db::Store> store_;
-  std::unique_ptr<SessionManager> sessions_;
   SceneCatalog catalog_;
   std::unique_ptr<Domain> domain_;
 };

@@ -15,6 +15,7 @@
 
 #include "server/domain/scene_catalog.h"
 #include "server/session/session_manager.h"
+#include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
 
 namespace vsurg::server::http {
@@ -29,21 +30,15 @@ std::string Header(const HttpReply& r, const std::string& name) {
   return "";
 }
 
-class HttpApiTest : public ::testing::Test {
+class HttpApiTest : public test::SiteTest {
  protected:
   void SetUp() override {
-    store_ = db::Store::Open({.path = (dir_ / "vsurg.db").string()}).value();
-    sessions_ = SessionManager::Open(*store_, nullptr, SessionManagerOptions{}).value();
-    domain_ = std::make_unique<Domain>(
-        Domain{*store_, *sessions_, catalog_, (dir_ / "backups").string()});
-    admin_ = store_->InitAdmin("root").value();
-    for (auto [name, role, group] : {std::tuple{"tina", db::Role::kTrainee, "novice"},
-                                     {"ian", db::Role::kInstructor, ""},
-                                     {"eve", db::Role::kEvaluator, "chief"},
-                                     {"<script>alert(1)</script>", db::Role::kTrainee, "novice"}}) {
-      ASSERT_TRUE(store_->CreateUser(name, role, group).ok());
-      tokens_[name] = store_->IssueToken(name, "test").value();
-    }
+    ASSERT_NO_FATAL_FAILURE(OpenSite());
+    domain_ = std::make_unique<Domain>(Domain{*store_, *sessions_, catalog_, backups()});
+    AddUsers({{"tina", db::Role::kTrainee, "novice"},
+              {"ian", db::Role::kInstructor, ""},
+              {"eve", db::Role::kEvaluator, "chief"},
+              {"<script>alert(1)</script>", db::Role::kTrainee, "novice"}});
     HttpApiOptions o;
     o.clock = &clock_;
     o.session_ttl_s = 3600;
@@ -52,8 +47,7 @@ class HttpApiTest : public ::testing::Test {
   void TearDown() override {
     api_.reset();
     domain_.reset();
-    sessions_.reset();
-    store_.reset();
+    SiteTest::TearDown();
   }
 
   HttpReply Call(const std::string& method, const std::string& target, const std::string& body = "",
@@ -86,15 +80,10 @@ class HttpApiTest : public ::testing::Test {
     return done.get_future().get();
   }
 
-  test::TempDir dir_{"http_api"};  // first: it outlives the store in it
   ManualClock clock_{100};
-  std::unique_ptr<db::Store> store_;
-  std::unique_ptr<SessionManager> sessions_;
   SceneCatalog catalog_;
   std::unique_ptr<Domain> domain_;
   std::unique_ptr<HttpApi> api_;
-  std::string admin_;
-  std::map<std::string, std::string> tokens_;
 };
 
 TEST_F(HttpApiTest, SignInGivesAStrictHttpOnlyCookieThatExpiresAndSignOutForgetsIt) {
