@@ -18,6 +18,7 @@
 #include "server/net/udp_endpoint.h"
 #include "tests/net/udp_relay.h"
 #include "tests/support/press_and_hold.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::client {
 namespace {
@@ -49,10 +50,7 @@ StationOptions Options(uint16_t port) {
 }
 
 void WaitFor(const ReplayDevice& device) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-  while (!device.finished() && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
+  test::Eventually(20, [&] { return device.finished(); });
 }
 
 TEST(StationChannelTest, RoundTripsOnLoopbackAndRendersTheTissueForce) {

@@ -18,6 +18,7 @@
 #include "tests/support/press_and_hold.h"
 #include "tests/support/processes.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::client {
 namespace {
@@ -65,20 +66,11 @@ Remote RemoteTo(int port, const std::string& token) {
 }
 
 // Asks `done` every 10 ms until it is true or `seconds` pass; true when done.
-template <typename F>
-bool PollUntil(double seconds, F done) {
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  while (std::chrono::steady_clock::now() < until) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return false;
-}
 
 // Ticks the station every 10 ms until `done` or `seconds` pass; true when done.
 template <typename F>
 bool TickUntil(Station& station, double seconds, F done) {
-  return PollUntil(seconds, [&] {
+  return test::Eventually(seconds, [&] {
     station.Tick();
     return done();
   });
@@ -192,7 +184,7 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
     seen.emplace_back(st.state, st.session);
   });
   // From here the test thread only polls: it never ticks.
-  ASSERT_TRUE(PollUntil(20, [&] {
+  ASSERT_TRUE(test::Eventually(20, [&] {
     return OnChannel(station, [](StationChannel& c) { return c.stats().received > 200; });
   })) << station.status().last_error;
   const uint64_t first = station.status().session;
@@ -202,7 +194,7 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
   ASSERT_EQ(server.grpc_port, grpc_port);
   // Within 5 s, while the owner is busy (as a stalled render thread would be): live again and
   // forces arriving on the new channel (live comes first: the first reply follows a tick later).
-  const bool back = PollUntil(5, [&] {
+  const bool back = test::Eventually(5, [&] {
     const StationStatus st = station.status();
     return st.state == StationState::kLive && st.reconnects == 1 &&
            OnChannel(station, [](StationChannel& c) { return c.stats().received > 0; });
@@ -293,11 +285,11 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
 
   // The monitor saw the session end and printed live telemetry with the twist.
   std::string log;
-  for (int i = 0; i < 100 && log.find(" ended:") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  test::Eventually(10, [&] {
     std::ifstream in(monitor_log);
     log.assign(std::istreambuf_iterator<char>(in), {});
-  }
+    return log.find(" ended:") != std::string::npos;
+  });
   EXPECT_NE(log.find("state=running"), std::string::npos) << log;
   EXPECT_NE(log.find("twist_deg=45.0"), std::string::npos) << log;
   EXPECT_NE(log.find(" ended:"), std::string::npos) << log;

@@ -26,6 +26,7 @@
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
 #include "tests/support/postgres.h"
+#include "tests/support/wait.h"
 #include "vsurg/v1/cluster.grpc.pb.h"
 
 namespace vsurg::server::cluster {
@@ -90,14 +91,13 @@ class ClusterTest : public ::testing::Test {
   }
   // Waits until the registry shows `count` nodes up.
   void WaitForNodes(size_t count) {
-    for (int i = 0; i < 100; ++i) {
-      auto nodes = control_store_->ListNodes();
+    ASSERT_TRUE(test::Eventually(10, [&] {
+      const auto nodes = control_store_->ListNodes();
       size_t up = 0;
-      for (const auto& n : nodes.value()) up += !n.down;
-      if (up == count) return;
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    FAIL() << "the nodes did not register";
+      if (nodes.ok())
+        for (const auto& n : *nodes) up += !n.down;
+      return up == count;
+    })) << "the nodes did not register";
   }
   Node& NodeNamed(const std::string& name) { return *nodes_[name == "sim-a" ? 0 : 1]; }
   std::map<std::string, int> PerNode() {
@@ -189,9 +189,7 @@ TEST_F(ClusterTest, ADrainingNodeTakesNoNewSessionsAndItsLiveOnesFinish) {
       if (n.name == drained) return n.draining;
     return false;
   };
-  for (int i = 0; i < 50 && !draining(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  ASSERT_TRUE(draining());
+  ASSERT_TRUE(test::Eventually(10, draining));
   for (int i = 1; i <= 3; ++i) {  // the other node has 0, 1, 2: the draining one would be next
     auto c = control_->Create("trainee-" + std::to_string(i), "arm-torsion");
     ASSERT_TRUE(c.ok()) << c.error().message;
@@ -213,10 +211,7 @@ TEST_F(ClusterTest, ANodeWhosePortRefusesIsMarkedDownAndItsSessionsAborted) {
   ASSERT_TRUE(s.ok());
   const std::string gone = s->record.node, other = gone == "sim-a" ? "sim-b" : "sim-a";
   NodeNamed(gone).agent->Shutdown();  // its heartbeats stop and its port closes
-  const auto t0 = std::chrono::steady_clock::now();
-  while (control_->IsLive(s->record.id) &&
-         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5))
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_TRUE(test::Eventually(10, [&] { return !control_->IsLive(s->record.id); }));
   auto row = control_->Get(s->record.id);
   ASSERT_TRUE(row.ok());
   EXPECT_EQ(row->state, SessionState::kAborted);
@@ -263,8 +258,7 @@ TEST_F(ClusterTest, ASilentNodeWhosePortStillAcceptsIsDownOnlyAfterTheTimeout) {
   EXPECT_EQ(reply.lease_s(), options_.heartbeat_timeout_s);
   WaitForNodes(1);
   const auto down = [&] { return control_store_->ListNodes().value().at(0).down; };
-  while (!down() && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5))
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  test::Eventually(5, down, std::chrono::milliseconds(20));
   const double waited =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_TRUE(down());
@@ -340,10 +334,7 @@ TEST_F(ClusterTest, ANodeTheSiteGaveUpOnDropsItsSessionsUnwrittenAndServesAgainU
   const int64_t now = db::NowUs();
   ASSERT_EQ(control_store_->MarkNodeDown("sim-a", now + 60'000'000, now, "declared down").value(),
             1);
-  const auto t0 = std::chrono::steady_clock::now();
-  while ((a.sessions->LiveCount() > 0 || a.lease.epoch() != 2) &&
-         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10))
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  test::Eventually(10, [&] { return a.sessions->LiveCount() == 0 && a.lease.epoch() == 2; });
   EXPECT_EQ(a.sessions->LiveCount(), 0) << "the node kept the session the site aborted";
   EXPECT_EQ(a.lease.epoch(), 2) << "the node did not take its name again";
   auto row = control_store_->GetSession(s->record.id);
@@ -368,8 +359,7 @@ TEST_F(ClusterTest, ANodeTheSiteGaveUpOnDropsItsSessionsUnwrittenAndServesAgainU
     sock.send_to(boost::asio::buffer(buf.data(), n),
                  {boost::asio::ip::make_address("127.0.0.1"), a.endpoint->port()});
   }
-  for (int i = 0; i < 200 && a.endpoint->counters().received == before.received; ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  test::Eventually(10, [&] { return a.endpoint->counters().received != before.received; });
   const auto after = a.endpoint->counters();
   EXPECT_EQ(after.received, before.received + 1);
   EXPECT_EQ(after.answered, before.answered);

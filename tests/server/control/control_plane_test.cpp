@@ -29,6 +29,7 @@
 #include "tests/support/self_signed.h"
 #include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::server {
@@ -727,7 +728,11 @@ TEST_F(ControlPlaneTest, SessionsNobodyDrivesCostNoThreadAndNeverStartedOnesExpi
   EXPECT_EQ(most, idle + 2 + 1);
 
   // The eight never started expire (start_timeout_s = 1 s), recorded as aborted with why.
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  EXPECT_TRUE(test::Eventually(20, [&] {
+    for (uint64_t id : ids)
+      if (manager.IsLive(id)) return false;
+    return true;
+  }));
   for (uint64_t id : ids) {
     EXPECT_FALSE(manager.IsLive(id));
     auto rec = store_->GetSession(static_cast<int64_t>(id));
@@ -802,7 +807,7 @@ TEST_F(ControlPlaneTest, RevokingOrDisablingAUserEndsTheirLiveSessions) {
     auto station = client::StationChannel::Create(so, &device);
     ASSERT_TRUE(station.ok());
     const auto answered = [&] { return (*station)->stats().received; };
-    while (answered() < 200) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    ASSERT_TRUE(test::Eventually(20, [&] { return answered() >= 200; }));
     v1::Empty e;
     if (c.disable) {
       v1::SetDisabledRequest d;

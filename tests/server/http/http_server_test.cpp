@@ -28,6 +28,7 @@
 #include "tests/support/self_signed.h"
 #include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::server {
 namespace {
@@ -198,10 +199,8 @@ TEST_F(HttpServerTest, SignsInServesPagesAndStreamsTheLiveSessions) {
   EXPECT_NE(got.find("\"state\":\"created\""), std::string::npos);
   EXPECT_EQ(server_->counters().open_streams, 1);
   socket.close();
-  const auto gone = Clock::now() + std::chrono::seconds(5);
-  while (server_->counters().open_streams != 0 && Clock::now() < gone)
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  EXPECT_EQ(server_->counters().open_streams, 0) << "a client that hangs up ends its stream";
+  EXPECT_TRUE(test::Eventually(5, [&] { return server_->counters().open_streams == 0; }))
+      << "a client that hangs up ends its stream";
 }
 
 // A session page's stream carries the deformed surface (~125 KB for a twisted arm) only when it
@@ -308,18 +307,14 @@ TEST_F(HttpServerTest, ConnectionsAreLimitedPerAddressAndFreedWhenClosed) {
   Start(o);
   std::vector<std::unique_ptr<Raw>> idle;
   for (int i = 0; i < 4; ++i) idle.push_back(std::make_unique<Raw>(port_));
-  const auto until = Clock::now() + std::chrono::seconds(5);
-  while (server_->counters().open_connections < 4 && Clock::now() < until)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(test::Eventually(5, [&] { return server_->counters().open_connections >= 4; }));
   Raw fifth(port_);
   std::string answer;
   EXPECT_TRUE(fifth.ReadUntilClosed(5, answer));
   EXPECT_EQ(answer.rfind("HTTP/1.1 503", 0), 0u) << answer;
   EXPECT_GE(server_->counters().refused_connections, 1u);
   idle.pop_back();  // one hangs up: there is room again
-  const auto freed = Clock::now() + std::chrono::seconds(5);
-  while (server_->counters().open_connections > 3 && Clock::now() < freed)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(test::Eventually(5, [&] { return server_->counters().open_connections <= 3; }));
   EXPECT_EQ(Request(port_, "GET", "/signin").status, 200);
 }
 
@@ -525,9 +520,7 @@ TEST_F(HttpServerTest, AStalledExportHoldsOnlyItsOwnersSlotAndOnlyBriefly) {
   const size_t threads_before = threads();
   Raw stalled(port_, nullptr, 4096);
   ASSERT_TRUE(stalled.Send(ask));  // and never reads
-  const auto t0 = Clock::now();
-  while (server_->counters().open_streams < 1 && Clock::now() - t0 < std::chrono::seconds(10))
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(test::Eventually(10, [&] { return server_->counters().open_streams >= 1; }));
   ASSERT_EQ(server_->counters().open_streams, 1);
   EXPECT_EQ(threads(), threads_before) << "an export started a thread of its own";
   // The same user again: refused at once (their one slot is taken).
@@ -538,10 +531,8 @@ TEST_F(HttpServerTest, AStalledExportHoldsOnlyItsOwnersSlotAndOnlyBriefly) {
   EXPECT_EQ(theirs.status, 200);
   EXPECT_GT(theirs.body.size(), 10'000'000u);
   // The stalled one is dropped after export_stall_s, and the slot is its user's again.
-  const auto t1 = Clock::now();
-  while (server_->counters().open_streams > 0 && Clock::now() - t1 < std::chrono::seconds(20))
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  EXPECT_EQ(server_->counters().open_streams, 0) << "a reader that stopped kept its slot";
+  EXPECT_TRUE(test::Eventually(20, [&] { return server_->counters().open_streams == 0; }))
+      << "a reader that stopped kept its slot";
   EXPECT_EQ(Request(port_, "GET", "/api/v1/export?format=jsonl&session=1", Bearer()).status, 200);
 }
 
@@ -563,18 +554,14 @@ TEST_F(HttpServerTest, SigningOutEndsThatWebSessionsEventStreams) {
                         "\r\n\r\n"));
   ASSERT_TRUE(theirs.Send("GET /api/v1/live/events HTTP/1.1\r\nHost: 127.0.0.1\r\nCookie: " +
                           other_cookie + "\r\n\r\n"));
-  const auto t0 = Clock::now();
-  while (server_->counters().open_streams < 2 && Clock::now() - t0 < std::chrono::seconds(10))
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(test::Eventually(10, [&] { return server_->counters().open_streams >= 2; }));
   ASSERT_EQ(server_->counters().open_streams, 2);
   EXPECT_EQ(Request(port_, "POST", "/api/v1/signout", {{"Cookie", cookie}, {"X-CSRF-Token", csrf}})
                 .status,
             204);
   std::string got;
   EXPECT_TRUE(mine.ReadUntilClosed(3, got)) << "the signed-out stream went on";
-  const auto t1 = Clock::now();
-  while (server_->counters().open_streams > 1 && Clock::now() - t1 < std::chrono::seconds(5))
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(test::Eventually(5, [&] { return server_->counters().open_streams <= 1; }));
   EXPECT_EQ(server_->counters().open_streams, 1) << "the other web session's stream ended too";
 }
 

@@ -17,6 +17,7 @@
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::server {
 namespace {
@@ -50,13 +51,8 @@ class SessionManagerTest : public ::testing::Test {
 
   // The state the manager reports, once it is `want` (the sampler applies events on its tick).
   SessionState WaitFor(uint64_t id, SessionState want) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    SessionState now = sessions_->Get(id)->state;
-    while (now != want && std::chrono::steady_clock::now() < deadline) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      now = sessions_->Get(id)->state;
-    }
-    return now;
+    test::Eventually(10, [&] { return sessions_->Get(id)->state == want; });
+    return sessions_->Get(id)->state;
   }
   // One stylus datagram from the station, answered; stamped `time` on the station's clock (by
   // default seq ms, a 1 kHz station).
@@ -173,15 +169,10 @@ TEST_F(SessionManagerTest, TheHapticRateIsTheStationsLoopRateNotTheArrivalRate) 
   // The sampler runs on real time (its own thread, no clock to step): wait for what it shows,
   // polled under the lock, with a 10 s bound. Returns whether `shown` came true.
   auto wait_until = [&](auto shown) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-    while (std::chrono::steady_clock::now() < deadline) {
-      {
-        std::lock_guard lock(m);
-        if (shown()) return true;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    return false;
+    return test::Eventually(10, [&] {
+      std::lock_guard lock(m);
+      return shown();
+    });
   };
   // The rate the sampler shows once it has seen the last of `n` samples (the simulation publishes
   // its telemetry every 8th). The rate is measured over windows of at least 1 s of the station's
