@@ -17,6 +17,7 @@ import base64
 import hashlib
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -259,6 +260,16 @@ def main():
         driver.get(base + "/admin")
         check("Forbidden" in driver.find_element(By.TAG_NAME, "body").text,
               "a trainee is refused the admin page")
+        driver.get(base + "/mine")
+        wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#main table"))
+        check(str(session) in driver.find_element(By.ID, "main").text,
+              "a trainee's own page lists her session")
+        # Every page so far ran its modules: no script error in the console (a missed import after
+        # a module split shows here as a ReferenceError, a bad path as a failed module load).
+        script_errors = [e["message"] for e in driver.get_log("browser")
+                         if re.search(r"Error|module script", e["message"])
+                         and "Failed to load resource" not in e["message"]]
+        check(not script_errors, f"no script errors in the pages' console {script_errors[:3]}")
 
         # --- the administrator: the <script> trainee as text, CSRF, the CSV export ---
         sign_in(admin)

@@ -1,0 +1,8 @@
+// The pages and who sees each in the menu.
+export const PAGES = [
+  { page: 'live', title: 'Live stations', roles: ['instructor', 'admin'] },
+  { page: 'evaluate', title: 'Evaluate', roles: ['evaluator', 'admin'] },
+  { page: 'reports', title: 'Reports', roles: ['instructor', 'evaluator', 'admin'] },
+  { page: 'admin', title: 'Administration', roles: ['admin'] },
+  { page: 'mine', title: 'My sessions', roles: ['trainee', 'admin'] },
+];
