@@ -727,10 +727,13 @@ TEST_F(ControlPlaneTest, SessionsNobodyDrivesCostNoThreadAndNeverStartedOnesExpi
   // The station's own two threads, and exactly one deformation thread.
   EXPECT_EQ(most, idle + 2 + 1);
 
-  // The eight never started expire (start_timeout_s = 1 s), recorded as aborted with why.
+  // The eight never started expire (start_timeout_s = 1 s), recorded as aborted with why (the
+  // store's row is written after the session leaves the live set).
   EXPECT_TRUE(test::Eventually(20, [&] {
-    for (uint64_t id : ids)
-      if (manager.IsLive(id)) return false;
+    for (uint64_t id : ids) {
+      const auto rec = store_->GetSession(static_cast<int64_t>(id));
+      if (manager.IsLive(id) || !rec.ok() || rec->state != SessionState::kAborted) return false;
+    }
     return true;
   }));
   for (uint64_t id : ids) {
