@@ -397,12 +397,12 @@ HttpReply HttpApi::Page(const HttpRequest& r, const std::string& path) {
                                             : seg.size() == 1;
   if (!shape_ok) return Html(404, "<!doctype html><title>Not found</title><p>No such page.</p>");
   if (!who) return Redirect("/signin?next=" + page);
-  if (!Permit(*who, m).ok())
-    return Html(403,
-                "<!doctype html><meta charset=utf-8><title>Forbidden</title>"
-                "<link rel=stylesheet href=/static/style.css><main><h1>Forbidden</h1><p>This page "
-                "is for the " +
-                    role + " role. <a href=/>Back</a></p></main>");
+  if (!Permit(*who, m).ok()) {
+    // The page shell as on every page (the header, the menu, sign-out); app.js says why.
+    HttpReply reply = Shell("forbidden");
+    reply.status = 403;
+    return reply;
+  }
   return Shell(page);
 }
 

@@ -258,8 +258,12 @@ def main():
         # --- a trainee is refused the admin page ---
         sign_in(tokens["tina"])
         driver.get(base + "/admin")
-        check("Forbidden" in driver.find_element(By.TAG_NAME, "body").text,
+        wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#main h1"))
+        check("Forbidden" in driver.find_element(By.CSS_SELECTOR, "#main h1").text,
               "a trainee is refused the admin page")
+        check(bool(driver.find_elements(By.ID, "signout")) and
+              "for the admin role;" in driver.find_element(By.ID, "main").text,
+              "the refusal keeps the header and sign-out and says whose page it is")
         driver.get(base + "/mine")
         wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#main table"))
         check(str(session) in driver.find_element(By.ID, "main").text,
@@ -308,8 +312,31 @@ def main():
         lines = got.count(b"\n")
         check(got == want and lines == 10,
               f"the downloaded CSV equals the store's export ({lines} lines)")
+        # A bad range is said beside the form; the page stays.
+        driver.execute_script(
+            "document.querySelector('#export-form input[name=from]').value = '2026-12-02';"
+            "document.querySelector('#export-form input[name=to]').value = '2026-12-01';")
+        driver.find_element(By.CSS_SELECTOR, "#export-form button").click()
+        wait.until(lambda d: "after" in d.find_element(By.ID, "export-note").text)
+        check(driver.current_url.endswith("/admin") and
+              driver.find_elements(By.CSS_SELECTOR, "#export-note [role=alert]"),
+              "a bad export range is an error in place, not a page of JSON")
+        # Revoking a user's tokens (which ends their live sessions) asks first; dismissed, nothing.
+        row = [r for r in driver.find_elements(By.CSS_SELECTOR, "#users tr")
+               if r.find_element(By.TAG_NAME, "td").text == "tina"][0]
+        row.find_element(By.CSS_SELECTOR, "button.danger").click()
+        prompt = wait.until(lambda d: d.switch_to.alert)
+        asked = "Revoke every token of tina" in prompt.text
+        prompt.dismiss()
+        check(asked and api(http, "GET", "/me", tokens["tina"])["user"] == "tina",
+              "revoking tokens asks first, and a dismissed question revokes nothing")
         print(f"first paint of the live page after sign-in: {first_paint_s * 1000:.0f} ms", flush=True)
     finally:
+        if sys.exc_info()[0] is not None:  # failing: what the page itself said
+            print("page at", driver.current_url, flush=True)
+            driver.save_screenshot(os.path.join(SHOTS, "dashboard-failure.png"))
+            for entry in driver.get_log("browser"):
+                print("console:", entry["message"], flush=True)
         driver.quit()
 
 

@@ -21,6 +21,12 @@ async function start() {
   $('#who').replaceChildren(`${auth.me.user} (${auth.me.role}) `, el('button', { id: 'signout', onclick: async () => {
     try { await api('POST', '/signout'); } finally { location.href = '/signin'; }
   } }, 'Sign out'));
+  if (page === 'forbidden') {
+    const name = location.pathname.split('/')[1], entry = PAGES.find((p) => p.page === name);
+    return main.replaceChildren(el('h1', {}, 'Forbidden'), el('div', { class: 'msg error', role: 'alert' },
+      entry ? `${entry.title} is for the ${entry.roles.join(' and ')} role${entry.roles.length > 1 ? 's' : ''}; you are signed in as ${auth.me.role}.`
+        : `You are signed in as ${auth.me.role}, which cannot open this page.`, ' ', el('a', { href: '/' }, 'Back to your start page')));
+  }
   const pages = { live: pageLive, session: pageSession, evaluate: pageEvaluate, reports: pageReports, admin: pageAdmin, mine: pageMine };
   try { await pages[page](main); } catch (err) { if (err.message !== 'signed out') message(main, err.message); }
 }

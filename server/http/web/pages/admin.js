@@ -1,6 +1,6 @@
 // Administration: users and tokens, weight sets, exports and backups.
 import { api } from '../api.js';
-import { el, message } from '../dom.js';
+import { confirmed, el, message, when } from '../dom.js';
 
 export async function pageAdmin(main) {
   const users = el('tbody', { id: 'users' });
@@ -8,7 +8,7 @@ export async function pageAdmin(main) {
   const refresh = async () => {
     const r = await api('GET', '/users');
     users.replaceChildren(...r.users.map((u) => el('tr', {}, el('td', {}, u.name), el('td', {}, u.role), el('td', {}, u.group),
-      el('td', {}, u.created), el('td', {}, u.disabled ? 'disabled' : 'active'),
+      el('td', {}, when(u.created)), el('td', {}, u.disabled ? 'disabled' : 'active'),
       el('td', {},
         el('button', { onclick: async () => {
           try {
@@ -18,10 +18,12 @@ export async function pageAdmin(main) {
           } catch (err) { message(note, err.message); }
         } }, 'Issue token'), ' ',
         el('button', { class: 'danger', onclick: async () => {
+          if (!confirmed(`Revoke every token of ${u.name}? Their live sessions end now, and they must be given a new token to sign in again.`)) return;
           try { await api('POST', `/users/${encodeURIComponent(u.name)}/revoke`, {}); message(note, `Tokens of ${u.name} revoked.`, true); }
           catch (err) { message(note, err.message); }
         } }, 'Revoke tokens'), ' ',
         el('button', { onclick: async () => {
+          if (!u.disabled && !confirmed(`Disable ${u.name}? Their live sessions end now and they cannot sign in until enabled again.`)) return;
           try { await api('POST', `/users/${encodeURIComponent(u.name)}/disabled`, { disabled: !u.disabled }); await refresh(); }
           catch (err) { message(note, err.message); }
         } }, u.disabled ? 'Enable' : 'Disable')))));
@@ -46,16 +48,39 @@ export async function pageAdmin(main) {
   } }, 'Store weight set');
   const exportForm = el('form', { class: 'inline', id: 'export-form' },
     el('label', {}, 'Format', el('select', { name: 'format' }, ['csv', 'jsonl', 'xapi'].map((f) => el('option', { value: f }, f)))),
-    el('label', {}, 'From (ISO, optional)', el('input', { name: 'from', placeholder: '2026-11-01T00:00:00Z' })),
-    el('label', {}, 'To (ISO, optional)', el('input', { name: 'to' })),
+    el('label', {}, 'From (optional)', el('input', { name: 'from', type: 'date' })),
+    el('label', {}, 'To, inclusive (optional)', el('input', { name: 'to', type: 'date' })),
     el('label', {}, 'Trainee (optional)', el('input', { name: 'trainee' })),
-    el('label', {}, 'Session (optional)', el('input', { name: 'session', inputmode: 'numeric' })),
+    el('label', {}, 'Session (optional)', el('input', { name: 'session', inputmode: 'numeric', pattern: '[0-9]+' })),
     el('button', { type: 'submit' }, 'Download'));
-  exportForm.addEventListener('submit', (e) => {
+  const exportNote = el('div', { id: 'export-note', role: 'status' });
+  exportForm.addEventListener('submit', async (e) => {
     e.preventDefault();
-    const q = new URLSearchParams();
-    for (const [k, v] of new FormData(exportForm)) if (v) q.append(k, v);
-    location.href = '/api/v1/export?' + q;  // streamed by the server, saved by the browser
+    if (!exportForm.reportValidity()) return;
+    const f = new FormData(exportForm), q = new URLSearchParams({ format: f.get('format') });
+    // Dates are this browser's local days: from its first microsecond to the end of the last.
+    const day = (v, next) => { const [y, m, d] = v.split('-').map(Number); return new Date(y, m - 1, d + (next ? 1 : 0)).getTime() * 1000; };
+    const from = f.get('from') ? day(f.get('from'), false) : null, to = f.get('to') ? day(f.get('to'), true) - 1 : null;
+    if (from !== null && to !== null && from > to) return message(exportNote, '"From" is after "To".');
+    if (from !== null) q.set('from', String(from));
+    if (to !== null) q.set('to', String(to));
+    for (const k of ['trainee', 'session']) if (f.get(k)) q.set(k, f.get(k));
+    // Fetched, not navigated to: a refusal (a busy server, a bad filter) is said here, never shown
+    // as a page of JSON. The file is then saved under the server's name for it.
+    message(exportNote, 'Exporting…', true);
+    try {
+      const res = await fetch('/api/v1/export?' + q, { credentials: 'same-origin' });
+      if (!res.ok) {
+        let why = res.statusText;
+        try { why = (await res.json()).error || why; } catch (err) { /* not JSON */ }
+        return message(exportNote, why);
+      }
+      const name = (/filename="([^"]+)"/.exec(res.headers.get('Content-Disposition') || '') || [])[1] || 'vsurg-export';
+      const link = el('a', { href: URL.createObjectURL(await res.blob()), download: name });
+      document.body.append(link); link.click(); link.remove();
+      setTimeout(() => URL.revokeObjectURL(link.href), 60000);
+      message(exportNote, `Saved ${name}.`, true);
+    } catch (err) { message(exportNote, err.message); }
   });
   const backupNote = el('div');
   const backupForm = el('form', { class: 'inline', id: 'backup-form' },
@@ -70,7 +95,7 @@ export async function pageAdmin(main) {
     el('h2', {}, 'Users'), el('div', { class: 'panel' }, create, note,
       el('table', {}, el('thead', {}, el('tr', {}, ['Name', 'Role', 'Group', 'Created', 'Status', ''].map((h) => el('th', {}, h)))), users)),
     el('h2', {}, 'Weight sets'), el('div', { class: 'panel' }, el('p', { class: 'muted' }, 'Stored: ' + (ws.names.join(', ') || 'none')), wsText, wsButton, wsNote),
-    el('h2', {}, 'Export evaluations'), el('div', { class: 'panel' }, exportForm),
+    el('h2', {}, 'Export evaluations'), el('div', { class: 'panel' }, exportForm, exportNote),
     el('h2', {}, 'Backup'), el('div', { class: 'panel' }, backupForm, backupNote));
   await refresh();
 }

@@ -1,6 +1,6 @@
 // An evaluator's queue, the scoring form and their submissions.
 import { api } from '../api.js';
-import { el, fmt, message } from '../dom.js';
+import { el, fmt, message, when } from '../dom.js';
 
 export async function pageEvaluate(main) {
   const [queue, weights] = await Promise.all([api('GET', '/evaluations/mine'), api('GET', '/weight-sets')]);
@@ -30,13 +30,13 @@ export async function pageEvaluate(main) {
   const sessions = el('table', { id: 'pending-sessions' },
     el('thead', {}, el('tr', {}, ['Session', 'Trainee', 'Scene', 'Ended', ''].map((h) => el('th', {}, h)))),
     el('tbody', {}, queue.sessions.map((s) => el('tr', {}, el('td', {}, s.id), el('td', {}, s.trainee),
-      el('td', {}, s.scene), el('td', {}, s.ended),
+      el('td', {}, s.scene), el('td', {}, when(s.ended)),
       el('td', {}, el('button', { onclick: () => openForm('session', String(s.id)) }, 'Score'))))));
   const models = el('table', { id: 'pending-models' }, el('tbody', {}, queue.models.map((m) => el('tr', {},
     el('td', {}, m), el('td', {}, el('button', { onclick: () => openForm('model', m) }, 'Score'))))));
   const past = el('table', { id: 'past' },
     el('thead', {}, el('tr', {}, ['Submitted', 'Kind', 'Subject', ...names.map((_, j) => 'i' + (j + 1))].map((h) => el('th', {}, h)))),
-    el('tbody', {}, queue.submitted.map((s) => el('tr', {}, el('td', {}, s.submitted), el('td', {}, s.subject_kind),
+    el('tbody', {}, queue.submitted.map((s) => el('tr', {}, el('td', {}, when(s.submitted)), el('td', {}, s.subject_kind),
       el('td', {}, s.subject), s.scores.map((x) => el('td', { class: 'num' }, fmt(x, 1)))))));
   main.replaceChildren(el('h1', {}, 'Evaluate'),
     el('h2', {}, 'Sessions waiting for your scores'), el('div', { class: 'panel' }, queue.sessions.length ? sessions : el('p', { class: 'muted' }, 'None.')),

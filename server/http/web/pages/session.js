@@ -1,7 +1,7 @@
 // One session: its head, the tissue in 3D, live plots, and its trial metrics once it ended.
 import { api } from '../api.js';
 import { Plot } from '../charts.js';
-import { el, fmt, message, stateBadge } from '../dom.js';
+import { confirmed, el, fmt, message, stateBadge, when } from '../dom.js';
 import { loadScenes, scenesByName } from '../scenes.js';
 import { TissueView } from '../tissue_view.js';
 
@@ -34,12 +34,13 @@ export async function pageSession(main) {
   const head = el('div', { class: 'panel' });
   const renderHead = (x) => head.replaceChildren(
     el('dl', { class: 'kv' }, ['Trainee', x.trainee, 'Scene', x.scene, 'State', stateBadge(x.state),
-      'Started', x.started || '—', 'Ended', x.ended || '—', 'End reason', x.end_reason || '—']
+      'Started', when(x.started), 'Ended', when(x.ended), 'End reason', x.end_reason || '—']
       .map((v, i) => (i % 2 ? el('dd', {}, v) : el('dt', {}, v)))));
   renderHead(s);
   const stop = el('button', { class: 'danger', id: 'stop' }, 'Stop session');
   const note = el('div');
   stop.addEventListener('click', async () => {
+    if (!confirmed(`Stop session ${id} now? The trainee's trial ends where it is and is scored as it stands.`)) return;
     try { renderHead(await api('POST', `/sessions/${id}/stop`, { reason: 'stopped by the instructor' })); }
     catch (err) { message(note, err.message); }
   });
