@@ -100,7 +100,10 @@ TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
   EXPECT_LT(thin.figures.onset_delay_cycles, 15);
   EXPECT_LT(thin.figures.phantom_n, 0.05);
   EXPECT_LT(thin.figures.energy_excess_mj, 1.0);
-  EXPECT_NEAR(thin.figures.score, full.figures.score, 0.2);
+  // The server scores the deadband's trial from about a twentieth of the stylus samples, and that
+  // score moves more from run to run: 3.21–3.63 over five runs against 3.54–3.56 at full rate
+  // (2026-11-26, one of them beside CI's other tests). Alike within half a point, not 0.2.
+  EXPECT_NEAR(thin.figures.score, full.figures.score, 0.5);
 }
 
 TEST_F(WanTest, TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork) {
