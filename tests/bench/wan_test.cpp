@@ -13,6 +13,16 @@
 namespace vsurg::bench::wan {
 namespace {
 
+// An instrumented build (ASan, TSan) runs this real-time loop several times slower on a shared
+// core: its displayed stiffness and force error are not the product's (a CI run under ASan read
+// 87% at metro). There the bounds that hold whatever the timing are checked (bounded, passive, no
+// pull, contact at the surface); the timing-dependent figures only in the normal build.
+#ifdef VSURG_SANITIZED
+constexpr bool kFiguresMeaningful = false;
+#else
+constexpr bool kFiguresMeaningful = true;
+#endif
+
 struct Cell {
   Run run;
   Figures figures;
@@ -78,10 +88,11 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
     // Contact begins at the station, where the surface is, whatever the delay ...
     EXPECT_LT(f.onset_delay_cycles, 15) << profile;
     EXPECT_LT(std::abs(f.onset_extra_mm), 0.5) << profile;
-    EXPECT_GT(f.stiffness_pct, min_stiffness_pct) << profile;
-    EXPECT_LT(f.stiffness_pct, 110) << profile;
     // ... and ends there: no force once the tool has left the surface.
     EXPECT_LT(f.phantom_n, 0.05) << profile;
+    if (!kFiguresMeaningful) continue;
+    EXPECT_GT(f.stiffness_pct, min_stiffness_pct) << profile;
+    EXPECT_LT(f.stiffness_pct, 110) << profile;
     EXPECT_LT(f.rms_error_pct, max_error_pct) << profile;
     // The trial scores alike: the same hand, the same task (the goal's ±0.2 up to regional).
     EXPECT_NEAR(f.score, ref.run.score, 0.2) << profile;
@@ -96,10 +107,11 @@ TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
   const Cell thin = RunAt("continental", client::LocalRendering::kModel, &ref.run, 0.1);
   EXPECT_LT(thin.run.up_datagrams, full.run.up_datagrams / 10);  // ≥ 90% fewer each way
   EXPECT_LT(thin.run.down_datagrams, full.run.down_datagrams / 10);
-  EXPECT_LT(thin.figures.rms_error_pct, full.figures.rms_error_pct + 1.5);
   EXPECT_LT(thin.figures.onset_delay_cycles, 15);
   EXPECT_LT(thin.figures.phantom_n, 0.05);
   EXPECT_LT(thin.figures.energy_excess_mj, 1.0);
+  if (!kFiguresMeaningful) return;
+  EXPECT_LT(thin.figures.rms_error_pct, full.figures.rms_error_pct + 1.5);
   // The server scores the deadband's trial from about a twentieth of the stylus samples, and that
   // score moves more from run to run: 3.21–3.63 over five runs against 3.54–3.56 at full rate
   // (2026-11-26, one of them beside CI's other tests). Alike within half a point, not 0.2.
