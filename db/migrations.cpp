@@ -152,6 +152,16 @@ ALTER TABLE trial_metrics ADD COLUMN link_jitter_ms REAL NOT NULL DEFAULT 0;
 ALTER TABLE trial_metrics ADD COLUMN link_loss_ratio REAL NOT NULL DEFAULT 0;
 ALTER TABLE trial_metrics ADD COLUMN link_rate_hz REAL NOT NULL DEFAULT 0;
 )sql",
+      // 5: sessions as records (the dashboard's session page and replay): each ended session's
+      // traces and surface frames (server/session/trace_recorder.h), and an evaluator's comment.
+      R"sql(
+CREATE TABLE session_traces (
+  session_id  INTEGER PRIMARY KEY REFERENCES sessions(id),
+  trace_json  TEXT NOT NULL CHECK (json_valid(trace_json))
+);
+ALTER TABLE submissions ADD COLUMN comment TEXT NOT NULL DEFAULT '';
+CREATE INDEX sessions_by_scene_time ON sessions(scene, created_us);
+)sql",
   };
   return kMigrations;
 }

@@ -124,7 +124,9 @@ struct Submission {
   std::optional<double> moment_min;  // training moment (trainee subjects), minutes
   std::array<double, scoring::kIndexCount> scores{};
   std::string submitted_by;  // the user who sent it (the evaluator, or an admin importing)
+  std::string comment;       // the evaluator's words to the trainee (at most kMaxComment bytes)
 };
+constexpr size_t kMaxComment = 4000;
 
 struct SubmitResult {
   int64_t submission_id = 0;
@@ -154,6 +156,27 @@ struct SubmittedRow {  // one of an evaluator's own submissions
   std::optional<double> moment_min;
   int64_t submitted_us = 0;
   std::array<double, scoring::kIndexCount> scores{};
+  std::string comment;
+  std::string evaluator, evaluator_group;  // filled by ListSubmissionsOn
+};
+
+// Ended sessions as records: a page of the list with filters (each one optional).
+struct SessionQuery {
+  std::optional<std::string> trainee, scene;
+  std::optional<int64_t> from_us, to_us;  // created in [from, to)
+  std::optional<double> min_score, max_score;
+  bool ended_only = true;      // sessions that left the live states
+  int limit = 25, offset = 0;  // newest first
+};
+struct SessionRow {
+  SessionRecord record;
+  std::optional<double> score;  // the trial's, when recorded
+  bool completed = false;
+  bool has_trace = false;
+};
+struct SessionPage {
+  std::vector<SessionRow> rows;
+  int64_t total = 0;  // rows matching the filters, over every page
 };
 
 struct ExportFilter {
@@ -218,8 +241,10 @@ class Store {
                          const std::string& reason = "", int64_t epoch = 0);
   // A live session ends (`state` not live) with its trial metrics, in one transaction, under the
   // same fence as SetSessionState: a trial is recorded once, by the process that ran it.
+  // `trace_json` (server/session/trace_recorder.h; "" for none) is kept as the session's record.
   Status EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
-                    const scoring::TrialMetrics& m, int64_t epoch = 0);
+                    const scoring::TrialMetrics& m, int64_t epoch = 0,
+                    const std::string& trace_json = "");
   // At start-up: sessions a previous process of `node` left live (it was killed, or the machine
   // failed) cannot go on; they become aborted with `reason`. Returns how many.
   Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason,
@@ -266,6 +291,14 @@ class Store {
   Expected<SessionRecord> GetSession(int64_t id);
   Expected<std::vector<SessionRecord>> ListSessions(const std::optional<std::string>& trainee);
   Expected<std::optional<scoring::TrialMetrics>> GetTrialMetrics(int64_t session_id);
+  // An ended session's record (JSON text); kNotFound when it has none (never driven, or ended
+  // before records were kept).
+  Expected<std::string> GetSessionTrace(int64_t session_id);
+  Expected<SessionPage> FindSessions(const SessionQuery& q);
+  // Every submission on one subject (a session's ratings, for its page and its trainee), oldest
+  // first, with the evaluator's name and group.
+  Expected<std::vector<SubmittedRow>> ListSubmissionsOn(SubjectKind kind,
+                                                        const std::string& subject);
   Expected<std::string> GetWeightSet(const std::string& name);  // JSON; kNotFound
   Expected<std::vector<std::string>> ListWeightSets();
   Expected<std::vector<RatingRow>> LoadRatings(SubjectKind kind, const std::string& subject);

@@ -23,6 +23,8 @@ Status ValidateSubmission(const Submission& s) {
     return InvalidArgument("subject", "a subject of 1 to 256 characters is required");
   if (s.moment_min && (!std::isfinite(*s.moment_min) || *s.moment_min < 0))
     return InvalidArgument("moment_min", "must be finite and >= 0 minutes");
+  if (s.comment.size() > kMaxComment)
+    return InvalidArgument("comment", "at most " + std::to_string(kMaxComment) + " bytes");
   for (int j = 0; j < scoring::kIndexCount; ++j)
     if (!scoring::IsValidScore(s.scores[j]))
       return InvalidArgument("scores[" + std::to_string(j) + "]",
@@ -148,14 +150,14 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
   // PostgreSQL): RETURNING gives the new id on both backends.
   auto sub = c.Prepare(
       "INSERT INTO submissions(idempotency_key, evaluator_id, evaluator_group, "
-      "subject_kind, subject, moment_min, submitted_us, submitted_by) "
-      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8) RETURNING id");
+      "subject_kind, subject, moment_min, submitted_us, submitted_by, comment) "
+      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9) RETURNING id");
   if (!sub.ok()) return sub.error();
   Statement& q = **sub;
   q.Bind(1, s.idempotency_key).Bind(2, evaluator_id);
   q.Bind(3, s.evaluator_group).Bind(4, SubjectKindName(s.subject_kind));
   q.Bind(5, s.subject).Bind(6, s.moment_min).Bind(7, out.submitted_us);
-  q.Bind(8, **by);
+  q.Bind(8, **by).Bind(9, s.comment);
   auto row = q.Step();
   if (row.ok() && *row) out.submission_id = q.Int(0);
   q.Reset();
@@ -203,6 +205,19 @@ Status CollectScores(Statement& q, int index_col, First&& first) {
   }
   q.Reset();
   return Status::Ok();
+}
+
+// The submission columns 0..6 of ListSubmissionsBy/On (id, kind, subject, moment, time,
+// comment, group) into `row`.
+SubmittedRow& ReadSubmitted(Statement& q, SubmittedRow& row) {
+  row.id = q.Int(0);
+  row.subject_kind = ParseSubjectKind(q.Text(1)).value_or(SubjectKind::kSession);
+  row.subject = q.String(2);
+  if (!q.IsNull(3)) row.moment_min = q.Double(3);
+  row.submitted_us = q.Int(4);
+  row.comment = q.String(5);
+  row.evaluator_group = q.String(6);
+  return row;
 }
 
 }  // namespace
@@ -257,20 +272,39 @@ Expected<std::vector<SubmittedRow>> Store::ListSubmissionsBy(const std::string& 
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
   auto st = (**r).Prepare(
-      "SELECT s.id, s.subject_kind, s.subject, s.moment_min, s.submitted_us, v.index_no, v.score "
+      "SELECT s.id, s.subject_kind, s.subject, s.moment_min, s.submitted_us, s.comment, "
+      "s.evaluator_group, v.index_no, v.score "
       "FROM (SELECT s.* FROM submissions s JOIN evaluators e ON e.id = s.evaluator_id "
       "      WHERE e.name = ?1 ORDER BY s.id DESC LIMIT ?2) s "
       "JOIN evaluations v ON v.submission_id = s.id ORDER BY s.id DESC, v.index_no");
   if (!st.ok()) return st.error();
   (*st)->Bind(1, evaluator).Bind(2, static_cast<int64_t>(limit));
   std::vector<SubmittedRow> out;
-  Status s = CollectScores(**st, 5, [&](Statement& q) -> std::array<double, scoring::kIndexCount>& {
-    SubmittedRow& row = out.emplace_back();
-    row.id = q.Int(0);
-    row.subject_kind = ParseSubjectKind(q.Text(1)).value_or(SubjectKind::kSession);
-    row.subject = q.String(2);
-    if (!q.IsNull(3)) row.moment_min = q.Double(3);
-    row.submitted_us = q.Int(4);
+  Status s = CollectScores(**st, 7, [&](Statement& q) -> std::array<double, scoring::kIndexCount>& {
+    SubmittedRow& row = ReadSubmitted(q, out.emplace_back());
+    row.evaluator = evaluator;
+    return row.scores;
+  });
+  if (!s.ok()) return s.error();
+  return out;
+}
+
+Expected<std::vector<SubmittedRow>> Store::ListSubmissionsOn(SubjectKind kind,
+                                                             const std::string& subject) {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare(
+      "SELECT s.id, s.subject_kind, s.subject, s.moment_min, s.submitted_us, s.comment, "
+      "s.evaluator_group, e.name, v.index_no, v.score "
+      "FROM submissions s JOIN evaluators e ON e.id = s.evaluator_id "
+      "JOIN evaluations v ON v.submission_id = s.id "
+      "WHERE s.subject_kind = ?1 AND s.subject = ?2 ORDER BY s.id, v.index_no");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, SubjectKindName(kind)).Bind(2, subject);
+  std::vector<SubmittedRow> out;
+  Status s = CollectScores(**st, 8, [&](Statement& q) -> std::array<double, scoring::kIndexCount>& {
+    SubmittedRow& row = ReadSubmitted(q, out.emplace_back());
+    row.evaluator = q.String(7);
     return row.scores;
   });
   if (!s.ok()) return s.error();

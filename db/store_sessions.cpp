@@ -159,13 +159,14 @@ Status Store::SetSessionState(int64_t id, SessionState state, int64_t at_us,
 }
 
 Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
-                         const scoring::TrialMetrics& m, int64_t epoch) {
+                         const scoring::TrialMetrics& m, int64_t epoch,
+                         const std::string& trace_json) {
   if (IsLive(state))
     return InvalidArgument(
         "state", std::string("a session ends in a final state, not ") + SessionStateName(state));
   return Write([=](Connection& c) -> Status {
     if (Status s = ChangeLiveSession(c, id, state, at_us, reason, epoch); !s.ok()) return s;
-    return RunSql(
+    Status s = RunSql(
         c,
         "INSERT INTO trial_metrics(session_id, completed, completion_time_s, task_error, "
         "peak_force_n, time_over_force_limit_s, path_length_m, rms_jerk, overload_events, "
@@ -183,6 +184,9 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
           st.Bind(17, m.link.rtt_ms).Bind(18, m.link.jitter_ms).Bind(19, m.link.loss);
           st.Bind(20, m.link.rate_hz);
         });
+    if (!s.ok() || trace_json.empty()) return s;
+    return RunSql(c, "INSERT INTO session_traces(session_id, trace_json) VALUES (?1, ?2)",
+                  [&](Statement& st) { st.Bind(1, id).Bind(2, trace_json); });
   });
 }
 
@@ -515,6 +519,101 @@ Expected<std::optional<scoring::TrialMetrics>> Store::GetTrialMetrics(int64_t se
   }
   (*st)->Reset();
   return out;
+}
+
+Expected<std::string> Store::GetSessionTrace(int64_t session_id) {
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  auto st = (**r).Prepare("SELECT trace_json FROM session_traces WHERE session_id = ?1");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, session_id);
+  auto row = (*st)->Step();
+  if (!row.ok()) return row.error();
+  if (!*row)
+    return Error{ErrorCode::kNotFound,
+                 "session " + std::to_string(session_id) + " has no record (it was never driven)",
+                 "id"};
+  std::string out = (*st)->String(0);
+  (*st)->Reset();
+  return out;
+}
+
+Expected<SessionPage> Store::FindSessions(const SessionQuery& q) {
+  if (q.limit < 1 || q.limit > 200) return InvalidArgument("limit", "must be within 1..200");
+  if (q.offset < 0) return InvalidArgument("offset", "must not be negative");
+  auto r = impl_->Read();
+  if (!r.ok()) return r.error();
+  // One WHERE for the page and its count; each filter is off when its parameter is NULL.
+  const std::string where =
+      "WHERE (CAST(?1 AS TEXT) IS NULL OR t.name = ?1) "
+      "AND (CAST(?2 AS TEXT) IS NULL OR s.scene = ?2) "
+      "AND (CAST(?3 AS BIGINT) IS NULL OR s.created_us >= ?3) "
+      "AND (CAST(?4 AS BIGINT) IS NULL OR s.created_us < ?4) "
+      "AND (CAST(?5 AS DOUBLE PRECISION) IS NULL OR m.score >= ?5) "
+      "AND (CAST(?6 AS DOUBLE PRECISION) IS NULL OR m.score <= ?6) "
+      "AND (?7 = 0 OR s.state NOT IN (?8, ?9, ?10)) ";
+  auto bind = [&](Statement& st) {
+    if (q.trainee)
+      st.Bind(1, *q.trainee);
+    else
+      st.BindNull(1);
+    if (q.scene)
+      st.Bind(2, *q.scene);
+    else
+      st.BindNull(2);
+    if (q.from_us)
+      st.Bind(3, *q.from_us);
+    else
+      st.BindNull(3);
+    if (q.to_us)
+      st.Bind(4, *q.to_us);
+    else
+      st.BindNull(4);
+    if (q.min_score)
+      st.Bind(5, *q.min_score);
+    else
+      st.BindNull(5);
+    if (q.max_score)
+      st.Bind(6, *q.max_score);
+    else
+      st.BindNull(6);
+    st.Bind(7, int64_t{q.ended_only ? 1 : 0});
+    BindLiveStates(st, 8);
+  };
+  const std::string from =
+      "FROM sessions s JOIN trainees t ON t.id = s.trainee_id "
+      "LEFT JOIN trial_metrics m ON m.session_id = s.id ";
+  SessionPage page;
+  {
+    auto st = (**r).Prepare("SELECT count(*) " + from + where);
+    if (!st.ok()) return st.error();
+    bind(**st);
+    auto row = (*st)->Step();
+    if (!row.ok()) return row.error();
+    page.total = *row ? (*st)->Int(0) : 0;
+    (*st)->Reset();
+  }
+  auto st = (**r).Prepare(
+      "SELECT s.id, t.name, s.scene, s.state, s.created_us, s.started_us, s.ended_us, "
+      "s.end_reason, s.node, m.score, m.completed, "
+      "CASE WHEN EXISTS (SELECT 1 FROM session_traces x WHERE x.session_id = s.id) THEN 1 "
+      "ELSE 0 END " +
+      from + where + "ORDER BY s.created_us DESC, s.id DESC LIMIT ?11 OFFSET ?12");
+  if (!st.ok()) return st.error();
+  bind(**st);
+  (*st)->Bind(11, int64_t{q.limit}).Bind(12, int64_t{q.offset});
+  for (;;) {
+    auto row = (*st)->Step();
+    if (!row.ok()) return row.error();
+    if (!*row) break;
+    SessionRow& out = page.rows.emplace_back();
+    ReadSession(**st, out.record);
+    if (!(*st)->IsNull(9)) out.score = (*st)->Double(9);
+    out.completed = !(*st)->IsNull(10) && (*st)->Int(10) != 0;
+    out.has_trace = (*st)->Int(11) != 0;
+  }
+  (*st)->Reset();
+  return page;
 }
 
 }  // namespace vsurg::db

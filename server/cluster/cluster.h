@@ -78,6 +78,7 @@ class ClusterSessions final : public Sessions {
   Expected<CreatedSession> Join(uint64_t id) override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                      std::vector<int32_t>& triangles) const override;
+  Expected<std::string> Trace(uint64_t id) const override;
   bool IsLive(uint64_t id) const override;
   int EndSessionsOf(const std::string& user, const std::string& reason) override;
   uint64_t Subscribe(uint64_t session, Subscriber fn) override;

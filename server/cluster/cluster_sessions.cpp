@@ -487,6 +487,18 @@ Status ClusterSessions::RestSurface(uint64_t id, std::vector<geometry::Vec3>& po
   return Status::Ok();
 }
 
+Expected<std::string> ClusterSessions::Trace(uint64_t id) const {
+  auto at = impl_->NodeOf(id);
+  if (!at.ok()) return at.error();
+  v1::SessionRef req;
+  req.set_id(id);
+  v1::NodeTrace reply;
+  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  const grpc::Status s = impl_->StubFor(at->second.grpc_address).Trace(ctx.get(), req, &reply);
+  if (!s.ok()) return FromGrpc(s, "record on node " + at->second.name);
+  return std::move(*reply.mutable_json());
+}
+
 bool ClusterSessions::IsLive(uint64_t id) const {
   auto row = impl_->store.GetSession(static_cast<int64_t>(id));
   return row.ok() && vsurg::IsLive(row->state);

@@ -250,6 +250,14 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     out->mutable_triangles()->Assign(triangles.begin(), triangles.end());
     return grpc::Status::OK;
   }
+  grpc::Status Trace(grpc::ServerContext* ctx, const v1::SessionRef* req,
+                     v1::NodeTrace* out) override {
+    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    auto trace = sessions.Trace(req->id());
+    if (!trace.ok()) return grpcapi::ToGrpcStatus(trace.error());
+    out->set_json(std::move(trace).value());
+    return grpc::Status::OK;
+  }
   grpc::Status EndSessionsOf(grpc::ServerContext* ctx, const v1::NodeUserRequest* req,
                              v1::NodeCount* out) override {
     if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();

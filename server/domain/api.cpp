@@ -168,6 +168,45 @@ Expected<std::vector<SessionView>> ListSessions(Domain& d, const db::Principal& 
   return out;
 }
 
+Expected<db::SessionPage> FindSessions(Domain& d, const db::Principal& p, db::SessionQuery q) {
+  if (Status s = Permit(p, Method::kSessionList); !s.ok()) return s.error();
+  if (p.role == db::Role::kTrainee) {
+    if (q.trainee && *q.trainee != p.name) return Denied("a trainee lists only their sessions");
+    q.trainee = p.name;
+  }
+  return d.store.FindSessions(q);
+}
+
+Expected<std::string> SessionTrace(Domain& d, const db::Principal& p, uint64_t id) {
+  if (Status s = Permit(p, Method::kSessionGet); !s.ok()) return s.error();
+  auto r = d.store.GetSession(static_cast<int64_t>(id));
+  if (!r.ok()) return r.error();
+  if (Status s = OwnSession(p, *r); !s.ok()) return s.error();
+  if (IsLive(r->state)) {
+    auto live = d.sessions.Trace(id);
+    if (live.ok() || live.error().code != ErrorCode::kNotFound) return live;
+    // It ended between the two reads: the store has it now.
+  }
+  return d.store.GetSessionTrace(static_cast<int64_t>(id));
+}
+
+Expected<std::vector<db::SubmittedRow>> SessionFeedback(Domain& d, const db::Principal& p,
+                                                        uint64_t id) {
+  if (Status s = Permit(p, Method::kSessionGet); !s.ok()) return s.error();
+  auto r = d.store.GetSession(static_cast<int64_t>(id));
+  if (!r.ok()) return r.error();
+  if (Status s = OwnSession(p, *r); !s.ok()) return s.error();
+  auto rows = d.store.ListSubmissionsOn(db::SubjectKind::kSession, std::to_string(id));
+  if (!rows.ok()) return rows;
+  std::vector<db::SubmittedRow> out;
+  for (db::SubmittedRow& row : *rows) {
+    if (p.role == db::Role::kEvaluator && row.evaluator != p.name) continue;
+    if (p.role == db::Role::kTrainee) row.evaluator.clear();
+    out.push_back(std::move(row));
+  }
+  return out;
+}
+
 Expected<double> CheckWatch(Domain& d, const db::Principal& p, uint64_t session, double rate_hz) {
   if (Status s = Permit(p, Method::kMonitorWatch); !s.ok()) return s.error();
   const double hz = rate_hz == 0 ? 30.0 : rate_hz;
@@ -199,6 +238,7 @@ Expected<db::Submission> PrepareSubmission(const db::Principal& p, const Submiss
   s.subject = r.subject;
   s.submitted_by = p.name;
   s.moment_min = r.moment_min;
+  s.comment = r.comment;
   if (p.role == db::Role::kEvaluator) {
     // Evaluators submit as themselves, in their own group.
     if (s.evaluator.empty()) s.evaluator = p.name;

@@ -68,6 +68,16 @@ Expected<RestSurface> SessionSurface(Domain& d, const db::Principal& p, uint64_t
 // A trainee lists only their own (`trainee` empty or their name).
 Expected<std::vector<SessionView>> ListSessions(Domain& d, const db::Principal& p,
                                                 const std::string& trainee, bool live_only);
+// Sessions as records: a page of the list with its filters (a trainee sees only their own).
+Expected<db::SessionPage> FindSessions(Domain& d, const db::Principal& p, db::SessionQuery q);
+// A session's record (server/session/trace_recorder.h, JSON text): so far while it is live, as
+// kept once it ended. Whoever may read the session (a trainee their own).
+Expected<std::string> SessionTrace(Domain& d, const db::Principal& p, uint64_t id);
+// The ratings of one session, oldest first: all of them for its trainee (without the raters'
+// names), instructors and administrators; an evaluator sees only their own, so that ratings
+// stay independent (seed 000's reliability needs raters who did not see each other's).
+Expected<std::vector<db::SubmittedRow>> SessionFeedback(Domain& d, const db::Principal& p,
+                                                        uint64_t id);
 // May `p` watch `session` (0: every live session) at `rate_hz` (0: 30)? Returns the rate.
 Expected<double> CheckWatch(Domain& d, const db::Principal& p, uint64_t session, double rate_hz);
 
@@ -81,6 +91,7 @@ struct SubmissionRequest {  // as a transport received it
   std::string idempotency_key, evaluator, evaluator_group, subject_kind, subject;
   std::optional<double> moment_min;
   std::vector<double> scores;  // exactly scoring::kIndexCount
+  std::string comment;         // optional, to the trainee
 };
 // The submission to store: an evaluator submits as themself in their own group; an admin
 // imports on an evaluator's behalf (evaluator required).

@@ -1,6 +1,7 @@
 #include "server/domain/scene_catalog.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "common/sim/scene.h"
 
@@ -48,6 +49,13 @@ Expected<SceneListing> SceneCatalog::List() {
         e.info.error_budget_rms = scene->error_budget_rms;
         e.info.material = sim::VisualMaterialName(scene->visual.material);
         e.info.limb = scene->mesh.kind == sim::MeshKind::kLimb;
+        const bool twist = scene->task.kind == scoring::TaskKind::kTwist;
+        const double unit = twist ? 180.0 / M_PI : 1e3;  // rad → °, m → mm
+        e.info.target = scene->task.target * unit;
+        e.info.tolerance = scene->task.tolerance * unit;
+        e.info.force_limit_n = scene->task.force_limit;
+        e.info.device_max_force_n = scene->haptics.limits.max_force;
+        e.info.time_limit_s = scene->task.time_limit;
       } else {
         // Named by its file name: the message's own prefix is the server's full path.
         e.why = scene.error().message;

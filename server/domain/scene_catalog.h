@@ -24,6 +24,11 @@ struct SceneInfo {
   double error_budget_rms = 0;
   std::string material;  // how stations draw it: skin, organ, kidney (sim::VisualMaterial)
   bool limb = false;     // a limb along z, lying with +y up (else resting on −z)
+  // The task's figures, in the units a trainee reads: the target and its tolerance (degrees of
+  // twist, or millimetres of press depth), the force a trainee should stay under (N), the
+  // largest force the device renders (N), and the time allowed (s). Plots draw them as lines.
+  double target = 0, tolerance = 0;
+  double force_limit_n = 0, device_max_force_n = 0, time_limit_s = 0;
 };
 
 struct SceneListing {

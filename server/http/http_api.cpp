@@ -140,7 +140,11 @@ Expected<T> Field(const json& j, const char* name, T fallback) {
 }
 
 std::string PageRole(std::string_view page, Method& m) {
-  if (page == "live" || page == "session") return m = Method::kMonitorWatch, "instructor";
+  if (page == "live") return m = Method::kMonitorWatch, "instructor";
+  // A session's page and the records: whoever may read sessions (a trainee their own; the API
+  // says which).
+  if (page == "session") return m = Method::kSessionGet, "any signed-in user";
+  if (page == "records") return m = Method::kSessionList, "any signed-in user";
   if (page == "evaluate") return m = Method::kEvaluationSubmit, "evaluator";
   if (page == "reports") return m = Method::kEvaluationReport, "instructor or evaluator";
   if (page == "admin") return m = Method::kAdminListUsers, "administrator";
@@ -322,6 +326,9 @@ struct HttpApi::Routes {
   static HttpReply SessionGet(const Call& c);
   static HttpReply SessionStop(const Call& c);
   static HttpReply SessionSurface(const Call& c);
+  static HttpReply SessionTraceRoute(const Call& c);
+  static HttpReply SessionFeedbackRoute(const Call& c);
+  static HttpReply Records(const Call& c);
   static HttpReply Events(const Call& c, uint64_t session, double max_hz);
   static HttpReply SessionEvents(const Call& c);
   static HttpReply LiveEvents(const Call& c);
@@ -462,7 +469,13 @@ HttpReply HttpApi::Routes::Scenes(const Call& c) {
                       {"task", s.task},
                       {"error_budget_rms", s.error_budget_rms},
                       {"material", s.material},
-                      {"limb", s.limb}});
+                      {"limb", s.limb},
+                      {"target", s.target},
+                      {"tolerance", s.tolerance},
+                      {"target_unit", s.task == "twist" ? "deg" : "mm"},
+                      {"force_limit_n", s.force_limit_n},
+                      {"device_max_force_n", s.device_max_force_n},
+                      {"time_limit_s", s.time_limit_s}});
   return Ok({{"scenes", scenes}, {"unusable", listing->unusable}});
 }
 
@@ -510,6 +523,80 @@ HttpReply HttpApi::Routes::SessionSurface(const Call& c) {
   return Ok({{"positions_mm", Millimetres(surface->positions)}, {"triangles", surface->triangles}});
 }
 
+HttpReply HttpApi::Routes::SessionTraceRoute(const Call& c) {
+  auto trace = SessionTrace(c.api.d_, *c.p, c.id);
+  if (!trace.ok()) return ErrorReply(trace.error());
+  HttpReply reply;
+  reply.body = std::move(trace).value();  // the recorder's JSON as stored
+  return reply;
+}
+
+HttpReply HttpApi::Routes::SessionFeedbackRoute(const Call& c) {
+  auto rows = SessionFeedback(c.api.d_, *c.p, c.id);
+  if (!rows.ok()) return ErrorReply(rows.error());
+  json ratings = json::array();
+  for (const db::SubmittedRow& s : *rows) {
+    json r = {{"id", s.id},
+              {"evaluator_group", s.evaluator_group},
+              {"moment_min", s.moment_min ? json(*s.moment_min) : json(nullptr)},
+              {"submitted", Iso(s.submitted_us)},
+              {"scores", s.scores},
+              {"comment", s.comment}};
+    if (!s.evaluator.empty()) r["evaluator"] = s.evaluator;
+    ratings.push_back(std::move(r));
+  }
+  return Ok({{"ratings", ratings}});
+}
+
+// Ended sessions as records, newest first: ?trainee= &scene= &from= &to= (ISO times or
+// microseconds) &min_score= &max_score= &page= (from 1) &per_page= (1..100, 25).
+HttpReply HttpApi::Routes::Records(const Call& c) {
+  db::SessionQuery q;
+  if (auto v = Param(c.query, "trainee"); !v.empty()) q.trainee = v;
+  if (auto v = Param(c.query, "scene"); !v.empty()) q.scene = v;
+  for (auto [name, field] : {std::pair{"from", &q.from_us}, std::pair{"to", &q.to_us}}) {
+    const std::string v = Param(c.query, name);
+    if (v.empty()) continue;
+    auto iso = ParseIsoUtc(v, name);
+    if (!iso.ok()) return ErrorReply(iso.error());
+    *field = *iso;
+  }
+  for (auto [name, field] :
+       {std::pair{"min_score", &q.min_score}, std::pair{"max_score", &q.max_score}}) {
+    const std::string v = Param(c.query, name);
+    if (v.empty()) continue;
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (end != v.c_str() + v.size() || !(x >= 0 && x <= 10))
+      return ErrorReply(InvalidArgument(name, "a score within 0..10"));
+    *field = x;
+  }
+  auto count = [&](const char* name, int fallback, int max) -> std::optional<int> {
+    const std::string v = Param(c.query, name);
+    if (v.empty()) return fallback;
+    const auto n = ParseId(v);
+    if (!n || *n < 1 || *n > static_cast<uint64_t>(max)) return std::nullopt;
+    return static_cast<int>(*n);
+  };
+  const auto page = count("page", 1, 100000), per_page = count("per_page", 25, 100);
+  if (!page) return ErrorReply(InvalidArgument("page", "a page number from 1"));
+  if (!per_page) return ErrorReply(InvalidArgument("per_page", "within 1..100"));
+  q.limit = *per_page;
+  q.offset = (*page - 1) * *per_page;
+  auto found = FindSessions(c.api.d_, *c.p, q);
+  if (!found.ok()) return ErrorReply(found.error());
+  json rows = json::array();
+  for (const db::SessionRow& r : found->rows) {
+    json j = RecordJson(r.record);
+    j["score"] = r.score ? json(*r.score) : json(nullptr);
+    j["completed"] = r.completed;
+    j["has_record"] = r.has_trace;
+    rows.push_back(std::move(j));
+  }
+  return Ok(
+      {{"sessions", rows}, {"total", found->total}, {"page", *page}, {"per_page", *per_page}});
+}
+
 // An event stream: one session's (10 Hz, with its surface) or every live session's (4 Hz).
 HttpReply HttpApi::Routes::Events(const Call& c, uint64_t session, double max_hz) {
   auto hz = CheckWatch(c.api.d_, *c.p, session, max_hz);
@@ -538,7 +625,8 @@ HttpReply HttpApi::Routes::EvaluationsMine(const Call& c) {
                          {"subject", s.subject},
                          {"moment_min", s.moment_min ? json(*s.moment_min) : json(nullptr)},
                          {"submitted", Iso(s.submitted_us)},
-                         {"scores", s.scores}});
+                         {"scores", s.scores},
+                         {"comment", s.comment}});
   return Ok({{"sessions", sessions}, {"models", queue->models}, {"submitted", submitted}});
 }
 
@@ -553,9 +641,11 @@ HttpReply HttpApi::Routes::EvaluationSubmit(const Call& c) {
   auto group = Field<std::string>(*body, "evaluator_group", "");
   auto scores = Field<std::vector<double>>(*body, "scores", {});
   auto moment = Field<double>(*body, "moment_min", -1);
-  for (const Error* e :
-       {Err(key), Err(kind), Err(subject), Err(evaluator), Err(group), Err(scores), Err(moment)})
+  auto comment = Field<std::string>(*body, "comment", "");
+  for (const Error* e : {Err(key), Err(kind), Err(subject), Err(evaluator), Err(group), Err(scores),
+                         Err(moment), Err(comment)})
     if (e) return ErrorReply(*e);
+  in.comment = *comment;
   in.idempotency_key = *key;
   in.subject_kind = *kind;
   in.subject = *subject;
@@ -732,6 +822,9 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"POST", "sessions/{id}/stop", Method::kSessionStop, &Routes::SessionStop},
     {"GET", "sessions/{id}/surface", Method::kMonitorWatch, &Routes::SessionSurface},
     {"GET", "sessions/{id}/events", Method::kMonitorWatch, &Routes::SessionEvents},
+    {"GET", "sessions/{id}/trace", Method::kSessionGet, &Routes::SessionTraceRoute},
+    {"GET", "sessions/{id}/feedback", Method::kSessionGet, &Routes::SessionFeedbackRoute},
+    {"GET", "records", Method::kSessionList, &Routes::Records},
     {"GET", "live/events", Method::kMonitorWatch, &Routes::LiveEvents},
     {"GET", "evaluations/mine", Method::kEvaluationSubmit, &Routes::EvaluationsMine},
     {"POST", "evaluations", Method::kEvaluationSubmit, &Routes::EvaluationSubmit},

@@ -62,7 +62,8 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
 }
 
 Status SessionManager::Write(const PendingWrite& w) {
-  if (w.metrics) return store_.EndSession(w.id, w.state, w.at_us, w.reason, *w.metrics, w.epoch);
+  if (w.metrics)
+    return store_.EndSession(w.id, w.state, w.at_us, w.reason, *w.metrics, w.epoch, w.trace);
   return store_.SetSessionState(w.id, w.state, w.at_us, w.reason, w.epoch);
 }
 
@@ -144,6 +145,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   out.udp_port = options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
+  live->trace.SetRest(live->simulation->rest_mesh());
   live->state = SessionState::kCreated;
   live->record = *record;
   live->latest.id = static_cast<uint64_t>(record->id);
@@ -271,11 +273,15 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   metrics.link = LinkFiguresOf(live->link);
   live->simulation.reset();
-  // The state and the trial in one transaction, under the session's epoch (invariant 3).
+  std::string trace = live->trace.samples() > 0 ? live->trace.Json() : std::string();
+  // The state, the trial and its record in one transaction, under the session's epoch
+  // (invariant 3).
   const int64_t at = db::NowUs();
-  Status s = store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics, live->epoch);
+  Status s =
+      store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics, live->epoch, trace);
   if (retry && !s.ok() && s.error().code == ErrorCode::kUnavailable)  // again next tick
-    pending_.push_back({static_cast<int64_t>(id), state, at, reason, metrics, live->epoch});
+    pending_.push_back(
+        {static_cast<int64_t>(id), state, at, reason, metrics, live->epoch, std::move(trace)});
   NotifyEnded(id);
   return s;
 }
@@ -346,6 +352,14 @@ Status SessionManager::RestSurface(uint64_t id, std::vector<geometry::Vec3>& pos
   return Status::Ok();
 }
 
+Expected<std::string> SessionManager::Trace(uint64_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(id);
+  if (it == live_.end())
+    return Error{ErrorCode::kNotFound, "session " + std::to_string(id) + " is not live", "id"};
+  return it->second->trace.Json();
+}
+
 bool SessionManager::IsLive(uint64_t id) const {
   std::lock_guard lock(mutex_);
   return live_.count(id) > 0;
@@ -406,7 +420,7 @@ void SessionManager::Pump() {
     // Stalls and resumptions are rare; the sampler waits for their commit (a few ms of delayed
     // telemetry at most), and the single writer keeps their order. A refusal (the node lost its
     // lease) changes nothing here: the agent drops the sessions when it learns of the loss.
-    WriteOrKeep({static_cast<int64_t>(e.session), state, db::NowUs(), "", std::nullopt, epoch});
+    WriteOrKeep({static_cast<int64_t>(e.session), state, db::NowUs(), "", std::nullopt, epoch, {}});
   }
 }
 
@@ -465,6 +479,9 @@ void SessionManager::SamplerLoop() {
           t.surface_frame = l->simulation->ShownSurface(t.surface_indices, t.surface_positions);
         else
           t.surface_indices.clear(), t.surface_positions.clear();
+        l->trace.AddSample(t);
+        if (t.has_surface && t.surface_frame != 0)
+          l->trace.AddSurface(t.sim.time, t.surface_indices, t.surface_positions);
         all.push_back(t);
       }
     }

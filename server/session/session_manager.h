@@ -57,6 +57,7 @@
 #include "server/net/lease.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/sessions.h"
+#include "server/session/trace_recorder.h"
 
 namespace vsurg::server {
 
@@ -101,6 +102,7 @@ class SessionManager final : public Sessions {
   Expected<CreatedSession> Join(uint64_t id) override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                      std::vector<int32_t>& triangles) const override;
+  Expected<std::string> Trace(uint64_t id) const override;
   bool IsLive(uint64_t id) const override;
   int EndSessionsOf(const std::string& user, const std::string& reason) override;
   uint64_t Subscribe(uint64_t session, Subscriber fn) override;
@@ -128,6 +130,7 @@ class SessionManager final : public Sessions {
     double rate_time = -1;      // and the station's clock (s); −1: none yet
     double created_s = 0;       // clock_, for start_timeout_s
     int64_t epoch = 0;          // the lease's when created: every store write carries it
+    TraceRecorder trace;        // the session's record (sampler thread, under mutex_)
   };
   SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
   // `retry`: the sampler's own ends (Pump), whose write is kept and made again while the store is
@@ -143,6 +146,7 @@ class SessionManager final : public Sessions {
     std::string reason;
     std::optional<scoring::TrialMetrics> metrics;  // an end's trial
     int64_t epoch = 0;
+    std::string trace;  // an end's record (TraceRecorder::Json), "" when nothing was driven
   };
   Status Write(const PendingWrite& w);
   void WriteOrKeep(PendingWrite w);  // sampler thread

@@ -42,6 +42,10 @@ class Sessions {
   // metres, triangles as vertex indices. kNotFound once it left the live states.
   virtual Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                              std::vector<int32_t>& triangles) const = 0;
+  // A live session's record so far (server/session/trace_recorder.h: its traces and surface
+  // frames as JSON text), for a watcher who opens its page mid-session. kNotFound once it left
+  // the live states: the store then has it (db::Store::GetSessionTrace).
+  virtual Expected<std::string> Trace(uint64_t id) const = 0;
   virtual bool IsLive(uint64_t id) const = 0;
   // Aborts every live session of `user` (its trainee), e.g. when their tokens are revoked or the
   // account is disabled: access ends with the account, on the UDP channel too. Returns how many.

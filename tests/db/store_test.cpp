@@ -302,6 +302,98 @@ TEST_P(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {
   EXPECT_FALSE(store_->RecordTrainingMoment("trainee-1", 20, s->id).ok());  // once per moment
 }
 
+TEST_P(StoreTest, EndedSessionsAreRecordsFoundByFiltersAndPages) {
+  // Five trials: trainee-1 on the arm (scores 2, 5, 8) and on the kidney (9), trainee-2 on the
+  // arm (6); one of trainee-1's still live; the second has a record.
+  struct Trial {
+    const char* trainee;
+    const char* scene;
+    double score;
+  };
+  const Trial trials[] = {{"trainee-1", "arm-torsion", 2},
+                          {"trainee-1", "arm-torsion", 5},
+                          {"trainee-1", "arm-torsion", 8},
+                          {"trainee-1", "kidney-palpation", 9},
+                          {"trainee-2", "arm-torsion", 6}};
+  std::vector<int64_t> ids;
+  for (const Trial& t : trials) {
+    auto s = store_->CreateSession(t.trainee, t.scene);
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    ids.push_back(s->id);
+    scoring::TrialMetrics m;
+    m.score = t.score;
+    m.completed = t.score >= 5;
+    const std::string trace = ids.size() == 2 ? R"({"series":{"time_s":[0,0.1]}})" : "";
+    ASSERT_TRUE(store_->EndSession(s->id, SessionState::kEnded, 200, "done", m, 0, trace).ok());
+  }
+  const int64_t live = store_->CreateSession("trainee-1", "arm-torsion").value().id;
+
+  EXPECT_EQ(store_->GetSessionTrace(ids[1]).value(), R"({"series":{"time_s":[0,0.1]}})");
+  EXPECT_EQ(store_->GetSessionTrace(ids[0]).error().code, ErrorCode::kNotFound);
+  // A record is valid JSON or nothing: the store refuses a broken one with the trial.
+  auto bad = store_->CreateSession("trainee-2", "arm-torsion").value().id;
+  EXPECT_FALSE(store_->EndSession(bad, SessionState::kEnded, 300, "", {}, 0, "{broken").ok());
+  EXPECT_TRUE(IsLive(store_->GetSession(bad)->state));  // nothing of it was written
+
+  SessionQuery all;
+  auto page = store_->FindSessions(all).value();
+  EXPECT_EQ(page.total, 5);  // the two live ones are not records
+  ASSERT_EQ(page.rows.size(), 5u);
+  EXPECT_EQ(page.rows.front().record.id, ids.back());  // newest first
+  for (const SessionRow& r : page.rows) EXPECT_NE(r.record.id, live);
+  EXPECT_TRUE(page.rows[3].has_trace);
+  EXPECT_FALSE(page.rows[4].has_trace);
+  EXPECT_EQ(page.rows[4].score, 2);
+  EXPECT_FALSE(page.rows[4].completed);
+
+  SessionQuery q;
+  q.trainee = "trainee-1";
+  q.scene = "arm-torsion";
+  q.min_score = 4;
+  page = store_->FindSessions(q).value();
+  EXPECT_EQ(page.total, 2);  // 5 and 8
+  ASSERT_EQ(page.rows.size(), 2u);
+  EXPECT_EQ(page.rows[0].score, 8);
+  EXPECT_EQ(page.rows[1].score, 5);
+  q = {};
+  q.max_score = 5.5;
+  EXPECT_EQ(store_->FindSessions(q)->total, 2);  // 2 and 5
+  q = {};
+  q.limit = 2;
+  q.offset = 4;
+  page = store_->FindSessions(q).value();
+  EXPECT_EQ(page.total, 5);
+  ASSERT_EQ(page.rows.size(), 1u);  // the last page holds the oldest
+  EXPECT_EQ(page.rows[0].record.id, ids.front());
+  q = {};
+  q.from_us = NowUs() + 60'000'000;  // nothing created in the future
+  EXPECT_EQ(store_->FindSessions(q)->total, 0);
+  q = {};
+  q.ended_only = false;
+  EXPECT_EQ(store_->FindSessions(q)->total, 7);
+  q.limit = 0;
+  EXPECT_EQ(store_->FindSessions(q).error().field, "limit");
+
+  // Ratings of a session carry their moment and comment; too long a comment is refused.
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  Submission sub = Valid("k-session");
+  sub.subject_kind = SubjectKind::kSession;
+  sub.subject = std::to_string(ids[1]);
+  sub.comment = "Steady twist; eased off at the target. Work on a smoother approach.";
+  auto submitted = store_->SubmitEvaluation(sub);
+  ASSERT_TRUE(submitted.ok()) << submitted.error().message;
+  auto on = store_->ListSubmissionsOn(SubjectKind::kSession, sub.subject).value();
+  ASSERT_EQ(on.size(), 1u);
+  EXPECT_EQ(on[0].comment, sub.comment);
+  EXPECT_EQ(on[0].evaluator, "dr-a");
+  EXPECT_EQ(on[0].evaluator_group, "chief");
+  EXPECT_EQ(on[0].scores[0], 8);
+  EXPECT_EQ(store_->ListSubmissionsBy("dr-a", 10).value().at(0).comment, sub.comment);
+  Submission chatty = Valid("k-long");
+  chatty.comment.assign(kMaxComment + 1, 'x');
+  EXPECT_EQ(store_->SubmitEvaluation(chatty).error().field, "comment");
+}
+
 TEST_P(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
   auto ended = store_->CreateSession("trainee-1", "arm-torsion");
   auto running = store_->CreateSession("trainee-1", "arm-torsion");

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "common/core/clock.h"
@@ -114,6 +115,39 @@ TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHel
   EXPECT_NEAR(l.jitter_ms, 1.5, 1e-3);
   EXPECT_NEAR(l.loss, 0.2, 1e-9);          // 4 applied, sequence 4 never seen
   EXPECT_NEAR(l.rate_hz, 4 / 0.03, 1e-6);  // 4 applied over the 30 ms between first and last
+}
+
+TEST_F(SessionManagerTest, ADrivenSessionKeepsItsRecordWhileLiveAndOnceEnded) {
+  auto s = sessions_->Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(s.ok());
+  const uint64_t id = static_cast<uint64_t>(s->record.id);
+  ASSERT_TRUE(sessions_->Start(id).ok());
+  // The station drives until the sampler has kept a few ticks of it (progress, not a sleep).
+  uint64_t seq = 0;
+  auto kept = [&] {
+    auto j = nlohmann::json::parse(sessions_->Trace(id).value());
+    return j["series"]["time_s"].size();
+  };
+  test::Eventually(20, [&] {
+    for (int i = 0; i < 5; ++i) Drive(*s, ++seq);
+    return kept() >= 3;
+  });
+  const size_t live_samples = kept();
+  ASSERT_GE(live_samples, 3u);
+  ASSERT_TRUE(sessions_->Stop(id, "done").ok());
+  EXPECT_EQ(sessions_->Trace(id).error().code, ErrorCode::kNotFound);  // no longer live
+  const auto j = nlohmann::json::parse(store_->GetSessionTrace(s->record.id).value());
+  const auto& t = j["series"]["time_s"];
+  EXPECT_GE(t.size(), live_samples);
+  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].get<double>(), t[i - 1].get<double>());
+  EXPECT_LE(t.back().get<double>(), 1e-3 * static_cast<double>(seq) + 1e-9);  // station time
+  EXPECT_EQ(j["series"]["force_n"].size(), t.size());
+  EXPECT_GT(j["rest"]["positions_mm"].size(), 300u);  // the sphere's surface, 3 per vertex
+  EXPECT_EQ(j["rest"]["positions_mm"].size() % 3, 0u);
+  // A session never driven leaves no record.
+  auto idle = sessions_->Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(sessions_->Stop(static_cast<uint64_t>(idle->record.id), "not used").ok());
+  EXPECT_EQ(store_->GetSessionTrace(idle->record.id).error().code, ErrorCode::kNotFound);
 }
 
 TEST_F(SessionManagerTest, CreatedStartedRunningStalledResumedDisconnected) {

@@ -1,0 +1,116 @@
+#include "server/session/trace_recorder.h"
+
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+namespace vsurg::server {
+namespace {
+
+// Rounded to what the figure means (3 significant decimals are plenty for a plot), so the stored
+// text stays short: 0.1234567 → 0.123.
+double Round(double v, int decimals) {
+  if (!std::isfinite(v)) return 0;
+  const double scale = std::pow(10.0, decimals);
+  return std::round(v * scale) / scale;
+}
+
+std::string Base64(const std::vector<int16_t>& v) {
+  std::vector<unsigned char> bytes(v.size() * 2);
+  for (size_t i = 0; i < v.size(); ++i) {
+    const auto u = static_cast<uint16_t>(v[i]);
+    bytes[2 * i] = static_cast<unsigned char>(u & 0xff);
+    bytes[2 * i + 1] = static_cast<unsigned char>(u >> 8);
+  }
+  std::string out(4 * ((bytes.size() + 2) / 3) + 1, '\0');
+  const int n = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), bytes.data(),
+                                static_cast<int>(bytes.size()));
+  out.resize(static_cast<size_t>(std::max(n, 0)));
+  return out;
+}
+
+}  // namespace
+
+template <typename T>
+void TraceRecorder::Offer(std::vector<T>& v, uint64_t& seen, uint64_t& stride, size_t max, T&& x) {
+  const uint64_t index = seen++;
+  if (index % stride != 0) return;
+  if (v.size() == max) {  // keep the points on the doubled stride: every other one
+    size_t kept = 0;
+    for (size_t i = 0; i < v.size(); i += 2) v[kept++] = std::move(v[i]);
+    v.resize(kept);
+    stride *= 2;
+    if (index % stride != 0) return;
+  }
+  v.push_back(std::move(x));
+}
+
+void TraceRecorder::SetRest(const geometry::TriMesh& rest) {
+  rest_ = rest.positions;
+  triangles_.clear();
+  triangles_.reserve(3 * rest.triangles.size());
+  for (const auto& t : rest.triangles)
+    for (int k = 0; k < 3; ++k) triangles_.push_back(static_cast<int32_t>(t[k]));
+}
+
+void TraceRecorder::AddSample(const sim::SessionTelemetry& t) {
+  if (t.sim.samples == 0 || !(t.sim.time > last_time_)) return;  // nothing new from the station
+  last_time_ = t.sim.time;
+  Sample s{t.sim.time, {}};
+  const auto fields = sim::TelemetryFields(t);
+  for (size_t i = 0; i < fields.size(); ++i) s.values[i] = static_cast<float>(fields[i].value);
+  Offer(samples_, samples_seen_, sample_stride_, kMaxSamples, std::move(s));
+}
+
+void TraceRecorder::AddSurface(double time_s, const std::vector<int32_t>& indices,
+                               const std::vector<geometry::Vec3>& positions) {
+  if (rest_.empty() || !(time_s > last_frame_time_)) return;  // a stalled station: no new state
+  last_frame_time_ = time_s;
+  Frame f{time_s, std::vector<int16_t>(3 * rest_.size(), 0)};
+  const size_t n = std::min(indices.size(), positions.size());
+  for (size_t k = 0; k < n; ++k) {
+    const auto v = static_cast<size_t>(indices[k]);
+    if (v >= rest_.size()) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double u = std::round((positions[k][c] - rest_[v][c]) / kFrameUnitM);
+      f.displacement[3 * v + static_cast<size_t>(c)] =
+          static_cast<int16_t>(std::clamp(std::isfinite(u) ? u : 0.0, -32767.0, 32767.0));
+    }
+  }
+  Offer(frames_, frames_seen_, frame_stride_, kMaxFrames, std::move(f));
+}
+
+std::string TraceRecorder::Json() const {
+  nlohmann::json series = nlohmann::json::object();
+  const auto names = sim::TelemetryFields(sim::SessionTelemetry{});
+  for (size_t i = 0; i < names.size(); ++i) {
+    nlohmann::json column = nlohmann::json::array();
+    const int decimals = names[i].decimals + (names[i].name == "time_s" ? 0 : 1);
+    for (const Sample& s : samples_) column.push_back(Round(s.values[i], decimals));
+    series[std::string(names[i].name)] = std::move(column);
+  }
+  // The time from the double (the float copy loses milliseconds after a few hours).
+  nlohmann::json times = nlohmann::json::array();
+  for (const Sample& s : samples_) times.push_back(Round(s.time_s, 3));
+  series["time_s"] = std::move(times);
+  nlohmann::json positions = nlohmann::json::array();
+  for (const auto& p : rest_)
+    for (int c = 0; c < 3; ++c) positions.push_back(Round(p[c] * 1e3, 3));
+  nlohmann::json frame_times = nlohmann::json::array(), displacement = nlohmann::json::array();
+  for (const Frame& f : frames_) {
+    frame_times.push_back(Round(f.time_s, 3));
+    displacement.push_back(Base64(f.displacement));
+  }
+  return nlohmann::json{
+      {"series", std::move(series)},
+      {"rest", {{"positions_mm", std::move(positions)}, {"triangles", triangles_}}},
+      {"frames",
+       {{"time_s", std::move(frame_times)},
+        {"unit_mm", kFrameUnitM * 1e3},
+        {"displacement", std::move(displacement)}}}}
+      .dump();
+}
+
+}  // namespace vsurg::server

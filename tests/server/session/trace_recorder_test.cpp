@@ -1,0 +1,114 @@
+// The session record (server/session/trace_recorder.h): bounded whatever the session's length,
+// spanning all of it, in the telemetry's own names, and a surface frame that decodes to the
+// displacement it was given (to the stated 0.01 mm).
+#include "server/session/trace_recorder.h"
+
+#include <gtest/gtest.h>
+#include <openssl/evp.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+namespace vsurg::server {
+namespace {
+
+using nlohmann::json;
+
+sim::SessionTelemetry Sample(double t) {
+  sim::SessionTelemetry s;
+  s.sim.time = t;
+  s.sim.samples = static_cast<uint64_t>(t * 1000) + 1;
+  s.sim.force = geometry::Vec3(0, 0, 0.5 + t);  // |F| = 0.5 + t N
+  s.sim.twist = t * M_PI / 180;                 // t degrees
+  s.rtt_us = 400;
+  return s;
+}
+
+std::vector<int16_t> Decode(const std::string& b64) {
+  std::vector<unsigned char> bytes(b64.size());
+  const int n = EVP_DecodeBlock(bytes.data(), reinterpret_cast<const unsigned char*>(b64.data()),
+                                static_cast<int>(b64.size()));
+  EXPECT_GE(n, 0);
+  size_t size = static_cast<size_t>(n);
+  if (b64.size() >= 2 && b64.end()[-1] == '=') --size;  // EVP counts the padding as bytes
+  if (b64.size() >= 2 && b64.end()[-2] == '=') --size;
+  std::vector<int16_t> out(size / 2);
+  for (size_t i = 0; i < out.size(); ++i)
+    out[i] = static_cast<int16_t>(bytes[2 * i] | (bytes[2 * i + 1] << 8));
+  return out;
+}
+
+geometry::TriMesh Triangle() {
+  geometry::TriMesh m;
+  m.positions = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}};
+  m.triangles = {{0, 1, 2}};
+  return m;
+}
+
+TEST(TraceRecorderTest, ALongSessionKeepsItsWholeSpanInBoundedMemory) {
+  TraceRecorder r;
+  r.SetRest(Triangle());
+  // Ten minutes at the sampler's 30 Hz: 18,000 ticks, each with a newer station time.
+  for (int i = 0; i < 18000; ++i) r.AddSample(Sample(i / 30.0));
+  EXPECT_LE(r.samples(), TraceRecorder::kMaxSamples);
+  EXPECT_GE(r.samples(), TraceRecorder::kMaxSamples / 2);
+  const json j = json::parse(r.Json());
+  const auto& t = j["series"]["time_s"];
+  ASSERT_EQ(t.size(), r.samples());
+  EXPECT_EQ(t.front().get<double>(), 0);
+  EXPECT_GT(t.back().get<double>(), 599.0 - 16.0 / 30);  // the end is kept, to one stride
+  for (size_t i = 1; i < t.size(); ++i) {
+    ASSERT_GT(t[i].get<double>(), t[i - 1].get<double>());
+    // One stride everywhere: the halving keeps the points evenly spaced.
+    EXPECT_NEAR(t[i].get<double>() - t[i - 1].get<double>(), t[1].get<double>(), 2e-3);
+  }
+  // Every series beside time_s, in the API's names, one value per time.
+  for (const char* name : {"force_n", "twist_deg", "torque_nm", "rtt_us", "score", "contact"})
+    ASSERT_EQ(j["series"][name].size(), t.size()) << name;
+  const size_t k = t.size() / 2;
+  EXPECT_NEAR(j["series"]["force_n"][k].get<double>(), 0.5 + t[k].get<double>(), 0.01);
+  EXPECT_NEAR(j["series"]["twist_deg"][k].get<double>(), t[k].get<double>(), 0.05);
+}
+
+TEST(TraceRecorderTest, AStalledStationAddsNothingAndAShortSessionKeepsEveryTick) {
+  TraceRecorder r;
+  r.AddSample(sim::SessionTelemetry{});  // no stylus yet
+  for (int i = 0; i < 10; ++i) {
+    r.AddSample(Sample(i * 0.033));
+    r.AddSample(Sample(i * 0.033));  // the same station time again: stalled
+  }
+  EXPECT_EQ(r.samples(), 10u);
+}
+
+TEST(TraceRecorderTest, AFrameDecodesToItsDisplacementAndUnmovedVerticesStayAtRest) {
+  TraceRecorder r;
+  r.SetRest(Triangle());
+  // Vertex 1 moved by (+1.234 mm, −0.5 mm, +20 mm); vertex 2 far (clamped); vertex 0 at rest;
+  // an index past the mesh is ignored.
+  r.AddSurface(0.5, {1, 2, 7}, {{0.011234, -0.0005, 0.02}, {0, 0.01, 5.0}, {1, 1, 1}});
+  r.AddSurface(0.5, {1}, {{0.02, 0, 0}});  // the same time: nothing new
+  ASSERT_EQ(r.frames(), 1u);
+  const json j = json::parse(r.Json());
+  EXPECT_EQ(j["rest"]["positions_mm"].size(), 9u);
+  EXPECT_EQ(j["rest"]["positions_mm"][3].get<double>(), 10);
+  EXPECT_EQ(j["rest"]["triangles"], json({0, 1, 2}));
+  EXPECT_EQ(j["frames"]["unit_mm"].get<double>(), 0.01);
+  const auto d = Decode(j["frames"]["displacement"][0].get<std::string>());
+  ASSERT_EQ(d.size(), 9u);
+  EXPECT_EQ(d[0], 0);
+  EXPECT_EQ(d[1], 0);
+  EXPECT_EQ(d[2], 0);
+  EXPECT_EQ(d[3], 123);  // 1.234 mm → 123 × 0.01 mm
+  EXPECT_EQ(d[4], -50);
+  EXPECT_EQ(d[5], 2000);
+  EXPECT_EQ(d[8], 32767);  // 5 m away: clamped, never wrapped
+  // Many frames: bounded, spanning the session.
+  for (int i = 1; i <= 1000; ++i) r.AddSurface(0.5 + 0.1 * i, {0}, {{0, 0, 0.001 * i}});
+  EXPECT_LE(r.frames(), TraceRecorder::kMaxFrames);
+  const json k = json::parse(r.Json());
+  EXPECT_EQ(k["frames"]["time_s"].front().get<double>(), 0.5);
+  EXPECT_GT(k["frames"]["time_s"].back().get<double>(), 100.5 - 1.6);
+}
+
+}  // namespace
+}  // namespace vsurg::server
