@@ -14,7 +14,7 @@ VSURG_PACKAGES=(
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
   libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev libpng-dev gnuplot-nox
   libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth xdotool
-  chromium chromium-driver python3-selenium
+  chromium chromium-driver python3-selenium libjs-chart.js nodejs
   libimgui-dev libfreetype-dev fonts-dejavu-core
   libassimp-dev libcgal-dev
   postgresql libpq-dev python3-yaml
@@ -57,6 +57,17 @@ vsurg_install_packages_of() {
   fi
   $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -q
   $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"
+}
+
+# The browser tests' npm packages (tests/e2e/package-lock.json: axe-core), installed from the
+# npm registry with the lockfile's exact versions when missing.
+vsurg_install_npm() {
+  local root; root="$(vsurg_root)"
+  if [ -f "$root/tests/e2e/node_modules/axe-core/axe.min.js" ]; then
+    echo "vsurg: the browser tests' npm packages present"
+    return 0
+  fi
+  npm ci --prefix "$root/tests/e2e" --no-audit --no-fund --loglevel=error
 }
 
 # Configures and builds into build/ with two jobs (the machine has two cores).

@@ -11,6 +11,7 @@ root="$(vsurg_root)"
 stage() { echo; echo "== test.sh: $* ($(date -u +%H:%M:%S)) =="; }
 stage "main build and tests"
 vsurg_install_packages
+vsurg_install_npm
 vsurg_build "$@"
 ctest --test-dir "$root/build" --output-on-failure -j2 --timeout 300
 if [ "${VSURG_QUICK:-0}" = 1 ]; then exit 0; fi

@@ -23,6 +23,7 @@ std::array<TelemetryField, kTelemetryFieldCount> TelemetryFields(const SessionTe
       {"score", s.metrics.score, K::kReal, 1},
       {"overload_events", static_cast<double>(s.metrics.overload_events), K::kCount, 0},
       {"peak_force_n", s.metrics.peak_force, K::kReal, 2},
+      {"over_limit_s", s.metrics.time_over_force_limit, K::kReal, 2},
       {"rtt_us", t.rtt_us, K::kReal, 0},
       {"loss_ratio", t.packet_loss, K::kReal, 4},
       {"packets", count(t.packets), K::kCount, 0},

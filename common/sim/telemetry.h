@@ -62,7 +62,7 @@ struct TelemetryField {
   Kind kind;
   int decimals;
 };
-constexpr size_t kTelemetryFieldCount = 16;
+constexpr size_t kTelemetryFieldCount = 17;
 // The sample's numbers in a fixed order (non-finite values as they are: each writer decides).
 std::array<TelemetryField, kTelemetryFieldCount> TelemetryFields(const SessionTelemetry& t);
 

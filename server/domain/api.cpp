@@ -168,6 +168,16 @@ Expected<std::vector<SessionView>> ListSessions(Domain& d, const db::Principal& 
   return out;
 }
 
+Expected<std::vector<std::string>> RatedSubjects(Domain& d, const db::Principal& p,
+                                                 const std::string& kind) {
+  if (Status s = Permit(p, Method::kEvaluationReport); !s.ok()) return s.error();
+  const auto k = db::ParseSubjectKind(kind);
+  if (!k)
+    return InvalidArgument("kind",
+                           "unknown subject kind '" + kind + "' (session, trainee or model)");
+  return d.store.ListRatedSubjects(*k);
+}
+
 Expected<db::SessionPage> FindSessions(Domain& d, const db::Principal& p, db::SessionQuery q) {
   if (Status s = Permit(p, Method::kSessionList); !s.ok()) return s.error();
   if (p.role == db::Role::kTrainee) {

@@ -110,6 +110,9 @@ Expected<EvaluationQueue> ListOwnEvaluations(Domain& d, const db::Principal& p, 
 Expected<std::string> Report(Domain& d, const db::Principal& p, const std::string& subject_kind,
                              const std::vector<std::string>& subjects,
                              const std::string& weight_set);
+// The subjects of `kind` (session, trainee, model) that anyone has rated, by name.
+Expected<std::vector<std::string>> RatedSubjects(Domain& d, const db::Principal& p,
+                                                 const std::string& kind);
 // The training-effect cells (trainee group × moment) as JSON text.
 Expected<std::string> TrainingEffect(Domain& d, const db::Principal& p,
                                      const std::string& weight_set);

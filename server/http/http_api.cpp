@@ -329,6 +329,7 @@ struct HttpApi::Routes {
   static HttpReply SessionTraceRoute(const Call& c);
   static HttpReply SessionFeedbackRoute(const Call& c);
   static HttpReply Records(const Call& c);
+  static HttpReply Subjects(const Call& c);
   static HttpReply Events(const Call& c, uint64_t session, double max_hz);
   static HttpReply SessionEvents(const Call& c);
   static HttpReply LiveEvents(const Call& c);
@@ -597,6 +598,14 @@ HttpReply HttpApi::Routes::Records(const Call& c) {
       {{"sessions", rows}, {"total", found->total}, {"page", *page}, {"per_page", *per_page}});
 }
 
+// The subjects of a kind anyone has rated (?kind=session|trainee|model): what a report can be
+// asked for, chosen from a list instead of typed.
+HttpReply HttpApi::Routes::Subjects(const Call& c) {
+  auto subjects = RatedSubjects(c.api.d_, *c.p, Param(c.query, "kind"));
+  if (!subjects.ok()) return ErrorReply(subjects.error());
+  return Ok({{"subjects", *subjects}});
+}
+
 // An event stream: one session's (10 Hz, with its surface) or every live session's (4 Hz).
 HttpReply HttpApi::Routes::Events(const Call& c, uint64_t session, double max_hz) {
   auto hz = CheckWatch(c.api.d_, *c.p, session, max_hz);
@@ -825,6 +834,7 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "sessions/{id}/trace", Method::kSessionGet, &Routes::SessionTraceRoute},
     {"GET", "sessions/{id}/feedback", Method::kSessionGet, &Routes::SessionFeedbackRoute},
     {"GET", "records", Method::kSessionList, &Routes::Records},
+    {"GET", "subjects", Method::kEvaluationReport, &Routes::Subjects},
     {"GET", "live/events", Method::kMonitorWatch, &Routes::LiveEvents},
     {"GET", "evaluations/mine", Method::kEvaluationSubmit, &Routes::EvaluationsMine},
     {"POST", "evaluations", Method::kEvaluationSubmit, &Routes::EvaluationSubmit},

@@ -39,7 +39,8 @@ void TraceRecorder::Offer(std::vector<T>& v, uint64_t& seen, uint64_t& stride, s
   if (index % stride != 0) return;
   if (v.size() == max) {  // keep the points on the doubled stride: every other one
     size_t kept = 0;
-    for (size_t i = 0; i < v.size(); i += 2) v[kept++] = std::move(v[i]);
+    for (size_t i = 0; i < v.size(); i += 2, ++kept)
+      if (kept != i) v[kept] = std::move(v[i]);  // (a self-move would empty the first)
     v.resize(kept);
     stride *= 2;
     if (index % stride != 0) return;

@@ -1,6 +1,7 @@
 // vsurg dashboard: the entry module of every page (body[data-page]); each page is a module of its
 // own under pages/, over the shared helpers (dom, api, charts, scenes, tissue_view). Native ES
-// modules served by the server itself: no framework, no bundler, no CDN.
+// modules served by the server itself: no framework, no bundler, no CDN. Chart.js (Debian's
+// libjs-chart.js) is embedded in the server at build time and loaded first, as window.Chart.
 import { api, auth } from './api.js';
 import { $, el, message } from './dom.js';
 import { PAGES } from './nav.js';
@@ -8,6 +9,7 @@ import { pageAdmin } from './pages/admin.js';
 import { pageEvaluate } from './pages/evaluate.js';
 import { pageLive } from './pages/live.js';
 import { pageMine } from './pages/mine.js';
+import { pageRecords } from './pages/records.js';
 import { pageReports } from './pages/reports.js';
 import { pageSession } from './pages/session.js';
 import { pageSignIn } from './pages/signin.js';
@@ -27,7 +29,7 @@ async function start() {
       entry ? `${entry.title} is for the ${entry.roles.join(' and ')} role${entry.roles.length > 1 ? 's' : ''}; you are signed in as ${auth.me.role}.`
         : `You are signed in as ${auth.me.role}, which cannot open this page.`, ' ', el('a', { href: '/' }, 'Back to your start page')));
   }
-  const pages = { live: pageLive, session: pageSession, evaluate: pageEvaluate, reports: pageReports, admin: pageAdmin, mine: pageMine };
+  const pages = { live: pageLive, session: pageSession, evaluate: pageEvaluate, reports: pageReports, admin: pageAdmin, mine: pageMine, records: pageRecords };
   try { await pages[page](main); } catch (err) { if (err.message !== 'signed out') message(main, err.message); }
 }
 document.addEventListener('DOMContentLoaded', start);

@@ -1,73 +1,141 @@
-// Plots on a 2D canvas: a scrolling window of live values (Plot) and a static line chart.
-export class Plot {
-  constructor(canvas, series, unit, span) {
-    this.canvas = canvas; this.series = series; this.unit = unit; this.span = span || 30;
-    this.data = series.map(() => []);
-  }
-  add(t, values) {
-    values.forEach((v, i) => { if (isFinite(v)) this.data[i].push([t, v]); });
-    for (const d of this.data) while (d.length && d[0][0] < t - this.span) d.shift();
-    this.now = t;
-  }
-  draw() {
-    const c = this.canvas, dpr = window.devicePixelRatio || 1;
-    const w = c.clientWidth, h = c.clientHeight;
-    if (c.width !== w * dpr) { c.width = w * dpr; c.height = h * dpr; }
-    const g = c.getContext('2d');
-    g.setTransform(dpr, 0, 0, dpr, 0, 0);
-    g.clearRect(0, 0, w, h);
-    let lo = Infinity, hi = -Infinity;
-    for (const d of this.data) for (const [, v] of d) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
-    if (!isFinite(lo)) { lo = 0; hi = 1; }
-    if (hi - lo < 1e-9) { hi += 0.5; lo -= 0.5; }
-    const pad = (hi - lo) * 0.08; lo -= pad; hi += pad;
-    const L = 52, R = 8, T = 8, B = 18, t1 = this.now || 0, t0 = t1 - this.span;
-    const X = (t) => L + (t - t0) / this.span * (w - L - R);
-    const Y = (v) => T + (1 - (v - lo) / (hi - lo)) * (h - T - B);
-    g.strokeStyle = '#3a4252'; g.fillStyle = '#9aa3b2'; g.font = '11px system-ui'; g.lineWidth = 1;
-    for (let k = 0; k <= 4; ++k) {
-      const v = lo + (hi - lo) * k / 4, y = Y(v);
-      g.beginPath(); g.moveTo(L, y); g.lineTo(w - R, y); g.stroke();
-      g.fillText(v.toPrecision(3), 4, y + 4);
+// Charts over Chart.js (Debian's libjs-chart.js, served by the server at /static/lib/chart.min.js
+// and loaded before the modules as window.Chart): a time chart for traces, live (a scrolling
+// window) or recorded (with the replay's cursor), and an x–y chart for reports. Every chart's
+// canvas is an image with a text alternative (aria-label) kept true to its data.
+const C = window.Chart;
+if (C) {
+  C.defaults.color = '#c9ced8';
+  C.defaults.borderColor = '#3a4252';
+  C.defaults.font.family = 'system-ui, sans-serif';
+}
+export const COLOURS = ['#f0b296', '#8cc8ff', '#5fd38a', '#f3c13a', '#d49cff', '#ff8f8f'];
+const DASHES = [[], [6, 4], [2, 3], [10, 3, 2, 3]];
+
+// The vertical line of a replay's cursor (chart.$cursor: an x value, or undefined).
+const cursorPlugin = {
+  id: 'vsurgCursor',
+  afterDatasetsDraw(chart) {
+    const x = chart.$cursor;
+    if (x === undefined) return;
+    const s = chart.scales.x, a = chart.chartArea, g = chart.ctx;
+    if (x < s.min || x > s.max) return;
+    g.save(); g.strokeStyle = '#e6e8ec'; g.lineWidth = 1.5;
+    g.beginPath(); g.moveTo(s.getPixelForValue(x), a.top); g.lineTo(s.getPixelForValue(x), a.bottom); g.stroke();
+    g.restore();
+  },
+};
+
+function box(canvas, height) {
+  // Chart.js sizes a canvas to its parent: a box of a fixed height, full width.
+  const wrap = document.createElement('div');
+  wrap.className = 'chart-box';
+  wrap.style.height = (height || 180) + 'px';
+  canvas.replaceWith(wrap);
+  wrap.append(canvas);
+  canvas.setAttribute('role', 'img');
+}
+
+function range(values) {
+  let lo = Infinity, hi = -Infinity;
+  for (const v of values) if (isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  return isFinite(lo) ? [lo, hi] : null;
+}
+
+// A trace over time (s). opts: {title, unit, series: [{label, colour}], min, suggestedMax,
+// lines: [{y, label, colour}] (targets and limits, dashed), span (s; a live window), height}.
+export class TimeChart {
+  constructor(canvas, opts) {
+    this.opts = opts; this.canvas = canvas; this.t = []; this.cols = opts.series.map(() => []);
+    box(canvas, opts.height);
+    const datasets = opts.series.map((s, i) => ({ label: s.label, data: [], borderColor: s.colour || COLOURS[i],
+      backgroundColor: s.colour || COLOURS[i], borderWidth: 1.8, pointRadius: 0, tension: 0 }));
+    for (const l of opts.lines || []) {
+      datasets.push({ label: l.label, data: [], borderColor: l.colour, backgroundColor: l.colour,
+        borderDash: [6, 4], borderWidth: 1.2, pointRadius: 0, $line: l.y });
     }
-    g.fillText('−' + this.span + ' s', L, h - 4);
-    g.fillText(this.unit, w - R - g.measureText(this.unit).width, h - 4);
-    this.series.forEach((s, i) => {
-      g.strokeStyle = s.colour; g.lineWidth = 2; g.beginPath();
-      this.data[i].forEach(([t, v], k) => (k ? g.lineTo(X(t), Y(v)) : g.moveTo(X(t), Y(v))));
-      g.stroke();
-      g.fillStyle = s.colour; g.fillText(s.name, L + 8 + i * 110, T + 12);
+    this.chart = new C(canvas, {
+      type: 'line', data: { datasets }, plugins: [cursorPlugin],
+      options: {
+        animation: false, parsing: false, normalized: true, responsive: true, maintainAspectRatio: false,
+        interaction: { mode: 'nearest', axis: 'x', intersect: false },
+        scales: {
+          x: { type: 'linear', title: { display: true, text: 'time (s)' }, ticks: { maxTicksLimit: 8, includeBounds: false } },
+          y: { title: { display: true, text: `${opts.title} (${opts.unit})` }, min: opts.min,
+            suggestedMax: opts.suggestedMax, ticks: { maxTicksLimit: 6 } },
+        },
+        plugins: { legend: { labels: { boxWidth: 14, filter: (item) => item.text !== '' } }, tooltip: { callbacks: {
+          label: (c) => `${c.dataset.label}: ${Number(c.parsed.y).toFixed(2)} ${opts.unit}` } } },
+      },
     });
+    this.labelled = 0;
+    this.describe();
+  }
+  // The whole record: times and one column per series.
+  setAll(times, columns) {
+    this.t = times.slice(); this.cols = columns.map((c) => c.slice());
+    this.update();
+  }
+  // One live sample; a live chart keeps its last `span` seconds.
+  add(t, values) {
+    this.t.push(t); values.forEach((v, i) => this.cols[i].push(v));
+    const span = this.opts.span;
+    if (span) while (this.t.length && this.t[0] < t - span) { this.t.shift(); this.cols.forEach((c) => c.shift()); }
+  }
+  setCursor(t) { this.chart.$cursor = t; this.chart.draw(); }
+  update() {
+    const ds = this.chart.data.datasets, n = this.opts.series.length;
+    for (let i = 0; i < n; ++i) ds[i].data = this.t.map((t, k) => ({ x: t, y: this.cols[i][k] }));
+    const t0 = this.t.length ? this.t[0] : 0, t1 = this.t.length ? this.t[this.t.length - 1] : 1;
+    for (let i = n; i < ds.length; ++i) ds[i].data = [{ x: t0, y: ds[i].$line }, { x: t1, y: ds[i].$line }];
+    const x = this.chart.options.scales.x;
+    // A live window shows its last `span` seconds once it has them, and the session so far before.
+    x.min = this.opts.span ? Math.max(t0, t1 - this.opts.span) : t0; x.max = Math.max(t1, x.min + 1);
+    this.chart.update('none');
+    if (performance.now() - this.labelled > 2000) this.describe();
+  }
+  describe() {
+    this.labelled = performance.now();
+    const o = this.opts, parts = o.series.map((s, i) => {
+      const r = range(this.cols[i]), last = this.cols[i][this.cols[i].length - 1];
+      return r ? `${s.label} ${Number(last).toFixed(2)} ${o.unit} now, ${r[0].toFixed(2)} to ${r[1].toFixed(2)}`
+        : `${s.label}: no data yet`;
+    });
+    const lines = (o.lines || []).map((l) => `${l.label || 'tolerance'} at ${Number(l.y).toFixed(1)} ${o.unit}`);
+    const span = this.t.length > 1 ? ` over ${(this.t[this.t.length - 1] - this.t[0]).toFixed(0)} s` : '';
+    this.canvas.setAttribute('aria-label', `${o.title} plot${span}: ${parts.join('; ')}${lines.length ? '; ' + lines.join('; ') : ''}.`);
   }
 }
 
-// A static chart: lines through points {x, y} per series.
-export function lineChart(canvas, series, xLabel, yLabel) {
-  const c = canvas, dpr = window.devicePixelRatio || 1, w = c.clientWidth, h = c.clientHeight;
-  c.width = w * dpr; c.height = h * dpr;
-  const g = c.getContext('2d');
-  g.setTransform(dpr, 0, 0, dpr, 0, 0);
-  let x0 = Infinity, x1 = -Infinity, y0 = 0, y1 = 10;
-  for (const s of series) for (const p of s.points) {
-    x0 = Math.min(x0, p.x); x1 = Math.max(x1, p.x); y0 = Math.min(y0, p.y); y1 = Math.max(y1, p.y);
+// Lines (or bars) through points: opts {xLabel, yLabel, type: 'line'|'bar', labels (bar x
+// categories), series: [{label, points: [{x, y}] | values: [...]}], band: {lo, hi, label},
+// yMin, yMax, height, describe: text}.
+export function xyChart(canvas, opts) {
+  box(canvas, opts.height || 220);
+  const bar = opts.type === 'bar';
+  const datasets = opts.series.map((s, i) => ({
+    label: s.label, data: bar ? s.values : s.points, borderColor: COLOURS[i % COLOURS.length],
+    backgroundColor: COLOURS[i % COLOURS.length] + (bar ? 'cc' : ''), borderWidth: 2,
+    borderDash: bar ? undefined : DASHES[i % DASHES.length], pointRadius: bar ? 0 : 4,
+    pointStyle: ['circle', 'rect', 'triangle', 'rectRot', 'star', 'cross'][i % 6], tension: 0,
+  }));
+  if (opts.band && !bar) {
+    const xs = opts.series.flatMap((s) => s.points.map((p) => p.x)), r = range(xs) || [0, 1];
+    const edge = (y) => [{ x: r[0], y }, { x: r[1], y }];
+    datasets.push({ label: opts.band.label, data: edge(opts.band.hi), borderColor: '#5fd38a55', pointRadius: 0,
+      backgroundColor: 'rgba(95, 211, 138, 0.14)', fill: '+1', borderWidth: 1 });
+    datasets.push({ label: '', data: edge(opts.band.lo), borderColor: '#5fd38a55', pointRadius: 0, borderWidth: 1 });
   }
-  if (!isFinite(x0)) { x0 = 0; x1 = 1; }
-  if (x1 === x0) { x0 -= 1; x1 += 1; }
-  const L = 40, R = 10, T = 10, B = 30;
-  const X = (x) => L + (x - x0) / (x1 - x0) * (w - L - R), Y = (y) => T + (1 - (y - y0) / (y1 - y0)) * (h - T - B);
-  g.strokeStyle = '#3a4252'; g.fillStyle = '#9aa3b2'; g.font = '11px system-ui';
-  for (let k = 0; k <= 5; ++k) {
-    const v = y0 + (y1 - y0) * k / 5, y = Y(v);
-    g.beginPath(); g.moveTo(L, y); g.lineTo(w - R, y); g.stroke(); g.fillText(v.toFixed(1), 4, y + 4);
-  }
-  g.fillText(xLabel, L, h - 6); g.fillText(yLabel, w - R - g.measureText(yLabel).width, h - 6);
-  const colours = ['#f0b296', '#8cc8ff', '#5fd38a', '#f3c13a', '#d49cff'];
-  series.forEach((s, i) => {
-    const col = colours[i % colours.length];
-    g.strokeStyle = col; g.fillStyle = col; g.lineWidth = 2; g.beginPath();
-    s.points.forEach((p, k) => (k ? g.lineTo(X(p.x), Y(p.y)) : g.moveTo(X(p.x), Y(p.y))));
-    g.stroke();
-    for (const p of s.points) { g.beginPath(); g.arc(X(p.x), Y(p.y), 3, 0, 7); g.fill(); }
-    g.fillText(s.name, L + 8 + i * 140, T + 12);
+  canvas.setAttribute('aria-label', opts.describe || opts.series.map((s) => s.label).join(', '));
+  return new C(canvas, {
+    type: bar ? 'bar' : 'line', data: { labels: opts.labels, datasets },
+    options: {
+      animation: false, responsive: true, maintainAspectRatio: false,
+      scales: {
+        x: bar ? { title: { display: !!opts.xLabel, text: opts.xLabel } }
+          : { type: 'linear', title: { display: true, text: opts.xLabel }, ticks: { precision: 0 } },
+        y: { min: opts.yMin, max: opts.yMax, title: { display: true, text: opts.yLabel } },
+      },
+      plugins: { legend: { labels: { boxWidth: 14, filter: (item) => item.text !== '' } } },
+    },
   });
 }

@@ -37,3 +37,25 @@ export function when(iso) {
 
 // A destructive action runs only once the person confirmed it, told what it does.
 export function confirmed(what) { return window.confirm(what); }
+
+// A table that reads as cards on a phone: every cell carries its column's name (data-label,
+// shown by the stylesheet under 700 px). columns: [{label, num}]; rows: arrays of cell contents
+// (or {cells, attrs} for a row with attributes).
+export function table(columns, rows, attrs) {
+  const head = el('thead', {}, el('tr', {}, columns.map((c) => el('th', { class: c.num ? 'num' : '', scope: 'col' }, c.label))));
+  const body = el('tbody', {}, rows.map((r) => row(columns, r)));
+  return el('table', Object.assign({ class: 'cards' }, attrs || {}), head, body);
+}
+export function row(columns, r) {
+  const cells = Array.isArray(r) ? r : r.cells;
+  return el('tr', Array.isArray(r) ? {} : r.attrs, cells.map((c, i) =>
+    el('td', { class: columns[i].num ? 'num' : '', 'data-label': columns[i].label || null }, c)));
+}
+// A definition list from [term, value] pairs.
+export function kv(pairs, attrs) {
+  return el('dl', Object.assign({ class: 'kv' }, attrs || {}), pairs.flatMap(([k, v]) => [el('dt', {}, k), el('dd', {}, v)]));
+}
+// A compact strip of [term, value] pairs (a record's head), wrapping on a narrow screen.
+export function facts(pairs, attrs) {
+  return el('dl', Object.assign({ class: 'facts' }, attrs || {}), pairs.map(([k, v]) => el('div', {}, el('dt', {}, k), el('dd', {}, v))));
+}

@@ -136,6 +136,16 @@ export class TissueView {
       this.yaw += (e.clientX - drag[0]) * 0.01; this.pitch += (e.clientY - drag[1]) * 0.01;
       drag = [e.clientX, e.clientY]; this.draw();
     });
+    // The keyboard turns it too (arrows), and a screen reader hears what it shows.
+    canvas.tabIndex = 0;
+    canvas.setAttribute('role', 'img');
+    canvas.setAttribute('aria-label', `The ${(scene && scene.material) || 'tissue'} in 3D` +
+      `${scene && scene.name ? ' (' + scene.name + ')' : ''}, as the trainee deforms it; arrow keys turn the view.`);
+    canvas.addEventListener('keydown', (e) => {
+      const turn = { ArrowLeft: [-0.1, 0], ArrowRight: [0.1, 0], ArrowUp: [0, -0.1], ArrowDown: [0, 0.1] }[e.key];
+      if (!turn) return;
+      e.preventDefault(); this.yaw += turn[0]; this.pitch += turn[1]; this.draw();
+    });
     this.frames = 0;
   }
   // Moved vertices (indices, positions in mm) as the server sends them; the others are at rest.
@@ -149,6 +159,12 @@ export class TissueView {
         this.pos[3 * i] = p[3 * k]; this.pos[3 * i + 1] = p[3 * k + 1]; this.pos[3 * i + 2] = p[3 * k + 2];
       }
     }
+    this.draw();
+  }
+  // A recorded frame: every vertex's displacement from rest (3 per vertex) in units of `unit` mm.
+  setDisplacement(d, unit) {
+    const n = Math.min(d.length, this.rest.length);
+    for (let i = 0; i < n; ++i) this.pos[i] = this.rest[i] + d[i] * unit;
     this.draw();
   }
   computeNormals() {

@@ -205,9 +205,12 @@ TEST_F(HttpApiTest, EveryPageAndRouteChecksTheRole) {
   EXPECT_EQ(Call("GET", "/signin").status, 200);
 
   const Signed tina = SignIn(tokens_["tina"]);
-  for (const char* page : {"/live", "/session/1", "/evaluate", "/reports", "/admin"})
+  for (const char* page : {"/live", "/evaluate", "/reports", "/admin"})
     EXPECT_EQ(Call("GET", page, "", tina.cookie).status, 403) << page;
-  EXPECT_EQ(Call("GET", "/mine", "", tina.cookie).status, 200);
+  // A session's page and the records are shells for anyone signed in: what they show comes from
+  // the API, which keeps a trainee to her own sessions (SessionsAreRecords below).
+  for (const char* page : {"/mine", "/session/1", "/records"})
+    EXPECT_EQ(Call("GET", page, "", tina.cookie).status, 200) << page;
   for (const char* route : {"/api/v1/users", "/api/v1/live/events", "/api/v1/export",
                             "/api/v1/reports?kind=trainee&subject=tina", "/api/v1/evaluations/mine",
                             "/api/v1/training-effect"})
@@ -232,6 +235,88 @@ TEST_F(HttpApiTest, EveryPageAndRouteChecksTheRole) {
   const HttpReply shell = Call("GET", "/admin", "", admin.cookie);
   EXPECT_NE(shell.body.find("data-page=\"admin\""), std::string::npos);
   EXPECT_EQ(shell.content_type, "text/html; charset=utf-8");
+}
+
+TEST_F(HttpApiTest, SessionsAreRecordsEveryReaderMayOpenAndATraineeOnlyHerOwn) {
+  AddUsers({{"tom", db::Role::kTrainee, "novice"}});
+  // Two ended trials (tina's with a record and a rating with a comment, tom's without) and a live
+  // one of tina's.
+  const int64_t mine = store_->CreateSession("tina", "arm-torsion").value().id;
+  scoring::TrialMetrics m;
+  m.score = 7.5;
+  ASSERT_TRUE(store_
+                  ->EndSession(mine, SessionState::kEnded, db::NowUs(), "done", m, 0,
+                               R"({"series":{"time_s":[0,0.5],"force_n":[0,1.25]}})")
+                  .ok());
+  const int64_t his = store_->CreateSession("tom", "arm-torsion").value().id;
+  ASSERT_TRUE(store_->EndSession(his, SessionState::kEnded, db::NowUs(), "done", m).ok());
+  const int64_t live = store_->CreateSession("tina", "arm-torsion").value().id;
+  const Signed eve = SignIn(tokens_["eve"]);
+  const std::string rating = json{{"idempotency_key", "k1"},
+                                  {"subject_kind", "session"},
+                                  {"subject", std::to_string(mine)},
+                                  {"moment_min", 30},
+                                  {"comment", "Steady; release more gently."},
+                                  {"scores", {7, 7, 7, 7, 7, 7, 7, 7, 7}}}
+                                 .dump();
+  ASSERT_EQ(Finish(Call("POST", "/api/v1/evaluations", rating, eve.cookie, eve.csrf)).status, 201);
+
+  // The evaluator opens the session's page and reads its record (she scores beside it).
+  EXPECT_EQ(Call("GET", "/session/" + std::to_string(mine), "", eve.cookie).status, 200);
+  const HttpReply trace =
+      Call("GET", "/api/v1/sessions/" + std::to_string(mine) + "/trace", "", eve.cookie);
+  ASSERT_EQ(trace.status, 200) << trace.body;
+  EXPECT_EQ(json::parse(trace.body)["series"]["force_n"][1], 1.25);
+  EXPECT_EQ(
+      Call("GET", "/api/v1/sessions/" + std::to_string(his) + "/trace", "", eve.cookie).status,
+      404);  // never driven: no record, said as such
+  const json feedback = json::parse(
+      Call("GET", "/api/v1/sessions/" + std::to_string(mine) + "/feedback", "", eve.cookie).body);
+  ASSERT_EQ(feedback["ratings"].size(), 1u);
+  EXPECT_EQ(feedback["ratings"][0]["comment"], "Steady; release more gently.");
+  EXPECT_EQ(feedback["ratings"][0]["moment_min"], 30);
+  EXPECT_EQ(feedback["ratings"][0]["evaluator"], "eve");
+  // Her own submissions list the moment and the comment.
+  const json own = json::parse(Call("GET", "/api/v1/evaluations/mine", "", eve.cookie).body);
+  EXPECT_EQ(own["submitted"][0]["comment"], "Steady; release more gently.");
+
+  // The records: ended sessions only, newest first, filtered and paged.
+  const Signed ian = SignIn(tokens_["ian"]);
+  json page = json::parse(Call("GET", "/api/v1/records", "", ian.cookie).body);
+  EXPECT_EQ(page["total"], 2);
+  EXPECT_EQ(page["sessions"][0]["id"], his);
+  EXPECT_EQ(page["sessions"][1]["has_record"], true);
+  EXPECT_EQ(page["sessions"][1]["score"], 7.5);
+  page = json::parse(Call("GET", "/api/v1/records?trainee=tina&per_page=1", "", ian.cookie).body);
+  EXPECT_EQ(page["total"], 1);
+  EXPECT_EQ(page["sessions"][0]["id"], mine);
+  for (const char* bad : {"?min_score=11", "?per_page=0", "?page=x", "?from=yesterday"})
+    EXPECT_EQ(Call("GET", std::string("/api/v1/records") + bad, "", ian.cookie).status, 400) << bad;
+
+  // tina reads her own session's record and feedback (without the rater's name), never tom's.
+  const Signed tina = SignIn(tokens_["tina"]);
+  const json hers = json::parse(
+      Call("GET", "/api/v1/sessions/" + std::to_string(mine) + "/feedback", "", tina.cookie).body);
+  EXPECT_EQ(hers["ratings"][0]["comment"], "Steady; release more gently.");
+  EXPECT_FALSE(hers["ratings"][0].contains("evaluator"));
+  for (const char* what : {"/trace", "/feedback", ""})
+    EXPECT_EQ(Call("GET", "/api/v1/sessions/" + std::to_string(his) + what, "", tina.cookie).status,
+              403)
+        << what;
+  page = json::parse(Call("GET", "/api/v1/records", "", tina.cookie).body);
+  EXPECT_EQ(page["total"], 1);  // hers only
+  EXPECT_EQ(Call("GET", "/api/v1/records?trainee=tom", "", tina.cookie).status, 403);
+  // A live session of hers that the manager does not run (no record yet): not found, not a crash.
+  EXPECT_EQ(
+      Call("GET", "/api/v1/sessions/" + std::to_string(live) + "/trace", "", tina.cookie).status,
+      404);
+
+  // The rated subjects, for the reports' pickers.
+  const json subjects =
+      json::parse(Call("GET", "/api/v1/subjects?kind=session", "", ian.cookie).body);
+  EXPECT_EQ(subjects["subjects"], json::array({std::to_string(mine)}));
+  EXPECT_EQ(Call("GET", "/api/v1/subjects?kind=planet", "", ian.cookie).status, 400);
+  EXPECT_EQ(Call("GET", "/api/v1/subjects?kind=model", "", tina.cookie).status, 403);
 }
 
 TEST_F(HttpApiTest, RevokingTokensOrDisablingEndsTheWebSessionAtTheNextRequest) {

@@ -107,6 +107,7 @@ TEST(TraceRecorderTest, AFrameDecodesToItsDisplacementAndUnmovedVerticesStayAtRe
   EXPECT_LE(r.frames(), TraceRecorder::kMaxFrames);
   const json k = json::parse(r.Json());
   EXPECT_EQ(k["frames"]["time_s"].front().get<double>(), 0.5);
+  EXPECT_EQ(Decode(k["frames"]["displacement"][0].get<std::string>()), d);  // kept whole
   EXPECT_GT(k["frames"]["time_s"].back().get<double>(), 100.5 - 1.6);
 }
 

@@ -1,15 +1,16 @@
 // Administration: users and tokens, weight sets, exports and backups.
 import { api } from '../api.js';
-import { confirmed, el, message, when } from '../dom.js';
+import { confirmed, el, message, row, when } from '../dom.js';
+
+const COLUMNS = [{ label: 'Name' }, { label: 'Role' }, { label: 'Group' }, { label: 'Created' }, { label: 'Status' }, { label: '' }];
 
 export async function pageAdmin(main) {
   const users = el('tbody', { id: 'users' });
   const note = el('div', { id: 'admin-note' });
   const refresh = async () => {
     const r = await api('GET', '/users');
-    users.replaceChildren(...r.users.map((u) => el('tr', {}, el('td', {}, u.name), el('td', {}, u.role), el('td', {}, u.group),
-      el('td', {}, when(u.created)), el('td', {}, u.disabled ? 'disabled' : 'active'),
-      el('td', {},
+    users.replaceChildren(...r.users.map((u) => row(COLUMNS, [u.name, u.role, u.group, when(u.created), u.disabled ? 'disabled' : 'active',
+      el('span', { class: 'actions' },
         el('button', { onclick: async () => {
           try {
             const t = await api('POST', `/users/${encodeURIComponent(u.name)}/token`, { label: 'dashboard' });
@@ -26,7 +27,7 @@ export async function pageAdmin(main) {
           if (!u.disabled && !confirmed(`Disable ${u.name}? Their live sessions end now and they cannot sign in until enabled again.`)) return;
           try { await api('POST', `/users/${encodeURIComponent(u.name)}/disabled`, { disabled: !u.disabled }); await refresh(); }
           catch (err) { message(note, err.message); }
-        } }, u.disabled ? 'Enable' : 'Disable')))));
+        } }, u.disabled ? 'Enable' : 'Disable'))])));
   };
   const create = el('form', { class: 'inline', id: 'create-user' },
     el('label', {}, 'Name', el('input', { name: 'name', required: true, maxlength: 128 })),
@@ -40,7 +41,7 @@ export async function pageAdmin(main) {
     catch (err) { message(note, err.message); }
   });
   const ws = await api('GET', '/weight-sets');
-  const wsText = el('textarea', { id: 'weight-set' }, JSON.stringify(ws.default, null, 2));
+  const wsText = el('textarea', { id: 'weight-set', 'aria-label': 'Weight set (JSON)' }, JSON.stringify(ws.default, null, 2));
   const wsNote = el('div');
   const wsButton = el('button', { onclick: async () => {
     try { await api('POST', '/weight-sets', wsText.value); message(wsNote, 'Weight set stored.', true); }
@@ -93,7 +94,7 @@ export async function pageAdmin(main) {
   });
   main.replaceChildren(el('h1', {}, 'Administration'),
     el('h2', {}, 'Users'), el('div', { class: 'panel' }, create, note,
-      el('table', {}, el('thead', {}, el('tr', {}, ['Name', 'Role', 'Group', 'Created', 'Status', ''].map((h) => el('th', {}, h)))), users)),
+      el('table', { class: 'cards' }, el('thead', {}, el('tr', {}, COLUMNS.map((c) => el('th', { scope: 'col' }, c.label)))), users)),
     el('h2', {}, 'Weight sets'), el('div', { class: 'panel' }, el('p', { class: 'muted' }, 'Stored: ' + (ws.names.join(', ') || 'none')), wsText, wsButton, wsNote),
     el('h2', {}, 'Export evaluations'), el('div', { class: 'panel' }, exportForm, exportNote),
     el('h2', {}, 'Backup'), el('div', { class: 'panel' }, backupForm, backupNote));

@@ -1,45 +1,30 @@
-// An evaluator's queue, the scoring form and their submissions.
+// An evaluator's queue (sessions to score open beside their replay), the simulator models to
+// score, and their own submissions with the moment and comment of each.
 import { api } from '../api.js';
-import { el, fmt, message, when } from '../dom.js';
+import { el, fmt, table, when } from '../dom.js';
+import { indexName, momentText } from '../rubric.js';
+import { scoreForm } from '../score_form.js';
 
 export async function pageEvaluate(main) {
   const [queue, weights] = await Promise.all([api('GET', '/evaluations/mine'), api('GET', '/weight-sets')]);
   const names = weights.index_names, w = weights.default.index;
-  const formBox = el('div', { class: 'panel', id: 'score-form' }, el('p', { class: 'muted' }, 'Choose a session or a model to score.'));
-  const openForm = (kind, subject) => {
-    const key = 'web:' + (crypto.randomUUID ? crypto.randomUUID() : String(Math.random()).slice(2) + Date.now());
-    const note = el('div');
-    const inputs = names.map((n, j) => el('label', {}, `${n} (weight ${w[j]})`,
-      el('input', { type: 'number', min: 0, max: 10, step: 0.5, required: true, name: 'i' + j })));
-    const submit = el('button', { type: 'submit' }, 'Submit scores');
-    const form = el('form', { class: 'inline' }, inputs, submit);
-    form.addEventListener('submit', async (e) => {
-      e.preventDefault();
-      if (!form.reportValidity()) return;
-      const scores = names.map((_, j) => Number(form.elements['i' + j].value));
-      submit.disabled = true;
-      try {
-        // The same key on a retry: the server stores one submission and says it was a duplicate.
-        const r = await api('POST', '/evaluations', { idempotency_key: key, subject_kind: kind, subject, scores });
-        message(note, `Stored (submission ${r.submission_id}${r.duplicate ? ', already stored' : ''}).`, true);
-        setTimeout(() => pageEvaluate(main), 800);
-      } catch (err) { message(note, err.message); submit.disabled = false; }
-    });
-    formBox.replaceChildren(el('h2', {}, `Score ${kind} ${subject}`), form, note);
-  };
-  const sessions = el('table', { id: 'pending-sessions' },
-    el('thead', {}, el('tr', {}, ['Session', 'Trainee', 'Scene', 'Ended', ''].map((h) => el('th', {}, h)))),
-    el('tbody', {}, queue.sessions.map((s) => el('tr', {}, el('td', {}, s.id), el('td', {}, s.trainee),
-      el('td', {}, s.scene), el('td', {}, when(s.ended)),
-      el('td', {}, el('button', { onclick: () => openForm('session', String(s.id)) }, 'Score'))))));
-  const models = el('table', { id: 'pending-models' }, el('tbody', {}, queue.models.map((m) => el('tr', {},
-    el('td', {}, m), el('td', {}, el('button', { onclick: () => openForm('model', m) }, 'Score'))))));
-  const past = el('table', { id: 'past' },
-    el('thead', {}, el('tr', {}, ['Submitted', 'Kind', 'Subject', ...names.map((_, j) => 'i' + (j + 1))].map((h) => el('th', {}, h)))),
-    el('tbody', {}, queue.submitted.map((s) => el('tr', {}, el('td', {}, when(s.submitted)), el('td', {}, s.subject_kind),
-      el('td', {}, s.subject), s.scores.map((x) => el('td', { class: 'num' }, fmt(x, 1)))))));
+  const formBox = el('div', { id: 'model-form' });
+  const sessions = table([{ label: 'Session' }, { label: 'Trainee' }, { label: 'Scene' }, { label: 'Ended' }, { label: '' }],
+    queue.sessions.map((s) => [String(s.id), s.trainee, s.scene, when(s.ended),
+      el('a', { class: 'button', href: `/session/${s.id}#score`, 'aria-label': `Score session ${s.id} beside its replay` }, 'Open and score')]),
+    { id: 'pending-sessions' });
+  const models = table([{ label: 'Model' }, { label: '' }], queue.models.map((m) => [m,
+    el('button', { type: 'button', onclick: () => formBox.replaceChildren(el('div', { class: 'panel' },
+      el('h2', {}, `Score the ${m} model`), scoreForm('model', m, names, w, () => setTimeout(() => pageEvaluate(main), 800)))) }, 'Score')]),
+  { id: 'pending-models' });
+  const past = table([{ label: 'Submitted' }, { label: 'Subject' }, { label: 'Moment' }, { label: 'Scores' }, { label: 'Comment' }],
+    queue.submitted.map((s) => [when(s.submitted), `${s.subject_kind} ${s.subject}`, momentText(s.moment_min),
+      el('ul', { class: 'index-scores compact' }, s.scores.map((x, j) => el('li', {}, el('span', {}, indexName(names[j], j)), el('b', {}, fmt(x, 1))))),
+      s.comment || '—']), { id: 'past' });
   main.replaceChildren(el('h1', {}, 'Evaluate'),
-    el('h2', {}, 'Sessions waiting for your scores'), el('div', { class: 'panel' }, queue.sessions.length ? sessions : el('p', { class: 'muted' }, 'None.')),
-    el('h2', {}, 'Simulator models waiting for your scores'), el('div', { class: 'panel' }, queue.models.length ? models : el('p', { class: 'muted' }, 'None.')),
-    formBox, el('h2', {}, 'Your submissions'), el('div', { class: 'panel' }, past));
+    el('h2', {}, 'Sessions waiting for your scores'),
+    el('div', { class: 'panel' }, queue.sessions.length ? sessions : el('p', { class: 'muted' }, 'None.')),
+    el('h2', {}, 'Simulator models waiting for your scores'),
+    el('div', { class: 'panel' }, queue.models.length ? models : el('p', { class: 'muted' }, 'None.')), formBox,
+    el('h2', {}, 'Your submissions'), el('div', { class: 'panel' }, queue.submitted.length ? past : el('p', { class: 'muted' }, 'None yet.')));
 }

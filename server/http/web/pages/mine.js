@@ -1,12 +1,44 @@
-// A trainee's own sessions.
+// A trainee's own page: their latest score and what the evaluators said, their scores over
+// trials, and every session (each opens its replay). Reads on a phone.
 import { api, auth } from '../api.js';
-import { el, fmt, stateBadge, when } from '../dom.js';
+import { xyChart } from '../charts.js';
+import { el, fmt, stateBadge, table, when } from '../dom.js';
+import { indexName, momentText } from '../rubric.js';
 
 export async function pageMine(main) {
-  const r = await api('GET', '/sessions?trainee=' + encodeURIComponent(auth.me.user));
-  main.replaceChildren(el('h1', {}, 'My sessions'), el('div', { class: 'panel' }, el('table', {},
-    el('thead', {}, el('tr', {}, ['Session', 'Scene', 'State', 'Started', 'Score'].map((h) => el('th', {}, h)))),
-    el('tbody', {}, r.sessions.map((s) => el('tr', {}, el('td', {}, s.id), el('td', {}, s.scene), el('td', {}, stateBadge(s.state)),
-      el('td', {}, when(s.started)), el('td', { class: 'num' }, s.metrics ? fmt(s.metrics.score, 1) : '—')))))),
-  el('p', { class: 'muted' }, 'A session an instructor prepared for you: start your station with --join ID.'));
+  const [r, ws] = await Promise.all([api('GET', '/sessions?trainee=' + encodeURIComponent(auth.me.user)),
+    api('GET', '/weight-sets').catch(() => null)]);
+  const scored = r.sessions.filter((s) => s.metrics).sort((a, b) => a.id - b.id);
+  const latest = scored[scored.length - 1];
+  const feedback = el('div', { id: 'my-feedback' });
+  const chart = el('canvas', { id: 'my-scores' });
+  main.replaceChildren(el('h1', {}, 'My training'),
+    el('div', { class: 'panel', id: 'my-latest' }, latest
+      ? [el('h2', {}, 'Your latest trial'), el('p', { class: 'big' }, el('b', {}, fmt(latest.metrics.score, 1)), ' / 10 on ', latest.scene, ' · ', when(latest.ended)),
+        el('a', { href: '/session/' + latest.id }, 'Replay it and see its traces')]
+      : el('p', {}, 'No scored trial yet. When your instructor prepares a session for you, start your station with the session number they give you.')),
+    el('h2', {}, 'What your evaluators said'), el('div', { class: 'panel' }, feedback),
+    el('h2', {}, 'Your scores over trials'), el('div', { class: 'panel' }, chart),
+    el('h2', {}, 'All your sessions'), el('div', { class: 'panel' }, table(
+      [{ label: 'Session' }, { label: 'Scene' }, { label: 'State' }, { label: 'Started' }, { label: 'Score', num: true }, { label: '' }],
+      r.sessions.map((s) => [String(s.id), s.scene, stateBadge(s.state), when(s.started), s.metrics ? fmt(s.metrics.score, 1) : '—',
+        el('a', { href: '/session/' + s.id }, 'Open')]), { id: 'my-sessions' })));
+  xyChart(chart, { xLabel: 'trial', yLabel: 'score (0–10)', yMin: 0, yMax: 10, height: 200,
+    series: [{ label: 'trial score', points: scored.map((s, i) => ({ x: i + 1, y: s.metrics.score })) }],
+    band: { lo: 8, hi: 10, label: 'proficient (8–10)' },
+    describe: `Your trial scores, ${scored.length} trials: ${scored.map((s) => fmt(s.metrics.score, 1)).join(', ') || 'none yet'}.` });
+  // Feedback on the latest sessions that have any (a few requests; the list is short).
+  const items = [];
+  for (const s of scored.slice(-10).reverse()) {
+    const f = await api('GET', `/sessions/${s.id}/feedback`).catch(() => ({ ratings: [] }));
+    for (const x of f.ratings) items.push({ s, x });
+  }
+  const names = ws ? ws.index_names : [];
+  feedback.replaceChildren(...(items.length ? items.map(({ s, x }) => {
+    return el('article', { class: 'rating' },
+      el('h3', {}, `Session ${s.id} (${s.scene}) · ${x.evaluator_group.replace('_', ' ')} · ${momentText(x.moment_min)}`),
+      x.comment ? el('blockquote', { class: 'comment' }, x.comment) : null,
+      el('ul', { class: 'index-scores compact' }, x.scores.map((v, j) => el('li', {}, el('span', {}, indexName(names[j], j)), el('b', {}, fmt(v, 1))))),
+      el('a', { href: '/session/' + s.id }, 'See the session'));
+  }) : [el('p', { class: 'muted' }, 'No evaluation of your sessions yet.')]));
 }

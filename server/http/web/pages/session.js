@@ -1,85 +1,141 @@
-// One session: its head, the tissue in 3D, live plots, and its trial metrics once it ended.
-import { api } from '../api.js';
-import { Plot } from '../charts.js';
-import { confirmed, el, fmt, message, stateBadge, when } from '../dom.js';
+// One session, live or as a record: its head, the tissue in 3D (live, or replayed on a timeline),
+// its traces on their own axes with targets and limits, the trial metrics, its ratings, and for
+// an evaluator the scoring form beside the evidence.
+import { api, auth } from '../api.js';
+import { confirmed, el, facts, fmt, kv, message, stateBadge, when } from '../dom.js';
+import { Replay } from '../replay.js';
+import { indexName, momentText } from '../rubric.js';
 import { loadScenes, scenesByName } from '../scenes.js';
+import { scoreForm } from '../score_form.js';
 import { TissueView } from '../tissue_view.js';
+import { traceCharts } from '../traces.js';
+
+const LIVE = ['created', 'running', 'stalled'];
 
 function metricsList(m) {
   if (!m) return el('p', { class: 'muted' }, 'No trial metrics recorded.');
   const rows = [
-    ['Score (0–10)', fmt(m.score, 2)], ['Raw score', fmt(m.raw_score, 2)],
-    ['Completed', m.completed ? 'yes' : 'no'], ['Completion time (s)', fmt(m.completion_time, 2)],
+    ['Score (0–10)', fmt(m.score, 2)], ['Raw score (before caps)', fmt(m.raw_score, 2)],
+    ['Task completed', m.completed ? 'yes' : 'no'], ['Completion time (s)', fmt(m.completion_time, 2)],
     ['Task error', fmt(m.task_error, 4)], ['Peak force (N)', fmt(m.peak_force, 2)],
-    ['Time over force limit (s)', fmt(m.time_over_force_limit, 2)], ['Path length (m)', fmt(m.path_length, 3)],
-    ['RMS jerk (m/s³)', fmt(m.rms_jerk, 1)], ['Overload events', m.overload_events], ['Duration (s)', fmt(m.duration, 1)],
-    ['Capped: not completed', m.capped_not_completed ? 'yes' : 'no'],
-    ['Capped: force limit', m.capped_force_limit ? 'yes' : 'no'], ['Capped: overload', m.capped_overload ? 'yes' : 'no'],
+    ['Time over the task force limit (s)', fmt(m.time_over_force_limit, 2)], ['Path length (m)', fmt(m.path_length, 3)],
+    ['RMS jerk (m/s³)', fmt(m.rms_jerk, 1)], ['Tissue overload events (model capacity exceeded)', m.overload_events],
+    ['Duration (s)', fmt(m.duration, 1)],
   ];
-  // What the station rendered and how the link held (0 when the station did not report them).
-  const l = m.link;
+  const caps = [m.capped_not_completed && 'not completed (at most 5)', m.capped_force_limit && 'over the force limit for more than 0.5 s (at most 4)',
+    m.capped_overload && 'tissue overloaded (at most 3)'].filter(Boolean);
+  rows.push(['Score capped because', caps.length ? caps.join('; ') : 'no cap']);
+  const l = m.link;  // what the station rendered and how the link held (0 when not reported)
   if (l && l.rate_hz > 0) {
     rows.push(['Peak force felt at the station (N)', fmt(l.station_peak_force_n, 2)],
-      ['Time over force limit at the station (s)', fmt(l.station_time_over_limit_s, 2)],
+      ['Time over the force limit at the station (s)', fmt(l.station_time_over_limit_s, 2)],
       ['Link: round trip (ms)', fmt(l.rtt_ms, 1)], ['Link: jitter (ms)', fmt(l.jitter_ms, 2)],
       ['Link: loss (%)', fmt(100 * l.loss_ratio, 1)], ['Link: stylus datagrams (per s)', fmt(l.rate_hz, 0)]);
   }
-  return el('dl', { class: 'kv', id: 'metrics' }, rows.flatMap(([k, v]) => [el('dt', {}, k), el('dd', {}, v)]));
+  return kv(rows, { id: 'metrics' });
 }
+
+function ratingsList(ratings) {
+  if (!ratings.length) return el('p', { class: 'muted' }, 'No evaluation yet.');
+  return el('div', { id: 'ratings' }, ratings.map((r) => el('article', { class: 'rating' },
+    el('h3', {}, `${r.evaluator ? r.evaluator + ', ' : ''}${r.evaluator_group.replace('_', ' ')} · ${momentText(r.moment_min)} · `, when(r.submitted)),
+    r.comment ? el('blockquote', { class: 'comment' }, r.comment) : el('p', { class: 'muted' }, 'No comment.'),
+    el('ul', { class: 'index-scores' }, r.scores.map((x, j) => el('li', {}, el('span', {}, indexName(WEIGHTS.names[j], j)), el('b', {}, fmt(x, 1))))))));
+}
+const WEIGHTS = { names: [], index: [] };
 
 export async function pageSession(main) {
   const id = location.pathname.split('/')[2];
-  const s = await api('GET', '/sessions/' + id);
-  await loadScenes();
+  const [s] = await Promise.all([api('GET', '/sessions/' + id), loadScenes()]);
+  const ws = await api('GET', '/weight-sets').catch(() => null);
+  if (ws) { WEIGHTS.names = ws.index_names; WEIGHTS.index = ws.default.index; }
+  const scene = scenesByName[s.scene] || { name: s.scene };
+  const record = await api('GET', `/sessions/${id}/trace`).catch(() => null);
+  const role = auth.me.role, live = LIVE.includes(s.state);
   const head = el('div', { class: 'panel' });
-  const renderHead = (x) => head.replaceChildren(
-    el('dl', { class: 'kv' }, ['Trainee', x.trainee, 'Scene', x.scene, 'State', stateBadge(x.state),
-      'Started', when(x.started), 'Ended', when(x.ended), 'End reason', x.end_reason || '—']
-      .map((v, i) => (i % 2 ? el('dd', {}, v) : el('dt', {}, v)))));
+  const renderHead = (x) => head.replaceChildren(facts([['Trainee', x.trainee], ['Scene', x.scene],
+    ['Task', scene.task === 'press' ? `press to ${fmt(scene.target, 0)} mm` : `twist to ${fmt(scene.target, 0)}° ± ${fmt(scene.tolerance, 0)}°`],
+    ['State', stateBadge(x.state)], ['Started', when(x.started)], ['Ended', when(x.ended)], ['End reason', x.end_reason || '—'],
+    ['Score', x.metrics ? el('b', { class: 'score' }, fmt(x.metrics.score, 1) + ' / 10') : '—']]));
   renderHead(s);
-  const stop = el('button', { class: 'danger', id: 'stop' }, 'Stop session');
   const note = el('div');
+  const view = el('canvas', { id: 'view3d' });
+  const traces = traceCharts(scene, live);
+  const tissue = el('div', { class: 'panel' }, el('h2', {}, live ? 'Tissue, live' : 'Tissue, replayed'), view);
+  const results = el('div', { class: 'panel', id: 'results' }, metricsList(s.metrics));
+  const feedback = el('div', { class: 'panel', id: 'feedback' });
+  const evidence = el('div', { class: 'evidence' }, tissue, el('div', { class: 'panel' }, el('h2', {}, 'Traces'), traces.panel));
+  const stop = el('button', { class: 'danger', id: 'stop' }, 'Stop session');
+  const liveFigures = el('div', { class: 'panel', id: 'live-panel' });
+  const left = [head, note];
+  if (live && (role === 'instructor' || role === 'admin')) left.push(stop);
+  if (live) left.push(liveFigures);
+  left.push(evidence, el('h2', {}, 'Trial metrics and safety events'), results,
+    el('h2', {}, role === 'trainee' ? 'What your evaluators said' : 'Evaluations'), feedback);
+  // An evaluator scores an ended session beside its replay, traces and metrics.
+  const scoring = !live && (role === 'evaluator' || role === 'admin') && ws;
+  const body = [el('h1', {}, `Session ${id}`)];
+  if (scoring) {
+    const form = el('div', { class: 'panel', id: 'score-panel' }, el('h2', {}, 'Your evaluation'),
+      scoreForm('session', String(id), ws.index_names, ws.default.index, () => loadFeedback()));
+    body.push(el('div', { class: 'score-layout' }, el('div', {}, left), form));
+  } else {
+    body.push(...left);
+  }
+  main.replaceChildren(...body);
+  async function loadFeedback() {
+    try { feedback.replaceChildren(ratingsList((await api('GET', `/sessions/${id}/feedback`)).ratings)); }
+    catch (err) { message(feedback, err.message); }
+  }
+  loadFeedback();
+
+  let view3d = null;
+  try {
+    const surface = record && record.rest && record.rest.triangles.length ? record.rest
+      : live ? await api('GET', `/sessions/${id}/surface`) : null;
+    if (surface) { view3d = new TissueView(view, surface, scene); view3d.draw(); }
+    else tissue.append(el('p', { class: 'muted' }, 'This session was never driven: there is nothing to replay.'));
+  } catch (err) { message(note, '3D view: ' + err.message); }
+  if (record && record.series) { traces.setRecord(record.series); }
+  if (!live) {
+    if (record && record.frames) {
+      const replay = new Replay(record, view3d, (t) => traces.cursor(t));
+      tissue.append(replay.controls);
+    }
+    return;
+  }
   stop.addEventListener('click', async () => {
     if (!confirmed(`Stop session ${id} now? The trainee's trial ends where it is and is scored as it stands.`)) return;
     try { renderHead(await api('POST', `/sessions/${id}/stop`, { reason: 'stopped by the instructor' })); }
     catch (err) { message(note, err.message); }
   });
-  const canvases = { force: el('canvas', { class: 'plot', id: 'plot-force' }),
-    twist: el('canvas', { class: 'plot', id: 'plot-twist' }), rtt: el('canvas', { class: 'plot', id: 'plot-rtt' }) };
-  const press = scenesByName[s.scene] && scenesByName[s.scene].task === 'press';
-  const plots = {
-    force: new Plot(canvases.force, [{ name: '|F| (N)', colour: '#f0b296' }], 'N'),
-    twist: new Plot(canvases.twist, press ? [{ name: 'depth (mm)', colour: '#8cc8ff' }]
-      : [{ name: 'twist (°)', colour: '#8cc8ff' }, { name: 'torque (mN·m)', colour: '#5fd38a' }], press ? 'mm' : '° / mN·m'),
-    rtt: new Plot(canvases.rtt, [{ name: 'RTT (µs)', colour: '#f3c13a' }], 'µs'),
-  };
-  const view = el('canvas', { id: 'view3d' });
-  const live = el('dl', { class: 'kv', id: 'live-figures' });
-  const results = el('div', { id: 'results' }, metricsList(s.metrics));
-  main.replaceChildren(el('h1', {}, `Session ${id}`), head, stop, note,
-    el('div', { class: 'grid' },
-      el('div', { class: 'panel' }, el('h2', {}, 'Tissue'), view),
-      el('div', { class: 'panel' }, el('h2', {}, 'Live'), live, canvases.force, canvases.twist, canvases.rtt)),
-    el('h2', {}, 'Trial metrics and safety events'), el('div', { class: 'panel' }, results));
-  if (!['created', 'running', 'stalled'].includes(s.state)) { stop.disabled = true; return; }
-  let tissue = null;
-  try { tissue = new TissueView(view, await api('GET', `/sessions/${id}/surface`), scenesByName[s.scene]); tissue.draw(); }
-  catch (err) { message(note, '3D view: ' + err.message); }
+  watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, stop);
+}
+
+function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, stop) {
+  const press = scene.task === 'press';
+  const figures = el('dl', { class: 'facts', id: 'live-figures' });
+  // Said aloud when it changes (a screen reader does not read a figure that changes 10 times a second).
+  const spoken = el('p', { class: 'sr-only', role: 'status', 'aria-live': 'polite', id: 'live-summary' });
+  liveFigures.replaceChildren(figures, spoken);
   const es = new EventSource(`/api/v1/sessions/${id}/events`);
-  const t0 = performance.now();
+  let drawn = 0, said = '';
   es.onmessage = (ev) => {
-    const t = JSON.parse(ev.data), now = (performance.now() - t0) / 1000;
+    const t = JSON.parse(ev.data);
     if (t.state !== s.state) { s.state = t.state; renderHead(s); }
-    plots.force.add(now, [t.force_n]);
-    plots.twist.add(now, press ? [t.depth_mm] : [t.twist_deg, t.torque_nm * 1000]);
-    plots.rtt.add(now, [t.rtt_us]);
-    Object.values(plots).forEach((p) => p.draw());
-    live.replaceChildren(...[['State', stateBadge(t.state)], ['Force (N)', fmt(t.force_n, 2)],
-      [press ? 'Depth (mm)' : 'Twist (°)', press ? fmt(t.depth_mm, 1) : fmt(t.twist_deg, 1)],
-      ['RTT (µs)', fmt(t.rtt_us, 0)], ['Loss (%)', fmt(t.loss_ratio * 100, 2)], ['Haptic rate (Hz)', fmt(t.haptic_rate_hz, 0)],
-      ['Score so far', fmt(t.score, 1)], ['Overload events', t.overload_events], ['Clock jumps', t.clock_jumps]]
-      .flatMap(([k, v]) => [el('dt', {}, k), el('dd', {}, v)]));
-    if (tissue && t.surface) tissue.apply(t.surface);
+    if (t.samples > 0) traces.add(t);
+    if (performance.now() - drawn > 250) { traces.update(); drawn = performance.now(); }
+    const atLimit = scene.device_max_force_n && t.force_n >= 0.97 * scene.device_max_force_n;
+    figures.replaceChildren(...[['State', stateBadge(t.state)],
+      ['Force (N)', el('span', { class: atLimit ? 'flag' : '' }, fmt(t.force_n, 2), atLimit ? ' at the device limit' : '')],
+      [press ? 'Depth (mm)' : 'Twist (°)', press ? fmt(t.depth_mm, 1) : `${fmt(t.twist_deg, 1)} (target ${fmt(scene.target, 0)})`],
+      ['Time over the force limit (s)', fmt(t.over_limit_s, 1)], ['Tissue overload events', t.overload_events],
+      ['Round trip (ms)', fmt(t.rtt_us / 1000, t.rtt_us < 10e3 ? 2 : 1)], ['Loss (%)', fmt(t.loss_ratio * 100, 2)],
+      ['Haptic rate (Hz)', fmt(t.haptic_rate_hz, 0)], ['Score so far', fmt(t.score, 1)], ['Clock jumps', t.clock_jumps]]
+      .map(([k, v]) => el('div', {}, el('dt', {}, k), el('dd', {}, v))));
+    const say = `${t.state}; score ${fmt(t.score, 0)}${atLimit ? '; at the device force limit' : ''}`;
+    if (say !== said) { spoken.textContent = say; said = say; }
+    if (view3d && t.surface) view3d.apply(t.surface);
   };
   es.addEventListener('ended', async () => {
     es.close();

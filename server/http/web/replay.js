@@ -1,0 +1,67 @@
+// A recorded session played back: the tissue's surface frames (int16 displacements from rest,
+// base64; server/session/trace_recorder.h) interpolated on a timeline, with the traces' cursor.
+// Keyboard: the timeline is a range input (arrows step, Home/End), the button plays and pauses.
+import { el } from './dom.js';
+
+function decode(b64) {
+  const bin = atob(b64), out = new Int16Array(bin.length >> 1);
+  for (let i = 0; i < out.length; ++i) out[i] = (bin.charCodeAt(2 * i) | (bin.charCodeAt(2 * i + 1) << 8)) << 16 >> 16;
+  return out;
+}
+
+export class Replay {
+  // record: the trace JSON; view: a TissueView of record.rest (or null); onTime(t): traces' cursor.
+  constructor(record, view, onTime) {
+    this.view = view; this.onTime = onTime;
+    const f = record.frames || { time_s: [], displacement: [] };
+    this.times = f.time_s; this.unit = f.unit_mm || 0.01;
+    this.frames = f.displacement.map(decode);
+    const series = record.series && record.series.time_s ? record.series.time_s : [];
+    this.t0 = Math.min(series.length ? series[0] : 0, this.times.length ? this.times[0] : Infinity);
+    this.t1 = Math.max(series.length ? series[series.length - 1] : 0, this.times.length ? this.times[this.times.length - 1] : 0);
+    this.time = this.t0; this.playing = false;
+    this.slider = el('input', { type: 'range', id: 'timeline', min: this.t0, max: this.t1, step: 0.05, value: this.t0,
+      'aria-label': 'Replay time', 'data-frames': this.frames.length });
+    this.label = el('output', { id: 'replay-time', for: 'timeline' });
+    this.button = el('button', { type: 'button', id: 'play', 'aria-pressed': 'false' }, 'Play');
+    this.slider.addEventListener('input', () => { this.pause(); this.seek(Number(this.slider.value)); });
+    this.button.addEventListener('click', () => (this.playing ? this.pause() : this.play()));
+    this.controls = el('div', { class: 'replay-controls' }, this.button, this.slider, this.label);
+    this.seek(this.t1);  // opens on the end state: what the trial left
+  }
+  seek(t) {
+    this.time = Math.min(this.t1, Math.max(this.t0, t));
+    this.slider.value = this.time;
+    const text = `${this.time.toFixed(1)} s of ${this.t1.toFixed(1)} s`;
+    this.label.textContent = text;
+    this.slider.setAttribute('aria-valuetext', text);
+    if (this.view && this.frames.length) this.view.setDisplacement(this.at(this.time), this.unit);
+    if (this.onTime) this.onTime(this.time);
+  }
+  // The displacement at `t`, linear between the two frames around it (before the first: rest).
+  at(t) {
+    const T = this.times, n = T.length;
+    if (t < T[0]) return new Int16Array(this.frames[0].length);  // before the first: at rest
+    if (t === T[0]) return this.frames[0];
+    if (t >= T[n - 1]) return this.frames[n - 1];
+    let k = 1;
+    while (T[k] < t) ++k;
+    const a = (t - T[k - 1]) / (T[k] - T[k - 1]), A = this.frames[k - 1], B = this.frames[k];
+    const out = new Float32Array(A.length);
+    for (let i = 0; i < A.length; ++i) out[i] = A[i] + a * (B[i] - A[i]);
+    return out;
+  }
+  play() {
+    if (this.time >= this.t1) this.seek(this.t0);
+    this.playing = true; this.button.textContent = 'Pause'; this.button.setAttribute('aria-pressed', 'true');
+    let last = performance.now();
+    const step = (now) => {
+      if (!this.playing) return;
+      this.seek(this.time + (now - last) / 1000); last = now;
+      if (this.time >= this.t1) return this.pause();
+      requestAnimationFrame(step);
+    };
+    requestAnimationFrame(step);
+  }
+  pause() { this.playing = false; this.button.textContent = 'Play'; this.button.setAttribute('aria-pressed', 'false'); }
+}
