@@ -540,6 +540,21 @@ def main():
         prompt.dismiss()
         check(asked and api(http, "GET", "/me", tokens["tina"])["user"] == "tina",
               "revoking tokens asks first, and a dismissed question revokes nothing")
+        # Every page on a phone: nothing wider than the screen, the whole menu on it.
+        driver.set_window_size(390, 844)
+        for page, ready in [("/live", "#live-table"), ("/records", "#records-table"), ("/evaluate", "#pending-models"),
+                            ("/reports", "#subjects legend"), ("/admin", "#users tr"), ("/mine", "#my-sessions"),
+                            (f"/session/{session}", "#timeline")]:
+            driver.get(base + page)
+            wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, ready))
+            time.sleep(0.3)
+            fits(f"{page} (as an administrator)")
+            cut = driver.execute_script(
+                "return [...document.querySelectorAll('nav a')].filter((a) => a.getBoundingClientRect().right > innerWidth)"
+                ".map((a) => a.textContent);")
+            check(not cut, f"{page}: every menu item on the phone's screen {cut}")
+        shot("admin-phone")
+        driver.set_window_size(1366, 768)
         print(f"first paint of the live page after sign-in: {first_paint_s * 1000:.0f} ms", flush=True)
     finally:
         if sys.exc_info()[0] is not None:  # failing: what the page itself said
