@@ -14,7 +14,7 @@ VSURG_PACKAGES=(
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
   libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev libpng-dev gnuplot-nox
   libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri xvfb xauth xdotool
-  chromium chromium-driver python3-selenium libjs-chart.js nodejs
+  chromium chromium-driver python3-selenium libjs-chart.js nodejs zlib1g-dev
   libimgui-dev libfreetype-dev fonts-dejavu-core
   libassimp-dev libcgal-dev
   postgresql libpq-dev python3-yaml

@@ -353,11 +353,15 @@ Status SessionManager::RestSurface(uint64_t id, std::vector<geometry::Vec3>& pos
 }
 
 Expected<std::string> SessionManager::Trace(uint64_t id) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = live_.find(id);
-  if (it == live_.end())
-    return Error{ErrorCode::kNotFound, "session " + std::to_string(id) + " is not live", "id"};
-  return it->second->trace.Json();
+  std::optional<TraceRecorder> copy;  // serialised outside the lock: deflating takes a while
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = live_.find(id);
+    if (it == live_.end())
+      return Error{ErrorCode::kNotFound, "session " + std::to_string(id) + " is not live", "id"};
+    copy.emplace(it->second->trace);
+  }
+  return copy->Json();
 }
 
 bool SessionManager::IsLive(uint64_t id) const {

@@ -1,6 +1,7 @@
 #include "server/session/trace_recorder.h"
 
 #include <openssl/evp.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
@@ -17,17 +18,20 @@ double Round(double v, int decimals) {
   return std::round(v * scale) / scale;
 }
 
-std::string Base64(const std::vector<int16_t>& v) {
-  std::vector<unsigned char> bytes(v.size() * 2);
-  for (size_t i = 0; i < v.size(); ++i) {
-    const auto u = static_cast<uint16_t>(v[i]);
-    bytes[2 * i] = static_cast<unsigned char>(u & 0xff);
-    bytes[2 * i + 1] = static_cast<unsigned char>(u >> 8);
-  }
+std::string Base64(const std::vector<uint8_t>& bytes) {
   std::string out(4 * ((bytes.size() + 2) / 3) + 1, '\0');
   const int n = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), bytes.data(),
                                 static_cast<int>(bytes.size()));
   out.resize(static_cast<size_t>(std::max(n, 0)));
+  return out;
+}
+
+std::vector<uint8_t> Deflate(const std::vector<uint8_t>& in, int level) {
+  uLongf size = compressBound(static_cast<uLong>(in.size()));
+  std::vector<uint8_t> out(size);
+  if (compress2(out.data(), &size, in.data(), static_cast<uLong>(in.size()), level) != Z_OK)
+    return {};
+  out.resize(size);
   return out;
 }
 
@@ -67,7 +71,8 @@ void TraceRecorder::AddSample(const sim::SessionTelemetry& t) {
 
 void TraceRecorder::AddSurface(double time_s, const std::vector<int32_t>& indices,
                                const std::vector<geometry::Vec3>& positions) {
-  if (rest_.empty() || !(time_s > last_frame_time_)) return;  // a stalled station: no new state
+  // A stalled station gives no new state; more often than kFramePeriodS is not kept.
+  if (rest_.empty() || !(time_s >= last_frame_time_ + kFramePeriodS * 0.99)) return;
   last_frame_time_ = time_s;
   Frame f{time_s, std::vector<int16_t>(3 * rest_.size(), 0)};
   const size_t n = std::min(indices.size(), positions.size());
@@ -99,10 +104,21 @@ std::string TraceRecorder::Json() const {
   nlohmann::json positions = nlohmann::json::array();
   for (const auto& p : rest_)
     for (int c = 0; c < 3; ++c) positions.push_back(Round(p[c] * 1e3, 3));
-  nlohmann::json frame_times = nlohmann::json::array(), displacement = nlohmann::json::array();
+  // The frames as one stream of differences from the frame before (modulo 2^16), deflated.
+  nlohmann::json frame_times = nlohmann::json::array();
+  std::vector<uint8_t> all;
+  all.reserve(6 * rest_.size() * frames_.size());
+  const std::vector<int16_t> rest_state(3 * rest_.size(), 0);
+  const std::vector<int16_t>* previous = &rest_state;
   for (const Frame& f : frames_) {
     frame_times.push_back(Round(f.time_s, 3));
-    displacement.push_back(Base64(f.displacement));
+    for (size_t i = 0; i < f.displacement.size(); ++i) {
+      const auto d = static_cast<uint16_t>(static_cast<uint16_t>(f.displacement[i]) -
+                                           static_cast<uint16_t>((*previous)[i]));
+      all.push_back(static_cast<uint8_t>(d & 0xff));
+      all.push_back(static_cast<uint8_t>(d >> 8));
+    }
+    previous = &f.displacement;
   }
   return nlohmann::json{
       {"series", std::move(series)},
@@ -110,7 +126,8 @@ std::string TraceRecorder::Json() const {
       {"frames",
        {{"time_s", std::move(frame_times)},
         {"unit_mm", kFrameUnitM * 1e3},
-        {"displacement", std::move(displacement)}}}}
+        {"vertices", rest_.size()},
+        {"deflated", Base64(Deflate(all, 6))}}}}
       .dump();
 }
 

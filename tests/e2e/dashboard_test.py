@@ -35,7 +35,7 @@ import time
 import urllib.request
 
 from selenium import webdriver
-from selenium.common.exceptions import NoAlertPresentException, TimeoutException
+from selenium.common.exceptions import NoAlertPresentException, TimeoutException, WebDriverException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
@@ -153,13 +153,23 @@ def main():
             wait.until(lambda d: d.find_elements(By.ID, "signout"))
 
         def shot(name):
-            driver.save_screenshot(os.path.join(SHOTS, f"dashboard-{name}.png"))
+            # A picture for people, not a check: on a loaded machine the renderer may not answer
+            # within chromedriver's 10 s; tried three times, then said and skipped.
+            for attempt in range(3):
+                try:
+                    driver.save_screenshot(os.path.join(SHOTS, f"dashboard-{name}.png"))
+                    return
+                except WebDriverException as e:
+                    print(f"screenshot {name}, attempt {attempt + 1}: {e.msg}", flush=True)
+            print(f"screenshot {name} skipped", flush=True)
 
         def tall_shot(name, height=1400):  # the whole page in one picture (for the README)
-            driver.set_window_size(1366, height)
-            time.sleep(0.6)  # the charts follow their boxes
-            shot(name)
-            driver.set_window_size(1366, 768)
+            try:
+                driver.set_window_size(1366, height)
+                time.sleep(0.6)  # the charts follow their boxes
+                shot(name)
+            finally:
+                driver.set_window_size(1366, 768)
 
         def canvas_png(element_id):
             data = driver.execute_script(
@@ -349,21 +359,6 @@ def main():
             "s.dispatchEvent(new Event('input'));")
         start_png = canvas_png("view3d")
         kept = driver.find_element(By.ID, "timeline").get_attribute("data-frames")
-        moved = driver.execute_async_script(f"""
-            const done = arguments[0];
-            fetch('/api/v1/sessions/{session}/trace').then((r) => r.json()).then((j) => {{
-              const f = j.frames.displacement, out = [];
-              for (const b of [f[0], f[f.length - 1]]) {{
-                const s = atob(b); let m = 0;
-                for (let i = 0; i < s.length; i += 2) m = Math.max(m, Math.abs(((s.charCodeAt(i) | (s.charCodeAt(i + 1) << 8)) << 16) >> 16));
-                out.push(m * j.frames.unit_mm);
-              }}
-              done(out.concat([j.frames.time_s[0], j.frames.time_s[f.length - 1], j.series.time_s[0]]));
-            }});""")
-        if end_png == start_png:
-            for entry in driver.get_log("browser"):
-                print("console:", entry["message"], flush=True)
-        print("record: largest displacement in the first and last frames (mm), their times, the first sample's:", moved, flush=True)
         check(end_png != start_png,
               f"the replay's timeline moves the tissue (its start differs from its end; {kept} frames)")
         label = driver.find_element(By.ID, "replay-time").text

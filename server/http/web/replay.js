@@ -1,21 +1,35 @@
-// A recorded session played back: the tissue's surface frames (int16 displacements from rest,
-// base64; server/session/trace_recorder.h) interpolated on a timeline, with the traces' cursor.
-// Keyboard: the timeline is a range input (arrows step, Home/End), the button plays and pauses.
+// A recorded session played back: the tissue's surface frames (server/session/trace_recorder.h:
+// int16 displacements from rest, each frame sent as its difference from the one before, deflated,
+// base64) interpolated on a timeline, with the traces' cursor. Keyboard: the timeline is a range
+// input (arrows step, Home/End), the button plays and pauses.
 import { el } from './dom.js';
 
-function decode(b64) {
-  const bin = atob(b64), out = new Int16Array(bin.length >> 1);
-  for (let i = 0; i < out.length; ++i) out[i] = (bin.charCodeAt(2 * i) | (bin.charCodeAt(2 * i + 1) << 8)) << 16 >> 16;
-  return out;
+// The frames of a record: inflate (the browser's own DecompressionStream), then each frame the
+// running sum of the differences (Int16Array arithmetic wraps modulo 2^16, as they were made).
+async function decode(f) {
+  if (!f || !f.deflated || !f.time_s.length) return [];
+  const bin = atob(f.deflated), packed = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; ++i) packed[i] = bin.charCodeAt(i);
+  const stream = new Blob([packed]).stream().pipeThrough(new DecompressionStream('deflate'));
+  const all = new Int16Array(await new Response(stream).arrayBuffer());  // little-endian hosts
+  const n = 3 * f.vertices, frames = [];
+  let sum = new Int16Array(n);
+  for (let k = 0; k < f.time_s.length; ++k) {
+    const next = new Int16Array(n), d = all.subarray(k * n, (k + 1) * n);
+    for (let i = 0; i < n; ++i) next[i] = sum[i] + d[i];
+    frames.push(next); sum = next;
+  }
+  return frames;
 }
 
 export class Replay {
   // record: the trace JSON; view: a TissueView of record.rest (or null); onTime(t): traces' cursor.
-  constructor(record, view, onTime) {
+  static async load(record, view, onTime) { return new Replay(record, await decode(record.frames), view, onTime); }
+  constructor(record, frames, view, onTime) {
     this.view = view; this.onTime = onTime;
-    const f = record.frames || { time_s: [], displacement: [] };
+    const f = record.frames || { time_s: [] };
     this.times = f.time_s; this.unit = f.unit_mm || 0.01;
-    this.frames = f.displacement.map(decode);
+    this.frames = frames;
     const series = record.series && record.series.time_s ? record.series.time_s : [];
     this.t0 = Math.min(series.length ? series[0] : 0, this.times.length ? this.times[0] : Infinity);
     this.t1 = Math.max(series.length ? series[series.length - 1] : 0, this.times.length ? this.times[this.times.length - 1] : 0);

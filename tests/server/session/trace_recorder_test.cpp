@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 #include <openssl/evp.h>
+#include <zlib.h>
 
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -24,17 +25,31 @@ sim::SessionTelemetry Sample(double t) {
   return s;
 }
 
-std::vector<int16_t> Decode(const std::string& b64) {
-  std::vector<unsigned char> bytes(b64.size());
-  const int n = EVP_DecodeBlock(bytes.data(), reinterpret_cast<const unsigned char*>(b64.data()),
-                                static_cast<int>(b64.size()));
+// The record's frames as the page decodes them: base64, inflate, then each frame the sum of the
+// differences so far (modulo 2^16).
+std::vector<std::vector<int16_t>> Frames(const json& record) {
+  const std::string b64 = record["frames"]["deflated"].get<std::string>();
+  std::vector<unsigned char> packed(b64.size());
+  int n = EVP_DecodeBlock(packed.data(), reinterpret_cast<const unsigned char*>(b64.data()),
+                          static_cast<int>(b64.size()));
   EXPECT_GE(n, 0);
-  size_t size = static_cast<size_t>(n);
-  if (b64.size() >= 2 && b64.end()[-1] == '=') --size;  // EVP counts the padding as bytes
-  if (b64.size() >= 2 && b64.end()[-2] == '=') --size;
-  std::vector<int16_t> out(size / 2);
-  for (size_t i = 0; i < out.size(); ++i)
-    out[i] = static_cast<int16_t>(bytes[2 * i] | (bytes[2 * i + 1] << 8));
+  for (size_t k = b64.size(); k > 0 && b64[k - 1] == '='; --k) --n;  // EVP counts the padding
+  packed.resize(static_cast<size_t>(n));
+  const size_t count = record["frames"]["time_s"].size();
+  const size_t values = 3 * record["frames"]["vertices"].get<size_t>();
+  std::vector<unsigned char> raw(2 * values * count);
+  uLongf size = static_cast<uLongf>(raw.size());
+  EXPECT_EQ(uncompress(raw.data(), &size, packed.data(), static_cast<uLong>(packed.size())), Z_OK);
+  EXPECT_EQ(size, raw.size());
+  std::vector<std::vector<int16_t>> out;
+  std::vector<uint16_t> sum(values, 0);
+  for (size_t f = 0; f < count; ++f) {
+    for (size_t i = 0; i < values; ++i) {
+      const size_t at = 2 * (f * values + i);
+      sum[i] = static_cast<uint16_t>(sum[i] + (raw[at] | (raw[at + 1] << 8)));
+    }
+    out.emplace_back(sum.begin(), sum.end());
+  }
   return out;
 }
 
@@ -87,13 +102,14 @@ TEST(TraceRecorderTest, AFrameDecodesToItsDisplacementAndUnmovedVerticesStayAtRe
   // an index past the mesh is ignored.
   r.AddSurface(0.5, {1, 2, 7}, {{0.011234, -0.0005, 0.02}, {0, 0.01, 5.0}, {1, 1, 1}});
   r.AddSurface(0.5, {1}, {{0.02, 0, 0}});  // the same time: nothing new
+  r.AddSurface(0.6, {1}, {{0.02, 0, 0}});  // sooner than 5 Hz: not kept
   ASSERT_EQ(r.frames(), 1u);
   const json j = json::parse(r.Json());
   EXPECT_EQ(j["rest"]["positions_mm"].size(), 9u);
   EXPECT_EQ(j["rest"]["positions_mm"][3].get<double>(), 10);
   EXPECT_EQ(j["rest"]["triangles"], json({0, 1, 2}));
   EXPECT_EQ(j["frames"]["unit_mm"].get<double>(), 0.01);
-  const auto d = Decode(j["frames"]["displacement"][0].get<std::string>());
+  const auto d = Frames(j).at(0);
   ASSERT_EQ(d.size(), 9u);
   EXPECT_EQ(d[0], 0);
   EXPECT_EQ(d[1], 0);
@@ -102,13 +118,23 @@ TEST(TraceRecorderTest, AFrameDecodesToItsDisplacementAndUnmovedVerticesStayAtRe
   EXPECT_EQ(d[4], -50);
   EXPECT_EQ(d[5], 2000);
   EXPECT_EQ(d[8], 32767);  // 5 m away: clamped, never wrapped
-  // Many frames: bounded, spanning the session.
-  for (int i = 1; i <= 1000; ++i) r.AddSurface(0.5 + 0.1 * i, {0}, {{0, 0, 0.001 * i}});
+  // Many frames (vertex 0 rising 1 mm a frame, then falling back past the int16 wrap of the
+  // differences): bounded, spanning the session, each restored exactly.
+  for (int i = 1; i <= 1000; ++i)
+    r.AddSurface(0.5 + 0.2 * i, {0, 2}, {{0, 0, 0.001 * (i % 300)}, {0, 0.01, i % 2 ? 0.3 : -0.3}});
   EXPECT_LE(r.frames(), TraceRecorder::kMaxFrames);
   const json k = json::parse(r.Json());
+  const auto frames = Frames(k);
+  ASSERT_EQ(frames.size(), r.frames());
   EXPECT_EQ(k["frames"]["time_s"].front().get<double>(), 0.5);
-  EXPECT_EQ(Decode(k["frames"]["displacement"][0].get<std::string>()), d);  // kept whole
-  EXPECT_GT(k["frames"]["time_s"].back().get<double>(), 100.5 - 1.6);
+  EXPECT_EQ(frames[0], d);  // the first frame kept whole through every halving
+  for (size_t f = 1; f < frames.size(); ++f) {
+    const double t = k["frames"]["time_s"][f].get<double>();
+    const int i = static_cast<int>(std::lround((t - 0.5) / 0.2));
+    EXPECT_EQ(frames[f][2], 100 * (i % 300)) << f;         // 1 mm = 100 units
+    EXPECT_EQ(frames[f][8], i % 2 ? 30000 : -30000) << f;  // ±300 mm, 60,000 apart
+  }
+  EXPECT_GT(k["frames"]["time_s"].back().get<double>(), 200.5 - 3.2);
 }
 
 }  // namespace

@@ -99,7 +99,7 @@ export async function pageSession(main) {
   if (record && record.series) { traces.setRecord(record.series); }
   if (!live) {
     if (record && record.frames) {
-      const replay = new Replay(record, view3d, (t) => traces.cursor(t));
+      const replay = await Replay.load(record, view3d, (t) => traces.cursor(t));
       tissue.append(replay.controls);
     }
     return;
