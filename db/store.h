@@ -163,6 +163,7 @@ struct SubmittedRow {  // one of an evaluator's own submissions
 // Ended sessions as records: a page of the list with filters (each one optional).
 struct SessionQuery {
   std::optional<std::string> trainee, scene;
+  std::optional<std::string> search;      // a part of the trainee's or the scene's name
   std::optional<int64_t> from_us, to_us;  // created in [from, to)
   std::optional<double> min_score, max_score;
   bool ended_only = true;      // sessions that left the live states

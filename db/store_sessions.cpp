@@ -551,7 +551,9 @@ Expected<SessionPage> Store::FindSessions(const SessionQuery& q) {
       "AND (CAST(?4 AS BIGINT) IS NULL OR s.created_us < ?4) "
       "AND (CAST(?5 AS DOUBLE PRECISION) IS NULL OR m.score >= ?5) "
       "AND (CAST(?6 AS DOUBLE PRECISION) IS NULL OR m.score <= ?6) "
-      "AND (?7 = 0 OR s.state NOT IN (?8, ?9, ?10)) ";
+      "AND (?7 = 0 OR s.state NOT IN (?8, ?9, ?10)) "
+      "AND (CAST(?11 AS TEXT) IS NULL OR t.name LIKE ?11 ESCAPE '!' OR s.scene LIKE ?11 ESCAPE "
+      "'!') ";
   auto bind = [&](Statement& st) {
     if (q.trainee)
       st.Bind(1, *q.trainee);
@@ -579,6 +581,16 @@ Expected<SessionPage> Store::FindSessions(const SessionQuery& q) {
       st.BindNull(6);
     st.Bind(7, int64_t{q.ended_only ? 1 : 0});
     BindLiveStates(st, 8);
+    if (q.search) {  // a LIKE pattern matching the text literally anywhere in the name
+      std::string pattern = "%";
+      for (char c : *q.search) {
+        if (c == '%' || c == '_' || c == '!') pattern += '!';
+        pattern += c;
+      }
+      st.Bind(11, pattern + "%");
+    } else {
+      st.BindNull(11);
+    }
   };
   const std::string from =
       "FROM sessions s JOIN trainees t ON t.id = s.trainee_id "
@@ -598,10 +610,10 @@ Expected<SessionPage> Store::FindSessions(const SessionQuery& q) {
       "s.end_reason, s.node, m.score, m.completed, "
       "CASE WHEN EXISTS (SELECT 1 FROM session_traces x WHERE x.session_id = s.id) THEN 1 "
       "ELSE 0 END " +
-      from + where + "ORDER BY s.created_us DESC, s.id DESC LIMIT ?11 OFFSET ?12");
+      from + where + "ORDER BY s.created_us DESC, s.id DESC LIMIT ?12 OFFSET ?13");
   if (!st.ok()) return st.error();
   bind(**st);
-  (*st)->Bind(11, int64_t{q.limit}).Bind(12, int64_t{q.offset});
+  (*st)->Bind(12, int64_t{q.limit}).Bind(13, int64_t{q.offset});
   for (;;) {
     auto row = (*st)->Step();
     if (!row.ok()) return row.error();

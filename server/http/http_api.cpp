@@ -549,12 +549,14 @@ HttpReply HttpApi::Routes::SessionFeedbackRoute(const Call& c) {
   return Ok({{"ratings", ratings}});
 }
 
-// Ended sessions as records, newest first: ?trainee= &scene= &from= &to= (ISO times or
+// Ended sessions as records, newest first: ?trainee= &scene= &q= (a part of the trainee's or
+// the scene's name) &from= &to= (ISO times or
 // microseconds) &min_score= &max_score= &page= (from 1) &per_page= (1..100, 25).
 HttpReply HttpApi::Routes::Records(const Call& c) {
   db::SessionQuery q;
   if (auto v = Param(c.query, "trainee"); !v.empty()) q.trainee = v;
   if (auto v = Param(c.query, "scene"); !v.empty()) q.scene = v;
+  if (auto v = Param(c.query, "q"); !v.empty()) q.search = v;
   for (auto [name, field] : {std::pair{"from", &q.from_us}, std::pair{"to", &q.to_us}}) {
     const std::string v = Param(c.query, name);
     if (v.empty()) continue;

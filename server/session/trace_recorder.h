@@ -15,8 +15,8 @@
 // forearm's 6,182 vertices; memory is at most kMaxFrames × 6 bytes × vertices (3.6 MB for the
 // forearm, 0.6 MB for an organ of 1,026). The record sends the frames as one deflate stream of
 // each frame's difference from the one before (modulo 2¹⁶, so the running sum restores each
-// exactly): a held twist costs almost nothing. On a 13 s arm trial of the browser test: 3.3 MB
-// of frames as plain base64, 1.0 MB deflated one by one, 0.26 MB as deflated differences.
+// exactly): a held twist costs almost nothing. A 7 s arm trial's 35 frames (bench/record_size.py,
+// docs/BENCHMARKS.md): 1.73 MB as plain base64, 0.65 MB deflated one by one, 0.22 MB sent.
 // A synthetic minute of a twisting forearm (75 frames kept of 300): a frame taken in at most
 // 0.27 ms (the halving included), the record serialised in 29 ms, 0.47 MB.
 //

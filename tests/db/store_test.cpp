@@ -359,6 +359,13 @@ TEST_P(StoreTest, EndedSessionsAreRecordsFoundByFiltersAndPages) {
   q.max_score = 5.5;
   EXPECT_EQ(store_->FindSessions(q)->total, 2);  // 2 and 5
   q = {};
+  q.search = "ney";  // kidney-palpation, by a part of the scene's name
+  EXPECT_EQ(store_->FindSessions(q)->total, 1);
+  q.search = "inee-2";  // trainee-2, by a part of the name
+  EXPECT_EQ(store_->FindSessions(q)->total, 1);
+  q.search = "%";  // taken literally, not as a wildcard
+  EXPECT_EQ(store_->FindSessions(q)->total, 0);
+  q = {};
   q.limit = 2;
   q.offset = 4;
   page = store_->FindSessions(q).value();

@@ -49,8 +49,11 @@ procs = []
 failures = []
 
 
-def check(ok, what):
-    print(("ok   " if ok else "FAIL ") + what, flush=True)
+T0 = time.time()
+
+
+def check(ok, what):  # with the seconds since the start: where a slow run spends its time
+    print(("ok   " if ok else "FAIL ") + f"[{time.time() - T0:5.1f} s] " + what, flush=True)
     if not ok:
         failures.append(what)
 
@@ -442,10 +445,10 @@ def main():
         wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#records-table tbody tr"))
         total = text(".pager [role=status]")
         check("10 sessions" in total, f"the records list every ended session: {total}")
-        driver.find_element(By.ID, "f-trainee").send_keys("rory")
+        driver.find_element(By.ID, "f-q").send_keys("ror")
         driver.find_element(By.CSS_SELECTOR, "#records-form button").click()
         wait.until(lambda d: "· 1 session" in text(".pager [role=status]"))
-        check("rory" in text("#records-table"), "the trainee filter finds rory's session")
+        check("rory" in text("#records-table"), "searching 'ror' finds rory's session alone")
         shot("records")
         accessible("the past sessions")
 

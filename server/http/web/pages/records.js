@@ -12,6 +12,7 @@ export async function pageRecords(main) {
   const params = new URLSearchParams(location.search);
   const input = (name, attrs) => el('input', Object.assign({ name, id: 'f-' + name, value: params.get(name) || '' }, attrs));
   const form = el('form', { class: 'filters', id: 'records-form', role: 'search' },
+    el('label', {}, 'Search (a part of a name)', input('q', { type: 'search', maxlength: 128, autocomplete: 'off' })),
     el('label', {}, 'Trainee', input('trainee', { maxlength: 128, autocomplete: 'off' })),
     el('label', {}, 'Scene', el('select', { name: 'scene', id: 'f-scene' }, el('option', { value: '' }, 'any'),
       scenes.map((s) => el('option', { value: s.name, selected: params.get('scene') === s.name }, s.name)))),
@@ -29,7 +30,7 @@ export async function pageRecords(main) {
   let page = Number(params.get('page')) || 1;
   const load = async () => {
     const f = new FormData(form), q = new URLSearchParams({ page, per_page: 25 });
-    for (const k of ['trainee', 'scene', 'min_score', 'max_score']) if (f.get(k)) q.set(k, f.get(k));
+    for (const k of ['q', 'trainee', 'scene', 'min_score', 'max_score']) if (f.get(k)) q.set(k, f.get(k));
     // Dates are this browser's local days: from its midnight, to the next day's.
     if (f.get('from')) q.set('from', new Date(f.get('from') + 'T00:00').toISOString());
     if (f.get('to')) { const d = new Date(f.get('to') + 'T00:00'); d.setDate(d.getDate() + 1); q.set('to', d.toISOString()); }
