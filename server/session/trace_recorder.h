@@ -11,8 +11,8 @@
 // The series carry the telemetry's own names with units (sim::TelemetryFields: time_s, force_n,
 // twist_deg, …), the same as the live API. A surface frame is every vertex's displacement from
 // rest in units of 0.01 mm as little-endian int16 (±327 mm), kept as they are: taking one costs
-// the quantisation only, since deflating each on the sampler thread measured 0.7–0.8 ms for the
-// forearm's 6,182 vertices; memory is at most kMaxFrames × 6 bytes × vertices (3.6 MB for the
+// the quantisation only, since deflating each on the sampler thread was timed at 0.7–0.8 ms for
+// a frame of the forearm's 6,182 vertices (synthetic displacements); memory is at most kMaxFrames × 6 bytes × vertices (3.6 MB for the
 // forearm, 0.6 MB for an organ of 1,026). The record sends the frames as one deflate stream of
 // each frame's difference from the one before (modulo 2¹⁶, so the running sum restores each
 // exactly): a held twist costs almost nothing. A 7 s arm trial's 35 frames (bench/record_size.py,
