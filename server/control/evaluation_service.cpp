@@ -27,6 +27,7 @@ class EvaluationServiceImpl final : public v1::EvaluationService::CallbackServic
     in.subject_kind = req->subject_kind();
     in.subject = req->subject();
     if (req->has_moment_min()) in.moment_min = req->moment_min();
+    in.comment = req->comment();
     in.scores.assign(req->scores().begin(), req->scores().end());
     auto s = PrepareSubmission(*p, in);
     if (!s.ok()) {

@@ -766,6 +766,16 @@ TEST_F(ControlPlaneTest, AReusedIdempotencyKeyWithAnotherPayloadIsRefused) {
   moment.set_moment_min(20);
   EXPECT_EQ(ev->Submit(Ctx(db::Role::kEvaluator).get(), moment, &r).error_code(),
             StatusCode::ALREADY_EXISTS);
+  // A comment to the trainee arrives with the scores (kept as it was written).
+  auto commented = Submission("key-2", "msm");
+  commented.set_comment("Feels right at the target; the release is too abrupt.");
+  ASSERT_TRUE(ev->Submit(Ctx(db::Role::kEvaluator).get(), commented, &r).ok());
+  EXPECT_EQ(store_->ListSubmissionsOn(db::SubjectKind::kModel, "msm").value().at(0).comment,
+            "Feels right at the target; the release is too abrupt.");
+  auto chatty = Submission("key-3", "reduced");
+  chatty.set_comment(std::string(db::kMaxComment + 1, 'x'));
+  EXPECT_EQ(ev->Submit(Ctx(db::Role::kEvaluator).get(), chatty, &r).error_code(),
+            StatusCode::INVALID_ARGUMENT);
   // An admin importing the same key for another evaluator group.
   auto group = Submission("imp-key", "coil");
   group.set_evaluator("ext");
@@ -778,7 +788,7 @@ TEST_F(ControlPlaneTest, AReusedIdempotencyKeyWithAnotherPayloadIsRefused) {
   ASSERT_TRUE(ev->Submit(Ctx(db::Role::kEvaluator).get(), Submission("key-1", "coil"), &r).ok());
   EXPECT_TRUE(r.duplicate());
   EXPECT_EQ(r.submission_id(), first.submission_id());
-  EXPECT_EQ(store_->CountEvaluationRows().value(), 18);
+  EXPECT_EQ(store_->CountEvaluationRows().value(), 27);  // coil twice (two groups), msm
   const auto j = ModelReport("coil");
   EXPECT_NEAR(j["index_means"][8].get<double>(), (0.2 * 7 + 0.5 * 7) / 0.7, 1e-12);
 }
