@@ -18,6 +18,7 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "db/store.h"
 #include "proto/wire/asio.h"
@@ -320,6 +321,51 @@ TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd)
   }
   control_->Unsubscribe(mine);
   control_->Unsubscribe(all);
+}
+
+// A session's record while it runs is on its node: the control plane reads it through the
+// internal API (the session page's history); once ended, the node has kept it in the shared store.
+TEST_F(ClusterTest, ALiveSessionsRecordIsReadThroughTheControlPlaneAndKeptWhenItEnds) {
+  Node& a = AddNode("sim-a", 8);
+  WaitForNodes(1);
+  auto s = control_->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  ASSERT_TRUE(control_->Start(s->record.id).ok());
+  boost::asio::io_context io;
+  boost::asio::ip::udp::socket sock(io, boost::asio::ip::udp::v4());
+  wire::Codec codec;
+  uint64_t seq = 0;
+  auto drive = [&] {  // a few stylus samples of a 1 kHz station
+    for (int i = 0; i < 5; ++i) {
+      wire::StylusMessage m;
+      ++seq;
+      m.sample.time = 1e-3 * static_cast<double>(seq);
+      m.sample.position = Eigen::Vector3d(0, 0, 0.3);
+      std::vector<uint8_t> buf(wire::kMaxDatagram);
+      const size_t n = codec.EncodeStylus(m,
+                                          {wire::kProtocolVersion, wire::PayloadType::kStylusState,
+                                           static_cast<uint64_t>(s->record.id), seq},
+                                          wire::Authenticator(s->key), buf);
+      sock.send_to(boost::asio::buffer(buf.data(), n),
+                   {boost::asio::ip::make_address("127.0.0.1"), a.endpoint->port()});
+    }
+  };
+  auto samples = [&]() -> size_t {
+    auto trace = control_->Trace(s->record.id);  // ClusterSessions → NodeService/Trace
+    if (!trace.ok()) return 0;
+    return nlohmann::json::parse(*trace)["series"]["time_s"].size();
+  };
+  test::Eventually(20, [&] {
+    drive();
+    return samples() >= 3;
+  });
+  ASSERT_GE(samples(), 3u) << "the node's record of the live session, through the control plane";
+  ASSERT_TRUE(control_->Stop(s->record.id, "done").ok());
+  test::Eventually(10, [&] { return control_store_->GetSessionTrace(s->record.id).ok(); });
+  auto kept = control_store_->GetSessionTrace(s->record.id);
+  ASSERT_TRUE(kept.ok()) << kept.error().message;
+  EXPECT_GE(nlohmann::json::parse(*kept)["series"]["time_s"].size(), 3u);
+  EXPECT_EQ(control_->Trace(s->record.id).error().code, ErrorCode::kNotFound);
 }
 
 // The site gives up on a node (its heartbeats were late past the timeout: a frozen process, a cut
