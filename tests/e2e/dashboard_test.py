@@ -399,6 +399,8 @@ def main():
             print(driver.find_element(By.ID, "score").text)
             raise
         wait.until(lambda d: comment in d.find_element(By.ID, "feedback").text)
+        check("You rated this session 30 min into training" in text("#rated"),
+              "the form says the evaluator has rated this session, and at which moment")
         driver.get(base + "/evaluate")
         wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#past tbody tr"))
         past = driver.find_element(By.ID, "past").text

@@ -75,8 +75,9 @@ export async function pageSession(main) {
   // An evaluator scores an ended session beside its replay, traces and metrics.
   const scoring = !live && (role === 'evaluator' || role === 'admin') && ws;
   const body = [el('h1', {}, `Session ${id}`)];
+  const rated = el('p', { class: 'muted', id: 'rated' });  // the evaluator's own earlier ratings
   if (scoring) {
-    const form = el('div', { class: 'panel', id: 'score-panel' }, el('h2', {}, 'Your evaluation'),
+    const form = el('div', { class: 'panel', id: 'score-panel' }, el('h2', {}, 'Your evaluation'), rated,
       scoreForm('session', String(id), ws.index_names, ws.default.index, () => loadFeedback()));
     body.push(el('div', { class: 'score-layout' }, el('div', {}, left), form));
   } else {
@@ -84,8 +85,13 @@ export async function pageSession(main) {
   }
   main.replaceChildren(...body);
   async function loadFeedback() {
-    try { feedback.replaceChildren(ratingsList((await api('GET', `/sessions/${id}/feedback`)).ratings)); }
-    catch (err) { message(feedback, err.message); }
+    try {
+      const ratings = (await api('GET', `/sessions/${id}/feedback`)).ratings;
+      feedback.replaceChildren(ratingsList(ratings));
+      const own = ratings.filter((r) => r.evaluator === auth.me.user);
+      rated.textContent = own.length ? `You rated this session ${own.map((r) => momentText(r.moment_min)).join(' and ')}; ` +
+        'a rating at another moment is a new one.' : '';
+    } catch (err) { message(feedback, err.message); }
   }
   loadFeedback();
 
