@@ -36,6 +36,11 @@ class Statement {
   virtual Statement& BindBlob(int i, const void* data, int size) = 0;
   virtual Statement& BindNull(int i) = 0;
   Statement& Bind(int i, std::optional<double> v) { return v ? Bind(i, *v) : BindNull(i); }
+  // An optional of any bindable type: its value, or NULL.
+  template <typename T>
+  Statement& BindOrNull(int i, const std::optional<T>& v) {
+    return v ? Bind(i, *v) : BindNull(i);
+  }
 
   // Step: true while a row is available, false when done; an error as Error.
   virtual Expected<bool> Step() = 0;

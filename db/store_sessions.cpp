@@ -555,30 +555,9 @@ Expected<SessionPage> Store::FindSessions(const SessionQuery& q) {
       "AND (CAST(?11 AS TEXT) IS NULL OR t.name LIKE ?11 ESCAPE '!' OR s.scene LIKE ?11 ESCAPE "
       "'!') ";
   auto bind = [&](Statement& st) {
-    if (q.trainee)
-      st.Bind(1, *q.trainee);
-    else
-      st.BindNull(1);
-    if (q.scene)
-      st.Bind(2, *q.scene);
-    else
-      st.BindNull(2);
-    if (q.from_us)
-      st.Bind(3, *q.from_us);
-    else
-      st.BindNull(3);
-    if (q.to_us)
-      st.Bind(4, *q.to_us);
-    else
-      st.BindNull(4);
-    if (q.min_score)
-      st.Bind(5, *q.min_score);
-    else
-      st.BindNull(5);
-    if (q.max_score)
-      st.Bind(6, *q.max_score);
-    else
-      st.BindNull(6);
+    st.BindOrNull(1, q.trainee).BindOrNull(2, q.scene);
+    st.BindOrNull(3, q.from_us).BindOrNull(4, q.to_us);
+    st.BindOrNull(5, q.min_score).BindOrNull(6, q.max_score);
     st.Bind(7, int64_t{q.ended_only ? 1 : 0});
     BindLiveStates(st, 8);
     if (q.search) {  // a LIKE pattern matching the text literally anywhere in the name

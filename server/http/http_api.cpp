@@ -95,6 +95,26 @@ std::optional<uint64_t> ParseId(std::string_view s) {
   return v;
 }
 
+// A query parameter as a non-negative 64-bit number: 0 when absent, nullopt when malformed.
+std::optional<int64_t> QueryNumber(const std::multimap<std::string, std::string>& q,
+                                   const char* name) {
+  const std::string v = Param(q, name);
+  if (v.empty()) return 0;
+  const auto id = ParseId(v);
+  if (!id || *id > static_cast<uint64_t>(INT64_MAX)) return std::nullopt;
+  return static_cast<int64_t>(*id);
+}
+
+// A time parameter: an ISO time (2026-11-22T10:00:00Z) or microseconds since the epoch; 0 when
+// absent, nullopt when neither.
+std::optional<int64_t> QueryTime(const std::multimap<std::string, std::string>& q,
+                                 const char* name) {
+  const std::string v = Param(q, name);
+  if (v.empty()) return 0;
+  if (auto iso = ParseIsoUtc(v, name); iso.ok()) return *iso;
+  return QueryNumber(q, name);
+}
+
 // Splits "/a/b/c" into {"a", "b", "c"}.
 std::vector<std::string_view> Segments(std::string_view path) {
   std::vector<std::string_view> out;
@@ -558,11 +578,9 @@ HttpReply HttpApi::Routes::Records(const Call& c) {
   if (auto v = Param(c.query, "scene"); !v.empty()) q.scene = v;
   if (auto v = Param(c.query, "q"); !v.empty()) q.search = v;
   for (auto [name, field] : {std::pair{"from", &q.from_us}, std::pair{"to", &q.to_us}}) {
-    const std::string v = Param(c.query, name);
-    if (v.empty()) continue;
-    auto iso = ParseIsoUtc(v, name);
-    if (!iso.ok()) return ErrorReply(iso.error());
-    *field = *iso;
+    const auto t = QueryTime(c.query, name);
+    if (!t) return ErrorReply(InvalidArgument(name, "an ISO time or microseconds"));
+    if (*t != 0) *field = *t;
   }
   for (auto [name, field] :
        {std::pair{"min_score", &q.min_score}, std::pair{"max_score", &q.max_score}}) {
@@ -782,21 +800,8 @@ HttpReply HttpApi::Routes::UserDisabled(const Call& c) {
 }
 
 HttpReply HttpApi::Routes::Export(const Call& c) {
-  auto number = [&](const char* name) -> std::optional<int64_t> {
-    const std::string v = Param(c.query, name);
-    if (v.empty()) return 0;
-    const auto id = ParseId(v);
-    if (!id || *id > static_cast<uint64_t>(INT64_MAX)) return std::nullopt;
-    return static_cast<int64_t>(*id);
-  };
-  // from/to: ISO times (2026-11-22T10:00:00Z) or microseconds since the epoch.
-  auto time = [&](const char* name) -> std::optional<int64_t> {
-    const std::string v = Param(c.query, name);
-    if (v.empty()) return 0;
-    if (auto iso = ParseIsoUtc(v, name); iso.ok()) return *iso;
-    return number(name);
-  };
-  const auto from = time("from"), to = time("to"), session = number("session");
+  const auto from = QueryTime(c.query, "from"), to = QueryTime(c.query, "to");
+  const auto session = QueryNumber(c.query, "session");
   if (!from) return ErrorReply(InvalidArgument("from", "an ISO time or microseconds"));
   if (!to) return ErrorReply(InvalidArgument("to", "an ISO time or microseconds"));
   if (!session) return ErrorReply(InvalidArgument("session", "a session id"));
