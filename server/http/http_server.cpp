@@ -549,32 +549,36 @@ class ExportStream final : public Exchange,
     const ExportPlan& plan = reply_.export_plan;
     const Status s =
         conn_->ctx().store->Export(plan.filter, plan.format, [&](std::string_view chunk) {
-          return chunk.empty() || Send(std::make_shared<const std::string>(chunk), false);
+          return chunk.empty() || Send(std::make_shared<const std::string>(chunk));
         });
-    // The last chunk only after a complete export: a failed one ends without it, so the client
-    // sees an incomplete download.
-    if (s.ok()) Send(nullptr, true);
-    asio::post(shared_->io, [self = this->shared_from_this()] { self->conn_->Close(); });
+    // The slot back before the end goes on the wire, so that a client that received a whole
+    // export may start the next at once (under load the worker ran Finish after the client had
+    // asked again, and got 503); the worker does not wait for the last chunk either. The last
+    // chunk only after a complete export: a failed one ends without it, so the client sees an
+    // incomplete download.
     Finish();
+    asio::post(shared_->io, [self = this->shared_from_this(), complete = s.ok()] {
+      if (!complete || self->conn_->closed()) return self->conn_->Close();
+      self->conn_->Lowest().expires_after(Seconds(self->shared_->options.export_stall_s));
+      asio::async_write(self->conn_->stream(), bhttp::make_chunk_last(),
+                        [self](beast::error_code, size_t) { self->conn_->Close(); });
+    });
   }
 
-  // Export pool: the chunk (or the last chunk) through the I/O thread; returns once it is on the
-  // wire (true) or cannot be (false).
-  bool Send(std::shared_ptr<const std::string> text, bool last) {
+  // Export pool: a chunk through the I/O thread; returns once it is on the wire (true) or cannot
+  // be (false).
+  bool Send(std::shared_ptr<const std::string> text) {
     {
       std::lock_guard<std::mutex> lock(gate_mutex_);
       if (stopped_) return false;
       chunk_ = Chunk::kPending;
     }
-    asio::post(shared_->io, [self = this->shared_from_this(), text, last] {
+    asio::post(shared_->io, [self = this->shared_from_this(), text] {
       if (self->conn_->closed()) return self->Settle(false);
       // A client that stops reading frees its slot after export_stall_s, not write_timeout_s.
       self->conn_->Lowest().expires_after(Seconds(self->shared_->options.export_stall_s));
-      auto done = [self, text](beast::error_code ec, size_t) { self->Settle(!ec); };
-      if (last)
-        asio::async_write(self->conn_->stream(), bhttp::make_chunk_last(), done);
-      else
-        asio::async_write(self->conn_->stream(), bhttp::make_chunk(asio::buffer(*text)), done);
+      asio::async_write(self->conn_->stream(), bhttp::make_chunk(asio::buffer(*text)),
+                        [self, text](beast::error_code ec, size_t) { self->Settle(!ec); });
     });
     std::unique_lock<std::mutex> lock(gate_mutex_);
     gate_.wait(lock, [&] { return chunk_ != Chunk::kPending || stopped_; });
