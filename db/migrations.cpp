@@ -162,6 +162,53 @@ CREATE TABLE session_traces (
 ALTER TABLE submissions ADD COLUMN comment TEXT NOT NULL DEFAULT '';
 CREATE INDEX sessions_by_scene_time ON sessions(scene, created_us);
 )sql",
+      // 6: the training programme (server/domain/training.h): courses of exercises with their
+      // proficiency targets and rules (spec_json), cohorts of trainees with an instructor,
+      // enrolments of a cohort or of one trainee in a course, the experts whose trials set
+      // benchmarks, and the exercise a session was an attempt at.
+      R"sql(
+ALTER TABLE trainees ADD COLUMN expert INTEGER NOT NULL DEFAULT 0 CHECK (expert IN (0, 1));
+CREATE TABLE courses (
+  id           INTEGER PRIMARY KEY,
+  name         TEXT NOT NULL UNIQUE CHECK (length(name) BETWEEN 1 AND 128),
+  description  TEXT NOT NULL DEFAULT '',
+  owner_id     INTEGER NOT NULL REFERENCES users(id),
+  created_us   INTEGER NOT NULL
+);
+CREATE TABLE exercises (
+  id         INTEGER PRIMARY KEY,
+  course_id  INTEGER NOT NULL REFERENCES courses(id),
+  position   INTEGER NOT NULL CHECK (position >= 1),
+  title      TEXT NOT NULL CHECK (length(title) BETWEEN 1 AND 128),
+  scene      TEXT NOT NULL CHECK (length(scene) BETWEEN 1 AND 128),
+  spec_json  TEXT NOT NULL CHECK (json_valid(spec_json)),
+  UNIQUE (course_id, position)
+);
+CREATE TABLE cohorts (
+  id             INTEGER PRIMARY KEY,
+  name           TEXT NOT NULL UNIQUE CHECK (length(name) BETWEEN 1 AND 128),
+  instructor_id  INTEGER NOT NULL REFERENCES users(id),
+  created_us     INTEGER NOT NULL
+);
+CREATE TABLE cohort_members (
+  cohort_id   INTEGER NOT NULL REFERENCES cohorts(id),
+  trainee_id  INTEGER NOT NULL REFERENCES trainees(id),
+  PRIMARY KEY (cohort_id, trainee_id)
+);
+CREATE TABLE enrolments (
+  id          INTEGER PRIMARY KEY,
+  course_id   INTEGER NOT NULL REFERENCES courses(id),
+  cohort_id   INTEGER REFERENCES cohorts(id),
+  trainee_id  INTEGER REFERENCES trainees(id),
+  starts_us   INTEGER NOT NULL,
+  ends_us     INTEGER,
+  created_us  INTEGER NOT NULL,
+  CHECK ((cohort_id IS NULL) <> (trainee_id IS NULL))
+);
+ALTER TABLE sessions ADD COLUMN exercise_id INTEGER REFERENCES exercises(id);
+CREATE INDEX sessions_by_exercise ON sessions(exercise_id, trainee_id);
+CREATE INDEX sessions_by_scene_trainee ON sessions(scene, trainee_id);
+)sql",
   };
   return kMigrations;
 }

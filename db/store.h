@@ -180,6 +180,42 @@ struct SessionPage {
   int64_t total = 0;  // rows matching the filters, over every page
 };
 
+// The training programme (server/domain/training.h decides; the store keeps). An exercise's
+// targets, rule and benchmark are its spec, JSON text the domain writes and reads.
+struct ExerciseRecord {
+  int64_t id = 0, course_id = 0;
+  int position = 0;  // 1, 2, … in the course's order
+  std::string title, scene, spec_json;
+};
+struct CourseRecord {
+  int64_t id = 0;
+  std::string name, description, owner;  // owner: the instructor (or admin) who made it
+  int64_t created_us = 0;
+  std::vector<ExerciseRecord> exercises;  // by position
+};
+struct CohortRecord {
+  int64_t id = 0;
+  std::string name, instructor;
+  int64_t created_us = 0;
+  std::vector<std::string> members;  // trainee names, sorted
+};
+struct EnrolmentRecord {
+  int64_t id = 0, course_id = 0;
+  std::optional<int64_t> cohort_id;  // a cohort's enrolment, or
+  std::string trainee;               // one trainee's ("" for a cohort's)
+  int64_t starts_us = 0;
+  std::optional<int64_t> ends_us;
+  int64_t created_us = 0;
+};
+// One recorded trial: a session that ended with trial metrics.
+struct AttemptRow {
+  int64_t session_id = 0;
+  std::string trainee;
+  int64_t exercise_id = 0;  // 0: not an attempt at an exercise
+  int64_t ended_us = 0;
+  scoring::TrialMetrics metrics;
+};
+
 struct ExportFilter {
   std::optional<int64_t> from_us = std::nullopt;  // submitted in [from, to)
   std::optional<int64_t> to_us = std::nullopt;
@@ -282,6 +318,23 @@ class Store {
   Expected<SubmitResult> SubmitEvaluation(const Submission& s);
   void SubmitEvaluationAsync(Submission s, std::function<void(Expected<SubmitResult>)> done);
 
+  // --- The training programme (design: server/domain/training.h) ---
+  // A course with its exercises (positions 1…n in the order given); kAlreadyExists for a taken
+  // name; `owner` must be a user.
+  Expected<CourseRecord> CreateCourse(const CourseRecord& course);
+  Status SetExerciseSpec(int64_t exercise_id, const std::string& spec_json);
+  // A cohort of trainees (names; a trainee row is made for a name not seen before).
+  Expected<CohortRecord> CreateCohort(const std::string& name, const std::string& instructor,
+                                      const std::vector<std::string>& members);
+  Status AddCohortMembers(int64_t cohort_id, const std::vector<std::string>& members);
+  // A course for a cohort (cohort_id) or for one trainee (trainee); exactly one of the two.
+  Expected<EnrolmentRecord> Enrol(const EnrolmentRecord& e);
+  // A trainee whose trials set the benchmarks (or no longer); kNotFound for an unknown name.
+  Status SetExpert(const std::string& trainee, bool expert);
+  // Marks a live session, just created for `trainee`, as an attempt at `exercise_id` (once:
+  // kFailedPrecondition when it already is one, or has ended).
+  Status SetSessionExercise(int64_t session_id, int64_t exercise_id);
+
   Status PutWeightSet(const std::string& name, const std::string& json);
   Status RecordReport(const std::string& subject_kind, const std::string& subject,
                       const std::string& weights_json, const std::string& report_json);
@@ -309,6 +362,25 @@ class Store {
   // The distinct subjects of a kind anyone has rated, by name.
   Expected<std::vector<std::string>> ListRatedSubjects(SubjectKind kind);
   Expected<int64_t> CountEvaluationRows();
+  // The training programme's reads.
+  Expected<std::vector<CourseRecord>> ListCourses();  // by name, with their exercises
+  Expected<CourseRecord> GetCourse(int64_t id);       // kNotFound
+  Expected<ExerciseRecord> GetExercise(int64_t id);   // kNotFound
+  Expected<std::vector<CohortRecord>> ListCohorts();  // by name, with their members
+  Expected<CohortRecord> GetCohort(int64_t id);       // kNotFound
+  // Enrolments: all (trainee empty), or those that reach `trainee` (their own and their
+  // cohorts'), oldest first.
+  Expected<std::vector<EnrolmentRecord>> ListEnrolments(const std::string& trainee);
+  Expected<std::vector<std::string>> ListExperts();  // by name
+  // The recorded trials at the exercises of `course_id`, oldest first; only `trainee`'s when not
+  // empty, only the members' of `cohort_id` when not 0.
+  Expected<std::vector<AttemptRow>> LoadAttempts(int64_t course_id, const std::string& trainee,
+                                                 int64_t cohort_id);
+  // The experts' recorded trials on `scene` (any session, an exercise's or not), oldest first.
+  Expected<std::vector<AttemptRow>> LoadExpertAttempts(const std::string& scene);
+  // The exercise a session was an attempt at (0: none).
+  Expected<int64_t> SessionExercise(int64_t session_id);
+
   // Streams one line per stored score (CSV with a header, JSON lines) or one xAPI statement
   // per submission (JSON lines) to `sink` in chunks; `sink` returning false stops the export.
   Status Export(const ExportFilter& filter, ExportFormat format,

@@ -81,6 +81,15 @@ Status RunSql(Connection& c, const std::string& sql, Bind&& bind) {
   return (*st)->Run();
 }
 
+// The trial_metrics columns ReadTrialMetrics reads, in its order.
+inline constexpr const char* kTrialMetricColumns =
+    "completed, completion_time_s, task_error, peak_force_n, time_over_force_limit_s, "
+    "path_length_m, rms_jerk, overload_events, duration_s, score, raw_score, caps, "
+    "station_peak_force_n, station_time_over_limit_s, link_rtt_ms, link_jitter_ms, "
+    "link_loss_ratio, link_rate_hz";
+// A row's trial metrics from column `first` on (kTrialMetricColumns).
+scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first);
+
 // The id in column 0 of the first row of `sql` bound to `key`, if any.
 Expected<std::optional<int64_t>> LookupId(Connection& c, const std::string& sql,
                                           std::string_view key);

@@ -484,39 +484,14 @@ Expected<std::vector<SessionRecord>> Store::ListSessions(
 Expected<std::optional<scoring::TrialMetrics>> Store::GetTrialMetrics(int64_t session_id) {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
-  auto st = (**r).Prepare(
-      "SELECT completed, completion_time_s, task_error, peak_force_n, time_over_force_limit_s, "
-      "path_length_m, rms_jerk, overload_events, duration_s, score, raw_score, caps, "
-      "station_peak_force_n, station_time_over_limit_s, link_rtt_ms, link_jitter_ms, "
-      "link_loss_ratio, link_rate_hz FROM trial_metrics WHERE session_id = ?1");
+  auto st = (**r).Prepare(std::string("SELECT ") + kTrialMetricColumns +
+                          " FROM trial_metrics WHERE session_id = ?1");
   if (!st.ok()) return st.error();
   (*st)->Bind(1, session_id);
   auto row = (*st)->Step();
   if (!row.ok()) return row.error();
   std::optional<scoring::TrialMetrics> out;
-  if (*row) {
-    Statement& q = **st;
-    scoring::TrialMetrics m;
-    m.completed = q.Int(0) != 0;
-    m.completion_time = q.Double(1);
-    m.task_error = q.Double(2);
-    m.peak_force = q.Double(3);
-    m.time_over_force_limit = q.Double(4);
-    m.path_length = q.Double(5);
-    m.rms_jerk = q.Double(6);
-    m.overload_events = static_cast<int>(q.Int(7));
-    m.duration = q.Double(8);
-    m.score = q.Double(9);
-    m.raw_score = q.Double(10);
-    m.caps = static_cast<uint32_t>(q.Int(11));
-    m.link.station_peak_force = q.Double(12);
-    m.link.station_time_over_limit = q.Double(13);
-    m.link.rtt_ms = q.Double(14);
-    m.link.jitter_ms = q.Double(15);
-    m.link.loss = q.Double(16);
-    m.link.rate_hz = q.Double(17);
-    out = m;
-  }
+  if (*row) out = ReadTrialMetrics(**st, 0);
   (*st)->Reset();
   return out;
 }

@@ -43,6 +43,14 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
     // The station's key goes only to the session's own trainee (ownership, in the domain, refuses
     // every other caller, administrators too).
     {"SessionService/Join", kTrainee | kAdmin},
+    // The training programme: instructors build courses and cohorts (server/domain/training.h
+    // checks that a cohort or course is theirs); trainees read their own progress.
+    {"TrainingService/CreateCourse", kInstructor | kAdmin},
+    {"TrainingService/CreateCohort", kInstructor | kAdmin},
+    {"TrainingService/Enrol", kInstructor | kAdmin},
+    {"TrainingService/SetExpert", kInstructor | kAdmin},
+    {"TrainingService/Progress", kTrainee | kInstructor | kAdmin},
+    {"TrainingService/Next", kTrainee | kInstructor | kAdmin},
 }};
 
 }  // namespace

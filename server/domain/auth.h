@@ -35,6 +35,12 @@ enum class Method {
   kAdminBackup,
   kSessionListScenes,
   kSessionJoin,
+  kTrainingCreateCourse,
+  kTrainingCreateCohort,
+  kTrainingEnrol,
+  kTrainingSetExpert,
+  kTrainingProgress,
+  kTrainingNext,
   kCount
 };
 

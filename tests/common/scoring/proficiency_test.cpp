@@ -124,6 +124,32 @@ TEST(CusumTest, TheCurveIsTheBinomialLogLikelihoodRatioScaled) {
   EXPECT_NEAR(-l.h0 * scale, std::log(p.beta / (1 - p.alpha)), 1e-12);
 }
 
+// The worked setting of the anaesthesia CUSUM literature (Kestin, Br J Anaesth 1995;75:805–9,
+// used again for labour epidurals by Sivaprakasam & Purva, Clin Teach 2010): acceptable failure
+// rate 10 %, unacceptable 20 %, α = β = 0.1. The published figures: P = ln 2 = 0.693,
+// Q = ln(0.9/0.8) = 0.118, s = 0.145 (each success lowers the sum by 0.145, each failure raises it
+// by 0.855), and both decision limits h = 2.71. A trainee without a failure therefore crosses the
+// lower limit at attempt 19 (18 × 0.145 = 2.61 < 2.71 ≤ 19 × 0.145 = 2.76), and one failure costs
+// six more successes (0.855 / 0.145 = 5.9).
+TEST(CusumTest, KestinsWorkedFiguresForTenAndTwentyPercent) {
+  const CusumParams p{0.10, 0.20, 0.10, 0.10};
+  const CusumLimits l = *CusumLimitsOf(p);
+  EXPECT_NEAR(l.s, 0.145, 5e-4);
+  EXPECT_NEAR(1 - l.s, 0.855, 5e-4);
+  EXPECT_NEAR(l.h0, 2.71, 5e-3);
+  EXPECT_NEAR(l.h1, 2.71, 5e-3);
+  EXPECT_EQ(*Cusum(std::vector<bool>(30, false), p)->proficient_at, 19);
+  std::vector<bool> one_failure(40, false);
+  one_failure[2] = true;  // the third attempt failed
+  const CusumCurve c = *Cusum(one_failure, p);
+  EXPECT_NEAR(c.values[2], -2 * 0.145 + 0.855, 2e-3);
+  EXPECT_EQ(*c.proficient_at, 26);  // 25 successes: 25 × 0.145 − 0.855 = 2.77 ≥ 2.71
+  // Three failures in the first five attempts cross the upper limit (3 × 0.855 − 2 × 0.145 =
+  // 2.27 < 2.71; a fourth failure, 3.12, does).
+  const CusumCurve bad = *Cusum({true, false, true, false, true, true}, p);
+  EXPECT_EQ(*bad.unacceptable_at, 6);
+}
+
 TEST(CusumTest, AllSuccessesCrossIntoProficiencyAndAllFailuresOut) {
   const CusumParams p{0.1, 0.3, 0.05, 0.2};
   const CusumLimits l = *CusumLimitsOf(p);

@@ -1,0 +1,812 @@
+#include "server/domain/training.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <openssl/sha.h>
+#include <nlohmann/json.hpp>
+
+#include "common/core/time.h"
+
+namespace vsurg::server {
+namespace {
+
+using nlohmann::json;
+using scoring::ProficiencyMetrics;
+
+constexpr int64_t kIdleUs = 14LL * 86'400 * 1'000'000;  // no attempt for 14 days: stalled
+
+Error NotYours(const std::string& what) {
+  return Error{ErrorCode::kPermissionDenied, what, ""};
+}
+
+bool IsAdmin(const db::Principal& p) {
+  return p.role == db::Role::kAdmin;
+}
+
+Status CheckMembers(const std::vector<std::string>& members) {
+  if (members.size() > 1000) return InvalidArgument("members", "at most 1000 at once");
+  for (const std::string& m : members)
+    if (m.empty() || m.size() > 128)
+      return InvalidArgument("members", "a trainee name has 1 to 128 characters");
+  return Status::Ok();
+}
+
+// --- targets ---
+
+std::optional<double> Number(const json& j, const char* name) {
+  const auto it = j.find(name);
+  if (it == j.end() || it->is_null()) return std::nullopt;
+  if (!it->is_number()) return std::nan("");
+  return it->get<double>();
+}
+
+Expected<std::vector<double>> MetricValues(const std::vector<db::AttemptRow>& rows,
+                                           const scoring::MetricDef& def) {
+  std::vector<double> out;
+  for (const db::AttemptRow& r : rows) {
+    const double v = scoring::MetricValue(r.metrics, def);
+    if (std::isfinite(v)) out.push_back(v);
+  }
+  return out;
+}
+
+double Mean(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return v.empty() ? 0 : s / static_cast<double>(v.size());
+}
+
+double SampleSd(const std::vector<double>& v, double mean) {
+  if (v.size() < 2) return 0;
+  double ss = 0;
+  for (double x : v) ss += (x - mean) * (x - mean);
+  return std::sqrt(ss / static_cast<double>(v.size() - 1));
+}
+
+// An exercise's row with its spec parsed and its targets resolved against the experts' trials.
+Expected<ExerciseView> Resolve(Domain& d, const db::ExerciseRecord& e) {
+  ExerciseView v;
+  v.record = e;
+  auto spec = ParseExerciseSpec(e.spec_json);
+  if (!spec.ok())
+    return Error{ErrorCode::kIoError,
+                 "exercise " + std::to_string(e.id) + "'s stored spec: " + spec.error().message,
+                 "spec"};
+  v.spec = std::move(spec).value();
+  std::vector<db::AttemptRow> experts;
+  bool loaded = false;
+  for (const TargetSpec& t : v.spec.targets) {
+    ResolvedTarget r{t.metric, t.value, !t.value.has_value(), 0};
+    if (!t.value) {
+      if (!loaded) {
+        auto rows = d.store.LoadExpertAttempts(e.scene);
+        if (!rows.ok()) return rows.error();
+        experts = std::move(rows).value();
+        loaded = true;
+      }
+      const scoring::MetricDef* def = scoring::FindMetric(t.metric);
+      auto values = MetricValues(experts, *def);
+      r.expert_trials = static_cast<int>(values->size());
+      auto bench = scoring::ExpertBenchmark(*values, def->better, v.spec.benchmark, v.spec.k);
+      if (bench.ok()) r.value = *bench;
+    }
+    v.ready = v.ready && r.value.has_value();
+    v.targets.push_back(std::move(r));
+  }
+  return v;
+}
+
+Expected<CourseView> ResolveCourse(Domain& d, db::CourseRecord c) {
+  CourseView v;
+  for (const db::ExerciseRecord& e : c.exercises) {
+    auto ev = Resolve(d, e);
+    if (!ev.ok()) return ev.error();
+    v.exercises.push_back(std::move(ev).value());
+  }
+  v.record = std::move(c);
+  return v;
+}
+
+// One trainee's progress through a course, from their attempts (oldest first, any exercise).
+TraineeProgress Evaluate(const CourseView& course, const std::string& trainee,
+                         const std::vector<const db::AttemptRow*>& attempts, int64_t now_us) {
+  TraineeProgress tp;
+  tp.trainee = trainee;
+  bool previous_reached = true;
+  tp.completed = !course.exercises.empty();
+  for (const ExerciseView& ex : course.exercises) {
+    ExerciseProgress ep;
+    ep.exercise_id = ex.record.id;
+    std::vector<scoring::Attempt> mine;
+    for (const db::AttemptRow* a : attempts) {
+      if (a->exercise_id != ex.record.id) continue;
+      mine.push_back({a->ended_us, a->metrics});
+      ep.attempt_us.push_back(a->ended_us);
+      ep.attempt_sessions.push_back(a->session_id);
+    }
+    ep.progress = scoring::EvaluateProgress(mine, ex.Targets(), ex.spec.rule, now_us);
+    if (!ex.ready)  // a target still waits for the experts: nothing passes yet
+      for (scoring::AttemptCheck& c : ep.progress.checks) c.passed = false;
+    if (!ex.ready) {
+      ep.progress.passes = ep.progress.streak = 0;
+      ep.progress.proficient_at.reset();
+    }
+    ep.last_us = ep.attempt_us.empty() ? 0 : ep.attempt_us.back();
+    if (ep.progress.proficient_at) ep.proficient_us = ep.attempt_us[*ep.progress.proficient_at - 1];
+    if (!ep.progress.checks.empty())
+      for (const scoring::TargetCheck& c : ep.progress.checks.back().checks)
+        if (!c.met) ep.to_improve.push_back(c.metric);
+    const bool open = previous_reached || !ex.spec.unlock_in_order;
+    int failures_at_end = 0;
+    for (auto it = ep.progress.checks.rbegin(); it != ep.progress.checks.rend() && !it->passed;
+         ++it)
+      ++failures_at_end;
+    if (ep.progress.proficient_at)
+      ep.state = CellState::kProficient;
+    else if (!open)
+      ep.state = CellState::kLocked;
+    else if (ep.progress.attempts == 0)
+      ep.state = CellState::kNotStarted;
+    else if (failures_at_end >= std::max(1, ex.spec.stall_after) || now_us - ep.last_us > kIdleUs)
+      ep.state = CellState::kStalled;
+    else
+      ep.state = CellState::kTraining;
+    if (ep.state == CellState::kStalled) tp.stalled = true;
+    if (!tp.next_exercise && open && ep.state != CellState::kProficient)
+      tp.next_exercise = ex.record.id;
+    previous_reached = ep.state == CellState::kProficient;
+    tp.completed = tp.completed && ep.state == CellState::kProficient;
+    tp.exercises.push_back(std::move(ep));
+  }
+  return tp;
+}
+
+// The course's trainees' progress from one load of their attempts.
+CourseProgress EvaluateAll(CourseView course, const std::vector<std::string>& trainees,
+                           const std::vector<db::AttemptRow>& rows, int64_t now_us) {
+  std::map<std::string, std::vector<const db::AttemptRow*>> by_trainee;
+  for (const std::string& t : trainees) by_trainee[t];
+  for (const db::AttemptRow& r : rows) {
+    auto it = by_trainee.find(r.trainee);
+    if (it != by_trainee.end()) it->second.push_back(&r);
+  }
+  CourseProgress out;
+  for (const auto& [name, attempts] : by_trainee)
+    out.trainees.push_back(Evaluate(course, name, attempts, now_us));
+  out.course = std::move(course);
+  return out;
+}
+
+// May `p` read (or, `manage`, change) the cohort?
+Expected<db::CohortRecord> CohortFor(Domain& d, const db::Principal& p, int64_t cohort_id) {
+  auto c = d.store.GetCohort(cohort_id);
+  if (!c.ok()) return c.error();
+  if (!IsAdmin(p) && c->instructor != p.name)
+    return NotYours("cohort " + std::to_string(cohort_id) + " is another instructor's");
+  return c;
+}
+
+const ExerciseView* FindExercise(const CourseView& c, int64_t id) {
+  for (const ExerciseView& e : c.exercises)
+    if (e.record.id == id) return &e;
+  return nullptr;
+}
+
+// May `p` read `trainee`'s progress? A trainee only their own.
+Status MayRead(const db::Principal& p, const std::string& trainee) {
+  if (p.role == db::Role::kTrainee && trainee != p.name)
+    return NotYours("a trainee sees only their own progress");
+  return Status::Ok();
+}
+
+// A statement id as xAPI wants it (a UUID): name-based, version 5 (RFC 9562 §5.5), from `name`
+// in the URL namespace, so an export run twice gives a learning record store the same ids and
+// it keeps one copy of each statement.
+std::string StatementId(const std::string& name) {
+  static constexpr unsigned char kUrlNamespace[16] = {0x6b, 0xa7, 0xb8, 0x11, 0x9d, 0xad,
+                                                      0x11, 0xd1, 0x80, 0xb4, 0x00, 0xc0,
+                                                      0x4f, 0xd4, 0x30, 0xc8};
+  std::string input(reinterpret_cast<const char*>(kUrlNamespace), 16);
+  input += name;
+  unsigned char h[SHA_DIGEST_LENGTH];
+  SHA1(reinterpret_cast<const unsigned char*>(input.data()), input.size(), h);
+  h[6] = static_cast<unsigned char>((h[6] & 0x0f) | 0x50);
+  h[8] = static_cast<unsigned char>((h[8] & 0x3f) | 0x80);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (int i = 0; i < 16; ++i) {
+    if (i == 4 || i == 6 || i == 8 || i == 10) out.push_back('-');
+    out.push_back(kHex[h[i] >> 4]);
+    out.push_back(kHex[h[i] & 15]);
+  }
+  return out;
+}
+
+bool EnrolmentActive(const db::EnrolmentRecord& e, int64_t now_us) {
+  return e.starts_us <= now_us && (!e.ends_us || *e.ends_us > now_us);
+}
+
+}  // namespace
+
+// --- the spec ---
+
+Expected<ExerciseSpec> ParseExerciseSpec(std::string_view text) {
+  json j = json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object())
+    return Error{ErrorCode::kParseError, "an exercise's spec is a JSON object", "spec"};
+  ExerciseSpec s;
+  const auto targets = j.find("targets");
+  if (targets == j.end() || !targets->is_array() || targets->empty() || targets->size() > 16)
+    return InvalidArgument("targets",
+                           "1 to 16 targets, each {metric, value} or "
+                           "{metric, from_experts: true}");
+  for (size_t i = 0; i < targets->size(); ++i) {
+    const json& t = (*targets)[i];
+    const std::string field = "targets[" + std::to_string(i) + "]";
+    if (!t.is_object() || !t.contains("metric") || !t["metric"].is_string())
+      return InvalidArgument(field, "needs a metric name");
+    TargetSpec ts{t["metric"].get<std::string>(), Number(t, "value")};
+    if (!scoring::FindMetric(ts.metric)) {
+      std::string names;
+      for (const scoring::MetricDef& m : ProficiencyMetrics())
+        names += (names.empty() ? "" : ", ") + std::string(m.name);
+      return InvalidArgument(field, "unknown metric '" + ts.metric + "' (one of " + names + ")");
+    }
+    const bool experts = t.value("from_experts", false);
+    if (experts == ts.value.has_value())
+      return InvalidArgument(field, "give a value or from_experts: true (one of the two)");
+    if (ts.value && !std::isfinite(*ts.value)) return InvalidArgument(field, "a finite value");
+    for (const TargetSpec& other : s.targets)
+      if (other.metric == ts.metric) return InvalidArgument(field, "a metric appears once");
+    s.targets.push_back(std::move(ts));
+  }
+  const auto consecutive = Number(j, "consecutive").value_or(2);
+  if (!(consecutive >= 1 && consecutive <= 20) || consecutive != std::floor(consecutive))
+    return InvalidArgument("consecutive", "passes in a row: 1 to 20");
+  s.rule.consecutive = static_cast<int>(consecutive);
+  const auto per_day = Number(j, "max_attempts_per_day").value_or(0);
+  if (!(per_day >= 0 && per_day <= 1000) || per_day != std::floor(per_day))
+    return InvalidArgument("max_attempts_per_day", "0 (no limit) to 1000");
+  s.rule.max_attempts_per_day = static_cast<int>(per_day);
+  if (j.contains("unlock_in_order")) {
+    if (!j["unlock_in_order"].is_boolean()) return InvalidArgument("unlock_in_order", "a boolean");
+    s.unlock_in_order = j["unlock_in_order"].get<bool>();
+  }
+  const std::string bench = j.contains("benchmark") && j["benchmark"].is_string()
+                                ? j["benchmark"].get<std::string>()
+                                : "mean_sd";
+  if (bench == "mean_sd")
+    s.benchmark = scoring::BenchmarkMode::kMeanSd;
+  else if (bench == "best_quartile")
+    s.benchmark = scoring::BenchmarkMode::kBestQuartile;
+  else
+    return InvalidArgument("benchmark", "mean_sd or best_quartile");
+  s.k = Number(j, "k").value_or(1.0);
+  if (!(s.k >= 0 && s.k <= 5)) return InvalidArgument("k", "0 to 5 standard deviations");
+  if (const auto c = j.find("cusum"); c != j.end() && !c->is_null()) {
+    if (!c->is_object()) return InvalidArgument("cusum", "an object {p0, p1, alpha, beta}");
+    s.cusum.p0 = Number(*c, "p0").value_or(s.cusum.p0);
+    s.cusum.p1 = Number(*c, "p1").value_or(s.cusum.p1);
+    s.cusum.alpha = Number(*c, "alpha").value_or(s.cusum.alpha);
+    s.cusum.beta = Number(*c, "beta").value_or(s.cusum.beta);
+    if (auto l = scoring::CusumLimitsOf(s.cusum); !l.ok())
+      return InvalidArgument("cusum." + l.error().field, l.error().message);
+  }
+  const auto stall = Number(j, "stall_after").value_or(5);
+  if (!(stall >= 1 && stall <= 100) || stall != std::floor(stall))
+    return InvalidArgument("stall_after", "1 to 100 failed attempts in a row");
+  s.stall_after = static_cast<int>(stall);
+  return s;
+}
+
+std::string ExerciseSpecJson(const ExerciseSpec& s) {
+  json targets = json::array();
+  for (const TargetSpec& t : s.targets) {
+    json o = {{"metric", t.metric}};
+    if (t.value)
+      o["value"] = *t.value;
+    else
+      o["from_experts"] = true;
+    targets.push_back(std::move(o));
+  }
+  return json{
+      {"targets", targets},
+      {"consecutive", s.rule.consecutive},
+      {"max_attempts_per_day", s.rule.max_attempts_per_day},
+      {"unlock_in_order", s.unlock_in_order},
+      {"benchmark", s.benchmark == scoring::BenchmarkMode::kMeanSd ? "mean_sd" : "best_quartile"},
+      {"k", s.k},
+      {"cusum",
+       {{"p0", s.cusum.p0}, {"p1", s.cusum.p1}, {"alpha", s.cusum.alpha}, {"beta", s.cusum.beta}}},
+      {"stall_after", s.stall_after}}
+      .dump();
+}
+
+std::vector<scoring::Target> ExerciseView::Targets() const {
+  std::vector<scoring::Target> out;
+  for (const ResolvedTarget& t : targets)
+    if (t.value) out.push_back({t.metric, *t.value});
+  return out;
+}
+
+const char* CellStateName(CellState s) {
+  switch (s) {
+    case CellState::kLocked:
+      return "locked";
+    case CellState::kNotStarted:
+      return "not_started";
+    case CellState::kTraining:
+      return "training";
+    case CellState::kStalled:
+      return "stalled";
+    case CellState::kProficient:
+      return "proficient";
+  }
+  return "locked";
+}
+
+// --- courses, cohorts, enrolments, experts ---
+
+Expected<CourseView> CreateCourse(Domain& d, const db::Principal& p, const std::string& name,
+                                  const std::string& description,
+                                  const std::vector<NewExercise>& exercises) {
+  if (Status s = Permit(p, Method::kTrainingCreateCourse); !s.ok()) return s.error();
+  auto scenes = d.scenes.List();
+  if (!scenes.ok()) return scenes.error();
+  db::CourseRecord c;
+  c.name = name;
+  c.description = description;
+  c.owner = p.name;
+  for (size_t i = 0; i < exercises.size(); ++i) {
+    const NewExercise& e = exercises[i];
+    const bool known = std::any_of(scenes->scenes.begin(), scenes->scenes.end(),
+                                   [&](const SceneInfo& s) { return s.name == e.scene; });
+    if (!known)
+      return InvalidArgument("exercises[" + std::to_string(i) + "].scene",
+                             "no usable scene '" + e.scene + "'");
+    c.exercises.push_back({0, 0, 0, e.title, e.scene, ExerciseSpecJson(e.spec)});
+  }
+  auto made = d.store.CreateCourse(c);
+  if (!made.ok()) return made.error();
+  return ResolveCourse(d, std::move(made).value());
+}
+
+Expected<std::vector<CourseView>> ListCourses(Domain& d, const db::Principal& p) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  auto list = d.store.ListCourses();
+  if (!list.ok()) return list.error();
+  std::vector<int64_t> mine;  // a trainee sees the courses they are enrolled in
+  if (p.role == db::Role::kTrainee) {
+    auto enrolments = d.store.ListEnrolments(p.name);
+    if (!enrolments.ok()) return enrolments.error();
+    for (const db::EnrolmentRecord& e : *enrolments) mine.push_back(e.course_id);
+  }
+  std::vector<CourseView> out;
+  for (db::CourseRecord& c : *list) {
+    if (p.role == db::Role::kTrainee && std::find(mine.begin(), mine.end(), c.id) == mine.end())
+      continue;
+    auto v = ResolveCourse(d, std::move(c));
+    if (!v.ok()) return v.error();
+    out.push_back(std::move(v).value());
+  }
+  return out;
+}
+
+Expected<CourseView> GetCourse(Domain& d, const db::Principal& p, int64_t id) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  auto c = d.store.GetCourse(id);
+  if (!c.ok()) return c.error();
+  if (p.role == db::Role::kTrainee) {
+    auto enrolments = d.store.ListEnrolments(p.name);
+    if (!enrolments.ok()) return enrolments.error();
+    if (std::none_of(enrolments->begin(), enrolments->end(),
+                     [&](const db::EnrolmentRecord& e) { return e.course_id == id; }))
+      return NotYours("course " + std::to_string(id) + " is not one of yours");
+  }
+  return ResolveCourse(d, std::move(c).value());
+}
+
+Status SetExerciseSpec(Domain& d, const db::Principal& p, int64_t exercise_id,
+                       const ExerciseSpec& spec) {
+  if (Status s = Permit(p, Method::kTrainingCreateCourse); !s.ok()) return s;
+  auto e = d.store.GetExercise(exercise_id);
+  if (!e.ok()) return e.error();
+  auto c = d.store.GetCourse(e->course_id);
+  if (!c.ok()) return c.error();
+  if (!IsAdmin(p) && c->owner != p.name)
+    return NotYours("course '" + c->name + "' is another instructor's");
+  return d.store.SetExerciseSpec(exercise_id, ExerciseSpecJson(spec));
+}
+
+Expected<db::CohortRecord> CreateCohort(Domain& d, const db::Principal& p, const std::string& name,
+                                        const std::string& instructor,
+                                        const std::vector<std::string>& members) {
+  if (Status s = Permit(p, Method::kTrainingCreateCohort); !s.ok()) return s.error();
+  if (Status s = CheckMembers(members); !s.ok()) return s.error();
+  std::string who = instructor.empty() ? p.name : instructor;
+  if (!IsAdmin(p) && who != p.name) return NotYours("an instructor makes cohorts for themself");
+  return d.store.CreateCohort(name, who, members);
+}
+
+Status AddCohortMembers(Domain& d, const db::Principal& p, int64_t cohort_id,
+                        const std::vector<std::string>& members) {
+  if (Status s = Permit(p, Method::kTrainingCreateCohort); !s.ok()) return s;
+  if (Status s = CheckMembers(members); !s.ok()) return s;
+  auto c = CohortFor(d, p, cohort_id);
+  if (!c.ok()) return c.error();
+  return d.store.AddCohortMembers(cohort_id, members);
+}
+
+Expected<std::vector<db::CohortRecord>> ListCohorts(Domain& d, const db::Principal& p) {
+  if (Status s = Permit(p, Method::kTrainingCreateCohort); !s.ok()) return s.error();
+  auto list = d.store.ListCohorts();
+  if (!list.ok()) return list.error();
+  if (!IsAdmin(p))
+    std::erase_if(*list, [&](const db::CohortRecord& c) { return c.instructor != p.name; });
+  return list;
+}
+
+Expected<db::EnrolmentRecord> Enrol(Domain& d, const db::Principal& p, db::EnrolmentRecord e) {
+  if (Status s = Permit(p, Method::kTrainingEnrol); !s.ok()) return s.error();
+  if (e.cohort_id) {
+    auto c = CohortFor(d, p, *e.cohort_id);
+    if (!c.ok()) return c.error();
+  }
+  if (e.starts_us == 0) e.starts_us = NowUs();
+  return d.store.Enrol(e);
+}
+
+Status SetExpert(Domain& d, const db::Principal& p, const std::string& trainee, bool expert) {
+  if (Status s = Permit(p, Method::kTrainingSetExpert); !s.ok()) return s;
+  return d.store.SetExpert(trainee, expert);
+}
+
+Expected<std::vector<std::string>> ListExperts(Domain& d, const db::Principal& p) {
+  if (Status s = Permit(p, Method::kTrainingSetExpert); !s.ok()) return s.error();
+  return d.store.ListExperts();
+}
+
+// --- progress ---
+
+Expected<CourseProgress> CohortProgress(Domain& d, const db::Principal& p, int64_t cohort_id,
+                                        int64_t course_id) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (p.role == db::Role::kTrainee) return NotYours("a trainee sees only their own progress");
+  auto cohort = CohortFor(d, p, cohort_id);
+  if (!cohort.ok()) return cohort.error();
+  auto course = d.store.GetCourse(course_id);
+  if (!course.ok()) return course.error();
+  auto view = ResolveCourse(d, std::move(course).value());
+  if (!view.ok()) return view.error();
+  auto rows = d.store.LoadAttempts(course_id, "", cohort_id);
+  if (!rows.ok()) return rows.error();
+  return EvaluateAll(std::move(view).value(), cohort->members, *rows, NowUs());
+}
+
+Expected<std::vector<CourseProgress>> TraineeCourses(Domain& d, const db::Principal& p,
+                                                     const std::string& trainee) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (trainee.empty()) return InvalidArgument("trainee", "required");
+  if (Status s = MayRead(p, trainee); !s.ok()) return s.error();
+  auto enrolments = d.store.ListEnrolments(trainee);
+  if (!enrolments.ok()) return enrolments.error();
+  std::vector<CourseProgress> out;
+  std::vector<int64_t> seen;
+  for (const db::EnrolmentRecord& e : *enrolments) {
+    if (std::find(seen.begin(), seen.end(), e.course_id) != seen.end()) continue;
+    seen.push_back(e.course_id);
+    auto course = d.store.GetCourse(e.course_id);
+    if (!course.ok()) return course.error();
+    auto view = ResolveCourse(d, std::move(course).value());
+    if (!view.ok()) return view.error();
+    auto rows = d.store.LoadAttempts(e.course_id, trainee, 0);
+    if (!rows.ok()) return rows.error();
+    out.push_back(EvaluateAll(std::move(view).value(), {trainee}, *rows, NowUs()));
+  }
+  return out;
+}
+
+Expected<LearningCurve> TraineeCurve(Domain& d, const db::Principal& p, const std::string& trainee,
+                                     int64_t exercise_id) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (trainee.empty()) return InvalidArgument("trainee", "required");
+  if (Status s = MayRead(p, trainee); !s.ok()) return s.error();
+  auto e = d.store.GetExercise(exercise_id);
+  if (!e.ok()) return e.error();
+  auto course = d.store.GetCourse(e->course_id);
+  if (!course.ok()) return course.error();
+  auto view = ResolveCourse(d, std::move(course).value());
+  if (!view.ok()) return view.error();
+  auto rows = d.store.LoadAttempts(e->course_id, trainee, 0);
+  if (!rows.ok()) return rows.error();
+  LearningCurve out;
+  out.trainee = trainee;
+  CourseProgress all = EvaluateAll(*view, {trainee}, *rows, NowUs());
+  const auto& eps = all.trainees.front().exercises;
+  for (size_t i = 0; i < eps.size(); ++i)
+    if (eps[i].exercise_id == exercise_id) out.progress = eps[i];
+  out.exercise = *FindExercise(*view, exercise_id);
+  for (const db::AttemptRow& r : *rows)
+    if (r.exercise_id == exercise_id) out.attempts.push_back(r);
+  std::vector<bool> failures;
+  for (const scoring::AttemptCheck& c : out.progress.progress.checks) failures.push_back(!c.passed);
+  auto cusum = scoring::Cusum(failures, out.exercise.spec.cusum);
+  if (!cusum.ok()) return cusum.error();
+  out.cusum = std::move(cusum).value();
+  out.course = std::move(view).value();
+  return out;
+}
+
+Expected<CohortCurve> CohortCurveOf(Domain& d, const db::Principal& p, int64_t cohort_id,
+                                    int64_t exercise_id) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (p.role == db::Role::kTrainee) return NotYours("a trainee sees only their own progress");
+  auto cohort = CohortFor(d, p, cohort_id);
+  if (!cohort.ok()) return cohort.error();
+  auto e = d.store.GetExercise(exercise_id);
+  if (!e.ok()) return e.error();
+  auto view = Resolve(d, *e);
+  if (!view.ok()) return view.error();
+  auto rows = d.store.LoadAttempts(e->course_id, "", cohort_id);
+  if (!rows.ok()) return rows.error();
+  auto experts = d.store.LoadExpertAttempts(e->scene);
+  if (!experts.ok()) return experts.error();
+  // Each member's attempts at the exercise, in order.
+  std::map<std::string, std::vector<const db::AttemptRow*>> by_trainee;
+  for (const db::AttemptRow& r : *rows)
+    if (r.exercise_id == exercise_id) by_trainee[r.trainee].push_back(&r);
+  CohortCurve out;
+  for (const TargetSpec& t : view->spec.targets) {
+    const scoring::MetricDef* def = scoring::FindMetric(t.metric);
+    MetricCurve mc;
+    mc.metric = t.metric;
+    for (const ResolvedTarget& rt : view->targets)
+      if (rt.metric == t.metric) mc.target = rt.value;
+    for (size_t n = 0;; ++n) {
+      std::vector<double> at_n;
+      bool any = false;
+      for (const auto& [name, list] : by_trainee) {
+        if (n >= list.size()) continue;
+        any = true;
+        const double v = scoring::MetricValue(list[n]->metrics, *def);
+        if (std::isfinite(v)) at_n.push_back(v);
+      }
+      if (!any) break;
+      const double mean = Mean(at_n);
+      mc.points.push_back(
+          {static_cast<int>(n + 1), static_cast<int>(at_n.size()), mean, SampleSd(at_n, mean)});
+    }
+    auto values = MetricValues(*experts, *def);
+    mc.expert_trials = static_cast<int>(values->size());
+    mc.expert_mean = Mean(*values);
+    mc.expert_sd = SampleSd(*values, mc.expert_mean);
+    out.metrics.push_back(std::move(mc));
+  }
+  out.exercise = std::move(view).value();
+  return out;
+}
+
+// --- the station ---
+
+Expected<NextExercise> NextExerciseOf(Domain& d, const db::Principal& p, std::string trainee) {
+  if (Status s = Permit(p, Method::kTrainingNext); !s.ok()) return s.error();
+  if (trainee.empty()) trainee = p.name;
+  if (Status s = MayRead(p, trainee); !s.ok()) return s.error();
+  auto courses = TraineeCourses(d, p, trainee);
+  if (!courses.ok()) return courses.error();
+  auto enrolments = d.store.ListEnrolments(trainee);
+  if (!enrolments.ok()) return enrolments.error();
+  const int64_t now = NowUs();
+  NextExercise out;
+  for (CourseProgress& c : *courses) {
+    const bool active =
+        std::any_of(enrolments->begin(), enrolments->end(), [&](const db::EnrolmentRecord& e) {
+          return e.course_id == c.course.record.id && EnrolmentActive(e, now);
+        });
+    const TraineeProgress& tp = c.trainees.front();
+    if (!active || !tp.next_exercise) continue;
+    for (const ExerciseProgress& ep : tp.exercises) {
+      if (ep.state == CellState::kLocked || ep.state == CellState::kProficient) continue;
+      out.open.push_back(ep.exercise_id);
+      if (ep.exercise_id == *tp.next_exercise) out.progress = ep;
+    }
+    out.exercise_id = tp.next_exercise;
+    out.course = std::move(c.course);
+    break;
+  }
+  return out;
+}
+
+Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p,
+                                               std::string trainee, int64_t exercise_id) {
+  if (Status s = Permit(p, Method::kSessionCreate); !s.ok()) return s.error();
+  if (trainee.empty()) trainee = p.name;
+  if (p.role == db::Role::kTrainee && trainee != p.name)
+    return NotYours("a trainee creates sessions only for themself");
+  auto e = d.store.GetExercise(exercise_id);
+  if (!e.ok()) return e.error();
+  auto enrolments = d.store.ListEnrolments(trainee);
+  if (!enrolments.ok()) return enrolments.error();
+  const int64_t now = NowUs();
+  if (std::none_of(enrolments->begin(), enrolments->end(), [&](const db::EnrolmentRecord& r) {
+        return r.course_id == e->course_id && EnrolmentActive(r, now);
+      }))
+    return Error{
+        ErrorCode::kFailedPrecondition,
+        trainee + " is not enrolled (now) in the course of exercise " + std::to_string(exercise_id),
+        "exercise"};
+  auto course = d.store.GetCourse(e->course_id);
+  if (!course.ok()) return course.error();
+  auto view = ResolveCourse(d, std::move(course).value());
+  if (!view.ok()) return view.error();
+  auto rows = d.store.LoadAttempts(e->course_id, trainee, 0);
+  if (!rows.ok()) return rows.error();
+  const CourseProgress cp = EvaluateAll(*view, {trainee}, *rows, now);
+  for (const ExerciseProgress& ep : cp.trainees.front().exercises) {
+    if (ep.exercise_id != exercise_id) continue;
+    if (ep.state == CellState::kLocked)
+      return Error{ErrorCode::kFailedPrecondition,
+                   "exercise '" + e->title + "' opens once the one before it is reached",
+                   "exercise"};
+    if (!ep.progress.may_attempt)
+      return Error{ErrorCode::kResourceExhausted,
+                   "today's attempts at '" + e->title + "' are used up; try tomorrow", "exercise"};
+  }
+  auto created = d.sessions.Create(trainee, e->scene);
+  if (!created.ok()) return created.error();
+  if (Status s = d.store.SetSessionExercise(created->record.id, exercise_id); !s.ok()) {
+    (void)d.sessions.Stop(static_cast<uint64_t>(created->record.id),
+                          "could not be marked as an attempt");
+    return s.error();
+  }
+  return created;
+}
+
+Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const db::Principal& p,
+                                                              uint64_t session_id) {
+  auto v = GetSession(d, p, session_id);  // the reader's rights
+  if (!v.ok()) return v.error();
+  if (!v->metrics) return std::optional<scoring::AttemptCheck>();
+  auto exercise_id = d.store.SessionExercise(static_cast<int64_t>(session_id));
+  if (!exercise_id.ok()) return exercise_id.error();
+  if (*exercise_id == 0) return std::optional<scoring::AttemptCheck>();
+  auto e = d.store.GetExercise(*exercise_id);
+  if (!e.ok()) return e.error();
+  auto view = Resolve(d, *e);
+  if (!view.ok()) return view.error();
+  scoring::AttemptCheck check = scoring::CheckAttempt(*v->metrics, view->Targets());
+  check.passed = check.passed && view->ready;
+  return std::optional<scoring::AttemptCheck>(std::move(check));
+}
+
+// --- exports ---
+
+Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,
+                      db::ExportFormat format, const std::function<void(std::string_view)>& sink) {
+  std::vector<CourseProgress> parts;
+  if (cohort_id != 0) {
+    auto cp = CohortProgress(d, p, cohort_id, course_id);
+    if (!cp.ok()) return cp.error();
+    parts.push_back(std::move(cp).value());
+  } else if (p.role == db::Role::kTrainee) {
+    auto mine = TraineeCourses(d, p, p.name);
+    if (!mine.ok()) return mine.error();
+    for (CourseProgress& c : *mine)
+      if (course_id == 0 || c.course.record.id == course_id) parts.push_back(std::move(c));
+  } else {
+    return InvalidArgument("cohort", "an instructor exports one cohort's progress at a time");
+  }
+  if (format == db::ExportFormat::kCsv)
+    sink(
+        "course,exercise_position,exercise,scene,trainee,state,attempts,passes,streak,"
+        "proficient_at_attempt,proficient_at,last_attempt_at\r\n");
+  for (const CourseProgress& cp : parts) {
+    const CourseView& c = cp.course;
+    for (const TraineeProgress& tp : cp.trainees) {
+      for (size_t i = 0; i < tp.exercises.size(); ++i) {
+        const ExerciseProgress& ep = tp.exercises[i];
+        const ExerciseView& ex = c.exercises[i];
+        const scoring::Progress& pr = ep.progress;
+        if (format == db::ExportFormat::kCsv) {
+          auto quote = [](const std::string& s) {
+            std::string q = "\"";
+            for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+            return q + "\"";
+          };
+          sink(quote(c.record.name) + "," + std::to_string(ex.record.position) + "," +
+               quote(ex.record.title) + "," + quote(ex.record.scene) + "," + quote(tp.trainee) +
+               "," + CellStateName(ep.state) + "," + std::to_string(pr.attempts) + "," +
+               std::to_string(pr.passes) + "," + std::to_string(pr.streak) + "," +
+               (pr.proficient_at ? std::to_string(*pr.proficient_at) : "") + "," +
+               (ep.proficient_us ? IsoTimeUtc(ep.proficient_us) : "") + "," +
+               (ep.last_us ? IsoTimeUtc(ep.last_us) : "") + "\r\n");
+        } else if (format == db::ExportFormat::kJsonLines) {
+          json row = {
+              {"course", c.record.name},
+              {"course_id", c.record.id},
+              {"exercise_position", ex.record.position},
+              {"exercise", ex.record.title},
+              {"exercise_id", ex.record.id},
+              {"scene", ex.record.scene},
+              {"trainee", tp.trainee},
+              {"state", CellStateName(ep.state)},
+              {"attempts", pr.attempts},
+              {"passes", pr.passes},
+              {"streak", pr.streak},
+              {"proficient_at_attempt", pr.proficient_at ? json(*pr.proficient_at) : json(nullptr)},
+              {"proficient_at",
+               ep.proficient_us ? json(IsoTimeUtc(ep.proficient_us)) : json(nullptr)},
+              {"last_attempt_at", ep.last_us ? json(IsoTimeUtc(ep.last_us)) : json(nullptr)}};
+          sink(row.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+        } else {
+          // xAPI (ADL verbs): attempted per attempt, passed when proficiency was reached.
+          const json actor = {{"objectType", "Agent"},
+                              {"account", {{"homePage", "urn:vsurg"}, {"name", tp.trainee}}}};
+          const std::string activity = "urn:vsurg:course:" + std::to_string(c.record.id) +
+                                       ":exercise:" + std::to_string(ex.record.id);
+          const json object = {{"objectType", "Activity"},
+                               {"id", activity},
+                               {"definition",
+                                {{"name", {{"en-US", ex.record.title}}},
+                                 {"type", "http://adlnet.gov/expapi/activities/assessment"}}}};
+          const json parent = {{"contextActivities",
+                                {{"parent",
+                                  {{{"objectType", "Activity"},
+                                    {"id", "urn:vsurg:course:" + std::to_string(c.record.id)},
+                                    {"definition", {{"name", {{"en-US", c.record.name}}}}}}}}}}};
+          auto verb = [](const char* v) {
+            return json{{"id", std::string("http://adlnet.gov/expapi/verbs/") + v},
+                        {"display", {{"en-US", v}}}};
+          };
+          for (size_t k = 0; k < pr.checks.size(); ++k) {
+            json st = {
+                {"id", StatementId("urn:vsurg:attempt:" + std::to_string(ep.attempt_sessions[k]))},
+                {"timestamp", IsoTimeUtc(ep.attempt_us[k])},
+                {"actor", actor},
+                {"verb", verb("attempted")},
+                {"object", object},
+                {"result", {{"success", pr.checks[k].passed}}},
+                {"context", parent}};
+            sink(st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+          }
+          if (pr.proficient_at) {
+            json st = {{"id", StatementId(activity + ":passed:" + tp.trainee)},
+                       {"timestamp", IsoTimeUtc(ep.proficient_us)},
+                       {"actor", actor},
+                       {"verb", verb("passed")},
+                       {"object", object},
+                       {"result", {{"success", true}, {"completion", true}}},
+                       {"context", parent}};
+            sink(st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+          }
+        }
+      }
+      if (format == db::ExportFormat::kXapi && tp.completed) {
+        int64_t at = 0;
+        for (const ExerciseProgress& ep : tp.exercises) at = std::max(at, ep.proficient_us);
+        json st = {{"id", StatementId("urn:vsurg:course:" + std::to_string(c.record.id) +
+                                      ":completed:" + tp.trainee)},
+                   {"timestamp", IsoTimeUtc(at)},
+                   {"actor",
+                    {{"objectType", "Agent"},
+                     {"account", {{"homePage", "urn:vsurg"}, {"name", tp.trainee}}}}},
+                   {"verb",
+                    {{"id", "http://adlnet.gov/expapi/verbs/completed"},
+                     {"display", {{"en-US", "completed"}}}}},
+                   {"object",
+                    {{"objectType", "Activity"},
+                     {"id", "urn:vsurg:course:" + std::to_string(c.record.id)},
+                     {"definition",
+                      {{"name", {{"en-US", c.record.name}}},
+                       {"type", "http://adlnet.gov/expapi/activities/course"}}}}},
+                   {"result", {{"completion", true}, {"success", true}}}};
+        sink(st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace vsurg::server
