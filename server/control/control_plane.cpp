@@ -22,6 +22,7 @@ struct ControlPlane::Impl {
   std::unique_ptr<grpc::Service> monitor_service = grpcapi::NewMonitorService(domain);
   std::unique_ptr<grpc::Service> evaluation_service = grpcapi::NewEvaluationService(domain);
   std::unique_ptr<grpc::Service> admin_service = grpcapi::NewAdminService(domain);
+  std::unique_ptr<grpc::Service> training_service = grpcapi::NewTrainingService(domain);
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   bool tls = false;
@@ -71,6 +72,7 @@ Expected<std::unique_ptr<ControlPlane>> ControlPlane::Start(db::Store& store, Se
   builder.RegisterService(impl->monitor_service.get());
   builder.RegisterService(impl->evaluation_service.get());
   builder.RegisterService(impl->admin_service.get());
+  builder.RegisterService(impl->training_service.get());
   impl->server = builder.BuildAndStart();
   if (!impl->server || impl->port == 0)
     return Error{ErrorCode::kUnavailable, "cannot listen on " + options.listen, "listen"};

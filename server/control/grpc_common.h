@@ -1,4 +1,4 @@
-// What the four gRPC services share: the one mapping of our errors to gRPC statuses, the bearer
+// What the gRPC services share: the one mapping of our errors to gRPC statuses, the bearer
 // token from call metadata, the unary-call shape, and the session messages. Private to
 // server/control/ (generated types appear here, never in a header outside this folder).
 #pragma once
@@ -48,5 +48,6 @@ std::unique_ptr<grpc::Service> NewSessionService(Domain& d);
 std::unique_ptr<grpc::Service> NewMonitorService(Domain& d);
 std::unique_ptr<grpc::Service> NewEvaluationService(Domain& d);
 std::unique_ptr<grpc::Service> NewAdminService(Domain& d);
+std::unique_ptr<grpc::Service> NewTrainingService(Domain& d);
 
 }  // namespace vsurg::server::grpcapi

@@ -1,6 +1,7 @@
 // SessionService over gRPC: requests to server/domain/api.h calls, results to messages.
 #include "server/control/grpc_common.h"
 #include "server/domain/scene_catalog.h"
+#include "server/domain/training.h"
 
 namespace vsurg::server::grpcapi {
 namespace {
@@ -15,7 +16,9 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   ServerUnaryReactor* Create(CallbackServerContext* ctx, const v1::CreateSessionRequest* req,
                              v1::CreateSessionResponse* resp) override {
     return Unary(d_, ctx, Method::kSessionCreate, [&](const db::Principal& p) -> Status {
-      auto created = CreateSession(d_, p, req->trainee(), req->scene());
+      auto created = req->exercise_id() != 0
+                         ? CreateExerciseSession(d_, p, req->trainee(), req->exercise_id())
+                         : CreateSession(d_, p, req->trainee(), req->scene());
       if (!created.ok()) return created.error();
       Credentials(*created, resp);
       return Status::Ok();
@@ -48,8 +51,22 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
 
   ServerUnaryReactor* Get(CallbackServerContext* ctx, const v1::SessionRef* req,
                           v1::Session* resp) override {
-    return Unary(d_, ctx, Method::kSessionGet, [&](const db::Principal& p) {
-      return Answer(GetSession(d_, p, req->id()), resp);
+    return Unary(d_, ctx, Method::kSessionGet, [&](const db::Principal& p) -> Status {
+      if (Status s = Answer(GetSession(d_, p, req->id()), resp); !s.ok()) return s;
+      // An attempt at an exercise: its checks against the targets (the station's summary).
+      auto checks = SessionTargets(d_, p, req->id());
+      if (!checks.ok()) return checks.error();
+      if (*checks) {
+        for (const scoring::TargetCheck& t : (*checks)->checks) {
+          v1::TargetCheck* x = resp->add_targets();
+          x->set_metric(t.metric);
+          x->set_value(t.value);
+          x->set_target(t.target);
+          x->set_met(t.met);
+        }
+        resp->set_targets_passed((*checks)->passed);
+      }
+      return Status::Ok();
     });
   }
 

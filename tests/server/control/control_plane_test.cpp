@@ -133,6 +133,7 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
   auto mon = v1::MonitorService::NewStub(ch);
   auto ev = v1::EvaluationService::NewStub(ch);
   auto ad = v1::AdminService::NewStub(ch);
+  auto tr = v1::TrainingService::NewStub(ch);
   v1::Session session;
   v1::Empty empty;
   switch (m) {
@@ -225,6 +226,28 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
       v1::CreateSessionResponse r;
       return s->Join(ctx().get(), ref, &r).error_code();
     }
+    case Method::kTrainingCreateCourse: {
+      v1::Course r;
+      return tr->CreateCourse(ctx().get(), {}, &r).error_code();
+    }
+    case Method::kTrainingCreateCohort: {
+      v1::Cohort r;
+      return tr->CreateCohort(ctx().get(), {}, &r).error_code();
+    }
+    case Method::kTrainingEnrol: {
+      v1::Enrolment r;
+      return tr->Enrol(ctx().get(), {}, &r).error_code();
+    }
+    case Method::kTrainingSetExpert:
+      return tr->SetExpert(ctx().get(), {}, &empty).error_code();
+    case Method::kTrainingProgress: {
+      v1::ProgressResponse r;
+      return tr->Progress(ctx().get(), {}, &r).error_code();
+    }
+    case Method::kTrainingNext: {
+      v1::NextExerciseResponse r;
+      return tr->Next(ctx().get(), {}, &r).error_code();
+    }
     case Method::kCount:
       break;
   }
@@ -236,12 +259,14 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
   const std::map<db::Role, std::set<Method>> allowed = {
       {db::Role::kTrainee,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
-        Method::kSessionList, Method::kSessionListScenes, Method::kSessionJoin}},
+        Method::kSessionList, Method::kSessionListScenes, Method::kSessionJoin,
+        Method::kTrainingProgress, Method::kTrainingNext}},
       {db::Role::kInstructor,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
         Method::kSessionList, Method::kMonitorWatch, Method::kEvaluationReport,
-        Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets,
-        Method::kSessionListScenes}},
+        Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets, Method::kSessionListScenes,
+        Method::kTrainingCreateCourse, Method::kTrainingCreateCohort, Method::kTrainingEnrol,
+        Method::kTrainingSetExpert, Method::kTrainingProgress, Method::kTrainingNext}},
       {db::Role::kEvaluator,
        {Method::kSessionGet, Method::kSessionList, Method::kEvaluationSubmit,
         Method::kEvaluationReport, Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets,
