@@ -1,0 +1,284 @@
+// The training programme's rules (server/domain/training.h) on a real SQLite store: courses from
+// expert trials, cohorts and their grid, proficiency by streak, locking, the daily limit, the
+// station's next exercise, the rights of each role, and the progress exports.
+#include "server/domain/training.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+
+#include "server/domain/scene_catalog.h"
+#include "tests/support/site.h"
+
+namespace vsurg::server {
+namespace {
+
+constexpr const char* kScene = "sphere-palpation-256";
+constexpr const char* kScene2 = "arm-torsion";
+
+class TrainingTest : public test::SiteTest {
+ protected:
+  void SetUp() override {
+    ASSERT_NO_FATAL_FAILURE(OpenSite());
+    domain_ = std::make_unique<Domain>(Domain{*store_, *sessions_, catalog_, backups()});
+    AddUsers({{"ian", db::Role::kInstructor, ""},
+              {"ivy", db::Role::kInstructor, ""},
+              {"tina", db::Role::kTrainee, "novice"},
+              {"tom", db::Role::kTrainee, "novice"},
+              {"exa", db::Role::kTrainee, "staff"},
+              {"exb", db::Role::kTrainee, "staff"},
+              {"exc", db::Role::kTrainee, "staff"}});
+  }
+  void TearDown() override {
+    domain_.reset();
+    SiteTest::TearDown();
+  }
+  db::Principal As(const std::string& name) {
+    const std::vector<db::UserRecord> users = store_->ListUsers().value();
+    for (const db::UserRecord& u : users)
+      if (u.name == name) return {u.id, u.name, u.role, u.group};
+    ADD_FAILURE() << name;
+    return {};
+  }
+  // A recorded trial: a session of `trainee` on `scene` (an attempt at `exercise` when not 0)
+  // that ended with these figures.
+  int64_t Trial(const std::string& trainee, const std::string& scene, int64_t exercise,
+                double time_s, double peak_n) {
+    auto s = store_->CreateSession(trainee, scene);
+    EXPECT_TRUE(s.ok());
+    if (exercise) {
+      EXPECT_TRUE(store_->SetSessionExercise(s->id, exercise).ok());
+    }
+    scoring::TrialMetrics m;
+    m.completed = true;
+    m.completion_time = time_s;
+    m.peak_force = peak_n;
+    m.score = 8;
+    EXPECT_TRUE(store_->EndSession(s->id, SessionState::kEnded, NowUs(), "done", m).ok());
+    return s->id;
+  }
+  ExerciseSpec Spec(std::vector<TargetSpec> targets, int consecutive = 2) {
+    ExerciseSpec s;
+    s.targets = std::move(targets);
+    s.rule.consecutive = consecutive;
+    return s;
+  }
+  // A two-exercise course from the experts' trials, and a cohort of tina and tom enrolled in it.
+  void Programme() {
+    for (const char* e : {"exa", "exb", "exc"}) ASSERT_TRUE(store_->SetExpert(e, true).ok());
+    Trial("exa", kScene, 0, 20, 1.0);
+    Trial("exb", kScene, 0, 24, 1.2);
+    Trial("exc", kScene, 0, 28, 1.4);
+    Trial("exa", kScene2, 0, 30, 2.0);
+    Trial("exb", kScene2, 0, 34, 2.2);
+    auto c = CreateCourse(
+        *domain_, As("ian"), "Basics", "press, then twist",
+        {{"Press", kScene, Spec({{"completion_time_s", std::nullopt}, {"peak_force_n", 1.5}})},
+         {"Twist", kScene2, Spec({{"completion_time_s", std::nullopt}})}});
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    course_ = *c;
+    auto h = CreateCohort(*domain_, As("ian"), "Residents 2026", "", {"tina", "tom"});
+    ASSERT_TRUE(h.ok()) << h.error().message;
+    cohort_ = *h;
+    db::EnrolmentRecord e;
+    e.course_id = course_.record.id;
+    e.cohort_id = cohort_.id;
+    ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
+  }
+  int64_t Ex(int i) const { return course_.exercises[static_cast<size_t>(i)].record.id; }
+
+  SceneCatalog catalog_;
+  std::unique_ptr<Domain> domain_;
+  CourseView course_;
+  db::CohortRecord cohort_;
+};
+
+TEST_F(TrainingTest, ExpertTargetsAreTheirMeanPlusOneSdAndFollowThemAsTheyTrain) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  const ExerciseView& press = course_.exercises[0];
+  ASSERT_EQ(press.targets.size(), 2u);
+  // 20, 24, 28 s: mean 24, sample SD 4 → 28 s.
+  EXPECT_TRUE(press.targets[0].from_experts);
+  EXPECT_EQ(press.targets[0].expert_trials, 3);
+  EXPECT_NEAR(*press.targets[0].value, 28.0, 1e-9);
+  EXPECT_NEAR(*press.targets[1].value, 1.5, 1e-12);  // fixed
+  EXPECT_TRUE(press.ready);
+  // A fourth expert trial moves the benchmark: 20, 24, 28, 16 → mean 22, SD 5.164.
+  Trial("exa", kScene, 0, 16, 1.0);
+  auto again = GetCourse(*domain_, As("ian"), course_.record.id);
+  ASSERT_TRUE(again.ok());
+  EXPECT_NEAR(*again->exercises[0].targets[0].value, 22 + std::sqrt(80.0 / 3), 1e-9);
+  // One expert trial is no benchmark: the target waits and nothing can pass.
+  ASSERT_TRUE(store_->SetExpert("exb", false).ok());
+  ASSERT_TRUE(store_->SetExpert("exa", false).ok());
+  auto waiting = GetCourse(*domain_, As("ian"), course_.record.id);
+  EXPECT_FALSE(waiting->exercises[1].ready);
+  EXPECT_FALSE(waiting->exercises[1].targets[0].value.has_value());
+}
+
+TEST_F(TrainingTest, TheGridFollowsEachTraineeToProficiencyAndOpensTheNextExercise) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  // tina: fail (too much force), pass, pass → proficient at attempt 3; the twist opens.
+  Trial("tina", kScene, Ex(0), 25, 1.8);
+  Trial("tina", kScene, Ex(0), 26, 1.2);
+  Trial("tina", kScene, Ex(0), 27.5, 1.4);
+  // tom: five failures in a row → stalled.
+  for (int i = 0; i < 5; ++i) Trial("tom", kScene, Ex(0), 40, 1.0);
+  auto grid = CohortProgress(*domain_, As("ian"), cohort_.id, course_.record.id);
+  ASSERT_TRUE(grid.ok()) << grid.error().message;
+  ASSERT_EQ(grid->trainees.size(), 2u);
+  const TraineeProgress& tina = grid->trainees[0];
+  EXPECT_EQ(tina.trainee, "tina");
+  EXPECT_EQ(tina.exercises[0].state, CellState::kProficient);
+  EXPECT_EQ(*tina.exercises[0].progress.proficient_at, 3);
+  EXPECT_EQ(tina.exercises[1].state, CellState::kNotStarted);
+  EXPECT_EQ(*tina.next_exercise, Ex(1));
+  EXPECT_FALSE(tina.stalled);
+  const TraineeProgress& tom = grid->trainees[1];
+  EXPECT_EQ(tom.exercises[0].state, CellState::kStalled);
+  EXPECT_EQ(tom.exercises[0].to_improve, std::vector<std::string>{"completion_time_s"});
+  EXPECT_EQ(tom.exercises[1].state, CellState::kLocked);
+  EXPECT_TRUE(tom.stalled);
+  // The learning curve's CUSUM has one value per attempt, and the station's next exercise.
+  auto curve = TraineeCurve(*domain_, As("tina"), "tina", Ex(0));
+  ASSERT_TRUE(curve.ok());
+  EXPECT_EQ(curve->cusum.values.size(), 3u);
+  EXPECT_NEAR(curve->cusum.values[0], 1 - curve->cusum.limits.s, 1e-12);  // a failure first
+  auto next = NextExerciseOf(*domain_, As("tina"), "");
+  ASSERT_TRUE(next.ok());
+  EXPECT_EQ(*next->exercise_id, Ex(1));
+  EXPECT_EQ(next->open, std::vector<int64_t>{Ex(1)});
+  // The cohort curve: attempt 1 of both, attempts 2–5 of fewer; the experts beside it.
+  auto cc = CohortCurveOf(*domain_, As("ian"), cohort_.id, Ex(0));
+  ASSERT_TRUE(cc.ok());
+  const MetricCurve& time = cc->metrics[0];
+  EXPECT_EQ(time.points[0].trainees, 2);
+  EXPECT_NEAR(time.points[0].mean, 32.5, 1e-9);
+  EXPECT_EQ(time.points[3].trainees, 1);
+  EXPECT_EQ(time.expert_trials, 3);
+  EXPECT_NEAR(time.expert_mean, 24, 1e-9);
+}
+
+TEST_F(TrainingTest, ALockedExerciseAndTheDailyLimitRefuseAnAttempt) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  auto locked = CreateExerciseSession(*domain_, As("tina"), "", Ex(1));
+  EXPECT_EQ(locked.error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(CreateExerciseSession(*domain_, As("tina"), "tom", Ex(0)).error().code,
+            ErrorCode::kPermissionDenied);
+  auto ok = CreateExerciseSession(*domain_, As("tina"), "", Ex(0));
+  ASSERT_TRUE(ok.ok()) << ok.error().message;
+  EXPECT_EQ(store_->SessionExercise(ok->record.id).value(), Ex(0));
+  ASSERT_TRUE(sessions_->Stop(static_cast<uint64_t>(ok->record.id), "test").ok());
+  // A trainee not enrolled gets a clear refusal.
+  AddUsers({{"una", db::Role::kTrainee, ""}});
+  EXPECT_EQ(CreateExerciseSession(*domain_, As("una"), "", Ex(0)).error().code,
+            ErrorCode::kFailedPrecondition);
+  // One attempt a day: the second is refused until tomorrow.
+  ExerciseSpec one = Spec({{"peak_force_n", 1.5}});
+  one.rule.max_attempts_per_day = 1;
+  ASSERT_TRUE(SetExerciseSpec(*domain_, As("ian"), Ex(0), one).ok());
+  EXPECT_EQ(SetExerciseSpec(*domain_, As("ivy"), Ex(0), one).error().code,
+            ErrorCode::kPermissionDenied);  // not her course
+  Trial("tina", kScene, Ex(0), 25, 1.0);
+  EXPECT_EQ(CreateExerciseSession(*domain_, As("tina"), "", Ex(0)).error().code,
+            ErrorCode::kResourceExhausted);
+}
+
+TEST_F(TrainingTest, EachRoleSeesWhatIsTheirs) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  EXPECT_EQ(TraineeCourses(*domain_, As("tina"), "tom").error().code, ErrorCode::kPermissionDenied);
+  EXPECT_EQ(CohortProgress(*domain_, As("tina"), cohort_.id, course_.record.id).error().code,
+            ErrorCode::kPermissionDenied);
+  EXPECT_EQ(CohortProgress(*domain_, As("ivy"), cohort_.id, course_.record.id).error().code,
+            ErrorCode::kPermissionDenied);
+  EXPECT_TRUE(CohortProgress(*domain_, As("root"), cohort_.id, course_.record.id).ok());
+  EXPECT_TRUE(ListCohorts(*domain_, As("ivy"))->empty());
+  EXPECT_EQ(ListCohorts(*domain_, As("ian"))->size(), 1u);
+  EXPECT_EQ(ListCourses(*domain_, As("tina"))->size(), 1u);
+  AddUsers({{"una", db::Role::kTrainee, ""}});
+  EXPECT_TRUE(ListCourses(*domain_, As("una"))->empty());
+  EXPECT_EQ(GetCourse(*domain_, As("una"), course_.record.id).error().code,
+            ErrorCode::kPermissionDenied);
+  EXPECT_EQ(CreateCohort(*domain_, As("ivy"), "Hers", "ian", {}).error().code,
+            ErrorCode::kPermissionDenied);
+  EXPECT_EQ(CreateCohort(*domain_, As("ian"), "Residents 2026", "", {}).error().code,
+            ErrorCode::kAlreadyExists);
+  EXPECT_EQ(SetExpert(*domain_, As("tina"), "tina", true).error().code, ErrorCode::kPermissionDenied);
+}
+
+TEST_F(TrainingTest, ASpecIsCheckedFieldByField) {
+  EXPECT_EQ(ParseExerciseSpec("[]").error().field, "spec");
+  EXPECT_EQ(ParseExerciseSpec(R"({"targets":[]})").error().field, "targets");
+  EXPECT_EQ(ParseExerciseSpec(R"({"targets":[{"metric":"speed","value":1}]})").error().field,
+            "targets[0]");
+  EXPECT_EQ(ParseExerciseSpec(R"({"targets":[{"metric":"score"}]})").error().field, "targets[0]");
+  EXPECT_EQ(ParseExerciseSpec(R"({"targets":[{"metric":"score","value":8}],"consecutive":0})")
+                .error()
+                .field,
+            "consecutive");
+  EXPECT_EQ(
+      ParseExerciseSpec(R"({"targets":[{"metric":"score","value":8}],"cusum":{"p0":0.3,"p1":0.1}})")
+          .error()
+          .field,
+      "cusum.p1");
+  auto ok = ParseExerciseSpec(
+      R"({"targets":[{"metric":"score","value":8},{"metric":"peak_force_n","from_experts":true}],
+          "consecutive":3,"benchmark":"best_quartile"})");
+  ASSERT_TRUE(ok.ok()) << ok.error().message;
+  auto back = ParseExerciseSpec(ExerciseSpecJson(*ok));
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->rule.consecutive, 3);
+  EXPECT_EQ(back->benchmark, scoring::BenchmarkMode::kBestQuartile);
+  EXPECT_FALSE(back->targets[1].value.has_value());
+}
+
+TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  Trial("tina", kScene, Ex(0), 25, 1.2);
+  Trial("tina", kScene, Ex(0), 26, 1.2);
+  Trial("tina", kScene2, Ex(1), 30, 1.0);
+  Trial("tina", kScene2, Ex(1), 31, 1.0);
+  auto run = [&](db::ExportFormat f, const std::string& who, int64_t cohort) {
+    std::string out;
+    Status s = ExportProgress(*domain_, As(who), course_.record.id, cohort, f,
+                              [&](std::string_view chunk) { out += chunk; });
+    EXPECT_TRUE(s.ok()) << s.error().message;
+    return out;
+  };
+  const std::string csv = run(db::ExportFormat::kCsv, "ian", cohort_.id);
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);  // header + 2 trainees × 2
+  EXPECT_NE(
+      csv.find("\"Basics\",1,\"Press\",\"sphere-palpation-256\",\"tina\",proficient,2,2,2,2,"),
+      std::string::npos)
+      << csv;
+  std::istringstream jl(run(db::ExportFormat::kJsonLines, "ian", cohort_.id));
+  int rows = 0;
+  for (std::string line; std::getline(jl, line); ++rows)
+    EXPECT_TRUE(nlohmann::json::parse(line).contains("proficient_at_attempt"));
+  EXPECT_EQ(rows, 4);
+  // xAPI: four attempts, two passes, one completed course; ids are UUIDs (version 5).
+  std::istringstream xs(run(db::ExportFormat::kXapi, "tina", 0));
+  std::map<std::string, int> verbs;
+  const std::regex uuid("[0-9a-f]{8}-[0-9a-f]{4}-5[0-9a-f]{3}-[89ab][0-9a-f]{3}-[0-9a-f]{12}");
+  for (std::string line; std::getline(xs, line);) {
+    const auto j = nlohmann::json::parse(line);
+    ++verbs[j["verb"]["display"]["en-US"].get<std::string>()];
+    EXPECT_TRUE(std::regex_match(j["id"].get<std::string>(), uuid)) << j["id"];
+    EXPECT_EQ(j["actor"]["account"]["name"], "tina");
+  }
+  EXPECT_EQ(verbs["attempted"], 4);
+  EXPECT_EQ(verbs["passed"], 2);
+  EXPECT_EQ(verbs["completed"], 1);
+  // A trainee exports only their own; an instructor names the cohort.
+  std::string ignored;
+  EXPECT_EQ(ExportProgress(*domain_, As("tina"), course_.record.id, cohort_.id,
+                           db::ExportFormat::kCsv, [&](std::string_view c) { ignored += c; })
+                .error().code,
+            ErrorCode::kPermissionDenied);
+}
+
+}  // namespace
+}  // namespace vsurg::server
