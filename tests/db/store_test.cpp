@@ -828,5 +828,65 @@ TEST(SessionStateTest, NamesAndWireNumbersRoundTrip) {
   EXPECT_FALSE(IsLive(SessionState::kDisconnected));
 }
 
+// The training programme's rows on both backends: a course with its exercises in order, a
+// cohort, enrolments that reach a member, experts, and the attempts read back in one query.
+TEST_P(StoreTest, ATrainingProgrammeIsKeptAndItsAttemptsReadBack) {
+  ASSERT_TRUE(store_->InitAdmin("root").ok());
+  ASSERT_TRUE(store_->CreateUser("ian", Role::kInstructor, "").ok());
+  CourseRecord c;
+  c.name = "Basics";
+  c.owner = "ian";
+  c.exercises = {{0, 0, 0, "Press", "sphere", R"({"targets":[]})"},
+                 {0, 0, 0, "Twist", "arm", R"({"targets":[]})"}};
+  auto made = store_->CreateCourse(c);
+  ASSERT_TRUE(made.ok()) << made.error().message;
+  EXPECT_EQ(made->exercises[1].position, 2);
+  EXPECT_EQ(store_->CreateCourse(c).error().code, ErrorCode::kAlreadyExists);
+  c.name = "Broken";
+  c.exercises[0].spec_json = "{not json";
+  EXPECT_FALSE(store_->CreateCourse(c).ok());
+  EXPECT_EQ(store_->ListCourses()->size(), 1u);  // nothing of the broken one was kept
+  auto cohort = store_->CreateCohort("Residents", "ian", {"tina", "tom", "tina"});
+  ASSERT_TRUE(cohort.ok()) << cohort.error().message;
+  EXPECT_EQ(store_->GetCohort(cohort->id)->members, (std::vector<std::string>{"tina", "tom"}));
+  EnrolmentRecord e;
+  e.course_id = made->id;
+  e.cohort_id = cohort->id;
+  ASSERT_TRUE(store_->Enrol(e).ok());
+  e.cohort_id = 999;
+  EXPECT_EQ(store_->Enrol(e).error().code, ErrorCode::kNotFound);
+  e.cohort_id.reset();
+  EXPECT_EQ(store_->Enrol(e).error().field, "cohort");  // neither a cohort nor a trainee
+  EXPECT_EQ(store_->ListEnrolments("tina")->size(), 1u);
+  EXPECT_TRUE(store_->ListEnrolments("una")->empty());
+  ASSERT_TRUE(store_->SetExpert("tom", true).ok());
+  EXPECT_EQ(store_->SetExpert("nobody", true).error().code, ErrorCode::kNotFound);
+  EXPECT_EQ(*store_->ListExperts(), std::vector<std::string>{"tom"});
+  // Two trials of tina at the press, one of tom on the sphere outside the course.
+  scoring::TrialMetrics m;
+  m.completed = true;
+  m.completion_time = 12;
+  m.peak_force = 1.5;
+  m.score = 7;
+  for (const char* who : {"tina", "tina", "tom"}) {
+    auto s = store_->CreateSession(who, "sphere");
+    ASSERT_TRUE(s.ok());
+    if (std::string(who) == "tina") {
+      ASSERT_TRUE(store_->SetSessionExercise(s->id, made->exercises[0].id).ok());
+    }
+    ASSERT_TRUE(store_->EndSession(s->id, SessionState::kEnded, NowUs(), "done", m).ok());
+    EXPECT_EQ(store_->SetSessionExercise(s->id, made->exercises[0].id).error().code,
+              ErrorCode::kFailedPrecondition);  // ended: no longer
+  }
+  auto attempts = store_->LoadAttempts(made->id, "", cohort->id);
+  ASSERT_TRUE(attempts.ok()) << attempts.error().message;
+  ASSERT_EQ(attempts->size(), 2u);
+  EXPECT_EQ((*attempts)[0].trainee, "tina");
+  EXPECT_EQ((*attempts)[0].exercise_id, made->exercises[0].id);
+  EXPECT_DOUBLE_EQ((*attempts)[1].metrics.peak_force, 1.5);
+  EXPECT_TRUE(store_->LoadAttempts(made->id, "tom", 0)->empty());
+  EXPECT_EQ(store_->LoadExpertAttempts("sphere")->size(), 1u);
+}
+
 }  // namespace
 }  // namespace vsurg::db
