@@ -11,6 +11,7 @@
 #include "common/scoring/vocabulary.h"
 #include "db/vocabulary.h"
 #include "server/domain/scene_catalog.h"
+#include "server/domain/training.h"
 #include "server/http/web_assets.h"
 
 namespace vsurg::server::http {
@@ -169,6 +170,7 @@ std::string PageRole(std::string_view page, Method& m) {
   if (page == "reports") return m = Method::kEvaluationReport, "instructor or evaluator";
   if (page == "admin") return m = Method::kAdminListUsers, "administrator";
   if (page == "mine") return m = Method::kSessionList, "trainee";
+  if (page == "training") return m = Method::kTrainingCreateCohort, "instructor";
   return "";
 }
 
@@ -198,6 +200,87 @@ HttpReply Shell(const std::string& page) {
   HttpReply r = Html(200, std::move(body));
   r.headers.emplace_back("Cache-Control", "no-store");
   return r;
+}
+
+// --- the training programme's JSON (server/domain/training.h) ---
+
+json FiniteOrNull(double x) {
+  return std::isfinite(x) ? json(x) : json(nullptr);
+}
+
+json ExerciseJson(const ExerciseView& e) {
+  json targets = json::array();
+  for (const ResolvedTarget& t : e.targets) {
+    const scoring::MetricDef* def = scoring::FindMetric(t.metric);
+    targets.push_back(
+        {{"metric", t.metric},
+         {"unit", def ? def->unit : ""},
+         {"better", def && def->better == scoring::Better::kHigher ? "higher" : "lower"},
+         {"value", t.value ? json(*t.value) : json(nullptr)},
+         {"from_experts", t.from_experts},
+         {"expert_trials", t.expert_trials}});
+  }
+  return {{"id", e.record.id},
+          {"position", e.record.position},
+          {"title", e.record.title},
+          {"scene", e.record.scene},
+          {"spec", json::parse(e.record.spec_json, nullptr, false)},
+          {"targets", targets},
+          {"ready", e.ready}};
+}
+
+json CourseJson(const CourseView& c) {
+  json exercises = json::array();
+  for (const ExerciseView& e : c.exercises) exercises.push_back(ExerciseJson(e));
+  return {{"id", c.record.id},
+          {"name", c.record.name},
+          {"description", c.record.description},
+          {"owner", c.record.owner},
+          {"created", Iso(c.record.created_us)},
+          {"exercises", exercises}};
+}
+
+json ChecksJson(const scoring::AttemptCheck& a) {
+  json out = json::array();
+  for (const scoring::TargetCheck& t : a.checks)
+    out.push_back({{"metric", t.metric},
+                   {"value", FiniteOrNull(t.value)},
+                   {"target", t.target},
+                   {"met", t.met}});
+  return out;
+}
+
+json ProgressJson(const ExerciseProgress& ep) {
+  const scoring::Progress& p = ep.progress;
+  return {{"exercise_id", ep.exercise_id},
+          {"state", CellStateName(ep.state)},
+          {"attempts", p.attempts},
+          {"passes", p.passes},
+          {"streak", p.streak},
+          {"proficient_at", p.proficient_at ? json(*p.proficient_at) : json(nullptr)},
+          {"proficient", Iso(ep.proficient_us)},
+          {"last", Iso(ep.last_us)},
+          {"attempts_today", p.attempts_today},
+          {"may_attempt", p.may_attempt},
+          {"to_improve", ep.to_improve},
+          {"last_checks", p.checks.empty() ? json::array() : ChecksJson(p.checks.back())}};
+}
+
+json TraineeProgressJson(const TraineeProgress& t) {
+  json cells = json::array();
+  for (const ExerciseProgress& ep : t.exercises) cells.push_back(ProgressJson(ep));
+  return {{"trainee", t.trainee},
+          {"stalled", t.stalled},
+          {"completed", t.completed},
+          {"next_exercise", t.next_exercise ? json(*t.next_exercise) : json(nullptr)},
+          {"exercises", cells}};
+}
+
+json MetricsJson(const scoring::TrialMetrics& m) {
+  json out = json::object();
+  for (const scoring::MetricDef& def : scoring::ProficiencyMetrics())
+    out[std::string(def.name)] = FiniteOrNull(scoring::MetricValue(m, def));
+  return out;
 }
 
 }  // namespace
@@ -367,6 +450,23 @@ struct HttpApi::Routes {
   static HttpReply UserDisabled(const Call& c);
   static HttpReply Export(const Call& c);
   static HttpReply BackupRoute(const Call& c);
+  // The training programme (server/domain/training.h).
+  static HttpReply Courses(const Call& c);
+  static HttpReply CourseCreate(const Call& c);
+  static HttpReply CourseGet(const Call& c);
+  static HttpReply ExerciseSpecPut(const Call& c);
+  static HttpReply Cohorts(const Call& c);
+  static HttpReply CohortCreate(const Call& c);
+  static HttpReply CohortMembers(const Call& c);
+  static HttpReply CohortGrid(const Call& c);
+  static HttpReply CohortCurveRoute(const Call& c);
+  static HttpReply EnrolRoute(const Call& c);
+  static HttpReply Experts(const Call& c);
+  static HttpReply ExpertSet(const Call& c);
+  static HttpReply TrainingMine(const Call& c);
+  static HttpReply TrainingCurve(const Call& c);
+  static HttpReply TrainingNext(const Call& c);
+  static HttpReply TrainingExport(const Call& c);
 };
 
 HttpReply HttpApi::Handle(const HttpRequest& r) {
@@ -516,7 +616,10 @@ HttpReply HttpApi::Routes::SessionCreate(const Call& c) {
   auto scene = Field<std::string>(*body, "scene", "");
   if (!trainee.ok()) return ErrorReply(trainee.error());
   if (!scene.ok()) return ErrorReply(scene.error());
-  auto created = CreateSession(c.api.d_, *c.p, *trainee, *scene);
+  auto exercise = Field<int64_t>(*body, "exercise", 0);
+  if (!exercise.ok()) return ErrorReply(exercise.error());
+  auto created = *exercise != 0 ? CreateExerciseSession(c.api.d_, *c.p, *trainee, *exercise)
+                                : CreateSession(c.api.d_, *c.p, *trainee, *scene);
   if (!created.ok()) return ErrorReply(created.error());
   // The station's key is not sent here: the trainee's station joins with its own token.
   return Json(201, {{"session", RecordJson(created->record)}});
@@ -525,7 +628,12 @@ HttpReply HttpApi::Routes::SessionCreate(const Call& c) {
 HttpReply HttpApi::Routes::SessionGet(const Call& c) {
   auto v = GetSession(c.api.d_, *c.p, c.id);
   if (!v.ok()) return ErrorReply(v.error());
-  return Ok(ViewJson(*v));
+  json j = ViewJson(*v);
+  // An attempt at a course's exercise: its checks against the targets.
+  auto checks = SessionTargets(c.api.d_, *c.p, c.id);
+  if (!checks.ok()) return ErrorReply(checks.error());
+  if (*checks) j["targets"] = {{"passed", (*checks)->passed}, {"checks", ChecksJson(**checks)}};
+  return Ok(j);
 }
 
 HttpReply HttpApi::Routes::SessionStop(const Call& c) {
@@ -829,6 +937,280 @@ HttpReply HttpApi::Routes::BackupRoute(const Call& c) {
   return Json(201, {{"backup", *name}});
 }
 
+// --- the training programme ---
+
+namespace {
+// A list of names from a JSON body field (an array of strings).
+Expected<std::vector<std::string>> Names(const json& body, const char* field) {
+  std::vector<std::string> out;
+  const auto it = body.find(field);
+  if (it == body.end() || it->is_null()) return out;
+  if (!it->is_array()) return InvalidArgument(field, "a list of names");
+  for (const json& n : *it) {
+    if (!n.is_string()) return InvalidArgument(field, "a list of names");
+    out.push_back(n.get<std::string>());
+  }
+  return out;
+}
+// A spec from a JSON body field, through the one parser.
+Expected<ExerciseSpec> SpecOf(const json& j, const std::string& field) {
+  auto spec = ParseExerciseSpec(j.dump());
+  if (!spec.ok())
+    return Error{spec.error().code, spec.error().message, field + "." + spec.error().field};
+  return spec;
+}
+}  // namespace
+
+HttpReply HttpApi::Routes::Courses(const Call& c) {
+  auto list = ListCourses(c.api.d_, *c.p);
+  if (!list.ok()) return ErrorReply(list.error());
+  json out = json::array();
+  for (const CourseView& v : *list) out.push_back(CourseJson(v));
+  return Ok({{"courses", out}});
+}
+
+HttpReply HttpApi::Routes::CourseCreate(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto name = Field<std::string>(*body, "name", "");
+  auto description = Field<std::string>(*body, "description", "");
+  if (!name.ok()) return ErrorReply(name.error());
+  if (!description.ok()) return ErrorReply(description.error());
+  const auto list = body->find("exercises");
+  if (list == body->end() || !list->is_array())
+    return ErrorReply(InvalidArgument("exercises", "a list of {title, scene, spec}"));
+  std::vector<NewExercise> exercises;
+  for (size_t i = 0; i < list->size(); ++i) {
+    const json& e = (*list)[i];
+    const std::string field = "exercises[" + std::to_string(i) + "]";
+    if (!e.is_object() || !e.value("title", json()).is_string() ||
+        !e.value("scene", json()).is_string() || !e.contains("spec"))
+      return ErrorReply(InvalidArgument(field, "needs a title, a scene and a spec"));
+    auto spec = SpecOf(e["spec"], field + ".spec");
+    if (!spec.ok()) return ErrorReply(spec.error());
+    exercises.push_back({e["title"].get<std::string>(), e["scene"].get<std::string>(), *spec});
+  }
+  auto made = CreateCourse(c.api.d_, *c.p, *name, *description, exercises);
+  if (!made.ok()) return ErrorReply(made.error());
+  return Json(201, {{"course", CourseJson(*made)}});
+}
+
+HttpReply HttpApi::Routes::CourseGet(const Call& c) {
+  auto v = GetCourse(c.api.d_, *c.p, static_cast<int64_t>(c.id));
+  if (!v.ok()) return ErrorReply(v.error());
+  return Ok(CourseJson(*v));
+}
+
+HttpReply HttpApi::Routes::ExerciseSpecPut(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto spec = SpecOf(*body, "spec");
+  if (!spec.ok()) return ErrorReply(spec.error());
+  if (Status s = SetExerciseSpec(c.api.d_, *c.p, static_cast<int64_t>(c.id), *spec); !s.ok())
+    return ErrorReply(s.error());
+  return NoContent();
+}
+
+HttpReply HttpApi::Routes::Cohorts(const Call& c) {
+  auto list = ListCohorts(c.api.d_, *c.p);
+  if (!list.ok()) return ErrorReply(list.error());
+  json out = json::array();
+  for (const db::CohortRecord& h : *list)
+    out.push_back({{"id", h.id},
+                   {"name", h.name},
+                   {"instructor", h.instructor},
+                   {"created", Iso(h.created_us)},
+                   {"members", h.members}});
+  return Ok({{"cohorts", out}});
+}
+
+HttpReply HttpApi::Routes::CohortCreate(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto name = Field<std::string>(*body, "name", "");
+  auto instructor = Field<std::string>(*body, "instructor", "");
+  auto members = Names(*body, "members");
+  if (!name.ok()) return ErrorReply(name.error());
+  if (!instructor.ok()) return ErrorReply(instructor.error());
+  if (!members.ok()) return ErrorReply(members.error());
+  auto made = CreateCohort(c.api.d_, *c.p, *name, *instructor, *members);
+  if (!made.ok()) return ErrorReply(made.error());
+  return Json(201,
+              {{"cohort", {{"id", made->id}, {"name", made->name}, {"members", made->members}}}});
+}
+
+HttpReply HttpApi::Routes::CohortMembers(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto members = Names(*body, "members");
+  if (!members.ok()) return ErrorReply(members.error());
+  if (Status s = AddCohortMembers(c.api.d_, *c.p, static_cast<int64_t>(c.id), *members); !s.ok())
+    return ErrorReply(s.error());
+  return NoContent();
+}
+
+HttpReply HttpApi::Routes::CohortGrid(const Call& c) {
+  const auto course = QueryNumber(c.query, "course");
+  if (!course || *course == 0) return ErrorReply(InvalidArgument("course", "a course id"));
+  auto grid = CohortProgress(c.api.d_, *c.p, static_cast<int64_t>(c.id), *course);
+  if (!grid.ok()) return ErrorReply(grid.error());
+  json trainees = json::array();
+  for (const TraineeProgress& t : grid->trainees) trainees.push_back(TraineeProgressJson(t));
+  return Ok({{"course", CourseJson(grid->course)}, {"cohort", c.id}, {"trainees", trainees}});
+}
+
+HttpReply HttpApi::Routes::CohortCurveRoute(const Call& c) {
+  const auto exercise = QueryNumber(c.query, "exercise");
+  if (!exercise || *exercise == 0) return ErrorReply(InvalidArgument("exercise", "an exercise id"));
+  auto curve = CohortCurveOf(c.api.d_, *c.p, static_cast<int64_t>(c.id), *exercise);
+  if (!curve.ok()) return ErrorReply(curve.error());
+  json metrics = json::array();
+  for (const MetricCurve& m : curve->metrics) {
+    json points = json::array();
+    for (const CurvePoint& p : m.points)
+      points.push_back(
+          {{"n", p.attempt}, {"trainees", p.trainees}, {"mean", p.mean}, {"sd", p.sd}});
+    metrics.push_back(
+        {{"metric", m.metric},
+         {"target", m.target ? json(*m.target) : json(nullptr)},
+         {"points", points},
+         {"experts", {{"trials", m.expert_trials}, {"mean", m.expert_mean}, {"sd", m.expert_sd}}}});
+  }
+  return Ok({{"exercise", ExerciseJson(curve->exercise)}, {"metrics", metrics}});
+}
+
+HttpReply HttpApi::Routes::EnrolRoute(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto course = Field<int64_t>(*body, "course", 0);
+  auto cohort = Field<int64_t>(*body, "cohort", 0);
+  auto trainee = Field<std::string>(*body, "trainee", "");
+  for (const Error* e : {Err(course), Err(cohort)})
+    if (e) return ErrorReply(*e);
+  if (!trainee.ok()) return ErrorReply(trainee.error());
+  db::EnrolmentRecord e;
+  e.course_id = *course;
+  if (*cohort != 0) e.cohort_id = *cohort;
+  e.trainee = *trainee;
+  // Dates as ISO times; "starts" absent: now, "ends" absent: open-ended.
+  for (const char* name : {"starts", "ends"}) {
+    auto v = Field<std::string>(*body, name, "");
+    if (!v.ok()) return ErrorReply(v.error());
+    if (v->empty()) continue;
+    auto t = ParseIsoUtc(*v, name);
+    if (!t.ok()) return ErrorReply(t.error());
+    if (std::string_view(name) == "starts")
+      e.starts_us = *t;
+    else
+      e.ends_us = *t;
+  }
+  auto made = Enrol(c.api.d_, *c.p, e);
+  if (!made.ok()) return ErrorReply(made.error());
+  return Json(201, {{"enrolment", made->id}});
+}
+
+HttpReply HttpApi::Routes::Experts(const Call& c) {
+  auto list = ListExperts(c.api.d_, *c.p);
+  if (!list.ok()) return ErrorReply(list.error());
+  return Ok({{"experts", *list}});
+}
+
+HttpReply HttpApi::Routes::ExpertSet(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto trainee = Field<std::string>(*body, "trainee", "");
+  auto expert = Field<bool>(*body, "expert", true);
+  if (!trainee.ok()) return ErrorReply(trainee.error());
+  if (!expert.ok()) return ErrorReply(expert.error());
+  if (Status s = SetExpert(c.api.d_, *c.p, *trainee, *expert); !s.ok())
+    return ErrorReply(s.error());
+  return NoContent();
+}
+
+HttpReply HttpApi::Routes::TrainingMine(const Call& c) {
+  std::string trainee = Param(c.query, "trainee");
+  if (trainee.empty()) trainee = c.p->name;
+  auto courses = TraineeCourses(c.api.d_, *c.p, trainee);
+  if (!courses.ok()) return ErrorReply(courses.error());
+  json out = json::array();
+  for (const CourseProgress& cp : *courses)
+    out.push_back({{"course", CourseJson(cp.course)},
+                   {"progress", TraineeProgressJson(cp.trainees.front())}});
+  return Ok({{"trainee", trainee}, {"courses", out}});
+}
+
+HttpReply HttpApi::Routes::TrainingCurve(const Call& c) {
+  std::string trainee = Param(c.query, "trainee");
+  if (trainee.empty()) trainee = c.p->name;
+  const auto exercise = QueryNumber(c.query, "exercise");
+  if (!exercise || *exercise == 0) return ErrorReply(InvalidArgument("exercise", "an exercise id"));
+  auto curve = TraineeCurve(c.api.d_, *c.p, trainee, *exercise);
+  if (!curve.ok()) return ErrorReply(curve.error());
+  json attempts = json::array();
+  const auto& checks = curve->progress.progress.checks;
+  for (size_t i = 0; i < curve->attempts.size() && i < checks.size(); ++i) {
+    const db::AttemptRow& a = curve->attempts[i];
+    attempts.push_back({{"n", i + 1},
+                        {"session", a.session_id},
+                        {"at", Iso(a.ended_us)},
+                        {"passed", checks[i].passed},
+                        {"metrics", MetricsJson(a.metrics)},
+                        {"checks", ChecksJson(checks[i])}});
+  }
+  const scoring::CusumCurve& k = curve->cusum;
+  const scoring::CusumParams& cp = curve->exercise.spec.cusum;
+  return Ok(
+      {{"trainee", trainee},
+       {"course", {{"id", curve->course.record.id}, {"name", curve->course.record.name}}},
+       {"exercise", ExerciseJson(curve->exercise)},
+       {"progress", ProgressJson(curve->progress)},
+       {"attempts", attempts},
+       {"cusum",
+        {{"values", k.values},
+         {"s", k.limits.s},
+         {"h0", k.limits.h0},
+         {"h1", k.limits.h1},
+         {"p0", cp.p0},
+         {"p1", cp.p1},
+         {"alpha", cp.alpha},
+         {"beta", cp.beta},
+         {"proficient_at", k.proficient_at ? json(*k.proficient_at) : json(nullptr)},
+         {"unacceptable_at", k.unacceptable_at ? json(*k.unacceptable_at) : json(nullptr)}}}});
+}
+
+HttpReply HttpApi::Routes::TrainingNext(const Call& c) {
+  auto next = NextExerciseOf(c.api.d_, *c.p, Param(c.query, "trainee"));
+  if (!next.ok()) return ErrorReply(next.error());
+  if (!next->course || !next->exercise_id) return Ok({{"next", nullptr}});
+  return Ok({{"course", CourseJson(*next->course)},
+             {"next", *next->exercise_id},
+             {"open", next->open},
+             {"progress", ProgressJson(next->progress)}});
+}
+
+HttpReply HttpApi::Routes::TrainingExport(const Call& c) {
+  const auto course = QueryNumber(c.query, "course");
+  const auto cohort = QueryNumber(c.query, "cohort");
+  if (!course) return ErrorReply(InvalidArgument("course", "a course id"));
+  if (!cohort) return ErrorReply(InvalidArgument("cohort", "a cohort id"));
+  const std::string name = Param(c.query, "format");
+  const auto format = db::ParseExportFormat(name.empty() ? "csv" : name);
+  if (!format) return ErrorReply(InvalidArgument("format", "csv, jsonl or xapi"));
+  HttpReply reply;
+  Status s = ExportProgress(c.api.d_, *c.p, *course, *cohort, *format,
+                            [&](std::string_view chunk) { reply.body.append(chunk); });
+  if (!s.ok()) return ErrorReply(s.error());
+  const bool csv = *format == db::ExportFormat::kCsv;
+  reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
+  reply.headers.emplace_back("Content-Disposition",
+                             std::string("attachment; filename=\"vsurg-progress") +
+                                 (*format == db::ExportFormat::kXapi ? "-xapi.jsonl"
+                                  : csv                              ? ".csv"
+                                                                     : ".jsonl") +
+                                 "\"");
+  return reply;
+}
+
 const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "me", Method::kSessionListScenes, &Routes::Me},  // every role
     {"GET", "scenes", Method::kSessionListScenes, &Routes::Scenes},
@@ -857,6 +1239,24 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"POST", "users/{name}/disabled", Method::kAdminSetDisabled, &Routes::UserDisabled},
     {"GET", "export", Method::kAdminExport, &Routes::Export},
     {"POST", "backup", Method::kAdminBackup, &Routes::BackupRoute},
+    {"GET", "training/courses", Method::kTrainingProgress, &Routes::Courses},
+    {"POST", "training/courses", Method::kTrainingCreateCourse, &Routes::CourseCreate},
+    {"GET", "training/courses/{id}", Method::kTrainingProgress, &Routes::CourseGet},
+    {"POST", "training/exercises/{id}/spec", Method::kTrainingCreateCourse,
+     &Routes::ExerciseSpecPut},
+    {"GET", "training/cohorts", Method::kTrainingCreateCohort, &Routes::Cohorts},
+    {"POST", "training/cohorts", Method::kTrainingCreateCohort, &Routes::CohortCreate},
+    {"POST", "training/cohorts/{id}/members", Method::kTrainingCreateCohort,
+     &Routes::CohortMembers},
+    {"GET", "training/cohorts/{id}/grid", Method::kTrainingProgress, &Routes::CohortGrid},
+    {"GET", "training/cohorts/{id}/curve", Method::kTrainingProgress, &Routes::CohortCurveRoute},
+    {"POST", "training/enrolments", Method::kTrainingEnrol, &Routes::EnrolRoute},
+    {"GET", "training/experts", Method::kTrainingSetExpert, &Routes::Experts},
+    {"POST", "training/experts", Method::kTrainingSetExpert, &Routes::ExpertSet},
+    {"GET", "training/mine", Method::kTrainingProgress, &Routes::TrainingMine},
+    {"GET", "training/curve", Method::kTrainingProgress, &Routes::TrainingCurve},
+    {"GET", "training/next", Method::kTrainingNext, &Routes::TrainingNext},
+    {"GET", "training/export", Method::kTrainingProgress, &Routes::TrainingExport},
 };
 
 HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
