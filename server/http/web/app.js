@@ -13,6 +13,7 @@ import { pageRecords } from './pages/records.js';
 import { pageReports } from './pages/reports.js';
 import { pageSession } from './pages/session.js';
 import { pageSignIn } from './pages/signin.js';
+import { pageTraining } from './pages/training.js';
 
 async function start() {
   const page = document.body.dataset.page, main = $('#main');
@@ -29,7 +30,7 @@ async function start() {
       entry ? `${entry.title} is for the ${entry.roles.join(' and ')} role${entry.roles.length > 1 ? 's' : ''}; you are signed in as ${auth.me.role}.`
         : `You are signed in as ${auth.me.role}, which cannot open this page.`, ' ', el('a', { href: '/' }, 'Back to your start page')));
   }
-  const pages = { live: pageLive, session: pageSession, evaluate: pageEvaluate, reports: pageReports, admin: pageAdmin, mine: pageMine, records: pageRecords };
+  const pages = { live: pageLive, session: pageSession, evaluate: pageEvaluate, reports: pageReports, admin: pageAdmin, mine: pageMine, records: pageRecords, training: pageTraining };
   try { await pages[page](main); } catch (err) { if (err.message !== 'signed out') message(main, err.message); }
 }
 document.addEventListener('DOMContentLoaded', start);

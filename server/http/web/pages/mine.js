@@ -3,6 +3,7 @@
 import { api, auth } from '../api.js';
 import { xyChart } from '../charts.js';
 import { el, fmt, stateBadge, table, when } from '../dom.js';
+import { courseCards, showCurve } from '../progress.js';
 import { indexName, momentText } from '../rubric.js';
 
 export async function pageMine(main) {
@@ -12,7 +13,8 @@ export async function pageMine(main) {
   const latest = scored[scored.length - 1];
   const feedback = el('div', { id: 'my-feedback' });
   const chart = el('canvas', { id: 'my-scores' });
-  main.replaceChildren(el('h1', {}, 'My training'),
+  const course = el('div', { id: 'my-course' });
+  main.replaceChildren(el('h1', {}, 'My training'), course,
     el('div', { class: 'panel', id: 'my-latest' }, latest
       ? [el('h2', {}, 'Your latest trial'), el('p', { class: 'big' }, el('b', {}, fmt(latest.metrics.score, 1)), ' / 10 on ', latest.scene, ' · ', when(latest.ended)),
         el('a', { href: '/session/' + latest.id }, 'Replay it and see its traces')]
@@ -27,6 +29,7 @@ export async function pageMine(main) {
     series: [{ label: 'trial score', points: scored.map((s, i) => ({ x: i + 1, y: s.metrics.score })) }],
     band: { lo: 8, hi: 10, label: 'proficient (8–10)' },
     describe: `Your trial scores, ${scored.length} trials: ${scored.map((s) => fmt(s.metrics.score, 1)).join(', ') || 'none yet'}.` });
+  await showCourses(course);
   // Feedback on the latest sessions that have any (a few requests; the list is short).
   const items = [];
   for (const s of scored.slice(-10).reverse()) {
@@ -41,4 +44,26 @@ export async function pageMine(main) {
       el('ul', { class: 'index-scores compact' }, x.scores.map((v, j) => el('li', {}, el('span', {}, indexName(names[j], j)), el('b', {}, fmt(v, 1))))),
       el('a', { href: '/session/' + s.id }, 'See the session'));
   }) : [el('p', { class: 'muted' }, 'No evaluation of your sessions yet.')]));
+}
+
+// The trainee's courses: each exercise's state, targets and last checks, and the curves of the
+// exercise they are working on (or the last one they reached).
+async function showCourses(target) {
+  const r = await api('GET', '/training/mine').catch(() => ({ courses: [] }));
+  if (!r.courses.length) return;
+  const parts = [];
+  const curves = [];
+  for (const { course, progress } of r.courses) {
+    const next = course.exercises.find((e) => e.id === progress.next_exercise);
+    parts.push(el('h2', {}, `Your course: ${course.name}`),
+      el('p', { class: 'big', id: 'my-next' }, progress.completed ? 'You reached proficiency in every exercise of this course.'
+        : next ? [`Next: `, el('b', {}, `${next.position}. ${next.title}`), ` (${next.scene}). Sign in at a station and it starts this exercise.`] : ''),
+      el('div', { class: 'panel' }, courseCards(course, progress)));
+    const focus = next || course.exercises[course.exercises.length - 1];
+    const box = el('div', { class: 'panel my-curve' });
+    parts.push(el('h2', {}, `Your curve: ${focus.title}`), box);
+    curves.push([box, focus.id]);
+  }
+  target.replaceChildren(...parts);
+  for (const [box, id] of curves) await showCurve(box, auth.me.user, id).catch(() => null);
 }

@@ -1,0 +1,171 @@
+// The training programme for instructors (and administrators): the cohort grid (trainees ×
+// exercises, coloured by state, stalled trainees flagged, refreshed every 5 s), one trainee's
+// learning curves and CUSUM, the cohort's mean curve against the experts', building a course
+// with targets fixed or taken from expert trials, cohorts and enrolments, and the exports.
+import { api } from '../api.js';
+import { el, message } from '../dom.js';
+import { metricName, showCohortCurve, showCurve, stateCell, targetText } from '../progress.js';
+import { loadScenes } from '../scenes.js';
+
+const METRIC_NAMES = ['completion_time_s', 'peak_force_n', 'time_over_force_limit_s', 'overload_events',
+  'path_length_m', 'rms_jerk', 'task_error', 'score'];
+const REFRESH_MS = 5000;
+
+export async function pageTraining(main) {
+  const [courses, cohorts, experts, scenes] = await Promise.all([api('GET', '/training/courses'),
+    api('GET', '/training/cohorts'), api('GET', '/training/experts'), loadScenes()]);
+  const state = { courses: courses.courses, cohorts: cohorts.cohorts, timer: null };
+  const news = el('div', { id: 'training-news', 'aria-live': 'polite' });
+  const pick = el('form', { class: 'filters', id: 'grid-pick' });
+  const grid = el('div', { id: 'cohort-grid' }), curve = el('div', { id: 'curve' }), cohortCurve = el('div', { id: 'cohort-curve' });
+  const exports = el('p', { id: 'progress-exports' });
+  main.replaceChildren(el('h1', {}, 'Training programme'), news,
+    el('h2', {}, 'Cohort progress'), el('div', { class: 'panel' }, pick, exports, grid),
+    el('div', { class: 'grid' }, el('div', { class: 'panel' }, curve), el('div', { class: 'panel' }, cohortCurve)),
+    el('h2', {}, 'Build a course'), el('div', { class: 'panel' }, courseForm(scenes, experts.experts, news, async () => {
+      state.courses = (await api('GET', '/training/courses')).courses; fillPick();
+    })),
+    el('h2', {}, 'Cohorts and enrolments'), el('div', { class: 'panel' }, cohortForm(state, news, async () => {
+      state.cohorts = (await api('GET', '/training/cohorts')).cohorts; fillPick();
+    })));
+
+  const cohortSel = el('select', { name: 'cohort', id: 'grid-cohort' }), courseSel = el('select', { name: 'course', id: 'grid-course' });
+  pick.replaceChildren(el('label', {}, 'Cohort', cohortSel), el('label', {}, 'Course', courseSel));
+  function fillPick() {
+    const keep = [cohortSel.value, courseSel.value];
+    cohortSel.replaceChildren(...state.cohorts.map((c) => el('option', { value: c.id }, `${c.name} (${c.members.length})`)));
+    courseSel.replaceChildren(...state.courses.map((c) => el('option', { value: c.id }, c.name)));
+    if (keep[0]) cohortSel.value = keep[0];
+    if (keep[1]) courseSel.value = keep[1];
+    drawGrid();
+  }
+  async function drawGrid() {
+    clearTimeout(state.timer);
+    if (!cohortSel.value || !courseSel.value) {
+      grid.replaceChildren(el('p', { class: 'muted' }, 'Make a course and a cohort below, enrol the cohort, and its grid shows here.'));
+      return;
+    }
+    try {
+      const g = await api('GET', `/training/cohorts/${cohortSel.value}/grid?course=${courseSel.value}`);
+      const q = `course=${courseSel.value}&cohort=${cohortSel.value}`;
+      exports.replaceChildren('Export progress: ', ...['csv', 'jsonl', 'xapi'].flatMap((f, i) =>
+        [i ? ' · ' : '', el('a', { href: `/api/v1/training/export?${q}&format=${f}`, download: '' }, f === 'xapi' ? 'xAPI statements' : f.toUpperCase())]));
+      grid.replaceChildren(gridTable(g, (trainee, exercise) => showCurve(curve, trainee, exercise).catch((e) => message(curve, e.message)),
+        (exercise) => showCohortCurve(cohortCurve, cohortSel.value, exercise).catch((e) => message(cohortCurve, e.message))));
+    } catch (err) {
+      message(grid, err.message);
+    }
+    state.timer = setTimeout(drawGrid, REFRESH_MS);  // live: the grid follows the trainees
+  }
+  cohortSel.addEventListener('change', drawGrid);
+  courseSel.addEventListener('change', drawGrid);
+  fillPick();
+}
+
+// The grid: a row per trainee (stalled ones flagged first in their name cell), a column per
+// exercise; each cell a button opening that trainee's curves.
+function gridTable(g, openCurve, openCohortCurve) {
+  const head = el('tr', {}, el('th', { scope: 'col' }, 'Trainee'), g.course.exercises.map((e) =>
+    el('th', { scope: 'col' }, el('button', { class: 'link', type: 'button', title: 'The cohort curve of this exercise', onclick: () => openCohortCurve(e.id) },
+      `${e.position}. ${e.title}`))), el('th', { scope: 'col' }, 'Next'));
+  const stalled = g.trainees.filter((t) => t.stalled).length, done = g.trainees.filter((t) => t.completed).length;
+  const rows = g.trainees.map((t) => el('tr', { class: t.stalled ? 'stalled-row' : '', 'data-trainee': t.trainee },
+    el('th', { scope: 'row' }, t.trainee, t.stalled ? el('span', { class: 'badge st-stalled flag' }, 'stalled') : null),
+    t.exercises.map((c, i) => el('td', { class: 'cell st-' + c.state, 'data-state': c.state, 'data-exercise': c.exercise_id },
+      el('button', { type: 'button', class: 'cell-button', onclick: () => openCurve(t.trainee, c.exercise_id),
+        'aria-label': `${t.trainee}, ${g.course.exercises[i].title}: ${c.state.replace('_', ' ')}, ${c.attempts} attempts` },
+      stateCell(c.state), el('span', { class: 'cell-figures' }, `${c.attempts} att · ${c.streak}/${g.course.exercises[i].spec.consecutive}`)))),
+    el('td', {}, t.completed ? 'course reached' : t.next_exercise ? (g.course.exercises.find((e) => e.id === t.next_exercise) || {}).title : '—')));
+  return el('div', {},
+    el('p', { class: 'muted', id: 'grid-summary' }, `${g.trainees.length} trainees · ${done} reached the course · ${stalled} stalled · refreshed ${new Date().toLocaleTimeString()}`),
+    el('div', { class: 'scroll-x' }, el('table', { class: 'progress-grid', id: 'progress-grid' }, el('thead', {}, head), el('tbody', {}, rows))),
+    el('p', { class: 'muted' }, g.course.exercises.map((e) => `${e.position}. ${e.title}: ${e.targets.map(targetText).join('; ')}`).join(' — ')));
+}
+
+// A course: its name and exercises, each with a scene and targets (a fixed value, or from the
+// experts' trials: their mean + 1 SD, or their best quartile).
+function courseForm(scenes, experts, news, done) {
+  const list = el('div', { id: 'exercise-list' });
+  const add = () => list.append(exerciseFieldset(list.children.length + 1, scenes));
+  add(); add();
+  const form = el('form', { id: 'course-form' },
+    el('div', { class: 'filters' },
+      el('label', {}, 'Course name', el('input', { name: 'name', required: true, maxlength: 128 })),
+      el('label', {}, 'Description', el('input', { name: 'description', maxlength: 400 })),
+      el('label', {}, 'Expert benchmark', el('select', { name: 'benchmark' }, el('option', { value: 'mean_sd' }, 'experts’ mean + 1 SD'),
+        el('option', { value: 'best_quartile' }, 'experts’ best quartile')))),
+    el('p', { class: 'muted' }, experts.length ? `Experts whose trials set benchmarks: ${experts.join(', ')}.` : 'No experts marked yet: mark trainees as experts below before taking targets from them.'),
+    list,
+    el('button', { type: 'button', onclick: add }, 'Add an exercise'), ' ',
+    el('button', { type: 'submit' }, 'Create the course'));
+  form.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    const f = new FormData(form);
+    const exercises = [...list.children].map((fs, i) => {
+      const n = i + 1, get = (k) => fs.querySelector(`[name="${k}-${n}"]`);
+      const targets = METRIC_NAMES.filter((m) => get(`use-${m}`).checked).map((m) =>
+        get(`experts-${m}`).checked ? { metric: m, from_experts: true } : { metric: m, value: Number(get(`value-${m}`).value) });
+      return { title: get('title').value, scene: get('scene').value, spec: { targets, consecutive: Number(get('consecutive').value),
+        max_attempts_per_day: Number(get('per-day').value), benchmark: f.get('benchmark') } };
+    });
+    try {
+      const r = await api('POST', '/training/courses', { name: f.get('name'), description: f.get('description'), exercises });
+      message(news, `Course “${r.course.name}” created with ${r.course.exercises.length} exercises.`, true);
+      await done();
+    } catch (err) { message(news, err.message); }
+  });
+  return form;
+}
+
+function exerciseFieldset(n, scenes) {
+  const metricRow = (m, checked, value, fromExperts) => el('div', { class: 'target-row' },
+    el('label', { class: 'inline' }, el('input', { type: 'checkbox', name: `use-${m}-${n}`, checked }), metricName(m)),
+    el('label', { class: 'inline' }, 'value', el('input', { type: 'number', step: 'any', name: `value-${m}-${n}`, value, inputmode: 'decimal' })),
+    el('label', { class: 'inline' }, el('input', { type: 'checkbox', name: `experts-${m}-${n}`, checked: fromExperts }), 'from experts'));
+  return el('fieldset', { class: 'exercise-fields' }, el('legend', {}, `Exercise ${n}`),
+    el('div', { class: 'filters' },
+      el('label', {}, 'Title', el('input', { name: `title-${n}`, required: true, maxlength: 128, value: n === 1 ? 'Palpate the sphere' : n === 2 ? 'Twist the arm' : '' })),
+      el('label', {}, 'Scene', el('select', { name: `scene-${n}` }, scenes.map((s, i) => el('option', { value: s.name, selected: n === 2 ? s.task === 'twist' && !scenes.slice(0, i).some((x) => x.task === 'twist') : i === 0 }, s.name)))),
+      el('label', {}, 'Passes in a row', el('input', { type: 'number', name: `consecutive-${n}`, min: 1, max: 20, value: 2 })),
+      el('label', {}, 'Attempts a day (0: no limit)', el('input', { type: 'number', name: `per-day-${n}`, min: 0, max: 1000, value: 0 }))),
+    el('div', { class: 'targets-fields' },
+      metricRow('completion_time_s', true, '', true), metricRow('peak_force_n', true, '', true),
+      metricRow('overload_events', false, 0, false), metricRow('score', false, 7, false),
+      metricRow('time_over_force_limit_s', false, 0.5, false), metricRow('path_length_m', false, '', true),
+      metricRow('rms_jerk', false, '', true), metricRow('task_error', false, '', true)));
+}
+
+// Cohorts (name and members), enrolment of a cohort in a course, and experts.
+function cohortForm(state, news, done) {
+  const courseSel = el('select', { name: 'course' }, state.courses.map((c) => el('option', { value: c.id }, c.name)));
+  const cohortForm_ = el('form', { id: 'cohort-form', class: 'filters' },
+    el('label', {}, 'Cohort name', el('input', { name: 'name', required: true, maxlength: 128 })),
+    el('label', { class: 'wide' }, 'Members (trainee names, separated by commas or lines)', el('textarea', { name: 'members', rows: 2 })),
+    el('label', {}, 'Enrol in course', courseSel),
+    el('button', { type: 'submit' }, 'Create and enrol'));
+  cohortForm_.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    const f = new FormData(cohortForm_);
+    try {
+      const members = String(f.get('members')).split(/[\s,]+/).filter(Boolean);
+      const r = await api('POST', '/training/cohorts', { name: f.get('name'), members });
+      if (f.get('course')) await api('POST', '/training/enrolments', { course: Number(f.get('course')), cohort: r.cohort.id });
+      message(news, `Cohort “${r.cohort.name}” (${r.cohort.members.length} trainees) created${f.get('course') ? ' and enrolled' : ''}.`, true);
+      await done();
+    } catch (err) { message(news, err.message); }
+  });
+  const expertForm = el('form', { id: 'expert-form', class: 'filters' },
+    el('label', {}, 'Trainee to mark as an expert', el('input', { name: 'trainee', required: true, maxlength: 128 })),
+    el('button', { type: 'submit' }, 'Mark as expert'));
+  expertForm.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    try {
+      await api('POST', '/training/experts', { trainee: new FormData(expertForm).get('trainee'), expert: true });
+      message(news, 'Marked as an expert: their trials now set the benchmarks.', true);
+    } catch (err) { message(news, err.message); }
+  });
+  // Keep the course list of the enrolment form current.
+  const refresh = () => courseSel.replaceChildren(...state.courses.map((c) => el('option', { value: c.id }, c.name)));
+  cohortForm_.addEventListener('focusin', refresh);
+  return el('div', {}, cohortForm_, expertForm);
+}
