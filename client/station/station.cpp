@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "common/core/format.h"
 #include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -121,6 +122,47 @@ void Station::StopSupervisor() {
   if (supervisor_.joinable()) supervisor_.join();
 }
 
+Expected<CourseExercise> NextCourseExercise(const Remote& remote, int64_t pick, double timeout_s) {
+  auto stub = v1::TrainingService::NewStub(remote.channel);
+  grpc::ClientContext ctx;
+  remote.Prepare(ctx, timeout_s);
+  v1::NextExerciseResponse next;
+  const grpc::Status s = stub->Next(&ctx, v1::NextExerciseRequest{}, &next);
+  if (!s.ok())
+    return Error{ErrorCode::kUnavailable, "cannot ask for the next exercise: " + Describe(s),
+                 "course"};
+  if (!next.has_next())
+    return Error{ErrorCode::kNotFound,
+                 "no course to follow: not enrolled, or every exercise already reached", "course"};
+  const int64_t want = pick != 0 ? pick : next.exercise_id();
+  if (std::find(next.open().begin(), next.open().end(), want) == next.open().end())
+    return Error{ErrorCode::kFailedPrecondition,
+                 "exercise " + std::to_string(want) +
+                     " is not open to you yet (open: the next one, " +
+                     std::to_string(next.exercise_id()) + ", and those before it not reached)",
+                 "exercise"};
+  CourseExercise out;
+  out.course = next.course().name();
+  for (const v1::Exercise& e : next.course().exercises()) {
+    if (e.id() != want) continue;
+    out.exercise_id = e.id();
+    out.title = e.title();
+    out.scene = e.scene();
+    out.position = e.position();
+    out.consecutive = e.consecutive();
+    for (const v1::ExerciseTarget& t : e.targets())
+      out.targets.push_back(
+          t.metric() + (t.metric() == "score" ? " >= " : " <= ") +
+          (t.has_resolved() ? Fixed(t.resolved(), 2) : std::string("(waiting for expert trials)")));
+  }
+  if (want == next.exercise_id()) {
+    out.attempts = next.progress().attempts();
+    out.streak = next.progress().streak();
+    out.may_attempt = next.may_attempt();
+  }
+  return out;
+}
+
 StationStatus Station::status() const {
   std::lock_guard lock(mutex_);
   return status_;
@@ -141,6 +183,7 @@ Status Station::Connect() {
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::CreateSessionRequest create;
   create.set_scene(config_.scene);
+  create.set_exercise_id(config_.exercise_id);
   v1::CreateSessionResponse created;
   const bool join = config_.join != 0 && status_.generation == 0;
   {
@@ -315,6 +358,18 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
   out.end_reason = session.end_reason();
   out.has_metrics = session.has_metrics();
   out.metrics = convert::FromProto(session.metrics());
+  if (config_.exercise_id != 0 && session.targets_size() == 0 && out.has_metrics) {
+    // Stop answers with the session; its target checks come with Get.
+    grpc::ClientContext get_ctx;
+    remote_.Prepare(get_ctx, config_.rpc_timeout_s);
+    v1::SessionRef ref;
+    ref.set_id(session.id());
+    if (stub->Get(&get_ctx, ref, &session).ok()) {
+      for (const v1::TargetCheck& t : session.targets())
+        out.targets.push_back({t.metric(), t.value(), t.target(), t.met()});
+      out.targets_passed = session.targets_passed();
+    }
+  }
   return out;
 }
 

@@ -43,6 +43,9 @@ struct StationConfig {
   // A session prepared for this trainee (by an instructor) to join instead of creating one; a
   // reconnect after the server went away creates a new session as usual. 0: create.
   uint64_t join = 0;
+  // An attempt at a course's exercise (TrainingService/Next): sessions are created for it (the
+  // scene is the exercise's). 0: a free session of `scene`.
+  int64_t exercise_id = 0;
   double rate_hz = 1000;     // device thread
   double rpc_timeout_s = 3;  // per control-plane call
   double silence_s = 0.5;    // no force update this long: ask the server how it is
@@ -77,7 +80,28 @@ struct SessionSummary {
   std::string end_reason;
   bool has_metrics = false;
   scoring::TrialMetrics metrics;
+  // An attempt at an exercise: each target met or missed, and whether the attempt passed.
+  struct TargetCheck {
+    std::string metric;
+    double value = 0, target = 0;
+    bool met = false;
+  };
+  std::vector<TargetCheck> targets;
+  bool targets_passed = false;
 };
+
+// The exercise a trainee's station runs when it follows their course (TrainingService/Next):
+// the next one, or `pick` when it is one of the open ones (kFailedPrecondition otherwise, and
+// kNotFound when the trainee has no course to follow).
+struct CourseExercise {
+  std::string course, title, scene;
+  int64_t exercise_id = 0;
+  int position = 0;
+  int attempts = 0, streak = 0, consecutive = 0;
+  bool may_attempt = true;
+  std::vector<std::string> targets;  // "peak_force_n <= 1.5" …
+};
+Expected<CourseExercise> NextCourseExercise(const Remote& remote, int64_t pick, double timeout_s);
 
 class Station {
  public:

@@ -93,6 +93,22 @@ int Fail(const std::string& what) {
   return 1;
 }
 
+// The end-of-trial summary's lines for an attempt at an exercise: each target met or missed.
+struct TargetLine {
+  std::string text;
+};
+std::vector<TargetLine> TargetLines(const client::SessionSummary& s) {
+  std::vector<TargetLine> out;
+  if (s.targets.empty()) return out;
+  out.push_back({s.targets_passed ? "Targets: all met, a pass toward proficiency"
+                                  : "Targets: not all met, not a pass"});
+  for (const auto& t : s.targets)
+    out.push_back({std::string(t.met ? "  met     " : "  missed  ") + t.metric + " " +
+                   Fixed(t.value, 2) + (t.metric == "score" ? " (at least " : " (at most ") +
+                   Fixed(t.target, 2) + ")"});
+  return out;
+}
+
 int Run(const std::vector<std::string>& args) {
   ArgParser p("vsurg-station",
               "A trainee's station: joins a session on the server, streams the stylus over UDP "
@@ -100,6 +116,10 @@ int Run(const std::vector<std::string>& args) {
   client::AddRemoteOptions(p);
   p.Option("scene", Kind::kString, "scene to train on", false, "arm-torsion")
       .Option("join", Kind::kInt, "join this session, prepared for you by an instructor")
+      .Option("course", Kind::kFlag,
+              "follow your course: run your next exercise (its scene, its targets; --scene is "
+              "ignored) and say at the end which targets the trial met")
+      .Option("exercise", Kind::kInt, "with --course: this open exercise instead of the next")
       .Option("device", Kind::kString,
               "replay, virtual-hand, keyboard-mouse, openhaptics or falcon", false, "replay")
       .Option("trajectory", Kind::kString,
@@ -149,8 +169,29 @@ int Run(const std::vector<std::string>& args) {
   if (p.Has("screenshot-at") && !(p.Double("screenshot-at") >= 0))
     return std::cerr << "vsurg-station: --screenshot-at: must be ≥ 0\n", 2;
 
+  // Following the course: the server says which exercise (and so which scene) comes next.
+  std::optional<client::CourseExercise> exercise;
+  std::string scene_name = p.String("scene");
+  if (p.Has("exercise") && !p.Flag("course"))
+    return std::cerr << "vsurg-station: --exercise: only with --course\n", 2;
+  if (p.Flag("course")) {
+    if (p.Has("join"))
+      return std::cerr << "vsurg-station: --course and --join exclude each other\n", 2;
+    auto next = client::NextCourseExercise(*remote, p.Has("exercise") ? p.Int("exercise") : 0,
+                                           remote->timeout_s);
+    if (!next.ok()) return Fail(next.error().message);
+    if (!next->may_attempt) return Fail("today's attempts at '" + next->title + "' are used up");
+    exercise = *next;
+    scene_name = next->scene;
+    std::cerr << "vsurg-station: course '" << next->course << "', exercise " << next->position
+              << ". " << next->title << " (" << next->scene << "): " << next->attempts
+              << " attempts, " << next->streak << " of " << next->consecutive
+              << " passes in a row; targets:";
+    for (const std::string& t : next->targets) std::cerr << " " << t << ";";
+    std::cerr << "\n";
+  }
   // The scene, as the server will run it: the same file gives the same vertex order.
-  auto scene = vsurg::sim::LoadSceneByName(p.String("scene"));
+  auto scene = vsurg::sim::LoadSceneByName(scene_name);
   if (!scene.ok()) return Fail("scene: " + scene.error().message);
   auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
   if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
@@ -216,7 +257,8 @@ int Run(const std::vector<std::string>& args) {
   };
 
   client::StationConfig config;
-  config.scene = p.String("scene");
+  config.scene = scene_name;
+  if (exercise) config.exercise_id = exercise->exercise_id;
   if (p.Has("join")) {
     if (p.Int("join") < 1) {
       std::cerr << "vsurg-station: --join: a session id (≥ 1) is required\n";
@@ -399,6 +441,7 @@ int Run(const std::vector<std::string>& args) {
     last.summary.score = m.score;
     last.summary.lines = vsurg::scoring::ExplainScore(m, scene->task);
     if (last.summary.lines.empty()) last.summary.lines = {"Nothing lowered it: expert level"};
+    for (const TargetLine& line : TargetLines(*summary)) last.summary.lines.push_back(line.text);
     // A panel's size settles over its first frames (ImGui fits it to its text): the
     // screenshot is of the third.
     const auto shown_at = std::chrono::steady_clock::now();
@@ -449,6 +492,16 @@ int Run(const std::vector<std::string>& args) {
                         {"draw_ms_p99", Percentile(draw_ms, 0.99)},
                         {"metrics_recorded", summary->has_metrics},
                         {"metrics", vsurg::scoring::TrialMetricsToJson(m)}};
+    if (exercise) {
+      nlohmann::json targets = nlohmann::json::array();
+      for (const auto& t : summary->targets)
+        targets.push_back(
+            {{"metric", t.metric}, {"value", t.value}, {"target", t.target}, {"met", t.met}});
+      j["exercise"] = {{"id", exercise->exercise_id},
+                       {"title", exercise->title},
+                       {"targets", targets},
+                       {"passed", summary->targets_passed}};
+    }
     std::cout << j.dump() << "\n";
   } else {
     std::cout << "session " << summary->id << " " << SessionStateName(summary->state) << " ("
@@ -456,6 +509,7 @@ int Run(const std::vector<std::string>& args) {
               << (m.completed ? "yes" : "no") << ", peak force " << Fixed(m.peak_force, 2) << " N, "
               << stats.received << "/" << stats.sent << " datagrams answered, RTT p50 "
               << Fixed(stats.rtt_p50_us, 0) << " us, " << st.reconnects << " reconnects\n";
+    for (const TargetLine& line : TargetLines(*summary)) std::cout << "  " << line.text << "\n";
   }
   return 0;
 }
