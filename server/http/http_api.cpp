@@ -266,9 +266,22 @@ json ProgressJson(const ExerciseProgress& ep) {
           {"last_checks", p.checks.empty() ? json::array() : ChecksJson(p.checks.back())}};
 }
 
-json TraineeProgressJson(const TraineeProgress& t) {
+// `compact`: the grid's cells (state and counts only; 2,000 of them for 200 trainees).
+json TraineeProgressJson(const TraineeProgress& t, bool compact = false) {
   json cells = json::array();
-  for (const ExerciseProgress& ep : t.exercises) cells.push_back(ProgressJson(ep));
+  for (const ExerciseProgress& ep : t.exercises) {
+    if (!compact) {
+      cells.push_back(ProgressJson(ep));
+      continue;
+    }
+    const scoring::Progress& p = ep.progress;
+    cells.push_back({{"exercise_id", ep.exercise_id},
+                     {"state", CellStateName(ep.state)},
+                     {"attempts", p.attempts},
+                     {"passes", p.passes},
+                     {"streak", p.streak},
+                     {"proficient_at", p.proficient_at ? json(*p.proficient_at) : json(nullptr)}});
+  }
   return {{"trainee", t.trainee},
           {"stalled", t.stalled},
           {"completed", t.completed},
@@ -1055,7 +1068,7 @@ HttpReply HttpApi::Routes::CohortGrid(const Call& c) {
   auto grid = CohortProgress(c.api.d_, *c.p, static_cast<int64_t>(c.id), *course);
   if (!grid.ok()) return ErrorReply(grid.error());
   json trainees = json::array();
-  for (const TraineeProgress& t : grid->trainees) trainees.push_back(TraineeProgressJson(t));
+  for (const TraineeProgress& t : grid->trainees) trainees.push_back(TraineeProgressJson(t, true));
   return Ok({{"course", CourseJson(grid->course)}, {"cohort", c.id}, {"trainees", trainees}});
 }
 
