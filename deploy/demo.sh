@@ -11,7 +11,9 @@
 # export; screenshots of the station before and after the twist (and the monitor) go to docs/;
 # then one site over several processes (deploy/cluster_flow.sh, docs/SCALING.md): PostgreSQL, two
 # control replicas, three simulation nodes, 24 stations; a node frozen past its lease and resumed,
-# a second process under a live node's name, then a node and a replica killed.
+# a second process under a live node's name, then a node and a replica killed; then the training
+# programme (tests/e2e/training_test.py): a course from three expert runs, a cohort of ten
+# trained by stations that follow it, the instructor's grid updating live in Chromium.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
@@ -60,6 +62,12 @@ echo "==== The platform end to end: server, a trainee's station, an instructor's
 echo
 echo "==== Beyond one machine: PostgreSQL, 2 control replicas, 3 simulation nodes, 24 stations; a node frozen and resumed, a duplicate node refused, a node and a replica killed ===="
 "$root/deploy/cluster_flow.sh" "$root/build/bin" "$out/cluster" 24
+
+echo
+echo "==== The training programme: three expert runs set the targets, a course of two exercises, a cohort of ten training at stations that follow it, the instructor's grid following them live ===="
+vsurg_install_npm  # axe-core for the page checks
+/usr/bin/python3 "$root/tests/e2e/training_test.py" "$root/build/bin" "$root/scenes" "$out/training"
+echo "(the pages as they were: $out/training/training-*.png)"
 
 echo
 echo "==== The web dashboard on the demo's store ===="
