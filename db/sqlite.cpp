@@ -93,6 +93,11 @@ Expected<std::unique_ptr<Connection>> SqliteConnection::Open(const std::string& 
     if (Status s = c->Exec(pragma); !s.ok()) return s.error();
   if (mode == Mode::kReadWrite) {
     if (Status s = c->Exec("PRAGMA journal_mode=WAL"); !s.ok()) return s.error();
+  } else {
+    // Readers map the file instead of copying each page through read(): the training grid
+    // reads a course's 100,000 trials per request (docs/BENCHMARKS.md "The training programme
+    // at scale"). Address space only; the pages are the kernel's page cache either way.
+    if (Status s = c->Exec("PRAGMA mmap_size=268435456"); !s.ok()) return s.error();
   }
   return std::unique_ptr<Connection>(std::move(c));
 }

@@ -207,7 +207,8 @@ struct EnrolmentRecord {
   std::optional<int64_t> ends_us;
   int64_t created_us = 0;
 };
-// One recorded trial: a session that ended with trial metrics.
+// One recorded trial: a session that ended with trial metrics (those a proficiency target can
+// name, scoring::ProficiencyMetrics; the rest are not read).
 struct AttemptRow {
   int64_t session_id = 0;
   std::string trainee;
@@ -372,11 +373,13 @@ class Store {
   // cohorts'), oldest first.
   Expected<std::vector<EnrolmentRecord>> ListEnrolments(const std::string& trainee);
   Expected<std::vector<std::string>> ListExperts();  // by name
-  // The recorded trials at the exercises of `course_id`, oldest first; only `trainee`'s when not
-  // empty, only the members' of `cohort_id` when not 0.
+  // The recorded trials at the exercises of `course_id`, exercise by exercise (in the course's
+  // order), each trainee's in the order they were made (their sessions' order); only `trainee`'s
+  // when not empty, only the members' of `cohort_id` when not 0, only at `exercise_id` when
+  // not 0.
   Expected<std::vector<AttemptRow>> LoadAttempts(int64_t course_id, const std::string& trainee,
-                                                 int64_t cohort_id);
-  // The experts' recorded trials on `scene` (any session, an exercise's or not), oldest first.
+                                                 int64_t cohort_id, int64_t exercise_id = 0);
+  // The experts' recorded trials on `scene` (any session, an exercise's or not), in no order.
   Expected<std::vector<AttemptRow>> LoadExpertAttempts(const std::string& scene);
   // The exercise a session was an attempt at (0: none).
   Expected<int64_t> SessionExercise(int64_t session_id);

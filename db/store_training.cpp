@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <unordered_map>
 
 #include "db/store_impl.h"
 
@@ -163,16 +164,33 @@ Expected<std::vector<CohortRecord>> ReadCohorts(Connection& c, int64_t id) {
   return out;
 }
 
-// Attempts from a query whose columns are: session id, trainee, exercise id, ended_us, then the
-// trial metrics.
+// An attempt's columns: the session, its trainee, exercise and end, then the metrics targets
+// can name (scoring::ProficiencyMetrics; the rest of a trial's figures are not read).
+constexpr const char* kAttemptColumns =
+    "SELECT s.id, t.name, s.exercise_id, s.ended_us, m.completed, m.completion_time_s, "
+    "m.task_error, m.peak_force_n, m.time_over_force_limit_s, m.path_length_m, m.rms_jerk, "
+    "m.overload_events, m.score ";
+
+// The metrics of kAttemptColumns from column `first` on.
+void ReadProficiencyMetrics(const Statement& q, int first, scoring::TrialMetrics& m) {
+  m.completed = q.Int(first) != 0;
+  m.completion_time = q.Double(first + 1);
+  m.task_error = q.Double(first + 2);
+  m.peak_force = q.Double(first + 3);
+  m.time_over_force_limit = q.Double(first + 4);
+  m.path_length = q.Double(first + 5);
+  m.rms_jerk = q.Double(first + 6);
+  m.overload_events = static_cast<int>(q.Int(first + 7));
+  m.score = q.Double(first + 8);
+}
+
 void ReadAttempt(const Statement& q, std::vector<AttemptRow>& out) {
-  AttemptRow a;
+  AttemptRow& a = out.emplace_back();
   a.session_id = q.Int(0);
-  a.trainee = q.String(1);
+  a.trainee = q.Text(1);
   a.exercise_id = q.IsNull(2) ? 0 : q.Int(2);
   a.ended_us = q.IsNull(3) ? 0 : q.Int(3);
-  a.metrics = ReadTrialMetrics(q, 4);
-  out.push_back(std::move(a));
+  ReadProficiencyMetrics(q, 4, a.metrics);
 }
 
 }  // namespace
@@ -445,23 +463,54 @@ Expected<std::vector<std::string>> Store::ListExperts() {
 }
 
 Expected<std::vector<AttemptRow>> Store::LoadAttempts(int64_t course_id, const std::string& trainee,
-                                                      int64_t cohort_id) {
+                                                      int64_t cohort_id, int64_t exercise_id) {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
-  std::vector<AttemptRow> out;
+  // The trainees' names first (a cohort's few hundred), then their trials by id: a name looked
+  // up per trial was a seventh of the grid's time at 100,000 trials.
+  std::unordered_map<int64_t, std::string> names;
   Status s = ForEachRow(
       **r,
-      std::string("SELECT s.id, t.name, s.exercise_id, s.ended_us, ") + kTrialMetricColumns +
-          " FROM exercises e JOIN sessions s ON s.exercise_id = e.id "
-          "JOIN trainees t ON t.id = s.trainee_id "
-          "JOIN trial_metrics m ON m.session_id = s.id "
-          "WHERE e.course_id = ?1 AND (CAST(?2 AS TEXT) = '' OR t.name = ?2) "
-          "AND (?3 = 0 OR s.trainee_id IN "
-          "(SELECT trainee_id FROM cohort_members WHERE cohort_id = ?3)) "
-          "ORDER BY s.ended_us, s.id",
-      [&](Statement& q) { q.Bind(1, course_id).Bind(2, trainee).Bind(3, cohort_id); },
-      [&](const Statement& q) { ReadAttempt(q, out); });
+      "SELECT t.id, t.name FROM trainees t WHERE (CAST(?1 AS TEXT) = '' OR t.name = ?1) "
+      "AND (?2 = 0 OR t.id IN (SELECT trainee_id FROM cohort_members WHERE cohort_id = ?2))",
+      [&](Statement& q) { q.Bind(1, trainee).Bind(2, cohort_id); },
+      [&](const Statement& q) { names.emplace(q.Int(0), q.String(1)); });
   if (!s.ok()) return s.error();
+  std::vector<int64_t> exercises;
+  s = ForEachRow(
+      **r,
+      "SELECT id FROM exercises WHERE course_id = ?1 AND (?2 = 0 OR id = ?2) ORDER BY position",
+      [&](Statement& q) { q.Bind(1, course_id).Bind(2, exercise_id); },
+      [&](const Statement& q) { exercises.push_back(q.Int(0)); });
+  if (!s.ok()) return s.error();
+  // One exercise at a time, in the (exercise, trainee) index's order: each trainee's trials come
+  // in the order they were made without a sort (an ORDER BY over the whole course made SQLite
+  // sort its trials in a temporary B-tree spilled to a file, a fifth of the grid's time at
+  // 100,000 trials). One trainee: only their part of the index.
+  const int64_t one = !trainee.empty() && names.size() == 1 ? names.begin()->first : 0;
+  const std::string sql =
+      std::string(
+          "SELECT s.id, s.trainee_id, s.ended_us, m.completed, m.completion_time_s, "
+          "m.task_error, m.peak_force_n, m.time_over_force_limit_s, m.path_length_m, "
+          "m.rms_jerk, m.overload_events, m.score FROM sessions s JOIN trial_metrics m "
+          "ON m.session_id = s.id WHERE s.exercise_id = ?1") +
+      (one ? " AND s.trainee_id = ?2" : " AND ?2 = 0") + " ORDER BY s.trainee_id, s.id";
+  std::vector<AttemptRow> out;
+  for (const int64_t exercise : exercises) {
+    s = ForEachRow(
+        **r, sql, [&](Statement& q) { q.Bind(1, exercise).Bind(2, one); },
+        [&](const Statement& q) {
+          const auto who = names.find(q.Int(1));
+          if (who == names.end()) return;  // not one of the trainees asked for
+          AttemptRow& a = out.emplace_back();
+          a.session_id = q.Int(0);
+          a.trainee = who->second;
+          a.exercise_id = exercise;
+          a.ended_us = q.IsNull(2) ? 0 : q.Int(2);
+          ReadProficiencyMetrics(q, 3, a.metrics);
+        });
+    if (!s.ok()) return s.error();
+  }
   return out;
 }
 
@@ -471,10 +520,9 @@ Expected<std::vector<AttemptRow>> Store::LoadExpertAttempts(const std::string& s
   std::vector<AttemptRow> out;
   Status s = ForEachRow(
       **r,
-      std::string("SELECT s.id, t.name, s.exercise_id, s.ended_us, ") + kTrialMetricColumns +
-          " FROM trainees t JOIN sessions s ON s.trainee_id = t.id "
-          "JOIN trial_metrics m ON m.session_id = s.id "
-          "WHERE t.expert = 1 AND s.scene = ?1 ORDER BY s.ended_us, s.id",
+      std::string(kAttemptColumns) +
+          "FROM trainees t JOIN sessions s ON s.trainee_id = t.id "
+          "JOIN trial_metrics m ON m.session_id = s.id WHERE t.expert = 1 AND s.scene = ?1",
       [&](Statement& q) { q.Bind(1, scene); }, [&](const Statement& q) { ReadAttempt(q, out); });
   if (!s.ok()) return s.error();
   return out;

@@ -74,9 +74,11 @@ Status ValidateTargets(const std::vector<Target>& targets) {
 AttemptCheck CheckAttempt(const TrialMetrics& m, const std::vector<Target>& targets) {
   AttemptCheck out;
   out.passed = true;
+  out.checks.reserve(targets.size());
   for (const Target& t : targets) {
-    TargetCheck c{t.metric, std::numeric_limits<double>::quiet_NaN(), t.value, false};
+    TargetCheck c{"", std::numeric_limits<double>::quiet_NaN(), t.value, false};
     if (const MetricDef* def = FindMetric(t.metric)) {
+      c.metric = def->name;
       c.value = MetricValue(m, *def);
       c.met = !std::isnan(c.value) && Met(c.value, t.value, def->better);
     }
@@ -89,6 +91,7 @@ AttemptCheck CheckAttempt(const TrialMetrics& m, const std::vector<Target>& targ
 Progress EvaluateProgress(const std::vector<Attempt>& attempts, const std::vector<Target>& targets,
                           const ProgressionRule& rule, int64_t now_us, int64_t utc_offset_s) {
   Progress p;
+  p.checks.reserve(attempts.size());
   const int need = std::max(1, rule.consecutive);
   const int64_t today = Day(now_us, utc_offset_s);
   for (const Attempt& a : attempts) {

@@ -60,7 +60,7 @@ struct Target {
 Status ValidateTargets(const std::vector<Target>& targets);
 
 struct TargetCheck {
-  std::string metric;
+  std::string_view metric;  // a ProficiencyMetrics() name (static storage; "" when unknown)
   double value = 0, target = 0;
   bool met = false;
 };

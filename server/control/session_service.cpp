@@ -59,7 +59,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
       if (*checks) {
         for (const scoring::TargetCheck& t : (*checks)->checks) {
           v1::TargetCheck* x = resp->add_targets();
-          x->set_metric(t.metric);
+          x->set_metric(std::string(t.metric));
           x->set_value(t.value);
           x->set_target(t.target);
           x->set_met(t.met);

@@ -53,7 +53,7 @@ void ToProto(const CourseView& c, const std::string& trainee, const ExerciseProg
   if (!ep.progress.checks.empty())
     for (const scoring::TargetCheck& t : ep.progress.checks.back().checks) {
       v1::TargetCheck* x = out->add_last();
-      x->set_metric(t.metric);
+      x->set_metric(std::string(t.metric));
       x->set_value(t.value);
       x->set_target(t.target);
       x->set_met(t.met);

@@ -120,6 +120,7 @@ TraineeProgress Evaluate(const CourseView& course, const std::string& trainee,
     ExerciseProgress ep;
     ep.exercise_id = ex.record.id;
     std::vector<scoring::Attempt> mine;
+    mine.reserve(attempts.size());
     for (const db::AttemptRow* a : attempts) {
       if (a->exercise_id != ex.record.id) continue;
       mine.push_back({a->ended_us, a->metrics});
@@ -137,7 +138,7 @@ TraineeProgress Evaluate(const CourseView& course, const std::string& trainee,
     if (ep.progress.proficient_at) ep.proficient_us = ep.attempt_us[*ep.progress.proficient_at - 1];
     if (!ep.progress.checks.empty())
       for (const scoring::TargetCheck& c : ep.progress.checks.back().checks)
-        if (!c.met) ep.to_improve.push_back(c.metric);
+        if (!c.met) ep.to_improve.emplace_back(c.metric);
     const bool open = previous_reached || !ex.spec.unlock_in_order;
     int failures_at_end = 0;
     for (auto it = ep.progress.checks.rbegin(); it != ep.progress.checks.rend() && !it->passed;
@@ -168,8 +169,11 @@ CourseProgress EvaluateAll(CourseView course, const std::vector<std::string>& tr
                            const std::vector<db::AttemptRow>& rows, int64_t now_us) {
   std::map<std::string, std::vector<const db::AttemptRow*>> by_trainee;
   for (const std::string& t : trainees) by_trainee[t];
+  // Rows come trainee by trainee within each exercise (db::Store::LoadAttempts): the last
+  // trainee's list is reused while the name repeats.
+  auto it = by_trainee.end();
   for (const db::AttemptRow& r : rows) {
-    auto it = by_trainee.find(r.trainee);
+    if (it == by_trainee.end() || it->first != r.trainee) it = by_trainee.find(r.trainee);
     if (it != by_trainee.end()) it->second.push_back(&r);
   }
   CourseProgress out;
@@ -549,7 +553,7 @@ Expected<CohortCurve> CohortCurveOf(Domain& d, const db::Principal& p, int64_t c
   if (!e.ok()) return e.error();
   auto view = Resolve(d, *e);
   if (!view.ok()) return view.error();
-  auto rows = d.store.LoadAttempts(e->course_id, "", cohort_id);
+  auto rows = d.store.LoadAttempts(e->course_id, "", cohort_id, exercise_id);
   if (!rows.ok()) return rows.error();
   auto experts = d.store.LoadExpertAttempts(e->scene);
   if (!experts.ok()) return experts.error();

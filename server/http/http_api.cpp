@@ -243,7 +243,7 @@ json CourseJson(const CourseView& c) {
 json ChecksJson(const scoring::AttemptCheck& a) {
   json out = json::array();
   for (const scoring::TargetCheck& t : a.checks)
-    out.push_back({{"metric", t.metric},
+    out.push_back({{"metric", std::string(t.metric)},
                    {"value", FiniteOrNull(t.value)},
                    {"target", t.target},
                    {"met", t.met}});
