@@ -183,13 +183,20 @@ CourseProgress EvaluateAll(CourseView course, const std::vector<std::string>& tr
   return out;
 }
 
-// May `p` read (or, `manage`, change) the cohort?
+// The cohort, when it is `p`'s (its instructor, or an admin).
 Expected<db::CohortRecord> CohortFor(Domain& d, const db::Principal& p, int64_t cohort_id) {
   auto c = d.store.GetCohort(cohort_id);
   if (!c.ok()) return c.error();
   if (!IsAdmin(p) && c->instructor != p.name)
     return NotYours("cohort " + std::to_string(cohort_id) + " is another instructor's");
   return c;
+}
+
+// The cohort, when `p` may read its progress (the matrix, then not a trainee, then theirs).
+Expected<db::CohortRecord> CohortToRead(Domain& d, const db::Principal& p, int64_t cohort_id) {
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (p.role == db::Role::kTrainee) return NotYours("a trainee sees only their own progress");
+  return CohortFor(d, p, cohort_id);
 }
 
 const ExerciseView* FindExercise(const CourseView& c, int64_t id) {
@@ -476,9 +483,7 @@ Expected<std::vector<std::string>> ListExperts(Domain& d, const db::Principal& p
 
 Expected<CourseProgress> CohortProgress(Domain& d, const db::Principal& p, int64_t cohort_id,
                                         int64_t course_id) {
-  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
-  if (p.role == db::Role::kTrainee) return NotYours("a trainee sees only their own progress");
-  auto cohort = CohortFor(d, p, cohort_id);
+  auto cohort = CohortToRead(d, p, cohort_id);
   if (!cohort.ok()) return cohort.error();
   auto course = d.store.GetCourse(course_id);
   if (!course.ok()) return course.error();
@@ -545,9 +550,7 @@ Expected<LearningCurve> TraineeCurve(Domain& d, const db::Principal& p, const st
 
 Expected<CohortCurve> CohortCurveOf(Domain& d, const db::Principal& p, int64_t cohort_id,
                                     int64_t exercise_id) {
-  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
-  if (p.role == db::Role::kTrainee) return NotYours("a trainee sees only their own progress");
-  auto cohort = CohortFor(d, p, cohort_id);
+  auto cohort = CohortToRead(d, p, cohort_id);
   if (!cohort.ok()) return cohort.error();
   auto e = d.store.GetExercise(exercise_id);
   if (!e.ok()) return e.error();

@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -46,6 +47,14 @@ class SiteTest : public ::testing::Test {
     }
   }
   std::string backups() const { return (dir_ / "backups").string(); }
+  // A user as the transports authenticate them (the domain's caller).
+  db::Principal As(const std::string& name) {
+    const std::vector<db::UserRecord> users = store_->ListUsers().value();
+    for (const db::UserRecord& u : users)
+      if (u.name == name) return {u.id, u.name, u.role, u.group};
+    ADD_FAILURE() << "no user " << name;
+    return {};
+  }
   // A derived fixture's TearDown stops its transport first, then calls this.
   void TearDown() override {
     sessions_.reset();

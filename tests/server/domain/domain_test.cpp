@@ -35,13 +35,6 @@ class DomainTest : public test::SiteTest {
     domain_.reset();
     SiteTest::TearDown();
   }
-  db::Principal As(const std::string& name) {
-    const std::vector<db::UserRecord> users = store_->ListUsers().value();
-    for (const db::UserRecord& u : users)
-      if (u.name == name) return {u.id, u.name, u.role, u.group};
-    ADD_FAILURE() << name;
-    return {};
-  }
   SubmissionRequest Scores(const std::string& subject, double base, double moment = -1) {
     SubmissionRequest r;
     r.idempotency_key = subject + std::to_string(base) + std::to_string(moment);

@@ -36,13 +36,6 @@ class TrainingTest : public test::SiteTest {
     domain_.reset();
     SiteTest::TearDown();
   }
-  db::Principal As(const std::string& name) {
-    const std::vector<db::UserRecord> users = store_->ListUsers().value();
-    for (const db::UserRecord& u : users)
-      if (u.name == name) return {u.id, u.name, u.role, u.group};
-    ADD_FAILURE() << name;
-    return {};
-  }
   // A recorded trial: a session of `trainee` on `scene` (an attempt at `exercise` when not 0)
   // that ended with these figures.
   int64_t Trial(const std::string& trainee, const std::string& scene, int64_t exercise,
