@@ -32,30 +32,18 @@ import subprocess
 import sys
 import tempfile
 import time
-import urllib.request
 
-from selenium import webdriver
 from selenium.common.exceptions import NoAlertPresentException, TimeoutException, WebDriverException
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
+import browser
+from browser import AXE, api, axe_source, check, chrome, failures
+
 BIN, SCENES, SHOTS = sys.argv[1], sys.argv[2], sys.argv[3]
-# axe-core from the npm registry (tests/e2e/package-lock.json; deploy/test.sh runs npm ci).
-AXE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "node_modules", "axe-core", "axe.min.js")
 os.makedirs(SHOTS, exist_ok=True)
 tmp = tempfile.mkdtemp(prefix="vsurg_dashboard_")
 procs = []
-failures = []
-
-
-T0 = time.time()
-
-
-def check(ok, what):  # with the seconds since the start: where a slow run spends its time
-    print(("ok   " if ok else "FAIL ") + f"[{time.time() - T0:5.1f} s] " + what, flush=True)
-    if not ok:
-        failures.append(what)
 
 
 def cleanup():
@@ -68,18 +56,6 @@ def cleanup():
         except subprocess.TimeoutExpired:
             p.kill()
     shutil.rmtree(tmp, ignore_errors=True)
-
-
-def api(port, method, path, token, body=None):
-    req = urllib.request.Request(f"http://127.0.0.1:{port}/api/v1{path}", method=method)
-    req.add_header("Authorization", "Bearer " + token)
-    data = None
-    if body is not None:
-        req.add_header("Content-Type", "application/json")
-        data = json.dumps(body).encode()
-    with urllib.request.urlopen(req, data, timeout=10) as r:
-        text = r.read().decode()
-        return json.loads(text) if text else None
 
 
 def main():
@@ -127,33 +103,18 @@ def main():
     good = recording("good", 5.0, "good.csv")      # twists to 45° by 3 s and holds
     rough = recording("rough", 1.5, "rough.csv")   # overshoots to 67.5° at 1 s and holds
 
-    options = webdriver.ChromeOptions()
-    options.binary_location = "/usr/bin/chromium"
-    for flag in ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
-                 "--window-size=1366,768", "--use-angle=swiftshader",
-                 "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
-                 "--disable-background-networking", "--disable-component-update"]:
-        options.add_argument(flag)
     downloads = os.path.join(tmp, "downloads")
     os.makedirs(downloads)
-    options.add_experimental_option("prefs", {"download.default_directory": downloads,
-                                              "download.prompt_for_download": False})
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})  # console errors on failure
-    service = Service(executable_path="/usr/bin/chromedriver")
-    driver = webdriver.Chrome(options=options, service=service)
+    # Console errors are kept for a failure's report.
+    driver = chrome(1366, 768, prefs={"download.default_directory": downloads,
+                                      "download.prompt_for_download": False}, console=True)
     driver.set_script_timeout(60)
     wait = WebDriverWait(driver, 30)
-    axe_source = open(AXE).read() if os.path.exists(AXE) else None
-    check(axe_source is not None, f"axe-core is installed ({AXE}; deploy/test.sh runs npm ci)")
+    axe = axe_source()
+    check(axe is not None, f"axe-core is installed ({AXE}; deploy/test.sh runs npm ci)")
     try:
         def sign_in(token):
-            driver.delete_all_cookies()
-            driver.get(base + "/signin")
-            wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#signin input"))
-            driver.find_element(By.CSS_SELECTOR, "#signin input").send_keys(token)
-            driver.find_element(By.CSS_SELECTOR, "#signin button").click()
-            wait.until(lambda d: "/signin" not in d.current_url)
-            wait.until(lambda d: d.find_elements(By.ID, "signout"))
+            browser.sign_in(driver, wait, base, token)
 
         def shot(name):
             # A picture for people, not a check: on a loaded machine the renderer may not answer
@@ -185,20 +146,7 @@ def main():
                 "return c ? c.data.datasets[0].data.length : -1;")
 
         def accessible(what):
-            # axe-core on the page as it is now: no serious or critical violation.
-            if not axe_source:
-                return
-            if not driver.execute_script("return !!window.axe"):
-                driver.execute_script(axe_source)
-            result = driver.execute_async_script(
-                "const done = arguments[0];"
-                "axe.run(document, {resultTypes: ['violations']}).then((r) => done(r.violations"
-                ".map((v) => ({id: v.id, impact: v.impact, nodes: v.nodes.length,"
-                " target: v.nodes[0] && v.nodes[0].target.join(' ')})))).catch((e) => done(String(e)));")
-            if isinstance(result, str):
-                return check(False, f"axe ran on {what}: {result}")
-            bad = [v for v in result if v["impact"] in ("serious", "critical")]
-            check(not bad, f"axe: no serious or critical violation on {what} {bad[:4]}")
+            browser.accessible(driver, axe, what)
 
         def text(css):  # an element's text read in one script (pages redraw their parts)
             return driver.execute_script(

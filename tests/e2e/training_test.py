@@ -23,40 +23,20 @@ import subprocess
 import sys
 import tempfile
 import time
-import urllib.request
+import urllib.error
 
-from selenium import webdriver
 from selenium.common.exceptions import WebDriverException
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
+from browser import AXE, accessible, api as request, axe_source, check, chrome, failures, sign_in
+
 BIN, SCENES, SHOTS = sys.argv[1], sys.argv[2], sys.argv[3]
-AXE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "node_modules", "axe-core", "axe.min.js")
 os.makedirs(SHOTS, exist_ok=True)
 tmp = tempfile.mkdtemp(prefix="vsurg_training_")
-procs, failures = [], []
-T0 = time.time()
+procs = []
 TRAINEES = ["tina", "rory", "anna", "ben", "carl", "dana", "eli", "fay", "gus", "hana"]
 EXPERTS = ["exa", "exb", "exc"]
-
-
-def check(ok, what):
-    print(("ok   " if ok else "FAIL ") + f"[{time.time() - T0:5.1f} s] " + what, flush=True)
-    if not ok:
-        failures.append(what)
-
-
-def request(port, method, path, token, body=None, raw=False):
-    req = urllib.request.Request(f"http://127.0.0.1:{port}/api/v1{path}", method=method)
-    req.add_header("Authorization", "Bearer " + token)
-    data = None
-    if body is not None:
-        req.add_header("Content-Type", "application/json")
-        data = json.dumps(body).encode()
-    with urllib.request.urlopen(req, data, timeout=30) as r:
-        text = r.read().decode()
-        return text if raw else (json.loads(text) if text else None)
 
 
 def main():
@@ -119,25 +99,12 @@ def main():
     expert_summaries = [finish(*r) for r in expert_runs]
     check(all(s.get("metrics_recorded") for s in expert_summaries), "the three expert trials were recorded")
 
-    options = webdriver.ChromeOptions()
-    options.binary_location = "/usr/bin/chromium"
-    for flag in ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1366,900",
-                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--disable-background-networking"]:
-        options.add_argument(flag)
-    driver = webdriver.Chrome(options=options, service=Service(executable_path="/usr/bin/chromedriver"))
+    driver = chrome(1366, 900)
     driver.set_script_timeout(60)
     wait = WebDriverWait(driver, 60)
-    axe_source = open(AXE).read() if os.path.exists(AXE) else None
-    check(axe_source is not None, f"axe-core is installed ({AXE})")
+    axe = axe_source()
+    check(axe is not None, f"axe-core is installed ({AXE})")
     try:
-        def sign_in(token):
-            driver.delete_all_cookies()
-            driver.get(base + "/signin")
-            wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#signin input"))
-            driver.find_element(By.CSS_SELECTOR, "#signin input").send_keys(token)
-            driver.find_element(By.CSS_SELECTOR, "#signin button").click()
-            wait.until(lambda d: d.find_elements(By.ID, "signout"))
-
         def shot(name, height=None):
             try:
                 if height:
@@ -149,19 +116,6 @@ def main():
             finally:
                 if height:
                     driver.set_window_size(1366, 900)
-
-        def accessible(what):
-            if not axe_source:
-                return
-            if not driver.execute_script("return !!window.axe"):
-                driver.execute_script(axe_source)
-            result = driver.execute_async_script(
-                "const done = arguments[0];"
-                "axe.run(document, {resultTypes: ['violations']}).then((r) => done(r.violations"
-                ".map((v) => ({id: v.id, impact: v.impact, target: v.nodes[0] && v.nodes[0].target.join(' ')}))))"
-                ".catch((e) => done(String(e)));")
-            bad = result if isinstance(result, str) else [v for v in result if v["impact"] in ("serious", "critical")]
-            check(not bad, f"axe: no serious or critical violation on {what} {bad[:4] if bad else ''}")
 
         def cell_states(trainee):
             return driver.execute_script(
@@ -179,7 +133,7 @@ def main():
                 e.click()
 
         # --- the instructor: experts, a course from their trials, a cohort of ten ---
-        sign_in(tokens["ian"])
+        sign_in(driver, wait, base, tokens["ian"])
         driver.get(base + "/training")
         wait.until(lambda d: d.find_elements(By.ID, "course-form"))
         for e in EXPERTS:
@@ -253,7 +207,7 @@ def main():
               "every other trainee's station summary names the targets")
         driver.execute_script("window.scrollTo(0, 0)")
         shot("grid", 1000)
-        accessible("the training page")
+        accessible(driver, axe, "the training page")
 
         # --- tina's curves and the cohort curve, from the grid ---
         driver.find_element(By.CSS_SELECTOR, "#progress-grid tr[data-trainee='tina'] td.cell button").click()
@@ -279,13 +233,13 @@ def main():
               f"tina's xAPI: 4 attempted, 2 passed, 1 completed ({verbs})")
 
         # --- tina reads her own course ---
-        sign_in(tokens["tina"])
+        sign_in(driver, wait, base, tokens["tina"])
         driver.get(base + "/mine")
         wait.until(lambda d: d.find_elements(By.CSS_SELECTOR, "#my-course article.exercise"))
         text = driver.find_element(By.ID, "my-course").text
         check("reached proficiency in every exercise" in text, "tina's page says she reached the course")
         shot("mine", 1300)
-        accessible("the trainee's page with her course")
+        accessible(driver, axe, "the trainee's page with her course")
         try:
             request(http, "GET", "/training/cohorts/1/grid?course=1", tokens["tina"])
             check(False, "a trainee cannot read the cohort grid")
