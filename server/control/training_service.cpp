@@ -37,6 +37,20 @@ void ToProto(const CourseView& c, v1::Course* out) {
   for (const ExerciseView& e : c.exercises) ToProto(e, out->add_exercises());
 }
 
+void ToProto(const scoring::TargetCheck& t, v1::TargetCheck* out) {
+  out->set_metric(std::string(t.metric));
+  out->set_value(t.value);
+  out->set_target(t.target);
+  out->set_met(t.met);
+}
+
+void ToProto(const db::CohortRecord& c, v1::Cohort* out) {
+  out->set_id(c.id);
+  out->set_name(c.name);
+  out->set_instructor(c.instructor);
+  for (const std::string& m : c.members) out->add_members(m);
+}
+
 void ToProto(const CourseView& c, const std::string& trainee, const ExerciseProgress& ep,
              v1::ExerciseProgress* out) {
   out->set_course_id(c.record.id);
@@ -51,13 +65,8 @@ void ToProto(const CourseView& c, const std::string& trainee, const ExerciseProg
   out->set_proficient_at(ep.progress.proficient_at.value_or(0));
   out->set_proficient_us(ep.proficient_us);
   if (!ep.progress.checks.empty())
-    for (const scoring::TargetCheck& t : ep.progress.checks.back().checks) {
-      v1::TargetCheck* x = out->add_last();
-      x->set_metric(std::string(t.metric));
-      x->set_value(t.value);
-      x->set_target(t.target);
-      x->set_met(t.met);
-    }
+    for (const scoring::TargetCheck& t : ep.progress.checks.back().checks)
+      ToProto(t, out->add_last());
 }
 
 // The request's exercise as the domain takes it (a target with a value is fixed, else from
@@ -116,10 +125,7 @@ class TrainingServiceImpl final : public v1::TrainingService::CallbackService {
       std::vector<std::string> members(req->members().begin(), req->members().end());
       auto c = server::CreateCohort(d_, p, req->name(), req->instructor(), members);
       if (!c.ok()) return c.error();
-      resp->set_id(c->id);
-      resp->set_name(c->name);
-      resp->set_instructor(c->instructor);
-      for (const std::string& m : c->members) resp->add_members(m);
+      ToProto(*c, resp);
       return Status::Ok();
     });
   }
@@ -183,6 +189,73 @@ class TrainingServiceImpl final : public v1::TrainingService::CallbackService {
       const std::string trainee = req->trainee().empty() ? p.name : req->trainee();
       ToProto(*next->course, trainee, next->progress, resp->mutable_progress());
       resp->set_may_attempt(next->progress.progress.may_attempt);
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* ListCourses(CallbackServerContext* ctx, const v1::ListCoursesRequest*,
+                                  v1::ListCoursesResponse* resp) override {
+    return Unary(d_, ctx, Method::kTrainingListCourses, [&](const db::Principal& p) -> Status {
+      auto list = server::ListCourses(d_, p);
+      if (!list.ok()) return list.error();
+      for (const CourseView& c : *list) ToProto(c, resp->add_courses());
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* UpdateExercise(CallbackServerContext* ctx,
+                                     const v1::UpdateExerciseRequest* req, v1::Empty*) override {
+    return Unary(d_, ctx, Method::kTrainingUpdateExercise, [&](const db::Principal& p) -> Status {
+      auto e = FromProto(req->exercise(), 0);
+      if (!e.ok()) return e.error();
+      return SetExerciseSpec(d_, p, req->exercise_id(), e->spec);
+    });
+  }
+
+  ServerUnaryReactor* ListCohorts(CallbackServerContext* ctx, const v1::ListCohortsRequest*,
+                                  v1::ListCohortsResponse* resp) override {
+    return Unary(d_, ctx, Method::kTrainingListCohorts, [&](const db::Principal& p) -> Status {
+      auto list = server::ListCohorts(d_, p);
+      if (!list.ok()) return list.error();
+      for (const db::CohortRecord& c : *list) ToProto(c, resp->add_cohorts());
+      return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* AddMembers(CallbackServerContext* ctx, const v1::AddMembersRequest* req,
+                                 v1::Empty*) override {
+    return Unary(d_, ctx, Method::kTrainingAddMembers, [&](const db::Principal& p) {
+      return AddCohortMembers(d_, p, req->cohort_id(),
+                              {req->members().begin(), req->members().end()});
+    });
+  }
+
+  ServerUnaryReactor* Curve(CallbackServerContext* ctx, const v1::CurveRequest* req,
+                            v1::CurveResponse* resp) override {
+    return Unary(d_, ctx, Method::kTrainingCurve, [&](const db::Principal& p) -> Status {
+      const std::string trainee = req->trainee().empty() ? p.name : req->trainee();
+      auto c = TraineeCurve(d_, p, trainee, req->exercise_id());
+      if (!c.ok()) return c.error();
+      const auto& checks = c->progress.progress.checks;
+      for (size_t i = 0; i < c->attempts.size() && i < checks.size(); ++i) {
+        v1::CurveAttempt* a = resp->add_attempts();
+        a->set_session_id(static_cast<uint64_t>(c->attempts[i].session_id));
+        a->set_ended_us(c->attempts[i].ended_us);
+        a->set_passed(checks[i].passed);
+        for (const scoring::TargetCheck& t : checks[i].checks) ToProto(t, a->add_checks());
+        if (i < c->cusum.values.size()) a->set_cusum(c->cusum.values[i]);
+      }
+      const scoring::CusumParams& k = c->exercise.spec.cusum;
+      resp->set_p0(k.p0);
+      resp->set_p1(k.p1);
+      resp->set_alpha(k.alpha);
+      resp->set_beta(k.beta);
+      resp->set_s(c->cusum.limits.s);
+      resp->set_h0(c->cusum.limits.h0);
+      resp->set_h1(c->cusum.limits.h1);
+      resp->set_cusum_proficient_at(c->cusum.proficient_at.value_or(0));
+      resp->set_cusum_unacceptable_at(c->cusum.unacceptable_at.value_or(0));
+      ToProto(c->course, trainee, c->progress, resp->mutable_progress());
       return Status::Ok();
     });
   }

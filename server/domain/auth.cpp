@@ -51,6 +51,11 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
     {"TrainingService/SetExpert", kInstructor | kAdmin},
     {"TrainingService/Progress", kTrainee | kInstructor | kAdmin},
     {"TrainingService/Next", kTrainee | kInstructor | kAdmin},
+    {"TrainingService/ListCourses", kTrainee | kInstructor | kAdmin},
+    {"TrainingService/UpdateExercise", kInstructor | kAdmin},
+    {"TrainingService/ListCohorts", kInstructor | kAdmin},
+    {"TrainingService/AddMembers", kInstructor | kAdmin},
+    {"TrainingService/Curve", kTrainee | kInstructor | kAdmin},
 }};
 
 }  // namespace

@@ -41,6 +41,11 @@ enum class Method {
   kTrainingSetExpert,
   kTrainingProgress,
   kTrainingNext,
+  kTrainingListCourses,
+  kTrainingUpdateExercise,
+  kTrainingListCohorts,
+  kTrainingAddMembers,
+  kTrainingCurve,
   kCount
 };
 

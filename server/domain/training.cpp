@@ -385,7 +385,7 @@ Expected<CourseView> CreateCourse(Domain& d, const db::Principal& p, const std::
 }
 
 Expected<std::vector<CourseView>> ListCourses(Domain& d, const db::Principal& p) {
-  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (Status s = Permit(p, Method::kTrainingListCourses); !s.ok()) return s.error();
   auto list = d.store.ListCourses();
   if (!list.ok()) return list.error();
   std::vector<int64_t> mine;  // a trainee sees the courses they are enrolled in
@@ -406,7 +406,7 @@ Expected<std::vector<CourseView>> ListCourses(Domain& d, const db::Principal& p)
 }
 
 Expected<CourseView> GetCourse(Domain& d, const db::Principal& p, int64_t id) {
-  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (Status s = Permit(p, Method::kTrainingListCourses); !s.ok()) return s.error();
   auto c = d.store.GetCourse(id);
   if (!c.ok()) return c.error();
   if (p.role == db::Role::kTrainee) {
@@ -421,7 +421,7 @@ Expected<CourseView> GetCourse(Domain& d, const db::Principal& p, int64_t id) {
 
 Status SetExerciseSpec(Domain& d, const db::Principal& p, int64_t exercise_id,
                        const ExerciseSpec& spec) {
-  if (Status s = Permit(p, Method::kTrainingCreateCourse); !s.ok()) return s;
+  if (Status s = Permit(p, Method::kTrainingUpdateExercise); !s.ok()) return s;
   auto e = d.store.GetExercise(exercise_id);
   if (!e.ok()) return e.error();
   auto c = d.store.GetCourse(e->course_id);
@@ -443,7 +443,7 @@ Expected<db::CohortRecord> CreateCohort(Domain& d, const db::Principal& p, const
 
 Status AddCohortMembers(Domain& d, const db::Principal& p, int64_t cohort_id,
                         const std::vector<std::string>& members) {
-  if (Status s = Permit(p, Method::kTrainingCreateCohort); !s.ok()) return s;
+  if (Status s = Permit(p, Method::kTrainingAddMembers); !s.ok()) return s;
   if (Status s = CheckMembers(members); !s.ok()) return s;
   auto c = CohortFor(d, p, cohort_id);
   if (!c.ok()) return c.error();
@@ -451,7 +451,7 @@ Status AddCohortMembers(Domain& d, const db::Principal& p, int64_t cohort_id,
 }
 
 Expected<std::vector<db::CohortRecord>> ListCohorts(Domain& d, const db::Principal& p) {
-  if (Status s = Permit(p, Method::kTrainingCreateCohort); !s.ok()) return s.error();
+  if (Status s = Permit(p, Method::kTrainingListCohorts); !s.ok()) return s.error();
   auto list = d.store.ListCohorts();
   if (!list.ok()) return list.error();
   if (!IsAdmin(p))
@@ -519,7 +519,7 @@ Expected<std::vector<CourseProgress>> TraineeCourses(Domain& d, const db::Princi
 
 Expected<LearningCurve> TraineeCurve(Domain& d, const db::Principal& p, const std::string& trainee,
                                      int64_t exercise_id) {
-  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s.error();
+  if (Status s = Permit(p, Method::kTrainingCurve); !s.ok()) return s.error();
   if (trainee.empty()) return InvalidArgument("trainee", "required");
   if (Status s = MayRead(p, trainee); !s.ok()) return s.error();
   auto e = d.store.GetExercise(exercise_id);

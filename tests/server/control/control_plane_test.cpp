@@ -248,6 +248,22 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
       v1::NextExerciseResponse r;
       return tr->Next(ctx().get(), {}, &r).error_code();
     }
+    case Method::kTrainingListCourses: {
+      v1::ListCoursesResponse r;
+      return tr->ListCourses(ctx().get(), {}, &r).error_code();
+    }
+    case Method::kTrainingUpdateExercise:
+      return tr->UpdateExercise(ctx().get(), {}, &empty).error_code();
+    case Method::kTrainingListCohorts: {
+      v1::ListCohortsResponse r;
+      return tr->ListCohorts(ctx().get(), {}, &r).error_code();
+    }
+    case Method::kTrainingAddMembers:
+      return tr->AddMembers(ctx().get(), {}, &empty).error_code();
+    case Method::kTrainingCurve: {
+      v1::CurveResponse r;
+      return tr->Curve(ctx().get(), {}, &r).error_code();
+    }
     case Method::kCount:
       break;
   }
@@ -260,13 +276,19 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
       {db::Role::kTrainee,
        {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
         Method::kSessionList, Method::kSessionListScenes, Method::kSessionJoin,
-        Method::kTrainingProgress, Method::kTrainingNext}},
-      {db::Role::kInstructor,
-       {Method::kSessionCreate, Method::kSessionStart, Method::kSessionStop, Method::kSessionGet,
-        Method::kSessionList, Method::kMonitorWatch, Method::kEvaluationReport,
-        Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets, Method::kSessionListScenes,
-        Method::kTrainingCreateCourse, Method::kTrainingCreateCohort, Method::kTrainingEnrol,
-        Method::kTrainingSetExpert, Method::kTrainingProgress, Method::kTrainingNext}},
+        Method::kTrainingProgress, Method::kTrainingNext, Method::kTrainingListCourses,
+        Method::kTrainingCurve}},
+      {db::Role::kInstructor, {Method::kSessionCreate,        Method::kSessionStart,
+                               Method::kSessionStop,          Method::kSessionGet,
+                               Method::kSessionList,          Method::kMonitorWatch,
+                               Method::kEvaluationReport,     Method::kEvaluationTrainingEffect,
+                               Method::kAdminListWeightSets,  Method::kSessionListScenes,
+                               Method::kTrainingCreateCourse, Method::kTrainingCreateCohort,
+                               Method::kTrainingEnrol,        Method::kTrainingSetExpert,
+                               Method::kTrainingProgress,     Method::kTrainingNext,
+                               Method::kTrainingListCourses,  Method::kTrainingUpdateExercise,
+                               Method::kTrainingListCohorts,  Method::kTrainingAddMembers,
+                               Method::kTrainingCurve}},
       {db::Role::kEvaluator,
        {Method::kSessionGet, Method::kSessionList, Method::kEvaluationSubmit,
         Method::kEvaluationReport, Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets,
@@ -294,6 +316,97 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
       }
     }
   }
+}
+
+// The training programme over gRPC: an instructor builds a course and a cohort and enrols it;
+// the trainee's station asks for its next exercise, runs an attempt (created with the exercise,
+// stopped), reads its target checks, and the progress and curve follow.
+TEST_F(ControlPlaneTest, TrainingServiceRunsACourseFromCreationToTheCurve) {
+  auto training = v1::TrainingService::NewStub(channel_);
+  auto sessions = v1::SessionService::NewStub(channel_);
+  v1::CreateCourseRequest course;
+  course.set_name("Basics");
+  v1::Exercise* e = course.add_exercises();
+  e->set_title("Palpate");
+  e->set_scene("sphere-palpation-256");
+  e->set_consecutive(1);
+  v1::ExerciseTarget* t = e->add_targets();
+  t->set_metric("peak_force_n");
+  t->set_value(5.0);
+  v1::Course made;
+  ASSERT_TRUE(training->CreateCourse(Ctx(db::Role::kInstructor).get(), course, &made).ok());
+  ASSERT_EQ(made.exercises_size(), 1);
+  EXPECT_DOUBLE_EQ(made.exercises(0).targets(0).resolved(), 5.0);
+  // A bad target is refused naming it; a trainee may not build courses.
+  v1::CreateCourseRequest bad = course;
+  bad.set_name("Bad");
+  bad.mutable_exercises(0)->mutable_targets(0)->set_metric("speed");
+  v1::Course ignored;
+  EXPECT_EQ(training->CreateCourse(Ctx(db::Role::kInstructor).get(), bad, &ignored).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(training->CreateCourse(Ctx(db::Role::kTrainee).get(), course, &ignored).error_code(),
+            grpc::StatusCode::PERMISSION_DENIED);
+  v1::CreateCohortRequest cohort;
+  cohort.set_name("Residents");
+  cohort.add_members("tina");
+  v1::Cohort group;
+  ASSERT_TRUE(training->CreateCohort(Ctx(db::Role::kInstructor).get(), cohort, &group).ok());
+  v1::EnrolRequest enrol;
+  enrol.set_course_id(made.id());
+  enrol.set_cohort_id(group.id());
+  v1::Enrolment enrolment;
+  ASSERT_TRUE(training->Enrol(Ctx(db::Role::kInstructor).get(), enrol, &enrolment).ok());
+
+  // The station's side, as tina.
+  v1::NextExerciseResponse next;
+  ASSERT_TRUE(training->Next(Ctx(db::Role::kTrainee).get(), {}, &next).ok());
+  ASSERT_TRUE(next.has_next());
+  EXPECT_EQ(next.exercise_id(), made.exercises(0).id());
+  v1::CreateSessionRequest create;
+  create.set_exercise_id(next.exercise_id());
+  v1::CreateSessionResponse created;
+  ASSERT_TRUE(sessions->Create(Ctx(db::Role::kTrainee).get(), create, &created).ok());
+  EXPECT_EQ(created.session().scene(), "sphere-palpation-256");  // the exercise's
+  v1::StopSessionRequest stop;
+  stop.set_id(created.session().id());
+  v1::Session stopped;
+  ASSERT_TRUE(sessions->Stop(Ctx(db::Role::kTrainee).get(), stop, &stopped).ok());
+  v1::SessionRef ref;
+  ref.set_id(created.session().id());
+  v1::Session got;
+  ASSERT_TRUE(sessions->Get(Ctx(db::Role::kTrainee).get(), ref, &got).ok());
+  ASSERT_EQ(got.targets_size(), 1);  // a trial without touching: no force, the target met
+  EXPECT_EQ(got.targets(0).metric(), "peak_force_n");
+  EXPECT_TRUE(got.targets(0).met());
+  EXPECT_TRUE(got.targets_passed());
+
+  v1::ProgressRequest mine;
+  v1::ProgressResponse progress;
+  ASSERT_TRUE(training->Progress(Ctx(db::Role::kTrainee).get(), mine, &progress).ok());
+  ASSERT_EQ(progress.rows_size(), 1);
+  EXPECT_EQ(progress.rows(0).state(), "proficient");
+  EXPECT_EQ(progress.rows(0).proficient_at(), 1);
+  v1::CurveRequest curve_req;
+  curve_req.set_exercise_id(next.exercise_id());
+  v1::CurveResponse curve;
+  ASSERT_TRUE(training->Curve(Ctx(db::Role::kTrainee).get(), curve_req, &curve).ok());
+  ASSERT_EQ(curve.attempts_size(), 1);
+  EXPECT_NEAR(curve.attempts(0).cusum(), -curve.s(), 1e-12);  // one pass
+  // Another trainee's curve is refused; the instructor sees the cohort's grid.
+  curve_req.set_trainee("tom");
+  EXPECT_EQ(training->Curve(Ctx(db::Role::kTrainee).get(), curve_req, &curve).error_code(),
+            grpc::StatusCode::PERMISSION_DENIED);
+  v1::ProgressRequest grid;
+  grid.set_cohort_id(group.id());
+  grid.set_course_id(made.id());
+  ASSERT_TRUE(training->Progress(Ctx(db::Role::kInstructor).get(), grid, &progress).ok());
+  EXPECT_EQ(progress.rows_size(), 1);
+  v1::ListCohortsResponse cohorts;
+  ASSERT_TRUE(training->ListCohorts(Ctx(db::Role::kInstructor).get(), {}, &cohorts).ok());
+  EXPECT_EQ(cohorts.cohorts_size(), 1);
+  // Every course reached: nothing next.
+  ASSERT_TRUE(training->Next(Ctx(db::Role::kTrainee).get(), {}, &next).ok());
+  EXPECT_FALSE(next.has_next());
 }
 
 TEST_F(ControlPlaneTest, OnlyTheTraineeJoinsASessionPreparedForThem) {

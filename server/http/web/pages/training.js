@@ -142,13 +142,23 @@ function exerciseFieldset(n, scenes) {
       metricRow('rms_jerk', false, '', true), metricRow('task_error', false, '', true)));
 }
 
-// Cohorts (name and members), enrolment of a cohort in a course, and experts.
+// Cohorts (name and members) enrolled in a course from a day to a day, one trainee enrolled on
+// their own, and experts.
 function cohortForm(state, news, done) {
-  const courseSel = el('select', { name: 'course' }, state.courses.map((c) => el('option', { value: c.id }, c.name)));
+  const courseSelect = () => el('select', { name: 'course' }, state.courses.map((c) => el('option', { value: c.id }, c.name)));
+  const dates = () => [el('label', {}, 'From (day; empty: today)', el('input', { type: 'date', name: 'starts' })),
+    el('label', {}, 'Until (day, inclusive; empty: open)', el('input', { type: 'date', name: 'ends' }))];
+  // The enrolment's days are this browser's local days: from its midnight to the next day's.
+  const period = (f) => {
+    const out = {};
+    if (f.get('starts')) out.starts = new Date(f.get('starts') + 'T00:00').toISOString();
+    if (f.get('ends')) { const d = new Date(f.get('ends') + 'T00:00'); d.setDate(d.getDate() + 1); out.ends = d.toISOString(); }
+    return out;
+  };
   const cohortForm_ = el('form', { id: 'cohort-form', class: 'filters' },
     el('label', {}, 'Cohort name', el('input', { name: 'name', required: true, maxlength: 128 })),
     el('label', { class: 'wide' }, 'Members (trainee names, separated by commas or lines)', el('textarea', { name: 'members', rows: 2 })),
-    el('label', {}, 'Enrol in course', courseSel),
+    el('label', {}, 'Enrol in course', courseSelect()), dates(),
     el('button', { type: 'submit' }, 'Create and enrol'));
   cohortForm_.addEventListener('submit', async (ev) => {
     ev.preventDefault();
@@ -156,9 +166,21 @@ function cohortForm(state, news, done) {
     try {
       const members = String(f.get('members')).split(/[\s,]+/).filter(Boolean);
       const r = await api('POST', '/training/cohorts', { name: f.get('name'), members });
-      if (f.get('course')) await api('POST', '/training/enrolments', { course: Number(f.get('course')), cohort: r.cohort.id });
+      if (f.get('course')) await api('POST', '/training/enrolments', Object.assign({ course: Number(f.get('course')), cohort: r.cohort.id }, period(f)));
       message(news, `Cohort “${r.cohort.name}” (${r.cohort.members.length} trainees) created${f.get('course') ? ' and enrolled' : ''}.`, true);
       await done();
+    } catch (err) { message(news, err.message); }
+  });
+  const personForm = el('form', { id: 'enrol-form', class: 'filters' },
+    el('label', {}, 'Enrol one trainee', el('input', { name: 'trainee', required: true, maxlength: 128 })),
+    el('label', {}, 'in course', courseSelect()), dates(),
+    el('button', { type: 'submit' }, 'Enrol'));
+  personForm.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    const f = new FormData(personForm);
+    try {
+      await api('POST', '/training/enrolments', Object.assign({ course: Number(f.get('course')), trainee: f.get('trainee') }, period(f)));
+      message(news, `${f.get('trainee')} enrolled.`, true);
     } catch (err) { message(news, err.message); }
   });
   const expertForm = el('form', { id: 'expert-form', class: 'filters' },
@@ -171,8 +193,13 @@ function cohortForm(state, news, done) {
       message(news, 'Marked as an expert: their trials now set the benchmarks.', true);
     } catch (err) { message(news, err.message); }
   });
-  // Keep the course list of the enrolment form current.
-  const refresh = () => courseSel.replaceChildren(...state.courses.map((c) => el('option', { value: c.id }, c.name)));
-  cohortForm_.addEventListener('focusin', refresh);
-  return el('div', {}, cohortForm_, expertForm);
+  // Keep the forms' course lists current.
+  for (const form of [cohortForm_, personForm])
+    form.addEventListener('focusin', () => {
+      const sel = form.elements.course, keep = sel.value;
+      if (sel.options.length === state.courses.length) return;
+      sel.replaceChildren(...courseSelect().children);
+      if (keep) sel.value = keep;
+    });
+  return el('div', {}, cohortForm_, personForm, expertForm);
 }
