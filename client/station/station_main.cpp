@@ -27,6 +27,7 @@
 #include "common/core/format.h"
 #include "common/core/time.h"
 #include "common/geometry/bvh.h"
+#include "common/scoring/proficiency.h"
 #include "common/scoring/report_json.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/scene.h"
@@ -102,10 +103,15 @@ std::vector<TargetLine> TargetLines(const client::SessionSummary& s) {
   if (s.targets.empty()) return out;
   out.push_back({s.targets_passed ? "Targets: all met, a pass toward proficiency"
                                   : "Targets: not all met, not a pass"});
-  for (const auto& t : s.targets)
-    out.push_back({std::string(t.met ? "  met     " : "  missed  ") + t.metric + " " +
-                   Fixed(t.value, 2) + (t.metric == "score" ? " (at least " : " (at most ") +
-                   Fixed(t.target, 2) + ")"});
+  for (const auto& t : s.targets) {
+    const vsurg::scoring::MetricDef* def = vsurg::scoring::FindMetric(t.metric);
+    const std::string label = def ? std::string(def->label) : t.metric;
+    const std::string unit = def && !def->unit.empty() ? " " + std::string(def->unit) : "";
+    const bool higher = def && def->better == vsurg::scoring::Better::kHigher;
+    out.push_back({std::string(t.met ? "  met     " : "  missed  ") + label + " " +
+                   Fixed(t.value, 2) + unit + (higher ? " (at least " : " (at most ") +
+                   Fixed(t.target, 2) + unit + ")"});
+  }
   return out;
 }
 

@@ -9,14 +9,14 @@ namespace vsurg::scoring {
 namespace {
 
 constexpr std::array<MetricDef, 8> kMetrics = {{
-    {"completion_time_s", "s", Better::kLower},
-    {"task_error", "rad or m", Better::kLower},
-    {"peak_force_n", "N", Better::kLower},
-    {"time_over_force_limit_s", "s", Better::kLower},
-    {"path_length_m", "m", Better::kLower},
-    {"rms_jerk", "m/s³", Better::kLower},
-    {"overload_events", "", Better::kLower},
-    {"score", "0–10", Better::kHigher},
+    {"completion_time_s", "s", Better::kLower, "completion time"},
+    {"task_error", "rad or m", Better::kLower, "task error"},
+    {"peak_force_n", "N", Better::kLower, "peak force"},
+    {"time_over_force_limit_s", "s", Better::kLower, "time over the force limit"},
+    {"path_length_m", "m", Better::kLower, "path length"},
+    {"rms_jerk", "m/s³", Better::kLower, "RMS jerk"},
+    {"overload_events", "", Better::kLower, "overload events"},
+    {"score", "/10", Better::kHigher, "score"},
 }};
 
 // Equal within rounding counts as met: a benchmark from experts who all reached the same value

@@ -45,6 +45,7 @@ struct MetricDef {
   std::string_view name;
   std::string_view unit;
   Better better;
+  std::string_view label;  // as a trainee reads it: "peak force"
 };
 std::span<const MetricDef> ProficiencyMetrics();
 const MetricDef* FindMetric(std::string_view name);

@@ -71,14 +71,17 @@ def main():
 
     runs = [0]
 
-    def station(name, trajectory, course=True, scene="arm-torsion"):
+    def station(name, trajectory, course=True, scene="arm-torsion", summary_png=None):
         """One trial at a replaying station, headless and small; returns its JSON summary."""
         runs[0] += 1
         out = os.path.join(tmp, f"station-{name}-{runs[0]}.json")
+        size = ["--width", "720", "--height", "450"] if summary_png else ["--width", "160", "--height", "100"]
         args = [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens[name],
                 "--device", "replay", "--trajectory", trajectory, "--headless", "--settle", "0.5",
-                "--json", "--realtime-priority", "0", "--width", "160", "--height", "100",
-                "--fps", "4", "--quality", "low", "--connect-timeout", "120"]
+                "--json", "--realtime-priority", "0", "--fps", "4", "--quality", "low",
+                "--connect-timeout", "120"] + size
+        if summary_png:
+            args += ["--screenshot-summary", summary_png]
         args += ["--course"] if course else ["--scene", scene]
         p = subprocess.Popen(args, stdout=open(out, "w"),
                              stderr=open(out.replace(".json", ".log"), "w"), env=env)
@@ -184,8 +187,9 @@ def main():
             tina_summaries.append(finish(*station("tina", arm_good)))
         for n in TRAINEES[5:]:
             others.append(station(n, arm_good))
-        for trial in range(2):  # the calf opened: two more
-            tina_summaries.append(finish(*station("tina", calf_good)))
+        summary_png = os.path.join(SHOTS, "training-station-summary.png")
+        for trial in range(2):  # the calf opened: two more (the last one's summary on screen)
+            tina_summaries.append(finish(*station("tina", calf_good, summary_png=summary_png if trial else None)))
         summaries = [finish(*r) for r in others]
         rory_summary = finish(*rory)
         wait.until(lambda d: cell_states("tina") == ["proficient", "proficient"])
@@ -205,6 +209,16 @@ def main():
               f"rory trains on, the calf still locked for him ({states['rory']})")
         check(all(s.get("exercise", {}).get("targets") for s in summaries),
               "every other trainee's station summary names the targets")
+        check(os.path.getsize(summary_png) > 0 if os.path.exists(summary_png) else False,
+              "the station drew its end-of-trial summary with the targets (training-station-summary.png)")
+        # One more trainee, enrolled on her own from the page, gets the course too.
+        fill("#enrol-form input[name=trainee]", "una")
+        driver.find_element(By.CSS_SELECTOR, "#enrol-form button").click()
+        wait.until(lambda d: "una enrolled" in d.find_element(By.ID, "training-news").text)
+        request(http, "POST", "/users", admin, {"name": "una", "role": "trainee", "group": "residents"})
+        una = request(http, "POST", "/users/una/token", admin, {})["token"]
+        check(request(http, "GET", "/training/next", una)["next"] == course["exercises"][0]["id"],
+              "a trainee enrolled on her own from the page is given the course's first exercise")
         driver.execute_script("window.scrollTo(0, 0)")
         shot("grid", 1000)
         accessible(driver, axe, "the training page")
