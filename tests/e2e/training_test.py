@@ -220,7 +220,7 @@ def main():
         check(request(http, "GET", "/training/next", una)["next"] == course["exercises"][0]["id"],
               "a trainee enrolled on her own from the page is given the course's first exercise")
         driver.execute_script("window.scrollTo(0, 0)")
-        shot("grid", 1000)
+        shot("grid", 1250)
         accessible(driver, axe, "the training page")
 
         # --- tina's curves and the cohort curve, from the grid ---

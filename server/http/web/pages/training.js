@@ -72,7 +72,9 @@ function gridTable(g, openCurve, openCohortCurve) {
     el('th', { scope: 'col' }, el('button', { class: 'link', type: 'button', title: 'The cohort curve of this exercise', onclick: () => openCohortCurve(e.id) },
       `${e.position}. ${e.title}`))), el('th', { scope: 'col' }, 'Next'));
   const stalled = g.trainees.filter((t) => t.stalled).length, done = g.trainees.filter((t) => t.completed).length;
-  const rows = g.trainees.map((t) => el('tr', { class: t.stalled ? 'stalled-row' : '', 'data-trainee': t.trainee },
+  // Trainees in trouble first (stalled), then the rest by name, as the server sends them.
+  const ordered = g.trainees.filter((t) => t.stalled).concat(g.trainees.filter((t) => !t.stalled));
+  const rows = ordered.map((t) => el('tr', { class: t.stalled ? 'stalled-row' : '', 'data-trainee': t.trainee },
     el('th', { scope: 'row' }, t.trainee, t.stalled ? el('span', { class: 'badge st-stalled flag' }, 'stalled') : null),
     t.exercises.map((c, i) => el('td', { class: 'cell st-' + c.state, 'data-state': c.state, 'data-exercise': c.exercise_id },
       el('button', { type: 'button', class: 'cell-button',
