@@ -42,8 +42,8 @@ std::optional<double> Number(const json& j, const char* name) {
   return it->get<double>();
 }
 
-Expected<std::vector<double>> MetricValues(const std::vector<db::AttemptRow>& rows,
-                                           const scoring::MetricDef& def) {
+std::vector<double> MetricValues(const std::vector<db::AttemptRow>& rows,
+                                 const scoring::MetricDef& def) {
   std::vector<double> out;
   for (const db::AttemptRow& r : rows) {
     const double v = scoring::MetricValue(r.metrics, def);
@@ -87,9 +87,9 @@ Expected<ExerciseView> Resolve(Domain& d, const db::ExerciseRecord& e) {
         loaded = true;
       }
       const scoring::MetricDef* def = scoring::FindMetric(t.metric);
-      auto values = MetricValues(experts, *def);
-      r.expert_trials = static_cast<int>(values->size());
-      auto bench = scoring::ExpertBenchmark(*values, def->better, v.spec.benchmark, v.spec.k);
+      const std::vector<double> values = MetricValues(experts, *def);
+      r.expert_trials = static_cast<int>(values.size());
+      auto bench = scoring::ExpertBenchmark(values, def->better, v.spec.benchmark, v.spec.k);
       if (bench.ok()) r.value = *bench;
     }
     v.ready = v.ready && r.value.has_value();
@@ -585,10 +585,10 @@ Expected<CohortCurve> CohortCurveOf(Domain& d, const db::Principal& p, int64_t c
       mc.points.push_back(
           {static_cast<int>(n + 1), static_cast<int>(at_n.size()), mean, SampleSd(at_n, mean)});
     }
-    auto values = MetricValues(*experts, *def);
-    mc.expert_trials = static_cast<int>(values->size());
-    mc.expert_mean = Mean(*values);
-    mc.expert_sd = SampleSd(*values, mc.expert_mean);
+    const std::vector<double> values = MetricValues(*experts, *def);
+    mc.expert_trials = static_cast<int>(values.size());
+    mc.expert_mean = Mean(values);
+    mc.expert_sd = SampleSd(values, mc.expert_mean);
     out.metrics.push_back(std::move(mc));
   }
   out.exercise = std::move(view).value();
@@ -690,8 +690,8 @@ Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const d
 
 // --- exports ---
 
-Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,
-                      db::ExportFormat format, const std::function<void(std::string_view)>& sink) {
+Expected<std::vector<CourseProgress>> ProgressToExport(Domain& d, const db::Principal& p,
+                                                       int64_t course_id, int64_t cohort_id) {
   std::vector<CourseProgress> parts;
   if (cohort_id != 0) {
     auto cp = CohortProgress(d, p, cohort_id, course_id);
@@ -705,10 +705,24 @@ Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int6
   } else {
     return InvalidArgument("cohort", "an instructor exports one cohort's progress at a time");
   }
+  return parts;
+}
+
+Status WriteProgress(const std::vector<CourseProgress>& parts, db::ExportFormat format,
+                     const std::function<bool(std::string_view)>& sink) {
+  // One trainee's lines at a time: an export of 100,000 attempts as xAPI is some 60 MB, never
+  // held whole.
+  std::string out;
+  const auto flush = [&]() -> Status {
+    if (!out.empty() && !sink(out))
+      return Error{ErrorCode::kUnavailable, "the download was stopped", "export"};
+    out.clear();
+    return Status::Ok();
+  };
   if (format == db::ExportFormat::kCsv)
-    sink(
+    out +=
         "course,exercise_position,exercise,scene,trainee,state,attempts,passes,streak,"
-        "proficient_at_attempt,proficient_at,last_attempt_at\r\n");
+        "proficient_at_attempt,proficient_at,last_attempt_at\r\n";
   for (const CourseProgress& cp : parts) {
     const CourseView& c = cp.course;
     for (const TraineeProgress& tp : cp.trainees) {
@@ -722,13 +736,13 @@ Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int6
             for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
             return q + "\"";
           };
-          sink(quote(c.record.name) + "," + std::to_string(ex.record.position) + "," +
-               quote(ex.record.title) + "," + quote(ex.record.scene) + "," + quote(tp.trainee) +
-               "," + CellStateName(ep.state) + "," + std::to_string(pr.attempts) + "," +
-               std::to_string(pr.passes) + "," + std::to_string(pr.streak) + "," +
-               (pr.proficient_at ? std::to_string(*pr.proficient_at) : "") + "," +
-               (ep.proficient_us ? IsoTimeUtc(ep.proficient_us) : "") + "," +
-               (ep.last_us ? IsoTimeUtc(ep.last_us) : "") + "\r\n");
+          out += (quote(c.record.name) + "," + std::to_string(ex.record.position) + "," +
+                  quote(ex.record.title) + "," + quote(ex.record.scene) + "," + quote(tp.trainee) +
+                  "," + CellStateName(ep.state) + "," + std::to_string(pr.attempts) + "," +
+                  std::to_string(pr.passes) + "," + std::to_string(pr.streak) + "," +
+                  (pr.proficient_at ? std::to_string(*pr.proficient_at) : "") + "," +
+                  (ep.proficient_us ? IsoTimeUtc(ep.proficient_us) : "") + "," +
+                  (ep.last_us ? IsoTimeUtc(ep.last_us) : "") + "\r\n");
         } else if (format == db::ExportFormat::kJsonLines) {
           json row = {
               {"course", c.record.name},
@@ -746,7 +760,7 @@ Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int6
               {"proficient_at",
                ep.proficient_us ? json(IsoTimeUtc(ep.proficient_us)) : json(nullptr)},
               {"last_attempt_at", ep.last_us ? json(IsoTimeUtc(ep.last_us)) : json(nullptr)}};
-          sink(row.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+          out += row.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
         } else {
           // xAPI (ADL verbs): attempted per attempt, passed when proficiency was reached.
           const json actor = {{"objectType", "Agent"},
@@ -776,7 +790,7 @@ Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int6
                 {"object", object},
                 {"result", {{"success", pr.checks[k].passed}}},
                 {"context", parent}};
-            sink(st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+            out += st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
           }
           if (pr.proficient_at) {
             json st = {{"id", StatementId(activity + ":passed:" + tp.trainee)},
@@ -786,7 +800,7 @@ Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int6
                        {"object", object},
                        {"result", {{"success", true}, {"completion", true}}},
                        {"context", parent}};
-            sink(st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+            out += st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
           }
         }
       }
@@ -809,11 +823,19 @@ Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int6
                       {{"name", {{"en-US", c.record.name}}},
                        {"type", "http://adlnet.gov/expapi/activities/course"}}}}},
                    {"result", {{"completion", true}, {"success", true}}}};
-        sink(st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+        out += st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
       }
+      if (Status s = flush(); !s.ok()) return s;
     }
   }
-  return Status::Ok();
+  return flush();
+}
+
+Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,
+                      db::ExportFormat format, const std::function<bool(std::string_view)>& sink) {
+  auto parts = ProgressToExport(d, p, course_id, cohort_id);
+  if (!parts.ok()) return parts.error();
+  return WriteProgress(*parts, format, sink);
 }
 
 }  // namespace vsurg::server

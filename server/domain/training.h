@@ -179,8 +179,15 @@ Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const d
                                                               uint64_t session_id);
 
 // --- exports: progress per trainee × exercise (csv, jsonl) or xAPI statements (attempted per
-// attempt, passed per exercise reached, completed per course reached) ---
+// attempt, passed per exercise reached, completed per course reached), one trainee's lines per
+// call of `sink` (false: stop, kCancelled) ---
 Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,
-                      db::ExportFormat format, const std::function<void(std::string_view)>& sink);
+                      db::ExportFormat format, const std::function<bool(std::string_view)>& sink);
+// The same in two steps, for a transport that answers a refusal before it starts a download:
+// the rights and the progress (a cohort's, or a trainee's own courses), then the lines.
+Expected<std::vector<CourseProgress>> ProgressToExport(Domain& d, const db::Principal& p,
+                                                       int64_t course_id, int64_t cohort_id);
+Status WriteProgress(const std::vector<CourseProgress>& parts, db::ExportFormat format,
+                     const std::function<bool(std::string_view)>& sink);
 
 }  // namespace vsurg::server

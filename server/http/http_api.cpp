@@ -1209,18 +1209,23 @@ HttpReply HttpApi::Routes::TrainingExport(const Call& c) {
   const std::string name = Param(c.query, "format");
   const auto format = db::ParseExportFormat(name.empty() ? "csv" : name);
   if (!format) return ErrorReply(InvalidArgument("format", "csv, jsonl or xapi"));
+  // Refusals as replies; the lines then stream from an export worker (xAPI of a large cohort
+  // runs to tens of megabytes).
+  auto parts = ProgressToExport(c.api.d_, *c.p, *course, *cohort);
+  if (!parts.ok()) return ErrorReply(parts.error());
+  auto kept = std::make_shared<const std::vector<CourseProgress>>(std::move(parts).value());
   HttpReply reply;
-  Status s = ExportProgress(c.api.d_, *c.p, *course, *cohort, *format,
-                            [&](std::string_view chunk) { reply.body.append(chunk); });
-  if (!s.ok()) return ErrorReply(s.error());
+  reply.kind = HttpReply::Kind::kExport;
+  reply.owner = c.p->name;
+  reply.produce = [kept, f = *format](const std::function<bool(std::string_view)>& sink) {
+    return WriteProgress(*kept, f, sink);
+  };
   const bool csv = *format == db::ExportFormat::kCsv;
   reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
-  reply.headers.emplace_back("Content-Disposition",
-                             std::string("attachment; filename=\"vsurg-progress") +
-                                 (*format == db::ExportFormat::kXapi ? "-xapi.jsonl"
-                                  : csv                              ? ".csv"
-                                                                     : ".jsonl") +
-                                 "\"");
+  reply.filename =
+      std::string("vsurg-progress") + (*format == db::ExportFormat::kXapi ? "-xapi.jsonl"
+                                       : csv                              ? ".csv"
+                                                                          : ".jsonl");
   return reply;
 }
 
@@ -1259,8 +1264,7 @@ const HttpApi::Route HttpApi::kRoutes[] = {
      &Routes::ExerciseSpecPut},
     {"GET", "training/cohorts", Method::kTrainingListCohorts, &Routes::Cohorts},
     {"POST", "training/cohorts", Method::kTrainingCreateCohort, &Routes::CohortCreate},
-    {"POST", "training/cohorts/{id}/members", Method::kTrainingAddMembers,
-     &Routes::CohortMembers},
+    {"POST", "training/cohorts/{id}/members", Method::kTrainingAddMembers, &Routes::CohortMembers},
     {"GET", "training/cohorts/{id}/grid", Method::kTrainingProgress, &Routes::CohortGrid},
     {"GET", "training/cohorts/{id}/curve", Method::kTrainingProgress, &Routes::CohortCurveRoute},
     {"POST", "training/enrolments", Method::kTrainingEnrol, &Routes::EnrolRoute},

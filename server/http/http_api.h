@@ -64,6 +64,10 @@ struct HttpReply {
     bool surface = false;  // the deformed surface with each frame that has one
   } watch;
   ExportPlan export_plan;
+  // kExport of something other than the store's evaluations (the training programme's
+  // progress): writes the download through `sink` (false: stop) on an export worker, in bounded
+  // memory. Unset: db::Store::Export with `export_plan`.
+  std::function<Status(const std::function<bool(std::string_view)>& sink)> produce;
   std::string filename;  // kExport: the download's name
   // kDeferred: starts the work; calls `done` exactly once, from any thread.
   std::function<void(std::function<void(HttpReply)> done)> deferred;

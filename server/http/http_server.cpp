@@ -547,10 +547,11 @@ class ExportStream final : public Exchange,
   // Export pool.
   void Run() {
     const ExportPlan& plan = reply_.export_plan;
-    const Status s =
-        conn_->ctx().store->Export(plan.filter, plan.format, [&](std::string_view chunk) {
-          return chunk.empty() || Send(std::make_shared<const std::string>(chunk));
-        });
+    const auto sink = [&](std::string_view chunk) {
+      return chunk.empty() || Send(std::make_shared<const std::string>(chunk));
+    };
+    const Status s = reply_.produce ? reply_.produce(sink)
+                                    : conn_->ctx().store->Export(plan.filter, plan.format, sink);
     // The slot back before the end goes on the wire, so that a client that received a whole
     // export may start the next at once (under load the worker ran Finish after the client had
     // asked again, and got 503); the worker does not wait for the last chunk either. The last

@@ -199,7 +199,8 @@ TEST_F(TrainingTest, EachRoleSeesWhatIsTheirs) {
             ErrorCode::kPermissionDenied);
   EXPECT_EQ(CreateCohort(*domain_, As("ian"), "Residents 2026", "", {}).error().code,
             ErrorCode::kAlreadyExists);
-  EXPECT_EQ(SetExpert(*domain_, As("tina"), "tina", true).error().code, ErrorCode::kPermissionDenied);
+  EXPECT_EQ(SetExpert(*domain_, As("tina"), "tina", true).error().code,
+            ErrorCode::kPermissionDenied);
 }
 
 TEST_F(TrainingTest, ASpecIsCheckedFieldByField) {
@@ -234,10 +235,13 @@ TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   Trial("tina", kScene, Ex(0), 26, 1.2);
   Trial("tina", kScene2, Ex(1), 30, 1.0);
   Trial("tina", kScene2, Ex(1), 31, 1.0);
-  auto run = [&](db::ExportFormat f, const std::string& who, int64_t cohort) {
+  auto run = [&](db::ExportFormat f, const std::string& who, int64_t cohort) -> std::string {
     std::string out;
     Status s = ExportProgress(*domain_, As(who), course_.record.id, cohort, f,
-                              [&](std::string_view chunk) { out += chunk; });
+                              [&](std::string_view chunk) {
+                                out += chunk;
+                                return true;
+                              });
     EXPECT_TRUE(s.ok()) << s.error().message;
     return out;
   };
@@ -265,12 +269,29 @@ TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   EXPECT_EQ(verbs["attempted"], 4);
   EXPECT_EQ(verbs["passed"], 2);
   EXPECT_EQ(verbs["completed"], 1);
+  // A download stopped by its reader stops the export (one trainee's lines at a time).
+  int calls = 0;
+  EXPECT_EQ(
+      ExportProgress(*domain_, As("ian"), course_.record.id, cohort_.id, db::ExportFormat::kXapi,
+                     [&](std::string_view) {
+                       ++calls;
+                       return false;
+                     })
+          .error()
+          .code,
+      ErrorCode::kUnavailable);
+  EXPECT_EQ(calls, 1);
   // A trainee exports only their own; an instructor names the cohort.
   std::string ignored;
-  EXPECT_EQ(ExportProgress(*domain_, As("tina"), course_.record.id, cohort_.id,
-                           db::ExportFormat::kCsv, [&](std::string_view c) { ignored += c; })
-                .error().code,
-            ErrorCode::kPermissionDenied);
+  EXPECT_EQ(
+      ExportProgress(*domain_, As("tina"), course_.record.id, cohort_.id, db::ExportFormat::kCsv,
+                     [&](std::string_view c) {
+                       ignored += c;
+                       return true;
+                     })
+          .error()
+          .code,
+      ErrorCode::kPermissionDenied);
 }
 
 }  // namespace

@@ -509,5 +509,68 @@ TEST(WebSessionsTest, AreBoundedPerUserAndForgetThatUsersOldestFirst) {
   EXPECT_FALSE(s.Find(b.id).has_value());
 }
 
+// The training programme's routes: the instructor builds a course and a cohort from the page's
+// calls (cookie and CSRF), a bad spec names its field, the grid and the curve answer, a trainee
+// is refused the grid, and the progress export is a download produced on the export worker.
+TEST_F(HttpApiTest, TheTrainingRoutesBuildACourseAndShowItsGrid) {
+  const Signed ian = SignIn(tokens_["ian"]);
+  const json spec = {{"targets", json::array({{{"metric", "peak_force_n"}, {"value", 2.5}}})},
+                     {"consecutive", 1}};
+  json body = {
+      {"name", "Basics"},
+      {"exercises",
+       json::array({{{"title", "Palpate"}, {"scene", "sphere-palpation-256"}, {"spec", spec}}})}};
+  HttpReply r = Call("POST", "/api/v1/training/courses", body.dump(), ian.cookie, "");
+  EXPECT_EQ(r.status, 403) << r.body;  // no CSRF token
+  json bad = body;
+  bad["exercises"][0]["spec"]["targets"][0]["metric"] = "speed";
+  r = Call("POST", "/api/v1/training/courses", bad.dump(), ian.cookie, ian.csrf);
+  EXPECT_EQ(r.status, 400);
+  EXPECT_EQ(json::parse(r.body)["field"], "exercises[0].spec.targets[0]");
+  r = Call("POST", "/api/v1/training/courses", body.dump(), ian.cookie, ian.csrf);
+  ASSERT_EQ(r.status, 201) << r.body;
+  const int64_t course = json::parse(r.body)["course"]["id"];
+  r = Call("POST", "/api/v1/training/cohorts",
+           json{{"name", "Residents"}, {"members", {"tina"}}}.dump(), ian.cookie, ian.csrf);
+  ASSERT_EQ(r.status, 201) << r.body;
+  const int64_t cohort = json::parse(r.body)["cohort"]["id"];
+  r = Call("POST", "/api/v1/training/enrolments",
+           json{{"course", course}, {"cohort", cohort}, {"ends", "yesterday"}}.dump(), ian.cookie,
+           ian.csrf);
+  EXPECT_EQ(r.status, 400);  // a date that is not one
+  r = Call("POST", "/api/v1/training/enrolments",
+           json{{"course", course}, {"cohort", cohort}}.dump(), ian.cookie, ian.csrf);
+  ASSERT_EQ(r.status, 201) << r.body;
+  const std::string grid = "/api/v1/training/cohorts/" + std::to_string(cohort) +
+                           "/grid?course=" + std::to_string(course);
+  r = Call("GET", grid, "", ian.cookie);
+  ASSERT_EQ(r.status, 200) << r.body;
+  const json g = json::parse(r.body);
+  ASSERT_EQ(g["trainees"].size(), 1u);
+  EXPECT_EQ(g["trainees"][0]["exercises"][0]["state"], "not_started");
+  const Signed tina = SignIn(tokens_["tina"]);
+  EXPECT_EQ(Call("GET", grid, "", tina.cookie).status, 403);
+  r = Call("GET", "/api/v1/training/mine", "", tina.cookie);
+  ASSERT_EQ(r.status, 200);
+  EXPECT_EQ(json::parse(r.body)["courses"][0]["progress"]["next_exercise"],
+            g["course"]["exercises"][0]["id"]);
+  EXPECT_EQ(Call("GET", "/api/v1/training/mine?trainee=eve", "", tina.cookie).status, 403);
+  // The export: refused as a reply, produced as a download.
+  EXPECT_EQ(Call("GET", "/api/v1/training/export?course=1&format=pdf", "", ian.cookie).status, 400);
+  EXPECT_EQ(Call("GET", "/api/v1/training/export?course=1", "", ian.cookie).status, 400);
+  r = Call("GET", "/api/v1/training/export?course=1&cohort=" + std::to_string(cohort), "",
+           ian.cookie);
+  ASSERT_EQ(r.kind, HttpReply::Kind::kExport);
+  ASSERT_TRUE(r.produce);
+  std::string csv;
+  ASSERT_TRUE(r.produce([&](std::string_view chunk) {
+                 csv += chunk;
+                 return true;
+               }).ok());
+  EXPECT_NE(csv.find("\"Basics\",1,\"Palpate\",\"sphere-palpation-256\",\"tina\",not_started,0"),
+            std::string::npos)
+      << csv;
+}
+
 }  // namespace
 }  // namespace vsurg::server::http
