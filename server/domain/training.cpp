@@ -690,6 +690,9 @@ Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const d
 
 // --- exports ---
 
+namespace {
+
+// The progress an export writes: a cohort's, or a trainee's own courses.
 Expected<std::vector<CourseProgress>> ProgressToExport(Domain& d, const db::Principal& p,
                                                        int64_t course_id, int64_t cohort_id) {
   std::vector<CourseProgress> parts;
@@ -829,6 +832,22 @@ Status WriteProgress(const std::vector<CourseProgress>& parts, db::ExportFormat 
     }
   }
   return flush();
+}
+
+}  // namespace
+
+Status MayExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id) {
+  if (cohort_id != 0) {
+    auto cohort = CohortToRead(d, p, cohort_id);
+    if (!cohort.ok()) return cohort.error();
+    if (course_id == 0) return InvalidArgument("course", "a cohort's progress is in one course");
+    auto course = d.store.GetCourse(course_id);
+    return course.ok() ? Status::Ok() : Status(course.error());
+  }
+  if (Status s = Permit(p, Method::kTrainingProgress); !s.ok()) return s;
+  if (p.role != db::Role::kTrainee)
+    return InvalidArgument("cohort", "an instructor exports one cohort's progress at a time");
+  return Status::Ok();
 }
 
 Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,

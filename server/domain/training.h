@@ -183,11 +183,8 @@ Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const d
 // call of `sink` (false: stop, kCancelled) ---
 Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,
                       db::ExportFormat format, const std::function<bool(std::string_view)>& sink);
-// The same in two steps, for a transport that answers a refusal before it starts a download:
-// the rights and the progress (a cohort's, or a trainee's own courses), then the lines.
-Expected<std::vector<CourseProgress>> ProgressToExport(Domain& d, const db::Principal& p,
-                                                       int64_t course_id, int64_t cohort_id);
-Status WriteProgress(const std::vector<CourseProgress>& parts, db::ExportFormat format,
-                     const std::function<bool(std::string_view)>& sink);
+// What ExportProgress would refuse, checked cheaply (the rights and the arguments, no progress
+// computed): a transport answers a refusal before it starts a download.
+Status MayExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id);
 
 }  // namespace vsurg::server

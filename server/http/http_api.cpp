@@ -1,8 +1,13 @@
 #include "server/http/http_api.h"
 
+#include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
 #include <optional>
 #include <string_view>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -403,10 +408,82 @@ std::string HttpApi::TelemetryJson(const SessionTelemetry& t, bool with_surface)
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
+// A few threads for long reads, with a bounded queue. A task is told whether it runs (false: the
+// API is closing; it answers 503 and returns).
+class HttpApi::ReadWorkers {
+ public:
+  ReadWorkers(int workers, int max_queued) : max_queued_(static_cast<size_t>(max_queued)) {
+    for (int i = 0; i < std::max(1, workers); ++i) threads_.emplace_back([this] { Loop(); });
+  }
+  ~ReadWorkers() {
+    std::deque<std::function<void(bool)>> left;
+    {
+      std::lock_guard lock(mutex_);
+      stopping_ = true;
+      left.swap(queue_);
+    }
+    cv_.notify_all();
+    for (auto& task : left) task(false);
+    for (std::thread& t : threads_) t.join();
+  }
+  bool Post(std::function<void(bool)> task) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_ || queue_.size() >= max_queued_) return false;
+      queue_.push_back(std::move(task));
+    }
+    cv_.notify_one();
+    return true;
+  }
+
+ private:
+  void Loop() {
+    for (;;) {
+      std::function<void(bool)> task;
+      {
+        std::unique_lock lock(mutex_);
+        cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+        if (queue_.empty()) return;
+        task = std::move(queue_.front());
+        queue_.pop_front();
+      }
+      task(true);
+    }
+  }
+
+  const size_t max_queued_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<std::function<void(bool)>> queue_;
+  bool stopping_ = false;
+  std::vector<std::thread> threads_;
+};
+
+HttpReply HttpApi::OffThread(std::function<HttpReply()> work) {
+  if (!reads_) return work();  // no read workers (read_workers 0): on the caller's thread
+  HttpReply reply;
+  reply.kind = HttpReply::Kind::kDeferred;
+  ReadWorkers* reads = reads_.get();
+  reply.deferred = [reads, work = std::move(work)](std::function<void(HttpReply)> done) {
+    const bool queued = reads->Post([work, done](bool run) {
+      done(run ? work() : ErrorReply(Error{ErrorCode::kUnavailable, "the server is stopping", ""}));
+    });
+    if (!queued)
+      done(ErrorReply(
+          Error{ErrorCode::kUnavailable, "too many long reads at once; try again shortly", ""}));
+  };
+  return reply;
+}
+
+HttpApi::~HttpApi() = default;
+
 HttpApi::HttpApi(Domain& domain, const HttpApiOptions& options)
     : d_(domain),
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()),
+      reads_(options.read_workers > 0
+                 ? std::make_unique<ReadWorkers>(options.read_workers, options.max_queued_reads)
+                 : nullptr),
       sessions_(clock_, options.session_ttl_s),
       limiter_(clock_, options.sign_in_failures),
       bearer_limiter_(clock_, options.bearer_failures) {}
@@ -473,6 +550,8 @@ struct HttpApi::Routes {
   static HttpReply CohortMembers(const Call& c);
   static HttpReply CohortGrid(const Call& c);
   static HttpReply CohortCurveRoute(const Call& c);
+  static HttpReply CohortCurveReply(Domain& d, const db::Principal& p, uint64_t cohort,
+                                    int64_t exercise);
   static HttpReply EnrolRoute(const Call& c);
   static HttpReply Experts(const Call& c);
   static HttpReply ExpertSet(const Call& c);
@@ -1065,24 +1144,34 @@ HttpReply HttpApi::Routes::CohortMembers(const Call& c) {
 HttpReply HttpApi::Routes::CohortGrid(const Call& c) {
   const auto course = QueryNumber(c.query, "course");
   if (!course || *course == 0) return ErrorReply(InvalidArgument("course", "a course id"));
-  auto grid = CohortProgress(c.api.d_, *c.p, static_cast<int64_t>(c.id), *course);
-  if (!grid.ok()) return ErrorReply(grid.error());
-  json trainees = json::array();
-  for (const TraineeProgress& t : grid->trainees) trainees.push_back(TraineeProgressJson(t, true));
-  return Ok({{"course", CourseJson(grid->course)}, {"cohort", c.id}, {"trainees", trainees}});
+  return c.api.OffThread([&d = c.api.d_, p = *c.p, cohort = c.id, course = *course] {
+    auto grid = CohortProgress(d, p, static_cast<int64_t>(cohort), course);
+    if (!grid.ok()) return ErrorReply(grid.error());
+    json trainees = json::array();
+    for (const TraineeProgress& t : grid->trainees)
+      trainees.push_back(TraineeProgressJson(t, true));
+    return Ok({{"course", CourseJson(grid->course)}, {"cohort", cohort}, {"trainees", trainees}});
+  });
 }
 
 HttpReply HttpApi::Routes::CohortCurveRoute(const Call& c) {
   const auto exercise = QueryNumber(c.query, "exercise");
   if (!exercise || *exercise == 0) return ErrorReply(InvalidArgument("exercise", "an exercise id"));
-  auto curve = CohortCurveOf(c.api.d_, *c.p, static_cast<int64_t>(c.id), *exercise);
+  return c.api.OffThread([&d = c.api.d_, p = *c.p, cohort = c.id, exercise = *exercise] {
+    return CohortCurveReply(d, p, cohort, exercise);
+  });
+}
+
+HttpReply HttpApi::Routes::CohortCurveReply(Domain& d, const db::Principal& p, uint64_t cohort,
+                                            int64_t exercise) {
+  auto curve = CohortCurveOf(d, p, static_cast<int64_t>(cohort), exercise);
   if (!curve.ok()) return ErrorReply(curve.error());
   json metrics = json::array();
   for (const MetricCurve& m : curve->metrics) {
     json points = json::array();
-    for (const CurvePoint& p : m.points)
+    for (const CurvePoint& pt : m.points)
       points.push_back(
-          {{"n", p.attempt}, {"trainees", p.trainees}, {"mean", p.mean}, {"sd", p.sd}});
+          {{"n", pt.attempt}, {"trainees", pt.trainees}, {"mean", pt.mean}, {"sd", pt.sd}});
     metrics.push_back(
         {{"metric", m.metric},
          {"target", m.target ? json(*m.target) : json(nullptr)},
@@ -1209,16 +1298,16 @@ HttpReply HttpApi::Routes::TrainingExport(const Call& c) {
   const std::string name = Param(c.query, "format");
   const auto format = db::ParseExportFormat(name.empty() ? "csv" : name);
   if (!format) return ErrorReply(InvalidArgument("format", "csv, jsonl or xapi"));
-  // Refusals as replies; the lines then stream from an export worker (xAPI of a large cohort
-  // runs to tens of megabytes).
-  auto parts = ProgressToExport(c.api.d_, *c.p, *course, *cohort);
-  if (!parts.ok()) return ErrorReply(parts.error());
-  auto kept = std::make_shared<const std::vector<CourseProgress>>(std::move(parts).value());
+  // Refusals as replies; the progress is then computed and its lines streamed on an export
+  // worker (xAPI of a large cohort runs to tens of megabytes).
+  if (Status s = MayExportProgress(c.api.d_, *c.p, *course, *cohort); !s.ok())
+    return ErrorReply(s.error());
   HttpReply reply;
   reply.kind = HttpReply::Kind::kExport;
   reply.owner = c.p->name;
-  reply.produce = [kept, f = *format](const std::function<bool(std::string_view)>& sink) {
-    return WriteProgress(*kept, f, sink);
+  reply.produce = [&d = c.api.d_, p = *c.p, course = *course, cohort = *cohort,
+                   f = *format](const std::function<bool(std::string_view)>& sink) {
+    return ExportProgress(d, p, course, cohort, f, sink);
   };
   const bool csv = *format == db::ExportFormat::kCsv;
   reply.content_type = csv ? "text/csv; charset=utf-8" : "application/x-ndjson";
