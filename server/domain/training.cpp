@@ -183,6 +183,22 @@ CourseProgress EvaluateAll(CourseView course, const std::vector<std::string>& tr
   return out;
 }
 
+// One trainee's progress through the course `course_id` (its exercises resolved now), and the
+// trials it came from when `rows` is given.
+Expected<CourseProgress> OneTraineeProgress(Domain& d, int64_t course_id,
+                                            const std::string& trainee,
+                                            std::vector<db::AttemptRow>* rows = nullptr) {
+  auto course = d.store.GetCourse(course_id);
+  if (!course.ok()) return course.error();
+  auto view = ResolveCourse(d, std::move(course).value());
+  if (!view.ok()) return view.error();
+  auto loaded = d.store.LoadAttempts(course_id, trainee, 0);
+  if (!loaded.ok()) return loaded.error();
+  CourseProgress out = EvaluateAll(std::move(view).value(), {trainee}, *loaded, NowUs());
+  if (rows) *rows = std::move(loaded).value();
+  return out;
+}
+
 // The cohort, when it is `p`'s (its instructor, or an admin).
 Expected<db::CohortRecord> CohortFor(Domain& d, const db::Principal& p, int64_t cohort_id) {
   auto c = d.store.GetCohort(cohort_id);
@@ -506,13 +522,9 @@ Expected<std::vector<CourseProgress>> TraineeCourses(Domain& d, const db::Princi
   for (const db::EnrolmentRecord& e : *enrolments) {
     if (std::find(seen.begin(), seen.end(), e.course_id) != seen.end()) continue;
     seen.push_back(e.course_id);
-    auto course = d.store.GetCourse(e.course_id);
-    if (!course.ok()) return course.error();
-    auto view = ResolveCourse(d, std::move(course).value());
-    if (!view.ok()) return view.error();
-    auto rows = d.store.LoadAttempts(e.course_id, trainee, 0);
-    if (!rows.ok()) return rows.error();
-    out.push_back(EvaluateAll(std::move(view).value(), {trainee}, *rows, NowUs()));
+    auto progress = OneTraineeProgress(d, e.course_id, trainee);
+    if (!progress.ok()) return progress.error();
+    out.push_back(std::move(progress).value());
   }
   return out;
 }
@@ -524,27 +536,22 @@ Expected<LearningCurve> TraineeCurve(Domain& d, const db::Principal& p, const st
   if (Status s = MayRead(p, trainee); !s.ok()) return s.error();
   auto e = d.store.GetExercise(exercise_id);
   if (!e.ok()) return e.error();
-  auto course = d.store.GetCourse(e->course_id);
-  if (!course.ok()) return course.error();
-  auto view = ResolveCourse(d, std::move(course).value());
-  if (!view.ok()) return view.error();
-  auto rows = d.store.LoadAttempts(e->course_id, trainee, 0);
-  if (!rows.ok()) return rows.error();
+  std::vector<db::AttemptRow> rows;
+  auto all = OneTraineeProgress(d, e->course_id, trainee, &rows);
+  if (!all.ok()) return all.error();
   LearningCurve out;
   out.trainee = trainee;
-  CourseProgress all = EvaluateAll(*view, {trainee}, *rows, NowUs());
-  const auto& eps = all.trainees.front().exercises;
-  for (size_t i = 0; i < eps.size(); ++i)
-    if (eps[i].exercise_id == exercise_id) out.progress = eps[i];
-  out.exercise = *FindExercise(*view, exercise_id);
-  for (const db::AttemptRow& r : *rows)
+  for (const ExerciseProgress& ep : all->trainees.front().exercises)
+    if (ep.exercise_id == exercise_id) out.progress = ep;
+  out.exercise = *FindExercise(all->course, exercise_id);
+  for (const db::AttemptRow& r : rows)
     if (r.exercise_id == exercise_id) out.attempts.push_back(r);
   std::vector<bool> failures;
   for (const scoring::AttemptCheck& c : out.progress.progress.checks) failures.push_back(!c.passed);
   auto cusum = scoring::Cusum(failures, out.exercise.spec.cusum);
   if (!cusum.ok()) return cusum.error();
   out.cusum = std::move(cusum).value();
-  out.course = std::move(view).value();
+  out.course = std::move(all->course);
   return out;
 }
 
@@ -644,14 +651,9 @@ Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p
         ErrorCode::kFailedPrecondition,
         trainee + " is not enrolled (now) in the course of exercise " + std::to_string(exercise_id),
         "exercise"};
-  auto course = d.store.GetCourse(e->course_id);
-  if (!course.ok()) return course.error();
-  auto view = ResolveCourse(d, std::move(course).value());
-  if (!view.ok()) return view.error();
-  auto rows = d.store.LoadAttempts(e->course_id, trainee, 0);
-  if (!rows.ok()) return rows.error();
-  const CourseProgress cp = EvaluateAll(*view, {trainee}, *rows, now);
-  for (const ExerciseProgress& ep : cp.trainees.front().exercises) {
+  auto cp = OneTraineeProgress(d, e->course_id, trainee);
+  if (!cp.ok()) return cp.error();
+  for (const ExerciseProgress& ep : cp->trainees.front().exercises) {
     if (ep.exercise_id != exercise_id) continue;
     if (ep.state == CellState::kLocked)
       return Error{ErrorCode::kFailedPrecondition,
