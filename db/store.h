@@ -379,8 +379,10 @@ class Store {
   // not 0.
   Expected<std::vector<AttemptRow>> LoadAttempts(int64_t course_id, const std::string& trainee,
                                                  int64_t cohort_id, int64_t exercise_id = 0);
-  // The experts' recorded trials on `scene` (any session, an exercise's or not), in no order.
-  Expected<std::vector<AttemptRow>> LoadExpertAttempts(const std::string& scene);
+  // The experts' recorded trials on `scene` (any session, an exercise's or not), in no order;
+  // only those at `exercise_id` when not 0.
+  Expected<std::vector<AttemptRow>> LoadExpertAttempts(const std::string& scene,
+                                                       int64_t exercise_id = 0);
   // The exercise a session was an attempt at (0: none).
   Expected<int64_t> SessionExercise(int64_t session_id);
 

@@ -514,7 +514,8 @@ Expected<std::vector<AttemptRow>> Store::LoadAttempts(int64_t course_id, const s
   return out;
 }
 
-Expected<std::vector<AttemptRow>> Store::LoadExpertAttempts(const std::string& scene) {
+Expected<std::vector<AttemptRow>> Store::LoadExpertAttempts(const std::string& scene,
+                                                            int64_t exercise_id) {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
   std::vector<AttemptRow> out;
@@ -522,8 +523,13 @@ Expected<std::vector<AttemptRow>> Store::LoadExpertAttempts(const std::string& s
       **r,
       std::string(kAttemptColumns) +
           "FROM trainees t JOIN sessions s ON s.trainee_id = t.id "
-          "JOIN trial_metrics m ON m.session_id = s.id WHERE t.expert = 1 AND s.scene = ?1",
-      [&](Statement& q) { q.Bind(1, scene); }, [&](const Statement& q) { ReadAttempt(q, out); });
+          "JOIN trial_metrics m ON m.session_id = s.id WHERE t.expert = 1 AND s.scene = ?1" +
+          (exercise_id != 0 ? " AND s.exercise_id = ?2" : ""),
+      [&](Statement& q) {
+        q.Bind(1, scene);
+        if (exercise_id != 0) q.Bind(2, exercise_id);
+      },
+      [&](const Statement& q) { ReadAttempt(q, out); });
   if (!s.ok()) return s.error();
   return out;
 }

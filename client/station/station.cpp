@@ -150,6 +150,7 @@ Expected<CourseExercise> NextCourseExercise(const Remote& remote, int64_t pick, 
     out.scene = e.scene();
     out.position = e.position();
     out.consecutive = e.consecutive();
+    out.task = convert::FromProto(e.task());
     for (const v1::ExerciseTarget& t : e.targets())
       out.targets.push_back(
           t.metric() + (t.metric() == "score" ? " >= " : " <= ") +

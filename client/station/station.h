@@ -100,6 +100,7 @@ struct CourseExercise {
   int attempts = 0, streak = 0, consecutive = 0;
   bool may_attempt = true;
   std::vector<std::string> targets;  // "peak_force_n <= 1.5" …
+  scoring::TaskSettings task;        // the exercise's settings of its scene's task
 };
 Expected<CourseExercise> NextCourseExercise(const Remote& remote, int64_t pick, double timeout_s);
 

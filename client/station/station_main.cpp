@@ -199,6 +199,11 @@ int Run(const std::vector<std::string>& args) {
   // The scene, as the server will run it: the same file gives the same vertex order.
   auto scene = vsurg::sim::LoadSceneByName(scene_name);
   if (!scene.ok()) return Fail("scene: " + scene.error().message);
+  if (exercise && !exercise->task.empty()) {  // the exercise's task, as the server runs it
+    auto task = vsurg::scoring::ApplyTaskSettings(scene->task, exercise->task);
+    if (!task.ok()) return Fail("exercise task: " + task.error().message);
+    scene->task = *task;
+  }
   auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
   if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
   auto visual = vsurg::sim::BuildVisualModel(*scene, mesh->surface);

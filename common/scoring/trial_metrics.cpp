@@ -135,6 +135,51 @@ ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task) {
   return p;
 }
 
+Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
+  const bool twist = t.kind == TaskKind::kTwist;
+  const char* target_name = twist ? "target_deg" : "target_depth_m";
+  const char* tolerance_name = twist ? "tolerance_deg" : "tolerance_m";
+  const auto bad = [](const char* field, const std::string& why) {
+    return Error{ErrorCode::kInvalidArgument, why, field};
+  };
+  if (s.kind && *s.kind != t.kind)
+    return bad(target_name, std::string("the scene's task is a ") + (twist ? "twist" : "press") +
+                                ": give " + target_name + " and " + tolerance_name);
+  constexpr double kDeg = 3.14159265358979323846 / 180.0;
+  // The ranges a trainee can meet on a 3.3 N desktop device: a twist of 5–180° within
+  // 0.5–45°, a press of 1–40 mm within 0.2–20 mm.
+  const double lo = twist ? 5 * kDeg : 1e-3, hi = twist ? 180 * kDeg : 0.04;
+  const double tol_lo = twist ? 0.5 * kDeg : 2e-4, tol_hi = twist ? 45 * kDeg : 0.02;
+  if (s.target) {
+    if (!(*s.target >= lo && *s.target <= hi))
+      return bad(target_name, twist ? "5 to 180 degrees" : "0.001 to 0.04 m");
+    t.target = *s.target;
+  }
+  if (s.tolerance) {
+    if (!(*s.tolerance >= tol_lo && *s.tolerance <= tol_hi))
+      return bad(tolerance_name, twist ? "0.5 to 45 degrees" : "0.0002 to 0.02 m");
+    t.tolerance = *s.tolerance;
+  }
+  if (s.hold_s) {
+    if (!(*s.hold_s >= 0 && *s.hold_s <= 60)) return bad("hold_s", "0 to 60 s");
+    t.expert_time = std::max(*s.hold_s, t.expert_time + (*s.hold_s - t.hold_s));
+    t.hold_s = *s.hold_s;
+  }
+  if (s.force_limit) {
+    if (!(*s.force_limit >= 0.1 && *s.force_limit <= 20))
+      return bad("force_limit_n", "0.1 to 20 N");
+    t.force_limit = *s.force_limit;
+  }
+  if (s.time_limit) {
+    if (!(*s.time_limit >= 1 && *s.time_limit <= 1800)) return bad("time_limit_s", "1 to 1800 s");
+    t.time_limit = *s.time_limit;
+  }
+  if (!(t.time_limit > t.hold_s))
+    return bad(s.time_limit ? "time_limit_s" : "hold_s",
+               "the time limit must exceed the hold (" + std::to_string(t.hold_s) + " s)");
+  return t;
+}
+
 std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
   const auto text = [](const char* format, double a, double b = 0) {
     char line[200];

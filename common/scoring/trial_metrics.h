@@ -27,11 +27,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "common/core/expected.h"
 #include "common/scoring/metrics.h"
 
 namespace vsurg::scoring {
@@ -47,6 +49,21 @@ struct TaskSpec {
   double time_limit = 60.0;      // s
   double expert_time = 5.0;      // s, an expert's completion time (the efficiency reference)
 };
+
+// An exercise's own settings of its scene's task (a course's "twist to 60° within 5°, under
+// 2 N"): each unset field keeps the scene's value. `kind` is the task the target and tolerance
+// are given for (they are in its unit: rad or m); unset when neither is.
+struct TaskSettings {
+  std::optional<TaskKind> kind;
+  std::optional<double> target, tolerance, hold_s, force_limit, time_limit;  // TaskSpec's units
+  bool empty() const { return !target && !tolerance && !hold_s && !force_limit && !time_limit; }
+};
+// `base` (a scene's task) with `s` applied. kInvalidArgument naming the field (the scene file's
+// names: target_deg, target_depth_m, tolerance_deg, tolerance_m, hold_s, force_limit_n,
+// time_limit_s) when a value is out of range, is for the other kind of task, or leaves the time
+// limit no longer than the hold. The expert's completion time moves with the hold (their
+// approach takes as long as before).
+Expected<TaskSpec> ApplyTaskSettings(TaskSpec base, const TaskSettings& s);
 
 // The score's four parts, each in [0, 1] (the weights and formulas above), from a trial's
 // metrics: TrialRecorder::Finish scores with them, ExplainScore says what cost points.

@@ -36,6 +36,27 @@ void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out) {
   out->set_link_rate_hz(m.link.rate_hz);
 }
 
+void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out) {
+  if (t.kind) out->set_kind(*t.kind == scoring::TaskKind::kTwist ? "twist" : "press");
+  if (t.target) out->set_target(*t.target);
+  if (t.tolerance) out->set_tolerance(*t.tolerance);
+  if (t.hold_s) out->set_hold_s(*t.hold_s);
+  if (t.force_limit) out->set_force_limit_n(*t.force_limit);
+  if (t.time_limit) out->set_time_limit_s(*t.time_limit);
+}
+
+scoring::TaskSettings FromProto(const v1::TaskSettings& t) {
+  scoring::TaskSettings out;
+  if (t.kind() == "twist") out.kind = scoring::TaskKind::kTwist;
+  if (t.kind() == "press") out.kind = scoring::TaskKind::kPress;
+  if (t.has_target()) out.target = t.target();
+  if (t.has_tolerance()) out.tolerance = t.tolerance();
+  if (t.has_hold_s()) out.hold_s = t.hold_s();
+  if (t.has_force_limit_n()) out.force_limit = t.force_limit_n();
+  if (t.has_time_limit_s()) out.time_limit = t.time_limit_s();
+  return out;
+}
+
 scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   scoring::TrialMetrics out;
   out.completed = m.completed();

@@ -7,6 +7,7 @@
 
 #include "common/core/session_state.h"
 #include "common/scoring/metrics.h"
+#include "common/scoring/trial_metrics.h"
 #include "common/sim/telemetry.h"
 #include "vsurg/v1/services.pb.h"
 
@@ -21,6 +22,10 @@ std::string StateName(v1::SessionState s);
 
 void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out);
 scoring::TrialMetrics FromProto(const v1::TrialMetrics& m);
+
+// An exercise's task settings; a kind other than twist or press reads as none given.
+void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out);
+scoring::TaskSettings FromProto(const v1::TaskSettings& t);
 
 // A live session's sample (the surface's positions as floats on the wire). A state this side
 // does not know reads as aborted.

@@ -376,7 +376,8 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
 }
 
 Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
-                                                 const std::string& scene) {
+                                                 const std::string& scene,
+                                                 const scoring::TaskSettings& task) {
   Impl& d = *impl_;
   // The per-trainee limit over the whole site (each node also keeps its own).
   auto mine = d.store.ListSessions(trainee);
@@ -407,6 +408,7 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
     v1::NodeCreateRequest req;
     req.set_trainee(trainee);
     req.set_scene(scene);
+    convert::ToProto(task, req.mutable_task());
     v1::NodeSession reply;
     auto ctx = CallContext(d.options.token, d.options.create_timeout_s);
     const grpc::Status s = d.StubFor(chosen.grpc_address).Create(ctx.get(), req, &reply);

@@ -203,7 +203,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
       return grpc::Status(grpc::StatusCode::UNAVAILABLE,
                           "node " + options.name + " holds no lease now: no new sessions");
     const auto t0 = std::chrono::steady_clock::now();
-    auto c = sessions.Create(req->trainee(), req->scene());
+    auto c = sessions.Create(req->trainee(), req->scene(), convert::FromProto(req->task()));
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
     Log(options.name, "session_created",
         "id=" + std::to_string(c->record.id) + " scene=" + req->scene() + " ms=" +

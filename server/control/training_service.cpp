@@ -27,6 +27,7 @@ void ToProto(const ExerciseView& e, v1::Exercise* out) {
   out->set_benchmark(e.spec.benchmark == scoring::BenchmarkMode::kMeanSd ? "mean_sd"
                                                                          : "best_quartile");
   out->set_k(e.spec.k);
+  convert::ToProto(e.spec.task, out->mutable_task());
 }
 
 void ToProto(const CourseView& c, v1::Course* out) {
@@ -91,6 +92,10 @@ Expected<NewExercise> FromProto(const v1::Exercise& e, size_t i) {
     return InvalidArgument("exercises[" + std::to_string(i) + "].benchmark",
                            "mean_sd or best_quartile");
   s.k = e.k() > 0 ? e.k() : 1.0;
+  s.task = convert::FromProto(e.task());
+  if ((s.task.target || s.task.tolerance) && !s.task.kind)
+    return InvalidArgument("exercises[" + std::to_string(i) + "].task.kind",
+                           "twist or press: the task the target and tolerance are for");
   auto checked = ParseExerciseSpec(ExerciseSpecJson(s));
   if (!checked.ok())
     return InvalidArgument("exercises[" + std::to_string(i) + "]." + checked.error().field,

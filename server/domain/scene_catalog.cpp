@@ -56,6 +56,7 @@ Expected<SceneListing> SceneCatalog::List() {
         e.info.force_limit_n = scene->task.force_limit;
         e.info.device_max_force_n = scene->haptics.limits.max_force;
         e.info.time_limit_s = scene->task.time_limit;
+        e.info.spec = scene->task;
       } else {
         // Named by its file name: the message's own prefix is the server's full path.
         e.why = scene.error().message;

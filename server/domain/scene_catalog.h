@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/scoring/trial_metrics.h"
 
 namespace vsurg::server {
 
@@ -29,6 +30,7 @@ struct SceneInfo {
   // largest force the device renders (N), and the time allowed (s). Plots draw them as lines.
   double target = 0, tolerance = 0;
   double force_limit_n = 0, device_max_force_n = 0, time_limit_s = 0;
+  scoring::TaskSpec spec;  // the task as the scene file sets it (SI units)
 };
 
 struct SceneListing {

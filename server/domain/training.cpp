@@ -1,6 +1,7 @@
 #include "server/domain/training.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 
@@ -66,7 +67,9 @@ double SampleSd(const std::vector<double>& v, double mean) {
 }
 
 // An exercise's row with its spec parsed and its targets resolved against the experts' trials.
-Expected<ExerciseView> Resolve(Domain& d, const db::ExerciseRecord& e) {
+// `scenes`: the catalogue's listing when the caller has one (a course lists it once).
+Expected<ExerciseView> Resolve(Domain& d, const db::ExerciseRecord& e,
+                               const SceneListing* scenes = nullptr) {
   ExerciseView v;
   v.record = e;
   auto spec = ParseExerciseSpec(e.spec_json);
@@ -75,13 +78,24 @@ Expected<ExerciseView> Resolve(Domain& d, const db::ExerciseRecord& e) {
                  "exercise " + std::to_string(e.id) + "'s stored spec: " + spec.error().message,
                  "spec"};
   v.spec = std::move(spec).value();
+  std::optional<SceneListing> listed;
+  if (!scenes) {
+    auto l = d.scenes.List();
+    if (!l.ok()) return l.error();
+    scenes = &listed.emplace(std::move(l).value());
+  }
+  for (const SceneInfo& info : scenes->scenes)
+    if (info.name == e.scene) {
+      auto task = scoring::ApplyTaskSettings(info.spec, v.spec.task);
+      if (task.ok()) v.task = *task;
+    }
   std::vector<db::AttemptRow> experts;
   bool loaded = false;
   for (const TargetSpec& t : v.spec.targets) {
     ResolvedTarget r{t.metric, t.value, !t.value.has_value(), 0};
     if (!t.value) {
       if (!loaded) {
-        auto rows = d.store.LoadExpertAttempts(e.scene);
+        auto rows = d.store.LoadExpertAttempts(e.scene, v.spec.task.empty() ? 0 : e.id);
         if (!rows.ok()) return rows.error();
         experts = std::move(rows).value();
         loaded = true;
@@ -100,8 +114,10 @@ Expected<ExerciseView> Resolve(Domain& d, const db::ExerciseRecord& e) {
 
 Expected<CourseView> ResolveCourse(Domain& d, db::CourseRecord c) {
   CourseView v;
+  auto scenes = d.scenes.List();
+  if (!scenes.ok()) return scenes.error();
   for (const db::ExerciseRecord& e : c.exercises) {
-    auto ev = Resolve(d, e);
+    auto ev = Resolve(d, e, &*scenes);
     if (!ev.ok()) return ev.error();
     v.exercises.push_back(std::move(ev).value());
   }
@@ -325,8 +341,67 @@ Expected<ExerciseSpec> ParseExerciseSpec(std::string_view text) {
   if (!(stall >= 1 && stall <= 100) || stall != std::floor(stall))
     return InvalidArgument("stall_after", "1 to 100 failed attempts in a row");
   s.stall_after = static_cast<int>(stall);
+  if (const auto t = j.find("task"); t != j.end() && !t->is_null()) {
+    if (!t->is_object()) return InvalidArgument("task", "an object of the task's settings");
+    constexpr double kDeg = 3.14159265358979323846 / 180.0;
+    for (const auto& [key, value] : t->items()) {
+      static constexpr std::array<std::string_view, 7> kKeys = {
+          "target_deg", "tolerance_deg", "target_depth_m", "tolerance_m",
+          "hold_s",     "force_limit_n", "time_limit_s"};
+      if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
+        return InvalidArgument("task." + key,
+                               "not a task setting (target_deg, tolerance_deg, target_depth_m, "
+                               "tolerance_m, hold_s, force_limit_n, time_limit_s)");
+      if (!value.is_number() || !std::isfinite(value.get<double>()))
+        return InvalidArgument("task." + key, "a finite number");
+    }
+    scoring::TaskSettings& ts = s.task;
+    const bool degrees = t->contains("target_deg") || t->contains("tolerance_deg");
+    const bool metres = t->contains("target_depth_m") || t->contains("tolerance_m");
+    if (degrees && metres)
+      return InvalidArgument("task",
+                             "a twist's target (target_deg) or a press's "
+                             "(target_depth_m), not both");
+    if (degrees) ts.kind = scoring::TaskKind::kTwist;
+    if (metres) ts.kind = scoring::TaskKind::kPress;
+    const double unit = degrees ? kDeg : 1.0;
+    if (auto v = Number(*t, degrees ? "target_deg" : "target_depth_m")) ts.target = *v * unit;
+    if (auto v = Number(*t, degrees ? "tolerance_deg" : "tolerance_m")) ts.tolerance = *v * unit;
+    ts.hold_s = Number(*t, "hold_s");
+    ts.force_limit = Number(*t, "force_limit_n");
+    ts.time_limit = Number(*t, "time_limit_s");
+  }
   return s;
 }
+
+namespace {
+json TaskSettingsJson(const scoring::TaskSettings& t) {
+  json o = json::object();
+  const bool twist = t.kind.value_or(scoring::TaskKind::kTwist) == scoring::TaskKind::kTwist;
+  const double unit = twist ? 180.0 / 3.14159265358979323846 : 1.0;
+  if (t.target) o[twist ? "target_deg" : "target_depth_m"] = *t.target * unit;
+  if (t.tolerance) o[twist ? "tolerance_deg" : "tolerance_m"] = *t.tolerance * unit;
+  if (t.hold_s) o["hold_s"] = *t.hold_s;
+  if (t.force_limit) o["force_limit_n"] = *t.force_limit;
+  if (t.time_limit) o["time_limit_s"] = *t.time_limit;
+  return o;
+}
+
+// The exercise's task settings must fit its scene's task (a twist's target on a twist scene, a
+// time limit longer than the hold, …); `field` names the exercise in the error.
+Status CheckTaskFits(const std::vector<SceneInfo>& scenes, const std::string& scene,
+                     const ExerciseSpec& spec, const std::string& field) {
+  const auto it = std::find_if(scenes.begin(), scenes.end(),
+                               [&](const SceneInfo& s) { return s.name == scene; });
+  if (it == scenes.end())
+    return InvalidArgument(field + ".scene", "no usable scene '" + scene + "'");
+  if (spec.task.empty()) return Status::Ok();
+  auto applied = scoring::ApplyTaskSettings(it->spec, spec.task);
+  if (!applied.ok())
+    return InvalidArgument(field + ".spec.task." + applied.error().field, applied.error().message);
+  return Status::Ok();
+}
+}  // namespace
 
 std::string ExerciseSpecJson(const ExerciseSpec& s) {
   json targets = json::array();
@@ -347,7 +422,8 @@ std::string ExerciseSpecJson(const ExerciseSpec& s) {
       {"k", s.k},
       {"cusum",
        {{"p0", s.cusum.p0}, {"p1", s.cusum.p1}, {"alpha", s.cusum.alpha}, {"beta", s.cusum.beta}}},
-      {"stall_after", s.stall_after}}
+      {"stall_after", s.stall_after},
+      {"task", TaskSettingsJson(s.task)}}
       .dump();
 }
 
@@ -388,11 +464,10 @@ Expected<CourseView> CreateCourse(Domain& d, const db::Principal& p, const std::
   c.owner = p.name;
   for (size_t i = 0; i < exercises.size(); ++i) {
     const NewExercise& e = exercises[i];
-    const bool known = std::any_of(scenes->scenes.begin(), scenes->scenes.end(),
-                                   [&](const SceneInfo& s) { return s.name == e.scene; });
-    if (!known)
-      return InvalidArgument("exercises[" + std::to_string(i) + "].scene",
-                             "no usable scene '" + e.scene + "'");
+    if (Status s =
+            CheckTaskFits(scenes->scenes, e.scene, e.spec, "exercises[" + std::to_string(i) + "]");
+        !s.ok())
+      return s.error();
     c.exercises.push_back({0, 0, 0, e.title, e.scene, ExerciseSpecJson(e.spec)});
   }
   auto made = d.store.CreateCourse(c);
@@ -444,6 +519,9 @@ Status SetExerciseSpec(Domain& d, const db::Principal& p, int64_t exercise_id,
   if (!c.ok()) return c.error();
   if (!IsAdmin(p) && c->owner != p.name)
     return NotYours("course '" + c->name + "' is another instructor's");
+  auto scenes = d.scenes.List();
+  if (!scenes.ok()) return scenes.error();
+  if (Status s = CheckTaskFits(scenes->scenes, e->scene, spec, "exercise"); !s.ok()) return s;
   return d.store.SetExerciseSpec(exercise_id, ExerciseSpecJson(spec));
 }
 
@@ -565,7 +643,7 @@ Expected<CohortCurve> CohortCurveOf(Domain& d, const db::Principal& p, int64_t c
   if (!view.ok()) return view.error();
   auto rows = d.store.LoadAttempts(e->course_id, "", cohort_id, exercise_id);
   if (!rows.ok()) return rows.error();
-  auto experts = d.store.LoadExpertAttempts(e->scene);
+  auto experts = d.store.LoadExpertAttempts(e->scene, view->spec.task.empty() ? 0 : e->id);
   if (!experts.ok()) return experts.error();
   // Each member's attempts at the exercise, in order.
   std::map<std::string, std::vector<const db::AttemptRow*>> by_trainee;
@@ -633,6 +711,23 @@ Expected<NextExercise> NextExerciseOf(Domain& d, const db::Principal& p, std::st
   return out;
 }
 
+namespace {
+// A session for an attempt at `e`: its scene with the exercise's task settings, marked as an
+// attempt (or stopped again if it cannot be marked).
+Expected<CreatedSession> StartAttempt(Domain& d, const std::string& trainee,
+                                      const db::ExerciseRecord& e,
+                                      const scoring::TaskSettings& task) {
+  auto created = d.sessions.Create(trainee, e.scene, task);
+  if (!created.ok()) return created.error();
+  if (Status s = d.store.SetSessionExercise(created->record.id, e.id); !s.ok()) {
+    (void)d.sessions.Stop(static_cast<uint64_t>(created->record.id),
+                          "could not be marked as an attempt");
+    return s.error();
+  }
+  return created;
+}
+}  // namespace
+
 Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p,
                                                std::string trainee, int64_t exercise_id) {
   if (Status s = Permit(p, Method::kSessionCreate); !s.ok()) return s.error();
@@ -641,6 +736,13 @@ Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p
     return NotYours("a trainee creates sessions only for themself");
   auto e = d.store.GetExercise(exercise_id);
   if (!e.ok()) return e.error();
+  auto spec = ParseExerciseSpec(e->spec_json);
+  if (!spec.ok()) return spec.error();
+  // An expert runs any exercise (their trials set its benchmark), enrolled or not.
+  auto experts = d.store.ListExperts();
+  if (!experts.ok()) return experts.error();
+  if (std::find(experts->begin(), experts->end(), trainee) != experts->end())
+    return StartAttempt(d, trainee, *e, spec->task);
   auto enrolments = d.store.ListEnrolments(trainee);
   if (!enrolments.ok()) return enrolments.error();
   const int64_t now = NowUs();
@@ -663,14 +765,7 @@ Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p
       return Error{ErrorCode::kResourceExhausted,
                    "today's attempts at '" + e->title + "' are used up; try tomorrow", "exercise"};
   }
-  auto created = d.sessions.Create(trainee, e->scene);
-  if (!created.ok()) return created.error();
-  if (Status s = d.store.SetSessionExercise(created->record.id, exercise_id); !s.ok()) {
-    (void)d.sessions.Stop(static_cast<uint64_t>(created->record.id),
-                          "could not be marked as an attempt");
-    return s.error();
-  }
-  return created;
+  return StartAttempt(d, trainee, *e, spec->task);
 }
 
 Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const db::Principal& p,

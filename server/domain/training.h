@@ -48,12 +48,17 @@ struct ExerciseSpec {
   double k = 1.0;  // SDs of the mean ± k·SD benchmark
   scoring::CusumParams cusum;
   int stall_after = 5;  // failed attempts in a row that flag a trainee as stalled
+  // The exercise's own settings of its scene's task (none: the scene's). An exercise that has
+  // them takes its expert benchmark from expert trials at this exercise only (experts may run
+  // any exercise without an enrolment), since the scene's other trials were a different task.
+  scoring::TaskSettings task;
 };
 // The spec's JSON (stored in the exercise's row, and what the API takes):
 //   {"targets":[{"metric":"peak_force_n","value":2.5},{"metric":"completion_time_s",
 //    "from_experts":true}], "consecutive":2, "max_attempts_per_day":0, "unlock_in_order":true,
 //    "benchmark":"mean_sd"|"best_quartile", "k":1, "cusum":{"p0":0.1,"p1":0.3,"alpha":0.05,
-//    "beta":0.2}, "stall_after":5}
+//    "beta":0.2}, "stall_after":5, "task":{"target_deg":60,"tolerance_deg":5,"hold_s":2,
+//    "force_limit_n":2,"time_limit_s":45}}   (a press: "target_depth_m", "tolerance_m")
 // kInvalidArgument naming the field for anything out of range.
 Expected<ExerciseSpec> ParseExerciseSpec(std::string_view json);
 std::string ExerciseSpecJson(const ExerciseSpec& spec);
@@ -70,6 +75,9 @@ struct ExerciseView {
   std::vector<ResolvedTarget> targets;
   bool ready = true;                             // every target has a value
   std::vector<scoring::Target> Targets() const;  // the resolved ones
+  // The task a trainee does: the scene's with the exercise's settings (nullopt while the scene
+  // does not load).
+  std::optional<scoring::TaskSpec> task;
 };
 struct CourseView {
   db::CourseRecord record;  // its exercises' rows in `exercises` below

@@ -213,6 +213,19 @@ json FiniteOrNull(double x) {
   return std::isfinite(x) ? json(x) : json(nullptr);
 }
 
+// A task in the units a trainee reads (degrees of twist or millimetres of press depth).
+json TaskJson(const scoring::TaskSpec& t) {
+  const bool twist = t.kind == scoring::TaskKind::kTwist;
+  const double unit = twist ? 180.0 / M_PI : 1e3;
+  return {{"kind", twist ? "twist" : "press"},
+          {"target", t.target * unit},
+          {"tolerance", t.tolerance * unit},
+          {"unit", twist ? "deg" : "mm"},
+          {"hold_s", t.hold_s},
+          {"force_limit_n", t.force_limit},
+          {"time_limit_s", t.time_limit}};
+}
+
 json ExerciseJson(const ExerciseView& e) {
   json targets = json::array();
   for (const ResolvedTarget& t : e.targets) {
@@ -231,7 +244,8 @@ json ExerciseJson(const ExerciseView& e) {
           {"scene", e.record.scene},
           {"spec", json::parse(e.record.spec_json, nullptr, false)},
           {"targets", targets},
-          {"ready", e.ready}};
+          {"ready", e.ready},
+          {"task", e.task ? TaskJson(*e.task) : json(nullptr)}};
 }
 
 json CourseJson(const CourseView& c) {
@@ -688,7 +702,8 @@ HttpReply HttpApi::Routes::Scenes(const Call& c) {
                       {"target_unit", s.task == "twist" ? "deg" : "mm"},
                       {"force_limit_n", s.force_limit_n},
                       {"device_max_force_n", s.device_max_force_n},
-                      {"time_limit_s", s.time_limit_s}});
+                      {"time_limit_s", s.time_limit_s},
+                      {"hold_s", s.spec.hold_s}});
   return Ok({{"scenes", scenes}, {"unusable", listing->unusable}});
 }
 

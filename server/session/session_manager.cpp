@@ -107,7 +107,8 @@ SessionManager::~SessionManager() {
 }
 
 Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
-                                                const std::string& scene_name) {
+                                                const std::string& scene_name,
+                                                const scoring::TaskSettings& task) {
   if (!IsSceneName(scene_name))
     return InvalidArgument("scene", "a scene name (letters, digits and '-'), not a path");
   // The limits are checked again when the session is inserted (two concurrent creates).
@@ -121,6 +122,12 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
                  missing ? scene.error().message
                          : "scene '" + scene_name + "' is unusable: " + scene.error().message,
                  "scene"};
+  }
+  if (!task.empty()) {
+    auto applied = scoring::ApplyTaskSettings(scene->task, task);
+    if (!applied.ok())
+      return InvalidArgument("task." + applied.error().field, applied.error().message);
+    scene->task = *applied;
   }
   // No deformation thread until a station drives the session (invariant 5).
   // Reduced scenes cache their precomputation in the default folder

@@ -95,7 +95,8 @@ class SessionManager final : public Sessions {
   SessionManager(const SessionManager&) = delete;
   SessionManager& operator=(const SessionManager&) = delete;
 
-  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene) override;
+  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene,
+                                  const scoring::TaskSettings& task = {}) override;
   Expected<db::SessionRecord> Start(uint64_t id) override;
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
   Expected<db::SessionRecord> Get(uint64_t id) override;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/scoring/trial_metrics.h"
 #include "common/sim/simulation.h"
 #include "db/store.h"
 #include "proto/wire/datagram.h"
@@ -29,8 +30,11 @@ class Sessions {
  public:
   virtual ~Sessions() = default;
 
-  // `scene` is a scene name from scenes/ (letters, digits, '-'), never a path.
-  virtual Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene) = 0;
+  // `scene` is a scene name from scenes/ (letters, digits, '-'), never a path; `task` changes
+  // its task (an exercise's settings, scoring::ApplyTaskSettings), kInvalidArgument if they do
+  // not fit it.
+  virtual Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene,
+                                          const scoring::TaskSettings& task = {}) = 0;
   virtual Expected<db::SessionRecord> Start(uint64_t id) = 0;
   virtual Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) = 0;
   virtual Expected<db::SessionRecord> Get(uint64_t id) = 0;  // the store's row, live state

@@ -163,6 +163,8 @@ def main():
         fill("#course-form input[name=value-score-2]", "5")
         tick("#course-form input[name=use-overload_events-2]", True)
         fill("#course-form input[name=value-overload_events-2]", "2")
+        # Its own task: the calf's twist within 50 s (the scene allows 60).
+        fill("#course-form input[name=task-time-2]", "50")
         driver.find_element(By.CSS_SELECTOR, "#course-form button[type=submit]").click()
         wait.until(lambda d: "created with 2 exercises" in d.find_element(By.ID, "training-news").text)
         course = request(http, "GET", "/training/courses", tokens["ian"])["courses"][0]
@@ -170,12 +172,16 @@ def main():
         times = [round(s["metrics"]["completion_time"], 2) for s in expert_summaries]
         check(t["completion_time_s"]["from_experts"] and t["completion_time_s"]["expert_trials"] == 3,
               f"exercise 1's time target comes from the 3 expert trials ({t['completion_time_s']['value']} s from {times})")
+        calf_task = course["exercises"][1]["task"]
+        check(course["exercises"][1]["spec"]["task"] == {"time_limit_s": 50} and calf_task["time_limit_s"] == 50
+              and calf_task["kind"] == "twist", f"exercise 2 sets its own time limit, the rest as the scene has it ({calf_task})")
         fill("#cohort-form input[name=name]", "Residents 2026")
         fill("#cohort-form textarea[name=members]", ", ".join(TRAINEES))
         driver.find_element(By.CSS_SELECTOR, "#cohort-form button").click()
         wait.until(lambda d: "created and enrolled" in d.find_element(By.ID, "training-news").text)
         wait.until(lambda d: len(d.find_elements(By.CSS_SELECTOR, "#progress-grid tbody tr")) == 10)
         check(cell_states("tina") == ["not_started", "locked"], f"the grid: ten trainees, the calf locked ({cell_states('tina')})")
+        check("within 50 s" in driver.find_element(By.ID, "cohort-grid").text, "the grid names each exercise's task")
         shot("grid-empty")
 
         # --- ten trainees train at stations that follow the course; the grid follows live ---

@@ -21,6 +21,14 @@ export function metricValue(m, v) {
 export const STATE_TEXT = { locked: 'locked', not_started: 'not started', training: 'training', stalled: 'stalled', proficient: 'proficient' };
 export function stateCell(state) { return el('span', { class: 'badge st-' + state }, STATE_TEXT[state] || state); }
 
+// An exercise's task as a sentence: "twist to 60° ± 5°, held 2 s, under 2 N, within 45 s".
+export function taskText(t) {
+  if (!t) return '';
+  const u = t.unit === 'deg' ? '°' : ' mm';
+  return `${t.kind === 'twist' ? 'twist to' : 'press to'} ${fmt(t.target, t.unit === 'deg' ? 0 : 1)}${u} ± ${fmt(t.tolerance, 1)}${u}, ` +
+    `held ${fmt(t.hold_s, 1)} s, under ${fmt(t.force_limit_n, 1)} N, within ${fmt(t.time_limit_s, 0)} s`;
+}
+
 // A target as a sentence: "peak force ≤ 1.50 N (experts, 3 trials)".
 export function targetText(t) {
   if (t.value === null) return `${metricName(t.metric)}: waiting for expert trials (${t.expert_trials} of 2)`;
@@ -44,6 +52,7 @@ export function courseCards(course, progress) {
       el('h3', {}, `${e.position}. ${e.title} `, stateCell(p.state), progress.next_exercise === e.id ? el('span', { class: 'badge next' }, 'next') : null),
       el('p', { class: 'muted' }, `${e.scene} · ${p.attempts} attempt${p.attempts === 1 ? '' : 's'} · ${p.streak} passed in a row of ${e.spec.consecutive} needed` +
         (p.proficient_at ? ` · proficient at attempt ${p.proficient_at}` : '')),
+      e.task ? el('p', { class: 'task' }, 'Task: ', taskText(e.task)) : null,
       el('ul', { class: 'targets' }, e.targets.map((t) => el('li', {}, targetText(t)))),
       p.last_checks.length ? [el('h4', {}, 'Your last attempt'), checksList(p.last_checks)] : null,
       p.to_improve.length && p.state !== 'proficient' ? el('p', { class: 'improve' }, 'To improve: ', p.to_improve.map(metricName).join(', ')) : null);

@@ -333,10 +333,24 @@ TEST_F(ControlPlaneTest, TrainingServiceRunsACourseFromCreationToTheCurve) {
   v1::ExerciseTarget* t = e->add_targets();
   t->set_metric("peak_force_n");
   t->set_value(5.0);
+  e->mutable_task()->set_kind("press");  // the exercise's own press: 4 mm within 2 mm
+  e->mutable_task()->set_target(0.004);
+  e->mutable_task()->set_tolerance(0.002);
   v1::Course made;
   ASSERT_TRUE(training->CreateCourse(Ctx(db::Role::kInstructor).get(), course, &made).ok());
   ASSERT_EQ(made.exercises_size(), 1);
   EXPECT_DOUBLE_EQ(made.exercises(0).targets(0).resolved(), 5.0);
+  EXPECT_DOUBLE_EQ(made.exercises(0).task().target(), 0.004);
+  EXPECT_FALSE(made.exercises(0).task().has_hold_s());  // the scene's
+  // Settings for another kind of task, or a target without its kind, are refused.
+  v1::CreateCourseRequest twist = course;
+  twist.mutable_exercises(0)->mutable_task()->set_kind("twist");
+  v1::Course refused;
+  EXPECT_EQ(training->CreateCourse(Ctx(db::Role::kInstructor).get(), twist, &refused).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  twist.mutable_exercises(0)->mutable_task()->clear_kind();
+  EXPECT_EQ(training->CreateCourse(Ctx(db::Role::kInstructor).get(), twist, &refused).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
   // A bad target is refused naming it; a trainee may not build courses.
   v1::CreateCourseRequest bad = course;
   bad.set_name("Bad");

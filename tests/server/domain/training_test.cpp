@@ -229,6 +229,69 @@ TEST_F(TrainingTest, ASpecIsCheckedFieldByField) {
   EXPECT_FALSE(back->targets[1].value.has_value());
 }
 
+// An exercise sets its own task (the arm twisted to 60° within 4°, under 2 N, in 45 s): checked
+// against its scene's task, shown resolved, and its expert benchmark taken from expert trials
+// at this exercise only (the scene's other trials were another task); an expert runs it
+// without an enrolment.
+TEST_F(TrainingTest, AnExerciseSetsItsOwnTaskAndItsExpertsTrialsAtIt) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  auto spec = ParseExerciseSpec(
+      R"({"targets":[{"metric":"completion_time_s","from_experts":true}],
+          "task":{"target_deg":60,"tolerance_deg":4,"force_limit_n":2,"time_limit_s":45}})");
+  ASSERT_TRUE(spec.ok()) << spec.error().message;
+  EXPECT_EQ(spec->task.kind, scoring::TaskKind::kTwist);
+  EXPECT_NEAR(*spec->task.target, 60 * M_PI / 180, 1e-12);
+  EXPECT_FALSE(spec->task.hold_s.has_value());  // the scene's
+  auto back = ParseExerciseSpec(ExerciseSpecJson(*spec));
+  ASSERT_TRUE(back.ok());
+  EXPECT_NEAR(*back->task.tolerance, 4 * M_PI / 180, 1e-12);
+  EXPECT_NEAR(*back->task.time_limit, 45, 1e-12);
+  // Refused by name: a press's depth on the arm, a target out of range, an unknown setting.
+  auto press = ParseExerciseSpec(
+      R"({"targets":[{"metric":"score","value":7}],"task":{"target_depth_m":0.004}})");
+  ASSERT_TRUE(press.ok());
+  Status wrong_kind = SetExerciseSpec(*domain_, As("ian"), Ex(1), *press);
+  EXPECT_EQ(wrong_kind.error().field, "exercise.spec.task.target_deg");
+  auto far =
+      ParseExerciseSpec(R"({"targets":[{"metric":"score","value":7}],"task":{"target_deg":400}})");
+  EXPECT_EQ(SetExerciseSpec(*domain_, As("ian"), Ex(1), *far).error().field,
+            "exercise.spec.task.target_deg");
+  EXPECT_EQ(ParseExerciseSpec(R"({"targets":[{"metric":"score","value":7}],"task":{"speed":1}})")
+                .error()
+                .field,
+            "task.speed");
+  EXPECT_EQ(
+      ParseExerciseSpec(R"({"targets":[{"metric":"score","value":7}],"task":{"hold_s":"long"}})")
+          .error()
+          .field,
+      "task.hold_s");
+
+  ASSERT_TRUE(SetExerciseSpec(*domain_, As("ian"), Ex(1), *spec).ok());
+  auto course = GetCourse(*domain_, As("tina"), course_.record.id);
+  ASSERT_TRUE(course.ok()) << course.error().message;
+  const ExerciseView& twist = course->exercises[1];
+  ASSERT_TRUE(twist.task.has_value());
+  EXPECT_NEAR(twist.task->target, 60 * M_PI / 180, 1e-12);
+  EXPECT_NEAR(twist.task->force_limit, 2, 1e-12);
+  EXPECT_GT(twist.task->hold_s, 0);  // the scene's hold, kept
+  // The two expert trials on the arm were the scene's own task: they do not set this one.
+  EXPECT_EQ(twist.targets[0].expert_trials, 0);
+  EXPECT_FALSE(twist.ready);
+  // An expert (not enrolled) runs the exercise itself; two such trials make the benchmark.
+  auto run = CreateExerciseSession(*domain_, As("exa"), "", Ex(1));
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  EXPECT_EQ(store_->SessionExercise(run->record.id).value(), Ex(1));
+  ASSERT_TRUE(sessions_->Stop(static_cast<uint64_t>(run->record.id), "test").ok());
+  Trial("exa", kScene2, Ex(1), 12, 1.0);
+  Trial("exb", kScene2, Ex(1), 16, 1.0);
+  auto ready = GetCourse(*domain_, As("ian"), course_.record.id);
+  EXPECT_EQ(ready->exercises[1].targets[0].expert_trials, 2);
+  EXPECT_NEAR(*ready->exercises[1].targets[0].value, 14 + std::sqrt(8.0), 1e-9);
+  EXPECT_TRUE(ready->exercises[1].ready);
+  // The press exercise, without settings, still takes every expert trial on its scene.
+  EXPECT_EQ(ready->exercises[0].targets[0].expert_trials, 3);
+}
+
 TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   ASSERT_NO_FATAL_FAILURE(Programme());
   Trial("tina", kScene, Ex(0), 25, 1.2);

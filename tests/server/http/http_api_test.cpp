@@ -515,7 +515,8 @@ TEST(WebSessionsTest, AreBoundedPerUserAndForgetThatUsersOldestFirst) {
 TEST_F(HttpApiTest, TheTrainingRoutesBuildACourseAndShowItsGrid) {
   const Signed ian = SignIn(tokens_["ian"]);
   const json spec = {{"targets", json::array({{{"metric", "peak_force_n"}, {"value", 2.5}}})},
-                     {"consecutive", 1}};
+                     {"consecutive", 1},
+                     {"task", {{"target_depth_m", 0.004}, {"force_limit_n", 1.5}}}};
   json body = {
       {"name", "Basics"},
       {"exercises",
@@ -527,9 +528,21 @@ TEST_F(HttpApiTest, TheTrainingRoutesBuildACourseAndShowItsGrid) {
   r = Call("POST", "/api/v1/training/courses", bad.dump(), ian.cookie, ian.csrf);
   EXPECT_EQ(r.status, 400);
   EXPECT_EQ(json::parse(r.body)["field"], "exercises[0].spec.targets[0]");
+  bad = body;
+  bad["exercises"][0]["spec"]["task"] = {{"target_deg", 45}};  // a twist's, on a press scene
+  r = Call("POST", "/api/v1/training/courses", bad.dump(), ian.cookie, ian.csrf);
+  EXPECT_EQ(r.status, 400);
+  EXPECT_EQ(json::parse(r.body)["field"], "exercises[0].spec.task.target_depth_m");
   r = Call("POST", "/api/v1/training/courses", body.dump(), ian.cookie, ian.csrf);
   ASSERT_EQ(r.status, 201) << r.body;
   const int64_t course = json::parse(r.body)["course"]["id"];
+  // The task as the trainee reads it: the exercise's depth and limit, the scene's hold.
+  const json task = json::parse(r.body)["course"]["exercises"][0]["task"];
+  EXPECT_EQ(task["kind"], "press");
+  EXPECT_NEAR(task["target"].get<double>(), 4.0, 1e-9);
+  EXPECT_EQ(task["unit"], "mm");
+  EXPECT_NEAR(task["force_limit_n"].get<double>(), 1.5, 1e-12);
+  EXPECT_NEAR(task["hold_s"].get<double>(), 2.0, 1e-12);
   r = Call("POST", "/api/v1/training/cohorts",
            json{{"name", "Residents"}, {"members", {"tina"}}}.dump(), ian.cookie, ian.csrf);
   ASSERT_EQ(r.status, 201) << r.body;

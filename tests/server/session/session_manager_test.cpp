@@ -17,6 +17,7 @@
 #include "common/core/clock.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
+#include "tests/support/press_and_hold.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 
@@ -59,7 +60,7 @@ class SessionManagerTest : public ::testing::Test {
   // default seq ms, a 1 kHz station).
   void Drive(const CreatedSession& s, uint64_t seq, double time = -1, wire::StylusMessage m = {}) {
     m.sample.time = time >= 0 ? time : 1e-3 * static_cast<double>(seq);
-    m.sample.position = Eigen::Vector3d(0, 0, 0.2);
+    if (m.sample.position.isZero()) m.sample.position = Eigen::Vector3d(0, 0, 0.2);  // above
     std::array<uint8_t, wire::kMaxDatagram> buf{};
     const uint64_t id = static_cast<uint64_t>(s.record.id);
     const size_t n =
@@ -115,6 +116,57 @@ TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHel
   EXPECT_NEAR(l.jitter_ms, 1.5, 1e-3);
   EXPECT_NEAR(l.loss, 0.2, 1e-9);          // 4 applied, sequence 4 never seen
   EXPECT_NEAR(l.rate_hz, 4 / 0.03, 1e-6);  // 4 applied over the 30 ms between first and last
+}
+
+// An exercise's task settings are the task the session scores: the same 1.5-s press (3 mm
+// into the sphere, held) completes a press to 1 mm within 20 mm held 0.3 s, does not complete the
+// scene's own press (5 mm within 1 mm, held 2 s), and stays far longer over a 0.5 N force limit
+// than over the scene's 2 N.
+TEST_F(SessionManagerTest, AnExercisesTaskSettingsAreTheTaskTheSessionScores) {
+  const auto trial = [&](const scoring::TaskSettings& task) {
+    auto s = sessions_->Create("tina", "sphere-palpation-256", task);
+    EXPECT_TRUE(s.ok()) << s.error().message;
+    const uint64_t id = static_cast<uint64_t>(s->record.id);
+    EXPECT_TRUE(sessions_->Start(id).ok());
+    uint64_t seq = 0;
+    for (const haptics::StylusSample& sample : test::PressAndHold(1.5)) {
+      wire::StylusMessage m;
+      m.sample = sample;
+      Drive(*s, ++seq, -1, m);
+      endpoint_clock_.Advance(1e-3);  // a 1 kHz station (the endpoint limits each one's rate)
+    }
+    EXPECT_TRUE(sessions_->Stop(id, "done").ok());
+    return store_->GetTrialMetrics(s->record.id).value().value();
+  };
+  const scoring::TrialMetrics scene = trial({});
+  scoring::TaskSettings easy;
+  easy.kind = scoring::TaskKind::kPress;
+  easy.target = 0.001;
+  easy.tolerance = 0.02;
+  easy.hold_s = 0.3;
+  easy.force_limit = 10;
+  const scoring::TrialMetrics easy_trial = trial(easy);
+  scoring::TaskSettings strict;
+  strict.force_limit = 0.5;
+  const scoring::TrialMetrics strict_trial = trial(strict);
+  EXPECT_FALSE(scene.completed);  // 2 s of hold asked, 1.5 s given
+  EXPECT_TRUE(easy_trial.completed);
+  EXPECT_EQ(easy_trial.time_over_force_limit, 0);
+  // The press pushes ~2 N: a little of it over the scene's 2 N, most of it over 0.5 N.
+  EXPECT_GT(strict_trial.peak_force, 0.5);
+  EXPECT_GT(strict_trial.time_over_force_limit, scene.time_over_force_limit + 0.5);
+  // Settings that do not fit the scene's task are refused by name, and no session is made.
+  scoring::TaskSettings twist;
+  twist.kind = scoring::TaskKind::kTwist;
+  twist.target = 1.0;
+  auto refused = sessions_->Create("tina", "sphere-palpation-256", twist);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_EQ(refused.error().field, "task.target_depth_m");
+  scoring::TaskSettings short_limit;
+  short_limit.time_limit = 1.5;  // the scene holds 2 s
+  EXPECT_EQ(sessions_->Create("tina", "sphere-palpation-256", short_limit).error().field,
+            "task.time_limit_s");
 }
 
 TEST_F(SessionManagerTest, ADrivenSessionKeepsItsRecordWhileLiveAndOnceEnded) {

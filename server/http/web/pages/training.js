@@ -4,7 +4,7 @@
 // with targets fixed or taken from expert trials, cohorts and enrolments, and the exports.
 import { api } from '../api.js';
 import { el, message } from '../dom.js';
-import { metricName, showCohortCurve, showCurve, stateCell, targetText } from '../progress.js';
+import { metricName, showCohortCurve, showCurve, stateCell, targetText, taskText } from '../progress.js';
 import { loadScenes } from '../scenes.js';
 
 const METRIC_NAMES = ['completion_time_s', 'peak_force_n', 'time_over_force_limit_s', 'overload_events',
@@ -88,7 +88,7 @@ function gridTable(g, openCurve, openCohortCurve) {
       const cell = ev.target.closest('td.cell');
       if (cell && ev.target.closest('button')) openCurve(cell.parentElement.dataset.trainee, Number(cell.dataset.exercise));
     } }, el('thead', {}, head), el('tbody', {}, rows))),
-    el('p', { class: 'muted' }, g.course.exercises.map((e) => `${e.position}. ${e.title}: ${e.targets.map(targetText).join('; ')}`).join(' — ')));
+    el('p', { class: 'muted' }, g.course.exercises.map((e) => `${e.position}. ${e.title} (${taskText(e.task)}): ${e.targets.map(targetText).join('; ')}`).join(' — ')));
 }
 
 // A course: its name and exercises, each with a scene and targets (a fixed value, or from the
@@ -115,7 +115,7 @@ function courseForm(scenes, experts, news, done) {
       const targets = METRIC_NAMES.filter((m) => get(`use-${m}`).checked).map((m) =>
         get(`experts-${m}`).checked ? { metric: m, from_experts: true } : { metric: m, value: Number(get(`value-${m}`).value) });
       return { title: get('title').value, scene: get('scene').value, spec: { targets, consecutive: Number(get('consecutive').value),
-        max_attempts_per_day: Number(get('per-day').value), benchmark: f.get('benchmark') } };
+        max_attempts_per_day: Number(get('per-day').value), benchmark: f.get('benchmark'), task: taskSettings(get, scenes) } };
     });
     try {
       const r = await api('POST', '/training/courses', { name: f.get('name'), description: f.get('description'), exercises });
@@ -126,17 +126,44 @@ function courseForm(scenes, experts, news, done) {
   return form;
 }
 
+// The exercise's own task settings from its fieldset: only the fields filled in (the others stay
+// as the scene has them), in the scene file's names and units (a press's depth in metres).
+function taskSettings(get, scenes) {
+  const scene = scenes.find((s) => s.name === get('scene').value), twist = !scene || scene.task === 'twist';
+  const out = {}, num = (k) => (get(k).value === '' ? null : Number(get(k).value));
+  if (num('task-target') !== null) out[twist ? 'target_deg' : 'target_depth_m'] = twist ? num('task-target') : num('task-target') / 1000;
+  if (num('task-tolerance') !== null) out[twist ? 'tolerance_deg' : 'tolerance_m'] = twist ? num('task-tolerance') : num('task-tolerance') / 1000;
+  for (const [k, name] of [['task-hold', 'hold_s'], ['task-force', 'force_limit_n'], ['task-time', 'time_limit_s']])
+    if (num(k) !== null) out[name] = num(k);
+  return out;
+}
+
+// The task fields, their units and the scene's own values as placeholders, for the chosen scene.
+function taskFields(n, scene) {
+  const twist = !scene || scene.task === 'twist', unit = twist ? '°' : 'mm';
+  const field = (label, k, value) => el('label', {}, label, el('input', { type: 'number', step: 'any', min: 0, name: `${k}-${n}`, placeholder: scene ? String(value) : '', inputmode: 'decimal' }));
+  return [field(`Target (${unit})`, 'task-target', scene && scene.target), field(`Tolerance (${unit})`, 'task-tolerance', scene && scene.tolerance),
+    field('Hold (s)', 'task-hold', scene && scene.hold_s), field('Force limit (N)', 'task-force', scene && scene.force_limit_n),
+    field('Time limit (s)', 'task-time', scene && scene.time_limit_s)];
+}
+
 function exerciseFieldset(n, scenes) {
   const metricRow = (m, checked, value, fromExperts) => el('div', { class: 'target-row' },
     el('label', { class: 'inline' }, el('input', { type: 'checkbox', name: `use-${m}-${n}`, checked }), metricName(m)),
     el('label', { class: 'inline' }, 'value', el('input', { type: 'number', step: 'any', name: `value-${m}-${n}`, value, inputmode: 'decimal' })),
     el('label', { class: 'inline' }, el('input', { type: 'checkbox', name: `experts-${m}-${n}`, checked: fromExperts }), 'from experts'));
+  const sceneSel = el('select', { name: `scene-${n}` }, scenes.map((s, i) => el('option', { value: s.name, selected: n === 2 ? s.task === 'twist' && !scenes.slice(0, i).some((x) => x.task === 'twist') : i === 0 }, s.name)));
+  const task = el('fieldset', { class: 'filters task-fields' }, el('legend', {}, 'Task (empty: as the scene sets it)'));
+  const fillTask = () => task.replaceChildren(task.firstChild, ...taskFields(n, scenes.find((s) => s.name === sceneSel.value)));
+  sceneSel.addEventListener('change', fillTask);
+  fillTask();
   return el('fieldset', { class: 'exercise-fields' }, el('legend', {}, `Exercise ${n}`),
     el('div', { class: 'filters' },
       el('label', {}, 'Title', el('input', { name: `title-${n}`, required: true, maxlength: 128, value: n === 1 ? 'Palpate the sphere' : n === 2 ? 'Twist the arm' : '' })),
-      el('label', {}, 'Scene', el('select', { name: `scene-${n}` }, scenes.map((s, i) => el('option', { value: s.name, selected: n === 2 ? s.task === 'twist' && !scenes.slice(0, i).some((x) => x.task === 'twist') : i === 0 }, s.name)))),
+      el('label', {}, 'Scene', sceneSel),
       el('label', {}, 'Passes in a row', el('input', { type: 'number', name: `consecutive-${n}`, min: 1, max: 20, value: 2 })),
       el('label', {}, 'Attempts a day (0: no limit)', el('input', { type: 'number', name: `per-day-${n}`, min: 0, max: 1000, value: 0 }))),
+    task,
     el('div', { class: 'targets-fields' },
       metricRow('completion_time_s', true, '', true), metricRow('peak_force_n', true, '', true),
       metricRow('overload_events', false, 0, false), metricRow('score', false, 7, false),
