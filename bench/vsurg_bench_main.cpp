@@ -226,7 +226,8 @@ struct ServerStack {
   std::thread thread;
 
   static vsurg::Expected<std::unique_ptr<ServerStack>> Start(vsurg::server::UdpEndpoint& endpoint,
-                                                             const std::string& scene, int n) {
+                                                             const std::string& scene, int n,
+                                                             int pool_workers) {
     auto s = std::make_unique<ServerStack>();
     s->dir = std::filesystem::temp_directory_path() /
              ("vsurg_bench_stack_" + std::to_string(::getpid()));
@@ -240,6 +241,7 @@ struct ServerStack {
     s->token = *token;
     vsurg::server::SessionManagerOptions so;
     so.max_live_sessions = std::max(256, n);
+    so.deformation_workers = pool_workers;
     s->sessions = vsurg::server::SessionManager::Open(*s->store, &endpoint, so).value();
     auto server = vsurg::server::HttpServer::Start(*s->store, *s->sessions, {});
     if (!server.ok()) return server.error();
@@ -323,6 +325,10 @@ int HapticRtt(const std::vector<std::string>& args) {
               "run the server's own stack (store, session manager, web dashboard) and have this "
               "many dashboard clients follow every session live (-1: the bare endpoint)",
               false, "-1")
+      .Option("pool-workers", ArgParser::Kind::kInt,
+              "driven sessions deform on a pool of this many workers (0: one per core); -1: a "
+              "deformation thread per session (vsurg-server's default)",
+              false, "-1")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -333,6 +339,11 @@ int HapticRtt(const std::vector<std::string>& args) {
     return 0;
   }
   const int n = p.Has("stations") ? p.Int("stations") : 1;
+  const int pool_workers = p.Int("pool-workers");
+  if (pool_workers < -1 || pool_workers > 64)
+    return std::cerr << p.command() << ": --pool-workers: must be in -1..64\n", 2;
+  std::unique_ptr<vsurg::sim::DeformationPool> pool;
+  if (pool_workers >= 0) pool = std::make_unique<vsurg::sim::DeformationPool>(pool_workers);
   const double seconds = p.Has("seconds") ? p.Double("seconds") : 10.0;
   if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
   if (!(seconds > 0 && seconds <= 3600))
@@ -371,7 +382,7 @@ int HapticRtt(const std::vector<std::string>& args) {
   if (dashboard_clients >= 0) {
     // The server as vsurg-server runs it: sessions created and started by the session manager
     // (its sampler feeding telemetry), the dashboard listening beside it.
-    auto made = ServerStack::Start(**endpoint, scene->name, n);
+    auto made = ServerStack::Start(**endpoint, scene->name, n, pool_workers);
     if (!made.ok()) return std::cerr << made.error().message << "\n", 1;
     stack = std::move(made).value();
     for (int i = 0; i < n; ++i)
@@ -380,7 +391,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   }
   for (int i = 0; i < n && !stack; ++i) {
     const vsurg::wire::SessionKey key = BenchKey(i);
-    auto sim = vsurg::sim::Simulation::Create(*scene, {true});
+    auto sim = vsurg::sim::Simulation::Create(
+        *scene, {.threaded = true, .start_deformation = true, .cache_dir = {}, .pool = pool.get()});
     if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
     sims.push_back(std::move(*sim));
     (*endpoint)->AddSession(1000 + i, key, sims.back().get());
@@ -414,6 +426,7 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["idle_threads"] = p.Flag("idle-threads");
   j["dashboard_clients"] = dashboard_clients;
   j["realtime_priority"] = realtime ? priority : 0;
+  j["pool_workers"] = pool ? pool->workers() : pool_workers;
   j["dashboard_bytes"] = dashboard_bytes;
   j["dashboard_events"] = dashboard_events;
   if (p.Flag("json")) {

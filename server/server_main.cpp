@@ -14,8 +14,8 @@
 // no new sessions, the live ones finish (up to --drain-timeout), then the same.
 #include <signal.h>
 #include <unistd.h>
-#include <algorithm>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -95,6 +95,10 @@ int Main(std::vector<std::string> args) {
               "host names the dashboard answers for, comma-separated, besides IP literals and "
               "localhost (any other Host header gets 421: DNS rebinding)")
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
+      .Option("deformation-workers", Kind::kInt,
+              "driven sessions deform on a pool of this many threads (0: one per core) instead "
+              "of a thread each (-1)",
+              false, "-1")
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off)", false, "20")
       .Option("max-sessions", Kind::kInt, "live sessions on this server", false, "256")
@@ -232,6 +236,7 @@ int Main(std::vector<std::string> args) {
     so.max_live_sessions = max_sessions;
     so.max_sessions_per_user = per_user;
     so.start_timeout_s = start_timeout;
+    so.deformation_workers = static_cast<int>(p.Int("deformation-workers"));
     if (role == "sim") {
       char host[256] = {};
       gethostname(host, sizeof host - 1);
@@ -240,8 +245,9 @@ int Main(std::vector<std::string> args) {
     }
     auto opened = vsurg::server::SessionManager::Open(**store, endpoint.get(), so);
     if (!opened.ok()) {
-      std::cerr << "vsurg-server: --" << opened.error().field << ": " << opened.error().message
-                << "\n";
+      std::string flag = opened.error().field;  // the option's name, as typed
+      std::replace(flag.begin(), flag.end(), '_', '-');
+      std::cerr << "vsurg-server: --" << flag << ": " << opened.error().message << "\n";
       return opened.error().code == vsurg::ErrorCode::kInvalidArgument ? 2 : 1;
     }
     manager = std::move(opened).value();

@@ -72,7 +72,19 @@ Simulation::~Simulation() {
 }
 
 void Simulation::SetDeformationRunning(bool running) {
-  if (running == thread_.joinable()) return;
+  if (running == deformation_running()) return;
+  if (options_.pool) {
+    if (running && !options_.threaded) return;
+    if (running) {
+      pool_next_ = DeformationPool::Clock::now();
+      pool_seen_ = 0;  // as the thread's loop: a request already made is served at once
+      options_.pool->Add(this);
+    } else {
+      options_.pool->Remove(this);  // returns once no worker steps it
+    }
+    pooled_ = running;
+    return;
+  }
   if (running) {
     if (!options_.threaded) return;
     stop_.store(false);
@@ -448,6 +460,25 @@ void Simulation::DeformationLoop() {
       std::this_thread::sleep_until(next);
     }
   }
+}
+
+DeformationPool::Clock::time_point Simulation::StepDue(DeformationPool::Clock::time_point now) {
+  using Clock = DeformationPool::Clock;
+  if (Paced()) {  // the scene's dt, as DeformationLoop keeps it
+    inputs_.Acquire();
+    Deform(inputs_.Front());
+    pool_next_ += std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(scene_.region.dt));
+    if (now - pool_next_ > std::chrono::milliseconds(50)) pool_next_ = now;  // fell behind
+    return pool_next_;
+  }
+  const uint64_t version = input_version_.load(std::memory_order_acquire);
+  if (version != pool_seen_) {  // the haptic path asked for something new
+    pool_seen_ = version;
+    inputs_.Acquire();
+    Deform(inputs_.Front());
+  }
+  return now + options_.pool->poll();
 }
 
 bool Simulation::TakeVisualFrame(VisualFrame& out) {

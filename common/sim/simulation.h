@@ -49,6 +49,7 @@
 #include "common/haptics/safety.h"
 #include "common/haptics/types.h"
 #include "common/scoring/trial_metrics.h"
+#include "common/sim/deformation_pool.h"
 #include "common/sim/scene.h"
 #include "common/sim/telemetry.h"
 #include "common/sim/tissue_room.h"
@@ -72,6 +73,9 @@ struct SimulationOptions {
   // Reduced models: where their precomputation is cached (tissue::ReducedCache); empty: the
   // default (tissue::DefaultCacheDirectory()).
   std::string cache_dir = "";
+  // Threaded only: the deformation runs as a member of this pool (common/sim/deformation_pool.h)
+  // instead of on a thread of its own. It must outlive the simulation. Null: its own thread.
+  DeformationPool* pool = nullptr;
 };
 
 struct VisualFrame {
@@ -80,7 +84,7 @@ struct VisualFrame {
   std::vector<geometry::Vec3> positions;  // their positions, m
 };
 
-class Simulation {
+class Simulation final : private DeformationPool::Member {
  public:
   static Expected<std::unique_ptr<Simulation>> Create(const Scene& scene,
                                                       const SimulationOptions& options = {});
@@ -94,7 +98,7 @@ class Simulation {
   // the deformation thread. The tissue keeps its state while the thread is off; the haptic path
   // keeps answering from the last published surface.
   void SetDeformationRunning(bool running);
-  bool deformation_running() const { return thread_.joinable(); }
+  bool deformation_running() const { return thread_.joinable() || pooled_; }
   // Non-threaded mode: one deformation update from the latest input (the caller's thread).
   void StepDeformation();
   // Non-threaded mode: plays samples through OnStylus in their own time. The deformation steps
@@ -146,6 +150,8 @@ class Simulation {
   std::string CacheDirectory() const;  // the reduced models' cache (options or the default)
   bool Paced() const;  // dynamic models step on the clock; quasi-static ones follow requests
   void DeformationLoop();
+  // As a pool's member: one deformation when due (paced: every dt; quasi-static: a new request).
+  DeformationPool::Clock::time_point StepDue(DeformationPool::Clock::time_point now) override;
   void Deform(const DeformInput& in);
   void Publish(const std::vector<geometry::Vec3>& positions, bool overload,
                bool outside_model = false);
@@ -199,6 +205,11 @@ class Simulation {
   DeformInput published_;  // haptic thread: what was last handed over
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  // In a pool (options_.pool): whether it is a member now (control thread), and its schedule
+  // (the pool's worker, one at a time).
+  bool pooled_ = false;
+  DeformationPool::Clock::time_point pool_next_{};
+  uint64_t pool_seen_ = 0;
 };
 
 }  // namespace vsurg::sim

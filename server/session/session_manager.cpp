@@ -35,6 +35,8 @@ Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
   if (!(o.start_timeout_s > 0 && o.start_timeout_s <= 86400))
     return InvalidArgument("start_timeout_s", "must be within 0..86400 s");
   if (o.node.size() > 64) return InvalidArgument("node", "a node name has at most 64 characters");
+  if (o.deformation_workers < -1 || o.deformation_workers > 256)
+    return InvalidArgument("deformation_workers", "must be within -1..256 (0: one per core)");
   if (!o.node.empty() && !o.lease)
     return InvalidArgument("lease", "a simulation node's sessions need its lease");
   // Nothing is live in a new process: what the store says is live was left by one that died.
@@ -58,6 +60,8 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
       endpoint_(endpoint),
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()) {
+  if (options.deformation_workers >= 0)
+    pool_ = std::make_unique<sim::DeformationPool>(options.deformation_workers);
   pending_.reserve(64);
 }
 
@@ -133,7 +137,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   // Reduced scenes cache their precomputation in the default folder
   // (tissue::DefaultCacheDirectory).
   auto simulation = sim::Simulation::Create(
-      *scene, {.threaded = true, .start_deformation = false, .cache_dir = {}});
+      *scene, {.threaded = true, .start_deformation = false, .cache_dir = {}, .pool = pool_.get()});
   if (!simulation.ok())
     return Error{ErrorCode::kFailedPrecondition,
                  "scene '" + scene_name + "' does not build: " + simulation.error().message,

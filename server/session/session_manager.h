@@ -81,6 +81,11 @@ struct SessionManagerOptions {
   // is valid, and every store write carries the epoch a session was created under. Null in the
   // all-in-one server. Must outlive the manager.
   const Lease* lease = nullptr;
+  // Driven sessions deform on a pool of this many workers (common/sim/deformation_pool.h; 0:
+  // one per core), or −1 (the default) each on a thread of its own. The pool is not the default
+  // yet: at 64 stations on 2 cores it did not lower the haptic round trip's p99 (BENCHMARKS.md,
+  // "A deformation pool instead of a thread per session").
+  int deformation_workers = -1;
 };
 
 class SessionManager final : public Sessions {
@@ -163,6 +168,8 @@ class SessionManager final : public Sessions {
   UdpEndpoint* endpoint_;
   SessionManagerOptions options_;
   const Clock& clock_;
+  // Before live_: the sessions' simulations leave the pool before it stops.
+  std::unique_ptr<sim::DeformationPool> pool_;
   mutable std::mutex mutex_;  // live_
   std::map<uint64_t, std::unique_ptr<Live>> live_;
   std::mutex subscribers_mutex_;  // held while subscribers run (see Unsubscribe)
