@@ -100,7 +100,9 @@ int Main(std::vector<std::string> args) {
               "of a thread each (-1)",
               false, "-1")
       .Option("realtime-priority", Kind::kInt,
-              "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off)", false, "20")
+              "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off, the normal "
+              "priority a container gives)",
+              false, "0")
       .Option("max-sessions", Kind::kInt, "live sessions on this server", false, "256")
       .Option("max-sessions-per-user", Kind::kInt, "live sessions per trainee", false, "2")
       .Option("start-timeout", Kind::kDouble,
