@@ -17,7 +17,7 @@ VSURG_PACKAGES=(
   chromium chromium-driver python3-selenium libjs-chart.js nodejs zlib1g-dev
   libimgui-dev libfreetype-dev fonts-dejavu-core
   libassimp-dev libcgal-dev
-  postgresql libpq-dev python3-yaml
+  postgresql libpq-dev python3-yaml python3-prometheus-client
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's

@@ -34,6 +34,8 @@
 #include "server/control/control_plane.h"
 #include "server/http/http_server.h"
 #include "server/net/udp_endpoint.h"
+#include "server/ops/metrics.h"
+#include "server/ops/session_metrics.h"
 #include "server/session/session_manager.h"
 #include "server/store_commands.h"
 
@@ -45,6 +47,37 @@ using Kind = ArgParser::Kind;
 
 void Log(const std::string& event, const std::string& fields = "") {
   vsurg::LogEvent("vsurg-server", event, fields);
+}
+
+// The haptic channel's counters as Prometheus families.
+void CollectEndpoint(const vsurg::server::EndpointCounters& c, vsurg::server::ops::MetricsText& m) {
+  m.Family("vsurg_udp_datagrams_received_total", "counter", "Datagrams the UDP endpoint read.");
+  m.Sample("vsurg_udp_datagrams_received_total", {}, static_cast<double>(c.received));
+  m.Family("vsurg_udp_forces_sent_total", "counter", "Force datagrams answered to stations.");
+  m.Sample("vsurg_udp_forces_sent_total", {}, static_cast<double>(c.answered));
+  m.Family("vsurg_udp_datagrams_dropped_total", "counter",
+           "Datagrams dropped unanswered, by reason (late, fenced, bad tag, stale, ...).");
+  for (size_t r = 1; r < c.dropped.size(); ++r)  // (0 is no reason)
+    m.Sample("vsurg_udp_datagrams_dropped_total",
+             {{"reason", vsurg::wire::DropReasonName(static_cast<vsurg::wire::DropReason>(r))}},
+             static_cast<double>(c.dropped[r]));
+  m.Family("vsurg_visual_frames_sent_total", "counter", "Scene frames sent to stations.");
+  m.Sample("vsurg_visual_frames_sent_total", {}, static_cast<double>(c.frames));
+}
+
+// The dashboard's counters as Prometheus families.
+void CollectHttp(const vsurg::server::HttpCounters& c, vsurg::server::ops::MetricsText& m) {
+  m.Family("vsurg_http_requests_total", "counter", "Requests the dashboard answered.");
+  m.Sample("vsurg_http_requests_total", {}, static_cast<double>(c.requests));
+  m.Family("vsurg_http_bad_requests_total", "counter",
+           "Requests refused as malformed, too large, too slow, ambiguous or for another host.");
+  m.Sample("vsurg_http_bad_requests_total", {}, static_cast<double>(c.bad_requests));
+  m.Family("vsurg_http_refused_connections_total", "counter", "Connections over the limits.");
+  m.Sample("vsurg_http_refused_connections_total", {}, static_cast<double>(c.refused_connections));
+  m.Family("vsurg_http_open_connections", "gauge", "Open dashboard connections.");
+  m.Sample("vsurg_http_open_connections", {}, c.open_connections);
+  m.Family("vsurg_http_open_streams", "gauge", "Open event streams and exports.");
+  m.Sample("vsurg_http_open_streams", {}, c.open_streams);
 }
 
 int Main(std::vector<std::string> args) {
@@ -202,6 +235,9 @@ int Main(std::vector<std::string> args) {
     return 1;
   }
   const bool shared_store = vsurg::db::BackendOf(p.String("db")) == vsurg::db::Backend::kPostgres;
+  // First: the collectors read the objects below; only the dashboard renders them, and it is
+  // shut down before any of them.
+  vsurg::server::ops::MetricsRegistry metrics;
   std::unique_ptr<vsurg::server::UdpEndpoint> endpoint;
   std::unique_ptr<vsurg::server::SessionManager> manager;
   std::unique_ptr<vsurg::server::cluster::ClusterSessions> placed;
@@ -284,6 +320,7 @@ int Main(std::vector<std::string> args) {
   }
   std::unique_ptr<vsurg::server::ControlPlane> control;
   std::unique_ptr<vsurg::server::HttpServer> web;
+  std::unique_ptr<vsurg::server::ops::SessionMetrics> session_metrics;
   vsurg::server::ControlPlaneOptions co;
   co.listen = p.String("listen");
   if (p.Has("tls-cert")) co.tls_cert_file = p.String("tls-cert");
@@ -319,6 +356,16 @@ int Main(std::vector<std::string> args) {
           at = comma + 1;
         }
       }
+      // The Prometheus scrape (GET /api/v1/metrics, an administrator's token).
+      session_metrics = std::make_unique<vsurg::server::ops::SessionMetrics>(*sessions);
+      metrics.Add([&](vsurg::server::ops::MetricsText& m) { session_metrics->Collect(m); });
+      if (endpoint)
+        metrics.Add(
+            [&](vsurg::server::ops::MetricsText& m) { CollectEndpoint(endpoint->counters(), m); });
+      metrics.Add([&](vsurg::server::ops::MetricsText& m) {
+        if (web) CollectHttp(web->counters(), m);
+      });
+      ho.metrics = &metrics;
       auto web_started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
       if (!web_started.ok()) {
         std::cerr << "vsurg-server: --http: " << web_started.error().message << "\n";

@@ -56,6 +56,8 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
     {"TrainingService/ListCohorts", kInstructor | kAdmin},
     {"TrainingService/AddMembers", kInstructor | kAdmin},
     {"TrainingService/Curve", kTrainee | kInstructor | kAdmin},
+    // Operations: the metrics a Prometheus scrape reads (an administrator's token).
+    {"Ops/Metrics", kAdmin},
 }};
 
 }  // namespace

@@ -46,6 +46,7 @@ enum class Method {
   kTrainingListCohorts,
   kTrainingAddMembers,
   kTrainingCurve,
+  kOpsMetrics,  // GET /api/v1/metrics (HTTP only): the Prometheus scrape
   kCount
 };
 

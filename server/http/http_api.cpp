@@ -18,6 +18,7 @@
 #include "server/domain/scene_catalog.h"
 #include "server/domain/training.h"
 #include "server/http/web_assets.h"
+#include "server/ops/metrics.h"
 
 namespace vsurg::server::http {
 namespace {
@@ -528,6 +529,7 @@ struct HttpApi::Call {
 struct HttpApi::Routes {
   static HttpReply Me(const Call& c);
   static HttpReply Scenes(const Call& c);
+  static HttpReply Metrics(const Call& c);
   static HttpReply SessionsList(const Call& c);
   static HttpReply SessionCreate(const Call& c);
   static HttpReply SessionGet(const Call& c);
@@ -683,6 +685,17 @@ HttpReply HttpApi::Routes::Me(const Call& c) {
              {"role", db::RoleName(c.p->role)},
              {"group", c.p->group},
              {"csrf", c.web ? c.web->csrf : ""}});
+}
+
+// The Prometheus scrape: every collector the process registered, in the text format.
+HttpReply HttpApi::Routes::Metrics(const Call& c) {
+  if (!c.api.options_.metrics)
+    return ErrorReply(Error{ErrorCode::kNotFound, "this process keeps no metrics", ""});
+  HttpReply r;
+  r.content_type = "text/plain; version=0.0.4; charset=utf-8";
+  r.body = c.api.options_.metrics->Render();
+  r.headers.emplace_back("Cache-Control", "no-store");
+  return r;
 }
 
 HttpReply HttpApi::Routes::Scenes(const Call& c) {
@@ -1336,6 +1349,7 @@ HttpReply HttpApi::Routes::TrainingExport(const Call& c) {
 const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "me", Method::kSessionListScenes, &Routes::Me},  // every role
     {"GET", "scenes", Method::kSessionListScenes, &Routes::Scenes},
+    {"GET", "metrics", Method::kOpsMetrics, &Routes::Metrics},
     {"GET", "sessions", Method::kSessionList, &Routes::SessionsList},
     {"POST", "sessions", Method::kSessionCreate, &Routes::SessionCreate},
     {"GET", "sessions/{id}", Method::kSessionGet, &Routes::SessionGet},

@@ -32,6 +32,10 @@
 #include "server/domain/api.h"
 #include "server/http/web_auth.h"
 
+namespace vsurg::server::ops {
+class MetricsRegistry;
+}
+
 namespace vsurg::server::http {
 
 struct HttpRequest {
@@ -89,6 +93,9 @@ struct HttpApiOptions {
   int sign_in_failures = 5;         // per address per minute
   int bearer_failures = 20;         // requests with an unknown bearer token, per address a minute
   const Clock* clock = nullptr;     // null: the steady clock
+  // GET /api/v1/metrics renders this (Prometheus text format; an administrator's bearer token);
+  // null: 404. Must outlive the API.
+  const ops::MetricsRegistry* metrics = nullptr;
 };
 
 class HttpApi {

@@ -826,6 +826,7 @@ Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessio
   ao.session_ttl_s = options.session_ttl_s;
   ao.secure_cookies = impl->ssl.has_value();
   ao.clock = options.clock;
+  ao.metrics = options.metrics;
   impl->api = std::make_unique<HttpApi>(impl->domain, ao);
   impl->acceptor.emplace(impl->shared->io);
   const tcp::endpoint endpoint(address, static_cast<uint16_t>(port));

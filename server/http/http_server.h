@@ -40,6 +40,10 @@ namespace vsurg::db {
 class Store;
 }
 
+namespace vsurg::server::ops {
+class MetricsRegistry;
+}
+
 namespace vsurg::server {
 
 class Sessions;
@@ -69,6 +73,9 @@ struct HttpServerOptions {
   // Host names the server answers for, besides IP literals and localhost (DNS rebinding).
   std::vector<std::string> hosts;
   const Clock* clock = nullptr;  // web sessions and sign-in limits (null: the steady clock)
+  // GET /api/v1/metrics (server/ops/metrics.h), for an administrator's token; null: none. Must
+  // outlive the server.
+  const ops::MetricsRegistry* metrics = nullptr;
 };
 
 struct HttpCounters {

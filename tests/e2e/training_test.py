@@ -25,6 +25,7 @@ import tempfile
 import time
 import urllib.error
 
+from prometheus_client.parser import text_string_to_metric_families
 from selenium.common.exceptions import WebDriverException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
@@ -60,6 +61,24 @@ def main():
     for name, role in [("ian", "instructor")] + [(n, "trainee") for n in EXPERTS + TRAINEES]:
         request(http, "POST", "/users", admin, {"name": name, "role": role, "group": "staff" if name in EXPERTS else "residents"})
         tokens[name] = request(http, "POST", f"/users/{name}/token", admin, {})["token"]
+
+    def scrape():
+        """GET /api/v1/metrics as the administrator, parsed by Prometheus' own text parser:
+        {sample name: {labels as a sorted tuple: value}}."""
+        out = {}
+        for family in text_string_to_metric_families(request(http, "GET", "/metrics", admin, raw=True)):
+            for sample in family.samples:
+                out.setdefault(sample.name, {})[tuple(sorted(sample.labels.items()))] = sample.value
+        return out
+
+    first = scrape()
+    check({"vsurg_sessions_live", "vsurg_station_rtt_seconds_bucket", "vsurg_udp_datagrams_dropped_total",
+           "vsurg_http_requests_total"} <= set(first), "the metrics parse as Prometheus text, every family there")
+    try:
+        request(http, "GET", "/metrics", tokens["tina"], raw=True)
+        check(False, "a trainee may not read the metrics")
+    except urllib.error.HTTPError as e:
+        check(e.code == 403, f"a trainee may not read the metrics ({e.code})")
 
     def recording(scene, style):
         path = os.path.join(tmp, f"{scene}-{style}.csv")
@@ -186,7 +205,18 @@ def main():
 
         # --- ten trainees train at stations that follow the course; the grid follows live ---
         t_live = time.time()
+        before = scrape()
         others = [station(n, arm_good) for n in TRAINEES[2:5]]
+        # The Prometheus scrape while they train: stations driving, their round trips counted.
+        live = scrape()
+        deadline = time.time() + 30
+        while live["vsurg_stations_driving"][()] < 1 and time.time() < deadline:
+            time.sleep(0.2)
+            live = scrape()
+        check(live["vsurg_stations_driving"][()] >= 1 and live["vsurg_station_rtt_seconds_count"][()] >= 1
+              and live["vsurg_udp_forces_sent_total"][()] > before["vsurg_udp_forces_sent_total"][()],
+              f"the metrics move while stations run ({live['vsurg_stations_driving'][()]:.0f} driving, forces "
+              f"{before['vsurg_udp_forces_sent_total'][()]:.0f} -> {live['vsurg_udp_forces_sent_total'][()]:.0f})")
         rory = station("rory", arm_hesitant)
         tina_summaries = []
         for trial in range(2):  # two passes in a row reach the forearm

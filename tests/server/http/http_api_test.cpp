@@ -14,9 +14,12 @@
 #include <nlohmann/json.hpp>
 
 #include "server/domain/scene_catalog.h"
+#include "server/ops/metrics.h"
+#include "server/ops/session_metrics.h"
 #include "server/session/session_manager.h"
 #include "tests/support/site.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::server::http {
 namespace {
@@ -42,10 +45,14 @@ class HttpApiTest : public test::SiteTest {
     HttpApiOptions o;
     o.clock = &clock_;
     o.session_ttl_s = 3600;
+    session_metrics_ = std::make_unique<ops::SessionMetrics>(*sessions_);
+    metrics_.Add([this](ops::MetricsText& m) { session_metrics_->Collect(m); });
+    o.metrics = &metrics_;
     api_ = std::make_unique<HttpApi>(*domain_, o);
   }
   void TearDown() override {
     api_.reset();
+    session_metrics_.reset();
     domain_.reset();
     SiteTest::TearDown();
   }
@@ -83,6 +90,8 @@ class HttpApiTest : public test::SiteTest {
   ManualClock clock_{100};
   SceneCatalog catalog_;
   std::unique_ptr<Domain> domain_;
+  ops::MetricsRegistry metrics_;
+  std::unique_ptr<ops::SessionMetrics> session_metrics_;
   std::unique_ptr<HttpApi> api_;
 };
 
@@ -512,6 +521,59 @@ TEST(WebSessionsTest, AreBoundedPerUserAndForgetThatUsersOldestFirst) {
 // The training programme's routes: the instructor builds a course and a cohort from the page's
 // calls (cookie and CSRF), a bad spec names its field, the grid and the curve answer, a trainee
 // is refused the grid, and the progress export is a download produced on the export worker.
+// The Prometheus text format: HELP and TYPE before the samples, label values escaped, NaN and
+// infinities spelled as Prometheus reads them, histogram buckets cumulative up to +Inf.
+TEST(MetricsTextTest, WritesFamiliesLabelsAndCumulativeHistograms) {
+  ops::MetricsText t;
+  t.Family("vsurg_x_total", "counter", "A count.\nOn two lines.");
+  t.Sample("vsurg_x_total", {{"who", "a\"b\\c\nd"}}, 3);
+  t.Sample("vsurg_x_total", {}, std::nan(""));
+  t.Histogram("vsurg_rtt_seconds", "Round trips.", {{"node", "n1"}}, {0.5, 2}, {0.25, 0.5, 1, 8});
+  EXPECT_EQ(t.str(),
+            "# HELP vsurg_x_total A count. On two lines.\n"
+            "# TYPE vsurg_x_total counter\n"
+            "vsurg_x_total{who=\"a\\\"b\\\\c\\nd\"} 3\n"
+            "vsurg_x_total NaN\n"
+            "# HELP vsurg_rtt_seconds Round trips.\n"
+            "# TYPE vsurg_rtt_seconds histogram\n"
+            "vsurg_rtt_seconds_bucket{node=\"n1\",le=\"0.5\"} 2\n"
+            "vsurg_rtt_seconds_bucket{node=\"n1\",le=\"2\"} 3\n"
+            "vsurg_rtt_seconds_bucket{node=\"n1\",le=\"+Inf\"} 4\n"
+            "vsurg_rtt_seconds_sum{node=\"n1\"} 9.75\n"
+            "vsurg_rtt_seconds_count{node=\"n1\"} 4\n");
+}
+
+// GET /api/v1/metrics: an administrator's bearer token reads the live sessions by state as the
+// sampler last saw them; anyone else is refused.
+TEST_F(HttpApiTest, TheMetricsAreForAnAdministratorAndFollowTheSessions) {
+  const auto scrape = [&](const std::string& token) {
+    HttpRequest r;
+    r.method = "GET";
+    r.target = "/api/v1/metrics";
+    r.authorization = "Bearer " + token;
+    r.remote = "10.0.0.9";
+    return api_->Handle(r);
+  };
+  EXPECT_EQ(scrape(tokens_["tina"]).status, 403);
+  EXPECT_EQ(scrape(tokens_["ian"]).status, 403);
+  HttpReply r = scrape(admin_);
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.content_type, "text/plain; version=0.0.4; charset=utf-8");
+  EXPECT_NE(r.body.find("vsurg_sessions_live{state=\"created\"} 0\n"), std::string::npos) << r.body;
+  auto s = sessions_->Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(s.ok());
+  EXPECT_TRUE(test::Eventually(20, [&] {
+    return scrape(admin_).body.find("vsurg_sessions_live{state=\"created\"} 1\n") !=
+           std::string::npos;
+  }));
+  EXPECT_NE(scrape(admin_).body.find("vsurg_station_rtt_seconds_count 0\n"), std::string::npos);
+  ASSERT_TRUE(sessions_->Stop(static_cast<uint64_t>(s->record.id), "done").ok());
+  EXPECT_TRUE(test::Eventually(20, [&] {
+    return scrape(admin_).body.find("vsurg_sessions_live{state=\"created\"} 0\n") !=
+           std::string::npos;
+  }));
+}
+
 TEST_F(HttpApiTest, TheTrainingRoutesBuildACourseAndShowItsGrid) {
   const Signed ian = SignIn(tokens_["ian"]);
   const json spec = {{"targets", json::array({{{"metric", "peak_force_n"}, {"value", 2.5}}})},
