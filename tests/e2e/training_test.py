@@ -17,6 +17,7 @@ check held.
 """
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -217,6 +218,10 @@ def main():
               and live["vsurg_udp_forces_sent_total"][()] > before["vsurg_udp_forces_sent_total"][()],
               f"the metrics move while stations run ({live['vsurg_stations_driving'][()]:.0f} driving, forces "
               f"{before['vsurg_udp_forces_sent_total'][()]:.0f} -> {live['vsurg_udp_forces_sent_total'][()]:.0f})")
+        # The Grafana dashboard is built from these metrics: every series it asks for exists.
+        grafana = json.load(open(os.path.join(os.path.dirname(__file__), "../../deploy/grafana/vsurg.json")))
+        asked = {m for p in grafana["panels"] for t in p["targets"] for m in re.findall(r"vsurg_[a-z_]+", t["expr"])}
+        check(asked and asked <= set(live), f"the Grafana dashboard's series all exist ({sorted(asked - set(live))} missing)")
         rory = station("rory", arm_hesitant)
         tina_summaries = []
         for trial in range(2):  # two passes in a row reach the forearm
