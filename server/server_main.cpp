@@ -410,6 +410,7 @@ int Main(std::vector<std::string> args) {
   if (endpoint) endpoint->Stop();
   const auto stats = (*store)->stats();
   web.reset();
+  session_metrics.reset();  // unsubscribes: before the sessions go
   control.reset();
   agent.reset();
   manager.reset();

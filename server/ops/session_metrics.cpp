@@ -5,23 +5,28 @@
 
 namespace vsurg::server::ops {
 
-SessionMetrics::SessionMetrics(Sessions& sessions) : sessions_(sessions) {
-  // Every call carries every live session: the map is rebuilt from it.
-  token_ = sessions_.Subscribe(0, [this](const std::vector<SessionTelemetry>& all, bool) {
-    std::map<uint64_t, Latest> now;
-    for (const SessionTelemetry& t : all)
-      if (IsLive(t.state))
-        now[t.id] = {t.state, t.rtt_us * 1e-6, t.packet_loss, t.haptic_rate_hz, t.packets};
-    std::lock_guard lock(mutex_);
-    latest_.swap(now);
-  });
-}
+SessionMetrics::SessionMetrics(Sessions& sessions) : sessions_(sessions) {}
 
 SessionMetrics::~SessionMetrics() {
-  sessions_.Unsubscribe(token_);
+  std::lock_guard lock(subscribe_mutex_);
+  if (token_) sessions_.Unsubscribe(token_);
 }
 
-void SessionMetrics::Collect(MetricsText& out) const {
+void SessionMetrics::Collect(MetricsText& out) {
+  {
+    std::lock_guard lock(subscribe_mutex_);
+    if (!token_) {
+      // Every call carries every live session: the map is rebuilt from it.
+      token_ = sessions_.Subscribe(0, [this](const std::vector<SessionTelemetry>& all, bool) {
+        std::map<uint64_t, Latest> now;
+        for (const SessionTelemetry& t : all)
+          if (IsLive(t.state))
+            now[t.id] = {t.state, t.rtt_us * 1e-6, t.packet_loss, t.haptic_rate_hz, t.packets};
+        std::lock_guard inner(mutex_);
+        latest_.swap(now);
+      });
+    }
+  }
   std::array<int, 3> by_state{};  // created, running, stalled
   std::vector<double> rtt, loss, rate;
   {
