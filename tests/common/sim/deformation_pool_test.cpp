@@ -112,12 +112,14 @@ TEST(DeformationPoolTest, ASimulationInAPoolDeformsAsOnItsOwnThread) {
     (*own)->OnStylus(s);
     (*pooled)->OnStylus(s);
   }
-  // Wait for both to go quiet (no new frame for 200 ms), taking what they publish.
+  // Wait until both have deformed (binding the grasp's deformer first: slow in sanitizer
+  // builds) and then gone quiet (no new frame for 300 ms), taking what they publish.
   auto quiet = std::chrono::steady_clock::now();
-  test::Eventually(60, [&] {
+  test::Eventually(120, [&] {
     const bool a = take(**own, shown_own), b = take(**pooled, shown_pooled);
     if (a || b) quiet = std::chrono::steady_clock::now();
-    return std::chrono::steady_clock::now() - quiet > std::chrono::milliseconds(200);
+    return (*own)->deformation_updates() > 0 && (*pooled)->deformation_updates() > 0 &&
+           std::chrono::steady_clock::now() - quiet > std::chrono::milliseconds(300);
   });
   EXPECT_GT((*pooled)->deformation_updates(), 0u);
   double moved = 0, diff = 0;
