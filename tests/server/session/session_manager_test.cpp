@@ -120,8 +120,8 @@ TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHel
 
 // An exercise's task settings are the task the session scores: the same 1.5-s press (3 mm
 // into the sphere, held) completes a press to 1 mm within 20 mm held 0.3 s, does not complete the
-// scene's own press (5 mm within 1 mm, held 2 s), and stays far longer over a 0.5 N force limit
-// than over the scene's 2 N.
+// scene's own press (5 mm within 1 mm, held 2 s), and stays longer over a 0.5 N force limit than
+// over the scene's 2 N.
 TEST_F(SessionManagerTest, AnExercisesTaskSettingsAreTheTaskTheSessionScores) {
   const auto trial = [&](const scoring::TaskSettings& task) {
     auto s = sessions_->Create("tina", "sphere-palpation-256", task);
@@ -152,9 +152,11 @@ TEST_F(SessionManagerTest, AnExercisesTaskSettingsAreTheTaskTheSessionScores) {
   EXPECT_FALSE(scene.completed);  // 2 s of hold asked, 1.5 s given
   EXPECT_TRUE(easy_trial.completed);
   EXPECT_EQ(easy_trial.time_over_force_limit, 0);
-  // The press pushes ~2 N: a little of it over the scene's 2 N, most of it over 0.5 N.
+  // The press pushes ~2 N (more in a slow sanitizer build, where the tissue's deformation lags
+  // the haptic path): over 0.5 N for most of its 1.2-s hold, longer than over the scene's 2 N.
   EXPECT_GT(strict_trial.peak_force, 0.5);
-  EXPECT_GT(strict_trial.time_over_force_limit, scene.time_over_force_limit + 0.5);
+  EXPECT_GT(strict_trial.time_over_force_limit, 0.9);
+  EXPECT_GT(strict_trial.time_over_force_limit, scene.time_over_force_limit);
   // Settings that do not fit the scene's task are refused by name, and no session is made.
   scoring::TaskSettings twist;
   twist.kind = scoring::TaskKind::kTwist;
