@@ -15,7 +15,8 @@
 #      sessions (they stay aborted, with no trial recorded) and takes its name again; no trainee
 #      ever has two live sessions;
 #   b. a second process started under sim-2's name is refused with a clear error and takes
-#      nothing from sim-2.
+#      nothing from sim-2; so is one whose certificate names another node.
+# The internal API runs mutual TLS (certificates from deploy/cluster_certs.sh).
 # Prints what it measured, and writes it as JSON to $OUT/cluster.json. Exits non-zero when a
 # process does not start; the checks are the caller's (tests/e2e/cluster_test.cpp; deploy/demo.sh
 # prints them).
@@ -44,13 +45,17 @@ step "PostgreSQL on loopback, in $pg_dir"
 uri="$("$root/deploy/postgres.sh" start "$pg_dir" | tail -1)"
 psql_q() { psql -qAt "$uri" -c "$1"; }
 head -c 32 /dev/urandom | base64 | tr -d '\n' > "$tmp/cluster-token"
+# The internal API with mutual TLS (docs/SCALING.md): a site CA, the control replicas' certificate
+# and one per node; sim-rogue's is the site's too, but names another node.
+"$root/deploy/cluster_certs.sh" "$tmp/pki" vsurg-control sim-0 sim-1 sim-2 sim-rogue
+tls_as() { echo "--cluster-tls-cert $tmp/pki/$1.pem --cluster-tls-key $tmp/pki/$1.key --cluster-tls-ca $tmp/pki/ca.pem"; }
 admin_token="$("$bin/vsurg-server" init --db "$uri" 2>/dev/null)"
 
 step "Two control replicas (gRPC, HTTP, the nodes' registry)"
 declare -a control_pid
 for i in 0 1; do
   "$bin/vsurg-server" --role control --db "$uri" --listen 127.0.0.1:0 --http 127.0.0.1:0 \
-    --cluster-listen 127.0.0.1:0 --cluster-token-file "$tmp/cluster-token" \
+    --cluster-listen 127.0.0.1:0 --cluster-token-file "$tmp/cluster-token" $(tls_as vsurg-control) \
     --ready-file "$tmp/control-$i.json" 2> "$out/control-$i.log" &
   control_pid[$i]=$!
   pids+=("${control_pid[$i]}")
@@ -68,7 +73,7 @@ declare -a sim_pid
 capacity=$(( (stations + 2) / 3 + 8 ))
 for i in 0 1 2; do
   "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$i" --control "$internal" \
-    --cluster-token-file "$tmp/cluster-token" --udp-port 0 --capacity "$capacity" \
+    --cluster-token-file "$tmp/cluster-token" $(tls_as "sim-$i") --udp-port 0 --capacity "$capacity" \
     --ready-file "$tmp/sim-$i.json" 2> "$out/sim-$i.log" &
   sim_pid[$i]=$!
   pids+=("${sim_pid[$i]}")
@@ -144,9 +149,16 @@ sim2_running="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AN
 sim2_address="$(psql_q "SELECT grpc_address FROM nodes WHERE name = 'sim-2'")"
 twin_rc=0
 timeout 30 "$bin/vsurg-server" --role sim --db "$uri" --node-name sim-2 --control "$internal" \
-  --cluster-token-file "$tmp/cluster-token" --udp-port 0 --capacity "$capacity" \
+  --cluster-token-file "$tmp/cluster-token" $(tls_as sim-2) --udp-port 0 --capacity "$capacity" \
   --ready-file "$tmp/sim-twin.json" 2> "$out/sim-twin.log" || twin_rc=$?
 twin_refused="$(grep -c "held by another live process" "$out/sim-twin.log" || true)"
+# And a process with the token and a site certificate that names another node: refused at once.
+rogue_rc=0
+timeout 30 "$bin/vsurg-server" --role sim --db "$uri" --node-name sim-2 --control "$internal" \
+  --cluster-token-file "$tmp/cluster-token" $(tls_as sim-rogue) --udp-port 0 --capacity "$capacity" \
+  --ready-file "$tmp/sim-rogue.json" 2> "$out/sim-rogue.log" || rogue_rc=$?
+rogue_refused="$(grep -c "certificate names sim-rogue, not node sim-2" "$out/sim-rogue.log" || true)"
+echo "a certificate for sim-rogue claiming sim-2: exit $rogue_rc: $(tail -1 "$out/sim-rogue.log")"
 sleep 1  # a heartbeat of sim-2 after the twin's attempts
 sim2_running_after="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-2'")"
 sim2_address_after="$(psql_q "SELECT grpc_address FROM nodes WHERE name = 'sim-2' AND down = 0")"
@@ -236,6 +248,6 @@ cat > "$out/cluster.json" <<EOF
  "frozen_victims": $frozen_victims, "frozen_not_aborted": $frozen_not_aborted,
  "frozen_trials": $frozen_trials, "lease_lost": $lease_lost, "reacquired": $reacquired,
  "max_live_per_trainee": $max_live, "twin_rc": $twin_rc, "twin_refused": $twin_refused,
- "twin_kept": $twin_kept}
+ "twin_kept": $twin_kept, "rogue_rc": $rogue_rc, "rogue_refused": $rogue_refused}
 EOF
 cat "$out/cluster.json"

@@ -6,7 +6,8 @@
 # screenshots, gnuplot for the study's figures, Dear ImGui for the stations' and monitors' HUD (its
 # text in DejaVu Sans through FreeType),
 # PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start),
-# PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py).
+# PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py), the openssl command for the
+# internal API's certificates (deploy/cluster_certs.sh).
 VSURG_PACKAGES=(
   cmake ninja-build g++ lld
   libeigen3-dev nlohmann-json3-dev
@@ -17,7 +18,7 @@ VSURG_PACKAGES=(
   chromium chromium-driver python3-selenium libjs-chart.js nodejs zlib1g-dev
   libimgui-dev libfreetype-dev fonts-dejavu-core
   libassimp-dev libcgal-dev
-  postgresql libpq-dev python3-yaml python3-prometheus-client
+  postgresql libpq-dev python3-yaml python3-prometheus-client openssl
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's

@@ -100,6 +100,20 @@ int Main(std::vector<std::string> args) {
               "127.0.0.1:0")
       .Option("cluster-token-file", Kind::kString,
               "control, sim: file holding the site's shared secret (>= 16 characters)")
+      .Option("cluster-tls-cert", Kind::kString,
+              "control, sim: this process's PEM certificate for mutual TLS on the internal API "
+              "(a node's names the node, a control replica's names --cluster-control-name)")
+      .Option("cluster-tls-key", Kind::kString, "control, sim: its PEM private key")
+      .Option("cluster-tls-ca", Kind::kString,
+              "control, sim: the site's PEM CA bundle; peers' certificates must chain to it")
+      .Option("cluster-tls-refresh", Kind::kDouble,
+              "control, sim: seconds between reads of the TLS files (renewal without restart)",
+              false, "60")
+      .Option("cluster-control-name", Kind::kString,
+              "control, sim: the name control replicas' certificates carry", false, "vsurg-control")
+      .Option("cluster-health-listen", Kind::kString,
+              "control, sim: host:port of a plaintext gRPC health check (liveness only, for "
+              "probes when the internal API wants a client certificate)")
       .Option("control", Kind::kString,
               "sim: the control plane's internal API, host:port[,host:port...]")
       .Option("node-name", Kind::kString, "sim: this node's name, unique in the site")
@@ -214,6 +228,12 @@ int Main(std::vector<std::string> args) {
     }
     cluster.listen = p.String("cluster-listen");
     cluster.allow_insecure = p.Flag("allow-insecure");
+    if (p.Has("cluster-tls-cert")) cluster.tls_cert = p.String("cluster-tls-cert");
+    if (p.Has("cluster-tls-key")) cluster.tls_key = p.String("cluster-tls-key");
+    if (p.Has("cluster-tls-ca")) cluster.tls_ca = p.String("cluster-tls-ca");
+    cluster.tls_refresh_s = p.Double("cluster-tls-refresh");
+    cluster.control_name = p.String("cluster-control-name");
+    if (p.Has("cluster-health-listen")) cluster.health_listen = p.String("cluster-health-listen");
     cluster.telemetry_hz = telemetry_hz;
     cluster.max_sessions_per_user = per_user;
   }
@@ -381,7 +401,9 @@ int Main(std::vector<std::string> args) {
   Log("serving", "role=" + role + " grpc_port=" + std::to_string(grpc_port) +
                      " udp_port=" + std::to_string(bound_udp) +
                      (web ? " http_port=" + std::to_string(http_port) : std::string()) +
-                     (cluster_port ? " cluster_port=" + std::to_string(cluster_port) : "") +
+                     (cluster_port ? " cluster_port=" + std::to_string(cluster_port) +
+                                         " cluster_tls=" + (cluster.tls() ? "mutual" : "off")
+                                   : "") +
                      " tls=" + (control && control->tls() ? "on" : "off") +
                      " db=" + vsurg::db::BackendName(vsurg::db::BackendOf(p.String("db"))));
   if (p.Has("ready-file")) {

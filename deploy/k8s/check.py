@@ -8,14 +8,18 @@ prove). Parses every manifest the kustomization lists and checks what vsurg reli
   - the control plane is ready by the gRPC health service on its gRPC port, runs >= 2 replicas;
   - the simulation nodes expose UDP on a hostPort and tell stations the host's address, give a
     SIGTERM drain its time (terminationGracePeriodSeconds > --drain-timeout), one per machine;
-  - every secret a pod reads exists in the kustomization.
+  - every secret a pod reads exists in the kustomization (defined, or issued by a Certificate);
+  - the internal API runs mutual TLS: both roles have the three TLS files and no --allow-insecure;
+    the control replicas' certificate names the control name, each node's names its pod (through
+    cert-manager's csi-driver), and the nodes' probe reaches the plaintext health port.
 Exits 1 with one line per problem. Usage: deploy/k8s/check.py [DIR]"""
 import os
 import sys
 
 import yaml
 
-KINDS = {"Namespace", "Secret", "Service", "Deployment", "StatefulSet", "PodDisruptionBudget"}
+KINDS = {"Namespace", "Secret", "Service", "Deployment", "StatefulSet", "PodDisruptionBudget",
+         "Certificate", "Issuer"}
 
 
 def load(directory):
@@ -78,6 +82,11 @@ def main():
             problems.append(f"PodDisruptionBudget {b['metadata']['name']} selects no pods")
 
     secrets = {s["metadata"]["name"]: s for s in by_kind.get("Secret", [])}
+    issued = {c["spec"]["secretName"]: c for c in by_kind.get("Certificate", [])}
+    issuers = {i["metadata"]["name"] for i in by_kind.get("Issuer", [])}
+    for c in by_kind.get("Certificate", []):
+        if c["spec"].get("issuerRef", {}).get("name") not in issuers:
+            problems.append(f"Certificate {c['metadata']['name']}: its issuer is not defined")
     for w in workloads:
         spec = w["spec"]["template"]["spec"]
         refs = [v["secret"]["secretName"] for v in spec.get("volumes", []) if "secret" in v]
@@ -89,7 +98,7 @@ def main():
                     if ref["name"] in secrets and ref["key"] not in secrets[ref["name"]].get("stringData", {}):
                         problems.append(f"{w['metadata']['name']}: secret {ref['name']} has no key {ref['key']}")
         for r in refs:
-            if r not in secrets:
+            if r not in secrets and r not in issued:
                 problems.append(f"{w['metadata']['name']}: reads secret {r}, which is not defined")
 
     control = [w for w in workloads if any(arg(c, "--role") == "control"
@@ -122,8 +131,31 @@ def main():
         anti = spec.get("affinity", {}).get("podAntiAffinity", {})
         if not anti.get("requiredDuringSchedulingIgnoredDuringExecution"):
             problems.append("sim: two nodes could share a machine (and its hostPort)")
-        if c.get("readinessProbe", {}).get("grpc", {}).get("port") != int(arg(c, "--cluster-listen").rsplit(":", 1)[1]):
-            problems.append("sim: readiness is not the gRPC health service on the internal port")
+        health = arg(c, "--cluster-health-listen")
+        if not health or c.get("readinessProbe", {}).get("grpc", {}).get("port") != int(health.rsplit(":", 1)[1]):
+            problems.append("sim: readiness is not the gRPC health service on --cluster-health-listen")
+        csi = [v["csi"] for v in spec.get("volumes", []) if v.get("csi", {}).get("driver") == "csi.cert-manager.io"]
+        if not csi or csi[0].get("volumeAttributes", {}).get("csi.cert-manager.io/dns-names") != "${POD_NAME}":
+            problems.append("sim: no certificate naming the pod (the node name)")
+        elif csi[0]["volumeAttributes"].get("csi.cert-manager.io/issuer-name") not in issuers:
+            problems.append("sim: the nodes' certificates come from an issuer that is not defined")
+        if arg(c, "--node-name") != "$(POD_NAME)":
+            problems.append("sim: the node name is not the pod name (its certificate names the pod)")
+    for w in control + sims:
+        for c in w["spec"]["template"]["spec"]["containers"]:
+            if "--allow-insecure" in c.get("args", []):
+                problems.append(f"{w['metadata']['name']}: --allow-insecure (the internal API must run mutual TLS)")
+            for flag in ("--cluster-tls-cert", "--cluster-tls-key", "--cluster-tls-ca"):
+                if not arg(c, flag):
+                    problems.append(f"{w['metadata']['name']}: no {flag}")
+    if control:
+        spec = control[0]["spec"]["template"]["spec"]
+        mounted = {m["name"]: m["mountPath"] for m in spec["containers"][0].get("volumeMounts", [])}
+        tls = [v for v in spec.get("volumes", []) if "secret" in v and v["secret"]["secretName"] in issued
+               and arg(spec["containers"][0], "--cluster-tls-cert").startswith(mounted.get(v["name"], "?") + "/")]
+        name = arg(spec["containers"][0], "--cluster-control-name") or "vsurg-control"
+        if not tls or name not in issued[tls[0]["secret"]["secretName"]]["spec"].get("dnsNames", []):
+            problems.append(f"control: its internal certificate does not name {name}")
 
     for p in problems:
         print("k8s check:", p)

@@ -24,11 +24,15 @@
 // its old sessions again.
 //
 // Internal calls carry the site's cluster token (`authorization: Bearer …`); users never reach
-// these ports. No gRPC or protobuf type appears in this header.
+// these ports. With mutual TLS (ClusterOptions::tls_*), each side also proves who it is by its
+// certificate: a node may only acquire or beat for the name its certificate carries, only a
+// control replica's certificate may call a node, and each side checks the other's name when it
+// connects. No gRPC or protobuf type appears in this header.
 //
 // Threads: ClusterSessions has a watchdog thread (0.1 s), a prober for late nodes, a telemetry
 // poller (telemetry_hz while anyone subscribes) and gRPC's threads for heartbeats; every member may
-// be called from any thread. NodeAgent has a heartbeat thread and gRPC's threads.
+// be called from any thread. NodeAgent has a heartbeat thread and gRPC's threads. With TLS each
+// also has gRPC's file-watcher thread for its certificate files.
 #pragma once
 
 #include <cstdint>
@@ -53,6 +57,19 @@ struct ClusterOptions {
   std::string token;            // the site's cluster secret (≥ 16 characters)
   std::string listen;           // the internal API's host:port (port 0: any free one)
   bool allow_insecure = false;  // plaintext off loopback (a cluster network; see SCALING.md)
+  // Mutual TLS on the internal API (docs/SCALING.md, "Mutual TLS"): this process's certificate
+  // chain and key and the site's CA bundle, PEM files all three or none. Both sides present a
+  // certificate the CA signed; a node's must name the node (a DNS subject alternative name or
+  // the common name equal to --node-name), a control replica's must name `control_name`. The
+  // files are read again every tls_refresh_s: a renewed certificate or CA bundle is used for the
+  // next connections without a restart.
+  std::string tls_cert, tls_key, tls_ca;
+  std::string control_name = "vsurg-control";
+  double tls_refresh_s = 60;
+  // With TLS, the gRPC health check (what Kubernetes' probes use) on its own plaintext port:
+  // liveness only, no service and no data (empty: none).
+  std::string health_listen;
+  bool tls() const { return !tls_cert.empty() || !tls_key.empty() || !tls_ca.empty(); }
   double heartbeat_period_s = 0.5;
   double heartbeat_timeout_s = 2;  // silent this long: down, sessions aborted (= the lease)
   // A node's lease ends this long before the control plane may declare it down (server/net/
@@ -70,6 +87,7 @@ class ClusterSessions final : public Sessions {
                                                           const ClusterOptions& options);
   ~ClusterSessions() override;  // Shutdown()
   int port() const;             // the internal API's
+  int health_port() const;      // the plaintext health check's (0: none)
 
   Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene,
                                   const scoring::TaskSettings& task = {}) override;
@@ -113,6 +131,7 @@ class NodeAgent {
                                                     const NodeOptions& options);
   ~NodeAgent();  // Shutdown()
   int port() const;
+  int health_port() const;  // the plaintext health check's (0: none)
   // No new sessions from now on (the heartbeat says so at once); returns when the live ones
   // have finished or `timeout_s` passed (they are then left to the shutdown, which aborts them).
   void Drain(double timeout_s);

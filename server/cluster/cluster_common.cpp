@@ -1,5 +1,9 @@
 #include "server/cluster/cluster_common.h"
 
+#include <grpc/grpc_security_constants.h>
+#include <grpcpp/security/tls_certificate_provider.h>
+#include <grpcpp/security/tls_certificate_verifier.h>
+#include <grpcpp/security/tls_credentials_options.h>
 #include <netdb.h>
 #include <poll.h>
 #include <sys/socket.h>
@@ -7,6 +11,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <fstream>
+#include <iterator>
 
 #include "proto/convert/services.h"
 #include "server/control/grpc_common.h"
@@ -40,7 +46,85 @@ std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, doubl
   return ctx;
 }
 
-std::shared_ptr<grpc::Channel> Channel(const std::string& target) {
+namespace {
+
+std::string Joined(std::vector<std::string> names) {
+  std::sort(names.begin(), names.end());
+  names.erase(std::unique(names.begin(), names.end()), names.end());
+  std::string out;
+  for (const std::string& n : names) {
+    if (n.empty()) continue;
+    out += (out.empty() ? "" : ", ") + n;
+  }
+  return out.empty() ? "no name" : out;
+}
+
+// The client's check of the server it reached, after the TLS handshake has verified the chain up
+// to the site's CA: the certificate must name the peer we meant to call. gRPC's own host-name
+// check would compare the certificate with the address, which for a pod changes with every move.
+class NameVerifier final : public grpc::experimental::ExternalCertificateVerifier {
+ public:
+  explicit NameVerifier(std::string name) : name_(std::move(name)) {}
+  bool Verify(grpc::experimental::TlsCustomVerificationCheckRequest* request,
+              std::function<void(grpc::Status)>, grpc::Status* sync_status) override {
+    std::vector<std::string> names;
+    for (const grpc::string_ref& n : request->dns_names()) names.emplace_back(n.data(), n.size());
+    names.emplace_back(request->common_name().data(), request->common_name().size());
+    if (std::find(names.begin(), names.end(), name_) != names.end())
+      *sync_status = grpc::Status::OK;
+    else
+      *sync_status =
+          grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                       "the peer's certificate names " + Joined(names) + ", not " + name_);
+    return true;  // answered now
+  }
+  void Cancel(grpc::experimental::TlsCustomVerificationCheckRequest*) override {}
+
+ private:
+  std::string name_;
+};
+
+}  // namespace
+
+TlsFiles WatchTlsFiles(const ClusterOptions& o) {
+  if (!o.tls()) return nullptr;
+  return std::make_shared<grpc::experimental::FileWatcherCertificateProvider>(
+      o.tls_key, o.tls_cert, o.tls_ca, static_cast<unsigned>(o.tls_refresh_s));
+}
+
+Status CheckTls(const ClusterOptions& o) {
+  if (!o.tls()) return Status::Ok();
+  struct File {
+    const std::string& path;
+    const char* flag;
+    const char* marker;
+    const char* kind;
+  };
+  const File files[] = {
+      {o.tls_cert, "cluster-tls-cert", "-----BEGIN CERTIFICATE-----", "a PEM certificate"},
+      {o.tls_key, "cluster-tls-key", "PRIVATE KEY-----", "a PEM private key"},
+      {o.tls_ca, "cluster-tls-ca", "-----BEGIN CERTIFICATE-----",
+       "the site's PEM CA certificates"}};
+  for (const File& f : files) {
+    if (f.path.empty())
+      return InvalidArgument(f.flag,
+                             "mutual TLS needs this process's certificate, its key and the "
+                             "site's CA bundle: all three files");
+    std::ifstream in(f.path);
+    if (!in) return InvalidArgument(f.flag, "cannot read " + f.path);
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    if (text.find(f.marker) == std::string::npos)
+      return InvalidArgument(f.flag, f.path + " does not hold " + f.kind);
+  }
+  if (!(o.tls_refresh_s >= 1 && o.tls_refresh_s <= 86400))
+    return InvalidArgument("cluster-tls-refresh", "must be within 1..86400 seconds");
+  if (o.control_name.empty() || o.control_name.size() > 253)
+    return InvalidArgument("cluster-control-name", "a name of 1 to 253 characters is required");
+  return Status::Ok();
+}
+
+std::shared_ptr<grpc::Channel> Channel(const std::string& target, const TlsFiles& tls_files,
+                                       const std::string& peer_name) {
   grpc::ChannelArguments args;
   // Reconnect fast after a replica or a node comes back (the default backs off to 2 minutes):
   // the first retry after 100 ms, then at most every second. gRPC also takes the "minimum
@@ -56,16 +140,70 @@ std::shared_ptr<grpc::Channel> Channel(const std::string& target) {
   if (target.find(',') != std::string::npos && target.find(':') != std::string::npos &&
       target.rfind("ipv4:", 0) != 0 && target.rfind("dns:", 0) != 0)
     t = "ipv4:" + target;  // several literal addresses: one channel over all of them
-  return grpc::CreateCustomChannel(t, grpc::InsecureChannelCredentials(), args);
+  if (!tls_files) return grpc::CreateCustomChannel(t, grpc::InsecureChannelCredentials(), args);
+  // The name the client asks for in the handshake (SNI) is the peer's name, not its address.
+  args.SetSslTargetNameOverride(peer_name);
+  grpc::experimental::TlsChannelCredentialsOptions tls;
+  tls.set_certificate_provider(tls_files);
+  tls.watch_root_certs();
+  tls.watch_identity_key_cert_pairs();
+  tls.set_verify_server_certs(true);
+  tls.set_check_call_host(false);
+  tls.set_certificate_verifier(
+      grpc::experimental::ExternalCertificateVerifier::Create<NameVerifier>(peer_name));
+  return grpc::CreateCustomChannel(t, grpc::experimental::TlsCredentials(tls), args);
 }
 
-Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o) {
+Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o,
+                                                                     const TlsFiles& tls_files) {
   if (Status s = CheckToken(o.token); !s.ok()) return s.error();
+  if (o.tls()) {
+    if (Status s = CheckTls(o); !s.ok()) return s.error();
+    if (!tls_files) return InvalidArgument("cluster-tls-cert", "the TLS files are not watched");
+    grpc::experimental::TlsServerCredentialsOptions tls(tls_files);
+    tls.watch_root_certs();
+    tls.watch_identity_key_cert_pairs();
+    tls.set_cert_request_type(GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+    return grpc::experimental::TlsServerCredentials(tls);
+  }
   if (!IsLoopbackHost(o.listen) && !o.allow_insecure)
     return InvalidArgument("cluster-listen",
-                           "the internal API is plaintext: on loopback only, unless the site's "
-                           "network is private (allow insecure explicitly; docs/SCALING.md)");
+                           "the internal API is plaintext: on loopback only, unless it runs with "
+                           "mutual TLS (the cluster TLS files) or the site's network is private "
+                           "(allow insecure explicitly; docs/SCALING.md)");
   return grpc::InsecureServerCredentials();
+}
+
+std::vector<std::string> PeerNames(const grpc::ServerContextBase& ctx) {
+  std::vector<std::string> out;
+  const auto auth = ctx.auth_context();
+  if (!auth) return out;
+  for (const char* property : {GRPC_X509_SAN_PROPERTY_NAME, GRPC_X509_CN_PROPERTY_NAME})
+    for (const grpc::string_ref& v : auth->FindPropertyValues(property))
+      out.emplace_back(v.data(), v.size());
+  return out;
+}
+
+grpc::Status CheckPeer(const grpc::ServerContextBase& ctx, const ClusterOptions& o,
+                       const std::string& name, const std::string& what) {
+  if (!o.tls()) return grpc::Status::OK;
+  const std::vector<std::string> names = PeerNames(ctx);
+  if (std::find(names.begin(), names.end(), name) != names.end()) return grpc::Status::OK;
+  return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                      "the caller's certificate names " + Joined(names) + ", not " + what);
+}
+
+Expected<std::unique_ptr<grpc::Server>> StartHealthServer(const ClusterOptions& o, int* port) {
+  *port = 0;
+  if (o.health_listen.empty()) return std::unique_ptr<grpc::Server>();
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(o.health_listen, grpc::InsecureServerCredentials(), port);
+  auto server = builder.BuildAndStart();
+  if (!server || *port == 0)
+    return Error{ErrorCode::kUnavailable, "cannot listen on " + o.health_listen,
+                 "cluster-health-listen"};
+  return server;
 }
 
 // Plain POSIX rather than Asio: one connect with a deadline on the caller's thread, no

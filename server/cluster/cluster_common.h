@@ -4,10 +4,12 @@
 #pragma once
 
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/security/tls_certificate_provider.h>
 
 #include <chrono>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "server/cluster/cluster.h"
 #include "vsurg/v1/cluster.grpc.pb.h"
@@ -22,11 +24,37 @@ Status CheckToken(const std::string& token);
 bool Authorized(const grpc::ServerContextBase& ctx, const std::string& token);
 // A client context with the token and a deadline `timeout_s` from now.
 std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, double timeout_s);
+// The TLS options hold together: the three files all or none, each readable and holding PEM of
+// its kind, a refresh period of 1 s to a day.
+Status CheckTls(const ClusterOptions& o);
+// The watcher of a process's TLS files (null without TLS): a gRPC thread that reads them every
+// tls_refresh_s, shared by the process's server and channels, gone with the last of them.
+using TlsFiles = std::shared_ptr<grpc::experimental::CertificateProviderInterface>;
+TlsFiles WatchTlsFiles(const ClusterOptions& o);
 // A channel to `target`: "host:port", or several "host:port,host:port" tried in turn
-// (pick_first over the list: a client fails over to the next replica).
-std::shared_ptr<grpc::Channel> Channel(const std::string& target);
-// Listening credentials: plaintext, on loopback unless allow_insecure (SCALING.md).
-Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o);
+// (pick_first over the list: a client fails over to the next replica). With TLS files, it
+// presents this process's certificate and accepts only a peer whose certificate the site's CA
+// signed and that names `peer_name` (a node's name, or the control replicas' name); the address
+// itself is not checked against the certificate (pods move; the name is what the site knows
+// them by).
+std::shared_ptr<grpc::Channel> Channel(const std::string& target, const TlsFiles& tls,
+                                       const std::string& peer_name);
+// Listening credentials: mutual TLS when configured (a client certificate the site's CA signed is
+// required), `tls` from WatchTlsFiles(o); otherwise plaintext, on loopback unless allow_insecure
+// (SCALING.md).
+Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o,
+                                                                     const TlsFiles& tls);
+// The names the caller's certificate carries: its subject alternative names, then its common
+// name. Empty over plaintext.
+std::vector<std::string> PeerNames(const grpc::ServerContextBase& ctx);
+// Over plaintext OK (the token is all there is); with TLS OK when the caller's certificate names
+// `name`, else PERMISSION_DENIED saying what it names instead (`what`: "node sim-0").
+grpc::Status CheckPeer(const grpc::ServerContextBase& ctx, const ClusterOptions& o,
+                       const std::string& name, const std::string& what);
+// With o.health_listen set: a plaintext gRPC server there with the standard health service only
+// (what Kubernetes' probes reach when the internal port wants a client certificate). Null when
+// not configured. `port`: the port it bound.
+Expected<std::unique_ptr<grpc::Server>> StartHealthServer(const ClusterOptions& o, int* port);
 
 // Whether a process listens at "host:port" (a node's gRPC address), by one TCP connect that
 // waits at most `timeout_s`. kRefused only when every address of the host refused the

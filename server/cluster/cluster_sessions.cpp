@@ -30,11 +30,14 @@ Error NotLive(uint64_t id) {
 struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   db::Store& store;
   ClusterOptions options;
-  std::unique_ptr<grpc::Server> server;
+  TlsFiles tls;  // before the server and channels that use it
+  std::unique_ptr<grpc::Server> server, health;
+  int health_port = 0;
   int port = 0;
 
   std::mutex stubs_mutex;
-  std::map<std::string, std::unique_ptr<v1::NodeService::Stub>> stubs;  // by address
+  // By node name and address: with TLS the channel checks that the address serves that name.
+  std::map<std::pair<std::string, std::string>, std::unique_ptr<v1::NodeService::Stub>> stubs;
 
   std::mutex subscribers_mutex;  // held while subscribers run (see Unsubscribe)
   struct Subscription {
@@ -160,10 +163,10 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     return !n.down && now - n.heartbeat_us <= TimeoutUs();
   }
 
-  v1::NodeService::Stub& StubFor(const std::string& address) {
+  v1::NodeService::Stub& StubFor(const db::NodeRecord& node) {
     std::lock_guard lock(stubs_mutex);
-    auto& s = stubs[address];
-    if (!s) s = v1::NodeService::NewStub(Channel(address));
+    auto& s = stubs[{node.name, node.grpc_address}];
+    if (!s) s = v1::NodeService::NewStub(Channel(node.grpc_address, tls, node.name));
     return *s;
   }
 
@@ -191,7 +194,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     if (!at.ok()) return at.error();
     v1::NodeSession reply;
     auto ctx = CallContext(options.token, options.call_timeout_s);
-    const grpc::Status s = call(StubFor(at->second.grpc_address), ctx.get(), &reply);
+    const grpc::Status s = call(StubFor(at->second), ctx.get(), &reply);
     if (!s.ok()) return FromGrpc(s, std::string(what) + " on node " + at->second.name);
     db::SessionRecord r = FromProto(reply.session());
     r.node = at->second.name;
@@ -207,10 +210,19 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     return grpc::Status(code, e.message);
   }
 
+  // The site's token, and with TLS a certificate that names the node the call speaks for: a
+  // process may take or renew only the name its certificate carries.
+  grpc::Status Allowed(const grpc::ServerContext& ctx, const std::string& node) const {
+    if (!Authorized(ctx, options.token))
+      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
+    grpc::Status s = CheckPeer(ctx, options, node, "node " + node);
+    if (!s.ok()) Log("node_refused", "node=" + node + " error=\"" + s.error_message() + "\"");
+    return s;
+  }
+
   grpc::Status Acquire(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
                        v1::NodeLeaseReply* out) override {
-    if (!Authorized(*ctx, options.token))
-      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
+    if (grpc::Status s = Allowed(*ctx, req->name()); !s.ok()) return s;
     const db::NodeRecord n = FromProto(*req, db::NowUs());
     auto lease = store.AcquireNode(
         n, TimeoutUs(), "simulation node " + n.name + " restarted (its name was taken again)");
@@ -226,8 +238,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
 
   grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
                          v1::HeartbeatReply* out) override {
-    if (!Authorized(*ctx, options.token))
-      return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
+    if (grpc::Status s = Allowed(*ctx, req->name()); !s.ok()) return s;
     if (Status s = store.BeatNode(FromProto(*req, db::NowUs())); !s.ok()) return ToGrpc(s.error());
     out->set_lease_s(options.heartbeat_timeout_s);
     return grpc::Status::OK;
@@ -314,7 +325,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
           if (!Healthy(n, now)) continue;
           v1::NodeTelemetry reply;
           auto ctx = CallContext(options.token, std::max(0.2, period));
-          if (!StubFor(n.grpc_address).Telemetry(ctx.get(), {}, &reply).ok()) continue;
+          if (!StubFor(n).Telemetry(ctx.get(), {}, &reply).ok()) continue;
           for (const v1::Telemetry& t : reply.sessions()) all.push_back(convert::FromProto(t));
         }
       }
@@ -350,14 +361,19 @@ ClusterSessions::~ClusterSessions() {
 int ClusterSessions::port() const {
   return impl_->port;
 }
+int ClusterSessions::health_port() const {
+  return impl_->health_port;
+}
 
 Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& store,
                                                                   const ClusterOptions& options) {
   if (!(options.telemetry_hz >= 1 && options.telemetry_hz <= 120))
     return InvalidArgument("telemetry-hz", "must be within 1..120");
-  auto creds = ServerCredentials(options);
-  if (!creds.ok()) return creds.error();
+  if (Status s = CheckTls(options); !s.ok()) return s.error();
   auto impl = std::make_unique<Impl>(store, options);
+  impl->tls = WatchTlsFiles(options);
+  auto creds = ServerCredentials(options, impl->tls);
+  if (!creds.ok()) return creds.error();
   // The sessions live before this replica started are explained (see Impl::seen).
   if (auto live = store.LiveSessionNodes(); live.ok())
     for (const auto& [node, id] : *live) impl->seen.insert(id);
@@ -368,6 +384,9 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
   impl->server = builder.BuildAndStart();
   if (!impl->server || impl->port == 0)
     return Error{ErrorCode::kUnavailable, "cannot listen on " + options.listen, "cluster-listen"};
+  auto health = StartHealthServer(options, &impl->health_port);
+  if (!health.ok()) return health.error();
+  impl->health = std::move(health).value();
   Impl* p = impl.get();
   p->watchdog = std::thread([p] { p->WatchdogLoop(); });
   p->prober = std::thread([p] { p->ProberLoop(); });
@@ -411,7 +430,7 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
     convert::ToProto(task, req.mutable_task());
     v1::NodeSession reply;
     auto ctx = CallContext(d.options.token, d.options.create_timeout_s);
-    const grpc::Status s = d.StubFor(chosen.grpc_address).Create(ctx.get(), req, &reply);
+    const grpc::Status s = d.StubFor(chosen).Create(ctx.get(), req, &reply);
     d.Release(chosen.name, s.ok() ? std::optional<int64_t>(reply.session().id()) : std::nullopt);
     if (s.ok()) {
       CreatedSession out = FromProto(reply);
@@ -464,7 +483,7 @@ Expected<CreatedSession> ClusterSessions::Join(uint64_t id) {
   req.set_id(id);
   v1::NodeSession reply;
   auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
-  const grpc::Status s = impl_->StubFor(at->second.grpc_address).Join(ctx.get(), req, &reply);
+  const grpc::Status s = impl_->StubFor(at->second).Join(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "join on node " + at->second.name);
   CreatedSession out = FromProto(reply);
   out.record.node = at->second.name;
@@ -479,8 +498,7 @@ Status ClusterSessions::RestSurface(uint64_t id, std::vector<geometry::Vec3>& po
   req.set_id(id);
   v1::NodeSurface reply;
   auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
-  const grpc::Status s =
-      impl_->StubFor(at->second.grpc_address).RestSurface(ctx.get(), req, &reply);
+  const grpc::Status s = impl_->StubFor(at->second).RestSurface(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "surface on node " + at->second.name);
   positions.clear();
   for (int i = 0; i + 2 < reply.positions_size(); i += 3)
@@ -496,7 +514,7 @@ Expected<std::string> ClusterSessions::Trace(uint64_t id) const {
   req.set_id(id);
   v1::NodeTrace reply;
   auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
-  const grpc::Status s = impl_->StubFor(at->second.grpc_address).Trace(ctx.get(), req, &reply);
+  const grpc::Status s = impl_->StubFor(at->second).Trace(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "record on node " + at->second.name);
   return std::move(*reply.mutable_json());
 }
@@ -518,8 +536,7 @@ int ClusterSessions::EndSessionsOf(const std::string& user, const std::string& r
     req.set_reason(reason);
     v1::NodeCount reply;
     auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
-    if (impl_->StubFor(n.grpc_address).EndSessionsOf(ctx.get(), req, &reply).ok())
-      ended += reply.count();
+    if (impl_->StubFor(n).EndSessionsOf(ctx.get(), req, &reply).ok()) ended += reply.count();
   }
   return ended;
 }
@@ -550,6 +567,7 @@ void ClusterSessions::Shutdown() {
       impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
       impl_->server->Wait();
     }
+    if (impl_->health) impl_->health->Shutdown();
   });
 }
 

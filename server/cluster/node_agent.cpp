@@ -54,8 +54,9 @@ std::string NewInstance() {
 struct NodeAgent::Impl final : public v1::NodeService::Service {
   SessionManager& sessions;
   NodeOptions options;
-  std::unique_ptr<grpc::Server> server;
-  int port = 0;
+  TlsFiles tls;  // before the server and channels that use it
+  std::unique_ptr<grpc::Server> server, health;
+  int port = 0, health_port = 0;
   std::atomic<bool> draining{false};
   int64_t started_us = db::NowUs();
 
@@ -193,9 +194,16 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
 
   // --- NodeService ---
+  // Only the control plane calls a node: the site's token, and with TLS a control replica's
+  // certificate (a node's own, or another node's, is refused).
+  grpc::Status Allowed(const grpc::ServerContext& ctx) const {
+    if (!Authorized(ctx, options.cluster.token)) return Unauthenticated();
+    return CheckPeer(ctx, options.cluster, options.cluster.control_name,
+                     "a control replica (" + options.cluster.control_name + ")");
+  }
   grpc::Status Create(grpc::ServerContext* ctx, const v1::NodeCreateRequest* req,
                       v1::NodeSession* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     if (draining)
       return grpc::Status(grpc::StatusCode::UNAVAILABLE,
                           "node " + options.name + " is draining: no new sessions");
@@ -215,7 +223,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
   grpc::Status Start(grpc::ServerContext* ctx, const v1::SessionRef* req,
                      v1::NodeSession* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     auto r = sessions.Start(req->id());
     if (!r.ok()) return grpcapi::ToGrpcStatus(r.error());
     grpcapi::ToProto(*r, out->mutable_session());
@@ -223,7 +231,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
   grpc::Status Stop(grpc::ServerContext* ctx, const v1::NodeStopRequest* req,
                     v1::NodeSession* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     auto r = sessions.Stop(req->id(), req->reason());
     if (!r.ok()) return grpcapi::ToGrpcStatus(r.error());
     grpcapi::ToProto(*r, out->mutable_session());
@@ -231,7 +239,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
   grpc::Status Join(grpc::ServerContext* ctx, const v1::SessionRef* req,
                     v1::NodeSession* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     auto c = sessions.Join(req->id());
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
     ToProto(*c, true, out);
@@ -239,7 +247,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
   grpc::Status RestSurface(grpc::ServerContext* ctx, const v1::SessionRef* req,
                            v1::NodeSurface* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     std::vector<geometry::Vec3> positions;
     std::vector<int32_t> triangles;
     if (Status s = sessions.RestSurface(req->id(), positions, triangles); !s.ok())
@@ -252,7 +260,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
   grpc::Status Trace(grpc::ServerContext* ctx, const v1::SessionRef* req,
                      v1::NodeTrace* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     auto trace = sessions.Trace(req->id());
     if (!trace.ok()) return grpcapi::ToGrpcStatus(trace.error());
     out->set_json(std::move(trace).value());
@@ -260,13 +268,13 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   }
   grpc::Status EndSessionsOf(grpc::ServerContext* ctx, const v1::NodeUserRequest* req,
                              v1::NodeCount* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     out->set_count(sessions.EndSessionsOf(req->user(), req->reason()));
     return grpc::Status::OK;
   }
   grpc::Status Telemetry(grpc::ServerContext* ctx, const v1::NodeTelemetryRequest*,
                          v1::NodeTelemetry* out) override {
-    if (!Authorized(*ctx, options.cluster.token)) return Unauthenticated();
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     std::lock_guard lock(telemetry_mutex);
     for (const auto& [id, t] : latest) convert::ToProto(t, out->add_sessions());
     return grpc::Status::OK;
@@ -279,6 +287,9 @@ NodeAgent::~NodeAgent() {
 }
 int NodeAgent::port() const {
   return impl_->port;
+}
+int NodeAgent::health_port() const {
+  return impl_->health_port;
 }
 
 Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
@@ -296,9 +307,11 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
     return InvalidArgument("lease-margin",
                            "the lease (heartbeat timeout less the margin) must last at least two "
                            "heartbeat periods");
-  auto creds = ServerCredentials(options.cluster);
-  if (!creds.ok()) return creds.error();
+  if (Status s = CheckTls(options.cluster); !s.ok()) return s.error();
   auto impl = std::make_unique<Impl>(sessions, options);
+  impl->tls = WatchTlsFiles(options.cluster);
+  auto creds = ServerCredentials(options.cluster, impl->tls);
+  if (!creds.ok()) return creds.error();
   grpc::EnableDefaultHealthCheckService(true);  // readiness (deploy/k8s/sim.yaml)
   grpc::ServerBuilder builder;
   builder.AddListeningPort(options.cluster.listen, *creds, &impl->port);
@@ -307,6 +320,12 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   if (!impl->server || impl->port == 0)
     return Error{ErrorCode::kUnavailable, "cannot listen on " + options.cluster.listen,
                  "cluster-listen"};
+  auto health = StartHealthServer(options.cluster, &impl->health_port);
+  if (!health.ok()) {
+    impl->server->Shutdown();
+    return health.error();
+  }
+  impl->health = std::move(health).value();
   if (impl->options.advertise.empty()) {
     const std::string& l = options.cluster.listen;
     impl->options.advertise = l.substr(0, l.rfind(':') + 1) + std::to_string(impl->port);
@@ -318,7 +337,8 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   // machine) is asked again within the same window; one that never answers in it does not stop
   // the start: the heartbeat thread keeps asking, and the node serves nothing until it holds the
   // lease.
-  p->control = v1::ClusterService::NewStub(Channel(options.control));
+  p->control =
+      v1::ClusterService::NewStub(Channel(options.control, p->tls, options.cluster.control_name));
   const auto give_up = std::chrono::steady_clock::now() +
                        std::chrono::microseconds(static_cast<int64_t>(
                            (c.heartbeat_timeout_s + 2 * c.heartbeat_period_s) * 1e6));
@@ -328,8 +348,13 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
     const grpc::Status s = p->Acquire();
     if (s.ok()) break;
     if (s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
-        s.error_code() == grpc::StatusCode::INVALID_ARGUMENT)
-      return FromGrpc(s, "acquire the node name");
+        s.error_code() == grpc::StatusCode::PERMISSION_DENIED ||
+        s.error_code() == grpc::StatusCode::INVALID_ARGUMENT) {
+      p->server->Shutdown();
+      Error e = FromGrpc(s, "acquire the node name " + options.name);
+      if (s.error_code() == grpc::StatusCode::PERMISSION_DENIED) e.field = "node-name";
+      return e;
+    }
     // A refusal is the last word until the control plane answers otherwise.
     if (s.error_code() == grpc::StatusCode::ALREADY_EXISTS) held_elsewhere = true;
     if (s.error_code() == grpc::StatusCode::ALREADY_EXISTS || !held_elsewhere)
@@ -384,6 +409,7 @@ void NodeAgent::Shutdown() {
       impl_->server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
       impl_->server->Wait();
     }
+    if (impl_->health) impl_->health->Shutdown();
   });
 }
 

@@ -1,7 +1,8 @@
 // One site as real processes on loopback (deploy/cluster_flow.sh): PostgreSQL, two control
 // replicas, three simulation nodes, 24 replaying stations; a node frozen past its lease and
-// resumed, a second process under a live node's name, then a simulation node and a control
-// replica killed with SIGKILL. The script measures; this test holds it to the issues' bars.
+// resumed, a second process under a live node's name and one whose certificate names another
+// node (the internal API runs mutual TLS), then a simulation node and a control replica killed
+// with SIGKILL. The script measures; this test holds it to the issues' bars.
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -83,6 +84,10 @@ TEST(ClusterTest, PlacementNodeLossAndControlLossOnPostgres) {
   EXPECT_NE(j["twin_rc"].get<int>(), 124) << "the twin hung instead of being refused";
   EXPECT_EQ(j["twin_refused"].get<int>(), 1);
   EXPECT_EQ(j["twin_kept"].get<int>(), 1);
+  // The internal API runs mutual TLS: a site certificate naming another node takes no name.
+  EXPECT_NE(j["rogue_rc"].get<int>(), 0);
+  EXPECT_NE(j["rogue_rc"].get<int>(), 124) << "the rogue hung instead of being refused";
+  EXPECT_EQ(j["rogue_refused"].get<int>(), 1);
 
   // A control replica killed during a burst: nothing acknowledged is lost; the client's retry
   // on the other replica stores the rest exactly once.
