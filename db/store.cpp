@@ -1,5 +1,7 @@
 #include "db/store.h"
 
+#include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <future>
 
@@ -47,11 +49,14 @@ void Store::Impl::RunBatch(std::vector<Pending>& batch) {
         Connection::Open(options.path, Connection::Mode::kReadWrite, options.busy_timeout_ms);
     if (again.ok()) writer = std::move(again).value();
   }
+  const auto t0 = std::chrono::steady_clock::now();
   Status begin = writer->BeginWrite();
   uint64_t failed = 0;
+  bool commit_failed = false;
   if (!begin.ok()) {
     for (auto& r : results) r = begin;
     failed = batch.size();
+    commit_failed = true;
   } else {
     for (size_t i = 0; i < batch.size(); ++i) {
       Status s = writer->Exec("SAVEPOINT job");
@@ -67,15 +72,22 @@ void Store::Impl::RunBatch(std::vector<Pending>& batch) {
     }
     if (Status commit = writer->Exec("COMMIT"); !commit.ok()) {
       (void)writer->Exec("ROLLBACK");
+      commit_failed = true;
       for (auto& r : results)
         if (r.ok()) r = commit, ++failed;
     }
   }
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   {
     std::lock_guard lock(stats_mutex);
     ++stats.commits;
     stats.jobs += batch.size();
     stats.failed_jobs += failed;
+    stats.failed_commits += commit_failed;
+    const auto& bounds = StoreStats::kCommitBounds;
+    stats.commit_buckets[static_cast<size_t>(std::lower_bound(bounds.begin(), bounds.end(), took) -
+                                             bounds.begin())]++;
+    stats.commit_seconds += took;
   }
   // Only now, after the COMMIT (fsync), is anything acknowledged.
   for (size_t i = 0; i < batch.size(); ++i)
@@ -169,8 +181,14 @@ Status Store::Write(Job job) {
 }
 
 StoreStats Store::stats() const {
-  std::lock_guard lock(impl_->stats_mutex);
-  return impl_->stats;
+  StoreStats out;
+  {
+    std::lock_guard lock(impl_->stats_mutex);
+    out = impl_->stats;
+  }
+  std::lock_guard lock(impl_->queue_mutex);
+  out.queued = impl_->queue.size();
+  return out;
 }
 
 Status Store::Backup(const std::string& destination) {

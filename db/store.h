@@ -234,7 +234,15 @@ struct StoreOptions {
 struct StoreStats {
   uint64_t commits = 0;
   uint64_t jobs = 0;
-  uint64_t failed_jobs = 0;
+  uint64_t failed_jobs = 0;     // refused or failed jobs (a stale epoch, a constraint, the below)
+  uint64_t failed_commits = 0;  // a BEGIN or COMMIT that failed: the store itself (gone, full)
+  // Each group commit's time from BEGIN to COMMIT done (s), as counts per bucket: bucket b holds
+  // the commits at most kCommitBounds[b] and above the bound before it; the last, above all.
+  static constexpr std::array<double, 10> kCommitBounds{0.0005, 0.001, 0.002, 0.005, 0.01,
+                                                        0.02,   0.05,  0.1,   0.25,  1};
+  std::array<uint64_t, kCommitBounds.size() + 1> commit_buckets{};
+  double commit_seconds = 0;  // their sum
+  uint64_t queued = 0;        // jobs waiting for the writer when read
 };
 
 class Store {

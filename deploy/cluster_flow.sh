@@ -45,6 +45,7 @@ step "PostgreSQL on loopback, in $pg_dir"
 uri="$("$root/deploy/postgres.sh" start "$pg_dir" | tail -1)"
 psql_q() { psql -qAt "$uri" -c "$1"; }
 head -c 32 /dev/urandom | base64 | tr -d '\n' > "$tmp/cluster-token"
+head -c 32 /dev/urandom | base64 | tr -d '\n' > "$tmp/metrics-token"  # Prometheus': the scrape only
 # The internal API with mutual TLS (docs/SCALING.md): a site CA, the control replicas' certificate
 # and one per node; sim-rogue's is the site's too, but names another node.
 "$root/deploy/cluster_certs.sh" "$tmp/pki" vsurg-control sim-0 sim-1 sim-2 sim-rogue
@@ -63,6 +64,7 @@ done
 for i in 0 1; do wait_file "$tmp/control-$i.json"; done
 grpc0="127.0.0.1:$(port_of "$tmp/control-0.json" grpc_port)"
 grpc1="127.0.0.1:$(port_of "$tmp/control-1.json" grpc_port)"
+http0="127.0.0.1:$(port_of "$tmp/control-0.json" http_port)"
 http1="127.0.0.1:$(port_of "$tmp/control-1.json" http_port)"
 servers="$grpc0,$grpc1"  # clients fail over between the replicas
 internal="127.0.0.1:$(port_of "$tmp/control-0.json" cluster_port),127.0.0.1:$(port_of "$tmp/control-1.json" cluster_port)"
@@ -74,6 +76,7 @@ capacity=$(( (stations + 2) / 3 + 8 ))
 for i in 0 1 2; do
   "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$i" --control "$internal" \
     --cluster-token-file "$tmp/cluster-token" $(tls_as "sim-$i") --udp-port 0 --capacity "$capacity" \
+    --http 127.0.0.1:0 --metrics-token-file "$tmp/metrics-token" \
     --ready-file "$tmp/sim-$i.json" 2> "$out/sim-$i.log" &
   sim_pid[$i]=$!
   pids+=("${sim_pid[$i]}")
@@ -106,6 +109,58 @@ running() { psql_q "SELECT count(*) FROM sessions WHERE state = 'running'"; }
 for _ in $(seq 300); do [ "$(running)" -ge "$stations" ] && break; sleep 0.1; done
 spread="$(psql_q "SELECT node || '=' || count(*) FROM sessions WHERE state = 'running' GROUP BY node ORDER BY node" | tr '\n' ' ')"
 echo "running sessions per node: $spread"
+
+step "Metrics on every role (Prometheus text, parsed by prometheus_client)"
+# A node's scrape with the metrics token (on a node nothing else is served, and that token reads
+# nothing else), a control replica's with an administrator's.
+metrics_check() {  # ROLE HOST:PORT TOKEN: the series' names go to $tmp/series-ROLE
+  /usr/bin/python3 - "$1" "$2" "$3" "$tmp/series-$1" <<'PY'
+import sys, urllib.request, urllib.error
+from prometheus_client.parser import text_string_to_metric_families
+role, address, token, names = sys.argv[1:]
+def get(path):
+    req = urllib.request.Request(f"http://{address}{path}", headers={"Authorization": f"Bearer {token}"})
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status, r.read().decode()
+    except urllib.error.HTTPError as e:
+        return e.code, ""
+status, text = get("/api/v1/metrics")
+values = {}
+for family in text_string_to_metric_families(text):
+    for sample in family.samples:
+        values[sample.name] = values.get(sample.name, 0) + sample.value
+open(names, "w").write("\n".join(sorted(values)) + "\n")
+want = {"sim": ["vsurg_lease_held", "vsurg_lease_seconds_left", "vsurg_udp_forces_sent_total",
+                "vsurg_store_commit_seconds_count", "vsurg_heartbeats_total"],
+        "control": ["vsurg_placements_total", "vsurg_nodes", "vsurg_node_lease_age_seconds",
+                    "vsurg_store_commit_seconds_count"]}[role]
+missing = [n for n in want if n not in values]
+moving = role == "control" or (values.get("vsurg_lease_held") == 1 and
+                                values.get("vsurg_udp_forces_sent_total", 0) > 0 and
+                                values.get("vsurg_lease_seconds_left", 0) > 0)
+other = get("/api/v1/sessions")[0] if role == "sim" else 404
+print(f"{role} {address}: {status}, {len(values)} series, missing {missing}, "
+      f"placements {values.get('vsurg_placements_total', 0):.0f}, "
+      f"forces {values.get('vsurg_udp_forces_sent_total', 0):.0f}, other route {other}")
+sys.exit(0 if status == 200 and not missing and moving and other == 404 else 1)
+PY
+}
+metrics_ok=1
+metrics_check sim "127.0.0.1:$(port_of "$tmp/sim-0.json" http_port)" "$(cat "$tmp/metrics-token")" || metrics_ok=0
+metrics_check control "$http0" "$admin_token" || metrics_ok=0
+# The Grafana dashboard's "Site:" panels read series these two roles serve.
+/usr/bin/python3 - "$root/deploy/grafana/vsurg.json" "$tmp/series-sim" "$tmp/series-control" <<'PY' || metrics_ok=0
+import json, re, sys
+served = set(open(sys.argv[2]).read().split()) | set(open(sys.argv[3]).read().split())
+panels = [p for p in json.load(open(sys.argv[1]))["panels"] if p["title"].startswith("Site:")]
+asked = {re.sub(r"_(bucket|sum|count)$", "", m) for p in panels for t in p["targets"]
+         for m in re.findall(r"vsurg_[a-z_]+", t["expr"])}
+served |= {re.sub(r"_(bucket|sum|count)$", "", m) for m in served}
+missing = sorted(asked - served)
+print(f"Grafana's site panels: {len(panels)}, {len(asked)} series, missing {missing}")
+sys.exit(1 if missing or not panels else 0)
+PY
 
 # The most live sessions any one trainee has, now.
 max_live_per_trainee() {
@@ -248,6 +303,7 @@ cat > "$out/cluster.json" <<EOF
  "frozen_victims": $frozen_victims, "frozen_not_aborted": $frozen_not_aborted,
  "frozen_trials": $frozen_trials, "lease_lost": $lease_lost, "reacquired": $reacquired,
  "max_live_per_trainee": $max_live, "twin_rc": $twin_rc, "twin_refused": $twin_refused,
- "twin_kept": $twin_kept, "rogue_rc": $rogue_rc, "rogue_refused": $rogue_refused}
+ "twin_kept": $twin_kept, "rogue_rc": $rogue_rc, "rogue_refused": $rogue_refused,
+ "metrics_ok": $metrics_ok}
 EOF
 cat "$out/cluster.json"

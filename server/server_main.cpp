@@ -34,6 +34,7 @@
 #include "server/control/control_plane.h"
 #include "server/http/http_server.h"
 #include "server/net/udp_endpoint.h"
+#include "server/ops/collectors.h"
 #include "server/ops/metrics.h"
 #include "server/ops/session_metrics.h"
 #include "server/session/session_manager.h"
@@ -47,22 +48,6 @@ using Kind = ArgParser::Kind;
 
 void Log(const std::string& event, const std::string& fields = "") {
   vsurg::LogEvent("vsurg-server", event, fields);
-}
-
-// The haptic channel's counters as Prometheus families.
-void CollectEndpoint(const vsurg::server::EndpointCounters& c, vsurg::server::ops::MetricsText& m) {
-  m.Family("vsurg_udp_datagrams_received_total", "counter", "Datagrams the UDP endpoint read.");
-  m.Sample("vsurg_udp_datagrams_received_total", {}, static_cast<double>(c.received));
-  m.Family("vsurg_udp_forces_sent_total", "counter", "Force datagrams answered to stations.");
-  m.Sample("vsurg_udp_forces_sent_total", {}, static_cast<double>(c.answered));
-  m.Family("vsurg_udp_datagrams_dropped_total", "counter",
-           "Datagrams dropped unanswered, by reason (late, fenced, bad tag, stale, ...).");
-  for (size_t r = 1; r < c.dropped.size(); ++r)  // (0 is no reason)
-    m.Sample("vsurg_udp_datagrams_dropped_total",
-             {{"reason", vsurg::wire::DropReasonName(static_cast<vsurg::wire::DropReason>(r))}},
-             static_cast<double>(c.dropped[r]));
-  m.Family("vsurg_visual_frames_sent_total", "counter", "Scene frames sent to stations.");
-  m.Sample("vsurg_visual_frames_sent_total", {}, static_cast<double>(c.frames));
 }
 
 // The dashboard's counters as Prometheus families.
@@ -137,10 +122,14 @@ int Main(std::vector<std::string> args) {
               "allow plaintext gRPC and HTTP off loopback (not advised)")
       .Option("http", Kind::kString,
               "web dashboard address host:port (off unless given; port 0: any free one); HTTPS "
-              "with the gRPC certificate when TLS is configured")
+              "with the gRPC certificate when TLS is configured. On a sim node: only the "
+              "Prometheus metrics (GET /api/v1/metrics)")
       .Option("http-hosts", Kind::kString,
               "host names the dashboard answers for, comma-separated, besides IP literals and "
               "localhost (any other Host header gets 421: DNS rebinding)")
+      .Option("metrics-token-file", Kind::kString,
+              "file holding a token (>= 16 characters) that reads GET /api/v1/metrics and "
+              "nothing else: Prometheus' (without it, an administrator's token)")
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
       .Option("deformation-workers", Kind::kInt,
               "driven sessions deform on a pool of this many threads (0: one per core) instead "
@@ -352,7 +341,7 @@ int Main(std::vector<std::string> args) {
       : shared_store
           ? std::string()
           : (std::filesystem::absolute(p.String("db")).parent_path() / "backups").string();
-  if (role != "sim") {  // a simulation node serves only the internal API
+  if (role != "sim") {  // a simulation node serves the internal API (and --http: its metrics)
     auto started = vsurg::server::ControlPlane::Start(**store, *sessions, co);
     if (!started.ok()) {
       std::cerr << "vsurg-server: --"
@@ -361,38 +350,51 @@ int Main(std::vector<std::string> args) {
       return 1;
     }
     control = std::move(started).value();
-    if (p.Has("http")) {
-      vsurg::server::HttpServerOptions ho;
-      ho.listen = p.String("http");
-      ho.tls_cert_file = co.tls_cert_file;
-      ho.tls_key_file = co.tls_key_file;
-      ho.allow_insecure = co.allow_insecure;
-      ho.backup_dir = co.backup_dir;
-      if (p.Has("http-hosts")) {
-        const std::string list = p.String("http-hosts");
-        for (size_t at = 0; at <= list.size();) {
-          const size_t comma = std::min(list.find(',', at), list.size());
-          if (comma > at) ho.hosts.push_back(list.substr(at, comma - at));
-          at = comma + 1;
-        }
+  }
+  if (p.Has("http")) {  // the dashboard; on a simulation node only its metrics
+    vsurg::server::HttpServerOptions ho;
+    ho.listen = p.String("http");
+    ho.tls_cert_file = co.tls_cert_file;
+    ho.tls_key_file = co.tls_key_file;
+    ho.allow_insecure = co.allow_insecure;
+    ho.backup_dir = co.backup_dir;
+    ho.metrics_only = role == "sim";
+    if (p.Has("metrics-token-file")) {
+      std::ifstream in(p.String("metrics-token-file"));
+      if (!in || !std::getline(in, ho.metrics_token) || ho.metrics_token.size() < 16) {
+        std::cerr << "vsurg-server: --metrics-token-file: cannot read a token of at least 16 "
+                     "characters from "
+                  << p.String("metrics-token-file") << "\n";
+        return 2;
       }
-      // The Prometheus scrape (GET /api/v1/metrics, an administrator's token).
-      session_metrics = std::make_unique<vsurg::server::ops::SessionMetrics>(*sessions);
-      metrics.Add([&](vsurg::server::ops::MetricsText& m) { session_metrics->Collect(m); });
-      if (endpoint)
-        metrics.Add(
-            [&](vsurg::server::ops::MetricsText& m) { CollectEndpoint(endpoint->counters(), m); });
-      metrics.Add([&](vsurg::server::ops::MetricsText& m) {
-        if (web) CollectHttp(web->counters(), m);
-      });
-      ho.metrics = &metrics;
-      auto web_started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
-      if (!web_started.ok()) {
-        std::cerr << "vsurg-server: --http: " << web_started.error().message << "\n";
-        return 1;
-      }
-      web = std::move(web_started).value();
     }
+    if (p.Has("http-hosts")) {
+      const std::string list = p.String("http-hosts");
+      for (size_t at = 0; at <= list.size();) {
+        const size_t comma = std::min(list.find(',', at), list.size());
+        if (comma > at) ho.hosts.push_back(list.substr(at, comma - at));
+        at = comma + 1;
+      }
+    }
+    // The Prometheus scrape (GET /api/v1/metrics, an administrator's token), on every role.
+    namespace ops = vsurg::server::ops;
+    session_metrics = std::make_unique<ops::SessionMetrics>(*sessions);
+    metrics.Add([&](ops::MetricsText& m) { session_metrics->Collect(m); });
+    if (endpoint)
+      metrics.Add([&](ops::MetricsText& m) { ops::CollectEndpoint(endpoint->counters(), m); });
+    metrics.Add([&](ops::MetricsText& m) { ops::CollectStore((*store)->stats(), m); });
+    if (placed) metrics.Add([&](ops::MetricsText& m) { placed->Collect(m); });
+    if (agent) metrics.Add([&](ops::MetricsText& m) { agent->Collect(m); });
+    metrics.Add([&](ops::MetricsText& m) {
+      if (web) CollectHttp(web->counters(), m);
+    });
+    ho.metrics = &metrics;
+    auto web_started = vsurg::server::HttpServer::Start(**store, *sessions, ho);
+    if (!web_started.ok()) {
+      std::cerr << "vsurg-server: --http: " << web_started.error().message << "\n";
+      return 1;
+    }
+    web = std::move(web_started).value();
   }
   const int grpc_port = control ? control->port() : 0;
   const int bound_udp = endpoint ? endpoint->port() : 0;

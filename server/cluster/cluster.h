@@ -51,6 +51,10 @@ class Lease;
 class SessionManager;
 }  // namespace vsurg::server
 
+namespace vsurg::server::ops {
+class MetricsText;
+}
+
 namespace vsurg::server::cluster {
 
 struct ClusterOptions {
@@ -104,6 +108,10 @@ class ClusterSessions final : public Sessions {
   void Unsubscribe(uint64_t token) override;
   // Stops the internal API and the threads; the nodes' sessions go on (they are not ours).
   void Shutdown() override;
+  // For a scrape (server/ops/metrics.h): this replica's placement decisions, and the site's
+  // registry as the store holds it (nodes by state; per node its sessions, capacity, epoch and
+  // the age of its last heartbeat, i.e. of its lease). Reads the registry: any thread.
+  void Collect(ops::MetricsText& out) const;
 
   struct Impl;
 
@@ -136,6 +144,9 @@ class NodeAgent {
   // have finished or `timeout_s` passed (they are then left to the shutdown, which aborts them).
   void Drain(double timeout_s);
   void Shutdown();
+  // For a scrape: the lease as this node holds it (held, epoch, seconds left on its own clock),
+  // draining, and the heartbeats refused or unanswered. Any thread.
+  void Collect(ops::MetricsText& out) const;
 
   struct Impl;
 

@@ -13,6 +13,7 @@
 
 #include "db/store.h"
 #include "server/cluster/cluster_common.h"
+#include "server/ops/metrics.h"
 
 namespace vsurg::server::cluster {
 namespace {
@@ -30,6 +31,15 @@ Error NotLive(uint64_t id) {
 struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   db::Store& store;
   ClusterOptions options;
+  // Placement decisions (for Collect): sessions placed per node, and the refusals by reason.
+  mutable std::mutex placements_mutex;
+  std::map<std::string, uint64_t> placed;
+  std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, node_failed
+  void Count(std::map<std::string, uint64_t>& m, const std::string& key) {
+    std::lock_guard lock(placements_mutex);
+    ++m[key];
+  }
+
   TlsFiles tls;  // before the server and channels that use it
   std::unique_ptr<grpc::Server> server, health;
   int health_port = 0;
@@ -404,12 +414,14 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
   const auto live = std::count_if(mine->begin(), mine->end(), [](const db::SessionRecord& r) {
     return vsurg::IsLive(r.state);
   });
-  if (live >= d.options.max_sessions_per_user)
+  if (live >= d.options.max_sessions_per_user) {
+    d.Count(d.refused, "trainee_limit");
     return Error{ErrorCode::kResourceExhausted,
                  "trainee '" + trainee + "' already has " + std::to_string(live) +
                      " live sessions (the limit is " +
                      std::to_string(d.options.max_sessions_per_user) + "); stop one first",
                  "trainee"};
+  }
   std::vector<std::string> tried_nodes;
   std::string tried;
   size_t registered = 0, with_room = 0;
@@ -433,15 +445,18 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
     const grpc::Status s = d.StubFor(chosen).Create(ctx.get(), req, &reply);
     d.Release(chosen.name, s.ok() ? std::optional<int64_t>(reply.session().id()) : std::nullopt);
     if (s.ok()) {
+      d.Count(d.placed, chosen.name);
       CreatedSession out = FromProto(reply);
       out.record.node = chosen.name;
       return out;
     }
+    d.Count(d.refused, "node_failed");
     const Error e = FromGrpc(s, "create on node " + chosen.name);
     if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted)
       return e;  // the request itself is wrong (a scene that does not exist, …)
     tried += (tried.empty() ? "" : "; ") + e.message;
   }
+  d.Count(d.refused, "no_room");
   return Error{ErrorCode::kUnavailable,
                "no simulation node has room for a new session (" + std::to_string(registered) +
                    " registered, " + std::to_string(with_room) + " with room" +
@@ -551,6 +566,54 @@ uint64_t ClusterSessions::Subscribe(uint64_t session, Subscriber fn) {
 void ClusterSessions::Unsubscribe(uint64_t token) {
   std::lock_guard lock(impl_->subscribers_mutex);  // waits for a delivery in progress
   impl_->subscribers.erase(token);
+}
+
+void ClusterSessions::Collect(ops::MetricsText& m) const {
+  const Impl& d = *impl_;
+  {
+    std::lock_guard lock(d.placements_mutex);
+    m.Family("vsurg_placements_total", "counter", "Sessions this replica placed, by node.");
+    for (const auto& [node, n] : d.placed)
+      m.Sample("vsurg_placements_total", {{"node", node}}, static_cast<double>(n));
+    m.Family("vsurg_placement_refusals_total", "counter",
+             "Creates not placed by this replica (trainee_limit, no_room), and node_failed: a "
+             "chosen node's Create failed (another was tried).");
+    for (const char* reason : {"trainee_limit", "no_room", "node_failed"}) {
+      const auto it = d.refused.find(reason);
+      m.Sample("vsurg_placement_refusals_total", {{"reason", reason}},
+               it == d.refused.end() ? 0.0 : static_cast<double>(it->second));
+    }
+  }
+  auto nodes = d.store.ListNodes();
+  if (!nodes.ok()) return;  // the store's own families say why
+  auto rows = d.store.LiveSessionNodes();
+  std::map<std::string, int> live;
+  if (rows.ok())
+    for (const auto& [node, id] : *rows) ++live[node];
+  const int64_t now = db::NowUs();
+  std::map<std::string, int> by_state{{"up", 0}, {"draining", 0}, {"down", 0}};
+  for (const db::NodeRecord& n : *nodes)
+    ++by_state[n.down || now - n.heartbeat_us > d.TimeoutUs() ? "down"
+               : n.draining                                   ? "draining"
+                                                              : "up"];
+  m.Family("vsurg_nodes", "gauge", "Simulation nodes in the site's registry, by state.");
+  for (const auto& [state, n] : by_state) m.Sample("vsurg_nodes", {{"state", state}}, n);
+  m.Family("vsurg_node_live_sessions", "gauge", "Live sessions per node (the store's rows).");
+  for (const db::NodeRecord& n : *nodes)
+    if (!n.down) m.Sample("vsurg_node_live_sessions", {{"node", n.name}}, live[n.name]);
+  m.Family("vsurg_node_capacity", "gauge", "Live sessions each node takes.");
+  for (const db::NodeRecord& n : *nodes)
+    if (!n.down) m.Sample("vsurg_node_capacity", {{"node", n.name}}, n.capacity);
+  m.Family("vsurg_node_lease_age_seconds", "gauge",
+           "Seconds since each up node's last heartbeat renewed its lease (down past the "
+           "heartbeat timeout).");
+  for (const db::NodeRecord& n : *nodes)
+    if (!n.down)
+      m.Sample("vsurg_node_lease_age_seconds", {{"node", n.name}},
+               1e-6 * static_cast<double>(now - n.heartbeat_us));
+  m.Family("vsurg_node_epoch", "gauge", "Each node's lease epoch.");
+  for (const db::NodeRecord& n : *nodes)
+    if (!n.down) m.Sample("vsurg_node_epoch", {{"node", n.name}}, static_cast<double>(n.epoch));
 }
 
 void ClusterSessions::Shutdown() {

@@ -16,6 +16,7 @@
 #include "server/cluster/cluster_common.h"
 #include "server/control/grpc_common.h"
 #include "server/net/lease.h"
+#include "server/ops/metrics.h"
 #include "server/session/session_manager.h"
 
 namespace vsurg::server::cluster {
@@ -58,6 +59,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   std::unique_ptr<grpc::Server> server, health;
   int port = 0, health_port = 0;
   std::atomic<bool> draining{false};
+  std::atomic<uint64_t> beats_answered{0}, beats_failed{0};  // heartbeats and acquisitions
   int64_t started_us = db::NowUs();
 
   // The latest telemetry of every live session, from the manager's sampler, with each session's
@@ -178,6 +180,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
           continue;  // acquire again at once
         }
       }
+      (s.ok() ? beats_answered : beats_failed).fetch_add(1, std::memory_order_relaxed);
       const bool ok = s.ok() || s.error_code() == grpc::StatusCode::ALREADY_EXISTS;
       if (ok != reachable) {
         reachable = ok;
@@ -377,6 +380,25 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
       "internal=" + p->options.advertise + " udp=" + options.udp_host + ":" +
           std::to_string(options.udp_port) + " capacity=" + std::to_string(options.capacity));
   return std::unique_ptr<NodeAgent>(new NodeAgent(std::move(impl)));
+}
+
+void NodeAgent::Collect(ops::MetricsText& m) const {
+  const Lease& lease = impl_->lease;
+  m.Family("vsurg_lease_held", "gauge", "1 while this node holds its name's lease (valid or not).");
+  m.Sample("vsurg_lease_held", {}, lease.held() ? 1 : 0);
+  m.Family("vsurg_lease_epoch", "gauge", "The epoch of the lease held (0: none).");
+  m.Sample("vsurg_lease_epoch", {}, static_cast<double>(lease.epoch()));
+  m.Family("vsurg_lease_seconds_left", "gauge",
+           "Seconds of validity left on the node's own clock (negative: lapsed, no forces).");
+  m.Sample("vsurg_lease_seconds_left", {}, lease.held() ? lease.SecondsLeft() : 0);
+  m.Family("vsurg_node_draining", "gauge", "1 while the node drains (no new sessions).");
+  m.Sample("vsurg_node_draining", {}, impl_->draining ? 1 : 0);
+  m.Family("vsurg_heartbeats_total", "counter",
+           "Heartbeats and acquisitions sent to the control plane, by outcome.");
+  m.Sample("vsurg_heartbeats_total", {{"outcome", "answered"}},
+           static_cast<double>(impl_->beats_answered.load(std::memory_order_relaxed)));
+  m.Sample("vsurg_heartbeats_total", {{"outcome", "failed"}},
+           static_cast<double>(impl_->beats_failed.load(std::memory_order_relaxed)));
 }
 
 void NodeAgent::Drain(double timeout_s) {

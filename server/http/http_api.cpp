@@ -584,6 +584,11 @@ HttpReply HttpApi::Handle(const HttpRequest& r) {
                                                  : std::string_view(r.target).substr(q + 1));
   if (!query || path.empty() || path.front() != '/')
     return ErrorReply(InvalidArgument("target", "a malformed request target"));
+  if (options_.metrics_only && path != "/api/v1/metrics")
+    return ErrorReply(Error{ErrorCode::kNotFound,
+                            "a simulation node serves only /api/v1/metrics here; the dashboard "
+                            "is the control plane's",
+                            "path"});
   if (path.rfind("/api/v1/", 0) == 0) return Api(r, path.substr(7), *query);
   if (path.rfind("/static/", 0) == 0) {
     const auto asset = FindAsset(path.substr(7));
@@ -689,11 +694,15 @@ HttpReply HttpApi::Routes::Me(const Call& c) {
 
 // The Prometheus scrape: every collector the process registered, in the text format.
 HttpReply HttpApi::Routes::Metrics(const Call& c) {
-  if (!c.api.options_.metrics)
+  return c.api.MetricsReply();
+}
+
+HttpReply HttpApi::MetricsReply() const {
+  if (!options_.metrics)
     return ErrorReply(Error{ErrorCode::kNotFound, "this process keeps no metrics", ""});
   HttpReply r;
   r.content_type = "text/plain; version=0.0.4; charset=utf-8";
-  r.body = c.api.options_.metrics->Render();
+  r.body = options_.metrics->Render();
   r.headers.emplace_back("Cache-Control", "no-store");
   return r;
 }
@@ -1417,6 +1426,10 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
       reply.headers.emplace_back("Retry-After", std::to_string(static_cast<int>(std::ceil(wait))));
       return reply;
     }
+    // Prometheus' token: the scrape, nothing else (every other route treats it as unknown).
+    if (get && seg.size() == 1 && seg[0] == "metrics" && !options_.metrics_token.empty() &&
+        SameSecret(authorization, "Bearer " + options_.metrics_token))
+      return MetricsReply();
   } else {
     if (auto id = CookieValue(r.cookie, kCookie)) web = sessions_.Find(*id);
     if (!web) return ErrorReply(Error{ErrorCode::kUnauthenticated, "sign in first", "session"});

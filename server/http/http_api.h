@@ -96,6 +96,10 @@ struct HttpApiOptions {
   // GET /api/v1/metrics renders this (Prometheus text format; an administrator's bearer token);
   // null: 404. Must outlive the API.
   const ops::MetricsRegistry* metrics = nullptr;
+  bool metrics_only = false;  // HttpServerOptions::metrics_only
+  // A token that reads GET /api/v1/metrics and nothing else (Prometheus'; empty: none). It is no
+  // user's: a leaked one shows aggregate figures, never a name or a session.
+  std::string metrics_token;
 };
 
 class HttpApi {
@@ -134,6 +138,7 @@ class HttpApi {
   HttpReply Api(const HttpRequest& r, const std::string& path,
                 const std::multimap<std::string, std::string>& query);
   HttpReply Page(const HttpRequest& r, const std::string& path);
+  HttpReply MetricsReply() const;
   HttpReply SignIn(const HttpRequest& r);
   // A deferred reply whose `work` runs on a read worker (the answer of a long read).
   class ReadWorkers;

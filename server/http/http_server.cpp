@@ -827,6 +827,8 @@ Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessio
   ao.secure_cookies = impl->ssl.has_value();
   ao.clock = options.clock;
   ao.metrics = options.metrics;
+  ao.metrics_only = options.metrics_only;
+  ao.metrics_token = options.metrics_token;
   impl->api = std::make_unique<HttpApi>(impl->domain, ao);
   impl->acceptor.emplace(impl->shared->io);
   const tcp::endpoint endpoint(address, static_cast<uint16_t>(port));

@@ -76,6 +76,10 @@ struct HttpServerOptions {
   // GET /api/v1/metrics (server/ops/metrics.h), for an administrator's token; null: none. Must
   // outlive the server.
   const ops::MetricsRegistry* metrics = nullptr;
+  // Only GET /api/v1/metrics is served (a simulation node: its sessions are the control plane's
+  // to show and to create); everything else is 404.
+  bool metrics_only = false;
+  std::string metrics_token;  // HttpApiOptions::metrics_token
 };
 
 struct HttpCounters {

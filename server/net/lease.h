@@ -21,6 +21,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <limits>
 
 namespace vsurg::server {
 
@@ -35,6 +36,12 @@ class Lease {
   // The acquisition's number, carried by every store write of the sessions created under it.
   int64_t epoch() const { return epoch_.load(std::memory_order_acquire); }
   bool held() const { return epoch() > 0; }
+  // Seconds of validity left at `now` (negative: lapsed; none held: −inf).
+  double SecondsLeft(Clock::time_point now = Clock::now()) const {
+    const int64_t until = until_.load(std::memory_order_acquire);
+    if (until == 0) return -std::numeric_limits<double>::infinity();
+    return std::chrono::duration<double>(Clock::duration(until) - now.time_since_epoch()).count();
+  }
 
   // A new acquisition (epoch > 0), valid until `until`.
   void Grant(int64_t epoch, Clock::time_point until) {

@@ -77,6 +77,22 @@ void MetricsText::Histogram(std::string_view name, std::string_view help, const 
   Sample(std::string(name) + "_count", labels, static_cast<double>(values.size()));
 }
 
+void MetricsText::HistogramCounts(std::string_view name, std::string_view help,
+                                  const Labels& labels, const std::vector<double>& bounds,
+                                  const std::vector<uint64_t>& counts, double sum) {
+  Family(name, "histogram", help);
+  const std::string bucket = std::string(name) + "_bucket";
+  uint64_t cumulative = 0;
+  for (size_t b = 0; b <= bounds.size(); ++b) {
+    cumulative += b < counts.size() ? counts[b] : 0;
+    Labels l = labels;
+    l.emplace_back("le", b == bounds.size() ? "+Inf" : Number(bounds[b]));
+    Sample(bucket, l, static_cast<double>(cumulative));
+  }
+  Sample(std::string(name) + "_sum", labels, sum);
+  Sample(std::string(name) + "_count", labels, static_cast<double>(cumulative));
+}
+
 void MetricsRegistry::Add(Collector c) {
   std::lock_guard lock(mutex_);
   collectors_.push_back(std::move(c));

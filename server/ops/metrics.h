@@ -8,6 +8,7 @@
 // of Render, one at a time.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <mutex>
 #include <string>
@@ -30,6 +31,11 @@ class MetricsText {
   // cumulative _bucket samples, _sum and _count.
   void Histogram(std::string_view name, std::string_view help, const Labels& labels,
                  const std::vector<double>& bounds, const std::vector<double>& values);
+  // The same from counts kept as they came: counts[b] observations at most bounds[b] and above
+  // bounds[b-1] (counts has one more entry than bounds: above every bound), their `sum`.
+  void HistogramCounts(std::string_view name, std::string_view help, const Labels& labels,
+                       const std::vector<double>& bounds, const std::vector<uint64_t>& counts,
+                       double sum);
   const std::string& str() const { return out_; }
 
  private:

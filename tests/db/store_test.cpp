@@ -258,6 +258,14 @@ TEST_P(StoreTest, GroupCommitBatchesABurstAndAFailedJobRollsBackAlone) {
   EXPECT_EQ(Rows(), 9 * (kN - kN / 10));
   const StoreStats st = store_->stats();
   EXPECT_LT(st.commits, st.jobs / 4) << "a burst should share commits";
+  // Every commit timed into one bucket; refused jobs are not the store failing.
+  uint64_t timed = 0;
+  for (uint64_t n : st.commit_buckets) timed += n;
+  EXPECT_EQ(timed, st.commits);
+  EXPECT_GT(st.commit_seconds, 0);
+  EXPECT_GE(st.failed_jobs, static_cast<uint64_t>(kN / 10));
+  EXPECT_EQ(st.failed_commits, 0u);
+  EXPECT_EQ(st.queued, 0u);
 }
 
 TEST_P(StoreTest, SessionsRecordTheirLifeCycleAndMetrics) {

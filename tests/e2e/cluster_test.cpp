@@ -84,6 +84,8 @@ TEST(ClusterTest, PlacementNodeLossAndControlLossOnPostgres) {
   EXPECT_NE(j["twin_rc"].get<int>(), 124) << "the twin hung instead of being refused";
   EXPECT_EQ(j["twin_refused"].get<int>(), 1);
   EXPECT_EQ(j["twin_kept"].get<int>(), 1);
+  // Every role serves its Prometheus metrics, and they move (a node's forces, its lease).
+  EXPECT_EQ(j["metrics_ok"].get<int>(), 1);
   // The internal API runs mutual TLS: a site certificate naming another node takes no name.
   EXPECT_NE(j["rogue_rc"].get<int>(), 0);
   EXPECT_NE(j["rogue_rc"].get<int>(), 124) << "the rogue hung instead of being refused";

@@ -30,6 +30,7 @@
 #include "server/cluster/cluster_common.h"
 #include "server/net/lease.h"
 #include "server/net/udp_endpoint.h"
+#include "server/ops/metrics.h"
 #include "server/session/session_manager.h"
 #include "tests/support/postgres.h"
 #include "tests/support/temp_dir.h"
@@ -168,6 +169,24 @@ TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
   auto bad = control_->Create("trainee-10", "no-such-scene");
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.error().code, ErrorCode::kNotFound);
+  // The scrape: the placements per node, the refusal for want of room, the registry; and a
+  // node's own lease.
+  ops::MetricsText m;
+  control_->Collect(m);
+  const std::string& text = m.str();
+  for (const char* line :
+       {"vsurg_placements_total{node=\"sim-a\"} 3\n", "vsurg_placements_total{node=\"sim-b\"} 3\n",
+        "vsurg_placement_refusals_total{reason=\"no_room\"} 1\n",
+        "vsurg_placement_refusals_total{reason=\"trainee_limit\"} 0\n",
+        "vsurg_nodes{state=\"up\"} 2\n", "vsurg_node_live_sessions{node=\"sim-a\"} 3\n",
+        "vsurg_node_capacity{node=\"sim-b\"} 3\n", "vsurg_node_epoch{node=\"sim-a\"} 1\n"})
+    EXPECT_NE(text.find(line), std::string::npos) << line << " not in\n" << text;
+  EXPECT_NE(text.find("vsurg_node_lease_age_seconds{node=\"sim-b\"} "), std::string::npos);
+  ops::MetricsText n;
+  nodes_[0]->agent->Collect(n);
+  EXPECT_NE(n.str().find("vsurg_lease_held 1\n"), std::string::npos) << n.str();
+  EXPECT_NE(n.str().find("vsurg_lease_epoch 1\n"), std::string::npos) << n.str();
+  EXPECT_EQ(n.str().find("vsurg_lease_seconds_left -"), std::string::npos) << n.str();
 }
 
 // A burst of stations at once (a class starting together): each placement sees the ones still

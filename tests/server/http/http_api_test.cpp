@@ -543,6 +543,59 @@ TEST(MetricsTextTest, WritesFamiliesLabelsAndCumulativeHistograms) {
             "vsurg_rtt_seconds_count{node=\"n1\"} 4\n");
 }
 
+// Counts kept as they came give the same text as the observations themselves.
+TEST(MetricsTextTest, HistogramCountsMatchTheHistogramOfTheSameObservations) {
+  ops::MetricsText a, b;
+  a.Histogram("vsurg_rtt_seconds", "Round trips.", {{"node", "n1"}}, {0.5, 2}, {0.25, 0.5, 1, 8});
+  b.HistogramCounts("vsurg_rtt_seconds", "Round trips.", {{"node", "n1"}}, {0.5, 2}, {2, 1, 1},
+                    9.75);
+  EXPECT_EQ(a.str(), b.str());
+}
+
+// A simulation node's listener (metrics_only): the scrape, and nothing else (no page, no route
+// that would create a session behind the control plane's back). And Prometheus' token
+// (metrics_token): the scrape, and nothing else.
+TEST_F(HttpApiTest, AMetricsOnlyListenerServesTheScrapeAndNothingElse) {
+  HttpApiOptions o;
+  o.clock = &clock_;
+  o.metrics = &metrics_;
+  o.metrics_only = true;
+  HttpApi node(*domain_, o);
+  const auto get = [&](const std::string& target) {
+    HttpRequest r;
+    r.method = "GET";
+    r.target = target;
+    r.authorization = "Bearer " + admin_;
+    r.remote = "10.0.0.9";
+    return node.Handle(r);
+  };
+  EXPECT_EQ(get("/api/v1/metrics").status, 200);
+  for (const char* target : {"/api/v1/sessions", "/live", "/", "/static/app.js", "/signin"})
+    EXPECT_EQ(get(target).status, 404) << target;
+  HttpRequest create;
+  create.method = "POST";
+  create.target = "/api/v1/sessions";
+  create.authorization = "Bearer " + admin_;
+  create.body = R"({"scene": "arm-torsion"})";
+  EXPECT_EQ(node.Handle(create).status, 404);
+  // Prometheus' own token reads the scrape and is unknown everywhere else.
+  o.metrics_only = false;
+  o.metrics_token = "prometheus-token-0123456789";
+  HttpApi site(*domain_, o);
+  const auto as = [&](const std::string& token, const std::string& target) {
+    HttpRequest r;
+    r.method = "GET";
+    r.target = target;
+    r.authorization = "Bearer " + token;
+    r.remote = "10.0.0.10";
+    return site.Handle(r).status;
+  };
+  EXPECT_EQ(as("prometheus-token-0123456789", "/api/v1/metrics"), 200);
+  EXPECT_EQ(as("prometheus-token-0123456789", "/api/v1/sessions"), 401);
+  EXPECT_EQ(as("prometheus-token-012345678X", "/api/v1/metrics"), 401);
+  EXPECT_EQ(as(tokens_["tina"], "/api/v1/metrics"), 403);
+}
+
 // GET /api/v1/metrics: an administrator's bearer token reads the live sessions by state as the
 // sampler last saw them; anyone else is refused.
 TEST_F(HttpApiTest, TheMetricsAreForAnAdministratorAndFollowTheSessions) {
