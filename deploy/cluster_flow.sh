@@ -76,7 +76,7 @@ capacity=$(( (stations + 2) / 3 + 8 ))
 for i in 0 1 2; do
   "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$i" --control "$internal" \
     --cluster-token-file "$tmp/cluster-token" $(tls_as "sim-$i") --udp-port 0 --capacity "$capacity" \
-    --http 127.0.0.1:0 --metrics-token-file "$tmp/metrics-token" \
+    --http 127.0.0.1:0 --metrics-token-file "$tmp/metrics-token" $([ "$i" = 2 ] && echo --log-format json) \
     --ready-file "$tmp/sim-$i.json" 2> "$out/sim-$i.log" &
   sim_pid[$i]=$!
   pids+=("${sim_pid[$i]}")
@@ -192,9 +192,9 @@ while [ $(( $(now_ms) - resumed_at )) -lt 3000 ]; do
 done
 frozen_not_aborted="$(psql_q "SELECT count(*) FROM sessions WHERE id IN (${frozen_ids:-0}) AND state <> 'aborted'")"
 frozen_trials="$(psql_q "SELECT count(*) FROM trial_metrics WHERE session_id IN (${frozen_ids:-0})")"
-for _ in $(seq 50); do grep -q "event=lease_acquired epoch=2" "$out/sim-1.log" && break; sleep 0.1; done
+for _ in $(seq 50); do grep -q "event=lease_acquired node=sim-1 epoch=2" "$out/sim-1.log" && break; sleep 0.1; done
 lease_lost="$(grep -c "event=lease_lost" "$out/sim-1.log" || true)"
-reacquired="$(grep -c "event=lease_acquired epoch=2" "$out/sim-1.log" || true)"
+reacquired="$(grep -c "event=lease_acquired node=sim-1 epoch=2" "$out/sim-1.log" || true)"
 echo "sim-1 had $frozen_victims sessions; after the resume $frozen_not_aborted of them are not aborted, $frozen_trials have a trial recorded"
 echo "sim-1's log: lease_lost $lease_lost time(s), took its name again at epoch 2: $reacquired"
 echo "most live sessions of one trainee during and after the freeze: $max_live"
@@ -293,6 +293,30 @@ print(len(back), sum(1 for r in back if r["watchdog_fades"] > 0),
       repr(max([r["max_force_n"] for r in rows] or [0])), sum(r["reconnects"] for r in rows))')
 echo "stations reconnected: $reconnected ($reconnects reconnections; force faded meanwhile: $faded); largest force sent: $max_force N"
 
+step "sim-2 logged JSON lines (--log-format json), each about a session carrying its id"
+sleep 1  # the stations' last stops reach the node
+json_log_ok=0
+/usr/bin/python3 - "$out/sim-2.log" <<'PY' && json_log_ok=1
+import json, sys
+events, bad, sessionless, ended = 0, [], [], 0
+for line in open(sys.argv[1], encoding="utf-8"):
+    if line.startswith("ts="):
+        bad.append(line)  # a logfmt line from a process told to write JSON
+    if not line.startswith("{"):
+        continue  # gRPC's own diagnostics have their own format
+    try:
+        e = json.loads(line)
+    except ValueError:
+        bad.append(line)
+        continue
+    events += 1
+    if e["event"].startswith("session_") and not isinstance(e.get("session"), int):
+        sessionless.append(line)
+    ended += e["event"] == "session_ended"
+print(f"{events} JSON events, {ended} session_ended, {len(bad)} not JSON, {len(sessionless)} about a session without its id")
+sys.exit(0 if events and ended and not bad and not sessionless else 1)
+PY
+
 cat > "$out/cluster.json" <<EOF
 {"stations": $stations, "spread": "$spread", "victims": $victims, "aborted": $aborted,
  "moved": $moved, "back_ms": $back_ms, "spread_after": "$spread_after", "acked": $acked,
@@ -304,6 +328,6 @@ cat > "$out/cluster.json" <<EOF
  "frozen_trials": $frozen_trials, "lease_lost": $lease_lost, "reacquired": $reacquired,
  "max_live_per_trainee": $max_live, "twin_rc": $twin_rc, "twin_refused": $twin_refused,
  "twin_kept": $twin_kept, "rogue_rc": $rogue_rc, "rogue_refused": $rogue_refused,
- "metrics_ok": $metrics_ok}
+ "metrics_ok": $metrics_ok, "json_log_ok": $json_log_ok}
 EOF
 cat "$out/cluster.json"

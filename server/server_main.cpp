@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/core/args.h"
+#include "common/core/log.h"
 #include "db/store.h"
 #include "server/cluster/cluster.h"
 #include "server/config.h"
@@ -46,7 +47,7 @@ using vsurg::Status;
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 
-void Log(const std::string& event, const std::string& fields = "") {
+void Log(const std::string& event, const vsurg::LogFields& fields = {}) {
   vsurg::LogEvent("vsurg-server", event, fields);
 }
 
@@ -130,6 +131,10 @@ int Main(std::vector<std::string> args) {
       .Option("metrics-token-file", Kind::kString,
               "file holding a token (>= 16 characters) that reads GET /api/v1/metrics and "
               "nothing else: Prometheus' (without it, an administrator's token)")
+      .Option("log-format", Kind::kString,
+              "the event log on stderr: logfmt (key=value lines) or json (one object a line; "
+              "every line about a session carries its id as `session`)",
+              false, "logfmt")
       .Option("telemetry-hz", Kind::kDouble, "monitor telemetry rate", false, "30")
       .Option("deformation-workers", Kind::kInt,
               "driven sessions deform on a pool of this many threads (0: one per core) instead "
@@ -167,6 +172,12 @@ int Main(std::vector<std::string> args) {
       std::cerr << "vsurg-server: " << s.error().field << ": " << s.error().message << "\n";
       return 2;
     }
+  }
+  if (vsurg::LogFormat format; vsurg::ParseLogFormat(p.String("log-format"), &format)) {
+    vsurg::SetLogFormat(format);
+  } else {
+    std::cerr << "vsurg-server: --log-format: must be logfmt or json\n";
+    return 2;
   }
   const int udp_port = p.Int("udp-port");
   const double telemetry_hz = p.Double("telemetry-hz");
@@ -400,14 +411,15 @@ int Main(std::vector<std::string> args) {
   const int bound_udp = endpoint ? endpoint->port() : 0;
   const int http_port = web ? web->port() : 0;
   const int cluster_port = placed ? placed->port() : agent ? agent->port() : 0;
-  Log("serving", "role=" + role + " grpc_port=" + std::to_string(grpc_port) +
-                     " udp_port=" + std::to_string(bound_udp) +
-                     (web ? " http_port=" + std::to_string(http_port) : std::string()) +
-                     (cluster_port ? " cluster_port=" + std::to_string(cluster_port) +
-                                         " cluster_tls=" + (cluster.tls() ? "mutual" : "off")
-                                   : "") +
-                     " tls=" + (control && control->tls() ? "on" : "off") +
-                     " db=" + vsurg::db::BackendName(vsurg::db::BackendOf(p.String("db"))));
+  vsurg::LogFields serving{{"role", role}, {"grpc_port", grpc_port}, {"udp_port", bound_udp}};
+  if (web) serving.emplace_back("http_port", http_port);
+  if (cluster_port) {
+    serving.emplace_back("cluster_port", cluster_port);
+    serving.emplace_back("cluster_tls", cluster.tls() ? "mutual" : "off");
+  }
+  serving.emplace_back("tls", control && control->tls() ? "on" : "off");
+  serving.emplace_back("db", vsurg::db::BackendName(vsurg::db::BackendOf(p.String("db"))));
+  Log("serving", serving);
   if (p.Has("ready-file")) {
     const std::string path = p.String("ready-file"), tmp = path + ".tmp";
     {
@@ -423,7 +435,7 @@ int Main(std::vector<std::string> args) {
 
   int sig = 0;
   sigwait(&signals, &sig);
-  Log("stopping", std::string("signal=") + (sig == SIGINT ? "SIGINT" : "SIGTERM"));
+  Log("stopping", {{"signal", sig == SIGINT ? "SIGINT" : "SIGTERM"}});
   // A node's rolling upgrade: SIGTERM lets its live sessions finish (Kubernetes sends it and
   // waits terminationGracePeriodSeconds); SIGINT (an operator's ^C) does not wait.
   if (agent && sig == SIGTERM) agent->Drain(p.Double("drain-timeout"));
@@ -441,8 +453,7 @@ int Main(std::vector<std::string> args) {
   placed.reset();
   endpoint.reset();
   store->reset();  // drains the writer
-  Log("stopped",
-      "commits=" + std::to_string(stats.commits) + " jobs=" + std::to_string(stats.jobs));
+  Log("stopped", {{"commits", stats.commits}, {"jobs", stats.jobs}});
   return 0;
 }
 

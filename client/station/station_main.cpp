@@ -25,6 +25,7 @@
 #include "client/station/station.h"
 #include "common/core/args.h"
 #include "common/core/format.h"
+#include "common/core/log.h"
 #include "common/core/time.h"
 #include "common/geometry/bvh.h"
 #include "common/scoring/proficiency.h"
@@ -330,10 +331,9 @@ int Run(const std::vector<std::string>& args) {
   // The session's life on its own thread: a frame that takes seconds (a first frame on a
   // software renderer, a driver's stall) does not delay noticing a lost server.
   station.StartSupervisor([](const client::StationStatus& st) {
-    vsurg::LogEvent("vsurg-station", "state",
-                    std::string("state=") + client::StationStateName(st.state) +
-                        " session=" + std::to_string(st.session) +
-                        (st.last_error.empty() ? "" : " reason=\"" + st.last_error + "\""));
+    vsurg::LogFields fields{{"state", client::StationStateName(st.state)}, {"session", st.session}};
+    if (!st.last_error.empty()) fields.emplace_back("reason", st.last_error);
+    vsurg::LogEvent("vsurg-station", "state", fields);
   });
   for (;;) {
     const client::StationStatus st = station.status();

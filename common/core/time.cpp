@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
-#include <iostream>
 
 namespace vsurg {
 
@@ -43,11 +42,6 @@ Expected<int64_t> ParseIsoUtc(const std::string& s, const std::string& field) {
   tm.tm_min = mi;
   tm.tm_sec = sec;
   return static_cast<int64_t>(timegm(&tm)) * 1000000;
-}
-
-void LogEvent(const std::string& component, const std::string& event, const std::string& fields) {
-  std::cerr << "ts=" << IsoTimeUtc(NowUs()) << " component=" << component << " event=" << event
-            << (fields.empty() ? "" : " ") << fields << std::endl;
 }
 
 }  // namespace vsurg

@@ -15,9 +15,4 @@ std::string IsoTimeUtc(int64_t us);  // 2026-11-21T23:59:01.123456Z
 // naming `field` otherwise.
 Expected<int64_t> ParseIsoUtc(const std::string& s, const std::string& field);
 
-// One event line on stderr for the servers' logs (logfmt, one line each):
-// `ts=<IsoTimeUtc(now)> component=<component> event=<event>[ <fields>]`.
-void LogEvent(const std::string& component, const std::string& event,
-              const std::string& fields = "");
-
 }  // namespace vsurg

@@ -11,6 +11,7 @@
 
 #include <grpcpp/health_check_service_interface.h>
 
+#include "common/core/log.h"
 #include "db/store.h"
 #include "server/cluster/cluster_common.h"
 #include "server/ops/metrics.h"
@@ -18,7 +19,7 @@
 namespace vsurg::server::cluster {
 namespace {
 
-void Log(const std::string& event, const std::string& fields = "") {
+void Log(const std::string& event, const LogFields& fields = {}) {
   LogEvent("vsurg-control", event, fields);
 }
 
@@ -226,7 +227,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     if (!Authorized(ctx, options.token))
       return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
     grpc::Status s = CheckPeer(ctx, options, node, "node " + node);
-    if (!s.ok()) Log("node_refused", "node=" + node + " error=\"" + s.error_message() + "\"");
+    if (!s.ok()) Log("node_refused", {{"node", node}, {"error", s.error_message()}});
     return s;
   }
 
@@ -240,9 +241,11 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     out->set_epoch(lease->epoch);
     out->set_lease_s(options.heartbeat_timeout_s);
     out->set_aborted(lease->aborted);
-    Log("node_acquired", "node=" + n.name + " epoch=" + std::to_string(lease->epoch) +
-                             " instance=" + n.instance + " address=" + n.grpc_address +
-                             " leftovers_aborted=" + std::to_string(lease->aborted));
+    Log("node_acquired", {{"node", n.name},
+                          {"epoch", lease->epoch},
+                          {"instance", n.instance},
+                          {"address", n.grpc_address},
+                          {"leftovers_aborted", lease->aborted}});
     return grpc::Status::OK;
   }
 
@@ -277,8 +280,8 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
         auto aborted = store.MarkNodeDown(n.name, now - TimeoutUs(), now,
                                           "simulation node " + n.name + " stopped answering");
         if (aborted.ok() && aborted->has_value())
-          Log("node_down", "node=" + n.name + " sessions_aborted=" + std::to_string(**aborted) +
-                               " silent_ms=" + std::to_string(silent / 1000));
+          Log("node_down",
+              {{"node", n.name}, {"sessions_aborted", **aborted}, {"silent_ms", silent / 1000}});
       }
       if (late.empty()) continue;
       std::lock_guard lock(stop_mutex);
@@ -312,9 +315,10 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
             n.name, n.heartbeat_us + 1, now,
             "simulation node " + n.name + " stopped answering (its port refuses connections)");
         if (aborted.ok() && aborted->has_value())
-          Log("node_down", "node=" + n.name + " sessions_aborted=" + std::to_string(**aborted) +
-                               " silent_ms=" + std::to_string((now - n.heartbeat_us) / 1000) +
-                               " refused=1");
+          Log("node_down", {{"node", n.name},
+                            {"sessions_aborted", **aborted},
+                            {"silent_ms", (now - n.heartbeat_us) / 1000},
+                            {"refused", "1"}});
       }
     }
   }

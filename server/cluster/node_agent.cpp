@@ -13,6 +13,7 @@
 
 #include <grpcpp/health_check_service_interface.h>
 
+#include "common/core/log.h"
 #include "server/cluster/cluster_common.h"
 #include "server/control/grpc_common.h"
 #include "server/net/lease.h"
@@ -33,8 +34,9 @@ double ProcessCpuSeconds() {
          1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
-void Log(const std::string& node, const std::string& event, const std::string& fields = "") {
-  LogEvent("vsurg-sim node=" + node, event, fields);
+void Log(const std::string& node, const std::string& event, LogFields fields = {}) {
+  fields.insert(fields.begin(), {"node", node});
+  LogEvent("vsurg-sim", event, fields);
 }
 
 // This process, among every process that ever ran under the node's name: 64 random bits.
@@ -124,8 +126,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     if (!s.ok()) return s;
     lease.Grant(reply.epoch(), Until(sent, reply.lease_s()));
     Log(options.name, "lease_acquired",
-        "epoch=" + std::to_string(reply.epoch()) + " instance=" + instance +
-            " leftovers_aborted=" + std::to_string(reply.aborted()));
+        {{"epoch", reply.epoch()}, {"instance", instance}, {"leftovers_aborted", reply.aborted()}});
     return s;
   }
 
@@ -135,8 +136,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     lease.Revoke();
     const int dropped = sessions.AbandonAll("node " + options.name + " lost its lease: " + why);
     Log(options.name, "lease_lost",
-        "epoch=" + std::to_string(epoch) + " sessions_dropped=" + std::to_string(dropped) +
-            " error=\"" + why + "\"");
+        {{"epoch", epoch}, {"sessions_dropped", dropped}, {"error", why}});
   }
 
   void OnTelemetry(const std::vector<SessionTelemetry>& list) {
@@ -166,7 +166,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
       if (!lease.held()) {
         s = Acquire();
         if (s.error_code() == grpc::StatusCode::ALREADY_EXISTS)
-          Log(options.name, "lease_refused", "error=\"" + s.error_message() + "\"");
+          Log(options.name, "lease_refused", {{"error", s.error_message()}});
       } else {
         v1::HeartbeatReply reply;
         const auto sent = Lease::Clock::now();
@@ -185,7 +185,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
       if (ok != reachable) {
         reachable = ok;
         Log(options.name, reachable ? "control_reachable" : "control_unreachable",
-            reachable ? "" : "error=\"" + s.error_message() + "\"");
+            reachable ? LogFields{} : LogFields{{"error", s.error_message()}});
       }
       lock.lock();
       beat_cv.wait_for(
@@ -216,11 +216,12 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     const auto t0 = std::chrono::steady_clock::now();
     auto c = sessions.Create(req->trainee(), req->scene(), convert::FromProto(req->task()));
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
-    Log(options.name, "session_created",
-        "id=" + std::to_string(c->record.id) + " scene=" + req->scene() + " ms=" +
-            std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
-                               std::chrono::steady_clock::now() - t0)
-                               .count()));
+    Log(options.name, "create_answered",
+        {{"session", c->record.id},
+         {"scene", req->scene()},
+         {"ms", std::chrono::duration_cast<std::chrono::milliseconds>(
+                    std::chrono::steady_clock::now() - t0)
+                    .count()}});
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }
@@ -367,7 +368,7 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
         p->server->Shutdown();
         return Error{ErrorCode::kAlreadyExists, last_error, "node-name"};
       }
-      Log(options.name, "control_unreachable", "error=\"" + last_error + "\"");
+      Log(options.name, "control_unreachable", {{"error", last_error}});
       break;
     }
     std::this_thread::sleep_for(
@@ -377,8 +378,9 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
       0, [p](const std::vector<SessionTelemetry>& list, bool) { p->OnTelemetry(list); });
   p->heartbeat = std::thread([p] { p->HeartbeatLoop(); });
   Log(options.name, "node_started",
-      "internal=" + p->options.advertise + " udp=" + options.udp_host + ":" +
-          std::to_string(options.udp_port) + " capacity=" + std::to_string(options.capacity));
+      {{"internal", p->options.advertise},
+       {"udp", options.udp_host + ":" + std::to_string(options.udp_port)},
+       {"capacity", options.capacity}});
   return std::unique_ptr<NodeAgent>(new NodeAgent(std::move(impl)));
 }
 
@@ -409,13 +411,12 @@ void NodeAgent::Drain(double timeout_s) {
   }
   impl_->beat_cv.notify_all();
   Log(impl_->options.name, "draining",
-      "live=" + std::to_string(impl_->sessions.LiveCount()) +
-          " timeout_s=" + std::to_string(timeout_s));
+      {{"live", impl_->sessions.LiveCount()}, {"timeout_s", timeout_s}});
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6));
   while (impl_->sessions.LiveCount() > 0 && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  Log(impl_->options.name, "drained", "live=" + std::to_string(impl_->sessions.LiveCount()));
+  Log(impl_->options.name, "drained", {{"live", impl_->sessions.LiveCount()}});
 }
 
 void NodeAgent::Shutdown() {

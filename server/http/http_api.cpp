@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/core/log.h"
 #include "common/core/time.h"
 #include "common/scoring/report_json.h"
 #include "common/scoring/vocabulary.h"
@@ -1469,8 +1470,7 @@ void HttpApi::BearerRefused(const std::string& remote) {
   bearer_limiter_.Failed(remote);
   const uint64_t n = bearer_failures_.fetch_add(1) + 1;
   if ((n & (n - 1)) == 0)  // the 1st, 2nd, 4th, 8th, …: a flood logs a few lines
-    LogEvent("vsurg-http", "bearer_token_refused",
-             "remote=" + remote + " total=" + std::to_string(n));
+    LogEvent("vsurg-http", "bearer_token_refused", {{"remote", remote}, {"total", n}});
 }
 
 // A pattern's segments are literals, `{id}` (a session id: a positive integer) or `{name}` (a

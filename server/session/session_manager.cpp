@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstdio>
 
+#include "common/core/log.h"
 #include "common/core/time.h"
 #include "common/sim/scene.h"
 
@@ -65,6 +66,12 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
   pending_.reserve(64);
 }
 
+void SessionManager::Log(const char* event, int64_t session, LogFields fields) const {
+  fields.insert(fields.begin(), {"session", session});
+  if (!options_.node.empty()) fields.emplace_back("node", options_.node);
+  LogEvent("vsurg-sessions", event, fields);
+}
+
 Status SessionManager::Write(const PendingWrite& w) {
   if (w.metrics)
     return store_.EndSession(w.id, w.state, w.at_us, w.reason, *w.metrics, w.epoch, w.trace);
@@ -77,16 +84,14 @@ void SessionManager::WriteOrKeep(PendingWrite w) {
   if (s.error().code == ErrorCode::kUnavailable) {
     if (pending_.size() >= kMaxPending) {
       LogEvent("vsurg-sessions", "store_write_dropped",
-               "session=" + std::to_string(pending_.front().id) +
-                   " pending=" + std::to_string(pending_.size()));
+               {{"session", pending_.front().id}, {"pending", pending_.size()}});
       pending_.erase(pending_.begin());
     }
     pending_.push_back(std::move(w));
     return;
   }
   LogEvent("vsurg-sessions", "store_write_refused",
-           "session=" + std::to_string(w.id) + " state=" + SessionStateName(w.state) + " error=\"" +
-               s.error().message + "\"");
+           {{"session", w.id}, {"state", SessionStateName(w.state)}, {"error", s.error().message}});
 }
 
 void SessionManager::RetryPending() {
@@ -102,7 +107,7 @@ void SessionManager::RetryPending() {
       return;
     }
     LogEvent("vsurg-sessions", "store_write_refused",
-             "session=" + std::to_string(again[i].id) + " error=\"" + s.error().message + "\"");
+             {{"session", again[i].id}, {"error", s.error().message}});
   }
 }
 
@@ -168,6 +173,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
     std::lock_guard lock(mutex_);
     if (Status s = CheckLimitsLocked(trainee); s.ok()) {
       live_[static_cast<uint64_t>(record->id)] = std::move(live);
+      Log("session_created", record->id, {{"scene", scene_name}});
       return out;
     }
   }
@@ -176,7 +182,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
                                         "session limit reached", epoch);
       !s.ok())
     LogEvent("vsurg-sessions", "store_write_failed",
-             "session=" + std::to_string(record->id) + " " + s.error().message);
+             {{"session", record->id}, {"error", s.error().message}});
   return CheckLimits(trainee).error();
 }
 
@@ -248,6 +254,7 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
                                         db::NowUs(), "", epoch);
       !s.ok())
     return s.error();
+  Log("session_started", static_cast<int64_t>(id));
   return Get(id);
 }
 
@@ -290,7 +297,15 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   const int64_t at = db::NowUs();
   Status s =
       store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics, live->epoch, trace);
-  if (retry && !s.ok() && s.error().code == ErrorCode::kUnavailable)  // again next tick
+  const bool kept = retry && !s.ok() && s.error().code == ErrorCode::kUnavailable;
+  Log("session_ended", static_cast<int64_t>(id),
+      {{"state", SessionStateName(state)},
+       {"reason", reason},
+       {"score", metrics.score},
+       {"record", s.ok() ? "written"
+                  : kept ? "pending"
+                         : "refused"}});
+  if (kept)  // again next tick
     pending_.push_back(
         {static_cast<int64_t>(id), state, at, reason, metrics, live->epoch, std::move(trace)});
   NotifyEnded(id);
@@ -313,10 +328,8 @@ int SessionManager::AbandonAll(const std::string& reason) {
     if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
     live->simulation.reset();
     NotifyEnded(id);
+    Log("session_dropped", static_cast<int64_t>(id), {{"reason", reason}});  // no record written
   }
-  if (!dropped.empty())
-    std::fprintf(stderr, "vsurg: %zu live sessions dropped without a record: %s\n", dropped.size(),
-                 reason.c_str());
   return static_cast<int>(dropped.size());
 }
 
@@ -435,6 +448,7 @@ void SessionManager::Pump() {
     // Stalls and resumptions are rare; the sampler waits for their commit (a few ms of delayed
     // telemetry at most), and the single writer keeps their order. A refusal (the node lost its
     // lease) changes nothing here: the agent drops the sessions when it learns of the loss.
+    Log("session_state", static_cast<int64_t>(e.session), {{"state", SessionStateName(state)}});
     WriteOrKeep({static_cast<int64_t>(e.session), state, db::NowUs(), "", std::nullopt, epoch, {}});
   }
 }

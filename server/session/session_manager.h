@@ -51,6 +51,7 @@
 
 #include "common/core/clock.h"
 #include "common/core/expected.h"
+#include "common/core/log.h"
 #include "common/sim/simulation.h"
 #include "db/store.h"
 #include "proto/wire/datagram.h"
@@ -155,6 +156,8 @@ class SessionManager final : public Sessions {
     std::string trace;  // an end's record (TraceRecorder::Json), "" when nothing was driven
   };
   Status Write(const PendingWrite& w);
+  // One event line about a session (common/core/log.h): its id first, this node's name last.
+  void Log(const char* event, int64_t session, LogFields fields = {}) const;
   void WriteOrKeep(PendingWrite w);  // sampler thread
   void RetryPending();               // sampler thread
   void NotifyEnded(uint64_t id);     // subscribers of `id` hear that it ended

@@ -12,13 +12,13 @@
 // twist_deg, …), the same as the live API. A surface frame is every vertex's displacement from
 // rest in units of 0.01 mm as little-endian int16 (±327 mm), kept as they are: taking one costs
 // the quantisation only, since deflating each on the sampler thread was timed at 0.7–0.8 ms for
-// a frame of the forearm's 6,182 vertices (synthetic displacements); memory is at most kMaxFrames × 6 bytes × vertices (3.6 MB for the
-// forearm, 0.6 MB for an organ of 1,026). The record sends the frames as one deflate stream of
-// each frame's difference from the one before (modulo 2¹⁶, so the running sum restores each
-// exactly): a held twist costs almost nothing. A 7 s arm trial's 35 frames (bench/record_size.py,
-// docs/BENCHMARKS.md): 1.73 MB as plain base64, 0.65 MB deflated one by one, 0.22 MB sent.
-// A synthetic minute of a twisting forearm (75 frames kept of 300): a frame taken in at most
-// 0.27 ms (the halving included), the record serialised in 29 ms, 0.47 MB.
+// a frame of the forearm's 6,182 vertices (synthetic displacements); memory is at most kMaxFrames ×
+// 6 bytes × vertices (3.6 MB for the forearm, 0.6 MB for an organ of 1,026). The record sends the
+// frames as one deflate stream of each frame's difference from the one before (modulo 2¹⁶, so the
+// running sum restores each exactly): a held twist costs almost nothing. A 7 s arm trial's 35
+// frames (bench/record_size.py, docs/BENCHMARKS.md): 1.73 MB as plain base64, 0.65 MB deflated one
+// by one, 0.22 MB sent. A synthetic minute of a twisting forearm (75 frames kept of 300): a frame
+// taken in at most 0.27 ms (the halving included), the record serialised in 29 ms, 0.47 MB.
 //
 // Threads: one writer (the session manager's sampler, under its lock). Json() reads only: a copy
 // taken under that lock is serialised outside it (deflating is the slow part).

@@ -86,6 +86,8 @@ TEST(ClusterTest, PlacementNodeLossAndControlLossOnPostgres) {
   EXPECT_EQ(j["twin_kept"].get<int>(), 1);
   // Every role serves its Prometheus metrics, and they move (a node's forces, its lease).
   EXPECT_EQ(j["metrics_ok"].get<int>(), 1);
+  // A node told to log JSON wrote only JSON lines, each about a session carrying its id.
+  EXPECT_EQ(j["json_log_ok"].get<int>(), 1);
   // The internal API runs mutual TLS: a site certificate naming another node takes no name.
   EXPECT_NE(j["rogue_rc"].get<int>(), 0);
   EXPECT_NE(j["rogue_rc"].get<int>(), 124) << "the rogue hung instead of being refused";
