@@ -208,13 +208,13 @@ int Run(const std::vector<std::string>& args) {
   if (exercise) {
     const vsurg::scoring::TaskSpec& t = scene->task;
     const bool twist = t.kind == vsurg::scoring::TaskKind::kTwist;
-    const double unit = twist ? 180.0 / M_PI : 1e3;
-    const char* u = twist ? " deg" : " mm";
+    const vsurg::scoring::TaskDisplayUnit unit = vsurg::scoring::DisplayUnitOf(t.kind);
+    const std::string u = std::string(" ") + unit.name;
     std::cerr << "vsurg-station: task: " << (twist ? "twist to " : "press to ")
-              << vsurg::Fixed(t.target * unit, 1) << u << " within "
-              << vsurg::Fixed(t.tolerance * unit, 1) << u << ", held " << vsurg::Fixed(t.hold_s, 1)
-              << " s, under " << vsurg::Fixed(t.force_limit, 1) << " N, in "
-              << vsurg::Fixed(t.time_limit, 0) << " s\n";
+              << vsurg::Fixed(t.target * unit.per_si, 1) << u << " within "
+              << vsurg::Fixed(t.tolerance * unit.per_si, 1) << u << ", held "
+              << vsurg::Fixed(t.hold_s, 1) << " s, under " << vsurg::Fixed(t.force_limit, 1)
+              << " N, in " << vsurg::Fixed(t.time_limit, 0) << " s\n";
   }
   auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
   if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);

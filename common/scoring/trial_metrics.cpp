@@ -5,6 +5,12 @@
 #include <cstdio>
 
 namespace vsurg::scoring {
+
+TaskDisplayUnit DisplayUnitOf(TaskKind kind) {
+  if (kind == TaskKind::kTwist) return {180.0 / 3.14159265358979323846, "deg"};
+  return {1e3, "mm"};
+}
+
 namespace {
 
 constexpr double kGrid = 0.01;                            // s, the jerk's grid

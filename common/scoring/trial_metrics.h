@@ -40,6 +40,14 @@ namespace vsurg::scoring {
 
 enum class TaskKind { kTwist, kPress };
 
+// How people read a task's target and tolerance: degrees for a twist, millimetres for a press
+// (the spec keeps radians and metres). One place for the dashboard, the catalogue and the station.
+struct TaskDisplayUnit {
+  double per_si;     // display units per rad or m
+  const char* name;  // "deg" or "mm"
+};
+TaskDisplayUnit DisplayUnitOf(TaskKind kind);
+
 struct TaskSpec {
   TaskKind kind = TaskKind::kTwist;
   double target = 0.785398;      // rad (twist) or m (press)

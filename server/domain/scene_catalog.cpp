@@ -49,8 +49,7 @@ Expected<SceneListing> SceneCatalog::List() {
         e.info.error_budget_rms = scene->error_budget_rms;
         e.info.material = sim::VisualMaterialName(scene->visual.material);
         e.info.limb = scene->mesh.kind == sim::MeshKind::kLimb;
-        const bool twist = scene->task.kind == scoring::TaskKind::kTwist;
-        const double unit = twist ? 180.0 / M_PI : 1e3;  // rad → °, m → mm
+        const double unit = scoring::DisplayUnitOf(scene->task.kind).per_si;  // rad → °, m → mm
         e.info.target = scene->task.target * unit;
         e.info.tolerance = scene->task.tolerance * unit;
         e.info.force_limit_n = scene->task.force_limit;

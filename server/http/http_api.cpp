@@ -217,12 +217,11 @@ json FiniteOrNull(double x) {
 
 // A task in the units a trainee reads (degrees of twist or millimetres of press depth).
 json TaskJson(const scoring::TaskSpec& t) {
-  const bool twist = t.kind == scoring::TaskKind::kTwist;
-  const double unit = twist ? 180.0 / M_PI : 1e3;
-  return {{"kind", twist ? "twist" : "press"},
-          {"target", t.target * unit},
-          {"tolerance", t.tolerance * unit},
-          {"unit", twist ? "deg" : "mm"},
+  const scoring::TaskDisplayUnit unit = scoring::DisplayUnitOf(t.kind);
+  return {{"kind", t.kind == scoring::TaskKind::kTwist ? "twist" : "press"},
+          {"target", t.target * unit.per_si},
+          {"tolerance", t.tolerance * unit.per_si},
+          {"unit", unit.name},
           {"hold_s", t.hold_s},
           {"force_limit_n", t.force_limit},
           {"time_limit_s", t.time_limit}};

@@ -227,5 +227,15 @@ TEST(TrialMetricsTest, AClockJumpCostsBoundedWorkAndNeverHangs) {
   });
 }
 
+// People read a twist in degrees and a press in millimetres, wherever the task is shown.
+TEST(TaskDisplayUnitTest, ATwistReadsInDegreesAndAPressInMillimetres) {
+  const TaskDisplayUnit twist = DisplayUnitOf(TaskKind::kTwist);
+  EXPECT_NEAR(0.785398163 * twist.per_si, 45.0, 1e-6);
+  EXPECT_STREQ(twist.name, "deg");
+  const TaskDisplayUnit press = DisplayUnitOf(TaskKind::kPress);
+  EXPECT_NEAR(0.005 * press.per_si, 5.0, 1e-12);
+  EXPECT_STREQ(press.name, "mm");
+}
+
 }  // namespace
 }  // namespace vsurg::scoring
