@@ -17,6 +17,7 @@
 #include <string>
 #include <string_view>
 
+#include "common/core/json_escape.h"
 #include "db/store.h"
 
 namespace vsurg::db {
@@ -51,7 +52,7 @@ class ExportFormatter {
   int xapi_n_ = 0;
 };
 
-// `s` as the inside of a JSON string (quotes, backslashes and control characters escaped).
-void AppendJsonEscaped(std::string& out, std::string_view s);
+// `s` as the inside of a JSON string: common/core/json_escape.h.
+using vsurg::AppendJsonEscaped;
 
 }  // namespace vsurg::db

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <mutex>
 
+#include "common/core/json_escape.h"
 #include "common/core/time.h"
 
 namespace vsurg {
@@ -14,38 +15,10 @@ namespace {
 
 std::atomic<LogFormat> g_format{LogFormat::kLogfmt};
 
-// `v` between double quotes with ", \ and control characters escaped (JSON's escapes, which
-// logfmt readers also take).
+// `v` between double quotes, escaped as JSON escapes (which logfmt readers also take).
 void Quoted(std::string_view v, std::string& out) {
   out += '"';
-  for (const char ch : v) {
-    const auto c = static_cast<unsigned char>(ch);
-    switch (ch) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      case '\r':
-        out += "\\r";
-        break;
-      case '\t':
-        out += "\\t";
-        break;
-      default:
-        if (c < 0x20) {
-          char hex[8];
-          std::snprintf(hex, sizeof hex, "\\u%04x", c);
-          out += hex;
-        } else {
-          out += ch;
-        }
-    }
-  }
+  AppendJsonEscaped(out, v);
   out += '"';
 }
 
