@@ -454,10 +454,12 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
       out.record.node = chosen.name;
       return out;
     }
-    d.Count(d.refused, "node_failed");
     const Error e = FromGrpc(s, "create on node " + chosen.name);
-    if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted)
+    if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted) {
+      d.Count(d.refused, "invalid_request");
       return e;  // the request itself is wrong (a scene that does not exist, …)
+    }
+    d.Count(d.refused, "node_failed");
     tried += (tried.empty() ? "" : "; ") + e.message;
   }
   d.Count(d.refused, "no_room");
@@ -580,9 +582,10 @@ void ClusterSessions::Collect(ops::MetricsText& m) const {
     for (const auto& [node, n] : d.placed)
       m.Sample("vsurg_placements_total", {{"node", node}}, static_cast<double>(n));
     m.Family("vsurg_placement_refusals_total", "counter",
-             "Creates not placed by this replica (trainee_limit, no_room), and node_failed: a "
-             "chosen node's Create failed (another was tried).");
-    for (const char* reason : {"trainee_limit", "no_room", "node_failed"}) {
+             "Creates not placed by this replica (trainee_limit, no_room, invalid_request: a "
+             "scene that does not exist, ...), and node_failed: a chosen node's Create failed "
+             "(another was tried).");
+    for (const char* reason : {"trainee_limit", "no_room", "invalid_request", "node_failed"}) {
       const auto it = d.refused.find(reason);
       m.Sample("vsurg_placement_refusals_total", {{"reason", reason}},
                it == d.refused.end() ? 0.0 : static_cast<double>(it->second));

@@ -169,19 +169,28 @@ TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
   auto bad = control_->Create("trainee-10", "no-such-scene");
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.error().code, ErrorCode::kNotFound);
-  // The scrape: the placements per node, the refusal for want of room, the registry; and a
-  // node's own lease.
+  // The scrape: the placements per node, the refusals (no room; the scene that does not exist),
+  // the registry (five live sessions: six placed, one stopped); and a node's own lease.
   ops::MetricsText m;
   control_->Collect(m);
   const std::string& text = m.str();
-  for (const char* line :
-       {"vsurg_placements_total{node=\"sim-a\"} 3\n", "vsurg_placements_total{node=\"sim-b\"} 3\n",
-        "vsurg_placement_refusals_total{reason=\"no_room\"} 1\n",
-        "vsurg_placement_refusals_total{reason=\"trainee_limit\"} 0\n",
-        "vsurg_nodes{state=\"up\"} 2\n", "vsurg_node_live_sessions{node=\"sim-a\"} 3\n",
-        "vsurg_node_capacity{node=\"sim-b\"} 3\n", "vsurg_node_epoch{node=\"sim-a\"} 1\n"})
-    EXPECT_NE(text.find(line), std::string::npos) << line << " not in\n" << text;
-  EXPECT_NE(text.find("vsurg_node_lease_age_seconds{node=\"sim-b\"} "), std::string::npos);
+  const auto value = [&](const std::string& series) {
+    const size_t at = text.find(series + " ");
+    return at == std::string::npos ? -1.0 : std::stod(text.substr(at + series.size() + 1));
+  };
+  EXPECT_EQ(value("vsurg_placements_total{node=\"sim-a\"}"), 3) << text;
+  EXPECT_EQ(value("vsurg_placements_total{node=\"sim-b\"}"), 3);
+  EXPECT_EQ(value("vsurg_placement_refusals_total{reason=\"no_room\"}"), 1);
+  EXPECT_EQ(value("vsurg_placement_refusals_total{reason=\"invalid_request\"}"), 1);
+  EXPECT_EQ(value("vsurg_placement_refusals_total{reason=\"node_failed\"}"), 0);
+  EXPECT_EQ(value("vsurg_placement_refusals_total{reason=\"trainee_limit\"}"), 0);
+  EXPECT_EQ(value("vsurg_nodes{state=\"up\"}"), 2);
+  EXPECT_EQ(value("vsurg_node_live_sessions{node=\"sim-a\"}") +
+                value("vsurg_node_live_sessions{node=\"sim-b\"}"),
+            5);
+  EXPECT_EQ(value("vsurg_node_capacity{node=\"sim-b\"}"), 3);
+  EXPECT_EQ(value("vsurg_node_epoch{node=\"sim-a\"}"), 1);
+  EXPECT_GE(value("vsurg_node_lease_age_seconds{node=\"sim-b\"}"), 0);
   ops::MetricsText n;
   nodes_[0]->agent->Collect(n);
   EXPECT_NE(n.str().find("vsurg_lease_held 1\n"), std::string::npos) << n.str();
