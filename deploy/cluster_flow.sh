@@ -64,7 +64,6 @@ done
 for i in 0 1; do wait_file "$tmp/control-$i.json"; done
 grpc0="127.0.0.1:$(port_of "$tmp/control-0.json" grpc_port)"
 grpc1="127.0.0.1:$(port_of "$tmp/control-1.json" grpc_port)"
-http0="127.0.0.1:$(port_of "$tmp/control-0.json" http_port)"
 http1="127.0.0.1:$(port_of "$tmp/control-1.json" http_port)"
 servers="$grpc0,$grpc1"  # clients fail over between the replicas
 internal="127.0.0.1:$(port_of "$tmp/control-0.json" cluster_port),127.0.0.1:$(port_of "$tmp/control-1.json" cluster_port)"
@@ -109,58 +108,6 @@ running() { psql_q "SELECT count(*) FROM sessions WHERE state = 'running'"; }
 for _ in $(seq 300); do [ "$(running)" -ge "$stations" ] && break; sleep 0.1; done
 spread="$(psql_q "SELECT node || '=' || count(*) FROM sessions WHERE state = 'running' GROUP BY node ORDER BY node" | tr '\n' ' ')"
 echo "running sessions per node: $spread"
-
-step "Metrics on every role (Prometheus text, parsed by prometheus_client)"
-# A node's scrape with the metrics token (on a node nothing else is served, and that token reads
-# nothing else), a control replica's with an administrator's.
-metrics_check() {  # ROLE HOST:PORT TOKEN: the series' names go to $tmp/series-ROLE
-  /usr/bin/python3 - "$1" "$2" "$3" "$tmp/series-$1" <<'PY'
-import sys, urllib.request, urllib.error
-from prometheus_client.parser import text_string_to_metric_families
-role, address, token, names = sys.argv[1:]
-def get(path):
-    req = urllib.request.Request(f"http://{address}{path}", headers={"Authorization": f"Bearer {token}"})
-    try:
-        with urllib.request.urlopen(req, timeout=10) as r:
-            return r.status, r.read().decode()
-    except urllib.error.HTTPError as e:
-        return e.code, ""
-status, text = get("/api/v1/metrics")
-values = {}
-for family in text_string_to_metric_families(text):
-    for sample in family.samples:
-        values[sample.name] = values.get(sample.name, 0) + sample.value
-open(names, "w").write("\n".join(sorted(values)) + "\n")
-want = {"sim": ["vsurg_lease_held", "vsurg_lease_seconds_left", "vsurg_udp_forces_sent_total",
-                "vsurg_store_commit_seconds_count", "vsurg_heartbeats_total"],
-        "control": ["vsurg_placements_total", "vsurg_nodes", "vsurg_node_lease_age_seconds",
-                    "vsurg_store_commit_seconds_count"]}[role]
-missing = [n for n in want if n not in values]
-moving = role == "control" or (values.get("vsurg_lease_held") == 1 and
-                                values.get("vsurg_udp_forces_sent_total", 0) > 0 and
-                                values.get("vsurg_lease_seconds_left", 0) > 0)
-other = get("/api/v1/sessions")[0] if role == "sim" else 404
-print(f"{role} {address}: {status}, {len(values)} series, missing {missing}, "
-      f"placements {values.get('vsurg_placements_total', 0):.0f}, "
-      f"forces {values.get('vsurg_udp_forces_sent_total', 0):.0f}, other route {other}")
-sys.exit(0 if status == 200 and not missing and moving and other == 404 else 1)
-PY
-}
-metrics_ok=1
-metrics_check sim "127.0.0.1:$(port_of "$tmp/sim-0.json" http_port)" "$(cat "$tmp/metrics-token")" || metrics_ok=0
-metrics_check control "$http0" "$admin_token" || metrics_ok=0
-# The Grafana dashboard's "Site:" panels read series these two roles serve.
-/usr/bin/python3 - "$root/deploy/grafana/vsurg.json" "$tmp/series-sim" "$tmp/series-control" <<'PY' || metrics_ok=0
-import json, re, sys
-served = set(open(sys.argv[2]).read().split()) | set(open(sys.argv[3]).read().split())
-panels = [p for p in json.load(open(sys.argv[1]))["panels"] if p["title"].startswith("Site:")]
-asked = {re.sub(r"_(bucket|sum|count)$", "", m) for p in panels for t in p["targets"]
-         for m in re.findall(r"vsurg_[a-z_]+", t["expr"])}
-served |= {re.sub(r"_(bucket|sum|count)$", "", m) for m in served}
-missing = sorted(asked - served)
-print(f"Grafana's site panels: {len(panels)}, {len(asked)} series, missing {missing}")
-sys.exit(1 if missing or not panels else 0)
-PY
 
 # The most live sessions any one trainee has, now.
 max_live_per_trainee() {
@@ -280,6 +227,60 @@ print(urllib.request.urlopen(r, timeout=10).read().decode())' \
   "http://$http1/api/v1/sessions?live=1" "$monitor_token" || true)"
 dashboard_live="$(grep -o '"state":"running"' <<< "$dashboard" | wc -l)"
 echo "dashboard API via control-1: $dashboard_live running"
+
+step "Metrics on every role (Prometheus text, parsed by prometheus_client)"
+# Late in the run (a scrape makes a control replica poll the nodes' telemetry from then on, as
+# for a monitor): a node's scrape with the metrics token (on a node nothing else is served, and that token reads
+# nothing else), a control replica's with an administrator's.
+metrics_check() {  # ROLE HOST:PORT TOKEN: the series' names go to $tmp/series-ROLE
+  /usr/bin/python3 - "$1" "$2" "$3" "$tmp/series-$1" <<'PY'
+import sys, urllib.request, urllib.error
+from prometheus_client.parser import text_string_to_metric_families
+role, address, token, names = sys.argv[1:]
+def get(path):
+    req = urllib.request.Request(f"http://{address}{path}", headers={"Authorization": f"Bearer {token}"})
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status, r.read().decode()
+    except urllib.error.HTTPError as e:
+        return e.code, ""
+status, text = get("/api/v1/metrics")
+values, families = {}, set()
+for family in text_string_to_metric_families(text):
+    families |= {family.name, family.name + "_total"}  # the parser drops a counter's _total
+    for sample in family.samples:
+        values[sample.name] = values.get(sample.name, 0) + sample.value
+open(names, "w").write("\n".join(sorted(set(values) | families)) + "\n")
+want = {"sim": ["vsurg_lease_held", "vsurg_lease_seconds_left", "vsurg_udp_forces_sent_total",
+                "vsurg_store_commit_seconds_count", "vsurg_heartbeats_total"],
+        "control": ["vsurg_placements_total", "vsurg_nodes", "vsurg_node_lease_age_seconds",
+                    "vsurg_store_commit_seconds_count"]}[role]
+missing = [n for n in want if n not in values and n not in families]
+moving = role == "control" or (values.get("vsurg_lease_held") == 1 and
+                                values.get("vsurg_udp_forces_sent_total", 0) > 0 and
+                                values.get("vsurg_lease_seconds_left", 0) > 0)
+other = get("/api/v1/sessions")[0] if role == "sim" else 404
+print(f"{role} {address}: {status}, {len(values)} series, missing {missing}, "
+      f"placements {values.get('vsurg_placements_total', 0):.0f}, "
+      f"forces {values.get('vsurg_udp_forces_sent_total', 0):.0f}, other route {other}")
+sys.exit(0 if status == 200 and not missing and moving and other == 404 else 1)
+PY
+}
+metrics_ok=1
+metrics_check sim "127.0.0.1:$(port_of "$tmp/sim-1.json" http_port)" "$(cat "$tmp/metrics-token")" || metrics_ok=0
+metrics_check control "$http1" "$admin_token" || metrics_ok=0
+# The Grafana dashboard's "Site:" panels read series these two roles serve.
+/usr/bin/python3 - "$root/deploy/grafana/vsurg.json" "$tmp/series-sim" "$tmp/series-control" <<'PY' || metrics_ok=0
+import json, re, sys
+served = set(open(sys.argv[2]).read().split()) | set(open(sys.argv[3]).read().split())
+panels = [p for p in json.load(open(sys.argv[1]))["panels"] if p["title"].startswith("Site:")]
+asked = {re.sub(r"_(bucket|sum|count)$", "", m) for p in panels for t in p["targets"]
+         for m in re.findall(r"vsurg_[a-z_]+", t["expr"])}
+served |= {re.sub(r"_(bucket|sum|count)$", "", m) for m in served}
+missing = sorted(asked - served)
+print(f"Grafana's site panels: {len(panels)}, {len(asked)} series, missing {missing}")
+sys.exit(1 if missing or not panels else 0)
+PY
 
 step "The stations finish (SIGINT: each stops its session and prints its summary)"
 for i in $(seq 0 $((stations - 1))); do kill -INT "${station_pid[$i]}" 2>/dev/null || true; done
