@@ -227,6 +227,9 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     if (!Authorized(ctx, options.token))
       return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "no valid cluster token");
     grpc::Status s = CheckPeer(ctx, options, node, "node " + node);
+    if (s.ok() && options.tls() && node == options.control_name)  // a control replica's cert
+      s = grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                       "'" + node + "' is the control replicas' name, not a node's");
     if (!s.ok()) Log("node_refused", {{"node", node}, {"error", s.error_message()}});
     return s;
   }

@@ -629,8 +629,11 @@ TEST_F(ClusterTlsTest, ANodesNameIsBoundToItsCertificate) {
   EXPECT_EQ(b.error().field, "node-name");
   EXPECT_NE(b.error().message.find("names sim-a, not node sim-b"), std::string::npos)
       << b.error().message;
-  // Nor beat for a name it does not carry (sim-b's certificate for sim-a's name).
+  // Nor beat for a name it does not carry (sim-b's certificate for sim-a's name); and the control
+  // replicas' certificate names no node.
   EXPECT_EQ(Beat(As("site", "sim-b"), "sim-a").error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_EQ(Beat(As("site", "vsurg-control"), "vsurg-control").error_code(),
+            grpc::StatusCode::PERMISSION_DENIED);
   const auto nodes = control_store_->ListNodes().value();
   ASSERT_EQ(nodes.size(), 1u);
   EXPECT_EQ(nodes[0].name, "sim-a");
