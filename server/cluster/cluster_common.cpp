@@ -86,14 +86,8 @@ class NameVerifier final : public grpc::experimental::ExternalCertificateVerifie
 
 }  // namespace
 
-TlsFiles WatchTlsFiles(const ClusterOptions& o) {
-  if (!o.tls()) return nullptr;
-  return std::make_shared<grpc::experimental::FileWatcherCertificateProvider>(
-      o.tls_key, o.tls_cert, o.tls_ca, static_cast<unsigned>(o.tls_refresh_s));
-}
-
-Status CheckTls(const ClusterOptions& o) {
-  if (!o.tls()) return Status::Ok();
+Expected<TlsFiles> WatchTlsFiles(const ClusterOptions& o) {
+  if (!o.tls()) return TlsFiles();
   struct File {
     const std::string& path;
     const char* flag;
@@ -120,7 +114,8 @@ Status CheckTls(const ClusterOptions& o) {
     return InvalidArgument("cluster-tls-refresh", "must be within 1..86400 seconds");
   if (o.control_name.empty() || o.control_name.size() > 253)
     return InvalidArgument("cluster-control-name", "a name of 1 to 253 characters is required");
-  return Status::Ok();
+  return TlsFiles(std::make_shared<grpc::experimental::FileWatcherCertificateProvider>(
+      o.tls_key, o.tls_cert, o.tls_ca, static_cast<unsigned>(o.tls_refresh_s)));
 }
 
 std::shared_ptr<grpc::Channel> Channel(const std::string& target, const TlsFiles& tls_files,
@@ -158,7 +153,6 @@ Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const Clust
                                                                      const TlsFiles& tls_files) {
   if (Status s = CheckToken(o.token); !s.ok()) return s.error();
   if (o.tls()) {
-    if (Status s = CheckTls(o); !s.ok()) return s.error();
     if (!tls_files) return InvalidArgument("cluster-tls-cert", "the TLS files are not watched");
     grpc::experimental::TlsServerCredentialsOptions tls(tls_files);
     tls.watch_root_certs();

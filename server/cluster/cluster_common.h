@@ -24,13 +24,12 @@ Status CheckToken(const std::string& token);
 bool Authorized(const grpc::ServerContextBase& ctx, const std::string& token);
 // A client context with the token and a deadline `timeout_s` from now.
 std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, double timeout_s);
-// The TLS options hold together: the three files all or none, each readable and holding PEM of
-// its kind, a refresh period of 1 s to a day.
-Status CheckTls(const ClusterOptions& o);
 // The watcher of a process's TLS files (null without TLS): a gRPC thread that reads them every
-// tls_refresh_s, shared by the process's server and channels, gone with the last of them.
+// tls_refresh_s, shared by the process's server and channels, gone with the last of them. Refused
+// unless the TLS options hold together: the three files all or none, each readable and holding
+// PEM of its kind, a refresh period of 1 s to a day, a control name.
 using TlsFiles = std::shared_ptr<grpc::experimental::CertificateProviderInterface>;
-TlsFiles WatchTlsFiles(const ClusterOptions& o);
+Expected<TlsFiles> WatchTlsFiles(const ClusterOptions& o);
 // A channel to `target`: "host:port", or several "host:port,host:port" tried in turn
 // (pick_first over the list: a client fails over to the next replica). With TLS files, it
 // presents this process's certificate and accepts only a peer whose certificate the site's CA
@@ -40,8 +39,8 @@ TlsFiles WatchTlsFiles(const ClusterOptions& o);
 std::shared_ptr<grpc::Channel> Channel(const std::string& target, const TlsFiles& tls,
                                        const std::string& peer_name);
 // Listening credentials: mutual TLS when configured (a client certificate the site's CA signed is
-// required), `tls` from WatchTlsFiles(o); otherwise plaintext, on loopback unless allow_insecure
-// (SCALING.md).
+// required), `tls` being WatchTlsFiles(o)'s; otherwise plaintext, on loopback unless
+// allow_insecure (SCALING.md).
 Expected<std::shared_ptr<grpc::ServerCredentials>> ServerCredentials(const ClusterOptions& o,
                                                                      const TlsFiles& tls);
 // The names the caller's certificate carries: its subject alternative names, then its common

@@ -35,7 +35,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   // Placement decisions (for Collect): sessions placed per node, and the refusals by reason.
   mutable std::mutex placements_mutex;
   std::map<std::string, uint64_t> placed;
-  std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, node_failed
+  std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, invalid_request, node_failed
   void Count(std::map<std::string, uint64_t>& m, const std::string& key) {
     std::lock_guard lock(placements_mutex);
     ++m[key];
@@ -386,9 +386,10 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
                                                                   const ClusterOptions& options) {
   if (!(options.telemetry_hz >= 1 && options.telemetry_hz <= 120))
     return InvalidArgument("telemetry-hz", "must be within 1..120");
-  if (Status s = CheckTls(options); !s.ok()) return s.error();
+  auto tls = WatchTlsFiles(options);
+  if (!tls.ok()) return tls.error();
   auto impl = std::make_unique<Impl>(store, options);
-  impl->tls = WatchTlsFiles(options);
+  impl->tls = std::move(tls).value();
   auto creds = ServerCredentials(options, impl->tls);
   if (!creds.ok()) return creds.error();
   // The sessions live before this replica started are explained (see Impl::seen).

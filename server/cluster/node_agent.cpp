@@ -311,9 +311,10 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
     return InvalidArgument("lease-margin",
                            "the lease (heartbeat timeout less the margin) must last at least two "
                            "heartbeat periods");
-  if (Status s = CheckTls(options.cluster); !s.ok()) return s.error();
+  auto tls = WatchTlsFiles(options.cluster);
+  if (!tls.ok()) return tls.error();
   auto impl = std::make_unique<Impl>(sessions, options);
-  impl->tls = WatchTlsFiles(options.cluster);
+  impl->tls = std::move(tls).value();
   auto creds = ServerCredentials(options.cluster, impl->tls);
   if (!creds.ok()) return creds.error();
   grpc::EnableDefaultHealthCheckService(true);  // readiness (deploy/k8s/sim.yaml)

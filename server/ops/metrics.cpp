@@ -1,5 +1,6 @@
 #include "server/ops/metrics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -60,21 +61,16 @@ void MetricsText::Sample(std::string_view name, const Labels& labels, double val
 
 void MetricsText::Histogram(std::string_view name, std::string_view help, const Labels& labels,
                             const std::vector<double>& bounds, const std::vector<double>& values) {
-  Family(name, "histogram", help);
-  const std::string bucket = std::string(name) + "_bucket";
+  // Each value in the first bucket whose bound it does not exceed (a NaN in none but +Inf).
+  std::vector<uint64_t> counts(bounds.size() + 1, 0);
   double sum = 0;
-  for (double v : values) sum += v;
-  for (size_t b = 0; b <= bounds.size(); ++b) {
-    const bool inf = b == bounds.size();
-    size_t count = 0;
-    for (double v : values)
-      if (inf || v <= bounds[b]) ++count;
-    Labels l = labels;
-    l.emplace_back("le", inf ? "+Inf" : Number(bounds[b]));
-    Sample(bucket, l, static_cast<double>(count));
+  for (double v : values) {
+    sum += v;
+    const auto at =
+        std::isnan(v) ? bounds.end() : std::lower_bound(bounds.begin(), bounds.end(), v);
+    ++counts[static_cast<size_t>(at - bounds.begin())];
   }
-  Sample(std::string(name) + "_sum", labels, sum);
-  Sample(std::string(name) + "_count", labels, static_cast<double>(values.size()));
+  HistogramCounts(name, help, labels, bounds, counts, sum);
 }
 
 void MetricsText::HistogramCounts(std::string_view name, std::string_view help,
