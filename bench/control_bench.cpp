@@ -1,7 +1,10 @@
 // Control-plane measurements for vsurg-bench (see vsurg_bench_main.cpp for the commands).
 #include "bench/control_bench.h"
 
+#include <arpa/inet.h>
 #include <grpcpp/grpcpp.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -25,6 +28,7 @@
 #include "server/control/control_plane.h"
 #include "server/net/lease.h"
 #include "server/session/session_manager.h"
+#include "vsurg/v1/cluster.grpc.pb.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::bench {
@@ -458,6 +462,175 @@ int Placement(const std::vector<std::string>& args) {
     std::printf("create in one process (SQLite):                   p50 %.2f ms  p99 %.2f ms\n",
                 Percentile(local_ms, 0.5), Percentile(local_ms, 0.99));
   }
+  return 0;
+}
+
+}  // namespace vsurg::bench
+
+namespace vsurg::bench {
+
+// Simulated nodes: the heartbeats of `count` nodes (Acquire, then one Heartbeat per period each,
+// spread evenly over the period) from `threads` client threads to one control replica.
+struct HeartbeatLoad {
+  std::atomic<uint64_t> sent{0}, failed{0};
+  std::vector<double> latency_ms;  // merged after the run
+  std::mutex mutex;
+};
+
+static void BeatNodes(int first, int count, int total, int port, int node_port,
+                      const std::string& token, double period_s, Clock::time_point until,
+                      HeartbeatLoad& load) {
+  auto stub = v1::ClusterService::NewStub(
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+  auto context = [&] {
+    auto ctx = std::make_unique<grpc::ClientContext>();
+    ctx->AddMetadata("authorization", "Bearer " + token);
+    ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    return ctx;
+  };
+  std::vector<v1::NodeHeartbeat> beats(static_cast<size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    v1::NodeHeartbeat& b = beats[static_cast<size_t>(i)];
+    b.set_name("sim-" + std::to_string(first + i));
+    // Never called (no one watches, nothing is placed); a port that takes connections, so a
+    // late node's probe decides nothing, as for a live node.
+    b.set_grpc_address("127.0.0.1:" + std::to_string(node_port));
+    b.set_udp_host("127.0.0.1");
+    b.set_udp_port(1);
+    b.set_capacity(24);
+    b.set_instance("bench-" + std::to_string(first + i));
+    v1::NodeLeaseReply reply;
+    auto ctx = context();
+    if (stub->Acquire(ctx.get(), b, &reply).ok()) b.set_epoch(reply.epoch());
+  }
+  std::vector<double> mine;
+  const auto period = std::chrono::duration<double>(period_s);
+  const auto start = Clock::now();
+  for (int round = 0; Clock::now() < until; ++round)
+    for (int i = 0; i < count && Clock::now() < until; ++i) {
+      // Node first+i beats at its own phase of the period.
+      const auto due = start + std::chrono::duration_cast<Clock::duration>(
+                                   period * (round + static_cast<double>(first + i) / total));
+      std::this_thread::sleep_until(due);
+      v1::HeartbeatReply reply;
+      auto ctx = context();
+      const auto t0 = Clock::now();
+      const bool ok = stub->Heartbeat(ctx.get(), beats[static_cast<size_t>(i)], &reply).ok();
+      mine.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      load.sent.fetch_add(1);
+      if (!ok) load.failed.fetch_add(1);
+    }
+  std::lock_guard lock(load.mutex);
+  load.latency_ms.insert(load.latency_ms.end(), mine.begin(), mine.end());
+}
+
+int Heartbeats(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-bench heartbeats",
+              "The control plane's store writes per second for many simulated nodes' heartbeats:\n"
+              "every heartbeat written (the store lease equal to the heartbeat timeout) against\n"
+              "heartbeats kept in memory with a store lease (--store-lease), alternately in one\n"
+              "run, each on a fresh PostgreSQL database.");
+  p.Option("postgres", ArgParser::Kind::kString,
+           "a PostgreSQL server's maintenance database URI (deploy/postgres.sh)", true)
+      .Option("nodes", ArgParser::Kind::kInt, "simulated nodes", false, "1000")
+      .Option("seconds", ArgParser::Kind::kDouble, "measured seconds per configuration", false,
+              "15")
+      .Option("store-lease", ArgParser::Kind::kDouble, "the in-memory configuration's, s", false,
+              "10")
+      .Option("rounds", ArgParser::Kind::kInt, "alternations of the two configurations", false, "2")
+      .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  const int nodes = p.Int("nodes"), rounds = p.Int("rounds");
+  const double seconds = p.Double("seconds");
+  if (nodes < 1 || nodes > 5000 || !(seconds >= 2 && seconds <= 600) || rounds < 1 || rounds > 10) {
+    std::cerr << p.command() << ": --nodes 1..5000, --seconds 2..600, --rounds 1..10\n";
+    return 2;
+  }
+  const std::string admin = p.String("postgres");
+  const std::string token = "bench-cluster-token-0123456789";
+  // The simulated nodes' internal port: listening, never accepting (the kernel completes the
+  // probes' handshakes).
+  const int listener = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  if (listener < 0 || ::bind(listener, reinterpret_cast<sockaddr*>(&addr), len) != 0 ||
+      ::listen(listener, 4096) != 0 ||
+      ::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+    std::cerr << p.command() << ": cannot listen on loopback\n";
+    return 1;
+  }
+  const int node_port = ntohs(addr.sin_port);
+  json runs = json::array();
+  for (int round = 0; round < rounds; ++round)
+    for (const bool in_memory : {false, true}) {
+      const std::string name = "vsurg_beats_" + std::to_string(getpid()) + "_" +
+                               std::to_string(round) + (in_memory ? "m" : "w");
+      if (!PostgresAdmin(admin, "CREATE DATABASE " + name)) return 1;
+      const std::string uri = admin.substr(0, admin.rfind('/') + 1) + name;
+      json r;
+      {
+        auto store = std::move(db::Store::Open({.path = uri})).value();
+        server::cluster::ClusterOptions co;
+        co.token = token;
+        co.listen = "127.0.0.1:0";
+        // Every heartbeat written: a store lease no longer than the timeout and two periods.
+        co.store_lease_s = in_memory ? p.Double("store-lease") : co.heartbeat_timeout_s;
+        auto control = std::move(server::cluster::ClusterSessions::Start(*store, co)).value();
+        const int threads = 4;
+        HeartbeatLoad load;
+        // Acquisitions first (one transaction each), then the measured window.
+        const double settle = 2 + nodes / 500.0;
+        const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                              std::chrono::duration<double>(settle + seconds));
+        std::vector<std::thread> pool;
+        for (int t = 0; t < threads; ++t) {
+          const int first = nodes * t / threads, last = nodes * (t + 1) / threads;
+          pool.emplace_back(BeatNodes, first, last - first, nodes, control->port(), node_port,
+                            token, co.heartbeat_period_s, until, std::ref(load));
+        }
+        std::this_thread::sleep_for(std::chrono::duration<double>(settle));
+        const db::StoreStats a = store->stats();
+        const uint64_t sent0 = load.sent.load();
+        std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+        const db::StoreStats b = store->stats();
+        const uint64_t sent1 = load.sent.load();
+        for (auto& t : pool) t.join();
+        const auto listed = store->ListNodes().value();
+        size_t down = 0;
+        for (const auto& n : listed) down += n.down;
+        control->Shutdown();
+        r = {{"mode", in_memory ? "in_memory" : "every_beat"},
+             {"store_lease_s", co.store_lease_s},
+             {"nodes", nodes},
+             {"heartbeats_per_s", static_cast<double>(sent1 - sent0) / seconds},
+             {"store_writes_per_s", static_cast<double>(b.jobs - a.jobs) / seconds},
+             {"store_commits_per_s", static_cast<double>(b.commits - a.commits) / seconds},
+             {"failed", load.failed.load()},
+             {"nodes_down", down},
+             {"beat_p50_ms", Percentile(load.latency_ms, 0.5)},
+             {"beat_p99_ms", Percentile(load.latency_ms, 0.99)}};
+      }
+      PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
+      runs.push_back(r);
+      if (!p.Flag("json"))
+        std::printf(
+            "%-10s store lease %4.1f s, %d nodes: %7.0f heartbeats/s  %7.1f store writes/s "
+            "(%6.1f commits/s)  heartbeat p50 %.2f ms p99 %.2f ms  failed %llu  down %zu\n",
+            r["mode"].get<std::string>().c_str(), r["store_lease_s"].get<double>(), nodes,
+            r["heartbeats_per_s"].get<double>(), r["store_writes_per_s"].get<double>(),
+            r["store_commits_per_s"].get<double>(), r["beat_p50_ms"].get<double>(),
+            r["beat_p99_ms"].get<double>(),
+            static_cast<unsigned long long>(r["failed"].get<uint64_t>()),
+            r["nodes_down"].get<size_t>());
+    }
+  ::close(listener);
+  if (p.Flag("json")) std::cout << json{{"runs", runs}}.dump() << "\n";
   return 0;
 }
 

@@ -10,5 +10,7 @@ int GrpcSubmit(const std::vector<std::string>& args);
 int ExportBench(const std::vector<std::string>& args);
 // Session creation through the control role's placement against the all-in-one path.
 int Placement(const std::vector<std::string>& args);
+// The control plane's store writes for many simulated nodes' heartbeats, written or in memory.
+int Heartbeats(const std::vector<std::string>& args);
 
 }  // namespace vsurg::bench

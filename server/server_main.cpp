@@ -95,6 +95,11 @@ int Main(std::vector<std::string> args) {
       .Option("cluster-tls-refresh", Kind::kDouble,
               "control, sim: seconds between reads of the TLS files (renewal without restart)",
               false, "60")
+      .Option("cluster-store-lease", Kind::kDouble,
+              "control: seconds of lease a node's row in the store carries; the replica a node "
+              "beats to keeps its heartbeats in memory and rewrites the row when less than 3 s "
+              "of this is left (<= 3: every heartbeat is written)",
+              false, "10")
       .Option("cluster-control-name", Kind::kString,
               "control, sim: the name control replicas' certificates carry", false, "vsurg-control")
       .Option("cluster-health-listen", Kind::kString,
@@ -232,6 +237,11 @@ int Main(std::vector<std::string> args) {
     if (p.Has("cluster-tls-key")) cluster.tls_key = p.String("cluster-tls-key");
     if (p.Has("cluster-tls-ca")) cluster.tls_ca = p.String("cluster-tls-ca");
     cluster.tls_refresh_s = p.Double("cluster-tls-refresh");
+    cluster.store_lease_s = p.Double("cluster-store-lease");
+    if (!(cluster.store_lease_s >= 2 && cluster.store_lease_s <= 300)) {
+      std::cerr << "vsurg-server: --cluster-store-lease: must be within 2..300 s\n";
+      return 2;
+    }
     cluster.control_name = p.String("cluster-control-name");
     if (p.Has("cluster-health-listen")) cluster.health_listen = p.String("cluster-health-listen");
     cluster.telemetry_hz = telemetry_hz;

@@ -80,7 +80,7 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   return out;
 }
 
-void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out) {
+void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out, bool with_surface) {
   out->set_session_id(t.id);
   out->set_server_time_us(t.server_time_us);
   out->set_state(ToProto(t.state));
@@ -105,7 +105,7 @@ void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out) {
   out->set_depth(t.sim.depth);
   out->set_samples(t.sim.samples);
   out->set_clock_jumps(t.sim.clock_jumps);
-  if (t.has_surface) {
+  if (with_surface && t.has_surface) {
     v1::SurfaceState* surface = out->mutable_surface();
     surface->set_frame_id(t.surface_frame);
     surface->mutable_indices()->Assign(t.surface_indices.begin(), t.surface_indices.end());

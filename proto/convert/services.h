@@ -29,7 +29,7 @@ scoring::TaskSettings FromProto(const v1::TaskSettings& t);
 
 // A live session's sample (the surface's positions as floats on the wire). A state this side
 // does not know reads as aborted.
-void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out);
+void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out, bool with_surface = true);
 sim::SessionTelemetry FromProto(const v1::Telemetry& t);
 
 }  // namespace vsurg::convert

@@ -3,12 +3,16 @@
 //   control  ClusterSessions: the control plane's Sessions for a site. New sessions are placed
 //            on a healthy simulation node with room (fewest live sessions for its capacity,
 //            then least CPU); the station gets that node's UDP address and the session key.
-//            Serves ClusterService (the nodes' heartbeats, written to the shared store) on an
-//            internal port; a watchdog marks a node silent for 2 s down and aborts its sessions
+//            Serves ClusterService (the nodes' heartbeats, kept in memory with a lease written
+//            to the shared store every few seconds) on an internal port; a watchdog marks a node
+//            silent for 2 s down and aborts its sessions
 //            (MarkNodeDown: once, whichever replica sees it first), or at once when its
 //            heartbeat is late and its port refuses connections (its process is gone). Monitors and
-//            the dashboard get the nodes' telemetry through it (polled from the nodes while someone
-//            watches). Stateless: every fact is in the store, so replicas run side by side.
+//            the dashboard get the nodes' telemetry through it: one NodeService.Watch stream per
+//            node while someone on this replica watches, carrying only what is watched (every
+//            session's figures for an overview or a scrape; a session's surface only while
+//            someone views it). Stateless: every fact is in the store, so replicas run side by
+//            side.
 //   sim      NodeAgent: a SessionManager's sessions offered to the control plane (NodeService on
 //            an internal port), and a heartbeat every 0.5 s with the node's load. Drain: no new
 //            sessions, the live ones finish (SIGTERM, a rolling upgrade).
@@ -30,9 +34,11 @@
 // connects. No gRPC or protobuf type appears in this header.
 //
 // Threads: ClusterSessions has a watchdog thread (0.1 s), a prober for late nodes, a telemetry
-// poller (telemetry_hz while anyone subscribes) and gRPC's threads for heartbeats; every member may
-// be called from any thread. NodeAgent has a heartbeat thread and gRPC's threads. With TLS each
-// also has gRPC's file-watcher thread for its certificate files.
+// thread (delivers to subscribers at telemetry_hz and opens and closes the node streams), one
+// reader thread per open node stream, and gRPC's threads for heartbeats; every member may be
+// called from any thread. A node's Watch stream holds one of its gRPC threads while it lasts.
+// NodeAgent has a heartbeat thread and gRPC's threads. With TLS each also has gRPC's file-watcher
+// thread for its certificate files.
 #pragma once
 
 #include <cstdint>
@@ -76,6 +82,12 @@ struct ClusterOptions {
   bool tls() const { return !tls_cert.empty() || !tls_key.empty() || !tls_ca.empty(); }
   double heartbeat_period_s = 0.5;
   double heartbeat_timeout_s = 2;  // silent this long: down, sessions aborted (= the lease)
+  // The lease a node's row in the store carries. The replica a node beats to keeps the beats in
+  // memory and rewrites the row when less than the heartbeat timeout and two periods of this is
+  // left (every 7 s by default, instead of every 0.5 s); any replica declares down a node whose
+  // row lease lapsed (it and the replica it beat to are gone). At or below the timeout plus two
+  // periods, every heartbeat is written.
+  double store_lease_s = 10;
   // A node's lease ends this long before the control plane may declare it down (server/net/
   // lease.h): the most the control replicas' clocks may disagree with each other.
   double lease_margin_s = 0.25;

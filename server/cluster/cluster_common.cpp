@@ -41,8 +41,9 @@ bool Authorized(const grpc::ServerContextBase& ctx, const std::string& token) {
 std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, double timeout_s) {
   auto ctx = std::make_unique<grpc::ClientContext>();
   ctx->AddMetadata("authorization", "Bearer " + token);
-  ctx->set_deadline(std::chrono::system_clock::now() +
-                    std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
+  if (timeout_s > 0)
+    ctx->set_deadline(std::chrono::system_clock::now() +
+                      std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6)));
   return ctx;
 }
 

@@ -22,7 +22,8 @@ namespace v1 = vsurg::v1;
 Status CheckToken(const std::string& token);
 // Whether the call's `authorization` metadata carries `token` (compared in constant time).
 bool Authorized(const grpc::ServerContextBase& ctx, const std::string& token);
-// A client context with the token and a deadline `timeout_s` from now.
+// A client context with the token and a deadline `timeout_s` from now (none for timeout_s ≤ 0:
+// a stream that lasts until it is cancelled).
 std::unique_ptr<grpc::ClientContext> CallContext(const std::string& token, double timeout_s);
 // The watcher of a process's TLS files (null without TLS): a gRPC thread that reads them every
 // tls_refresh_s, shared by the process's server and channels, gone with the last of them. Refused

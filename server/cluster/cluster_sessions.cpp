@@ -1,5 +1,7 @@
 // The control role: placement, the nodes' registry and watchdog, the nodes' telemetry.
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <map>
@@ -169,9 +171,52 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   Impl(db::Store& s, const ClusterOptions& o) : store(s), options(o) {}
 
   int64_t TimeoutUs() const { return static_cast<int64_t>(options.heartbeat_timeout_s * 1e6); }
+  int64_t PeriodUs() const { return static_cast<int64_t>(options.heartbeat_period_s * 1e6); }
+  // The lease a node's row in the store carries (its heartbeat_us: when it was written), never
+  // shorter than the heartbeat timeout.
+  int64_t StoreLeaseUs() const {
+    return static_cast<int64_t>(std::max(options.store_lease_s, options.heartbeat_timeout_s) * 1e6);
+  }
 
+  // --- Heartbeats in memory (docs/SCALING.md, "Heartbeats and the store") ---
+  // A node's heartbeats go to one replica (its channel picks the first that answers). That
+  // replica keeps them here and writes the node's row only when the row's lease would end
+  // within a heartbeat timeout and two periods (so every lease it grants a node ends before the
+  // row's does: no other replica can declare the node down while it serves), when the node
+  // began beating here (a new process, a new epoch, or a node that came from another replica:
+  // that write is what tells the other replica it is no longer silent), or when what placement
+  // reads changed (draining, capacity, addresses). Declaring a node down is then this replica's
+  // to do for the nodes it hears (silent a heartbeat timeout), and any replica's for a row
+  // whose lease has run out (its replica is gone too).
+  struct Heard {
+    std::string instance;
+    int64_t epoch = 0;
+    int64_t heard_us = 0;    // the last heartbeat, on this replica's clock
+    int64_t written_us = 0;  // the row's last write by this replica
+    db::NodeRecord last;     // the last heartbeat's facts
+    // The watchdog is declaring it down: heartbeats go to the store (ordered against that
+    // transaction) until it has.
+    bool condemned = false;
+  };
+  mutable std::mutex heard_mutex;
+  std::map<std::string, Heard> heard;  // by node name
+  std::atomic<uint64_t> beats_received{0}, beats_written{0};
+
+  static bool PlacementFactsChanged(const db::NodeRecord& a, const db::NodeRecord& b) {
+    return a.draining != b.draining || a.capacity != b.capacity ||
+           a.grpc_address != b.grpc_address || a.udp_host != b.udp_host ||
+           a.udp_port != b.udp_port || a.started_us != b.started_us;
+  }
+
+  // Up: not marked down, and heard from within the timeout (a node this replica hears) or
+  // holding an unexpired lease in the store (one another replica hears).
   bool Healthy(const db::NodeRecord& n, int64_t now) const {
-    return !n.down && now - n.heartbeat_us <= TimeoutUs();
+    if (n.down) return false;
+    std::lock_guard lock(heard_mutex);
+    const auto it = heard.find(n.name);
+    if (it != heard.end() && it->second.instance == n.instance && it->second.epoch == n.epoch)
+      return now - it->second.heard_us <= TimeoutUs();
+    return now - n.heartbeat_us <= StoreLeaseUs();
   }
 
   v1::NodeService::Stub& StubFor(const db::NodeRecord& node) {
@@ -239,8 +284,15 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     if (grpc::Status s = Allowed(*ctx, req->name()); !s.ok()) return s;
     const db::NodeRecord n = FromProto(*req, db::NowUs());
     auto lease = store.AcquireNode(
-        n, TimeoutUs(), "simulation node " + n.name + " restarted (its name was taken again)");
+        n, StoreLeaseUs(), "simulation node " + n.name + " restarted (its name was taken again)");
     if (!lease.ok()) return ToGrpc(lease.error());
+    {
+      std::lock_guard lock(heard_mutex);
+      Heard& h = heard[n.name];
+      h = {n.instance, lease->epoch, n.heartbeat_us, n.heartbeat_us, n, false};
+      h.last.epoch = lease->epoch;
+    }
+    beats_written.fetch_add(1, std::memory_order_relaxed);
     out->set_epoch(lease->epoch);
     out->set_lease_s(options.heartbeat_timeout_s);
     out->set_aborted(lease->aborted);
@@ -255,8 +307,32 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
                          v1::HeartbeatReply* out) override {
     if (grpc::Status s = Allowed(*ctx, req->name()); !s.ok()) return s;
-    if (Status s = store.BeatNode(FromProto(*req, db::NowUs())); !s.ok()) return ToGrpc(s.error());
+    const int64_t now = db::NowUs();
+    const db::NodeRecord n = FromProto(*req, now);
+    beats_received.fetch_add(1, std::memory_order_relaxed);
     out->set_lease_s(options.heartbeat_timeout_s);
+    {
+      std::lock_guard lock(heard_mutex);
+      const auto it = heard.find(n.name);
+      if (it != heard.end() && !it->second.condemned && it->second.instance == n.instance &&
+          it->second.epoch == n.epoch &&
+          it->second.written_us + StoreLeaseUs() >= now + TimeoutUs() + 2 * PeriodUs() &&
+          !PlacementFactsChanged(it->second.last, n)) {
+        it->second.heard_us = now;
+        it->second.last = n;
+        return grpc::Status::OK;
+      }
+    }
+    // Conditional on the lease (instance, epoch, not down): a node the site gave up on is
+    // refused here, whichever replica gave up on it.
+    const Status written = store.BeatNode(n);
+    std::lock_guard lock(heard_mutex);
+    if (!written.ok()) {
+      if (written.error().code == ErrorCode::kFailedPrecondition) heard.erase(n.name);
+      return ToGrpc(written.error());
+    }
+    beats_written.fetch_add(1, std::memory_order_relaxed);
+    heard[n.name] = {n.instance, n.epoch, now, now, n, false};
     return grpc::Status::OK;
   }
 
@@ -266,25 +342,77 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
                              [&] { return stopping; });
   }
 
+  // The node `n` (as this replica last heard it, its last heartbeat at `n.heartbeat_us`) is
+  // declared down unless a heartbeat came since: the row is written by the first heartbeat any
+  // replica gets after this decision (the condemned flag sends them to the store), so either
+  // that write or this transaction comes first and the other sees it.
+  void DeclareDown(const db::NodeRecord& n, int64_t now, const std::string& reason,
+                   LogFields fields) {
+    {
+      std::lock_guard lock(heard_mutex);
+      const auto it = heard.find(n.name);
+      if (it != heard.end()) it->second.condemned = true;
+    }
+    auto aborted = store.MarkNodeDown(n.name, n.heartbeat_us + 1, now, reason);
+    {
+      std::lock_guard lock(heard_mutex);
+      const auto it = heard.find(n.name);
+      // Down: its next heartbeat meets the store's refusal. Not down: a heartbeat was written
+      // since (here, which replaced this entry, or at another replica, which hears it now).
+      if (it != heard.end() && it->second.condemned) heard.erase(it);
+    }
+    if (!aborted.ok() || !aborted->has_value()) return;
+    fields.insert(fields.begin(), {"sessions_aborted", **aborted});
+    fields.insert(fields.begin(), {"node", n.name});
+    fields.push_back({"silent_ms", (now - n.heartbeat_us) / 1000});
+    Log("node_down", fields);
+  }
+
   void WatchdogLoop() {
     // A fifth of the heartbeat period: a silent node is found within 2.1 s, not 2.5 s.
     while (WaitFor(options.heartbeat_period_s / 5)) {
       auto nodes = store.ListNodes();
       if (!nodes.ok()) continue;
       const int64_t now = db::NowUs();
-      std::vector<db::NodeRecord> late;
-      for (const db::NodeRecord& n : *nodes) {
-        if (n.down) continue;
-        const int64_t silent = now - n.heartbeat_us;
-        if (silent <= TimeoutUs()) {
-          if (silent > LateUs()) late.push_back(n);
-          continue;
+      std::vector<db::NodeRecord> late, silent, lapsed;
+      {
+        std::lock_guard lock(heard_mutex);
+        std::map<std::string, const db::NodeRecord*> rows;
+        for (const db::NodeRecord& n : *nodes) rows[n.name] = &n;
+        for (auto it = heard.begin(); it != heard.end();) {
+          const auto row = rows.find(it->first);
+          // The store knows better (down, a newer holder, or another replica hears the node
+          // now): the next heartbeat here asks it.
+          if (row == rows.end() || row->second->down ||
+              row->second->instance != it->second.instance ||
+              row->second->epoch != it->second.epoch ||
+              row->second->heartbeat_us > it->second.heard_us) {
+            if (!it->second.condemned) {
+              it = heard.erase(it);
+              continue;
+            }
+          } else if (!it->second.condemned) {
+            db::NodeRecord n = *row->second;
+            n.heartbeat_us = it->second.heard_us;
+            const int64_t quiet = now - n.heartbeat_us;
+            if (quiet > TimeoutUs())
+              silent.push_back(n);
+            else if (quiet > LateUs())
+              late.push_back(n);
+          }
+          ++it;
         }
-        auto aborted = store.MarkNodeDown(n.name, now - TimeoutUs(), now,
-                                          "simulation node " + n.name + " stopped answering");
-        if (aborted.ok() && aborted->has_value())
-          Log("node_down",
-              {{"node", n.name}, {"sessions_aborted", **aborted}, {"silent_ms", silent / 1000}});
+        for (const db::NodeRecord& n : *nodes)
+          if (!n.down && !heard.count(n.name) && now - n.heartbeat_us > StoreLeaseUs())
+            lapsed.push_back(n);
+      }
+      for (const db::NodeRecord& n : silent)
+        DeclareDown(n, now, "simulation node " + n.name + " stopped answering", {});
+      for (db::NodeRecord n : lapsed) {  // its lease ran out in the store: heard by no one
+        const int64_t written = n.heartbeat_us;
+        n.heartbeat_us = now - StoreLeaseUs() - 1;
+        DeclareDown(n, now, "simulation node " + n.name + " stopped answering (its lease lapsed)",
+                    {{"lease_written_ms_ago", (now - written) / 1000}});
       }
       if (late.empty()) continue;
       std::lock_guard lock(stop_mutex);
@@ -310,41 +438,171 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
         if (stopping) return;
         late.swap(to_probe);
       }
-      for (const db::NodeRecord& n : late) {
+      for (db::NodeRecord n : late) {
         if (ProbeListening(n.grpc_address, kProbeTimeoutS) != Listening::kRefused) continue;
-        const int64_t now = db::NowUs();
-        // Down unless a heartbeat came after the one this decision read.
-        auto aborted = store.MarkNodeDown(
-            n.name, n.heartbeat_us + 1, now,
-            "simulation node " + n.name + " stopped answering (its port refuses connections)");
-        if (aborted.ok() && aborted->has_value())
-          Log("node_down", {{"node", n.name},
-                            {"sessions_aborted", **aborted},
-                            {"silent_ms", (now - n.heartbeat_us) / 1000},
-                            {"refused", "1"}});
+        {
+          // Down unless a heartbeat came after the one this decision read.
+          std::lock_guard lock(heard_mutex);
+          const auto it = heard.find(n.name);
+          if (it == heard.end() || it->second.heard_us != n.heartbeat_us) continue;
+        }
+        DeclareDown(
+            n, db::NowUs(),
+            "simulation node " + n.name + " stopped answering (its port refuses connections)",
+            {{"refused", "1"}});
       }
     }
   }
   static constexpr double kProbeTimeoutS = 0.2;
 
+  // --- Telemetry: one stream per node, only what someone on this replica watches ---
+  // What a replica watches on one node: every session's figures (a watcher of all sessions:
+  // the live overview, a metrics scrape), or only some; and the surfaces of the sessions someone
+  // views. Watched only while subscribed; nothing is asked of a node no one here watches.
+  struct WatchSpec {
+    bool all = false;
+    std::set<uint64_t> sessions, surfaces;
+    bool operator==(const WatchSpec&) const = default;
+  };
+  // One NodeService.Watch call and the thread reading it. The reader keeps the latest message's
+  // sessions, each with the last surface it got (a surface comes once per new frame).
+  struct NodeStream {
+    std::string address;
+    WatchSpec spec;
+    std::unique_ptr<grpc::ClientContext> ctx;
+    std::thread reader;
+    std::mutex mutex;
+    std::map<uint64_t, SessionTelemetry> latest;
+    std::chrono::steady_clock::time_point last_message{};
+    bool done = false;  // the call ended (the node stopped, or refused): opened again
+  };
+  std::map<std::string, std::unique_ptr<NodeStream>> streams;  // by node; the poller's own
+  std::atomic<uint64_t> watch_bytes{0}, watch_opened{0};
+  std::atomic<int> streams_open{0};
+
+  void OpenStream(const std::string& node, const db::NodeRecord& n, WatchSpec spec) {
+    auto st = std::make_unique<NodeStream>();
+    st->address = n.grpc_address;
+    st->spec = std::move(spec);
+    st->ctx = CallContext(options.token, 0);
+    st->last_message = std::chrono::steady_clock::now();
+    v1::NodeWatchRequest req;
+    req.set_all(st->spec.all);
+    for (uint64_t id : st->spec.sessions) req.add_sessions(id);
+    for (uint64_t id : st->spec.surfaces) req.add_surfaces(id);
+    req.set_rate_hz(options.telemetry_hz);
+    NodeStream* p = st.get();
+    std::shared_ptr<grpc::ClientReader<v1::NodeTelemetry>> reader =
+        StubFor(n).Watch(p->ctx.get(), req);
+    watch_opened.fetch_add(1, std::memory_order_relaxed);
+    p->reader = std::thread([this, p, reader] {
+      v1::NodeTelemetry msg;
+      while (reader->Read(&msg)) {
+        watch_bytes.fetch_add(msg.ByteSizeLong(), std::memory_order_relaxed);
+        std::map<uint64_t, SessionTelemetry> next;
+        for (const v1::Telemetry& t : msg.sessions()) next[t.session_id()] = convert::FromProto(t);
+        std::lock_guard lock(p->mutex);
+        for (auto& [id, t] : next) {
+          const auto old = p->latest.find(id);
+          if (!t.has_surface && old != p->latest.end() && old->second.has_surface) {
+            t.has_surface = true;
+            t.surface_frame = old->second.surface_frame;
+            t.surface_indices = std::move(old->second.surface_indices);
+            t.surface_positions = std::move(old->second.surface_positions);
+          }
+        }
+        p->latest = std::move(next);
+        p->last_message = std::chrono::steady_clock::now();
+      }
+      reader->Finish();
+      std::lock_guard lock(p->mutex);
+      p->done = true;
+      p->latest.clear();
+    });
+    streams[node] = std::move(st);
+    streams_open.store(static_cast<int>(streams.size()), std::memory_order_relaxed);
+  }
+
+  void CloseStream(std::map<std::string, std::unique_ptr<NodeStream>>::iterator it) {
+    it->second->ctx->TryCancel();
+    if (it->second->reader.joinable()) it->second->reader.join();
+    streams.erase(it);
+    streams_open.store(static_cast<int>(streams.size()), std::memory_order_relaxed);
+  }
+
+  // The streams this replica's watchers need: every up node's for a watcher of all sessions, a
+  // watched session's node's for one session (with its surface). Store reads only.
+  void Reconcile(bool all, const std::set<uint64_t>& watched) {
+    std::map<std::string, WatchSpec> want;
+    std::map<std::string, db::NodeRecord> up;
+    auto nodes = store.ListNodes();
+    if (!nodes.ok()) return;  // keep what runs
+    const int64_t now = db::NowUs();
+    for (const db::NodeRecord& n : *nodes)
+      if (Healthy(n, now)) {
+        up[n.name] = n;
+        if (all) want[n.name].all = true;
+      }
+    for (uint64_t id : watched) {
+      auto row = store.GetSession(static_cast<int64_t>(id));
+      if (!row.ok() || !vsurg::IsLive(row->state) || !up.count(row->node)) continue;
+      WatchSpec& w = want[row->node];
+      if (!w.all) w.sessions.insert(id);
+      w.surfaces.insert(id);
+    }
+    for (auto it = streams.begin(); it != streams.end();) {
+      auto next = std::next(it);
+      const auto w = want.find(it->first);
+      bool done;
+      {
+        std::lock_guard lock(it->second->mutex);
+        done = it->second->done;
+      }
+      if (w == want.end() || !(w->second == it->second->spec) || done ||
+          up[it->first].grpc_address != it->second->address)
+        CloseStream(it);
+      it = next;
+    }
+    for (auto& [node, w] : want)
+      if (!streams.count(node)) OpenStream(node, up[node], std::move(w));
+  }
+
   void PollerLoop() {
     const double period = 1.0 / options.telemetry_hz;
+    // A stream silent this long is a node frozen or cut off: its sessions are left out (their
+    // watchers get nothing from it) until it speaks again or the watchdog declares it down.
+    const auto silent =
+        std::chrono::microseconds(static_cast<int64_t>(std::max(0.5, 3 * period) * 1e6));
+    const int reconcile_every = std::max(1, static_cast<int>(0.2 / period));  // 5 times a second
+    int tick = 0;
+    std::optional<std::pair<bool, std::set<uint64_t>>> last;
     while (WaitFor(period)) {
+      std::pair<bool, std::set<uint64_t>> watch;
       {
         std::lock_guard lock(subscribers_mutex);
-        if (subscribers.empty()) continue;
+        for (const auto& [token, sub] : subscribers) {
+          if (sub.ended) continue;
+          if (sub.session == 0)
+            watch.first = true;
+          else
+            watch.second.insert(sub.session);
+        }
+      }
+      if (!watch.first && watch.second.empty()) {
+        while (!streams.empty()) CloseStream(streams.begin());
+        last.reset();
+        continue;
+      }
+      if (!last || *last != watch || ++tick % reconcile_every == 0) {
+        Reconcile(watch.first, watch.second);
+        last = watch;
       }
       std::vector<SessionTelemetry> all;
-      auto nodes = store.ListNodes();
-      if (nodes.ok()) {
-        const int64_t now = db::NowUs();
-        for (const db::NodeRecord& n : *nodes) {
-          if (!Healthy(n, now)) continue;
-          v1::NodeTelemetry reply;
-          auto ctx = CallContext(options.token, std::max(0.2, period));
-          if (!StubFor(n).Telemetry(ctx.get(), {}, &reply).ok()) continue;
-          for (const v1::Telemetry& t : reply.sessions()) all.push_back(convert::FromProto(t));
-        }
+      const auto now = std::chrono::steady_clock::now();
+      for (auto& [node, st] : streams) {
+        std::lock_guard lock(st->mutex);
+        if (now - st->last_message > silent) continue;
+        for (const auto& [id, t] : st->latest) all.push_back(t);
       }
       std::lock_guard lock(subscribers_mutex);
       for (auto& [token, sub] : subscribers) {
@@ -360,14 +618,15 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
           sub.fn(one, false);
           continue;
         }
-        // Not on any node now: ended (or its node is gone), unless the store still says live
-        // (a node that missed one poll).
+        // Not on any node's stream now: ended (or its node is gone), unless the store still
+        // says live (a stream just opened, or a node that missed a beat).
         auto row = store.GetSession(static_cast<int64_t>(sub.session));
         if (row.ok() && vsurg::IsLive(row->state)) continue;
         sub.ended = true;
         sub.fn({}, true);
       }
     }
+    while (!streams.empty()) CloseStream(streams.begin());
   }
 };
 
@@ -595,6 +854,17 @@ void ClusterSessions::Collect(ops::MetricsText& m) const {
                it == d.refused.end() ? 0.0 : static_cast<double>(it->second));
     }
   }
+  m.Family("vsurg_telemetry_streams", "gauge",
+           "Nodes this replica has a telemetry stream open to (only while someone watches).");
+  m.Sample("vsurg_telemetry_streams", {}, d.streams_open.load(std::memory_order_relaxed));
+  m.Family("vsurg_telemetry_streams_opened_total", "counter",
+           "Telemetry streams opened (again when what is watched on a node changes).");
+  m.Sample("vsurg_telemetry_streams_opened_total", {},
+           static_cast<double>(d.watch_opened.load(std::memory_order_relaxed)));
+  m.Family("vsurg_telemetry_received_bytes_total", "counter",
+           "Telemetry received from the nodes (protobuf bytes).");
+  m.Sample("vsurg_telemetry_received_bytes_total", {},
+           static_cast<double>(d.watch_bytes.load(std::memory_order_relaxed)));
   auto nodes = d.store.ListNodes();
   if (!nodes.ok()) return;  // the store's own families say why
   auto rows = d.store.LiveSessionNodes();
@@ -604,9 +874,7 @@ void ClusterSessions::Collect(ops::MetricsText& m) const {
   const int64_t now = db::NowUs();
   std::map<std::string, int> by_state{{"up", 0}, {"draining", 0}, {"down", 0}};
   for (const db::NodeRecord& n : *nodes)
-    ++by_state[n.down || now - n.heartbeat_us > d.TimeoutUs() ? "down"
-               : n.draining                                   ? "draining"
-                                                              : "up"];
+    ++by_state[!d.Healthy(n, now) ? "down" : n.draining ? "draining" : "up"];
   m.Family("vsurg_nodes", "gauge", "Simulation nodes in the site's registry, by state.");
   for (const auto& [state, n] : by_state) m.Sample("vsurg_nodes", {{"state", state}}, n);
   m.Family("vsurg_node_live_sessions", "gauge", "Live sessions per node (the store's rows).");
@@ -616,12 +884,30 @@ void ClusterSessions::Collect(ops::MetricsText& m) const {
   for (const db::NodeRecord& n : *nodes)
     if (!n.down) m.Sample("vsurg_node_capacity", {{"node", n.name}}, n.capacity);
   m.Family("vsurg_node_lease_age_seconds", "gauge",
-           "Seconds since each up node's last heartbeat renewed its lease (down past the "
-           "heartbeat timeout).");
+           "Seconds since each up node's lease was last written to the store (it lapses past "
+           "the store lease, --cluster-store-lease).");
   for (const db::NodeRecord& n : *nodes)
     if (!n.down)
       m.Sample("vsurg_node_lease_age_seconds", {{"node", n.name}},
                1e-6 * static_cast<double>(now - n.heartbeat_us));
+  {
+    std::lock_guard lock(d.heard_mutex);
+    m.Family("vsurg_node_heartbeat_age_seconds", "gauge",
+             "Seconds since this replica last heard each node that beats to it (down past the "
+             "heartbeat timeout).");
+    for (const auto& [name, h] : d.heard)
+      m.Sample("vsurg_node_heartbeat_age_seconds", {{"node", name}},
+               1e-6 * static_cast<double>(now - h.heard_us));
+  }
+  m.Family("vsurg_heartbeats_received_total", "counter",
+           "Node heartbeats this replica answered or refused.");
+  m.Sample("vsurg_heartbeats_received_total", {},
+           static_cast<double>(d.beats_received.load(std::memory_order_relaxed)));
+  m.Family("vsurg_heartbeat_store_writes_total", "counter",
+           "Heartbeats and acquisitions this replica wrote to the store (the rest stayed in "
+           "memory).");
+  m.Sample("vsurg_heartbeat_store_writes_total", {},
+           static_cast<double>(d.beats_written.load(std::memory_order_relaxed)));
   m.Family("vsurg_node_epoch", "gauge", "Each node's lease epoch.");
   for (const db::NodeRecord& n : *nodes)
     if (!n.down) m.Sample("vsurg_node_epoch", {{"node", n.name}}, static_cast<double>(n.epoch));

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <grpcpp/health_check_service_interface.h>
@@ -282,6 +283,42 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     std::lock_guard lock(telemetry_mutex);
     for (const auto& [id, t] : latest) convert::ToProto(t, out->add_sessions());
     return grpc::Status::OK;
+  }
+
+  // One control replica's watch: the figures it asked for at its rate, a surface only to a
+  // replica showing that session and only once per new frame. A message with nothing changed is
+  // still sent (the figures are the latest; a quiet session is still live).
+  grpc::Status Watch(grpc::ServerContext* ctx, const v1::NodeWatchRequest* req,
+                     grpc::ServerWriter<v1::NodeTelemetry>* writer) override {
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
+    if (!(req->rate_hz() >= 1 && req->rate_hz() <= 120))
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "rate_hz must be within 1..120");
+    const std::set<uint64_t> wanted(req->sessions().begin(), req->sessions().end());
+    // Session → the frame this stream last sent; none yet, so the first goes whatever its frame
+    // (a viewer starts from the session's state, at rest or not).
+    std::map<uint64_t, uint64_t> surface_sent;
+    for (uint64_t id : req->surfaces()) surface_sent[id] = ~uint64_t{0};
+    const auto period = std::chrono::microseconds(static_cast<int64_t>(1e6 / req->rate_hz()));
+    auto next = std::chrono::steady_clock::now();
+    for (;;) {
+      v1::NodeTelemetry out;
+      {
+        std::lock_guard lock(telemetry_mutex);
+        for (const auto& [id, t] : latest) {
+          if (!req->all() && !wanted.count(id)) continue;
+          auto sent = surface_sent.find(id);
+          const bool surface =
+              sent != surface_sent.end() && t.has_surface && t.surface_frame != sent->second;
+          if (surface) sent->second = t.surface_frame;
+          convert::ToProto(t, out.add_sessions(), surface);
+        }
+      }
+      if (!writer->Write(out)) return grpc::Status::OK;  // the replica went away
+      next += period;
+      std::unique_lock lock(beat_mutex);
+      if (beat_cv.wait_until(lock, next, [&] { return stopping; }) || ctx->IsCancelled())
+        return grpc::Status::OK;
+    }
   }
 };
 

@@ -98,7 +98,8 @@ class ClusterTest : public ::testing::Test {
     n->sessions = SessionManager::Open(*n->store, n->endpoint.get(), so).value();
     NodeOptions no;
     no.name = name;
-    no.control = "127.0.0.1:" + std::to_string(control_->port());
+    no.control =
+        node_control_.empty() ? "127.0.0.1:" + std::to_string(control_->port()) : node_control_;
     no.udp_host = "127.0.0.1";
     no.udp_port = n->endpoint->port();
     no.capacity = capacity;
@@ -132,9 +133,30 @@ class ClusterTest : public ::testing::Test {
     return out;
   }
 
+  // A second control replica on the same database (its own store connection).
+  std::unique_ptr<ClusterSessions> SecondReplica() {
+    second_store_ = std::move(db::Store::Open({.path = db_.uri()})).value();
+    auto c = ClusterSessions::Start(*second_store_, options_);
+    EXPECT_TRUE(c.ok()) << c.error().message;
+    return c.ok() ? std::move(c).value() : nullptr;
+  }
+  // One sample of a replica's metrics (the first whose name and labels start with `series`).
+  static double Metric(const ClusterSessions& c, const std::string& series) {
+    ops::MetricsText m;
+    c.Collect(m);
+    const std::string& text = m.str();
+    for (size_t at = 0; (at = text.find(series, at)) != std::string::npos; ++at)
+      if (at == 0 || text[at - 1] == '\n') {
+        const size_t space = text.find(' ', at);
+        return std::stod(text.substr(space + 1, text.find('\n', space) - space - 1));
+      }
+    return -1;
+  }
+
   test::PostgresDatabase db_;
-  std::unique_ptr<db::Store> control_store_;
+  std::unique_ptr<db::Store> control_store_, second_store_;
   ClusterOptions options_;
+  std::string node_control_;  // the nodes' --control (default: the first replica)
   std::unique_ptr<ClusterSessions> control_;
   std::vector<std::unique_ptr<Node>> nodes_;
 };
@@ -368,6 +390,159 @@ TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd)
   }
   control_->Unsubscribe(mine);
   control_->Unsubscribe(all);
+}
+
+// Telemetry comes by one stream per node, and only from the nodes someone on this replica
+// watches: a watcher of one session opens its node's stream alone, with that session's surface;
+// a watcher of every session opens every node's, without surfaces; no watcher, no stream.
+TEST_F(ClusterTest, TelemetryStreamsOnlyFromTheNodesSomeoneWatchesAndSurfacesOnlyForAView) {
+  AddNode("sim-a", 8);
+  AddNode("sim-b", 8);
+  WaitForNodes(2);
+  auto one = control_->Create("trainee-0", "arm-torsion");
+  auto two = control_->Create("trainee-1", "arm-torsion");
+  ASSERT_TRUE(one.ok() && two.ok());
+  ASSERT_NE(one->record.node, two->record.node);
+  ASSERT_TRUE(control_->Start(one->record.id).ok());
+  std::mutex m;
+  std::condition_variable cv;
+  int surfaces_in_view = 0, lists_of_all = 0, surfaces_in_all = 0;
+  std::set<uint64_t> in_all;
+  const uint64_t view =
+      control_->Subscribe(one->record.id, [&](const std::vector<SessionTelemetry>& list, bool) {
+        std::lock_guard lock(m);
+        for (const auto& t : list) surfaces_in_view += t.has_surface;
+        cv.notify_all();
+      });
+  {
+    std::unique_lock lock(m);
+    EXPECT_TRUE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return surfaces_in_view > 0; }))
+        << "the viewed session's surface reaches its watcher";
+  }
+  EXPECT_EQ(Metric(*control_, "vsurg_telemetry_streams"), 1)
+      << "one watched session: its node's stream alone";
+  const uint64_t all = control_->Subscribe(0, [&](const std::vector<SessionTelemetry>& list, bool) {
+    std::lock_guard lock(m);
+    ++lists_of_all;
+    for (const auto& t : list) in_all.insert(t.id), surfaces_in_all += t.has_surface;
+    cv.notify_all();
+  });
+  {
+    std::unique_lock lock(m);
+    EXPECT_TRUE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return in_all.size() == 2; }))
+        << "a watcher of every session gets both nodes'";
+  }
+  EXPECT_EQ(Metric(*control_, "vsurg_telemetry_streams"), 2);
+  control_->Unsubscribe(view);
+  {
+    std::unique_lock lock(m);
+    const int seen = lists_of_all;
+    cv.wait_for(lock, std::chrono::seconds(10), [&] { return lists_of_all > seen + 10; });
+    surfaces_in_all = 0;
+    const int now = lists_of_all;
+    cv.wait_for(lock, std::chrono::seconds(10), [&] { return lists_of_all > now + 10; });
+    EXPECT_GT(lists_of_all, now + 10);
+    EXPECT_EQ(surfaces_in_all, 0) << "no one views a session: no surface crosses";
+  }
+  control_->Unsubscribe(all);
+  EXPECT_TRUE(test::Eventually(10, [&] {
+    return Metric(*control_, "vsurg_telemetry_streams") == 0;
+  })) << "no watcher: no stream";
+}
+
+// Heartbeats stay in memory on the replica the node beats to: the node's row is written when it
+// takes its name and when the row's lease needs renewing, not twice a second. A second replica,
+// which hears nothing from the node for longer than the heartbeat timeout, keeps it up on the
+// row's lease and places sessions on it.
+TEST_F(ClusterTest, HeartbeatsStayInMemoryAndAnotherReplicaTrustsTheStoresLease) {
+  auto second = SecondReplica();
+  ASSERT_TRUE(second);
+  const auto t0 = std::chrono::steady_clock::now();
+  AddNode("sim-a", 8);
+  WaitForNodes(1);
+  // Past the heartbeat timeout, and many heartbeats.
+  ASSERT_TRUE(test::Eventually(60, [&] {
+    return Metric(*control_, "vsurg_heartbeats_received_total") >= 10 &&
+           std::chrono::steady_clock::now() - t0 >
+               std::chrono::duration<double>(options_.heartbeat_timeout_s + 1);
+  }));
+  const double received = Metric(*control_, "vsurg_heartbeats_received_total");
+  const double written = Metric(*control_, "vsurg_heartbeat_store_writes_total");
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // The acquisition, then one renewal each (store lease - timeout - 2 periods) at most.
+  const double renew_every =
+      options_.store_lease_s - options_.heartbeat_timeout_s - 2 * options_.heartbeat_period_s;
+  EXPECT_LE(written, 1 + std::ceil(elapsed / renew_every)) << received << " heartbeats received";
+  EXPECT_LT(written, received / 2);
+  EXPECT_EQ(Metric(*second, "vsurg_heartbeats_received_total"), 0) << "the node beats to one";
+  EXPECT_EQ(Metric(*second, "vsurg_nodes{state=\"up\"}"), 1)
+      << "the second replica trusts the lease";
+  const auto row = control_store_->ListNodes().value().at(0);
+  EXPECT_FALSE(row.down);
+  EXPECT_EQ(row.epoch, 1);
+  auto s = second->Create("trainee-0", "arm-torsion");
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_EQ(s->record.node, "sim-a");
+  second.reset();
+}
+
+// The replica a node beats to is lost: the node's channel goes to the next one, whose first
+// heartbeat from it is written (so no replica takes the old one's silence for the node's), and
+// the node keeps its lease, its epoch and its sessions.
+TEST_F(ClusterTest, ANodeWhoseReplicaIsLostBeatsToAnotherAndKeepsItsLeaseAndSessions) {
+  auto second = SecondReplica();
+  ASSERT_TRUE(second);
+  node_control_ = "127.0.0.1:" + std::to_string(control_->port()) +
+                  ",127.0.0.1:" + std::to_string(second->port());
+  Node& a = AddNode("sim-a", 8);
+  WaitForNodes(1);
+  auto s = control_->Create("trainee-0", "arm-torsion");  // not started: no station stalls it
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  ASSERT_GT(Metric(*control_, "vsurg_heartbeats_received_total"), 0) << "it beats to the first";
+  control_->Shutdown();
+  ASSERT_TRUE(test::Eventually(60, [&] {
+    return Metric(*second, "vsurg_heartbeats_received_total") >= 4;
+  })) << "the node never reached the second replica";
+  // Past the heartbeat timeout since the first replica last heard it.
+  std::this_thread::sleep_for(std::chrono::duration<double>(options_.heartbeat_timeout_s));
+  const auto row = second_store_->ListNodes().value().at(0);
+  EXPECT_FALSE(row.down);
+  EXPECT_EQ(row.epoch, 1);
+  EXPECT_EQ(a.lease.epoch(), 1);
+  EXPECT_TRUE(a.sessions->IsLive(static_cast<uint64_t>(s->record.id)));
+  EXPECT_TRUE(second->IsLive(s->record.id));
+  EXPECT_EQ(Metric(*second, "vsurg_nodes{state=\"up\"}"), 1);
+  second.reset();
+}
+
+// A node and the replica it beat to both gone: no replica hears it, and another declares it down
+// once the row's lease has lapsed (never before), aborting its sessions.
+TEST_F(ClusterTest, ANodeHeardByNoReplicaIsDownWhenItsStoresLeaseLapses) {
+  auto second = SecondReplica();
+  ASSERT_TRUE(second);
+  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(control_->port()),
+                                     grpc::InsecureChannelCredentials());
+  auto stub = v1::ClusterService::NewStub(channel);
+  v1::NodeHeartbeat beat;
+  beat.set_name("sim-gone");
+  beat.set_grpc_address("192.0.2.1:9");  // TEST-NET-1: nothing answers (the probe decides nothing)
+  beat.set_udp_host("127.0.0.1");
+  beat.set_udp_port(1);
+  beat.set_capacity(8);
+  beat.set_instance("gone-process");
+  grpc::ClientContext ctx;
+  ctx.AddMetadata("authorization", std::string("Bearer ") + kToken);
+  v1::NodeLeaseReply reply;
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(stub->Acquire(&ctx, beat, &reply).ok());
+  control_->Shutdown();  // the replica that heard it, gone before it could see the silence
+  const auto down = [&] { return second_store_->ListNodes().value().at(0).down; };
+  EXPECT_TRUE(test::Eventually(options_.store_lease_s + 30, down, std::chrono::milliseconds(50)));
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GE(waited, options_.store_lease_s - 0.05) << "declared down before its lease lapsed";
+  second.reset();
 }
 
 // A session's record while it runs is on its node: the control plane reads it through the
