@@ -27,13 +27,16 @@
 //     buys nothing for secrets this long, and authentication stays a single indexed lookup.)
 //  6. Times are integers, microseconds since the Unix epoch, UTC; exports print ISO-8601.
 //  7. Fencing (a site's nodes): a node name is held by one process at a time (AcquireNode
-//     refuses while another instance's heartbeat is within the timeout); each acquisition is a
+//     refuses while another instance's lease in the row is unexpired); each acquisition is a
 //     new epoch. A session row records the epoch of the process that created it, and every
 //     write to it names that epoch: the write is refused (kFailedPrecondition) unless the node
 //     is up at that epoch. A session that has left the live states never changes again,
 //     whoever asks: an aborted session cannot be brought back by a node that comes back. The
-//     node's row is locked first (PostgreSQL: an UPDATE of it), then the session's, the order
-//     MarkNodeDown takes too, so a fenced write and a node's fall never interleave.
+//     node's row is locked first, then the session's, the order MarkNodeDown and AcquireNode
+//     take too, so a fenced write and a node's fall never interleave. On PostgreSQL session
+//     writes share the row lock (FOR KEY SHARE) and the fall takes it alone (FOR UPDATE); a
+//     lease renewal (BeatNode) waits for neither session writes nor the node's long
+//     transactions.
 //
 // Thread safety: every public member may be called from any thread.
 #pragma once
@@ -296,15 +299,17 @@ class Store {
   Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason,
                                       const std::string& node = "");
 
-  // The node registry and its leases (design note 7). AcquireNode: `n.instance` takes the name
-  // `n.name` at `n.heartbeat_us` unless another instance holds it (up, and its last heartbeat
-  // within `timeout_us`: kAlreadyExists, saying who holds it); the epoch goes up by one, and the
-  // live sessions earlier holders left are aborted with `reason`, in the same transaction.
-  Expected<NodeLease> AcquireNode(const NodeRecord& n, int64_t timeout_us,
+  // The node registry and its leases (design note 7). A row's heartbeat_us is when its lease was
+  // last written (server/cluster: the replica a node beats to rewrites it every few seconds).
+  // AcquireNode: `n.instance` takes the name `n.name` at `n.heartbeat_us` unless another
+  // instance holds it (up, and its lease written within `lease_us`: kAlreadyExists, saying who
+  // holds it); the epoch goes up by one, and the live sessions earlier holders left are aborted
+  // with `reason`, in the same transaction.
+  Expected<NodeLease> AcquireNode(const NodeRecord& n, int64_t lease_us,
                                   const std::string& reason);
-  // A heartbeat of the holder at `n.epoch`: its load and time. kFailedPrecondition when that
-  // lease is lost (the node was marked down, or the name was taken by a newer instance): the
-  // node must stop serving and acquire the name again.
+  // The lease of the holder at `n.epoch` renewed at `n.heartbeat_us`, with its load.
+  // kFailedPrecondition when that lease is lost (the node was marked down, or the name was taken
+  // by a newer instance): the node must stop serving and acquire the name again.
   Status BeatNode(const NodeRecord& n);
   Expected<std::vector<NodeRecord>> ListNodes();
   // The node stopped answering: marked down unless a heartbeat came after `silent_since_us`,

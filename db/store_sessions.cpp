@@ -47,19 +47,42 @@ void BindLiveStates(Statement& q, int first) {
 
 namespace {
 
-// Design note 7: the node's row, locked (an UPDATE: PostgreSQL holds its row lock to COMMIT, so
-// a concurrent MarkNodeDown waits or is waited for), when `node` is up at `epoch`; else a refusal.
-// The all-in-one server's sessions (node "") have no lease.
+// Design note 7's locks on a node's row. PostgreSQL: a session write holds it FOR KEY SHARE
+// (any number at once, until COMMIT), and a heartbeat's UPDATE, which changes no key column,
+// takes FOR NO KEY UPDATE, which does not wait for them: a node's long session transactions (a
+// trial's record) never hold up the control plane's lease renewals. Declaring the node down and
+// taking its name (NodeRowForUpdate) lock it FOR UPDATE, which waits for every session write in
+// flight and makes each later one wait, and then re-check it: no session write of an epoch
+// straddles either. SQLite has one writer at a time, which already orders them all.
+Status NodeRowForUpdate(Connection& c, const std::string& node) {
+  if (c.backend() != Backend::kPostgres) return Status::Ok();
+  auto st = c.Prepare("SELECT 1 FROM nodes WHERE name = ?1 FOR UPDATE");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, node);
+  auto row = (*st)->Step();
+  (*st)->Reset();
+  if (!row.ok()) return row.error();
+  return Status::Ok();
+}
+
+// A session write's fence: the node's row held (above) when `node` is up at `epoch`; else a
+// refusal. The all-in-one server's sessions (node "") have no lease.
 Status HoldFence(Connection& c, const std::string& node, int64_t epoch) {
   if (node.empty()) {
     if (epoch == 0) return Status::Ok();
     return Error{ErrorCode::kFailedPrecondition, "an epoch without a node", "epoch"};
   }
-  Status st =
-      RunSql(c, "UPDATE nodes SET epoch = epoch WHERE name = ?1 AND epoch = ?2 AND down = 0",
-             [&](Statement& q) { q.Bind(1, node).Bind(2, epoch); });
-  if (!st.ok()) return st;
-  if (c.Changes() == 0)
+  // PostgreSQL re-checks the condition on the row's newest version after waiting for a lock.
+  auto st = c.Prepare(c.backend() == Backend::kPostgres
+                          ? "SELECT 1 FROM nodes WHERE name = ?1 AND epoch = ?2 AND down = 0 "
+                            "FOR KEY SHARE"
+                          : "SELECT 1 FROM nodes WHERE name = ?1 AND epoch = ?2 AND down = 0");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, node).Bind(2, epoch);
+  auto row = (*st)->Step();
+  (*st)->Reset();
+  if (!row.ok()) return row.error();
+  if (!*row)
     return Error{ErrorCode::kFailedPrecondition,
                  "node " + node + " no longer holds the lease of epoch " + std::to_string(epoch) +
                      " (marked down, or its name taken by a newer process): write refused",
@@ -250,7 +273,7 @@ void BindNodeLoad(Statement& q, const NodeRecord& n) {
 
 }  // namespace
 
-Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t timeout_us,
+Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t lease_us,
                                        const std::string& reason) {
   if (Status s = CheckNodeRecord(n); !s.ok()) return s.error();
   NodeLease lease;
@@ -266,9 +289,10 @@ Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t timeout_us,
                          BindNodeLoad(q, n);
                        });
     if (!st.ok()) return st;
-    // Taken when it is down, already ours, or its holder silent past the timeout. PostgreSQL
-    // re-checks the condition on the row's newest version after waiting for its lock, so two
-    // processes starting under one name cannot both take it.
+    if (st = NodeRowForUpdate(c, n.name); !st.ok()) return st;
+    // Taken when it is down, already ours, or its holder's lease lapsed. PostgreSQL re-checks the
+    // condition on the row's newest version after waiting for its lock, so two processes
+    // starting under one name cannot both take it.
     st = RunSql(c,
                 "UPDATE nodes SET grpc_address = ?3, udp_host = ?4, udp_port = ?5, capacity = ?6, "
                 "sessions = ?7, cpu = ?8, draining = ?9, started_us = ?10, heartbeat_us = ?11, "
@@ -277,7 +301,7 @@ Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t timeout_us,
                 [&](Statement& q) {
                   q.Bind(1, n.name).Bind(2, n.instance);
                   BindNodeLoad(q, n);
-                  q.Bind(12, n.heartbeat_us - timeout_us);
+                  q.Bind(12, n.heartbeat_us - lease_us);
                 });
     if (!st.ok()) return st;
     auto q = c.Prepare(
@@ -298,7 +322,7 @@ Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t timeout_us,
     if (holder != n.instance)
       return Error{ErrorCode::kAlreadyExists,
                    "node name '" + n.name + "' is held by another live process (instance " +
-                       holder + " at " + address + ", its last heartbeat " +
+                       holder + " at " + address + ", its lease renewed " +
                        std::to_string((n.heartbeat_us - beat) / 1000) +
                        " ms ago); stop it first, or give this one another --node-name",
                    "name"};
@@ -379,6 +403,7 @@ Expected<std::optional<int>> Store::MarkNodeDown(const std::string& name, int64_
   std::optional<int> aborted;
   Status s = Write([&](Connection& c) -> Status {
     // Only the first to see the silence marks it, and only if no heartbeat came meanwhile.
+    if (Status l = NodeRowForUpdate(c, name); !l.ok()) return l;
     Status st = RunSql(c,
                        "UPDATE nodes SET down = 1 WHERE name = ?1 AND down = 0 AND "
                        "heartbeat_us < ?2",

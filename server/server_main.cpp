@@ -97,8 +97,8 @@ int Main(std::vector<std::string> args) {
               false, "60")
       .Option("cluster-store-lease", Kind::kDouble,
               "control: seconds of lease a node's row in the store carries; the replica a node "
-              "beats to keeps its heartbeats in memory and rewrites the row when less than 3 s "
-              "of this is left (<= 3: every heartbeat is written)",
+              "beats to keeps its heartbeats in memory and rewrites the row when half of it is "
+              "gone (<= 2.5: every heartbeat is written); the same on every replica",
               false, "10")
       .Option("cluster-control-name", Kind::kString,
               "control, sim: the name control replicas' certificates carry", false, "vsurg-control")

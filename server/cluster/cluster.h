@@ -83,10 +83,9 @@ struct ClusterOptions {
   double heartbeat_period_s = 0.5;
   double heartbeat_timeout_s = 2;  // silent this long: down, sessions aborted (= the lease)
   // The lease a node's row in the store carries. The replica a node beats to keeps the beats in
-  // memory and rewrites the row when less than the heartbeat timeout and two periods of this is
-  // left (every 7 s by default, instead of every 0.5 s); any replica declares down a node whose
-  // row lease lapsed (it and the replica it beat to are gone). At or below the timeout plus two
-  // periods, every heartbeat is written.
+  // memory and rewrites the row when half of this is gone (every 5 s by default, instead of
+  // every 0.5 s); any replica declares down a node whose row lease lapsed (it and the replica
+  // it beat to are gone). At or below the timeout plus a period, every heartbeat is written.
   double store_lease_s = 10;
   // A node's lease ends this long before the control plane may declare it down (server/net/
   // lease.h): the most the control replicas' clocks may disagree with each other.

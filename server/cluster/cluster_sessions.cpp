@@ -177,17 +177,22 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   int64_t StoreLeaseUs() const {
     return static_cast<int64_t>(std::max(options.store_lease_s, options.heartbeat_timeout_s) * 1e6);
   }
+  // The row is rewritten once less than this is left of its lease: half of it (a write may take
+  // seconds on a loaded store), and at least a timeout and two periods.
+  int64_t RenewAheadUs() const {
+    return std::max(StoreLeaseUs() / 2, TimeoutUs() + 2 * PeriodUs());
+  }
 
   // --- Heartbeats in memory (docs/SCALING.md, "Heartbeats and the store") ---
   // A node's heartbeats go to one replica (its channel picks the first that answers). That
-  // replica keeps them here and writes the node's row only when the row's lease would end
-  // within a heartbeat timeout and two periods (so every lease it grants a node ends before the
-  // row's does: no other replica can declare the node down while it serves), when the node
-  // began beating here (a new process, a new epoch, or a node that came from another replica:
-  // that write is what tells the other replica it is no longer silent), or when what placement
-  // reads changed (draining, capacity, addresses). Declaring a node down is then this replica's
-  // to do for the nodes it hears (silent a heartbeat timeout), and any replica's for a row
-  // whose lease has run out (its replica is gone too).
+  // replica keeps them here and writes the node's row only when half the row's lease is gone
+  // (one heartbeat does the write; the others are answered from memory meanwhile, as long as
+  // every lease so granted ends before the row's: no other replica can declare the node down
+  // while it serves), when the node began beating here (a new process, a new epoch, or a node
+  // that came from another replica: that write is what tells the other replica it is no longer
+  // silent), or when what placement reads changed (draining, capacity, addresses). Declaring a node
+  // down is then this replica's to do for the nodes it hears (silent a heartbeat timeout), and any
+  // replica's for a row whose lease has run out (its replica is gone too).
   struct Heard {
     std::string instance;
     int64_t epoch = 0;
@@ -197,6 +202,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     // The watchdog is declaring it down: heartbeats go to the store (ordered against that
     // transaction) until it has.
     bool condemned = false;
+    bool renewing = false;  // a heartbeat is rewriting the row now
   };
   mutable std::mutex heard_mutex;
   std::map<std::string, Heard> heard;  // by node name
@@ -289,7 +295,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     {
       std::lock_guard lock(heard_mutex);
       Heard& h = heard[n.name];
-      h = {n.instance, lease->epoch, n.heartbeat_us, n.heartbeat_us, n, false};
+      h = {n.instance, lease->epoch, n.heartbeat_us, n.heartbeat_us, n, false, false};
       h.last.epoch = lease->epoch;
     }
     beats_written.fetch_add(1, std::memory_order_relaxed);
@@ -315,12 +321,18 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
       std::lock_guard lock(heard_mutex);
       const auto it = heard.find(n.name);
       if (it != heard.end() && !it->second.condemned && it->second.instance == n.instance &&
-          it->second.epoch == n.epoch &&
-          it->second.written_us + StoreLeaseUs() >= now + TimeoutUs() + 2 * PeriodUs() &&
-          !PlacementFactsChanged(it->second.last, n)) {
-        it->second.heard_us = now;
-        it->second.last = n;
-        return grpc::Status::OK;
+          it->second.epoch == n.epoch && !PlacementFactsChanged(it->second.last, n)) {
+        Heard& h = it->second;
+        // Safe to answer from memory: the lease this answer grants (at most a timeout from now)
+        // ends before the row's, with a period to spare.
+        const bool safe = h.written_us + StoreLeaseUs() >= now + TimeoutUs() + PeriodUs();
+        const bool due = h.written_us + StoreLeaseUs() < now + RenewAheadUs();
+        if (safe && (!due || h.renewing)) {  // a renewal in flight does not hold the others up
+          h.heard_us = now;
+          h.last = n;
+          return grpc::Status::OK;
+        }
+        if (safe) h.renewing = true;  // this heartbeat renews the row; the next wait for none
       }
     }
     // Conditional on the lease (instance, epoch, not down): a node the site gave up on is
@@ -328,11 +340,13 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     const Status written = store.BeatNode(n);
     std::lock_guard lock(heard_mutex);
     if (!written.ok()) {
+      const auto it = heard.find(n.name);
+      if (it != heard.end()) it->second.renewing = false;
       if (written.error().code == ErrorCode::kFailedPrecondition) heard.erase(n.name);
       return ToGrpc(written.error());
     }
     beats_written.fetch_add(1, std::memory_order_relaxed);
-    heard[n.name] = {n.instance, n.epoch, now, now, n, false};
+    heard[n.name] = {n.instance, n.epoch, now, now, n, false, false};
     return grpc::Status::OK;
   }
 

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <future>
 #include <sstream>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -426,6 +427,68 @@ TEST_P(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
     EXPECT_EQ(r->end_reason, "server restarted");
   }
   EXPECT_EQ(store_->AbortOrphanedSessions(901, "again").value(), 0);
+}
+
+// PostgreSQL: a node's session transaction in progress (it holds the node's row the way every
+// fenced write does, until its COMMIT) does not hold up the lease's renewal, which the control
+// plane writes; declaring the node down waits for it, so no write of the node straddles its fall.
+TEST_P(StoreTest, ALeaseRenewalDoesNotWaitForTheNodesSessionWritesButItsFallDoes) {
+  if (sqlite()) GTEST_SKIP() << "SQLite has one writer at a time: every write waits its turn";
+  NodeRecord n{.name = "sim-0",
+               .grpc_address = "10.0.0.1:7000",
+               .udp_host = "10.0.0.1",
+               .udp_port = 7001,
+               .capacity = 24,
+               .heartbeat_us = 1000,
+               .instance = "process-a"};
+  n.epoch = store_->AcquireNode(n, 2000, "restarted").value().epoch;
+  auto live = store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", n.epoch});
+  ASSERT_TRUE(live.ok());
+  // The node's store (store_) in the middle of a session write: past its fence on the node's
+  // row, waiting for the session's row, which another transaction holds.
+  auto blocker = Connection::Open(path_, Connection::Mode::kReadWrite);
+  ASSERT_TRUE(blocker.ok());
+  Connection& b = **blocker;
+  ASSERT_TRUE(b.BeginWrite().ok());
+  auto hold = b.Prepare("SELECT 1 FROM sessions WHERE id = ?1 FOR UPDATE");
+  ASSERT_TRUE(hold.ok());
+  (*hold)->Bind(1, live->id);
+  ASSERT_TRUE((*hold)->Step().value());
+  (*hold)->Reset();
+  auto write = std::async(std::launch::async, [&] {
+    return store_->SetSessionState(live->id, SessionState::kRunning, 2000, "", n.epoch);
+  });
+  auto waiting = b.Prepare(
+      "SELECT count(*) FROM pg_stat_activity WHERE wait_event_type = 'Lock' AND "
+      "datname = current_database()");
+  ASSERT_TRUE(waiting.ok());
+  bool blocked = false;
+  for (int i = 0; i < 400 && !blocked; ++i) {
+    blocked = (*waiting)->Step().value() && (*waiting)->Int(0) > 0;
+    (*waiting)->Reset();
+    if (!blocked) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(blocked) << "the session write never reached the session's row";
+  // The control plane's own store renews the lease meanwhile (a wait would end in the lock
+  // timeout's error).
+  auto control = Store::Open({.path = path_});
+  ASSERT_TRUE(control.ok());
+  n.heartbeat_us = 2000;
+  const Status renewed = (*control)->BeatNode(n);
+  EXPECT_TRUE(renewed.ok()) << renewed.error().message;
+  EXPECT_EQ(write.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
+  // The fall waits for the session write in progress.
+  auto fall = std::async(std::launch::async, [&] {
+    return (*control)->MarkNodeDown("sim-0", 1'000'000, 3000, "silent");
+  });
+  EXPECT_EQ(fall.wait_for(std::chrono::milliseconds(300)), std::future_status::timeout)
+      << "the node was declared down under a session write in progress";
+  ASSERT_TRUE(b.Exec("ROLLBACK").ok());
+  EXPECT_TRUE(write.get().ok()) << "the write, begun before the fall, completes";
+  auto down = fall.get();
+  ASSERT_TRUE(down.ok()) << down.error().message;
+  EXPECT_EQ(down->value_or(-1), 1);
+  EXPECT_EQ(store_->GetSession(live->id)->state, SessionState::kAborted);
 }
 
 TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
