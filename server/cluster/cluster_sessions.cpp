@@ -338,6 +338,11 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     // Conditional on the lease (instance, epoch, not down): a node the site gave up on is
     // refused here, whichever replica gave up on it.
     const Status written = store.BeatNode(n);
+    const int64_t took_ms = (db::NowUs() - now) / 1000;
+    if (!written.ok() || took_ms >= 1000)  // an operator's first clue to a slow or failing store
+      Log("lease_write", {{"node", n.name},
+                          {"ms", took_ms},
+                          {"error", written.ok() ? "" : written.error().message}});
     std::lock_guard lock(heard_mutex);
     if (!written.ok()) {
       const auto it = heard.find(n.name);

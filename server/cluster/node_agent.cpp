@@ -156,9 +156,15 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     latest = std::move(next);
   }
 
+  Lease::Clock::duration Period() const {
+    return std::chrono::duration_cast<Lease::Clock::duration>(
+        std::chrono::duration<double>(options.cluster.heartbeat_period_s));
+  }
+
   // Renews the lease every period; without one (lost, or never taken because the control plane
   // was unreachable at start) acquires the name again.
   void HeartbeatLoop() {
+    Lease::Clock::time_point next_beat = Lease::Clock::now();
     bool reachable = true;
     std::unique_lock lock(beat_mutex);
     while (!stopping) {
@@ -171,7 +177,13 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
       } else {
         v1::HeartbeatReply reply;
         const auto sent = Lease::Clock::now();
-        auto ctx = CallContext(options.cluster.token, options.cluster.heartbeat_period_s);
+        // An answer is worth having up to half the lease after it was asked for (it extends the
+        // lease from when it was sent): a loaded control plane that answers in 0.8 s keeps the
+        // node serving. The next heartbeat goes a period after this one was sent.
+        next_beat = sent + Period();
+        auto ctx = CallContext(
+            options.cluster.token,
+            std::max(options.cluster.heartbeat_period_s, options.cluster.heartbeat_timeout_s / 2));
         s = control->Heartbeat(ctx.get(), Beat(), &reply);
         if (s.ok()) {
           lease.Extend(Until(sent, reply.lease_s()));
@@ -189,10 +201,8 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
             reachable ? LogFields{} : LogFields{{"error", s.error_message()}});
       }
       lock.lock();
-      beat_cv.wait_for(
-          lock,
-          std::chrono::microseconds(static_cast<int64_t>(options.cluster.heartbeat_period_s * 1e6)),
-          [&] { return stopping || beat_now; });
+      if (!s.ok() || !lease.held()) next_beat = Lease::Clock::now() + Period();
+      beat_cv.wait_until(lock, next_beat, [&] { return stopping || beat_now; });
       beat_now = false;
     }
   }
