@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <filesystem>
 #include <fstream>
@@ -24,9 +25,13 @@
 #include "db/postgres.h"
 #include "db/sqlite.h"
 #include "db/store.h"
+#include "proto/wire/asio.h"
+#include "proto/wire/messages.h"
 #include "server/cluster/cluster.h"
 #include "server/control/control_plane.h"
 #include "server/net/lease.h"
+#include "server/net/udp_endpoint.h"
+#include "server/ops/metrics.h"
 #include "server/session/session_manager.h"
 #include "vsurg/v1/cluster.grpc.pb.h"
 #include "vsurg/v1/services.grpc.pb.h"
@@ -631,6 +636,185 @@ int Heartbeats(const std::vector<std::string>& args) {
     }
   ::close(listener);
   if (p.Flag("json")) std::cout << json{{"runs", runs}}.dump() << "\n";
+  return 0;
+}
+
+}  // namespace vsurg::bench
+
+namespace vsurg::bench {
+
+namespace {
+// The control replica's counter of telemetry bytes received (server/ops metrics text).
+double ReceivedBytes(const server::cluster::ClusterSessions& c) {
+  server::ops::MetricsText m;
+  c.Collect(m);
+  const std::string key = "\nvsurg_telemetry_received_bytes_total ";
+  const size_t at = m.str().find(key);
+  return at == std::string::npos ? 0 : std::stod(m.str().substr(at + key.size()));
+}
+}  // namespace
+
+int TelemetryBench(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-bench telemetry",
+              "What a control replica receives from the nodes for its watchers, per second: the\n"
+              "former poll (NodeService.Telemetry on every node at the telemetry rate, every\n"
+              "session with its surface) against the streams (NodeService.Watch: an overview\n"
+              "watcher, then one session viewed besides), in one run on a real PostgreSQL.");
+  p.Option("postgres", ArgParser::Kind::kString,
+           "a PostgreSQL server's maintenance database URI (deploy/postgres.sh)", true)
+      .Option("nodes", ArgParser::Kind::kInt, "simulation nodes", false, "3")
+      .Option("sessions", ArgParser::Kind::kInt, "live sessions per node", false, "8")
+      .Option("seconds", ArgParser::Kind::kDouble, "seconds per way", false, "5")
+      .Option("scene", ArgParser::Kind::kString, "scene (a sphere, pressed 2-6 mm at its top)",
+              false, "sphere-palpation-1024");
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  const int nodes = p.Int("nodes"), per_node = p.Int("sessions");
+  const double seconds = p.Double("seconds");
+  if (nodes < 1 || nodes > 16 || per_node < 1 || per_node > 64 || !(seconds >= 1)) {
+    std::cerr << p.command() << ": --nodes 1..16, --sessions 1..64, --seconds >= 1\n";
+    return 2;
+  }
+  const std::string admin = p.String("postgres");
+  const std::string name = "vsurg_telemetry_" + std::to_string(getpid());
+  if (!PostgresAdmin(admin, "CREATE DATABASE " + name)) return 1;
+  const std::string uri = admin.substr(0, admin.rfind('/') + 1) + name;
+  const std::string token = "bench-cluster-token-0123456789";
+  double poll_bps = 0, overview_bps = 0, viewed_bps = 0;
+  {
+    auto control_store = std::move(db::Store::Open({.path = uri})).value();
+    server::cluster::ClusterOptions co;
+    co.token = token;
+    co.listen = "127.0.0.1:0";
+    co.max_sessions_per_user = 1 << 20;
+    auto control = std::move(server::cluster::ClusterSessions::Start(*control_store, co)).value();
+    std::vector<std::unique_ptr<server::Lease>> leases;
+    std::vector<std::unique_ptr<db::Store>> node_stores;
+    std::vector<std::unique_ptr<server::UdpEndpoint>> endpoints;
+    std::vector<std::unique_ptr<server::SessionManager>> managers;
+    std::vector<std::unique_ptr<server::cluster::NodeAgent>> agents;
+    for (int i = 0; i < nodes; ++i) {
+      node_stores.push_back(std::move(db::Store::Open({.path = uri})).value());
+      leases.push_back(std::make_unique<server::Lease>());
+      server::EndpointOptions eo;
+      eo.address = "127.0.0.1";
+      eo.port = 0;
+      eo.realtime_priority = 0;
+      eo.lease = leases.back().get();
+      endpoints.push_back(std::move(server::UdpEndpoint::Create(eo)).value());
+      server::SessionManagerOptions so;
+      so.node = "sim-" + std::to_string(i);
+      so.lease = leases.back().get();
+      so.max_live_sessions = 4096;
+      so.max_sessions_per_user = 4096;
+      managers.push_back(
+          server::SessionManager::Open(*node_stores.back(), endpoints.back().get(), so).value());
+      server::cluster::NodeOptions no;
+      no.name = so.node;
+      no.control = "127.0.0.1:" + std::to_string(control->port());
+      no.udp_host = "127.0.0.1";
+      no.udp_port = endpoints.back()->port();
+      no.capacity = 4096;
+      no.cluster = co;
+      no.lease = leases.back().get();
+      agents.push_back(std::move(server::cluster::NodeAgent::Start(*managers.back(), no)).value());
+    }
+    std::vector<uint64_t> ids;
+    std::vector<server::CreatedSession> created;
+    for (int k = 0; k < nodes * per_node; ++k) {
+      auto c = control->Create("trainee-" + std::to_string(k), p.String("scene"));
+      if (!c.ok()) return std::cerr << p.command() << ": " << c.error().message << "\n", 1;
+      if (auto st = control->Start(c->record.id); !st.ok())
+        return std::cerr << p.command() << ": " << st.error().message << "\n", 1;
+      ids.push_back(static_cast<uint64_t>(c->record.id));
+      created.push_back(*c);
+    }
+    // Every session's station: the stylus pressing 2–6 mm into the sphere's top and back once a
+    // second, 500 Hz, so each surface is deformed and moving (a surface state holds the vertices
+    // away from rest; a stream sends one per new frame).
+    std::atomic<bool> driving{true};
+    std::thread stations([&] {
+      boost::asio::io_context io;
+      boost::asio::ip::udp::socket sock(io, boost::asio::ip::udp::v4());
+      wire::Codec codec;
+      std::vector<uint8_t> buf(wire::kMaxDatagram);
+      const auto t0 = Clock::now();
+      for (uint64_t seq = 1; driving; ++seq) {
+        for (const server::CreatedSession& c : created) {
+          wire::StylusMessage m;
+          m.sample.time = std::chrono::duration<double>(Clock::now() - t0).count();
+          m.sample.position =
+              Eigen::Vector3d(0, 0, 0.046 + 0.002 * std::sin(6.2832 * m.sample.time));
+          const size_t n =
+              codec.EncodeStylus(m,
+                                 {wire::kProtocolVersion, wire::PayloadType::kStylusState,
+                                  static_cast<uint64_t>(c.record.id), seq},
+                                 wire::Authenticator(c.key), buf);
+          boost::system::error_code ec;
+          sock.send_to(boost::asio::buffer(buf.data(), n),
+                       {boost::asio::ip::make_address(c.udp_host), c.udp_port}, 0, ec);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      }
+    });
+    std::this_thread::sleep_for(std::chrono::seconds(1));  // pressed in
+    const auto window = std::chrono::duration<double>(seconds);
+    // The former way: every node's whole telemetry at the telemetry rate.
+    {
+      std::vector<std::unique_ptr<v1::NodeService::Stub>> stubs;
+      const auto listed = control_store->ListNodes();
+      if (!listed.ok())
+        return std::cerr << p.command() << ": " << listed.error().message << "\n", 1;
+      for (const auto& n : *listed)
+        stubs.push_back(v1::NodeService::NewStub(
+            grpc::CreateChannel(n.grpc_address, grpc::InsecureChannelCredentials())));
+      double bytes = 0;
+      const auto t0 = Clock::now();
+      for (auto next = t0; Clock::now() - t0 < window;) {
+        for (auto& stub : stubs) {
+          grpc::ClientContext ctx;
+          ctx.AddMetadata("authorization", "Bearer " + token);
+          v1::NodeTelemetry reply;
+          if (stub->Telemetry(&ctx, {}, &reply).ok()) bytes += reply.ByteSizeLong();
+        }
+        next += std::chrono::duration_cast<Clock::duration>(
+            std::chrono::duration<double>(1.0 / co.telemetry_hz));
+        std::this_thread::sleep_until(next);
+      }
+      poll_bps = bytes / seconds;
+    }
+    auto measure = [&](std::vector<uint64_t> watched) {
+      std::vector<uint64_t> tokens;
+      for (uint64_t id : watched)
+        tokens.push_back(
+            control->Subscribe(id, [](const std::vector<sim::SessionTelemetry>&, bool) {}));
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the streams open
+      const double b0 = ReceivedBytes(*control);
+      std::this_thread::sleep_for(window);
+      const double b1 = ReceivedBytes(*control);
+      for (uint64_t t : tokens) control->Unsubscribe(t);
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));  // and close
+      return (b1 - b0) / seconds;
+    };
+    overview_bps = measure({0});
+    viewed_bps = measure({0, ids.front()});
+    driving = false;
+    stations.join();
+    for (auto& m : managers) m->Shutdown();
+    agents.clear();
+    managers.clear();
+    endpoints.clear();
+    control->Shutdown();
+  }
+  PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
+  std::printf(
+      "%d nodes x %d sessions (%s), %.0f Hz: poll of every node %.1f kB/s; streams, overview "
+      "%.1f kB/s; overview + one session viewed %.1f kB/s\n",
+      nodes, per_node, p.String("scene").c_str(), server::cluster::ClusterOptions{}.telemetry_hz,
+      poll_bps / 1e3, overview_bps / 1e3, viewed_bps / 1e3);
   return 0;
 }
 

@@ -12,5 +12,7 @@ int ExportBench(const std::vector<std::string>& args);
 int Placement(const std::vector<std::string>& args);
 // The control plane's store writes for many simulated nodes' heartbeats, written or in memory.
 int Heartbeats(const std::vector<std::string>& args);
+// What a control replica receives for its telemetry watchers: the former poll against the streams.
+int TelemetryBench(const std::vector<std::string>& args);
 
 }  // namespace vsurg::bench

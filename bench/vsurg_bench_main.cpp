@@ -559,6 +559,7 @@ int main(int argc, char** argv) {
                  "[--postgres URI]\n"
                  "       vsurg-bench placement --postgres URI [--nodes 3] [--sessions 60]\n"
                  "       vsurg-bench heartbeats --postgres URI [--nodes 1000] [--seconds 15]\n"
+                 "       vsurg-bench telemetry --postgres URI [--nodes 3] [--sessions 8]\n"
                  "       vsurg-bench msm-step [--steps 2000] [--export DIR] [--json]\n"
                  "       vsurg-bench export [--rows N] [--format csv|jsonl|xapi]\n"
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n"
@@ -575,6 +576,7 @@ int main(int argc, char** argv) {
     if (args[0] == "msm-step") return vsurg::bench::MsmStep({args.begin() + 1, args.end()});
     if (args[0] == "placement") return vsurg::bench::Placement({args.begin() + 1, args.end()});
     if (args[0] == "heartbeats") return vsurg::bench::Heartbeats({args.begin() + 1, args.end()});
+    if (args[0] == "telemetry") return vsurg::bench::TelemetryBench({args.begin() + 1, args.end()});
     if (args[0] == "export") return vsurg::bench::ExportBench({args.begin() + 1, args.end()});
     if (args[0] == "speed-vs-error")
       return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
@@ -585,7 +587,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::cerr << "vsurg-bench: unknown command '" << args[0]
-            << "' (haptic-rtt, udp-floor, grpc-submit, placement, heartbeats, msm-step, export, "
+            << "' (haptic-rtt, udp-floor, grpc-submit, placement, heartbeats, telemetry, msm-step, "
+               "export, "
                "speed-vs-error, "
                "fem-step, wan)\n";
   return 2;
