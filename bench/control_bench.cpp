@@ -362,6 +362,68 @@ int ExportBench(const std::vector<std::string>& args) {
 
 namespace vsurg::bench {
 
+namespace {
+
+// A site in one process for a measurement: a control replica and `nodes` simulation nodes on
+// the database at `uri`, each role with a store of its own, as separate processes would have;
+// each node with a UDP endpoint on loopback when `udp` (else none: sessions are only created).
+struct BenchSite {
+  std::unique_ptr<db::Store> control_store;
+  std::unique_ptr<server::cluster::ClusterSessions> control;
+  // Each node's lease (its agent renews it; declared first, so it outlives the agents).
+  std::vector<std::unique_ptr<server::Lease>> leases;
+  std::vector<std::unique_ptr<db::Store>> node_stores;
+  std::vector<std::unique_ptr<server::UdpEndpoint>> endpoints;
+  std::vector<std::unique_ptr<server::SessionManager>> managers;
+  std::vector<std::unique_ptr<server::cluster::NodeAgent>> agents;
+
+  BenchSite(const std::string& uri, const server::cluster::ClusterOptions& co, int nodes,
+            bool udp) {
+    control_store = std::move(db::Store::Open({.path = uri})).value();
+    control = std::move(server::cluster::ClusterSessions::Start(*control_store, co)).value();
+    for (int i = 0; i < nodes; ++i) {
+      node_stores.push_back(std::move(db::Store::Open({.path = uri})).value());
+      leases.push_back(std::make_unique<server::Lease>());
+      if (udp) {
+        server::EndpointOptions eo;
+        eo.address = "127.0.0.1";
+        eo.port = 0;
+        eo.realtime_priority = 0;
+        eo.lease = leases.back().get();
+        endpoints.push_back(std::move(server::UdpEndpoint::Create(eo)).value());
+      }
+      server::SessionManagerOptions so;
+      so.node = "sim-" + std::to_string(i);
+      so.lease = leases.back().get();
+      so.max_live_sessions = 4096;
+      so.max_sessions_per_user = 4096;
+      managers.push_back(server::SessionManager::Open(*node_stores.back(),
+                                                      udp ? endpoints.back().get() : nullptr, so)
+                             .value());
+      server::cluster::NodeOptions no;
+      no.name = so.node;
+      no.control = "127.0.0.1:" + std::to_string(control->port());
+      no.udp_host = "127.0.0.1";
+      no.udp_port = udp ? endpoints.back()->port() : 1;
+      no.capacity = 4096;
+      no.cluster = co;
+      no.lease = leases.back().get();
+      agents.push_back(std::move(server::cluster::NodeAgent::Start(*managers.back(), no)).value());
+    }
+  }
+  // The nodes' sessions end, then the agents, the managers and the endpoints they use, then the
+  // control replica.
+  void Stop() {
+    for (auto& m : managers) m->Shutdown();
+    agents.clear();
+    managers.clear();
+    endpoints.clear();
+    if (control) control->Shutdown();
+  }
+};
+
+}  // namespace
+
 int Placement(const std::vector<std::string>& args) {
   ArgParser p("vsurg-bench placement",
               "Session creation through the control role's placement (ClusterSessions over a real\n"
@@ -391,37 +453,13 @@ int Placement(const std::vector<std::string>& args) {
   const std::string token = "bench-cluster-token-0123456789";
   std::vector<double> placed_ms, local_ms;
   {
-    // Each role with a store of its own, as separate processes would have.
-    auto control_store = std::move(db::Store::Open({.path = uri})).value();
     server::cluster::ClusterOptions co;
     co.token = token;
     co.listen = "127.0.0.1:0";
     co.max_sessions_per_user = 1 << 20;
-    auto control = std::move(server::cluster::ClusterSessions::Start(*control_store, co)).value();
-    // Each node's lease (its agent renews it; declared first, so it outlives the agents).
-    std::vector<std::unique_ptr<server::Lease>> leases;
-    std::vector<std::unique_ptr<db::Store>> node_stores;
-    std::vector<std::unique_ptr<server::SessionManager>> managers;
-    std::vector<std::unique_ptr<server::cluster::NodeAgent>> agents;
-    for (int i = 0; i < nodes; ++i) {
-      node_stores.push_back(std::move(db::Store::Open({.path = uri})).value());
-      leases.push_back(std::make_unique<server::Lease>());
-      server::SessionManagerOptions so;
-      so.node = "sim-" + std::to_string(i);
-      so.lease = leases.back().get();
-      so.max_live_sessions = 4096;
-      so.max_sessions_per_user = 4096;
-      managers.push_back(server::SessionManager::Open(*node_stores.back(), nullptr, so).value());
-      server::cluster::NodeOptions no;
-      no.name = so.node;
-      no.control = "127.0.0.1:" + std::to_string(control->port());
-      no.udp_host = "127.0.0.1";
-      no.udp_port = 1;
-      no.capacity = 4096;
-      no.cluster = co;
-      no.lease = leases.back().get();
-      agents.push_back(std::move(server::cluster::NodeAgent::Start(*managers.back(), no)).value());
-    }
+    BenchSite site(uri, co, nodes, false);
+    auto& control = site.control;
+    auto& control_store = site.control_store;
     for (int i = 0;
          i < 100 && control_store->ListNodes().value().size() < static_cast<size_t>(nodes); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -446,9 +484,7 @@ int Placement(const std::vector<std::string>& args) {
       }
     }
     local.Shutdown();
-    agents.clear();
-    managers.clear();
-    control->Shutdown();
+    site.Stop();
   }
   fs::remove_all(dir);
   PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
@@ -685,43 +721,13 @@ int TelemetryBench(const std::vector<std::string>& args) {
   const std::string token = "bench-cluster-token-0123456789";
   double poll_bps = 0, overview_bps = 0, viewed_bps = 0;
   {
-    auto control_store = std::move(db::Store::Open({.path = uri})).value();
     server::cluster::ClusterOptions co;
     co.token = token;
     co.listen = "127.0.0.1:0";
     co.max_sessions_per_user = 1 << 20;
-    auto control = std::move(server::cluster::ClusterSessions::Start(*control_store, co)).value();
-    std::vector<std::unique_ptr<server::Lease>> leases;
-    std::vector<std::unique_ptr<db::Store>> node_stores;
-    std::vector<std::unique_ptr<server::UdpEndpoint>> endpoints;
-    std::vector<std::unique_ptr<server::SessionManager>> managers;
-    std::vector<std::unique_ptr<server::cluster::NodeAgent>> agents;
-    for (int i = 0; i < nodes; ++i) {
-      node_stores.push_back(std::move(db::Store::Open({.path = uri})).value());
-      leases.push_back(std::make_unique<server::Lease>());
-      server::EndpointOptions eo;
-      eo.address = "127.0.0.1";
-      eo.port = 0;
-      eo.realtime_priority = 0;
-      eo.lease = leases.back().get();
-      endpoints.push_back(std::move(server::UdpEndpoint::Create(eo)).value());
-      server::SessionManagerOptions so;
-      so.node = "sim-" + std::to_string(i);
-      so.lease = leases.back().get();
-      so.max_live_sessions = 4096;
-      so.max_sessions_per_user = 4096;
-      managers.push_back(
-          server::SessionManager::Open(*node_stores.back(), endpoints.back().get(), so).value());
-      server::cluster::NodeOptions no;
-      no.name = so.node;
-      no.control = "127.0.0.1:" + std::to_string(control->port());
-      no.udp_host = "127.0.0.1";
-      no.udp_port = endpoints.back()->port();
-      no.capacity = 4096;
-      no.cluster = co;
-      no.lease = leases.back().get();
-      agents.push_back(std::move(server::cluster::NodeAgent::Start(*managers.back(), no)).value());
-    }
+    BenchSite site(uri, co, nodes, true);
+    auto& control = site.control;
+    auto& control_store = site.control_store;
     std::vector<uint64_t> ids;
     std::vector<server::CreatedSession> created;
     for (int k = 0; k < nodes * per_node; ++k) {
@@ -803,11 +809,7 @@ int TelemetryBench(const std::vector<std::string>& args) {
     viewed_bps = measure({0, ids.front()});
     driving = false;
     stations.join();
-    for (auto& m : managers) m->Shutdown();
-    agents.clear();
-    managers.clear();
-    endpoints.clear();
-    control->Shutdown();
+    site.Stop();
   }
   PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
   std::printf(

@@ -4,6 +4,7 @@
 #include <sys/time.h>
 #include <time.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <functional>
@@ -24,7 +25,9 @@ using asio::ip::udp;
 
 // The I/O thread blocks in recvmmsg on the socket itself (no event loop): a lone datagram costs
 // two system calls, the receive and the answer's send, as the bare echo's do; under load one
-// receive returns up to kBatch datagrams, each answered at once. Work from other threads (add and
+// receive returns up to kBatch datagrams, and their answers leave together in one sendmmsg
+// (each waits at most for the batch's other stylus samples to be handled, about a microsecond
+// each). Work from other threads (add and
 // remove a session, a timeout check) is queued and the thread woken by an empty datagram from its
 // own waker socket; the 50 ms housekeeping (timeouts, the CPU sample) runs when a receive returns
 // after its deadline, and a quiet socket returns every 50 ms (SO_RCVTIMEO).
@@ -72,6 +75,12 @@ struct UdpEndpoint::Impl {
   std::array<std::array<uint8_t, kControlSize>, kBatch> control{};
   int64_t max_age_ns = 0;
   std::array<uint8_t, wire::kMaxDatagram> tx{};
+  // The batch's answers, sent together by Flush.
+  std::array<std::array<uint8_t, wire::kMaxDatagram>, kBatch> out_data{};
+  std::array<udp::endpoint, kBatch> out_to;
+  std::array<iovec, kBatch> out_iov{};
+  std::array<mmsghdr, kBatch> out_headers{};
+  int out_count = 0;
   wire::Codec codec;
   wire::StylusMessage stylus;
   wire::ForceMessage force;
@@ -159,6 +168,7 @@ struct UdpEndpoint::Impl {
         if (len == 0 && senders[i] == waker_address) continue;  // a wake-up, not traffic
         Handle(i, len, read_ns - ArrivalNs(headers[i].msg_hdr, read_ns));
       }
+      Flush();
       const auto now = std::chrono::steady_clock::now();
       if (now >= next_tick) {
         next_tick = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -249,11 +259,36 @@ struct UdpEndpoint::Impl {
     force.server_time = now;
     const wire::Header out{wire::kProtocolVersion, wire::PayloadType::kForceFeedback,
                            header.session, ++s.sent_sequence};
-    const size_t size = codec.EncodeForce(force, out, s.auth, tx);
+    const size_t size = codec.EncodeForce(force, out, s.auth, out_data[out_count]);
     if (size == 0) return;
-    if (::sendto(socket.native_handle(), tx.data(), size, 0, sender.data(), sender.size()) ==
-        static_cast<ssize_t>(size))
-      answered.fetch_add(1, std::memory_order_relaxed);
+    out_iov[out_count] = {out_data[out_count].data(), size};
+    out_to[out_count] = sender;
+    ++out_count;  // one answer per received datagram: at most kBatch
+  }
+
+  // The batch's answers in one system call. One the kernel refuses (a full buffer, a station
+  // gone) is skipped and the rest sent, as a lone sendto's would have been lost.
+  void Flush() {
+    for (int i = 0; i < out_count; ++i) {
+      msghdr& h = out_headers[i].msg_hdr;
+      h = {};
+      h.msg_name = out_to[i].data();
+      h.msg_namelen = static_cast<socklen_t>(out_to[i].size());
+      h.msg_iov = &out_iov[i];
+      h.msg_iovlen = 1;
+    }
+    for (int sent = 0; sent < out_count;) {
+      const int n = ::sendmmsg(socket.native_handle(), out_headers.data() + sent,
+                               static_cast<unsigned>(out_count - sent), 0);
+      if (n <= 0) {
+        if (n < 0 && errno == EINTR) continue;
+        ++sent;  // this one failed (a station gone: ECONNREFUSED, a full buffer): skip it
+        continue;
+      }
+      answered.fetch_add(static_cast<uint64_t>(n), std::memory_order_relaxed);
+      sent += n;
+    }
+    out_count = 0;
   }
 
   // Running → stalled → disconnected by the endpoint's clock. I/O thread.
