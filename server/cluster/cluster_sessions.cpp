@@ -320,19 +320,21 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     {
       std::lock_guard lock(heard_mutex);
       const auto it = heard.find(n.name);
-      if (it != heard.end() && !it->second.condemned && it->second.instance == n.instance &&
-          it->second.epoch == n.epoch && !PlacementFactsChanged(it->second.last, n)) {
+      if (it != heard.end() && it->second.instance == n.instance && it->second.epoch == n.epoch) {
         Heard& h = it->second;
+        // Heard, whatever the store says of it next: a slow write below never looks like silence.
+        h.heard_us = std::max(h.heard_us, now);
         // Safe to answer from memory: the lease this answer grants (at most a timeout from now)
         // ends before the row's, with a period to spare.
         const bool safe = h.written_us + StoreLeaseUs() >= now + TimeoutUs() + PeriodUs();
         const bool due = h.written_us + StoreLeaseUs() < now + RenewAheadUs();
-        if (safe && (!due || h.renewing)) {  // a renewal in flight does not hold the others up
-          h.heard_us = now;
-          h.last = n;
-          return grpc::Status::OK;
+        if (!h.condemned && !PlacementFactsChanged(h.last, n) && safe) {
+          if (!due || h.renewing) {  // a renewal in flight does not hold the others up
+            h.last = n;
+            return grpc::Status::OK;
+          }
+          h.renewing = true;  // this heartbeat renews the row; the next wait for none
         }
-        if (safe) h.renewing = true;  // this heartbeat renews the row; the next wait for none
       }
     }
     // Conditional on the lease (instance, epoch, not down): a node the site gave up on is
@@ -351,7 +353,18 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
       return ToGrpc(written.error());
     }
     beats_written.fetch_add(1, std::memory_order_relaxed);
-    heard[n.name] = {n.instance, n.epoch, now, now, n, false, false};
+    const auto it = heard.find(n.name);
+    if (it != heard.end() && it->second.instance == n.instance && it->second.epoch == n.epoch) {
+      // Later heartbeats may have been answered meanwhile; a decision to declare the node down
+      // taken meanwhile stands (the store orders it against this write).
+      Heard& h = it->second;
+      h.heard_us = std::max(h.heard_us, now);
+      h.written_us = std::max(h.written_us, now);
+      h.last = n;
+      h.renewing = false;
+    } else {
+      heard[n.name] = {n.instance, n.epoch, now, now, n, false, false};
+    }
     return grpc::Status::OK;
   }
 
