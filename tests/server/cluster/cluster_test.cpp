@@ -475,8 +475,8 @@ TEST_F(ClusterTest, HeartbeatsStayInMemoryAndAnotherReplicaTrustsTheStoresLease)
   const double renew_every = options_.store_lease_s - std::max(options_.store_lease_s / 2,
                                                                options_.heartbeat_timeout_s +
                                                                    2 * options_.heartbeat_period_s);
+  // (Every heartbeat written would be about 2 per second of `elapsed`.)
   EXPECT_LE(written, 1 + std::ceil(elapsed / renew_every)) << received << " heartbeats received";
-  EXPECT_LT(written, received / 2);
   EXPECT_EQ(Metric(*second, "vsurg_heartbeats_received_total"), 0) << "the node beats to one";
   EXPECT_EQ(Metric(*second, "vsurg_nodes{state=\"up\"}"), 1)
       << "the second replica trusts the lease";
