@@ -350,7 +350,12 @@ struct StationChannel::Impl {
         }
       }
       // Passivity observer/controller: the coupling must not put energy into the hand.
-      f = passivity.Apply(f, s.position, dt);
+      // A grasp's twist field may give a yielding hand what it declares (types.h).
+      const double allowance = l.received_s >= 0
+                                   ? l.message.command.local.TwistFieldEnergy(
+                                         l.message.command.proxy, s.orientation, s.buttons)
+                                   : 0.0;
+      f = passivity.Apply(f, s.position, dt, allowance);
       uint32_t events = 0;
       Vec3 out = safety.Filter(f, dt, events);
       if (l.received_s < 0) {

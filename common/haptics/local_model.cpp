@@ -30,4 +30,13 @@ Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t but
   return f.allFinite() ? f : Vec3::Zero();
 }
 
+double LocalModel::TwistFieldEnergy(const Vec3& centre, const Eigen::Quaterniond& q,
+                                    uint32_t buttons) const {
+  if (kind != Kind::kGrasp || (buttons & kButtonGrasp) == 0 || !centre.allFinite()) return 0;
+  const double k = -jacobian.trace() / 3;  // the hold spring, N/m
+  if (!(k >= 1)) return 0;                 // gated or ramping from nothing: no field either
+  const double e = Render(centre, q, buttons).squaredNorm() / (2 * k);
+  return std::isfinite(e) ? e : 0;
+}
+
 }  // namespace vsurg::haptics

@@ -53,6 +53,12 @@ struct LocalModel {
   // The force the model gives a stylus at x, turned to q, with `buttons` held (the kinds above).
   // Any thread; no allocation; a non-finite result is zero.
   Vec3 Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons) const;
+  // A grasp's twist, rendered by a 3-DoF device, is a force field F_φ that grows with the
+  // stylus's turn; a hand yielding to it against the hold spring k (J = −k·I) is given up to
+  // |F_φ|²/(2k), F_φ the model's force at the hold spring's centre (the grasped point `centre`).
+  // That energy comes from the hand's own turn, which the device cannot feel: the passivity
+  // controller allows it (client/net/passivity.h). J, other kinds, the button up: 0. In J.
+  double TwistFieldEnergy(const Vec3& centre, const Eigen::Quaterniond& q, uint32_t buttons) const;
 };
 
 // Safety and interaction events, as bits (several may be set by one sample).

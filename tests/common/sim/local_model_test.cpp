@@ -126,5 +126,44 @@ TEST(LocalModelTest, TheGraspModelCarriesTheTissuesTorsionalStiffness) {
   EXPECT_EQ(c.local.Render(next.position, next.orientation, 0), Vec3::Zero());
 }
 
+TEST(LocalModelTest, AGraspDeclaresTheEnergyItsTwistFieldMayGiveTheHand) {
+  // The forceps twist the organ's surface about its normal through the grasped point, on the
+  // scene's 5 mm lever: at the hold spring's centre (the grasped point) only the tissue's torque
+  // through the lever is left, s·|T|/lever, and a hand yielding to it against the hold spring k
+  // is given up to |F|²/(2k) by the grasp's design (the passivity controller allows that much).
+  auto scene = LoadSceneByName("organ-surface-twist");
+  ASSERT_TRUE(scene.ok());
+  auto plan = ScriptedTrainee(*scene, TraineeStyle::kGood);
+  ASSERT_TRUE(plan.ok());
+  auto sim = Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  haptics::ForceCommand c;
+  haptics::StylusSample s;
+  for (const auto& sample : *plan) {
+    s = sample;
+    c = (*sim)->OnStylus(s);
+    (*sim)->StepDeformation();
+    if (c.grasping && c.twist > 20 * std::numbers::pi / 180) break;
+  }
+  ASSERT_TRUE(c.grasping);
+  const double k = scene->haptics.hold_stiffness;
+  const double field_n = scene->haptics.force_scale * std::abs(c.torque) / scene->haptics.min_lever;
+  const double expected = field_n * field_n / (2 * k);
+  EXPECT_GT(field_n, 0.3);
+  EXPECT_NEAR(c.local.TwistFieldEnergy(c.proxy, s.orientation, haptics::kButtonGrasp), expected,
+              0.02 * expected);
+  // Turned further, the field grows with the tissue's dT/dΦ; let go, there is none.
+  const Eigen::Quaterniond further =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.05, c.local.axis)) * s.orientation;
+  EXPECT_GT(c.local.TwistFieldEnergy(c.proxy, further, haptics::kButtonGrasp), expected);
+  EXPECT_EQ(c.local.TwistFieldEnergy(c.proxy, s.orientation, 0), 0);
+  // A contact declares nothing.
+  LocalModel contact;
+  contact.kind = LocalModel::Kind::kContact;
+  contact.jacobian = -300 * Eigen::Matrix3d::Identity();
+  contact.force0 = Vec3(0, 0, 1);
+  EXPECT_EQ(contact.TwistFieldEnergy(Vec3::Zero(), s.orientation, haptics::kButtonGrasp), 0);
+}
+
 }  // namespace
 }  // namespace vsurg::sim
