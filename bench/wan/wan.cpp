@@ -93,6 +93,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
   co.key = Key(o.seed);
   co.rendering = o.rendering;
   co.passivity = o.passivity;
+  co.passivity_mode = o.passivity_mode;
   co.deadband = o.deadband;
   co.force_limit_n = o.scene.task.force_limit;
   const auto start = std::chrono::steady_clock::now();

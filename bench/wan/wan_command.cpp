@@ -60,7 +60,8 @@ int Wan(const std::vector<std::string>& args) {
            "lan,metro,regional,continental,intercontinental,bad-wifi")
       .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
               "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist")
-      .Option("methods", cli::ArgParser::Kind::kString, "server, linear, model", false,
+      .Option("methods", cli::ArgParser::Kind::kString,
+              "server, linear, model; +tdpa: with the network (two-port) passivity control", false,
               "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
@@ -80,18 +81,22 @@ int Wan(const std::vector<std::string>& args) {
     profiles.push_back(*pr);
   }
   struct Method {
-    std::string name;  // "model", or "model+db0.1" with a deadband
+    std::string name;  // "model", "model+tdpa", or "model+db0.1" with a deadband
     client::LocalRendering rendering;
+    client::PassivityMode passivity;
     double deadband;
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
-    auto m = client::ParseLocalRendering(name);
+    const std::string suffix = "+tdpa";
+    const bool tdpa = name.size() > suffix.size() && name.ends_with(suffix);
+    auto m = client::ParseLocalRendering(tdpa ? name.substr(0, name.size() - suffix.size()) : name);
     if (!m.ok()) return cli::UsageError(std::cerr, p.command(), m.error());
+    const auto mode = tdpa ? client::PassivityMode::kNetwork : client::PassivityMode::kLocal;
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, k});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k});
     }
   }
   const int runs = p.Int("runs");
@@ -120,11 +125,14 @@ int Wan(const std::vector<std::string>& args) {
         o.seed = static_cast<uint64_t>(r);
         o.rendering = method_entry.rendering;
         o.deadband = method_entry.deadband;
+        o.passivity_mode = method_entry.passivity;
         o.grip = *grip;
-        // The reference: the same rendering at full rate through the relay, unimpaired.
+        // The reference: the same rendering at full rate through the relay, unimpaired, with the
+        // one-port passivity control (so what the network control costs shows as error).
         wan::RunOptions ref_options = o;
         ref_options.profile = none;
         ref_options.deadband = 0;
+        ref_options.passivity_mode = client::PassivityMode::kLocal;
         auto ref = wan::RunOnce(ref_options);
         if (!ref.ok()) return std::cerr << "vsurg-bench wan: " << ref.error().message << "\n", 1;
         for (const relay::Profile& profile : profiles) {

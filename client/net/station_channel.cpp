@@ -31,6 +31,12 @@ Expected<LocalRendering> ParseLocalRendering(const std::string& name) {
   return InvalidArgument("local-model", "'" + name + "' is not one of server, linear, model");
 }
 
+Expected<PassivityMode> ParsePassivityMode(const std::string& name) {
+  if (name == "local") return PassivityMode::kLocal;
+  if (name == "network") return PassivityMode::kNetwork;
+  return InvalidArgument("passivity", "'" + name + "' is not local or network");
+}
+
 namespace {
 
 // Which of the last 4096 sequence numbers were seen: tells a reordered datagram from a copy, and
@@ -162,7 +168,8 @@ struct StationChannel::Impl {
   std::array<uint8_t, wire::kMaxDatagram> tx{};
   wire::Codec tx_codec;
   std::atomic<uint64_t> sent{0}, fades{0};
-  std::atomic<double> dissipated{0}, max_force{0}, to_hand{0}, from_hand{0};
+  std::atomic<double> dissipated{0}, max_force{0}, to_hand{0}, from_hand{0}, tissue_released{0},
+      network_balance_min{0};
   // The force log: the device thread produces rows, the log thread writes them (SPSC ring).
   std::FILE* log_file = nullptr;
   std::vector<LogRow> log_ring;
@@ -300,7 +307,8 @@ struct StationChannel::Impl {
     Deadband deadband(options);
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     // Always observing; controlling only when asked.
-    PassivityController passivity(options.passivity ? options.max_damping : 0.0);
+    PassivityController passivity(options.passivity ? options.max_damping : 0.0, 1e-4,
+                                  options.passivity_mode);
     wire::StylusMessage m;
     const auto loop_start = SteadyTime::now();
     auto second_start = loop_start;
@@ -350,6 +358,9 @@ struct StationChannel::Impl {
         }
       }
       // Passivity observer/controller: the coupling must not put energy into the hand.
+      if (l.received_s >= 0)
+        passivity.TissueReport(l.message.echo_sequence, l.message.command.released_j,
+                               l.message.command.absorbed_j);
       // A grasp's twist field may give a yielding hand what it declares (types.h).
       const double allowance = l.received_s >= 0
                                    ? l.message.command.local.TwistFieldEnergy(
@@ -384,10 +395,14 @@ struct StationChannel::Impl {
         boost::system::error_code ec;
         if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
         if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
+        passivity.Sent(sequence);
       }
       dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
       to_hand.store(passivity.to_hand(), std::memory_order_relaxed);
       from_hand.store(passivity.from_hand(), std::memory_order_relaxed);
+      tissue_released.store(passivity.released(), std::memory_order_relaxed);
+      if (const double b = passivity.network_balance(); b < network_balance_min.load())
+        network_balance_min.store(b, std::memory_order_relaxed);
       if (log_file)
         Log({now, s.position.x(), s.position.y(), s.position.z(), out.x(), out.y(), out.z()});
       last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
@@ -487,6 +502,8 @@ StationStats StationChannel::stats() const {
   s.late = impl_->late.load();
   s.energy_to_hand = impl_->to_hand.load();
   s.energy_from_hand = impl_->from_hand.load();
+  s.tissue_released = impl_->tissue_released.load();
+  s.network_balance_min = impl_->network_balance_min.load();
   s.force_log_rows = impl_->log_rows.load();
   s.force_log_dropped = impl_->log_dropped.load();
   s.watchdog_fades = impl_->fades.load();

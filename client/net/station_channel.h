@@ -20,6 +20,7 @@
 #include <string>
 
 #include "client/device/device.h"
+#include "client/net/passivity.h"
 #include "common/core/clock.h"
 #include "common/core/expected.h"
 #include "proto/wire/datagram.h"
@@ -37,6 +38,7 @@ namespace vsurg::client {
 //                 own stiffness; the surface ahead of contact.
 enum class LocalRendering { kServerForce, kLinear, kModel };
 Expected<LocalRendering> ParseLocalRendering(const std::string& name);  // server, linear, model
+Expected<PassivityMode> ParsePassivityMode(const std::string& name);    // local, network
 
 struct StationOptions {
   std::string server_address = "127.0.0.1";
@@ -47,6 +49,10 @@ struct StationOptions {
   double watchdog_s = 0.020;  // no update for this long: start fading
   double fade_s = 0.050;      // from full force to zero
   bool passivity = true;
+  // kLocal: the one-port observer on the rendering; kNetwork: the two-port's station side,
+  // which gives the hand no more energy than the server's answers say the tissue released
+  // (client/net/passivity.h).
+  PassivityMode passivity_mode = PassivityMode::kLocal;
   int realtime_priority = 0;  // > 0: SCHED_FIFO at this priority for both threads, if permitted
   double max_damping = 5.0;   // N·s/m the passivity controller may add
   LocalRendering rendering = LocalRendering::kModel;
@@ -92,6 +98,12 @@ struct StationStats {
   // interval's motion: positive work on the hand, and work the hand put in (J). Their difference
   // is the energy the rendering gave the hand; > 0 means the loop was active.
   double energy_to_hand = 0, energy_from_hand = 0;
+  // The energy the server's answers say its force gave the tool (J; the network passivity's
+  // budget for energy_to_hand).
+  double tissue_released = 0;
+  // The lowest the two-port's account fell (J, client/net/passivity.h kNetwork, kept in either
+  // mode): below −E₀ the hand was given energy the tissue's record did not cover.
+  double network_balance_min = 0;
   uint64_t force_log_rows = 0, force_log_dropped = 0;
   double max_force = 0;  // N rendered
   // The device loop, paced by real time at rate_hz: iterations over its running time, and the

@@ -235,6 +235,7 @@ Status Station::Connect() {
   options.rate_hz = config_.rate_hz;
   options.realtime_priority = config_.realtime_priority;
   options.rendering = config_.rendering;
+  options.passivity_mode = config_.passivity;
   options.force_log = config_.force_log;
   options.deadband = config_.deadband;
   options.force_limit_n = config_.force_limit_n;

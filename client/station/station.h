@@ -58,6 +58,7 @@ struct StationConfig {
   bool reconnect = true;       // false: a lost server ends the station with an error
   int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
   LocalRendering rendering = LocalRendering::kModel;  // between the server's answers
+  PassivityMode passivity = PassivityMode::kLocal;    // the station's passivity control
   std::string force_log;     // non-empty: the rendered force per servo cycle (StationOptions)
   double deadband = 0;       // StationOptions::deadband
   double force_limit_n = 0;  // StationOptions::force_limit_n (the scene task's)

@@ -139,6 +139,10 @@ int Run(const std::vector<std::string>& args) {
               "its kind: contact, grasp, the surface ahead), linear (F0 + J dx everywhere) or "
               "server (the answer's force, held)",
               false, "model")
+      .Option("passivity", Kind::kString,
+              "local (the one-port observer on the rendering) or network (the two-port: the hand "
+              "is given no more energy than the server says the tissue released)",
+              false, "local")
       .Option("deadband", Kind::kDouble,
               "perceptual deadband: send the stylus only when the rendered force changed by more "
               "than this fraction of itself (Weber, ~0.1), the tip moved 0.5 mm or turned 1 deg, "
@@ -237,6 +241,8 @@ int Run(const std::vector<std::string>& args) {
   request.grip = p.String("grip");
   auto rendering = client::ParseLocalRendering(p.String("local-model"));
   if (!rendering.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), rendering.error());
+  auto passivity = client::ParsePassivityMode(p.String("passivity"));
+  if (!passivity.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), passivity.error());
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
   for (const auto& v : mesh->surface.positions) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
   Eigen::Index longest = 0;
@@ -291,6 +297,7 @@ int Run(const std::vector<std::string>& args) {
   }
   config.rate_hz = p.Double("rate");
   config.rendering = *rendering;
+  config.passivity = *passivity;
   config.deadband = p.Double("deadband");
   config.force_limit_n = scene->task.force_limit;
   if (!(config.deadband >= 0 && config.deadband < 1))
@@ -501,6 +508,8 @@ int Run(const std::vector<std::string>& args) {
                         {"energy_to_hand_j", stats.energy_to_hand},
                         {"energy_from_hand_j", stats.energy_from_hand},
                         {"passivity_dissipated_j", stats.passivity_energy_dissipated},
+                        {"tissue_released_j", stats.tissue_released},
+                        {"network_balance_min_j", stats.network_balance_min},
                         {"force_log_rows", stats.force_log_rows},
                         {"force_log_dropped", stats.force_log_dropped},
                         {"watchdog_fades", stats.watchdog_fades},

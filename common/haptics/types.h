@@ -91,6 +91,11 @@ struct ForceCommand {
   double torque = 0;          // N·m, the tissue's answer to it
   double score = 0;           // 0–10, the trial's score so far (updated every few samples)
   uint32_t events = 0;        // HapticEvent bits
+  // The server's port of the network two-port (Ryu & Artigas): the energy its force has given
+  // the tool and taken from it in this session, Σ F_k·(x_{k+1} − x_k) over the samples it
+  // received by sign (J, cumulative, never decreasing). A passive tissue takes at least what it
+  // gives back; the station's network passivity lets the hand be given no more than released_j.
+  double released_j = 0, absorbed_j = 0;
 };
 
 }  // namespace vsurg::haptics

@@ -133,6 +133,8 @@ ForceCommand Simulation::Zero(const StylusSample& s, uint32_t events) {
   c.time = std::isfinite(s.time) ? s.time : last_time_;
   c.events = events;
   c.local.position0 = s.position.allFinite() ? s.position : Vec3::Zero();
+  c.released_j = released_j_;
+  c.absorbed_j = absorbed_j_;
   return c;
 }
 
@@ -179,8 +181,16 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     input_.triangle = -1;
     input_.force_on_tissue.setZero();
     PublishInput();
+    port_force_.setZero();  // nothing is answered: no force is held on the way to the next sample
     return Zero(s, events);
   }
+  // The port's energy: the force answered last, held until this sample, against the motion since.
+  if (port_has_x_) {
+    const double w = port_force_.dot(s.position - port_x_);
+    if (std::isfinite(w)) (w > 0 ? released_j_ : absorbed_j_) += std::abs(w);
+  }
+  port_x_ = s.position;
+  port_has_x_ = true;
   // The trial clock follows the station's time in steps of at most kMaxClockStepS; a longer
   // step forward advances it by the bound, a step backwards by a nominal millisecond, and both
   // count as clock jumps. A repeated stamp does not advance it.
@@ -330,6 +340,9 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
 
   const Vec3 out = safety_.Filter(force, dt, events);
   cmd.force = out;
+  port_force_ = out;
+  cmd.released_j = released_j_;
+  cmd.absorbed_j = absorbed_j_;
   if (cmd.local.kind != haptics::LocalModel::Kind::kContact || cmd.contact)
     cmd.local.position0 = s.position;  // else SurfaceAhead placed it on the surface
   cmd.local.jacobian = jacobian;

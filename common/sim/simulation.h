@@ -170,6 +170,11 @@ class Simulation final : private DeformationPool::Member {
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
   uint64_t samples_ = 0;
+  // The server's port energies (haptics::ForceCommand::released_j): the force answered last, held
+  // until the next sample, against the motion to it.
+  geometry::Vec3 port_force_ = geometry::Vec3::Zero(), port_x_ = geometry::Vec3::Zero();
+  bool port_has_x_ = false;
+  double released_j_ = 0, absorbed_j_ = 0;
   bool telemetry_grasping_ = false;
   double live_score_ = 0;  // the trial's score as of the last telemetry
   TripleBuffer<Telemetry> telemetry_;

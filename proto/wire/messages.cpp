@@ -102,6 +102,8 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   f.set_events(c.events);
   f.set_twist(c.twist);
   f.set_score(static_cast<float>(c.score));
+  f.set_released_j(c.released_j);
+  f.set_absorbed_j(c.absorbed_j);
   const size_t n = f.ByteSizeLong();
   if (n > kMaxPayload || !f.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
   Header header = h;
@@ -264,9 +266,13 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.events = f.events();
   c.twist = f.twist();
   c.score = std::isfinite(f.score()) ? std::clamp(static_cast<double>(f.score()), 0.0, 10.0) : 0.0;
-  // A station renders these at 1 kHz: anything non-finite is refused here.
+  c.released_j = f.released_j();
+  c.absorbed_j = f.absorbed_j();
+  // A station renders these at 1 kHz: anything non-finite is refused here, and so are port
+  // energies that are not energies (negative), which the network passivity control would trust.
   if (!c.force.allFinite() || !c.local.force0.allFinite() || !c.local.position0.allFinite() ||
-      !c.local.jacobian.allFinite()) {
+      !c.local.jacobian.allFinite() || !(c.released_j >= 0) || !(c.absorbed_j >= 0) ||
+      !std::isfinite(c.released_j) || !std::isfinite(c.absorbed_j)) {
     return DropReason::kBadPayload;
   }
   return DropReason::kNone;

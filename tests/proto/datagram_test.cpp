@@ -160,6 +160,35 @@ TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRef
   EXPECT_EQ(round_trip(grasp, back), DropReason::kBadPayload);
 }
 
+TEST(DatagramTest, TheServersPortEnergiesCrossAndAreRefusedWhenNotEnergies) {
+  // The network passivity control gives the hand no more than released_j: a value that is not
+  // an energy (negative, NaN, infinite) must never reach it.
+  const Authenticator auth(Key(3));
+  Codec codec;
+  std::array<uint8_t, kMaxDatagram> buf;
+  const auto round_trip = [&](const ForceMessage& m, ForceMessage& back) {
+    const size_t n =
+        codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1}, auth, buf);
+    Opened o;
+    EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
+    return codec.DecodeForce(o.payload, back);
+  };
+  ForceMessage m, back;
+  m.command.released_j = 0.0123;
+  m.command.absorbed_j = 0.0456;
+  ASSERT_EQ(round_trip(m, back), DropReason::kNone);
+  EXPECT_EQ(back.command.released_j, 0.0123);
+  EXPECT_EQ(back.command.absorbed_j, 0.0456);
+  for (const double bad : {-1e-6, double(NAN), double(INFINITY)}) {
+    m.command.released_j = bad;
+    EXPECT_EQ(round_trip(m, back), DropReason::kBadPayload) << bad;
+    m.command.released_j = 0;
+    m.command.absorbed_j = bad;
+    EXPECT_EQ(round_trip(m, back), DropReason::kBadPayload) << bad;
+    m.command.absorbed_j = 0;
+  }
+}
+
 TEST(DatagramTest, WrongKeyEveryFlippedByteTruncationAndOversizeAreRejected) {
   const Authenticator auth(Key(3)), other(Key(4));
   Codec codec;

@@ -1,6 +1,9 @@
 #include "client/net/passivity.h"
 
 #include <cmath>
+#include <cstdio>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -170,6 +173,97 @@ TEST(PassivityTest, ATwistFieldsDeclaredEnergyIsAllowed) {
     }
     EXPECT_LT(pc.energy(), -4e-4);
   }
+}
+
+// A hand presses 2 mm into a 300 N/m surface and lets it push the tool back out. The station
+// sends every sample; the server receives sample i at cycle i + delay/2, its spring answering
+// there (its port flows through sample i), and that answer reaches the station delay/2 later.
+// The server's spring keeps `tissue_keeps` of what it would give back (a plastic dent: 1).
+// Returns the lowest network balance, the largest pull into the surface and what the hand got.
+struct PressResult {
+  double lowest_balance = 0, largest_pull = 0, to_hand = 0;
+};
+double PressDepth(int i) {  // in over 400 ms, held 200 ms, out over 400 ms, then free
+  return i < 400 ? 0.002 * i / 400 : i < 600 ? 0.002 : std::max(0.0, 0.002 * (1000 - i) / 400.0);
+}
+PressResult PressAndRelease(PassivityController& pc, int delay, double tissue_keeps = 0) {
+  PressResult r;
+  const int half = delay / 2;
+  std::vector<std::pair<double, double>> report;  // the server's flows through sample i
+  double released = 0, absorbed = 0, server_x = 0, server_f = 0;
+  for (int i = 0; i <= 1400; ++i) {
+    // The server: sample j = i − half arrives; its held force against the motion to it.
+    if (const int j = i - half; j >= 0) {
+      const double sx = -PressDepth(j);
+      const double w = server_f * (sx - server_x);
+      if (w > 0) released += w * (1 - tissue_keeps);
+      if (w < 0) absorbed -= w;
+      server_x = sx;
+      server_f = 300 * PressDepth(j);
+      report.emplace_back(released, absorbed);  // report[j]
+    }
+    // The station: the answer to sample i − delay (at least the previous one), if any, is here.
+    if (const int e = i - std::max(1, 2 * half); e >= 0)
+      pc.TissueReport(static_cast<uint64_t>(e), report[e].first, report[e].second);
+    const double depth = PressDepth(i);
+    const Eigen::Vector3d asked(depth > 0 ? 300 * depth : 0, 0, 0);
+    const Eigen::Vector3d out = pc.Apply(asked, Eigen::Vector3d(-depth, 0, 0), kDt);
+    pc.Sent(static_cast<uint64_t>(i));
+    if (asked.x() > 0) r.largest_pull = std::max(r.largest_pull, -out.x());
+    r.lowest_balance = std::min(r.lowest_balance, pc.network_balance());
+  }
+  r.to_hand = pc.to_hand();
+  return r;
+}
+
+TEST(PassivityTest, TheNetworkControlGivesBackAheadOfTheRecordOnlyWhatTheHandJustPutIn) {
+  // 300 ms round trip: the local spring pushes back the moment the hand lets it, the tissue's
+  // record of its release arrives 300 ms later. The one-port sees a passive spring and lets it
+  // return all 0.6 mJ ahead of the record; the two-port returns ahead of it only what the hand put
+  // in within the last round trip (still on its way to the tissue), about a third here, and never
+  // turns the push into a pull.
+  PassivityController local(5.0, 1e-4, PassivityMode::kLocal);
+  PassivityController network(5.0, 1e-4, PassivityMode::kNetwork);
+  const PressResult l = PressAndRelease(local, 300);
+  const PressResult n = PressAndRelease(network, 300);
+  std::printf("lowest balance: one-port %.3f mJ, two-port %.3f mJ\n", l.lowest_balance * 1e3,
+              n.lowest_balance * 1e3);
+  EXPECT_LT(l.lowest_balance, -3e-4);
+  EXPECT_GT(n.lowest_balance, 0.5 * l.lowest_balance);
+  EXPECT_EQ(n.largest_pull, 0);
+  EXPECT_GT(network.dissipated(), 2e-4);
+  // With no delay the record keeps up and the network control hardly acts.
+  PassivityController prompt(5.0, 1e-4, PassivityMode::kNetwork);
+  const PressResult p = PressAndRelease(prompt, 0);
+  EXPECT_LT(prompt.dissipated(), 0.05 * p.to_hand);
+  EXPECT_GT(p.to_hand, 5e-4);  // the spring's ~0.6 mJ came back
+}
+
+TEST(PassivityTest, TheNetworkControlHoldsBackWhatATissueThatKeepsItsEnergyNeverReleases) {
+  // A tissue that keeps what it was given (a plastic dent) releases nothing; a local model that
+  // springs back would give the hand energy the tissue never had. The one-port cannot tell.
+  PassivityController local(5.0, 1e-4, PassivityMode::kLocal);
+  PassivityController network(5.0, 1e-4, PassivityMode::kNetwork);
+  PressAndRelease(local, 20, 1.0);
+  PressAndRelease(network, 20, 1.0);
+  EXPECT_GT(local.to_hand(), 4e-4);
+  EXPECT_LT(network.to_hand(), 1e-4 + 5e-5);
+}
+
+TEST(PassivityTest, ASessionReplacedOnAnotherServerKeepsTheAccount) {
+  PassivityController pc(5.0, 1e-4, PassivityMode::kNetwork);
+  for (uint64_t s = 1; s <= 5; ++s) pc.Sent(s);
+  pc.TissueReport(1, 5e-3, 8e-3);
+  pc.TissueReport(2, 6e-3, 9e-3);
+  pc.TissueReport(3, 1e-3, 2e-3);  // a new server's counts start again
+  EXPECT_DOUBLE_EQ(pc.released(), 7e-3);
+  EXPECT_DOUBLE_EQ(pc.absorbed(), 11e-3);
+  EXPECT_DOUBLE_EQ(pc.network_balance(), -4e-3);
+  pc.TissueReport(4, NAN, 1);
+  pc.TissueReport(4, 1, -1);
+  pc.TissueReport(99, 1, 1);  // a sample never sent
+  EXPECT_DOUBLE_EQ(pc.released(), 7e-3);
+  EXPECT_DOUBLE_EQ(pc.absorbed(), 11e-3);
 }
 
 TEST(PassivityTest, NonFiniteInputGivesNoForce) {

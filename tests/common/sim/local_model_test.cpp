@@ -126,6 +126,43 @@ TEST(LocalModelTest, TheGraspModelCarriesTheTissuesTorsionalStiffness) {
   EXPECT_EQ(c.local.Render(next.position, next.orientation, 0), Vec3::Zero());
 }
 
+TEST(LocalModelTest, TheServersPortCountsWhatTheTissueTookAndGaveBack) {
+  // A press 3 mm into the sphere and out again: the server's port energies (the network
+  // passivity's budget) grow only while the tool moves, the tissue gives back part of what it
+  // took (its coupling's damping and the deformation's dissipate the rest), never more, and
+  // neither count ever decreases.
+  auto scene = LoadSceneByName("sphere-palpation-256");
+  ASSERT_TRUE(scene.ok());
+  auto sim = Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  haptics::StylusSample s;
+  s.position = Vec3(0.001, 0.002, 0.06);
+  haptics::ForceCommand c;
+  double last_released = 0, last_absorbed = 0, t = 0;
+  bool monotone = true;
+  const auto step = [&](double z) {
+    s.position.z() = z;
+    s.time = (t += 1e-3);
+    c = (*sim)->OnStylus(s);
+    (*sim)->StepDeformation();
+    monotone = monotone && c.released_j >= last_released && c.absorbed_j >= last_absorbed;
+    last_released = c.released_j, last_absorbed = c.absorbed_j;
+  };
+  for (int i = 0; i < 700; ++i) step(0.06);  // past the start-up gate, free
+  EXPECT_EQ(c.released_j + c.absorbed_j, 0);
+  for (double z = 0.06; z > 0.047; z -= 1e-5) step(z);  // in at 10 mm/s
+  for (int i = 0; i < 200; ++i) step(0.047);
+  ASSERT_TRUE(c.contact);
+  const double absorbed = c.absorbed_j;
+  EXPECT_GT(absorbed, 2e-4);  // ~½·k·d² for a 300 N/m coupling 3 mm in (the tissue sinks too)
+  for (double z = 0.047; z < 0.06; z += 1e-5) step(z);  // out
+  std::printf("press and release: absorbed %.3f mJ, released %.3f mJ\n", c.absorbed_j * 1e3,
+              c.released_j * 1e3);
+  EXPECT_TRUE(monotone);
+  EXPECT_GT(c.released_j, 0.3 * absorbed);
+  EXPECT_LE(c.released_j, c.absorbed_j);  // passive: never more back than was put in
+}
+
 TEST(LocalModelTest, AGraspDeclaresTheEnergyItsTwistFieldMayGiveTheHand) {
   // The forceps twist the organ's surface about its normal through the grasped point, on the
   // scene's 5 mm lever: at the hold spring's centre (the grasped point) only the tissue's torque
