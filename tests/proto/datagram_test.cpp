@@ -1,5 +1,6 @@
 #include "proto/wire/datagram.h"
 
+#include <array>
 #include <cstring>
 #include <random>
 #include <vector>
@@ -15,6 +16,20 @@ SessionKey Key(uint8_t seed) {
   SessionKey k;
   for (size_t i = 0; i < k.size(); ++i) k[i] = static_cast<uint8_t>(seed * 31 + i * 7);
   return k;
+}
+
+// A force answer sealed, opened and decoded again: at most 400 bytes, always authentic; the
+// decoder's verdict on what it carried.
+DropReason ForceRoundTrip(Codec& codec, const Authenticator& auth, const ForceMessage& m,
+                          ForceMessage& back) {
+  std::array<uint8_t, kMaxDatagram> buf;
+  const size_t n =
+      codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1}, auth, buf);
+  EXPECT_GT(n, 0u);
+  EXPECT_LE(n, 400u);
+  Opened o;
+  EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
+  return codec.DecodeForce(o.payload, back);
 }
 
 StylusMessage Stylus() {
@@ -122,15 +137,8 @@ TEST(DatagramTest, ForceRoundTripCarriesTheLocalModel) {
 TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRefused) {
   const Authenticator auth(Key(2));
   Codec codec;
-  std::array<uint8_t, kMaxDatagram> buf;
   const auto round_trip = [&](const ForceMessage& m, ForceMessage& back) {
-    const size_t n =
-        codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1}, auth, buf);
-    EXPECT_GT(n, 0u);
-    EXPECT_LE(n, 400u);
-    Opened o;
-    EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
-    return codec.DecodeForce(o.payload, back);
+    return ForceRoundTrip(codec, auth, m, back);
   };
   ForceMessage contact;
   contact.command.local.kind = haptics::LocalModel::Kind::kContact;
@@ -165,13 +173,8 @@ TEST(DatagramTest, TheServersPortEnergiesCrossAndAreRefusedWhenNotEnergies) {
   // an energy (negative, NaN, infinite) must never reach it.
   const Authenticator auth(Key(3));
   Codec codec;
-  std::array<uint8_t, kMaxDatagram> buf;
   const auto round_trip = [&](const ForceMessage& m, ForceMessage& back) {
-    const size_t n =
-        codec.EncodeForce(m, {kProtocolVersion, PayloadType::kForceFeedback, 5, 1}, auth, buf);
-    Opened o;
-    EXPECT_EQ(Open(std::span<const uint8_t>(buf.data(), n), &auth, o), DropReason::kNone);
-    return codec.DecodeForce(o.payload, back);
+    return ForceRoundTrip(codec, auth, m, back);
   };
   ForceMessage m, back;
   m.command.released_j = 0.0123;

@@ -3,6 +3,7 @@
 // that ends with the button and carries the tissue's torsional stiffness (checked against finite
 // differences of the server's own force).
 #include <cmath>
+#include <memory>
 #include <numbers>
 
 #include <gtest/gtest.h>
@@ -15,6 +16,30 @@ namespace {
 
 using haptics::LocalModel;
 using Vec3 = Eigen::Vector3d;
+
+// A scripted good trainee on `scene` replayed until the grasp has turned past 20°: the
+// simulation, its last answer and the sample it answered.
+struct MidTwist {
+  std::unique_ptr<Simulation> sim;
+  haptics::ForceCommand c;
+  haptics::StylusSample s;
+};
+MidTwist ReplayToMidTwist(const Scene& scene) {
+  MidTwist m;
+  auto plan = ScriptedTrainee(scene, TraineeStyle::kGood);
+  EXPECT_TRUE(plan.ok());
+  auto sim = Simulation::Create(scene, {.threaded = false});
+  EXPECT_TRUE(sim.ok()) << sim.error().message;
+  if (!plan.ok() || !sim.ok()) return m;
+  m.sim = std::move(*sim);
+  for (const auto& sample : *plan) {
+    m.s = sample;
+    m.c = m.sim->OnStylus(m.s);
+    m.sim->StepDeformation();
+    if (m.c.grasping && m.c.twist > 20 * std::numbers::pi / 180) break;
+  }
+  return m;
+}
 
 TEST(LocalModelTest, AContactModelPushesAndNeverPulls) {
   LocalModel m;
@@ -96,26 +121,17 @@ TEST(LocalModelTest, TheGraspModelCarriesTheTissuesTorsionalStiffness) {
   // against the grasp spring alone, which predicted no change at all.
   auto scene = LoadSceneByName("arm-torsion");
   ASSERT_TRUE(scene.ok());
-  auto plan = ScriptedTrainee(*scene, TraineeStyle::kGood);
-  ASSERT_TRUE(plan.ok());
-  auto sim = Simulation::Create(*scene, {.threaded = false});
-  ASSERT_TRUE(sim.ok());
-  haptics::ForceCommand c;
-  haptics::StylusSample s;
-  for (const auto& sample : *plan) {
-    s = sample;
-    c = (*sim)->OnStylus(s);
-    (*sim)->StepDeformation();
-    if (c.grasping && c.twist > 20 * std::numbers::pi / 180) break;
-  }
-  ASSERT_TRUE(c.grasping);
+  MidTwist m = ReplayToMidTwist(*scene);
+  ASSERT_TRUE(m.sim && m.c.grasping);
+  const haptics::ForceCommand& c = m.c;
+  const haptics::StylusSample& s = m.s;
   ASSERT_EQ(c.local.kind, LocalModel::Kind::kGrasp);
   const double delta = 0.02;
   haptics::StylusSample next = s;
   next.time += 1e-3;
   next.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(delta, c.local.axis)) * s.orientation;
   const Vec3 predicted = c.local.Render(next.position, next.orientation, next.buttons);
-  const haptics::ForceCommand answer = (*sim)->OnStylus(next);
+  const haptics::ForceCommand answer = m.sim->OnStylus(next);
   const double err_model = (predicted - answer.force).norm();
   const double err_grip_only = (c.force - answer.force).norm();
   std::printf("twist step %.3f rad: force change %.4f N, model error %.5f N, grip-only %.4f N\n",
@@ -131,12 +147,10 @@ TEST(LocalModelTest, TheServersPortCountsWhatTheTissueTookAndGaveBack) {
   // passivity's budget) grow only while the tool moves, the tissue gives back part of what it
   // took (its coupling's damping and the deformation's dissipate the rest), never more, and
   // neither count ever decreases.
-  auto scene = LoadSceneByName("sphere-palpation-256");
-  ASSERT_TRUE(scene.ok());
-  auto sim = Simulation::Create(*scene, {.threaded = false});
+  auto sim = Simulation::Create(*LoadSceneByName("sphere-palpation-256"), {.threaded = false});
   ASSERT_TRUE(sim.ok()) << sim.error().message;
   haptics::StylusSample s;
-  s.position = Vec3(0.001, 0.002, 0.06);
+  s.position = Vec3(0.001, 0.002, 0.06);  // 1 cm above the ball
   haptics::ForceCommand c;
   double last_released = 0, last_absorbed = 0, t = 0;
   bool monotone = true;
@@ -170,19 +184,10 @@ TEST(LocalModelTest, AGraspDeclaresTheEnergyItsTwistFieldMayGiveTheHand) {
   // is given up to |F|²/(2k) by the grasp's design (the passivity controller allows that much).
   auto scene = LoadSceneByName("organ-surface-twist");
   ASSERT_TRUE(scene.ok());
-  auto plan = ScriptedTrainee(*scene, TraineeStyle::kGood);
-  ASSERT_TRUE(plan.ok());
-  auto sim = Simulation::Create(*scene, {.threaded = false});
-  ASSERT_TRUE(sim.ok()) << sim.error().message;
-  haptics::ForceCommand c;
-  haptics::StylusSample s;
-  for (const auto& sample : *plan) {
-    s = sample;
-    c = (*sim)->OnStylus(s);
-    (*sim)->StepDeformation();
-    if (c.grasping && c.twist > 20 * std::numbers::pi / 180) break;
-  }
-  ASSERT_TRUE(c.grasping);
+  MidTwist m = ReplayToMidTwist(*scene);
+  ASSERT_TRUE(m.sim && m.c.grasping);
+  const haptics::ForceCommand& c = m.c;
+  const haptics::StylusSample& s = m.s;
   const double k = scene->haptics.hold_stiffness;
   const double field_n = scene->haptics.force_scale * std::abs(c.torque) / scene->haptics.min_lever;
   const double expected = field_n * field_n / (2 * k);
