@@ -62,8 +62,9 @@
 // last one (answers arrive in order; stale ones are never applied) continues from the totals. A
 // report about a sample older than the last kHistory sent is not used (the last one stands).
 //
-// Call order per servo cycle: Apply(f, x, dt) with the position read now and the force asked for
-// the coming interval, then Held(out) with the force actually written (after the safety filter).
+// Call order per servo cycle: TissueReport(…) with the newest answer, Apply(f, x, dt) with the
+// position read now and the force asked for the coming interval, Held(out) with the force actually
+// written (after the safety filter), and Sent(sequence) if a stylus sample went out.
 // Threads: one per device loop; no allocation. Units: N, m, s, J, N·s/m.
 #pragma once
 
