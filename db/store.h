@@ -305,8 +305,7 @@ class Store {
   // instance holds it (up, and its lease written within `lease_us`: kAlreadyExists, saying who
   // holds it); the epoch goes up by one, and the live sessions earlier holders left are aborted
   // with `reason`, in the same transaction.
-  Expected<NodeLease> AcquireNode(const NodeRecord& n, int64_t lease_us,
-                                  const std::string& reason);
+  Expected<NodeLease> AcquireNode(const NodeRecord& n, int64_t lease_us, const std::string& reason);
   // The lease of the holder at `n.epoch` renewed at `n.heartbeat_us`, with its load.
   // kFailedPrecondition when that lease is lost (the node was marked down, or the name was taken
   // by a newer instance): the node must stop serving and acquire the name again.
