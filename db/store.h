@@ -294,6 +294,12 @@ class Store {
   Status EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
                     const scoring::TrialMetrics& m, int64_t epoch = 0,
                     const std::string& trace_json = "");
+  // Live migration: a live session of `from` (at `from_epoch`, its row's) becomes `to`'s (at
+  // `to.epoch`), in one transaction fenced by both leases: refused (kFailedPrecondition) unless
+  // the session is live, belongs to `from` at that epoch, and both nodes are up at theirs. So a
+  // session moves once, and never from a node the site has given up on (whose sessions it has
+  // aborted) nor to one.
+  Status MoveSession(int64_t id, const SessionFence& from, const SessionFence& to);
   // At start-up: sessions a previous process of `node` left live (it was killed, or the machine
   // failed) cannot go on; they become aborted with `reason`. Returns how many.
   Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason,

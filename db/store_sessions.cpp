@@ -213,6 +213,35 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
   });
 }
 
+Status Store::MoveSession(int64_t id, const SessionFence& from, const SessionFence& to) {
+  if (from.node.empty() || to.node.empty() || from.node == to.node)
+    return InvalidArgument("node", "a session moves from one simulation node to another");
+  return Write([=](Connection& c) -> Status {
+    auto owner = SessionOwner(c, id);
+    if (!owner.ok()) return owner.error();
+    if (owner->first != from.node || owner->second != from.epoch)
+      return Error{ErrorCode::kFailedPrecondition,
+                   "session " + std::to_string(id) + " belongs to epoch " +
+                       std::to_string(owner->second) + " of node '" + owner->first +
+                       "', not to epoch " + std::to_string(from.epoch) + " of '" + from.node +
+                       "': move refused",
+                   "epoch"};
+    if (Status f = HoldFence(c, from.node, from.epoch); !f.ok()) return f;
+    if (Status f = HoldFence(c, to.node, to.epoch); !f.ok()) return f;
+    Status s = RunSql(c,
+                      "UPDATE sessions SET node = ?2, epoch = ?3 WHERE id = ?1 AND state IN "
+                      "(?4, ?5, ?6)",
+                      [&](Statement& st) {
+                        st.Bind(1, id).Bind(2, to.node).Bind(3, to.epoch);
+                        BindLiveStates(st, 4);
+                      });
+    if (s.ok() && c.Changes() == 0)
+      return Error{ErrorCode::kFailedPrecondition,
+                   "session " + std::to_string(id) + " has ended: it does not move", "session"};
+    return s;
+  });
+}
+
 namespace {
 
 // Aborts the live sessions of `node` inside a write job; their count.

@@ -11,7 +11,8 @@
 // Shutdown: SIGINT or SIGTERM → the control plane stops taking calls (streams are cancelled),
 // live sessions are aborted with their trial metrics recorded, the endpoint stops, the store's
 // writer drains its queue and closes the file. Exit code 0. A sim node drains first on SIGTERM:
-// no new sessions, the live ones finish (up to --drain-timeout), then the same.
+// no new sessions, the live ones move to other nodes (live migration; those no node takes, and
+// all with --drain-wait, finish here, up to --drain-timeout), then the same.
 #include <signal.h>
 #include <unistd.h>
 
@@ -114,6 +115,9 @@ int Main(std::vector<std::string> args) {
       .Option("capacity", Kind::kInt, "sim: live sessions this node takes", false, "24")
       .Option("drain-timeout", Kind::kDouble,
               "sim: on SIGTERM, seconds the live sessions may take to finish", false, "600")
+      .Option("drain-wait", Kind::kFlag,
+              "sim: on SIGTERM, let the live sessions finish here instead of moving them to "
+              "other nodes (live migration, the default)")
       .Option("listen", Kind::kString, "gRPC address host:port", false, "127.0.0.1:50051")
       .Option("udp-address", Kind::kString, "UDP haptic endpoint address", false, "127.0.0.1")
       .Option("udp-port", Kind::kInt, "UDP port (0: any free one)", false, "50052")
@@ -328,6 +332,7 @@ int Main(std::vector<std::string> args) {
       no.udp_host = so.udp_host;
       no.udp_port = so.udp_port ? so.udp_port : endpoint->port();
       no.capacity = p.Int("capacity");
+      no.migrate_on_drain = !p.Flag("drain-wait");
       no.cluster = cluster;
       no.lease = &lease;
       auto started = vsurg::server::cluster::NodeAgent::Start(*manager, no);

@@ -241,6 +241,7 @@ Status Station::Connect() {
   options.force_limit_n = config_.force_limit_n;
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
+  channel_options_ = options;
   {
     std::lock_guard lock(mutex_);
     channel_ = std::move(*channel);
@@ -288,6 +289,53 @@ void Station::Probe(double now) {
     return Drop("session " + std::to_string(status_.session) + " is " +
                 convert::StateName(session.state()));
   last_probe_ = now;  // the server is there and the session live: slow, not gone (yet)
+  auto moved = Follow();
+  if (!moved.ok()) {
+    std::lock_guard lock(mutex_);
+    status_.last_error = moved.error().message;
+  }
+}
+
+Expected<bool> Station::Follow() {
+  auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::SessionRef ref;
+  ref.set_id(status_.session);
+  v1::CreateSessionResponse where;
+  grpc::ClientContext ctx;
+  remote_.Prepare(ctx, std::min(config_.rpc_timeout_s, 1.0));
+  const grpc::Status s = stub->Join(&ctx, ref, &where);
+  if (!s.ok())
+    return Error{ErrorCode::kUnavailable, "cannot ask where the session runs: " + Describe(s),
+                 "session"};
+  auto host = ResolveHost(where.udp_host());
+  if (!host.ok()) return host.error();
+  const auto port = static_cast<uint16_t>(where.udp_port());
+  if (*host == channel_options_.server_address && port == channel_options_.server_port)
+    return false;  // where it was: only slow
+  if (where.session_key().size() != 32 || where.session().id() != status_.session)
+    return Error{ErrorCode::kUnavailable, "the server sent no usable session key", "session"};
+  StationOptions options = channel_options_;
+  options.server_address = *host;
+  options.server_port = port;
+  std::copy(where.session_key().begin(), where.session_key().end(), options.key.begin());
+  StopChannel();  // the old channel's figures are kept; the device at zero force meanwhile
+  auto channel = StationChannel::Create(options, device_);
+  if (!channel.ok()) {
+    Drop("cannot follow session " + std::to_string(status_.session) +
+         " to its new node: " + channel.error().message);
+    return channel.error();
+  }
+  channel_options_ = options;
+  {
+    std::lock_guard lock(mutex_);
+    channel_ = std::move(*channel);
+    ++status_.generation;
+    ++status_.moves;
+    status_.last_error.clear();
+  }
+  last_received_ = 0;
+  last_progress_ = Now();
+  return true;
 }
 
 // Only the ticking thread changes status_ and channel_ (under mutex_, for the readers), so it

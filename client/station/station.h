@@ -11,9 +11,12 @@
 //   any ──Finish──▶ finished (the session stopped and recorded; the device at zero force)
 //
 // Meanwhile the channel's watchdog has faded the force to zero (20 ms + 50 ms), and while
-// reconnecting no channel runs and the device holds zero force. A session is not resumed
-// across a server restart: the server aborted it and recorded it; the station starts a new one
-// (a new session id and key), and the render side resets the tissue (generation()).
+// reconnecting no channel runs and the device holds zero force. A session that is still live
+// but silent may have moved to another node (a draining node's live migration): the probe asks
+// where it runs (Join) and, when that is somewhere else, the station follows it there with the
+// same session and key (live → live, a new channel; the trial goes on where it was). A session is
+// not resumed across a server restart: the server aborted it and recorded it; the station starts a
+// new one (a new session id and key), and the render side resets the tissue (generation()).
 //
 // Threads: Tick runs on one thread at a time: the station's supervisor thread (StartSupervisor:
 // every tick_s, so a render thread stalled for seconds by a first frame or a slow driver never
@@ -70,8 +73,9 @@ const char* StationStateName(StationState s);
 struct StationStatus {
   StationState state = StationState::kConnecting;
   uint64_t session = 0;     // the current (or last) session id
-  uint64_t generation = 0;  // counts sessions started by this station
+  uint64_t generation = 0;  // counts channels: sessions started, and each move of one
   int reconnects = 0;       // sessions started again after the server went away
+  int moves = 0;            // times the session moved to another node and the station followed
   std::string last_error;   // why the last attempt or probe failed
 };
 
@@ -131,6 +135,8 @@ class Station {
  private:
   Status Connect();
   void Probe(double now);
+  // The session is live: when it now runs at another UDP address, a channel there. True: moved.
+  Expected<bool> Follow();
   void StopChannel();  // keeps its statistics in finished_stats_
   void Drop(const std::string& why);
   double Now() const;
@@ -147,6 +153,7 @@ class Station {
   bool supervising_ = false;
   std::thread supervisor_;
   double next_attempt_ = 0, last_progress_ = 0, last_probe_ = 0;
+  StationOptions channel_options_;  // the running channel's (ticking thread)
   uint64_t last_received_ = 0;
 };
 

@@ -43,6 +43,10 @@ struct ProxyState {
   double penetration = 0;                              // m, (SCP − HIP)·n, ≥ 0 in contact
   Vec3 force = Vec3::Zero();                           // N, before device limits
   Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();  // N/m
+  template <class A>
+  void Persist(A& a) {
+    a(contact, scp, normal, triangle, barycentric, penetration, force, jacobian);
+  }
 };
 
 class ProxyContact {
@@ -55,6 +59,11 @@ class ProxyContact {
   void Reset();
   const ProxyState& state() const { return state_; }
   const ProxyParams& params() const { return params_; }
+  // The contact's state (common/core/state_archive.h), not its parameters.
+  template <class A>
+  void Persist(A& a) {
+    a(state_, last_hip_, has_last_, last_x_);
+  }
 
  private:
   explicit ProxyContact(const ProxyParams& p) : params_(p) {}

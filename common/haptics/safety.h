@@ -58,6 +58,11 @@ class SafetyFilter {
 
   const DeviceLimits& limits() const { return limits_; }
   bool armed() const { return armed_; }
+  // The filter's state (common/core/state_archive.h), not its limits.
+  template <class A>
+  void Persist(A& a) {
+    a(last_, quiet_, quiet_time_, armed_, armed_time_, ramp_);
+  }
 
  private:
   SafetyFilter(const DeviceLimits& l, const GateParams& g) : limits_(l), gate_(g) {}

@@ -92,6 +92,16 @@ class TrialRecorder {
   void Add(double time, const Eigen::Vector3d& tip, double quantity, double force, bool overload);
   TrialMetrics Finish() const;
   const TaskSpec& task() const { return task_; }
+  // The recorder's state (common/core/state_archive.h): a session moved to another node goes on
+  // recording where it was. The task is not part of it (the receiver builds it from the scene).
+  // Every member below but task_ is listed.
+  template <class A>
+  void Persist(A& a) {
+    a(samples_, t0_, t_last_, last_quantity_, filtered_, x_, grid_, next_grid_, last_tip_, history_,
+      history_size_, history_next_, velocity_, velocity_known_, jerk2_, path_, peak_, over_,
+      was_overloaded_, overloads_, in_window_, window_start_, completed_, completion_,
+      error_at_completion_);
+  }
 
  private:
   // Low-passes a piece of path along which the tip moves linearly from u0 (t0) to u1 (t1);
@@ -115,6 +125,10 @@ class TrialRecorder {
   struct Sample {
     double time = 0;
     Eigen::Vector3d tip = Eigen::Vector3d::Zero();
+    template <class A>
+    void Persist(A& a) {
+      a(time, tip);
+    }
   };
   static constexpr int kHistory = 32;
   Sample history_[kHistory];

@@ -9,6 +9,7 @@
 #include <mutex>
 #include <numbers>
 
+#include "common/core/state_archive.h"
 #include "common/sim/rooms/room_support.h"
 #include "common/tissue/reduced_cache.h"
 
@@ -295,6 +296,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
             room_);
         if (grasped) {
           grasping_ = true;
+          grasp_query_ = q;
           events |= haptics::kEventGraspStart;
           ++input_.grasp_id;
           input_.grasping = true;
@@ -434,6 +436,135 @@ void Simulation::Replay(
     }
     if (on_command) on_command(sample, c);
   }
+}
+
+namespace {
+
+// The snapshot's header: a format version (raised whenever any Persist list changes), then what
+// the receiver must have built the same way.
+constexpr uint32_t kStateMagic = 0x4D495356;  // "VSIM"
+constexpr uint32_t kStateVersion = 1;
+
+}  // namespace
+
+std::string Simulation::SaveState() {
+  StateWriter w;
+  w(kStateMagic, kStateVersion, scene_.name, static_cast<uint64_t>(rest_.positions.size()),
+    static_cast<uint64_t>(rest_.triangles.size()), static_cast<uint64_t>(room_.index()));
+  // The haptic side.
+  w(recorder_, samples_, port_force_, port_x_, port_has_x_, released_j_, absorbed_j_,
+    telemetry_grasping_, live_score_, input_, last_time_, trial_time_, clock_jumps_, has_time_,
+    grasping_, grasp_q0_, axis_, axis_point_, lever_, rest_contact_, rest_normal_, last_contact_,
+    grasp_query_, proxy_, safety_);
+  // The surface the haptic path answers from (the latest published).
+  surface_.Acquire();
+  const Snapshot& snap = surface_.Front();
+  w(snap.positions, snap.overload, snap.outside_model);
+  // The model's own state.
+  std::visit(
+      [&](const auto& room) {
+        if constexpr (requires { room.Save(w); }) room.Save(w);
+      },
+      room_);
+  return w.Take();
+}
+
+Status Simulation::RestoreState(std::string_view bytes) {
+  const auto refuse = [&](const std::string& why) {
+    return Error{ErrorCode::kFailedPrecondition,
+                 "cannot take over a session of scene '" + scene_.name + "': " + why, "state"};
+  };
+  StateReader r(bytes);
+  uint32_t magic = 0, version = 0;
+  std::string scene;
+  uint64_t vertices = 0, triangles = 0, kind = 0;
+  r(magic, version);
+  if (!r.ok() || magic != kStateMagic) return refuse("not a simulation's state");
+  if (version != kStateVersion)
+    return refuse("its state is of format " + std::to_string(version) + ", this server reads " +
+                  std::to_string(kStateVersion));
+  r(scene, vertices, triangles, kind);
+  if (!r.ok() || scene != scene_.name || vertices != rest_.positions.size() ||
+      triangles != rest_.triangles.size() || kind != room_.index())
+    return refuse("it was built from another scene, mesh or model ('" + scene + "')");
+  // Read into a copy of the haptic side and commit only a whole read.
+  scoring::TrialRecorder recorder = recorder_;
+  haptics::ProxyContact proxy = proxy_;
+  haptics::SafetyFilter safety = safety_;
+  DeformInput input;
+  GraspQuery grasp_query;
+  uint64_t samples = 0, clock_jumps = 0;
+  Vec3 port_force, port_x, axis, axis_point, rest_contact, rest_normal;
+  bool port_has_x = false, telemetry_grasping = false, has_time = false, grasping = false,
+       last_contact = false;
+  double released = 0, absorbed = 0, live_score = 0, last_time = 0, trial_time = 0, lever = 0;
+  Eigen::Quaterniond grasp_q0;
+  r(recorder, samples, port_force, port_x, port_has_x, released, absorbed, telemetry_grasping,
+    live_score, input, last_time, trial_time, clock_jumps, has_time, grasping, grasp_q0, axis,
+    axis_point, lever, rest_contact, rest_normal, last_contact, grasp_query, proxy, safety);
+  std::vector<Vec3> positions(rest_.positions.size());
+  bool overload = false, outside_model = false;
+  r(positions, overload, outside_model);
+  if (!r.ok()) return refuse("its state does not read back whole");
+  for (size_t i = 0; i < positions.size(); ++i)  // a surface within a metre of rest
+    if ((positions[i] - rest_.positions[i]).squaredNorm() > 1.0)
+      return refuse("its surface is out of range for the scene");
+  const int n_tri = rest_.TriangleCount(), n_vert = rest_.VertexCount();
+  const auto bad_triangle = [&](int t) { return t < -1 || t >= n_tri; };
+  if (bad_triangle(input.triangle) || bad_triangle(grasp_query.triangle) ||
+      bad_triangle(proxy.state().triangle) || input.grasp_vertex < -1 ||
+      input.grasp_vertex >= n_vert || !(lever > 0) || !(grasp_q0.norm() > 0.5) ||
+      (grasping && grasp_query.triangle < 0))
+    return refuse("its state is out of range for the scene");
+  // The model's own state, into the room as built (a failed read leaves it to be rebuilt).
+  bool room_ok = true;
+  std::visit(
+      [&](auto& room) {
+        if constexpr (requires { room.Load(r); }) room_ok = room.Load(r);
+      },
+      room_);
+  if (!room_ok || !r.done()) {
+    const Status rebuilt = Build();  // back to the room as Create made it
+    return rebuilt.ok() ? refuse("its model state does not read back whole") : rebuilt;
+  }
+  if (grasping) {  // the room's haptic side of the grasp (surface twist: the jaws' stiffness)
+    GraspFrame frame;
+    std::visit(
+        [&](auto& room) {
+          if constexpr (requires { room.StartGrasp(grasp_query, frame); })
+            room.StartGrasp(grasp_query, frame);
+        },
+        room_);
+  }
+  recorder_ = recorder;
+  proxy_ = proxy;
+  safety_ = safety;
+  samples_ = samples;
+  port_force_ = port_force;
+  port_x_ = port_x;
+  port_has_x_ = port_has_x;
+  released_j_ = released;
+  absorbed_j_ = absorbed;
+  telemetry_grasping_ = telemetry_grasping;
+  live_score_ = live_score;
+  input_ = input;
+  last_time_ = last_time;
+  trial_time_ = trial_time;
+  clock_jumps_ = clock_jumps;
+  has_time_ = has_time;
+  grasping_ = grasping;
+  grasp_q0_ = grasp_q0;
+  axis_ = axis;
+  axis_point_ = axis_point;
+  lever_ = lever;
+  rest_contact_ = rest_contact;
+  rest_normal_ = rest_normal;
+  last_contact_ = last_contact;
+  grasp_query_ = grasp_query;
+  Publish(positions, overload, outside_model);
+  surface_.Acquire();
+  PublishInput();  // the deformation goes on from the carried input
+  return Status::Ok();
 }
 
 std::string Simulation::CacheDirectory() const {

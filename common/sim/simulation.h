@@ -40,6 +40,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -130,6 +131,20 @@ class Simulation final : private DeformationPool::Member {
   // Deformation updates published so far (any thread).
   uint64_t deformation_updates() const { return updates_.load(std::memory_order_relaxed); }
 
+  // Live migration (server/cluster/: a draining node hands its sessions to other nodes). The
+  // whole state a trainee's trial goes on from, as bytes: the trial clock and recorder, the
+  // proxy, the safety filter's arming and ramp, the grasp, the port energies, the surface the
+  // haptic path answers from, and the tissue model's own state where it has one beyond its input
+  // (the mass-spring's particles, the ring layer's rings; the quasi-static models' surface is a
+  // function of the input, which is carried). Neither concurrently with OnStylus nor with a
+  // deformation: the caller has stopped both (the session is out of the endpoint and its
+  // deformation is off).
+  std::string SaveState();
+  // A new simulation of the same scene (built by Create, not yet driven) set to a SaveState's
+  // bytes; before the deformation runs. Refused, and the simulation left as it was built, when
+  // the bytes are of another format version, scene, mesh or model, or do not read back whole.
+  Status RestoreState(std::string_view bytes);
+
  private:
   struct Snapshot {
     std::vector<geometry::Vec3> positions;
@@ -191,6 +206,7 @@ class Simulation final : private DeformationPool::Member {
   double lever_ = 0.03;
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
+  GraspQuery grasp_query_;  // the current grasp's (a restored grasp asks its room again)
 
   // The tissue model (common/sim/tissue_room.h): its haptic-side queries run on the haptic
   // thread, its Deform on the deformation side; each room keeps the two sides' state apart.

@@ -418,6 +418,21 @@ void MassSpringModel::Reset() {
   lanes_ = false;
 }
 
+Status MassSpringModel::SetState(const std::vector<Vec3>& x, const std::vector<Vec3>& v) {
+  if (x.size() != x_.size() || v.size() != v_.size())
+    return InvalidArgument("state", "the state is of another number of particles");
+  const double limit2 = params_.divergence_distance * params_.divergence_distance;
+  for (size_t i = 0; i < x.size(); ++i)
+    if (!x[i].allFinite() || !v[i].allFinite() ||
+        (x[i] - sys_.rest_positions[i]).squaredNorm() > limit2)
+      return InvalidArgument("state", "a particle's state is not finite or beyond divergence");
+  Reset();
+  std::copy(x.begin(), x.end(), x_.begin());
+  std::copy(v.begin(), v.end(), v_.begin());
+  for (int i : kinematic_) kin_target_[i] = x_[i];
+  return Status::Ok();
+}
+
 bool MassSpringModel::CheckFinite() const {
   const double limit2 = params_.divergence_distance * params_.divergence_distance;
   for (size_t i = 0; i < x_.size(); ++i) {

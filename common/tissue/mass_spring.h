@@ -151,6 +151,10 @@ class MassSpringModel {
   bool Step(double dt, int substeps = 1);
   // Back to rest: positions at rest, velocities zero, divergence flag cleared.
   void Reset();
+  // Every particle's position (m) and velocity (m/s), as from positions() and velocities() (live
+  // migration): sizes must match and values be finite, positions within divergence_distance of
+  // rest. The solver's warm start begins afresh, as after Reset.
+  Status SetState(const std::vector<Vec3>& x, const std::vector<Vec3>& v);
 
   const std::vector<Vec3>& positions() const { return x_; }
   const std::vector<Vec3>& velocities() const { return v_; }

@@ -62,6 +62,11 @@ class RingLayerModel {
   const std::vector<geometry::Vec3>& positions() const { return deformed_; }
   double PotentialEnergy() const;  // J
   double KineticEnergy() const;    // J
+  // The rings' motion (common/core/state_archive.h); the rings themselves come from Create.
+  template <class A>
+  void Persist(A& a) {
+    a(u_, v_, drive_by_displacement_, drive_, contact_force_, deformed_);
+  }
 
  private:
   RingLayerModel() = default;

@@ -137,7 +137,10 @@ struct NodeOptions {
   std::string control;    // the control plane's internal API: host:port[,host:port…]
   std::string udp_host;   // what stations are told to send to
   int udp_port = 0;
-  int capacity = 24;       // live sessions this node takes
+  int capacity = 24;  // live sessions this node takes
+  // On Drain, hand the live sessions to other nodes (live migration) before waiting for the
+  // rest to finish; false: wait for all of them (--drain-wait).
+  bool migrate_on_drain = true;
   ClusterOptions cluster;  // token, listen, heartbeat period, lease margin
   // The lease this agent acquires and renews; the node's endpoint and session manager read it.
   // Required; must outlive the agent.
@@ -151,9 +154,12 @@ class NodeAgent {
   ~NodeAgent();  // Shutdown()
   int port() const;
   int health_port() const;  // the plaintext health check's (0: none)
-  // No new sessions from now on (the heartbeat says so at once); returns when the live ones
-  // have finished or `timeout_s` passed (they are then left to the shutdown, which aborts them).
-  void Drain(double timeout_s);
+  // No new sessions from now on (the heartbeat says so at once); then (migrate_on_drain) each
+  // live session is handed to another node through the control plane (ClusterService.Migrate:
+  // its station fades for the move and follows it, server/session/session_manager.h
+  // BeginMove); returns when the sessions no node took have finished or `timeout_s` passed (they
+  // are then left to the shutdown, which aborts them). Returns how many moved.
+  int Drain(double timeout_s);
   void Shutdown();
   // For a scrape: the lease as this node holds it (held, epoch, seconds left on its own clock),
   // draining, and the heartbeats refused or unanswered. Any thread.

@@ -38,6 +38,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   mutable std::mutex placements_mutex;
   std::map<std::string, uint64_t> placed;
   std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, invalid_request, node_failed
+  std::map<std::string, uint64_t> migrations;  // moved, refused (by a node), no_room
   void Count(std::map<std::string, uint64_t>& m, const std::string& key) {
     std::lock_guard lock(placements_mutex);
     ++m[key];
@@ -308,6 +309,59 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
                           {"address", n.grpc_address},
                           {"leftovers_aborted", lease->aborted}});
     return grpc::Status::OK;
+  }
+
+  // A draining node's session to another node: placed as a new session is (the least loaded
+  // node up, not draining, with room; a node that refuses is skipped for the next), and adopted
+  // there. The adopting node makes the store's row its own (Store::MoveSession, fenced by both
+  // nodes' epochs), so a sender the site gave up on moves nothing.
+  grpc::Status Migrate(grpc::ServerContext* ctx, const v1::NodeHandoff* req,
+                       v1::NodeMoved* out) override {
+    if (grpc::Status s = Allowed(*ctx, req->from_node()); !s.ok()) return s;
+    auto row = store.GetSession(static_cast<int64_t>(req->id()));
+    if (!row.ok()) return ToGrpc(row.error());
+    if (row->node != req->from_node() || !vsurg::IsLive(row->state))
+      return grpc::Status(
+          grpc::StatusCode::FAILED_PRECONDITION,
+          "session " + std::to_string(req->id()) + " is not live on node " + req->from_node());
+    std::vector<std::string> tried_nodes{req->from_node()};
+    std::string tried;
+    size_t with_room = 0;
+    for (;;) {
+      const uint64_t answered_before = AnsweredCount();
+      auto nodes = store.ListNodes();
+      if (!nodes.ok()) return ToGrpc(nodes.error());
+      auto rows = store.LiveSessionNodes();
+      if (!rows.ok()) return ToGrpc(rows.error());
+      const auto reserved = Reserve(*nodes, *rows, answered_before, tried_nodes, with_room);
+      if (!reserved) break;
+      tried_nodes.push_back(reserved->name);
+      v1::NodeSession reply;
+      auto call = CallContext(options.token, options.create_timeout_s);
+      const grpc::Status s = StubFor(*reserved).Adopt(call.get(), *req, &reply);
+      Release(reserved->name, s.ok() ? std::optional<int64_t>(reply.session().id()) : std::nullopt);
+      if (s.ok()) {
+        Count(migrations, "moved");
+        out->set_node(reserved->name);
+        out->set_udp_host(reply.udp_host());
+        out->set_udp_port(reply.udp_port());
+        Log("session_migrated",
+            {{"session", req->id()}, {"from", req->from_node()}, {"to", reserved->name}});
+        return grpc::Status::OK;
+      }
+      Count(migrations, "refused");
+      tried += (tried.empty() ? "" : "; ") + reserved->name + ": " + s.error_message();
+      // The session or the sender is the reason (the session ended meanwhile, the sender lost
+      // its lease): no other node would do better.
+      if (s.error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
+          s.error_message().find("move refused") != std::string::npos)
+        return s;
+    }
+    Count(migrations, "no_room");
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                        "no other simulation node takes session " + std::to_string(req->id()) +
+                            " (" + std::to_string(with_room) + " with room" +
+                            (tried.empty() ? "" : ": " + tried) + ")");
   }
 
   grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::NodeHeartbeat* req,
@@ -884,6 +938,14 @@ void ClusterSessions::Collect(ops::MetricsText& m) const {
       const auto it = d.refused.find(reason);
       m.Sample("vsurg_placement_refusals_total", {{"reason", reason}},
                it == d.refused.end() ? 0.0 : static_cast<double>(it->second));
+    }
+    m.Family("vsurg_migrations_total", "counter",
+             "Live sessions a draining node handed over through this replica, by outcome: moved "
+             "(adopted by another node), refused (a node refused; another was tried), no_room.");
+    for (const char* outcome : {"moved", "refused", "no_room"}) {
+      const auto it = d.migrations.find(outcome);
+      m.Sample("vsurg_migrations_total", {{"outcome", outcome}},
+               it == d.migrations.end() ? 0.0 : static_cast<double>(it->second));
     }
   }
   m.Family("vsurg_telemetry_streams", "gauge",

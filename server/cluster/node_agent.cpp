@@ -207,6 +207,46 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     }
   }
 
+  // Live migration: each live session handed to another node through the control plane, one
+  // at a time (each is out of service only for its own move). One that no node takes serves on
+  // here. Returns how many moved.
+  int MigrateAll() {
+    int moved = 0, kept = 0;
+    for (uint64_t id : sessions.LiveIds()) {
+      if (!lease.Valid()) break;  // the site no longer counts on this node: nothing to hand over
+      const auto t0 = std::chrono::steady_clock::now();
+      auto handoff = sessions.BeginMove(id);
+      if (!handoff.ok()) continue;  // ended meanwhile
+      v1::NodeHandoff req;
+      req.set_from_node(options.name);
+      req.set_id(id);
+      req.set_state(handoff->Bytes());
+      v1::NodeMoved reply;
+      // Longer than the control plane's own deadline for the adoption (create_timeout_s), after
+      // which the adopting node commits nothing: an answer that does not come in this time is a
+      // move that did not happen, unless the store says otherwise (CancelMove reads it).
+      auto ctx = CallContext(options.cluster.token,
+                             2 * options.cluster.create_timeout_s + options.cluster.call_timeout_s);
+      const grpc::Status s = control->Migrate(ctx.get(), req, &reply);
+      const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                          std::chrono::steady_clock::now() - t0)
+                          .count();
+      if (s.ok()) {
+        sessions.FinishMove(id);
+        ++moved;
+        Log(options.name, "session_migrated",
+            {{"session", id}, {"to", reply.node()}, {"bytes", req.state().size()}, {"ms", ms}});
+      } else {
+        sessions.CancelMove(id);  // serves here again, unless the store says it moved
+        ++kept;
+        Log(options.name, "session_migration_failed",
+            {{"session", id}, {"error", s.error_message()}, {"ms", ms}});
+      }
+    }
+    Log(options.name, "migrated", {{"moved", moved}, {"kept", kept}});
+    return moved;
+  }
+
   // --- NodeService ---
   // Only the control plane calls a node: the site's token, and with TLS a control replica's
   // certificate (a node's own, or another node's, is refused).
@@ -279,6 +319,31 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     auto trace = sessions.Trace(req->id());
     if (!trace.ok()) return grpcapi::ToGrpcStatus(trace.error());
     out->set_json(std::move(trace).value());
+    return grpc::Status::OK;
+  }
+  grpc::Status Adopt(grpc::ServerContext* ctx, const v1::NodeHandoff* req,
+                     v1::NodeSession* out) override {
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
+    if (draining)
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "node " + options.name + " is draining: no new sessions");
+    auto handoff = SessionHandoff::FromBytes(req->state());
+    if (!handoff.ok()) return grpcapi::ToGrpcStatus(handoff.error());
+    if (handoff->id != static_cast<int64_t>(req->id()) || handoff->from_node != req->from_node())
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          "the handoff is of another session or node than the request names");
+    const auto t0 = std::chrono::steady_clock::now();
+    // Committed only before the control plane's deadline: past it, the sender (which waits
+    // longer) may already have taken the session back.
+    auto c = sessions.Adopt(*handoff, ctx->deadline());
+    if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
+    Log(options.name, "session_adopted",
+        {{"session", c->record.id},
+         {"from", req->from_node()},
+         {"ms", std::chrono::duration_cast<std::chrono::milliseconds>(
+                    std::chrono::steady_clock::now() - t0)
+                    .count()}});
+    ToProto(*c, true, out);
     return grpc::Status::OK;
   }
   grpc::Status EndSessionsOf(grpc::ServerContext* ctx, const v1::NodeUserRequest* req,
@@ -451,7 +516,7 @@ void NodeAgent::Collect(ops::MetricsText& m) const {
            static_cast<double>(impl_->beats_failed.load(std::memory_order_relaxed)));
 }
 
-void NodeAgent::Drain(double timeout_s) {
+int NodeAgent::Drain(double timeout_s) {
   impl_->draining = true;
   {
     std::lock_guard lock(impl_->beat_mutex);
@@ -462,9 +527,12 @@ void NodeAgent::Drain(double timeout_s) {
       {{"live", impl_->sessions.LiveCount()}, {"timeout_s", timeout_s}});
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6));
+  int moved = 0;
+  if (impl_->options.migrate_on_drain) moved = impl_->MigrateAll();
   while (impl_->sessions.LiveCount() > 0 && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  Log(impl_->options.name, "drained", {{"live", impl_->sessions.LiveCount()}});
+  Log(impl_->options.name, "drained", {{"live", impl_->sessions.LiveCount()}, {"moved", moved}});
+  return moved;
 }
 
 void NodeAgent::Shutdown() {

@@ -98,6 +98,9 @@ struct LinkStats {
   std::atomic<double> first_seen_s{-1};  // endpoint clock, s; −1: nothing applied yet
   // The station's own account of what it rendered, and its jitter (StylusMessage); 0: none.
   std::atomic<double> rendered_peak_n{0}, rendered_over_limit_s{0}, jitter_us{0};
+  // Seconds of the trial served by the nodes before this one (live migration): the rate is
+  // applied datagrams over this span plus this node's.
+  std::atomic<double> carried_s{0};
 };
 
 struct SessionEvent {

@@ -19,6 +19,10 @@
 //  live → ended                      Stop       (removed from the endpoint, metrics recorded)
 //  live → aborted                    Shutdown, EndSessionsOf (the user lost access)
 //  live → (dropped, not written)     AbandonAll (a node's lease lost: the site aborted them)
+//  live → moving → (gone, not written) BeginMove, FinishMove (live migration: another node
+//                                    adopted it, and the store's row says so)
+//  moving → live                     CancelMove (no node took it: it serves here again)
+//  (none) → live, as it was          Adopt (a session moved from another node)
 //
 // Invariants
 //  1. A session is in the endpoint exactly while it is running or stalled.
@@ -33,11 +37,15 @@
 //  6. A trainee has at most max_sessions_per_user live sessions; the server at most
 //     max_live_sessions. A session never started expires; one started and never driven is
 //     disconnected by the endpoint (no stylus for 5 s).
+//  7. A moving session is out of the endpoint (its station's datagrams go unanswered; the
+//     station fades) and its simulation stands still; it is neither ended nor pumped, and a Stop
+//     meanwhile is refused (kUnavailable: the control plane's next try reaches its new node).
 //
 // Threads: Create/Start/Stop/Get/List from any thread (gRPC); one sampler thread runs Pump and
 // Sample at the telemetry rate and is the only reader of each simulation's telemetry.
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
@@ -61,6 +69,28 @@
 #include "server/session/trace_recorder.h"
 
 namespace vsurg::server {
+
+// A live session on its way from one node to another (live migration; server/cluster/): what the
+// receiving node needs to serve it on from where it was, sent as bytes (Bytes, FromBytes).
+struct SessionHandoff {
+  int64_t id = 0;
+  std::string trainee, scene;
+  SessionState state = SessionState::kCreated;  // a live state
+  int64_t created_us = 0, started_us = 0;
+  std::string key;  // the station's session key, 32 bytes
+  scoring::TaskSettings task;
+  std::string simulation;  // sim::Simulation::SaveState
+  std::string trace;       // the TraceRecorder's state
+  // The link so far (LinkStats): datagrams applied and lost, the span they came over (s), the
+  // station's last round trip and jitter (µs) and its rendered peak and time over the limit.
+  uint64_t applied = 0, lost = 0;
+  double span_s = 0, rtt_us = 0, jitter_us = 0, rendered_peak_n = 0, rendered_over_limit_s = 0;
+  std::string from_node;
+  int64_t from_epoch = 0;
+
+  std::string Bytes() const;
+  static Expected<SessionHandoff> FromBytes(std::string_view bytes);
+};
 
 struct SessionManagerOptions {
   std::string udp_host = "127.0.0.1";  // what stations are told to send to
@@ -114,13 +144,33 @@ class SessionManager final : public Sessions {
   int EndSessionsOf(const std::string& user, const std::string& reason) override;
   uint64_t Subscribe(uint64_t session, Subscriber fn) override;
   void Unsubscribe(uint64_t token) override;
-  // Live sessions now (a simulation node's load report).
+  // Live sessions now (a simulation node's load report), and their ids.
   int LiveCount() const;
+  std::vector<uint64_t> LiveIds() const;
   // The node lost its lease (the control plane declared it down, or a newer process took its
   // name): every live session is dropped here, without a store write (the store refuses them;
   // the control plane has aborted those sessions already) and without trial metrics. Returns
   // how many were dropped. Any thread.
   int AbandonAll(const std::string& reason);
+
+  // Live migration (a draining node's sessions to other nodes; server/cluster/node_agent.cpp).
+  // BeginMove takes a live session out of service here and returns its state (invariant 7);
+  // then exactly one of FinishMove (another node adopted it: it is forgotten here, unwritten)
+  // or CancelMove (no answer said so: it serves here again, unless the store's row names another
+  // node now or the session has ended, when it is forgotten as by FinishMove; a store that does
+  // not answer leaves it here). kNotFound: not live here; kFailedPrecondition: moving already.
+  Expected<SessionHandoff> BeginMove(uint64_t id);
+  void FinishMove(uint64_t id);
+  void CancelMove(uint64_t id);
+  // A session moved here from another node: its simulation built and set to the handoff's state,
+  // the store's row made this node's (Store::MoveSession, fenced by both nodes' epochs), then
+  // served in the state it had (a started one in the endpoint, under the same key). Refused
+  // without a lease, at max_live_sessions, or when the state is not one this server reads.
+  // Nothing is committed after `deadline` (the control plane's for the call: past it the
+  // sender may have taken the session back).
+  Expected<CreatedSession> Adopt(const SessionHandoff& handoff,
+                                 std::chrono::system_clock::time_point deadline =
+                                     std::chrono::system_clock::time_point::max());
 
   // Aborts every live session (metrics recorded), stops the sampler. Idempotent.
   void Shutdown() override;
@@ -133,12 +183,17 @@ class SessionManager final : public Sessions {
     SessionState state = SessionState::kCreated;  // a live state
     db::SessionRecord record;
     SessionTelemetry latest;
-    uint64_t rate_samples = 0;  // the rate window's start: samples applied by then,
-    double rate_time = -1;      // and the station's clock (s); −1: none yet
-    double created_s = 0;       // clock_, for start_timeout_s
-    int64_t epoch = 0;          // the lease's when created: every store write carries it
-    TraceRecorder trace;        // the session's record (sampler thread, under mutex_)
+    uint64_t rate_samples = 0;   // the rate window's start: samples applied by then,
+    double rate_time = -1;       // and the station's clock (s); −1: none yet
+    double created_s = 0;        // clock_, for start_timeout_s
+    int64_t epoch = 0;           // the lease's when created: every store write carries it
+    TraceRecorder trace;         // the session's record (sampler thread, under mutex_)
+    scoring::TaskSettings task;  // the settings the session was created with
+    bool moving = false;         // BeginMove .. FinishMove or CancelMove (invariant 7)
   };
+  // The scene by name with the task settings applied, its simulation built (not driven).
+  Expected<std::unique_ptr<sim::Simulation>> BuildSimulation(const std::string& scene_name,
+                                                             const scoring::TaskSettings& task);
   SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
   // `retry`: the sampler's own ends (Pump), whose write is kept and made again while the store is
   // unavailable (sampler thread only).

@@ -131,4 +131,13 @@ std::string TraceRecorder::Json() const {
       .dump();
 }
 
+bool TraceRecorder::Consistent() const {
+  if (samples_.size() > kMaxSamples || frames_.size() > kMaxFrames || sample_stride_ == 0 ||
+      frame_stride_ == 0)
+    return false;
+  for (const Frame& f : frames_)
+    if (f.displacement.size() != 3 * rest_.size()) return false;
+  return true;
+}
+
 }  // namespace vsurg::server

@@ -54,15 +54,32 @@ class TraceRecorder {
   //  "triangles": [...]}, "frames": {"time_s": [...], "unit_mm": 0.01, "vertices": V,
   //  "deflated": "b64 of deflate(frame 0, frame 1 − frame 0, …)"}}
   std::string Json() const;
+  // The record so far (common/core/state_archive.h; live migration), not the rest surface: the
+  // receiver sets that from its own simulation first. Loaded series are checked against it.
+  template <class A>
+  void Persist(A& a) {
+    a(samples_, samples_seen_, sample_stride_, last_time_, frames_, last_frame_time_, frames_seen_,
+      frame_stride_);
+  }
+  // After a Persist read: the series within their bounds and each frame of this rest's size.
+  bool Consistent() const;
 
  private:
   struct Sample {
     double time_s;
     float values[sim::kTelemetryFieldCount];
+    template <class A>
+    void Persist(A& a) {
+      a(time_s, values);
+    }
   };
   struct Frame {
     double time_s;
     std::vector<int16_t> displacement;  // 3 per vertex, units of kFrameUnitM
+    template <class A>
+    void Persist(A& a) {
+      a(time_s, displacement);
+    }
   };
   // Appends `x` (the `seen`-th offered) when it falls on the stride; halves a full series.
   template <typename T>

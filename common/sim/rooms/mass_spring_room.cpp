@@ -1,5 +1,7 @@
 #include "common/sim/rooms/mass_spring_room.h"
 
+#include "common/core/state_archive.h"
+
 namespace vsurg::sim {
 
 Expected<MassSpringRoom> MassSpringRoom::Build(const RoomInputs& in) {
@@ -40,6 +42,16 @@ std::optional<Deformed> MassSpringRoom::Deform(const DeformInput& in) {
   }
   if (!model_->Step(dt_)) model_->Reset();  // a divergence is reset to rest, never NaN
   return Deformed{&model_->positions(), false, false};
+}
+
+void MassSpringRoom::Save(StateWriter& w) const {
+  w(model_->positions(), model_->velocities());
+}
+
+bool MassSpringRoom::Load(StateReader& r) {
+  std::vector<geometry::Vec3> x(model_->positions().size()), v(model_->velocities().size());
+  r(x, v);
+  return r.ok() && model_->SetState(x, v).ok();
 }
 
 }  // namespace vsurg::sim

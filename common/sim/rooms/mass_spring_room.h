@@ -20,6 +20,9 @@ class MassSpringRoom {
   static Expected<MassSpringRoom> Build(const RoomInputs& in);
   // Deformation thread: one step of region.dt with the contact's anchors.
   std::optional<Deformed> Deform(const DeformInput& in);
+  // Its state (live migration): every particle's position and velocity.
+  void Save(StateWriter& w) const;
+  bool Load(StateReader& r);
 
  private:
   // Deformation thread only.

@@ -19,6 +19,9 @@ class RingLayerRoom {
   static Expected<RingLayerRoom> Build(const RoomInputs& in);
   // Deformation thread. A new contact builds its rings (allocates: once per contact).
   std::optional<Deformed> Deform(const DeformInput& in);
+  // Its state (live migration): the contact's rings and their motion.
+  void Save(StateWriter& w) const;
+  bool Load(StateReader& r);
 
  private:
   // Deformation thread only.
@@ -28,6 +31,9 @@ class RingLayerRoom {
   std::vector<double> masses_;  // kg, per surface vertex
   std::unique_ptr<tissue::RingLayerModel> ring_;
   uint64_t seen_contact_ = 0;
+  int ring_triangle_ = -1;  // where the rings were built
+  geometry::Vec3 ring_barycentric_ = geometry::Vec3::Zero();
+  void BuildRings(int triangle, const geometry::Vec3& barycentric);
 };
 
 }  // namespace vsurg::sim

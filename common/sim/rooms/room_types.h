@@ -9,6 +9,11 @@
 #include "common/geometry/mesh.h"
 #include "common/sim/scene.h"
 
+namespace vsurg {
+class StateWriter;
+class StateReader;
+}  // namespace vsurg
+
 namespace vsurg::sim {
 
 // What a room is built from: what Simulation::Create made of the scene.
@@ -34,6 +39,11 @@ struct DeformInput {
   geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
   geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
   uint64_t contact_id = 0;                                  // changes at every new contact
+  template <class A>
+  void Persist(A& a) {  // common/core/state_archive.h
+    a(grasp_id, grasping, grasp_vertex, torque, grasp_point, triangle, barycentric, force_on_tissue,
+      hip, contact_id);
+  }
 };
 
 // A grasp asked for at the proxy (haptic thread).
@@ -43,6 +53,10 @@ struct GraspQuery {
   geometry::Vec3 point = geometry::Vec3::Zero();  // m, the proxy on the surface
   geometry::Vec3 normal = geometry::Vec3::UnitZ();
   double min_lever = 0.03;  // m
+  template <class A>
+  void Persist(A& a) {  // common/core/state_archive.h
+    a(triangle, barycentric, point, normal, min_lever);
+  }
 };
 
 // The grasp's twist axis, the point it passes through, the lever the torque acts on, and (surface
