@@ -284,15 +284,18 @@ class Store {
   // `fence.epoch`).
   Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene,
                                         const SessionFence& fence = {});
-  // A live session's next state. kNotFound: no such session; kFailedPrecondition: it is no
-  // longer live, or `epoch` is not its node's current one (design note 7).
+  // A live session's next state, written by the process `fence` names. kNotFound: no such
+  // session; kFailedPrecondition: it is no longer live, or it is not that node's at that epoch,
+  // or that node no longer holds that epoch (design note 7). The node is part of the fence:
+  // every node's epochs start at 1, and a session that moved (MoveSession) must not take a write
+  // from its old node at an equal epoch.
   Status SetSessionState(int64_t id, SessionState state, int64_t at_us,
-                         const std::string& reason = "", int64_t epoch = 0);
+                         const std::string& reason = "", const SessionFence& fence = {});
   // A live session ends (`state` not live) with its trial metrics, in one transaction, under the
   // same fence as SetSessionState: a trial is recorded once, by the process that ran it.
   // `trace_json` (server/session/trace_recorder.h; "" for none) is kept as the session's record.
   Status EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
-                    const scoring::TrialMetrics& m, int64_t epoch = 0,
+                    const scoring::TrialMetrics& m, const SessionFence& fence = {},
                     const std::string& trace_json = "");
   // Live migration: a live session of `from` (at `from_epoch`, its row's) becomes `to`'s (at
   // `to.epoch`), in one transaction fenced by both leases: refused (kFailedPrecondition) unless

@@ -109,14 +109,16 @@ Expected<std::pair<std::string, int64_t>> SessionOwner(Connection& c, int64_t id
 // Inside a write job: the fence of session `id` for a writer at `epoch`, then the state change,
 // only from a live state. kFailedPrecondition when the session is no longer live.
 Status ChangeLiveSession(Connection& c, int64_t id, SessionState state, int64_t at_us,
-                         const std::string& reason, int64_t epoch) {
+                         const std::string& reason, const SessionFence& fence) {
   auto owner = SessionOwner(c, id);
   if (!owner.ok()) return owner.error();
-  if (owner->second != epoch)
+  const int64_t epoch = fence.epoch;
+  if (owner->first != fence.node || owner->second != epoch)
     return Error{ErrorCode::kFailedPrecondition,
                  "session " + std::to_string(id) + " belongs to epoch " +
                      std::to_string(owner->second) + " of node '" + owner->first +
-                     "', not to epoch " + std::to_string(epoch) + ": write refused",
+                     "', not to epoch " + std::to_string(epoch) + " of '" + fence.node +
+                     "': write refused",
                  "epoch"};
   if (Status f = HoldFence(c, owner->first, epoch); !f.ok()) return f;
   Status s = RunSql(
@@ -175,20 +177,20 @@ Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const s
 }
 
 Status Store::SetSessionState(int64_t id, SessionState state, int64_t at_us,
-                              const std::string& reason, int64_t epoch) {
+                              const std::string& reason, const SessionFence& fence) {
   return Write([=](Connection& c) -> Status {
-    return ChangeLiveSession(c, id, state, at_us, reason, epoch);
+    return ChangeLiveSession(c, id, state, at_us, reason, fence);
   });
 }
 
 Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const std::string& reason,
-                         const scoring::TrialMetrics& m, int64_t epoch,
+                         const scoring::TrialMetrics& m, const SessionFence& fence,
                          const std::string& trace_json) {
   if (IsLive(state))
     return InvalidArgument(
         "state", std::string("a session ends in a final state, not ") + SessionStateName(state));
   return Write([=](Connection& c) -> Status {
-    if (Status s = ChangeLiveSession(c, id, state, at_us, reason, epoch); !s.ok()) return s;
+    if (Status s = ChangeLiveSession(c, id, state, at_us, reason, fence); !s.ok()) return s;
     Status s = RunSql(
         c,
         "INSERT INTO trial_metrics(session_id, completed, completion_time_s, task_error, "

@@ -364,6 +364,11 @@ void Station::Tick() {
       if (received != last_received_) {
         last_received_ = received;
         last_progress_ = now;
+        if (last_answer_at_ >= 0 && now - last_answer_at_ > status_.longest_gap_s) {
+          std::lock_guard lock(mutex_);
+          status_.longest_gap_s = now - last_answer_at_;
+        }
+        last_answer_at_ = now;
       } else if (now - last_progress_ > config_.silence_s && now - last_probe_ >= config_.probe_s) {
         Probe(now);
       }

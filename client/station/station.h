@@ -76,7 +76,10 @@ struct StationStatus {
   uint64_t generation = 0;  // counts channels: sessions started, and each move of one
   int reconnects = 0;       // sessions started again after the server went away
   int moves = 0;            // times the session moved to another node and the station followed
-  std::string last_error;   // why the last attempt or probe failed
+  // The longest time without a force update while live, s (at the supervisor's tick): across a
+  // move or a reconnection too, from the last answer of one channel to the first of the next.
+  double longest_gap_s = 0;
+  std::string last_error;  // why the last attempt or probe failed
 };
 
 struct SessionSummary {
@@ -154,6 +157,7 @@ class Station {
   std::thread supervisor_;
   double next_attempt_ = 0, last_progress_ = 0, last_probe_ = 0;
   StationOptions channel_options_;  // the running channel's (ticking thread)
+  double last_answer_at_ = -1;      // when an answer was last seen (ticking thread); −1: none yet
   uint64_t last_received_ = 0;
 };
 

@@ -494,6 +494,7 @@ int Run(const std::vector<std::string>& args) {
                         {"reconnects", st.reconnects},
                         {"sessions", st.generation - static_cast<uint64_t>(st.moves)},
                         {"moves", st.moves},
+                        {"longest_gap_ms", 1e3 * st.longest_gap_s},
                         {"sent", stats.sent},
                         {"received", stats.received},
                         {"loss", stats.loss},

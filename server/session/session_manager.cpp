@@ -75,8 +75,9 @@ void SessionManager::Log(const char* event, int64_t session, LogFields fields) c
 
 Status SessionManager::Write(const PendingWrite& w) {
   if (w.metrics)
-    return store_.EndSession(w.id, w.state, w.at_us, w.reason, *w.metrics, w.epoch, w.trace);
-  return store_.SetSessionState(w.id, w.state, w.at_us, w.reason, w.epoch);
+    return store_.EndSession(w.id, w.state, w.at_us, w.reason, *w.metrics, {options_.node, w.epoch},
+                             w.trace);
+  return store_.SetSessionState(w.id, w.state, w.at_us, w.reason, {options_.node, w.epoch});
 }
 
 void SessionManager::WriteOrKeep(PendingWrite w) {
@@ -158,7 +159,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   }
   // Lost the race for the last slot: the row exists, so record it as aborted.
   if (Status s = store_.SetSessionState(record->id, SessionState::kAborted, db::NowUs(),
-                                        "session limit reached", epoch);
+                                        "session limit reached", {options_.node, epoch});
       !s.ok())
     LogEvent("vsurg-sessions", "store_write_failed",
              {{"session", record->id}, {"error", s.error().message}});
@@ -265,7 +266,7 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   if (!simulation) return Get(id);  // already started: idempotent
   endpoint_->AddSession(id, key, simulation, link);
   if (Status s = store_.SetSessionState(static_cast<int64_t>(id), SessionState::kRunning,
-                                        db::NowUs(), "", epoch);
+                                        db::NowUs(), "", {options_.node, epoch});
       !s.ok())
     return s.error();
   Log("session_started", static_cast<int64_t>(id));
@@ -314,8 +315,8 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   // The state, the trial and its record in one transaction, under the session's epoch
   // (invariant 3).
   const int64_t at = db::NowUs();
-  Status s =
-      store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics, live->epoch, trace);
+  Status s = store_.EndSession(static_cast<int64_t>(id), state, at, reason, metrics,
+                               {options_.node, live->epoch}, trace);
   const bool kept = retry && !s.ok() && s.error().code == ErrorCode::kUnavailable;
   Log("session_ended", static_cast<int64_t>(id),
       {{"state", SessionStateName(state)},
@@ -800,7 +801,8 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
   // A stalled session (its station silent when it moved) is running again here, until the
   // endpoint says otherwise.
   if (h.state == SessionState::kStalled)
-    if (Status s = store_.SetSessionState(h.id, SessionState::kRunning, db::NowUs(), "", epoch);
+    if (Status s = store_.SetSessionState(h.id, SessionState::kRunning, db::NowUs(), "",
+                                          {options_.node, epoch});
         !s.ok())
       LogEvent("vsurg-sessions", "store_write_failed",
                {{"session", h.id}, {"error", s.error().message}});

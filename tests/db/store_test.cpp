@@ -333,7 +333,7 @@ TEST_P(StoreTest, EndedSessionsAreRecordsFoundByFiltersAndPages) {
     m.score = t.score;
     m.completed = t.score >= 5;
     const std::string trace = ids.size() == 2 ? R"({"series":{"time_s":[0,0.1]}})" : "";
-    ASSERT_TRUE(store_->EndSession(s->id, SessionState::kEnded, 200, "done", m, 0, trace).ok());
+    ASSERT_TRUE(store_->EndSession(s->id, SessionState::kEnded, 200, "done", m, {}, trace).ok());
   }
   const int64_t live = store_->CreateSession("trainee-1", "arm-torsion").value().id;
 
@@ -341,7 +341,7 @@ TEST_P(StoreTest, EndedSessionsAreRecordsFoundByFiltersAndPages) {
   EXPECT_EQ(store_->GetSessionTrace(ids[0]).error().code, ErrorCode::kNotFound);
   // A record is valid JSON or nothing: the store refuses a broken one with the trial.
   auto bad = store_->CreateSession("trainee-2", "arm-torsion").value().id;
-  EXPECT_FALSE(store_->EndSession(bad, SessionState::kEnded, 300, "", {}, 0, "{broken").ok());
+  EXPECT_FALSE(store_->EndSession(bad, SessionState::kEnded, 300, "", {}, {}, "{broken").ok());
   EXPECT_TRUE(IsLive(store_->GetSession(bad)->state));  // nothing of it was written
 
   SessionQuery all;
@@ -432,6 +432,65 @@ TEST_P(StoreTest, SessionsAKilledServerLeftLiveAreAbortedAtStartUp) {
 // PostgreSQL: a node's session transaction in progress (it holds the node's row the way every
 // fenced write does, until its COMMIT) does not hold up the lease's renewal, which the control
 // plane writes; declaring the node down waits for it, so no write of the node straddles its fall.
+// Live migration's write: a live session becomes another node's once, fenced by both nodes'
+// epochs; never from a node that is down, to one that is, nor after the session ended.
+TEST_P(StoreTest, ASessionMovesToAnotherNodeOnceAndOnlyBetweenLiveLeases) {
+  NodeRecord a{.name = "sim-0",
+               .grpc_address = "10.0.0.1:7000",
+               .udp_host = "10.0.0.1",
+               .udp_port = 7001,
+               .capacity = 24,
+               .heartbeat_us = 1000,
+               .instance = "process-a"};
+  NodeRecord b = a, c = a;
+  b.name = "sim-1", b.instance = "process-b";
+  c.name = "sim-2", c.instance = "process-c";
+  const int64_t kTimeout = 2000;
+  a.epoch = store_->AcquireNode(a, kTimeout, "restarted").value().epoch;
+  b.epoch = store_->AcquireNode(b, kTimeout, "restarted").value().epoch;
+  c.epoch = store_->AcquireNode(c, kTimeout, "restarted").value().epoch;
+  auto s = store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", a.epoch});
+  ASSERT_TRUE(s.ok());
+  ASSERT_TRUE(
+      store_->SetSessionState(s->id, SessionState::kRunning, 10, "", {"sim-0", a.epoch}).ok());
+  // Not from a node or epoch that does not own it; not to itself.
+  EXPECT_EQ(store_->MoveSession(s->id, {"sim-2", c.epoch}, {"sim-1", b.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->MoveSession(s->id, {"sim-0", a.epoch + 1}, {"sim-1", b.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->MoveSession(s->id, {"sim-0", a.epoch}, {"sim-0", a.epoch}).error().code,
+            ErrorCode::kInvalidArgument);
+  // Not to a node that is down.
+  ASSERT_EQ(store_->MarkNodeDown("sim-2", 3000, 3000, "silent").value(), 0);
+  EXPECT_EQ(store_->MoveSession(s->id, {"sim-0", a.epoch}, {"sim-2", c.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  // Moved: the row names sim-1; its writes carry sim-1's epoch, sim-0's are refused, and it
+  // does not move from sim-0 again.
+  ASSERT_TRUE(store_->MoveSession(s->id, {"sim-0", a.epoch}, {"sim-1", b.epoch}).ok());
+  EXPECT_EQ(store_->GetSession(s->id)->node, "sim-1");
+  EXPECT_EQ(store_->GetSession(s->id)->state, SessionState::kRunning);
+  EXPECT_EQ(store_->SetSessionState(s->id, SessionState::kStalled, 20, "", {"sim-0", a.epoch})
+                .error()
+                .code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->MoveSession(s->id, {"sim-0", a.epoch}, {"sim-1", b.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  ASSERT_TRUE(
+      store_->SetSessionState(s->id, SessionState::kStalled, 20, "", {"sim-1", b.epoch}).ok());
+  // Not from a node that is down (the site aborted its sessions), nor once ended.
+  auto t = store_->CreateSession("trainee-2", "arm-torsion", {"sim-1", b.epoch});
+  ASSERT_TRUE(t.ok());
+  ASSERT_TRUE(
+      store_->SetSessionState(t->id, SessionState::kEnded, 30, "done", {"sim-1", b.epoch}).ok());
+  EXPECT_EQ(store_->MoveSession(t->id, {"sim-1", b.epoch}, {"sim-0", a.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  ASSERT_EQ(store_->MarkNodeDown("sim-1", 4000, 4000, "silent").value(), 1);
+  EXPECT_EQ(store_->MoveSession(s->id, {"sim-1", b.epoch}, {"sim-0", a.epoch}).error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(store_->GetSession(s->id)->state, SessionState::kAborted);
+  EXPECT_EQ(store_->GetSession(s->id)->node, "sim-1");
+}
+
 TEST_P(StoreTest, ALeaseRenewalDoesNotWaitForTheNodesSessionWritesButItsFallDoes) {
   if (sqlite()) GTEST_SKIP() << "SQLite has one writer at a time: every write waits its turn";
   NodeRecord n{.name = "sim-0",
@@ -456,7 +515,7 @@ TEST_P(StoreTest, ALeaseRenewalDoesNotWaitForTheNodesSessionWritesButItsFallDoes
   ASSERT_TRUE((*hold)->Step().value());
   (*hold)->Reset();
   auto write = std::async(std::launch::async, [&] {
-    return store_->SetSessionState(live->id, SessionState::kRunning, 2000, "", n.epoch);
+    return store_->SetSessionState(live->id, SessionState::kRunning, 2000, "", {n.name, n.epoch});
   });
   auto waiting = b.Prepare(
       "SELECT count(*) FROM pg_stat_activity WHERE wait_event_type = 'Lock' AND "
@@ -521,7 +580,8 @@ TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
   EXPECT_EQ(on_a->node, "sim-0");
   EXPECT_EQ(store_->GetSession(on_b->id)->node, "sim-1");
   ASSERT_TRUE(
-      store_->SetSessionState(ended_on_a->id, SessionState::kEnded, 50, "done", a.epoch).ok());
+      store_->SetSessionState(ended_on_a->id, SessionState::kEnded, 50, "done", {"sim-0", a.epoch})
+          .ok());
   auto by_node = store_->LiveSessionsByNode();
   ASSERT_TRUE(by_node.ok());
   EXPECT_EQ(*by_node, (std::vector<std::pair<std::string, int>>{{"sim-0", 1}, {"sim-1", 1}}));
@@ -553,15 +613,17 @@ TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
   a.heartbeat_us = 7000;
   EXPECT_EQ(store_->BeatNode(a).error().code, ErrorCode::kFailedPrecondition);
   EXPECT_TRUE(store_->ListNodes().value()[0].down);
-  EXPECT_EQ(
-      store_->SetSessionState(on_a->id, SessionState::kStalled, 7000, "", a.epoch).error().code,
-      ErrorCode::kFailedPrecondition);
-  scoring::TrialMetrics ten;
-  ten.score = 10;
-  EXPECT_EQ(store_->EndSession(on_a->id, SessionState::kDisconnected, 7000, "", ten, a.epoch)
+  EXPECT_EQ(store_->SetSessionState(on_a->id, SessionState::kStalled, 7000, "", {"sim-0", a.epoch})
                 .error()
                 .code,
             ErrorCode::kFailedPrecondition);
+  scoring::TrialMetrics ten;
+  ten.score = 10;
+  EXPECT_EQ(
+      store_->EndSession(on_a->id, SessionState::kDisconnected, 7000, "", ten, {"sim-0", a.epoch})
+          .error()
+          .code,
+      ErrorCode::kFailedPrecondition);
   EXPECT_EQ(store_->GetSession(on_a->id)->state, SessionState::kAborted);
   EXPECT_FALSE(store_->GetTrialMetrics(on_a->id).value().has_value());
   EXPECT_EQ(store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", a.epoch}).error().code,

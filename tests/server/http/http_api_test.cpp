@@ -254,7 +254,7 @@ TEST_F(HttpApiTest, SessionsAreRecordsEveryReaderMayOpenAndATraineeOnlyHerOwn) {
   scoring::TrialMetrics m;
   m.score = 7.5;
   ASSERT_TRUE(store_
-                  ->EndSession(mine, SessionState::kEnded, db::NowUs(), "done", m, 0,
+                  ->EndSession(mine, SessionState::kEnded, db::NowUs(), "done", m, {},
                                R"({"series":{"time_s":[0,0.5],"force_n":[0,1.25]}})")
                   .ok());
   const int64_t his = store_->CreateSession("tom", "arm-torsion").value().id;
