@@ -157,6 +157,7 @@ struct StationChannel::Impl {
   std::atomic<double> reported_rtt_us{0};  // receive thread → device thread (telemetry)
   std::atomic<double> reported_jitter_us{0};
   uint64_t jitter_n = 0;
+  std::atomic<uint64_t> moved_notices{0};  // answers saying the session moved (not forces)
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
       newest_answered{0}, scene_chunks{0};
   uint64_t last_frame_sequence = 0;
@@ -228,6 +229,12 @@ struct StationChannel::Impl {
     }
     if (rx_codec.DecodeForce(o.payload, rx_message) != wire::DropReason::kNone) {
       dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    if (rx_message.command.events & haptics::kEventSessionMoved) {
+      // Not a force: the session runs on another node now (live migration). The supervisor asks
+      // where; meanwhile the watchdog fades the force as for any silence.
+      moved_notices.fetch_add(1, std::memory_order_relaxed);
       return;
     }
     const SequenceWindow::Kind kind = answers.Add(o.header.sequence);
@@ -537,6 +544,10 @@ StationStats StationChannel::stats() const {
     s.rtt_p999_us = *at(p999);
   }
   return s;
+}
+
+uint64_t StationChannel::moved_notices() const {
+  return impl_->moved_notices.load(std::memory_order_relaxed);
 }
 
 uint64_t StationChannel::received() const {

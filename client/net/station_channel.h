@@ -134,6 +134,9 @@ class StationChannel {
   // about a millisecond, so call it for a report, not every frame.
   StationStats stats() const;
   uint64_t received() const;  // any thread: force updates received (one atomic load)
+  // Any thread: answers that said the session moved to another node (haptics::
+  // kEventSessionMoved; not forces, not counted as received).
+  uint64_t moved_notices() const;
   // Render thread: the scene chunks received since the previous call (moved vertices, m).
   // At most 4096 are kept between calls; older ones are dropped first.
   std::vector<wire::SceneChunk> TakeSceneChunks();

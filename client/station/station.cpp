@@ -369,8 +369,9 @@ void Station::Tick() {
           status_.longest_gap_s = now - last_answer_at_;
         }
         last_answer_at_ = now;
-      } else if (now - last_progress_ > config_.silence_s && now - last_probe_ >= config_.probe_s) {
-        Probe(now);
+      } else if ((now - last_progress_ > config_.silence_s || channel_->moved_notices() > 0) &&
+                 now - last_probe_ >= config_.probe_s) {
+        Probe(now);  // silent, or told that the session moved: ask where it runs
       }
       return;
     }

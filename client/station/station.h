@@ -12,11 +12,12 @@
 //
 // Meanwhile the channel's watchdog has faded the force to zero (20 ms + 50 ms), and while
 // reconnecting no channel runs and the device holds zero force. A session that is still live
-// but silent may have moved to another node (a draining node's live migration): the probe asks
-// where it runs (Join) and, when that is somewhere else, the station follows it there with the
-// same session and key (live → live, a new channel; the trial goes on where it was). A session is
-// not resumed across a server restart: the server aborted it and recorded it; the station starts a
-// new one (a new session id and key), and the render side resets the tissue (generation()).
+// but silent may have moved to another node (a draining node's live migration; the old node
+// answers with a "moved" notice, which the station takes as a reason to probe at once): the probe
+// asks where it runs (Join) and, when that is somewhere else, the station follows it there with
+// the same session and key (live → live, a new channel; the trial goes on where it was). A session
+// is not resumed across a server restart: the server aborted it and recorded it; the station starts
+// a new one (a new session id and key), and the render side resets the tissue (generation()).
 //
 // Threads: Tick runs on one thread at a time: the station's supervisor thread (StartSupervisor:
 // every tick_s, so a render thread stalled for seconds by a first frame or a slow driver never

@@ -78,6 +78,9 @@ enum HapticEvent : uint32_t {
   // The contact is where the reduced model has no precomputed response (e.g. next to the fixed
   // support): the nearest precomputed contact answered, so the force is bounded but less exact.
   kEventOutsideModel = 1u << 10,
+  // Not a force: the session has moved to another node (live migration), and this node answers
+  // its station only to say so (zero force, nothing else meant). The station asks where it runs.
+  kEventSessionMoved = 1u << 11,
 };
 
 struct ForceCommand {

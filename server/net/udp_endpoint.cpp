@@ -4,8 +4,10 @@
 #include <sys/time.h>
 #include <time.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <functional>
 #include <future>
@@ -55,6 +57,7 @@ struct UdpEndpoint::Impl {
     double tokens = 0;
     double refill;  // s
     udp::endpoint source;
+    double moved_until = -1;  // s; ≥ 0: moved away (no simulation): answered with a notice
   };
 
   EndpointOptions options;
@@ -247,13 +250,19 @@ struct UdpEndpoint::Impl {
     s.seen = true;
     if (sender != s.source) {  // first datagram, or the station moved (NAT rebinding): rare
       s.source = sender;
-      if (visual) visual->SetDestination(header.session, sender);
+      if (visual && s.moved_until < 0) visual->SetDestination(header.session, sender);
     }
-    if (s.state != SessionState::kRunning) {
-      s.state = SessionState::kRunning;
-      Record(header.session, SessionState::kRunning);
+    if (s.moved_until >= 0) {  // moved away: say so, compute nothing
+      force.command = haptics::ForceCommand{};
+      force.command.time = std::isfinite(stylus.sample.time) ? stylus.sample.time : 0;
+      force.command.events = haptics::kEventSessionMoved;
+    } else {
+      if (s.state != SessionState::kRunning) {
+        s.state = SessionState::kRunning;
+        Record(header.session, SessionState::kRunning);
+      }
+      force.command = s.simulation->OnStylus(stylus.sample);
     }
-    force.command = s.simulation->OnStylus(stylus.sample);
     force.echo_sequence = header.sequence;
     force.echo_time = stylus.sample.time;
     force.server_time = now;
@@ -294,7 +303,11 @@ struct UdpEndpoint::Impl {
   // Running → stalled → disconnected by the endpoint's clock. I/O thread.
   void CheckTimeouts() {
     const double now = Now();
+    std::erase_if(sessions, [now](const auto& e) {
+      return e.second.moved_until >= 0 && now > e.second.moved_until;
+    });
     for (auto& [id, s] : sessions) {
+      if (s.moved_until >= 0) continue;  // no events of a session that moved away
       const double quiet = now - s.last_seen;
       SessionState next = s.state;
       if (quiet > options.disconnect_after_s) {
@@ -399,6 +412,16 @@ void UdpEndpoint::RemoveSession(uint64_t id) {
   p->RunOnIoThread([p, id] {
     p->sessions.erase(id);
     if (p->visual) p->visual->Remove(id);
+  });
+}
+
+void UdpEndpoint::NoticeMoved(uint64_t id, const wire::SessionKey& key, double for_s) {
+  Impl* p = impl_.get();
+  p->RunOnIoThread([p, id, &key, for_s] {
+    if (p->visual) p->visual->Remove(id);
+    Impl::Session s(key, nullptr, nullptr, p->options.max_packets_per_s * 0.1, p->Now());
+    s.moved_until = p->Now() + for_s;
+    p->sessions.insert_or_assign(id, std::move(s));
   });
 }
 

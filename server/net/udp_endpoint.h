@@ -20,6 +20,9 @@
 //                        ▲                            │                          │
 //                        └────────stylus again────────┴──────────────────────────┘
 //
+// A session that moved to another node (NoticeMoved) stays in the table for a while without a
+// simulation: its datagrams get a "moved" notice instead of a force, and it records no events.
+//
 // Transitions are recorded as events for the control plane (TakeEvents). Sessions are added and
 // removed on the I/O thread (queued, the thread woken by an empty datagram from the endpoint's
 // own waker socket), so the hot path takes no lock.
@@ -123,6 +126,11 @@ class UdpEndpoint {
   void AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation,
                   LinkStats* link = nullptr);
   void RemoveSession(uint64_t id);
+  // The session has moved to another node (live migration) and is no longer here: for
+  // `for_s` seconds its station's datagrams (authenticated with `key`, within the rate limit)
+  // are answered with a notice (zero force, haptics::kEventSessionMoved, computed by nothing)
+  // so that it asks where the session runs at once instead of after its silence timeout.
+  void NoticeMoved(uint64_t id, const wire::SessionKey& key, double for_s = 10);
   void Stop();
 
   EndpointCounters counters() const;  // any thread

@@ -698,6 +698,8 @@ void SessionManager::FinishMove(uint64_t id) {
     live_.erase(it);
   }
   live->simulation.reset();
+  // Its station learns at its next datagram that the session is no longer here.
+  if (endpoint_) endpoint_->NoticeMoved(id, live->key);
   NotifyEnded(id);  // here: its watchers find it on its new node
   Log("session_moved", static_cast<int64_t>(id));
 }

@@ -344,7 +344,8 @@ class UdpStation {
 };
 
 // Live migration. A node drains with a trainee mid-twist and a session not yet started: both go
-// to the other node with their whole state. The old node answers the trainee's station no more;
+// to the other node with their whole state. The old node answers the trainee's station only with
+// a notice that the session moved;
 // asked where the session runs (Join, as the station's probe does), the site names the other
 // node and the same key; there the twist goes on with the force it had (not a start-up ramp from
 // zero), and the trial ends with one record covering the whole trial: the path and the time before
@@ -391,10 +392,12 @@ TEST_F(ClusterTest, ADrainingNodeMovesItsLiveSessionsWithTheirStateAndTheTrialGo
   }
   EXPECT_EQ(control_->Get(live->record.id)->state, SessionState::kRunning);
   EXPECT_EQ(control_->Get(waiting->record.id)->state, SessionState::kCreated);
-  // The old node answers the station no more.
-  const auto old = a.endpoint->counters();
-  EXPECT_FALSE(station.AnswerTo(station.Send((*samples)[k]), 0.3));
-  EXPECT_EQ(a.endpoint->counters().answered, old.answered);
+  // The old node answers the station only to say that the session moved: no force.
+  const auto notice = station.AnswerTo(station.Send((*samples)[k]), 5);
+  ASSERT_TRUE(notice) << "the old node said nothing";
+  EXPECT_NE(notice->command.events & haptics::kEventSessionMoved, 0u);
+  EXPECT_EQ(notice->command.force.norm(), 0);
+  EXPECT_FALSE(notice->command.grasping);
   // Where it runs now: the other node, the same key.
   auto joined = control_->Join(live->record.id);
   ASSERT_TRUE(joined.ok()) << joined.error().message;
@@ -422,7 +425,7 @@ TEST_F(ClusterTest, ADrainingNodeMovesItsLiveSessionsWithTheirStateAndTheTrialGo
   ASSERT_TRUE(reference.ok());
   std::vector<haptics::StylusSample> played(samples->begin(), samples->end());
   played.insert(played.begin() + static_cast<std::ptrdiff_t>(grasped_at + 301),
-                (*samples)[grasped_at + 301]);  // the sample the old node left unanswered
+                (*samples)[grasped_at + 301]);  // the sample the old node answered with a notice
   (*reference)->Replay(played, {});
   const scoring::TrialMetrics want = (*reference)->Metrics();
   auto got = control_store_->GetTrialMetrics(live->record.id);
