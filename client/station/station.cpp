@@ -284,7 +284,18 @@ void Station::Probe(double now) {
   grpc::ClientContext ctx;
   remote_.Prepare(ctx, std::min(config_.rpc_timeout_s, 1.0));
   const grpc::Status s = stub->Get(&ctx, ref, &session);
-  if (!s.ok()) return Drop("the server does not answer: " + Describe(s));
+  if (!s.ok()) {
+    // Slow (a loaded control plane: a drain's migrations, a burst of stations) is not gone; a
+    // refused connection is (UNAVAILABLE: gRPC's retry already tried every replica).
+    const bool slow = s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
+    if (slow && now - last_progress_ < config_.give_up_s) {
+      last_probe_ = now;  // asked again at the next probe
+      std::lock_guard lock(mutex_);
+      status_.last_error = "the server does not answer (asking again): " + Describe(s);
+      return;
+    }
+    return Drop("the server does not answer: " + Describe(s));
+  }
   if (!IsLive(session.state()))
     return Drop("session " + std::to_string(status_.session) + " is " +
                 convert::StateName(session.state()));

@@ -57,6 +57,11 @@ struct StationConfig {
   // (2 s without its heartbeat), and the station should see it within a tenth of a second,
   // not up to another silence_s later.
   double probe_s = 0.1;
+  // A probe the control plane does not answer in time (a loaded control plane) is asked again
+  // while the silence is shorter than this; the session is given up as lost only after it (the
+  // endpoint's own disconnect time). A probe that is refused outright (no replica answers), or
+  // that says the session ended, gives it up at once.
+  double give_up_s = 5;
   double retry_s = 0.5;        // between connection attempts
   double tick_s = 0.01;        // the supervisor thread's period
   bool reconnect = true;       // false: a lost server ends the station with an error

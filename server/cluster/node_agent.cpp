@@ -209,11 +209,16 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
 
   // Live migration: each live session handed to another node through the control plane, one
   // at a time (each is out of service only for its own move). One that no node takes serves on
-  // here. Returns how many moved.
-  int MigrateAll() {
+  // here; `attempts` counts each session's tries over the rounds (at most kMoveAttempts). Returns
+  // how many moved.
+  static constexpr int kMoveAttempts = 5;
+  int MigrateAll(std::map<uint64_t, int>& attempts) {
     int moved = 0, kept = 0;
     for (uint64_t id : sessions.LiveIds()) {
-      if (!lease.Valid()) break;  // the site no longer counts on this node: nothing to hand over
+      // Without a valid lease the site may be re-placing this node's sessions: hand nothing over
+      // (the next round, once the lease is back, will).
+      if (!lease.Valid()) break;
+      if (attempts[id]++ >= kMoveAttempts) continue;
       const auto t0 = std::chrono::steady_clock::now();
       auto handoff = sessions.BeginMove(id);
       if (!handoff.ok()) continue;  // ended meanwhile
@@ -243,7 +248,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
             {{"session", id}, {"error", s.error_message()}, {"ms", ms}});
       }
     }
-    Log(options.name, "migrated", {{"moved", moved}, {"kept", kept}});
+    if (moved + kept > 0) Log(options.name, "migrated", {{"moved", moved}, {"kept", kept}});
     return moved;
   }
 
@@ -527,10 +532,19 @@ int NodeAgent::Drain(double timeout_s) {
       {{"live", impl_->sessions.LiveCount()}, {"timeout_s", timeout_s}});
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::microseconds(static_cast<int64_t>(timeout_s * 1e6));
+  // Rounds of moves, a second apart, while sessions are left: a node without its lease for a
+  // moment (a control plane too loaded to answer a heartbeat) moves nothing until it has it
+  // again, and a session no node took (no room yet) is offered again, a few times.
   int moved = 0;
-  if (impl_->options.migrate_on_drain) moved = impl_->MigrateAll();
-  while (impl_->sessions.LiveCount() > 0 && std::chrono::steady_clock::now() < deadline)
+  auto next_round = std::chrono::steady_clock::now();
+  std::map<uint64_t, int> attempts;
+  while (impl_->sessions.LiveCount() > 0 && std::chrono::steady_clock::now() < deadline) {
+    if (impl_->options.migrate_on_drain && std::chrono::steady_clock::now() >= next_round) {
+      moved += impl_->MigrateAll(attempts);
+      next_round = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
   Log(impl_->options.name, "drained", {{"live", impl_->sessions.LiveCount()}, {"moved", moved}});
   return moved;
 }
