@@ -132,6 +132,8 @@ std::shared_ptr<grpc::Channel> Channel(const std::string& target, const TlsFiles
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 2000);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  args.SetMaxReceiveMessageSize(kMaxInternalMessageBytes);
+  args.SetMaxSendMessageSize(kMaxInternalMessageBytes);
   std::string t = target;
   if (target.find(',') != std::string::npos && target.find(':') != std::string::npos &&
       target.rfind("ipv4:", 0) != 0 && target.rfind("dns:", 0) != 0)

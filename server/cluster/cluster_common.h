@@ -37,6 +37,12 @@ Expected<TlsFiles> WatchTlsFiles(const ClusterOptions& o);
 // signed and that names `peer_name` (a node's name, or the control replicas' name); the address
 // itself is not checked against the certificate (pods move; the name is what the site knows
 // them by).
+// The internal API's largest message, both ways: a live session's handoff (live migration:
+// NodeService.Adopt, ClusterService.Migrate) is its simulation's state and its record so far,
+// deflated; a forearm's after a minute is about 1 MB, its worst case (the record's 96 surface
+// frames) under 4 MB before deflating, gRPC's default limit.
+inline constexpr int kMaxInternalMessageBytes = 32 << 20;
+
 std::shared_ptr<grpc::Channel> Channel(const std::string& target, const TlsFiles& tls,
                                        const std::string& peer_name);
 // Listening credentials: mutual TLS when configured (a client certificate the site's CA signed is

@@ -742,6 +742,7 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
     for (const auto& [node, id] : *live) impl->seen.insert(id);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::ServerBuilder builder;
+  builder.SetMaxReceiveMessageSize(kMaxInternalMessageBytes);
   builder.AddListeningPort(options.listen, *creds, &impl->port);
   builder.RegisterService(impl.get());
   impl->server = builder.BuildAndStart();

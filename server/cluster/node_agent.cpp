@@ -436,6 +436,7 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   if (!creds.ok()) return creds.error();
   grpc::EnableDefaultHealthCheckService(true);  // readiness (deploy/k8s/sim.yaml)
   grpc::ServerBuilder builder;
+  builder.SetMaxReceiveMessageSize(kMaxInternalMessageBytes);
   builder.AddListeningPort(options.cluster.listen, *creds, &impl->port);
   builder.RegisterService(impl.get());
   impl->server = builder.BuildAndStart();

@@ -1,10 +1,12 @@
 #include "server/session/session_manager.h"
 
 #include <openssl/rand.h>
+#include <zlib.h>
 
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 
 #include "common/core/log.h"
 #include "common/core/state_archive.h"
@@ -612,14 +614,44 @@ void PersistHandoff(A& a, H& h) {
 
 }  // namespace
 
+// A handoff as sent: its size before deflating (8 bytes), then the deflated bytes (zlib, level 1:
+// the record's surface frames are mostly unchanged, and deflating a forearm's handoff of
+// 2–3 MB takes a few milliseconds).
+constexpr uint64_t kMaxHandoffBytes = 64ull << 20;
+
 std::string SessionHandoff::Bytes() const {
   StateWriter w;
   w(kHandoffVersion);
   PersistHandoff(w, *this);
-  return w.Take();
+  const std::string& raw = w.bytes();
+  uLongf size = compressBound(static_cast<uLong>(raw.size()));
+  std::string out(8 + size, '\0');
+  const uint64_t n = raw.size();
+  std::memcpy(out.data(), &n, 8);
+  if (compress2(reinterpret_cast<Bytef*>(out.data() + 8), &size,
+                reinterpret_cast<const Bytef*>(raw.data()), static_cast<uLong>(raw.size()),
+                1) != Z_OK)
+    return {};  // refused by the receiver as not a handoff
+  out.resize(8 + size);
+  return out;
 }
 
-Expected<SessionHandoff> SessionHandoff::FromBytes(std::string_view bytes) {
+Expected<SessionHandoff> SessionHandoff::FromBytes(std::string_view sent) {
+  const auto refused = [](const std::string& why) {
+    return Error{ErrorCode::kInvalidArgument, "a session handoff that " + why, "handoff"};
+  };
+  uint64_t n = 0;
+  if (sent.size() < 8) return refused("is cut short");
+  std::memcpy(&n, sent.data(), 8);
+  if (n > kMaxHandoffBytes) return refused("claims more than 64 MB");
+  std::string raw(n, '\0');
+  uLongf size = static_cast<uLongf>(n);
+  if (uncompress(reinterpret_cast<Bytef*>(raw.data()), &size,
+                 reinterpret_cast<const Bytef*>(sent.data() + 8),
+                 static_cast<uLong>(sent.size() - 8)) != Z_OK ||
+      size != n)
+    return refused("does not inflate to the size it claims");
+  const std::string_view bytes = raw;
   StateReader r(bytes);
   uint32_t version = 0;
   r(version);

@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -87,6 +88,60 @@ class SessionManagerTest : public ::testing::Test {
   udp::socket socket_{io_, udp::endpoint(loopback_, 0)};
   wire::Codec codec_;
 };
+
+// A live session's handoff (live migration) reads back as it was sent; bytes that are cut,
+// corrupted or claim to inflate past the bound are refused with why, never allocated blindly.
+TEST(SessionHandoffTest, AHandoffReadsBackWholeAndBrokenOnesAreRefused) {
+  SessionHandoff h;
+  h.id = 42;
+  h.trainee = "tina";
+  h.scene = "arm-torsion";
+  h.state = SessionState::kStalled;
+  h.created_us = 10;
+  h.started_us = 20;
+  h.key = std::string(32, 'k');
+  h.task.target = 0.5;
+  h.task.kind = scoring::TaskKind::kTwist;
+  h.simulation = std::string(100000, '\x01');  // compresses: the frames of a held twist do
+  h.trace = "trace";
+  h.applied = 1234;
+  h.lost = 5;
+  h.span_s = 1.5;
+  h.rendered_peak_n = 2.5;
+  h.from_node = "sim-0";
+  h.from_epoch = 3;
+  const std::string bytes = h.Bytes();
+  EXPECT_LT(bytes.size(), 10000u) << "sent deflated";
+  auto back = SessionHandoff::FromBytes(bytes);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->id, 42);
+  EXPECT_EQ(back->trainee, "tina");
+  EXPECT_EQ(back->state, SessionState::kStalled);
+  EXPECT_EQ(back->key, h.key);
+  EXPECT_EQ(back->task.target, 0.5);
+  EXPECT_EQ(back->task.kind, scoring::TaskKind::kTwist);
+  EXPECT_FALSE(back->task.tolerance.has_value());
+  EXPECT_EQ(back->simulation, h.simulation);
+  EXPECT_EQ(back->applied, 1234u);
+  EXPECT_EQ(back->span_s, 1.5);
+  EXPECT_EQ(back->from_node, "sim-0");
+  EXPECT_EQ(back->from_epoch, 3);
+
+  std::string bomb = bytes;
+  const uint64_t huge = 1ull << 40;
+  std::memcpy(bomb.data(), &huge, 8);
+  std::string corrupt = bytes;
+  corrupt[bytes.size() / 2] = static_cast<char>(corrupt[bytes.size() / 2] ^ 0x5a);
+  SessionHandoff keyless = h;
+  keyless.key = "short";
+  for (const std::string& bad :
+       {std::string(), bytes.substr(0, 5), bytes.substr(0, bytes.size() - 3), bomb, corrupt,
+        keyless.Bytes(), std::string(64, 'x')}) {
+    auto r = SessionHandoff::FromBytes(bad);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.error().field, "handoff") << r.error().message;
+  }
+}
 
 TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHeld) {
   auto s = sessions_->Create("tina", "sphere-palpation-256");
