@@ -105,6 +105,8 @@ sleep 1  # the last stops' records committed
 sessions="$(psql_q "SELECT count(*) FROM sessions")"
 aborted="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'aborted'")"
 ended="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'ended'")"
+disconnected="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'disconnected'")"
+trial_twice="$(psql_q "SELECT count(*) FROM (SELECT session_id FROM trial_metrics GROUP BY session_id HAVING count(*) > 1) AS t")"
 trials="$(psql_q "SELECT count(*) FROM trial_metrics")"
 migrated="$(cat "$out"/sim-*.log | grep -c "event=session_migrated" || true)"
 failed="$(cat "$out"/sim-*.log | grep -c "event=session_migration_failed" || true)"
@@ -113,13 +115,13 @@ import json, sys
 rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
 print(sum(r["moves"] for r in rows), sum(r["reconnects"] for r in rows),
       round(max([r["longest_gap_ms"] for r in rows] or [-1])), len(rows))')
-echo "sessions: $sessions ($ended ended, $aborted aborted), trials recorded: $trials"
+echo "sessions: $sessions ($ended ended, $disconnected disconnected, $aborted aborted), trials recorded: $trials ($trial_twice twice)"
 echo "moves logged by the nodes: $migrated ($failed failed); followed by the stations: $moves; reconnections: $reconnects"
 echo "drains (ms): $drains; the longest force gap at any station: $longest_gap_ms ms"
 
 cat > "$out/rolling.json" <<EOF
 {"stations": $stations, "summaries": $summaries, "sessions": $sessions, "ended": $ended,
- "aborted": $aborted, "trials": $trials, "migrated": $migrated, "migration_failed": $failed,
+ "disconnected": $disconnected, "aborted": $aborted, "trials": $trials, "trial_twice": $trial_twice, "migrated": $migrated, "migration_failed": $failed,
  "moves": $moves, "reconnects": $reconnects, "drain_ms": [$drains],
  "longest_gap_ms": $longest_gap_ms}
 EOF
