@@ -11,7 +11,8 @@
 # export; screenshots of the station before and after the twist (and the monitor) go to docs/;
 # then one site over several processes (deploy/cluster_flow.sh, docs/SCALING.md): PostgreSQL, two
 # control replicas, three simulation nodes, 24 stations; a node frozen past its lease and resumed,
-# a second process under a live node's name, then a node and a replica killed; then the training
+# a second process under a live node's name, then a node and a replica killed; a rolling restart
+# of the nodes with live migration (deploy/rolling_restart.sh); then the training
 # programme (tests/e2e/training_test.py): a course from three expert runs, a cohort of ten
 # trained by stations that follow it, the instructor's grid updating live in Chromium.
 set -euo pipefail
@@ -62,6 +63,10 @@ echo "==== The platform end to end: server, a trainee's station, an instructor's
 echo
 echo "==== Beyond one machine: PostgreSQL, 2 control replicas, 3 simulation nodes, 24 stations; a node frozen and resumed, a duplicate node refused, a node and a replica killed ===="
 "$root/deploy/cluster_flow.sh" "$root/build/bin" "$out/cluster" 24
+
+echo
+echo "==== A rolling restart under load: each of 3 nodes in turn drains (SIGTERM), moving its live sessions with their state to the others, and comes back; 24 stations follow their sessions ===="
+"$root/deploy/rolling_restart.sh" "$root/build/bin" "$out/rolling" 24
 
 echo
 echo "==== The training programme: three expert runs set the targets, a course of two exercises, a cohort of ten training at stations that follow it, the instructor's grid following them live ===="

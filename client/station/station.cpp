@@ -300,6 +300,11 @@ void Station::Probe(double now) {
     return Drop("session " + std::to_string(status_.session) + " is " +
                 convert::StateName(session.state()));
   last_probe_ = now;  // the server is there and the session live: slow, not gone (yet)
+  // Where it runs: at once when the old node said the session moved, else at most every
+  // follow_s (a silent station probes ten times a second; each Join is one more call to the
+  // control plane and one to a node, which a loaded site does not need from every station).
+  if (channel_->moved_notices() == 0 && now - last_follow_ < config_.follow_s) return;
+  last_follow_ = now;
   auto moved = Follow();
   if (!moved.ok()) {
     std::lock_guard lock(mutex_);

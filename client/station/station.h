@@ -62,6 +62,9 @@ struct StationConfig {
   // endpoint's own disconnect time). A probe that is refused outright (no replica answers), or
   // that says the session ended, gives it up at once.
   double give_up_s = 5;
+  // While silent and live without a "moved" notice, asks where the session runs at most this
+  // often (a session can move without a notice reaching the station: a lost datagram).
+  double follow_s = 0.5;
   double retry_s = 0.5;        // between connection attempts
   double tick_s = 0.01;        // the supervisor thread's period
   bool reconnect = true;       // false: a lost server ends the station with an error
@@ -164,6 +167,7 @@ class Station {
   double next_attempt_ = 0, last_progress_ = 0, last_probe_ = 0;
   StationOptions channel_options_;  // the running channel's (ticking thread)
   double last_answer_at_ = -1;      // when an answer was last seen (ticking thread); −1: none yet
+  double last_follow_ = -1e9;       // when Follow last asked (ticking thread)
   uint64_t last_received_ = 0;
 };
 
