@@ -22,7 +22,6 @@ export VSURG_SCENES="$root/scenes"
 
 source "$root/deploy/processes.sh"
 vsurg_temp_and_cleanup
-step() { echo; echo "== $* =="; }
 
 step "Administrator: vsurg-server on a temporary SQLite file, with the web dashboard"
 vsurg_start_server "$bin" "$out/server.log" --http 127.0.0.1:0

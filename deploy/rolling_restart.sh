@@ -19,21 +19,7 @@ stations="${3:-24}"
 root="$(cd "$(dirname "$0")/.." && pwd)"
 mkdir -p "$out"
 source "$root/deploy/processes.sh"
-vsurg_temp_and_cleanup
-pg_dir="$(mktemp -d -t vsurg-pg.XXXXXX)"
-trap 'vsurg_cleanup_all' EXIT
-vsurg_cleanup_all() {
-  vsurg_cleanup
-  "$root/deploy/postgres.sh" stop "$pg_dir" >/dev/null 2>&1 || true
-}
-step() { echo; echo "== $* =="; }
-now_ms() { date +%s%3N; }
-wait_file() { for _ in $(seq 300); do [ -s "$1" ] && return 0; sleep 0.1; done; echo "no $1" >&2; exit 1; }
-port_of() { sed -n "s/.*\"$2\":\([0-9]*\).*/\1/p" "$1"; }
-
-step "PostgreSQL, a control replica"
-uri="$("$root/deploy/postgres.sh" start "$pg_dir" | tail -1)"
-psql_q() { psql -qAt "$uri" -c "$1"; }
+vsurg_site_begin "PostgreSQL, a control replica"
 head -c 32 /dev/urandom | base64 | tr -d '\n' > "$tmp/cluster-token"
 admin_token="$("$bin/vsurg-server" init --db "$uri" 2>/dev/null)"
 "$bin/vsurg-server" --role control --db "$uri" --listen 127.0.0.1:0 --http 127.0.0.1:0 \
