@@ -51,9 +51,11 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|SimulationTest.TheReducedArmIsTwistedToTheTargetAndCachesItsField'
   long+='|SimulationTest.TheLocalModelPredictsTheNextUpdateOnAReducedSphere'
   long+='|SimulationTest.AContactOutsideTheReducedModelIsBoundedAndFlagged'
-  # A mass-spring trial carried to a new simulation (live migration): the other four models'
-  # cases and the refusals run here; the mass-spring's state is two vectors like the rings'.
+  # Trials carried to a new simulation (live migration): the coil, surface-twist and ring-layer
+  # cases and the refusals run here; the mass-spring's state is two vectors like the rings', and
+  # the reduced twist keeps none beyond its input, like the coil.
   long+='|EveryModel/StateTest.ATrialCarriedToANewSimulationGoesOnAsIfItHadNotMoved/sphere_palpation_256'
+  long+='|EveryModel/StateTest.ATrialCarriedToANewSimulationGoesOnAsIfItHadNotMoved/arm_torsion_reduced'
   # The OpenGL group (software rendering, a minute) runs beside the others, not after them.
   ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
     ctest --test-dir "$root/build-asan" --output-on-failure --timeout 600 -R "$gl" \
