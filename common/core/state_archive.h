@@ -112,15 +112,15 @@ class StateReader {
     if (!ok_) return;
     if constexpr (archive_detail::Scalar<T>) {
       if (bytes_.size() - at_ < sizeof(T)) return Fail();
+      if constexpr (std::is_same_v<T, bool>) {  // checked before it is a bool: 0 or 1 only
+        const auto b = static_cast<unsigned char>(bytes_[at_]);
+        if (b > 1) return Fail();
+      }
       T x;
       std::memcpy(&x, bytes_.data() + at_, sizeof(T));
       at_ += sizeof(T);
       if constexpr (std::is_floating_point_v<T>) {
         if (std::isnan(x) || (!allow_infinite_ && std::isinf(x))) return Fail();
-      } else if constexpr (std::is_same_v<T, bool>) {
-        unsigned char b;
-        std::memcpy(&b, &x, 1);
-        if (b > 1) return Fail();
       }
       v = x;
     } else if constexpr (archive_detail::Quaternion<T>) {
