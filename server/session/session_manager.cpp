@@ -139,7 +139,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   if (!record.ok()) return record.error();
   out.record = *record;
   out.udp_host = options_.udp_host;
-  out.udp_port = options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
+  out.udp_port = AdvertisedUdpPort();
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
   live->trace.SetRest(live->simulation->rest_mesh());
@@ -277,6 +277,15 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
 
 namespace {
 
+// Seconds the session's datagrams came over: on this node, and on the nodes before (a move).
+double LinkSpanS(const LinkStats& l) {
+  const auto relaxed = std::memory_order_relaxed;
+  const double here = l.first_seen_s.load(relaxed) >= 0
+                          ? l.last_seen_s.load(relaxed) - l.first_seen_s.load(relaxed)
+                          : 0;
+  return here + l.carried_s.load(relaxed);
+}
+
 // The trial's link figures from the endpoint's counters (read after the session left it).
 scoring::LinkFigures LinkFiguresOf(const LinkStats& l) {
   scoring::LinkFigures f;
@@ -287,10 +296,7 @@ scoring::LinkFigures LinkFiguresOf(const LinkStats& l) {
   f.rtt_ms = l.rtt_us.load(relaxed) / 1e3;
   f.jitter_ms = l.jitter_us.load(relaxed) / 1e3;
   f.loss = applied + lost > 0 ? static_cast<double>(lost) / static_cast<double>(applied + lost) : 0;
-  const double here = l.first_seen_s.load(relaxed) >= 0
-                          ? l.last_seen_s.load(relaxed) - l.first_seen_s.load(relaxed)
-                          : 0;
-  const double span = here + l.carried_s.load(relaxed);  // and on the nodes before (a move)
+  const double span = LinkSpanS(l);
   f.rate_hz = span > 0 ? static_cast<double>(applied) / span : 0;
   return f;
 }
@@ -380,7 +386,7 @@ Expected<CreatedSession> SessionManager::Join(uint64_t id) {
   out.record.state = it->second->state;
   out.key = it->second->key;
   out.udp_host = options_.udp_host;
-  out.udp_port = options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
+  out.udp_port = AdvertisedUdpPort();
   return out;
 }
 
@@ -422,6 +428,10 @@ std::vector<uint64_t> SessionManager::LiveIds() const {
   for (const auto& [id, l] : live_)
     if (!l->moving) ids.push_back(id);
   return ids;
+}
+
+uint16_t SessionManager::AdvertisedUdpPort() const {
+  return options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
 }
 
 int SessionManager::LiveCount() const {
@@ -706,10 +716,7 @@ Expected<SessionHandoff> SessionManager::BeginMove(uint64_t id) {
   const auto relaxed = std::memory_order_relaxed;
   h.applied = l.link.applied.load(relaxed);
   h.lost = l.link.lost.load(relaxed);
-  h.span_s = l.link.carried_s.load(relaxed) +
-             (l.link.first_seen_s.load(relaxed) >= 0
-                  ? l.link.last_seen_s.load(relaxed) - l.link.first_seen_s.load(relaxed)
-                  : 0);
+  h.span_s = LinkSpanS(l.link);
   h.rtt_us = l.link.rtt_us.load(relaxed);
   h.jitter_us = l.link.jitter_us.load(relaxed);
   h.rendered_peak_n = l.link.rendered_peak_n.load(relaxed);
@@ -823,7 +830,7 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
   out.record = live->record;
   out.key = live->key;
   out.udp_host = options_.udp_host;
-  out.udp_port = options_.udp_port ? options_.udp_port : endpoint_ ? endpoint_->port() : 0;
+  out.udp_port = AdvertisedUdpPort();
   // Served before it is listed: nothing here can end it before it is in the endpoint.
   if (started && endpoint_)
     endpoint_->AddSession(static_cast<uint64_t>(h.id), live->key, live->simulation.get(),

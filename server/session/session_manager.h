@@ -216,6 +216,8 @@ class SessionManager final : public Sessions {
   void WriteOrKeep(PendingWrite w);  // sampler thread
   void RetryPending();               // sampler thread
   void NotifyEnded(uint64_t id);     // subscribers of `id` hear that it ended
+  uint16_t AdvertisedUdpPort()
+      const;  // what stations are told to send to (options or the endpoint's)
   Status CheckLimits(const std::string& trainee) const;
   Status CheckLimitsLocked(const std::string& trainee) const;  // mutex_ held
   void SamplerLoop();
