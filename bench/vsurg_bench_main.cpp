@@ -121,16 +121,20 @@ struct RttRun {
 // The stations' side of haptic-rtt and udp-floor, the same for both: each station sends an
 // authenticated stylus datagram every millisecond (stamped with the send time, which the answer
 // echoes), spread over the millisecond in 8 slots of 125 µs as independent stations would be
-// rather than sent as one burst the server must queue; the stylus approaches from `outward` of
-// `rest` during the warm-up. Answers are opened and decoded; the round trip of each is kept.
+// rather than sent as one burst the server must queue; with `period_ms` > 1 (a station behind
+// the perceptual deadband, which sends about one sample in 20) every period_ms milliseconds,
+// the stations spread over the period's 8·period_ms slots alike; the stylus approaches from
+// `outward` of `rest` during the warm-up. Answers are opened and decoded; the round trip of each is
+// kept.
 RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>& stations,
                      const udp::endpoint& server, const Eigen::Vector3d& rest,
-                     const Eigen::Vector3d& outward, double seconds, Answer answer) {
+                     const Eigen::Vector3d& outward, double seconds, Answer answer,
+                     int period_ms = 1) {
   const int n = static_cast<int>(stations.size());
   const Clock::time_point start = Clock::now();
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   RttRun run;
-  run.rtt_us.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1));
+  run.rtt_us.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1 / period_ms));
   vsurg::wire::Codec codec;
   vsurg::wire::ForceMessage reply;
   vsurg::wire::StylusMessage echoed;
@@ -163,7 +167,8 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   asio::steady_timer timer(io);
   Clock::time_point next = Clock::now();
   const double total = kWarmupS + seconds;
-  constexpr int kSlots = 8;
+  constexpr int kSlotsPerMs = 8;
+  const int slots = kSlotsPerMs * period_ms;
   int slot = 0;
   // The measured window holds the datagrams *scheduled* in [warm-up, end): a pacer running late
   // on a loaded machine catches up (at most 20 ms, as a station does) without adding any, and
@@ -173,7 +178,7 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     if (t > total + 0.05) return io.stop();
     const double scheduled = std::chrono::duration<double>(next - start).count();
     if (scheduled < total) {
-      for (int k = slot; k < n; k += kSlots) {
+      for (int k = slot; k < n; k += slots) {
         Station& st = *stations[k];
         vsurg::wire::StylusMessage msg = m;
         msg.sample.time = now_s();
@@ -191,8 +196,8 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
         }
       }
     }
-    slot = (slot + 1) % kSlots;
-    constexpr auto kSlot = std::chrono::microseconds(1000 / kSlots);
+    slot = (slot + 1) % slots;
+    constexpr auto kSlot = std::chrono::microseconds(1000 / kSlotsPerMs);
     next += kSlot;
     if (const auto late = Clock::now() - next; late > std::chrono::milliseconds(20))
       next += late / kSlot * kSlot;  // fell behind: skip whole slots, no burst
@@ -329,6 +334,14 @@ int HapticRtt(const std::vector<std::string>& args) {
               "driven sessions deform on a pool of this many workers (0: one per core); -1: a "
               "deformation thread per session (vsurg-server's default)",
               false, "-1")
+      .Option("io-threads", ArgParser::Kind::kInt,
+              "the endpoint's I/O threads, each with a socket on the port (SO_REUSEPORT), "
+              "sessions spread over them by id",
+              false, "1")
+      .Option("period-ms", ArgParser::Kind::kInt,
+              "each station sends every this many milliseconds (1: a 1 kHz station; 20: about "
+              "what the perceptual deadband sends)",
+              false, "1")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -367,10 +380,14 @@ int HapticRtt(const std::vector<std::string>& args) {
     idle_sims.push_back(std::move(*sim));
   }
 
+  const int period_ms = static_cast<int>(p.Int("period-ms"));
+  if (period_ms < 1 || period_ms > 100)
+    return std::cerr << p.command() << ": --period-ms: must be in 1..100\n", 2;
   const int priority = p.Int("realtime-priority");
   if (priority < 0 || priority > 99)
     return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
-  auto endpoint = vsurg::server::UdpEndpoint::Create({.realtime_priority = priority});
+  auto endpoint = vsurg::server::UdpEndpoint::Create(
+      {.realtime_priority = priority, .io_threads = static_cast<int>(p.Int("io-threads"))});
   if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
   std::vector<std::unique_ptr<vsurg::sim::Simulation>> sims;
   asio::io_context io;
@@ -409,7 +426,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   const Eigen::Vector3d outward = limb ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1);
   const double cpu0 = (*endpoint)->io_cpu_seconds();
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
-  RttRun run = DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce);
+  RttRun run =
+      DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce, period_ms);
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
   uint64_t dashboard_bytes = 0, dashboard_events = 0;
   if (stack) {
@@ -427,6 +445,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["dashboard_clients"] = dashboard_clients;
   j["realtime_priority"] = realtime ? priority : 0;
   j["pool_workers"] = pool ? pool->workers() : pool_workers;
+  j["io_threads"] = (*endpoint)->io_threads();
+  j["period_ms"] = period_ms;
   j["dashboard_bytes"] = dashboard_bytes;
   j["dashboard_events"] = dashboard_events;
   if (p.Flag("json")) {
@@ -510,6 +530,10 @@ int UdpFloor(const std::vector<std::string>& args) {
               "SCHED_FIFO priority of the echo thread and of the stations' thread, when "
               "permitted (as haptic-rtt's)",
               false, "0")
+      .Option("period-ms", ArgParser::Kind::kInt,
+              "each station sends every this many milliseconds (1: a 1 kHz station; 20: about "
+              "what the perceptual deadband sends)",
+              false, "1")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const int n = p.Int("stations");
@@ -517,6 +541,9 @@ int UdpFloor(const std::vector<std::string>& args) {
   if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
   if (!(seconds > 0 && seconds <= 3600))
     return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
+  const int period_ms = static_cast<int>(p.Int("period-ms"));
+  if (period_ms < 1 || period_ms > 100)
+    return std::cerr << p.command() << ": --period-ms: must be in 1..100\n", 2;
   const int priority = p.Int("realtime-priority");
   if (priority < 0 || priority > 99)
     return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
@@ -529,10 +556,11 @@ int UdpFloor(const std::vector<std::string>& args) {
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
   const RttRun run = DriveStations(
       io, stations, udp::endpoint(asio::ip::make_address("127.0.0.1"), (*echo)->port()),
-      Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), seconds, Answer::kEcho);
+      Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), seconds, Answer::kEcho, period_ms);
   (*echo)->Stop();
   nlohmann::json j = run.Summary(n, seconds);
   j["server"] = "udp-echo";
+  j["period_ms"] = period_ms;
   j["server_cpu_per_station"] = (*echo)->cpu_seconds() / (kWarmupS + seconds) / n;
   j["realtime_priority"] = realtime ? priority : 0;
   if (p.Flag("json")) {

@@ -153,6 +153,10 @@ int Main(std::vector<std::string> args) {
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off, the normal "
               "priority a container gives)",
               false, "0")
+      .Option("io-threads", Kind::kInt,
+              "UDP haptic threads, each with a socket on the UDP port (SO_REUSEPORT), sessions "
+              "spread over them by id (1..16)",
+              false, "1")
       .Option("max-sessions", Kind::kInt, "live sessions on this server", false, "256")
       .Option("max-sessions-per-user", Kind::kInt, "live sessions per trainee", false, "2")
       .Option("start-timeout", Kind::kDouble,
@@ -287,6 +291,7 @@ int Main(std::vector<std::string> args) {
       std::cerr << "vsurg-server: --realtime-priority: must be within 0..99\n";
       return 2;
     }
+    eo.io_threads = static_cast<int>(p.Int("io-threads"));
     if (role == "sim") eo.lease = &lease;
     auto created = vsurg::server::UdpEndpoint::Create(eo);
     if (!created.ok()) {

@@ -1,13 +1,17 @@
 // The server's UDP haptic endpoint (DESIGN.md "Network", STYLE.md: the domain handler never sees
 // a socket).
 //
-// One I/O thread owns the socket and the session table; it blocks in recvmmsg on the socket (no
-// event loop: a lone datagram costs its receive and its answer's send, two system calls, as a
-// bare echo's; under load one receive takes up to 16). Per datagram: framing and size checks,
-// the session's key, the tag, latest-wins (a sequence not newer than the last applied is stale:
-// reordered or replayed), a per-session rate limit, the payload; then Simulation::OnStylus and a
-// ForceFeedback datagram back to the sender at once. Anything that fails is dropped and counted
-// by reason; nothing unauthenticated is ever answered.
+// One I/O thread per lane (EndpointOptions::io_threads, 1 by default) owns its socket and its
+// share of the session table; it blocks in recvmmsg on its socket (no event loop: a lone datagram
+// costs its receive and its answer's send, two system calls, as a bare echo's; under load one
+// receive takes up to 16). With several lanes the sockets share the port (SO_REUSEPORT) and the
+// kernel steers each datagram to its session's lane by the session id (a classic BPF program on
+// the port's group), so each session has one thread and the hot path takes no lock.
+//
+// Per datagram: framing and size checks, the session's key, the tag, latest-wins (a sequence not
+// newer than the last applied is stale: reordered or replayed), a per-session rate limit, the
+// payload; then Simulation::OnStylus and a ForceFeedback datagram back to the sender at once.
+// Anything that fails is dropped and counted by reason; nothing unauthenticated is ever answered.
 //
 // Two more checks before a force is computed: the datagram's age in the receive queue (the
 // kernel's arrival stamp, SO_TIMESTAMPNS; older than max_input_age_s: dropped as late) and, on a
@@ -24,8 +28,8 @@
 // simulation: its datagrams get a "moved" notice instead of a force, and it records no events.
 //
 // Transitions are recorded as events for the control plane (TakeEvents). Sessions are added and
-// removed on the I/O thread (queued, the thread woken by an empty datagram from the endpoint's
-// own waker socket), so the hot path takes no lock.
+// removed on their lane's I/O thread (queued, the thread woken by a datagram from the endpoint's
+// own waker socket, steered to that lane), so the hot path takes no lock.
 //
 // Visual frames: a VisualSender (server/net/visual_sender.h), with its own thread and socket so it
 // never delays a force, sends each session's moved vertices as SceneFrame datagrams at visual_hz
@@ -62,7 +66,11 @@ struct EndpointOptions {
   double disconnect_after_s = 5.0;
   double max_packets_per_s = 4000;  // per session; a 1 kHz station never comes near
   double visual_hz = 60;            // scene frames per second (0: none)
-  int realtime_priority = 0;        // > 0: SCHED_FIFO for the I/O thread, when permitted
+  int realtime_priority = 0;        // > 0: SCHED_FIFO for the I/O threads, when permitted
+  // I/O threads (lanes), each with its own socket on the port; sessions are spread over them by
+  // id. 1: one socket, no SO_REUSEPORT. More: the port is held by this endpoint alone (a second
+  // endpoint on it is refused, as with one lane).
+  int io_threads = 1;
   // The socket's receive buffer (SO_RCVBUF, capped by the kernel's net.core.rmem_max): what a
   // burst of datagrams may queue while the I/O thread is kept off a core, instead of being
   // dropped. 1 MiB: about 15 ms of 64 stations at 1 kHz. 0: the kernel's default (~208 KiB).
@@ -117,7 +125,12 @@ class UdpEndpoint {
   static Expected<std::unique_ptr<UdpEndpoint>> Create(const EndpointOptions& options);
   ~UdpEndpoint();  // stops and joins
 
+  static constexpr int kMaxIoThreads = 16;
+
   uint16_t port() const;
+  int io_threads() const;
+  // The lane (0 .. io_threads−1) that serves session `id`.
+  int LaneOf(uint64_t id) const;
   // The socket's receive buffer as the kernel keeps it (bytes; Linux reports twice what was
   // granted: its bookkeeping's share included).
   int receive_buffer_bytes() const;
@@ -133,18 +146,19 @@ class UdpEndpoint {
   void NoticeMoved(uint64_t id, const wire::SessionKey& key, double for_s = 10);
   void Stop();
 
-  EndpointCounters counters() const;  // any thread
-  // CPU time the I/O thread has used (s), sampled every 50 ms.
+  EndpointCounters counters() const;          // any thread; every lane's
+  EndpointCounters counters(int lane) const;  // one lane's (no visual frames)
+  // CPU time the I/O threads have used together (s), sampled every 50 ms.
   double io_cpu_seconds() const;
-  // The I/O thread (the stylus → force path), for diagnostics and the allocation test.
-  std::thread::id io_thread_id() const;
+  // A lane's I/O thread (the stylus → force path), for diagnostics and the allocation test.
+  std::thread::id io_thread_id(int lane = 0) const;
   std::vector<SessionEvent> TakeEvents();
   // Runs the stall/disconnect check now, on the I/O thread, and waits for it (it also runs every
   // 50 ms of real time): with a ManualClock, a test advances the clock and calls this.
   void CheckTimeoutsNow();
-  // Runs `fn` on the I/O thread and waits for it: a test holds the thread as a frozen or starved
-  // process would (the age bound), a diagnostic reads its state.
-  void RunOnIoThread(std::function<void()> fn);
+  // Runs `fn` on a lane's I/O thread and waits for it: a test holds the thread as a frozen or
+  // starved process would (the age bound), a diagnostic reads its state.
+  void RunOnIoThread(std::function<void()> fn, int lane = 0);
 
  private:
   struct Impl;

@@ -335,13 +335,80 @@ TEST(UdpEndpointTest, BadOptionsAndPortsInUseAreErrors) {
   EndpointOptions o;
   o.address = "not-an-ip";
   EXPECT_FALSE(UdpEndpoint::Create(o).ok());
-  auto first = UdpEndpoint::Create({});
-  ASSERT_TRUE(first.ok());
-  EndpointOptions same;
-  same.port = (*first)->port();
-  auto second = UdpEndpoint::Create(same);
-  ASSERT_FALSE(second.ok());
-  EXPECT_EQ(second.error().code, ErrorCode::kIoError);
+  for (const int threads : {0, UdpEndpoint::kMaxIoThreads + 1}) {
+    EndpointOptions bad;
+    bad.io_threads = threads;
+    auto refused = UdpEndpoint::Create(bad);
+    ASSERT_FALSE(refused.ok()) << threads;
+    EXPECT_EQ(refused.error().field, "io_threads");
+  }
+  // A port is one endpoint's, whether either shares it among its own I/O threads or not: with
+  // SO_REUSEPORT a second one could otherwise join the group and take a share of the stations.
+  for (const int first_threads : {1, 2}) {
+    EndpointOptions first_options;
+    first_options.io_threads = first_threads;
+    auto first = UdpEndpoint::Create(first_options);
+    ASSERT_TRUE(first.ok()) << first.error().message;
+    for (const int second_threads : {1, 2, 3}) {
+      EndpointOptions same;
+      same.port = (*first)->port();
+      same.io_threads = second_threads;
+      auto second = UdpEndpoint::Create(same);
+      ASSERT_FALSE(second.ok()) << first_threads << " then " << second_threads;
+      EXPECT_EQ(second.error().code, ErrorCode::kIoError);
+    }
+  }
+}
+
+// With two I/O threads the kernel steers each datagram to its session's lane by the session id,
+// not by the sender's address: two sessions sent from one socket are served by two threads, and
+// one lane held (a long hand-off, a page fault) delays no session of the other.
+TEST(UdpEndpointTest, SessionsAreSpreadOverTheIoThreadsByIdAndOneHeldLaneDelaysNoOther) {
+  EndpointOptions options;
+  options.io_threads = 2;
+  options.visual_hz = 0;  // every datagram the client reads is an answer
+  Fixture f(options);     // session 7
+  auto other = sim::Simulation::Create(*sim::LoadSceneByName("sphere-palpation-256"), {true});
+  f.endpoint->AddSession(8, Key(3), other->get());
+  ASSERT_EQ(f.endpoint->io_threads(), 2);
+  ASSERT_EQ(f.endpoint->LaneOf(7), 1);
+  ASSERT_EQ(f.endpoint->LaneOf(8), 0);
+  RawClient c(f.endpoint->port());
+  auto answered = [&](uint64_t session, uint64_t seq, const wire::SessionKey& key) {
+    c.Send(c.Stylus(session, seq, key));
+    auto reply = c.Receive(5000);
+    if (!reply) return false;
+    wire::Opened o;
+    const wire::Authenticator auth(key);
+    return wire::Open(*reply, &auth, o) == DropReason::kNone && o.header.session == session;
+  };
+  for (uint64_t seq = 1; seq <= 20; ++seq) {
+    ASSERT_TRUE(answered(7, seq, Key(1))) << seq;
+    ASSERT_TRUE(answered(8, seq, Key(3))) << seq;
+  }
+  WaitForReceived(*f.endpoint, 40);
+  EXPECT_EQ(f.endpoint->counters(0).received, 20u);  // session 8's, and nothing else
+  EXPECT_EQ(f.endpoint->counters(1).received, 20u);  // session 7's
+  EXPECT_EQ(f.endpoint->counters().answered, 40u);
+
+  // Lane 0 held until session 7 has been answered ten more times by lane 1.
+  std::atomic<bool> held{false}, release{false};
+  std::thread hold([&] {
+    f.endpoint->RunOnIoThread(
+        [&] {
+          held = true;
+          while (!release) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        },
+        0);
+  });
+  while (!held) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  bool all = true;
+  for (uint64_t seq = 21; seq <= 30 && all; ++seq) all = answered(7, seq, Key(1));
+  release = true;
+  hold.join();
+  EXPECT_TRUE(all) << "a session waited on the other lane's thread";
+  EXPECT_TRUE(answered(8, 21, Key(3))) << "the held lane serves again once let go";
+  f.endpoint->RemoveSession(8);
 }
 
 // The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
