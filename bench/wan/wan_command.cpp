@@ -60,9 +60,11 @@ int Wan(const std::vector<std::string>& args) {
            "lan,metro,regional,continental,intercontinental,bad-wifi")
       .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
               "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist")
-      .Option("methods", cli::ArgParser::Kind::kString,
-              "server, linear, model; +tdpa: with the network (two-port) passivity control", false,
-              "server,linear,model")
+      .Option(
+          "methods", cli::ArgParser::Kind::kString,
+          "server, linear, model; +tdpa: with the network (two-port) passivity control; +proxyk: "
+          "the contact's local model with the proxy's spring instead of the fitted slope",
+          false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
       .Option("deadbands", cli::ArgParser::Kind::kString,
@@ -81,22 +83,29 @@ int Wan(const std::vector<std::string>& args) {
     profiles.push_back(*pr);
   }
   struct Method {
-    std::string name;  // "model", "model+tdpa", or "model+db0.1" with a deadband
+    std::string name;  // "model", "model+tdpa", "model+proxyk", or "model+db0.1" with a deadband
     client::LocalRendering rendering;
     client::PassivityMode passivity;
     double deadband;
+    bool proxy_stiffness;  // the contact's local model with the proxy's spring, not the fit
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
-    const std::string suffix = "+tdpa";
-    const bool tdpa = name.size() > suffix.size() && name.ends_with(suffix);
-    auto m = client::ParseLocalRendering(tdpa ? name.substr(0, name.size() - suffix.size()) : name);
+    std::string base = name;
+    const auto strip = [&base](const std::string& suffix) {
+      const bool has = base.size() > suffix.size() && base.ends_with(suffix);
+      if (has) base.resize(base.size() - suffix.size());
+      return has;
+    };
+    const bool proxy_k = strip("+proxyk");
+    const bool tdpa = strip("+tdpa");
+    auto m = client::ParseLocalRendering(base);
     if (!m.ok()) return cli::UsageError(std::cerr, p.command(), m.error());
     const auto mode = tdpa ? client::PassivityMode::kNetwork : client::PassivityMode::kLocal;
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, proxy_k});
     }
   }
   const int runs = p.Int("runs");
@@ -120,6 +129,7 @@ int Wan(const std::vector<std::string>& args) {
       for (int r = 1; r <= runs; ++r) {
         wan::RunOptions o;
         o.scene = *scene;
+        o.scene.haptics.fit_contact_stiffness = !method_entry.proxy_stiffness;
         o.plan = *plan;
         o.profile = none;
         o.seed = static_cast<uint64_t>(r);

@@ -107,6 +107,11 @@ struct HapticsSpec {
   // model (model-mediated teleoperation), so a station behind a delay begins contact itself.
   // 3 cm covers a 0.1 m/s approach over a 300 ms round trip. 0: never.
   double lookahead = 0.03;
+  // The contact's stiffness in the station's local model where the tissue model has none of its
+  // own: fitted to the server's force over the tool's depth (haptics::StiffnessFit; the proxy in
+  // series with the yielding tissue), or the proxy's spring alone (the second wave's; kept to
+  // compare). Scene files: "contact_stiffness": "fitted" | "proxy".
+  bool fit_contact_stiffness = true;
 };
 
 // How the station draws the tissue (never what the server simulates): its material, and its

@@ -155,17 +155,31 @@ void Simulation::SurfaceAhead(const Snapshot& snap, const Vec3& tip, haptics::Lo
   double k = proxy_.params().stiffness;
   if (k > 0) {
     const Vec3 rest_normal = geometry::TriangleNormal(rest_, c.triangle);
-    const ContactQuery q{tri, c.barycentric, rest_normal, k};
-    std::visit(
-        [&](const auto& room) {
-          if constexpr (requires { room.ContactStiffness(q); }) k = room.ContactStiffness(q);
-        },
-        room_);
+    k = ContactStiffness({tri, c.barycentric, rest_normal, k});
   }
   local.kind = haptics::LocalModel::Kind::kContact;
   local.normal = n;
   local.position0 = c.point;
   jacobian = -k * n * n.transpose();
+}
+
+// The slope of the contact's force over the tool's depth for the station's local model: the
+// room's own (a reduced contact's series stiffness), else the fitted one within [0.1, 1]·k_p
+// (a tissue that yields is softer than the proxy, never stiffer), else the proxy's k_p.
+double Simulation::ContactStiffness(const ContactQuery& q) const {
+  double k = q.proxy_stiffness;
+  bool own = false;
+  std::visit(
+      [&](const auto& room) {
+        if constexpr (requires { room.ContactStiffness(q); }) {
+          k = room.ContactStiffness(q);
+          own = true;
+        }
+      },
+      room_);
+  if (!own && scene_.haptics.fit_contact_stiffness)
+    k = stiffness_fit_.Stiffness(0.1 * q.proxy_stiffness, q.proxy_stiffness, q.proxy_stiffness);
+  return k;
 }
 
 ForceCommand Simulation::OnStylus(const StylusSample& s) {
@@ -310,25 +324,21 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       }
       force = ps.force;
       jacobian = ps.jacobian;
-      // The station's local model: the tissue model's stiffness behind the proxy, where it has
-      // one (the reduced contact's series stiffness).
-      if (const double k = proxy_.params().stiffness; k > 0) {
-        const ContactQuery q{tri, ps.barycentric, rest_normal_, k};
-        std::visit(
-            [&](const auto& room) {
-              if constexpr (requires { room.ContactStiffness(q); })
-                jacobian *= room.ContactStiffness(q) / k;
-            },
-            room_);
-      }
+      // The station's local model: the stiffness the contact shows, the tissue model's own where
+      // it has one (the reduced contact's series stiffness), else fitted to this contact's force
+      // over its depth.
+      const double depth = (rest_contact_ - s.position).dot(rest_normal_);
+      if (!last_contact_) stiffness_fit_.BeginContact();
+      stiffness_fit_.Add(depth, ps.force.dot(rest_normal_), dt);
+      if (const double k = proxy_.params().stiffness; k > 0)
+        jacobian *= ContactStiffness({tri, ps.barycentric, rest_normal_, k}) / k;
       cmd.local.kind = haptics::LocalModel::Kind::kContact;
       cmd.local.normal = ps.normal;
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;
       input_.force_on_tissue = -ps.force;
       input_.hip = s.position;
-      if (task == scoring::TaskKind::kPress)
-        quantity = std::max(0.0, (rest_contact_ - s.position).dot(rest_normal_));
+      if (task == scoring::TaskKind::kPress) quantity = std::max(0.0, depth);
     } else {
       input_.triangle = -1;
       input_.force_on_tissue.setZero();
@@ -443,7 +453,7 @@ namespace {
 // The snapshot's header: a format version (raised whenever any Persist list changes), then what
 // the receiver must have built the same way.
 constexpr uint32_t kStateMagic = 0x4D495356;  // "VSIM"
-constexpr uint32_t kStateVersion = 1;
+constexpr uint32_t kStateVersion = 2;         // 2: the contact's stiffness fit
 
 }  // namespace
 
@@ -455,7 +465,7 @@ std::string Simulation::SaveState() {
   w(recorder_, samples_, port_force_, port_x_, port_has_x_, released_j_, absorbed_j_,
     telemetry_grasping_, live_score_, input_, last_time_, trial_time_, clock_jumps_, has_time_,
     grasping_, grasp_q0_, axis_, axis_point_, lever_, rest_contact_, rest_normal_, last_contact_,
-    grasp_query_, proxy_, safety_);
+    grasp_query_, proxy_, safety_, stiffness_fit_);
   // The surface the haptic path answers from (the latest published).
   surface_.Acquire();
   const Snapshot& snap = surface_.Front();
@@ -491,6 +501,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   scoring::TrialRecorder recorder = recorder_;
   haptics::ProxyContact proxy = proxy_;
   haptics::SafetyFilter safety = safety_;
+  haptics::StiffnessFit stiffness_fit = stiffness_fit_;
   DeformInput input;
   GraspQuery grasp_query;
   uint64_t samples = 0, clock_jumps = 0;
@@ -501,7 +512,8 @@ Status Simulation::RestoreState(std::string_view bytes) {
   Eigen::Quaterniond grasp_q0;
   r(recorder, samples, port_force, port_x, port_has_x, released, absorbed, telemetry_grasping,
     live_score, input, last_time, trial_time, clock_jumps, has_time, grasping, grasp_q0, axis,
-    axis_point, lever, rest_contact, rest_normal, last_contact, grasp_query, proxy, safety);
+    axis_point, lever, rest_contact, rest_normal, last_contact, grasp_query, proxy, safety,
+    stiffness_fit);
   std::vector<Vec3> positions(rest_.positions.size());
   bool overload = false, outside_model = false;
   r(positions, overload, outside_model);
@@ -539,6 +551,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   recorder_ = recorder;
   proxy_ = proxy;
   safety_ = safety;
+  stiffness_fit_ = stiffness_fit;
   samples_ = samples;
   port_force_ = port_force;
   port_x_ = port_x;

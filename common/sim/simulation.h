@@ -48,6 +48,7 @@
 #include "common/geometry/bvh.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
+#include "common/haptics/stiffness_fit.h"
 #include "common/haptics/types.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/deformation_pool.h"
@@ -173,6 +174,7 @@ class Simulation final : private DeformationPool::Member {
   void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
+  double ContactStiffness(const ContactQuery& q) const;
   void SurfaceAhead(const Snapshot& snap, const geometry::Vec3& tip, haptics::LocalModel& local,
                     Eigen::Matrix3d& jacobian) const;
 
@@ -206,6 +208,7 @@ class Simulation final : private DeformationPool::Member {
   double lever_ = 0.03;
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
+  haptics::StiffnessFit stiffness_fit_;  // the contact's slope for the local model
   GraspQuery grasp_query_;  // the current grasp's (a restored grasp asks its room again)
 
   // The tissue model (common/sim/tissue_room.h): its haptic-side queries run on the haptic

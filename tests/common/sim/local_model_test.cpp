@@ -115,6 +115,63 @@ TEST(LocalModelTest, AFreeToolGetsTheSurfaceAheadWithTheContactsStiffness) {
   EXPECT_EQ((*near_only)->OnStylus(s).local.kind, LocalModel::Kind::kLinear);
 }
 
+// Pressing into the sphere with a 700 N/m proxy (an Omni-class device at its limit): the
+// tissue yields under the proxy, so the force grows with depth at much less than 700 N/m. One
+// millimetre further in, the station's contact model with the fitted slope predicts the server's
+// answer there (a finite difference of the server's own force); with the proxy's spring alone
+// it overshoots. The scene can still ask for the proxy's spring.
+TEST(LocalModelTest, AContactsModelCarriesTheSlopeTheYieldingTissueShows) {
+  auto press = [](bool fit, haptics::ForceCommand& at_3mm, Vec3& x_4mm) {
+    auto scene = LoadSceneByName("sphere-palpation-256");
+    EXPECT_TRUE(scene.ok());
+    scene->haptics.limits = haptics::OmniLimits();
+    scene->haptics.proxy.stiffness = 700;
+    scene->haptics.fit_contact_stiffness = fit;
+    auto sim = Simulation::Create(*scene, {.threaded = false});
+    EXPECT_TRUE(sim.ok()) << sim.error().message;
+    haptics::StylusSample s;
+    s.position = Vec3(0.001, 0.002, 0.06);  // 1 cm above the top of the 5 cm ball
+    haptics::ForceCommand c;
+    double t = 0;
+    const auto step = [&](double z) {
+      s.position.z() = z;
+      s.time = (t += 1e-3);
+      c = (*sim)->OnStylus(s);
+      (*sim)->StepDeformation();
+    };
+    for (int i = 0; i < 700; ++i) step(0.06);             // past the start-up gate, free
+    for (double z = 0.06; z > 0.047; z -= 1e-5) step(z);  // in at 10 mm/s, to 3 mm deep
+    at_3mm = c;
+    for (double z = 0.047; z > 0.046; z -= 1e-5) step(z);  // 1 mm further
+    x_4mm = s.position;
+    EXPECT_TRUE(c.contact);
+    return c;
+  };
+  haptics::ForceCommand fitted_at_3mm, proxy_at_3mm;
+  Vec3 x;
+  const haptics::ForceCommand answer = press(true, fitted_at_3mm, x);
+  const haptics::ForceCommand proxy_answer = press(false, proxy_at_3mm, x);
+  ASSERT_NEAR((answer.force - proxy_answer.force).norm(), 0, 1e-9) << "the server's force changed";
+  const double slope = (answer.force - fitted_at_3mm.force).norm() / 1e-3;  // N/m, server's own
+  const auto normal_slope = [](const haptics::LocalModel& m) {
+    return -m.normal.dot(m.jacobian * m.normal);
+  };
+  const double k_fit = normal_slope(fitted_at_3mm.local);
+  const double k_proxy = normal_slope(proxy_at_3mm.local);
+  const Vec3 predicted = fitted_at_3mm.local.Render(x, fitted_at_3mm.local.orientation0, 0);
+  const Vec3 predicted_proxy = proxy_at_3mm.local.Render(x, proxy_at_3mm.local.orientation0, 0);
+  const double err_fit = (predicted - answer.force).norm();
+  const double err_proxy = (predicted_proxy - answer.force).norm();
+  std::printf(
+      "press 3 -> 4 mm: server slope %.0f N/m, fitted %.0f, proxy %.0f; prediction error %.4f "
+      "N fitted, %.4f N proxy\n",
+      slope, k_fit, k_proxy, err_fit, err_proxy);
+  EXPECT_NEAR(k_proxy, 700, 1);
+  EXPECT_LT(slope, 0.6 * 700) << "the tissue did not yield: nothing to fit";
+  EXPECT_NEAR(k_fit, slope, 0.25 * slope);
+  EXPECT_LT(err_fit, 0.4 * err_proxy);
+}
+
 TEST(LocalModelTest, TheGraspModelCarriesTheTissuesTorsionalStiffness) {
   // Mid-twist on the arm, the server's force 0.02 rad further on against what the local model
   // predicts there: with ∂F/∂φ (the coil's dM/dΦ through the lever, and the hold spring's arm)
