@@ -83,11 +83,11 @@ int Wan(const std::vector<std::string>& args) {
     profiles.push_back(*pr);
   }
   struct Method {
-    std::string name;  // "model", "model+tdpa", "model+proxyk", or "model+db0.1" with a deadband
+    std::string name;  // "model", "model+tdpa", "model+fitk", or "model+db0.1" with a deadband
     client::LocalRendering rendering;
     client::PassivityMode passivity;
     double deadband;
-    bool proxy_stiffness;  // the contact's local model with the proxy's spring, not the fit
+    bool fitted_stiffness;  // the contact's local model with the fitted slope, not the proxy's
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
@@ -97,7 +97,7 @@ int Wan(const std::vector<std::string>& args) {
       if (has) base.resize(base.size() - suffix.size());
       return has;
     };
-    const bool proxy_k = strip("+proxyk");
+    const bool fit_k = strip("+fitk");
     const bool tdpa = strip("+tdpa");
     auto m = client::ParseLocalRendering(base);
     if (!m.ok()) return cli::UsageError(std::cerr, p.command(), m.error());
@@ -105,7 +105,7 @@ int Wan(const std::vector<std::string>& args) {
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, proxy_k});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, fit_k});
     }
   }
   const int runs = p.Int("runs");
@@ -129,7 +129,7 @@ int Wan(const std::vector<std::string>& args) {
       for (int r = 1; r <= runs; ++r) {
         wan::RunOptions o;
         o.scene = *scene;
-        o.scene.haptics.fit_contact_stiffness = !method_entry.proxy_stiffness;
+        o.scene.haptics.fit_contact_stiffness = method_entry.fitted_stiffness;
         o.plan = *plan;
         o.profile = none;
         o.seed = static_cast<uint64_t>(r);

@@ -293,6 +293,18 @@ TEST(SceneTest, BadScenesNameTheField) {
   EXPECT_NE(Field(Replace(Minimal(), R"("particles": 256)", R"("particles": 2)"))
                 .find("mesh.particles: must be in"),
             std::string::npos);
+  // The contact's stiffness in the station's model: the proxy's unless the scene asks for the fit.
+  EXPECT_FALSE(ParseScene(Minimal(), "x.json")->haptics.fit_contact_stiffness);
+  const auto with_contact = [](const std::string& value) {
+    return Replace(Minimal(), R"("error_budget")",
+                   R"("haptics": {"contact_stiffness": )" + value + R"(}, "error_budget")");
+  };
+  auto fitted = ParseScene(with_contact(R"("fitted")"), "x.json");
+  ASSERT_TRUE(fitted.ok()) << fitted.error().message;
+  EXPECT_TRUE(fitted->haptics.fit_contact_stiffness);
+  EXPECT_NE(Field(with_contact(R"("guessed")"))
+                .find("haptics.contact_stiffness: must be fitted or proxy"),
+            std::string::npos);
   EXPECT_NE(Field(Replace(Minimal(), R"("type": "mass-spring")", R"("type": "magic")"))
                 .find("regions[0].model.type: must be coil, mass-spring, ring-layer or reduced"),
             std::string::npos);
