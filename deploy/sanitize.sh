@@ -86,6 +86,7 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   single+=':SimulationTest.ForcepsTwist*:SimulationTest.TheReducedArm*:SimulationTest.AReducedSphere*'
   single+=':SimulationTest.TheLocalModel*:SimulationTest.AContactOutsideTheReducedModel*'
   single+=':EveryModel/StateTest.*:StateRefusalTest.*'  # live migration's state: one thread
+  single+=':LocalModelTest.AContactsModelCarriesTheSlope*'  # two unthreaded presses
   declare -A filter=([simulation_test]="-$single")
   for s in "${suites[@]}"; do
     echo "tsan: $s"
