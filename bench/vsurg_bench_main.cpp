@@ -80,6 +80,11 @@ struct Station {
       : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
 };
 
+// --period-ms of haptic-rtt and udp-floor (the same stations in both).
+constexpr const char* kPeriodHelp =
+    "each station sends every this many milliseconds (1: a 1 kHz station; 20: about what the "
+    "perceptual deadband sends)";
+
 // Station i's session key, the same in haptic-rtt and udp-floor (sessions 1000 + i).
 vsurg::wire::SessionKey BenchKey(int i) {
   vsurg::wire::SessionKey key;
@@ -338,10 +343,7 @@ int HapticRtt(const std::vector<std::string>& args) {
               "the endpoint's I/O threads, each with a socket on the port (SO_REUSEPORT), "
               "sessions spread over them by id",
               false, "1")
-      .Option("period-ms", ArgParser::Kind::kInt,
-              "each station sends every this many milliseconds (1: a 1 kHz station; 20: about "
-              "what the perceptual deadband sends)",
-              false, "1")
+      .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -530,10 +532,7 @@ int UdpFloor(const std::vector<std::string>& args) {
               "SCHED_FIFO priority of the echo thread and of the stations' thread, when "
               "permitted (as haptic-rtt's)",
               false, "0")
-      .Option("period-ms", ArgParser::Kind::kInt,
-              "each station sends every this many milliseconds (1: a 1 kHz station; 20: about "
-              "what the perceptual deadband sends)",
-              false, "1")
+      .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const int n = p.Int("stations");
