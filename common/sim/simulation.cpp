@@ -328,8 +328,10 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       // it has one (the reduced contact's series stiffness), else fitted to this contact's force
       // over its depth.
       const double depth = (rest_contact_ - s.position).dot(rest_normal_);
-      if (!last_contact_) stiffness_fit_.BeginContact();
-      stiffness_fit_.Add(depth, ps.force.dot(rest_normal_), dt);
+      if (scene_.haptics.fit_contact_stiffness) {  // else the haptic path pays nothing for it
+        if (!last_contact_) stiffness_fit_.BeginContact();
+        stiffness_fit_.Add(depth, ps.force.dot(rest_normal_), dt);
+      }
       if (const double k = proxy_.params().stiffness; k > 0)
         jacobian *= ContactStiffness({tri, ps.barycentric, rest_normal_, k}) / k;
       cmd.local.kind = haptics::LocalModel::Kind::kContact;

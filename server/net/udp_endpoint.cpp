@@ -34,7 +34,7 @@ using asio::ip::udp;
 // one receive returns up to kBatch datagrams, and their answers leave together in one sendmmsg
 // (each waits at most for the batch's other stylus samples to be handled, about a microsecond
 // each). With more than one lane the sockets share the port (SO_REUSEPORT) and a classic BPF
-// program attached to the group steers each datagram by its session id (SteeringProgram), so a
+// program attached to the group steers each datagram by its session id (AttachSteering), so a
 // session is always served by the same lane, which alone owns its state: no lock on the hot
 // path, and a station's answers never wait behind another lane's batch. Work from other threads
 // (add and remove a session, a timeout check) is queued on the session's lane and the lane woken
