@@ -336,6 +336,8 @@ TEST(StationBinaryTest, OpensItsWindowUnderXvfb) {
 
 // The keyboard-and-mouse device in the real window: X key events (xdotool under Xvfb) move the
 // stylus, and the server's trial sees the path: D held about 1 s, then E about 0.5 s, at 5 cm/s.
+// The station runs until the keys are done and is then stopped (SIGINT), so a slow start under a
+// sanitizer or a loaded machine cannot end the trial before the keys are pressed.
 TEST(StationBinaryTest, KeysInTheWindowMoveTheStylus) {
   if (test::Shell("command -v xvfb-run >/dev/null && command -v xdotool >/dev/null").code != 0)
     GTEST_SKIP() << "no xvfb-run or xdotool";
@@ -344,7 +346,7 @@ TEST(StationBinaryTest, KeysInTheWindowMoveTheStylus) {
   const std::string summary = (dir / "summary.json").string(), script = (dir / "keys.sh").string();
   std::ofstream(script) << VSURG_STATION_BINARY << " --server 127.0.0.1:" << server.grpc_port
                         << " --token " << tokens.trainee
-                        << " --device keyboard-mouse --duration 4 --width 400 --height 300"
+                        << " --device keyboard-mouse --duration 60 --width 400 --height 300"
                         << " --json > " << summary << " &\n"
                         << "pid=$!\n"
                         << "w=$(timeout 20 xdotool search --sync --name 'vsurg station')\n"
@@ -353,6 +355,8 @@ TEST(StationBinaryTest, KeysInTheWindowMoveTheStylus) {
                            "--sync $w\n"
                         << "xdotool keydown d; sleep 1; xdotool keyup d\n"
                         << "xdotool keydown e; sleep 0.5; xdotool keyup e\n"
+                        << "sleep 0.3\n"       // the last key's motion reaches the server
+                        << "kill -INT $pid\n"  // ended after the keys, however slow the start
                         << "wait $pid\n";
   const test::ShellRun run =
       test::Shell("xvfb-run -a -s '-screen 0 1024x768x24' bash " + script + " 2>&1");
