@@ -17,6 +17,7 @@
 #include "db/store.h"
 #include "server/cluster/cluster_common.h"
 #include "server/ops/metrics.h"
+#include "server/session/caller_deadline.h"
 
 namespace vsurg::server::cluster {
 namespace {
@@ -853,7 +854,8 @@ Expected<CreatedSession> ClusterSessions::Join(uint64_t id) {
   v1::SessionRef req;
   req.set_id(id);
   v1::NodeSession reply;
-  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  // A read on the caller's behalf: no longer than the caller waits (caller_deadline.h).
+  auto ctx = CallContext(impl_->options.token, CallerDeadline::Left(impl_->options.call_timeout_s));
   const grpc::Status s = impl_->StubFor(at->second).Join(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "join on node " + at->second.name);
   CreatedSession out = FromProto(reply);
@@ -868,7 +870,8 @@ Status ClusterSessions::RestSurface(uint64_t id, std::vector<geometry::Vec3>& po
   v1::SessionRef req;
   req.set_id(id);
   v1::NodeSurface reply;
-  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  // A read on the caller's behalf: no longer than the caller waits (caller_deadline.h).
+  auto ctx = CallContext(impl_->options.token, CallerDeadline::Left(impl_->options.call_timeout_s));
   const grpc::Status s = impl_->StubFor(at->second).RestSurface(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "surface on node " + at->second.name);
   positions.clear();
@@ -884,7 +887,8 @@ Expected<std::string> ClusterSessions::Trace(uint64_t id) const {
   v1::SessionRef req;
   req.set_id(id);
   v1::NodeTrace reply;
-  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  // A read on the caller's behalf: no longer than the caller waits (caller_deadline.h).
+  auto ctx = CallContext(impl_->options.token, CallerDeadline::Left(impl_->options.call_timeout_s));
   const grpc::Status s = impl_->StubFor(at->second).Trace(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "record on node " + at->second.name);
   return std::move(*reply.mutable_json());

@@ -64,65 +64,71 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::ExportChunk> {
 
 class AdminServiceImpl final : public v1::AdminService::CallbackService {
  public:
-  explicit AdminServiceImpl(Domain& d) : d_(d) {}
+  AdminServiceImpl(Domain& d, CallPool& pool) : d_(d), pool_(pool) {}
 
   ServerUnaryReactor* CreateUser(CallbackServerContext* ctx, const v1::CreateUserRequest* req,
                                  v1::User* resp) override {
-    return Unary(d_, ctx, Method::kAdminCreateUser, [&](const db::Principal& p) -> Status {
-      auto u = server::CreateUser(d_, p, req->name(), RoleFromProto(req->role()), req->group());
-      if (!u.ok()) return u.error();
-      ToProto(*u, resp);
-      return Status::Ok();
-    });
+    return Unary(
+        d_, pool_, ctx, Method::kAdminCreateUser, [=, this](const db::Principal& p) -> Status {
+          auto u = server::CreateUser(d_, p, req->name(), RoleFromProto(req->role()), req->group());
+          if (!u.ok()) return u.error();
+          ToProto(*u, resp);
+          return Status::Ok();
+        });
   }
 
   ServerUnaryReactor* IssueToken(CallbackServerContext* ctx, const v1::IssueTokenRequest* req,
                                  v1::IssueTokenResponse* resp) override {
-    return Unary(d_, ctx, Method::kAdminIssueToken, [&](const db::Principal& p) -> Status {
-      auto t = server::IssueToken(d_, p, req->user(), req->label());
-      if (!t.ok()) return t.error();
-      resp->set_token(*t);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kAdminIssueToken,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto t = server::IssueToken(d_, p, req->user(), req->label());
+                   if (!t.ok()) return t.error();
+                   resp->set_token(*t);
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* RevokeTokens(CallbackServerContext* ctx, const v1::UserRef* req,
                                    v1::Empty*) override {
-    return Unary(d_, ctx, Method::kAdminRevokeTokens,
-                 [&](const db::Principal& p) { return server::RevokeTokens(d_, p, req->name()); });
+    return Unary(d_, pool_, ctx, Method::kAdminRevokeTokens, [=, this](const db::Principal& p) {
+      return server::RevokeTokens(d_, p, req->name());
+    });
   }
 
   ServerUnaryReactor* SetDisabled(CallbackServerContext* ctx, const v1::SetDisabledRequest* req,
                                   v1::Empty*) override {
-    return Unary(d_, ctx, Method::kAdminSetDisabled, [&](const db::Principal& p) {
+    return Unary(d_, pool_, ctx, Method::kAdminSetDisabled, [=, this](const db::Principal& p) {
       return server::SetDisabled(d_, p, req->name(), req->disabled());
     });
   }
 
   ServerUnaryReactor* ListUsers(CallbackServerContext* ctx, const v1::ListUsersRequest*,
                                 v1::ListUsersResponse* resp) override {
-    return Unary(d_, ctx, Method::kAdminListUsers, [&](const db::Principal& p) -> Status {
-      auto users = server::ListUsers(d_, p);
-      if (!users.ok()) return users.error();
-      for (const db::UserRecord& u : *users) ToProto(u, resp->add_users());
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kAdminListUsers,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto users = server::ListUsers(d_, p);
+                   if (!users.ok()) return users.error();
+                   for (const db::UserRecord& u : *users) ToProto(u, resp->add_users());
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* PutWeightSet(CallbackServerContext* ctx, const v1::WeightSet* req,
                                    v1::Empty*) override {
-    return Unary(d_, ctx, Method::kAdminPutWeightSet,
-                 [&](const db::Principal& p) { return server::PutWeightSet(d_, p, req->json()); });
+    return Unary(d_, pool_, ctx, Method::kAdminPutWeightSet, [=, this](const db::Principal& p) {
+      return server::PutWeightSet(d_, p, req->json());
+    });
   }
 
   ServerUnaryReactor* ListWeightSets(CallbackServerContext* ctx, const v1::ListWeightSetsRequest*,
                                      v1::ListWeightSetsResponse* resp) override {
-    return Unary(d_, ctx, Method::kAdminListWeightSets, [&](const db::Principal& p) -> Status {
-      auto names = server::ListWeightSets(d_, p);
-      if (!names.ok()) return names.error();
-      for (const std::string& n : *names) resp->add_names(n);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kAdminListWeightSets,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto names = server::ListWeightSets(d_, p);
+                   if (!names.ok()) return names.error();
+                   for (const std::string& n : *names) resp->add_names(n);
+                   return Status::Ok();
+                 });
   }
 
   grpc::ServerWriteReactor<v1::ExportChunk>* Export(CallbackServerContext* ctx,
@@ -137,18 +143,19 @@ class AdminServiceImpl final : public v1::AdminService::CallbackService {
 
   ServerUnaryReactor* Backup(CallbackServerContext* ctx, const v1::BackupRequest* req,
                              v1::Empty*) override {
-    return Unary(d_, ctx, Method::kAdminBackup,
-                 [&](const db::Principal& p) { return server::Backup(d_, p, req->path()); });
+    return Unary(d_, pool_, ctx, Method::kAdminBackup,
+                 [=, this](const db::Principal& p) { return server::Backup(d_, p, req->path()); });
   }
 
  private:
   Domain& d_;
+  CallPool& pool_;
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> NewAdminService(Domain& d) {
-  return std::make_unique<AdminServiceImpl>(d);
+std::unique_ptr<grpc::Service> NewAdminService(Domain& d, CallPool& pool) {
+  return std::make_unique<AdminServiceImpl>(d, pool);
 }
 
 }  // namespace vsurg::server::grpcapi

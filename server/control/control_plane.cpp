@@ -18,11 +18,14 @@ namespace vsurg::server {
 struct ControlPlane::Impl {
   SceneCatalog scenes;  // follows sim::ScenesDirectory()
   Domain domain;
-  std::unique_ptr<grpc::Service> session_service = grpcapi::NewSessionService(domain);
+  // Declared before the services and the server, so it ends after them: the server's shutdown
+  // waits for the calls in it to finish.
+  CallPool calls;
+  std::unique_ptr<grpc::Service> session_service = grpcapi::NewSessionService(domain, calls);
   std::unique_ptr<grpc::Service> monitor_service = grpcapi::NewMonitorService(domain);
-  std::unique_ptr<grpc::Service> evaluation_service = grpcapi::NewEvaluationService(domain);
-  std::unique_ptr<grpc::Service> admin_service = grpcapi::NewAdminService(domain);
-  std::unique_ptr<grpc::Service> training_service = grpcapi::NewTrainingService(domain);
+  std::unique_ptr<grpc::Service> evaluation_service = grpcapi::NewEvaluationService(domain, calls);
+  std::unique_ptr<grpc::Service> admin_service = grpcapi::NewAdminService(domain, calls);
+  std::unique_ptr<grpc::Service> training_service = grpcapi::NewTrainingService(domain, calls);
   std::unique_ptr<grpc::Server> server;
   int port = 0;
   bool tls = false;

@@ -10,7 +10,7 @@ using grpc::ServerUnaryReactor;
 
 class EvaluationServiceImpl final : public v1::EvaluationService::CallbackService {
  public:
-  explicit EvaluationServiceImpl(Domain& d) : d_(d) {}
+  EvaluationServiceImpl(Domain& d, CallPool& pool) : d_(d), pool_(pool) {}
 
   ServerUnaryReactor* Submit(CallbackServerContext* ctx, const v1::SubmitEvaluationRequest* req,
                              v1::SubmitEvaluationResponse* resp) override {
@@ -50,34 +50,37 @@ class EvaluationServiceImpl final : public v1::EvaluationService::CallbackServic
 
   ServerUnaryReactor* Report(CallbackServerContext* ctx, const v1::ReportRequest* req,
                              v1::ReportResponse* resp) override {
-    return Unary(d_, ctx, Method::kEvaluationReport, [&](const db::Principal& p) -> Status {
-      const std::vector<std::string> subjects(req->subjects().begin(), req->subjects().end());
-      auto json = server::Report(d_, p, req->subject_kind(), subjects, req->weight_set());
-      if (!json.ok()) return json.error();
-      resp->set_report_json(*json);
-      return Status::Ok();
-    });
+    return Unary(
+        d_, pool_, ctx, Method::kEvaluationReport, [=, this](const db::Principal& p) -> Status {
+          const std::vector<std::string> subjects(req->subjects().begin(), req->subjects().end());
+          auto json = server::Report(d_, p, req->subject_kind(), subjects, req->weight_set());
+          if (!json.ok()) return json.error();
+          resp->set_report_json(*json);
+          return Status::Ok();
+        });
   }
 
   ServerUnaryReactor* TrainingEffect(CallbackServerContext* ctx,
                                      const v1::TrainingEffectRequest* req,
                                      v1::TrainingEffectResponse* resp) override {
-    return Unary(d_, ctx, Method::kEvaluationTrainingEffect, [&](const db::Principal& p) -> Status {
-      auto json = server::TrainingEffect(d_, p, req->weight_set());
-      if (!json.ok()) return json.error();
-      resp->set_cells_json(*json);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kEvaluationTrainingEffect,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto json = server::TrainingEffect(d_, p, req->weight_set());
+                   if (!json.ok()) return json.error();
+                   resp->set_cells_json(*json);
+                   return Status::Ok();
+                 });
   }
 
  private:
   Domain& d_;
+  CallPool& pool_;
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> NewEvaluationService(Domain& d) {
-  return std::make_unique<EvaluationServiceImpl>(d);
+std::unique_ptr<grpc::Service> NewEvaluationService(Domain& d, CallPool& pool) {
+  return std::make_unique<EvaluationServiceImpl>(d, pool);
 }
 
 }  // namespace vsurg::server::grpcapi

@@ -5,7 +5,9 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "server/control/call_pool.h"
 #include "server/domain/api.h"
+#include "server/session/caller_deadline.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::server::grpcapi {
@@ -18,14 +20,21 @@ grpc::Status ToGrpcStatus(const Status& s);
 // The caller of this call (its `authorization` metadata), when their role may call `m`.
 Expected<db::Principal> Authorize(Domain& d, grpc::CallbackServerContext* ctx, Method m);
 
-// A unary call whose body (a domain call and the response's translation) runs on the calling
-// thread: authenticated and checked against the matrix first.
+// A unary call: authenticated and checked against the matrix, then its body (a domain call and
+// the response's translation), both on the control plane's CallPool (server/control/call_pool.h:
+// never on gRPC's own few callback threads, which a call waiting on a node would hold), with the
+// caller's deadline bounding what it asks of a node. The body runs after the handler has
+// returned: it captures by value (`[=, this]`: the request and response pointers, which gRPC
+// keeps until the call is finished), never by reference.
 template <class Body>
-grpc::ServerUnaryReactor* Unary(Domain& d, grpc::CallbackServerContext* ctx, Method m,
-                                Body&& body) {
+grpc::ServerUnaryReactor* Unary(Domain& d, CallPool& pool, grpc::CallbackServerContext* ctx,
+                                Method m, Body body) {
   grpc::ServerUnaryReactor* r = ctx->DefaultReactor();
-  auto p = Authorize(d, ctx, m);
-  r->Finish(p.ok() ? ToGrpcStatus(body(*p)) : ToGrpcStatus(p.error()));
+  pool.Post([&d, ctx, m, r, body = std::move(body)]() mutable {
+    const CallerDeadline deadline(ctx->deadline());
+    auto p = Authorize(d, ctx, m);
+    r->Finish(p.ok() ? ToGrpcStatus(body(*p)) : ToGrpcStatus(p.error()));
+  });
   return r;
 }
 
@@ -44,10 +53,11 @@ v1::Role RoleToProto(db::Role r);
 void ToProto(const db::UserRecord& u, v1::User* out);
 
 // The services, registered by ControlPlane::Start; each lives as long as `d`.
-std::unique_ptr<grpc::Service> NewSessionService(Domain& d);
+// Their unary calls run on `pool`, which outlives them.
+std::unique_ptr<grpc::Service> NewSessionService(Domain& d, CallPool& pool);
 std::unique_ptr<grpc::Service> NewMonitorService(Domain& d);
-std::unique_ptr<grpc::Service> NewEvaluationService(Domain& d);
-std::unique_ptr<grpc::Service> NewAdminService(Domain& d);
-std::unique_ptr<grpc::Service> NewTrainingService(Domain& d);
+std::unique_ptr<grpc::Service> NewEvaluationService(Domain& d, CallPool& pool);
+std::unique_ptr<grpc::Service> NewAdminService(Domain& d, CallPool& pool);
+std::unique_ptr<grpc::Service> NewTrainingService(Domain& d, CallPool& pool);
 
 }  // namespace vsurg::server::grpcapi

@@ -11,23 +11,24 @@ using grpc::ServerUnaryReactor;
 
 class SessionServiceImpl final : public v1::SessionService::CallbackService {
  public:
-  explicit SessionServiceImpl(Domain& d) : d_(d) {}
+  SessionServiceImpl(Domain& d, CallPool& pool) : d_(d), pool_(pool) {}
 
   ServerUnaryReactor* Create(CallbackServerContext* ctx, const v1::CreateSessionRequest* req,
                              v1::CreateSessionResponse* resp) override {
-    return Unary(d_, ctx, Method::kSessionCreate, [&](const db::Principal& p) -> Status {
-      auto created = req->exercise_id() != 0
-                         ? CreateExerciseSession(d_, p, req->trainee(), req->exercise_id())
-                         : CreateSession(d_, p, req->trainee(), req->scene());
-      if (!created.ok()) return created.error();
-      Credentials(*created, resp);
-      return Status::Ok();
-    });
+    return Unary(
+        d_, pool_, ctx, Method::kSessionCreate, [=, this](const db::Principal& p) -> Status {
+          auto created = req->exercise_id() != 0
+                             ? CreateExerciseSession(d_, p, req->trainee(), req->exercise_id())
+                             : CreateSession(d_, p, req->trainee(), req->scene());
+          if (!created.ok()) return created.error();
+          Credentials(*created, resp);
+          return Status::Ok();
+        });
   }
 
   ServerUnaryReactor* Join(CallbackServerContext* ctx, const v1::SessionRef* req,
                            v1::CreateSessionResponse* resp) override {
-    return Unary(d_, ctx, Method::kSessionJoin, [&](const db::Principal& p) -> Status {
+    return Unary(d_, pool_, ctx, Method::kSessionJoin, [=, this](const db::Principal& p) -> Status {
       auto joined = JoinSession(d_, p, req->id());
       if (!joined.ok()) return joined.error();
       Credentials(*joined, resp);
@@ -37,21 +38,21 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
 
   ServerUnaryReactor* Start(CallbackServerContext* ctx, const v1::SessionRef* req,
                             v1::Session* resp) override {
-    return Unary(d_, ctx, Method::kSessionStart, [&](const db::Principal& p) {
+    return Unary(d_, pool_, ctx, Method::kSessionStart, [=, this](const db::Principal& p) {
       return Answer(StartSession(d_, p, req->id()), resp);
     });
   }
 
   ServerUnaryReactor* Stop(CallbackServerContext* ctx, const v1::StopSessionRequest* req,
                            v1::Session* resp) override {
-    return Unary(d_, ctx, Method::kSessionStop, [&](const db::Principal& p) {
+    return Unary(d_, pool_, ctx, Method::kSessionStop, [=, this](const db::Principal& p) {
       return Answer(StopSession(d_, p, req->id(), req->reason()), resp);
     });
   }
 
   ServerUnaryReactor* Get(CallbackServerContext* ctx, const v1::SessionRef* req,
                           v1::Session* resp) override {
-    return Unary(d_, ctx, Method::kSessionGet, [&](const db::Principal& p) -> Status {
+    return Unary(d_, pool_, ctx, Method::kSessionGet, [=, this](const db::Principal& p) -> Status {
       if (Status s = Answer(GetSession(d_, p, req->id()), resp); !s.ok()) return s;
       // An attempt at an exercise: its checks against the targets (the station's summary).
       auto checks = SessionTargets(d_, p, req->id());
@@ -72,7 +73,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
 
   ServerUnaryReactor* List(CallbackServerContext* ctx, const v1::ListSessionsRequest* req,
                            v1::ListSessionsResponse* resp) override {
-    return Unary(d_, ctx, Method::kSessionList, [&](const db::Principal& p) -> Status {
+    return Unary(d_, pool_, ctx, Method::kSessionList, [=, this](const db::Principal& p) -> Status {
       auto list = ListSessions(d_, p, req->trainee(), req->live_only());
       if (!list.ok()) return list.error();
       for (const SessionView& v : *list) ToProto(v, resp->add_sessions());
@@ -82,20 +83,21 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
 
   ServerUnaryReactor* ListScenes(CallbackServerContext* ctx, const v1::ListScenesRequest*,
                                  v1::ListScenesResponse* resp) override {
-    return Unary(d_, ctx, Method::kSessionListScenes, [&](const db::Principal& p) -> Status {
-      auto listing = server::ListScenes(d_, p);
-      if (!listing.ok()) return listing.error();
-      for (const SceneInfo& s : listing->scenes) {
-        v1::SceneInfo* info = resp->add_scenes();
-        info->set_name(s.name);
-        info->set_description(s.description);
-        info->set_model(s.model);
-        info->set_task(s.task);
-        info->set_error_budget_rms(s.error_budget_rms);
-      }
-      for (const std::string& why : listing->unusable) resp->add_unusable(why);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kSessionListScenes,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto listing = server::ListScenes(d_, p);
+                   if (!listing.ok()) return listing.error();
+                   for (const SceneInfo& s : listing->scenes) {
+                     v1::SceneInfo* info = resp->add_scenes();
+                     info->set_name(s.name);
+                     info->set_description(s.description);
+                     info->set_model(s.model);
+                     info->set_task(s.task);
+                     info->set_error_budget_rms(s.error_budget_rms);
+                   }
+                   for (const std::string& why : listing->unusable) resp->add_unusable(why);
+                   return Status::Ok();
+                 });
   }
 
  private:
@@ -111,12 +113,13 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     return Status::Ok();
   }
   Domain& d_;
+  CallPool& pool_;
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> NewSessionService(Domain& d) {
-  return std::make_unique<SessionServiceImpl>(d);
+std::unique_ptr<grpc::Service> NewSessionService(Domain& d, CallPool& pool) {
+  return std::make_unique<SessionServiceImpl>(d, pool);
 }
 
 }  // namespace vsurg::server::grpcapi

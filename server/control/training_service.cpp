@@ -106,130 +106,138 @@ Expected<NewExercise> FromProto(const v1::Exercise& e, size_t i) {
 
 class TrainingServiceImpl final : public v1::TrainingService::CallbackService {
  public:
-  explicit TrainingServiceImpl(Domain& d) : d_(d) {}
+  TrainingServiceImpl(Domain& d, CallPool& pool) : d_(d), pool_(pool) {}
 
   ServerUnaryReactor* CreateCourse(CallbackServerContext* ctx, const v1::CreateCourseRequest* req,
                                    v1::Course* resp) override {
-    return Unary(d_, ctx, Method::kTrainingCreateCourse, [&](const db::Principal& p) -> Status {
-      std::vector<NewExercise> exercises;
-      for (int i = 0; i < req->exercises_size(); ++i) {
-        auto e = FromProto(req->exercises(i), static_cast<size_t>(i));
-        if (!e.ok()) return e.error();
-        exercises.push_back(std::move(e).value());
-      }
-      auto c = server::CreateCourse(d_, p, req->name(), req->description(), exercises);
-      if (!c.ok()) return c.error();
-      ToProto(*c, resp);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingCreateCourse,
+                 [=, this](const db::Principal& p) -> Status {
+                   std::vector<NewExercise> exercises;
+                   for (int i = 0; i < req->exercises_size(); ++i) {
+                     auto e = FromProto(req->exercises(i), static_cast<size_t>(i));
+                     if (!e.ok()) return e.error();
+                     exercises.push_back(std::move(e).value());
+                   }
+                   auto c = server::CreateCourse(d_, p, req->name(), req->description(), exercises);
+                   if (!c.ok()) return c.error();
+                   ToProto(*c, resp);
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* CreateCohort(CallbackServerContext* ctx, const v1::CreateCohortRequest* req,
                                    v1::Cohort* resp) override {
-    return Unary(d_, ctx, Method::kTrainingCreateCohort, [&](const db::Principal& p) -> Status {
-      std::vector<std::string> members(req->members().begin(), req->members().end());
-      auto c = server::CreateCohort(d_, p, req->name(), req->instructor(), members);
-      if (!c.ok()) return c.error();
-      ToProto(*c, resp);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingCreateCohort,
+                 [=, this](const db::Principal& p) -> Status {
+                   std::vector<std::string> members(req->members().begin(), req->members().end());
+                   auto c = server::CreateCohort(d_, p, req->name(), req->instructor(), members);
+                   if (!c.ok()) return c.error();
+                   ToProto(*c, resp);
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* Enrol(CallbackServerContext* ctx, const v1::EnrolRequest* req,
                             v1::Enrolment* resp) override {
-    return Unary(d_, ctx, Method::kTrainingEnrol, [&](const db::Principal& p) -> Status {
-      db::EnrolmentRecord e;
-      e.course_id = req->course_id();
-      if (req->cohort_id() != 0) e.cohort_id = req->cohort_id();
-      e.trainee = req->trainee();
-      e.starts_us = req->starts_us();
-      if (req->ends_us() != 0) e.ends_us = req->ends_us();
-      auto made = server::Enrol(d_, p, e);
-      if (!made.ok()) return made.error();
-      resp->set_id(made->id);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingEnrol,
+                 [=, this](const db::Principal& p) -> Status {
+                   db::EnrolmentRecord e;
+                   e.course_id = req->course_id();
+                   if (req->cohort_id() != 0) e.cohort_id = req->cohort_id();
+                   e.trainee = req->trainee();
+                   e.starts_us = req->starts_us();
+                   if (req->ends_us() != 0) e.ends_us = req->ends_us();
+                   auto made = server::Enrol(d_, p, e);
+                   if (!made.ok()) return made.error();
+                   resp->set_id(made->id);
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* SetExpert(CallbackServerContext* ctx, const v1::SetExpertRequest* req,
                                 v1::Empty*) override {
-    return Unary(d_, ctx, Method::kTrainingSetExpert, [&](const db::Principal& p) {
+    return Unary(d_, pool_, ctx, Method::kTrainingSetExpert, [=, this](const db::Principal& p) {
       return server::SetExpert(d_, p, req->trainee(), req->expert());
     });
   }
 
   ServerUnaryReactor* Progress(CallbackServerContext* ctx, const v1::ProgressRequest* req,
                                v1::ProgressResponse* resp) override {
-    return Unary(d_, ctx, Method::kTrainingProgress, [&](const db::Principal& p) -> Status {
-      std::vector<CourseProgress> parts;
-      if (req->cohort_id() != 0) {
-        auto grid = CohortProgress(d_, p, req->cohort_id(), req->course_id());
-        if (!grid.ok()) return grid.error();
-        parts.push_back(std::move(grid).value());
-      } else {
-        auto mine = TraineeCourses(d_, p, req->trainee().empty() ? p.name : req->trainee());
-        if (!mine.ok()) return mine.error();
-        parts = std::move(mine).value();
-      }
-      for (const CourseProgress& c : parts) {
-        if (req->course_id() != 0 && c.course.record.id != req->course_id()) continue;
-        for (const TraineeProgress& t : c.trainees)
-          for (const ExerciseProgress& ep : t.exercises)
-            ToProto(c.course, t.trainee, ep, resp->add_rows());
-      }
-      return Status::Ok();
-    });
+    return Unary(
+        d_, pool_, ctx, Method::kTrainingProgress, [=, this](const db::Principal& p) -> Status {
+          std::vector<CourseProgress> parts;
+          if (req->cohort_id() != 0) {
+            auto grid = CohortProgress(d_, p, req->cohort_id(), req->course_id());
+            if (!grid.ok()) return grid.error();
+            parts.push_back(std::move(grid).value());
+          } else {
+            auto mine = TraineeCourses(d_, p, req->trainee().empty() ? p.name : req->trainee());
+            if (!mine.ok()) return mine.error();
+            parts = std::move(mine).value();
+          }
+          for (const CourseProgress& c : parts) {
+            if (req->course_id() != 0 && c.course.record.id != req->course_id()) continue;
+            for (const TraineeProgress& t : c.trainees)
+              for (const ExerciseProgress& ep : t.exercises)
+                ToProto(c.course, t.trainee, ep, resp->add_rows());
+          }
+          return Status::Ok();
+        });
   }
 
   ServerUnaryReactor* Next(CallbackServerContext* ctx, const v1::NextExerciseRequest* req,
                            v1::NextExerciseResponse* resp) override {
-    return Unary(d_, ctx, Method::kTrainingNext, [&](const db::Principal& p) -> Status {
-      auto next = NextExerciseOf(d_, p, req->trainee());
-      if (!next.ok()) return next.error();
-      if (!next->course || !next->exercise_id) return Status::Ok();
-      resp->set_has_next(true);
-      ToProto(*next->course, resp->mutable_course());
-      resp->set_exercise_id(*next->exercise_id);
-      for (int64_t id : next->open) resp->add_open(id);
-      const std::string trainee = req->trainee().empty() ? p.name : req->trainee();
-      ToProto(*next->course, trainee, next->progress, resp->mutable_progress());
-      resp->set_may_attempt(next->progress.progress.may_attempt);
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingNext,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto next = NextExerciseOf(d_, p, req->trainee());
+                   if (!next.ok()) return next.error();
+                   if (!next->course || !next->exercise_id) return Status::Ok();
+                   resp->set_has_next(true);
+                   ToProto(*next->course, resp->mutable_course());
+                   resp->set_exercise_id(*next->exercise_id);
+                   for (int64_t id : next->open) resp->add_open(id);
+                   const std::string trainee = req->trainee().empty() ? p.name : req->trainee();
+                   ToProto(*next->course, trainee, next->progress, resp->mutable_progress());
+                   resp->set_may_attempt(next->progress.progress.may_attempt);
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* ListCourses(CallbackServerContext* ctx, const v1::ListCoursesRequest*,
                                   v1::ListCoursesResponse* resp) override {
-    return Unary(d_, ctx, Method::kTrainingListCourses, [&](const db::Principal& p) -> Status {
-      auto list = server::ListCourses(d_, p);
-      if (!list.ok()) return list.error();
-      for (const CourseView& c : *list) ToProto(c, resp->add_courses());
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingListCourses,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto list = server::ListCourses(d_, p);
+                   if (!list.ok()) return list.error();
+                   for (const CourseView& c : *list) ToProto(c, resp->add_courses());
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* UpdateExercise(CallbackServerContext* ctx,
                                      const v1::UpdateExerciseRequest* req, v1::Empty*) override {
-    return Unary(d_, ctx, Method::kTrainingUpdateExercise, [&](const db::Principal& p) -> Status {
-      auto e = FromProto(req->exercise(), 0);
-      if (!e.ok()) return e.error();
-      return SetExerciseSpec(d_, p, req->exercise_id(), e->spec);
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingUpdateExercise,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto e = FromProto(req->exercise(), 0);
+                   if (!e.ok()) return e.error();
+                   return SetExerciseSpec(d_, p, req->exercise_id(), e->spec);
+                 });
   }
 
   ServerUnaryReactor* ListCohorts(CallbackServerContext* ctx, const v1::ListCohortsRequest*,
                                   v1::ListCohortsResponse* resp) override {
-    return Unary(d_, ctx, Method::kTrainingListCohorts, [&](const db::Principal& p) -> Status {
-      auto list = server::ListCohorts(d_, p);
-      if (!list.ok()) return list.error();
-      for (const db::CohortRecord& c : *list) ToProto(c, resp->add_cohorts());
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingListCohorts,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto list = server::ListCohorts(d_, p);
+                   if (!list.ok()) return list.error();
+                   for (const db::CohortRecord& c : *list) ToProto(c, resp->add_cohorts());
+                   return Status::Ok();
+                 });
   }
 
   ServerUnaryReactor* AddMembers(CallbackServerContext* ctx, const v1::AddMembersRequest* req,
                                  v1::Empty*) override {
-    return Unary(d_, ctx, Method::kTrainingAddMembers, [&](const db::Principal& p) {
+    return Unary(d_, pool_, ctx, Method::kTrainingAddMembers, [=, this](const db::Principal& p) {
       return AddCohortMembers(d_, p, req->cohort_id(),
                               {req->members().begin(), req->members().end()});
     });
@@ -237,42 +245,45 @@ class TrainingServiceImpl final : public v1::TrainingService::CallbackService {
 
   ServerUnaryReactor* Curve(CallbackServerContext* ctx, const v1::CurveRequest* req,
                             v1::CurveResponse* resp) override {
-    return Unary(d_, ctx, Method::kTrainingCurve, [&](const db::Principal& p) -> Status {
-      const std::string trainee = req->trainee().empty() ? p.name : req->trainee();
-      auto c = TraineeCurve(d_, p, trainee, req->exercise_id());
-      if (!c.ok()) return c.error();
-      const auto& checks = c->progress.progress.checks;
-      for (size_t i = 0; i < c->attempts.size() && i < checks.size(); ++i) {
-        v1::CurveAttempt* a = resp->add_attempts();
-        a->set_session_id(static_cast<uint64_t>(c->attempts[i].session_id));
-        a->set_ended_us(c->attempts[i].ended_us);
-        a->set_passed(checks[i].passed);
-        for (const scoring::TargetCheck& t : checks[i].checks) ToProto(t, a->add_checks());
-        if (i < c->cusum.values.size()) a->set_cusum(c->cusum.values[i]);
-      }
-      const scoring::CusumParams& k = c->exercise.spec.cusum;
-      resp->set_p0(k.p0);
-      resp->set_p1(k.p1);
-      resp->set_alpha(k.alpha);
-      resp->set_beta(k.beta);
-      resp->set_s(c->cusum.limits.s);
-      resp->set_h0(c->cusum.limits.h0);
-      resp->set_h1(c->cusum.limits.h1);
-      resp->set_cusum_proficient_at(c->cusum.proficient_at.value_or(0));
-      resp->set_cusum_unacceptable_at(c->cusum.unacceptable_at.value_or(0));
-      ToProto(c->course, trainee, c->progress, resp->mutable_progress());
-      return Status::Ok();
-    });
+    return Unary(d_, pool_, ctx, Method::kTrainingCurve,
+                 [=, this](const db::Principal& p) -> Status {
+                   const std::string trainee = req->trainee().empty() ? p.name : req->trainee();
+                   auto c = TraineeCurve(d_, p, trainee, req->exercise_id());
+                   if (!c.ok()) return c.error();
+                   const auto& checks = c->progress.progress.checks;
+                   for (size_t i = 0; i < c->attempts.size() && i < checks.size(); ++i) {
+                     v1::CurveAttempt* a = resp->add_attempts();
+                     a->set_session_id(static_cast<uint64_t>(c->attempts[i].session_id));
+                     a->set_ended_us(c->attempts[i].ended_us);
+                     a->set_passed(checks[i].passed);
+                     for (const scoring::TargetCheck& t : checks[i].checks)
+                       ToProto(t, a->add_checks());
+                     if (i < c->cusum.values.size()) a->set_cusum(c->cusum.values[i]);
+                   }
+                   const scoring::CusumParams& k = c->exercise.spec.cusum;
+                   resp->set_p0(k.p0);
+                   resp->set_p1(k.p1);
+                   resp->set_alpha(k.alpha);
+                   resp->set_beta(k.beta);
+                   resp->set_s(c->cusum.limits.s);
+                   resp->set_h0(c->cusum.limits.h0);
+                   resp->set_h1(c->cusum.limits.h1);
+                   resp->set_cusum_proficient_at(c->cusum.proficient_at.value_or(0));
+                   resp->set_cusum_unacceptable_at(c->cusum.unacceptable_at.value_or(0));
+                   ToProto(c->course, trainee, c->progress, resp->mutable_progress());
+                   return Status::Ok();
+                 });
   }
 
  private:
   Domain& d_;
+  CallPool& pool_;
 };
 
 }  // namespace
 
-std::unique_ptr<grpc::Service> NewTrainingService(Domain& d) {
-  return std::make_unique<TrainingServiceImpl>(d);
+std::unique_ptr<grpc::Service> NewTrainingService(Domain& d, CallPool& pool) {
+  return std::make_unique<TrainingServiceImpl>(d, pool);
 }
 
 }  // namespace vsurg::server::grpcapi

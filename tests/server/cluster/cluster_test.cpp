@@ -7,6 +7,7 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -31,19 +32,102 @@
 #include "proto/wire/datagram.h"
 #include "proto/wire/messages.h"
 #include "server/cluster/cluster_common.h"
+#include "server/control/control_plane.h"
 #include "server/net/lease.h"
 #include "server/net/udp_endpoint.h"
 #include "server/ops/metrics.h"
+#include "server/session/caller_deadline.h"
 #include "server/session/session_manager.h"
 #include "tests/support/postgres.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 #include "vsurg/v1/cluster.grpc.pb.h"
+#include "vsurg/v1/services.grpc.pb.h"
 
 namespace vsurg::server::cluster {
 namespace {
 
 constexpr const char* kToken = "test-cluster-token-0123456789";
+
+// A node whose port accepts connections and never answers: a frozen process (the kernel completes
+// each handshake, nobody reads). With `handshake`, a thread accepts each connection and sends
+// HTTP/2's opening SETTINGS frame before it freezes, as a process stopped after its connections
+// were up: the control plane's calls on it then wait for their deadlines. Acquire registers it
+// with the control plane at epoch 1.
+class FrozenNode {
+ public:
+  explicit FrozenNode(bool handshake = false) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof addr;
+    ok_ = fd_ >= 0 && ::bind(fd_, reinterpret_cast<sockaddr*>(&addr), len) == 0 &&
+          ::listen(fd_, 16) == 0 &&
+          ::getsockname(fd_, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
+    port_ = ntohs(addr.sin_port);
+    if (ok_ && handshake)
+      acceptor_ = std::thread([this] {
+        static constexpr unsigned char kSettings[9] = {0, 0, 0, 4, 0, 0, 0, 0, 0};
+        while (!closing_) {
+          pollfd p{fd_, POLLIN, 0};
+          if (::poll(&p, 1, 20) <= 0) continue;
+          const int c = ::accept4(fd_, nullptr, nullptr, SOCK_CLOEXEC);
+          if (c < 0) continue;
+          if (::write(c, kSettings, sizeof kSettings) != sizeof kSettings) ADD_FAILURE();
+          std::lock_guard lock(mutex_);
+          taken_.push_back(c);
+        }
+      });
+  }
+  ~FrozenNode() { Close(); }
+  bool ok() const { return ok_; }
+  // Its process is gone: its connections are closed and the ones waiting are reset.
+  void Close() {
+    closing_ = true;
+    if (acceptor_.joinable()) acceptor_.join();
+    std::lock_guard lock(mutex_);
+    for (int c : taken_) ::close(c);
+    taken_.clear();
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+  // Someone connected: without `handshake`, a connection waits in the listen queue (taken here);
+  // with it, the acceptor took one.
+  bool Called() {
+    std::lock_guard lock(mutex_);
+    if (acceptor_.joinable()) return !taken_.empty();
+    const int c = ::accept(fd_, nullptr, nullptr);
+    if (c < 0) return false;
+    taken_.push_back(c);
+    return true;
+  }
+  v1::NodeLeaseReply Acquire(int control_port, const std::string& name, int capacity) {
+    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(control_port),
+                                       grpc::InsecureChannelCredentials());
+    auto stub = v1::ClusterService::NewStub(channel);
+    v1::NodeHeartbeat beat;
+    beat.set_name(name);
+    beat.set_grpc_address("127.0.0.1:" + std::to_string(port_));
+    beat.set_udp_host("127.0.0.1");
+    beat.set_udp_port(1);
+    beat.set_capacity(capacity);
+    beat.set_instance(name + "-process");
+    grpc::ClientContext ctx;
+    ctx.AddMetadata("authorization", std::string("Bearer ") + kToken);
+    v1::NodeLeaseReply reply;
+    EXPECT_TRUE(stub->Acquire(&ctx, beat, &reply).ok());
+    return reply;
+  }
+
+ private:
+  int fd_ = -1, port_ = 0;
+  bool ok_ = false;
+  std::atomic<bool> closing_{false};
+  std::thread acceptor_;
+  std::mutex mutex_;
+  std::vector<int> taken_;
+};
 
 class ClusterTest : public ::testing::Test {
  protected:
@@ -498,31 +582,10 @@ TEST_F(ClusterTest, ANodeWhosePortRefusesIsMarkedDownAndItsSessionsAborted) {
 // frozen: the kernel completes the handshake) may come back: it is probed, and down only after
 // the 2 s timeout.
 TEST_F(ClusterTest, ASilentNodeWhosePortStillAcceptsIsDownOnlyAfterTheTimeout) {
-  // A listening socket nobody accepts on: the kernel completes each handshake.
-  const int frozen = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-  ASSERT_GE(frozen, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  ASSERT_EQ(::bind(frozen, reinterpret_cast<sockaddr*>(&addr), len), 0);
-  ASSERT_EQ(::listen(frozen, 16), 0);
-  ASSERT_EQ(::getsockname(frozen, reinterpret_cast<sockaddr*>(&addr), &len), 0);
-  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(control_->port()),
-                                     grpc::InsecureChannelCredentials());
-  auto stub = v1::ClusterService::NewStub(channel);
-  v1::NodeHeartbeat beat;
-  beat.set_name("sim-frozen");
-  beat.set_grpc_address("127.0.0.1:" + std::to_string(ntohs(addr.sin_port)));
-  beat.set_udp_host("127.0.0.1");
-  beat.set_udp_port(1);
-  beat.set_capacity(8);
-  beat.set_instance("frozen-process");
-  grpc::ClientContext ctx;
-  ctx.AddMetadata("authorization", std::string("Bearer ") + kToken);
-  v1::NodeLeaseReply reply;
+  FrozenNode frozen;
+  ASSERT_TRUE(frozen.ok());
   const auto t0 = std::chrono::steady_clock::now();  // the beat is stamped after this
-  ASSERT_TRUE(stub->Acquire(&ctx, beat, &reply).ok());
+  const v1::NodeLeaseReply reply = frozen.Acquire(control_->port(), "sim-frozen", 8);
   EXPECT_EQ(reply.epoch(), 1);
   EXPECT_EQ(reply.lease_s(), options_.heartbeat_timeout_s);
   WaitForNodes(1);
@@ -534,10 +597,110 @@ TEST_F(ClusterTest, ASilentNodeWhosePortStillAcceptsIsDownOnlyAfterTheTimeout) {
   EXPECT_GE(waited, options_.heartbeat_timeout_s - 0.05)
       << "not before the heartbeat timeout after the last beat";
   // It was probed meanwhile (a connection waits in the listen queue), and that kept it up.
-  const int probe = ::accept(frozen, nullptr, nullptr);
-  EXPECT_GE(probe, 0) << "the control plane never probed the late node";
-  if (probe >= 0) ::close(probe);
-  ::close(frozen);
+  EXPECT_TRUE(frozen.Called()) << "the control plane never probed the late node";
+}
+
+// The control plane's gRPC API in front of a replica whose node is frozen: trainees' Creates wait
+// on it (it never builds their scenes), and a station's Join of a session there waits too. On a
+// two-core machine gRPC ran every handler on two threads of its own, so two such calls stalled
+// every other call on the replica for up to the node-call timeout (the site's e2e test: stations
+// of a killed node could not even read that their session was aborted). Calls now run on threads
+// that may wait, and a node call made for a caller ends with that caller's deadline.
+class ClusterFrozenNodeTest : public ClusterTest {
+ protected:
+  void Configure() override {
+    // The node stays "up" for the whole test (it is probed, its port accepts) and each node call
+    // would wait a minute: what the test sees comes from the calls, not from a timeout.
+    options_.heartbeat_timeout_s = 60;
+    options_.store_lease_s = 120;
+    options_.call_timeout_s = 60;
+    options_.create_timeout_s = 60;
+    options_.max_sessions_per_user = 2;
+  }
+};
+
+TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWithTheirCaller) {
+  FrozenNode frozen(/*handshake=*/true);
+  ASSERT_TRUE(frozen.ok());
+  const int64_t epoch = frozen.Acquire(control_->port(), "sim-frozen", 64).epoch();
+  WaitForNodes(1);
+  auto cp = ControlPlane::Start(*control_store_, *control_, {});
+  ASSERT_TRUE(cp.ok()) << cp.error().message;
+  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string((*cp)->port()),
+                                     grpc::InsecureChannelCredentials());
+  auto stub = v1::SessionService::NewStub(channel);
+  std::map<std::string, std::string> tokens;
+  for (int i = 0; i <= 10; ++i) {
+    const std::string name = "trainee-" + std::to_string(i);
+    ASSERT_TRUE(control_store_->CreateUser(name, db::Role::kTrainee, "group-a").ok());
+    tokens[name] = control_store_->IssueToken(name, "test").value();
+  }
+  const auto ctx = [&](const std::string& who, double seconds) {
+    auto c = std::make_unique<grpc::ClientContext>();
+    c->AddMetadata("authorization", "Bearer " + tokens[who]);
+    c->set_deadline(std::chrono::system_clock::now() +
+                    std::chrono::milliseconds(static_cast<int>(seconds * 1000)));
+    return c;
+  };
+
+  // Twenty Creates, more than gRPC's callback threads on any machine (at most 16), all placed on
+  // the frozen node: each waits for it to build the scene.
+  std::vector<std::future<grpc::Status>> creates;
+  std::atomic<int> sent{0};
+  for (int i = 0; i < 20; ++i)
+    creates.push_back(std::async(std::launch::async, [&, i] {
+      v1::CreateSessionRequest req;
+      req.set_scene("arm-torsion");
+      v1::CreateSessionResponse resp;
+      auto c = ctx("trainee-" + std::to_string(i / 2), 90);
+      ++sent;
+      return stub->Create(c.get(), req, &resp);
+    }));
+  ASSERT_TRUE(test::Eventually(30, [&] { return sent == 20 && frozen.Called(); }))
+      << "nothing reached the node";
+
+  // Meanwhile another trainee's calls are answered.
+  v1::ListScenesResponse scenes;
+  const grpc::Status listed =
+      stub->ListScenes(ctx("trainee-10", 30).get(), v1::ListScenesRequest{}, &scenes);
+  ASSERT_TRUE(listed.ok()) << listed.error_message();
+  EXPECT_GT(scenes.scenes_size(), 0);
+
+  // A session of theirs on the frozen node: a station's Join (its 1 s probe) ends with the
+  // station's deadline, and the node call made for it with it; a Get still answers.
+  auto row = control_store_->CreateSession("trainee-10", "arm-torsion", {"sim-frozen", epoch});
+  ASSERT_TRUE(row.ok()) << row.error().message;
+  v1::SessionRef ref;
+  ref.set_id(static_cast<uint64_t>(row->id));
+  v1::CreateSessionResponse joined;
+  EXPECT_FALSE(stub->Join(ctx("trainee-10", 1).get(), ref, &joined).ok());
+  v1::Session got;
+  const grpc::Status get = stub->Get(ctx("trainee-10", 30).get(), ref, &got);
+  ASSERT_TRUE(get.ok()) << get.error_message();
+  EXPECT_EQ(got.id(), ref.id());
+  {
+    const CallerDeadline caller(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
+    const auto t0 = std::chrono::steady_clock::now();
+    auto direct = control_->Join(ref.id());
+    ASSERT_FALSE(direct.ok());
+    EXPECT_NE(direct.error().message.find("sim-frozen"), std::string::npos)
+        << direct.error().message;
+    // Within the caller's deadline, not the node call's minute (a liveness bound, not a timing
+    // goal: half the minute).
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+              options_.call_timeout_s / 2);
+  }
+
+  // All that while, every Create still waited on the node; its process gone, each ends with an
+  // error, none with a session.
+  for (auto& c : creates)
+    EXPECT_EQ(c.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
+  frozen.Close();
+  for (auto& c : creates) {
+    ASSERT_EQ(c.wait_for(std::chrono::seconds(60)), std::future_status::ready);
+    EXPECT_FALSE(c.get().ok());
+  }
+  cp->reset();
 }
 
 TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd) {
