@@ -70,7 +70,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   // placement began its read, and missing from that read, is counted once (one answered before
   // the read began is in it while it is live). The store is read outside the lock, so
   // placements do not queue behind each other's queries.
-  std::mutex placing_mutex;
+  mutable std::mutex placing_mutex;
   std::map<std::string, int> in_flight;
   struct Answered {
     uint64_t number;
@@ -930,6 +930,14 @@ void ClusterSessions::Unsubscribe(uint64_t token) {
 
 void ClusterSessions::Collect(ops::MetricsText& m) const {
   const Impl& d = *impl_;
+  {
+    std::lock_guard lock(d.placing_mutex);
+    m.Family("vsurg_placements_in_flight", "gauge",
+             "Creates this replica sent to a node and has no answer for yet, by node (the node "
+             "builds their scenes, or does not answer).");
+    for (const auto& [node, n] : d.in_flight)
+      m.Sample("vsurg_placements_in_flight", {{"node", node}}, static_cast<double>(n));
+  }
   {
     std::lock_guard lock(d.placements_mutex);
     m.Family("vsurg_placements_total", "counter", "Sessions this replica placed, by node.");

@@ -474,20 +474,27 @@ class HttpApi::ReadWorkers {
   std::vector<std::thread> threads_;
 };
 
-HttpReply HttpApi::OffThread(std::function<HttpReply()> work) {
-  if (!reads_) return work();  // no read workers (read_workers 0): on the caller's thread
+HttpReply HttpApi::Deferred(ReadWorkers* workers, std::function<HttpReply()> work,
+                            const char* busy) {
+  if (!workers) return work();  // no workers configured: on the caller's thread
   HttpReply reply;
   reply.kind = HttpReply::Kind::kDeferred;
-  ReadWorkers* reads = reads_.get();
-  reply.deferred = [reads, work = std::move(work)](std::function<void(HttpReply)> done) {
-    const bool queued = reads->Post([work, done](bool run) {
+  reply.deferred = [workers, busy, work = std::move(work)](std::function<void(HttpReply)> done) {
+    const bool queued = workers->Post([work, done](bool run) {
       done(run ? work() : ErrorReply(Error{ErrorCode::kUnavailable, "the server is stopping", ""}));
     });
-    if (!queued)
-      done(ErrorReply(
-          Error{ErrorCode::kUnavailable, "too many long reads at once; try again shortly", ""}));
+    if (!queued) done(ErrorReply(Error{ErrorCode::kUnavailable, busy, ""}));
   };
   return reply;
+}
+
+HttpReply HttpApi::OffThread(std::function<HttpReply()> work) {
+  return Deferred(reads_.get(), std::move(work), "too many long reads at once; try again shortly");
+}
+
+HttpReply HttpApi::OnNodeWorker(std::function<HttpReply()> work) {
+  return Deferred(node_calls_.get(), std::move(work),
+                  "too many calls waiting on simulation nodes; try again shortly");
 }
 
 HttpApi::~HttpApi() = default;
@@ -499,6 +506,10 @@ HttpApi::HttpApi(Domain& domain, const HttpApiOptions& options)
       reads_(options.read_workers > 0
                  ? std::make_unique<ReadWorkers>(options.read_workers, options.max_queued_reads)
                  : nullptr),
+      node_calls_(
+          options.node_workers > 0
+              ? std::make_unique<ReadWorkers>(options.node_workers, options.max_queued_node_calls)
+              : nullptr),
       sessions_(clock_, options.session_ttl_s),
       limiter_(clock_, options.sign_in_failures),
       bearer_limiter_(clock_, options.bearer_failures) {}
@@ -747,11 +758,14 @@ HttpReply HttpApi::Routes::SessionCreate(const Call& c) {
   if (!scene.ok()) return ErrorReply(scene.error());
   auto exercise = Field<int64_t>(*body, "exercise", 0);
   if (!exercise.ok()) return ErrorReply(exercise.error());
-  auto created = *exercise != 0 ? CreateExerciseSession(c.api.d_, *c.p, *trainee, *exercise)
-                                : CreateSession(c.api.d_, *c.p, *trainee, *scene);
-  if (!created.ok()) return ErrorReply(created.error());
-  // The station's key is not sent here: the trainee's station joins with its own token.
-  return Json(201, {{"session", RecordJson(created->record)}});
+  return c.api.OnNodeWorker(
+      [&d = c.api.d_, p = *c.p, trainee = *trainee, scene = *scene, exercise = *exercise] {
+        auto created = exercise != 0 ? CreateExerciseSession(d, p, trainee, exercise)
+                                     : CreateSession(d, p, trainee, scene);
+        if (!created.ok()) return ErrorReply(created.error());
+        // The station's key is not sent here: the trainee's station joins with its own token.
+        return Json(201, {{"session", RecordJson(created->record)}});
+      });
 }
 
 HttpReply HttpApi::Routes::SessionGet(const Call& c) {
@@ -770,23 +784,30 @@ HttpReply HttpApi::Routes::SessionStop(const Call& c) {
   if (!body.ok()) return ErrorReply(body.error());
   auto reason = Field<std::string>(*body, "reason", "stopped from the dashboard");
   if (!reason.ok()) return ErrorReply(reason.error());
-  auto v = StopSession(c.api.d_, *c.p, c.id, *reason);
-  if (!v.ok()) return ErrorReply(v.error());
-  return Ok(ViewJson(*v));
+  return c.api.OnNodeWorker([&d = c.api.d_, p = *c.p, id = c.id, reason = *reason] {
+    auto v = StopSession(d, p, id, reason);
+    if (!v.ok()) return ErrorReply(v.error());
+    return Ok(ViewJson(*v));
+  });
 }
 
 HttpReply HttpApi::Routes::SessionSurface(const Call& c) {
-  auto surface = server::SessionSurface(c.api.d_, *c.p, c.id);
-  if (!surface.ok()) return ErrorReply(surface.error());
-  return Ok({{"positions_mm", Millimetres(surface->positions)}, {"triangles", surface->triangles}});
+  return c.api.OnNodeWorker([&d = c.api.d_, p = *c.p, id = c.id] {
+    auto surface = server::SessionSurface(d, p, id);
+    if (!surface.ok()) return ErrorReply(surface.error());
+    return Ok(
+        {{"positions_mm", Millimetres(surface->positions)}, {"triangles", surface->triangles}});
+  });
 }
 
 HttpReply HttpApi::Routes::SessionTraceRoute(const Call& c) {
-  auto trace = SessionTrace(c.api.d_, *c.p, c.id);
-  if (!trace.ok()) return ErrorReply(trace.error());
-  HttpReply reply;
-  reply.body = std::move(trace).value();  // the recorder's JSON as stored
-  return reply;
+  return c.api.OnNodeWorker([&d = c.api.d_, p = *c.p, id = c.id] {
+    auto trace = SessionTrace(d, p, id);
+    if (!trace.ok()) return ErrorReply(trace.error());
+    HttpReply reply;
+    reply.body = std::move(trace).value();  // the recorder's JSON as stored
+    return reply;
+  });
 }
 
 HttpReply HttpApi::Routes::SessionFeedbackRoute(const Call& c) {

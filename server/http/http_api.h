@@ -88,6 +88,12 @@ struct HttpApiOptions {
   // `max_queued_reads` wait (then 503). 0 workers: on the calling thread.
   int read_workers = 2;
   int max_queued_reads = 32;
+  // Calls that wait on a simulation node (creating a session builds its scene there; a live
+  // session's surface, record or stop ask its node, which may be frozen for the node-call timeout)
+  // run on their own workers, so neither the I/O thread nor the long reads wait behind a node; at
+  // most `max_queued_node_calls` wait (then 503). 0 workers: on the calling thread.
+  int node_workers = 8;
+  int max_queued_node_calls = 64;
   double session_ttl_s = 8 * 3600;  // a web session's lifetime
   bool secure_cookies = false;      // TLS: the cookie gets `Secure`
   int sign_in_failures = 5;         // per address per minute
@@ -143,6 +149,10 @@ class HttpApi {
   // A deferred reply whose `work` runs on a read worker (the answer of a long read).
   class ReadWorkers;
   HttpReply OffThread(std::function<HttpReply()> work);
+  // A deferred reply whose `work` runs on a node-call worker (it may wait on a node).
+  HttpReply OnNodeWorker(std::function<HttpReply()> work);
+  static HttpReply Deferred(ReadWorkers* workers, std::function<HttpReply()> work,
+                            const char* busy);
 
   Domain& d_;
   HttpApiOptions options_;
@@ -150,7 +160,7 @@ class HttpApi {
   std::function<bool()> StillAllowed(const std::string& authorization,
                                      const std::optional<WebSession>& web);
 
-  std::unique_ptr<ReadWorkers> reads_;
+  std::unique_ptr<ReadWorkers> reads_, node_calls_;
   WebSessions sessions_;
   SignInLimiter limiter_;
   SignInLimiter bearer_limiter_;

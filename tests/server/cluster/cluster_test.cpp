@@ -23,6 +23,8 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
 #include <nlohmann/json.hpp>
 
 #include "common/sim/simulation.h"
@@ -33,6 +35,7 @@
 #include "proto/wire/messages.h"
 #include "server/cluster/cluster_common.h"
 #include "server/control/control_plane.h"
+#include "server/http/http_server.h"
 #include "server/net/lease.h"
 #include "server/net/udp_endpoint.h"
 #include "server/ops/metrics.h"
@@ -128,6 +131,41 @@ class FrozenNode {
   std::mutex mutex_;
   std::vector<int> taken_;
 };
+
+// One HTTP/1.1 request on its own connection with a bearer token: the status, or 0 when no answer
+// came within `seconds` (asynchronous: Beast's stream expiry bounds only those).
+int HttpStatus(int port, const std::string& method, const std::string& target,
+               const std::string& token, const std::string& body, double seconds) {
+  namespace beast = boost::beast;
+  namespace http = beast::http;
+  boost::asio::io_context io;
+  beast::tcp_stream stream(io);
+  http::request<http::string_body> req{method == "POST" ? http::verb::post : http::verb::get,
+                                       target, 11};
+  req.set(http::field::host, "127.0.0.1");
+  req.set(http::field::authorization, "Bearer " + token);
+  if (!body.empty()) req.set(http::field::content_type, "application/json");
+  req.body() = body;
+  req.prepare_payload();
+  beast::flat_buffer buffer;
+  http::response<http::string_body> res;
+  int status = 0;
+  stream.expires_after(std::chrono::milliseconds(static_cast<int>(seconds * 1000)));
+  stream.async_connect({boost::asio::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port)},
+                       [&](beast::error_code ec) {
+                         if (ec) return;
+                         http::async_write(stream, req, [&](beast::error_code written, size_t) {
+                           if (written) return;
+                           http::async_read(stream, buffer, res,
+                                            [&](beast::error_code read, size_t) {
+                                              if (!read)
+                                                status = static_cast<int>(res.result_int());
+                                            });
+                         });
+                       });
+  io.run();
+  return status;
+}
 
 class ClusterTest : public ::testing::Test {
  protected:
@@ -656,8 +694,13 @@ TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWit
       ++sent;
       return stub->Create(c.get(), req, &resp);
     }));
-  ASSERT_TRUE(test::Eventually(30, [&] { return sent == 20 && frozen.Called(); }))
-      << "nothing reached the node";
+  // All twenty wait on the node at once: none waits for a thread behind another.
+  ASSERT_TRUE(test::Eventually(30,
+                               [&] {
+                                 return sent == 20 && frozen.Called() &&
+                                        Metric(*control_, "vsurg_placements_in_flight") == 20;
+                               }))
+      << Metric(*control_, "vsurg_placements_in_flight") << " Creates wait on the node";
 
   // Meanwhile another trainee's calls are answered.
   v1::ListScenesResponse scenes;
@@ -665,6 +708,23 @@ TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWit
       stub->ListScenes(ctx("trainee-10", 30).get(), v1::ListScenesRequest{}, &scenes);
   ASSERT_TRUE(listed.ok()) << listed.error_message();
   EXPECT_GT(scenes.scenes_size(), 0);
+
+  // The dashboard likewise: a session created from it waits on the node on a node-call worker,
+  // not on the I/O thread that answers everyone.
+  HttpServerOptions ho;
+  ho.listen = "127.0.0.1:0";
+  auto web = HttpServer::Start(*control_store_, *control_, ho);
+  ASSERT_TRUE(web.ok()) << web.error().message;
+  const int web_port = (*web)->port();
+  auto created_on_web = std::async(std::launch::async, [&] {
+    return HttpStatus(web_port, "POST", "/api/v1/sessions", tokens["trainee-9"],
+                      R"({"scene": "arm-torsion"})", 90);
+  });
+  ASSERT_TRUE(test::Eventually(30, [&] {
+    return Metric(*control_, "vsurg_placements_in_flight") == 21 ||
+           created_on_web.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+  }));
+  EXPECT_EQ(HttpStatus(web_port, "GET", "/api/v1/scenes", tokens["trainee-10"], "", 30), 200);
 
   // A session of theirs on the frozen node: a station's Join (its 1 s probe) ends with the
   // station's deadline, and the node call made for it with it; a Get still answers.
@@ -695,11 +755,15 @@ TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWit
   // error, none with a session.
   for (auto& c : creates)
     EXPECT_EQ(c.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
+  EXPECT_EQ(created_on_web.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
   frozen.Close();
   for (auto& c : creates) {
     ASSERT_EQ(c.wait_for(std::chrono::seconds(60)), std::future_status::ready);
     EXPECT_FALSE(c.get().ok());
   }
+  ASSERT_EQ(created_on_web.wait_for(std::chrono::seconds(60)), std::future_status::ready);
+  EXPECT_EQ(created_on_web.get(), 503);  // no node has room: it answered nothing
+  (*web)->Shutdown();
   cp->reset();
 }
 

@@ -57,9 +57,17 @@ class HttpApiTest : public test::SiteTest {
     SiteTest::TearDown();
   }
 
+  // A request's final answer (a deferred one waited for: a call that waits on the sessions, a
+  // long read, an evaluation's commit).
   HttpReply Call(const std::string& method, const std::string& target, const std::string& body = "",
                  const std::string& cookie = "", const std::string& csrf = "",
                  const std::string& remote = "10.0.0.1") {
+    return Finish(Raw(method, target, body, cookie, csrf, remote));
+  }
+  // The reply as Handle gives it (deferred or not).
+  HttpReply Raw(const std::string& method, const std::string& target, const std::string& body = "",
+                const std::string& cookie = "", const std::string& csrf = "",
+                const std::string& remote = "10.0.0.1") {
     HttpRequest r;
     r.method = method;
     r.target = target;
@@ -671,7 +679,7 @@ TEST_F(HttpApiTest, TheTrainingRoutesBuildACourseAndShowItsGrid) {
   ASSERT_EQ(r.status, 201) << r.body;
   const std::string grid = "/api/v1/training/cohorts/" + std::to_string(cohort) +
                            "/grid?course=" + std::to_string(course);
-  r = Call("GET", grid, "", ian.cookie);
+  r = Raw("GET", grid, "", ian.cookie);
   EXPECT_EQ(r.kind, HttpReply::Kind::kDeferred);  // computed on a read worker
   r = Finish(std::move(r));
   ASSERT_EQ(r.status, 200) << r.body;
