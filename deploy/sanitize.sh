@@ -71,7 +71,8 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
 fi
 
 if [ "$which" = tsan ] || [ "$which" = all ]; then
-  suites=(simulation_test server_net_test station_channel_test db_test http_server_test)
+  suites=(simulation_test server_net_test station_channel_test db_test http_server_test
+          call_pool_test)
   CC=clang CXX=clang++ cmake -S "$root" -B "$root/build-tsan" -G Ninja \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
     -DVSURG_BENCH=OFF -DVSURG_TSAN=ON -DVSURG_WERROR=OFF >/dev/null
