@@ -2,9 +2,10 @@
 // its own I/O thread, beside the gRPC control plane and over the same domain functions
 // (http_api.h decides; this file only moves bytes).
 //
-// Threads: one I/O thread accepts, parses, calls HttpApi::Handle and writes. Live pages' event
-// streams are fed by the sessions' sampler thread, which only posts the latest frame to the I/O
-// thread (latest wins, one frame in flight per stream). The store's exports run on a pool of
+// Threads: one I/O thread accepts, parses, calls HttpApi::Handle and writes (a long read, or a
+// call that waits on a simulation node, is answered later from the API's workers). Live pages'
+// event streams are fed by the sessions' sampler thread, which only posts the latest frame to the
+// I/O thread (latest wins, one frame in flight per stream). The store's exports run on a pool of
 // max_exports workers (they block on the database), each chunk written by the I/O thread in
 // Beast's chunked encoding before the worker reads on, so a million rows stream without
 // buffering. None of these threads touches the UDP haptic path.
