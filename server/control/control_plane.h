@@ -3,6 +3,8 @@
 //
 // Callback API, thin reactors over the domain functions of server/domain/api.h (the rules, shared
 // with the HTTP API): a service translates the request, calls one function, translates the result.
+// A unary call's body runs on the control plane's call pool (server/control/call_pool.h), never on
+// gRPC's own few callback threads, which a call waiting on a node would otherwise hold.
 // Every call: the bearer token is authenticated against the store (UNAUTHENTICATED), then the
 // permission matrix decides (PERMISSION_DENIED), then ownership, then validation
 // (INVALID_ARGUMENT naming the field). Errors are mapped to gRPC codes in one place
