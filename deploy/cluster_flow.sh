@@ -74,17 +74,19 @@ done
 psql -q "$uri" -c "SELECT name, grpc_address, udp_port, capacity FROM nodes ORDER BY name"
 
 # At a site each station has its own computer; here the 24 share the two cores with the site's
-# servers, so they run at normal policy and nice 10: their SCHED_FIFO haptic threads would take
+# servers, so they run at normal policy and nice 19: their SCHED_FIFO haptic threads would take
 # the cores from the nodes' heartbeats and the control plane (a node starved for 2 s is declared
 # down), and at equal priority their 24 loops would slow every node's scene build and every
-# control-plane call tenfold, which no real site does to its servers.
+# control-plane call tenfold, which no real site does to its servers. At nice 10 their ~170
+# threads still took 93% of a core beside two CPU hogs and PostgreSQL's commits took 0.3-1.3 s
+# (docs/BENCHMARKS.md, "A killed node's stations beside two CPU hogs"); at nice 19, 34%.
 step "$stations trainees, each with a replaying headless station"
 adm() { "$bin/vsurg-admin" "$@" --server "$servers" --token "$admin_token"; }
 "$bin/vsurg-sim" trainee --scene arm-torsion --style good --out "$tmp/twist.csv" > /dev/null
 declare -a station_pid
 for i in $(seq 0 $((stations - 1))); do
   token="$(adm user-add --name "trainee-$i" --role trainee --group group-a --issue-token | tail -1)"
-  nice -n 10 "$bin/vsurg-station" --server "$servers" --token "$token" --scene arm-torsion --device replay \
+  nice -n 19 "$bin/vsurg-station" --server "$servers" --token "$token" --scene arm-torsion --device replay \
     --trajectory "$tmp/twist.csv" --headless --width 64 --height 48 --fps 10 --duration 600 \
     --realtime-priority 0 --json > "$out/station-$i.json" 2> "$out/station-$i.log" &
   station_pid[$i]=$!
