@@ -172,6 +172,11 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
 
   Impl(db::Store& s, const ClusterOptions& o) : store(s), options(o) {}
 
+  // A node call that reads on a caller's behalf (Join, a surface, a record): no longer than the
+  // caller still waits (caller_deadline.h), at most call_timeout_s.
+  std::unique_ptr<grpc::ClientContext> ReadContext() const {
+    return CallContext(options.token, CallerDeadline::Left(options.call_timeout_s));
+  }
   int64_t TimeoutUs() const { return static_cast<int64_t>(options.heartbeat_timeout_s * 1e6); }
   int64_t PeriodUs() const { return static_cast<int64_t>(options.heartbeat_period_s * 1e6); }
   // The lease a node's row in the store carries (its heartbeat_us: when it was written), never
@@ -854,8 +859,7 @@ Expected<CreatedSession> ClusterSessions::Join(uint64_t id) {
   v1::SessionRef req;
   req.set_id(id);
   v1::NodeSession reply;
-  // A read on the caller's behalf: no longer than the caller waits (caller_deadline.h).
-  auto ctx = CallContext(impl_->options.token, CallerDeadline::Left(impl_->options.call_timeout_s));
+  auto ctx = impl_->ReadContext();
   const grpc::Status s = impl_->StubFor(at->second).Join(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "join on node " + at->second.name);
   CreatedSession out = FromProto(reply);
@@ -870,8 +874,7 @@ Status ClusterSessions::RestSurface(uint64_t id, std::vector<geometry::Vec3>& po
   v1::SessionRef req;
   req.set_id(id);
   v1::NodeSurface reply;
-  // A read on the caller's behalf: no longer than the caller waits (caller_deadline.h).
-  auto ctx = CallContext(impl_->options.token, CallerDeadline::Left(impl_->options.call_timeout_s));
+  auto ctx = impl_->ReadContext();
   const grpc::Status s = impl_->StubFor(at->second).RestSurface(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "surface on node " + at->second.name);
   positions.clear();
@@ -887,8 +890,7 @@ Expected<std::string> ClusterSessions::Trace(uint64_t id) const {
   v1::SessionRef req;
   req.set_id(id);
   v1::NodeTrace reply;
-  // A read on the caller's behalf: no longer than the caller waits (caller_deadline.h).
-  auto ctx = CallContext(impl_->options.token, CallerDeadline::Left(impl_->options.call_timeout_s));
+  auto ctx = impl_->ReadContext();
   const grpc::Status s = impl_->StubFor(at->second).Trace(ctx.get(), req, &reply);
   if (!s.ok()) return FromGrpc(s, "record on node " + at->second.name);
   return std::move(*reply.mutable_json());
