@@ -4,7 +4,7 @@
 #   deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- extra libFuzzer flags]
 #
 # Targets (tests/fuzz/): datagram messages scene_json obj ratings_csv trajectory_csv http_api
-# http_framing cluster_messages.
+# http_framing cluster_messages handoff.
 # Builds the targets in build-asan/ (clang: libFuzzer, AddressSanitizer + UndefinedBehaviorSanitizer;
 # the same build deploy/sanitize.sh tests); reads the kept corpus tests/fuzz/corpus/TARGET and
 # writes what it finds new to build-asan/corpus/TARGET (never into the repository unless --merge,
@@ -15,7 +15,7 @@ set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
 targets_all=(datagram messages scene_json obj ratings_csv trajectory_csv http_api http_framing
-  cluster_messages)
+  cluster_messages handoff)
 if [ $# -lt 2 ]; then
   echo "usage: deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- libFuzzer flags]" >&2
   echo "targets: ${targets_all[*]}" >&2
