@@ -101,6 +101,15 @@ int Main(std::vector<std::string> args) {
               "beats to keeps its heartbeats in memory and rewrites the row when half of it is "
               "gone (<= 2.5: every heartbeat is written); the same on every replica",
               false, "10")
+      .Option("cluster-heartbeat-period", Kind::kDouble,
+              "control, sim: seconds between a node's heartbeats; the same on every process", false,
+              "0.5")
+      .Option("cluster-heartbeat-timeout", Kind::kDouble,
+              "control, sim: seconds a node may be silent before the site declares it down and "
+              "re-places its sessions (its lease); longer rides out a control plane starved of "
+              "CPU, at the cost of a lost node's stations waiting longer; the same on every "
+              "process",
+              false, "2")
       .Option("cluster-control-name", Kind::kString,
               "control, sim: the name control replicas' certificates carry", false, "vsurg-control")
       .Option("cluster-health-listen", Kind::kString,
@@ -248,6 +257,18 @@ int Main(std::vector<std::string> args) {
     cluster.store_lease_s = p.Double("cluster-store-lease");
     if (!(cluster.store_lease_s >= 2 && cluster.store_lease_s <= 300)) {
       std::cerr << "vsurg-server: --cluster-store-lease: must be within 2..300 s\n";
+      return 2;
+    }
+    cluster.heartbeat_period_s = p.Double("cluster-heartbeat-period");
+    cluster.heartbeat_timeout_s = p.Double("cluster-heartbeat-timeout");
+    if (!(cluster.heartbeat_period_s >= 0.05 && cluster.heartbeat_period_s <= 10)) {
+      std::cerr << "vsurg-server: --cluster-heartbeat-period: must be within 0.05..10 s\n";
+      return 2;
+    }
+    if (!(cluster.heartbeat_timeout_s <= 120 &&
+          cluster.heartbeat_timeout_s - cluster.lease_margin_s >= 2 * cluster.heartbeat_period_s)) {
+      std::cerr << "vsurg-server: --cluster-heartbeat-timeout: must be at most 120 s and, less "
+                << cluster.lease_margin_s << " s of margin, at least two heartbeat periods\n";
       return 2;
     }
     cluster.control_name = p.String("cluster-control-name");

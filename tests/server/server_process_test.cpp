@@ -315,6 +315,15 @@ TEST(ServerRolesCliTest, BadRoleSettingsExitTwoNamingTheFlag) {
            {"--role sim" + pg + " --cluster-token-file " + token, "--control: required"},
            {"--role control" + pg + " --cluster-token-file " + (dir / "missing").string(),
             "--cluster-token-file: cannot read"},
+           {"--role control" + pg + " --cluster-token-file " + token +
+                " --cluster-heartbeat-timeout 0.9",
+            "--cluster-heartbeat-timeout: must be at most 120 s"},
+           {"--role sim" + pg + " --control 127.0.0.1:7000 --cluster-token-file " + token +
+                " --cluster-heartbeat-period 0",
+            "--cluster-heartbeat-period: must be within 0.05..10 s"},
+           {"--role control" + pg + " --cluster-token-file " + token +
+                " --cluster-heartbeat-timeout nan",
+            "--cluster-heartbeat-timeout"},
        }) {
     const ShellRun r = Shell(server + c.args + " 2>&1");
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.out;
