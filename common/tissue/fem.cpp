@@ -1,7 +1,9 @@
 #include "common/tissue/fem.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <thread>
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
@@ -567,6 +569,11 @@ struct FemStaticResponse::Impl {
   explicit Impl(FemModel m) : model(std::move(m)) {}
   FemModel model;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  // The factor P·K·Pᵀ = L·D·Lᵀ as SolveMany reads it: L's strictly lower entries by column
+  // (compressed), 1/D, and P's indices (row i of K is row perm[i] of the permuted system).
+  std::vector<int> col_start, row;
+  std::vector<double> value, inv_d;
+  std::vector<int> perm;
 };
 
 FemStaticResponse::FemStaticResponse(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -606,7 +613,84 @@ Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& m
     return InvalidArgument("mesh",
                            "the stiffness matrix could not be factorised (a part of the "
                            "mesh is not held by any fixed vertex?)");
+  const auto& l = impl->solver.matrixL().nestedExpression();
+  const int n = static_cast<int>(l.cols());
+  impl->col_start.assign(1, 0);
+  for (int j = 0; j < n; ++j) {
+    // As Eigen's own triangular solves read a unit-diagonal factor: the diagonal skipped.
+    for (Eigen::SparseMatrix<double>::InnerIterator it(l, j); it; ++it)
+      if (it.index() > j)
+        impl->row.push_back(static_cast<int>(it.index())), impl->value.push_back(it.value());
+    impl->col_start.push_back(static_cast<int>(impl->row.size()));
+  }
+  // D⁻¹ as Eigen applies it (diag.asDiagonal().inverse(): a multiplication by the reciprocal).
+  impl->inv_d.resize(n);
+  for (int j = 0; j < n; ++j) impl->inv_d[j] = 1.0 / impl->solver.vectorD()[j];
+  const auto& p = impl->solver.permutationP().indices();
+  impl->perm.assign(p.data(), p.data() + p.size());
+  if (impl->perm.empty()) {
+    impl->perm.resize(n);
+    for (int i = 0; i < n; ++i) impl->perm[i] = i;
+  }
   return FemStaticResponse(std::move(impl));
+}
+
+std::vector<std::vector<Eigen::Vector3d>> FemStaticResponse::SolveMany(
+    const std::vector<std::vector<Eigen::Vector3d>>& f, int threads) const {
+  const FemModel::Impl& m = *impl_->model.impl_;
+  const Impl& s = *impl_;
+  const int nv = m.n();
+  const size_t n = s.inv_d.size();
+  constexpr size_t kBlock = 8;  // loads side by side: x[i·kBlock + k] is unknown i of load k
+  std::vector<std::vector<Vec3>> out(f.size(), std::vector<Vec3>(nv, Vec3::Zero()));
+  const size_t blocks = (f.size() + kBlock - 1) / kBlock;
+  std::atomic<size_t> next{0};
+  // Per block the same operations in the same order as SimplicialLDLT::solve on each load (its
+  // triangular solves skip a zero right-hand entry; subtracting l·0 leaves the same value).
+  auto work = [&] {
+    std::vector<double> x(n * kBlock);
+    for (size_t b; (b = next.fetch_add(1)) < blocks;) {
+      const size_t first = b * kBlock, cols = std::min(kBlock, f.size() - first);
+      std::fill(x.begin(), x.end(), 0.0);
+      for (size_t c = 0; c < cols; ++c) {
+        const std::vector<Vec3>& load = f[first + c];
+        for (int i = 0; i < nv && i < static_cast<int>(load.size()); ++i)
+          if (!m.is_fixed[i] && load[i].allFinite())
+            for (int a = 0; a < 3; ++a) x[s.perm[3 * i + a] * kBlock + c] = load[i][a];
+      }
+      for (size_t j = 0; j < n; ++j) {  // L·y = P·b
+        const double* xj = &x[j * kBlock];
+        for (int q = s.col_start[j]; q < s.col_start[j + 1]; ++q) {
+          double* xi = &x[static_cast<size_t>(s.row[q]) * kBlock];
+          const double lij = s.value[q];
+          for (size_t k = 0; k < kBlock; ++k) xi[k] -= lij * xj[k];
+        }
+      }
+      for (size_t j = 0; j < n; ++j)
+        for (size_t k = 0; k < kBlock; ++k) x[j * kBlock + k] = s.inv_d[j] * x[j * kBlock + k];
+      for (size_t j = n; j-- > 0;) {  // Lᵀ·z = D⁻¹·y
+        double* xj = &x[j * kBlock];
+        for (int q = s.col_start[j]; q < s.col_start[j + 1]; ++q) {
+          const double* xi = &x[static_cast<size_t>(s.row[q]) * kBlock];
+          const double lij = s.value[q];
+          for (size_t k = 0; k < kBlock; ++k) xj[k] -= lij * xi[k];
+        }
+      }
+      for (size_t c = 0; c < cols; ++c) {  // u = Pᵀ·z
+        std::vector<Vec3>& u = out[first + c];
+        for (int i = 0; i < nv; ++i)
+          if (!m.is_fixed[i])
+            for (int a = 0; a < 3; ++a) u[i][a] = x[s.perm[3 * i + a] * kBlock + c];
+      }
+    }
+  };
+  if (threads <= 0) threads = static_cast<int>(std::min(4u, std::thread::hardware_concurrency()));
+  const int extra = static_cast<int>(std::min<size_t>(std::max(threads, 1), blocks)) - 1;
+  std::vector<std::thread> helpers;
+  for (int t = 0; t < extra; ++t) helpers.emplace_back(work);
+  work();
+  for (std::thread& t : helpers) t.join();
+  return out;
 }
 
 std::vector<Eigen::Vector3d> FemStaticResponse::Solve(const std::vector<Eigen::Vector3d>& f) const {

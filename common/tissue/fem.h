@@ -122,6 +122,12 @@ class FemStaticResponse {
   // Displacements (m) of every vertex under nodal loads (N) `f` (one per vertex; the fixed
   // vertices' entries are ignored and their displacement is zero).
   std::vector<Eigen::Vector3d> Solve(const std::vector<Eigen::Vector3d>& f) const;
+  // Solve for many loads at once, the same answers to the last bit: the factor is streamed
+  // through memory once per eight loads (the solve is bound by reading it) and the blocks are
+  // spread over up to `threads` threads (0: one per core, at most four). The reduced models'
+  // tables are hundreds of loads on one factor.
+  std::vector<std::vector<Eigen::Vector3d>> SolveMany(
+      const std::vector<std::vector<Eigen::Vector3d>>& f, int threads = 0) const;
   int VertexCount() const;
   const geometry::TetMesh& rest() const;
 

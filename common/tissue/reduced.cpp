@@ -86,12 +86,11 @@ Vec3 WarpedDisplacement(const Vec3& w_in, const Vec3& u) {
 
 namespace {
 
-// PrecomputeTwistField with the display's embedding in the FEM mesh given (computed once for
-// the many grasps of a surface twist table).
-Expected<TwistField> TwistFieldEmbedded(const FemStaticResponse& fem, const std::vector<int>& face,
-                                        const std::vector<double>& face_area, const Vec3& origin,
-                                        const Vec3& axis, const std::vector<Vec3>& display_rest,
-                                        const std::vector<geometry::EmbeddedPoint>& embedding) {
+// A twist's load: a unit torque about the axis through the loaded face's own centre on the
+// axis, as nodal forces on the FEM (one per vertex).
+Expected<std::vector<Vec3>> TwistLoad(const FemStaticResponse& fem, const std::vector<int>& face,
+                                      const std::vector<double>& face_area, const Vec3& origin,
+                                      const Vec3& axis) {
   if (!origin.allFinite() || !axis.allFinite() || !(axis.norm() > 0))
     return InvalidArgument("axis", "the twist axis needs a finite point and a non-zero direction");
   if (face.empty()) return InvalidArgument("face", "no loaded face");
@@ -100,7 +99,6 @@ Expected<TwistField> TwistFieldEmbedded(const FemStaticResponse& fem, const std:
       return InvalidArgument("face", "vertex " + std::to_string(v) + " is not in the FEM mesh");
   const Vec3 n = axis.normalized();
   const auto& rest = fem.rest().positions;
-  // Unit torque about the axis through the face's own centre on the axis.
   Vec3 centre = Vec3::Zero();
   for (int v : face) centre += rest[v];
   centre /= static_cast<double>(face.size());
@@ -108,7 +106,19 @@ Expected<TwistField> TwistFieldEmbedded(const FemStaticResponse& fem, const std:
   const auto nodal = TorqueNodalForces(rest, face, face_area, centre, n, 1.0);
   std::vector<Vec3> f(fem.VertexCount(), Vec3::Zero());
   for (size_t i = 0; i < face.size(); ++i) f[face[i]] += nodal[i];
-  const std::vector<Vec3> u = fem.Solve(f);
+  return f;
+}
+
+// The twist field from the FEM's displacements `u` under TwistLoad's load, on the display
+// surface (its embedding in the FEM mesh given: computed once for the many grasps of a surface
+// twist table).
+Expected<TwistField> TwistFieldOf(const FemStaticResponse& fem, const std::vector<Vec3>& u,
+                                  const std::vector<int>& face,
+                                  const std::vector<double>& face_area, const Vec3& origin,
+                                  const Vec3& axis, const std::vector<Vec3>& display_rest,
+                                  const std::vector<geometry::EmbeddedPoint>& embedding) {
+  const Vec3 n = axis.normalized();
+  const auto& rest = fem.rest().positions;
   for (const Vec3& x : u)
     if (!x.allFinite())
       return Error{ErrorCode::kNumerical, "the unit-torque solve is not finite", "fem"};
@@ -167,7 +177,9 @@ Expected<TwistField> PrecomputeTwistField(const FemStaticResponse& fem,
                                           const Vec3& axis, const std::vector<Vec3>& display_rest) {
   auto embedding = geometry::EmbedPoints(fem.rest(), display_rest);
   if (!embedding.ok()) return embedding.error();
-  return TwistFieldEmbedded(fem, face, face_area, origin, axis, display_rest, *embedding);
+  auto f = TwistLoad(fem, face, face_area, origin, axis);
+  if (!f.ok()) return f.error();
+  return TwistFieldOf(fem, fem.Solve(*f), face, face_area, origin, axis, display_rest, *embedding);
 }
 
 Expected<ReducedTwistModel> ReducedTwistModel::Create(const TwistField& field,
@@ -421,15 +433,24 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
     grad[e] = dm.inverse();
     for (int a = 0; a < 4; ++a) vertex_volume[t[a]] += volume[e];
   }
-  std::vector<Vec3> f(fem.VertexCount());
+  // The contacts' unit loads solved a batch at a time (FemStaticResponse::SolveMany: the factor
+  // read once per eight loads, on every core).
+  constexpr size_t kBatch = 24;  // contacts: 72 loads
+  std::vector<std::vector<Vec3>> loads, solved;
   for (size_t s = 0; s < contacts.size(); ++s) {
-    const int c = contacts[s];
-    const auto weights = FootprintWeights(boundary, display.positions[c], normals_mesh.normals[c],
-                                          params.footprint_radius);
+    if (s % kBatch == 0) {
+      const size_t end = std::min(contacts.size(), s + kBatch);
+      loads.assign(3 * (end - s), std::vector<Vec3>(fem.VertexCount(), Vec3::Zero()));
+      for (size_t k = s; k < end; ++k) {
+        const int c = contacts[k];
+        for (const auto& [i, w] : FootprintWeights(
+                 boundary, display.positions[c], normals_mesh.normals[c], params.footprint_radius))
+          for (int d = 0; d < 3; ++d) loads[3 * (k - s) + d][i][d] += w;
+      }
+      solved = fem.SolveMany(loads);
+    }
     for (int d = 0; d < 3; ++d) {
-      std::fill(f.begin(), f.end(), Vec3::Zero());
-      for (const auto& [i, w] : weights) f[i][d] += w;
-      const std::vector<Vec3> u = fem.Solve(f);
+      const std::vector<Vec3>& u = solved[3 * (s % kBatch) + d];
       float* g = out.g.data() + (s * 3 + d) * 3 * static_cast<size_t>(nv);
       for (int i = 0; i < nv; ++i) {
         const Vec3 x = geometry::Interpolate((*embedding)[i], u);
@@ -693,12 +714,35 @@ Expected<SurfaceTwistTable> PrecomputeSurfaceTwist(const FemStaticResponse& fem,
   out.grasps.clear();
   std::fill(out.precomputed.begin(), out.precomputed.end(), 0);
   Error last = InvalidArgument("reachable", "no vertex a tool can grasp");
-  for (const int c : candidates) {
+  // The grasps' loads solved a batch at a time (FemStaticResponse::SolveMany: the factor read
+  // once per eight, on every core), each field then taken in the candidates' order.
+  constexpr size_t kBatch = 64;
+  struct Grasp {
+    std::vector<int> face;
     std::vector<double> area;
-    const std::vector<int> face =
-        JawFace(fem.rest(), boundary_area, display.positions[c], params.jaw_radius, &area);
-    auto field = TwistFieldEmbedded(fem, face, area, display.positions[c], normals.normals[c],
-                                    display.positions, *embedding);
+  };
+  std::vector<Grasp> grasps;
+  std::vector<std::vector<Vec3>> loads, solved;
+  for (size_t at = 0; at < candidates.size(); ++at) {
+    if (at % kBatch == 0) {
+      const size_t end = std::min(candidates.size(), at + kBatch);
+      grasps.assign(end - at, {});
+      loads.assign(end - at, {});
+      for (size_t k = 0; k < grasps.size(); ++k) {
+        const int c = candidates[at + k];
+        grasps[k].face = JawFace(fem.rest(), boundary_area, display.positions[c], params.jaw_radius,
+                                 &grasps[k].area);
+        auto f = TwistLoad(fem, grasps[k].face, grasps[k].area, display.positions[c],
+                           normals.normals[c]);
+        if (!f.ok()) return f.error();
+        loads[k] = std::move(f).value();
+      }
+      solved = fem.SolveMany(loads);
+    }
+    const int c = candidates[at];
+    const Grasp& g = grasps[at % kBatch];
+    auto field = TwistFieldOf(fem, solved[at % kBatch], g.face, g.area, display.positions[c],
+                              normals.normals[c], display.positions, *embedding);
     if (!field.ok()) {
       // Jaws that hold only what the support holds turn nothing: not a grasp of its own (its
       // nearest graspable neighbour stands in, flagged).

@@ -72,6 +72,44 @@ TEST(FemStaticResponseTest, MatchesTheCorotationalStaticSolveAtASmallLoad) {
   for (int i = 0; i < c->mesh.VertexCount(); ++i) EXPECT_LT((u2[i] - 2 * u[i]).norm(), 1e-15);
 }
 
+// The many-load solve the tables use gives every load's displacements to the last bit of the
+// one-load solve, whatever the batch's size (not a multiple of its eight), the threads, short or
+// non-finite loads (ignored entries) and the fixed vertices (zero).
+TEST(FemStaticResponseTest, ManyLoadsAtOnceSolveToTheLastBitOfOneAtATime) {
+  auto c = geometry::MakeTetCylinder({0.1, 0.01, 0.01, 2, 10});
+  ASSERT_TRUE(c.ok());
+  auto r = FemStaticResponse::Create(c->mesh, Tissue(), c->base);
+  ASSERT_TRUE(r.ok());
+  const int nv = c->mesh.VertexCount();
+  std::vector<std::vector<Vec3>> loads;
+  uint32_t seed = 12345;
+  auto uniform = [&seed] {  // deterministic, in (-1, 1)
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) / double(1 << 24) * 2 - 1;
+  };
+  for (int k = 0; k < 19; ++k) {
+    std::vector<Vec3> f(k == 5 ? nv / 2 : nv, Vec3::Zero());
+    for (Vec3& x : f) x = Vec3(uniform(), uniform(), uniform()) * 1e-3;
+    if (k == 7) f[nv / 3] = Vec3(kNan, 0, 0);
+    loads.push_back(std::move(f));
+  }
+  for (int threads : {1, 3}) {
+    const auto many = r->SolveMany(loads, threads);
+    ASSERT_EQ(many.size(), loads.size());
+    for (size_t k = 0; k < loads.size(); ++k) {
+      const auto one = r->Solve(loads[k]);
+      ASSERT_EQ(many[k].size(), one.size());
+      for (int i = 0; i < nv; ++i) {
+        ASSERT_TRUE(many[k][i].allFinite()) << "load " << k << " vertex " << i;
+        ASSERT_EQ(many[k][i], one[i])
+            << "load " << k << " vertex " << i << ", " << threads << " threads";
+      }
+      for (int v : c->base) EXPECT_EQ(many[k][v].norm(), 0.0);
+    }
+  }
+  EXPECT_TRUE(r->SolveMany({}).empty());
+}
+
 TEST(FemStaticResponseTest, AMeshWithNothingFixedIsRefused) {
   auto c = geometry::MakeTetCylinder({0.1, 0.01, 0.01, 1, 4});
   ASSERT_TRUE(c.ok());
