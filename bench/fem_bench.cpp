@@ -5,7 +5,17 @@
 //
 //   build/bin/vsurg-microbench --benchmark_filter='FemStep|CoilDeformArm/207'
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true   (one line)
+//
+// And the reduced tables' precomputation on organ-surface-twist's FEM ball (5 cm, held on its
+// lower fifth) of 16 and 20 cells: the sparse Cholesky, and 64 static loads (one batch of the
+// table's grasps) solved one at a time (Solve, as the tables did), eight at a time on one thread
+// and on two (SolveMany):
+//
+//   build/bin/vsurg-microbench --benchmark_filter='StaticFactor|StaticLoads'
 #include <benchmark/benchmark.h>
+
+#include <memory>
+#include <vector>
 
 #include "common/geometry/tet_generators.h"
 #include "common/tissue/fem.h"
@@ -33,5 +43,59 @@ void BM_FemStep(benchmark::State& state) {
   state.counters["cg_iterations"] = static_cast<double>(iterations) / std::max(1, steps);
 }
 BENCHMARK(BM_FemStep)->Arg(4)->Arg(5)->Unit(benchmark::kMillisecond);
+
+struct Ball {
+  vsurg::geometry::TetMesh mesh;
+  std::vector<int> held;
+};
+
+Ball OrganBall(int cells) {
+  Ball b;
+  b.mesh = vsurg::geometry::MakeTetBall({0.05, cells}).value();
+  for (int i = 0; i < b.mesh.VertexCount(); ++i)
+    if (b.mesh.positions[i].z() < -0.03) b.held.push_back(i);  // the lower fifth
+  return b;
+}
+
+vsurg::tissue::FemParams OrganTissue() {
+  vsurg::tissue::FemParams p;
+  p.poisson = 0.47;
+  p.young = 2 * 12e3 * 1.47;
+  return p;
+}
+
+void BM_StaticFactor(benchmark::State& state) {
+  const Ball b = OrganBall(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    auto r = vsurg::tissue::FemStaticResponse::Create(b.mesh, OrganTissue(), b.held);
+    benchmark::DoNotOptimize(r.ok());
+  }
+  state.counters["vertices"] = b.mesh.VertexCount();
+}
+BENCHMARK(BM_StaticFactor)->Arg(16)->Arg(20)->Unit(benchmark::kSecond)->Iterations(2);
+
+// range(1): 0 one at a time, 1 SolveMany on one thread, 2 on two.
+void BM_StaticLoads(benchmark::State& state) {
+  const Ball b = OrganBall(static_cast<int>(state.range(0)));
+  auto r = vsurg::tissue::FemStaticResponse::Create(b.mesh, OrganTissue(), b.held).value();
+  std::vector<std::vector<Eigen::Vector3d>> loads(64);
+  for (size_t k = 0; k < loads.size(); ++k) {
+    loads[k].assign(b.mesh.VertexCount(), Eigen::Vector3d::Zero());
+    loads[k][(k * 7919) % b.mesh.VertexCount()] = Eigen::Vector3d(0.1, -0.2, 1.0);
+  }
+  const int mode = static_cast<int>(state.range(1));
+  for (auto _ : state) {
+    if (mode == 0) {
+      for (const auto& f : loads) benchmark::DoNotOptimize(r.Solve(f).data());
+    } else {
+      benchmark::DoNotOptimize(r.SolveMany(loads, mode).data());
+    }
+  }
+  state.counters["loads"] = static_cast<double>(loads.size());
+}
+BENCHMARK(BM_StaticLoads)
+    ->ArgsProduct({{16, 20}, {0, 1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 
 }  // namespace

@@ -7,6 +7,9 @@
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+// Eigen's METIS bridge writes to std::cerr without including <iostream> itself.
+#include <Eigen/MetisSupport>
+#include <iostream>
 
 #include "common/tissue/extrapolation.h"
 #include "common/tissue/simd.h"
@@ -437,7 +440,10 @@ FemStaticStats FemModel::SolveStatic(int max_iterations, double tolerance) {
     if (!m.is_fixed[i]) ext += m.f_ext[i].squaredNorm();
   ext = std::sqrt(ext);
   if (!(ext > 0)) ext = 1;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  // Nested dissection (METIS) rather than Eigen's default minimum degree: on the organ's 20-cell
+  // ball the factor fills less, and factorises 2.4x and solves 1.5x faster (docs/BENCHMARKS.md).
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
+      solver;
   Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(m.blocks.size() * 9);
@@ -568,7 +574,10 @@ int FemModel::InvertedCount() const {
 struct FemStaticResponse::Impl {
   explicit Impl(FemModel m) : model(std::move(m)) {}
   FemModel model;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+  // Nested dissection (METIS) rather than Eigen's default minimum degree: on the organ's 20-cell
+  // ball the factor fills less, and factorises 2.4x and solves 1.5x faster (docs/BENCHMARKS.md).
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
+      solver;
   // The factor P·K·Pᵀ = L·D·Lᵀ as SolveMany reads it: L's strictly lower entries by column
   // (compressed), 1/D, and P's indices (row i of K is row perm[i] of the permuted system).
   std::vector<int> col_start, row;
