@@ -7,9 +7,10 @@
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true   (one line)
 //
 // And the reduced tables' precomputation on organ-surface-twist's FEM ball (5 cm, held on its
-// lower fifth) of 16 and 20 cells: the sparse Cholesky, and 64 static loads (one batch of the
-// table's grasps) solved one at a time (Solve, as the tables did), eight at a time on one thread
-// and on two (SolveMany):
+// lower fifth) of 16 and 20 cells, under both fill-reducing orderings (0 nested dissection, the
+// default; 1 minimum degree, the former): the sparse Cholesky, and 64 static loads (one batch of
+// the table's grasps) solved one at a time (Solve, as the tables did), eight at a time on one
+// thread and on two (SolveMany):
 //
 //   build/bin/vsurg-microbench --benchmark_filter='StaticFactor|StaticLoads'
 #include <benchmark/benchmark.h>
@@ -64,26 +65,39 @@ vsurg::tissue::FemParams OrganTissue() {
   return p;
 }
 
+vsurg::tissue::FillOrdering Ordering(int64_t arg) {
+  return arg == 0 ? vsurg::tissue::FillOrdering::kNestedDissection
+                  : vsurg::tissue::FillOrdering::kMinimumDegree;
+}
+
+// range(0): cells; range(1): the ordering.
 void BM_StaticFactor(benchmark::State& state) {
   const Ball b = OrganBall(static_cast<int>(state.range(0)));
   for (auto _ : state) {
-    auto r = vsurg::tissue::FemStaticResponse::Create(b.mesh, OrganTissue(), b.held);
+    auto r = vsurg::tissue::FemStaticResponse::Create(b.mesh, OrganTissue(), b.held,
+                                                      Ordering(state.range(1)));
     benchmark::DoNotOptimize(r.ok());
   }
   state.counters["vertices"] = b.mesh.VertexCount();
 }
-BENCHMARK(BM_StaticFactor)->Arg(16)->Arg(20)->Unit(benchmark::kSecond)->Iterations(2);
+BENCHMARK(BM_StaticFactor)
+    ->ArgsProduct({{16, 20}, {0, 1}})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(2);
 
-// range(1): 0 one at a time, 1 SolveMany on one thread, 2 on two.
+// range(0): cells; range(1): the ordering; range(2): 0 one at a time, 1 SolveMany on one thread,
+// 2 on two.
 void BM_StaticLoads(benchmark::State& state) {
   const Ball b = OrganBall(static_cast<int>(state.range(0)));
-  auto r = vsurg::tissue::FemStaticResponse::Create(b.mesh, OrganTissue(), b.held).value();
+  auto r = vsurg::tissue::FemStaticResponse::Create(b.mesh, OrganTissue(), b.held,
+                                                    Ordering(state.range(1)))
+               .value();
   std::vector<std::vector<Eigen::Vector3d>> loads(64);
   for (size_t k = 0; k < loads.size(); ++k) {
     loads[k].assign(b.mesh.VertexCount(), Eigen::Vector3d::Zero());
     loads[k][(k * 7919) % b.mesh.VertexCount()] = Eigen::Vector3d(0.1, -0.2, 1.0);
   }
-  const int mode = static_cast<int>(state.range(1));
+  const int mode = static_cast<int>(state.range(2));
   for (auto _ : state) {
     if (mode == 0) {
       for (const auto& f : loads) benchmark::DoNotOptimize(r.Solve(f).data());
@@ -94,7 +108,7 @@ void BM_StaticLoads(benchmark::State& state) {
   state.counters["loads"] = static_cast<double>(loads.size());
 }
 BENCHMARK(BM_StaticLoads)
-    ->ArgsProduct({{16, 20}, {0, 1, 2}})
+    ->ArgsProduct({{16, 20}, {0, 1}, {0, 1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(3);
 

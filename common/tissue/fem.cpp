@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <iostream>  // Eigen's METIS bridge writes to std::cerr without including it itself
 #include <thread>
+#include <variant>
 
+#include <Eigen/MetisSupport>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
-// Eigen's METIS bridge writes to std::cerr without including <iostream> itself.
-#include <Eigen/MetisSupport>
-#include <iostream>
 
 #include "common/tissue/extrapolation.h"
 #include "common/tissue/simd.h"
@@ -440,10 +440,7 @@ FemStaticStats FemModel::SolveStatic(int max_iterations, double tolerance) {
     if (!m.is_fixed[i]) ext += m.f_ext[i].squaredNorm();
   ext = std::sqrt(ext);
   if (!(ext > 0)) ext = 1;
-  // Nested dissection (METIS) rather than Eigen's default minimum degree: on the organ's 20-cell
-  // ball the factor fills less, and factorises 2.4x and solves 1.5x faster (docs/BENCHMARKS.md).
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
-      solver;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
   Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(m.blocks.size() * 9);
@@ -574,9 +571,10 @@ int FemModel::InvertedCount() const {
 struct FemStaticResponse::Impl {
   explicit Impl(FemModel m) : model(std::move(m)) {}
   FemModel model;
-  // Nested dissection (METIS) rather than Eigen's default minimum degree: on the organ's 20-cell
-  // ball the factor fills less, and factorises 2.4x and solves 1.5x faster (docs/BENCHMARKS.md).
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
+  // The factorisation under the ordering asked for (FillOrdering).
+  std::variant<
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>,
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>>>
       solver;
   // The factor P·K·Pᵀ = L·D·Lᵀ as SolveMany reads it: L's strictly lower entries by column
   // (compressed), 1/D, and P's indices (row i of K is row perm[i] of the permuted system).
@@ -592,7 +590,8 @@ FemStaticResponse::~FemStaticResponse() = default;
 
 Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& mesh,
                                                       const FemParams& params,
-                                                      const std::vector<int>& fixed) {
+                                                      const std::vector<int>& fixed,
+                                                      FillOrdering ordering) {
   auto model = FemModel::Create(mesh, params, fixed);
   if (!model.ok()) return model.error();
   if (fixed.empty())
@@ -617,30 +616,38 @@ Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& m
   }
   Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
   k.setFromTriplets(triplets.begin(), triplets.end());
-  impl->solver.compute(k);
-  if (impl->solver.info() != Eigen::Success)
+  if (ordering == FillOrdering::kMinimumDegree) impl->solver.emplace<1>();
+  const bool factorised = std::visit(
+      [&](auto& solver) {
+        solver.compute(k);
+        if (solver.info() != Eigen::Success) return false;
+        const auto& l = solver.matrixL().nestedExpression();
+        const int n = static_cast<int>(l.cols());
+        impl->col_start.assign(1, 0);
+        for (int j = 0; j < n; ++j) {
+          // As Eigen's own triangular solves read a unit-diagonal factor: the diagonal skipped.
+          for (Eigen::SparseMatrix<double>::InnerIterator it(l, j); it; ++it)
+            if (it.index() > j)
+              impl->row.push_back(static_cast<int>(it.index())), impl->value.push_back(it.value());
+          impl->col_start.push_back(static_cast<int>(impl->row.size()));
+        }
+        // D⁻¹ as Eigen applies it (diag.asDiagonal().inverse(): a multiplication by the
+        // reciprocal).
+        impl->inv_d.resize(n);
+        for (int j = 0; j < n; ++j) impl->inv_d[j] = 1.0 / solver.vectorD()[j];
+        const auto& p = solver.permutationP().indices();
+        impl->perm.assign(p.data(), p.data() + p.size());
+        if (impl->perm.empty()) {
+          impl->perm.resize(n);
+          for (int i = 0; i < n; ++i) impl->perm[i] = i;
+        }
+        return true;
+      },
+      impl->solver);
+  if (!factorised)
     return InvalidArgument("mesh",
                            "the stiffness matrix could not be factorised (a part of the "
                            "mesh is not held by any fixed vertex?)");
-  const auto& l = impl->solver.matrixL().nestedExpression();
-  const int n = static_cast<int>(l.cols());
-  impl->col_start.assign(1, 0);
-  for (int j = 0; j < n; ++j) {
-    // As Eigen's own triangular solves read a unit-diagonal factor: the diagonal skipped.
-    for (Eigen::SparseMatrix<double>::InnerIterator it(l, j); it; ++it)
-      if (it.index() > j)
-        impl->row.push_back(static_cast<int>(it.index())), impl->value.push_back(it.value());
-    impl->col_start.push_back(static_cast<int>(impl->row.size()));
-  }
-  // D⁻¹ as Eigen applies it (diag.asDiagonal().inverse(): a multiplication by the reciprocal).
-  impl->inv_d.resize(n);
-  for (int j = 0; j < n; ++j) impl->inv_d[j] = 1.0 / impl->solver.vectorD()[j];
-  const auto& p = impl->solver.permutationP().indices();
-  impl->perm.assign(p.data(), p.data() + p.size());
-  if (impl->perm.empty()) {
-    impl->perm.resize(n);
-    for (int i = 0; i < n; ++i) impl->perm[i] = i;
-  }
   return FemStaticResponse(std::move(impl));
 }
 
@@ -708,7 +715,8 @@ std::vector<Eigen::Vector3d> FemStaticResponse::Solve(const std::vector<Eigen::V
   Eigen::VectorXd b = Eigen::VectorXd::Zero(3 * nv);
   for (int i = 0; i < nv && i < static_cast<int>(f.size()); ++i)
     if (!m.is_fixed[i] && f[i].allFinite()) b.segment<3>(3 * i) = f[i];
-  const Eigen::VectorXd u = impl_->solver.solve(b);
+  const Eigen::VectorXd u = std::visit(
+      [&](const auto& solver) -> Eigen::VectorXd { return solver.solve(b); }, impl_->solver);
   std::vector<Eigen::Vector3d> out(nv, Vec3::Zero());
   for (int i = 0; i < nv; ++i)
     if (!m.is_fixed[i]) out[i] = u.segment<3>(3 * i);

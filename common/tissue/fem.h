@@ -106,15 +106,21 @@ class FemModel {
 };
 
 // The small-strain (rest) stiffness K₀ of a FemModel's mesh, factorised once with a sparse
-// Cholesky (Eigen's SimplicialLDLT) and solved for as many static loads as asked: u = K₀⁻¹·f on
-// the free vertices, the fixed ones held. The precomputation of the reduced models
+// Cholesky (Eigen's SimplicialLDLT, FillOrdering) and solved for as many static loads as asked: u =
+// K₀⁻¹·f on the free vertices, the fixed ones held. The precomputation of the reduced models
 // (common/tissue/reduced.h): each of their responses is one back-substitution. Linear in f, so
 // a response to a unit load scales to any load; it is the corotational FEM's tangent at rest,
 // which a small load's SolveStatic matches to its tolerance.
+// The fill-reducing ordering of the factorisation: nested dissection (METIS; the default: on the
+// organ's 20-cell ball it fills less and factorises and solves faster, docs/BENCHMARKS.md) or
+// Eigen's approximate minimum degree (what the tables used before; kept for that comparison).
+enum class FillOrdering { kNestedDissection, kMinimumDegree };
+
 class FemStaticResponse {
  public:
-  static Expected<FemStaticResponse> Create(const geometry::TetMesh& mesh, const FemParams& params,
-                                            const std::vector<int>& fixed);
+  static Expected<FemStaticResponse> Create(
+      const geometry::TetMesh& mesh, const FemParams& params, const std::vector<int>& fixed,
+      FillOrdering ordering = FillOrdering::kNestedDissection);
   FemStaticResponse(FemStaticResponse&&) noexcept;
   FemStaticResponse& operator=(FemStaticResponse&&) noexcept;
   ~FemStaticResponse();
