@@ -82,7 +82,7 @@ int SpeedVsError(const std::vector<std::string>& args) {
   const auto t0 = Clock::now();
   const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
   const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 2;
-  const int organ = cfg.quick ? 3 + 5 : 6 + 6;
+  const int organ = cfg.quick ? 3 + 5 : 6 + 7;
   Progress progress(3 * per_limb + sphere + organ);
   std::vector<SceneOut> scenes = RunLimbScenes(cfg, progress);
   scenes.push_back(RunSphere(cfg, progress));
