@@ -40,6 +40,22 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   std::map<std::string, uint64_t> placed;
   std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, invalid_request, node_failed
   std::map<std::string, uint64_t> migrations;  // moved, refused (by a node), no_room
+  // A session created for a caller that has gone (ClusterSessions::Create): aborted on its node
+  // at once (NodeStopRequest.abandoned), with its own deadline, the caller's having passed. A
+  // node that does not answer leaves it to its not-started timeout.
+  void Abandon(const db::NodeRecord& node, uint64_t id) {
+    v1::NodeStopRequest req;
+    req.set_id(id);
+    req.set_reason("abandoned: its creator stopped waiting before the session was ready");
+    req.set_abandoned(true);
+    v1::NodeSession out;
+    auto ctx = CallContext(options.token, options.call_timeout_s);
+    const grpc::Status s = StubFor(node).Stop(ctx.get(), req, &out);
+    Log("session_abandoned", {{"node", node.name},
+                              {"session", static_cast<int64_t>(id)},
+                              {"error", s.ok() ? std::string() : s.error_message()}});
+  }
+
   void Count(std::map<std::string, uint64_t>& m, const std::string& key) {
     std::lock_guard lock(placements_mutex);
     ++m[key];
@@ -808,6 +824,18 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
       d.Count(d.placed, chosen.name);
       CreatedSession out = FromProto(reply);
       out.record.node = chosen.name;
+      if (CallerDeadline::Passed()) {
+        // The creator stopped waiting while the node built the scene (a station asks again
+        // after its deadline): nobody will ever hold this key. Aborted now, not after the
+        // not-started timeout, so it holds neither the trainee's slot nor the node's room while
+        // the next Create is placed.
+        d.Abandon(chosen, reply.session().id());
+        d.Count(d.refused, "caller_gone");
+        return Error{ErrorCode::kUnavailable,
+                     "session " + std::to_string(reply.session().id()) +
+                         " was ready after its creator stopped waiting; it is aborted",
+                     ""};
+      }
       return out;
     }
     const Error e = FromGrpc(s, "create on node " + chosen.name);
@@ -947,9 +975,11 @@ void ClusterSessions::Collect(ops::MetricsText& m) const {
       m.Sample("vsurg_placements_total", {{"node", node}}, static_cast<double>(n));
     m.Family("vsurg_placement_refusals_total", "counter",
              "Creates not placed by this replica (trainee_limit, no_room, invalid_request: a "
-             "scene that does not exist, ...), and node_failed: a chosen node's Create failed "
-             "(another was tried).");
-    for (const char* reason : {"trainee_limit", "no_room", "invalid_request", "node_failed"}) {
+             "scene that does not exist, ...), node_failed: a chosen node's Create failed "
+             "(another was tried), and caller_gone: the session was ready after its creator "
+             "stopped waiting (aborted at once).");
+    for (const char* reason :
+         {"trainee_limit", "no_room", "invalid_request", "node_failed", "caller_gone"}) {
       const auto it = d.refused.find(reason);
       m.Sample("vsurg_placement_refusals_total", {{"reason", reason}},
                it == d.refused.end() ? 0.0 : static_cast<double>(it->second));

@@ -292,7 +292,8 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
   grpc::Status Stop(grpc::ServerContext* ctx, const v1::NodeStopRequest* req,
                     v1::NodeSession* out) override {
     if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
-    auto r = sessions.Stop(req->id(), req->reason());
+    auto r = req->abandoned() ? sessions.Abandon(req->id(), req->reason())
+                              : sessions.Stop(req->id(), req->reason());
     if (!r.ok()) return grpcapi::ToGrpcStatus(r.error());
     grpcapi::ToProto(*r, out->mutable_session());
     return grpc::Status::OK;

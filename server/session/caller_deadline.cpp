@@ -26,4 +26,9 @@ double CallerDeadline::Left(double cap_s) {
   return std::min(std::max(left, 1e-3), cap_s);
 }
 
+bool CallerDeadline::Passed() {
+  return caller_deadline != std::chrono::system_clock::time_point::max() &&
+         std::chrono::system_clock::now() >= caller_deadline;
+}
+
 }  // namespace vsurg::server

@@ -19,6 +19,8 @@ class CallerDeadline {
   // Seconds the caller still waits, at most `cap_s` (`cap_s` outside a call; 1 ms when the
   // caller has already gone, so the node call fails at once instead of having no deadline).
   static double Left(double cap_s);
+  // The caller has stopped waiting (a deadline is set and it has passed).
+  static bool Passed();
 
  private:
   std::chrono::system_clock::time_point previous_;

@@ -303,12 +303,16 @@ scoring::LinkFigures LinkFiguresOf(const LinkStats& l) {
 
 }  // namespace
 
-Status SessionManager::End(uint64_t id, SessionState state, const std::string& reason, bool retry) {
+Status SessionManager::End(uint64_t id, SessionState state, const std::string& reason, bool retry,
+                           bool unstarted_only) {
   std::unique_ptr<Live> live;
   {
     std::lock_guard lock(mutex_);
     auto it = live_.find(id);
     if (it == live_.end()) return Error{ErrorCode::kNotFound, "no live session", "id"};
+    if (unstarted_only && it->second->state != SessionState::kCreated)
+      return Error{ErrorCode::kFailedPrecondition,
+                   "session " + std::to_string(id) + " has been started: not abandoned", "id"};
     if (it->second->moving)  // invariant 7: the move decides; the next try reaches its node
       return Error{ErrorCode::kUnavailable,
                    "session " + std::to_string(id) + " is moving to another node", "id"};
@@ -366,6 +370,12 @@ Expected<db::SessionRecord> SessionManager::Stop(uint64_t id, const std::string&
   Status s = End(id, SessionState::kEnded, reason.empty() ? "stopped" : reason);
   if (!s.ok() && s.error().code != ErrorCode::kNotFound) return s.error();
   return Get(id);  // stopping an ended session is idempotent: its record
+}
+
+Expected<db::SessionRecord> SessionManager::Abandon(uint64_t id, const std::string& reason) {
+  Status s = End(id, SessionState::kAborted, reason, false, /*unstarted_only=*/true);
+  if (!s.ok()) return s.error();
+  return Get(id);
 }
 
 Expected<db::SessionRecord> SessionManager::Get(uint64_t id) {

@@ -135,6 +135,10 @@ class SessionManager final : public Sessions {
                                   const scoring::TaskSettings& task = {}) override;
   Expected<db::SessionRecord> Start(uint64_t id) override;
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
+  // A session whose creator stopped waiting before it was answered (server/cluster/: a Create
+  // that outlived its caller): aborted with `reason` at once if it has never been started;
+  // FAILED_PRECONDITION once it has (someone holds its key after all), NOT_FOUND when gone.
+  Expected<db::SessionRecord> Abandon(uint64_t id, const std::string& reason);
   Expected<db::SessionRecord> Get(uint64_t id) override;
   Expected<CreatedSession> Join(uint64_t id) override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
@@ -197,7 +201,9 @@ class SessionManager final : public Sessions {
   SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
   // `retry`: the sampler's own ends (Pump), whose write is kept and made again while the store is
   // unavailable (sampler thread only).
-  Status End(uint64_t id, SessionState state, const std::string& reason, bool retry = false);
+  // `unstarted_only`: FAILED_PRECONDITION, and nothing ended, when the session has been started.
+  Status End(uint64_t id, SessionState state, const std::string& reason, bool retry = false,
+             bool unstarted_only = false);
   // A state change the sampler could not write (invariant 2): kept and written again at the next
   // ticks while the store is unavailable; any other refusal (the node's lease is lost, the
   // session ended elsewhere) is final and logged. Sampler thread only.

@@ -1113,6 +1113,50 @@ TEST_F(ClusterTest, ASecondProcessUnderALiveNodesNameIsRefusedAndTakesNothing) {
   twin.endpoint.reset();
 }
 
+// A Create that outlived its caller (a station on a starved machine asks again once its deadline
+// passes, while the node still builds the scene) leaves nothing behind: the node's new session
+// is aborted at once, not after the 60 s not-started timeout, so it holds neither the trainee's
+// slot (two per trainee here) nor the node's room, and the trainee's next Creates are placed.
+// Without it, each retry left one such session: 62 in one rolling restart beside two CPU hogs.
+TEST_F(ClusterTest, ASessionReadyAfterItsCreatorStoppedWaitingIsAbortedAtOnce) {
+  AddNode("sim-a", 2);
+  WaitForNodes(1);
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    const CallerDeadline gone(std::chrono::system_clock::now() - std::chrono::seconds(1));
+    auto late = control_->Create("tina", "sphere-palpation-256");
+    ASSERT_FALSE(late.ok()) << "attempt " << attempt;
+    EXPECT_EQ(late.error().code, ErrorCode::kUnavailable);
+    EXPECT_NE(late.error().message.find("after its creator stopped waiting"), std::string::npos)
+        << late.error().message;
+  }
+  auto mine = control_store_->ListSessions(std::string("tina")).value();
+  ASSERT_EQ(mine.size(), 3u) << "each attempt was built on the node";
+  for (const db::SessionRecord& r : mine) {
+    EXPECT_EQ(r.state, SessionState::kAborted) << r.id;
+    EXPECT_NE(r.end_reason.find("abandoned"), std::string::npos) << r.end_reason;
+    EXPECT_FALSE(control_->IsLive(static_cast<uint64_t>(r.id)));
+  }
+  EXPECT_EQ(nodes_[0]->sessions->LiveCount(), 0);
+  // The trainee's two slots and the node's two places are free: a caller that waits gets both.
+  for (int i = 0; i < 2; ++i) {
+    auto c = control_->Create("tina", "sphere-palpation-256");
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    EXPECT_EQ(c->record.state, SessionState::kCreated);
+  }
+  // A started session is never taken for abandoned: the node refuses, and it stays live.
+  auto started = control_store_->ListSessions(std::string("tina")).value();
+  const auto live = std::find_if(started.begin(), started.end(), [](const db::SessionRecord& r) {
+    return r.state == SessionState::kCreated;
+  });
+  ASSERT_NE(live, started.end());
+  ASSERT_TRUE(control_->Start(static_cast<uint64_t>(live->id)).ok());
+  auto refused = nodes_[0]->sessions->Abandon(static_cast<uint64_t>(live->id), "abandoned");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_TRUE(control_->IsLive(static_cast<uint64_t>(live->id)));
+  EXPECT_EQ(Metric(*control_, "vsurg_placement_refusals_total{reason=\"caller_gone\"}"), 3);
+}
+
 TEST_F(ClusterTest, InternalCallsWithoutTheTokenAreRefusedAndTheTraineeLimitIsSiteWide) {
   AddNode("sim-a", 8);
   AddNode("sim-b", 8);
