@@ -189,7 +189,7 @@ Status Station::Connect() {
   const bool join = config_.join != 0 && status_.generation == 0;
   {
     grpc::ClientContext ctx;
-    remote_.Prepare(ctx, config_.rpc_timeout_s);
+    remote_.Prepare(ctx, std::max(config_.rpc_timeout_s, config_.create_timeout_s));
     v1::SessionRef prepared;
     prepared.set_id(config_.join);
     const grpc::Status s =

@@ -52,7 +52,11 @@ struct StationConfig {
   int64_t exercise_id = 0;
   double rate_hz = 1000;     // device thread
   double rpc_timeout_s = 3;  // per control-plane call
-  double silence_s = 0.5;    // no force update this long: ask the server how it is
+  // Create and Join: the node builds the scene first (a reduced table's first build on a node
+  // takes seconds, and a loaded machine more). Shorter, a slow Create is given up and asked
+  // again, and every try builds the scene once more (each then aborted as abandoned).
+  double create_timeout_s = 20;
+  double silence_s = 0.5;  // no force update this long: ask the server how it is
   // While still silent, ask again this often: a node's loss is declared by the control plane
   // (2 s without its heartbeat), and the station should see it within a tenth of a second,
   // not up to another silence_s later.

@@ -40,6 +40,17 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   std::map<std::string, uint64_t> placed;
   std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, invalid_request, node_failed
   std::map<std::string, uint64_t> migrations;  // moved, refused (by a node), no_room
+  // Creates waiting on a node (ClusterSessions::Create), cancelled when this replica declares the
+  // node down: each is placed on another node within the same call, instead of waiting out the
+  // create timeout on a node that will never answer (a frozen one).
+  std::mutex creating_mutex;
+  std::multimap<std::string, grpc::ClientContext*> creating;
+  void CancelCreatesOn(const std::string& node) {
+    std::lock_guard lock(creating_mutex);
+    const auto [first, last] = creating.equal_range(node);
+    for (auto it = first; it != last; ++it) it->second->TryCancel();
+  }
+
   // A session created for a caller that has gone (ClusterSessions::Create): aborted on its node
   // at once (NodeStopRequest.abandoned), with its own deadline, the caller's having passed. A
   // node that does not answer leaves it to its not-started timeout.
@@ -474,6 +485,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
     fields.insert(fields.begin(), {"node", n.name});
     fields.push_back({"silent_ms", (now - n.heartbeat_us) / 1000});
     Log("node_down", fields);
+    CancelCreatesOn(n.name);
   }
 
   void WatchdogLoop() {
@@ -818,7 +830,16 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
     convert::ToProto(task, req.mutable_task());
     v1::NodeSession reply;
     auto ctx = CallContext(d.options.token, d.options.create_timeout_s);
+    std::multimap<std::string, grpc::ClientContext*>::iterator waiting;
+    {
+      std::lock_guard lock(d.creating_mutex);
+      waiting = d.creating.emplace(chosen.name, ctx.get());
+    }
     const grpc::Status s = d.StubFor(chosen).Create(ctx.get(), req, &reply);
+    {
+      std::lock_guard lock(d.creating_mutex);
+      d.creating.erase(waiting);
+    }
     d.Release(chosen.name, s.ok() ? std::optional<int64_t>(reply.session().id()) : std::nullopt);
     if (s.ok()) {
       d.Count(d.placed, chosen.name);
@@ -839,7 +860,9 @@ Expected<CreatedSession> ClusterSessions::Create(const std::string& trainee,
       return out;
     }
     const Error e = FromGrpc(s, "create on node " + chosen.name);
-    if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted) {
+    // CANCELLED: the node was declared down while it built the scene (CancelCreatesOn).
+    if (e.code != ErrorCode::kUnavailable && e.code != ErrorCode::kResourceExhausted &&
+        s.error_code() != grpc::StatusCode::CANCELLED) {
       d.Count(d.refused, "invalid_request");
       return e;  // the request itself is wrong (a scene that does not exist, …)
     }

@@ -178,6 +178,7 @@ class ClusterTest : public ::testing::Test {
     // a node's heartbeats past it (at 2 s a node lost its lease mid-test); the tests that wait
     // for a timeout wait for this one.
     options_.heartbeat_timeout_s = 6;
+    options_.create_timeout_s = 120;
     Configure();
     auto c = ClusterSessions::Start(*control_store_, options_);
     ASSERT_TRUE(c.ok()) << c.error().message;
@@ -765,6 +766,33 @@ TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWit
   EXPECT_EQ(created_on_web.get(), 503);  // no node has room: it answered nothing
   (*web)->Shutdown();
   cp->reset();
+}
+
+// A Create waiting on a node that froze while building the scene (SIGSTOP, a paused VM: it
+// accepts connections and never answers) is placed on another node in the same call once the
+// site declares the frozen node down, instead of waiting out the create timeout (here two
+// minutes) on a node that will never answer; the station that asked gets its session.
+TEST_F(ClusterTest, ACreateWaitingOnANodeDeclaredDownIsPlacedOnAnotherInTheSameCall) {
+  FrozenNode frozen(/*handshake=*/true);
+  ASSERT_TRUE(frozen.ok());
+  frozen.Acquire(control_->port(), "sim-frozen", 64);
+  WaitForNodes(1);
+  auto created =
+      std::async(std::launch::async, [&] { return control_->Create("tina", "arm-torsion"); });
+  ASSERT_TRUE(test::Eventually(30, [&] {
+    return frozen.Called() && Metric(*control_, "vsurg_placements_in_flight") == 1;
+  })) << "the Create waits on the frozen node";
+  AddNode("sim-a", 4);  // the frozen node no longer beats: declared down after the timeout
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_EQ(created.wait_for(std::chrono::seconds(90)), std::future_status::ready);
+  auto c = created.get();
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_EQ(c->record.node, "sim-a");
+  EXPECT_TRUE(control_->IsLive(static_cast<uint64_t>(c->record.id)));
+  // Once the node was down, not after the create timeout (a liveness bound: half of it).
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+            options_.create_timeout_s / 2);
+  EXPECT_EQ(Metric(*control_, "vsurg_placement_refusals_total{reason=\"node_failed\"}"), 1);
 }
 
 TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd) {
