@@ -38,7 +38,8 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
   // Placement decisions (for Collect): sessions placed per node, and the refusals by reason.
   mutable std::mutex placements_mutex;
   std::map<std::string, uint64_t> placed;
-  std::map<std::string, uint64_t> refused;  // trainee_limit, no_room, invalid_request, node_failed
+  // trainee_limit, no_room, invalid_request, node_failed, caller_gone
+  std::map<std::string, uint64_t> refused;
   std::map<std::string, uint64_t> migrations;  // moved, refused (by a node), no_room
   // Creates waiting on a node (ClusterSessions::Create), cancelled when this replica declares the
   // node down: each is placed on another node within the same call, instead of waiting out the
