@@ -38,12 +38,15 @@ constexpr std::array<const char*, 3> kScenes = {"sphere-palpation-256", "sphere-
 struct World {
   std::array<sim::Scene, kScenes.size()> scenes;
   std::array<std::string, kScenes.size()> built;  // each scene's state as Create leaves it
+  std::array<geometry::TriMesh, kScenes.size()> rest;
   World() {
     for (size_t i = 0; i < kScenes.size(); ++i) {
       auto scene = sim::LoadSceneByName(kScenes[i]);
       VSURG_FUZZ_CHECK(scene.ok());
       scenes[i] = std::move(scene).value();
-      built[i] = Make(i)->SaveState();
+      auto sim = Make(i);
+      built[i] = sim->SaveState();
+      rest[i] = sim->rest_mesh();
     }
   }
   std::unique_ptr<sim::Simulation> Make(size_t i) const {
@@ -82,7 +85,8 @@ void CheckHandoff(std::string_view bytes) {
   VSURG_FUZZ_CHECK(again.ok() && Same(*h, *again));
 }
 
-// A stylus held still inside the scene's box, then moved: enough for the restored state to act.
+// Twenty stylus samples after the restored trial's time, the tip rising through the scene's centre
+// with the grasp pressed for the last ten: enough for the restored state to act.
 void CheckSimulation(size_t which, std::string_view bytes) {
   const World& w = TheWorld();
   auto sim = w.Make(which);
@@ -111,7 +115,7 @@ void CheckSimulation(size_t which, std::string_view bytes) {
 void CheckRecord(size_t which, std::string_view bytes) {
   const World& w = TheWorld();
   server::TraceRecorder trace;
-  trace.SetRest(w.Make(which)->rest_mesh());
+  trace.SetRest(w.rest[which]);
   StateReader r(bytes);
   r(trace);
   if (r.done() && trace.Consistent()) {
