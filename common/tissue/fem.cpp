@@ -1,11 +1,12 @@
 #include "common/tissue/fem.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <iostream>  // Eigen's METIS bridge writes to std::cerr without including it itself
 #include <thread>
-#include <variant>
+#include <type_traits>
 
 #include <Eigen/MetisSupport>
 #include <Eigen/Sparse>
@@ -571,16 +572,55 @@ int FemModel::InvertedCount() const {
 struct FemStaticResponse::Impl {
   explicit Impl(FemModel m) : model(std::move(m)) {}
   FemModel model;
-  // The factorisation under the ordering asked for (FillOrdering).
-  std::variant<
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>,
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>>>
-      solver;
-  // The factor P·K·Pᵀ = L·D·Lᵀ as SolveMany reads it: L's strictly lower entries by column
+  // The factor P·K·Pᵀ = L·D·Lᵀ (Eigen's SimplicialLDLT under the FillOrdering asked for, copied
+  // out and the solver released: the factor is held once): L's strictly lower entries by column
   // (compressed), 1/D, and P's indices (row i of K is row perm[i] of the permuted system).
   std::vector<int> col_start, row;
   std::vector<double> value, inv_d;
   std::vector<int> perm;
+
+  // Loads *f[0..cols) (cols ≤ B) solved side by side into *out[0..cols): x[i·B + k] is unknown i
+  // of load k (scratch, n·B). The same operations in the same order as SimplicialLDLT::solve on
+  // each load (its triangular solves skip a zero right-hand entry; subtracting l·0 leaves the
+  // same value), so every answer is Eigen's to the last bit.
+  template <size_t B>
+  void SolveBlock(const std::vector<uint8_t>& is_fixed, const std::vector<Vec3>* const* f,
+                  size_t cols, std::vector<Vec3>* const* out, std::vector<double>& x) const {
+    const int nv = static_cast<int>(is_fixed.size());
+    const size_t n = inv_d.size();
+    x.assign(n * B, 0.0);
+    for (size_t c = 0; c < cols; ++c) {
+      const std::vector<Vec3>& load = *f[c];
+      for (int i = 0; i < nv && i < static_cast<int>(load.size()); ++i)
+        if (!is_fixed[i] && load[i].allFinite())
+          for (int a = 0; a < 3; ++a) x[perm[3 * i + a] * B + c] = load[i][a];
+    }
+    for (size_t j = 0; j < n; ++j) {  // L·y = P·b
+      const double* xj = &x[j * B];
+      for (int q = col_start[j]; q < col_start[j + 1]; ++q) {
+        double* xi = &x[static_cast<size_t>(row[q]) * B];
+        const double lij = value[q];
+        for (size_t k = 0; k < B; ++k) xi[k] -= lij * xj[k];
+      }
+    }
+    for (size_t j = 0; j < n; ++j)
+      for (size_t k = 0; k < B; ++k) x[j * B + k] = inv_d[j] * x[j * B + k];
+    for (size_t j = n; j-- > 0;) {  // Lᵀ·z = D⁻¹·y
+      double* xj = &x[j * B];
+      for (int q = col_start[j]; q < col_start[j + 1]; ++q) {
+        const double* xi = &x[static_cast<size_t>(row[q]) * B];
+        const double lij = value[q];
+        for (size_t k = 0; k < B; ++k) xj[k] -= lij * xi[k];
+      }
+    }
+    for (size_t c = 0; c < cols; ++c) {  // u = Pᵀ·z
+      std::vector<Vec3>& u = *out[c];
+      u.assign(nv, Vec3::Zero());
+      for (int i = 0; i < nv; ++i)
+        if (!is_fixed[i])
+          for (int a = 0; a < 3; ++a) u[i][a] = x[perm[3 * i + a] * B + c];
+    }
+  }
 };
 
 FemStaticResponse::FemStaticResponse(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -616,34 +656,39 @@ Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& m
   }
   Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
   k.setFromTriplets(triplets.begin(), triplets.end());
-  if (ordering == FillOrdering::kMinimumDegree) impl->solver.emplace<1>();
-  const bool factorised = std::visit(
-      [&](auto& solver) {
-        solver.compute(k);
-        if (solver.info() != Eigen::Success) return false;
-        const auto& l = solver.matrixL().nestedExpression();
-        const int n = static_cast<int>(l.cols());
-        impl->col_start.assign(1, 0);
-        for (int j = 0; j < n; ++j) {
-          // As Eigen's own triangular solves read a unit-diagonal factor: the diagonal skipped.
-          for (Eigen::SparseMatrix<double>::InnerIterator it(l, j); it; ++it)
-            if (it.index() > j)
-              impl->row.push_back(static_cast<int>(it.index())), impl->value.push_back(it.value());
-          impl->col_start.push_back(static_cast<int>(impl->row.size()));
-        }
-        // D⁻¹ as Eigen applies it (diag.asDiagonal().inverse(): a multiplication by the
-        // reciprocal).
-        impl->inv_d.resize(n);
-        for (int j = 0; j < n; ++j) impl->inv_d[j] = 1.0 / solver.vectorD()[j];
-        const auto& p = solver.permutationP().indices();
-        impl->perm.assign(p.data(), p.data() + p.size());
-        if (impl->perm.empty()) {
-          impl->perm.resize(n);
-          for (int i = 0; i < n; ++i) impl->perm[i] = i;
-        }
-        return true;
-      },
-      impl->solver);
+  // Factorised, the factor copied out (SolveBlock reads it), the solver released.
+  const auto factorise = [&]<class Solver>(std::type_identity<Solver>) {
+    Solver solver;
+    solver.compute(k);
+    if (solver.info() != Eigen::Success) return false;
+    const auto& l = solver.matrixL().nestedExpression();
+    const int n = static_cast<int>(l.cols());
+    impl->col_start.assign(1, 0);
+    for (int j = 0; j < n; ++j) {
+      // As Eigen's own triangular solves read a unit-diagonal factor: the diagonal skipped.
+      for (Eigen::SparseMatrix<double>::InnerIterator it(l, j); it; ++it)
+        if (it.index() > j)
+          impl->row.push_back(static_cast<int>(it.index())), impl->value.push_back(it.value());
+      impl->col_start.push_back(static_cast<int>(impl->row.size()));
+    }
+    // D⁻¹ as Eigen applies it (diag.asDiagonal().inverse(): a multiplication by the reciprocal).
+    impl->inv_d.resize(n);
+    for (int j = 0; j < n; ++j) impl->inv_d[j] = 1.0 / solver.vectorD()[j];
+    const auto& p = solver.permutationP().indices();
+    impl->perm.assign(p.data(), p.data() + p.size());
+    if (impl->perm.empty()) {
+      impl->perm.resize(n);
+      for (int i = 0; i < n; ++i) impl->perm[i] = i;
+    }
+    return true;
+  };
+  using Sparse = Eigen::SparseMatrix<double>;
+  const bool factorised =
+      ordering == FillOrdering::kMinimumDegree
+          ? factorise(std::type_identity<
+                      Eigen::SimplicialLDLT<Sparse, Eigen::Lower, Eigen::AMDOrdering<int>>>{})
+          : factorise(std::type_identity<
+                      Eigen::SimplicialLDLT<Sparse, Eigen::Lower, Eigen::MetisOrdering<int>>>{});
   if (!factorised)
     return InvalidArgument("mesh",
                            "the stiffness matrix could not be factorised (a part of the "
@@ -653,51 +698,19 @@ Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& m
 
 std::vector<std::vector<Eigen::Vector3d>> FemStaticResponse::SolveMany(
     const std::vector<std::vector<Eigen::Vector3d>>& f, int threads) const {
-  const FemModel::Impl& m = *impl_->model.impl_;
-  const Impl& s = *impl_;
-  const int nv = m.n();
-  const size_t n = s.inv_d.size();
-  constexpr size_t kBlock = 8;  // loads side by side: x[i·kBlock + k] is unknown i of load k
-  std::vector<std::vector<Vec3>> out(f.size(), std::vector<Vec3>(nv, Vec3::Zero()));
+  const std::vector<uint8_t>& is_fixed = impl_->model.impl_->is_fixed;
+  constexpr size_t kBlock = 8;  // loads side by side per pass over the factor
+  std::vector<std::vector<Vec3>> out(f.size());
   const size_t blocks = (f.size() + kBlock - 1) / kBlock;
   std::atomic<size_t> next{0};
-  // Per block the same operations in the same order as SimplicialLDLT::solve on each load (its
-  // triangular solves skip a zero right-hand entry; subtracting l·0 leaves the same value).
   auto work = [&] {
-    std::vector<double> x(n * kBlock);
+    std::vector<double> x;
     for (size_t b; (b = next.fetch_add(1)) < blocks;) {
       const size_t first = b * kBlock, cols = std::min(kBlock, f.size() - first);
-      std::fill(x.begin(), x.end(), 0.0);
-      for (size_t c = 0; c < cols; ++c) {
-        const std::vector<Vec3>& load = f[first + c];
-        for (int i = 0; i < nv && i < static_cast<int>(load.size()); ++i)
-          if (!m.is_fixed[i] && load[i].allFinite())
-            for (int a = 0; a < 3; ++a) x[s.perm[3 * i + a] * kBlock + c] = load[i][a];
-      }
-      for (size_t j = 0; j < n; ++j) {  // L·y = P·b
-        const double* xj = &x[j * kBlock];
-        for (int q = s.col_start[j]; q < s.col_start[j + 1]; ++q) {
-          double* xi = &x[static_cast<size_t>(s.row[q]) * kBlock];
-          const double lij = s.value[q];
-          for (size_t k = 0; k < kBlock; ++k) xi[k] -= lij * xj[k];
-        }
-      }
-      for (size_t j = 0; j < n; ++j)
-        for (size_t k = 0; k < kBlock; ++k) x[j * kBlock + k] = s.inv_d[j] * x[j * kBlock + k];
-      for (size_t j = n; j-- > 0;) {  // Lᵀ·z = D⁻¹·y
-        double* xj = &x[j * kBlock];
-        for (int q = s.col_start[j]; q < s.col_start[j + 1]; ++q) {
-          const double* xi = &x[static_cast<size_t>(s.row[q]) * kBlock];
-          const double lij = s.value[q];
-          for (size_t k = 0; k < kBlock; ++k) xj[k] -= lij * xi[k];
-        }
-      }
-      for (size_t c = 0; c < cols; ++c) {  // u = Pᵀ·z
-        std::vector<Vec3>& u = out[first + c];
-        for (int i = 0; i < nv; ++i)
-          if (!m.is_fixed[i])
-            for (int a = 0; a < 3; ++a) u[i][a] = x[s.perm[3 * i + a] * kBlock + c];
-      }
+      std::array<const std::vector<Vec3>*, kBlock> in{};
+      std::array<std::vector<Vec3>*, kBlock> to{};
+      for (size_t c = 0; c < cols; ++c) in[c] = &f[first + c], to[c] = &out[first + c];
+      impl_->SolveBlock<kBlock>(is_fixed, in.data(), cols, to.data(), x);
     }
   };
   if (threads <= 0) threads = static_cast<int>(std::min(4u, std::thread::hardware_concurrency()));
@@ -710,17 +723,12 @@ std::vector<std::vector<Eigen::Vector3d>> FemStaticResponse::SolveMany(
 }
 
 std::vector<Eigen::Vector3d> FemStaticResponse::Solve(const std::vector<Eigen::Vector3d>& f) const {
-  const FemModel::Impl& m = *impl_->model.impl_;
-  const int nv = m.n();
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(3 * nv);
-  for (int i = 0; i < nv && i < static_cast<int>(f.size()); ++i)
-    if (!m.is_fixed[i] && f[i].allFinite()) b.segment<3>(3 * i) = f[i];
-  const Eigen::VectorXd u = std::visit(
-      [&](const auto& solver) -> Eigen::VectorXd { return solver.solve(b); }, impl_->solver);
-  std::vector<Eigen::Vector3d> out(nv, Vec3::Zero());
-  for (int i = 0; i < nv; ++i)
-    if (!m.is_fixed[i]) out[i] = u.segment<3>(3 * i);
-  return out;
+  const std::vector<Vec3>* in = &f;
+  std::vector<Vec3> u;
+  std::vector<Vec3>* to = &u;
+  std::vector<double> x;
+  impl_->SolveBlock<1>(impl_->model.impl_->is_fixed, &in, 1, &to, x);
+  return u;
 }
 
 int FemStaticResponse::VertexCount() const {
