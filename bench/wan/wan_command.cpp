@@ -60,11 +60,11 @@ int Wan(const std::vector<std::string>& args) {
            "lan,metro,regional,continental,intercontinental,bad-wifi")
       .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
               "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist")
-      .Option(
-          "methods", cli::ArgParser::Kind::kString,
-          "server, linear, model; +tdpa: with the network (two-port) passivity control; +proxyk: "
-          "the contact's local model with the proxy's spring instead of the fitted slope",
-          false, "server,linear,model")
+      .Option("methods", cli::ArgParser::Kind::kString,
+              "server, linear, model; +tdpa: with the network (two-port) passivity control; the "
+              "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
+              "the proxy's spring, +fitk one slope fitted to the force over the depth",
+              false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
       .Option("deadbands", cli::ArgParser::Kind::kString,
@@ -87,7 +87,7 @@ int Wan(const std::vector<std::string>& args) {
     client::LocalRendering rendering;
     client::PassivityMode passivity;
     double deadband;
-    bool fitted_stiffness;  // the contact's local model with the fitted slope, not the proxy's
+    sim::HapticsSpec::ContactModel contact;  // the contact's local model
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
@@ -97,15 +97,19 @@ int Wan(const std::vector<std::string>& args) {
       if (has) base.resize(base.size() - suffix.size());
       return has;
     };
-    const bool fit_k = strip("+fitk");
+    const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
     const bool tdpa = strip("+tdpa");
+    using ContactModel = sim::HapticsSpec::ContactModel;
+    const ContactModel contact = fit_k     ? ContactModel::kFitted
+                                 : proxy_k ? ContactModel::kProxy
+                                           : ContactModel::kViscoelastic;
     auto m = client::ParseLocalRendering(base);
     if (!m.ok()) return cli::UsageError(std::cerr, p.command(), m.error());
     const auto mode = tdpa ? client::PassivityMode::kNetwork : client::PassivityMode::kLocal;
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, fit_k});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact});
     }
   }
   const int runs = p.Int("runs");
@@ -129,7 +133,7 @@ int Wan(const std::vector<std::string>& args) {
       for (int r = 1; r <= runs; ++r) {
         wan::RunOptions o;
         o.scene = *scene;
-        o.scene.haptics.fit_contact_stiffness = method_entry.fitted_stiffness;
+        o.scene.haptics.contact_model = method_entry.contact;
         o.plan = *plan;
         o.profile = none;
         o.seed = static_cast<uint64_t>(r);

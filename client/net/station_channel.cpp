@@ -13,6 +13,7 @@
 
 #include "client/net/passivity.h"
 #include "common/core/realtime.h"
+#include "common/haptics/viscoelastic.h"
 #include "common/sim/triple_buffer.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
@@ -119,6 +120,72 @@ class Deadband {
 // One servo cycle as the force log writes it (station_channel.h, StationOptions::force_log).
 struct LogRow {
   double t, x, y, z, fx, fy, fz;
+};
+
+// A contact answer that carries the tissue (LocalModel::tissue_stiffness > 0), rendered as the
+// proxy's spring in series with the tissue point (haptics/viscoelastic.h): the station keeps its
+// own tip positions of the last second, and at each new answer integrates the tissue's yield from
+// the answered sample's time through them, so the force now is what the tissue gives after the
+// motion the server has not seen yet. Device thread only; no allocation after construction.
+class TissueContact {
+ public:
+  TissueContact() : ring_(kRing) {}
+
+  // This cycle's tip (station clock, s; scene frame, m), before Render.
+  void Record(double t, const Vec3& x) {
+    ring_[head_ % kRing] = {t, x};
+    ++head_;
+  }
+
+  // The force for this cycle's tip `x` at time `t` from `answer`; false when the answer carries
+  // no tissue (the caller renders the model as it is).
+  // `sampled` is the answered sample's time (the echo), `answer_id` its sequence.
+  bool Render(const haptics::ForceCommand& answer, uint64_t answer_id, double sampled, double t,
+              const Vec3& x, Vec3& force) {
+    const haptics::LocalModel& m = answer.local;
+    const Vec3& n = m.normal;
+    const double kp = -n.dot(m.jacobian * n);
+    if (!answer.contact || m.kind != haptics::LocalModel::Kind::kContact ||
+        !(m.tissue_stiffness > 0) || !(kp > 0)) {
+      active_ = false;
+      return false;
+    }
+    const double f0 = n.dot(m.force0);
+    if (!active_ || answer_id != answer_id_) {
+      // A new answer: from its sample's time over the tips recorded since (this cycle's last).
+      active_ = true, answer_id_ = answer_id;
+      contact_.Begin(f0, kp, m.tissue_stiffness, m.tissue_damping, m.tissue_elastic0);
+      double last = sampled;
+      const uint64_t have = std::min<uint64_t>(head_, kRing);
+      uint64_t k = head_ - have;
+      while (k + 1 < head_ && !(ring_[k % kRing].t > last)) ++k;
+      for (; k + 1 < head_; ++k) {
+        const Entry& e = ring_[k % kRing];
+        contact_.Step(n.dot(m.position0 - e.x), e.t - last);
+        last = e.t;
+      }
+      last_t_ = last;
+    }
+    const double fn = contact_.Step(n.dot(m.position0 - x), t - last_t_);
+    last_t_ = t;
+    // The tissue's force along n; off the surface, nothing.
+    force = fn > 0 ? Vec3(m.force0 + n * (fn - f0)) : Vec3::Zero();
+    if (!force.allFinite()) force.setZero();
+    return true;
+  }
+
+ private:
+  struct Entry {
+    double t = 0;
+    Vec3 x = Vec3::Zero();
+  };
+  static constexpr uint64_t kRing = 1024;  // ~1 s at 1 kHz: beyond that the answer is faded anyway
+  std::vector<Entry> ring_;
+  uint64_t head_ = 0;
+  bool active_ = false;
+  uint64_t answer_id_ = 0;
+  double last_t_ = 0;
+  haptics::ViscoelasticContact contact_;
 };
 
 }  // namespace
@@ -312,6 +379,7 @@ struct StationChannel::Impl {
     uint64_t sequence = 0;
     bool fading = false;
     Deadband deadband(options);
+    TissueContact tissue;
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     // Always observing; controlling only when asked.
     PassivityController passivity(options.passivity ? options.max_damping : 0.0, 1e-4,
@@ -337,6 +405,7 @@ struct StationChannel::Impl {
       const double dt = 1.0 / options.rate_hz;
       haptics::StylusSample s = device->Read();
       s.time = now;  // the station clock: the server echoes it back for the round trip
+      if (s.position.allFinite()) tissue.Record(now, s.position);
       // Render from the newest local model, independent of network timing.
       latest.Acquire();
       const Latest& l = latest.Front();
@@ -351,7 +420,9 @@ struct StationChannel::Impl {
             if (answer.contact || answer.grasping) f = answer.local.ForceAt(s.position);
             break;
           case LocalRendering::kModel:
-            f = answer.local.Render(s.position, s.orientation, s.buttons);
+            if (!tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, now,
+                               s.position, f))
+              f = answer.local.Render(s.position, s.orientation, s.buttons);
             break;
         }
         modelled = f;

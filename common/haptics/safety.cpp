@@ -125,8 +125,15 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     local.dforce_dtwist.setZero();
     events |= kEventNonFiniteInput;
   }
+  if (!std::isfinite(local.tissue_stiffness) || !std::isfinite(local.tissue_damping) ||
+      !std::isfinite(local.tissue_elastic0) || !(local.tissue_stiffness >= 0) ||
+      !(local.tissue_damping >= 0)) {
+    local.tissue_stiffness = local.tissue_damping = local.tissue_elastic0 = 0;
+    events |= kEventNonFiniteInput;
+  }
   j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
   local.dforce_dtwist *= ramp_;
+  local.tissue_stiffness *= ramp_, local.tissue_damping *= ramp_, local.tissue_elastic0 *= ramp_;
   local.force0 = output;  // the extrapolation starts from what the device actually outputs
 }
 

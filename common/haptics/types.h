@@ -38,6 +38,11 @@ struct StylusSample {
 //            + g·Δφ, Δφ the stylus's twist about `axis` since `orientation0` (swing–twist, the
 //            server's own measure) and g = ∂F/∂φ (N/rad), which carries the tissue's torsional
 //            stiffness dM/dΦ; zero from the cycle the button is released.
+//
+// A contact may also carry the tissue under the proxy (tissue_stiffness > 0): the station then
+// renders the normal force of the proxy's spring in series with a Kelvin–Voigt tissue point,
+// integrated over its own motion since the answered sample (haptics/viscoelastic.h), so a
+// stale answer's force follows the tissue's yield and recovery, not one slope.
 struct LocalModel {
   enum class Kind : uint32_t { kLinear = 0, kContact = 1, kGrasp = 2 };  // wire values: keep
   Vec3 force0 = Vec3::Zero();                                            // N
@@ -48,6 +53,9 @@ struct LocalModel {
   Vec3 axis = Vec3::UnitZ();    // grasp: the twist axis (unit)
   Eigen::Quaterniond orientation0 = Eigen::Quaterniond::Identity();  // grasp: stylus at position0
   Vec3 dforce_dtwist = Vec3::Zero();                                 // grasp: g, N/rad
+  double tissue_stiffness = 0;  // contact: k_t, N/m; 0: the proxy's spring J alone
+  double tissue_damping = 0;    // contact: b, N·s/m
+  double tissue_elastic0 = 0;   // contact: e₀, N, the tissue's elastic force at position0
 
   Vec3 ForceAt(const Vec3& x) const { return force0 + jacobian * (x - position0); }
   // The force the model gives a stylus at x, turned to q, with `buttons` held (the kinds above).

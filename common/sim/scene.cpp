@@ -302,10 +302,16 @@ Status ParseHaptics(const Reader& r, HapticsSpec& h) {
   VSURG_TRY(hold, r.NumberOr("hold_stiffness", 200.0, 0, 1e5));
   VSURG_TRY(lever, r.NumberOr("min_lever_m", 0.005, 1e-4, 1.0));
   VSURG_TRY(lookahead, r.NumberOr("lookahead_m", 0.03, 0, 0.2));
-  VSURG_TRY(contact_k, r.StringOr("contact_stiffness", "proxy"));
-  if (contact_k != "fitted" && contact_k != "proxy")
-    return r.Bad("contact_stiffness", "must be fitted or proxy, got '" + contact_k + "'");
-  h.fit_contact_stiffness = contact_k == "fitted";
+  VSURG_TRY(contact_model, r.StringOr("contact_model", "viscoelastic"));
+  if (contact_model == "viscoelastic")
+    h.contact_model = HapticsSpec::ContactModel::kViscoelastic;
+  else if (contact_model == "fitted")
+    h.contact_model = HapticsSpec::ContactModel::kFitted;
+  else if (contact_model == "proxy")
+    h.contact_model = HapticsSpec::ContactModel::kProxy;
+  else
+    return r.Bad("contact_model",
+                 "must be viscoelastic, fitted or proxy, got '" + contact_model + "'");
   h.min_lever = lever;
   h.lookahead = lookahead;
   h.proxy.stiffness = k;

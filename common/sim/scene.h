@@ -107,14 +107,16 @@ struct HapticsSpec {
   // model (model-mediated teleoperation), so a station behind a delay begins contact itself.
   // 3 cm covers a 0.1 m/s approach over a 300 ms round trip. 0: never.
   double lookahead = 0.03;
-  // The contact's stiffness in the station's local model where the tissue model has none of its
-  // own: the proxy's spring (the default), or fitted to the server's force over the tool's depth
-  // (haptics::StiffnessFit: the proxy in series with the yielding tissue). The fit predicts the
-  // force under a delay better (docs/BENCHMARKS.md: the stiff sphere's error at continental 8.5%
-  // against 12.4%) but lets go later (0.1–0.18 N felt for a few tens of milliseconds past the
-  // reference's release) and dissipates less than the tissue: not yet the default. Scene files:
-  // "contact_stiffness": "proxy" | "fitted".
-  bool fit_contact_stiffness = false;
+  // The contact in the station's local model where the tissue model has none of its own:
+  //   kViscoelastic (the default): the proxy's spring in series with the tissue point's fitted
+  //     stiffness and damping (haptics/viscoelastic.h), integrated by the station over its own
+  //     motion; before the first fit, the proxy's spring;
+  //   kFitted: one slope fitted to the force over the depth (haptics::StiffnessFit): predicts a
+  //     press, but lets go late (the tissue is viscous);
+  //   kProxy: the proxy's spring (the first local model).
+  // Scene files: "contact_model": "viscoelastic" | "fitted" | "proxy".
+  enum class ContactModel { kViscoelastic, kFitted, kProxy };
+  ContactModel contact_model = ContactModel::kViscoelastic;
 };
 
 // How the station draws the tissue (never what the server simulates): its material, and its

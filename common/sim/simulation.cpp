@@ -119,6 +119,13 @@ Status Simulation::Build() {
   auto room = BuildRoom(in);
   if (!room.ok()) return room.error();
   room_ = std::move(*room);
+  room_has_contact_stiffness_ = std::visit(
+      [](const auto& r) {
+        return requires(const ContactQuery& q) {
+          r.ContactStiffness(q);
+        };
+      },
+      room_);
   const geometry::Bvh bvh(rest_);
   surface_.ForEachSlot([&](Snapshot& s) {
     s.positions = rest_.positions;
@@ -177,7 +184,7 @@ double Simulation::ContactStiffness(const ContactQuery& q) const {
         }
       },
       room_);
-  if (!own && scene_.haptics.fit_contact_stiffness)
+  if (!own && scene_.haptics.contact_model == HapticsSpec::ContactModel::kFitted)
     k = stiffness_fit_.Stiffness(0.1 * q.proxy_stiffness, q.proxy_stiffness, q.proxy_stiffness);
   return k;
 }
@@ -328,14 +335,33 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
       // it has one (the reduced contact's series stiffness), else fitted to this contact's force
       // over its depth.
       const double depth = (rest_contact_ - s.position).dot(rest_normal_);
-      if (scene_.haptics.fit_contact_stiffness) {  // else the haptic path pays nothing for it
+      const double k_p = proxy_.params().stiffness;
+      const auto model = room_has_contact_stiffness_ ? HapticsSpec::ContactModel::kProxy
+                                                     : scene_.haptics.contact_model;
+      // The fits learn from every sample in contact (else the haptic path pays nothing for them).
+      if (model == HapticsSpec::ContactModel::kFitted) {
         if (!last_contact_) stiffness_fit_.BeginContact();
         stiffness_fit_.Add(depth, ps.force.dot(rest_normal_), dt);
       }
-      if (const double k = proxy_.params().stiffness; k > 0)
-        jacobian *= ContactStiffness({tri, ps.barycentric, rest_normal_, k}) / k;
+      // The surface's yield under the proxy along the rest normal: f·n = k_p·(depth − yield).
+      const double yield = (rest_contact_ - ps.scp).dot(rest_normal_);
+      if (model == HapticsSpec::ContactModel::kViscoelastic) {
+        if (!last_contact_) viscoelastic_fit_.BeginContact();
+        viscoelastic_fit_.Add(trial_time_, yield, ps.force.dot(rest_normal_), 100 * k_p);
+      }
+      if (k_p > 0) jacobian *= ContactStiffness({tri, ps.barycentric, rest_normal_, k_p}) / k_p;
       cmd.local.kind = haptics::LocalModel::Kind::kContact;
       cmd.local.normal = ps.normal;
+      if (const haptics::ViscoelasticParams& v = viscoelastic_fit_.params();
+          model == HapticsSpec::ContactModel::kViscoelastic && v.ok()) {
+        cmd.local.tissue_stiffness = v.stiffness;
+        cmd.local.tissue_damping = v.damping;
+        // The tissue's elastic force now: the force along the model's normal (the one the
+        // station projects on) less its viscous part at the surface's measured rate. Anything
+        // else (the fit's a + k_t·S, the force along the rest normal) differs from the station's
+        // f₀ by an error the station would integrate into a creep of error/b over the round trip.
+        cmd.local.tissue_elastic0 = ps.force.dot(ps.normal) - v.damping * viscoelastic_fit_.rate();
+      }
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;
       input_.force_on_tissue = -ps.force;
@@ -455,7 +481,7 @@ namespace {
 // The snapshot's header: a format version (raised whenever any Persist list changes), then what
 // the receiver must have built the same way.
 constexpr uint32_t kStateMagic = 0x4D495356;  // "VSIM"
-constexpr uint32_t kStateVersion = 2;         // 2: the contact's stiffness fit
+constexpr uint32_t kStateVersion = 3;  // 2: the contact's stiffness fit; 3: the viscoelastic fit
 
 }  // namespace
 
@@ -467,7 +493,7 @@ std::string Simulation::SaveState() {
   w(recorder_, samples_, port_force_, port_x_, port_has_x_, released_j_, absorbed_j_,
     telemetry_grasping_, live_score_, input_, last_time_, trial_time_, clock_jumps_, has_time_,
     grasping_, grasp_q0_, axis_, axis_point_, lever_, rest_contact_, rest_normal_, last_contact_,
-    grasp_query_, proxy_, safety_, stiffness_fit_);
+    grasp_query_, proxy_, safety_, stiffness_fit_, viscoelastic_fit_);
   // The surface the haptic path answers from (the latest published).
   surface_.Acquire();
   const Snapshot& snap = surface_.Front();
@@ -504,6 +530,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   haptics::ProxyContact proxy = proxy_;
   haptics::SafetyFilter safety = safety_;
   haptics::StiffnessFit stiffness_fit = stiffness_fit_;
+  haptics::ViscoelasticFit viscoelastic_fit = viscoelastic_fit_;
   DeformInput input;
   GraspQuery grasp_query;
   uint64_t samples = 0, clock_jumps = 0;
@@ -515,7 +542,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   r(recorder, samples, port_force, port_x, port_has_x, released, absorbed, telemetry_grasping,
     live_score, input, last_time, trial_time, clock_jumps, has_time, grasping, grasp_q0, axis,
     axis_point, lever, rest_contact, rest_normal, last_contact, grasp_query, proxy, safety,
-    stiffness_fit);
+    stiffness_fit, viscoelastic_fit);
   std::vector<Vec3> positions(rest_.positions.size());
   bool overload = false, outside_model = false;
   r(positions, overload, outside_model);
@@ -554,6 +581,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   proxy_ = proxy;
   safety_ = safety;
   stiffness_fit_ = stiffness_fit;
+  viscoelastic_fit_ = viscoelastic_fit;
   samples_ = samples;
   port_force_ = port_force;
   port_x_ = port_x;

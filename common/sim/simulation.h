@@ -50,6 +50,7 @@
 #include "common/haptics/safety.h"
 #include "common/haptics/stiffness_fit.h"
 #include "common/haptics/types.h"
+#include "common/haptics/viscoelastic.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/deformation_pool.h"
 #include "common/sim/scene.h"
@@ -208,7 +209,9 @@ class Simulation final : private DeformationPool::Member {
   double lever_ = 0.03;
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
-  haptics::StiffnessFit stiffness_fit_;  // the contact's slope for the local model
+  haptics::StiffnessFit stiffness_fit_;        // the contact's slope for the local model
+  haptics::ViscoelasticFit viscoelastic_fit_;  // the tissue under the proxy, for the local model
+  bool room_has_contact_stiffness_ = false;    // the room answers ContactStiffness itself
   GraspQuery grasp_query_;  // the current grasp's (a restored grasp asks its room again)
 
   // The tissue model (common/sim/tissue_room.h): its haptic-side queries run on the haptic

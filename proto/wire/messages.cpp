@@ -90,8 +90,14 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   }
   // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes, a contact by 27).
   local->set_kind(static_cast<v1::LocalModel::Kind>(c.local.kind));
-  if (c.local.kind == haptics::LocalModel::Kind::kContact)
+  if (c.local.kind == haptics::LocalModel::Kind::kContact) {
     Put(c.local.normal, local->mutable_normal());
+    local->set_tissue_stiffness(c.local.tissue_stiffness);
+    local->set_tissue_damping(c.local.tissue_damping);
+    local->set_tissue_elastic0(c.local.tissue_elastic0);
+  } else {
+    local->clear_tissue_stiffness(), local->clear_tissue_damping(), local->clear_tissue_elastic0();
+  }
   if (c.local.kind == haptics::LocalModel::Kind::kGrasp) {
     Put(c.local.axis, local->mutable_axis());
     Put(c.local.dforce_dtwist, local->mutable_dforce_dtwist());
@@ -237,6 +243,7 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.local.axis = Eigen::Vector3d::UnitZ();
   c.local.orientation0 = Eigen::Quaterniond::Identity();
   c.local.dforce_dtwist.setZero();
+  c.local.tissue_stiffness = c.local.tissue_damping = c.local.tissue_elastic0 = 0;
   const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
     const double n = v.norm();
     if (!(n > 1e-9) || !std::isfinite(n)) return false;
@@ -247,6 +254,14 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
     case v1::LocalModel::CONTACT:
       if (!unit(Get(f.local().normal()), c.local.normal)) return DropReason::kBadPayload;
       c.local.kind = haptics::LocalModel::Kind::kContact;
+      // A tissue the station cannot integrate (negative, non-finite) is refused, not guessed.
+      c.local.tissue_stiffness = f.local().tissue_stiffness();
+      c.local.tissue_damping = f.local().tissue_damping();
+      c.local.tissue_elastic0 = f.local().tissue_elastic0();
+      if (!(c.local.tissue_stiffness >= 0) || !(c.local.tissue_damping >= 0) ||
+          !std::isfinite(c.local.tissue_stiffness) || !std::isfinite(c.local.tissue_damping) ||
+          !std::isfinite(c.local.tissue_elastic0))
+        return DropReason::kBadPayload;
       break;
     case v1::LocalModel::GRASP: {
       const v1::Quat& q = f.local().orientation0();

@@ -147,6 +147,25 @@ TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRef
   ASSERT_EQ(round_trip(contact, back), DropReason::kNone);
   EXPECT_EQ(back.command.local.kind, haptics::LocalModel::Kind::kContact);
   EXPECT_TRUE(back.command.local.normal.isApprox(contact.command.local.normal));
+  EXPECT_EQ(back.command.local.tissue_stiffness, 0.0);  // none fitted: none sent
+  // The tissue under the proxy crosses with a contact; a tissue the station cannot integrate
+  // (negative, non-finite) is refused.
+  contact.command.local.tissue_stiffness = 176.5;
+  contact.command.local.tissue_damping = 13.25;
+  contact.command.local.tissue_elastic0 = 0.625;
+  ASSERT_EQ(round_trip(contact, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.tissue_stiffness, 176.5);
+  EXPECT_EQ(back.command.local.tissue_damping, 13.25);
+  EXPECT_EQ(back.command.local.tissue_elastic0, 0.625);
+  for (const auto& bad :
+       {std::array<double, 3>{-1.0, 13.0, 0.5}, std::array<double, 3>{176.0, -0.1, 0.5},
+        std::array<double, 3>{NAN, 13.0, 0.5}, std::array<double, 3>{176.0, 13.0, INFINITY}}) {
+    ForceMessage b = contact;
+    b.command.local.tissue_stiffness = bad[0];
+    b.command.local.tissue_damping = bad[1];
+    b.command.local.tissue_elastic0 = bad[2];
+    EXPECT_EQ(round_trip(b, back), DropReason::kBadPayload) << bad[0] << " " << bad[1];
+  }
   ForceMessage grasp;
   grasp.command.local.kind = haptics::LocalModel::Kind::kGrasp;
   grasp.command.local.axis = Eigen::Vector3d(0, 0, 2);  // normalised on arrival

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/haptics/viscoelastic.h"
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
 
@@ -126,7 +127,8 @@ TEST(LocalModelTest, AContactsModelCarriesTheSlopeTheYieldingTissueShows) {
     EXPECT_TRUE(scene.ok());
     scene->haptics.limits = haptics::OmniLimits();
     scene->haptics.proxy.stiffness = 700;
-    scene->haptics.fit_contact_stiffness = fit;
+    scene->haptics.contact_model =
+        fit ? HapticsSpec::ContactModel::kFitted : HapticsSpec::ContactModel::kProxy;
     auto sim = Simulation::Create(*scene, {.threaded = false});
     EXPECT_TRUE(sim.ok()) << sim.error().message;
     haptics::StylusSample s;
@@ -170,6 +172,80 @@ TEST(LocalModelTest, AContactsModelCarriesTheSlopeTheYieldingTissueShows) {
   EXPECT_LT(slope, 0.6 * 700) << "the tissue did not yield: nothing to fit";
   EXPECT_NEAR(k_fit, slope, 0.25 * slope);
   EXPECT_LT(err_fit, 0.4 * err_proxy);
+}
+
+// The default contact model on the same stiff sphere, as a station behind a 110 ms round trip
+// renders it: from one answer, the tissue's yield integrated over the tool's motion the server
+// has not seen yet (haptics::ViscoelasticContact, what the station's channel runs). The tool
+// presses on for 60 ms, then withdraws; at every cycle of the 110 ms after the answer the
+// model's force is compared with the server's own force there. The proxy's spring overshoots the
+// press and pushes on after the tissue let go; the tissue's model follows both.
+TEST(LocalModelTest, TheViscoelasticContactFollowsThePressAndTheReleaseARoundTripAhead) {
+  auto scene = LoadSceneByName("sphere-palpation-256");
+  ASSERT_TRUE(scene.ok());
+  scene->haptics.limits = haptics::OmniLimits();
+  scene->haptics.proxy.stiffness = 700;
+  ASSERT_EQ(scene->haptics.contact_model, HapticsSpec::ContactModel::kViscoelastic);
+  auto sim = Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  haptics::StylusSample s;
+  s.position = Vec3(0.001, 0.002, 0.06);
+  std::vector<haptics::ForceCommand> answers;
+  std::vector<Vec3> tips;
+  double t = 0;
+  const auto step = [&](double z) {
+    s.position.z() = z;
+    s.time = (t += 1e-3);
+    answers.push_back((*sim)->OnStylus(s));
+    tips.push_back(s.position);
+    (*sim)->StepDeformation();
+  };
+  for (int i = 0; i < 700; ++i) step(0.06);
+  // Two presses in and out at 10–20 mm/s (the fit learns on the first), then the one measured.
+  for (int rep = 0; rep < 2; ++rep) {
+    for (double z = 0.05; z > 0.046; z -= 1e-5) step(z);
+    for (double z = 0.046; z < 0.0495; z += 2e-5) step(z);
+  }
+  for (double z = 0.0495; z > 0.047; z -= 1e-5) step(z);  // in, to 3 mm
+  const size_t answered = answers.size() - 1;
+  const haptics::ForceCommand a = answers[answered];
+  ASSERT_TRUE(a.contact);
+  ASSERT_GT(a.local.tissue_stiffness, 0) << "no tissue fitted after two presses";
+  for (int i = 0; i < 60; ++i) step(s.position.z() - 1e-5);  // on, 0.6 mm deeper
+  for (int i = 0; i < 50; ++i) step(s.position.z() + 4e-5);  // out at 40 mm/s, 2 mm
+  const haptics::LocalModel& m = a.local;
+  const Vec3 n = m.normal;
+  const double kp = -n.dot(m.jacobian * n), f0 = n.dot(m.force0);
+  haptics::ViscoelasticContact tissue;
+  tissue.Begin(f0, kp, m.tissue_stiffness, m.tissue_damping, m.tissue_elastic0);
+  double se_visco = 0, se_proxy = 0, peak = 0, after_release_visco = 0, after_release_proxy = 0;
+  bool released = false;
+  for (size_t k = answered + 1; k < answers.size(); ++k) {
+    const double fn = tissue.Step(n.dot(m.position0 - tips[k]), 1e-3);
+    const Vec3 visco = fn > 0 ? Vec3(m.force0 + n * (fn - f0)) : Vec3::Zero();
+    const Vec3 proxy = m.Render(tips[k], m.orientation0, 0);
+    const Vec3& truth = answers[k].force;
+    se_visco += (visco - truth).squaredNorm();
+    se_proxy += (proxy - truth).squaredNorm();
+    peak = std::max(peak, truth.norm());
+    released = released || truth.norm() < 1e-3;
+    if (released) {
+      after_release_visco = std::max(after_release_visco, visco.norm());
+      after_release_proxy = std::max(after_release_proxy, proxy.norm());
+    }
+  }
+  const double count = static_cast<double>(answers.size() - answered - 1);
+  const double rms_visco = std::sqrt(se_visco / count) / peak,
+               rms_proxy = std::sqrt(se_proxy / count) / peak;
+  std::printf(
+      "110 ms ahead: k_t %.0f N/m, b %.1f N*s/m; force RMS error %.1f%% of the peak with the "
+      "tissue, %.1f%% with the proxy's spring; after the tissue let go %.3f N vs %.3f N\n",
+      m.tissue_stiffness, m.tissue_damping, 100 * rms_visco, 100 * rms_proxy, after_release_visco,
+      after_release_proxy);
+  EXPECT_TRUE(released) << "the withdrawal did not leave the surface";
+  EXPECT_LT(rms_visco, 0.5 * rms_proxy);
+  EXPECT_LT(rms_visco, 0.08);
+  EXPECT_LT(after_release_visco, 0.05);
 }
 
 TEST(LocalModelTest, TheGraspModelCarriesTheTissuesTorsionalStiffness) {

@@ -293,17 +293,22 @@ TEST(SceneTest, BadScenesNameTheField) {
   EXPECT_NE(Field(Replace(Minimal(), R"("particles": 256)", R"("particles": 2)"))
                 .find("mesh.particles: must be in"),
             std::string::npos);
-  // The contact's stiffness in the station's model: the proxy's unless the scene asks for the fit.
-  EXPECT_FALSE(ParseScene(Minimal(), "x.json")->haptics.fit_contact_stiffness);
+  // The contact in the station's model: the tissue's (viscoelastic) unless the scene asks else.
+  using ContactModel = HapticsSpec::ContactModel;
+  EXPECT_EQ(ParseScene(Minimal(), "x.json")->haptics.contact_model, ContactModel::kViscoelastic);
   const auto with_contact = [](const std::string& value) {
     return Replace(Minimal(), R"("error_budget")",
-                   R"("haptics": {"contact_stiffness": )" + value + R"(}, "error_budget")");
+                   R"("haptics": {"contact_model": )" + value + R"(}, "error_budget")");
   };
-  auto fitted = ParseScene(with_contact(R"("fitted")"), "x.json");
-  ASSERT_TRUE(fitted.ok()) << fitted.error().message;
-  EXPECT_TRUE(fitted->haptics.fit_contact_stiffness);
+  for (const auto& [name, model] :
+       {std::pair{"fitted", ContactModel::kFitted}, std::pair{"proxy", ContactModel::kProxy},
+        std::pair{"viscoelastic", ContactModel::kViscoelastic}}) {
+    auto parsed = ParseScene(with_contact("\"" + std::string(name) + "\""), "x.json");
+    ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+    EXPECT_EQ(parsed->haptics.contact_model, model) << name;
+  }
   EXPECT_NE(Field(with_contact(R"("guessed")"))
-                .find("haptics.contact_stiffness: must be fitted or proxy"),
+                .find("haptics.contact_model: must be viscoelastic, fitted or proxy"),
             std::string::npos);
   EXPECT_NE(Field(Replace(Minimal(), R"("type": "mass-spring")", R"("type": "magic")"))
                 .find("regions[0].model.type: must be coil, mass-spring, ring-layer or reduced"),

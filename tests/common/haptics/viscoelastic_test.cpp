@@ -1,0 +1,140 @@
+#include "common/haptics/viscoelastic.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace vsurg::haptics {
+namespace {
+
+constexpr double kServoS = 1e-3;  // s, one servo cycle
+
+// A standard linear solid driven by a tool depth d(t): the proxy's spring k_p in series with a
+// Kelvin–Voigt point (k_t, b) behind an offset a, integrated finely (0.1 ms, implicit Euler) as
+// the reference. Returns the yield S and sets the force f = k_p·(d − S).
+struct Solid {
+  double kp, kt, b, a;
+  double yield = 0;
+  double Step(double depth, double dt, double& force) {
+    for (int i = 0; i < 10; ++i) {
+      const double h = dt / 10;
+      yield = (b / h * yield + kp * depth - a) / (b / h + kp + kt);
+    }
+    force = kp * (depth - yield);
+    return yield;
+  }
+};
+
+double Depth(int i) {  // presses of 4 mm at ~10–30 mm/s and back, 1.2 s per cycle
+  const double t = i * kServoS;
+  return 2.5e-3 + 2e-3 * std::sin(2 * M_PI * t / 1.2) + 0.4e-3 * std::sin(2 * M_PI * 3.1 * t);
+}
+
+// The fit recovers the tissue's stiffness, damping and offset from the samples, at 1 kHz and at
+// the deadband's ~50 samples/s, with the encoder's and the force's noise.
+TEST(ViscoelasticFitTest, RecoversTheTissueFromItsSamplesAtFullRateAndSparse) {
+  for (const int every : {1, 20}) {
+    Solid solid{700, 180, 12, 0.1};
+    ViscoelasticFit fit;
+    fit.BeginContact();
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> noise(-1, 1);
+    for (int i = 0; i < 4000; ++i) {
+      double f = 0;
+      const double s = solid.Step(Depth(i), kServoS, f);
+      if (i % every == 0) fit.Add(i * kServoS, s + 2e-6 * noise(rng), f + 2e-3 * noise(rng), 7e4);
+    }
+    const ViscoelasticParams& p = fit.params();
+    ASSERT_TRUE(p.ok()) << every;
+    EXPECT_NEAR(p.stiffness, 180, 0.05 * 180) << every;
+    EXPECT_NEAR(p.damping, 12, 0.1 * 12) << every;
+    EXPECT_NEAR(p.offset, 0.1, 0.02) << every;
+  }
+}
+
+// A tool at rest in the tissue says nothing: no fit; a fit once made stands through a new contact
+// held still; bad input is ignored, and time must advance.
+TEST(ViscoelasticFitTest, ARestSaysNothingAndBadSamplesAreIgnored) {
+  ViscoelasticFit fit;
+  fit.BeginContact();
+  for (int i = 0; i < 2000; ++i) fit.Add(i * kServoS, 1e-3, 0.3, 7e4);
+  EXPECT_FALSE(fit.params().ok()) << "a resting tool gave a fit";
+  Solid solid{700, 180, 12, 0.1};
+  for (int i = 2000; i < 5000; ++i) {
+    double f = 0;
+    const double s = solid.Step(Depth(i), kServoS, f);
+    fit.Add(i * kServoS, s, f, 7e4);
+    fit.Add(i * kServoS, NAN, f, 7e4);             // ignored
+    fit.Add(i * kServoS - 0.5, s + 1e-3, f, 7e4);  // time going back: ignored
+  }
+  const ViscoelasticParams known = fit.params();
+  ASSERT_TRUE(known.ok());
+  EXPECT_NEAR(known.stiffness, 180, 9);
+  // A new contact held still for 2 s (the solid creeping to rest under it): the samples carry no
+  // new spread, so what was fitted stands.
+  fit.BeginContact();
+  for (int i = 5000; i < 7000; ++i) {
+    double f = 0;
+    const double s = solid.Step(2e-3, kServoS, f);
+    fit.Add(i * kServoS, s, f, 7e4);
+  }
+  EXPECT_NEAR(fit.params().stiffness, 180, 9);
+  EXPECT_NEAR(fit.params().damping, 12, 1.2);
+}
+
+// The station's integration from an answer reproduces the solid's force over the motion after
+// it (the reference integrated ten times finer), pressing and letting go; off the surface it
+// gives nothing and the surface recovers at its own pace (τ = b/k_t), so a tool that comes back
+// at once meets the surface where it has recovered to.
+TEST(ViscoelasticContactTest, FollowsTheSolidFromAnAnsweredSample) {
+  Solid solid{700, 180, 12, 0.1};
+  double f = 0;
+  for (int i = 0; i < 600; ++i) solid.Step(Depth(i), kServoS, f);
+  const double d0 = Depth(599), f0 = f, e0 = 0.1 + 180 * solid.yield;
+  ViscoelasticContact model;
+  model.Begin(f0, 700, 180, 12, e0);
+  double worst = 0, peak = 0;
+  for (int i = 600; i < 900; ++i) {  // 300 ms of pressing and letting up
+    solid.Step(Depth(i), kServoS, f);
+    const double predicted = model.Step(Depth(i) - d0, kServoS);
+    worst = std::max(worst, std::abs(predicted - std::max(f, 0.0)));
+    peak = std::max(peak, f);
+  }
+  EXPECT_LT(worst, 0.02 * peak);
+  // Off the surface: the tool 5 mm out. No force; the yield decays toward the offset's rest.
+  const double before = model.sigma();
+  EXPECT_EQ(model.Step(-5e-3, kServoS), 0.0);
+  const double first = model.sigma() - before;
+  EXPECT_LT(first, 0) << "the surface did not recover";
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(model.Step(-5e-3, kServoS), 0.0);
+  // A non-finite depth or step changes nothing.
+  const double sigma = model.sigma();
+  model.Step(NAN, kServoS);
+  model.Step(0, NAN);
+  EXPECT_EQ(model.sigma(), sigma);
+}
+
+// With no damping the model is the series spring k_p·k_t/(k_p + k_t) at once; with a stiff
+// tissue, the proxy's spring. Passive: around a closed path it takes at least what it gives.
+TEST(ViscoelasticContactTest, LimitsAndPassivity) {
+  ViscoelasticContact spring;
+  spring.Begin(0.5, 700, 180, 0, 0.5);
+  EXPECT_NEAR(spring.Step(1e-3, kServoS) - 0.5, 700.0 * 180 / 880 * 1e-3, 1e-9);
+  ViscoelasticContact stiff;
+  stiff.Begin(0.5, 700, 1e9, 12, 0.5);
+  EXPECT_NEAR(stiff.Step(1e-3, kServoS) - 0.5, 0.7, 1e-3);
+  ViscoelasticContact loop;
+  loop.Begin(0.5, 700, 180, 12, 0.5);
+  double work = 0, last_u = 0, last_f = 0.5;
+  for (int i = 1; i <= 2000; ++i) {  // 2 s of ±1 mm at 2 Hz, back where it began
+    const double u = 1e-3 * std::sin(2 * M_PI * 2 * i * kServoS);
+    const double fn = loop.Step(u, kServoS);
+    work += last_f * (u - last_u);  // the force held over the step, against the tool's advance
+    last_u = u, last_f = fn;
+  }
+  EXPECT_GT(work, 0) << "the model gave the hand energy around a closed path";
+}
+
+}  // namespace
+}  // namespace vsurg::haptics
