@@ -5,7 +5,9 @@
 // scripted trainee, replayed in a loop (grasp, twist, hold, release; or press and hold), so the
 // deformation thread is busy publishing new surfaces while the haptic path reads them. Each call
 // is timed on its own; the counters are the median and the 99th and 99.9th percentiles (µs), and
-// how many surfaces the deformation thread published meanwhile.
+// how many surfaces the deformation thread published meanwhile. The second argument is the
+// contact's local model (sim::HapticsSpec::ContactModel: 0 the tissue's viscoelastic, the default;
+// 2 the proxy's spring alone): the sphere runs both, alternating, to show what the fit costs.
 //
 // BM_RingLayerStep vs BM_MsmStep/5/1: the same palpation of the 1026-particle sphere by the
 // ring-layer model (only the rings around the contact move) and by the full mass-spring model.
@@ -15,6 +17,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <string>
 #include <vector>
 
 #include "common/geometry/mesh_generators.h"
@@ -28,6 +31,9 @@ void BM_HapticPath(benchmark::State& state) {
   static const char* kScenes[] = {"arm-torsion", "sphere-palpation-1024", "organ-surface-twist"};
   const char* name = kScenes[state.range(0)];
   auto scene = vsurg::sim::LoadSceneByName(name);
+  if (scene.ok())
+    scene->haptics.contact_model =
+        static_cast<vsurg::sim::HapticsSpec::ContactModel>(state.range(1));
   auto samples = vsurg::sim::ScriptedTrainee(*scene, vsurg::sim::TraineeStyle::kGood);
   auto sim = vsurg::sim::Simulation::Create(*scene, {true});
   if (!scene.ok() || !samples.ok() || !sim.ok()) {
@@ -62,9 +68,19 @@ void BM_HapticPath(benchmark::State& state) {
   state.counters["p99_us"] = us[us.size() * 99 / 100];
   state.counters["p999_us"] = us[us.size() * 999 / 1000];
   state.counters["deform_updates"] = static_cast<double>((*sim)->deformation_updates());
-  state.SetLabel(name);
+  state.SetLabel(std::string(name) + (state.range(1) == 0 ? " viscoelastic" : " proxy"));
 }
-BENCHMARK(BM_HapticPath)->Arg(0)->Arg(1)->Arg(2)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_HapticPath)
+    ->Args({0, 0})
+    ->Args({1, 0})
+    ->Args({1, 2})
+    ->Args({1, 0})
+    ->Args({1, 2})
+    ->Args({1, 0})
+    ->Args({1, 2})
+    ->Args({2, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 void BM_RingLayerStep(benchmark::State& state) {
   auto mesh =
