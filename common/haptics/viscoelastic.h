@@ -62,9 +62,15 @@ class ViscoelasticFit {
   static constexpr double kWindowS = 0.008;      // the shortest window an Ṡ is taken over
   static constexpr double kMinYieldSpreadM = 0.2e-3;
   static constexpr double kMinRateSpreadMPerS = 2e-3;
+  // A window whose yield moved faster than this is a jump, not the tissue: a deformation thread
+  // starved of CPU publishing many steps at once, or the proxy crossing a ridge. Such a window
+  // teaches the fit nothing and leaves the rate as it was (measured beside two CPU hogs: windows
+  // at −0.3 to −1.4 m/s made the station's e₀ 3–14 N off a 0.3–0.5 N force).
+  static constexpr double kMaxRateMPerS = 0.25;
+  static constexpr double kRateTimeConstantS = 0.01;  // the rate's smoothing
 
   // A new contact: the window restarts (the sums and the last fit carry on: the same tissue).
-  void BeginContact() { count_ = 0, rate_ = 0; }
+  void BeginContact() { count_ = 0, rate_ = 0, has_rate_ = false; }
 
   // One sample in contact at time t (s): the surface's yield (m) and the force (N) along the
   // contact's rest normal. Non-finite values are ignored. `max_stiffness` bounds k_t (N/m).
@@ -81,12 +87,15 @@ class ViscoelasticFit {
         break;
       }
     }
+    const double since = count_ > 0 ? t_s - ring_[(count_ - 1) % kRing].t : 0.0;
     ring_[count_ % kRing] = now;
     ++count_;
     if (back == nullptr || t_s - back->t > 0.1) return;  // no window, or a gap: nothing to learn
     const double dt = t_s - back->t;
     const double x1 = 0.5 * (yield_m + back->yield), x2 = (yield_m - back->yield) / dt;
-    rate_ = x2;
+    if (!(std::abs(x2) <= kMaxRateMPerS)) return;  // a jump (above)
+    rate_ = has_rate_ ? rate_ + (1 - std::exp(-since / kRateTimeConstantS)) * (x2 - rate_) : x2;
+    has_rate_ = true;
     const double y = 0.5 * (force_n + back->force);
     const double keep =
         last_t_ >= 0 ? std::exp(-std::clamp(t_s - last_t_, 0.0, 1.0) / kTimeConstantS) : 1.0;
@@ -107,7 +116,8 @@ class ViscoelasticFit {
 
   template <class A>
   void Persist(A& a) {
-    a(ring_, count_, xx_, xy_, last_t_, rate_, fit_.stiffness, fit_.damping, fit_.offset);
+    a(ring_, count_, xx_, xy_, last_t_, rate_, has_rate_, fit_.stiffness, fit_.damping,
+      fit_.offset);
   }
 
  private:
@@ -155,7 +165,8 @@ class ViscoelasticFit {
   double xx_[3][3] = {};
   double xy_[3] = {};
   double last_t_ = -1;  // s, the last window's end; < 0 before any
-  double rate_ = 0;     // m/s
+  double rate_ = 0;     // m/s, smoothed over kRateTimeConstantS
+  bool has_rate_ = false;
   ViscoelasticParams fit_;
 };
 
@@ -163,8 +174,11 @@ class ViscoelasticContact {
  public:
   // Starts from an answer: its force along n (f₀, N), the proxy's spring (k_p, N/m), the tissue
   // (k_t, b) and its elastic force then (e₀, N). σ = 0 at the answered sample.
+  // The viscous force the answer starts with, f₀ − e₀, is taken at most as half the force: the
+  // station does not trust a rate that a starved server measured over a jump.
   void Begin(double f0, double kp, double kt, double b, double e0) {
-    f0_ = f0, kp_ = kp, kt_ = kt, b_ = b, e0_ = e0, sigma_ = 0;
+    const double viscous = std::clamp(f0 - e0, -0.5 * std::abs(f0), 0.5 * std::abs(f0));
+    f0_ = f0, kp_ = kp, kt_ = kt, b_ = b, e0_ = f0 - viscous, sigma_ = 0;
   }
   // One step of dt (s) to the tool's advance u (m along −n since the answered sample); returns
   // the force along n (N, ≥ 0).
@@ -177,7 +191,16 @@ class ViscoelasticContact {
     if (std::isfinite(next)) sigma_ = next;
     return Force(u);
   }
-  double Force(double u) const { return std::max(0.0, f0_ + kp_ * (u - sigma_)); }
+  // Never beyond the solid's two linear responses from the answer, k_p at once and the series
+  // spring k_p·k_t/(k_p + k_t) once relaxed, by more than the viscous force it started with: a
+  // bound on what any error in the answer's state can make the hand feel.
+  double Force(double u) const {
+    const double at_once = f0_ + kp_ * u, relaxed = f0_ + kp_ * kt_ / (kp_ + kt_) * u;
+    const double slack = std::abs(f0_ - e0_);
+    const double f = std::clamp(f0_ + kp_ * (u - sigma_), std::min(at_once, relaxed) - slack,
+                                std::max(at_once, relaxed) + slack);
+    return std::isfinite(f) ? std::max(0.0, f) : 0.0;
+  }
   double sigma() const { return sigma_; }
 
  private:

@@ -360,7 +360,10 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
         // station projects on) less its viscous part at the surface's measured rate. Anything
         // else (the fit's a + k_t·S, the force along the rest normal) differs from the station's
         // f₀ by an error the station would integrate into a creep of error/b over the round trip.
-        cmd.local.tissue_elastic0 = ps.force.dot(ps.normal) - v.damping * viscoelastic_fit_.rate();
+        // The viscous part at most half the force (the station bounds it so too).
+        const double f_n = ps.force.dot(ps.normal);
+        cmd.local.tissue_elastic0 = f_n - std::clamp(v.damping * viscoelastic_fit_.rate(),
+                                                     -0.5 * std::abs(f_n), 0.5 * std::abs(f_n));
       }
       input_.triangle = ps.triangle;
       input_.barycentric = ps.barycentric;

@@ -115,6 +115,52 @@ TEST(ViscoelasticContactTest, FollowsTheSolidFromAnAnsweredSample) {
   EXPECT_EQ(model.sigma(), sigma);
 }
 
+// An answer whose state is wrong (a rate measured over a jump gave e₀ 10 N off a 0.4 N force,
+// as beside two CPU hogs before the fit refused such windows) cannot kick the hand: the viscous
+// force is taken as at most half the force, and the force stays within the solid's two linear
+// responses from the answer widened by that much, held still or pressed on.
+TEST(ViscoelasticContactTest, AWrongStartCannotKickTheHand) {
+  for (const double e0 : {10.0, -10.0}) {
+    ViscoelasticContact held;
+    held.Begin(0.4, 700, 80, 10, e0);
+    for (int i = 0; i < 500; ++i) {
+      const double f = held.Step(0, kServoS);
+      ASSERT_GE(f, 0.2 - 1e-12) << e0 << " at " << i;
+      ASSERT_LE(f, 0.6 + 1e-12) << e0 << " at " << i;
+    }
+    ViscoelasticContact pressed;
+    pressed.Begin(0.4, 700, 80, 10, e0);
+    for (int i = 1; i <= 100; ++i) {  // 1 mm in, 10 mm/s
+      const double u = 1e-5 * i, f = pressed.Step(u, kServoS);
+      ASSERT_LE(f, 0.4 + 700 * u + 0.2 + 1e-12) << e0 << " at " << i;
+      ASSERT_GE(f, 0.4 + 700.0 * 80 / 780 * u - 0.2 - 1e-12) << e0 << " at " << i;
+    }
+  }
+}
+
+// The fit refuses a window over which the surface jumped (faster than any hand moves it): such a
+// window neither moves the fit nor the rate the station starts from.
+TEST(ViscoelasticFitTest, ASurfaceThatJumpedTeachesNothing) {
+  Solid solid{700, 180, 12, 0.1};
+  ViscoelasticFit fit;
+  fit.BeginContact();
+  double f = 0;
+  for (int i = 0; i < 3000; ++i) {
+    const double s = solid.Step(Depth(i), kServoS, f);
+    fit.Add(i * kServoS, s, f, 7e4);
+  }
+  const ViscoelasticParams before = fit.params();
+  const double rate = fit.rate();
+  ASSERT_TRUE(before.ok());
+  EXPECT_LT(std::abs(rate), 0.05);
+  // A starved deformation thread: 20 ms without news, then the yield 10 mm back at once
+  // (0.48 m/s over the window).
+  fit.Add(3.02, solid.yield - 10e-3, f, 7e4);
+  EXPECT_EQ(fit.params().stiffness, before.stiffness);
+  EXPECT_EQ(fit.params().damping, before.damping);
+  EXPECT_EQ(fit.rate(), rate);
+}
+
 // With no damping the model is the series spring k_p·k_t/(k_p + k_t) at once; with a stiff
 // tissue, the proxy's spring. Passive: around a closed path it takes at least what it gives.
 TEST(ViscoelasticContactTest, LimitsAndPassivity) {
