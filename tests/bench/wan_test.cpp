@@ -104,7 +104,7 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
 }
 
 TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
-  // At continental (the stiff sphere: 94.6% fewer, +0.65 points in docs/BENCHMARKS.md), side by
+  // At continental (the stiff sphere: 94.5% fewer, +0.25 points in docs/BENCHMARKS.md), side by
   // side with the full-rate run on the same profile, both against the full-rate run unimpaired.
   const Cell ref = RunAt("none", client::LocalRendering::kModel, nullptr);
   const Cell full = RunAt("continental", client::LocalRendering::kModel, &ref.run);
