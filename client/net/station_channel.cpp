@@ -126,10 +126,13 @@ struct LogRow {
 // proxy's spring in series with the tissue point (haptics/viscoelastic.h): the station keeps its
 // own tip positions of the last second, and at each new answer integrates the tissue's yield from
 // the answered sample's time through them, so the force now is what the tissue gives after the
-// motion the server has not seen yet. Device thread only; no allocation after construction.
+// motion the server has not seen yet. Its time is the servo's: one period per cycle, as the hand
+// moves (a loop that ran late beside other work does not let the tissue relax further than the
+// hand moved; beside two CPU hogs, wall-time steps left a 0.15 N pull after letting go).
+// Device thread only; no allocation after construction.
 class TissueContact {
  public:
-  TissueContact() : ring_(kRing) {}
+  explicit TissueContact(double period_s) : ring_(kRing), period_(period_s) {}
 
   // This cycle's tip (station clock, s; scene frame, m), before Render.
   void Record(double t, const Vec3& x) {
@@ -137,10 +140,10 @@ class TissueContact {
     ++head_;
   }
 
-  // The force for this cycle's tip `x` at time `t` from `answer`; false when the answer carries
-  // no tissue (the caller renders the model as it is).
+  // The force for this cycle's tip `x` from `answer`; false when the answer carries no tissue
+  // (the caller renders the model as it is).
   // `sampled` is the answered sample's time (the echo), `answer_id` its sequence.
-  bool Render(const haptics::ForceCommand& answer, uint64_t answer_id, double sampled, double t,
+  bool Render(const haptics::ForceCommand& answer, uint64_t answer_id, double sampled,
               const Vec3& x, Vec3& force) {
     const haptics::LocalModel& m = answer.local;
     const Vec3& n = m.normal;
@@ -155,19 +158,13 @@ class TissueContact {
       // A new answer: from its sample's time over the tips recorded since (this cycle's last).
       active_ = true, answer_id_ = answer_id;
       contact_.Begin(f0, kp, m.tissue_stiffness, m.tissue_damping, m.tissue_elastic0);
-      double last = sampled;
+      const double last = sampled;
       const uint64_t have = std::min<uint64_t>(head_, kRing);
       uint64_t k = head_ - have;
       while (k + 1 < head_ && !(ring_[k % kRing].t > last)) ++k;
-      for (; k + 1 < head_; ++k) {
-        const Entry& e = ring_[k % kRing];
-        contact_.Step(n.dot(m.position0 - e.x), e.t - last);
-        last = e.t;
-      }
-      last_t_ = last;
+      for (; k + 1 < head_; ++k) contact_.Step(n.dot(m.position0 - ring_[k % kRing].x), period_);
     }
-    const double fn = contact_.Step(n.dot(m.position0 - x), t - last_t_);
-    last_t_ = t;
+    const double fn = contact_.Step(n.dot(m.position0 - x), period_);
     // The tissue's force along n; off the surface, nothing.
     force = fn > 0 ? Vec3(m.force0 + n * (fn - f0)) : Vec3::Zero();
     if (!force.allFinite()) force.setZero();
@@ -182,9 +179,9 @@ class TissueContact {
   static constexpr uint64_t kRing = 1024;  // ~1 s at 1 kHz: beyond that the answer is faded anyway
   std::vector<Entry> ring_;
   uint64_t head_ = 0;
+  double period_;
   bool active_ = false;
   uint64_t answer_id_ = 0;
-  double last_t_ = 0;
   haptics::ViscoelasticContact contact_;
 };
 
@@ -379,7 +376,7 @@ struct StationChannel::Impl {
     uint64_t sequence = 0;
     bool fading = false;
     Deadband deadband(options);
-    TissueContact tissue;
+    TissueContact tissue(1.0 / options.rate_hz);
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     // Always observing; controlling only when asked.
     PassivityController passivity(options.passivity ? options.max_damping : 0.0, 1e-4,
@@ -420,8 +417,7 @@ struct StationChannel::Impl {
             if (answer.contact || answer.grasping) f = answer.local.ForceAt(s.position);
             break;
           case LocalRendering::kModel:
-            if (!tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, now,
-                               s.position, f))
+            if (!tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, s.position, f))
               f = answer.local.Render(s.position, s.orientation, s.buttons);
             break;
         }

@@ -191,14 +191,14 @@ class ViscoelasticContact {
     if (std::isfinite(next)) sigma_ = next;
     return Force(u);
   }
-  // Never beyond the solid's two linear responses from the answer, k_p at once and the series
-  // spring k_p·k_t/(k_p + k_t) once relaxed, by more than the viscous force it started with: a
-  // bound on what any error in the answer's state can make the hand feel.
+  // Never above the stiffer of the solid's two linear responses from the answer (k_p at once, the
+  // series spring k_p·k_t/(k_p + k_t) once relaxed) by more than the viscous force it started
+  // with: a bound on what any error in the answer's state can push the hand with. Below, the
+  // tissue's own path rules (after a press, a withdrawal unloads at k_p from the yielded state).
   double Force(double u) const {
     const double at_once = f0_ + kp_ * u, relaxed = f0_ + kp_ * kt_ / (kp_ + kt_) * u;
-    const double slack = std::abs(f0_ - e0_);
-    const double f = std::clamp(f0_ + kp_ * (u - sigma_), std::min(at_once, relaxed) - slack,
-                                std::max(at_once, relaxed) + slack);
+    const double f =
+        std::min(f0_ + kp_ * (u - sigma_), std::max(at_once, relaxed) + std::abs(f0_ - e0_));
     return std::isfinite(f) ? std::max(0.0, f) : 0.0;
   }
   double sigma() const { return sigma_; }
