@@ -39,6 +39,13 @@ class WanTest : public ::testing::Test {
     options_->scene = *scene;
     options_->plan = *plan;
     options_->grip = client::TensedGrip();
+    // The suite's figures were measured with the proxy's spring as the contact's model, which
+    // depends on no fit. The tissue's viscoelastic model (the default) fits the tissue online, and
+    // beside CPU hogs that fit engages late or not at all, so runs compared within one test
+    // differ by whether it engaged (8.4% against 10.0% at continental). Its accuracy is asserted
+    // where timing cannot move it (LocalModelTest, ViscoelasticContactTest), its figures live in
+    // the benchmark, and its safety across the network in the last test here.
+    options_->scene.haptics.contact_model = sim::HapticsSpec::ContactModel::kProxy;
   }
   static void TearDownTestSuite() { delete options_; }
 
@@ -72,13 +79,8 @@ RunOptions* WanTest::options_ = nullptr;
 TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
   const Cell ref = RunAt("none", client::LocalRendering::kModel, nullptr);
   ASSERT_GT(ref.figures.peak_force_n, 0.3);  // the hand did press the tissue
-  // The bounds where this scene is hardest (docs/BENCHMARKS.md "Haptics across networks"): at
-  // 700 N/m the tissue yields under the proxy. With the tissue's viscoelastic model the station
-  // showed 98% of the stiffness at metro and 91% at continental, with 3.5% and 8.2% error (the
-  // proxy's spring: 98% and 82%, 4.0% and 12.3%). Beside two CPU hogs the fit sometimes never
-  // engages and the proxy's figures come back (1 of 3 runs), so these bounds are the proxy's:
-  // the model's accuracy is asserted where it does not depend on timing (LocalModelTest,
-  // ViscoelasticContactTest), its figures live in the benchmark.
+  // The bounds where this scene is hardest (docs/BENCHMARKS.md "Haptics across networks"):
+  // at 700 N/m the displayed stiffness falls with the delay (98% at metro, 82% at continental).
   const struct {
     const char* name;
     double max_error_pct, min_stiffness_pct;
@@ -169,16 +171,8 @@ TEST_F(WanTest, TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel) {
   // the reserve and the encoder's allowance (0.1 mJ + 2·|F|·q, ~0.2 mJ at 1 N) by more than a
   // margin, and on a press scene it costs next to nothing beside the one-port (+0.6 points in
   // docs/BENCHMARKS.md; the twist scenes, where it chatters, are why it is not the default).
-  // Measured with the proxy's spring as the contact's model, where the two-port was tuned: over
-  // the tissue's viscoelastic model (the default since) its energy bound cuts more, 12.5% error
-  // against the one-port's 8.5% in this cell (docs/BENCHMARKS.md), which is not "next to nothing".
-  struct ProxyContact {
-    sim::HapticsSpec::ContactModel was = options_->scene.haptics.contact_model;
-    ProxyContact() {
-      options_->scene.haptics.contact_model = sim::HapticsSpec::ContactModel::kProxy;
-    }
-    ~ProxyContact() { options_->scene.haptics.contact_model = was; }
-  } proxy_contact;
+  // Over the tissue's viscoelastic model the two-port's bound cuts more: 12.5% error against
+  // the one-port's 8.5% in this cell (docs/BENCHMARKS.md). The fixture's proxy's spring here.
   const Cell ref = RunAt("none", client::LocalRendering::kModel, nullptr);
   const Cell local = RunAt("continental", client::LocalRendering::kModel, &ref.run);
   const Cell network = RunAt("continental", client::LocalRendering::kModel, &ref.run, 0,
@@ -211,6 +205,34 @@ TEST_F(WanTest, TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork) {
   const Cell c = RunAt("continental", client::LocalRendering::kLinear, &ref.run);
   EXPECT_GT(c.figures.phantom_n, 0.5);
   EXPECT_GT(c.figures.onset_delay_cycles, 50);
+}
+
+TEST_F(WanTest, TheTissuesOwnContactModelIsSafeAcrossTheNetworkWhateverTheLoad) {
+  // The default contact model (the tissue's, fitted online) at metro and continental against
+  // its own unimpaired run: bounded, no pull once the tool has left, contact where the surface
+  // is, passive within noise, no buzz. Its first version kicked beside CPU hogs (3.3 N, a 0.19 N
+  // pull) where a starved server measured the surface's rate over a jump; this holds whether
+  // the fit has engaged or not. Its accuracy (8.2% at continental against the proxy's 12.3%) is
+  // the benchmark's.
+  struct Tissue {
+    sim::HapticsSpec::ContactModel was = options_->scene.haptics.contact_model;
+    Tissue() {
+      options_->scene.haptics.contact_model = sim::HapticsSpec::ContactModel::kViscoelastic;
+    }
+    ~Tissue() { options_->scene.haptics.contact_model = was; }
+  } tissue;
+  const Cell ref = RunAt("none", client::LocalRendering::kModel, nullptr);
+  ASSERT_GT(ref.figures.peak_force_n, 0.3);
+  for (const char* profile : {"metro", "continental"}) {
+    const Cell c = RunAt(profile, client::LocalRendering::kModel, &ref.run);
+    const Figures& f = c.figures;
+    EXPECT_LE(f.peak_force_n, 1.5) << profile;  // the press's own peak is ~1 N; a kick is 3.3
+    EXPECT_LT(f.phantom_n, 0.05) << profile;
+    EXPECT_LT(f.onset_delay_cycles, 15) << profile;
+    EXPECT_LT(std::abs(f.onset_extra_mm), 0.5) << profile;
+    EXPECT_LT(f.energy_excess_mj, 1.0) << profile;
+    EXPECT_LT(f.oscillation_n, 2 * Compare(ref.run, ref.run, true).oscillation_n + 0.02) << profile;
+  }
 }
 
 }  // namespace
