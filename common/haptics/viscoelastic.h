@@ -77,26 +77,24 @@ class ViscoelasticFit {
   void Add(double t_s, double yield_m, double force_n, double max_stiffness) {
     if (!std::isfinite(t_s) || !std::isfinite(yield_m) || !std::isfinite(force_n)) return;
     if (count_ > 0 && !(t_s > ring_[(count_ - 1) % kRing].t)) return;  // time must advance
-    // The newest earlier sample at least a window back.
-    const Sample now{t_s, yield_m, force_n};
-    const Sample* back = nullptr;
-    for (uint32_t k = 1; k <= std::min<uint32_t>(count_, kRing); ++k) {
-      const Sample& c = ring_[(count_ - k) % kRing];
-      if (t_s - c.t >= kWindowS) {
-        back = &c;
-        break;
-      }
+    // The newest earlier sample at least a window back (a copy: its slot may be the one this
+    // sample takes).
+    Sample back;
+    bool found = false;
+    for (uint32_t k = 1; k <= std::min<uint32_t>(count_, kRing) && !found; ++k) {
+      back = ring_[(count_ - k) % kRing];
+      found = t_s - back.t >= kWindowS;
     }
     const double since = count_ > 0 ? t_s - ring_[(count_ - 1) % kRing].t : 0.0;
-    ring_[count_ % kRing] = now;
+    ring_[count_ % kRing] = Sample{t_s, yield_m, force_n};
     ++count_;
-    if (back == nullptr || t_s - back->t > 0.1) return;  // no window, or a gap: nothing to learn
-    const double dt = t_s - back->t;
-    const double x1 = 0.5 * (yield_m + back->yield), x2 = (yield_m - back->yield) / dt;
+    if (!found || t_s - back.t > 0.1) return;  // no window, or a gap: nothing to learn
+    const double dt = t_s - back.t;
+    const double x1 = 0.5 * (yield_m + back.yield), x2 = (yield_m - back.yield) / dt;
     if (!(std::abs(x2) <= kMaxRateMPerS)) return;  // a jump (above)
     rate_ = has_rate_ ? rate_ + (1 - std::exp(-since / kRateTimeConstantS)) * (x2 - rate_) : x2;
     has_rate_ = true;
-    const double y = 0.5 * (force_n + back->force);
+    const double y = 0.5 * (force_n + back.force);
     const double keep =
         last_t_ >= 0 ? std::exp(-std::clamp(t_s - last_t_, 0.0, 1.0) / kTimeConstantS) : 1.0;
     last_t_ = t_s;

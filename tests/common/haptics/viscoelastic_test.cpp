@@ -53,6 +53,23 @@ TEST(ViscoelasticFitTest, RecoversTheTissueFromItsSamplesAtFullRateAndSparse) {
   }
 }
 
+// Samples so dense that the window's start is the oldest the ring holds (its slot is the one the
+// new sample takes): the window is still the right one, and the fit still learns.
+TEST(ViscoelasticFitTest, AWindowAsLongAsTheRingStillTeaches) {
+  constexpr double kStep = 0.1262e-3;  // 63 steps < 8 ms ≤ 64 steps
+  Solid solid{700, 180, 12, 0.1};
+  ViscoelasticFit fit;
+  fit.BeginContact();
+  for (int i = 0; i < 24000; ++i) {
+    double f = 0;
+    const double t = i * kStep;
+    const double s = solid.Step(Depth(static_cast<int>(t / kServoS)), kStep, f);
+    fit.Add(t, s, f, 7e4);
+  }
+  ASSERT_TRUE(fit.params().ok());
+  EXPECT_NEAR(fit.params().stiffness, 180, 0.1 * 180);
+}
+
 // A tool at rest in the tissue says nothing: no fit; a fit once made stands through a new contact
 // held still; bad input is ignored, and time must advance.
 TEST(ViscoelasticFitTest, ARestSaysNothingAndBadSamplesAreIgnored) {
