@@ -117,7 +117,10 @@ class TrialRecorder {
   // The filtered tip resampled on a uniform 100 Hz grid (linear interpolation between samples),
   // newest first: the jerk's third difference needs even spacing, and stylus samples stamped by
   // a station's clock are not (a late cycle, then a quick one).
-  Eigen::Vector3d x_[4];
+  // Zeroed: Eigen leaves a vector uninitialised, and this state is saved for migration (a fresh
+  // recorder's bytes must be the same every time, and garbage could read as NaN and be refused).
+  Eigen::Vector3d x_[4] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+                           Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   int grid_ = 0;          // grid points emitted
   double next_grid_ = 0;  // s, the next grid time
   Eigen::Vector3d last_tip_ = Eigen::Vector3d::Zero();
