@@ -88,7 +88,8 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   for (int r = 0; r < 3; ++r) {
     for (int k = 0; k < 3; ++k) local->set_jacobian(3 * r + k, c.local.jacobian(r, k));
   }
-  // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes, a contact by 27).
+  // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes, a contact by 27,
+  // and by 27 more once it carries the tissue).
   local->set_kind(static_cast<v1::LocalModel::Kind>(c.local.kind));
   if (c.local.kind == haptics::LocalModel::Kind::kContact) {
     Put(c.local.normal, local->mutable_normal());
