@@ -127,44 +127,58 @@ void Bvh::Refit(const std::vector<Vec3>& positions) {
 }
 
 ClosestHit Bvh::Closest(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
-                        const Vec3& normal_hint, double min_normal_dot) const {
+                        const Vec3& normal_hint, double min_normal_dot, int start_triangle) const {
   ClosestHit best;
   if (nodes_.empty() || !p.allFinite()) return best;
   double best_d2 = max_distance * max_distance;
   const bool filter = min_normal_dot > -1.0 && normal_hint.squaredNorm() > 0;
-  int stack[kStackSize];
+  // The triangle t's closest point, kept when it is nearer than the best so far (or, the first
+  // time, as near as the range allows).
+  auto consider = [&](int t) {
+    const Vec3& a = positions[triangles_[t][0]];
+    const Vec3& b = positions[triangles_[t][1]];
+    const Vec3& c = positions[triangles_[t][2]];
+    if (filter) {
+      const Vec3 n = (b - a).cross(c - a);
+      const double len = n.norm();
+      if (!(len > 0) || n.dot(normal_hint) < min_normal_dot * len * normal_hint.norm()) return;
+    }
+    const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
+    const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
+    const double d2 = (q - p).squaredNorm();
+    if (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2)) {
+      best_d2 = d2;
+      best = ClosestHit{t, w, q, std::sqrt(d2)};
+    }
+  };
+  if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles_.size()))
+    consider(start_triangle);
+  // Each entry carries its box's distance, measured when its parent was opened, so no box is
+  // measured twice; an entry whose box the best so far has moved out of range is dropped.
+  struct Entry {
+    int node;
+    double d2;
+  };
+  Entry stack[kStackSize];
   int top = 0;
-  stack[top++] = 0;
+  stack[top++] = {0, BoxDistance2(p, nodes_[0].lo, nodes_[0].hi)};
   while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
-    if (BoxDistance2(p, node.lo, node.hi) > best_d2) continue;
+    const Entry e = stack[--top];
+    if (e.d2 > best_d2) continue;
+    const Node& node = nodes_[e.node];
     if (node.left >= 0) {
-      // Nearer child last, so it is popped first.
+      // Nearer child last, so it is popped first; a child out of range is not pushed.
       const double dl = BoxDistance2(p, nodes_[node.left].lo, nodes_[node.left].hi);
       const double dr = BoxDistance2(p, nodes_[node.right].lo, nodes_[node.right].hi);
       if (top + 2 > kStackSize) continue;  // unreachable for any real mesh; never overflow
-      stack[top++] = dl < dr ? node.right : node.left;
-      stack[top++] = dl < dr ? node.left : node.right;
+      const Entry near{dl < dr ? node.left : node.right, std::min(dl, dr)};
+      const Entry far{dl < dr ? node.right : node.left, std::max(dl, dr)};
+      if (far.d2 <= best_d2) stack[top++] = far;
+      if (near.d2 <= best_d2) stack[top++] = near;
       continue;
     }
-    for (int k = node.first; k < node.first + node.count; ++k) {
-      const int t = order_[k];
-      const Vec3& a = positions[triangles_[t][0]];
-      const Vec3& b = positions[triangles_[t][1]];
-      const Vec3& c = positions[triangles_[t][2]];
-      if (filter) {
-        const Vec3 n = (b - a).cross(c - a);
-        const double len = n.norm();
-        if (!(len > 0) || n.dot(normal_hint) < min_normal_dot * len * normal_hint.norm()) continue;
-      }
-      const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
-      const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
-      const double d2 = (q - p).squaredNorm();
-      if (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2)) {
-        best_d2 = d2;
-        best = ClosestHit{t, w, q, std::sqrt(d2)};
-      }
-    }
+    for (int k = node.first; k < node.first + node.count; ++k)
+      if (order_[k] != start_triangle) consider(order_[k]);
   }
   return best;
 }

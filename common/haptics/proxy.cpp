@@ -71,10 +71,13 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
   } else if (state_.contact) {
     // Closest point to the tip among faces still facing the contact side, near the proxy.
     const double reach = (hip - state_.scp).norm() + params_.max_step;
-    geometry::ClosestHit c = bvh.Closest(x, hip, reach, state_.normal, params_.min_normal_dot);
+    // The proxy's face starts each search: the tip rarely moves far from it in one update.
+    geometry::ClosestHit c =
+        bvh.Closest(x, hip, reach, state_.normal, params_.min_normal_dot, state_.triangle);
     if (c.triangle < 0) {
       // Nothing acceptable in reach: hold the proxy on its face, re-evaluated on the new surface.
-      c = bvh.Closest(x, state_.scp, params_.max_step, state_.normal, params_.min_normal_dot);
+      c = bvh.Closest(x, state_.scp, params_.max_step, state_.normal, params_.min_normal_dot,
+                      state_.triangle);
     }
     if (c.triangle >= 0) {
       Vec3 target = c.point;
@@ -82,7 +85,7 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
       if (travel.norm() > params_.max_step) {
         const geometry::ClosestHit s =
             bvh.Closest(x, state_.scp + travel * (params_.max_step / travel.norm()),
-                        params_.max_step, state_.normal, params_.min_normal_dot);
+                        params_.max_step, state_.normal, params_.min_normal_dot, c.triangle);
         if (s.triangle >= 0) c = s;
         target = c.point;
       }

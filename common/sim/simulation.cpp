@@ -151,10 +151,12 @@ ForceCommand Simulation::Zero(const StylusSample& s, uint32_t events) {
 // contact would have there, F(x) = k·((p − x)·n)·n on the penetrating side only. The station then
 // begins the contact where the surface is, whatever the delay.
 void Simulation::SurfaceAhead(const Snapshot& snap, const Vec3& tip, haptics::LocalModel& local,
-                              Eigen::Matrix3d& jacobian) const {
+                              Eigen::Matrix3d& jacobian) {
   const double reach = scene_.haptics.lookahead;
   if (!(reach > 0) || !tip.allFinite()) return;
-  const geometry::ClosestHit c = snap.bvh.Closest(snap.positions, tip, reach);
+  const geometry::ClosestHit c =
+      snap.bvh.Closest(snap.positions, tip, reach, Vec3::Zero(), -2.0, ahead_triangle_);
+  ahead_triangle_ = c.triangle;
   if (c.triangle < 0) return;
   const geometry::Triangle& tri = rest_.triangles[c.triangle];
   const Vec3 n = geometry::TriangleNormal(snap.positions, tri);

@@ -177,7 +177,7 @@ class Simulation final : private DeformationPool::Member {
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
   void SurfaceAhead(const Snapshot& snap, const geometry::Vec3& tip, haptics::LocalModel& local,
-                    Eigen::Matrix3d& jacobian) const;
+                    Eigen::Matrix3d& jacobian);
 
   Scene scene_;
   geometry::TriMesh rest_;
@@ -209,6 +209,7 @@ class Simulation final : private DeformationPool::Member {
   double lever_ = 0.03;
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
+  int ahead_triangle_ = -1;  // haptic thread: the last surface-ahead face, the next search's start
   haptics::StiffnessFit stiffness_fit_;        // the contact's slope for the local model
   haptics::ViscoelasticFit viscoelastic_fit_;  // the tissue under the proxy, for the local model
   bool room_has_contact_stiffness_ = false;    // the room answers ContactStiffness itself

@@ -95,5 +95,38 @@ TEST(BvhTest, FrontFaceMeansEnteringAndTheNormalFilterSkipsFacesTurnedAway) {
   EXPECT_EQ(bvh.Closest(sphere->positions, Vec3(NAN, 0, 0)).triangle, -1);
 }
 
+// A start face only bounds the search: the answer's distance is the brute force's whatever the
+// start (the last answer, any face, none, one out of range, one the normal filter refuses), and
+// a start beyond the range or turned away is never the answer.
+TEST(BvhTest, AStartTriangleNeverChangesTheClosestDistance) {
+  TriMesh m = MakeLimb(WithResolution(ForearmPreset(), 1500))->surface;
+  Bvh bvh(m);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-0.06, 0.06), z(-0.05, 0.3);
+  std::uniform_int_distribution<int> face(-2, m.TriangleCount() + 2);
+  int last = -1;
+  Vec3 p(0.01, 0.0, 0.1);
+  for (int q = 0; q < 600; ++q) {
+    // Half the queries walk (the haptic loop's case, starting from the last answer), half jump.
+    p = q % 2 ? Vec3(p + Vec3(0.002 * u(rng), 0.002 * u(rng), 0.002 * u(rng)))
+              : Vec3(u(rng), u(rng), z(rng));
+    const int start = q % 3 == 0 ? face(rng) : last;
+    const ClosestHit slow = BruteClosest(m, p);
+    const ClosestHit fast = bvh.Closest(m.positions, p, INFINITY, Vec3::Zero(), -2.0, start);
+    ASSERT_GE(fast.triangle, 0) << q;
+    EXPECT_NEAR(fast.distance, slow.distance, 1e-12) << q;
+    last = fast.triangle;
+    // Within a range the start is farther than: nothing, or something nearer than the range.
+    const double range = 0.5 * slow.distance;
+    EXPECT_EQ(bvh.Closest(m.positions, p, range, Vec3::Zero(), -2.0, last).triangle, -1) << q;
+    // A start the filter refuses is not the answer; the answer is the filtered brute force's.
+    const Vec3 hint = TriangleNormal(m, last);
+    const ClosestHit away = bvh.Closest(m.positions, p, INFINITY, -hint, 0.5, last);
+    ASSERT_NE(away.triangle, last) << q;
+    const ClosestHit away_cold = bvh.Closest(m.positions, p, INFINITY, -hint, 0.5);
+    EXPECT_NEAR(away.distance, away_cold.distance, 1e-12) << q;
+  }
+}
+
 }  // namespace
 }  // namespace vsurg::geometry
