@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "client/net/deadband.h"
 #include "client/net/passivity.h"
 #include "common/core/realtime.h"
 #include "common/haptics/viscoelastic.h"
@@ -70,51 +71,6 @@ class SequenceWindow {
   static constexpr uint64_t kSize = 4096;
   std::bitset<kSize> seen_;
   uint64_t newest_ = 0, distinct_ = 0;
-};
-
-// The perceptual deadband (Hinterseer et al., IEEE Trans. Signal Process. 56(2), 2008: a change
-// below the Weber fraction of what is felt is not perceived, so it need not be sent; with
-// passivity, Xu et al., IEEE ToH 2016). A stylus sample is sent when the force the station
-// renders has changed since the last sent sample by more than the fraction k of that force
-// (plus 0.02 N, about the force a hand holding a stylus just detects; Israr et al. 2006), when
-// the tip has moved more than position_m or turned more than angle_rad (free space, where no
-// force tells), when the buttons change, and at least every heartbeat_s. Loss-robust: a send
-// the deadband triggered is repeated once 5 ms later if nothing else was sent, so one lost
-// datagram costs 5 ms, not a heartbeat. k = 0: every cycle is sent.
-class Deadband {
- public:
-  explicit Deadband(const StationOptions& o)
-      : k_(o.deadband),
-        position_(o.deadband_position_m),
-        angle_(o.deadband_angle_rad),
-        heartbeat_(o.heartbeat_s) {}
-  bool Due(double now, const haptics::StylusSample& s, const Eigen::Vector3d& force) {
-    bool due = k_ <= 0 || !sent_ || s.buttons != buttons_ || now - at_ >= heartbeat_;
-    bool triggered = false;
-    if (!due && s.position.allFinite() && force.allFinite()) {
-      triggered = (force - force_).norm() > k_ * force_.norm() + 0.02 ||
-                  (s.position - position_sent_).norm() > position_ ||
-                  s.orientation.angularDistance(orientation_) > angle_;
-      due = triggered || (repeat_at_ >= 0 && now >= repeat_at_);
-    }
-    if (!due) return false;
-    repeat_at_ = k_ > 0 && (triggered || s.buttons != buttons_) ? now + 0.005 : -1;
-    sent_ = true;
-    at_ = now;
-    buttons_ = s.buttons;
-    if (s.position.allFinite()) position_sent_ = s.position;
-    if (s.orientation.coeffs().allFinite()) orientation_ = s.orientation;
-    if (force.allFinite()) force_ = force;
-    return true;
-  }
-
- private:
-  double k_, position_, angle_, heartbeat_;
-  bool sent_ = false;
-  double at_ = 0, repeat_at_ = -1;
-  uint32_t buttons_ = 0;
-  Eigen::Vector3d position_sent_ = Eigen::Vector3d::Zero(), force_ = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond orientation_ = Eigen::Quaterniond::Identity();
 };
 
 // One servo cycle as the force log writes it (station_channel.h, StationOptions::force_log).
@@ -375,7 +331,8 @@ struct StationChannel::Impl {
     auto next = SteadyTime::now();
     uint64_t sequence = 0;
     bool fading = false;
-    Deadband deadband(options);
+    Deadband deadband({options.deadband, options.deadband_position_m, options.deadband_angle_rad,
+                       options.deadband_onset_s, options.heartbeat_s});
     TissueContact tissue(1.0 / options.rate_hz);
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     // Always observing; controlling only when asked.
@@ -505,10 +462,11 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
     return InvalidArgument("watchdog", "times must be > 0");
   if (!(options.deadband >= 0 && options.deadband < 1) || !(options.heartbeat_s > 0.001) ||
       !(options.heartbeat_s <= 0.25) || !(options.deadband_position_m > 0) ||
-      !(options.deadband_angle_rad > 0))
+      !(options.deadband_angle_rad > 0) ||
+      !(options.deadband_onset_s >= 0 && options.deadband_onset_s <= 1))
     return InvalidArgument("deadband",
-                           "the fraction must be in [0, 1), the heartbeat within 1..250 ms and the "
-                           "thresholds > 0");
+                           "the fraction must be in [0, 1), the heartbeat within 1..250 ms, the "
+                           "contact onset within 0..1 s and the thresholds > 0");
   auto impl = std::make_unique<Impl>(options);
   impl->device = device;
   if (!options.force_log.empty()) {

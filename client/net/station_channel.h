@@ -61,9 +61,13 @@ struct StationOptions {
   // ≈ 0.1), the tip moved more than deadband_position_m or turned more than deadband_angle_rad,
   // the buttons changed, or heartbeat_s passed. The server answers each sample, so its answers
   // thin alike; the watchdog then waits heartbeat_s + 35 ms before it fades.
+  // A contact's first deadband_onset_s (from the cycle the rendered force appears) is sent
+  // every cycle: an impact is where the tissue's answer changes fastest and the station knows
+  // least of it (its tissue model is fitted from the contact itself).
   double deadband = 0;
   double deadband_position_m = 0.5e-3;
   double deadband_angle_rad = 0.0175;  // 1°
+  double deadband_onset_s = 0.05;
   double heartbeat_s = 0.025;
   // The task's force limit (N): the station reports how long its rendered force was above it,
   // beside the largest it rendered, in every stylus datagram (the trial record keeps both).
