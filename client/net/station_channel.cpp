@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <limits>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -331,6 +332,7 @@ struct StationChannel::Impl {
     auto next = SteadyTime::now();
     uint64_t sequence = 0;
     bool fading = false;
+    Vec3 last_tip = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // none yet
     Deadband deadband({options.deadband, options.deadband_position_m, options.deadband_angle_rad,
                        options.deadband_onset_s, options.heartbeat_s});
     TissueContact tissue(1.0 / options.rate_hz);
@@ -360,6 +362,12 @@ struct StationChannel::Impl {
       haptics::StylusSample s = device->Read();
       s.time = now;  // the station clock: the server echoes it back for the round trip
       if (s.position.allFinite()) tissue.Record(now, s.position);
+      // The tip's velocity over the last servo period, as the server's proxy measures it between
+      // samples (the damping of a contact ahead of the tool, types.h).
+      const Vec3 velocity = s.position.allFinite() && last_tip.allFinite()
+                                ? Vec3((s.position - last_tip) * options.rate_hz)
+                                : Vec3::Zero();
+      last_tip = s.position;
       // Render from the newest local model, independent of network timing.
       latest.Acquire();
       const Latest& l = latest.Front();
@@ -375,7 +383,7 @@ struct StationChannel::Impl {
             break;
           case LocalRendering::kModel:
             if (!tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, s.position, f))
-              f = answer.local.Render(s.position, s.orientation, s.buttons);
+              f = answer.local.Render(s.position, s.orientation, s.buttons, velocity);
             break;
         }
         modelled = f;

@@ -6,7 +6,8 @@
 
 namespace vsurg::haptics {
 
-Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons) const {
+Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons,
+                        const Vec3& v) const {
   if (!x.allFinite()) return Vec3::Zero();
   Vec3 f = ForceAt(x);
   switch (kind) {
@@ -15,6 +16,10 @@ Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t but
     case Kind::kContact:
       // Unilateral: the surface pushes, never pulls. Outside it (n·F ≤ 0) nothing is felt.
       if (!(normal.dot(f) > 0)) return Vec3::Zero();
+      if (contact_damping > 0 && v.allFinite()) {
+        f -= contact_damping * v.dot(normal) * normal;
+        if (!(normal.dot(f) > 0)) return Vec3::Zero();  // a fast withdrawal: nothing, no pull
+      }
       break;
     case Kind::kGrasp: {
       if ((buttons & kButtonGrasp) == 0) return Vec3::Zero();  // let go here, felt here

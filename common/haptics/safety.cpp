@@ -131,9 +131,14 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     local.tissue_stiffness = local.tissue_damping = local.tissue_elastic0 = 0;
     events |= kEventNonFiniteInput;
   }
+  if (!std::isfinite(local.contact_damping) || !(local.contact_damping >= 0)) {
+    local.contact_damping = 0;
+    events |= kEventNonFiniteInput;
+  }
   j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
   local.dforce_dtwist *= ramp_;
   local.tissue_stiffness *= ramp_, local.tissue_damping *= ramp_, local.tissue_elastic0 *= ramp_;
+  local.contact_damping *= ramp_;
   local.force0 = output;  // the extrapolation starts from what the device actually outputs
 }
 

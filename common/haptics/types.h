@@ -56,11 +56,19 @@ struct LocalModel {
   double tissue_stiffness = 0;  // contact: k_t, N/m; 0: the proxy's spring J alone
   double tissue_damping = 0;    // contact: b, N·s/m
   double tissue_elastic0 = 0;   // contact: e₀, N, the tissue's elastic force at position0
+  // Contact ahead of the tool (the surface the server's proxy has not reached): the proxy's
+  // damping c (N·s/m), which the station adds along n with its own velocity once the tip is in,
+  // so an impact it renders before any answer is as dissipative as the server's proxy would make
+  // it (F·n = k·depth − c·v·n, never below 0). 0 in a contact answer, whose force0 already holds
+  // the server's damping at its sample.
+  double contact_damping = 0;
 
   Vec3 ForceAt(const Vec3& x) const { return force0 + jacobian * (x - position0); }
-  // The force the model gives a stylus at x, turned to q, with `buttons` held (the kinds above).
-  // Any thread; no allocation; a non-finite result is zero.
-  Vec3 Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons) const;
+  // The force the model gives a stylus at x, moving at v (m/s, the station's own estimate), turned
+  // to q, with `buttons` held (the kinds above). Any thread; no allocation; a non-finite result
+  // is zero.
+  Vec3 Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons,
+              const Vec3& v = Vec3::Zero()) const;
   // A grasp's twist, rendered by a 3-DoF device, is a force field F_φ that grows with the
   // stylus's turn; a hand yielding to it against the hold spring k (J = −k·I) is given up to
   // |F_φ|²/(2k), F_φ the model's force at the hold spring's centre (the grasped point `centre`).

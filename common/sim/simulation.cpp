@@ -169,6 +169,7 @@ void Simulation::SurfaceAhead(const Snapshot& snap, const Vec3& tip, haptics::Lo
   local.kind = haptics::LocalModel::Kind::kContact;
   local.normal = n;
   local.position0 = c.point;
+  local.contact_damping = proxy_.params().damping;
   jacobian = -k * n * n.transpose();
 }
 

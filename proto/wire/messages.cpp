@@ -89,15 +89,17 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
     for (int k = 0; k < 3; ++k) local->set_jacobian(3 * r + k, c.local.jacobian(r, k));
   }
   // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes, a contact by 27,
-  // and by 27 more once it carries the tissue).
+  // and by 27 more once it carries the tissue, or 9 ahead of contact with the proxy's damping).
   local->set_kind(static_cast<v1::LocalModel::Kind>(c.local.kind));
   if (c.local.kind == haptics::LocalModel::Kind::kContact) {
     Put(c.local.normal, local->mutable_normal());
     local->set_tissue_stiffness(c.local.tissue_stiffness);
     local->set_tissue_damping(c.local.tissue_damping);
     local->set_tissue_elastic0(c.local.tissue_elastic0);
+    local->set_contact_damping(c.local.contact_damping);
   } else {
     local->clear_tissue_stiffness(), local->clear_tissue_damping(), local->clear_tissue_elastic0();
+    local->clear_contact_damping();
   }
   if (c.local.kind == haptics::LocalModel::Kind::kGrasp) {
     Put(c.local.axis, local->mutable_axis());
@@ -245,6 +247,7 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.local.orientation0 = Eigen::Quaterniond::Identity();
   c.local.dforce_dtwist.setZero();
   c.local.tissue_stiffness = c.local.tissue_damping = c.local.tissue_elastic0 = 0;
+  c.local.contact_damping = 0;
   const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
     const double n = v.norm();
     if (!(n > 1e-9) || !std::isfinite(n)) return false;
@@ -259,9 +262,11 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
       c.local.tissue_stiffness = f.local().tissue_stiffness();
       c.local.tissue_damping = f.local().tissue_damping();
       c.local.tissue_elastic0 = f.local().tissue_elastic0();
+      c.local.contact_damping = f.local().contact_damping();
       if (!(c.local.tissue_stiffness >= 0) || !(c.local.tissue_damping >= 0) ||
           !std::isfinite(c.local.tissue_stiffness) || !std::isfinite(c.local.tissue_damping) ||
-          !std::isfinite(c.local.tissue_elastic0))
+          !std::isfinite(c.local.tissue_elastic0) || !(c.local.contact_damping >= 0) ||
+          !std::isfinite(c.local.contact_damping))
         return DropReason::kBadPayload;
       break;
     case v1::LocalModel::GRASP: {

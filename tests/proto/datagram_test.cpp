@@ -166,6 +166,16 @@ TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRef
     b.command.local.tissue_elastic0 = bad[2];
     EXPECT_EQ(round_trip(b, back), DropReason::kBadPayload) << bad[0] << " " << bad[1];
   }
+  // The proxy's damping ahead of contact crosses too; negative or non-finite is refused.
+  contact.command.local.contact_damping = 1.5;
+  ASSERT_EQ(round_trip(contact, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.contact_damping, 1.5);
+  for (double bad : {-0.5, double(NAN), double(INFINITY)}) {
+    ForceMessage b = contact;
+    b.command.local.contact_damping = bad;
+    EXPECT_EQ(round_trip(b, back), DropReason::kBadPayload) << bad;
+  }
+  contact.command.local.contact_damping = 0;
   ForceMessage grasp;
   grasp.command.local.kind = haptics::LocalModel::Kind::kGrasp;
   grasp.command.local.axis = Eigen::Vector3d(0, 0, 2);  // normalised on arrival

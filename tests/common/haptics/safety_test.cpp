@@ -95,6 +95,17 @@ TEST(SafetyFilterTest, LocalModelStiffnessIsClampedToTheDevice) {
   m.jacobian(1, 2) = NAN;
   f->LimitLocalModel(m, Vec3::Zero(), ev);
   EXPECT_TRUE(m.jacobian.allFinite());
+  // The contact's damping ahead of the tool: kept when it is one, zeroed when it is not.
+  m.contact_damping = 1.5;
+  f->LimitLocalModel(m, Vec3::Zero(), ev);
+  EXPECT_EQ(m.contact_damping, 1.5);
+  for (double bad : {-1.0, double(NAN), double(INFINITY)}) {
+    m.contact_damping = bad;
+    ev = 0;
+    f->LimitLocalModel(m, Vec3::Zero(), ev);
+    EXPECT_EQ(m.contact_damping, 0.0) << bad;
+    EXPECT_TRUE(ev & kEventNonFiniteInput) << bad;
+  }
 }
 
 // A station extrapolates F₀ + J·(x − x₀) between updates: while the gate holds the force back,

@@ -57,6 +57,49 @@ TEST(LocalModelTest, AContactModelPushesAndNeverPulls) {
   EXPECT_EQ(m.Render(Vec3(NAN, 0, 0), q, 0), Vec3::Zero());
 }
 
+// Ahead of contact the model carries the proxy's damping c: the station adds −c·(v·n) once the
+// tip is in, so an impact it renders alone dissipates as the server's proxy would; it never
+// pulls, and outside the surface nothing is felt however fast the tip moves.
+TEST(LocalModelTest, AContactAheadDampsTheToolInsideAndNeverPulls) {
+  LocalModel m;
+  m.kind = LocalModel::Kind::kContact;
+  m.normal = Vec3::UnitZ();
+  m.position0 = Vec3(0, 0, 0.05);
+  m.jacobian = -300 * m.normal * m.normal.transpose();
+  m.contact_damping = 2.0;
+  const Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  const Vec3 in(0, 0, 0.049);                                 // 1 mm in: 0.3 N from the spring
+  EXPECT_TRUE(m.Render(in, q, 0).isApprox(Vec3(0, 0, 0.3)));  // at rest: the spring alone
+  // Pressing in at 0.1 m/s: 0.2 N more; a sideways slide adds nothing along n.
+  EXPECT_TRUE(m.Render(in, q, 0, Vec3(0, 0, -0.1)).isApprox(Vec3(0, 0, 0.5)));
+  EXPECT_TRUE(m.Render(in, q, 0, Vec3(0.3, 0, 0)).isApprox(Vec3(0, 0, 0.3)));
+  // Withdrawing at 0.1 m/s: 0.2 N less; faster than 0.15 m/s: nothing, never a pull.
+  EXPECT_TRUE(m.Render(in, q, 0, Vec3(0, 0, 0.1)).isApprox(Vec3(0, 0, 0.1)));
+  EXPECT_EQ(m.Render(in, q, 0, Vec3(0, 0, 0.2)), Vec3::Zero());
+  // Outside, however fast: nothing. A non-finite velocity damps nothing.
+  EXPECT_EQ(m.Render(Vec3(0, 0, 0.051), q, 0, Vec3(0, 0, -1)), Vec3::Zero());
+  EXPECT_TRUE(m.Render(in, q, 0, Vec3(0, 0, NAN)).isApprox(Vec3(0, 0, 0.3)));
+  // Dissipative: over a press and a withdrawal at the same speed, the damper takes energy.
+  double work_on_hand = 0;
+  Vec3 x(0, 0, 0.0505);
+  for (int k = 0; k < 40; ++k) {  // 2 mm in and back out at 0.1 m/s, 1 ms steps
+    const Vec3 v(0, 0, k < 20 ? -0.1 : 0.1);
+    const Vec3 f = m.Render(x, q, 0, v);
+    work_on_hand += f.dot(v * 1e-3);
+    x += v * 1e-3;
+  }
+  LocalModel spring = m;
+  spring.contact_damping = 0;
+  double spring_work = 0;
+  x = Vec3(0, 0, 0.0505);
+  for (int k = 0; k < 40; ++k) {
+    const Vec3 v(0, 0, k < 20 ? -0.1 : 0.1);
+    spring_work += spring.Render(x, q, 0, v).dot(v * 1e-3);
+    x += v * 1e-3;
+  }
+  EXPECT_LT(work_on_hand, spring_work - 1e-5);  // at least 10 µJ less given to the hand
+}
+
 TEST(LocalModelTest, AGraspModelEndsWithTheButtonAndFollowsTheTwist) {
   LocalModel m;
   m.kind = LocalModel::Kind::kGrasp;
@@ -95,6 +138,11 @@ TEST(LocalModelTest, AFreeToolGetsTheSurfaceAheadWithTheContactsStiffness) {
   const Vec3 inside = c.local.position0 - 0.001 * c.local.normal;
   const Vec3 predicted = c.local.Render(inside, s.orientation, 0);
   EXPECT_NEAR(predicted.norm(), 0.3, 0.03);  // 300 N/m × 1 mm
+  // With the proxy's damping (the scene's 1 N·s/m), which the station adds as the tip moves in.
+  EXPECT_EQ(c.local.contact_damping, scene->haptics.proxy.damping);
+  EXPECT_GT(c.local.contact_damping, 0);
+  const Vec3 pressing = c.local.Render(inside, s.orientation, 0, -0.1 * c.local.normal);
+  EXPECT_NEAR(pressing.norm() - predicted.norm(), 0.1 * scene->haptics.proxy.damping, 1e-9);
   for (double z = 0.06; z > inside.z(); z -= 2e-4) {
     s.position.z() = z;
     s.time += 1e-3;
