@@ -44,9 +44,10 @@ class Bvh {
   // The closest surface point within max_distance. Triangles whose unit normal n has
   // n·normal_hint < min_normal_dot are skipped (with the default hint none is).
   // start_triangle (a caller's previous answer, −1 for none) is measured first: its distance
-  // bounds the search from the start, so a query that moves little from the last one visits a
-  // few boxes instead of every box within max_distance. The answer's distance is the same
-  // either way; of faces equally near (a shared edge or corner), the start wins.
+  // bounds the search from the start, so no box farther than it is opened (for a point under a
+  // smooth surface most boxes around it are about as near, so this saves little: 4% in
+  // docs/BENCHMARKS.md). The answer's distance is the same either way; of faces equally near
+  // (a shared edge or corner), the start wins.
   ClosestHit Closest(const std::vector<Vec3>& positions, const Vec3& p,
                      double max_distance = std::numeric_limits<double>::infinity(),
                      const Vec3& normal_hint = Vec3::Zero(), double min_normal_dot = -2.0,
