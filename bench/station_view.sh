@@ -6,10 +6,11 @@
 # drawn, and the device loop's rate (over the run; its slowest and fastest whole second), all from
 # the same run; with SHOTS=DIR writes DIR/<scene>.png (3.5 s in) and DIR/<scene>-summary.png.
 # BASE_BIN=DIR adds a row per scene for another build's vsurg-station (the previous renderer:
-# a worktree of an older commit built outside the repository), against the same server.
+# a worktree of an older commit built outside the repository), against the same server; at
+# each of BASE_QUALITIES (its default level when unset).
 # WIDTH and HEIGHT change the frame's size (1280x720).
 # usage: [SCENES="arm-torsion ..."] [QUALITIES="high medium low"] [STYLE=hesitant]
-#        [SHOTS=DIR] [BASE_BIN=DIR] bench/station_view.sh [BIN_DIR]
+#        [SHOTS=DIR] [BASE_BIN=DIR [BASE_QUALITIES="medium ..."]] bench/station_view.sh [BIN_DIR]
 set -euo pipefail
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); trap 'kill $spid 2>/dev/null; rm -rf $d' EXIT
 SCENES=${SCENES:-"arm-torsion organ-surface-twist kidney-palpation sphere-palpation-256"}
@@ -24,9 +25,12 @@ $B/vsurg-admin user-add --server 127.0.0.1:$PORT --token $(head -1 admin.out) --
 for scene in $SCENES; do
   $B/vsurg-sim trainee --scene $scene --style "${STYLE:-hesitant}" --out $scene.csv > /dev/null
   if [ -n "${BASE_BIN:-}" ]; then
-    "$BASE_BIN/vsurg-station" --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
-        --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} --json 2>/dev/null \
-      | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=base draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score']))"
+    for bq in ${BASE_QUALITIES:-default}; do
+      qflag=(); [ "$bq" != default ] && qflag=(--quality $bq)
+      "$BASE_BIN/vsurg-station" --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
+          --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} "${qflag[@]}" --json 2>/dev/null \
+        | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=base-$bq draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score']))"
+    done
   fi
   for q in $QUALITIES; do
     shots=()

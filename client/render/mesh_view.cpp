@@ -314,6 +314,31 @@ Quality QualityGovernor::Update(double frame_ms) {
   return level_;
 }
 
+namespace {
+
+// A screen rectangle in pixels (y down), [x0, x1) × [y0, y1).
+struct ScreenBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool Empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+// The parts of `b` outside `a`, as up to four rectangles that do not overlap each other or `a`
+// (a shadow blended twice would be darker where two boxes overlapped).
+std::vector<ScreenBox> Outside(const ScreenBox& b, const ScreenBox& a) {
+  if (b.Empty()) return {};
+  if (a.Empty() || a.x0 >= b.x1 || a.x1 <= b.x0 || a.y0 >= b.y1 || a.y1 <= b.y0) return {b};
+  std::vector<ScreenBox> parts;
+  const int top = std::max(b.y0, a.y0), bottom = std::min(b.y1, a.y1);
+  parts.push_back({b.x0, b.y0, b.x1, top});                    // above a
+  parts.push_back({b.x0, bottom, b.x1, b.y1});                 // below a
+  parts.push_back({b.x0, top, std::min(b.x1, a.x0), bottom});  // beside a, left
+  parts.push_back({std::max(b.x0, a.x1), top, b.x1, bottom});  // beside a, right
+  std::erase_if(parts, [](const ScreenBox& r) { return r.Empty(); });
+  return parts;
+}
+
+}  // namespace
+
 struct MeshView::Gpu {
   GLuint shadow = 0, flat = 0;
   // The lit surfaces' program per variant: material, shadow taps, detail, ambient occlusion,
@@ -346,6 +371,15 @@ struct MeshView::Gpu {
   std::array<double, 18> shadow_key{};     // the tool's pose, its jaws, the quality
   std::vector<float> upload;               // the tissue's interleaved vertices, reused every frame
   std::vector<uint32_t> indices;
+  // What casts the tissue's shadow: the physics surface as moved (positions only), its faces
+  // turned away from the light (`caster_cull` culls the others). A fraction of the visual
+  // surface's triangles, and the far side of a closed surface is never close enough in depth to
+  // the lit side it shades to speckle it, however the fine surface sits over the coarse one.
+  // Without a closed, consistently wound physics surface the visual surface's lit side casts.
+  GLuint caster_vao = 0, caster_vbo = 0, caster_ebo = 0;
+  GLsizei caster_count = 0;
+  GLenum caster_cull = GL_FRONT;
+  std::vector<float> caster_upload;
   FlatMesh marks;
 
   ~Gpu() {
@@ -355,6 +389,9 @@ struct MeshView::Gpu {
       if (program) glDeleteProgram(program);
     if (flat_vao) glDeleteVertexArrays(1, &flat_vao);
     if (flat_vbo) glDeleteBuffers(1, &flat_vbo);
+    if (caster_vao) glDeleteVertexArrays(1, &caster_vao);
+    for (GLuint b : {caster_vbo, caster_ebo})
+      if (b) glDeleteBuffers(1, &b);
     if (detail) glDeleteTextures(1, &detail);
     if (shadow_map) glDeleteTextures(1, &shadow_map);
     if (shadow_fbo) glDeleteFramebuffers(1, &shadow_fbo);
@@ -544,6 +581,32 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       g.upload[11 * i + 10] = d[2];
     }
     dirty_ = true;
+    // The shadow caster (Gpu::caster_vao), when the physics surface can be one.
+    const geometry::TopologyReport topology = geometry::CheckTopology(rest_);
+    const double volume = geometry::SignedVolume(rest_);
+    if (topology.Closed() && topology.ConsistentlyOriented() && volume != 0 &&
+        std::isfinite(volume)) {
+      g.caster_cull = volume > 0 ? GL_FRONT : GL_BACK;
+      std::vector<uint32_t> caster_indices;
+      caster_indices.reserve(rest_.triangles.size() * 3);
+      for (const auto& t : rest_.triangles)
+        for (int v : t) caster_indices.push_back(static_cast<uint32_t>(v));
+      g.caster_count = static_cast<GLsizei>(caster_indices.size());
+      g.caster_upload.assign(rest_.positions.size() * 3, 0.0f);
+      glGenVertexArrays(1, &g.caster_vao);
+      glGenBuffers(1, &g.caster_vbo);
+      glGenBuffers(1, &g.caster_ebo);
+      glBindVertexArray(g.caster_vao);
+      glBindBuffer(GL_ARRAY_BUFFER, g.caster_vbo);
+      glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(g.caster_upload.size() * sizeof(float)),
+                   g.caster_upload.data(), GL_DYNAMIC_DRAW);
+      glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g.caster_ebo);
+      glBufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(caster_indices.size() * 4),
+                   caster_indices.data(), GL_STATIC_DRAW);
+      glEnableVertexAttribArray(0);
+      glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
+      glBindVertexArray(0);
+    }
     // The table: a square of drape under the tissue.
     const Eigen::Vector3d centre =
         centre_ - (centre_.dot(world_up_) - visual_.table_height) * world_up_;
@@ -602,6 +665,15 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(g.upload.size() * sizeof(float)),
                       g.upload.data());
     }
+    if (g.caster_vao) {
+      for (size_t i = 0; i < moved_.positions.size(); ++i)
+        for (int k = 0; k < 3; ++k)
+          g.caster_upload[3 * i + k] = static_cast<float>(moved_.positions[i][k]);
+      glBindBuffer(GL_ARRAY_BUFFER, g.caster_vbo);
+      glBufferSubData(GL_ARRAY_BUFFER, 0,
+                      static_cast<GLsizeiptr>(g.caster_upload.size() * sizeof(float)),
+                      g.caster_upload.data());
+    }
   }
 
   GLint target = 0;
@@ -648,9 +720,15 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     glUseProgram(g.shadow);
     SetMatrix(g.shadow, "uLightViewProj", light);
     SetMatrix(g.shadow, "uModel", Eigen::Matrix4d::Identity());
-    glEnable(GL_CULL_FACE);  // the tissue's lit side is what casts (half the triangles)
-    glCullFace(GL_BACK);
-    g.tissue.Draw();
+    glEnable(GL_CULL_FACE);  // one side casts: half the triangles
+    if (g.caster_vao) {
+      glCullFace(g.caster_cull);
+      glBindVertexArray(g.caster_vao);
+      glDrawElements(GL_TRIANGLES, g.caster_count, GL_UNSIGNED_INT, nullptr);
+    } else {
+      glCullFace(GL_BACK);
+      g.tissue.Draw();
+    }
     glDisable(GL_CULL_FACE);
     if (stylus) {
       SetMatrix(g.shadow, "uModel", tool.matrix());
@@ -673,7 +751,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   glDisable(GL_BLEND);
   const Eigen::Matrix4d view_projection = Projection(width, height) * View();
   const int taps = shadows ? (q == Quality::kHigh ? 4 : 1) : 0;
-  const bool detail = q != Quality::kLow || overlay.albedo_only, ao = q == Quality::kHigh;
+  const bool detail = q == Quality::kHigh || overlay.albedo_only, ao = q == Quality::kHigh;
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, shadows ? g.shadow_map : 0);
   glActiveTexture(GL_TEXTURE1);
@@ -772,40 +850,52 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
       for (const auto& p : fine_)
         lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
-      std::vector<Eigen::Vector3d> casters;
+      std::vector<Eigen::Vector3d> tissue_casters, tool_casters;
       for (int c = 0; c < 8; ++c)
-        casters.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
-                             c & 4 ? hi.z() : lo.z());
+        tissue_casters.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
+                                    c & 4 ? hi.z() : lo.z());
       if (stylus)
         for (double z : {0.0, 0.07, 0.14, 0.21})
           for (double side : {-0.05, 0.05})
-            casters.push_back(tool * Eigen::Vector3d(side, side, z));
-      const double rise = key_dir_.dot(world_up_);
-      double x0 = width, y0 = height, x1 = 0, y1 = 0;
-      for (const Eigen::Vector3d& p : casters) {
-        const double above = p.dot(world_up_) - visual_.table_height;
-        if (rise <= 0.05 || !p.allFinite()) continue;
-        const Eigen::Vector2d at =
-            Project(p - key_dir_ * std::max(above, 0.0) / rise, width, height);
-        if (!at.allFinite()) continue;
-        x0 = std::min(x0, at.x()), x1 = std::max(x1, at.x());
-        y0 = std::min(y0, at.y()), y1 = std::max(y1, at.y());
-      }
-      x0 = std::clamp(x0 - 8, 0.0, double(width)), x1 = std::clamp(x1 + 8, 0.0, double(width));
-      y0 = std::clamp(y0 - 8, 0.0, double(height)), y1 = std::clamp(y1 + 8, 0.0, double(height));
-      if (x1 > x0 && y1 > y0) {
-        glEnable(GL_SCISSOR_TEST);
-        glScissor(static_cast<GLint>(x0), static_cast<GLint>(height - y1),
-                  static_cast<GLsizei>(x1 - x0), static_cast<GLsizei>(y1 - y0));
-        glEnable(GL_BLEND);
-        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-        glDepthMask(GL_FALSE);
+            tool_casters.push_back(tool * Eigen::Vector3d(side, side, z));
+      // The tissue's and the tool's shadows each in their own screen box (one box around both
+      // would shade the empty table between a long instrument's shadow and the tissue's).
+      const auto shadow_box = [&](const std::vector<Eigen::Vector3d>& casters) {
+        const double rise = key_dir_.dot(world_up_);
+        double x0 = width, y0 = height, x1 = 0, y1 = 0;
+        for (const Eigen::Vector3d& p : casters) {
+          const double above = p.dot(world_up_) - visual_.table_height;
+          if (rise <= 0.05 || !p.allFinite()) continue;
+          const Eigen::Vector2d at =
+              Project(p - key_dir_ * std::max(above, 0.0) / rise, width, height);
+          if (!at.allFinite()) continue;
+          x0 = std::min(x0, at.x()), x1 = std::max(x1, at.x());
+          y0 = std::min(y0, at.y()), y1 = std::max(y1, at.y());
+        }
+        if (x1 < x0 || y1 < y0) return ScreenBox{};
+        const auto clamp = [](double v, int limit) {
+          return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(limit)));
+        };
+        return ScreenBox{clamp(x0 - 8, width), clamp(y0 - 8, height), clamp(x1 + 8, width),
+                         clamp(y1 + 8, height)};
+      };
+      const ScreenBox tissue_box = shadow_box(tissue_casters);
+      const ScreenBox tool_box = shadow_box(tool_casters);
+      std::vector<ScreenBox> boxes = {tissue_box};
+      for (const ScreenBox& b : Outside(tool_box, tissue_box)) boxes.push_back(b);
+      glEnable(GL_SCISSOR_TEST);
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+      glDepthMask(GL_FALSE);
+      for (const ScreenBox& b : boxes) {
+        if (b.Empty()) continue;
+        glScissor(b.x0, height - b.y1, b.x1 - b.x0, b.y1 - b.y0);
         draw_part(g.table, Eigen::Affine3d::Identity(), shaders::kShadowCatcher, drape, 1, 1, 0,
                   taps);
-        glDepthMask(GL_TRUE);
-        glDisable(GL_BLEND);
-        glDisable(GL_SCISSOR_TEST);
       }
+      glDepthMask(GL_TRUE);
+      glDisable(GL_BLEND);
+      glDisable(GL_SCISSOR_TEST);
     }
 
     // 3. Guidance marks, unlit: the twist target's band and the twist so far as arcs, the force

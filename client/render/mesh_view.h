@@ -47,9 +47,10 @@ struct Overlay {
   bool albedo_only = false;      // tests: the surface pattern without lighting or overlays
 };
 
-// kLow: no shadows, no detail texture (a software renderer on a slow machine); kMedium: the
-// shadow map (1024², one bilinear comparison) and the detail texture; kHigh: a 2048² shadow map
-// with four bilinear comparisons (a 4×4 kernel's softness), and the ambient occlusion term.
+// kLow: no shadows (a software renderer on a slow machine); kMedium: the shadow map (1024², one
+// bilinear comparison); kHigh: a 2048² shadow map with four bilinear comparisons (a 4×4 kernel's
+// softness), the per-pixel detail texture (pores, the bump) and the ambient occlusion term. Every
+// level draws the skin or organ shading with its tone and vessels (per vertex) and the instrument.
 enum class Quality { kLow, kMedium, kHigh };
 const char* QualityName(Quality q);
 
