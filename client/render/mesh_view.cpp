@@ -375,7 +375,8 @@ struct MeshView::Gpu {
   // turned away from the light (`caster_cull` culls the others). A fraction of the visual
   // surface's triangles, and the far side of a closed surface is never close enough in depth to
   // the lit side it shades to speckle it, however the fine surface sits over the coarse one.
-  // Without a closed, consistently wound physics surface the visual surface's lit side casts.
+  // Without a closed, consistently wound physics surface of at least kMinCasterTriangles the
+  // visual surface's lit side casts.
   GLuint caster_vao = 0, caster_vbo = 0, caster_ebo = 0;
   GLsizei caster_count = 0;
   GLenum caster_cull = GL_FRONT;
@@ -584,8 +585,11 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // The shadow caster (Gpu::caster_vao), when the physics surface can be one.
     const geometry::TopologyReport topology = geometry::CheckTopology(rest_);
     const double volume = geometry::SignedVolume(rest_);
+    // Fewer triangles draw a polygon for a round shadow's outline (the 256-particle sphere's 512
+    // did, visibly, on the table); 2,000 put some 64 edges around a round silhouette.
+    constexpr size_t kMinCasterTriangles = 2000;
     if (topology.Closed() && topology.ConsistentlyOriented() && volume != 0 &&
-        std::isfinite(volume)) {
+        std::isfinite(volume) && rest_.triangles.size() >= kMinCasterTriangles) {
       g.caster_cull = volume > 0 ? GL_FRONT : GL_BACK;
       std::vector<uint32_t> caster_indices;
       caster_indices.reserve(rest_.triangles.size() * 3);
