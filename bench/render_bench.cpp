@@ -2,8 +2,9 @@
 // 1280×720 by each quality level, with the instrument and the HUD, while nothing else runs.
 // "still": nothing moved since the last frame (the shadow pass and the mapping are skipped);
 // "moving": the tissue moved every frame (the visual surface mapped and uploaded again, the
-// shadow map drawn again). The station's figures with the server and the haptic threads beside
-// it come from bench/station_view.sh.
+// shadow map drawn again); "/fine": low or medium drawing the fine visual surface instead of the
+// coarse one (MeshView::SetCoarseBelowHigh), side by side in the same run. The station's figures
+// with the server and the haptic threads beside it come from bench/station_view.sh.
 //
 //   build/bin/vsurg-microbench --benchmark_filter=StationFrame
 #include <benchmark/benchmark.h>
@@ -17,7 +18,8 @@ namespace {
 
 using vsurg::client::Quality;
 
-void StationFrame(benchmark::State& state, const char* scene_name, Quality quality, bool moving) {
+void StationFrame(benchmark::State& state, const char* scene_name, Quality quality, bool moving,
+                  bool coarse) {
   auto surface = vsurg::client::GlSurface::CreateHeadless(1280, 720);
   auto scene = vsurg::sim::LoadSceneByName(scene_name);
   if (!surface.ok() || !scene.ok()) return state.SkipWithError("no headless OpenGL or scene");
@@ -26,6 +28,7 @@ void StationFrame(benchmark::State& state, const char* scene_name, Quality quali
   if (!mesh.ok() || !visual.ok()) return state.SkipWithError("scene mesh");
   vsurg::client::MeshView view(mesh->surface, std::move(*visual));
   view.SetQuality(quality);
+  view.SetCoarseBelowHigh(coarse);
   vsurg::client::Overlay overlay;
   overlay.show_stylus = true;
   overlay.tip = 0.5 * (mesh->surface.positions.front() + mesh->surface.positions.back()) +
@@ -53,20 +56,25 @@ void StationFrame(benchmark::State& state, const char* scene_name, Quality quali
     (*surface)->Finish();
   }
   state.SetLabel(std::string(scene_name) + " " + vsurg::client::QualityName(quality) +
-                 (moving ? " moving" : " still"));
+                 (moving ? " moving" : " still") + (coarse ? "" : " fine"));
 }
 
 void Register() {
   for (const char* scene : {"arm-torsion", "organ-surface-twist"})
     for (Quality q : {Quality::kLow, Quality::kMedium, Quality::kHigh})
       for (bool moving : {false, true})
-        benchmark::RegisterBenchmark(
-            (std::string("StationFrame/") + scene + "/" + vsurg::client::QualityName(q) +
-             (moving ? "/moving" : "/still"))
-                .c_str(),
-            [=](benchmark::State& s) { StationFrame(s, scene, q, moving); })
-            ->Unit(benchmark::kMillisecond)
-            ->MinTime(1.0);
+        // Low and medium draw the coarse visual surface; "/fine" is the same level drawing the
+        // fine one (high always draws the fine one).
+        for (bool coarse : {true, false}) {
+          if (!coarse && q == Quality::kHigh) continue;
+          benchmark::RegisterBenchmark(
+              (std::string("StationFrame/") + scene + "/" + vsurg::client::QualityName(q) +
+               (moving ? "/moving" : "/still") + (coarse ? "" : "/fine"))
+                  .c_str(),
+              [=](benchmark::State& s) { StationFrame(s, scene, q, moving, coarse); })
+              ->Unit(benchmark::kMillisecond)
+              ->MinTime(1.0);
+        }
 }
 const bool registered = (Register(), true);
 

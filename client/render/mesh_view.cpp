@@ -560,11 +560,26 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   const bool first = !gpu_;
   if (first) gpu_ = std::make_unique<Gpu>();
   Gpu& g = *gpu_;
+  // Below high, the coarser visual surface where there is one (VisualModel::coarse_surface):
+  // the two trade places in visual_, and the tissue's buffers are made again for it.
+  const bool want_coarse = coarse_allowed_ && quality_ != Quality::kHigh && !overlay.albedo_only &&
+                           !visual_.coarse_surface.positions.empty();
+  bool remake_tissue = first;
+  if (want_coarse != coarse_active_) {
+    std::swap(visual_.surface, visual_.coarse_surface);
+    std::swap(visual_.mapping, visual_.coarse_mapping);
+    coarse_active_ = want_coarse;
+    dirty_ = true;
+    remake_tissue = true;
+  }
   const size_t fine_count = visual_.surface.positions.size();
   if (first) {
     g.shadow = Link(shaders::kShadowVertex, shaders::kShadowFragment);
     g.flat = Link(shaders::kFlatVertex, shaders::kFlatFragment);
+  }
+  if (remake_tissue) {
     // The tissue: rest positions fixed, positions and normals rewritten when they move.
+    g.indices.clear();
     g.indices.reserve(visual_.surface.triangles.size() * 3);
     for (const auto& t : visual_.surface.triangles)
       for (int v : t) g.indices.push_back(static_cast<uint32_t>(v));
@@ -582,6 +597,8 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       g.upload[11 * i + 10] = d[2];
     }
     dirty_ = true;
+  }
+  if (first) {
     // The shadow caster (Gpu::caster_vao), when the physics surface can be one.
     const geometry::TopologyReport topology = geometry::CheckTopology(rest_);
     const double volume = geometry::SignedVolume(rest_);
@@ -662,7 +679,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
         v[3 + k] = fine_normals_[i][k];
       }
     }
-    if (first || !g.tissue.vao) {
+    if (remake_tissue || !g.tissue.vao) {
       g.tissue.Upload(g.upload, g.indices, GL_DYNAMIC_DRAW, 11);
     } else {
       glBindBuffer(GL_ARRAY_BUFFER, g.tissue.vbo);

@@ -88,11 +88,15 @@ class MeshView {
   int Apply(const std::vector<int32_t>& indices, const std::vector<geometry::Vec3>& positions);
   void ResetToRest();
   const std::vector<geometry::Vec3>& positions() const { return positions_; }
-  // The visual surface as last drawn (mapped from positions()).
+  // The visual surface as last drawn (mapped from positions()); visual().surface is that surface
+  // at rest (the coarse one below high, VisualModel::coarse_surface).
   const std::vector<Eigen::Vector3f>& visual_positions() const { return fine_; }
   const sim::VisualModel& visual() const { return visual_; }
 
   void SetQuality(Quality q) { quality_ = q; }
+  // Below high, draw the visual model's coarser surface where it has one (on by default; off
+  // draws the fine one at every level: tests and benchmarks compare the two).
+  void SetCoarseBelowHigh(bool on) { coarse_allowed_ = on; }
   Quality quality() const { return quality_; }
   // Looks from `eye` at `centre` (tests, screenshots); the fitted camera otherwise.
   void SetCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& centre,
@@ -124,6 +128,7 @@ class MeshView {
   std::unique_ptr<Gpu> gpu_;
   std::unique_ptr<Hud> hud_;
   Quality quality_ = Quality::kHigh;
+  bool coarse_allowed_ = true, coarse_active_ = false;
   // The camera (eye, centre, its up), the world's up (the table's normal) and the key light.
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::UnitY(),
                   up_ = Eigen::Vector3d::UnitZ(), world_up_ = Eigen::Vector3d::UnitZ(),

@@ -44,13 +44,21 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     auto skin = geometry::MakeLimbSkin(p, around, along);
     if (!skin.ok()) return skin.error();
     v.surface = std::move(*skin);
+    // Half the triangles: both sides by 1/√2.
+    auto coarse = geometry::MakeLimbSkin(p, std::max(24, static_cast<int>(around * 0.7071)),
+                                         std::max(8, static_cast<int>(along * 0.7071)));
+    if (!coarse.ok()) return coarse.error();
+    v.coarse_surface = std::move(*coarse);
   } else {
     int levels = 0;
     while (levels < 4 && physics.TriangleCount() << (2 * levels) < scene.visual.min_triangles)
       ++levels;
     v.surface = geometry::PhongRefine(physics, levels);
+    if (levels > 0) v.coarse_surface = geometry::PhongRefine(physics, levels - 1);
   }
   v.mapping = geometry::SurfaceMapping::Build(physics, v.surface.positions);
+  if (!v.coarse_surface.positions.empty())
+    v.coarse_mapping = geometry::SurfaceMapping::Build(physics, v.coarse_surface.positions);
   // A limb lies along z with its back (+y) up; everything else rests on its bottom (−z).
   v.up = limb ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
   double lowest = 1e30;

@@ -23,6 +23,12 @@ const char* InstrumentName(Instrument i);
 struct VisualModel {
   geometry::TriMesh surface;         // the fine surface at rest (normals included)
   geometry::SurfaceMapping mapping;  // physics surface → `surface`
+  // The same surface at about half (a limb's skin) or a quarter (a refined organ) of the
+  // triangles, for the levels a software renderer draws (client::Quality below high): silhouettes
+  // stay within a fraction of a pixel at the station's size; the per-vertex tone and vessels are
+  // sampled a little coarser. Empty for an imported visual mesh (drawn at every level as is).
+  geometry::TriMesh coarse_surface;
+  geometry::SurfaceMapping coarse_mapping;  // physics surface → `coarse_surface`
   VisualMaterial material = VisualMaterial::kSkin;
   Instrument instrument = Instrument::kProbe;
   // The table under the tissue: its upward normal (the world's up) and its height along it.

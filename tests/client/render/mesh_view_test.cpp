@@ -384,6 +384,64 @@ TEST(MeshViewTest, EverySceneDrawsWithoutBlankOrBlackFrames) {
   }
 }
 
+// Below high the station draws the visual model's coarser surface (about half or a quarter of
+// the triangles): it is the same closed, outward skin, it follows the physics surface as the fine
+// one does (a moved tissue stays drawn where the fine surface would be), and the frame looks the
+// same: silhouettes within about a pixel, shading within a few levels.
+TEST(MeshViewTest, TheCoarseSurfaceBelowHighDrawsWhatTheFineOneDraws) {
+  auto surface = GlSurface::CreateHeadless(kWidth, kHeight);
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  int with_coarse = 0;
+  for (const std::string& name : AllScenes()) {
+    SCOPED_TRACE(name);
+    SceneView s(name);
+    const sim::VisualModel& v = s.view->visual();
+    if (v.coarse_surface.positions.empty()) continue;  // an imported visual mesh
+    ++with_coarse;
+    const double ratio = double(v.coarse_surface.triangles.size()) / v.surface.triangles.size();
+    EXPECT_GT(ratio, 0.2);
+    EXPECT_LT(ratio, 0.6);
+    const geometry::TopologyReport topology = geometry::CheckTopology(v.coarse_surface);
+    EXPECT_TRUE(topology.Closed());
+    EXPECT_TRUE(topology.ConsistentlyOriented());
+    EXPECT_GT(geometry::SignedVolume(v.coarse_surface), 0);
+    // The tissue pressed in: every physics vertex 3 mm down and squeezed toward the middle
+    // (something no rest image could match), drawn both ways at medium.
+    std::vector<int32_t> all(s.mesh.surface.positions.size());
+    std::vector<geometry::Vec3> moved(all.size());
+    Eigen::Vector3d mid = Eigen::Vector3d::Zero();
+    for (const auto& p : s.mesh.surface.positions) mid += p / double(all.size());
+    for (size_t i = 0; i < all.size(); ++i) {
+      all[i] = static_cast<int32_t>(i);
+      const geometry::Vec3& p = s.mesh.surface.positions[i];
+      moved[i] = mid + 0.9 * (p - mid) - Eigen::Vector3d(0, 0, 0.003);
+    }
+    ASSERT_GT(s.view->Apply(all, moved), 0);
+    s.view->SetQuality(Quality::kMedium);
+    s.view->SetCoarseBelowHigh(false);
+    s.view->Draw(kWidth, kHeight, SceneOverlay(s));
+    const RgbImage fine = (*surface)->ReadPixels();
+    const size_t fine_vertices = s.view->visual_positions().size();
+    s.view->SetCoarseBelowHigh(true);
+    s.view->Draw(kWidth, kHeight, SceneOverlay(s));
+    const RgbImage coarse = (*surface)->ReadPixels();
+    EXPECT_LT(s.view->visual_positions().size(), fine_vertices) << "the coarse surface is drawn";
+    for (const auto& p : s.view->visual_positions()) ASSERT_TRUE(p.allFinite());
+    Keep(coarse, "coarse-" + name);
+    double sum = 0;
+    for (size_t i = 0; i < fine.rgb.size(); ++i)
+      sum += std::abs(int(fine.rgb[i]) - int(coarse.rgb[i]));
+    EXPECT_LT(sum / fine.rgb.size(), 1.5) << "mean difference per channel";
+    EXPECT_LT(Compare(fine, coarse, Eigen::Vector4d::Zero(), 48).changed, kWidth * kHeight / 100)
+        << "pixels that differ visibly";
+    // And at high the fine surface again.
+    s.view->SetQuality(Quality::kHigh);
+    s.view->Draw(kWidth, kHeight, SceneOverlay(s));
+    EXPECT_EQ(s.view->visual_positions().size(), fine_vertices);
+  }
+  EXPECT_GE(with_coarse, 5) << "limbs and refined organs have a coarse surface";
+}
+
 TEST(MeshViewTest, EverySceneMatchesItsReferenceImage) {
   constexpr int kW = 320, kH = 200;
   auto surface = GlSurface::CreateHeadless(kW, kH);
