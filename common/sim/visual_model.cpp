@@ -44,9 +44,8 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     auto skin = geometry::MakeLimbSkin(p, around, along);
     if (!skin.ok()) return skin.error();
     v.surface = std::move(*skin);
-    // Half the triangles: both sides by 1/√2.
-    auto coarse = geometry::MakeLimbSkin(p, std::max(24, static_cast<int>(around * 0.7071)),
-                                         std::max(8, static_cast<int>(along * 0.7071)));
+    // A quarter of the triangles: half the vertices around and along.
+    auto coarse = geometry::MakeLimbSkin(p, std::max(24, around / 2), std::max(8, along / 2));
     if (!coarse.ok()) return coarse.error();
     v.coarse_surface = std::move(*coarse);
   } else {

@@ -23,10 +23,11 @@ const char* InstrumentName(Instrument i);
 struct VisualModel {
   geometry::TriMesh surface;         // the fine surface at rest (normals included)
   geometry::SurfaceMapping mapping;  // physics surface → `surface`
-  // The same surface at about half (a limb's skin) or a quarter (a refined organ) of the
-  // triangles, for the levels a software renderer draws (client::Quality below high): silhouettes
-  // stay within a fraction of a pixel at the station's size; the per-vertex tone and vessels are
-  // sampled a little coarser. Empty for an imported visual mesh (drawn at every level as is).
+  // The same surface at about a quarter of the triangles (a limb's skin at half the vertices
+  // around and along, an organ refined one level less), for the levels a software renderer draws
+  // (client::Quality below high): silhouettes stay within a fraction of a pixel at the station's
+  // size; the per-vertex tone and vessels are sampled a little coarser. Empty for an imported
+  // visual mesh (drawn at every level as is).
   geometry::TriMesh coarse_surface;
   geometry::SurfaceMapping coarse_mapping;  // physics surface → `coarse_surface`
   VisualMaterial material = VisualMaterial::kSkin;
