@@ -375,8 +375,9 @@ struct MeshView::Gpu {
   // turned away from the light (`caster_cull` culls the others). A fraction of the visual
   // surface's triangles, and the far side of a closed surface is never close enough in depth to
   // the lit side it shades to speckle it, however the fine surface sits over the coarse one.
-  // Without a closed, consistently wound physics surface of at least kMinCasterTriangles, or
-  // when the visual surface drawn has fewer triangles, the visual surface's lit side casts.
+  // Without a closed, consistently wound physics surface of at least kMinCasterTriangles the
+  // visual surface's lit side casts. (Casting the lit side of the arm's coarse skin instead, with
+  // half the physics surface's triangles, speckled its lower edge along the terminator.)
   GLuint caster_vao = 0, caster_vbo = 0, caster_ebo = 0;
   GLsizei caster_count = 0;
   GLenum caster_cull = GL_FRONT;
@@ -742,9 +743,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     SetMatrix(g.shadow, "uLightViewProj", light);
     SetMatrix(g.shadow, "uModel", Eigen::Matrix4d::Identity());
     glEnable(GL_CULL_FACE);  // one side casts: half the triangles
-    // The physics surface when it has fewer triangles than the visual surface drawn (the arm's
-    // 12 k against its 23 k fine skin; not against its 6 k coarse one).
-    if (g.caster_vao && rest_.triangles.size() < visual_.surface.triangles.size()) {
+    if (g.caster_vao) {
       glCullFace(g.caster_cull);
       glBindVertexArray(g.caster_vao);
       glDrawElements(GL_TRIANGLES, g.caster_count, GL_UNSIGNED_INT, nullptr);
