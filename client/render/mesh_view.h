@@ -50,7 +50,9 @@ struct Overlay {
 // kLow: no shadows (a software renderer on a slow machine); kMedium: the shadow map (1024², one
 // bilinear comparison); kHigh: a 2048² shadow map with four bilinear comparisons (a 4×4 kernel's
 // softness), the per-pixel detail texture (pores, the bump) and the ambient occlusion term. Every
-// level draws the skin or organ shading with its tone and vessels (per vertex) and the instrument.
+// level draws the skin or organ shading with its tone and vessels (per vertex) and the instrument;
+// below high the tissue's diffuse light (key, fill, sky) is computed per vertex too, its specular
+// lobes and shadow per pixel.
 enum class Quality { kLow, kMedium, kHigh };
 const char* QualityName(Quality q);
 

@@ -2,7 +2,67 @@
 
 namespace vsurg::client::shaders {
 
-const char* const kSceneVertex = R"(#version 330 core
+// Both stages of the lit surfaces, after the variant's #defines: the uniforms, the tissue's
+// albedo and the key, fill and sky light that does not depend on the view. Below high the tissue
+// takes those per vertex (VERTEX_LIGHT): they vary over centimetres, which its vertices resolve,
+// and on a software renderer every term moved out of the pixel is time saved on every pixel.
+const char* const kSceneCommon = R"(
+uniform vec3 uEye;
+uniform vec3 uKeyDir;         // unit, toward the key light
+uniform vec3 uKeyColour;
+uniform vec3 uFillDir;
+uniform vec3 uFillColour;
+uniform vec3 uUp;
+uniform vec3 uSky;
+uniform vec3 uGround;
+uniform vec3 uAlbedo;
+#define TISSUE (MATERIAL == 0 || MATERIAL == 1 || MATERIAL == 2)
+#define WET (MATERIAL == 1 || MATERIAL == 2)
+#define POLISHED (MATERIAL == 3 || MATERIAL == 4)
+#define VERTEX_LIGHT (TISSUE && !DETAIL && !AO && !ALBEDO_ONLY)
+
+// d: r tone, g pores, b veins or vessels, a height.
+vec3 Albedo(vec4 d) {
+  vec3 albedo = uAlbedo;
+#if MATERIAL == 0  // skin: tone, pores and faint veins
+  albedo *= mix(0.80, 1.12, d.r);
+  albedo *= 1.0 - 0.14 * d.g;
+  albedo = mix(albedo, albedo * vec3(0.78, 0.80, 1.02), 0.55 * d.b);
+#elif WET  // organ, kidney: mottling and vessels
+  albedo *= mix(0.80, 1.12, d.r);
+  vec3 vessel = MATERIAL == 2 ? vec3(0.22, 0.05, 0.08) : vec3(0.30, 0.06, 0.07);
+  albedo = mix(albedo, vessel, 0.6 * d.b);
+#elif MATERIAL == 5  // the drape's weave
+  albedo *= mix(0.85, 1.05, d.r);
+#endif
+  return albedo;
+}
+
+// The diffuse light, split by the key light's shadow: always + shadow * lit (shadow 1 = lit).
+void Diffuse(vec3 n, vec3 albedo, float ao, out vec3 always, out vec3 lit) {
+  float NoL = dot(n, uKeyDir);
+#if MATERIAL == 0
+  // Skin: wrapped diffuse, red reaching furthest past the terminator, and in the shadow the
+  // light still scattering in.
+  vec3 w = vec3(0.55, 0.30, 0.22);
+  vec3 wrapped = albedo * uKeyColour * clamp((vec3(NoL) + w) / ((1.0 + w) * (1.0 + w)), 0.0, 1.0);
+  always = wrapped * vec3(0.55, 0.35, 0.3);
+  lit = wrapped - always;
+#elif MATERIAL == 3  // metal: no diffuse
+  always = vec3(0.0);
+  lit = vec3(0.0);
+#else
+  always = vec3(0.0);
+  lit = albedo * uKeyColour * max(NoL, 0.0);
+#endif
+#if MATERIAL != 3
+  always += albedo * uFillColour * max(dot(n, uFillDir), 0.0);
+  always += albedo * mix(uGround, uSky, 0.5 + 0.5 * dot(n, uUp)) * ao;
+#endif
+}
+)";
+
+const char* const kSceneVertex = R"(
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec3 aRest;
@@ -16,6 +76,10 @@ out vec3 vNormal;
 out vec3 vRest;
 out vec4 vLight;
 out vec2 vBroad;
+#if VERTEX_LIGHT
+out vec3 vAlways;  // Diffuse(), per vertex
+out vec3 vLit;
+#endif
 void main() {
   vec4 world = uModel * vec4(aPosition, 1.0);
   vBroad = aBroad;
@@ -24,32 +88,33 @@ void main() {
   vRest = aRest;
   vLight = uLightViewProj * world;
   gl_Position = uViewProj * world;
+#if VERTEX_LIGHT
+  vec3 n = normalize(vNormal);
+  if (dot(n, uEye - vWorld) < 0.0) n = -n;  // the inside of an open rim
+  Diffuse(n, Albedo(vec4(aBroad.x, 0.0, aBroad.y, 0.5)), 1.0, vAlways, vLit);
+#endif
 }
 )";
 
-// Compiled once per variant (mesh_view.cpp prepends the #defines): MATERIAL (shaders.h),
-// SHADOW_TAPS (0, 1, 4), DETAIL, AO and ALBEDO_ONLY (0 or 1). A software renderer runs both sides
-// of a branch under a mask, so what a variant does not need is compiled out, not branched over.
+// Compiled once per variant (mesh_view.cpp prepends the #defines and kSceneCommon): MATERIAL
+// (shaders.h), SHADOW_TAPS (0, 1, 4), DETAIL, AO and ALBEDO_ONLY (0 or 1). A software renderer
+// runs both sides of a branch under a mask, so what a variant does not need is compiled out, not
+// branched over.
 const char* const kSceneFragment = R"(
 in vec3 vWorld;
 in vec3 vNormal;
 in vec3 vRest;
 in vec4 vLight;
 in vec2 vBroad;
+#if VERTEX_LIGHT
+in vec3 vAlways;
+in vec3 vLit;
+#endif
 uniform sampler2DShadow uShadowMap;
 uniform float uShadowTexel;   // 1 / shadow map size
 uniform sampler3D uDetail;    // r: tone, g: pores, b: veins, a: height (tiling)
 uniform float uDetailScale;   // texture repeats per metre of rest position
 uniform float uBumpDepth;     // m, the height's amplitude
-uniform vec3 uEye;
-uniform vec3 uKeyDir;         // unit, toward the key light
-uniform vec3 uKeyColour;
-uniform vec3 uFillDir;
-uniform vec3 uFillColour;
-uniform vec3 uUp;
-uniform vec3 uSky;
-uniform vec3 uGround;
-uniform vec3 uAlbedo;
 uniform float uRoughness;
 uniform float uTableHeight;   // m along uUp
 uniform vec3 uFootCentre;     // the tissue's footprint on the table: an ellipse
@@ -58,10 +123,6 @@ uniform vec3 uFootB;
 out vec4 fragColour;
 
 const float PI = 3.14159265;
-#define TISSUE (MATERIAL == 0 || MATERIAL == 1 || MATERIAL == 2)
-#define WET (MATERIAL == 1 || MATERIAL == 2)
-#define POLISHED (MATERIAL == 3 || MATERIAL == 4)
-
 float DistributionGgx(float NoH, float a) {
   float a2 = a * a;
   float d = NoH * NoH * (a2 - 1.0) + 1.0;
@@ -154,26 +215,15 @@ void main() {
   n = abs(det) > 1e-14 && dot(bumped, bumped) > 0.0 ? normalize(bumped) : n;
 #endif
 #endif
-  vec3 albedo = uAlbedo;
   float roughness = uRoughness;
   vec3 f0 = vec3(0.028);
-#if MATERIAL == 0  // skin: tone, pores and faint veins
-  albedo *= mix(0.80, 1.12, d.r);
-  albedo *= 1.0 - 0.14 * d.g;
-  albedo = mix(albedo, albedo * vec3(0.78, 0.80, 1.02), 0.55 * d.b);
-#elif WET  // organ, kidney: mottling and vessels
-  albedo *= mix(0.80, 1.12, d.r);
-  vec3 vessel = MATERIAL == 2 ? vec3(0.22, 0.05, 0.08) : vec3(0.30, 0.06, 0.07);
-  albedo = mix(albedo, vessel, 0.6 * d.b);
-#elif MATERIAL == 3  // metal: the albedo is the reflectance
+#if MATERIAL == 3  // metal: the albedo is the reflectance
   f0 = uAlbedo;
 #elif MATERIAL == 4
   f0 = vec3(0.04);
-#elif MATERIAL == 5  // the drape's weave
-  albedo *= mix(0.85, 1.05, d.r);
 #endif
 #if ALBEDO_ONLY
-  fragColour = vec4(pow(clamp(albedo, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+  fragColour = vec4(pow(clamp(Albedo(d), 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
 #else
   // Ambient occlusion, cheap: tissue near the table and facing it is darker; the table is
   // darker under the tissue's footprint.
@@ -187,17 +237,11 @@ void main() {
   ao = mix(0.45, 1.0, smoothstep(0.0, 0.03, height)) * (0.8 + 0.2 * dot(n, uUp));
 #endif
   float shadow = Shadow();
-  float NoL = dot(n, uKeyDir);
-#if MATERIAL == 0
-  // Skin: wrapped diffuse, red reaching furthest past the terminator, and in the shadow the
-  // light still scattering in.
-  vec3 w = vec3(0.55, 0.30, 0.22);
-  vec3 wrapped = clamp((vec3(NoL) + w) / ((1.0 + w) * (1.0 + w)), 0.0, 1.0);
-  vec3 diffuse = albedo * uKeyColour * mix(wrapped * vec3(0.55, 0.35, 0.3), wrapped, shadow);
-#elif MATERIAL == 3
-  vec3 diffuse = vec3(0.0);
+#if VERTEX_LIGHT
+  vec3 always = vAlways, lit = vLit;
 #else
-  vec3 diffuse = albedo * uKeyColour * max(NoL, 0.0) * shadow;
+  vec3 always, lit;
+  Diffuse(n, Albedo(d), ao, always, lit);
 #endif
 #if MATERIAL == 5
   vec3 spec = vec3(0.0);  // cloth: no highlight worth its cost
@@ -207,20 +251,13 @@ void main() {
 #if WET  // the wet film: a second, sharp lobe
   spec += 0.9 * Specular(n, v, uKeyDir, vec3(0.02), 0.12) * uKeyColour * shadow;
 #endif
-#if MATERIAL == 3
-  vec3 lit_albedo = vec3(0.0);
-#else
-  vec3 lit_albedo = albedo;
-#endif
-  vec3 fill = lit_albedo * uFillColour * max(dot(n, uFillDir), 0.0);
-  vec3 hemi = mix(uGround, uSky, 0.5 + 0.5 * dot(n, uUp));
-  vec3 ambient = lit_albedo * hemi * ao;
+  vec3 colour = always + lit * shadow + spec;
 #if POLISHED  // a polished surface reflects the room
   vec3 rv = reflect(-v, n);
   float NoV = max(dot(n, v), 0.0);
-  ambient += Environment(rv, roughness) * FresnelSchlick(f0, NoV) * ao * (1.0 - roughness * 0.5);
+  colour += Environment(rv, roughness) * FresnelSchlick(f0, NoV) * ao * (1.0 - roughness * 0.5);
 #endif
-  fragColour = vec4(Tonemap(diffuse + spec + fill + ambient), 1.0);
+  fragColour = vec4(Tonemap(colour), 1.0);
 #endif
 #endif
 }

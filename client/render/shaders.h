@@ -13,9 +13,11 @@
 
 namespace vsurg::client::shaders {
 
-extern const char* const kSceneVertex;  // tissue, table, instrument: position, normal, rest
-// All lit surfaces, without its #version line: compiled per variant with MATERIAL,
-// SHADOW_TAPS, DETAIL, AO and ALBEDO_ONLY defined (mesh_view.cpp).
+// The lit surfaces (tissue, table, instrument), each stage without its #version line: compiled
+// per variant with MATERIAL, SHADOW_TAPS, DETAIL, AO and ALBEDO_ONLY defined (mesh_view.cpp),
+// then kSceneCommon (what both stages use), then the stage.
+extern const char* const kSceneCommon;
+extern const char* const kSceneVertex;  // position, normal, rest position, broad detail
 extern const char* const kSceneFragment;
 extern const char* const kShadowVertex;    // depth only, from the key light
 extern const char* const kShadowFragment;  // empty: depth is written by the fixed stage
