@@ -56,6 +56,18 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # the reduced twist keeps none beyond its input, like the coil.
   long+='|EveryModel/StateTest.ATrialCarriedToANewSimulationGoesOnAsIfItHadNotMoved/sphere_palpation_256'
   long+='|EveryModel/StateTest.ATrialCarriedToANewSimulationGoesOnAsIfItHadNotMoved/arm_torsion_reduced'
+  # Whole trials across the emulated networks (bench/wan): real-time runs of 17-26 s each that
+  # measure what the trainee feels, and the kidney's scripted trainees (a minute here): 3 of the
+  # ASan stage's 6.6 test minutes in a CI run of 39.5 against the 35-minute aim. The relay, the
+  # local model and the channel stay under ASan in the network's safety run (kept below) and in
+  # the station channel's and the local model's own tests; the kidney's import and press in
+  # OrganSceneTest.TheKidneyIsTetrahedralisedAndSinksUnderThePress.
+  long+='|WanTest.TheModelHoldsContactPassivelyAtMetroAndContinental'
+  long+='|WanTest.TheDeadbandSendsAFractionAndKeepsTheForce'
+  long+='|WanTest.AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself'
+  long+='|WanTest.TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel'
+  long+='|WanTest.TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork'
+  long+='|OrganSceneTest.ScriptedTraineesPalpateTheKidney'
   # The OpenGL group (software rendering, a minute) runs beside the others, not after them.
   ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
     ctest --test-dir "$root/build-asan" --output-on-failure --timeout 600 -R "$gl" \
@@ -89,9 +101,21 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   single+=':EveryModel/StateTest.*:StateRefusalTest.*'  # live migration's state: one thread
   single+=':LocalModelTest.AContactsModelCarriesTheSlope*'  # two unthreaded presses
   declare -A filter=([simulation_test]="-$single")
-  for s in "${suites[@]}"; do
-    echo "tsan: $s"
+  # The simulation's threaded tests (a minute) run beside the other suites (half a minute, one
+  # after another), each suite's output kept apart and shown whole.
+  run_tsan() {
+    echo "tsan: $1"
     TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$supp/tsan.supp" \
-      "$root/build-tsan/bin/$s" --gtest_brief=1 "--gtest_filter=${filter[$s]:-*}"
+      "$root/build-tsan/bin/$1" --gtest_brief=1 "--gtest_filter=${filter[$1]:-*}"
+  }
+  run_tsan simulation_test > "$root/build-tsan/simulation_test.log" 2>&1 &
+  sim_pid=$!
+  status=0
+  for s in "${suites[@]}"; do
+    [ "$s" = simulation_test ] || run_tsan "$s" || { status=$?; break; }
   done
+  sim_status=0
+  wait "$sim_pid" || sim_status=$?
+  cat "$root/build-tsan/simulation_test.log"
+  [ "$status" = 0 ] && [ "$sim_status" = 0 ] || exit 1
 fi
