@@ -860,6 +860,18 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
     glClear(GL_DEPTH_BUFFER_BIT);
   }
+  // The instrument first: it is nearer than the tissue where they overlap, so the tissue's
+  // pixels behind it fail the depth test before they are shaded.
+  if (stylus && !overlay.albedo_only) {
+    const Eigen::Vector3d steel(0.78, 0.78, 0.80);
+    draw_part(g.steel, tool, shaders::kMetal, steel, 0.28, 1, 0, taps);
+    draw_part(g.handle, tool, shaders::kPlastic, Eigen::Vector3d(0.035, 0.04, 0.05), 0.45, 1, 0,
+              taps);
+    if (g.instrument.has_jaws)
+      for (int side = 0; side < 2; ++side)
+        draw_part(g.jaw, jaw_pose(side), shaders::kMetal, Eigen::Vector3d(0.70, 0.71, 0.73), 0.38,
+                  1, 0, taps);
+  }
   const MaterialLook look = LookOf(visual_.material);
   // The visual surface is closed and wound outward (tested): its back half is culled, which on a
   // software renderer halves the triangles set up.
@@ -869,19 +881,9 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
             look.detail_scale, look.bump_depth, taps);
   glDisable(GL_CULL_FACE);
   if (!overlay.albedo_only) {
-    if (stylus) {
-      const Eigen::Vector3d steel(0.78, 0.78, 0.80);
-      draw_part(g.steel, tool, shaders::kMetal, steel, 0.28, 1, 0, taps);
-      draw_part(g.handle, tool, shaders::kPlastic, Eigen::Vector3d(0.035, 0.04, 0.05), 0.45, 1, 0,
-                taps);
-      if (g.instrument.has_jaws)
-        for (int side = 0; side < 2; ++side)
-          draw_part(g.jaw, jaw_pose(side), shaders::kMetal, Eigen::Vector3d(0.70, 0.71, 0.73), 0.38,
-                    1, 0, taps);
-    }
-    // The shadows on the table: blended over the background's table, only within the screen
-    // box of where the tissue's and the tool's shadows can fall (the table covers most of the
-    // frame; shading all of it for a shadow a fifth its size is what cost the most).
+    // The shadows on the table: blended over the background's table, only where the tissue's
+    // and the tool's shadows can fall (the table covers most of the frame; shading all of it for
+    // a shadow a fifth its size is what cost the most).
     if (shadows) {
       Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
       for (const auto& p : fine_)

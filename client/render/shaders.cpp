@@ -146,6 +146,18 @@ vec3 Specular(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness) {
   float a = max(roughness * roughness, 0.002);
   return DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * FresnelSchlick(f0, VoH) * NoL;
 }
+// Specular() plus 0.9 × the wet film's lobe (f0 0.02, roughness 0.12), the half vector and the
+// angles found once for both.
+vec3 Specular2(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness) {
+  vec3 h = normalize(v + l);
+  float NoL = max(dot(n, l), 0.0), NoV = max(dot(n, v), 1e-4);
+  float NoH = max(dot(n, h), 0.0), VoH = max(dot(v, h), 0.0);
+  float a = max(roughness * roughness, 0.002), film = 0.12 * 0.12;
+  float f = 1.0 - VoH, f2 = f * f, f5 = f2 * f2 * f;
+  vec3 base = DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * (f0 + (1.0 - f0) * f5);
+  float wet = DistributionGgx(NoH, film) * VisibilitySmith(NoV, NoL, film) * (0.02 + 0.98 * f5);
+  return (base + 0.9 * wet) * NoL;
+}
 float Shadow() {
 #if SHADOW_TAPS == 0
   return 1.0;
@@ -245,11 +257,10 @@ void main() {
 #endif
 #if MATERIAL == 5
   vec3 spec = vec3(0.0);  // cloth: no highlight worth its cost
+#elif WET  // the wet film: a second, sharp lobe (0.9 of one with f0 0.02, roughness 0.12)
+  vec3 spec = Specular2(n, v, uKeyDir, f0, roughness) * uKeyColour * shadow;
 #else
   vec3 spec = Specular(n, v, uKeyDir, f0, roughness) * uKeyColour * shadow;
-#endif
-#if WET  // the wet film: a second, sharp lobe
-  spec += 0.9 * Specular(n, v, uKeyDir, vec3(0.02), 0.12) * uKeyColour * shadow;
 #endif
   vec3 colour = always + lit * shadow + spec;
 #if POLISHED  // a polished surface reflects the room
