@@ -32,16 +32,20 @@ struct Cell {
 };
 
 // When a pull after the contact fails its bound, what the hand did around it, for the log: every
-// 10th cycle from 50 before the reference's last felt force to 250 after, both runs (the hand's
-// z, along which the sphere is pressed, and its plan's, in mm; the force's norm in N). A pull on
-// a hand already past the surface and a hand still pressing read apart here.
+// 10th cycle from 150 before the largest force after the reference's last contact to 100 after,
+// both runs (the hand's z, along which the sphere is pressed, and its plan's, in mm; the force's
+// norm in N). A pull on a hand already past the surface and a hand still pressing read apart.
 void PrintAfterContact(const Run& a, const Run& ref) {
-  size_t last_felt = 0;
-  for (size_t k = 0; k < ref.trace.size(); ++k)
-    if (ref.trace[k].force.norm() >= 0.01) last_felt = k;
-  std::printf("cycle  z_mm plan_mm force_n | reference z_mm force_n\n");
   const size_t n = std::min(a.trace.size(), ref.trace.size());
-  for (size_t k = last_felt > 50 ? last_felt - 50 : 0; k < std::min(n, last_felt + 250); k += 10)
+  size_t last_felt = 0, worst = 0;
+  for (size_t k = 0; k < n; ++k)
+    if (ref.trace[k].force.norm() >= 0.01) last_felt = k;
+  for (size_t k = last_felt + 20; k < n; ++k)
+    if (a.trace[k].force.norm() > a.trace[worst].force.norm()) worst = k;
+  std::printf("reference's last contact at cycle %zu, the largest force after it at %zu\n",
+              last_felt, worst);
+  std::printf("cycle  z_mm plan_mm force_n | reference z_mm force_n\n");
+  for (size_t k = worst > 150 ? worst - 150 : 0; k < std::min(n, worst + 100); k += 10)
     std::printf("%5zu %6.2f %6.2f %7.3f | %6.2f %7.3f\n", k, 1e3 * a.trace[k].x.z(),
                 1e3 * a.trace[k].plan.z(), a.trace[k].force.norm(), 1e3 * ref.trace[k].x.z(),
                 ref.trace[k].force.norm());
