@@ -316,6 +316,18 @@ Quality QualityGovernor::Update(double frame_ms) {
 
 namespace {
 
+// The operating table: a square of drape under the tissue, `half` from its centre along e1 and
+// e2 (the plane's axes), its top at the scene's table height.
+struct TableFrame {
+  Eigen::Vector3d centre, e1, e2;
+  double half;
+};
+TableFrame Table(const Eigen::Vector3d& scene_centre, const Eigen::Vector3d& up, double height,
+                 double radius) {
+  const Eigen::Vector3d e1 = up.unitOrthogonal();
+  return {scene_centre - (scene_centre.dot(up) - height) * up, e1, up.cross(e1), radius * 8};
+}
+
 // The convex hull of points in a plane, counter-clockwise (Andrew's monotone chain). Our own:
 // fifteen lines where CGAL's convex_hull_2 would bring its headers into the renderer.
 std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
@@ -638,14 +650,11 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       glBindVertexArray(0);
     }
     // The table: a square of drape under the tissue.
-    const Eigen::Vector3d centre =
-        centre_ - (centre_.dot(world_up_) - visual_.table_height) * world_up_;
-    const Eigen::Vector3d e1 = world_up_.unitOrthogonal(), e2 = world_up_.cross(e1);
-    const double half = radius_ * 8;
+    const TableFrame t = Table(centre_, world_up_, visual_.table_height, radius_);
     ShapeMesh table;
     for (int c = 0; c < 4; ++c) {
-      const Eigen::Vector3d p = centre + half * ((c == 1 || c == 2) ? e1 : -e1) +
-                                half * (c >= 2 ? e2 : -e2) - 0.0005 * world_up_;
+      const Eigen::Vector3d p = t.centre + t.half * ((c == 1 || c == 2) ? t.e1 : -t.e1) +
+                                t.half * (c >= 2 ? t.e2 : -t.e2) - 0.0005 * world_up_;
       table.positions.push_back(p.cast<float>());
       table.normals.push_back(world_up_.cast<float>());
     }
@@ -902,29 +911,27 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       // the shadow's own pixels: the table covers most of the frame.) The tissue's polygon lies
       // 0.1 mm above the tool's and both write depth, so where they overlap the table's shadow is
       // blended once.
-      const double rise = key_dir_.dot(world_up_);
-      const Eigen::Vector3d e1 = world_up_.unitOrthogonal(), e2 = world_up_.cross(e1);
-      const Eigen::Vector3d origin =
-          centre_ - (centre_.dot(world_up_) - visual_.table_height) * world_up_;
-      const double half = radius_ * 8, margin = radius_ * 0.03;
+      const double rise = key_dir_.dot(world_up_), margin = radius_ * 0.03;
+      const TableFrame t = Table(centre_, world_up_, visual_.table_height, radius_);
       ShapeMesh catcher;
       const auto add_catcher = [&](const std::vector<Eigen::Vector3d>& casters, double below) {
+        if (rise <= 0.05) return;  // a light grazing the table: no shadow drawn on it
         std::vector<Eigen::Vector2d> points;
         for (const Eigen::Vector3d& p : casters) {
-          if (rise <= 0.05 || !p.allFinite()) continue;
+          if (!p.allFinite()) continue;
           const double above = p.dot(world_up_) - visual_.table_height;
-          const Eigen::Vector3d d = p - key_dir_ * std::max(above, 0.0) / rise - origin;
+          const Eigen::Vector3d d = p - key_dir_ * std::max(above, 0.0) / rise - t.centre;
           for (double sx : {-margin, margin})
             for (double sy : {-margin, margin})
-              points.emplace_back(std::clamp(d.dot(e1) + sx, -half, half),
-                                  std::clamp(d.dot(e2) + sy, -half, half));
+              points.emplace_back(std::clamp(d.dot(t.e1) + sx, -t.half, t.half),
+                                  std::clamp(d.dot(t.e2) + sy, -t.half, t.half));
         }
         const std::vector<Eigen::Vector2d> hull = ConvexHull(std::move(points));
         if (hull.size() < 3) return;
         const auto base = static_cast<uint32_t>(catcher.positions.size());
         for (const Eigen::Vector2d& v : hull) {
           catcher.positions.push_back(
-              (origin + v.x() * e1 + v.y() * e2 - below * world_up_).cast<float>());
+              (t.centre + v.x() * t.e1 + v.y() * t.e2 - below * world_up_).cast<float>());
           catcher.normals.push_back(world_up_.cast<float>());
         }
         for (uint32_t i = 1; i + 1 < hull.size(); ++i)

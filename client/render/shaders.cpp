@@ -139,24 +139,20 @@ vec3 FresnelSchlick(vec3 f0, float VoH) {
   float f2 = f * f;
   return f0 + (1.0 - f0) * (f2 * f2 * f);
 }
+// The key light's lobe; on a wet surface plus 0.9 × the film's sharp one (f0 0.02, roughness
+// 0.12), sharing the half vector and the angles.
 vec3 Specular(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness) {
   vec3 h = normalize(v + l);
   float NoL = max(dot(n, l), 0.0), NoV = max(dot(n, v), 1e-4);
   float NoH = max(dot(n, h), 0.0), VoH = max(dot(v, h), 0.0);
   float a = max(roughness * roughness, 0.002);
-  return DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * FresnelSchlick(f0, VoH) * NoL;
-}
-// Specular() plus 0.9 × the wet film's lobe (f0 0.02, roughness 0.12), the half vector and the
-// angles found once for both.
-vec3 Specular2(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness) {
-  vec3 h = normalize(v + l);
-  float NoL = max(dot(n, l), 0.0), NoV = max(dot(n, v), 1e-4);
-  float NoH = max(dot(n, h), 0.0), VoH = max(dot(v, h), 0.0);
-  float a = max(roughness * roughness, 0.002), film = 0.12 * 0.12;
-  float f = 1.0 - VoH, f2 = f * f, f5 = f2 * f2 * f;
-  vec3 base = DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * (f0 + (1.0 - f0) * f5);
-  float wet = DistributionGgx(NoH, film) * VisibilitySmith(NoV, NoL, film) * (0.02 + 0.98 * f5);
-  return (base + 0.9 * wet) * NoL;
+  vec3 spec = DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * FresnelSchlick(f0, VoH);
+#if WET
+  float film = 0.12 * 0.12;
+  spec += 0.9 * DistributionGgx(NoH, film) * VisibilitySmith(NoV, NoL, film) *
+          FresnelSchlick(vec3(0.02), VoH);
+#endif
+  return spec * NoL;
 }
 float Shadow() {
 #if SHADOW_TAPS == 0
@@ -257,9 +253,7 @@ void main() {
 #endif
 #if MATERIAL == 5
   vec3 spec = vec3(0.0);  // cloth: no highlight worth its cost
-#elif WET  // the wet film: a second, sharp lobe (0.9 of one with f0 0.02, roughness 0.12)
-  vec3 spec = Specular2(n, v, uKeyDir, f0, roughness) * uKeyColour * shadow;
-#else
+#else  // on a wet surface with the film's second, sharp lobe
   vec3 spec = Specular(n, v, uKeyDir, f0, roughness) * uKeyColour * shadow;
 #endif
   vec3 colour = always + lit * shadow + spec;
