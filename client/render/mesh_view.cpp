@@ -382,6 +382,9 @@ struct MeshView::Gpu {
   GLuint detail = 0;
   GLuint shadow_fbo = 0, shadow_map = 0;
   int shadow_size = 0;
+  // The shadow map's texels the last pass wrote (x0, y0, x1, y1; empty when none): the next pass
+  // clears them with its own, and nothing outside them.
+  std::array<int, 4> shadow_written{};
   // The background (the table and its drape, as they look while the camera, the frame's size and
   // the quality stay), drawn once and copied into every frame.
   GLuint background_fbo = 0, background_colour = 0, background_depth = 0;
@@ -429,8 +432,10 @@ struct MeshView::Gpu {
       glGenFramebuffers(1, &shadow_fbo);
     }
     glBindTexture(GL_TEXTURE_2D, shadow_map);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, size, size, 0, GL_DEPTH_COMPONENT,
-                 GL_UNSIGNED_INT, nullptr);
+    // 16-bit depth: half the bytes of 24 (stored in 32) to clear and to read, and over the light's
+    // box (some 10 scene radii deep) a step of about 25 µm for the arm, under the polygon offset.
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT16, size, size, 0, GL_DEPTH_COMPONENT,
+                 GL_UNSIGNED_SHORT, nullptr);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -443,8 +448,10 @@ struct MeshView::Gpu {
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, shadow_map, 0);
     glDrawBuffer(GL_NONE);
     glReadBuffer(GL_NONE);
+    glClear(GL_DEPTH_BUFFER_BIT);  // the whole map once; each pass then clears what it wrote
     glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(previous));
     shadow_size = size;
+    shadow_written = {};
   }
 };
 
@@ -751,6 +758,53 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     g.EnsureShadowMap(size);
     glBindFramebuffer(GL_FRAMEBUFFER, g.shadow_fbo);
     glViewport(0, 0, size, size);
+    // Only the texels the casters can cover are cleared and drawn, with those the last pass wrote
+    // (the rest still hold the first clear): the tissue's box and the tool's, projected along the
+    // light, widened by two texels. A software renderer clears and rasterises per 64² tile, and
+    // the casters cover a third of the map or less.
+    std::array<int, 4> rect{size, size, 0, 0};
+    {
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+      for (const auto& p : fine_)
+        lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
+      for (const auto& p : moved_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+      std::vector<Eigen::Vector3d> corners;
+      for (int c = 0; c < 8; ++c)
+        corners.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
+                             c & 4 ? hi.z() : lo.z());
+      if (stylus)
+        for (int c = 0; c < 8; ++c)
+          corners.push_back(tool * Eigen::Vector3d(c & 1 ? 0.05 : -0.05, c & 2 ? 0.05 : -0.05,
+                                                   c & 4 ? 0.21 : -0.01));
+      for (const Eigen::Vector3d& p : corners) {
+        const Eigen::Vector4d clip = light * p.homogeneous();
+        if (!clip.allFinite()) {
+          rect = {0, 0, size, size};
+          break;
+        }
+        const double tx = (clip.x() / clip.w() + 1) * 0.5 * size,
+                     ty = (clip.y() / clip.w() + 1) * 0.5 * size;
+        rect[0] =
+            std::min(rect[0], static_cast<int>(std::floor(std::clamp(tx, -1.0, size + 1.0))) - 2);
+        rect[1] =
+            std::min(rect[1], static_cast<int>(std::floor(std::clamp(ty, -1.0, size + 1.0))) - 2);
+        rect[2] =
+            std::max(rect[2], static_cast<int>(std::ceil(std::clamp(tx, -1.0, size + 1.0))) + 2);
+        rect[3] =
+            std::max(rect[3], static_cast<int>(std::ceil(std::clamp(ty, -1.0, size + 1.0))) + 2);
+      }
+      for (int k : {0, 1}) rect[k] = std::clamp(rect[k], 0, size);
+      for (int k : {2, 3}) rect[k] = std::clamp(rect[k], 0, size);
+    }
+    std::array<int, 4> clear = rect;
+    if (g.shadow_written[2] > g.shadow_written[0]) {
+      for (int k : {0, 1}) clear[k] = std::min(clear[k], g.shadow_written[k]);
+      for (int k : {2, 3}) clear[k] = std::max(clear[k], g.shadow_written[k]);
+    }
+    g.shadow_written = rect;
+    glEnable(GL_SCISSOR_TEST);
+    glScissor(clear[0], clear[1], std::max(clear[2] - clear[0], 0),
+              std::max(clear[3] - clear[1], 0));
     glClear(GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
@@ -786,6 +840,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
         }
     }
     glDisable(GL_POLYGON_OFFSET_FILL);
+    glDisable(GL_SCISSOR_TEST);
     glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
   }
 
