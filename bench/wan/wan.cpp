@@ -156,7 +156,9 @@ Figures Compare(const Run& run, const Run& ref, bool press_scene) {
   // cycles' grace for the tissue's own timing) for 300 ms, the force beyond the reference's; in a
   // scene without a grasp, the largest force from 20 ms after the reference last felt anything.
   // On 20 ms means of |F|: a contact that chatters after release (both runs do on the arm) is
-  // not read as a pull because its phases differ by a few cycles.
+  // not read as a pull because its phases differ by a few cycles. Each mean lies wholly after
+  // the grace (one ending 20 ms after it would reach back into it and read a release a few
+  // cycles later than the reference's as a pull).
   const auto mean20 = [n](const std::vector<client::HandSample>& t) {
     std::vector<double> m(n, 0.0);
     double sum = 0;
@@ -172,14 +174,18 @@ Figures Compare(const Run& run, const Run& ref, bool press_scene) {
   for (size_t k = 1; k < n; ++k)
     if ((b[k - 1].buttons & haptics::kButtonGrasp) && !(b[k].buttons & haptics::kButtonGrasp))
       release = k;
+  constexpr size_t kGrace = 20, kMean = 20;
+  const auto keep = [&f](double pull, size_t k) {
+    if (pull > f.phantom_n) f.phantom_n = pull, f.phantom_cycle = k;
+  };
   if (release > 0) {
-    for (size_t k = release + 20; k < std::min(n, release + 300); ++k)
-      f.phantom_n = std::max(f.phantom_n, ma[k] - mb[k]);
+    for (size_t k = release + kGrace + kMean - 1; k < std::min(n, release + 300); ++k)
+      keep(ma[k] - mb[k], k);
   } else if (kb >= 0) {
     size_t last_felt = 0;
     for (size_t k = 0; k < n; ++k)
       if (b[k].force.norm() >= 0.01) last_felt = k;
-    for (size_t k = last_felt + 20; k < n; ++k) f.phantom_n = std::max(f.phantom_n, ma[k]);
+    for (size_t k = last_felt + kGrace + kMean - 1; k < n; ++k) keep(ma[k], k);
   }
   // Displayed stiffness: the least-squares slope of the force along the contact normal over the
   // depth along it, over the cycles in contact.

@@ -60,8 +60,9 @@ struct Figures {
   double peak_force_n = 0;
   // The tissue sticking to the tool after it has let go: the force beyond the reference's from
   // 20 ms to 300 ms after the grasp's release, or (no grasp) the largest force from 20 ms after
-  // the reference last felt anything.
+  // the reference last felt anything; on 20 ms means, each wholly after those 20 ms of grace.
   double phantom_n = 0;
+  size_t phantom_cycle = 0;       // the last cycle of the mean that gave phantom_n
   double up_hz = 0, down_hz = 0;  // datagrams per second each way
   double score = 0;
 };
