@@ -245,7 +245,16 @@ TEST_F(WanTest, TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel) {
     EXPECT_GT(network.run.station.network_balance_min, -5e-4);
     EXPECT_LT(network.figures.rms_error_pct, local.figures.rms_error_pct + 2.0);
     EXPECT_LT(network.figures.oscillation_n, 2 * local.figures.oscillation_n + 0.02);
-    EXPECT_NEAR(network.figures.score, ref.run.score, 0.2);
+    // Beside two CPU hogs and another closed-loop suite the unimpaired run's score fell to
+    // 3.05–3.30 (3.58 alone) and the pair missed by 0.24–0.33, three runs of three: the median of
+    // up to three pairs, as the other score checks here.
+    const double apart = MedianScoreDifference(network.figures.score - ref.run.score, [] {
+      const Cell again_ref = RunAt("none", client::LocalRendering::kModel, nullptr);
+      const Cell again = RunAt("continental", client::LocalRendering::kModel, &again_ref.run, 0,
+                               client::PassivityMode::kNetwork);
+      return again.figures.score - again_ref.run.score;
+    });
+    EXPECT_NEAR(apart, 0, 0.2) << "first pair " << network.figures.score << " vs " << ref.run.score;
   }
 }
 
