@@ -741,6 +741,24 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   const Quality q = quality_;
   const bool shadows = q != Quality::kLow && !overlay.albedo_only;
   const Eigen::Matrix4d light = LightViewProjection();
+  // What casts shadows, as boxes' corners: the tissue's (its drawn and its physics surface) and
+  // the instrument's (in its own frame ±5 cm across, from 1 cm below the tip to 21 cm above,
+  // around every instrument's parts and open jaws). The shadow pass draws and the table's shadows
+  // are shaded only where these can fall.
+  std::vector<Eigen::Vector3d> tissue_box, tool_box;
+  {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+    for (const auto& p : fine_)
+      lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
+    for (const auto& p : moved_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    for (int c = 0; c < 8; ++c) {
+      tissue_box.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
+                              c & 4 ? hi.z() : lo.z());
+      if (stylus)
+        tool_box.push_back(tool * Eigen::Vector3d(c & 1 ? 0.05 : -0.05, c & 2 ? 0.05 : -0.05,
+                                                  c & 4 ? 0.21 : -0.01));
+    }
+  }
 
   // 1. The shadow map: depth from the key light of the tissue and the instrument; drawn again
   // only when one of them moved (a trainee holding still costs no shadow pass).
@@ -764,18 +782,8 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // the casters cover a third of the map or less.
     std::array<int, 4> rect{size, size, 0, 0};
     {
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
-      for (const auto& p : fine_)
-        lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
-      for (const auto& p : moved_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-      std::vector<Eigen::Vector3d> corners;
-      for (int c = 0; c < 8; ++c)
-        corners.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
-                             c & 4 ? hi.z() : lo.z());
-      if (stylus)
-        for (int c = 0; c < 8; ++c)
-          corners.push_back(tool * Eigen::Vector3d(c & 1 ? 0.05 : -0.05, c & 2 ? 0.05 : -0.05,
-                                                   c & 4 ? 0.21 : -0.01));
+      std::vector<Eigen::Vector3d> corners = tissue_box;
+      corners.insert(corners.end(), tool_box.begin(), tool_box.end());
       for (const Eigen::Vector3d& p : corners) {
         const Eigen::Vector4d clip = light * p.homogeneous();
         if (!clip.allFinite()) {
@@ -949,13 +957,8 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // and the tool's shadows can fall (the table covers most of the frame; shading all of it for
     // a shadow a fifth its size is what cost the most).
     if (shadows) {
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
-      for (const auto& p : fine_)
-        lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
-      std::vector<Eigen::Vector3d> tissue_casters, tool_casters;
-      for (int c = 0; c < 8; ++c)
-        tissue_casters.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
-                                    c & 4 ? hi.z() : lo.z());
+      const std::vector<Eigen::Vector3d>& tissue_casters = tissue_box;
+      std::vector<Eigen::Vector3d> tool_casters;
       if (stylus)
         for (double z : {0.0, 0.07, 0.14, 0.21})
           for (double side : {-0.05, 0.05})
