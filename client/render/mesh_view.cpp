@@ -744,9 +744,9 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   // What casts shadows, as boxes' corners: the tissue's (its drawn and its physics surface) and
   // the instrument's (in its own frame ±5 cm across, from 1 cm below the tip to 21 cm above,
   // around every instrument's parts and open jaws). The shadow pass draws and the table's shadows
-  // are shaded only where these can fall.
+  // are shaded only where these can fall; without shadows neither is made.
   std::vector<Eigen::Vector3d> tissue_box, tool_box;
-  {
+  if (shadows) {
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
     for (const auto& p : fine_)
       lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
@@ -780,30 +780,23 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // (the rest still hold the first clear): the tissue's box and the tool's, projected along the
     // light, widened by two texels. A software renderer clears and rasterises per 64² tile, and
     // the casters cover a third of the map or less.
-    std::array<int, 4> rect{size, size, 0, 0};
-    {
-      std::vector<Eigen::Vector3d> corners = tissue_box;
-      corners.insert(corners.end(), tool_box.begin(), tool_box.end());
-      for (const Eigen::Vector3d& p : corners) {
+    std::array<int, 4> rect{size, size, 0, 0};  // x0, y0, x1, y1
+    bool whole = false;
+    for (const auto* box : {&tissue_box, &tool_box})
+      for (const Eigen::Vector3d& p : *box) {
         const Eigen::Vector4d clip = light * p.homogeneous();
         if (!clip.allFinite()) {
-          rect = {0, 0, size, size};
-          break;
+          whole = true;
+          continue;
         }
-        const double tx = (clip.x() / clip.w() + 1) * 0.5 * size,
-                     ty = (clip.y() / clip.w() + 1) * 0.5 * size;
-        rect[0] =
-            std::min(rect[0], static_cast<int>(std::floor(std::clamp(tx, -1.0, size + 1.0))) - 2);
-        rect[1] =
-            std::min(rect[1], static_cast<int>(std::floor(std::clamp(ty, -1.0, size + 1.0))) - 2);
-        rect[2] =
-            std::max(rect[2], static_cast<int>(std::ceil(std::clamp(tx, -1.0, size + 1.0))) + 2);
-        rect[3] =
-            std::max(rect[3], static_cast<int>(std::ceil(std::clamp(ty, -1.0, size + 1.0))) + 2);
+        for (int axis = 0; axis < 2; ++axis) {
+          const double t = std::clamp((clip[axis] / clip.w() + 1) * 0.5 * size, -1.0, size + 1.0);
+          rect[axis] = std::min(rect[axis], static_cast<int>(std::floor(t)) - 2);
+          rect[axis + 2] = std::max(rect[axis + 2], static_cast<int>(std::ceil(t)) + 2);
+        }
       }
-      for (int k : {0, 1}) rect[k] = std::clamp(rect[k], 0, size);
-      for (int k : {2, 3}) rect[k] = std::clamp(rect[k], 0, size);
-    }
+    if (whole) rect = {0, 0, size, size};
+    for (int& edge : rect) edge = std::clamp(edge, 0, size);
     std::array<int, 4> clear = rect;
     if (g.shadow_written[2] > g.shadow_written[0]) {
       for (int k : {0, 1}) clear[k] = std::min(clear[k], g.shadow_written[k]);

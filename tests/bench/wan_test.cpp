@@ -33,9 +33,10 @@ struct Cell {
 };
 
 // When a pull after the contact fails its bound, what the hand did around it, for the log: every
-// 10th cycle from 150 before the largest force after the reference's last contact to 100 after,
-// both runs (the hand's z, along which the sphere is pressed, and its plan's, in mm; the force's
-// norm in N). A pull on a hand already past the surface and a hand still pressing read apart.
+// 2nd cycle from 60 before the end of the 20 ms mean that gave the pull (f.phantom_cycle) to 20
+// after, both runs (the hand's z, along which the sphere is pressed, and its plan's, in mm; the
+// force's norm in N). A pull on a hand already past the surface and a hand still pressing read
+// apart.
 void PrintAfterContact(const Run& a, const Run& ref, const Figures& f) {
   const size_t n = std::min(a.trace.size(), ref.trace.size());
   size_t last_felt = 0;
