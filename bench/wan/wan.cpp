@@ -95,6 +95,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
   co.passivity = o.passivity;
   co.passivity_mode = o.passivity_mode;
   co.deadband = o.deadband;
+  co.exact_grasp = o.exact_grasp;
   co.force_limit_n = o.scene.task.force_limit;
   const auto start = std::chrono::steady_clock::now();
   auto station = client::StationChannel::Create(co, hand->get());

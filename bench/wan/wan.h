@@ -31,6 +31,7 @@ struct RunOptions {
   client::HandImpedance grip = client::RelaxedGrip();
   bool passivity = true;
   client::PassivityMode passivity_mode = client::PassivityMode::kLocal;
+  bool exact_grasp = true;  // StationOptions::exact_grasp (false: a grasp's first order alone)
   double deadband = 0;    // the station's Weber fraction (StationOptions::deadband); 0: every cycle
   double settle_s = 0.5;  // run on after the plan ends
   std::string cache_dir;  // reduced models' cache ("" = the default)

@@ -63,7 +63,8 @@ int Wan(const std::vector<std::string>& args) {
       .Option("methods", cli::ArgParser::Kind::kString,
               "server, linear, model; +tdpa: with the network (two-port) passivity control; the "
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
-              "the proxy's spring, +fitk one slope fitted to the force over the depth",
+              "the proxy's spring, +fitk one slope fitted to the force over the depth; +tangent: a "
+              "grasp rendered to first order in the twist (the exact grasp model off)",
               false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
@@ -88,6 +89,7 @@ int Wan(const std::vector<std::string>& args) {
     client::PassivityMode passivity;
     double deadband;
     sim::HapticsSpec::ContactModel contact;  // the contact's local model
+    bool exact_grasp;
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
@@ -99,6 +101,7 @@ int Wan(const std::vector<std::string>& args) {
     };
     const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
     const bool tdpa = strip("+tdpa");
+    const bool tangent = strip("+tangent");
     using ContactModel = sim::HapticsSpec::ContactModel;
     const ContactModel contact = fit_k     ? ContactModel::kFitted
                                  : proxy_k ? ContactModel::kProxy
@@ -109,7 +112,7 @@ int Wan(const std::vector<std::string>& args) {
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent});
     }
   }
   const int runs = p.Int("runs");
@@ -140,6 +143,7 @@ int Wan(const std::vector<std::string>& args) {
         o.rendering = method_entry.rendering;
         o.deadband = method_entry.deadband;
         o.passivity_mode = method_entry.passivity;
+        o.exact_grasp = method_entry.exact_grasp;
         o.grip = *grip;
         // The reference: the same rendering at full rate through the relay, unimpaired, with the
         // one-port passivity control (so what the network control costs shows as error).

@@ -276,6 +276,7 @@ struct StationChannel::Impl {
     last_applied_s = now;
     Latest& back = latest.Back();
     back.message = rx_message;
+    if (!options.exact_grasp) back.message.command.local.has_twist_model = false;
     back.received_s = now;
     latest.Publish();
     received.fetch_add(1, std::memory_order_relaxed);

@@ -56,6 +56,10 @@ struct StationOptions {
   int realtime_priority = 0;  // > 0: SCHED_FIFO at this priority for both threads, if permitted
   double max_damping = 5.0;   // N·s/m the passivity controller may add
   LocalRendering rendering = LocalRendering::kModel;
+  // A grasp rendered by the server's exact grasp force about each answer (the arc, the turning
+  // tangent, the torque curve: haptics::LocalModel::has_twist_model); false renders its first
+  // order (g·Δφ) as the stations before it did, for side-by-side comparisons.
+  bool exact_grasp = true;
   // The perceptual deadband (station_channel.cpp, Deadband): 0 sends the stylus every cycle;
   // k > 0 sends it when the rendered force changed by more than k of itself (Weber fraction,
   // ≈ 0.1), the tip moved more than deadband_position_m or turned more than deadband_angle_rad,

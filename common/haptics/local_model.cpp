@@ -28,11 +28,35 @@ Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t but
       const Eigen::Quaterniond rel = q.normalized() * orientation0.conjugate();
       const double dphi =
           std::remainder(2.0 * std::atan2(rel.vec().dot(axis), rel.w()), 2.0 * std::numbers::pi);
-      if (std::isfinite(dphi)) f += dforce_dtwist * dphi;
+      if (!std::isfinite(dphi)) break;
+      if (!has_twist_model) {
+        f += dforce_dtwist * dphi;
+        break;
+      }
+      const Eigen::Matrix3d turn = Eigen::AngleAxisd(dphi, axis).toRotationMatrix();
+      // No arm: the grasp is on the axis, and the tissue's force keeps its direction.
+      const Vec3 turned_u = arm.isZero(0) ? force_per_torque : Vec3(turn * force_per_torque);
+      f += -jacobian * (turn * arm - arm) + torque0 * (turned_u - force_per_torque) +
+           TorqueStep(dphi) * turned_u;
       break;
     }
   }
   return f.allFinite() ? f : Vec3::Zero();
+}
+
+double LocalModel::TorqueStep(double dphi) const {
+  // The nodes: the offsets, with the answer's own twist (0, 0) between the two halves; beyond the
+  // outermost ones the end segment's slope goes on (the curve's own slope there).
+  constexpr int kNodes = kTwistSamples + 1, kHalf = kTwistSamples / 2;
+  std::array<double, kNodes> at{}, step{};
+  for (int i = 0, k = 0; i < kNodes; ++i) {
+    if (i == kHalf) continue;
+    at[i] = kTwistOffsets[k], step[i] = torque_steps[k], ++k;
+  }
+  int hi = 1;
+  while (hi < kNodes - 1 && at[hi] < dphi) ++hi;
+  const int lo = hi - 1;
+  return step[lo] + (step[hi] - step[lo]) * (dphi - at[lo]) / (at[hi] - at[lo]);
 }
 
 double LocalModel::TwistFieldEnergy(const Vec3& centre, const Eigen::Quaterniond& q,

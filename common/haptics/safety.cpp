@@ -125,6 +125,13 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     local.dforce_dtwist.setZero();
     events |= kEventNonFiniteInput;
   }
+  if (local.has_twist_model && (!local.force_per_torque.allFinite() || !local.arm.allFinite() ||
+                                !std::isfinite(local.torque0) ||
+                                !std::all_of(local.torque_steps.begin(), local.torque_steps.end(),
+                                             [](double t) { return std::isfinite(t); }))) {
+    local.has_twist_model = false;  // the tangent alone (g), which was checked above
+    events |= kEventNonFiniteInput;
+  }
   if (!std::isfinite(local.tissue_stiffness) || !std::isfinite(local.tissue_damping) ||
       !std::isfinite(local.tissue_elastic0) || !(local.tissue_stiffness >= 0) ||
       !(local.tissue_damping >= 0)) {
@@ -137,6 +144,7 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
   }
   j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
   local.dforce_dtwist *= ramp_;
+  local.force_per_torque *= ramp_;  // the exact model's tissue part; its hold part is J's
   local.tissue_stiffness *= ramp_, local.tissue_damping *= ramp_, local.tissue_elastic0 *= ramp_;
   local.contact_damping *= ramp_;
   local.force0 = output;  // the extrapolation starts from what the device actually outputs

@@ -4,6 +4,7 @@
 // network layer (proto/) converts them to and from its wire messages.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include <Eigen/Core>
@@ -37,7 +38,9 @@ struct StylusSample {
 //   grasp    while the station's own grasp button is held: F(x, φ) = force0 + J·(x − position0)
 //            + g·Δφ, Δφ the stylus's twist about `axis` since `orientation0` (swing–twist, the
 //            server's own measure) and g = ∂F/∂φ (N/rad), which carries the tissue's torsional
-//            stiffness dM/dΦ; zero from the cycle the button is released.
+//            stiffness dM/dΦ; zero from the cycle the button is released. A grasp may carry
+//            the server's exact grasp force instead (has_twist_model, below): the arc, the turning
+//            tangent and the torque curve, so a turn of a round trip's size is felt as it is.
 //
 // A contact may also carry the tissue under the proxy (tissue_stiffness > 0): the station then
 // renders the normal force of the proxy's spring in series with a Kelvin–Voigt tissue point,
@@ -53,6 +56,23 @@ struct LocalModel {
   Vec3 axis = Vec3::UnitZ();    // grasp: the twist axis (unit)
   Eigen::Quaterniond orientation0 = Eigen::Quaterniond::Identity();  // grasp: stylus at position0
   Vec3 dforce_dtwist = Vec3::Zero();                                 // grasp: g, N/rad
+  // Grasp, exactly (has_twist_model): the server's own grasp force, F(x, φ) = −c·T(φ)·t(φ) +
+  // hold·(turned(φ) − x), turned(φ) the grasped point carried round the axis and t(φ) its
+  // tangent. Rendered about the answer as F = force0 + J·(x − x₀) − J·(R − I)·r + T₀·(R − I)·u +
+  // ΔT(Δφ)·R·u, R the turn by Δφ about `axis`, so a hand that turns tens of degrees in a round
+  // trip feels the arc and the torque curve, not their tangents (g·Δφ is this to first order).
+  // r: the grasped point's arm from the axis, across it (m; zero for a grasp on the axis, whose
+  // force keeps its direction: u is then not turned); u = −c·t(φ₀) (N per N·m, c the
+  // force scale over the lever); T₀ = T(φ₀) (N·m); torque_steps[i] = T(φ₀ + kTwistOffsets[i]) −
+  // T(φ₀) (N·m), the tissue's torque curve around the answer's twist.
+  static constexpr int kTwistSamples = 8;
+  static constexpr std::array<double, kTwistSamples> kTwistOffsets = {-1.0, -0.4, -0.15, -0.05,
+                                                                      0.05, 0.15, 0.4,   1.0};
+  bool has_twist_model = false;
+  std::array<double, kTwistSamples> torque_steps{};
+  Vec3 force_per_torque = Vec3::Zero();
+  Vec3 arm = Vec3::Zero();
+  double torque0 = 0;
   double tissue_stiffness = 0;  // contact: k_t, N/m; 0: the proxy's spring J alone
   double tissue_damping = 0;    // contact: b, N·s/m
   double tissue_elastic0 = 0;   // contact: e₀, N, the tissue's elastic force at position0
@@ -75,6 +95,9 @@ struct LocalModel {
   // That energy comes from the hand's own turn, which the device cannot feel: the passivity
   // controller allows it (client/net/passivity.h). J, other kinds, the button up: 0. In J.
   double TwistFieldEnergy(const Vec3& centre, const Eigen::Quaterniond& q, uint32_t buttons) const;
+  // Grasp: ΔT(Δφ), the torque curve's change from the answer's twist, piecewise linear through
+  // (0, 0) and the samples, extended by the end segments' slopes. N·m.
+  double TorqueStep(double dphi) const;
 };
 
 // Safety and interaction events, as bits (several may be set by one sample).

@@ -258,14 +258,17 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     const Eigen::Quaterniond rel = s.orientation.normalized() * grasp_q0_.conjugate();
     double twist = 2.0 * std::atan2(rel.vec().dot(axis_), rel.w());
     twist = std::remainder(twist, 2.0 * std::numbers::pi);
-    const TwistAnswer answer = std::visit(
-        [&](auto& room) -> TwistAnswer {
-          if constexpr (requires { room.Twist(0.0); })
-            return room.Twist(twist);
-          else
-            return {};
-        },
-        room_);
+    const auto torque_at = [&](double phi) {
+      return std::visit(
+          [&](auto& room) -> TwistAnswer {
+            if constexpr (requires { room.Twist(0.0); })
+              return room.Twist(phi);
+            else
+              return {};
+          },
+          room_);
+    };
+    const TwistAnswer answer = torque_at(twist);
     overload = overload || answer.overload;
     const Vec3 arm = input_.grasp_point - axis_point_;
     const Vec3 turned = axis_point_ + Eigen::AngleAxisd(twist, axis_) * arm;
@@ -289,6 +292,18 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     cmd.local.axis = axis_;
     cmd.local.orientation0 = s.orientation.normalized();
     cmd.local.dforce_dtwist = g;
+    // The exact grasp force for the station to render about this answer: the arc, the turning
+    // tangent and the torque curve around this twist (every room's Twist is a function of the
+    // twist alone), so a turn of a round trip's size is felt as the server would answer it.
+    cmd.local.has_twist_model = true;
+    cmd.local.force_per_torque = -s_f / lever_ * tangent;
+    // A grasp on the axis (the forceps' twist about the surface's normal through the grasped
+    // point) pushes along a fixed direction: no arm, and the station then turns nothing.
+    cmd.local.arm = radial.norm() > 1e-9 ? across : Vec3::Zero();
+    cmd.local.torque0 = answer.torque;
+    for (int i = 0; i < haptics::LocalModel::kTwistSamples; ++i)
+      cmd.local.torque_steps[i] =
+          torque_at(twist + haptics::LocalModel::kTwistOffsets[i]).torque - answer.torque;
     input_.torque = answer.torque;
     quantity = twist;
     cmd.grasping = true;

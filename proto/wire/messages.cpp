@@ -88,8 +88,9 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   for (int r = 0; r < 3; ++r) {
     for (int k = 0; k < 3; ++k) local->set_jacobian(3 * r + k, c.local.jacobian(r, k));
   }
-  // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes, a contact by 27,
-  // and by 27 more once it carries the tissue, or 9 ahead of contact with the proxy's damping).
+  // Only what the kind uses crosses the wire (a grasp answer grows by ~90 bytes and ~100 more with
+  // its exact model, a contact by 27, and by 27 more once it carries the tissue, or 9 ahead of
+  // contact with the proxy's damping).
   local->set_kind(static_cast<v1::LocalModel::Kind>(c.local.kind));
   if (c.local.kind == haptics::LocalModel::Kind::kContact) {
     Put(c.local.normal, local->mutable_normal());
@@ -104,6 +105,12 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   if (c.local.kind == haptics::LocalModel::Kind::kGrasp) {
     Put(c.local.axis, local->mutable_axis());
     Put(c.local.dforce_dtwist, local->mutable_dforce_dtwist());
+    if (c.local.has_twist_model) {
+      for (const double t : c.local.torque_steps) local->add_torque_steps(static_cast<float>(t));
+      Put(c.local.force_per_torque, local->mutable_force_per_torque());
+      local->set_torque0(c.local.torque0);
+      Put(c.local.arm, local->mutable_arm());
+    }
     const Eigen::Quaterniond& q0 = c.local.orientation0;
     v1::Quat* q = local->mutable_orientation0();
     q->set_w(q0.w()), q->set_x(q0.x()), q->set_y(q0.y()), q->set_z(q0.z());
@@ -246,6 +253,11 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.local.axis = Eigen::Vector3d::UnitZ();
   c.local.orientation0 = Eigen::Quaterniond::Identity();
   c.local.dforce_dtwist.setZero();
+  c.local.has_twist_model = false;
+  c.local.torque_steps.fill(0);
+  c.local.force_per_torque.setZero();
+  c.local.arm.setZero();
+  c.local.torque0 = 0;
   c.local.tissue_stiffness = c.local.tissue_damping = c.local.tissue_elastic0 = 0;
   c.local.contact_damping = 0;
   const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
@@ -278,6 +290,21 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
       c.local.orientation0 = Eigen::Quaterniond(q0.coeffs() / qn);
       c.local.dforce_dtwist = Get(f.local().dforce_dtwist());
       if (!c.local.dforce_dtwist.allFinite()) return DropReason::kBadPayload;
+      // The exact model: whole (8 finite steps and finite parts) or refused; none at all is an
+      // older server's answer, rendered along its tangent.
+      if (const int n = f.local().torque_steps_size(); n != 0) {
+        if (n != haptics::LocalModel::kTwistSamples) return DropReason::kBadPayload;
+        for (int i = 0; i < n; ++i) c.local.torque_steps[i] = f.local().torque_steps(i);
+        c.local.force_per_torque = Get(f.local().force_per_torque());
+        c.local.torque0 = f.local().torque0();
+        c.local.arm = Get(f.local().arm());
+        if (!std::all_of(c.local.torque_steps.begin(), c.local.torque_steps.end(),
+                         [](double t) { return std::isfinite(t); }) ||
+            !c.local.force_per_torque.allFinite() || !std::isfinite(c.local.torque0) ||
+            !c.local.arm.allFinite())
+          return DropReason::kBadPayload;
+        c.local.has_twist_model = true;
+      }
       c.local.kind = haptics::LocalModel::Kind::kGrasp;
       break;
     }

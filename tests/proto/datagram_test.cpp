@@ -187,6 +187,31 @@ TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRef
   EXPECT_TRUE(back.command.local.axis.isApprox(Eigen::Vector3d::UnitZ()));
   EXPECT_TRUE(back.command.local.orientation0.isApprox(grasp.command.local.orientation0));
   EXPECT_EQ(back.command.local.dforce_dtwist, grasp.command.local.dforce_dtwist);
+  EXPECT_FALSE(back.command.local.has_twist_model);  // an older server's grasp: the tangent alone
+  // The exact grasp model crosses whole (its torque steps as floats) and is refused when partial
+  // or not finite.
+  ForceMessage exact = grasp;
+  haptics::LocalModel& m = exact.command.local;
+  m.has_twist_model = true;
+  for (int i = 0; i < haptics::LocalModel::kTwistSamples; ++i)
+    m.torque_steps[i] = 0.25 * haptics::LocalModel::kTwistOffsets[i];
+  m.force_per_torque = Eigen::Vector3d(0, -200, 0);
+  m.arm = Eigen::Vector3d(0.03, 0, 0);
+  m.torque0 = 1.5;
+  ASSERT_EQ(round_trip(exact, back), DropReason::kNone);
+  EXPECT_TRUE(back.command.local.has_twist_model);
+  for (int i = 0; i < haptics::LocalModel::kTwistSamples; ++i)
+    EXPECT_NEAR(back.command.local.torque_steps[i], m.torque_steps[i], 1e-7) << i;
+  EXPECT_EQ(back.command.local.force_per_torque, m.force_per_torque);
+  EXPECT_EQ(back.command.local.arm, m.arm);
+  EXPECT_EQ(back.command.local.torque0, 1.5);
+  for (int bad = 0; bad < 3; ++bad) {
+    ForceMessage b = exact;
+    if (bad == 0) b.command.local.torque_steps[3] = NAN;
+    if (bad == 1) b.command.local.arm.z() = INFINITY;
+    if (bad == 2) b.command.local.torque0 = NAN;
+    EXPECT_EQ(round_trip(b, back), DropReason::kBadPayload) << bad;
+  }
   // A contact without a usable normal, a grasp without an axis or orientation: never rendered.
   contact.command.local.normal = Eigen::Vector3d::Zero();
   EXPECT_EQ(round_trip(contact, back), DropReason::kBadPayload);

@@ -106,6 +106,21 @@ TEST(SafetyFilterTest, LocalModelStiffnessIsClampedToTheDevice) {
     EXPECT_EQ(m.contact_damping, 0.0) << bad;
     EXPECT_TRUE(ev & kEventNonFiniteInput) << bad;
   }
+  // A grasp's exact model with anything not finite is dropped for its tangent (g, kept).
+  m.kind = LocalModel::Kind::kGrasp;
+  m.dforce_dtwist = Vec3(0, -2, 0);
+  m.has_twist_model = true;
+  m.force_per_torque = Vec3(0, -200, 0);
+  ev = 0;
+  f->LimitLocalModel(m, Vec3::Zero(), ev);
+  EXPECT_TRUE(m.has_twist_model);
+  EXPECT_FALSE(ev & kEventNonFiniteInput);
+  m.torque_steps[5] = NAN;
+  f->LimitLocalModel(m, Vec3::Zero(), ev);
+  EXPECT_FALSE(m.has_twist_model);
+  EXPECT_EQ(m.kind, LocalModel::Kind::kGrasp);
+  EXPECT_EQ(m.dforce_dtwist, Vec3(0, -2, 0));
+  EXPECT_TRUE(ev & kEventNonFiniteInput);
 }
 
 // A station extrapolates F₀ + J·(x − x₀) between updates: while the gate holds the force back,
