@@ -120,6 +120,8 @@ Expected<Run> RunOnce(const RunOptions& o) {
                   run.trace.begin() + std::min<std::ptrdiff_t>(lead, std::ssize(run.trace)));
   const scoring::TrialMetrics m = (*simulation)->Metrics();
   run.score = m.score;
+  const scoring::ScoreParts parts = scoring::ScorePartsOf(m, o.scene.task);
+  run.score_but_smoothness = m.raw_score - 2.0 * parts.smoothness;  // smoothness: 2 of 10 points
   run.server_peak_force = m.peak_force;
   return run;
 }
@@ -209,6 +211,7 @@ Figures Compare(const Run& run, const Run& ref, bool press_scene) {
   f.up_hz = run.seconds > 0 ? static_cast<double>(run.up_datagrams) / run.seconds : 0;
   f.down_hz = run.seconds > 0 ? static_cast<double>(run.down_datagrams) / run.seconds : 0;
   f.score = run.score;
+  f.score_but_smoothness = run.score_but_smoothness;
   return f;
 }
 

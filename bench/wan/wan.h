@@ -43,7 +43,14 @@ struct Run {
   uint64_t up_datagrams = 0, down_datagrams = 0;  // sent toward the relay, each way
   double seconds = 0;                             // wall time of the exchange
   double score = 0;                               // the server's trial score
-  double server_peak_force = 0;                   // N, what the server scored
+  // The score's parts but smoothness (accuracy, time, force: 0–8 points, before the gates).
+  // Smoothness is read from the stylus samples' times, which a station stamps with its clock
+  // when it sends them: behind a loaded host's late servo cycles the virtual hand's one-period
+  // steps arrive stamped closer together than they moved, which reads as jerk (a real device is
+  // read at the time it is sampled). The same unimpaired trial scored 9.06–9.22 beside two CPU
+  // hogs, all of it smoothness (RMS jerk 15–22 m/s³); these parts were equal to 1e-4.
+  double score_but_smoothness = 0;
+  double server_peak_force = 0;  // N, what the server scored
 };
 
 Expected<Run> RunOnce(const RunOptions& options);
@@ -66,6 +73,7 @@ struct Figures {
   size_t phantom_cycle = 0;       // the last cycle of the mean that gave phantom_n
   double up_hz = 0, down_hz = 0;  // datagrams per second each way
   double score = 0;
+  double score_but_smoothness = 0;  // Run::score_but_smoothness
 };
 
 // `stiffness` is only meaningful for press scenes (0 otherwise); contact is a force ≥ 0.1 N.

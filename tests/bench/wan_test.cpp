@@ -53,16 +53,22 @@ void PrintAfterContact(const Run& a, const Run& ref, const Figures& f) {
                 ref.trace[k].force.norm());
 }
 
-// A trial's score against its unimpaired reference, held to `bound` (the goal's ±0.2 unless the
-// caller says otherwise). The score moves from run to run with the machine's load (full local
-// test runs read 3.10 at metro against 3.58 unimpaired, and the forceps 9.26 against 9.05, where
-// those tests alone held within 0.1): when the first pair misses, two more pairs are run
-// (`another_pair` returns one's difference) and their median difference is what is returned,
-// and must hold.
-double MedianScoreDifference(double first, const std::function<double()>& another_pair,
-                             double bound = 0.2) {
+// Two trials' scores apart, on the parts a network can move: accuracy, time and force
+// (Run::score_but_smoothness). Smoothness is left out: behind a loaded host's late servo cycles
+// the virtual hand's samples are stamped closer together than they moved, which reads as jerk
+// (beside two CPU hogs the same unimpaired forceps trial scored 9.06–9.22 and the stiff sphere's
+// 3.43–3.50, with these parts equal and RMS jerk 15–22 m/s³; a CI run read the sphere's at
+// 3.19–3.59); a network's buzz is the oscillation bounds' to catch.
+double ScoreApart(const Run& a, const Run& b) {
+  return a.score_but_smoothness - b.score_but_smoothness;
+}
+
+// A trial's score against its unimpaired reference, held to the goal's ±0.2. When the first
+// pair misses, two more pairs are run (`another_pair` returns one's difference) and their median
+// difference is what is returned, and must hold.
+double MedianScoreDifference(double first, const std::function<double()>& another_pair) {
   std::vector<double> apart = {first};
-  if (std::abs(first) > bound) {
+  if (std::abs(first) > 0.2) {
     for (int more = 0; more < 2; ++more) apart.push_back(another_pair());
     std::sort(apart.begin(), apart.end());
   }
@@ -106,10 +112,11 @@ class WanTest : public ::testing::Test {
     std::printf(
         "%s: rtt %.1f ms, error %.2f%%, onset +%.0f cycles %+.2f mm, stiffness %.0f%%, energy to "
         "hand "
-        "%.2f mJ (excess %+.2f), above 30 Hz %.4f N, peak %.2f N, phantom %.3f N, score %.2f\n",
+        "%.2f mJ (excess %+.2f), above 30 Hz %.4f N, peak %.2f N, phantom %.3f N, score %.2f (%.2f "
+        "but smoothness)\n",
         profile.c_str(), c.run.station.rtt_p50_us / 1e3, f.rms_error_pct, f.onset_delay_cycles,
         f.onset_extra_mm, f.stiffness_pct, f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n,
-        f.peak_force_n, f.phantom_n, f.score);
+        f.peak_force_n, f.phantom_n, f.score, f.score_but_smoothness);
     return c;
   }
 
@@ -122,16 +129,11 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
   ASSERT_GT(ref.figures.peak_force_n, 0.3);  // the hand did press the tissue
   // The bounds where this scene is hardest (docs/BENCHMARKS.md "Haptics across networks"):
   // at 700 N/m the displayed stiffness falls with the delay (98% at metro, 82% at continental).
-  // The score: the goal's ±0.2 holds up to regional, so metro is held to it. Continental lies
-  // beyond the goal, and there the bound is the unimpaired run's own spread on a loaded host: in
-  // one CI run (stop 55, beside the other suites) the same unimpaired trial scored 3.19, 3.58,
-  // 3.58, 3.30 and 3.59 (a closed loop: a loaded station's late cycles change the hand's own
-  // motion), while continental scored 3.50, 3.50 and 3.54; the median pair was 0.201 apart.
   const struct {
     const char* name;
-    double max_error_pct, min_stiffness_pct, max_score_apart;
-  } profiles[] = {{"metro", 7, 90, 0.2}, {"continental", 16, 70, 0.4}};
-  for (const auto& [profile, max_error_pct, min_stiffness_pct, max_score_apart] : profiles) {
+    double max_error_pct, min_stiffness_pct;
+  } profiles[] = {{"metro", 7, 90}, {"continental", 16, 70}};
+  for (const auto& [profile, max_error_pct, min_stiffness_pct] : profiles) {
     const Cell c = RunAt(profile, client::LocalRendering::kModel, &ref.run);
     const Figures& f = c.figures;
     // Bounded: never past the device's limit.
@@ -149,17 +151,15 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
     EXPECT_GT(f.stiffness_pct, min_stiffness_pct) << profile;
     EXPECT_LT(f.stiffness_pct, 110) << profile;
     EXPECT_LT(f.rms_error_pct, max_error_pct) << profile;
-    // The trial scores alike: the same hand, the same task.
-    const double apart = MedianScoreDifference(
-        f.score - ref.run.score,
-        [&, p = profile] {
-          const Cell again_ref = RunAt("none", client::LocalRendering::kModel, nullptr);
-          return RunAt(p, client::LocalRendering::kModel, &again_ref.run).figures.score -
-                 again_ref.run.score;
-        },
-        max_score_apart);
-    EXPECT_NEAR(apart, 0, max_score_apart)
-        << profile << ": first pair " << f.score << " vs " << ref.run.score;
+    // The trial scores alike: the same hand, the same task (the goal's ±0.2), on the parts the
+    // network can move (ScoreApart).
+    const double apart = MedianScoreDifference(ScoreApart(c.run, ref.run), [&, p = profile] {
+      const Cell again_ref = RunAt("none", client::LocalRendering::kModel, nullptr);
+      return ScoreApart(RunAt(p, client::LocalRendering::kModel, &again_ref.run).run,
+                        again_ref.run);
+    });
+    EXPECT_NEAR(apart, 0, 0.2) << profile << ": first pair " << f.score_but_smoothness << " vs "
+                               << ref.run.score_but_smoothness;
   }
 }
 
@@ -216,15 +216,16 @@ TEST_F(WanTest, AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself) {
     EXPECT_LT(self.oscillation_n, 0.06);
     EXPECT_LT(f.oscillation_n, 0.06);
     EXPECT_LT(f.rms_error_pct, 8);
-    const double apart = MedianScoreDifference(f.score - self.score, [&] {
+    const double apart = MedianScoreDifference(ScoreApart(*metro, *ref), [&] {
       o.profile = *relay::ProfileByName("none");
       auto again_ref = RunOnce(o);
       o.profile = *relay::ProfileByName("metro");
       auto again = RunOnce(o);
       EXPECT_TRUE(again_ref.ok() && again.ok());
-      return again_ref.ok() && again.ok() ? again->score - again_ref->score : 1e9;
+      return again_ref.ok() && again.ok() ? ScoreApart(*again, *again_ref) : 1e9;
     });
-    EXPECT_NEAR(apart, 0, 0.2) << "first pair " << f.score << " vs " << self.score;
+    EXPECT_NEAR(apart, 0, 0.2) << "first pair " << f.score_but_smoothness << " vs "
+                               << self.score_but_smoothness;
   }
 }
 
@@ -257,16 +258,14 @@ TEST_F(WanTest, TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel) {
     EXPECT_GT(network.run.station.network_balance_min, -5e-4);
     EXPECT_LT(network.figures.rms_error_pct, local.figures.rms_error_pct + 2.0);
     EXPECT_LT(network.figures.oscillation_n, 2 * local.figures.oscillation_n + 0.02);
-    // Beside two CPU hogs and another closed-loop suite the unimpaired run's score fell to
-    // 3.05–3.30 (3.58 alone) and the pair missed by 0.24–0.33, three runs of three: the median of
-    // up to three pairs, as the other score checks here.
-    const double apart = MedianScoreDifference(network.figures.score - ref.run.score, [] {
+    const double apart = MedianScoreDifference(ScoreApart(network.run, ref.run), [] {
       const Cell again_ref = RunAt("none", client::LocalRendering::kModel, nullptr);
       const Cell again = RunAt("continental", client::LocalRendering::kModel, &again_ref.run, 0,
                                client::PassivityMode::kNetwork);
-      return again.figures.score - again_ref.run.score;
+      return ScoreApart(again.run, again_ref.run);
     });
-    EXPECT_NEAR(apart, 0, 0.2) << "first pair " << network.figures.score << " vs " << ref.run.score;
+    EXPECT_NEAR(apart, 0, 0.2) << "first pair " << network.figures.score_but_smoothness << " vs "
+                               << ref.run.score_but_smoothness;
   }
 }
 
