@@ -117,6 +117,42 @@ TEST(LocalModelTest, AGraspModelEndsWithTheButtonAndFollowsTheTwist) {
   EXPECT_NEAR(m.Render(Vec3::Zero(), swung, haptics::kButtonGrasp).y(), 0.0, 1e-3);
 }
 
+TEST(LocalModelTest, AnExactGraspModelIsTheServersGraspForceAtAnyTurn) {
+  // A limb grasped 3 cm from its axis (z through the origin), hold spring 200 N/m, force scale
+  // over lever 100 N per N·m, the tissue's torque 0.01 N·m at the answer, and a torque curve with
+  // a kink there: 0.02 N·m/rad above, 0.04 below. The server's force at a turn φ: −c·T(φ)·t(φ) +
+  // hold·(turned(φ) − x), written here independently of how Render arranges it.
+  const double hold = 200, c = 100, t0 = 0.01;
+  const Vec3 r(0.03, 0, 0), tangent0(0, 1, 0);
+  const auto torque_step = [](double d) { return d > 0 ? 0.02 * d : 0.04 * d; };
+  LocalModel m;
+  m.kind = LocalModel::Kind::kGrasp;
+  m.axis = Vec3::UnitZ();
+  m.position0 = r;  // the hand at the grasped point when answered
+  m.jacobian = -hold * Eigen::Matrix3d::Identity();
+  m.force0 = -c * t0 * tangent0;
+  m.has_twist_model = true;
+  m.arm = r;
+  m.force_per_torque = -c * tangent0;
+  m.torque0 = t0;
+  for (int i = 0; i < LocalModel::kTwistSamples; ++i)
+    m.torque_steps[i] = torque_step(LocalModel::kTwistOffsets[i]);
+  const Vec3 hand(0.028, -0.01, 0.002);
+  for (const double dphi : {-1.3, -0.5, -0.02, 0.0, 0.3, 0.9}) {
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(dphi, m.axis).toRotationMatrix();
+    const Vec3 server =
+        -c * (t0 + torque_step(dphi)) * (turn * tangent0) + hold * (turn * r - hand);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(dphi, Vec3::UnitZ()));
+    EXPECT_LT((m.Render(hand, q, haptics::kButtonGrasp) - server).norm(), 1e-12) << dphi;
+  }
+  // Let go: nothing. On the axis (no arm) the tissue's force keeps its direction.
+  EXPECT_EQ(m.Render(hand, Eigen::Quaterniond::Identity(), 0), Vec3::Zero());
+  m.arm.setZero();
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3, Vec3::UnitZ()));
+  const Vec3 on_axis = m.force0 + m.jacobian * (hand - r) - c * torque_step(0.3) * tangent0;
+  EXPECT_LT((m.Render(hand, q, haptics::kButtonGrasp) - on_axis).norm(), 1e-12);
+}
+
 TEST(LocalModelTest, AFreeToolGetsTheSurfaceAheadWithTheContactsStiffness) {
   auto scene = LoadSceneByName("sphere-palpation-256");
   ASSERT_TRUE(scene.ok());
