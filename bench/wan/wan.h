@@ -48,7 +48,8 @@ struct Run {
   // when it sends them: behind a loaded host's late servo cycles the virtual hand's one-period
   // steps arrive stamped closer together than they moved, which reads as jerk (a real device is
   // read at the time it is sampled). The same unimpaired trial scored 9.06–9.22 beside two CPU
-  // hogs, all of it smoothness (RMS jerk 15–22 m/s³); these parts were equal to 1e-4.
+  // hogs, all of it smoothness (RMS jerk 15–22 m/s³); the task error and completion time were the
+  // same in every run.
   double score_but_smoothness = 0;
   double server_peak_force = 0;  // N, what the server scored
 };

@@ -273,8 +273,10 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     const Vec3 arm = input_.grasp_point - axis_point_;
     const Vec3 turned = axis_point_ + Eigen::AngleAxisd(twist, axis_) * arm;
     const Vec3 radial = turned - axis_point_;
-    const Vec3 tangent =
-        radial.norm() > 1e-9 ? Vec3(axis_.cross(radial).normalized()) : AnyPerpendicular(axis_);
+    // A grasp on the axis (the forceps' twist about the surface's normal through the grasped
+    // point) pushes along a fixed direction.
+    const bool on_axis = !(radial.norm() > 1e-9);
+    const Vec3 tangent = on_axis ? AnyPerpendicular(axis_) : Vec3(axis_.cross(radial).normalized());
     const double hold = scene_.haptics.hold_stiffness;
     force = scene_.haptics.force_scale * (-answer.torque / lever_) * tangent +
             hold * (turned - s.position);
@@ -297,9 +299,7 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     // twist alone), so a turn of a round trip's size is felt as the server would answer it.
     cmd.local.has_twist_model = true;
     cmd.local.force_per_torque = -s_f / lever_ * tangent;
-    // A grasp on the axis (the forceps' twist about the surface's normal through the grasped
-    // point) pushes along a fixed direction: no arm, and the station then turns nothing.
-    cmd.local.arm = radial.norm() > 1e-9 ? across : Vec3::Zero();
+    cmd.local.arm = on_axis ? Vec3::Zero() : across;  // no arm: the station turns nothing
     cmd.local.torque0 = answer.torque;
     for (int i = 0; i < haptics::LocalModel::kTwistSamples; ++i)
       cmd.local.torque_steps[i] =
