@@ -121,7 +121,8 @@ Expected<Run> RunOnce(const RunOptions& o) {
   const scoring::TrialMetrics m = (*simulation)->Metrics();
   run.score = m.score;
   const scoring::ScoreParts parts = scoring::ScorePartsOf(m, o.scene.task);
-  run.score_but_smoothness = m.raw_score - 2.0 * parts.smoothness;  // smoothness: 2 of 10 points
+  run.score_but_smoothness =
+      m.raw_score - 10.0 * scoring::ScoreParts::kSmoothnessWeight * parts.smoothness;
   run.server_peak_force = m.peak_force;
   return run;
 }

@@ -209,17 +209,18 @@ std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& tas
     std::string why;
   };
   std::vector<Loss> losses = {
-      {4 * (1 - p.accuracy),
+      {ScoreParts::Lost(ScoreParts::kAccuracyWeight, p.accuracy),
        text(twist ? "Accuracy: %.1f deg from the target" : "Accuracy: %.1f mm from the target",
             m.task_error * unit) +
            text(" (tolerance %.1f)", task.tolerance * unit)},
-      {2 * (1 - p.efficiency),
+      {ScoreParts::Lost(ScoreParts::kEfficiencyWeight, p.efficiency),
        m.completed
            ? text("Time: %.1f s, an expert takes %.1f s", m.completion_time, task.expert_time)
            : std::string("Time: no credit without completing the task")},
-      {2 * (1 - p.force),
+      {ScoreParts::Lost(ScoreParts::kForceWeight, p.force),
        text("Force control: peak %.2f N against a %.1f N limit", m.peak_force, task.force_limit)},
-      {2 * (1 - p.smoothness), text("Smoothness: jerky motion (RMS jerk %.0f m/s³)", m.rms_jerk)},
+      {ScoreParts::Lost(ScoreParts::kSmoothnessWeight, p.smoothness),
+       text("Smoothness: jerky motion (RMS jerk %.0f m/s³)", m.rms_jerk)},
   };
   std::sort(losses.begin(), losses.end(),
             [](const Loss& a, const Loss& b) { return a.points > b.points; });
@@ -244,8 +245,7 @@ TrialMetrics TrialRecorder::Finish() const {
   m.overload_events = overloads_;
   if (m.duration > 0) m.rms_jerk = std::sqrt(jerk2_ / m.duration);
   const ScoreParts parts = ScorePartsOf(m, task_);
-  m.raw_score = 10.0 * (0.4 * parts.accuracy + 0.2 * parts.efficiency + 0.2 * parts.force +
-                        0.2 * parts.smoothness);
+  m.raw_score = parts.Points();
   m.score = m.raw_score;
   if (!completed_) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);
   if (m.time_over_force_limit > 0.5) m.caps |= kCapForceLimit, m.score = std::min(m.score, 4.0);

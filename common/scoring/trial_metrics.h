@@ -76,7 +76,17 @@ Expected<TaskSpec> ApplyTaskSettings(TaskSpec base, const TaskSettings& s);
 // The score's four parts, each in [0, 1] (the weights and formulas above), from a trial's
 // metrics: TrialRecorder::Finish scores with them, ExplainScore says what cost points.
 struct ScoreParts {
+  // Each part's weight: its share of the 10 points.
+  static constexpr double kAccuracyWeight = 0.4, kEfficiencyWeight = 0.2, kForceWeight = 0.2,
+                          kSmoothnessWeight = 0.2;
   double accuracy = 0, efficiency = 0, force = 0, smoothness = 0;
+  // The score before the gates, 0..10.
+  double Points() const {
+    return 10.0 * (kAccuracyWeight * accuracy + kEfficiencyWeight * efficiency +
+                   kForceWeight * force + kSmoothnessWeight * smoothness);
+  }
+  // Points a part at `value` falls short of its full share by.
+  static double Lost(double weight, double value) { return 10.0 * weight * (1.0 - value); }
 };
 ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task);
 
