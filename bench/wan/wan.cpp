@@ -96,6 +96,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
   co.passivity_mode = o.passivity_mode;
   co.deadband = o.deadband;
   co.exact_grasp = o.exact_grasp;
+  co.model_hold_s = o.model_hold_s;
   co.force_limit_n = o.scene.task.force_limit;
   const auto start = std::chrono::steady_clock::now();
   auto station = client::StationChannel::Create(co, hand->get());

@@ -64,7 +64,8 @@ int Wan(const std::vector<std::string>& args) {
               "server, linear, model; +tdpa: with the network (two-port) passivity control; the "
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
               "the proxy's spring, +fitk one slope fitted to the force over the depth; +tangent: a "
-              "grasp rendered to first order in the twist (the exact grasp model off)",
+              "grasp rendered to first order in the twist (the exact grasp model off); +fade "
+              "(last): every model faded 20 ms into a silence, none held (model_hold_s 0)",
               false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
@@ -90,6 +91,7 @@ int Wan(const std::vector<std::string>& args) {
     double deadband;
     sim::HapticsSpec::ContactModel contact;  // the contact's local model
     bool exact_grasp;
+    bool hold;  // StationOptions::model_hold_s at its default; false: 0 (+fade)
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
@@ -99,6 +101,7 @@ int Wan(const std::vector<std::string>& args) {
       if (has) base.resize(base.size() - suffix.size());
       return has;
     };
+    const bool fade = strip("+fade");  // the last suffix
     const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
     const bool tdpa = strip("+tdpa");
     const bool tangent = strip("+tangent");
@@ -112,7 +115,7 @@ int Wan(const std::vector<std::string>& args) {
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent, !fade});
     }
   }
   const int runs = p.Int("runs");
@@ -144,6 +147,7 @@ int Wan(const std::vector<std::string>& args) {
         o.deadband = method_entry.deadband;
         o.passivity_mode = method_entry.passivity;
         o.exact_grasp = method_entry.exact_grasp;
+        if (!method_entry.hold) o.model_hold_s = 0;
         o.grip = *grip;
         // The reference: the same rendering at full rate through the relay, unimpaired, with the
         // one-port passivity control (so what the network control costs shows as error).

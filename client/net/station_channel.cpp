@@ -197,6 +197,7 @@ struct StationChannel::Impl {
   std::vector<LogRow> log_ring;
   std::atomic<uint64_t> log_head{0}, log_tail{0}, log_rows{0}, log_dropped{0};
   std::thread log_thread;
+  std::atomic<bool> device_done{false};  // the device loop has returned (after Stop's fade)
   std::atomic<uint64_t> loop_iterations{0};
   std::atomic<double> loop_seconds{0}, loop_hz_min{0}, loop_hz_max{0};
   std::atomic<double> last_fx{0}, last_fy{0}, last_fz{0};
@@ -254,7 +255,7 @@ struct StationChannel::Impl {
     }
     if (rx_message.command.events & haptics::kEventSessionMoved) {
       // Not a force: the session runs on another node now (live migration). The supervisor asks
-      // where; meanwhile the watchdog fades the force as for any silence.
+      // where; meanwhile the watchdog holds the model, then fades, as for any silence.
       moved_notices.fetch_add(1, std::memory_order_relaxed);
       return;
     }
@@ -310,7 +311,7 @@ struct StationChannel::Impl {
     std::fseek(log_file, 0, SEEK_END);
     if (std::ftell(log_file) == 0) std::fputs("t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n\n", log_file);
     for (;;) {
-      const bool stopping = stop.load();
+      const bool stopping = device_done.load();  // Stop's fade is logged too
       const uint64_t head = log_head.load(std::memory_order_acquire);
       uint64_t tail = log_tail.load(std::memory_order_relaxed);
       for (; tail < head; ++tail) {
@@ -345,7 +346,13 @@ struct StationChannel::Impl {
     const auto loop_start = SteadyTime::now();
     auto second_start = loop_start;
     uint64_t iterations = 0, second_start_iterations = 0;
-    while (!stop.load(std::memory_order_relaxed)) {
+    // Stop: the force fades out over fade_s (at most 0.5 s) counted in cycles (the station clock
+    // may stand still), then the loop returns once the rate limit has reached zero.
+    const int stop_cycles = static_cast<int>(std::clamp(
+        std::lround(options.fade_s * options.rate_hz), 1L, std::lround(0.5 * options.rate_hz)));
+    int stopping = -1;  // cycles since Stop, -1: running
+    for (;;) {
+      if (stopping < 0 && stop.load(std::memory_order_relaxed)) stopping = 0;
       // The loop's own rate, on real time: over the run, and per whole second.
       const auto t_loop = SteadyTime::now();
       loop_seconds.store(std::chrono::duration<double>(t_loop - loop_start).count(),
@@ -388,15 +395,25 @@ struct StationChannel::Impl {
             break;
         }
         modelled = f;
+        // A contact's or a grasp's model is a passive field about the tissue's state: held
+        // through a silence up to model_hold_s (StationOptions) before the fade.
+        using Kind = haptics::LocalModel::Kind;
+        const bool held =
+            options.rendering == LocalRendering::kModel &&
+            (answer.local.kind == Kind::kContact || answer.local.kind == Kind::kGrasp);
+        const double patience = held ? std::max(watchdog_s, options.model_hold_s) : watchdog_s;
         const double age = now - l.received_s;
-        if (age > watchdog_s) {
+        if (age > patience) {
           if (!fading) fades.fetch_add(1, std::memory_order_relaxed);
           fading = true;
-          f *= std::max(0.0, 1.0 - (age - watchdog_s) / options.fade_s);
+          f *= std::max(0.0, 1.0 - (age - patience) / options.fade_s);
         } else {
           fading = false;
         }
+        if (stopping == 0 && !fading && age > watchdog_s)
+          fades.fetch_add(1, std::memory_order_relaxed);  // stopped while the server was silent
       }
+      if (stopping >= 0) f *= std::max(0.0, 1.0 - static_cast<double>(stopping) / stop_cycles);
       // Passivity observer/controller: the coupling must not put energy into the hand.
       if (l.received_s >= 0)
         passivity.TissueReport(l.message.echo_sequence, l.message.command.released_j,
@@ -454,6 +471,7 @@ struct StationChannel::Impl {
       view.Publish();
       if (out.norm() > max_force.load()) max_force = out.norm();
 
+      if (stopping >= 0 && ++stopping > stop_cycles && (out.isZero(0.0) || stopping > 1000)) break;
       next += period;
       const auto t = SteadyTime::now();
       if (t - next > std::chrono::milliseconds(20)) next = t;  // fell behind: no burst
@@ -469,6 +487,8 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
     return InvalidArgument("rate_hz", "must be in 100..20000");
   if (!(options.watchdog_s > 0 && options.fade_s > 0))
     return InvalidArgument("watchdog", "times must be > 0");
+  if (!(options.model_hold_s >= 0 && options.model_hold_s <= 10))
+    return InvalidArgument("model_hold_s", "must be in 0..10 s");
   if (!(options.deadband >= 0 && options.deadband < 1) || !(options.heartbeat_s > 0.001) ||
       !(options.heartbeat_s <= 0.25) || !(options.deadband_position_m > 0) ||
       !(options.deadband_angle_rad > 0) ||
@@ -507,6 +527,7 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
   p->device_thread = std::thread([p] {
     TrySetRealtimePriority(p->options.realtime_priority);
     p->DeviceLoop();
+    p->device_done.store(true);
   });
   if (p->log_file) p->log_thread = std::thread([p] { p->LogLoop(); });
   return std::unique_ptr<StationChannel>(new StationChannel(std::move(impl)));

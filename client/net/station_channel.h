@@ -3,7 +3,8 @@
 // Two threads:
 //   device thread, at rate_hz (1 kHz): read the device; send a StylusState datagram; render the
 //     force from the latest local model, F = F₀ + J·(x − x₀), whatever the network is doing;
-//     watchdog (no server update for watchdog_s → the force fades linearly to zero over fade_s);
+//     watchdog (no server update for watchdog_s → the force fades linearly to zero over fade_s;
+//     a contact's or grasp's local model is first held for model_hold_s);
 //     passivity observer and controller (Hannaford & Ryu 2002: the energy the rendered force has
 //     put into the hand; when the coupling has generated energy, a damping that dissipates it);
 //     the station's own safety filter (device limits, start-up gate, ramp-in, rate limit);
@@ -12,7 +13,8 @@
 //     wins), hand the newest to the device thread through a lock-free triple buffer, and
 //     measure the round trip from the echoed send time; queue SceneFrame chunks for rendering.
 // UDP needs no connection: when the server comes back the station's next datagrams are answered
-// again (the force was faded meanwhile), which is all a reconnect is here.
+// again (the force was held or faded meanwhile), which is all a reconnect is here. Stop fades the
+// force out over fade_s (in servo cycles) before it returns: a stop never cuts a held force.
 #pragma once
 
 #include <cstdint>
@@ -48,6 +50,16 @@ struct StationOptions {
   double rate_hz = 1000;
   double watchdog_s = 0.020;  // no update for this long: start fading
   double fade_s = 0.050;      // from full force to zero
+  // kModel: an answer whose local model is a contact's or a grasp's (a passive field about the
+  // tissue's state: a surface's spring and damper, the grasp's hold spring and torque curve) is
+  // rendered for this long without a newer one before the watchdog fades it. Model-mediated
+  // teleoperation's premise (Mitra & Niemeyer 2008; held across 1 s round trips, Xu et al. 2014):
+  // through a Wi-Fi roam the hand keeps feeling the tissue instead of falling into it, and is not
+  // pushed back out when the answers return (a fade there gave the hand 3-6 mJ the tissue never
+  // had; docs/BENCHMARKS.md). Release and leaving the surface stay local: the model ends them. A
+  // server that is gone is found by the station's probe (station.h, silence_s), which stops the
+  // channel, and Stop fades. 0: the watchdog alone, for every answer.
+  double model_hold_s = 1.0;
   bool passivity = true;
   // kLocal: the one-port observer on the rendering; kNetwork: the two-port's station side,
   // which gives the hand no more energy than the server's answers say the tissue released
@@ -93,13 +105,15 @@ struct StationStats {
   // seen. Neither is loss.
   uint64_t stale = 0, duplicates = 0;
   // Stylus datagrams never answered, up to the newest answered one (either direction's loss; the
-  // ones still in flight are not counted), and answers that came after the watchdog had begun to
-  // fade the force (late enough to be felt).
+  // ones still in flight are not counted), and answers that came more than the watchdog's time
+  // after the one before (late enough to be felt: the model was held or faded meanwhile).
   uint64_t lost = 0, late = 0;
   double rtt_p50_us = 0, rtt_p99_us = 0, rtt_p999_us = 0;
-  double jitter_us = 0;                    // mean |RTT_i − RTT_{i−1}|
-  double loss = 0;                         // lost / the newest answered stylus sequence
-  uint64_t watchdog_fades = 0;             // times the watchdog started fading
+  double jitter_us = 0;  // mean |RTT_i − RTT_{i−1}|
+  double loss = 0;       // lost / the newest answered stylus sequence
+  // Times the force was faded for want of answers: the watchdog began to fade it, or the
+  // channel was stopped while its server was silent (a held model faded by Stop).
+  uint64_t watchdog_fades = 0;
   uint64_t scene_chunks = 0;               // SceneFrame datagrams received
   double passivity_energy_dissipated = 0;  // J the controller removed
   // The passivity observer's record of the force held over each servo interval against that

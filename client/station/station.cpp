@@ -238,6 +238,7 @@ Status Station::Connect() {
   options.passivity_mode = config_.passivity;
   options.force_log = config_.force_log;
   options.deadband = config_.deadband;
+  options.model_hold_s = config_.model_hold_s;
   options.force_limit_n = config_.force_limit_n;
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();

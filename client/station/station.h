@@ -10,14 +10,16 @@
 //       └───────────────────────────────── every retry_s ───────────────────────────────────┘
 //   any ──Finish──▶ finished (the session stopped and recorded; the device at zero force)
 //
-// Meanwhile the channel's watchdog has faded the force to zero (20 ms + 50 ms), and while
-// reconnecting no channel runs and the device holds zero force. A session that is still live
-// but silent may have moved to another node (a draining node's live migration; the old node
-// answers with a "moved" notice, which the station takes as a reason to probe at once): the probe
-// asks where it runs (Join) and, when that is somewhere else, the station follows it there with
-// the same session and key (live → live, a new channel; the trial goes on where it was). A session
-// is not resumed across a server restart: the server aborted it and recorded it; the station starts
-// a new one (a new session id and key), and the render side resets the tissue (generation()).
+// Meanwhile the channel's watchdog has faded the force to zero (20 ms + 50 ms; a contact's or
+// grasp's model is first held for up to its model_hold_s, 1 s, and a channel stopped sooner fades
+// it out over 50 ms), and while reconnecting no channel runs and the device holds zero force. A
+// session that is still live but silent may have moved to another node (a draining node's live
+// migration; the old node answers with a "moved" notice, which the station takes as a reason to
+// probe at once): the probe asks where it runs (Join) and, when that is somewhere else, the station
+// follows it there with the same session and key (live → live, a new channel; the trial goes on
+// where it was). A session is not resumed across a server restart: the server aborted it and
+// recorded it; the station starts a new one (a new session id and key), and the render side resets
+// the tissue (generation()).
 //
 // Threads: Tick runs on one thread at a time: the station's supervisor thread (StartSupervisor:
 // every tick_s, so a render thread stalled for seconds by a first frame or a slow driver never
@@ -75,9 +77,10 @@ struct StationConfig {
   int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
   LocalRendering rendering = LocalRendering::kModel;  // between the server's answers
   PassivityMode passivity = PassivityMode::kLocal;    // the station's passivity control
-  std::string force_log;     // non-empty: the rendered force per servo cycle (StationOptions)
-  double deadband = 0;       // StationOptions::deadband
-  double force_limit_n = 0;  // StationOptions::force_limit_n (the scene task's)
+  std::string force_log;      // non-empty: the rendered force per servo cycle (StationOptions)
+  double deadband = 0;        // StationOptions::deadband
+  double model_hold_s = 1.0;  // StationOptions::model_hold_s
+  double force_limit_n = 0;   // StationOptions::force_limit_n (the scene task's)
 };
 
 enum class StationState { kConnecting, kLive, kReconnecting, kFinished, kFailed };

@@ -148,6 +148,10 @@ int Run(const std::vector<std::string>& args) {
               "than this fraction of itself (Weber, ~0.1), the tip moved 0.5 mm or turned 1 deg, "
               "or 25 ms passed (0: every cycle)",
               false, "0")
+      .Option("model-hold", Kind::kDouble,
+              "seconds a contact's or grasp's local model is rendered through a silence before "
+              "it fades (0: faded 20 ms into any silence)",
+              false, "1")
       .Option("force-log", Kind::kString,
               "CSV of the force sent to the device per servo cycle: t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n")
       .Option("rate", Kind::kDouble, "haptic rate, Hz", false, "1000")
@@ -302,6 +306,9 @@ int Run(const std::vector<std::string>& args) {
   config.force_limit_n = scene->task.force_limit;
   if (!(config.deadband >= 0 && config.deadband < 1))
     return std::cerr << "vsurg-station: --deadband: a fraction in [0, 1)\n", 2;
+  config.model_hold_s = p.Double("model-hold");
+  if (!(config.model_hold_s >= 0 && config.model_hold_s <= 10))
+    return std::cerr << "vsurg-station: --model-hold: seconds in [0, 10]\n", 2;
   if (p.Has("force-log")) {
     config.force_log = p.String("force-log");
     // Truncated once here; each session's channel appends (one log across reconnects).

@@ -80,10 +80,10 @@ struct EndpointOptions {
   const Clock* clock = nullptr;
   // A stylus datagram that waited in this server's receive queue longer than this (the kernel's
   // arrival stamp against the time it is read: a process that was frozen, or starved of a core)
-  // is dropped, never answered: its force would act on where the hand was, not where it is. The
-  // station's own watchdog has faded the force to zero long before (20 ms + 50 ms); the bound is
-  // over three times that, so a server only descheduled for a moment on a loaded machine still
-  // answers, while a frozen one never does.
+  // is dropped, never answered: its force would act on where the hand was, not where it is (the
+  // station meanwhile renders its last local model, or has faded a bare force within 70 ms). A
+  // server only descheduled for a moment on a loaded machine still answers; a frozen one never
+  // does.
   double max_input_age_s = 0.25;
   // A simulation node's lease (server/net/lease.h): while it is not valid no force is sent for
   // any session. Null: the all-in-one server, which needs none. Must outlive the endpoint.

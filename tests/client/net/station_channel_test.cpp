@@ -59,6 +59,7 @@ TEST(StationChannelTest, RoundTripsOnLoopbackAndRendersTheTissueForce) {
   auto station = StationChannel::Create(Options(server.endpoint->port()), &device);
   ASSERT_TRUE(station.ok()) << station.error().message;
   WaitFor(device);
+  const size_t before_stop = device.forces().size();
   (*station)->Stop();
   const StationStats s = (*station)->stats();
   EXPECT_GT(s.sent, 1000u);
@@ -75,8 +76,8 @@ TEST(StationChannelTest, RoundTripsOnLoopbackAndRendersTheTissueForce) {
   const std::vector<Eigen::Vector3d> f = device.forces();
   ASSERT_GT(f.size(), 1000u);
   // Pushed back up out of the sphere (K·3 mm ≈ 0.9 N before it gives) until the end; Stop then
-  // leaves the device at zero force.
-  EXPECT_GT(f[f.size() - 2].z(), 0.1);
+  // fades the device to zero force.
+  EXPECT_GT(f[before_stop - 1].z(), 0.1);
   EXPECT_EQ(f.back(), Eigen::Vector3d::Zero());
   for (const auto& x : f) EXPECT_LE(x.norm(), 3.3 + 1e-9);
 }
@@ -93,6 +94,7 @@ TEST(StationChannelTest, ABadNetworkKeepsForcesBoundedAndContinuous) {
   auto station = StationChannel::Create(Options(relay.port()), &device);
   ASSERT_TRUE(station.ok());
   WaitFor(device);
+  const size_t before_stop = device.forces().size();
   (*station)->Stop();
   const StationStats s = (*station)->stats();
   // 20% lost each way, and 0–5 ms jitter at 1 ms spacing reorders many: latest-wins drops those.
@@ -104,7 +106,7 @@ TEST(StationChannelTest, ABadNetworkKeepsForcesBoundedAndContinuous) {
     ASSERT_LE(f[i].norm(), 3.3 + 1e-9);
     ASSERT_LE((f[i] - f[i - 1]).norm(), rate_step) << i;
   }
-  EXPECT_GT(f[f.size() - 2].z(), 0.1);
+  EXPECT_GT(f[before_stop - 1].z(), 0.1);
   EXPECT_GT(server.endpoint->counters().Dropped(wire::DropReason::kStale), 0u);
 }
 
@@ -233,41 +235,92 @@ void WaitForWrites(const ReplayDevice& device, size_t n) {
   ASSERT_GE(device.forces().size(), target) << "the device loop stopped";
 }
 
-TEST(StationChannelTest, TheWatchdogFadesTheForceWhenTheServerGoesQuiet) {
-  Server server;
-  test::UdpRelay relay(server.endpoint->port(), {});
-  ReplayDevice device(PressAndHold(3.0));
-  ManualClock clock;  // the station's: the watchdog and the fade read it
-  StationOptions o = Options(relay.port());
-  o.clock = &clock;
-  auto station = StationChannel::Create(o, &device);
-  ASSERT_TRUE(station.ok());
-  WaitForWrites(device, 1200);                    // pressed in, and the start-up ramp done
-  ASSERT_GT(device.forces().back().norm(), 0.1);  // steady contact
-  relay.SetBlackhole(true);
-  WaitForWrites(device, 20);  // answers in flight have landed
-  ASSERT_GT(device.forces().back().norm(), 0.1)
-      << "silence alone, with no time passing, is no fade";
-  // 20 ms of silence starts the fade: halfway through its 50 ms, the force is about half.
-  clock.Advance(0.020 + 0.025);
-  WaitForWrites(device, 5);
-  const double half = device.forces().back().norm();
-  // Past the fade: zero on every cycle, once the safety filter's rate limit (1 N per 1 ms cycle)
-  // has brought it down.
-  clock.Advance(0.030);
-  WaitForWrites(device, 5);
-  const size_t from = device.forces().size();
-  WaitForWrites(device, 50);
-  const std::vector<Eigen::Vector3d> f = device.forces();
-  for (size_t i = from; i < f.size(); ++i) EXPECT_EQ(f[i].norm(), 0.0) << i - from;
-  EXPECT_GT(half, 0.0);
-  EXPECT_GE((*station)->stats().watchdog_fades, 1u);
-  // The server answers again: the station picks up (UDP needs no reconnect handshake); the
-  // safety filter's ramp brings the force back over some cycles.
-  relay.SetBlackhole(false);
-  WaitForWrites(device, 600);
-  EXPECT_GT(device.forces().back().norm(), 0.1);
-  (*station)->Stop();
+// A contact's model is held through a silence (model_hold_s), then the watchdog fades it; the
+// server's force alone (no model) fades 20 ms into the same silence.
+TEST(StationChannelTest, TheWatchdogHoldsAContactsModelThenFadesItWhenTheServerGoesQuiet) {
+  for (const bool model : {true, false}) {
+    SCOPED_TRACE(model ? "the contact's model, held 0.3 s" : "the server's force alone");
+    Server server;
+    test::UdpRelay relay(server.endpoint->port(), {});
+    ReplayDevice device(PressAndHold(3.0));
+    ManualClock clock;  // the station's: the watchdog and the fade read it
+    StationOptions o = Options(relay.port());
+    o.clock = &clock;
+    o.model_hold_s = 0.3;
+    if (!model) o.rendering = LocalRendering::kServerForce;
+    const double patience = model ? 0.3 : 0.020;
+    auto station = StationChannel::Create(o, &device);
+    ASSERT_TRUE(station.ok());
+    WaitForWrites(device, 1200);                    // pressed in, and the start-up ramp done
+    ASSERT_GT(device.forces().back().norm(), 0.1);  // steady contact
+    relay.SetBlackhole(true);
+    WaitForWrites(device, 20);  // answers in flight have landed
+    const double steady = device.forces().back().norm();
+    ASSERT_GT(steady, 0.1) << "silence alone, with no time passing, is no fade";
+    // 45 ms of silence: the server's force is halfway through its fade; the model is still held
+    // whole (the replayed hand holds still, so the model gives the force it gave).
+    clock.Advance(0.045);
+    WaitForWrites(device, 5);
+    const double at_45ms = device.forces().back().norm();
+    if (model) {
+      EXPECT_NEAR(at_45ms, steady, 0.02 * steady);
+      EXPECT_EQ((*station)->stats().watchdog_fades, 0u);
+      clock.Advance(patience + 0.025 - 0.045);  // halfway through the fade after the hold
+      WaitForWrites(device, 5);
+    }
+    const double half = device.forces().back().norm();
+    EXPECT_GT(half, 0.3 * steady);
+    EXPECT_LT(half, 0.7 * steady);
+    // Past the fade: zero on every cycle, once the safety filter's rate limit (1 N per 1 ms
+    // cycle) has brought it down.
+    clock.Advance(0.030);
+    WaitForWrites(device, 5);
+    const size_t from = device.forces().size();
+    WaitForWrites(device, 50);
+    const std::vector<Eigen::Vector3d> f = device.forces();
+    for (size_t i = from; i < f.size(); ++i) EXPECT_EQ(f[i].norm(), 0.0) << i - from;
+    EXPECT_EQ((*station)->stats().watchdog_fades, 1u);
+    // The server answers again: the station picks up (UDP needs no reconnect handshake); the
+    // safety filter's ramp brings the force back over some cycles.
+    relay.SetBlackhole(false);
+    WaitForWrites(device, 600);
+    EXPECT_GT(device.forces().back().norm(), 0.1);
+    (*station)->Stop();
+  }
+}
+
+// Stop fades a held force out over fade_s instead of cutting it; a stop while the server answers
+// is no fade for want of answers, one while it is silent (a held model) is.
+TEST(StationChannelTest, StopFadesTheForceOutInsteadOfCuttingIt) {
+  for (const bool silent : {false, true}) {
+    SCOPED_TRACE(silent ? "stopped while the server is silent" : "stopped while it answers");
+    Server server;
+    test::UdpRelay relay(server.endpoint->port(), {});
+    ReplayDevice device(PressAndHold(3.0));
+    ManualClock clock;
+    StationOptions o = Options(relay.port());
+    o.clock = &clock;
+    auto station = StationChannel::Create(o, &device);
+    ASSERT_TRUE(station.ok());
+    WaitForWrites(device, 1200);
+    if (silent) {
+      relay.SetBlackhole(true);
+      WaitForWrites(device, 20);
+      clock.Advance(0.1);  // past the watchdog's 20 ms, within the model's hold
+      WaitForWrites(device, 5);
+    }
+    const size_t before = device.forces().size();
+    const double held = device.forces().back().norm();
+    ASSERT_GT(held, 0.1);
+    (*station)->Stop();
+    const std::vector<Eigen::Vector3d> f = device.forces();
+    // fade_s (50 ms) of the servo's cycles, each step a fiftieth of the force or so.
+    ASSERT_GE(f.size(), before + 45);
+    for (size_t i = before; i < f.size(); ++i)
+      EXPECT_LE((f[i] - f[i - 1]).norm(), 0.05 * held) << i - before;
+    EXPECT_EQ(f.back().norm(), 0.0);
+    EXPECT_EQ((*station)->stats().watchdog_fades, silent ? 1u : 0u);
+  }
 }
 
 TEST(StationChannelTest, SceneFramesCarryTheTwistedVerticesToTheStation) {

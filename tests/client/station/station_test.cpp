@@ -119,19 +119,18 @@ TEST(StationTest, SurvivesTheServerRestartingWithTheForceFadedMeanwhile) {
   EXPECT_EQ(server.Signal(SIGTERM), 0);
   ASSERT_TRUE(TickUntil(station, 10,
                         [&] { return station.status().state == StationState::kReconnecting; }));
-  // The force never jumps, and the watchdog faded it to zero (20 ms silence, then 50 ms) well
-  // before the station gave up on the server (0.5 s of silence and a failed probe) and stopped
-  // the channel: the last non-zero force is hundreds of device cycles before the end.
+  // The force never jumps: the contact's model was held through the silence (model_hold_s), or
+  // ended at the station when the replayed hand lifted off, and when the station gave up on the
+  // server (0.5 s of silence and a failed probe) it stopped the channel, which fades a held force
+  // out over 50 cycles (StationChannelTest.StopFadesTheForceOutInsteadOfCuttingIt) and counts
+  // that as a fade for want of answers.
   const std::vector<Eigen::Vector3d> forces = device.forces();
   EXPECT_GT(forces[written_before - 1].norm(), 0.3);
   const double step = device.limits().max_force_rate * 1e-3 * 1.0001;
-  size_t last_nonzero = 0;
-  for (size_t i = written_before; i < forces.size(); ++i) {
+  for (size_t i = written_before; i < forces.size(); ++i)
     ASSERT_LE((forces[i] - forces[i - 1]).norm(), step) << i;
-    if (forces[i].norm() > 0) last_nonzero = i;
-  }
-  EXPECT_LT(last_nonzero + 300, forces.size()) << "faded by the watchdog, not cut at the stop";
   EXPECT_EQ(forces.back().norm(), 0.0);
+  EXPECT_GE(station.total_stats().watchdog_fades, 1u) << "a fade for want of answers";
   EXPECT_FALSE(station.WithChannel([](StationChannel&, const StationStatus&) {}));
 
   // Meanwhile attempts fail and are retried; then the server is back on the same ports.
