@@ -67,6 +67,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|WanTest.AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself'
   long+='|WanTest.TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel'
   long+='|WanTest.TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork'
+  long+='|WanTest.AWiFiRoamIsHeldByTheTissuesModel'
   long+='|OrganSceneTest.ScriptedTraineesPalpateTheKidney'
   # Two whole scripted twists replayed to set the grasp's exact model against the server's later
   # answers (52 s here, 0.65 s in the main build); the exact model's code runs under ASan in
