@@ -513,8 +513,17 @@ TEST_F(ClusterTest, ADrainingNodeMovesItsLiveSessionsWithTheirStateAndTheTrialGo
     EXPECT_EQ(row->node, "sim-b");
     EXPECT_TRUE(b.sessions->IsLive(static_cast<uint64_t>(s->record.id)));
   }
-  EXPECT_EQ(control_->Get(live->record.id)->state, SessionState::kRunning);
+  // Live on its new node: running, or stalled when 0.5 s passed without a sample (the station
+  // here sends nothing during the drain; an instrumented build's migration takes that long).
+  const SessionState moved_state = control_->Get(live->record.id)->state;
+  EXPECT_TRUE(moved_state == SessionState::kRunning || moved_state == SessionState::kStalled)
+      << static_cast<int>(moved_state);
   EXPECT_EQ(control_->Get(waiting->record.id)->state, SessionState::kCreated);
+  // The session that was waiting starts on its new node (now: a session not started within 60 s
+  // of its creation is aborted, and the rest of this test replays a whole trial).
+  auto started = control_->Start(waiting->record.id);
+  ASSERT_TRUE(started.ok()) << started.error().message;
+  EXPECT_EQ(started->state, SessionState::kRunning);
   // The old node answers the station only to say that the session moved: no force.
   const auto notice = station.AnswerTo(station.Send((*samples)[k]), 5);
   ASSERT_TRUE(notice) << "the old node said nothing";
@@ -562,10 +571,6 @@ TEST_F(ClusterTest, ADrainingNodeMovesItsLiveSessionsWithTheirStateAndTheTrialGo
   ASSERT_FALSE(series.empty());
   EXPECT_LT(series.front().get<double>(), (*samples)[grasped_at].time)
       << "the record lost what the old node recorded";
-  // The session that was waiting starts on its new node.
-  auto started = control_->Start(waiting->record.id);
-  ASSERT_TRUE(started.ok()) << started.error().message;
-  EXPECT_EQ(started->state, SessionState::kRunning);
   EXPECT_EQ(Metric(*control_, "vsurg_migrations_total{outcome=\"moved\"}"), 2);
 }
 
