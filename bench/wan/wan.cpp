@@ -95,6 +95,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
   co.passivity = o.passivity;
   co.passivity_mode = o.passivity_mode;
   co.deadband = o.deadband;
+  co.deadband_contact_heartbeat_s = o.contact_heartbeat_s;
   co.exact_grasp = o.exact_grasp;
   co.model_hold_s = o.model_hold_s;
   co.force_limit_n = o.scene.task.force_limit;

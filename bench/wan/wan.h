@@ -33,9 +33,10 @@ struct RunOptions {
   client::PassivityMode passivity_mode = client::PassivityMode::kLocal;
   bool exact_grasp = true;    // StationOptions::exact_grasp (false: a grasp's first order alone)
   double model_hold_s = 1.0;  // StationOptions::model_hold_s (0: a silence fades every model)
-  double deadband = 0;    // the station's Weber fraction (StationOptions::deadband); 0: every cycle
-  double settle_s = 0.5;  // run on after the plan ends
-  std::string cache_dir;  // reduced models' cache ("" = the default)
+  double deadband = 0;  // the station's Weber fraction (StationOptions::deadband); 0: every cycle
+  double contact_heartbeat_s = 0.015;  // StationOptions::deadband_contact_heartbeat_s
+  double settle_s = 0.5;               // run on after the plan ends
+  std::string cache_dir;               // reduced models' cache ("" = the default)
 };
 
 struct Run {

@@ -65,7 +65,9 @@ int Wan(const std::vector<std::string>& args) {
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
               "the proxy's spring, +fitk one slope fitted to the force over the depth; +tangent: a "
               "grasp rendered to first order in the twist (the exact grasp model off); +fade "
-              "(last): every model faded 20 ms into a silence, none held (model_hold_s 0)",
+              "(last): every model faded 20 ms into a silence, none held (model_hold_s 0); "
+              "+chbN (before +fade): with a deadband, a heartbeat of N ms while a force is "
+              "rendered",
               false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
@@ -91,7 +93,8 @@ int Wan(const std::vector<std::string>& args) {
     double deadband;
     sim::HapticsSpec::ContactModel contact;  // the contact's local model
     bool exact_grasp;
-    bool hold;  // StationOptions::model_hold_s at its default; false: 0 (+fade)
+    bool hold;                   // StationOptions::model_hold_s at its default; false: 0 (+fade)
+    double contact_heartbeat_s;  // StationOptions::deadband_contact_heartbeat_s (+chbN, N ms)
   };
   std::vector<Method> methods;
   for (const auto& name : Split(p.String("methods"))) {
@@ -102,6 +105,13 @@ int Wan(const std::vector<std::string>& args) {
       return has;
     };
     const bool fade = strip("+fade");  // the last suffix
+    double contact_heartbeat_s = client::StationOptions{}.deadband_contact_heartbeat_s;
+    if (const size_t at = base.rfind("+chb"); at != std::string::npos) {
+      contact_heartbeat_s = std::strtod(base.c_str() + at + 4, nullptr) / 1e3;
+      if (!(contact_heartbeat_s > 0.001 && contact_heartbeat_s <= 0.25))
+        return std::cerr << "vsurg-bench wan: +chbN: a contact heartbeat of 2..250 ms\n", 2;
+      base.resize(at);
+    }
     const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
     const bool tdpa = strip("+tdpa");
     const bool tangent = strip("+tangent");
@@ -115,7 +125,8 @@ int Wan(const std::vector<std::string>& args) {
     for (const auto& db : Split(p.String("deadbands"))) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent, !fade});
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent, !fade,
+                         contact_heartbeat_s});
     }
   }
   const int runs = p.Int("runs");
@@ -148,6 +159,7 @@ int Wan(const std::vector<std::string>& args) {
         o.passivity_mode = method_entry.passivity;
         o.exact_grasp = method_entry.exact_grasp;
         if (!method_entry.hold) o.model_hold_s = 0;
+        o.contact_heartbeat_s = method_entry.contact_heartbeat_s;
         o.grip = *grip;
         // The reference: the same rendering at full rate through the relay, unimpaired, with the
         // one-port passivity control (so what the network control costs shows as error).

@@ -336,7 +336,8 @@ struct StationChannel::Impl {
     bool fading = false;
     Vec3 last_tip = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // none yet
     Deadband deadband({options.deadband, options.deadband_position_m, options.deadband_angle_rad,
-                       options.deadband_onset_s, options.heartbeat_s});
+                       options.deadband_onset_s, options.heartbeat_s,
+                       options.deadband_contact_heartbeat_s});
     TissueContact tissue(1.0 / options.rate_hz);
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     // Always observing; controlling only when asked.
@@ -490,7 +491,8 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
   if (!(options.model_hold_s >= 0 && options.model_hold_s <= 10))
     return InvalidArgument("model_hold_s", "must be in 0..10 s");
   if (!(options.deadband >= 0 && options.deadband < 1) || !(options.heartbeat_s > 0.001) ||
-      !(options.heartbeat_s <= 0.25) || !(options.deadband_position_m > 0) ||
+      !(options.heartbeat_s <= 0.25) || !(options.deadband_contact_heartbeat_s > 0.001) ||
+      !(options.deadband_contact_heartbeat_s <= 0.25) || !(options.deadband_position_m > 0) ||
       !(options.deadband_angle_rad > 0) ||
       !(options.deadband_onset_s >= 0 && options.deadband_onset_s <= 1))
     return InvalidArgument("deadband",

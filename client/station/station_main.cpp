@@ -146,7 +146,7 @@ int Run(const std::vector<std::string>& args) {
       .Option("deadband", Kind::kDouble,
               "perceptual deadband: send the stylus only when the rendered force changed by more "
               "than this fraction of itself (Weber, ~0.1), the tip moved 0.5 mm or turned 1 deg, "
-              "or 25 ms passed (0: every cycle)",
+              "or 25 ms passed (15 ms while a force is rendered; 0: every cycle)",
               false, "0")
       .Option("model-hold", Kind::kDouble,
               "seconds a contact's or grasp's local model is rendered through a silence before "

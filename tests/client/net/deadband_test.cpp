@@ -89,5 +89,26 @@ TEST(DeadbandTest, EachContactStartsAtFullRateAndZeroKSendsEveryCycle) {
   EXPECT_EQ(Sends(every, 0, 100, 0, touch), 100);
 }
 
+// While a force is rendered the heartbeat is the contact's (the server's tissue is driven by the
+// samples it gets); in free space it is the slower one. A contact heartbeat above the free one is
+// the free one.
+TEST(DeadbandTest, ARenderedForceKeepsItsOwnHeartbeat) {
+  Deadband d({.k = 0.1, .onset_s = 0, .heartbeat_s = 0.025, .contact_heartbeat_s = 0.010});
+  const Eigen::Vector3d f(0, 0, 0.4);
+  EXPECT_TRUE(d.Due(0, StillAt(0), Eigen::Vector3d::Zero()));
+  const int free = Sends(d, 1, 1001, 0, [](int) { return Eigen::Vector3d::Zero(); });
+  EXPECT_GE(free, 38);
+  EXPECT_LE(free, 40);
+  // A steady force: the first change is sent (and repeated once), then every 10 ms.
+  const int touching = Sends(d, 1001, 2001, 0, [&](int) { return f; });
+  EXPECT_GE(touching, 98);
+  EXPECT_LE(touching, 102);
+  Deadband capped({.k = 0.1, .onset_s = 0, .heartbeat_s = 0.025, .contact_heartbeat_s = 0.1});
+  EXPECT_TRUE(capped.Due(0, StillAt(0), f));
+  const int held = Sends(capped, 1, 1001, 0, [&](int) { return f; });
+  EXPECT_GE(held, 38);
+  EXPECT_LE(held, 40);
+}
+
 }  // namespace
 }  // namespace vsurg::client
