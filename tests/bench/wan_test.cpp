@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -120,6 +121,18 @@ class WanTest : public ::testing::Test {
     return c;
   }
 
+  // The suite's options on another scene, with its good scripted trainee and the local model.
+  static void OptionsFor(const std::string& scene_name, RunOptions& o) {
+    auto scene = GridScene(scene_name);
+    ASSERT_TRUE(scene.ok()) << scene.error().message;
+    auto plan = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+    ASSERT_TRUE(plan.ok());
+    o = *options_;
+    o.scene = *scene;
+    o.plan = *plan;
+    o.rendering = client::LocalRendering::kModel;
+  }
+
   static RunOptions* options_;
 };
 RunOptions* WanTest::options_ = nullptr;
@@ -188,14 +201,8 @@ TEST_F(WanTest, AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself) {
   // passivity controller took it for an active loop and damped the last 1 ms step of a 0.055 mm
   // encoder: a 250 Hz, ±0.27 N buzz (0.15 N above 30 Hz) that made two unimpaired runs differ by
   // 14–21% of the peak. Now: the field's energy is allowed and the damping reads a mean velocity.
-  auto scene = GridScene("organ-surface-twist");
-  ASSERT_TRUE(scene.ok()) << scene.error().message;
-  auto plan = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
-  ASSERT_TRUE(plan.ok());
-  RunOptions o = *options_;
-  o.scene = *scene;
-  o.plan = *plan;
-  o.rendering = client::LocalRendering::kModel;
+  RunOptions o;
+  ASSERT_NO_FATAL_FAILURE(OptionsFor("organ-surface-twist", o));
   o.profile = *relay::ProfileByName("none");
   auto ref = RunOnce(o);
   ASSERT_TRUE(ref.ok()) << ref.error().message;
@@ -210,7 +217,7 @@ TEST_F(WanTest, AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself) {
       self.oscillation_n, f.rms_error_pct, f.oscillation_n, f.peak_force_n, f.energy_excess_mj,
       f.score, self.score);
   EXPECT_GT(self.peak_force_n, 0.5);  // the twist was felt
-  EXPECT_LE(f.peak_force_n, scene->haptics.limits.max_force + 1e-9);
+  EXPECT_LE(f.peak_force_n, o.scene.haptics.limits.max_force + 1e-9);
   EXPECT_LT(f.energy_excess_mj, 1.0);
   if (kFiguresMeaningful) {
     EXPECT_LT(self.oscillation_n, 0.06);
@@ -235,14 +242,8 @@ TEST_F(WanTest, AWiFiRoamIsHeldByTheTissuesModel) {
   // through the silence (StationOptions::model_hold_s); faded instead, the tensed hand went on
   // against nothing and the returning tissue pushed it back: 6.2 mJ it never put in
   // (docs/BENCHMARKS.md, "A silence held by the tissue's model").
-  auto scene = GridScene("arm-torsion");
-  ASSERT_TRUE(scene.ok()) << scene.error().message;
-  auto plan = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
-  ASSERT_TRUE(plan.ok());
-  RunOptions o = *options_;
-  o.scene = *scene;
-  o.plan = *plan;
-  o.rendering = client::LocalRendering::kModel;
+  RunOptions o;
+  ASSERT_NO_FATAL_FAILURE(OptionsFor("arm-torsion", o));
   o.profile = *relay::ProfileByName("none");
   auto ref = RunOnce(o);
   ASSERT_TRUE(ref.ok()) << ref.error().message;
@@ -267,7 +268,7 @@ TEST_F(WanTest, AWiFiRoamIsHeldByTheTissuesModel) {
   EXPECT_GT(faded->station.watchdog_fades, 0u) << "the outage was there";
   EXPECT_EQ(held->station.watchdog_fades, 0u) << "held through it, never faded";
   EXPECT_LT(h.energy_excess_mj, 1.0);
-  EXPECT_LE(h.peak_force_n, scene->haptics.limits.max_force + 1e-9);
+  EXPECT_LE(h.peak_force_n, o.scene.haptics.limits.max_force + 1e-9);
   if (kFiguresMeaningful) {
     EXPECT_LT(h.rms_error_pct, 5);
     EXPECT_GT(f.energy_excess_mj, h.energy_excess_mj + 1.0) << "the fade's push back";
