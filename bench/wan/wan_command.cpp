@@ -109,8 +109,7 @@ int Wan(const std::vector<std::string>& args) {
     if (const size_t at = base.rfind("+chb"); at != std::string::npos) {
       contact_heartbeat_s = std::strtod(base.c_str() + at + 4, nullptr) / 1e3;
       if (!(contact_heartbeat_s > 0.001 && contact_heartbeat_s <= 0.25))
-        return std::cerr << "vsurg-bench wan: +chbN: a contact heartbeat above 1 ms, at most 250\n",
-               2;
+        return std::cerr << "vsurg-bench wan: +chbN: N ms in (1, 250]\n", 2;
       base.resize(at);
     }
     const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
