@@ -12,7 +12,10 @@
 // BM_RingLayerStep vs BM_MsmStep/5/1: the same palpation of the 1026-particle sphere by the
 // ring-layer model (only the rings around the contact move) and by the full mass-spring model.
 //
-//   build/bin/vsurg-microbench --benchmark_filter='HapticPath|RingLayer'
+// BM_BvhRefit: the deformation thread's refit of the surface's bounding boxes, once per published
+// surface (Simulation::Publish), on the arm's and the organ's physics surfaces, every vertex moved.
+//
+//   build/bin/vsurg-microbench --benchmark_filter='HapticPath|RingLayer|BvhRefit'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -20,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "common/geometry/bvh.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
@@ -106,5 +110,33 @@ void BM_RingLayerStep(benchmark::State& state) {
   state.counters["moved_vertices"] = moved;
 }
 BENCHMARK(BM_RingLayerStep)->Unit(benchmark::kMicrosecond);
+
+void BM_BvhRefit(benchmark::State& state) {
+  static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
+  const char* name = kScenes[state.range(0)];
+  auto scene = vsurg::sim::LoadSceneByName(name);
+  if (!scene.ok()) {
+    state.SkipWithError("scene set-up failed");
+    return;
+  }
+  auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
+  if (!mesh.ok()) {
+    state.SkipWithError("scene mesh failed");
+    return;
+  }
+  vsurg::geometry::Bvh bvh(mesh->surface);
+  // Two surfaces a millimetre apart, alternated, so every box changes on every refit.
+  std::vector<vsurg::geometry::Vec3> a = mesh->surface.positions, b = a;
+  for (auto& p : b) p += vsurg::geometry::Vec3(1e-3, -5e-4, 2e-4);
+  bool flip = false;
+  for (auto _ : state) {
+    bvh.Refit(flip ? b : a);
+    flip = !flip;
+    benchmark::ClobberMemory();
+  }
+  state.counters["triangles"] = static_cast<double>(mesh->surface.TriangleCount());
+  state.SetLabel(name);
+}
+BENCHMARK(BM_BvhRefit)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 }  // namespace

@@ -74,6 +74,19 @@ Bvh::Bvh(const TriMesh& mesh) : triangles_(mesh.triangles) {
   }
   nodes_.reserve(n > 0 ? 2 * ((n + kLeafSize - 1) / kLeafSize) : 0);
   if (n > 0) Build(0, n, centroid, mesh.positions);
+  vertex_start_.reserve(nodes_.size() + 1);
+  leaf_vertices_.reserve(static_cast<size_t>(n) * 2);
+  for (const Node& node : nodes_) {
+    vertex_start_.push_back(static_cast<int32_t>(leaf_vertices_.size()));
+    if (node.left >= 0) continue;
+    const auto begin = leaf_vertices_.end() - leaf_vertices_.begin();
+    for (int k = node.first; k < node.first + node.count; ++k)
+      for (int v : triangles_[order_[k]]) leaf_vertices_.push_back(v);
+    std::sort(leaf_vertices_.begin() + begin, leaf_vertices_.end());
+    leaf_vertices_.erase(std::unique(leaf_vertices_.begin() + begin, leaf_vertices_.end()),
+                         leaf_vertices_.end());
+  }
+  vertex_start_.push_back(static_cast<int32_t>(leaf_vertices_.size()));
 }
 
 int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid,
@@ -118,7 +131,13 @@ void Bvh::Refit(const std::vector<Vec3>& positions) {
   for (int i = static_cast<int>(nodes_.size()) - 1; i >= 0; --i) {
     Node& node = nodes_[i];
     if (node.left < 0) {
-      LeafBox(node, positions);
+      // The same box as LeafBox's, over each corner once.
+      Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+      for (int32_t k = vertex_start_[i]; k < vertex_start_[i + 1]; ++k) {
+        const Vec3& p = positions[leaf_vertices_[k]];
+        lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+      }
+      node.lo = lo, node.hi = hi;
     } else {
       node.lo = nodes_[node.left].lo.cwiseMin(nodes_[node.right].lo);
       node.hi = nodes_[node.left].hi.cwiseMax(nodes_[node.right].hi);

@@ -2,8 +2,10 @@
 //
 // Built once over a mesh's topology (median split on the longest axis, ≤ 4 triangles a leaf);
 // as the surface deforms, Refit() recomputes the boxes bottom-up over new positions (same
-// topology, O(n), no allocation). Queries take the positions they run against, so one tree can
-// serve any snapshot of the same mesh; they use a fixed stack and never allocate.
+// topology, O(n), no allocation): each leaf's box from its distinct vertices, listed at build
+// time (a leaf's four triangles share about half of their twelve corners). Queries take the
+// positions they run against, so one tree can serve any snapshot of the same mesh; they use a fixed
+// stack and never allocate.
 //
 // Threads: queries are const and may run on any thread against positions nobody is writing;
 // Refit writes the boxes (the deformation thread refits its own copy, see sim/simulation.h).
@@ -74,6 +76,11 @@ class Bvh {
   std::vector<Triangle> triangles_;
   std::vector<int32_t> order_;  // triangle indices grouped by leaf
   std::vector<Node> nodes_;     // children after their parent: refit runs backwards
+  // Node i's distinct vertices (leaves only; empty for inner nodes):
+  // leaf_vertices_[vertex_start_[i] .. vertex_start_[i + 1]). Apart from Node, which stays one
+  // 64-byte cache line for the queries.
+  std::vector<int32_t> vertex_start_;
+  std::vector<int32_t> leaf_vertices_;
 };
 
 // Closest point on triangle abc to p, as barycentric weights (Ericson §5.1.5).
