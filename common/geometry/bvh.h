@@ -77,8 +77,8 @@ class Bvh {
   std::vector<int32_t> order_;  // triangle indices grouped by leaf
   std::vector<Node> nodes_;     // children after their parent: refit runs backwards
   // Node i's distinct vertices (leaves only; empty for inner nodes):
-  // leaf_vertices_[vertex_start_[i] .. vertex_start_[i + 1]). Apart from Node, which stays one
-  // 64-byte cache line for the queries.
+  // leaf_vertices_[vertex_start_[i] .. vertex_start_[i + 1]). Apart from Node, which stays 64
+  // bytes for the queries.
   std::vector<int32_t> vertex_start_;
   std::vector<int32_t> leaf_vertices_;
 };
