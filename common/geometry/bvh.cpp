@@ -73,7 +73,7 @@ Bvh::Bvh(const TriMesh& mesh) : triangles_(mesh.triangles) {
     centroid[t] = (mesh.positions[tri[0]] + mesh.positions[tri[1]] + mesh.positions[tri[2]]) / 3.0;
   }
   nodes_.reserve(n > 0 ? 2 * ((n + kLeafSize - 1) / kLeafSize) : 0);
-  if (n > 0) Build(0, n, centroid, mesh.positions);
+  if (n > 0) Build(0, n, centroid);
   vertex_start_.reserve(nodes_.size() + 1);
   leaf_vertices_.reserve(static_cast<size_t>(n) * 2);
   for (const Node& node : nodes_) {
@@ -87,16 +87,15 @@ Bvh::Bvh(const TriMesh& mesh) : triangles_(mesh.triangles) {
                          leaf_vertices_.end());
   }
   vertex_start_.push_back(static_cast<int32_t>(leaf_vertices_.size()));
+  Refit(mesh.positions);  // the boxes: one computation for the build and every refit
 }
 
-int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid,
-               const std::vector<Vec3>& positions) {
+int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid) {
   const int index = static_cast<int>(nodes_.size());
   nodes_.push_back(Node{});
   if (count <= kLeafSize) {
     nodes_[index].first = first;
     nodes_[index].count = count;
-    LeafBox(nodes_[index], positions);
     return index;
   }
   Vec3 lo = centroid[order_[first]], hi = lo;
@@ -108,30 +107,18 @@ int Bvh::Build(int first, int count, const std::vector<Vec3>& centroid,
   std::nth_element(order_.begin() + first, order_.begin() + first + half,
                    order_.begin() + first + count,
                    [&](int a, int b) { return centroid[a][axis] < centroid[b][axis]; });
-  const int left = Build(first, half, centroid, positions);
-  const int right = Build(first + half, count - half, centroid, positions);
-  Node& node = nodes_[index];
-  node.left = left;
-  node.right = right;
-  node.lo = nodes_[left].lo.cwiseMin(nodes_[right].lo);
-  node.hi = nodes_[left].hi.cwiseMax(nodes_[right].hi);
+  const int left = Build(first, half, centroid);
+  const int right = Build(first + half, count - half, centroid);
+  nodes_[index].left = left;
+  nodes_[index].right = right;
   return index;
-}
-
-void Bvh::LeafBox(Node& node, const std::vector<Vec3>& positions) const {
-  node.lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-  node.hi = -node.lo;
-  for (int k = node.first; k < node.first + node.count; ++k) {
-    for (int v : triangles_[order_[k]])
-      node.lo = node.lo.cwiseMin(positions[v]), node.hi = node.hi.cwiseMax(positions[v]);
-  }
 }
 
 void Bvh::Refit(const std::vector<Vec3>& positions) {
   for (int i = static_cast<int>(nodes_.size()) - 1; i >= 0; --i) {
     Node& node = nodes_[i];
     if (node.left < 0) {
-      // The same box as LeafBox's, over each corner once.
+      // Each corner once (a leaf's triangles share about half of theirs).
       Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
       for (int32_t k = vertex_start_[i]; k < vertex_start_[i + 1]; ++k) {
         const Vec3& p = positions[leaf_vertices_[k]];

@@ -69,9 +69,8 @@ class Bvh {
     int32_t first = 0;  // leaf: first entry in order_
     int32_t count = 0;  // leaf: number of triangles
   };
-  int Build(int first, int count, const std::vector<Vec3>& centroid,
-            const std::vector<Vec3>& positions);
-  void LeafBox(Node& node, const std::vector<Vec3>& positions) const;
+  // The topology only (children, leaves' triangles); the constructor's Refit makes the boxes.
+  int Build(int first, int count, const std::vector<Vec3>& centroid);
 
   std::vector<Triangle> triangles_;
   std::vector<int32_t> order_;  // triangle indices grouped by leaf
