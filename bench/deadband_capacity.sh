@@ -1,8 +1,8 @@
 #!/bin/bash
 # How many stations a node holds when each sends through the perceptual deadband (PERIOD_MS, 13 by
 # default: the wan grid's 72-86 datagrams/s in contact since the 15-ms contact heartbeat; it was
-# 20, 47-55/s, before it) against the UDP floor at
-# the same rate, side by side within each round, and 64 full-rate stations as the reference
+# 20, 47-55/s, before it) against the UDP floor at the same rate, side by side within each round,
+# and 64 full-rate stations as the reference
 # (BENCHMARKS.md, "Stations per node behind the deadband"). Normal priority, vsurg-server's
 # defaults (one I/O thread, a deformation thread per session, visual frames at 60 Hz).
 # Run from the repository root after a build. ROUNDS (3), SECONDS_EACH (5),
