@@ -18,8 +18,10 @@ namespace {
 
 using vsurg::client::Quality;
 
+// moving: the tissue moves every frame (and so the shadow pass runs); tool_only: the stylus
+// moves and the tissue stays (the shadow pass runs for the tool's shadow alone).
 void StationFrame(benchmark::State& state, const char* scene_name, Quality quality, bool moving,
-                  bool coarse) {
+                  bool coarse, bool tool_only = false) {
   auto surface = vsurg::client::GlSurface::CreateHeadless(1280, 720);
   auto scene = vsurg::sim::LoadSceneByName(scene_name);
   if (!surface.ok() || !scene.ok()) return state.SkipWithError("no headless OpenGL or scene");
@@ -52,11 +54,18 @@ void StationFrame(benchmark::State& state, const char* scene_name, Quality quali
         moved[i] = mesh->surface.positions[i] + Eigen::Vector3d(0, 0, nudge);
       view.Apply(all, moved);
     }
+    if (tool_only) {
+      nudge = nudge > 0 ? 0 : 1e-3;  // the tip 1 mm sideways and back
+      overlay.tip.x() += nudge > 0 ? 1e-3 : -1e-3;
+    }
     view.Draw(1280, 720, overlay);
     (*surface)->Finish();
   }
   state.SetLabel(std::string(scene_name) + " " + vsurg::client::QualityName(quality) +
-                 (moving ? " moving" : " still") + (coarse ? "" : " fine"));
+                 (moving      ? " moving"
+                  : tool_only ? " tool"
+                              : " still") +
+                 (coarse ? "" : " fine"));
 }
 
 void Register() {
@@ -75,6 +84,15 @@ void Register() {
               ->Unit(benchmark::kMillisecond)
               ->MinTime(1.0);
         }
+  // The stylus moving over still tissue, at the levels with shadows.
+  for (const char* scene : {"arm-torsion", "organ-surface-twist"})
+    for (Quality q : {Quality::kMedium, Quality::kHigh})
+      benchmark::RegisterBenchmark(
+          (std::string("StationFrame/") + scene + "/" + vsurg::client::QualityName(q) + "/tool")
+              .c_str(),
+          [=](benchmark::State& s) { StationFrame(s, scene, q, false, true, true); })
+          ->Unit(benchmark::kMillisecond)
+          ->MinTime(1.0);
 }
 const bool registered = (Register(), true);
 

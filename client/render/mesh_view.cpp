@@ -385,6 +385,13 @@ struct MeshView::Gpu {
   // The shadow map's texels the last pass wrote (x0, y0, x1, y1; empty when none): the next pass
   // clears them with its own, and nothing outside them.
   std::array<int, 4> shadow_written{};
+  // The tissue's own depth as the last pass that drew it left the map (a texture of the map's
+  // size and format), over `tissue_written` (empty: none kept). A pass in which only the tool
+  // moved copies it back instead of drawing the tissue again: outside a grasp the tool moves in
+  // most frames and the tissue in few, and the tissue's casters were about two thirds of a pass.
+  GLuint tissue_depth = 0;
+  std::array<int, 4> tissue_written{};
+  std::array<double, 16> tissue_light{};  // the light's projection it was drawn with
   // The background (the table and its drape, as they look while the camera, the frame's size and
   // the quality stay), drawn once and copied into every frame.
   GLuint background_fbo = 0, background_colour = 0, background_depth = 0;
@@ -419,6 +426,7 @@ struct MeshView::Gpu {
       if (b) glDeleteBuffers(1, &b);
     if (detail) glDeleteTextures(1, &detail);
     if (shadow_map) glDeleteTextures(1, &shadow_map);
+    if (tissue_depth) glDeleteTextures(1, &tissue_depth);
     if (shadow_fbo) glDeleteFramebuffers(1, &shadow_fbo);
     if (background_fbo) glDeleteFramebuffers(1, &background_fbo);
     if (background_colour) glDeleteRenderbuffers(1, &background_colour);
@@ -450,8 +458,15 @@ struct MeshView::Gpu {
     glReadBuffer(GL_NONE);
     glClear(GL_DEPTH_BUFFER_BIT);  // the whole map once; each pass then clears what it wrote
     glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(previous));
+    if (!tissue_depth) glGenTextures(1, &tissue_depth);
+    glBindTexture(GL_TEXTURE_2D, tissue_depth);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT16, size, size, 0, GL_DEPTH_COMPONENT,
+                 GL_UNSIGNED_SHORT, nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);  // complete: one level
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     shadow_size = size;
     shadow_written = {};
+    tissue_written = {};
   }
 };
 
@@ -770,6 +785,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     shadow_key[17] = static_cast<double>(q);
   }
   if (shadows && (moved_since_shadow_ || shadow_key != g.shadow_key)) {
+    const bool tissue_moved = moved_since_shadow_;
     moved_since_shadow_ = false;
     g.shadow_key = shadow_key;
     const int size = q == Quality::kHigh ? 2048 : 1024;
@@ -780,23 +796,27 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // (the rest still hold the first clear): the tissue's box and the tool's, projected along the
     // light, widened by two texels. A software renderer clears and rasterises per 64² tile, and
     // the casters cover a third of the map or less.
-    std::array<int, 4> rect{size, size, 0, 0};  // x0, y0, x1, y1
-    bool whole = false;
-    for (const auto* box : {&tissue_box, &tool_box})
-      for (const Eigen::Vector3d& p : *box) {
+    const auto texels = [&](const std::vector<Eigen::Vector3d>& box) {
+      std::array<int, 4> r{size, size, 0, 0};  // x0, y0, x1, y1
+      for (const Eigen::Vector3d& p : box) {
         const Eigen::Vector4d clip = light * p.homogeneous();
-        if (!clip.allFinite()) {
-          whole = true;
-          continue;
-        }
+        if (!clip.allFinite()) return std::array<int, 4>{0, 0, size, size};
         for (int axis = 0; axis < 2; ++axis) {
           const double t = std::clamp((clip[axis] / clip.w() + 1) * 0.5 * size, -1.0, size + 1.0);
-          rect[axis] = std::min(rect[axis], static_cast<int>(std::floor(t)) - 2);
-          rect[axis + 2] = std::max(rect[axis + 2], static_cast<int>(std::ceil(t)) + 2);
+          r[axis] = std::min(r[axis], static_cast<int>(std::floor(t)) - 2);
+          r[axis + 2] = std::max(r[axis + 2], static_cast<int>(std::ceil(t)) + 2);
         }
       }
-    if (whole) rect = {0, 0, size, size};
-    for (int& edge : rect) edge = std::clamp(edge, 0, size);
+      for (int& edge : r) edge = std::clamp(edge, 0, size);
+      return r;
+    };
+    const std::array<int, 4> tissue_rect = texels(tissue_box), tool_rect = texels(tool_box);
+    const auto none = [](const std::array<int, 4>& r) { return r[2] <= r[0] || r[3] <= r[1]; };
+    std::array<int, 4> rect = tissue_rect;
+    if (!none(tool_rect)) {
+      for (int k : {0, 1}) rect[k] = std::min(rect[k], tool_rect[k]);
+      for (int k : {2, 3}) rect[k] = std::max(rect[k], tool_rect[k]);
+    }
     std::array<int, 4> clear = rect;
     if (g.shadow_written[2] > g.shadow_written[0]) {
       for (int k : {0, 1}) clear[k] = std::min(clear[k], g.shadow_written[k]);
@@ -814,22 +834,42 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     glUseProgram(g.shadow);
     SetMatrix(g.shadow, "uLightViewProj", light);
     SetMatrix(g.shadow, "uModel", Eigen::Matrix4d::Identity());
-    glEnable(GL_CULL_FACE);  // one side casts: half the triangles
-    if (coarse_active_) {
-      // Below high, the coarse visual surface is what is drawn, and its far side is the cheaper
-      // caster: a quarter of the fine surface's triangles and under half the physics surface's
-      // (the arm: 5.9 k against 12.4 k), closed and wound outward (tested).
-      glCullFace(GL_FRONT);
-      g.tissue.Draw();
-    } else if (g.caster_vao) {
-      glCullFace(g.caster_cull);
-      glBindVertexArray(g.caster_vao);
-      glDrawElements(GL_TRIANGLES, g.caster_count, GL_UNSIGNED_INT, nullptr);
+    // The tissue: its depth as the last pass that drew it left it when neither it nor the light
+    // moved since (a copy of a third of the map or less, against rasterising its casters), else
+    // drawn and kept for the passes after.
+    std::array<double, 16> light_key{};
+    std::copy(light.data(), light.data() + 16, light_key.begin());
+    const auto copy = [&](GLuint from, GLuint to, const std::array<int, 4>& r) {
+      glCopyImageSubData(from, GL_TEXTURE_2D, 0, r[0], r[1], 0, to, GL_TEXTURE_2D, 0, r[0], r[1], 0,
+                         r[2] - r[0], r[3] - r[1], 1);
+    };
+    if (!tissue_moved && !none(tissue_rect) && g.tissue_written == tissue_rect &&
+        g.tissue_light == light_key) {
+      copy(g.tissue_depth, g.shadow_map, tissue_rect);
     } else {
-      glCullFace(GL_BACK);
-      g.tissue.Draw();
+      glEnable(GL_CULL_FACE);  // one side casts: half the triangles
+      if (coarse_active_) {
+        // Below high, the coarse visual surface is what is drawn, and its far side is the cheaper
+        // caster: a quarter of the fine surface's triangles and under half the physics surface's
+        // (the arm: 5.9 k against 12.4 k), closed and wound outward (tested).
+        glCullFace(GL_FRONT);
+        g.tissue.Draw();
+      } else if (g.caster_vao) {
+        glCullFace(g.caster_cull);
+        glBindVertexArray(g.caster_vao);
+        glDrawElements(GL_TRIANGLES, g.caster_count, GL_UNSIGNED_INT, nullptr);
+      } else {
+        glCullFace(GL_BACK);
+        g.tissue.Draw();
+      }
+      glDisable(GL_CULL_FACE);
+      g.tissue_written = {};
+      if (!none(tissue_rect)) {
+        copy(g.shadow_map, g.tissue_depth, tissue_rect);
+        g.tissue_written = tissue_rect;
+        g.tissue_light = light_key;
+      }
     }
-    glDisable(GL_CULL_FACE);
     if (stylus) {
       SetMatrix(g.shadow, "uModel", tool.matrix());
       g.steel.Draw();

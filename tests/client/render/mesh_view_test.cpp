@@ -475,6 +475,68 @@ TEST(MeshViewTest, EverySceneMatchesItsReferenceImage) {
   }
 }
 
+// A shadow pass in which only the tool moved copies back the tissue's depth kept from the last
+// pass that drew it: the frame is the one a view drawing everything afresh makes, the tissue's
+// shadow on the table and on itself included; and once the tissue moves it is drawn again.
+TEST(MeshViewTest, AToolOnlyMoveDrawsWhatAFreshViewDraws) {
+  auto surface = GlSurface::CreateHeadless(kWidth, kHeight);
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  for (Quality q : {Quality::kMedium, Quality::kHigh}) {
+    SCOPED_TRACE(QualityName(q));
+    SceneView kept("arm-torsion"), fresh("arm-torsion");
+    kept.view->SetQuality(q);
+    fresh.view->SetQuality(q);
+    const Overlay before = SceneOverlay(kept);
+    Overlay after = before;
+    after.tip += 0.02 * kept.view->visual().up + Eigen::Vector3d(0.015, -0.01, 0);
+    after.orientation = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()) * before.orientation;
+    kept.view->Draw(kWidth, kHeight, before);
+    const RgbImage first = (*surface)->ReadPixels();
+    kept.view->Draw(kWidth, kHeight, after);  // the tool moved, the tissue did not
+    const RgbImage reused = (*surface)->ReadPixels();
+    fresh.view->Draw(kWidth, kHeight, after);
+    const RgbImage afresh = (*surface)->ReadPixels();
+    EXPECT_GT(Compare(first, reused).changed, 100) << "the tool moved in the picture";
+    EXPECT_EQ(Compare(reused, afresh, Eigen::Vector4d::Zero(), 0).changed, 0);
+    // The tissue's middle third squeezed toward its long axis, the tool where it was, its bounding
+    // box unchanged (its ends hold it): it and its shadow are drawn again.
+    const auto& rest = kept.mesh.surface.positions;
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+    for (const auto& p : rest) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    int along = 0;
+    (hi - lo).maxCoeff(&along);
+    const Eigen::Vector3d mid = 0.5 * (lo + hi);
+    std::vector<int32_t> all(rest.size());
+    std::vector<geometry::Vec3> moved(rest);
+    int pressed = 0;
+    for (size_t i = 0; i < rest.size(); ++i) {
+      all[i] = static_cast<int32_t>(i);
+      const bool middle = std::abs(rest[i][along] - mid[along]) < (hi - lo)[along] / 6;
+      if (!middle) continue;
+      // Towards the long axis by a quarter: the outline its shadow casts narrows.
+      Eigen::Vector3d across = rest[i] - mid;
+      across[along] = 0;
+      moved[i] -= 0.25 * across;
+      ++pressed;
+    }
+    Eigen::Vector3d moved_lo = Eigen::Vector3d::Constant(1e9), moved_hi = -moved_lo;
+    for (const auto& p : moved) moved_lo = moved_lo.cwiseMin(p), moved_hi = moved_hi.cwiseMax(p);
+    ASSERT_GT(pressed, 20);
+    ASSERT_EQ(moved_lo, lo);
+    ASSERT_EQ(moved_hi, hi);
+    ASSERT_GT(kept.view->Apply(all, moved), 0);
+    kept.view->Draw(kWidth, kHeight, after);
+    const RgbImage kept_moved = (*surface)->ReadPixels();
+    SceneView pressed_first("arm-torsion");  // its first frame: the pressed tissue
+    pressed_first.view->SetQuality(q);
+    ASSERT_GT(pressed_first.view->Apply(all, moved), 0);
+    pressed_first.view->Draw(kWidth, kHeight, after);
+    const RgbImage fresh_moved = (*surface)->ReadPixels();
+    EXPECT_GT(Compare(reused, kept_moved).changed, 100) << "the tissue moved in the picture";
+    EXPECT_EQ(Compare(kept_moved, fresh_moved, Eigen::Vector4d::Zero(), 0).changed, 0);
+  }
+}
+
 TEST(QualityGovernorTest, StepsDownWhenFramesRunLongAndNeverBackToALevelTooSlow) {
   QualityGovernor g(Quality::kHigh, 16.7);
   for (int i = 0; i < 30; ++i) g.Update(25);
