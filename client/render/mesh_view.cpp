@@ -391,12 +391,11 @@ struct MeshView::Gpu {
   // most frames and the tissue in few, and the tissue's casters were about two thirds of a pass.
   GLuint tissue_depth = 0;
   std::array<int, 4> tissue_written{};
-  std::array<double, 16> tissue_light{};  // the light's projection it was drawn with
   // The background (the table and its drape, as they look while the camera, the frame's size and
   // the quality stay), drawn once and copied into every frame.
   GLuint background_fbo = 0, background_colour = 0, background_depth = 0;
   std::array<double, 9> background_key{};  // width, height, quality, eye, centre
-  std::array<double, 18> shadow_key{};     // the tool's pose, its jaws, the quality
+  std::array<double, 34> shadow_key{};     // the tool's pose, its jaws, the quality, the light
   std::vector<float> upload;               // the tissue's interleaved vertices, reused every frame
   std::vector<uint32_t> indices;
   // What casts the tissue's shadow at high: the physics surface as moved (positions only), its
@@ -776,16 +775,21 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   }
 
   // 1. The shadow map: depth from the key light of the tissue and the instrument; drawn again
-  // only when one of them moved (a trainee holding still costs no shadow pass).
-  std::array<double, 18> shadow_key{};
+  // only when one of them or the light moved (a trainee holding still costs no shadow pass).
+  std::array<double, 34> shadow_key{};
   {
     const Eigen::Matrix4d pose = stylus ? tool.matrix() : Eigen::Matrix4d::Zero();
     std::copy(pose.data(), pose.data() + 16, shadow_key.begin());
     shadow_key[16] = open;
     shadow_key[17] = static_cast<double>(q);
+    std::copy(light.data(), light.data() + 16, shadow_key.begin() + 18);
   }
   if (shadows && (moved_since_shadow_ || shadow_key != g.shadow_key)) {
-    const bool tissue_moved = moved_since_shadow_;
+    // The tissue's casters are drawn again when it or the light moved (SetCamera moves the light
+    // with the centre), else its kept depth is copied back (below).
+    const bool tissue_moved =
+        moved_since_shadow_ ||
+        !std::equal(shadow_key.begin() + 18, shadow_key.end(), g.shadow_key.begin() + 18);
     moved_since_shadow_ = false;
     g.shadow_key = shadow_key;
     const int size = q == Quality::kHigh ? 2048 : 1024;
@@ -837,14 +841,11 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // The tissue: its depth as the last pass that drew it left it when neither it nor the light
     // moved since (a copy of a third of the map or less, against rasterising its casters), else
     // drawn and kept for the passes after.
-    std::array<double, 16> light_key{};
-    std::copy(light.data(), light.data() + 16, light_key.begin());
     const auto copy = [&](GLuint from, GLuint to, const std::array<int, 4>& r) {
       glCopyImageSubData(from, GL_TEXTURE_2D, 0, r[0], r[1], 0, to, GL_TEXTURE_2D, 0, r[0], r[1], 0,
                          r[2] - r[0], r[3] - r[1], 1);
     };
-    if (!tissue_moved && !none(tissue_rect) && g.tissue_written == tissue_rect &&
-        g.tissue_light == light_key) {
+    if (!tissue_moved && !none(tissue_rect) && g.tissue_written == tissue_rect) {
       copy(g.tissue_depth, g.shadow_map, tissue_rect);
     } else {
       glEnable(GL_CULL_FACE);  // one side casts: half the triangles
@@ -867,7 +868,6 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
       if (!none(tissue_rect)) {
         copy(g.shadow_map, g.tissue_depth, tissue_rect);
         g.tissue_written = tissue_rect;
-        g.tissue_light = light_key;
       }
     }
     if (stylus) {

@@ -12,6 +12,8 @@
 #include <filesystem>
 #include <numbers>
 #include <set>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -337,9 +339,15 @@ std::vector<std::string> AllScenes() {
 }
 
 // The frame every scene test draws: the instrument 1 cm above the tissue's top, guidance on.
-Overlay SceneOverlay(const SceneView& s) {
+// The axis-aligned box around `points`: lo, hi.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> Bounds(const std::vector<geometry::Vec3>& points) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
-  for (const auto& p : s.mesh.surface.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  for (const auto& p : points) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  return {lo, hi};
+}
+
+Overlay SceneOverlay(const SceneView& s) {
+  const auto [lo, hi] = Bounds(s.mesh.surface.positions);
   Overlay o;
   o.show_stylus = true;
   const Eigen::Vector3d up = s.view->visual().up;
@@ -501,8 +509,7 @@ TEST(MeshViewTest, AToolOnlyMoveDrawsWhatAFreshViewDraws) {
     // The tissue's middle third squeezed toward its long axis, the tool where it was, its bounding
     // box unchanged (its ends hold it): it and its shadow are drawn again.
     const auto& rest = kept.mesh.surface.positions;
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
-    for (const auto& p : rest) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const auto [lo, hi] = Bounds(rest);
     int along = 0;
     (hi - lo).maxCoeff(&along);
     const Eigen::Vector3d mid = 0.5 * (lo + hi);
@@ -519,8 +526,7 @@ TEST(MeshViewTest, AToolOnlyMoveDrawsWhatAFreshViewDraws) {
       moved[i] -= 0.25 * across;
       ++pressed;
     }
-    Eigen::Vector3d moved_lo = Eigen::Vector3d::Constant(1e9), moved_hi = -moved_lo;
-    for (const auto& p : moved) moved_lo = moved_lo.cwiseMin(p), moved_hi = moved_hi.cwiseMax(p);
+    const auto [moved_lo, moved_hi] = Bounds(moved);
     ASSERT_GT(pressed, 20);
     ASSERT_EQ(moved_lo, lo);
     ASSERT_EQ(moved_hi, hi);
