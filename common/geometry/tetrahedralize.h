@@ -7,9 +7,9 @@
 // self-intersections; anything else is refused with a message that says what is wrong and where
 // (a boundary edge's vertices, a pair of intersecting triangles). Mesh_3 then samples the
 // surface and refines the interior to the criteria (facet angle ≥ 25°, element size, surface
-// distance, radius–edge ratio ≤ 3) without perturbation or exudation, so the result is the same
-// on every run. Tetrahedra come out positively oriented; vertices are the triangulation's, not
-// the surface's (the display surface is carried by geometry::EmbedPoints).
+// distance, radius–edge ratio ≤ 3) without perturbation (slivers exuded), so the result is
+// the same on every run. Tetrahedra come out positively oriented; vertices are the triangulation's,
+// not the surface's (the display surface is carried by geometry::EmbedPoints).
 //
 // Cost: set-up only (seconds for tens of thousands of elements); the caller caches the result
 // through the reduced models' cache.
