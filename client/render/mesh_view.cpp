@@ -816,16 +816,14 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     };
     const std::array<int, 4> tissue_rect = texels(tissue_box), tool_rect = texels(tool_box);
     const auto none = [](const std::array<int, 4>& r) { return r[2] <= r[0] || r[3] <= r[1]; };
-    std::array<int, 4> rect = tissue_rect;
-    if (!none(tool_rect)) {
-      for (int k : {0, 1}) rect[k] = std::min(rect[k], tool_rect[k]);
-      for (int k : {2, 3}) rect[k] = std::max(rect[k], tool_rect[k]);
-    }
-    std::array<int, 4> clear = rect;
-    if (g.shadow_written[2] > g.shadow_written[0]) {
-      for (int k : {0, 1}) clear[k] = std::min(clear[k], g.shadow_written[k]);
-      for (int k : {2, 3}) clear[k] = std::max(clear[k], g.shadow_written[k]);
-    }
+    const auto unite = [&](std::array<int, 4> a, const std::array<int, 4>& b) {
+      if (none(b)) return a;
+      for (int k : {0, 1}) a[k] = std::min(a[k], b[k]);
+      for (int k : {2, 3}) a[k] = std::max(a[k], b[k]);
+      return a;
+    };
+    const std::array<int, 4> rect = unite(tissue_rect, tool_rect);
+    const std::array<int, 4> clear = unite(rect, g.shadow_written);
     g.shadow_written = rect;
     glEnable(GL_SCISSOR_TEST);
     glScissor(clear[0], clear[1], std::max(clear[2] - clear[0], 0),

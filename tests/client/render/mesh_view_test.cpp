@@ -338,7 +338,6 @@ std::vector<std::string> AllScenes() {
   return names;
 }
 
-// The frame every scene test draws: the instrument 1 cm above the tissue's top, guidance on.
 // The axis-aligned box around `points`: lo, hi.
 std::pair<Eigen::Vector3d, Eigen::Vector3d> Bounds(const std::vector<geometry::Vec3>& points) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
@@ -346,6 +345,7 @@ std::pair<Eigen::Vector3d, Eigen::Vector3d> Bounds(const std::vector<geometry::V
   return {lo, hi};
 }
 
+// The frame every scene test draws: the instrument 1 cm above the tissue's top, guidance on.
 Overlay SceneOverlay(const SceneView& s) {
   const auto [lo, hi] = Bounds(s.mesh.surface.positions);
   Overlay o;
