@@ -15,7 +15,14 @@
 // BM_BvhRefit: the deformation thread's refit of the surface's bounding boxes, once per published
 // surface (Simulation::Publish), on the arm's and the organ's physics surfaces, every vertex moved.
 //
-//   build/bin/vsurg-microbench --benchmark_filter='HapticPath|RingLayer|BvhRefit'
+// BM_BvhClosest: the haptic answer's surface query (ProxyContact::Update in contact): the closest
+// point, among faces facing the contact's way, to a tip 3 mm under the surface, started from the
+// proxy's face, over the arm's and the organ's physics surfaces. The second argument is how many
+// sessions' surfaces the queries cycle through (each its own tree and positions, as each session
+// has): 1 keeps one tree in cache; 64 is a node at 64 stations, where each session's tree and
+// surface have left the cache by its next sample, and a query's cost is its memory reads.
+//
+//   build/bin/vsurg-microbench --benchmark_filter='HapticPath|RingLayer|BvhRefit|BvhClosest'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -138,5 +145,51 @@ void BM_BvhRefit(benchmark::State& state) {
   state.SetLabel(name);
 }
 BENCHMARK(BM_BvhRefit)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+void BM_BvhClosest(benchmark::State& state) {
+  static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
+  const char* name = kScenes[state.range(0)];
+  const int sessions = static_cast<int>(state.range(1));
+  auto scene = vsurg::sim::LoadSceneByName(name);
+  auto mesh = scene.ok() ? vsurg::sim::BuildSceneMesh(scene->mesh)
+                         : vsurg::Expected<vsurg::sim::SceneMesh>(scene.error());
+  if (!mesh.ok()) {
+    state.SkipWithError("scene set-up failed");
+    return;
+  }
+  using vsurg::geometry::Vec3;
+  const vsurg::geometry::TriMesh& surface = mesh->surface;
+  // Each session's own tree and positions (copies, apart in memory as sessions' are).
+  std::vector<vsurg::geometry::Bvh> trees(sessions, vsurg::geometry::Bvh(surface));
+  std::vector<std::vector<Vec3>> positions(sessions, surface.positions);
+  // The tips: 3 mm under the centre of every 7th face, each with its face as the proxy's.
+  struct Tip {
+    Vec3 p, normal;
+    int triangle;
+  };
+  std::vector<Tip> tips;
+  for (int t = 0; t < surface.TriangleCount(); t += 7) {
+    const auto& tri = surface.triangles[t];
+    const Vec3 n = vsurg::geometry::TriangleNormal(surface.positions, tri);
+    const Vec3 c =
+        (surface.positions[tri[0]] + surface.positions[tri[1]] + surface.positions[tri[2]]) / 3.0;
+    if (n.allFinite()) tips.push_back({c - 0.003 * n, n, t});
+  }
+  size_t i = 0;
+  double found = 0;
+  for (auto _ : state) {
+    const Tip& tip = tips[i % tips.size()];
+    const int s = static_cast<int>(i % static_cast<size_t>(sessions));
+    const vsurg::geometry::ClosestHit hit =
+        trees[s].Closest(positions[s], tip.p, 0.013, tip.normal, 0.0, tip.triangle);
+    found += hit.triangle >= 0;
+    benchmark::DoNotOptimize(hit);
+    ++i;
+  }
+  state.counters["found"] = found / static_cast<double>(std::max<size_t>(i, 1));
+  state.counters["triangles"] = static_cast<double>(surface.TriangleCount());
+  state.SetLabel(name);
+}
+BENCHMARK(BM_BvhClosest)->ArgsProduct({{0, 1}, {1, 64}})->Unit(benchmark::kNanosecond);
 
 }  // namespace
