@@ -175,6 +175,10 @@ void BM_BvhClosest(benchmark::State& state) {
         (surface.positions[tri[0]] + surface.positions[tri[1]] + surface.positions[tri[2]]) / 3.0;
     if (n.allFinite()) tips.push_back({c - 0.003 * n, n, t});
   }
+  if (tips.empty()) {
+    state.SkipWithError("no face with a normal");
+    return;
+  }
   size_t i = 0;
   double found = 0;
   for (auto _ : state) {
