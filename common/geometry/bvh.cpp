@@ -30,6 +30,25 @@ bool SegmentHitsBox(const Vec3& a, const Vec3& inv_d, double t_max, const Vec3& 
   return true;
 }
 
+// The normal filter of a closest query: faces whose unit normal n has n·hint < min_dot are refused
+// (with a zero hint, or min_dot ≤ −1, none is).
+struct FaceFilter {
+  FaceFilter(const Vec3& normal_hint, double min_normal_dot)
+      : on(min_normal_dot > -1.0 && normal_hint.squaredNorm() > 0),
+        hint(normal_hint),
+        min_dot(min_normal_dot),
+        hint_norm(normal_hint.norm()) {}
+  bool Accepts(const Vec3& a, const Vec3& b, const Vec3& c) const {
+    if (!on) return true;
+    const Vec3 n = (b - a).cross(c - a);
+    const double len = n.norm();
+    return len > 0 && !(n.dot(hint) < min_dot * len * hint_norm);
+  }
+  bool on;
+  Vec3 hint;
+  double min_dot, hint_norm;
+};
+
 }  // namespace
 
 Vec3 ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -134,27 +153,63 @@ void Bvh::Refit(const std::vector<Vec3>& positions) {
 
 ClosestHit Bvh::Closest(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
                         const Vec3& normal_hint, double min_normal_dot, int start_triangle) const {
+  return Search(positions, p, max_distance, normal_hint, min_normal_dot, start_triangle, 0, 0,
+                nullptr);
+}
+
+double Bvh::ClosestAndNear(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
+                           const Vec3& normal_hint, double min_normal_dot, int start_triangle,
+                           double slack, size_t capacity, std::vector<NearFace>& near,
+                           ClosestHit& hit) const {
+  near.clear();
+  hit = Search(positions, p, max_distance, normal_hint, min_normal_dot, start_triangle, slack,
+               capacity, &near);
+  const double radius = (hit.triangle >= 0 ? hit.distance : max_distance) + slack;
+  if (!(radius < std::numeric_limits<double>::infinity())) return -1;
+  // The walk kept what was within reach when it was met; the reach only shrank since.
+  std::erase_if(near, [&](const NearFace& f) { return f.distance2 > radius * radius; });
+  if (near.size() >= capacity) return -1;  // full: a face within R may have been left out
+  return radius;
+}
+
+ClosestHit Bvh::Search(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
+                       const Vec3& normal_hint, double min_normal_dot, int start_triangle,
+                       double slack, size_t capacity, std::vector<NearFace>* near) const {
   ClosestHit best;
   if (nodes_.empty() || !p.allFinite()) return best;
   double best_d2 = max_distance * max_distance;
-  const bool filter = min_normal_dot > -1.0 && normal_hint.squaredNorm() > 0;
+  // Boxes farther than this are not opened: the best so far, or with a list, it plus the slack.
+  double open2 = best_d2;
+  const auto reopen = [&] {
+    if (!near) {
+      open2 = best_d2;
+      return;
+    }
+    const double r = (best.triangle >= 0 ? best.distance : max_distance) + slack;
+    open2 = r * r;
+  };
+  reopen();
+  const FaceFilter filter(normal_hint, min_normal_dot);
   // The triangle t's closest point, kept when it is nearer than the best so far (or, the first
-  // time, as near as the range allows).
+  // time, as near as the range allows); with a list, every face within reach is listed.
   auto consider = [&](int t) {
     const Vec3& a = positions[triangles_[t][0]];
     const Vec3& b = positions[triangles_[t][1]];
     const Vec3& c = positions[triangles_[t][2]];
-    if (filter) {
-      const Vec3 n = (b - a).cross(c - a);
-      const double len = n.norm();
-      if (!(len > 0) || n.dot(normal_hint) < min_normal_dot * len * normal_hint.norm()) return;
-    }
+    const bool accepted = filter.Accepts(a, b, c);
+    if (!accepted && !near) return;
     const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
     const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
     const double d2 = (q - p).squaredNorm();
-    if (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2)) {
+    if (near && d2 <= open2) {
+      if (near->size() >= capacity)  // full: drop what the reach has since left behind
+        std::erase_if(*near, [&](const NearFace& f) { return f.distance2 > open2; });
+      if (near->size() < capacity) near->push_back({t, d2});
+    }
+    if (accepted && (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2))) {
       best_d2 = d2;
       best = ClosestHit{t, w, q, std::sqrt(d2)};
+      reopen();
     }
   };
   if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles_.size()))
@@ -170,23 +225,108 @@ ClosestHit Bvh::Closest(const std::vector<Vec3>& positions, const Vec3& p, doubl
   stack[top++] = {0, BoxDistance2(p, nodes_[0].lo, nodes_[0].hi)};
   while (top > 0) {
     const Entry e = stack[--top];
-    if (e.d2 > best_d2) continue;
+    if (e.d2 > open2) continue;
     const Node& node = nodes_[e.node];
     if (node.left >= 0) {
       // Nearer child last, so it is popped first; a child out of range is not pushed.
       const double dl = BoxDistance2(p, nodes_[node.left].lo, nodes_[node.left].hi);
       const double dr = BoxDistance2(p, nodes_[node.right].lo, nodes_[node.right].hi);
       if (top + 2 > kStackSize) continue;  // unreachable for any real mesh; never overflow
-      const Entry near{dl < dr ? node.left : node.right, std::min(dl, dr)};
-      const Entry far{dl < dr ? node.right : node.left, std::max(dl, dr)};
-      if (far.d2 <= best_d2) stack[top++] = far;
-      if (near.d2 <= best_d2) stack[top++] = near;
+      const Entry near_child{dl < dr ? node.left : node.right, std::min(dl, dr)};
+      const Entry far_child{dl < dr ? node.right : node.left, std::max(dl, dr)};
+      if (far_child.d2 <= open2) stack[top++] = far_child;
+      if (near_child.d2 <= open2) stack[top++] = near_child;
       continue;
     }
     for (int k = node.first; k < node.first + node.count; ++k)
       if (order_[k] != start_triangle) consider(order_[k]);
   }
   return best;
+}
+
+ClosestCache::ClosestCache(double margin) : margin_(margin) {
+  faces_.reserve(kCapacity);
+  scratch_.reserve(kCapacity);
+}
+
+ClosestCache::ClosestCache(const ClosestCache& other) : ClosestCache(other.margin_) {
+  *this = other;
+}
+
+ClosestCache& ClosestCache::operator=(const ClosestCache& other) {
+  if (this == &other) return *this;
+  margin_ = other.margin_;
+  faces_.assign(other.faces_.begin(), other.faces_.end());  // within the reserved storage
+  centre_ = other.centre_;
+  radius_ = other.radius_;
+  motion_ = other.motion_;
+  triangle_count_ = other.triangle_count_;
+  hits_ = other.hits_;
+  misses_ = other.misses_;
+  return *this;
+}
+
+void ClosestCache::Clear() {
+  faces_.clear();
+  radius_ = -1;
+}
+
+ClosestHit ClosestCache::Closest(const Bvh& bvh, const std::vector<Vec3>& positions,
+                                 double surface_motion, const Vec3& p, double max_distance,
+                                 const Vec3& normal_hint, double min_normal_dot,
+                                 int start_triangle) {
+  const std::vector<Triangle>& triangles = bvh.triangles();
+  if (!(surface_motion < std::numeric_limits<double>::infinity()) || !p.allFinite()) {
+    ++misses_;
+    return bvh.Closest(positions, p, max_distance, normal_hint, min_normal_dot, start_triangle);
+  }
+  // How far a face off the list may have come nearer: the point's move and the surface's.
+  const double moved = (p - centre_).norm() + (surface_motion - motion_);
+  if (radius_ >= 0 && triangle_count_ == triangles.size() && surface_motion >= motion_ &&
+      moved < radius_) {
+    // 1 nm below the bound: the rounding of the distances it compares, many times over.
+    const double bound = radius_ - moved - 1e-9;
+    ClosestHit best;
+    double best_d2 = max_distance * max_distance;
+    const FaceFilter filter(normal_hint, min_normal_dot);
+    const auto consider = [&](int t, int32_t ia, int32_t ib, int32_t ic) {
+      const Vec3 &a = positions[ia], &b = positions[ib], &c = positions[ic];
+      if (!filter.Accepts(a, b, c)) return;
+      const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
+      const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
+      const double d2 = (q - p).squaredNorm();
+      if (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2)) {
+        best_d2 = d2;
+        best = ClosestHit{t, w, q, std::sqrt(d2)};
+      }
+    };
+    if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles.size())) {
+      const Triangle& s = triangles[start_triangle];
+      consider(start_triangle, s[0], s[1], s[2]);
+    }
+    for (const Face& f : faces_)
+      if (f.triangle != start_triangle) consider(f.triangle, f.a, f.b, f.c);
+    if (best.triangle >= 0 ? best.distance < bound : max_distance < bound) {
+      ++hits_;
+      return best;
+    }
+  }
+  ++misses_;
+  ClosestHit hit;
+  const double radius = bvh.ClosestAndNear(positions, p, max_distance, normal_hint, min_normal_dot,
+                                           start_triangle, 2 * margin_, kCapacity, scratch_, hit);
+  faces_.clear();
+  radius_ = radius;
+  if (radius >= 0) {
+    for (const Bvh::NearFace& f : scratch_) {
+      const Triangle& t = triangles[f.triangle];
+      faces_.push_back({f.triangle, t[0], t[1], t[2]});
+    }
+    centre_ = p;
+    motion_ = surface_motion;
+    triangle_count_ = triangles.size();
+  }
+  return hit;
 }
 
 // Möller–Trumbore against each triangle in the boxes the segment crosses.

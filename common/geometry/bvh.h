@@ -55,6 +55,19 @@ class Bvh {
                      const Vec3& normal_hint = Vec3::Zero(), double min_normal_dot = -2.0,
                      int start_triangle = -1) const;
 
+  // As Closest, and one walk of the tree also lists in `near` (cleared first) every face, whatever
+  // its normal, whose closest point lies within R = the answer's distance + slack of p (with no
+  // answer, R = max_distance + slack), with its squared distance. At most `capacity` are listed;
+  // returns R, or −1 when more faces than that are within it (the list is then cut short).
+  struct NearFace {
+    int32_t triangle;
+    double distance2;
+  };
+  double ClosestAndNear(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
+                        const Vec3& normal_hint, double min_normal_dot, int start_triangle,
+                        double slack, size_t capacity, std::vector<NearFace>& near,
+                        ClosestHit& hit) const;
+
   // The first triangle the segment a→b crosses (t ∈ [0, 1]).
   RayHit FirstHit(const std::vector<Vec3>& positions, const Vec3& a, const Vec3& b) const;
 
@@ -71,6 +84,10 @@ class Bvh {
   };
   // The topology only (children, leaves' triangles); the constructor's Refit makes the boxes.
   int Build(int first, int count, const std::vector<Vec3>& centroid);
+  // Closest's walk; with near, also ClosestAndNear's list (boxes opened up to the answer + slack).
+  ClosestHit Search(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
+                    const Vec3& normal_hint, double min_normal_dot, int start_triangle,
+                    double slack, size_t capacity, std::vector<NearFace>* near) const;
 
   std::vector<Triangle> triangles_;
   std::vector<int32_t> order_;  // triangle indices grouped by leaf
@@ -80,6 +97,51 @@ class Bvh {
   // bytes for the queries.
   std::vector<int32_t> vertex_start_;
   std::vector<int32_t> leaf_vertices_;
+};
+
+// The closest-face query of a point that moves little between calls over a surface that moves
+// little (the proxy's tip at 1 kHz), answered from a short list instead of the tree. A call the
+// list cannot answer walks the tree (Bvh::ClosestAndNear) and lists every face whose closest point
+// lay within R = d + 2·margin of that call's point c, d being its answer's distance (or the range,
+// with no answer). Later, at a point p over a surface no vertex of which has moved more than m
+// since, a face off the list is farther than R − |p − c| − m: the list's own best answer stands
+// when it is nearer than that (with no answer, when the range is), and otherwise the tree answers
+// and the list is made again. The answer's distance is therefore always the tree's (tested); of
+// faces equally near (a shared edge or corner), which one is returned may differ. On a tree at a
+// node's load the list reads a few dozen cache lines where the walk reads a hundred or more
+// (docs/BENCHMARKS.md, "The proxy's query from a kept list").
+//
+// surface_motion is a bound on how far the surface has moved in all, non-decreasing over its
+// life: the sum, over the surfaces published so far, of each one's largest vertex move from the
+// one before (Simulation's Snapshot::motion). Unknown (+inf): no list is kept and each call is
+// the tree's query. Not thread-safe: one per querying thread (a session's haptic path).
+class ClosestCache {
+ public:
+  static constexpr size_t kCapacity = 256;  // faces; a nearer crowd is not listed
+  explicit ClosestCache(double margin = 1e-3);
+  // A copy holds its lists in storage of its own reserved to kCapacity, so no call allocates.
+  ClosestCache(const ClosestCache& other);
+  ClosestCache& operator=(const ClosestCache& other);
+
+  ClosestHit Closest(const Bvh& bvh, const std::vector<Vec3>& positions, double surface_motion,
+                     const Vec3& p, double max_distance, const Vec3& normal_hint = Vec3::Zero(),
+                     double min_normal_dot = -2.0, int start_triangle = -1);
+  void Clear();
+  uint64_t hits() const { return hits_; }      // calls the list answered
+  uint64_t misses() const { return misses_; }  // calls the tree answered
+
+ private:
+  struct Face {
+    int32_t triangle, a, b, c;  // the corners inline: a listed face reads no triangle table
+  };
+  double margin_;
+  std::vector<Face> faces_;
+  std::vector<Bvh::NearFace> scratch_;
+  Vec3 centre_ = Vec3::Zero();
+  double radius_ = -1;  // R; < 0: no list
+  double motion_ = 0;   // surface_motion when the list was made
+  size_t triangle_count_ = 0;
+  uint64_t hits_ = 0, misses_ = 0;
 };
 
 // Closest point on triangle abc to p, as barycentric weights (Ericson §5.1.5).

@@ -150,5 +150,110 @@ TEST(BvhTest, AStartTriangleNeverChangesTheClosestDistance) {
   }
 }
 
+// The kept list answers as the tree does: a tip walking under a surface that moves a little every
+// third call (drifting, each vertex also at random; the motion reported as the largest move), with
+// the proxy's normal filter and start face, ranges that sometimes hold nothing, and jumps. The list
+// must answer most calls of a slow walk (else it is not kept at all) and never change a distance.
+TEST(ClosestCacheTest, TheKeptListAnswersAsTheTreeDoesOverAMovingSurface) {
+  TriMesh m = MakeLimb(WithResolution(ForearmPreset(), 1500))->surface;
+  Bvh bvh(m);
+  ClosestCache cache(1e-3);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1), unit(0, 1);
+  Vec3 p(0.03, 0.0, 0.1), drift = Vec3::Zero();
+  double motion = 0;
+  int start = -1, answered = 0;
+  for (int q = 0; q < 3000; ++q) {
+    // Mostly a walk of 20–200 µm a call; every 250th call a jump to within 5 mm of a face.
+    if (q % 250 == 0 || q % 500 == 100) {
+      const int t = static_cast<int>(unit(rng) * (m.TriangleCount() - 1));
+      const auto& tri = m.triangles[t];
+      p = (m.positions[tri[0]] + m.positions[tri[1]] + m.positions[tri[2]]) / 3.0 +
+          0.005 * u(rng) * TriangleNormal(m, t);
+    } else if (q % 500 >= 100) {  // the first 100 of every 500 the tip rests
+      p += (20e-6 + 180e-6 * unit(rng)) * Vec3(u(rng), u(rng), u(rng));
+    }
+    // Every third call the surface moves: 150 µm one way (a new way every 100 calls: the tissue
+    // under a resting tip slides 5 mm, beyond the list's reach) and up to 10 µm at random per
+    // vertex.
+    if (q % 100 == 0) drift = 150e-6 * Vec3(u(rng), u(rng), u(rng)).normalized();
+    if (q % 3 == 0) {
+      double largest = 0;
+      for (Vec3& x : m.positions) {
+        const Vec3 d = drift + 10e-6 / std::sqrt(3.0) * Vec3(u(rng), u(rng), u(rng));
+        x += d;
+        largest = std::max(largest, d.norm());
+      }
+      bvh.Refit(m.positions);
+      motion += largest;
+    }
+    const bool filtered = q % 2 == 0 && start >= 0;
+    const Vec3 hint = filtered ? TriangleNormal(m, start) : Vec3::Zero();
+    const double range = q % 7 == 0 ? 0.002 : 0.02;
+    const ClosestHit tree = bvh.Closest(m.positions, p, range, hint, filtered ? 0.0 : -2.0, start);
+    const ClosestHit kept =
+        cache.Closest(bvh, m.positions, motion, p, range, hint, filtered ? 0.0 : -2.0, start);
+    ASSERT_EQ(kept.triangle >= 0, tree.triangle >= 0) << q;
+    if (tree.triangle < 0) continue;
+    ++answered;
+    EXPECT_NEAR(kept.distance, tree.distance, 1e-12) << q;
+    // The face returned is as near as it says, and passes the filter.
+    const auto& t = m.triangles[kept.triangle];
+    const Vec3 w =
+        ClosestPointOnTriangle(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
+    const Vec3 on = w[0] * m.positions[t[0]] + w[1] * m.positions[t[1]] + w[2] * m.positions[t[2]];
+    EXPECT_NEAR((on - p).norm(), kept.distance, 1e-12) << q;
+    if (filtered) {
+      EXPECT_GE(TriangleNormal(m, kept.triangle).dot(hint), -1e-12) << q;
+    }
+    start = kept.triangle;
+  }
+  EXPECT_GT(answered, 1000);
+  EXPECT_EQ(cache.hits() + cache.misses(), 3000u);
+  EXPECT_GT(cache.hits(), 2000u) << "the list answered " << cache.hits() << " of 3000";
+}
+
+// The reported motion is what lets a face from off the list in: a face pushed towards the point
+// by more than the margin is found when the motion says it moved (and with an unknown motion the
+// tree answers every call).
+TEST(ClosestCacheTest, AFaceThatMovedInIsFoundWhenTheMotionSaysSo) {
+  TriMesh m = MakeLimb(WithResolution(ForearmPreset(), 1500))->surface;
+  Bvh bvh(m);
+  ClosestCache cache(1e-3);
+  const auto& t0 = m.triangles[m.TriangleCount() / 2];
+  const Vec3 p = (m.positions[t0[0]] + m.positions[t0[1]] + m.positions[t0[2]]) / 3.0 -
+                 0.005 * TriangleNormal(m, m.TriangleCount() / 2);  // 5 mm under a face
+  const ClosestHit first = cache.Closest(bvh, m.positions, 0.0, p, INFINITY);
+  ASSERT_GE(first.triangle, 0);
+  EXPECT_EQ(cache.Closest(bvh, m.positions, 0.0, p, INFINITY).distance, first.distance);
+  EXPECT_EQ(cache.hits(), 1u);
+  // The farthest face from p, moved to 0.1 mm from it (its three corners dragged there).
+  int far = 0;
+  double far_d = 0;
+  for (int t = 0; t < m.TriangleCount(); ++t) {
+    const double d = (m.positions[m.triangles[t][0]] - p).norm();
+    if (d > far_d) {
+      far_d = d;
+      far = t;
+    }
+  }
+  double largest = 0;
+  for (int v : m.triangles[far]) {
+    const Vec3 to = p + 1e-4 * Vec3(1, 0, 0) + 1e-5 * Vec3::Random();
+    largest = std::max(largest, (to - m.positions[v]).norm());
+    m.positions[v] = to;
+  }
+  bvh.Refit(m.positions);
+  ASSERT_GT(first.distance, 1e-3);  // a list kept past the move would answer this
+  const ClosestHit moved = cache.Closest(bvh, m.positions, largest, p, INFINITY);
+  EXPECT_LT(moved.distance, 2e-4);  // the moved face, or a neighbour dragged with it
+  EXPECT_NEAR(moved.distance, bvh.Closest(m.positions, p).distance, 1e-15);
+  EXPECT_EQ(cache.hits(), 1u);  // the tree answered
+  ClosestCache unknown(1e-3);
+  for (int k = 0; k < 3; ++k) unknown.Closest(bvh, m.positions, INFINITY, p, INFINITY);
+  EXPECT_EQ(unknown.hits(), 0u);
+  EXPECT_EQ(unknown.misses(), 3u);
+}
+
 }  // namespace
 }  // namespace vsurg::geometry
