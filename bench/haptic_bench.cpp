@@ -22,7 +22,8 @@
 // has): 1 keeps one tree in cache; 64 is a node at 64 stations, where each session's tree and
 // surface have left the cache by its next sample, and a query's cost is its memory reads.
 //
-//   build/bin/vsurg-microbench --benchmark_filter='HapticPath|RingLayer|BvhRefit|BvhClosest'
+//   build/bin/vsurg-microbench
+//   --benchmark_filter='HapticPath|RingLayer|BvhRefit|BvhClosest|ProxyQuery'
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -195,5 +196,77 @@ void BM_BvhClosest(benchmark::State& state) {
   state.SetLabel(name);
 }
 BENCHMARK(BM_BvhClosest)->ArgsProduct({{0, 1}, {1, 64}})->Unit(benchmark::kNanosecond);
+
+// BM_ProxyQuery: the same query as a stylus moves (a 6 mm circle at 1 Hz, 3 mm under the
+// surface, one query a millisecond, the last answer as the start), from the tree (third argument
+// 0) or from the proxy's kept list (geometry::ClosestCache, 1 mm margin). The fourth argument is
+// the surface's motion per query in µm as its snapshots would report it (0: still tissue; 20:
+// 2 cm/s everywhere, a brisk twist), which makes the list be made again sooner.
+void BM_ProxyQuery(benchmark::State& state) {
+  static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
+  const char* name = kScenes[state.range(0)];
+  const int sessions = static_cast<int>(state.range(1));
+  const bool kept = state.range(2) != 0;
+  const double motion_step = 1e-6 * static_cast<double>(state.range(3));
+  auto scene = vsurg::sim::LoadSceneByName(name);
+  auto mesh = scene.ok() ? vsurg::sim::BuildSceneMesh(scene->mesh)
+                         : vsurg::Expected<vsurg::sim::SceneMesh>(scene.error());
+  if (!mesh.ok()) {
+    state.SkipWithError("scene set-up failed");
+    return;
+  }
+  using vsurg::geometry::Vec3;
+  const vsurg::geometry::TriMesh& surface = mesh->surface;
+  std::vector<vsurg::geometry::Bvh> trees(sessions, vsurg::geometry::Bvh(surface));
+  std::vector<std::vector<Vec3>> positions(sessions, surface.positions);
+  std::vector<vsurg::geometry::ClosestCache> caches(sessions, vsurg::geometry::ClosestCache(1e-3));
+  // Each session circles under its own face (spread over the surface), from its face's normal.
+  struct Walk {
+    Vec3 centre, normal, e1, e2;
+    int last;
+  };
+  std::vector<Walk> walks;
+  for (int s = 0; s < sessions; ++s) {
+    const int t = static_cast<int>((static_cast<long>(s) * 7919 + 13) % surface.TriangleCount());
+    const auto& tri = surface.triangles[t];
+    const Vec3 n = vsurg::geometry::TriangleNormal(surface.positions, tri);
+    if (!n.allFinite()) continue;
+    const Vec3 c =
+        (surface.positions[tri[0]] + surface.positions[tri[1]] + surface.positions[tri[2]]) / 3.0;
+    const Vec3 e1 = n.unitOrthogonal();
+    walks.push_back({c - 0.003 * n, n, e1, n.cross(e1), t});
+  }
+  if (walks.size() != static_cast<size_t>(sessions)) {
+    state.SkipWithError("a face with no normal");
+    return;
+  }
+  size_t i = 0;
+  double found = 0, motion = 0;
+  for (auto _ : state) {
+    const int s = static_cast<int>(i % static_cast<size_t>(sessions));
+    const double a = 2 * 3.141592653589793 * 1e-3 * static_cast<double>(i / sessions);
+    Walk& w = walks[s];
+    const Vec3 p = w.centre + 0.003 * (std::cos(a) * w.e1 + std::sin(a) * w.e2);
+    if (s == 0) motion += motion_step;
+    const vsurg::geometry::ClosestHit hit =
+        kept ? caches[s].Closest(trees[s], positions[s], motion, p, 0.013, w.normal, 0.0, w.last)
+             : trees[s].Closest(positions[s], p, 0.013, w.normal, 0.0, w.last);
+    if (hit.triangle >= 0) w.last = hit.triangle;
+    found += hit.triangle >= 0;
+    benchmark::DoNotOptimize(hit);
+    ++i;
+  }
+  double hits = 0, calls = 0;
+  for (const auto& c : caches)
+    hits += static_cast<double>(c.hits()), calls += static_cast<double>(c.hits() + c.misses());
+  state.counters["found"] = found / static_cast<double>(std::max<size_t>(i, 1));
+  state.counters["from_list"] = calls > 0 ? hits / calls : 0;
+  state.SetLabel(std::string(name) + (kept ? " kept list" : " tree"));
+}
+BENCHMARK(BM_ProxyQuery)
+    ->ArgsProduct({{0, 1}, {1, 64}, {0, 1}, {0}})
+    ->Args({0, 64, 1, 20})
+    ->Args({1, 64, 1, 20})
+    ->Unit(benchmark::kNanosecond);
 
 }  // namespace

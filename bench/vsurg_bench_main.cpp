@@ -37,6 +37,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <thread>
 #include <vector>
@@ -129,12 +130,13 @@ struct RttRun {
 // rather than sent as one burst the server must queue; with `period_ms` > 1 (a station behind
 // the perceptual deadband, which sends about one sample in 20) every period_ms milliseconds,
 // the stations spread over the period's 8·period_ms slots alike; the stylus approaches from
-// `outward` of `rest` during the warm-up. Answers are opened and decoded; the round trip of each is
-// kept.
+// `outward` of `rest` during the warm-up. With `stroke` > 0 (m) each station's stylus then circles
+// `rest` at that radius once a second, across `outward` (a hand palpating; the stations' phases
+// spread), instead of resting. Answers are opened and decoded; the round trip of each is kept.
 RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>& stations,
                      const udp::endpoint& server, const Eigen::Vector3d& rest,
                      const Eigen::Vector3d& outward, double seconds, Answer answer,
-                     int period_ms = 1) {
+                     int period_ms = 1, double stroke = 0) {
   const int n = static_cast<int>(stations.size());
   const Clock::time_point start = Clock::now();
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
@@ -188,6 +190,11 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
         vsurg::wire::StylusMessage msg = m;
         msg.sample.time = now_s();
         msg.sample.position += (1.0 - std::min(1.0, t / 0.2)) * 0.02 * outward;
+        if (stroke > 0) {
+          const double a = 2 * std::numbers::pi * (t + static_cast<double>(k) / n);
+          const Eigen::Vector3d e1 = outward.unitOrthogonal(), e2 = outward.cross(e1);
+          msg.sample.position += stroke * (std::cos(a) * e1 + std::sin(a) * e2);
+        }
         const size_t size =
             codec.EncodeStylus(msg,
                                {vsurg::wire::kProtocolVersion,
@@ -344,6 +351,13 @@ int HapticRtt(const std::vector<std::string>& args) {
               "sessions spread over them by id",
               false, "1")
       .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
+      .Option("stroke-mm", ArgParser::Kind::kDouble,
+              "after the warm-up each stylus circles its resting point at this radius once a "
+              "second (0: it rests)",
+              false, "0")
+      .Option("tree-queries", ArgParser::Kind::kFlag,
+              "the haptic path's closest-face queries walk the tree every time instead of "
+              "answering from kept lists (for comparison)")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (vsurg::Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -354,6 +368,10 @@ int HapticRtt(const std::vector<std::string>& args) {
     return 0;
   }
   const int n = p.Has("stations") ? p.Int("stations") : 1;
+  const double stroke_mm = p.Double("stroke-mm");
+  if (!(stroke_mm >= 0 && stroke_mm <= 20))
+    return std::cerr << p.command() << ": --stroke-mm: must be in 0..20\n", 2;
+  const bool kept_face_lists = !p.Flag("tree-queries");
   const int pool_workers = p.Int("pool-workers");
   if (pool_workers < -1 || pool_workers > 64)
     return std::cerr << p.command() << ": --pool-workers: must be in -1..64\n", 2;
@@ -410,8 +428,11 @@ int HapticRtt(const std::vector<std::string>& args) {
   }
   for (int i = 0; i < n && !stack; ++i) {
     const vsurg::wire::SessionKey key = BenchKey(i);
-    auto sim = vsurg::sim::Simulation::Create(
-        *scene, {.threaded = true, .start_deformation = true, .cache_dir = {}, .pool = pool.get()});
+    auto sim = vsurg::sim::Simulation::Create(*scene, {.threaded = true,
+                                                       .start_deformation = true,
+                                                       .cache_dir = {},
+                                                       .pool = pool.get(),
+                                                       .kept_face_lists = kept_face_lists});
     if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
     sims.push_back(std::move(*sim));
     (*endpoint)->AddSession(1000 + i, key, sims.back().get());
@@ -428,8 +449,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   const Eigen::Vector3d outward = limb ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1);
   const double cpu0 = (*endpoint)->io_cpu_seconds();
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
-  RttRun run =
-      DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce, period_ms);
+  RttRun run = DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce,
+                             period_ms, stroke_mm * 1e-3);
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
   uint64_t dashboard_bytes = 0, dashboard_events = 0;
   if (stack) {
@@ -449,6 +470,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["pool_workers"] = pool ? pool->workers() : pool_workers;
   j["io_threads"] = (*endpoint)->io_threads();
   j["period_ms"] = period_ms;
+  j["stroke_mm"] = stroke_mm;
+  j["kept_face_lists"] = kept_face_lists;
   j["dashboard_bytes"] = dashboard_bytes;
   j["dashboard_events"] = dashboard_events;
   if (p.Flag("json")) {

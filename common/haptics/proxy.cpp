@@ -36,7 +36,8 @@ void ProxyContact::Reset() {
 }
 
 const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
-                                       const geometry::Bvh& bvh, const Vec3& hip, double dt) {
+                                       const geometry::Bvh& bvh, const Vec3& hip, double dt,
+                                       double surface_motion) {
   if (!hip.allFinite()) {  // the caller gates NaN already; stay safe regardless
     Reset();
     return state_;
@@ -55,7 +56,8 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
       // The surface may have moved over a resting tip (deforming tissue springing back): a tip
       // just under its closest face is inside. A tip beyond a thin sheet sees the sheet's near
       // face, whose normal points at it, so this never catches the far side.
-      const geometry::ClosestHit c = bvh.Closest(x, hip, params_.max_step);
+      const geometry::ClosestHit c =
+          free_faces_.Closest(bvh, x, surface_motion, hip, params_.max_step);
       if (c.triangle >= 0) {
         const Vec3 n = FaceNormal(x, tris[c.triangle]);
         if ((hip - c.point).dot(n) < 0) {
@@ -72,8 +74,8 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
     // Closest point to the tip among faces still facing the contact side, near the proxy.
     const double reach = (hip - state_.scp).norm() + params_.max_step;
     // The proxy's face starts each search: the tip rarely moves far from it in one update.
-    geometry::ClosestHit c =
-        bvh.Closest(x, hip, reach, state_.normal, params_.min_normal_dot, state_.triangle);
+    geometry::ClosestHit c = contact_faces_.Closest(
+        bvh, x, surface_motion, hip, reach, state_.normal, params_.min_normal_dot, state_.triangle);
     if (c.triangle < 0) {
       // Nothing acceptable in reach: hold the proxy on its face, re-evaluated on the new surface.
       c = bvh.Closest(x, state_.scp, params_.max_step, state_.normal, params_.min_normal_dot,

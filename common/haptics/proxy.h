@@ -14,9 +14,11 @@
 // Local model: in contact F ≈ F₀ − K n nᵀ (x − x₀) (sliding along the face costs nothing);
 // free: zero.
 //
-// Threads: one proxy per haptic loop; Update never allocates. Units: m, s, N, N/m, N·s/m.
+// Threads: one proxy per haptic loop; Update never allocates (its kept lists are reserved).
+// Units: m, s, N, N/m, N·s/m.
 #pragma once
 
+#include <limits>
 #include <vector>
 
 #include "common/core/expected.h"
@@ -54,14 +56,21 @@ class ProxyContact {
   static Expected<ProxyContact> Create(const ProxyParams& params);
 
   // One haptic update against a surface snapshot (positions and a BVH refitted to them).
+  // surface_motion: the snapshot's geometry::ClosestCache motion bound (sim's Snapshot::motion);
+  // with it the per-update closest-face queries answer from kept lists (the same distances,
+  // fewer memory reads); unknown (+inf), each walks the tree.
   const ProxyState& Update(const std::vector<geometry::Vec3>& positions, const geometry::Bvh& bvh,
-                           const Vec3& hip, double dt);
+                           const Vec3& hip, double dt,
+                           double surface_motion = std::numeric_limits<double>::infinity());
   void Reset();
   const ProxyState& state() const { return state_; }
   const ProxyParams& params() const { return params_; }
-  // The contact's state (common/core/state_archive.h), not its parameters.
+  // The contact's state (common/core/state_archive.h), not its parameters nor its kept lists
+  // (made again after a restore: they belong to the surface they were made on).
   template <class A>
   void Persist(A& a) {
+    contact_faces_.Clear();
+    free_faces_.Clear();
     a(state_, last_hip_, has_last_, last_x_);
   }
 
@@ -72,6 +81,9 @@ class ProxyContact {
   Vec3 last_hip_ = Vec3::Zero();
   bool has_last_ = false;
   Vec3 last_x_ = Vec3::Zero();  // previous SCP − HIP, for ẋ
+  // The two queries made on every update: in contact, the closest accepted face to the tip; free,
+  // the closest face within max_step (a surface moving over a resting tip).
+  geometry::ClosestCache contact_faces_{1e-3}, free_faces_{1e-3};
 };
 
 }  // namespace vsurg::haptics

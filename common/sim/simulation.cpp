@@ -21,6 +21,10 @@ using haptics::StylusSample;
 
 namespace {
 
+// m added to Snapshot::motion when the surface is set anew (back to rest, or a NaN published):
+// farther than any kept list reaches, so each is made again.
+constexpr double kSurfaceReset = 1e3;
+
 Vec3 AnyPerpendicular(const Vec3& a) {
   const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
   return a.cross(t).normalized();
@@ -127,9 +131,13 @@ Status Simulation::Build() {
       },
       room_);
   const geometry::Bvh bvh(rest_);
+  // A surface back at rest: any list a query kept is void (Build also runs on a failed restore).
+  surface_motion_ += kSurfaceReset;
+  last_published_ = rest_.positions;
   surface_.ForEachSlot([&](Snapshot& s) {
     s.positions = rest_.positions;
     s.bvh = bvh;
+    s.motion = surface_motion_;
   });
   visual_.ForEachSlot([&](VisualPositions& v) { v.positions = rest_.positions; });
   last_sent_ = rest_.positions;
@@ -155,7 +163,8 @@ void Simulation::SurfaceAhead(const Snapshot& snap, const Vec3& tip, haptics::Lo
   const double reach = scene_.haptics.lookahead;
   if (!(reach > 0) || !tip.allFinite()) return;
   const geometry::ClosestHit c =
-      snap.bvh.Closest(snap.positions, tip, reach, Vec3::Zero(), -2.0, ahead_triangle_);
+      ahead_cache_.Closest(snap.bvh, snap.positions, KeptListMotion(snap), tip, reach, Vec3::Zero(),
+                           -2.0, ahead_triangle_);
   ahead_triangle_ = c.triangle;
   if (c.triangle < 0) return;
   const geometry::Triangle& tri = rest_.triangles[c.triangle];
@@ -312,7 +321,8 @@ ForceCommand Simulation::OnStylus(const StylusSample& s) {
     cmd.twist = twist;
     cmd.torque = answer.torque;
   } else {
-    const haptics::ProxyState& ps = proxy_.Update(snap.positions, snap.bvh, s.position, dt);
+    const haptics::ProxyState& ps =
+        proxy_.Update(snap.positions, snap.bvh, s.position, dt, KeptListMotion(snap));
     if (ps.contact) {
       const geometry::Triangle& tri = rest_.triangles[ps.triangle];
       if (!last_contact_) {
@@ -460,7 +470,15 @@ void Simulation::PublishInput() {
 void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model) {
   const size_t n = rest_.positions.size();
   Snapshot& back = surface_.Back();
-  std::copy(positions.begin(), positions.begin() + n, back.positions.begin());
+  // The largest vertex move since the last surface published (a NaN counts as a reset).
+  double moved2 = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double d2 = (positions[i] - last_published_[i]).squaredNorm();
+    if (!(d2 <= moved2)) moved2 = d2;
+    back.positions[i] = last_published_[i] = positions[i];
+  }
+  surface_motion_ += std::isfinite(moved2) ? std::sqrt(moved2) : kSurfaceReset;
+  back.motion = surface_motion_;
   back.bvh.Refit(back.positions);
   back.id = ++publish_id_;
   back.overload = overload;

@@ -37,6 +37,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -79,6 +80,10 @@ struct SimulationOptions {
   // Threaded only: the deformation runs as a member of this pool (common/sim/deformation_pool.h)
   // instead of on a thread of its own. It must outlive the simulation. Null: its own thread.
   DeformationPool* pool = nullptr;
+  // The haptic path's closest-face queries answer from kept lists while the tip and the surface
+  // move less than their margin (geometry::ClosestCache: the same answers, fewer memory reads);
+  // false: each walks the tree (the comparison in docs/BENCHMARKS.md).
+  bool kept_face_lists = true;
 };
 
 struct VisualFrame {
@@ -154,6 +159,10 @@ class Simulation final : private DeformationPool::Member {
     uint64_t id = 0;
     bool overload = false;
     bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
+    // m: how far the surface has moved in all, a bound non-decreasing from one snapshot to the
+    // next (each publish adds its largest vertex move): the haptic path's kept closest-face
+    // lists (geometry::ClosestCache) stand while it says the surface moved less than their margin.
+    double motion = 0;
   };
   struct VisualPositions {
     std::vector<geometry::Vec3> positions;
@@ -176,6 +185,10 @@ class Simulation final : private DeformationPool::Member {
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
+  // The motion the kept face lists are given: the snapshot's, or +inf (none kept) when disabled.
+  double KeptListMotion(const Snapshot& snap) const {
+    return options_.kept_face_lists ? snap.motion : std::numeric_limits<double>::infinity();
+  }
   void SurfaceAhead(const Snapshot& snap, const geometry::Vec3& tip, haptics::LocalModel& local,
                     Eigen::Matrix3d& jacobian);
 
@@ -210,6 +223,7 @@ class Simulation final : private DeformationPool::Member {
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
   int ahead_triangle_ = -1;  // haptic thread: the last surface-ahead face, the next search's start
+  geometry::ClosestCache ahead_cache_{1e-3};   // haptic thread: the surface-ahead query's list
   haptics::StiffnessFit stiffness_fit_;        // the contact's slope for the local model
   haptics::ViscoelasticFit viscoelastic_fit_;  // the tissue under the proxy, for the local model
   bool room_has_contact_stiffness_ = false;    // the room answers ContactStiffness itself
@@ -226,6 +240,9 @@ class Simulation final : private DeformationPool::Member {
   mutable std::mutex shown_mutex_;         // guards shown_
   VisualPositions shown_;                  // what the visual thread last sent
   uint64_t publish_id_ = 0;
+  // Deformation side: the surface last published and Snapshot::motion so far.
+  std::vector<geometry::Vec3> last_published_;
+  double surface_motion_ = 0;
   std::atomic<uint64_t> updates_{0};
   // Coil scenes: the deformation thread sleeps on this until the haptic path asks for something
   // new (C++20 atomic wait: no lock; the haptic side's notify is a no-op without a waiter).

@@ -127,6 +127,51 @@ TEST(ProxyTest, FrictionHoldsTheProxyInsideTheCone) {
   EXPECT_NEAR(slide.scp.x(), 0.005, 1e-12);
 }
 
+// The proxy answers from its kept face lists (a surface motion given) exactly as from the tree: a
+// tip that comes in from outside, presses 4 mm into the forearm, slides around and leaves, over a
+// surface that swells and shifts a little every few updates, with friction; the same contact, the
+// same force, update for update.
+TEST(ProxyTest, KeptFaceListsGiveTheTreesContact) {
+  TriMesh m =
+      geometry::MakeLimb(geometry::WithResolution(geometry::ForearmPreset(), 3000))->surface;
+  const TriMesh rest = m;
+  geometry::Bvh bvh(m);
+  ProxyContact kept = Make(300, 1, 0.3), tree = Make(300, 1, 0.3);
+  // A side of the forearm 12 cm along it: the surface point on +x and its outward normal there.
+  const geometry::ClosestHit side = bvh.Closest(m.positions, Vec3(0.1, 0, 0.12));
+  ASSERT_GE(side.triangle, 0);
+  const Vec3 n = geometry::TriangleNormal(m, side.triangle), e1 = n.unitOrthogonal(),
+             e2 = n.cross(e1);
+  double motion = 0;
+  int in_contact = 0;
+  for (int i = 0; i < 4000; ++i) {
+    const double t = i * 1e-3;
+    // Out 5 mm → in 4 mm over the first 0.5 s, a 6 mm circle at 1 Hz, out again after 3.5 s.
+    const double depth =
+        t < 0.5 ? -0.005 + 0.018 * t : (t < 3.5 ? 0.004 : 0.004 - 0.02 * (t - 3.5));
+    const double a = 2 * M_PI * t;
+    const Vec3 hip = side.point - depth * n + 0.006 * (std::cos(a) * e1 + std::sin(a) * e2);
+    if (i % 4 == 0) {  // the tissue breathes: ±0.5 mm along x and a swell, 1.5 Hz
+      double largest = 0;
+      for (size_t v = 0; v < m.positions.size(); ++v) {
+        const Vec3 to = rest.positions[v] +
+                        5e-4 * std::sin(3 * M_PI * t) * Vec3(1, 0, 0.2 * rest.positions[v].z());
+        largest = std::max(largest, (to - m.positions[v]).norm());
+        m.positions[v] = to;
+      }
+      bvh.Refit(m.positions);
+      motion += largest;
+    }
+    const ProxyState a_state = kept.Update(m.positions, bvh, hip, 1e-3, motion);
+    const ProxyState& b_state = tree.Update(m.positions, bvh, hip, 1e-3);
+    ASSERT_EQ(a_state.contact, b_state.contact) << i;
+    in_contact += a_state.contact;
+    ASSERT_LT((a_state.force - b_state.force).norm(), 1e-9) << i;
+    ASSERT_LT((a_state.scp - b_state.scp).norm(), 1e-12) << i;
+  }
+  EXPECT_GT(in_contact, 2500);
+}
+
 TEST(ProxyTest, BadParametersAreRejected) {
   ProxyParams p;
   p.stiffness = -1;
