@@ -201,7 +201,8 @@ BENCHMARK(BM_BvhClosest)->ArgsProduct({{0, 1}, {1, 64}})->Unit(benchmark::kNanos
 // surface, one query a millisecond, the last answer as the start), from the tree (third argument
 // 0) or from the proxy's kept list (geometry::ClosestCache, 1 mm margin). The fourth argument is
 // the surface's motion per query in µm as its snapshots would report it (0: still tissue; 20:
-// 2 cm/s everywhere, a brisk twist), which makes the list be made again sooner.
+// 2 cm/s everywhere, a brisk twist), which makes the list be made again sooner; the fifth the
+// list's margin in µm (the proxy's: 1000).
 void BM_ProxyQuery(benchmark::State& state) {
   static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
   const char* name = kScenes[state.range(0)];
@@ -219,7 +220,9 @@ void BM_ProxyQuery(benchmark::State& state) {
   const vsurg::geometry::TriMesh& surface = mesh->surface;
   std::vector<vsurg::geometry::Bvh> trees(sessions, vsurg::geometry::Bvh(surface));
   std::vector<std::vector<Vec3>> positions(sessions, surface.positions);
-  std::vector<vsurg::geometry::ClosestCache> caches(sessions, vsurg::geometry::ClosestCache(1e-3));
+  const double margin = 1e-6 * static_cast<double>(state.range(4));
+  std::vector<vsurg::geometry::ClosestCache> caches(sessions,
+                                                    vsurg::geometry::ClosestCache(margin));
   // Each session circles under its own face (spread over the surface), from its face's normal.
   struct Walk {
     Vec3 centre, normal, e1, e2;
@@ -261,12 +264,16 @@ void BM_ProxyQuery(benchmark::State& state) {
     hits += static_cast<double>(c.hits()), calls += static_cast<double>(c.hits() + c.misses());
   state.counters["found"] = found / static_cast<double>(std::max<size_t>(i, 1));
   state.counters["from_list"] = calls > 0 ? hits / calls : 0;
+  double listed = 0;
+  for (const auto& c : caches) listed += static_cast<double>(c.listed());
+  state.counters["listed"] = listed / static_cast<double>(sessions);
   state.SetLabel(std::string(name) + (kept ? " kept list" : " tree"));
 }
 BENCHMARK(BM_ProxyQuery)
-    ->ArgsProduct({{0, 1}, {1, 64}, {0, 1}, {0}})
-    ->Args({0, 64, 1, 20})
-    ->Args({1, 64, 1, 20})
+    ->ArgsProduct({{0, 1}, {1, 64}, {0, 1}, {0}, {1000}})
+    ->ArgsProduct({{0, 1}, {64}, {1}, {0, 20}, {250, 500, 2000}})
+    ->Args({0, 64, 1, 20, 1000})
+    ->Args({1, 64, 1, 20, 1000})
     ->Unit(benchmark::kNanosecond);
 
 }  // namespace

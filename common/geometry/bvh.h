@@ -107,9 +107,10 @@ class Bvh {
 // since, a face off the list is farther than R − |p − c| − m: the list's own best answer stands
 // when it is nearer than that (with no answer, when the range is), and otherwise the tree answers
 // and the list is made again. The answer's distance is therefore always the tree's (tested); of
-// faces equally near (a shared edge or corner), which one is returned may differ. On a tree at a
-// node's load the list reads a few dozen cache lines where the walk reads a hundred or more
-// (docs/BENCHMARKS.md, "The proxy's query from a kept list").
+// faces equally near (a shared edge or corner), which one is returned may differ. A tip 3–4 mm
+// deep has 6–13 faces on a 0.5 mm margin's list, where the walk opens some 45 boxes and 25 faces:
+// a third of the time or less at a node's load (docs/BENCHMARKS.md, "the proxy's query from a
+// kept list").
 //
 // surface_motion is a bound on how far the surface has moved in all, non-decreasing over its
 // life: the sum, over the surfaces published so far, of each one's largest vertex move from the
@@ -118,7 +119,7 @@ class Bvh {
 class ClosestCache {
  public:
   static constexpr size_t kCapacity = 256;  // faces; a nearer crowd is not listed
-  explicit ClosestCache(double margin = 1e-3);
+  explicit ClosestCache(double margin = 5e-4);
   // A copy holds its lists in storage of its own reserved to kCapacity, so no call allocates.
   ClosestCache(const ClosestCache& other);
   ClosestCache& operator=(const ClosestCache& other);
@@ -127,8 +128,9 @@ class ClosestCache {
                      const Vec3& p, double max_distance, const Vec3& normal_hint = Vec3::Zero(),
                      double min_normal_dot = -2.0, int start_triangle = -1);
   void Clear();
-  uint64_t hits() const { return hits_; }      // calls the list answered
-  uint64_t misses() const { return misses_; }  // calls the tree answered
+  uint64_t hits() const { return hits_; }          // calls the list answered
+  uint64_t misses() const { return misses_; }      // calls the tree answered
+  size_t listed() const { return faces_.size(); }  // faces on the list now
 
  private:
   struct Face {

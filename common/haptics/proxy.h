@@ -53,6 +53,7 @@ struct ProxyState {
 
 class ProxyContact {
  public:
+  static constexpr double kKeptListMargin = 5e-4;  // m, the kept face lists' (ClosestCache)
   static Expected<ProxyContact> Create(const ProxyParams& params);
 
   // One haptic update against a surface snapshot (positions and a BVH refitted to them).
@@ -82,8 +83,9 @@ class ProxyContact {
   bool has_last_ = false;
   Vec3 last_x_ = Vec3::Zero();  // previous SCP − HIP, for ẋ
   // The two queries made on every update: in contact, the closest accepted face to the tip; free,
-  // the closest face within max_step (a surface moving over a resting tip).
-  geometry::ClosestCache contact_faces_{1e-3}, free_faces_{1e-3};
+  // the closest face within max_step (a surface moving over a resting tip). A 0.5 mm margin: the
+  // fastest of those measured for a hand's speeds (docs/BENCHMARKS.md, BM_ProxyQuery).
+  geometry::ClosestCache contact_faces_{kKeptListMargin}, free_faces_{kKeptListMargin};
 };
 
 }  // namespace vsurg::haptics

@@ -223,7 +223,8 @@ class Simulation final : private DeformationPool::Member {
   geometry::Vec3 rest_contact_ = geometry::Vec3::Zero(), rest_normal_ = geometry::Vec3::UnitZ();
   bool last_contact_ = false;
   int ahead_triangle_ = -1;  // haptic thread: the last surface-ahead face, the next search's start
-  geometry::ClosestCache ahead_cache_{1e-3};   // haptic thread: the surface-ahead query's list
+  // Haptic thread: the surface-ahead query's kept face list.
+  geometry::ClosestCache ahead_cache_{haptics::ProxyContact::kKeptListMargin};
   haptics::StiffnessFit stiffness_fit_;        // the contact's slope for the local model
   haptics::ViscoelasticFit viscoelastic_fit_;  // the tissue under the proxy, for the local model
   bool room_has_contact_stiffness_ = false;    // the room answers ContactStiffness itself
