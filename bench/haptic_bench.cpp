@@ -119,17 +119,21 @@ void BM_RingLayerStep(benchmark::State& state) {
 }
 BENCHMARK(BM_RingLayerStep)->Unit(benchmark::kMicrosecond);
 
+// The physics surface of the arm (0) or the organ (1) scene, or an error the caller skips with.
+const char* SceneSurfaceName(int64_t which) {
+  return which == 0 ? "arm-torsion" : "organ-surface-twist";
+}
+vsurg::Expected<vsurg::sim::SceneMesh> SceneSurface(int64_t which) {
+  auto scene = vsurg::sim::LoadSceneByName(SceneSurfaceName(which));
+  if (!scene.ok()) return scene.error();
+  return vsurg::sim::BuildSceneMesh(scene->mesh);
+}
+
 void BM_BvhRefit(benchmark::State& state) {
-  static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
-  const char* name = kScenes[state.range(0)];
-  auto scene = vsurg::sim::LoadSceneByName(name);
-  if (!scene.ok()) {
-    state.SkipWithError("scene set-up failed");
-    return;
-  }
-  auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
+  const char* name = SceneSurfaceName(state.range(0));
+  auto mesh = SceneSurface(state.range(0));
   if (!mesh.ok()) {
-    state.SkipWithError("scene mesh failed");
+    state.SkipWithError("scene set-up failed");
     return;
   }
   vsurg::geometry::Bvh bvh(mesh->surface);
@@ -148,12 +152,9 @@ void BM_BvhRefit(benchmark::State& state) {
 BENCHMARK(BM_BvhRefit)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 void BM_BvhClosest(benchmark::State& state) {
-  static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
-  const char* name = kScenes[state.range(0)];
+  const char* name = SceneSurfaceName(state.range(0));
   const int sessions = static_cast<int>(state.range(1));
-  auto scene = vsurg::sim::LoadSceneByName(name);
-  auto mesh = scene.ok() ? vsurg::sim::BuildSceneMesh(scene->mesh)
-                         : vsurg::Expected<vsurg::sim::SceneMesh>(scene.error());
+  auto mesh = SceneSurface(state.range(0));
   if (!mesh.ok()) {
     state.SkipWithError("scene set-up failed");
     return;
@@ -202,16 +203,13 @@ BENCHMARK(BM_BvhClosest)->ArgsProduct({{0, 1}, {1, 64}})->Unit(benchmark::kNanos
 // 0) or from the proxy's kept list (geometry::ClosestCache, 1 mm margin). The fourth argument is
 // the surface's motion per query in µm as its snapshots would report it (0: still tissue; 20:
 // 2 cm/s everywhere, a brisk twist), which makes the list be made again sooner; the fifth the
-// list's margin in µm (the proxy's: 1000).
+// list's margin in µm (the proxy's: 500, ProxyContact::kKeptListMargin).
 void BM_ProxyQuery(benchmark::State& state) {
-  static const char* kScenes[] = {"arm-torsion", "organ-surface-twist"};
-  const char* name = kScenes[state.range(0)];
+  const char* name = SceneSurfaceName(state.range(0));
   const int sessions = static_cast<int>(state.range(1));
   const bool kept = state.range(2) != 0;
   const double motion_step = 1e-6 * static_cast<double>(state.range(3));
-  auto scene = vsurg::sim::LoadSceneByName(name);
-  auto mesh = scene.ok() ? vsurg::sim::BuildSceneMesh(scene->mesh)
-                         : vsurg::Expected<vsurg::sim::SceneMesh>(scene.error());
+  auto mesh = SceneSurface(state.range(0));
   if (!mesh.ok()) {
     state.SkipWithError("scene set-up failed");
     return;

@@ -151,6 +151,30 @@ void Bvh::Refit(const std::vector<Vec3>& positions) {
   }
 }
 
+namespace {
+
+// Face abc's closest point to p (barycentric w, point q, squared distance d2).
+struct FacePoint {
+  Vec3 w, q;
+  double d2;
+};
+FacePoint OnFace(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
+  const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
+  return {w, q, (q - p).squaredNorm()};
+}
+
+// Face t is kept as the best when it is nearer than the best so far or, the first time, as near
+// as the range allows (best_d2 starts at the range squared).
+bool Keep(int t, const FacePoint& f, ClosestHit& best, double& best_d2) {
+  if (!(f.d2 < best_d2 || (best.triangle < 0 && f.d2 <= best_d2))) return false;
+  best_d2 = f.d2;
+  best = ClosestHit{t, f.w, f.q, std::sqrt(f.d2)};
+  return true;
+}
+
+}  // namespace
+
 ClosestHit Bvh::Closest(const std::vector<Vec3>& positions, const Vec3& p, double max_distance,
                         const Vec3& normal_hint, double min_normal_dot, int start_triangle) const {
   return Search(positions, p, max_distance, normal_hint, min_normal_dot, start_triangle, 0, 0,
@@ -198,19 +222,13 @@ ClosestHit Bvh::Search(const std::vector<Vec3>& positions, const Vec3& p, double
     const Vec3& c = positions[triangles_[t][2]];
     const bool accepted = filter.Accepts(a, b, c);
     if (!accepted && !near) return;
-    const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
-    const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
-    const double d2 = (q - p).squaredNorm();
-    if (near && d2 <= open2) {
+    const FacePoint f = OnFace(p, a, b, c);
+    if (near && f.d2 <= open2) {
       if (near->size() >= capacity)  // full: drop what the reach has since left behind
-        std::erase_if(*near, [&](const NearFace& f) { return f.distance2 > open2; });
-      if (near->size() < capacity) near->push_back({t, d2});
+        std::erase_if(*near, [&](const NearFace& n) { return n.distance2 > open2; });
+      if (near->size() < capacity) near->push_back({t, f.d2});
     }
-    if (accepted && (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2))) {
-      best_d2 = d2;
-      best = ClosestHit{t, w, q, std::sqrt(d2)};
-      reopen();
-    }
+    if (accepted && Keep(t, f, best, best_d2)) reopen();
   };
   if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles_.size()))
     consider(start_triangle);
@@ -291,14 +309,7 @@ ClosestHit ClosestCache::Closest(const Bvh& bvh, const std::vector<Vec3>& positi
     const FaceFilter filter(normal_hint, min_normal_dot);
     const auto consider = [&](int t, int32_t ia, int32_t ib, int32_t ic) {
       const Vec3 &a = positions[ia], &b = positions[ib], &c = positions[ic];
-      if (!filter.Accepts(a, b, c)) return;
-      const Vec3 w = ClosestPointOnTriangle(p, a, b, c);
-      const Vec3 q = w[0] * a + w[1] * b + w[2] * c;
-      const double d2 = (q - p).squaredNorm();
-      if (d2 < best_d2 || (best.triangle < 0 && d2 <= best_d2)) {
-        best_d2 = d2;
-        best = ClosestHit{t, w, q, std::sqrt(d2)};
-      }
+      if (filter.Accepts(a, b, c)) Keep(t, OnFace(p, a, b, c), best, best_d2);
     };
     if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles.size())) {
       const Triangle& s = triangles[start_triangle];
