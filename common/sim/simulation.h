@@ -137,6 +137,8 @@ class Simulation final : private DeformationPool::Member {
   uint64_t clock_jumps() const { return clock_jumps_; }
   // Deformation updates published so far (any thread).
   uint64_t deformation_updates() const { return updates_.load(std::memory_order_relaxed); }
+  // Requests handed to the deformation so far: each wakes it (any thread).
+  uint64_t deformation_requests() const { return input_version_.load(std::memory_order_relaxed); }
 
   // Live migration (server/cluster/: a draining node hands its sessions to other nodes). The
   // whole state a trainee's trial goes on from, as bytes: the trial clock and recorder, the

@@ -12,6 +12,10 @@
 //     bool StartGrasp(const GraspQuery&, GraspFrame&)   grasp-and-twist: the axis, point and
 //                                   lever of a grasp at the proxy (false: no grasp here)
 //     TwistAnswer Twist(double twist)                   the torque the tissue answers a twist
+//     static bool SameRequest(const DeformInput&, const DeformInput&)   whether two inputs ask
+//                                   the same update of this model (the fields it reads are
+//                                   equal); the deformation is woken only for a new one. Without
+//                                   it every field counts
 //     double ContactStiffness(const ContactQuery&)      the local model's stiffness in contact
 //                                   (the proxy's spring in series with the tissue behind it)
 //   deformation thread (its own thread, or the caller's StepDeformation):

@@ -25,6 +25,10 @@ class CoilRoom {
   bool StartGrasp(const GraspQuery& q, GraspFrame& f) const;
   // Haptic thread: Φ → M by the inverse of seed 000 eq. 3–6 (overloaded past full capacity).
   TwistAnswer Twist(double twist) const;
+  // Haptic thread: only a grasp deforms this model (SameGraspRequest).
+  static bool SameRequest(const DeformInput& a, const DeformInput& b) {
+    return SameGraspRequest(a, b);
+  }
   // Deformation thread.
   std::optional<Deformed> Deform(const DeformInput& in);
 

@@ -22,6 +22,10 @@ class ReducedTwistRoom {
   // Haptic thread: the axis is the centreline where it passes the grasp.
   bool StartGrasp(const GraspQuery& q, GraspFrame& f) const;
   TwistAnswer Twist(double twist) const;
+  // Haptic thread: only a grasp deforms this model (SameGraspRequest).
+  static bool SameRequest(const DeformInput& a, const DeformInput& b) {
+    return SameGraspRequest(a, b);
+  }
   // Deformation thread.
   std::optional<Deformed> Deform(const DeformInput& in);
 

@@ -46,6 +46,14 @@ struct DeformInput {
   }
 };
 
+// For a model that only a grasp deforms (the twist models): whether two inputs ask it for the
+// same update, the grasp and its torque alike. A touch without a grasp changes the contact's
+// fields, which such a model never reads, so it is not handed over.
+inline bool SameGraspRequest(const DeformInput& a, const DeformInput& b) {
+  return a.grasp_id == b.grasp_id && a.grasping == b.grasping && a.grasp_vertex == b.grasp_vertex &&
+         a.torque == b.torque && a.grasp_point == b.grasp_point;
+}
+
 // A grasp asked for at the proxy (haptic thread).
 struct GraspQuery {
   int triangle = -1;

@@ -22,6 +22,10 @@ class SurfaceTwistRoom {
   // Haptic thread: the jaws' vertex, its stiffness and capacity; the axis is the normal there.
   bool StartGrasp(const GraspQuery& q, GraspFrame& f);
   TwistAnswer Twist(double twist) const;
+  // Haptic thread: only a grasp deforms this model (SameGraspRequest).
+  static bool SameRequest(const DeformInput& a, const DeformInput& b) {
+    return SameGraspRequest(a, b);
+  }
   // Deformation thread. A new grasp builds its twist model (allocates: once per grasp);
   // released: at rest.
   std::optional<Deformed> Deform(const DeformInput& in);

@@ -455,6 +455,47 @@ TEST(SimulationTest, ThreadedDeformationPublishesOnlyMovedVertices) {
   EXPECT_FALSE((*sim)->TakeVisualFrame(again) && !again.indices.empty());
 }
 
+// The haptic path wakes the deformation only for what the scene's model reads. A twist model (the
+// arm's coil) reads the grasp and its torque, so a touch that does not grasp asks nothing of it,
+// while its grasp's twist does; a press on the sphere (a mass-spring, which a press deforms)
+// asks for an update at every sample in which the press changed (a quarter of them in this
+// trial: it holds its depth for long).
+TEST(SimulationTest, OnlyWhatTheModelReadsWakesItsDeformation) {
+  for (const char* name : {"arm-torsion", "sphere-palpation-256"}) {
+    SCOPED_TRACE(name);
+    auto scene = LoadSceneByName(name);
+    ASSERT_TRUE(scene.ok());
+    auto samples = ScriptedTrainee(*scene, TraineeStyle::kGood);
+    ASSERT_TRUE(samples.ok());
+    auto sim = Simulation::Create(*scene, {false});
+    ASSERT_TRUE(sim.ok()) << sim.error().message;
+    int press_samples = 0, grasp_samples = 0;
+    uint64_t press_requests = 0, grasp_requests = 0;
+    for (const auto& s : *samples) {
+      const uint64_t before = (*sim)->deformation_requests();
+      const haptics::ForceCommand c = (*sim)->OnStylus(s);
+      const uint64_t asked = (*sim)->deformation_requests() - before;
+      if (c.grasping) {
+        ++grasp_samples;
+        grasp_requests += asked;
+      } else if (c.contact) {
+        ++press_samples;
+        press_requests += asked;
+      }
+    }
+    ASSERT_GT(press_samples, 200);
+    if (std::string(name) == "arm-torsion") {
+      // The one request a press may carry: the release of the grasp, while still touching.
+      EXPECT_LE(press_requests, 2u) << "of " << press_samples << " samples touching the arm";
+      ASSERT_GT(grasp_samples, 200);
+      EXPECT_GT(grasp_requests, static_cast<uint64_t>(grasp_samples / 4)) << "the twist asks";
+    } else {
+      EXPECT_GT(press_requests, static_cast<uint64_t>(press_samples / 8))
+          << "of " << press_samples << " samples pressing the sphere";
+    }
+  }
+}
+
 TEST(SimulationTest, TheHapticPathNeverAllocates) {
   if (!test::CanCountAllocations())
     GTEST_SKIP() << "operator new cannot be replaced under ThreadSanitizer";
