@@ -485,7 +485,7 @@ TEST(SimulationTest, OnlyWhatTheModelReadsWakesItsDeformation) {
     }
     ASSERT_GT(press_samples, 200);
     if (std::string(name) == "arm-torsion") {
-      // The one request a press may carry: the release of the grasp, while still touching.
+      // All a touch may ask: the grasp's release, seen while the tool still touches.
       EXPECT_LE(press_requests, 2u) << "of " << press_samples << " samples touching the arm";
       ASSERT_GT(grasp_samples, 200);
       EXPECT_GT(grasp_requests, static_cast<uint64_t>(grasp_samples / 4)) << "the twist asks";
