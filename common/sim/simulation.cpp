@@ -464,11 +464,7 @@ void Simulation::PublishInput() {
         if constexpr (requires { Room::SameRequest(a, b); }) {
           return Room::SameRequest(a, b);
         } else {
-          return a.grasp_id == b.grasp_id && a.grasping == b.grasping &&
-                 a.grasp_vertex == b.grasp_vertex && a.torque == b.torque &&
-                 a.triangle == b.triangle && a.contact_id == b.contact_id &&
-                 a.barycentric == b.barycentric && a.force_on_tissue == b.force_on_tissue &&
-                 a.hip == b.hip && a.grasp_point == b.grasp_point;
+          return a == b;  // every field
         }
       },
       room_);

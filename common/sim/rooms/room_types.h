@@ -39,6 +39,7 @@ struct DeformInput {
   geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
   geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
   uint64_t contact_id = 0;                                  // changes at every new contact
+  bool operator==(const DeformInput&) const = default;
   template <class A>
   void Persist(A& a) {  // common/core/state_archive.h
     a(grasp_id, grasping, grasp_vertex, torque, grasp_point, triangle, barycentric, force_on_tissue,
