@@ -3,9 +3,11 @@
 namespace vsurg::client::shaders {
 
 // Both stages of the lit surfaces, after the variant's #defines: the uniforms, the tissue's
-// albedo and the key, fill and sky light that does not depend on the view. Below high the tissue
-// takes those per vertex (VERTEX_LIGHT): they vary over centimetres, which its vertices resolve,
-// and on a software renderer every term moved out of the pixel is time saved on every pixel.
+// albedo, the key, fill and sky light that does not depend on the view, and the specular lobes.
+// Below high the tissue takes the diffuse light and its broad lobe per vertex (VERTEX_LIGHT):
+// they vary over centimetres, which its vertices resolve, and on a software renderer every term
+// moved out of the pixel is time saved on every pixel. What stays per pixel there is the key
+// light's shadow and, on a wet surface, the film's sharp lobe (a highlight a few vertices wide).
 const char* const kSceneCommon = R"(
 uniform vec3 uEye;
 uniform vec3 uKeyDir;         // unit, toward the key light
@@ -16,6 +18,7 @@ uniform vec3 uUp;
 uniform vec3 uSky;
 uniform vec3 uGround;
 uniform vec3 uAlbedo;
+uniform float uRoughness;
 #define TISSUE (MATERIAL == 0 || MATERIAL == 1 || MATERIAL == 2)
 #define WET (MATERIAL == 1 || MATERIAL == 2)
 #define POLISHED (MATERIAL == 3 || MATERIAL == 4)
@@ -60,6 +63,41 @@ void Diffuse(vec3 n, vec3 albedo, float ao, out vec3 always, out vec3 lit) {
   always += albedo * mix(uGround, uSky, 0.5 + 0.5 * dot(n, uUp)) * ao;
 #endif
 }
+const float PI = 3.14159265;
+float DistributionGgx(float NoH, float a) {
+  float a2 = a * a;
+  float d = NoH * NoH * (a2 - 1.0) + 1.0;
+  return a2 / (PI * d * d);
+}
+float VisibilitySmith(float NoV, float NoL, float a) {
+  float a2 = a * a;
+  float gv = NoL * sqrt(NoV * NoV * (1.0 - a2) + a2);
+  float gl = NoV * sqrt(NoL * NoL * (1.0 - a2) + a2);
+  return 0.5 / max(gv + gl, 1e-5);
+}
+vec3 FresnelSchlick(vec3 f0, float VoH) {
+  float f = 1.0 - VoH;
+  float f2 = f * f;
+  return f0 + (1.0 - f0) * (f2 * f2 * f);
+}
+// The key light's lobes, times NoL: the surface's own (`broad`) and, on a wet surface, 0.9 × the
+// film's sharp one (f0 0.02, roughness 0.12), sharing the half vector and the angles.
+vec3 Specular(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness, bool broad, bool film) {
+  vec3 h = normalize(v + l);
+  float NoL = max(dot(n, l), 0.0), NoV = max(dot(n, v), 1e-4);
+  float NoH = max(dot(n, h), 0.0), VoH = max(dot(v, h), 0.0);
+  vec3 spec = vec3(0.0);
+  if (broad) {
+    float a = max(roughness * roughness, 0.002);
+    spec += DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * FresnelSchlick(f0, VoH);
+  }
+  if (film) {
+    float a = 0.12 * 0.12;
+    spec += 0.9 * DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) *
+            FresnelSchlick(vec3(0.02), VoH);
+  }
+  return spec * NoL;
+}
 )";
 
 const char* const kSceneVertex = R"(
@@ -92,6 +130,9 @@ void main() {
   vec3 n = normalize(vNormal);
   if (dot(n, uEye - vWorld) < 0.0) n = -n;  // the inside of an open rim
   Diffuse(n, Albedo(vec4(aBroad.x, 0.0, aBroad.y, 0.5)), 1.0, vAlways, vLit);
+  // The broad lobe: lit by the key light as the diffuse is, so it joins vLit under the shadow.
+  vLit += Specular(n, normalize(uEye - vWorld), uKeyDir, vec3(0.028), uRoughness, true, false) *
+          uKeyColour;
 #endif
 }
 )";
@@ -115,45 +156,12 @@ uniform float uShadowTexel;   // 1 / shadow map size
 uniform sampler3D uDetail;    // r: tone, g: pores, b: veins, a: height (tiling)
 uniform float uDetailScale;   // texture repeats per metre of rest position
 uniform float uBumpDepth;     // m, the height's amplitude
-uniform float uRoughness;
 uniform float uTableHeight;   // m along uUp
 uniform vec3 uFootCentre;     // the tissue's footprint on the table: an ellipse
 uniform vec3 uFootA;
 uniform vec3 uFootB;
 out vec4 fragColour;
 
-const float PI = 3.14159265;
-float DistributionGgx(float NoH, float a) {
-  float a2 = a * a;
-  float d = NoH * NoH * (a2 - 1.0) + 1.0;
-  return a2 / (PI * d * d);
-}
-float VisibilitySmith(float NoV, float NoL, float a) {
-  float a2 = a * a;
-  float gv = NoL * sqrt(NoV * NoV * (1.0 - a2) + a2);
-  float gl = NoV * sqrt(NoL * NoL * (1.0 - a2) + a2);
-  return 0.5 / max(gv + gl, 1e-5);
-}
-vec3 FresnelSchlick(vec3 f0, float VoH) {
-  float f = 1.0 - VoH;
-  float f2 = f * f;
-  return f0 + (1.0 - f0) * (f2 * f2 * f);
-}
-// The key light's lobe; on a wet surface plus 0.9 × the film's sharp one (f0 0.02, roughness
-// 0.12), sharing the half vector and the angles.
-vec3 Specular(vec3 n, vec3 v, vec3 l, vec3 f0, float roughness) {
-  vec3 h = normalize(v + l);
-  float NoL = max(dot(n, l), 0.0), NoV = max(dot(n, v), 1e-4);
-  float NoH = max(dot(n, h), 0.0), VoH = max(dot(v, h), 0.0);
-  float a = max(roughness * roughness, 0.002);
-  vec3 spec = DistributionGgx(NoH, a) * VisibilitySmith(NoV, NoL, a) * FresnelSchlick(f0, VoH);
-#if WET
-  float film = 0.12 * 0.12;
-  spec += 0.9 * DistributionGgx(NoH, film) * VisibilitySmith(NoV, NoL, film) *
-          FresnelSchlick(vec3(0.02), VoH);
-#endif
-  return spec * NoL;
-}
 float Shadow() {
 #if SHADOW_TAPS == 0
   return 1.0;
@@ -251,10 +259,12 @@ void main() {
   vec3 always, lit;
   Diffuse(n, Albedo(d), ao, always, lit);
 #endif
-#if MATERIAL == 5
-  vec3 spec = vec3(0.0);  // cloth: no highlight worth its cost
-#else  // on a wet surface with the film's second, sharp lobe
-  vec3 spec = Specular(n, v, uKeyDir, f0, roughness) * uKeyColour * shadow;
+#if MATERIAL == 5 || (VERTEX_LIGHT && !WET)
+  vec3 spec = vec3(0.0);  // cloth: no highlight worth its cost; skin below high: per vertex
+#elif VERTEX_LIGHT  // a wet tissue below high: its broad lobe per vertex, the film's here
+  vec3 spec = Specular(n, v, uKeyDir, f0, roughness, false, true) * uKeyColour * shadow;
+#else
+  vec3 spec = Specular(n, v, uKeyDir, f0, roughness, true, WET) * uKeyColour * shadow;
 #endif
   vec3 colour = always + lit * shadow + spec;
 #if POLISHED  // a polished surface reflects the room
