@@ -328,30 +328,60 @@ TableFrame Table(const Eigen::Vector3d& scene_centre, const Eigen::Vector3d& up,
   return {scene_centre - (scene_centre.dot(up) - height) * up, e1, up.cross(e1), radius * 8};
 }
 
-// The convex hull of points in a plane, counter-clockwise (Andrew's monotone chain). Our own:
-// fifteen lines where CGAL's convex_hull_2 would bring its headers into the renderer.
-std::vector<Eigen::Vector2d> ConvexHull(std::vector<Eigen::Vector2d> p) {
-  std::sort(p.begin(), p.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
-  if (p.size() < 3) return p;
-  const auto turn = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a,
-                       const Eigen::Vector2d& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
-  std::vector<Eigen::Vector2d> h(2 * p.size());
-  size_t k = 0;
-  for (size_t i = 0; i < p.size(); ++i) {  // the lower chain
-    while (k >= 2 && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
-    h[k++] = p[i];
+// The polygon on the table that bounds a shadow cast along the key light: its points flattened
+// onto the table along the light, and the 16 lines that support them, each pushed out by a
+// margin; the polygon's corners are where neighbouring lines meet, counter-clockwise in the
+// table's (e1, e2) coordinates. One pass over the points, and around a round shadow within 2.6%
+// of the area of their convex hull (16 tan(π/16) / π); a box's corners, as were used before, put
+// a corner of drape beside every shadow and the instrument's shadow in a strip ten times its width.
+class ShadowBound {
+ public:
+  static constexpr int kSides = 16;
+  ShadowBound(const Eigen::Vector3d& key, const Eigen::Vector3d& up, double table_height,
+              const Eigen::Vector3d& e1, const Eigen::Vector3d& e2)
+      : key_(key), up_(up), e1_(e1), e2_(e2), height_(table_height), rise_(key.dot(up)) {
+    support_.fill(-1e30);
   }
-  for (size_t i = p.size() - 1, lower = k + 1; i > 0; --i) {  // the upper chain
-    while (k >= lower && turn(h[k - 2], h[k - 1], p[i - 1]) <= 0) --k;
-    h[k++] = p[i - 1];
+  // A light grazing the table casts no shadow worth drawing on it.
+  bool usable() const { return rise_ > 0.05; }
+  void Add(const Eigen::Vector3d& p) {
+    if (!p.allFinite() || !usable()) return;
+    const Eigen::Vector3d d = p - key_ * std::max(p.dot(up_) - height_, 0.0) / rise_;
+    const double x = d.dot(e1_), y = d.dot(e2_);
+    for (int k = 0; k < kSides; ++k)
+      support_[k] = std::max(support_[k], x * Direction(k).x() + y * Direction(k).y());
   }
-  h.resize(k - 1);
-  return h;
-}
+  bool empty() const { return support_[0] < -1e29; }
+  // The corners, in (e1, e2) coordinates relative to the table's frame (not its centre).
+  std::vector<Eigen::Vector2d> Corners(double margin) const {
+    std::vector<Eigen::Vector2d> corners;
+    if (empty()) return corners;
+    for (int k = 0; k < kSides; ++k) {
+      const int next = (k + 1) % kSides;
+      Eigen::Matrix2d lines;
+      lines.row(0) = Direction(k).transpose();
+      lines.row(1) = Direction(next).transpose();
+      corners.push_back(lines.inverse() *
+                        Eigen::Vector2d(support_[k] + margin, support_[next] + margin));
+    }
+    return corners;
+  }
+
+ private:
+  static Eigen::Vector2d Direction(int k) {
+    static const std::array<Eigen::Vector2d, kSides> directions = [] {
+      std::array<Eigen::Vector2d, kSides> d;
+      for (int i = 0; i < kSides; ++i)
+        d[i] = {std::cos(2 * std::numbers::pi * i / kSides),
+                std::sin(2 * std::numbers::pi * i / kSides)};
+      return d;
+    }();
+    return directions[k];
+  }
+  Eigen::Vector3d key_, up_, e1_, e2_;
+  double height_, rise_;
+  std::array<double, kSides> support_{};
+};
 
 }  // namespace
 
@@ -412,6 +442,11 @@ struct MeshView::Gpu {
   GLenum caster_cull = GL_FRONT;
   std::vector<float> caster_upload;
   FlatMesh marks;
+  // Where the tissue, as last moved, can cast (MeshView::Draw): its box, and the polygon on the
+  // table its shadow falls within (ShadowBound's corners; empty: none).
+  bool tissue_bounds_stale = true;
+  Eigen::Vector3d tissue_lo = Eigen::Vector3d::Zero(), tissue_hi = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector2d> tissue_shadow;
 
   ~Gpu() {
     for (Part* p : {&tissue, &table, &steel, &handle, &jaw}) p->Release();
@@ -710,6 +745,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   }
   if (dirty_) {
     moved_since_shadow_ = true;
+    g.tissue_bounds_stale = true;
     UpdateVisual();
     for (size_t i = 0; i < fine_count; ++i) {
       float* v = &g.upload[11 * i];
@@ -761,10 +797,25 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   // are shaded only where these can fall; without shadows neither is made.
   std::vector<Eigen::Vector3d> tissue_box, tool_box;
   if (shadows) {
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
-    for (const auto& p : fine_)
-      lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
-    for (const auto& p : moved_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    if (g.tissue_bounds_stale) {
+      // Where the tissue can cast: its box (both surfaces) for the shadow map's texels, and the
+      // polygon on the table its casters' shadow falls within; again only when it moved.
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
+      for (const auto& p : fine_)
+        lo = lo.cwiseMin(p.cast<double>()), hi = hi.cwiseMax(p.cast<double>());
+      for (const auto& p : moved_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+      g.tissue_lo = lo;
+      g.tissue_hi = hi;
+      const TableFrame t = Table(centre_, world_up_, visual_.table_height, radius_);
+      ShadowBound bound(key_dir_, world_up_, visual_.table_height, t.e1, t.e2);
+      if (coarse_active_ || !g.caster_vao)
+        for (const auto& p : fine_) bound.Add(p.cast<double>());
+      else
+        for (const auto& p : moved_.positions) bound.Add(p);
+      g.tissue_shadow = bound.Corners(radius_ * 0.03);
+      g.tissue_bounds_stale = false;
+    }
+    const Eigen::Vector3d &lo = g.tissue_lo, &hi = g.tissue_hi;
     for (int c = 0; c < 8; ++c) {
       tissue_box.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
                               c & 4 ? hi.z() : lo.z());
@@ -988,46 +1039,41 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
     // and the tool's shadows can fall (the table covers most of the frame; shading all of it for
     // a shadow a fifth its size is what cost the most).
     if (shadows) {
-      const std::vector<Eigen::Vector3d>& tissue_casters = tissue_box;
-      std::vector<Eigen::Vector3d> tool_casters;
-      if (stylus)
-        for (double z : {0.0, 0.07, 0.14, 0.21})
-          for (double side : {-0.05, 0.05})
-            tool_casters.push_back(tool * Eigen::Vector3d(side, side, z));
-      // The tissue's and the tool's shadows each within its own polygon on the table: the convex
-      // hull of the casters' points flattened onto it along the key light, widened by more than
-      // the shadow's soft edge. (A screen box around both, or around each, shaded several times
-      // the shadow's own pixels: the table covers most of the frame.) The tissue's polygon lies
-      // 0.1 mm above the tool's and both write depth, so where they overlap the table's shadow is
-      // blended once.
-      const double rise = key_dir_.dot(world_up_), margin = radius_ * 0.03;
+      // The tissue's and the tool's shadows each within its own polygon on the table
+      // (ShadowBound: the casters' own points flattened onto it along the key light, widened by
+      // more than the shadow's soft edge). (A screen box around both, or around each, shaded
+      // several times the shadow's own pixels: the table covers most of the frame.) The tissue's
+      // polygon lies 0.1 mm above the tool's and both write depth, so where they overlap the
+      // table's shadow is blended once.
       const TableFrame t = Table(centre_, world_up_, visual_.table_height, radius_);
+      const Eigen::Vector3d table_origin = visual_.table_height * world_up_;
+      const Eigen::Vector2d centre(t.centre.dot(t.e1), t.centre.dot(t.e2));
       ShapeMesh catcher;
-      const auto add_catcher = [&](const std::vector<Eigen::Vector3d>& casters, double below) {
-        if (rise <= 0.05) return;  // a light grazing the table: no shadow drawn on it
-        std::vector<Eigen::Vector2d> points;
-        for (const Eigen::Vector3d& p : casters) {
-          if (!p.allFinite()) continue;
-          const double above = p.dot(world_up_) - visual_.table_height;
-          const Eigen::Vector3d d = p - key_dir_ * std::max(above, 0.0) / rise - t.centre;
-          for (double sx : {-margin, margin})
-            for (double sy : {-margin, margin})
-              points.emplace_back(std::clamp(d.dot(t.e1) + sx, -t.half, t.half),
-                                  std::clamp(d.dot(t.e2) + sy, -t.half, t.half));
-        }
-        const std::vector<Eigen::Vector2d> hull = ConvexHull(std::move(points));
-        if (hull.size() < 3) return;
+      const auto add_catcher = [&](const std::vector<Eigen::Vector2d>& corners, double below) {
+        if (corners.size() < 3) return;
         const auto base = static_cast<uint32_t>(catcher.positions.size());
-        for (const Eigen::Vector2d& v : hull) {
+        for (const Eigen::Vector2d& c : corners) {
+          // Within the table: each corner clamped to its square.
+          const Eigen::Vector2d v = centre + (c - centre).cwiseMax(-t.half).cwiseMin(t.half);
           catcher.positions.push_back(
-              (t.centre + v.x() * t.e1 + v.y() * t.e2 - below * world_up_).cast<float>());
+              (table_origin + v.x() * t.e1 + v.y() * t.e2 - below * world_up_).cast<float>());
           catcher.normals.push_back(world_up_.cast<float>());
         }
-        for (uint32_t i = 1; i + 1 < hull.size(); ++i)
+        for (uint32_t i = 1; i + 1 < corners.size(); ++i)
           catcher.indices.insert(catcher.indices.end(), {base, base + i, base + i + 1});
       };
-      add_catcher(tissue_casters, 0.0005);  // the table's own level
-      add_catcher(tool_casters, 0.0006);
+      add_catcher(g.tissue_shadow, 0.0005);  // the table's own level
+      if (stylus) {
+        ShadowBound bound(key_dir_, world_up_, visual_.table_height, t.e1, t.e2);
+        const auto add = [&](const ShapeMesh& part, const Eigen::Affine3d& pose) {
+          for (const Eigen::Vector3f& p : part.positions) bound.Add(pose * p.cast<double>());
+        };
+        add(g.instrument.steel, tool);
+        add(g.instrument.handle, tool);
+        if (g.instrument.has_jaws)
+          for (int side = 0; side < 2; ++side) add(g.instrument.jaw, jaw_pose(side));
+        add_catcher(bound.Corners(radius_ * 0.03), 0.0006);
+      }
       if (!catcher.indices.empty()) {
         g.catcher.Upload(Interleave(catcher), catcher.indices, GL_STREAM_DRAW);
         glEnable(GL_BLEND);
