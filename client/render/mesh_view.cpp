@@ -1070,7 +1070,12 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
         for (uint32_t i = 1; i + 1 < corners.size(); ++i)
           catcher.indices.insert(catcher.indices.end(), {base, base + i, base + i + 1});
       };
-      add_catcher(g.tissue_shadow, 0.0005);  // the table's own level
+      std::vector<Eigen::Vector2d> table;  // SetCatchersCoverTable: the whole table's corners
+      for (int c = 0; c < 4; ++c)
+        table.emplace_back(centre.x() + ((c == 1 || c == 2) ? t.half : -t.half),
+                           centre.y() + (c >= 2 ? t.half : -t.half));
+      // The table's own level.
+      add_catcher(catchers_cover_table_ && !stylus ? table : g.tissue_shadow, 0.0005);
       if (stylus) {
         ShadowBound bound(key_dir_, world_up_, visual_.table_height, t.e1, t.e2);
         const auto add = [&](const ShapeMesh& part, const Eigen::Affine3d& pose) {
@@ -1080,7 +1085,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
         add(g.instrument.handle, tool);
         if (g.instrument.has_jaws)
           for (int side = 0; side < 2; ++side) add(g.instrument.jaw, jaw_pose(side));
-        add_catcher(bound.Corners(radius_ * 0.03), 0.0006);
+        add_catcher(catchers_cover_table_ ? table : bound.Corners(radius_ * 0.03), 0.0006);
       }
       if (!catcher.indices.empty()) {
         g.catcher.Upload(Interleave(catcher), catcher.indices, GL_STREAM_DRAW);

@@ -100,6 +100,11 @@ class MeshView {
   // draws the fine one at every level: tests and benchmarks compare the two).
   void SetCoarseBelowHigh(bool on) { coarse_allowed_ = on; }
   Quality quality() const { return quality_; }
+  // Tests: the last of the table's shadow polygons drawn (the instrument's when it is shown, else
+  // the tissue's) covers the whole table instead of bounding what casts it. Where the two overlap
+  // the tissue's, drawn first, is the one shaded, so an image that changes shows a bound that cut
+  // a shadow off.
+  void SetCatchersCoverTable(bool on) { catchers_cover_table_ = on; }
   // Looks from `eye` at `centre` (tests, screenshots); the fitted camera otherwise.
   void SetCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& centre,
                  const Eigen::Vector3d& up);
@@ -130,7 +135,7 @@ class MeshView {
   std::unique_ptr<Gpu> gpu_;
   std::unique_ptr<Hud> hud_;
   Quality quality_ = Quality::kHigh;
-  bool coarse_allowed_ = true, coarse_active_ = false;
+  bool coarse_allowed_ = true, coarse_active_ = false, catchers_cover_table_ = false;
   // The camera (eye, centre, its up), the world's up (the table's normal) and the key light.
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero(), eye_ = Eigen::Vector3d::UnitY(),
                   up_ = Eigen::Vector3d::UnitZ(), world_up_ = Eigen::Vector3d::UnitZ(),

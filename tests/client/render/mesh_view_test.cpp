@@ -361,6 +361,42 @@ Overlay SceneOverlay(const SceneView& s) {
   return o;
 }
 
+// The table's shadows are shaded only within polygons bounding what casts them (the tissue's
+// surface; the instrument's parts, handle and jaws included): each bound gives the image that
+// shading the whole table gives, at every scene, at medium and high. The tissue's is checked
+// without the instrument, the instrument's with it (SetCatchersCoverTable).
+TEST(MeshViewTest, TheTablesShadowsAreWholeWithinTheirBounds) {
+  auto surface = GlSurface::CreateHeadless(kWidth, kHeight);
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  for (const std::string& name : AllScenes()) {
+    SCOPED_TRACE(name);
+    SceneView s(name);
+    const Overlay with_tool = SceneOverlay(s);
+    Overlay no_tool = with_tool;
+    no_tool.show_stylus = false;
+    for (Quality q : {Quality::kMedium, Quality::kHigh}) {
+      SCOPED_TRACE(QualityName(q));
+      s.view->SetQuality(q);
+      std::vector<RgbImage> bounded;
+      for (const Overlay& overlay : {no_tool, with_tool}) {
+        SCOPED_TRACE(overlay.show_stylus ? "the instrument's bound" : "the tissue's bound");
+        s.view->SetCatchersCoverTable(false);
+        s.view->Draw(kWidth, kHeight, overlay);
+        bounded.push_back((*surface)->ReadPixels());
+        s.view->SetCatchersCoverTable(true);
+        s.view->Draw(kWidth, kHeight, overlay);
+        const RgbImage whole = (*surface)->ReadPixels();
+        s.view->SetCatchersCoverTable(false);
+        Keep(bounded.back(), "catchers-" + name + "-" + QualityName(q));
+        EXPECT_EQ(Compare(bounded.back(), whole, Eigen::Vector4d::Zero(), 30).changed, 0)
+            << "pixels where a bound cut a shadow off";
+      }
+      // Not a vacuous comparison: the instrument's shadow darkens the table somewhere.
+      EXPECT_GT(Compare(bounded[1], bounded[0], Eigen::Vector4d::Zero(), 30).changed, 200);
+    }
+  }
+}
+
 TEST(MeshViewTest, EverySceneDrawsWithoutBlankOrBlackFrames) {
   auto surface = GlSurface::CreateHeadless(kWidth, kHeight);
   ASSERT_TRUE(surface.ok()) << surface.error().message;
