@@ -51,8 +51,8 @@ struct Overlay {
 // bilinear comparison); kHigh: a 2048² shadow map with four bilinear comparisons (a 4×4 kernel's
 // softness), the per-pixel detail texture (pores, the bump) and the ambient occlusion term. Every
 // level draws the skin or organ shading with its tone and vessels (per vertex) and the instrument;
-// below high the tissue's diffuse light (key, fill, sky) is computed per vertex too, its specular
-// lobes and shadow per pixel.
+// below high the tissue's diffuse light (key, fill, sky) and broad specular lobe are computed per
+// vertex too, its shadow and a wet organ's sharp film lobe per pixel.
 enum class Quality { kLow, kMedium, kHigh };
 const char* QualityName(Quality q);
 
