@@ -1071,9 +1071,10 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
           catcher.indices.insert(catcher.indices.end(), {base, base + i, base + i + 1});
       };
       std::vector<Eigen::Vector2d> table;  // SetCatchersCoverTable: the whole table's corners
-      for (int c = 0; c < 4; ++c)
-        table.emplace_back(centre.x() + ((c == 1 || c == 2) ? t.half : -t.half),
-                           centre.y() + (c >= 2 ? t.half : -t.half));
+      if (catchers_cover_table_)
+        for (int c = 0; c < 4; ++c)
+          table.emplace_back(centre.x() + ((c == 1 || c == 2) ? t.half : -t.half),
+                             centre.y() + (c >= 2 ? t.half : -t.half));
       // The table's own level.
       add_catcher(catchers_cover_table_ && !stylus ? table : g.tissue_shadow, 0.0005);
       if (stylus) {
