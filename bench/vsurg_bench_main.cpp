@@ -1,15 +1,17 @@
 // vsurg-bench: whole-system measurements (micro-benchmarks are in vsurg-microbench).
 //
 //   vsurg-bench haptic-rtt --stations N --seconds S [--scene arm-torsion] [--idle N
-//                          [--idle-scene NAME] [--idle-threads]] [--json]
+//                          [--idle-scene NAME] [--idle-threads]] [--busy-poll-us U] [--json]
 //     N simulated stations at 1 kHz against a real UDP endpoint on loopback, each with its own
 //     session and simulation (deformation thread included); prints rtt_p50_us, rtt_p99_us,
 //     rtt_p999_us, loss and server_cpu_per_station (the endpoint I/O thread's CPU time per
 //     station, as a fraction of one core).
 //
-//   vsurg-bench udp-floor --stations N --seconds S [--realtime-priority P] [--json]
+//   vsurg-bench udp-floor --stations N --seconds S [--realtime-priority P] [--busy-poll-us U]
+//                         [--json]
 //     the floor under haptic-rtt: the same stations, pacing and statistics against a plain UDP
-//     echo (one thread, a blocking socket); report haptic-rtt's figures as ratios to it.
+//     echo (one thread, a blocking socket); report haptic-rtt's figures as ratios to it. With
+//     --busy-poll-us the echo polls before it blocks, by the endpoint's rule (for comparison).
 //
 //   vsurg-bench grpc-submit [--clients 32] [--seconds 5] [--batches 1,1024] [--json]
 //     durable evaluation submissions per second through gRPC, per writer batch limit.
@@ -350,6 +352,10 @@ int HapticRtt(const std::vector<std::string>& args) {
               "the endpoint's I/O threads, each with a socket on the port (SO_REUSEPORT), "
               "sessions spread over them by id",
               false, "1")
+      .Option("busy-poll-us", ArgParser::Kind::kInt,
+              "microseconds the endpoint's I/O threads poll before they sleep, while datagrams "
+              "come at least once per window (vsurg-server's --busy-poll-us; 0: never)",
+              false, "0")
       .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
       .Option("stroke-mm", ArgParser::Kind::kDouble,
               "after the warm-up each stylus circles its resting point at this radius once a "
@@ -406,8 +412,13 @@ int HapticRtt(const std::vector<std::string>& args) {
   const int priority = p.Int("realtime-priority");
   if (priority < 0 || priority > 99)
     return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
-  auto endpoint = vsurg::server::UdpEndpoint::Create(
-      {.realtime_priority = priority, .io_threads = static_cast<int>(p.Int("io-threads"))});
+  if (p.Int("busy-poll-us") < 0 ||
+      p.Int("busy-poll-us") > vsurg::server::UdpEndpoint::kMaxBusyPollUs)
+    return std::cerr << p.command() << ": --busy-poll-us: must be in 0..10000\n", 2;
+  auto endpoint =
+      vsurg::server::UdpEndpoint::Create({.realtime_priority = priority,
+                                          .io_threads = static_cast<int>(p.Int("io-threads")),
+                                          .busy_poll_us = static_cast<int>(p.Int("busy-poll-us"))});
   if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
   std::vector<std::unique_ptr<vsurg::sim::Simulation>> sims;
   asio::io_context io;
@@ -469,6 +480,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["realtime_priority"] = realtime ? priority : 0;
   j["pool_workers"] = pool ? pool->workers() : pool_workers;
   j["io_threads"] = (*endpoint)->io_threads();
+  j["busy_poll_us"] = p.Int("busy-poll-us");
+  j["busy_polled_receives"] = (*endpoint)->counters().busy_polled;
   j["period_ms"] = period_ms;
   j["stroke_mm"] = stroke_mm;
   j["kept_face_lists"] = kept_face_lists;
@@ -493,7 +506,9 @@ int HapticRtt(const std::vector<std::string>& args) {
 // physics, no event loop). POSIX calls, not Asio: the floor should carry nothing of ours.
 class UdpEcho {
  public:
-  static vsurg::Expected<std::unique_ptr<UdpEcho>> Start(int priority) {
+  // busy_poll_us > 0: before it blocks the echo polls for up to that long, while the last 50 ms
+  // brought at least one datagram per window (the rule of vsurg-server's --busy-poll-us).
+  static vsurg::Expected<std::unique_ptr<UdpEcho>> Start(int priority, int busy_poll_us = 0) {
     auto e = std::unique_ptr<UdpEcho>(new UdpEcho);
     e->fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
     if (e->fd_ < 0) return vsurg::Error{vsurg::ErrorCode::kIoError, "socket() failed", "socket"};
@@ -507,17 +522,44 @@ class UdpEcho {
         ::setsockopt(e->fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout) != 0)
       return vsurg::Error{vsurg::ErrorCode::kIoError, "cannot bind the echo socket", "socket"};
     e->port_ = ntohs(a.sin_port);
-    e->thread_ = std::thread([p = e.get(), priority] {
+    e->thread_ = std::thread([p = e.get(), priority, busy_poll_us] {
       if (priority > 0) vsurg::TrySetRealtimePriority(priority);
       std::array<uint8_t, 2048> buf{};
+      using Steady = std::chrono::steady_clock;
+      const std::chrono::microseconds window(busy_poll_us);
+      const std::chrono::milliseconds tick(50);
+      bool poll = false;
+      uint64_t count = 0, count_at_tick = 0;
+      Steady::time_point next_tick = Steady::now() + tick;
       while (!p->stop_.load(std::memory_order_relaxed)) {
         sockaddr_in from{};
         socklen_t from_len = sizeof from;
-        const ssize_t got = ::recvfrom(p->fd_, buf.data(), buf.size(), 0,
-                                       reinterpret_cast<sockaddr*>(&from), &from_len);
-        if (got > 0)
+        ssize_t got = -1;
+        if (poll) {
+          const Steady::time_point until = Steady::now() + window;
+          do {
+            from_len = sizeof from;
+            got = ::recvfrom(p->fd_, buf.data(), buf.size(), MSG_DONTWAIT,
+                             reinterpret_cast<sockaddr*>(&from), &from_len);
+          } while (got <= 0 && Steady::now() < until);
+        }
+        if (got <= 0) {
+          from_len = sizeof from;
+          got = ::recvfrom(p->fd_, buf.data(), buf.size(), 0, reinterpret_cast<sockaddr*>(&from),
+                           &from_len);
+        }
+        if (got > 0) {
+          ++count;
           ::sendto(p->fd_, buf.data(), static_cast<size_t>(got), 0,
                    reinterpret_cast<sockaddr*>(&from), from_len);
+        }
+        if (busy_poll_us > 0 && Steady::now() >= next_tick) {
+          const double elapsed =
+              std::chrono::duration<double>(Steady::now() - (next_tick - tick)).count();
+          poll = static_cast<double>(count - count_at_tick) * busy_poll_us * 1e-6 >= elapsed;
+          count_at_tick = count;
+          next_tick = Steady::now() + tick;
+        }
       }
       timespec cpu{};
       clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
@@ -556,9 +598,15 @@ int UdpFloor(const std::vector<std::string>& args) {
               "permitted (as haptic-rtt's)",
               false, "0")
       .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
+      .Option("busy-poll-us", ArgParser::Kind::kInt,
+              "the echo polls this long before it blocks, by haptic-rtt's rule (0: the plain "
+              "blocking echo, the floor)",
+              false, "0")
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const int n = p.Int("stations");
+  if (p.Int("busy-poll-us") < 0 || p.Int("busy-poll-us") > 10000)
+    return std::cerr << p.command() << ": --busy-poll-us: must be in 0..10000\n", 2;
   const double seconds = p.Double("seconds");
   if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
   if (!(seconds > 0 && seconds <= 3600))
@@ -569,7 +617,7 @@ int UdpFloor(const std::vector<std::string>& args) {
   const int priority = p.Int("realtime-priority");
   if (priority < 0 || priority > 99)
     return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
-  auto echo = UdpEcho::Start(priority);
+  auto echo = UdpEcho::Start(priority, static_cast<int>(p.Int("busy-poll-us")));
   if (!echo.ok()) return std::cerr << p.command() << ": " << echo.error().message << "\n", 1;
   asio::io_context io;
   std::vector<std::unique_ptr<Station>> stations;
@@ -582,6 +630,7 @@ int UdpFloor(const std::vector<std::string>& args) {
   (*echo)->Stop();
   nlohmann::json j = run.Summary(n, seconds);
   j["server"] = "udp-echo";
+  j["busy_poll_us"] = p.Int("busy-poll-us");
   j["period_ms"] = period_ms;
   j["server_cpu_per_station"] = (*echo)->cpu_seconds() / (kWarmupS + seconds) / n;
   j["realtime_priority"] = realtime ? priority : 0;

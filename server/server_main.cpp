@@ -166,6 +166,10 @@ int Main(std::vector<std::string> args) {
               "UDP haptic threads, each with a socket on the UDP port (SO_REUSEPORT), sessions "
               "spread over them by id (1..16)",
               false, "1")
+      .Option("busy-poll-us", Kind::kInt,
+              "microseconds an I/O thread polls its socket before it sleeps, only while its "
+              "datagrams come at least once per window (0: never; 0..10000)",
+              false, "0")
       .Option("max-sessions", Kind::kInt, "live sessions on this server", false, "256")
       .Option("max-sessions-per-user", Kind::kInt, "live sessions per trainee", false, "2")
       .Option("start-timeout", Kind::kDouble,
@@ -313,6 +317,13 @@ int Main(std::vector<std::string> args) {
       return 2;
     }
     eo.io_threads = static_cast<int>(p.Int("io-threads"));
+    if (p.Int("busy-poll-us") < 0 ||
+        p.Int("busy-poll-us") > vsurg::server::UdpEndpoint::kMaxBusyPollUs) {
+      std::cerr << "vsurg-server: --busy-poll-us: must be within 0.."
+                << vsurg::server::UdpEndpoint::kMaxBusyPollUs << "\n";
+      return 2;
+    }
+    eo.busy_poll_us = static_cast<int>(p.Int("busy-poll-us"));
     if (role == "sim") eo.lease = &lease;
     auto created = vsurg::server::UdpEndpoint::Create(eo);
     if (!created.ok()) {

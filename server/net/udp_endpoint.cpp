@@ -141,7 +141,11 @@ struct UdpEndpoint::Impl {
     std::vector<std::function<void()>> pending;  // run on this lane's thread, in order
     std::atomic<bool> has_pending{false};
 
-    std::atomic<uint64_t> received{0}, answered{0};
+    std::atomic<uint64_t> received{0}, answered{0}, busy_polls{0}, busy_polled{0};
+    // Busy polling (EndpointOptions::busy_poll_us): on while the last tick's datagrams came at
+    // least one per window; set at each housekeeping tick.
+    bool poll = false;
+    uint64_t received_at_tick = 0;
     std::array<std::atomic<uint64_t>, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
     std::atomic<double> io_cpu{0};
 
@@ -229,6 +233,7 @@ void UdpEndpoint::Impl::Lane::Loop() {
   const EndpointOptions& options = owner->options;
   TrySetRealtimePriority(options.realtime_priority);  // the stylus → force path
   const int fd = socket.native_handle();
+  const std::chrono::microseconds busy_poll(options.busy_poll_us);
   for (int i = 0; i < kBatch; ++i) {
     iov[i] = {rx[i].data(), rx[i].size()};
     headers[i].msg_hdr.msg_iov = &iov[i];
@@ -243,7 +248,23 @@ void UdpEndpoint::Impl::Lane::Loop() {
       headers[i].msg_hdr.msg_control = control[i].data();
       headers[i].msg_hdr.msg_controllen = kControlSize;
     }
-    const int n = ::recvmmsg(fd, headers.data(), kBatch, MSG_WAITFORONE, nullptr);
+    int n = -1;
+    if (poll) {
+      // Poll for up to the window, then block as usual; queued work and a stop are not kept
+      // waiting for the window's end.
+      busy_polls.fetch_add(1, std::memory_order_relaxed);
+      const auto until = std::chrono::steady_clock::now() + busy_poll;
+      do {
+        n = ::recvmmsg(fd, headers.data(), kBatch, MSG_DONTWAIT, nullptr);
+      } while (n <= 0 && !has_pending.load(std::memory_order_relaxed) &&
+               !owner->stop.load(std::memory_order_relaxed) &&
+               std::chrono::steady_clock::now() < until);
+      if (n > 0) busy_polled.fetch_add(1, std::memory_order_relaxed);
+    }
+    if (n <= 0 && (has_pending.load(std::memory_order_acquire) ||
+                   owner->stop.load(std::memory_order_acquire)))
+      continue;
+    if (n <= 0) n = ::recvmmsg(fd, headers.data(), kBatch, MSG_WAITFORONE, nullptr);
     timespec wall{};
     if (n > 0) clock_gettime(CLOCK_REALTIME, &wall);
     const int64_t read_ns = static_cast<int64_t>(wall.tv_sec) * 1'000'000'000 + wall.tv_nsec;
@@ -255,6 +276,14 @@ void UdpEndpoint::Impl::Lane::Loop() {
     Flush();
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_tick) {
+      // The rate over the tick just ended decides whether the next one polls: on when a datagram
+      // came at least once per window on average.
+      const uint64_t count = received.load(std::memory_order_relaxed);
+      const double elapsed = kTickS + std::chrono::duration<double>(now - next_tick).count();
+      poll = busy_poll.count() > 0 && static_cast<double>(count - received_at_tick) *
+                                              std::chrono::duration<double>(busy_poll).count() >=
+                                          elapsed;
+      received_at_tick = count;
       next_tick = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(kTickS));
       timespec cpu{};
@@ -400,6 +429,8 @@ Expected<std::unique_ptr<UdpEndpoint>> UdpEndpoint::Create(const EndpointOptions
     return InvalidArgument("max_input_age_s", "must be within 0.001..10 s");
   if (options.io_threads < 1 || options.io_threads > kMaxIoThreads)
     return InvalidArgument("io_threads", "must be within 1.." + std::to_string(kMaxIoThreads));
+  if (options.busy_poll_us < 0 || options.busy_poll_us > kMaxBusyPollUs)
+    return InvalidArgument("busy_poll_us", "must be within 0.." + std::to_string(kMaxBusyPollUs));
   auto impl = std::make_unique<Impl>();
   impl->options = options;
   if (options.clock) impl->clock = options.clock;
@@ -559,6 +590,8 @@ EndpointCounters UdpEndpoint::counters() const {
     const EndpointCounters l = counters(i);
     c.received += l.received;
     c.answered += l.answered;
+    c.busy_polls += l.busy_polls;
+    c.busy_polled += l.busy_polled;
     for (size_t r = 0; r < c.dropped.size(); ++r) c.dropped[r] += l.dropped[r];
   }
   c.frames = impl_->visual ? impl_->visual->frames() : 0;
@@ -571,6 +604,8 @@ EndpointCounters UdpEndpoint::counters(int lane) const {
   EndpointCounters c;
   c.received = l.received.load();
   c.answered = l.answered.load();
+  c.busy_polls = l.busy_polls.load();
+  c.busy_polled = l.busy_polled.load();
   for (size_t i = 0; i < c.dropped.size(); ++i) c.dropped[i] = l.dropped[i].load();
   return c;
 }

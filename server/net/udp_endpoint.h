@@ -71,6 +71,16 @@ struct EndpointOptions {
   // id. 1: one socket, no SO_REUSEPORT. More: the port is held by this endpoint alone (a second
   // endpoint on it is refused, as with one lane).
   int io_threads = 1;
+  // Busy polling: before a lane blocks for its next datagram it polls its socket for up to this
+  // long (µs), but only while its datagrams came faster than one per window over the last
+  // housekeeping tick (50 ms). A thread woken from sleep pays the scheduler's wake-up, and on a
+  // virtual machine whose idle cores halt to the hypervisor an exit and re-entry too; under load
+  // the poll keeps the lane awake between datagrams instead. A lane with few stations never
+  // polls, so an idle or lightly loaded node burns nothing. 0: off (always block), the default:
+  // on this machine kind, with the stations and the deformation threads on the same two cores,
+  // polling lowered the median round trip but not reliably the p99 (docs/BENCHMARKS.md, "Busy
+  // polling while the datagrams come fast"); it is for a node whose cores are its own.
+  int busy_poll_us = 0;
   // The socket's receive buffer (SO_RCVBUF, capped by the kernel's net.core.rmem_max): what a
   // burst of datagrams may queue while the I/O thread is kept off a core, instead of being
   // dropped. 1 MiB: about 15 ms of 64 stations at 1 kHz. 0: the kernel's default (~208 KiB).
@@ -95,6 +105,8 @@ struct EndpointCounters {
   uint64_t answered = 0;
   uint64_t frames = 0;        // visual frames sent
   uint64_t frame_chunks = 0;  // their datagrams
+  uint64_t busy_polls = 0;    // times an I/O thread polled before it slept (busy_poll_us)
+  uint64_t busy_polled = 0;   // of which found datagrams (the rest ended in a sleep)
   std::array<uint64_t, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
   uint64_t Dropped(wire::DropReason r) const { return dropped[static_cast<size_t>(r)]; }
 };
@@ -126,6 +138,7 @@ class UdpEndpoint {
   ~UdpEndpoint();  // stops and joins
 
   static constexpr int kMaxIoThreads = 16;
+  static constexpr int kMaxBusyPollUs = 10000;  // EndpointOptions::busy_poll_us
 
   uint16_t port() const;
   int io_threads() const;

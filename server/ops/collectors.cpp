@@ -15,6 +15,13 @@ void CollectEndpoint(const EndpointCounters& c, MetricsText& m) {
     m.Sample("vsurg_udp_datagrams_dropped_total",
              {{"reason", wire::DropReasonName(static_cast<wire::DropReason>(r))}},
              static_cast<double>(c.dropped[r]));
+  m.Family("vsurg_udp_busy_polls_total", "counter",
+           "Times an I/O thread polled its socket before sleeping (--busy-poll-us).");
+  m.Sample("vsurg_udp_busy_polls_total", {}, static_cast<double>(c.busy_polls));
+  m.Family("vsurg_udp_busy_polled_receives_total", "counter",
+           "Receives that found datagrams while the I/O thread polled instead of sleeping "
+           "(--busy-poll-us).");
+  m.Sample("vsurg_udp_busy_polled_receives_total", {}, static_cast<double>(c.busy_polled));
   m.Family("vsurg_visual_frames_sent_total", "counter", "Scene frames sent to stations.");
   m.Sample("vsurg_visual_frames_sent_total", {}, static_cast<double>(c.frames));
 }

@@ -335,6 +335,13 @@ TEST(UdpEndpointTest, BadOptionsAndPortsInUseAreErrors) {
   EndpointOptions o;
   o.address = "not-an-ip";
   EXPECT_FALSE(UdpEndpoint::Create(o).ok());
+  for (const int us : {-1, UdpEndpoint::kMaxBusyPollUs + 1}) {
+    EndpointOptions bad;
+    bad.busy_poll_us = us;
+    auto refused = UdpEndpoint::Create(bad);
+    ASSERT_FALSE(refused.ok()) << us;
+    EXPECT_EQ(refused.error().field, "busy_poll_us");
+  }
   for (const int threads : {0, UdpEndpoint::kMaxIoThreads + 1}) {
     EndpointOptions bad;
     bad.io_threads = threads;
@@ -409,6 +416,51 @@ TEST(UdpEndpointTest, SessionsAreSpreadOverTheIoThreadsByIdAndOneHeldLaneDelaysN
   EXPECT_TRUE(all) << "a session waited on the other lane's thread";
   EXPECT_TRUE(answered(8, 21, Key(3))) << "the held lane serves again once let go";
   f.endpoint->RemoveSession(8);
+}
+
+// Busy polling (EndpointOptions::busy_poll_us) is on only while a lane's datagrams come at least
+// once per window: a station every 20 ms against a 10 ms window never makes the lane poll; a
+// station every millisecond or so does, and the lane then finds datagrams by polling and answers
+// every one as before; once the traffic stops the lane stops polling. The rate is judged over
+// 50 ms ticks, so a sender slowed by a loaded machine only makes the sparse phase sparser.
+TEST(UdpEndpointTest, AnIoThreadPollsOnlyWhileDatagramsComeFasterThanItsWindow) {
+  EndpointOptions options;
+  options.busy_poll_us = 10000;
+  options.visual_hz = 0;  // every datagram the client reads is an answer
+  Fixture f(options);     // session 7
+  RawClient c(f.endpoint->port());
+  uint64_t seq = 0;
+  const auto exchange = [&] {
+    c.Send(c.Stylus(7, ++seq, Key(1)));
+    return c.Receive(5000).has_value();
+  };
+  const auto sparse = [&](int count) {
+    for (int i = 0; i < count; ++i) {
+      if (!exchange()) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return true;
+  };
+  ASSERT_TRUE(sparse(15));
+  EXPECT_EQ(f.endpoint->counters().busy_polls, 0u) << "polled for a station every 20 ms";
+
+  for (int i = 0; i < 400; ++i) {
+    ASSERT_TRUE(exchange()) << seq;
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+  WaitForReceived(*f.endpoint, seq);
+  EndpointCounters n = f.endpoint->counters();
+  EXPECT_GT(n.busy_polls, 0u) << "never polled for a station every millisecond or so";
+  EXPECT_GT(n.busy_polled, 0u);
+  EXPECT_LE(n.busy_polled, n.busy_polls);
+  EXPECT_EQ(n.received, seq);
+  EXPECT_EQ(n.answered, seq);
+
+  // Quiet for longer than two ticks and a receive timeout: the lane stops polling.
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const uint64_t polls = f.endpoint->counters().busy_polls;
+  ASSERT_TRUE(sparse(15));
+  EXPECT_EQ(f.endpoint->counters().busy_polls, polls) << "still polling after the traffic stopped";
 }
 
 // The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
