@@ -39,8 +39,9 @@ using asio::ip::udp;
 // path, and a station's answers never wait behind another lane's batch. Work from other threads
 // (add and remove a session, a timeout check) is queued on the session's lane and the lane woken
 // by a datagram from the endpoint's own waker socket, steered like a stylus datagram; the 50 ms
-// housekeeping (timeouts, the CPU sample) runs when a receive returns after its deadline, and a
-// quiet socket returns every 50 ms (SO_RCVTIMEO).
+// housekeeping (timeouts, the CPU sample, whether to busy-poll) runs when a receive returns
+// after its deadline, and a quiet socket returns every 50 ms (SO_RCVTIMEO). With busy_poll_us a
+// lane polls before it blocks, while its datagrams come fast (EndpointOptions::busy_poll_us).
 namespace {
 
 // The byte of a datagram that steers it: the session id's least significant byte (the id is
