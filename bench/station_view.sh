@@ -29,7 +29,7 @@ for scene in $SCENES; do
       qflag=(); [ "$bq" != default ] && qflag=(--quality $bq)
       "$BASE_BIN/vsurg-station" --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
           --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} "${qflag[@]}" --json 2>/dev/null \
-        | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=base-$bq draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score']))"
+        | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=base-$bq draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f render_threads=%s' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score'], j.get('render_threads', 'default')))"
     done
   fi
   for q in $QUALITIES; do
@@ -39,6 +39,6 @@ for scene in $SCENES; do
     fi
     $B/vsurg-station --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
         --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} --quality $q "${shots[@]}" --json 2>/dev/null \
-      | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=$q draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score']))"
+      | python3 -c "import json,sys; j=json.load(sys.stdin); print('scene=$scene quality=$q draw_ms_p50=%.1f draw_ms_p99=%.1f frames=%d loop_hz=%.2f loop_hz_1s=%.1f..%.1f score=%.1f render_threads=%s' % (j['draw_ms_p50'], j['draw_ms_p99'], j['frames'], j['loop_hz'], j['loop_hz_min_1s'], j['loop_hz_max_1s'], j['metrics']['score'], j.get('render_threads', 'default')))"
   done
 done

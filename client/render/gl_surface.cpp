@@ -8,7 +8,9 @@
 #include <GLFW/glfw3.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
+#include <string>
 
 namespace vsurg::client {
 
@@ -121,6 +123,16 @@ void OnCursor(GLFWwindow* w, double x, double y) {
 
 GlSurface::GlSurface(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 GlSurface::~GlSurface() = default;
+
+int RequestSoftwareRenderThreads(int threads) {
+  const auto in_effect = [] {
+    const char* set = std::getenv("LP_NUM_THREADS");
+    return set ? std::max(0, std::atoi(set)) : 0;
+  };
+  if (std::getenv("LP_NUM_THREADS") || threads <= 0) return in_effect();
+  ::setenv("LP_NUM_THREADS", std::to_string(threads).c_str(), 1);
+  return in_effect();
+}
 
 Expected<std::unique_ptr<GlSurface>> GlSurface::CreateHeadless(int width, int height) {
   if (width < 16 || height < 16 || width > 8192 || height > 8192)

@@ -17,6 +17,13 @@
 
 namespace vsurg::client {
 
+// The rasterizer threads a software renderer (Mesa llvmpipe) starts for the surfaces created
+// after this call: sets LP_NUM_THREADS, which llvmpipe reads when it starts and other drivers
+// ignore, unless the environment already sets it (an operator's choice wins). `threads` 0 leaves
+// the driver's default (one per core). Returns the count in effect (0: the driver's default).
+// Call before the first surface, from one thread (it changes the process's environment).
+int RequestSoftwareRenderThreads(int threads);
+
 class GlSurface {
  public:
   static Expected<std::unique_ptr<GlSurface>> CreateHeadless(int width, int height);

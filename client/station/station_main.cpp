@@ -164,6 +164,11 @@ int Run(const std::vector<std::string>& args) {
       .Option("screenshot-before", Kind::kString, "PNG of the first frame, before any input")
       .Option("screenshot-summary", Kind::kString,
               "PNG of the end-of-trial summary (the score and what lowered it)")
+      .Option("render-threads", Kind::kInt,
+              "rasterizer threads of a software renderer (Mesa llvmpipe; an LP_NUM_THREADS in "
+              "the environment wins): -1 two per core, 0 the driver's default (one per core), "
+              "else 1..32",
+              false, "-1")
       .Option("quality", Kind::kString,
               "auto (from measured frame times), low (no shadows or detail), medium or high", false,
               "auto")
@@ -183,6 +188,8 @@ int Run(const std::vector<std::string>& args) {
   if (!(fps >= 1 && fps <= 240)) return std::cerr << "vsurg-station: --fps: 1..240\n", 2;
   if (p.Has("screenshot-at") && !(p.Double("screenshot-at") >= 0))
     return std::cerr << "vsurg-station: --screenshot-at: must be ≥ 0\n", 2;
+  if (p.Int("render-threads") < -1 || p.Int("render-threads") > 32)
+    return std::cerr << "vsurg-station: --render-threads: -1, 0 or 1..32\n", 2;
 
   // Following the course: the server says which exercise (and so which scene) comes next.
   std::optional<client::CourseExercise> exercise;
@@ -267,6 +274,13 @@ int Run(const std::vector<std::string>& args) {
     return 2;
   }
 
+  // On a software renderer the frame shares the cores with the haptic threads (and, on this
+  // machine kind, the server): twice as many rasterizer threads as cores kept the frame's p99
+  // lower with the server beside it (docs/BENCHMARKS.md, "Rasterizer threads").
+  const int render_threads = client::RequestSoftwareRenderThreads(
+      p.Int("render-threads") >= 0
+          ? static_cast<int>(p.Int("render-threads"))
+          : static_cast<int>(std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u)));
   auto surface = p.Flag("headless")
                      ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
                      : client::GlSurface::CreateWindow("vsurg station: " + scene->name,
@@ -529,6 +543,7 @@ int Run(const std::vector<std::string>& args) {
                         {"loop_hz_max_1s", stats.loop_hz_max},
                         {"frames", draw_ms.size()},
                         {"draw_ms_p50", Percentile(draw_ms, 0.5)},
+                        {"render_threads", render_threads},
                         {"draw_ms_p99", Percentile(draw_ms, 0.99)},
                         {"metrics_recorded", summary->has_metrics},
                         {"metrics", vsurg::scoring::TrialMetricsToJson(m)}};

@@ -10,8 +10,10 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <set>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -596,6 +598,34 @@ TEST(QualityGovernorTest, StepsDownWhenFramesRunLongAndNeverBackToALevelTooSlow)
   EXPECT_EQ(up.level(), Quality::kLow) << "up only after 120 fast frames";
   for (int i = 0; i < 90; ++i) up.Update(3);
   EXPECT_EQ(up.level(), Quality::kMedium);
+}
+
+// In a fresh process (a death test's child, re-run from the start): the rasterizer threads
+// (llvmpipe-0 … llvmpipe-N-1) Mesa's llvmpipe started for a surface, with `requested` asked for;
+// 100 when there are none (another renderer).
+int RasterizerThreadsStarted(int requested) {
+  ::unsetenv("LP_NUM_THREADS");
+  if (RequestSoftwareRenderThreads(requested) != requested) return 101;
+  if (RequestSoftwareRenderThreads(requested + 2) != requested) return 102;  // the first wins
+  auto surface = GlSurface::CreateHeadless(64, 64);
+  if (!surface.ok()) return 103;
+  (void)(*surface)->ReadPixels();  // drawn and finished: the renderer is running
+  int started = 0;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    if (name.rfind("llvmpipe-", 0) == 0) ++started;
+  }
+  return started > 0 ? started : 100;
+}
+
+// vsurg-station --render-threads: the software renderer starts as many rasterizer threads as the
+// station asks for, not one per core, unless the environment already chose.
+TEST(GlSurfaceDeathTest, ASoftwareRendererStartsTheRasterizerThreadsAskedFor) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");  // a fresh process: no renderer started yet
+  EXPECT_EXIT(std::exit(RasterizerThreadsStarted(3)), ::testing::ExitedWithCode(3), "");
+  EXPECT_EXIT(std::exit(RasterizerThreadsStarted(5)), ::testing::ExitedWithCode(5), "");
 }
 
 TEST(GlSurfaceTest, RejectsAbsurdSizes) {
