@@ -21,7 +21,8 @@ namespace vsurg::client {
 // after this call: sets LP_NUM_THREADS, which llvmpipe reads when it starts and other drivers
 // ignore, unless the environment already sets it (an operator's choice wins). `threads` 0 leaves
 // the driver's default (one per core). Returns the count in effect (0: the driver's default).
-// Call before the first surface, from one thread (it changes the process's environment).
+// Call before the first surface and before any other thread starts (it changes the process's
+// environment, which another thread's getenv may be reading).
 int RequestSoftwareRenderThreads(int threads);
 
 class GlSurface {

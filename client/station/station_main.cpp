@@ -182,14 +182,22 @@ int Run(const std::vector<std::string>& args) {
               "SCHED_FIFO priority of the haptic threads when permitted (0: off)", false, "20")
       .Option("json", Kind::kFlag, "print the summary as one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
+  if (p.Int("render-threads") < -1 || p.Int("render-threads") > 32)
+    return std::cerr << "vsurg-station: --render-threads: -1, 0 or 1..32\n", 2;
+  // On a software renderer the frame shares the cores with the haptic threads (and, on this
+  // machine kind, the server): twice as many rasterizer threads as cores kept the frame's p99
+  // lower with the server beside it (docs/BENCHMARKS.md, "Rasterizer threads"). First, while this
+  // is the only thread: it sets an environment variable.
+  const int render_threads = client::RequestSoftwareRenderThreads(
+      p.Int("render-threads") >= 0
+          ? static_cast<int>(p.Int("render-threads"))
+          : static_cast<int>(std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u)));
   auto remote = client::ConnectRemote(p);
   if (!remote.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), remote.error());
   const double fps = p.Double("fps");
   if (!(fps >= 1 && fps <= 240)) return std::cerr << "vsurg-station: --fps: 1..240\n", 2;
   if (p.Has("screenshot-at") && !(p.Double("screenshot-at") >= 0))
     return std::cerr << "vsurg-station: --screenshot-at: must be ≥ 0\n", 2;
-  if (p.Int("render-threads") < -1 || p.Int("render-threads") > 32)
-    return std::cerr << "vsurg-station: --render-threads: -1, 0 or 1..32\n", 2;
 
   // Following the course: the server says which exercise (and so which scene) comes next.
   std::optional<client::CourseExercise> exercise;
@@ -274,13 +282,6 @@ int Run(const std::vector<std::string>& args) {
     return 2;
   }
 
-  // On a software renderer the frame shares the cores with the haptic threads (and, on this
-  // machine kind, the server): twice as many rasterizer threads as cores kept the frame's p99
-  // lower with the server beside it (docs/BENCHMARKS.md, "Rasterizer threads").
-  const int render_threads = client::RequestSoftwareRenderThreads(
-      p.Int("render-threads") >= 0
-          ? static_cast<int>(p.Int("render-threads"))
-          : static_cast<int>(std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u)));
   auto surface = p.Flag("headless")
                      ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
                      : client::GlSurface::CreateWindow("vsurg station: " + scene->name,
