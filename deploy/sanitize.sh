@@ -30,7 +30,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # without the leak check: the driver is unloaded before LeakSanitizer looks, so its blocks show
   # as "<unknown module>" and cannot be told from ours or suppressed. Their memory errors are
   # still caught; the same code without OpenGL is leak-checked by the other suites.
-  gl='MeshViewTest|StationBinaryTest'
+  gl='MeshViewTest|GlSurfaceDeathTest|StationBinaryTest'
   # Five long numerical runs (whole scripted trials, FEM convergence and energy studies: 15 of the
   # 25 minutes the suite takes here) run in the main build only; the same code runs under the
   # sanitizers in the shorter tests (replays, clock jumps, adversarial streams, FEM steps).
