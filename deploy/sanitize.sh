@@ -31,6 +31,12 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # as "<unknown module>" and cannot be told from ours or suppressed. Their memory errors are
   # still caught; the same code without OpenGL is leak-checked by the other suites.
   gl='MeshViewTest|GlSurfaceDeathTest|StationBinaryTest'
+  # The site's mTLS tests renew certificates under running processes, on purpose through a moment
+  # with a mismatched certificate and key. gRPC's watcher that reads that pair leaks OpenSSL's
+  # objects on its error path (one run in several, when the read lands in that moment). Their
+  # stacks stop at libcrypto's allocator (built without frame pointers), so they cannot be told
+  # from ours or suppressed either: these run with the OpenGL group, memory errors still caught.
+  gl+='|ClusterTlsTest'
   # Five long numerical runs (whole scripted trials, FEM convergence and energy studies: 15 of the
   # 25 minutes the suite takes here) run in the main build only; the same code runs under the
   # sanitizers in the shorter tests (replays, clock jumps, adversarial streams, FEM steps).
@@ -73,7 +79,8 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # answers (52 s here, 0.65 s in the main build); the exact model's code runs under ASan in
   # LocalModelTest.AnExactGraspModelIsTheServersGraspForceAtAnyTurn and the grasp tests beside it.
   long+='|LocalModelTest.AGraspIsRenderedAsTheServerWouldAnswerItARoundTripAhead'
-  # The OpenGL group (software rendering, a minute) runs beside the others, not after them.
+  # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
+  # not after them.
   ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
     ctest --test-dir "$root/build-asan" --output-on-failure --timeout 600 -R "$gl" \
     > "$root/build-asan/gl-tests.log" 2>&1 &
