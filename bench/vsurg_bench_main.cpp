@@ -605,7 +605,8 @@ int UdpFloor(const std::vector<std::string>& args) {
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const int n = p.Int("stations");
-  if (p.Int("busy-poll-us") < 0 || p.Int("busy-poll-us") > 10000)
+  if (p.Int("busy-poll-us") < 0 ||
+      p.Int("busy-poll-us") > vsurg::server::UdpEndpoint::kMaxBusyPollUs)
     return std::cerr << p.command() << ": --busy-poll-us: must be in 0..10000\n", 2;
   const double seconds = p.Double("seconds");
   if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
