@@ -200,15 +200,14 @@ BENCHMARK(BM_BvhClosest)->ArgsProduct({{0, 1}, {1, 64}})->Unit(benchmark::kNanos
 
 // BM_ProxyQuery: the same query as a stylus moves (a 6 mm circle at 1 Hz, 3 mm under the
 // surface, one query a millisecond, the last answer as the start), from the tree (third argument
-// 0), from the proxy's kept list (geometry::ClosestCache, 1 mm margin; 1), or from a kept list
-// that reads every listed face from the surface, as before it kept their corners (2). The fourth
-// argument is the surface's motion per query in µm as its snapshots would report it (0: still
-// tissue; 20: 2 cm/s everywhere, a brisk twist), which makes the list be made again sooner; the
-// fifth the list's margin in µm (the proxy's: 500, ProxyContact::kKeptListMargin).
+// 0) or from the proxy's kept list (geometry::ClosestCache, 1 mm margin). The fourth argument is
+// the surface's motion per query in µm as its snapshots would report it (0: still tissue; 20:
+// 2 cm/s everywhere, a brisk twist), which makes the list be made again sooner; the fifth the
+// list's margin in µm (the proxy's: 500, ProxyContact::kKeptListMargin).
 void BM_ProxyQuery(benchmark::State& state) {
   const char* name = SceneSurfaceName(state.range(0));
   const int sessions = static_cast<int>(state.range(1));
-  const bool kept = state.range(2) != 0, corners = state.range(2) != 2;
+  const bool kept = state.range(2) != 0;
   const double motion_step = 1e-6 * static_cast<double>(state.range(3));
   auto mesh = SceneSurface(state.range(0));
   if (!mesh.ok()) {
@@ -221,7 +220,7 @@ void BM_ProxyQuery(benchmark::State& state) {
   std::vector<std::vector<Vec3>> positions(sessions, surface.positions);
   const double margin = 1e-6 * static_cast<double>(state.range(4));
   std::vector<vsurg::geometry::ClosestCache> caches(sessions,
-                                                    vsurg::geometry::ClosestCache(margin, corners));
+                                                    vsurg::geometry::ClosestCache(margin));
   // Each session circles under its own face (spread over the surface), from its face's normal.
   struct Walk {
     Vec3 centre, normal, e1, e2;
@@ -263,18 +262,13 @@ void BM_ProxyQuery(benchmark::State& state) {
     hits += static_cast<double>(c.hits()), calls += static_cast<double>(c.hits() + c.misses());
   state.counters["found"] = found / static_cast<double>(std::max<size_t>(i, 1));
   state.counters["from_list"] = calls > 0 ? hits / calls : 0;
-  double listed = 0, read = 0;
-  for (const auto& c : caches)
-    listed += static_cast<double>(c.listed()), read += static_cast<double>(c.surface_reads());
+  double listed = 0;
+  for (const auto& c : caches) listed += static_cast<double>(c.listed());
   state.counters["listed"] = listed / static_cast<double>(sessions);
-  state.counters["read"] = calls > 0 ? read / calls : 0;  // listed faces read from the surface
-  state.SetLabel(std::string(name) + (!kept     ? " tree"
-                                      : corners ? " kept list"
-                                                : " kept list, read from the surface"));
+  state.SetLabel(std::string(name) + (kept ? " kept list" : " tree"));
 }
 BENCHMARK(BM_ProxyQuery)
-    ->ArgsProduct({{0, 1}, {1, 64}, {0, 1, 2}, {0}, {1000}})
-    ->ArgsProduct({{0, 1}, {64}, {2}, {0, 20}, {500}})
+    ->ArgsProduct({{0, 1}, {1, 64}, {0, 1}, {0}, {1000}})
     ->ArgsProduct({{0, 1}, {64}, {1}, {0, 20}, {250, 500, 2000}})
     ->Args({0, 64, 1, 20, 1000})
     ->Args({1, 64, 1, 20, 1000})

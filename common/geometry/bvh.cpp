@@ -262,21 +262,18 @@ ClosestHit Bvh::Search(const std::vector<Vec3>& positions, const Vec3& p, double
   return best;
 }
 
-ClosestCache::ClosestCache(double margin, bool listed_corners)
-    : margin_(margin), listed_corners_(listed_corners) {
+ClosestCache::ClosestCache(double margin) : margin_(margin) {
   faces_.reserve(kCapacity);
   scratch_.reserve(kCapacity);
 }
 
-ClosestCache::ClosestCache(const ClosestCache& other)
-    : ClosestCache(other.margin_, other.listed_corners_) {
+ClosestCache::ClosestCache(const ClosestCache& other) : ClosestCache(other.margin_) {
   *this = other;
 }
 
 ClosestCache& ClosestCache::operator=(const ClosestCache& other) {
   if (this == &other) return *this;
   margin_ = other.margin_;
-  listed_corners_ = other.listed_corners_;
   faces_.assign(other.faces_.begin(), other.faces_.end());  // within the reserved storage
   centre_ = other.centre_;
   radius_ = other.radius_;
@@ -284,7 +281,6 @@ ClosestCache& ClosestCache::operator=(const ClosestCache& other) {
   triangle_count_ = other.triangle_count_;
   hits_ = other.hits_;
   misses_ = other.misses_;
-  surface_reads_ = other.surface_reads_;
   return *this;
 }
 
@@ -313,31 +309,14 @@ ClosestHit ClosestCache::Closest(const Bvh& bvh, const std::vector<Vec3>& positi
     const FaceFilter filter(normal_hint, min_normal_dot);
     const auto consider = [&](int t, int32_t ia, int32_t ib, int32_t ic) {
       const Vec3 &a = positions[ia], &b = positions[ib], &c = positions[ic];
-      ++surface_reads_;
       if (filter.Accepts(a, b, c)) Keep(t, OnFace(p, a, b, c), best, best_d2);
     };
-    // The start face first, then the rest in the list's order: of faces equally near, the start
-    // face (the proxy's own) is kept. A face off the list cannot answer within the bound.
-    if (listed_corners_ && surface_motion == motion_) {
-      // The surface has not moved since the list was made (its motion bound is unchanged), so the
-      // corners listed are the faces' own: the list answers from its one block.
-      const auto listed = [&](const Face& f) {
-        const Vec3 &a = f.corners[0], &b = f.corners[1], &c = f.corners[2];
-        if (filter.Accepts(a, b, c)) Keep(f.triangle, OnFace(p, a, b, c), best, best_d2);
-      };
-      for (const Face& f : faces_)
-        if (f.triangle == start_triangle) listed(f);
-      for (const Face& f : faces_)
-        if (f.triangle != start_triangle) listed(f);
-    } else {
-      // It has: each face is read from the surface.
-      if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles.size())) {
-        const Triangle& s = triangles[start_triangle];
-        consider(start_triangle, s[0], s[1], s[2]);
-      }
-      for (const Face& f : faces_)
-        if (f.triangle != start_triangle) consider(f.triangle, f.a, f.b, f.c);
+    if (start_triangle >= 0 && start_triangle < static_cast<int>(triangles.size())) {
+      const Triangle& s = triangles[start_triangle];
+      consider(start_triangle, s[0], s[1], s[2]);
     }
+    for (const Face& f : faces_)
+      if (f.triangle != start_triangle) consider(f.triangle, f.a, f.b, f.c);
     if (best.triangle >= 0 ? best.distance < bound : max_distance < bound) {
       ++hits_;
       return best;
@@ -352,8 +331,7 @@ ClosestHit ClosestCache::Closest(const Bvh& bvh, const std::vector<Vec3>& positi
   if (radius >= 0) {
     for (const Bvh::NearFace& f : scratch_) {
       const Triangle& t = triangles[f.triangle];
-      faces_.push_back(
-          {f.triangle, t[0], t[1], t[2], {positions[t[0]], positions[t[1]], positions[t[2]]}});
+      faces_.push_back({f.triangle, t[0], t[1], t[2]});
     }
     centre_ = p;
     motion_ = surface_motion;

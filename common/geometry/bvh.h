@@ -110,11 +110,7 @@ class Bvh {
 // faces equally near (a shared edge or corner), which one is returned may differ. A tip 3–4 mm
 // deep has 6–13 faces on a 0.5 mm margin's list, where the walk opens some 45 boxes and 25 faces:
 // a third of the time or less at a node's load (docs/BENCHMARKS.md, "the proxy's query from a
-// kept list"); 4 mm under the arm (the node bench's stylus) it has about 20. The list also holds
-// each face's corners as they were when listed: while the surface has not moved since (its motion
-// bound unchanged: tissue at rest under a touch) a call reads its faces from that one block
-// instead of from the surface's positions, which at a node's load are scattered cache misses, and
-// answers exactly as before. Once the surface has moved, the faces are read from the surface.
+// kept list").
 //
 // surface_motion is a bound on how far the surface has moved in all, non-decreasing over its
 // life: the sum, over the surfaces published so far, of each one's largest vertex move from the
@@ -123,9 +119,7 @@ class Bvh {
 class ClosestCache {
  public:
   static constexpr size_t kCapacity = 256;  // faces; a nearer crowd is not listed
-  // listed_corners = false: every listed face is read from the surface (the comparison in
-  // docs/BENCHMARKS.md).
-  explicit ClosestCache(double margin = 5e-4, bool listed_corners = true);
+  explicit ClosestCache(double margin = 5e-4);
   // A copy holds its lists in storage of its own reserved to kCapacity, so no call allocates.
   ClosestCache(const ClosestCache& other);
   ClosestCache& operator=(const ClosestCache& other);
@@ -134,26 +128,22 @@ class ClosestCache {
                      const Vec3& p, double max_distance, const Vec3& normal_hint = Vec3::Zero(),
                      double min_normal_dot = -2.0, int start_triangle = -1);
   void Clear();
-  uint64_t hits() const { return hits_; }      // calls the list answered
-  uint64_t misses() const { return misses_; }  // calls the tree answered
-  // Listed faces the list's calls read from the surface's positions (not from the list).
-  uint64_t surface_reads() const { return surface_reads_; }
+  uint64_t hits() const { return hits_; }          // calls the list answered
+  uint64_t misses() const { return misses_; }      // calls the tree answered
   size_t listed() const { return faces_.size(); }  // faces on the list now
 
  private:
   struct Face {
     int32_t triangle, a, b, c;  // the corners inline: a listed face reads no triangle table
-    Vec3 corners[3];            // their positions when listed, m
   };
   double margin_;
-  bool listed_corners_;
   std::vector<Face> faces_;
   std::vector<Bvh::NearFace> scratch_;
   Vec3 centre_ = Vec3::Zero();
   double radius_ = -1;  // R; < 0: no list
   double motion_ = 0;   // surface_motion when the list was made
   size_t triangle_count_ = 0;
-  uint64_t hits_ = 0, misses_ = 0, surface_reads_ = 0;
+  uint64_t hits_ = 0, misses_ = 0;
 };
 
 // Closest point on triangle abc to p, as barycentric weights (Ericson §5.1.5).

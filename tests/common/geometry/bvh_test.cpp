@@ -213,53 +213,6 @@ TEST(ClosestCacheTest, TheKeptListAnswersAsTheTreeDoesOverAMovingSurface) {
   EXPECT_GT(cache.hits(), 2000u) << "the list answered " << cache.hits() << " of 3000";
 }
 
-// A tip 4 mm deep lists many faces. The list keeps their corners as listed and, while the surface
-// rests, answers from them without reading the surface; once the surface has moved it reads the
-// faces from the surface again. Side by side with a list that always reads the surface, first over
-// a resting surface, then under one sliding towards the tip (so a listed face comes nearer than it
-// was listed, and its listed corners would answer wrong): the same faces as each other and the
-// tree's distances throughout.
-TEST(ClosestCacheTest, AListAnswersFromItsOwnCornersOnlyWhileTheSurfaceRests) {
-  TriMesh m = MakeLimb(WithResolution(ForearmPreset(), 1500))->surface;
-  Bvh bvh(m);
-  ClosestCache kept(5e-4), every(5e-4, /*listed_corners=*/false);
-  const int t0 = m.TriangleCount() / 3;
-  const Vec3 n = TriangleNormal(m, t0);
-  const auto& tri = m.triangles[t0];
-  const Vec3 centre =
-      (m.positions[tri[0]] + m.positions[tri[1]] + m.positions[tri[2]]) / 3.0 - 0.004 * n;
-  const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
-  double motion = 0;
-  int start = t0;
-  uint64_t resting_reads = 0, resting_every = 0;
-  for (int q = 0; q < 2000; ++q) {
-    const double a = 2 * 3.141592653589793 * q / 1000.0;
-    const Vec3 p = centre + 0.003 * (std::cos(a) * e1 + std::sin(a) * e2);
-    if (q >= 1000 && q % 5 == 0) {  // the second half: 4 µm towards the tip every fifth call
-      for (Vec3& x : m.positions) x -= 4e-6 * n;
-      bvh.Refit(m.positions);
-      motion += 4e-6;
-    }
-    const ClosestHit tree = bvh.Closest(m.positions, p, 0.014, n, 0.0, start);
-    const ClosestHit a1 = kept.Closest(bvh, m.positions, motion, p, 0.014, n, 0.0, start);
-    const ClosestHit a2 = every.Closest(bvh, m.positions, motion, p, 0.014, n, 0.0, start);
-    ASSERT_GE(tree.triangle, 0) << q;
-    ASSERT_GE(a1.triangle, 0) << q;
-    ASSERT_GE(a2.triangle, 0) << q;
-    EXPECT_NEAR(a1.distance, tree.distance, 1e-12) << q;
-    EXPECT_NEAR(a2.distance, tree.distance, 1e-12) << q;
-    EXPECT_EQ(a1.triangle, a2.triangle) << q;  // the same face, ties included
-    start = a1.triangle;
-    if (q == 999) resting_reads = kept.surface_reads(), resting_every = every.surface_reads();
-  }
-  EXPECT_GT(kept.hits(), 1500u);
-  EXPECT_EQ(kept.hits(), every.hits());
-  EXPECT_EQ(resting_reads, 0u);  // a resting surface: every face from the list
-  EXPECT_GT(resting_every, 3000u);
-  // Moving: every call reads the surface (a listed face or more each).
-  EXPECT_GE(kept.surface_reads() - resting_reads, 1000u);
-}
-
 // The reported motion is what lets a face from off the list in: a face pushed towards the point
 // by more than the margin is found when the motion says it moved (and with an unknown motion the
 // tree answers every call).
