@@ -2,21 +2,22 @@
 # A change to the haptic path measured side by side: the bare-UDP floor, vsurg-bench haptic-rtt
 # built before the change (A) and after it (B), alternating, REPS rounds of SECONDS_EACH s per
 # station count. Build A from a worktree of the old commit (or copy its binary before rebuilding).
-#   usage: REPS=3 SECONDS_EACH=10 [RT=20] bench/ab_rtt.sh A_BENCH B_BENCH STATIONS...
+#   usage: REPS=3 SECONDS_EACH=10 [RT=20] [STROKE_MM=3] bench/ab_rtt.sh A_BENCH B_BENCH STATIONS...
 #   e.g.   bench/ab_rtt.sh /tmp/old/vsurg-bench build/bin/vsurg-bench 1 8 64
 # RT: every run's --realtime-priority (the endpoint's and the stations' threads SCHED_FIFO at RT
 # where permitted, as vsurg-server and vsurg-station run by default; the floor's echo likewise).
-# Default 0: normal policy, as OpenIGTLink's comparison runs.
+# Default 0: normal policy, as OpenIGTLink's comparison runs. STROKE_MM: haptic-rtt's --stroke-mm
+# (each stylus circles at this radius once a second; default 0, it rests).
 set -euo pipefail
 [ $# -ge 3 ] || { sed -n 2,9p "$0"; exit 2; }
 A=$1; B=$2; shift 2
-REPS=${REPS:-3}; SECONDS_EACH=${SECONDS_EACH:-10}; RT=${RT:-0}
+REPS=${REPS:-3}; SECONDS_EACH=${SECONDS_EACH:-10}; RT=${RT:-0}; STROKE_MM=${STROKE_MM:-0}
 for n in "$@"; do for r in $(seq "$REPS"); do
   for who in floor A B; do
     case $who in
       floor) out=$("$B" udp-floor --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --json) ;;
-      A) out=$("$A" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --json) ;;
-      B) out=$("$B" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --json) ;;
+      A) out=$("$A" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --stroke-mm "$STROKE_MM" --json) ;;
+      B) out=$("$B" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --stroke-mm "$STROKE_MM" --json) ;;
     esac
     echo "$out" | python3 -c "import json,sys; j=json.load(sys.stdin); print('n=$n rep=$r who=$who rt=%d p50=%.1f p99=%.1f p999=%.1f loss=%.4f cpu_per_station=%.4f' % (j['realtime_priority'], j['rtt_p50_us'], j['rtt_p99_us'], j['rtt_p999_us'], j['loss'], j['server_cpu_per_station']))"
   done
