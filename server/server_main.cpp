@@ -158,6 +158,11 @@ int Main(std::vector<std::string> args) {
               "driven sessions deform on a pool of this many threads (0: one per core) instead "
               "of a thread each (-1)",
               false, "-1")
+      .Option("quasi-static-interval-ms", Kind::kDouble,
+              "a quasi-static model (coil, reduced) updates at most once per this many "
+              "milliseconds while a hand grasps it, from the newest request (0: every request; "
+              "0..100)",
+              false, "8")
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off, the normal "
               "priority a container gives)",
@@ -213,6 +218,10 @@ int Main(std::vector<std::string> args) {
   }
   if (!(telemetry_hz >= 1 && telemetry_hz <= 120)) {
     std::cerr << "vsurg-server: --telemetry-hz: must be within 1..120\n";
+    return 2;
+  }
+  if (const double ms = p.Double("quasi-static-interval-ms"); !(ms >= 0 && ms <= 100)) {
+    std::cerr << "vsurg-server: --quasi-static-interval-ms: must be within 0..100\n";
     return 2;
   }
   const int max_sessions = p.Int("max-sessions"), per_user = p.Int("max-sessions-per-user");
@@ -346,6 +355,7 @@ int Main(std::vector<std::string> args) {
     so.max_sessions_per_user = per_user;
     so.start_timeout_s = start_timeout;
     so.deformation_workers = static_cast<int>(p.Int("deformation-workers"));
+    so.quasi_static_interval_s = 1e-3 * p.Double("quasi-static-interval-ms");
     if (role == "sim") {
       char host[256] = {};
       gethostname(host, sizeof host - 1);

@@ -46,6 +46,8 @@ Expected<std::unique_ptr<Simulation>> Simulation::Create(const Scene& scene,
 
 Expected<std::unique_ptr<Simulation>> Simulation::CreateChecked(const Scene& scene,
                                                                 const SimulationOptions& options) {
+  if (!(options.quasi_static_interval_s >= 0 && options.quasi_static_interval_s <= 0.1))
+    return InvalidArgument("quasi_static_interval_s", "must be within [0, 0.1] s");
   auto mesh = BuildSceneMesh(scene.mesh);
   if (!mesh.ok()) return mesh.error();
   if (Status s = CheckSessionMemory(scene.region.kind, mesh->surface.positions.size(), "mesh",
@@ -83,6 +85,7 @@ void Simulation::SetDeformationRunning(bool running) {
     if (running) {
       pool_next_ = DeformationPool::Clock::now();
       pool_seen_ = 0;  // as the thread's loop: a request already made is served at once
+      pool_last_ = {};
       options_.pool->Add(this);
     } else {
       options_.pool->Remove(this);  // returns once no worker steps it
@@ -677,16 +680,29 @@ void Simulation::DeformationLoop() {
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
   auto next = Clock::now();
+  const auto interval = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(options_.quasi_static_interval_s));
+  Clock::time_point last{};  // the last quasi-static update's start
   uint64_t seen = 0;
   while (!stop_.load(std::memory_order_relaxed)) {
     if (!paced) {
       // Coil and reduced (quasi-static): an update only follows a new request; sleep until there
-      // is one.
+      // is one. While the hand grasps, also until the interval since the last update has passed:
+      // the requests meanwhile fold into the newest (a stop waits at most the interval).
       input_version_.wait(seen, std::memory_order_acquire);
-      seen = input_version_.load(std::memory_order_acquire);
       if (stop_.load(std::memory_order_relaxed)) break;
+      seen = input_version_.load(std::memory_order_acquire);
+      inputs_.Acquire();
+      if (const auto due = last + interval; inputs_.Front().grasping && Clock::now() < due) {
+        std::this_thread::sleep_until(due);
+        if (stop_.load(std::memory_order_relaxed)) break;
+        seen = input_version_.load(std::memory_order_acquire);
+        inputs_.Acquire();
+      }
+      last = Clock::now();
+    } else {
+      inputs_.Acquire();
     }
-    inputs_.Acquire();
     Deform(inputs_.Front());
     if (paced) {
       next += period;
@@ -709,8 +725,15 @@ DeformationPool::Clock::time_point Simulation::StepDue(DeformationPool::Clock::t
   }
   const uint64_t version = input_version_.load(std::memory_order_acquire);
   if (version != pool_seen_) {  // the haptic path asked for something new
-    pool_seen_ = version;
     inputs_.Acquire();
+    // While the hand grasps, at most once per interval, as DeformationLoop: until then the
+    // requests fold into the newest.
+    const Clock::time_point due =
+        pool_last_ + std::chrono::duration_cast<Clock::duration>(
+                         std::chrono::duration<double>(options_.quasi_static_interval_s));
+    if (inputs_.Front().grasping && now < due) return due;
+    pool_seen_ = version;
+    pool_last_ = now;
     Deform(inputs_.Front());
   }
   return now + options_.pool->poll();

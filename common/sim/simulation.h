@@ -84,6 +84,12 @@ struct SimulationOptions {
   // move less than their margin (geometry::ClosestCache: the same answers, fewer memory reads);
   // false: each walks the tree (the comparison in docs/BENCHMARKS.md).
   bool kept_face_lists = true;
+  // Threaded only: while the hand grasps, a quasi-static model (coil, reduced; not paced) updates
+  // on a new request at most once per this many seconds, then from the newest request. A hand
+  // twisting at a 1 kHz station asks for an update every millisecond, while the surface is shown
+  // at 60 Hz and the grasp's force never reads it. A touch, whose proxy does read the surface, is
+  // served at every request. 0: every request at once. Within [0, 0.1].
+  double quasi_static_interval_s = 0.008;
 };
 
 struct VisualFrame {
@@ -258,6 +264,7 @@ class Simulation final : private DeformationPool::Member {
   bool pooled_ = false;
   DeformationPool::Clock::time_point pool_next_{};
   uint64_t pool_seen_ = 0;
+  DeformationPool::Clock::time_point pool_last_{};  // its last quasi-static update
 };
 
 }  // namespace vsurg::sim

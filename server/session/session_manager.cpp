@@ -41,6 +41,8 @@ Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
   if (o.node.size() > 64) return InvalidArgument("node", "a node name has at most 64 characters");
   if (o.deformation_workers < -1 || o.deformation_workers > 256)
     return InvalidArgument("deformation_workers", "must be within -1..256 (0: one per core)");
+  if (!(o.quasi_static_interval_s >= 0 && o.quasi_static_interval_s <= 0.1))
+    return InvalidArgument("quasi_static_interval_s", "must be within 0..0.1 s");
   if (!o.node.empty() && !o.lease)
     return InvalidArgument("lease", "a simulation node's sessions need its lease");
   // Nothing is live in a new process: what the store says is live was left by one that died.
@@ -192,7 +194,11 @@ Expected<std::unique_ptr<sim::Simulation>> SessionManager::BuildSimulation(
   // Reduced scenes cache their precomputation in the default folder
   // (tissue::DefaultCacheDirectory).
   auto simulation = sim::Simulation::Create(
-      *scene, {.threaded = true, .start_deformation = false, .cache_dir = {}, .pool = pool_.get()});
+      *scene, {.threaded = true,
+               .start_deformation = false,
+               .cache_dir = {},
+               .pool = pool_.get(),
+               .quasi_static_interval_s = options_.quasi_static_interval_s});
   if (!simulation.ok())
     return Error{ErrorCode::kFailedPrecondition,
                  "scene '" + scene_name + "' does not build: " + simulation.error().message,

@@ -117,6 +117,9 @@ struct SessionManagerOptions {
   // yet: at 64 stations on 2 cores it did not lower the haptic round trip's p99 (BENCHMARKS.md,
   // "A deformation pool instead of a thread per session").
   int deformation_workers = -1;
+  // A quasi-static model's updates while a hand twists: at most one per this many seconds
+  // (sim::SimulationOptions::quasi_static_interval_s; 0: every request). Within [0, 0.1].
+  double quasi_static_interval_s = 0.008;
 };
 
 class SessionManager final : public Sessions {

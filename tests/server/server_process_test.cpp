@@ -324,6 +324,10 @@ TEST(ServerRolesCliTest, BadRoleSettingsExitTwoNamingTheFlag) {
            {"--role control" + pg + " --cluster-token-file " + token +
                 " --cluster-heartbeat-timeout nan",
             "--cluster-heartbeat-timeout"},
+           {"--db " + (dir / "x.db").string() + " --quasi-static-interval-ms 500",
+            "--quasi-static-interval-ms: must be within 0..100"},
+           {"--db " + (dir / "x.db").string() + " --quasi-static-interval-ms nan",
+            "--quasi-static-interval-ms: 'nan' is not a finite number"},
        }) {
     const ShellRun r = Shell(server + c.args + " 2>&1");
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.out;
