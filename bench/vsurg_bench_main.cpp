@@ -97,6 +97,8 @@ vsurg::wire::SessionKey BenchKey(int i) {
 
 // How long stations run before measuring: the sessions' start-up gates and caches.
 constexpr double kWarmupS = 0.5;
+// haptic-rtt --twist-deg: when each station grasps (in the warm-up, after its approach).
+constexpr double kTwistGraspS = 0.3;
 
 // What a station's answers are: the server's force datagrams, or its own stylus datagrams
 // echoed back unchanged (the bare-UDP floor).
@@ -138,7 +140,7 @@ struct RttRun {
 RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>& stations,
                      const udp::endpoint& server, const Eigen::Vector3d& rest,
                      const Eigen::Vector3d& outward, double seconds, Answer answer,
-                     int period_ms = 1, double stroke = 0) {
+                     int period_ms = 1, double stroke = 0, double twist = 0) {
   const int n = static_cast<int>(stations.size());
   const Clock::time_point start = Clock::now();
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
@@ -197,6 +199,16 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
           const Eigen::Vector3d e1 = outward.unitOrthogonal(), e2 = outward.cross(e1);
           msg.sample.position += stroke * (std::cos(a) * e1 + std::sin(a) * e2);
         }
+        if (twist > 0 && t >= kTwistGraspS) {
+          // Grasped once in contact; then a turn about the limb's axis (z through the origin),
+          // there and back every 2 s, the hand on the arc.
+          const double a = twist * std::sin(std::numbers::pi * (t - kTwistGraspS) +
+                                            2 * std::numbers::pi * static_cast<double>(k) / n);
+          const Eigen::AngleAxisd turn(a, Eigen::Vector3d::UnitZ());
+          msg.sample.buttons = vsurg::haptics::kButtonGrasp;
+          msg.sample.position = turn * msg.sample.position;
+          msg.sample.orientation = Eigen::Quaterniond(turn);
+        }
         const size_t size =
             codec.EncodeStylus(msg,
                                {vsurg::wire::kProtocolVersion,
@@ -246,7 +258,8 @@ struct ServerStack {
 
   static vsurg::Expected<std::unique_ptr<ServerStack>> Start(vsurg::server::UdpEndpoint& endpoint,
                                                              const std::string& scene, int n,
-                                                             int pool_workers) {
+                                                             int pool_workers,
+                                                             double quasi_static_interval_s) {
     auto s = std::make_unique<ServerStack>();
     s->dir = std::filesystem::temp_directory_path() /
              ("vsurg_bench_stack_" + std::to_string(::getpid()));
@@ -261,6 +274,7 @@ struct ServerStack {
     vsurg::server::SessionManagerOptions so;
     so.max_live_sessions = std::max(256, n);
     so.deformation_workers = pool_workers;
+    so.quasi_static_interval_s = quasi_static_interval_s;
     s->sessions = vsurg::server::SessionManager::Open(*s->store, &endpoint, so).value();
     auto server = vsurg::server::HttpServer::Start(*s->store, *s->sessions, {});
     if (!server.ok()) return server.error();
@@ -361,6 +375,14 @@ int HapticRtt(const std::vector<std::string>& args) {
               "after the warm-up each stylus circles its resting point at this radius once a "
               "second (0: it rests)",
               false, "0")
+      .Option("twist-deg", ArgParser::Kind::kDouble,
+              "each station grasps the limb in the warm-up and then turns it about its axis by "
+              "up to this many degrees, there and back every 2 s (twist scenes; 0: no grasp)",
+              false, "0")
+      .Option("quasi-static-interval-ms", ArgParser::Kind::kDouble,
+              "while grasped, a quasi-static model updates at most once per this many milliseconds "
+              "(vsurg-server's --quasi-static-interval-ms; 0: every request)",
+              false, "8")
       .Option("tree-queries", ArgParser::Kind::kFlag,
               "the haptic path's closest-face queries walk the tree every time instead of "
               "answering from kept lists (for comparison)")
@@ -377,6 +399,12 @@ int HapticRtt(const std::vector<std::string>& args) {
   const double stroke_mm = p.Double("stroke-mm");
   if (!(stroke_mm >= 0 && stroke_mm <= 20))
     return std::cerr << p.command() << ": --stroke-mm: must be in 0..20\n", 2;
+  const double twist_deg = p.Double("twist-deg");
+  if (!(twist_deg >= 0 && twist_deg <= 90))
+    return std::cerr << p.command() << ": --twist-deg: must be in 0..90\n", 2;
+  const double interval_ms = p.Double("quasi-static-interval-ms");
+  if (!(interval_ms >= 0 && interval_ms <= 100))
+    return std::cerr << p.command() << ": --quasi-static-interval-ms: must be in 0..100\n", 2;
   const bool kept_face_lists = !p.Flag("tree-queries");
   const int pool_workers = p.Int("pool-workers");
   if (pool_workers < -1 || pool_workers > 64)
@@ -430,7 +458,7 @@ int HapticRtt(const std::vector<std::string>& args) {
   if (dashboard_clients >= 0) {
     // The server as vsurg-server runs it: sessions created and started by the session manager
     // (its sampler feeding telemetry), the dashboard listening beside it.
-    auto made = ServerStack::Start(**endpoint, scene->name, n, pool_workers);
+    auto made = ServerStack::Start(**endpoint, scene->name, n, pool_workers, interval_ms * 1e-3);
     if (!made.ok()) return std::cerr << made.error().message << "\n", 1;
     stack = std::move(made).value();
     for (int i = 0; i < n; ++i)
@@ -439,11 +467,13 @@ int HapticRtt(const std::vector<std::string>& args) {
   }
   for (int i = 0; i < n && !stack; ++i) {
     const vsurg::wire::SessionKey key = BenchKey(i);
-    auto sim = vsurg::sim::Simulation::Create(*scene, {.threaded = true,
-                                                       .start_deformation = true,
-                                                       .cache_dir = {},
-                                                       .pool = pool.get(),
-                                                       .kept_face_lists = kept_face_lists});
+    auto sim =
+        vsurg::sim::Simulation::Create(*scene, {.threaded = true,
+                                                .start_deformation = true,
+                                                .cache_dir = {},
+                                                .pool = pool.get(),
+                                                .kept_face_lists = kept_face_lists,
+                                                .quasi_static_interval_s = interval_ms * 1e-3});
     if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
     sims.push_back(std::move(*sim));
     (*endpoint)->AddSession(1000 + i, key, sims.back().get());
@@ -459,10 +489,34 @@ int HapticRtt(const std::vector<std::string>& args) {
                                     : Eigen::Vector3d(0.0005, 0.0005, scene->mesh.radius - 0.004);
   const Eigen::Vector3d outward = limb ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1);
   const double cpu0 = (*endpoint)->io_cpu_seconds();
+  // The server's whole CPU (its I/O, deformation and visual threads): the process's less this
+  // thread's, which drives the stations.
+  const auto process_cpu = [] {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    const auto s_of = [](const timeval& tv) {
+      return static_cast<double>(tv.tv_sec) + 1e-6 * static_cast<double>(tv.tv_usec);
+    };
+    return s_of(u.ru_utime) + s_of(u.ru_stime);
+  };
+  const auto thread_cpu = [] {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+  };
+  const auto deformations = [&] {
+    uint64_t d = 0;
+    for (const auto& sim : sims) d += sim->deformation_updates();
+    return d;
+  };
+  const double process0 = process_cpu(), own0 = thread_cpu();
+  const uint64_t deformations0 = deformations();
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
   RttRun run = DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce,
-                             period_ms, stroke_mm * 1e-3);
+                             period_ms, stroke_mm * 1e-3, twist_deg * std::numbers::pi / 180);
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
+  const double server_cpu = (process_cpu() - process0) - (thread_cpu() - own0);
+  const uint64_t deformed = deformations() - deformations0;
   uint64_t dashboard_bytes = 0, dashboard_events = 0;
   if (stack) {
     dashboard_bytes = stack->bytes.load();
@@ -474,6 +528,12 @@ int HapticRtt(const std::vector<std::string>& args) {
   auto pct = [&](double q) { return run.Percentile(q); };
   j["scene"] = scene->name;
   j["server_cpu_per_station"] = cpu / (kWarmupS + seconds) / n;
+  j["server_process_cpu_per_station"] = server_cpu / (kWarmupS + seconds) / n;
+  // Bare sessions only (with --dashboard-clients the session manager holds them): -1 there.
+  j["deformations_per_station_s"] =
+      sims.empty() ? -1.0 : static_cast<double>(deformed) / (kWarmupS + seconds) / n;
+  j["twist_deg"] = twist_deg;
+  j["quasi_static_interval_ms"] = interval_ms;
   j["idle_sessions"] = idle;
   j["idle_threads"] = p.Flag("idle-threads");
   j["dashboard_clients"] = dashboard_clients;
