@@ -383,6 +383,8 @@ int HapticRtt(const std::vector<std::string>& args) {
               "while grasped, a quasi-static model updates at most once per this many milliseconds "
               "(vsurg-server's --quasi-static-interval-ms; 0: every request)",
               false, "8")
+      .Option("visual-hz", ArgParser::Kind::kDouble,
+              "the sessions' scene frames per second, sent to the stations (0: none)", false, "60")
       .Option("tree-queries", ArgParser::Kind::kFlag,
               "the haptic path's closest-face queries walk the tree every time instead of "
               "answering from kept lists (for comparison)")
@@ -444,7 +446,8 @@ int HapticRtt(const std::vector<std::string>& args) {
       p.Int("busy-poll-us") > vsurg::server::UdpEndpoint::kMaxBusyPollUs)
     return std::cerr << p.command() << ": --busy-poll-us: must be in 0..10000\n", 2;
   auto endpoint =
-      vsurg::server::UdpEndpoint::Create({.realtime_priority = priority,
+      vsurg::server::UdpEndpoint::Create({.visual_hz = p.Double("visual-hz"),
+                                          .realtime_priority = priority,
                                           .io_threads = static_cast<int>(p.Int("io-threads")),
                                           .busy_poll_us = static_cast<int>(p.Int("busy-poll-us"))});
   if (!endpoint.ok()) return std::cerr << endpoint.error().message << "\n", 1;
@@ -533,6 +536,7 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["deformations_per_station_s"] =
       sims.empty() ? -1.0 : static_cast<double>(deformed) / (kWarmupS + seconds) / n;
   j["twist_deg"] = twist_deg;
+  j["visual_hz"] = p.Double("visual-hz");
   j["quasi_static_interval_ms"] = interval_ms;
   j["idle_sessions"] = idle;
   j["idle_threads"] = p.Flag("idle-threads");
