@@ -31,7 +31,7 @@ VisualSender::~VisualSender() {
 void VisualSender::Add(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation) {
   std::lock_guard<std::mutex> lock(mutex_);
   std::erase_if(sessions_, [id](const Session& s) { return s.id == id; });
-  sessions_.push_back({id, wire::Authenticator(key), simulation, {}, false, 0});
+  sessions_.push_back({id, wire::Authenticator(key), simulation, {}, false, 0, {}, {}, 0, 0});
 }
 
 void VisualSender::Remove(uint64_t id) {
@@ -52,27 +52,58 @@ void VisualSender::Loop() {
   std::array<uint8_t, wire::kMaxDatagram> out{};
   const auto period =
       std::chrono::duration_cast<SteadyTime::duration>(std::chrono::duration<double>(1.0 / hz_));
-  auto next = SteadyTime::now();
+  constexpr auto kTick = std::chrono::milliseconds(1);
+  auto next_frame = SteadyTime::now();
   while (!stop_.load()) {
+    const auto now = SteadyTime::now();
+    const bool frame_due = now >= next_frame;
+    bool queued = false;  // a chunk is left for the next tick
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (Session& s : sessions_) {
-        if (!s.has_dest || !s.simulation->TakeVisualFrame(frame) || frame.indices.empty()) continue;
-        const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id,
-                                s.sequence + 1};
-        const size_t chunks = codec.EncodeSceneFrame(
-            {frame.frame_id, frame.indices, frame.positions}, base, s.auth, out,
-            [&](std::span<const uint8_t> d) {
-              boost::system::error_code ec;
-              socket_.send_to(asio::buffer(d.data(), d.size()), s.dest, 0, ec);
-            });
-        s.sequence += chunks;
-        frames_.fetch_add(1, std::memory_order_relaxed);
-        chunks_.fetch_add(chunks, std::memory_order_relaxed);
+        // A new frame only when the last has all gone out (else it waits: nothing is lost).
+        if (frame_due && s.next == s.sizes.size() && s.has_dest &&
+            s.simulation->TakeVisualFrame(frame) && !frame.indices.empty()) {
+          s.queued.clear();
+          s.sizes.clear();
+          s.next = 0;
+          const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id,
+                                  s.sequence + 1};
+          const size_t chunks =
+              codec.EncodeSceneFrame({frame.frame_id, frame.indices, frame.positions}, base, s.auth,
+                                     out, [&](std::span<const uint8_t> d) {
+                                       s.queued.insert(s.queued.end(), d.begin(), d.end());
+                                       s.sizes.push_back(static_cast<uint16_t>(d.size()));
+                                     });
+          s.sequence += chunks;
+          s.per_tick = std::max<size_t>(kMinPerTick, (chunks + kSpreadMs - 1) / kSpreadMs);
+          frames_.fetch_add(1, std::memory_order_relaxed);
+        }
+        // This tick's share of the frame going out.
+        size_t sent = 0, offset = 0;
+        for (size_t k = 0; k < s.next; ++k) offset += s.sizes[k];
+        while (s.next < s.sizes.size() && sent < s.per_tick) {
+          boost::system::error_code ec;
+          if (s.has_dest)
+            socket_.send_to(asio::buffer(s.queued.data() + offset, s.sizes[s.next]), s.dest, 0, ec);
+          offset += s.sizes[s.next];
+          ++s.next;
+          ++sent;
+        }
+        if (sent > 0) {
+          chunks_.fetch_add(sent, std::memory_order_relaxed);
+          if (sent > largest_burst_.load(std::memory_order_relaxed))
+            largest_burst_.store(sent, std::memory_order_relaxed);
+        }
+        queued = queued || s.next < s.sizes.size();
       }
     }
-    next += period;
-    std::this_thread::sleep_until(next);
+    if (frame_due) {
+      next_frame += period;
+      if (now - next_frame > std::chrono::milliseconds(100)) next_frame = now;  // fell behind
+    }
+    // The next tick while chunks wait, else the next frame.
+    std::this_thread::sleep_until(queued ? std::min(now + kTick, next_frame) : next_frame);
   }
 }
 

@@ -3,6 +3,13 @@
 // frame never delays a force, to the address the session's stylus data last came from (the
 // endpoint tells it: SetDestination).
 //
+// Paced: a frame's chunks go out over up to kSpreadMs milliseconds, at most a kSpreadMs-th of
+// them (and at least kMinPerTick) each millisecond, not in one burst. A twisted arm moves nearly
+// every vertex, some 60 chunks of 1,200 bytes a frame; sent at once they would sit in the
+// station's socket (and on a real link, in its queue) ahead of the force answers that follow.
+// A session whose frame has not all gone out when the next is due takes no new frame until it
+// has: TakeVisualFrame then gives every vertex moved since, so nothing is lost, only merged.
+//
 // Threads: one sender thread; Add, Remove and SetDestination from any thread (a short mutex the
 // sender thread also takes once per tick).
 #pragma once
@@ -36,6 +43,11 @@ class VisualSender {
   void SetDestination(uint64_t id, const boost::asio::ip::udp::endpoint& dest);
   uint64_t frames() const { return frames_.load(std::memory_order_relaxed); }
   uint64_t chunks() const { return chunks_.load(std::memory_order_relaxed); }
+  // The most chunks one session was sent in one millisecond's tick, so far.
+  uint64_t largest_burst() const { return largest_burst_.load(std::memory_order_relaxed); }
+
+  static constexpr int kSpreadMs = 8;    // a frame's chunks go out over at most this long
+  static constexpr int kMinPerTick = 2;  // chunks a session may be sent per tick, at least
 
  private:
   struct Session {
@@ -45,6 +57,12 @@ class VisualSender {
     boost::asio::ip::udp::endpoint dest;
     bool has_dest = false;
     uint64_t sequence = 0;
+    // The frame going out: its sealed chunks back to back, each one's size, the next to send
+    // and how many a tick may send. Kept between frames: no allocation once grown.
+    std::vector<uint8_t> queued;
+    std::vector<uint16_t> sizes;
+    size_t next = 0;
+    size_t per_tick = 0;
   };
   explicit VisualSender(double hz) : hz_(hz) {}
   void Loop();
@@ -56,7 +74,7 @@ class VisualSender {
   boost::asio::ip::udp::socket socket_{io_};
   std::thread thread_;
   std::atomic<bool> stop_{false};
-  std::atomic<uint64_t> frames_{0}, chunks_{0};
+  std::atomic<uint64_t> frames_{0}, chunks_{0}, largest_burst_{0};
 };
 
 }  // namespace vsurg::server

@@ -3,15 +3,18 @@
 #include <atomic>
 #include <chrono>
 #include <fstream>
+#include <set>
 #include <thread>
 
 #include <gtest/gtest.h>
 
 #include "common/core/clock.h"
 #include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
 #include "proto/wire/asio.h"
 #include "proto/wire/messages.h"
 #include "server/net/lease.h"
+#include "server/net/visual_sender.h"
 #include "tests/support/allocation_counter.h"
 
 namespace vsurg::server {
@@ -465,6 +468,59 @@ TEST(UdpEndpointTest, AnIoThreadPollsOnlyWhileDatagramsComeFasterThanItsWindow) 
 
 // The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
 // haptic update, encode, seal, send) allocates nothing once warm, for good and bad datagrams.
+// A twisted arm moves nearly every vertex, so its frame is dozens of chunks. They go out paced,
+// at most a kSpreadMs-th of them a millisecond, so a force answer sent meanwhile never queues
+// behind the whole frame; and they all arrive, in order, each vertex once.
+TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
+  auto scene = sim::LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok());
+  auto samples = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+  ASSERT_TRUE(samples.ok());
+  auto simulation = sim::Simulation::Create(*scene, {false});
+  ASSERT_TRUE(simulation.ok());
+  for (const auto& s : *samples)
+    if (s.time <= 1.9) (*simulation)->OnStylus(s);  // mid-twist
+  (*simulation)->StepDeformation();
+  auto sender = VisualSender::Create(asio::ip::make_address("127.0.0.1"), 60);
+  ASSERT_TRUE(sender.ok());
+  RawClient station(1);  // only its socket: the sender sends to it
+  (*sender)->Add(5, Key(3), simulation->get());
+  (*sender)->SetDestination(5, station.socket.local_endpoint());
+  wire::Codec codec;
+  const wire::Authenticator auth(Key(3));
+  uint32_t count = 0, next_chunk = 0;
+  uint64_t last_sequence = 0, frame_id = 0;
+  std::set<int32_t> vertices;
+  size_t positions = 0;
+  while (count == 0 || next_chunk < count) {
+    const auto d = station.Receive(30000);  // generous: a sanitizer build is slow
+    ASSERT_TRUE(d.has_value()) << "chunk " << next_chunk << " of " << count;
+    wire::Opened o;
+    ASSERT_EQ(wire::Open(*d, &auth, o), DropReason::kNone);
+    ASSERT_EQ(o.header.type, wire::PayloadType::kSceneFrame);
+    EXPECT_GT(o.header.sequence, last_sequence);
+    last_sequence = o.header.sequence;
+    wire::SceneChunk c;
+    ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+    if (count == 0) count = c.chunk_count, frame_id = c.frame_id;
+    EXPECT_EQ(c.frame_id, frame_id);
+    EXPECT_EQ(c.chunk_index, next_chunk);  // in order, none lost on loopback
+    ++next_chunk;
+    vertices.insert(c.indices.begin(), c.indices.end());
+    positions += c.positions.size();
+  }
+  EXPECT_GE(count, 24u) << "a twisted arm's frame is dozens of chunks";
+  EXPECT_EQ(vertices.size(), positions) << "each vertex once";
+  EXPECT_GT(vertices.size(), (*simulation)->rest_mesh().positions.size() / 2);
+  EXPECT_EQ((*sender)->frames(), 1u);
+  EXPECT_EQ((*sender)->chunks(), count);
+  // Paced: never more than the frame's share of a tick to one session at once.
+  const uint64_t share = std::max<uint64_t>(
+      VisualSender::kMinPerTick, (count + VisualSender::kSpreadMs - 1) / VisualSender::kSpreadMs);
+  EXPECT_LE((*sender)->largest_burst(), share) << "of " << count << " chunks";
+  EXPECT_GE((*sender)->largest_burst(), 1u);
+}
+
 TEST(UdpEndpointTest, TheReceivePathNeverAllocates) {
   if (!test::CanCountAllocations())
     GTEST_SKIP() << "operator new cannot be replaced under ThreadSanitizer";
