@@ -201,7 +201,9 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
         }
         if (twist > 0 && t >= kTwistGraspS) {
           // Grasped once in contact; then a turn about the limb's axis (z through the origin),
-          // there and back every 2 s, the hand on the arc.
+          // there and back every 2 s, the hand on the arc. The stations' phases differ, so each
+          // grasps with its stylus already turned by its own phase (the grasp's zero) and turns
+          // from there: their updates do not all fall due at once.
           const double a = twist * std::sin(std::numbers::pi * (t - kTwistGraspS) +
                                             2 * std::numbers::pi * static_cast<double>(k) / n);
           const Eigen::AngleAxisd turn(a, Eigen::Vector3d::UnitZ());
