@@ -72,7 +72,9 @@ Simulation::Simulation(const Scene& scene, geometry::TriMesh rest, const Simulat
       options_(options),
       proxy_(*haptics::ProxyContact::Create({})),
       safety_(*haptics::SafetyFilter::Create(haptics::TouchLimits())),
-      recorder_(scene.task) {}
+      recorder_(scene.task),
+      quasi_static_interval_(std::chrono::duration_cast<DeformationPool::Clock::duration>(
+          std::chrono::duration<double>(options.quasi_static_interval_s))) {}
 
 Simulation::~Simulation() {
   SetDeformationRunning(false);
@@ -680,8 +682,6 @@ void Simulation::DeformationLoop() {
   const auto period =
       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(scene_.region.dt));
   auto next = Clock::now();
-  const auto interval = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(options_.quasi_static_interval_s));
   Clock::time_point last{};  // the last quasi-static update's start
   uint64_t seen = 0;
   while (!stop_.load(std::memory_order_relaxed)) {
@@ -693,7 +693,8 @@ void Simulation::DeformationLoop() {
       if (stop_.load(std::memory_order_relaxed)) break;
       seen = input_version_.load(std::memory_order_acquire);
       inputs_.Acquire();
-      if (const auto due = last + interval; inputs_.Front().grasping && Clock::now() < due) {
+      if (const auto due = last + quasi_static_interval_;
+          inputs_.Front().grasping && Clock::now() < due) {
         std::this_thread::sleep_until(due);
         if (stop_.load(std::memory_order_relaxed)) break;
         seen = input_version_.load(std::memory_order_acquire);
@@ -728,9 +729,7 @@ DeformationPool::Clock::time_point Simulation::StepDue(DeformationPool::Clock::t
     inputs_.Acquire();
     // While the hand grasps, at most once per interval, as DeformationLoop: until then the
     // requests fold into the newest.
-    const Clock::time_point due =
-        pool_last_ + std::chrono::duration_cast<Clock::duration>(
-                         std::chrono::duration<double>(options_.quasi_static_interval_s));
+    const Clock::time_point due = pool_last_ + quasi_static_interval_;
     if (inputs_.Front().grasping && now < due) return due;
     pool_seen_ = version;
     pool_last_ = now;

@@ -68,6 +68,9 @@ namespace vsurg::sim {
 // It is above the endpoint's stall time (0.5 s), so a real pause still counts in full.
 inline constexpr double kMaxClockStepS = 1.0;
 
+// SimulationOptions::quasi_static_interval_s's default, s: two surfaces per 60 Hz frame.
+inline constexpr double kQuasiStaticIntervalS = 0.008;
+
 struct SimulationOptions {
   bool threaded = true;  // false: the caller drives StepDeformation() (replays, tests)
   // Threaded only: start the deformation thread at Create. The server leaves it off and turns it
@@ -89,7 +92,7 @@ struct SimulationOptions {
   // twisting at a 1 kHz station asks for an update every millisecond, while the surface is shown
   // at 60 Hz and the grasp's force never reads it. A touch, whose proxy does read the surface, is
   // served at every request. 0: every request at once. Within [0, 0.1].
-  double quasi_static_interval_s = 0.008;
+  double quasi_static_interval_s = kQuasiStaticIntervalS;
 };
 
 struct VisualFrame {
@@ -265,6 +268,8 @@ class Simulation final : private DeformationPool::Member {
   DeformationPool::Clock::time_point pool_next_{};
   uint64_t pool_seen_ = 0;
   DeformationPool::Clock::time_point pool_last_{};  // its last quasi-static update
+  // options_.quasi_static_interval_s in the clock's units (the thread's loop and the pool's step).
+  DeformationPool::Clock::duration quasi_static_interval_{};
 };
 
 }  // namespace vsurg::sim

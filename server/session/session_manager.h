@@ -119,7 +119,7 @@ struct SessionManagerOptions {
   int deformation_workers = -1;
   // A quasi-static model's updates while a hand twists: at most one per this many seconds
   // (sim::SimulationOptions::quasi_static_interval_s; 0: every request). Within [0, 0.1].
-  double quasi_static_interval_s = 0.008;
+  double quasi_static_interval_s = sim::kQuasiStaticIntervalS;
 };
 
 class SessionManager final : public Sessions {
