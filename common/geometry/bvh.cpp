@@ -281,6 +281,7 @@ ClosestCache& ClosestCache::operator=(const ClosestCache& other) {
   triangle_count_ = other.triangle_count_;
   hits_ = other.hits_;
   misses_ = other.misses_;
+  examined_ = other.examined_;
   return *this;
 }
 
@@ -315,10 +316,17 @@ ClosestHit ClosestCache::Closest(const Bvh& bvh, const std::vector<Vec3>& positi
       const Triangle& s = triangles[start_triangle];
       consider(start_triangle, s[0], s[1], s[2]);
     }
-    for (const Face& f : faces_)
+    // Nearest first (as listed): a face whose distance from the list's centre, less the move,
+    // exceeds the best so far (or the range) cannot be nearer, nor can any after it.
+    size_t k = 0;
+    for (; k < faces_.size(); ++k) {
+      const Face& f = faces_[k];
+      if (f.distance - moved - 1e-9 > (best.triangle >= 0 ? best.distance : max_distance)) break;
       if (f.triangle != start_triangle) consider(f.triangle, f.a, f.b, f.c);
+    }
     if (best.triangle >= 0 ? best.distance < bound : max_distance < bound) {
       ++hits_;
+      examined_ += k;
       return best;
     }
   }
@@ -329,9 +337,12 @@ ClosestHit ClosestCache::Closest(const Bvh& bvh, const std::vector<Vec3>& positi
   faces_.clear();
   radius_ = radius;
   if (radius >= 0) {
+    std::sort(scratch_.begin(), scratch_.end(), [](const Bvh::NearFace& x, const Bvh::NearFace& y) {
+      return x.distance2 < y.distance2;
+    });
     for (const Bvh::NearFace& f : scratch_) {
       const Triangle& t = triangles[f.triangle];
-      faces_.push_back({f.triangle, t[0], t[1], t[2]});
+      faces_.push_back({f.triangle, t[0], t[1], t[2], std::sqrt(f.distance2)});
     }
     centre_ = p;
     motion_ = surface_motion;

@@ -110,7 +110,10 @@ class Bvh {
 // faces equally near (a shared edge or corner), which one is returned may differ. A tip 3–4 mm
 // deep has 6–13 faces on a 0.5 mm margin's list, where the walk opens some 45 boxes and 25 faces:
 // a third of the time or less at a node's load (docs/BENCHMARKS.md, "the proxy's query from a
-// kept list").
+// kept list"). The list is kept nearest first, each face with its distance from c; a face's
+// distance from p is at least that less |p − c| + m, so a call stops at the first face that
+// cannot be nearer than its best so far: a resting tip measures the face it rests on and its
+// equals, not the whole list.
 //
 // surface_motion is a bound on how far the surface has moved in all, non-decreasing over its
 // life: the sum, over the surfaces published so far, of each one's largest vertex move from the
@@ -131,10 +134,12 @@ class ClosestCache {
   uint64_t hits() const { return hits_; }          // calls the list answered
   uint64_t misses() const { return misses_; }      // calls the tree answered
   size_t listed() const { return faces_.size(); }  // faces on the list now
+  uint64_t examined() const { return examined_; }  // faces the list's answers measured
 
  private:
   struct Face {
     int32_t triangle, a, b, c;  // the corners inline: a listed face reads no triangle table
+    double distance;            // from the list's centre when listed; the list is nearest first
   };
   double margin_;
   std::vector<Face> faces_;
@@ -143,7 +148,7 @@ class ClosestCache {
   double radius_ = -1;  // R; < 0: no list
   double motion_ = 0;   // surface_motion when the list was made
   size_t triangle_count_ = 0;
-  uint64_t hits_ = 0, misses_ = 0;
+  uint64_t hits_ = 0, misses_ = 0, examined_ = 0;
 };
 
 // Closest point on triangle abc to p, as barycentric weights (Ericson §5.1.5).

@@ -213,6 +213,46 @@ TEST(ClosestCacheTest, TheKeptListAnswersAsTheTreeDoesOverAMovingSurface) {
   EXPECT_GT(cache.hits(), 2000u) << "the list answered " << cache.hits() << " of 3000";
 }
 
+// The list is nearest first, so an answer measures only the faces that could be nearer than its
+// best so far: a tip resting 4 mm under the surface measures the face under it (and its equals),
+// not the dozens listed around it; a tip that then walks 1 mm measures more, still not all, and
+// answers as the tree does throughout.
+TEST(ClosestCacheTest, AnAnswerMeasuresOnlyTheListedFacesThatCouldBeNearer) {
+  TriMesh m = MakeLimb(WithResolution(ForearmPreset(), 1500))->surface;
+  Bvh bvh(m);
+  ClosestCache cache(1e-3);  // faces within the answer's distance + 2 mm are listed
+  const int t0 = m.TriangleCount() / 3;
+  const auto& tri = m.triangles[t0];
+  const Vec3 under = (m.positions[tri[0]] + m.positions[tri[1]] + m.positions[tri[2]]) / 3.0 -
+                     0.004 * TriangleNormal(m, t0);
+  const ClosestHit first = cache.Closest(bvh, m.positions, 0.0, under, 0.02);
+  ASSERT_GE(first.triangle, 0);
+  ASSERT_EQ(cache.misses(), 1u);
+  const size_t listed = cache.listed();
+  ASSERT_GE(listed, 8u) << "a list this short tests nothing";
+  for (int k = 0; k < 100; ++k) {
+    const ClosestHit again = cache.Closest(bvh, m.positions, 0.0, under, 0.02);
+    ASSERT_EQ(again.distance, first.distance);
+  }
+  ASSERT_EQ(cache.hits(), 100u);
+  EXPECT_LE(cache.examined(), 100u * 3) << "of " << listed << " listed";
+  // Walking 1 mm across the face (10 µm a call): the bound loosens as the tip leaves the list's
+  // centre, so more is measured, but never more than listed, and the answers stay the tree's.
+  const Vec3 across = TriangleNormal(m, t0).unitOrthogonal();
+  const uint64_t examined_resting = cache.examined(), hits_resting = cache.hits();
+  for (int k = 1; k <= 100; ++k) {
+    const Vec3 p = under + 1e-5 * k * across;
+    EXPECT_NEAR(cache.Closest(bvh, m.positions, 0.0, p, 0.02).distance,
+                bvh.Closest(m.positions, p, 0.02).distance, 1e-12)
+        << k;
+  }
+  const uint64_t walked = cache.hits() - hits_resting;
+  ASSERT_GT(walked, 50u);
+  const double per_answer =
+      static_cast<double>(cache.examined() - examined_resting) / static_cast<double>(walked);
+  EXPECT_LT(per_answer, static_cast<double>(listed));
+}
+
 // The reported motion is what lets a face from off the list in: a face pushed towards the point
 // by more than the margin is found when the motion says it moved (and with an unknown motion the
 // tree answers every call).
