@@ -15,6 +15,7 @@
 #include <cstring>
 #include <functional>
 #include <future>
+#include <limits>
 #include <unordered_map>
 
 #include "common/core/realtime.h"
@@ -133,6 +134,7 @@ struct UdpEndpoint::Impl {
     std::array<udp::endpoint, kBatch> out_to;
     std::array<iovec, kBatch> out_iov{};
     std::array<mmsghdr, kBatch> out_headers{};
+    std::array<int64_t, kBatch> out_arrival_ns{};  // each answer's datagram's arrival stamp
     int out_count = 0;
     wire::Codec codec;
     wire::StylusMessage stylus;
@@ -143,6 +145,8 @@ struct UdpEndpoint::Impl {
     std::atomic<bool> has_pending{false};
 
     std::atomic<uint64_t> received{0}, answered{0}, busy_polls{0}, busy_polled{0};
+    std::array<std::atomic<uint64_t>, EndpointCounters::kResidenceBounds.size() + 1> residence{};
+    std::atomic<int64_t> residence_ns{0};
     // Busy polling (EndpointOptions::busy_poll_us): on while the last tick's datagrams came at
     // least one per window; set at each housekeeping tick.
     bool poll = false;
@@ -184,7 +188,7 @@ struct UdpEndpoint::Impl {
     }
 
     void Loop();
-    void Handle(int slot, size_t n, int64_t age_ns);
+    void Handle(int slot, size_t n, int64_t arrival_ns, int64_t age_ns);
     void Flush();
     void CheckTimeouts();
   };
@@ -272,7 +276,8 @@ void UdpEndpoint::Impl::Lane::Loop() {
     for (int i = 0; i < n; ++i) {
       senders[i].resize(headers[i].msg_hdr.msg_namelen);
       if (senders[i] == owner->waker_address) continue;  // a wake-up, not traffic
-      Handle(i, headers[i].msg_len, read_ns - ArrivalNs(headers[i].msg_hdr, read_ns));
+      const int64_t arrival_ns = ArrivalNs(headers[i].msg_hdr, read_ns);
+      Handle(i, headers[i].msg_len, arrival_ns, read_ns - arrival_ns);
     }
     Flush();
     const auto now = std::chrono::steady_clock::now();
@@ -296,9 +301,9 @@ void UdpEndpoint::Impl::Lane::Loop() {
   RunPending();  // whoever waits on a queued call is not left waiting
 }
 
-// `age_ns`: how long the datagram waited in the receive queue (negative when the wall clock was
-// stepped back meanwhile: taken as fresh).
-void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t age_ns) {
+// `arrival_ns`: the datagram's arrival stamp (CLOCK_REALTIME); `age_ns`: how long it waited in
+// the receive queue (negative when the wall clock was stepped back meanwhile: taken as fresh).
+void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int64_t age_ns) {
   const EndpointOptions& options = owner->options;
   received.fetch_add(1, std::memory_order_relaxed);
   const std::span<const uint8_t> d(rx[slot].data(), n);
@@ -368,6 +373,7 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t age_ns) {
   if (size == 0) return;
   out_iov[out_count] = {out_data[out_count].data(), size};
   out_to[out_count] = sender;
+  out_arrival_ns[out_count] = arrival_ns;
   ++out_count;  // one answer per received datagram: at most kBatch
 }
 
@@ -392,6 +398,23 @@ void UdpEndpoint::Impl::Lane::Flush() {
     }
     answered.fetch_add(static_cast<uint64_t>(n), std::memory_order_relaxed);
     sent += n;
+  }
+  // The batch's residences, by the clock the arrival stamps are on (one reading for the batch).
+  if (out_count > 0) {
+    timespec wall{};
+    clock_gettime(CLOCK_REALTIME, &wall);
+    const int64_t now_ns = static_cast<int64_t>(wall.tv_sec) * 1'000'000'000 + wall.tv_nsec;
+    int64_t total = 0;
+    for (int i = 0; i < out_count; ++i) {
+      const int64_t ns = std::max<int64_t>(0, now_ns - out_arrival_ns[i]);  // a stepped clock: 0
+      total += ns;
+      const double s = 1e-9 * static_cast<double>(ns);
+      const auto& bounds = EndpointCounters::kResidenceBounds;
+      const size_t b =
+          static_cast<size_t>(std::lower_bound(bounds.begin(), bounds.end(), s) - bounds.begin());
+      residence[b].fetch_add(1, std::memory_order_relaxed);
+    }
+    residence_ns.fetch_add(total, std::memory_order_relaxed);
   }
   out_count = 0;
 }
@@ -594,6 +617,9 @@ EndpointCounters UdpEndpoint::counters() const {
     c.busy_polls += l.busy_polls;
     c.busy_polled += l.busy_polled;
     for (size_t r = 0; r < c.dropped.size(); ++r) c.dropped[r] += l.dropped[r];
+    for (size_t b = 0; b < c.residence_buckets.size(); ++b)
+      c.residence_buckets[b] += l.residence_buckets[b];
+    c.residence_seconds += l.residence_seconds;
   }
   c.frames = impl_->visual ? impl_->visual->frames() : 0;
   c.frame_chunks = impl_->visual ? impl_->visual->chunks() : 0;
@@ -608,7 +634,23 @@ EndpointCounters UdpEndpoint::counters(int lane) const {
   c.busy_polls = l.busy_polls.load();
   c.busy_polled = l.busy_polled.load();
   for (size_t i = 0; i < c.dropped.size(); ++i) c.dropped[i] = l.dropped[i].load();
+  for (size_t b = 0; b < c.residence_buckets.size(); ++b)
+    c.residence_buckets[b] = l.residence[b].load();
+  c.residence_seconds = 1e-9 * static_cast<double>(l.residence_ns.load());
   return c;
+}
+
+double EndpointCounters::ResidenceQuantile(double q) const {
+  uint64_t total = 0;
+  for (uint64_t n : residence_buckets) total += n;
+  if (total == 0) return 0;
+  const double want = q * static_cast<double>(total);
+  uint64_t below = 0;
+  for (size_t b = 0; b < kResidenceBounds.size(); ++b) {
+    below += residence_buckets[b];
+    if (static_cast<double>(below) >= want) return kResidenceBounds[b];
+  }
+  return std::numeric_limits<double>::infinity();
 }
 
 int UdpEndpoint::receive_buffer_bytes() const {

@@ -109,6 +109,18 @@ struct EndpointCounters {
   uint64_t busy_polled = 0;   // of which found datagrams (the rest ended in a sleep)
   std::array<uint64_t, static_cast<size_t>(wire::DropReason::kCount)> dropped{};
   uint64_t Dropped(wire::DropReason r) const { return dropped[static_cast<size_t>(r)]; }
+  // Each answer's residence: from the stylus datagram's arrival (the kernel's stamp) to its
+  // answer's send returning, the node's own share of the round trip (its queue, the physics and
+  // the send). Bucket b holds the answers at most kResidenceBounds[b] and above the bound before
+  // it; the last, above all.
+  static constexpr std::array<double, 14> kResidenceBounds{10e-6,  20e-6,  35e-6,  50e-6,  75e-6,
+                                                           100e-6, 150e-6, 250e-6, 500e-6, 1e-3,
+                                                           2e-3,   5e-3,   10e-3,  20e-3};
+  std::array<uint64_t, kResidenceBounds.size() + 1> residence_buckets{};
+  double residence_seconds = 0;  // their sum
+  // The residence below which a fraction q of the answers fell, as the bucket's upper bound
+  // (+inf in the last); 0 with no answers.
+  double ResidenceQuantile(double q) const;
 };
 
 // A session's link figures for the control plane's telemetry. Owned by the caller of AddSession,

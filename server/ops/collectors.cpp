@@ -22,6 +22,13 @@ void CollectEndpoint(const EndpointCounters& c, MetricsText& m) {
            "Receives that found datagrams while the I/O thread polled instead of sleeping "
            "(--busy-poll-us).");
   m.Sample("vsurg_udp_busy_polled_receives_total", {}, static_cast<double>(c.busy_polled));
+  const auto& b = EndpointCounters::kResidenceBounds;
+  m.HistogramCounts("vsurg_udp_residence_seconds",
+                    "Each force answer's time on the node: from its stylus datagram's arrival to "
+                    "the answer's send (the node's share of the stations' round trip).",
+                    {}, std::vector<double>(b.begin(), b.end()),
+                    std::vector<uint64_t>(c.residence_buckets.begin(), c.residence_buckets.end()),
+                    c.residence_seconds);
   m.Family("vsurg_visual_frames_sent_total", "counter", "Scene frames sent to stations.");
   m.Sample("vsurg_visual_frames_sent_total", {}, static_cast<double>(c.frames));
 }

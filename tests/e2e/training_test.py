@@ -215,9 +215,13 @@ def main():
             time.sleep(0.2)
             live = scrape()
         check(live["vsurg_stations_driving"][()] >= 1 and live["vsurg_station_rtt_seconds_count"][()] >= 1
-              and live["vsurg_udp_forces_sent_total"][()] > before["vsurg_udp_forces_sent_total"][()],
+              and live["vsurg_udp_forces_sent_total"][()] > before["vsurg_udp_forces_sent_total"][()]
+              and live["vsurg_udp_residence_seconds_count"][()] > before["vsurg_udp_residence_seconds_count"][()]
+              and live["vsurg_udp_residence_seconds_sum"][()] > before["vsurg_udp_residence_seconds_sum"][()],
               f"the metrics move while stations run ({live['vsurg_stations_driving'][()]:.0f} driving, forces "
-              f"{before['vsurg_udp_forces_sent_total'][()]:.0f} -> {live['vsurg_udp_forces_sent_total'][()]:.0f})")
+              f"{before['vsurg_udp_forces_sent_total'][()]:.0f} -> {live['vsurg_udp_forces_sent_total'][()]:.0f}, "
+              f"answers timed on the node {before['vsurg_udp_residence_seconds_count'][()]:.0f} -> "
+              f"{live['vsurg_udp_residence_seconds_count'][()]:.0f})")
         # The Grafana dashboard is built from these metrics: every series it asks for exists.
         grafana = json.load(open(os.path.join(os.path.dirname(__file__), "../../deploy/grafana/vsurg.json")))
         # (The "Site:" panels read the control and sim roles' series: deploy/cluster_flow.sh checks those.)

@@ -84,9 +84,12 @@ struct Fixture {
 TEST(UdpEndpointTest, AnswersEachStylusDatagramWithAnAuthenticatedForce) {
   Fixture f;
   RawClient c(f.endpoint->port());
+  double round_trips_s = 0;  // the client's, summed
   for (uint64_t seq = 1; seq <= 20; ++seq) {
+    const auto sent = std::chrono::steady_clock::now();
     c.Send(c.Stylus(7, seq, Key(1)));
     auto reply = c.Receive(1000);
+    round_trips_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
     ASSERT_TRUE(reply.has_value()) << seq;
     wire::Opened o;
     const wire::Authenticator auth(Key(1));
@@ -105,6 +108,18 @@ TEST(UdpEndpointTest, AnswersEachStylusDatagramWithAnAuthenticatedForce) {
   const EndpointCounters n = f.endpoint->counters();
   EXPECT_EQ(n.received, 20u);
   EXPECT_EQ(n.answered, 20u);
+  // Each answer's time on the node is in the residence histogram: 20 of them, each a part of the
+  // client's round trip (the node stops its clock when the send returns, which on loopback may
+  // be a little after the client has the answer: 1 ms of slack in all).
+  uint64_t counted = 0;
+  for (uint64_t b : n.residence_buckets) counted += b;
+  EXPECT_EQ(counted, 20u);
+  EXPECT_GT(n.residence_seconds, 0.0);
+  EXPECT_LE(n.residence_seconds, round_trips_s + 1e-3);
+  // The quantiles are bucket bounds, in order, the largest at least the mean.
+  EXPECT_LE(n.ResidenceQuantile(0.5), n.ResidenceQuantile(0.99));
+  EXPECT_GE(n.ResidenceQuantile(1.0), n.residence_seconds / 20);
+  EXPECT_EQ(EndpointCounters{}.ResidenceQuantile(0.99), 0.0);
 }
 
 // A server that was frozen (SIGSTOP, a paused VM) or starved finds its receive queue full of
