@@ -5,7 +5,9 @@
 //     N simulated stations at 1 kHz against a real UDP endpoint on loopback, each with its own
 //     session and simulation (deformation thread included); prints rtt_p50_us, rtt_p99_us,
 //     rtt_p999_us, loss and server_cpu_per_station (the endpoint I/O thread's CPU time per
-//     station, as a fraction of one core).
+//     station, as a fraction of one core), and with --json the node's share of the round trip
+//     (server_residence_*: each answer's time from its datagram's arrival to its send).
+//     --stations-per-socket K: the driver's stations share sockets, K to a batch (both commands).
 //
 //   vsurg-bench udp-floor --stations N --seconds S [--realtime-priority P] [--busy-poll-us U]
 //                         [--json]
@@ -42,6 +44,7 @@
 #include <numbers>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -72,21 +75,22 @@ using vsurg::cli::ArgParser;
 using Clock = std::chrono::steady_clock;
 
 struct Station {
-  udp::socket socket;
-  udp::endpoint from;
-  std::array<uint8_t, 2048> rx{};
   vsurg::wire::Authenticator auth;
   uint64_t session;
   uint64_t sequence = 0;
   uint64_t first_measured = UINT64_MAX;  // the first sequence number sent in the measured window
-  Station(asio::io_context& io, uint64_t id, const vsurg::wire::SessionKey& key)
-      : socket(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)), auth(key), session(id) {}
+  Station(uint64_t id, const vsurg::wire::SessionKey& key) : auth(key), session(id) {}
 };
 
 // --period-ms of haptic-rtt and udp-floor (the same stations in both).
 constexpr const char* kPeriodHelp =
     "each station sends every this many milliseconds (1: a 1 kHz station; 20: about what the "
     "perceptual deadband sends)";
+
+// --stations-per-socket of haptic-rtt and udp-floor.
+constexpr const char* kPerSocketHelp =
+    "stations that share one of the driver's sockets and go out as one batch (1: a socket per "
+    "station, as separate machines; more: a driver that spends less of the two cores)";
 
 // Station i's session key, the same in haptic-rtt and udp-floor (sessions 1000 + i).
 vsurg::wire::SessionKey BenchKey(int i) {
@@ -128,6 +132,19 @@ struct RttRun {
   }
 };
 
+// The stations' sockets: station k sends and receives on socket k mod S, each socket read and
+// written a batch at a time (recvmmsg, sendmmsg). With `per_socket` 1 every station has its own
+// socket (S = the stations), as separate machines would; with more, S is a multiple of the
+// pacer's slots, so a socket's stations all fall in one slot and go out as one batch. The server
+// sees the same datagrams either way; only their source ports are fewer. This is the driver's
+// cost, not the server's: on two cores a driver that spends a core on per-datagram system calls
+// leaves the server (and the floor's echo) less than the stations in a lab would.
+int StationSockets(int n, int per_socket, int slots) {
+  if (per_socket <= 1) return n;
+  const int groups = (n + per_socket * slots - 1) / (per_socket * slots);
+  return std::min(n, groups * slots);
+}
+
 // The stations' side of haptic-rtt and udp-floor, the same for both: each station sends an
 // authenticated stylus datagram every millisecond (stamped with the send time, which the answer
 // echoes), spread over the millisecond in 8 slots of 125 µs as independent stations would be
@@ -137,11 +154,23 @@ struct RttRun {
 // `outward` of `rest` during the warm-up. With `stroke` > 0 (m) each station's stylus then circles
 // `rest` at that radius once a second, across `outward` (a hand palpating; the stations' phases
 // spread), instead of resting. Answers are opened and decoded; the round trip of each is kept.
+// `per_socket`: stations sharing a socket (StationSockets).
 RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>& stations,
                      const udp::endpoint& server, const Eigen::Vector3d& rest,
                      const Eigen::Vector3d& outward, double seconds, Answer answer,
-                     int period_ms = 1, double stroke = 0, double twist = 0) {
+                     int period_ms = 1, double stroke = 0, double twist = 0, int per_socket = 1) {
   const int n = static_cast<int>(stations.size());
+  constexpr int kSlotsPerMs = 8;
+  const int slots = kSlotsPerMs * period_ms;
+  const int socket_count = StationSockets(n, per_socket, slots);
+  std::vector<std::unique_ptr<udp::socket>> sockets;
+  for (int i = 0; i < socket_count; ++i) {
+    sockets.push_back(
+        std::make_unique<udp::socket>(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)));
+    sockets.back()->non_blocking(true);
+  }
+  std::unordered_map<uint64_t, Station*> by_session;
+  for (auto& st : stations) by_session[st->session] = st.get();
   const Clock::time_point start = Clock::now();
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   RttRun run;
@@ -149,37 +178,63 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   vsurg::wire::Codec codec;
   vsurg::wire::ForceMessage reply;
   vsurg::wire::StylusMessage echoed;
-  std::function<void(Station&)> receive = [&](Station& st) {
-    st.socket.async_receive_from(asio::buffer(st.rx), st.from, [&, sp = &st](auto ec, size_t len) {
+  constexpr int kBatch = 16;
+  std::vector<std::array<uint8_t, 2048>> rx(kBatch);
+  std::array<iovec, kBatch> rx_iov{};
+  std::array<mmsghdr, kBatch> rx_msgs{};
+  auto take = [&](std::span<const uint8_t> datagram) {
+    vsurg::wire::Header h;
+    if (vsurg::wire::PeekHeader(datagram, h) != vsurg::wire::DropReason::kNone) return;
+    const auto it = by_session.find(h.session);
+    if (it == by_session.end()) return;
+    Station& st = *it->second;
+    vsurg::wire::Opened o;
+    double echo_time = -1;
+    uint64_t echo_sequence = 0;
+    if (vsurg::wire::Open(datagram, &st.auth, o) == vsurg::wire::DropReason::kNone) {
+      if (answer == Answer::kForce &&
+          codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone)
+        echo_time = reply.echo_time, echo_sequence = reply.echo_sequence;
+      if (answer == Answer::kEcho &&
+          codec.DecodeStylus(o.payload, echoed) == vsurg::wire::DropReason::kNone)
+        echo_time = echoed.sample.time, echo_sequence = o.header.sequence;
+    }
+    if (echo_time >= 0 && echo_sequence >= st.first_measured) {
+      ++run.received;
+      run.rtt_us.push_back((now_s() - echo_time) * 1e6);
+    }
+  };
+  std::function<void(udp::socket&)> receive = [&](udp::socket& socket) {
+    socket.async_wait(udp::socket::wait_read, [&, sp = &socket](auto ec) {
       if (ec) return;
-      vsurg::wire::Opened o;
-      double echo_time = -1;
-      uint64_t echo_sequence = 0;
-      if (vsurg::wire::Open(std::span<const uint8_t>(sp->rx.data(), len), &sp->auth, o) ==
-          vsurg::wire::DropReason::kNone) {
-        if (answer == Answer::kForce &&
-            codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone)
-          echo_time = reply.echo_time, echo_sequence = reply.echo_sequence;
-        if (answer == Answer::kEcho &&
-            codec.DecodeStylus(o.payload, echoed) == vsurg::wire::DropReason::kNone)
-          echo_time = echoed.sample.time, echo_sequence = o.header.sequence;
-      }
-      if (echo_time >= 0 && echo_sequence >= sp->first_measured) {
-        ++run.received;
-        run.rtt_us.push_back((now_s() - echo_time) * 1e6);
+      for (;;) {
+        for (int i = 0; i < kBatch; ++i) {
+          rx_iov[i] = {rx[i].data(), rx[i].size()};
+          rx_msgs[i] = {};
+          rx_msgs[i].msg_hdr.msg_iov = &rx_iov[i];
+          rx_msgs[i].msg_hdr.msg_iovlen = 1;
+        }
+        const int got =
+            ::recvmmsg(sp->native_handle(), rx_msgs.data(), kBatch, MSG_DONTWAIT, nullptr);
+        if (got <= 0) break;
+        for (int i = 0; i < got; ++i) take({rx[i].data(), rx_msgs[i].msg_len});
+        if (got < kBatch) break;
       }
       receive(*sp);
     });
   };
-  for (auto& st : stations) receive(*st);
+  for (auto& socket : sockets) receive(*socket);
   vsurg::wire::StylusMessage m;
   m.sample.position = rest;
-  std::array<uint8_t, vsurg::wire::kMaxDatagram> tx{};
+  const int max_batch = (n + socket_count - 1) / socket_count;
+  std::vector<std::array<uint8_t, vsurg::wire::kMaxDatagram>> tx(static_cast<size_t>(max_batch));
+  std::vector<iovec> tx_iov(static_cast<size_t>(max_batch));
+  std::vector<mmsghdr> tx_msgs(static_cast<size_t>(max_batch));
+  const auto to = server.data();
+  const auto to_len = static_cast<socklen_t>(server.size());
   asio::steady_timer timer(io);
   Clock::time_point next = Clock::now();
   const double total = kWarmupS + seconds;
-  constexpr int kSlotsPerMs = 8;
-  const int slots = kSlotsPerMs * period_ms;
   int slot = 0;
   // The measured window holds the datagrams *scheduled* in [warm-up, end): a pacer running late
   // on a loaded machine catches up (at most 20 ms, as a station does) without adding any, and
@@ -189,39 +244,53 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     if (t > total + 0.05) return io.stop();
     const double scheduled = std::chrono::duration<double>(next - start).count();
     if (scheduled < total) {
-      for (int k = slot; k < n; k += slots) {
-        Station& st = *stations[k];
-        vsurg::wire::StylusMessage msg = m;
-        msg.sample.time = now_s();
-        msg.sample.position += (1.0 - std::min(1.0, t / 0.2)) * 0.02 * outward;
-        if (stroke > 0) {
-          const double a = 2 * std::numbers::pi * (t + static_cast<double>(k) / n);
-          const Eigen::Vector3d e1 = outward.unitOrthogonal(), e2 = outward.cross(e1);
-          msg.sample.position += stroke * (std::cos(a) * e1 + std::sin(a) * e2);
+      // This slot's stations, socket by socket (a socket's stations share a slot).
+      for (int s = slot % socket_count; s < socket_count && s < n; s += slots) {
+        int batch = 0;
+        for (int k = s; k < n; k += socket_count) {
+          if (k % slots != slot) continue;
+          Station& st = *stations[k];
+          vsurg::wire::StylusMessage msg = m;
+          msg.sample.time = now_s();
+          msg.sample.position += (1.0 - std::min(1.0, t / 0.2)) * 0.02 * outward;
+          if (stroke > 0) {
+            const double a = 2 * std::numbers::pi * (t + static_cast<double>(k) / n);
+            const Eigen::Vector3d e1 = outward.unitOrthogonal(), e2 = outward.cross(e1);
+            msg.sample.position += stroke * (std::cos(a) * e1 + std::sin(a) * e2);
+          }
+          if (twist > 0 && t >= kTwistGraspS) {
+            // Grasped once in contact; then a turn about the limb's axis (z through the origin),
+            // there and back every 2 s, the hand on the arc. The stations' phases differ, so each
+            // grasps with its stylus already turned by its own phase (the grasp's zero) and turns
+            // from there: their updates do not all fall due at once.
+            const double a = twist * std::sin(std::numbers::pi * (t - kTwistGraspS) +
+                                              2 * std::numbers::pi * static_cast<double>(k) / n);
+            const Eigen::AngleAxisd turn(a, Eigen::Vector3d::UnitZ());
+            msg.sample.buttons = vsurg::haptics::kButtonGrasp;
+            msg.sample.position = turn * msg.sample.position;
+            msg.sample.orientation = Eigen::Quaterniond(turn);
+          }
+          const auto b = static_cast<size_t>(batch);
+          const size_t size = codec.EncodeStylus(
+              msg,
+              {vsurg::wire::kProtocolVersion, vsurg::wire::PayloadType::kStylusState, st.session,
+               ++st.sequence},
+              st.auth, tx[b]);
+          tx_iov[b] = {tx[b].data(), size};
+          tx_msgs[b] = {};
+          tx_msgs[b].msg_hdr.msg_name = const_cast<sockaddr*>(to);
+          tx_msgs[b].msg_hdr.msg_namelen = to_len;
+          tx_msgs[b].msg_hdr.msg_iov = &tx_iov[b];
+          tx_msgs[b].msg_hdr.msg_iovlen = 1;
+          ++batch;
+          if (scheduled >= kWarmupS) {
+            if (st.first_measured == UINT64_MAX) st.first_measured = st.sequence;
+            ++run.sent;  // counted as sent even if the socket refuses it: a loss
+          }
         }
-        if (twist > 0 && t >= kTwistGraspS) {
-          // Grasped once in contact; then a turn about the limb's axis (z through the origin),
-          // there and back every 2 s, the hand on the arc. The stations' phases differ, so each
-          // grasps with its stylus already turned by its own phase (the grasp's zero) and turns
-          // from there: their updates do not all fall due at once.
-          const double a = twist * std::sin(std::numbers::pi * (t - kTwistGraspS) +
-                                            2 * std::numbers::pi * static_cast<double>(k) / n);
-          const Eigen::AngleAxisd turn(a, Eigen::Vector3d::UnitZ());
-          msg.sample.buttons = vsurg::haptics::kButtonGrasp;
-          msg.sample.position = turn * msg.sample.position;
-          msg.sample.orientation = Eigen::Quaterniond(turn);
-        }
-        const size_t size =
-            codec.EncodeStylus(msg,
-                               {vsurg::wire::kProtocolVersion,
-                                vsurg::wire::PayloadType::kStylusState, st.session, ++st.sequence},
-                               st.auth, tx);
-        boost::system::error_code ec;
-        st.socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
-        if (scheduled >= kWarmupS && !ec) {
-          if (st.first_measured == UINT64_MAX) st.first_measured = st.sequence;
-          ++run.sent;
-        }
+        if (batch > 0)
+          ::sendmmsg(sockets[static_cast<size_t>(s)]->native_handle(), tx_msgs.data(),
+                     static_cast<unsigned>(batch), MSG_DONTWAIT);
       }
     }
     slot = (slot + 1) % slots;
@@ -373,6 +442,7 @@ int HapticRtt(const std::vector<std::string>& args) {
               "come at least once per window (vsurg-server's --busy-poll-us; 0: never)",
               false, "0")
       .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
+      .Option("stations-per-socket", ArgParser::Kind::kInt, kPerSocketHelp, false, "1")
       .Option("stroke-mm", ArgParser::Kind::kDouble,
               "after the warm-up each stylus circles its resting point at this radius once a "
               "second (0: it rests)",
@@ -441,6 +511,9 @@ int HapticRtt(const std::vector<std::string>& args) {
   const int period_ms = static_cast<int>(p.Int("period-ms"));
   if (period_ms < 1 || period_ms > 100)
     return std::cerr << p.command() << ": --period-ms: must be in 1..100\n", 2;
+  const int per_socket = p.Int("stations-per-socket");
+  if (per_socket < 1 || per_socket > 64)
+    return std::cerr << p.command() << ": --stations-per-socket: must be in 1..64\n", 2;
   const int priority = p.Int("realtime-priority");
   if (priority < 0 || priority > 99)
     return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
@@ -467,7 +540,7 @@ int HapticRtt(const std::vector<std::string>& args) {
     if (!made.ok()) return std::cerr << made.error().message << "\n", 1;
     stack = std::move(made).value();
     for (int i = 0; i < n; ++i)
-      stations.push_back(std::make_unique<Station>(io, stack->ids[i], stack->keys[i]));
+      stations.push_back(std::make_unique<Station>(stack->ids[i], stack->keys[i]));
     stack->Follow(dashboard_clients);
   }
   for (int i = 0; i < n && !stack; ++i) {
@@ -482,7 +555,7 @@ int HapticRtt(const std::vector<std::string>& args) {
     if (!sim.ok()) return std::cerr << sim.error().message << "\n", 1;
     sims.push_back(std::move(*sim));
     (*endpoint)->AddSession(1000 + i, key, sims.back().get());
-    stations.push_back(std::make_unique<Station>(io, 1000 + i, key));
+    stations.push_back(std::make_unique<Station>(1000 + i, key));
   }
   const udp::endpoint server(asio::ip::make_address("127.0.0.1"), (*endpoint)->port());
   // The stylus rests 3 mm inside the limb's side (or the sphere's top): every answer runs the
@@ -514,14 +587,25 @@ int HapticRtt(const std::vector<std::string>& args) {
     for (const auto& sim : sims) d += sim->deformation_updates();
     return d;
   };
+  const vsurg::server::EndpointCounters counters0 = (*endpoint)->counters();
   const double process0 = process_cpu(), own0 = thread_cpu();
   const uint64_t deformations0 = deformations();
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
-  RttRun run = DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce,
-                             period_ms, stroke_mm * 1e-3, twist_deg * std::numbers::pi / 180);
+  RttRun run =
+      DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce, period_ms,
+                    stroke_mm * 1e-3, twist_deg * std::numbers::pi / 180, per_socket);
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
   const double server_cpu = (process_cpu() - process0) - (thread_cpu() - own0);
   const uint64_t deformed = deformations() - deformations0;
+  // The answers' time on the node over the run (warm-up included), from the endpoint's histogram:
+  // its quantiles are bucket bounds (EndpointCounters::kResidenceBounds).
+  vsurg::server::EndpointCounters residence = (*endpoint)->counters();
+  uint64_t timed = 0;
+  for (size_t b = 0; b < residence.residence_buckets.size(); ++b) {
+    residence.residence_buckets[b] -= counters0.residence_buckets[b];
+    timed += residence.residence_buckets[b];
+  }
+  residence.residence_seconds -= counters0.residence_seconds;
   uint64_t dashboard_bytes = 0, dashboard_events = 0;
   if (stack) {
     dashboard_bytes = stack->bytes.load();
@@ -537,6 +621,10 @@ int HapticRtt(const std::vector<std::string>& args) {
   // Bare sessions only (with --dashboard-clients the session manager holds them): -1 there.
   j["deformations_per_station_s"] =
       sims.empty() ? -1.0 : static_cast<double>(deformed) / (kWarmupS + seconds) / n;
+  j["server_residence_mean_us"] =
+      timed ? 1e6 * residence.residence_seconds / static_cast<double>(timed) : 0.0;
+  j["server_residence_p50_le_us"] = 1e6 * residence.ResidenceQuantile(0.5);
+  j["server_residence_p99_le_us"] = 1e6 * residence.ResidenceQuantile(0.99);
   j["twist_deg"] = twist_deg;
   j["visual_hz"] = p.Double("visual-hz");
   j["quasi_static_interval_ms"] = interval_ms;
@@ -549,6 +637,8 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["busy_poll_us"] = p.Int("busy-poll-us");
   j["busy_polled_receives"] = (*endpoint)->counters().busy_polled;
   j["period_ms"] = period_ms;
+  j["stations_per_socket"] = per_socket;
+  j["station_sockets"] = StationSockets(n, per_socket, 8 * period_ms);
   j["stroke_mm"] = stroke_mm;
   j["kept_face_lists"] = kept_face_lists;
   j["dashboard_bytes"] = dashboard_bytes;
@@ -664,6 +754,7 @@ int UdpFloor(const std::vector<std::string>& args) {
               "permitted (as haptic-rtt's)",
               false, "0")
       .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
+      .Option("stations-per-socket", ArgParser::Kind::kInt, kPerSocketHelp, false, "1")
       .Option("busy-poll-us", ArgParser::Kind::kInt,
               "the echo polls this long before it blocks, by haptic-rtt's rule (0: the plain "
               "blocking echo, the floor)",
@@ -681,6 +772,9 @@ int UdpFloor(const std::vector<std::string>& args) {
   const int period_ms = static_cast<int>(p.Int("period-ms"));
   if (period_ms < 1 || period_ms > 100)
     return std::cerr << p.command() << ": --period-ms: must be in 1..100\n", 2;
+  const int per_socket = p.Int("stations-per-socket");
+  if (per_socket < 1 || per_socket > 64)
+    return std::cerr << p.command() << ": --stations-per-socket: must be in 1..64\n", 2;
   const int priority = p.Int("realtime-priority");
   if (priority < 0 || priority > 99)
     return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
@@ -688,17 +782,19 @@ int UdpFloor(const std::vector<std::string>& args) {
   if (!echo.ok()) return std::cerr << p.command() << ": " << echo.error().message << "\n", 1;
   asio::io_context io;
   std::vector<std::unique_ptr<Station>> stations;
-  for (int i = 0; i < n; ++i)
-    stations.push_back(std::make_unique<Station>(io, 1000 + i, BenchKey(i)));
+  for (int i = 0; i < n; ++i) stations.push_back(std::make_unique<Station>(1000 + i, BenchKey(i)));
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
   const RttRun run = DriveStations(
       io, stations, udp::endpoint(asio::ip::make_address("127.0.0.1"), (*echo)->port()),
-      Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), seconds, Answer::kEcho, period_ms);
+      Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), seconds, Answer::kEcho, period_ms, 0, 0,
+      per_socket);
   (*echo)->Stop();
   nlohmann::json j = run.Summary(n, seconds);
   j["server"] = "udp-echo";
   j["busy_poll_us"] = p.Int("busy-poll-us");
   j["period_ms"] = period_ms;
+  j["stations_per_socket"] = per_socket;
+  j["station_sockets"] = StationSockets(n, per_socket, 8 * period_ms);
   j["server_cpu_per_station"] = (*echo)->cpu_seconds() / (kWarmupS + seconds) / n;
   j["realtime_priority"] = realtime ? priority : 0;
   if (p.Flag("json")) {
