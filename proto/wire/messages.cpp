@@ -1,6 +1,7 @@
 #include "proto/wire/messages.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include "vsurg/v1/haptic.pb.h"
@@ -41,6 +42,15 @@ struct Codec::Impl {
     arena.Reset();
     return *google::protobuf::Arena::CreateMessage<Message>(&arena);
   }
+  // `m` serialized into `payload`, sized once: ByteSizeLong caches the packed fields' sizes and
+  // SerializeWithCachedSizesToArray uses them (SerializeToArray would size it all again). False
+  // when it does not fit.
+  bool Serialize(const google::protobuf::MessageLite& m, size_t& n) {
+    n = m.ByteSizeLong();
+    if (n > kMaxPayload) return false;
+    return static_cast<size_t>(m.SerializeWithCachedSizesToArray(payload.data()) -
+                               payload.data()) == n;
+  }
 };
 
 Codec::Codec() : impl_(std::make_unique<Impl>()) {}
@@ -63,8 +73,8 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
   s.set_rendered_peak_n(static_cast<float>(m.rendered_peak_n));
   s.set_rendered_over_limit_s(static_cast<float>(m.rendered_over_limit_s));
   s.set_jitter_us(static_cast<float>(m.jitter_us));
-  const size_t n = s.ByteSizeLong();
-  if (n > kMaxPayload || !s.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
+  size_t n = 0;
+  if (!impl_->Serialize(s, n)) return 0;
   Header header = h;
   header.type = PayloadType::kStylusState;
   return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
@@ -120,8 +130,8 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   f.set_score(static_cast<float>(c.score));
   f.set_released_j(c.released_j);
   f.set_absorbed_j(c.absorbed_j);
-  const size_t n = f.ByteSizeLong();
-  if (n > kMaxPayload || !f.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
+  size_t n = 0;
+  if (!impl_->Serialize(f, n)) return 0;
   Header header = h;
   header.type = PayloadType::kForceFeedback;
   return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
@@ -129,10 +139,8 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
 
 namespace {
 
-size_t VarintSize(uint64_t v) {
-  size_t n = 1;
-  while (v >= 0x80) v >>= 7, ++n;
-  return n;
+size_t VarintSize(uint64_t v) {  // 7 bits a byte: (significant bits + 6) / 7, at least 1
+  return static_cast<size_t>((64 - std::countl_zero(v | 1)) + 6) / 7;
 }
 uint64_t ZigZag(int64_t v) {
   return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63);
@@ -145,14 +153,22 @@ constexpr size_t kFrameOverhead = 48;  // frame id, chunk fields, two packed-fie
 
 size_t Codec::PlanSceneChunks(const SceneFrameView& f) {
   chunk_start_.clear();
+  quantized_.clear();
   if (f.indices.empty() || f.indices.size() != f.positions.size()) return 0;
+  quantized_.reserve(3 * f.positions.size());
   const size_t budget = kMaxPayload - kFrameOverhead;
   size_t used = budget + 1;
   for (size_t i = 0; i < f.indices.size(); ++i) {
     const Eigen::Vector3d& p = f.positions[i];
     if (!p.allFinite() || p.cwiseAbs().maxCoeff() > kMaxMetres || f.indices[i] < 0) return 0;
     size_t size = VarintSize(static_cast<uint64_t>(f.indices[i]));
-    for (int k = 0; k < 3; ++k) size += VarintSize(ZigZag(std::llround(p[k] * kMicro)));
+    for (int k = 0; k < 3; ++k) {
+      // To the nearest µm (ties to even: lrint is one instruction where llround is a call);
+      // each position quantised once, here, for the chunks' encoding too.
+      const auto um = static_cast<int32_t>(std::lrint(p[k] * kMicro));
+      quantized_.push_back(um);
+      size += VarintSize(ZigZag(um));
+    }
     if (used + size > budget) {
       chunk_start_.push_back(i);
       used = 0;
@@ -170,13 +186,14 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
   m.set_frame_id(f.frame_id);
   m.set_chunk_index(static_cast<uint32_t>(chunk));
   m.set_chunk_count(static_cast<uint32_t>(chunks));
-  for (size_t i = chunk_start_[chunk]; i < chunk_start_[chunk + 1]; ++i) {
-    m.add_indices(static_cast<uint32_t>(f.indices[i]));
-    for (int k = 0; k < 3; ++k)
-      m.add_positions_um(static_cast<int32_t>(std::llround(f.positions[i][k] * kMicro)));
-  }
-  const size_t n = m.ByteSizeLong();
-  if (n > kMaxPayload || !m.SerializeToArray(impl_->payload.data(), static_cast<int>(n))) return 0;
+  const size_t first = chunk_start_[chunk], last = chunk_start_[chunk + 1];
+  m.mutable_indices()->Reserve(static_cast<int>(last - first));
+  m.mutable_positions_um()->Reserve(static_cast<int>(3 * (last - first)));
+  for (size_t i = first; i < last; ++i) m.add_indices(static_cast<uint32_t>(f.indices[i]));
+  m.mutable_positions_um()->Add(quantized_.begin() + static_cast<std::ptrdiff_t>(3 * first),
+                                quantized_.begin() + static_cast<std::ptrdiff_t>(3 * last));
+  size_t n = 0;
+  if (!impl_->Serialize(m, n)) return 0;
   Header h = base;
   h.type = PayloadType::kSceneFrame;
   h.sequence = base.sequence + chunk;
