@@ -1,8 +1,10 @@
 #include "proto/wire/messages.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 
 #include "vsurg/v1/haptic.pb.h"
 
@@ -146,7 +148,9 @@ uint64_t ZigZag(int64_t v) {
   return (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63);
 }
 constexpr double kMicro = 1e6;
-constexpr double kMaxMetres = 2000.0;  // sint32 µm covers ±2147 m
+// A coordinate within ±1 km, so that a delta between two (±2·10⁹ µm) fits a sint32.
+constexpr double kMaxMetres = 1000.0;
+constexpr int64_t kMaxMicro = 1'000'000'000;
 constexpr size_t kFrameOverhead = 48;  // frame id, chunk fields, two packed-field headers
 
 }  // namespace
@@ -158,22 +162,34 @@ size_t Codec::PlanSceneChunks(const SceneFrameView& f) {
   quantized_.reserve(3 * f.positions.size());
   const size_t budget = kMaxPayload - kFrameOverhead;
   size_t used = budget + 1;
+  int64_t previous_index = 0;
+  std::array<int64_t, 3> previous{};
   for (size_t i = 0; i < f.indices.size(); ++i) {
     const Eigen::Vector3d& p = f.positions[i];
     if (!p.allFinite() || p.cwiseAbs().maxCoeff() > kMaxMetres || f.indices[i] < 0) return 0;
-    size_t size = VarintSize(static_cast<uint64_t>(f.indices[i]));
+    std::array<int64_t, 3> um{};
     for (int k = 0; k < 3; ++k) {
       // To the nearest µm (ties to even: lrint is one instruction where llround is a call);
       // each position quantised once, here, for the chunks' encoding too.
-      const auto um = static_cast<int32_t>(std::lrint(p[k] * kMicro));
-      quantized_.push_back(um);
-      size += VarintSize(ZigZag(um));
+      um[k] = std::lrint(p[k] * kMicro);
+      quantized_.push_back(static_cast<int32_t>(um[k]));
     }
+    // The vertex's size as a delta from the one before it in the chunk (from zero as a chunk's
+    // first).
+    const auto size_after = [&](int64_t index, const std::array<int64_t, 3>& at) {
+      size_t n = VarintSize(ZigZag(f.indices[i] - index));
+      for (int k = 0; k < 3; ++k) n += VarintSize(ZigZag(um[k] - at[k]));
+      return n;
+    };
+    size_t size = size_after(previous_index, previous);
     if (used + size > budget) {
       chunk_start_.push_back(i);
       used = 0;
+      size = size_after(0, {});
     }
     used += size;
+    previous_index = f.indices[i];
+    previous = um;
   }
   chunk_start_.push_back(f.indices.size());
   return chunk_start_.size() - 1;
@@ -187,11 +203,21 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
   m.set_chunk_index(static_cast<uint32_t>(chunk));
   m.set_chunk_count(static_cast<uint32_t>(chunks));
   const size_t first = chunk_start_[chunk], last = chunk_start_[chunk + 1];
-  m.mutable_indices()->Reserve(static_cast<int>(last - first));
-  m.mutable_positions_um()->Reserve(static_cast<int>(3 * (last - first)));
-  for (size_t i = first; i < last; ++i) m.add_indices(static_cast<uint32_t>(f.indices[i]));
-  m.mutable_positions_um()->Add(quantized_.begin() + static_cast<std::ptrdiff_t>(3 * first),
-                                quantized_.begin() + static_cast<std::ptrdiff_t>(3 * last));
+  auto& index_deltas = *m.mutable_index_deltas();
+  auto& position_deltas = *m.mutable_position_deltas_um();
+  index_deltas.Reserve(static_cast<int>(last - first));
+  position_deltas.Reserve(static_cast<int>(3 * (last - first)));
+  int32_t previous_index = 0;
+  std::array<int32_t, 3> previous{};
+  for (size_t i = first; i < last; ++i) {
+    index_deltas.AddAlreadyReserved(f.indices[i] - previous_index);
+    previous_index = f.indices[i];
+    for (size_t k = 0; k < 3; ++k) {
+      const int32_t um = quantized_[3 * i + k];  // |um| ≤ 10⁹: the delta fits
+      position_deltas.AddAlreadyReserved(um - previous[k]);
+      previous[k] = um;
+    }
+  }
   size_t n = 0;
   if (!impl_->Serialize(m, n)) return 0;
   Header h = base;
@@ -204,20 +230,36 @@ DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk&
   v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
   if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
     return DropReason::kBadPayload;
-  if (m.positions_um_size() != 3 * m.indices_size() || m.chunk_count() == 0 ||
+  const bool deltas = m.index_deltas_size() > 0 || m.position_deltas_um_size() > 0;
+  if (m.positions_um_size() != 3 * m.indices_size() ||
+      m.position_deltas_um_size() != 3 * m.index_deltas_size() ||
+      (deltas && m.indices_size() > 0) || m.chunk_count() == 0 ||
       m.chunk_index() >= m.chunk_count()) {
-    return DropReason::kBadPayload;
+    return DropReason::kBadPayload;  // one coding or the other, whole
   }
   out.frame_id = m.frame_id();
   out.chunk_index = m.chunk_index();
   out.chunk_count = m.chunk_count();
-  out.indices.resize(m.indices_size());
-  out.positions.resize(m.indices_size());
-  for (int i = 0; i < m.indices_size(); ++i) {
-    if (m.indices(i) > 0x7fffffffu) return DropReason::kBadPayload;
-    out.indices[i] = static_cast<int32_t>(m.indices(i));
-    out.positions[i] = Eigen::Vector3d(m.positions_um(3 * i), m.positions_um(3 * i + 1),
-                                       m.positions_um(3 * i + 2)) /
+  const int count = deltas ? m.index_deltas_size() : m.indices_size();
+  out.indices.resize(count);
+  out.positions.resize(count);
+  int64_t index = 0;
+  std::array<int64_t, 3> um{};
+  for (int i = 0; i < count; ++i) {
+    if (deltas) {
+      // Sums of at most 2²⁰ deltas of at most 2³¹ each: no int64 overflow, each checked.
+      index += m.index_deltas(i);
+      for (int k = 0; k < 3; ++k) um[k] += m.position_deltas_um(3 * i + k);
+      if (std::max({std::abs(um[0]), std::abs(um[1]), std::abs(um[2])}) > kMaxMicro)
+        return DropReason::kBadPayload;
+    } else {
+      index = m.indices(i);
+      for (int k = 0; k < 3; ++k) um[k] = m.positions_um(3 * i + k);
+    }
+    if (index < 0 || index > 0x7fffffff) return DropReason::kBadPayload;
+    out.indices[i] = static_cast<int32_t>(index);
+    out.positions[i] = Eigen::Vector3d(static_cast<double>(um[0]), static_cast<double>(um[1]),
+                                       static_cast<double>(um[2])) /
                        kMicro;
   }
   return DropReason::kNone;

@@ -61,7 +61,8 @@ class Codec {
 
   // Split a frame into as few datagrams of at most kMaxDatagram bytes as fit it (greedy, by the
   // exact varint sizes), each sealed, and hand each to `sink`. Returns the chunk count; 0 when
-  // there is nothing to send or a position is out of the ±2 km the µm encoding covers.
+  // there is nothing to send or a position is out of the ±1 km the µm encoding covers. Each
+  // chunk is delta-coded within itself (proto/vsurg/v1/haptic.proto, SceneFrame).
   template <class Sink>
   size_t EncodeSceneFrame(const SceneFrameView& frame, const Header& base,
                           const Authenticator& auth, std::span<uint8_t> out, Sink&& sink) {

@@ -327,7 +327,9 @@ TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
       });
   ASSERT_GT(count, 1u);
   ASSERT_EQ(chunks.size(), count);
-  EXPECT_LT(count, 4921u / 60);  // tightly packed: more than 60 vertices a datagram
+  // Tightly packed and delta-coded: neighbours 3 mm apart take 2 bytes a coordinate and an index
+  // a byte, so more than 150 vertices a datagram (absolute coordinates, 3 bytes each, fit ~100).
+  EXPECT_LT(count, 4921u / 150);
   size_t k = 0;
   for (const SceneChunk& c : chunks) {
     EXPECT_EQ(c.frame_id, 42u);
@@ -341,6 +343,85 @@ TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
   std::vector<Eigen::Vector3d> bad = {Eigen::Vector3d(NAN, 0, 0)};
   std::vector<int32_t> one = {0};
   EXPECT_EQ(codec.EncodeSceneFrame({1, one, bad}, {}, auth, buf, [](auto) {}), 0u);
+  // The ±1 km the deltas' sint32 allows: the far ends of it round-trip, beyond it is refused.
+  std::vector<int32_t> two = {0, 0x7fffffff};
+  std::vector<Eigen::Vector3d> far = {Eigen::Vector3d(-1000, 1000, -1000),
+                                      Eigen::Vector3d(1000, -1000, 1000)};
+  std::vector<SceneChunk> got;
+  ASSERT_EQ(codec.EncodeSceneFrame(
+                {2, two, far}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 1}, auth, buf,
+                [&](std::span<const uint8_t> d) {
+                  Opened o;
+                  ASSERT_EQ(Open(d, &auth, o), DropReason::kNone);
+                  SceneChunk c;
+                  ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+                  got.push_back(c);
+                }),
+            1u);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].indices, two);
+  EXPECT_EQ(got[0].positions[0], far[0]);
+  EXPECT_EQ(got[0].positions[1], far[1]);
+  far[1].x() = 1000.001;
+  EXPECT_EQ(codec.EncodeSceneFrame({2, two, far}, {}, auth, buf, [](auto) {}), 0u);
+}
+
+// A SceneFrame payload written by hand (protobuf's wire format): varint fields, and packed
+// fields of unsigned or zigzag varints.
+struct FrameBytes {
+  std::vector<uint8_t> bytes;
+  static void Varint(std::vector<uint8_t>& out, uint64_t v) {
+    for (; v >= 0x80; v >>= 7) out.push_back(static_cast<uint8_t>(v | 0x80));
+    out.push_back(static_cast<uint8_t>(v));
+  }
+  FrameBytes& Field(int number, uint64_t v) {
+    Varint(bytes, static_cast<uint64_t>(number) << 3);
+    Varint(bytes, v);
+    return *this;
+  }
+  FrameBytes& Packed(int number, const std::vector<int64_t>& values, bool zigzag) {
+    std::vector<uint8_t> body;
+    for (int64_t v : values)
+      Varint(body, zigzag ? (static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63)
+                          : static_cast<uint64_t>(v));
+    Varint(bytes, (static_cast<uint64_t>(number) << 3) | 2);
+    Varint(bytes, body.size());
+    bytes.insert(bytes.end(), body.begin(), body.end());
+    return *this;
+  }
+};
+
+// A chunk in the absolute coding (what servers before the deltas sent) still decodes; a chunk
+// that mixes the codings, whose deltas lead an index below zero or a coordinate past ±1 km, or
+// whose counts disagree is refused, never turned into a vertex.
+TEST(DatagramTest, SceneChunksDecodeEitherCodingAndRefuseWhatNoEncoderWrites) {
+  Codec codec;
+  SceneChunk c;
+  const auto header = [] { return FrameBytes().Field(1, 9).Field(2, 0).Field(3, 1); };
+  FrameBytes absolute = header();
+  absolute.Packed(4, {5, 7}, false).Packed(5, {1, -2, 3, 40, 50, -60}, true);
+  ASSERT_EQ(codec.DecodeSceneChunk(absolute.bytes, c), DropReason::kNone);
+  EXPECT_EQ(c.indices, (std::vector<int32_t>{5, 7}));
+  EXPECT_EQ(c.positions[1], Eigen::Vector3d(40e-6, 50e-6, -60e-6));
+  FrameBytes delta = header();
+  delta.Packed(6, {5, 2}, true).Packed(7, {1, -2, 3, 39, 52, -63}, true);
+  ASSERT_EQ(codec.DecodeSceneChunk(delta.bytes, c), DropReason::kNone);
+  EXPECT_EQ(c.indices, (std::vector<int32_t>{5, 7}));
+  EXPECT_EQ(c.positions[1], Eigen::Vector3d(40e-6, 50e-6, -60e-6));
+  FrameBytes mixed = header();
+  mixed.Packed(4, {5}, false).Packed(5, {1, 2, 3}, true);
+  mixed.Packed(6, {5}, true).Packed(7, {1, 2, 3}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(mixed.bytes, c), DropReason::kBadPayload);
+  FrameBytes below = header();
+  below.Packed(6, {5, -6}, true).Packed(7, {0, 0, 0, 0, 0, 0}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(below.bytes, c), DropReason::kBadPayload);
+  FrameBytes beyond = header();
+  const int64_t max = 2'147'483'647;
+  beyond.Packed(6, {0, 1}, true).Packed(7, {max, 0, 0, max, 0, 0}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(beyond.bytes, c), DropReason::kBadPayload);
+  FrameBytes short_positions = header();
+  short_positions.Packed(6, {1, 1}, true).Packed(7, {0, 0, 0, 0, 0}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(short_positions.bytes, c), DropReason::kBadPayload);
 }
 
 }  // namespace

@@ -481,9 +481,8 @@ TEST(UdpEndpointTest, AnIoThreadPollsOnlyWhileDatagramsComeFasterThanItsWindow) 
   EXPECT_EQ(f.endpoint->counters().busy_polls, polls) << "still polling after the traffic stopped";
 }
 
-// The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
-// haptic update, encode, seal, send) allocates nothing once warm, for good and bad datagrams.
-// A twisted arm moves nearly every vertex, so its frame is dozens of chunks. They go out paced,
+// A twisted arm moves nearly every vertex, so its frame is a score of chunks even delta-coded
+// (22 at mid-twist; 39 with absolute coordinates). They go out paced,
 // at most a kSpreadMs-th of them a millisecond, so a force answer sent meanwhile never queues
 // behind the whole frame; and they all arrive, in order, each vertex once.
 TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
@@ -524,7 +523,7 @@ TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
     vertices.insert(c.indices.begin(), c.indices.end());
     positions += c.positions.size();
   }
-  EXPECT_GE(count, 24u) << "a twisted arm's frame is dozens of chunks";
+  EXPECT_GE(count, 16u) << "a twisted arm's frame is a score of chunks";
   EXPECT_EQ(vertices.size(), positions) << "each vertex once";
   EXPECT_GT(vertices.size(), (*simulation)->rest_mesh().positions.size() / 2);
   EXPECT_EQ((*sender)->frames(), 1u);
@@ -536,6 +535,8 @@ TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
   EXPECT_GE((*sender)->largest_burst(), 1u);
 }
 
+// The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
+// haptic update, encode, seal, send) allocates nothing once warm, for good and bad datagrams.
 TEST(UdpEndpointTest, TheReceivePathNeverAllocates) {
   if (!test::CanCountAllocations())
     GTEST_SKIP() << "operator new cannot be replaced under ThreadSanitizer";
