@@ -8,12 +8,14 @@
 // VSURG_RENDER_OUT=DIR writes every image a test draws to DIR (to look at them).
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <set>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -610,13 +612,23 @@ int RasterizerThreadsStarted(int requested) {
   auto surface = GlSurface::CreateHeadless(64, 64);
   if (!surface.ok()) return 103;
   (void)(*surface)->ReadPixels();  // drawn and finished: the renderer is running
-  int started = 0;
-  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
-    std::ifstream comm(task.path() / "comm");
-    std::string name;
-    std::getline(comm, name);
-    if (name.rfind("llvmpipe-", 0) == 0) ++started;
-  }
+  // Each rasterizer thread names itself when it first runs, which on a loaded machine may come
+  // after the frame is read: wait for the names (on progress, up to 10 s), not on luck. Fewer
+  // threads than asked never all appear, and the count returned then says how many did.
+  const auto named = [] {
+    int n = 0;
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(task.path() / "comm");
+      std::string name;
+      std::getline(comm, name);
+      if (name.rfind("llvmpipe-", 0) == 0) ++n;
+    }
+    return n;
+  };
+  int started = named();
+  for (const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+       started < requested && std::chrono::steady_clock::now() < until; started = named())
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
   return started > 0 ? started : 100;
 }
 
