@@ -185,13 +185,18 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   auto take = [&](std::span<const uint8_t> datagram) {
     vsurg::wire::Header h;
     if (vsurg::wire::PeekHeader(datagram, h) != vsurg::wire::DropReason::kNone) return;
+    // An answer is a force (or the echoed stylus datagram); a scene frame's chunk is read and
+    // authenticated as a station would, but is not an answer.
+    const bool answer_type =
+        h.type == (answer == Answer::kForce ? vsurg::wire::PayloadType::kForceFeedback
+                                            : vsurg::wire::PayloadType::kStylusState);
     const auto it = by_session.find(h.session);
     if (it == by_session.end()) return;
     Station& st = *it->second;
     vsurg::wire::Opened o;
     double echo_time = -1;
     uint64_t echo_sequence = 0;
-    if (vsurg::wire::Open(datagram, &st.auth, o) == vsurg::wire::DropReason::kNone) {
+    if (vsurg::wire::Open(datagram, &st.auth, o) == vsurg::wire::DropReason::kNone && answer_type) {
       if (answer == Answer::kForce &&
           codec.DecodeForce(o.payload, reply) == vsurg::wire::DropReason::kNone)
         echo_time = reply.echo_time, echo_sequence = reply.echo_sequence;
