@@ -235,10 +235,10 @@ struct UdpEndpoint::Impl {
 };
 
 void UdpEndpoint::Impl::Lane::Loop() {
-  const EndpointOptions& options = owner->options;
-  TrySetRealtimePriority(options.realtime_priority);  // the stylus → force path
+  const EndpointOptions& opts = owner->options;
+  TrySetRealtimePriority(opts.realtime_priority);  // the stylus → force path
   const int fd = socket.native_handle();
-  const std::chrono::microseconds busy_poll(options.busy_poll_us);
+  const std::chrono::microseconds busy_poll(opts.busy_poll_us);
   for (int i = 0; i < kBatch; ++i) {
     iov[i] = {rx[i].data(), rx[i].size()};
     headers[i].msg_hdr.msg_iov = &iov[i];
@@ -304,7 +304,7 @@ void UdpEndpoint::Impl::Lane::Loop() {
 // `arrival_ns`: the datagram's arrival stamp (CLOCK_REALTIME); `age_ns`: how long it waited in
 // the receive queue (negative when the wall clock was stepped back meanwhile: taken as fresh).
 void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int64_t age_ns) {
-  const EndpointOptions& options = owner->options;
+  const EndpointOptions& opts = owner->options;
   received.fetch_add(1, std::memory_order_relaxed);
   const std::span<const uint8_t> d(rx[slot].data(), n);
   const udp::endpoint& sender = senders[slot];
@@ -320,11 +320,11 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int
     return Drop(r);
   if (s.seen && header.sequence <= s.last_sequence) return Drop(wire::DropReason::kStale);
   if (age_ns > owner->max_age_ns) return Drop(wire::DropReason::kLate);
-  if (options.lease && !options.lease->Valid()) return Drop(wire::DropReason::kFenced);
+  if (opts.lease && !opts.lease->Valid()) return Drop(wire::DropReason::kFenced);
   const double now = owner->Now();
   // Token bucket: max_packets_per_s, bursts of a tenth of a second.
-  s.tokens = std::min(options.max_packets_per_s * 0.1,
-                      s.tokens + options.max_packets_per_s * std::max(0.0, now - s.refill));
+  s.tokens = std::min(opts.max_packets_per_s * 0.1,
+                      s.tokens + opts.max_packets_per_s * std::max(0.0, now - s.refill));
   s.refill = now;
   if (s.tokens < 1.0) return Drop(wire::DropReason::kRateLimited);
   s.tokens -= 1.0;
@@ -421,7 +421,7 @@ void UdpEndpoint::Impl::Lane::Flush() {
 
 // Running → stalled → disconnected by the endpoint's clock, for this lane's sessions.
 void UdpEndpoint::Impl::Lane::CheckTimeouts() {
-  const EndpointOptions& options = owner->options;
+  const EndpointOptions& opts = owner->options;
   const double now = owner->Now();
   std::erase_if(sessions, [now](const auto& e) {
     return e.second.moved_until >= 0 && now > e.second.moved_until;
@@ -430,9 +430,9 @@ void UdpEndpoint::Impl::Lane::CheckTimeouts() {
     if (s.moved_until >= 0) continue;  // no events of a session that moved away
     const double quiet = now - s.last_seen;
     SessionState next = s.state;
-    if (quiet > options.disconnect_after_s) {
+    if (quiet > opts.disconnect_after_s) {
       next = SessionState::kDisconnected;
-    } else if (quiet > options.stall_after_s) {
+    } else if (quiet > opts.stall_after_s) {
       next = SessionState::kStalled;
     }
     if (next != s.state &&

@@ -410,7 +410,7 @@ TEST_F(ClusterTest, ADrainingNodeTakesNoNewSessionsAndItsLiveOnesFinish) {
 class UdpStation {
  public:
   UdpStation(uint64_t session, const wire::SessionKey& key, uint16_t port)
-      : session_(session), key_(key), port_(port), auth_(key) {
+      : session_(session), port_(port), auth_(key) {
     sock_.non_blocking(true);
   }
   void Target(uint16_t port) { port_ = port; }
@@ -459,7 +459,6 @@ class UdpStation {
   boost::asio::ip::udp::socket sock_{io_, boost::asio::ip::udp::v4()};
   wire::Codec codec_;
   uint64_t session_;
-  wire::SessionKey key_;
   uint16_t port_;
   wire::Authenticator auth_;
   uint64_t seq_ = 0;
