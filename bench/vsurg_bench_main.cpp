@@ -132,6 +132,9 @@ struct RttRun {
   }
 };
 
+// The pacer's slots per millisecond: a station sends in one of 8 slots of 125 µs (DriveStations).
+constexpr int kSlotsPerMs = 8;
+
 // The stations' sockets: station k sends and receives on socket k mod S, each socket read and
 // written a batch at a time (recvmmsg, sendmmsg). With `per_socket` 1 every station has its own
 // socket (S = the stations), as separate machines would; with more, S is a multiple of the
@@ -160,7 +163,6 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
                      const Eigen::Vector3d& outward, double seconds, Answer answer,
                      int period_ms = 1, double stroke = 0, double twist = 0, int per_socket = 1) {
   const int n = static_cast<int>(stations.size());
-  constexpr int kSlotsPerMs = 8;
   const int slots = kSlotsPerMs * period_ms;
   const int socket_count = StationSockets(n, per_socket, slots);
   std::vector<std::unique_ptr<udp::socket>> sockets;
@@ -643,7 +645,7 @@ int HapticRtt(const std::vector<std::string>& args) {
   j["busy_polled_receives"] = (*endpoint)->counters().busy_polled;
   j["period_ms"] = period_ms;
   j["stations_per_socket"] = per_socket;
-  j["station_sockets"] = StationSockets(n, per_socket, 8 * period_ms);
+  j["station_sockets"] = StationSockets(n, per_socket, kSlotsPerMs * period_ms);
   j["stroke_mm"] = stroke_mm;
   j["kept_face_lists"] = kept_face_lists;
   j["dashboard_bytes"] = dashboard_bytes;
@@ -799,7 +801,7 @@ int UdpFloor(const std::vector<std::string>& args) {
   j["busy_poll_us"] = p.Int("busy-poll-us");
   j["period_ms"] = period_ms;
   j["stations_per_socket"] = per_socket;
-  j["station_sockets"] = StationSockets(n, per_socket, 8 * period_ms);
+  j["station_sockets"] = StationSockets(n, per_socket, kSlotsPerMs * period_ms);
   j["server_cpu_per_station"] = (*echo)->cpu_seconds() / (kWarmupS + seconds) / n;
   j["realtime_priority"] = realtime ? priority : 0;
   if (p.Flag("json")) {
