@@ -21,6 +21,6 @@ for n in "$@"; do for r in $(seq "$REPS"); do
       A) out=$("$A" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --stroke-mm "$STROKE_MM" --twist-deg "$TWIST_DEG" --json) ;;
       B) out=$("$B" haptic-rtt --stations "$n" --seconds "$SECONDS_EACH" --realtime-priority "$RT" --stroke-mm "$STROKE_MM" --twist-deg "$TWIST_DEG" --json) ;;
     esac
-    echo "$out" | python3 -c "import json,sys; j=json.load(sys.stdin); print('n=$n rep=$r who=$who rt=%d p50=%.1f p99=%.1f p999=%.1f loss=%.4f cpu_per_station=%.4f process_cpu_per_station=%s' % (j['realtime_priority'], j['rtt_p50_us'], j['rtt_p99_us'], j['rtt_p999_us'], j['loss'], j['server_cpu_per_station'], '%.4f' % j['server_process_cpu_per_station'] if 'server_process_cpu_per_station' in j else '-'))"
+    echo "$out" | python3 -c "import json,sys; j=json.load(sys.stdin); print('n=$n rep=$r who=$who rt=%d p50=%.1f p99=%.1f p999=%.1f loss=%.4f cpu_per_station=%.4f process_cpu_per_station=%s driver=%s' % (j['realtime_priority'], j['rtt_p50_us'], j['rtt_p99_us'], j['rtt_p999_us'], j['loss'], j['server_cpu_per_station'], '%.4f' % j['server_process_cpu_per_station'] if 'server_process_cpu_per_station' in j else '-', '%.2f cores, %.1f%% slots late, latest %.1f ms' % (j['driver_busy_cores'], 100 * j['driver_late_slots'], j['driver_max_late_us'] / 1e3) if 'driver_busy_cores' in j else '-'))"
   done
 done; done

@@ -111,6 +111,13 @@ enum class Answer { kForce, kEcho };
 struct RttRun {
   uint64_t sent = 0, received = 0;
   std::vector<double> rtt_us;  // sorted
+  // The driver's own load over the measured window: its thread's CPU over the wall time (1 is a
+  // whole core), and the pacer's slots that went out more than a slot late (the driver could not
+  // keep its stations' schedule: they then catch up together, a burst no lab's stations on their
+  // own machines would send) and the latest of them.
+  double driver_cpu_s = 0, driver_wall_s = 0;
+  uint64_t slots = 0, late_slots = 0;
+  double max_late_us = 0;
 
   double Percentile(double q) const {
     return rtt_us.empty()
@@ -128,6 +135,10 @@ struct RttRun {
     j["rtt_p50_us"] = Percentile(0.5);
     j["rtt_p99_us"] = Percentile(0.99);
     j["rtt_p999_us"] = Percentile(0.999);
+    j["driver_busy_cores"] = driver_wall_s > 0 ? driver_cpu_s / driver_wall_s : 0.0;
+    j["driver_late_slots"] =
+        slots ? static_cast<double>(late_slots) / static_cast<double>(slots) : 0.0;
+    j["driver_max_late_us"] = max_late_us;
     return j;
   }
 };
@@ -243,6 +254,12 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   Clock::time_point next = Clock::now();
   const double total = kWarmupS + seconds;
   int slot = 0;
+  const auto thread_cpu_s = [] {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+  };
+  double cpu_from = -1, wall_from = -1;
   // The measured window holds the datagrams *scheduled* in [warm-up, end): a pacer running late
   // on a loaded machine catches up (at most 20 ms, as a station does) without adding any, and
   // an answer counts when its echoed sequence is one of them.
@@ -250,6 +267,15 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     const double t = now_s();
     if (t > total + 0.05) return io.stop();
     const double scheduled = std::chrono::duration<double>(next - start).count();
+    if (scheduled >= kWarmupS && cpu_from < 0) cpu_from = thread_cpu_s(), wall_from = t;
+    if (scheduled >= total && cpu_from >= 0 && run.driver_wall_s == 0)
+      run.driver_cpu_s = thread_cpu_s() - cpu_from, run.driver_wall_s = t - wall_from;
+    if (scheduled >= kWarmupS && scheduled < total) {
+      const double late_us = (t - scheduled) * 1e6;
+      ++run.slots;
+      if (late_us > 1000.0 / kSlotsPerMs) ++run.late_slots;
+      run.max_late_us = std::max(run.max_late_us, late_us);
+    }
     if (scheduled < total) {
       // This slot's stations, socket by socket (a socket's stations share a slot).
       for (int s = slot % socket_count; s < socket_count && s < n; s += slots) {
