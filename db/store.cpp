@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <future>
 
+#include "common/core/realtime.h"
 #include "db/migrations.h"
 #include "db/store_impl.h"
 
@@ -122,7 +123,10 @@ Expected<std::unique_ptr<Store>> Store::Open(const StoreOptions& options) {
   impl->writer = std::move(writer).value();
   if (Status s = Migrate(*impl->writer); !s.ok()) return s.error();
   std::unique_ptr<Store> store(new Store(std::move(impl)));
-  store->impl_->thread = std::thread([s = store->impl_.get()] { s->WriterLoop(); });
+  store->impl_->thread = std::thread([s = store->impl_.get()] {
+    NameThisThread("vsurg-store");
+    s->WriterLoop();
+  });
   return store;
 }
 

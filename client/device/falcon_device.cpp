@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "client/device/device_registry.h"
+#include "common/core/realtime.h"
 
 namespace vsurg::client {
 namespace {
@@ -37,7 +38,10 @@ class FalconHapticDevice final : public HapticDevice {
     d->limits_.max_stiffness = 1000;
     d->limits_.workspace_min = r.scene_offset - Eigen::Vector3d::Constant(0.05);
     d->limits_.workspace_max = r.scene_offset + Eigen::Vector3d::Constant(0.05);
-    d->thread_ = std::thread([p = d.get()] { p->Loop(); });
+    d->thread_ = std::thread([p = d.get()] {
+      NameThisThread("vsurg-falcon");
+      p->Loop();
+    });
     return std::unique_ptr<HapticDevice>(std::move(d));
   }
 

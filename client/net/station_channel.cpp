@@ -523,15 +523,21 @@ Expected<std::unique_ptr<StationChannel>> StationChannel::Create(const StationOp
   Impl* p = impl.get();
   p->Receive();
   p->net_thread = std::thread([p] {
+    NameThisThread("vsurg-net");
     TrySetRealtimePriority(p->options.realtime_priority);
     p->io.run();
   });
   p->device_thread = std::thread([p] {
+    NameThisThread("vsurg-haptic");
     TrySetRealtimePriority(p->options.realtime_priority);
     p->DeviceLoop();
     p->device_done.store(true);
   });
-  if (p->log_file) p->log_thread = std::thread([p] { p->LogLoop(); });
+  if (p->log_file)
+    p->log_thread = std::thread([p] {
+      NameThisThread("vsurg-log");
+      p->LogLoop();
+    });
   return std::unique_ptr<StationChannel>(new StationChannel(std::move(impl)));
 }
 

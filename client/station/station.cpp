@@ -8,6 +8,7 @@
 #include <chrono>
 
 #include "common/core/format.h"
+#include "common/core/realtime.h"
 #include "proto/convert/services.h"
 #include "vsurg/v1/services.grpc.pb.h"
 
@@ -97,6 +98,7 @@ void Station::StartSupervisor(std::function<void(const StationStatus&)> on_chang
     supervising_ = true;
   }
   supervisor_ = std::thread([this, on_change = std::move(on_change)] {
+    NameThisThread("vsurg-supervise");
     StationStatus seen = status();
     if (on_change) on_change(seen);
     std::unique_lock lock(supervisor_mutex_);

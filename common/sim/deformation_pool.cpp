@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "common/core/realtime.h"
+
 namespace vsurg::sim {
 
 DeformationPool::DeformationPool(int workers, double poll_s)
@@ -9,7 +11,11 @@ DeformationPool::DeformationPool(int workers, double poll_s)
           std::chrono::duration<double>(std::clamp(poll_s, 1e-5, 1e-2)))) {
   if (workers <= 0) workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads_.reserve(static_cast<size_t>(workers));
-  for (int i = 0; i < workers; ++i) threads_.emplace_back([this] { Work(); });
+  for (int i = 0; i < workers; ++i)
+    threads_.emplace_back([this, i] {
+      NameThisThread(("vsurg-pool/" + std::to_string(i)).c_str());
+      Work();
+    });
 }
 
 DeformationPool::~DeformationPool() {

@@ -9,6 +9,7 @@
 #include <mutex>
 #include <numbers>
 
+#include "common/core/realtime.h"
 #include "common/core/state_archive.h"
 #include "common/sim/rooms/room_support.h"
 #include "common/tissue/reduced_cache.h"
@@ -98,7 +99,10 @@ void Simulation::SetDeformationRunning(bool running) {
   if (running) {
     if (!options_.threaded) return;
     stop_.store(false);
-    thread_ = std::thread([this] { DeformationLoop(); });
+    thread_ = std::thread([this] {
+      NameThisThread("vsurg-deform");
+      DeformationLoop();
+    });
     return;
   }
   stop_.store(true);

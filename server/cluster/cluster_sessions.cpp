@@ -14,6 +14,7 @@
 #include <grpcpp/health_check_service_interface.h>
 
 #include "common/core/log.h"
+#include "common/core/realtime.h"
 #include "db/store.h"
 #include "server/cluster/cluster_common.h"
 #include "server/ops/metrics.h"
@@ -617,6 +618,7 @@ struct ClusterSessions::Impl final : public v1::ClusterService::Service {
         StubFor(n).Watch(p->ctx.get(), req);
     watch_opened.fetch_add(1, std::memory_order_relaxed);
     p->reader = std::thread([this, p, reader] {
+      NameThisThread("vsurg-watch");
       v1::NodeTelemetry msg;
       while (reader->Read(&msg)) {
         watch_bytes.fetch_add(msg.ByteSizeLong(), std::memory_order_relaxed);
@@ -787,9 +789,18 @@ Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& sto
   if (!health.ok()) return health.error();
   impl->health = std::move(health).value();
   Impl* p = impl.get();
-  p->watchdog = std::thread([p] { p->WatchdogLoop(); });
-  p->prober = std::thread([p] { p->ProberLoop(); });
-  p->poller = std::thread([p] { p->PollerLoop(); });
+  p->watchdog = std::thread([p] {
+    NameThisThread("vsurg-watchdog");
+    p->WatchdogLoop();
+  });
+  p->prober = std::thread([p] {
+    NameThisThread("vsurg-prober");
+    p->ProberLoop();
+  });
+  p->poller = std::thread([p] {
+    NameThisThread("vsurg-poller");
+    p->PollerLoop();
+  });
   return std::unique_ptr<ClusterSessions>(new ClusterSessions(std::move(impl)));
 }
 

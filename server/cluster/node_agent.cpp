@@ -15,6 +15,7 @@
 #include <grpcpp/health_check_service_interface.h>
 
 #include "common/core/log.h"
+#include "common/core/realtime.h"
 #include "server/cluster/cluster_common.h"
 #include "server/control/grpc_common.h"
 #include "server/net/lease.h"
@@ -496,7 +497,10 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   }
   p->subscription = sessions.Subscribe(
       0, [p](const std::vector<SessionTelemetry>& list, bool) { p->OnTelemetry(list); });
-  p->heartbeat = std::thread([p] { p->HeartbeatLoop(); });
+  p->heartbeat = std::thread([p] {
+    NameThisThread("vsurg-heartbeat");
+    p->HeartbeatLoop();
+  });
   Log(options.name, "node_started",
       {{"internal", p->options.advertise},
        {"udp", options.udp_host + ":" + std::to_string(options.udp_port)},

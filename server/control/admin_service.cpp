@@ -3,6 +3,7 @@
 #include <mutex>
 #include <thread>
 
+#include "common/core/realtime.h"
 #include "server/control/grpc_common.h"
 
 namespace vsurg::server::grpcapi {
@@ -17,6 +18,7 @@ class ExportReactor final : public grpc::ServerWriteReactor<v1::ExportChunk> {
  public:
   ExportReactor(db::Store& store, db::ExportFilter filter, db::ExportFormat format) {
     thread_ = std::thread([this, &store, filter, format] {
+      NameThisThread("vsurg-export");
       Status s = store.Export(filter, format, [this](std::string_view chunk) {
         std::unique_lock lock(mutex_);
         cv_.wait(lock, [this] { return !writing_ || broken_; });

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "common/core/realtime.h"
+
 namespace vsurg::server {
 
 CallPool::CallPool(int max_threads) : max_threads_(std::max(1, max_threads)) {}
@@ -25,7 +27,10 @@ void CallPool::Post(std::function<void()> task) {
     ready_.notify_one();
     return;
   }
-  threads_.emplace_back([this] { Work(); });
+  threads_.emplace_back([this] {
+    NameThisThread("vsurg-rpc-pool");
+    Work();
+  });
   ready_.notify_one();
 }
 

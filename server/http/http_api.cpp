@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/core/log.h"
+#include "common/core/realtime.h"
 #include "common/core/time.h"
 #include "common/scoring/report_json.h"
 #include "common/scoring/vocabulary.h"
@@ -428,7 +429,11 @@ std::string HttpApi::TelemetryJson(const SessionTelemetry& t, bool with_surface)
 class HttpApi::ReadWorkers {
  public:
   ReadWorkers(int workers, int max_queued) : max_queued_(static_cast<size_t>(max_queued)) {
-    for (int i = 0; i < std::max(1, workers); ++i) threads_.emplace_back([this] { Loop(); });
+    for (int i = 0; i < std::max(1, workers); ++i)
+      threads_.emplace_back([this] {
+        NameThisThread("vsurg-http-read");
+        Loop();
+      });
   }
   ~ReadWorkers() {
     std::deque<std::function<void(bool)>> left;

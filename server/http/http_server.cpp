@@ -16,6 +16,7 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
 
+#include "common/core/realtime.h"
 #include "server/domain/auth.h"
 #include "server/domain/scene_catalog.h"
 #include "server/http/http_api.h"
@@ -842,7 +843,10 @@ Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessio
   Impl* p = impl.get();
   p->export_pool.emplace(static_cast<size_t>(std::max(1, options.max_exports)));
   p->Accept();
-  p->thread = std::thread([p] { p->shared->io.run(); });
+  p->thread = std::thread([p] {
+    NameThisThread("vsurg-http");
+    p->shared->io.run();
+  });
   return std::unique_ptr<HttpServer>(new HttpServer(std::move(impl)));
 }
 

@@ -236,6 +236,7 @@ struct UdpEndpoint::Impl {
 
 void UdpEndpoint::Impl::Lane::Loop() {
   const EndpointOptions& opts = owner->options;
+  NameThisThread(("vsurg-io/" + std::to_string(index)).c_str());
   TrySetRealtimePriority(opts.realtime_priority);  // the stylus → force path
   const int fd = socket.native_handle();
   const std::chrono::microseconds busy_poll(opts.busy_poll_us);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 
+#include "common/core/realtime.h"
 #include "common/sim/simulation.h"
 #include "proto/wire/messages.h"
 
@@ -19,7 +20,10 @@ Expected<std::unique_ptr<VisualSender>> VisualSender::Create(const asio::ip::add
   if (!ec) v->socket_.bind(udp::endpoint(address, 0), ec);
   if (ec) return Error{ErrorCode::kIoError, "cannot bind the visual socket: " + ec.message(), ""};
   VisualSender* p = v.get();
-  v->thread_ = std::thread([p] { p->Loop(); });
+  v->thread_ = std::thread([p] {
+    NameThisThread("vsurg-visual");
+    p->Loop();
+  });
   return v;
 }
 

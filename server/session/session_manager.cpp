@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "common/core/log.h"
+#include "common/core/realtime.h"
 #include "common/core/state_archive.h"
 #include "common/core/time.h"
 #include "common/sim/scene.h"
@@ -56,7 +57,10 @@ Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
           "cannot record the sessions a previous server left live: " + aborted.error().message,
           "db"};
   std::unique_ptr<SessionManager> m(new SessionManager(store, endpoint, options));
-  m->sampler_ = std::thread([p = m.get()] { p->SamplerLoop(); });
+  m->sampler_ = std::thread([p = m.get()] {
+    NameThisThread("vsurg-sampler");
+    p->SamplerLoop();
+  });
   return m;
 }
 

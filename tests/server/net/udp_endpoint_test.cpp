@@ -2,8 +2,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <set>
+#include <string>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -441,6 +443,36 @@ TEST(UdpEndpointTest, SessionsAreSpreadOverTheIoThreadsByIdAndOneHeldLaneDelaysN
 // station every millisecond or so does, and the lane then finds datagrams by polling and answers
 // every one as before; once the traffic stops the lane stops polling. The rate is judged over
 // 50 ms ticks, so a sender slowed by a loaded machine only makes the sparse phase sparser.
+// The names `top -H`, `ps -L` and `perf` show an operator: each lane's I/O thread by its index
+// and the visual sender's. A thread names itself when it starts, so the test waits for that.
+TEST(UdpEndpointTest, ItsThreadsAreNamedForOperators) {
+  EndpointOptions options;
+  options.io_threads = 2;
+  auto endpoint = UdpEndpoint::Create(options);
+  ASSERT_TRUE(endpoint.ok()) << endpoint.error().message;
+  const auto names = [] {
+    std::multiset<std::string> seen;
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(task.path() / "comm");
+      std::string name;
+      if (std::getline(comm, name)) seen.insert(name);
+    }
+    return seen;
+  };
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  std::multiset<std::string> seen = names();
+  while ((!seen.contains("vsurg-io/0") || !seen.contains("vsurg-io/1") ||
+          !seen.contains("vsurg-visual")) &&
+         std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    seen = names();
+  }
+  EXPECT_EQ(seen.count("vsurg-io/0"), 1u);
+  EXPECT_EQ(seen.count("vsurg-io/1"), 1u);
+  EXPECT_EQ(seen.count("vsurg-visual"), 1u);
+  EXPECT_EQ(seen.count("vsurg-io/2"), 0u);
+}
+
 TEST(UdpEndpointTest, AnIoThreadPollsOnlyWhileDatagramsComeFasterThanItsWindow) {
   EndpointOptions options;
   options.busy_poll_us = 10000;
