@@ -11,7 +11,6 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <numbers>
 #include <set>
 #include <string>
@@ -28,6 +27,7 @@
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
 #include "common/sim/visual_model.h"
+#include "tests/support/thread_names.h"
 
 namespace vsurg::client {
 namespace {
@@ -617,12 +617,7 @@ int RasterizerThreadsStarted(int requested) {
   // threads than asked never all appear, and the count returned then says how many did.
   const auto named = [] {
     int n = 0;
-    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
-      std::ifstream comm(task.path() / "comm");
-      std::string name;
-      std::getline(comm, name);
-      if (name.rfind("llvmpipe-", 0) == 0) ++n;
-    }
+    for (const std::string& name : test::ThreadNames()) n += name.rfind("llvmpipe-", 0) == 0;
     return n;
   };
   int started = named();

@@ -2,7 +2,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <filesystem>
 #include <fstream>
 #include <set>
 #include <string>
@@ -18,6 +17,8 @@
 #include "server/net/lease.h"
 #include "server/net/visual_sender.h"
 #include "tests/support/allocation_counter.h"
+#include "tests/support/thread_names.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::server {
 namespace {
@@ -450,27 +451,16 @@ TEST(UdpEndpointTest, ItsThreadsAreNamedForOperators) {
   options.io_threads = 2;
   auto endpoint = UdpEndpoint::Create(options);
   ASSERT_TRUE(endpoint.ok()) << endpoint.error().message;
-  const auto names = [] {
-    std::multiset<std::string> seen;
-    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
-      std::ifstream comm(task.path() / "comm");
-      std::string name;
-      if (std::getline(comm, name)) seen.insert(name);
-    }
-    return seen;
-  };
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  std::multiset<std::string> seen = names();
-  while ((!seen.contains("vsurg-io/0") || !seen.contains("vsurg-io/1") ||
-          !seen.contains("vsurg-visual")) &&
-         std::chrono::steady_clock::now() < until) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    seen = names();
-  }
-  EXPECT_EQ(seen.count("vsurg-io/0"), 1u);
-  EXPECT_EQ(seen.count("vsurg-io/1"), 1u);
-  EXPECT_EQ(seen.count("vsurg-visual"), 1u);
-  EXPECT_EQ(seen.count("vsurg-io/2"), 0u);
+  EXPECT_TRUE(test::Eventually(10, [] {
+    const std::multiset<std::string> names = test::ThreadNames();
+    return names.contains("vsurg-io/0") && names.contains("vsurg-io/1") &&
+           names.contains("vsurg-visual");
+  }));
+  const std::multiset<std::string> names = test::ThreadNames();
+  EXPECT_EQ(names.count("vsurg-io/0"), 1u);
+  EXPECT_EQ(names.count("vsurg-io/1"), 1u);
+  EXPECT_EQ(names.count("vsurg-visual"), 1u);
+  EXPECT_EQ(names.count("vsurg-io/2"), 0u);
 }
 
 TEST(UdpEndpointTest, AnIoThreadPollsOnlyWhileDatagramsComeFasterThanItsWindow) {
