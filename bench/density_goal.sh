@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The node-density goal, side by side: per round the bare-UDP floor (udp-floor) and the server
 # (haptic-rtt, pressing stations that circle STROKE_MM), alternating, at each station count; prints
-# each run's round trip and the round's p99 ratio, and the bench's own driver: the cores its one
+# each run's round trip, read (as the driver reads and decodes each answer) and at arrival (the
+# answer's kernel stamp at the station's socket: without the driver's own queueing), the round's
+# p99 ratios, and the bench's own driver: the cores its one
 # thread kept busy and the share of its pacer's slots sent more than a slot (125 µs) late. A round
 # whose driver ran late on more than 1% of its slots is marked DRIVER-BOUND: its stations went out
 # in catch-up bursts and its answers waited in the driver's sockets, so its round trips measure
@@ -22,9 +24,12 @@ n, r = sys.argv[1], sys.argv[2]
 runs = {'floor': json.loads(sys.argv[3]), 'server': json.loads(sys.argv[4])}
 for who, j in runs.items():
     bound = ' DRIVER-BOUND' if j['driver_late_slots'] > 0.01 else ''
-    print('n=%s round=%s %-6s p50=%.1f p99=%.1f p999=%.1f loss=%.4f driver=%.2f cores, %.1f%% slots late, latest %.1f ms%s' % (
-        n, r, who, j['rtt_p50_us'], j['rtt_p99_us'], j['rtt_p999_us'], j['loss'],
-        j['driver_busy_cores'], 100 * j['driver_late_slots'], j['driver_max_late_us'] / 1e3, bound))
-print('n=%s round=%s p99 ratio %.2f' % (n, r, runs['server']['rtt_p99_us'] / runs['floor']['rtt_p99_us']))
+    print('n=%s round=%s %-6s p50=%.1f p99=%.1f p999=%.1f arrival p50=%.1f p99=%.1f p999=%.1f loss=%.4f driver=%.2f cores, %.1f%% slots late, latest %.1f ms%s' % (
+        n, r, who, j['rtt_p50_us'], j['rtt_p99_us'], j['rtt_p999_us'], j['arrival_rtt_p50_us'],
+        j['arrival_rtt_p99_us'], j['arrival_rtt_p999_us'], j['loss'], j['driver_busy_cores'],
+        100 * j['driver_late_slots'], j['driver_max_late_us'] / 1e3, bound))
+f, s = runs['floor'], runs['server']
+print('n=%s round=%s p99 ratio %.2f, at arrival %.2f' % (
+    n, r, s['rtt_p99_us'] / f['rtt_p99_us'], s['arrival_rtt_p99_us'] / f['arrival_rtt_p99_us']))
 PY
 done; done

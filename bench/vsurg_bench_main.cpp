@@ -37,6 +37,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
@@ -110,7 +111,12 @@ enum class Answer { kForce, kEcho };
 
 struct RttRun {
   uint64_t sent = 0, received = 0;
-  std::vector<double> rtt_us;  // sorted
+  std::vector<double> rtt_us;  // sorted: from the stylus datagram's send to its answer read
+  // Sorted: from the send to the answer's arrival at the station's socket (its kernel stamp), so
+  // without the driver's own time: answers that waited for one thread to read and decode the
+  // other stations' answers, or for that thread to be scheduled. A station on a machine of its
+  // own reads only its own answers.
+  std::vector<double> arrival_rtt_us;
   // The driver's own load over the measured window: its thread's CPU over the wall time (1 is a
   // whole core), and the pacer's slots that went out more than a slot late (the driver could not
   // keep its stations' schedule: they then catch up together, a burst no lab's stations on their
@@ -119,11 +125,12 @@ struct RttRun {
   uint64_t slots = 0, late_slots = 0;
   double max_late_us = 0;
 
-  double Percentile(double q) const {
-    return rtt_us.empty()
+  static double Percentile(const std::vector<double>& sorted, double q) {
+    return sorted.empty()
                ? 0.0
-               : rtt_us[std::min(rtt_us.size() - 1, static_cast<size_t>(q * rtt_us.size()))];
+               : sorted[std::min(sorted.size() - 1, static_cast<size_t>(q * sorted.size()))];
   }
+  double Percentile(double q) const { return Percentile(rtt_us, q); }
   nlohmann::json Summary(int stations, double seconds) const {
     nlohmann::json j;
     j["stations"] = stations;
@@ -135,6 +142,9 @@ struct RttRun {
     j["rtt_p50_us"] = Percentile(0.5);
     j["rtt_p99_us"] = Percentile(0.99);
     j["rtt_p999_us"] = Percentile(0.999);
+    j["arrival_rtt_p50_us"] = Percentile(arrival_rtt_us, 0.5);
+    j["arrival_rtt_p99_us"] = Percentile(arrival_rtt_us, 0.99);
+    j["arrival_rtt_p999_us"] = Percentile(arrival_rtt_us, 0.999);
     j["driver_busy_cores"] = driver_wall_s > 0 ? driver_cpu_s / driver_wall_s : 0.0;
     j["driver_late_slots"] =
         slots ? static_cast<double>(late_slots) / static_cast<double>(slots) : 0.0;
@@ -181,13 +191,18 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     sockets.push_back(
         std::make_unique<udp::socket>(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)));
     sockets.back()->non_blocking(true);
+    const int on = 1;  // each datagram's arrival stamp (CLOCK_REALTIME), for arrival_rtt_us
+    ::setsockopt(sockets.back()->native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
   }
   std::unordered_map<uint64_t, Station*> by_session;
   for (auto& st : stations) by_session[st->session] = st.get();
   const Clock::time_point start = Clock::now();
+  timespec wall_start{};  // the arrival stamps' clock at `start`
+  clock_gettime(CLOCK_REALTIME, &wall_start);
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   RttRun run;
   run.rtt_us.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1 / period_ms));
+  run.arrival_rtt_us.reserve(run.rtt_us.capacity());
   vsurg::wire::Codec codec;
   vsurg::wire::ForceMessage reply;
   vsurg::wire::StylusMessage echoed;
@@ -195,7 +210,19 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   std::vector<std::array<uint8_t, 2048>> rx(kBatch);
   std::array<iovec, kBatch> rx_iov{};
   std::array<mmsghdr, kBatch> rx_msgs{};
-  auto take = [&](std::span<const uint8_t> datagram) {
+  std::array<std::array<char, CMSG_SPACE(sizeof(timespec))>, kBatch> rx_control{};
+  // A received datagram's arrival, in now_s()'s seconds; -1 without a stamp.
+  const auto arrival_s = [&](const msghdr& h) {
+    for (cmsghdr* c = CMSG_FIRSTHDR(&h); c != nullptr; c = CMSG_NXTHDR(const_cast<msghdr*>(&h), c))
+      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS) {
+        timespec ts{};
+        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+        return static_cast<double>(ts.tv_sec - wall_start.tv_sec) +
+               1e-9 * static_cast<double>(ts.tv_nsec - wall_start.tv_nsec);
+      }
+    return -1.0;
+  };
+  auto take = [&](std::span<const uint8_t> datagram, double arrived) {
     vsurg::wire::Header h;
     if (vsurg::wire::PeekHeader(datagram, h) != vsurg::wire::DropReason::kNone) return;
     // An answer is a force (or the echoed stylus datagram); a scene frame's chunk is read and
@@ -219,7 +246,9 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     }
     if (echo_time >= 0 && echo_sequence >= st.first_measured) {
       ++run.received;
-      run.rtt_us.push_back((now_s() - echo_time) * 1e6);
+      const double read = now_s();
+      run.rtt_us.push_back((read - echo_time) * 1e6);
+      run.arrival_rtt_us.push_back(((arrived >= 0 ? arrived : read) - echo_time) * 1e6);
     }
   };
   std::function<void(udp::socket&)> receive = [&](udp::socket& socket) {
@@ -231,11 +260,14 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
           rx_msgs[i] = {};
           rx_msgs[i].msg_hdr.msg_iov = &rx_iov[i];
           rx_msgs[i].msg_hdr.msg_iovlen = 1;
+          rx_msgs[i].msg_hdr.msg_control = rx_control[i].data();
+          rx_msgs[i].msg_hdr.msg_controllen = rx_control[i].size();
         }
         const int got =
             ::recvmmsg(sp->native_handle(), rx_msgs.data(), kBatch, MSG_DONTWAIT, nullptr);
         if (got <= 0) break;
-        for (int i = 0; i < got; ++i) take({rx[i].data(), rx_msgs[i].msg_len});
+        for (int i = 0; i < got; ++i)
+          take({rx[i].data(), rx_msgs[i].msg_len}, arrival_s(rx_msgs[i].msg_hdr));
         if (got < kBatch) break;
       }
       receive(*sp);
@@ -339,6 +371,7 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   tick();
   io.run();
   std::sort(run.rtt_us.begin(), run.rtt_us.end());
+  std::sort(run.arrival_rtt_us.begin(), run.arrival_rtt_us.end());
   return run;
 }
 
