@@ -43,6 +43,23 @@ TEST(RttCommandsTest, TheFloorAndOursAnswerEveryStationWithTheSameStatistics) {
     EXPECT_GT(p50, 0.0);
     EXPECT_LE(p50, p99);
     EXPECT_LE(p99, p999);
+    // At the answer's arrival (the kernel's stamp at the station's socket): each answer arrives
+    // before the driver has read and decoded it, so every quantile is lower, strictly (a run
+    // without the stamps would give the same), and on the send's clock (neither negative nor
+    // the wall clock's offset).
+    const double a50 = j["arrival_rtt_p50_us"], a99 = j["arrival_rtt_p99_us"],
+                 a999 = j["arrival_rtt_p999_us"];
+    EXPECT_GT(a50, 0.0);
+    EXPECT_LT(a50, p50);
+    EXPECT_LT(a99, p99);
+    EXPECT_LT(a999, p999);
+    EXPECT_LT(a999, 1e6);
+    // The driver's own load: its one thread's busy share of a core, and its late slots.
+    EXPECT_GT(j["driver_busy_cores"].get<double>(), 0.0);
+    EXPECT_LT(j["driver_busy_cores"].get<double>(), 1.1);
+    EXPECT_GE(j["driver_late_slots"].get<double>(), 0.0);
+    EXPECT_LE(j["driver_late_slots"].get<double>(), 1.0);
+    EXPECT_GE(j["driver_max_late_us"].get<double>(), 0.0);
   }
   EXPECT_EQ(RunBench("udp-floor --stations 1 --seconds 0.2 --json")["server"], "udp-echo");
 }
