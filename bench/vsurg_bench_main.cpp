@@ -191,14 +191,12 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     sockets.push_back(
         std::make_unique<udp::socket>(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)));
     sockets.back()->non_blocking(true);
-    const int on = 1;  // each datagram's arrival stamp (CLOCK_REALTIME), for arrival_rtt_us
+    const int on = 1;  // each datagram's arrival stamp, for arrival_rtt_us
     ::setsockopt(sockets.back()->native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
   }
   std::unordered_map<uint64_t, Station*> by_session;
   for (auto& st : stations) by_session[st->session] = st.get();
   const Clock::time_point start = Clock::now();
-  timespec wall_start{};  // the arrival stamps' clock at `start`
-  clock_gettime(CLOCK_REALTIME, &wall_start);
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   RttRun run;
   run.rtt_us.reserve(static_cast<size_t>(n * seconds * 1000 * 1.1 / period_ms));
@@ -211,18 +209,20 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   std::array<iovec, kBatch> rx_iov{};
   std::array<mmsghdr, kBatch> rx_msgs{};
   std::array<std::array<char, CMSG_SPACE(sizeof(timespec))>, kBatch> rx_control{};
-  // A received datagram's arrival, in now_s()'s seconds; -1 without a stamp.
-  const auto arrival_s = [&](const msghdr& h) {
+  const auto wall_ns = [](const timespec& ts) {
+    return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  };
+  // A received datagram's arrival stamp (CLOCK_REALTIME, ns); -1 without one.
+  const auto arrival_ns = [&](const msghdr& h) -> int64_t {
     for (cmsghdr* c = CMSG_FIRSTHDR(&h); c != nullptr; c = CMSG_NXTHDR(const_cast<msghdr*>(&h), c))
       if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS) {
         timespec ts{};
         std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        return static_cast<double>(ts.tv_sec - wall_start.tv_sec) +
-               1e-9 * static_cast<double>(ts.tv_nsec - wall_start.tv_nsec);
+        return wall_ns(ts);
       }
-    return -1.0;
+    return -1;
   };
-  auto take = [&](std::span<const uint8_t> datagram, double arrived) {
+  auto take = [&](std::span<const uint8_t> datagram, int64_t arrived_ns) {
     vsurg::wire::Header h;
     if (vsurg::wire::PeekHeader(datagram, h) != vsurg::wire::DropReason::kNone) return;
     // An answer is a force (or the echoed stylus datagram); a scene frame's chunk is read and
@@ -246,9 +246,18 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     }
     if (echo_time >= 0 && echo_sequence >= st.first_measured) {
       ++run.received;
-      const double read = now_s();
-      run.rtt_us.push_back((read - echo_time) * 1e6);
-      run.arrival_rtt_us.push_back(((arrived >= 0 ? arrived : read) - echo_time) * 1e6);
+      const double rtt_us = (now_s() - echo_time) * 1e6;
+      run.rtt_us.push_back(rtt_us);
+      // Less the time the answer sat at the station, on the stamp's own clock (read now): the
+      // send's clock and the stamp's are never compared, so the wall clock's slewing adds
+      // nothing; a stepped wall clock counts as no wait.
+      timespec wall{};
+      clock_gettime(CLOCK_REALTIME, &wall);
+      const double waited_us =
+          arrived_ns >= 0
+              ? 1e-3 * static_cast<double>(std::max<int64_t>(0, wall_ns(wall) - arrived_ns))
+              : 0.0;
+      run.arrival_rtt_us.push_back(rtt_us - waited_us);
     }
   };
   std::function<void(udp::socket&)> receive = [&](udp::socket& socket) {
@@ -267,7 +276,7 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
             ::recvmmsg(sp->native_handle(), rx_msgs.data(), kBatch, MSG_DONTWAIT, nullptr);
         if (got <= 0) break;
         for (int i = 0; i < got; ++i)
-          take({rx[i].data(), rx_msgs[i].msg_len}, arrival_s(rx_msgs[i].msg_hdr));
+          take({rx[i].data(), rx_msgs[i].msg_len}, arrival_ns(rx_msgs[i].msg_hdr));
         if (got < kBatch) break;
       }
       receive(*sp);

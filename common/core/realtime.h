@@ -1,7 +1,8 @@
-// Running a haptic thread ahead of everything else on the machine: SCHED_FIFO at `priority`
-// (1–99) for the calling thread, as OpenHaptics runs its servo loop. Needs root or CAP_SYS_NICE;
-// without them the thread keeps the normal policy and this returns false. Only for threads that
-// sleep or block every cycle (the 1 kHz loops), which therefore cannot starve the machine.
+// A thread's own set-up. TrySetRealtimePriority runs a haptic thread ahead of everything else on
+// the machine: SCHED_FIFO at `priority` (1–99) for the calling thread, as OpenHaptics runs its
+// servo loop. Needs root or CAP_SYS_NICE; without them the thread keeps the normal policy and this
+// returns false. Only for threads that sleep or block every cycle (the 1 kHz loops), which
+// therefore cannot starve the machine. NameThisThread names it for an operator's tools.
 #pragma once
 
 #include <pthread.h>

@@ -1,6 +1,7 @@
 #include "common/sim/deformation_pool.h"
 
 #include <algorithm>
+#include <string>
 
 #include "common/core/realtime.h"
 
