@@ -105,6 +105,13 @@ constexpr double kWarmupS = 0.5;
 // haptic-rtt --twist-deg: when each station grasps (in the warm-up, after its approach).
 constexpr double kTwistGraspS = 0.3;
 
+// The calling thread's CPU time so far, s.
+double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
 // What a station's answers are: the server's force datagrams, or its own stylus datagrams
 // echoed back unchanged (the bare-UDP floor).
 enum class Answer { kForce, kEcho };
@@ -295,11 +302,6 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   Clock::time_point next = Clock::now();
   const double total = kWarmupS + seconds;
   int slot = 0;
-  const auto thread_cpu_s = [] {
-    timespec ts{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-  };
   double cpu_from = -1, wall_from = -1;
   // The measured window holds the datagrams *scheduled* in [warm-up, end): a pacer running late
   // on a loaded machine catches up (at most 20 ms, as a station does) without adding any, and
@@ -308,9 +310,9 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
     const double t = now_s();
     if (t > total + 0.05) return io.stop();
     const double scheduled = std::chrono::duration<double>(next - start).count();
-    if (scheduled >= kWarmupS && cpu_from < 0) cpu_from = thread_cpu_s(), wall_from = t;
+    if (scheduled >= kWarmupS && cpu_from < 0) cpu_from = ThreadCpuSeconds(), wall_from = t;
     if (scheduled >= total && cpu_from >= 0 && run.driver_wall_s == 0)
-      run.driver_cpu_s = thread_cpu_s() - cpu_from, run.driver_wall_s = t - wall_from;
+      run.driver_cpu_s = ThreadCpuSeconds() - cpu_from, run.driver_wall_s = t - wall_from;
     if (scheduled >= kWarmupS && scheduled < total) {
       const double late_us = (t - scheduled) * 1e6;
       ++run.slots;
@@ -652,25 +654,20 @@ int HapticRtt(const std::vector<std::string>& args) {
     };
     return s_of(u.ru_utime) + s_of(u.ru_stime);
   };
-  const auto thread_cpu = [] {
-    timespec ts{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-  };
   const auto deformations = [&] {
     uint64_t d = 0;
     for (const auto& sim : sims) d += sim->deformation_updates();
     return d;
   };
   const vsurg::server::EndpointCounters counters0 = (*endpoint)->counters();
-  const double process0 = process_cpu(), own0 = thread_cpu();
+  const double process0 = process_cpu(), own0 = ThreadCpuSeconds();
   const uint64_t deformations0 = deformations();
   const bool realtime = priority > 0 && vsurg::TrySetRealtimePriority(priority);  // the stations
   RttRun run =
       DriveStations(io, stations, server, rest, outward, seconds, Answer::kForce, period_ms,
                     stroke_mm * 1e-3, twist_deg * std::numbers::pi / 180, per_socket);
   const double cpu = (*endpoint)->io_cpu_seconds() - cpu0;
-  const double server_cpu = (process_cpu() - process0) - (thread_cpu() - own0);
+  const double server_cpu = (process_cpu() - process0) - (ThreadCpuSeconds() - own0);
   const uint64_t deformed = deformations() - deformations0;
   // The answers' time on the node over the run (warm-up included), from the endpoint's histogram:
   // its quantiles are bucket bounds (EndpointCounters::kResidenceBounds).
@@ -792,9 +789,7 @@ class UdpEcho {
           next_tick = Steady::now() + tick;
         }
       }
-      timespec cpu{};
-      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &cpu);
-      p->cpu_s_ = static_cast<double>(cpu.tv_sec) + 1e-9 * static_cast<double>(cpu.tv_nsec);
+      p->cpu_s_ = ThreadCpuSeconds();
     });
     return e;
   }

@@ -8,13 +8,11 @@
 // VSURG_RENDER_OUT=DIR writes every image a test draws to DIR (to look at them).
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <numbers>
 #include <set>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -28,6 +26,7 @@
 #include "common/sim/trajectory.h"
 #include "common/sim/visual_model.h"
 #include "tests/support/thread_names.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::client {
 namespace {
@@ -620,10 +619,8 @@ int RasterizerThreadsStarted(int requested) {
     for (const std::string& name : test::ThreadNames()) n += name.rfind("llvmpipe-", 0) == 0;
     return n;
   };
-  int started = named();
-  for (const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-       started < requested && std::chrono::steady_clock::now() < until; started = named())
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  int started = 0;
+  test::Eventually(10, [&] { return (started = named()) >= requested; });
   return started > 0 ? started : 100;
 }
 
