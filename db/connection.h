@@ -12,6 +12,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "common/core/expected.h"
 
@@ -55,6 +56,27 @@ class Statement {
   std::string String(int col) const { return std::string(Text(col)); }
 };
 
+// A cached statement lent for one use. Its destructor resets it (rows released, bindings cleared,
+// SQLite's read snapshot let go), so every path out of a caller, the early `return row.error()`
+// and the not-found return among them, leaves the statement ready for the next user of the same
+// SQL. A statement left mid-result would otherwise answer the next caller with the previous
+// caller's bindings or rows.
+class ScopedStatement {
+ public:
+  explicit ScopedStatement(Statement* s) : s_(s) {}
+  ScopedStatement(ScopedStatement&& o) noexcept : s_(std::exchange(o.s_, nullptr)) {}
+  ScopedStatement& operator=(ScopedStatement&&) = delete;
+  ScopedStatement(const ScopedStatement&) = delete;
+  ~ScopedStatement() {
+    if (s_) s_->Reset();
+  }
+  Statement* operator->() const { return s_; }
+  Statement& operator*() const { return *s_; }
+
+ private:
+  Statement* s_;
+};
+
 class Connection {
  public:
   enum class Mode { kReadWrite, kReadOnly };
@@ -66,8 +88,13 @@ class Connection {
   virtual ~Connection() = default;
 
   virtual Backend backend() const = 0;
-  // Prepared once per SQL text and cached for the connection's life; the pointer stays valid.
-  virtual Expected<Statement*> Prepare(const std::string& sql) = 0;
+  // Prepared once per SQL text and cached for the connection's life, lent for the caller's scope
+  // and reset when the handle is dropped. Two live handles of the same SQL share one statement.
+  Expected<ScopedStatement> Prepare(const std::string& sql) {
+    auto st = Cached(sql);
+    if (!st.ok()) return st.error();
+    return ScopedStatement(*st);
+  }
   // For DDL and statements without values only (migrations, transaction control).
   virtual Status Exec(const char* sql) = 0;
   // The id the last INSERT on this connection gave its row.
@@ -89,9 +116,17 @@ class Connection {
   // True when the connection is lost for good (the server went away); the store then opens a
   // new one instead of reusing it.
   virtual bool Broken() const = 0;
+  // Requests this connection has sent its server and waited for (PostgreSQL); SQLite is in the
+  // process and has none (0).
+  virtual uint64_t RoundTrips() const = 0;
   // Backend-specific maintenance.
   virtual Status Backup(const std::string& destination) = 0;
   virtual Expected<std::string> IntegrityCheck() = 0;
+
+ protected:
+  // The backend's statement cache: prepares `sql` on first use; the pointer stays valid for the
+  // connection's life.
+  virtual Expected<Statement*> Cached(const std::string& sql) = 0;
 };
 
 }  // namespace vsurg::db

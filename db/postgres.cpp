@@ -91,6 +91,7 @@ Statement& PgStatement::BindNull(int i) {
 
 pg_result* PgStatement::Execute() {
   if (generation_ != c_->generation()) {  // the connection was reset: prepare it again
+    c_->CountRoundTrip();
     pg_result* r = PQprepare(c_->handle(), name_.c_str(), text_.c_str(),
                              static_cast<int>(values_.size()), nullptr);
     if (!Succeeded(r)) return r;
@@ -103,6 +104,7 @@ pg_result* PgStatement::Execute() {
     values[i] = values_[i] ? values_[i]->data() : nullptr;
     lengths[i] = values_[i] ? static_cast<int>(values_[i]->size()) : 0;
   }
+  c_->CountRoundTrip();
   return PQexecPrepared(c_->handle(), name_.c_str(), static_cast<int>(values.size()), values.data(),
                         lengths.data(), formats_.data(), 0);
 }
@@ -157,6 +159,33 @@ std::string_view PgStatement::Text(int col) const {
   return {PQgetvalue(result_, row_, col), static_cast<size_t>(PQgetlength(result_, row_, col))};
 }
 
+namespace {
+
+// The server's side of "nothing acknowledged is lost" across a power cut: its WAL is flushed to
+// the disk (fsync) and a page half-written by a cut is rebuilt from the WAL (full_page_writes).
+// Either off is a server that can lose or corrupt committed rows, and the store refuses to write
+// to it (synchronous_commit is the store's own session setting, above).
+Status CheckServerDurability(pg_conn* conn) {
+  pg_result* r =
+      PQexec(conn, "SELECT current_setting('fsync'), current_setting('full_page_writes')");
+  if (PQresultStatus(r) != PGRES_TUPLES_OK || PQntuples(r) != 1) {
+    Error e = PgError(conn, r, "read the server's durability settings");
+    PQclear(r);
+    return e;
+  }
+  const std::string fsync = PQgetvalue(r, 0, 0), pages = PQgetvalue(r, 0, 1);
+  PQclear(r);
+  if (fsync != "on" || pages != "on")
+    return Error{ErrorCode::kFailedPrecondition,
+                 "PostgreSQL runs with fsync = " + fsync + " and full_page_writes = " + pages +
+                     ": a power cut could lose or corrupt acknowledged records; the store needs "
+                     "both on",
+                 "db"};
+  return Status::Ok();
+}
+
+}  // namespace
+
 Expected<std::unique_ptr<Connection>> PgConnection::Open(const std::string& uri, Mode mode,
                                                          int busy_timeout_ms) {
   const char* keys[] = {"dbname", "connect_timeout", "application_name", nullptr};
@@ -174,6 +203,8 @@ Expected<std::unique_ptr<Connection>> PgConnection::Open(const std::string& uri,
               "; SET client_encoding = 'UTF8'";
   if (mode == Mode::kReadOnly) c->setup_ += "; SET default_transaction_read_only = on";
   if (Status s = c->Apply(c->setup_.c_str()); !s.ok()) return s.error();
+  if (mode == Mode::kReadWrite)
+    if (Status s = CheckServerDurability(conn); !s.ok()) return s.error();
   return std::unique_ptr<Connection>(std::move(c));
 }
 
@@ -218,12 +249,13 @@ Expected<std::string> PgConnection::Renumber(const std::string& sql, int& params
   return out;
 }
 
-Expected<Statement*> PgConnection::Prepare(const std::string& sql) {
+Expected<Statement*> PgConnection::Cached(const std::string& sql) {
   if (auto it = cache_.find(sql); it != cache_.end()) return it->second.get();
   int params = 0;
   auto text = Renumber(sql, params);
   if (!text.ok()) return text.error();
   std::string name = "vsurg_" + std::to_string(++next_name_);
+  CountRoundTrip();
   pg_result* r = PQprepare(conn_, name.c_str(), text->c_str(), params, nullptr);
   if (!Succeeded(r)) {
     Error e = PgError(conn_, r, "prepare");
@@ -248,6 +280,7 @@ Status PgConnection::Exec(const char* sql) {
 }
 
 Status PgConnection::Apply(const char* sql) {
+  CountRoundTrip();
   pg_result* r = PQexec(conn_, sql);
   if (!Succeeded(r)) {
     Error e = PgError(conn_, r, sql);
@@ -259,6 +292,7 @@ Status PgConnection::Apply(const char* sql) {
 }
 
 Expected<int64_t> PgConnection::LastInsertId() {
+  CountRoundTrip();
   pg_result* r = PQexec(conn_, "SELECT lastval()");
   if (!Succeeded(r) || PQntuples(r) != 1) {
     Error e = PgError(conn_, r, "lastval");

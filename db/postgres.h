@@ -65,7 +65,6 @@ class PgConnection final : public Connection {
   PgConnection& operator=(const PgConnection&) = delete;
 
   Backend backend() const override { return Backend::kPostgres; }
-  Expected<Statement*> Prepare(const std::string& sql) override;
   Status Exec(const char* sql) override;
   Expected<int64_t> LastInsertId() override;  // lastval(): the sequence this session used last
   int Changes() const override { return changes_; }
@@ -78,6 +77,8 @@ class PgConnection final : public Connection {
   Status SetSchemaVersion(int version) override;
   std::string Dialect(const char* ddl) const override { return PostgresDialect(ddl); }
   bool Broken() const override;
+  uint64_t RoundTrips() const override { return round_trips_; }
+  void CountRoundTrip() { ++round_trips_; }
   // PostgreSQL is backed up by its own tools (pg_dump, pg_basebackup): kFailedPrecondition.
   Status Backup(const std::string& destination) override;
   // The server answers, the schema is this binary's, and every table of it is there.
@@ -99,6 +100,9 @@ class PgConnection final : public Connection {
   int generation() const { return generation_; }
   bool Idle() const;  // no transaction open (as far as libpq knows)
 
+ protected:
+  Expected<Statement*> Cached(const std::string& sql) override;
+
  private:
   explicit PgConnection(pg_conn* conn) : conn_(conn) {}
   Status Apply(const char* sql);  // Exec without the reconnect
@@ -107,6 +111,7 @@ class PgConnection final : public Connection {
   int generation_ = 0;
   int changes_ = 0;
   int next_name_ = 0;
+  uint64_t round_trips_ = 0;
   std::map<std::string, std::unique_ptr<PgStatement>, std::less<>> cache_;
 };
 

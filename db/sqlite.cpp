@@ -107,7 +107,7 @@ SqliteConnection::~SqliteConnection() {
   sqlite3_close(db_);
 }
 
-Expected<Statement*> SqliteConnection::Prepare(const std::string& sql) {
+Expected<Statement*> SqliteConnection::Cached(const std::string& sql) {
   if (auto it = cache_.find(sql); it != cache_.end()) return it->second.get();
   sqlite3_stmt* stmt = nullptr;
   const int rc = sqlite3_prepare_v3(db_, sql.c_str(), static_cast<int>(sql.size()),

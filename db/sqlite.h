@@ -51,7 +51,6 @@ class SqliteConnection final : public Connection {
   SqliteConnection& operator=(const SqliteConnection&) = delete;
 
   Backend backend() const override { return Backend::kSqlite; }
-  Expected<Statement*> Prepare(const std::string& sql) override;
   Status Exec(const char* sql) override;
   Expected<int64_t> LastInsertId() override;
   int Changes() const override;
@@ -62,9 +61,13 @@ class SqliteConnection final : public Connection {
   Status SetSchemaVersion(int version) override;
   std::string Dialect(const char* ddl) const override { return ddl; }
   bool Broken() const override { return false; }
+  uint64_t RoundTrips() const override { return 0; }
   // Online backup to a new file, 256 pages at a time (writers are not held off meanwhile).
   Status Backup(const std::string& destination) override;
   Expected<std::string> IntegrityCheck() override;  // PRAGMA integrity_check
+
+ protected:
+  Expected<Statement*> Cached(const std::string& sql) override;
 
  private:
   explicit SqliteConnection(sqlite3* db) : db_(db) {}
