@@ -42,7 +42,6 @@ void Store::Impl::WriterLoop() {
 }
 
 void Store::Impl::RunBatch(std::vector<Pending>& batch) {
-  std::vector<Status> results(batch.size());
   // A shared store's server may have restarted since the last batch: reconnect first (the jobs
   // of a batch that met the loss failed with kUnavailable and were never acknowledged).
   if (writer->Broken()) {
@@ -50,6 +49,12 @@ void Store::Impl::RunBatch(std::vector<Pending>& batch) {
         Connection::Open(options.path, Connection::Mode::kReadWrite, options.busy_timeout_ms);
     if (again.ok()) writer = std::move(again).value();
   }
+  // The jobs that are a transaction each go first, then the rest in one group commit.
+  for (Pending& p : batch)
+    if (p.alone) RunAlone(p);
+  std::erase_if(batch, [](const Pending& p) { return p.alone; });
+  if (batch.empty()) return;
+  std::vector<Status> results(batch.size());
   const auto t0 = std::chrono::steady_clock::now();
   Status begin = writer->BeginWrite();
   uint64_t failed = 0;
@@ -78,21 +83,32 @@ void Store::Impl::RunBatch(std::vector<Pending>& batch) {
         if (r.ok()) r = commit, ++failed;
     }
   }
-  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  {
-    std::lock_guard lock(stats_mutex);
-    ++stats.commits;
-    stats.jobs += batch.size();
-    stats.failed_jobs += failed;
-    stats.failed_commits += commit_failed;
-    const auto& bounds = StoreStats::kCommitBounds;
-    stats.commit_buckets[static_cast<size_t>(std::lower_bound(bounds.begin(), bounds.end(), took) -
-                                             bounds.begin())]++;
-    stats.commit_seconds += took;
-  }
+  CountCommit(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+              batch.size(), failed, commit_failed);
   // Only now, after the COMMIT (fsync), is anything acknowledged.
   for (size_t i = 0; i < batch.size(); ++i)
     if (batch[i].done) batch[i].done(std::move(results[i]));
+}
+
+void Store::Impl::RunAlone(Pending& p) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Status s = p.job(*writer);  // autocommit: durable when the statement returns
+  CountCommit(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 1,
+              s.ok() ? 0 : 1, false);
+  if (p.done) p.done(std::move(s));
+}
+
+void Store::Impl::CountCommit(double took, size_t jobs, uint64_t failed, bool commit_failed) {
+  std::lock_guard lock(stats_mutex);
+  ++stats.commits;
+  stats.jobs += jobs;
+  stats.failed_jobs += failed;
+  stats.failed_commits += commit_failed;
+  const auto& bounds = StoreStats::kCommitBounds;
+  stats.commit_buckets[static_cast<size_t>(std::lower_bound(bounds.begin(), bounds.end(), took) -
+                                           bounds.begin())]++;
+  stats.commit_seconds += took;
+  stats.writer_round_trips = writer->RoundTrips();
 }
 
 Store::Store(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -161,20 +177,25 @@ bool Store::read_only() const {
   return impl_->read_only;
 }
 
-void Store::WriteAsync(Job job, std::function<void(Status)> done) {
+void Store::Impl::Post(Pending job) {
   {
-    std::lock_guard lock(impl_->queue_mutex);
-    if (impl_->read_only) {
-      if (done) done(Error{ErrorCode::kFailedPrecondition, "the store was opened read-only", ""});
+    std::lock_guard lock(queue_mutex);
+    if (read_only) {
+      if (job.done)
+        job.done(Error{ErrorCode::kFailedPrecondition, "the store was opened read-only", ""});
       return;
     }
-    if (impl_->stopping) {
-      if (done) done(Error{ErrorCode::kUnavailable, "the store is shutting down", ""});
+    if (stopping) {
+      if (job.done) job.done(Error{ErrorCode::kUnavailable, "the store is shutting down", ""});
       return;
     }
-    impl_->queue.push_back({std::move(job), std::move(done)});
+    queue.push_back(std::move(job));
   }
-  impl_->queue_cv.notify_one();
+  queue_cv.notify_one();
+}
+
+void Store::WriteAsync(Job job, std::function<void(Status)> done) {
+  impl_->Post({std::move(job), std::move(done)});
 }
 
 Status Store::Write(Job job) {

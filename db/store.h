@@ -19,7 +19,9 @@
 //     Several processes on one PostgreSQL each have their writer; unique constraints, not the
 //     writer, keep their jobs from contradicting each other (a lost race is kAlreadyExists).
 //     A lost PostgreSQL connection fails the batch with kUnavailable (nothing acknowledged) and
-//     the next batch reconnects.
+//     the next batch reconnects. A lease renewal (BeatNode) is one UPDATE and needs no
+//     transaction around it: the writer runs it in autocommit ahead of the batch, one round
+//     trip to a shared store instead of five.
 //  3. Reads use a small pool of read-only connections (they never block the writer and see
 //     the last committed state).
 //  4. Only prepared statements with bound values; no SQL text is built from input.
@@ -130,6 +132,8 @@ struct Submission {
   std::string comment;       // the evaluator's words to the trainee (at most kMaxComment bytes)
 };
 constexpr size_t kMaxComment = 4000;
+// A training moment is the training time so far: at most this many minutes (some 1,700 hours).
+constexpr double kMaxMomentMin = 100000;
 
 struct SubmitResult {
   int64_t submission_id = 0;
@@ -220,6 +224,11 @@ struct AttemptRow {
   scoring::TrialMetrics metrics;
 };
 
+// Trainee names from `first` to `last`, both included, in the names' order.
+struct NameRange {
+  std::string first, last;
+};
+
 struct ExportFilter {
   std::optional<int64_t> from_us = std::nullopt;  // submitted in [from, to)
   std::optional<int64_t> to_us = std::nullopt;
@@ -244,8 +253,9 @@ struct StoreStats {
   static constexpr std::array<double, 10> kCommitBounds{0.0005, 0.001, 0.002, 0.005, 0.01,
                                                         0.02,   0.05,  0.1,   0.25,  1};
   std::array<uint64_t, kCommitBounds.size() + 1> commit_buckets{};
-  double commit_seconds = 0;  // their sum
-  uint64_t queued = 0;        // jobs waiting for the writer when read
+  double commit_seconds = 0;        // their sum
+  uint64_t queued = 0;              // jobs waiting for the writer when read
+  uint64_t writer_round_trips = 0;  // requests the writer sent its server (PostgreSQL; SQLite 0)
 };
 
 class Store {
@@ -334,7 +344,8 @@ class Store {
   Status RecordTrainingMoment(const std::string& trainee, double moment_min,
                               std::optional<int64_t> session_id);
 
-  // Validates (scores 0–10 and finite, group, subject exists, evaluator's group) and stores one
+  // Validates (scores 0–10 and finite, group, subject exists, a session subject was started (live
+  // or ended), a moment within 0..kMaxMomentMin, evaluator's group) and stores one
   // row per index. The same idempotency key again → the first result with duplicate = true; the
   // same evaluator on the same subject and moment with another key → kAlreadyExists.
   Expected<SubmitResult> SubmitEvaluation(const Submission& s);
@@ -397,9 +408,10 @@ class Store {
   // The recorded trials at the exercises of `course_id`, exercise by exercise (in the course's
   // order), each trainee's in the order they were made (their sessions' order); only `trainee`'s
   // when not empty, only the members' of `cohort_id` when not 0, only at `exercise_id` when
-  // not 0.
+  // not 0, only the trainees named within `names` when given (a page of a cohort's grid).
   Expected<std::vector<AttemptRow>> LoadAttempts(int64_t course_id, const std::string& trainee,
-                                                 int64_t cohort_id, int64_t exercise_id = 0);
+                                                 int64_t cohort_id, int64_t exercise_id = 0,
+                                                 const std::optional<NameRange>& names = {});
   // The experts' recorded trials on `scene` (any session, an exercise's or not), in no order;
   // only those at `exercise_id` when not 0.
   Expected<std::vector<AttemptRow>> LoadExpertAttempts(const std::string& scene,

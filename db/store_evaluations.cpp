@@ -21,14 +21,38 @@ Status ValidateSubmission(const Submission& s) {
                                                   "' (intern, associate_chief or chief)");
   if (s.subject.empty() || s.subject.size() > 256)
     return InvalidArgument("subject", "a subject of 1 to 256 characters is required");
-  if (s.moment_min && (!std::isfinite(*s.moment_min) || *s.moment_min < 0))
-    return InvalidArgument("moment_min", "must be finite and >= 0 minutes");
+  if (s.moment_min && !(*s.moment_min >= 0 && *s.moment_min <= kMaxMomentMin))
+    return InvalidArgument(
+        "moment_min",
+        "0 to " + std::to_string(static_cast<int64_t>(kMaxMomentMin)) + " minutes of training");
   if (s.comment.size() > kMaxComment)
     return InvalidArgument("comment", "at most " + std::to_string(kMaxComment) + " bytes");
   for (int j = 0; j < scoring::kIndexCount; ++j)
     if (!scoring::IsValidScore(s.scores[j]))
       return InvalidArgument("scores[" + std::to_string(j) + "]",
                              std::string(scoring::IndexName(j)) + " score must be within 0..10");
+  return Status::Ok();
+}
+
+// A session is scored only once it was driven: one never started holds nothing to judge. A live
+// one that has started may be scored: an evaluator watching a trainee live scores what they saw
+// (the submission keeps when). kNotFound, or kFailedPrecondition saying why.
+Status SessionToJudge(Connection& c, int64_t id) {
+  auto st = c.Prepare("SELECT state, started_us FROM sessions WHERE id = ?1");
+  if (!st.ok()) return st.error();
+  (*st)->Bind(1, id);
+  auto row = (*st)->Step();
+  if (!row.ok()) return row.error();
+  const std::string subject = "session " + std::to_string(id);
+  if (!*row) return Error{ErrorCode::kNotFound, "no " + subject, "subject"};
+  if ((*st)->IsNull(1)) {
+    const auto state = ParseSessionState((*st)->Text(0));
+    return Error{ErrorCode::kFailedPrecondition,
+                 subject +
+                     (state && IsLive(*state) ? " has not started yet" : " was never started") +
+                     ": there is nothing to judge",
+                 "subject"};
+  }
   return Status::Ok();
 }
 
@@ -103,9 +127,7 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
       const auto r = std::from_chars(s.subject.data(), s.subject.data() + s.subject.size(), id);
       if (r.ec != std::errc() || r.ptr != s.subject.data() + s.subject.size())
         return InvalidArgument("subject", "a session subject is a session id");
-      auto found = LookupId(c, "SELECT id FROM sessions WHERE id = ?1", s.subject);
-      if (!found.ok()) return found.error();
-      if (!*found) return Error{ErrorCode::kNotFound, "no session " + s.subject, "subject"};
+      if (Status judged = SessionToJudge(c, id); !judged.ok()) return judged;
       break;
     }
     case SubjectKind::kTrainee: {

@@ -1,4 +1,6 @@
+#include <algorithm>
 #include <cmath>
+#include <future>
 #include <map>
 
 #include "db/store_impl.h"
@@ -377,7 +379,13 @@ Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t lease_us,
 
 Status Store::BeatNode(const NodeRecord& n) {
   if (Status s = CheckNodeRecord(n); !s.ok()) return s;
-  return Write([n](Connection& c) -> Status {
+  // One UPDATE, a transaction by itself: one round trip to a shared store (Pending::alone).
+  std::promise<Status> renewed;
+  auto done = renewed.get_future();
+  Impl::Pending job;
+  job.alone = true;
+  job.done = [&renewed](Status s) { renewed.set_value(std::move(s)); };
+  job.job = [n](Connection& c) -> Status {
     Status st = RunSql(c,
                        "UPDATE nodes SET grpc_address = ?3, udp_host = ?4, udp_port = ?5, "
                        "capacity = ?6, sessions = ?7, cpu = ?8, draining = ?9, started_us = ?10, "
@@ -394,7 +402,9 @@ Status Store::BeatNode(const NodeRecord& n) {
                        " (marked down, or its name taken by a newer process)",
                    "epoch"};
     return st;
-  });
+  };
+  impl_->Post(std::move(job));
+  return done.get();
 }
 
 Expected<std::vector<NodeRecord>> Store::ListNodes() {
@@ -572,6 +582,12 @@ Expected<std::string> Store::GetSessionTrace(int64_t session_id) {
 Expected<SessionPage> Store::FindSessions(const SessionQuery& q) {
   if (q.limit < 1 || q.limit > 200) return InvalidArgument("limit", "must be within 1..200");
   if (q.offset < 0) return InvalidArgument("offset", "must not be negative");
+  // Names hold no control characters, so a search for one finds nothing; SQLite would cut the
+  // pattern at a NUL (and match every row) and PostgreSQL refuses text with one.
+  for (const auto* text : {&q.search, &q.trainee, &q.scene})
+    if (*text && std::any_of((*text)->begin(), (*text)->end(),
+                             [](char c) { return static_cast<unsigned char>(c) < 0x20; }))
+      return SessionPage{};
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
   // One WHERE for the page and its count; each filter is off when its parameter is NULL.

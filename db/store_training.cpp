@@ -463,7 +463,8 @@ Expected<std::vector<std::string>> Store::ListExperts() {
 }
 
 Expected<std::vector<AttemptRow>> Store::LoadAttempts(int64_t course_id, const std::string& trainee,
-                                                      int64_t cohort_id, int64_t exercise_id) {
+                                                      int64_t cohort_id, int64_t exercise_id,
+                                                      const std::optional<NameRange>& range) {
   auto r = impl_->Read();
   if (!r.ok()) return r.error();
   // The trainees' names first (a cohort's few hundred), then their trials by id: a name looked
@@ -472,8 +473,12 @@ Expected<std::vector<AttemptRow>> Store::LoadAttempts(int64_t course_id, const s
   Status s = ForEachRow(
       **r,
       "SELECT t.id, t.name FROM trainees t WHERE (CAST(?1 AS TEXT) = '' OR t.name = ?1) "
-      "AND (?2 = 0 OR t.id IN (SELECT trainee_id FROM cohort_members WHERE cohort_id = ?2))",
-      [&](Statement& q) { q.Bind(1, trainee).Bind(2, cohort_id); },
+      "AND (?2 = 0 OR t.id IN (SELECT trainee_id FROM cohort_members WHERE cohort_id = ?2)) "
+      "AND (?3 = 0 OR (t.name >= ?4 AND t.name <= ?5))",
+      [&](Statement& q) {
+        q.Bind(1, trainee).Bind(2, cohort_id).Bind(3, int64_t{range ? 1 : 0});
+        q.Bind(4, range ? range->first : "").Bind(5, range ? range->last : "");
+      },
       [&](const Statement& q) { names.emplace(q.Int(0), q.String(1)); });
   if (!s.ok()) return s.error();
   std::vector<int64_t> exercises;

@@ -7,6 +7,9 @@
 #                                         one); prints its URI and writes it to DIR/uri
 #   deploy/postgres.sh stop DIR           stops it and removes DIR
 #
+# VSURG_PG_SETTINGS adds server settings to the start (e.g. "-c fsync=off", for the test that
+# the store refuses a server that would lose acknowledged writes).
+#
 # initdb refuses to run as root: as root, the cluster belongs to the package's `postgres` user
 # (runuser); otherwise to the caller.
 set -euo pipefail
@@ -51,7 +54,7 @@ case "$cmd" in
     for attempt in 1 2 3 4 5; do
       [ "$port" = 0 ] && p="$(free_port)" || p="$port"
       if as_owner "$bin/pg_ctl" -D "$dir/data" -l "$dir/server.log" -w -t 30 \
-          -o "-k $dir -p $p -c listen_addresses=127.0.0.1 -c max_connections=200" start >/dev/null; then
+          -o "-k $dir -p $p -c listen_addresses=127.0.0.1 -c max_connections=200 ${VSURG_PG_SETTINGS:-}" start >/dev/null; then
         port="$p"
         break
       fi

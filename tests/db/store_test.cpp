@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -17,6 +18,7 @@
 #include "db/connection.h"
 #include "db/migrations.h"
 #include "db/postgres.h"
+#include "tests/db/store_fixture.h"
 #include "tests/support/postgres.h"
 #include "tests/support/temp_dir.h"
 
@@ -24,61 +26,7 @@ namespace vsurg::db {
 namespace {
 
 namespace fs = std::filesystem;
-
-// Every store test runs on both backends: an SQLite file in a temporary folder, and a database
-// of its own on a real PostgreSQL (tests/support/postgres.h).
-class StoreTest : public ::testing::TestWithParam<Backend> {
- protected:
-  void SetUp() override {
-    if (sqlite()) {
-      path_ = (dir_ / "vsurg.db").string();
-    } else {
-      pg_ = std::make_unique<test::PostgresDatabase>();
-      path_ = pg_->uri();
-    }
-    auto s = Store::Open({.path = path_});
-    ASSERT_TRUE(s.ok()) << s.error().message;
-    store_ = std::move(s).value();
-  }
-  void TearDown() override {
-    store_.reset();
-    pg_.reset();
-  }
-  bool sqlite() const { return GetParam() == Backend::kSqlite; }
-  // The schema version as the backend keeps it, read through a connection of its own.
-  int Version() {
-    auto c = Connection::Open(path_, Connection::Mode::kReadOnly);
-    EXPECT_TRUE(c.ok()) << c.error().message;
-    auto v = (*c)->SchemaVersion();
-    EXPECT_TRUE(v.ok());
-    return v.ok() ? *v : -1;
-  }
-  void SetVersion(int v) {
-    auto c = Connection::Open(path_, Connection::Mode::kReadWrite);
-    ASSERT_TRUE(c.ok());
-    ASSERT_TRUE((*c)->SetSchemaVersion(v).ok());
-  }
-
-  Submission Valid(const std::string& key, const std::string& evaluator = "dr-a",
-                   const std::string& subject = "coil-spring") {
-    Submission s;
-    s.idempotency_key = key;
-    s.evaluator = evaluator;
-    s.evaluator_group = "chief";
-    s.subject_kind = SubjectKind::kModel;
-    s.subject = subject;
-    s.scores = {8, 7, 9, 8, 7, 8, 9, 6, 7};
-    s.submitted_by = "root";
-    return s;
-  }
-
-  int64_t Rows() { return store_->CountEvaluationRows().value(); }
-
-  test::TempDir dir_{"store"};
-  std::string path_;
-  std::unique_ptr<test::PostgresDatabase> pg_;
-  std::unique_ptr<Store> store_;
-};
+using test_store::StoreTest;
 
 INSTANTIATE_TEST_SUITE_P(Backends, StoreTest,
                          ::testing::Values(Backend::kSqlite, Backend::kPostgres),
@@ -98,17 +46,22 @@ TEST_P(StoreTest, OpensDurableWithTheCurrentSchema) {
   EXPECT_EQ(Version(), Store::SchemaVersion());
   EXPECT_EQ(store_->IntegrityCheck().value(), "ok");
   if (!sqlite()) {
-    std::string commit;
+    std::string commit, fsync, pages;
     ASSERT_TRUE(store_
                     ->Write([&](Connection& c) {
-                      auto st = c.Prepare("SHOW synchronous_commit");
+                      auto st = c.Prepare(
+                          "SELECT current_setting('synchronous_commit'), current_setting('fsync'), "
+                          "current_setting('full_page_writes')");
                       EXPECT_TRUE(st.ok() && (*st)->Step().value());
                       commit = (*st)->String(0);
-                      (*st)->Reset();
+                      fsync = (*st)->String(1);
+                      pages = (*st)->String(2);
                       return Status::Ok();
                     })
                     .ok());
-    EXPECT_EQ(commit, "on");  // COMMIT returns after the WAL flush
+    EXPECT_EQ(commit, "on");  // COMMIT returns after the WAL flush,
+    EXPECT_EQ(fsync, "on");   // which reaches the disk,
+    EXPECT_EQ(pages, "on");   // and a page torn by a power cut is rebuilt from the WAL
     return;
   }
   int64_t sync = -1, fk = -1, version = -1;
@@ -329,6 +282,7 @@ TEST_P(StoreTest, EndedSessionsAreRecordsFoundByFiltersAndPages) {
     auto s = store_->CreateSession(t.trainee, t.scene);
     ASSERT_TRUE(s.ok()) << s.error().message;
     ids.push_back(s->id);
+    ASSERT_TRUE(store_->SetSessionState(s->id, SessionState::kRunning, 100).ok());
     scoring::TrialMetrics m;
     m.score = t.score;
     m.completed = t.score >= 5;
@@ -668,6 +622,7 @@ TEST_P(StoreTest, NodesRegisterAndASilentNodeHasItsLiveSessionsAbortedOnce) {
 TEST_P(StoreTest, CsvExportIsRfc4180UtcAndFormulaSafe) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   auto session = store_->CreateSession("trainee-1", "arm-torsion");
+  ASSERT_TRUE(store_->SetSessionState(session->id, SessionState::kRunning, 100).ok());
   Submission s = Valid("e1", "=HYPERLINK(\"http://evil\")");
   s.subject_kind = SubjectKind::kSession;
   s.subject = std::to_string(session->id);
@@ -1019,6 +974,26 @@ TEST_P(StoreTest, ATrainingProgrammeIsKeptAndItsAttemptsReadBack) {
   EXPECT_DOUBLE_EQ((*attempts)[1].metrics.peak_force, 1.5);
   EXPECT_TRUE(store_->LoadAttempts(made->id, "tom", 0)->empty());
   EXPECT_EQ(store_->LoadExpertAttempts("sphere")->size(), 1u);
+}
+
+// A PostgreSQL that would lose acknowledged writes in a power cut (fsync off) is refused for
+// writing, by name; reading from it (an export) is still allowed.
+TEST(StorePostgresDurabilityTest, AServerWithFsyncOffIsRefused) {
+  test::TempDir dir("pg_fsync_off");
+  const std::string script = std::string(VSURG_SOURCE_DIR) + "/deploy/postgres.sh";
+  const std::string data = (dir / "pg").string();
+  ASSERT_EQ(
+      std::system(("VSURG_PG_SETTINGS='-c fsync=off' " + script + " start " + data + " >/dev/null")
+                      .c_str()),
+      0);
+  std::string uri;
+  std::getline(std::ifstream(data + "/uri"), uri);
+  auto s = Store::Open({.path = uri});
+  const int stopped = std::system((script + " stop " + data).c_str());
+  EXPECT_EQ(stopped, 0);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_NE(s.error().message.find("fsync = off"), std::string::npos) << s.error().message;
 }
 
 }  // namespace
