@@ -167,8 +167,11 @@ class TrainingServiceImpl final : public v1::TrainingService::CallbackService {
         d_, pool_, ctx, Method::kTrainingProgress, [=, this](const db::Principal& p) -> Status {
           std::vector<CourseProgress> parts;
           if (req->cohort_id() != 0) {
-            auto grid = CohortProgress(d_, p, req->cohort_id(), req->course_id());
+            const GridPage page{.offset = req->offset(),
+                                .limit = req->limit() == 0 ? kMaxGridTrainees : req->limit()};
+            auto grid = CohortProgress(d_, p, req->cohort_id(), req->course_id(), page);
             if (!grid.ok()) return grid.error();
+            resp->set_total_trainees(grid->total_trainees);
             parts.push_back(std::move(grid).value());
           } else {
             auto mine = TraineeCourses(d_, p, req->trainee().empty() ? p.name : req->trainee());

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <map>
 
-#include <openssl/sha.h>
 #include <nlohmann/json.hpp>
 
 #include "common/core/time.h"
@@ -237,34 +236,23 @@ const ExerciseView* FindExercise(const CourseView& c, int64_t id) {
   return nullptr;
 }
 
+// A trainee reads a course (its exercises, their targets, their curves) only when enrolled in it,
+// on their own or with a cohort; the other roles are not asked.
+Status TraineeEnrolled(Domain& d, const db::Principal& p, int64_t course_id) {
+  if (p.role != db::Role::kTrainee) return Status::Ok();
+  auto enrolments = d.store.ListEnrolments(p.name);
+  if (!enrolments.ok()) return enrolments.error();
+  if (std::none_of(enrolments->begin(), enrolments->end(),
+                   [&](const db::EnrolmentRecord& e) { return e.course_id == course_id; }))
+    return NotYours("course " + std::to_string(course_id) + " is not one of yours");
+  return Status::Ok();
+}
+
 // May `p` read `trainee`'s progress? A trainee only their own.
 Status MayRead(const db::Principal& p, const std::string& trainee) {
   if (p.role == db::Role::kTrainee && trainee != p.name)
     return NotYours("a trainee sees only their own progress");
   return Status::Ok();
-}
-
-// A statement id as xAPI wants it (a UUID): name-based, version 5 (RFC 9562 §5.5), from `name`
-// in the URL namespace, so an export run twice gives a learning record store the same ids and
-// it keeps one copy of each statement.
-std::string StatementId(const std::string& name) {
-  static constexpr unsigned char kUrlNamespace[16] = {0x6b, 0xa7, 0xb8, 0x11, 0x9d, 0xad,
-                                                      0x11, 0xd1, 0x80, 0xb4, 0x00, 0xc0,
-                                                      0x4f, 0xd4, 0x30, 0xc8};
-  std::string input(reinterpret_cast<const char*>(kUrlNamespace), 16);
-  input += name;
-  unsigned char h[SHA_DIGEST_LENGTH];
-  SHA1(reinterpret_cast<const unsigned char*>(input.data()), input.size(), h);
-  h[6] = static_cast<unsigned char>((h[6] & 0x0f) | 0x50);
-  h[8] = static_cast<unsigned char>((h[8] & 0x3f) | 0x80);
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out;
-  for (int i = 0; i < 16; ++i) {
-    if (i == 4 || i == 6 || i == 8 || i == 10) out.push_back('-');
-    out.push_back(kHex[h[i] >> 4]);
-    out.push_back(kHex[h[i] & 15]);
-  }
-  return out;
 }
 
 bool EnrolmentActive(const db::EnrolmentRecord& e, int64_t now_us) {
@@ -317,9 +305,9 @@ Expected<ExerciseSpec> ParseExerciseSpec(std::string_view text) {
     if (!j["unlock_in_order"].is_boolean()) return InvalidArgument("unlock_in_order", "a boolean");
     s.unlock_in_order = j["unlock_in_order"].get<bool>();
   }
-  const std::string bench = j.contains("benchmark") && j["benchmark"].is_string()
-                                ? j["benchmark"].get<std::string>()
-                                : "mean_sd";
+  if (j.contains("benchmark") && !j["benchmark"].is_string())
+    return InvalidArgument("benchmark", "mean_sd or best_quartile, as text");
+  const std::string bench = j.contains("benchmark") ? j["benchmark"].get<std::string>() : "mean_sd";
   if (bench == "mean_sd")
     s.benchmark = scoring::BenchmarkMode::kMeanSd;
   else if (bench == "best_quartile")
@@ -500,13 +488,7 @@ Expected<CourseView> GetCourse(Domain& d, const db::Principal& p, int64_t id) {
   if (Status s = Permit(p, Method::kTrainingListCourses); !s.ok()) return s.error();
   auto c = d.store.GetCourse(id);
   if (!c.ok()) return c.error();
-  if (p.role == db::Role::kTrainee) {
-    auto enrolments = d.store.ListEnrolments(p.name);
-    if (!enrolments.ok()) return enrolments.error();
-    if (std::none_of(enrolments->begin(), enrolments->end(),
-                     [&](const db::EnrolmentRecord& e) { return e.course_id == id; }))
-      return NotYours("course " + std::to_string(id) + " is not one of yours");
-  }
+  if (Status s = TraineeEnrolled(d, p, id); !s.ok()) return s.error();
   return ResolveCourse(d, std::move(c).value());
 }
 
@@ -576,16 +558,32 @@ Expected<std::vector<std::string>> ListExperts(Domain& d, const db::Principal& p
 // --- progress ---
 
 Expected<CourseProgress> CohortProgress(Domain& d, const db::Principal& p, int64_t cohort_id,
-                                        int64_t course_id) {
+                                        int64_t course_id, GridPage page) {
+  if (page.limit < 1 || page.limit > kMaxGridTrainees)
+    return InvalidArgument("limit", "trainees per page: 1 to " + std::to_string(kMaxGridTrainees));
+  if (page.offset < 0) return InvalidArgument("offset", "0 or more");
   auto cohort = CohortToRead(d, p, cohort_id);
   if (!cohort.ok()) return cohort.error();
   auto course = d.store.GetCourse(course_id);
   if (!course.ok()) return course.error();
   auto view = ResolveCourse(d, std::move(course).value());
   if (!view.ok()) return view.error();
-  auto rows = d.store.LoadAttempts(course_id, "", cohort_id);
-  if (!rows.ok()) return rows.error();
-  return EvaluateAll(std::move(view).value(), cohort->members, *rows, NowUs());
+  // The page's members (sorted by name, db::CohortRecord): their attempts only.
+  const std::vector<std::string>& all = cohort->members;
+  const size_t first = static_cast<size_t>(std::min<int64_t>(page.offset, std::ssize(all)));
+  const size_t last = std::min(all.size(), first + static_cast<size_t>(page.limit));
+  const std::vector<std::string> members(all.begin() + first, all.begin() + last);
+  std::vector<db::AttemptRow> rows;
+  if (!members.empty()) {
+    auto loaded = d.store.LoadAttempts(course_id, "", cohort_id, 0,
+                                       db::NameRange{members.front(), members.back()});
+    if (!loaded.ok()) return loaded.error();
+    rows = std::move(loaded).value();
+  }
+  CourseProgress out = EvaluateAll(std::move(view).value(), members, rows, NowUs());
+  out.offset = static_cast<int64_t>(first);
+  out.total_trainees = std::ssize(all);
+  return out;
 }
 
 Expected<std::vector<CourseProgress>> TraineeCourses(Domain& d, const db::Principal& p,
@@ -614,6 +612,8 @@ Expected<LearningCurve> TraineeCurve(Domain& d, const db::Principal& p, const st
   if (Status s = MayRead(p, trainee); !s.ok()) return s.error();
   auto e = d.store.GetExercise(exercise_id);
   if (!e.ok()) return e.error();
+  // A trainee sees the exercises of their own courses only, as on the course page.
+  if (Status s = TraineeEnrolled(d, p, e->course_id); !s.ok()) return s.error();
   std::vector<db::AttemptRow> rows;
   auto all = OneTraineeProgress(d, e->course_id, trainee, &rows);
   if (!all.ok()) return all.error();
@@ -785,153 +785,7 @@ Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const d
   return std::optional<scoring::AttemptCheck>(std::move(check));
 }
 
-// --- exports ---
-
-namespace {
-
-// The progress an export writes: a cohort's, or a trainee's own courses.
-Expected<std::vector<CourseProgress>> ProgressToExport(Domain& d, const db::Principal& p,
-                                                       int64_t course_id, int64_t cohort_id) {
-  std::vector<CourseProgress> parts;
-  if (cohort_id != 0) {
-    auto cp = CohortProgress(d, p, cohort_id, course_id);
-    if (!cp.ok()) return cp.error();
-    parts.push_back(std::move(cp).value());
-  } else if (p.role == db::Role::kTrainee) {
-    auto mine = TraineeCourses(d, p, p.name);
-    if (!mine.ok()) return mine.error();
-    for (CourseProgress& c : *mine)
-      if (course_id == 0 || c.course.record.id == course_id) parts.push_back(std::move(c));
-  } else {
-    return InvalidArgument("cohort", "an instructor exports one cohort's progress at a time");
-  }
-  return parts;
-}
-
-Status WriteProgress(const std::vector<CourseProgress>& parts, db::ExportFormat format,
-                     const std::function<bool(std::string_view)>& sink) {
-  // One trainee's lines at a time: an export of 100,000 attempts as xAPI is some 60 MB, never
-  // held whole.
-  std::string out;
-  const auto flush = [&]() -> Status {
-    if (!out.empty() && !sink(out))
-      return Error{ErrorCode::kUnavailable, "the download was stopped", "export"};
-    out.clear();
-    return Status::Ok();
-  };
-  if (format == db::ExportFormat::kCsv)
-    out +=
-        "course,exercise_position,exercise,scene,trainee,state,attempts,passes,streak,"
-        "proficient_at_attempt,proficient_at,last_attempt_at\r\n";
-  for (const CourseProgress& cp : parts) {
-    const CourseView& c = cp.course;
-    for (const TraineeProgress& tp : cp.trainees) {
-      for (size_t i = 0; i < tp.exercises.size(); ++i) {
-        const ExerciseProgress& ep = tp.exercises[i];
-        const ExerciseView& ex = c.exercises[i];
-        const scoring::Progress& pr = ep.progress;
-        if (format == db::ExportFormat::kCsv) {
-          auto quote = [](const std::string& s) {
-            std::string q = "\"";
-            for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-            return q + "\"";
-          };
-          out += (quote(c.record.name) + "," + std::to_string(ex.record.position) + "," +
-                  quote(ex.record.title) + "," + quote(ex.record.scene) + "," + quote(tp.trainee) +
-                  "," + CellStateName(ep.state) + "," + std::to_string(pr.attempts) + "," +
-                  std::to_string(pr.passes) + "," + std::to_string(pr.streak) + "," +
-                  (pr.proficient_at ? std::to_string(*pr.proficient_at) : "") + "," +
-                  (ep.proficient_us ? IsoTimeUtc(ep.proficient_us) : "") + "," +
-                  (ep.last_us ? IsoTimeUtc(ep.last_us) : "") + "\r\n");
-        } else if (format == db::ExportFormat::kJsonLines) {
-          json row = {
-              {"course", c.record.name},
-              {"course_id", c.record.id},
-              {"exercise_position", ex.record.position},
-              {"exercise", ex.record.title},
-              {"exercise_id", ex.record.id},
-              {"scene", ex.record.scene},
-              {"trainee", tp.trainee},
-              {"state", CellStateName(ep.state)},
-              {"attempts", pr.attempts},
-              {"passes", pr.passes},
-              {"streak", pr.streak},
-              {"proficient_at_attempt", pr.proficient_at ? json(*pr.proficient_at) : json(nullptr)},
-              {"proficient_at",
-               ep.proficient_us ? json(IsoTimeUtc(ep.proficient_us)) : json(nullptr)},
-              {"last_attempt_at", ep.last_us ? json(IsoTimeUtc(ep.last_us)) : json(nullptr)}};
-          out += row.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
-        } else {
-          // xAPI (ADL verbs): attempted per attempt, passed when proficiency was reached.
-          const json actor = {{"objectType", "Agent"},
-                              {"account", {{"homePage", "urn:vsurg"}, {"name", tp.trainee}}}};
-          const std::string activity = "urn:vsurg:course:" + std::to_string(c.record.id) +
-                                       ":exercise:" + std::to_string(ex.record.id);
-          const json object = {{"objectType", "Activity"},
-                               {"id", activity},
-                               {"definition",
-                                {{"name", {{"en-US", ex.record.title}}},
-                                 {"type", "http://adlnet.gov/expapi/activities/assessment"}}}};
-          const json parent = {{"contextActivities",
-                                {{"parent",
-                                  {{{"objectType", "Activity"},
-                                    {"id", "urn:vsurg:course:" + std::to_string(c.record.id)},
-                                    {"definition", {{"name", {{"en-US", c.record.name}}}}}}}}}}};
-          auto verb = [](const char* v) {
-            return json{{"id", std::string("http://adlnet.gov/expapi/verbs/") + v},
-                        {"display", {{"en-US", v}}}};
-          };
-          for (size_t k = 0; k < pr.checks.size(); ++k) {
-            json st = {
-                {"id", StatementId("urn:vsurg:attempt:" + std::to_string(ep.attempt_sessions[k]))},
-                {"timestamp", IsoTimeUtc(ep.attempt_us[k])},
-                {"actor", actor},
-                {"verb", verb("attempted")},
-                {"object", object},
-                {"result", {{"success", pr.checks[k].passed}}},
-                {"context", parent}};
-            out += st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
-          }
-          if (pr.proficient_at) {
-            json st = {{"id", StatementId(activity + ":passed:" + tp.trainee)},
-                       {"timestamp", IsoTimeUtc(ep.proficient_us)},
-                       {"actor", actor},
-                       {"verb", verb("passed")},
-                       {"object", object},
-                       {"result", {{"success", true}, {"completion", true}}},
-                       {"context", parent}};
-            out += st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
-          }
-        }
-      }
-      if (format == db::ExportFormat::kXapi && tp.completed) {
-        int64_t at = 0;
-        for (const ExerciseProgress& ep : tp.exercises) at = std::max(at, ep.proficient_us);
-        json st = {{"id", StatementId("urn:vsurg:course:" + std::to_string(c.record.id) +
-                                      ":completed:" + tp.trainee)},
-                   {"timestamp", IsoTimeUtc(at)},
-                   {"actor",
-                    {{"objectType", "Agent"},
-                     {"account", {{"homePage", "urn:vsurg"}, {"name", tp.trainee}}}}},
-                   {"verb",
-                    {{"id", "http://adlnet.gov/expapi/verbs/completed"},
-                     {"display", {{"en-US", "completed"}}}}},
-                   {"object",
-                    {{"objectType", "Activity"},
-                     {"id", "urn:vsurg:course:" + std::to_string(c.record.id)},
-                     {"definition",
-                      {{"name", {{"en-US", c.record.name}}},
-                       {"type", "http://adlnet.gov/expapi/activities/course"}}}}},
-                   {"result", {{"completion", true}, {"success", true}}}};
-        out += st.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
-      }
-      if (Status s = flush(); !s.ok()) return s;
-    }
-  }
-  return flush();
-}
-
-}  // namespace
+// --- exports (the writing: server/domain/training_export.cpp) ---
 
 Status MayExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id) {
   if (cohort_id != 0) {
@@ -945,13 +799,6 @@ Status MayExportProgress(Domain& d, const db::Principal& p, int64_t course_id, i
   if (p.role != db::Role::kTrainee)
     return InvalidArgument("cohort", "an instructor exports one cohort's progress at a time");
   return Status::Ok();
-}
-
-Status ExportProgress(Domain& d, const db::Principal& p, int64_t course_id, int64_t cohort_id,
-                      db::ExportFormat format, const std::function<bool(std::string_view)>& sink) {
-  auto parts = ProgressToExport(d, p, course_id, cohort_id);
-  if (!parts.ok()) return parts.error();
-  return WriteProgress(*parts, format, sink);
 }
 
 }  // namespace vsurg::server

@@ -104,6 +104,19 @@ struct TraineeProgress {
 struct CourseProgress {
   CourseView course;
   std::vector<TraineeProgress> trainees;  // by name
+  // A cohort's grid is read a page of trainees at a time (GridPage): where this page starts
+  // among the cohort's members by name, and how many members there are in all.
+  int64_t offset = 0, total_trainees = 0;
+};
+
+// A page of a cohort's grid: its members [offset, offset + limit) by name. One request's cost is
+// bounded by the page: at most kMaxGridTrainees trainees × the course's exercises, however large
+// the cohort (a grid of 2,000 trainees × 64 exercises is eight pages, each a fair turn on the
+// read workers).
+inline constexpr int64_t kMaxGridTrainees = 250;
+struct GridPage {
+  int64_t offset = 0;
+  int64_t limit = kMaxGridTrainees;  // 1..kMaxGridTrainees
 };
 
 // --- courses, cohorts, enrolments, experts ---
@@ -130,9 +143,11 @@ Status SetExpert(Domain& d, const db::Principal& p, const std::string& trainee, 
 Expected<std::vector<std::string>> ListExperts(Domain& d, const db::Principal& p);
 
 // --- progress ---
-// The cohort grid: every member × every exercise of the course.
+// The cohort grid: a page of its members × every exercise of the course. A limit outside
+// 1..kMaxGridTrainees or a negative offset is kInvalidArgument; an offset past the last member
+// gives an empty page.
 Expected<CourseProgress> CohortProgress(Domain& d, const db::Principal& p, int64_t cohort_id,
-                                        int64_t course_id);
+                                        int64_t course_id, GridPage page = {});
 // One trainee's courses (their enrolments', in the order enrolled) with their progress.
 Expected<std::vector<CourseProgress>> TraineeCourses(Domain& d, const db::Principal& p,
                                                      const std::string& trainee);

@@ -424,81 +424,40 @@ std::string HttpApi::TelemetryJson(const SessionTelemetry& t, bool with_surface)
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
-// A few threads for long reads, with a bounded queue. A task is told whether it runs (false: the
-// API is closing; it answers 503 and returns).
-class HttpApi::ReadWorkers {
- public:
-  ReadWorkers(int workers, int max_queued) : max_queued_(static_cast<size_t>(max_queued)) {
-    for (int i = 0; i < std::max(1, workers); ++i)
-      threads_.emplace_back([this] {
-        NameThisThread("vsurg-http-read");
-        Loop();
-      });
-  }
-  ~ReadWorkers() {
-    std::deque<std::function<void(bool)>> left;
-    {
-      std::lock_guard lock(mutex_);
-      stopping_ = true;
-      left.swap(queue_);
-    }
-    cv_.notify_all();
-    for (auto& task : left) task(false);
-    for (std::thread& t : threads_) t.join();
-  }
-  bool Post(std::function<void(bool)> task) {
-    {
-      std::lock_guard lock(mutex_);
-      if (stopping_ || queue_.size() >= max_queued_) return false;
-      queue_.push_back(std::move(task));
-    }
-    cv_.notify_one();
-    return true;
-  }
-
- private:
-  void Loop() {
-    for (;;) {
-      std::function<void(bool)> task;
-      {
-        std::unique_lock lock(mutex_);
-        cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
-        if (queue_.empty()) return;
-        task = std::move(queue_.front());
-        queue_.pop_front();
-      }
-      task(true);
-    }
-  }
-
-  const size_t max_queued_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<std::function<void(bool)>> queue_;
-  bool stopping_ = false;
-  std::vector<std::thread> threads_;
-};
-
-HttpReply HttpApi::Deferred(ReadWorkers* workers, std::function<HttpReply()> work,
-                            const char* busy) {
+HttpReply HttpApi::Deferred(FairWorkers* workers, const db::Principal& p,
+                            std::function<HttpReply()> work, const char* busy) {
   if (!workers) return work();  // no workers configured: on the caller's thread
   HttpReply reply;
   reply.kind = HttpReply::Kind::kDeferred;
-  reply.deferred = [workers, busy, work = std::move(work)](std::function<void(HttpReply)> done) {
-    const bool queued = workers->Post([work, done](bool run) {
+  reply.deferred = [workers, busy, user = p.name,
+                    work = std::move(work)](std::function<void(HttpReply)> done) {
+    const FairWorkers::Posted posted = workers->Post(user, [work, done](bool run) {
       done(run ? work() : ErrorReply(Error{ErrorCode::kUnavailable, "the server is stopping", ""}));
     });
-    if (!queued) done(ErrorReply(Error{ErrorCode::kUnavailable, busy, ""}));
+    switch (posted) {
+      case FairWorkers::Posted::kQueued:
+        return;
+      case FairWorkers::Posted::kUserBusy:  // this user's own share is taken: 429, theirs alone
+        done(ErrorReply(Error{ErrorCode::kResourceExhausted,
+                              "you have too many of these requests waiting; wait for their answers",
+                              ""}));
+        return;
+      case FairWorkers::Posted::kFull:
+      case FairWorkers::Posted::kStopping:
+        done(ErrorReply(Error{ErrorCode::kUnavailable, busy, ""}));
+        return;
+    }
   };
   return reply;
 }
 
-HttpReply HttpApi::OffThread(std::function<HttpReply()> work) {
-  return Deferred(reads_.get(), std::move(work), "too many long reads at once; try again shortly");
+HttpReply HttpApi::OffThread(const db::Principal& p, std::function<HttpReply()> work) {
+  return Deferred(reads_.get(), p, std::move(work),
+                  "too many long reads at once; try again shortly");
 }
 
-HttpReply HttpApi::OnNodeWorker(std::function<HttpReply()> work) {
-  return Deferred(node_calls_.get(), std::move(work),
+HttpReply HttpApi::OnNodeWorker(const db::Principal& p, std::function<HttpReply()> work) {
+  return Deferred(node_calls_.get(), p, std::move(work),
                   "too many calls waiting on simulation nodes; try again shortly");
 }
 
@@ -508,13 +467,18 @@ HttpApi::HttpApi(Domain& domain, const HttpApiOptions& options)
     : d_(domain),
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()),
-      reads_(options.read_workers > 0
-                 ? std::make_unique<ReadWorkers>(options.read_workers, options.max_queued_reads)
-                 : nullptr),
-      node_calls_(
-          options.node_workers > 0
-              ? std::make_unique<ReadWorkers>(options.node_workers, options.max_queued_node_calls)
-              : nullptr),
+      reads_(options.read_workers > 0 ? std::make_unique<FairWorkers>(FairWorkersOptions{
+                                            .workers = options.read_workers,
+                                            .max_queued = options.max_queued_reads,
+                                            .per_user_queued = options.per_user_queued_reads,
+                                            .thread_name = "vsurg-http-read"})
+                                      : nullptr),
+      node_calls_(options.node_workers > 0 ? std::make_unique<FairWorkers>(FairWorkersOptions{
+                                                 .workers = options.node_workers,
+                                                 .max_queued = options.max_queued_node_calls,
+                                                 .per_user_queued = options.per_user_queued_reads,
+                                                 .thread_name = "vsurg-http-node"})
+                                           : nullptr),
       sessions_(clock_, options.session_ttl_s),
       limiter_(clock_, options.sign_in_failures),
       bearer_limiter_(clock_, options.bearer_failures) {}
@@ -764,7 +728,7 @@ HttpReply HttpApi::Routes::SessionCreate(const Call& c) {
   auto exercise = Field<int64_t>(*body, "exercise", 0);
   if (!exercise.ok()) return ErrorReply(exercise.error());
   return c.api.OnNodeWorker(
-      [&d = c.api.d_, p = *c.p, trainee = *trainee, scene = *scene, exercise = *exercise] {
+      *c.p, [&d = c.api.d_, p = *c.p, trainee = *trainee, scene = *scene, exercise = *exercise] {
         auto created = exercise != 0 ? CreateExerciseSession(d, p, trainee, exercise)
                                      : CreateSession(d, p, trainee, scene);
         if (!created.ok()) return ErrorReply(created.error());
@@ -789,7 +753,7 @@ HttpReply HttpApi::Routes::SessionStop(const Call& c) {
   if (!body.ok()) return ErrorReply(body.error());
   auto reason = Field<std::string>(*body, "reason", "stopped from the dashboard");
   if (!reason.ok()) return ErrorReply(reason.error());
-  return c.api.OnNodeWorker([&d = c.api.d_, p = *c.p, id = c.id, reason = *reason] {
+  return c.api.OnNodeWorker(*c.p, [&d = c.api.d_, p = *c.p, id = c.id, reason = *reason] {
     auto v = StopSession(d, p, id, reason);
     if (!v.ok()) return ErrorReply(v.error());
     return Ok(ViewJson(*v));
@@ -797,7 +761,7 @@ HttpReply HttpApi::Routes::SessionStop(const Call& c) {
 }
 
 HttpReply HttpApi::Routes::SessionSurface(const Call& c) {
-  return c.api.OnNodeWorker([&d = c.api.d_, p = *c.p, id = c.id] {
+  return c.api.OnNodeWorker(*c.p, [&d = c.api.d_, p = *c.p, id = c.id] {
     auto surface = server::SessionSurface(d, p, id);
     if (!surface.ok()) return ErrorReply(surface.error());
     return Ok(
@@ -806,7 +770,7 @@ HttpReply HttpApi::Routes::SessionSurface(const Call& c) {
 }
 
 HttpReply HttpApi::Routes::SessionTraceRoute(const Call& c) {
-  return c.api.OnNodeWorker([&d = c.api.d_, p = *c.p, id = c.id] {
+  return c.api.OnNodeWorker(*c.p, [&d = c.api.d_, p = *c.p, id = c.id] {
     auto trace = SessionTrace(d, p, id);
     if (!trace.ok()) return ErrorReply(trace.error());
     HttpReply reply;
@@ -1207,20 +1171,30 @@ HttpReply HttpApi::Routes::CohortMembers(const Call& c) {
 HttpReply HttpApi::Routes::CohortGrid(const Call& c) {
   const auto course = QueryNumber(c.query, "course");
   if (!course || *course == 0) return ErrorReply(InvalidArgument("course", "a course id"));
-  return c.api.OffThread([&d = c.api.d_, p = *c.p, cohort = c.id, course = *course] {
-    auto grid = CohortProgress(d, p, static_cast<int64_t>(cohort), course);
+  const auto offset = QueryNumber(c.query, "offset");
+  const auto limit = QueryNumber(c.query, "limit");
+  if (!offset) return ErrorReply(InvalidArgument("offset", "a number of trainees, 0 or more"));
+  if (!limit) return ErrorReply(InvalidArgument("limit", "a number of trainees"));
+  const GridPage page{.offset = *offset, .limit = *limit == 0 ? kMaxGridTrainees : *limit};
+  return c.api.OffThread(*c.p, [&d = c.api.d_, p = *c.p, cohort = c.id, course = *course, page] {
+    auto grid = CohortProgress(d, p, static_cast<int64_t>(cohort), course, page);
     if (!grid.ok()) return ErrorReply(grid.error());
     json trainees = json::array();
     for (const TraineeProgress& t : grid->trainees)
       trainees.push_back(TraineeProgressJson(t, true));
-    return Ok({{"course", CourseJson(grid->course)}, {"cohort", cohort}, {"trainees", trainees}});
+    return Ok({{"course", CourseJson(grid->course)},
+               {"cohort", cohort},
+               {"trainees", trainees},
+               {"offset", grid->offset},
+               {"limit", page.limit},
+               {"total_trainees", grid->total_trainees}});
   });
 }
 
 HttpReply HttpApi::Routes::CohortCurveRoute(const Call& c) {
   const auto exercise = QueryNumber(c.query, "exercise");
   if (!exercise || *exercise == 0) return ErrorReply(InvalidArgument("exercise", "an exercise id"));
-  return c.api.OffThread([&d = c.api.d_, p = *c.p, cohort = c.id, exercise = *exercise] {
+  return c.api.OffThread(*c.p, [&d = c.api.d_, p = *c.p, cohort = c.id, exercise = *exercise] {
     return CohortCurveReply(d, p, cohort, exercise);
   });
 }

@@ -30,6 +30,7 @@
 
 #include "common/core/clock.h"
 #include "server/domain/api.h"
+#include "server/http/fair_workers.h"
 #include "server/http/web_auth.h"
 
 namespace vsurg::server::ops {
@@ -86,8 +87,11 @@ struct HttpApiOptions {
   // Reads that take long at scale (a cohort's grid over 100,000 trials: ~90 ms) run on these
   // workers, never on the server's I/O thread that answers everyone else; at most
   // `max_queued_reads` wait (then 503). 0 workers: on the calling thread.
+  // The workers are shared fairly (server/http/fair_workers.h): one user runs at most all but one
+  // of them at once and queues at most `per_user_queued_reads` (then 429, to that user only).
   int read_workers = 2;
   int max_queued_reads = 32;
+  int per_user_queued_reads = 4;
   // Calls that wait on a simulation node (creating a session builds its scene there; a live
   // session's surface, record or stop ask its node, which may be frozen for the node-call timeout)
   // run on their own workers, so neither the I/O thread nor the long reads wait behind a node; at
@@ -146,13 +150,13 @@ class HttpApi {
   HttpReply Page(const HttpRequest& r, const std::string& path);
   HttpReply MetricsReply() const;
   HttpReply SignIn(const HttpRequest& r);
-  // A deferred reply whose `work` runs on a read worker (the answer of a long read).
-  class ReadWorkers;
-  HttpReply OffThread(std::function<HttpReply()> work);
+  // A deferred reply whose `work` runs on a read worker (the answer of a long read), in the
+  // caller's fair share of them (server/http/fair_workers.h).
+  HttpReply OffThread(const db::Principal& p, std::function<HttpReply()> work);
   // A deferred reply whose `work` runs on a node-call worker (it may wait on a node).
-  HttpReply OnNodeWorker(std::function<HttpReply()> work);
-  static HttpReply Deferred(ReadWorkers* workers, std::function<HttpReply()> work,
-                            const char* busy);
+  HttpReply OnNodeWorker(const db::Principal& p, std::function<HttpReply()> work);
+  static HttpReply Deferred(FairWorkers* workers, const db::Principal& p,
+                            std::function<HttpReply()> work, const char* busy);
 
   Domain& d_;
   HttpApiOptions options_;
@@ -160,7 +164,7 @@ class HttpApi {
   std::function<bool()> StillAllowed(const std::string& authorization,
                                      const std::optional<WebSession>& web);
 
-  std::unique_ptr<ReadWorkers> reads_, node_calls_;
+  std::unique_ptr<FairWorkers> reads_, node_calls_;
   WebSessions sessions_;
   SignInLimiter limiter_;
   SignInLimiter bearer_limiter_;

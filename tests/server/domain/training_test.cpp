@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
 
+#include "common/core/csv.h"
 #include "server/domain/scene_catalog.h"
 #include "tests/support/site.h"
 
@@ -310,9 +312,8 @@ TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   };
   const std::string csv = run(db::ExportFormat::kCsv, "ian", cohort_.id);
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);  // header + 2 trainees × 2
-  EXPECT_NE(
-      csv.find("\"Basics\",1,\"Press\",\"sphere-palpation-256\",\"tina\",proficient,2,2,2,2,"),
-      std::string::npos)
+  EXPECT_NE(csv.find("Basics,1,Press,sphere-palpation-256,tina,proficient,2,2,2,2,"),
+            std::string::npos)
       << csv;
   std::istringstream jl(run(db::ExportFormat::kJsonLines, "ian", cohort_.id));
   int rows = 0;
@@ -355,6 +356,129 @@ TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
           .error()
           .code,
       ErrorCode::kPermissionDenied);
+}
+
+// OWASP's CSV-injection rule for every CSV the programme writes: a cell a spreadsheet would run
+// as a formula (one that begins with = + - @ TAB or CR) is written as text, whoever typed it (an
+// instructor's course, exercise and cohort names, a trainee's name) and whoever exports it (an
+// instructor's cohort, a trainee's own).
+bool Defused(const std::string& cell) {
+  if (cell.empty() || std::string_view("=+-@\t\r").find(cell[0]) == std::string_view::npos)
+    return true;
+  char* end = nullptr;
+  (void)std::strtod(cell.c_str(), &end);
+  return end == cell.c_str() + cell.size();  // a number written as one, like -1.5
+}
+void ExpectEveryCellDefused(const std::string& text, const std::string& what) {
+  auto records = csv::Parse(text, what);
+  ASSERT_TRUE(records.ok()) << records.error().message;
+  ASSERT_GT(records->size(), 1u) << what;
+  for (const csv::Record& r : *records)
+    for (const std::string& cell : r.fields) EXPECT_TRUE(Defused(cell)) << what << ": " << cell;
+}
+
+TEST_F(TrainingTest, EveryCsvCellThatCouldRunAsAFormulaIsWrittenAsText) {
+  AddUsers({{"=HYPERLINK(\"http://evil\")", db::Role::kTrainee, "novice"},
+            {"@SUM(A1)", db::Role::kTrainee, "novice"}});
+  auto c = CreateCourse(
+      *domain_, As("ian"), "+cmd|' /C calc'!A0", "",
+      {{"-2+3", kScene, Spec({{"score", 8.0}}, 1)}, {"\tTab", kScene2, Spec({{"score", 8.0}}, 1)}});
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  auto h = CreateCohort(*domain_, As("ian"), "=1+1", "",
+                        {"=HYPERLINK(\"http://evil\")", "@SUM(A1)", "\rcr", "tina"});
+  ASSERT_TRUE(h.ok()) << h.error().message;
+  db::EnrolmentRecord e;
+  e.course_id = c->record.id;
+  e.cohort_id = h->id;
+  ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
+  Trial("@SUM(A1)", kScene, c->exercises[0].record.id, 20, 1.0);
+  auto exported = [&](const std::string& who, int64_t cohort) {
+    std::string out;
+    Status s = ExportProgress(*domain_, As(who), c->record.id, cohort, db::ExportFormat::kCsv,
+                              [&](std::string_view chunk) {
+                                out += chunk;
+                                return true;
+                              });
+    EXPECT_TRUE(s.ok()) << s.error().message;
+    return out;
+  };
+  ExpectEveryCellDefused(exported("ian", h->id), "the cohort's progress");
+  ExpectEveryCellDefused(exported("@SUM(A1)", 0), "a trainee's own progress");
+  EXPECT_NE(exported("@SUM(A1)", 0).find("'@SUM(A1)"), std::string::npos);
+  // The evaluation export, the other CSV with names in it.
+  db::Submission sub;
+  sub.idempotency_key = "k";
+  sub.evaluator = "=evil()";
+  sub.evaluator_group = "chief";
+  sub.subject_kind = db::SubjectKind::kTrainee;
+  sub.subject = "@SUM(A1)";
+  sub.moment_min = 20;
+  sub.scores = {8, 7, 9, 8, 7, 8, 9, 6, 7};
+  sub.submitted_by = "ian";
+  ASSERT_TRUE(store_->SubmitEvaluation(sub).ok());
+  std::string evaluations;
+  ASSERT_TRUE(store_
+                  ->Export({}, db::ExportFormat::kCsv,
+                           [&](std::string_view chunk) {
+                             evaluations += chunk;
+                             return true;
+                           })
+                  .ok());
+  ExpectEveryCellDefused(evaluations, "the evaluations");
+}
+
+// One request's cost is bounded: a cohort's grid comes a page of trainees at a time, each page
+// the same rows the whole grid has for those trainees.
+TEST_F(TrainingTest, TheGridComesAPageOfTraineesAtATime) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  Trial("tina", kScene, Ex(0), 25, 1.2);
+  Trial("tom", kScene, Ex(0), 40, 1.2);
+  auto whole = CohortProgress(*domain_, As("ian"), cohort_.id, course_.record.id);
+  ASSERT_TRUE(whole.ok()) << whole.error().message;
+  ASSERT_EQ(whole->trainees.size(), 2u);
+  EXPECT_EQ(whole->total_trainees, 2);
+  for (int64_t offset = 0; offset < 3; ++offset) {
+    auto page = CohortProgress(*domain_, As("ian"), cohort_.id, course_.record.id,
+                               {.offset = offset, .limit = 1});
+    ASSERT_TRUE(page.ok()) << page.error().message;
+    EXPECT_EQ(page->total_trainees, 2);
+    EXPECT_EQ(page->offset, std::min<int64_t>(offset, 2));
+    ASSERT_EQ(page->trainees.size(), offset < 2 ? 1u : 0u);
+    if (offset == 2) continue;
+    const TraineeProgress& t = page->trainees[0];
+    const TraineeProgress& w = whole->trainees[static_cast<size_t>(offset)];
+    EXPECT_EQ(t.trainee, w.trainee);
+    ASSERT_EQ(t.exercises.size(), w.exercises.size());
+    for (size_t i = 0; i < t.exercises.size(); ++i) {
+      EXPECT_EQ(t.exercises[i].state, w.exercises[i].state) << t.trainee << " " << i;
+      EXPECT_EQ(t.exercises[i].progress.attempts, w.exercises[i].progress.attempts);
+    }
+  }
+  for (const GridPage bad :
+       {GridPage{.offset = 0, .limit = 0}, GridPage{.offset = 0, .limit = kMaxGridTrainees + 1},
+        GridPage{.offset = -1, .limit = 1}})
+    EXPECT_EQ(CohortProgress(*domain_, As("ian"), cohort_.id, course_.record.id, bad).error().code,
+              ErrorCode::kInvalidArgument);
+}
+
+// A trainee reads an exercise only of a course they are enrolled in, by every route (the course
+// page, the learning curve); a numeric benchmark is not taken for a mode.
+TEST_F(TrainingTest, ATraineeReadsOnlyTheExercisesOfTheirOwnCourses) {
+  ASSERT_NO_FATAL_FAILURE(Programme());
+  auto other = CreateCourse(*domain_, As("ivy"), "Advanced", "",
+                            {{"Hidden", kScene, Spec({{"score", 8.0}}, 1)}});
+  ASSERT_TRUE(other.ok()) << other.error().message;
+  const int64_t hidden = other->exercises[0].record.id;
+  EXPECT_EQ(GetCourse(*domain_, As("tina"), other->record.id).error().code,
+            ErrorCode::kPermissionDenied);
+  EXPECT_EQ(TraineeCurve(*domain_, As("tina"), "tina", hidden).error().code,
+            ErrorCode::kPermissionDenied);
+  EXPECT_TRUE(TraineeCurve(*domain_, As("tina"), "tina", Ex(0)).ok());
+  EXPECT_TRUE(TraineeCurve(*domain_, As("ivy"), "tina", hidden).ok());  // an instructor may
+  EXPECT_EQ(ParseExerciseSpec(R"({"targets":[{"metric":"score","value":8}],"benchmark":3})")
+                .error()
+                .field,
+            "benchmark");
 }
 
 }  // namespace

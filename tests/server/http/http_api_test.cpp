@@ -259,6 +259,7 @@ TEST_F(HttpApiTest, SessionsAreRecordsEveryReaderMayOpenAndATraineeOnlyHerOwn) {
   // Two ended trials (tina's with a record and a rating with a comment, tom's without) and a live
   // one of tina's.
   const int64_t mine = store_->CreateSession("tina", "arm-torsion").value().id;
+  ASSERT_TRUE(store_->SetSessionState(mine, SessionState::kRunning, db::NowUs()).ok());
   scoring::TrialMetrics m;
   m.score = 7.5;
   ASSERT_TRUE(store_
@@ -705,9 +706,43 @@ TEST_F(HttpApiTest, TheTrainingRoutesBuildACourseAndShowItsGrid) {
                  csv += chunk;
                  return true;
                }).ok());
-  EXPECT_NE(csv.find("\"Basics\",1,\"Palpate\",\"sphere-palpation-256\",\"tina\",not_started,0"),
-            std::string::npos)
+  EXPECT_NE(csv.find("Basics,1,Palpate,sphere-palpation-256,tina,not_started,0"), std::string::npos)
       << csv;
+  // A large cohort's grid is read a page of trainees at a time; a page too large is refused.
+  r = Finish(Call("GET", grid + "&limit=1&offset=0", "", ian.cookie));
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(json::parse(r.body)["total_trainees"], 1);
+  EXPECT_EQ(json::parse(r.body)["limit"], 1);
+  r = Finish(Call("GET", grid + "&offset=5", "", ian.cookie));
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_TRUE(json::parse(r.body)["trainees"].empty());
+  EXPECT_EQ(Finish(Call("GET", grid + "&limit=251", "", ian.cookie)).status, 400);
+  EXPECT_EQ(Finish(Call("GET", grid + "&limit=-1", "", ian.cookie)).status, 400);
+}
+
+// Reading the record of a session that has none (it ended without being driven) must not break
+// the next reads of the records that exist: each answers with its own record, every time, for
+// every reader.
+TEST_F(HttpApiTest, ARecordThatIsNotThereLeavesEveryOtherRecordReadable) {
+  const int64_t recorded = store_->CreateSession("tina", "arm-torsion").value().id;
+  ASSERT_TRUE(store_->SetSessionState(recorded, SessionState::kRunning, db::NowUs()).ok());
+  scoring::TrialMetrics m;
+  m.score = 6;
+  const std::string record = R"({"series":{"time_s":[0,0.5],"force_n":[0,1.25]}})";
+  ASSERT_TRUE(
+      store_->EndSession(recorded, SessionState::kEnded, db::NowUs(), "done", m, {}, record).ok());
+  const int64_t undriven = store_->CreateSession("tina", "arm-torsion").value().id;
+  ASSERT_TRUE(store_->SetSessionState(undriven, SessionState::kEnded, db::NowUs(), "stopped").ok());
+  const Signed ian = SignIn(tokens_["ian"]), tina = SignIn(tokens_["tina"]);
+  const auto trace = [&](int64_t id, const Signed& who) {
+    return Finish(Call("GET", "/api/v1/sessions/" + std::to_string(id) + "/trace", "", who.cookie));
+  };
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_EQ(trace(undriven, i % 2 ? ian : tina).status, 404) << i;
+    const HttpReply r = trace(recorded, i % 2 ? tina : ian);
+    EXPECT_EQ(r.status, 200) << i << ": " << r.body;
+    EXPECT_EQ(r.body, record) << i;
+  }
 }
 
 }  // namespace

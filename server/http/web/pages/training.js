@@ -46,13 +46,14 @@ export async function pageTraining(main) {
       return;
     }
     try {
-      const g = await api('GET', `/training/cohorts/${cohortSel.value}/grid?course=${courseSel.value}`);
+      const g = await api('GET', `/training/cohorts/${cohortSel.value}/grid?course=${courseSel.value}&offset=${state.offset || 0}`);
       const q = `course=${courseSel.value}&cohort=${cohortSel.value}`;
       exports.replaceChildren('Export progress: ', ...['csv', 'jsonl', 'xapi'].flatMap((f, i) =>
         [i ? ' · ' : '', el('a', { href: `/api/v1/training/export?${q}&format=${f}`, download: '' }, f === 'xapi' ? 'xAPI statements' : f.toUpperCase())]));
       grid.replaceChildren(gridTable(g, (trainee, exercise) => showCurve(curve, trainee, exercise)
         .then(() => { curve.dataset.drawnAt = performance.now().toFixed(1); }).catch((e) => message(curve, e.message)),
-      (exercise) => showCohortCurve(cohortCurve, cohortSel.value, exercise).catch((e) => message(cohortCurve, e.message))));
+      (exercise) => showCohortCurve(cohortCurve, cohortSel.value, exercise).catch((e) => message(cohortCurve, e.message))),
+      gridPager(g, (offset) => { state.offset = offset; drawGrid(); }));
       // When the grid was drawn, on the page's clock (the benchmark reads it: bench/training_load.py).
       grid.dataset.drawnAt = performance.now().toFixed(1);
     } catch (err) {
@@ -60,9 +61,19 @@ export async function pageTraining(main) {
     }
     state.timer = setTimeout(drawGrid, REFRESH_MS);  // live: the grid follows the trainees
   }
-  cohortSel.addEventListener('change', drawGrid);
-  courseSel.addEventListener('change', drawGrid);
+  const fromStart = () => { state.offset = 0; drawGrid(); };
+  cohortSel.addEventListener('change', fromStart);
+  courseSel.addEventListener('change', fromStart);
   fillPick();
+}
+
+// A large cohort's grid comes a page of trainees at a time: where this page is, and the way on.
+function gridPager(g, go) {
+  if (g.total_trainees <= g.limit) return null;
+  const last = Math.min(g.offset + g.trainees.length, g.total_trainees);
+  return el('p', { class: 'pager', id: 'grid-pager' }, `Trainees ${g.offset + 1}–${last} of ${g.total_trainees} `,
+    el('button', { type: 'button', disabled: g.offset === 0, onclick: () => go(Math.max(0, g.offset - g.limit)) }, '‹ Previous'), ' ',
+    el('button', { type: 'button', disabled: last >= g.total_trainees, onclick: () => go(g.offset + g.limit) }, 'Next ›'));
 }
 
 // The grid: a row per trainee (stalled ones flagged first in their name cell), a column per
