@@ -175,9 +175,14 @@ std::vector<std::string> PeerNames(const grpc::ServerContextBase& ctx) {
   std::vector<std::string> out;
   const auto auth = ctx.auth_context();
   if (!auth) return out;
-  for (const char* property : {GRPC_X509_SAN_PROPERTY_NAME, GRPC_X509_CN_PROPERTY_NAME})
+  // RFC 6125 §6.4.4: a certificate with subject alternative names is named by them alone; its
+  // common name is read only when it has none (a SAN of sim-rogue with a CN of sim-0 is not
+  // sim-0).
+  for (const char* property : {GRPC_X509_SAN_PROPERTY_NAME, GRPC_X509_CN_PROPERTY_NAME}) {
     for (const grpc::string_ref& v : auth->FindPropertyValues(property))
       out.emplace_back(v.data(), v.size());
+    if (!out.empty()) break;
+  }
   return out;
 }
 

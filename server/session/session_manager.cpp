@@ -3,7 +3,9 @@
 #include <openssl/rand.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
@@ -296,13 +298,25 @@ double LinkSpanS(const LinkStats& l) {
   return here + l.carried_s.load(relaxed);
 }
 
-// The trial's link figures from the endpoint's counters (read after the session left it).
+// The most force any haptic device a station drives can render (N): the strongest desktop
+// devices peak at some 35 N (Haption's Virtuose 6D; Force Dimension's sigma.7 20 N, Touch-class
+// 3.3 N). A station that reports more is wrong or lying, and its record keeps the bound.
+constexpr double kMaxStationForceN = 50;
+
+// A figure the station reports, as the record keeps it: within [0, max] (not finite: 0).
+double Bounded(double reported, double max) {
+  return std::isfinite(reported) ? std::clamp(reported, 0.0, max) : 0.0;
+}
+
+// The trial's link figures from the endpoint's counters (read after the session left it). The
+// station's own figures are its word: bounded by what the server can check (a device's force, and
+// no more time over the limit than the server saw the station's datagrams for).
 scoring::LinkFigures LinkFiguresOf(const LinkStats& l) {
   scoring::LinkFigures f;
   const auto relaxed = std::memory_order_relaxed;
   const uint64_t applied = l.applied.load(relaxed), lost = l.lost.load(relaxed);
-  f.station_peak_force = l.rendered_peak_n.load(relaxed);
-  f.station_time_over_limit = l.rendered_over_limit_s.load(relaxed);
+  f.station_peak_force = Bounded(l.rendered_peak_n.load(relaxed), kMaxStationForceN);
+  f.station_time_over_limit = Bounded(l.rendered_over_limit_s.load(relaxed), LinkSpanS(l));
   f.rtt_ms = l.rtt_us.load(relaxed) / 1e3;
   f.jitter_ms = l.jitter_us.load(relaxed) / 1e3;
   f.loss = applied + lost > 0 ? static_cast<double>(lost) / static_cast<double>(applied + lost) : 0;
