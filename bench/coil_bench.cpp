@@ -28,7 +28,7 @@ std::vector<double> TorquesAround(double centre, double spread, int n) {
   return t;
 }
 
-// The default arm (6182 vertices) twisted by about seed 000's 2.07 N·m: P ≈ 18, ~4900 vertices
+// The default arm (6182 vertices) twisted by about the coil-spring paper's 2.07 N·m: P ≈ 18, ~4900 vertices
 // move.
 void BM_CoilDeformArm(benchmark::State& state) {
   auto inst = Instantiate(*BuiltinLimbScene("arm"));

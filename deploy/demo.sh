@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The main job end to end on the embedded defaults: the arm-torsion scene of seed 000. Loads the
+# The main job end to end on the embedded defaults: the arm-torsion scene of the coil-spring paper. Loads the
 # default forearm, applies 2.07 N·m in ten steps with the coil-spring model (per step: cutoff layer,
 # total twist, overload flag, vertices moved), writes the deformed mesh as OBJ, then shows what
 # happens past the limb's capacity, how far the model is from Saint-Venant torsion, and three
@@ -25,7 +25,7 @@ out="$root/build/demo"
 mkdir -p "$out"
 
 echo
-echo "== Arm torsion: seed 000's 2.07 N*m in 10 steps =="
+echo "== Arm torsion: the coil-spring paper's 2.07 N*m in 10 steps =="
 "$sim" deform --scene arm --torque 2.07 --steps 10 --out "$out/arm_twisted.obj"
 
 echo
@@ -53,7 +53,7 @@ echo "== The UDP haptic channel: 8 stations at 1 kHz against a real endpoint on 
 "$root/build/bin/vsurg-bench" haptic-rtt --stations 8 --seconds 2
 
 echo
-echo "== Weighted evaluation offline (seed 000 eq. 9-11): 40 raters score the coil-spring model =="
+echo "== Weighted evaluation offline (the coil-spring paper eq. 9-11): 40 raters score the coil-spring model =="
 "$sim" score --input "$root/deploy/samples/ratings-coil-spring.csv"
 
 echo

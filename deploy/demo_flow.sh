@@ -4,7 +4,7 @@
 #   a trainee's station (headless, a replayed stylus) twists the forearm 45 degrees over UDP;
 #   an instructor's monitor follows the session live (text, and an OpenGL view);
 #   three evaluators (intern, associate chief, chief) score the session with their own tokens;
-#   the administrator prints the weighted report (seed 000 eq. 9-11) and the trial metrics and
+#   the administrator prints the weighted report (the coil-spring paper eq. 9-11) and the trial metrics and
 #   exports the evaluations as CSV.
 # Screenshots of the station before and after the twist, and of the monitor, go to SHOTS_DIR.
 # Exits 0 when every step worked, and leaves no process behind.
@@ -86,7 +86,7 @@ printf '%s\ndr-chief,chief,9,8.5,9.5,9,8.5,8,8,7.5,7\n' "$header" > "$tmp/chief.
 "$bin/vsurg-admin" import --server "$server" --token "$chief_token" --input "$tmp/chief.csv" \
   --subject-kind session --subject "$session"
 
-step "Administrator: the weighted report of session $session (seed 000 eq. 9-11)"
+step "Administrator: the weighted report of session $session (the coil-spring paper eq. 9-11)"
 adm report --subject-kind session --subjects "$session"
 step "Administrator: the scoring loop's trial metrics"
 adm sessions

@@ -197,7 +197,7 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     }
   }
 
-  // Mass-spring on the subdivided sphere (seed 001): the scene file's own parameters (on its
+  // Mass-spring on the subdivided sphere (the mass-spring paper): the scene file's own parameters (on its
   // 258 particles), then the same proportions with the stiffness fitted to the pole's depth on
   // 258 and 1026 particles (the family at its most favourable). The proportions are the file's:
   // bending and inner-layer springs at a tenth of the structural ones, the inner layer 4 mm
@@ -297,7 +297,7 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     }
   }
 
-  // Ring layer (seed 001 §3.3) on the 258-particle sphere: chain stiffness fitted to the pole.
+  // Ring layer (the mass-spring paper §3.3) on the 258-particle sphere: chain stiffness fitted to the pole.
   {
     auto surface = geometry::MakeSubdividedSphere({kBallRadius, 4});
     std::vector<double> dist(surface->positions.size());

@@ -57,5 +57,5 @@ std::string Fixed(const nlohmann::json& v, int digits) {
   return buf;
 }
 
-// The seed 000 table of one subject's report (Fig. 12-14: M_j, s_j, N) with the agreement.
+// The coil-spring paper's table of one subject's report (Fig. 12-14: M_j, s_j, N) with the agreement.
 }  // namespace vsurg::admin

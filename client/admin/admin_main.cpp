@@ -24,7 +24,7 @@ const char* kHelp =
     "  scenes        the scenes the server runs\n"
     "  sessions      sessions with the scoring loop's trial metrics\n"
     "  import        submit evaluations from a ratings CSV\n"
-    "  report        weighted evaluation report (seed 000 eq. 9-11), or --training\n"
+    "  report        weighted evaluation report (the coil-spring paper eq. 9-11), or --training\n"
     "  export        export evaluations: --format csv|jsonl|xapi --out FILE\n"
     "  backup        online backup of the server's store\n\n"
     "Remote commands take --server HOST:PORT and a token (--token, --token-file, $VSURG_TOKEN).\n";

@@ -1,4 +1,4 @@
-// vsurg-sim score: the weighted evaluation report of seed 000 (eqs. 9-11) from a ratings CSV.
+// vsurg-sim score: the weighted evaluation report of the coil-spring paper (eqs. 9-11) from a ratings CSV.
 #include "common/cli/commands.h"
 
 #include <chrono>
@@ -57,7 +57,7 @@ void PrintReportTable(std::ostream& out, const scoring::EvaluationReport& r) {
 
 int Score(const Args& args, std::ostream& out, std::ostream& err) {
   ArgParser p("vsurg-sim score",
-              "Computes the weighted evaluation report of seed 000 section 4.4 offline: per index\n"
+              "Computes the weighted evaluation report of the coil-spring paper section 4.4 offline: per index\n"
               "the group-weighted mean M_j (eq. 9) and variance s_j (eq. 10), the comprehensive\n"
               "score N (eq. 11), and how far the raters agree (ICC(2,k), Cronbach's alpha).\n"
               "Input rows: evaluator_id,group,i1,...,i9 (group intern, associate_chief or chief;\n"
@@ -65,7 +65,7 @@ int Score(const Args& args, std::ostream& out, std::ostream& err) {
               "(several subjects: one report each and ICC(2,k) per index across them).");
   p.Option("input", Kind::kString, "ratings CSV", true)
       .Option("weights", Kind::kString,
-              "weight set JSON {name, group{...}, index[9]} (default: seed 000)")
+              "weight set JSON {name, group{...}, index[9]} (default: the coil-spring paper)")
       .Option("json", Kind::kFlag, "print one JSON object");
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   scoring::WeightSet weights;

@@ -20,7 +20,7 @@ const char* kTopHelp =
     "force\n"
     "  run           replay a stylus trajectory through a scene and print the trial metrics\n"
     "  trainee       write a scripted trainee's trajectory (good, hesitant, rough)\n"
-    "  score         weighted evaluation report (seed 000 eq. 9-11) with rater reliability\n\n"
+    "  score         weighted evaluation report (the coil-spring paper eq. 9-11) with rater reliability\n\n"
     "`vsurg-sim <command> --help` describes each command's options.\n";
 
 }  // namespace

@@ -1,4 +1,4 @@
-// Spring-damper force feedback at a point (seed 001 §2.3): F = K·x + D·ẋ.
+// Spring-damper force feedback at a point (the mass-spring paper §2.3): F = K·x + D·ẋ.
 //
 // x = SCP − HIP: from the haptic interface point (the stylus tip, which may sink into the
 // tissue) to the surface contact point (the proxy that stays on the surface), m; ẋ its rate,

@@ -117,7 +117,7 @@ const ProxyState& ProxyContact::Update(const std::vector<geometry::Vec3>& x,
     const Vec3 xv = state_.scp - hip;
     const Vec3 xdot = dt > 0 && std::isfinite(dt) ? Vec3((xv - last_x_) / dt) : Vec3::Zero();
     state_.penetration = xv.dot(state_.normal);
-    state_.force = params_.stiffness * xv + params_.damping * xdot;  // seed 001 §2.3
+    state_.force = params_.stiffness * xv + params_.damping * xdot;  // the mass-spring paper §2.3
     state_.jacobian = -params_.stiffness * state_.normal * state_.normal.transpose();
     last_x_ = xv;
   } else {

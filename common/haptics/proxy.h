@@ -1,4 +1,4 @@
-// Proxy (god-object) contact: Zilles & Salisbury 1995; seed 001 §2.3's HIP and SCP.
+// Proxy (god-object) contact: Zilles & Salisbury 1995; the mass-spring paper §2.3's HIP and SCP.
 //
 // The haptic interface point (HIP, the stylus tip) may sink into the tissue; the surface contact
 // point (SCP, the proxy) stays on the surface. Contact starts when the segment from the previous
@@ -7,7 +7,7 @@
 // that keep facing the way the contact face did (n·n_prev ≥ min_normal_dot), so pushing through a
 // thin sheet never pops the proxy to the far side, and by at most max_step per update. Contact
 // ends when the tip is back outside; it also starts when a deforming surface moves over a
-// resting tip (the tip lies within max_step under its closest face). The force is seed 001's
+// resting tip (the tip lies within max_step under its closest face). The force is the mass-spring paper's
 // spring-damper, F = K·x + D·ẋ with x = SCP − HIP; optional Coulomb friction keeps the proxy where
 // it is while the tangential force stays inside the cone μ·|F_n|.
 //

@@ -1,13 +1,13 @@
-// Weighted evaluation of a simulator, a session or a trainee by physicians (seed 000 §4.4–4.5),
+// Weighted evaluation of a simulator, a session or a trainee by physicians (the coil-spring paper §4.4–4.5),
 // with the reliability figures that say how far the raters agree.
 //
 // Nine indexes j = 1..9 (effectiveness, force-feedback performance, real-time performance,
 // system stability, deformation efficiency, fidelity, visual fluency, immersion, texture), each
 // scored 0–10 by every evaluator; evaluators in three groups g (intern, associate chief, chief).
 //
-//   seed 000 eq. 9   M_j = Σ_g w_g · (1/n_g) Σ_{i∈g} x_ij          (group weights 0.2/0.3/0.5)
-//   seed 000 eq. 10  s_j = (1/n) Σ_i (x_ij − M_j)²                 (all n raters, about M_j)
-//   seed 000 eq. 11  N   = Σ_j w_j · M_j                           (0.15×4, 0.10×3, 0.05×2)
+//   the coil-spring paper eq. 9   M_j = Σ_g w_g · (1/n_g) Σ_{i∈g} x_ij          (group weights 0.2/0.3/0.5)
+//   the coil-spring paper eq. 10  s_j = (1/n) Σ_i (x_ij − M_j)²                 (all n raters, about M_j)
+//   the coil-spring paper eq. 11  N   = Σ_j w_j · M_j                           (0.15×4, 0.10×3, 0.05×2)
 //
 // A group with no rater: the present groups' weights are divided by their sum (the report lists
 // the absent groups and sets `renormalised`). Weights are configuration (WeightSet) and every
@@ -39,7 +39,7 @@
 namespace vsurg::scoring {
 
 struct WeightSet {
-  std::string name = "seed000";
+  std::string name = "coil-spring-paper";
   std::array<double, kGroupCount> group = {0.2, 0.3, 0.5};
   std::array<double, kIndexCount> index = {0.15, 0.15, 0.15, 0.15, 0.10, 0.10, 0.10, 0.05, 0.05};
 };
@@ -93,7 +93,7 @@ double Icc2k(std::span<const double> x, int n, int k);
 // Cronbach's α of a row-major n×k matrix (cases × items); NaN when undefined.
 double CronbachAlpha(std::span<const double> x, int n, int k);
 
-// Training effect (seed 000 §4.5): each trainee's score at a moment is the mean of the
+// Training effect (the coil-spring paper §4.5): each trainee's score at a moment is the mean of the
 // evaluators' scores; per trainee group and moment, the mean and the population variance of
 // those trainee scores.
 struct TrainingScore {

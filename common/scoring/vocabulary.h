@@ -1,5 +1,5 @@
 // The evaluation vocabulary, in one place for the scoring code, the store and the tools: the nine
-// indexes, the three evaluator groups and the 0–10 rule (seed 000 §4.4). Header-only and light
+// indexes, the three evaluator groups and the 0–10 rule (the coil-spring paper §4.4). Header-only and light
 // (no Eigen, no JSON): db/ includes it without linking the scoring library.
 //
 // Indexes and groups are stored and exported by name: the names are never respelled, and adding
@@ -16,7 +16,7 @@ inline constexpr int kIndexCount = 9;
 inline constexpr int kGroupCount = 3;
 inline constexpr double kMinScore = 0.0, kMaxScore = 10.0;
 
-// Index j in 0..8, as seed 000 numbers them 1..9.
+// Index j in 0..8, as the coil-spring paper numbers them 1..9.
 inline constexpr const char* kIndexNames[kIndexCount] = {
     "effectiveness", "force_feedback", "real_time", "stability", "deformation_efficiency",
     "fidelity",      "visual_fluency", "immersion", "texture"};

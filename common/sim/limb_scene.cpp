@@ -19,7 +19,7 @@ LimbScene Arm() {
   c.max_force = 3.30 / (2.0 * std::numbers::pi *
                         (c.coils * c.core_radius + c.thickness * c.coils * (c.coils + 1) / 2.0));
   c.friction = 1.25;
-  // Effective modulus: seed 000's 2.07 N·m turns the wrist by 60° (1.047 rad), inside the
+  // Effective modulus: the coil-spring paper's 2.07 N·m turns the wrist by 60° (1.047 rad), inside the
   // passive pronation–supination range. Checked by
   // LimbSceneTest.ArmTwistsSixtyDegreesAtPaperTorque.
   c.modulus = 4.2530e8;

@@ -1,4 +1,4 @@
-// Built-in limb-torsion scenes (seed 000 §3: arm and calf twisted by a torque), the embedded
+// Built-in limb-torsion scenes (the coil-spring paper §3: arm and calf twisted by a torque), the embedded
 // defaults that `vsurg-sim deform` and the demo run.
 //
 // The coil parameters are phenomenological (DESIGN.md "Model 1"): the coils tile the limb from
@@ -28,7 +28,7 @@ struct LimbScene {
   tissue::TaperedShaft reference;  // Saint-Venant shaft of the same limb, soft tissue only
   double poisson_ratio = 0.47;
   double density = 1050;         // kg/m³
-  double default_torque = 2.07;  // N·m, seed 000 §3
+  double default_torque = 2.07;  // N·m, the coil-spring paper §3
 };
 
 // "arm" (forearm) or "calf"; kNotFound otherwise.

@@ -1,4 +1,4 @@
-// Coil-spring torsion model (seed 000 §1, as DESIGN.md "Model 1" reads it).
+// Coil-spring torsion model (the coil-spring paper §1, as DESIGN.md "Model 1" reads it).
 //
 // Soft tissue twisted by a torque M is a chain of S concentric coils around a rigid core of
 // radius r. Coil i (i = 1..S) has radius R_i = r + i·h, a rectangular section of thickness h and
@@ -33,7 +33,7 @@ struct CoilSpringParams {
   int coils = 23;             // S
   double modulus = 35.3e3;    // E, Pa (E = 2G(1+ν), G = 12 kPa, ν = 0.47)
   double max_force = 0.163;   // F_t, N
-  double friction = 1.25;     // κ (seed 000 eq. 6)
+  double friction = 1.25;     // κ (the coil-spring paper eq. 6)
   // Optional per-coil flexural rigidity E·I_i in N·m², size S; empty → E·b·h³/12 for all.
   std::vector<double> coil_rigidity;
 };
@@ -70,7 +70,7 @@ class CoilSpringModel {
 
   static constexpr int kMaxCoils = 10000;
 
-  // seed 000 eq. 3–7. Any thread; no allocation when `out` came from MakeState().
+  // the coil-spring paper eq. 3–7. Any thread; no allocation when `out` came from MakeState().
   void Forward(double torque, CoilState& out) const;
   CoilState Forward(double torque) const;
   CoilState MakeState() const;

@@ -1,4 +1,4 @@
-// Mass-spring soft tissue with spring-damper springs (seed 001 §3.3, eq. 3-4 to 3-9, as
+// Mass-spring soft tissue with spring-damper springs (the mass-spring paper §3.3, eq. 3-4 to 3-9, as
 // DESIGN.md "Model 2" reads them).
 //
 // Particle i has mass m_i; spring s = (i, j) has stiffness k_s, damping c_s and rest length L_s.
@@ -12,7 +12,7 @@
 //
 // Units: m, kg, s, N; stiffness N/m, damping N·s/m.
 //
-// Integrators (seed 001 §1 compares them and picks the midpoint method):
+// Integrators (the mass-spring paper §1 compares them and picks the midpoint method):
 //   explicit-euler     x += h v;  v += h a(x, v)                                  order 1
 //   symplectic-euler   v += h a(x, v);  x += h v                                  order 1
 //   midpoint           RK2: a half Euler step, then the full step from the midpoint  order 2
@@ -83,7 +83,7 @@ struct MassSpringSystem {
 };
 
 enum class VolumeMode : uint8_t {
-  kNone,        // surface springs only (seed 001's model)
+  kNone,        // surface springs only (the mass-spring paper's model)
   kInnerLayer,  // a copy of the surface moved inward along the normals, joined to it
 };
 

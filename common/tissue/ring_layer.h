@@ -1,4 +1,4 @@
-// Ring-layer reduced model for palpation (seed 001 §3.3).
+// Ring-layer reduced model for palpation (the mass-spring paper §3.3).
 //
 // Around the contact point the surface is cut into concentric rings of radius r, 2r, 3r, …
 // (ring k holds the particles whose distance ρ from the contact rounds to k·r); the particles of

@@ -75,7 +75,7 @@ Expected<db::SessionPage> FindSessions(Domain& d, const db::Principal& p, db::Se
 Expected<std::string> SessionTrace(Domain& d, const db::Principal& p, uint64_t id);
 // The ratings of one session, oldest first: all of them for its trainee (without the raters'
 // names), instructors and administrators; an evaluator sees only their own, so that ratings
-// stay independent (seed 000's reliability needs raters who did not see each other's).
+// stay independent (the coil-spring paper's reliability needs raters who did not see each other's).
 Expected<std::vector<db::SubmittedRow>> SessionFeedback(Domain& d, const db::Principal& p,
                                                         uint64_t id);
 // May `p` watch `session` (0: every live session) at `rate_hz` (0: 30)? Returns the rate.
@@ -105,7 +105,7 @@ struct EvaluationQueue {
   std::vector<db::SubmittedRow> submitted;
 };
 Expected<EvaluationQueue> ListOwnEvaluations(Domain& d, const db::Principal& p, int limit);
-// The weighted report (seed 000 eqs. 9–11) of one subject, or the comparison of up to 32, as
+// The weighted report (the coil-spring paper eqs. 9–11) of one subject, or the comparison of up to 32, as
 // JSON text; recorded in the store with the weights it used.
 Expected<std::string> Report(Domain& d, const db::Principal& p, const std::string& subject_kind,
                              const std::vector<std::string>& subjects,
@@ -129,7 +129,7 @@ Status SetDisabled(Domain& d, const db::Principal& p, const std::string& user, b
 Expected<std::vector<db::UserRecord>> ListUsers(Domain& d, const db::Principal& p);
 Status PutWeightSet(Domain& d, const db::Principal& p, const std::string& json);
 Expected<std::vector<std::string>> ListWeightSets(Domain& d, const db::Principal& p);
-// One weight set as JSON text (`name` empty: the built-in seed 000 weights).
+// One weight set as JSON text (`name` empty: the coil-spring paper's published weights, built in).
 Expected<std::string> GetWeightSet(Domain& d, const db::Principal& p, const std::string& name);
 Status Backup(Domain& d, const db::Principal& p, const std::string& name);
 

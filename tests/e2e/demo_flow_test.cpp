@@ -57,7 +57,7 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   EXPECT_NE(monitor.find(" ended:"), std::string::npos);
 
   // The administrator's report of the session: three groups, each index, the comprehensive
-  // score (seed 000 eq. 11) of 0.15·… weights over the group-weighted means; and the metrics.
+  // score (the coil-spring paper eq. 11) of 0.15·… weights over the group-weighted means; and the metrics.
   EXPECT_NE(run.out.find("3 raters (intern 1, associate_chief 1, chief 1)"), std::string::npos)
       << run.out;
   EXPECT_NE(run.out.find("comprehensive N 8.418"), std::string::npos) << run.out;

@@ -1,5 +1,5 @@
 // libFuzzer target: the ratings CSV of `vsurg-sim score` and `vsurg-admin import`. What parses is
-// valid (ValidateRating) and its weighted report (seed 000 eq. 9-11) is finite.
+// valid (ValidateRating) and its weighted report (the coil-spring paper eq. 9-11) is finite.
 #include <cmath>
 #include <cstdint>
 #include <string_view>

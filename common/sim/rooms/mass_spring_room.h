@@ -1,4 +1,4 @@
-// The mass-spring model's room (seed 001; common/sim/tissue_room.h has the contract): palpation.
+// The mass-spring model's room (the mass-spring paper; common/sim/tissue_room.h has the contract): palpation.
 // The proxy's force enters the solve as zero-length spring-dampers from the contact triangle's
 // vertices towards the tip (barycentric shares of the coupling's K and D), inside the implicit
 // step: a coupling stiffer than the tissue applied as an explicit force made the 1026-particle

@@ -1,4 +1,4 @@
-// The nine evaluation indexes of seed 000 §4.4 as a physician reads them: a plain name, the
+// The nine evaluation indexes of the coil-spring paper §4.4 as a physician reads them: a plain name, the
 // question, and what a 1, a 5 and a 10 mean. The API's names (index_names) stay the stored keys.
 export const INDEXES = [
   { key: 'effectiveness', name: 'Training value',

@@ -19,7 +19,7 @@ void ExpectClosedAndOutward(const TriMesh& m) {
 }
 
 TEST(SphereTest, OctahedronLevelsGiveThePaperParticleCounts) {
-  // seed 001 Fig. 2-2: spheres of about 256 and 1024 particles.
+  // the mass-spring paper Fig. 2-2: spheres of about 256 and 1024 particles.
   EXPECT_EQ(SphereVertexCount(SphereBase::kOctahedron, 3), 258);
   EXPECT_EQ(SphereVertexCount(SphereBase::kOctahedron, 4), 1026);
   EXPECT_EQ(SphereLevelsForVertexCount(SphereBase::kOctahedron, 256), 3);
@@ -74,7 +74,7 @@ TEST(SphereTest, BadParametersAreRejected) {
 }
 
 TEST(LimbTest, DefaultForearmHasThePaperArmSize) {
-  // seed 000 §3: 6185 particles and 12362 triangles.
+  // the coil-spring paper §3: 6185 particles and 12362 triangles.
   auto limb = MakeLimb(ForearmPreset());
   ASSERT_TRUE(limb.ok());
   EXPECT_NEAR(limb->surface.VertexCount(), 6185, 10);

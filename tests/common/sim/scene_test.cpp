@@ -55,7 +55,7 @@ TEST(SceneTest, ArmAndCalfFilesMatchTheBuiltInDefaults) {
 
 // arm-torsion carries the per-ring fit with the capacity kept (`vsurg-sim calibrate`'s line
 // "per-ring, F_t held"): one rigidity per coil, growing outwards, the built-in arm's 3.3 N·m
-// capacity, and 60° at seed 000's 2.07 N·m within the fit's curve error.
+// capacity, and 60° at the coil-spring paper's 2.07 N·m within the fit's curve error.
 TEST(SceneTest, TheArmSceneCarriesPerCoilRigiditiesAndKeepsItsCapacity) {
   auto scene = LoadSceneByName("arm-torsion");
   ASSERT_TRUE(scene.ok()) << scene.error().message;

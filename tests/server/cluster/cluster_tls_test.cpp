@@ -215,5 +215,32 @@ TEST_F(ClusterTlsTest, ARenewedCertificateIsUsedWithoutARestart) {
   EXPECT_TRUE((*a)->lease.Valid()) << "the node's own connection outlived the renewals";
 }
 
+// RFC 6125: a certificate with subject alternative names is named by them alone. One the site's
+// CA signed with the SAN sim-rogue and the common name sim-a is sim-rogue, never sim-a.
+TEST_F(ClusterTlsTest, ACertificateIsNamedByItsAlternativeNamesNotItsCommonName) {
+  const std::string dir = Pki("site", "");
+  const std::string make =
+      "cd " + dir + " && openssl req -new -nodes -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 "
+      "-keyout rogue.key -out rogue.csr -subj /CN=sim-a 2>/dev/null && "
+      "printf 'subjectAltName=DNS:sim-rogue\nextendedKeyUsage=serverAuth,clientAuth\n' > "
+      "rogue.ext && openssl x509 -req -in rogue.csr -CA ca.pem -CAkey ca.key -set_serial 0x5eed "
+      "-days 2 -extfile rogue.ext -out rogue.pem 2>/dev/null";
+  ASSERT_EQ(std::system(make.c_str()), 0) << make;
+  Node& a = *TryAddNode("sim-a", 4, As("site", "sim-a")).value();
+  WaitForNodes(1);
+  ClusterOptions rogue = As("site", "sim-a");
+  rogue.tls_cert = Pki("site", "rogue.pem");
+  rogue.tls_key = Pki("site", "rogue.key");
+  // It cannot beat for sim-a, nor start as a second sim-a; the real sim-a keeps its lease.
+  EXPECT_EQ(Beat(rogue, "sim-a").error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  auto second = TryAddNode("sim-a", 4, rogue);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.error().code, ErrorCode::kPermissionDenied);
+  EXPECT_NE(second.error().message.find("names sim-rogue, not node sim-a"), std::string::npos)
+      << second.error().message;
+  EXPECT_TRUE(a.lease.Valid());
+  EXPECT_EQ(control_store_->ListNodes().value()[0].epoch, 1);
+}
+
 }  // namespace
 }  // namespace vsurg::server::cluster

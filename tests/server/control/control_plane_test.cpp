@@ -618,7 +618,7 @@ TEST_F(ControlPlaneTest, SubmissionsAreValidatedIdempotentAndReportedWithTheirWe
             StatusCode::PERMISSION_DENIED);
   EXPECT_EQ(store_->CountEvaluationRows().value(), 9);  // nothing partly written
 
-  // An admin imports two more raters; the report is seed 000 eq. 9–11 of the stored rows.
+  // An admin imports two more raters; the report is the coil-spring paper eq. 9–11 of the stored rows.
   for (auto [name, group, score] :
        {std::tuple{"a1", "intern", 5.0}, {"b1", "associate_chief", 6.0}}) {
     auto s = Submission(std::string("imp-") + name, "coil");
@@ -635,7 +635,7 @@ TEST_F(ControlPlaneTest, SubmissionsAreValidatedIdempotentAndReportedWithTheirWe
   const auto j = nlohmann::json::parse(rep.report_json());
   EXPECT_NEAR(j["index_means"][0].get<double>(), 0.2 * 5 + 0.3 * 6 + 0.5 * 8, 1e-12);
   EXPECT_EQ(j["raters"], 3);
-  EXPECT_EQ(j["weights"]["name"], "seed000");
+  EXPECT_EQ(j["weights"]["name"], "coil-spring-paper");
 
   auto admin = v1::AdminService::NewStub(channel_);
   v1::WeightSet w;

@@ -151,7 +151,7 @@ TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHel
   const struct {
     uint64_t seq;
     double peak, over;
-  } sent[] = {{1, 0.5, 0}, {2, 1.7, 0.3}, {3, 1.2, 0.25}, {5, 1.6, 0.3}};  // 4 lost; 3 late
+  } sent[] = {{1, 0.5, 0}, {2, 1.7, 0.02}, {3, 1.2, 0.015}, {5, 1.6, 0.02}};  // 4 lost; 3 late
   for (const auto& d : sent) {
     wire::StylusMessage m;
     m.rtt_us = 25000;
@@ -166,11 +166,34 @@ TEST_F(SessionManagerTest, TheTrialRecordsWhatTheStationRenderedAndHowTheLinkHel
   ASSERT_TRUE(metrics.ok() && metrics->has_value());
   const scoring::LinkFigures& l = (*metrics)->link;
   EXPECT_NEAR(l.station_peak_force, 1.7, 1e-6);  // a later, lower report does not lower it
-  EXPECT_NEAR(l.station_time_over_limit, 0.3, 1e-6);
+  EXPECT_NEAR(l.station_time_over_limit, 0.02, 1e-6);
   EXPECT_NEAR(l.rtt_ms, 25, 1e-3);
   EXPECT_NEAR(l.jitter_ms, 1.5, 1e-3);
   EXPECT_NEAR(l.loss, 0.2, 1e-9);          // 4 applied, sequence 4 never seen
   EXPECT_NEAR(l.rate_hz, 4 / 0.03, 1e-6);  // 4 applied over the 30 ms between first and last
+}
+
+// The station's own figures are its word: the record bounds them by what the server can check. A
+// station reporting 3.4e38 N and 3.4e38 s over the limit in a 30-ms trial is recorded at the most
+// any device renders (50 N) and at the time its datagrams came over.
+TEST_F(SessionManagerTest, TheRecordBoundsWhatTheStationSaysItRendered) {
+  auto s = sessions_->Create("tina", "sphere-palpation-256");
+  ASSERT_TRUE(s.ok());
+  const uint64_t id = static_cast<uint64_t>(s->record.id);
+  ASSERT_TRUE(sessions_->Start(id).ok());
+  for (uint64_t seq = 1; seq <= 4; ++seq) {
+    wire::StylusMessage m;
+    m.rendered_peak_n = 3.4e38f;
+    m.rendered_over_limit_s = 3.4e38f;
+    Drive(*s, seq, -1, m);
+    endpoint_clock_.Advance(0.01);
+  }
+  ASSERT_TRUE(sessions_->Stop(id, "done").ok());
+  const auto metrics = store_->GetTrialMetrics(s->record.id);
+  ASSERT_TRUE(metrics.ok() && metrics->has_value());
+  const scoring::LinkFigures& l = (*metrics)->link;
+  EXPECT_EQ(l.station_peak_force, 50);
+  EXPECT_NEAR(l.station_time_over_limit, 0.03, 1e-6);  // the first to the last datagram
 }
 
 // An exercise's task settings are the task the session scores: the same 1.5-s press (3 mm

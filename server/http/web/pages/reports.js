@@ -35,7 +35,7 @@ export async function pageReports(main) {
   const picks = el('fieldset', { id: 'subjects', class: 'picks' }, el('legend', {}, 'Subjects (up to 32)'));
   const kind = el('select', { name: 'kind', id: 'report-kind' }, ['model', 'trainee', 'session'].map((k) => el('option', { value: k }, k)));
   const form = el('form', { class: 'inline', id: 'report-form' }, el('label', {}, 'Subject kind', kind), picks,
-    el('label', {}, 'Weight set', el('select', { name: 'weights' }, el('option', { value: '' }, 'seed 000 (built in)'),
+    el('label', {}, 'Weight set', el('select', { name: 'weights' }, el('option', { value: '' }, 'the coil-spring paper\'s (built in)'),
       ws.names.map((n) => el('option', { value: n }, n)))),
     el('button', { type: 'submit' }, 'Report'));
   const loadPicks = async () => {
