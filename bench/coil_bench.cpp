@@ -1,4 +1,4 @@
-// Coil-spring model micro-benchmarks (issue: foundation). Goals on the 2-core reference machine:
+// Coil-spring model micro-benchmarks. Goals on the 2-core reference machine:
 // a deformation update of the default arm for a new torque ≤ 20 µs; an inverse query ≤ 100 ns.
 //
 //   build/bin/vsurg-microbench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
@@ -28,8 +28,8 @@ std::vector<double> TorquesAround(double centre, double spread, int n) {
   return t;
 }
 
-// The default arm (6182 vertices) twisted by about the coil-spring paper's 2.07 N·m: P ≈ 18, ~4900 vertices
-// move.
+// The default arm (6182 vertices) twisted by about the coil-spring paper's 2.07 N·m: P ≈ 18, ~4900
+// vertices move.
 void BM_CoilDeformArm(benchmark::State& state) {
   auto inst = Instantiate(*BuiltinLimbScene("arm"));
   const double centre = static_cast<double>(state.range(0)) / 100.0;

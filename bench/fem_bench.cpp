@@ -1,4 +1,4 @@
-// FEM micro-benchmarks (issue: FEM reference): one corotational implicit Euler step (h = 1 ms,
+// FEM micro-benchmarks: one corotational implicit Euler step (h = 1 ms,
 // warm-started block-Jacobi CG, tolerance 1e-4) on a twisted bar of 5760 and 11250 tetrahedra —
 // the sizes VegaFEM reports 64 ms and 158 ms per step for — and the coil deformation of the
 // default arm in the same run.

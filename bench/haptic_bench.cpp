@@ -1,4 +1,4 @@
-// Haptic path micro-benchmarks (issue: haptic interaction and scenes).
+// Haptic path micro-benchmarks: the proxy, the grasp and the scenes' stylus path.
 //
 // BM_HapticPath: stylus sample in → force command out through Simulation::OnStylus, with the
 // scene's deformation thread running in parallel on the other core. The trajectory is the good

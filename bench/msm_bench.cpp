@@ -1,6 +1,6 @@
-// Mass-spring micro-benchmarks (issue: mass-spring model): time per step of each integrator on
-// the 258- and 1026-particle spheres (the mass-spring paper's "256" and "1024") and the default arm, and the
-// coil model's update on the same arm torsion, side by side in one run.
+// Mass-spring micro-benchmarks: time per step of each integrator on
+// the 258- and 1026-particle spheres (the mass-spring paper's "256" and "1024") and the default
+// arm, and the coil model's update on the same arm torsion, side by side in one run.
 //
 //   build/bin/vsurg-microbench --benchmark_filter='Msm|CoilDeformArm/207'
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true   (one line)

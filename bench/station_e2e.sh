@@ -4,7 +4,7 @@
 # and fastest whole second) with and without SCHED_FIFO haptic threads, alternating, 3 runs each (server and station restarted per setting).
 # usage: [STYLE=good|hesitant|rough] bench/station_e2e.sh [BIN_DIR]
 #   STYLE: the scripted trainee's trajectory (vsurg-sim trainee): good (default) lasts 7 s,
-#   hesitant 14 s (the performance issue's loop rate is over 10 s).
+#   hesitant 14 s (the loop rate's goal is read over 10 s).
 set -euo pipefail
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); cd "$d"
 $B/vsurg-server init --db vs.db > admin.out 2>/dev/null

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The training programme at the issue's scale: 200 trainees x 10 exercises x 50 attempts
+"""The training programme at a large site's scale: 200 trainees x 10 exercises x 50 attempts
 (100,000 recorded trials) in one cohort and one course. Times, on loopback against a
 vsurg-server on an SQLite store: the cohort grid's API (GET /training/cohorts/1/grid), one
 trainee's learning curve (GET /training/curve) and the cohort curve, each N times (median and

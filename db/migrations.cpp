@@ -133,7 +133,7 @@ CREATE TABLE nodes (
   heartbeat_us  INTEGER NOT NULL
 );
 )sql",
-      // 3: leases and fencing (DESIGN.md "Third wave: design notes"). A node name is held by
+      // 3: leases and fencing (DESIGN.md "Leases and fencing"). A node name is held by
       // one process at a time (`instance`); each acquisition of the name is a new `epoch`, and a
       // session carries the epoch of the node process that created it. The store refuses a
       // session write whose epoch is not its node's current one, or whose node is down.

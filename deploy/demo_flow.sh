@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The platform end to end, as its three kinds of users touch it (issue: stations, monitor, admin):
+# The platform end to end, as its three kinds of users touch it (stations, monitor, admin):
 #   an administrator starts vsurg-server on a temporary SQLite file and creates the users;
 #   a trainee's station (headless, a replayed stylus) twists the forearm 45 degrees over UDP;
 #   an instructor's monitor follows the session live (text, and an OpenGL view);

@@ -72,7 +72,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|WanTest.TheDeadbandSendsAFractionAndKeepsTheForce'
   long+='|WanTest.AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself'
   long+='|WanTest.TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel'
-  long+='|WanTest.TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork'
+  long+='|WanTest.TheLinearModelSticksToTheToolAcrossTheSameNetwork'
   long+='|WanTest.AWiFiRoamIsHeldByTheTissuesModel'
   long+='|OrganSceneTest.ScriptedTraineesPalpateTheKidney'
   # Two whole scripted twists replayed to set the grasp's exact model against the server's later

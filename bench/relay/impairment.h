@@ -1,6 +1,6 @@
 // A network's habits, one direction at a time, for the user-space impairment relay
-// (bench/relay/relay.h). This kernel has no `netem` qdisc (DESIGN.md "Third wave"), so delay,
-// jitter, loss, duplication, reordering and outages are decided here, in user space, from a
+// (bench/relay/relay.h). The machines it runs on have no kernel `netem` qdisc to impair a link, so
+// delay, jitter, loss, duplication, reordering and outages are decided here, in user space, from a
 // seeded generator: the same seed and the same datagram times give the same fates, so a run
 // repeats exactly.
 //

@@ -147,7 +147,7 @@ Status UpdateBenchmarks(const std::string& path, const std::string& table) {
   if (b != std::string::npos && e != std::string::npos && e > b) {
     s.replace(b, e + end.size() - b, block);
   } else {
-    s += "\n## Speed against error (FEM and speed-vs-error issue)\n\n" + block + "\n";
+    s += "\n## Speed against error\n\n" + block + "\n";
   }
   std::ofstream out(path);
   out << s;

@@ -387,7 +387,7 @@ struct StationChannel::Impl {
           case LocalRendering::kServerForce:
             f = answer.force;
             break;
-          case LocalRendering::kLinear:  // the second wave's: nothing ahead of contact
+          case LocalRendering::kLinear:  // the first linear model: nothing ahead of contact
             if (answer.contact || answer.grasping) f = answer.local.ForceAt(s.position);
             break;
           case LocalRendering::kModel:

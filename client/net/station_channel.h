@@ -34,7 +34,7 @@ namespace vsurg::client {
 // them side by side across network profiles):
 //   kServerForce  the latest answer's force, held (no local model);
 //   kLinear       F₀ + J·(x − x₀) everywhere while the answer is in contact or grasping,
-//                 whatever its kind, and nothing ahead of contact (the second wave's);
+//                 whatever its kind, and nothing ahead of contact (the first linear model);
 //   kModel        the answer's local model by its kind (haptics::LocalModel::Render): contact
 //                 only on the surface's side, grasp only while the button is held, the twist's
 //                 own stiffness; the surface ahead of contact.

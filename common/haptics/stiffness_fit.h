@@ -1,4 +1,4 @@
-// The stiffness a contact shows the hand, fitted to what the server computed (network issue: "a
+// The stiffness a contact shows the hand, fitted to what the server computed ("a
 // local model that is the tissue's").
 //
 // The station extrapolates its force between two answers with the local model's Jacobian,

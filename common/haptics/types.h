@@ -29,7 +29,7 @@ struct StylusSample {
 // device's rate whatever the network's delay (OpenSurgSim's virtual coupler sends the linear
 // part; model-mediated teleoperation, Mitra & Niemeyer 2008, the rest):
 //
-//   linear   F(x) = force0 + J·(x − position0), everywhere (the second wave's model);
+//   linear   F(x) = force0 + J·(x − position0), everywhere (the first linear model);
 //   contact  the same, but unilateral: zero wherever n·F(x) ≤ 0, i.e. once the tool has left the
 //            local surface (normal n, outward). Sent in contact (F₀ the force, J the tissue's
 //            stiffness behind the proxy) and ahead of contact (position0 the nearest surface

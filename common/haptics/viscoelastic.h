@@ -1,4 +1,4 @@
-// A contact's local model with the tissue's own stiffness and damping (network issue: "a local
+// A contact's local model with the tissue's own stiffness and damping ("a local
 // model that is the tissue's"), fitted at the server and integrated at the station.
 //
 // Under the proxy the tissue's surface yields, and it yields viscously: pressed from 3 to 4 mm

@@ -17,7 +17,7 @@ enum ScoreCap : uint32_t {
 };
 
 // What the station rendered and how the link held over the trial, recorded beside the server's
-// own figures so a score is never blind to what the trainee actually felt (issue: haptics across
+// own figures so a score is never blind to what the trainee actually felt (haptics across
 // networks). Zero when the station did not report them (one older than this field).
 struct LinkFigures {
   double station_peak_force = 0;       // N, the largest force the station sent to its device

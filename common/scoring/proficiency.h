@@ -1,5 +1,5 @@
 // Proficiency-based progression and learning curves: the rules a training programme runs on
-// (issue: instructors run a training programme). Pure functions over trial metrics; the store
+// (the training programme). Pure functions over trial metrics; the store
 // and the pages come on top.
 //
 // Targets (Gallagher et al., Ann Surg 2005: proficiency-based progression). An exercise names

@@ -1,4 +1,4 @@
-// Deformation for many live simulations on a few threads (the node-density issue): one worker
+// Deformation for many live simulations on a few threads (a node's many stations): one worker
 // per core instead of a thread per session, so 64 or 128 driven sessions are two workers on a
 // 2-core node, not 64 or 128 threads contending with the haptic I/O thread for the same cores.
 // The haptic path never waits on the pool: it publishes its input exactly as it does for a

@@ -1,4 +1,4 @@
-// The training programme (issue 34): courses of exercises with proficiency targets, cohorts of
+// The training programme: courses of exercises with proficiency targets, cohorts of
 // trainees, enrolments, progress, learning curves and CUSUM, the station's next exercise, and the
 // progress exports. The rules over trial metrics are common/scoring/proficiency.h; the rows are
 // db::Store's; this file applies them with the caller's rights, as server/domain/api.h does.

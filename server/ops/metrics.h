@@ -1,5 +1,5 @@
 // Operations: the Prometheus text exposition format (version 0.0.4) and a registry of collectors
-// that each role fills at a scrape (the node-density issue's "Operations"). Written here rather
+// that each role fills at a scrape (a site operator's view). Written here rather
 // than taken from prometheus-cpp: Debian does not package it, and what we need is a text writer
 // of a few families (counters, gauges, histograms) computed at scrape time from figures the
 // server already keeps, with no metric objects on the haptic path.

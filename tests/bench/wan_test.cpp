@@ -315,9 +315,10 @@ TEST_F(WanTest, TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel) {
   }
 }
 
-TEST_F(WanTest, TheSecondWavesLinearModelSticksToTheToolAcrossTheSameNetwork) {
+TEST_F(WanTest, TheLinearModelSticksToTheToolAcrossTheSameNetwork) {
   // The contrast that shows the test above can fail: rendering the answer's linear model
-  // everywhere (the second wave's) holds the tool to the surface after it leaves, for a round trip.
+  // everywhere (the first linear model) holds the tool to the surface after it leaves, for a round
+  // trip.
   const Cell ref = RunAt("none", client::LocalRendering::kLinear, nullptr);
   const Cell c = RunAt("continental", client::LocalRendering::kLinear, &ref.run);
   EXPECT_GT(c.figures.phantom_n, 0.5);
