@@ -94,6 +94,28 @@ std::string SubmissionDifference(Connection& c, int64_t id, const Submission& s)
   return diff;
 }
 
+// The submission's subject exists, and a session subject is one that can be judged.
+Status CheckSubject(Connection& c, const Submission& s) {
+  switch (s.subject_kind) {
+    case SubjectKind::kSession: {
+      int64_t id = 0;
+      const auto r = std::from_chars(s.subject.data(), s.subject.data() + s.subject.size(), id);
+      if (r.ec != std::errc() || r.ptr != s.subject.data() + s.subject.size())
+        return InvalidArgument("subject", "a session subject is a session id");
+      return SessionToJudge(c, id);
+    }
+    case SubjectKind::kTrainee: {
+      auto found = LookupId(c, "SELECT id FROM trainees WHERE name = ?1", s.subject);
+      if (!found.ok()) return found.error();
+      if (!*found) return Error{ErrorCode::kNotFound, "no trainee '" + s.subject + "'", "subject"};
+      return Status::Ok();
+    }
+    case SubjectKind::kModel:
+      return Status::Ok();
+  }
+  return Status::Ok();
+}
+
 // The body of one submission, inside the writer's savepoint.
 Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
   // A retry: the same key returns the first result, but only for the identical submission; a
@@ -121,24 +143,7 @@ Status InsertSubmission(Connection& c, const Submission& s, SubmitResult& out) {
     }
     (*st)->Reset();
   }
-  switch (s.subject_kind) {
-    case SubjectKind::kSession: {
-      int64_t id = 0;
-      const auto r = std::from_chars(s.subject.data(), s.subject.data() + s.subject.size(), id);
-      if (r.ec != std::errc() || r.ptr != s.subject.data() + s.subject.size())
-        return InvalidArgument("subject", "a session subject is a session id");
-      if (Status judged = SessionToJudge(c, id); !judged.ok()) return judged;
-      break;
-    }
-    case SubjectKind::kTrainee: {
-      auto found = LookupId(c, "SELECT id FROM trainees WHERE name = ?1", s.subject);
-      if (!found.ok()) return found.error();
-      if (!*found) return Error{ErrorCode::kNotFound, "no trainee '" + s.subject + "'", "subject"};
-      break;
-    }
-    case SubjectKind::kModel:
-      break;
-  }
+  if (Status subject = CheckSubject(c, s); !subject.ok()) return subject;
   // The evaluator: created on first sight (imports), and always in one group.
   int64_t evaluator_id = 0;
   {

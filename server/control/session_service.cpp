@@ -53,19 +53,19 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   ServerUnaryReactor* Get(CallbackServerContext* ctx, const v1::SessionRef* req,
                           v1::Session* resp) override {
     return Unary(d_, pool_, ctx, Method::kSessionGet, [=, this](const db::Principal& p) -> Status {
-      if (Status s = Answer(GetSession(d_, p, req->id()), resp); !s.ok()) return s;
+      auto v = GetSessionWithTargets(d_, p, req->id());
+      if (!v.ok()) return v.error();
+      if (Status s = Answer(v->view, resp); !s.ok()) return s;
       // An attempt at an exercise: its checks against the targets (the station's summary).
-      auto checks = SessionTargets(d_, p, req->id());
-      if (!checks.ok()) return checks.error();
-      if (*checks) {
-        for (const scoring::TargetCheck& t : (*checks)->checks) {
+      if (const auto& checks = v->targets) {
+        for (const scoring::TargetCheck& t : checks->checks) {
           v1::TargetCheck* x = resp->add_targets();
           x->set_metric(std::string(t.metric));
           x->set_value(t.value);
           x->set_target(t.target);
           x->set_met(t.met);
         }
-        resp->set_targets_passed((*checks)->passed);
+        resp->set_targets_passed(checks->passed);
       }
       return Status::Ok();
     });

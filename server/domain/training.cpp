@@ -768,21 +768,23 @@ Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p
   return StartAttempt(d, trainee, *e, spec->task);
 }
 
-Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const db::Principal& p,
-                                                              uint64_t session_id) {
+Expected<SessionWithTargets> GetSessionWithTargets(Domain& d, const db::Principal& p,
+                                                   uint64_t session_id) {
   auto v = GetSession(d, p, session_id);  // the reader's rights
   if (!v.ok()) return v.error();
-  if (!v->metrics) return std::optional<scoring::AttemptCheck>();
+  SessionWithTargets out{std::move(v).value(), std::nullopt};
+  if (!out.view.metrics) return out;
   auto exercise_id = d.store.SessionExercise(static_cast<int64_t>(session_id));
   if (!exercise_id.ok()) return exercise_id.error();
-  if (*exercise_id == 0) return std::optional<scoring::AttemptCheck>();
+  if (*exercise_id == 0) return out;
   auto e = d.store.GetExercise(*exercise_id);
   if (!e.ok()) return e.error();
   auto view = Resolve(d, *e);
   if (!view.ok()) return view.error();
-  scoring::AttemptCheck check = scoring::CheckAttempt(*v->metrics, view->Targets());
+  scoring::AttemptCheck check = scoring::CheckAttempt(*out.view.metrics, view->Targets());
   check.passed = check.passed && view->ready;
-  return std::optional<scoring::AttemptCheck>(std::move(check));
+  out.targets = std::move(check);
+  return out;
 }
 
 // --- exports (the writing: server/domain/training_export.cpp) ---

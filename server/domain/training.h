@@ -196,10 +196,15 @@ Expected<NextExercise> NextExerciseOf(Domain& d, const db::Principal& p, std::st
 // (open, under the day's limit): created like CreateSession, then marked as the attempt.
 Expected<CreatedSession> CreateExerciseSession(Domain& d, const db::Principal& p,
                                                std::string trainee, int64_t exercise_id);
-// An ended session's checks against its exercise's targets (nullopt: it was no attempt at one,
-// or it has not ended). Whoever may read the session.
-Expected<std::optional<scoring::AttemptCheck>> SessionTargets(Domain& d, const db::Principal& p,
-                                                              uint64_t session_id);
+// A session as its reader sees it (GetSession: read and authorised once) with, when it ended as
+// an attempt at an exercise, its checks against that exercise's targets (nullopt: it was no
+// attempt at one, or it has not ended).
+struct SessionWithTargets {
+  SessionView view;
+  std::optional<scoring::AttemptCheck> targets;
+};
+Expected<SessionWithTargets> GetSessionWithTargets(Domain& d, const db::Principal& p,
+                                                   uint64_t session_id);
 
 // --- exports: progress per trainee × exercise (csv, jsonl) or xAPI statements (attempted per
 // attempt, passed per exercise reached, completed per course reached), one trainee's lines per

@@ -199,9 +199,7 @@ TEST(StationChannelTest, AMisbehavingDeviceNeverGetsAForceBeyondItsLimits) {
     AdversarialDevice device(*base, 17, 3000);
     auto station = StationChannel::Create(Options(endpoint->port()), &device);
     ASSERT_TRUE(station.ok());
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (!device.finished() && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    EXPECT_TRUE(test::Eventually(30, [&] { return device.finished(); }));
     (*station)->Stop();
     const StationStats stats = (*station)->stats();
     endpoint->RemoveSession(11);

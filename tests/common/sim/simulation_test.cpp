@@ -18,6 +18,7 @@
 #include "tests/support/deadline.h"
 #include "tests/support/sanitized.h"
 #include "tests/support/temp_dir.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::sim {
 namespace {
@@ -426,13 +427,9 @@ TEST(SimulationTest, ThreadedDeformationPublishesOnlyMovedVertices) {
   }
   // The deformation thread binds a deformer at the grasp, then follows the newest torque; wait
   // (generously: sanitizer builds are slow) for a frame with the twist in it.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  bool got = false;
-  while (!got && std::chrono::steady_clock::now() < deadline) {
-    got = (*sim)->TakeVisualFrame(frame) && !frame.indices.empty();
-    if (!got) std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  ASSERT_TRUE(got);
+  ASSERT_TRUE(test::Eventually(
+      30, [&] { return (*sim)->TakeVisualFrame(frame) && !frame.indices.empty(); },
+      std::chrono::milliseconds(2)));
   ASSERT_GT((*sim)->deformation_updates(), 0u);
   EXPECT_LT(frame.indices.size(), (*sim)->rest_mesh().positions.size());  // the elbow end stays
   const auto& rest = (*sim)->rest_mesh().positions;
@@ -445,6 +442,7 @@ TEST(SimulationTest, ThreadedDeformationPublishesOnlyMovedVertices) {
   // Once the thread has caught up with the last torque, nothing new moves: no frame, or an empty
   // one.
   VisualFrame again;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   auto quiet_since = std::chrono::steady_clock::now();
   while (std::chrono::steady_clock::now() - quiet_since < std::chrono::milliseconds(300) &&
          std::chrono::steady_clock::now() < deadline) {

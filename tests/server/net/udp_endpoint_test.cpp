@@ -140,7 +140,8 @@ TEST(UdpEndpointTest, InputsThatWaitedInTheQueuePastTheBoundAreNeverAnswered) {
       std::this_thread::sleep_for(std::chrono::milliseconds(600));
     });
   });
-  while (!held) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_TRUE(test::Eventually(
+      30, [&] { return held.load(); }, std::chrono::milliseconds(1)));
   // 50 inputs while the thread is held; the last leaves at least 0.3 s before it is let go.
   for (uint64_t seq = 1; seq <= 50; ++seq) c.Send(c.Stylus(7, seq, Key(1)));
   const auto sent = std::chrono::steady_clock::now();
@@ -429,7 +430,8 @@ TEST(UdpEndpointTest, SessionsAreSpreadOverTheIoThreadsByIdAndOneHeldLaneDelaysN
         },
         0);
   });
-  while (!held) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_TRUE(test::Eventually(
+      30, [&] { return held.load(); }, std::chrono::milliseconds(1)));
   bool all = true;
   for (uint64_t seq = 21; seq <= 30 && all; ++seq) all = answered(7, seq, Key(1));
   release = true;
