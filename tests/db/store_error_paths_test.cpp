@@ -106,13 +106,7 @@ TEST_P(StoreErrorPathTest, TrainingReadsOfMissingRowsLeaveTheNextReadRight) {
 // The writer's connection: a refused or failed job leaves its statements ready for the next job,
 // whichever session or row that job names.
 TEST_P(StoreErrorPathTest, RefusedWritesLeaveTheNextWriteRight) {
-  NodeRecord a{.name = "sim-0",
-               .grpc_address = "10.0.0.1:7000",
-               .udp_host = "10.0.0.1",
-               .udp_port = 7001,
-               .capacity = 24,
-               .heartbeat_us = 1000,
-               .instance = "process-a"};
+  NodeRecord a = test_store::SimNode();
   NodeRecord b = a;
   b.name = "sim-1", b.instance = "process-b";
   a.epoch = store_->AcquireNode(a, 2000, "restarted").value().epoch;

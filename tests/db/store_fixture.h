@@ -13,6 +13,19 @@
 
 namespace vsurg::db::test_store {
 
+// A simulation node's record as its first heartbeat gives it: sim-0 of process-a, room for 24.
+inline NodeRecord SimNode() {
+  NodeRecord n;
+  n.name = "sim-0";
+  n.grpc_address = "10.0.0.1:7000";
+  n.udp_host = "10.0.0.1";
+  n.udp_port = 7001;
+  n.capacity = 24;
+  n.heartbeat_us = 1000;
+  n.instance = "process-a";
+  return n;
+}
+
 // Every store test runs on both backends: an SQLite file in a temporary folder, and a database
 // of its own on a real PostgreSQL (tests/support/postgres.h).
 class StoreTest : public ::testing::TestWithParam<Backend> {

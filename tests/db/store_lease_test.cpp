@@ -20,13 +20,7 @@ INSTANTIATE_TEST_SUITE_P(Backends, StoreLeaseTest,
                          [](const auto& p) { return std::string(BackendName(p.param)); });
 
 TEST_P(StoreLeaseTest, ALeaseRenewalIsOneRoundTrip) {
-  NodeRecord n{.name = "sim-0",
-               .grpc_address = "10.0.0.1:7000",
-               .udp_host = "10.0.0.1",
-               .udp_port = 7001,
-               .capacity = 24,
-               .heartbeat_us = 1000,
-               .instance = "process-a"};
+  NodeRecord n = test_store::SimNode();
   n.epoch = store_->AcquireNode(n, 2000, "restarted").value().epoch;
   ASSERT_TRUE(store_->BeatNode(n).ok());  // the statement is prepared on its first use
   const uint64_t before = store_->stats().writer_round_trips;
@@ -51,13 +45,7 @@ TEST_P(StoreLeaseTest, ALeaseRenewalIsOneRoundTrip) {
 
 // A renewal between other writes of a batch neither joins their transaction nor breaks it.
 TEST_P(StoreLeaseTest, RenewalsBesideOtherWritesLeaveEveryWriteRight) {
-  NodeRecord n{.name = "sim-0",
-               .grpc_address = "10.0.0.1:7000",
-               .udp_host = "10.0.0.1",
-               .udp_port = 7001,
-               .capacity = 24,
-               .heartbeat_us = 1000,
-               .instance = "process-a"};
+  NodeRecord n = test_store::SimNode();
   n.epoch = store_->AcquireNode(n, 2000, "restarted").value().epoch;
   NodeRecord lost = n;
   lost.epoch += 1;
@@ -92,13 +80,7 @@ TEST_P(StoreLeaseTest, RenewalsBesideOtherWritesLeaveEveryWriteRight) {
 // Live migration's write: a live session becomes another node's once, fenced by both nodes'
 // epochs; never from a node that is down, to one that is, nor after the session ended.
 TEST_P(StoreLeaseTest, ASessionMovesToAnotherNodeOnceAndOnlyBetweenLiveLeases) {
-  NodeRecord a{.name = "sim-0",
-               .grpc_address = "10.0.0.1:7000",
-               .udp_host = "10.0.0.1",
-               .udp_port = 7001,
-               .capacity = 24,
-               .heartbeat_us = 1000,
-               .instance = "process-a"};
+  NodeRecord a = test_store::SimNode();
   NodeRecord b = a, c = a;
   b.name = "sim-1", b.instance = "process-b";
   c.name = "sim-2", c.instance = "process-c";
@@ -150,13 +132,7 @@ TEST_P(StoreLeaseTest, ASessionMovesToAnotherNodeOnceAndOnlyBetweenLiveLeases) {
 
 TEST_P(StoreLeaseTest, ALeaseRenewalDoesNotWaitForTheNodesSessionWritesButItsFallDoes) {
   if (sqlite()) GTEST_SKIP() << "SQLite has one writer at a time: every write waits its turn";
-  NodeRecord n{.name = "sim-0",
-               .grpc_address = "10.0.0.1:7000",
-               .udp_host = "10.0.0.1",
-               .udp_port = 7001,
-               .capacity = 24,
-               .heartbeat_us = 1000,
-               .instance = "process-a"};
+  NodeRecord n = test_store::SimNode();
   n.epoch = store_->AcquireNode(n, 2000, "restarted").value().epoch;
   auto live = store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", n.epoch});
   ASSERT_TRUE(live.ok());
