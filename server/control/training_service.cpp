@@ -1,4 +1,5 @@
 // TrainingService over gRPC: requests to server/domain/training.h calls, results to messages.
+#include "proto/convert/services.h"
 #include "server/control/grpc_common.h"
 #include "server/domain/training.h"
 

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/core/time.h"
+#include "server/domain/scene_catalog.h"
 
 namespace vsurg::server {
 namespace {

@@ -9,6 +9,7 @@
 
 #include "db/store.h"
 #include "tests/db/store_fixture.h"
+#include "tests/support/wait.h"
 
 namespace vsurg::db {
 namespace {

@@ -11,6 +11,7 @@
 // PostgreSQL keeps its own promise by its settings, which the store checks at open
 // (db/postgres.cpp: fsync and full_page_writes on, synchronous_commit on for the store's
 // sessions); tests/db/store_test.cpp reads them back.
+#include <cstdio>
 #include <filesystem>
 #include <random>
 #include <string>

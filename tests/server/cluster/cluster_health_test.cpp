@@ -255,8 +255,8 @@ TEST_F(ClusterTest, WatchersGetTheNodesTelemetryThroughTheControlPlaneAndTheEnd)
 }
 
 // Telemetry comes by one stream per node, and only from the nodes someone on this replica
-// watches: a watcher of one session opens its node's stream alone, with that session's surface;
-// a watcher of every session opens every node's, without surfaces; no watcher, no stream.
+// watches: a watcher of one session opens its node's stream alone, with the watched session's
+// surface; a watcher of every session opens every node's, without surfaces; no watcher, no stream.
 TEST_F(ClusterTest, TelemetryStreamsOnlyFromTheNodesSomeoneWatchesAndSurfacesOnlyForAView) {
   AddNode("sim-a", 8);
   AddNode("sim-b", 8);
