@@ -171,22 +171,28 @@ HttpReply HttpApi::OnNodeWorker(const db::Principal& p, std::function<HttpReply(
 
 HttpApi::~HttpApi() = default;
 
+namespace {
+
+// A pool of fairly shared workers, or none (0 workers: the work runs on the calling thread).
+std::unique_ptr<FairWorkers> MakeWorkers(int workers, int max_queued, int per_user_queued,
+                                         const char* thread_name) {
+  if (workers <= 0) return nullptr;
+  return std::make_unique<FairWorkers>(FairWorkersOptions{.workers = workers,
+                                                          .max_queued = max_queued,
+                                                          .per_user_queued = per_user_queued,
+                                                          .thread_name = thread_name});
+}
+
+}  // namespace
+
 HttpApi::HttpApi(Domain& domain, const HttpApiOptions& options)
     : d_(domain),
       options_(options),
       clock_(options.clock ? *options.clock : DefaultClock()),
-      reads_(options.read_workers > 0 ? std::make_unique<FairWorkers>(FairWorkersOptions{
-                                            .workers = options.read_workers,
-                                            .max_queued = options.max_queued_reads,
-                                            .per_user_queued = options.per_user_queued_reads,
-                                            .thread_name = "vsurg-http-read"})
-                                      : nullptr),
-      node_calls_(options.node_workers > 0 ? std::make_unique<FairWorkers>(FairWorkersOptions{
-                                                 .workers = options.node_workers,
-                                                 .max_queued = options.max_queued_node_calls,
-                                                 .per_user_queued = options.per_user_queued_reads,
-                                                 .thread_name = "vsurg-http-node"})
-                                           : nullptr),
+      reads_(MakeWorkers(options.read_workers, options.max_queued_reads,
+                         options.per_user_queued_reads, "vsurg-http-read")),
+      node_calls_(MakeWorkers(options.node_workers, options.max_queued_node_calls,
+                              options.per_user_queued_reads, "vsurg-http-node")),
       sessions_(clock_, options.session_ttl_s),
       limiter_(clock_, options.sign_in_failures),
       bearer_limiter_(clock_, options.bearer_failures) {}
