@@ -73,6 +73,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|WanTest.AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself'
   long+='|WanTest.TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel'
   long+='|WanTest.TheLinearModelSticksToTheToolAcrossTheSameNetwork'
+  long+='|WanTest.TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental'
   long+='|WanTest.AWiFiRoamIsHeldByTheTissuesModel'
   long+='|OrganSceneTest.ScriptedTraineesPalpateTheKidney'
   # Two whole scripted twists replayed to set the grasp's exact model against the server's later
@@ -80,10 +81,18 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # LocalModelTest.AnExactGraspModelIsTheServersGraspForceAtAnyTurn and the grasp tests beside it.
   long+='|LocalModelTest.AGraspIsRenderedAsTheServerWouldAnswerItARoundTripAhead'
   # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
-  # not after them.
-  ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
-    ctest --test-dir "$root/build-asan" --output-on-failure --timeout 600 -R "$gl" \
-    > "$root/build-asan/gl-tests.log" 2>&1 &
+  # not after them, with a PostgreSQL of its own: the ctest fixture's server lives in one folder
+  # of the build, and a second run's fixture would stop the first run's server under its tests.
+  (
+    gl_pg="$root/build-asan/test-postgres-gl"
+    uri="$("$root/deploy/postgres.sh" start "$gl_pg" | tail -1)"
+    rc=0
+    VSURG_TEST_POSTGRES_URI="$uri" ASAN_OPTIONS="$ASAN_OPTIONS:detect_leaks=0" \
+      ctest --test-dir "$root/build-asan" --output-on-failure --timeout 600 -R "$gl" \
+      -FS postgres -FC postgres || rc=$?
+    "$root/deploy/postgres.sh" stop "$gl_pg"
+    exit "$rc"
+  ) > "$root/build-asan/gl-tests.log" 2>&1 &
   gl_pid=$!
   status=0
   ctest --test-dir "$root/build-asan" --output-on-failure -j2 --timeout 600 -L 'unit|integration' \

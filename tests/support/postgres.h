@@ -1,6 +1,7 @@
 // A real PostgreSQL for the tests (deploy/postgres.sh): the ctest fixture `postgres` starts one
-// server for the whole run and names its URI in the file $VSURG_TEST_POSTGRES_FILE; a test binary
-// run by hand starts its own on first use and stops it at exit. Each test takes a database of its
+// server for the whole run and names its URI in the file $VSURG_TEST_POSTGRES_FILE (or a caller
+// names one in $VSURG_TEST_POSTGRES_URI, which wins); a test binary run by hand starts its own on
+// first use and stops it at exit. Each test takes a database of its
 // own (FreshDatabase), so tests never see each other's rows.
 #pragma once
 
@@ -28,6 +29,12 @@ inline const std::string& PostgresUri() {
   static std::once_flag once;
   static std::string uri;
   std::call_once(once, [] {
+    // A server named by its URI comes first: a ctest run beside another in the same build folder
+    // (deploy/sanitize.sh) has one of its own, while the fixture's file names the other's.
+    if (const char* given = std::getenv("VSURG_TEST_POSTGRES_URI"); given && *given) {
+      uri = given;
+      return;
+    }
     if (const char* file = std::getenv("VSURG_TEST_POSTGRES_FILE")) {
       std::ifstream in(file);
       std::getline(in, uri);
