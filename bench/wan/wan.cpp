@@ -7,6 +7,7 @@
 
 #include "bench/relay/relay.h"
 #include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
 #include "server/net/udp_endpoint.h"
 
 namespace vsurg::bench::wan {
@@ -59,6 +60,37 @@ Expected<sim::Scene> GridScene(const std::string& name) {
   return scene;
 }
 
+Expected<std::vector<haptics::StylusSample>> TapPlan(const sim::Scene& scene) {
+  if (scene.task.kind != scoring::TaskKind::kPress)
+    return InvalidArgument("scene", "a palpation needs a press scene");
+  // The good trainee's plan comes down the normal from 2 cm above to 2 mm below the surface
+  // point in its first 0.4 s (common/sim/trajectory.cpp): read the point and normal from it.
+  auto good = sim::ScriptedTrainee(scene, sim::TraineeStyle::kGood);
+  if (!good.ok()) return good.error();
+  const Vec3 start = good->front().position, inside = (*good)[400].position;
+  const Vec3 normal = (start - inside).normalized();
+  const Vec3 surface = inside + 0.002 * normal;
+  const Vec3 above = surface + 0.06 * normal, deep = surface - 0.005 * normal;
+  const auto min_jerk = [](double u) { return u * u * u * (10 - 15 * u + 6 * u * u); };
+  std::vector<haptics::StylusSample> plan;
+  const double down = 0.35, hold = 1.0, up = 0.4;
+  for (int k = 0; k <= static_cast<int>((down + hold + up) * 1000); ++k) {
+    const double t = k * 1e-3;
+    haptics::StylusSample s = good->front();
+    s.time = t;
+    s.buttons = 0;
+    if (t < down) {
+      s.position = above + (deep - above) * min_jerk(t / down);
+    } else if (t < down + hold) {
+      s.position = deep;
+    } else {
+      s.position = deep + (above - deep) * min_jerk(std::min(1.0, (t - down - hold) / up));
+    }
+    plan.push_back(s);
+  }
+  return plan;
+}
+
 Expected<Run> RunOnce(const RunOptions& o) {
   sim::SimulationOptions so;
   so.cache_dir = o.cache_dir;
@@ -99,6 +131,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
   co.exact_grasp = o.exact_grasp;
   co.model_hold_s = o.model_hold_s;
   co.force_limit_n = o.scene.task.force_limit;
+  if (o.station_surface) co.surface = (*simulation)->station_surface();
   const auto start = std::chrono::steady_clock::now();
   auto station = client::StationChannel::Create(co, hand->get());
   if (!station.ok()) return station.error();

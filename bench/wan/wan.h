@@ -35,8 +35,11 @@ struct RunOptions {
   double model_hold_s = 1.0;  // StationOptions::model_hold_s (0: a silence fades every model)
   double deadband = 0;  // the station's Weber fraction (StationOptions::deadband); 0: every cycle
   double contact_heartbeat_s = 0.015;  // StationOptions::deadband_contact_heartbeat_s
-  double settle_s = 0.5;               // run on after the plan ends
-  std::string cache_dir;               // reduced models' cache ("" = the default)
+  // The tissue's surface at the station from its join (StationOptions::surface); false: the
+  // surface ahead from the answers alone.
+  bool station_surface = true;
+  double settle_s = 0.5;  // run on after the plan ends
+  std::string cache_dir;  // reduced models' cache ("" = the default)
 };
 
 struct Run {
@@ -78,6 +81,12 @@ struct Figures {
   double score = 0;
   double score_but_smoothness = 0;  // Run::score_but_smoothness
 };
+
+// A quick palpation of a press scene: from 6 cm above the surface point the scripted trainees
+// press (twice the scene's surface-ahead reach, so no answer about the approach carries the
+// surface), straight down along the normal to 5 mm deep in 0.35 s (the surface reached about
+// 0.3 s in), held 1 s, and back up in 0.4 s. At 1 kHz.
+Expected<std::vector<haptics::StylusSample>> TapPlan(const sim::Scene& scene);
 
 // `stiffness` is only meaningful for press scenes (0 otherwise); contact is a force ≥ 0.1 N.
 Figures Compare(const Run& run, const Run& reference, bool press_scene);

@@ -65,12 +65,17 @@ int Wan(const std::vector<std::string>& args) {
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
               "the proxy's spring, +fitk one slope fitted to the force over the depth; +tangent: a "
               "grasp rendered to first order in the twist (the exact grasp model off); +fade "
-              "(last): every model faded 20 ms into a silence, none held (model_hold_s 0); "
+              "(after the others but +nosurf): every model faded 20 ms into a silence, none held "
+              "(model_hold_s 0); "
               "+chbN (before +fade): with a deadband, a heartbeat of N ms while a force is "
-              "rendered",
+              "rendered; +nosurf (last): without the tissue's surface at the station (the surface "
+              "ahead "
+              "from the answers alone)",
               false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
-      .Option("trainee", cli::ArgParser::Kind::kString, "good, hesitant or rough", false, "good")
+      .Option("trainee", cli::ArgParser::Kind::kString,
+              "good, hesitant or rough; tap: a quick palpation from 6 cm above (press scenes)",
+              false, "good")
       .Option("deadbands", cli::ArgParser::Kind::kString,
               "comma-separated Weber fractions to run each method at (0: every cycle)", false, "0")
       .Option("runs", cli::ArgParser::Kind::kInt, "runs per cell (seeds 1..N)", false, "1")
@@ -78,7 +83,8 @@ int Wan(const std::vector<std::string>& args) {
   if (auto rc = cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const auto grip = client::GripByName(p.String("grip"));
   if (!grip.ok()) return cli::UsageError(std::cerr, p.command(), grip.error());
-  const auto style = sim::ParseTraineeStyle(p.String("trainee"));
+  const bool tap = p.String("trainee") == "tap";
+  const auto style = sim::ParseTraineeStyle(tap ? "good" : p.String("trainee"));
   if (!style.ok()) return cli::UsageError(std::cerr, p.command(), style.error());
   std::vector<relay::Profile> profiles;
   for (const auto& name : Split(p.String("profiles"))) {
@@ -94,6 +100,7 @@ int Wan(const std::vector<std::string>& args) {
     sim::HapticsSpec::ContactModel contact;  // the contact's local model
     bool exact_grasp;
     bool hold;                   // StationOptions::model_hold_s at its default; false: 0 (+fade)
+    bool surface;                // the tissue's surface at the station; false: +nosurf
     double contact_heartbeat_s;  // StationOptions::deadband_contact_heartbeat_s (+chbN, N ms)
   };
   std::vector<Method> methods;
@@ -104,7 +111,8 @@ int Wan(const std::vector<std::string>& args) {
       if (has) base.resize(base.size() - suffix.size());
       return has;
     };
-    const bool fade = strip("+fade");  // the last suffix
+    const bool no_surface = strip("+nosurf");  // the very last suffix
+    const bool fade = strip("+fade");
     double contact_heartbeat_s = client::StationOptions{}.deadband_contact_heartbeat_s;
     if (const size_t at = base.rfind("+chb"); at != std::string::npos) {
       contact_heartbeat_s = std::strtod(base.c_str() + at + 4, nullptr) / 1e3;
@@ -126,7 +134,7 @@ int Wan(const std::vector<std::string>& args) {
       const double k = std::strtod(db.c_str(), nullptr);
       if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
       methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent, !fade,
-                         contact_heartbeat_s});
+                         !no_surface, contact_heartbeat_s});
     }
   }
   const int runs = p.Int("runs");
@@ -142,7 +150,7 @@ int Wan(const std::vector<std::string>& args) {
   for (const auto& scene_name : Split(p.String("scenes"))) {
     auto scene = wan::GridScene(scene_name);
     if (!scene.ok()) return cli::UsageError(std::cerr, p.command(), scene.error());
-    auto plan = sim::ScriptedTrainee(*scene, *style, 1000.0, 1);
+    auto plan = tap ? wan::TapPlan(*scene) : sim::ScriptedTrainee(*scene, *style, 1000.0, 1);
     if (!plan.ok()) return cli::UsageError(std::cerr, p.command(), plan.error());
     const bool press = scene->task.kind == scoring::TaskKind::kPress;
     for (const Method& method_entry : methods) {
@@ -159,6 +167,7 @@ int Wan(const std::vector<std::string>& args) {
         o.passivity_mode = method_entry.passivity;
         o.exact_grasp = method_entry.exact_grasp;
         if (!method_entry.hold) o.model_hold_s = 0;
+        o.station_surface = method_entry.surface;
         o.contact_heartbeat_s = method_entry.contact_heartbeat_s;
         o.grip = *grip;
         // The reference: the same rendering at full rate through the relay, unimpaired, with the

@@ -15,6 +15,7 @@
 #include "client/net/deadband.h"
 #include "client/net/passivity.h"
 #include "common/core/realtime.h"
+#include "common/haptics/tissue_surface.h"
 #include "common/haptics/viscoelastic.h"
 #include "common/sim/triple_buffer.h"
 #include "proto/wire/asio.h"
@@ -327,26 +328,165 @@ struct StationChannel::Impl {
     std::fflush(log_file);
   }
 
-  void DeviceLoop() {
-    auto safety = *haptics::SafetyFilter::Create(device->limits());
-    const auto period = std::chrono::duration_cast<SteadyTime::duration>(
-        std::chrono::duration<double>(1.0 / options.rate_hz));
-    auto next = SteadyTime::now();
+  // The device loop's own state (device thread only).
+  struct Servo {
+    explicit Servo(const StationOptions& o, const haptics::DeviceLimits& limits)
+        : safety(*haptics::SafetyFilter::Create(limits)),
+          deadband({o.deadband, o.deadband_position_m, o.deadband_angle_rad, o.deadband_onset_s,
+                    o.heartbeat_s, o.deadband_contact_heartbeat_s}),
+          tissue(1.0 / o.rate_hz),
+          surface(o.surface),
+          // Always observing; controlling only when asked.
+          passivity(o.passivity ? o.max_damping : 0.0, 1e-4, o.passivity_mode) {}
+    haptics::SafetyFilter safety;
+    Deadband deadband;
+    TissueContact tissue;
+    haptics::SurfaceContact surface;
+    PassivityController passivity;
     uint64_t sequence = 0;
     bool fading = false;
     Vec3 last_tip = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // none yet
-    Deadband deadband({options.deadband, options.deadband_position_m, options.deadband_angle_rad,
-                       options.deadband_onset_s, options.heartbeat_s,
-                       options.deadband_contact_heartbeat_s});
-    TissueContact tissue(1.0 / options.rate_hz);
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
-    // Always observing; controlling only when asked.
-    PassivityController passivity(options.passivity ? options.max_damping : 0.0, 1e-4,
-                                  options.passivity_mode);
     wire::StylusMessage m;
-    const auto loop_start = SteadyTime::now();
-    auto second_start = loop_start;
+    SteadyTime::time_point loop_start = SteadyTime::now(), second_start = loop_start;
     uint64_t iterations = 0, second_start_iterations = 0;
+  };
+
+  // The loop's own rate, on real time: over the run, and per whole second.
+  void CountLoop(Servo& v) {
+    const auto t_loop = SteadyTime::now();
+    loop_seconds.store(std::chrono::duration<double>(t_loop - v.loop_start).count(),
+                       std::memory_order_relaxed);
+    loop_iterations.store(v.iterations++, std::memory_order_relaxed);
+    if (const double w = std::chrono::duration<double>(t_loop - v.second_start).count(); w >= 1.0) {
+      const double hz = static_cast<double>(v.iterations - 1 - v.second_start_iterations) / w;
+      if (loop_hz_min.load() == 0 || hz < loop_hz_min.load()) loop_hz_min.store(hz);
+      if (hz > loop_hz_max.load()) loop_hz_max.store(hz);
+      v.second_start = t_loop;
+      v.second_start_iterations = v.iterations - 1;
+    }
+  }
+
+  // The force of the newest local model at this cycle's sample, independent of network timing;
+  // `held` says whether it is a passive field about the tissue's state (held through a silence).
+  Vec3 RenderModel(Servo& v, const Latest& l, const haptics::StylusSample& s, const Vec3& velocity,
+                   bool& held) {
+    using Kind = haptics::LocalModel::Kind;
+    const haptics::ForceCommand& answer = l.message.command;
+    held = options.rendering == LocalRendering::kModel &&
+           (answer.local.kind == Kind::kContact || answer.local.kind == Kind::kGrasp);
+    Vec3 f = Vec3::Zero();
+    switch (options.rendering) {
+      case LocalRendering::kServerForce:
+        return answer.force;
+      case LocalRendering::kLinear:  // the first linear model: nothing ahead of contact
+        if (answer.contact || answer.grasping) f = answer.local.ForceAt(s.position);
+        return f;
+      case LocalRendering::kModel:
+        break;
+    }
+    // The server's contact or grasp is the tissue as it is; a free answer is a round trip old,
+    // and the station's own surface (when it has one) says where the tissue begins now.
+    if (answer.contact || answer.grasping) {
+      v.surface.Yield();
+    } else if (v.surface.Render(s.position, velocity, f)) {
+      held = held || v.surface.in_contact();
+      return f;
+    }
+    if (!v.tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, s.position, f))
+      f = answer.local.Render(s.position, s.orientation, s.buttons, velocity);
+    return f;
+  }
+
+  // The watchdog: a model older than its patience fades out over fade_s.
+  void Watchdog(Servo& v, const Latest& l, double now, bool held, bool stopping_now, Vec3& f) {
+    const double patience = held ? std::max(watchdog_s, options.model_hold_s) : watchdog_s;
+    const double age = now - l.received_s;
+    if (age > patience) {
+      if (!v.fading) fades.fetch_add(1, std::memory_order_relaxed);
+      v.fading = true;
+      f *= std::max(0.0, 1.0 - (age - patience) / options.fade_s);
+    } else {
+      v.fading = false;
+    }
+    if (stopping_now && !v.fading && age > watchdog_s)
+      fades.fetch_add(1, std::memory_order_relaxed);  // stopped while the server was silent
+  }
+
+  // Passivity, the station's safety filter and the device: what the hand is given.
+  Vec3 Output(Servo& v, const Latest& l, const haptics::StylusSample& s, double dt, Vec3 f) {
+    // Passivity observer/controller: the coupling must not put energy into the hand.
+    if (l.received_s >= 0)
+      v.passivity.TissueReport(l.message.echo_sequence, l.message.command.released_j,
+                               l.message.command.absorbed_j);
+    // A grasp's twist field may give a yielding hand what it declares (types.h).
+    const double allowance = l.received_s >= 0
+                                 ? l.message.command.local.TwistFieldEnergy(
+                                       l.message.command.proxy, s.orientation, s.buttons)
+                                 : 0.0;
+    f = v.passivity.Apply(f, s.position, dt, allowance);
+    uint32_t events = 0;
+    Vec3 out = v.safety.Filter(f, dt, events);
+    if (l.received_s < 0) {
+      // No answer from this session's server yet: nothing is requested, and the start-up gate
+      // must not count these cycles as quiet (else it opens and ramps before the first model
+      // arrives, and a session started or re-placed with the tip in tissue kicks).
+      v.safety.Disarm();
+      out.setZero();
+    }
+    device->WriteForce(out);
+    v.passivity.Held(out);
+    v.rendered_peak = std::max(v.rendered_peak, out.norm());
+    if (options.force_limit_n > 0 && out.norm() > options.force_limit_n)
+      v.rendered_over_limit += dt;
+    return out;
+  }
+
+  // The stylus to the server: every cycle, or with the deadband only what the hand would notice
+  // (and a heartbeat); the server answers each one, so both directions thin alike.
+  void SendStylus(Servo& v, double now, const haptics::StylusSample& s, const Vec3& modelled) {
+    if (!v.deadband.Due(now, s, modelled)) return;
+    v.m.sample = s;
+    v.m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
+    v.m.rendered_peak_n = v.rendered_peak;
+    v.m.rendered_over_limit_s = v.rendered_over_limit;
+    v.m.jitter_us = reported_jitter_us.load(std::memory_order_relaxed);
+    const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
+                         ++v.sequence};
+    const size_t size = tx_codec.EncodeStylus(v.m, h, auth, tx);
+    boost::system::error_code ec;
+    if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
+    if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
+    v.passivity.Sent(v.sequence);
+  }
+
+  // The figures other threads read, the force log and the render thread's view.
+  void Publish(const Servo& v, const Latest& l, double now, const haptics::StylusSample& s,
+               const Vec3& out) {
+    dissipated.store(v.passivity.dissipated(), std::memory_order_relaxed);
+    to_hand.store(v.passivity.to_hand(), std::memory_order_relaxed);
+    from_hand.store(v.passivity.from_hand(), std::memory_order_relaxed);
+    tissue_released.store(v.passivity.released(), std::memory_order_relaxed);
+    if (const double b = v.passivity.network_balance(); b < network_balance_min.load())
+      network_balance_min.store(b, std::memory_order_relaxed);
+    if (log_file)
+      Log({now, s.position.x(), s.position.y(), s.position.z(), out.x(), out.y(), out.z()});
+    last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
+    StationView& shown = view.Back();
+    shown.sample = s;
+    shown.force = out;
+    shown.command = l.message.command;
+    shown.update_age_s = l.received_s >= 0 ? now - l.received_s : -1;
+    view.Publish();
+    if (out.norm() > max_force.load()) max_force = out.norm();
+  }
+
+  void DeviceLoop() {
+    Servo v(options, device->limits());
+    const auto period = std::chrono::duration_cast<SteadyTime::duration>(
+        std::chrono::duration<double>(1.0 / options.rate_hz));
+    auto next = SteadyTime::now();
+    const double dt = 1.0 / options.rate_hz;
     // Stop: the force fades out over fade_s (at most 0.5 s) counted in cycles (the station clock
     // may stand still), then the loop returns once the rate limit has reached zero.
     const int stop_cycles = static_cast<int>(std::clamp(
@@ -354,124 +494,29 @@ struct StationChannel::Impl {
     int stopping = -1;  // cycles since Stop, -1: running
     for (;;) {
       if (stopping < 0 && stop.load(std::memory_order_relaxed)) stopping = 0;
-      // The loop's own rate, on real time: over the run, and per whole second.
-      const auto t_loop = SteadyTime::now();
-      loop_seconds.store(std::chrono::duration<double>(t_loop - loop_start).count(),
-                         std::memory_order_relaxed);
-      loop_iterations.store(iterations++, std::memory_order_relaxed);
-      if (const double w = std::chrono::duration<double>(t_loop - second_start).count(); w >= 1.0) {
-        const double hz = static_cast<double>(iterations - 1 - second_start_iterations) / w;
-        if (loop_hz_min.load() == 0 || hz < loop_hz_min.load()) loop_hz_min.store(hz);
-        if (hz > loop_hz_max.load()) loop_hz_max.store(hz);
-        second_start = t_loop;
-        second_start_iterations = iterations - 1;
-      }
+      CountLoop(v);
       const double now = Now();
-      const double dt = 1.0 / options.rate_hz;
       haptics::StylusSample s = device->Read();
       s.time = now;  // the station clock: the server echoes it back for the round trip
-      if (s.position.allFinite()) tissue.Record(now, s.position);
+      if (s.position.allFinite()) v.tissue.Record(now, s.position);
       // The tip's velocity over the last servo period, as the server's proxy measures it between
       // samples (the damping of a contact ahead of the tool, types.h).
-      const Vec3 velocity = s.position.allFinite() && last_tip.allFinite()
-                                ? Vec3((s.position - last_tip) * options.rate_hz)
+      const Vec3 velocity = s.position.allFinite() && v.last_tip.allFinite()
+                                ? Vec3((s.position - v.last_tip) * options.rate_hz)
                                 : Vec3::Zero();
-      last_tip = s.position;
-      // Render from the newest local model, independent of network timing.
+      v.last_tip = s.position;
       latest.Acquire();
       const Latest& l = latest.Front();
       Vec3 f = Vec3::Zero(), modelled = Vec3::Zero();
       if (l.received_s >= 0 && s.position.allFinite()) {
-        const haptics::ForceCommand& answer = l.message.command;
-        switch (options.rendering) {
-          case LocalRendering::kServerForce:
-            f = answer.force;
-            break;
-          case LocalRendering::kLinear:  // the first linear model: nothing ahead of contact
-            if (answer.contact || answer.grasping) f = answer.local.ForceAt(s.position);
-            break;
-          case LocalRendering::kModel:
-            if (!tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, s.position, f))
-              f = answer.local.Render(s.position, s.orientation, s.buttons, velocity);
-            break;
-        }
-        modelled = f;
-        // A contact's or a grasp's model is a passive field about the tissue's state: held
-        // through a silence up to model_hold_s (StationOptions) before the fade.
-        using Kind = haptics::LocalModel::Kind;
-        const bool held =
-            options.rendering == LocalRendering::kModel &&
-            (answer.local.kind == Kind::kContact || answer.local.kind == Kind::kGrasp);
-        const double patience = held ? std::max(watchdog_s, options.model_hold_s) : watchdog_s;
-        const double age = now - l.received_s;
-        if (age > patience) {
-          if (!fading) fades.fetch_add(1, std::memory_order_relaxed);
-          fading = true;
-          f *= std::max(0.0, 1.0 - (age - patience) / options.fade_s);
-        } else {
-          fading = false;
-        }
-        if (stopping == 0 && !fading && age > watchdog_s)
-          fades.fetch_add(1, std::memory_order_relaxed);  // stopped while the server was silent
+        bool held = false;
+        f = modelled = RenderModel(v, l, s, velocity, held);
+        Watchdog(v, l, now, held, stopping == 0, f);
       }
       if (stopping >= 0) f *= std::max(0.0, 1.0 - static_cast<double>(stopping) / stop_cycles);
-      // Passivity observer/controller: the coupling must not put energy into the hand.
-      if (l.received_s >= 0)
-        passivity.TissueReport(l.message.echo_sequence, l.message.command.released_j,
-                               l.message.command.absorbed_j);
-      // A grasp's twist field may give a yielding hand what it declares (types.h).
-      const double allowance = l.received_s >= 0
-                                   ? l.message.command.local.TwistFieldEnergy(
-                                         l.message.command.proxy, s.orientation, s.buttons)
-                                   : 0.0;
-      f = passivity.Apply(f, s.position, dt, allowance);
-      uint32_t events = 0;
-      Vec3 out = safety.Filter(f, dt, events);
-      if (l.received_s < 0) {
-        // No answer from this session's server yet: nothing is requested, and the start-up gate
-        // must not count these cycles as quiet (else it opens and ramps before the first model
-        // arrives, and a session started or re-placed with the tip in tissue kicks).
-        safety.Disarm();
-        out.setZero();
-      }
-      device->WriteForce(out);
-      passivity.Held(out);
-      rendered_peak = std::max(rendered_peak, out.norm());
-      if (options.force_limit_n > 0 && out.norm() > options.force_limit_n)
-        rendered_over_limit += dt;
-      // The stylus to the server: every cycle, or with the deadband only what the hand would
-      // notice (and a heartbeat); the server answers each one, so both directions thin alike.
-      if (deadband.Due(now, s, modelled)) {
-        m.sample = s;
-        m.rtt_us = reported_rtt_us.load(std::memory_order_relaxed);
-        m.rendered_peak_n = rendered_peak;
-        m.rendered_over_limit_s = rendered_over_limit;
-        m.jitter_us = reported_jitter_us.load(std::memory_order_relaxed);
-        const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState,
-                             options.session, ++sequence};
-        const size_t size = tx_codec.EncodeStylus(m, h, auth, tx);
-        boost::system::error_code ec;
-        if (size > 0) socket.send_to(asio::buffer(tx.data(), size), server, 0, ec);
-        if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
-        passivity.Sent(sequence);
-      }
-      dissipated.store(passivity.dissipated(), std::memory_order_relaxed);
-      to_hand.store(passivity.to_hand(), std::memory_order_relaxed);
-      from_hand.store(passivity.from_hand(), std::memory_order_relaxed);
-      tissue_released.store(passivity.released(), std::memory_order_relaxed);
-      if (const double b = passivity.network_balance(); b < network_balance_min.load())
-        network_balance_min.store(b, std::memory_order_relaxed);
-      if (log_file)
-        Log({now, s.position.x(), s.position.y(), s.position.z(), out.x(), out.y(), out.z()});
-      last_fx = out.x(), last_fy = out.y(), last_fz = out.z();
-      StationView& shown = view.Back();
-      shown.sample = s;
-      shown.force = out;
-      shown.command = l.message.command;
-      shown.update_age_s = l.received_s >= 0 ? now - l.received_s : -1;
-      view.Publish();
-      if (out.norm() > max_force.load()) max_force = out.norm();
-
+      const Vec3 out = Output(v, l, s, dt, f);
+      SendStylus(v, now, s, modelled);
+      Publish(v, l, now, s, out);
       if (stopping >= 0 && ++stopping > stop_cycles && (out.isZero(0.0) || stopping > 1000)) break;
       next += period;
       const auto t = SteadyTime::now();

@@ -25,6 +25,7 @@
 #include "client/net/passivity.h"
 #include "common/core/clock.h"
 #include "common/core/expected.h"
+#include "common/haptics/tissue_surface.h"
 #include "proto/wire/datagram.h"
 #include "proto/wire/messages.h"
 
@@ -99,6 +100,11 @@ struct StationOptions {
   // its own so the device loop never waits on the disk (rows that find the queue full are
   // counted in StationStats::force_log_dropped, never waited for).
   std::string force_log;
+  // The tissue's surface at rest and its contact law, from the join (haptics/tissue_surface.h):
+  // with kModel, a tip the server's answers still call free is given the surface ahead from the
+  // station's own position, so a contact begins where and when the tip crosses the surface,
+  // however long the round trip. Null: the surface ahead comes with the answers only.
+  std::shared_ptr<const haptics::TissueSurface> surface;
   // The station clock (sample times, round trips, the watchdog and its fade); null: the steady
   // clock. The device loop itself is paced by real time at rate_hz whatever this clock says.
   const Clock* clock = nullptr;

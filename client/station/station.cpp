@@ -182,6 +182,18 @@ double Station::Now() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
+// The tissue's surface the server sent with the session (null when it sent none, or one that
+// does not read: the station then renders the surface ahead from the answers alone, and says so).
+std::shared_ptr<const haptics::TissueSurface> Station::StationSurfaceOf(
+    const v1::CreateSessionResponse& created) {
+  if (!created.has_surface()) return nullptr;
+  auto surface = convert::FromProto(created.surface());
+  if (surface.ok()) return *surface;
+  std::lock_guard lock(mutex_);
+  status_.last_error = "the server's tissue surface was refused: " + surface.error().message;
+  return nullptr;
+}
+
 Status Station::Connect() {
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::CreateSessionRequest create;
@@ -192,8 +204,9 @@ Status Station::Connect() {
   {
     grpc::ClientContext ctx;
     remote_.Prepare(ctx, std::max(config_.rpc_timeout_s, config_.create_timeout_s));
-    v1::SessionRef prepared;
+    v1::JoinRequest prepared;
     prepared.set_id(config_.join);
+    prepared.set_with_surface(true);
     const grpc::Status s =
         join ? stub->Join(&ctx, prepared, &created) : stub->Create(&ctx, create, &created);
     if (!s.ok()) {
@@ -242,6 +255,7 @@ Status Station::Connect() {
   options.deadband = config_.deadband;
   options.model_hold_s = config_.model_hold_s;
   options.force_limit_n = config_.force_limit_n;
+  options.surface = StationSurfaceOf(created);
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
   channel_options_ = options;
@@ -317,7 +331,7 @@ void Station::Probe(double now) {
 
 Expected<bool> Station::Follow() {
   auto stub = v1::SessionService::NewStub(remote_.channel);
-  v1::SessionRef ref;
+  v1::JoinRequest ref;  // the surface is the one it has
   ref.set_id(status_.session);
   v1::CreateSessionResponse where;
   grpc::ClientContext ctx;

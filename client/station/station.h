@@ -42,6 +42,10 @@
 #include "common/core/session_state.h"
 #include "common/scoring/trial_metrics.h"
 
+namespace vsurg::v1 {
+class CreateSessionResponse;
+}  // namespace vsurg::v1
+
 namespace vsurg::client {
 
 struct StationConfig {
@@ -153,6 +157,8 @@ class Station {
 
  private:
   Status Connect();
+  std::shared_ptr<const haptics::TissueSurface> StationSurfaceOf(
+      const v1::CreateSessionResponse& created);
   void Probe(double now);
   // The session is live: when it now runs at another UDP address, a channel there. True: moved.
   Expected<bool> Follow();

@@ -50,6 +50,7 @@
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
 #include "common/haptics/stiffness_fit.h"
+#include "common/haptics/tissue_surface.h"
 #include "common/haptics/types.h"
 #include "common/haptics/viscoelastic.h"
 #include "common/scoring/trial_metrics.h"
@@ -140,6 +141,10 @@ class Simulation final : private DeformationPool::Member {
   bool TakeTelemetry(Telemetry& out);
   const Scene& scene() const { return scene_; }
   const geometry::TriMesh& rest_mesh() const { return rest_; }
+  // Any thread: the surface at rest and its contact law, as a station renders the surface ahead
+  // of the tool before the server's answers say it (haptics/tissue_surface.h); a station gets it
+  // with its join. Null when the scene has no surface ahead (lookahead 0).
+  std::shared_ptr<const haptics::TissueSurface> station_surface() const { return station_surface_; }
   // The haptic thread's trial clock (s since the first sample; see kMaxClockStepS) and how many
   // samples jumped. Not concurrently with OnStylus.
   double trial_time() const { return trial_time_; }
@@ -194,8 +199,35 @@ class Simulation final : private DeformationPool::Member {
                bool outside_model = false);
   void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
+  // The haptic path's stages (simulation_stylus.cpp), one sample's work in progress in `step`.
+  struct StylusStep {
+    uint32_t events = 0;
+    double dt = 1e-3;  // s, what the proxy integrates over
+    geometry::Vec3 force = geometry::Vec3::Zero();
+    Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();
+    double quantity = 0;  // the task's: twist (rad) or press depth (m)
+    bool overload = false;
+    haptics::ForceCommand cmd;
+  };
+  haptics::ForceCommand RejectInput(const haptics::StylusSample& s, uint32_t events);
+  void CountPortEnergy(const haptics::StylusSample& s);
+  double AdvanceClock(const haptics::StylusSample& s, uint32_t& events);
+  void EndGrasp(uint32_t& events);
+  TwistAnswer TwistAt(double phi);
+  void GraspStep(const haptics::StylusSample& s, StylusStep& step);
+  void GraspModel(const haptics::StylusSample& s, double twist, const TwistAnswer& answer,
+                  const geometry::Vec3& tangent, const geometry::Vec3& radial,
+                  haptics::LocalModel& local);
+  void ContactStep(const Snapshot& snap, const haptics::StylusSample& s, bool button,
+                   StylusStep& step);
+  void TryGrasp(const haptics::ProxyState& ps, const haptics::StylusSample& s, uint32_t& events);
+  void ContactModel(const haptics::ProxyState& ps, double depth, StylusStep& step);
+  geometry::Vec3 Answer(const Snapshot& snap, const haptics::StylusSample& s, StylusStep& step);
+  void PublishTelemetry(const haptics::StylusSample& s, const haptics::ForceCommand& cmd,
+                        const geometry::Vec3& out, double quantity);
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
+  std::shared_ptr<const haptics::TissueSurface> MakeStationSurface() const;
   // The motion the kept face lists are given: the snapshot's, or +inf (none kept) when disabled.
   double KeptListMotion(const Snapshot& snap) const {
     return options_.kept_face_lists ? snap.motion : std::numeric_limits<double>::infinity();
@@ -209,6 +241,7 @@ class Simulation final : private DeformationPool::Member {
 
   // Haptic side.
   haptics::ProxyContact proxy_;
+  std::shared_ptr<const haptics::TissueSurface> station_surface_;  // set by Build
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
   uint64_t samples_ = 0;

@@ -150,4 +150,36 @@ sim::SessionTelemetry FromProto(const v1::Telemetry& t) {
   return s;
 }
 
+void ToProto(const haptics::TissueSurface& s, v1::StationSurface* out) {
+  const haptics::SurfaceSpec& spec = s.spec();
+  out->mutable_positions()->Reserve(static_cast<int>(3 * spec.positions.size()));
+  for (const auto& p : spec.positions)
+    for (int i = 0; i < 3; ++i) out->add_positions(static_cast<float>(p[i]));
+  out->mutable_triangles()->Reserve(static_cast<int>(3 * spec.triangles.size()));
+  for (const auto& t : spec.triangles)
+    for (int i : t) out->add_triangles(i);
+  for (double k : spec.stiffness) out->add_stiffness(static_cast<float>(k));
+  out->set_damping(spec.damping);
+  out->set_reach(spec.reach);
+}
+
+Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::StationSurface& s) {
+  if (s.positions_size() % 3 != 0 || s.triangles_size() % 3 != 0)
+    return InvalidArgument("surface", "positions and triangles come in threes");
+  if (static_cast<size_t>(s.positions_size()) > 3 * haptics::TissueSurface::kMaxVertices ||
+      static_cast<size_t>(s.triangles_size()) > 3 * haptics::TissueSurface::kMaxTriangles)
+    return InvalidArgument("surface", "the surface is larger than a station takes");
+  haptics::SurfaceSpec spec;
+  spec.positions.resize(static_cast<size_t>(s.positions_size() / 3));
+  for (size_t v = 0; v < spec.positions.size(); ++v)
+    for (int i = 0; i < 3; ++i) spec.positions[v][i] = s.positions(static_cast<int>(3 * v) + i);
+  spec.triangles.resize(static_cast<size_t>(s.triangles_size() / 3));
+  for (size_t t = 0; t < spec.triangles.size(); ++t)
+    for (int i = 0; i < 3; ++i) spec.triangles[t][i] = s.triangles(static_cast<int>(3 * t) + i);
+  spec.stiffness.assign(s.stiffness().begin(), s.stiffness().end());
+  spec.damping = s.damping();
+  spec.reach = s.reach();
+  return haptics::TissueSurface::Create(std::move(spec));
+}
+
 }  // namespace vsurg::convert

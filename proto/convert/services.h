@@ -2,10 +2,13 @@
 // mapping of each type at the gRPC boundary, shared by the server's services and the clients.
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 
+#include "common/core/expected.h"
 #include "common/core/session_state.h"
+#include "common/haptics/tissue_surface.h"
 #include "common/scoring/metrics.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/telemetry.h"
@@ -31,5 +34,11 @@ scoring::TaskSettings FromProto(const v1::TaskSettings& t);
 // does not know reads as aborted.
 void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out, bool with_surface = true);
 sim::SessionTelemetry FromProto(const v1::Telemetry& t);
+
+// The tissue's surface a station renders ahead of its tool. FromProto checks what a server sent
+// as TissueSurface::Create does (bounds, indices, finite values): a refusal, never a surface
+// that would render without bound.
+void ToProto(const haptics::TissueSurface& s, v1::StationSurface* out);
+Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::StationSurface& s);
 
 }  // namespace vsurg::convert

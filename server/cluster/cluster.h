@@ -109,7 +109,7 @@ class ClusterSessions final : public Sessions {
   Expected<db::SessionRecord> Start(uint64_t id) override;
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
   Expected<db::SessionRecord> Get(uint64_t id) override;
-  Expected<CreatedSession> Join(uint64_t id) override;
+  Expected<CreatedSession> Join(uint64_t id, bool with_surface) override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                      std::vector<int32_t>& triangles) const override;
   Expected<std::string> Trace(uint64_t id) const override;

@@ -915,12 +915,13 @@ Expected<db::SessionRecord> ClusterSessions::Get(uint64_t id) {
   return impl_->store.GetSession(static_cast<int64_t>(id));
 }
 
-Expected<CreatedSession> ClusterSessions::Join(uint64_t id) {
+Expected<CreatedSession> ClusterSessions::Join(uint64_t id, bool with_surface) {
   auto at = impl_->NodeOf(id);
   if (!at.ok()) return at.error();
   if (!vsurg::IsLive(at->first.state)) return NotLive(id);
-  v1::SessionRef req;
+  v1::JoinRequest req;
   req.set_id(id);
+  req.set_with_surface(with_surface);
   v1::NodeSession reply;
   auto ctx = impl_->ReadContext();
   const grpc::Status s = impl_->StubFor(at->second).Join(ctx.get(), req, &reply);

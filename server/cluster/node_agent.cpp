@@ -279,6 +279,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
          {"ms", std::chrono::duration_cast<std::chrono::milliseconds>(
                     std::chrono::steady_clock::now() - t0)
                     .count()}});
+    c->surface.reset();  // the station has it from its join
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }
@@ -299,11 +300,12 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     grpcapi::ToProto(*r, out->mutable_session());
     return grpc::Status::OK;
   }
-  grpc::Status Join(grpc::ServerContext* ctx, const v1::SessionRef* req,
+  grpc::Status Join(grpc::ServerContext* ctx, const v1::JoinRequest* req,
                     v1::NodeSession* out) override {
     if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
-    auto c = sessions.Join(req->id());
+    auto c = sessions.Join(req->id(), req->with_surface());
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
+    if (!req->with_surface()) c->surface.reset();
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }
@@ -350,6 +352,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
          {"ms", std::chrono::duration_cast<std::chrono::milliseconds>(
                     std::chrono::steady_clock::now() - t0)
                     .count()}});
+    c->surface.reset();  // the station has it from its join
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }

@@ -26,11 +26,12 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
         });
   }
 
-  ServerUnaryReactor* Join(CallbackServerContext* ctx, const v1::SessionRef* req,
+  ServerUnaryReactor* Join(CallbackServerContext* ctx, const v1::JoinRequest* req,
                            v1::CreateSessionResponse* resp) override {
     return Unary(d_, pool_, ctx, Method::kSessionJoin, [=, this](const db::Principal& p) -> Status {
-      auto joined = JoinSession(d_, p, req->id());
+      auto joined = JoinSession(d_, p, req->id(), req->with_surface());
       if (!joined.ok()) return joined.error();
+      if (!req->with_surface()) joined->surface.reset();
       Credentials(*joined, resp);
       return Status::Ok();
     });
@@ -106,6 +107,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     resp->set_udp_host(c.udp_host);
     resp->set_udp_port(c.udp_port);
     resp->set_session_key(std::string(c.key.begin(), c.key.end()));
+    if (c.surface) convert::ToProto(*c.surface, resp->mutable_surface());
   }
   static Status Answer(const Expected<SessionView>& v, v1::Session* resp) {
     if (!v.ok()) return v.error();

@@ -126,13 +126,14 @@ Expected<SessionView> GetSession(Domain& d, const db::Principal& p, uint64_t id)
   return View(d, *r);
 }
 
-Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id) {
+Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id,
+                                     bool with_surface) {
   if (Status s = Permit(p, Method::kSessionJoin); !s.ok()) return s.error();
   auto r = d.store.GetSession(static_cast<int64_t>(id));
   if (!r.ok()) return r.error();
   if (r->trainee != p.name)  // never another trainee's key, whatever the role
     return Denied("session " + std::to_string(id) + " belongs to another trainee");
-  return d.sessions.Join(id);
+  return d.sessions.Join(id, with_surface);
 }
 
 Expected<RestSurface> SessionSurface(Domain& d, const db::Principal& p, uint64_t id) {

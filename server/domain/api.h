@@ -58,7 +58,9 @@ Expected<SessionView> StopSession(Domain& d, const db::Principal& p, uint64_t id
 Expected<SessionView> GetSession(Domain& d, const db::Principal& p, uint64_t id);
 // The trainee's station joins a session prepared for them (by an instructor): the key and UDP
 // address go only to that trainee, and only while the session is live.
-Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id);
+// with_surface: the station's surface too (a station's first join; not its probes).
+Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id,
+                                     bool with_surface = false);
 // A live session's surface at rest, for a watcher's 3D view (the monitors' permission).
 struct RestSurface {
   std::vector<geometry::Vec3> positions;  // m
@@ -105,8 +107,8 @@ struct EvaluationQueue {
   std::vector<db::SubmittedRow> submitted;
 };
 Expected<EvaluationQueue> ListOwnEvaluations(Domain& d, const db::Principal& p, int limit);
-// The weighted report (the coil-spring paper eqs. 9–11) of one subject, or the comparison of up to 32, as
-// JSON text; recorded in the store with the weights it used.
+// The weighted report (the coil-spring paper eqs. 9–11) of one subject, or the comparison of up to
+// 32, as JSON text; recorded in the store with the weights it used.
 Expected<std::string> Report(Domain& d, const db::Principal& p, const std::string& subject_kind,
                              const std::vector<std::string>& subjects,
                              const std::string& weight_set);

@@ -148,6 +148,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   out.record = *record;
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
+  out.surface = (*simulation)->station_surface();
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
   live->trace.SetRest(live->simulation->rest_mesh());
@@ -410,7 +411,7 @@ Expected<db::SessionRecord> SessionManager::Get(uint64_t id) {
   return rec;
 }
 
-Expected<CreatedSession> SessionManager::Join(uint64_t id) {
+Expected<CreatedSession> SessionManager::Join(uint64_t id, bool /*with_surface: in-process*/) {
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = live_.find(id);
   if (it == live_.end())
@@ -421,6 +422,7 @@ Expected<CreatedSession> SessionManager::Join(uint64_t id) {
   out.key = it->second->key;
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
+  out.surface = it->second->simulation->station_surface();
   return out;
 }
 
@@ -865,6 +867,7 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
   out.key = live->key;
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
+  out.surface = live->simulation->station_surface();
   // Served before it is listed: nothing here can end it before it is in the endpoint.
   if (started && endpoint_)
     endpoint_->AddSession(static_cast<uint64_t>(h.id), live->key, live->simulation.get(),

@@ -143,7 +143,7 @@ class SessionManager final : public Sessions {
   // FAILED_PRECONDITION once it has (someone holds its key after all), NOT_FOUND when gone.
   Expected<db::SessionRecord> Abandon(uint64_t id, const std::string& reason);
   Expected<db::SessionRecord> Get(uint64_t id) override;
-  Expected<CreatedSession> Join(uint64_t id) override;
+  Expected<CreatedSession> Join(uint64_t id, bool with_surface) override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                      std::vector<int32_t>& triangles) const override;
   Expected<std::string> Trace(uint64_t id) const override;

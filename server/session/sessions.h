@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,8 @@ struct CreatedSession {
   wire::SessionKey key{};
   std::string udp_host;
   uint16_t udp_port = 0;
+  // The tissue's surface and contact law the station renders ahead of its tool (null: none).
+  std::shared_ptr<const haptics::TissueSurface> surface;
 };
 
 class Sessions {
@@ -39,9 +42,10 @@ class Sessions {
   virtual Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) = 0;
   virtual Expected<db::SessionRecord> Get(uint64_t id) = 0;  // the store's row, live state
   // A live session's station credentials (a session an instructor prepared, joined by the
-  // trainee's station): the key and the UDP address, as Create returned them. kNotFound once it
-  // left the live states.
-  virtual Expected<CreatedSession> Join(uint64_t id) = 0;
+  // trainee's station): the key and the UDP address, as Create returned them, and the station's
+  // surface (with_surface: a remote node is asked for it; in process it costs nothing). kNotFound
+  // once it left the live states.
+  virtual Expected<CreatedSession> Join(uint64_t id, bool with_surface) = 0;
   // A live session's surface at rest (the mesh the monitors' surface states move): positions in
   // metres, triangles as vertex indices. kNotFound once it left the live states.
   virtual Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,

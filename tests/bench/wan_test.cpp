@@ -176,6 +176,38 @@ TEST_F(WanTest, TheModelHoldsContactPassivelyAtMetroAndContinental) {
   }
 }
 
+// A quick palpation from 6 cm above (twice the surface-ahead reach) at 150 ms each way: with the
+// tissue's surface from its join the station begins the contact on the cycle the tip crosses the
+// surface; with the answers alone it learns of the surface a round trip after the tip came
+// within reach, and the hand is through it first (250 cycles and 4.6 mm late here).
+TEST_F(WanTest, TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental) {
+  RunOptions o = *options_;
+  auto plan = TapPlan(o.scene);
+  ASSERT_TRUE(plan.ok()) << plan.error().message;
+  o.plan = *plan;
+  o.rendering = client::LocalRendering::kModel;
+  o.profile = *relay::ProfileByName("none");
+  auto ref = RunOnce(o);
+  ASSERT_TRUE(ref.ok()) << ref.error().message;
+  o.profile = *relay::ProfileByName("intercontinental");
+  auto with = RunOnce(o);
+  o.station_surface = false;
+  auto without = RunOnce(o);
+  ASSERT_TRUE(with.ok() && without.ok());
+  const Figures f = Compare(*with, *ref, true), late = Compare(*without, *ref, true);
+  std::printf(
+      "onset +%.0f cycles %+.2f mm (without the surface +%.0f, %+.2f mm); error %.1f%% "
+      "(%.1f%%), phantom %.3f N\n",
+      f.onset_delay_cycles, f.onset_extra_mm, late.onset_delay_cycles, late.onset_extra_mm,
+      f.rms_error_pct, late.rms_error_pct, f.phantom_n);
+  EXPECT_LE(f.peak_force_n, options_->scene.haptics.limits.max_force + 1e-9);
+  EXPECT_LT(f.phantom_n, 0.05);
+  if (!kFiguresMeaningful) return;
+  EXPECT_LE(f.onset_delay_cycles, 5);
+  EXPECT_LT(std::abs(f.onset_extra_mm), 0.5);
+  EXPECT_GT(late.onset_delay_cycles, 100) << "the answers alone came in time: no case shown";
+}
+
 TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
   // At continental (the stiff sphere: 94.5% fewer, +0.25 points in docs/BENCHMARKS.md), side by
   // side with the full-rate run on the same profile, both against the full-rate run unimpaired.

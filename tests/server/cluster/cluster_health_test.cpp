@@ -147,7 +147,9 @@ TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWit
   v1::SessionRef ref;
   ref.set_id(static_cast<uint64_t>(row->id));
   v1::CreateSessionResponse joined;
-  EXPECT_FALSE(stub->Join(ctx("trainee-10", 1).get(), ref, &joined).ok());
+  v1::JoinRequest join;
+  join.set_id(ref.id());
+  EXPECT_FALSE(stub->Join(ctx("trainee-10", 1).get(), join, &joined).ok());
   v1::Session got;
   const grpc::Status get = stub->Get(ctx("trainee-10", 30).get(), ref, &got);
   ASSERT_TRUE(get.ok()) << get.error_message();
@@ -155,7 +157,7 @@ TEST_F(ClusterFrozenNodeTest, CallsWaitingOnAFrozenNodeStallNoOtherCallAndEndWit
   {
     const CallerDeadline caller(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
     const auto t0 = std::chrono::steady_clock::now();
-    auto direct = control_->Join(ref.id());
+    auto direct = control_->Join(ref.id(), false);
     ASSERT_FALSE(direct.ok());
     EXPECT_NE(direct.error().message.find("sim-frozen"), std::string::npos)
         << direct.error().message;

@@ -27,8 +27,9 @@ TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
   EXPECT_NE(full.error().message.find("no simulation node has room"), std::string::npos);
   // The session's calls go to its node: join gives the same key, stop ends it there.
   auto first = control_store_->ListSessions(std::string("trainee-0")).value().at(0);
-  auto joined = control_->Join(static_cast<uint64_t>(first.id));
+  auto joined = control_->Join(static_cast<uint64_t>(first.id), false);
   ASSERT_TRUE(joined.ok()) << joined.error().message;
+  EXPECT_FALSE(joined->surface) << "a probe's join carries no surface";
   auto stopped = control_->Stop(static_cast<uint64_t>(first.id), "done");
   ASSERT_TRUE(stopped.ok()) << stopped.error().message;
   EXPECT_EQ(stopped->state, SessionState::kEnded);
@@ -248,11 +249,14 @@ TEST_F(ClusterTest, ADrainingNodeMovesItsLiveSessionsWithTheirStateAndTheTrialGo
   EXPECT_EQ(notice->command.force.norm(), 0);
   EXPECT_FALSE(notice->command.grasping);
   // Where it runs now: the other node, the same key.
-  auto joined = control_->Join(live->record.id);
+  auto joined = control_->Join(live->record.id, true);
   ASSERT_TRUE(joined.ok()) << joined.error().message;
   EXPECT_EQ(joined->record.node, "sim-b");
   EXPECT_EQ(joined->udp_port, b.endpoint->port());
   EXPECT_EQ(joined->key, live->key);
+  ASSERT_TRUE(joined->surface) << "the station's surface, from its node";
+  EXPECT_EQ(joined->surface->spec().triangles.size(),
+            b.sessions->Join(live->record.id, true)->surface->spec().triangles.size());
   station.Target(joined->udp_port);
   const auto after = station.AnswerTo(station.Send((*samples)[k]), 5);
   ASSERT_TRUE(after) << "the new node does not answer";

@@ -22,6 +22,7 @@
 #include "client/net/station_channel.h"
 #include "common/scoring/evaluation.h"
 #include "db/store.h"
+#include "proto/convert/services.h"
 #include "server/domain/auth.h"
 #include "server/net/udp_endpoint.h"
 #include "server/session/session_manager.h"
@@ -221,7 +222,7 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
       return s->ListScenes(ctx().get(), {}, &r).error_code();
     }
     case Method::kSessionJoin: {
-      v1::SessionRef ref;
+      v1::JoinRequest ref;
       ref.set_id(999);
       v1::CreateSessionResponse r;
       return s->Join(ctx().get(), ref, &r).error_code();
@@ -432,7 +433,7 @@ TEST_F(ControlPlaneTest, OnlyTheTraineeJoinsASessionPreparedForThem) {
   create.set_scene("sphere-palpation-256");
   v1::CreateSessionResponse prepared;
   ASSERT_TRUE(sessions->Create(Ctx(db::Role::kInstructor).get(), create, &prepared).ok());
-  v1::SessionRef ref;
+  v1::JoinRequest ref;
   ref.set_id(prepared.session().id());
   v1::CreateSessionResponse joined;
   // Another trainee, the instructor who prepared it and an administrator get no key.
@@ -448,6 +449,20 @@ TEST_F(ControlPlaneTest, OnlyTheTraineeJoinsASessionPreparedForThem) {
   EXPECT_EQ(joined.udp_port(), prepared.udp_port());
   EXPECT_EQ(joined.session().scene(), "sphere-palpation-256");
   EXPECT_EQ(joined.session().trainee(), "tina");
+  // The tissue's surface comes with the creation and with a join that asks for it (a station's
+  // first), not with the probes that only ask where the session runs.
+  ASSERT_TRUE(prepared.has_surface());
+  EXPECT_GT(prepared.surface().triangles_size(), 0);
+  EXPECT_EQ(prepared.surface().positions_size(), 3 * prepared.surface().stiffness_size());
+  EXPECT_FALSE(joined.has_surface());
+  ref.set_with_surface(true);
+  ASSERT_TRUE(sessions->Join(Ctx(db::Role::kTrainee).get(), ref, &joined).ok());
+  ASSERT_TRUE(joined.has_surface());
+  EXPECT_EQ(joined.surface().SerializeAsString(), prepared.surface().SerializeAsString());
+  auto surface = convert::FromProto(joined.surface());
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  EXPECT_GT((*surface)->spec().reach, 0);
+  ref.set_with_surface(false);
   // Once it has ended there is nothing to join.
   v1::StopSessionRequest stop;
   stop.set_id(ref.id());
@@ -618,7 +633,8 @@ TEST_F(ControlPlaneTest, SubmissionsAreValidatedIdempotentAndReportedWithTheirWe
             StatusCode::PERMISSION_DENIED);
   EXPECT_EQ(store_->CountEvaluationRows().value(), 9);  // nothing partly written
 
-  // An admin imports two more raters; the report is the coil-spring paper eq. 9–11 of the stored rows.
+  // An admin imports two more raters; the report is the coil-spring paper eq. 9–11 of the stored
+  // rows.
   for (auto [name, group, score] :
        {std::tuple{"a1", "intern", 5.0}, {"b1", "associate_chief", 6.0}}) {
     auto s = Submission(std::string("imp-") + name, "coil");

@@ -1,0 +1,116 @@
+#include "common/haptics/tissue_surface.h"
+
+#include <cmath>
+#include <string>
+
+namespace vsurg::haptics {
+
+namespace {
+
+bool Finite(const std::vector<Vec3>& v) {
+  for (const Vec3& p : v)
+    if (!p.allFinite()) return false;
+  return true;
+}
+
+Status Check(const SurfaceSpec& s) {
+  const size_t n = s.positions.size();
+  if (n < 3 || n > TissueSurface::kMaxVertices)
+    return InvalidArgument("surface", "the surface needs 3.." +
+                                          std::to_string(TissueSurface::kMaxVertices) +
+                                          " vertices, not " + std::to_string(n));
+  if (s.triangles.empty() || s.triangles.size() > TissueSurface::kMaxTriangles)
+    return InvalidArgument("surface", "the surface needs 1.." +
+                                          std::to_string(TissueSurface::kMaxTriangles) +
+                                          " triangles, not " + std::to_string(s.triangles.size()));
+  if (s.stiffness.size() != n)
+    return InvalidArgument("surface", "one contact stiffness per vertex is needed");
+  if (!Finite(s.positions)) return InvalidArgument("surface", "a vertex is not finite");
+  for (const geometry::Triangle& t : s.triangles)
+    for (int i : t)
+      if (i < 0 || static_cast<size_t>(i) >= n)
+        return InvalidArgument("surface", "a triangle names a vertex the surface does not have");
+  for (double k : s.stiffness)
+    if (!(k >= 0 && k <= TissueSurface::kMaxStiffness))
+      return InvalidArgument("surface", "a contact stiffness is outside 0..1e5 N/m");
+  if (!(s.damping >= 0 && s.damping <= TissueSurface::kMaxDamping))
+    return InvalidArgument("surface", "the contact damping is outside 0..1000 N·s/m");
+  if (!(s.reach > 0 && s.reach <= TissueSurface::kMaxReach))
+    return InvalidArgument("surface", "the reach is outside (0, 0.2] m");
+  return Status::Ok();
+}
+
+double Depth(const LocalModel& plane, const Vec3& x) {
+  return plane.normal.dot(plane.position0 - x);
+}
+
+}  // namespace
+
+Expected<std::shared_ptr<const TissueSurface>> TissueSurface::Create(SurfaceSpec spec) {
+  if (Status s = Check(spec); !s.ok()) return s.error();
+  return std::shared_ptr<const TissueSurface>(new TissueSurface(std::move(spec)));
+}
+
+TissueSurface::TissueSurface(SurfaceSpec spec) : spec_(std::move(spec)) {
+  geometry::TriMesh mesh;
+  mesh.positions = spec_.positions;
+  mesh.triangles = spec_.triangles;
+  bvh_ = geometry::Bvh(mesh);
+}
+
+bool TissueSurface::Ahead(const Vec3& x, LocalModel& out, int& start) const {
+  if (!x.allFinite()) return false;
+  const geometry::ClosestHit c =
+      bvh_.Closest(spec_.positions, x, spec_.reach, Vec3::Zero(), -2.0, start);
+  start = c.triangle;
+  if (c.triangle < 0) return false;
+  const geometry::Triangle& tri = spec_.triangles[c.triangle];
+  const Vec3 n = geometry::TriangleNormal(spec_.positions, tri);
+  if (!n.allFinite() || (x - c.point).dot(n) < 0) return false;  // behind the face
+  double k = 0;
+  for (int i = 0; i < 3; ++i) k += c.barycentric[i] * spec_.stiffness[tri[i]];
+  if (!(k >= 0)) return false;
+  out = LocalModel{};
+  out.kind = LocalModel::Kind::kContact;
+  out.normal = n;
+  out.position0 = c.point;
+  out.jacobian = -k * n * n.transpose();
+  out.contact_damping = spec_.damping;
+  return true;
+}
+
+bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
+  force.setZero();
+  if (!surface_ || !x.allFinite()) {
+    state_ = State::kUnknown;
+    return false;
+  }
+  if (state_ == State::kIn) {
+    if (Depth(plane_, x) > 0) {
+      force = plane_.Render(x, Eigen::Quaterniond::Identity(), 0, v);
+      return true;
+    }
+    state_ = State::kOutside;  // back out through the plane it went in by
+  }
+  LocalModel ahead;
+  if (surface_->Ahead(x, ahead, start_)) {
+    state_ = State::kOutside;
+    plane_ = ahead;
+    have_plane_ = true;
+    return true;  // outside, within reach: nothing to feel yet
+  }
+  if (state_ == State::kOutside && have_plane_) {
+    // Behind the nearest face (or out of reach) after an outside cycle: a crossing once the tip
+    // is behind the plane it came to.
+    if (Depth(plane_, x) > 0) {
+      state_ = State::kIn;
+      force = plane_.Render(x, Eigen::Quaterniond::Identity(), 0, v);
+    }
+    return true;
+  }
+  state_ = State::kUnknown;
+  have_plane_ = false;
+  return false;
+}
+
+}  // namespace vsurg::haptics
