@@ -22,6 +22,7 @@
 // GPU objects are made at the first Draw).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -34,6 +35,10 @@
 #include "common/sim/visual_model.h"
 
 namespace vsurg::client {
+
+namespace gl {
+struct Part;
+}  // namespace gl
 
 struct Overlay {
   bool show_stylus = false;
@@ -119,7 +124,27 @@ class MeshView {
   void Draw(int width, int height, const Overlay& overlay);
 
  private:
-  struct Gpu;
+  struct Gpu;    // mesh_view_gpu.h
+  struct Frame;  // one frame's facts for its passes (mesh_view_draw.cpp)
+  // Before a frame (mesh_view.cpp).
+  void Prepare(const Overlay& overlay);
+  void MakeTissueVertices();
+  void MakeResources();
+  void UploadMoved(bool remake_tissue);
+  // The passes (mesh_view_draw.cpp), in the order Draw runs them.
+  Frame BeginFrame(int width, int height, const Overlay& overlay);
+  void CasterBoxes(Frame& f);
+  void ShadowPass(const Frame& f);
+  void DrawCasters(const Frame& f, bool tissue_moved, const std::array<int, 4>& tissue_rect);
+  void ScenePass(const Frame& f);
+  void InstrumentPass(const Frame& f);
+  void TissuePass(const Frame& f);
+  void TableShadowPass(const Frame& f);
+  void GuidancePass(const Frame& f);
+  void DrawPart(const Frame& f, const gl::Part& part, const Eigen::Affine3d& pose, int material,
+                const Eigen::Vector3d& albedo, double roughness, double scale, double bump,
+                int part_taps);
+  Eigen::Affine3d JawPose(const Frame& f, int side) const;
   void UpdateVisual();
   Eigen::Matrix4d Projection(int width, int height) const;
   Eigen::Matrix4d View() const;

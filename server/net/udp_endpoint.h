@@ -136,6 +136,15 @@ struct LinkStats {
   // Seconds of the trial served by the nodes before this one (live migration): the rate is
   // applied datagrams over this span plus this node's.
   std::atomic<double> carried_s{0};
+
+  // Seconds the session's datagrams came over: on this node, and on the nodes before (a move).
+  double span_s() const {
+    const auto relaxed = std::memory_order_relaxed;
+    const double here = first_seen_s.load(relaxed) >= 0
+                            ? last_seen_s.load(relaxed) - first_seen_s.load(relaxed)
+                            : 0;
+    return here + carried_s.load(relaxed);
+  }
 };
 
 struct SessionEvent {
