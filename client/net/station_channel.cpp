@@ -335,7 +335,7 @@ struct StationChannel::Impl {
           deadband({o.deadband, o.deadband_position_m, o.deadband_angle_rad, o.deadband_onset_s,
                     o.heartbeat_s, o.deadband_contact_heartbeat_s}),
           tissue(1.0 / o.rate_hz),
-          surface(o.surface),
+          surface(o.surface, 1.0 / o.rate_hz),
           // Always observing; controlling only when asked.
           passivity(o.passivity ? o.max_damping : 0.0, 1e-4, o.passivity_mode) {}
     haptics::SafetyFilter safety;

@@ -18,6 +18,7 @@ int Calibrate(const Args& args, std::ostream& out, std::ostream& err);
 int Msm(const Args& args, std::ostream& out, std::ostream& err);
 int Run(const Args& args, std::ostream& out, std::ostream& err);
 int Trainee(const Args& args, std::ostream& out, std::ostream& err);
+int ContactLaw(const Args& args, std::ostream& out, std::ostream& err);
 int Score(const Args& args, std::ostream& out, std::ostream& err);
 
 }  // namespace vsurg::cli::commands

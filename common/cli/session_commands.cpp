@@ -154,4 +154,46 @@ int Trainee(const Args& args, std::ostream& out, std::ostream& err) {
   return 0;
 }
 
+// The tissue's law under the proxy as the server fits it (haptics::ViscoelasticFit): the good
+// scripted trainee's press replayed, and the fit its last contact answer carried. A scene file's
+// haptics "tissue_stiffness" and "tissue_damping" take these, for the station's own surface to
+// render a contact's first round trip as the tissue (haptics/tissue_surface.h).
+int ContactLaw(const Args& args, std::ostream& out, std::ostream& err) {
+  ArgParser p("vsurg-sim contact-law",
+              "Presses a scene as the good scripted trainee and prints the contact's tissue law\n"
+              "as the server fits it (k_t, N/m; b, N*s/m), for the scene file's haptics\n"
+              "\"tissue_stiffness\" and \"tissue_damping\".");
+  p.Option("scene", Kind::kString, "scene name in scenes/ or a .json path (a press scene)", true);
+  if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
+  auto scene = SceneOption(p);
+  if (!scene.ok()) return UsageError(err, p.command(), scene.error());
+  if (scene->task.kind != scoring::TaskKind::kPress)
+    return UsageError(err, p.command(), InvalidArgument("--scene", "not a press scene"));
+  scene->haptics.contact_model = sim::HapticsSpec::ContactModel::kViscoelastic;
+  auto samples = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+  if (!samples.ok()) return UsageError(err, p.command(), samples.error());
+  auto simulation = sim::Simulation::Create(*scene, {.threaded = false});
+  if (!simulation.ok()) {
+    err << p.command() << ": cannot build scene '" << scene->name
+        << "': " << simulation.error().message << "\n";
+    return kExitRuntime;
+  }
+  double k_t = 0, b = 0;
+  (*simulation)
+      ->Replay(*samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
+        if (c.contact && c.local.tissue_stiffness > 0)
+          k_t = c.local.tissue_stiffness, b = c.local.tissue_damping;
+      });
+  if (!(k_t > 0)) {
+    err << p.command() << ": the scene's contact has no tissue law of its own (a reduced "
+        << "contact sends its series stiffness instead)\n";
+    return kExitRuntime;
+  }
+  char line[160];
+  std::snprintf(line, sizeof line, "\"tissue_stiffness\": %.4g, \"tissue_damping\": %.4g\n", k_t,
+                b);
+  out << line;
+  return 0;
+}
+
 }  // namespace vsurg::cli::commands

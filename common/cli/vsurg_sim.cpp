@@ -20,7 +20,9 @@ const char* kTopHelp =
     "force\n"
     "  run           replay a stylus trajectory through a scene and print the trial metrics\n"
     "  trainee       write a scripted trainee's trajectory (good, hesitant, rough)\n"
-    "  score         weighted evaluation report (the coil-spring paper eq. 9-11) with rater reliability\n\n"
+    "  contact-law   press a scene as the good trainee and print its contact's tissue law\n"
+    "  score         weighted evaluation report (the coil-spring paper eq. 9-11) with rater "
+    "reliability\n\n"
     "`vsurg-sim <command> --help` describes each command's options.\n";
 
 }  // namespace
@@ -28,7 +30,7 @@ const char* kTopHelp =
 int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   if (args.empty()) {
     err << "vsurg-sim: a command is required (coil, coil-inverse, deform, calibrate, msm, run, "
-           "trainee, score; see --help)\n";
+           "trainee, contact-law, score; see --help)\n";
     return kExitUsage;
   }
   const std::string& cmd = args[0];
@@ -44,9 +46,11 @@ int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cmd == "msm") return commands::Msm(rest, out, err);
   if (cmd == "run") return commands::Run(rest, out, err);
   if (cmd == "trainee") return commands::Trainee(rest, out, err);
+  if (cmd == "contact-law") return commands::ContactLaw(rest, out, err);
   if (cmd == "score") return commands::Score(rest, out, err);
   err << "vsurg-sim: unknown command '" << cmd
-      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, score; see --help)\n";
+      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, score; see "
+         "--help)\n";
   return kExitUsage;
 }
 

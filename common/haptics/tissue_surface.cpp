@@ -37,6 +37,9 @@ Status Check(const SurfaceSpec& s) {
     return InvalidArgument("surface", "the contact damping is outside 0..1000 N·s/m");
   if (!(s.reach > 0 && s.reach <= TissueSurface::kMaxReach))
     return InvalidArgument("surface", "the reach is outside (0, 0.2] m");
+  if (!(s.tissue_stiffness >= 0 && s.tissue_stiffness <= TissueSurface::kMaxStiffness) ||
+      !(s.tissue_damping >= 0 && s.tissue_damping <= TissueSurface::kMaxDamping))
+    return InvalidArgument("surface", "the tissue's stiffness or damping is out of bounds");
   return Status::Ok();
 }
 
@@ -79,6 +82,18 @@ bool TissueSurface::Ahead(const Vec3& x, LocalModel& out, int& start) const {
   return true;
 }
 
+// In contact through the held plane: the proxy's spring alone, or in series with the tissue
+// (integrated one servo period a call); either with the proxy's damping, never pulling.
+Vec3 SurfaceContact::InContact(const Vec3& x, const Vec3& v) {
+  if (!(surface_->spec().tissue_stiffness > 0))
+    return plane_.Render(x, Eigen::Quaterniond::Identity(), 0, v);
+  const Vec3& n = plane_.normal;
+  double fn = tissue_.Step(Depth(plane_, x), period_);
+  if (v.allFinite()) fn -= plane_.contact_damping * v.dot(n);
+  const Vec3 f = fn > 0 ? Vec3(fn * n) : Vec3::Zero();
+  return f.allFinite() ? f : Vec3::Zero();
+}
+
 bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
   force.setZero();
   if (!surface_ || !x.allFinite()) {
@@ -87,7 +102,7 @@ bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
   }
   if (state_ == State::kIn) {
     if (Depth(plane_, x) > 0) {
-      force = plane_.Render(x, Eigen::Quaterniond::Identity(), 0, v);
+      force = InContact(x, v);
       return true;
     }
     state_ = State::kOutside;  // back out through the plane it went in by
@@ -104,7 +119,10 @@ bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
     // is behind the plane it came to.
     if (Depth(plane_, x) > 0) {
       state_ = State::kIn;
-      force = plane_.Render(x, Eigen::Quaterniond::Identity(), 0, v);
+      const double k = -plane_.normal.dot(plane_.jacobian * plane_.normal);
+      const SurfaceSpec& spec = surface_->spec();
+      tissue_.Begin(0, k, spec.tissue_stiffness, spec.tissue_damping, 0);
+      force = InContact(x, v);
     }
     return true;
   }

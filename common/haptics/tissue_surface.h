@@ -25,6 +25,7 @@
 #include "common/geometry/bvh.h"
 #include "common/geometry/mesh.h"
 #include "common/haptics/types.h"
+#include "common/haptics/viscoelastic.h"
 
 namespace vsurg::haptics {
 
@@ -34,6 +35,12 @@ struct SurfaceSpec {
   std::vector<double> stiffness;              // N/m per vertex: the contact's slope over depth
   double damping = 0;                         // N·s/m along the normal, as the server's proxy
   double reach = 0.03;                        // m: a free tip this near gets the surface ahead
+  // The tissue under the proxy, where the scene knows it (the viscoelastic contact's k_t and b,
+  // haptics/viscoelastic.h, calibrated by pressing the scene at the server): a contact from the
+  // surface is then the proxy's spring in series with it, integrated over the station's own
+  // depths, as the server's contact answers are rendered. 0: the proxy's spring alone.
+  double tissue_stiffness = 0;  // N/m
+  double tissue_damping = 0;    // N·s/m
 };
 
 class TissueSurface {
@@ -41,7 +48,7 @@ class TissueSurface {
   // Bounds on what a server may send (a hostile or broken one gets a refusal, not a station
   // that allocates or renders without bound).
   static constexpr size_t kMaxVertices = 200000, kMaxTriangles = 400000;
-  static constexpr double kMaxStiffness = 1e5, kMaxDamping = 1e3, kMaxReach = 0.2;
+  static constexpr double kMaxStiffness = 1e5, kMaxDamping = 1e3, kMaxReach = 0.2;  // N/m, N·s/m, m
 
   static Expected<std::shared_ptr<const TissueSurface>> Create(SurfaceSpec spec);
 
@@ -62,8 +69,9 @@ class TissueSurface {
 // One station's contact with a TissueSurface, servo cycle by servo cycle (device thread).
 class SurfaceContact {
  public:
-  explicit SurfaceContact(std::shared_ptr<const TissueSurface> surface)
-      : surface_(std::move(surface)) {}
+  // period_s: the servo period the contact's tissue is integrated over (one step per Render).
+  explicit SurfaceContact(std::shared_ptr<const TissueSurface> surface, double period_s = 1e-3)
+      : surface_(std::move(surface)), period_(period_s) {}
 
   // This cycle's force at tip x moving at v; false when the surface gives nothing here (no
   // surface, free beyond the reach, or a tip that is in without having crossed). Call every
@@ -73,10 +81,15 @@ class SurfaceContact {
   // the next contact from the surface begins only after the tip has been outside again.
   void Yield() { state_ = State::kUnknown; }
   bool in_contact() const { return state_ == State::kIn; }
+  // The surface carries the tissue under the proxy (SurfaceSpec::tissue_stiffness > 0).
+  bool has_tissue() const { return surface_ && surface_->spec().tissue_stiffness > 0; }
 
  private:
   enum class State { kUnknown, kOutside, kIn };
+  Vec3 InContact(const Vec3& x, const Vec3& v);
   std::shared_ptr<const TissueSurface> surface_;
+  double period_;
+  ViscoelasticContact tissue_;  // the tissue under the proxy since the crossing
   State state_ = State::kUnknown;
   LocalModel plane_;  // the last outside cycle's surface ahead, held while in
   bool have_plane_ = false;

@@ -303,6 +303,10 @@ Status ParseHaptics(const Reader& r, HapticsSpec& h) {
   VSURG_TRY(lever, r.NumberOr("min_lever_m", 0.005, 1e-4, 1.0));
   VSURG_TRY(lookahead, r.NumberOr("lookahead_m", 0.03, 0, 0.2));
   VSURG_TRY(contact_model, r.StringOr("contact_model", "viscoelastic"));
+  VSURG_TRY(tissue_k, r.NumberOr("tissue_stiffness", 0.0, 0, 1e5));
+  VSURG_TRY(tissue_b, r.NumberOr("tissue_damping", 0.0, 0, 1e3));
+  h.tissue_stiffness = tissue_k;
+  h.tissue_damping = tissue_b;
   if (contact_model == "viscoelastic")
     h.contact_model = HapticsSpec::ContactModel::kViscoelastic;
   else if (contact_model == "fitted")

@@ -117,6 +117,12 @@ struct HapticsSpec {
   // Scene files: "contact_model": "viscoelastic" | "fitted" | "proxy".
   enum class ContactModel { kViscoelastic, kFitted, kProxy };
   ContactModel contact_model = ContactModel::kViscoelastic;
+  // The tissue point under the proxy as the server's fit finds it when the scene is pressed
+  // (`vsurg-sim contact-law`): k_t (N/m) and b (N·s/m), sent with a station's surface so that a
+  // contact's first round trip is rendered as the tissue, not as the proxy's spring on a rigid
+  // surface. 0: not known (the proxy's spring). Scene files: "tissue_stiffness",
+  // "tissue_damping".
+  double tissue_stiffness = 0, tissue_damping = 0;
 };
 
 // How the station draws the tissue (never what the server simulates): its material, and its

@@ -366,6 +366,12 @@ std::shared_ptr<const haptics::TissueSurface> Simulation::MakeStationSurface() c
   spec.stiffness.assign(rest_.positions.size(), -1);
   spec.damping = proxy_.params().damping;
   spec.reach = scene_.haptics.lookahead;
+  // The tissue's law where the contact renders it (not a reduced contact's own series stiffness).
+  if (!room_has_contact_stiffness_ &&
+      scene_.haptics.contact_model == HapticsSpec::ContactModel::kViscoelastic) {
+    spec.tissue_stiffness = scene_.haptics.tissue_stiffness;
+    spec.tissue_damping = scene_.haptics.tissue_damping;
+  }
   for (int t = 0; t < rest_.TriangleCount(); ++t) {
     const geometry::Triangle& tri = rest_.triangles[t];
     const Vec3 rest_normal = geometry::TriangleNormal(rest_, t);

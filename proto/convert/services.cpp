@@ -161,6 +161,8 @@ void ToProto(const haptics::TissueSurface& s, v1::StationSurface* out) {
   for (double k : spec.stiffness) out->add_stiffness(static_cast<float>(k));
   out->set_damping(spec.damping);
   out->set_reach(spec.reach);
+  out->set_tissue_stiffness(spec.tissue_stiffness);
+  out->set_tissue_damping(spec.tissue_damping);
 }
 
 Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::StationSurface& s) {
@@ -179,6 +181,8 @@ Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::Stat
   spec.stiffness.assign(s.stiffness().begin(), s.stiffness().end());
   spec.damping = s.damping();
   spec.reach = s.reach();
+  spec.tissue_stiffness = s.tissue_stiffness();
+  spec.tissue_damping = s.tissue_damping();
   return haptics::TissueSurface::Create(std::move(spec));
 }
 

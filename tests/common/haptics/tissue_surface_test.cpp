@@ -110,6 +110,43 @@ TEST(TissueSurfaceTest, ATipAlreadyInsideGetsNothingUntilItHasLeft) {
   EXPECT_GT(f.z(), 0);
 }
 
+// With the tissue's law the contact is the proxy's spring in series with a Kelvin–Voigt point:
+// a quick press first meets the damper (stiffer than the series spring), and held, it relaxes to
+// the series spring k·k_t/(k + k_t), never below it and never pulling.
+TEST(TissueSurfaceTest, WithTheTissuesLawAHeldPressRelaxesToTheSeriesSpring) {
+  SurfaceSpec spec = Sphere();
+  spec.tissue_stiffness = 100;
+  spec.tissue_damping = 10;
+  spec.damping = 0;
+  auto surface = TissueSurface::Create(spec);
+  ASSERT_TRUE(surface.ok());
+  SurfaceContact contact(*surface, 1e-3);
+  Vec3 f;
+  ASSERT_TRUE(contact.Render(Vec3(0, 0, kRadius + 0.001), Vec3::Zero(), f));
+  // 4 mm in over 20 cycles (0.2 m/s), then held for 3 s.
+  double pressed = 0;
+  for (int k = 1; k <= 20; ++k) {
+    contact.Render(Vec3(0, 0, kRadius + 0.001 - 0.00025 * k), Vec3(0, 0, -0.25), f);
+    pressed = f.z();
+  }
+  const double depth = 0.004, series = kStiffness * 100 / (kStiffness + 100) * depth;
+  EXPECT_GT(pressed, 1.2 * series) << "the damper resists a quick press";
+  EXPECT_LT(pressed, kStiffness * depth + 1e-9) << "never above the proxy's spring";
+  for (int k = 0; k < 3000; ++k) contact.Render(Vec3(0, 0, kRadius - 0.004), Vec3::Zero(), f);
+  EXPECT_NEAR(f.z(), series, 0.01 * series);
+  // Back out: nothing, and in again from the tissue at rest.
+  contact.Render(Vec3(0, 0, kRadius + 0.002), Vec3::Zero(), f);
+  EXPECT_EQ(f.norm(), 0);
+  // Without the law the same held press is the proxy's spring.
+  SurfaceContact plain(*TissueSurface::Create(Sphere()), 1e-3);
+  plain.Render(Vec3(0, 0, kRadius + 0.001), Vec3::Zero(), f);
+  plain.Render(Vec3(0, 0, kRadius - 0.004), Vec3::Zero(), f);
+  EXPECT_NEAR(f.z(), kStiffness * depth, 0.01 * kStiffness * depth);  // the face tilts a little
+  // A law out of bounds is refused.
+  spec.tissue_damping = -1;
+  EXPECT_FALSE(TissueSurface::Create(spec).ok());
+}
+
 TEST(TissueSurfaceTest, ABrokenOrHostileSurfaceIsRefusedByName) {
   const auto refused = [](SurfaceSpec s) {
     auto r = TissueSurface::Create(std::move(s));
