@@ -51,6 +51,136 @@ void WriteTrace(const fs::path& file, const wan::Run& run) {
       << c.force.y() << "," << c.force.z() << "\n";
 }
 
+struct Method {
+  std::string name;  // "model", "model+tdpa", "model+fitk", or "model+db0.1" with a deadband
+  client::LocalRendering rendering;
+  client::PassivityMode passivity;
+  double deadband;
+  sim::HapticsSpec::ContactModel contact;  // the contact's local model
+  bool exact_grasp;
+  bool hold;                   // StationOptions::model_hold_s at its default; false: 0 (+fade)
+  bool surface;                // the tissue's surface at the station; false: +nosurf
+  double contact_heartbeat_s;  // StationOptions::deadband_contact_heartbeat_s (+chbN, N ms)
+};
+
+// The methods by name, each at every deadband (wan --methods, --deadbands).
+Expected<std::vector<Method>> ParseMethods(const std::string& names, const std::string& deadbands) {
+  std::vector<Method> methods;
+  for (const auto& name : Split(names)) {
+    std::string base = name;
+    const auto strip = [&base](const std::string& suffix) {
+      const bool has = base.size() > suffix.size() && base.ends_with(suffix);
+      if (has) base.resize(base.size() - suffix.size());
+      return has;
+    };
+    const bool no_surface = strip("+nosurf");  // the very last suffix
+    const bool fade = strip("+fade");
+    double contact_heartbeat_s = client::StationOptions{}.deadband_contact_heartbeat_s;
+    if (const size_t at = base.rfind("+chb"); at != std::string::npos) {
+      contact_heartbeat_s = std::strtod(base.c_str() + at + 4, nullptr) / 1e3;
+      if (!(contact_heartbeat_s > 0.001 && contact_heartbeat_s <= 0.25))
+        return InvalidArgument("methods", "+chbN: N ms in (1, 250]");
+      base.resize(at);
+    }
+    const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
+    const bool tdpa = strip("+tdpa");
+    const bool tangent = strip("+tangent");
+    using ContactModel = sim::HapticsSpec::ContactModel;
+    const ContactModel contact = fit_k     ? ContactModel::kFitted
+                                 : proxy_k ? ContactModel::kProxy
+                                           : ContactModel::kViscoelastic;
+    auto m = client::ParseLocalRendering(base);
+    if (!m.ok()) return m.error();
+    const auto mode = tdpa ? client::PassivityMode::kNetwork : client::PassivityMode::kLocal;
+    for (const auto& db : Split(deadbands)) {
+      const double k = std::strtod(db.c_str(), nullptr);
+      if (!(k >= 0 && k < 1)) return InvalidArgument("deadbands", "0 ≤ k < 1");
+      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent, !fade,
+                         !no_surface, contact_heartbeat_s});
+    }
+  }
+  return methods;
+}
+
+wan::RunOptions CellOptions(const sim::Scene& scene, const std::vector<haptics::StylusSample>& plan,
+                            const Method& method_entry, const client::HandImpedance& grip, int r) {
+  const relay::Profile none = *relay::ProfileByName("none");
+  wan::RunOptions o;
+  o.scene = scene;
+  o.scene.haptics.contact_model = method_entry.contact;
+  o.plan = plan;
+  o.profile = none;
+  o.seed = static_cast<uint64_t>(r);
+  o.rendering = method_entry.rendering;
+  o.deadband = method_entry.deadband;
+  o.passivity_mode = method_entry.passivity;
+  o.exact_grasp = method_entry.exact_grasp;
+  if (!method_entry.hold) o.model_hold_s = 0;
+  o.station_surface = method_entry.surface;
+  o.contact_heartbeat_s = method_entry.contact_heartbeat_s;
+  o.grip = grip;
+  return o;
+}
+
+std::string CsvRow(const std::string& scene_name, const std::string& profile,
+                   const std::string& method_name, int r, const wan::Run& run,
+                   const wan::Figures& f) {
+  const double rtt_ms = run.station.rtt_p50_us / 1e3;
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "%s,%s,%s,%d,%.2f,%.2f,%.0f,%.2f,%.1f,%.2f,%.2f,%.4f,%.3f,%.3f,%.0f,%.0f,"
+                "%.2f,%.3f,%llu,%llu,%llu,%llu",
+                scene_name.c_str(), profile.c_str(), method_name.c_str(), r, rtt_ms,
+                f.rms_error_pct, f.onset_delay_cycles, f.onset_extra_mm, f.stiffness_pct,
+                f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n, f.peak_force_n,
+                f.phantom_n, f.up_hz, f.down_hz, f.score, run.server_peak_force,
+                static_cast<unsigned long long>(run.station.lost),
+                static_cast<unsigned long long>(run.station.stale),
+                static_cast<unsigned long long>(run.station.late),
+                static_cast<unsigned long long>(run.station.watchdog_fades));
+  return line;
+}
+
+// The force magnitude over time per profile, one figure per scene and method; error and datagram
+// rate against the round trip, per method.
+void PlotFigures(const fs::path& out,
+                 const std::map<std::string, std::vector<std::string>>& trace_files,
+                 const std::vector<Method>& methods) {
+  // Figures: the force magnitude over time per profile, one per scene and method.
+  for (const auto& [key, files] : trace_files) {
+    std::string plot = "plot ";
+    for (size_t i = 0; i < files.size(); ++i) {
+      const size_t bar = files[i].find('|');
+      plot += (i ? ", " : "") + std::string("'") + files[i].substr(0, bar) +
+              "' every ::1 using 1:(sqrt($5**2+$6**2+$7**2)) with lines title '" +
+              files[i].substr(bar + 1) + "'";
+    }
+    Plot(out, "force_" + key,
+         "set datafile separator ','\nset xlabel 'device time (s)'\nset ylabel '|F| at the hand "
+         "(N)'\nset title '" +
+             key + ": force the hand felt, per network profile'\n",
+         plot);
+  }
+  // Error and datagram rate against the round trip, per method (every scene).
+  std::string err_plot = "plot ", rate_plot = "plot ";
+  for (size_t i = 0; i < methods.size(); ++i) {
+    const std::string& m = methods[i].name;
+    const std::string sel = "(strcol(3) eq '" + m + "' ? $5 : 1/0)";
+    err_plot += (i ? ", " : "") + std::string("'wan.csv' every ::1 using ") + sel +
+                ":6 with points pt 7 title '" + m + "'";
+    rate_plot += (i ? ", " : "") + std::string("'wan.csv' every ::1 using ") + sel +
+                 ":16 with points pt 7 title '" + m + " (down)'";
+  }
+  Plot(out, "error_vs_rtt",
+       "set datafile separator ','\nset logscale x\nset xlabel 'round trip p50 (ms)'\nset "
+       "ylabel 'force RMS error (% of the no-delay peak)'\n",
+       err_plot);
+  Plot(out, "rate_vs_rtt",
+       "set datafile separator ','\nset logscale x\nset xlabel 'round trip p50 (ms)'\nset "
+       "ylabel 'datagrams per second, server to station'\n",
+       rate_plot);
+}
+
 }  // namespace
 
 int Wan(const std::vector<std::string>& args) {
@@ -92,51 +222,9 @@ int Wan(const std::vector<std::string>& args) {
     if (!pr.ok()) return cli::UsageError(std::cerr, p.command(), pr.error());
     profiles.push_back(*pr);
   }
-  struct Method {
-    std::string name;  // "model", "model+tdpa", "model+fitk", or "model+db0.1" with a deadband
-    client::LocalRendering rendering;
-    client::PassivityMode passivity;
-    double deadband;
-    sim::HapticsSpec::ContactModel contact;  // the contact's local model
-    bool exact_grasp;
-    bool hold;                   // StationOptions::model_hold_s at its default; false: 0 (+fade)
-    bool surface;                // the tissue's surface at the station; false: +nosurf
-    double contact_heartbeat_s;  // StationOptions::deadband_contact_heartbeat_s (+chbN, N ms)
-  };
-  std::vector<Method> methods;
-  for (const auto& name : Split(p.String("methods"))) {
-    std::string base = name;
-    const auto strip = [&base](const std::string& suffix) {
-      const bool has = base.size() > suffix.size() && base.ends_with(suffix);
-      if (has) base.resize(base.size() - suffix.size());
-      return has;
-    };
-    const bool no_surface = strip("+nosurf");  // the very last suffix
-    const bool fade = strip("+fade");
-    double contact_heartbeat_s = client::StationOptions{}.deadband_contact_heartbeat_s;
-    if (const size_t at = base.rfind("+chb"); at != std::string::npos) {
-      contact_heartbeat_s = std::strtod(base.c_str() + at + 4, nullptr) / 1e3;
-      if (!(contact_heartbeat_s > 0.001 && contact_heartbeat_s <= 0.25))
-        return std::cerr << "vsurg-bench wan: +chbN: N ms in (1, 250]\n", 2;
-      base.resize(at);
-    }
-    const bool fit_k = strip("+fitk"), proxy_k = strip("+proxyk");
-    const bool tdpa = strip("+tdpa");
-    const bool tangent = strip("+tangent");
-    using ContactModel = sim::HapticsSpec::ContactModel;
-    const ContactModel contact = fit_k     ? ContactModel::kFitted
-                                 : proxy_k ? ContactModel::kProxy
-                                           : ContactModel::kViscoelastic;
-    auto m = client::ParseLocalRendering(base);
-    if (!m.ok()) return cli::UsageError(std::cerr, p.command(), m.error());
-    const auto mode = tdpa ? client::PassivityMode::kNetwork : client::PassivityMode::kLocal;
-    for (const auto& db : Split(p.String("deadbands"))) {
-      const double k = std::strtod(db.c_str(), nullptr);
-      if (!(k >= 0 && k < 1)) return std::cerr << "vsurg-bench wan: --deadbands: 0 ≤ k < 1\n", 2;
-      methods.push_back({k > 0 ? name + "+db" + db : name, *m, mode, k, contact, !tangent, !fade,
-                         !no_surface, contact_heartbeat_s});
-    }
-  }
+  const auto parsed = ParseMethods(p.String("methods"), p.String("deadbands"));
+  if (!parsed.ok()) return cli::UsageError(std::cerr, p.command(), parsed.error());
+  const std::vector<Method>& methods = *parsed;
   const int runs = p.Int("runs");
   if (runs < 1 || runs > 20) return std::cerr << "vsurg-bench wan: --runs: 1..20\n", 2;
   const fs::path out = p.String("out");
@@ -156,20 +244,7 @@ int Wan(const std::vector<std::string>& args) {
     for (const Method& method_entry : methods) {
       const std::string& method_name = method_entry.name;
       for (int r = 1; r <= runs; ++r) {
-        wan::RunOptions o;
-        o.scene = *scene;
-        o.scene.haptics.contact_model = method_entry.contact;
-        o.plan = *plan;
-        o.profile = none;
-        o.seed = static_cast<uint64_t>(r);
-        o.rendering = method_entry.rendering;
-        o.deadband = method_entry.deadband;
-        o.passivity_mode = method_entry.passivity;
-        o.exact_grasp = method_entry.exact_grasp;
-        if (!method_entry.hold) o.model_hold_s = 0;
-        o.station_surface = method_entry.surface;
-        o.contact_heartbeat_s = method_entry.contact_heartbeat_s;
-        o.grip = *grip;
+        wan::RunOptions o = CellOptions(*scene, *plan, method_entry, *grip, r);
         // The reference: the same rendering at full rate through the relay, unimpaired, with the
         // one-port passivity control (so what the network control costs shows as error).
         wan::RunOptions ref_options = o;
@@ -183,19 +258,7 @@ int Wan(const std::vector<std::string>& args) {
           auto run = wan::RunOnce(o);
           if (!run.ok()) return std::cerr << "vsurg-bench wan: " << run.error().message << "\n", 1;
           const wan::Figures f = wan::Compare(*run, *ref, press);
-          const double rtt_ms = run->station.rtt_p50_us / 1e3;
-          char line[512];
-          std::snprintf(line, sizeof line,
-                        "%s,%s,%s,%d,%.2f,%.2f,%.0f,%.2f,%.1f,%.2f,%.2f,%.4f,%.3f,%.3f,%.0f,%.0f,"
-                        "%.2f,%.3f,%llu,%llu,%llu,%llu",
-                        scene_name.c_str(), profile.name.c_str(), method_name.c_str(), r, rtt_ms,
-                        f.rms_error_pct, f.onset_delay_cycles, f.onset_extra_mm, f.stiffness_pct,
-                        f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n, f.peak_force_n,
-                        f.phantom_n, f.up_hz, f.down_hz, f.score, run->server_peak_force,
-                        static_cast<unsigned long long>(run->station.lost),
-                        static_cast<unsigned long long>(run->station.stale),
-                        static_cast<unsigned long long>(run->station.late),
-                        static_cast<unsigned long long>(run->station.watchdog_fades));
+          const std::string line = CsvRow(scene_name, profile.name, method_name, r, *run, f);
           csv << line << "\n" << std::flush;
           std::cout << line << "\n" << std::flush;
           if (r == 1) {
@@ -214,39 +277,7 @@ int Wan(const std::vector<std::string>& args) {
       }
     }
   }
-  // Figures: the force magnitude over time per profile, one per scene and method.
-  for (const auto& [key, files] : trace_files) {
-    std::string plot = "plot ";
-    for (size_t i = 0; i < files.size(); ++i) {
-      const size_t bar = files[i].find('|');
-      plot += (i ? ", " : "") + std::string("'") + files[i].substr(0, bar) +
-              "' every ::1 using 1:(sqrt($5**2+$6**2+$7**2)) with lines title '" +
-              files[i].substr(bar + 1) + "'";
-    }
-    Plot(out, "force_" + key,
-         "set datafile separator ','\nset xlabel 'device time (s)'\nset ylabel '|F| at the hand "
-         "(N)'\nset title '" +
-             key + ": force the hand felt, per network profile'\n",
-         plot);
-  }
-  // Error and datagram rate against the round trip, per method (every scene).
-  std::string err_plot = "plot ", rate_plot = "plot ";
-  for (size_t i = 0; i < methods.size(); ++i) {
-    const std::string& m = methods[i].name;
-    const std::string sel = "(strcol(3) eq '" + m + "' ? $5 : 1/0)";
-    err_plot += (i ? ", " : "") + std::string("'wan.csv' every ::1 using ") + sel +
-                ":6 with points pt 7 title '" + m + "'";
-    rate_plot += (i ? ", " : "") + std::string("'wan.csv' every ::1 using ") + sel +
-                 ":16 with points pt 7 title '" + m + " (down)'";
-  }
-  Plot(out, "error_vs_rtt",
-       "set datafile separator ','\nset logscale x\nset xlabel 'round trip p50 (ms)'\nset "
-       "ylabel 'force RMS error (% of the no-delay peak)'\n",
-       err_plot);
-  Plot(out, "rate_vs_rtt",
-       "set datafile separator ','\nset logscale x\nset xlabel 'round trip p50 (ms)'\nset "
-       "ylabel 'datagrams per second, server to station'\n",
-       rate_plot);
+  PlotFigures(out, trace_files, methods);
   std::cerr << "vsurg-bench wan: " << (out / "wan.csv").string() << "\n";
   return 0;
 }

@@ -172,121 +172,138 @@ Status ParseMesh(const Reader& r, const std::string& scene_dir, MeshSpec& m) {
   return Status::Ok();
 }
 
-Status ParseModel(const Reader& r, RegionSpec& g) {
-  VSURG_TRY(type, r.String("type"));
-  if (type == "coil") {
-    g.kind = ModelKind::kCoil;
-    VSURG_TRY(mode, r.StringOr("mode", "limb"));
-    if (mode != "limb" && mode != "surface") return r.Bad("mode", "must be limb or surface");
-    g.coil_mode = mode == "limb" ? tissue::TwistMode::kLimb : tissue::TwistMode::kSurface;
-    tissue::CoilSpringParams& c = g.coil;
-    VSURG_TRY(core, r.Number("core_radius", 1e-6, 10));
-    VSURG_TRY(thickness, r.Number("thickness", 1e-6, 10));
-    VSURG_TRY(width, r.Number("width", 1e-6, 10));
-    VSURG_TRY(coils, r.Integer("coils", 1, tissue::CoilSpringModel::kMaxCoils));
-    VSURG_TRY(modulus, r.Number("modulus", 1e-3, 1e13));
-    VSURG_TRY(max_force, r.Number("max_force", 1e-9, 1e6));
-    VSURG_TRY(friction, r.NumberOr("friction", 1.25, 1e-3, 100));
-    // Per-coil flexural rigidities E·I_i (N·m², one per coil; `vsurg-sim calibrate` prints
-    // them): the per-ring fit that makes the paper's model a reduced model of Saint-Venant.
-    VSURG_TRY(rigidity, r.NumbersOr("coil_rigidity", static_cast<size_t>(coils), 1e-12, 1e12));
-    c = {core, thickness, width, coils, modulus, max_force, friction, std::move(rigidity)};
-    if (auto m = tissue::CoilSpringModel::Create(c); !m.ok())
-      return r.Bad(m.error().field.c_str(), m.error().message);
-  } else if (type == "mass-spring" || type == "ring-layer" || type == "reduced") {
-    VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
-    g.dt = dt;
-    if (r.Has("support") && r.raw()["support"].is_object()) {
-      VSURG_TRY(sr, r.Object("support"));
-      if (sr.Has("plane")) {
-        VSURG_TRY(plane, sr.Object("plane"));
-        VSURG_TRY(point, plane.NumbersOr("point", 3, -100, 100));
-        VSURG_TRY(normal, plane.NumbersOr("normal", 3, -1e6, 1e6));
-        if (point.size() != 3) return plane.Bad("point", "is required: [x, y, z] in metres");
-        if (normal.size() != 3) return plane.Bad("normal", "is required: [x, y, z]");
-        const geometry::Vec3 n(normal[0], normal[1], normal[2]);
-        if (!(n.norm() > 1e-12)) return plane.Bad("normal", "must not be zero");
-        g.support = Support::kPlane;
-        g.support_point = geometry::Vec3(point[0], point[1], point[2]);
-        g.support_normal = n.normalized();
-      } else if (sr.Has("group")) {
-        VSURG_TRY(group, sr.String("group"));
-        g.support = Support::kGroup;
-        g.support_group = group;
-      } else {
-        return r.Bad("support", "an object must be {\"plane\": {...}} or {\"group\": \"name\"}");
-      }
+Status ParseCoil(const Reader& r, RegionSpec& g) {
+  g.kind = ModelKind::kCoil;
+  VSURG_TRY(mode, r.StringOr("mode", "limb"));
+  if (mode != "limb" && mode != "surface") return r.Bad("mode", "must be limb or surface");
+  g.coil_mode = mode == "limb" ? tissue::TwistMode::kLimb : tissue::TwistMode::kSurface;
+  tissue::CoilSpringParams& c = g.coil;
+  VSURG_TRY(core, r.Number("core_radius", 1e-6, 10));
+  VSURG_TRY(thickness, r.Number("thickness", 1e-6, 10));
+  VSURG_TRY(width, r.Number("width", 1e-6, 10));
+  VSURG_TRY(coils, r.Integer("coils", 1, tissue::CoilSpringModel::kMaxCoils));
+  VSURG_TRY(modulus, r.Number("modulus", 1e-3, 1e13));
+  VSURG_TRY(max_force, r.Number("max_force", 1e-9, 1e6));
+  VSURG_TRY(friction, r.NumberOr("friction", 1.25, 1e-3, 100));
+  // Per-coil flexural rigidities E·I_i (N·m², one per coil; `vsurg-sim calibrate` prints
+  // them): the per-ring fit that makes the paper's model a reduced model of Saint-Venant.
+  VSURG_TRY(rigidity, r.NumbersOr("coil_rigidity", static_cast<size_t>(coils), 1e-12, 1e12));
+  c = {core, thickness, width, coils, modulus, max_force, friction, std::move(rigidity)};
+  if (auto m = tissue::CoilSpringModel::Create(c); !m.ok())
+    return r.Bad(m.error().field.c_str(), m.error().message);
+  return Status::Ok();
+}
+
+// How the region is held: none, its bottom, a limb's ends, a plane, or a mesh file's group.
+Status ParseSupport(const Reader& r, RegionSpec& g) {
+  if (r.Has("support") && r.raw()["support"].is_object()) {
+    VSURG_TRY(sr, r.Object("support"));
+    if (sr.Has("plane")) {
+      VSURG_TRY(plane, sr.Object("plane"));
+      VSURG_TRY(point, plane.NumbersOr("point", 3, -100, 100));
+      VSURG_TRY(normal, plane.NumbersOr("normal", 3, -1e6, 1e6));
+      if (point.size() != 3) return plane.Bad("point", "is required: [x, y, z] in metres");
+      if (normal.size() != 3) return plane.Bad("normal", "is required: [x, y, z]");
+      const geometry::Vec3 n(normal[0], normal[1], normal[2]);
+      if (!(n.norm() > 1e-12)) return plane.Bad("normal", "must not be zero");
+      g.support = Support::kPlane;
+      g.support_point = geometry::Vec3(point[0], point[1], point[2]);
+      g.support_normal = n.normalized();
+    } else if (sr.Has("group")) {
+      VSURG_TRY(group, sr.String("group"));
+      g.support = Support::kGroup;
+      g.support_group = group;
     } else {
-      VSURG_TRY(support, r.StringOr("support", "bottom"));
-      if (support == "none") {
-        g.support = Support::kNone;
-      } else if (support == "bottom") {
-        g.support = Support::kBottom;
-      } else if (support == "ends") {
-        g.support = Support::kEnds;
-      } else {
-        return r.Bad("support", "must be none, bottom, ends, {\"plane\": ...} or {\"group\": ...}");
-      }
-    }
-    if (type == "reduced") {
-      g.kind = ModelKind::kReduced;
-      VSURG_TRY(mode, r.StringOr("mode", "contact"));
-      if (mode != "contact" && mode != "twist" && mode != "surface-twist")
-        return r.Bad("mode", "must be contact, twist or surface-twist");
-      g.reduced.mode = mode == "twist"           ? ReducedMode::kTwist
-                       : mode == "surface-twist" ? ReducedMode::kSurfaceTwist
-                                                 : ReducedMode::kContact;
-      VSURG_TRY(jaw, r.NumberOr("jaw_radius", 0.009, 1e-4, 0.1));
-      g.reduced.jaw_radius = jaw;
-      VSURG_TRY(cells, r.IntegerOr("fem_cells", 8, 2, 24));
-      if (cells % 2 != 0) return r.Bad("fem_cells", "must be even");
-      VSURG_TRY(rings, r.IntegerOr("fem_rings", 4, 1, 8));
-      VSURG_TRY(fem_size, r.NumberOr("fem_size", 0.0, 0.0, 1.0));
-      VSURG_TRY(footprint, r.NumberOr("footprint_radius", 0.005, 1e-4, 0.1));
-      VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
-      VSURG_TRY(max_twist_deg, r.NumberOr("max_twist_deg", 90.0, 1.0, 180.0));
-      g.reduced.fem_cells = cells;
-      g.reduced.fem_rings = rings;
-      g.reduced.fem_size = fem_size;
-      g.reduced.footprint_radius = footprint;
-      g.reduced.max_force = max_force;
-      g.reduced.max_twist = max_twist_deg * kDeg;
-    } else if (type == "mass-spring") {
-      g.kind = ModelKind::kMassSpring;
-      VSURG_TRY(integrator, r.StringOr("integrator", "implicit-euler"));
-      auto parsed = tissue::ParseIntegrator(integrator);
-      if (!parsed.ok()) return r.Bad("integrator", parsed.error().message);
-      g.integrator = *parsed;
-      tissue::MassSpringBuildParams& b = g.mass_spring;
-      VSURG_TRY(ks, r.Number("structural_stiffness", 1e-9, 1e9));
-      VSURG_TRY(kb, r.NumberOr("bending_stiffness", 0.0, 0, 1e9));
-      VSURG_TRY(kv, r.NumberOr("volume_stiffness", ks, 1e-9, 1e9));
-      VSURG_TRY(damping, r.NumberOr("damping", 0.05, 0, 1e6));
-      VSURG_TRY(volume, r.StringOr("volume", "none"));
-      if (volume != "none" && volume != "inner-layer")
-        return r.Bad("volume", "must be none or inner-layer");
-      VSURG_TRY(depth, r.NumberOr("layer_depth", 0.01, 1e-6, 1));
-      b.structural_stiffness = ks;
-      b.bending_stiffness = kb;
-      b.volume_stiffness = kv;
-      b.damping = damping;
-      b.volume =
-          volume == "inner-layer" ? tissue::VolumeMode::kInnerLayer : tissue::VolumeMode::kNone;
-      b.layer_depth = depth;
-    } else {
-      g.kind = ModelKind::kRingLayer;
-      tissue::RingLayerParams& q = g.ring;
-      VSURG_TRY(spacing, r.Number("ring_spacing", 1e-5, 1));
-      VSURG_TRY(rings, r.Integer("rings", 1, 10000));
-      VSURG_TRY(kc, r.Number("chain_stiffness", 1e-9, 1e9));
-      VSURG_TRY(cc, r.NumberOr("chain_damping", 0.05, 0, 1e6));
-      VSURG_TRY(kt, r.NumberOr("tether_stiffness", 0.0, 0, 1e9));
-      q = {spacing, rings, kc, cc, kt};
+      return r.Bad("support", "an object must be {\"plane\": {...}} or {\"group\": \"name\"}");
     }
   } else {
-    return r.Bad("type", "must be coil, mass-spring, ring-layer or reduced, got '" + type + "'");
+    VSURG_TRY(support, r.StringOr("support", "bottom"));
+    if (support == "none") {
+      g.support = Support::kNone;
+    } else if (support == "bottom") {
+      g.support = Support::kBottom;
+    } else if (support == "ends") {
+      g.support = Support::kEnds;
+    } else {
+      return r.Bad("support", "must be none, bottom, ends, {\"plane\": ...} or {\"group\": ...}");
+    }
   }
   return Status::Ok();
+}
+
+Status ParseReduced(const Reader& r, RegionSpec& g) {
+  g.kind = ModelKind::kReduced;
+  VSURG_TRY(mode, r.StringOr("mode", "contact"));
+  if (mode != "contact" && mode != "twist" && mode != "surface-twist")
+    return r.Bad("mode", "must be contact, twist or surface-twist");
+  g.reduced.mode = mode == "twist"           ? ReducedMode::kTwist
+                   : mode == "surface-twist" ? ReducedMode::kSurfaceTwist
+                                             : ReducedMode::kContact;
+  VSURG_TRY(jaw, r.NumberOr("jaw_radius", 0.009, 1e-4, 0.1));
+  g.reduced.jaw_radius = jaw;
+  VSURG_TRY(cells, r.IntegerOr("fem_cells", 8, 2, 24));
+  if (cells % 2 != 0) return r.Bad("fem_cells", "must be even");
+  VSURG_TRY(rings, r.IntegerOr("fem_rings", 4, 1, 8));
+  VSURG_TRY(fem_size, r.NumberOr("fem_size", 0.0, 0.0, 1.0));
+  VSURG_TRY(footprint, r.NumberOr("footprint_radius", 0.005, 1e-4, 0.1));
+  VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
+  VSURG_TRY(max_twist_deg, r.NumberOr("max_twist_deg", 90.0, 1.0, 180.0));
+  g.reduced.fem_cells = cells;
+  g.reduced.fem_rings = rings;
+  g.reduced.fem_size = fem_size;
+  g.reduced.footprint_radius = footprint;
+  g.reduced.max_force = max_force;
+  g.reduced.max_twist = max_twist_deg * kDeg;
+  return Status::Ok();
+}
+
+Status ParseMassSpring(const Reader& r, RegionSpec& g) {
+  g.kind = ModelKind::kMassSpring;
+  VSURG_TRY(integrator, r.StringOr("integrator", "implicit-euler"));
+  auto parsed = tissue::ParseIntegrator(integrator);
+  if (!parsed.ok()) return r.Bad("integrator", parsed.error().message);
+  g.integrator = *parsed;
+  tissue::MassSpringBuildParams& b = g.mass_spring;
+  VSURG_TRY(ks, r.Number("structural_stiffness", 1e-9, 1e9));
+  VSURG_TRY(kb, r.NumberOr("bending_stiffness", 0.0, 0, 1e9));
+  VSURG_TRY(kv, r.NumberOr("volume_stiffness", ks, 1e-9, 1e9));
+  VSURG_TRY(damping, r.NumberOr("damping", 0.05, 0, 1e6));
+  VSURG_TRY(volume, r.StringOr("volume", "none"));
+  if (volume != "none" && volume != "inner-layer")
+    return r.Bad("volume", "must be none or inner-layer");
+  VSURG_TRY(depth, r.NumberOr("layer_depth", 0.01, 1e-6, 1));
+  b.structural_stiffness = ks;
+  b.bending_stiffness = kb;
+  b.volume_stiffness = kv;
+  b.damping = damping;
+  b.volume = volume == "inner-layer" ? tissue::VolumeMode::kInnerLayer : tissue::VolumeMode::kNone;
+  b.layer_depth = depth;
+  return Status::Ok();
+}
+
+Status ParseRingLayer(const Reader& r, RegionSpec& g) {
+  g.kind = ModelKind::kRingLayer;
+  tissue::RingLayerParams& q = g.ring;
+  VSURG_TRY(spacing, r.Number("ring_spacing", 1e-5, 1));
+  VSURG_TRY(rings, r.Integer("rings", 1, 10000));
+  VSURG_TRY(kc, r.Number("chain_stiffness", 1e-9, 1e9));
+  VSURG_TRY(cc, r.NumberOr("chain_damping", 0.05, 0, 1e6));
+  VSURG_TRY(kt, r.NumberOr("tether_stiffness", 0.0, 0, 1e9));
+  q = {spacing, rings, kc, cc, kt};
+  return Status::Ok();
+}
+
+Status ParseModel(const Reader& r, RegionSpec& g) {
+  VSURG_TRY(type, r.String("type"));
+  if (type == "coil") return ParseCoil(r, g);
+  if (type != "mass-spring" && type != "ring-layer" && type != "reduced")
+    return r.Bad("type", "must be coil, mass-spring, ring-layer or reduced, got '" + type + "'");
+  VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
+  g.dt = dt;
+  if (Status st = ParseSupport(r, g); !st.ok()) return st;
+  if (type == "reduced") return ParseReduced(r, g);
+  if (type == "mass-spring") return ParseMassSpring(r, g);
+  return ParseRingLayer(r, g);
 }
 
 Status ParseHaptics(const Reader& r, HapticsSpec& h) {
@@ -434,6 +451,105 @@ Expected<Scene> ParseScene(const std::string& text, const std::string& source) {
 
 namespace {
 
+// The tissue's material: shear modulus (Pa), Poisson's ratio, density (kg/m³).
+Status ParseTissue(const Reader& r, Scene& s) {
+  if (!r.Has("tissue")) return Status::Ok();
+  VSURG_TRY(t, r.Object("tissue"));
+  VSURG_TRY(g, t.NumberOr("shear_modulus", 12e3, 1, 1e10));
+  VSURG_TRY(nu, t.NumberOr("poisson_ratio", 0.47, 0, 0.4999));
+  VSURG_TRY(rho, t.NumberOr("density", 1050, 1, 1e5));
+  s.shear_modulus = g, s.poisson_ratio = nu, s.density = rho;
+  return Status::Ok();
+}
+
+// The one deformable region and its model, and what the model asks of the mesh.
+Status ParseRegion(const json& root, const Reader& r, Scene& s) {
+  if (!root.contains("regions")) return r.Missing("regions");
+  if (!root["regions"].is_array() || root["regions"].size() != 1)
+    return r.Bad("regions", "must be an array with exactly one deformable region");
+  const Reader region(root["regions"][0], "regions[0]");
+  VSURG_TRY(region_name, region.StringOr("name", "tissue"));
+  s.region.name = region_name;
+  VSURG_TRY(model, region.Object("model"));
+  if (Status st = ParseModel(model, s.region); !st.ok()) return st;
+  if (s.region.kind == ModelKind::kReduced) {
+    const bool twist = s.region.reduced.mode == ReducedMode::kTwist;
+    if (twist && s.mesh.kind != MeshKind::kLimb)
+      return InvalidArgument("regions[0].model.mode",
+                             "regions[0].model.mode: a reduced twist model needs a limb mesh");
+    if (!twist && s.mesh.kind == MeshKind::kLimb)
+      return InvalidArgument("regions[0].model.type",
+                             "regions[0].model.type: a reduced contact or surface-twist "
+                             "model needs a sphere or a closed mesh file");
+  }
+  if (s.region.support == Support::kGroup && s.mesh.kind != MeshKind::kFile)
+    return InvalidArgument("regions[0].model.support",
+                           "regions[0].model.support.group: only a mesh file has named groups");
+  if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
+      s.region.support == Support::kBottom) {
+    s.region.support = Support::kEnds;  // a limb rests on its ends
+  }
+  if (s.mesh.kind == MeshKind::kFile) return Status::Ok();  // its size is known once it is read
+  const size_t vertices =
+      s.mesh.kind == MeshKind::kLimb
+          ? static_cast<size_t>(s.mesh.limb.segments_around) * s.mesh.limb.rings_along + 2
+          : static_cast<size_t>(geometry::SphereVertexCount(
+                geometry::SphereBase::kOctahedron,
+                geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
+                                                     s.mesh.particles)));
+  return CheckSessionMemory(s.region.kind, vertices, "mesh",
+                            s.region.reduced.mode != ReducedMode::kTwist);
+}
+
+// The task, which must be one the region's model can do.
+Status ParseSceneTask(const Reader& r, Scene& s) {
+  VSURG_TRY(task, r.Object("task"));
+  if (Status st = ParseTask(task, s.task); !st.ok()) return st;
+  const bool twists =
+      s.region.kind == ModelKind::kCoil ||
+      (s.region.kind == ModelKind::kReduced && s.region.reduced.mode != ReducedMode::kContact);
+  if ((s.task.kind == scoring::TaskKind::kTwist) != twists)
+    return InvalidArgument("task.type",
+                           "task.type: a twist task needs a coil or reduced (surface-)twist model, "
+                           "a press task a mass-spring, ring-layer or reduced contact model");
+  return Status::Ok();
+}
+
+// How the station draws it: the material, the drawn surface's size, a finer surface file.
+Status ParseVisual(const Reader& r, const std::string& dir, Scene& s) {
+  s.visual.material =
+      s.mesh.kind == MeshKind::kLimb ? VisualMaterial::kSkin : VisualMaterial::kOrgan;
+  if (!r.Has("visual")) return Status::Ok();
+  VSURG_TRY(v, r.Object("visual"));
+  VSURG_TRY(material, v.StringOr("material", VisualMaterialName(s.visual.material)));
+  bool known = false;
+  for (VisualMaterial m : {VisualMaterial::kSkin, VisualMaterial::kOrgan, VisualMaterial::kKidney})
+    if (material == VisualMaterialName(m)) s.visual.material = m, known = true;
+  if (!known)
+    return InvalidArgument("visual.material",
+                           "visual.material: one of skin, organ, kidney; got '" + material + "'");
+  VSURG_TRY(triangles, v.Integer("min_triangles", 1000, 500000, &s.visual.min_triangles));
+  s.visual.min_triangles = triangles;
+  if (v.Has("mesh")) {
+    VSURG_TRY(path, v.String("mesh"));
+    s.visual.mesh = fs::path(path).is_absolute() ? path : (fs::path(dir) / path).string();
+    VSURG_TRY(units, v.StringOr("units", "m"));
+    auto scale = geometry::UnitScale(units);
+    if (!scale.ok()) return v.Bad("units", scale.error().message);
+    s.visual.metres_per_unit = *scale;
+  }
+  return Status::Ok();
+}
+
+Status ParseBudget(const Reader& r, Scene& s) {
+  VSURG_TRY(budget, r.Object("error_budget"));
+  VSURG_TRY(rms, budget.Number("rms", 0, 10));
+  s.error_budget_rms = rms;
+  VSURG_TRY(reference, budget.StringOr("reference", "fem"));
+  s.error_reference = reference;
+  return Status::Ok();
+}
+
 Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   auto with_source = [&](Error e) {
     e.message = source + ": " + e.message;
@@ -454,118 +570,18 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   auto mesh = r.Object("mesh");
   if (!mesh.ok()) return with_source(mesh.error());
   if (Status st = ParseMesh(*mesh, dir, s.mesh); !st.ok()) return with_source(st.error());
-  if (r.Has("tissue")) {
-    auto t = r.Object("tissue");
-    if (!t.ok()) return with_source(t.error());
-    auto g = t->NumberOr("shear_modulus", 12e3, 1, 1e10);
-    auto nu = t->NumberOr("poisson_ratio", 0.47, 0, 0.4999);
-    auto rho = t->NumberOr("density", 1050, 1, 1e5);
-    for (auto* e : {&g, &nu, &rho}) {
-      if (!e->ok()) return with_source(e->error());
-    }
-    s.shear_modulus = *g, s.poisson_ratio = *nu, s.density = *rho;
-  }
-  if (!root.contains("regions")) return with_source(r.Missing("regions"));
-  if (!root["regions"].is_array() || root["regions"].size() != 1) {
-    return with_source(r.Bad("regions", "must be an array with exactly one deformable region"));
-  }
-  const Reader region(root["regions"][0], "regions[0]");
-  auto region_name = region.StringOr("name", "tissue");
-  if (!region_name.ok()) return with_source(region_name.error());
-  s.region.name = *region_name;
-  auto model = region.Object("model");
-  if (!model.ok()) return with_source(model.error());
-  if (Status st = ParseModel(*model, s.region); !st.ok()) return with_source(st.error());
-  if (s.region.kind == ModelKind::kReduced) {
-    const bool twist = s.region.reduced.mode == ReducedMode::kTwist;
-    if (twist && s.mesh.kind != MeshKind::kLimb)
-      return with_source(
-          InvalidArgument("regions[0].model.mode",
-                          "regions[0].model.mode: a reduced twist model needs a limb mesh"));
-    if (!twist && s.mesh.kind == MeshKind::kLimb)
-      return with_source(
-          InvalidArgument("regions[0].model.type",
-                          "regions[0].model.type: a reduced contact or surface-twist "
-                          "model needs a sphere or a closed mesh file"));
-  }
-  if (s.region.support == Support::kGroup && s.mesh.kind != MeshKind::kFile)
-    return with_source(
-        InvalidArgument("regions[0].model.support",
-                        "regions[0].model.support.group: only a mesh file has named groups"));
-  if (s.region.kind != ModelKind::kCoil && s.mesh.kind == MeshKind::kLimb &&
-      s.region.support == Support::kBottom) {
-    s.region.support = Support::kEnds;  // a limb rests on its ends
-  }
-  if (s.mesh.kind != MeshKind::kFile) {  // a file's size is known when it is read (Simulation)
-    const size_t vertices =
-        s.mesh.kind == MeshKind::kLimb
-            ? static_cast<size_t>(s.mesh.limb.segments_around) * s.mesh.limb.rings_along + 2
-            : static_cast<size_t>(geometry::SphereVertexCount(
-                  geometry::SphereBase::kOctahedron,
-                  geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
-                                                       s.mesh.particles)));
-    if (Status st = CheckSessionMemory(s.region.kind, vertices, "mesh",
-                                       s.region.reduced.mode != ReducedMode::kTwist);
-        !st.ok())
-      return with_source(st.error());
-  }
+  if (Status st = ParseTissue(r, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseRegion(root, r, s); !st.ok()) return with_source(st.error());
   if (r.Has("haptics")) {
     auto h = r.Object("haptics");
     if (!h.ok()) return with_source(h.error());
     if (Status st = ParseHaptics(*h, s.haptics); !st.ok()) return with_source(st.error());
   }
-  auto task = r.Object("task");
-  if (!task.ok()) return with_source(task.error());
-  if (Status st = ParseTask(*task, s.task); !st.ok()) return with_source(st.error());
-  const bool twists =
-      s.region.kind == ModelKind::kCoil ||
-      (s.region.kind == ModelKind::kReduced && s.region.reduced.mode != ReducedMode::kContact);
-  if ((s.task.kind == scoring::TaskKind::kTwist) != twists) {
-    return with_source(
-        InvalidArgument("task.type",
-                        "task.type: a twist task needs a coil or reduced (surface-)twist model, a "
-                        "press task a mass-spring, ring-layer or reduced contact model"));
-  }
-  s.visual.material =
-      s.mesh.kind == MeshKind::kLimb ? VisualMaterial::kSkin : VisualMaterial::kOrgan;
-  if (r.Has("visual")) {
-    auto v = r.Object("visual");
-    if (!v.ok()) return with_source(v.error());
-    auto material = v->StringOr("material", VisualMaterialName(s.visual.material));
-    if (!material.ok()) return with_source(material.error());
-    bool known = false;
-    for (VisualMaterial m :
-         {VisualMaterial::kSkin, VisualMaterial::kOrgan, VisualMaterial::kKidney})
-      if (*material == VisualMaterialName(m)) s.visual.material = m, known = true;
-    if (!known)
-      return with_source(
-          InvalidArgument("visual.material",
-                          "visual.material: one of skin, organ, kidney; got '" + *material + "'"));
-    auto triangles = v->Integer("min_triangles", 1000, 500000, &s.visual.min_triangles);
-    if (!triangles.ok()) return with_source(triangles.error());
-    s.visual.min_triangles = *triangles;
-    if (v->Has("mesh")) {
-      auto path = v->String("mesh");
-      if (!path.ok()) return with_source(path.error());
-      s.visual.mesh = fs::path(*path).is_absolute() ? *path : (fs::path(dir) / *path).string();
-      auto units = v->StringOr("units", "m");
-      if (!units.ok()) return with_source(units.error());
-      auto scale = geometry::UnitScale(*units);
-      if (!scale.ok()) return with_source(v->Bad("units", scale.error().message));
-      s.visual.metres_per_unit = *scale;
-    }
-  }
-  auto budget = r.Object("error_budget");
-  if (!budget.ok()) return with_source(budget.error());
-  auto rms = budget->Number("rms", 0, 10);
-  if (!rms.ok()) return with_source(rms.error());
-  s.error_budget_rms = *rms;
-  auto reference = budget->StringOr("reference", "fem");
-  if (!reference.ok()) return with_source(reference.error());
-  s.error_reference = *reference;
+  if (Status st = ParseSceneTask(r, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseVisual(r, dir, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseBudget(r, s); !st.ok()) return with_source(st.error());
   return s;
 }
-
 }  // namespace
 
 const char* VisualMaterialName(VisualMaterial m) {

@@ -258,6 +258,16 @@ std::string Simulation::SaveState() {
   return w.Take();
 }
 
+// The room's haptic side of a restored grasp (surface twist: the jaws' stiffness).
+void Simulation::Regrasp(const GraspQuery& q) {
+  GraspFrame frame;
+  std::visit(
+      [&](auto& room) {
+        if constexpr (requires { room.StartGrasp(q, frame); }) room.StartGrasp(q, frame);
+      },
+      room_);
+}
+
 Status Simulation::RestoreState(std::string_view bytes) {
   const auto refuse = [&](const std::string& why) {
     return Error{ErrorCode::kFailedPrecondition,
@@ -319,15 +329,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
     const Status rebuilt = Build();  // back to the room as Create made it
     return rebuilt.ok() ? refuse("its model state does not read back whole") : rebuilt;
   }
-  if (grasping) {  // the room's haptic side of the grasp (surface twist: the jaws' stiffness)
-    GraspFrame frame;
-    std::visit(
-        [&](auto& room) {
-          if constexpr (requires { room.StartGrasp(grasp_query, frame); })
-            room.StartGrasp(grasp_query, frame);
-        },
-        room_);
-  }
+  if (grasping) Regrasp(grasp_query);
   recorder_ = recorder;
   proxy_ = proxy;
   safety_ = safety;

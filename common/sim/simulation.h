@@ -221,6 +221,7 @@ class Simulation final : private DeformationPool::Member {
   void ContactStep(const Snapshot& snap, const haptics::StylusSample& s, bool button,
                    StylusStep& step);
   void TryGrasp(const haptics::ProxyState& ps, const haptics::StylusSample& s, uint32_t& events);
+  void Regrasp(const GraspQuery& q);
   void ContactModel(const haptics::ProxyState& ps, double depth, StylusStep& step);
   geometry::Vec3 Answer(const Snapshot& snap, const haptics::StylusSample& s, StylusStep& step);
   void PublishTelemetry(const haptics::StylusSample& s, const haptics::ForceCommand& cmd,
