@@ -67,6 +67,12 @@ class Reader {
   Expected<double> NumberOr(const char* key, double fallback, double lo, double hi) const {
     return Number(key, lo, hi, &fallback);
   }
+  // Absent: nullopt.
+  Expected<std::optional<bool>> OptionalBool(const char* key) const {
+    if (!j_.contains(key)) return std::optional<bool>();
+    if (!j_[key].is_boolean()) return Bad(key, "must be true or false");
+    return std::optional<bool>(j_[key].get<bool>());
+  }
   Expected<int> Integer(const char* key, int lo, int hi, const int* fallback = nullptr) const {
     if (!j_.contains(key)) {
       if (fallback) return *fallback;
@@ -322,6 +328,8 @@ Status ParseHaptics(const Reader& r, HapticsSpec& h) {
   VSURG_TRY(contact_model, r.StringOr("contact_model", "viscoelastic"));
   VSURG_TRY(tissue_k, r.NumberOr("tissue_stiffness", 0.0, 0, 1e5));
   VSURG_TRY(tissue_b, r.NumberOr("tissue_damping", 0.0, 0, 1e3));
+  VSURG_TRY(station_surface, r.OptionalBool("station_surface"));
+  h.station_surface = station_surface;
   h.tissue_stiffness = tissue_k;
   h.tissue_damping = tissue_b;
   if (contact_model == "viscoelastic")

@@ -25,6 +25,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -123,6 +124,15 @@ struct HapticsSpec {
   // surface. 0: not known (the proxy's spring). Scene files: "tissue_stiffness",
   // "tissue_damping".
   double tissue_stiffness = 0, tissue_damping = 0;
+  // The tissue's surface sent with a station's join (haptics/tissue_surface.h). Model only what a
+  // scene needs: a press scene's task is the contact, so by default it has it; a twist scene's
+  // is the grasp, whose model comes with the answers, and a limb's surface (12 k triangles, a
+  // quarter of a megabyte with each session's creation) would cost every station and the site
+  // for a contact the task does not score. Scene files: "station_surface": true | false.
+  std::optional<bool> station_surface;
+  bool StationSurface(scoring::TaskKind task) const {
+    return station_surface.value_or(task == scoring::TaskKind::kPress);
+  }
 };
 
 // How the station draws the tissue (never what the server simulates): its material, and its

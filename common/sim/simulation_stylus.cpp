@@ -356,10 +356,13 @@ void Simulation::SurfaceAhead(const Snapshot& snap, const Vec3& tip, haptics::Lo
 
 // What a station renders ahead of the server's answers (haptics/tissue_surface.h): the surface
 // at rest, and at each vertex the stiffness SurfaceAhead would give a tip nearest to it. Null when
-// the scene renders no surface ahead (lookahead 0) or the proxy has no stiffness.
+// the scene renders no surface ahead (lookahead 0), the proxy has no stiffness, or the scene does
+// not send one (HapticsSpec::StationSurface).
 std::shared_ptr<const haptics::TissueSurface> Simulation::MakeStationSurface() const {
   const double kp = proxy_.params().stiffness;
-  if (!(scene_.haptics.lookahead > 0) || !(kp > 0)) return nullptr;
+  if (!(scene_.haptics.lookahead > 0) || !(kp > 0) ||
+      !scene_.haptics.StationSurface(scene_.task.kind))
+    return nullptr;
   haptics::SurfaceSpec spec;
   spec.positions = rest_.positions;
   spec.triangles = rest_.triangles;

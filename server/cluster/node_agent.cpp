@@ -279,7 +279,6 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
          {"ms", std::chrono::duration_cast<std::chrono::milliseconds>(
                     std::chrono::steady_clock::now() - t0)
                     .count()}});
-    c->surface.reset();  // the station has it from its join
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }

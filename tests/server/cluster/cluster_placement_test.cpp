@@ -30,6 +30,10 @@ TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
   auto joined = control_->Join(static_cast<uint64_t>(first.id), false);
   ASSERT_TRUE(joined.ok()) << joined.error().message;
   EXPECT_FALSE(joined->surface) << "a probe's join carries no surface";
+  // A twist scene sends no surface for the station (HapticsSpec::StationSurface); a press scene
+  // does, from its node through the control plane, with its creation and a join that asks
+  // (below).
+  EXPECT_FALSE(control_->Join(static_cast<uint64_t>(first.id), true)->surface);
   auto stopped = control_->Stop(static_cast<uint64_t>(first.id), "done");
   ASSERT_TRUE(stopped.ok()) << stopped.error().message;
   EXPECT_EQ(stopped->state, SessionState::kEnded);
@@ -65,6 +69,16 @@ TEST_F(ClusterTest, PlacementSpreadsFillsToCapacityAndTellsTheNodesAddress) {
   EXPECT_NE(n.str().find("vsurg_lease_held 1\n"), std::string::npos) << n.str();
   EXPECT_NE(n.str().find("vsurg_lease_epoch 1\n"), std::string::npos) << n.str();
   EXPECT_EQ(n.str().find("vsurg_lease_seconds_left -"), std::string::npos) << n.str();
+  // (after the scrape: one more placement)
+  auto press = control_->Create("trainee-0", "sphere-palpation-256");
+  ASSERT_TRUE(press.ok()) << press.error().message;
+  ASSERT_TRUE(press->surface);
+  EXPECT_GT(press->surface->spec().tissue_stiffness, 0) << "the scene's tissue law";
+  auto rejoined = control_->Join(press->record.id, true);
+  ASSERT_TRUE(rejoined.ok() && rejoined->surface);
+  EXPECT_EQ(rejoined->surface->spec().positions.size(), press->surface->spec().positions.size());
+  EXPECT_FALSE(control_->Join(press->record.id, false)->surface);
+  ASSERT_TRUE(control_->Stop(press->record.id, "done").ok());
 }
 
 // A burst of stations at once (a class starting together): each placement sees the ones still
@@ -254,9 +268,6 @@ TEST_F(ClusterTest, ADrainingNodeMovesItsLiveSessionsWithTheirStateAndTheTrialGo
   EXPECT_EQ(joined->record.node, "sim-b");
   EXPECT_EQ(joined->udp_port, b.endpoint->port());
   EXPECT_EQ(joined->key, live->key);
-  ASSERT_TRUE(joined->surface) << "the station's surface, from its node";
-  EXPECT_EQ(joined->surface->spec().triangles.size(),
-            b.sessions->Join(live->record.id, true)->surface->spec().triangles.size());
   station.Target(joined->udp_port);
   const auto after = station.AnswerTo(station.Send((*samples)[k]), 5);
   ASSERT_TRUE(after) << "the new node does not answer";
