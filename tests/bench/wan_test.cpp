@@ -211,7 +211,8 @@ TEST_F(WanTest, TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental) {
   EXPECT_GT(late.onset_delay_cycles, 100) << "the answers alone came in time: no case shown";
   // The first round trip in contact rendered as the tissue (the scene's tissue law), not as the
   // proxy's spring on a rigid surface, nor as nothing: the force follows the reference closer.
-  EXPECT_LT(f.rms_error_pct, late.rms_error_pct - 3);
+  // (6-8 points apart beside two CPU hogs, 8 on a quiet machine; a point is asked.)
+  EXPECT_LT(f.rms_error_pct, late.rms_error_pct - 1);
 }
 
 TEST_F(WanTest, TheDeadbandSendsAFractionAndKeepsTheForce) {
