@@ -109,6 +109,9 @@ class Connection {
   // same database at once (PostgreSQL: a transaction-scoped advisory lock; SQLite's
   // BEGIN IMMEDIATE already does).
   virtual Status LockSchema() = 0;
+  // The same for placement (Store::ReservePlacement): one control replica at a time reads the
+  // nodes' load and reserves its choice.
+  virtual Status LockPlacements() = 0;
   virtual Expected<int> SchemaVersion() = 0;
   virtual Status SetSchemaVersion(int version) = 0;
   // The schema text of a migration, in this backend's dialect (db/migrations.cpp).

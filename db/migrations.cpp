@@ -209,6 +209,15 @@ ALTER TABLE sessions ADD COLUMN exercise_id INTEGER REFERENCES exercises(id);
 CREATE INDEX sessions_by_exercise ON sessions(exercise_id, trainee_id);
 CREATE INDEX sessions_by_scene_trainee ON sessions(scene, trainee_id);
 )sql",
+      // 7: placements in flight across control replicas (Store::ReservePlacement): each Create
+      // a replica sent to a node and the node has not yet answered with its session's row.
+      R"sql(
+CREATE TABLE placements (
+  token       TEXT PRIMARY KEY,
+  node        TEXT NOT NULL,
+  expires_us  INTEGER NOT NULL
+);
+)sql",
   };
   return kMigrations;
 }

@@ -16,6 +16,7 @@ constexpr const char* kTables[] = {
 
 // Any number the store's processes agree on: the advisory lock that serialises migrations.
 constexpr const char* kSchemaLock = "SELECT pg_advisory_xact_lock(731052811)";
+constexpr const char* kPlacementLock = "SELECT pg_advisory_xact_lock(731052812)";
 
 bool Succeeded(pg_result* r) {
   const auto s = PQresultStatus(r);
@@ -306,6 +307,10 @@ Expected<int64_t> PgConnection::LastInsertId() {
 
 Status PgConnection::LockSchema() {
   return Exec(kSchemaLock);
+}
+
+Status PgConnection::LockPlacements() {
+  return Exec(kPlacementLock);
 }
 
 Expected<int> PgConnection::SchemaVersion() {

@@ -73,6 +73,7 @@ class PgConnection final : public Connection {
     return Exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
   }
   Status LockSchema() override;
+  Status LockPlacements() override;
   Expected<int> SchemaVersion() override;
   Status SetSchemaVersion(int version) override;
   std::string Dialect(const char* ddl) const override { return PostgresDialect(ddl); }

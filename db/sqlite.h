@@ -57,6 +57,7 @@ class SqliteConnection final : public Connection {
   Status BeginWrite() override { return Exec("BEGIN IMMEDIATE"); }
   Status BeginSnapshot() override { return Exec("BEGIN"); }
   Status LockSchema() override { return Status::Ok(); }
+  Status LockPlacements() override { return Status::Ok(); }
   Expected<int> SchemaVersion() override;
   Status SetSchemaVersion(int version) override;
   std::string Dialect(const char* ddl) const override { return ddl; }

@@ -98,6 +98,17 @@ void Store::Impl::RunAlone(Pending& p) {
   if (p.done) p.done(std::move(s));
 }
 
+Status Store::Impl::WriteAlone(Job job) {
+  std::promise<Status> written;
+  auto done = written.get_future();
+  Pending p;
+  p.alone = true;
+  p.job = std::move(job);
+  p.done = [&written](Status s) { written.set_value(std::move(s)); };
+  Post(std::move(p));
+  return done.get();
+}
+
 void Store::Impl::CountCommit(double took, size_t jobs, uint64_t failed, bool commit_failed) {
   std::lock_guard lock(stats_mutex);
   ++stats.commits;

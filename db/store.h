@@ -39,6 +39,12 @@
 //     writes share the row lock (FOR KEY SHARE) and the fall takes it alone (FOR UPDATE); a
 //     lease renewal (BeatNode) waits for neither session writes nor the node's long
 //     transactions.
+//  8. Placement (server/cluster): a control replica reserves its choice of node in the store
+//     before it asks the node (ReservePlacement, serialised across replicas: PostgreSQL's
+//     transaction-scoped advisory lock, SQLite's write lock), and the node's CreateSession (or
+//     MoveSession) deletes the reservation in the transaction that writes the session's row.
+//     A load read at any moment counts every placement once, whichever replica made it and
+//     whether or not its node has answered yet.
 //
 // Thread safety: every public member may be called from any thread.
 #pragma once
@@ -46,6 +52,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -291,9 +298,10 @@ class Store {
   Expected<std::string> InitAdmin(const std::string& name);
 
   // A new live session of `fence.node` (design note 7: refused unless that node is up at
-  // `fence.epoch`).
+  // `fence.epoch`); the reservation `placement` (ReservePlacement) is replaced by it.
   Expected<SessionRecord> CreateSession(const std::string& trainee, const std::string& scene,
-                                        const SessionFence& fence = {});
+                                        const SessionFence& fence = {},
+                                        const std::string& placement = "");
   // A live session's next state, written by the process `fence` names. kNotFound: no such
   // session; kFailedPrecondition: it is no longer live, or it is not that node's at that epoch,
   // or that node no longer holds that epoch (design note 7). The node is part of the fence:
@@ -312,7 +320,9 @@ class Store {
   // the session is live, belongs to `from` at that epoch, and both nodes are up at theirs. So a
   // session moves once, and never from a node the site has given up on (whose sessions it has
   // aborted) nor to one.
-  Status MoveSession(int64_t id, const SessionFence& from, const SessionFence& to);
+  // The reservation `placement` (ReservePlacement) is replaced by the moved session.
+  Status MoveSession(int64_t id, const SessionFence& from, const SessionFence& to,
+                     const std::string& placement = "");
   // At start-up: sessions a previous process of `node` left live (it was killed, or the machine
   // failed) cannot go on; they become aborted with `reason`. Returns how many.
   Expected<int> AbortOrphanedSessions(int64_t at_us, const std::string& reason,
@@ -341,6 +351,21 @@ class Store {
   // which of its own just-answered placements the read already shows. Live sessions are bounded
   // by the nodes' capacities.
   Expected<std::vector<std::pair<std::string, int64_t>>> LiveSessionNodes();
+  // Placement across control replicas (design note 8). One reservation at a time, site-wide,
+  // reads every node's load (its live sessions and the placements reserved on it and not yet
+  // answered) and `choose` picks a node from it, or none; a reservation on that node is written
+  // in the same transaction, lasting until `expires_us` (a replica that died mid-placement holds
+  // nothing past it). `choose` runs on the writer thread and may run again after a failure.
+  struct Placement {
+    std::string node, token;
+  };
+  using ChooseNode =
+      std::function<std::optional<std::string>(const std::map<std::string, int>& load)>;
+  Expected<std::optional<Placement>> ReservePlacement(int64_t expires_us,
+                                                      const ChooseNode& choose);
+  // The reservation ends without a session (the node refused or did not answer), or after one
+  // (a no-op once the node's row replaced it).
+  Status ReleasePlacement(const std::string& token);
   Status RecordTrainingMoment(const std::string& trainee, double moment_min,
                               std::optional<int64_t> session_id);
 

@@ -46,6 +46,9 @@ struct Store::Impl {
   void WriterLoop();
   void RunBatch(std::vector<Pending>& batch);
   void RunAlone(Pending& job);  // Pending::alone
+  // A job run alone (Pending::alone), waited for: one statement in autocommit, or a job that
+  // makes its own transaction.
+  Status WriteAlone(Job job);
   void Post(Pending job);       // queues a job, or fails it at once (read-only, stopping)
   void CountCommit(double seconds, size_t jobs, uint64_t failed, bool commit_failed);
 
@@ -100,5 +103,12 @@ scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first);
 // The id in column 0 of the first row of `sql` bound to `key`, if any.
 Expected<std::optional<int64_t>> LookupId(Connection& c, const std::string& sql,
                                           std::string_view key);
+
+// Binds the three live states' names at ?first, ?first+1, ?first+2.
+void BindLiveStates(Statement& q, int first);
+
+// Inside a write job: the reservation `token` (Store::ReservePlacement) ends, replaced by the
+// session row the same job writes ("" for none).
+Status EndPlacement(Connection& c, const std::string& token);
 
 }  // namespace vsurg::db

@@ -38,14 +38,13 @@ constexpr const char* kSessionColumns =
     "SELECT s.id, t.name, s.scene, s.state, s.created_us, s.started_us, s.ended_us, "
     "s.end_reason, s.node FROM sessions s JOIN trainees t ON t.id = s.trainee_id ";
 
-// Binds the three live states' names at ?first, ?first+1, ?first+2.
+}  // namespace
+
 void BindLiveStates(Statement& q, int first) {
   q.Bind(first, SessionStateName(SessionState::kCreated));
   q.Bind(first + 1, SessionStateName(SessionState::kRunning));
   q.Bind(first + 2, SessionStateName(SessionState::kStalled));
 }
-
-}  // namespace
 
 namespace {
 
@@ -144,7 +143,8 @@ Status ChangeLiveSession(Connection& c, int64_t id, SessionState state, int64_t 
 }  // namespace
 
 Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const std::string& scene,
-                                             const SessionFence& fence) {
+                                             const SessionFence& fence,
+                                             const std::string& placement) {
   SessionRecord rec;
   rec.node = fence.node;
   rec.trainee = trainee;
@@ -153,6 +153,7 @@ Expected<SessionRecord> Store::CreateSession(const std::string& trainee, const s
   rec.created_us = NowUs();
   Status s = Write([&](Connection& c) -> Status {
     if (Status f = HoldFence(c, fence.node, fence.epoch); !f.ok()) return f;
+    if (Status p = EndPlacement(c, placement); !p.ok()) return p;
     auto tid = EnsureTrainee(c, trainee);
     if (!tid.ok()) return tid.error();
     if (scene.empty()) return InvalidArgument("scene", "a scene name is required");
@@ -217,7 +218,8 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
   });
 }
 
-Status Store::MoveSession(int64_t id, const SessionFence& from, const SessionFence& to) {
+Status Store::MoveSession(int64_t id, const SessionFence& from, const SessionFence& to,
+                          const std::string& placement) {
   if (from.node.empty() || to.node.empty() || from.node == to.node)
     return InvalidArgument("node", "a session moves from one simulation node to another");
   return Write([=](Connection& c) -> Status {
@@ -232,6 +234,7 @@ Status Store::MoveSession(int64_t id, const SessionFence& from, const SessionFen
                    "epoch"};
     if (Status f = HoldFence(c, from.node, from.epoch); !f.ok()) return f;
     if (Status f = HoldFence(c, to.node, to.epoch); !f.ok()) return f;
+    if (Status p = EndPlacement(c, placement); !p.ok()) return p;
     Status s = RunSql(c,
                       "UPDATE sessions SET node = ?2, epoch = ?3 WHERE id = ?1 AND state IN "
                       "(?4, ?5, ?6)",
@@ -380,12 +383,7 @@ Expected<NodeLease> Store::AcquireNode(const NodeRecord& n, int64_t lease_us,
 Status Store::BeatNode(const NodeRecord& n) {
   if (Status s = CheckNodeRecord(n); !s.ok()) return s;
   // One UPDATE, a transaction by itself: one round trip to a shared store (Pending::alone).
-  std::promise<Status> renewed;
-  auto done = renewed.get_future();
-  Impl::Pending job;
-  job.alone = true;
-  job.done = [&renewed](Status s) { renewed.set_value(std::move(s)); };
-  job.job = [n](Connection& c) -> Status {
+  return impl_->WriteAlone([n](Connection& c) -> Status {
     Status st = RunSql(c,
                        "UPDATE nodes SET grpc_address = ?3, udp_host = ?4, udp_port = ?5, "
                        "capacity = ?6, sessions = ?7, cpu = ?8, draining = ?9, started_us = ?10, "
@@ -402,9 +400,7 @@ Status Store::BeatNode(const NodeRecord& n) {
                        " (marked down, or its name taken by a newer process)",
                    "epoch"};
     return st;
-  };
-  impl_->Post(std::move(job));
-  return done.get();
+  });
 }
 
 Expected<std::vector<NodeRecord>> Store::ListNodes() {

@@ -271,7 +271,8 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
       return grpc::Status(grpc::StatusCode::UNAVAILABLE,
                           "node " + options.name + " holds no lease now: no new sessions");
     const auto t0 = std::chrono::steady_clock::now();
-    auto c = sessions.Create(req->trainee(), req->scene(), convert::FromProto(req->task()));
+    auto c = sessions.Create(req->trainee(), req->scene(), convert::FromProto(req->task()),
+                             req->placement());
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
     Log(options.name, "create_answered",
         {{"session", c->record.id},
@@ -343,7 +344,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     const auto t0 = std::chrono::steady_clock::now();
     // Committed only before the control plane's deadline: past it, the sender (which waits
     // longer) may already have taken the session back.
-    auto c = sessions.Adopt(*handoff, ctx->deadline());
+    auto c = sessions.Adopt(*handoff, ctx->deadline(), req->placement());
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
     Log(options.name, "session_adopted",
         {{"session", c->record.id},

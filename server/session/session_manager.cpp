@@ -127,8 +127,15 @@ SessionManager::~SessionManager() {
 }
 
 Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
-                                                const std::string& scene_name,
+                                                const std::string& scene,
                                                 const scoring::TaskSettings& task) {
+  return Create(trainee, scene, task, "");
+}
+
+Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
+                                                const std::string& scene_name,
+                                                const scoring::TaskSettings& task,
+                                                const std::string& placement) {
   if (!IsSceneName(scene_name))
     return InvalidArgument("scene", "a scene name (letters, digits and '-'), not a path");
   // The limits are checked again when the session is inserted (two concurrent creates).
@@ -142,7 +149,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   if (options_.lease && !(options_.lease->Valid() && epoch > 0))
     return Error{ErrorCode::kUnavailable,
                  "node " + options_.node + " holds no lease now: it takes no session", "scene"};
-  auto record = store_.CreateSession(trainee, scene_name, {options_.node, epoch});
+  auto record = store_.CreateSession(trainee, scene_name, {options_.node, epoch}, placement);
   if (!record.ok()) return record.error();
   out.record = *record;
   out.udp_host = options_.udp_host;

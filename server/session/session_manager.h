@@ -136,6 +136,10 @@ class SessionManager final : public Sessions {
 
   Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene,
                                   const scoring::TaskSettings& task = {}) override;
+  // The same on a simulation node, for a placement a control replica reserved on it
+  // (db::Store::ReservePlacement): the session's row replaces the reservation.
+  Expected<CreatedSession> Create(const std::string& trainee, const std::string& scene,
+                                  const scoring::TaskSettings& task, const std::string& placement);
   Expected<db::SessionRecord> Start(uint64_t id) override;
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
   // A session whose creator stopped waiting before it was answered (server/cluster/: a Create
@@ -175,9 +179,11 @@ class SessionManager final : public Sessions {
   // without a lease, at max_live_sessions, or when the state is not one this server reads.
   // Nothing is committed after `deadline` (the control plane's for the call: past it the
   // sender may have taken the session back).
+  // `placement`: the reservation the control replica made for the move, which the row replaces.
   Expected<CreatedSession> Adopt(const SessionHandoff& handoff,
                                  std::chrono::system_clock::time_point deadline =
-                                     std::chrono::system_clock::time_point::max());
+                                     std::chrono::system_clock::time_point::max(),
+                                 const std::string& placement = "");
 
   // Aborts every live session (metrics recorded), stops the sampler. Idempotent.
   void Shutdown() override;

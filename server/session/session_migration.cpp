@@ -187,7 +187,8 @@ void SessionManager::CancelMove(uint64_t id) {
 }
 
 Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
-                                               std::chrono::system_clock::time_point deadline) {
+                                               std::chrono::system_clock::time_point deadline,
+                                               const std::string& placement) {
   if (options_.node.empty() || !options_.lease)
     return Error{ErrorCode::kFailedPrecondition, "only a simulation node adopts sessions", "node"};
   if (h.from_node == options_.node)
@@ -226,7 +227,8 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
     return Error{ErrorCode::kUnavailable,
                  "session " + std::to_string(h.id) + " was built too late to be taken over",
                  "deadline"};
-  if (Status s = store_.MoveSession(h.id, {h.from_node, h.from_epoch}, {options_.node, epoch});
+  if (Status s =
+          store_.MoveSession(h.id, {h.from_node, h.from_epoch}, {options_.node, epoch}, placement);
       !s.ok())
     return s.error();
   const bool started = h.state != SessionState::kCreated;

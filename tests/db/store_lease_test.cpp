@@ -1,8 +1,12 @@
 // The node registry in the store: leases and their epochs, fenced session writes, a node's fall
 // and its sessions, live migration between leases; renewing a lease is one request to a shared
 // store (the control plane renews every node's lease every few seconds).
+#include <atomic>
 #include <future>
+#include <map>
+#include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -129,6 +133,98 @@ TEST_P(StoreLeaseTest, ASessionMovesToAnotherNodeOnceAndOnlyBetweenLiveLeases) {
             ErrorCode::kFailedPrecondition);
   EXPECT_EQ(store_->GetSession(s->id)->state, SessionState::kAborted);
   EXPECT_EQ(store_->GetSession(s->id)->node, "sim-1");
+}
+
+// Placement across control replicas: a reservation counts on its node until the session's row
+// replaces it (created there, or moved there), it is released, or it expires; the load is read
+// and the choice reserved one placement at a time, so placements made at once each see the
+// others'.
+TEST_P(StoreLeaseTest, APlacementCountsOnceFromItsReservationToItsSessionsRow) {
+  NodeRecord a = test_store::SimNode();
+  NodeRecord b = a;
+  b.name = "sim-1", b.instance = "process-b";
+  a.epoch = store_->AcquireNode(a, 2000, "restarted").value().epoch;
+  b.epoch = store_->AcquireNode(b, 2000, "restarted").value().epoch;
+  const int64_t later = NowUs() + 60'000'000;
+  std::map<std::string, int> load;
+  const auto pick = [&load](std::optional<std::string> node) {
+    return [&load, node](const std::map<std::string, int>& now) {
+      load = now;
+      return node;
+    };
+  };
+  const auto load_now = [&] {
+    EXPECT_FALSE(store_->ReservePlacement(later, pick(std::nullopt)).value());
+    return load;
+  };
+  auto first = store_->ReservePlacement(later, pick("sim-0"));
+  ASSERT_TRUE(first.ok() && *first) << (first.ok() ? "" : first.error().message);
+  EXPECT_EQ((*first)->node, "sim-0");
+  EXPECT_EQ((*first)->token.size(), 32u);
+  EXPECT_TRUE(load.empty());
+  auto second = store_->ReservePlacement(later, pick("sim-1")).value();
+  EXPECT_EQ(load, (std::map<std::string, int>{{"sim-0", 1}}));
+  // The node's row replaces the reservation: still one on sim-0.
+  auto s = store_->CreateSession("trainee-1", "arm-torsion", {"sim-0", a.epoch}, (*first)->token);
+  ASSERT_TRUE(s.ok()) << s.error().message;
+  EXPECT_EQ(load_now(), (std::map<std::string, int>{{"sim-0", 1}, {"sim-1", 1}}));
+  // Released (the node refused): gone; releasing again changes nothing.
+  ASSERT_TRUE(store_->ReleasePlacement(second->token).ok());
+  ASSERT_TRUE(store_->ReleasePlacement(second->token).ok());
+  EXPECT_EQ(load_now(), (std::map<std::string, int>{{"sim-0", 1}}));
+  // A moved session replaces the reservation of the node it moves to.
+  ASSERT_TRUE(
+      store_->SetSessionState(s->id, SessionState::kRunning, 10, "", {"sim-0", a.epoch}).ok());
+  auto move = store_->ReservePlacement(later, pick("sim-1")).value();
+  EXPECT_EQ(load_now(), (std::map<std::string, int>{{"sim-0", 1}, {"sim-1", 1}}));
+  ASSERT_TRUE(store_->MoveSession(s->id, {"sim-0", a.epoch}, {"sim-1", b.epoch}, move->token).ok());
+  EXPECT_EQ(load_now(), (std::map<std::string, int>{{"sim-1", 1}}));
+  // A refused write keeps its reservation: the row did not replace it.
+  auto kept = store_->ReservePlacement(later, pick("sim-0")).value();
+  EXPECT_EQ(store_->CreateSession("trainee-2", "arm-torsion", {"sim-0", a.epoch + 1}, kept->token)
+                .error()
+                .code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(load_now(), (std::map<std::string, int>{{"sim-0", 1}, {"sim-1", 1}}));
+  ASSERT_TRUE(store_->ReleasePlacement(kept->token).ok());
+  // An expired reservation (its replica died mid-placement) counts no more.
+  ASSERT_TRUE(store_->ReservePlacement(NowUs() - 1, pick("sim-0")).value());
+  EXPECT_EQ(load_now(), (std::map<std::string, int>{{"sim-1", 1}}));
+}
+
+// Placements made at once, each choosing the least loaded of four nodes from the load it read:
+// one at a time, every one sees the others', and the nodes end even.
+TEST_P(StoreLeaseTest, PlacementsMadeAtOnceEachSeeTheOthers) {
+  const int64_t later = NowUs() + 60'000'000;
+  const auto least = [](const std::map<std::string, int>& load) {
+    std::string best;
+    int fewest = 1 << 30;
+    for (const char* node : {"sim-0", "sim-1", "sim-2", "sim-3"}) {
+      const auto it = load.find(node);
+      const int n = it == load.end() ? 0 : it->second;
+      if (n < fewest) best = node, fewest = n;
+    }
+    return std::optional<std::string>(best);
+  };
+  constexpr int kThreads = 4, kEach = 10;
+  std::vector<std::thread> threads;
+  std::atomic<int> failed{0};
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&] {
+      for (int i = 0; i < kEach; ++i) failed += !store_->ReservePlacement(later, least).ok();
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(failed.load(), 0);
+  std::map<std::string, int> load;
+  ASSERT_TRUE(store_
+                  ->ReservePlacement(later,
+                                     [&](const std::map<std::string, int>& now) {
+                                       load = now;
+                                       return std::optional<std::string>();
+                                     })
+                  .ok());
+  EXPECT_EQ(load, (std::map<std::string, int>{
+                      {"sim-0", kEach}, {"sim-1", kEach}, {"sim-2", kEach}, {"sim-3", kEach}}));
 }
 
 TEST_P(StoreLeaseTest, ALeaseRenewalDoesNotWaitForTheNodesSessionWritesButItsFallDoes) {

@@ -80,6 +80,9 @@ struct ServerProcess {
     return status;
   }
 
+  // Freezes the process (SIGSTOP) or lets it go on (SIGCONT), without reaping it; 0 on success.
+  int Freeze(bool frozen) { return kill(pid, frozen ? SIGSTOP : SIGCONT); }
+
   ServerProcess() = default;
   ServerProcess(ServerProcess&& o) noexcept
       : pid(o.pid), grpc_port(o.grpc_port), udp_port(o.udp_port) {

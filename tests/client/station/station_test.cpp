@@ -218,6 +218,50 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
   server.Signal(SIGTERM);
 }
 
+// A server that is only slow is not a lost session. Frozen for 2 s (its gRPC port takes the
+// connection and answers nothing, its UDP port is silent), as a loaded control plane and node
+// can be: the station's probes time out and are asked again, and when the server answers the
+// station goes on in the same session on the same channel, never starting another.
+TEST(StationTest, KeepsItsSessionWhileTheServerIsOnlySlow) {
+  Site site("vsurg_station_slow");
+  auto& [dir, db, tokens, server] = site;
+  ASSERT_GT(server.grpc_port, 0);
+  ReplayDevice device(std::vector<haptics::StylusSample>(60000, test::PressAndHold(1).front()));
+  StationConfig config;
+  config.scene = "sphere-palpation-256";
+  Station station(RemoteTo(server.grpc_port, tokens.trainee), &device, config);
+  ASSERT_TRUE(TickUntil(station, 20, [&] {
+    return OnChannel(station, [](StationChannel& c) { return c.stats().received > 200; });
+  })) << station.status().last_error;
+  const uint64_t session = station.status().session;
+
+  ASSERT_EQ(server.Freeze(true), 0);
+  // Silent (0.5 s), then a probe that waits its 1 s for an answer that never comes.
+  const bool asked_again = TickUntil(station, 10, [&] {
+    return station.status().last_error.find("asking again") != std::string::npos;
+  });
+  const StationStatus frozen = station.status();
+  ASSERT_EQ(server.Freeze(false), 0);
+  EXPECT_TRUE(asked_again) << frozen.last_error;
+  EXPECT_EQ(frozen.state, StationState::kLive) << frozen.last_error;
+  uint64_t received = 0;
+  OnChannel(station, [&](StationChannel& c) { return (received = c.stats().received) > 0; });
+  ASSERT_TRUE(TickUntil(station, 20, [&] {
+    return OnChannel(station,
+                     [&](StationChannel& c) { return c.stats().received > received + 200; });
+  })) << station.status().last_error;
+  const StationStatus after = station.status();
+  EXPECT_EQ(after.state, StationState::kLive);
+  EXPECT_EQ(after.session, session);
+  EXPECT_EQ(after.generation, 1u) << "the same channel";
+  EXPECT_EQ(after.reconnects, 0);
+  auto summary = station.Finish("test over");
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->id, session);
+  EXPECT_EQ(summary->state, SessionState::kEnded);
+  server.Signal(SIGTERM);
+}
+
 TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
   Site site("vsurg_station_refused");
   auto& [dir, db, tokens, server] = site;
