@@ -39,6 +39,7 @@
 #include "client/net/remote.h"
 #include "client/net/station_channel.h"
 #include "common/core/expected.h"
+#include "common/core/range.h"
 #include "common/core/session_state.h"
 #include "common/scoring/trial_metrics.h"
 
@@ -49,6 +50,8 @@ class CreateSessionResponse;
 namespace vsurg::client {
 
 struct StationConfig {
+  // The bounds the station's options take (vsurg-station --help shows them).
+  static constexpr Range kRealtimePriority{0, 99}, kDeadband{0, 0.99}, kModelHoldS{0, 10};
   std::string scene = "arm-torsion";
   // A session prepared for this trainee (by an instructor) to join instead of creating one; a
   // reconnect after the server went away creates a new session as usual. 0: create.

@@ -11,9 +11,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <thread>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -116,13 +118,14 @@ std::vector<TargetLine> TargetLines(const client::SessionSummary& s) {
   return out;
 }
 
-int Run(const std::vector<std::string>& args) {
-  ArgParser p("vsurg-station",
-              "A trainee's station: joins a session on the server, streams the stylus over UDP "
-              "at 1 kHz and draws the tissue (window, or --headless offscreen).");
+void DeclareOptions(ArgParser& p) {
+  using vsurg::NumberText;
+  using Config = client::StationConfig;
+  const Config defaults;
   client::AddRemoteOptions(p);
-  p.Option("scene", Kind::kString, "scene to train on", false, "arm-torsion")
+  p.Option("scene", Kind::kString, "scene to train on", false, defaults.scene)
       .Option("join", Kind::kInt, "join this session, prepared for you by an instructor")
+      .Within({1, 2147483647})
       .Option("course", Kind::kFlag,
               "follow your course: run your next exercise (its scene, its targets; --scene is "
               "ignored) and say at the end which targets the trial met")
@@ -147,20 +150,26 @@ int Run(const std::vector<std::string>& args) {
               "perceptual deadband: send the stylus only when the rendered force changed by more "
               "than this fraction of itself (Weber, ~0.1), the tip moved 0.5 mm or turned 1 deg, "
               "or 25 ms passed (15 ms while a force is rendered; 0: every cycle)",
-              false, "0")
+              false, NumberText(defaults.deadband))
+      .Within(Config::kDeadband)
       .Option("model-hold", Kind::kDouble,
               "seconds a contact's or grasp's local model is rendered through a silence before "
               "it fades (0: faded 20 ms into any silence)",
-              false, "1")
+              false, NumberText(defaults.model_hold_s))
+      .Within(Config::kModelHoldS)
       .Option("force-log", Kind::kString,
               "CSV of the force sent to the device per servo cycle: t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n")
-      .Option("rate", Kind::kDouble, "haptic rate, Hz", false, "1000")
+      .Option("rate", Kind::kDouble, "haptic rate, Hz", false, NumberText(defaults.rate_hz))
       .Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
       .Option("width", Kind::kInt, "image width, px", false, "960")
+      .Within({16, 8192})
       .Option("height", Kind::kInt, "image height, px", false, "600")
+      .Within({16, 8192})
       .Option("fps", Kind::kDouble, "frames per second", false, "60")
+      .Within({1, 240})
       .Option("screenshot", Kind::kString, "PNG of the last frame (or at --screenshot-at)")
       .Option("screenshot-at", Kind::kDouble, "seconds after the session starts for --screenshot")
+      .Within({0, 86400})
       .Option("screenshot-before", Kind::kString, "PNG of the first frame, before any input")
       .Option("screenshot-summary", Kind::kString,
               "PNG of the end-of-trial summary (the score and what lowered it)")
@@ -169,6 +178,7 @@ int Run(const std::vector<std::string>& args) {
               "the environment wins): -1 two per core, 0 the driver's default (one per core), "
               "else 1..32",
               false, "-1")
+      .Within({-1, 32})
       .Option("quality", Kind::kString,
               "auto (from measured frame times), low (no shadows or detail), medium or high", false,
               "auto")
@@ -179,172 +189,139 @@ int Run(const std::vector<std::string>& args) {
               "30")
       .Option("no-reconnect", Kind::kFlag, "end with an error when the server goes away")
       .Option("realtime-priority", Kind::kInt,
-              "SCHED_FIFO priority of the haptic threads when permitted (0: off)", false, "20")
+              "SCHED_FIFO priority of the haptic threads when permitted (0: off)", false,
+              NumberText(defaults.realtime_priority))
+      .Within(Config::kRealtimePriority)
       .Option("json", Kind::kFlag, "print the summary as one JSON object");
-  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
-  if (p.Int("render-threads") < -1 || p.Int("render-threads") > 32)
-    return std::cerr << "vsurg-station: --render-threads: -1, 0 or 1..32\n", 2;
-  // On a software renderer the frame shares the cores with the haptic threads (and, on this
-  // machine kind, the server): twice as many rasterizer threads as cores kept the frame's p99
-  // lower with the server beside it (docs/BENCHMARKS.md, "Rasterizer threads"). First, while this
-  // is the only thread: it sets an environment variable.
-  const int render_threads = client::RequestSoftwareRenderThreads(
-      p.Int("render-threads") >= 0
-          ? static_cast<int>(p.Int("render-threads"))
-          : static_cast<int>(std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u)));
-  auto remote = client::ConnectRemote(p);
-  if (!remote.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), remote.error());
-  const double fps = p.Double("fps");
-  if (!(fps >= 1 && fps <= 240)) return std::cerr << "vsurg-station: --fps: 1..240\n", 2;
-  if (p.Has("screenshot-at") && !(p.Double("screenshot-at") >= 0))
-    return std::cerr << "vsurg-station: --screenshot-at: must be ≥ 0\n", 2;
+}
 
-  // Following the course: the server says which exercise (and so which scene) comes next.
-  std::optional<client::CourseExercise> exercise;
-  std::string scene_name = p.String("scene");
-  if (p.Has("exercise") && !p.Flag("course"))
-    return std::cerr << "vsurg-station: --exercise: only with --course\n", 2;
-  if (p.Flag("course")) {
-    if (p.Has("join"))
-      return std::cerr << "vsurg-station: --course and --join exclude each other\n", 2;
-    auto next = client::NextCourseExercise(*remote, p.Has("exercise") ? p.Int("exercise") : 0,
-                                           remote->timeout_s);
-    if (!next.ok()) return Fail(next.error().message);
-    if (!next->may_attempt) return Fail("today's attempts at '" + next->title + "' are used up");
-    exercise = *next;
-    scene_name = next->scene;
-    std::cerr << "vsurg-station: course '" << next->course << "', exercise " << next->position
-              << ". " << next->title << " (" << next->scene << "): " << next->attempts
-              << " attempts, " << next->streak << " of " << next->consecutive
-              << " passes in a row; targets:";
-    for (const std::string& t : next->targets) std::cerr << " " << t << ";";
-    std::cerr << "\n";
+int Usage(const std::string& option, const std::string& message) {
+  std::cerr << "vsurg-station: " << (option.empty() ? "" : "--" + option + ": ") << message << "\n";
+  return vsurg::cli::kExitUsage;
+}
+
+// What the options ask for that needs no server, checked before anything opens.
+std::optional<int> CheckOptions(const ArgParser& p) {
+  if (p.Has("exercise") && !p.Flag("course")) return Usage("exercise", "only with --course");
+  if (p.Flag("course") && p.Has("join")) return Usage("", "--course and --join exclude each other");
+  if (p.String("device") == "keyboard-mouse" && p.Flag("headless"))
+    return Usage("device", "keyboard-mouse needs a window (not --headless)");
+  if (p.Has("force-log")) {
+    // Truncated once here; each session's channel appends (one log across reconnects).
+    std::FILE* f = std::fopen(p.String("force-log").c_str(), "w");
+    if (!f) return Usage("force-log", "cannot write '" + p.String("force-log") + "'");
+    std::fclose(f);
   }
-  // The scene, as the server will run it: the same file gives the same vertex order.
-  auto scene = vsurg::sim::LoadSceneByName(scene_name);
-  if (!scene.ok()) return Fail("scene: " + scene.error().message);
-  if (exercise && !exercise->task.empty()) {  // the exercise's task, as the server runs it
+  return std::nullopt;
+}
+
+// Following the course: the server says which exercise (and so which scene) comes next.
+vsurg::Expected<std::optional<client::CourseExercise>> NextExercise(const ArgParser& p,
+                                                                    const client::Remote& remote) {
+  if (!p.Flag("course")) return std::optional<client::CourseExercise>();
+  auto next = client::NextCourseExercise(remote, p.Has("exercise") ? p.Int("exercise") : 0,
+                                         remote.timeout_s);
+  if (!next.ok()) return next.error();
+  if (!next->may_attempt)
+    return vsurg::Error{vsurg::ErrorCode::kResourceExhausted,
+                        "today's attempts at '" + next->title + "' are used up", "course"};
+  std::cerr << "vsurg-station: course '" << next->course << "', exercise " << next->position << ". "
+            << next->title << " (" << next->scene << "): " << next->attempts << " attempts, "
+            << next->streak << " of " << next->consecutive << " passes in a row; targets:";
+  for (const std::string& t : next->targets) std::cerr << " " << t << ";";
+  std::cerr << "\n";
+  return std::optional<client::CourseExercise>(*next);
+}
+
+// The scene as the server will run it (the same file gives the same vertex order), with an
+// exercise's task.
+vsurg::Expected<sim::Scene> StationScene(const std::string& name,
+                                         const std::optional<client::CourseExercise>& exercise) {
+  auto scene = sim::LoadSceneByName(name);
+  if (!scene.ok()) return vsurg::Error{scene.error().code, "scene: " + scene.error().message, ""};
+  if (!exercise) return scene;
+  if (!exercise->task.empty()) {
     auto task = vsurg::scoring::ApplyTaskSettings(scene->task, exercise->task);
-    if (!task.ok()) return Fail("exercise task: " + task.error().message);
+    if (!task.ok())
+      return vsurg::Error{task.error().code, "exercise task: " + task.error().message, ""};
     scene->task = *task;
   }
-  if (exercise) {
-    const vsurg::scoring::TaskSpec& t = scene->task;
-    const bool twist = t.kind == vsurg::scoring::TaskKind::kTwist;
-    const vsurg::scoring::TaskDisplayUnit unit = vsurg::scoring::DisplayUnitOf(t.kind);
-    const std::string u = std::string(" ") + unit.name;
-    std::cerr << "vsurg-station: task: " << (twist ? "twist to " : "press to ")
-              << vsurg::Fixed(t.target * unit.per_si, 1) << u << " within "
-              << vsurg::Fixed(t.tolerance * unit.per_si, 1) << u << ", held "
-              << vsurg::Fixed(t.hold_s, 1) << " s, under " << vsurg::Fixed(t.force_limit, 1)
-              << " N, in " << vsurg::Fixed(t.time_limit, 0) << " s\n";
-  }
-  auto mesh = vsurg::sim::BuildSceneMesh(scene->mesh);
-  if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
-  auto visual = vsurg::sim::BuildVisualModel(*scene, mesh->surface);
-  if (!visual.ok()) return Fail("scene visual model: " + visual.error().message);
-  const std::string quality_name = p.String("quality");
-  std::optional<client::Quality> fixed_quality;
-  for (client::Quality q :
-       {client::Quality::kLow, client::Quality::kMedium, client::Quality::kHigh})
-    if (quality_name == client::QualityName(q)) fixed_quality = q;
-  if (!fixed_quality && quality_name != "auto")
-    return std::cerr << "vsurg-station: --quality: auto, low, medium or high\n", 2;
+  const vsurg::scoring::TaskSpec& t = scene->task;
+  const vsurg::scoring::TaskDisplayUnit unit = vsurg::scoring::DisplayUnitOf(t.kind);
+  const std::string u = std::string(" ") + unit.name;
+  std::cerr << "vsurg-station: task: "
+            << (t.kind == vsurg::scoring::TaskKind::kTwist ? "twist to " : "press to ")
+            << Fixed(t.target * unit.per_si, 1) << u << " within "
+            << Fixed(t.tolerance * unit.per_si, 1) << u << ", held " << Fixed(t.hold_s, 1)
+            << " s, under " << Fixed(t.force_limit, 1) << " N, in " << Fixed(t.time_limit, 0)
+            << " s\n";
+  return scene;
+}
 
-  // The device first (bad options are reported before any window opens); the keyboard and
-  // mouse need the window, so that one is opened after it.
+// The device request: the options, and where the scene's tissue is (the hand starts above its
+// middle; a twist turns about its longest axis).
+client::DeviceRequest DeviceRequestFor(const ArgParser& p,
+                                       const vsurg::geometry::TriMesh& surface) {
   client::DeviceRequest request;
   request.kind = p.String("device");
   if (p.Has("trajectory")) request.trajectory = p.String("trajectory");
   request.limits = p.String("limits");
   request.grip = p.String("grip");
-  auto rendering = client::ParseLocalRendering(p.String("local-model"));
-  if (!rendering.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), rendering.error());
-  auto passivity = client::ParsePassivityMode(p.String("passivity"));
-  if (!passivity.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), passivity.error());
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
-  for (const auto& v : mesh->surface.positions) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  for (const auto& v : surface.positions) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
   Eigen::Index longest = 0;
   (hi - lo).maxCoeff(&longest);
   request.twist_axis = Eigen::Vector3d::Unit(longest);
   request.start = 0.5 * (lo + hi);
   request.start.z() = hi.z() + 0.02;  // above the tissue
-  const bool needs_window = request.kind == "keyboard-mouse";
-  if (needs_window && p.Flag("headless"))
-    return std::cerr << "vsurg-station: --device: keyboard-mouse needs a window (not --headless)\n",
-           2;
-  vsurg::Expected<std::unique_ptr<client::HapticDevice>> device =
-      needs_window ? vsurg::Expected<std::unique_ptr<client::HapticDevice>>(nullptr)
-                   : client::OpenDevice(request);
-  if (!device.ok()) {
-    std::cerr << "vsurg-station: " << device.error().field << ": " << device.error().message
-              << "\n";
-    return 2;
-  }
+  return request;
+}
 
-  auto surface = p.Flag("headless")
-                     ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
-                     : client::GlSurface::CreateWindow("vsurg station: " + scene->name,
-                                                       p.Int("width"), p.Int("height"));
-  if (!surface.ok()) return Fail(surface.error().message);
-  client::GlSurface* gl = surface->get();
-  client::MeshView view(mesh->surface, std::move(*visual));
-  client::QualityGovernor governor(fixed_quality.value_or(client::Quality::kHigh));
-  view.SetQuality(governor.level());
-  // The press depth shown: how far the contact point lies below the tissue's rest surface.
-  const vsurg::geometry::Bvh rest_bvh(mesh->surface);
-  if (needs_window) {
-    request.window_input = [gl] { return gl->Input(); };
-    device = client::OpenDevice(request);
-    if (!device.ok()) return Fail(device.error().message);
-  }
-  auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
-  auto* hand = dynamic_cast<client::VirtualHandDevice*>(device->get());
-  const auto played_out = [&] {
-    return (replay && replay->finished()) || (hand && hand->finished());
-  };
-
+vsurg::Expected<client::StationConfig> ConfigFor(
+    const ArgParser& p, const std::string& scene_name, const sim::Scene& scene,
+    const std::optional<client::CourseExercise>& exercise) {
   client::StationConfig config;
   config.scene = scene_name;
   if (exercise) config.exercise_id = exercise->exercise_id;
-  if (p.Has("join")) {
-    if (p.Int("join") < 1) {
-      std::cerr << "vsurg-station: --join: a session id (≥ 1) is required\n";
-      return 2;
-    }
-    config.join = static_cast<uint64_t>(p.Int("join"));
-  }
+  if (p.Has("join")) config.join = static_cast<uint64_t>(p.Int("join"));
+  auto rendering = client::ParseLocalRendering(p.String("local-model"));
+  if (!rendering.ok()) return rendering.error();
+  auto passivity = client::ParsePassivityMode(p.String("passivity"));
+  if (!passivity.ok()) return passivity.error();
   config.rate_hz = p.Double("rate");
   config.rendering = *rendering;
   config.passivity = *passivity;
   config.deadband = p.Double("deadband");
-  config.force_limit_n = scene->task.force_limit;
-  if (!(config.deadband >= 0 && config.deadband < 1))
-    return std::cerr << "vsurg-station: --deadband: a fraction in [0, 1)\n", 2;
+  config.force_limit_n = scene.task.force_limit;
   config.model_hold_s = p.Double("model-hold");
-  if (!(config.model_hold_s >= 0 && config.model_hold_s <= 10))
-    return std::cerr << "vsurg-station: --model-hold: seconds in [0, 10]\n", 2;
-  if (p.Has("force-log")) {
-    config.force_log = p.String("force-log");
-    // Truncated once here; each session's channel appends (one log across reconnects).
-    std::FILE* f = std::fopen(config.force_log.c_str(), "w");
-    if (!f)
-      return std::cerr << "vsurg-station: --force-log: cannot write '" << config.force_log << "'\n",
-             2;
-    std::fclose(f);
-  }
+  if (p.Has("force-log")) config.force_log = p.String("force-log");
   config.reconnect = !p.Flag("no-reconnect");
   config.realtime_priority = p.Int("realtime-priority");
-  if (config.realtime_priority < 0 || config.realtime_priority > 99)
-    return std::cerr << "vsurg-station: --realtime-priority: must be within 0..99\n", 2;
-  client::Station station(*remote, device->get(), config);
+  return config;
+}
 
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+// What a trial is drawn with: the window or offscreen surface, the tissue's view and its
+// quality governor, the rest surface for the press depth.
+struct Screen {
+  std::unique_ptr<client::GlSurface> gl;
+  std::unique_ptr<client::MeshView> view;
+  std::optional<client::Quality> fixed_quality;  // --quality other than auto
+  std::unique_ptr<client::QualityGovernor> governor;
+  const vsurg::geometry::TriMesh* rest = nullptr;
+  std::unique_ptr<vsurg::geometry::Bvh> rest_bvh;
+};
 
-  const auto started = std::chrono::steady_clock::now();
+// The frame loop's state: what the trial showed so far and when it is over.
+struct Trial {
+  Trial(const ArgParser& options, const sim::Scene& trained, Screen& drawn, client::Station& st,
+        std::function<bool()> finished)
+      : p(options), scene(trained), screen(drawn), station(st), played_out(std::move(finished)) {}
+  const ArgParser& p;
+  const sim::Scene& scene;
+  Screen& screen;
+  client::Station& station;
+  std::function<bool()> played_out;  // a replay or virtual hand finished
+  std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
   double live_now = 0;  // seconds live, summed over sessions
   double last_tick = 0;
   bool screenshot_taken = false, before_taken = false, ended_by_replay = false;
@@ -355,29 +332,14 @@ int Run(const std::vector<std::string>& args) {
   client::StationView shown;
   double held_s = 0, last_frame_at = 0;  // the task's quantity within tolerance, so far
   std::vector<double> draw_ms;           // per frame: draw and finish, ms
-  const auto frame = std::chrono::duration<double>(1.0 / fps);
-  auto next_frame = std::chrono::steady_clock::now();
-  // The session's life on its own thread: a frame that takes seconds (a first frame on a
-  // software renderer, a driver's stall) does not delay noticing a lost server.
-  station.StartSupervisor([](const client::StationStatus& st) {
-    vsurg::LogFields fields{{"state", client::StationStateName(st.state)}, {"session", st.session}};
-    if (!st.last_error.empty()) fields.emplace_back("reason", st.last_error);
-    vsurg::LogEvent("vsurg-station", "state", fields);
-  });
-  for (;;) {
-    const client::StationStatus st = station.status();
-    if (st.state == client::StationState::kFailed) return Fail(st.last_error);
-    if (st.generation == 0 && Seconds(started) > p.Double("connect-timeout"))
-      return Fail("no session within --connect-timeout: " + st.last_error);
-    const bool live = st.state == client::StationState::kLive;
-    const double tick = Seconds(started);
-    if (live) live_now += tick - last_tick;
-    last_tick = tick;
 
+  // The channel's news (a new session's rest, the moved vertices, the latest view) and the
+  // overlay drawn over it this frame.
+  client::Overlay Compose(const client::StationStatus& st, double tick) {
     client::Overlay overlay;
     uint64_t channel_generation = 0, channel_session = 0;
     std::vector<vsurg::wire::SceneChunk> chunks;
-    const bool refresh_hud = tick - last_rate_at >= 0.5;  // the HUD's figures, twice a second
+    const bool refresh_hud = tick - last_rate_at >= 0.5;
     const bool has_channel =
         station.WithChannel([&](client::StationChannel& channel, const client::StationStatus& at) {
           channel_generation = at.generation;
@@ -386,187 +348,335 @@ int Run(const std::vector<std::string>& args) {
           channel.TakeView(shown);
           if (refresh_hud) hud_stats = channel.stats();
         });
-    if (has_channel) {
-      if (channel_generation != generation) {
-        generation = channel_generation;
-        view.ResetToRest();  // a new session starts from the tissue at rest
-      }
-      for (const auto& chunk : chunks) view.Apply(chunk.indices, chunk.positions);
-      if (refresh_hud) {
-        // A new session's channel counts from zero again.
-        rate_hz = last_rate_at > 0 && hud_stats.sent >= last_sent
-                      ? static_cast<double>(hud_stats.sent - last_sent) / (tick - last_rate_at)
-                      : 0;
-        last_sent = hud_stats.sent;
-        last_rate_at = tick;
-      }
-      const client::StationStats& s = hud_stats;
-      overlay.guidance = Guidance(*scene, shown, s, live_now);
-      if (!overlay.guidance.twist)
-        overlay.guidance.current = PressDepth(rest_bvh, mesh->surface, shown);
-      {
-        const auto& g = overlay.guidance;
-        const bool within =
-            std::abs(std::abs(g.current) - g.target) <= g.tolerance && g.force_n <= g.force_limit_n;
-        held_s = within ? held_s + (tick - last_frame_at) : 0;
-        overlay.guidance.held_s = held_s;
-      }
-      overlay.show_stylus = true;
-      overlay.tip = shown.sample.position;
-      overlay.orientation = shown.sample.orientation;
-      overlay.force = shown.force;
-      overlay.contact = shown.command.contact;
-      overlay.grasping = shown.command.grasping;
-      overlay.hud = {
-          "vsurg station  " + scene->name + "  session " + std::to_string(channel_session),
-          sim::LinkStatus(rate_hz, s.rtt_p50_us, s.loss),
-          "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
-              Fixed(shown.force.norm(), 2) + " N",
-          "score " + Fixed(shown.command.score, 1) + " / 10"};
-      // Beyond what the local model holds faithfully (docs/BENCHMARKS.md "Haptics across
-      // networks": within 20% of the no-delay force up to 300 ms round trips, 1% loss), the
-      // trainee is told plainly instead of feeling a mushy tissue.
-      if (s.rtt_p50_us > 300e3 || s.loss > 0.10)
-        overlay.hud.push_back("LINK TOO POOR FOR FAITHFUL TOUCH: " + Fixed(s.rtt_p50_us / 1e3, 0) +
-                              " ms round trip, " + Fixed(100 * s.loss, 0) +
-                              "% lost (limits 300 ms, 10%)");
-    } else {
-      overlay.hud = {"vsurg station  " + scene->name,
+    if (!has_channel) {
+      overlay.hud = {"vsurg station  " + scene.name,
                      std::string(client::StationStateName(st.state)) + " ...",
                      st.last_error.substr(0, 60)};
+      return overlay;
     }
-    last_frame_at = tick;
-    const auto draw_start = std::chrono::steady_clock::now();
-    view.Draw(gl->width(), gl->height(), overlay);
-    gl->Finish();  // the frame's whole cost, not just the commands queued
-    draw_ms.push_back(1e3 * Seconds(draw_start));
-    if (!fixed_quality) view.SetQuality(governor.Update(draw_ms.back()));
+    if (channel_generation != generation) {
+      generation = channel_generation;
+      screen.view->ResetToRest();  // a new session starts from the tissue at rest
+    }
+    for (const auto& chunk : chunks) screen.view->Apply(chunk.indices, chunk.positions);
+    if (refresh_hud) {
+      // A new session's channel counts from zero again.
+      rate_hz = last_rate_at > 0 && hud_stats.sent >= last_sent
+                    ? static_cast<double>(hud_stats.sent - last_sent) / (tick - last_rate_at)
+                    : 0;
+      last_sent = hud_stats.sent;
+      last_rate_at = tick;
+    }
+    Gauges(overlay, tick);
+    Hud(overlay, channel_session);
+    return overlay;
+  }
 
+  // The task's gauges, and how long the task's quantity has been held within tolerance.
+  void Gauges(client::Overlay& overlay, double tick) {
+    overlay.guidance = Guidance(scene, shown, hud_stats, live_now);
+    client::Guidance& g = overlay.guidance;
+    if (!g.twist) g.current = PressDepth(*screen.rest_bvh, *screen.rest, shown);
+    const bool within =
+        std::abs(std::abs(g.current) - g.target) <= g.tolerance && g.force_n <= g.force_limit_n;
+    held_s = within ? held_s + (tick - last_frame_at) : 0;
+    g.held_s = held_s;
+  }
+
+  // The stylus and the HUD's lines.
+  void Hud(client::Overlay& overlay, uint64_t session) const {
+    const client::StationStats& s = hud_stats;
+    overlay.show_stylus = true;
+    overlay.tip = shown.sample.position;
+    overlay.orientation = shown.sample.orientation;
+    overlay.force = shown.force;
+    overlay.contact = shown.command.contact;
+    overlay.grasping = shown.command.grasping;
+    overlay.hud = {"vsurg station  " + scene.name + "  session " + std::to_string(session),
+                   sim::LinkStatus(rate_hz, s.rtt_p50_us, s.loss),
+                   "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
+                       Fixed(shown.force.norm(), 2) + " N",
+                   "score " + Fixed(shown.command.score, 1) + " / 10"};
+    // Beyond what the local model holds faithfully (docs/BENCHMARKS.md "Haptics across
+    // networks": within 20% of the no-delay force up to 300 ms round trips, 1% loss), the
+    // trainee is told plainly instead of feeling a mushy tissue.
+    if (s.rtt_p50_us > 300e3 || s.loss > 0.10)
+      overlay.hud.push_back("LINK TOO POOR FOR FAITHFUL TOUCH: " + Fixed(s.rtt_p50_us / 1e3, 0) +
+                            " ms round trip, " + Fixed(100 * s.loss, 0) +
+                            "% lost (limits 300 ms, 10%)");
+  }
+
+  // The frame drawn and finished (its whole cost, not just the commands queued); the quality
+  // follows the measured times unless fixed.
+  void Draw(const client::Overlay& overlay) {
+    client::GlSurface& gl = *screen.gl;
+    const auto draw_start = std::chrono::steady_clock::now();
+    screen.view->Draw(gl.width(), gl.height(), overlay);
+    gl.Finish();
+    draw_ms.push_back(1e3 * Seconds(draw_start));
+    if (!screen.fixed_quality) screen.view->SetQuality(screen.governor->Update(draw_ms.back()));
+  }
+
+  // --screenshot-before at the first live frame, --screenshot at --screenshot-at.
+  vsurg::Status Screenshots(bool live) {
+    client::GlSurface& gl = *screen.gl;
     if (live && !before_taken && p.Has("screenshot-before")) {
       before_taken = true;
-      if (auto s = gl->SaveScreenshot(p.String("screenshot-before")); !s.ok())
-        return Fail(s.error().message);
+      if (auto s = gl.SaveScreenshot(p.String("screenshot-before")); !s.ok()) return s;
     }
     const bool at_time = p.Has("screenshot-at") && live && live_now >= p.Double("screenshot-at");
     if (p.Has("screenshot") && !screenshot_taken && at_time) {
       screenshot_taken = true;
-      if (auto s = gl->SaveScreenshot(p.String("screenshot")); !s.ok())
-        return Fail(s.error().message);
+      if (auto s = gl.SaveScreenshot(p.String("screenshot")); !s.ok()) return s;
     }
+    return vsurg::Status::Ok();
+  }
 
-    // When to stop: the replay played out (and settled), the time is up, the window closed, or
-    // a signal. The last frame is kept for --screenshot without --screenshot-at.
+  // When to stop: the replay played out (and settled), the time is up, the window closed, or a
+  // signal.
+  bool Done(bool live) {
     if (live && played_out() && replay_done_at < 0) replay_done_at = live_now;
     const double duration = p.Double("duration");
-    bool done = g_interrupted || gl->ShouldClose();
-    if (duration > 0 && live && live_now >= duration) done = true;
+    if (g_interrupted || screen.gl->ShouldClose()) return true;
+    if (duration > 0 && live && live_now >= duration) return true;
     if (duration <= 0 && replay_done_at >= 0 && live_now - replay_done_at >= p.Double("settle"))
-      done = ended_by_replay = true;
-    if (done) {
-      if (p.Has("screenshot") && !screenshot_taken)
-        if (auto s = gl->SaveScreenshot(p.String("screenshot")); !s.ok())
-          return Fail(s.error().message);
-      gl->EndFrame();
-      break;
-    }
-    gl->EndFrame();
-    next_frame += std::chrono::duration_cast<std::chrono::steady_clock::duration>(frame);
-    const auto now = std::chrono::steady_clock::now();
-    if (now > next_frame) next_frame = now;
-    std::this_thread::sleep_until(next_frame);
+      return ended_by_replay = true;
+    return false;
   }
+
+  // Frames at --fps until the trial is over; the last frame is kept for --screenshot without
+  // --screenshot-at. An error ends the station.
+  vsurg::Status Run() {
+    const auto frame = std::chrono::duration<double>(1.0 / p.Double("fps"));
+    auto next_frame = std::chrono::steady_clock::now();
+    for (;;) {
+      const client::StationStatus st = station.status();
+      if (st.state == client::StationState::kFailed)
+        return vsurg::Error{vsurg::ErrorCode::kUnavailable, st.last_error, ""};
+      if (st.generation == 0 && Seconds(started) > p.Double("connect-timeout"))
+        return vsurg::Error{vsurg::ErrorCode::kUnavailable,
+                            "no session within --connect-timeout: " + st.last_error, ""};
+      const bool live = st.state == client::StationState::kLive;
+      const double tick = Seconds(started);
+      if (live) live_now += tick - last_tick;
+      last_tick = tick;
+      const client::Overlay overlay = Compose(st, tick);
+      last_frame_at = tick;
+      Draw(overlay);
+      if (vsurg::Status s = Screenshots(live); !s.ok()) return s;
+      if (Done(live)) {
+        if (p.Has("screenshot") && !screenshot_taken)
+          if (auto s = screen.gl->SaveScreenshot(p.String("screenshot")); !s.ok()) return s;
+        screen.gl->EndFrame();
+        return vsurg::Status::Ok();
+      }
+      screen.gl->EndFrame();
+      next_frame += std::chrono::duration_cast<std::chrono::steady_clock::duration>(frame);
+      const auto now = std::chrono::steady_clock::now();
+      if (now > next_frame) next_frame = now;
+      std::this_thread::sleep_until(next_frame);
+    }
+  }
+};
+
+// The surface (a window, or offscreen) and the tissue's view on it.
+vsurg::Expected<Screen> OpenScreen(const ArgParser& p, const sim::Scene& scene,
+                                   const sim::SceneMesh& mesh, sim::VisualModel visual) {
+  Screen screen;
+  const std::string quality = p.String("quality");
+  for (client::Quality q :
+       {client::Quality::kLow, client::Quality::kMedium, client::Quality::kHigh})
+    if (quality == client::QualityName(q)) screen.fixed_quality = q;
+  if (!screen.fixed_quality && quality != "auto")
+    return vsurg::InvalidArgument("--quality", "auto, low, medium or high");
+  auto surface = p.Flag("headless")
+                     ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
+                     : client::GlSurface::CreateWindow("vsurg station: " + scene.name,
+                                                       p.Int("width"), p.Int("height"));
+  if (!surface.ok()) return surface.error();
+  screen.gl = std::move(surface).value();
+  screen.view = std::make_unique<client::MeshView>(mesh.surface, std::move(visual));
+  screen.governor = std::make_unique<client::QualityGovernor>(
+      screen.fixed_quality.value_or(client::Quality::kHigh));
+  screen.view->SetQuality(screen.governor->level());
+  screen.rest = &mesh.surface;
+  screen.rest_bvh = std::make_unique<vsurg::geometry::Bvh>(mesh.surface);
+  return screen;
+}
+
+// The end-of-trial summary on screen: the score and what lowered it (a window keeps it until
+// closed, or 15 s). A panel's size settles over its first frames (ImGui fits it to its text):
+// the screenshot is of the third.
+vsurg::Status ShowSummary(const ArgParser& p, const sim::Scene& scene, Screen& screen,
+                          const client::SessionSummary& summary) {
+  client::GlSurface& gl = *screen.gl;
+  if (!summary.has_metrics || !(p.Has("screenshot-summary") || !gl.headless()))
+    return vsurg::Status::Ok();
+  client::Overlay last;
+  last.hud = {"vsurg station  " + scene.name + "  session " + std::to_string(summary.id)};
+  last.summary.show = true;
+  last.summary.score = summary.metrics.score;
+  last.summary.lines = vsurg::scoring::ExplainScore(summary.metrics, scene.task);
+  if (last.summary.lines.empty()) last.summary.lines = {"Nothing lowered it: expert level"};
+  for (const TargetLine& line : TargetLines(summary)) last.summary.lines.push_back(line.text);
+  const auto shown_at = std::chrono::steady_clock::now();
+  for (int frames = 1;; ++frames) {
+    screen.view->Draw(gl.width(), gl.height(), last);
+    if (frames == 3 && p.Has("screenshot-summary"))
+      if (auto s = gl.SaveScreenshot(p.String("screenshot-summary")); !s.ok()) return s;
+    gl.EndFrame();
+    if (gl.headless() ? frames >= 3 : gl.ShouldClose() || g_interrupted || Seconds(shown_at) > 15)
+      return vsurg::Status::Ok();
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+// The trial's figures as one JSON object (--json).
+nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::StationStatus& st,
+                           const client::StationStats& stats, const Trial& trial,
+                           int render_threads,
+                           const std::optional<client::CourseExercise>& exercise) {
+  nlohmann::json j = {{"session", summary.id},
+                      {"state", SessionStateName(summary.state)},
+                      {"end_reason", summary.end_reason},
+                      {"reconnects", st.reconnects},
+                      {"sessions", st.generation - static_cast<uint64_t>(st.moves)},
+                      {"moves", st.moves},
+                      {"longest_gap_ms", 1e3 * st.longest_gap_s},
+                      {"sent", stats.sent},
+                      {"received", stats.received},
+                      {"loss", stats.loss},
+                      {"lost", stats.lost},
+                      {"stale", stats.stale},
+                      {"duplicates", stats.duplicates},
+                      {"late", stats.late},
+                      {"dropped", stats.dropped},
+                      {"rtt_p50_us", stats.rtt_p50_us},
+                      {"rtt_p99_us", stats.rtt_p99_us},
+                      {"rtt_p999_us", stats.rtt_p999_us},
+                      {"jitter_us", stats.jitter_us},
+                      {"energy_to_hand_j", stats.energy_to_hand},
+                      {"energy_from_hand_j", stats.energy_from_hand},
+                      {"passivity_dissipated_j", stats.passivity_energy_dissipated},
+                      {"tissue_released_j", stats.tissue_released},
+                      {"network_balance_min_j", stats.network_balance_min},
+                      {"force_log_rows", stats.force_log_rows},
+                      {"force_log_dropped", stats.force_log_dropped},
+                      {"watchdog_fades", stats.watchdog_fades},
+                      {"scene_chunks", stats.scene_chunks},
+                      {"max_force_n", stats.max_force},
+                      {"loop_hz", stats.loop_hz},
+                      {"loop_hz_min_1s", stats.loop_hz_min},
+                      {"loop_hz_max_1s", stats.loop_hz_max},
+                      {"frames", trial.draw_ms.size()},
+                      {"draw_ms_p50", Percentile(trial.draw_ms, 0.5)},
+                      {"render_threads", render_threads},
+                      {"draw_ms_p99", Percentile(trial.draw_ms, 0.99)},
+                      {"metrics_recorded", summary.has_metrics},
+                      {"metrics", vsurg::scoring::TrialMetricsToJson(summary.metrics)}};
+  if (exercise) {
+    nlohmann::json targets = nlohmann::json::array();
+    for (const auto& t : summary.targets)
+      targets.push_back(
+          {{"metric", t.metric}, {"value", t.value}, {"target", t.target}, {"met", t.met}});
+    j["exercise"] = {{"id", exercise->exercise_id},
+                     {"title", exercise->title},
+                     {"targets", targets},
+                     {"passed", summary.targets_passed}};
+  }
+  return j;
+}
+
+void PrintSummary(const client::SessionSummary& summary, const client::StationStatus& st,
+                  const client::StationStats& stats) {
+  const auto& m = summary.metrics;
+  std::cout << "session " << summary.id << " " << SessionStateName(summary.state) << " ("
+            << summary.end_reason << "): score " << Fixed(m.score, 1) << "/10, completed "
+            << (m.completed ? "yes" : "no") << ", peak force " << Fixed(m.peak_force, 2) << " N, "
+            << stats.received << "/" << stats.sent << " datagrams answered, RTT p50 "
+            << Fixed(stats.rtt_p50_us, 0) << " us, " << st.reconnects << " reconnects\n";
+  for (const TargetLine& line : TargetLines(summary)) std::cout << "  " << line.text << "\n";
+}
+
+int Run(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-station",
+              "A trainee's station: joins a session on the server, streams the stylus over UDP "
+              "at 1 kHz and draws the tissue (window, or --headless offscreen).");
+  DeclareOptions(p);
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
+  if (auto rc = CheckOptions(p)) return *rc;
+  // On a software renderer the frame shares the cores with the haptic threads (and, on this
+  // machine kind, the server): twice as many rasterizer threads as cores kept the frame's p99
+  // lower with the server beside it (docs/BENCHMARKS.md, "Rasterizer threads"). First, while this
+  // is the only thread: it sets an environment variable.
+  const int render_threads = client::RequestSoftwareRenderThreads(
+      p.Int("render-threads") >= 0
+          ? p.Int("render-threads")
+          : static_cast<int>(std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u)));
+  auto remote = client::ConnectRemote(p);
+  if (!remote.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), remote.error());
+  auto exercise = NextExercise(p, *remote);
+  if (!exercise.ok()) return Fail(exercise.error().message);
+  const std::string scene_name = *exercise ? (*exercise)->scene : p.String("scene");
+  auto scene = StationScene(scene_name, *exercise);
+  if (!scene.ok()) return Fail(scene.error().message);
+  auto mesh = sim::BuildSceneMesh(scene->mesh);
+  if (!mesh.ok()) return Fail("scene mesh: " + mesh.error().message);
+  auto visual = sim::BuildVisualModel(*scene, mesh->surface);
+  if (!visual.ok()) return Fail("scene visual model: " + visual.error().message);
+  auto config = ConfigFor(p, scene_name, *scene, *exercise);
+  if (!config.ok()) return vsurg::cli::UsageError(std::cerr, p.command(), config.error());
+
+  // The device first (bad options are reported before any window opens); the keyboard and
+  // mouse need the window, so that one is opened after it.
+  client::DeviceRequest request = DeviceRequestFor(p, mesh->surface);
+  const bool needs_window = request.kind == "keyboard-mouse";
+  vsurg::Expected<std::unique_ptr<client::HapticDevice>> device =
+      needs_window ? vsurg::Expected<std::unique_ptr<client::HapticDevice>>(nullptr)
+                   : client::OpenDevice(request);
+  if (!device.ok()) return Usage("", device.error().field + ": " + device.error().message);
+  auto screen = OpenScreen(p, *scene, *mesh, std::move(*visual));
+  if (!screen.ok()) {
+    if (screen.error().code == vsurg::ErrorCode::kInvalidArgument)
+      return vsurg::cli::UsageError(std::cerr, p.command(), screen.error());
+    return Fail(screen.error().message);
+  }
+  if (needs_window) {
+    request.window_input = [gl = screen->gl.get()] { return gl->Input(); };
+    device = client::OpenDevice(request);
+    if (!device.ok()) return Fail(device.error().message);
+  }
+  auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
+  auto* hand = dynamic_cast<client::VirtualHandDevice*>(device->get());
+  client::Station station(*remote, device->get(), *config);
+
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  // The session's life on its own thread: a frame that takes seconds (a first frame on a
+  // software renderer, a driver's stall) does not delay noticing a lost server.
+  station.StartSupervisor([](const client::StationStatus& st) {
+    vsurg::LogFields fields{{"state", client::StationStateName(st.state)}, {"session", st.session}};
+    if (!st.last_error.empty()) fields.emplace_back("reason", st.last_error);
+    vsurg::LogEvent("vsurg-station", "state", fields);
+  });
+  Trial trial{p, *scene, *screen, station,
+              [&] { return (replay && replay->finished()) || (hand && hand->finished()); }};
+  if (vsurg::Status s = trial.Run(); !s.ok()) return Fail(s.error().message);
 
   const client::StationStatus st = station.status();
   const client::StationStats stats = station.total_stats();
-  auto summary = station.Finish(ended_by_replay ? "completed"
-                                : g_interrupted ? "interrupted"
-                                                : "stopped");
+  auto summary = station.Finish(trial.ended_by_replay ? "completed"
+                                : g_interrupted       ? "interrupted"
+                                                      : "stopped");
   if (!summary.ok()) return Fail(summary.error().message);
-  const auto& m = summary->metrics;
-  // The end-of-trial summary on screen: the score and what lowered it (a window keeps it until
-  // closed, or 15 s).
-  if (summary->has_metrics && (p.Has("screenshot-summary") || !gl->headless())) {
-    client::Overlay last;
-    last.hud = {"vsurg station  " + scene->name + "  session " + std::to_string(summary->id)};
-    last.summary.show = true;
-    last.summary.score = m.score;
-    last.summary.lines = vsurg::scoring::ExplainScore(m, scene->task);
-    if (last.summary.lines.empty()) last.summary.lines = {"Nothing lowered it: expert level"};
-    for (const TargetLine& line : TargetLines(*summary)) last.summary.lines.push_back(line.text);
-    // A panel's size settles over its first frames (ImGui fits it to its text): the
-    // screenshot is of the third.
-    const auto shown_at = std::chrono::steady_clock::now();
-    for (int frames = 1;; ++frames) {
-      view.Draw(gl->width(), gl->height(), last);
-      if (frames == 3 && p.Has("screenshot-summary")) {
-        if (auto s = gl->SaveScreenshot(p.String("screenshot-summary")); !s.ok())
-          return Fail(s.error().message);
-      }
-      gl->EndFrame();
-      if (gl->headless() ? frames >= 3
-                         : gl->ShouldClose() || g_interrupted || Seconds(shown_at) > 15)
-        break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-  }
-  if (p.Flag("json")) {
-    nlohmann::json j = {{"session", summary->id},
-                        {"state", SessionStateName(summary->state)},
-                        {"end_reason", summary->end_reason},
-                        {"reconnects", st.reconnects},
-                        {"sessions", st.generation - static_cast<uint64_t>(st.moves)},
-                        {"moves", st.moves},
-                        {"longest_gap_ms", 1e3 * st.longest_gap_s},
-                        {"sent", stats.sent},
-                        {"received", stats.received},
-                        {"loss", stats.loss},
-                        {"lost", stats.lost},
-                        {"stale", stats.stale},
-                        {"duplicates", stats.duplicates},
-                        {"late", stats.late},
-                        {"dropped", stats.dropped},
-                        {"rtt_p50_us", stats.rtt_p50_us},
-                        {"rtt_p99_us", stats.rtt_p99_us},
-                        {"rtt_p999_us", stats.rtt_p999_us},
-                        {"jitter_us", stats.jitter_us},
-                        {"energy_to_hand_j", stats.energy_to_hand},
-                        {"energy_from_hand_j", stats.energy_from_hand},
-                        {"passivity_dissipated_j", stats.passivity_energy_dissipated},
-                        {"tissue_released_j", stats.tissue_released},
-                        {"network_balance_min_j", stats.network_balance_min},
-                        {"force_log_rows", stats.force_log_rows},
-                        {"force_log_dropped", stats.force_log_dropped},
-                        {"watchdog_fades", stats.watchdog_fades},
-                        {"scene_chunks", stats.scene_chunks},
-                        {"max_force_n", stats.max_force},
-                        {"loop_hz", stats.loop_hz},
-                        {"loop_hz_min_1s", stats.loop_hz_min},
-                        {"loop_hz_max_1s", stats.loop_hz_max},
-                        {"frames", draw_ms.size()},
-                        {"draw_ms_p50", Percentile(draw_ms, 0.5)},
-                        {"render_threads", render_threads},
-                        {"draw_ms_p99", Percentile(draw_ms, 0.99)},
-                        {"metrics_recorded", summary->has_metrics},
-                        {"metrics", vsurg::scoring::TrialMetricsToJson(m)}};
-    if (exercise) {
-      nlohmann::json targets = nlohmann::json::array();
-      for (const auto& t : summary->targets)
-        targets.push_back(
-            {{"metric", t.metric}, {"value", t.value}, {"target", t.target}, {"met", t.met}});
-      j["exercise"] = {{"id", exercise->exercise_id},
-                       {"title", exercise->title},
-                       {"targets", targets},
-                       {"passed", summary->targets_passed}};
-    }
-    std::cout << j.dump() << "\n";
-  } else {
-    std::cout << "session " << summary->id << " " << SessionStateName(summary->state) << " ("
-              << summary->end_reason << "): score " << Fixed(m.score, 1) << "/10, completed "
-              << (m.completed ? "yes" : "no") << ", peak force " << Fixed(m.peak_force, 2) << " N, "
-              << stats.received << "/" << stats.sent << " datagrams answered, RTT p50 "
-              << Fixed(stats.rtt_p50_us, 0) << " us, " << st.reconnects << " reconnects\n";
-    for (const TargetLine& line : TargetLines(*summary)) std::cout << "  " << line.text << "\n";
-  }
+  if (vsurg::Status s = ShowSummary(p, *scene, *screen, *summary); !s.ok())
+    return Fail(s.error().message);
+  if (p.Flag("json"))
+    std::cout << SummaryJson(*summary, st, stats, trial, render_threads, *exercise).dump() << "\n";
+  else
+    PrintSummary(*summary, st, stats);
   return 0;
 }
 

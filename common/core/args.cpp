@@ -28,7 +28,12 @@ ArgParser::ArgParser(std::string command, std::string summary)
 ArgParser& ArgParser::Option(const std::string& name, Kind kind, const std::string& help,
                              bool required, const std::string& default_value) {
   order_.push_back(name);
-  specs_[name] = Spec{kind, help, required, default_value};
+  specs_[name] = Spec{kind, help, required, default_value, std::nullopt};
+  return *this;
+}
+
+ArgParser& ArgParser::Within(Range r) {
+  specs_.at(order_.back()).range = r;
   return *this;
 }
 
@@ -68,10 +73,14 @@ Status ArgParser::Parse(const std::vector<std::string>& args) {
       double d;
       if (!ToDouble(value, d))
         return InvalidArgument("--" + name, "'" + value + "' is not a finite number");
+      if (spec.range && !spec.range->Contains(d))
+        return InvalidArgument("--" + name, spec.range->Must());
     } else if (spec.kind == Kind::kInt) {
       int n;
       if (!ToInt(value, n))
         return InvalidArgument("--" + name, "'" + value + "' is not an integer");
+      if (spec.range && !spec.range->Contains(n))
+        return InvalidArgument("--" + name, spec.range->Must());
     } else if (value.empty()) {
       return InvalidArgument("--" + name, "needs a non-empty value");
     }
@@ -121,6 +130,7 @@ std::string ArgParser::Help() const {
     for (size_t pad = name.size(); pad < 16; ++pad) out << ' ';
     out << ' ' << s.help;
     if (!s.default_value.empty()) out << " (default " << s.default_value << ")";
+    if (s.range) out << " (within " << s.range->Text() << ")";
     if (s.required) out << " (required)";
     out << '\n';
   }

@@ -13,8 +13,11 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/core/range.h"
 
 namespace vsurg::cli {
+
+using vsurg::Range;
 
 class ArgParser {
  public:
@@ -26,6 +29,8 @@ class ArgParser {
   // `default_value` empty and `required` false: the option is optional with no default.
   ArgParser& Option(const std::string& name, Kind kind, const std::string& help,
                     bool required = false, const std::string& default_value = "");
+  // The last declared option's value must lie within `r` (checked by Parse, shown by Help).
+  ArgParser& Within(Range r);
 
   // Parses args (without the program and command names). `--help` is always accepted.
   Status Parse(const std::vector<std::string>& args);
@@ -39,6 +44,9 @@ class ArgParser {
   int Int(const std::string& name) const;
   std::string String(const std::string& name) const;
   bool Flag(const std::string& name) const { return Has(name); }
+  // What an option was declared with: its default ("" for none) and its bounds, if any.
+  std::string DefaultOf(const std::string& name) const { return specs_.at(name).default_value; }
+  std::optional<Range> RangeOf(const std::string& name) const { return specs_.at(name).range; }
 
  private:
   struct Spec {
@@ -46,6 +54,7 @@ class ArgParser {
     std::string help;
     bool required;
     std::string default_value;
+    std::optional<Range> range;
   };
   std::string command_, summary_;
   std::vector<std::string> order_;

@@ -46,6 +46,7 @@
 #include <string>
 
 #include "common/core/expected.h"
+#include "common/core/range.h"
 #include "server/session/sessions.h"
 
 namespace vsurg::db {
@@ -64,6 +65,9 @@ class MetricsText;
 namespace vsurg::server::cluster {
 
 struct ClusterOptions {
+  // The bounds checked at start (and shown by vsurg-server's options).
+  static constexpr Range kTlsRefreshS{1, 86400}, kStoreLeaseS{2, 300}, kHeartbeatPeriodS{0.05, 10},
+      kHeartbeatTimeoutS{0.1, 120}, kTelemetryHz{1, 120};
   std::string token;            // the site's cluster secret (≥ 16 characters)
   std::string listen;           // the internal API's host:port (port 0: any free one)
   bool allow_insecure = false;  // plaintext off loopback (a cluster network; see SCALING.md)
@@ -132,6 +136,7 @@ class ClusterSessions final : public Sessions {
 };
 
 struct NodeOptions {
+  static constexpr Range kCapacity{1, 4096};
   std::string name;       // unique in the site
   std::string advertise;  // host:port the control plane reaches NodeService at
   std::string control;    // the control plane's internal API: host:port[,host:port…]

@@ -111,8 +111,8 @@ Expected<TlsFiles> WatchTlsFiles(const ClusterOptions& o) {
     if (text.find(f.marker) == std::string::npos)
       return InvalidArgument(f.flag, f.path + " does not hold " + f.kind);
   }
-  if (!(o.tls_refresh_s >= 1 && o.tls_refresh_s <= 86400))
-    return InvalidArgument("cluster-tls-refresh", "must be within 1..86400 seconds");
+  if (!ClusterOptions::kTlsRefreshS.Contains(o.tls_refresh_s))
+    return InvalidArgument("cluster-tls-refresh", ClusterOptions::kTlsRefreshS.Must() + " seconds");
   if (o.control_name.empty() || o.control_name.size() > 253)
     return InvalidArgument("cluster-control-name", "a name of 1 to 253 characters is required");
   return TlsFiles(std::make_shared<grpc::experimental::FileWatcherCertificateProvider>(

@@ -45,8 +45,8 @@ int ClusterSessions::health_port() const {
 
 Expected<std::unique_ptr<ClusterSessions>> ClusterSessions::Start(db::Store& store,
                                                                   const ClusterOptions& options) {
-  if (!(options.telemetry_hz >= 1 && options.telemetry_hz <= 120))
-    return InvalidArgument("telemetry-hz", "must be within 1..120");
+  if (!ClusterOptions::kTelemetryHz.Contains(options.telemetry_hz))
+    return InvalidArgument("telemetry-hz", ClusterOptions::kTelemetryHz.Must());
   auto tls = WatchTlsFiles(options);
   if (!tls.ok()) return tls.error();
   auto impl = std::make_unique<Impl>(store, options);

@@ -424,8 +424,8 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
     return InvalidArgument("node-name", "a node name of 1 to 64 characters is required");
   if (options.control.empty())
     return InvalidArgument("control", "the control plane's internal address is required");
-  if (options.capacity < 1 || options.capacity > 4096)
-    return InvalidArgument("capacity", "must be within 1..4096 sessions");
+  if (!NodeOptions::kCapacity.Contains(options.capacity))
+    return InvalidArgument("capacity", NodeOptions::kCapacity.Must() + " sessions");
   if (!options.lease) return InvalidArgument("lease", "a node needs a lease to hold");
   const ClusterOptions& c = options.cluster;
   if (!(c.lease_margin_s >= 0 &&

@@ -48,6 +48,7 @@
 
 #include "common/core/clock.h"
 #include "common/core/expected.h"
+#include "common/core/range.h"
 #include "common/core/session_state.h"
 #include "proto/wire/datagram.h"
 
@@ -60,6 +61,9 @@ namespace vsurg::server {
 class Lease;
 
 struct EndpointOptions {
+  // The bounds Create checks (and vsurg-server's options show).
+  static constexpr Range kPort{0, 65535}, kRealtimePriority{0, 99}, kIoThreads{1, 16},
+      kBusyPollUs{0, 10000};
   std::string address = "127.0.0.1";  // loopback unless configured otherwise
   uint16_t port = 0;                  // 0: an ephemeral port (see port())
   double stall_after_s = 0.5;
@@ -158,8 +162,8 @@ class UdpEndpoint {
   static Expected<std::unique_ptr<UdpEndpoint>> Create(const EndpointOptions& options);
   ~UdpEndpoint();  // stops and joins
 
-  static constexpr int kMaxIoThreads = 16;
-  static constexpr int kMaxBusyPollUs = 10000;  // EndpointOptions::busy_poll_us
+  static constexpr int kMaxIoThreads = static_cast<int>(EndpointOptions::kIoThreads.hi);
+  static constexpr int kMaxBusyPollUs = static_cast<int>(EndpointOptions::kBusyPollUs.hi);
 
   uint16_t port() const;
   int io_threads() const;

@@ -32,19 +32,21 @@ Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
   const SessionManagerOptions& o = options;
   if (o.udp_host.empty() || o.udp_host.size() > 253)
     return InvalidArgument("udp_host", "the host stations are told to send to is required");
-  if (!(o.telemetry_hz >= 1 && o.telemetry_hz <= 1000))
-    return InvalidArgument("telemetry_hz", "must be within 1..1000 Hz");
-  if (o.max_live_sessions < 1 || o.max_live_sessions > 65536)
-    return InvalidArgument("max_live_sessions", "must be within 1..65536");
+  using O = SessionManagerOptions;
+  if (!O::kTelemetryHz.Contains(o.telemetry_hz))
+    return InvalidArgument("telemetry_hz", O::kTelemetryHz.Must() + " Hz");
+  if (!O::kMaxLiveSessions.Contains(o.max_live_sessions))
+    return InvalidArgument("max_live_sessions", O::kMaxLiveSessions.Must());
   if (o.max_sessions_per_user < 1 || o.max_sessions_per_user > o.max_live_sessions)
     return InvalidArgument("max_sessions_per_user", "must be within 1..max_live_sessions");
-  if (!(o.start_timeout_s > 0 && o.start_timeout_s <= 86400))
-    return InvalidArgument("start_timeout_s", "must be within 0..86400 s");
+  if (!O::kStartTimeoutS.Contains(o.start_timeout_s))
+    return InvalidArgument("start_timeout_s", O::kStartTimeoutS.Must() + " s");
   if (o.node.size() > 64) return InvalidArgument("node", "a node name has at most 64 characters");
-  if (o.deformation_workers < -1 || o.deformation_workers > 256)
-    return InvalidArgument("deformation_workers", "must be within -1..256 (0: one per core)");
-  if (!(o.quasi_static_interval_s >= 0 && o.quasi_static_interval_s <= 0.1))
-    return InvalidArgument("quasi_static_interval_s", "must be within 0..0.1 s");
+  if (!O::kDeformationWorkers.Contains(o.deformation_workers))
+    return InvalidArgument("deformation_workers",
+                           O::kDeformationWorkers.Must() + " (0: one per core)");
+  if (!O::kQuasiStaticIntervalS.Contains(o.quasi_static_interval_s))
+    return InvalidArgument("quasi_static_interval_s", O::kQuasiStaticIntervalS.Must() + " s");
   if (!o.node.empty() && !o.lease)
     return InvalidArgument("lease", "a simulation node's sessions need its lease");
   // Nothing is live in a new process: what the store says is live was left by one that died.

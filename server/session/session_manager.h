@@ -58,6 +58,7 @@
 #include <vector>
 
 #include "common/core/clock.h"
+#include "common/core/range.h"
 #include "common/core/expected.h"
 #include "common/core/log.h"
 #include "common/sim/simulation.h"
@@ -93,6 +94,9 @@ struct SessionHandoff {
 };
 
 struct SessionManagerOptions {
+  // The bounds Open checks (and vsurg-server's options show).
+  static constexpr Range kTelemetryHz{1, 1000}, kMaxLiveSessions{1, 65536},
+      kStartTimeoutS{0.1, 86400}, kDeformationWorkers{-1, 256}, kQuasiStaticIntervalS{0, 0.1};
   std::string udp_host = "127.0.0.1";  // what stations are told to send to
   // ... and at which port (0: the endpoint's own). A relay or a NAT in front of the endpoint
   // (bench/relay: network impairment) listens on another port than the endpoint's.

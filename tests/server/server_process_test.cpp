@@ -317,10 +317,15 @@ TEST(ServerRolesCliTest, BadRoleSettingsExitTwoNamingTheFlag) {
             "--cluster-token-file: cannot read"},
            {"--role control" + pg + " --cluster-token-file " + token +
                 " --cluster-heartbeat-timeout 0.9",
-            "--cluster-heartbeat-timeout: must be at most 120 s"},
+            "--cluster-heartbeat-timeout: less 0.25 s of margin, must last two heartbeat"},
+           {"--role control" + pg + " --cluster-token-file " + token +
+                " --cluster-heartbeat-timeout 500",
+            "--cluster-heartbeat-timeout: must be within 0.1..120"},
            {"--role sim" + pg + " --control 127.0.0.1:7000 --cluster-token-file " + token +
                 " --cluster-heartbeat-period 0",
-            "--cluster-heartbeat-period: must be within 0.05..10 s"},
+            "--cluster-heartbeat-period: must be within 0.05..10"},
+           {"--db " + (dir / "x.db").string() + " --max-sessions 4 --max-sessions-per-user 5",
+            "--max-sessions-per-user: must be at most --max-sessions"},
            {"--role control" + pg + " --cluster-token-file " + token +
                 " --cluster-heartbeat-timeout nan",
             "--cluster-heartbeat-timeout"},

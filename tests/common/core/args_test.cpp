@@ -24,6 +24,33 @@ std::string FieldOf(ArgParser& p, const std::vector<std::string>& args) {
   return s.ok() ? "ok" : s.error().field;
 }
 
+// A declared range is checked on parsing (both ends inclusive, integers too) and shown in help;
+// a default outside it is the declarer's business, never checked against a value not given.
+TEST(ArgParserTest, ARangeIsEnforcedAndShown) {
+  ArgParser p("tool", "");
+  p.Option("rate", Kind::kDouble, "Hz", false, "30")
+      .Within({1, 120})
+      .Option("threads", Kind::kInt, "count", false, "1")
+      .Within({1, 16})
+      .Option("name", Kind::kString, "a name");
+  EXPECT_TRUE(p.Parse({"--rate", "120", "--threads", "1"}).ok());
+  const Status high = p.Parse({"--rate", "120.5"});
+  ASSERT_FALSE(high.ok());
+  EXPECT_EQ(high.error().field, "--rate");
+  EXPECT_EQ(high.error().message, "must be within 1..120");
+  EXPECT_EQ(FieldOf(p, {"--threads", "0"}), "--threads");
+  EXPECT_EQ(FieldOf(p, {"--threads", "17"}), "--threads");
+  EXPECT_EQ(p.RangeOf("rate")->hi, 120);
+  EXPECT_FALSE(p.RangeOf("name"));
+  EXPECT_NE(p.Help().find("Hz (default 30) (within 1..120)"), std::string::npos) << p.Help();
+  // The shortest text that reads back the same number; And and Scaled for derived bounds.
+  EXPECT_EQ(NumberText(0.05), "0.05");
+  EXPECT_EQ(NumberText(65536), "65536");
+  EXPECT_EQ(NumberText(1.0 / 3), "0.3333333333333333");
+  EXPECT_EQ(Range({1, 1000}).And({0, 120}).Text(), "1..120");
+  EXPECT_EQ(Range({0, 0.1}).Scaled(1e3).Text(), "0..100");
+}
+
 TEST(ArgParserTest, ReadsEveryFormAndKeepsDefaults) {
   ArgParser p = Parser();
   ASSERT_TRUE(p.Parse({"--steps", "-3", "--name=a b", "--json"}).ok());
