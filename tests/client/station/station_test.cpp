@@ -279,6 +279,33 @@ TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
 }
 
 // The binaries, as the demo runs them.
+// The station's --help shows the bounds and defaults of the settings it fills, and the parser
+// holds to them before anything opens (exit 2, the option named).
+TEST(StationBinaryTest, ItsOptionsAreTheStationConfigsBounds) {
+  const std::string station = VSURG_STATION_BINARY;
+  const test::ShellRun help = test::Shell(station + " --help");
+  ASSERT_EQ(help.code, 0) << help.out;
+  const StationConfig c;
+  const auto shows = [&](const std::string& option, double def, Range r) {
+    return help.out.find(" (default " + NumberText(def) + ") (within " + r.Text() + ")",
+                         help.out.find("--" + option + " ")) != std::string::npos;
+  };
+  EXPECT_TRUE(shows("realtime-priority", c.realtime_priority, StationConfig::kRealtimePriority))
+      << help.out;
+  EXPECT_TRUE(shows("model-hold", c.model_hold_s, StationConfig::kModelHoldS)) << help.out;
+  EXPECT_TRUE(shows("deadband", c.deadband, StationConfig::kDeadband)) << help.out;
+  for (const std::string& bad :
+       {std::string("--model-hold 11"), std::string("--realtime-priority 100"),
+        std::string("--deadband 1"), std::string("--fps 0"), std::string("--join 0")}) {
+    const test::ShellRun r =
+        test::Shell(station + " --server 127.0.0.1:1 --token t " + bad + " 2>&1");
+    EXPECT_EQ(r.code, 2) << bad << "\n" << r.out;
+    EXPECT_NE(r.out.find(bad.substr(0, bad.find(' ')) + ": must be within"), std::string::npos)
+        << bad << "\n"
+        << r.out;
+  }
+}
+
 TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstructor) {
   Site site("vsurg_station_binary");
   auto& [dir, db, tokens, server] = site;
