@@ -93,6 +93,21 @@ constexpr const char* kPerSocketHelp =
     "stations that share one of the driver's sockets and go out as one batch (1: a socket per "
     "station, as separate machines; more: a driver that spends less of the two cores)";
 
+// The options haptic-rtt and udp-floor share (the load both put on loopback), declared once.
+void DeclareStationLoad(ArgParser& p, const std::string& priority_help) {
+  using vsurg::server::EndpointOptions;
+  p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
+      .Within({1, 1024})
+      .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
+      .Within({0.001, 3600})
+      .Option("realtime-priority", ArgParser::Kind::kInt, priority_help, false, "0")
+      .Within(EndpointOptions::kRealtimePriority)
+      .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
+      .Within({1, 100})
+      .Option("stations-per-socket", ArgParser::Kind::kInt, kPerSocketHelp, false, "1")
+      .Within({1, 64});
+}
+
 // Station i's session key, the same in haptic-rtt and udp-floor (sessions 1000 + i).
 vsurg::wire::SessionKey BenchKey(int i) {
   vsurg::wire::SessionKey key;
@@ -489,19 +504,19 @@ int HapticRtt(const std::vector<std::string>& args) {
   ArgParser p(
       "vsurg-bench haptic-rtt",
       "Round trip of stylus datagram -> force datagram for N stations at 1 kHz on loopback.");
-  p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
-      .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
-      .Option("scene", ArgParser::Kind::kString, "scene each session runs", false, "arm-torsion")
+  DeclareStationLoad(
+      p,
+      "SCHED_FIFO priority of the endpoint's I/O thread and of the stations' thread, when "
+      "permitted (vsurg-server's --realtime-priority, default " +
+          std::to_string(vsurg::server::EndpointOptions{}.realtime_priority) +
+          "; vsurg-station's, default 20)");
+  p.Option("scene", ArgParser::Kind::kString, "scene each session runs", false, "arm-torsion")
       .Option("idle", ArgParser::Kind::kInt,
               "sessions that exist but nobody drives (never-started ones)", false, "0")
       .Option("idle-scene", ArgParser::Kind::kString, "their scene", false, "sphere-palpation-256")
       .Option("idle-threads", ArgParser::Kind::kFlag,
               "give idle sessions a running deformation thread, as before the server started "
               "one only for a driven session (for comparison)")
-      .Option("realtime-priority", ArgParser::Kind::kInt,
-              "SCHED_FIFO priority of the endpoint's I/O thread and of the stations' thread, "
-              "when permitted, as vsurg-server and vsurg-station set theirs (default there: 20)",
-              false, "0")
       .Option("dashboard-clients", ArgParser::Kind::kInt,
               "run the server's own stack (store, session manager, web dashboard) and have this "
               "many dashboard clients follow every session live (-1: the bare endpoint)",
@@ -518,8 +533,7 @@ int HapticRtt(const std::vector<std::string>& args) {
               "microseconds the endpoint's I/O threads poll before they sleep, while datagrams "
               "come at least once per window (vsurg-server's --busy-poll-us; 0: never)",
               false, "0")
-      .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
-      .Option("stations-per-socket", ArgParser::Kind::kInt, kPerSocketHelp, false, "1")
+      .Within(vsurg::server::EndpointOptions::kBusyPollUs)
       .Option("stroke-mm", ArgParser::Kind::kDouble,
               "after the warm-up each stylus circles its resting point at this radius once a "
               "second (0: it rests)",
@@ -562,10 +576,7 @@ int HapticRtt(const std::vector<std::string>& args) {
     return std::cerr << p.command() << ": --pool-workers: must be in -1..64\n", 2;
   std::unique_ptr<vsurg::sim::DeformationPool> pool;
   if (pool_workers >= 0) pool = std::make_unique<vsurg::sim::DeformationPool>(pool_workers);
-  const double seconds = p.Has("seconds") ? p.Double("seconds") : 10.0;
-  if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
-  if (!(seconds > 0 && seconds <= 3600))
-    return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
+  const double seconds = p.Double("seconds");
   auto scene = vsurg::sim::LoadSceneByName(p.String("scene"));
   if (!scene.ok())
     return std::cerr << p.command() << ": --scene: " << scene.error().message << "\n", 2;
@@ -585,18 +596,9 @@ int HapticRtt(const std::vector<std::string>& args) {
     idle_sims.push_back(std::move(*sim));
   }
 
-  const int period_ms = static_cast<int>(p.Int("period-ms"));
-  if (period_ms < 1 || period_ms > 100)
-    return std::cerr << p.command() << ": --period-ms: must be in 1..100\n", 2;
+  const int period_ms = p.Int("period-ms");
   const int per_socket = p.Int("stations-per-socket");
-  if (per_socket < 1 || per_socket > 64)
-    return std::cerr << p.command() << ": --stations-per-socket: must be in 1..64\n", 2;
   const int priority = p.Int("realtime-priority");
-  if (priority < 0 || priority > 99)
-    return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
-  if (p.Int("busy-poll-us") < 0 ||
-      p.Int("busy-poll-us") > vsurg::server::UdpEndpoint::kMaxBusyPollUs)
-    return std::cerr << p.command() << ": --busy-poll-us: must be in 0..10000\n", 2;
   auto endpoint =
       vsurg::server::UdpEndpoint::Create({.visual_hz = p.Double("visual-hz"),
                                           .realtime_priority = priority,
@@ -817,37 +819,21 @@ int UdpFloor(const std::vector<std::string>& args) {
   ArgParser p("vsurg-bench udp-floor",
               "The bare-UDP floor under haptic-rtt: the same stations, pacing and statistics "
               "against a plain echo on loopback.");
-  p.Option("stations", ArgParser::Kind::kInt, "simulated stations", false, "1")
-      .Option("seconds", ArgParser::Kind::kDouble, "measurement time, s", false, "10")
-      .Option("realtime-priority", ArgParser::Kind::kInt,
-              "SCHED_FIFO priority of the echo thread and of the stations' thread, when "
-              "permitted (as haptic-rtt's)",
-              false, "0")
-      .Option("period-ms", ArgParser::Kind::kInt, kPeriodHelp, false, "1")
-      .Option("stations-per-socket", ArgParser::Kind::kInt, kPerSocketHelp, false, "1")
-      .Option("busy-poll-us", ArgParser::Kind::kInt,
-              "the echo polls this long before it blocks, by haptic-rtt's rule (0: the plain "
-              "blocking echo, the floor)",
-              false, "0")
+  DeclareStationLoad(p,
+                     "SCHED_FIFO priority of the echo thread and of the stations' thread, when "
+                     "permitted (as haptic-rtt's)");
+  p.Option("busy-poll-us", ArgParser::Kind::kInt,
+           "the echo polls this long before it blocks, by haptic-rtt's rule (0: the plain "
+           "blocking echo, the floor)",
+           false, "0")
+      .Within(vsurg::server::EndpointOptions::kBusyPollUs)
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const int n = p.Int("stations");
-  if (p.Int("busy-poll-us") < 0 ||
-      p.Int("busy-poll-us") > vsurg::server::UdpEndpoint::kMaxBusyPollUs)
-    return std::cerr << p.command() << ": --busy-poll-us: must be in 0..10000\n", 2;
   const double seconds = p.Double("seconds");
-  if (n < 1 || n > 1024) return std::cerr << p.command() << ": --stations: must be in 1..1024\n", 2;
-  if (!(seconds > 0 && seconds <= 3600))
-    return std::cerr << p.command() << ": --seconds: must be in (0, 3600]\n", 2;
-  const int period_ms = static_cast<int>(p.Int("period-ms"));
-  if (period_ms < 1 || period_ms > 100)
-    return std::cerr << p.command() << ": --period-ms: must be in 1..100\n", 2;
+  const int period_ms = p.Int("period-ms");
   const int per_socket = p.Int("stations-per-socket");
-  if (per_socket < 1 || per_socket > 64)
-    return std::cerr << p.command() << ": --stations-per-socket: must be in 1..64\n", 2;
   const int priority = p.Int("realtime-priority");
-  if (priority < 0 || priority > 99)
-    return std::cerr << p.command() << ": --realtime-priority: must be in 0..99\n", 2;
   auto echo = UdpEcho::Start(priority, static_cast<int>(p.Int("busy-poll-us")));
   if (!echo.ok()) return std::cerr << p.command() << ": " << echo.error().message << "\n", 1;
   asio::io_context io;
