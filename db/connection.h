@@ -110,7 +110,8 @@ class Connection {
   // BEGIN IMMEDIATE already does).
   virtual Status LockSchema() = 0;
   // The same for placement (Store::ReservePlacement): one control replica at a time reads the
-  // nodes' load and reserves its choice.
+  // nodes' load and reserves its choice; on PostgreSQL that transaction's commit does not wait
+  // for the WAL's flush (a reservation is a transient count, never acknowledged to anyone).
   virtual Status LockPlacements() = 0;
   virtual Expected<int> SchemaVersion() = 0;
   virtual Status SetSchemaVersion(int version) = 0;

@@ -16,7 +16,11 @@ constexpr const char* kTables[] = {
 
 // Any number the store's processes agree on: the advisory lock that serialises migrations.
 constexpr const char* kSchemaLock = "SELECT pg_advisory_xact_lock(731052811)";
-constexpr const char* kPlacementLock = "SELECT pg_advisory_xact_lock(731052812)";
+// A reservation is a transient count, not a record: its commit need not wait for the WAL's
+// flush (a reservation a crash loses counts no longer than its expiry would have), so the lock is
+// held for the statements, not for an fsync. One round trip for both.
+constexpr const char* kPlacementLock =
+    "SELECT pg_advisory_xact_lock(731052812), set_config('synchronous_commit', 'off', true)";
 
 bool Succeeded(pg_result* r) {
   const auto s = PQresultStatus(r);

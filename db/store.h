@@ -44,7 +44,9 @@
 //     transaction-scoped advisory lock, SQLite's write lock), and the node's CreateSession (or
 //     MoveSession) deletes the reservation in the transaction that writes the session's row.
 //     A load read at any moment counts every placement once, whichever replica made it and
-//     whether or not its node has answered yet.
+//     whether or not its node has answered yet. The reservation runs on a connection of its own
+//     (never queued behind the writer's batch), and on PostgreSQL its commit does not wait for
+//     the WAL's flush: a reservation is a transient count that expires, never a record.
 //
 // Thread safety: every public member may be called from any thread.
 #pragma once
@@ -361,8 +363,7 @@ class Store {
   };
   using ChooseNode =
       std::function<std::optional<std::string>(const std::map<std::string, int>& load)>;
-  Expected<std::optional<Placement>> ReservePlacement(int64_t expires_us,
-                                                      const ChooseNode& choose);
+  Expected<std::optional<Placement>> ReservePlacement(int64_t expires_us, const ChooseNode& choose);
   // The reservation ends without a session (the node refused or did not answer), or after one
   // (a no-op once the node's row replaced it).
   Status ReleasePlacement(const std::string& token);

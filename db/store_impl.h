@@ -37,6 +37,13 @@ struct Store::Impl {
   bool stopping = false;
   std::thread thread;
 
+  // Placement's own read-write connection (store_placement.cpp): a reservation never waits in
+  // the writer's queue behind a batch and its commit. Opened on first use, renewed when lost.
+  std::mutex placement_mutex;
+  std::unique_ptr<Connection> placement;
+  // `job` on that connection, under its mutex.
+  Status OnPlacementConnection(const Job& job);
+
   std::mutex pool_mutex;
   std::vector<std::unique_ptr<Connection>> pool;
 
@@ -49,7 +56,7 @@ struct Store::Impl {
   // A job run alone (Pending::alone), waited for: one statement in autocommit, or a job that
   // makes its own transaction.
   Status WriteAlone(Job job);
-  void Post(Pending job);       // queues a job, or fails it at once (read-only, stopping)
+  void Post(Pending job);  // queues a job, or fails it at once (read-only, stopping)
   void CountCommit(double seconds, size_t jobs, uint64_t failed, bool commit_failed);
 
   // A pooled read connection, returned on scope exit.

@@ -65,6 +65,17 @@ Status Reserve(Connection& c, const std::string& token, int64_t expires_us,
 
 }  // namespace
 
+Status Store::Impl::OnPlacementConnection(const Job& job) {
+  if (read_only) return Error{ErrorCode::kFailedPrecondition, "the store is open read-only", ""};
+  std::lock_guard lock(placement_mutex);
+  if (!placement || placement->Broken()) {
+    auto c = Connection::Open(options.path, Connection::Mode::kReadWrite, options.busy_timeout_ms);
+    if (!c.ok()) return c.error();
+    placement = std::move(c).value();
+  }
+  return job(*placement);
+}
+
 Status EndPlacement(Connection& c, const std::string& token) {
   if (token.empty()) return Status::Ok();
   return RunSql(c, "DELETE FROM placements WHERE token = ?1",
@@ -76,9 +87,9 @@ Expected<std::optional<Store::Placement>> Store::ReservePlacement(int64_t expire
   auto token = NewPlacementToken();
   if (!token.ok()) return token.error();
   std::optional<Placement> out;
-  // Its own transaction, run alone (ahead of the batch): the lock is held only while one
-  // placement reads and reserves, never while other jobs of a batch run.
-  Status s = impl_->WriteAlone([&](Connection& c) -> Status {
+  // Its own transaction on its own connection: the lock is held only while one placement reads
+  // and reserves, never while other jobs of a batch run, and it never queues behind them.
+  Status s = impl_->OnPlacementConnection([&](Connection& c) -> Status {
     Status st = c.BeginWrite();
     if (!st.ok()) return st;
     st = Reserve(c, *token, expires_us, choose, out);
@@ -91,7 +102,7 @@ Expected<std::optional<Store::Placement>> Store::ReservePlacement(int64_t expire
 }
 
 Status Store::ReleasePlacement(const std::string& token) {
-  return impl_->WriteAlone([token](Connection& c) { return EndPlacement(c, token); });
+  return impl_->OnPlacementConnection([&token](Connection& c) { return EndPlacement(c, token); });
 }
 
 }  // namespace vsurg::db
