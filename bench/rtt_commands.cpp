@@ -284,6 +284,20 @@ struct AnswerReader {
   }
 };
 
+// The driver's sockets on loopback, non-blocking, each stamping its datagrams' arrival (for
+// arrival_rtt_us).
+std::vector<std::unique_ptr<udp::socket>> StationSocketsOn(asio::io_context& io, int count) {
+  std::vector<std::unique_ptr<udp::socket>> sockets;
+  for (int i = 0; i < count; ++i) {
+    sockets.push_back(
+        std::make_unique<udp::socket>(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)));
+    sockets.back()->non_blocking(true);
+    const int on = 1;
+    ::setsockopt(sockets.back()->native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+  }
+  return sockets;
+}
+
 // The stations' side of haptic-rtt and udp-floor, the same for both: each station sends an
 // authenticated stylus datagram every millisecond (stamped with the send time, which the answer
 // echoes), spread over the millisecond in 8 slots of 125 µs as independent stations would be
@@ -301,14 +315,7 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
   const int n = static_cast<int>(stations.size());
   const int slots = kSlotsPerMs * period_ms;
   const int socket_count = StationSockets(n, per_socket, slots);
-  std::vector<std::unique_ptr<udp::socket>> sockets;
-  for (int i = 0; i < socket_count; ++i) {
-    sockets.push_back(
-        std::make_unique<udp::socket>(io, udp::endpoint(asio::ip::make_address("127.0.0.1"), 0)));
-    sockets.back()->non_blocking(true);
-    const int on = 1;  // each datagram's arrival stamp, for arrival_rtt_us
-    ::setsockopt(sockets.back()->native_handle(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
-  }
+  std::vector<std::unique_ptr<udp::socket>> sockets = StationSocketsOn(io, socket_count);
   std::unordered_map<uint64_t, Station*> by_session;
   for (auto& st : stations) by_session[st->session] = st.get();
   const Clock::time_point start = Clock::now();
