@@ -388,7 +388,10 @@ TEST_F(WanTest, TheTissuesOwnContactModelIsSafeAcrossTheNetworkWhateverTheLoad) 
     if (f.phantom_n >= 0.05) PrintAfterContact(c.run, ref.run, f);
     EXPECT_LT(f.onset_delay_cycles, 15) << profile;
     EXPECT_LT(std::abs(f.onset_extra_mm), 0.5) << profile;
-    EXPECT_LT(f.energy_excess_mj, 1.0) << profile;
+    // Passive end to end: the hand is given no net energy over the press (it gives the tissue
+    // 0.7-1.3 mJ unimpaired). Not against the unimpaired run's own figure: beside CPU hogs that
+    // run's press differs (peak 0.7-1.1 N), and a passive run's excess over it reached 1.1 mJ.
+    EXPECT_LT(f.energy_to_hand_mj, 0.1) << profile;
     EXPECT_LT(f.oscillation_n, 2 * Compare(ref.run, ref.run, true).oscillation_n + 0.02) << profile;
   }
 }
