@@ -218,6 +218,12 @@ CREATE TABLE placements (
   expires_us  INTEGER NOT NULL
 );
 )sql",
+      // 8: four-handed training: how much of a trial an instructor's hand was on the tool
+      // (scoring::TrialMetrics::guided_share, guided_alpha; 0 for trials alone).
+      R"sql(
+ALTER TABLE trial_metrics ADD COLUMN guided_share REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN guided_alpha REAL NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }

@@ -28,6 +28,8 @@ scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first) {
   m.link.jitter_ms = q.Double(first + 15);
   m.link.loss = q.Double(first + 16);
   m.link.rate_hz = q.Double(first + 17);
+  m.guided_share = q.Double(first + 18);
+  m.guided_alpha = q.Double(first + 19);
   return m;
 }
 

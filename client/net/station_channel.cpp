@@ -385,6 +385,14 @@ struct StationChannel::Impl {
       case LocalRendering::kModel:
         break;
     }
+    // A shared tool's answer (four-handed training): the tool is not at this station's tip, so
+    // neither its own surface nor its tissue point applies; the answer's linear model is the
+    // coupling and the share of the tissue the server computed for this hand.
+    if (answer.shared) {
+      held = false;
+      v.surface.Yield();
+      return answer.local.ForceAt(s.position);
+    }
     // The server's contact or grasp is the tissue as it is; a free answer is a round trip old,
     // and the station's own surface (when it has one) says where the tissue begins now.
     if (answer.contact || answer.grasping) {

@@ -138,6 +138,12 @@ struct ForceCommand {
   // received by sign (J, cumulative, never decreasing). A passive tissue takes at least what it
   // gives back; the station's network passivity lets the hand be given no more than released_j.
   double released_j = 0, absorbed_j = 0;
+  // Four-handed training (sim/guidance.h): the session's guidance mode (sim::GuideMode's value)
+  // and dominance α now; `shared`, the answer is a shared tool's: render `local` as a linear
+  // model only (no contact of the station's own, whose tip is not where the tool is).
+  uint32_t guide_mode = 0;
+  double guide_alpha = 0;
+  bool shared = false;
 };
 
 }  // namespace vsurg::haptics

@@ -41,6 +41,11 @@ struct TrialMetrics {
   double score = 0;      // 0–10 after the gates
   double raw_score = 0;  // 0–10 before the gates
   uint32_t caps = 0;     // ScoreCap bits that applied
+  // Four-handed training: the share of the trial's time an instructor's hand was on the tool
+  // (dominance α > 0), 0..1, and the mean α over that time. The other figures are the trainee's
+  // own work: their hand's path, their share of the tissue's force.
+  double guided_share = 0;
+  double guided_alpha = 0;
   LinkFigures link;      // filled by the server that ran the session (not by the recorder)
 };
 

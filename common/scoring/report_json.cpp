@@ -129,6 +129,8 @@ nlohmann::json TrialMetricsToJson(const TrialMetrics& m) {
           {"capped_not_completed", (m.caps & kCapNotCompleted) != 0},
           {"capped_force_limit", (m.caps & kCapForceLimit) != 0},
           {"capped_overload", (m.caps & kCapOverload) != 0},
+          {"guided_share", m.guided_share},
+          {"guided_alpha", m.guided_alpha},
           {"link",
            {{"station_peak_force_n", m.link.station_peak_force},
             {"station_time_over_limit_s", m.link.station_time_over_limit},

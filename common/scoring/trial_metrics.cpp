@@ -229,6 +229,15 @@ std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& tas
   return out;
 }
 
+void TrialRecorder::AddGuidance(double time, double alpha) {
+  if (guide_t_ >= 0 && time > guide_t_ && guide_alpha_ > 0) {
+    guided_s_ += time - guide_t_;
+    guided_alpha_s_ += guide_alpha_ * (time - guide_t_);
+  }
+  guide_t_ = time;
+  guide_alpha_ = std::isfinite(alpha) ? std::clamp(alpha, 0.0, 1.0) : 0.0;
+}
+
 TrialMetrics TrialRecorder::Finish() const {
   TrialMetrics m;
   if (samples_ == 0) {
@@ -244,6 +253,8 @@ TrialMetrics TrialRecorder::Finish() const {
   m.duration = t_last_ - t0_;
   m.overload_events = overloads_;
   if (m.duration > 0) m.rms_jerk = std::sqrt(jerk2_ / m.duration);
+  if (m.duration > 0) m.guided_share = std::min(1.0, guided_s_ / m.duration);
+  if (guided_s_ > 0) m.guided_alpha = guided_alpha_s_ / guided_s_;
   const ScoreParts parts = ScorePartsOf(m, task_);
   m.raw_score = parts.Points();
   m.score = m.raw_score;

@@ -100,6 +100,9 @@ class TrialRecorder {
   explicit TrialRecorder(const TaskSpec& task) : task_(task) {}
 
   void Add(double time, const Eigen::Vector3d& tip, double quantity, double force, bool overload);
+  // Four-handed training: the instructor's dominance α at `time` (0: the trainee alone), held
+  // until the next call; gives TrialMetrics::guided_share and guided_alpha.
+  void AddGuidance(double time, double alpha);
   TrialMetrics Finish() const;
   const TaskSpec& task() const { return task_; }
   // The recorder's state (common/core/state_archive.h): a session moved to another node goes on
@@ -110,7 +113,7 @@ class TrialRecorder {
     a(samples_, t0_, t_last_, last_quantity_, filtered_, x_, grid_, next_grid_, last_tip_, history_,
       history_size_, history_next_, velocity_, velocity_known_, jerk2_, path_, peak_, over_,
       was_overloaded_, overloads_, in_window_, window_start_, completed_, completion_,
-      error_at_completion_);
+      error_at_completion_, guide_t_, guide_alpha_, guided_s_, guided_alpha_s_);
   }
 
  private:
@@ -159,6 +162,8 @@ class TrialRecorder {
   bool completed_ = false;
   double completion_ = 0;
   double error_at_completion_ = 0;
+  double guide_t_ = -1, guide_alpha_ = 0;     // the last AddGuidance (−1: none yet)
+  double guided_s_ = 0, guided_alpha_s_ = 0;  // s with α > 0, and ∫α dt
 };
 
 }  // namespace vsurg::scoring

@@ -69,6 +69,7 @@ Simulation::Simulation(const Scene& scene, geometry::TriMesh rest, const Simulat
       proxy_(*haptics::ProxyContact::Create({})),
       safety_(*haptics::SafetyFilter::Create(haptics::TouchLimits())),
       recorder_(scene.task),
+      instructor_safety_(*haptics::SafetyFilter::Create(haptics::TouchLimits())),
       quasi_static_interval_(std::chrono::duration_cast<DeformationPool::Clock::duration>(
           std::chrono::duration<double>(options.quasi_static_interval_s))) {}
 
@@ -116,6 +117,14 @@ Status Simulation::Build() {
   auto safety = haptics::SafetyFilter::Create(scene_.haptics.limits);
   if (!safety.ok()) return safety.error();
   safety_ = *safety;
+  // The instructor's hand is not in the tissue when it joins (its force is the guidance's, which
+  // ramps in itself): its filter arms at once and ramps the output in, with no quiet wait that a
+  // coupling to a trainee's tool a few centimetres away would never satisfy.
+  auto instructor_safety = haptics::SafetyFilter::Create(
+      scene_.haptics.limits,
+      {.gate_force = std::numeric_limits<double>::infinity(), .gate_cycles = 0, .ramp_time = 0.5});
+  if (!instructor_safety.ok()) return instructor_safety.error();
+  instructor_safety_ = *instructor_safety;
   const RoomInputs in{scene_,
                       rest_,
                       held_,

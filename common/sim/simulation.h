@@ -55,6 +55,7 @@
 #include "common/haptics/viscoelastic.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/deformation_pool.h"
+#include "common/sim/guidance.h"
 #include "common/sim/scene.h"
 #include "common/sim/telemetry.h"
 #include "common/sim/tissue_room.h"
@@ -112,6 +113,15 @@ class Simulation final : private DeformationPool::Member {
 
   // Haptic thread, ≥ 1 kHz. Never allocates, never blocks.
   haptics::ForceCommand OnStylus(const haptics::StylusSample& sample);
+  // Four-handed training (guidance.h): an instructor's station's sample, on the same haptic
+  // thread as the trainee's (the endpoint steers both channels to the session's lane), between
+  // them. The answer is the instructor's share of the tool; the trial advances only with the
+  // trainee's samples. Never allocates, never blocks.
+  haptics::ForceCommand OnInstructorStylus(const haptics::StylusSample& sample);
+  // Any thread: the instructor's mode and dominance, checked first (CheckGuideRequest); the
+  // haptic thread ramps to it. {kNone}: the instructor left.
+  void RequestGuidance(const GuideRequest& r) { guidance_.Request(r); }
+  GuideRequest requested_guidance() const { return guidance_.requested(); }
   // Threaded mode, from one control thread (never the haptic thread): starts or stops (joins)
   // the deformation thread. The tissue keeps its state while the thread is off; the haptic path
   // keeps answering from the last published surface.
@@ -226,6 +236,11 @@ class Simulation final : private DeformationPool::Member {
   geometry::Vec3 Answer(const Snapshot& snap, const haptics::StylusSample& s, StylusStep& step);
   void PublishTelemetry(const haptics::StylusSample& s, const haptics::ForceCommand& cmd,
                         const geometry::Vec3& out, double quantity);
+  // Four-handed training's stages (simulation_guidance.cpp).
+  void ShareTool(const haptics::StylusSample& trainee, StylusStep& step);
+  void RecordSample(const haptics::StylusSample& trainee, const StylusStep& step,
+                    const geometry::Vec3& out);
+  void CountInstructorEnergy(const haptics::StylusSample& s);
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
   std::shared_ptr<const haptics::TissueSurface> MakeStationSurface() const;
@@ -274,6 +289,22 @@ class Simulation final : private DeformationPool::Member {
   haptics::ViscoelasticFit viscoelastic_fit_;  // the tissue under the proxy, for the local model
   bool room_has_contact_stiffness_ = false;    // the room answers ContactStiffness itself
   GraspQuery grasp_query_;  // the current grasp's (a restored grasp asks its room again)
+
+  // Four-handed training (guidance.h), haptic thread but the request: the shared tool's weights,
+  // the tissue's force on the tool and its slope as the trainee's last sample left them, the
+  // trainee's hand there; the instructor's own safety filter, clock and port energies.
+  Guidance guidance_;
+  geometry::Vec3 tool_force_ = geometry::Vec3::Zero();
+  Eigen::Matrix3d tool_slope_ = Eigen::Matrix3d::Zero();
+  geometry::Vec3 trainee_x_ = geometry::Vec3::Zero();
+  bool tool_contact_ = false;
+  geometry::Vec3 tool_proxy_ = geometry::Vec3::Zero();
+  haptics::SafetyFilter instructor_safety_;
+  double instructor_time_ = 0;
+  bool instructor_has_time_ = false;
+  geometry::Vec3 instructor_force_ = geometry::Vec3::Zero(), instructor_x_ = geometry::Vec3::Zero();
+  bool instructor_has_x_ = false;
+  double instructor_released_j_ = 0, instructor_absorbed_j_ = 0;
 
   // The tissue model (common/sim/tissue_room.h): its haptic-side queries run on the haptic
   // thread, its Deform on the deformation side; each room keeps the two sides' state apart.

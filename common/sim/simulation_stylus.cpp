@@ -25,14 +25,18 @@ Vec3 AnyPerpendicular(const Vec3& a) {
 }  // namespace
 
 // The haptic path, one sample: reject bad input; count the port's energy; advance the trial
-// clock; then the grasp's twist or the proxy's contact (or the surface ahead of a free tip); the
-// safety filter, the local model for the station; the trial record and the telemetry.
+// clock and the guidance's ramps; then, on the tool (the trainee's, or shared with an instructor:
+// guidance.h), the grasp's twist or the proxy's contact (or the surface ahead of a free tip); the
+// trainee's share of it; the safety filter, the local model for the station; the trial record and
+// the telemetry.
 // Flattened: the stages are inlined into the driver, as one function was before them.
-[[gnu::flatten]] ForceCommand Simulation::OnStylus(const StylusSample& s) {
+[[gnu::flatten]] ForceCommand Simulation::OnStylus(const StylusSample& trainee) {
   StylusStep step;
-  if (!safety_.AcceptInput(s, step.events)) return RejectInput(s, step.events);
-  CountPortEnergy(s);
-  step.dt = AdvanceClock(s, step.events);
+  if (!safety_.AcceptInput(trainee, step.events)) return RejectInput(trainee, step.events);
+  CountPortEnergy(trainee);
+  step.dt = AdvanceClock(trainee, step.events);
+  guidance_.Advance(step.dt, trial_time_);
+  const StylusSample s = guidance_.Tool(trainee);  // the trainee's own while nobody guides
   surface_.Acquire();
   const Snapshot& snap = surface_.Front();
   const bool button = (s.buttons & haptics::kButtonGrasp) != 0;
@@ -45,10 +49,11 @@ Vec3 AnyPerpendicular(const Vec3& a) {
     ContactStep(snap, s, button, step);
   }
   PublishInput();
-  const Vec3 out = Answer(snap, s, step);
-  recorder_.Add(trial_time_, s.position, step.quantity, out.norm(), step.overload);
+  ShareTool(trainee, step);
+  const Vec3 out = Answer(snap, guidance_.shared() ? trainee : s, step);
+  RecordSample(trainee, step, out);
   ++samples_;
-  PublishTelemetry(s, step.cmd, out, step.quantity);
+  PublishTelemetry(trainee, step.cmd, out, step.quantity);
   step.cmd.score = live_score_;
   return step.cmd;
 }
@@ -311,6 +316,13 @@ void Simulation::PublishTelemetry(const StylusSample& s, const ForceCommand& cmd
   t.grasping = cmd.grasping;
   t.samples = samples_;
   t.clock_jumps = clock_jumps_;
+  t.guide_mode = static_cast<uint32_t>(guidance_.mode());
+  t.guide_alpha = guidance_.alpha();
+  t.instructor = guidance_.engaged();
+  t.instructor_tip = guidance_.instructor().position;
+  t.hands_apart = t.instructor ? (t.instructor_tip - s.position).norm() : 0.0;
+  t.tool = guidance_.Tool(s).position;
+  t.tool_force = tool_force_;
   t.metrics = recorder_.Finish();
   live_score_ = t.metrics.score;
   telemetry_.Publish();

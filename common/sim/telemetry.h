@@ -28,6 +28,17 @@ struct Telemetry {
   uint64_t samples = 0;           // stylus samples handled
   uint64_t clock_jumps = 0;       // samples whose time jumped (haptics::kEventClockJump)
   scoring::TrialMetrics metrics;  // so far
+  // Four-handed training (guidance.h): the mode (GuideMode's value), the dominance α now, and
+  // the instructor's hand (m) and its distance from the trainee's (m) while one is on the tool.
+  uint32_t guide_mode = 0;
+  double guide_alpha = 0;
+  bool instructor = false;
+  geometry::Vec3 instructor_tip = geometry::Vec3::Zero();
+  double hands_apart = 0;
+  // The tool the tissue met (the trainee's tip while nobody guides) and the tissue's force on it
+  // before the hands' shares (N).
+  geometry::Vec3 tool = geometry::Vec3::Zero();
+  geometry::Vec3 tool_force = geometry::Vec3::Zero();
 };
 
 // One live session's sample as the control plane hands it on (gRPC Watch, the dashboard's
@@ -62,7 +73,7 @@ struct TelemetryField {
   Kind kind;
   int decimals;
 };
-constexpr size_t kTelemetryFieldCount = 17;
+constexpr size_t kTelemetryFieldCount = 20;
 // The sample's numbers in a fixed order (non-finite values as they are: each writer decides).
 std::array<TelemetryField, kTelemetryFieldCount> TelemetryFields(const SessionTelemetry& t);
 

@@ -140,7 +140,9 @@ Expected<TraineeStyle> ParseTraineeStyle(const std::string& name) {
   if (name == "good") return TraineeStyle::kGood;
   if (name == "hesitant") return TraineeStyle::kHesitant;
   if (name == "rough") return TraineeStyle::kRough;
-  return InvalidArgument("style", "unknown trainee style '" + name + "' (good, hesitant, rough)");
+  if (name == "steady") return TraineeStyle::kSteady;
+  return InvalidArgument("style",
+                         "unknown trainee style '" + name + "' (good, hesitant, rough, steady)");
 }
 
 // The trainee approaches the surface along its normal, sinks 2 mm in, then either twists about
@@ -224,6 +226,12 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
               {0.4, 0.8 * target, 1.15 * target, false},
               {hold * 0.6, 1.15 * target, 1.05 * target, false},
               {0.3, 1.05 * target, 0, false}};
+      break;
+    case TraineeStyle::kSteady:
+      plan = {{0.2, 0, 0, false},           {0.4, 0, target, false},
+              {0.8, target, target, false}, {0.3, target, target, false},
+              {0.4, target, target, false}, {hold * 0.6, target, target, false},
+              {0.3, target, 0, false}};
       break;
   }
   const double approach = 0.4, leave = 0.3;  // s

@@ -25,8 +25,10 @@ Expected<std::vector<haptics::StylusSample>> ParseTrajectoryCsv(const std::strin
 Status WriteTrajectoryCsv(const std::vector<haptics::StylusSample>& samples,
                           const std::string& path);
 
-enum class TraineeStyle { kGood, kHesitant, kRough };
-Expected<TraineeStyle> ParseTraineeStyle(const std::string& name);  // good, hesitant, rough
+// kSteady: the rough trainee's pace without its overshoot or tremor (an expert's hand guiding a
+// rough trainee moves with them: four-handed training's scripted instructor).
+enum class TraineeStyle { kGood, kHesitant, kRough, kSteady };
+Expected<TraineeStyle> ParseTraineeStyle(const std::string& name);  // good, hesitant, rough, steady
 
 // A trajectory at rate_hz samples per second that performs the scene's task. `seed` varies the
 // tremor of the rough trainee; the others are deterministic.

@@ -34,6 +34,8 @@ void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out) {
   out->set_link_jitter_ms(m.link.jitter_ms);
   out->set_link_loss_ratio(m.link.loss);
   out->set_link_rate_hz(m.link.rate_hz);
+  out->set_guided_share(m.guided_share);
+  out->set_guided_alpha(m.guided_alpha);
 }
 
 void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out) {
@@ -77,6 +79,8 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   out.link.jitter_ms = m.link_jitter_ms();
   out.link.loss = m.link_loss_ratio();
   out.link.rate_hz = m.link_rate_hz();
+  out.guided_share = m.guided_share();
+  out.guided_alpha = m.guided_alpha();
   return out;
 }
 

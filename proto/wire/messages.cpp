@@ -132,6 +132,9 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   f.set_score(static_cast<float>(c.score));
   f.set_released_j(c.released_j);
   f.set_absorbed_j(c.absorbed_j);
+  f.set_guide_mode(c.guide_mode);
+  f.set_guide_alpha(static_cast<float>(c.guide_alpha));
+  f.set_shared(c.shared);
   size_t n = 0;
   if (!impl_->Serialize(f, n)) return 0;
   Header header = h;
@@ -375,6 +378,11 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.score = std::isfinite(f.score()) ? std::clamp(static_cast<double>(f.score()), 0.0, 10.0) : 0.0;
   c.released_j = f.released_j();
   c.absorbed_j = f.absorbed_j();
+  c.guide_mode = f.guide_mode() <= 2 ? f.guide_mode() : 0;
+  c.guide_alpha =
+      std::isfinite(f.guide_alpha()) ? std::clamp(static_cast<double>(f.guide_alpha()), 0.0, 1.0)
+                                     : 0.0;
+  c.shared = f.shared();
   // A station renders these at 1 kHz: anything non-finite is refused here, and so are port
   // energies that are not energies (negative), which the network passivity control would trust.
   if (!c.force.allFinite() || !c.local.force0.allFinite() || !c.local.position0.allFinite() ||

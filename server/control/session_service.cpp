@@ -28,12 +28,28 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
 
   ServerUnaryReactor* Join(CallbackServerContext* ctx, const v1::JoinRequest* req,
                            v1::CreateSessionResponse* resp) override {
+    if (req->role() == v1::ROLE_INSTRUCTOR) return JoinInstructor(ctx, req, resp);
     return Unary(d_, pool_, ctx, Method::kSessionJoin, [=, this](const db::Principal& p) -> Status {
       auto joined = JoinSession(d_, p, req->id(), req->with_surface());
       if (!joined.ok()) return joined.error();
       if (!req->with_surface()) joined->surface.reset();
       Credentials(*joined, resp);
       return Status::Ok();
+    });
+  }
+
+  ServerUnaryReactor* Guide(CallbackServerContext* ctx, const v1::GuideRequest* req,
+                            v1::Guidance* resp) override {
+    return Unary(d_, pool_, ctx, Method::kSessionGuide, [=, this](const db::Principal& p) {
+      return AnswerGuidance(
+          GuideSession(d_, p, req->id(), {FromProto(req->mode()), req->alpha()}), resp);
+    });
+  }
+
+  ServerUnaryReactor* GetGuidance(CallbackServerContext* ctx, const v1::SessionRef* req,
+                                  v1::Guidance* resp) override {
+    return Unary(d_, pool_, ctx, Method::kSessionGet, [=, this](const db::Principal& p) {
+      return AnswerGuidance(server::GetGuidance(d_, p, req->id()), resp);
     });
   }
 
@@ -102,12 +118,44 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   }
 
  private:
+  // Four-handed training: an instructor's station's credentials for its own channel.
+  ServerUnaryReactor* JoinInstructor(CallbackServerContext* ctx, const v1::JoinRequest* req,
+                                     v1::CreateSessionResponse* resp) {
+    return Unary(d_, pool_, ctx, Method::kSessionJoinInstructor,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto joined =
+                       JoinAsInstructor(d_, p, req->id(), {FromProto(req->mode()), req->alpha()});
+                   if (!joined.ok()) return joined.error();
+                   Credentials(*joined, resp);
+                   return Status::Ok();
+                 });
+  }
+  static sim::GuideMode FromProto(v1::GuideMode m) {
+    switch (m) {
+      case v1::GUIDE_MODE_OBSERVE:
+        return sim::GuideMode::kObserve;
+      case v1::GUIDE_MODE_GUIDE:
+        return sim::GuideMode::kGuide;
+      default:
+        return sim::GuideMode::kNone;
+    }
+  }
+  static Status AnswerGuidance(const Expected<SessionGuidance>& g, v1::Guidance* resp) {
+    if (!g.ok()) return g.error();
+    resp->set_trainee(g->trainee);
+    resp->set_instructor(g->instructor);
+    resp->set_mode(static_cast<v1::GuideMode>(static_cast<int>(g->requested.mode)));
+    resp->set_alpha(g->requested.alpha);
+    resp->set_alpha_now(g->alpha);
+    return Status::Ok();
+  }
   static void Credentials(const CreatedSession& c, v1::CreateSessionResponse* resp) {
     ToProto(c.record, resp->mutable_session());
     resp->set_udp_host(c.udp_host);
     resp->set_udp_port(c.udp_port);
     resp->set_session_key(std::string(c.key.begin(), c.key.end()));
     if (c.surface) convert::ToProto(*c.surface, resp->mutable_surface());
+    resp->set_channel(c.channel);
   }
   static Status Answer(const Expected<SessionView>& v, v1::Session* resp) {
     if (!v.ok()) return v.error();

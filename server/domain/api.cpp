@@ -136,6 +136,45 @@ Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t
   return d.sessions.Join(id, with_surface);
 }
 
+Expected<CreatedSession> JoinAsInstructor(Domain& d, const db::Principal& p, uint64_t id,
+                                          const sim::GuideRequest& mode) {
+  if (Status s = Permit(p, Method::kSessionJoinInstructor); !s.ok()) return s.error();
+  sim::GuideRequest start = mode;
+  if (start.mode == sim::GuideMode::kNone) start.mode = sim::GuideMode::kObserve;
+  if (Status s = sim::CheckGuideRequest(start); !s.ok()) return s.error();
+  auto r = d.store.GetSession(static_cast<int64_t>(id));
+  if (!r.ok()) return r.error();
+  if (r->trainee == p.name) return Denied("an instructor joins another's session, not their own");
+  if (!IsLive(r->state))
+    return Error{ErrorCode::kFailedPrecondition,
+                 "session " + std::to_string(id) + " is " + SessionStateName(r->state) +
+                     ": only a live session is joined",
+                 "id"};
+  auto joined = d.sessions.JoinInstructor(id, p.name);
+  if (!joined.ok()) return joined.error();
+  if (auto g = d.sessions.Guide(id, p.name, start); !g.ok()) {
+    (void)d.sessions.LeaveInstructor(id, p.name);
+    return g.error();
+  }
+  return joined;
+}
+
+Expected<SessionGuidance> GuideSession(Domain& d, const db::Principal& p, uint64_t id,
+                                       const sim::GuideRequest& request) {
+  if (Status s = Permit(p, Method::kSessionGuide); !s.ok()) return s.error();
+  if (Status s = sim::CheckGuideRequest(request); !s.ok()) return s.error();
+  if (request.mode == sim::GuideMode::kNone) {
+    if (Status s = d.sessions.LeaveInstructor(id, p.name); !s.ok()) return s.error();
+    return d.sessions.Guidance(id);
+  }
+  return d.sessions.Guide(id, p.name, request);
+}
+
+Expected<SessionGuidance> GetGuidance(Domain& d, const db::Principal& p, uint64_t id) {
+  if (Status s = MayTouch(d, p, Method::kSessionGet, id); !s.ok()) return s.error();
+  return d.sessions.Guidance(id);
+}
+
 Expected<RestSurface> SessionSurface(Domain& d, const db::Principal& p, uint64_t id) {
   if (Status s = Permit(p, Method::kMonitorWatch); !s.ok()) return s.error();
   RestSurface out;

@@ -61,6 +61,16 @@ Expected<SessionView> GetSession(Domain& d, const db::Principal& p, uint64_t id)
 // with_surface: the station's surface too (a station's first join; not its probes).
 Expected<CreatedSession> JoinSession(Domain& d, const db::Principal& p, uint64_t id,
                                      bool with_surface = false);
+// Four-handed training (common/sim/guidance.h). An instructor (or an administrator) joins a
+// trainee's live session on a channel of their own, in `mode` (kNone: observe); a session that
+// ended, one's own, or a mode that does not check (sim::CheckGuideRequest) is refused. Guide
+// switches the mode live (the joined instructor only); kNone leaves. GetGuidance: who is in the
+// session, for anyone who may read it (its trainee sees who joined and in which mode).
+Expected<CreatedSession> JoinAsInstructor(Domain& d, const db::Principal& p, uint64_t id,
+                                          const sim::GuideRequest& mode);
+Expected<SessionGuidance> GuideSession(Domain& d, const db::Principal& p, uint64_t id,
+                                       const sim::GuideRequest& request);
+Expected<SessionGuidance> GetGuidance(Domain& d, const db::Principal& p, uint64_t id);
 // A live session's surface at rest, for a watcher's 3D view (the monitors' permission).
 struct RestSurface {
   std::vector<geometry::Vec3> positions;  // m

@@ -58,6 +58,10 @@ constexpr std::array<Row, static_cast<size_t>(Method::kCount)> kMatrix = {{
     {"TrainingService/Curve", kTrainee | kInstructor | kAdmin},
     // Operations: the metrics a Prometheus scrape reads (an administrator's token).
     {"Ops/Metrics", kAdmin},
+    // Four-handed training: an instructor's station joins a trainee's live session and sets its
+    // mode (the domain refuses a session that ended, and one's own).
+    {"SessionService/JoinAsInstructor", kInstructor | kAdmin},
+    {"SessionService/Guide", kInstructor | kAdmin},
 }};
 
 }  // namespace

@@ -47,6 +47,8 @@ enum class Method {
   kTrainingAddMembers,
   kTrainingCurve,
   kOpsMetrics,  // GET /api/v1/metrics (HTTP only): the Prometheus scrape
+  kSessionJoinInstructor,  // SessionService/Join with ROLE_INSTRUCTOR (four-handed training)
+  kSessionGuide,
   kCount
 };
 

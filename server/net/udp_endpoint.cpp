@@ -112,6 +112,7 @@ struct UdpEndpoint::Impl {
     double refill;  // s
     udp::endpoint source;
     double moved_until = -1;  // s; ≥ 0: moved away (no simulation): answered with a notice
+    bool instructor = false;  // an instructor's channel (Simulation::OnInstructorStylus)
   };
 
   // One I/O thread, its socket and the sessions steered to it. Everything here but the atomics
@@ -352,7 +353,8 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int
   s.seen = true;
   if (sender != s.source) {  // first datagram, or the station moved (NAT rebinding): rare
     s.source = sender;
-    if (owner->visual && s.moved_until < 0) owner->visual->SetDestination(header.session, sender);
+    if (owner->visual && s.moved_until < 0 && !s.instructor)
+      owner->visual->SetDestination(header.session, sender);
   }
   if (s.moved_until >= 0) {  // moved away: say so, compute nothing
     force.command = haptics::ForceCommand{};
@@ -361,9 +363,10 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int
   } else {
     if (s.state != SessionState::kRunning) {
       s.state = SessionState::kRunning;
-      owner->Record(header.session, SessionState::kRunning);
+      if (!s.instructor) owner->Record(header.session, SessionState::kRunning);
     }
-    force.command = s.simulation->OnStylus(stylus.sample);
+    force.command = s.instructor ? s.simulation->OnInstructorStylus(stylus.sample)
+                                 : s.simulation->OnStylus(stylus.sample);
   }
   force.echo_sequence = header.sequence;
   force.echo_time = stylus.sample.time;
@@ -428,7 +431,9 @@ void UdpEndpoint::Impl::Lane::CheckTimeouts() {
     return e.second.moved_until >= 0 && now > e.second.moved_until;
   });
   for (auto& [id, s] : sessions) {
-    if (s.moved_until >= 0) continue;  // no events of a session that moved away
+    // No events of a session that moved away; an instructor's channel's silence is theirs (the
+    // simulation hands the tool back), not the session's.
+    if (s.moved_until >= 0 || s.instructor) continue;
     const double quiet = now - s.last_seen;
     SessionState next = s.state;
     if (quiet > opts.disconnect_after_s) {
@@ -573,6 +578,17 @@ void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key, sim::Simu
     lane.sessions.insert_or_assign(
         id, Impl::Session(key, simulation, link, p->options.max_packets_per_s * 0.1, p->Now()));
     if (p->visual) p->visual->Add(id, key, simulation);
+  });
+}
+
+void UdpEndpoint::AddInstructorChannel(uint64_t channel, const wire::SessionKey& key,
+                                       sim::Simulation* simulation, LinkStats* link) {
+  Impl* p = impl_.get();
+  Impl::Lane& lane = p->LaneOf(channel);
+  lane.Run([p, &lane, channel, &key, simulation, link] {
+    Impl::Session s(key, simulation, link, p->options.max_packets_per_s * 0.1, p->Now());
+    s.instructor = true;
+    lane.sessions.insert_or_assign(channel, std::move(s));
   });
 }
 

@@ -157,6 +157,14 @@ struct SessionEvent {
   double at_s = 0;                              // seconds since the endpoint started
 };
 
+// Four-handed training: the wire id of an instructor's channel into session `session`. Its low
+// byte is the session's, so the port's steering gives it the session's lane (one thread for both
+// hands); the slot sits in the top byte, above any session id the store hands out.
+inline constexpr uint64_t kChannelSlotShift = 56;
+constexpr uint64_t InstructorChannel(uint64_t session, uint64_t slot = 1) {
+  return session | (slot << kChannelSlotShift);
+}
+
 class UdpEndpoint {
  public:
   static Expected<std::unique_ptr<UdpEndpoint>> Create(const EndpointOptions& options);
@@ -176,6 +184,12 @@ class UdpEndpoint {
   // (RemoveSession waits for it).
   void AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation,
                   LinkStats* link = nullptr);
+  // Four-handed training: an instructor's channel into a live session (InstructorChannel's id,
+  // so it shares the session's lane and thread); its datagrams are answered by
+  // Simulation::OnInstructorStylus. It records no session events and gets no visual frames.
+  // Removed by RemoveSession(channel).
+  void AddInstructorChannel(uint64_t channel, const wire::SessionKey& key,
+                            sim::Simulation* simulation, LinkStats* link = nullptr);
   void RemoveSession(uint64_t id);
   // The session has moved to another node (live migration) and is no longer here: for
   // `for_s` seconds its station's datagrams (authenticated with `key`, within the rate limit)

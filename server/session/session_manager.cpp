@@ -344,6 +344,7 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
     live_.erase(it);
   }
   if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
+  CloseInstructor(id, *live);
   scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   metrics.link = LinkFiguresOf(live->link);
   live->simulation.reset();
@@ -383,6 +384,7 @@ int SessionManager::AbandonAll(const std::string& reason) {
   for (auto& [id, live] : dropped) {
     if (endpoint_ && live->state != SessionState::kCreated && !live->moving)
       endpoint_->RemoveSession(id);
+    if (!live->moving) CloseInstructor(id, *live);
     live->simulation.reset();
     NotifyEnded(id);
     Log("session_dropped", static_cast<int64_t>(id), {{"reason", reason}});  // no record written

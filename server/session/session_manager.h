@@ -152,6 +152,12 @@ class SessionManager final : public Sessions {
   Expected<db::SessionRecord> Abandon(uint64_t id, const std::string& reason);
   Expected<db::SessionRecord> Get(uint64_t id) override;
   Expected<CreatedSession> Join(uint64_t id, bool with_surface) override;
+  // Four-handed training (sessions.h; session_guidance.cpp).
+  Expected<CreatedSession> JoinInstructor(uint64_t id, const std::string& instructor) override;
+  Status LeaveInstructor(uint64_t id, const std::string& instructor) override;
+  Expected<SessionGuidance> Guide(uint64_t id, const std::string& instructor,
+                                  const sim::GuideRequest& request) override;
+  Expected<SessionGuidance> Guidance(uint64_t id) const override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                      std::vector<int32_t>& triangles) const override;
   Expected<std::string> Trace(uint64_t id) const override;
@@ -207,7 +213,17 @@ class SessionManager final : public Sessions {
     TraceRecorder trace;         // the session's record (sampler thread, under mutex_)
     scoring::TaskSettings task;  // the settings the session was created with
     bool moving = false;         // BeginMove .. FinishMove or CancelMove (invariant 7)
+    // Four-handed training: the instructor on the tool's second channel ("" none), its key
+    // and link (the channel is in the endpoint while `instructor` is set).
+    std::string instructor;
+    wire::SessionKey instructor_key{};
+    LinkStats instructor_link;
   };
+  // The live session `id` (under mutex_), or kNotFound / kUnavailable (moving).
+  Expected<Live*> LiveSession(uint64_t id) const;
+  // Closes the instructor's channel of a live session taken out of service (no lock needed:
+  // the caller owns `l`, or holds mutex_).
+  void CloseInstructor(uint64_t id, Live& l);
   // The scene by name with the task settings applied, its simulation built (not driven).
   Expected<std::unique_ptr<sim::Simulation>> BuildSimulation(const std::string& scene_name,
                                                              const scoring::TaskSettings& task);

@@ -117,6 +117,8 @@ Expected<SessionHandoff> SessionManager::BeginMove(uint64_t id) {
       return Error{ErrorCode::kFailedPrecondition,
                    "session " + std::to_string(id) + " is moving already", "id"};
     it->second->moving = true;  // from here Pump, Start and End leave it alone (invariant 7)
+    // An instructor's channel does not move: they join the session again where it runs.
+    CloseInstructor(id, *it->second);
     simulation = it->second->simulation.get();
     state = it->second->state;
   }

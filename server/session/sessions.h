@@ -27,6 +27,18 @@ struct CreatedSession {
   uint16_t udp_port = 0;
   // The tissue's surface and contact law the station renders ahead of its tool (null: none).
   std::shared_ptr<const haptics::TissueSurface> surface;
+  // The wire id the station's datagrams carry: the session's, or an instructor's channel into it
+  // (server/net/udp_endpoint.h InstructorChannel). 0: the session's id.
+  uint64_t channel = 0;
+};
+
+// Four-handed training (common/sim/guidance.h): who is in a live session and what the
+// instructor asked for; `alpha` is the dominance as the haptic path has ramped it so far.
+struct SessionGuidance {
+  std::string trainee;
+  std::string instructor;  // "" while no instructor is in the session
+  sim::GuideRequest requested;
+  double alpha = 0;
 };
 
 class Sessions {
@@ -46,6 +58,18 @@ class Sessions {
   // surface (with_surface: a remote node is asked for it; in process it costs nothing). kNotFound
   // once it left the live states.
   virtual Expected<CreatedSession> Join(uint64_t id, bool with_surface) = 0;
+  // Four-handed training. An instructor's station joins a live session on a channel of its own
+  // (CreatedSession::channel, a fresh key, no surface: its tip is not the tool's); one instructor
+  // at a time: the same instructor joining again gets a new key and the old channel is closed,
+  // another is refused (kFailedPrecondition). kNotFound once the session left the live states.
+  // Leaving hands the tool back (ramped) and closes the channel. Guide sets the mode and the
+  // dominance (sim::CheckGuideRequest) of the instructor in the session, `instructor`.
+  // Implementations that do not run sessions in process answer kFailedPrecondition.
+  virtual Expected<CreatedSession> JoinInstructor(uint64_t id, const std::string& instructor);
+  virtual Status LeaveInstructor(uint64_t id, const std::string& instructor);
+  virtual Expected<SessionGuidance> Guide(uint64_t id, const std::string& instructor,
+                                          const sim::GuideRequest& request);
+  virtual Expected<SessionGuidance> Guidance(uint64_t id) const;
   // A live session's surface at rest (the mesh the monitors' surface states move): positions in
   // metres, triangles as vertex indices. kNotFound once it left the live states.
   virtual Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,

@@ -130,6 +130,20 @@ StatusCode Call(const std::shared_ptr<grpc::Channel>& ch, Method m,
       v1::CreateSessionResponse r;
       return s->Join(ctx().get(), ref, &r).error_code();
     }
+    case Method::kSessionJoinInstructor: {
+      v1::JoinRequest ref;
+      ref.set_id(999);
+      ref.set_role(v1::ROLE_INSTRUCTOR);
+      v1::CreateSessionResponse r;
+      return s->Join(ctx().get(), ref, &r).error_code();
+    }
+    case Method::kSessionGuide: {
+      v1::GuideRequest req;
+      req.set_id(999);
+      req.set_mode(v1::GUIDE_MODE_OBSERVE);
+      v1::Guidance r;
+      return s->Guide(ctx().get(), req, &r).error_code();
+    }
     case Method::kTrainingCreateCourse: {
       v1::Course r;
       return tr->CreateCourse(ctx().get(), {}, &r).error_code();
@@ -193,7 +207,8 @@ TEST_F(ControlPlaneTest, PermissionMatrixHoldsForEveryMethodAndRole) {
                                Method::kTrainingProgress,     Method::kTrainingNext,
                                Method::kTrainingListCourses,  Method::kTrainingUpdateExercise,
                                Method::kTrainingListCohorts,  Method::kTrainingAddMembers,
-                               Method::kTrainingCurve}},
+                               Method::kTrainingCurve,        Method::kSessionJoinInstructor,
+                               Method::kSessionGuide}},
       {db::Role::kEvaluator,
        {Method::kSessionGet, Method::kSessionList, Method::kEvaluationSubmit,
         Method::kEvaluationReport, Method::kEvaluationTrainingEffect, Method::kAdminListWeightSets,

@@ -1,0 +1,188 @@
+#include "bench/wan/four_hands.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <thread>
+
+#include "bench/relay/relay.h"
+#include "common/sim/simulation.h"
+#include "server/net/udp_endpoint.h"
+
+namespace vsurg::bench::wan {
+
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+constexpr uint64_t kSession = 7;
+
+wire::SessionKey Key(uint64_t seed, uint8_t salt) {
+  wire::SessionKey k{};
+  for (size_t i = 0; i < k.size(); ++i) k[i] = static_cast<uint8_t>(11 * i + salt + seed);
+  return k;
+}
+
+std::vector<haptics::StylusSample> WithLeadIn(const std::vector<haptics::StylusSample>& plan,
+                                              double lead_in_s) {
+  std::vector<haptics::StylusSample> out;
+  const int lead = static_cast<int>(lead_in_s * 1000);
+  out.reserve(plan.size() + lead);
+  for (int k = 0; k < lead; ++k) {
+    haptics::StylusSample s = plan.front();
+    s.time = plan.front().time - lead_in_s + k * 1e-3;
+    out.push_back(s);
+  }
+  out.insert(out.end(), plan.begin(), plan.end());
+  return out;
+}
+
+// One hand at its station, through its relay to the endpoint.
+struct Hand {
+  std::unique_ptr<relay::Relay> relay;
+  std::unique_ptr<client::VirtualHandDevice> device;
+  std::unique_ptr<client::StationChannel> station;
+
+  static Expected<Hand> Start(const FourHandsOptions& o, uint16_t server_port, uint64_t channel,
+                              const wire::SessionKey& key, const relay::Profile& profile,
+                              const std::vector<haptics::StylusSample>& plan,
+                              const client::HandImpedance& grip, uint64_t seed) {
+    Hand h;
+    relay::RelayOptions ro;
+    ro.server_port = server_port;
+    ro.profile = profile;
+    ro.seed = seed;
+    auto relay = relay::Relay::Start(ro);
+    if (!relay.ok()) return relay.error();
+    h.relay = std::move(*relay);
+    client::DeviceModel device;
+    device.limits = o.scene.haptics.limits;
+    auto hand = client::VirtualHandDevice::Create(WithLeadIn(plan, o.lead_in_s), grip, device);
+    if (!hand.ok()) return hand.error();
+    h.device = std::move(*hand);
+    client::StationOptions co;
+    co.server_port = h.relay->port();
+    co.session = channel;
+    co.key = key;
+    co.force_limit_n = o.scene.task.force_limit;
+    auto station = client::StationChannel::Create(co, h.device.get());
+    if (!station.ok()) return station.error();
+    h.station = std::move(*station);
+    return h;
+  }
+  void Stop() {
+    station->Stop();
+    relay->Stop();
+  }
+};
+
+// Reads the simulation's telemetry (the one reader, as the server's sampler is) until the trainee's
+// hand has played its plan and settled, applying the mode changes on the way.
+void Follow(const FourHandsOptions& o, sim::Simulation& simulation,
+            const client::VirtualHandDevice& trainee, FourHandsRun& run) {
+  size_t next_change = 0;
+  sim::Telemetry t;
+  size_t settle_until = std::numeric_limits<size_t>::max();
+  for (;;) {
+    const size_t cycle = trainee.cycles();
+    if (trainee.finished() && settle_until == std::numeric_limits<size_t>::max())
+      settle_until = cycle + static_cast<size_t>(o.settle_s * 1000);
+    if (cycle >= settle_until) break;
+    while (next_change < o.changes.size() && o.changes[next_change].first <= cycle)
+      simulation.RequestGuidance(o.changes[next_change++].second);
+    if (simulation.TakeTelemetry(t))
+      run.tool.push_back({t.tool, t.tool_force, t.guide_alpha, t.guide_mode, cycle});
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+}
+
+}  // namespace
+
+Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
+  sim::SimulationOptions so;
+  so.cache_dir = o.cache_dir;
+  auto simulation = sim::Simulation::Create(o.scene, so);
+  if (!simulation.ok()) return simulation.error();
+  auto endpoint = server::UdpEndpoint::Create({});
+  if (!endpoint.ok()) return endpoint.error();
+  server::LinkStats trainee_link;
+  (*endpoint)->AddSession(kSession, Key(o.seed, 3), simulation->get(), &trainee_link);
+  const uint64_t channel = server::InstructorChannel(kSession);
+  if (o.instructor) {
+    (*endpoint)->AddInstructorChannel(channel, Key(o.seed, 5), simulation->get());
+    (*simulation)->RequestGuidance(o.guide);
+  }
+  const uint16_t port = (*endpoint)->port();
+  Hand instructor;
+  if (o.instructor) {
+    auto h = Hand::Start(o, port, channel, Key(o.seed, 5), o.instructor_profile, o.instructor_plan,
+                         o.instructor_grip, o.seed + 100);
+    if (!h.ok()) return h.error();
+    instructor = std::move(*h);
+  }
+  auto trainee = Hand::Start(o, port, kSession, Key(o.seed, 3), o.trainee_profile, o.trainee_plan,
+                             o.trainee_grip, o.seed);
+  if (!trainee.ok()) return trainee.error();
+  FourHandsRun run;
+  Follow(o, **simulation, *trainee->device, run);
+  trainee->Stop();
+  if (o.instructor) instructor.Stop();
+  (*endpoint)->RemoveSession(kSession);
+  (*endpoint)->RemoveSession(channel);
+  const auto lead = static_cast<std::ptrdiff_t>(o.lead_in_s * 1000);
+  const auto cut = [lead](std::vector<client::HandSample> t) {
+    t.erase(t.begin(), t.begin() + std::min(lead, std::ssize(t)));
+    return t;
+  };
+  run.trainee = cut(trainee->device->trace());
+  run.trainee_station = trainee->station->stats();
+  if (o.instructor) {
+    run.instructor = cut(instructor.device->trace());
+    run.instructor_station = instructor.station->stats();
+  }
+  run.metrics = (*simulation)->Metrics();
+  run.trainee_applied = trainee_link.applied.load();
+  return run;
+}
+
+double PathError(const FourHandsRun& run, const FourHandsRun& reference, size_t lead_cycles) {
+  std::vector<Vec3> path;
+  for (const ToolSample& s : reference.tool)
+    if (s.cycle >= lead_cycles) path.push_back(s.tool);
+  double sum = 0;
+  size_t n = 0;
+  for (const ToolSample& s : run.tool) {
+    if (s.cycle < lead_cycles || path.size() < 2) continue;
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t k = 0; k + 1 < path.size(); ++k) {
+      const Vec3 ab = path[k + 1] - path[k];
+      const double len2 = ab.squaredNorm();
+      const double u = len2 > 0 ? std::clamp((s.tool - path[k]).dot(ab) / len2, 0.0, 1.0) : 0.0;
+      best = std::min(best, (s.tool - (path[k] + u * ab)).squaredNorm());
+    }
+    sum += best;
+    ++n;
+  }
+  return n ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
+}
+
+double PeakToolForce(const FourHandsRun& run) {
+  double peak = 0;
+  for (const ToolSample& s : run.tool) peak = std::max(peak, s.force.norm());
+  return peak;
+}
+
+double EnergyToHand(const std::vector<client::HandSample>& t) {
+  double e = 0;
+  for (size_t k = 0; k + 1 < t.size(); ++k) e += t[k].force.dot(t[k + 1].x - t[k].x);
+  return e;
+}
+
+double PeakForce(const std::vector<client::HandSample>& t) {
+  double peak = 0;
+  for (const auto& c : t) peak = std::max(peak, c.force.norm());
+  return peak;
+}
+
+}  // namespace vsurg::bench::wan

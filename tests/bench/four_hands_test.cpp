@@ -1,0 +1,133 @@
+// Four-handed training in a closed loop, in CI (bench/wan/four_hands.h): a scripted rough trainee
+// presses the 256-particle sphere, alone and guided by a scripted expert's hand, each hand at its
+// own station through its own impairment relay into one endpoint. Functional, not timed: each
+// hand's time is its servo cycles, so a loaded machine slows the run, it does not change what is
+// asserted.
+#include "bench/wan/four_hands.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include "bench/wan/wan.h"
+#include "common/sim/trajectory.h"
+
+namespace vsurg::bench::wan {
+namespace {
+
+constexpr size_t kLead = 1000;  // the lead-in's cycles (FourHandsOptions::lead_in_s)
+
+struct Plans {
+  sim::Scene scene;
+  std::vector<haptics::StylusSample> rough, steady;
+};
+
+Plans Load() {
+  Plans p;
+  auto scene = GridScene("sphere-palpation-256");
+  EXPECT_TRUE(scene.ok());
+  p.scene = *scene;
+  p.rough = *sim::ScriptedTrainee(p.scene, sim::TraineeStyle::kRough);
+  p.steady = *sim::ScriptedTrainee(p.scene, sim::TraineeStyle::kSteady);
+  return p;
+}
+
+FourHandsOptions Options(const Plans& p, const std::string& profile, bool instructor) {
+  FourHandsOptions o;
+  o.scene = p.scene;
+  o.trainee_plan = p.rough;
+  o.instructor_plan = p.steady;
+  o.instructor = instructor;
+  o.instructor_grip = client::TensedGrip();  // the expert's hand is firm, the trainee's relaxed
+  o.trainee_profile = *relay::ProfileByName(profile);
+  o.instructor_profile = o.trainee_profile;
+  return o;
+}
+
+// Bounded and passive, for every hand of a run: no force over the device's limit, and no net
+// energy given to a hand over the press (each gives the tissue energy when it presses alone).
+void ExpectSafe(const FourHandsRun& r, const sim::Scene& scene, const std::string& what) {
+  const double limit = scene.haptics.limits.max_force + 1e-9;
+  EXPECT_LE(PeakForce(r.trainee), limit) << what;
+  EXPECT_LE(PeakForce(r.instructor), limit) << what;
+  EXPECT_LT(EnergyToHand(r.trainee), 1e-4) << what;
+  EXPECT_LT(EnergyToHand(r.instructor), 1e-4) << what;
+}
+
+TEST(FourHandsTest, AnExpertGuidingAtHalfDominanceKeepsARoughTraineesToolOnTheExpertsPath) {
+  const Plans p = Load();
+  // The expert's own press, alone: the force the task takes.
+  FourHandsOptions expert_alone = Options(p, "lan", false);
+  expert_alone.trainee_plan = p.steady;
+  expert_alone.trainee_grip = client::TensedGrip();
+  auto expert = RunFourHands(expert_alone);
+  ASSERT_TRUE(expert.ok()) << expert.error().message;
+  const double expert_peak = PeakToolForce(*expert);
+  for (const char* profile : {"lan", "continental"}) {
+    auto alone = RunFourHands(Options(p, profile, false));
+    auto guided = RunFourHands(Options(p, profile, true));
+    ASSERT_TRUE(alone.ok() && guided.ok());
+    const double e_alone = PathError(*alone, *expert, kLead);
+    const double e_guided = PathError(*guided, *expert, kLead);
+    const double over_alone = PeakToolForce(*alone) - expert_peak;
+    const double over_guided = PeakToolForce(*guided) - expert_peak;
+    std::printf(
+        "%s: path error %.2f mm alone, %.2f guided; peak %.2f N alone, %.2f guided (the "
+        "expert's %.2f); guided share %.2f at alpha %.2f\n",
+        profile, 1e3 * e_alone, 1e3 * e_guided, PeakToolForce(*alone), PeakToolForce(*guided),
+        expert_peak, guided->metrics.guided_share, guided->metrics.guided_alpha);
+    // Guided, the tool keeps nearer the expert's own path (0.41 → 0.28 mm at lan, 0.42 → 0.23
+    // at continental in the run this bound was set by); the peak's excess over the expert's is
+    // printed, not bounded: a relaxed hand's overshoot adds 0.1-0.2 N, within the run's spread.
+    EXPECT_LE(e_guided, 0.75 * e_alone) << profile;
+    (void)over_alone, (void)over_guided;
+    // The record says the trial was guided, and by how much.
+    EXPECT_GT(guided->metrics.guided_share, 0.8) << profile;
+    EXPECT_NEAR(guided->metrics.guided_alpha, 0.5, 0.05) << profile;
+    EXPECT_EQ(alone->metrics.guided_share, 0) << profile;
+    ExpectSafe(*guided, p.scene, profile);
+  }
+}
+
+// Observe, guide, take over and hand back, switched live with the instructor on another continent
+// and the trainee on an unimpaired link: every switch a ramp (α never steps), every hand bounded
+// and passive, and the trainee's channel loses nothing to the instructor's.
+TEST(FourHandsTest, ModesSwitchLiveAsRampsAndTheTraineesChannelLosesNothing) {
+  const Plans p = Load();
+  FourHandsOptions o = Options(p, "none", true);
+  o.instructor_profile = *relay::ProfileByName("continental");
+  o.trainee_plan = p.steady;
+  o.guide = {sim::GuideMode::kObserve, 0};
+  o.changes = {{kLead + 600, {sim::GuideMode::kGuide, 0.5}},
+               {kLead + 1500, {sim::GuideMode::kGuide, 1.0}},
+               {kLead + 2500, {sim::GuideMode::kGuide, 0.0}}};
+  auto r = RunFourHands(o);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  double top = 0, largest_step = 0;
+  for (size_t k = 1; k < r->tool.size(); ++k) {
+    const ToolSample &a = r->tool[k - 1], &b = r->tool[k];
+    top = std::max(top, b.alpha);
+    // α moves at most Guidance::kRampPerS per second of the trainee's station clock; the
+    // telemetry is read every few cycles, so per hand cycle between two reads.
+    const double cycles = static_cast<double>(std::max<size_t>(1, b.cycle - a.cycle));
+    largest_step = std::max(largest_step, std::abs(b.alpha - a.alpha) / cycles);
+  }
+  std::printf("alpha up to %.2f, at most %.4f per cycle; trainee %llu sent, %llu applied\n", top,
+              largest_step, static_cast<unsigned long long>(r->trainee_station.sent),
+              static_cast<unsigned long long>(r->trainee_applied));
+  EXPECT_GT(top, 0.99);                   // the take-over reached the instructor alone
+  EXPECT_LT(r->tool.back().alpha, 0.01);  // and the tool was handed back
+  // Four times the ramp's rate, for the skew between the station's clock (which times the samples
+  // that ramp α) and the hand's cycles (which time the reads), 0.0041 once; a step would be
+  // 0.5 in one read.
+  EXPECT_LE(largest_step, 4 * sim::Guidance::kRampPerS / 1000);
+  EXPECT_EQ(r->trainee_applied, r->trainee_station.sent);  // an unimpaired link: every datagram
+  EXPECT_GT(r->metrics.guided_share, 0.2);
+  EXPECT_LT(r->metrics.guided_share, 0.9);
+  ExpectSafe(*r, p.scene, "modes");
+}
+
+}  // namespace
+}  // namespace vsurg::bench::wan
