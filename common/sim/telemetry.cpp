@@ -29,7 +29,7 @@ std::array<TelemetryField, kTelemetryFieldCount> TelemetryFields(const SessionTe
       {"packets", count(t.packets), K::kCount, 0},
       {"haptic_rate_hz", t.haptic_rate_hz, K::kReal, 0},
       {"guide_mode", static_cast<double>(s.guide_mode), K::kCount, 0},
-      {"guide_alpha", s.guide_alpha, K::kReal, 2},
+      {"dominance_ratio", s.guide_alpha, K::kReal, 2},
       {"hands_apart_mm", s.hands_apart * 1000.0, K::kReal, 1},
   }};
 }
