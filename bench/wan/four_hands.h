@@ -46,6 +46,7 @@ struct ToolSample {
   double alpha = 0;
   uint32_t mode = 0;
   size_t cycle = 0;  // the trainee hand's servo cycle when it was read
+  double time = 0;   // s, the trainee station's clock of the sample it was published with
 };
 
 struct FourHandsRun {

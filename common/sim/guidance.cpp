@@ -61,7 +61,9 @@ GuideRequest Guidance::requested() const {
   return Unpack(request_.load(std::memory_order_acquire));
 }
 
-void Guidance::Advance(double dt, double now) {
+void Guidance::Advance(double now) {
+  const double dt = now - now_;
+  now_ = now;
   const GuideRequest r = requested();
   mode_ = r.mode;
   const bool present = has_instructor_ && now - instructor_at_ <= kStaleS;

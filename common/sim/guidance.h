@@ -72,9 +72,10 @@ class Guidance {
   void Request(const GuideRequest& r);
   GuideRequest requested() const;
 
-  // Haptic thread, once per trainee sample: ramps α and f by `dt` towards the request (the
-  // trainee alone while the instructor's sample is stale at trial time `now`).
-  void Advance(double dt, double now);
+  // Haptic thread, once per trainee sample at trial time `now` (s, the trial clock): ramps α and
+  // f towards the request by the clock's advance since the call before (the trainee alone while
+  // the instructor's sample is stale).
+  void Advance(double now);
   // Haptic thread: the instructor's newest accepted sample, at trial time `now`.
   void SetInstructor(const haptics::StylusSample& s, double now);
   void DropInstructor() { has_instructor_ = false; }
@@ -109,6 +110,7 @@ class Guidance {
   GuideMode mode_ = GuideMode::kNone;  // the request as last applied
   haptics::StylusSample instructor_;
   double instructor_at_ = 0;  // trial time of the instructor's newest sample
+  double now_ = 0;            // trial time of the last Advance
   bool has_instructor_ = false;
 };
 

@@ -35,7 +35,7 @@ Vec3 AnyPerpendicular(const Vec3& a) {
   if (!safety_.AcceptInput(trainee, step.events)) return RejectInput(trainee, step.events);
   CountPortEnergy(trainee);
   step.dt = AdvanceClock(trainee, step.events);
-  guidance_.Advance(step.dt, trial_time_);
+  guidance_.Advance(trial_time_);
   const StylusSample s = guidance_.Tool(trainee);  // the trainee's own while nobody guides
   surface_.Acquire();
   const Snapshot& snap = surface_.Front();

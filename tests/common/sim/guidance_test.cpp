@@ -25,7 +25,7 @@ StylusSample At(const Vec3& x) {
 double Settle(Guidance& g, const Vec3& x_i, double t = 0) {
   for (int k = 0; k < 2000; ++k, t += 1e-3) {
     g.SetInstructor(At(x_i), t);
-    g.Advance(1e-3, t);
+    g.Advance(t);
   }
   return t;
 }
@@ -90,7 +90,7 @@ TEST(GuidanceTest, TheSharedToolIsPassiveWithoutDelay) {
       const Vec3 x_t(0.01 * std::sin(ph), 0.004 * (1 - std::cos(ph)), 0);
       const Vec3 x_i(0.006 * (1 - std::cos(ph)), 0, 0.01 * std::sin(2 * ph));
       g.SetInstructor(At(x_i), t);
-      g.Advance(dt, t);
+      g.Advance(t);
       t += dt;
       const Vec3 x_v = g.Tool(At(x_t)).position;
       const Vec3 tissue = -k_tissue * x_v - damping * (x_v - xv_prev) / dt;
@@ -109,17 +109,17 @@ TEST(GuidanceTest, TheSharedToolIsPassiveWithoutDelay) {
 TEST(GuidanceTest, ModesRampAndASilentInstructorHandsTheToolBack) {
   Guidance g;
   g.Request({GuideMode::kGuide, 1.0});
-  double t = 0;
+  double t = 1e-3;  // the trial clock's first advance from 0
   double before = 0;
   for (int k = 0; k < 300; ++k, t += 1e-3) {  // 0.3 s: a take-over takes 0.5
     g.SetInstructor(At(Vec3::Zero()), t);
-    g.Advance(1e-3, t);
+    g.Advance(t);
     EXPECT_LE(g.alpha() - before, Guidance::kRampPerS * 1e-3 + 1e-12);
     before = g.alpha();
   }
   EXPECT_NEAR(g.alpha(), 0.6, 1e-9);
   // The instructor's samples stop: after kStaleS the tool ramps back to the trainee.
-  for (int k = 0; k < 1000; ++k, t += 1e-3) g.Advance(1e-3, t);
+  for (int k = 0; k < 1000; ++k, t += 1e-3) g.Advance(t);
   EXPECT_DOUBLE_EQ(g.alpha(), 0);
   EXPECT_FALSE(g.shared());
 }
