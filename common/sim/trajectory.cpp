@@ -145,6 +145,46 @@ Expected<TraineeStyle> ParseTraineeStyle(const std::string& name) {
                          "unknown trainee style '" + name + "' (good, hesitant, rough, steady)");
 }
 
+// The task quantity over time by style: twist (rad) or press depth below the rest surface (m).
+static std::vector<Phase> StylePhases(TraineeStyle style, double target, double hold) {
+  std::vector<Phase> plan;
+  switch (style) {
+    case TraineeStyle::kGood:
+      plan = {{0.5, 0, 0, true},
+              {2.0, 0, target, true},
+              {hold + 1.0, target, target, true},
+              {0.8, target, 0, true}};
+      break;
+    case TraineeStyle::kHesitant:
+      plan = {{1.0, 0, 0, true},
+              {3.0, 0, 0.7 * target, true},
+              {1.0, 0.7 * target, 0.7 * target, true},
+              {1.5, 0.7 * target, 0.88 * target, true},
+              {1.0, 0.88 * target, 0.93 * target, true},
+              {0.8, 0.93 * target, 0.93 * target, true},
+              {1.0, 0.93 * target, target, true},
+              {hold + 0.5, target, target, true},
+              {1.5, target, 0, true}};
+      break;
+    case TraineeStyle::kRough:
+      plan = {{0.2, 0, 0, false},
+              {0.4, 0, 1.5 * target, false},
+              {0.8, 1.5 * target, 1.5 * target, false},
+              {0.3, 1.5 * target, 0.8 * target, false},
+              {0.4, 0.8 * target, 1.15 * target, false},
+              {hold * 0.6, 1.15 * target, 1.05 * target, false},
+              {0.3, 1.05 * target, 0, false}};
+      break;
+    case TraineeStyle::kSteady:
+      plan = {{0.2, 0, 0, false},           {0.4, 0, target, false},
+              {0.8, target, target, false}, {0.3, target, target, false},
+              {0.4, target, target, false}, {hold * 0.6, target, target, false},
+              {0.3, target, 0, false}};
+      break;
+  }
+  return plan;
+}
+
 // The trainee approaches the surface along its normal, sinks 2 mm in, then either twists about
 // the task's axis with the grasp held (twist tasks) or presses along the normal (press tasks),
 // holds, and leaves.
@@ -197,43 +237,8 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
   }
   const bool twist = scene.task.kind == scoring::TaskKind::kTwist;
   const double target = scene.task.target, hold = scene.task.hold_s;
-  // The task quantity over time: twist (rad) or press depth below the rest surface (m).
-  std::vector<Phase> plan;
   const double sink = 0.002;  // m below the surface while grasping
-  switch (style) {
-    case TraineeStyle::kGood:
-      plan = {{0.5, 0, 0, true},
-              {2.0, 0, target, true},
-              {hold + 1.0, target, target, true},
-              {0.8, target, 0, true}};
-      break;
-    case TraineeStyle::kHesitant:
-      plan = {{1.0, 0, 0, true},
-              {3.0, 0, 0.7 * target, true},
-              {1.0, 0.7 * target, 0.7 * target, true},
-              {1.5, 0.7 * target, 0.88 * target, true},
-              {1.0, 0.88 * target, 0.93 * target, true},
-              {0.8, 0.93 * target, 0.93 * target, true},
-              {1.0, 0.93 * target, target, true},
-              {hold + 0.5, target, target, true},
-              {1.5, target, 0, true}};
-      break;
-    case TraineeStyle::kRough:
-      plan = {{0.2, 0, 0, false},
-              {0.4, 0, 1.5 * target, false},
-              {0.8, 1.5 * target, 1.5 * target, false},
-              {0.3, 1.5 * target, 0.8 * target, false},
-              {0.4, 0.8 * target, 1.15 * target, false},
-              {hold * 0.6, 1.15 * target, 1.05 * target, false},
-              {0.3, 1.05 * target, 0, false}};
-      break;
-    case TraineeStyle::kSteady:
-      plan = {{0.2, 0, 0, false},           {0.4, 0, target, false},
-              {0.8, target, target, false}, {0.3, target, target, false},
-              {0.4, target, target, false}, {hold * 0.6, target, target, false},
-              {0.3, target, 0, false}};
-      break;
-  }
+  const std::vector<Phase> plan = StylePhases(style, target, hold);
   const double approach = 0.4, leave = 0.3;  // s
   const double body = PlanDuration(plan);
   const double total = approach + body + leave;

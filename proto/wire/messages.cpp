@@ -287,6 +287,19 @@ DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& 
   return DropReason::kNone;
 }
 
+namespace {
+
+// Four-handed training's fields of an answer: a mode the station knows, α within [0, 1].
+void ReadGuidance(const v1::ForceFeedback& f, haptics::ForceCommand& c) {
+  c.guide_mode = f.guide_mode() <= 2 ? f.guide_mode() : 0;
+  c.guide_alpha = std::isfinite(f.guide_alpha())
+                      ? std::clamp(static_cast<double>(f.guide_alpha()), 0.0, 1.0)
+                      : 0.0;
+  c.shared = f.shared();
+}
+
+}  // namespace
+
 DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& out) {
   v1::ForceFeedback& f = impl_->Fresh<v1::ForceFeedback>();
   if (!f.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
@@ -378,11 +391,7 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.score = std::isfinite(f.score()) ? std::clamp(static_cast<double>(f.score()), 0.0, 10.0) : 0.0;
   c.released_j = f.released_j();
   c.absorbed_j = f.absorbed_j();
-  c.guide_mode = f.guide_mode() <= 2 ? f.guide_mode() : 0;
-  c.guide_alpha =
-      std::isfinite(f.guide_alpha()) ? std::clamp(static_cast<double>(f.guide_alpha()), 0.0, 1.0)
-                                     : 0.0;
-  c.shared = f.shared();
+  ReadGuidance(f, c);
   // A station renders these at 1 kHz: anything non-finite is refused here, and so are port
   // energies that are not energies (negative), which the network passivity control would trust.
   if (!c.force.allFinite() || !c.local.force0.allFinite() || !c.local.position0.allFinite() ||
