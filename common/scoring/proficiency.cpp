@@ -8,7 +8,7 @@
 namespace vsurg::scoring {
 namespace {
 
-constexpr std::array<MetricDef, 8> kMetrics = {{
+constexpr std::array<MetricDef, 9> kMetrics = {{
     {"completion_time_s", "s", Better::kLower, "completion time"},
     {"task_error", "rad or m", Better::kLower, "task error"},
     {"peak_force_n", "N", Better::kLower, "peak force"},
@@ -17,6 +17,9 @@ constexpr std::array<MetricDef, 8> kMetrics = {{
     {"rms_jerk", "m/s³", Better::kLower, "RMS jerk"},
     {"overload_events", "", Better::kLower, "overload events"},
     {"score", "/10", Better::kHigher, "score"},
+    // The share of the trial's samples an instructor's hand weighed in (four-handed training): a
+    // target of 0 asks for the exercise to be passed unguided.
+    {"guided_share", "", Better::kLower, "share of the trial guided"},
 }};
 
 // Equal within rounding counts as met: a benchmark from experts who all reached the same value
@@ -58,6 +61,7 @@ double MetricValue(const TrialMetrics& m, const MetricDef& metric) {
   if (n == "path_length_m") return m.path_length;
   if (n == "rms_jerk") return m.rms_jerk;
   if (n == "overload_events") return m.overload_events;
+  if (n == "guided_share") return m.guided_share;
   return m.score;
 }
 

@@ -12,6 +12,7 @@ const METRICS = {
   peak_force_n: ['peak force', 'N', 2], time_over_force_limit_s: ['time over the force limit', 's', 2],
   path_length_m: ['path length', 'm', 3], rms_jerk: ['RMS jerk', 'm/s³', 0],
   overload_events: ['overload events', '', 0], score: ['score', '/10', 1],
+  guided_share: ['share of the trial guided', '', 2],
 };
 export function metricName(m) { return (METRICS[m] || [m])[0]; }
 export function metricValue(m, v) {

@@ -44,6 +44,30 @@ TEST(ProficiencyTest, AnAttemptPassesOnlyWhenEveryTargetIsMet) {
   EXPECT_TRUE(ValidateTargets(kTargets).ok());
 }
 
+// An exercise that must be passed unguided names guided_share ≤ 0: a trial an instructor's hand
+// weighed in on fails it however well it went, and the same trial alone passes.
+TEST(ProficiencyTest, AGuidedShareTargetOfZeroAsksForTheExercisePassedUnguided) {
+  std::vector<Target> unguided = kTargets;
+  unguided.push_back({"guided_share", 0});
+  ASSERT_TRUE(ValidateTargets(unguided).ok());
+  TrialMetrics alone = Trial(5, 2.0, 9), guided = alone;
+  guided.guided_share = 0.35;
+  guided.guided_alpha = 0.5;
+  EXPECT_TRUE(CheckAttempt(alone, unguided).passed);
+  const AttemptCheck c = CheckAttempt(guided, unguided);
+  EXPECT_FALSE(c.passed);
+  ASSERT_EQ(c.checks.size(), 4u);
+  EXPECT_EQ(c.checks[3].metric, "guided_share");
+  EXPECT_DOUBLE_EQ(c.checks[3].value, 0.35);
+  EXPECT_FALSE(c.checks[3].met);
+  EXPECT_TRUE(CheckAttempt(guided, kTargets).passed);  // without the target, guidance is allowed
+  // Two guided trials do not make a streak towards proficiency; the unguided ones after them do.
+  std::vector<Attempt> a;
+  for (const TrialMetrics* m : {&guided, &guided, &alone, &alone})
+    a.push_back({static_cast<int64_t>(a.size()) * 60'000'000, *m});
+  EXPECT_EQ(*EvaluateProgress(a, unguided, {2, 0}, 0).proficient_at, 4);
+  EXPECT_EQ(*EvaluateProgress(a, kTargets, {2, 0}, 0).proficient_at, 2);
+}
 TEST(ProficiencyTest, ProficiencyIsTheFirstStreakOfConsecutivePasses) {
   const int64_t day = 86'400'000'000;
   std::vector<Attempt> a;

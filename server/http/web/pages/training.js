@@ -8,7 +8,7 @@ import { metricName, showCohortCurve, showCurve, stateCell, targetText, taskText
 import { loadScenes } from '../scenes.js';
 
 const METRIC_NAMES = ['completion_time_s', 'peak_force_n', 'time_over_force_limit_s', 'overload_events',
-  'path_length_m', 'rms_jerk', 'task_error', 'score'];
+  'path_length_m', 'rms_jerk', 'task_error', 'score', 'guided_share'];
 const REFRESH_MS = 5000;
 
 export async function pageTraining(main) {
@@ -179,7 +179,8 @@ function exerciseFieldset(n, scenes) {
       metricRow('completion_time_s', true, '', true), metricRow('peak_force_n', true, '', true),
       metricRow('overload_events', false, 0, false), metricRow('score', false, 7, false),
       metricRow('time_over_force_limit_s', false, 0.5, false), metricRow('path_length_m', false, '', true),
-      metricRow('rms_jerk', false, '', true), metricRow('task_error', false, '', true)));
+      metricRow('rms_jerk', false, '', true), metricRow('task_error', false, '', true),
+      metricRow('guided_share', false, 0, false)));
 }
 
 // Cohorts (name and members) enrolled in a course from a day to a day, one trainee enrolled on
