@@ -31,6 +31,15 @@ std::array<TelemetryField, kTelemetryFieldCount> TelemetryFields(const SessionTe
       {"guide_mode", static_cast<double>(s.guide_mode), K::kCount, 0},
       {"dominance_ratio", s.guide_alpha, K::kReal, 2},
       {"hands_apart_mm", s.hands_apart * 1000.0, K::kReal, 1},
+      // The hands on the tool, in the scene's frame (the dashboard draws both): the trainee's tip,
+      // and the instructor's while one is on the tool (at the origin otherwise).
+      {"tip_x_mm", s.tip.x() * 1000.0, K::kReal, 2},
+      {"tip_y_mm", s.tip.y() * 1000.0, K::kReal, 2},
+      {"tip_z_mm", s.tip.z() * 1000.0, K::kReal, 2},
+      {"instructor", s.instructor ? 1.0 : 0.0, K::kFlag, 0},
+      {"instructor_x_mm", s.instructor ? s.instructor_tip.x() * 1000.0 : 0.0, K::kReal, 2},
+      {"instructor_y_mm", s.instructor ? s.instructor_tip.y() * 1000.0 : 0.0, K::kReal, 2},
+      {"instructor_z_mm", s.instructor ? s.instructor_tip.z() * 1000.0 : 0.0, K::kReal, 2},
   }};
 }
 

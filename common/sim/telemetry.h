@@ -73,7 +73,7 @@ struct TelemetryField {
   Kind kind;
   int decimals;
 };
-constexpr size_t kTelemetryFieldCount = 20;
+constexpr size_t kTelemetryFieldCount = 27;
 // The sample's numbers in a fixed order (non-finite values as they are: each writer decides).
 std::array<TelemetryField, kTelemetryFieldCount> TelemetryFields(const SessionTelemetry& t);
 

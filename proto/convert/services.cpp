@@ -109,6 +109,13 @@ void ToProto(const sim::SessionTelemetry& t, v1::Telemetry* out, bool with_surfa
   out->set_depth(t.sim.depth);
   out->set_samples(t.sim.samples);
   out->set_clock_jumps(t.sim.clock_jumps);
+  out->set_guide_mode(t.sim.guide_mode);
+  out->set_guide_alpha(t.sim.guide_alpha);
+  out->set_instructor(t.sim.instructor);
+  out->mutable_instructor_tip()->set_x(t.sim.instructor_tip.x());
+  out->mutable_instructor_tip()->set_y(t.sim.instructor_tip.y());
+  out->mutable_instructor_tip()->set_z(t.sim.instructor_tip.z());
+  out->set_hands_apart(t.sim.hands_apart);
   if (with_surface && t.has_surface) {
     v1::SurfaceState* surface = out->mutable_surface();
     surface->set_frame_id(t.surface_frame);
@@ -127,6 +134,11 @@ sim::SessionTelemetry FromProto(const v1::Telemetry& t) {
   s.server_time_us = t.server_time_us();
   s.sim.force = {t.force().x(), t.force().y(), t.force().z()};
   s.sim.tip = {t.tip().x(), t.tip().y(), t.tip().z()};
+  s.sim.guide_mode = t.guide_mode() <= 2 ? t.guide_mode() : 0;
+  s.sim.guide_alpha = t.guide_alpha();
+  s.sim.instructor = t.instructor();
+  s.sim.instructor_tip = {t.instructor_tip().x(), t.instructor_tip().y(), t.instructor_tip().z()};
+  s.sim.hands_apart = t.hands_apart();
   s.sim.twist = t.twist();
   s.sim.torque = t.torque();
   s.sim.contact = t.contact();

@@ -25,6 +25,11 @@ sim::SessionTelemetry Sample() {
   t.sim.grasping = false;
   t.sim.samples = 12'345;
   t.sim.clock_jumps = 2;
+  t.sim.guide_mode = 2;
+  t.sim.guide_alpha = 0.375;
+  t.sim.instructor = true;
+  t.sim.instructor_tip = {0.011, 0.018, -0.025};
+  t.sim.hands_apart = 0.0045;
   t.sim.metrics.score = 7.5;
   t.sim.metrics.overload_events = 3;
   t.sim.metrics.peak_force = 2.25;
@@ -59,6 +64,11 @@ TEST(ConvertTest, ASessionSampleSurvivesTheWireFieldForField) {
   EXPECT_EQ(back.sim.grasping, t.sim.grasping);
   EXPECT_EQ(back.sim.samples, t.sim.samples);
   EXPECT_EQ(back.sim.clock_jumps, t.sim.clock_jumps);
+  EXPECT_EQ(back.sim.guide_mode, t.sim.guide_mode);
+  EXPECT_EQ(back.sim.guide_alpha, t.sim.guide_alpha);
+  EXPECT_EQ(back.sim.instructor, t.sim.instructor);
+  EXPECT_EQ(back.sim.instructor_tip, t.sim.instructor_tip);
+  EXPECT_EQ(back.sim.hands_apart, t.sim.hands_apart);
   EXPECT_EQ(back.sim.metrics.score, t.sim.metrics.score);
   EXPECT_EQ(back.sim.metrics.overload_events, t.sim.metrics.overload_events);
   EXPECT_EQ(back.rtt_us, t.rtt_us);
@@ -97,6 +107,10 @@ TEST(ConvertTest, EveryFieldIsNamedWithItsUnitAndConvertedToIt) {
   EXPECT_EQ(value("contact"), 1.0);
   EXPECT_EQ(value("grasping"), 0.0);
   EXPECT_EQ(value("samples"), 12'345);
+  EXPECT_DOUBLE_EQ(value("tip_z_mm"), -30.0);
+  EXPECT_DOUBLE_EQ(value("instructor_y_mm"), 18.0);
+  EXPECT_DOUBLE_EQ(value("dominance_ratio"), 0.375);
+  EXPECT_EQ(value("instructor"), 1.0);
   // Names are unique, and a real quantity's name ends in its unit.
   for (size_t i = 0; i < fields.size(); ++i) {
     for (size_t k = i + 1; k < fields.size(); ++k) EXPECT_NE(fields[i].name, fields[k].name);
