@@ -2,6 +2,8 @@
 // read by the keyboard-and-mouse device. Plain data, no OpenGL.
 #pragma once
 
+#include <cstdint>
+
 namespace vsurg::client {
 
 struct WindowInput {
@@ -10,6 +12,10 @@ struct WindowInput {
   bool grasp = false;                 // space bar or the left mouse button
   double twist_rad = 0;               // accumulated by dragging with the right mouse button
   double cursor_x = 0, cursor_y = 0;  // px, window coordinates
+  // The last command key pressed (an instructor's mode switch: 'O', 'G', 'T', 'H', '[', ']'),
+  // and how many have been pressed so far (a reader sees a new press by the count changing).
+  char command = 0;
+  uint32_t command_presses = 0;
 };
 
 }  // namespace vsurg::client

@@ -94,6 +94,18 @@ void OnKey(GLFWwindow* w, int key, int, int action, int) {
     case GLFW_KEY_ESCAPE:
       if (down) glfwSetWindowShouldClose(w, GLFW_TRUE);
       break;
+    case GLFW_KEY_O:
+    case GLFW_KEY_G:
+    case GLFW_KEY_T:
+    case GLFW_KEY_H:
+    case GLFW_KEY_LEFT_BRACKET:
+    case GLFW_KEY_RIGHT_BRACKET:
+      if (down) {
+        // GLFW's key codes for letters and brackets are their ASCII characters.
+        in.command = static_cast<char>(key);
+        ++in.command_presses;
+      }
+      break;
     default:
       break;
   }

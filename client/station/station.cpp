@@ -40,6 +40,16 @@ bool IsLive(v1::SessionState s) {
   return state && vsurg::IsLive(*state);
 }
 
+SessionSummary SummaryOf(const v1::Session& session) {
+  SessionSummary out;
+  out.id = session.id();
+  out.state = convert::FromProto(session.state()).value_or(SessionState::kAborted);
+  out.end_reason = session.end_reason();
+  out.has_metrics = session.has_metrics();
+  out.metrics = convert::FromProto(session.metrics());
+  return out;
+}
+
 void Add(StationStats& sum, const StationStats& s) {
   sum.sent += s.sent;
   sum.received += s.received;
@@ -194,46 +204,60 @@ std::shared_ptr<const haptics::TissueSurface> Station::StationSurfaceOf(
   return nullptr;
 }
 
-Status Station::Connect() {
+Expected<v1::CreateSessionResponse> Station::OpenSession(bool join) {
   auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::CreateSessionResponse created;
+  grpc::ClientContext ctx;
+  remote_.Prepare(ctx, std::max(config_.rpc_timeout_s, config_.create_timeout_s));
+  const bool instructing = config_.instruct != 0;
+  v1::JoinRequest prepared;
+  prepared.set_id(instructing ? config_.instruct : config_.join);
+  prepared.set_with_surface(true);
+  if (instructing) {
+    prepared.set_role(v1::ROLE_INSTRUCTOR);
+    prepared.set_mode(static_cast<v1::GuideMode>(config_.guide.mode));
+    prepared.set_alpha(config_.guide.alpha);
+  }
   v1::CreateSessionRequest create;
   create.set_scene(config_.scene);
   create.set_exercise_id(config_.exercise_id);
-  v1::CreateSessionResponse created;
-  const bool join = config_.join != 0 && status_.generation == 0;
-  {
-    grpc::ClientContext ctx;
-    remote_.Prepare(ctx, std::max(config_.rpc_timeout_s, config_.create_timeout_s));
-    v1::JoinRequest prepared;
-    prepared.set_id(config_.join);
-    prepared.set_with_surface(true);
-    const grpc::Status s =
-        join ? stub->Join(&ctx, prepared, &created) : stub->Create(&ctx, create, &created);
-    if (!s.ok()) {
-      // A refusal (bad token, unknown scene) will not get better by retrying.
-      const bool fatal = s.error_code() == grpc::StatusCode::UNAUTHENTICATED ||
-                         s.error_code() == grpc::StatusCode::PERMISSION_DENIED ||
-                         s.error_code() == grpc::StatusCode::NOT_FOUND ||
-                         s.error_code() == grpc::StatusCode::INVALID_ARGUMENT;
-      return Error{fatal ? ErrorCode::kPermissionDenied : ErrorCode::kUnavailable,
-                   std::string(join ? "cannot join session " + std::to_string(config_.join)
-                                    : "cannot create a session") +
-                       ": " + Describe(s),
-                   "session"};
-    }
-  }
+  const grpc::Status s =
+      join ? stub->Join(&ctx, prepared, &created) : stub->Create(&ctx, create, &created);
+  if (s.ok()) return created;
+  // A refusal (bad token, unknown scene, a session that ended) will not get better by retrying.
+  const auto code = s.error_code();
+  const bool fatal =
+      code == grpc::StatusCode::UNAUTHENTICATED || code == grpc::StatusCode::PERMISSION_DENIED ||
+      code == grpc::StatusCode::NOT_FOUND || code == grpc::StatusCode::INVALID_ARGUMENT ||
+      (instructing && code == grpc::StatusCode::FAILED_PRECONDITION);
+  return Error{fatal ? ErrorCode::kPermissionDenied : ErrorCode::kUnavailable,
+               std::string(instructing ? "cannot join session " + std::to_string(config_.instruct) +
+                                             " as its instructor"
+                           : join ? "cannot join session " + std::to_string(config_.join)
+                                  : "cannot create a session") +
+                   ": " + Describe(s),
+               "session"};
+}
+
+Status Station::Connect() {
+  const bool instructing = config_.instruct != 0;
+  const bool join = instructing || (config_.join != 0 && status_.generation == 0);
+  auto opened = OpenSession(join);
+  if (!opened.ok()) return opened.error();
+  const v1::CreateSessionResponse& created = *opened;
   if (join && created.session().scene() != config_.scene)
     return Error{ErrorCode::kPermissionDenied,
-                 "session " + std::to_string(config_.join) + " is prepared for scene '" +
+                 "session " + std::to_string(created.session().id()) + " is prepared for scene '" +
                      created.session().scene() + "'; start the station with --scene " +
                      created.session().scene(),
                  "scene"};
   if (created.session_key().size() != 32)
     return Error{ErrorCode::kUnavailable, "the server sent no usable session key", "session"};
-  v1::SessionRef ref;
-  ref.set_id(created.session().id());
-  v1::Session started;
-  {
+  if (!instructing) {  // the trainee's station starts its trial; an instructor joins it running
+    auto stub = v1::SessionService::NewStub(remote_.channel);
+    v1::SessionRef ref;
+    ref.set_id(created.session().id());
+    v1::Session started;
     grpc::ClientContext ctx;
     remote_.Prepare(ctx, config_.rpc_timeout_s);
     const grpc::Status s = stub->Start(&ctx, ref, &started);
@@ -245,7 +269,9 @@ Status Station::Connect() {
   StationOptions options;
   options.server_address = *host;
   options.server_port = static_cast<uint16_t>(created.udp_port());
-  options.session = created.session().id();
+  // The wire id the datagrams carry: an instructor's channel into the session, or the session's.
+  options.session =
+      instructing && created.channel() != 0 ? created.channel() : created.session().id();
   std::copy(created.session_key().begin(), created.session_key().end(), options.key.begin());
   options.rate_hz = config_.rate_hz;
   options.realtime_priority = config_.realtime_priority;
@@ -262,7 +288,8 @@ Status Station::Connect() {
   {
     std::lock_guard lock(mutex_);
     channel_ = std::move(*channel);
-    status_.session = options.session;
+    status_.session = created.session().id();
+    if (instructing) guide_ = config_.guide;
     ++status_.generation;
     if (status_.state == StationState::kReconnecting) ++status_.reconnects;
     status_.state = StationState::kLive;
@@ -317,6 +344,7 @@ void Station::Probe(double now) {
     return Drop("session " + std::to_string(status_.session) + " is " +
                 convert::StateName(session.state()));
   last_probe_ = now;  // the server is there and the session live: slow, not gone (yet)
+  if (config_.instruct != 0) return;  // an instructor's channel is not followed to another node
   // Where it runs: at once when the old node said the session moved, else at most every
   // follow_s (a silent station probes ten times a second; each Join is one more call to the
   // control plane and one to a node, which a loaded site does not need from every station).
@@ -393,6 +421,16 @@ void Station::Tick() {
       return;
     }
     case StationState::kLive: {
+      std::optional<sim::GuideRequest> asked;
+      {
+        std::lock_guard lock(mutex_);
+        asked.swap(pending_guide_);
+      }
+      if (asked) {
+        const Status sent = SendGuide(*asked);
+        std::lock_guard lock(mutex_);
+        guide_error_ = sent.ok() ? "" : sent.error().message;
+      }
       const uint64_t received = channel_->received();
       if (received != last_received_) {
         last_received_ = received;
@@ -414,6 +452,62 @@ void Station::Tick() {
   }
 }
 
+void Station::RequestGuide(const sim::GuideRequest& r) {
+  std::lock_guard lock(mutex_);
+  pending_guide_ = r;
+}
+
+sim::GuideRequest Station::guide() const {
+  std::lock_guard lock(mutex_);
+  return guide_;
+}
+
+std::string Station::guide_error() const {
+  std::lock_guard lock(mutex_);
+  return guide_error_;
+}
+
+Status Station::SendGuide(const sim::GuideRequest& r) {
+  if (config_.instruct == 0)
+    return Error{ErrorCode::kFailedPrecondition, "only an instructor's station guides", "mode"};
+  if (Status s = sim::CheckGuideRequest(r); !s.ok()) return s;
+  auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::GuideRequest ask;
+  ask.set_id(config_.instruct);
+  ask.set_mode(static_cast<v1::GuideMode>(r.mode));
+  ask.set_alpha(r.alpha);
+  v1::Guidance now;
+  grpc::ClientContext ctx;
+  remote_.Prepare(ctx, config_.rpc_timeout_s);
+  const grpc::Status s = stub->Guide(&ctx, ask, &now);
+  if (!s.ok())
+    return Error{ErrorCode::kUnavailable, "the mode was refused: " + Describe(s), "mode"};
+  std::lock_guard lock(mutex_);
+  guide_ = r;
+  return Status::Ok();
+}
+
+// The instructor leaves (the tool ramps back to the trainee) and reads the session as it stands.
+Expected<v1::Session> Station::LeaveAsInstructor() {
+  auto stub = v1::SessionService::NewStub(remote_.channel);
+  v1::GuideRequest leave;
+  leave.set_id(config_.instruct);
+  leave.set_mode(v1::GUIDE_MODE_NONE);
+  v1::Guidance left;
+  grpc::ClientContext ctx;
+  remote_.Prepare(ctx, config_.rpc_timeout_s);
+  (void)stub->Guide(&ctx, leave, &left);  // an ended session has nobody left to leave
+  v1::SessionRef ref;
+  ref.set_id(config_.instruct);
+  v1::Session session;
+  grpc::ClientContext get_ctx;
+  remote_.Prepare(get_ctx, config_.rpc_timeout_s);
+  const grpc::Status s = stub->Get(&get_ctx, ref, &session);
+  if (!s.ok())
+    return Error{ErrorCode::kUnavailable, "cannot read the session: " + Describe(s), "session"};
+  return session;
+}
+
 Expected<SessionSummary> Station::Finish(const std::string& reason) {
   StopSupervisor();
   StopChannel();
@@ -423,11 +517,17 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
     status_.state = StationState::kFinished;
   }
   if (!had_session) return Error{ErrorCode::kUnavailable, "no session was started", "session"};
+  v1::Session session;
+  if (config_.instruct != 0) {
+    auto left = LeaveAsInstructor();
+    if (!left.ok()) return left.error();
+    session = std::move(left).value();
+    return SummaryOf(session);
+  }
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::StopSessionRequest stop;
   stop.set_id(status_.session);
   stop.set_reason(reason);
-  v1::Session session;
   grpc::ClientContext ctx;
   remote_.Prepare(ctx, config_.rpc_timeout_s);
   grpc::Status s = stub->Stop(&ctx, stop, &session);
@@ -441,12 +541,7 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
   }
   if (!s.ok())
     return Error{ErrorCode::kUnavailable, "cannot stop the session: " + Describe(s), "session"};
-  SessionSummary out;
-  out.id = session.id();
-  out.state = convert::FromProto(session.state()).value_or(SessionState::kAborted);
-  out.end_reason = session.end_reason();
-  out.has_metrics = session.has_metrics();
-  out.metrics = convert::FromProto(session.metrics());
+  SessionSummary out = SummaryOf(session);
   if (config_.exercise_id != 0 && session.targets_size() == 0 && out.has_metrics) {
     // Stop answers with the session; its target checks come with Get.
     grpc::ClientContext get_ctx;

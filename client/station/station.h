@@ -21,6 +21,11 @@
 // recorded it; the station starts a new one (a new session id and key), and the render side resets
 // the tissue (generation()).
 //
+// An instructor's station (StationConfig::instruct) joins another trainee's live session on a
+// channel of its own (four-handed training, common/sim/guidance.h): connecting is that join
+// alone, a lost server or an ended session is not followed by a session of its own (it ends the
+// station), modes switch live (RequestGuide), and Finish leaves the session to its trainee.
+//
 // Threads: Tick runs on one thread at a time: the station's supervisor thread (StartSupervisor:
 // every tick_s, so a render thread stalled for seconds by a first frame or a slow driver never
 // delays noticing a lost server), or the caller's (tests). status(), WithChannel() and
@@ -32,6 +37,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -42,9 +48,11 @@
 #include "common/core/range.h"
 #include "common/core/session_state.h"
 #include "common/scoring/trial_metrics.h"
+#include "common/sim/guidance.h"
 
 namespace vsurg::v1 {
 class CreateSessionResponse;
+class Session;
 }  // namespace vsurg::v1
 
 namespace vsurg::client {
@@ -56,6 +64,11 @@ struct StationConfig {
   // A session prepared for this trainee (by an instructor) to join instead of creating one; a
   // reconnect after the server went away creates a new session as usual. 0: create.
   uint64_t join = 0;
+  // Four-handed training: join this live session of another trainee as its instructor (on a
+  // channel of the instructor's own) in `guide`'s mode, instead of running one's own; the
+  // station never creates, starts or stops a session then, and leaving hands the tool back.
+  uint64_t instruct = 0;
+  sim::GuideRequest guide{sim::GuideMode::kObserve, 0};
   // An attempt at a course's exercise (TrainingService/Next): sessions are created for it (the
   // scene is the exercise's). 0: a free session of `scene`.
   int64_t exercise_id = 0;
@@ -147,8 +160,14 @@ class Station {
   // called on that thread with the first status and at every change of state or session.
   void StartSupervisor(std::function<void(const StationStatus&)> on_change = {});
   void StopSupervisor();
-  // Stops the session on the server (recorded with `reason`) and returns it with its metrics.
+  // Stops the session on the server (recorded with `reason`) and returns it with its metrics;
+  // an instructor's station leaves the trainee's session instead, and returns it as it stands.
   Expected<SessionSummary> Finish(const std::string& reason);
+  // An instructor's station: switch the mode (sent by the supervisor; any thread). The mode the
+  // server last accepted, and why the last switch was refused ("" when it was not).
+  void RequestGuide(const sim::GuideRequest& r);
+  sim::GuideRequest guide() const;
+  std::string guide_error() const;
 
   StationStatus status() const;
   // Runs `fn` on the running channel (for its view, stats and scene chunks) while holding it,
@@ -160,6 +179,11 @@ class Station {
 
  private:
   Status Connect();
+  // The session's first call: create one, join the one prepared for this trainee, or join
+  // another's as its instructor.
+  Expected<v1::CreateSessionResponse> OpenSession(bool join);
+  Status SendGuide(const sim::GuideRequest& r);  // the ticking thread
+  Expected<v1::Session> LeaveAsInstructor();
   std::shared_ptr<const haptics::TissueSurface> StationSurfaceOf(
       const v1::CreateSessionResponse& created);
   void Probe(double now);
@@ -185,6 +209,9 @@ class Station {
   double last_answer_at_ = -1;      // when an answer was last seen (ticking thread); −1: none yet
   double last_follow_ = -1e9;       // when Follow last asked (ticking thread)
   uint64_t last_received_ = 0;
+  std::optional<sim::GuideRequest> pending_guide_;  // under mutex_
+  sim::GuideRequest guide_;                         // under mutex_: as the server accepted it
+  std::string guide_error_;                         // under mutex_
 };
 
 }  // namespace vsurg::client

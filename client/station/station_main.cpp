@@ -24,6 +24,7 @@
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
+#include "client/station/instructor_controls.h"
 #include "client/station/station.h"
 #include "common/core/args.h"
 #include "common/core/format.h"
@@ -126,6 +127,22 @@ void DeclareOptions(ArgParser& p) {
   p.Option("scene", Kind::kString, "scene to train on", false, defaults.scene)
       .Option("join", Kind::kInt, "join this session, prepared for you by an instructor")
       .Within({1, 2147483647})
+      .Option("instruct", Kind::kInt,
+              "four-handed training: join this live session of a trainee as its instructor, "
+              "your hands on the trainee's tool (instructors and administrators)")
+      .Within({1, 2147483647})
+      .Option("mode", Kind::kString,
+              "with --instruct: the mode to join in, observe (feel what the trainee feels) or "
+              "guide (both hands on the tool at --alpha)",
+              false, "observe")
+      .Option("alpha", Kind::kDouble,
+              "with --instruct: the dominance alpha of guiding, 0 (the trainee alone) to 1 (the "
+              "instructor alone); the keys [ and ] change it",
+              false, "0.5")
+      .Within({0, 1})
+      .Option("guide-plan", Kind::kString,
+              "with --instruct: mode switches by seconds live, SECONDS:MODE[:ALPHA],... "
+              "(\"2:guide:0.5,5:guide:1,8:guide:0\"); in a window, the keys O, G, T, H switch too")
       .Option("course", Kind::kFlag,
               "follow your course: run your next exercise (its scene, its targets; --scene is "
               "ignored) and say at the end which targets the trial met")
@@ -204,6 +221,12 @@ int Usage(const std::string& option, const std::string& message) {
 std::optional<int> CheckOptions(const ArgParser& p) {
   if (p.Has("exercise") && !p.Flag("course")) return Usage("exercise", "only with --course");
   if (p.Flag("course") && p.Has("join")) return Usage("", "--course and --join exclude each other");
+  if (p.Has("instruct") && (p.Flag("course") || p.Has("join")))
+    return Usage("instruct", "an instructor joins another's session: not with --course or --join");
+  for (const char* only : {"mode", "alpha", "guide-plan"})
+    if (p.Has(only) && !p.Has("instruct")) return Usage(only, "only with --instruct");
+  if (auto plan = client::ParseGuidePlan(p.String("guide-plan")); !plan.ok())
+    return Usage("guide-plan", plan.error().field + ": " + plan.error().message);
   if (p.String("device") == "keyboard-mouse" && p.Flag("headless"))
     return Usage("device", "keyboard-mouse needs a window (not --headless)");
   if (p.Has("force-log")) {
@@ -284,6 +307,13 @@ vsurg::Expected<client::StationConfig> ConfigFor(
   config.scene = scene_name;
   if (exercise) config.exercise_id = exercise->exercise_id;
   if (p.Has("join")) config.join = static_cast<uint64_t>(p.Int("join"));
+  if (p.Has("instruct")) {
+    config.instruct = static_cast<uint64_t>(p.Int("instruct"));
+    auto mode = sim::ParseGuideMode(p.String("mode"));
+    if (!mode.ok() || *mode == sim::GuideMode::kNone)
+      return vsurg::InvalidArgument("--mode", "observe or guide");
+    config.guide = {*mode, *mode == sim::GuideMode::kGuide ? p.Double("alpha") : 0.0};
+  }
   auto rendering = client::ParseLocalRendering(p.String("local-model"));
   if (!rendering.ok()) return rendering.error();
   auto passivity = client::ParsePassivityMode(p.String("passivity"));
@@ -332,6 +362,8 @@ struct Trial {
   client::StationView shown;
   double held_s = 0, last_frame_at = 0;  // the task's quantity within tolerance, so far
   std::vector<double> draw_ms;           // per frame: draw and finish, ms
+  // An instructor's station: the mode's switches (scripted and from the keys).
+  std::optional<client::InstructorControls> controls;
 
   // The channel's news (a new session's rest, the moved vertices, the latest view) and the
   // overlay drawn over it this frame.
@@ -397,6 +429,16 @@ struct Trial {
                    "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
                        Fixed(shown.force.norm(), 2) + " N",
                    "score " + Fixed(shown.command.score, 1) + " / 10"};
+    if (controls) {
+      const sim::GuideRequest g = station.guide();
+      overlay.hud.push_back(
+          std::string("instructing: ") + sim::GuideModeName(g.mode) +
+          (g.mode == sim::GuideMode::kGuide ? " at alpha " + Fixed(g.alpha, 2) : "") +
+          "   next alpha " + Fixed(controls->alpha(), 1) + "   " +
+          std::string(client::InstructorControls::kHelp));
+      if (const std::string why = station.guide_error(); !why.empty())
+        overlay.hud.push_back(why.substr(0, 80));
+    }
     // Beyond what the local model holds faithfully (docs/BENCHMARKS.md "Haptics across
     // networks": within 20% of the no-delay force up to 300 ms round trips, 1% loss), the
     // trainee is told plainly instead of feeling a mushy tissue.
@@ -460,6 +502,8 @@ struct Trial {
       const double tick = Seconds(started);
       if (live) live_now += tick - last_tick;
       last_tick = tick;
+      if (controls && live)
+        if (auto asked = controls->Next(live_now, screen.gl->Input())) station.RequestGuide(*asked);
       const client::Overlay overlay = Compose(st, tick);
       last_frame_at = tick;
       Draw(overlay);
@@ -663,6 +707,8 @@ int Run(const std::vector<std::string>& args) {
   });
   Trial trial{p, *scene, *screen, station,
               [&] { return (replay && replay->finished()) || (hand && hand->finished()); }};
+  if (config->instruct != 0)
+    trial.controls.emplace(*client::ParseGuidePlan(p.String("guide-plan")), p.Double("alpha"));
   if (vsurg::Status s = trial.Run(); !s.ok()) return Fail(s.error().message);
 
   const client::StationStatus st = station.status();

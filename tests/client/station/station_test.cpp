@@ -278,6 +278,72 @@ TEST(StationTest, ARefusedTokenFailsAtOnceInsteadOfRetrying) {
   EXPECT_EQ(device.forces().size(), 0u) << "no channel ran";
 }
 
+// Four-handed training from the station: an instructor's station joins a trainee's running
+// session on a channel of its own (observing), guides at α 0.5 when asked (a bad α refused and
+// said), and leaving hands the session back: still running on the trainee's one channel, whose
+// record says how much was guided. An ended session is not joined (the station fails at once).
+TEST(StationTest, AnInstructorsStationJoinsGuidesAndLeavesTheTraineesSession) {
+  Site site("vsurg_station_instruct");
+  auto& [dir, db, tokens, server] = site;
+  ASSERT_GT(server.grpc_port, 0);
+  auto received = [](Station& st) {
+    uint64_t n = 0;
+    OnChannel(st, [&](StationChannel& c) { return (n = c.stats().received) > 0; });
+    return n;
+  };
+  ReplayDevice trainee_hand(test::PressAndHold(120));
+  StationConfig config;
+  config.scene = "sphere-palpation-256";
+  Station trainee(RemoteTo(server.grpc_port, tokens.trainee), &trainee_hand, config);
+  trainee.StartSupervisor();
+  ASSERT_TRUE(test::Eventually(20, [&] { return received(trainee) > 200; }))
+      << trainee.status().last_error;
+  const uint64_t session = trainee.status().session;
+
+  ReplayDevice instructor_hand(test::PressAndHold(120));
+  StationConfig as_instructor = config;
+  as_instructor.instruct = session;
+  Station instructor(RemoteTo(server.grpc_port, tokens.instructor), &instructor_hand,
+                     as_instructor);
+  instructor.StartSupervisor();
+  ASSERT_TRUE(test::Eventually(20, [&] { return received(instructor) > 200; }))
+      << instructor.status().last_error;
+  EXPECT_EQ(instructor.status().session, session);
+  EXPECT_EQ(instructor.guide().mode, sim::GuideMode::kObserve);
+
+  instructor.RequestGuide({sim::GuideMode::kGuide, 1.5});  // refused by the station itself
+  ASSERT_TRUE(test::Eventually(10, [&] { return !instructor.guide_error().empty(); }));
+  EXPECT_NE(instructor.guide_error().find("alpha"), std::string::npos) << instructor.guide_error();
+  instructor.RequestGuide({sim::GuideMode::kGuide, 0.5});
+  ASSERT_TRUE(test::Eventually(10, [&] {
+    return instructor.guide().mode == sim::GuideMode::kGuide && instructor.guide_error().empty();
+  })) << instructor.guide_error();
+  EXPECT_DOUBLE_EQ(instructor.guide().alpha, 0.5);
+  const uint64_t at_guide = received(trainee);
+  ASSERT_TRUE(test::Eventually(30, [&] { return received(trainee) > at_guide + 1500; }));
+
+  auto left = instructor.Finish("instructor done");
+  ASSERT_TRUE(left.ok()) << left.error().message;
+  EXPECT_EQ(left->id, session);
+  EXPECT_TRUE(IsLive(left->state)) << "leaving does not end the trainee's trial";
+  const uint64_t at_leave = received(trainee);
+  ASSERT_TRUE(test::Eventually(20, [&] { return received(trainee) > at_leave + 500; }));
+  EXPECT_EQ(trainee.status().generation, 1u) << "the trainee's one channel throughout";
+  auto summary = trainee.Finish("test over");
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->state, SessionState::kEnded);
+  EXPECT_GT(summary->metrics.guided_share, 0.1);
+  EXPECT_LT(summary->metrics.guided_share, 0.95);
+  EXPECT_NEAR(summary->metrics.guided_alpha, 0.5, 0.1);
+
+  // The session ended: joining it fails at once, with the reason.
+  Station late(RemoteTo(server.grpc_port, tokens.instructor), &instructor_hand, as_instructor);
+  EXPECT_TRUE(TickUntil(late, 10, [&] { return late.status().state == StationState::kFailed; }));
+  EXPECT_NE(late.status().last_error.find("as its instructor"), std::string::npos)
+      << late.status().last_error;
+  server.Signal(SIGTERM);
+}
+
 // The binaries, as the demo runs them.
 // The station's --help shows the bounds and defaults of the settings it fills, and the parser
 // holds to them before anything opens (exit 2, the option named).
