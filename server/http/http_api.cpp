@@ -334,6 +334,8 @@ const HttpApi::Route HttpApi::kRoutes[] = {
     {"GET", "sessions/{id}/events", Method::kMonitorWatch, &Routes::SessionEvents},
     {"GET", "sessions/{id}/trace", Method::kSessionGet, &Routes::SessionTraceRoute},
     {"GET", "sessions/{id}/feedback", Method::kSessionGet, &Routes::SessionFeedbackRoute},
+    {"GET", "sessions/{id}/guidance", Method::kSessionGet, &Routes::SessionGuidanceRoute},
+    {"POST", "sessions/{id}/guide", Method::kSessionGuide, &Routes::SessionGuide},
     {"GET", "records", Method::kSessionList, &Routes::Records},
     {"GET", "subjects", Method::kEvaluationReport, &Routes::Subjects},
     {"GET", "live/events", Method::kMonitorWatch, &Routes::LiveEvents},

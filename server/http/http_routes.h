@@ -37,6 +37,8 @@ struct HttpApi::Routes {
   static HttpReply SessionSurface(const Call& c);
   static HttpReply SessionTraceRoute(const Call& c);
   static HttpReply SessionFeedbackRoute(const Call& c);
+  static HttpReply SessionGuidanceRoute(const Call& c);
+  static HttpReply SessionGuide(const Call& c);
   static HttpReply Records(const Call& c);
   static HttpReply Subjects(const Call& c);
   static HttpReply Events(const Call& c, uint64_t session, double max_hz);

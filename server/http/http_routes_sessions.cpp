@@ -5,6 +5,7 @@
 #include "common/core/time.h"
 #include "common/scoring/report_json.h"
 #include "common/scoring/vocabulary.h"
+#include "common/sim/guidance.h"
 #include "db/vocabulary.h"
 #include "server/domain/scene_catalog.h"
 #include "server/domain/training.h"
@@ -118,6 +119,42 @@ HttpReply HttpApi::Routes::SessionTraceRoute(const Call& c) {
     reply.body = std::move(trace).value();  // the recorder's JSON as stored
     return reply;
   });
+}
+
+namespace {
+
+// Who is in a live session and what the instructor asked for (common/sim/guidance.h): the
+// dominance requested and the one the haptic path has ramped to so far.
+json GuidanceJson(const SessionGuidance& g) {
+  return {{"trainee", g.trainee},
+          {"instructor", g.instructor.empty() ? json(nullptr) : json(g.instructor)},
+          {"mode", sim::GuideModeName(g.requested.mode)},
+          {"alpha_requested", g.requested.alpha},
+          {"dominance_ratio", g.alpha}};
+}
+
+}  // namespace
+
+HttpReply HttpApi::Routes::SessionGuidanceRoute(const Call& c) {
+  auto g = GetGuidance(c.api.d_, *c.p, c.id);
+  if (!g.ok()) return ErrorReply(g.error());
+  return Ok(GuidanceJson(*g));
+}
+
+// The instructor whose station joined the session switches its mode from the dashboard:
+// {"mode": "observe" | "guide" | "none" (leave), "alpha": 0..1 (guide only)}.
+HttpReply HttpApi::Routes::SessionGuide(const Call& c) {
+  auto body = Body(c.r);
+  if (!body.ok()) return ErrorReply(body.error());
+  auto mode_name = Field<std::string>(*body, "mode", "");
+  if (!mode_name.ok()) return ErrorReply(mode_name.error());
+  auto alpha = Field<double>(*body, "alpha", 0.0);
+  if (!alpha.ok()) return ErrorReply(alpha.error());
+  auto mode = sim::ParseGuideMode(*mode_name);
+  if (!mode.ok()) return ErrorReply(mode.error());
+  auto g = GuideSession(c.api.d_, *c.p, c.id, {*mode, *alpha});
+  if (!g.ok()) return ErrorReply(g.error());
+  return Ok(GuidanceJson(*g));
 }
 
 HttpReply HttpApi::Routes::SessionFeedbackRoute(const Call& c) {

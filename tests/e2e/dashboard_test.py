@@ -239,6 +239,30 @@ def main():
         wait.until(lambda d: points("plot-force") >= 0)
         history = points("plot-force")
         check(history >= 10, f"the session page opens with the session's history ({history} points)")
+
+        # --- four hands: the instructor's station joins tina's session, the page switches it ---
+        ian_out = os.path.join(tmp, "station-ian.json")
+        ian_station = subprocess.Popen(
+            [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["ian"],
+             "--instruct", str(session), "--scene", "arm-torsion", "--device", "replay",
+             "--trajectory", good, "--headless", "--settle", "600", "--json", "--realtime-priority", "0",
+             "--width", "160", "--height", "100", "--fps", "4", "--quality", "low"],
+            stdout=open(ian_out, "w"), stderr=open(os.path.join(tmp, "station-ian.log"), "w"), env=env)
+        procs.append(ian_station)
+        wait.until(lambda d: "ian (instructor)" in text("#guidance-status"))
+        check("observing" in text("#guidance-status"), f"the page says who joined and how: {text('#guidance-status')}")
+        check(driver.find_element(By.ID, "guide-controls").is_displayed(), "the joined instructor is offered the switches")
+        driver.find_element(By.ID, "guide-guide").click()
+        wait.until(lambda d: "guiding" in text("#guidance-status"))
+        wait.until(lambda d: d.find_element(By.ID, "view3d").get_attribute("data-tools") == "2")
+        guided = api(http, "GET", f"/sessions/{session}/guidance", tokens["tina"])
+        check(guided["instructor"] == "ian" and guided["mode"] == "guide" and guided["alpha_requested"] == 0.5,
+              f"the trainee sees who is in her session and the mode: {guided}")
+        try:
+            api(http, "POST", f"/sessions/{session}/guide", tokens["tina"], {"mode": "guide", "alpha": 1})
+            check(False, "a trainee cannot switch the mode")
+        except Exception as e:  # noqa: BLE001 (api raises on a refusal)
+            check("403" in str(e) or "may not" in str(e), f"a trainee's switch is refused: {e}")
         tall_shot("session")
         accessible("a live session's page")
 
@@ -284,6 +308,8 @@ def main():
         shot("live-phone")
         driver.set_window_size(1366, 768)
 
+        ian_station.send_signal(signal.SIGINT)  # the instructor leaves first: tina's trial goes on
+        check(ian_station.wait(timeout=90) == 0, "the instructor's station left the session cleanly")
         for name, (p, _) in stations.items():
             p.send_signal(signal.SIGINT)  # the trainees end their trials at the stations
         for name, (p, _) in stations.items():
@@ -291,6 +317,8 @@ def main():
         summary = json.load(open(stations["tina"][1]))
         check(summary.get("state") == "ended" and summary.get("session") == session,
               "the trainee's station joined the prepared session and ended it")
+        share = summary.get("metrics", {}).get("guided_share", 0)
+        check(0 < share < 1, f"tina's record says how much of her trial was guided ({share:.2f})")
 
         # --- an evaluator scores tina's session beside its replay, traces and metrics ---
         sign_in(tokens["eve"])
@@ -312,6 +340,18 @@ def main():
         kept = driver.find_element(By.ID, "timeline").get_attribute("data-frames")
         check(end_png != start_png,
               f"the replay's timeline moves the tissue (its start differs from its end; {kept} frames)")
+        # The replay shows both hands while the instructor was on the tool.
+        both = driver.execute_script("""
+            return fetch('/api/v1/sessions/' + arguments[0] + '/trace').then((r) => r.json()).then((rec) => {
+              const s = rec.series, i = s.instructor.findIndex((v) => v > 0);
+              if (i < 0) return -1;
+              const t = document.getElementById('timeline'); t.value = s.time_s[i] + 0.05;
+              t.dispatchEvent(new Event('input'));
+              return Number(document.getElementById('view3d').dataset.tools); });""", session)
+        check(both == 2, f"the replay draws the trainee's and the instructor's tools ({both})")
+        driver.execute_script(
+            "const s = document.getElementById('timeline'); s.value = s.min;"
+            "s.dispatchEvent(new Event('input'));")
         label = driver.find_element(By.ID, "replay-time").text
         check(label.startswith("0.") or label.startswith("0 "), f"the timeline says where it is: {label}")
         inputs = driver.find_elements(By.CSS_SELECTOR, "#score fieldset.index input")

@@ -49,8 +49,8 @@ export class Replay {
     const text = `${this.time.toFixed(1)} s of ${this.t1.toFixed(1)} s`;
     this.label.textContent = text;
     this.slider.setAttribute('aria-valuetext', text);
+    if (this.onTime) this.onTime(this.time);  // first: it may set what the view draws with the frame
     if (this.view && this.frames.length) this.view.setDisplacement(this.at(this.time), this.unit);
-    if (this.onTime) this.onTime(this.time);
   }
   // The displacement at `t`, linear between the two frames around it (before the first: rest).
   at(t) {

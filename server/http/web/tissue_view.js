@@ -3,7 +3,7 @@
 // diffuse, wet organs with a second sharp lobe, tone and vessels that move with the tissue (a
 // value noise at each point's rest position: per vertex for the broad pattern, per pixel for pores
 // and their bump), a drape-covered table under it with the tissue's soft contact shadow.
-// Positions in mm, as the server sends them.
+// Positions in mm, as the server sends them. The hands' tool tips are drawn over it as markers.
 const kLooks = {  // albedo (linear), roughness, wet lobe, pore scale (per mm)
   skin: { albedo: [0.66, 0.41, 0.30], rough: 0.52, wet: 0, pores: 1.3 },
   organ: { albedo: [0.32, 0.075, 0.055], rough: 0.42, wet: 0.9, pores: 0.7 },
@@ -147,6 +147,56 @@ export class TissueView {
       e.preventDefault(); this.yaw += turn[0]; this.pitch += turn[1]; this.draw();
     });
     this.frames = 0;
+    this.tools = [];
+    this.initTools();
+  }
+  // The hands' tool tips as round markers over the tissue (never hidden by it: a tip pressed in
+  // is still seen): the trainee's, and an instructor's while one is on the tool.
+  initTools() {
+    const gl = this.gl;
+    const vs = `#version 300 es
+      layout(location = 0) in vec3 aPos; uniform mat4 uM; uniform float uSize;
+      void main() { gl_Position = uM * vec4(aPos, 1.0); gl_Position.z = -0.999 * gl_Position.w; gl_PointSize = uSize; }`;
+    const fs = `#version 300 es
+      precision mediump float; uniform vec3 uColour; out vec4 colour;
+      void main() { vec2 d = gl_PointCoord - 0.5; float r = length(d); if (r > 0.5) discard;
+        colour = vec4(r > 0.36 ? vec3(0.05) : uColour, 1.0); }`;
+    const prog = gl.createProgram();
+    for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
+      const sh = gl.createShader(type); gl.shaderSource(sh, src); gl.compileShader(sh);
+      if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(sh));
+      gl.attachShader(prog, sh);
+    }
+    gl.linkProgram(prog);
+    if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(prog));
+    this.toolProg = prog;
+    this.toolVao = gl.createVertexArray(); gl.bindVertexArray(this.toolVao);
+    this.toolBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, this.toolBuf);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(6), gl.DYNAMIC_DRAW);
+    gl.enableVertexAttribArray(0); gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+    gl.bindVertexArray(null);
+  }
+  // tools: [{ p: [x, y, z] mm, colour: [r, g, b], size: px }] (at most two), drawn at the next draw().
+  setTools(tools) { this.tools = tools.slice(0, 2); this.draw(); }
+  drawTools(m) {
+    const gl = this.gl, dpr = window.devicePixelRatio || 1;
+    this.canvas.dataset.tools = this.tools.length;
+    if (!this.tools.length) return;
+    gl.useProgram(this.toolProg);
+    gl.uniformMatrix4fv(gl.getUniformLocation(this.toolProg, 'uM'), false, m);
+    gl.bindVertexArray(this.toolVao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.toolBuf);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, new Float32Array(this.tools.flatMap((t) => t.p).concat([0, 0, 0, 0, 0, 0]).slice(0, 6)));
+    // The larger marker first, over it the smaller: two hands at one point read as a ring.
+    gl.disable(gl.DEPTH_TEST);
+    const order = this.tools.map((t, i) => i).sort((a, b) => (this.tools[b].size || 14) - (this.tools[a].size || 14));
+    for (const i of order) {
+      gl.uniform1f(gl.getUniformLocation(this.toolProg, 'uSize'), (this.tools[i].size || 14) * dpr);
+      gl.uniform3fv(gl.getUniformLocation(this.toolProg, 'uColour'), this.tools[i].colour);
+      gl.drawArrays(gl.POINTS, i, 1);
+    }
+    gl.enable(gl.DEPTH_TEST);
+    gl.bindVertexArray(null);
   }
   // Moved vertices (indices, positions in mm) as the server sends them; the others are at rest.
   // The server sends a surface only when it changed, so the view keeps the last one between.
@@ -224,6 +274,7 @@ export class TissueView {
     gl.bindVertexArray(this.tableVao);
     gl.drawElements(gl.TRIANGLES, 6, gl.UNSIGNED_INT, 0);
     gl.bindVertexArray(null);
+    this.drawTools(m);
     this.frames++;
     c.dataset.frames = this.frames;
   }

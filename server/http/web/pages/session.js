@@ -3,6 +3,7 @@
 // an evaluator the scoring form beside the evidence.
 import { api, auth } from '../api.js';
 import { confirmed, el, facts, fmt, kv, message, stateBadge, when } from '../dom.js';
+import { guidancePanel } from '../guidance.js';
 import { Replay } from '../replay.js';
 import { indexName, momentText } from '../rubric.js';
 import { loadScenes, scenesByName } from '../scenes.js';
@@ -25,6 +26,8 @@ function metricsList(m) {
   const caps = [m.capped_not_completed && 'not completed (at most 5)', m.capped_force_limit && 'over the force limit for more than 0.5 s (at most 4)',
     m.capped_overload && 'tissue overloaded (at most 3)'].filter(Boolean);
   rows.push(['Score capped because', caps.length ? caps.join('; ') : 'no cap']);
+  // Four-handed training: how much of the trial an instructor's hand weighed in, and how much.
+  rows.push(['Share of the trial guided', m.guided_share > 0 ? `${fmt(100 * m.guided_share, 0)}% at a mean α of ${fmt(m.guided_alpha, 2)}` : 'none: the trainee alone']);
   const l = m.link;  // what the station rendered and how the link held (0 when not reported)
   if (l && l.rate_hz > 0) {
     rows.push(['Peak force felt at the station (N)', fmt(l.station_peak_force_n, 2)],
@@ -44,6 +47,29 @@ function ratingsList(ratings) {
 }
 const WEIGHTS = { names: [], index: [] };
 
+// The hands on the tool as the 3D view draws them: the trainee's tip (blue) and, while one is on
+// the tool, the instructor's (amber); `src` is a telemetry sample or a record's series at one index.
+const TRAINEE = [0.35, 0.72, 1.0], INSTRUCTOR = [1.0, 0.68, 0.18];
+function toolsOf(src) {
+  const out = [];
+  if (src.tip_x_mm === undefined) return out;
+  out.push({ p: [src.tip_x_mm, src.tip_y_mm, src.tip_z_mm], colour: TRAINEE, size: 12 });
+  if (src.instructor) out.push({ p: [src.instructor_x_mm, src.instructor_y_mm, src.instructor_z_mm], colour: INSTRUCTOR, size: 22 });
+  return out;
+}
+// The record's sample at time t (the last at or before it).
+function seriesAt(series, t) {
+  const T = (series && series.time_s) || [];
+  if (!T.length || t < T[0]) return {};
+  let lo = 0, hi = T.length - 1;
+  while (lo < hi) { const mid = (lo + hi + 1) >> 1; if (T[mid] <= t) lo = mid; else hi = mid - 1; }
+  const out = {};
+  for (const [k, v] of Object.entries(series)) out[k] = v[lo];
+  return out;
+}
+const legend = () => el('p', { class: 'tool-legend muted' }, el('span', { class: 'dot trainee' }), ' the trainee\'s tool ',
+  el('span', { class: 'dot instructor' }), ' the instructor\'s hand (four-handed training)');
+
 export async function pageSession(main) {
   const id = location.pathname.split('/')[2];
   const [s] = await Promise.all([api('GET', '/sessions/' + id), loadScenes()]);
@@ -61,7 +87,7 @@ export async function pageSession(main) {
   const note = el('div');
   const view = el('canvas', { id: 'view3d' });
   const traces = traceCharts(scene, live);
-  const tissue = el('div', { class: 'panel' }, el('h2', {}, live ? 'Tissue, live' : 'Tissue, replayed'), view);
+  const tissue = el('div', { class: 'panel' }, el('h2', {}, live ? 'Tissue, live' : 'Tissue, replayed'), view, legend());
   const results = el('div', { class: 'panel', id: 'results' }, metricsList(s.metrics));
   const feedback = el('div', { class: 'panel', id: 'feedback' });
   const evidence = el('div', { class: 'evidence' }, tissue, el('div', { class: 'panel' }, el('h2', {}, 'Traces'), traces.panel));
@@ -69,7 +95,8 @@ export async function pageSession(main) {
   const liveFigures = el('div', { class: 'panel', id: 'live-panel' });
   const left = [head, note];
   if (live && (role === 'instructor' || role === 'admin')) left.push(stop);
-  if (live) left.push(liveFigures);
+  const guidance = live ? guidancePanel(id, scene) : null;
+  if (live) left.push(liveFigures, guidance.panel);
   left.push(evidence, el('h2', {}, 'Trial metrics and safety events'), results,
     el('h2', {}, role === 'trainee' ? 'What your evaluators said' : 'Evaluations'), feedback);
   // An evaluator scores an ended session beside its replay, traces and metrics.
@@ -105,7 +132,10 @@ export async function pageSession(main) {
   if (record && record.series) { traces.setRecord(record.series); }
   if (!live) {
     if (record && record.frames) {
-      const replay = await Replay.load(record, view3d, (t) => traces.cursor(t));
+      const replay = await Replay.load(record, view3d, (t) => {
+        traces.cursor(t);
+        if (view3d) view3d.tools = toolsOf(seriesAt(record.series, t));
+      });
       tissue.append(replay.controls);
     }
     return;
@@ -115,10 +145,11 @@ export async function pageSession(main) {
     try { renderHead(await api('POST', `/sessions/${id}/stop`, { reason: 'stopped by the instructor' })); }
     catch (err) { message(note, err.message); }
   });
-  watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, stop);
+  guidance.start();
+  watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, stop, guidance);
 }
 
-function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, stop) {
+function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, stop, guidance) {
   const press = scene.task === 'press';
   const figures = el('dl', { class: 'facts', id: 'live-figures' });
   // Said aloud when it changes (a screen reader does not read a figure that changes 10 times a second).
@@ -141,12 +172,17 @@ function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, s
       .map(([k, v]) => el('div', {}, el('dt', {}, k), el('dd', {}, v))));
     const say = `${t.state}; score ${fmt(t.score, 0)}${atLimit ? '; at the device force limit' : ''}`;
     if (say !== said) { spoken.textContent = say; said = say; }
-    if (view3d && t.surface) view3d.apply(t.surface);
+    if (view3d) {
+      const tools = toolsOf(t), moved = JSON.stringify(tools) !== JSON.stringify(view3d.tools);
+      view3d.tools = tools;
+      if (t.surface) view3d.apply(t.surface);
+      else if (moved) view3d.draw();
+    }
   };
   es.addEventListener('ended', async () => {
     es.close();
     const done = await api('GET', '/sessions/' + id);
-    renderHead(done); stop.disabled = true;
+    renderHead(done); stop.disabled = true; guidance.stop();
     results.replaceChildren(metricsList(done.metrics));
   });
 }
