@@ -37,8 +37,9 @@
 #include "bench/speed_vs_error.h"
 
 namespace vsurg::bench {
-int Wan(const std::vector<std::string>& args);  // bench/wan/wan_command.cpp
-}
+int Wan(const std::vector<std::string>& args);        // bench/wan/wan_command.cpp
+int FourHands(const std::vector<std::string>& args);  // bench/wan/four_hands_command.cpp
+}  // namespace vsurg::bench
 
 int main(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
@@ -57,7 +58,8 @@ int main(int argc, char** argv) {
                  "       vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] "
                  "[--export DIR] [--json]\n"
                  "       vsurg-bench wan [--profiles P,..] [--scenes S,..] [--methods "
-                 "server,linear,model] [--grip tensed] [--runs N] [--out DIR]\n";
+                 "server,linear,model] [--grip tensed] [--runs N] [--out DIR]\n"
+                 "       vsurg-bench four-hands [--profiles P,..] [--scene S] [--out DIR]\n";
     return args.empty() ? 2 : 0;
   }
   try {
@@ -73,6 +75,7 @@ int main(int argc, char** argv) {
       return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
     if (args[0] == "fem-step") return vsurg::bench::FemStep({args.begin() + 1, args.end()});
     if (args[0] == "wan") return vsurg::bench::Wan({args.begin() + 1, args.end()});
+    if (args[0] == "four-hands") return vsurg::bench::FourHands({args.begin() + 1, args.end()});
   } catch (const std::exception& e) {
     std::cerr << "vsurg-bench: " << e.what() << "\n";
     return 1;
@@ -81,6 +84,6 @@ int main(int argc, char** argv) {
             << "' (haptic-rtt, udp-floor, grpc-submit, placement, heartbeats, telemetry, msm-step, "
                "export, "
                "speed-vs-error, "
-               "fem-step, wan)\n";
+               "fem-step, wan, four-hands)\n";
   return 2;
 }

@@ -7,8 +7,16 @@
 #include <memory>
 #include <thread>
 
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <random>
+
 #include "bench/relay/relay.h"
 #include "common/sim/simulation.h"
+#include "proto/wire/messages.h"
 #include "server/net/udp_endpoint.h"
 
 namespace vsurg::bench::wan {
@@ -77,6 +85,70 @@ struct Hand {
   }
 };
 
+// A broken or malicious instructor's station (FourHandsOptions::hostile_instructor), on a thread
+// of its own until Stop.
+class HostileSender {
+ public:
+  HostileSender(uint16_t port, uint64_t channel, const wire::SessionKey& key, uint64_t seed)
+      : fd_(socket(AF_INET, SOCK_DGRAM, 0)), channel_(channel), auth_(key), rng_(seed) {
+    to_.sin_family = AF_INET;
+    to_.sin_port = htons(port);
+    to_.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    thread_ = std::thread([this] { Run(); });
+  }
+  ~HostileSender() { Stop(); }
+  uint64_t Stop() {
+    running_ = false;
+    if (thread_.joinable()) thread_.join();
+    if (fd_ >= 0) close(fd_), fd_ = -1;
+    return sent_;
+  }
+
+ private:
+  void Run() {
+    wire::Codec codec;
+    std::vector<uint8_t> buf(wire::kMaxDatagram);
+    std::uniform_real_distribution<double> jump(-0.03, 0.03);
+    for (uint64_t seq = 1; running_; ++seq) {
+      wire::StylusMessage m;
+      m.sample.time = seq * 1e-3;
+      m.sample.position = Vec3(0, 0, 0.05);
+      switch (seq % 5) {
+        case 0:
+          m.sample.position.x() = std::numeric_limits<double>::quiet_NaN();
+          break;
+        case 1:
+          m.sample.position = Vec3(10, 0, 0);
+          break;
+        case 2:
+          m.sample.position += Vec3(jump(rng_), jump(rng_), jump(rng_));
+          break;
+        case 3:
+          m.sample.time = 1e308;
+          break;
+        default:
+          break;
+      }
+      size_t n = codec.EncodeStylus(
+          m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, channel_, seq}, auth_, buf);
+      if (seq % 5 == 4)  // noise: the right channel, no valid seal
+        for (size_t i = 20; i < n; ++i) buf[i] = static_cast<uint8_t>(rng_());
+      sendto(fd_, buf.data(), n, 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_);
+      ++sent_;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+
+  int fd_;
+  uint64_t channel_;
+  wire::Authenticator auth_;
+  std::mt19937_64 rng_;
+  sockaddr_in to_{};
+  std::atomic<bool> running_{true};
+  uint64_t sent_ = 0;
+  std::thread thread_;
+};
+
 // Reads the simulation's telemetry (the one reader, as the server's sampler is) until the trainee's
 // hand has played its plan and settled, applying the mode changes on the way.
 void Follow(const FourHandsOptions& o, sim::Simulation& simulation,
@@ -115,7 +187,10 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
   }
   const uint16_t port = (*endpoint)->port();
   Hand instructor;
-  if (o.instructor) {
+  std::unique_ptr<HostileSender> hostile;
+  if (o.instructor && o.hostile_instructor) {
+    hostile = std::make_unique<HostileSender>(port, channel, Key(o.seed, 5), o.seed + 200);
+  } else if (o.instructor) {
     auto h = Hand::Start(o, port, channel, Key(o.seed, 5), o.instructor_profile, o.instructor_plan,
                          o.instructor_grip, o.seed + 100);
     if (!h.ok()) return h.error();
@@ -127,7 +202,8 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
   FourHandsRun run;
   Follow(o, **simulation, *trainee->device, run);
   trainee->Stop();
-  if (o.instructor) instructor.Stop();
+  if (hostile) run.hostile_sent = hostile->Stop();
+  if (instructor.station) instructor.Stop();
   (*endpoint)->RemoveSession(kSession);
   (*endpoint)->RemoveSession(channel);
   const auto lead = static_cast<std::ptrdiff_t>(o.lead_in_s * 1000);
@@ -137,7 +213,7 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
   };
   run.trainee = cut(trainee->device->trace());
   run.trainee_station = trainee->station->stats();
-  if (o.instructor) {
+  if (instructor.station) {
     run.instructor = cut(instructor.device->trace());
     run.instructor_station = instructor.station->stats();
   }
@@ -183,6 +259,32 @@ double PeakForce(const std::vector<client::HandSample>& t) {
   double peak = 0;
   for (const auto& c : t) peak = std::max(peak, c.force.norm());
   return peak;
+}
+
+PlaybackError ObserverError(const FourHandsRun& run, double max_lag_s) {
+  PlaybackError out;
+  const auto& t = run.trainee;
+  const auto& i = run.instructor;
+  const auto max_lag = static_cast<size_t>(max_lag_s * 1000);
+  auto ratio = [&](size_t lag, size_t& cycles) {
+    double err = 0, ref = 0;
+    cycles = 0;
+    for (size_t k = 0; k < t.size() && k + lag < i.size(); ++k) {
+      if (t[k].force.norm() <= 0.05) continue;
+      err += (i[k + lag].force - t[k].force).squaredNorm();
+      ref += t[k].force.squaredNorm();
+      ++cycles;
+    }
+    return ref > 0 ? std::sqrt(err / ref) : std::numeric_limits<double>::infinity();
+  };
+  out.raw_ratio = ratio(0, out.cycles);
+  out.rms_ratio = out.raw_ratio;
+  for (size_t lag = 1; lag <= max_lag; ++lag) {
+    size_t cycles = 0;
+    const double r = ratio(lag, cycles);
+    if (r < out.rms_ratio) out.rms_ratio = r, out.lag_s = 1e-3 * lag, out.cycles = cycles;
+  }
+  return out;
 }
 
 }  // namespace vsurg::bench::wan

@@ -33,6 +33,11 @@ struct FourHandsOptions {
   std::vector<std::pair<size_t, sim::GuideRequest>> changes;
   client::HandImpedance trainee_grip = client::RelaxedGrip();
   client::HandImpedance instructor_grip = client::RelaxedGrip();
+  // The instructor's channel fed by a hostile sender instead of a station: every millisecond a
+  // datagram sealed with the instructor's key carrying NaN, a tip 10 m away, a jump of up to
+  // 3 cm, or a time of 1e308 s, and one of unsealed noise (what one participant's broken or
+  // malicious station could send; the trainee must not notice beyond the guidance itself).
+  bool hostile_instructor = false;
   double lead_in_s = 1.0;
   double settle_s = 0.5;
   uint64_t seed = 1;
@@ -55,6 +60,7 @@ struct FourHandsRun {
   std::vector<ToolSample> tool;
   scoring::TrialMetrics metrics;  // the trainee's trial record
   uint64_t trainee_applied = 0;   // the trainee's datagrams the endpoint applied
+  uint64_t hostile_sent = 0;      // hostile_instructor: datagrams sent to the instructor's channel
 };
 
 Expected<FourHandsRun> RunFourHands(const FourHandsOptions& options);
@@ -67,5 +73,17 @@ double PeakToolForce(const FourHandsRun& run);  // N
 // Σ F_k·(x_{k+1} − x_k) over a hand's held intervals, J (> 0: the loop gave the hand energy).
 double EnergyToHand(const std::vector<client::HandSample>& trace);
 double PeakForce(const std::vector<client::HandSample>& trace);  // N, what the device rendered
+
+// Haptic playback (observe): how closely the instructor's rendered force follows the trainee's.
+// The instructor feels it later by the path from the trainee's hand through the server to the
+// instructor's (up to `max_lag_s`): `rms_ratio` is RMS|F_i(t + lag) − F_t(t)| / RMS|F_t| over the
+// trainee's cycles in contact (|F_t| > 0.05 N) at the lag that makes it least, `raw_ratio` the
+// same with no lag; servo cycles are 1 ms on both hands.
+struct PlaybackError {
+  double rms_ratio = 0, raw_ratio = 0;
+  double lag_s = 0;
+  size_t cycles = 0;  // in contact
+};
+PlaybackError ObserverError(const FourHandsRun& run, double max_lag_s = 0.5);
 
 }  // namespace vsurg::bench::wan

@@ -217,7 +217,7 @@ int Wan(const std::vector<std::string>& args) {
   const auto style = sim::ParseTraineeStyle(tap ? "good" : p.String("trainee"));
   if (!style.ok()) return cli::UsageError(std::cerr, p.command(), style.error());
   std::vector<relay::Profile> profiles;
-  for (const auto& name : Split(p.String("profiles"))) {
+  for (const auto& name : p.List("profiles")) {
     auto pr = relay::ProfileByName(name);
     if (!pr.ok()) return cli::UsageError(std::cerr, p.command(), pr.error());
     profiles.push_back(*pr);
@@ -235,7 +235,7 @@ int Wan(const std::vector<std::string>& args) {
          "up_hz,down_hz,score,server_peak_n,lost,stale,late,watchdog_fades\n";
   const relay::Profile none = *relay::ProfileByName("none");
   std::map<std::string, std::vector<std::string>> trace_files;  // scene/method → files
-  for (const auto& scene_name : Split(p.String("scenes"))) {
+  for (const auto& scene_name : p.List("scenes")) {
     auto scene = wan::GridScene(scene_name);
     if (!scene.ok()) return cli::UsageError(std::cerr, p.command(), scene.error());
     auto plan = tap ? wan::TapPlan(*scene) : sim::ScriptedTrainee(*scene, *style, 1000.0, 1);

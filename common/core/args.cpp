@@ -103,6 +103,18 @@ std::string ArgParser::String(const std::string& name) const {
   return it != values_.end() ? it->second : specs_.at(name).default_value;
 }
 
+std::vector<std::string> ArgParser::List(const std::string& name) const {
+  std::vector<std::string> out;
+  const std::string all = String(name);
+  for (size_t start = 0; start <= all.size();) {
+    size_t end = all.find(',', start);
+    if (end == std::string::npos) end = all.size();
+    if (end > start) out.push_back(all.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
+}
+
 double ArgParser::Double(const std::string& name) const {
   double d = 0;
   ToDouble(String(name), d);

@@ -43,6 +43,8 @@ class ArgParser {
   double Double(const std::string& name) const;  // after a successful Parse
   int Int(const std::string& name) const;
   std::string String(const std::string& name) const;
+  // A comma-separated option's items, empty ones left out ("lan,,metro": lan and metro).
+  std::vector<std::string> List(const std::string& name) const;
   bool Flag(const std::string& name) const { return Has(name); }
   // What an option was declared with: its default ("" for none) and its bounds, if any.
   std::string DefaultOf(const std::string& name) const { return specs_.at(name).default_value; }

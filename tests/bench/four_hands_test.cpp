@@ -126,5 +126,73 @@ TEST(FourHandsTest, ModesSwitchLiveAsRampsAndTheTraineesChannelLosesNothing) {
   ExpectSafe(*r, p.scene, "modes");
 }
 
+// Passive as a multi-port on the farthest pairs of links, through every mode and every change:
+// the two hands together receive no more energy from the loop than the trainee alone does
+// without any delay (both give the tissue energy: a sum below that one's), and no hand is ever
+// pushed past its device's limit. The whole grid of pairs is vsurg-bench four-hands.
+TEST(FourHandsTest, EveryModeStaysPassiveOnTheFarthestPairsOfLinks) {
+  const Plans p = Load();
+  FourHandsOptions alone = Options(p, "none", false);
+  auto reference = RunFourHands(alone);
+  ASSERT_TRUE(reference.ok()) << reference.error().message;
+  const double e_alone = EnergyToHand(reference->trainee);
+  const double limit = p.scene.haptics.limits.max_force + 1e-9;
+  for (auto [trainee, instructor] :
+       {std::pair{"lan", "intercontinental"}, std::pair{"intercontinental", "lan"},
+        std::pair{"continental", "continental"}}) {
+    FourHandsOptions o = Options(p, trainee, true);
+    o.instructor_profile = *relay::ProfileByName(instructor);
+    o.guide = {sim::GuideMode::kObserve, 0};
+    o.changes = {{kLead + 600, {sim::GuideMode::kGuide, 0.5}},
+                 {kLead + 1500, {sim::GuideMode::kGuide, 1.0}},
+                 {kLead + 2500, {sim::GuideMode::kGuide, 0.0}}};
+    auto r = RunFourHands(o);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const double et = EnergyToHand(r->trainee), ei = EnergyToHand(r->instructor);
+    std::printf(
+        "trainee %s, instructor %s: %.3f + %.3f mJ (alone, no delay: %.3f); peaks %.2f / "
+        "%.2f N\n",
+        trainee, instructor, 1e3 * et, 1e3 * ei, 1e3 * e_alone, PeakForce(r->trainee),
+        PeakForce(r->instructor));
+    EXPECT_LE(et + ei, e_alone + 1e-4) << trainee << " x " << instructor;
+    EXPECT_LE(PeakForce(r->trainee), limit) << trainee << " x " << instructor;
+    EXPECT_LE(PeakForce(r->instructor), limit) << trainee << " x " << instructor;
+    EXPECT_GT(r->metrics.guided_share, 0.2);
+  }
+}
+
+// One participant's broken or malicious datagrams stay on their channel: an instructor's
+// channel fed NaN, a tip 10 m away, 3 cm jumps, a time of 1e308 s and unsealed noise, while
+// guiding at 0.5. The trainee, on an unimpaired link, is answered every datagram, within the
+// device's limit, never non-finite, and the loop gives the trainee's hand no energy.
+TEST(FourHandsTest, AHostileInstructorsDatagramsNeverReachTheTrainee) {
+  const Plans p = Load();
+  FourHandsOptions o = Options(p, "none", true);
+  o.trainee_plan = p.steady;
+  o.hostile_instructor = true;
+  auto r = RunFourHands(o);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_GT(r->hostile_sent, 2000u);
+  // Every datagram applied, and answered on time: none unanswered before the newest answer (the
+  // last few are in flight when the run stops), none later than the watchdog's time.
+  EXPECT_EQ(r->trainee_applied, r->trainee_station.sent);
+  EXPECT_EQ(r->trainee_station.lost, 0u);
+  EXPECT_EQ(r->trainee_station.late, 0u);
+  bool finite = true;
+  for (const auto& c : r->trainee) finite = finite && c.force.allFinite() && c.x.allFinite();
+  EXPECT_TRUE(finite);
+  EXPECT_LE(PeakForce(r->trainee), p.scene.haptics.limits.max_force + 1e-9);
+  EXPECT_LT(EnergyToHand(r->trainee), 1e-4);
+  for (const ToolSample& t : r->tool) ASSERT_TRUE(t.tool.allFinite() && t.force.allFinite());
+  const client::StationStats& st = r->trainee_station;
+  std::printf(
+      "hostile: %llu sent; trainee %llu of %llu answered (lost %llu, stale %llu, dropped "
+      "%llu), peak %.2f N, guided share %.2f\n",
+      static_cast<unsigned long long>(r->hostile_sent),
+      static_cast<unsigned long long>(st.received), static_cast<unsigned long long>(st.sent),
+      static_cast<unsigned long long>(st.lost), static_cast<unsigned long long>(st.stale),
+      static_cast<unsigned long long>(st.dropped), PeakForce(r->trainee), r->metrics.guided_share);
+}
+
 }  // namespace
 }  // namespace vsurg::bench::wan

@@ -63,6 +63,10 @@ TEST(ArgParserTest, ReadsEveryFormAndKeepsDefaults) {
   ASSERT_TRUE(p.Parse({"--steps=7", "--dt", "1e-4"}).ok());
   EXPECT_FALSE(p.Flag("json"));
   EXPECT_DOUBLE_EQ(p.Double("dt"), 1e-4);
+  // A comma-separated option's items, without the empty ones; none when it is not given.
+  EXPECT_TRUE(p.List("name").empty());
+  ASSERT_TRUE(p.Parse({"--steps=1", "--name", "lan,,metro,"}).ok());
+  EXPECT_EQ(p.List("name"), (std::vector<std::string>{"lan", "metro"}));
 }
 
 TEST(ArgParserTest, EveryErrorNamesTheOption) {
