@@ -71,10 +71,12 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|WanTest.TheModelHoldsContactPassivelyAtMetroAndContinental'
   long+='|WanTest.TheDeadbandSendsAFractionAndKeepsTheForce'
   long+='|WanTest.AForcepsTwistIsFeltWithoutBuzzAndRepeatsItself'
-  # Four-handed training's guidance goal and its farthest links: nine real-time closed-loop
-  # trials (55 s in the main build); the same code (both hands, two relays, the shared tool) runs under ASan in
-  # FourHandsTest.ModesSwitchLive…, one trial through every mode.
+  # Four-handed training's guidance goal, its farthest links and an observer's visit: eleven
+  # real-time closed-loop trials (67 s in the main build); the same code (both hands, two relays,
+  # the shared tool) runs under ASan in FourHandsTest.ModesSwitchLive… (one trial through every
+  # mode) and FourHandsTest.AHostileInstructors… (a hostile partner).
   long+='|FourHandsTest.AnExpertGuidingAtHalfDominance|FourHandsTest.EveryModeStaysPassive'
+  long+='|FourHandsTest.AnObserverJoiningAndLeaving'
   long+='|WanTest.TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel'
   long+='|WanTest.TheLinearModelSticksToTheToolAcrossTheSameNetwork'
   long+='|WanTest.TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental'

@@ -164,7 +164,7 @@ void Follow(const FourHandsOptions& o, sim::Simulation& simulation,
     while (next_change < o.changes.size() && o.changes[next_change].first <= cycle)
       simulation.RequestGuidance(o.changes[next_change++].second);
     if (simulation.TakeTelemetry(t))
-      run.tool.push_back({t.tool, t.tool_force, t.guide_alpha, t.guide_mode, cycle, t.time});
+      run.tool.push_back({t.tool, t.tip, t.tool_force, t.guide_alpha, t.guide_mode, cycle, t.time});
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
 }

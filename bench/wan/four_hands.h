@@ -47,6 +47,7 @@ struct FourHandsOptions {
 // The tool as the simulation published it (every 8th trainee sample).
 struct ToolSample {
   haptics::Vec3 tool = haptics::Vec3::Zero();   // m
+  haptics::Vec3 tip = haptics::Vec3::Zero();    // m, the trainee's own tip of that sample
   haptics::Vec3 force = haptics::Vec3::Zero();  // N, the tissue's on the tool
   double alpha = 0;
   uint32_t mode = 0;

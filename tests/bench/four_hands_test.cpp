@@ -126,6 +126,41 @@ TEST(FourHandsTest, ModesSwitchLiveAsRampsAndTheTraineesChannelLosesNothing) {
   ExpectSafe(*r, p.scene, "modes");
 }
 
+// An instructor who joins to observe and leaves again changes nothing of the trainee's trial
+// beyond a run's own spread: on an unimpaired link every datagram is applied, the tissue meets
+// the trainee's own tip at every sample, nothing is guided, and the record is the one the
+// trainee makes alone within what two runs alone differ by (a real-time loop: the score by up to
+// 0.04, the path by 0.3%, the peak, a contact's impact, 0.65-0.68 N): held to 0.1, 1%, 0.15 N.
+TEST(FourHandsTest, AnObserverJoiningAndLeavingChangesNothingOfTheTraineesRecord) {
+  const Plans p = Load();
+  FourHandsOptions alone = Options(p, "none", false);
+  alone.trainee_plan = p.steady;
+  FourHandsOptions watched = alone;
+  watched.instructor = true;
+  watched.instructor_profile = *relay::ProfileByName("continental");
+  watched.guide = {sim::GuideMode::kNone, 0};
+  watched.changes = {{kLead + 300, {sim::GuideMode::kObserve, 0}},
+                     {kLead + 2500, {sim::GuideMode::kNone, 0}}};
+  auto a = RunFourHands(alone), w = RunFourHands(watched);
+  ASSERT_TRUE(a.ok() && w.ok());
+  EXPECT_EQ(w->trainee_applied, w->trainee_station.sent);
+  const scoring::TrialMetrics &ma = a->metrics, &mw = w->metrics;
+  std::printf("alone: score %.3f, peak %.4f N, path %.5f m; observed: %.3f, %.4f N, %.5f m\n",
+              ma.score, ma.peak_force, ma.path_length, mw.score, mw.peak_force, mw.path_length);
+  EXPECT_EQ(mw.guided_share, 0);
+  EXPECT_EQ(mw.completed, ma.completed);
+  EXPECT_NEAR(mw.score, ma.score, 0.1);
+  EXPECT_NEAR(mw.peak_force, ma.peak_force, 0.15);
+  EXPECT_NEAR(mw.path_length, ma.path_length, 1e-2 * ma.path_length);
+  double apart = 0;
+  for (const ToolSample& t : w->tool) apart = std::max(apart, (t.tool - t.tip).norm());
+  EXPECT_EQ(apart, 0) << "observing, the tissue meets the trainee's tool alone";
+  EXPECT_NEAR(mw.time_over_force_limit, ma.time_over_force_limit, 0.05);
+  // The instructor felt the trial meanwhile, within the device's limit.
+  EXPECT_GT(PeakForce(w->instructor), 0.1);
+  EXPECT_LE(PeakForce(w->instructor), p.scene.haptics.limits.max_force + 1e-9);
+}
+
 // Passive as a multi-port on the farthest pairs of links, through every mode and every change:
 // the two hands together receive no more energy from the loop than the trainee alone does
 // without any delay (both give the tissue energy: a sum below that one's), and no hand is ever
