@@ -528,9 +528,15 @@ Expected<SessionSummary> Station::Finish(const std::string& reason) {
   v1::StopSessionRequest stop;
   stop.set_id(status_.session);
   stop.set_reason(reason);
-  grpc::ClientContext ctx;
-  remote_.Prepare(ctx, config_.rpc_timeout_s);
-  grpc::Status s = stub->Stop(&ctx, stop, &session);
+  grpc::Status s;
+  // A control plane that is only slow (every station of a site stopping at once) is asked again;
+  // a Stop that did land meanwhile makes the next one a refusal, read below as the session is.
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    grpc::ClientContext ctx;
+    remote_.Prepare(ctx, config_.rpc_timeout_s * (attempt + 1));
+    s = stub->Stop(&ctx, stop, &session);
+    if (s.error_code() != grpc::StatusCode::DEADLINE_EXCEEDED) break;
+  }
   if (s.error_code() == grpc::StatusCode::FAILED_PRECONDITION) {
     // Already ended (stalled into disconnected, or aborted): read it as it is.
     grpc::ClientContext get_ctx;
