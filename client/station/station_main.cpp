@@ -429,6 +429,12 @@ struct Trial {
                    "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
                        Fixed(shown.force.norm(), 2) + " N",
                    "score " + Fixed(shown.command.score, 1) + " / 10"};
+    // The trainee sees an instructor in the session, and how (the answers carry the mode and α).
+    if (!controls && shown.command.guide_mode != 0)
+      overlay.hud.push_back(shown.command.guide_mode == 1
+                                ? std::string("four hands: an instructor is observing")
+                                : "four hands: guided, instructor's share " +
+                                      Fixed(shown.command.guide_alpha, 2));
     if (controls) {
       const sim::GuideRequest g = station.guide();
       overlay.hud.push_back(

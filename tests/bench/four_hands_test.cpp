@@ -130,7 +130,8 @@ TEST(FourHandsTest, ModesSwitchLiveAsRampsAndTheTraineesChannelLosesNothing) {
 // beyond a run's own spread: on an unimpaired link every datagram is applied, the tissue meets
 // the trainee's own tip at every sample, nothing is guided, and the record is the one the
 // trainee makes alone within what two runs alone differ by (a real-time loop: the score by up to
-// 0.04, the path by 0.3%, the peak, a contact's impact, 0.65-0.68 N): held to 0.1, 1%, 0.15 N.
+// 0.04, the path by 0.3% and by over 1% beside CPU hogs, the peak, a contact's impact,
+// 0.65-0.70 N): held to 0.1, 5%, 0.15 N.
 TEST(FourHandsTest, AnObserverJoiningAndLeavingChangesNothingOfTheTraineesRecord) {
   const Plans p = Load();
   FourHandsOptions alone = Options(p, "none", false);
@@ -151,7 +152,7 @@ TEST(FourHandsTest, AnObserverJoiningAndLeavingChangesNothingOfTheTraineesRecord
   EXPECT_EQ(mw.completed, ma.completed);
   EXPECT_NEAR(mw.score, ma.score, 0.1);
   EXPECT_NEAR(mw.peak_force, ma.peak_force, 0.15);
-  EXPECT_NEAR(mw.path_length, ma.path_length, 1e-2 * ma.path_length);
+  EXPECT_NEAR(mw.path_length, ma.path_length, 5e-2 * ma.path_length);
   double apart = 0;
   for (const ToolSample& t : w->tool) apart = std::max(apart, (t.tool - t.tip).norm());
   EXPECT_EQ(apart, 0) << "observing, the tissue meets the trainee's tool alone";
