@@ -3,6 +3,7 @@
 #   an administrator starts vsurg-server on a temporary SQLite file and creates the users;
 #   a trainee's station (headless, a replayed stylus) twists the forearm 45 degrees over UDP;
 #   an instructor's monitor follows the session live (text, and an OpenGL view);
+#   the instructor's own station joins a second trial and guides it (four-handed training);
 #   three evaluators (intern, associate chief, chief) score the session with their own tokens;
 #   the administrator prints the weighted report (the coil-spring paper eq. 9-11) and the trial metrics and
 #   exports the evaluations as CSV.
@@ -73,6 +74,29 @@ wait "$monitor_pid"
 wait "$monitor_view_pid"
 echo "-- the instructor's terminal (every line: twist, torque, force, round trip, loss, rate, score)"
 cat "$out/monitor.log"
+
+step "Four hands: the instructor's station joins a second trial and guides it (observe, guide, take over, hand back)"
+"$bin/vsurg-station" --server "$server" --token "$trainee_token" --scene arm-torsion \
+  --device replay --trajectory "$out/twist-good.csv" --headless --width 320 --height 200 \
+  --settle 4 --json > "$out/station-guided.json" 2> "$out/station-guided.log" &
+guided_pid=$!
+pids+=("$guided_pid")
+guided=""
+for _ in $(seq 300); do
+  guided="$(sed -n 's/.*event=state state=live session=\([0-9]*\).*/\1/p' "$out/station-guided.log" | head -1)"
+  [ -n "$guided" ] && break
+  sleep 0.1
+done
+[ -n "$guided" ] || { echo "demo: the trainee's second station never went live" >&2; exit 1; }
+"$bin/vsurg-station" --server "$server" --token "$instructor_token" --instruct "$guided" \
+  --scene arm-torsion --device replay --trajectory "$out/twist-good.csv" --headless \
+  --width 320 --height 200 --settle 600 --duration 6 --guide-plan "1:guide:0.5,3:guide:1,4.5:guide:0" \
+  --json > "$out/station-instructor.json" 2> "$out/station-instructor.log"
+wait "$guided_pid"
+echo "the instructor's station: $(cat "$out/station-instructor.json")"
+share="$(sed -n 's/.*"guided_share":\([0-9.e-]*\).*/\1/p' "$out/station-guided.json")"
+echo "session $guided, the trainee's record: guided share $share"
+[ -n "$share" ] && [ "$share" != 0 ] || { echo "demo: the guided trial records no guidance" >&2; exit 1; }
 
 step "Evaluators: three groups score session $session (9 indexes, 0-10), each with their own token"
 header="evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9"

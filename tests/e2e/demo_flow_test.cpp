@@ -1,8 +1,8 @@
 // The whole demo flow (deploy/demo_flow.sh) as the three kinds of users run it, checked from
 // its outputs: the station twisted the arm over UDP and its session was recorded with metrics,
-// the monitor printed live telemetry, three evaluator groups' scores make the weighted report,
-// the CSV export holds them, the screenshots show the arm and differ where it was twisted, and
-// nothing is left running.
+// the monitor printed live telemetry, an instructor's station guided a second trial, three
+// evaluator groups' scores make the weighted report, the CSV export holds them, the screenshots
+// show the arm and differ where it was twisted, and nothing is left running.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -49,6 +49,17 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   EXPECT_GT(station["received"].get<double>(), 0.95 * station["sent"].get<double>());
   EXPECT_GT(station["scene_chunks"].get<int>(), 100);
 
+  // Four hands: the instructor's station joined the trainee's second trial and left it to her;
+  // her record says how much of it was guided (observe, guide at 0.5, take over, hand back).
+  const auto guided = nlohmann::json::parse(Slurp(out / "station-guided.json"));
+  const auto instructor = nlohmann::json::parse(Slurp(out / "station-instructor.json"));
+  EXPECT_EQ(guided["state"], "ended");
+  EXPECT_EQ(instructor["session"], guided["session"]);
+  EXPECT_GT(instructor["received"].get<double>(), 1000);
+  EXPECT_GT(guided["metrics"]["guided_share"].get<double>(), 0.1);
+  EXPECT_LT(guided["metrics"]["guided_share"].get<double>(), 0.9);
+  EXPECT_GT(guided["metrics"]["guided_alpha"].get<double>(), 0.3);
+
   // The instructor's terminal: live lines while twisting, then the end of the session.
   const std::string monitor = Slurp(out / "monitor.log");
   EXPECT_GT(Count(monitor, "state=running"), 5u) << monitor;
@@ -57,7 +68,8 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   EXPECT_NE(monitor.find(" ended:"), std::string::npos);
 
   // The administrator's report of the session: three groups, each index, the comprehensive
-  // score (the coil-spring paper eq. 11) of 0.15·… weights over the group-weighted means; and the metrics.
+  // score (the coil-spring paper eq. 11) of 0.15·… weights over the group-weighted means; and the
+  // metrics.
   EXPECT_NE(run.out.find("3 raters (intern 1, associate_chief 1, chief 1)"), std::string::npos)
       << run.out;
   EXPECT_NE(run.out.find("comprehensive N 8.418"), std::string::npos) << run.out;
