@@ -2,7 +2,8 @@
 // (DESIGN.md "Speed against error"). See speed_vs_error.h for the command's contract.
 //
 // Scenes and references
-//   arm-ramp     forearm, fixed at the elbow, a torque ramped at the wrist to the coil-spring paper's 2.07 N·m.
+//   arm-ramp     forearm, fixed at the elbow, a torque ramped at the wrist to the coil-spring
+//   paper's 2.07 N·m.
 //                Reference: tapered Saint-Venant torsion with the effective shear modulus that
 //                gives the arm scene's twist at 2.07 N·m (60°), i.e. the stiffness the scene uses.
 //   arm-haptic   the same forearm with the tissue's own G = 12 kPa and a haptic-scale 0.02 N·m.
@@ -15,8 +16,8 @@
 //   organ-twist  organ-surface-twist: forceps twist the top of the 5 cm ball (held on its lower
 //                fifth) to the task's 30°. Reference: the 20-cell FEM's twist field about the
 //                surface normal for a torque on the jaws' disc, turned exactly.
-// Markers: ten, like the coil-spring paper Fig. 8. Limbs: on the top of the limb at z = (k − ½)/10 · L from
-// the fixed end (marker 10 is next to the grasp); sphere: along a meridian from the pole,
+// Markers: ten, like the coil-spring paper Fig. 8. Limbs: on the top of the limb at z = (k − ½)/10
+// · L from the fixed end (marker 10 is next to the grasp); sphere: along a meridian from the pole,
 // polar angle 5°·(k − 1); kidney: on its upper side from the top along x, 5 mm apart. Each model
 // reads each marker at its own nearest surface vertex, and the reference is evaluated at that same
 // rest point. Error: |d_model − d_ref| (vectors), relative to the reference's largest marker

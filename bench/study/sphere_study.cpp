@@ -197,9 +197,9 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     }
   }
 
-  // Mass-spring on the subdivided sphere (the mass-spring paper): the scene file's own parameters (on its
-  // 258 particles), then the same proportions with the stiffness fitted to the pole's depth on
-  // 258 and 1026 particles (the family at its most favourable). The proportions are the file's:
+  // Mass-spring on the subdivided sphere (the mass-spring paper): the scene file's own parameters
+  // (on its 258 particles), then the same proportions with the stiffness fitted to the pole's depth
+  // on 258 and 1026 particles (the family at its most favourable). The proportions are the file's:
   // bending and inner-layer springs at a tenth of the structural ones, the inner layer 4 mm
   // deep, damping 0.005 s × k; a sweep against this reference (bending 0–0.5, volume 0.05–8,
   // depth 2–30 mm) found 12–13% RMS at these where the earlier volume = k, 10 mm deep gave 21.6%.
@@ -297,7 +297,8 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     }
   }
 
-  // Ring layer (the mass-spring paper §3.3) on the 258-particle sphere: chain stiffness fitted to the pole.
+  // Ring layer (the mass-spring paper §3.3) on the 258-particle sphere: chain stiffness fitted to
+  // the pole.
   {
     auto surface = geometry::MakeSubdividedSphere({kBallRadius, 4});
     std::vector<double> dist(surface->positions.size());

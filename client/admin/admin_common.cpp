@@ -57,5 +57,6 @@ std::string Fixed(const nlohmann::json& v, int digits) {
   return buf;
 }
 
-// The coil-spring paper's table of one subject's report (Fig. 12-14: M_j, s_j, N) with the agreement.
+// The coil-spring paper's table of one subject's report (Fig. 12-14: M_j, s_j, N) with the
+// agreement.
 }  // namespace vsurg::admin

@@ -136,12 +136,14 @@ void PrintReport(std::ostream& out, const nlohmann::json& r) {
 }
 
 int Report(const Args& args, std::ostream& out, std::ostream& err) {
-  ArgParser p("vsurg-admin report",
-              "The weighted evaluation report of the coil-spring paper (eq. 9-11) for one subject, or a\n"
-              "comparison of several (comma-separated) with the raters' agreement per index.");
+  ArgParser p(
+      "vsurg-admin report",
+      "The weighted evaluation report of the coil-spring paper (eq. 9-11) for one subject, or a\n"
+      "comparison of several (comma-separated) with the raters' agreement per index.");
   p.Option("subject-kind", Kind::kString, "session, trainee or model", true)
       .Option("subjects", Kind::kString, "subject, or subjects separated by commas", true)
-      .Option("weights", Kind::kString, "a stored weight set (default: the coil-spring paper)", false, "")
+      .Option("weights", Kind::kString, "a stored weight set (default: the coil-spring paper)",
+              false, "")
       .Option("training", Kind::kFlag, "print the training effect table instead")
       .Option("json", Kind::kFlag, "print the report as JSON");
   Remote remote;

@@ -1,4 +1,5 @@
-// vsurg-sim coil, coil-inverse, deform and calibrate: the coil-spring torsion model (the coil-spring paper).
+// vsurg-sim coil, coil-inverse, deform and calibrate: the coil-spring torsion model (the
+// coil-spring paper).
 #include "common/cli/commands.h"
 
 #include <chrono>
@@ -83,10 +84,10 @@ std::vector<double> Head(const std::vector<double>& v, int n) {
 }  // namespace
 
 int Coil(const Args& args, std::ostream& out, std::ostream& err) {
-  ArgParser p(
-      "vsurg-sim coil",
-      "Forward coil-spring torsion model (the coil-spring paper eq. 1-7): the cutoff layer, per-coil torques,\n"
-      "turns and twist angles, and the boundary angles for a torque M (N*m, signed).");
+  ArgParser p("vsurg-sim coil",
+              "Forward coil-spring torsion model (the coil-spring paper eq. 1-7): the cutoff "
+              "layer, per-coil torques,\n"
+              "turns and twist angles, and the boundary angles for a torque M (N*m, signed).");
   p.Option("torque", Kind::kDouble, "applied torque M, N*m", true);
   AddCoilOptions(p);
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;

@@ -1,5 +1,5 @@
-// vsurg-sim msm: the press experiment of the mass-spring paper (common/sim/press_experiment.h) from the
-// command line.
+// vsurg-sim msm: the press experiment of the mass-spring paper (common/sim/press_experiment.h) from
+// the command line.
 #include <cstdio>
 #include <map>
 #include <ostream>
@@ -38,7 +38,8 @@ const std::map<std::string, std::string> kFieldToOption = {
 int Msm(const Args& args, std::ostream& out, std::ostream& err) {
   ArgParser p(
       "vsurg-sim msm",
-      "Presses a mass-spring tissue at a point (the mass-spring paper): the tool drives the top vertex in by\n"
+      "Presses a mass-spring tissue at a point (the mass-spring paper): the tool drives the top "
+      "vertex in by\n"
       "--press metres over the first half of the run and holds it; the support is fixed (the\n"
       "sphere's bottom fifth, a limb's ends). Prints the final kinetic and potential energy (J),\n"
       "the largest displacement (m), the contact force the tool feels (N), steps per second\n"

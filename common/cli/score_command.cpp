@@ -1,4 +1,5 @@
-// vsurg-sim score: the weighted evaluation report of the coil-spring paper (eqs. 9-11) from a ratings CSV.
+// vsurg-sim score: the weighted evaluation report of the coil-spring paper (eqs. 9-11) from a
+// ratings CSV.
 #include "common/cli/commands.h"
 
 #include <chrono>
@@ -57,7 +58,8 @@ void PrintReportTable(std::ostream& out, const scoring::EvaluationReport& r) {
 
 int Score(const Args& args, std::ostream& out, std::ostream& err) {
   ArgParser p("vsurg-sim score",
-              "Computes the weighted evaluation report of the coil-spring paper section 4.4 offline: per index\n"
+              "Computes the weighted evaluation report of the coil-spring paper section 4.4 "
+              "offline: per index\n"
               "the group-weighted mean M_j (eq. 9) and variance s_j (eq. 10), the comprehensive\n"
               "score N (eq. 11), and how far the raters agree (ICC(2,k), Cronbach's alpha).\n"
               "Input rows: evaluator_id,group,i1,...,i9 (group intern, associate_chief or chief;\n"

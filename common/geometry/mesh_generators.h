@@ -1,4 +1,5 @@
-// Procedural meshes: the subdivided sphere of the mass-spring paper §2.1 and tapered-cylinder limbs.
+// Procedural meshes: the subdivided sphere of the mass-spring paper §2.1 and tapered-cylinder
+// limbs.
 #pragma once
 
 #include <vector>
@@ -8,11 +9,11 @@
 
 namespace vsurg::geometry {
 
-// ---- Sphere by triangle subdivision (the mass-spring paper §2.1) -------------------------------------------
-// Each level splits every triangle into four through its edge midpoints, which are pushed out
-// to the sphere. From an octahedron the vertex counts are 4·4^L + 2: 6, 18, 66, 258, 1026, 4098,
-// so the paper's "about 256" and "about 1024" particles are levels 3 and 4. From an icosahedron
-// they are 10·4^L + 2: 12, 42, 162, 642, 2562.
+// ---- Sphere by triangle subdivision (the mass-spring paper §2.1)
+// ------------------------------------------- Each level splits every triangle into four through
+// its edge midpoints, which are pushed out to the sphere. From an octahedron the vertex counts are
+// 4·4^L + 2: 6, 18, 66, 258, 1026, 4098, so the paper's "about 256" and "about 1024" particles are
+// levels 3 and 4. From an icosahedron they are 10·4^L + 2: 12, 42, 162, 642, 2562.
 enum class SphereBase { kOctahedron, kIcosahedron };
 
 struct SphereParams {
@@ -45,8 +46,8 @@ struct LimbParams {
 };
 
 // Forearm (DESIGN.md default tissue): 25 cm, radius 4 cm at the elbow tapering to 3 cm at the
-// wrist. The default resolution gives 6182 vertices and 12360 triangles, the size of the coil-spring paper's
-// arm (6185 particles, 12362 triangles).
+// wrist. The default resolution gives 6182 vertices and 12360 triangles, the size of the
+// coil-spring paper's arm (6185 particles, 12362 triangles).
 LimbParams ForearmPreset();
 // Calf: 36 cm from below the knee to the ankle, radius 5.5 cm tapering to 3.5 cm.
 LimbParams CalfPreset();

@@ -7,9 +7,9 @@
 // that keep facing the way the contact face did (n·n_prev ≥ min_normal_dot), so pushing through a
 // thin sheet never pops the proxy to the far side, and by at most max_step per update. Contact
 // ends when the tip is back outside; it also starts when a deforming surface moves over a
-// resting tip (the tip lies within max_step under its closest face). The force is the mass-spring paper's
-// spring-damper, F = K·x + D·ẋ with x = SCP − HIP; optional Coulomb friction keeps the proxy where
-// it is while the tangential force stays inside the cone μ·|F_n|.
+// resting tip (the tip lies within max_step under its closest face). The force is the mass-spring
+// paper's spring-damper, F = K·x + D·ẋ with x = SCP − HIP; optional Coulomb friction keeps the
+// proxy where it is while the tangential force stays inside the cone μ·|F_n|.
 //
 // Local model: in contact F ≈ F₀ − K n nᵀ (x − x₀) (sliding along the face costs nothing);
 // free: zero.

@@ -1,13 +1,13 @@
-// Weighted evaluation of a simulator, a session or a trainee by physicians (the coil-spring paper §4.4–4.5),
-// with the reliability figures that say how far the raters agree.
+// Weighted evaluation of a simulator, a session or a trainee by physicians (the coil-spring paper
+// §4.4–4.5), with the reliability figures that say how far the raters agree.
 //
 // Nine indexes j = 1..9 (effectiveness, force-feedback performance, real-time performance,
 // system stability, deformation efficiency, fidelity, visual fluency, immersion, texture), each
 // scored 0–10 by every evaluator; evaluators in three groups g (intern, associate chief, chief).
 //
-//   the coil-spring paper eq. 9   M_j = Σ_g w_g · (1/n_g) Σ_{i∈g} x_ij          (group weights 0.2/0.3/0.5)
-//   the coil-spring paper eq. 10  s_j = (1/n) Σ_i (x_ij − M_j)²                 (all n raters, about M_j)
-//   the coil-spring paper eq. 11  N   = Σ_j w_j · M_j                           (0.15×4, 0.10×3, 0.05×2)
+//   the coil-spring paper eq. 9   M_j = Σ_g w_g · (1/n_g) Σ_{i∈g} x_ij          (group weights
+//   0.2/0.3/0.5) the coil-spring paper eq. 10  s_j = (1/n) Σ_i (x_ij − M_j)²                 (all n
+//   raters, about M_j) the coil-spring paper eq. 11  N   = Σ_j w_j · M_j (0.15×4, 0.10×3, 0.05×2)
 //
 // A group with no rater: the present groups' weights are divided by their sum (the report lists
 // the absent groups and sets `renormalised`). Weights are configuration (WeightSet) and every

@@ -46,7 +46,7 @@ struct TrialMetrics {
   // own work: their hand's path, their share of the tissue's force.
   double guided_share = 0;
   double guided_alpha = 0;
-  LinkFigures link;      // filled by the server that ran the session (not by the recorder)
+  LinkFigures link;  // filled by the server that ran the session (not by the recorder)
 };
 
 }  // namespace vsurg::scoring

@@ -1,6 +1,6 @@
 // The evaluation vocabulary, in one place for the scoring code, the store and the tools: the nine
-// indexes, the three evaluator groups and the 0–10 rule (the coil-spring paper §4.4). Header-only and light
-// (no Eigen, no JSON): db/ includes it without linking the scoring library.
+// indexes, the three evaluator groups and the 0–10 rule (the coil-spring paper §4.4). Header-only
+// and light (no Eigen, no JSON): db/ includes it without linking the scoring library.
 //
 // Indexes and groups are stored and exported by name: the names are never respelled, and adding
 // an index means one more entry here (and a schema migration for the stored rows' check).

@@ -19,8 +19,8 @@ LimbScene Arm() {
   c.max_force = 3.30 / (2.0 * std::numbers::pi *
                         (c.coils * c.core_radius + c.thickness * c.coils * (c.coils + 1) / 2.0));
   c.friction = 1.25;
-  // Effective modulus: the coil-spring paper's 2.07 N·m turns the wrist by 60° (1.047 rad), inside the
-  // passive pronation–supination range. Checked by
+  // Effective modulus: the coil-spring paper's 2.07 N·m turns the wrist by 60° (1.047 rad), inside
+  // the passive pronation–supination range. Checked by
   // LimbSceneTest.ArmTwistsSixtyDegreesAtPaperTorque.
   c.modulus = 4.2530e8;
   s.reference =

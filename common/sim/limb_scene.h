@@ -1,5 +1,5 @@
-// Built-in limb-torsion scenes (the coil-spring paper §3: arm and calf twisted by a torque), the embedded
-// defaults that `vsurg-sim deform` and the demo run.
+// Built-in limb-torsion scenes (the coil-spring paper §3: arm and calf twisted by a torque), the
+// embedded defaults that `vsurg-sim deform` and the demo run.
 //
 // The coil parameters are phenomenological (DESIGN.md "Model 1"): the coils tile the limb from
 // the grasp at the distal end to the fixed proximal end (r + S·h = limb length), the capacity

@@ -1,8 +1,8 @@
-// The press experiment of the mass-spring paper: a tool drives one vertex of a mass-spring tissue in by
-// `press` metres over the first half of the run and holds it there, while the support is fixed
-// (a sphere's bottom fifth resting on a table, a limb's two ends). Reports the final kinetic and
-// potential energy (J), the largest displacement (m), the contact force the tool feels (N, along
-// the outward direction), the step rate and whether the run diverged.
+// The press experiment of the mass-spring paper: a tool drives one vertex of a mass-spring tissue
+// in by `press` metres over the first half of the run and holds it there, while the support is
+// fixed (a sphere's bottom fifth resting on a table, a limb's two ends). Reports the final kinetic
+// and potential energy (J), the largest displacement (m), the contact force the tool feels (N,
+// along the outward direction), the step rate and whether the run diverged.
 //
 // `vsurg-sim msm` prints it; the study and the tests run it in-process.
 #pragma once

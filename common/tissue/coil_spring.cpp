@@ -106,9 +106,9 @@ CoilState CoilSpringModel::Forward(double torque) const {
   return st;
 }
 
-// the coil-spring paper eq. 3–7. For |M| ≤ Q_S the cutoff layer P is the smallest p with Q_p ≥ |M|; coils
-// below it carry their capacity C_i (eq. 3), coil P the rest M_P = |M| − Q_{P−1} (eq. 4) at the
-// point force F_P = M_P/(2πR_P) (eq. 5), so its effective length l_P = M_P/F_P = 2πR_P (eq. 7).
+// the coil-spring paper eq. 3–7. For |M| ≤ Q_S the cutoff layer P is the smallest p with Q_p ≥ |M|;
+// coils below it carry their capacity C_i (eq. 3), coil P the rest M_P = |M| − Q_{P−1} (eq. 4) at
+// the point force F_P = M_P/(2πR_P) (eq. 5), so its effective length l_P = M_P/F_P = 2πR_P (eq. 7).
 // Turns n_i = κ·M_i·l_i/(2π·E·I_i) (eq. 6); twist φ_i = 2π·n_i; Θ_k = Σ_{k<i≤P} φ_i.
 void CoilSpringModel::Forward(double torque, CoilState& out) const {
   const int s = params_.coils;

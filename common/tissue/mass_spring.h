@@ -1,5 +1,5 @@
-// Mass-spring soft tissue with spring-damper springs (the mass-spring paper §3.3, eq. 3-4 to 3-9, as
-// DESIGN.md "Model 2" reads them).
+// Mass-spring soft tissue with spring-damper springs (the mass-spring paper §3.3, eq. 3-4 to 3-9,
+// as DESIGN.md "Model 2" reads them).
 //
 // Particle i has mass m_i; spring s = (i, j) has stiffness k_s, damping c_s and rest length L_s.
 // With l = x_j − x_i, l̂ = l/|l|:

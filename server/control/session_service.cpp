@@ -41,8 +41,8 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   ServerUnaryReactor* Guide(CallbackServerContext* ctx, const v1::GuideRequest* req,
                             v1::Guidance* resp) override {
     return Unary(d_, pool_, ctx, Method::kSessionGuide, [=, this](const db::Principal& p) {
-      return AnswerGuidance(
-          GuideSession(d_, p, req->id(), {FromProto(req->mode()), req->alpha()}), resp);
+      return AnswerGuidance(GuideSession(d_, p, req->id(), {FromProto(req->mode()), req->alpha()}),
+                            resp);
     });
   }
 
@@ -121,14 +121,14 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   // Four-handed training: an instructor's station's credentials for its own channel.
   ServerUnaryReactor* JoinInstructor(CallbackServerContext* ctx, const v1::JoinRequest* req,
                                      v1::CreateSessionResponse* resp) {
-    return Unary(d_, pool_, ctx, Method::kSessionJoinInstructor,
-                 [=, this](const db::Principal& p) -> Status {
-                   auto joined =
-                       JoinAsInstructor(d_, p, req->id(), {FromProto(req->mode()), req->alpha()});
-                   if (!joined.ok()) return joined.error();
-                   Credentials(*joined, resp);
-                   return Status::Ok();
-                 });
+    return Unary(
+        d_, pool_, ctx, Method::kSessionJoinInstructor,
+        [=, this](const db::Principal& p) -> Status {
+          auto joined = JoinAsInstructor(d_, p, req->id(), {FromProto(req->mode()), req->alpha()});
+          if (!joined.ok()) return joined.error();
+          Credentials(*joined, resp);
+          return Status::Ok();
+        });
   }
   static sim::GuideMode FromProto(v1::GuideMode m) {
     switch (m) {

@@ -46,7 +46,7 @@ enum class Method {
   kTrainingListCohorts,
   kTrainingAddMembers,
   kTrainingCurve,
-  kOpsMetrics,  // GET /api/v1/metrics (HTTP only): the Prometheus scrape
+  kOpsMetrics,             // GET /api/v1/metrics (HTTP only): the Prometheus scrape
   kSessionJoinInstructor,  // SessionService/Join with ROLE_INSTRUCTOR (four-handed training)
   kSessionGuide,
   kCount

@@ -58,9 +58,9 @@
 #include <vector>
 
 #include "common/core/clock.h"
-#include "common/core/range.h"
 #include "common/core/expected.h"
 #include "common/core/log.h"
+#include "common/core/range.h"
 #include "common/sim/simulation.h"
 #include "db/store.h"
 #include "proto/wire/datagram.h"
@@ -190,10 +190,10 @@ class SessionManager final : public Sessions {
   // Nothing is committed after `deadline` (the control plane's for the call: past it the
   // sender may have taken the session back).
   // `placement`: the reservation the control replica made for the move, which the row replaces.
-  Expected<CreatedSession> Adopt(const SessionHandoff& handoff,
-                                 std::chrono::system_clock::time_point deadline =
-                                     std::chrono::system_clock::time_point::max(),
-                                 const std::string& placement = "");
+  Expected<CreatedSession> Adopt(
+      const SessionHandoff& handoff,
+      std::chrono::system_clock::time_point deadline = std::chrono::system_clock::time_point::max(),
+      const std::string& placement = "");
 
   // Aborts every live session (metrics recorded), stops the sampler. Idempotent.
   void Shutdown() override;

@@ -249,12 +249,14 @@ def main():
              "--width", "160", "--height", "100", "--fps", "4", "--quality", "low"],
             stdout=open(ian_out, "w"), stderr=open(os.path.join(tmp, "station-ian.log"), "w"), env=env)
         procs.append(ian_station)
-        wait.until(lambda d: "ian (instructor)" in text("#guidance-status"))
+        # The station opens its scene and its view first: on a loaded machine that takes a while.
+        WebDriverWait(driver, 120).until(lambda d: "ian (instructor)" in text("#guidance-status"))
         check("observing" in text("#guidance-status"), f"the page says who joined and how: {text('#guidance-status')}")
         check(driver.find_element(By.ID, "guide-controls").is_displayed(), "the joined instructor is offered the switches")
         driver.find_element(By.ID, "guide-guide").click()
         wait.until(lambda d: "guiding" in text("#guidance-status"))
-        wait.until(lambda d: d.find_element(By.ID, "view3d").get_attribute("data-tools") == "2")
+        WebDriverWait(driver, 60).until(
+            lambda d: d.find_element(By.ID, "view3d").get_attribute("data-tools") == "2")
         guided = api(http, "GET", f"/sessions/{session}/guidance", tokens["tina"])
         check(guided["instructor"] == "ian" and guided["mode"] == "guide" and guided["alpha_requested"] == 0.5,
               f"the trainee sees who is in her session and the mode: {guided}")

@@ -1,7 +1,7 @@
-// The coil-spring torsion model's room (the coil-spring paper; common/sim/tissue_room.h has the contract). The
-// haptic thread answers a twist by the model's closed-form inverse; at each new grasp the
-// deformation thread binds a deformer around it (limb mode: along the centreline; surface mode:
-// geodesic rings around the grasp) and turns the surface by each new torque.
+// The coil-spring torsion model's room (the coil-spring paper; common/sim/tissue_room.h has the
+// contract). The haptic thread answers a twist by the model's closed-form inverse; at each new
+// grasp the deformation thread binds a deformer around it (limb mode: along the centreline; surface
+// mode: geodesic rings around the grasp) and turns the surface by each new torque.
 #pragma once
 
 #include <memory>
@@ -23,7 +23,8 @@ class CoilRoom {
   // Haptic thread. Limb mode: the axis is the centreline where it passes the grasp, the lever
   // the grasp's distance from it; surface mode: the surface normal, and the scene's least lever.
   bool StartGrasp(const GraspQuery& q, GraspFrame& f) const;
-  // Haptic thread: Φ → M by the inverse of the coil-spring paper eq. 3–6 (overloaded past full capacity).
+  // Haptic thread: Φ → M by the inverse of the coil-spring paper eq. 3–6 (overloaded past full
+  // capacity).
   TwistAnswer Twist(double twist) const;
   // Haptic thread: only a grasp deforms this model (SameGraspRequest).
   static bool SameRequest(const DeformInput& a, const DeformInput& b) {

@@ -1,8 +1,9 @@
-// The mass-spring model's room (the mass-spring paper; common/sim/tissue_room.h has the contract): palpation.
-// The proxy's force enters the solve as zero-length spring-dampers from the contact triangle's
-// vertices towards the tip (barycentric shares of the coupling's K and D), inside the implicit
-// step: a coupling stiffer than the tissue applied as an explicit force made the 1026-particle
-// sphere chatter at the device's rate limit. A step that diverges resets the tissue to rest.
+// The mass-spring model's room (the mass-spring paper; common/sim/tissue_room.h has the contract):
+// palpation. The proxy's force enters the solve as zero-length spring-dampers from the contact
+// triangle's vertices towards the tip (barycentric shares of the coupling's K and D), inside the
+// implicit step: a coupling stiffer than the tissue applied as an explicit force made the
+// 1026-particle sphere chatter at the device's rate limit. A step that diverges resets the tissue
+// to rest.
 #pragma once
 
 #include <memory>

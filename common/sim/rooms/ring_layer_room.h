@@ -1,6 +1,6 @@
-// The ring-layer reduced model's room (the mass-spring paper §3.3; common/sim/tissue_room.h has the contract):
-// at each new contact, rings around the contact point that move together, joined by equal
-// springs; the contact force's normal part drives them.
+// The ring-layer reduced model's room (the mass-spring paper §3.3; common/sim/tissue_room.h has the
+// contract): at each new contact, rings around the contact point that move together, joined by
+// equal springs; the contact force's normal part drives them.
 #pragma once
 
 #include <memory>

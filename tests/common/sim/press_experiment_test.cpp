@@ -1,5 +1,5 @@
-// The press experiment (the mass-spring paper) in-process: the tool's push is felt as a restoring force that
-// grows with depth, a hard-but-stable case stays finite, and bad specs name their field.
+// The press experiment (the mass-spring paper) in-process: the tool's push is felt as a restoring
+// force that grows with depth, a hard-but-stable case stays finite, and bad specs name their field.
 #include "common/sim/press_experiment.h"
 
 #include <gtest/gtest.h>

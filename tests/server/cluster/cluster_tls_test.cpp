@@ -220,7 +220,8 @@ TEST_F(ClusterTlsTest, ARenewedCertificateIsUsedWithoutARestart) {
 TEST_F(ClusterTlsTest, ACertificateIsNamedByItsAlternativeNamesNotItsCommonName) {
   const std::string dir = Pki("site", "");
   const std::string make =
-      "cd " + dir + " && openssl req -new -nodes -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 "
+      "cd " + dir +
+      " && openssl req -new -nodes -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 "
       "-keyout rogue.key -out rogue.csr -subj /CN=sim-a 2>/dev/null && "
       "printf 'subjectAltName=DNS:sim-rogue\nextendedKeyUsage=serverAuth,clientAuth\n' > "
       "rogue.ext && openssl x509 -req -in rogue.csr -CA ca.pem -CAkey ca.key -set_serial 0x5eed "

@@ -108,7 +108,8 @@ TEST_F(DomainTest, ReportWeighsTheGroupsAndIsRecorded) {
   const auto j = nlohmann::json::parse(*text);
   EXPECT_EQ(j["subject"], "tina");
   EXPECT_EQ(j["subject_kind"], "trainee");
-  // No associate chief: chief 0.5 and intern 0.2 renormalised to 5/7 and 2/7 (the coil-spring paper eq. 9).
+  // No associate chief: chief 0.5 and intern 0.2 renormalised to 5/7 and 2/7 (the coil-spring paper
+  // eq. 9).
   const double m1 = (0.5 * 8.0 + 0.2 * 4.0) / 0.7;
   EXPECT_NEAR(j["index_means"][0].get<double>(), m1, 1e-9) << j.dump();
   EXPECT_TRUE(j["renormalised"].get<bool>());
