@@ -222,6 +222,12 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
   return run;
 }
 
+std::vector<std::pair<size_t, sim::GuideRequest>> EveryModeChange(size_t lead_cycles) {
+  return {{lead_cycles + 600, {sim::GuideMode::kGuide, 0.5}},
+          {lead_cycles + 1500, {sim::GuideMode::kGuide, 1.0}},
+          {lead_cycles + 2500, {sim::GuideMode::kGuide, 0.0}}};
+}
+
 double PathError(const FourHandsRun& run, const FourHandsRun& reference, size_t lead_cycles) {
   std::vector<Vec3> path;
   for (const ToolSample& s : reference.tool)

@@ -66,6 +66,10 @@ struct FourHandsRun {
 
 Expected<FourHandsRun> RunFourHands(const FourHandsOptions& options);
 
+// Every mode and change in one trial, for a run that starts observing: guide at α = 0.5 0.6 s
+// after the lead-in's `lead_cycles`, take over at 1.5 s, hand back at 2.5 s.
+std::vector<std::pair<size_t, sim::GuideRequest>> EveryModeChange(size_t lead_cycles);
+
 // RMS distance of the tool from the path the reference run's tool took (time-free: the nearest
 // point of its polyline), over both runs' tool samples after the lead-in, m. The reference is
 // the expert alone: its path includes the tissue's push back on the hand.

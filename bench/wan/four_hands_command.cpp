@@ -77,9 +77,7 @@ int Modes(const Plans& p, const std::vector<std::string>& profiles, const fs::pa
     for (const std::string& i : profiles) {
       FourHandsOptions o = Options(p, t, i);
       o.guide = {sim::GuideMode::kObserve, 0};
-      o.changes = {{kLead + 600, {sim::GuideMode::kGuide, 0.5}},
-                   {kLead + 1500, {sim::GuideMode::kGuide, 1.0}},
-                   {kLead + 2500, {sim::GuideMode::kGuide, 0.0}}};
+      o.changes = wan::EveryModeChange(kLead);
       auto r = Run(o, t + " x " + i);
       if (!r.ok()) return 1;
       const double et = wan::EnergyToHand(r->trainee), ei = wan::EnergyToHand(r->instructor);

@@ -467,10 +467,8 @@ std::string Station::guide_error() const {
   return guide_error_;
 }
 
-Status Station::SendGuide(const sim::GuideRequest& r) {
-  if (config_.instruct == 0)
-    return Error{ErrorCode::kFailedPrecondition, "only an instructor's station guides", "mode"};
-  if (Status s = sim::CheckGuideRequest(r); !s.ok()) return s;
+// SessionService/Guide for the session this station instructs.
+grpc::Status Station::AskGuide(const sim::GuideRequest& r) {
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::GuideRequest ask;
   ask.set_id(config_.instruct);
@@ -479,8 +477,14 @@ Status Station::SendGuide(const sim::GuideRequest& r) {
   v1::Guidance now;
   grpc::ClientContext ctx;
   remote_.Prepare(ctx, config_.rpc_timeout_s);
-  const grpc::Status s = stub->Guide(&ctx, ask, &now);
-  if (!s.ok())
+  return stub->Guide(&ctx, ask, &now);
+}
+
+Status Station::SendGuide(const sim::GuideRequest& r) {
+  if (config_.instruct == 0)
+    return Error{ErrorCode::kFailedPrecondition, "only an instructor's station guides", "mode"};
+  if (Status s = sim::CheckGuideRequest(r); !s.ok()) return s;
+  if (const grpc::Status s = AskGuide(r); !s.ok())
     return Error{ErrorCode::kUnavailable, "the mode was refused: " + Describe(s), "mode"};
   std::lock_guard lock(mutex_);
   guide_ = r;
@@ -489,14 +493,8 @@ Status Station::SendGuide(const sim::GuideRequest& r) {
 
 // The instructor leaves (the tool ramps back to the trainee) and reads the session as it stands.
 Expected<v1::Session> Station::LeaveAsInstructor() {
+  (void)AskGuide({sim::GuideMode::kNone, 0});  // an ended session has nobody left to leave
   auto stub = v1::SessionService::NewStub(remote_.channel);
-  v1::GuideRequest leave;
-  leave.set_id(config_.instruct);
-  leave.set_mode(v1::GUIDE_MODE_NONE);
-  v1::Guidance left;
-  grpc::ClientContext ctx;
-  remote_.Prepare(ctx, config_.rpc_timeout_s);
-  (void)stub->Guide(&ctx, leave, &left);  // an ended session has nobody left to leave
   v1::SessionRef ref;
   ref.set_id(config_.instruct);
   v1::Session session;

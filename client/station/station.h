@@ -183,6 +183,7 @@ class Station {
   // another's as its instructor.
   Expected<v1::CreateSessionResponse> OpenSession(bool join);
   Status SendGuide(const sim::GuideRequest& r);  // the ticking thread
+  grpc::Status AskGuide(const sim::GuideRequest& r);
   Expected<v1::Session> LeaveAsInstructor();
   std::shared_ptr<const haptics::TissueSurface> StationSurfaceOf(
       const v1::CreateSessionResponse& created);

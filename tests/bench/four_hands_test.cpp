@@ -100,9 +100,7 @@ TEST(FourHandsTest, ModesSwitchLiveAsRampsAndTheTraineesChannelLosesNothing) {
   o.instructor_profile = *relay::ProfileByName("continental");
   o.trainee_plan = p.steady;
   o.guide = {sim::GuideMode::kObserve, 0};
-  o.changes = {{kLead + 600, {sim::GuideMode::kGuide, 0.5}},
-               {kLead + 1500, {sim::GuideMode::kGuide, 1.0}},
-               {kLead + 2500, {sim::GuideMode::kGuide, 0.0}}};
+  o.changes = EveryModeChange(kLead);
   auto r = RunFourHands(o);
   ASSERT_TRUE(r.ok()) << r.error().message;
   double top = 0, largest_step = 0;
@@ -179,9 +177,7 @@ TEST(FourHandsTest, EveryModeStaysPassiveOnTheFarthestPairsOfLinks) {
     FourHandsOptions o = Options(p, trainee, true);
     o.instructor_profile = *relay::ProfileByName(instructor);
     o.guide = {sim::GuideMode::kObserve, 0};
-    o.changes = {{kLead + 600, {sim::GuideMode::kGuide, 0.5}},
-                 {kLead + 1500, {sim::GuideMode::kGuide, 1.0}},
-                 {kLead + 2500, {sim::GuideMode::kGuide, 0.0}}};
+    o.changes = EveryModeChange(kLead);
     auto r = RunFourHands(o);
     ASSERT_TRUE(r.ok()) << r.error().message;
     const double et = EnergyToHand(r->trainee), ei = EnergyToHand(r->instructor);

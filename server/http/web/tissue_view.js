@@ -26,6 +26,18 @@ function valueNoise(x, y, z) {
   }
   return v;
 }
+// A GLSL program from its two shaders; a compile or link error is raised with the driver's log.
+function linkProgram(gl, vs, fs) {
+  const prog = gl.createProgram();
+  for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
+    const sh = gl.createShader(type); gl.shaderSource(sh, src); gl.compileShader(sh);
+    if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(sh));
+    gl.attachShader(prog, sh);
+  }
+  gl.linkProgram(prog);
+  if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(prog));
+  return prog;
+}
 export class TissueView {
   constructor(canvas, surface, scene) {
     this.canvas = canvas;
@@ -101,15 +113,7 @@ export class TissueView {
         vec3 ambient = albedo * mix(ground, sky, 0.5 + 0.5 * dot(n, uUp)) * ao;
         colour = vec4(tonemap(diffuse + spec + ambient), 1.0);
       }`;
-    const prog = gl.createProgram();
-    for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
-      const sh = gl.createShader(type); gl.shaderSource(sh, src); gl.compileShader(sh);
-      if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(sh));
-      gl.attachShader(prog, sh);
-    }
-    gl.linkProgram(prog);
-    if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(prog));
-    this.prog = prog;
+    this.prog = linkProgram(gl, vs, fs);
     const buffer = (data, usage) => { const b = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, data, usage); return b; };
     this.normals = new Float32Array(this.pos.length);
     this.vao = gl.createVertexArray(); gl.bindVertexArray(this.vao);
@@ -161,15 +165,7 @@ export class TissueView {
       precision mediump float; uniform vec3 uColour; out vec4 colour;
       void main() { vec2 d = gl_PointCoord - 0.5; float r = length(d); if (r > 0.5) discard;
         colour = vec4(r > 0.36 ? vec3(0.05) : uColour, 1.0); }`;
-    const prog = gl.createProgram();
-    for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
-      const sh = gl.createShader(type); gl.shaderSource(sh, src); gl.compileShader(sh);
-      if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(sh));
-      gl.attachShader(prog, sh);
-    }
-    gl.linkProgram(prog);
-    if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(prog));
-    this.toolProg = prog;
+    this.toolProg = linkProgram(gl, vs, fs);
     this.toolVao = gl.createVertexArray(); gl.bindVertexArray(this.toolVao);
     this.toolBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, this.toolBuf);
     gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(6), gl.DYNAMIC_DRAW);
