@@ -110,8 +110,10 @@ wait_all_running() {
 }
 
 step "Chaos: sim-1 frozen past its lease (SIGSTOP 3.5 s), then resumed"
-frozen_ids="$(psql_q "SELECT string_agg(id::text, ',') FROM sessions WHERE state = 'running' AND node = 'sim-1'")"
-frozen_victims="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-1'")"
+# Live, running or stalled (a loaded machine stalls a session whose station was briefly silent):
+# every one of them is lost with the node and its station comes back.
+frozen_ids="$(psql_q "SELECT string_agg(id::text, ',') FROM sessions WHERE state IN ('running', 'stalled') AND node = 'sim-1'")"
+frozen_victims="$(psql_q "SELECT count(*) FROM sessions WHERE state IN ('running', 'stalled') AND node = 'sim-1'")"
 kill -STOP "${sim_pid[1]}"
 stopped_at="$(now_ms)"
 max_live=0
@@ -164,7 +166,7 @@ echo "sim-2 ran $sim2_running sessions before, $sim2_running_after after ($sim2_
 twin_kept=$([ "$sim2_kept" = "$sim2_running" ] && [ "$sim2_address" = "$sim2_address_after" ] && echo 1 || echo 0)
 
 step "SIGKILL sim-0: its stations come back on the other nodes"
-victims="$(psql_q "SELECT count(*) FROM sessions WHERE state = 'running' AND node = 'sim-0'")"
+victims="$(psql_q "SELECT count(*) FROM sessions WHERE state IN ('running', 'stalled') AND node = 'sim-0'")"
 kill -KILL "${sim_pid[0]}"
 killed_at="$(now_ms)"
 # Wait until every station runs again, then read when each new session started from the
@@ -280,13 +282,22 @@ step "The stations finish (SIGINT: each stops its session and prints its summary
 for i in $(seq 0 $((stations - 1))); do kill -INT "${station_pid[$i]}" 2>/dev/null || true; done
 for i in $(seq 0 $((stations - 1))); do wait "${station_pid[$i]}" 2>/dev/null || true; done
 # Per station: did it reconnect, did its force fade meanwhile, the largest force it sent.
-read -r reconnected faded max_force reconnects < <(cat "$out"/station-*.json | /usr/bin/python3 -c '
+# Why each station gave a session up: it was aborted (its node lost), or the control plane did
+# not answer for give_up_s (a loaded machine), or something else.
+read -r reconnected faded max_force reconnects drops_aborted drops_unanswered drops_other < <(
+  cat "$out"/station-*.json | /usr/bin/python3 -c '
 import json, sys
 rows = [json.loads(l) for l in sys.stdin if l.strip().startswith("{")]
 back = [r for r in rows if r["reconnects"] > 0]
+drops = [d for r in rows for d in r.get("drops", [])]
+aborted = sum(1 for d in drops if d.endswith(" is aborted"))
+unanswered = sum(1 for d in drops if d.startswith("the server does not answer"))
+for d in drops: print(d, file=sys.stderr)
 print(len(back), sum(1 for r in back if r["watchdog_fades"] > 0),
-      repr(max([r["max_force_n"] for r in rows] or [0])), sum(r["reconnects"] for r in rows))')
+      repr(max([r["max_force_n"] for r in rows] or [0])), sum(r["reconnects"] for r in rows),
+      aborted, unanswered, len(drops) - aborted - unanswered)' 2> "$out/drops.txt")
 echo "stations reconnected: $reconnected ($reconnects reconnections; force faded meanwhile: $faded); largest force sent: $max_force N"
+echo "sessions given up: $drops_aborted aborted, $drops_unanswered unanswered, $drops_other otherwise ($out/drops.txt)"
 
 step "sim-2 logged JSON lines (--log-format json), each about a session carrying its id"
 sleep 1  # the stations' last stops reach the node
@@ -318,7 +329,8 @@ cat > "$out/cluster.json" <<EOF
  "acked_missing": $acked_missing, "stored": $stored,
  "monitor_running": $listed, "dashboard_running": $dashboard_live,
  "reconnected": $reconnected, "reconnected_faded": $faded, "max_force_n": $max_force,
- "reconnects": $reconnects,
+ "reconnects": $reconnects, "drops_aborted": $drops_aborted,
+ "drops_unanswered": $drops_unanswered, "drops_other": $drops_other,
  "frozen_victims": $frozen_victims, "frozen_not_aborted": $frozen_not_aborted,
  "frozen_trials": $frozen_trials, "lease_lost": $lease_lost, "reacquired": $reacquired,
  "max_live_per_trainee": $max_live, "twin_rc": $twin_rc, "twin_refused": $twin_refused,

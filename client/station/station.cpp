@@ -313,6 +313,7 @@ void Station::Drop(const std::string& why) {
   {
     std::lock_guard lock(mutex_);
     status_.last_error = why;
+    status_.drops.push_back(why);
     status_.state = config_.reconnect ? StationState::kReconnecting : StationState::kFailed;
   }
   if (!config_.reconnect) return;

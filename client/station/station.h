@@ -40,6 +40,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "client/device/device.h"
 #include "client/net/remote.h"
@@ -115,7 +116,8 @@ struct StationStatus {
   // The longest time without a force update while live, s (at the supervisor's tick): across a
   // move or a reconnection too, from the last answer of one channel to the first of the next.
   double longest_gap_s = 0;
-  std::string last_error;  // why the last attempt or probe failed
+  std::string last_error;          // why the last attempt or probe failed
+  std::vector<std::string> drops;  // why each live session was given up, in order
 };
 
 struct SessionSummary {

@@ -590,6 +590,7 @@ nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::
                       {"state", SessionStateName(summary.state)},
                       {"end_reason", summary.end_reason},
                       {"reconnects", st.reconnects},
+                      {"drops", st.drops},
                       {"sessions", st.generation - static_cast<uint64_t>(st.moves)},
                       {"moves", st.moves},
                       {"longest_gap_ms", 1e3 * st.longest_gap_s},

@@ -63,9 +63,16 @@ TEST(ClusterTest, PlacementNodeLossAndControlLossOnPostgres) {
   // Every station of the frozen node and of the killed one came back once per loss (a station
   // moved off sim-1 onto sim-0 and killed there comes back twice), each with its force faded
   // meanwhile and never above the device's 3.3 N, compared exactly (the station clamps in the
-  // arithmetic this check uses; a re-placed session ramps in from zero).
+  // arithmetic this check uses; a re-placed session ramps in from zero). Each session given up
+  // was aborted with its node, except that on a machine so loaded that the control plane answers
+  // no probe for 5 s a station gives its session up as unanswered and starts another; nothing
+  // else makes a station start again.
   const int frozen = j["frozen_victims"].get<int>();
-  EXPECT_EQ(j["reconnects"].get<int>(), victims + frozen);
+  const int unanswered = j["drops_unanswered"].get<int>();
+  EXPECT_EQ(j["drops_other"].get<int>(), 0) << "see " << (out / "drops.txt").string();
+  EXPECT_LE(j["drops_aborted"].get<int>(), victims + frozen);
+  EXPECT_GE(j["reconnects"].get<int>(), victims + frozen);
+  EXPECT_LE(j["reconnects"].get<int>(), victims + frozen + unanswered);
   EXPECT_EQ(j["reconnected_faded"].get<int>(), j["reconnected"].get<int>());
   EXPECT_GE(j["reconnected"].get<int>(), std::max(victims, frozen));
   EXPECT_LE(j["max_force_n"].get<double>(), 3.3);
