@@ -86,6 +86,11 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # answers (52 s here, 0.65 s in the main build); the exact model's code runs under ASan in
   # LocalModelTest.AnExactGraspModelIsTheServersGraspForceAtAnyTurn and the grasp tests beside it.
   long+='|LocalModelTest.AGraspIsRenderedAsTheServerWouldAnswerItARoundTripAhead'
+  # A heterogeneous ball's contact tables built at 16 cells (two sessions, and the FEM's felt
+  # stiffness at 8 and 16 cells with and without the lump): the inclusions' code runs under ASan
+  # in InclusionTest and the other HeterogeneousFemTest cases.
+  long+='|SimulationTest.AHiddenLumpPushesBackHarderAboveItThanAside'
+  long+='|HeterogeneousFemTest.TheFeltStiffnessMapShowsTheLumpAtTheCoarseAndTheFineMesh'
   # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
   # not after them, with a PostgreSQL of its own: the ctest fixture's server lives in one folder
   # of the build, and a second run's fixture would stop the first run's server under its tests.
@@ -131,6 +136,7 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   # station's local model: one thread each (threaded = false), 53 of the suite's 91 s under TSan.
   single+=':OrganSceneTest.*:LocalModelTest.AGraspIsRenderedAsTheServerWouldAnswer*'
   single+=':LocalModelTest.TheServersPortCountsWhatTheTissueTook*'
+  single+=':SimulationTest.AHiddenLump*'  # one thread (threaded = false): two tables built
   declare -A filter=([simulation_test]="-$single")
   # The simulation's threaded tests (a minute) run beside the other suites (half a minute, one
   # after another), each suite's output kept apart and shown whole.

@@ -470,6 +470,38 @@ Status ParseTissue(const Reader& r, Scene& s) {
   return Status::Ok();
 }
 
+// Stiff or soft inclusions in the tissue ("tissue.inclusions": [{"centre": [x, y, z] m,
+// "radius": m, "contrast": E ratio}]): carried by the FEM a reduced model is built from, so only
+// a reduced contact or surface-twist region has them. A sphere's centre must lie in the ball; a
+// mesh file's is checked against its tetrahedra when the model is built.
+Status ParseInclusions(const Reader& r, Scene& s) {
+  if (!r.Has("tissue") || !r.raw()["tissue"].contains("inclusions")) return Status::Ok();
+  const Reader t(r.raw()["tissue"], "tissue");
+  const json& list = t.raw()["inclusions"];
+  if (!list.is_array() || list.size() > 16)
+    return t.Bad("inclusions", "must be an array of at most 16 inclusions");
+  if (!list.empty() &&
+      (s.region.kind != ModelKind::kReduced || s.region.reduced.mode == ReducedMode::kTwist))
+    return t.Bad("inclusions",
+                 "only a reduced contact or surface-twist model carries inclusions (its FEM)");
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string path = "tissue.inclusions[" + std::to_string(i) + "]";
+    if (!list[i].is_object()) return InvalidArgument(path, path + ": must be an object");
+    const Reader c(list[i], path);
+    VSURG_TRY(centre, c.NumbersOr("centre", 3, -100, 100));
+    if (centre.empty()) return c.Missing("centre");
+    VSURG_TRY(radius, c.Number("radius", 1e-4, 1.0));
+    VSURG_TRY(contrast, c.Number("contrast", 1e-3, tissue::kMaxInclusionContrast));
+    tissue::Inclusion inc{{centre[0], centre[1], centre[2]}, radius, contrast};
+    if (Status st = tissue::ValidateInclusion(inc, path); !st.ok()) return st;
+    if (s.mesh.kind == MeshKind::kSphere && inc.centre.norm() >= s.mesh.radius)
+      return c.Bad("centre", "lies outside the tissue (the sphere's radius is " +
+                                 std::to_string(s.mesh.radius) + " m)");
+    s.inclusions.push_back(inc);
+  }
+  return Status::Ok();
+}
+
 // The one deformable region and its model, and what the model asks of the mesh.
 Status ParseRegion(const json& root, const Reader& r, Scene& s) {
   if (!root.contains("regions")) return r.Missing("regions");
@@ -580,6 +612,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if (Status st = ParseMesh(*mesh, dir, s.mesh); !st.ok()) return with_source(st.error());
   if (Status st = ParseTissue(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseRegion(root, r, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseInclusions(r, s); !st.ok()) return with_source(st.error());
   if (r.Has("haptics")) {
     auto h = r.Object("haptics");
     if (!h.ok()) return with_source(h.error());

@@ -36,6 +36,7 @@
 #include "common/scoring/trial_metrics.h"
 #include "common/tissue/coil_deformation.h"
 #include "common/tissue/coil_spring.h"
+#include "common/tissue/inclusions.h"
 #include "common/tissue/mass_spring.h"
 #include "common/tissue/ring_layer.h"
 
@@ -155,6 +156,7 @@ struct Scene {
   std::string source;  // the file it was read from
   MeshSpec mesh;
   double shear_modulus = 12e3, poisson_ratio = 0.47, density = 1050;
+  std::vector<tissue::Inclusion> inclusions;  // lumps of another stiffness (inclusions.h)
   RegionSpec region;
   HapticsSpec haptics;
   scoring::TaskSpec task;

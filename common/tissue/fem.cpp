@@ -289,6 +289,12 @@ Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemPara
   if (Status s = geometry::Validate(mesh, 1e-15); !s.ok()) return s.error();
   const int nv = mesh.VertexCount(), te = mesh.TetCount();
   if (te == 0) return InvalidArgument("mesh", "no tetrahedra");
+  const std::vector<double>& scale = params.element_stiffness_scale;
+  if (!scale.empty() && static_cast<int>(scale.size()) != te)
+    return InvalidArgument("element_stiffness_scale", "one factor per tetrahedron");
+  for (double k : scale)
+    if (!std::isfinite(k) || !(k > 0))
+      return InvalidArgument("element_stiffness_scale", "each factor must be finite and > 0");
 
   auto impl = std::make_unique<Impl>();
   Impl& m = *impl;
@@ -326,8 +332,9 @@ Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemPara
     for (int a = 1; a < 4; ++a) g[a] = inv.row(a - 1).transpose();
     g[0] = -(g[1] + g[2] + g[3]);
     for (int a = 0; a < 4; ++a) m.grad[e][a] = g[a];
-    m.v_lambda[e] = volume * lambda;
-    m.v_mu[e] = volume * mu;
+    const double k = scale.empty() ? 1.0 : scale[e];
+    m.v_lambda[e] = k * volume * lambda;
+    m.v_mu[e] = k * volume * mu;
     for (int a = 0; a < 4; ++a) m.mass[t[a]] += params.density * volume / 4.0;
   }
   // Block pattern: every vertex pair sharing an element.

@@ -6,7 +6,8 @@
 // stiffness (N/m), D = α·M + β·K Rayleigh damping, h step (s), f_ext external forces (N).
 //
 // Element e with vertices 0..3 (Müller & Gross 2004, "Interactive virtual materials"):
-//   shape gradients g_a from the rest edge matrix, V rest volume, Lamé λ, μ from E, ν;
+//   shape gradients g_a from the rest edge matrix, V rest volume, Lamé λ, μ from E, ν (E times
+//   the element's own scale in a heterogeneous tissue);
 //   K_ab = V·(λ·g_a g_bᵀ + μ·g_b g_aᵀ + μ·(g_a·g_b)·I)            (3×3 block of the 12×12 Ke)
 //   R = the rotation of the deformation gradient F = D_s·D_m⁻¹, by Newton's iteration on
 //       tr(Rᵀ F) warm-started from the previous step, falling back to the iteration of Müller et
@@ -45,6 +46,9 @@ struct FemParams {
   double young = 34800;   // Pa (G = 12 kPa with ν = 0.45, DESIGN.md default tissue)
   double poisson = 0.45;  // < 0.5
   double density = 1050;  // kg/m³
+  // Per tetrahedron, the factor its Young's modulus is multiplied by (a heterogeneous tissue:
+  // inclusions.h); empty is homogeneous. Each > 0 and finite, one per element.
+  std::vector<double> element_stiffness_scale;
   // Rayleigh D = α·M + β·K. The defaults damp a forearm's first torsion mode (≈ 20 rad/s) at
   // ζ ≈ α/(2ω) ≈ 0.12 and leave β small: β·h·ω_max² would dominate the step matrix and slow CG.
   double mass_damping = 5.0;         // α, 1/s

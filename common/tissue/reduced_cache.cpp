@@ -117,6 +117,11 @@ void PutCommon(Writer& w, const char* kind, const geometry::TetMesh& mesh, const
   w.Put(p.density);
   w.Put(static_cast<uint8_t>(p.corotational));
   w.PutVector(fixed);
+  // A heterogeneous tissue's per-element moduli (a homogeneous one's key as it always was).
+  if (!p.element_stiffness_scale.empty()) {
+    w.PutString("element stiffness scale");
+    w.PutVector(p.element_stiffness_scale);
+  }
 }
 
 bool ValidName(const std::string& name) {

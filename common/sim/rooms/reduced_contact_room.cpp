@@ -8,8 +8,10 @@ Expected<ReducedContactRoom> ReducedContactRoom::Build(const RoomInputs& in) {
   const RegionSpec& region = in.scene.region;
   auto fem = ReducedFemMesh(in.scene, in.rest);
   if (!fem.ok()) return fem.error();
-  auto inputs =
+  auto made =
       TableInputsFor<tissue::ContactResponseParams>(in.scene, in.rest, in.held, std::move(*fem));
+  if (!made.ok()) return made.error();
+  tissue::TableInputs<tissue::ContactResponseParams>& inputs = *made;
   inputs.params.footprint_radius = region.reduced.footprint_radius;
   Status status = Status::Ok();
   const tissue::ReducedCache cache(in.cache_dir);

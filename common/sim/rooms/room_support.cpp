@@ -19,6 +19,17 @@ tissue::FemParams SceneMaterial(const Scene& scene) {
   return p;
 }
 
+Expected<tissue::FemParams> SceneMaterialOn(const Scene& scene, const geometry::TetMesh& fem) {
+  tissue::FemParams p = SceneMaterial(scene);
+  if (scene.inclusions.empty()) return p;
+  auto scale = tissue::InclusionStiffnessScale(fem, scene.inclusions);
+  if (!scale.ok())
+    return Error{scale.error().code, "tissue." + scale.error().message,
+                 "tissue." + scale.error().field};
+  p.element_stiffness_scale = std::move(*scale);
+  return p;
+}
+
 Expected<geometry::TetMesh> ReducedFemMesh(const Scene& scene, const geometry::TriMesh& rest) {
   const RegionSpec& region = scene.region;
   if (scene.mesh.kind == MeshKind::kSphere)

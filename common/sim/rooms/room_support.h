@@ -36,14 +36,23 @@ TwistAnswer LinearTwist(double twist, double stiffness, double capacity);
 geometry::Vec3 RestPoint(const geometry::TriMesh& rest, int triangle,
                          const geometry::Vec3& barycentric);
 
+// The scene's material on its FEM mesh: the homogeneous tissue's (SceneMaterial), with each
+// element's modulus scaled by the inclusions it holds; refused, naming the inclusion, when one
+// lies outside the tissue.
+Expected<tissue::FemParams> SceneMaterialOn(const Scene& scene, const geometry::TetMesh& fem);
+
 // A reduced table's inputs for a scene: its FEM held by the scene's support (as the surface's
 // `held` vertices are), the display, and every display vertex not held, which a tool can reach.
 template <class Params>
-tissue::TableInputs<Params> TableInputsFor(const Scene& scene, const geometry::TriMesh& rest,
-                                           const std::vector<int>& held, geometry::TetMesh fem) {
+Expected<tissue::TableInputs<Params>> TableInputsFor(const Scene& scene,
+                                                     const geometry::TriMesh& rest,
+                                                     const std::vector<int>& held,
+                                                     geometry::TetMesh fem) {
   tissue::TableInputs<Params> in;
+  auto material = SceneMaterialOn(scene, fem);
+  if (!material.ok()) return material.error();
   in.mesh = std::move(fem);
-  in.material = SceneMaterial(scene);
+  in.material = std::move(*material);
   in.fixed = SupportedFemVertices(in.mesh, rest, held, scene.region);
   in.display = rest;
   std::vector<uint8_t> is_held(rest.VertexCount(), 0);

@@ -11,8 +11,10 @@ namespace vsurg::sim {
 Expected<SurfaceTwistRoom> SurfaceTwistRoom::Build(const RoomInputs& in) {
   auto fem = ReducedFemMesh(in.scene, in.rest);
   if (!fem.ok()) return fem.error();
-  auto inputs =
+  auto made =
       TableInputsFor<tissue::SurfaceTwistParams>(in.scene, in.rest, in.held, std::move(*fem));
+  if (!made.ok()) return made.error();
+  tissue::TableInputs<tissue::SurfaceTwistParams>& inputs = *made;
   inputs.params.jaw_radius = in.scene.region.reduced.jaw_radius;
   const tissue::ReducedCache cache(in.cache_dir);
   Status status = Status::Ok();

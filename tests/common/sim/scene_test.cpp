@@ -391,6 +391,48 @@ TEST(SceneTest, BadScenesNameTheField) {
 
 // A description that was a number escaped as a JSON type_error ("internal error", exit 1) and in
 // the server's scenes folder broke ListScenes and Create for everyone. Every field is checked.
+// Inclusions: read into the scene for a reduced contact model, refused by name otherwise.
+TEST(SceneTest, InclusionsAreReadForAReducedModelAndBadOnesNamed) {
+  const std::string reduced =
+      Replace(Minimal(), R"("type": "mass-spring", "structural_stiffness": 50)",
+              R"("type": "reduced", "fem_cells": 12)");
+  const auto with = [&](const std::string& list, const std::string& base = "") {
+    return Replace(base.empty() ? reduced : base, R"("error_budget")",
+                   R"("tissue": {"inclusions": )" + list + R"(}, "error_budget")");
+  };
+  auto scene = ParseScene(with(R"([{"centre": [0, 0, 0.035], "radius": 0.005, "contrast": 5},
+               {"centre": [0.02, 0, 0.01], "radius": 0.004, "contrast": 0.5}])"),
+                          "x.json");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  ASSERT_EQ(scene->inclusions.size(), 2u);
+  EXPECT_EQ(scene->inclusions[0].centre, Eigen::Vector3d(0, 0, 0.035));
+  EXPECT_EQ(scene->inclusions[0].radius, 0.005);
+  EXPECT_EQ(scene->inclusions[1].contrast, 0.5);
+  const std::pair<const char*, const char*> bad[] = {
+      {R"([{"centre": [0, 0, 0], "radius": 0, "contrast": 5}])", "tissue.inclusions[0].radius"},
+      {R"([{"centre": [0, 0, 0], "radius": -0.01, "contrast": 5}])", "tissue.inclusions[0].radius"},
+      {R"([{"centre": [0, 0, 0], "radius": 0.01, "contrast": 0}])",
+       "tissue.inclusions[0].contrast"},
+      {R"([{"centre": [0, 0, 0], "radius": 0.01, "contrast": 1000}])",
+       "tissue.inclusions[0].contrast"},
+      {R"([{"centre": [0, 0, 0], "radius": 0.01, "contrast": "hard"}])",
+       "tissue.inclusions[0].contrast"},
+      {R"([{"centre": [0, 0], "radius": 0.01, "contrast": 5}])", "tissue.inclusions[0].centre"},
+      {R"([{"radius": 0.01, "contrast": 5}])", "tissue.inclusions[0].centre"},
+      {R"([{"centre": [0, 0, 0.06], "radius": 0.01, "contrast": 5}])",
+       "tissue.inclusions[0].centre: lies outside the tissue"},
+      {R"([{"centre": [0, 0, 0], "radius": 0.01, "contrast": 5}, 3])", "tissue.inclusions[1]"},
+      {R"({"centre": [0, 0, 0]})", "tissue.inclusions: must be an array"},
+  };
+  for (const auto& [list, field] : bad)
+    EXPECT_NE(Field(with(list)).find(field), std::string::npos)
+        << list << ": " << Field(with(list));
+  // A model without an FEM behind it has no inclusions to carry.
+  EXPECT_NE(Field(with(R"([{"centre": [0, 0, 0], "radius": 0.01, "contrast": 5}])", Minimal()))
+                .find("tissue.inclusions: only a reduced contact or surface-twist model"),
+            std::string::npos);
+}
+
 TEST(SceneTest, EveryFieldsTypeIsCheckedNamingIt) {
   EXPECT_NE(Field(Replace(Minimal(), R"("name": "t", )", R"("name": "t", "description": 5, )"))
                 .find("x.json: description: must be a string"),

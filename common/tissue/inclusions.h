@@ -1,0 +1,51 @@
+// Stiff (or soft) inclusions in a tissue: a lump under the surface that palpation looks for
+// (DESIGN.md "Tissue with inclusions"). Each inclusion is a ball of the surrounding tissue's
+// material with its Young's modulus multiplied by a contrast; the FEM carries it per element.
+//
+// An element partly inside takes the volume-weighted mean of the moduli it holds (Voigt's
+// bound, the rule of mixtures), its inside share measured at the points of a barycentric
+// lattice of order n: the C(n+3, 3) points whose coordinates are (i + 1/4)/(n + 1) for
+// non-negative integers i summing to n (every point inside, each standing for an equal share of
+// the element's volume). Under refinement the share converges to the exact one and the mixed
+// elements' layer to zero thickness, so the FEM's answer converges to the sharp inclusion's.
+// Overlapping inclusions: a point takes the largest contrast of those it lies in.
+//
+// Units: m; contrast is dimensionless (E_inclusion / E_tissue).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+
+namespace vsurg::tissue {
+
+struct Inclusion {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // m
+  double radius = 0.005;                             // m
+  double contrast = 5;  // E inside / E around; 1 is no lump, below 1 a softer one (a cyst)
+};
+
+// The range a contrast must lie in: above zero, and at most this (a stiffer inclusion is held
+// as rigid by any tissue around it, and the stiffness matrix's conditioning worsens with it).
+inline constexpr double kMaxInclusionContrast = 100;
+
+// A finite centre, a radius > 0 and a contrast in (0, kMaxInclusionContrast]; the error names
+// `field` and the part that is wrong (e.g. "tissue.inclusions[1].radius").
+Status ValidateInclusion(const Inclusion& inclusion, const std::string& field);
+
+// The contrast at a point (1 where no inclusion holds it).
+double ContrastAt(const std::vector<Inclusion>& inclusions, const Eigen::Vector3d& p);
+
+// Per tetrahedron of `mesh`, the factor its Young's modulus is multiplied by (FemParams::
+// element_stiffness_scale); all 1 with no inclusions. Refused, naming "inclusions[i]", when an
+// inclusion is invalid or its centre lies in no tetrahedron (outside the tissue); one that
+// reaches through the surface is kept, its outside part simply not tissue.
+Expected<std::vector<double>> InclusionStiffnessScale(const geometry::TetMesh& mesh,
+                                                      const std::vector<Inclusion>& inclusions,
+                                                      int lattice_order = 6);
+
+}  // namespace vsurg::tissue
