@@ -1,5 +1,5 @@
 // Stiff (or soft) inclusions in a tissue: a lump under the surface that palpation looks for
-// (DESIGN.md "Tissue with inclusions"). Each inclusion is a ball of the surrounding tissue's
+// (DESIGN.md, Model 3: heterogeneous tissue). Each inclusion is a ball of the surrounding tissue's
 // material with its Young's modulus multiplied by a contrast; the FEM carries it per element.
 //
 // An element partly inside takes the volume-weighted mean of the moduli it holds (Voigt's
@@ -8,7 +8,8 @@
 // non-negative integers i summing to n (every point inside, each standing for an equal share of
 // the element's volume). Under refinement the share converges to the exact one and the mixed
 // elements' layer to zero thickness, so the FEM's answer converges to the sharp inclusion's.
-// Overlapping inclusions: a point takes the largest contrast of those it lies in.
+// Overlapping inclusions: a point takes the largest contrast of those it lies in (a soft one
+// alone, below 1, sets it).
 //
 // Units: m; contrast is dimensionless (E_inclusion / E_tissue).
 #pragma once
