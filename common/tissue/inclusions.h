@@ -14,6 +14,7 @@
 // Units: m; contrast is dimensionless (E_inclusion / E_tissue).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -48,5 +49,37 @@ double ContrastAt(const std::vector<Inclusion>& inclusions, const Eigen::Vector3
 Expected<std::vector<double>> InclusionStiffnessScale(const geometry::TetMesh& mesh,
                                                       const std::vector<Inclusion>& inclusions,
                                                       int lattice_order = 6);
+
+// Whether a point lies in the tissue: in some tetrahedron of `mesh` (brute force; set-up only).
+bool InsideTissue(const geometry::TetMesh& mesh, const Eigen::Vector3d& p);
+
+// Cases drawn at random for palpation, so that no two attempts hide the same lumps: how many
+// (possibly none), how large, how deep under the surface a tool can reach (the centre's distance
+// to the nearest point of the tissue's surface, which must lie on the palpable part: a lump
+// nearer the table than the top is not one a trainee can find), how stiff, and how far apart
+// (between two lumps' surfaces, so that each is felt on its own).
+struct InclusionDraw {
+  int min_count = 1, max_count = 1;
+  double min_diameter = 0.005, max_diameter = 0.015;  // m
+  double min_depth = 0.005, max_depth = 0.025;        // m
+  double min_contrast = 3, max_contrast = 10;
+  double min_gap = 0.005;  // m
+};
+
+// Counts in 0..16 (min ≤ max), every length finite and > 0 (depths ≥ 0) with min ≤ max, and
+// contrasts in (0, kMaxInclusionContrast] with min ≤ max; the error names `field` and the part.
+Status ValidateInclusionDraw(const InclusionDraw& draw, const std::string& field);
+
+// One case, the same for the same seed on every machine (its own 64-bit generator, splitmix64,
+// not the standard library's distributions, whose algorithms differ between libraries). Each lump:
+// a point on `palpable` (uniform by area: the surface a tool can reach, outward normals), a
+// depth, a diameter and a contrast uniform in their ranges, its centre that depth inward along
+// the normal; kept when the centre is in `tissue`, its distance to the tissue's whole surface
+// (geometry::BoundarySurface) is within the depth range and is its distance to `palpable`, and
+// it keeps the gap to the lumps drawn before. kFailedPrecondition, naming "depth", when 2,000
+// tries of one lump find no such place (a depth range the tissue is too thin for).
+Expected<std::vector<Inclusion>> DrawInclusions(const geometry::TetMesh& tissue,
+                                                const geometry::TriMesh& palpable,
+                                                const InclusionDraw& draw, uint64_t seed);
 
 }  // namespace vsurg::tissue

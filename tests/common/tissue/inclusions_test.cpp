@@ -1,9 +1,11 @@
 #include "common/tissue/inclusions.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -104,6 +106,102 @@ TEST(InclusionTest, BadInclusionsAreRefusedNamingTheField) {
     EXPECT_EQ(scale.error().field, c.field) << scale.error().message;
     EXPECT_NE(scale.error().message.find(c.field), std::string::npos) << scale.error().message;
   }
+}
+
+// The upper half of a ball's surface: what a tool reaches on a ball resting on a table.
+geometry::TriMesh UpperHalf(const geometry::TetMesh& ball) {
+  geometry::TriMesh all = geometry::BoundarySurface(ball), top;
+  top.positions = all.positions;
+  for (int t = 0; t < all.TriangleCount(); ++t) {
+    double z = 0;
+    for (int v : all.triangles[t]) z += all.positions[v].z() / 3;
+    if (z > 0) top.triangles.push_back(all.triangles[t]);
+  }
+  return top;
+}
+
+// The distance to the nearest vertex of a surface's triangles: at least the distance to the
+// surface, at most that plus its facets' size.
+double SurfaceDistance(const geometry::TriMesh& surface, const Vec3& p) {
+  double best = kInf;
+  for (const geometry::Triangle& t : surface.triangles)
+    for (int v : t) best = std::min(best, (surface.positions[v] - p).norm());
+  return best;
+}
+
+TEST(InclusionDrawTest, EachSeedIsOneCaseWithinTheRangesAndApart) {
+  const geometry::TetMesh ball = Ball(12);
+  const geometry::TriMesh top = UpperHalf(ball), all = geometry::BoundarySurface(ball);
+  InclusionDraw draw;
+  draw.min_count = 0;
+  draw.max_count = 3;
+  std::array<int, 4> counts{}, quadrants{};
+  std::set<double> first_x;
+  for (uint64_t seed = 1; seed <= 120; ++seed) {
+    auto lumps = DrawInclusions(ball, top, draw, seed);
+    ASSERT_TRUE(lumps.ok()) << lumps.error().message;
+    auto again = DrawInclusions(ball, top, draw, seed);
+    ASSERT_EQ(again->size(), lumps->size());
+    for (size_t i = 0; i < lumps->size(); ++i) EXPECT_EQ((*again)[i].centre, (*lumps)[i].centre);
+    ++counts[lumps->size()];
+    if (!lumps->empty()) first_x.insert((*lumps)[0].centre.x());
+    for (size_t i = 0; i < lumps->size(); ++i) {
+      const Inclusion& c = (*lumps)[i];
+      EXPECT_GE(2 * c.radius, draw.min_diameter);
+      EXPECT_LE(2 * c.radius, draw.max_diameter);
+      EXPECT_GE(c.contrast, draw.min_contrast);
+      EXPECT_LE(c.contrast, draw.max_contrast);
+      EXPECT_TRUE(InsideTissue(ball, c.centre));
+      EXPECT_GT(c.centre.z(), -0.01) << "nearer the table than the top";
+      // Depth to the surface's vertices: within the range, up to the mesh's facets' sag.
+      const double depth = SurfaceDistance(all, c.centre);
+      EXPECT_GE(depth, draw.min_depth - 1e-9);
+      EXPECT_LE(depth, draw.max_depth + 0.005);
+      quadrants[(c.centre.x() > 0) + 2 * (c.centre.y() > 0)]++;
+      for (size_t j = 0; j < i; ++j)
+        EXPECT_GE((c.centre - (*lumps)[j].centre).norm(),
+                  c.radius + (*lumps)[j].radius + draw.min_gap - 1e-12);
+    }
+  }
+  for (int n : counts) EXPECT_GT(n, 10) << "0 to 3 lumps, each count drawn";
+  for (int n : quadrants) EXPECT_GT(n, 20) << "lumps all over the palpable surface";
+  // No two seeds hide the same lump: every case's first centre is its own.
+  EXPECT_EQ(first_x.size(), static_cast<size_t>(120 - counts[0]));
+}
+
+TEST(InclusionDrawTest, ImpossibleOrBadDrawsAreRefusedNamingTheField) {
+  const geometry::TetMesh ball = Ball(8);
+  const geometry::TriMesh top = UpperHalf(ball);
+  InclusionDraw deep;
+  deep.min_depth = 0.08, deep.max_depth = 0.09;  // deeper than a 5 cm ball's centre
+  auto none = DrawInclusions(ball, top, deep, 1);
+  ASSERT_FALSE(none.ok());
+  EXPECT_EQ(none.error().code, ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(none.error().field, "draw.depth");
+  const auto refused = [&](InclusionDraw d, const char* field) {
+    auto r = DrawInclusions(ball, top, d, 1);
+    ASSERT_FALSE(r.ok()) << field;
+    EXPECT_EQ(r.error().field, field) << r.error().message;
+  };
+  InclusionDraw d;
+  d.min_count = 2, d.max_count = 1;
+  refused(d, "draw.count");
+  d = {}, d.max_count = 17;
+  refused(d, "draw.count");
+  d = {}, d.min_diameter = 0;
+  refused(d, "draw.diameter");
+  d = {}, d.max_diameter = kNan;
+  refused(d, "draw.diameter");
+  d = {}, d.min_depth = 0.03;  // above max_depth
+  refused(d, "draw.depth");
+  d = {}, d.min_contrast = 0;
+  refused(d, "draw.contrast");
+  d = {}, d.max_contrast = kInf;
+  refused(d, "draw.contrast");
+  d = {}, d.max_contrast = 200;
+  refused(d, "draw.contrast");
+  d = {}, d.min_gap = -1;
+  refused(d, "draw.gap");
 }
 
 TEST(HeterogeneousFemTest, TwoMaterialsInSeriesGiveTheClosedFormExactly) {
