@@ -92,6 +92,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|SimulationTest.AHiddenLumpPushesBackHarderAboveItThanAside'
   long+='|HeterogeneousFemTest.TheFeltStiffnessMapShowsTheLumpAtTheCoarseAndTheFineMesh'
   long+='|HeterogeneousFemTest.ACompositeSphereConvergesToLamesClosedForm'  # 33 s unsanitised
+  long+='|HeterogeneousFemTest.TheReducedModelFeelsTheHeterogeneousFemsMapAtAPalpationsForce'
   # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
   # not after them, with a PostgreSQL of its own: the ctest fixture's server lives in one folder
   # of the build, and a second run's fixture would stop the first run's server under its tests.
