@@ -329,6 +329,53 @@ TEST(HeterogeneousFemTest, ACompositeSphereConvergesToLamesClosedForm) {
   EXPECT_LT(error[2], 0.02);
 }
 
+// A 5 cm, 12 kPa ball (ν = 0.45) resting on its bottom (the vertices below z = −4 cm held), its
+// elements scaled by `lumps`; its boundary with vertex normals (indices are the FEM's).
+struct HeldBall {
+  geometry::TetMesh mesh;
+  FemParams material;
+  std::vector<int> fixed;
+  geometry::TriMesh surface;
+};
+
+HeldBall MakeHeldBall(int cells, const std::vector<Inclusion>& lumps) {
+  HeldBall b;
+  b.mesh = Ball(cells);
+  b.material.poisson = 0.45;
+  b.material.young = 2 * 12e3 * 1.45;
+  auto scale = InclusionStiffnessScale(b.mesh, lumps);
+  EXPECT_TRUE(scale.ok());
+  b.material.element_stiffness_scale = *scale;
+  for (int v = 0; v < b.mesh.VertexCount(); ++v)
+    if (b.mesh.positions[v].z() < -0.04) b.fixed.push_back(v);
+  b.surface = geometry::BoundarySurface(b.mesh);
+  geometry::ComputeVertexNormals(b.surface);
+  return b;
+}
+
+// The boundary vertex nearest `target`.
+int NearestSurfaceVertex(const geometry::TriMesh& surface, const Vec3& target) {
+  int best = surface.triangles[0][0];
+  for (const auto& t : surface.triangles)
+    for (int v : t)
+      if ((surface.positions[v] - target).norm() < (surface.positions[best] - target).norm())
+        best = v;
+  return best;
+}
+
+// The reduced contact model of a held ball at `contacts`.
+ReducedContactModel ContactModelOf(const HeldBall& b, const std::vector<int>& contacts,
+                                   bool rotation) {
+  auto fem = FemStaticResponse::Create(b.mesh, b.material, b.fixed);
+  EXPECT_TRUE(fem.ok());
+  auto table = PrecomputeContactResponse(*fem, b.surface, contacts, {0.005, 256ll << 20, rotation});
+  EXPECT_TRUE(table.ok());
+  auto model = ReducedContactModel::Create(
+      std::make_shared<const ContactResponse>(std::move(*table)), b.surface.positions, 10);
+  EXPECT_TRUE(model.ok());
+  return std::move(model).value();
+}
+
 // The normal stiffness (N/m) the reduced contact model gives a tool at the top of a 5 cm ball
 // resting on its bottom, and 25 mm to the side on the upper surface, with and without a lump.
 struct Felt {
@@ -336,37 +383,14 @@ struct Felt {
 };
 
 Felt FeltStiffness(int cells, const std::vector<Inclusion>& lumps) {
-  const geometry::TetMesh mesh = Ball(cells);
-  FemParams p;
-  p.poisson = 0.45;
-  p.young = 2 * 12e3 * 1.45;
-  auto scale = InclusionStiffnessScale(mesh, lumps);
-  EXPECT_TRUE(scale.ok());
-  p.element_stiffness_scale = *scale;
-  std::vector<int> fixed;
-  for (int v = 0; v < mesh.VertexCount(); ++v)
-    if (mesh.positions[v].z() < -0.04) fixed.push_back(v);
-  auto fem = FemStaticResponse::Create(mesh, p, fixed);
-  EXPECT_TRUE(fem.ok());
-  const geometry::TriMesh surface = geometry::BoundarySurface(mesh);
-  const auto nearest = [&](const Vec3& q) {
-    int best = 0;
-    for (int v = 0; v < surface.VertexCount(); ++v)
-      if ((surface.positions[v] - q).norm() < (surface.positions[best] - q).norm()) best = v;
-    return best;
-  };
-  const int top = nearest({0, 0, 0.05});
+  const HeldBall ball = MakeHeldBall(cells, lumps);
+  const int top = NearestSurfaceVertex(ball.surface, {0, 0, 0.05});
   const Vec3 side_dir = Vec3(0.025, 0, std::sqrt(0.05 * 0.05 - 0.025 * 0.025)).normalized();
-  const int side = nearest(0.05 * side_dir);
-  auto table = PrecomputeContactResponse(*fem, surface, {top, side}, {0.005, 256ll << 20, false});
-  EXPECT_TRUE(table.ok());
-  auto model = ReducedContactModel::Create(
-      std::make_shared<const ContactResponse>(std::move(*table)), surface.positions, 10);
-  EXPECT_TRUE(model.ok());
-  const Vec3 n_top = surface.positions[top].normalized(),
-             n_side = surface.positions[side].normalized();
-  return {n_top.dot(model->StiffnessAt(top) * n_top),
-          n_side.dot(model->StiffnessAt(side) * n_side)};
+  const int side = NearestSurfaceVertex(ball.surface, 0.05 * side_dir);
+  const ReducedContactModel model = ContactModelOf(ball, {top, side}, false);
+  const Vec3 n_top = ball.surface.positions[top].normalized(),
+             n_side = ball.surface.positions[side].normalized();
+  return {n_top.dot(model.StiffnessAt(top) * n_top), n_side.dot(model.StiffnessAt(side) * n_side)};
 }
 
 TEST(HeterogeneousFemTest, TheFeltStiffnessMapShowsTheLumpAtTheCoarseAndTheFineMesh) {
@@ -389,46 +413,25 @@ TEST(HeterogeneousFemTest, TheFeltStiffnessMapShowsTheLumpAtTheCoarseAndTheFineM
 // from the reduced contact model (with its rotation correction) and from the corotational FEM
 // solved to equilibrium under the same footprint's load: each point's k_reduced / k_fem − 1.
 std::vector<double> FeltMapErrors(int cells, const std::vector<Inclusion>& lumps, double force) {
-  const geometry::TetMesh mesh = Ball(cells);
-  FemParams p;
-  p.poisson = 0.45;
-  p.young = 2 * 12e3 * 1.45;
-  p.element_stiffness_scale = *InclusionStiffnessScale(mesh, lumps);
-  std::vector<int> fixed;
-  for (int v = 0; v < mesh.VertexCount(); ++v)
-    if (mesh.positions[v].z() < -0.04) fixed.push_back(v);
-  auto linear = FemStaticResponse::Create(mesh, p, fixed);
-  EXPECT_TRUE(linear.ok());
-  geometry::TriMesh surface = geometry::BoundarySurface(mesh);
-  geometry::ComputeVertexNormals(surface);
+  const HeldBall ball = MakeHeldBall(cells, lumps);
   std::vector<int> points;
   for (const Vec3& dir :
-       {Vec3(0, 0, 1), Vec3(0.3, 0, 1), Vec3(-0.3, 0, 1), Vec3(0, 0.3, 1), Vec3(0, -0.3, 1)}) {
-    const Vec3 target = 0.05 * dir.normalized();
-    int best = surface.triangles[0][0];
-    for (const auto& t : surface.triangles)
-      for (int v : t)
-        if ((mesh.positions[v] - target).norm() < (mesh.positions[best] - target).norm()) best = v;
-    points.push_back(best);
-  }
-  auto table = PrecomputeContactResponse(*linear, surface, points, {0.005, 256ll << 20, true});
-  EXPECT_TRUE(table.ok());
-  auto reduced = ReducedContactModel::Create(
-      std::make_shared<const ContactResponse>(std::move(*table)), surface.positions, 10);
-  EXPECT_TRUE(reduced.ok());
+       {Vec3(0, 0, 1), Vec3(0.3, 0, 1), Vec3(-0.3, 0, 1), Vec3(0, 0.3, 1), Vec3(0, -0.3, 1)})
+    points.push_back(NearestSurfaceVertex(ball.surface, 0.05 * dir.normalized()));
+  ReducedContactModel reduced = ContactModelOf(ball, points, true);
   std::vector<double> errors;
   for (int c : points) {
-    const Vec3 n = surface.normals[c];
-    reduced->Press(c, -force * n);
-    const double d_reduced = -n.dot(reduced->positions()[c] - mesh.positions[c]);
-    auto fem = FemModel::Create(mesh, p, fixed);
-    std::vector<Vec3> load(mesh.VertexCount(), Vec3::Zero());  // a vertex may have several shares
-    for (const auto& [i, w] : FootprintWeights(surface, mesh.positions[c], n, 0.005))
+    const Vec3 n = ball.surface.normals[c], rest = ball.mesh.positions[c];
+    reduced.Press(c, -force * n);
+    const double d_reduced = -n.dot(reduced.positions()[c] - rest);
+    auto fem = FemModel::Create(ball.mesh, ball.material, ball.fixed);
+    std::vector<Vec3> load(ball.mesh.VertexCount(), Vec3::Zero());  // a vertex: several shares
+    for (const auto& [i, w] : FootprintWeights(ball.surface, rest, n, 0.005))
       load[i] -= force * w * n;
-    for (int i = 0; i < mesh.VertexCount(); ++i)
+    for (int i = 0; i < ball.mesh.VertexCount(); ++i)
       if (load[i] != Vec3::Zero()) fem->SetExternalForce(i, load[i]);
     EXPECT_TRUE(fem->SolveStatic(40, 1e-8).converged);
-    const double d_fem = -n.dot(fem->positions()[c] - mesh.positions[c]);
+    const double d_fem = -n.dot(fem->positions()[c] - rest);
     errors.push_back(d_fem / d_reduced - 1);
   }
   return errors;
