@@ -3,9 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include <Eigen/LU>
-
 #include "common/geometry/distances.h"
+#include "common/geometry/tet_embedding.h"
 
 namespace vsurg::tissue {
 namespace {
@@ -26,15 +25,6 @@ std::vector<Eigen::Vector4d> Lattice(int n) {
         out.emplace_back(Eigen::Vector4d(i + 0.25, j + 0.25, k + 0.25, l + 0.25) / (n + 1));
       }
   return out;
-}
-
-// Whether p lies in the tetrahedron (its barycentric coordinates all ≥ −1e-9).
-bool Contains(const geometry::TetMesh& mesh, const geometry::Tetrahedron& t, const Vec3& p) {
-  const Vec3& a = mesh.positions[t[0]];
-  Eigen::Matrix3d d;
-  d << mesh.positions[t[1]] - a, mesh.positions[t[2]] - a, mesh.positions[t[3]] - a;
-  const Vec3 b = d.inverse() * (p - a);
-  return b.minCoeff() >= -1e-9 && b.sum() <= 1 + 1e-9;
 }
 
 // The scale of one element: exact where it lies wholly inside or outside every inclusion (its
@@ -122,8 +112,8 @@ Status CheckRange(const std::string& field, double lo, double hi, double floor) 
 }  // namespace
 
 bool InsideTissue(const geometry::TetMesh& mesh, const Vec3& p) {
-  return std::any_of(mesh.tetrahedra.begin(), mesh.tetrahedra.end(),
-                     [&](const geometry::Tetrahedron& t) { return Contains(mesh, t, p); });
+  auto at = geometry::EmbedPoints(mesh, {p});  // the element holding p, or the nearest one
+  return at.ok() && (*at)[0].distance <= 1e-9;
 }
 
 Status ValidateInclusionDraw(const InclusionDraw& d, const std::string& field) {

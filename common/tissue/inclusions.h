@@ -50,7 +50,8 @@ Expected<std::vector<double>> InclusionStiffnessScale(const geometry::TetMesh& m
                                                       const std::vector<Inclusion>& inclusions,
                                                       int lattice_order = 6);
 
-// Whether a point lies in the tissue: in some tetrahedron of `mesh` (brute force; set-up only).
+// Whether a point lies in the tissue: in some tetrahedron of `mesh` (geometry::EmbedPoints;
+// set-up only).
 bool InsideTissue(const geometry::TetMesh& mesh, const Eigen::Vector3d& p);
 
 // Cases drawn at random for palpation, so that no two attempts hide the same lumps: how many
