@@ -8,9 +8,10 @@
 # PostgreSQL (the shared store of a multi-node site: libpq, and the server the tests start),
 # PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py), the openssl command for the
 # internal API's certificates (deploy/cluster_certs.sh), METIS for the FEM's sparse Cholesky.
+# CLI11 splits every tool's command line (common/core/args.h).
 VSURG_PACKAGES=(
   cmake ninja-build g++ lld
-  libeigen3-dev libmetis-dev nlohmann-json3-dev
+  libeigen3-dev libmetis-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libbenchmark-dev
   libboost-dev libprotobuf-dev protobuf-compiler libssl-dev
   libgrpc++-dev protobuf-compiler-grpc libsqlite3-dev libpng-dev gnuplot-nox

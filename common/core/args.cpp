@@ -1,5 +1,8 @@
 #include "common/core/args.h"
 
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <ostream>
@@ -20,6 +23,16 @@ bool ToInt(const std::string& s, int& out) {
   return !s.empty() && ec == std::errc() && ptr == end;
 }
 
+// CLI11's own refusal (an option given without its value): "--dt: 1 required TEXT missing" is
+// named by the option it starts with.
+Status CliError(const std::string& what) {
+  const size_t colon = what.find(':');
+  if (what.rfind("--", 0) == 0 && colon != std::string::npos) {
+    return InvalidArgument(what.substr(0, colon), "needs a value");
+  }
+  return InvalidArgument("arguments", what);
+}
+
 }  // namespace
 
 ArgParser::ArgParser(std::string command, std::string summary)
@@ -37,60 +50,73 @@ ArgParser& ArgParser::Within(Range r) {
   return *this;
 }
 
+// The tokens are CLI11's to split (`--name value`, `--name=value`, flags, what is left over); the
+// values' rules (finite numbers, whole tokens, ranges, non-empty strings) and the errors' wording
+// are the tools' own, so that every error names its option in one form.
 Status ArgParser::Parse(const std::vector<std::string>& args) {
   values_.clear();
-  help_ = false;
-  for (size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    if (a == "--help" || a == "-h") {
-      help_ = true;
-      return Status::Ok();
-    }
-    if (a.rfind("--", 0) != 0 || a.size() == 2) {
-      return InvalidArgument(a, "unexpected argument '" + a + "' (options start with --)");
-    }
-    std::string name = a.substr(2), value;
-    bool inline_value = false;
-    if (const size_t eq = name.find('='); eq != std::string::npos) {
-      value = name.substr(eq + 1);
-      name = name.substr(0, eq);
-      inline_value = true;
-    }
-    const auto it = specs_.find(name);
-    if (it == specs_.end()) return InvalidArgument("--" + name, "unknown option (see --help)");
-    if (values_.count(name)) return InvalidArgument("--" + name, "given more than once");
-    const Spec& spec = it->second;
-    if (spec.kind == Kind::kFlag) {
-      if (inline_value) return InvalidArgument("--" + name, "takes no value");
-      values_[name] = "1";
-      continue;
-    }
-    if (!inline_value) {
-      if (i + 1 >= args.size()) return InvalidArgument("--" + name, "needs a value");
-      value = args[++i];
-    }
-    if (spec.kind == Kind::kDouble) {
-      double d;
-      if (!ToDouble(value, d))
-        return InvalidArgument("--" + name, "'" + value + "' is not a finite number");
-      if (spec.range && !spec.range->Contains(d))
-        return InvalidArgument("--" + name, spec.range->Must());
-    } else if (spec.kind == Kind::kInt) {
-      int n;
-      if (!ToInt(value, n))
-        return InvalidArgument("--" + name, "'" + value + "' is not an integer");
-      if (spec.range && !spec.range->Contains(n))
-        return InvalidArgument("--" + name, spec.range->Must());
-    } else if (value.empty()) {
-      return InvalidArgument("--" + name, "needs a non-empty value");
-    }
-    values_[name] = value;
-  }
+  help_ = std::find(args.begin(), args.end(), "--help") != args.end() ||
+          std::find(args.begin(), args.end(), "-h") != args.end();
+  if (help_) return Status::Ok();
+  CLI::App app{summary_, command_};
+  app.set_help_flag();
+  app.allow_extras(true);
+  std::map<std::string, CLI::Option*> given;
   for (const std::string& name : order_) {
-    if (specs_[name].required && !values_.count(name)) {
-      return InvalidArgument("--" + name, "is required (see --help)");
-    }
+    CLI::Option* o =
+        specs_[name].kind == Kind::kFlag ? app.add_flag("--" + name) : app.add_option("--" + name);
+    given[name] = o->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   }
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 pops from the back
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    return CliError(e.what());
+  }
+  if (Status left = LeftOver(app.remaining()); !left.ok()) return left;
+  for (const std::string& name : order_) {
+    if (Status s = Take(name, given[name]->results()); !s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
+// The first token no option took: an option nobody declared, or a stray word.
+Status ArgParser::LeftOver(const std::vector<std::string>& remaining) const {
+  if (remaining.empty()) return Status::Ok();
+  const std::string& a = remaining.front();
+  if (a.rfind("--", 0) == 0 && a.size() > 2) {
+    return InvalidArgument(a.substr(0, a.find('=')), "unknown option (see --help)");
+  }
+  return InvalidArgument(a, "unexpected argument '" + a + "' (options start with --)");
+}
+
+// One option's values as CLI11 found them, checked by its kind and range.
+Status ArgParser::Take(const std::string& name, const std::vector<std::string>& results) {
+  const Spec& spec = specs_.at(name);
+  const std::string field = "--" + name;
+  if (results.empty()) {
+    return spec.required ? InvalidArgument(field, "is required (see --help)") : Status::Ok();
+  }
+  if (results.size() > 1) return InvalidArgument(field, "given more than once");
+  const std::string& value = results.front();
+  if (spec.kind == Kind::kFlag) {
+    if (value != "true") return InvalidArgument(field, "takes no value");
+    values_[name] = "1";
+    return Status::Ok();
+  }
+  if (spec.kind == Kind::kDouble) {
+    double d;
+    if (!ToDouble(value, d))
+      return InvalidArgument(field, "'" + value + "' is not a finite number");
+    if (spec.range && !spec.range->Contains(d)) return InvalidArgument(field, spec.range->Must());
+  } else if (spec.kind == Kind::kInt) {
+    int n;
+    if (!ToInt(value, n)) return InvalidArgument(field, "'" + value + "' is not an integer");
+    if (spec.range && !spec.range->Contains(n)) return InvalidArgument(field, spec.range->Must());
+  } else if (value.empty()) {
+    return InvalidArgument(field, "needs a non-empty value");
+  }
+  values_[name] = value;
   return Status::Ok();
 }
 

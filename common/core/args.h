@@ -1,9 +1,11 @@
-// A small, strict command-line parser for the vsurg tools.
+// The vsurg tools' strict command lines, over CLI11 (Debian's libcli11-dev, header-only).
 //
-// Options are `--name value`, `--name=value` or boolean `--name`. Every value is checked when
-// parsed (numbers must be finite and consume the whole token), unknown or repeated options and
-// stray positional arguments are errors, and every error names the option. A value may start
-// with '-' (negative numbers), because an option that takes a value always takes the next token.
+// Options are `--name value`, `--name=value` or boolean `--name`. CLI11 splits the tokens; every
+// value is then checked here (numbers must be finite and consume the whole token, a declared range
+// holds), unknown or repeated options and stray positional arguments are errors, and every error
+// names the option. A value may start with '-' (negative numbers): an option that takes a value
+// takes the next token. Each option is declared once, with its default and bounds, and `Help`
+// shows them, so a test can hold a program's --help to the settings it fills.
 #pragma once
 
 #include <iosfwd>
@@ -51,6 +53,10 @@ class ArgParser {
   std::optional<Range> RangeOf(const std::string& name) const { return specs_.at(name).range; }
 
  private:
+  struct Spec;
+  Status LeftOver(const std::vector<std::string>& remaining) const;
+  Status Take(const std::string& name, const std::vector<std::string>& results);
+
   struct Spec {
     Kind kind;
     std::string help;

@@ -55,6 +55,9 @@ TEST(ArgParserTest, ReadsEveryFormAndKeepsDefaults) {
   ArgParser p = Parser();
   ASSERT_TRUE(p.Parse({"--steps", "-3", "--name=a b", "--json"}).ok());
   EXPECT_EQ(p.Int("steps"), -3);  // a value may start with '-'
+  ASSERT_TRUE(p.Parse({"--steps", "1", "--dt", "-1e-3"}).ok());
+  EXPECT_DOUBLE_EQ(p.Double("dt"), -1e-3);
+  ASSERT_TRUE(p.Parse({"--steps", "-3", "--name=a b", "--json"}).ok());
   EXPECT_EQ(p.String("name"), "a b");
   EXPECT_TRUE(p.Flag("json"));
   EXPECT_FALSE(p.Has("dt"));
@@ -80,6 +83,7 @@ TEST(ArgParserTest, EveryErrorNamesTheOption) {
   EXPECT_EQ(FieldOf(p, {"--steps", "2", "--dt", "inf"}), "--dt");
   EXPECT_EQ(FieldOf(p, {"--steps", "2", "--dt", "1x"}), "--dt");  // the whole token
   EXPECT_EQ(FieldOf(p, {"--steps", "2", "--dt"}), "--dt");        // needs a value
+  EXPECT_EQ(FieldOf(p, {"--steps", "2", "--dt="}), "--dt");       // an empty number
   EXPECT_EQ(FieldOf(p, {"--steps", "2", "--name="}), "--name");   // empty string
   EXPECT_EQ(FieldOf(p, {"--steps", "2", "--json=1"}), "--json");  // a flag takes none
   EXPECT_EQ(FieldOf(p, {"stray", "--steps", "2"}), "stray");      // positional
