@@ -17,6 +17,7 @@
 #include <memory>
 #include <optional>
 #include <thread>
+#include <variant>
 
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
@@ -35,7 +36,9 @@ namespace v1 = vsurg::v1;
 namespace client = vsurg::client;
 namespace convert = vsurg::convert;
 namespace sim = vsurg::sim;
+using vsurg::Expected;
 using vsurg::Fixed;
+using vsurg::Status;
 using vsurg::cli::ArgParser;
 using Kind = ArgParser::Kind;
 
@@ -160,59 +163,156 @@ std::optional<uint64_t> FirstLive(const client::Remote& remote, double wait_s, s
   return std::nullopt;
 }
 
-int Follow(const std::vector<std::string>& args) {
-  ArgParser p("vsurg-monitor follow",
-              "Follows one session live: text lines (--text), or the trainee's tissue in a window "
-              "(or offscreen with --headless).");
+void DeclareFollowOptions(ArgParser& p) {
   client::AddRemoteOptions(p);
   p.Option("session", Kind::kInt, "session id (default: the first running one)")
       .Option("wait", Kind::kDouble, "without --session: wait this long for one, s", false, "30")
       .Option("text", Kind::kFlag, "plain text lines, no OpenGL")
       .Option("print-hz", Kind::kDouble, "text lines per second", false, "2")
+      .Within({0.01, 60})
       .Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
       .Option("width", Kind::kInt, "image width, px", false, "960")
       .Option("height", Kind::kInt, "image height, px", false, "600")
       .Option("screenshot", Kind::kString, "PNG of the view when following ends")
       .Option("duration", Kind::kDouble, "stop after this many seconds (0: when the session ends)",
               false, "0");
+}
+
+// The session to follow: the one named, or the first live one within --wait. An exit code when
+// there is none.
+std::variant<uint64_t, int> SessionToFollow(const ArgParser& p, const client::Remote& remote) {
+  if (p.Has("session")) {
+    if (p.Int("session") <= 0) return std::cerr << p.command() << ": --session: must be > 0\n", 2;
+    return static_cast<uint64_t>(p.Int("session"));
+  }
+  std::string error;
+  auto first = FirstLive(remote, p.Double("wait"), error);
+  if (!first) return std::cerr << p.command() << ": " << error << "\n", 1;
+  return *first;
+}
+
+// The OpenGL side of following: the trainee's tissue as the telemetry and surface states say.
+class FollowView {
+ public:
+  FollowView(std::unique_ptr<client::GlSurface> gl, uint64_t session)
+      : gl_(std::move(gl)), session_(session) {}
+  client::GlSurface& gl() { return *gl_; }
+
+  // The scene's mesh and visual model, built again when the telemetry names another scene.
+  Status UpdateScene(const std::string& scene_name) {
+    if (scene_name == scene_name_) return Status::Ok();
+    auto scene = sim::LoadSceneByName(scene_name);
+    if (!scene.ok()) return scene.error();
+    auto mesh = sim::BuildSceneMesh(scene->mesh);
+    if (!mesh.ok()) return mesh.error();
+    auto visual = sim::BuildVisualModel(*scene, mesh->surface);
+    if (!visual.ok()) return visual.error();
+    view_ = std::make_unique<client::MeshView>(mesh->surface, std::move(*visual));
+    scene_name_ = scene_name;
+    return Status::Ok();
+  }
+
+  // The moved vertices of a surface state, from the rest shape.
+  void ApplySurface(const v1::SurfaceState& surface) {
+    if (!view_) return;
+    view_->ResetToRest();
+    std::vector<int32_t> indices(surface.indices().begin(), surface.indices().end());
+    std::vector<Eigen::Vector3f> positions;
+    for (int k = 0; k + 2 < surface.positions_size(); k += 3)
+      positions.emplace_back(surface.positions(k), surface.positions(k + 1),
+                             surface.positions(k + 2));
+    view_->Apply(indices, positions);
+  }
+
+  void Draw(const v1::Telemetry* latest) {
+    if (view_) view_->Draw(gl_->width(), gl_->height(), OverlayOf(latest));
+  }
+  bool HasView() const { return view_ != nullptr; }
+
+ private:
+  client::Overlay OverlayOf(const v1::Telemetry* latest) const {
+    client::Overlay overlay;
+    const std::string title = "vsurg monitor  session " + std::to_string(session_);
+    if (!latest) {
+      overlay.hud = {title, "waiting ..."};
+      return overlay;
+    }
+    overlay.show_stylus = true;
+    overlay.tip = {latest->tip().x(), latest->tip().y(), latest->tip().z()};
+    overlay.force = {latest->force().x(), latest->force().y(), latest->force().z()};
+    overlay.contact = latest->contact();
+    overlay.grasping = latest->grasping();
+    overlay.hud = {
+        title + "  " + latest->scene() + "  " + convert::StateName(latest->state()),
+        "twist " + Fixed(latest->twist() * 180 / M_PI, 1) + " deg   torque " +
+            Fixed(latest->torque(), 2) + " N·m",
+        sim::LinkStatus(latest->haptic_rate_hz(), latest->rtt_us(), latest->packet_loss()),
+        "score so far " + Fixed(latest->metrics().score(), 1) + " / 10"};
+    return overlay;
+  }
+
+  std::unique_ptr<client::GlSurface> gl_;
+  uint64_t session_;
+  std::unique_ptr<client::MeshView> view_;
+  std::string scene_name_;
+};
+
+// A window, an offscreen surface with --headless, or none with --text.
+Expected<std::optional<FollowView>> OpenFollowView(const ArgParser& p, uint64_t session) {
+  if (p.Flag("text")) return std::optional<FollowView>();
+  auto surface =
+      p.Flag("headless")
+          ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
+          : client::GlSurface::CreateWindow("vsurg monitor", p.Int("width"), p.Int("height"));
+  if (!surface.ok()) return surface.error();
+  return std::optional<FollowView>(std::in_place, std::move(*surface), session);
+}
+
+// How following ended: the screenshot asked for, the stream's refusal, or the last figures.
+int FinishFollowing(const ArgParser& p, std::optional<FollowView>& view, Follower& follower,
+                    uint64_t session, const v1::Telemetry* latest, bool ended, double seconds) {
+  if (view && view->HasView() && p.Has("screenshot")) {
+    if (auto s = view->gl().SaveScreenshot(p.String("screenshot")); !s.ok()) {
+      std::cerr << p.command() << ": " << s.error().message << "\n";
+      return 1;
+    }
+  }
+  const auto finished = follower.finished();
+  if (finished && !finished->ok()) {
+    std::cerr << p.command() << ": refused or failed: " << finished->error_message() << " (gRPC "
+              << static_cast<int>(finished->error_code()) << ")\n";
+    return 1;
+  }
+  if (latest) {
+    const auto& m = latest->metrics();
+    std::cout << "session " << session << " " << (ended ? "ended" : "left") << ": "
+              << follower.messages() << " telemetry messages; last: " << TextLine(*latest, seconds)
+              << "; completed " << (m.completed() ? "yes" : "no") << ", peak force "
+              << Fixed(m.peak_force_n(), 2) << " N\n";
+  }
+  return 0;
+}
+
+int Follow(const std::vector<std::string>& args) {
+  ArgParser p("vsurg-monitor follow",
+              "Follows one session live: text lines (--text), or the trainee's tissue in a window "
+              "(or offscreen with --headless).");
+  DeclareFollowOptions(p);
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   auto remote = client::ConnectRemote(p);
   if (!remote.ok()) return Usage(p, remote.error());
-  const double print_hz = p.Double("print-hz");
-  if (!(print_hz > 0 && print_hz <= 60))
-    return std::cerr << p.command() << ": --print-hz: (0, 60]\n", 2;
-  const bool text = p.Flag("text");
-  if (text && p.Has("screenshot"))
+  if (p.Flag("text") && p.Has("screenshot"))
     return std::cerr << p.command() << ": --screenshot needs the OpenGL view (not --text)\n", 2;
-
-  uint64_t session = 0;
-  if (p.Has("session")) {
-    if (p.Int("session") <= 0) return std::cerr << p.command() << ": --session: must be > 0\n", 2;
-    session = static_cast<uint64_t>(p.Int("session"));
-  } else {
-    std::string error;
-    auto first = FirstLive(*remote, p.Double("wait"), error);
-    if (!first) return std::cerr << p.command() << ": " << error << "\n", 1;
-    session = *first;
-  }
+  const auto chosen = SessionToFollow(p, *remote);
+  if (const int* rc = std::get_if<int>(&chosen)) return *rc;
+  const uint64_t session = std::get<uint64_t>(chosen);
 
   struct sigaction action {};
   action.sa_handler = OnSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
-
-  std::unique_ptr<client::GlSurface> gl;
-  if (!text) {
-    auto surface =
-        p.Flag("headless")
-            ? client::GlSurface::CreateHeadless(p.Int("width"), p.Int("height"))
-            : client::GlSurface::CreateWindow("vsurg monitor", p.Int("width"), p.Int("height"));
-    if (!surface.ok())
-      return std::cerr << p.command() << ": " << surface.error().message << "\n", 1;
-    gl = std::move(*surface);
-  }
-  std::unique_ptr<client::MeshView> view;
-  std::string scene_name;
+  auto view = OpenFollowView(p, session);
+  if (!view.ok()) return std::cerr << p.command() << ": " << view.error().message << "\n", 1;
 
   Follower follower(*remote, session);
   std::cout << "following session " << session << "\n" << std::flush;
@@ -220,95 +320,35 @@ int Follow(const std::vector<std::string>& args) {
   auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   };
+  const double print_hz = p.Double("print-hz"), duration = p.Double("duration");
   double next_print = 0;
   v1::Telemetry latest;
   bool have = false;
-  int exit_code = 0;
   for (;;) {
     std::optional<v1::SurfaceState> surface;
     if (follower.Take(latest, surface)) have = true;
-    if (have && text && seconds() >= next_print) {
+    if (have && p.Flag("text") && seconds() >= next_print) {
       std::cout << TextLine(latest, seconds()) << "\n" << std::flush;
       next_print = seconds() + 1.0 / print_hz;
     }
-    if (gl) {
-      if (have && latest.scene() != scene_name) {
-        auto scene = vsurg::sim::LoadSceneByName(latest.scene());
-        auto mesh = scene.ok() ? vsurg::sim::BuildSceneMesh(scene->mesh)
-                               : vsurg::Expected<vsurg::sim::SceneMesh>(scene.error());
-        if (!mesh.ok()) {
-          std::cerr << p.command() << ": scene '" << latest.scene() << "': " << mesh.error().message
-                    << "\n";
-          return 1;
-        }
-        auto visual = vsurg::sim::BuildVisualModel(*scene, mesh->surface);
-        if (!visual.ok()) {
-          std::cerr << p.command() << ": scene '" << latest.scene()
-                    << "': " << visual.error().message << "\n";
-          return 1;
-        }
-        view = std::make_unique<client::MeshView>(mesh->surface, std::move(*visual));
-        scene_name = latest.scene();
-      }
-      if (view && surface) {
-        view->ResetToRest();
-        std::vector<int32_t> indices(surface->indices().begin(), surface->indices().end());
-        std::vector<Eigen::Vector3f> positions;
-        for (int k = 0; k + 2 < surface->positions_size(); k += 3)
-          positions.emplace_back(surface->positions(k), surface->positions(k + 1),
-                                 surface->positions(k + 2));
-        view->Apply(indices, positions);
-      }
-      client::Overlay overlay;
+    if (*view) {
       if (have) {
-        overlay.show_stylus = true;
-        overlay.tip = {latest.tip().x(), latest.tip().y(), latest.tip().z()};
-        overlay.force = {latest.force().x(), latest.force().y(), latest.force().z()};
-        overlay.contact = latest.contact();
-        overlay.grasping = latest.grasping();
-        overlay.hud = {
-            "vsurg monitor  session " + std::to_string(session) + "  " + latest.scene() + "  " +
-                convert::StateName(latest.state()),
-            "twist " + Fixed(latest.twist() * 180 / M_PI, 1) + " deg   torque " +
-                Fixed(latest.torque(), 2) + " N·m",
-            sim::LinkStatus(latest.haptic_rate_hz(), latest.rtt_us(), latest.packet_loss()),
-            "score so far " + Fixed(latest.metrics().score(), 1) + " / 10"};
-      } else {
-        overlay.hud = {"vsurg monitor  session " + std::to_string(session), "waiting ..."};
+        if (Status s = (*view)->UpdateScene(latest.scene()); !s.ok())
+          return std::cerr << p.command() << ": scene '" << latest.scene()
+                           << "': " << s.error().message << "\n",
+                 1;
       }
-      if (view) {
-        view->Draw(gl->width(), gl->height(), overlay);
-      }
+      if (surface) (*view)->ApplySurface(*surface);
+      (*view)->Draw(have ? &latest : nullptr);
     }
-    const auto finished = follower.finished();
-    const double duration = p.Double("duration");
-    const bool done = finished.has_value() || g_interrupted || (gl && gl->ShouldClose()) ||
-                      (duration > 0 && seconds() >= duration);
-    if (done) {
-      if (gl && view && p.Has("screenshot")) {
-        if (auto s = gl->SaveScreenshot(p.String("screenshot")); !s.ok()) {
-          std::cerr << p.command() << ": " << s.error().message << "\n";
-          return 1;
-        }
-      }
-      if (finished && !finished->ok()) {
-        std::cerr << p.command() << ": refused or failed: " << finished->error_message()
-                  << " (gRPC " << static_cast<int>(finished->error_code()) << ")\n";
-        exit_code = 1;
-      } else if (have) {
-        const auto& m = latest.metrics();
-        std::cout << "session " << session << " " << (finished ? "ended" : "left") << ": "
-                  << follower.messages()
-                  << " telemetry messages; last: " << TextLine(latest, seconds()) << "; completed "
-                  << (m.completed() ? "yes" : "no") << ", peak force " << Fixed(m.peak_force_n(), 2)
-                  << " N\n";
-      }
-      break;
-    }
-    if (gl) gl->EndFrame();
-    std::this_thread::sleep_for(std::chrono::milliseconds(gl ? 16 : 20));
+    const bool ended = follower.finished().has_value();
+    if (ended || g_interrupted || (*view && (*view)->gl().ShouldClose()) ||
+        (duration > 0 && seconds() >= duration))
+      return FinishFollowing(p, *view, follower, session, have ? &latest : nullptr, ended,
+                             seconds());
+    if (*view) (*view)->gl().EndFrame();
+    std::this_thread::sleep_for(std::chrono::milliseconds(*view ? 16 : 20));
   }
-  return exit_code;
 }
 
 const char* kHelp =

@@ -45,6 +45,7 @@ class Hud {
   static std::string DefaultFontPath();
 
  private:
+  void FitFont(int height);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
