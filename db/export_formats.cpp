@@ -2,8 +2,11 @@
 
 #include <cstdio>
 
+#include <nlohmann/json.hpp>
+
 #include "common/core/csv.h"
 #include "common/scoring/vocabulary.h"
+#include "common/scoring/xapi.h"
 
 namespace vsurg::db {
 namespace {
@@ -113,44 +116,32 @@ void ExportFormatter::AddXapi(const ExportRow& r, std::string& out) {
   if (r.submission_id != xapi_id_) {
     FlushXapi(out);
     xapi_id_ = r.submission_id;
-    xapi_sum_ = 0;
-    xapi_n_ = 0;
+    xapi_head_ = {r.submitted_us, std::string(r.evaluator), std::string(r.evaluator_group),
+                  std::string(r.subject_kind), std::string(r.subject)};
     xapi_scores_.clear();
-    // actor: the evaluator (an account on this platform); verb: ADL "scored"; object: the rated
-    // subject as an activity.
-    std::string& h = xapi_head_;
-    h = "{\"id\":\"urn:vsurg:submission:";
-    AppendInt(h, r.submission_id);
-    h += "\",\"timestamp\":\"" + IsoTimeUtc(r.submitted_us) +
-         "\",\"actor\":{\"objectType\":\"Agent\",\"account\":{\"homePage\":\"urn:vsurg\",\"name\":"
-         "\"";
-    AppendJsonEscaped(h, r.evaluator);
-    h += "\"}},\"verb\":{\"id\":\"http://adlnet.gov/expapi/verbs/scored\",\"display\":{\"en-US\":"
-         "\"scored\"}},\"object\":{\"objectType\":\"Activity\",\"id\":\"urn:vsurg:";
-    AppendJsonEscaped(h, r.subject_kind);
-    h.push_back(':');
-    AppendJsonEscaped(h, r.subject);
-    h += "\"},\"context\":{\"extensions\":{\"urn:vsurg:evaluator-group\":\"";
-    AppendJsonEscaped(h, r.evaluator_group);
-    h += "\"}}";
   }
-  if (!xapi_scores_.empty()) xapi_scores_.push_back(',');
-  xapi_scores_ += "\"";
-  xapi_scores_ += IndexNameOf(r.index_no);
-  xapi_scores_ += "\":";
-  csv::AppendNumber(xapi_scores_, r.score);
-  xapi_sum_ += r.score;
-  ++xapi_n_;
+  xapi_scores_.emplace_back(r.index_no, r.score);
 }
 
+// The submission's statement: the evaluator scored the subject, the mean of the index scores as
+// the result (0–10), each index's score as an extension.
 void ExportFormatter::FlushXapi(std::string& out) {
   if (xapi_id_ < 0) return;
-  out += xapi_head_;
-  out += ",\"result\":{\"score\":{\"raw\":";
-  csv::AppendNumber(out, xapi_n_ ? xapi_sum_ / xapi_n_ : 0.0);
-  out += ",\"min\":0,\"max\":10},\"extensions\":{\"urn:vsurg:index-scores\":{";
-  out += xapi_scores_;
-  out += "}}}}\n";
+  const XapiHead& r = xapi_head_;
+  nlohmann::json st = xapi::Statement(
+      "urn:vsurg:submission:" + std::to_string(xapi_id_), r.submitted_us, r.evaluator, "scored",
+      xapi::Activity("urn:vsurg:" + r.subject_kind + ":" + r.subject));
+  st["context"] = {{"extensions", {{"urn:vsurg:evaluator-group", r.evaluator_group}}}};
+  nlohmann::json scores = nlohmann::json::object();
+  double sum = 0;
+  for (const auto& [index_no, score] : xapi_scores_) {
+    scores[IndexNameOf(index_no)] = score;
+    sum += score;
+  }
+  const double mean = xapi_scores_.empty() ? 0.0 : sum / static_cast<double>(xapi_scores_.size());
+  st["result"] = {{"score", {{"raw", mean}, {"min", 0}, {"max", 10}}},
+                  {"extensions", {{"urn:vsurg:index-scores", scores}}}};
+  xapi::AppendLine(out, st);
   xapi_id_ = -1;
 }
 

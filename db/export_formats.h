@@ -5,17 +5,21 @@
 //   jsonl  one JSON object per stored score and line
 //   xapi   one xAPI statement per submission (actor: the evaluator's account on urn:vsurg; verb:
 //          ADL "scored"; object: the rated subject; result: mean score 0–10 and the nine index
-//          scores as an extension), one per line
+//          scores as an extension), one per line, by the platform's one xAPI writer
+//          (common/scoring/xapi.h)
 //
-// JSON is escaped by hand here, not by nlohmann::json: the export is a measured hot path
-// (docs/BENCHMARKS.md, 10⁶ rows) and a json object per row would allocate for every field. The
-// tests parse every line back with nlohmann::json.
+// CSV and JSON lines are escaped by hand here, not by nlohmann::json: the export is a measured hot
+// path (docs/BENCHMARKS.md, 10⁶ rows) and a json object per row would allocate for every field;
+// an xAPI statement is one json object per submission (nine rows). The tests parse every line back
+// with nlohmann::json.
 #pragma once
 
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "common/core/json_escape.h"
 #include "db/store.h"
@@ -47,9 +51,11 @@ class ExportFormatter {
   ExportFormat format_;
   // xAPI: one statement per submission, gathered over its rows.
   int64_t xapi_id_ = -1;
-  std::string xapi_head_, xapi_scores_;
-  double xapi_sum_ = 0;
-  int xapi_n_ = 0;
+  struct XapiHead {  // the submission's first row, copied (a row's views last one row)
+    int64_t submitted_us = 0;
+    std::string evaluator, evaluator_group, subject_kind, subject;
+  } xapi_head_;
+  std::vector<std::pair<int64_t, double>> xapi_scores_;  // index number, score
 };
 
 // `s` as the inside of a JSON string: common/core/json_escape.h.

@@ -62,6 +62,11 @@ struct ExerciseSpec {
 // kInvalidArgument naming the field for anything out of range.
 Expected<ExerciseSpec> ParseExerciseSpec(std::string_view json);
 std::string ExerciseSpecJson(const ExerciseSpec& spec);
+struct SceneInfo;  // server/domain/scene_catalog.h
+// The exercise's task settings must fit its scene's task (a twist's target on a twist scene, a
+// time limit longer than the hold, …); `field` names the exercise in the error.
+Status CheckTaskFits(const std::vector<SceneInfo>& scenes, const std::string& scene,
+                     const ExerciseSpec& spec, const std::string& field);
 
 struct ResolvedTarget {
   std::string metric;

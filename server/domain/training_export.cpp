@@ -5,40 +5,17 @@
 #include <string>
 #include <vector>
 
-#include <openssl/sha.h>
 #include <nlohmann/json.hpp>
 
 #include "common/core/csv.h"
 #include "common/core/time.h"
+#include "common/scoring/xapi.h"
 #include "server/domain/training.h"
 
 namespace vsurg::server {
 namespace {
 
 using nlohmann::json;
-
-// A statement id as xAPI wants it (a UUID): name-based, version 5 (RFC 9562 §5.5), from `name`
-// in the URL namespace, so an export run twice gives a learning record store the same ids and
-// it keeps one copy of each statement.
-std::string StatementId(const std::string& name) {
-  static constexpr unsigned char kUrlNamespace[16] = {0x6b, 0xa7, 0xb8, 0x11, 0x9d, 0xad,
-                                                      0x11, 0xd1, 0x80, 0xb4, 0x00, 0xc0,
-                                                      0x4f, 0xd4, 0x30, 0xc8};
-  std::string input(reinterpret_cast<const char*>(kUrlNamespace), 16);
-  input += name;
-  unsigned char h[SHA_DIGEST_LENGTH];
-  SHA1(reinterpret_cast<const unsigned char*>(input.data()), input.size(), h);
-  h[6] = static_cast<unsigned char>((h[6] & 0x0f) | 0x50);
-  h[8] = static_cast<unsigned char>((h[8] & 0x3f) | 0x80);
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out;
-  for (int i = 0; i < 16; ++i) {
-    if (i == 4 || i == 6 || i == 8 || i == 10) out.push_back('-');
-    out.push_back(kHex[h[i] >> 4]);
-    out.push_back(kHex[h[i] & 15]);
-  }
-  return out;
-}
 
 // The progress an export writes: a cohort's, or a trainee's own courses.
 Expected<std::vector<CourseProgress>> ProgressToExport(Domain& d, const db::Principal& p,
@@ -111,12 +88,6 @@ void AppendJsonRow(std::string& out, const CourseView& c, const ExerciseView& ex
        {"last_attempt_at", ep.last_us ? json(IsoTimeUtc(ep.last_us)) : json(nullptr)}});
 }
 
-json XapiActor(const std::string& trainee) {
-  return {{"objectType", "Agent"}, {"account", {{"homePage", "urn:vsurg"}, {"name", trainee}}}};
-}
-json XapiVerb(const char* v) {
-  return {{"id", std::string("http://adlnet.gov/expapi/verbs/") + v}, {"display", {{"en-US", v}}}};
-}
 std::string CourseActivity(const CourseView& c) {
   return "urn:vsurg:course:" + std::to_string(c.record.id);
 }
@@ -126,50 +97,34 @@ void AppendXapiStatements(std::string& out, const CourseView& c, const ExerciseV
                           const std::string& trainee, const ExerciseProgress& ep) {
   const scoring::Progress& pr = ep.progress;
   const std::string activity = CourseActivity(c) + ":exercise:" + std::to_string(ex.record.id);
-  const json object = {{"objectType", "Activity"},
-                       {"id", activity},
-                       {"definition",
-                        {{"name", {{"en-US", ex.record.title}}},
-                         {"type", "http://adlnet.gov/expapi/activities/assessment"}}}};
-  const json parent = {{"contextActivities",
-                        {{"parent",
-                          {{{"objectType", "Activity"},
-                            {"id", CourseActivity(c)},
-                            {"definition", {{"name", {{"en-US", c.record.name}}}}}}}}}}};
-  for (size_t k = 0; k < pr.checks.size(); ++k)
-    AppendJsonLine(
-        out, {{"id", StatementId("urn:vsurg:attempt:" + std::to_string(ep.attempt_sessions[k]))},
-              {"timestamp", IsoTimeUtc(ep.attempt_us[k])},
-              {"actor", XapiActor(trainee)},
-              {"verb", XapiVerb("attempted")},
-              {"object", object},
-              {"result", {{"success", pr.checks[k].passed}}},
-              {"context", parent}});
-  if (pr.proficient_at)
-    AppendJsonLine(out, {{"id", StatementId(activity + ":passed:" + trainee)},
-                         {"timestamp", IsoTimeUtc(ep.proficient_us)},
-                         {"actor", XapiActor(trainee)},
-                         {"verb", XapiVerb("passed")},
-                         {"object", object},
-                         {"result", {{"success", true}, {"completion", true}}},
-                         {"context", parent}});
+  const json object = xapi::Activity(activity, ex.record.title, "assessment");
+  const json parent = {
+      {"contextActivities", {{"parent", {xapi::Activity(CourseActivity(c), c.record.name)}}}}};
+  for (size_t k = 0; k < pr.checks.size(); ++k) {
+    json st = xapi::Statement("urn:vsurg:attempt:" + std::to_string(ep.attempt_sessions[k]),
+                              ep.attempt_us[k], trainee, "attempted", object);
+    st["result"] = {{"success", pr.checks[k].passed}};
+    st["context"] = parent;
+    xapi::AppendLine(out, st);
+  }
+  if (pr.proficient_at) {
+    json st = xapi::Statement(activity + ":passed:" + trainee, ep.proficient_us, trainee, "passed",
+                              object);
+    st["result"] = {{"success", true}, {"completion", true}};
+    st["context"] = parent;
+    xapi::AppendLine(out, st);
+  }
 }
 
 // xAPI `completed` once the trainee is proficient at every exercise of the course.
 void AppendXapiCompleted(std::string& out, const CourseView& c, const TraineeProgress& tp) {
   int64_t at = 0;
   for (const ExerciseProgress& ep : tp.exercises) at = std::max(at, ep.proficient_us);
-  AppendJsonLine(out, {{"id", StatementId(CourseActivity(c) + ":completed:" + tp.trainee)},
-                       {"timestamp", IsoTimeUtc(at)},
-                       {"actor", XapiActor(tp.trainee)},
-                       {"verb", XapiVerb("completed")},
-                       {"object",
-                        {{"objectType", "Activity"},
-                         {"id", CourseActivity(c)},
-                         {"definition",
-                          {{"name", {{"en-US", c.record.name}}},
-                           {"type", "http://adlnet.gov/expapi/activities/course"}}}}},
-                       {"result", {{"completion", true}, {"success", true}}}});
+  json st =
+      xapi::Statement(CourseActivity(c) + ":completed:" + tp.trainee, at, tp.trainee, "completed",
+                      xapi::Activity(CourseActivity(c), c.record.name, "course"));
+  st["result"] = {{"completion", true}, {"success", true}};
+  xapi::AppendLine(out, st);
 }
 
 Status WriteProgress(const std::vector<CourseProgress>& parts, db::ExportFormat format,

@@ -1,7 +1,10 @@
 // The export formats as pure writers: rows in, text out, every JSON line parsed back.
 #include "db/export_formats.h"
+#include "common/scoring/xapi.h"
 
 #include <gtest/gtest.h>
+
+#include <regex>
 
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -82,7 +85,12 @@ TEST(ExportFormatsTest, XapiIsOneStatementPerSubmissionWithTheMeanAndTheNineScor
   const auto lines = Lines(Write(ExportFormat::kXapi, TwoSubmissions()));
   ASSERT_EQ(lines.size(), 2u);
   const auto first = nlohmann::json::parse(lines[0]);
-  EXPECT_EQ(first["id"], "urn:vsurg:submission:7");
+  // A UUID, as xAPI asks, named by the submission: the same id in every export of it.
+  EXPECT_EQ(first["id"], xapi::StatementId("urn:vsurg:submission:7"));
+  EXPECT_TRUE(std::regex_match(first["id"].get<std::string>(),
+                               std::regex("[0-9a-f]{8}-[0-9a-f]{4}-5[0-9a-f]{3}-[89ab][0-9a-f]{3}-"
+                                          "[0-9a-f]{12}")));
+  EXPECT_EQ(first["timestamp"].get<std::string>().back(), 'Z');
   EXPECT_EQ(first["actor"]["account"]["name"], "dr \"quote\"\n\\ back");
   EXPECT_EQ(first["verb"]["id"], "http://adlnet.gov/expapi/verbs/scored");
   EXPECT_EQ(first["object"]["id"], "urn:vsurg:trainee:trainee, one");
