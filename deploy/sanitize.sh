@@ -40,7 +40,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # Five long numerical runs (whole scripted trials, FEM convergence and energy studies: 15 of the
   # 25 minutes the suite takes here) run in the main build only; the same code runs under the
   # sanitizers in the shorter tests (replays, clock jumps, adversarial streams, FEM steps).
-  long='SimulationTest.ScriptedTrainees|FemTest.UndampedImplicitEuler|FemTest.ConvergesToSaintVenant'
+  long='RoomTest.ScriptedTrainees|FemTest.UndampedImplicitEuler|FemTest.ConvergesToSaintVenant'
   long+='|FemTest.CantileverConverges|FemTest.StiffMaterialAtLargeSteps'
   # Three more whole runs (a scripted trial through vsurg-sim, a layered sphere pressed to rest, a
   # stiff implicit press): 2 of the ASan stage's 6 test minutes; shorter tests cover their code.
@@ -50,13 +50,13 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # side by side, the reduced arm's field, the local model's and the out-of-model contact's
   # sphere): 8 of the ASan stage's 16 test minutes (the organ alone 3.5) in a CI run of 35
   # minutes against the 30-minute aim. The reduced models' code stays under ASan in tissue_test
-  # (ReducedTwistTest, ReducedContactTest) and SimulationTest.AReducedSphereSinks… (a reduced
+  # (ReducedTwistTest, ReducedContactTest) and RoomTest.AReducedSphereSinks… (a reduced
   # scene built, cached and loaded again); the concurrent build runs under TSan below.
-  long+='|SimulationTest.ForcepsTwistTheOrganOnItsSurfaceTwistTable'
-  long+='|SimulationTest.SessionsOfReducedScenesAreBuiltSideBySide'
-  long+='|SimulationTest.TheReducedArmIsTwistedToTheTargetAndCachesItsField'
-  long+='|SimulationTest.TheLocalModelPredictsTheNextUpdateOnAReducedSphere'
-  long+='|SimulationTest.AContactOutsideTheReducedModelIsBoundedAndFlagged'
+  long+='|RoomTest.ForcepsTwistTheOrganOnItsSurfaceTwistTable'
+  long+='|RoomTest.SessionsOfReducedScenesAreBuiltSideBySide'
+  long+='|RoomTest.TheReducedArmIsTwistedToTheTargetAndCachesItsField'
+  long+='|RoomTest.TheLocalModelPredictsTheNextUpdateOnAReducedSphere'
+  long+='|RoomTest.AContactOutsideTheReducedModelIsBoundedAndFlagged'
   # Trials carried to a new simulation (live migration): the coil, surface-twist and ring-layer
   # cases and the refusals run here; the mass-spring's state is two vectors like the rings', and
   # the reduced twist keeps none beyond its input, like the coil.
@@ -89,7 +89,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # A heterogeneous ball's contact tables built at 16 cells (two sessions, and the FEM's felt
   # stiffness at 8 and 16 cells with and without the lump): the inclusions' code runs under ASan
   # in InclusionTest and the other HeterogeneousFemTest cases.
-  long+='|SimulationTest.AHiddenLumpPushesBackHarderAboveItThanAside'
+  long+='|RoomTest.AHiddenLumpPushesBackHarderAboveItThanAside'
   long+='|HeterogeneousFemTest.TheFeltStiffnessMapShowsTheLumpAtTheCoarseAndTheFineMesh'
   long+='|HeterogeneousFemTest.ACompositeSphereConvergesToLamesClosedForm'  # 33 s unsanitised
   long+='|HeterogeneousFemTest.TheReducedModelFeelsTheHeterogeneousFemsMapAtAPalpationsForce'
@@ -129,16 +129,16 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   # scripted trials, the property tests and the single-threaded reduced scenes run one thread
   # (the first three took 4 of TSan's 5 minutes, the reduced scenes later 1.6 of its 2.1);
   # ASan and the main build run them.
-  single='SimulationTest.ScriptedTrainees*:HapticPropertyTest.*:SimulationTest.AdversarialStylusInput*'
-  single+=':SimulationTest.ForcepsTwist*:SimulationTest.TheReducedArm*:SimulationTest.AReducedSphere*'
-  single+=':SimulationTest.TheLocalModel*:SimulationTest.AContactOutsideTheReducedModel*'
+  single='RoomTest.ScriptedTrainees*:HapticPropertyTest.*:SimulationTest.AdversarialStylusInput*'
+  single+=':RoomTest.ForcepsTwist*:RoomTest.TheReducedArm*:RoomTest.AReducedSphere*'
+  single+=':RoomTest.TheLocalModel*:RoomTest.AContactOutsideTheReducedModel*'
   single+=':EveryModel/StateTest.*:StateRefusalTest.*'  # live migration's state: one thread
   single+=':LocalModelTest.AContactsModelCarriesTheSlope*'  # two unthreaded presses
   # The kidney's meshing, press and scripted trainees, and two replays of whole trials into the
   # station's local model: one thread each (threaded = false), 53 of the suite's 91 s under TSan.
   single+=':OrganSceneTest.*:LocalModelTest.AGraspIsRenderedAsTheServerWouldAnswer*'
   single+=':LocalModelTest.TheServersPortCountsWhatTheTissueTook*'
-  single+=':SimulationTest.AHiddenLump*'  # one thread (threaded = false): two tables built
+  single+=':RoomTest.AHiddenLump*'  # one thread (threaded = false): two tables built
   declare -A filter=([simulation_test]="-$single")
   # The simulation's threaded tests (a minute) run beside the other suites (half a minute, one
   # after another), each suite's output kept apart and shown whole.
