@@ -114,25 +114,30 @@ Status WriteCsv(const std::string& path, const std::vector<SceneOut>& scenes) {
   return out ? Status::Ok() : Status(Error{ErrorCode::kIoError, "write failed: " + path, "out"});
 }
 
+// One line per scene: its budget, the cheapest model within it, and the most accurate model at
+// haptic rate (at most 20 µs per update). Every row of the study is in the CSV beside it.
 std::string MarkdownTable(const std::vector<SceneOut>& scenes, const std::string& command) {
+  constexpr double kHapticUs = 20;
   std::ostringstream md;
   md << "Command: `" << command << "`. Error: marker displacement error relative to the "
-     << "reference's largest marker displacement (RMS and max over the ten markers); time: median "
-     << "time per deformation update on this machine.\n\n";
+     << "reference's largest marker displacement (RMS over the ten markers); time: median time per "
+     << "deformation update on this machine. Every model and setting: "
+        "`docs/speed-vs-error.csv`.\n\n"
+     << "| study scene | budget | cheapest within it | most accurate at ≤ 20 µs | time | RMS |\n"
+     << "| --- | --- | --- | --- | --- | --- |\n";
   for (const SceneOut& s : scenes) {
-    md << "**" << s.scene << "** (error budget " << Num(100 * s.budget, 3) << "% RMS from `scenes/"
-       << s.scene_file << ".json`; cheapest within it: " << s.chosen << ")\n\n";
-    md << "| model | setting | time per update | RMS error | max error | note |\n";
-    md << "| --- | --- | --- | --- | --- | --- |\n";
-    for (const Row& r : s.rows) {
-      const std::string t =
-          r.time_us >= 1000 ? Num(r.time_us / 1000, 3) + " ms" : Num(r.time_us, 3) + " µs";
-      md << "| " << r.model << " | " << r.setting << " | " << t << " | "
-         << (std::isfinite(r.rms) ? Num(100 * r.rms, 3) + "%" : "—") << " | "
-         << (std::isfinite(r.max) ? Num(100 * r.max, 3) + "%" : "—") << " | " << r.note << " |\n";
+    const Row* best = nullptr;
+    for (const Row& r : s.rows)
+      if (r.time_us <= kHapticUs && std::isfinite(r.rms) && (!best || r.rms < best->rms)) best = &r;
+    md << "| " << s.scene << " | " << Num(100 * s.budget, 3) << "% | " << s.chosen << " | ";
+    if (best) {
+      md << best->model << ", " << best->setting << " | " << Num(best->time_us, 3) << " µs | "
+         << Num(100 * best->rms, 3) << "% |\n";
+    } else {
+      md << "none | — | — |\n";
     }
-    md << "\n";
   }
+  md << "\n";
   return md.str();
 }
 
