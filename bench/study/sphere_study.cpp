@@ -13,6 +13,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <tuple>
 
@@ -104,18 +105,8 @@ tissue::FemParams BallTissue() {
   return p;
 }
 
-}  // namespace
-
-SceneOut RunSphere(const Config& cfg, Progress& progress) {
-  SceneOut out;
-  out.scene = "sphere-palpation";
-  out.scene_file = "sphere-palpation-256";
-  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
-  out.checks = {{"sphere-palpation-256", "mass-spring-scene", "258 particles"},
-                {"sphere-palpation-1024", "reduced",
-                 cfg.quick ? "contact table" : "contact table, FEM cells 8 "},
-                {"sphere-palpation-rings", "ring-layer-scene", ""}};
-  // Reference: the finest FEM, static.
+// The reference: the finest FEM (16 cells; 8 quick), static under the press.
+Reference SphereReference(const Config& cfg) {
   const int ref_cells = cfg.quick ? 8 : 16;
   auto ref_mesh = geometry::MakeTetBall({kBallRadius, ref_cells});
   auto ref_fem = tissue::FemModel::Create(*ref_mesh, BallTissue(), BottomCap(ref_mesh->positions));
@@ -125,10 +116,11 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
   std::vector<Vec3> ref_disp(ref_mesh->positions.size());
   for (size_t i = 0; i < ref_disp.size(); ++i)
     ref_disp[i] = ref_fem->positions()[i] - ref_mesh->positions[i];
-  const Reference ref = InterpolatedReference(*ref_mesh, std::move(ref_disp));
-  progress.Step("sphere reference fem");
-  const double pole_target = ref(Vec3(0, 0, kBallRadius)).norm();
+  return InterpolatedReference(*ref_mesh, std::move(ref_disp));
+}
 
+// The FEM itself at coarser meshes: static under the press for the error, implicit steps timed.
+void SphereFemRows(const Config& cfg, const Reference& ref, SceneOut& out, Progress& progress) {
   for (int cells : cfg.quick ? std::vector<int>{4} : std::vector<int>{4, 6, 8, 12}) {
     auto mesh = geometry::MakeTetBall({kBallRadius, cells});
     auto fem = tissue::FemModel::Create(*mesh, BallTissue(), BottomCap(mesh->positions));
@@ -143,7 +135,9 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     out.rows.push_back(row);
     progress.Step("sphere fem " + std::to_string(cells));
   }
+}
 
+void SphereReducedRows(const Config& cfg, const Reference& ref, SceneOut& out, Progress& progress) {
   // Reduced: the Green's-function contact table (common/tissue/reduced.h) precomputed from the
   // FEM at each refinement for every display vertex above the fixed cap, with the press's own
   // footprint (the 1 cm cap), on the 1,026-vertex display sphere; one press at the pole.
@@ -196,107 +190,138 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
       progress.Step("sphere reduced " + std::to_string(cells));
     }
   }
+}
 
-  // Mass-spring on the subdivided sphere (the mass-spring paper): the scene file's own parameters
-  // (on its 258 particles), then the same proportions with the stiffness fitted to the pole's depth
-  // on 258 and 1026 particles (the family at its most favourable). The proportions are the file's:
-  // bending and inner-layer springs at a tenth of the structural ones, the inner layer 4 mm
-  // deep, damping 0.005 s × k; a sweep against this reference (bending 0–0.5, volume 0.05–8,
-  // depth 2–30 mm) found 12–13% RMS at these where the earlier volume = k, 10 mm deep gave 21.6%.
+// The press of the mass-spring paper's sphere with the given springs: the inner layer for volume,
+// the bottom cap fixed, the press's load on the top cap; implicit Euler until a variant sets its
+// own integrator.
+Expected<tissue::MassSpringModel> PressedMassSpring(const geometry::TriMesh& surface,
+                                                    tissue::MassSpringBuildParams bp) {
+  bp.total_mass = 1050 * 4.0 / 3.0 * std::numbers::pi * std::pow(kBallRadius, 3);
+  bp.volume = tissue::VolumeMode::kInnerLayer;
+  auto sys = tissue::BuildMassSpring(surface, bp);
+  if (!sys.ok()) return sys.error();
+  tissue::MassSpringStepParams sp;
+  sp.integrator = tissue::Integrator::kImplicitEuler;
+  auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
+  if (!model.ok()) return model.error();
+  for (int i : BottomCap(model->system().rest_positions)) model->SetFixed(i, true);
+  for (const auto& [i, f] : CapLoad(surface, kPressForce)) model->SetExternalForce(i, f);
+  return model;
+}
+
+// The scene file's proportions with structural stiffness `k`: bending and inner-layer springs at
+// a tenth of it, the inner layer 4 mm deep, damping 0.005 s × k.
+Expected<tissue::MassSpringModel> ProportionedMassSpring(const geometry::TriMesh& surface,
+                                                         double k) {
+  tissue::MassSpringBuildParams bp;
+  bp.structural_stiffness = k;
+  bp.bending_stiffness = 0.1 * k;
+  bp.volume_stiffness = 0.1 * k;
+  bp.damping = 0.005 * k;
+  bp.layer_depth = 0.004;
+  return PressedMassSpring(surface, bp);
+}
+
+// The structural stiffness that gives the pole the reference's depth, three secant steps from
+// 20 N/m.
+double FitMassSpringToPole(const geometry::TriMesh& surface, double pole_target) {
+  const int pole = Nearest(surface.positions, Vec3(0, 0, kBallRadius));
+  double k = 20;
+  for (int it = 0; it < 3; ++it) {
+    auto model = ProportionedMassSpring(surface, k);
+    if (!model.ok()) break;
+    for (int s = 0; s < 300; ++s) model->Step(0.05);
+    const double got = (model->positions()[pole] - surface.positions[pole]).norm();
+    if (!(got > 0) || !std::isfinite(got)) break;
+    k *= got / pole_target;
+  }
+  return k;
+}
+
+struct MassSpringVariant {
+  std::string model;
+  tissue::Integrator integrator;
+  bool scene;
+};
+
+// One integrator's row: the substeps its stability asks for at 1 ms, the median step, the error
+// unless it diverged. Nothing when the model cannot be built.
+std::optional<Row> MassSpringRow(const Config& cfg, const std::string& scene,
+                                 const geometry::TriMesh& surface, const Reference& ref,
+                                 const Expected<sim::Scene>& file, double k,
+                                 const MassSpringVariant& v) {
+  const tissue::Integrator integ = v.integrator;
+  Row row{v.model, scene,
+          std::to_string(surface.VertexCount()) + " particles, " + tissue::IntegratorName(integ) +
+              (v.scene ? ", scene parameters (k " +
+                             Num(file->region.mass_spring.structural_stiffness) + " N/m)"
+                       : " (k fitted " + Num(k) + " N/m)")};
+  auto model = v.scene ? PressedMassSpring(surface, file->region.mass_spring)
+                       : ProportionedMassSpring(surface, k);
+  if (!model.ok()) return std::nullopt;
+  row.size = static_cast<int>(model->positions().size());
+  model->SetIntegrator(integ);
+  const double omega = model->MaxAngularFrequency(100);
+  double limit =
+      integ == tissue::Integrator::kImplicitEuler ? kInf
+      : (integ == tissue::Integrator::kRk4)       ? 2.5
+      : (integ == tissue::Integrator::kSymplecticEuler || integ == tissue::Integrator::kVerlet)
+          ? 1.8
+          : 0.5;
+  const int substeps =
+      Substeps(omega, limit,
+               v.scene ? file->region.mass_spring.damping /
+                             std::max(1e-12, file->region.mass_spring.structural_stiffness)
+                       : 0.005);
+  row.setting += ", " + std::to_string(substeps) + " substep" + (substeps > 1 ? "s" : "") + "/ms";
+  std::vector<double> times;
+  bool ok = true;
+  for (int s = 0; s < (cfg.quick ? 300 : 500) && ok; ++s) {
+    const auto t0 = Clock::now();
+    ok = model->Step(1e-3, substeps);
+    times.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+  }
+  row.time_us = MedianUs(times);
+  if (!ok || model->diverged()) {
+    row.note = "diverged";
+  } else {
+    std::vector<Vec3> rest(model->system().rest_positions.begin(),
+                           model->system().rest_positions.begin() + surface.VertexCount());
+    std::vector<Vec3> now(model->positions().begin(),
+                          model->positions().begin() + surface.VertexCount());
+    Score(row, rest, now, SphereMarkerVertices(surface.positions), ref);
+  }
+  return row;
+}
+
+// Mass-spring on the subdivided sphere (the mass-spring paper): the scene file's own parameters
+// (on its 258 particles), then the same proportions with the stiffness fitted to the pole's depth
+// on 258 and 1026 particles (the family at its most favourable). A sweep against this reference
+// (bending 0–0.5, volume 0.05–8, depth 2–30 mm) found 12–13% RMS at the file's proportions where
+// the earlier volume = k, 10 mm deep gave 21.6%.
+void SphereMassSpringRows(const Config& cfg, const Reference& ref, double pole_target,
+                          SceneOut& out, Progress& progress) {
   auto file = sim::LoadSceneByName(out.scene_file);
   for (int level : cfg.quick ? std::vector<int>{3} : std::vector<int>{3, 4}) {
     auto surface = geometry::MakeSubdividedSphere({kBallRadius, level});
-    auto build_with = [&](tissue::MassSpringBuildParams bp) -> Expected<tissue::MassSpringModel> {
-      bp.total_mass = 1050 * 4.0 / 3.0 * std::numbers::pi * std::pow(kBallRadius, 3);
-      bp.volume = tissue::VolumeMode::kInnerLayer;
-      auto sys = tissue::BuildMassSpring(*surface, bp);
-      if (!sys.ok()) return sys.error();
-      tissue::MassSpringStepParams sp;
-      sp.integrator = tissue::Integrator::kImplicitEuler;
-      auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
-      if (!model.ok()) return model.error();
-      for (int i : BottomCap(model->system().rest_positions)) model->SetFixed(i, true);
-      for (const auto& [i, f] : CapLoad(*surface, kPressForce)) model->SetExternalForce(i, f);
-      return model;
-    };
-    auto build = [&](double k) {
-      tissue::MassSpringBuildParams bp;
-      bp.structural_stiffness = k;
-      bp.bending_stiffness = 0.1 * k;
-      bp.volume_stiffness = 0.1 * k;
-      bp.damping = 0.005 * k;
-      bp.layer_depth = 0.004;
-      return build_with(bp);
-    };
-    const int pole = Nearest(surface->positions, Vec3(0, 0, kBallRadius));
-    double k = 20;
-    for (int it = 0; it < 3; ++it) {
-      auto model = build(k);
-      if (!model.ok()) break;
-      for (int s = 0; s < 300; ++s) model->Step(0.05);
-      const double got = (model->positions()[pole] - surface->positions[pole]).norm();
-      if (!(got > 0) || !std::isfinite(got)) break;
-      k *= got / pole_target;
-    }
-    const auto markers = SphereMarkerVertices(surface->positions);
-    struct Variant {
-      std::string model;
-      tissue::Integrator integrator;
-      bool scene;
-    };
-    std::vector<Variant> variants;
+    const double k = FitMassSpringToPole(*surface, pole_target);
+    std::vector<MassSpringVariant> variants;
     if (level == 3 && file.ok() && file->region.kind == sim::ModelKind::kMassSpring)
       variants.push_back({"mass-spring-scene", file->region.integrator, true});
     for (tissue::Integrator integ : tissue::kAllIntegrators)
       variants.push_back({"mass-spring", integ, false});
-    for (const Variant& v : variants) {
-      const tissue::Integrator integ = v.integrator;
-      Row row{v.model, out.scene,
-              std::to_string(surface->VertexCount()) + " particles, " +
-                  tissue::IntegratorName(integ) +
-                  (v.scene ? ", scene parameters (k " +
-                                 Num(file->region.mass_spring.structural_stiffness) + " N/m)"
-                           : " (k fitted " + Num(k) + " N/m)")};
-      auto model = v.scene ? build_with(file->region.mass_spring) : build(k);
-      if (!model.ok()) continue;
-      row.size = static_cast<int>(model->positions().size());
-      model->SetIntegrator(integ);
-      const double omega = model->MaxAngularFrequency(100);
-      double limit =
-          integ == tissue::Integrator::kImplicitEuler ? kInf
-          : (integ == tissue::Integrator::kRk4)       ? 2.5
-          : (integ == tissue::Integrator::kSymplecticEuler || integ == tissue::Integrator::kVerlet)
-              ? 1.8
-              : 0.5;
-      const int substeps =
-          Substeps(omega, limit,
-                   v.scene ? file->region.mass_spring.damping /
-                                 std::max(1e-12, file->region.mass_spring.structural_stiffness)
-                           : 0.005);
-      row.setting +=
-          ", " + std::to_string(substeps) + " substep" + (substeps > 1 ? "s" : "") + "/ms";
-      std::vector<double> times;
-      bool ok = true;
-      for (int s = 0; s < (cfg.quick ? 300 : 500) && ok; ++s) {
-        const auto t0 = Clock::now();
-        ok = model->Step(1e-3, substeps);
-        times.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
-      }
-      row.time_us = MedianUs(times);
-      if (!ok || model->diverged()) {
-        row.note = "diverged";
-      } else {
-        std::vector<Vec3> rest(model->system().rest_positions.begin(),
-                               model->system().rest_positions.begin() + surface->VertexCount());
-        std::vector<Vec3> now(model->positions().begin(),
-                              model->positions().begin() + surface->VertexCount());
-        Score(row, rest, now, markers, ref);
-      }
-      out.rows.push_back(row);
-      progress.Step("sphere msm " + std::string(tissue::IntegratorName(integ)));
+    for (const MassSpringVariant& v : variants) {
+      auto row = MassSpringRow(cfg, out.scene, *surface, ref, file, k, v);
+      if (!row) continue;
+      out.rows.push_back(std::move(*row));
+      progress.Step("sphere msm " + std::string(tissue::IntegratorName(v.integrator)));
     }
   }
+}
 
+void SphereRingLayerRows(const Config& cfg, const Reference& ref, double pole_target, SceneOut& out,
+                         Progress& progress) {
   // Ring layer (the mass-spring paper §3.3) on the 258-particle sphere: chain stiffness fitted to
   // the pole.
   {
@@ -377,6 +402,26 @@ SceneOut RunSphere(const Config& cfg, Progress& progress) {
     out.rows.push_back(scene_row);
     progress.Step("sphere ring layer (scene)");
   }
+}
+
+}  // namespace
+
+SceneOut RunSphere(const Config& cfg, Progress& progress) {
+  SceneOut out;
+  out.scene = "sphere-palpation";
+  out.scene_file = "sphere-palpation-256";
+  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
+  out.checks = {{"sphere-palpation-256", "mass-spring-scene", "258 particles"},
+                {"sphere-palpation-1024", "reduced",
+                 cfg.quick ? "contact table" : "contact table, FEM cells 8 "},
+                {"sphere-palpation-rings", "ring-layer-scene", ""}};
+  const Reference ref = SphereReference(cfg);
+  progress.Step("sphere reference fem");
+  const double pole_target = ref(Vec3(0, 0, kBallRadius)).norm();
+  SphereFemRows(cfg, ref, out, progress);
+  SphereReducedRows(cfg, ref, out, progress);
+  SphereMassSpringRows(cfg, ref, pole_target, out, progress);
+  SphereRingLayerRows(cfg, ref, pole_target, out, progress);
   return out;
 }
 
