@@ -291,18 +291,14 @@ void ReducedRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& 
 
 // Mass-spring on the FEM's tetrahedra (one spring per edge), its single stiffness fitted so the
 // grasp's twist matches the reference at the final torque (the one free parameter the model has).
-void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& progress) {
-  const TetLimb m = MakeTetLimb(c.shaft, cfg.quick ? 1 : 2);
-  const Reference ref = [&](const Vec3& x) {
-    return SaintVenantDisplacement(c.shaft, c.torque, x);
-  };
-  const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
-  auto apply = [&](tissue::MassSpringModel& model, double torque) {
-    const auto f = FollowerTorque(model.positions(), m, torque);
-    for (size_t i = 0; i < f.size(); ++i) model.SetExternalForce(m.cylinder.tip[i], f[i]);
-  };
-  auto build = [&](double k, double c_damp) -> Expected<tissue::MassSpringModel> {
-    auto sys = tissue::BuildMassSpring(m.cylinder.mesh, c.limb.density, k, c_damp);
+// The limb's tetrahedra as one spring per edge (the mass-spring paper's model on the FEM's mesh),
+// its base held, twisted by a follower torque on its tip.
+class LimbMassSpring {
+ public:
+  LimbMassSpring(const LimbCase& c, const TetLimb& m) : c_(c), m_(m) {}
+
+  Expected<tissue::MassSpringModel> Build(double k, double c_damp) const {
+    auto sys = tissue::BuildMassSpring(m_.cylinder.mesh, c_.limb.density, k, c_damp);
     if (!sys.ok()) return sys.error();
     tissue::MassSpringStepParams sp;
     sp.integrator = tissue::Integrator::kImplicitEuler;
@@ -310,100 +306,114 @@ void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Pro
     sp.cg_tolerance = 1e-6;
     auto model = tissue::MassSpringModel::Create(std::move(*sys), sp);
     if (!model.ok()) return model.error();
-    for (int v : m.cylinder.base) model->SetFixed(v, true);
+    for (int v : m_.cylinder.base) model->SetFixed(v, true);
     return model;
-  };
-  auto settle = [&](tissue::MassSpringModel& model, double torque) {
+  }
+  void Apply(tissue::MassSpringModel& model, double torque) const {
+    const auto f = FollowerTorque(model.positions(), m_, torque);
+    for (size_t i = 0; i < f.size(); ++i) model.SetExternalForce(m_.cylinder.tip[i], f[i]);
+  }
+  // Quasi-static: the torque ramped in over 200 large implicit steps, 400 in all.
+  void Settle(tissue::MassSpringModel& model, double torque) const {
     model.SetIntegrator(tissue::Integrator::kImplicitEuler);
     for (int k = 0; k < 400; ++k) {
-      if (k % 10 == 0) apply(model, torque * std::min(1.0, (k + 10) / 200.0));
+      if (k % 10 == 0) Apply(model, torque * std::min(1.0, (k + 10) / 200.0));
       model.Step(0.05);
     }
-  };
-  // Fit k: twist at marker 10 scales as 1/k for small twists; two corrections.
-  const int tip_marker = markers[9];
-  const Vec3 tip_rest = m.cylinder.mesh.positions[tip_marker];
-  const double target = ref(tip_rest).norm();
-  // Start from the spring of an elastic cube of the mean edge length l: k ≈ E·l.
-  double edge = 0;
-  int edges = 0;
-  for (const auto& t : m.cylinder.mesh.tetrahedra)
-    for (int a = 0; a < 4; ++a)
-      for (int b = a + 1; b < 4; ++b)
-        edge += (m.cylinder.mesh.positions[t[a]] - m.cylinder.mesh.positions[t[b]]).norm(), ++edges;
-  edge /= std::max(1, edges);
-  double k = 2 * c.shaft.shear_modulus * (1 + c.limb.poisson_ratio) * edge;
-  for (int it = 0; it < 3; ++it) {
-    auto model = build(k, 0.0);
-    if (!model.ok()) break;
-    settle(*model, c.torque);
-    const double got = (model->positions()[tip_marker] - tip_rest).norm();
-    if (!(got > 0) || !std::isfinite(got)) break;
-    k *= got / target;
   }
+  // The spring stiffness whose settled twist at marker `tip_marker` meets the reference: twist
+  // scales as 1/k for small twists, so three corrections from the spring of an elastic cube of
+  // the mean edge length l (k ≈ E·l).
+  double FitStiffness(int tip_marker, double target) const {
+    const auto& mesh = m_.cylinder.mesh;
+    double edge = 0;
+    int edges = 0;
+    for (const auto& t : mesh.tetrahedra)
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b)
+          edge += (mesh.positions[t[a]] - mesh.positions[t[b]]).norm(), ++edges;
+    edge /= std::max(1, edges);
+    double k = 2 * c_.shaft.shear_modulus * (1 + c_.limb.poisson_ratio) * edge;
+    const Vec3 tip_rest = mesh.positions[tip_marker];
+    for (int it = 0; it < 3; ++it) {
+      auto model = Build(k, 0.0);
+      if (!model.ok()) break;
+      Settle(*model, c_.torque);
+      const double got = (model->positions()[tip_marker] - tip_rest).norm();
+      if (!(got > 0) || !std::isfinite(got)) break;
+      k *= got / target;
+    }
+    return k;
+  }
+
+ private:
+  const LimbCase& c_;
+  const TetLimb& m_;
+};
+
+// One integrator's row on the ramp: substeps within its stability limit, the median step, the
+// error at the end unless it diverged; the marker-8 trajectory for the plot.
+Row MassSpringLimbRow(const LimbCase& c, const Config& cfg, const TetLimb& m,
+                      const LimbMassSpring& limb, const std::vector<int>& markers,
+                      const Reference& ref, double k, double c_damp, tissue::Integrator integ,
+                      Trajectory& tr) {
+  Row row{"mass-spring", c.scene,
+          std::string(tissue::IntegratorName(integ)) + " (k fitted " +
+              std::to_string(k).substr(0, 6) + " N/m)"};
+  auto model = limb.Build(k, c_damp);
+  if (!model.ok()) {
+    row.note = model.error().message;
+    return row;
+  }
+  row.size = static_cast<int>(model->positions().size());
+  model->SetIntegrator(integ);
+  const int substeps = Substeps(model->MaxAngularFrequency(100), StabilityLimit(integ), c_damp / k);
+  const int steps = cfg.quick ? 600 : 3000;
+  std::vector<double> times;
+  bool ok = true;
+  for (int s = 0; s <= steps && ok; ++s) {
+    const double t = s * 1e-3;
+    limb.Apply(*model, c.torque * Ramp(t, 1.0));
+    if (s % 20 == 0) {
+      tr.t.push_back(t);
+      tr.d.push_back(
+          (model->positions()[markers[7]] - m.cylinder.mesh.positions[markers[7]]).norm());
+    }
+    const auto t0 = Clock::now();
+    ok = model->Step(1e-3, substeps);
+    times.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+  }
+  row.time_us = MedianUs(times);
+  row.setting += ", " + std::to_string(substeps) + " substep" + (substeps > 1 ? "s" : "") + "/ms";
+  if (!ok || model->diverged()) {
+    row.note = "diverged";
+  } else {
+    Score(row, m.cylinder.mesh.positions, model->positions(), markers, ref);
+  }
+  return row;
+}
+
+void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& progress) {
+  const TetLimb m = MakeTetLimb(c.shaft, cfg.quick ? 1 : 2);
+  const Reference ref = [&](const Vec3& x) {
+    return SaintVenantDisplacement(c.shaft, c.torque, x);
+  };
+  const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
+  const LimbMassSpring limb(c, m);
+  const double k = limb.FitStiffness(markers[9], ref(m.cylinder.mesh.positions[markers[9]]).norm());
   // Damping per spring c = 0.002·k: about ζ = 0.02 on the first torsion mode (ω ≈ 20 rad/s);
   // more would overdamp the highest modes and shrink the explicit schemes' stable step further.
   const double c_damp = 0.002 * k;
   for (tissue::Integrator integ : tissue::kAllIntegrators) {
-    Row row{"mass-spring", c.scene,
-            std::string(tissue::IntegratorName(integ)) + " (k fitted " +
-                std::to_string(k).substr(0, 6) + " N/m)"};
-    auto model = build(k, c_damp);
-    if (!model.ok()) {
-      row.note = model.error().message;
-      out.rows.push_back(row);
-      progress.Step(c.scene + " msm");
-      continue;
-    }
-    row.size = static_cast<int>(model->positions().size());
-    model->SetIntegrator(integ);
-    // Substeps to stay inside each explicit scheme's stability limit (ω·dt < 2 symplectic,
-    // 2√2 RK4; explicit Euler and midpoint grow at any step, damping holds them at ω·dt ≲ 1).
-    const double omega = model->MaxAngularFrequency(100);
-    double limit = 1.0;
-    switch (integ) {
-      case tissue::Integrator::kSymplecticEuler:
-      case tissue::Integrator::kVerlet:
-        limit = 1.8;
-        break;
-      case tissue::Integrator::kRk4:
-        limit = 2.5;
-        break;
-      case tissue::Integrator::kImplicitEuler:
-        limit = kInf;
-        break;
-      default:
-        limit = 0.5;
-        break;
-    }
-    const int substeps = Substeps(omega, limit, c_damp / k);
     Trajectory tr{"mass-spring " + std::string(tissue::IntegratorName(integ)), {}, {}};
-    const int steps = cfg.quick ? 600 : 3000;
-    std::vector<double> times;
-    bool ok = true;
-    for (int s = 0; s <= steps && ok; ++s) {
-      const double t = s * 1e-3;
-      apply(*model, c.torque * Ramp(t, 1.0));
-      if (s % 20 == 0) {
-        tr.t.push_back(t);
-        tr.d.push_back(
-            (model->positions()[markers[7]] - m.cylinder.mesh.positions[markers[7]]).norm());
-      }
-      const auto t0 = Clock::now();
-      ok = model->Step(1e-3, substeps);
-      times.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
-    }
-    row.time_us = MedianUs(times);
-    row.setting += ", " + std::to_string(substeps) + " substep" + (substeps > 1 ? "s" : "") + "/ms";
-    if (!ok || model->diverged()) {
-      row.note = "diverged";
+    out.rows.push_back(MassSpringLimbRow(c, cfg, m, limb, markers, ref, k, c_damp, integ, tr));
+    if (out.rows.back().size > 0) {  // built (a model that cannot be built has no size)
+      if (integ == tissue::Integrator::kMidpoint || integ == tissue::Integrator::kImplicitEuler)
+        out.trajectories.push_back(std::move(tr));
+      progress.Step(c.scene + " msm " + tissue::IntegratorName(integ));
     } else {
-      Score(row, m.cylinder.mesh.positions, model->positions(), markers, ref);
+      progress.Step(c.scene + " msm");
     }
-    out.rows.push_back(row);
-    if (integ == tissue::Integrator::kMidpoint || integ == tissue::Integrator::kImplicitEuler)
-      out.trajectories.push_back(std::move(tr));
-    progress.Step(c.scene + " msm " + tissue::IntegratorName(integ));
   }
 }
 

@@ -263,12 +263,7 @@ std::optional<Row> MassSpringRow(const Config& cfg, const std::string& scene,
   row.size = static_cast<int>(model->positions().size());
   model->SetIntegrator(integ);
   const double omega = model->MaxAngularFrequency(100);
-  double limit =
-      integ == tissue::Integrator::kImplicitEuler ? kInf
-      : (integ == tissue::Integrator::kRk4)       ? 2.5
-      : (integ == tissue::Integrator::kSymplecticEuler || integ == tissue::Integrator::kVerlet)
-          ? 1.8
-          : 0.5;
+  const double limit = StabilityLimit(integ);
   const int substeps =
       Substeps(omega, limit,
                v.scene ? file->region.mass_spring.damping /

@@ -72,6 +72,20 @@ int Substeps(double omega, double limit, double beta) {
   return std::clamp(static_cast<int>(std::ceil(1e-3 / h)), 1, 100);
 }
 
+double StabilityLimit(tissue::Integrator integrator) {
+  switch (integrator) {
+    case tissue::Integrator::kSymplecticEuler:
+    case tissue::Integrator::kVerlet:
+      return 1.8;
+    case tissue::Integrator::kRk4:
+      return 2.5;
+    case tissue::Integrator::kImplicitEuler:
+      return kInf;
+    default:
+      return 0.5;
+  }
+}
+
 std::pair<double, std::string> SceneBudget(const std::string& file) {
   auto scene = sim::LoadSceneByName(file);
   if (!scene.ok()) return {0.1, "?"};

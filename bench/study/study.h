@@ -15,6 +15,7 @@
 #include "common/core/expected.h"
 #include "common/geometry/mesh.h"
 #include "common/geometry/tet_embedding.h"
+#include "common/tissue/mass_spring.h"
 
 namespace vsurg::bench::study {
 
@@ -115,6 +116,10 @@ double Ramp(double t, double ramp_s);
 // ratio ζ = β·ω/2, which shrinks the limit to limit·(√(1 + ζ²) − ζ). 1.2× margin; capped at 100
 // (a scheme that needs more is run at 100 and reported as it fares).
 int Substeps(double omega, double limit, double beta);
+// The undamped stability limit on ω·h of an integrator: 2 for symplectic Euler and Verlet, 2√2
+// for RK4 (each with a margin: 1.8, 2.5), none for implicit Euler; explicit Euler and the midpoint
+// rule grow at any step, and damping holds them at ω·h ≲ 1 (0.5 taken).
+double StabilityLimit(tissue::Integrator integrator);
 
 // The error budget and the model family a scenes/ file declares.
 std::pair<double, std::string> SceneBudget(const std::string& file);
