@@ -74,6 +74,114 @@ bool PostgresAdmin(const std::string& uri, const std::string& sql) {
   return s.ok();
 }
 
+// `clients` evaluators submitting back to back through the control plane's gRPC, each one
+// request in flight: a lane starts its next submission from the previous one's completion.
+class SubmitLoad {
+ public:
+  SubmitLoad(v1::EvaluationService::Stub& stub, std::string token, int clients)
+      : stub_(stub), token_(std::move(token)), lanes_(clients), running_(clients) {
+    latency_ms_.reserve(1 << 20);
+    for (Lane& lane : lanes_) {
+      lane.req.set_evaluator_group("chief");
+      lane.req.set_subject_kind("model");
+      lane.req.set_subject("bench-model");
+      for (int j = 0; j < 9; ++j) lane.req.add_scores(7);
+    }
+  }
+  void Start() {
+    for (Lane& lane : lanes_) Send(lane);
+  }
+  // Forgets the latencies so far (the warm-up's).
+  void ClearLatencies() {
+    std::lock_guard lock(m_);
+    latency_ms_.clear();
+  }
+  uint64_t ok() const { return ok_.load(); }
+  uint64_t failed() const { return failed_.load(); }
+  // Stops every lane after its request in flight; then the latencies since the last clear.
+  std::vector<double> StopAndTake() {
+    stop_ = true;
+    std::unique_lock lock(m_);
+    cv_.wait(lock, [&] { return running_ == 0; });
+    return latency_ms_;
+  }
+
+ private:
+  struct Lane {
+    std::unique_ptr<grpc::ClientContext> ctx;
+    v1::SubmitEvaluationRequest req;
+    v1::SubmitEvaluationResponse resp;
+    Clock::time_point sent;
+  };
+  void Send(Lane& lane) {
+    const uint64_t n = next_.fetch_add(1);
+    lane.ctx = std::make_unique<grpc::ClientContext>();
+    lane.ctx->AddMetadata("authorization", "Bearer " + token_);
+    lane.ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+    lane.req.set_idempotency_key("bench-" + std::to_string(n));
+    lane.req.set_evaluator("rater-" + std::to_string(n));
+    lane.sent = Clock::now();
+    stub_.async()->Submit(lane.ctx.get(), &lane.req, &lane.resp,
+                          [this, &lane](grpc::Status s) { Done(lane, s); });
+  }
+  void Done(Lane& lane, const grpc::Status& s) {
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - lane.sent).count();
+    if (s.ok()) {
+      ok_.fetch_add(1);
+      std::lock_guard lock(m_);
+      latency_ms_.push_back(ms);
+    } else {
+      failed_.fetch_add(1);
+    }
+    if (!stop_.load()) return Send(lane);
+    std::lock_guard lock(m_);
+    if (--running_ == 0) cv_.notify_all();
+  }
+
+  v1::EvaluationService::Stub& stub_;
+  const std::string token_;
+  std::vector<Lane> lanes_;
+  std::atomic<bool> stop_{false};
+  std::atomic<uint64_t> next_{0}, ok_{0}, failed_{0};
+  std::mutex m_;
+  std::condition_variable cv_;
+  int running_;
+  std::vector<double> latency_ms_;
+};
+
+// The submissions through a control plane on `location`'s store: half a second's warm-up, then
+// `seconds` measured (rate, latency percentiles, jobs per group commit).
+void MeasureSubmissions(const std::string& location, int max_batch, int clients, double seconds,
+                        SubmitResult& out) {
+  auto store = std::move(db::Store::Open({.path = location, .max_batch = max_batch})).value();
+  const std::string token = store->InitAdmin("root").value();
+  auto sessions = server::SessionManager::Open(*store, nullptr, {}).value();
+  auto cp = std::move(server::ControlPlane::Start(*store, *sessions, {})).value();
+  auto stub = v1::EvaluationService::NewStub(grpc::CreateChannel(
+      "127.0.0.1:" + std::to_string(cp->port()), grpc::InsecureChannelCredentials()));
+  SubmitLoad load(*stub, token, clients);
+  load.Start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const uint64_t ok0 = load.ok();
+  load.ClearLatencies();
+  const db::StoreStats s0 = store->stats();
+  const auto t0 = Clock::now();
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
+  const uint64_t ok1 = load.ok();
+  const db::StoreStats s1 = store->stats();
+  const std::vector<double> latency_ms = load.StopAndTake();
+  out.p50_ms = Percentile(latency_ms, 0.5);
+  out.p99_ms = Percentile(latency_ms, 0.99);
+  out.ok = ok1 - ok0;
+  out.failed = load.failed();
+  out.per_s = static_cast<double>(out.ok) / elapsed;
+  out.jobs_per_commit = s1.commits > s0.commits
+                            ? static_cast<double>(s1.jobs - s0.jobs) / (s1.commits - s0.commits)
+                            : 0;
+  cp->Shutdown();
+}
+
 // `postgres` empty: a new SQLite file; else a new database on that server (dropped after).
 SubmitResult RunSubmit(const std::string& postgres, int max_batch, int clients, double seconds) {
   const fs::path dir = TempDir("submit_" + std::to_string(max_batch));
@@ -87,92 +195,7 @@ SubmitResult RunSubmit(const std::string& postgres, int max_batch, int clients, 
     if (!PostgresAdmin(postgres, "CREATE DATABASE " + pg_name)) return out;
     location = postgres.substr(0, postgres.rfind('/') + 1) + pg_name;
   }
-  {
-    auto store = std::move(db::Store::Open({.path = location, .max_batch = max_batch})).value();
-    const std::string token = store->InitAdmin("root").value();
-    auto sessions_owned = server::SessionManager::Open(*store, nullptr, {}).value();
-    server::SessionManager& sessions = *sessions_owned;
-    auto cp = std::move(server::ControlPlane::Start(*store, sessions, {})).value();
-    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(cp->port()),
-                                       grpc::InsecureChannelCredentials());
-    auto stub = v1::EvaluationService::NewStub(channel);
-
-    struct Lane {
-      std::unique_ptr<grpc::ClientContext> ctx;
-      v1::SubmitEvaluationRequest req;
-      v1::SubmitEvaluationResponse resp;
-      Clock::time_point sent;
-    };
-    std::vector<Lane> lanes(clients);
-    std::atomic<bool> stop{false};
-    std::atomic<uint64_t> next{0}, ok{0}, failed{0};
-    std::mutex m;
-    std::condition_variable cv;
-    int running = clients;
-    std::vector<double> latency_ms;
-    latency_ms.reserve(1 << 20);
-    std::function<void(Lane&)> start = [&](Lane& lane) {
-      const uint64_t n = next.fetch_add(1);
-      lane.ctx = std::make_unique<grpc::ClientContext>();
-      lane.ctx->AddMetadata("authorization", "Bearer " + token);
-      lane.ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
-      lane.req.set_idempotency_key("bench-" + std::to_string(n));
-      lane.req.set_evaluator("rater-" + std::to_string(n));
-      lane.sent = Clock::now();
-      stub->async()->Submit(
-          lane.ctx.get(), &lane.req, &lane.resp, [&, lane_ptr = &lane](grpc::Status s) {
-            const double ms =
-                std::chrono::duration<double, std::milli>(Clock::now() - lane_ptr->sent).count();
-            if (s.ok()) {
-              ok.fetch_add(1);
-              std::lock_guard lock(m);
-              latency_ms.push_back(ms);
-            } else {
-              failed.fetch_add(1);
-            }
-            if (!stop.load()) {
-              start(*lane_ptr);
-            } else {
-              std::lock_guard lock(m);
-              if (--running == 0) cv.notify_all();
-            }
-          });
-    };
-    for (Lane& lane : lanes) {
-      lane.req.set_evaluator_group("chief");
-      lane.req.set_subject_kind("model");
-      lane.req.set_subject("bench-model");
-      for (int j = 0; j < 9; ++j) lane.req.add_scores(7);
-    }
-    // Warm-up, then the measured window.
-    for (Lane& lane : lanes) start(lane);
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-    const uint64_t ok0 = ok.load();
-    {
-      std::lock_guard lock(m);
-      latency_ms.clear();
-    }
-    const db::StoreStats s0 = store->stats();
-    const auto t0 = Clock::now();
-    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
-    const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
-    const uint64_t ok1 = ok.load();
-    const db::StoreStats s1 = store->stats();
-    stop = true;
-    {
-      std::unique_lock lock(m);
-      cv.wait(lock, [&] { return running == 0; });
-      out.p50_ms = Percentile(latency_ms, 0.5);
-      out.p99_ms = Percentile(latency_ms, 0.99);
-    }
-    out.ok = ok1 - ok0;
-    out.failed = failed.load();
-    out.per_s = static_cast<double>(out.ok) / elapsed;
-    out.jobs_per_commit = s1.commits > s0.commits
-                              ? static_cast<double>(s1.jobs - s0.jobs) / (s1.commits - s0.commits)
-                              : 0;
-    cp->Shutdown();
-  }
+  MeasureSubmissions(location, max_batch, clients, seconds, out);
   fs::remove_all(dir);
   if (!postgres.empty()) PostgresAdmin(postgres, "DROP DATABASE " + pg_name + " WITH (FORCE)");
   return out;
@@ -565,6 +588,83 @@ static void BeatNodes(int first, int count, int total, int port, int node_port,
   load.latency_ms.insert(load.latency_ms.end(), mine.begin(), mine.end());
 }
 
+// A loopback port listening and never accepting: the simulated nodes' internal port (the kernel
+// completes the probes' handshakes). -1 when none can be had; `fd` is the socket to close.
+int SilentListener(int& fd) {
+  fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), len) != 0 ||
+      ::listen(fd, 4096) != 0 || ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0)
+    return -1;
+  return ntohs(addr.sin_port);
+}
+
+struct HeartbeatRun {
+  std::string uri, token;
+  int nodes = 0, node_port = 0;
+  double seconds = 0, store_lease_s = 0;
+  bool in_memory = false;
+};
+
+// One configuration on its own database: the nodes acquire, then beat through the measured
+// window from four threads; the store's writes and commits counted over it.
+json HeartbeatRound(const HeartbeatRun& run) {
+  auto store = std::move(db::Store::Open({.path = run.uri})).value();
+  server::cluster::ClusterOptions co;
+  co.token = run.token;
+  co.listen = "127.0.0.1:0";
+  // Every heartbeat written: a store lease no longer than the timeout and two periods.
+  co.store_lease_s = run.in_memory ? run.store_lease_s : co.heartbeat_timeout_s;
+  auto control = std::move(server::cluster::ClusterSessions::Start(*store, co)).value();
+  const int threads = 4;
+  HeartbeatLoad load;
+  // Acquisitions first (one transaction each), then the measured window.
+  const double settle = 2 + run.nodes / 500.0;
+  const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                        std::chrono::duration<double>(settle + run.seconds));
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) {
+    const int first = run.nodes * t / threads, last = run.nodes * (t + 1) / threads;
+    pool.emplace_back(BeatNodes, first, last - first, run.nodes, control->port(), run.node_port,
+                      run.token, co.heartbeat_period_s, until, std::ref(load));
+  }
+  std::this_thread::sleep_for(std::chrono::duration<double>(settle));
+  const db::StoreStats a = store->stats();
+  const uint64_t sent0 = load.sent.load();
+  std::this_thread::sleep_for(std::chrono::duration<double>(run.seconds));
+  const db::StoreStats b = store->stats();
+  const uint64_t sent1 = load.sent.load();
+  for (auto& t : pool) t.join();
+  const auto listed = store->ListNodes().value();
+  size_t down = 0;
+  for (const auto& n : listed) down += n.down;
+  control->Shutdown();
+  return {{"mode", run.in_memory ? "in_memory" : "every_beat"},
+          {"store_lease_s", co.store_lease_s},
+          {"nodes", run.nodes},
+          {"heartbeats_per_s", static_cast<double>(sent1 - sent0) / run.seconds},
+          {"store_writes_per_s", static_cast<double>(b.jobs - a.jobs) / run.seconds},
+          {"store_commits_per_s", static_cast<double>(b.commits - a.commits) / run.seconds},
+          {"failed", load.failed.load()},
+          {"nodes_down", down},
+          {"beat_p50_ms", Percentile(load.latency_ms, 0.5)},
+          {"beat_p99_ms", Percentile(load.latency_ms, 0.99)}};
+}
+
+void PrintHeartbeatRound(const json& r) {
+  std::printf(
+      "%-10s store lease %4.1f s, %d nodes: %7.0f heartbeats/s  %7.1f store writes/s "
+      "(%6.1f commits/s)  heartbeat p50 %.2f ms p99 %.2f ms  failed %llu  down %zu\n",
+      r["mode"].get<std::string>().c_str(), r["store_lease_s"].get<double>(), r["nodes"].get<int>(),
+      r["heartbeats_per_s"].get<double>(), r["store_writes_per_s"].get<double>(),
+      r["store_commits_per_s"].get<double>(), r["beat_p50_ms"].get<double>(),
+      r["beat_p99_ms"].get<double>(), static_cast<unsigned long long>(r["failed"].get<uint64_t>()),
+      r["nodes_down"].get<size_t>());
+}
+
 int Heartbeats(const std::vector<std::string>& args) {
   ArgParser p("vsurg-bench heartbeats",
               "The control plane's store writes per second for many simulated nodes' heartbeats:\n"
@@ -574,101 +674,32 @@ int Heartbeats(const std::vector<std::string>& args) {
   p.Option("postgres", ArgParser::Kind::kString,
            "a PostgreSQL server's maintenance database URI (deploy/postgres.sh)", true)
       .Option("nodes", ArgParser::Kind::kInt, "simulated nodes", false, "1000")
+      .Within({1, 5000})
       .Option("seconds", ArgParser::Kind::kDouble, "measured seconds per configuration", false,
               "15")
+      .Within({2, 600})
       .Option("store-lease", ArgParser::Kind::kDouble, "the in-memory configuration's, s", false,
               "10")
       .Option("rounds", ArgParser::Kind::kInt, "alternations of the two configurations", false, "2")
+      .Within({1, 10})
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
-  if (Status s = p.Parse(args); !s.ok()) {
-    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
-    return 2;
-  }
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
-  const int nodes = p.Int("nodes"), rounds = p.Int("rounds");
-  const double seconds = p.Double("seconds");
-  if (nodes < 1 || nodes > 5000 || !(seconds >= 2 && seconds <= 600) || rounds < 1 || rounds > 10) {
-    std::cerr << p.command() << ": --nodes 1..5000, --seconds 2..600, --rounds 1..10\n";
-    return 2;
-  }
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const std::string admin = p.String("postgres");
-  const std::string token = "bench-cluster-token-0123456789";
-  // The simulated nodes' internal port: listening, never accepting (the kernel completes the
-  // probes' handshakes).
-  const int listener = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof addr;
-  if (listener < 0 || ::bind(listener, reinterpret_cast<sockaddr*>(&addr), len) != 0 ||
-      ::listen(listener, 4096) != 0 ||
-      ::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
-    std::cerr << p.command() << ": cannot listen on loopback\n";
-    return 1;
-  }
-  const int node_port = ntohs(addr.sin_port);
+  int listener = -1;
+  const int node_port = SilentListener(listener);
+  if (node_port < 0) return std::cerr << p.command() << ": cannot listen on loopback\n", 1;
   json runs = json::array();
-  for (int round = 0; round < rounds; ++round)
+  for (int round = 0; round < p.Int("rounds"); ++round)
     for (const bool in_memory : {false, true}) {
       const std::string name = "vsurg_beats_" + std::to_string(getpid()) + "_" +
                                std::to_string(round) + (in_memory ? "m" : "w");
       if (!PostgresAdmin(admin, "CREATE DATABASE " + name)) return 1;
-      const std::string uri = admin.substr(0, admin.rfind('/') + 1) + name;
-      json r;
-      {
-        auto store = std::move(db::Store::Open({.path = uri})).value();
-        server::cluster::ClusterOptions co;
-        co.token = token;
-        co.listen = "127.0.0.1:0";
-        // Every heartbeat written: a store lease no longer than the timeout and two periods.
-        co.store_lease_s = in_memory ? p.Double("store-lease") : co.heartbeat_timeout_s;
-        auto control = std::move(server::cluster::ClusterSessions::Start(*store, co)).value();
-        const int threads = 4;
-        HeartbeatLoad load;
-        // Acquisitions first (one transaction each), then the measured window.
-        const double settle = 2 + nodes / 500.0;
-        const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                              std::chrono::duration<double>(settle + seconds));
-        std::vector<std::thread> pool;
-        for (int t = 0; t < threads; ++t) {
-          const int first = nodes * t / threads, last = nodes * (t + 1) / threads;
-          pool.emplace_back(BeatNodes, first, last - first, nodes, control->port(), node_port,
-                            token, co.heartbeat_period_s, until, std::ref(load));
-        }
-        std::this_thread::sleep_for(std::chrono::duration<double>(settle));
-        const db::StoreStats a = store->stats();
-        const uint64_t sent0 = load.sent.load();
-        std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
-        const db::StoreStats b = store->stats();
-        const uint64_t sent1 = load.sent.load();
-        for (auto& t : pool) t.join();
-        const auto listed = store->ListNodes().value();
-        size_t down = 0;
-        for (const auto& n : listed) down += n.down;
-        control->Shutdown();
-        r = {{"mode", in_memory ? "in_memory" : "every_beat"},
-             {"store_lease_s", co.store_lease_s},
-             {"nodes", nodes},
-             {"heartbeats_per_s", static_cast<double>(sent1 - sent0) / seconds},
-             {"store_writes_per_s", static_cast<double>(b.jobs - a.jobs) / seconds},
-             {"store_commits_per_s", static_cast<double>(b.commits - a.commits) / seconds},
-             {"failed", load.failed.load()},
-             {"nodes_down", down},
-             {"beat_p50_ms", Percentile(load.latency_ms, 0.5)},
-             {"beat_p99_ms", Percentile(load.latency_ms, 0.99)}};
-      }
+      const json r = HeartbeatRound({admin.substr(0, admin.rfind('/') + 1) + name,
+                                     "bench-cluster-token-0123456789", p.Int("nodes"), node_port,
+                                     p.Double("seconds"), p.Double("store-lease"), in_memory});
       PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
       runs.push_back(r);
-      if (!p.Flag("json"))
-        std::printf(
-            "%-10s store lease %4.1f s, %d nodes: %7.0f heartbeats/s  %7.1f store writes/s "
-            "(%6.1f commits/s)  heartbeat p50 %.2f ms p99 %.2f ms  failed %llu  down %zu\n",
-            r["mode"].get<std::string>().c_str(), r["store_lease_s"].get<double>(), nodes,
-            r["heartbeats_per_s"].get<double>(), r["store_writes_per_s"].get<double>(),
-            r["store_commits_per_s"].get<double>(), r["beat_p50_ms"].get<double>(),
-            r["beat_p99_ms"].get<double>(),
-            static_cast<unsigned long long>(r["failed"].get<uint64_t>()),
-            r["nodes_down"].get<size_t>());
+      if (!p.Flag("json")) PrintHeartbeatRound(r);
     }
   ::close(listener);
   if (p.Flag("json")) std::cout << json{{"runs", runs}}.dump() << "\n";
@@ -688,6 +719,75 @@ double ReceivedBytes(const server::cluster::ClusterSessions& c) {
   const size_t at = m.str().find(key);
   return at == std::string::npos ? 0 : std::stod(m.str().substr(at + key.size()));
 }
+
+// Every session's station: the stylus pressing 2–6 mm into the sphere's top and back once a
+// second, 500 Hz, so each surface is deformed and moving (a surface state holds the vertices away
+// from rest; a stream sends one per new frame). Until `driving` falls.
+void PressEverySession(const std::vector<server::CreatedSession>& created,
+                       const std::atomic<bool>& driving) {
+  boost::asio::io_context io;
+  boost::asio::ip::udp::socket sock(io, boost::asio::ip::udp::v4());
+  wire::Codec codec;
+  std::vector<uint8_t> buf(wire::kMaxDatagram);
+  const auto t0 = Clock::now();
+  for (uint64_t seq = 1; driving; ++seq) {
+    for (const server::CreatedSession& c : created) {
+      wire::StylusMessage m;
+      m.sample.time = std::chrono::duration<double>(Clock::now() - t0).count();
+      m.sample.position = Eigen::Vector3d(0, 0, 0.046 + 0.002 * std::sin(6.2832 * m.sample.time));
+      const size_t n = codec.EncodeStylus(m,
+                                          {wire::kProtocolVersion, wire::PayloadType::kStylusState,
+                                           static_cast<uint64_t>(c.record.id), seq},
+                                          wire::Authenticator(c.key), buf);
+      boost::system::error_code ec;
+      sock.send_to(boost::asio::buffer(buf.data(), n),
+                   {boost::asio::ip::make_address(c.udp_host), c.udp_port}, 0, ec);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+}
+
+// The former way, bytes per second: every node's whole telemetry at the telemetry rate.
+Expected<double> PolledBytesPerSecond(db::Store& control_store, const std::string& token,
+                                      double telemetry_hz, double seconds) {
+  std::vector<std::unique_ptr<v1::NodeService::Stub>> stubs;
+  const auto listed = control_store.ListNodes();
+  if (!listed.ok()) return listed.error();
+  for (const auto& n : *listed)
+    stubs.push_back(v1::NodeService::NewStub(
+        grpc::CreateChannel(n.grpc_address, grpc::InsecureChannelCredentials())));
+  double bytes = 0;
+  const auto window = std::chrono::duration<double>(seconds);
+  const auto t0 = Clock::now();
+  for (auto next = t0; Clock::now() - t0 < window;) {
+    for (auto& stub : stubs) {
+      grpc::ClientContext ctx;
+      ctx.AddMetadata("authorization", "Bearer " + token);
+      v1::NodeTelemetry reply;
+      if (stub->Telemetry(&ctx, {}, &reply).ok()) bytes += reply.ByteSizeLong();
+    }
+    next += std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / telemetry_hz));
+    std::this_thread::sleep_until(next);
+  }
+  return bytes / seconds;
+}
+
+// The streams, bytes per second received while `watched` (0: the overview) are subscribed.
+double StreamedBytesPerSecond(server::cluster::ClusterSessions& control,
+                              const std::vector<uint64_t>& watched, double seconds) {
+  std::vector<uint64_t> tokens;
+  for (uint64_t id : watched)
+    tokens.push_back(control.Subscribe(id, [](const std::vector<sim::SessionTelemetry>&, bool) {}));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the streams open
+  const double b0 = ReceivedBytes(control);
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  const double b1 = ReceivedBytes(control);
+  for (uint64_t t : tokens) control.Unsubscribe(t);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // and close
+  return (b1 - b0) / seconds;
+}
+
 }  // namespace
 
 int TelemetryBench(const std::vector<std::string>& args) {
@@ -699,21 +799,16 @@ int TelemetryBench(const std::vector<std::string>& args) {
   p.Option("postgres", ArgParser::Kind::kString,
            "a PostgreSQL server's maintenance database URI (deploy/postgres.sh)", true)
       .Option("nodes", ArgParser::Kind::kInt, "simulation nodes", false, "3")
+      .Within({1, 16})
       .Option("sessions", ArgParser::Kind::kInt, "live sessions per node", false, "8")
+      .Within({1, 64})
       .Option("seconds", ArgParser::Kind::kDouble, "seconds per way", false, "5")
+      .Within({1, 3600})
       .Option("scene", ArgParser::Kind::kString, "scene (a sphere, pressed 2-6 mm at its top)",
               false, "sphere-palpation-1024");
-  if (Status s = p.Parse(args); !s.ok()) {
-    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
-    return 2;
-  }
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
   const int nodes = p.Int("nodes"), per_node = p.Int("sessions");
   const double seconds = p.Double("seconds");
-  if (nodes < 1 || nodes > 16 || per_node < 1 || per_node > 64 || !(seconds >= 1)) {
-    std::cerr << p.command() << ": --nodes 1..16, --sessions 1..64, --seconds >= 1\n";
-    return 2;
-  }
   const std::string admin = p.String("postgres");
   const std::string name = "vsurg_telemetry_" + std::to_string(getpid());
   if (!PostgresAdmin(admin, "CREATE DATABASE " + name)) return 1;
@@ -726,90 +821,29 @@ int TelemetryBench(const std::vector<std::string>& args) {
     co.listen = "127.0.0.1:0";
     co.max_sessions_per_user = 1 << 20;
     BenchSite site(uri, co, nodes, true);
-    auto& control = site.control;
-    auto& control_store = site.control_store;
     std::vector<uint64_t> ids;
     std::vector<server::CreatedSession> created;
     for (int k = 0; k < nodes * per_node; ++k) {
-      auto c = control->Create("trainee-" + std::to_string(k), p.String("scene"));
+      auto c = site.control->Create("trainee-" + std::to_string(k), p.String("scene"));
       if (!c.ok()) return std::cerr << p.command() << ": " << c.error().message << "\n", 1;
-      if (auto st = control->Start(c->record.id); !st.ok())
+      if (auto st = site.control->Start(c->record.id); !st.ok())
         return std::cerr << p.command() << ": " << st.error().message << "\n", 1;
       ids.push_back(static_cast<uint64_t>(c->record.id));
       created.push_back(*c);
     }
-    // Every session's station: the stylus pressing 2–6 mm into the sphere's top and back once a
-    // second, 500 Hz, so each surface is deformed and moving (a surface state holds the vertices
-    // away from rest; a stream sends one per new frame).
     std::atomic<bool> driving{true};
-    std::thread stations([&] {
-      boost::asio::io_context io;
-      boost::asio::ip::udp::socket sock(io, boost::asio::ip::udp::v4());
-      wire::Codec codec;
-      std::vector<uint8_t> buf(wire::kMaxDatagram);
-      const auto t0 = Clock::now();
-      for (uint64_t seq = 1; driving; ++seq) {
-        for (const server::CreatedSession& c : created) {
-          wire::StylusMessage m;
-          m.sample.time = std::chrono::duration<double>(Clock::now() - t0).count();
-          m.sample.position =
-              Eigen::Vector3d(0, 0, 0.046 + 0.002 * std::sin(6.2832 * m.sample.time));
-          const size_t n =
-              codec.EncodeStylus(m,
-                                 {wire::kProtocolVersion, wire::PayloadType::kStylusState,
-                                  static_cast<uint64_t>(c.record.id), seq},
-                                 wire::Authenticator(c.key), buf);
-          boost::system::error_code ec;
-          sock.send_to(boost::asio::buffer(buf.data(), n),
-                       {boost::asio::ip::make_address(c.udp_host), c.udp_port}, 0, ec);
-        }
-        std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      }
-    });
+    std::thread stations(PressEverySession, std::cref(created), std::cref(driving));
     std::this_thread::sleep_for(std::chrono::seconds(1));  // pressed in
-    const auto window = std::chrono::duration<double>(seconds);
-    // The former way: every node's whole telemetry at the telemetry rate.
-    {
-      std::vector<std::unique_ptr<v1::NodeService::Stub>> stubs;
-      const auto listed = control_store->ListNodes();
-      if (!listed.ok())
-        return std::cerr << p.command() << ": " << listed.error().message << "\n", 1;
-      for (const auto& n : *listed)
-        stubs.push_back(v1::NodeService::NewStub(
-            grpc::CreateChannel(n.grpc_address, grpc::InsecureChannelCredentials())));
-      double bytes = 0;
-      const auto t0 = Clock::now();
-      for (auto next = t0; Clock::now() - t0 < window;) {
-        for (auto& stub : stubs) {
-          grpc::ClientContext ctx;
-          ctx.AddMetadata("authorization", "Bearer " + token);
-          v1::NodeTelemetry reply;
-          if (stub->Telemetry(&ctx, {}, &reply).ok()) bytes += reply.ByteSizeLong();
-        }
-        next += std::chrono::duration_cast<Clock::duration>(
-            std::chrono::duration<double>(1.0 / co.telemetry_hz));
-        std::this_thread::sleep_until(next);
-      }
-      poll_bps = bytes / seconds;
+    auto polled = PolledBytesPerSecond(*site.control_store, token, co.telemetry_hz, seconds);
+    if (polled.ok()) {
+      poll_bps = *polled;
+      overview_bps = StreamedBytesPerSecond(*site.control, {0}, seconds);
+      viewed_bps = StreamedBytesPerSecond(*site.control, {0, ids.front()}, seconds);
     }
-    auto measure = [&](std::vector<uint64_t> watched) {
-      std::vector<uint64_t> tokens;
-      for (uint64_t id : watched)
-        tokens.push_back(
-            control->Subscribe(id, [](const std::vector<sim::SessionTelemetry>&, bool) {}));
-      std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the streams open
-      const double b0 = ReceivedBytes(*control);
-      std::this_thread::sleep_for(window);
-      const double b1 = ReceivedBytes(*control);
-      for (uint64_t t : tokens) control->Unsubscribe(t);
-      std::this_thread::sleep_for(std::chrono::milliseconds(300));  // and close
-      return (b1 - b0) / seconds;
-    };
-    overview_bps = measure({0});
-    viewed_bps = measure({0, ids.front()});
     driving = false;
     stations.join();
     site.Stop();
+    if (!polled.ok()) return std::cerr << p.command() << ": " << polled.error().message << "\n", 1;
   }
   PostgresAdmin(admin, "DROP DATABASE " + name + " WITH (FORCE)");
   std::printf(

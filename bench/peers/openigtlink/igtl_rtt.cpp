@@ -114,6 +114,59 @@ void Read(Client* c) {
   }
 }
 
+// The pacing: as haptic-rtt's, slot k of 8 every 125 µs, each client's pose request in its slot
+// until the warm-up and the measured seconds are over.
+void Pace(std::vector<std::unique_ptr<Client>>& clients, int n, double seconds) {
+  auto stamp = igtl::TimeStamp::New();
+  const double total = kWarmupS + seconds;
+  Clock::time_point next = Clock::now();
+  for (int slot = 0;; slot = (slot + 1) % kSlots) {
+    const double t = NowS();
+    if (t > total) break;
+    for (int k = slot; k < n; k += kSlots) {
+      Client& c = *clients[static_cast<size_t>(k)];
+      igtl::Matrix4x4 pose;
+      igtl::IdentityMatrix(pose);
+      pose[0][3] = 0.02f;  // m
+      pose[1][3] = 0.0005f;
+      pose[2][3] = 0.1f;
+      c.message->SetMatrix(pose);
+      const double now = NowS();
+      stamp->SetTimeInNanoseconds(static_cast<igtlUint64>(now * 1e9));
+      c.message->SetTimeStamp(stamp);
+      c.message->Pack();
+      if (c.socket->Send(c.message->GetPackPointer(), c.message->GetPackSize()) != 0 &&
+          now >= kWarmupS)
+        ++c.sent;
+    }
+    next += std::chrono::microseconds(1000 / kSlots);
+    std::this_thread::sleep_until(next);
+  }
+}
+
+// One JSON line: requests sent and answered after the warm-up, the loss, the round trip's
+// percentiles over every client.
+void Report(const std::vector<std::unique_ptr<Client>>& clients, int n, double seconds) {
+  std::vector<double> rtt;
+  uint64_t sent = 0, received = 0;
+  for (auto& c : clients) {
+    sent += c->sent;
+    received += c->received;
+    rtt.insert(rtt.end(), c->rtt_us.begin(), c->rtt_us.end());
+  }
+  std::sort(rtt.begin(), rtt.end());
+  auto pct = [&](double q) {
+    return rtt.empty() ? 0.0 : rtt[std::min(rtt.size() - 1, static_cast<size_t>(q * rtt.size()))];
+  };
+  const double loss =
+      sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
+  std::printf(
+      "{\"stations\":%d,\"seconds\":%g,\"server\":\"openigtlink\",\"sent\":%llu,\"received\":%llu,"
+      "\"loss\":%g,\"rtt_p50_us\":%.3f,\"rtt_p99_us\":%.3f,\"rtt_p999_us\":%.3f}\n",
+      n, seconds, static_cast<unsigned long long>(sent), static_cast<unsigned long long>(received),
+      loss, pct(0.5), pct(0.99), pct(0.999));
+}
+
 int Usage() {
   std::fprintf(stderr, "usage: igtl_rtt --stations N --seconds S\n");
   return 2;
@@ -165,32 +218,7 @@ int main(int argc, char** argv) {
   g_start = Clock::now();
   for (auto& c : clients) c->reader = std::thread(Read, c.get());
 
-  // The pacing thread: as haptic-rtt's, slot k of 8 every 125 µs.
-  auto stamp = igtl::TimeStamp::New();
-  const double total = kWarmupS + seconds;
-  Clock::time_point next = Clock::now();
-  for (int slot = 0;; slot = (slot + 1) % kSlots) {
-    const double t = NowS();
-    if (t > total) break;
-    for (int k = slot; k < n; k += kSlots) {
-      Client& c = *clients[static_cast<size_t>(k)];
-      igtl::Matrix4x4 pose;
-      igtl::IdentityMatrix(pose);
-      pose[0][3] = 0.02f;  // m
-      pose[1][3] = 0.0005f;
-      pose[2][3] = 0.1f;
-      c.message->SetMatrix(pose);
-      const double now = NowS();
-      stamp->SetTimeInNanoseconds(static_cast<igtlUint64>(now * 1e9));
-      c.message->SetTimeStamp(stamp);
-      c.message->Pack();
-      if (c.socket->Send(c.message->GetPackPointer(), c.message->GetPackSize()) != 0 &&
-          now >= kWarmupS)
-        ++c.sent;
-    }
-    next += std::chrono::microseconds(1000 / kSlots);
-    std::this_thread::sleep_until(next);
-  }
+  Pace(clients, n, seconds);
   // Done: each client says so after its last request; its server thread then closes the
   // connection, which ends the client's reader once the last answers are in.
   for (auto& c : clients) {
@@ -199,28 +227,11 @@ int main(int argc, char** argv) {
     stop->Pack();
     c->socket->Send(stop->GetPackPointer(), stop->GetPackSize());
   }
-  std::vector<double> rtt;
-  uint64_t sent = 0, received = 0;
   for (auto& c : clients) {
     if (c->reader.joinable()) c->reader.join();
     c->socket->CloseSocket();
   }
   for (auto& t : served) t.join();
-  for (auto& c : clients) {
-    sent += c->sent;
-    received += c->received;
-    rtt.insert(rtt.end(), c->rtt_us.begin(), c->rtt_us.end());
-  }
-  std::sort(rtt.begin(), rtt.end());
-  auto pct = [&](double q) {
-    return rtt.empty() ? 0.0 : rtt[std::min(rtt.size() - 1, static_cast<size_t>(q * rtt.size()))];
-  };
-  const double loss =
-      sent ? std::max(0.0, 1.0 - static_cast<double>(received) / static_cast<double>(sent)) : 0.0;
-  std::printf(
-      "{\"stations\":%d,\"seconds\":%g,\"server\":\"openigtlink\",\"sent\":%llu,\"received\":%llu,"
-      "\"loss\":%g,\"rtt_p50_us\":%.3f,\"rtt_p99_us\":%.3f,\"rtt_p999_us\":%.3f}\n",
-      n, seconds, static_cast<unsigned long long>(sent), static_cast<unsigned long long>(received),
-      loss, pct(0.5), pct(0.99), pct(0.999));
+  Report(clients, n, seconds);
   return 0;
 }
