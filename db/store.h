@@ -296,6 +296,13 @@ class Store {
   // A new token for the user; the plain token is returned once and never stored.
   Expected<std::string> IssueToken(const std::string& user, const std::string& label);
   Status RevokeTokens(const std::string& user);
+  // A sign-in through the site's identity provider (OpenID Connect): the user is created with the
+  // provider's role when unknown; a disabled account, or one whose role here differs from the
+  // provider's, is refused (kPermissionDenied, naming it). Returns a new token for the web session
+  // (label kFederatedLabel, never shown to anyone); this user's earlier such tokens older than
+  // `session_ttl_s` (their web sessions have expired) are revoked in the same transaction.
+  Expected<std::string> SignInFederated(const std::string& user, Role role, double session_ttl_s);
+  static constexpr const char* kFederatedLabel = "oidc-web";
   // `vsurg-admin init`: creates the first admin and a token; fails when any admin exists.
   Expected<std::string> InitAdmin(const std::string& name);
 

@@ -117,6 +117,49 @@ Status Store::RevokeTokens(const std::string& user) {
   });
 }
 
+Expected<std::string> Store::SignInFederated(const std::string& user, Role role,
+                                             double session_ttl_s) {
+  auto token = NewToken();
+  if (!token.ok()) return token.error();
+  Status s = Write([&](Connection& c) -> Status {
+    int64_t id = 0;
+    {
+      auto st = c.Prepare("SELECT id, role, disabled FROM users WHERE name = ?1");
+      if (!st.ok()) return st.error();
+      (*st)->Bind(1, user);
+      auto row = (*st)->Step();
+      if (!row.ok()) return row.error();
+      if (*row) {
+        id = (*st)->Int(0);
+        if ((*st)->Int(2) != 0)
+          return Error{ErrorCode::kPermissionDenied, "the account '" + user + "' is disabled",
+                       "user"};
+        if (ParseRole((*st)->Text(1)) != role)
+          return Error{ErrorCode::kPermissionDenied,
+                       "the account '" + user + "' has the role " + std::string((*st)->Text(1)) +
+                           " here, and the identity provider says " + RoleName(role) +
+                           "; an administrator reconciles the two",
+                       "role"};
+      }
+    }
+    if (id == 0) {
+      if (Status st = InsertUser(c, user, role, "", id); !st.ok()) return st;
+    }
+    // The web sessions' tokens of this user that outlived their sessions: revoked.
+    Status old = RunSql(c,
+                        "UPDATE tokens SET revoked = 1 WHERE user_id = ?1 AND label = ?2 "
+                        "AND created_us < ?3",
+                        [&](Statement& st) {
+                          st.Bind(1, id).Bind(2, kFederatedLabel);
+                          st.Bind(3, NowUs() - static_cast<int64_t>(session_ttl_s * 1e6));
+                        });
+    if (!old.ok()) return old;
+    return InsertToken(c, id, *token, kFederatedLabel);
+  });
+  if (!s.ok()) return s.error();
+  return token;
+}
+
 Expected<std::string> Store::InitAdmin(const std::string& name) {
   auto token = NewToken();
   if (!token.ok()) return token.error();

@@ -9,6 +9,8 @@
 # PyYAML for the Kubernetes manifests' check (deploy/k8s/check.py), the openssl command for the
 # internal API's certificates (deploy/cluster_certs.sh), METIS for the FEM's sparse Cholesky.
 # CLI11 splits every tool's command line (common/core/args.h).
+# Glewlwyd (with sqlite3 and curl to set it up) is the OpenID Connect identity provider the
+# dashboard's sign-in is tested against (deploy/oidc_provider.sh).
 VSURG_PACKAGES=(
   cmake ninja-build g++ lld
   libeigen3-dev libmetis-dev nlohmann-json3-dev libcli11-dev
@@ -20,6 +22,7 @@ VSURG_PACKAGES=(
   libimgui-dev libfreetype-dev fonts-dejavu-core
   libassimp-dev libcgal-dev
   postgresql libpq-dev python3-yaml python3-prometheus-client openssl
+  glewlwyd sqlite3 curl
 )
 
 # The fuzzers and the sanitizer builds (deploy/fuzz.sh, deploy/sanitize.sh): clang with libFuzzer's

@@ -1,5 +1,7 @@
 #include "server/server_options.h"
 
+#include "server/http/oidc.h"
+
 #include <unistd.h>
 
 #include <algorithm>
@@ -123,6 +125,22 @@ void DeclareNetwork(ArgParser& p) {
       .Option("metrics-token-file", Kind::kString,
               "file holding a token (>= 16 characters) that reads GET /api/v1/metrics and "
               "nothing else: Prometheus' (without it, an administrator's token)")
+      .Option("oidc-issuer", Kind::kString,
+              "the dashboard's sign-in through an OpenID Connect identity provider: its issuer "
+              "URL (discovery at ISSUER/.well-known/openid-configuration); tokens still work")
+      .Option("oidc-client-id", Kind::kString, "this server's client id at the provider")
+      .Option("oidc-client-secret-file", Kind::kString,
+              "file holding the client's secret (none: a public client, PKCE alone)")
+      .Option("oidc-redirect-uri", Kind::kString,
+              "the callback as registered at the provider: "
+              "https://HOST/api/v1/signin/oidc/callback")
+      .Option("oidc-username-claim", Kind::kString, "the ID token's claim naming the user", false,
+              "preferred_username")
+      .Option("oidc-role-claim", Kind::kString,
+              "the ID token's claim giving the role (a string or a list, e.g. groups)", false,
+              "vsurg_role")
+      .Option("oidc-role-map", Kind::kString,
+              "the claim's values to roles, VALUE=ROLE,... (none: the value is the role's name)")
       .Option("log-format", Kind::kString,
               "the event log on stderr: logfmt (key=value lines) or json (one object a line; "
               "every line about a session carries its id as `session`)",
@@ -253,6 +271,30 @@ void ReadSessions(const cli::ArgParser& p, ServerSettings& s) {
   n.migrate_on_drain = !p.Flag("drain-wait");
 }
 
+// The identity provider's relying party, from the --oidc-* options (it asks the provider nothing
+// yet: discovery happens at the first sign-in).
+Expected<std::shared_ptr<http::OidcRelyingParty>> ReadOidc(const cli::ArgParser& p) {
+  http::OidcOptions o;
+  o.issuer = p.String("oidc-issuer");
+  o.client_id = p.String("oidc-client-id");
+  o.redirect_uri = p.String("oidc-redirect-uri");
+  o.username_claim = p.String("oidc-username-claim");
+  o.role_claim = p.String("oidc-role-claim");
+  if (p.Has("oidc-client-secret-file")) {
+    auto secret = ReadSecret(p, "oidc-client-secret-file", 1);
+    if (!secret.ok()) return secret.error();
+    o.client_secret = *secret;
+  }
+  if (p.Has("oidc-role-map")) {
+    auto map = http::ParseRoleMap(p.String("oidc-role-map"));
+    if (!map.ok()) return map.error();
+    o.role_map = std::move(*map);
+  }
+  auto rp = http::OidcRelyingParty::Create(std::move(o));
+  if (!rp.ok()) return Bad(rp.error().field, rp.error().message);
+  return std::shared_ptr<http::OidcRelyingParty>(std::move(*rp));
+}
+
 Status ReadFrontDoors(const cli::ArgParser& p, ServerSettings& s) {
   ControlPlaneOptions& co = s.control;
   co.listen = p.String("listen");
@@ -277,6 +319,11 @@ Status ReadFrontDoors(const cli::ArgParser& p, ServerSettings& s) {
     auto token = ReadSecret(p, "metrics-token-file", 16);
     if (!token.ok()) return token.error();
     ho.metrics_token = *token;
+  }
+  if (p.Has("oidc-issuer")) {
+    auto oidc = ReadOidc(p);
+    if (!oidc.ok()) return oidc.error();
+    ho.oidc = std::move(*oidc);
   }
   const std::string list = p.String("http-hosts");
   for (size_t at = 0; at < list.size();) {

@@ -380,6 +380,13 @@ HttpReply HttpApi::Api(const HttpRequest& r, const std::string& path,
   if (!get && !post)
     return ErrorReply(Error{ErrorCode::kInvalidArgument, "method not allowed", "method"});
   if (seg.size() == 1 && seg[0] == "signin" && post) return SignIn(r);
+  // The ways to sign in (the sign-in page offers the provider's when there is one), and the
+  // provider's way there and back.
+  if (get && seg.size() == 2 && seg[0] == "signin" && seg[1] == "methods")
+    return Ok({{"token", true}, {"oidc", options_.oidc != nullptr}});
+  if (get && seg.size() == 2 && seg[0] == "signin" && seg[1] == "oidc") return OidcBegin(r);
+  if (get && seg.size() == 3 && seg[0] == "signin" && seg[1] == "oidc" && seg[2] == "callback")
+    return OidcCallback(r, query);
 
   // Authentication: a bearer header (scripts), else the cookie (pages). Then CSRF for writes.
   // Tokens are 256-bit secrets, so guessing one is hopeless; failures are still counted, logged

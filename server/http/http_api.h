@@ -39,6 +39,8 @@ class MetricsRegistry;
 
 namespace vsurg::server::http {
 
+class OidcRelyingParty;  // server/http/oidc.h
+
 struct HttpRequest {
   std::string method;  // GET, POST, …
   std::string target;  // as sent: path and query
@@ -110,6 +112,8 @@ struct HttpApiOptions {
   // A token that reads GET /api/v1/metrics and nothing else (Prometheus'; empty: none). It is no
   // user's: a leaked one shows aggregate figures, never a name or a session.
   std::string metrics_token;
+  // The site's identity provider (OpenID Connect) for sign-in besides tokens; null: none.
+  std::shared_ptr<OidcRelyingParty> oidc;
 };
 
 class HttpApi {
@@ -150,6 +154,10 @@ class HttpApi {
   HttpReply Page(const HttpRequest& r, const std::string& path);
   HttpReply MetricsReply() const;
   HttpReply SignIn(const HttpRequest& r);
+  // The identity provider's sign-in (server/http/http_signin_oidc.cpp).
+  HttpReply OidcBegin(const HttpRequest& r);
+  HttpReply OidcCallback(const HttpRequest& r,
+                         const std::multimap<std::string, std::string>& query);
   // A deferred reply whose `work` runs on a read worker (the answer of a long read), in the
   // caller's fair share of them (server/http/fair_workers.h).
   HttpReply OffThread(const db::Principal& p, std::function<HttpReply()> work);

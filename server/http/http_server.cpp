@@ -830,6 +830,7 @@ Expected<std::unique_ptr<HttpServer>> HttpServer::Start(db::Store& store, Sessio
   ao.metrics = options.metrics;
   ao.metrics_only = options.metrics_only;
   ao.metrics_token = options.metrics_token;
+  ao.oidc = options.oidc;
   impl->api = std::make_unique<HttpApi>(impl->domain, ao);
   impl->acceptor.emplace(impl->shared->io);
   const tcp::endpoint endpoint(address, static_cast<uint16_t>(port));

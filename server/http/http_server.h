@@ -46,6 +46,9 @@ class MetricsRegistry;
 }
 
 namespace vsurg::server {
+namespace http {
+class OidcRelyingParty;
+}  // namespace http
 
 class Sessions;
 
@@ -81,6 +84,8 @@ struct HttpServerOptions {
   // to show and to create); everything else is 404.
   bool metrics_only = false;
   std::string metrics_token;  // HttpApiOptions::metrics_token
+  // The site's identity provider for the dashboard's sign-in (server/http/oidc.h); null: none.
+  std::shared_ptr<http::OidcRelyingParty> oidc;
 };
 
 struct HttpCounters {

@@ -136,6 +136,44 @@ TEST_P(StoreTest, TokensAreStoredHashedAndAuthenticateToTheirUser) {
   EXPECT_EQ(store_->Authenticate(*admin).error().code, ErrorCode::kUnauthenticated);
 }
 
+// A sign-in through the identity provider: an unknown user is created with the provider's role
+// and given a web session's token; a known one with that role is given another; a disabled
+// account or one whose role here differs is refused naming it, twice in a row, and writes nothing.
+TEST_P(StoreTest, AFederatedSignInCreatesTheUserOrRefusesByName) {
+  auto first = store_->SignInFederated("dr-lee", Role::kInstructor, 3600);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  auto p = store_->Authenticate(*first);
+  ASSERT_TRUE(p.ok());
+  EXPECT_EQ(p->name, "dr-lee");
+  EXPECT_EQ(p->role, Role::kInstructor);
+  auto second = store_->SignInFederated("dr-lee", Role::kInstructor, 3600);
+  ASSERT_TRUE(second.ok());
+  EXPECT_NE(*second, *first);
+  EXPECT_TRUE(store_->Authenticate(*first).ok()) << "a web session within its lifetime stays";
+  // A ttl of 0: every earlier web session's token has outlived it and is revoked.
+  auto third = store_->SignInFederated("dr-lee", Role::kInstructor, 0);
+  ASSERT_TRUE(third.ok());
+  EXPECT_EQ(store_->Authenticate(*first).error().code, ErrorCode::kUnauthenticated);
+  EXPECT_TRUE(store_->Authenticate(*third).ok());
+  for (int twice = 0; twice < 2; ++twice) {
+    const auto other = store_->SignInFederated("dr-lee", Role::kAdmin, 3600);
+    ASSERT_FALSE(other.ok());
+    EXPECT_EQ(other.error().code, ErrorCode::kPermissionDenied);
+    EXPECT_EQ(other.error().field, "role");
+  }
+  ASSERT_TRUE(store_->SetUserDisabled("dr-lee", true).ok());
+  for (int twice = 0; twice < 2; ++twice) {
+    const auto off = store_->SignInFederated("dr-lee", Role::kInstructor, 3600);
+    ASSERT_FALSE(off.ok());
+    EXPECT_EQ(off.error().code, ErrorCode::kPermissionDenied);
+    EXPECT_NE(off.error().message.find("disabled"), std::string::npos);
+  }
+  EXPECT_EQ(store_->SignInFederated("", Role::kTrainee, 3600).error().field, "name");
+  auto users = store_->ListUsers();
+  ASSERT_TRUE(users.ok());
+  EXPECT_EQ(users->size(), 1u);
+}
+
 TEST_P(StoreTest, ASubmissionIsNineRawRowsAndARetryIsNotASecond) {
   ASSERT_TRUE(store_->InitAdmin("root").ok());
   auto r = store_->SubmitEvaluation(Valid("k1"));

@@ -36,8 +36,9 @@ def api(port, method, path, token, body=None, raw=False):
         return text if raw else (json.loads(text) if text else None)
 
 
-def chrome(width, height, prefs=None, console=False):
-    """Headless Chromium at width × height on the software renderer."""
+def chrome(width, height, prefs=None, console=False, performance=False):
+    """Headless Chromium at width × height on the software renderer; `console` keeps the page's
+    console, `performance` the network events (driver.get_log)."""
     options = webdriver.ChromeOptions()
     options.binary_location = "/usr/bin/chromium"
     for flag in ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
@@ -47,8 +48,9 @@ def chrome(width, height, prefs=None, console=False):
         options.add_argument(flag)
     if prefs:
         options.add_experimental_option("prefs", prefs)
-    if console:
-        options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    logs = {**({"browser": "ALL"} if console else {}), **({"performance": "ALL"} if performance else {})}
+    if logs:
+        options.set_capability("goog:loggingPrefs", logs)
     return webdriver.Chrome(options=options, service=Service(executable_path="/usr/bin/chromedriver"))
 
 

@@ -1,4 +1,4 @@
-// Sign-in with an access token.
+// Sign-in with an access token, or through the site's identity provider when it has one.
 import { api, auth } from '../api.js';
 import { el, message } from '../dom.js';
 import { PAGES } from '../nav.js';
@@ -17,5 +17,12 @@ export function pageSignIn(main) {
       location.href = PAGES.some((p) => p.page === next) ? '/' + next : '/';
     } catch (err) { message(note, err.message); }
   });
-  main.replaceChildren(el('div', { class: 'panel signin' }, el('h1', {}, 'Sign in to vsurg'), form, note));
+  const panel = el('div', { class: 'panel signin' }, el('h1', {}, 'Sign in to vsurg'), form, note);
+  main.replaceChildren(panel);
+  // The site's identity provider, when it has one: the hospital's own account.
+  api('GET', '/signin/methods').then((m) => {
+    if (!m || !m.oidc) return;
+    panel.insertBefore(el('p', {}, el('a', { id: 'signin-oidc', class: 'button', href: '/api/v1/signin/oidc' },
+      "Sign in with your organisation's account")), form);
+  }).catch(() => {});
 }
