@@ -8,6 +8,7 @@
 #include <openssl/sha.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <vector>
 
@@ -20,46 +21,29 @@ Error Refused(const std::string& why) {
   return Error{ErrorCode::kUnauthenticated, why, "id_token"};
 }
 
-// base64url (RFC 4648 §5) without padding, in both directions.
+// base64url (RFC 4648 §5) without padding, in both directions, over OpenSSL's base64.
 std::string Base64Url(const unsigned char* data, size_t n) {
-  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_";
-  std::string out;
-  for (size_t i = 0; i < n; i += 3) {
-    const uint32_t v = (uint32_t{data[i]} << 16) | (i + 1 < n ? uint32_t{data[i + 1]} << 8 : 0) |
-                       (i + 2 < n ? uint32_t{data[i + 2]} : 0);
-    out.push_back(kAlphabet[(v >> 18) & 63]);
-    out.push_back(kAlphabet[(v >> 12) & 63]);
-    if (i + 1 < n) out.push_back(kAlphabet[(v >> 6) & 63]);
-    if (i + 2 < n) out.push_back(kAlphabet[v & 63]);
-  }
+  std::string out(4 * ((n + 2) / 3) + 1, '\0');
+  const int len =
+      EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()), data, static_cast<int>(n));
+  out.resize(static_cast<size_t>(std::max(len, 0)));
+  while (!out.empty() && out.back() == '=') out.pop_back();
+  for (char& ch : out) ch = ch == '+' ? '-' : ch == '/' ? '_' : ch;
   return out;
 }
 
 std::optional<std::string> FromBase64Url(std::string_view s) {
-  std::string out;
-  uint32_t acc = 0;
-  int bits = 0;
-  for (char ch : s) {
-    int v;
-    if (ch >= 'A' && ch <= 'Z')
-      v = ch - 'A';
-    else if (ch >= 'a' && ch <= 'z')
-      v = ch - 'a' + 26;
-    else if (ch >= '0' && ch <= '9')
-      v = ch - '0' + 52;
-    else if (ch == '-')
-      v = 62;
-    else if (ch == '_')
-      v = 63;
-    else
-      return std::nullopt;
-    acc = (acc << 6) | static_cast<uint32_t>(v);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out.push_back(static_cast<char>((acc >> bits) & 0xff));
-    }
-  }
+  if (s.size() % 4 == 1 || s.find_first_of("+/=") != std::string_view::npos) return std::nullopt;
+  std::string in(s);
+  for (char& ch : in) ch = ch == '-' ? '+' : ch == '_' ? '/' : ch;
+  const size_t pad = (4 - in.size() % 4) % 4;
+  in.append(pad, '=');
+  std::string out(in.size() / 4 * 3, '\0');
+  const int len = EVP_DecodeBlock(reinterpret_cast<unsigned char*>(out.data()),
+                                  reinterpret_cast<const unsigned char*>(in.data()),
+                                  static_cast<int>(in.size()));
+  if (len < 0) return std::nullopt;
+  out.resize(static_cast<size_t>(len) - pad);  // EVP_DecodeBlock counts the padding as zeros
   return out;
 }
 
