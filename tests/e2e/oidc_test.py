@@ -78,15 +78,21 @@ def me(driver):
         ".then(r => r.ok ? r.json() : null)")
 
 
-def through_provider(driver, wait, base, user):
+def through_provider(driver, wait, base, user, shots=False):
     """From vsurg's sign-in page through the provider's login page with `user`'s password, to
-    wherever that leads: True once back on vsurg, False when the provider kept the browser."""
+    wherever that leads: True once back on vsurg, False when the provider kept the browser.
+    `shots`: screenshots of both sign-in pages, filled in."""
     driver.delete_all_cookies()
     driver.get(base + "/signin")
+    wait.until(lambda d: d.find_elements(By.ID, "signin-oidc"))
+    if shots:
+        driver.save_screenshot(os.path.join(SHOTS, "oidc-signin.png"))
     wait.until(lambda d: clicked(d, By.ID, "signin-oidc"))
     wait.until(lambda d: d.find_elements(By.ID, "loginbut") and d.find_element(By.ID, "username").is_displayed())
     driver.find_element(By.ID, "username").send_keys(user)
     driver.find_element(By.ID, "password").send_keys(user + "-pass-1")
+    if shots:
+        driver.save_screenshot(os.path.join(SHOTS, "oidc-provider.png"))
     wait.until(lambda d: clicked(d, By.ID, "loginbut"))
 
     def next_step(d):
@@ -146,7 +152,8 @@ def main():
     wait = WebDriverWait(driver, 60)
 
     # An instructor unknown to vsurg: created with the provider's role, on the instructor's page.
-    check(through_provider(driver, wait, base, "dr-lee"), "dr-lee passes the provider's login page")
+    check(through_provider(driver, wait, base, "dr-lee", shots=True),
+          "dr-lee passes the provider's login page")
     wait.until(lambda d: d.find_elements(By.ID, "signout"))
     who = me(driver)
     check(who and who["user"] == "dr-lee" and who["role"] == "instructor",
