@@ -1,6 +1,7 @@
 // The dashboard's sign-in through the site's identity provider (server/http/oidc.h): the
-// browser's way there and back. The callback blocks on the provider, so it runs on a node-call
-// worker in the caller's address's fair share, never on the I/O thread; its answer is a page that
+// browser's way there and back. Both routes may block on the provider (its discovery at the
+// first sign-in, the code's exchange), so they run on node-call workers in the caller's
+// address's fair share, never on the I/O thread; the callback's answer is a page that
 // goes on to the dashboard by a same-site navigation (a cookie set on a cross-site redirect's
 // answer with SameSite=Strict would not be sent on that redirect's next hop).
 #include <chrono>
@@ -64,18 +65,23 @@ HttpReply HttpApi::OidcBegin(const HttpRequest& r) {
   if (const double wait = limiter_.RetryAfter(r.remote); wait > 0)
     return Refusal(Error{ErrorCode::kResourceExhausted,
                          "too many failed sign-ins from this address; try later", ""});
-  auto begun = options_.oidc->Begin(UnixNow());
-  if (!begun.ok()) return Refusal(begun.error());
-  HttpReply reply = Redirect(begun->redirect_url);
-  // Lax: the provider's redirect back is a top-level cross-site GET, which Lax cookies go with.
-  reply.headers.emplace_back(
-      "Set-Cookie",
-      std::string(kBindingCookie) + "=" + begun->binding +
-          "; Path=/api/v1/signin/oidc; HttpOnly; SameSite=Lax; Max-Age=" +
-          std::to_string(static_cast<int64_t>(options_.oidc->options().pending_ttl_s)) +
-          (options_.secure_cookies ? "; Secure" : ""));
-  reply.headers.emplace_back("Cache-Control", "no-store");
-  return reply;
+  db::Principal caller;
+  caller.name = "oidc@" + r.remote;  // the fair share: per address, before anyone is known
+  // On a worker: the first sign-in asks the provider for its discovery document.
+  return OnNodeWorker(caller, [this, remote = r.remote]() -> HttpReply {
+    auto begun = options_.oidc->Begin(UnixNow(), remote);
+    if (!begun.ok()) return Refusal(begun.error());
+    HttpReply reply = Redirect(begun->redirect_url);
+    // Lax: the provider's redirect back is a top-level cross-site GET, which Lax cookies go with.
+    reply.headers.emplace_back(
+        "Set-Cookie",
+        std::string(kBindingCookie) + "=" + begun->binding +
+            "; Path=/api/v1/signin/oidc; HttpOnly; SameSite=Lax; Max-Age=" +
+            std::to_string(static_cast<int64_t>(options_.oidc->options().pending_ttl_s)) +
+            (options_.secure_cookies ? "; Secure" : ""));
+    reply.headers.emplace_back("Cache-Control", "no-store");
+    return reply;
+  });
 }
 
 HttpReply HttpApi::OidcCallback(const HttpRequest& r,
@@ -91,7 +97,7 @@ HttpReply HttpApi::OidcCallback(const HttpRequest& r,
                          "the identity provider answered '" + error.substr(0, 64) + "'", "oidc"});
   const std::string binding(CookieValue(r.cookie, kBindingCookie).value_or(""));
   db::Principal caller;
-  caller.name = "oidc@" + r.remote;  // the fair share: per address, before anyone is known
+  caller.name = "oidc@" + r.remote;
   return OnNodeWorker(
       caller,
       [this, code = param("code"), state = param("state"), binding,

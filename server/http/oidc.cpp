@@ -252,10 +252,34 @@ Expected<OidcRelyingParty::Endpoints> OidcRelyingParty::Discover() {
   return e;
 }
 
-Expected<OidcRelyingParty::Begun> OidcRelyingParty::Begin(double now) {
+// Forgets expired sign-ins, then this address's oldest beyond its share, then the soonest to
+// expire beyond the table's bound.
+void OidcRelyingParty::MakeRoomLocked(const std::string& address, double now) {
+  std::erase_if(pending_, [&](const auto& kv) { return kv.second.expires < now; });
+  auto soonest = [&](auto keep) {
+    auto best = pending_.end();
+    size_t n = 0;
+    for (auto it = pending_.begin(); it != pending_.end(); ++it) {
+      if (!keep(it->second)) continue;
+      ++n;
+      if (best == pending_.end() || it->second.expires < best->second.expires) best = it;
+    }
+    return std::pair{best, n};
+  };
+  for (;;) {
+    auto [oldest, n] = soonest([&](const Pending& p) { return p.address == address; });
+    if (n < options_.max_pending_per_address) break;
+    pending_.erase(oldest);
+  }
+  while (pending_.size() >= options_.max_pending)
+    pending_.erase(soonest([](const Pending&) { return true; }).first);
+}
+
+Expected<OidcRelyingParty::Begun> OidcRelyingParty::Begin(double now, const std::string& address) {
   auto e = Discover();
   if (!e.ok()) return e.error();
-  Pending p{RandomUrlSafe(), RandomUrlSafe(), RandomUrlSafe(), now + options_.pending_ttl_s};
+  Pending p{RandomUrlSafe(), RandomUrlSafe(), RandomUrlSafe(), address,
+            now + options_.pending_ttl_s};
   const std::string state = RandomUrlSafe();
   if (state.empty() || p.nonce.empty() || p.verifier.empty() || p.binding.empty())
     return Error{ErrorCode::kIoError, "the system random generator failed", "oidc"};
@@ -270,13 +294,7 @@ Expected<OidcRelyingParty::Begun> OidcRelyingParty::Begin(double now) {
       "&redirect_uri=" + UrlEncode(options_.redirect_uri) + "&scope=openid&state=" + state +
       "&nonce=" + p.nonce + "&code_challenge=" + challenge + "&code_challenge_method=S256";
   std::lock_guard lock(mutex_);
-  std::erase_if(pending_, [&](const auto& kv) { return kv.second.expires < now; });
-  while (pending_.size() >= options_.max_pending) {  // the soonest to expire goes first
-    auto oldest = std::min_element(
-        pending_.begin(), pending_.end(),
-        [](const auto& a, const auto& b) { return a.second.expires < b.second.expires; });
-    pending_.erase(oldest);
-  }
+  MakeRoomLocked(address, now);
   pending_[state] = std::move(p);
   return out;
 }

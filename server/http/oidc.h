@@ -50,9 +50,10 @@ struct OidcOptions {
   // The provider's values (a group's name) to vsurg's roles; empty: the value is a role's name.
   std::map<std::string, db::Role> role_map;
   double pending_ttl_s = 600;  // a sign-in begun and not finished is forgotten after this
-  size_t max_pending = 4096;   // sign-ins in flight (the oldest forgotten beyond)
-  double clock_skew_s = 60;    // allowed between the provider's clock and ours
-  double fetch_timeout_s = 5;  // each call to the provider
+  size_t max_pending = 4096;   // sign-ins in flight (the soonest to expire forgotten beyond)
+  size_t max_pending_per_address = 16;  // one address's (its own oldest forgotten beyond)
+  double clock_skew_s = 60;             // allowed between the provider's clock and ours
+  double fetch_timeout_s = 5;           // each call to the provider
 };
 
 // The provider's signing keys (a JWKS's RSA keys by `kid`).
@@ -87,7 +88,9 @@ class OidcRelyingParty {
     std::string redirect_url;  // the provider's authorization endpoint with the request
     std::string binding;       // the binding cookie's value
   };
-  Expected<Begun> Begin(double now_unix_s);
+  // `address`: the client's, so that one address beginning sign-ins in a loop only ever
+  // forgets its own. Blocks on the provider at the first sign-in (discovery).
+  Expected<Begun> Begin(double now_unix_s, const std::string& address);
   Expected<OidcIdentity> Finish(std::string_view code, std::string_view state,
                                 std::string_view binding, double now_unix_s);
   const OidcOptions& options() const { return options_; }
@@ -97,9 +100,10 @@ class OidcRelyingParty {
     std::string authorization, token, jwks;
   };
   struct Pending {
-    std::string nonce, verifier, binding;
+    std::string nonce, verifier, binding, address;
     double expires = 0;
   };
+  void MakeRoomLocked(const std::string& address, double now);
   OidcRelyingParty(OidcOptions options, Fetcher fetch)
       : options_(std::move(options)), fetch_(std::move(fetch)) {}
   Expected<Endpoints> Discover();

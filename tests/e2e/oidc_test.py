@@ -136,6 +136,32 @@ def callback_urls(driver):
     return urls
 
 
+class NoRedirect(urllib.request.HTTPRedirectHandler):
+    def redirect_request(self, *args):
+        return None
+
+
+def begin_elsewhere(base):
+    """A sign-in begun outside the browser: the provider's URL it redirects to, and the binding
+    cookie it sets ("name=value")."""
+    try:
+        urllib.request.build_opener(NoRedirect).open(base + "/api/v1/signin/oidc", timeout=10)
+        return "", ""
+    except urllib.error.HTTPError as e:
+        return e.headers.get("Location", ""), e.headers.get("Set-Cookie", "").split(";")[0]
+
+
+def finish_elsewhere(base, location, cookie):
+    """The callback for that sign-in with a made-up code: the refusal's text."""
+    state = re.search(r"[?&]state=([^&]+)", location).group(1)
+    req = urllib.request.Request(f"{base}/api/v1/signin/oidc/callback?code=made-up&state={state}")
+    req.add_header("Cookie", cookie)
+    try:
+        return urllib.request.build_opener(NoRedirect).open(req, timeout=30).read().decode()
+    except urllib.error.HTTPError as e:
+        return e.read().decode()
+
+
 def refused_text(driver, wait):
     wait.until(lambda d: d.find_elements(By.ID, "refused"))
     return driver.find_element(By.ID, "refused").text
@@ -171,20 +197,23 @@ def main():
     check(me(driver) is None, "the replay left no web session")
 
     # Begun elsewhere (another browser, or an attacker's own sign-in), finished here: refused.
-    class NoRedirect(urllib.request.HTTPRedirectHandler):
-        def redirect_request(self, *args):
-            return None
-    try:
-        urllib.request.build_opener(NoRedirect).open(base + "/api/v1/signin/oidc", timeout=10)
-        location = ""
-    except urllib.error.HTTPError as e:
-        location = e.headers.get("Location", "")
+    location, _ = begin_elsewhere(base)
     state = re.search(r"[?&]state=([^&]+)", location)
     check(state is not None, "the sign-in begins with a redirect to the provider with a state")
     driver.delete_all_cookies()
     driver.get(f"{base}/api/v1/signin/oidc/callback?code=stolen&state={state.group(1) if state else ''}")
     text = refused_text(driver, wait)
     check("another browser" in text, f"a sign-in finished in another browser is refused ({text})")
+
+    # Sign-ins begun in a loop and abandoned (50 from this address, over its share of 16): the
+    # server forgets that address's oldest and keeps its newest (which, with its own binding, gets
+    # as far as the provider, who refuses the made-up code).
+    begun = [begin_elsewhere(base) for _ in range(50)]
+    check(all("state=" in loc and cookie for loc, cookie in begun), "50 sign-ins begun and left")
+    text = finish_elsewhere(base, *begun[0])
+    check("already used" in text, f"the address's oldest was forgotten ({text[-160:]})")
+    text = finish_elsewhere(base, *begun[-1])
+    check("refused the code" in text, f"its newest was kept ({text[-160:]})")
 
     # A trainee: created as one, on her own page; then disabled in vsurg, and refused.
     check(through_provider(driver, wait, base, "tia"), "tia passes the provider's login page")
