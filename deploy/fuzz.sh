@@ -15,7 +15,7 @@ set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
 targets_all=(datagram messages scene_json obj ratings_csv trajectory_csv http_api http_framing
-  cluster_messages handoff)
+  cluster_messages handoff id_token)
 if [ $# -lt 2 ]; then
   echo "usage: deploy/fuzz.sh TARGET|all SECONDS [--merge] [-- libFuzzer flags]" >&2
   echo "targets: ${targets_all[*]}" >&2
