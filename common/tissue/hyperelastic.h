@@ -1,0 +1,81 @@
+// A hyperelastic FEM in total-Lagrangian form: the accuracy reference for tissue beyond small
+// strains, where the corotational linear model (fem.h) no longer holds (tissue stiffens as it
+// stretches; the corotational model keeps large rotations but not large strains).
+//
+// Linear tetrahedra, the deformation gradient F = Ds·Dm⁻¹ per element (Ds, Dm the deformed and
+// rest edge matrices), the compressible neo-Hookean energy density (per rest volume)
+//   ψ(F) = μ/2·(tr FᵀF − 3) − μ·ln J + λ/2·(ln J)²,  J = det F,
+// with μ, λ Lamé's constants from Young's modulus E and Poisson's ratio ν; the first
+// Piola–Kirchhoff stress P = ∂ψ/∂F = μ(F − F⁻ᵀ) + λ·ln J·F⁻ᵀ; the nodal forces
+// f_{1..3} = −V·P·Dm⁻ᵀ (columns), f_0 = −(f_1 + f_2 + f_3); and the exact tangent from
+//   dP = μ·dF + (μ − λ·ln J)·F⁻ᵀ·dFᵀ·F⁻ᵀ + λ·tr(F⁻¹dF)·F⁻ᵀ.
+// Units: m, Pa, N, J.
+//
+// The static solve is Newton's method on the total potential (strain energy less the external
+// forces' work) with a backtracking line search: a step is halved until the potential falls and
+// no element inverts (ψ → ∞ as J → 0⁺, so an inverted configuration is never accepted); a Newton
+// direction that does not descend (the tangent indefinite far from equilibrium) is replaced by
+// the steepest descent. Constraints are per coordinate: a vertex's x, y or z held at a value.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <array>
+#include <vector>
+
+#include "common/core/expected.h"
+#include "common/geometry/mesh.h"
+
+namespace vsurg::tissue {
+
+struct HyperelasticParams {
+  double young = 30e3;    // Pa
+  double poisson = 0.45;  // in (−1, 0.5)
+};
+
+struct HyperelasticSolve {
+  int iterations = 0;
+  double residual = 0;  // ‖free forces‖∞ / the largest |external or reaction force| (N/N)
+  bool converged = false;
+};
+
+class HyperelasticFem {
+ public:
+  // Refuses bad parameters and flat or inverted rest elements, naming them.
+  static Expected<HyperelasticFem> Create(const geometry::TetMesh& rest, HyperelasticParams p);
+
+  // Holds coordinate `axis` (0 x, 1 y, 2 z) of `vertex` at `value` (m) and moves it there.
+  void Hold(int vertex, int axis, double value);
+  void SetExternalForce(int vertex, const Eigen::Vector3d& f);  // N
+  void SetPositions(const std::vector<Eigen::Vector3d>& x);     // m; a state to evaluate
+
+  double StrainEnergy() const;  // J; +∞ when an element is inverted or flat
+  // −∂E/∂x, N per coordinate (3 per vertex); on held coordinates the negative reaction.
+  Eigen::VectorXd InternalForces() const;
+  Eigen::SparseMatrix<double> Tangent() const;  // ∂²E/∂x², N/m, symmetric
+
+  HyperelasticSolve SolveStatic(int max_iterations = 50, double tolerance = 1e-10);
+
+  const std::vector<Eigen::Vector3d>& positions() const { return x_; }
+  double mu() const { return mu_; }          // Pa
+  double lambda() const { return lambda_; }  // Pa
+
+ private:
+  struct Element {
+    std::array<int, 4> v;
+    Eigen::Matrix3d dm_inv;
+    double volume;  // m³, at rest
+  };
+  HyperelasticFem() = default;
+  Eigen::Matrix3d Deformation(const Element& e, const std::vector<Eigen::Vector3d>& x) const;
+  double Potential(const std::vector<Eigen::Vector3d>& x) const;
+  Eigen::VectorXd FreeResidual() const;  // internal + external forces, zero on held coordinates
+
+  std::vector<Element> elements_;
+  std::vector<Eigen::Vector3d> x_, f_ext_;
+  std::vector<unsigned char> held_;  // per coordinate
+  double mu_ = 0, lambda_ = 0;
+};
+
+}  // namespace vsurg::tissue

@@ -1,0 +1,157 @@
+// The neo-Hookean reference (common/tissue/hyperelastic.h): its invariants (nothing at rest or
+// under a rigid rotation, forces the energy's exact gradient, the tangent the forces' exact
+// derivative), uniaxial stretch and compression against the closed form of a compressible
+// neo-Hookean bar, near incompressibility, and the refusals.
+#include "common/tissue/hyperelastic.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "common/geometry/tet_generators.h"
+
+namespace vsurg::tissue {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+geometry::TetCylinder NeoHookeanBar() {
+  geometry::TetCylinderParams p;
+  p.length = 0.1;
+  p.radius_base = p.radius_tip = 0.02;
+  p.rings = 2;
+  p.layers = 6;
+  return geometry::MakeTetCylinder(p).value();
+}
+
+TEST(HyperelasticTest, RestAndRigidRotationsHoldNoEnergyAndNoForce) {
+  const auto bar = NeoHookeanBar();
+  auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45});
+  ASSERT_TRUE(fem.ok()) << fem.error().message;
+  EXPECT_NEAR(fem->StrainEnergy(), 0, 1e-15);
+  EXPECT_LT(fem->InternalForces().lpNorm<Eigen::Infinity>(), 1e-12);
+  const Eigen::Matrix3d rot =
+      Eigen::AngleAxisd(1.1, Vec3(0.3, -0.5, 0.8).normalized()).toRotationMatrix();
+  std::vector<Vec3> x;
+  for (const Vec3& p : bar.mesh.positions) x.push_back(rot * p + Vec3(0.2, -0.1, 0.05));
+  fem->SetPositions(x);
+  EXPECT_NEAR(fem->StrainEnergy(), 0, 1e-12);
+  EXPECT_LT(fem->InternalForces().lpNorm<Eigen::Infinity>(), 1e-9);  // N, at 30 kPa
+}
+
+// A large random deformation: forces against central differences of the energy, the tangent
+// against central differences of the forces, and its symmetry.
+TEST(HyperelasticTest, ForcesAndTangentAreTheEnergysExactDerivatives) {
+  const auto bar = NeoHookeanBar();
+  auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45}).value();
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0, 1.5e-3);  // m, against 5–10 mm elements
+  std::vector<Vec3> x;
+  for (const Vec3& p : bar.mesh.positions)
+    x.push_back(Vec3(1.2 * p.x(), 0.9 * p.y(), 1.3 * p.z()) +
+                Vec3(noise(rng), noise(rng), noise(rng)));
+  fem.SetPositions(x);
+  ASSERT_TRUE(std::isfinite(fem.StrainEnergy()));
+  const Eigen::VectorXd f = fem.InternalForces();
+  const Eigen::SparseMatrix<double> k = fem.Tangent();
+  const Eigen::MatrixXd kd(k);
+  EXPECT_LT((kd - kd.transpose()).lpNorm<Eigen::Infinity>(), 1e-9 * kd.lpNorm<Eigen::Infinity>());
+  const double h = 1e-7;
+  for (int dof : {0, 7, 40, 3 * bar.mesh.VertexCount() - 1}) {
+    std::vector<Vec3> plus = x, minus = x;
+    plus[dof / 3][dof % 3] += h;
+    minus[dof / 3][dof % 3] -= h;
+    fem.SetPositions(plus);
+    const double e_plus = fem.StrainEnergy();
+    const Eigen::VectorXd f_plus = fem.InternalForces();
+    fem.SetPositions(minus);
+    const double e_minus = fem.StrainEnergy();
+    const Eigen::VectorXd f_minus = fem.InternalForces();
+    EXPECT_NEAR(-(e_plus - e_minus) / (2 * h), f[dof], 1e-6 * f.lpNorm<Eigen::Infinity>()) << dof;
+    const Eigen::VectorXd column = -(f_plus - f_minus) / (2 * h);
+    EXPECT_LT((column - kd.col(dof)).lpNorm<Eigen::Infinity>(), 1e-5 * kd.lpNorm<Eigen::Infinity>())
+        << dof;
+    fem.SetPositions(x);
+  }
+}
+
+// The lateral stretch λ2 of a traction-free compressible neo-Hookean bar stretched λ1 along its
+// axis: μ(λ2 − 1/λ2) + λ ln(λ1 λ2²)/λ2 = 0 (Newton on λ2); then the nominal axial stress
+// P = μ(λ1 − 1/λ1) + λ ln J / λ1, J = λ1 λ2².
+std::pair<double, double> UniaxialClosedForm(double mu, double lambda, double l1) {
+  double l2 = 1;
+  for (int it = 0; it < 100; ++it) {
+    const double g = mu * (l2 - 1 / l2) + lambda * std::log(l1 * l2 * l2) / l2;
+    const double dg = mu * (1 + 1 / (l2 * l2)) + lambda * (2 - std::log(l1 * l2 * l2)) / (l2 * l2);
+    l2 -= g / dg;
+  }
+  const double j = l1 * l2 * l2;
+  return {l2, mu * (l1 - 1 / l1) + lambda * std::log(j) / l1};
+}
+
+// The bar held on rollers at its base (z = 0), its end moved to λ1·L, the rigid motions held by
+// the base's centre (x, y) and one more base vertex (y): the deformation is homogeneous, which
+// linear tetrahedra represent exactly, so the solve meets the closed form to its tolerance; from
+// a first guess stretched along the axis, Newton finds the lateral contraction.
+TEST(HyperelasticTest, UniaxialStretchAndCompressionMeetTheClosedForm) {
+  for (double nu : {0.3, 0.45, 0.49}) {
+    for (double l1 : {1.5, 1.1, 0.7}) {
+      SCOPED_TRACE("nu " + std::to_string(nu) + " stretch " + std::to_string(l1));
+      const auto bar = NeoHookeanBar();
+      auto fem = HyperelasticFem::Create(bar.mesh, {30e3, nu}).value();
+      // The first guess: stretched along the axis alone (the end's move spread over the bar).
+      std::vector<Vec3> guess = bar.mesh.positions;
+      for (Vec3& p : guess) p.z() *= l1;
+      fem.SetPositions(guess);
+      int centre = -1, on_x = -1;
+      for (int v : bar.base) {
+        const Vec3& p = bar.mesh.positions[v];
+        if (p.head<2>().norm() < 1e-12) centre = v;
+        if (std::abs(p.y()) < 1e-12 && p.x() > 0.019) on_x = v;
+        fem.Hold(v, 2, 0.0);
+      }
+      ASSERT_GE(centre, 0);
+      ASSERT_GE(on_x, 0);
+      fem.Hold(centre, 0, 0.0);
+      fem.Hold(centre, 1, 0.0);
+      fem.Hold(on_x, 1, 0.0);
+      for (int v : bar.tip) fem.Hold(v, 2, l1 * bar.params.length);
+      const HyperelasticSolve s = fem.SolveStatic(60, 1e-10);
+      ASSERT_TRUE(s.converged) << s.iterations << " iterations, residual " << s.residual;
+      const auto [l2, stress] = UniaxialClosedForm(fem.mu(), fem.lambda(), l1);
+      const Vec3 tip_edge = fem.positions()[on_x];
+      EXPECT_NEAR(tip_edge.x() / bar.mesh.positions[on_x].x(), l2, 1e-8);
+      const Eigen::VectorXd f = fem.InternalForces();
+      double reaction = 0, area = 0;
+      for (size_t i = 0; i < bar.tip.size(); ++i) {
+        reaction -= f[3 * bar.tip[i] + 2];
+        area += bar.tip_area[i];
+      }
+      EXPECT_NEAR(reaction / area, stress, 1e-7 * std::abs(stress));
+      EXPECT_LE(s.iterations, 8);  // Newton with the exact tangent: 3–5 here
+    }
+  }
+}
+
+TEST(HyperelasticTest, BadMaterialsAndElementsAreRefusedByName) {
+  const auto bar = NeoHookeanBar();
+  EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {0, 0.3}).error().field, "young");
+  EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {NAN, 0.3}).error().field, "young");
+  EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {1e4, 0.5}).error().field, "poisson");
+  EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {1e4, -1}).error().field, "poisson");
+  geometry::TetMesh flipped = bar.mesh;
+  std::swap(flipped.tetrahedra[3][0], flipped.tetrahedra[3][1]);
+  EXPECT_EQ(HyperelasticFem::Create(flipped, {1e4, 0.3}).error().field.rfind("tetrahedra", 0), 0u);
+  // An inverted state has infinite energy: no solve ever accepts one.
+  auto fem = HyperelasticFem::Create(bar.mesh, {1e4, 0.3}).value();
+  std::vector<Vec3> x = bar.mesh.positions;
+  for (Vec3& p : x) p.z() = -p.z();
+  fem.SetPositions(x);
+  EXPECT_FALSE(std::isfinite(fem.StrainEnergy()));
+}
+
+}  // namespace
+}  // namespace vsurg::tissue
