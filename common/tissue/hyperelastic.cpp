@@ -21,18 +21,30 @@ Mat3 Edges(const std::array<int, 4>& v, const std::vector<Vec3>& x) {
   return d;
 }
 
+// The material: μ, λ (Pa) and the stiffening b.
+struct Law {
+  double mu, lambda, b;
+  // e^{b(I1−3)}: the isochoric part's stiffening factor (1 for neo-Hookean).
+  double Factor(const Mat3& f) const {
+    return b > 0 ? std::exp(b * ((f.transpose() * f).trace() - 3)) : 1.0;
+  }
+};
+
 // ψ(F) per rest volume, Pa; +∞ for J ≤ 0.
-double Density(const Mat3& f, double mu, double lambda) {
+double Density(const Mat3& f, const Law& m) {
   const double j = f.determinant();
   if (!(j > 0)) return kInf;
   const double ln_j = std::log(j);
-  return 0.5 * mu * ((f.transpose() * f).trace() - 3) - mu * ln_j + 0.5 * lambda * ln_j * ln_j;
+  const double i1 = (f.transpose() * f).trace();
+  const double isochoric =
+      m.b > 0 ? m.mu / (2 * m.b) * std::expm1(m.b * (i1 - 3)) : 0.5 * m.mu * (i1 - 3);
+  return isochoric - m.mu * ln_j + 0.5 * m.lambda * ln_j * ln_j;
 }
 
-// P(F) = μ(F − F⁻ᵀ) + λ ln J F⁻ᵀ.
-Mat3 Stress(const Mat3& f, double mu, double lambda) {
+// P(F) = μ·e·F − μ·F⁻ᵀ + λ·ln J·F⁻ᵀ.
+Mat3 Stress(const Mat3& f, const Law& m) {
   const Mat3 f_inv_t = f.inverse().transpose();
-  return mu * (f - f_inv_t) + lambda * std::log(f.determinant()) * f_inv_t;
+  return m.mu * m.Factor(f) * f - m.mu * f_inv_t + m.lambda * std::log(f.determinant()) * f_inv_t;
 }
 
 // The element's nodal forces for a stress P: f_{1..3} = −V·P·Dm⁻ᵀ, f_0 = −Σ.
@@ -49,10 +61,13 @@ Expected<HyperelasticFem> HyperelasticFem::Create(const geometry::TetMesh& rest,
     return InvalidArgument("young", "Young's modulus must be finite and > 0 Pa");
   if (!(std::isfinite(p.poisson) && p.poisson > -1 && p.poisson < 0.5))
     return InvalidArgument("poisson", "Poisson's ratio must lie in (−1, 0.5)");
+  if (!(std::isfinite(p.stiffening) && p.stiffening >= 0 && p.stiffening <= 100))
+    return InvalidArgument("stiffening", "the exponential law's b must lie in [0, 100]");
   if (Status s = geometry::Validate(rest); !s.ok()) return s.error();
   HyperelasticFem m;
   m.mu_ = p.young / (2 * (1 + p.poisson));
   m.lambda_ = p.young * p.poisson / ((1 + p.poisson) * (1 - 2 * p.poisson));
+  m.b_ = p.stiffening;
   m.x_ = rest.positions;
   m.f_ext_.assign(rest.positions.size(), Vec3::Zero());
   m.held_.assign(3 * rest.positions.size(), 0);
@@ -90,14 +105,16 @@ Mat3 HyperelasticFem::Deformation(const Element& e, const std::vector<Vec3>& x) 
 
 double HyperelasticFem::StrainEnergy() const {
   double energy = 0;
-  for (const Element& e : elements_) energy += e.volume * Density(Deformation(e, x_), mu_, lambda_);
+  for (const Element& e : elements_)
+    energy += e.volume * Density(Deformation(e, x_), {mu_, lambda_, b_});
   return energy;
 }
 
 Eigen::VectorXd HyperelasticFem::InternalForces() const {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(x_.size()));
   for (const Element& e : elements_) {
-    const auto nodal = NodalForces(Stress(Deformation(e, x_), mu_, lambda_), e.dm_inv, e.volume);
+    const auto nodal =
+        NodalForces(Stress(Deformation(e, x_), {mu_, lambda_, b_}), e.dm_inv, e.volume);
     for (int a = 0; a < 4; ++a) f.segment<3>(3 * e.v[a]) += nodal[a];
   }
   return f;
@@ -112,6 +129,7 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
     const Mat3 f = Deformation(e, x_);
     const Mat3 f_inv = f.inverse(), f_inv_t = f_inv.transpose();
     const double ln_j = std::log(f.determinant());
+    const double factor = Law{mu_, lambda_, b_}.Factor(f);
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c) {
         Mat3 d_ds = Mat3::Zero();
@@ -120,7 +138,8 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
         else
           d_ds(c, a - 1) = 1;
         const Mat3 df = d_ds * e.dm_inv;
-        const Mat3 dp = mu_ * df + (mu_ - lambda_ * ln_j) * f_inv_t * df.transpose() * f_inv_t +
+        const Mat3 dp = mu_ * factor * (df + 2 * b_ * (f.array() * df.array()).sum() * f) +
+                        (mu_ - lambda_ * ln_j) * f_inv_t * df.transpose() * f_inv_t +
                         lambda_ * (f_inv * df).trace() * f_inv_t;
         const auto dforces = NodalForces(dp, e.dm_inv, e.volume);
         for (int b = 0; b < 4; ++b)
@@ -137,7 +156,7 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
 double HyperelasticFem::Potential(const std::vector<Vec3>& x) const {
   double potential = 0;
   for (const Element& e : elements_) {
-    const double psi = Density(Deformation(e, x), mu_, lambda_);
+    const double psi = Density(Deformation(e, x), {mu_, lambda_, b_});
     if (!std::isfinite(psi)) return kInf;
     potential += e.volume * psi;
   }

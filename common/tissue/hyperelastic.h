@@ -3,12 +3,17 @@
 // stretches; the corotational model keeps large rotations but not large strains).
 //
 // Linear tetrahedra, the deformation gradient F = Ds·Dm⁻¹ per element (Ds, Dm the deformed and
-// rest edge matrices), the compressible neo-Hookean energy density (per rest volume)
-//   ψ(F) = μ/2·(tr FᵀF − 3) − μ·ln J + λ/2·(ln J)²,  J = det F,
-// with μ, λ Lamé's constants from Young's modulus E and Poisson's ratio ν; the first
-// Piola–Kirchhoff stress P = ∂ψ/∂F = μ(F − F⁻ᵀ) + λ·ln J·F⁻ᵀ; the nodal forces
-// f_{1..3} = −V·P·Dm⁻ᵀ (columns), f_0 = −(f_1 + f_2 + f_3); and the exact tangent from
-//   dP = μ·dF + (μ − λ·ln J)·F⁻ᵀ·dFᵀ·F⁻ᵀ + λ·tr(F⁻¹dF)·F⁻ᵀ.
+// rest edge matrices), and a compressible energy density (per rest volume) with I1 = tr FᵀF and
+// J = det F:
+//   neo-Hookean (b = 0):  ψ(F) = μ/2·(I1 − 3) − μ·ln J + λ/2·(ln J)²
+//   exponential (b > 0):  ψ(F) = μ/(2b)·(e^{b(I1−3)} − 1) − μ·ln J + λ/2·(ln J)²
+// the second the isotropic exponential law of Demiray (J. Biomech. 1972) in Fung's exponential
+// form, which stiffens as the tissue stretches and tends to the neo-Hookean one as b → 0 (both
+// with the same small-strain μ, λ: Lamé's constants from Young's modulus E and Poisson's ratio ν).
+// With e = e^{b(I1−3)} (1 for neo-Hookean), the first Piola–Kirchhoff stress
+//   P = ∂ψ/∂F = μ·e·F − μ·F⁻ᵀ + λ·ln J·F⁻ᵀ,
+// the nodal forces f_{1..3} = −V·P·Dm⁻ᵀ (columns), f_0 = −(f_1 + f_2 + f_3), and the exact tangent
+//   dP = μ·e·(dF + 2b·(F:dF)·F) + (μ − λ·ln J)·F⁻ᵀ·dFᵀ·F⁻ᵀ + λ·tr(F⁻¹dF)·F⁻ᵀ.
 // Units: m, Pa, N, J.
 //
 // The static solve is Newton's method on the total potential (strain energy less the external
@@ -32,6 +37,7 @@ namespace vsurg::tissue {
 struct HyperelasticParams {
   double young = 30e3;    // Pa
   double poisson = 0.45;  // in (−1, 0.5)
+  double stiffening = 0;  // b ≥ 0, dimensionless: 0 neo-Hookean, > 0 the exponential law
 };
 
 struct HyperelasticSolve {
@@ -60,6 +66,7 @@ class HyperelasticFem {
   const std::vector<Eigen::Vector3d>& positions() const { return x_; }
   double mu() const { return mu_; }          // Pa
   double lambda() const { return lambda_; }  // Pa
+  double stiffening() const { return b_; }
 
  private:
   struct Element {
@@ -75,7 +82,7 @@ class HyperelasticFem {
   std::vector<Element> elements_;
   std::vector<Eigen::Vector3d> x_, f_ext_;
   std::vector<unsigned char> held_;  // per coordinate
-  double mu_ = 0, lambda_ = 0;
+  double mu_ = 0, lambda_ = 0, b_ = 0;
 };
 
 }  // namespace vsurg::tissue

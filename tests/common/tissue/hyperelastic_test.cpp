@@ -27,6 +27,26 @@ geometry::TetCylinder NeoHookeanBar() {
   return geometry::MakeTetCylinder(p).value();
 }
 
+// The lateral stretch λ2 of a traction-free bar stretched λ1 along its axis, F = diag(λ1, λ2, λ2):
+// with I1 = λ1² + 2λ2², e = e^{b(I1−3)} (1 for neo-Hookean) and J = λ1·λ2², the lateral stress
+// μ·e·λ2 − μ/λ2 + λ·ln J/λ2 vanishes (solved by secant steps on λ2); then the nominal axial
+// stress is μ·e·λ1 − μ/λ1 + λ·ln J/λ1.
+std::pair<double, double> UniaxialClosedForm(double mu, double lambda, double b, double l1) {
+  auto stress = [&](double stretch, double l2) {
+    const double i1 = l1 * l1 + 2 * l2 * l2, j = l1 * l2 * l2;
+    const double e = b > 0 ? std::exp(b * (i1 - 3)) : 1.0;
+    return mu * e * stretch - mu / stretch + lambda * std::log(j) / stretch;
+  };
+  double a = 1.0, c = 0.9;
+  for (int it = 0; it < 200 && std::abs(c - a) > 1e-15; ++it) {
+    const double fa = stress(a, a), fc = stress(c, c);
+    const double next = c - fc * (c - a) / (fc - fa);
+    a = c;
+    c = next;
+  }
+  return {c, stress(l1, c)};
+}
+
 TEST(HyperelasticTest, RestAndRigidRotationsHoldNoEnergyAndNoForce) {
   const auto bar = NeoHookeanBar();
   auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45});
@@ -45,51 +65,55 @@ TEST(HyperelasticTest, RestAndRigidRotationsHoldNoEnergyAndNoForce) {
 // A large random deformation: forces against central differences of the energy, the tangent
 // against central differences of the forces, and its symmetry.
 TEST(HyperelasticTest, ForcesAndTangentAreTheEnergysExactDerivatives) {
-  const auto bar = NeoHookeanBar();
-  auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45}).value();
-  std::mt19937 rng(7);
-  std::normal_distribution<double> noise(0, 1.5e-3);  // m, against 5–10 mm elements
-  std::vector<Vec3> x;
-  for (const Vec3& p : bar.mesh.positions)
-    x.push_back(Vec3(1.2 * p.x(), 0.9 * p.y(), 1.3 * p.z()) +
-                Vec3(noise(rng), noise(rng), noise(rng)));
-  fem.SetPositions(x);
-  ASSERT_TRUE(std::isfinite(fem.StrainEnergy()));
-  const Eigen::VectorXd f = fem.InternalForces();
-  const Eigen::SparseMatrix<double> k = fem.Tangent();
-  const Eigen::MatrixXd kd(k);
-  EXPECT_LT((kd - kd.transpose()).lpNorm<Eigen::Infinity>(), 1e-9 * kd.lpNorm<Eigen::Infinity>());
-  const double h = 1e-7;
-  for (int dof : {0, 7, 40, 3 * bar.mesh.VertexCount() - 1}) {
-    std::vector<Vec3> plus = x, minus = x;
-    plus[dof / 3][dof % 3] += h;
-    minus[dof / 3][dof % 3] -= h;
-    fem.SetPositions(plus);
-    const double e_plus = fem.StrainEnergy();
-    const Eigen::VectorXd f_plus = fem.InternalForces();
-    fem.SetPositions(minus);
-    const double e_minus = fem.StrainEnergy();
-    const Eigen::VectorXd f_minus = fem.InternalForces();
-    EXPECT_NEAR(-(e_plus - e_minus) / (2 * h), f[dof], 1e-6 * f.lpNorm<Eigen::Infinity>()) << dof;
-    const Eigen::VectorXd column = -(f_plus - f_minus) / (2 * h);
-    EXPECT_LT((column - kd.col(dof)).lpNorm<Eigen::Infinity>(), 1e-5 * kd.lpNorm<Eigen::Infinity>())
-        << dof;
+  for (double b : {0.0, 2.0}) {
+    SCOPED_TRACE("b " + std::to_string(b));
+    const auto bar = NeoHookeanBar();
+    auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45, b}).value();
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0, 1.5e-3);  // m, against 5–10 mm elements
+    std::vector<Vec3> x;
+    for (const Vec3& p : bar.mesh.positions)
+      x.push_back(Vec3(1.2 * p.x(), 0.9 * p.y(), 1.3 * p.z()) +
+                  Vec3(noise(rng), noise(rng), noise(rng)));
     fem.SetPositions(x);
+    ASSERT_TRUE(std::isfinite(fem.StrainEnergy()));
+    const Eigen::VectorXd f = fem.InternalForces();
+    const Eigen::SparseMatrix<double> k = fem.Tangent();
+    const Eigen::MatrixXd kd(k);
+    EXPECT_LT((kd - kd.transpose()).lpNorm<Eigen::Infinity>(), 1e-9 * kd.lpNorm<Eigen::Infinity>());
+    const double h = 1e-7;
+    for (int dof : {0, 7, 40, 3 * bar.mesh.VertexCount() - 1}) {
+      std::vector<Vec3> plus = x, minus = x;
+      plus[dof / 3][dof % 3] += h;
+      minus[dof / 3][dof % 3] -= h;
+      fem.SetPositions(plus);
+      const double e_plus = fem.StrainEnergy();
+      const Eigen::VectorXd f_plus = fem.InternalForces();
+      fem.SetPositions(minus);
+      const double e_minus = fem.StrainEnergy();
+      const Eigen::VectorXd f_minus = fem.InternalForces();
+      EXPECT_NEAR(-(e_plus - e_minus) / (2 * h), f[dof], 1e-6 * f.lpNorm<Eigen::Infinity>()) << dof;
+      const Eigen::VectorXd column = -(f_plus - f_minus) / (2 * h);
+      EXPECT_LT((column - kd.col(dof)).lpNorm<Eigen::Infinity>(),
+                1e-5 * kd.lpNorm<Eigen::Infinity>())
+          << dof;
+      fem.SetPositions(x);
+    }
   }
 }
 
-// The lateral stretch λ2 of a traction-free compressible neo-Hookean bar stretched λ1 along its
-// axis: μ(λ2 − 1/λ2) + λ ln(λ1 λ2²)/λ2 = 0 (Newton on λ2); then the nominal axial stress
-// P = μ(λ1 − 1/λ1) + λ ln J / λ1, J = λ1 λ2².
-std::pair<double, double> UniaxialClosedForm(double mu, double lambda, double l1) {
-  double l2 = 1;
-  for (int it = 0; it < 100; ++it) {
-    const double g = mu * (l2 - 1 / l2) + lambda * std::log(l1 * l2 * l2) / l2;
-    const double dg = mu * (1 + 1 / (l2 * l2)) + lambda * (2 - std::log(l1 * l2 * l2)) / (l2 * l2);
-    l2 -= g / dg;
-  }
-  const double j = l1 * l2 * l2;
-  return {l2, mu * (l1 - 1 / l1) + lambda * std::log(j) / l1};
+// The exponential law stiffens: the same small-strain stiffness as the neo-Hookean one (b → 0),
+// more stress at a large stretch, and the more the larger b.
+TEST(HyperelasticTest, TheExponentialLawStiffensAsTheTissueStretches) {
+  const double mu = 10e3, lambda = 90e3;
+  const auto small_nh = UniaxialClosedForm(mu, lambda, 0, 1.00001).second;
+  const auto small_exp = UniaxialClosedForm(mu, lambda, 2, 1.00001).second;
+  EXPECT_NEAR(small_exp / small_nh, 1.0, 0.01);
+  const double large_nh = UniaxialClosedForm(mu, lambda, 0, 1.5).second;
+  const double large_2 = UniaxialClosedForm(mu, lambda, 2, 1.5).second;
+  const double large_5 = UniaxialClosedForm(mu, lambda, 5, 1.5).second;
+  EXPECT_GT(large_2, 1.5 * large_nh);
+  EXPECT_GT(large_5, large_2);
 }
 
 // The bar held on rollers at its base (z = 0), its end moved to λ1·L, the rigid motions held by
@@ -97,43 +121,45 @@ std::pair<double, double> UniaxialClosedForm(double mu, double lambda, double l1
 // linear tetrahedra represent exactly, so the solve meets the closed form to its tolerance; from
 // a first guess stretched along the axis, Newton finds the lateral contraction.
 TEST(HyperelasticTest, UniaxialStretchAndCompressionMeetTheClosedForm) {
-  for (double nu : {0.3, 0.45, 0.49}) {
-    for (double l1 : {1.5, 1.1, 0.7}) {
-      SCOPED_TRACE("nu " + std::to_string(nu) + " stretch " + std::to_string(l1));
-      const auto bar = NeoHookeanBar();
-      auto fem = HyperelasticFem::Create(bar.mesh, {30e3, nu}).value();
-      // The first guess: stretched along the axis alone (the end's move spread over the bar).
-      std::vector<Vec3> guess = bar.mesh.positions;
-      for (Vec3& p : guess) p.z() *= l1;
-      fem.SetPositions(guess);
-      int centre = -1, on_x = -1;
-      for (int v : bar.base) {
-        const Vec3& p = bar.mesh.positions[v];
-        if (p.head<2>().norm() < 1e-12) centre = v;
-        if (std::abs(p.y()) < 1e-12 && p.x() > 0.019) on_x = v;
-        fem.Hold(v, 2, 0.0);
+  for (double b : {0.0, 2.0})
+    for (double nu : {0.3, 0.45, 0.49}) {
+      for (double l1 : {1.5, 1.1, 0.7}) {
+        SCOPED_TRACE("b " + std::to_string(b) + " nu " + std::to_string(nu) + " stretch " +
+                     std::to_string(l1));
+        const auto bar = NeoHookeanBar();
+        auto fem = HyperelasticFem::Create(bar.mesh, {30e3, nu, b}).value();
+        // The first guess: stretched along the axis alone (the end's move spread over the bar).
+        std::vector<Vec3> guess = bar.mesh.positions;
+        for (Vec3& p : guess) p.z() *= l1;
+        fem.SetPositions(guess);
+        int centre = -1, on_x = -1;
+        for (int v : bar.base) {
+          const Vec3& p = bar.mesh.positions[v];
+          if (p.head<2>().norm() < 1e-12) centre = v;
+          if (std::abs(p.y()) < 1e-12 && p.x() > 0.019) on_x = v;
+          fem.Hold(v, 2, 0.0);
+        }
+        ASSERT_GE(centre, 0);
+        ASSERT_GE(on_x, 0);
+        fem.Hold(centre, 0, 0.0);
+        fem.Hold(centre, 1, 0.0);
+        fem.Hold(on_x, 1, 0.0);
+        for (int v : bar.tip) fem.Hold(v, 2, l1 * bar.params.length);
+        const HyperelasticSolve s = fem.SolveStatic(60, 1e-10);
+        ASSERT_TRUE(s.converged) << s.iterations << " iterations, residual " << s.residual;
+        const auto [l2, stress] = UniaxialClosedForm(fem.mu(), fem.lambda(), b, l1);
+        const Vec3 tip_edge = fem.positions()[on_x];
+        EXPECT_NEAR(tip_edge.x() / bar.mesh.positions[on_x].x(), l2, 1e-8);
+        const Eigen::VectorXd f = fem.InternalForces();
+        double reaction = 0, area = 0;
+        for (size_t i = 0; i < bar.tip.size(); ++i) {
+          reaction -= f[3 * bar.tip[i] + 2];
+          area += bar.tip_area[i];
+        }
+        EXPECT_NEAR(reaction / area, stress, 1e-7 * std::abs(stress));
+        EXPECT_LE(s.iterations, 8);  // Newton with the exact tangent: 3–5 here
       }
-      ASSERT_GE(centre, 0);
-      ASSERT_GE(on_x, 0);
-      fem.Hold(centre, 0, 0.0);
-      fem.Hold(centre, 1, 0.0);
-      fem.Hold(on_x, 1, 0.0);
-      for (int v : bar.tip) fem.Hold(v, 2, l1 * bar.params.length);
-      const HyperelasticSolve s = fem.SolveStatic(60, 1e-10);
-      ASSERT_TRUE(s.converged) << s.iterations << " iterations, residual " << s.residual;
-      const auto [l2, stress] = UniaxialClosedForm(fem.mu(), fem.lambda(), l1);
-      const Vec3 tip_edge = fem.positions()[on_x];
-      EXPECT_NEAR(tip_edge.x() / bar.mesh.positions[on_x].x(), l2, 1e-8);
-      const Eigen::VectorXd f = fem.InternalForces();
-      double reaction = 0, area = 0;
-      for (size_t i = 0; i < bar.tip.size(); ++i) {
-        reaction -= f[3 * bar.tip[i] + 2];
-        area += bar.tip_area[i];
-      }
-      EXPECT_NEAR(reaction / area, stress, 1e-7 * std::abs(stress));
-      EXPECT_LE(s.iterations, 8);  // Newton with the exact tangent: 3–5 here
     }
-  }
 }
 
 TEST(HyperelasticTest, BadMaterialsAndElementsAreRefusedByName) {
@@ -142,6 +168,8 @@ TEST(HyperelasticTest, BadMaterialsAndElementsAreRefusedByName) {
   EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {NAN, 0.3}).error().field, "young");
   EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {1e4, 0.5}).error().field, "poisson");
   EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {1e4, -1}).error().field, "poisson");
+  EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {1e4, 0.3, -1}).error().field, "stiffening");
+  EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {1e4, 0.3, INFINITY}).error().field, "stiffening");
   geometry::TetMesh flipped = bar.mesh;
   std::swap(flipped.tetrahedra[3][0], flipped.tetrahedra[3][1]);
   EXPECT_EQ(HyperelasticFem::Create(flipped, {1e4, 0.3}).error().field.rfind("tetrahedra", 0), 0u);
