@@ -3,6 +3,7 @@ checks that count their failures, the HTTP API with a bearer token, a headless C
 chromium and chromedriver), signing in on the dashboard's page, and axe-core's verdict."""
 import json
 import os
+import subprocess
 import time
 import urllib.request
 
@@ -34,6 +35,25 @@ def api(port, method, path, token, body=None, raw=False):
     with urllib.request.urlopen(req, data, timeout=30) as r:
         text = r.read().decode()
         return text if raw else (json.loads(text) if text else None)
+
+
+def start_server(bin_dir, tmp, procs, env, http="127.0.0.1:0", extra=()):
+    """vsurg-server on a new SQLite file in `tmp` (its log in tmp/server.log), the dashboard on
+    `http`, appended to `procs` once it is serving: the first administrator's token and the ready
+    file's ports ({"http_port", "grpc_port", ...})."""
+    db = os.path.join(tmp, "vsurg.db")
+    admin = subprocess.run([f"{bin_dir}/vsurg-server", "init", "--db", db], capture_output=True,
+                           text=True, check=True, env=env).stdout.strip()
+    ready = os.path.join(tmp, "ready.json")
+    procs.append(subprocess.Popen(
+        [f"{bin_dir}/vsurg-server", "--db", db, "--listen", "127.0.0.1:0", "--udp-port", "0",
+         "--http", http, "--ready-file", ready, *extra],
+        stderr=open(os.path.join(tmp, "server.log"), "w"), env=env))
+    for _ in range(600):
+        if os.path.exists(ready) and os.path.getsize(ready) > 0:
+            break
+        time.sleep(0.1)
+    return admin, json.load(open(ready))
 
 
 def chrome(width, height, prefs=None, console=False, performance=False):

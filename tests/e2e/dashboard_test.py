@@ -38,7 +38,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 import browser
-from browser import AXE, api, axe_source, check, chrome, failures
+from browser import AXE, api, axe_source, check, chrome, failures, start_server
 
 BIN, SCENES, SHOTS = sys.argv[1], sys.argv[2], sys.argv[3]
 os.makedirs(SHOTS, exist_ok=True)
@@ -60,19 +60,8 @@ def cleanup():
 
 def main():
     env = dict(os.environ, VSURG_SCENES=SCENES)
-    db = os.path.join(tmp, "vsurg.db")
-    admin = subprocess.run([f"{BIN}/vsurg-server", "init", "--db", db], capture_output=True,
-                           text=True, check=True, env=env).stdout.strip()
-    ready = os.path.join(tmp, "ready.json")
-    log = open(os.path.join(tmp, "server.log"), "w")
-    procs.append(subprocess.Popen(
-        [f"{BIN}/vsurg-server", "--db", db, "--listen", "127.0.0.1:0", "--udp-port", "0",
-         "--http", "127.0.0.1:0", "--ready-file", ready], stderr=log, env=env))
-    for _ in range(300):
-        if os.path.exists(ready) and os.path.getsize(ready) > 0:
-            break
-        time.sleep(0.1)
-    ports = json.load(open(ready))
+    admin, ports = start_server(BIN, tmp, procs, env)
+    db = os.path.join(tmp, "vsurg.db")  # the server's store, for the export check
     http, grpc = ports["http_port"], ports["grpc_port"]
     base = f"http://127.0.0.1:{http}"
     print("dashboard at", base, flush=True)

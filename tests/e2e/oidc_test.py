@@ -24,7 +24,6 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 import urllib.error
 import urllib.request
 
@@ -32,7 +31,7 @@ from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-from browser import api, check, chrome, failures, sign_in
+from browser import api, check, chrome, failures, sign_in, start_server
 
 BIN, SCENES, SHOTS, ROOT = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
 os.makedirs(SHOTS, exist_ok=True)
@@ -55,19 +54,9 @@ def start(http):
     issuer = subprocess.run([f"{ROOT}/deploy/oidc_provider.sh", "start", idp_dir, redirect],
                             capture_output=True, text=True, check=True).stdout.strip()
     env = dict(os.environ, VSURG_SCENES=SCENES)
-    db = os.path.join(tmp, "vsurg.db")
-    admin = subprocess.run([f"{BIN}/vsurg-server", "init", "--db", db], capture_output=True,
-                           text=True, check=True, env=env).stdout.strip()
-    ready = os.path.join(tmp, "ready.json")
-    procs.append(subprocess.Popen(
-        [f"{BIN}/vsurg-server", "--db", db, "--listen", "127.0.0.1:0", "--udp-port", "0",
-         "--http", f"127.0.0.1:{http}", "--ready-file", ready, "--oidc-issuer", issuer,
-         "--oidc-client-id", "vsurg-dashboard", "--oidc-redirect-uri", redirect],
-        stderr=open(os.path.join(tmp, "server.log"), "w"), env=env))
-    for _ in range(600):
-        if os.path.exists(ready) and os.path.getsize(ready) > 0:
-            break
-        time.sleep(0.1)
+    admin, _ = start_server(BIN, tmp, procs, env, http=f"127.0.0.1:{http}",
+                            extra=["--oidc-issuer", issuer, "--oidc-client-id", "vsurg-dashboard",
+                                   "--oidc-redirect-uri", redirect])
     return admin
 
 

@@ -31,7 +31,8 @@ from selenium.common.exceptions import WebDriverException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-from browser import AXE, accessible, api as request, axe_source, check, chrome, failures, sign_in
+from browser import (AXE, accessible, api as request, axe_source, check, chrome, failures, sign_in,
+                     start_server)
 
 BIN, SCENES, SHOTS = sys.argv[1], sys.argv[2], sys.argv[3]
 os.makedirs(SHOTS, exist_ok=True)
@@ -43,19 +44,7 @@ EXPERTS = ["exa", "exb", "exc"]
 
 def main():
     env = dict(os.environ, VSURG_SCENES=SCENES)
-    db = os.path.join(tmp, "vsurg.db")
-    admin = subprocess.run([f"{BIN}/vsurg-server", "init", "--db", db], capture_output=True,
-                           text=True, check=True, env=env).stdout.strip()
-    ready = os.path.join(tmp, "ready.json")
-    procs.append(subprocess.Popen(
-        [f"{BIN}/vsurg-server", "--db", db, "--listen", "127.0.0.1:0", "--udp-port", "0",
-         "--http", "127.0.0.1:0", "--ready-file", ready],
-        stderr=open(os.path.join(tmp, "server.log"), "w"), env=env))
-    for _ in range(600):
-        if os.path.exists(ready) and os.path.getsize(ready) > 0:
-            break
-        time.sleep(0.1)
-    ports = json.load(open(ready))
+    admin, ports = start_server(BIN, tmp, procs, env)
     http, grpc = ports["http_port"], ports["grpc_port"]
     base = f"http://127.0.0.1:{http}"
     tokens = {}
