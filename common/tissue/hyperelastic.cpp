@@ -106,7 +106,7 @@ Mat3 HyperelasticFem::Deformation(const Element& e, const std::vector<Vec3>& x) 
 double HyperelasticFem::StrainEnergy() const {
   double energy = 0;
   for (const Element& e : elements_)
-    energy += e.volume * Density(Deformation(e, x_), {mu_, lambda_, b_});
+    energy += e.volume * ElementDensity(&e - elements_.data(), Deformation(e, x_));
   return energy;
 }
 
@@ -114,7 +114,7 @@ Eigen::VectorXd HyperelasticFem::InternalForces() const {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(x_.size()));
   for (const Element& e : elements_) {
     const auto nodal =
-        NodalForces(Stress(Deformation(e, x_), {mu_, lambda_, b_}), e.dm_inv, e.volume);
+        NodalForces(ElementStress(&e - elements_.data(), Deformation(e, x_)), e.dm_inv, e.volume);
     for (int a = 0; a < 4; ++a) f.segment<3>(3 * e.v[a]) += nodal[a];
   }
   return f;
@@ -138,9 +138,10 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
         else
           d_ds(c, a - 1) = 1;
         const Mat3 df = d_ds * e.dm_inv;
-        const Mat3 dp = mu_ * factor * (df + 2 * b_ * (f.array() * df.array()).sum() * f) +
-                        (mu_ - lambda_ * ln_j) * f_inv_t * df.transpose() * f_inv_t +
-                        lambda_ * (f_inv * df).trace() * f_inv_t;
+        Mat3 dp = mu_ * factor * (df + 2 * b_ * (f.array() * df.array()).sum() * f) +
+                  (mu_ - lambda_ * ln_j) * f_inv_t * df.transpose() * f_inv_t +
+                  lambda_ * (f_inv * df).trace() * f_inv_t;
+        if (!s_hist_.empty()) dp = scale_ * dp + df * s_hist_[&e - elements_.data()];
         const auto dforces = NodalForces(dp, e.dm_inv, e.volume);
         for (int b = 0; b < 4; ++b)
           for (int r = 0; r < 3; ++r)
@@ -153,10 +154,73 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
   return k;
 }
 
+double HyperelasticFem::ElementDensity(size_t e, const Mat3& f) const {
+  const double psi = Density(f, {mu_, lambda_, b_});
+  if (s_hist_.empty() || !std::isfinite(psi)) return psi;
+  const Mat3 strain = f.transpose() * f - Mat3::Identity();
+  return scale_ * psi + 0.5 * (s_hist_[e].array() * strain.array()).sum();
+}
+
+Mat3 HyperelasticFem::ElementStress(size_t e, const Mat3& f) const {
+  const Mat3 p = Stress(f, {mu_, lambda_, b_});
+  return s_hist_.empty() ? p : Mat3(scale_ * p + f * s_hist_[e]);
+}
+
+Status HyperelasticFem::SetRelaxation(std::vector<PronyTerm> terms) {
+  double sum = 0;
+  for (size_t i = 0; i < terms.size(); ++i) {
+    const PronyTerm& t = terms[i];
+    if (!(std::isfinite(t.g) && t.g >= 0 && std::isfinite(t.tau) && t.tau > 0))
+      return InvalidArgument("relaxation[" + std::to_string(i) + "]",
+                             "g must be >= 0 and tau > 0 s, both finite");
+    sum += t.g;
+  }
+  if (!(sum < 1)) return InvalidArgument("relaxation", "the terms' g must sum to less than 1");
+  prony_ = std::move(terms);
+  const size_t n = elements_.size();
+  s_hist_.assign(prony_.empty() ? 0 : n, Mat3::Zero());
+  s_prev_.assign(prony_.empty() ? 0 : n, Mat3::Zero());
+  h_.assign(n * prony_.size(), Mat3::Zero());
+  scale_ = 1;
+  for (size_t e = 0; e < s_prev_.size(); ++e) {  // the elastic stress of the present state
+    const Mat3 f = Deformation(elements_[e], x_);
+    s_prev_[e] = f.inverse() * Stress(f, {mu_, lambda_, b_});
+  }
+  return Status::Ok();
+}
+
+HyperelasticSolve HyperelasticFem::Step(double dt) {
+  time_ += dt;
+  if (prony_.empty()) return SolveStatic();
+  const size_t terms = prony_.size();
+  std::vector<double> beta(terms), gamma(terms);
+  scale_ = 1;
+  for (size_t i = 0; i < terms; ++i) {
+    const double x = dt / prony_[i].tau;
+    beta[i] = std::exp(-x);
+    gamma[i] = x > 1e-12 ? -std::expm1(-x) / x : 1.0;
+    scale_ += prony_[i].g * (gamma[i] - 1);  // g∞ + Σ g_i·γ_i, with g∞ = 1 − Σ g_i
+  }
+  for (size_t e = 0; e < elements_.size(); ++e) {
+    s_hist_[e].setZero();
+    for (size_t i = 0; i < terms; ++i)
+      s_hist_[e] += beta[i] * h_[e * terms + i] - prony_[i].g * gamma[i] * s_prev_[e];
+  }
+  const HyperelasticSolve out = SolveStatic();
+  for (size_t e = 0; e < elements_.size(); ++e) {
+    const Mat3 f = Deformation(elements_[e], x_);
+    const Mat3 s_e = f.inverse() * Stress(f, {mu_, lambda_, b_});
+    for (size_t i = 0; i < terms; ++i)
+      h_[e * terms + i] = beta[i] * h_[e * terms + i] + prony_[i].g * gamma[i] * (s_e - s_prev_[e]);
+    s_prev_[e] = s_e;
+  }
+  return out;
+}
+
 double HyperelasticFem::Potential(const std::vector<Vec3>& x) const {
   double potential = 0;
   for (const Element& e : elements_) {
-    const double psi = Density(Deformation(e, x), {mu_, lambda_, b_});
+    const double psi = ElementDensity(&e - elements_.data(), Deformation(e, x));
     if (!std::isfinite(psi)) return kInf;
     potential += e.volume * psi;
   }

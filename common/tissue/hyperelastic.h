@@ -14,7 +14,16 @@
 //   P = ∂ψ/∂F = μ·e·F − μ·F⁻ᵀ + λ·ln J·F⁻ᵀ,
 // the nodal forces f_{1..3} = −V·P·Dm⁻ᵀ (columns), f_0 = −(f_1 + f_2 + f_3), and the exact tangent
 //   dP = μ·e·(dF + 2b·(F:dF)·F) + (μ − λ·ln J)·F⁻ᵀ·dFᵀ·F⁻ᵀ + λ·tr(F⁻¹dF)·F⁻ᵀ.
-// Units: m, Pa, N, J.
+// Units: m, Pa, N, J, s.
+//
+// Viscoelasticity (Fung's quasi-linear viscoelasticity): the second Piola–Kirchhoff stress is the
+// elastic one S_e = F⁻¹·P_e convolved with a reduced relaxation function given as a Prony series,
+//   S(t) = ∫ G(t − s)·dS_e/ds ds,  G(t) = g∞ + Σ g_i·e^{−t/τ_i},  g∞ = 1 − Σ g_i,
+// carried by one internal stress H_i per term and element, updated exactly for S_e linear over a
+// step of length h: H_i ← β_i·H_i + g_i·γ_i·ΔS_e, β_i = e^{−h/τ_i}, γ_i = (1 − β_i)/(h/τ_i). Over
+// the step the stress is S = c·S_e + S_hist with c = g∞ + Σ g_i·γ_i and the history
+// S_hist = Σ (β_i·H_i − g_i·γ_i·S_e,prev), which derives from the energy c·ψ + ½·S_hist:(FᵀF − I):
+// each step is a static solve (Step), quasi-static (no inertia).
 //
 // The static solve is Newton's method on the total potential (strain energy less the external
 // forces' work) with a backtracking line search: a step is halved until the potential falls and
@@ -40,6 +49,11 @@ struct HyperelasticParams {
   double stiffening = 0;  // b ≥ 0, dimensionless: 0 neo-Hookean, > 0 the exponential law
 };
 
+struct PronyTerm {
+  double g = 0;    // the term's share of the instantaneous stiffness, in [0, 1)
+  double tau = 1;  // s
+};
+
 struct HyperelasticSolve {
   int iterations = 0;
   double residual = 0;  // ‖free forces‖∞ / the largest |external or reaction force| (N/N)
@@ -63,6 +77,13 @@ class HyperelasticFem {
 
   HyperelasticSolve SolveStatic(int max_iterations = 50, double tolerance = 1e-10);
 
+  // The relaxation's Prony terms (none: elastic); each g ≥ 0, Σ g < 1, each τ > 0, finite.
+  Status SetRelaxation(std::vector<PronyTerm> terms);
+  // One quasi-static step of `dt` s (the held coordinates and loads as set now): the static solve
+  // with the step's stress, then the internal stresses carried forward. Elastic: SolveStatic.
+  HyperelasticSolve Step(double dt);
+  double time() const { return time_; }  // s, the steps' sum
+
   const std::vector<Eigen::Vector3d>& positions() const { return x_; }
   double mu() const { return mu_; }          // Pa
   double lambda() const { return lambda_; }  // Pa
@@ -78,11 +99,18 @@ class HyperelasticFem {
   Eigen::Matrix3d Deformation(const Element& e, const std::vector<Eigen::Vector3d>& x) const;
   double Potential(const std::vector<Eigen::Vector3d>& x) const;
   Eigen::VectorXd FreeResidual() const;  // internal + external forces, zero on held coordinates
+  double ElementDensity(size_t e, const Eigen::Matrix3d& f) const;          // the step's, Pa
+  Eigen::Matrix3d ElementStress(size_t e, const Eigen::Matrix3d& f) const;  // the step's P, Pa
 
   std::vector<Element> elements_;
   std::vector<Eigen::Vector3d> x_, f_ext_;
   std::vector<unsigned char> held_;  // per coordinate
   double mu_ = 0, lambda_ = 0, b_ = 0;
+  // Viscoelasticity: the terms, the step's stiffness scale c and history stress per element, the
+  // elastic stress at the last step's end and each term's internal stress (element-major).
+  std::vector<PronyTerm> prony_;
+  double scale_ = 1, time_ = 0;
+  std::vector<Eigen::Matrix3d> s_hist_, s_prev_, h_;
 };
 
 }  // namespace vsurg::tissue

@@ -162,6 +162,94 @@ TEST(HyperelasticTest, UniaxialStretchAndCompressionMeetTheClosedForm) {
     }
 }
 
+// The bar on rollers as above, its end held at `l1` (m/m) or loaded by `load` (N) spread by area.
+struct HeldBar {
+  geometry::TetCylinder bar = NeoHookeanBar();
+  HyperelasticFem fem;
+  explicit HeldBar(HyperelasticParams p) : fem(HyperelasticFem::Create(bar.mesh, p).value()) {
+    int centre = -1, on_x = -1;
+    for (int v : bar.base) {
+      const Vec3& x = bar.mesh.positions[v];
+      if (x.head<2>().norm() < 1e-12) centre = v;
+      if (std::abs(x.y()) < 1e-12 && x.x() > 0.019) on_x = v;
+      fem.Hold(v, 2, 0.0);
+    }
+    fem.Hold(centre, 0, 0.0);
+    fem.Hold(centre, 1, 0.0);
+    fem.Hold(on_x, 1, 0.0);
+  }
+  double Area() const { return std::accumulate(bar.tip_area.begin(), bar.tip_area.end(), 0.0); }
+  void Stretch(double l1) {
+    for (int v : bar.tip) fem.Hold(v, 2, l1 * bar.params.length);
+  }
+  void Load(double force) {
+    for (size_t i = 0; i < bar.tip.size(); ++i)
+      fem.SetExternalForce(bar.tip[i], Vec3(0, 0, force * bar.tip_area[i] / Area()));
+  }
+  double Reaction() const {  // N, along the axis, on the end
+    const Eigen::VectorXd f = fem.InternalForces();
+    double r = 0;
+    for (int v : bar.tip) r -= f[3 * v + 2];
+    return r;
+  }
+  double EndStretch() const {  // the end's mean axial stretch
+    double z = 0;
+    for (int v : bar.tip) z += fem.positions()[v].z();
+    return z / static_cast<double>(bar.tip.size()) / bar.params.length;
+  }
+};
+
+// Relaxation (quasi-linear viscoelasticity, one Prony term): a stretch applied in a step much
+// shorter than τ and held; the end's force follows the elastic force times
+// G(t) = g∞ + g·e^{−t/τ} (the uniform scaling leaves the lateral stretch as it is), at a large
+// stretch (1.3) where the elastic force is itself nonlinear.
+TEST(HyperelasticTest, AHeldStretchRelaxesAsThePronySeriesSays) {
+  HeldBar b({30e3, 0.45, 2.0});
+  const double g = 0.6, tau = 2.0;  // s
+  ASSERT_TRUE(b.fem.SetRelaxation({{g, tau}}).ok());
+  const double l1 = 1.3;
+  std::vector<Vec3> guess = b.bar.mesh.positions;
+  for (Vec3& p : guess) p.z() *= l1;
+  b.fem.SetPositions(guess);
+  b.Stretch(l1);
+  const double step = 1e-4 * tau;
+  ASSERT_TRUE(b.fem.Step(step).converged);
+  const auto [l2, nominal] = UniaxialClosedForm(b.fem.mu(), b.fem.lambda(), 2.0, l1);
+  const double elastic = nominal * b.Area();
+  EXPECT_NEAR(b.Reaction() / elastic, 1.0, 1e-3) << "the instantaneous response is elastic";
+  for (int k = 1; k <= 60; ++k) {
+    ASSERT_TRUE(b.fem.Step(0.05 * tau).converged);
+    if (k % 20 != 0) continue;
+    const double t = b.fem.time() - step / 2;
+    const double relax = (1 - g) + g * std::exp(-t / tau);
+    EXPECT_NEAR(b.Reaction() / elastic, relax, 1e-3 * relax) << "t " << t << " s";
+  }
+}
+
+// Creep of a standard linear solid: a small load (the linear range) applied in a step and held;
+// the bar's strain follows ε(t) = σ/E∞ − (σ/E∞ − σ/E0)·e^{−t/τ_c}, E0 = E, E∞ = g∞·E and
+// τ_c = τ·E0/E∞, within the step's error (τ/100 steps).
+TEST(HyperelasticTest, AHeldLoadCreepsAsAStandardLinearSolid) {
+  const double young = 30e3, g = 0.5, tau = 1.0;
+  HeldBar b({young, 0.3, 0});
+  ASSERT_TRUE(b.fem.SetRelaxation({{g, tau}}).ok());
+  const double sigma = 1e-4 * young;  // Pa: a strain of 1e-4 at first
+  b.Load(sigma * b.Area());
+  const double e0 = young, e_inf = (1 - g) * young, tau_c = tau * e0 / e_inf;
+  ASSERT_TRUE(b.fem.Step(1e-5).converged);
+  EXPECT_NEAR((b.EndStretch() - 1) / (sigma / e0), 1.0, 2e-3);
+  for (int k = 1; k <= 500; ++k) {
+    ASSERT_TRUE(b.fem.Step(0.01 * tau).converged);
+    if (k % 100 != 0) continue;
+    const double t = b.fem.time();
+    const double want = sigma / e_inf - (sigma / e_inf - sigma / e0) * std::exp(-t / tau_c);
+    EXPECT_NEAR((b.EndStretch() - 1) / want, 1.0, 5e-3) << "t " << t << " s";
+  }
+  EXPECT_EQ(b.fem.SetRelaxation({{1.0, 1.0}}).error().field, "relaxation");
+  EXPECT_EQ(b.fem.SetRelaxation({{0.2, 0.0}}).error().field, "relaxation[0]");
+  EXPECT_EQ(b.fem.SetRelaxation({{0.2, 1.0}, {-0.1, 1.0}}).error().field, "relaxation[1]");
+}
+
 TEST(HyperelasticTest, BadMaterialsAndElementsAreRefusedByName) {
   const auto bar = NeoHookeanBar();
   EXPECT_EQ(HyperelasticFem::Create(bar.mesh, {0, 0.3}).error().field, "young");
