@@ -438,10 +438,7 @@ LimbCase MakeLimbCase(const std::string& scene, const std::string& builtin,
 }
 
 SceneOut RunLimb(const LimbCase& c, const Config& cfg, Progress& progress) {
-  SceneOut out;
-  out.scene = c.scene;
-  out.scene_file = c.scene_file;
-  std::tie(out.budget, out.scene_family) = SceneBudget(c.scene_file);
+  SceneOut out = NewSceneOut(c.scene, c.scene_file);
   out.checks.push_back({c.scene_file, "coil-scene", "scene parameters"});
   if (c.scene_file == "arm-torsion")  // its FEM: 4 rings, level 4 (the quick run has level 2)
     out.checks.push_back(

@@ -221,10 +221,7 @@ void OrganReducedRows(const Config& cfg, const Organ& o, const Reference& refere
 }  // namespace
 
 SceneOut RunOrgan(const Config& cfg, Progress& progress) {
-  SceneOut out;
-  out.scene = "kidney-palpation";
-  out.scene_file = "kidney-palpation";
-  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
+  SceneOut out = NewSceneOut("kidney-palpation", "kidney-palpation");
   out.checks = {
       {"kidney-palpation", "reduced", cfg.quick ? "contact table" : "contact table, FEM 6 mm"}};
   auto organ = LoadOrgan(out.scene_file);
@@ -410,10 +407,7 @@ void SurfaceTwistCoilRows(const Config& cfg, const TwistSetup& setup,
 // scene had (and its two fits), each at its own torque for 30° (the shapes compared at the same
 // grasp twist, as the limbs' effective modulus does).
 SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress) {
-  SceneOut out;
-  out.scene = "organ-twist";
-  out.scene_file = "organ-surface-twist";
-  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
+  SceneOut out = NewSceneOut("organ-twist", "organ-surface-twist");
   auto scene = sim::LoadSceneByName(out.scene_file);
   const int scene_cells = scene.ok() ? scene->region.reduced.fem_cells : 0;
   out.checks = {{"organ-surface-twist", "reduced",

@@ -402,10 +402,7 @@ void SphereRingLayerRows(const Config& cfg, const Reference& ref, double pole_ta
 }  // namespace
 
 SceneOut RunSphere(const Config& cfg, Progress& progress) {
-  SceneOut out;
-  out.scene = "sphere-palpation";
-  out.scene_file = "sphere-palpation-256";
-  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
+  SceneOut out = NewSceneOut("sphere-palpation", "sphere-palpation-256");
   out.checks = {{"sphere-palpation-256", "mass-spring-scene", "258 particles"},
                 {"sphere-palpation-1024", "reduced",
                  cfg.quick ? "contact table" : "contact table, FEM cells 8 "},

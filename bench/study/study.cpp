@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 
 #include "common/sim/scene.h"
 
@@ -84,6 +85,14 @@ double StabilityLimit(tissue::Integrator integrator) {
     default:
       return 0.5;
   }
+}
+
+SceneOut NewSceneOut(std::string scene, std::string scene_file) {
+  SceneOut out;
+  out.scene = std::move(scene);
+  out.scene_file = std::move(scene_file);
+  std::tie(out.budget, out.scene_family) = SceneBudget(out.scene_file);
+  return out;
 }
 
 std::pair<double, std::string> SceneBudget(const std::string& file) {

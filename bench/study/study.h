@@ -56,6 +56,9 @@ struct SceneOut {
   std::vector<SceneModelCheck> checks;
 };
 
+// A study scene's rows to come, under `scene_file`'s budget and model family.
+SceneOut NewSceneOut(std::string scene, std::string scene_file);
+
 // Every scenes/ file against its own budget: one line per file, a failure says so in words.
 struct BudgetVerdict {
   std::string file, model, setting;
