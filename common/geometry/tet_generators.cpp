@@ -98,22 +98,17 @@ Expected<TetCylinder> MakeTetCylinder(const TetCylinderParams& p) {
   return out;
 }
 
-Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
-  if (!(p.radius > 0) || !std::isfinite(p.radius))
-    return InvalidArgument("radius", "must be > 0 m");
-  if (p.cells < 2 || p.cells > 128 || p.cells % 2 != 0)
-    return InvalidArgument("cells", "must be even, within 2..128");
-  const int n = p.cells, m1 = n + 1;
+namespace {
+
+// A grid of nx × ny × nz cubes, vertex (i, j, k) placed by `place`, every cube split into six
+// tetrahedra (Kuhn) mirrored by index parity (the comment at MakeTetBall).
+template <class Place>
+Expected<TetMesh> KuhnGrid(int nx, int ny, int nz, const Place& place, bool mirror = true) {
   TetMesh mesh;
-  auto id = [m1](int i, int j, int k) { return (k * m1 + j) * m1 + i; };
-  for (int k = 0; k <= n; ++k)
-    for (int j = 0; j <= n; ++j)
-      for (int i = 0; i <= n; ++i) {
-        const Vec3 x(2.0 * i / n - 1.0, 2.0 * j / n - 1.0, 2.0 * k / n - 1.0);
-        const double l2 = x.norm();
-        mesh.positions.push_back(l2 > 0 ? Vec3(p.radius * x * x.cwiseAbs().maxCoeff() / l2)
-                                        : Vec3::Zero());
-      }
+  auto id = [&](int i, int j, int k) { return (k * (ny + 1) + j) * (nx + 1) + i; };
+  for (int k = 0; k <= nz; ++k)
+    for (int j = 0; j <= ny; ++j)
+      for (int i = 0; i <= nx; ++i) mesh.positions.push_back(place(i, j, k));
   // Kuhn: six tetrahedra along a main diagonal of each cube, one per order of the three axes.
   // The cube is mirrored along every axis on which its index is odd, so neighbours are mirror
   // images across their shared face (which therefore is cut the same way from both sides) and
@@ -121,13 +116,13 @@ Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
   // vertical press on the pole then moves it sideways along the diagonal by a fifth as much).
   static const int kPaths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
                                    {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) {
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
         const int base[3] = {i, j, k};
         int start[3], step[3];
         for (int a = 0; a < 3; ++a) {
-          const bool mirrored = base[a] % 2 == 1;
+          const bool mirrored = mirror && base[a] % 2 == 1;
           start[a] = base[a] + (mirrored ? 1 : 0);
           step[a] = mirrored ? -1 : 1;
         }
@@ -146,10 +141,60 @@ Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
   return mesh;
 }
 
+}  // namespace
+
+Expected<TetMesh> MakeTetBall(const TetBallParams& p) {
+  if (!(p.radius > 0) || !std::isfinite(p.radius))
+    return InvalidArgument("radius", "must be > 0 m");
+  if (p.cells < 2 || p.cells > 128 || p.cells % 2 != 0)
+    return InvalidArgument("cells", "must be even, within 2..128");
+  const int n = p.cells;
+  return KuhnGrid(n, n, n, [&](int i, int j, int k) {
+    const Vec3 x(2.0 * i / n - 1.0, 2.0 * j / n - 1.0, 2.0 * k / n - 1.0);
+    const double l2 = x.norm();
+    return l2 > 0 ? Vec3(p.radius * x * x.cwiseAbs().maxCoeff() / l2) : Vec3::Zero();
+  });
+}
+
+Expected<TetMesh> MakeTetBox(const TetBoxParams& p) {
+  for (int a = 0; a < 3; ++a) {
+    if (!(p.size[a] > 0 && p.size[a] <= 10))
+      return InvalidArgument("size", "each side must be in (0, 10] m");
+    if (p.cells[a] < 1 || p.cells[a] > 256)
+      return InvalidArgument("cells", "each count must be within 1..256");
+  }
+  return KuhnGrid(p.cells[0], p.cells[1], p.cells[2], [&](int i, int j, int k) {
+    return Vec3(p.size.x() * (static_cast<double>(i) / p.cells[0] - 0.5),
+                p.size.y() * (static_cast<double>(j) / p.cells[1] - 0.5),
+                p.size.z() * static_cast<double>(k) / p.cells[2]);
+  }, false);
+}
+
 TetCylinderParams TorsionCylinder(double length, double radius_base, double radius_tip, int rings) {
   const double mean_radius = 0.5 * (radius_base + radius_tip);
   const int layers = rings * static_cast<int>(std::ceil(3.0 * length / mean_radius));
   return {length, radius_base, radius_tip, rings, layers};
+}
+
+TriMesh CompactBoundarySurface(const TetMesh& mesh, std::vector<int>* fem_vertex) {
+  const TriMesh all = BoundarySurface(mesh);
+  std::vector<int> index(mesh.positions.size(), -1);
+  TriMesh out;
+  std::vector<int> from;
+  for (const Triangle& t : all.triangles) {
+    Triangle c;
+    for (int k = 0; k < 3; ++k) {
+      if (index[t[k]] < 0) {
+        index[t[k]] = static_cast<int>(out.positions.size());
+        out.positions.push_back(mesh.positions[t[k]]);
+        from.push_back(t[k]);
+      }
+      c[k] = index[t[k]];
+    }
+    out.triangles.push_back(c);
+  }
+  if (fem_vertex) *fem_vertex = std::move(from);
+  return out;
 }
 
 }  // namespace vsurg::geometry

@@ -12,10 +12,13 @@
 // mirrored by index parity so the diagonals alternate (isotropic on average) and neighbours cut
 // their shared face alike (conforming).
 //
-// Both reject parameters that would make degenerate elements, and orient every tetrahedron
+// Box: the ball's grid without the map.
+//
+// All reject parameters that would make degenerate elements, and orient every tetrahedron
 // positively (Validate passes with min_volume > 0).
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "common/core/expected.h"
@@ -52,5 +55,17 @@ struct TetBallParams {
 };
 
 Expected<TetMesh> MakeTetBall(const TetBallParams& p);
+
+// Box (a palpation pad, breast-like tissue on a table): the same Kuhn grid, uniform, x and y
+// centred on 0, z from 0 (the table) to the height.
+struct TetBoxParams {
+  Vec3 size = Vec3(0.12, 0.12, 0.04);  // m
+  std::array<int, 3> cells = {20, 20, 8};
+};
+Expected<TetMesh> MakeTetBox(const TetBoxParams& p);
+
+// The boundary of a tetrahedral mesh as a surface of its own vertices only (BoundarySurface
+// keeps the interior ones): `fem_vertex[v]` is surface vertex v's index in `mesh`.
+TriMesh CompactBoundarySurface(const TetMesh& mesh, std::vector<int>* fem_vertex = nullptr);
 
 }  // namespace vsurg::geometry

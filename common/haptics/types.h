@@ -16,6 +16,7 @@ using Vec3 = Eigen::Vector3d;
 
 enum StylusButton : uint32_t {
   kButtonGrasp = 1u << 0,  // held: grasp (and twist) the tissue under the tip
+  kButtonMark = 1u << 1,   // pressed on the surface: a palpation's mark ("a lump here")
 };
 
 struct StylusSample {
@@ -120,6 +121,8 @@ enum HapticEvent : uint32_t {
   // Not a force: the session has moved to another node (live migration), and this node answers
   // its station only to say so (zero force, nothing else meant). The station asks where it runs.
   kEventSessionMoved = 1u << 11,
+  // A palpation's mark was placed at the proxy (the mark button pressed in contact).
+  kEventMarked = 1u << 12,
 };
 
 struct ForceCommand {

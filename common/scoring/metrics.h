@@ -46,6 +46,11 @@ struct TrialMetrics {
   // own work: their hand's path, their share of the tissue's force.
   double guided_share = 0;
   double guided_alpha = 0;
+  // A palpation (palpation.h): the lumps hidden, those found, the marks that found none, the mean
+  // distance from a found lump to its mark (m), the share of the surface examined (0..1) and the
+  // mean force in contact (N). Zero for the other tasks.
+  int lumps = 0, lumps_found = 0, false_marks = 0;
+  double localisation_error = 0, coverage = 0, mean_force = 0;
   LinkFigures link;  // filled by the server that ran the session (not by the recorder)
 };
 

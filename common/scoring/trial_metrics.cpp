@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "common/scoring/palpation.h"
+
 namespace vsurg::scoring {
 
 TaskDisplayUnit DisplayUnitOf(TaskKind kind) {
@@ -91,7 +93,8 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
   const bool ok = error <= task_.tolerance && force <= task_.force_limit;
   if (ok && !in_window_) in_window_ = true, window_start_ = time;
   if (!ok) in_window_ = false;
-  if (!completed_ && in_window_ && time - window_start_ >= task_.hold_s) {
+  if (!completed_ && in_window_ && time - window_start_ >= task_.hold_s &&
+      task_.kind != TaskKind::kPalpate) {  // a palpation completes when the search ends
     completed_ = true;
     completion_ = time - t0_;
     error_at_completion_ = error;
@@ -148,6 +151,9 @@ Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
   const auto bad = [](const char* field, const std::string& why) {
     return Error{ErrorCode::kInvalidArgument, why, field};
   };
+  if (t.kind == TaskKind::kPalpate && (s.kind || s.target || s.tolerance))
+    return bad(s.tolerance && !s.target ? "tolerance" : "target",
+               "the scene's task is a palpation: it has no target or tolerance");
   if (s.kind && *s.kind != t.kind)
     return bad(target_name, std::string("the scene's task is a ") + (twist ? "twist" : "press") +
                                 ": give " + target_name + " and " + tolerance_name);
@@ -187,6 +193,7 @@ Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
 }
 
 std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
+  if (task.kind == TaskKind::kPalpate) return ExplainPalpation(m, task);
   const auto text = [](const char* format, double a, double b = 0) {
     char line[200];
     std::snprintf(line, sizeof line, format, a, b);

@@ -38,7 +38,9 @@
 
 namespace vsurg::scoring {
 
-enum class TaskKind { kTwist, kPress };
+// kPalpate: search the tissue for hidden lumps and mark them (palpation.h); it has no target or
+// tolerance of its own.
+enum class TaskKind { kTwist, kPress, kPalpate };
 
 // How people read a task's target and tolerance: degrees for a twist, millimetres for a press
 // (the spec keeps radians and metres). One place for the dashboard, the catalogue and the station.

@@ -172,8 +172,19 @@ Status ParseMesh(const Reader& r, const std::string& scene_dir, MeshSpec& m) {
     auto scale = geometry::UnitScale(units);
     if (!scale.ok()) return r.Bad("units", scale.error().message);
     m.metres_per_unit = *scale;
+  } else if (type == "block") {
+    m.kind = MeshKind::kBlock;
+    VSURG_TRY(size, r.NumbersOr("size", 3, 1e-3, 1.0));
+    VSURG_TRY(cells, r.NumbersOr("cells", 3, 1, 64));
+    if (size.empty()) return r.Missing("size");
+    if (cells.empty()) return r.Missing("cells");
+    for (int a = 0; a < 3; ++a) {
+      if (cells[a] != std::floor(cells[a])) return r.Bad("cells", "must be whole numbers");
+      m.block.size[a] = size[a];
+      m.block.cells[a] = static_cast<int>(cells[a]);
+    }
   } else {
-    return r.Bad("type", "must be limb, sphere or file, got '" + type + "'");
+    return r.Bad("type", "must be limb, sphere, file or block, got '" + type + "'");
   }
   return Status::Ok();
 }
@@ -365,10 +376,15 @@ Status ParseTask(const Reader& r, scoring::TaskSpec& t) {
     VSURG_TRY(tol, r.Number("tolerance_m", 1e-6, 0.5));
     t.target = target;
     t.tolerance = tol;
+  } else if (type == "palpate") {
+    t.kind = scoring::TaskKind::kPalpate;  // no target: the marks are scored (palpation.h)
+    t.target = 0;
+    t.tolerance = scoring::PalpationSpec{}.match_margin;
   } else {
-    return r.Bad("type", "must be twist or press, got '" + type + "'");
+    return r.Bad("type", "must be twist, press or palpate, got '" + type + "'");
   }
-  VSURG_TRY(hold, r.NumberOr("hold_s", 2.0, 0, 600));
+  const bool palpate = t.kind == scoring::TaskKind::kPalpate;
+  VSURG_TRY(hold, r.NumberOr("hold_s", palpate ? 0.0 : 2.0, 0, 600));
   VSURG_TRY(limit, r.NumberOr("force_limit_n", 3.0, 0, 1000));
   VSURG_TRY(time_limit, r.NumberOr("time_limit_s", 60.0, 1e-3, 86400));
   if (!(time_limit > hold)) return r.Bad("time_limit_s", "must exceed hold_s");
@@ -497,8 +513,53 @@ Status ParseInclusions(const Reader& r, Scene& s) {
     if (s.mesh.kind == MeshKind::kSphere && inc.centre.norm() >= s.mesh.radius)
       return c.Bad("centre", "lies outside the tissue (the sphere's radius is " +
                                  std::to_string(s.mesh.radius) + " m)");
+    const geometry::Vec3& size = s.mesh.block.size;
+    if (s.mesh.kind == MeshKind::kBlock &&
+        !(std::abs(inc.centre.x()) < size.x() / 2 && std::abs(inc.centre.y()) < size.y() / 2 &&
+          inc.centre.z() > 0 && inc.centre.z() < size.z()))
+      return c.Bad("centre", "lies outside the tissue (the block)");
     s.inclusions.push_back(inc);
   }
+  return Status::Ok();
+}
+
+// A palpation's cases drawn at random, one per attempt ("task.cases": {"count": [min, max],
+// "diameter_mm": [min, max], "depth_mm": [min, max], "contrast": [min, max], "gap_mm": g,
+// "margin_mm": m (from the palpable surface's rim, sim::RimDistance)},
+// every field optional, tissue::InclusionDraw's defaults otherwise). Only a palpation has them,
+// and only a reduced contact model (its table is the drawn case's own FEM's).
+Status ParseCases(const Reader& task, Scene& s) {
+  if (!task.Has("cases")) return Status::Ok();
+  if (s.task.kind != scoring::TaskKind::kPalpate)
+    return task.Bad("cases", "only a palpation task draws cases");
+  if (s.region.kind != ModelKind::kReduced || s.region.reduced.mode != ReducedMode::kContact)
+    return task.Bad("cases", "a palpation's cases need a reduced contact model (its FEM)");
+  if (!s.inclusions.empty())
+    return task.Bad("cases", "a scene either declares its inclusions or draws them, not both");
+  VSURG_TRY(c, task.Object("cases"));
+  tissue::InclusionDraw d;
+  const auto range = [&](const char* key, double scale, double& lo, double& hi) -> Status {
+    VSURG_TRY(v, c.NumbersOr(key, 2, -1e6, 1e6));
+    if (!v.empty()) lo = v[0] * scale, hi = v[1] * scale;
+    return Status::Ok();
+  };
+  double count_lo = d.min_count, count_hi = d.max_count;
+  for (Status st : {range("count", 1, count_lo, count_hi),
+                    range("diameter_mm", 1e-3, d.min_diameter, d.max_diameter),
+                    range("depth_mm", 1e-3, d.min_depth, d.max_depth),
+                    range("contrast", 1, d.min_contrast, d.max_contrast)})
+    if (!st.ok()) return st;
+  if (count_lo != std::floor(count_lo) || count_hi != std::floor(count_hi) ||
+      !(count_lo >= 0 && count_hi <= 16))
+    return c.Bad("count", "must be two whole numbers in 0..16");
+  d.min_count = static_cast<int>(count_lo);
+  d.max_count = static_cast<int>(count_hi);
+  VSURG_TRY(gap, c.NumberOr("gap_mm", d.min_gap * 1e3, 0, 1e3));
+  d.min_gap = gap * 1e-3;
+  VSURG_TRY(margin, c.NumberOr("margin_mm", s.case_margin * 1e3, 0, 1e3));
+  s.case_margin = margin * 1e-3;
+  if (Status st = tissue::ValidateInclusionDraw(d, "task.cases"); !st.ok()) return st;
+  s.cases = d;
   return Status::Ok();
 }
 
@@ -520,7 +581,7 @@ Status ParseRegion(const json& root, const Reader& r, Scene& s) {
     if (!twist && s.mesh.kind == MeshKind::kLimb)
       return InvalidArgument("regions[0].model.type",
                              "regions[0].model.type: a reduced contact or surface-twist "
-                             "model needs a sphere or a closed mesh file");
+                             "model needs a sphere, a block or a closed mesh file");
   }
   if (s.region.support == Support::kGroup && s.mesh.kind != MeshKind::kFile)
     return InvalidArgument("regions[0].model.support",
@@ -530,9 +591,13 @@ Status ParseRegion(const json& root, const Reader& r, Scene& s) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
   }
   if (s.mesh.kind == MeshKind::kFile) return Status::Ok();  // its size is known once it is read
+  const auto& c = s.mesh.block.cells;  // a block's boundary: all its grid's nodes less the inside
   const size_t vertices =
       s.mesh.kind == MeshKind::kLimb
           ? static_cast<size_t>(s.mesh.limb.segments_around) * s.mesh.limb.rings_along + 2
+      : s.mesh.kind == MeshKind::kBlock
+          ? static_cast<size_t>((c[0] + 1) * (c[1] + 1) * (c[2] + 1) -
+                                (c[0] - 1) * (c[1] - 1) * (c[2] - 1))
           : static_cast<size_t>(geometry::SphereVertexCount(
                 geometry::SphereBase::kOctahedron,
                 geometry::SphereLevelsForVertexCount(geometry::SphereBase::kOctahedron,
@@ -551,8 +616,9 @@ Status ParseSceneTask(const Reader& r, Scene& s) {
   if ((s.task.kind == scoring::TaskKind::kTwist) != twists)
     return InvalidArgument("task.type",
                            "task.type: a twist task needs a coil or reduced (surface-)twist model, "
-                           "a press task a mass-spring, ring-layer or reduced contact model");
-  return Status::Ok();
+                           "a press or palpation task a mass-spring, ring-layer or reduced contact "
+                           "model");
+  return ParseCases(task, s);
 }
 
 // How the station draws it: the material, the drawn surface's size, a finer surface file.
@@ -662,6 +728,12 @@ Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec) {
           geometry::MakeSubdividedSphere({spec.radius, levels, geometry::SphereBase::kOctahedron});
       if (!sphere.ok()) return sphere.error();
       out.surface = std::move(*sphere);
+      break;
+    }
+    case MeshKind::kBlock: {
+      auto box = geometry::MakeTetBox(spec.block);
+      if (!box.ok()) return box.error();
+      out.surface = geometry::CompactBoundarySurface(*box);
       break;
     }
     case MeshKind::kFile: {

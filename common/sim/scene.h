@@ -15,7 +15,7 @@
 //     "error_budget": { "rms": 0.30, "reference": "saint-venant" } }
 //
 // Mesh types: limb (preset forearm or calf, or length/radius_proximal/radius_distal/segments/
-// rings), sphere (radius, particles), obj (path, relative to the scene file). Model types: coil
+// rings), sphere (radius, particles), obj (path, relative to the scene file), block (size, cells). Model types: coil
 // (mode limb or surface), mass-spring (integrator, dt, stiffness, damping, volume, support),
 // ring-layer (ring_spacing, rings, chain_stiffness, chain_damping, tether_stiffness, dt).
 // Exactly one deformable region per scene: what lies outside its reach is at rest and costs
@@ -31,8 +31,10 @@
 
 #include "common/core/expected.h"
 #include "common/geometry/mesh_generators.h"
+#include "common/geometry/tet_generators.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
+#include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/tissue/coil_deformation.h"
 #include "common/tissue/coil_spring.h"
@@ -42,7 +44,7 @@
 
 namespace vsurg::sim {
 
-enum class MeshKind { kLimb, kSphere, kFile };
+enum class MeshKind { kLimb, kSphere, kFile, kBlock };
 enum class ModelKind { kCoil, kMassSpring, kRingLayer, kReduced };
 // As scene files spell it: "coil", "mass-spring", "ring-layer", "reduced".
 const char* ModelKindName(ModelKind kind);
@@ -59,6 +61,9 @@ struct MeshSpec {
   int particles = 256;           // sphere
   std::string path;              // file (also spelled "obj"), absolute after loading
   double metres_per_unit = 1.0;  // file: its "units" (m, cm, mm, um), as a scale
+  // block: a pad on a table ("size": [x, y, z] m, "cells": [nx, ny, nz]); its surface is its FEM
+  // grid's boundary (geometry::MakeTetBox), so a reduced model's FEM is the same grid.
+  geometry::TetBoxParams block;
 };
 
 // A reduced model precomputed from the scene's own FEM (common/tissue/reduced.h). "contact": the
@@ -157,6 +162,10 @@ struct Scene {
   MeshSpec mesh;
   double shear_modulus = 12e3, poisson_ratio = 0.47, density = 1050;
   std::vector<tissue::Inclusion> inclusions;  // lumps of another stiffness (inclusions.h)
+  // A palpation's cases: each attempt draws its own lumps (DrawInclusions) into `inclusions`
+  // (DrawCase); unset: the scene's own inclusions are the case.
+  std::optional<tissue::InclusionDraw> cases;
+  double case_margin = 0.02;  // m, the drawn lumps' least distance from the palpable rim
   RegionSpec region;
   HapticsSpec haptics;
   scoring::TaskSpec task;

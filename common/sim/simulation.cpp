@@ -144,6 +144,7 @@ Status Simulation::Build() {
       },
       room_);
   station_surface_ = MakeStationSurface();
+  if (Status s = BuildPalpation(); !s.ok()) return s;
   const geometry::Bvh bvh(rest_);
   // A surface back at rest: any list a query kept is void (Build also runs on a failed restore).
   surface_motion_ += kSurfaceReset;
@@ -241,7 +242,8 @@ namespace {
 // The snapshot's header: a format version (raised whenever any Persist list changes), then what
 // the receiver must have built the same way.
 constexpr uint32_t kStateMagic = 0x4D495356;  // "VSIM"
-constexpr uint32_t kStateVersion = 3;  // 2: the contact's stiffness fit; 3: the viscoelastic fit
+// 2: the contact's stiffness fit; 3: the viscoelastic fit; 4: a palpation's marks and coverage.
+constexpr uint32_t kStateVersion = 4;
 
 }  // namespace
 
@@ -253,7 +255,7 @@ std::string Simulation::SaveState() {
   w(recorder_, samples_, port_force_, port_x_, port_has_x_, released_j_, absorbed_j_,
     telemetry_grasping_, live_score_, input_, last_time_, trial_time_, clock_jumps_, has_time_,
     grasping_, grasp_q0_, axis_, axis_point_, lever_, rest_contact_, rest_normal_, last_contact_,
-    grasp_query_, proxy_, safety_, stiffness_fit_, viscoelastic_fit_);
+    grasp_query_, proxy_, safety_, stiffness_fit_, viscoelastic_fit_, palpation_, mark_button_);
   // The surface the haptic path answers from (the latest published).
   surface_.Acquire();
   const Snapshot& snap = surface_.Front();
@@ -301,6 +303,8 @@ Status Simulation::RestoreState(std::string_view bytes) {
   haptics::SafetyFilter safety = safety_;
   haptics::StiffnessFit stiffness_fit = stiffness_fit_;
   haptics::ViscoelasticFit viscoelastic_fit = viscoelastic_fit_;
+  scoring::PalpationRecorder palpation = palpation_;
+  bool mark_button = false;
   DeformInput input;
   GraspQuery grasp_query;
   uint64_t samples = 0, clock_jumps = 0;
@@ -312,7 +316,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   r(recorder, samples, port_force, port_x, port_has_x, released, absorbed, telemetry_grasping,
     live_score, input, last_time, trial_time, clock_jumps, has_time, grasping, grasp_q0, axis,
     axis_point, lever, rest_contact, rest_normal, last_contact, grasp_query, proxy, safety,
-    stiffness_fit, viscoelastic_fit);
+    stiffness_fit, viscoelastic_fit, palpation, mark_button);
   std::vector<Vec3> positions(rest_.positions.size());
   bool overload = false, outside_model = false;
   r(positions, overload, outside_model);
@@ -340,6 +344,8 @@ Status Simulation::RestoreState(std::string_view bytes) {
   }
   if (grasping) Regrasp(grasp_query);
   recorder_ = recorder;
+  palpation_ = palpation;
+  mark_button_ = mark_button;
   proxy_ = proxy;
   safety_ = safety;
   stiffness_fit_ = stiffness_fit;

@@ -53,6 +53,7 @@
 #include "common/haptics/tissue_surface.h"
 #include "common/haptics/types.h"
 #include "common/haptics/viscoelastic.h"
+#include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/deformation_pool.h"
 #include "common/sim/guidance.h"
@@ -145,12 +146,17 @@ class Simulation final : private DeformationPool::Member {
   uint64_t ShownSurface(std::vector<int32_t>& indices,
                         std::vector<geometry::Vec3>& positions) const;
   // The haptic thread's own view, or after it stopped (not concurrently with OnStylus).
-  scoring::TrialMetrics Metrics() const { return recorder_.Finish(); }
+  scoring::TrialMetrics Metrics() const;
+  // A palpation's marks and lumps (the haptic thread's, or after it stopped): what the trial's
+  // summary shows beside each other once the search is over.
+  const scoring::PalpationRecorder& palpation() const { return palpation_; }
   // One reader thread (the control plane's sampler): the latest telemetry, published by the
   // haptic thread every few samples. False when nothing new since the previous call.
   bool TakeTelemetry(Telemetry& out);
   const Scene& scene() const { return scene_; }
   const geometry::TriMesh& rest_mesh() const { return rest_; }
+  // The rest surface's vertices the scene's support holds.
+  const std::vector<int>& held_vertices() const { return held_; }
   // Any thread: the surface at rest and its contact law, as a station renders the surface ahead
   // of the tool before the server's answers say it (haptics/tissue_surface.h); a station gets it
   // with its join. Null when the scene has no surface ahead (lookahead 0).
@@ -241,6 +247,9 @@ class Simulation final : private DeformationPool::Member {
   void RecordSample(const haptics::StylusSample& trainee, const StylusStep& step,
                     const geometry::Vec3& out);
   void CountInstructorEnergy(const haptics::StylusSample& s);
+  // A palpation's stage (simulation_palpation.cpp): the press's coverage, and a mark.
+  void PalpationStep(const haptics::StylusSample& trainee, StylusStep& step);
+  Status BuildPalpation();
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
   std::shared_ptr<const haptics::TissueSurface> MakeStationSurface() const;
@@ -260,6 +269,8 @@ class Simulation final : private DeformationPool::Member {
   std::shared_ptr<const haptics::TissueSurface> station_surface_;  // set by Build
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
+  scoring::PalpationRecorder palpation_;  // a palpation task's marks and coverage
+  bool mark_button_ = false;              // the mark button as the last sample held it
   uint64_t samples_ = 0;
   // The server's port energies (haptics::ForceCommand::released_j): the force answered last, held
   // until the next sample, against the motion to it.

@@ -49,6 +49,7 @@ Vec3 AnyPerpendicular(const Vec3& a) {
     ContactStep(snap, s, button, step);
   }
   PublishInput();
+  PalpationStep(trainee, step);
   ShareTool(trainee, step);
   const Vec3 out = Answer(snap, guidance_.shared() ? trainee : s, step);
   RecordSample(trainee, step, out);
@@ -323,8 +324,10 @@ void Simulation::PublishTelemetry(const StylusSample& s, const ForceCommand& cmd
   t.hands_apart = t.instructor ? (t.instructor_tip - s.position).norm() : 0.0;
   t.tool = guidance_.Tool(s).position;
   t.tool_force = tool_force_;
-  t.metrics = recorder_.Finish();
-  live_score_ = t.metrics.score;
+  t.metrics = Metrics();
+  // A palpation's score says whether the marks found the lumps: the trainee sees it only when
+  // the search is over (the instructor's telemetry has it all along).
+  live_score_ = scene_.task.kind == scoring::TaskKind::kPalpate ? 0.0 : t.metrics.score;
   telemetry_.Publish();
 }
 

@@ -34,6 +34,7 @@ Expected<geometry::TetMesh> ReducedFemMesh(const Scene& scene, const geometry::T
   const RegionSpec& region = scene.region;
   if (scene.mesh.kind == MeshKind::kSphere)
     return geometry::MakeTetBall({scene.mesh.radius, region.reduced.fem_cells});
+  if (scene.mesh.kind == MeshKind::kBlock) return geometry::MakeTetBox(scene.mesh.block);
   auto fem = geometry::Tetrahedralize(rest, {region.reduced.fem_size, 0, 3.0});
   if (!fem.ok())
     return Error{fem.error().code, scene.mesh.path + ": " + fem.error().message, "mesh"};
