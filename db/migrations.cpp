@@ -224,6 +224,15 @@ CREATE TABLE placements (
 ALTER TABLE trial_metrics ADD COLUMN guided_share REAL NOT NULL DEFAULT 0;
 ALTER TABLE trial_metrics ADD COLUMN guided_alpha REAL NOT NULL DEFAULT 0;
 )sql",
+      // 9: palpation (scoring::TrialMetrics::lumps … mean_force; 0 for the other tasks).
+      R"sql(
+ALTER TABLE trial_metrics ADD COLUMN lumps INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN lumps_found INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN false_marks INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN localisation_error_m REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN coverage REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN mean_force_n REAL NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }

@@ -103,7 +103,8 @@ inline constexpr const char* kTrialMetricColumns =
     "completed, completion_time_s, task_error, peak_force_n, time_over_force_limit_s, "
     "path_length_m, rms_jerk, overload_events, duration_s, score, raw_score, caps, "
     "station_peak_force_n, station_time_over_limit_s, link_rtt_ms, link_jitter_ms, "
-    "link_loss_ratio, link_rate_hz, guided_share, guided_alpha";
+    "link_loss_ratio, link_rate_hz, guided_share, guided_alpha, lumps, lumps_found, false_marks, "
+    "localisation_error_m, coverage, mean_force_n";
 // A row's trial metrics from column `first` on (kTrialMetricColumns).
 scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first);
 

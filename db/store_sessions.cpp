@@ -200,9 +200,10 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
         "peak_force_n, time_over_force_limit_s, path_length_m, rms_jerk, overload_events, "
         "duration_s, score, raw_score, caps, recorded_us, station_peak_force_n, "
         "station_time_over_limit_s, link_rtt_ms, link_jitter_ms, link_loss_ratio, link_rate_hz, "
-        "guided_share, guided_alpha) "
+        "guided_share, guided_alpha, lumps, lumps_found, false_marks, localisation_error_m, "
+        "coverage, mean_force_n) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
-        "?19, ?20, ?21, ?22)",
+        "?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28)",
         [&](Statement& st) {
           st.Bind(1, id).Bind(2, int64_t{m.completed ? 1 : 0});
           st.Bind(3, m.completion_time).Bind(4, m.task_error).Bind(5, m.peak_force);
@@ -212,6 +213,9 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
           st.Bind(15, m.link.station_peak_force).Bind(16, m.link.station_time_over_limit);
           st.Bind(17, m.link.rtt_ms).Bind(18, m.link.jitter_ms).Bind(19, m.link.loss);
           st.Bind(20, m.link.rate_hz).Bind(21, m.guided_share).Bind(22, m.guided_alpha);
+          st.Bind(23, int64_t{m.lumps}).Bind(24, int64_t{m.lumps_found});
+          st.Bind(25, int64_t{m.false_marks}).Bind(26, m.localisation_error);
+          st.Bind(27, m.coverage).Bind(28, m.mean_force);
         });
     if (!s.ok() || trace_json.empty()) return s;
     return RunSql(c, "INSERT INTO session_traces(session_id, trace_json) VALUES (?1, ?2)",

@@ -30,6 +30,12 @@ scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first) {
   m.link.rate_hz = q.Double(first + 17);
   m.guided_share = q.Double(first + 18);
   m.guided_alpha = q.Double(first + 19);
+  m.lumps = static_cast<int>(q.Int(first + 20));
+  m.lumps_found = static_cast<int>(q.Int(first + 21));
+  m.false_marks = static_cast<int>(q.Int(first + 22));
+  m.localisation_error = q.Double(first + 23);
+  m.coverage = q.Double(first + 24);
+  m.mean_force = q.Double(first + 25);
   return m;
 }
 

@@ -24,6 +24,7 @@ ServerSettings Defaults() {
   s.control.listen = "127.0.0.1:50051";
   s.endpoint.port = 50052;
   s.cluster.listen = "127.0.0.1:0";
+  s.sessions.cases_ready = 2;  // a palpation's sessions start without building their case
   return s;
 }
 
@@ -164,6 +165,11 @@ void DeclareSessions(ArgParser& p) {
               "milliseconds while a hand grasps it, from the newest request (0: every request)",
               false, Num(1e3 * d.sessions.quasi_static_interval_s))
       .Within(S::kQuasiStaticIntervalS.Scaled(1e3))
+      .Option("cases-ready", Kind::kInt,
+              "palpation cases kept built ahead for each scene that draws them, in the reduced "
+              "models' cache (0: each session builds its own when it is created)",
+              false, Num(d.sessions.cases_ready))
+      .Within(S::kCasesReady)
       .Option("realtime-priority", Kind::kInt,
               "SCHED_FIFO priority of the UDP haptic thread when permitted (0: off, the normal "
               "priority a container gives)",
@@ -257,6 +263,7 @@ void ReadSessions(const cli::ArgParser& p, ServerSettings& s) {
   so.start_timeout_s = p.Double("start-timeout");
   so.deformation_workers = p.Int("deformation-workers");
   so.quasi_static_interval_s = 1e-3 * p.Double("quasi-static-interval-ms");
+  so.cases_ready = p.Int("cases-ready");
   if (s.role != "sim") return;
   char host[256] = {};
   gethostname(host, sizeof host - 1);

@@ -79,6 +79,7 @@ class PalpationRecorder {
 
   int marks() const { return marks_; }
   const Eigen::Vector3d& mark(int i) const { return mark_[i]; }
+  double mark_time(int i) const { return mark_time_[i]; }
   const std::vector<Lump>& lumps() const { return lumps_; }
 
   // The state a session moved to another node goes on from (state_archive.h); the lumps, the

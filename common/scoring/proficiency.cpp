@@ -8,7 +8,7 @@
 namespace vsurg::scoring {
 namespace {
 
-constexpr std::array<MetricDef, 9> kMetrics = {{
+constexpr std::array<MetricDef, 13> kMetrics = {{
     {"completion_time_s", "s", Better::kLower, "completion time"},
     {"task_error", "rad or m", Better::kLower, "task error"},
     {"peak_force_n", "N", Better::kLower, "peak force"},
@@ -20,6 +20,11 @@ constexpr std::array<MetricDef, 9> kMetrics = {{
     // The share of the trial's samples an instructor's hand weighed in (four-handed training): a
     // target of 0 asks for the exercise to be passed unguided.
     {"guided_share", "", Better::kLower, "share of the trial guided"},
+    // A palpation's (palpation.h): what it found, where, and how much of the tissue it examined.
+    {"lumps_missed", "", Better::kLower, "lumps missed"},
+    {"false_marks", "", Better::kLower, "false marks"},
+    {"localisation_error_m", "m", Better::kLower, "localisation error"},
+    {"coverage", "", Better::kHigher, "share of the surface examined"},
 }};
 
 // Equal within rounding counts as met: a benchmark from experts who all reached the same value
@@ -62,6 +67,12 @@ double MetricValue(const TrialMetrics& m, const MetricDef& metric) {
   if (n == "rms_jerk") return m.rms_jerk;
   if (n == "overload_events") return m.overload_events;
   if (n == "guided_share") return m.guided_share;
+  if (n == "lumps_missed") return m.lumps - m.lumps_found;
+  if (n == "false_marks") return m.false_marks;
+  if (n == "localisation_error_m")  // no lump found: no credit for where
+    return m.lumps_found > 0 || m.lumps == 0 ? m.localisation_error
+                                             : std::numeric_limits<double>::infinity();
+  if (n == "coverage") return m.coverage;
   return m.score;
 }
 

@@ -192,6 +192,11 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
                                                     double rate_hz, unsigned seed) {
   if (!(rate_hz >= 10 && rate_hz <= 100000))
     return InvalidArgument("rate", "rate must be in 10..100000 Hz");
+  if (scene.task.kind == scoring::TaskKind::kPalpate)
+    return Error{ErrorCode::kFailedPrecondition,
+                 "a palpation's scripted trainees search closed on the forces they feel "
+                 "(sim::PalpationSearch; vsurg-sim search): no trajectory is written ahead",
+                 "scene"};
   // Where to touch: a limb's side 3 cm from the distal end, or a sphere's top.
   Vec3 surface_point, normal, axis_point, axis;
   if (scene.mesh.kind == MeshKind::kLimb) {

@@ -36,10 +36,19 @@ void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out) {
   out->set_link_rate_hz(m.link.rate_hz);
   out->set_guided_share(m.guided_share);
   out->set_guided_alpha(m.guided_alpha);
+  out->set_lumps(m.lumps);
+  out->set_lumps_found(m.lumps_found);
+  out->set_false_marks(m.false_marks);
+  out->set_localisation_error_m(m.localisation_error);
+  out->set_coverage(m.coverage);
+  out->set_mean_force_n(m.mean_force);
 }
 
 void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out) {
-  if (t.kind) out->set_kind(*t.kind == scoring::TaskKind::kTwist ? "twist" : "press");
+  if (t.kind)
+    out->set_kind(*t.kind == scoring::TaskKind::kTwist   ? "twist"
+                  : *t.kind == scoring::TaskKind::kPress ? "press"
+                                                         : "palpate");
   if (t.target) out->set_target(*t.target);
   if (t.tolerance) out->set_tolerance(*t.tolerance);
   if (t.hold_s) out->set_hold_s(*t.hold_s);
@@ -51,6 +60,7 @@ scoring::TaskSettings FromProto(const v1::TaskSettings& t) {
   scoring::TaskSettings out;
   if (t.kind() == "twist") out.kind = scoring::TaskKind::kTwist;
   if (t.kind() == "press") out.kind = scoring::TaskKind::kPress;
+  if (t.kind() == "palpate") out.kind = scoring::TaskKind::kPalpate;
   if (t.has_target()) out.target = t.target();
   if (t.has_tolerance()) out.tolerance = t.tolerance();
   if (t.has_hold_s()) out.hold_s = t.hold_s();
@@ -81,6 +91,12 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   out.link.rate_hz = m.link_rate_hz();
   out.guided_share = m.guided_share();
   out.guided_alpha = m.guided_alpha();
+  out.lumps = m.lumps();
+  out.lumps_found = m.lumps_found();
+  out.false_marks = m.false_marks();
+  out.localisation_error = m.localisation_error_m();
+  out.coverage = m.coverage();
+  out.mean_force = m.mean_force_n();
   return out;
 }
 

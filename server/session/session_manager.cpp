@@ -8,11 +8,13 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "common/core/log.h"
 #include "common/core/realtime.h"
 #include "common/core/state_archive.h"
 #include "common/core/time.h"
+#include "common/sim/palpation_case.h"
 #include "common/sim/scene.h"
 
 namespace vsurg::server {
@@ -47,6 +49,8 @@ Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
                            O::kDeformationWorkers.Must() + " (0: one per core)");
   if (!O::kQuasiStaticIntervalS.Contains(o.quasi_static_interval_s))
     return InvalidArgument("quasi_static_interval_s", O::kQuasiStaticIntervalS.Must() + " s");
+  if (!O::kCasesReady.Contains(o.cases_ready))
+    return InvalidArgument("cases_ready", O::kCasesReady.Must());
   if (!o.node.empty() && !o.lease)
     return InvalidArgument("lease", "a simulation node's sessions need its lease");
   // Nothing is live in a new process: what the store says is live was left by one that died.
@@ -60,6 +64,7 @@ Expected<std::unique_ptr<SessionManager>> SessionManager::Open(
           "cannot record the sessions a previous server left live: " + aborted.error().message,
           "db"};
   std::unique_ptr<SessionManager> m(new SessionManager(store, endpoint, options));
+  if (o.cases_ready > 0) m->KeepCases();
   m->sampler_ = std::thread([p = m.get()] {
     NameThisThread("vsurg-sampler");
     p->SamplerLoop();
@@ -75,6 +80,7 @@ SessionManager::SessionManager(db::Store& store, UdpEndpoint* endpoint,
       clock_(options.clock ? *options.clock : DefaultClock()) {
   if (options.deformation_workers >= 0)
     pool_ = std::make_unique<sim::DeformationPool>(options.deformation_workers);
+  cases_ = std::make_unique<sim::CaseBank>(sim::CaseBank::Options{"", options.cases_ready});
   pending_.reserve(64);
 }
 
@@ -142,7 +148,8 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
     return InvalidArgument("scene", "a scene name (letters, digits and '-'), not a path");
   // The limits are checked again when the session is inserted (two concurrent creates).
   if (Status s = CheckLimits(trainee); !s.ok()) return s.error();
-  auto simulation = BuildSimulation(scene_name, task);
+  std::optional<uint64_t> case_seed;
+  auto simulation = BuildSimulation(scene_name, task, case_seed);
   if (!simulation.ok()) return simulation.error();
   CreatedSession out;
   if (RAND_bytes(out.key.data(), static_cast<int>(out.key.size())) != 1)
@@ -168,6 +175,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   live->created_s = clock_.Now();
   live->epoch = epoch;
   live->task = task;
+  live->case_seed = case_seed;
   {
     std::lock_guard lock(mutex_);
     if (Status s = CheckLimitsLocked(trainee); s.ok()) {
@@ -186,7 +194,8 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
 }
 
 Expected<std::unique_ptr<sim::Simulation>> SessionManager::BuildSimulation(
-    const std::string& scene_name, const scoring::TaskSettings& task) {
+    const std::string& scene_name, const scoring::TaskSettings& task,
+    std::optional<uint64_t>& case_seed) {
   if (!IsSceneName(scene_name))
     return InvalidArgument("scene", "a scene name (letters, digits and '-'), not a path");
   auto scene = sim::LoadSceneByName(scene_name);
@@ -205,6 +214,14 @@ Expected<std::unique_ptr<sim::Simulation>> SessionManager::BuildSimulation(
       return InvalidArgument("task." + applied.error().field, applied.error().message);
     scene->task = *applied;
   }
+  if (scene->cases) {  // a palpation's own case: no two attempts alike
+    if (!case_seed) case_seed = cases_->Take(*scene).value_or(sim::CaseBank::NewSeed());
+    auto drawn = sim::DrawCase(*scene, *case_seed);
+    if (!drawn.ok())
+      return Error{ErrorCode::kFailedPrecondition,
+                   "scene '" + scene_name + "' draws no case: " + drawn.error().message, "scene"};
+    *scene = std::move(*drawn);
+  }
   // No deformation thread until a station drives the session (invariant 5).
   // Reduced scenes cache their precomputation in the default folder
   // (tissue::DefaultCacheDirectory).
@@ -214,11 +231,22 @@ Expected<std::unique_ptr<sim::Simulation>> SessionManager::BuildSimulation(
                .cache_dir = {},
                .pool = pool_.get(),
                .quasi_static_interval_s = options_.quasi_static_interval_s});
+  if (case_seed) cases_->Discard(scene_name, *case_seed);  // loaded: its file is done with
   if (!simulation.ok())
     return Error{ErrorCode::kFailedPrecondition,
                  "scene '" + scene_name + "' does not build: " + simulation.error().message,
                  "scene"};
   return simulation;
+}
+
+// Every scene in the scenes folder that draws palpation cases gets its bank filled from the start.
+void SessionManager::KeepCases() {
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(sim::ScenesDirectory(), error)) {
+    if (entry.path().extension() != ".json") continue;
+    auto scene = sim::LoadScene(entry.path().string());
+    if (scene.ok() && scene->cases) cases_->Keep(*scene);
+  }
 }
 
 Status SessionManager::CheckLimits(const std::string& trainee) const {
@@ -347,6 +375,8 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   CloseInstructor(id, *live);
   scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   metrics.link = LinkFiguresOf(live->link);
+  if (live->simulation->scene().task.kind == scoring::TaskKind::kPalpate)
+    live->trace.SetPalpation(live->simulation->palpation());
   live->simulation.reset();
   std::string trace = live->trace.samples() > 0 ? live->trace.Json() : std::string();
   // The state, the trial and its record in one transaction, under the session's epoch

@@ -61,6 +61,7 @@
 #include "common/core/expected.h"
 #include "common/core/log.h"
 #include "common/core/range.h"
+#include "common/sim/case_bank.h"
 #include "common/sim/simulation.h"
 #include "db/store.h"
 #include "proto/wire/datagram.h"
@@ -80,6 +81,7 @@ struct SessionHandoff {
   int64_t created_us = 0, started_us = 0;
   std::string key;  // the station's session key, 32 bytes
   scoring::TaskSettings task;
+  std::optional<uint64_t> case_seed;  // a palpation's case (sim::DrawCase), redrawn by the receiver
   std::string simulation;  // sim::Simulation::SaveState
   std::string trace;       // the TraceRecorder's state
   // The link so far (LinkStats): datagrams applied and lost, the span they came over (s), the
@@ -124,6 +126,11 @@ struct SessionManagerOptions {
   // A quasi-static model's updates while a hand twists: at most one per this many seconds
   // (sim::SimulationOptions::quasi_static_interval_s; 0: every request). Within [0, 0.1].
   double quasi_static_interval_s = sim::kQuasiStaticIntervalS;
+  // Palpation cases kept built ahead for each scene that draws them (sim::CaseBank), so that a
+  // trainee's session starts without waiting for its case's table; 0: each session builds its own
+  // when it is created (tests). vsurg-server keeps 2.
+  static constexpr Range kCasesReady{0, 16};
+  int cases_ready = 0;
 };
 
 class SessionManager final : public Sessions {
@@ -212,6 +219,7 @@ class SessionManager final : public Sessions {
     int64_t epoch = 0;           // the lease's when created: every store write carries it
     TraceRecorder trace;         // the session's record (sampler thread, under mutex_)
     scoring::TaskSettings task;  // the settings the session was created with
+    std::optional<uint64_t> case_seed;  // a palpation's case (sim::DrawCase)
     bool moving = false;         // BeginMove .. FinishMove or CancelMove (invariant 7)
     // Four-handed training: the instructor on the tool's second channel ("" none), its key
     // and link (the channel is in the endpoint while `instructor` is set).
@@ -219,14 +227,18 @@ class SessionManager final : public Sessions {
     wire::SessionKey instructor_key{};
     LinkStats instructor_link;
   };
+  void KeepCases();
   // The live session `id` (under mutex_), or kNotFound / kUnavailable (moving).
   Expected<Live*> LiveSession(uint64_t id) const;
   // Closes the instructor's channel of a live session taken out of service (no lock needed:
   // the caller owns `l`, or holds mutex_).
   void CloseInstructor(uint64_t id, Live& l);
-  // The scene by name with the task settings applied, its simulation built (not driven).
+  // The scene by name with the task settings applied, its simulation built (not driven). A scene
+  // that draws palpation cases takes `case_seed`'s case, or else a ready one from the bank (a new
+  // one when none is ready), and says which in `case_seed`.
   Expected<std::unique_ptr<sim::Simulation>> BuildSimulation(const std::string& scene_name,
-                                                             const scoring::TaskSettings& task);
+                                                             const scoring::TaskSettings& task,
+                                                             std::optional<uint64_t>& case_seed);
   SessionManager(db::Store& store, UdpEndpoint* endpoint, const SessionManagerOptions& options);
   // `retry`: the sampler's own ends (Pump), whose write is kept and made again while the store is
   // unavailable (sampler thread only).
@@ -265,6 +277,7 @@ class SessionManager final : public Sessions {
   const Clock& clock_;
   // Before live_: the sessions' simulations leave the pool before it stops.
   std::unique_ptr<sim::DeformationPool> pool_;
+  std::unique_ptr<sim::CaseBank> cases_;  // palpation cases ahead (options_.cases_ready)
   mutable std::mutex mutex_;  // live_
   std::map<uint64_t, std::unique_ptr<Live>> live_;
   std::mutex subscribers_mutex_;  // held while subscribers run (see Unsubscribe)

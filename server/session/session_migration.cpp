@@ -33,7 +33,7 @@ void PersistOptional(StateReader& r, std::optional<T>& o) {
   o = v;
 }
 
-constexpr uint32_t kHandoffVersion = 1;
+constexpr uint32_t kHandoffVersion = 2;  // 2: a palpation's case
 
 template <class A, class H>
 void PersistHandoff(A& a, H& h) {
@@ -44,6 +44,7 @@ void PersistHandoff(A& a, H& h) {
   PersistOptional(a, h.task.hold_s);
   PersistOptional(a, h.task.force_limit);
   PersistOptional(a, h.task.time_limit);
+  PersistOptional(a, h.case_seed);
   a(h.simulation, h.trace, h.applied, h.lost, h.span_s, h.rtt_us, h.jitter_us, h.rendered_peak_n,
     h.rendered_over_limit_s, h.from_node, h.from_epoch);
 }
@@ -138,6 +139,7 @@ Expected<SessionHandoff> SessionManager::BeginMove(uint64_t id) {
   h.started_us = l.record.started_us;
   h.key.assign(l.key.begin(), l.key.end());
   h.task = l.task;
+  h.case_seed = l.case_seed;
   StateWriter trace;
   trace(l.trace);
   h.trace = trace.Take();
@@ -210,7 +212,8 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
       return Error{ErrorCode::kAlreadyExists,
                    "session " + std::to_string(h.id) + " is live here already", "id"};
   }
-  auto simulation = BuildSimulation(h.scene, h.task);
+  std::optional<uint64_t> case_seed = h.case_seed;
+  auto simulation = BuildSimulation(h.scene, h.task, case_seed);
   if (!simulation.ok()) return simulation.error();
   if (Status s = (*simulation)->RestoreState(h.simulation); !s.ok()) return s.error();
   auto live = std::make_unique<Live>();
@@ -248,6 +251,7 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
   live->created_s = clock_.Now();
   live->epoch = epoch;
   live->task = h.task;
+  live->case_seed = h.case_seed;
   const auto relaxed = std::memory_order_relaxed;
   live->link.applied.store(h.applied, relaxed);
   live->link.lost.store(h.lost, relaxed);

@@ -88,6 +88,20 @@ void TraceRecorder::AddSurface(double time_s, const std::vector<int32_t>& indice
   Offer(frames_, frames_seen_, frame_stride_, kMaxFrames, std::move(f));
 }
 
+void TraceRecorder::SetPalpation(const scoring::PalpationRecorder& palpation) {
+  const auto mm = [](const Eigen::Vector3d& p) {
+    return nlohmann::json::array({Round(p.x() * 1e3, 2), Round(p.y() * 1e3, 2),
+                                  Round(p.z() * 1e3, 2)});
+  };
+  nlohmann::json lumps = nlohmann::json::array(), marks = nlohmann::json::array();
+  for (const scoring::Lump& l : palpation.lumps())
+    lumps.push_back(
+        {{"centre_mm", mm(l.centre)}, {"radius_mm", Round(l.radius * 1e3, 2)}, {"surface_mm", mm(l.surface)}});
+  for (int i = 0; i < palpation.marks(); ++i)
+    marks.push_back({{"time_s", Round(palpation.mark_time(i), 3)}, {"position_mm", mm(palpation.mark(i))}});
+  palpation_ = nlohmann::json{{"lumps", std::move(lumps)}, {"marks", std::move(marks)}}.dump();
+}
+
 std::string TraceRecorder::Json() const {
   nlohmann::json series = nlohmann::json::object();
   const auto names = sim::TelemetryFields(sim::SessionTelemetry{});
@@ -120,15 +134,16 @@ std::string TraceRecorder::Json() const {
     }
     previous = &f.displacement;
   }
-  return nlohmann::json{
+  nlohmann::json record{
       {"series", std::move(series)},
       {"rest", {{"positions_mm", std::move(positions)}, {"triangles", triangles_}}},
       {"frames",
        {{"time_s", std::move(frame_times)},
         {"unit_mm", kFrameUnitM * 1e3},
         {"vertices", rest_.size()},
-        {"deflated", Base64(Deflate(all, 6))}}}}
-      .dump();
+        {"deflated", Base64(Deflate(all, 6))}}}};
+  if (!palpation_.empty()) record["palpation"] = nlohmann::json::parse(palpation_);
+  return record.dump();
 }
 
 bool TraceRecorder::Consistent() const {

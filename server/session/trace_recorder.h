@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "common/geometry/mesh.h"
+#include "common/scoring/palpation.h"
 #include "common/sim/telemetry.h"
 
 namespace vsurg::server {
@@ -48,6 +49,11 @@ class TraceRecorder {
   // rest) at the station's time `time_s`.
   void AddSurface(double time_s, const std::vector<int32_t>& indices,
                   const std::vector<geometry::Vec3>& positions);
+  // A palpation's lumps and the trainee's marks, shown with the record once the search is over
+  // (the station never shows the lumps during it): "palpation": {"lumps": [{"centre_mm",
+  // "radius_mm", "surface_mm"}], "marks": [{"time_s", "position_mm"}]} in the record. Set at the
+  // session's end; not part of the moved state (the receiver's own simulation has it).
+  void SetPalpation(const scoring::PalpationRecorder& palpation);
   size_t samples() const { return samples_.size(); }
   size_t frames() const { return frames_.size(); }
   // {"series": {"time_s": [...], "force_n": [...], ...}, "rest": {"positions_mm": [...],
@@ -91,6 +97,7 @@ class TraceRecorder {
   uint64_t samples_seen_ = 0, sample_stride_ = 1;
   double last_time_ = -1;
   std::vector<Frame> frames_;
+  std::string palpation_;  // the "palpation" member's JSON, or empty
   double last_frame_time_ = -1;
   uint64_t frames_seen_ = 0, frame_stride_ = 1;
 };

@@ -115,8 +115,9 @@ TEST(PalpationTest, DrawnCasesSeparateTheExpertFromTheNovice) {
     const Searched novice = Search(*drawn, NoviceSearch(), dir.string());
     EXPECT_GT(expert.metrics.score, novice.metrics.score + 2);
     EXPECT_GT(expert.metrics.coverage, novice.metrics.coverage + 0.5);
-    if (novice.metrics.lumps_found > 0)
+    if (novice.metrics.lumps_found > 0) {
       EXPECT_LT(expert.metrics.localisation_error, novice.metrics.localisation_error);
+    }
     lumps += expert.metrics.lumps;
     expert_found += expert.metrics.lumps_found;
     novice_found += novice.metrics.lumps_found;

@@ -328,7 +328,7 @@ TEST(SceneTest, BadScenesNameTheField) {
             std::string::npos);
   EXPECT_NE(Field(Replace(reduced, R"({"type": "sphere", "radius": 0.05, "particles": 256})",
                           R"({"type": "limb", "preset": "forearm"})"))
-                .find("needs a sphere or a closed mesh file"),
+                .find("needs a sphere, a block or a closed mesh file"),
             std::string::npos);
   // Surface twist: on a sphere or a mesh file, with a twist task; jaws of 0.1 mm to 10 cm.
   const std::string forceps =
@@ -341,7 +341,7 @@ TEST(SceneTest, BadScenesNameTheField) {
             std::string::npos);
   EXPECT_NE(Field(Replace(forceps, R"({"type": "sphere", "radius": 0.05, "particles": 256})",
                           R"({"type": "limb", "preset": "forearm"})"))
-                .find("surface-twist model needs a sphere or a closed mesh file"),
+                .find("surface-twist model needs a sphere, a block or a closed mesh file"),
             std::string::npos);
   EXPECT_NE(Field(Replace(forceps, R"("type": "twist", "target_deg": 30, "tolerance_deg": 5)",
                           R"("type": "press")"))
