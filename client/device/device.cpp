@@ -97,7 +97,7 @@ haptics::StylusSample KeyboardMouseDevice::Read() {
   s.time = now;
   s.position = position_;
   s.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(in.twist_rad, axis_));
-  s.buttons = in.grasp ? haptics::kButtonGrasp : 0u;
+  s.buttons = (in.grasp ? haptics::kButtonGrasp : 0u) | (in.mark ? haptics::kButtonMark : 0u);
   return s;
 }
 

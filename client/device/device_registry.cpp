@@ -1,12 +1,13 @@
 #include "client/device/device_registry.h"
 
+#include "client/device/searching_hand.h"
 #include "client/device/virtual_hand.h"
 #include "common/sim/trajectory.h"
 
 namespace vsurg::client {
 
 std::vector<std::string> AvailableDeviceKinds() {
-  std::vector<std::string> kinds = {"replay", "virtual-hand", "keyboard-mouse"};
+  std::vector<std::string> kinds = {"replay", "virtual-hand", "keyboard-mouse", "search"};
 #ifdef VSURG_HAVE_OPENHAPTICS
   kinds.push_back("openhaptics");
 #endif
@@ -51,6 +52,18 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
     if (!hand.ok()) return hand.error();
     return std::unique_ptr<HapticDevice>(std::move(*hand));
   }
+  if (r.kind == "search") {
+    // A scripted examiner searching a palpation's tissue, closed on the station's forces.
+    auto limits = haptics::DeviceLimitsByName(r.limits);
+    if (!limits.ok()) return limits.error();
+    if (r.search_style != "expert" && r.search_style != "novice")
+      return InvalidArgument("--search-style", "expert or novice");
+    auto hand = SearchingHandDevice::Create(
+        r.rest, r.held, r.search_style == "expert" ? sim::ExpertSearch() : sim::NoviceSearch(),
+        *limits);
+    if (!hand.ok()) return hand.error();
+    return std::unique_ptr<HapticDevice>(std::move(*hand));
+  }
   if (r.kind == "openhaptics") {
 #ifdef VSURG_HAVE_OPENHAPTICS
     return OpenOpenHapticsDevice(r);
@@ -73,7 +86,8 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
   }
   return InvalidArgument("--device",
                          "unknown device '" + r.kind +
-                             "' (replay, virtual-hand, keyboard-mouse, openhaptics, falcon)");
+                             "' (replay, virtual-hand, keyboard-mouse, search, openhaptics, "
+                             "falcon)");
 }
 
 }  // namespace vsurg::client

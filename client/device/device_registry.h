@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "client/device/device.h"
+#include "common/geometry/mesh.h"
 #include "common/core/expected.h"
 
 namespace vsurg::client {
@@ -28,6 +29,11 @@ struct DeviceRequest {
   Eigen::Vector3d start = Eigen::Vector3d::Zero();        // keyboard-mouse: where the tip starts, m
   Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ();  // keyboard-mouse
   std::string device_name;  // openhaptics: the HD device name ("" = default)
+  // search: the scripted examiner's style ("expert" or "novice", sim::PalpationSearch), the
+  // tissue's rest surface and the vertices its support holds.
+  std::string search_style = "expert";
+  geometry::TriMesh rest;
+  std::vector<int> held;
   // Real devices: where the device's workspace centre sits in the scene frame, m.
   Eigen::Vector3d scene_offset = Eigen::Vector3d::Zero();
 };

@@ -68,7 +68,8 @@ class FalconHapticDevice final : public HapticDevice {
         const unsigned buttons = falcon_.getFalconGrip()->getDigitalInputs();
         haptics::StylusSample sample;
         sample.position = Eigen::Vector3d(p[0], -(p[2] - kRestZ), p[1]) + offset_;
-        sample.buttons = (buttons & 1u) ? haptics::kButtonGrasp : 0u;
+        sample.buttons = ((buttons & 1u) ? haptics::kButtonGrasp : 0u) |
+                         ((buttons & 2u) ? haptics::kButtonMark : 0u);
         const Eigen::Vector3d f = mailbox_.Exchange(sample);
         falcon_.setForce({f.x(), f.z(), -f.y()});
       }

@@ -75,7 +75,8 @@ class OpenHapticsDevice final : public HapticDevice {
     haptics::StylusSample sample;
     sample.position = self->ToScene({position[0], position[1], position[2]});
     sample.orientation = Eigen::Quaterniond(to_scene * device_rotation).normalized();
-    sample.buttons = (buttons & HD_DEVICE_BUTTON_1) ? haptics::kButtonGrasp : 0u;
+    sample.buttons = ((buttons & HD_DEVICE_BUTTON_1) ? haptics::kButtonGrasp : 0u) |
+                     ((buttons & HD_DEVICE_BUTTON_2) ? haptics::kButtonMark : 0u);
     const Eigen::Vector3d force = self->mailbox_.Exchange(sample);
     const HDdouble out[3] = {force.x(), force.z(), -force.y()};  // scene → device axes, N
     hdSetDoublev(HD_CURRENT_FORCE, out);

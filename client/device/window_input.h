@@ -10,6 +10,8 @@ struct WindowInput {
   // Keys held now: D/A along +x/−x, W/S along +y/−y, Q/E along +z/−z (scene axes).
   bool forward = false, back = false, left = false, right = false, up = false, down = false;
   bool grasp = false;                 // space bar or the left mouse button
+  bool mark = false;                  // M or the middle mouse button: a palpation's mark
+  bool finish = false;                // Enter pressed: the trainee ends the trial (a search)
   double twist_rad = 0;               // accumulated by dragging with the right mouse button
   double cursor_x = 0, cursor_y = 0;  // px, window coordinates
   // The last command key pressed (an instructor's mode switch: 'O', 'G', 'T', 'H', '[', ']'),

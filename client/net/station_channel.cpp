@@ -180,6 +180,7 @@ struct StationChannel::Impl {
   std::atomic<double> reported_jitter_us{0};
   uint64_t jitter_n = 0;
   std::atomic<uint64_t> moved_notices{0};  // answers saying the session moved (not forces)
+  std::atomic<uint64_t> marks{0};          // answers saying a palpation's mark was placed
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
       newest_answered{0}, scene_chunks{0};
   uint64_t last_frame_sequence = 0;
@@ -265,6 +266,8 @@ struct StationChannel::Impl {
       duplicates.fetch_add(1, std::memory_order_relaxed);
       return;
     }
+    if (rx_message.command.events & haptics::kEventMarked)
+      marks.fetch_add(1, std::memory_order_relaxed);  // a late answer's mark still counts
     answered.Add(rx_message.echo_sequence);
     lost.store(answered.missing(), std::memory_order_relaxed);
     newest_answered.store(answered.newest(), std::memory_order_relaxed);
@@ -631,6 +634,7 @@ StationStats StationChannel::stats() const {
   s.force_log_dropped = impl_->log_dropped.load();
   s.watchdog_fades = impl_->fades.load();
   s.scene_chunks = impl_->scene_chunks.load();
+  s.marks = impl_->marks.load();
   s.passivity_energy_dissipated = impl_->dissipated.load();
   s.max_force = impl_->max_force.load();
   s.loop_iterations = impl_->loop_iterations.load();

@@ -126,6 +126,7 @@ struct StationStats {
   // channel was stopped while its server was silent (a held model faded by Stop).
   uint64_t watchdog_fades = 0;
   uint64_t scene_chunks = 0;               // SceneFrame datagrams received
+  uint64_t marks = 0;                      // a palpation's marks the server placed
   double passivity_energy_dissipated = 0;  // J the controller removed
   // The passivity observer's record of the force held over each servo interval against that
   // interval's motion: positive work on the hand, and work the hand put in (J). Their difference

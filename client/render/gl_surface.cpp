@@ -91,6 +91,13 @@ void OnKey(GLFWwindow* w, int key, int, int action, int) {
     case GLFW_KEY_SPACE:
       in.grasp = down;
       break;
+    case GLFW_KEY_M:
+      in.mark = down;
+      break;
+    case GLFW_KEY_ENTER:
+    case GLFW_KEY_KP_ENTER:
+      if (down) in.finish = true;
+      break;
     case GLFW_KEY_ESCAPE:
       if (down) glfwSetWindowShouldClose(w, GLFW_TRUE);
       break;
@@ -115,6 +122,7 @@ void OnMouseButton(GLFWwindow* w, int button, int action, int) {
   GlSurface::Impl* impl = ImplOf(w);
   std::lock_guard lock(impl->input_mutex);
   if (button == GLFW_MOUSE_BUTTON_LEFT) impl->input.grasp = action == GLFW_PRESS;
+  if (button == GLFW_MOUSE_BUTTON_MIDDLE) impl->input.mark = action == GLFW_PRESS;
   if (button == GLFW_MOUSE_BUTTON_RIGHT) {
     impl->rotating = action == GLFW_PRESS;
     impl->last_x = impl->input.cursor_x;

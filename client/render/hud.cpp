@@ -91,6 +91,12 @@ void TrialGauges(const Guidance& g, float gauge_w) {
                                                                  : kGood;
   Gauge("Force", Printf("%.2f N  (safe below %.1f N)", g.force_n, g.force_limit_n), g.force_n,
         full_force, 0, g.force_limit_n, g.force_limit_n, force_colour, gauge_w);
+  if (g.palpate) {  // where the lumps are is the question: nothing here gives it away
+    ImGui::Text("Lumps marked: %d", g.marks);
+    ImGui::TextUnformatted("M or button 2: mark a lump");
+    ImGui::TextUnformatted("Enter: the search is done");
+    return;
+  }
   // The task's quantity against its target band.
   const double scale = g.twist ? 180 / M_PI : 1e3;
   const char* unit = g.twist ? "°" : " mm";

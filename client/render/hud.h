@@ -16,6 +16,8 @@ namespace vsurg::client {
 struct Guidance {
   bool show = false;
   bool twist = true;  // a twist task (angles in rad) or a press task (depths in m)
+  bool palpate = false;  // a palpation: no target, the marks placed so far instead
+  int marks = 0;
   double target = 0, tolerance = 0, current = 0;
   double held_s = 0, hold_s = 0;  // within tolerance so far, and as long as the task asks
   double force_n = 0, force_limit_n = 0, device_limit_n = 0;  // N

@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/device/device_registry.h"
+#include "client/device/searching_hand.h"
 #include "client/device/virtual_hand.h"
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
@@ -67,6 +68,8 @@ client::Guidance Guidance(const vsurg::sim::Scene& scene, const client::StationV
   client::Guidance g;
   g.show = true;
   g.twist = scene.task.kind == vsurg::scoring::TaskKind::kTwist;
+  g.palpate = scene.task.kind == vsurg::scoring::TaskKind::kPalpate;
+  g.marks = static_cast<int>(s.marks);
   g.target = scene.task.target;
   g.tolerance = scene.task.tolerance;
   g.hold_s = scene.task.hold_s;
@@ -148,12 +151,15 @@ void DeclareOptions(ArgParser& p) {
               "ignored) and say at the end which targets the trial met")
       .Option("exercise", Kind::kInt, "with --course: this open exercise instead of the next")
       .Option("device", Kind::kString,
-              "replay, virtual-hand, keyboard-mouse, openhaptics or falcon", false, "replay")
+              "replay, virtual-hand, keyboard-mouse, search (a scripted examiner searching a "
+              "palpation's tissue), openhaptics or falcon",
+              false, "replay")
       .Option("trajectory", Kind::kString,
               "replay: trajectory CSV (vsurg-sim trainee --out); virtual-hand: its plan")
       .Option("limits", Kind::kString, "replay, virtual-hand, keyboard-mouse: touch or omni", false,
               "touch")
       .Option("grip", Kind::kString, "virtual-hand: relaxed or tensed", false, "relaxed")
+      .Option("search-style", Kind::kString, "search: expert or novice", false, "expert")
       .Option("local-model", Kind::kString,
               "what is rendered between the server's answers: model (the answer's local model by "
               "its kind: contact, grasp, the surface ahead), linear (F0 + J dx everywhere) or "
@@ -283,10 +289,17 @@ vsurg::Expected<sim::Scene> StationScene(const std::string& name,
 
 // The device request: the options, and where the scene's tissue is (the hand starts above its
 // middle; a twist turns about its longest axis).
-client::DeviceRequest DeviceRequestFor(const ArgParser& p,
-                                       const vsurg::geometry::TriMesh& surface) {
+client::DeviceRequest DeviceRequestFor(const ArgParser& p, const sim::Scene& scene,
+                                       const sim::SceneMesh& mesh) {
+  const vsurg::geometry::TriMesh& surface = mesh.surface;
   client::DeviceRequest request;
   request.kind = p.String("device");
+  request.search_style = p.String("search-style");
+  if (request.kind == "search") {
+    request.rest = surface;
+    if (auto held = sim::SupportedVertices(surface, scene.region, mesh.groups); held.ok())
+      request.held = std::move(*held);
+  }
   if (p.Has("trajectory")) request.trajectory = p.String("trajectory");
   request.limits = p.String("limits");
   request.grip = p.String("grip");
@@ -408,7 +421,7 @@ struct Trial {
   void Gauges(client::Overlay& overlay, double tick) {
     overlay.guidance = Guidance(scene, shown, hud_stats, live_now);
     client::Guidance& g = overlay.guidance;
-    if (!g.twist) g.current = PressDepth(*screen.rest_bvh, *screen.rest, shown);
+    if (!g.twist && !g.palpate) g.current = PressDepth(*screen.rest_bvh, *screen.rest, shown);
     const bool within =
         std::abs(std::abs(g.current) - g.target) <= g.tolerance && g.force_n <= g.force_limit_n;
     held_s = within ? held_s + (tick - last_frame_at) : 0;
@@ -424,11 +437,16 @@ struct Trial {
     overlay.force = shown.force;
     overlay.contact = shown.command.contact;
     overlay.grasping = shown.command.grasping;
+    const bool palpate = scene.task.kind == vsurg::scoring::TaskKind::kPalpate;
     overlay.hud = {"vsurg station  " + scene.name + "  session " + std::to_string(session),
                    sim::LinkStatus(rate_hz, s.rtt_p50_us, s.loss),
-                   "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
-                       Fixed(shown.force.norm(), 2) + " N",
-                   "score " + Fixed(shown.command.score, 1) + " / 10"};
+                   palpate ? "force " + Fixed(shown.force.norm(), 2) + " N   lumps marked " +
+                                 std::to_string(s.marks)
+                           : "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) +
+                                 " deg   force " + Fixed(shown.force.norm(), 2) + " N",
+                   // A palpation's score tells whether the marks found the lumps: at the end.
+                   palpate ? std::string("search the tissue; the score comes at the end")
+                           : "score " + Fixed(shown.command.score, 1) + " / 10"};
     // The trainee sees an instructor in the session, and how (the answers carry the mode and α).
     if (!controls && shown.command.guide_mode != 0)
       overlay.hud.push_back(shown.command.guide_mode == 1
@@ -485,7 +503,11 @@ struct Trial {
   bool Done(bool live) {
     if (live && played_out() && replay_done_at < 0) replay_done_at = live_now;
     const double duration = p.Double("duration");
-    if (g_interrupted || screen.gl->ShouldClose()) return true;
+    if (g_interrupted || screen.gl->ShouldClose() || screen.gl->Input().finish) return true;
+    // A palpation's search ends at its time limit (the trainee may end it sooner: Enter).
+    if (live && scene.task.kind == vsurg::scoring::TaskKind::kPalpate &&
+        live_now >= scene.task.time_limit)
+      return true;
     if (duration > 0 && live && live_now >= duration) return true;
     if (duration <= 0 && replay_done_at >= 0 && live_now - replay_done_at >= p.Double("settle"))
       return ended_by_replay = true;
@@ -680,7 +702,7 @@ int Run(const std::vector<std::string>& args) {
 
   // The device first (bad options are reported before any window opens); the keyboard and
   // mouse need the window, so that one is opened after it.
-  client::DeviceRequest request = DeviceRequestFor(p, mesh->surface);
+  client::DeviceRequest request = DeviceRequestFor(p, *scene, *mesh);
   const bool needs_window = request.kind == "keyboard-mouse";
   vsurg::Expected<std::unique_ptr<client::HapticDevice>> device =
       needs_window ? vsurg::Expected<std::unique_ptr<client::HapticDevice>>(nullptr)
@@ -699,6 +721,7 @@ int Run(const std::vector<std::string>& args) {
   }
   auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
   auto* hand = dynamic_cast<client::VirtualHandDevice*>(device->get());
+  auto* searcher = dynamic_cast<client::SearchingHandDevice*>(device->get());
   client::Station station(*remote, device->get(), *config);
 
   struct sigaction action {};
@@ -713,7 +736,10 @@ int Run(const std::vector<std::string>& args) {
     vsurg::LogEvent("vsurg-station", "state", fields);
   });
   Trial trial{p, *scene, *screen, station,
-              [&] { return (replay && replay->finished()) || (hand && hand->finished()); }};
+              [&] {
+                return (replay && replay->finished()) || (hand && hand->finished()) ||
+                       (searcher && searcher->finished());
+              }};
   if (config->instruct != 0)
     trial.controls.emplace(*client::ParseGuidePlan(p.String("guide-plan")), p.Double("alpha"));
   if (vsurg::Status s = trial.Run(); !s.ok()) return Fail(s.error().message);

@@ -188,6 +188,8 @@ class SessionManager final : public Sessions {
   // node now or the session has ended, when it is forgotten as by FinishMove; a store that does
   // not answer leaves it here). kNotFound: not live here; kFailedPrecondition: moving already.
   Expected<SessionHandoff> BeginMove(uint64_t id);
+  // The palpation cases kept ahead (SessionManagerOptions::cases_ready).
+  const sim::CaseBank& cases() const { return *cases_; }
   void FinishMove(uint64_t id);
   void CancelMove(uint64_t id);
   // A session moved here from another node: its simulation built and set to the handoff's state,

@@ -137,5 +137,36 @@ TEST(TraceRecorderTest, AFrameDecodesToItsDisplacementAndUnmovedVerticesStayAtRe
   EXPECT_GT(k["frames"]["time_s"].back().get<double>(), 200.5 - 3.2);
 }
 
+// A palpation's record shows the lumps beside the trainee's marks, in millimetres.
+TEST(TraceRecorderTest, APalpationsRecordCarriesTheLumpsAndTheMarks) {
+  TraceRecorder r;
+  geometry::TriMesh rest;
+  rest.positions = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}};
+  rest.triangles = {{0, 1, 2}};
+  r.SetRest(rest);
+  r.AddSample(Sample(0.1));
+  scoring::PalpableSurface surface{{Eigen::Vector3d(0.003, 0.003, 0)}, {5e-5}};
+  scoring::PalpationRecorder palpation(
+      {{Eigen::Vector3d(0.004, 0.002, -0.015), 0.005, Eigen::Vector3d(0.004, 0.002, 0)}}, surface,
+      {});
+  palpation.Mark(1.25, Eigen::Vector3d(0.0045, 0.002, 0));
+  r.SetPalpation(palpation);
+  const json record = json::parse(r.Json());
+  ASSERT_TRUE(record.contains("palpation"));
+  const json& p = record["palpation"];
+  ASSERT_EQ(p["lumps"].size(), 1u);
+  EXPECT_DOUBLE_EQ(p["lumps"][0]["radius_mm"].get<double>(), 5);
+  EXPECT_DOUBLE_EQ(p["lumps"][0]["centre_mm"][2].get<double>(), -15);
+  EXPECT_DOUBLE_EQ(p["lumps"][0]["surface_mm"][0].get<double>(), 4);
+  ASSERT_EQ(p["marks"].size(), 1u);
+  EXPECT_DOUBLE_EQ(p["marks"][0]["time_s"].get<double>(), 1.25);
+  EXPECT_DOUBLE_EQ(p["marks"][0]["position_mm"][0].get<double>(), 4.5);
+  // Other tasks' records have none.
+  TraceRecorder plain;
+  plain.SetRest(rest);
+  plain.AddSample(Sample(0.1));
+  EXPECT_FALSE(json::parse(plain.Json()).contains("palpation"));
+}
+
 }  // namespace
 }  // namespace vsurg::server

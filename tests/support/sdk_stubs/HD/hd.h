@@ -17,6 +17,7 @@ typedef unsigned long HDSchedulerHandle; typedef unsigned int HDCallbackCode; ty
 #define HD_USABLE_WORKSPACE_DIMENSIONS 0x2550
 #define HD_FORCE_OUTPUT 0x4000
 #define HD_DEVICE_BUTTON_1 (1 << 0)
+#define HD_DEVICE_BUTTON_2 (1 << 1)
 struct HDErrorInfo { HDushort errorCode; int internalErrorCode; HHD hHD; };
 #define HD_DEVICE_ERROR(X) (((X).errorCode) != 0)
 typedef HDCallbackCode (*HDSchedulerCallback)(void*);
