@@ -12,6 +12,7 @@
 #include "common/core/realtime.h"
 #include "common/sim/palpation_case.h"
 #include "common/sim/simulation.h"
+#include "common/tissue/reduced.h"
 #include "common/tissue/reduced_cache.h"
 
 namespace vsurg::sim {
@@ -21,6 +22,7 @@ CaseBank::CaseBank(Options options) : options_(std::move(options)) {
     NameThisThread("vsurg-cases");
     // Below the haptic and deformation threads: a case built late costs a wait, never a cycle.
     setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+    tissue::SetPrecomputeCancel(&cancel_);  // a stopping bank does not finish a table
     Loop();
   });
 }
@@ -30,6 +32,7 @@ CaseBank::~CaseBank() {
     std::lock_guard lock(mutex_);
     stop_ = true;
   }
+  cancel_.store(true);
   changed_.notify_all();
   thread_.join();
 }
@@ -48,9 +51,37 @@ void CaseBank::Keep(const Scene& scene) {
   {
     std::lock_guard lock(mutex_);
     if (kept_.count(scene.name)) return;
-    kept_[scene.name] = {scene, {}};
+    kept_[scene.name] = {scene, Adopt(scene.name)};
   }
   changed_.notify_all();
+}
+
+// The cases an earlier process left built in the cache (a restart, or a node's neighbour on one
+// machine) are the bank's at once, up to its size; the ones beyond are removed, so the cache holds
+// at most the bank's few files per scene however often a server starts. A file whose table no
+// longer matches its case (the scene changed since) is found stale when a session loads it and
+// rebuilt then. A bank that keeps none leaves the folder alone.
+std::deque<uint64_t> CaseBank::Adopt(const std::string& scene_name) const {
+  std::deque<uint64_t> out;
+  if (options_.ready_per_scene <= 0) return out;
+  const std::string prefix = scene_name + ".case-", suffix = "-contact.vrm";
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(CacheDir(), error)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() != prefix.size() + 16 + suffix.size() || name.rfind(prefix, 0) != 0 ||
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+      continue;
+    const std::string hex = name.substr(prefix.size(), 16);
+    if (hex.find_first_not_of("0123456789abcdef") != std::string::npos) continue;
+    const uint64_t seed = std::stoull(hex, nullptr, 16);
+    if (static_cast<int>(out.size()) < options_.ready_per_scene) {
+      out.push_back(seed);
+    } else {
+      std::error_code ignored;
+      std::filesystem::remove(entry.path(), ignored);
+    }
+  }
+  return out;
 }
 
 std::optional<uint64_t> CaseBank::Take(const Scene& scene) {
@@ -122,6 +153,7 @@ void CaseBank::Loop() {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     lock.lock();
+    if (stop_) return;  // cancelled mid-build, or built as the bank stopped
     if (!built.ok()) {
       ++stats_.failed;
       LogEvent("vsurg-cases", "case_failed",

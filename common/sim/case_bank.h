@@ -7,14 +7,18 @@
 // A case is a random 64-bit seed (std::random_device: the operating system's generator), so no
 // attempt can be foreseen and the same seed redraws the same case anywhere (DrawCase). Its table
 // file is the cache's usual one, named by the case (CaseName); a taken case's file is removed once
-// its session has loaded it (Discard), so the cache holds only the bank's few, never one per
-// attempt.
+// its session has loaded it (Discard), and the cases a bank finds built when it starts keeping a
+// scene (an earlier process's) are its own, the ones beyond its size removed: the cache holds only
+// the bank's few per scene, never one per attempt or per start.
 //
 // Threads: Keep, Take, Discard and stats from any control thread; the builder is the bank's own
 // thread ("vsurg-cases"), at a lower priority than the node's haptic and deformation threads
-// (nice 10), building one case at a time. The destructor stops it after the case in hand.
+// (nice 10), building one case at a time. The destructor stops it within one batch of the table's
+// solves (tissue::SetPrecomputeCancel), never after a whole table: a process that is refused at
+// start (a second node under a taken name) or shut down exits at once.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -66,6 +70,7 @@ class CaseBank {
     std::deque<uint64_t> ready;
   };
   void Loop();
+  std::deque<uint64_t> Adopt(const std::string& scene_name) const;
   // The next scene short of cases (under mutex_), or null.
   Kept* Short();
   std::string CacheDir() const;
@@ -76,6 +81,7 @@ class CaseBank {
   std::map<std::string, Kept> kept_;
   Stats stats_;
   bool stop_ = false;
+  std::atomic<bool> cancel_{false};  // the builder's precomputation gives up (stop_, unlocked)
   std::thread thread_;
 };
 

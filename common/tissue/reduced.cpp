@@ -1,6 +1,7 @@
 #include "common/tissue/reduced.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -384,6 +385,18 @@ Eigen::Matrix3d Block(const ContactResponse& r, size_t slot, int vertex) {
 
 }  // namespace
 
+namespace {
+thread_local const std::atomic<bool>* precompute_cancel = nullptr;
+}  // namespace
+
+void SetPrecomputeCancel(const std::atomic<bool>* flag) {
+  precompute_cancel = flag;
+}
+
+bool PrecomputeCancelled() {
+  return precompute_cancel && precompute_cancel->load(std::memory_order_relaxed);
+}
+
 Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem,
                                                     const geometry::TriMesh& display,
                                                     const std::vector<int>& reachable,
@@ -439,6 +452,8 @@ Expected<ContactResponse> PrecomputeContactResponse(const FemStaticResponse& fem
   std::vector<std::vector<Vec3>> loads, solved;
   for (size_t s = 0; s < contacts.size(); ++s) {
     if (s % kBatch == 0) {
+      if (PrecomputeCancelled())
+        return Error{ErrorCode::kUnavailable, "the precomputation was cancelled", "cancel"};
       const size_t end = std::min(contacts.size(), s + kBatch);
       loads.assign(3 * (end - s), std::vector<Vec3>(fem.VertexCount(), Vec3::Zero()));
       for (size_t k = s; k < end; ++k) {

@@ -71,6 +71,7 @@
 #include <memory>
 #include <string>
 #include <utility>
+#include <atomic>
 #include <vector>
 
 #include <Eigen/Core>
@@ -169,6 +170,13 @@ struct ContactResponse {
 std::vector<std::pair<int, double>> FootprintWeights(const geometry::TriMesh& boundary,
                                                      const Eigen::Vector3d& p,
                                                      const Eigen::Vector3d& n, double a);
+
+// A contact table's precomputation on this thread gives up between batches of solves, refused
+// as kUnavailable, once *flag is true: a background builder that must stop (a node shutting
+// down while it builds a palpation case ahead, common/sim/case_bank.h) stops within a batch's
+// time, not the table's. Null (every thread's default): never.
+void SetPrecomputeCancel(const std::atomic<bool>* flag);
+bool PrecomputeCancelled();
 
 // `reachable`: the display vertices a tool can touch (the scene's workspace; not the fixed
 // ones). Every one costs 3 back-substitutions.

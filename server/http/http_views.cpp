@@ -55,7 +55,9 @@ json FiniteOrNull(double x) {
 
 json TaskJson(const scoring::TaskSpec& t) {
   const scoring::TaskDisplayUnit unit = scoring::DisplayUnitOf(t.kind);
-  return {{"kind", t.kind == scoring::TaskKind::kTwist ? "twist" : "press"},
+  return {{"kind", t.kind == scoring::TaskKind::kTwist   ? "twist"
+                   : t.kind == scoring::TaskKind::kPress ? "press"
+                                                         : "palpate"},
           {"target", t.target * unit.per_si},
           {"tolerance", t.tolerance * unit.per_si},
           {"unit", unit.name},

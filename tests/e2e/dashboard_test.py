@@ -535,6 +535,36 @@ def main():
         shot("admin-phone")
         driver.set_window_size(1366, 768)
         print(f"first paint of the live page after sign-in: {first_paint_s * 1000:.0f} ms", flush=True)
+
+        # --- a palpation: a scripted novice searches a pad for the lumps drawn for this attempt;
+        # the ended session's replay shows the lumps, hidden during the search, beside the marks ---
+        palp_out = os.path.join(tmp, "station-palpation.json")
+        searched = subprocess.run(
+            [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["rory"],
+             "--scene", "lump-search", "--device", "search", "--search-style", "novice", "--headless",
+             "--width", "160", "--height", "100", "--fps", "4", "--quality", "low", "--json",
+             "--realtime-priority", "0"],
+            stdout=open(palp_out, "w"), stderr=open(os.path.join(tmp, "station-palpation.log"), "w"),
+            env=env, timeout=600)
+        check(searched.returncode == 0, "the scripted search ran to its end at the station")
+        palp = json.load(open(palp_out))
+        pm = palp.get("metrics", {})
+        check(pm.get("coverage", 0) > 0 and pm.get("lumps_found", 0) <= pm.get("lumps", 0),
+              f"the search is scored as one: {pm.get('lumps_found')} of {pm.get('lumps')} lumps, "
+              f"{pm.get('false_marks')} false, {100 * pm.get('coverage', 0):.0f}% examined")
+        sign_in(tokens["ian"])
+        driver.get(f"{base}/session/{palp['session']}")
+        wait.until(lambda d: d.find_elements(By.ID, "timeline"))
+        check("Lumps found" in driver.find_element(By.ID, "results").text,
+              "the session's metrics say what the search found")
+        check(driver.find_elements(By.ID, "palpation-legend"), "the replay says what its markers are")
+        drawn = driver.execute_script(
+            "const s = document.getElementById('timeline'); s.value = s.max;"
+            "s.dispatchEvent(new Event('input'));"
+            "return Number(document.getElementById('view3d').dataset.tools);")
+        want = 1 + pm.get("lumps", 0) + pm.get("lumps_found", 0) + pm.get("false_marks", 0)
+        check(drawn == want, f"at the end the replay draws the tool, every lump and every mark ({drawn} of {want})")
+        shot("palpation")
     finally:
         if sys.exc_info()[0] is not None:  # failing: what the page itself said
             print("page at", driver.current_url, flush=True)

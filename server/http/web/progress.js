@@ -13,6 +13,8 @@ const METRICS = {
   path_length_m: ['path length', 'm', 3], rms_jerk: ['RMS jerk', 'm/s³', 0],
   overload_events: ['overload events', '', 0], score: ['score', '/10', 1],
   guided_share: ['share of the trial guided', '', 2],
+  lumps_missed: ['lumps missed', '', 0], false_marks: ['false marks', '', 0],
+  localisation_error_m: ['localisation error', 'm', 4], coverage: ['share of the surface examined', '', 2],
 };
 export function metricName(m) { return (METRICS[m] || [m])[0]; }
 export function metricValue(m, v) {
@@ -25,6 +27,8 @@ export function stateCell(state) { return el('span', { class: 'badge st-' + stat
 // An exercise's task as a sentence: "twist to 60° ± 5°, held 2 s, under 2 N, within 45 s".
 export function taskText(t) {
   if (!t) return '';
+  if (t.kind === 'palpate')
+    return `search for hidden lumps and mark them, under ${fmt(t.force_limit_n, 1)} N, within ${fmt(t.time_limit_s, 0)} s`;
   const u = t.unit === 'deg' ? '°' : ' mm';
   return `${t.kind === 'twist' ? 'twist to' : 'press to'} ${fmt(t.target, t.unit === 'deg' ? 0 : 1)}${u} ± ${fmt(t.tolerance, 1)}${u}, ` +
     `held ${fmt(t.hold_s, 1)} s, under ${fmt(t.force_limit_n, 1)} N, within ${fmt(t.time_limit_s, 0)} s`;

@@ -168,12 +168,13 @@ export class TissueView {
     this.toolProg = linkProgram(gl, vs, fs);
     this.toolVao = gl.createVertexArray(); gl.bindVertexArray(this.toolVao);
     this.toolBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, this.toolBuf);
-    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(6), gl.DYNAMIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(3 * 40), gl.DYNAMIC_DRAW);
     gl.enableVertexAttribArray(0); gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
     gl.bindVertexArray(null);
   }
-  // tools: [{ p: [x, y, z] mm, colour: [r, g, b], size: px }] (at most two), drawn at the next draw().
-  setTools(tools) { this.tools = tools.slice(0, 2); this.draw(); }
+  // tools: [{ p: [x, y, z] mm, colour: [r, g, b], size: px }] (the hands, and a palpation's lumps
+  // and marks: at most 40), drawn at the next draw().
+  setTools(tools) { this.tools = tools.slice(0, 40); this.draw(); }
   drawTools(m) {
     const gl = this.gl, dpr = window.devicePixelRatio || 1;
     this.canvas.dataset.tools = this.tools.length;
@@ -182,13 +183,14 @@ export class TissueView {
     gl.uniformMatrix4fv(gl.getUniformLocation(this.toolProg, 'uM'), false, m);
     gl.bindVertexArray(this.toolVao);
     gl.bindBuffer(gl.ARRAY_BUFFER, this.toolBuf);
-    gl.bufferSubData(gl.ARRAY_BUFFER, 0, new Float32Array(this.tools.flatMap((t) => t.p).concat([0, 0, 0, 0, 0, 0]).slice(0, 6)));
+    const tools = this.tools.slice(0, 40);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, new Float32Array(tools.flatMap((t) => t.p)));
     // The larger marker first, over it the smaller: two hands at one point read as a ring.
     gl.disable(gl.DEPTH_TEST);
-    const order = this.tools.map((t, i) => i).sort((a, b) => (this.tools[b].size || 14) - (this.tools[a].size || 14));
+    const order = tools.map((t, i) => i).sort((a, b) => (tools[b].size || 14) - (tools[a].size || 14));
     for (const i of order) {
-      gl.uniform1f(gl.getUniformLocation(this.toolProg, 'uSize'), (this.tools[i].size || 14) * dpr);
-      gl.uniform3fv(gl.getUniformLocation(this.toolProg, 'uColour'), this.tools[i].colour);
+      gl.uniform1f(gl.getUniformLocation(this.toolProg, 'uSize'), (tools[i].size || 14) * dpr);
+      gl.uniform3fv(gl.getUniformLocation(this.toolProg, 'uColour'), tools[i].colour);
       gl.drawArrays(gl.POINTS, i, 1);
     }
     gl.enable(gl.DEPTH_TEST);

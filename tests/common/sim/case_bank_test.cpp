@@ -69,6 +69,38 @@ TEST(CaseBankTest, CasesAreBuiltAheadTakenOnceAndTheirFilesRemovedWhenDone) {
   EXPECT_TRUE(bank.WaitReady(120));
 }
 
+// A bank started on a cache that holds cases (an earlier process's) takes them as ready without
+// building, and removes the ones beyond its size; a bank that keeps none leaves them alone.
+TEST(CaseBankTest, ABankAdoptsTheCasesAnEarlierProcessLeftAndRemovesTheSurplus) {
+  const test::TempDir dir("case_bank_adopt");
+  const Scene pad = SmallPad();
+  {
+    CaseBank first({dir.string(), 3});
+    first.Keep(pad);
+    ASSERT_TRUE(first.WaitReady(120));
+  }
+  const auto files = [&] {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(dir.path()))
+      n += e.path().filename().string().rfind("small-pad.case-", 0) == 0;
+    return n;
+  };
+  ASSERT_GE(files(), 3);
+  {
+    CaseBank none({dir.string(), 0});
+    none.Keep(pad);
+    EXPECT_GE(files(), 3) << "a bank that keeps none removes nothing";
+  }
+  CaseBank second({dir.string(), 2});
+  second.Keep(pad);
+  EXPECT_EQ(second.stats().ready, 2u) << "adopted at once";
+  EXPECT_EQ(second.stats().built, 0u);
+  EXPECT_EQ(files(), 2) << "the surplus is removed";
+  auto seed = second.Take(pad);
+  ASSERT_TRUE(seed.has_value());
+  EXPECT_TRUE(fs::exists(dir.path() / (CaseName(pad.name, *seed) + "-contact.vrm")));
+}
+
 TEST(CaseBankTest, ASceneWithoutCasesIsNotKeptAndTheBankStopsMidBuild) {
   const test::TempDir dir("case_bank_stop");
   Scene plain = SmallPad();

@@ -13,7 +13,7 @@ import { traceCharts } from '../traces.js';
 
 const LIVE = ['created', 'running', 'stalled'];
 
-function metricsList(m) {
+function metricsList(m, palpation) {
   if (!m) return el('p', { class: 'muted' }, 'No trial metrics recorded.');
   const rows = [
     ['Score (0–10)', fmt(m.score, 2)], ['Raw score (before caps)', fmt(m.raw_score, 2)],
@@ -26,6 +26,12 @@ function metricsList(m) {
   const caps = [m.capped_not_completed && 'not completed (at most 5)', m.capped_force_limit && 'over the force limit for more than 0.5 s (at most 4)',
     m.capped_overload && 'tissue overloaded (at most 3)'].filter(Boolean);
   rows.push(['Score capped because', caps.length ? caps.join('; ') : 'no cap']);
+  if (palpation) {  // a search for hidden lumps: what it found, where, and how much it examined
+    rows.push(['Lumps found', `${m.lumps_found} of ${m.lumps}` + (m.lumps > m.lumps_found ? ` (${m.lumps - m.lumps_found} missed)` : '')],
+      ['False marks (no lump there)', m.false_marks],
+      ['Localisation error (mm, mean over the lumps found)', m.lumps_found ? fmt(1e3 * m.localisation_error, 1) : '—'],
+      ['Share of the surface examined', `${fmt(100 * m.coverage, 0)}%`], ['Mean force in contact (N)', fmt(m.mean_force, 2)]);
+  }
   // Four-handed training: how much of the trial an instructor's hand weighed in, and how much.
   rows.push(['Share of the trial guided', m.guided_share > 0 ? `${fmt(100 * m.guided_share, 0)}% at a mean α of ${fmt(m.guided_alpha, 2)}` : 'none: the trainee alone']);
   const l = m.link;  // what the station rendered and how the link held (0 when not reported)
@@ -69,6 +75,19 @@ function seriesAt(series, t) {
 }
 const legend = () => el('p', { class: 'tool-legend muted' }, el('span', { class: 'dot trainee' }), ' the trainee\'s tool ',
   el('span', { class: 'dot instructor' }), ' the instructor\'s hand (four-handed training)');
+const taskText = (scene) => scene.task === 'press' ? `press to ${fmt(scene.target, 0)} mm`
+  : scene.task === 'palpate' ? 'search for hidden lumps and mark them'
+    : `twist to ${fmt(scene.target, 0)}° ± ${fmt(scene.tolerance, 0)}°`;
+// An ended search's lumps (red, over the surface above each) and the trainee's marks (green, the
+// marks placed by the time shown), for the replay; during the search nobody sees the lumps.
+const LUMP = [0.95, 0.3, 0.25], MARK = [0.3, 0.9, 0.45];
+function palpationMarkers(p, t) {
+  if (!p) return [];
+  return p.lumps.map((l) => ({ p: l.surface_mm, colour: LUMP, size: 10 + 2 * l.radius_mm }))
+    .concat(p.marks.filter((k) => k.time_s <= t).map((k) => ({ p: k.position_mm, colour: MARK, size: 12 })));
+}
+const palpationLegend = () => el('p', { class: 'tool-legend muted', id: 'palpation-legend' }, el('span', { class: 'dot lump' }),
+  ' a hidden lump (over its centre, sized by it) ', el('span', { class: 'dot mark' }), ' the trainee\'s marks');
 
 export async function pageSession(main) {
   const id = location.pathname.split('/')[2];
@@ -80,7 +99,7 @@ export async function pageSession(main) {
   const role = auth.me.role, live = LIVE.includes(s.state);
   const head = el('div', { class: 'panel' });
   const renderHead = (x) => head.replaceChildren(facts([['Trainee', x.trainee], ['Scene', x.scene],
-    ['Task', scene.task === 'press' ? `press to ${fmt(scene.target, 0)} mm` : `twist to ${fmt(scene.target, 0)}° ± ${fmt(scene.tolerance, 0)}°`],
+    ['Task', taskText(scene)],
     ['State', stateBadge(x.state)], ['Started', when(x.started)], ['Ended', when(x.ended)], ['End reason', x.end_reason || '—'],
     ['Score', x.metrics ? el('b', { class: 'score' }, fmt(x.metrics.score, 1) + ' / 10') : '—']]));
   renderHead(s);
@@ -88,7 +107,8 @@ export async function pageSession(main) {
   const view = el('canvas', { id: 'view3d' });
   const traces = traceCharts(scene, live);
   const tissue = el('div', { class: 'panel' }, el('h2', {}, live ? 'Tissue, live' : 'Tissue, replayed'), view, legend());
-  const results = el('div', { class: 'panel', id: 'results' }, metricsList(s.metrics));
+  const palpation = scene.task === 'palpate';
+  const results = el('div', { class: 'panel', id: 'results' }, metricsList(s.metrics, palpation));
   const feedback = el('div', { class: 'panel', id: 'feedback' });
   const evidence = el('div', { class: 'evidence' }, tissue, el('div', { class: 'panel' }, el('h2', {}, 'Traces'), traces.panel));
   const stop = el('button', { class: 'danger', id: 'stop' }, 'Stop session');
@@ -134,9 +154,10 @@ export async function pageSession(main) {
     if (record && record.frames) {
       const replay = await Replay.load(record, view3d, (t) => {
         traces.cursor(t);
-        if (view3d) view3d.tools = toolsOf(seriesAt(record.series, t));
+        if (view3d) view3d.tools = toolsOf(seriesAt(record.series, t)).concat(palpationMarkers(record.palpation, t));
       });
       tissue.append(replay.controls);
+      if (record.palpation) tissue.append(palpationLegend());
     }
     return;
   }
@@ -165,7 +186,8 @@ function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, s
     const atLimit = scene.device_max_force_n && t.force_n >= 0.97 * scene.device_max_force_n;
     figures.replaceChildren(...[['State', stateBadge(t.state)],
       ['Force (N)', el('span', { class: atLimit ? 'flag' : '' }, fmt(t.force_n, 2), atLimit ? ' at the device limit' : '')],
-      [press ? 'Depth (mm)' : 'Twist (°)', press ? fmt(t.depth_mm, 1) : `${fmt(t.twist_deg, 1)} (target ${fmt(scene.target, 0)})`],
+      scene.task === 'palpate' ? ['Task', 'searching for lumps'] :
+        [press ? 'Depth (mm)' : 'Twist (°)', press ? fmt(t.depth_mm, 1) : `${fmt(t.twist_deg, 1)} (target ${fmt(scene.target, 0)})`],
       ['Time over the force limit (s)', fmt(t.over_limit_s, 1)], ['Tissue overload events', t.overload_events],
       ['Round trip (ms)', fmt(t.rtt_us / 1000, t.rtt_us < 10e3 ? 2 : 1)], ['Loss (%)', fmt(t.loss_ratio * 100, 2)],
       ['Haptic rate (Hz)', fmt(t.haptic_rate_hz, 0)], ['Score so far', fmt(t.score, 1)], ['Clock jumps', t.clock_jumps]]

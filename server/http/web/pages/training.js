@@ -8,7 +8,8 @@ import { metricName, showCohortCurve, showCurve, stateCell, targetText, taskText
 import { loadScenes } from '../scenes.js';
 
 const METRIC_NAMES = ['completion_time_s', 'peak_force_n', 'time_over_force_limit_s', 'overload_events',
-  'path_length_m', 'rms_jerk', 'task_error', 'score', 'guided_share'];
+  'path_length_m', 'rms_jerk', 'task_error', 'score', 'guided_share', 'lumps_missed', 'false_marks',
+  'localisation_error_m', 'coverage'];
 const REFRESH_MS = 5000;
 
 export async function pageTraining(main) {
@@ -141,7 +142,7 @@ function courseForm(scenes, experts, news, done) {
 // as the scene has them), in the scene file's names and units (a press's depth in metres).
 function taskSettings(get, scenes) {
   const scene = scenes.find((s) => s.name === get('scene').value), twist = !scene || scene.task === 'twist';
-  const out = {}, num = (k) => (get(k).value === '' ? null : Number(get(k).value));
+  const out = {}, num = (k) => (!get(k) || get(k).value === '' ? null : Number(get(k).value));
   if (num('task-target') !== null) out[twist ? 'target_deg' : 'target_depth_m'] = twist ? num('task-target') : num('task-target') / 1000;
   if (num('task-tolerance') !== null) out[twist ? 'tolerance_deg' : 'tolerance_m'] = twist ? num('task-tolerance') : num('task-tolerance') / 1000;
   for (const [k, name] of [['task-hold', 'hold_s'], ['task-force', 'force_limit_n'], ['task-time', 'time_limit_s']])
@@ -153,9 +154,10 @@ function taskSettings(get, scenes) {
 function taskFields(n, scene) {
   const twist = !scene || scene.task === 'twist', unit = twist ? '°' : 'mm';
   const field = (label, k, value) => el('label', {}, label, el('input', { type: 'number', step: 'any', min: 0, name: `${k}-${n}`, placeholder: scene ? String(value) : '', inputmode: 'decimal' }));
+  const limits = [field('Force limit (N)', 'task-force', scene && scene.force_limit_n), field('Time limit (s)', 'task-time', scene && scene.time_limit_s)];
+  if (scene && scene.task === 'palpate') return limits;  // a search has no target, tolerance or hold
   return [field(`Target (${unit})`, 'task-target', scene && scene.target), field(`Tolerance (${unit})`, 'task-tolerance', scene && scene.tolerance),
-    field('Hold (s)', 'task-hold', scene && scene.hold_s), field('Force limit (N)', 'task-force', scene && scene.force_limit_n),
-    field('Time limit (s)', 'task-time', scene && scene.time_limit_s)];
+    field('Hold (s)', 'task-hold', scene && scene.hold_s), ...limits];
 }
 
 function exerciseFieldset(n, scenes) {
@@ -180,7 +182,10 @@ function exerciseFieldset(n, scenes) {
       metricRow('overload_events', false, 0, false), metricRow('score', false, 7, false),
       metricRow('time_over_force_limit_s', false, 0.5, false), metricRow('path_length_m', false, '', true),
       metricRow('rms_jerk', false, '', true), metricRow('task_error', false, '', true),
-      metricRow('guided_share', false, 0, false)));
+      metricRow('guided_share', false, 0, false),
+      // A palpation's own (a search for hidden lumps).
+      metricRow('lumps_missed', false, 0, false), metricRow('false_marks', false, 0, false),
+      metricRow('localisation_error_m', false, '', true), metricRow('coverage', false, '', true)));
 }
 
 // Cohorts (name and members) enrolled in a course from a day to a day, one trainee enrolled on
