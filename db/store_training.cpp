@@ -174,10 +174,14 @@ Expected<std::vector<CohortRecord>> ReadCohorts(Connection& c, int64_t id) {
 
 // An attempt's columns: the session, its trainee, exercise and end, then the metrics targets
 // can name (scoring::ProficiencyMetrics; the rest of a trial's figures are not read).
+// VSURG_PROFICIENCY_COLUMNS: every metric a target can name (scoring::ProficiencyMetrics), in
+// ReadProficiencyMetrics' order. A macro, so that the two queries below join it at compile time.
+#define VSURG_PROFICIENCY_COLUMNS                                                               \
+  "m.completed, m.completion_time_s, m.task_error, m.peak_force_n, m.time_over_force_limit_s, " \
+  "m.path_length_m, m.rms_jerk, m.overload_events, m.score, m.guided_share, m.lumps, "          \
+  "m.lumps_found, m.false_marks, m.localisation_error_m, m.coverage "
 constexpr const char* kAttemptColumns =
-    "SELECT s.id, t.name, s.exercise_id, s.ended_us, m.completed, m.completion_time_s, "
-    "m.task_error, m.peak_force_n, m.time_over_force_limit_s, m.path_length_m, m.rms_jerk, "
-    "m.overload_events, m.score ";
+    "SELECT s.id, t.name, s.exercise_id, s.ended_us, " VSURG_PROFICIENCY_COLUMNS;
 
 // The metrics of kAttemptColumns from column `first` on.
 void ReadProficiencyMetrics(const Statement& q, int first, scoring::TrialMetrics& m) {
@@ -190,6 +194,12 @@ void ReadProficiencyMetrics(const Statement& q, int first, scoring::TrialMetrics
   m.rms_jerk = q.Double(first + 6);
   m.overload_events = static_cast<int>(q.Int(first + 7));
   m.score = q.Double(first + 8);
+  m.guided_share = q.Double(first + 9);
+  m.lumps = static_cast<int>(q.Int(first + 10));
+  m.lumps_found = static_cast<int>(q.Int(first + 11));
+  m.false_marks = static_cast<int>(q.Int(first + 12));
+  m.localisation_error = q.Double(first + 13);
+  m.coverage = q.Double(first + 14);
 }
 
 void ReadAttempt(const Statement& q, std::vector<AttemptRow>& out) {
@@ -503,10 +513,8 @@ Expected<std::vector<AttemptRow>> Store::LoadAttempts(int64_t course_id, const s
   const int64_t one = !trainee.empty() && names.size() == 1 ? names.begin()->first : 0;
   const std::string sql =
       std::string(
-          "SELECT s.id, s.trainee_id, s.ended_us, m.completed, m.completion_time_s, "
-          "m.task_error, m.peak_force_n, m.time_over_force_limit_s, m.path_length_m, "
-          "m.rms_jerk, m.overload_events, m.score FROM sessions s JOIN trial_metrics m "
-          "ON m.session_id = s.id WHERE s.exercise_id = ?1") +
+          "SELECT s.id, s.trainee_id, s.ended_us, " VSURG_PROFICIENCY_COLUMNS
+          "FROM sessions s JOIN trial_metrics m ON m.session_id = s.id WHERE s.exercise_id = ?1") +
       (one ? " AND s.trainee_id = ?2" : " AND ?2 = 0") + " ORDER BY s.trainee_id, s.id";
   std::vector<AttemptRow> out;
   for (const int64_t exercise : exercises) {

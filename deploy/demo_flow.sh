@@ -4,10 +4,12 @@
 #   a trainee's station (headless, a replayed stylus) twists the forearm 45 degrees over UDP;
 #   an instructor's monitor follows the session live (text, and an OpenGL view);
 #   the instructor's own station joins a second trial and guides it (four-handed training);
+#   a scripted novice searches a pad for hidden lumps drawn for the attempt (palpation);
 #   three evaluators (intern, associate chief, chief) score the session with their own tokens;
 #   the administrator prints the weighted report (the coil-spring paper eq. 9-11) and the trial metrics and
 #   exports the evaluations as CSV.
-# Screenshots of the station before and after the twist, and of the monitor, go to SHOTS_DIR.
+# Screenshots of the station before and after the twist, of the monitor, and of the search's
+# summary go to SHOTS_DIR.
 # Exits 0 when every step worked, and leaves no process behind.
 #
 # usage: deploy/demo_flow.sh BIN_DIR OUT_DIR [SHOTS_DIR]   (deploy/demo.sh and the e2e test run it)
@@ -98,6 +100,19 @@ share="$(sed -n 's/.*"guided_share":\([0-9.e-]*\).*/\1/p' "$out/station-guided.j
 echo "session $guided, the trainee's record: guided share $share"
 [ -n "$share" ] && [ "$share" != 0 ] || { echo "demo: the guided trial records no guidance" >&2; exit 1; }
 
+step "Palpation: a scripted novice searches a pad for the lumps drawn for this attempt (search device)"
+# The lumps are drawn for the session from a random seed; the station never shows them, and the
+# score and what the search found come at the end (the dashboard's replay shows where they were).
+"$bin/vsurg-station" --server "$server" --token "$trainee_token" --scene lump-search \
+  --device search --search-style novice --headless --width 960 --height 600 \
+  --screenshot-summary "$shots/station-palpation-novice.png" --json \
+  > "$out/station-palpation.json" 2> "$out/station-palpation.log"
+lumps="$(sed -n 's/.*"lumps":\([0-9]*\).*/\1/p' "$out/station-palpation.json")"
+found="$(sed -n 's/.*"lumps_found":\([0-9]*\).*/\1/p' "$out/station-palpation.json")"
+coverage="$(sed -n 's/.*"coverage":\([0-9.e-]*\).*/\1/p' "$out/station-palpation.json")"
+echo "the novice's search: $found of $lumps lumps found, $coverage of the pad examined"
+[ -n "$lumps" ] && [ -n "$coverage" ] || { echo "demo: the search was not scored" >&2; exit 1; }
+
 step "Evaluators: three groups score session $session (9 indexes, 0-10), each with their own token"
 header="evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9"
 printf '%s\ndr-intern,intern,8,8.5,9,8.5,8,7.5,8,7,6.5\n' "$header" > "$tmp/intern.csv"
@@ -138,5 +153,6 @@ tail -3 "$out/server.log"
 left="$(pgrep -f "$tmp/vsurg.db" || true)"
 [ -z "$left" ] || { echo "demo: processes left behind: $left" >&2; exit 1; }
 echo
-echo "demo flow: screenshots in $shots (station-before.png, station-twisted.png, monitor-view.png);"
+echo "demo flow: screenshots in $shots (station-before.png, station-twisted.png, monitor-view.png,"
+echo "           station-palpation-novice.png);"
 echo "           logs, station.json, monitor.log and scores.csv in $out"

@@ -19,6 +19,7 @@ int Msm(const Args& args, std::ostream& out, std::ostream& err);
 int Run(const Args& args, std::ostream& out, std::ostream& err);
 int Trainee(const Args& args, std::ostream& out, std::ostream& err);
 int ContactLaw(const Args& args, std::ostream& out, std::ostream& err);
+int Search(const Args& args, std::ostream& out, std::ostream& err);
 int Score(const Args& args, std::ostream& out, std::ostream& err);
 
 }  // namespace vsurg::cli::commands

@@ -21,6 +21,7 @@ const char* kTopHelp =
     "  run           replay a stylus trajectory through a scene and print the trial metrics\n"
     "  trainee       write a scripted trainee's trajectory (good, hesitant, rough)\n"
     "  contact-law   press a scene as the good trainee and print its contact's tissue law\n"
+    "  search        draw a palpation's case and search it with a scripted examiner\n"
     "  score         weighted evaluation report (the coil-spring paper eq. 9-11) with rater "
     "reliability\n\n"
     "`vsurg-sim <command> --help` describes each command's options.\n";
@@ -30,7 +31,7 @@ const char* kTopHelp =
 int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   if (args.empty()) {
     err << "vsurg-sim: a command is required (coil, coil-inverse, deform, calibrate, msm, run, "
-           "trainee, contact-law, score; see --help)\n";
+           "trainee, contact-law, search, score; see --help)\n";
     return kExitUsage;
   }
   const std::string& cmd = args[0];
@@ -47,9 +48,10 @@ int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cmd == "run") return commands::Run(rest, out, err);
   if (cmd == "trainee") return commands::Trainee(rest, out, err);
   if (cmd == "contact-law") return commands::ContactLaw(rest, out, err);
+  if (cmd == "search") return commands::Search(rest, out, err);
   if (cmd == "score") return commands::Score(rest, out, err);
   err << "vsurg-sim: unknown command '" << cmd
-      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, score; see "
+      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, search, score; see "
          "--help)\n";
   return kExitUsage;
 }

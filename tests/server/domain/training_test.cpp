@@ -294,6 +294,66 @@ TEST_F(TrainingTest, AnExerciseSetsItsOwnTaskAndItsExpertsTrialsAtIt) {
   EXPECT_EQ(ready->exercises[0].targets[0].expert_trials, 3);
 }
 
+// A palpation exercise (the lump search): its targets on the search's own metrics (no lump
+// missed, no false mark, the coverage from the experts' searches), a course's task settings that
+// give it a target refused by name (a search has none), and a trainee's attempt judged on them.
+TEST_F(TrainingTest, APalpationExerciseIsJudgedOnLumpsFoundFalseMarksAndCoverage) {
+  for (const char* e : {"exa", "exb"}) ASSERT_TRUE(store_->SetExpert(e, true).ok());
+  const auto search = [&](const std::string& trainee, int64_t exercise, int found, int false_marks,
+                          double coverage) {
+    auto s = store_->CreateSession(trainee, "lump-search");
+    EXPECT_TRUE(s.ok());
+    if (exercise) {
+      EXPECT_TRUE(store_->SetSessionExercise(s->id, exercise).ok());
+    }
+    scoring::TrialMetrics m;
+    m.completed = true;
+    m.completion_time = m.duration = 140;
+    m.lumps = 1;
+    m.lumps_found = found;
+    m.false_marks = false_marks;
+    m.localisation_error = found ? 0.003 : 0;
+    m.coverage = coverage;
+    m.score = 8;
+    EXPECT_TRUE(store_->EndSession(s->id, SessionState::kEnded, NowUs(), "done", m).ok());
+  };
+  search("exa", 0, 1, 0, 1.0);
+  search("exb", 0, 1, 0, 0.9);
+  auto c = CreateCourse(*domain_, As("ian"), "Breast examination", "find the lump",
+                        {{"Find the lump", "lump-search",
+                          Spec({{"lumps_missed", 0.0}, {"false_marks", 0.0},
+                                {"coverage", std::nullopt}},
+                               1)}});
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  const ExerciseView& ex = c->exercises[0];
+  ASSERT_EQ(ex.targets.size(), 3u);
+  EXPECT_EQ(ex.targets[2].expert_trials, 2);
+  EXPECT_LT(*ex.targets[2].value, 0.95);  // mean − SD of 1.0 and 0.9: more is better
+  EXPECT_TRUE(ex.ready);
+  auto target = ParseExerciseSpec(
+      R"({"targets":[{"metric":"score","value":7}],"task":{"target_depth_m":0.004}})");
+  ASSERT_TRUE(target.ok());
+  EXPECT_EQ(SetExerciseSpec(*domain_, As("ian"), ex.record.id, *target).error().field,
+            "exercise.spec.task.target");
+  // A trainee enrolled: a search that missed the lump fails, one that found it passes.
+  auto h = CreateCohort(*domain_, As("ian"), "Breast 2026", "", {"tina"});
+  ASSERT_TRUE(h.ok());
+  db::EnrolmentRecord e;
+  e.course_id = c->record.id;
+  e.cohort_id = h->id;
+  ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
+  const auto state = [&] {
+    auto grid = CohortProgress(*domain_, As("ian"), h->id, c->record.id);
+    EXPECT_TRUE(grid.ok());
+    return grid.ok() && grid->trainees.size() == 1 ? grid->trainees[0].exercises[0].state
+                                                   : CellState::kLocked;
+  };
+  search("tina", ex.record.id, 0, 1, 1.0);
+  EXPECT_EQ(state(), CellState::kTraining);
+  search("tina", ex.record.id, 1, 0, 1.0);
+  EXPECT_EQ(state(), CellState::kProficient);
+}
+
 TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   ASSERT_NO_FATAL_FAILURE(Programme());
   Trial("tina", kScene, Ex(0), 25, 1.2);
