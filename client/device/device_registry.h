@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "client/device/device.h"
-#include "common/geometry/mesh.h"
 #include "common/core/expected.h"
+#include "common/geometry/mesh.h"
 
 namespace vsurg::client {
 

@@ -11,8 +11,8 @@ Expected<std::unique_ptr<SearchingHandDevice>> SearchingHandDevice::Create(
       new SearchingHandDevice(std::move(*search), limits, clock));
 }
 
-SearchingHandDevice::SearchingHandDevice(sim::PalpationSearch search,
-                                         haptics::DeviceLimits limits, const Clock* clock)
+SearchingHandDevice::SearchingHandDevice(sim::PalpationSearch search, haptics::DeviceLimits limits,
+                                         const Clock* clock)
     : search_(std::move(search)), limits_(limits), clock_(clock ? *clock : DefaultClock()) {}
 
 haptics::StylusSample SearchingHandDevice::Read() {

@@ -15,7 +15,7 @@ namespace vsurg::client {
 
 struct Guidance {
   bool show = false;
-  bool twist = true;  // a twist task (angles in rad) or a press task (depths in m)
+  bool twist = true;     // a twist task (angles in rad) or a press task (depths in m)
   bool palpate = false;  // a palpation: no target, the marks placed so far instead
   int marks = 0;
   double target = 0, tolerance = 0, current = 0;

@@ -735,8 +735,7 @@ int Run(const std::vector<std::string>& args) {
     if (!st.last_error.empty()) fields.emplace_back("reason", st.last_error);
     vsurg::LogEvent("vsurg-station", "state", fields);
   });
-  Trial trial{p, *scene, *screen, station,
-              [&] {
+  Trial trial{p, *scene, *screen, station, [&] {
                 return (replay && replay->finished()) || (hand && hand->finished()) ||
                        (searcher && searcher->finished());
               }};

@@ -63,9 +63,9 @@ int Search(const Args& args, std::ostream& out, std::ostream& err) {
     return kExitRuntime;
   }
   const double build_s = SecondsSince(t0);
-  auto search = sim::PalpationSearch::Create(
-      (*simulation)->rest_mesh(), (*simulation)->held_vertices(),
-      style == "expert" ? sim::ExpertSearch() : sim::NoviceSearch());
+  auto search =
+      sim::PalpationSearch::Create((*simulation)->rest_mesh(), (*simulation)->held_vertices(),
+                                   style == "expert" ? sim::ExpertSearch() : sim::NoviceSearch());
   if (!search.ok()) return UsageError(err, p.command(), search.error());
   const auto t1 = std::chrono::steady_clock::now();
   const scoring::TrialMetrics m = SearchCase(**simulation, *search);
@@ -76,9 +76,12 @@ int Search(const Args& args, std::ostream& out, std::ostream& err) {
       lumps.push_back({{"centre_m", {l.centre.x(), l.centre.y(), l.centre.z()}},
                        {"radius_m", l.radius},
                        {"contrast", l.contrast}});
-    out << nlohmann::json{{"case", seed},           {"style", style},
-                          {"build_s", build_s},     {"search_cpu_s", search_s},
-                          {"lumps", lumps},         {"spots", search->spots().size()},
+    out << nlohmann::json{{"case", seed},
+                          {"style", style},
+                          {"build_s", build_s},
+                          {"search_cpu_s", search_s},
+                          {"lumps", lumps},
+                          {"spots", search->spots().size()},
                           {"metrics", scoring::TrialMetricsToJson(m)}}
                .dump()
         << "\n";

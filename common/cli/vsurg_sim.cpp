@@ -51,7 +51,8 @@ int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cmd == "search") return commands::Search(rest, out, err);
   if (cmd == "score") return commands::Score(rest, out, err);
   err << "vsurg-sim: unknown command '" << cmd
-      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, search, score; see "
+      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, search, score; "
+         "see "
          "--help)\n";
   return kExitUsage;
 }

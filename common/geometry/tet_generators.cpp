@@ -163,11 +163,14 @@ Expected<TetMesh> MakeTetBox(const TetBoxParams& p) {
     if (p.cells[a] < 1 || p.cells[a] > 256)
       return InvalidArgument("cells", "each count must be within 1..256");
   }
-  return KuhnGrid(p.cells[0], p.cells[1], p.cells[2], [&](int i, int j, int k) {
-    return Vec3(p.size.x() * (static_cast<double>(i) / p.cells[0] - 0.5),
-                p.size.y() * (static_cast<double>(j) / p.cells[1] - 0.5),
-                p.size.z() * static_cast<double>(k) / p.cells[2]);
-  }, false);
+  return KuhnGrid(
+      p.cells[0], p.cells[1], p.cells[2],
+      [&](int i, int j, int k) {
+        return Vec3(p.size.x() * (static_cast<double>(i) / p.cells[0] - 0.5),
+                    p.size.y() * (static_cast<double>(j) / p.cells[1] - 0.5),
+                    p.size.z() * static_cast<double>(k) / p.cells[2]);
+      },
+      false);
 }
 
 TetCylinderParams TorsionCylinder(double length, double radius_base, double radius_tip, int rings) {

@@ -11,7 +11,9 @@ namespace {
 constexpr double kRevisitStep = 1e-3;  // m, the tool's move between two coverage visits
 constexpr double kFullCoverage = 0.8;  // the share of the surface that earns full thoroughness
 
-double Unit(double v) { return std::clamp(v, 0.0, 1.0); }
+double Unit(double v) {
+  return std::clamp(v, 0.0, 1.0);
+}
 
 }  // namespace
 
@@ -30,8 +32,8 @@ PalpationRecorder::PalpationRecorder(std::vector<Lump> lumps, PalpableSurface su
   const auto cell_of = [&](const Eigen::Vector3d& c) {
     int idx[3];
     for (int k = 0; k < 3; ++k)
-      idx[k] = std::clamp(static_cast<int>((c[k] - lo[k]) / spec_.cover_radius), 0,
-                          grid_size_[k] - 1);
+      idx[k] =
+          std::clamp(static_cast<int>((c[k] - lo[k]) / spec_.cover_radius), 0, grid_size_[k] - 1);
     return (idx[2] * grid_size_[1] + idx[1]) * grid_size_[0] + idx[0];
   };
   cell_start_.assign(static_cast<size_t>(grid_size_[0]) * grid_size_[1] * grid_size_[2] + 1, 0);
@@ -164,18 +166,19 @@ std::vector<std::string> ExplainPalpation(const TrialMetrics& m, const TaskSpec&
     std::string why;
   };
   const int missed = m.lumps - m.lumps_found;
-  std::string found = m.lumps == 0 ? std::string("Detection: there was no lump")
-                                   : text("Detection: %.0f of %.0f lump(s) found", m.lumps_found,
-                                          m.lumps);
+  std::string found = m.lumps == 0
+                          ? std::string("Detection: there was no lump")
+                          : text("Detection: %.0f of %.0f lump(s) found", m.lumps_found, m.lumps);
   if (m.false_marks > 0) found += text(", %.0f false mark(s)", m.false_marks);
-  if (m.lumps_found > 0) found += text(", marked %.1f mm from the lump", 1e3 * m.localisation_error);
+  if (m.lumps_found > 0)
+    found += text(", marked %.1f mm from the lump", 1e3 * m.localisation_error);
   if (missed > 0 && m.lumps > 0) found += text(" (%.0f missed)", missed);
   std::vector<Loss> losses = {
       {ScoreParts::Lost(ScoreParts::kAccuracyWeight, p.accuracy), found},
       {ScoreParts::Lost(ScoreParts::kEfficiencyWeight, p.efficiency),
-       m.completed ? text("Time: %.0f s, an expert takes %.0f s", m.completion_time,
-                          task.expert_time)
-                   : std::string("Time: no credit without finishing the search")},
+       m.completed
+           ? text("Time: %.0f s, an expert takes %.0f s", m.completion_time, task.expert_time)
+           : std::string("Time: no credit without finishing the search")},
       {ScoreParts::Lost(ScoreParts::kForceWeight, p.force),
        text("Force control: peak %.2f N against a %.1f N limit", m.peak_force, task.force_limit)},
       {ScoreParts::Lost(ScoreParts::kSmoothnessWeight, p.smoothness),

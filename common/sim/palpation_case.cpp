@@ -1,7 +1,7 @@
 #include "common/sim/palpation_case.h"
 
-#include <cinttypes>
 #include <algorithm>
+#include <cinttypes>
 #include <cstdio>
 #include <limits>
 
@@ -42,8 +42,8 @@ std::vector<double> RimDistance(const geometry::TriMesh& rest, const std::vector
   return out;
 }
 
-// The lumps are drawn under the palpable surface at least the scene's margin from its rim, in the FEM the case's contact table is built
-// from.
+// The lumps are drawn under the palpable surface at least the scene's margin from its rim, in the
+// FEM the case's contact table is built from.
 Expected<Scene> DrawCase(const Scene& scene, uint64_t seed) {
   if (!scene.cases) return scene;
   auto mesh = BuildSceneMesh(scene.mesh);
@@ -66,7 +66,8 @@ Expected<Scene> DrawCase(const Scene& scene, uint64_t seed) {
                  "no palpable surface lies this far from its rim: a smaller margin_mm",
                  "task.cases.margin_mm"};
   auto lumps = tissue::DrawInclusions(*fem, palpable, *scene.cases, seed);
-  if (!lumps.ok()) return Error{lumps.error().code, lumps.error().message, "task.cases." + lumps.error().field};
+  if (!lumps.ok())
+    return Error{lumps.error().code, lumps.error().message, "task.cases." + lumps.error().field};
   Scene out = scene;
   out.inclusions = std::move(*lumps);
   out.name = CaseName(scene.name, seed);

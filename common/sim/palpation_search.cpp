@@ -11,7 +11,9 @@ namespace vsurg::sim {
 
 using geometry::Vec3;
 
-SearchStyle ExpertSearch() { return {}; }
+SearchStyle ExpertSearch() {
+  return {};
+}
 
 SearchStyle NoviceSearch() {
   SearchStyle s;
@@ -29,8 +31,8 @@ SearchStyle NoviceSearch() {
 
 namespace {
 
-// The spots: the corners of the palpable surface's triangles (sim::PalpableTriangles) but its rim, in
-// vertical strips `spacing` wide, each strip walked the other way from the last, no two closer
+// The spots: the corners of the palpable surface's triangles (sim::PalpableTriangles) but its rim,
+// in vertical strips `spacing` wide, each strip walked the other way from the last, no two closer
 // than 0.9 spacing.
 std::vector<int> ChooseSpots(const geometry::TriMesh& rest, const std::vector<int>& held,
                              double spacing, double skip) {
@@ -42,7 +44,9 @@ std::vector<int> ChooseSpots(const geometry::TriMesh& rest, const std::vector<in
   std::vector<int> order;
   for (int v = 0; v < rest.VertexCount(); ++v)
     if (palpable[v]) order.push_back(v);
-  const auto strip = [&](int v) { return static_cast<int>(std::floor(rest.positions[v].x() / spacing)); };
+  const auto strip = [&](int v) {
+    return static_cast<int>(std::floor(rest.positions[v].x() / spacing));
+  };
   std::sort(order.begin(), order.end(), [&](int a, int b) {
     const int sa = strip(a), sb = strip(b);
     if (sa != sb) return sa < sb;
@@ -178,10 +182,12 @@ void PalpationSearch::Analyse() {
   }
   std::vector<size_t> peaks(n);
   for (size_t i = 0; i < n; ++i) peaks[i] = i;
-  std::sort(peaks.begin(), peaks.end(), [&](size_t a, size_t b) { return excess_[a] > excess_[b]; });
+  std::sort(peaks.begin(), peaks.end(),
+            [&](size_t a, size_t b) { return excess_[a] > excess_[b]; });
   std::vector<size_t> chosen;
   for (size_t i : peaks) {
-    if (!(excess_[i] > style_.threshold) || static_cast<int>(chosen.size()) >= style_.max_marks) break;
+    if (!(excess_[i] > style_.threshold) || static_cast<int>(chosen.size()) >= style_.max_marks)
+      break;
     bool apart = true;
     for (size_t c : chosen) apart = apart && (spot_[c] - spot_[i]).norm() > style_.near;
     if (!apart) continue;

@@ -5,9 +5,9 @@
 // along the normal, averaged over the hold); then it compares each spot with the tissue around
 // it (the healthy tissue's smooth trend: a quadratic in the surface's tangent plane, fitted to
 // the spots between `near` and `far` of it, none nearer the rim than `near`; a spot nearer the
-// rim than `edge` is not judged, as the tissue softens steeply there) and marks the spots that stand out by more than
-// its threshold, a lump's place taken as the excess-weighted centre of the spots around the
-// peak. It never reads the scene's inclusions: what it knows it felt.
+// rim than `edge` is not judged, as the tissue softens steeply there) and marks the spots that
+// stand out by more than its threshold, a lump's place taken as the excess-weighted centre of the
+// spots around the peak. It never reads the scene's inclusions: what it knows it felt.
 //
 // Styles: `expert` (a dense pattern, 6 mm apart, 6 mm deep, the whole surface: the vertical-strip
 // search of a clinical breast examination at a firm pressure, marking a spot 3% harder than its
@@ -27,12 +27,12 @@
 namespace vsurg::sim {
 
 struct SearchStyle {
-  double spacing = 0.006;  // m between the spots pressed
-  double depth = 0.006;    // m each press goes under the surface
-  double lift = 0.006;     // m above the surface between presses
-  double press_s = 0.12;   // s down (and up again)
-  double hold_s = 0.08;    // s held at depth, the force read over its second half
-  double speed = 0.12;     // m/s moving between spots
+  double spacing = 0.006;            // m between the spots pressed
+  double depth = 0.006;              // m each press goes under the surface
+  double lift = 0.006;               // m above the surface between presses
+  double press_s = 0.12;             // s down (and up again)
+  double hold_s = 0.08;              // s held at depth, the force read over its second half
+  double speed = 0.12;               // m/s moving between spots
   double near = 0.010, far = 0.024;  // m: the spots the healthy trend is fitted to
   double edge = 0.025;               // m from the rim: nearer spots are not judged (RimDistance)
   double skip = 0;                   // m from the rim: nearer spots are not even pressed

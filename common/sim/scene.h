@@ -15,11 +15,12 @@
 //     "error_budget": { "rms": 0.30, "reference": "saint-venant" } }
 //
 // Mesh types: limb (preset forearm or calf, or length/radius_proximal/radius_distal/segments/
-// rings), sphere (radius, particles), obj (path, relative to the scene file), block (size, cells). Model types: coil
-// (mode limb or surface), mass-spring (integrator, dt, stiffness, damping, volume, support),
-// ring-layer (ring_spacing, rings, chain_stiffness, chain_damping, tether_stiffness, dt).
-// Exactly one deformable region per scene: what lies outside its reach is at rest and costs
-// nothing. Every error names the field, as a path: "regions[0].model.coils: must be ≥ 1".
+// rings), sphere (radius, particles), obj (path, relative to the scene file), block (size, cells).
+// Model types: coil (mode limb or surface), mass-spring (integrator, dt, stiffness, damping,
+// volume, support), ring-layer (ring_spacing, rings, chain_stiffness, chain_damping,
+// tether_stiffness, dt). Exactly one deformable region per scene: what lies outside its reach is at
+// rest and costs nothing. Every error names the field, as a path: "regions[0].model.coils: must be
+// ≥ 1".
 //
 // Set-up code: allocates, reads files.
 #pragma once

@@ -67,11 +67,11 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <utility>
-#include <atomic>
 #include <vector>
 
 #include <Eigen/Core>

@@ -82,8 +82,8 @@ struct SessionHandoff {
   std::string key;  // the station's session key, 32 bytes
   scoring::TaskSettings task;
   std::optional<uint64_t> case_seed;  // a palpation's case (sim::DrawCase), redrawn by the receiver
-  std::string simulation;  // sim::Simulation::SaveState
-  std::string trace;       // the TraceRecorder's state
+  std::string simulation;             // sim::Simulation::SaveState
+  std::string trace;                  // the TraceRecorder's state
   // The link so far (LinkStats): datagrams applied and lost, the span they came over (s), the
   // station's last round trip and jitter (µs) and its rendered peak and time over the limit.
   uint64_t applied = 0, lost = 0;
@@ -215,14 +215,14 @@ class SessionManager final : public Sessions {
     SessionState state = SessionState::kCreated;  // a live state
     db::SessionRecord record;
     SessionTelemetry latest;
-    uint64_t rate_samples = 0;   // the rate window's start: samples applied by then,
-    double rate_time = -1;       // and the station's clock (s); −1: none yet
-    double created_s = 0;        // clock_, for start_timeout_s
-    int64_t epoch = 0;           // the lease's when created: every store write carries it
-    TraceRecorder trace;         // the session's record (sampler thread, under mutex_)
-    scoring::TaskSettings task;  // the settings the session was created with
+    uint64_t rate_samples = 0;          // the rate window's start: samples applied by then,
+    double rate_time = -1;              // and the station's clock (s); −1: none yet
+    double created_s = 0;               // clock_, for start_timeout_s
+    int64_t epoch = 0;                  // the lease's when created: every store write carries it
+    TraceRecorder trace;                // the session's record (sampler thread, under mutex_)
+    scoring::TaskSettings task;         // the settings the session was created with
     std::optional<uint64_t> case_seed;  // a palpation's case (sim::DrawCase)
-    bool moving = false;         // BeginMove .. FinishMove or CancelMove (invariant 7)
+    bool moving = false;                // BeginMove .. FinishMove or CancelMove (invariant 7)
     // Four-handed training: the instructor on the tool's second channel ("" none), its key
     // and link (the channel is in the endpoint while `instructor` is set).
     std::string instructor;
@@ -280,7 +280,7 @@ class SessionManager final : public Sessions {
   // Before live_: the sessions' simulations leave the pool before it stops.
   std::unique_ptr<sim::DeformationPool> pool_;
   std::unique_ptr<sim::CaseBank> cases_;  // palpation cases ahead (options_.cases_ready)
-  mutable std::mutex mutex_;  // live_
+  mutable std::mutex mutex_;              // live_
   std::map<uint64_t, std::unique_ptr<Live>> live_;
   std::mutex subscribers_mutex_;  // held while subscribers run (see Unsubscribe)
   std::map<uint64_t, std::pair<uint64_t, Subscriber>> subscribers_;

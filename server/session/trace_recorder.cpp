@@ -90,15 +90,17 @@ void TraceRecorder::AddSurface(double time_s, const std::vector<int32_t>& indice
 
 void TraceRecorder::SetPalpation(const scoring::PalpationRecorder& palpation) {
   const auto mm = [](const Eigen::Vector3d& p) {
-    return nlohmann::json::array({Round(p.x() * 1e3, 2), Round(p.y() * 1e3, 2),
-                                  Round(p.z() * 1e3, 2)});
+    return nlohmann::json::array(
+        {Round(p.x() * 1e3, 2), Round(p.y() * 1e3, 2), Round(p.z() * 1e3, 2)});
   };
   nlohmann::json lumps = nlohmann::json::array(), marks = nlohmann::json::array();
   for (const scoring::Lump& l : palpation.lumps())
-    lumps.push_back(
-        {{"centre_mm", mm(l.centre)}, {"radius_mm", Round(l.radius * 1e3, 2)}, {"surface_mm", mm(l.surface)}});
+    lumps.push_back({{"centre_mm", mm(l.centre)},
+                     {"radius_mm", Round(l.radius * 1e3, 2)},
+                     {"surface_mm", mm(l.surface)}});
   for (int i = 0; i < palpation.marks(); ++i)
-    marks.push_back({{"time_s", Round(palpation.mark_time(i), 3)}, {"position_mm", mm(palpation.mark(i))}});
+    marks.push_back(
+        {{"time_s", Round(palpation.mark_time(i), 3)}, {"position_mm", mm(palpation.mark(i))}});
   palpation_ = nlohmann::json{{"lumps", std::move(lumps)}, {"marks", std::move(marks)}}.dump();
 }
 

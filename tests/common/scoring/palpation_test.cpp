@@ -92,8 +92,8 @@ TEST(PalpationScoringTest, CoverageIsTheAreaUnderFirmPressesCountedOnce) {
   for (size_t t = 0; t < square.centroids.size(); ++t)
     if ((square.centroids[t] - centre).norm() <= 0.006) expected += square.areas[t];
   PalpationRecorder r({}, square, {});
-  r.Add(true, {0.02, 0.02, 0}, 0.1);  // too light to examine anything
-  r.Add(false, {0.08, 0.08, 0}, 2.0);  // not in contact
+  r.Add(true, {0.02, 0.02, 0}, 0.1);                     // too light to examine anything
+  r.Add(false, {0.08, 0.08, 0}, 2.0);                    // not in contact
   for (int k = 0; k < 5; ++k) r.Add(true, centre, 1.0);  // the same press, counted once
   TrialMetrics m = Timed(10);
   r.Complete(m, Palpate());

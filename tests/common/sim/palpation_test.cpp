@@ -39,10 +39,11 @@ Searched Search(const Scene& scene, const SearchStyle& style, const std::string&
   Searched out{(*sim)->Metrics(), search->spots().size(), 0};
   for (double e : search->excess()) out.max_excess = std::max(out.max_excess, e);
   const scoring::TrialMetrics& m = out.metrics;
-  std::printf("%s: %zu spots in %.0f s, largest excess %.3f; found %d of %d, %d false, %.1f mm "
-              "off, %.0f%% covered, mean force %.2f N, score %.1f\n",
-              scene.name.c_str(), out.spots, m.duration, out.max_excess, m.lumps_found, m.lumps,
-              m.false_marks, 1e3 * m.localisation_error, 100 * m.coverage, m.mean_force, m.score);
+  std::printf(
+      "%s: %zu spots in %.0f s, largest excess %.3f; found %d of %d, %d false, %.1f mm "
+      "off, %.0f%% covered, mean force %.2f N, score %.1f\n",
+      scene.name.c_str(), out.spots, m.duration, out.max_excess, m.lumps_found, m.lumps,
+      m.false_marks, 1e3 * m.localisation_error, 100 * m.coverage, m.mean_force, m.score);
   return out;
 }
 

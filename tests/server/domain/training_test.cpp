@@ -319,11 +319,10 @@ TEST_F(TrainingTest, APalpationExerciseIsJudgedOnLumpsFoundFalseMarksAndCoverage
   };
   search("exa", 0, 1, 0, 1.0);
   search("exb", 0, 1, 0, 0.9);
-  auto c = CreateCourse(*domain_, As("ian"), "Breast examination", "find the lump",
-                        {{"Find the lump", "lump-search",
-                          Spec({{"lumps_missed", 0.0}, {"false_marks", 0.0},
-                                {"coverage", std::nullopt}},
-                               1)}});
+  auto c = CreateCourse(
+      *domain_, As("ian"), "Breast examination", "find the lump",
+      {{"Find the lump", "lump-search",
+        Spec({{"lumps_missed", 0.0}, {"false_marks", 0.0}, {"coverage", std::nullopt}}, 1)}});
   ASSERT_TRUE(c.ok()) << c.error().message;
   const ExerciseView& ex = c->exercises[0];
   ASSERT_EQ(ex.targets.size(), 3u);
