@@ -1,12 +1,7 @@
 // Declarations of the OpenHaptics HD API as its reference manual documents them: only so CI
 // compiles client/device/openhaptics_device.cpp (tests/CMakeLists.txt). Not the SDK; links nothing.
-typedef unsigned int HHD;
-typedef double HDdouble;
-typedef int HDint;
-typedef unsigned int HDenum;
-typedef unsigned long HDSchedulerHandle;
-typedef unsigned int HDCallbackCode;
-typedef unsigned short HDushort;
+typedef unsigned int HHD; typedef double HDdouble; typedef int HDint; typedef unsigned int HDenum;
+typedef unsigned long HDSchedulerHandle; typedef unsigned int HDCallbackCode; typedef unsigned short HDushort;
 #define HDCALLBACK
 #define HD_DEFAULT_DEVICE nullptr
 #define HD_INVALID_HANDLE 0xFFFFFFFF
@@ -23,23 +18,11 @@ typedef unsigned short HDushort;
 #define HD_FORCE_OUTPUT 0x4000
 #define HD_DEVICE_BUTTON_1 (1 << 0)
 #define HD_DEVICE_BUTTON_2 (1 << 1)
-struct HDErrorInfo {
-  HDushort errorCode;
-  int internalErrorCode;
-  HHD hHD;
-};
+struct HDErrorInfo { HDushort errorCode; int internalErrorCode; HHD hHD; };
 #define HD_DEVICE_ERROR(X) (((X).errorCode) != 0)
 typedef HDCallbackCode (*HDSchedulerCallback)(void*);
-HHD hdInitDevice(const char*);
-void hdDisableDevice(HHD);
-HDErrorInfo hdGetError();
-void hdGetDoublev(HDenum, HDdouble*);
-void hdGetIntegerv(HDenum, HDint*);
-void hdSetDoublev(HDenum, const HDdouble*);
-void hdEnable(HDenum);
-void hdBeginFrame(HHD);
-void hdEndFrame(HHD);
+HHD hdInitDevice(const char*); void hdDisableDevice(HHD); HDErrorInfo hdGetError();
+void hdGetDoublev(HDenum, HDdouble*); void hdGetIntegerv(HDenum, HDint*); void hdSetDoublev(HDenum, const HDdouble*);
+void hdEnable(HDenum); void hdBeginFrame(HHD); void hdEndFrame(HHD);
 HDSchedulerHandle hdScheduleAsynchronous(HDSchedulerCallback, void*, HDushort);
-void hdUnschedule(HDSchedulerHandle);
-void hdStartScheduler();
-void hdStopScheduler();
+void hdUnschedule(HDSchedulerHandle); void hdStartScheduler(); void hdStopScheduler();
