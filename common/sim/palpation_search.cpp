@@ -147,39 +147,61 @@ void PalpationSearch::ReadForce(const Move& m, double t, const haptics::ForceCom
   ++felt_count_[m.read_spot];
 }
 
-// Each spot against the healthy trend around it; the peaks that stand out are marked.
+// Spot i's excess over the healthy trend around it (0 where it is not judged), the trend fitted
+// to the spots between `near` and `far` of it (away from the rim) that `healthy` allows.
+double PalpationSearch::Excess(size_t i, const std::vector<uint8_t>& healthy) const {
+  const size_t n = spot_.size();
+  const Vec3 t1 = AnyPerpendicular(normal_[i]), t2 = normal_[i].cross(t1);
+  std::vector<Eigen::Matrix<double, 6, 1>> rows;
+  std::vector<double> values;
+  Eigen::Vector2d offset = Eigen::Vector2d::Zero();
+  for (size_t j = 0; j < n; ++j) {
+    const Vec3 d = spot_[j] - spot_[i];
+    const double r = d.norm();
+    if (r < style_.near || r > style_.far || felt_count_[j] == 0 || rim_[j] < style_.near ||
+        !healthy[j])
+      continue;
+    const double u = d.dot(t1), v = d.dot(t2);
+    rows.push_back((Eigen::Matrix<double, 6, 1>() << 1, u, v, u * u, u * v, v * v).finished());
+    values.push_back(felt_[j]);
+    offset += Eigen::Vector2d(u, v);
+  }
+  // At the search's edge the trend is extrapolated from one side: not judged.
+  if (rim_[i] < style_.edge || rows.empty() || offset.norm() / rows.size() > 0.3 * style_.far)
+    return 0;
+  double trend = 0;
+  if (rows.size() >= 12) {
+    Eigen::MatrixXd a(rows.size(), 6);
+    Eigen::VectorXd b(rows.size());
+    for (size_t k = 0; k < rows.size(); ++k) a.row(k) = rows[k].transpose(), b[k] = values[k];
+    trend = a.colPivHouseholderQr().solve(b)[0];
+  } else {
+    for (double v : values) trend += v / values.size();
+  }
+  return trend > 1e-6 && felt_count_[i] ? felt_[i] / trend - 1 : 0;
+}
+
+// Each spot against the healthy trend around it, twice: the second time without the spots that
+// stood out the first. A strong lump bends the trend fitted around it, and the tissue 2 cm away
+// then reads as standing out too; a spot must stand out both times to be marked. The first
+// pass's excess places the marks (the second's, with the lump's spots out of every trend, spreads
+// a lump's excess wider and placed the marks 1–2 mm farther off).
 void PalpationSearch::Analyse() {
   const size_t n = spot_.size();
   for (size_t i = 0; i < n; ++i) felt_[i] = felt_count_[i] ? felt_sum_[i] / felt_count_[i] : 0;
-  for (size_t i = 0; i < n; ++i) {
-    const Vec3 t1 = AnyPerpendicular(normal_[i]), t2 = normal_[i].cross(t1);
-    std::vector<Eigen::Matrix<double, 6, 1>> rows;
-    std::vector<double> values;
-    Eigen::Vector2d offset = Eigen::Vector2d::Zero();
-    for (size_t j = 0; j < n; ++j) {
-      const Vec3 d = spot_[j] - spot_[i];
-      const double r = d.norm();
-      if (r < style_.near || r > style_.far || felt_count_[j] == 0 || rim_[j] < style_.near)
-        continue;
-      const double u = d.dot(t1), v = d.dot(t2);
-      rows.push_back((Eigen::Matrix<double, 6, 1>() << 1, u, v, u * u, u * v, v * v).finished());
-      values.push_back(felt_[j]);
-      offset += Eigen::Vector2d(u, v);
-    }
-    // At the search's edge the trend is extrapolated from one side: not judged.
-    if (rim_[i] < style_.edge || rows.empty() || offset.norm() / rows.size() > 0.3 * style_.far)
-      continue;
-    double trend = 0;
-    if (rows.size() >= 12) {
-      Eigen::MatrixXd a(rows.size(), 6);
-      Eigen::VectorXd b(rows.size());
-      for (size_t k = 0; k < rows.size(); ++k) a.row(k) = rows[k].transpose(), b[k] = values[k];
-      trend = a.colPivHouseholderQr().solve(b)[0];
-    } else if (!values.empty()) {
-      for (double v : values) trend += v / values.size();
-    }
-    excess_[i] = trend > 1e-6 && felt_count_[i] ? felt_[i] / trend - 1 : 0;
-  }
+  std::vector<uint8_t> healthy(n, 1);
+  for (size_t i = 0; i < n; ++i) excess_[i] = Excess(i, healthy);
+  for (size_t i = 0; i < n; ++i) healthy[i] = excess_[i] <= style_.threshold;
+  std::vector<uint8_t> stands_out(n, 0);
+  for (size_t i = 0; i < n; ++i)
+    stands_out[i] = excess_[i] > style_.threshold && Excess(i, healthy) > style_.threshold;
+  MarkPeaks(stands_out);
+}
+
+// The peaks that stand out by more than the threshold, strongest first, each marked at the
+// excess-weighted centre of the spots around it.
+void PalpationSearch::MarkPeaks(const std::vector<uint8_t>& stands_out) {
+  const size_t n = spot_.size();
   std::vector<size_t> peaks(n);
   for (size_t i = 0; i < n; ++i) peaks[i] = i;
   std::sort(peaks.begin(), peaks.end(),
@@ -188,9 +210,15 @@ void PalpationSearch::Analyse() {
   for (size_t i : peaks) {
     if (!(excess_[i] > style_.threshold) || static_cast<int>(chosen.size()) >= style_.max_marks)
       break;
-    bool apart = true;
-    for (size_t c : chosen) apart = apart && (spot_[c] - spot_[i]).norm() > style_.near;
-    if (!apart) continue;
+    if (!stands_out[i]) continue;
+    // A peak, not a lump's shoulder: nothing around it stands out more, and it is apart from
+    // the peaks already marked.
+    const double around = std::max(style_.near, 1.6 * style_.spacing);
+    bool peak = true;
+    for (size_t j = 0; j < n && peak; ++j)
+      peak = !((spot_[j] - spot_[i]).norm() <= around && excess_[j] > excess_[i]);
+    for (size_t c : chosen) peak = peak && (spot_[c] - spot_[i]).norm() > around;
+    if (!peak) continue;
     chosen.push_back(i);
     Vec3 centre = Vec3::Zero();
     double weight = 0;

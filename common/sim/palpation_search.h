@@ -4,7 +4,8 @@
 // same depth along the surface's normal, and reads the force it feels there (the force
 // along the normal, averaged over the hold); then it compares each spot with the tissue around
 // it (the healthy tissue's smooth trend: a quadratic in the surface's tangent plane, fitted to
-// the spots between `near` and `far` of it, none nearer the rim than `near`; a spot nearer the
+// the spots between `near` and `far` of it, none nearer the rim than `near`; a spot must stand
+// out again against the trend fitted without the spots that stood out; a spot nearer the
 // rim than `edge` is not judged, as the tissue softens steeply there) and marks the spots that
 // stand out by more than its threshold, a lump's place taken as the excess-weighted centre of the
 // spots around the peak. It never reads the scene's inclusions: what it knows it felt.
@@ -18,6 +19,7 @@
 // Units: m, s, N.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "common/core/expected.h"
@@ -73,6 +75,8 @@ class PalpationSearch {
   void PlanPress(const geometry::Vec3& p, const geometry::Vec3& n, double depth, int read,
                  uint32_t buttons);
   void Analyse();
+  double Excess(size_t i, const std::vector<uint8_t>& healthy) const;
+  void MarkPeaks(const std::vector<uint8_t>& stands_out);
   void ReadForce(const Move& m, double t, const haptics::ForceCommand& c);
   SearchStyle style_;
   std::vector<geometry::Vec3> spot_, normal_;

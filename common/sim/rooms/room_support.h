@@ -64,7 +64,7 @@ Expected<tissue::TableInputs<Params>> TableInputsFor(const Scene& scene,
 
 // Reduced tables (contact and surface twist) are read-only and large (72 and 12 B per vertex
 // pair): the sessions of one scene share one, found by the key of its inputs while any session
-// holds it. `load` reads it from the cache or builds it; a second session of the same scene waits
+// holds it. `load` reads it from the cache or builds it; another session of the same scene waits
 // for a table being built (and does not build it twice) while other scenes' sessions go on.
 // Null (and `status` set) when it cannot be had.
 std::shared_ptr<const tissue::ContactResponse> SharedContactTable(

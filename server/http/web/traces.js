@@ -1,12 +1,13 @@
 // A session's traces as charts with their units, each on its own axis: the force with the task's
 // force limit and the device's limit; the twist with its target band (or the press depth and its
-// target); the torque; the round trip in ms. Live (a 60 s window fed by the event stream, after
+// target); the torque; the round trip in ms. A palpation has its force and round trip only. Live (a 60 s window fed by the event stream, after
 // the record so far) or recorded (the whole session, with the replay's cursor).
 import { TimeChart } from './charts.js';
 import { el } from './dom.js';
 
 export function traceCharts(scene, live) {
   const press = scene && scene.task === 'press', span = live ? 60 : undefined;
+  const palpate = scene && scene.task === 'palpate';  // a search: its force and link, no quantity
   const limit = [];
   if (scene && scene.force_limit_n) limit.push({ y: scene.force_limit_n, label: 'task force limit', colour: '#f3c13a' });
   if (scene && scene.device_max_force_n) limit.push({ y: scene.device_max_force_n, label: 'device limit', colour: '#ff6b6b' });
@@ -22,12 +23,12 @@ export function traceCharts(scene, live) {
   const specs = [
     { id: 'plot-force', key: ['force_n'], opts: { title: 'force', unit: 'N', min: 0,
       suggestedMax: (scene && scene.device_max_force_n) || 1, series: [{ label: 'force at the tool' }], lines: limit } },
-    press
+    palpate ? null : press
       ? { id: 'plot-depth', key: ['depth_mm'], opts: { title: 'press depth', unit: 'mm', min: 0,
         suggestedMax: scene && scene.target ? scene.target * 1.5 : 10, series: [{ label: 'depth', colour: '#8cc8ff' }], lines: target } }
       : { id: 'plot-twist', key: ['twist_deg'], opts: { title: 'twist', unit: '°',
         suggestedMax: scene && scene.target ? scene.target * 1.5 : 45, series: [{ label: 'twist', colour: '#8cc8ff' }], lines: target } },
-    press ? null : { id: 'plot-torque', key: ['torque_nm'], scale: 1000, opts: { title: 'torque', unit: 'mN·m',
+    press || palpate ? null : { id: 'plot-torque', key: ['torque_nm'], scale: 1000, opts: { title: 'torque', unit: 'mN·m',
       series: [{ label: 'torque', colour: '#5fd38a' }] } },
     { id: 'plot-rtt', key: ['rtt_us'], scale: 1e-3, opts: { title: 'round trip', unit: 'ms', min: 0,
       suggestedMax: 5, series: [{ label: 'round trip', colour: '#f3c13a' }] } },

@@ -133,5 +133,40 @@ TEST(PalpationTest, DrawnCasesSeparateTheExpertFromTheNovice) {
   EXPECT_LE(expert_false, novice_false);
 }
 
+// Hard cases on the coarsest pad (10 mm cells): a lump that reaches the surface, stiff and
+// shallow, is found and every force stays finite; a "lump" of contrast 1 is no lump at all.
+Scene CoarsePad(const std::vector<tissue::Inclusion>& lumps, const std::string& name) {
+  auto scene = ParseScene(R"({"name": "coarse-pad",
+      "mesh": {"type": "block", "size": [0.1, 0.1, 0.03], "cells": [10, 10, 3]},
+      "tissue": {"shear_modulus": 1100, "poisson_ratio": 0.47},
+      "regions": [{"name": "r", "model": {"type": "reduced", "mode": "contact",
+                   "footprint_radius": 0.009, "support": {"plane": {"point": [0, 0, 0.001],
+                   "normal": [0, 0, 1]}}}}],
+      "task": {"type": "palpate", "time_limit_s": 300},
+      "error_budget": {"rms": 0.2}})",
+                          "coarse-pad.json");
+  EXPECT_TRUE(scene.ok()) << scene.error().message;
+  Scene s = *scene;
+  s.inclusions = lumps;
+  s.name = name;
+  return s;
+}
+
+TEST(PalpationTest, OnTheCoarsestPadALumpAtTheSurfaceIsFoundAndAContrastOfOneIsNone) {
+  const test::TempDir dir("palpation_hard");
+  const Searched surface =
+      Search(CoarsePad({{{0.004, 0.002, 0.027}, 0.006, 10}}, "surface-lump"), ExpertSearch(),
+             dir.string());
+  EXPECT_EQ(surface.metrics.lumps, 1);
+  EXPECT_EQ(surface.metrics.lumps_found, 1);
+  EXPECT_EQ(surface.metrics.false_marks, 0);
+  EXPECT_LT(surface.metrics.peak_force, 3.3);  // the device's limit
+  const Searched none =
+      Search(CoarsePad({{{0.004, 0.002, 0.015}, 0.006, 1}}, "contrast-one"), ExpertSearch(),
+             dir.string());
+  EXPECT_EQ(none.metrics.lumps, 0);
+  EXPECT_EQ(none.metrics.false_marks, 0);
+}
+
 }  // namespace
 }  // namespace vsurg::sim

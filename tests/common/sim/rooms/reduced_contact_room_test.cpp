@@ -98,14 +98,14 @@ TEST(RoomTest, AReducedSphereSinksUnderTheToolAndCachesItsTable) {
   EXPECT_GT(pole_dz, -0.004 - 1e-9);
   for (size_t k = 0; k < frame.indices.size(); ++k)
     EXPECT_LT((frame.positions[k] - rest[frame.indices[k]]).norm(), 0.0045);
-  // A second session of the scene reads the file (or shares the table in memory).
+  // Another session of the scene reads the file (or shares the table in memory).
   auto again = Simulation::Create(*scene, {.threaded = false, .cache_dir = dir.string()});
   ASSERT_TRUE(again.ok());
 }
 
 TEST(RoomTest, SessionsOfReducedScenesAreBuiltSideBySide) {
   // Two sessions of one reduced scene and one of another, created at once with an empty cache:
-  // all three are built (one table computed per scene, the second session of the first scene
+  // all three are built (one table computed per scene, the other session of the first scene
   // waiting for it), nothing deadlocks.
   namespace fs = std::filesystem;
   const test::TempDir dir("side");
