@@ -58,9 +58,11 @@ echo "control: gRPC $servers, internal $internal"
 step "Three simulation nodes"
 declare -a sim_pid
 capacity=$(( (stations + 2) / 3 + 8 ))
+# --cases-ready 0: this flow's stations press the arm; no node builds palpation cases ahead.
 for i in 0 1 2; do
   "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$i" --control "$internal" \
     --cluster-token-file "$tmp/cluster-token" $(tls_as "sim-$i") --udp-port 0 --capacity "$capacity" \
+    --cases-ready 0 \
     --http 127.0.0.1:0 --metrics-token-file "$tmp/metrics-token" $([ "$i" = 2 ] && echo --log-format json) \
     --ready-file "$tmp/sim-$i.json" 2> "$out/sim-$i.log" &
   sim_pid[$i]=$!
@@ -147,13 +149,13 @@ sim2_address="$(psql_q "SELECT grpc_address FROM nodes WHERE name = 'sim-2'")"
 twin_rc=0
 timeout 30 "$bin/vsurg-server" --role sim --db "$uri" --node-name sim-2 --control "$internal" \
   --cluster-token-file "$tmp/cluster-token" $(tls_as sim-2) --udp-port 0 --capacity "$capacity" \
-  --ready-file "$tmp/sim-twin.json" 2> "$out/sim-twin.log" || twin_rc=$?
+  --cases-ready 0 --ready-file "$tmp/sim-twin.json" 2> "$out/sim-twin.log" || twin_rc=$?
 twin_refused="$(grep -c "held by another live process" "$out/sim-twin.log" || true)"
 # And a process with the token and a site certificate that names another node: refused at once.
 rogue_rc=0
 timeout 30 "$bin/vsurg-server" --role sim --db "$uri" --node-name sim-2 --control "$internal" \
   --cluster-token-file "$tmp/cluster-token" $(tls_as sim-rogue) --udp-port 0 --capacity "$capacity" \
-  --ready-file "$tmp/sim-rogue.json" 2> "$out/sim-rogue.log" || rogue_rc=$?
+  --cases-ready 0 --ready-file "$tmp/sim-rogue.json" 2> "$out/sim-rogue.log" || rogue_rc=$?
 rogue_refused="$(grep -c "certificate names sim-rogue, not node sim-2" "$out/sim-rogue.log" || true)"
 echo "a certificate for sim-rogue claiming sim-2: exit $rogue_rc: $(tail -1 "$out/sim-rogue.log")"
 sleep 1  # a heartbeat of sim-2 after the twin's attempts

@@ -41,7 +41,7 @@ start_node() {  # I: sim-I, its log appended to
   rm -f "$tmp/sim-$1.json"
   "$bin/vsurg-server" --role sim --db "$uri" --node-name "sim-$1" --control "$internal" \
     --cluster-token-file "$tmp/cluster-token" "${lease[@]}" --udp-port 0 --capacity "$stations" \
-    --ready-file "$tmp/sim-$1.json" 2>> "$out/sim-$1.log" &
+    --cases-ready 0 --ready-file "$tmp/sim-$1.json" 2>> "$out/sim-$1.log" &
   sim_pid[$1]=$!
   pids+=("${sim_pid[$1]}")
   wait_file "$tmp/sim-$1.json"

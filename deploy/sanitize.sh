@@ -93,6 +93,12 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|HeterogeneousFemTest.TheFeltStiffnessMapShowsTheLumpAtTheCoarseAndTheFineMesh'
   long+='|HeterogeneousFemTest.ACompositeSphereConvergesToLamesClosedForm'  # 33 s unsanitised
   long+='|HeterogeneousFemTest.TheReducedModelFeelsTheHeterogeneousFemsMapAtAPalpationsForce'
+  # Palpation: whole searches of the lump-search pad (a 19,200-tetrahedron table built per case,
+  # 139 k samples a search) and the sessions that build its cases. The search and the marks run
+  # under ASan on the coarse pad (PalpationTest.OnTheCoarsestPad…), the bank on a small pad
+  # (CaseBankTest), the metrics in PalpationScoringTest.
+  long+='|PalpationTest.AnExpertFinds|PalpationTest.AnExpertMarksNothing'
+  long+='|PalpationTest.DrawnCases|PalpationSessionTest'
   # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
   # not after them, with a PostgreSQL of its own: the ctest fixture's server lives in one folder
   # of the build, and a second run's fixture would stop the first run's server under its tests.
@@ -139,6 +145,8 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   single+=':OrganSceneTest.*:LocalModelTest.AGraspIsRenderedAsTheServerWouldAnswer*'
   single+=':LocalModelTest.TheServersPortCountsWhatTheTissueTook*'
   single+=':RoomTest.AHiddenLump*'  # one thread (threaded = false): two tables built
+  # Whole searches of the pad, unthreaded (threaded = false); the bank's thread stays (CaseBankTest).
+  single+=':PalpationTest.*'
   declare -A filter=([simulation_test]="-$single")
   # The simulation's threaded tests (a minute) run beside the other suites (half a minute, one
   # after another), each suite's output kept apart and shown whole.

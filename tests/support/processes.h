@@ -43,7 +43,11 @@ struct ServerProcess {
                                      "--udp-port",
                                      std::to_string(udp_port),
                                      "--ready-file",
-                                     ready};
+                                     ready,
+                                     // No palpation case built ahead: these tests run none, and
+                                     // a case's table costs seconds of a core beside them.
+                                     "--cases-ready",
+                                     "0"};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

@@ -1,9 +1,11 @@
 #include "common/tissue/reduced.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
@@ -409,6 +411,26 @@ TEST(ReducedContactTest, HardCasesStayBoundedAndSaySo) {
   auto refused = PrecomputeContactResponse(b.response, b.surface, b.reachable, small);
   ASSERT_FALSE(refused.ok());
   EXPECT_NE(refused.error().message.find("MB"), std::string::npos);
+}
+
+// A background builder told to stop (a palpation's case bank as its node shuts down) gives up its
+// table between batches of solves, refused as unavailable; other threads never see the flag, and
+// with it cleared the same table builds.
+TEST(ReducedContactTest, APrecomputationOnAThreadToldToStopGivesUp) {
+  const Ball b = MakeBall(4);
+  std::atomic<bool> stop{true};
+  SetPrecomputeCancel(&stop);
+  auto cancelled = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
+  std::thread other([&] {
+    EXPECT_FALSE(PrecomputeCancelled()) << "the flag is this thread's alone";
+  });
+  other.join();
+  stop.store(false);
+  auto built = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
+  SetPrecomputeCancel(nullptr);
+  ASSERT_FALSE(cancelled.ok());
+  EXPECT_EQ(cancelled.error().code, ErrorCode::kUnavailable);
+  EXPECT_TRUE(built.ok()) << built.error().message;
 }
 
 // The rotation correction's operator (reduced.h, 3.): a rigid turn's linearised displacement
