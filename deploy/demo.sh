@@ -89,7 +89,8 @@ echo "web dashboard: http://$http/  (sign in with a token from $out/flow/tokens.
 echo "               instructor: live stations and sessions; evaluator: scoring; admin: everything)"
 echo
 echo "demo: deformed meshes and trajectories in $out; the platform run's logs and scores.csv in $out/flow;"
-echo "      screenshots in docs/ (station-before.png, station-twisted.png, monitor-view.png)"
+echo "      screenshots in docs/ (station-before.png, station-twisted.png, monitor-view.png,"
+echo "      station-palpation-novice.png)"
 if [ -t 0 ]; then
   echo "The dashboard runs until Ctrl-C."
   wait "$dashboard_pid" || true
