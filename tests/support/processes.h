@@ -35,19 +35,12 @@ struct ServerProcess {
     ServerProcess p;
     const std::string ready = (dir / "ready.json").string();
     std::filesystem::remove(ready);
-    std::vector<std::string> args = {binary,
-                                     "--db",
-                                     db.string(),
-                                     "--listen",
-                                     "127.0.0.1:" + std::to_string(grpc_port),
-                                     "--udp-port",
-                                     std::to_string(udp_port),
-                                     "--ready-file",
-                                     ready,
+    std::vector<std::string> args = {binary, "--db", db.string(), "--listen",
+                                     "127.0.0.1:" + std::to_string(grpc_port), "--udp-port",
+                                     std::to_string(udp_port), "--ready-file", ready,
                                      // No palpation case built ahead: these tests run none, and
                                      // a case's table costs seconds of a core beside them.
-                                     "--cases-ready",
-                                     "0"};
+                                     "--cases-ready", "0"};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

@@ -154,16 +154,14 @@ Scene CoarsePad(const std::vector<tissue::Inclusion>& lumps, const std::string& 
 
 TEST(PalpationTest, OnTheCoarsestPadALumpAtTheSurfaceIsFoundAndAContrastOfOneIsNone) {
   const test::TempDir dir("palpation_hard");
-  const Searched surface =
-      Search(CoarsePad({{{0.004, 0.002, 0.027}, 0.006, 10}}, "surface-lump"), ExpertSearch(),
-             dir.string());
+  const Searched surface = Search(CoarsePad({{{0.004, 0.002, 0.027}, 0.006, 10}}, "surface-lump"),
+                                  ExpertSearch(), dir.string());
   EXPECT_EQ(surface.metrics.lumps, 1);
   EXPECT_EQ(surface.metrics.lumps_found, 1);
   EXPECT_EQ(surface.metrics.false_marks, 0);
   EXPECT_LT(surface.metrics.peak_force, 3.3);  // the device's limit
-  const Searched none =
-      Search(CoarsePad({{{0.004, 0.002, 0.015}, 0.006, 1}}, "contrast-one"), ExpertSearch(),
-             dir.string());
+  const Searched none = Search(CoarsePad({{{0.004, 0.002, 0.015}, 0.006, 1}}, "contrast-one"),
+                               ExpertSearch(), dir.string());
   EXPECT_EQ(none.metrics.lumps, 0);
   EXPECT_EQ(none.metrics.false_marks, 0);
 }

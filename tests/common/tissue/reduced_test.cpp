@@ -421,9 +421,8 @@ TEST(ReducedContactTest, APrecomputationOnAThreadToldToStopGivesUp) {
   std::atomic<bool> stop{true};
   SetPrecomputeCancel(&stop);
   auto cancelled = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
-  std::thread other([&] {
-    EXPECT_FALSE(PrecomputeCancelled()) << "the flag is this thread's alone";
-  });
+  std::thread other(
+      [&] { EXPECT_FALSE(PrecomputeCancelled()) << "the flag is this thread's alone"; });
   other.join();
   stop.store(false);
   auto built = PrecomputeContactResponse(b.response, b.surface, b.reachable, {});
