@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 
 namespace vsurg::scoring {
 
@@ -121,17 +120,11 @@ void PalpationRecorder::Complete(TrialMetrics& m, const TaskSpec& task) const {
   m.task_error = m.localisation_error;
   m.completed = m.duration > 0 && m.duration < task.time_limit && m.coverage > 0;
   m.completion_time = m.completed ? m.duration : 0.0;
-  m.caps = 0;
-  const ScoreParts parts = PalpationScoreParts(m, task);
-  m.raw_score = parts.Points();
-  m.score = m.raw_score;
-  if (!m.completed) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);
-  if (m.time_over_force_limit > 0.5) m.caps |= kCapForceLimit, m.score = std::min(m.score, 4.0);
-  if (m.overload_events > 0) m.caps |= kCapOverload, m.score = std::min(m.score, 3.0);
+  ApplyScoreGates(PalpationScoreParts(m, task), m);
 }
 
 ScoreParts PalpationScoreParts(const TrialMetrics& m, const TaskSpec& task) {
-  ScoreParts p;
+  ScoreParts p = TimeAndForceParts(m, task);
   constexpr double kMargin = PalpationSpec{}.match_margin;
   if (m.lumps > 0) {
     const double detection = Unit((m.lumps_found - 0.5 * m.false_marks) / m.lumps);
@@ -139,56 +132,28 @@ ScoreParts PalpationScoreParts(const TrialMetrics& m, const TaskSpec& task) {
   } else {
     p.accuracy = Unit(1.0 - 0.5 * m.false_marks);
   }
-  p.efficiency = m.completed ? Unit(task.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
-  p.force = Unit(1.0 - m.time_over_force_limit) * (m.peak_force > task.force_limit ? 0.5 : 1.0);
   p.smoothness = Unit(m.coverage / kFullCoverage);  // thoroughness, in the fourth part's place
   return p;
 }
 
 std::vector<std::string> ExplainPalpation(const TrialMetrics& m, const TaskSpec& task) {
-  const auto text = [](const char* format, double a, double b = 0) {
-    char line[200];
-    std::snprintf(line, sizeof line, format, a, b);
-    return std::string(line);
-  };
-  std::vector<std::string> out;
-  if (m.caps & kCapOverload)
-    out.push_back(
-        text("The tissue was overloaded %.0f time(s): score capped at 3", m.overload_events));
-  if (m.caps & kCapForceLimit)
-    out.push_back(text("%.1f s above the %.1f N force limit: score capped at 4",
-                       m.time_over_force_limit, task.force_limit));
-  if (m.caps & kCapNotCompleted)
-    out.push_back("The search was not finished within the time limit: score capped at 5");
-  const ScoreParts p = PalpationScoreParts(m, task);
-  struct Loss {
-    double points;
-    std::string why;
-  };
   const int missed = m.lumps - m.lumps_found;
-  std::string found = m.lumps == 0
-                          ? std::string("Detection: there was no lump")
-                          : text("Detection: %.0f of %.0f lump(s) found", m.lumps_found, m.lumps);
-  if (m.false_marks > 0) found += text(", %.0f false mark(s)", m.false_marks);
+  std::string found =
+      m.lumps == 0 ? std::string("Detection: there was no lump")
+                   : FigureText("Detection: %.0f of %.0f lump(s) found", m.lumps_found, m.lumps);
+  if (m.false_marks > 0) found += FigureText(", %.0f false mark(s)", m.false_marks);
   if (m.lumps_found > 0)
-    found += text(", marked %.1f mm from the lump", 1e3 * m.localisation_error);
-  if (missed > 0 && m.lumps > 0) found += text(" (%.0f missed)", missed);
-  std::vector<Loss> losses = {
-      {ScoreParts::Lost(ScoreParts::kAccuracyWeight, p.accuracy), found},
-      {ScoreParts::Lost(ScoreParts::kEfficiencyWeight, p.efficiency),
+    found += FigureText(", marked %.1f mm from the lump", 1e3 * m.localisation_error);
+  if (missed > 0 && m.lumps > 0) found += FigureText(" (%.0f missed)", missed);
+  return ExplainLosses(
+      m, task, PalpationScoreParts(m, task), "The search was not finished within the time limit",
+      {found,
        m.completed
-           ? text("Time: %.0f s, an expert takes %.0f s", m.completion_time, task.expert_time)
-           : std::string("Time: no credit without finishing the search")},
-      {ScoreParts::Lost(ScoreParts::kForceWeight, p.force),
-       text("Force control: peak %.2f N against a %.1f N limit", m.peak_force, task.force_limit)},
-      {ScoreParts::Lost(ScoreParts::kSmoothnessWeight, p.smoothness),
-       text("Thoroughness: %.0f%% of the surface examined", 100 * m.coverage)},
-  };
-  std::sort(losses.begin(), losses.end(),
-            [](const Loss& a, const Loss& b) { return a.points > b.points; });
-  for (const Loss& l : losses)
-    if (l.points >= 0.3) out.push_back(l.why + text(": -%.1f points", l.points));
-  return out;
+           ? FigureText("Time: %.0f s, an expert takes %.0f s", m.completion_time, task.expert_time)
+           : std::string("Time: no credit without finishing the search"),
+       FigureText("Force control: peak %.2f N against a %.1f N limit", m.peak_force,
+                  task.force_limit),
+       FigureText("Thoroughness: %.0f%% of the surface examined", 100 * m.coverage)});
 }
 
 }  // namespace vsurg::scoring

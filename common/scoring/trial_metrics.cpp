@@ -133,15 +133,30 @@ void TrialRecorder::EmitGrid(double t1, const Eigen::Vector3d& previous, double 
   }
 }
 
-ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task) {
+ScoreParts TimeAndForceParts(const TrialMetrics& m, const TaskSpec& task) {
   auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
   ScoreParts p;
-  p.accuracy = unit(1.0 - m.task_error / (2.0 * task.tolerance));
   p.efficiency = m.completed ? unit(task.expert_time / std::max(1e-9, m.completion_time)) : 0.0;
   p.force =
       unit(1.0 - m.time_over_force_limit / 1.0) * (m.peak_force > task.force_limit ? 0.5 : 1.0);
+  return p;
+}
+
+ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task) {
+  auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
+  ScoreParts p = TimeAndForceParts(m, task);
+  p.accuracy = unit(1.0 - m.task_error / (2.0 * task.tolerance));
   p.smoothness = unit(1.0 - std::log10(std::max(1.0, m.rms_jerk / 5.0)) / 2.0);
   return p;
+}
+
+void ApplyScoreGates(const ScoreParts& parts, TrialMetrics& m) {
+  m.caps = 0;
+  m.raw_score = parts.Points();
+  m.score = m.raw_score;
+  if (!m.completed) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);
+  if (m.time_over_force_limit > 0.5) m.caps |= kCapForceLimit, m.score = std::min(m.score, 4.0);
+  if (m.overload_events > 0) m.caps |= kCapOverload, m.score = std::min(m.score, 3.0);
 }
 
 Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
@@ -192,48 +207,56 @@ Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
   return t;
 }
 
-std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
-  if (task.kind == TaskKind::kPalpate) return ExplainPalpation(m, task);
-  const auto text = [](const char* format, double a, double b = 0) {
-    char line[200];
-    std::snprintf(line, sizeof line, format, a, b);
-    return std::string(line);
-  };
+std::string FigureText(const char* format, double a, double b) {
+  char line[200];
+  std::snprintf(line, sizeof line, format, a, b);
+  return std::string(line);
+}
+
+std::vector<std::string> ExplainLosses(const TrialMetrics& m, const TaskSpec& task,
+                                       const ScoreParts& p, const std::string& not_completed,
+                                       const std::array<std::string, 4>& why) {
   std::vector<std::string> out;
   if (m.caps & kCapOverload)
     out.push_back(
-        text("The tissue was overloaded %.0f time(s): score capped at 3", m.overload_events));
+        FigureText("The tissue was overloaded %.0f time(s): score capped at 3", m.overload_events));
   if (m.caps & kCapForceLimit)
-    out.push_back(text("%.1f s above the %.1f N force limit: score capped at 4",
-                       m.time_over_force_limit, task.force_limit));
-  if (m.caps & kCapNotCompleted)
-    out.push_back("The task was not completed (reach the target and hold it): score capped at 5");
-  const ScoreParts p = ScorePartsOf(m, task);
-  const bool twist = task.kind == TaskKind::kTwist;
-  const double unit = twist ? 180 / 3.14159265358979 : 1e3;
+    out.push_back(FigureText("%.1f s above the %.1f N force limit: score capped at 4",
+                             m.time_over_force_limit, task.force_limit));
+  if (m.caps & kCapNotCompleted) out.push_back(not_completed + ": score capped at 5");
   struct Loss {
     double points;
     std::string why;
   };
   std::vector<Loss> losses = {
-      {ScoreParts::Lost(ScoreParts::kAccuracyWeight, p.accuracy),
-       text(twist ? "Accuracy: %.1f deg from the target" : "Accuracy: %.1f mm from the target",
-            m.task_error * unit) +
-           text(" (tolerance %.1f)", task.tolerance * unit)},
-      {ScoreParts::Lost(ScoreParts::kEfficiencyWeight, p.efficiency),
-       m.completed
-           ? text("Time: %.1f s, an expert takes %.1f s", m.completion_time, task.expert_time)
-           : std::string("Time: no credit without completing the task")},
-      {ScoreParts::Lost(ScoreParts::kForceWeight, p.force),
-       text("Force control: peak %.2f N against a %.1f N limit", m.peak_force, task.force_limit)},
-      {ScoreParts::Lost(ScoreParts::kSmoothnessWeight, p.smoothness),
-       text("Smoothness: jerky motion (RMS jerk %.0f m/s³)", m.rms_jerk)},
+      {ScoreParts::Lost(ScoreParts::kAccuracyWeight, p.accuracy), why[0]},
+      {ScoreParts::Lost(ScoreParts::kEfficiencyWeight, p.efficiency), why[1]},
+      {ScoreParts::Lost(ScoreParts::kForceWeight, p.force), why[2]},
+      {ScoreParts::Lost(ScoreParts::kSmoothnessWeight, p.smoothness), why[3]},
   };
   std::sort(losses.begin(), losses.end(),
             [](const Loss& a, const Loss& b) { return a.points > b.points; });
   for (const Loss& l : losses)
-    if (l.points >= 0.3) out.push_back(l.why + text(": -%.1f points", l.points));
+    if (l.points >= 0.3) out.push_back(l.why + FigureText(": -%.1f points", l.points));
   return out;
+}
+
+std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
+  if (task.kind == TaskKind::kPalpate) return ExplainPalpation(m, task);
+  const bool twist = task.kind == TaskKind::kTwist;
+  const double unit = twist ? 180 / 3.14159265358979 : 1e3;
+  return ExplainLosses(
+      m, task, ScorePartsOf(m, task), "The task was not completed (reach the target and hold it)",
+      {FigureText(
+           twist ? "Accuracy: %.1f deg from the target" : "Accuracy: %.1f mm from the target",
+           m.task_error * unit) +
+           FigureText(" (tolerance %.1f)", task.tolerance * unit),
+       m.completed
+           ? FigureText("Time: %.1f s, an expert takes %.1f s", m.completion_time, task.expert_time)
+           : std::string("Time: no credit without completing the task"),
+       FigureText("Force control: peak %.2f N against a %.1f N limit", m.peak_force,
+                  task.force_limit),
+       FigureText("Smoothness: jerky motion (RMS jerk %.0f m/s³)", m.rms_jerk)});
 }
 
 void TrialRecorder::AddGuidance(double time, double alpha) {
@@ -262,12 +285,7 @@ TrialMetrics TrialRecorder::Finish() const {
   if (m.duration > 0) m.rms_jerk = std::sqrt(jerk2_ / m.duration);
   if (m.duration > 0) m.guided_share = std::min(1.0, guided_s_ / m.duration);
   if (guided_s_ > 0) m.guided_alpha = guided_alpha_s_ / guided_s_;
-  const ScoreParts parts = ScorePartsOf(m, task_);
-  m.raw_score = parts.Points();
-  m.score = m.raw_score;
-  if (!completed_) m.caps |= kCapNotCompleted, m.score = std::min(m.score, 5.0);
-  if (m.time_over_force_limit > 0.5) m.caps |= kCapForceLimit, m.score = std::min(m.score, 4.0);
-  if (m.overload_events > 0) m.caps |= kCapOverload, m.score = std::min(m.score, 3.0);
+  ApplyScoreGates(ScorePartsOf(m, task_), m);
   return m;
 }
 

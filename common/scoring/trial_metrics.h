@@ -26,6 +26,7 @@
 // (at most 100 pieces of a bridged gap and 129 grid points, whatever the times it is given).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -91,6 +92,20 @@ struct ScoreParts {
   static double Lost(double weight, double value) { return 10.0 * weight * (1.0 - value); }
 };
 ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task);
+// The parts every task scores alike: efficiency and force control (the formulas above); the
+// others are left at 0 for the task's own.
+ScoreParts TimeAndForceParts(const TrialMetrics& m, const TaskSpec& task);
+// The score from its parts, and the gates every task applies (the caps above): sets raw_score,
+// score and caps from m's completion, time over the limit and overloads.
+void ApplyScoreGates(const ScoreParts& parts, TrialMetrics& m);
+// A score's explanation in the trainee's words, every task's shape: the gates that capped it
+// (`not_completed`: what completing the task means), then each part that cost at least 0.3
+// points, largest first, each with its `why` (accuracy, efficiency, force, the fourth part).
+std::vector<std::string> ExplainLosses(const TrialMetrics& m, const TaskSpec& task,
+                                       const ScoreParts& parts, const std::string& not_completed,
+                                       const std::array<std::string, 4>& why);
+// One or two figures in a line of an explanation (printf's format).
+std::string FigureText(const char* format, double a, double b = 0);
 
 // What lowered a trial's score, in the trainee's words, largest loss first: the gates that
 // capped it, then each part that cost at least 0.3 points (with the figure behind it). Empty
