@@ -70,6 +70,11 @@ Status Validate(const TetMesh& mesh, double min_volume) {
   return Status::Ok();
 }
 
+Vec3 AnyPerpendicular(const Vec3& a) {
+  const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  return a.cross(t).normalized();
+}
+
 Vec3 TriangleNormal(const std::vector<Vec3>& x, const Triangle& t) {
   const Vec3 n = (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]);
   const double len = n.norm();

@@ -54,6 +54,8 @@ void ComputeVertexNormals(TriMesh& mesh);
 Vec3 TriangleNormal(const TriMesh& mesh, int t);
 // The normal over any positions (a deformed snapshot of the mesh).
 Vec3 TriangleNormal(const std::vector<Vec3>& positions, const Triangle& t);
+// A unit vector perpendicular to `a` (nonzero), with no other choice made: a frame's first axis.
+Vec3 AnyPerpendicular(const Vec3& a);
 double TriangleArea(const TriMesh& mesh, int t);
 
 // Compressed vertex→vertex adjacency (the one-ring), neighbours sorted ascending.

@@ -31,15 +31,14 @@ SearchStyle NoviceSearch() {
 
 namespace {
 
-// The spots: the corners of the palpable surface's triangles (sim::PalpableTriangles) but its rim,
-// in vertical strips `spacing` wide, each strip walked the other way from the last, no two closer
-// than 0.9 spacing.
-std::vector<int> ChooseSpots(const geometry::TriMesh& rest, const std::vector<int>& held,
-                             double spacing, double skip) {
+// The spots: the corners of the palpable surface's triangles (`surface`, sim::PalpableTriangles)
+// farther than `skip` from its rim (`rim`, sim::RimDistance), in vertical strips `spacing` wide,
+// each strip walked the other way from the last, no two closer than 0.9 spacing.
+std::vector<int> ChooseSpots(const geometry::TriMesh& rest, const std::vector<int>& surface,
+                             const std::vector<double>& rim, double spacing, double skip) {
   // A corner of the rim (RimDistance 0): a press there slides off, and no examiner presses there.
-  const std::vector<double> rim = RimDistance(rest, PalpableTriangles(rest, held));
   std::vector<uint8_t> palpable(rest.VertexCount(), 0);
-  for (int t : PalpableTriangles(rest, held))
+  for (int t : surface)
     for (int v : rest.triangles[t]) palpable[v] = rim[v] > std::max(0.0, skip - 1e-9);
   std::vector<int> order;
   for (int v = 0; v < rest.VertexCount(); ++v)
@@ -63,11 +62,6 @@ std::vector<int> ChooseSpots(const geometry::TriMesh& rest, const std::vector<in
   return spots;
 }
 
-Vec3 AnyPerpendicular(const Vec3& a) {
-  const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-  return a.cross(t).normalized();
-}
-
 }  // namespace
 
 Expected<PalpationSearch> PalpationSearch::Create(const geometry::TriMesh& rest,
@@ -81,10 +75,11 @@ Expected<PalpationSearch> PalpationSearch::Create(const geometry::TriMesh& rest,
   geometry::ComputeVertexNormals(mesh);
   PalpationSearch s;
   s.style_ = style;
-  const std::vector<int> spots = ChooseSpots(mesh, held, style.spacing, style.skip);
+  const std::vector<int> surface = PalpableTriangles(mesh, held);
+  const std::vector<double> rim = RimDistance(mesh, surface);
+  const std::vector<int> spots = ChooseSpots(mesh, surface, rim, style.spacing, style.skip);
   if (spots.empty())
     return Error{ErrorCode::kInvalidArgument, "no surface to search from above", "rest"};
-  const std::vector<double> rim = RimDistance(mesh, PalpableTriangles(mesh, held));
   for (int v : spots) {
     s.spot_.push_back(mesh.positions[v]);
     s.normal_.push_back(mesh.normals[v]);
@@ -151,7 +146,7 @@ void PalpationSearch::ReadForce(const Move& m, double t, const haptics::ForceCom
 // to the spots between `near` and `far` of it (away from the rim) that `healthy` allows.
 double PalpationSearch::Excess(size_t i, const std::vector<uint8_t>& healthy) const {
   const size_t n = spot_.size();
-  const Vec3 t1 = AnyPerpendicular(normal_[i]), t2 = normal_[i].cross(t1);
+  const Vec3 t1 = geometry::AnyPerpendicular(normal_[i]), t2 = normal_[i].cross(t1);
   std::vector<Eigen::Matrix<double, 6, 1>> rows;
   std::vector<double> values;
   Eigen::Vector2d offset = Eigen::Vector2d::Zero();

@@ -15,15 +15,6 @@ using geometry::Vec3;
 using haptics::ForceCommand;
 using haptics::StylusSample;
 
-namespace {
-
-Vec3 AnyPerpendicular(const Vec3& a) {
-  const Vec3 t = std::abs(a.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-  return a.cross(t).normalized();
-}
-
-}  // namespace
-
 // The haptic path, one sample: reject bad input; count the port's energy; advance the trial
 // clock and the guidance's ramps; then, on the tool (the trainee's, or shared with an instructor:
 // guidance.h), the grasp's twist or the proxy's contact (or the surface ahead of a free tip); the
@@ -140,7 +131,8 @@ void Simulation::GraspStep(const StylusSample& s, StylusStep& step) {
   // A grasp on the axis (the forceps' twist about the surface's normal through the grasped
   // point) pushes along a fixed direction.
   const bool on_axis = !(radial.norm() > 1e-9);
-  const Vec3 tangent = on_axis ? AnyPerpendicular(axis_) : Vec3(axis_.cross(radial).normalized());
+  const Vec3 tangent =
+      on_axis ? geometry::AnyPerpendicular(axis_) : Vec3(axis_.cross(radial).normalized());
   const double hold = scene_.haptics.hold_stiffness;
   const double s_f = scene_.haptics.force_scale;
   step.force = s_f * (-answer.torque / lever_) * tangent + hold * (turned - s.position);
