@@ -1,0 +1,252 @@
+// NeedleModel (common/haptics/needle.h): the stiffness law and the pop, Karnopp's friction on
+// the shaft, the cutting front, the tract's reuse, the tissue holding the needle across, and
+// the model's passivity over a loop.
+#include "common/haptics/needle.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace vsurg::haptics {
+namespace {
+
+// Skin 2 mm, fat 10 mm, muscle to the bottom; a vessel of radius 4 mm, 20 mm deep, along y.
+NeedleTissueSpec Layered() {
+  NeedleTissueSpec s;
+  s.surface_z = 0;
+  s.layers = {
+      {"skin", 0.002, {100, 20000, 1.5}, 30, 20, 100, 0.8, 2000},
+      {"fat", 0.010, {60, 0, 0.2}, 6, 4, 40, 0.15, 800},
+      {"muscle", 0.05, {150, 10000, 1.0}, 20, 14, 100, 0.5, 2500},
+  };
+  s.has_target = true;
+  s.target.centre = {0, 0, -0.020};
+  s.target.axis = Vec3::UnitY();
+  s.target.radius = 0.004;
+  s.target.wall = {200, 0, 0.6};
+  return s;
+}
+
+const Vec3 kDown = -Vec3::UnitZ();
+
+// Drives the tip straight down from 5 mm above the skin to `to_z` at `speed` m/s, 1 kHz; calls
+// `each` after every step.
+template <class F>
+void Descend(NeedleModel& m, double from_z, double to_z, double speed, F each,
+             const Vec3& axis = kDown, double x = 0) {
+  const double dt = 1e-3, step = speed * dt * (to_z < from_z ? -1 : 1);
+  const int n = static_cast<int>(std::round((to_z - from_z) / step));
+  for (int i = 1; i <= n; ++i) each(m.Step({x, 0, from_z + i * step}, axis, dt));
+}
+
+TEST(NeedleTest, TheSkinPressesBackByItsLawUntilItsPunctureForceThenGivesWay) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  double last_before = 0, first_after = -1, depth_at_pop = -1;
+  Descend(*m, 0.005, -0.012, 0.01, [&](const NeedleForce& f) {
+    if (depth_at_pop < 0 && !f.popped && f.in_tissue) {
+      const double w = f.depth;
+      EXPECT_NEAR(f.force.z(), 100 * w + 20000 * w * w, 1e-9);  // a1·w + a2·w², up the tract
+      last_before = f.force.z();
+    }
+    if (f.popped && depth_at_pop < 0) depth_at_pop = f.depth, first_after = f.force.z();
+  });
+  // 20000 w² + 100 w = 1.5 at w = 6.42 mm; the step is 10 µm.
+  ASSERT_GT(depth_at_pop, 0);
+  EXPECT_NEAR(depth_at_pop, (-100 + std::sqrt(100.0 * 100 + 4 * 20000 * 1.5)) / 40000, 2e-5);
+  EXPECT_GT(last_before, 1.45);
+  EXPECT_LT(first_after, 0.5 * last_before);  // the pop: the force falls at once
+  EXPECT_EQ(m->state().phase, NeedleState::Phase::kInserted);
+}
+
+TEST(NeedleTest, ADescentPopsEachBoundaryInTurnEntersTheVesselAndBreachesItsBackWall) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  int pops = 0, entered = 0, breached = 0;
+  bool was_in_target = false;
+  Descend(*m, 0.005, -0.040, 0.01, [&](const NeedleForce& f) {
+    pops += f.popped, entered += f.entered_target, breached += f.breached_back_wall;
+    was_in_target = was_in_target || f.in_target;
+    EXPECT_TRUE(f.force.allFinite());
+  });
+  // Skin, fat, muscle (its fascia at 12 mm: the vessel spans 16-24 mm), the front wall, the back.
+  EXPECT_EQ(pops, 5);
+  EXPECT_EQ(entered, 1);
+  EXPECT_EQ(breached, 1);
+  EXPECT_TRUE(was_in_target);
+  EXPECT_EQ(m->punctures(), 5u);
+  ASSERT_EQ(m->boundary_count(), 5);
+  EXPECT_NEAR(m->boundary(3).depth, 0.016, 1e-9);
+  EXPECT_NEAR(m->boundary(4).depth, 0.024, 1e-9);
+}
+
+TEST(NeedleTest, AnObliqueTractMeetsTheLayersAndTheVesselWhereTheLineCrossesThem) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  const Vec3 axis = Vec3(std::sin(0.5), 0, -std::cos(0.5));  // 28.6° from the normal, in x-z
+  const Vec3 entry(-0.010, 0, 0);
+  m->Step(entry - 0.002 * axis, axis, 1e-3);
+  m->Step(entry + 0.0001 * axis, axis, 1e-3);
+  ASSERT_EQ(m->state().phase, NeedleState::Phase::kTouching);
+  ASSERT_EQ(m->boundary_count(), 5);
+  EXPECT_NEAR(m->boundary(1).depth, 0.002 / std::cos(0.5), 1e-9);
+  EXPECT_NEAR(m->boundary(2).depth, 0.012 / std::cos(0.5), 1e-9);
+  // The line passes the vessel's axis (x = 0, z = −20 mm) at the distance h of the centre from
+  // it, nearest at t along it: the walls at t ∓ √(R² − h²).
+  const Vec3 to_centre = Vec3(0, 0, -0.020) - entry;
+  const double t = to_centre.dot(axis), h = (to_centre - t * axis).norm();
+  ASSERT_LT(h, 0.004);
+  EXPECT_NEAR(m->boundary(3).depth, t - std::sqrt(0.004 * 0.004 - h * h), 1e-9);
+  EXPECT_NEAR(m->boundary(4).depth, t + std::sqrt(0.004 * 0.004 - h * h), 1e-9);
+  EXPECT_EQ(m->boundary(3).role, NeedleBoundary::kRoleTargetFront);
+  // 10 mm further along x the same angle misses it: the layers alone.
+  auto miss = NeedleModel::Create(Layered());
+  miss->Step(entry + Vec3(-0.010, 0, 0) - 0.002 * axis, axis, 1e-3);
+  miss->Step(entry + Vec3(-0.010, 0, 0) + 0.0001 * axis, axis, 1e-3);
+  EXPECT_EQ(miss->boundary_count(), 3);
+}
+
+TEST(NeedleTest, TheShaftSticksWithinTheStaticLimitAndSlidesAtTheSlidingOneBothWays) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  Descend(*m, 0.005, -0.011, 0.01, [](const NeedleForce&) {});  // in the fat, 11 mm deep
+  // Drawn back off the cutting front (its spring, 0.15 N / 300 N/m = 0.5 mm), held, then pushed
+  // 0.1 mm deeper: the anchor's spring, inside the static limit (D·len = 0.108 N).
+  Descend(*m, -0.011, -0.010, 0.01, [](const NeedleForce&) {});
+  NeedleForce held;
+  for (int i = 0; i < 100; ++i) held = m->Step({0, 0, -0.010}, kDown, 1e-3);
+  // The withdrawal's sliding friction stays held by the static limit (the tissue dragged back).
+  EXPECT_LT(held.force.z(), 0);
+  const NeedleForce stuck = m->Step({0, 0, -0.0101}, kDown, 1e-3);
+  EXPECT_EQ(stuck.cutting_force, 0);
+  EXPECT_NEAR(stuck.force.z() - held.force.z(), 300 * 0.0001, 1e-9);  // stuck: k_s·Δs
+  // Withdrawn at 10 mm/s from 10.1 to 5 mm: sliding friction only, opposed to the motion.
+  double slide = 0;
+  int n = 0;
+  Descend(*m, -0.0101, -0.005, 0.01, [&](const NeedleForce& f) {
+    EXPECT_EQ(f.cutting_force, 0);
+    if (f.depth < 0.009 && f.depth > 0.007) slide += f.force.z(), ++n;
+  });
+  ASSERT_GT(n, 0);
+  slide /= n;
+  // At ~8 mm: 2 mm of skin and 6 mm of fat; C·len + b·v·len.
+  const double c = 20 * 0.002 + 4 * 0.006, b = (100 * 0.002 + 40 * 0.006) * 0.01;
+  EXPECT_NEAR(slide, -(c + b), 0.15 * (c + b));
+}
+
+TEST(NeedleTest, CuttingResistsOnlyTheTissueNotYetCut) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  double cutting_first = 0;
+  Descend(*m, 0.005, -0.010, 0.005,
+          [&](const NeedleForce& f) { cutting_first = std::max(cutting_first, f.cutting_force); });
+  EXPECT_NEAR(cutting_first, 0.15, 1e-9);  // the fat's cutting force reached
+  Descend(*m, -0.010, -0.006, 0.005, [](const NeedleForce&) {});
+  double cutting_again = 0;
+  Descend(*m, -0.006, -0.009, 0.005,
+          [&](const NeedleForce& f) { cutting_again = std::max(cutting_again, f.cutting_force); });
+  EXPECT_EQ(cutting_again, 0);  // back along the cut: friction only
+}
+
+TEST(NeedleTest, AReinsertionAlongTheTractEntersWithoutAPopAndANewPathPuncturesAgain) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  Descend(*m, 0.005, -0.010, 0.01, [](const NeedleForce&) {});
+  ASSERT_EQ(m->punctures(), 2u);  // skin and fat
+  Descend(*m, -0.010, 0.005, 0.01, [](const NeedleForce&) {});
+  ASSERT_EQ(m->state().phase, NeedleState::Phase::kFree);
+  int pops = 0;
+  double peak = 0;
+  Descend(*m, 0.005, -0.009, 0.01, [&](const NeedleForce& f) {
+    pops += f.popped;
+    peak = std::max(peak, f.force.z());
+  });
+  EXPECT_EQ(pops, 0);
+  EXPECT_LT(peak, 0.2);  // friction, not the skin's 1.5 N
+  EXPECT_EQ(m->state().tract, 1u);
+  Descend(*m, -0.009, 0.005, 0.01, [](const NeedleForce&) {});
+  Descend(
+      *m, 0.005, -0.009, 0.01, [&](const NeedleForce& f) { pops += f.popped; }, kDown, 0.004);
+  EXPECT_EQ(pops, 2);  // 4 mm away: a new path, skin and fat again
+  EXPECT_EQ(m->state().tract, 2u);
+  EXPECT_EQ(m->punctures(), 4u);
+}
+
+TEST(NeedleTest, TheTissueHoldsTheNeedleAcrossItsTract) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  Descend(*m, 0.005, -0.010, 0.01, [](const NeedleForce&) {});
+  const NeedleForce f = m->Step({0.001, 0, -0.010}, kDown, 1e-3);
+  const double k = 2000 * 0.002 + 800 * 0.008;  // N/m: skin and fat held
+  EXPECT_NEAR(f.force.x(), -k * 0.001, 1e-9);
+  EXPECT_NEAR(f.lateral, 0.001, 1e-12);
+  EXPECT_NEAR(f.strain, 0.1, 1e-9);
+}
+
+TEST(NeedleTest, ANeedleTooFlatToTheSkinSlidesOnItAndNeverEnters) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  const Vec3 flat = Vec3(std::cos(0.1), 0, -std::sin(0.1));  // 84° from the normal
+  m->Step({0, 0, 0.005}, flat, 1e-3);
+  int pops = 0;
+  Descend(
+      *m, 0.005, -0.015, 0.01, [&](const NeedleForce& f) { pops += f.popped; }, flat);
+  EXPECT_EQ(pops, 0);
+  EXPECT_NE(m->state().phase, NeedleState::Phase::kInserted);
+}
+
+TEST(NeedleTest, OverALoopInAndOutTheHandGivesTheTissueEnergyAndIsNeverGivenAny) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  double work_on_hand = 0, z_prev = 0.005;
+  Vec3 f_prev = m->Step({0, 0, z_prev}, kDown, 1e-3).force;
+  for (int cycle = 0; cycle < 3; ++cycle)
+    for (double to : {-0.018, -0.004, -0.026, 0.005}) {
+      Descend(*m, z_prev, to, 0.02, [&](const NeedleForce& f) {
+        work_on_hand += f_prev.z() * (0.02e-3 * (to < z_prev ? -1 : 1));
+        f_prev = f.force;
+      });
+      z_prev = to;
+    }
+  EXPECT_LT(work_on_hand, 0);  // the pops and the friction took energy; none came back
+  EXPECT_TRUE(f_prev.allFinite());
+}
+
+TEST(NeedleTest, NonFiniteInputAnswersZeroAndChangesNothing) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  m->Step({0, 0, 0.005}, kDown, 1e-3);
+  Descend(*m, 0.005, -0.004, 0.01, [](const NeedleForce&) {});
+  const NeedleState before = m->state();
+  const double nan = std::nan("");
+  EXPECT_EQ(m->Step({nan, 0, 0}, kDown, 1e-3).force, Vec3::Zero());
+  EXPECT_EQ(m->Step({0, 0, -0.004}, Vec3(nan, 0, 0), 1e-3).force, Vec3::Zero());
+  EXPECT_EQ(m->Step({0, 0, -0.004}, kDown, 0).force, Vec3::Zero());
+  EXPECT_EQ(m->state(), before);
+}
+
+TEST(NeedleTest, ATissueOutOfRangeIsRefusedByName) {
+  NeedleTissueSpec s = Layered();
+  s.layers[1].top.puncture = 0;
+  auto m = NeedleModel::Create(s);
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.error().field, "needle.layers[1].top.puncture");
+  s = Layered();
+  s.layers[2].friction_sliding = 30;  // above its static 20
+  EXPECT_EQ(NeedleModel::Create(s).error().field, "needle.layers[2].friction_sliding");
+  s = Layered();
+  s.target.centre.z() = -0.002;  // its wall above the skin
+  EXPECT_EQ(NeedleModel::Create(s).error().field, "needle.target.depth");
+  s = Layered();
+  s.layers.clear();
+  EXPECT_EQ(NeedleModel::Create(s).error().field, "needle.layers");
+}
+
+}  // namespace
+}  // namespace vsurg::haptics
