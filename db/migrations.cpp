@@ -233,6 +233,16 @@ ALTER TABLE trial_metrics ADD COLUMN localisation_error_m REAL NOT NULL DEFAULT 
 ALTER TABLE trial_metrics ADD COLUMN coverage REAL NOT NULL DEFAULT 0;
 ALTER TABLE trial_metrics ADD COLUMN mean_force_n REAL NOT NULL DEFAULT 0;
 )sql",
+      // 10: needle insertion (scoring::TrialMetrics::depth_error … lateral_strain; 0 for the
+      // other tasks).
+      R"sql(
+ALTER TABLE trial_metrics ADD COLUMN depth_error_m REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN path_deviation_m REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN punctures INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN extra_punctures INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN back_wall_breaches INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN lateral_strain REAL NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }

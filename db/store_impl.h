@@ -104,7 +104,8 @@ inline constexpr const char* kTrialMetricColumns =
     "path_length_m, rms_jerk, overload_events, duration_s, score, raw_score, caps, "
     "station_peak_force_n, station_time_over_limit_s, link_rtt_ms, link_jitter_ms, "
     "link_loss_ratio, link_rate_hz, guided_share, guided_alpha, lumps, lumps_found, false_marks, "
-    "localisation_error_m, coverage, mean_force_n";
+    "localisation_error_m, coverage, mean_force_n, depth_error_m, path_deviation_m, punctures, "
+    "extra_punctures, back_wall_breaches, lateral_strain";
 // A row's trial metrics from column `first` on (kTrialMetricColumns).
 scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first);
 

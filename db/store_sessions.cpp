@@ -201,9 +201,10 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
         "duration_s, score, raw_score, caps, recorded_us, station_peak_force_n, "
         "station_time_over_limit_s, link_rtt_ms, link_jitter_ms, link_loss_ratio, link_rate_hz, "
         "guided_share, guided_alpha, lumps, lumps_found, false_marks, localisation_error_m, "
-        "coverage, mean_force_n) "
+        "coverage, mean_force_n, depth_error_m, path_deviation_m, punctures, extra_punctures, "
+        "back_wall_breaches, lateral_strain) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
-        "?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28)",
+        "?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34)",
         [&](Statement& st) {
           st.Bind(1, id).Bind(2, int64_t{m.completed ? 1 : 0});
           st.Bind(3, m.completion_time).Bind(4, m.task_error).Bind(5, m.peak_force);
@@ -215,7 +216,10 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
           st.Bind(20, m.link.rate_hz).Bind(21, m.guided_share).Bind(22, m.guided_alpha);
           st.Bind(23, int64_t{m.lumps}).Bind(24, int64_t{m.lumps_found});
           st.Bind(25, int64_t{m.false_marks}).Bind(26, m.localisation_error);
-          st.Bind(27, m.coverage).Bind(28, m.mean_force);
+          st.Bind(27, m.coverage).Bind(28, m.mean_force).Bind(29, m.depth_error);
+          st.Bind(30, m.path_deviation).Bind(31, int64_t{m.punctures});
+          st.Bind(32, int64_t{m.extra_punctures}).Bind(33, int64_t{m.back_wall_breaches});
+          st.Bind(34, m.lateral_strain);
         });
     if (!s.ok() || trace_json.empty()) return s;
     return RunSql(c, "INSERT INTO session_traces(session_id, trace_json) VALUES (?1, ?2)",

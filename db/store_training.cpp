@@ -36,6 +36,12 @@ scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first) {
   m.localisation_error = q.Double(first + 23);
   m.coverage = q.Double(first + 24);
   m.mean_force = q.Double(first + 25);
+  m.depth_error = q.Double(first + 26);
+  m.path_deviation = q.Double(first + 27);
+  m.punctures = static_cast<int>(q.Int(first + 28));
+  m.extra_punctures = static_cast<int>(q.Int(first + 29));
+  m.back_wall_breaches = static_cast<int>(q.Int(first + 30));
+  m.lateral_strain = q.Double(first + 31);
   return m;
 }
 
@@ -179,7 +185,8 @@ Expected<std::vector<CohortRecord>> ReadCohorts(Connection& c, int64_t id) {
 #define VSURG_PROFICIENCY_COLUMNS                                                               \
   "m.completed, m.completion_time_s, m.task_error, m.peak_force_n, m.time_over_force_limit_s, " \
   "m.path_length_m, m.rms_jerk, m.overload_events, m.score, m.guided_share, m.lumps, "          \
-  "m.lumps_found, m.false_marks, m.localisation_error_m, m.coverage "
+  "m.lumps_found, m.false_marks, m.localisation_error_m, m.coverage, m.depth_error_m, "         \
+  "m.path_deviation_m, m.extra_punctures, m.back_wall_breaches, m.lateral_strain "
 constexpr const char* kAttemptColumns =
     "SELECT s.id, t.name, s.exercise_id, s.ended_us, " VSURG_PROFICIENCY_COLUMNS;
 
@@ -200,6 +207,11 @@ void ReadProficiencyMetrics(const Statement& q, int first, scoring::TrialMetrics
   m.false_marks = static_cast<int>(q.Int(first + 12));
   m.localisation_error = q.Double(first + 13);
   m.coverage = q.Double(first + 14);
+  m.depth_error = q.Double(first + 15);
+  m.path_deviation = q.Double(first + 16);
+  m.extra_punctures = static_cast<int>(q.Int(first + 17));
+  m.back_wall_breaches = static_cast<int>(q.Int(first + 18));
+  m.lateral_strain = q.Double(first + 19);
 }
 
 void ReadAttempt(const Statement& q, std::vector<AttemptRow>& out) {

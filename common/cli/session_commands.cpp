@@ -122,6 +122,14 @@ int Run(const Args& args, std::ostream& out, std::ostream& err) {
       m.completed ? "yes" : "no", m.completion_time, m.task_error, m.time_over_force_limit,
       m.overload_events, m.path_length, m.rms_jerk, m.score, m.raw_score);
   out << line;
+  if (scene->task.kind == scoring::TaskKind::kInsert) {
+    std::snprintf(line, sizeof line,
+                  "needle: depth error %.2f mm, path %.2f mm off the target, punctures %d "
+                  "(%d beyond the path's own), back-wall breaches %d, lateral strain %.1f%%\n",
+                  1e3 * m.depth_error, 1e3 * m.path_deviation, m.punctures, m.extra_punctures,
+                  m.back_wall_breaches, 100 * m.lateral_strain);
+    out << line;
+  }
   return 0;
 }
 

@@ -12,6 +12,7 @@ Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t but
   Vec3 f = ForceAt(x);
   switch (kind) {
     case Kind::kLinear:
+    case Kind::kNeedle:  // without the needle's tissue: the answer's force (J is zero)
       break;
     case Kind::kContact:
       // Unilateral: the surface pushes, never pulls. Outside it (n·F ≤ 0) nothing is felt.

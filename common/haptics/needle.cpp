@@ -281,7 +281,11 @@ NeedleForce NeedleModel::Inserted(const Vec3& tip, double dt, bool may_pop) {
     }
   }
   const double held = std::clamp(s, 0.0, ahead);
-  const int32_t medium = state_.passed > 0 ? bounds_[state_.passed - 1].after : 0;
+  // The medium the tip is in: beyond the deepest punctured boundary above it (a tip drawn back
+  // through a punctured wall is in the medium before it again).
+  uint32_t at = state_.passed;
+  while (at > 1 && bounds_[at - 1].depth > s) --at;
+  const int32_t medium = at > 0 ? bounds_[at - 1].after : 0;
   double cutting = 0;
   if (medium < 0) {
     state_.cut = std::max(state_.cut, held);  // the lumen: nothing to cut
@@ -300,8 +304,23 @@ NeedleForce NeedleModel::Inserted(const Vec3& tip, double dt, bool may_pop) {
   out.lateral = across.norm();
   out.strain = out.lateral / std::max(held, 1e-3);
   out.cutting_force = cutting;
-  out.in_target = medium < 0 && held < ahead;
+  out.in_target = medium < 0;
   return out;
+}
+
+bool NeedleModel::TargetOnTract(double& middle, double& deviation, int& needed) const {
+  if (!spec_.has_target || state_.phase == NeedleState::Phase::kFree) return false;
+  const NeedleTarget& t = spec_.target;
+  Vec3 q = state_.entry - t.centre, r = state_.direction;
+  if (t.kind == NeedleTarget::Kind::kVessel)
+    q -= q.dot(t.axis) * t.axis, r -= r.dot(t.axis) * t.axis;
+  // The nearest approach of q + m·r to the origin; a tract along the vessel's axis has none (r
+  // is zero): its entry's distance then.
+  middle = r.squaredNorm() > 1e-12 ? -q.dot(r) / r.squaredNorm() : 0.0;
+  deviation = (q + middle * r).norm();
+  needed = 0;
+  while (needed < count_ && bounds_[needed].depth < middle) ++needed;
+  return true;
 }
 
 void NeedleModel::Remember() {

@@ -110,27 +110,6 @@ struct NeedleBoundary {
   static constexpr uint32_t kRoleTargetFront = 1, kRoleTargetBack = 2;
 };
 
-// The needle's state: what the server's answers carry to the station (LocalModel::needle), and
-// what live migration carries between nodes.
-struct NeedleState {
-  enum class Phase : uint32_t { kFree = 0, kTouching = 1, kInserted = 2 };
-  Phase phase = Phase::kFree;
-  uint32_t tract = 0;               // the tract's number (the n-th begun); 0: none yet
-  uint32_t begun = 0;               // tracts begun so far (the next new one is begun + 1)
-  Vec3 entry = Vec3::Zero();        // m, where the tract crosses the skin
-  Vec3 direction = -Vec3::UnitZ();  // unit, into the tissue
-  uint32_t passed = 0;              // boundaries punctured along the tract (the skin is the first)
-  double cut = 0;                   // m, the depth cut along the tract
-  double anchor = 0;                // m, the friction's stick point along the tract
-  double last_depth = 0;            // m, the previous step's depth (the velocity)
-  double velocity = 0;              // m/s along the tract, low-passed
-  template <class A>
-  void Persist(A& a) {
-    a(phase, tract, begun, entry, direction, passed, cut, anchor, last_depth, velocity);
-  }
-  bool operator==(const NeedleState&) const = default;
-};
-
 // One step's answer.
 struct NeedleForce {
   Vec3 force = Vec3::Zero();  // N, on the needle's tip (to the hand)
@@ -167,6 +146,12 @@ class NeedleModel {
   // The boundaries along the current tract (valid while inserted or touching).
   int boundary_count() const { return count_; }
   const NeedleBoundary& boundary(int i) const { return bounds_[i]; }
+  // The target as the current tract meets it: `middle`, the depth along the tract nearest the
+  // target's centre (a cyst) or axis (a vessel), halfway between its walls where the tract
+  // crosses them; `deviation`, the tract's distance from that centre or axis (m); `needed`, the
+  // boundaries before `middle` (what the tract must puncture to reach it). False when there is
+  // no target or no tract.
+  bool TargetOnTract(double& middle, double& deviation, int& needed) const;
   // Punctures so far (every boundary given way, reinsertions along a tract not counted again).
   uint32_t punctures() const { return punctures_; }
 

@@ -26,6 +26,27 @@ struct StylusSample {
   uint32_t buttons = 0;                                             // StylusButton bits
 };
 
+// A needle's state in its tissue (haptics/needle.h): what the server's answers carry to the
+// station (LocalModel::needle), and what live migration carries between nodes. Units: m, m/s.
+struct NeedleState {
+  enum class Phase : uint32_t { kFree = 0, kTouching = 1, kInserted = 2 };
+  Phase phase = Phase::kFree;
+  uint32_t tract = 0;               // the tract's number (the n-th begun); 0: none yet
+  uint32_t begun = 0;               // tracts begun so far (the next new one is begun + 1)
+  Vec3 entry = Vec3::Zero();        // m, where the tract crosses the skin
+  Vec3 direction = -Vec3::UnitZ();  // unit, into the tissue
+  uint32_t passed = 0;              // boundaries punctured along the tract (the skin is the first)
+  double cut = 0;                   // m, the depth cut along the tract
+  double anchor = 0;                // m, the friction's stick point along the tract
+  double last_depth = 0;            // m, the previous step's depth (the velocity)
+  double velocity = 0;              // m/s along the tract, low-passed
+  template <class A>
+  void Persist(A& a) {
+    a(phase, tract, begun, entry, direction, passed, cut, anchor, last_depth, velocity);
+  }
+  bool operator==(const NeedleState&) const = default;
+};
+
 // What a station renders between server updates, so that the force follows the hand at the
 // device's rate whatever the network's delay (OpenSurgSim's virtual coupler sends the linear
 // part; model-mediated teleoperation, Mitra & Niemeyer 2008, the rest):
@@ -48,9 +69,12 @@ struct StylusSample {
 // integrated over its own motion since the answered sample (haptics/viscoelastic.h), so a
 // stale answer's force follows the tissue's yield and recovery, not one slope.
 struct LocalModel {
-  enum class Kind : uint32_t { kLinear = 0, kContact = 1, kGrasp = 2 };  // wire values: keep
-  Vec3 force0 = Vec3::Zero();                                            // N
-  Vec3 position0 = Vec3::Zero();                                         // m
+  // kNeedle: the needle's state in its tissue; a station that holds the tissue (from its join)
+  // renders it with its own NeedleModel, the answers correcting its tract and punctures
+  // (haptics/needle.h); one that does not renders force0.
+  enum class Kind : uint32_t { kLinear = 0, kContact = 1, kGrasp = 2, kNeedle = 3 };  // wire values
+  Vec3 force0 = Vec3::Zero();                                                         // N
+  Vec3 position0 = Vec3::Zero();                                                      // m
   Eigen::Matrix3d jacobian = Eigen::Matrix3d::Zero();  // N/m, ∂F/∂x (negative semi-definite)
   Kind kind = Kind::kLinear;
   Vec3 normal = Vec3::UnitZ();  // contact: the surface's outward unit normal
@@ -83,6 +107,7 @@ struct LocalModel {
   // it (F·n = k·depth − c·v·n, never below 0). 0 in a contact answer, whose force0 already holds
   // the server's damping at its sample.
   double contact_damping = 0;
+  NeedleState needle;  // kNeedle
 
   Vec3 ForceAt(const Vec3& x) const { return force0 + jacobian * (x - position0); }
   // The force the model gives a stylus at x, moving at v (m/s, the station's own estimate), turned
@@ -121,8 +146,13 @@ enum HapticEvent : uint32_t {
   // Not a force: the session has moved to another node (live migration), and this node answers
   // its station only to say so (zero force, nothing else meant). The station asks where it runs.
   kEventSessionMoved = 1u << 11,
-  // A palpation's mark was placed at the proxy (the mark button pressed in contact).
+  // A palpation's mark was placed at the proxy (the mark button pressed in contact), or a needle's
+  // tip was confirmed inside its target.
   kEventMarked = 1u << 12,
+  // A needle punctured a boundary (the skin, a layer, a target's wall): the "pop".
+  kEventPunctured = 1u << 13,
+  // … and that boundary was the target's back wall: through and through.
+  kEventBackWall = 1u << 14,
 };
 
 struct ForceCommand {

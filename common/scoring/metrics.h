@@ -14,6 +14,7 @@ enum ScoreCap : uint32_t {
   kCapNotCompleted = 1u << 0,
   kCapForceLimit = 1u << 1,
   kCapOverload = 1u << 2,
+  kCapBackWall = 1u << 3,  // a needle through its target's back wall (needle.h)
 };
 
 // What the station rendered and how the link held over the trial, recorded beside the server's
@@ -51,6 +52,12 @@ struct TrialMetrics {
   // mean force in contact (N). Zero for the other tasks.
   int lumps = 0, lumps_found = 0, false_marks = 0;
   double localisation_error = 0, coverage = 0, mean_force = 0;
+  // A needle insertion (needle.h): the tip's distance from the target's middle along its tract
+  // (m), the tract's distance from the target's centre or axis (m), the boundaries punctured and
+  // those beyond the final tract's own, the back walls passed through, the largest lateral strain
+  // of the tract. Zero for the other tasks.
+  double depth_error = 0, path_deviation = 0, lateral_strain = 0;
+  int punctures = 0, extra_punctures = 0, back_wall_breaches = 0;
   LinkFigures link;  // filled by the server that ran the session (not by the recorder)
 };
 

@@ -8,7 +8,7 @@
 namespace vsurg::scoring {
 namespace {
 
-constexpr std::array<MetricDef, 13> kMetrics = {{
+constexpr std::array<MetricDef, 18> kMetrics = {{
     {"completion_time_s", "s", Better::kLower, "completion time"},
     {"task_error", "rad or m", Better::kLower, "task error"},
     {"peak_force_n", "N", Better::kLower, "peak force"},
@@ -25,6 +25,12 @@ constexpr std::array<MetricDef, 13> kMetrics = {{
     {"false_marks", "", Better::kLower, "false marks"},
     {"localisation_error_m", "m", Better::kLower, "localisation error"},
     {"coverage", "", Better::kHigher, "share of the surface examined"},
+    // A needle insertion's (needle.h): where the tip was placed, the aim, the tissue it cost.
+    {"depth_error_m", "m", Better::kLower, "needle depth error"},
+    {"path_deviation_m", "m", Better::kLower, "needle path deviation"},
+    {"extra_punctures", "", Better::kLower, "punctures beyond the path's own"},
+    {"back_wall_breaches", "", Better::kLower, "back-wall breaches"},
+    {"lateral_strain", "", Better::kLower, "lateral tissue strain"},
 }};
 
 // Equal within rounding counts as met: a benchmark from experts who all reached the same value
@@ -73,6 +79,14 @@ double MetricValue(const TrialMetrics& m, const MetricDef& metric) {
     return m.lumps_found > 0 || m.lumps == 0 ? m.localisation_error
                                              : std::numeric_limits<double>::infinity();
   if (n == "coverage") return m.coverage;
+  // A needle never placed in the tissue has no placement to credit.
+  if (n == "depth_error_m")
+    return m.punctures > 0 ? m.depth_error : std::numeric_limits<double>::infinity();
+  if (n == "path_deviation_m")
+    return m.punctures > 0 ? m.path_deviation : std::numeric_limits<double>::infinity();
+  if (n == "extra_punctures") return m.extra_punctures;
+  if (n == "back_wall_breaches") return m.back_wall_breaches;
+  if (n == "lateral_strain") return m.lateral_strain;
   return m.score;
 }
 

@@ -4,9 +4,24 @@
 #include <cmath>
 #include <cstdio>
 
+#include "common/scoring/needle.h"
 #include "common/scoring/palpation.h"
 
 namespace vsurg::scoring {
+
+const char* TaskKindName(TaskKind kind) {
+  switch (kind) {
+    case TaskKind::kTwist:
+      return "twist";
+    case TaskKind::kPress:
+      return "press";
+    case TaskKind::kPalpate:
+      return "palpate";
+    case TaskKind::kInsert:
+      return "insert";
+  }
+  return "twist";
+}
 
 TaskDisplayUnit DisplayUnitOf(TaskKind kind) {
   if (kind == TaskKind::kTwist) return {180.0 / 3.14159265358979323846, "deg"};
@@ -94,7 +109,8 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
   if (ok && !in_window_) in_window_ = true, window_start_ = time;
   if (!ok) in_window_ = false;
   if (!completed_ && in_window_ && time - window_start_ >= task_.hold_s &&
-      task_.kind != TaskKind::kPalpate) {  // a palpation completes when the search ends
+      task_.kind != TaskKind::kPalpate &&  // a palpation completes when the search ends,
+      task_.kind != TaskKind::kInsert) {   // a needle when its tip is confirmed in the target
     completed_ = true;
     completion_ = time - t0_;
     error_at_completion_ = error;
@@ -169,6 +185,9 @@ Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
   if (t.kind == TaskKind::kPalpate && (s.kind || s.target || s.tolerance))
     return bad(s.tolerance && !s.target ? "tolerance" : "target",
                "the scene's task is a palpation: it has no target or tolerance");
+  if (t.kind == TaskKind::kInsert && (s.kind || s.target || s.tolerance))
+    return bad(s.tolerance && !s.target ? "tolerance" : "target",
+               "the scene's task is a needle insertion: its target is the scene's");
   if (s.kind && *s.kind != t.kind)
     return bad(target_name, std::string("the scene's task is a ") + (twist ? "twist" : "press") +
                                 ": give " + target_name + " and " + tolerance_name);
@@ -243,6 +262,7 @@ std::vector<std::string> ExplainLosses(const TrialMetrics& m, const TaskSpec& ta
 
 std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
   if (task.kind == TaskKind::kPalpate) return ExplainPalpation(m, task);
+  if (task.kind == TaskKind::kInsert) return ExplainNeedle(m, task);
   const bool twist = task.kind == TaskKind::kTwist;
   const double unit = twist ? 180 / 3.14159265358979 : 1e3;
   return ExplainLosses(

@@ -40,8 +40,12 @@
 namespace vsurg::scoring {
 
 // kPalpate: search the tissue for hidden lumps and mark them (palpation.h); it has no target or
-// tolerance of its own.
-enum class TaskKind { kTwist, kPress, kPalpate };
+// tolerance of its own. kInsert: place a needle's tip in a target under the skin (needle.h); its
+// target is the target's middle, its tolerance a distance (m).
+enum class TaskKind { kTwist, kPress, kPalpate, kInsert };
+
+// As scene files and the wire spell it: "twist", "press", "palpate", "insert".
+const char* TaskKindName(TaskKind kind);
 
 // How people read a task's target and tolerance: degrees for a twist, millimetres for a press
 // (the spec keeps radians and metres). One place for the dashboard, the catalogue and the station.

@@ -14,11 +14,13 @@
 #include <nlohmann/json.hpp>
 
 #include "common/geometry/mesh_import.h"
+#include "common/sim/scene_reader.h"
 
 namespace vsurg::sim {
 namespace {
 
-using json = nlohmann::json;
+using scene_detail::json;
+using scene_detail::Reader;
 namespace fs = std::filesystem;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
@@ -35,108 +37,6 @@ constexpr size_t kRingLayerBytesPerVertex = 1536;
 // (contact, vertex) pair with every vertex a contact at worst (reduced.h: 36 B of displacement
 // and 36 B of rotation responses).
 constexpr size_t kReducedBytesPerVertex = 1536, kReducedBytesPerVertexPair = 72;
-
-// Typed field access with errors that name the field by its path.
-class Reader {
- public:
-  Reader(const json& j, std::string path) : j_(j), path_(std::move(path)) {}
-
-  bool Has(const char* key) const { return j_.contains(key); }
-  std::string Path(const char* key) const { return path_.empty() ? key : path_ + "." + key; }
-
-  Expected<Reader> Object(const char* key) const {
-    if (!j_.contains(key)) return Missing(key);
-    if (!j_[key].is_object()) return Bad(key, "must be an object");
-    return Reader(j_[key], Path(key));
-  }
-  Expected<double> Number(const char* key, double lo, double hi,
-                          const double* fallback = nullptr) const {
-    if (!j_.contains(key)) {
-      if (fallback) return *fallback;
-      return Missing(key);
-    }
-    if (!j_[key].is_number()) return Bad(key, "must be a number");
-    const double v = j_[key].get<double>();
-    if (!std::isfinite(v) || v < lo || v > hi) {
-      std::ostringstream why;
-      why << "must be in [" << lo << ", " << hi << "], got " << v;
-      return Bad(key, why.str());
-    }
-    return v;
-  }
-  Expected<double> NumberOr(const char* key, double fallback, double lo, double hi) const {
-    return Number(key, lo, hi, &fallback);
-  }
-  // Absent: nullopt.
-  Expected<std::optional<bool>> OptionalBool(const char* key) const {
-    if (!j_.contains(key)) return std::optional<bool>();
-    if (!j_[key].is_boolean()) return Bad(key, "must be true or false");
-    return std::optional<bool>(j_[key].get<bool>());
-  }
-  Expected<int> Integer(const char* key, int lo, int hi, const int* fallback = nullptr) const {
-    if (!j_.contains(key)) {
-      if (fallback) return *fallback;
-      return Missing(key);
-    }
-    if (!j_[key].is_number_integer()) return Bad(key, "must be an integer");
-    const long long v = j_[key].get<long long>();
-    if (v < lo || v > hi)
-      return Bad(key, "must be in " + std::to_string(lo) + ".." + std::to_string(hi));
-    return static_cast<int>(v);
-  }
-  Expected<int> IntegerOr(const char* key, int fallback, int lo, int hi) const {
-    return Integer(key, lo, hi, &fallback);
-  }
-  Expected<std::string> String(const char* key, const std::string* fallback = nullptr) const {
-    if (!j_.contains(key)) {
-      if (fallback) return *fallback;
-      return Missing(key);
-    }
-    if (!j_[key].is_string() || j_[key].get<std::string>().empty())
-      return Bad(key, "must be a non-empty string");
-    return j_[key].get<std::string>();
-  }
-  Expected<std::string> StringOr(const char* key, const std::string& fallback) const {
-    return String(key, &fallback);
-  }
-  // An optional array of `size` numbers in [lo, hi]; absent → empty.
-  Expected<std::vector<double>> NumbersOr(const char* key, size_t size, double lo,
-                                          double hi) const {
-    if (!j_.contains(key)) return std::vector<double>{};
-    if (!j_[key].is_array() || j_[key].size() != size)
-      return Bad(key, "must be an array of " + std::to_string(size) + " numbers");
-    std::vector<double> out;
-    for (size_t i = 0; i < size; ++i) {
-      const json& v = j_[key][i];
-      const double x = v.is_number() ? v.get<double>() : NAN;
-      if (!std::isfinite(x) || x < lo || x > hi) {
-        std::ostringstream why;
-        why << "[" << i << "] must be a number in [" << lo << ", " << hi << "]";
-        return Bad(key, why.str());
-      }
-      out.push_back(x);
-    }
-    return out;
-  }
-
-  Error Missing(const char* key) const {
-    return InvalidArgument(Path(key), Path(key) + ": is required");
-  }
-  Error Bad(const char* key, const std::string& why) const {
-    return InvalidArgument(Path(key), Path(key) + ": " + why);
-  }
-  const json& raw() const { return j_; }
-  const std::string& path() const { return path_; }
-
- private:
-  const json& j_;
-  std::string path_;
-};
-
-#define VSURG_TRY(var, expr)                           \
-  auto var##_result = (expr);                          \
-  if (!var##_result.ok()) return var##_result.error(); \
-  auto var = std::move(*var##_result)
 
 Status ParseMesh(const Reader& r, const std::string& scene_dir, MeshSpec& m) {
   VSURG_TRY(type, r.String("type"));
@@ -380,10 +280,16 @@ Status ParseTask(const Reader& r, scoring::TaskSpec& t) {
     t.kind = scoring::TaskKind::kPalpate;  // no target: the marks are scored (palpation.h)
     t.target = 0;
     t.tolerance = scoring::PalpationSpec{}.match_margin;
+  } else if (type == "insert") {
+    t.kind = scoring::TaskKind::kInsert;  // the target is the scene's (scoring/needle.h)
+    VSURG_TRY(tol, r.NumberOr("tolerance_mm", 2, 0.1, 50));
+    t.target = 0;
+    t.tolerance = tol * 1e-3;
   } else {
-    return r.Bad("type", "must be twist, press or palpate, got '" + type + "'");
+    return r.Bad("type", "must be twist, press, palpate or insert, got '" + type + "'");
   }
-  const bool palpate = t.kind == scoring::TaskKind::kPalpate;
+  const bool palpate = t.kind == scoring::TaskKind::kPalpate ||
+                       t.kind == scoring::TaskKind::kInsert;  // neither holds anything
   VSURG_TRY(hold, r.NumberOr("hold_s", palpate ? 0.0 : 2.0, 0, 600));
   VSURG_TRY(limit, r.NumberOr("force_limit_n", 3.0, 0, 1000));
   VSURG_TRY(time_limit, r.NumberOr("time_limit_s", 60.0, 1e-3, 86400));
@@ -613,6 +519,11 @@ Status ParseSceneTask(const Reader& r, Scene& s) {
   const bool twists =
       s.region.kind == ModelKind::kCoil ||
       (s.region.kind == ModelKind::kReduced && s.region.reduced.mode != ReducedMode::kContact);
+  const bool insert = s.task.kind == scoring::TaskKind::kInsert;
+  if (insert != (s.needle && s.needle->has_target))
+    return InvalidArgument("task.type",
+                           "task.type: an insert task needs a needle with a target, "
+                           "and a needle scene's task is insert");
   if ((s.task.kind == scoring::TaskKind::kTwist) != twists)
     return InvalidArgument("task.type",
                            "task.type: a twist task needs a coil or reduced (surface-)twist model, "
@@ -679,6 +590,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if (Status st = ParseTissue(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseRegion(root, r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseInclusions(r, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseNeedle(root, s); !st.ok()) return with_source(st.error());
   if (r.Has("haptics")) {
     auto h = r.Object("haptics");
     if (!h.ok()) return with_source(h.error());

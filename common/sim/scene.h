@@ -30,9 +30,12 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "common/core/expected.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/tet_generators.h"
+#include "common/haptics/needle.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
 #include "common/scoring/palpation.h"
@@ -169,6 +172,9 @@ struct Scene {
   double case_margin = 0.02;  // m, the drawn lumps' least distance from the palpable rim
   RegionSpec region;
   HapticsSpec haptics;
+  // A needle's tissue (haptics/needle.h; scene files: "needle", scene_needle.cpp): its layers
+  // under the block's top and its target. Set: the tool is a needle, whatever touches the skin.
+  std::optional<haptics::NeedleTissueSpec> needle;
   scoring::TaskSpec task;
   VisualSpec visual;
   double error_budget_rms = 0.1;  // relative RMS displacement error the model meets
@@ -189,6 +195,8 @@ Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::s
                           bool reduced_contact = true);
 
 Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
+// The scene file's "needle" object into `s.needle` (scene_needle.cpp); nothing when absent.
+Status ParseNeedle(const nlohmann::json& root, Scene& s);
 Expected<Scene> LoadScene(const std::string& path);
 
 // A scene's mesh made concrete: the surface, and the centreline for limbs (empty otherwise).

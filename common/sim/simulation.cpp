@@ -145,6 +145,7 @@ Status Simulation::Build() {
       room_);
   station_surface_ = MakeStationSurface();
   if (Status s = BuildPalpation(); !s.ok()) return s;
+  if (Status s = BuildNeedle(); !s.ok()) return s;
   const geometry::Bvh bvh(rest_);
   // A surface back at rest: any list a query kept is void (Build also runs on a failed restore).
   surface_motion_ += kSurfaceReset;
@@ -242,8 +243,9 @@ namespace {
 // The snapshot's header: a format version (raised whenever any Persist list changes), then what
 // the receiver must have built the same way.
 constexpr uint32_t kStateMagic = 0x4D495356;  // "VSIM"
-// 2: the contact's stiffness fit; 3: the viscoelastic fit; 4: a palpation's marks and coverage.
-constexpr uint32_t kStateVersion = 4;
+// 2: the contact's stiffness fit; 3: the viscoelastic fit; 4: a palpation's marks and coverage;
+// 5: a needle's state, tracts and record.
+constexpr uint32_t kStateVersion = 5;
 
 }  // namespace
 
@@ -255,7 +257,8 @@ std::string Simulation::SaveState() {
   w(recorder_, samples_, port_force_, port_x_, port_has_x_, released_j_, absorbed_j_,
     telemetry_grasping_, live_score_, input_, last_time_, trial_time_, clock_jumps_, has_time_,
     grasping_, grasp_q0_, axis_, axis_point_, lever_, rest_contact_, rest_normal_, last_contact_,
-    grasp_query_, proxy_, safety_, stiffness_fit_, viscoelastic_fit_, palpation_, mark_button_);
+    grasp_query_, proxy_, safety_, stiffness_fit_, viscoelastic_fit_, palpation_, mark_button_,
+    needle_);
   // The surface the haptic path answers from (the latest published).
   surface_.Acquire();
   const Snapshot& snap = surface_.Front();
@@ -304,6 +307,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   haptics::StiffnessFit stiffness_fit = stiffness_fit_;
   haptics::ViscoelasticFit viscoelastic_fit = viscoelastic_fit_;
   scoring::PalpationRecorder palpation = palpation_;
+  NeedleSide needle = needle_;
   bool mark_button = false;
   DeformInput input;
   GraspQuery grasp_query;
@@ -316,11 +320,12 @@ Status Simulation::RestoreState(std::string_view bytes) {
   r(recorder, samples, port_force, port_x, port_has_x, released, absorbed, telemetry_grasping,
     live_score, input, last_time, trial_time, clock_jumps, has_time, grasping, grasp_q0, axis,
     axis_point, lever, rest_contact, rest_normal, last_contact, grasp_query, proxy, safety,
-    stiffness_fit, viscoelastic_fit, palpation, mark_button);
+    stiffness_fit, viscoelastic_fit, palpation, mark_button, needle);
   std::vector<Vec3> positions(rest_.positions.size());
   bool overload = false, outside_model = false;
   r(positions, overload, outside_model);
-  if (!r.ok()) return refuse("its state does not read back whole");
+  if (!r.ok() || (needle.model && !needle.model->Restored()))
+    return refuse("its state does not read back whole");
   for (size_t i = 0; i < positions.size(); ++i)  // a surface within a metre of rest
     if ((positions[i] - rest_.positions[i]).squaredNorm() > 1.0)
       return refuse("its surface is out of range for the scene");
@@ -345,6 +350,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   if (grasping) Regrasp(grasp_query);
   recorder_ = recorder;
   palpation_ = palpation;
+  needle_ = needle;
   mark_button_ = mark_button;
   proxy_ = proxy;
   safety_ = safety;

@@ -40,6 +40,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -47,12 +48,14 @@
 
 #include "common/core/expected.h"
 #include "common/geometry/bvh.h"
+#include "common/haptics/needle.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
 #include "common/haptics/stiffness_fit.h"
 #include "common/haptics/tissue_surface.h"
 #include "common/haptics/types.h"
 #include "common/haptics/viscoelastic.h"
+#include "common/scoring/needle.h"
 #include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/deformation_pool.h"
@@ -150,6 +153,8 @@ class Simulation final : private DeformationPool::Member {
   // A palpation's marks and lumps (the haptic thread's, or after it stopped): what the trial's
   // summary shows beside each other once the search is over.
   const scoring::PalpationRecorder& palpation() const { return palpation_; }
+  // A needle scene's model as the haptic thread left it (its tract, punctures), or null.
+  const haptics::NeedleModel* needle() const { return needle_.model ? &*needle_.model : nullptr; }
   // One reader thread (the control plane's sampler): the latest telemetry, published by the
   // haptic thread every few samples. False when nothing new since the previous call.
   bool TakeTelemetry(Telemetry& out);
@@ -250,6 +255,13 @@ class Simulation final : private DeformationPool::Member {
   // A palpation's stage (simulation_palpation.cpp): the press's coverage, and a mark.
   void PalpationStep(const haptics::StylusSample& trainee, StylusStep& step);
   Status BuildPalpation();
+  // A needle scene's stages (simulation_needle.cpp): the needle in its tissue instead of the
+  // proxy's contact; the skin's dimple for the deformation; the trial's needle record.
+  void NeedleStep(const Snapshot& snap, const haptics::StylusSample& s, StylusStep& step);
+  void NeedleDeform(const Snapshot& snap, const haptics::NeedleForce& f);
+  void NeedleRecord(const haptics::NeedleForce& f, const haptics::StylusSample& trainee,
+                    StylusStep& step);
+  Status BuildNeedle();
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
   std::shared_ptr<const haptics::TissueSurface> MakeStationSurface() const;
@@ -271,6 +283,23 @@ class Simulation final : private DeformationPool::Member {
   scoring::TrialRecorder recorder_;
   scoring::PalpationRecorder palpation_;  // a palpation task's marks and coverage
   bool mark_button_ = false;              // the mark button as the last sample held it
+  // A needle scene's (haptic thread): the model, the trial's needle record, back-wall breaches,
+  // and the skin's face under the tract's entry (found once per tract, for the dimple).
+  struct NeedleSide {
+    std::optional<haptics::NeedleModel> model;
+    scoring::NeedleRecorder record;
+    uint32_t breaches = 0;
+    uint32_t face_tract = 0;  // the tract the face was found for (0: none)
+    int face = -1;
+    geometry::Vec3 face_barycentric = geometry::Vec3::Zero();
+    template <class A>
+    void Persist(A& a) {
+      if (model) a(*model);
+      a(record, breaches);
+      face_tract = 0;  // found again from the restored tract
+    }
+  };
+  NeedleSide needle_;
   uint64_t samples_ = 0;
   // The server's port energies (haptics::ForceCommand::released_j): the force answered last, held
   // until the next sample, against the motion to it.

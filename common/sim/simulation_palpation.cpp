@@ -61,6 +61,9 @@ void Simulation::PalpationStep(const haptics::StylusSample& trainee, StylusStep&
 scoring::TrialMetrics Simulation::Metrics() const {
   scoring::TrialMetrics m = recorder_.Finish();
   if (scene_.task.kind == scoring::TaskKind::kPalpate) palpation_.Complete(m, scene_.task);
+  if (scene_.task.kind == scoring::TaskKind::kInsert && needle_.model)
+    needle_.record.Complete(m, scene_.task, static_cast<int>(needle_.model->punctures()),
+                            static_cast<int>(needle_.breaches));
   return m;
 }
 

@@ -17,7 +17,8 @@ using haptics::StylusSample;
 
 // The haptic path, one sample: reject bad input; count the port's energy; advance the trial
 // clock and the guidance's ramps; then, on the tool (the trainee's, or shared with an instructor:
-// guidance.h), the grasp's twist or the proxy's contact (or the surface ahead of a free tip); the
+// guidance.h), the needle in its tissue, the grasp's twist or the proxy's contact (or the surface
+// ahead of a free tip); the
 // trainee's share of it; the safety filter, the local model for the station; the trial record and
 // the telemetry.
 // Flattened: the stages are inlined into the driver, as one function was before them.
@@ -34,7 +35,9 @@ using haptics::StylusSample;
   step.cmd.time = s.time;
   step.overload = snap.overload;
   if (grasping_ && !button) EndGrasp(step.events);
-  if (grasping_) {
+  if (needle_.model) {
+    NeedleStep(snap, s, step);
+  } else if (grasping_) {
     GraspStep(s, step);
   } else {
     ContactStep(snap, s, button, step);

@@ -42,13 +42,16 @@ void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out) {
   out->set_localisation_error_m(m.localisation_error);
   out->set_coverage(m.coverage);
   out->set_mean_force_n(m.mean_force);
+  out->set_depth_error_m(m.depth_error);
+  out->set_path_deviation_m(m.path_deviation);
+  out->set_punctures(m.punctures);
+  out->set_extra_punctures(m.extra_punctures);
+  out->set_back_wall_breaches(m.back_wall_breaches);
+  out->set_lateral_strain(m.lateral_strain);
 }
 
 void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out) {
-  if (t.kind)
-    out->set_kind(*t.kind == scoring::TaskKind::kTwist   ? "twist"
-                  : *t.kind == scoring::TaskKind::kPress ? "press"
-                                                         : "palpate");
+  if (t.kind) out->set_kind(scoring::TaskKindName(*t.kind));
   if (t.target) out->set_target(*t.target);
   if (t.tolerance) out->set_tolerance(*t.tolerance);
   if (t.hold_s) out->set_hold_s(*t.hold_s);
@@ -61,6 +64,7 @@ scoring::TaskSettings FromProto(const v1::TaskSettings& t) {
   if (t.kind() == "twist") out.kind = scoring::TaskKind::kTwist;
   if (t.kind() == "press") out.kind = scoring::TaskKind::kPress;
   if (t.kind() == "palpate") out.kind = scoring::TaskKind::kPalpate;
+  if (t.kind() == "insert") out.kind = scoring::TaskKind::kInsert;
   if (t.has_target()) out.target = t.target();
   if (t.has_tolerance()) out.tolerance = t.tolerance();
   if (t.has_hold_s()) out.hold_s = t.hold_s();
@@ -97,6 +101,12 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   out.localisation_error = m.localisation_error_m();
   out.coverage = m.coverage();
   out.mean_force = m.mean_force_n();
+  out.depth_error = m.depth_error_m();
+  out.path_deviation = m.path_deviation_m();
+  out.punctures = m.punctures();
+  out.extra_punctures = m.extra_punctures();
+  out.back_wall_breaches = m.back_wall_breaches();
+  out.lateral_strain = m.lateral_strain();
   return out;
 }
 

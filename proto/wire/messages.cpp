@@ -127,6 +127,16 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
     v1::Quat* q = local->mutable_orientation0();
     q->set_w(q0.w()), q->set_x(q0.x()), q->set_y(q0.y()), q->set_z(q0.z());
   }
+  if (c.local.kind == haptics::LocalModel::Kind::kNeedle) {
+    const haptics::NeedleState& n = c.local.needle;
+    v1::NeedleState* w = local->mutable_needle();
+    w->set_phase(static_cast<uint32_t>(n.phase)), w->set_tract(n.tract), w->set_begun(n.begun);
+    Put(n.entry, w->mutable_entry()), Put(n.direction, w->mutable_direction());
+    w->set_passed(n.passed), w->set_cut(n.cut), w->set_anchor(n.anchor);
+    w->set_last_depth(n.last_depth), w->set_velocity(n.velocity);
+  } else {
+    local->clear_needle();
+  }
   f.set_events(c.events);
   f.set_twist(c.twist);
   f.set_score(static_cast<float>(c.score));
@@ -298,6 +308,22 @@ void ReadGuidance(const v1::ForceFeedback& f, haptics::ForceCommand& c) {
   c.shared = f.shared();
 }
 
+// A needle's state as a station can render it: a phase it knows, a unit direction into the
+// tissue, finite lengths; else refused.
+bool ReadNeedle(const v1::NeedleState& w, haptics::NeedleState& n) {
+  if (w.phase() > 2) return false;
+  n.phase = static_cast<haptics::NeedleState::Phase>(w.phase());
+  n.tract = w.tract(), n.begun = w.begun(), n.passed = w.passed();
+  n.entry = Get(w.entry()), n.direction = Get(w.direction());
+  n.cut = w.cut(), n.anchor = w.anchor(), n.last_depth = w.last_depth(), n.velocity = w.velocity();
+  const double d = n.direction.norm();
+  if (!(d > 0.5 && d < 2) || !n.entry.allFinite() || !std::isfinite(n.cut) ||
+      !std::isfinite(n.anchor) || !std::isfinite(n.last_depth) || !std::isfinite(n.velocity))
+    return false;
+  n.direction /= d;
+  return true;
+}
+
 }  // namespace
 
 DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& out) {
@@ -335,6 +361,7 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   c.local.torque0 = 0;
   c.local.tissue_stiffness = c.local.tissue_damping = c.local.tissue_elastic0 = 0;
   c.local.contact_damping = 0;
+  c.local.needle = {};
   const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
     const double n = v.norm();
     if (!(n > 1e-9) || !std::isfinite(n)) return false;
@@ -383,6 +410,10 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
       c.local.kind = haptics::LocalModel::Kind::kGrasp;
       break;
     }
+    case v1::LocalModel::NEEDLE:
+      if (!ReadNeedle(f.local().needle(), c.local.needle)) return DropReason::kBadPayload;
+      c.local.kind = haptics::LocalModel::Kind::kNeedle;
+      break;
     default:
       break;
   }

@@ -45,9 +45,7 @@ Expected<SceneListing> SceneCatalog::List() {
         e.info.name = file.stem().string();
         e.info.description = scene->description;
         e.info.model = sim::ModelKindName(scene->region.kind);
-        e.info.task = scene->task.kind == scoring::TaskKind::kTwist   ? "twist"
-                      : scene->task.kind == scoring::TaskKind::kPress ? "press"
-                                                                      : "palpate";
+        e.info.task = scoring::TaskKindName(scene->task.kind);
         e.info.error_budget_rms = scene->error_budget_rms;
         e.info.material = sim::VisualMaterialName(scene->visual.material);
         e.info.limb = scene->mesh.kind == sim::MeshKind::kLimb;

@@ -55,9 +55,7 @@ json FiniteOrNull(double x) {
 
 json TaskJson(const scoring::TaskSpec& t) {
   const scoring::TaskDisplayUnit unit = scoring::DisplayUnitOf(t.kind);
-  return {{"kind", t.kind == scoring::TaskKind::kTwist   ? "twist"
-                   : t.kind == scoring::TaskKind::kPress ? "press"
-                                                         : "palpate"},
+  return {{"kind", scoring::TaskKindName(t.kind)},
           {"target", t.target * unit.per_si},
           {"tolerance", t.tolerance * unit.per_si},
           {"unit", unit.name},
