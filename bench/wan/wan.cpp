@@ -131,7 +131,10 @@ Expected<Run> RunOnce(const RunOptions& o) {
   co.exact_grasp = o.exact_grasp;
   co.model_hold_s = o.model_hold_s;
   co.force_limit_n = o.scene.task.force_limit;
-  if (o.station_surface) co.surface = (*simulation)->station_surface();
+  if (o.station_surface) {  // the tissue the station holds from its join
+    co.surface = (*simulation)->station_surface();
+    co.needle = (*simulation)->station_needle();
+  }
   const auto start = std::chrono::steady_clock::now();
   auto station = client::StationChannel::Create(co, hand->get());
   if (!station.ok()) return station.error();
@@ -162,8 +165,26 @@ Expected<Run> RunOnce(const RunOptions& o) {
   return run;
 }
 
+std::vector<size_t> Pops(const std::vector<client::HandSample>& t) {
+  std::vector<size_t> out;
+  for (size_t k = 3; k < t.size(); ++k) {
+    const double before = t[k - 3].force.norm();
+    const double after = t[k].force.norm();
+    if (before >= 0.3 && before - after >= std::max(0.2, 0.3 * before) && (out.empty() || k > out.back() + 10))
+      out.push_back(k);
+  }
+  return out;
+}
+
 Figures Compare(const Run& run, const Run& ref, bool press_scene) {
   Figures f;
+  {
+    const std::vector<size_t> pa = Pops(run.trace), pb = Pops(ref.trace);
+    f.pops = static_cast<int>(pa.size()), f.reference_pops = static_cast<int>(pb.size());
+    for (size_t i = 0; i < std::min(pa.size(), pb.size()); ++i)
+      f.pop_delay_cycles = std::max(
+          f.pop_delay_cycles, std::abs(static_cast<double>(pa[i]) - static_cast<double>(pb[i])));
+  }
   const auto& a = run.trace;
   const auto& b = ref.trace;
   const size_t n = std::min(a.size(), b.size());

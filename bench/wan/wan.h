@@ -80,7 +80,16 @@ struct Figures {
   double up_hz = 0, down_hz = 0;  // datagrams per second each way
   double score = 0;
   double score_but_smoothness = 0;  // Run::score_but_smoothness
+  // A needle's pops (Pops): how many the run felt beside the reference's, and the largest delay
+  // of a pop felt against the reference's same pop, in servo cycles of the hand's own time.
+  int pops = 0, reference_pops = 0;
+  double pop_delay_cycles = 0;
 };
+
+// The cycles at which a needle's boundary gave way as the hand felt it: the force's norm fell
+// from at least 0.3 N by 0.2 N and 30% or more within 3 cycles (the friction and the cutting
+// never fall that fast).
+std::vector<size_t> Pops(const std::vector<client::HandSample>& trace);
 
 // A quick palpation of a press scene: from 6 cm above the surface point the scripted trainees
 // press (twice the scene's surface-ahead reach, so no answer about the approach carries the

@@ -129,7 +129,7 @@ std::string CsvRow(const std::string& scene_name, const std::string& profile,
   char line[512];
   std::snprintf(line, sizeof line,
                 "%s,%s,%s,%d,%.2f,%.2f,%.0f,%.2f,%.1f,%.2f,%.2f,%.4f,%.3f,%.3f,%.0f,%.0f,"
-                "%.2f,%.3f,%llu,%llu,%llu,%llu",
+                "%.2f,%.3f,%llu,%llu,%llu,%llu,%d,%d,%.0f",
                 scene_name.c_str(), profile.c_str(), method_name.c_str(), r, rtt_ms,
                 f.rms_error_pct, f.onset_delay_cycles, f.onset_extra_mm, f.stiffness_pct,
                 f.energy_to_hand_mj, f.energy_excess_mj, f.oscillation_n, f.peak_force_n,
@@ -137,7 +137,8 @@ std::string CsvRow(const std::string& scene_name, const std::string& profile,
                 static_cast<unsigned long long>(run.station.lost),
                 static_cast<unsigned long long>(run.station.stale),
                 static_cast<unsigned long long>(run.station.late),
-                static_cast<unsigned long long>(run.station.watchdog_fades));
+                static_cast<unsigned long long>(run.station.watchdog_fades), f.pops,
+                f.reference_pops, f.pop_delay_cycles);
   return line;
 }
 
@@ -189,7 +190,8 @@ int Wan(const std::vector<std::string>& args) {
   p.Option("profiles", cli::ArgParser::Kind::kString, "comma-separated relay profiles", false,
            "lan,metro,regional,continental,intercontinental,bad-wifi")
       .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
-              "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist")
+              "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist; also "
+              "needle-vessel (its pops: pop_delay_ms)")
       .Option("methods", cli::ArgParser::Kind::kString,
               "server, linear, model; +tdpa: with the network (two-port) passivity control; the "
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
@@ -232,7 +234,8 @@ int Wan(const std::vector<std::string>& args) {
   std::ofstream csv(out / "wan.csv");
   csv << "scene,profile,method,run,rtt_ms,rms_error_pct,onset_delay_ms,onset_extra_mm,"
          "stiffness_pct,energy_to_hand_mj,energy_excess_mj,oscillation_n,peak_force_n,phantom_n,"
-         "up_hz,down_hz,score,server_peak_n,lost,stale,late,watchdog_fades\n";
+         "up_hz,down_hz,score,server_peak_n,lost,stale,late,watchdog_fades,pops,reference_pops,"
+         "pop_delay_ms\n";
   const relay::Profile none = *relay::ProfileByName("none");
   std::map<std::string, std::vector<std::string>> trace_files;  // scene/method → files
   for (const auto& scene_name : p.List("scenes")) {

@@ -181,6 +181,7 @@ struct StationChannel::Impl {
   uint64_t jitter_n = 0;
   std::atomic<uint64_t> moved_notices{0};  // answers saying the session moved (not forces)
   std::atomic<uint64_t> marks{0};          // answers saying a palpation's mark was placed
+  std::atomic<uint64_t> needle_pops{0}, needle_corrections{0};  // the device thread's needle
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
       newest_answered{0}, scene_chunks{0};
   uint64_t last_frame_sequence = 0;
@@ -339,12 +340,14 @@ struct StationChannel::Impl {
                     o.heartbeat_s, o.deadband_contact_heartbeat_s}),
           tissue(1.0 / o.rate_hz),
           surface(o.surface, 1.0 / o.rate_hz),
+          needle(o.needle, 1.0 / o.rate_hz),
           // Always observing; controlling only when asked.
           passivity(o.passivity ? o.max_damping : 0.0, 1e-4, o.passivity_mode) {}
     haptics::SafetyFilter safety;
     Deadband deadband;
     TissueContact tissue;
     haptics::SurfaceContact surface;
+    haptics::NeedleContact needle;
     PassivityController passivity;
     uint64_t sequence = 0;
     bool fading = false;
@@ -395,6 +398,16 @@ struct StationChannel::Impl {
       held = false;
       v.surface.Yield();
       return answer.local.ForceAt(s.position);
+    }
+    // A needle: the station's own needle model, the answers correcting its course.
+    if (v.needle.active()) {
+      held = true;
+      v.needle.Answer(answer.local, l.message.echo_sequence);
+      const Vec3 axis = -(s.orientation.normalized() * Vec3::UnitZ());
+      f = v.needle.Render(s.position, axis, v.sequence + 1);
+      needle_pops.store(v.needle.local_pops(), std::memory_order_relaxed);
+      needle_corrections.store(v.needle.corrections(), std::memory_order_relaxed);
+      return f;
     }
     // The server's contact or grasp is the tissue as it is; a free answer is a round trip old,
     // and the station's own surface (when it has one) says where the tissue begins now.
@@ -635,6 +648,8 @@ StationStats StationChannel::stats() const {
   s.watchdog_fades = impl_->fades.load();
   s.scene_chunks = impl_->scene_chunks.load();
   s.marks = impl_->marks.load();
+  s.needle_local_pops = impl_->needle_pops.load();
+  s.needle_corrections = impl_->needle_corrections.load();
   s.passivity_energy_dissipated = impl_->dissipated.load();
   s.max_force = impl_->max_force.load();
   s.loop_iterations = impl_->loop_iterations.load();

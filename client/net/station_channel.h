@@ -25,6 +25,7 @@
 #include "client/net/passivity.h"
 #include "common/core/clock.h"
 #include "common/core/expected.h"
+#include "common/haptics/needle_contact.h"
 #include "common/haptics/tissue_surface.h"
 #include "proto/wire/datagram.h"
 #include "proto/wire/messages.h"
@@ -105,6 +106,11 @@ struct StationOptions {
   // station's own position, so a contact begins where and when the tip crosses the surface,
   // however long the round trip. Null: the surface ahead comes with the answers only.
   std::shared_ptr<const haptics::TissueSurface> surface;
+  // A needle scene's tissue, from the join (haptics/needle.h): with kModel the station renders
+  // the needle with its own model from its own tip, the answers correcting its tract and
+  // punctures (haptics/needle_contact.h), so a layer's pop is felt on time at any delay. Null: not
+  // a needle scene.
+  std::shared_ptr<const haptics::NeedleTissueSpec> needle;
   // The station clock (sample times, round trips, the watchdog and its fade); null: the steady
   // clock. The device loop itself is paced by real time at rate_hz whatever this clock says.
   const Clock* clock = nullptr;
@@ -125,8 +131,11 @@ struct StationStats {
   // Times the force was faded for want of answers: the watchdog began to fade it, or the
   // channel was stopped while its server was silent (a held model faded by Stop).
   uint64_t watchdog_fades = 0;
-  uint64_t scene_chunks = 0;               // SceneFrame datagrams received
-  uint64_t marks = 0;                      // a palpation's marks the server placed
+  uint64_t scene_chunks = 0;  // SceneFrame datagrams received
+  uint64_t marks = 0;         // a palpation's marks the server placed
+  // A needle scene: pops the station rendered from its own model before the server's answers
+  // said so, and times it took the server's word over its own (haptics/needle_contact.h).
+  uint64_t needle_local_pops = 0, needle_corrections = 0;
   double passivity_energy_dissipated = 0;  // J the controller removed
   // The passivity observer's record of the force held over each servo interval against that
   // interval's motion: positive work on the hand, and work the hand put in (J). Their difference

@@ -204,6 +204,18 @@ std::shared_ptr<const haptics::TissueSurface> Station::StationSurfaceOf(
   return nullptr;
 }
 
+// A needle scene's tissue from the server (null when it sent none, or one that does not read:
+// the station then renders the answers' force, a round trip late, and says so).
+std::shared_ptr<const haptics::NeedleTissueSpec> Station::StationNeedleOf(
+    const v1::CreateSessionResponse& created) {
+  if (!created.has_needle()) return nullptr;
+  auto needle = convert::FromProto(created.needle());
+  if (needle.ok()) return *needle;
+  std::lock_guard lock(mutex_);
+  status_.last_error = "the server's needle tissue was refused: " + needle.error().message;
+  return nullptr;
+}
+
 Expected<v1::CreateSessionResponse> Station::OpenSession(bool join) {
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::CreateSessionResponse created;
@@ -282,6 +294,7 @@ Status Station::Connect() {
   options.model_hold_s = config_.model_hold_s;
   options.force_limit_n = config_.force_limit_n;
   options.surface = StationSurfaceOf(created);
+  options.needle = StationNeedleOf(created);
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
   channel_options_ = options;

@@ -189,6 +189,8 @@ class Station {
   Expected<v1::Session> LeaveAsInstructor();
   std::shared_ptr<const haptics::TissueSurface> StationSurfaceOf(
       const v1::CreateSessionResponse& created);
+  std::shared_ptr<const haptics::NeedleTissueSpec> StationNeedleOf(
+      const v1::CreateSessionResponse& created);
   void Probe(double now);
   // The session is live: when it now runs at another UDP address, a channel there. True: moved.
   Expected<bool> Follow();

@@ -166,6 +166,12 @@ class Simulation final : private DeformationPool::Member {
   // of the tool before the server's answers say it (haptics/tissue_surface.h); a station gets it
   // with its join. Null when the scene has no surface ahead (lookahead 0).
   std::shared_ptr<const haptics::TissueSurface> station_surface() const { return station_surface_; }
+  // Any thread: a needle scene's tissue, as a station renders the needle with its own model
+  // (haptics/needle.h); null for other scenes. A station gets it with its join.
+  std::shared_ptr<const haptics::NeedleTissueSpec> station_needle() const {
+    return needle_.model ? std::make_shared<const haptics::NeedleTissueSpec>(needle_.model->spec())
+                         : nullptr;
+  }
   // The haptic thread's trial clock (s since the first sample; see kMaxClockStepS) and how many
   // samples jumped. Not concurrently with OnStylus.
   double trial_time() const { return trial_time_; }

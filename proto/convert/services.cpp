@@ -228,4 +228,71 @@ Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::Stat
   return haptics::TissueSurface::Create(std::move(spec));
 }
 
+namespace {
+
+void PutLaw(const haptics::PunctureLaw& l, v1::StationNeedle::Law* out) {
+  out->set_a1(l.a1), out->set_a2(l.a2), out->set_puncture(l.puncture);
+}
+
+haptics::PunctureLaw GetLaw(const v1::StationNeedle::Law& l) {
+  return {l.a1(), l.a2(), l.puncture()};
+}
+
+void PutVec(const Eigen::Vector3d& v, v1::Vec3* out) {
+  out->set_x(v.x()), out->set_y(v.y()), out->set_z(v.z());
+}
+
+Eigen::Vector3d GetVec(const v1::Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
+}  // namespace
+
+void ToProto(const haptics::NeedleTissueSpec& s, v1::StationNeedle* out) {
+  out->set_surface_z(s.surface_z), out->set_centre_x(s.centre_x), out->set_centre_y(s.centre_y);
+  out->set_half_x(s.half_x), out->set_half_y(s.half_y);
+  for (const haptics::NeedleLayer& l : s.layers) {
+    v1::StationNeedle::Layer* w = out->add_layers();
+    w->set_name(l.name), w->set_thickness(l.thickness);
+    PutLaw(l.top, w->mutable_top());
+    w->set_friction_static(l.friction_static), w->set_friction_sliding(l.friction_sliding);
+    w->set_friction_viscous(l.friction_viscous), w->set_cutting(l.cutting);
+    w->set_lateral_stiffness(l.lateral_stiffness);
+  }
+  out->set_has_target(s.has_target);
+  out->set_target_kind(static_cast<uint32_t>(s.target.kind));
+  out->set_target_name(s.target.name);
+  PutVec(s.target.centre, out->mutable_target_centre());
+  PutVec(s.target.axis, out->mutable_target_axis());
+  out->set_target_radius(s.target.radius);
+  PutLaw(s.target.wall, out->mutable_target_wall());
+  out->set_velocity_deadzone(s.velocity_deadzone);
+  out->set_stick_stiffness(s.stick_stiffness);
+  out->set_max_entry_angle(s.max_entry_angle);
+}
+
+Expected<std::shared_ptr<const haptics::NeedleTissueSpec>> FromProto(const v1::StationNeedle& s) {
+  if (s.layers_size() > haptics::kMaxNeedleLayers || s.target_kind() > 1)
+    return InvalidArgument("needle", "the needle's tissue is larger than a station takes");
+  haptics::NeedleTissueSpec spec;
+  spec.surface_z = s.surface_z(), spec.centre_x = s.centre_x(), spec.centre_y = s.centre_y();
+  spec.half_x = s.half_x(), spec.half_y = s.half_y();
+  for (const v1::StationNeedle::Layer& w : s.layers())
+    spec.layers.push_back({w.name().substr(0, 64), w.thickness(), GetLaw(w.top()),
+                           w.friction_static(), w.friction_sliding(), w.friction_viscous(),
+                           w.cutting(), w.lateral_stiffness()});
+  spec.has_target = s.has_target();
+  spec.target.kind = static_cast<haptics::NeedleTarget::Kind>(s.target_kind());
+  spec.target.name = s.target_name().substr(0, 64);
+  spec.target.centre = GetVec(s.target_centre());
+  spec.target.axis = GetVec(s.target_axis());
+  spec.target.radius = s.target_radius();
+  spec.target.wall = GetLaw(s.target_wall());
+  spec.velocity_deadzone = s.velocity_deadzone();
+  spec.stick_stiffness = s.stick_stiffness();
+  spec.max_entry_angle = s.max_entry_angle();
+  if (Status st = haptics::CheckNeedleTissue(spec); !st.ok()) return st.error();
+  return std::make_shared<const haptics::NeedleTissueSpec>(std::move(spec));
+}
+
 }  // namespace vsurg::convert

@@ -8,6 +8,7 @@
 
 #include "common/core/expected.h"
 #include "common/core/session_state.h"
+#include "common/haptics/needle.h"
 #include "common/haptics/tissue_surface.h"
 #include "common/scoring/metrics.h"
 #include "common/scoring/trial_metrics.h"
@@ -39,6 +40,10 @@ sim::SessionTelemetry FromProto(const v1::Telemetry& t);
 // as TissueSurface::Create does (bounds, indices, finite values): a refusal, never a surface
 // that would render without bound.
 void ToProto(const haptics::TissueSurface& s, v1::StationSurface* out);
+// A needle scene's tissue, both ways; from the wire checked as a scene's is
+// (haptics::CheckNeedleTissue): a refusal, never a model that renders out of its ranges.
+void ToProto(const haptics::NeedleTissueSpec& s, v1::StationNeedle* out);
+Expected<std::shared_ptr<const haptics::NeedleTissueSpec>> FromProto(const v1::StationNeedle& s);
 Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::StationSurface& s);
 
 }  // namespace vsurg::convert

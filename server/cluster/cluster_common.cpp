@@ -338,6 +338,10 @@ CreatedSession FromProto(const v1::NodeSession& s) {
     auto surface = convert::FromProto(s.surface());
     if (surface.ok()) c.surface = *surface;
   }
+  if (s.has_needle()) {  // likewise: a needle model the station would refuse is left out
+    auto needle = convert::FromProto(s.needle());
+    if (needle.ok()) c.needle = *needle;
+  }
   return c;
 }
 
@@ -347,6 +351,7 @@ void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out) {
   out->set_udp_port(c.udp_port);
   if (with_key) out->set_session_key(std::string(c.key.begin(), c.key.end()));
   if (c.surface) convert::ToProto(*c.surface, out->mutable_surface());
+  if (c.needle) convert::ToProto(*c.needle, out->mutable_needle());
 }
 
 }  // namespace vsurg::server::cluster

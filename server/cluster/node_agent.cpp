@@ -305,7 +305,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     auto c = sessions.Join(req->id(), req->with_surface());
     if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
-    if (!req->with_surface()) c->surface.reset();
+    if (!req->with_surface()) c->surface.reset(), c->needle.reset();
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }
@@ -352,7 +352,7 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
          {"ms", std::chrono::duration_cast<std::chrono::milliseconds>(
                     std::chrono::steady_clock::now() - t0)
                     .count()}});
-    c->surface.reset();  // the station has it from its join
+    c->surface.reset(), c->needle.reset();  // the station has them from its join
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }

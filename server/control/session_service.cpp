@@ -32,7 +32,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     return Unary(d_, pool_, ctx, Method::kSessionJoin, [=, this](const db::Principal& p) -> Status {
       auto joined = JoinSession(d_, p, req->id(), req->with_surface());
       if (!joined.ok()) return joined.error();
-      if (!req->with_surface()) joined->surface.reset();
+      if (!req->with_surface()) joined->surface.reset(), joined->needle.reset();
       Credentials(*joined, resp);
       return Status::Ok();
     });
@@ -155,6 +155,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     resp->set_udp_port(c.udp_port);
     resp->set_session_key(std::string(c.key.begin(), c.key.end()));
     if (c.surface) convert::ToProto(*c.surface, resp->mutable_surface());
+    if (c.needle) convert::ToProto(*c.needle, resp->mutable_needle());
     resp->set_channel(c.channel);
   }
   static Status Answer(const Expected<SessionView>& v, v1::Session* resp) {

@@ -164,6 +164,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
   out.surface = (*simulation)->station_surface();
+  out.needle = (*simulation)->station_needle();
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
   live->trace.SetRest(live->simulation->rest_mesh());
@@ -454,6 +455,7 @@ Expected<CreatedSession> SessionManager::Join(uint64_t id, bool /*with_surface: 
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
   out.surface = it->second->simulation->station_surface();
+  out.needle = it->second->simulation->station_needle();
   return out;
 }
 

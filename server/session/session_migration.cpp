@@ -266,6 +266,7 @@ Expected<CreatedSession> SessionManager::Adopt(const SessionHandoff& h,
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
   out.surface = live->simulation->station_surface();
+  out.needle = live->simulation->station_needle();
   // Served before it is listed: nothing here can end it before it is in the endpoint.
   if (started && endpoint_)
     endpoint_->AddSession(static_cast<uint64_t>(h.id), live->key, live->simulation.get(),

@@ -27,6 +27,8 @@ struct CreatedSession {
   uint16_t udp_port = 0;
   // The tissue's surface and contact law the station renders ahead of its tool (null: none).
   std::shared_ptr<const haptics::TissueSurface> surface;
+  // A needle scene's tissue for the station's own needle model (null: not a needle scene).
+  std::shared_ptr<const haptics::NeedleTissueSpec> needle;
   // The wire id the station's datagrams carry: the session's, or an instructor's channel into it
   // (server/net/udp_endpoint.h InstructorChannel). 0: the session's id.
   uint64_t channel = 0;

@@ -396,5 +396,40 @@ TEST_F(WanTest, TheTissuesOwnContactModelIsSafeAcrossTheNetworkWhateverTheLoad) 
   }
 }
 
+// A needle across an ocean: the good trainee's insertion into the vein through the relay at 150
+// ± 10 ms each way. With the tissue from its join the station runs the needle's model from its
+// own tip, so each boundary's pop is felt when the hand's force crosses its puncture force, as
+// in the run without delay; with the answers alone each pop arrives a round trip late, after the
+// hand has pushed on through the layer's give.
+TEST_F(WanTest, ANeedlesPopsAreFeltOnTimeAtIntercontinental) {
+  RunOptions o;
+  OptionsFor("needle-vessel", o);
+  o.profile = *relay::ProfileByName("none");
+  auto ref = RunOnce(o);
+  ASSERT_TRUE(ref.ok()) << ref.error().message;
+  o.profile = *relay::ProfileByName("intercontinental");
+  auto with = RunOnce(o);
+  o.station_surface = false;
+  auto without = RunOnce(o);
+  ASSERT_TRUE(with.ok() && without.ok());
+  const Figures f = Compare(*with, *ref, false), late = Compare(*without, *ref, false);
+  std::printf(
+      "pops %d (reference %d), the latest %.0f cycles off (answers alone: %d pops, %.0f cycles); "
+      "error %.1f%% (%.1f%%), peak %.2f N, station pops %llu, corrections %llu\n",
+      f.pops, f.reference_pops, f.pop_delay_cycles, late.pops, late.pop_delay_cycles,
+      f.rms_error_pct, late.rms_error_pct, f.peak_force_n,
+      static_cast<unsigned long long>(with->station.needle_local_pops),
+      static_cast<unsigned long long>(with->station.needle_corrections));
+  EXPECT_LE(f.peak_force_n, options_->scene.haptics.limits.max_force + 1e-9);
+  // Skin, the fascia, the vein's wall (the fat's follows the skin's within a few cycles).
+  EXPECT_GE(f.reference_pops, 3);
+  EXPECT_EQ(f.pops, f.reference_pops);
+  EXPECT_GE(with->station.needle_local_pops, 3u);
+  EXPECT_LT(f.energy_excess_mj, 1.0);
+  if (!kFiguresMeaningful) return;
+  EXPECT_LE(f.pop_delay_cycles, 5);
+  EXPECT_GT(late.pop_delay_cycles, 100) << "the answers alone came in time: no case shown";
+}
+
 }  // namespace
 }  // namespace vsurg::bench::wan
