@@ -4,7 +4,7 @@
 # llvmpipe here) while its haptic loop runs at 1 kHz, server and station on the same machine.
 # Prints per scene and quality level the frame time (draw and finish, ms: p50, p99), the frames
 # drawn, and the device loop's rate (over the run; its slowest and fastest whole second), all from
-# the same run; with SHOTS=DIR writes DIR/<scene>.png (3.5 s in) and DIR/<scene>-summary.png.
+# the same run; with SHOTS=DIR writes DIR/<scene>.png (AT s in, 3.5 by default) and DIR/<scene>-summary.png.
 # BASE_BIN=DIR adds a row per scene for another build's vsurg-station (the previous renderer:
 # a worktree of an older commit built outside the repository), against the same server; at
 # each of BASE_QUALITIES (its default level when unset).
@@ -35,7 +35,7 @@ for scene in $SCENES; do
   for q in $QUALITIES; do
     shots=()
     if [ -n "${SHOTS:-}" ] && [ "$q" = "$(echo $QUALITIES | cut -d' ' -f1)" ]; then
-      shots=(--screenshot "$SHOTS/$scene.png" --screenshot-at 3.5 --screenshot-summary "$SHOTS/$scene-summary.png")
+      shots=(--screenshot "$SHOTS/$scene.png" --screenshot-at ${AT:-3.5} --screenshot-summary "$SHOTS/$scene-summary.png")
     fi
     $B/vsurg-station --server 127.0.0.1:$PORT --token-file t.tok --scene $scene --trajectory $scene.csv \
         --headless --width ${WIDTH:-1280} --height ${HEIGHT:-720} --quality $q "${shots[@]}" --json 2>/dev/null \

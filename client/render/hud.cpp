@@ -91,6 +91,15 @@ void TrialGauges(const Guidance& g, float gauge_w) {
                                                                  : kGood;
   Gauge("Force", Printf("%.2f N  (safe below %.1f N)", g.force_n, g.force_limit_n), g.force_n,
         full_force, 0, g.force_limit_n, g.force_limit_n, force_colour, gauge_w);
+  if (g.needle) {  // how deep the tip is on its tract; where the target lies is the question
+    Gauge("Needle depth", Printf("%.1f mm along the needle", g.current * 1e3), g.current, 0.06, 0,
+          0, 0.06, kGood, gauge_w);
+    ImGui::Text("Layers punctured: %d", g.passed);
+    ImGui::TextUnformatted(g.marks > 0 ? "Confirmed in the target"
+                                       : "M or button 2: confirm the tip is in the target");
+    ImGui::TextUnformatted("Enter: done");
+    return;
+  }
   if (g.palpate) {  // where the lumps are is the question: nothing here gives it away
     ImGui::Text("Lumps marked: %d", g.marks);
     ImGui::TextUnformatted("M or button 2: mark a lump");

@@ -17,6 +17,10 @@ struct Guidance {
   bool show = false;
   bool twist = true;     // a twist task (angles in rad) or a press task (depths in m)
   bool palpate = false;  // a palpation: no target, the marks placed so far instead
+  // A needle insertion: `current` is the tip's depth along its tract (m), `passed` the
+  // boundaries its tract has punctured; `marks` the confirmations the server took.
+  bool needle = false;
+  int passed = 0;
   int marks = 0;
   double target = 0, tolerance = 0, current = 0;
   double held_s = 0, hold_s = 0;  // within tolerance so far, and as long as the task asks

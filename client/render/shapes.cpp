@@ -122,6 +122,19 @@ InstrumentParts MakeInstrument(sim::Instrument kind) {
       AddCylinder(parts.handle, 0.0025f, 0.0070f, 0.14f, 0.15f, kSides);
       AddCylinder(parts.handle, 0.0070f, 0.0065f, 0.15f, 0.21f, kSides);
       break;
+    case sim::Instrument::kNeedle:
+      // An 18-gauge needle (1.27 mm across) with its bevelled point, 70 mm long with a depth
+      // mark every centimetre (the handle's dark rings), on a hub and a 5 ml syringe.
+      AddCylinder(parts.steel, 0.0f, 0.00064f, 0.0f, 0.003f, kSides);
+      for (int cm = 0; cm < 7; ++cm) {
+        const float z0 = 0.003f + 0.01f * static_cast<float>(cm);
+        AddCylinder(parts.steel, 0.00064f, 0.00064f, z0, z0 + 0.0093f, kSides);
+        AddCylinder(parts.handle, 0.00068f, 0.00068f, z0 + 0.0093f, z0 + 0.01f, kSides);
+      }
+      AddCylinder(parts.handle, 0.0012f, 0.0035f, 0.073f, 0.085f, kSides);
+      AddCylinder(parts.handle, 0.0070f, 0.0070f, 0.085f, 0.145f, kSides);
+      AddCylinder(parts.handle, 0.0110f, 0.0110f, 0.145f, 0.148f, kSides);
+      break;
     case sim::Instrument::kGrip:
       // A twisting grip: two broad padded jaws that close on the wrist, a shaft and a T-bar.
       parts.has_jaws = true;

@@ -74,6 +74,12 @@ client::Guidance Guidance(const vsurg::sim::Scene& scene, const client::StationV
   g.tolerance = scene.task.tolerance;
   g.hold_s = scene.task.hold_s;
   g.current = g.twist ? shown.command.twist : 0;
+  g.needle = scene.task.kind == vsurg::scoring::TaskKind::kInsert;
+  if (const auto& n = shown.command.local.needle;
+      g.needle && n.phase != vsurg::haptics::NeedleState::Phase::kFree) {
+    g.current = std::max(0.0, (shown.sample.position - n.entry).dot(n.direction));
+    g.passed = static_cast<int>(n.passed);
+  }
   g.force_n = shown.force.norm();
   g.force_limit_n = scene.task.force_limit;
   g.device_limit_n = scene.haptics.limits.max_force;
@@ -374,6 +380,7 @@ struct Trial {
   client::StationStats hud_stats;  // the HUD's figures, refreshed twice a second
   client::StationView shown;
   double held_s = 0, last_frame_at = 0;  // the task's quantity within tolerance, so far
+  double confirmed_at = -1;              // a needle's confirmation, live time
   std::vector<double> draw_ms;           // per frame: draw and finish, ms
   // An instructor's station: the mode's switches (scripted and from the keys).
   std::optional<client::InstructorControls> controls;
@@ -421,7 +428,8 @@ struct Trial {
   void Gauges(client::Overlay& overlay, double tick) {
     overlay.guidance = Guidance(scene, shown, hud_stats, live_now);
     client::Guidance& g = overlay.guidance;
-    if (!g.twist && !g.palpate) g.current = PressDepth(*screen.rest_bvh, *screen.rest, shown);
+    if (!g.twist && !g.palpate && !g.needle)
+      g.current = PressDepth(*screen.rest_bvh, *screen.rest, shown);
     const bool within =
         std::abs(std::abs(g.current) - g.target) <= g.tolerance && g.force_n <= g.force_limit_n;
     held_s = within ? held_s + (tick - last_frame_at) : 0;
@@ -438,15 +446,20 @@ struct Trial {
     overlay.contact = shown.command.contact;
     overlay.grasping = shown.command.grasping;
     const bool palpate = scene.task.kind == vsurg::scoring::TaskKind::kPalpate;
+    const bool needle = scene.task.kind == vsurg::scoring::TaskKind::kInsert;
     overlay.hud = {"vsurg station  " + scene.name + "  session " + std::to_string(session),
                    sim::LinkStatus(rate_hz, s.rtt_p50_us, s.loss),
-                   palpate ? "force " + Fixed(shown.force.norm(), 2) + " N   lumps marked " +
-                                 std::to_string(s.marks)
-                           : "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) +
-                                 " deg   force " + Fixed(shown.force.norm(), 2) + " N",
-                   // A palpation's score tells whether the marks found the lumps: at the end.
-                   palpate ? std::string("search the tissue; the score comes at the end")
-                           : "score " + Fixed(shown.command.score, 1) + " / 10"};
+                   needle ? "needle depth " + Fixed(overlay.guidance.current * 1e3, 1) +
+                                " mm   force " + Fixed(shown.force.norm(), 2) + " N"
+                   : palpate ? "force " + Fixed(shown.force.norm(), 2) + " N   lumps marked " +
+                                   std::to_string(s.marks)
+                             : "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) +
+                                   " deg   force " + Fixed(shown.force.norm(), 2) + " N",
+                   // A palpation's score tells whether the marks found the lumps, a needle's
+                   // whether the tip is where it should be: at the end.
+                   palpate  ? std::string("search the tissue; the score comes at the end")
+                   : needle ? std::string("place the needle; the score comes at the end")
+                            : "score " + Fixed(shown.command.score, 1) + " / 10"};
     // The trainee sees an instructor in the session, and how (the answers carry the mode and α).
     if (!controls && shown.command.guide_mode != 0)
       overlay.hud.push_back(shown.command.guide_mode == 1
@@ -504,10 +517,15 @@ struct Trial {
     if (live && played_out() && replay_done_at < 0) replay_done_at = live_now;
     const double duration = p.Double("duration");
     if (g_interrupted || screen.gl->ShouldClose() || screen.gl->Input().finish) return true;
-    // A palpation's search ends at its time limit (the trainee may end it sooner: Enter).
-    if (live && scene.task.kind == vsurg::scoring::TaskKind::kPalpate &&
-        live_now >= scene.task.time_limit)
-      return true;
+    // A palpation's search ends at its time limit (the trainee may end it sooner: Enter); so
+    // does a needle insertion, which also ends a second after its tip was confirmed in place.
+    const bool searches = scene.task.kind == vsurg::scoring::TaskKind::kPalpate ||
+                          scene.task.kind == vsurg::scoring::TaskKind::kInsert;
+    if (live && searches && live_now >= scene.task.time_limit) return true;
+    if (live && scene.task.kind == vsurg::scoring::TaskKind::kInsert && hud_stats.marks > 0) {
+      if (confirmed_at < 0) confirmed_at = live_now;
+      if (live_now - confirmed_at >= 1.0) return ended_by_replay = true;
+    }
     if (duration > 0 && live && live_now >= duration) return true;
     if (duration <= 0 && replay_done_at >= 0 && live_now - replay_done_at >= p.Double("settle"))
       return ended_by_replay = true;

@@ -67,6 +67,13 @@ ScoreParts NeedleScoreParts(const TrialMetrics& m, const TaskSpec& task) {
 
 std::vector<std::string> ExplainNeedle(const TrialMetrics& m, const TaskSpec& task) {
   std::vector<std::string> out;
+  // What happened first, whatever it cost: where the tip went and what it passed through.
+  out.push_back(m.completed ? FigureText("Placed %.1f mm from the target's middle, %.0f "
+                                         "puncture(s)",
+                                         1e3 * m.depth_error, m.punctures)
+                            : FigureText("Not confirmed in the target; the tip came within "
+                                         "%.1f mm of its middle, %.0f puncture(s)",
+                                         1e3 * m.depth_error, m.punctures));
   if (m.back_wall_breaches > 0)
     out.push_back(FigureText("The needle passed through the target's back wall (%.0f time(s))",
                              m.back_wall_breaches));

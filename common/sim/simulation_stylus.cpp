@@ -322,7 +322,11 @@ void Simulation::PublishTelemetry(const StylusSample& s, const ForceCommand& cmd
   t.metrics = Metrics();
   // A palpation's score says whether the marks found the lumps: the trainee sees it only when
   // the search is over (the instructor's telemetry has it all along).
-  live_score_ = scene_.task.kind == scoring::TaskKind::kPalpate ? 0.0 : t.metrics.score;
+  // So does a needle's, whether its tip is in the target.
+  live_score_ = scene_.task.kind == scoring::TaskKind::kPalpate ||
+                        scene_.task.kind == scoring::TaskKind::kInsert
+                    ? 0.0
+                    : t.metrics.score;
   telemetry_.Publish();
 }
 

@@ -16,6 +16,8 @@ const char* InstrumentName(Instrument i) {
       return "grasper";
     case Instrument::kGrip:
       return "grip";
+    case Instrument::kNeedle:
+      return "needle";
   }
   return "probe";
 }
@@ -68,7 +70,10 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     hi = hi.cwiseMax(q);
   }
   v.table_height = lowest;
-  if (scene.task.kind == scoring::TaskKind::kPress) {
+  if (scene.task.kind == scoring::TaskKind::kInsert) {
+    v.instrument = Instrument::kNeedle;
+  } else if (scene.task.kind == scoring::TaskKind::kPress ||
+             scene.task.kind == scoring::TaskKind::kPalpate) {
     v.instrument = Instrument::kProbe;
   } else if (limb) {
     v.instrument = Instrument::kGrip;

@@ -16,8 +16,9 @@
 namespace vsurg::sim {
 
 // The instrument: a blunt probe for palpation (press tasks), a grasper whose jaws close with
-// the button for a twist anywhere on a surface (forceps), a grip for twisting a limb.
-enum class Instrument { kProbe, kGrasper, kGrip };
+// the button for a twist anywhere on a surface (forceps), a grip for twisting a limb, a needle
+// on a syringe for a needle insertion.
+enum class Instrument { kProbe, kGrasper, kGrip, kNeedle };
 const char* InstrumentName(Instrument i);
 
 struct VisualModel {
