@@ -323,6 +323,15 @@ bool NeedleModel::TargetOnTract(double& middle, double& deviation, int& needed) 
   return true;
 }
 
+std::vector<NeedleState> NeedleModel::Tracts() const {
+  std::vector<NeedleState> out(memory_.begin(), memory_.begin() + memory_count_);
+  const bool current = state_.phase == NeedleState::Phase::kInserted &&
+                       std::none_of(out.begin(), out.end(),
+                                    [&](const NeedleState& m) { return m.tract == state_.tract; });
+  if (current) out.push_back(state_);
+  return out;
+}
+
 void NeedleModel::Remember() {
   NeedleState m = state_;
   m.phase = NeedleState::Phase::kInserted;

@@ -152,6 +152,9 @@ class NeedleModel {
   // boundaries before `middle` (what the tract must puncture to reach it). False when there is
   // no target or no tract.
   bool TargetOnTract(double& middle, double& deviation, int& needed) const;
+  // The tracts left in the tissue so far (set-up and reports, not the haptic path): the ones
+  // remembered and the current one, oldest first.
+  std::vector<NeedleState> Tracts() const;
   // Punctures so far (every boundary given way, reinsertions along a tract not counted again).
   uint32_t punctures() const { return punctures_; }
 

@@ -307,7 +307,10 @@ void Simulation::PublishTelemetry(const StylusSample& s, const ForceCommand& cmd
   t.tip = s.position;
   t.twist = cmd.twist;
   t.torque = cmd.torque;
-  t.depth = scene_.task.kind == scoring::TaskKind::kPress ? quantity : 0;
+  t.depth = scene_.task.kind == scoring::TaskKind::kPress ||
+                    scene_.task.kind == scoring::TaskKind::kInsert
+                ? quantity  // a press's depth, a needle's along its tract
+                : 0;
   t.contact = cmd.contact;
   t.grasping = cmd.grasping;
   t.samples = samples_;

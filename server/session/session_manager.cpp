@@ -378,6 +378,8 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
   metrics.link = LinkFiguresOf(live->link);
   if (live->simulation->scene().task.kind == scoring::TaskKind::kPalpate)
     live->trace.SetPalpation(live->simulation->palpation());
+  if (const haptics::NeedleModel* needle = live->simulation->needle())
+    live->trace.SetNeedle(*needle);
   live->simulation.reset();
   std::string trace = live->trace.samples() > 0 ? live->trace.Json() : std::string();
   // The state, the trial and its record in one transaction, under the session's epoch

@@ -104,6 +104,28 @@ void TraceRecorder::SetPalpation(const scoring::PalpationRecorder& palpation) {
   palpation_ = nlohmann::json{{"lumps", std::move(lumps)}, {"marks", std::move(marks)}}.dump();
 }
 
+void TraceRecorder::SetNeedle(const haptics::NeedleModel& needle) {
+  const auto mm = [](const Eigen::Vector3d& p) {
+    return nlohmann::json::array(
+        {Round(p.x() * 1e3, 2), Round(p.y() * 1e3, 2), Round(p.z() * 1e3, 2)});
+  };
+  const haptics::NeedleTissueSpec& spec = needle.spec();
+  nlohmann::json n{{"skin_z_mm", Round(spec.surface_z * 1e3, 2)}};
+  if (spec.has_target)
+    n["target"] = {
+        {"kind", spec.target.kind == haptics::NeedleTarget::Kind::kVessel ? "vessel" : "cyst"},
+        {"name", spec.target.name},
+        {"centre_mm", mm(spec.target.centre)},
+        {"radius_mm", Round(spec.target.radius * 1e3, 2)}};
+  nlohmann::json tracts = nlohmann::json::array();
+  for (const haptics::NeedleState& t : needle.Tracts())  // entry, and the deepest point cut
+    tracts.push_back({{"entry_mm", mm(t.entry)},
+                      {"deepest_mm", mm(t.entry + t.cut * t.direction)},
+                      {"punctured", t.passed}});
+  n["tracts"] = std::move(tracts);
+  needle_ = n.dump();
+}
+
 std::string TraceRecorder::Json() const {
   nlohmann::json series = nlohmann::json::object();
   const auto names = sim::TelemetryFields(sim::SessionTelemetry{});
@@ -145,6 +167,7 @@ std::string TraceRecorder::Json() const {
         {"vertices", rest_.size()},
         {"deflated", Base64(Deflate(all, 6))}}}};
   if (!palpation_.empty()) record["palpation"] = nlohmann::json::parse(palpation_);
+  if (!needle_.empty()) record["needle"] = nlohmann::json::parse(needle_);
   return record.dump();
 }
 

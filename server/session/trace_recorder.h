@@ -54,6 +54,9 @@ class TraceRecorder {
   // "radius_mm", "surface_mm"}], "marks": [{"time_s", "position_mm"}]} in the record. Set at the
   // session's end; not part of the moved state (the receiver's own simulation has it).
   void SetPalpation(const scoring::PalpationRecorder& palpation);
+  // A needle insertion's target and the tracts the needle left (the record's "needle" member):
+  // the replay draws them beside the tool's path.
+  void SetNeedle(const haptics::NeedleModel& needle);
   size_t samples() const { return samples_.size(); }
   size_t frames() const { return frames_.size(); }
   // {"series": {"time_s": [...], "force_n": [...], ...}, "rest": {"positions_mm": [...],
@@ -98,6 +101,7 @@ class TraceRecorder {
   double last_time_ = -1;
   std::vector<Frame> frames_;
   std::string palpation_;  // the "palpation" member's JSON, or empty
+  std::string needle_;     // the "needle" member's JSON, or empty
   double last_frame_time_ = -1;
   uint64_t frames_seen_ = 0, frame_stride_ = 1;
 };

@@ -565,6 +565,38 @@ def main():
         want = 1 + pm.get("lumps", 0) + pm.get("lumps_found", 0) + pm.get("false_marks", 0)
         check(drawn == want, f"at the end the replay draws the tool, every lump and every mark ({drawn} of {want})")
         shot("palpation")
+
+        # --- a needle insertion: the scripted hesitant trainee misses the vein first and enters
+        # again above it; the ended session's replay shows the vein beside both tracts ---
+        plan = os.path.join(tmp, "needle-hesitant.csv")
+        subprocess.run([f"{BIN}/vsurg-sim", "trainee", "--scene", "needle-vessel", "--style", "hesitant",
+                        "--out", plan], check=True, stdout=subprocess.DEVNULL, env=env, timeout=60)
+        needle_out = os.path.join(tmp, "station-needle.json")
+        inserted = subprocess.run(
+            [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["rory"],
+             "--scene", "needle-vessel", "--trajectory", plan, "--headless",
+             "--width", "160", "--height", "100", "--fps", "4", "--quality", "low", "--json",
+             "--realtime-priority", "0"],
+            stdout=open(needle_out, "w"), stderr=open(os.path.join(tmp, "station-needle.log"), "w"),
+            env=env, timeout=600)
+        check(inserted.returncode == 0, "the scripted insertion ran to its end at the station")
+        needle = json.load(open(needle_out))
+        nm = needle.get("metrics", {})
+        check(nm.get("punctures", 0) >= 4 and nm.get("extra_punctures", 0) >= 3,
+              f"the insertion is scored as one: {nm.get('punctures')} punctures, "
+              f"{nm.get('extra_punctures')} beyond the path's own, depth error "
+              f"{1e3 * nm.get('depth_error', 0):.1f} mm")
+        driver.get(f"{base}/session/{needle['session']}")
+        wait.until(lambda d: d.find_elements(By.ID, "timeline"))
+        check("Back-wall breaches" in driver.find_element(By.ID, "results").text,
+              "the session's metrics say what the needle did")
+        check(driver.find_elements(By.ID, "needle-legend"), "the replay says what its markers are")
+        drawn = driver.execute_script(
+            "const s = document.getElementById('timeline'); s.value = s.max;"
+            "s.dispatchEvent(new Event('input'));"
+            "return Number(document.getElementById('view3d').dataset.tools);")
+        check(drawn == 1 + 1 + 2 * 2, f"the replay draws the tool, the vein and both tracts' ends ({drawn} of 6)")
+        shot("needle")
     finally:
         if sys.exc_info()[0] is not None:  # failing: what the page itself said
             print("page at", driver.current_url, flush=True)

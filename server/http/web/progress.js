@@ -15,6 +15,9 @@ const METRICS = {
   guided_share: ['share of the trial guided', '', 2],
   lumps_missed: ['lumps missed', '', 0], false_marks: ['false marks', '', 0],
   localisation_error_m: ['localisation error', 'm', 4], coverage: ['share of the surface examined', '', 2],
+  depth_error_m: ['needle depth error', 'm', 4], path_deviation_m: ['needle path deviation', 'm', 4],
+  extra_punctures: ['punctures beyond the path\'s own', '', 0], back_wall_breaches: ['back-wall breaches', '', 0],
+  lateral_strain: ['lateral tissue strain', '', 3],
 };
 export function metricName(m) { return (METRICS[m] || [m])[0]; }
 export function metricValue(m, v) {
@@ -29,6 +32,8 @@ export function taskText(t) {
   if (!t) return '';
   if (t.kind === 'palpate')
     return `search for hidden lumps and mark them, under ${fmt(t.force_limit_n, 1)} N, within ${fmt(t.time_limit_s, 0)} s`;
+  if (t.kind === 'insert')
+    return `place a needle in the target within ${fmt(t.tolerance, 1)} mm of its middle, under ${fmt(t.force_limit_n, 1)} N, within ${fmt(t.time_limit_s, 0)} s`;
   const u = t.unit === 'deg' ? '°' : ' mm';
   return `${t.kind === 'twist' ? 'twist to' : 'press to'} ${fmt(t.target, t.unit === 'deg' ? 0 : 1)}${u} ± ${fmt(t.tolerance, 1)}${u}, ` +
     `held ${fmt(t.hold_s, 1)} s, under ${fmt(t.force_limit_n, 1)} N, within ${fmt(t.time_limit_s, 0)} s`;

@@ -8,6 +8,7 @@ import { el } from './dom.js';
 export function traceCharts(scene, live) {
   const press = scene && scene.task === 'press', span = live ? 60 : undefined;
   const palpate = scene && scene.task === 'palpate';  // a search: its force and link, no quantity
+  const needle = scene && scene.task === 'insert';  // the needle's depth along its tract
   const limit = [];
   if (scene && scene.force_limit_n) limit.push({ y: scene.force_limit_n, label: 'task force limit', colour: '#f3c13a' });
   if (scene && scene.device_max_force_n) limit.push({ y: scene.device_max_force_n, label: 'device limit', colour: '#ff6b6b' });
@@ -23,12 +24,15 @@ export function traceCharts(scene, live) {
   const specs = [
     { id: 'plot-force', key: ['force_n'], opts: { title: 'force', unit: 'N', min: 0,
       suggestedMax: (scene && scene.device_max_force_n) || 1, series: [{ label: 'force at the tool' }], lines: limit } },
-    palpate ? null : press
+    palpate ? null : needle
+      ? { id: 'plot-depth', key: ['depth_mm'], opts: { title: 'needle depth along its tract', unit: 'mm', min: 0,
+        suggestedMax: 40, series: [{ label: 'depth', colour: '#8cc8ff' }] } }
+      : press
       ? { id: 'plot-depth', key: ['depth_mm'], opts: { title: 'press depth', unit: 'mm', min: 0,
         suggestedMax: scene && scene.target ? scene.target * 1.5 : 10, series: [{ label: 'depth', colour: '#8cc8ff' }], lines: target } }
       : { id: 'plot-twist', key: ['twist_deg'], opts: { title: 'twist', unit: '°',
         suggestedMax: scene && scene.target ? scene.target * 1.5 : 45, series: [{ label: 'twist', colour: '#8cc8ff' }], lines: target } },
-    press || palpate ? null : { id: 'plot-torque', key: ['torque_nm'], scale: 1000, opts: { title: 'torque', unit: 'mN·m',
+    press || palpate || needle ? null : { id: 'plot-torque', key: ['torque_nm'], scale: 1000, opts: { title: 'torque', unit: 'mN·m',
       series: [{ label: 'torque', colour: '#5fd38a' }] } },
     { id: 'plot-rtt', key: ['rtt_us'], scale: 1e-3, opts: { title: 'round trip', unit: 'ms', min: 0,
       suggestedMax: 5, series: [{ label: 'round trip', colour: '#f3c13a' }] } },

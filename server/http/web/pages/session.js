@@ -13,7 +13,7 @@ import { traceCharts } from '../traces.js';
 
 const LIVE = ['created', 'running', 'stalled'];
 
-function metricsList(m, palpation) {
+function metricsList(m, palpation, needle) {
   if (!m) return el('p', { class: 'muted' }, 'No trial metrics recorded.');
   const rows = [
     ['Score (0–10)', fmt(m.score, 2)], ['Raw score (before caps)', fmt(m.raw_score, 2)],
@@ -24,13 +24,19 @@ function metricsList(m, palpation) {
     ['Duration (s)', fmt(m.duration, 1)],
   ];
   const caps = [m.capped_not_completed && 'not completed (at most 5)', m.capped_force_limit && 'over the force limit for more than 0.5 s (at most 4)',
-    m.capped_overload && 'tissue overloaded (at most 3)'].filter(Boolean);
+    m.capped_overload && 'tissue overloaded (at most 3)', m.capped_back_wall && 'through the target\'s back wall (at most 3)'].filter(Boolean);
   rows.push(['Score capped because', caps.length ? caps.join('; ') : 'no cap']);
   if (palpation) {  // a search for hidden lumps: what it found, where, and how much it examined
     rows.push(['Lumps found', `${m.lumps_found} of ${m.lumps}` + (m.lumps > m.lumps_found ? ` (${m.lumps - m.lumps_found} missed)` : '')],
       ['False marks (no lump there)', m.false_marks],
       ['Localisation error (mm, mean over the lumps found)', m.lumps_found ? fmt(1e3 * m.localisation_error, 1) : '—'],
       ['Share of the surface examined', `${fmt(100 * m.coverage, 0)}%`], ['Mean force in contact (N)', fmt(m.mean_force, 2)]);
+  }
+  if (needle) {  // a needle insertion: where the tip went, the aim, and what it cost the tissue
+    rows.push(['Needle depth error (mm, from the target\'s middle along the tract)', m.punctures ? fmt(1e3 * m.depth_error, 1) : '—'],
+      ['Path deviation (mm, the tract from the target\'s centre)', m.punctures ? fmt(1e3 * m.path_deviation, 1) : '—'],
+      ['Punctures', `${m.punctures}` + (m.extra_punctures ? ` (${m.extra_punctures} beyond the path's own)` : '')],
+      ['Back-wall breaches', m.back_wall_breaches], ['Lateral tissue strain (peak)', `${fmt(100 * m.lateral_strain, 1)}%`]);
   }
   // Four-handed training: how much of the trial an instructor's hand weighed in, and how much.
   rows.push(['Share of the trial guided', m.guided_share > 0 ? `${fmt(100 * m.guided_share, 0)}% at a mean α of ${fmt(m.guided_alpha, 2)}` : 'none: the trainee alone']);
@@ -77,6 +83,7 @@ const legend = () => el('p', { class: 'tool-legend muted' }, el('span', { class:
   el('span', { class: 'dot instructor' }), ' the instructor\'s hand (four-handed training)');
 const taskText = (scene) => scene.task === 'press' ? `press to ${fmt(scene.target, 0)} mm`
   : scene.task === 'palpate' ? 'search for hidden lumps and mark them'
+  : scene.task === 'insert' ? 'place a needle in the target under the skin'
     : `twist to ${fmt(scene.target, 0)}° ± ${fmt(scene.tolerance, 0)}°`;
 // An ended search's lumps (red, over the surface above each) and the trainee's marks (green, the
 // marks placed by the time shown), for the replay; during the search nobody sees the lumps.
@@ -86,6 +93,17 @@ function palpationMarkers(p, t) {
   return p.lumps.map((l) => ({ p: l.surface_mm, colour: LUMP, size: 10 + 2 * l.radius_mm }))
     .concat(p.marks.filter((k) => k.time_s <= t).map((k) => ({ p: k.position_mm, colour: MARK, size: 12 })));
 }
+// An ended insertion's target (red, at its centre, sized by it) and the tracts the needle left
+// (green: where each entered the skin; darker: the deepest point it cut).
+const TRACT = [0.15, 0.55, 0.3];
+function needleMarkers(n) {
+  if (!n) return [];
+  const out = n.target ? [{ p: n.target.centre_mm, colour: LUMP, size: 10 + 2 * n.target.radius_mm }] : [];
+  for (const t of n.tracts) out.push({ p: t.entry_mm, colour: MARK, size: 10 }, { p: t.deepest_mm, colour: TRACT, size: 8 });
+  return out;
+}
+const needleLegend = () => el('p', { class: 'tool-legend muted', id: 'needle-legend' }, el('span', { class: 'dot lump' }),
+  ' the target (at its centre, sized by it) ', el('span', { class: 'dot mark' }), ' where the needle entered the skin, and the deepest point of each tract');
 const palpationLegend = () => el('p', { class: 'tool-legend muted', id: 'palpation-legend' }, el('span', { class: 'dot lump' }),
   ' a hidden lump (over its centre, sized by it) ', el('span', { class: 'dot mark' }), ' the trainee\'s marks');
 
@@ -108,7 +126,7 @@ export async function pageSession(main) {
   const traces = traceCharts(scene, live);
   const tissue = el('div', { class: 'panel' }, el('h2', {}, live ? 'Tissue, live' : 'Tissue, replayed'), view, legend());
   const palpation = scene.task === 'palpate';
-  const results = el('div', { class: 'panel', id: 'results' }, metricsList(s.metrics, palpation));
+  const results = el('div', { class: 'panel', id: 'results' }, metricsList(s.metrics, palpation, scene.task === 'insert'));
   const feedback = el('div', { class: 'panel', id: 'feedback' });
   const evidence = el('div', { class: 'evidence' }, tissue, el('div', { class: 'panel' }, el('h2', {}, 'Traces'), traces.panel));
   const stop = el('button', { class: 'danger', id: 'stop' }, 'Stop session');
@@ -154,10 +172,11 @@ export async function pageSession(main) {
     if (record && record.frames) {
       const replay = await Replay.load(record, view3d, (t) => {
         traces.cursor(t);
-        if (view3d) view3d.tools = toolsOf(seriesAt(record.series, t)).concat(palpationMarkers(record.palpation, t));
+        if (view3d) view3d.tools = toolsOf(seriesAt(record.series, t)).concat(palpationMarkers(record.palpation, t), needleMarkers(record.needle));
       });
       tissue.append(replay.controls);
       if (record.palpation) tissue.append(palpationLegend());
+      if (record.needle) tissue.append(needleLegend());
     }
     return;
   }
@@ -187,6 +206,7 @@ function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, s
     figures.replaceChildren(...[['State', stateBadge(t.state)],
       ['Force (N)', el('span', { class: atLimit ? 'flag' : '' }, fmt(t.force_n, 2), atLimit ? ' at the device limit' : '')],
       scene.task === 'palpate' ? ['Task', 'searching for lumps'] :
+      scene.task === 'insert' ? ['Needle depth (mm)', fmt(t.depth_mm, 1)] :
         [press ? 'Depth (mm)' : 'Twist (°)', press ? fmt(t.depth_mm, 1) : `${fmt(t.twist_deg, 1)} (target ${fmt(scene.target, 0)})`],
       ['Time over the force limit (s)', fmt(t.over_limit_s, 1)], ['Tissue overload events', t.overload_events],
       ['Round trip (ms)', fmt(t.rtt_us / 1000, t.rtt_us < 10e3 ? 2 : 1)], ['Loss (%)', fmt(t.loss_ratio * 100, 2)],
@@ -205,6 +225,6 @@ function watch(id, s, scene, traces, view3d, liveFigures, renderHead, results, s
     es.close();
     const done = await api('GET', '/sessions/' + id);
     renderHead(done); stop.disabled = true; guidance.stop();
-    results.replaceChildren(metricsList(done.metrics));
+    results.replaceChildren(metricsList(done.metrics, scene.task === 'palpate', scene.task === 'insert'));
   });
 }

@@ -9,7 +9,8 @@ import { loadScenes } from '../scenes.js';
 
 const METRIC_NAMES = ['completion_time_s', 'peak_force_n', 'time_over_force_limit_s', 'overload_events',
   'path_length_m', 'rms_jerk', 'task_error', 'score', 'guided_share', 'lumps_missed', 'false_marks',
-  'localisation_error_m', 'coverage'];
+  'localisation_error_m', 'coverage', 'depth_error_m', 'path_deviation_m', 'extra_punctures',
+  'back_wall_breaches', 'lateral_strain'];
 const REFRESH_MS = 5000;
 
 export async function pageTraining(main) {
@@ -185,7 +186,11 @@ function exerciseFieldset(n, scenes) {
       metricRow('guided_share', false, 0, false),
       // A palpation's own (a search for hidden lumps).
       metricRow('lumps_missed', false, 0, false), metricRow('false_marks', false, 0, false),
-      metricRow('localisation_error_m', false, '', true), metricRow('coverage', false, '', true)));
+      metricRow('localisation_error_m', false, '', true), metricRow('coverage', false, '', true),
+      // A needle insertion's own.
+      metricRow('depth_error_m', false, '', true), metricRow('path_deviation_m', false, '', true),
+      metricRow('extra_punctures', false, 0, false), metricRow('back_wall_breaches', false, 0, false),
+      metricRow('lateral_strain', false, '', true)));
 }
 
 // Cohorts (name and members) enrolled in a course from a day to a day, one trainee enrolled on
