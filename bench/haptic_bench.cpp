@@ -9,6 +9,11 @@
 // contact's local model (sim::HapticsSpec::ContactModel: 0 the tissue's viscoelastic, the default;
 // 2 the proxy's spring alone): the sphere runs both, alternating, to show what the fit costs.
 //
+// The needle scene (argument 3) answers from its needle model instead of the proxy.
+//
+// BM_NeedleStep: the needle model alone (haptics/needle.h), one step of the good trainee's
+// insertion into the vein (through skin, fat, muscle and the vein's wall, and back out), in a loop.
+//
 // BM_RingLayerStep vs BM_MsmStep/5/1: the same palpation of the 1026-particle sphere by the
 // ring-layer model (only the rings around the contact move) and by the full mass-spring model.
 //
@@ -33,6 +38,7 @@
 
 #include "common/geometry/bvh.h"
 #include "common/geometry/mesh_generators.h"
+#include "common/haptics/needle.h"
 #include "common/sim/simulation.h"
 #include "common/sim/trajectory.h"
 #include "common/tissue/ring_layer.h"
@@ -40,7 +46,8 @@
 namespace {
 
 void BM_HapticPath(benchmark::State& state) {
-  static const char* kScenes[] = {"arm-torsion", "sphere-palpation-1024", "organ-surface-twist"};
+  static const char* kScenes[] = {"arm-torsion", "sphere-palpation-1024", "organ-surface-twist",
+                                  "needle-vessel"};
   const char* name = kScenes[state.range(0)];
   auto scene = vsurg::sim::LoadSceneByName(name);
   if (scene.ok())
@@ -92,7 +99,8 @@ BENCHMARK(BM_HapticPath)
     ->Args({1, 2})
     ->Args({2, 0})
     ->Iterations(1)
-    ->Unit(benchmark::kMillisecond);
+    ->Unit(benchmark::kMillisecond)
+    ->Args({3, 0});
 
 void BM_RingLayerStep(benchmark::State& state) {
   auto mesh =
@@ -117,6 +125,22 @@ void BM_RingLayerStep(benchmark::State& state) {
   }
   state.counters["moved_vertices"] = moved;
 }
+void BM_NeedleStep(benchmark::State& state) {
+  auto scene = vsurg::sim::LoadSceneByName("needle-vessel");
+  if (!scene.ok() || !scene->needle) return state.SkipWithError("needle-vessel did not load");
+  auto samples = vsurg::sim::ScriptedTrainee(*scene, vsurg::sim::TraineeStyle::kGood);
+  auto model = vsurg::haptics::NeedleModel::Create(*scene->needle);
+  if (!samples.ok() || !model.ok()) return state.SkipWithError("set-up failed");
+  const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
+  size_t k = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(model->Step((*samples)[k].position, down, 1e-3));
+    if (++k == samples->size()) k = 0;
+  }
+  state.counters["punctures"] = static_cast<double>(model->punctures());
+}
+BENCHMARK(BM_NeedleStep)->Unit(benchmark::kNanosecond);
+
 BENCHMARK(BM_RingLayerStep)->Unit(benchmark::kMicrosecond);
 
 // The physics surface of the arm (0) or the organ (1) scene, or an error the caller skips with.
