@@ -186,7 +186,7 @@ Expected<std::vector<CohortRecord>> ReadCohorts(Connection& c, int64_t id) {
   "m.completed, m.completion_time_s, m.task_error, m.peak_force_n, m.time_over_force_limit_s, " \
   "m.path_length_m, m.rms_jerk, m.overload_events, m.score, m.guided_share, m.lumps, "          \
   "m.lumps_found, m.false_marks, m.localisation_error_m, m.coverage, m.depth_error_m, "         \
-  "m.path_deviation_m, m.extra_punctures, m.back_wall_breaches, m.lateral_strain "
+  "m.path_deviation_m, m.extra_punctures, m.back_wall_breaches, m.lateral_strain, m.punctures "
 constexpr const char* kAttemptColumns =
     "SELECT s.id, t.name, s.exercise_id, s.ended_us, " VSURG_PROFICIENCY_COLUMNS;
 
@@ -212,6 +212,7 @@ void ReadProficiencyMetrics(const Statement& q, int first, scoring::TrialMetrics
   m.extra_punctures = static_cast<int>(q.Int(first + 17));
   m.back_wall_breaches = static_cast<int>(q.Int(first + 18));
   m.lateral_strain = q.Double(first + 19);
+  m.punctures = static_cast<int>(q.Int(first + 20));  // no puncture: no placement to credit
 }
 
 void ReadAttempt(const Statement& q, std::vector<AttemptRow>& out) {

@@ -353,6 +353,59 @@ TEST_F(TrainingTest, APalpationExerciseIsJudgedOnLumpsFoundFalseMarksAndCoverage
   EXPECT_EQ(state(), CellState::kProficient);
 }
 
+TEST_F(TrainingTest, ANeedleExerciseIsJudgedOnItsPlacementAndItsBackWall) {
+  for (const char* e : {"exa", "exb"}) ASSERT_TRUE(store_->SetExpert(e, true).ok());
+  // Every needle figure through the store: what a trial wrote is what the targets read.
+  const auto insert = [&](const std::string& trainee, int64_t exercise, double depth_error,
+                          int breaches) {
+    auto s = store_->CreateSession(trainee, "needle-vessel");
+    EXPECT_TRUE(s.ok());
+    if (exercise) {
+      EXPECT_TRUE(store_->SetSessionExercise(s->id, exercise).ok());
+    }
+    scoring::TrialMetrics m;
+    m.completed = true;
+    m.completion_time = m.duration = 12;
+    m.punctures = 4 + breaches;
+    m.extra_punctures = breaches;
+    m.back_wall_breaches = breaches;
+    m.depth_error = depth_error;
+    m.path_deviation = 0.0005;
+    m.lateral_strain = 0.02;
+    m.score = breaches ? 3 : 9;
+    EXPECT_TRUE(store_->EndSession(s->id, SessionState::kEnded, NowUs(), "done", m).ok());
+  };
+  insert("exa", 0, 0.0005, 0);
+  insert("exb", 0, 0.0015, 0);
+  auto c = CreateCourse(*domain_, As("ian"), "Vascular access", "reach the vein",
+                        {{"Cannulate the vein", "needle-vessel",
+                          Spec({{"back_wall_breaches", 0.0},
+                                {"depth_error_m", std::nullopt},
+                                {"lateral_strain", 0.05}},
+                               1)}});
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  const ExerciseView& ex = c->exercises[0];
+  ASSERT_EQ(ex.targets.size(), 3u);
+  EXPECT_EQ(ex.targets[1].expert_trials, 2);
+  EXPECT_GT(*ex.targets[1].value, 0.001);  // mean + SD of 0.5 and 1.5 mm: less is better
+  auto h = CreateCohort(*domain_, As("ian"), "Access 2026", "", {"tina"});
+  ASSERT_TRUE(h.ok());
+  db::EnrolmentRecord e;
+  e.course_id = c->record.id;
+  e.cohort_id = h->id;
+  ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
+  const auto state = [&] {
+    auto grid = CohortProgress(*domain_, As("ian"), h->id, c->record.id);
+    EXPECT_TRUE(grid.ok());
+    return grid.ok() && grid->trainees.size() == 1 ? grid->trainees[0].exercises[0].state
+                                                   : CellState::kLocked;
+  };
+  insert("tina", ex.record.id, 0.0005, 1);  // in the vein, but through its back wall first
+  EXPECT_EQ(state(), CellState::kTraining);
+  insert("tina", ex.record.id, 0.0008, 0);
+  EXPECT_EQ(state(), CellState::kProficient);
+}
+
 TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   ASSERT_NO_FATAL_FAILURE(Programme());
   Trial("tina", kScene, Ex(0), 25, 1.2);
