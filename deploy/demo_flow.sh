@@ -113,6 +113,19 @@ coverage="$(sed -n 's/.*"coverage":\([0-9.e-]*\).*/\1/p' "$out/station-palpation
 echo "the novice's search: $found of $lumps lumps found, $coverage of the pad examined"
 [ -n "$lumps" ] && [ -n "$coverage" ] || { echo "demo: the search was not scored" >&2; exit 1; }
 
+step "Needle insertion: a scripted hesitant trainee reaches the vein (the station renders the pops)"
+# It aims wide first, misses, draws out and enters again above the vein; the station feels each
+# layer give way from its own copy of the needle model, the server scores where the tip went.
+"$bin/vsurg-sim" trainee --scene needle-vessel --style hesitant --out "$tmp/needle.csv" > /dev/null
+"$bin/vsurg-station" --server "$server" --token "$trainee_token" --scene needle-vessel \
+  --trajectory "$tmp/needle.csv" --headless --width 960 --height 600 \
+  --screenshot-summary "$shots/station-needle-hesitant.png" --json \
+  > "$out/station-needle.json" 2> "$out/station-needle.log"
+punctures="$(sed -n 's/.*"punctures":\([0-9]*\).*/\1/p' "$out/station-needle.json")"
+depth_error="$(sed -n 's/.*"depth_error":\([0-9.e-]*\).*/\1/p' "$out/station-needle.json")"
+echo "the hesitant insertion: $punctures punctures, the tip placed $depth_error m from the vein's middle"
+[ -n "$punctures" ] && [ "$punctures" -ge 4 ] || { echo "demo: the insertion was not scored" >&2; exit 1; }
+
 step "Evaluators: three groups score session $session (9 indexes, 0-10), each with their own token"
 header="evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9"
 printf '%s\ndr-intern,intern,8,8.5,9,8.5,8,7.5,8,7,6.5\n' "$header" > "$tmp/intern.csv"
@@ -154,5 +167,5 @@ left="$(pgrep -f "$tmp/vsurg.db" || true)"
 [ -z "$left" ] || { echo "demo: processes left behind: $left" >&2; exit 1; }
 echo
 echo "demo flow: screenshots in $shots (station-before.png, station-twisted.png, monitor-view.png,"
-echo "           station-palpation-novice.png);"
+echo "           station-palpation-novice.png, station-needle-hesitant.png);"
 echo "           logs, station.json, monitor.log and scores.csv in $out"

@@ -79,6 +79,19 @@ TEST(NeedleSessionTest, ARoughInsertionThroughTheBackWallIsCappedAtThree) {
   EXPECT_GT(p.metrics.lateral_strain, 0.05);  // levered sideways
 }
 
+TEST(NeedleSessionTest, ACystIsReachedLikeAVeinThroughItsOwnLayers) {
+  auto scene = LoadScene(ScenesDirectory() + "/needle-cyst.json");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  ASSERT_EQ(scene->needle->target.kind, haptics::NeedleTarget::Kind::kCyst);
+  const Played good = Play(*scene, TraineeStyle::kGood);
+  EXPECT_EQ(good.metrics.punctures, 4);  // skin, fat, the glandular tissue's top, the cyst's wall
+  EXPECT_TRUE(good.metrics.completed);
+  EXPECT_LT(good.metrics.depth_error, 1e-3);
+  const Played rough = Play(*scene, TraineeStyle::kRough);
+  EXPECT_EQ(rough.metrics.back_wall_breaches, 1);
+  EXPECT_LE(rough.metrics.score, 3.0);
+}
+
 TEST(NeedleSessionTest, AMigratedSessionGoesOnFromTheSameTractAndPunctures) {
   const Scene scene = NeedleScene();
   auto plan = NeedleTrainee(scene, TraineeStyle::kGood);
