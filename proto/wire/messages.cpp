@@ -324,6 +324,80 @@ bool ReadNeedle(const v1::NeedleState& w, haptics::NeedleState& n) {
   return true;
 }
 
+// The local model's kind-specific parts, normalised; an unknown kind (a newer server) renders as
+// LINEAR, the oldest contract; a contact or grasp whose directions cannot be normalised, or a
+// needle's state a station cannot render, is refused.
+DropReason ReadLocalKind(const v1::LocalModel& w, haptics::LocalModel& l) {
+  l.kind = haptics::LocalModel::Kind::kLinear;
+  l.normal = Eigen::Vector3d::UnitZ();
+  l.axis = Eigen::Vector3d::UnitZ();
+  l.orientation0 = Eigen::Quaterniond::Identity();
+  l.dforce_dtwist.setZero();
+  l.has_twist_model = false;
+  l.torque_steps.fill(0);
+  l.force_per_torque.setZero();
+  l.arm.setZero();
+  l.torque0 = 0;
+  l.tissue_stiffness = l.tissue_damping = l.tissue_elastic0 = 0;
+  l.contact_damping = 0;
+  l.needle = {};
+  const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
+    const double n = v.norm();
+    if (!(n > 1e-9) || !std::isfinite(n)) return false;
+    unit_out = v / n;
+    return true;
+  };
+  switch (w.kind()) {
+    case v1::LocalModel::CONTACT:
+      if (!unit(Get(w.normal()), l.normal)) return DropReason::kBadPayload;
+      l.kind = haptics::LocalModel::Kind::kContact;
+      // A tissue the station cannot integrate (negative, non-finite) is refused, not guessed.
+      l.tissue_stiffness = w.tissue_stiffness();
+      l.tissue_damping = w.tissue_damping();
+      l.tissue_elastic0 = w.tissue_elastic0();
+      l.contact_damping = w.contact_damping();
+      if (!(l.tissue_stiffness >= 0) || !(l.tissue_damping >= 0) ||
+          !std::isfinite(l.tissue_stiffness) || !std::isfinite(l.tissue_damping) ||
+          !std::isfinite(l.tissue_elastic0) || !(l.contact_damping >= 0) ||
+          !std::isfinite(l.contact_damping))
+        return DropReason::kBadPayload;
+      break;
+    case v1::LocalModel::GRASP: {
+      const v1::Quat& q = w.orientation0();
+      Eigen::Quaterniond q0(q.w(), q.x(), q.y(), q.z());
+      const double qn = q0.norm();
+      if (!unit(Get(w.axis()), l.axis) || !(qn > 1e-9) || !std::isfinite(qn))
+        return DropReason::kBadPayload;
+      l.orientation0 = Eigen::Quaterniond(q0.coeffs() / qn);
+      l.dforce_dtwist = Get(w.dforce_dtwist());
+      if (!l.dforce_dtwist.allFinite()) return DropReason::kBadPayload;
+      // The exact model: whole (8 finite steps and finite parts) or refused; none at all is an
+      // older server's answer, rendered along its tangent.
+      if (const int n = w.torque_steps_size(); n != 0) {
+        if (n != haptics::LocalModel::kTwistSamples) return DropReason::kBadPayload;
+        for (int i = 0; i < n; ++i) l.torque_steps[i] = w.torque_steps(i);
+        l.force_per_torque = Get(w.force_per_torque());
+        l.torque0 = w.torque0();
+        l.arm = Get(w.arm());
+        if (!std::all_of(l.torque_steps.begin(), l.torque_steps.end(),
+                         [](double t) { return std::isfinite(t); }) ||
+            !l.force_per_torque.allFinite() || !std::isfinite(l.torque0) || !l.arm.allFinite())
+          return DropReason::kBadPayload;
+        l.has_twist_model = true;
+      }
+      l.kind = haptics::LocalModel::Kind::kGrasp;
+      break;
+    }
+    case v1::LocalModel::NEEDLE:
+      if (!ReadNeedle(w.needle(), l.needle)) return DropReason::kBadPayload;
+      l.kind = haptics::LocalModel::Kind::kNeedle;
+      break;
+    default:
+      break;
+  }
+  return DropReason::kNone;
+}
+
 }  // namespace
 
 DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& out) {
@@ -347,76 +421,8 @@ DropReason Codec::DecodeForce(std::span<const uint8_t> payload, ForceMessage& ou
   } else {
     c.local.jacobian.setZero();
   }
-  // The kind-specific parts, normalised; an unknown kind (a newer server) renders as LINEAR, the
-  // oldest contract; a contact or grasp whose directions cannot be normalised is refused.
-  c.local.kind = haptics::LocalModel::Kind::kLinear;
-  c.local.normal = Eigen::Vector3d::UnitZ();
-  c.local.axis = Eigen::Vector3d::UnitZ();
-  c.local.orientation0 = Eigen::Quaterniond::Identity();
-  c.local.dforce_dtwist.setZero();
-  c.local.has_twist_model = false;
-  c.local.torque_steps.fill(0);
-  c.local.force_per_torque.setZero();
-  c.local.arm.setZero();
-  c.local.torque0 = 0;
-  c.local.tissue_stiffness = c.local.tissue_damping = c.local.tissue_elastic0 = 0;
-  c.local.contact_damping = 0;
-  c.local.needle = {};
-  const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
-    const double n = v.norm();
-    if (!(n > 1e-9) || !std::isfinite(n)) return false;
-    unit_out = v / n;
-    return true;
-  };
-  switch (f.local().kind()) {
-    case v1::LocalModel::CONTACT:
-      if (!unit(Get(f.local().normal()), c.local.normal)) return DropReason::kBadPayload;
-      c.local.kind = haptics::LocalModel::Kind::kContact;
-      // A tissue the station cannot integrate (negative, non-finite) is refused, not guessed.
-      c.local.tissue_stiffness = f.local().tissue_stiffness();
-      c.local.tissue_damping = f.local().tissue_damping();
-      c.local.tissue_elastic0 = f.local().tissue_elastic0();
-      c.local.contact_damping = f.local().contact_damping();
-      if (!(c.local.tissue_stiffness >= 0) || !(c.local.tissue_damping >= 0) ||
-          !std::isfinite(c.local.tissue_stiffness) || !std::isfinite(c.local.tissue_damping) ||
-          !std::isfinite(c.local.tissue_elastic0) || !(c.local.contact_damping >= 0) ||
-          !std::isfinite(c.local.contact_damping))
-        return DropReason::kBadPayload;
-      break;
-    case v1::LocalModel::GRASP: {
-      const v1::Quat& q = f.local().orientation0();
-      Eigen::Quaterniond q0(q.w(), q.x(), q.y(), q.z());
-      const double qn = q0.norm();
-      if (!unit(Get(f.local().axis()), c.local.axis) || !(qn > 1e-9) || !std::isfinite(qn))
-        return DropReason::kBadPayload;
-      c.local.orientation0 = Eigen::Quaterniond(q0.coeffs() / qn);
-      c.local.dforce_dtwist = Get(f.local().dforce_dtwist());
-      if (!c.local.dforce_dtwist.allFinite()) return DropReason::kBadPayload;
-      // The exact model: whole (8 finite steps and finite parts) or refused; none at all is an
-      // older server's answer, rendered along its tangent.
-      if (const int n = f.local().torque_steps_size(); n != 0) {
-        if (n != haptics::LocalModel::kTwistSamples) return DropReason::kBadPayload;
-        for (int i = 0; i < n; ++i) c.local.torque_steps[i] = f.local().torque_steps(i);
-        c.local.force_per_torque = Get(f.local().force_per_torque());
-        c.local.torque0 = f.local().torque0();
-        c.local.arm = Get(f.local().arm());
-        if (!std::all_of(c.local.torque_steps.begin(), c.local.torque_steps.end(),
-                         [](double t) { return std::isfinite(t); }) ||
-            !c.local.force_per_torque.allFinite() || !std::isfinite(c.local.torque0) ||
-            !c.local.arm.allFinite())
-          return DropReason::kBadPayload;
-        c.local.has_twist_model = true;
-      }
-      c.local.kind = haptics::LocalModel::Kind::kGrasp;
-      break;
-    }
-    case v1::LocalModel::NEEDLE:
-      if (!ReadNeedle(f.local().needle(), c.local.needle)) return DropReason::kBadPayload;
-      c.local.kind = haptics::LocalModel::Kind::kNeedle;
-      break;
-    default:
-      break;
-  }
+  if (const DropReason why = ReadLocalKind(f.local(), c.local); why != DropReason::kNone)
+    return why;
   c.events = f.events();
   c.twist = f.twist();
   c.score = std::isfinite(f.score()) ? std::clamp(static_cast<double>(f.score()), 0.0, 10.0) : 0.0;

@@ -222,6 +222,41 @@ TEST(DatagramTest, ContactAndGraspModelsCrossWithTheirKindAndBadDirectionsAreRef
   EXPECT_EQ(round_trip(grasp, back), DropReason::kBadPayload);
 }
 
+TEST(DatagramTest, ANeedlesStateCrossesWholeAndIsRefusedWhenAStationCouldNotRenderIt) {
+  const Authenticator auth(Key(4));
+  Codec codec;
+  ForceMessage m, back;
+  haptics::NeedleState& n = m.command.local.needle;
+  m.command.local.kind = haptics::LocalModel::Kind::kNeedle;
+  n.phase = haptics::NeedleState::Phase::kInserted;
+  n.tract = 2, n.begun = 3, n.passed = 4;
+  n.entry = Eigen::Vector3d(0.001, -0.002, 0.05);
+  n.direction = Eigen::Vector3d(0, 0.6, -1.6);  // normalised on arrival
+  n.cut = 0.019, n.anchor = 0.0185, n.last_depth = 0.0191, n.velocity = 0.008;
+  ASSERT_EQ(ForceRoundTrip(codec, auth, m, back), DropReason::kNone);
+  const haptics::NeedleState& b = back.command.local.needle;
+  EXPECT_EQ(back.command.local.kind, haptics::LocalModel::Kind::kNeedle);
+  EXPECT_EQ(b.phase, n.phase);
+  EXPECT_EQ(b.tract, 2u);
+  EXPECT_EQ(b.begun, 3u);
+  EXPECT_EQ(b.passed, 4u);
+  EXPECT_EQ(b.entry, n.entry);
+  EXPECT_TRUE(b.direction.isApprox(n.direction.normalized()));
+  EXPECT_EQ(b.cut, 0.019);
+  EXPECT_EQ(b.anchor, 0.0185);
+  // Another kind carries no needle: what a previous answer left is not kept.
+  ForceMessage linear;
+  ASSERT_EQ(ForceRoundTrip(codec, auth, linear, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.needle, haptics::NeedleState{});
+  for (int bad = 0; bad < 3; ++bad) {
+    ForceMessage x = m;
+    if (bad == 0) x.command.local.needle.direction.setZero();
+    if (bad == 1) x.command.local.needle.cut = NAN;
+    if (bad == 2) x.command.local.needle.entry.y() = INFINITY;
+    EXPECT_EQ(ForceRoundTrip(codec, auth, x, back), DropReason::kBadPayload) << bad;
+  }
+}
+
 TEST(DatagramTest, TheServersPortEnergiesCrossAndAreRefusedWhenNotEnergies) {
   // The network passivity control gives the hand no more than released_j: a value that is not
   // an energy (negative, NaN, infinite) must never reach it.

@@ -1,11 +1,15 @@
 // NeedleModel (common/haptics/needle.h): the stiffness law and the pop, Karnopp's friction on
 // the shaft, the cutting front, the tract's reuse, the tissue holding the needle across, and
-// the model's passivity over a loop.
+// the model's passivity over a loop; and the station's copy of it, corrected by the answers.
 #include "common/haptics/needle.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
+#include <vector>
+
+#include "common/haptics/needle_contact.h"
 
 namespace vsurg::haptics {
 namespace {
@@ -246,6 +250,51 @@ TEST(NeedleTest, ATissueOutOfRangeIsRefusedByName) {
   s = Layered();
   s.layers.clear();
   EXPECT_EQ(NeedleModel::Create(s).error().field, "needle.layers");
+}
+
+}  // namespace
+}  // namespace vsurg::haptics
+
+namespace vsurg::haptics {
+namespace {
+
+// The station's needle (needle_contact.h): its own model pops on the crossing cycle; an answer
+// about a datagram before that change does not undo it; a later one that disagrees is taken.
+TEST(NeedleContactTest, AStationPopsOnItsOwnAndTakesOnlyANewerAnswersWord) {
+  auto spec = std::make_shared<const NeedleTissueSpec>(Layered());
+  NeedleContact station(spec);
+  auto server = NeedleModel::Create(*spec);
+  ASSERT_TRUE(station.active() && server.ok());
+  uint64_t seq = 0;
+  LocalModel answer;
+  answer.kind = LocalModel::Kind::kNeedle;
+  // The server is a round trip (300 datagrams) behind: it answers sample k − 300.
+  std::vector<NeedleState> server_states;
+  double before = 0, after = 0;
+  for (int i = 0; i <= 1200; ++i) {
+    const Vec3 tip(0, 0, 0.002 - 1e-5 * i);  // down at 10 mm/s to 10 mm deep
+    ++seq;
+    server->Step(tip, kDown, 1e-3);
+    server_states.push_back(server->state());
+    if (seq > 300) {
+      answer.needle = server_states[seq - 301];
+      station.Answer(answer, seq - 300);
+    }
+    const Vec3 f = station.Render(tip, kDown, seq);
+    if (station.local_pops() == 0) before = f.z();
+    if (station.local_pops() == 1 && after == 0) after = f.z();
+  }
+  EXPECT_GT(before, 1.4);  // the skin's law up to its puncture force, felt locally
+  EXPECT_LT(after, 0.5);   // and the pop on the same cycle as the server's (no answer yet)
+  EXPECT_EQ(station.local_pops(), 2u);   // skin, fat
+  EXPECT_EQ(station.corrections(), 0u);  // the answers agreed once they caught up
+  EXPECT_EQ(station.model()->state().passed, server->state().passed);
+  // A server that says otherwise about a datagram after the station's change is believed.
+  answer.needle = server->state();
+  answer.needle.passed = 1;
+  station.Answer(answer, seq);
+  EXPECT_EQ(station.corrections(), 1u);
+  EXPECT_EQ(station.model()->state().passed, 1u);
 }
 
 }  // namespace
