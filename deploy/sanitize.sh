@@ -147,6 +147,7 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   single+=':RoomTest.AHiddenLump*'  # one thread (threaded = false): two tables built
   # Whole searches of the pad, unthreaded (threaded = false); the bank's thread stays (CaseBankTest).
   single+=':PalpationTest.*'
+  single+=':NeedleSessionTest.*'  # whole needle trials, unthreaded (threaded = false)
   declare -A filter=([simulation_test]="-$single")
   # The simulation's threaded tests (a minute) run beside the other suites (half a minute, one
   # after another), each suite's output kept apart and shown whole.
