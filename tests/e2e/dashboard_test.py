@@ -564,6 +564,8 @@ def main():
             "return Number(document.getElementById('view3d').dataset.tools);")
         want = 1 + pm.get("lumps", 0) + pm.get("lumps_found", 0) + pm.get("false_marks", 0)
         check(drawn == want, f"at the end the replay draws the tool, every lump and every mark ({drawn} of {want})")
+        trail = driver.execute_script("return Number(document.getElementById('view3d').dataset.trail || 0);")
+        check(trail > 10, f"the replay draws the search's path ({trail} points)")
         shot("palpation")
 
         # --- a needle insertion: the scripted hesitant trainee misses the vein first and enters
@@ -596,6 +598,8 @@ def main():
             "s.dispatchEvent(new Event('input'));"
             "return Number(document.getElementById('view3d').dataset.tools);")
         check(drawn == 1 + 1 + 2 * 2, f"the replay draws the tool, the vein and both tracts' ends ({drawn} of 6)")
+        trail = driver.execute_script("return Number(document.getElementById('view3d').dataset.trail || 0);")
+        check(trail > 10, f"the replay draws the needle tip's path ({trail} points)")
         shot("needle")
     finally:
         if sys.exc_info()[0] is not None:  # failing: what the page itself said

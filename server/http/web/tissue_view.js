@@ -152,7 +152,43 @@ export class TissueView {
     });
     this.frames = 0;
     this.tools = [];
+    this.trail = null;
     this.initTools();
+    this.initTrail();
+  }
+  // The tool's path over the tissue (a replay's: where the tip went up to the time shown), a thin
+  // line never hidden by the tissue, as the markers are not.
+  initTrail() {
+    const gl = this.gl;
+    const vs = `#version 300 es
+      layout(location = 0) in vec3 aPos; uniform mat4 uM;
+      void main() { gl_Position = uM * vec4(aPos, 1.0); gl_Position.z = -0.998 * gl_Position.w; }`;
+    const fs = `#version 300 es
+      precision mediump float; uniform vec3 uColour; out vec4 colour;
+      void main() { colour = vec4(uColour, 1.0); }`;
+    this.trailProg = linkProgram(gl, vs, fs);
+    this.trailVao = gl.createVertexArray(); gl.bindVertexArray(this.trailVao);
+    this.trailBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, this.trailBuf);
+    gl.enableVertexAttribArray(0); gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+    gl.bindVertexArray(null);
+  }
+  // points: the path's positions in mm, x y z each (a Float32Array), or null; drawn at the next
+  // draw().
+  setTrail(points) { this.trail = points; }
+  drawTrail(m) {
+    const gl = this.gl, n = this.trail ? Math.floor(this.trail.length / 3) : 0;
+    this.canvas.dataset.trail = n;
+    if (n < 2) return;
+    gl.useProgram(this.trailProg);
+    gl.uniformMatrix4fv(gl.getUniformLocation(this.trailProg, 'uM'), false, m);
+    gl.uniform3fv(gl.getUniformLocation(this.trailProg, 'uColour'), [0.2, 0.45, 0.8]);
+    gl.bindVertexArray(this.trailVao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.trailBuf);
+    gl.bufferData(gl.ARRAY_BUFFER, this.trail, gl.DYNAMIC_DRAW);
+    gl.disable(gl.DEPTH_TEST);
+    gl.drawArrays(gl.LINE_STRIP, 0, n);
+    gl.enable(gl.DEPTH_TEST);
+    gl.bindVertexArray(null);
   }
   // The hands' tool tips as round markers over the tissue (never hidden by it: a tip pressed in
   // is still seen): the trainee's, and an instructor's while one is on the tool.
@@ -272,6 +308,7 @@ export class TissueView {
     gl.bindVertexArray(this.tableVao);
     gl.drawElements(gl.TRIANGLES, 6, gl.UNSIGNED_INT, 0);
     gl.bindVertexArray(null);
+    this.drawTrail(m);
     this.drawTools(m);
     this.frames++;
     c.dataset.frames = this.frames;

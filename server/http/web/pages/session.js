@@ -103,9 +103,20 @@ function needleMarkers(n) {
   return out;
 }
 const needleLegend = () => el('p', { class: 'tool-legend muted', id: 'needle-legend' }, el('span', { class: 'dot lump' }),
-  ' the target (at its centre, sized by it) ', el('span', { class: 'dot mark' }), ' where the needle entered the skin, and the deepest point of each tract');
+  ' the target (at its centre, sized by it) ', el('span', { class: 'dot mark' }), ' where the needle entered the skin, and the deepest point of each tract; the blue line: the tip\'s path');
+// The tool's path up to time t from the record's series (at most 4000 points: every k-th sample),
+// for a search's or an insertion's replay: where the trainee examined, where the needle went.
+function trailOf(series, t) {
+  const T = (series && series.time_s) || [], X = series && series.tip_x_mm;
+  if (!X || !T.length) return null;
+  let n = 0;
+  while (n < T.length && T[n] <= t) ++n;
+  const step = Math.max(1, Math.ceil(n / 4000)), out = [];
+  for (let i = 0; i < n; i += step) out.push(X[i], series.tip_y_mm[i], series.tip_z_mm[i]);
+  return new Float32Array(out);
+}
 const palpationLegend = () => el('p', { class: 'tool-legend muted', id: 'palpation-legend' }, el('span', { class: 'dot lump' }),
-  ' a hidden lump (over its centre, sized by it) ', el('span', { class: 'dot mark' }), ' the trainee\'s marks');
+  ' a hidden lump (over its centre, sized by it) ', el('span', { class: 'dot mark' }), ' the trainee\'s marks; the blue line: the search\'s path');
 
 export async function pageSession(main) {
   const id = location.pathname.split('/')[2];
@@ -172,7 +183,9 @@ export async function pageSession(main) {
     if (record && record.frames) {
       const replay = await Replay.load(record, view3d, (t) => {
         traces.cursor(t);
-        if (view3d) view3d.tools = toolsOf(seriesAt(record.series, t)).concat(palpationMarkers(record.palpation, t), needleMarkers(record.needle));
+        if (!view3d) return;
+        view3d.tools = toolsOf(seriesAt(record.series, t)).concat(palpationMarkers(record.palpation, t), needleMarkers(record.needle));
+        if (record.palpation || record.needle) view3d.setTrail(trailOf(record.series, t));
       });
       tissue.append(replay.controls);
       if (record.palpation) tissue.append(palpationLegend());
