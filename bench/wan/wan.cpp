@@ -170,7 +170,8 @@ std::vector<size_t> Pops(const std::vector<client::HandSample>& t) {
   for (size_t k = 3; k < t.size(); ++k) {
     const double before = t[k - 3].force.norm();
     const double after = t[k].force.norm();
-    if (before >= 0.3 && before - after >= std::max(0.2, 0.3 * before) && (out.empty() || k > out.back() + 10))
+    if (before >= 0.3 && before - after >= std::max(0.2, 0.3 * before) &&
+        (out.empty() || k > out.back() + 10))
       out.push_back(k);
   }
   return out;
