@@ -351,6 +351,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   recorder_ = recorder;
   palpation_ = palpation;
   needle_ = needle;
+  needle_.face_tract = 0;  // the skin's face under the entry: found again for the restored tract
   mark_button_ = mark_button;
   proxy_ = proxy;
   safety_ = safety;

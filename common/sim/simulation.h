@@ -169,8 +169,7 @@ class Simulation final : private DeformationPool::Member {
   // Any thread: a needle scene's tissue, as a station renders the needle with its own model
   // (haptics/needle.h); null for other scenes. A station gets it with its join.
   std::shared_ptr<const haptics::NeedleTissueSpec> station_needle() const {
-    return needle_.model ? std::make_shared<const haptics::NeedleTissueSpec>(needle_.model->spec())
-                         : nullptr;
+    return station_needle_;
   }
   // The haptic thread's trial clock (s since the first sample; see kMaxClockStepS) and how many
   // samples jumped. Not concurrently with OnStylus.
@@ -284,7 +283,8 @@ class Simulation final : private DeformationPool::Member {
 
   // Haptic side.
   haptics::ProxyContact proxy_;
-  std::shared_ptr<const haptics::TissueSurface> station_surface_;  // set by Build
+  std::shared_ptr<const haptics::TissueSurface> station_surface_;    // set by Build
+  std::shared_ptr<const haptics::NeedleTissueSpec> station_needle_;  // set by Build (needle scenes)
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
   scoring::PalpationRecorder palpation_;  // a palpation task's marks and coverage
@@ -299,10 +299,9 @@ class Simulation final : private DeformationPool::Member {
     int face = -1;
     geometry::Vec3 face_barycentric = geometry::Vec3::Zero();
     template <class A>
-    void Persist(A& a) {
+    void Persist(A& a) {  // the face is found again from the restored tract
       if (model) a(*model);
       a(record, breaches);
-      face_tract = 0;  // found again from the restored tract
     }
   };
   NeedleSide needle_;

@@ -15,6 +15,7 @@ Status Simulation::BuildNeedle() {
   auto model = haptics::NeedleModel::Create(*scene_.needle);
   if (!model.ok()) return model.error();
   needle_.model = std::move(*model);
+  station_needle_ = std::make_shared<const haptics::NeedleTissueSpec>(needle_.model->spec());
   return Status::Ok();
 }
 
