@@ -282,24 +282,31 @@ void Simulation::Regrasp(const GraspQuery& q) {
       room_);
 }
 
+// A state's header: the format and what the receiver must have built the same way. Empty when
+// it is this simulation's; else why not.
+std::string Simulation::ReadStateHeader(StateReader& r) const {
+  uint32_t magic = 0, version = 0;
+  std::string scene;
+  uint64_t vertices = 0, triangles = 0, kind = 0;
+  r(magic, version);
+  if (!r.ok() || magic != kStateMagic) return "not a simulation's state";
+  if (version != kStateVersion)
+    return "its state is of format " + std::to_string(version) + ", this server reads " +
+           std::to_string(kStateVersion);
+  r(scene, vertices, triangles, kind);
+  if (!r.ok() || scene != scene_.name || vertices != rest_.positions.size() ||
+      triangles != rest_.triangles.size() || kind != room_.index())
+    return "it was built from another scene, mesh or model ('" + scene + "')";
+  return {};
+}
+
 Status Simulation::RestoreState(std::string_view bytes) {
   const auto refuse = [&](const std::string& why) {
     return Error{ErrorCode::kFailedPrecondition,
                  "cannot take over a session of scene '" + scene_.name + "': " + why, "state"};
   };
   StateReader r(bytes);
-  uint32_t magic = 0, version = 0;
-  std::string scene;
-  uint64_t vertices = 0, triangles = 0, kind = 0;
-  r(magic, version);
-  if (!r.ok() || magic != kStateMagic) return refuse("not a simulation's state");
-  if (version != kStateVersion)
-    return refuse("its state is of format " + std::to_string(version) + ", this server reads " +
-                  std::to_string(kStateVersion));
-  r(scene, vertices, triangles, kind);
-  if (!r.ok() || scene != scene_.name || vertices != rest_.positions.size() ||
-      triangles != rest_.triangles.size() || kind != room_.index())
-    return refuse("it was built from another scene, mesh or model ('" + scene + "')");
+  if (const std::string why = ReadStateHeader(r); !why.empty()) return refuse(why);
   // Read into a copy of the haptic side and commit only a whole read.
   scoring::TrialRecorder recorder = recorder_;
   haptics::ProxyContact proxy = proxy_;

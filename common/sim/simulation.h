@@ -195,6 +195,9 @@ class Simulation final : private DeformationPool::Member {
   Status RestoreState(std::string_view bytes);
 
  private:
+  // RestoreState's first stage: the format and what must have been built alike; "" when they
+  // match, else why not.
+  std::string ReadStateHeader(StateReader& r) const;
   struct Snapshot {
     std::vector<geometry::Vec3> positions;
     geometry::Bvh bvh;
