@@ -23,6 +23,23 @@ constexpr const char* kScene2 = "arm-torsion";
 
 class TrainingTest : public test::SiteTest {
  protected:
+  // A cohort of one, tina, enrolled in `course` (instructor ian).
+  void EnrolTinaAlone(const std::string& name, int64_t course, int64_t& cohort) {
+    auto h = CreateCohort(*domain_, As("ian"), name, "", {"tina"});
+    ASSERT_TRUE(h.ok());
+    db::EnrolmentRecord e;
+    e.course_id = course;
+    e.cohort_id = h->id;
+    ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
+    cohort = h->id;
+  }
+  // That trainee's state on the course's first exercise, from the cohort's grid.
+  CellState FirstExerciseState(int64_t cohort, int64_t course) {
+    auto grid = CohortProgress(*domain_, As("ian"), cohort, course);
+    EXPECT_TRUE(grid.ok());
+    return grid.ok() && grid->trainees.size() == 1 ? grid->trainees[0].exercises[0].state
+                                                   : CellState::kLocked;
+  }
   void SetUp() override {
     ASSERT_NO_FATAL_FAILURE(OpenSite());
     domain_ = std::make_unique<Domain>(Domain{*store_, *sessions_, catalog_, backups()});
@@ -335,18 +352,9 @@ TEST_F(TrainingTest, APalpationExerciseIsJudgedOnLumpsFoundFalseMarksAndCoverage
   EXPECT_EQ(SetExerciseSpec(*domain_, As("ian"), ex.record.id, *target).error().field,
             "exercise.spec.task.target");
   // A trainee enrolled: a search that missed the lump fails, one that found it passes.
-  auto h = CreateCohort(*domain_, As("ian"), "Breast 2026", "", {"tina"});
-  ASSERT_TRUE(h.ok());
-  db::EnrolmentRecord e;
-  e.course_id = c->record.id;
-  e.cohort_id = h->id;
-  ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
-  const auto state = [&] {
-    auto grid = CohortProgress(*domain_, As("ian"), h->id, c->record.id);
-    EXPECT_TRUE(grid.ok());
-    return grid.ok() && grid->trainees.size() == 1 ? grid->trainees[0].exercises[0].state
-                                                   : CellState::kLocked;
-  };
+  int64_t cohort = 0;
+  ASSERT_NO_FATAL_FAILURE(EnrolTinaAlone("Breast 2026", c->record.id, cohort));
+  const auto state = [&] { return FirstExerciseState(cohort, c->record.id); };
   search("tina", ex.record.id, 0, 1, 1.0);
   EXPECT_EQ(state(), CellState::kTraining);
   search("tina", ex.record.id, 1, 0, 1.0);
@@ -388,18 +396,9 @@ TEST_F(TrainingTest, ANeedleExerciseIsJudgedOnItsPlacementAndItsBackWall) {
   ASSERT_EQ(ex.targets.size(), 3u);
   EXPECT_EQ(ex.targets[1].expert_trials, 2);
   EXPECT_GT(*ex.targets[1].value, 0.001);  // mean + SD of 0.5 and 1.5 mm: less is better
-  auto h = CreateCohort(*domain_, As("ian"), "Access 2026", "", {"tina"});
-  ASSERT_TRUE(h.ok());
-  db::EnrolmentRecord e;
-  e.course_id = c->record.id;
-  e.cohort_id = h->id;
-  ASSERT_TRUE(Enrol(*domain_, As("ian"), e).ok());
-  const auto state = [&] {
-    auto grid = CohortProgress(*domain_, As("ian"), h->id, c->record.id);
-    EXPECT_TRUE(grid.ok());
-    return grid.ok() && grid->trainees.size() == 1 ? grid->trainees[0].exercises[0].state
-                                                   : CellState::kLocked;
-  };
+  int64_t cohort = 0;
+  ASSERT_NO_FATAL_FAILURE(EnrolTinaAlone("Access 2026", c->record.id, cohort));
+  const auto state = [&] { return FirstExerciseState(cohort, c->record.id); };
   insert("tina", ex.record.id, 0.0005, 1);  // in the vein, but through its back wall first
   EXPECT_EQ(state(), CellState::kTraining);
   insert("tina", ex.record.id, 0.0008, 0);
