@@ -152,8 +152,13 @@ class ViscoelasticFit {
         for (int q = 0; q < 3; ++q) m[r][q] = q == c ? xy_[r] : xx_[r][q];
       sol[c] = det3(m) / det;
     }
-    ViscoelasticParams p{sol[1], std::max(0.0, sol[2]), sol[0]};
-    // A falling or absurd slope is a transient, not the tissue: keep the last fit.
+    ViscoelasticParams p{sol[1], sol[2], sol[0]};
+    // A falling or absurd slope is a transient, not the tissue: keep the last fit. So is a
+    // negative damping (a force that fell as the yield sped up): the windows of a deformation
+    // thread starved of CPU, whose yield stalls while the force moves and then jumps. Taken as
+    // b = 0 it told the station a tissue with no viscosity that springs back with the tool
+    // (beside two CPU hogs one press in ten read k_t ≈ 8 N/m, b = 0, and the station pushed
+    // 0.2-0.6 N on a tool 10 mm off the surface).
     if (!p.ok() || p.stiffness > max_stiffness || p.damping > 1000) return;
     fit_ = p;
   }

@@ -1,5 +1,6 @@
 #include "common/haptics/viscoelastic.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -176,6 +177,29 @@ TEST(ViscoelasticFitTest, ASurfaceThatJumpedTeachesNothing) {
   EXPECT_EQ(fit.params().stiffness, before.stiffness);
   EXPECT_EQ(fit.params().damping, before.damping);
   EXPECT_EQ(fit.rate(), rate);
+}
+
+// A starved deformation thread publishes its yield in steps: at the start of a press at 5 cm/s
+// it stalls for 30 ms while the tool presses on (the force rises at the proxy's stiffness), then
+// catches up within 10 ms (the force falls back). Over such windows the force falls as the yield
+// speeds up: a negative damping, which no tissue has. The fit keeps what it had (here: nothing)
+// rather than a tissue with no viscosity that would spring back with the tool at the station
+// (clamped to b = 0 instead, 21 of these 400 samples left such a fit standing).
+TEST(ViscoelasticFitTest, AStarvedYieldThatStallsAndCatchesUpIsNoTissue) {
+  Solid solid{400, 90, 7.5, 0};
+  ViscoelasticFit fit;
+  fit.BeginContact();
+  double published = 0, f = 0;
+  int undamped = 0;
+  for (int i = 0; i < 400; ++i) {
+    const double depth = std::min(0.005, 0.05 * i * kServoS);
+    const double s = solid.Step(depth, kServoS, f);
+    if (i % 40 >= 30) published += (s - published) / (40 - i % 40);  // catching up
+    f = 400 * (depth - published);
+    fit.Add(i * kServoS, published, f, 4e4);
+    if (fit.params().ok() && !(fit.params().damping > 0)) ++undamped;
+  }
+  EXPECT_EQ(undamped, 0);
 }
 
 // With no damping the model is the series spring k_p·k_t/(k_p + k_t) at once; with a stiff
