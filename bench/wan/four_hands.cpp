@@ -218,6 +218,7 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
     run.instructor_station = instructor.station->stats();
   }
   run.metrics = (*simulation)->Metrics();
+  run.score_but_smoothness = scoring::ScoreButSmoothness(run.metrics, o.scene.task);
   run.trainee_applied = trainee_link.applied.load();
   return run;
 }

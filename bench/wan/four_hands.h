@@ -59,9 +59,10 @@ struct FourHandsRun {
   std::vector<client::HandSample> trainee, instructor;  // per servo cycle, after the lead-in
   client::StationStats trainee_station, instructor_station;
   std::vector<ToolSample> tool;
-  scoring::TrialMetrics metrics;  // the trainee's trial record
-  uint64_t trainee_applied = 0;   // the trainee's datagrams the endpoint applied
-  uint64_t hostile_sent = 0;      // hostile_instructor: datagrams sent to the instructor's channel
+  scoring::TrialMetrics metrics;    // the trainee's trial record
+  double score_but_smoothness = 0;  // scoring::ScoreButSmoothness of it
+  uint64_t trainee_applied = 0;     // the trainee's datagrams the endpoint applied
+  uint64_t hostile_sent = 0;  // hostile_instructor: datagrams sent to the instructor's channel
 };
 
 Expected<FourHandsRun> RunFourHands(const FourHandsOptions& options);

@@ -158,9 +158,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
                   run.trace.begin() + std::min<std::ptrdiff_t>(lead, std::ssize(run.trace)));
   const scoring::TrialMetrics m = (*simulation)->Metrics();
   run.score = m.score;
-  const scoring::ScoreParts parts = scoring::ScorePartsOf(m, o.scene.task);
-  run.score_but_smoothness =
-      m.raw_score - 10.0 * scoring::ScoreParts::kSmoothnessWeight * parts.smoothness;
+  run.score_but_smoothness = scoring::ScoreButSmoothness(m, o.scene.task);
   run.server_peak_force = m.peak_force;
   return run;
 }

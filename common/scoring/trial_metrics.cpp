@@ -158,6 +158,10 @@ ScoreParts TimeAndForceParts(const TrialMetrics& m, const TaskSpec& task) {
   return p;
 }
 
+double ScoreButSmoothness(const TrialMetrics& m, const TaskSpec& task) {
+  return m.raw_score - 10.0 * ScoreParts::kSmoothnessWeight * ScorePartsOf(m, task).smoothness;
+}
+
 ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task) {
   auto unit = [](double v) { return std::clamp(v, 0.0, 1.0); };
   ScoreParts p = TimeAndForceParts(m, task);

@@ -96,6 +96,11 @@ struct ScoreParts {
   static double Lost(double weight, double value) { return 10.0 * weight * (1.0 - value); }
 };
 ScoreParts ScorePartsOf(const TrialMetrics& m, const TaskSpec& task);
+// The score before the gates without its smoothness part, 0..8: what a network or a second
+// participant can move. Smoothness is read from the samples' stamps, and a loaded host's late
+// servo cycles stamp samples closer together than they moved, which reads as jerk; comparisons
+// of two real-time runs leave it out.
+double ScoreButSmoothness(const TrialMetrics& m, const TaskSpec& task);
 // The parts every task scores alike: efficiency and force control (the formulas above); the
 // others are left at 0 for the task's own.
 ScoreParts TimeAndForceParts(const TrialMetrics& m, const TaskSpec& task);
