@@ -56,11 +56,9 @@ Expected<std::unique_ptr<HapticDevice>> OpenDevice(const DeviceRequest& r) {
     // A scripted examiner searching a palpation's tissue, closed on the station's forces.
     auto limits = haptics::DeviceLimitsByName(r.limits);
     if (!limits.ok()) return limits.error();
-    if (r.search_style != "expert" && r.search_style != "novice")
-      return InvalidArgument("--search-style", "expert or novice");
-    auto hand = SearchingHandDevice::Create(
-        r.rest, r.held, r.search_style == "expert" ? sim::ExpertSearch() : sim::NoviceSearch(),
-        *limits);
+    auto style = sim::SearchStyleByName(r.search_style, "--search-style");
+    if (!style.ok()) return style.error();
+    auto hand = SearchingHandDevice::Create(r.rest, r.held, *style, *limits);
     if (!hand.ok()) return hand.error();
     return std::unique_ptr<HapticDevice>(std::move(*hand));
   }

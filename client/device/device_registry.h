@@ -29,7 +29,7 @@ struct DeviceRequest {
   Eigen::Vector3d start = Eigen::Vector3d::Zero();        // keyboard-mouse: where the tip starts, m
   Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ();  // keyboard-mouse
   std::string device_name;  // openhaptics: the HD device name ("" = default)
-  // search: the scripted examiner's style ("expert" or "novice", sim::PalpationSearch), the
+  // search: the scripted examiner's style (sim::SearchStyleByName, sim::PalpationSearch), the
   // tissue's rest surface and the vertices its support holds.
   std::string search_style = "expert";
   geometry::TriMesh rest;

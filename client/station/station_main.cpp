@@ -165,7 +165,8 @@ void DeclareOptions(ArgParser& p) {
       .Option("limits", Kind::kString, "replay, virtual-hand, keyboard-mouse: touch or omni", false,
               "touch")
       .Option("grip", Kind::kString, "virtual-hand: relaxed or tensed", false, "relaxed")
-      .Option("search-style", Kind::kString, "search: expert or novice", false, "expert")
+      .Option("search-style", Kind::kString, "search: good, hesitant, rough, expert or novice",
+              false, "expert")
       .Option("local-model", Kind::kString,
               "what is rendered between the server's answers: model (the answer's local model by "
               "its kind: contact, grasp, the surface ahead), linear (F0 + J dx everywhere) or "

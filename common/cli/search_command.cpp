@@ -42,7 +42,7 @@ int Search(const Args& args, std::ostream& out, std::ostream& err) {
               "and the trial's palpation metrics.");
   p.Option("scene", Kind::kString, "a palpation scene in scenes/ or a .json path", true)
       .Option("case", Kind::kInt, "the case's seed (default: a new random one)")
-      .Option("style", Kind::kString, "expert or novice", false, "expert")
+      .Option("style", Kind::kString, sim::kSearchStyleNames, false, "expert")
       .Option("json", Kind::kFlag, "print one JSON object");
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   auto scene = sim::LoadSceneByName(p.String("scene"));
@@ -50,8 +50,8 @@ int Search(const Args& args, std::ostream& out, std::ostream& err) {
   if (scene->task.kind != scoring::TaskKind::kPalpate)
     return UsageError(err, p.command(), InvalidArgument("--scene", "not a palpation scene"));
   const std::string style = p.String("style");
-  if (style != "expert" && style != "novice")
-    return UsageError(err, p.command(), InvalidArgument("--style", "expert or novice"));
+  auto search_style = sim::SearchStyleByName(style, "--style");
+  if (!search_style.ok()) return UsageError(err, p.command(), search_style.error());
   const uint64_t seed =
       p.Has("case") ? static_cast<uint64_t>(p.Int("case")) : sim::CaseBank::NewSeed();
   const auto t0 = std::chrono::steady_clock::now();
@@ -63,9 +63,8 @@ int Search(const Args& args, std::ostream& out, std::ostream& err) {
     return kExitRuntime;
   }
   const double build_s = SecondsSince(t0);
-  auto search =
-      sim::PalpationSearch::Create((*simulation)->rest_mesh(), (*simulation)->held_vertices(),
-                                   style == "expert" ? sim::ExpertSearch() : sim::NoviceSearch());
+  auto search = sim::PalpationSearch::Create((*simulation)->rest_mesh(),
+                                             (*simulation)->held_vertices(), *search_style);
   if (!search.ok()) return UsageError(err, p.command(), search.error());
   const auto t1 = std::chrono::steady_clock::now();
   const scoring::TrialMetrics m = SearchCase(**simulation, *search);

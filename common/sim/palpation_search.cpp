@@ -29,6 +29,38 @@ SearchStyle NoviceSearch() {
   return s;
 }
 
+SearchStyle HesitantSearch() {
+  SearchStyle s;
+  s.depth = 0.003;
+  s.press_s = 0.25;
+  s.hold_s = 0.15;
+  s.speed = 0.06;
+  s.threshold = 0.06;
+  return s;
+}
+
+SearchStyle RoughSearch() {
+  SearchStyle s;
+  s.spacing = 0.012;
+  s.depth = 0.026;
+  s.press_s = 0.06;
+  s.hold_s = 0.04;
+  s.speed = 0.3;
+  s.near = 0.012;
+  s.far = 0.03;
+  s.threshold = 0.01;
+  s.max_marks = 4;
+  return s;
+}
+
+Expected<SearchStyle> SearchStyleByName(const std::string& name, const std::string& field) {
+  if (name == "good" || name == "expert") return ExpertSearch();
+  if (name == "hesitant") return HesitantSearch();
+  if (name == "rough") return RoughSearch();
+  if (name == "novice") return NoviceSearch();
+  return InvalidArgument(field, "'" + name + "' is not a search style: " + kSearchStyleNames);
+}
+
 namespace {
 
 // The spots: the corners of the palpable surface's triangles (`surface`, sim::PalpableTriangles)

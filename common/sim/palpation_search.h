@@ -14,12 +14,17 @@
 // search of a clinical breast examination at a firm pressure, marking a spot 3% harder than its
 // surroundings), `novice` (a sparse pattern, 15 mm apart, 2 mm deep and quick, leaving out the
 // outer 2 cm, marking only what is 8% harder: the common errors of a light, incomplete search
-// that calls only an obvious lump).
+// that calls only an obvious lump). The scripted trainees every exercise has (TraineeStyle):
+// `good` is the expert; `hesitant` covers the surface as densely but slowly and timidly (8 mm
+// apart, 3 mm deep, pressing and holding twice as long, moving at half the speed) and marks only
+// what is 6% harder; `rough` presses hard and fast (26 mm deep, 12 mm apart, in 60 ms) and marks
+// whatever is 1.5% harder: over the force limit, with false marks.
 //
 // Units: m, s, N.
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/core/expected.h"
@@ -43,6 +48,11 @@ struct SearchStyle {
 };
 SearchStyle ExpertSearch();
 SearchStyle NoviceSearch();
+SearchStyle HesitantSearch();
+SearchStyle RoughSearch();
+// By name: good (= expert), hesitant, rough, expert or novice; the error names `field`.
+Expected<SearchStyle> SearchStyleByName(const std::string& name, const std::string& field);
+inline constexpr const char* kSearchStyleNames = "good, hesitant, rough, expert or novice";
 
 class PalpationSearch {
  public:

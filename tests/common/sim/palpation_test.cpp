@@ -76,6 +76,25 @@ TEST(PalpationTest, AnExpertFindsATenMillimetreLumpFifteenMillimetresDeepANovice
   EXPECT_LT(novice.metrics.score, expert.metrics.score - 3);
 }
 
+// The scripted trainees every exercise has, on the goal's lump: the good one (the expert) finds
+// it; the hesitant one, as dense but light and slow, takes longer with less force; the rough one
+// presses past the force limit and marks what is not there. The score ranks them.
+TEST(PalpationTest, TheGoodHesitantAndRoughSearchesScoreApart) {
+  const test::TempDir dir("palpation_styles");
+  const Scene pad = PadWith({kLump}, "one-lump");
+  const Searched good = Search(pad, *SearchStyleByName("good", "style"), dir.string());
+  const Searched hesitant = Search(pad, *SearchStyleByName("hesitant", "style"), dir.string());
+  const Searched rough = Search(pad, *SearchStyleByName("rough", "style"), dir.string());
+  EXPECT_EQ(good.metrics.lumps_found, 1);
+  EXPECT_GT(hesitant.metrics.duration, 1.5 * good.metrics.duration);
+  EXPECT_LT(hesitant.metrics.peak_force, good.metrics.peak_force);
+  EXPECT_GT(rough.metrics.peak_force, pad.task.force_limit);
+  EXPECT_GT(rough.metrics.false_marks, 0);
+  EXPECT_GT(good.metrics.score, hesitant.metrics.score + 1);
+  EXPECT_GT(good.metrics.score, rough.metrics.score + 1);
+  EXPECT_FALSE(SearchStyleByName("gentle", "style").ok());
+}
+
 // With no lump the healthy pad's smooth trend leaves nothing to mark: the largest excess is a
 // tenth of the threshold, and no mark is made.
 TEST(PalpationTest, AnExpertMarksNothingInAPadWithoutALump) {
