@@ -25,8 +25,8 @@
 // of the CG.
 //
 // Static: K(x)·Δx = f(x) + f_ext, repeated (corotated quasi-Newton) until the residual is below
-// tolerance; Eigen's SimplicialLDLT with the pattern analysed once, the factorisation kept while
-// it still cuts the residual tenfold per iteration.
+// tolerance; Eigen's SimplicialLDLT under a nested-dissection ordering (METIS) with the pattern
+// analysed once, the factorisation kept while it still cuts the residual tenfold per iteration.
 //
 // Threads: a model belongs to one thread; nothing here allocates after Create except SolveStatic.
 #pragma once

@@ -1,0 +1,196 @@
+// The palpation pad of the speed-against-error study (bench/speed_vs_error.cpp): scenes/
+// lump-search.json's 12 × 12 × 4 cm block on its table, holding the palpation goal's lump (10 mm
+// across, five times as stiff, its centre 15 mm under the top), pressed over the lump by 0.2 N
+// spread over a 1 cm cap; every model against the heterogeneous FEM of the same block at twice
+// the scene's grid in each direction. The scene's own model is the contact table of its own
+// 20 × 20 × 8 grid, built as a session builds it (sim::TableInputsFor).
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <memory>
+
+#include "bench/study/study.h"
+#include "common/geometry/mesh.h"
+#include "common/geometry/tet_generators.h"
+#include "common/sim/rooms/room_support.h"
+#include "common/sim/scene.h"
+#include "common/tissue/fem.h"
+#include "common/tissue/reduced.h"
+
+namespace vsurg::bench::study {
+namespace {
+
+// The goal's lump (tests/common/sim/palpation_test.cpp) and the point of the top above it.
+const tissue::Inclusion kPadLump{{0.013, -0.009, 0.025}, 0.005, 5};
+
+struct Pad {
+  sim::Scene scene;
+  geometry::TriMesh rest;  // the scene's display surface
+  std::vector<int> held;   // its vertices on the table
+  Vec3 top = Vec3::Zero();
+  std::vector<Vec3> markers;  // ten rest points on the top, 5 mm apart in x across the press
+};
+
+Expected<Pad> LoadPad() {
+  auto scene = sim::LoadSceneByName("lump-search");
+  if (!scene.ok()) return scene.error();
+  Pad p;
+  p.scene = *scene;
+  p.scene.cases.reset();
+  p.scene.inclusions = {kPadLump};
+  auto mesh = sim::BuildSceneMesh(p.scene.mesh);
+  if (!mesh.ok()) return mesh.error();
+  p.rest = mesh->surface;
+  auto held = sim::SupportedVertices(p.rest, p.scene.region, mesh->groups);
+  if (!held.ok()) return held.error();
+  p.held = *held;
+  const double height = p.scene.mesh.block.size.z();
+  p.top = Vec3(kPadLump.centre.x(), kPadLump.centre.y(), height);
+  for (int k = 0; k < 10; ++k) p.markers.push_back(p.top + Vec3(0.005 * k - 0.0225, 0, 0));
+  return p;
+}
+
+geometry::TetMesh PadGrid(const Pad& p, int scale) {
+  geometry::TetBoxParams box = p.scene.mesh.block;
+  for (int& c : box.cells) c *= scale;
+  return *geometry::MakeTetBox(box);
+}
+
+// The press on a FEM's boundary: the table's footprint rule (tissue::FootprintWeights).
+void Press(tissue::FemModel& fem, const geometry::TetMesh& mesh, const Vec3& top) {
+  std::map<int, double> share;
+  for (const auto& [i, w] : tissue::FootprintWeights(geometry::BoundarySurface(mesh), top,
+                                                     Vec3::UnitZ(), kCapRadius))
+    share[i] += w;
+  for (const auto& [i, w] : share) fem.SetExternalForce(i, Vec3(0, 0, -kPressForce * w));
+}
+
+// Each marker's nearest top vertex of `positions` (z at the block's height).
+std::vector<int> TopMarkers(const Pad& p, const std::vector<Vec3>& positions) {
+  std::vector<int> top;
+  std::vector<Vec3> points;
+  for (int i = 0; i < static_cast<int>(positions.size()); ++i)
+    if (positions[i].z() > p.top.z() - 1e-9) top.push_back(i), points.push_back(positions[i]);
+  std::vector<int> out;
+  for (const Vec3& m : p.markers) out.push_back(top[Nearest(points, m)]);
+  return out;
+}
+
+// The heterogeneous FEM of the pad at `scale` times the scene's grid, statically pressed.
+struct SolvedPad {
+  geometry::TetMesh mesh;
+  std::unique_ptr<tissue::FemModel> fem;
+  std::string note;
+};
+
+SolvedPad SolvePad(const Pad& p, int scale) {
+  SolvedPad s;
+  auto in = sim::TableInputsFor<tissue::ContactResponseParams>(p.scene, p.rest, p.held,
+                                                               PadGrid(p, scale));
+  if (!in.ok()) {
+    s.note = in.error().message;
+    return s;
+  }
+  s.mesh = in->mesh;
+  auto fem = tissue::FemModel::Create(s.mesh, in->material, in->fixed);
+  if (!fem.ok()) {
+    s.note = fem.error().message;
+    return s;
+  }
+  s.fem = std::make_unique<tissue::FemModel>(std::move(*fem));
+  Press(*s.fem, s.mesh, p.top);
+  if (!s.fem->SolveStatic(30, 1e-8).converged) s.note = "static solve not converged";
+  return s;
+}
+
+void PadFemRows(const Config& cfg, const Pad& p, const Reference& reference, SceneOut& out,
+                Progress& progress) {
+  for (int scale : cfg.quick ? std::vector<int>{1} : std::vector<int>{1, 2}) {
+    SolvedPad s = SolvePad(p, scale);
+    Row row{"fem", out.scene, std::to_string(scale) + "× the scene's grid (" +
+                                  std::to_string(s.mesh.TetCount()) + " tets)"};
+    row.note = s.note;
+    if (s.fem) {
+      row.size = s.fem->VertexCount();
+      Score(row, s.mesh.positions, s.fem->positions(), TopMarkers(p, s.mesh.positions),
+            reference);
+      row.time_us = TimeUs(cfg.quick ? 3 : 5, [&](int) { s.fem->StepImplicit(1e-3); });
+    }
+    out.rows.push_back(row);
+    progress.Step("pad fem " + std::to_string(scale) + "×");
+  }
+}
+
+// The contact table of the scene's grid (the session's own) and of twice as fine, one press
+// above the lump.
+void PadReducedRows(const Config& cfg, const Pad& p, const Reference& reference, SceneOut& out,
+                    Progress& progress) {
+  const int top = Nearest(p.rest.positions, p.top);
+  const std::vector<int> markers = TopMarkers(p, p.rest.positions);
+  for (int scale : cfg.quick ? std::vector<int>{1} : std::vector<int>{1, 2}) {
+    Row row{"reduced", out.scene,
+            "contact table, FEM " + std::to_string(scale) + "× the scene's grid, " +
+                std::to_string(p.rest.VertexCount()) + " vertices"};
+    const auto t0 = Clock::now();
+    auto in = sim::TableInputsFor<tissue::ContactResponseParams>(p.scene, p.rest, p.held,
+                                                                 PadGrid(p, scale));
+    auto response = in.ok() ? tissue::FemStaticResponse::Create(in->mesh, in->material, in->fixed)
+                            : Expected<tissue::FemStaticResponse>(in.error());
+    tissue::ContactResponseParams cp;
+    cp.footprint_radius = kCapRadius;
+    auto table = response.ok() ? tissue::PrecomputeContactResponse(*response, in->display,
+                                                                   in->reachable, cp)
+                               : Expected<tissue::ContactResponse>(response.error());
+    const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    const int64_t bytes = table.ok() ? table->Bytes() : 0;
+    auto model = table.ok() ? tissue::ReducedContactModel::Create(
+                                  std::make_shared<tissue::ContactResponse>(std::move(*table)),
+                                  p.rest.positions, p.scene.region.reduced.max_force)
+                            : Expected<tissue::ReducedContactModel>(table.error());
+    if (!model.ok()) {
+      row.note = model.error().message;
+      out.rows.push_back(row);
+      progress.Step("pad reduced");
+      continue;
+    }
+    row.size = model->VertexCount();
+    row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+      model->Press(top, Vec3(0, 0, -kPressForce * ((i % 2) ? 1.0 : 0.97)));
+    });
+    model->Press(top, Vec3(0, 0, -kPressForce));
+    Score(row, p.rest.positions, model->positions(), markers, reference);
+    row.note = "precomputed in " + Num(precompute_s, 2) + " s; " +
+               std::to_string(in->reachable.size()) + " contacts, " +
+               Num(bytes / 1048576.0, 3) + " MB";
+    out.rows.push_back(row);
+    progress.Step("pad reduced " + std::to_string(scale) + "×");
+  }
+}
+
+}  // namespace
+
+SceneOut RunPad(const Config& cfg, Progress& progress) {
+  SceneOut out = NewSceneOut("lump-search", "lump-search");
+  out.checks = {{"lump-search", "reduced", "contact table, FEM 1×"}};
+  auto pad = LoadPad();
+  if (!pad.ok()) {
+    out.rows.push_back({"fem", out.scene, "reference", 0, kInf, kInf, 0, pad.error().message});
+    return out;
+  }
+  // Reference: the heterogeneous FEM at 3× the scene's grid (2× in a quick run).
+  SolvedPad ref = SolvePad(*pad, cfg.quick ? 2 : 3);
+  if (!ref.fem) {
+    out.rows.push_back({"fem", out.scene, "reference", 0, kInf, kInf, 0, ref.note});
+    return out;
+  }
+  std::vector<Vec3> ref_disp(ref.mesh.positions.size());
+  for (size_t i = 0; i < ref_disp.size(); ++i)
+    ref_disp[i] = ref.fem->positions()[i] - ref.mesh.positions[i];
+  const Reference reference = InterpolatedReference(ref.mesh, std::move(ref_disp));
+  progress.Step("pad reference fem");
+  PadFemRows(cfg, *pad, reference, out, progress);
+  PadReducedRows(cfg, *pad, reference, out, progress);
+  return out;
+}
+
+}  // namespace vsurg::bench::study
