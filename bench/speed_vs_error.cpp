@@ -16,9 +16,13 @@
 //   organ-twist  organ-surface-twist: forceps twist the top of the 5 cm ball (held on its lower
 //                fifth) to the task's 30°. Reference: the 20-cell FEM's twist field about the
 //                surface normal for a torque on the jaws' disc, turned exactly.
+//   lump-search  the palpation pad (12 × 12 × 4 cm on a table) holding a 10 mm lump five times as
+//                stiff 15 mm down, pressed above it like the sphere. Reference: the
+//                heterogeneous FEM at twice the scene's grid in each direction.
 // Markers: ten, like the coil-spring paper Fig. 8. Limbs: on the top of the limb at z = (k − ½)/10
 // · L from the fixed end (marker 10 is next to the grasp); sphere: along a meridian from the pole,
-// polar angle 5°·(k − 1); kidney: on its upper side from the top along x, 5 mm apart. Each model
+// polar angle 5°·(k − 1); kidney: on its upper side from the top along x, 5 mm apart; pad: on
+// its top along x, 5 mm apart, the press between the fifth and the sixth. Each model
 // reads each marker at its own nearest surface vertex, and the reference is evaluated at that same
 // rest point. Error: |d_model − d_ref| (vectors), relative to the reference's largest marker
 // displacement; RMS over the ten and max. Time per update: the median over repeats of what a
@@ -47,6 +51,7 @@ using study::Num;
 using study::Progress;
 using study::RunLimbScenes;
 using study::RunOrgan;
+using study::RunPad;
 using study::RunSphere;
 using study::RunSurfaceTwist;
 using study::SceneOut;
@@ -64,7 +69,10 @@ int SpeedVsError(const std::vector<std::string>& args) {
   p.Option("out", cli::ArgParser::Kind::kString, "output folder", false, "docs")
       .Option("quick", cli::ArgParser::Kind::kFlag, "coarse levels and short runs (under a minute)")
       .Option("benchmarks", cli::ArgParser::Kind::kString,
-              "Markdown file to update (default: BENCHMARKS.md in --out when --out is docs)");
+              "Markdown file to update (default: BENCHMARKS.md in --out when --out is docs)")
+      .Option("only", cli::ArgParser::Kind::kString,
+              "one part of the study: limbs, sphere, kidney, organ-twist or pad (the table is "
+              "printed, no Markdown file is updated)");
   if (Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
     return 2;
@@ -84,11 +92,22 @@ int SpeedVsError(const std::vector<std::string>& args) {
   const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
   const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 2;
   const int organ = cfg.quick ? 3 + 5 : 6 + 7;
-  Progress progress(3 * per_limb + sphere + organ);
-  std::vector<SceneOut> scenes = RunLimbScenes(cfg, progress);
-  scenes.push_back(RunSphere(cfg, progress));
-  scenes.push_back(RunOrgan(cfg, progress));
-  scenes.push_back(RunSurfaceTwist(cfg, progress));
+  const int pad = cfg.quick ? 3 : 6;
+  const std::string only = p.Has("only") ? p.String("only") : "";
+  const auto run = [&only](const std::string& part) { return only.empty() || only == part; };
+  if (!only.empty() && !run("limbs") && !run("sphere") && !run("kidney") && !run("organ-twist") &&
+      !run("pad")) {
+    std::cerr << p.command() << ": --only: limbs, sphere, kidney, organ-twist or pad\n";
+    return 2;
+  }
+  Progress progress((run("limbs") ? 3 * per_limb : 0) + (run("sphere") ? sphere : 0) +
+                    (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0));
+  std::vector<SceneOut> scenes;
+  if (run("limbs")) scenes = RunLimbScenes(cfg, progress);
+  if (run("sphere")) scenes.push_back(RunSphere(cfg, progress));
+  if (run("kidney")) scenes.push_back(RunOrgan(cfg, progress));
+  if (run("organ-twist")) scenes.push_back(RunSurfaceTwist(cfg, progress));
+  if (run("pad")) scenes.push_back(RunPad(cfg, progress));
   for (SceneOut& s : scenes) ChooseCheapest(s);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
@@ -101,13 +120,14 @@ int SpeedVsError(const std::vector<std::string>& args) {
     std::cerr << p.command() << ": " << s.error().message << "\n";
     return 1;
   }
-  const std::string command = std::string("build/bin/vsurg-bench speed-vs-error") +
-                              (cfg.quick ? " --quick" : "") +
-                              (dir == "docs" ? "" : " --out " + dir);
+  const std::string command =
+      std::string("build/bin/vsurg-bench speed-vs-error") + (cfg.quick ? " --quick" : "") +
+      (only.empty() ? "" : " --only " + only) + (dir == "docs" ? "" : " --out " + dir);
   const std::vector<study::BudgetVerdict> verdicts = study::CheckSceneBudgets(scenes);
   const std::string table = MarkdownTable(scenes, command) + study::BudgetTable(verdicts);
   std::string bench_md = p.Has("benchmarks") ? p.String("benchmarks") : "";
-  if (bench_md.empty() && std::filesystem::path(dir).filename() == "docs")
+  if (!only.empty()) bench_md.clear();
+  if (bench_md.empty() && only.empty() && std::filesystem::path(dir).filename() == "docs")
     bench_md = (std::filesystem::path(dir) / "BENCHMARKS.md").string();
   if (!bench_md.empty()) {
     if (Status s = UpdateBenchmarks(bench_md, table); !s.ok())

@@ -132,6 +132,7 @@ std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // 
 SceneOut RunSphere(const Config& cfg, Progress& progress);
 SceneOut RunOrgan(const Config& cfg, Progress& progress);         // kidney-palpation (imported)
 SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress);  // organ-surface-twist
+SceneOut RunPad(const Config& cfg, Progress& progress);           // lump-search (a lump)
 
 // The report.
 void ChooseCheapest(SceneOut& s);

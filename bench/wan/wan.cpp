@@ -57,6 +57,10 @@ Expected<sim::Scene> GridScene(const std::string& name) {
     scene->haptics.limits = haptics::OmniLimits();
     scene->haptics.proxy.stiffness = 700;
   }
+  if (scene->task.kind == scoring::TaskKind::kPalpate) {  // one known case, the same every run
+    scene->cases.reset();
+    scene->inclusions = {kGridLump};
+  }
   return scene;
 }
 

@@ -15,6 +15,7 @@
 #include "client/net/station_channel.h"
 #include "common/core/expected.h"
 #include "common/sim/scene.h"
+#include "common/sim/trajectory.h"
 
 namespace vsurg::bench::wan {
 
@@ -101,7 +102,17 @@ Expected<std::vector<haptics::StylusSample>> TapPlan(const sim::Scene& scene);
 Figures Compare(const Run& run, const Run& reference, bool press_scene);
 
 // The scenes the grid runs: sphere-palpation-256 (soft), the same sphere at an Omni-class 700 N/m
-// ("sphere-palpation-256@700"), arm-torsion, organ-surface-twist; by name.
+// ("sphere-palpation-256@700"), arm-torsion, organ-surface-twist, needle-vessel, lump-search
+// (holding kGridLump, not a drawn case); by name.
 Expected<sim::Scene> GridScene(const std::string& name);
+
+// A palpation's plan for the grid: the scripted examiner of `style` (sim::PalpationSearch; good:
+// the expert) searches the scene closed on its answers without a network, and the `window_s`
+// seconds of its samples about its deepest press nearest the lump are played open loop, from the
+// hand's highest point of the half second before (a whole search takes minutes; the stretch
+// carries a few presses on and around the lump).
+extern const tissue::Inclusion kGridLump;
+Expected<std::vector<haptics::StylusSample>> SearchPlan(const sim::Scene& scene,
+                                                        sim::TraineeStyle style, double window_s);
 
 }  // namespace vsurg::bench::wan

@@ -21,6 +21,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
+constexpr double kSearchWindowS = 6;  // s of a palpation's search the grid plays
+
 std::vector<std::string> Split(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream in(s);
@@ -191,7 +193,8 @@ int Wan(const std::vector<std::string>& args) {
            "lan,metro,regional,continental,intercontinental,bad-wifi")
       .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
               "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist; also "
-              "needle-vessel (its pops: pop_delay_ms)")
+              "needle-vessel (its pops: pop_delay_ms), lump-search (6 s of the search around its "
+              "lump)")
       .Option("methods", cli::ArgParser::Kind::kString,
               "server, linear, model; +tdpa: with the network (two-port) passivity control; the "
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
@@ -241,9 +244,12 @@ int Wan(const std::vector<std::string>& args) {
   for (const auto& scene_name : p.List("scenes")) {
     auto scene = wan::GridScene(scene_name);
     if (!scene.ok()) return cli::UsageError(std::cerr, p.command(), scene.error());
-    auto plan = tap ? wan::TapPlan(*scene) : sim::ScriptedTrainee(*scene, *style, 1000.0, 1);
+    const bool palpate = scene->task.kind == scoring::TaskKind::kPalpate;
+    auto plan = tap       ? wan::TapPlan(*scene)
+                : palpate ? wan::SearchPlan(*scene, *style, kSearchWindowS)
+                          : sim::ScriptedTrainee(*scene, *style, 1000.0, 1);
     if (!plan.ok()) return cli::UsageError(std::cerr, p.command(), plan.error());
-    const bool press = scene->task.kind == scoring::TaskKind::kPress;
+    const bool press = scene->task.kind == scoring::TaskKind::kPress || palpate;
     for (const Method& method_entry : methods) {
       const std::string& method_name = method_entry.name;
       for (int r = 1; r <= runs; ++r) {
