@@ -68,8 +68,9 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
       best = best == 0 ? v : std::min(best, v);
     }
   }
-  EXPECT_EQ(scenes, (std::set<std::string>{"arm-ramp", "arm-haptic", "calf-ramp",
-                                           "sphere-palpation", "kidney-palpation", "organ-twist"}));
+  EXPECT_EQ(scenes,
+            (std::set<std::string>{"arm-ramp", "arm-haptic", "calf-ramp", "sphere-palpation",
+                                   "kidney-palpation", "organ-twist", "lump-search"}));
   for (const char* m : {"coil-paper", "coil-per-ring", "fem", "mass-spring", "ring-layer"})
     EXPECT_TRUE(models.count(m)) << m;
   // The per-ring calibration goes beyond the paper: closer to Saint-Venant on every limb scene.
@@ -94,9 +95,9 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
     if (e.path().extension() != ".json") continue;  // (kidney.stl is a scene's mesh)
     EXPECT_TRUE(verdict.count(e.path().filename().string())) << e.path();
   }
-  for (const char* file :
-       {"arm-torsion.json", "sphere-palpation-256.json", "kidney-palpation.json",
-        "calf-torsion.json", "sphere-palpation-rings.json", "organ-surface-twist.json"}) {
+  for (const char* file : {"arm-torsion.json", "sphere-palpation-256.json", "kidney-palpation.json",
+                           "calf-torsion.json", "sphere-palpation-rings.json",
+                           "organ-surface-twist.json", "lump-search.json"}) {
     EXPECT_NE(verdict[file].find("| within |"), std::string::npos) << verdict[file];
   }
   EXPECT_NE(verdict["arm-torsion.json"].find("coil-scene, scene parameters"), std::string::npos);
