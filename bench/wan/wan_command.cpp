@@ -184,6 +184,16 @@ void PlotFigures(const fs::path& out,
        rate_plot);
 }
 
+// What the hand plays on `scene`: the tap (press scenes, --trainee tap), a stretch of a
+// palpation's search, or the scripted trainee.
+Expected<std::vector<haptics::StylusSample>> GridPlan(const sim::Scene& scene, bool tap,
+                                                      sim::TraineeStyle style) {
+  if (tap) return wan::TapPlan(scene);
+  if (scene.task.kind == scoring::TaskKind::kPalpate)
+    return wan::SearchPlan(scene, style, kSearchWindowS);
+  return sim::ScriptedTrainee(scene, style, 1000.0, 1);
+}
+
 }  // namespace
 
 int Wan(const std::vector<std::string>& args) {
@@ -192,9 +202,8 @@ int Wan(const std::vector<std::string>& args) {
   p.Option("profiles", cli::ArgParser::Kind::kString, "comma-separated relay profiles", false,
            "lan,metro,regional,continental,intercontinental,bad-wifi")
       .Option("scenes", cli::ArgParser::Kind::kString, "comma-separated", false,
-              "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist; also "
-              "needle-vessel (its pops: pop_delay_ms), lump-search (6 s of the search around its "
-              "lump)")
+              "sphere-palpation-256,sphere-palpation-256@700,arm-torsion,organ-surface-twist; "
+              "also needle-vessel (pop_delay_ms), lump-search (6 s of a search at its lump)")
       .Option("methods", cli::ArgParser::Kind::kString,
               "server, linear, model; +tdpa: with the network (two-port) passivity control; the "
               "contact's local model, instead of the tissue's (viscoelastic, the default): +proxyk "
@@ -203,9 +212,8 @@ int Wan(const std::vector<std::string>& args) {
               "(after the others but +nosurf): every model faded 20 ms into a silence, none held "
               "(model_hold_s 0); "
               "+chbN (before +fade): with a deadband, a heartbeat of N ms while a force is "
-              "rendered; +nosurf (last): without the tissue's surface at the station (the surface "
-              "ahead "
-              "from the answers alone)",
+              "rendered; +nosurf (last): without the tissue's surface at the station (the "
+              "surface ahead from the answers alone)",
               false, "server,linear,model")
       .Option("grip", cli::ArgParser::Kind::kString, "relaxed or tensed", false, "tensed")
       .Option("trainee", cli::ArgParser::Kind::kString,
@@ -245,9 +253,7 @@ int Wan(const std::vector<std::string>& args) {
     auto scene = wan::GridScene(scene_name);
     if (!scene.ok()) return cli::UsageError(std::cerr, p.command(), scene.error());
     const bool palpate = scene->task.kind == scoring::TaskKind::kPalpate;
-    auto plan = tap       ? wan::TapPlan(*scene)
-                : palpate ? wan::SearchPlan(*scene, *style, kSearchWindowS)
-                          : sim::ScriptedTrainee(*scene, *style, 1000.0, 1);
+    auto plan = GridPlan(*scene, tap, *style);
     if (!plan.ok()) return cli::UsageError(std::cerr, p.command(), plan.error());
     const bool press = scene->task.kind == scoring::TaskKind::kPress || palpate;
     for (const Method& method_entry : methods) {
