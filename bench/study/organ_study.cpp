@@ -188,31 +188,8 @@ void OrganReducedRows(const Config& cfg, const Organ& o, const Reference& refere
     auto response =
         mesh.ok() ? tissue::FemStaticResponse::Create(*mesh, o.material, Held(mesh->positions))
                   : Expected<tissue::FemStaticResponse>(mesh.error());
-    tissue::ContactResponseParams cp;
-    cp.footprint_radius = kCapRadius;
-    auto table = response.ok()
-                     ? tissue::PrecomputeContactResponse(*response, o.surface, reachable, cp)
-                     : Expected<tissue::ContactResponse>(response.error());
-    const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
-    const int64_t bytes = table.ok() ? table->Bytes() : 0;
-    auto model = table.ok() ? tissue::ReducedContactModel::Create(
-                                  std::make_shared<tissue::ContactResponse>(std::move(*table)),
-                                  o.surface.positions, o.scene.region.reduced.max_force)
-                            : Expected<tissue::ReducedContactModel>(table.error());
-    if (!model.ok()) {
-      row.note = model.error().message;
-      out.rows.push_back(row);
-      progress.Step("organ reduced");
-      continue;
-    }
-    row.size = model->VertexCount();
-    row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
-      model->Press(top, Vec3(0, 0, -kPressForce * ((i % 2) ? 1.0 : 0.97)));
-    });
-    model->Press(top, Vec3(0, 0, -kPressForce));
-    Score(row, o.surface.positions, model->positions(), markers, reference);
-    row.note = "precomputed in " + Num(precompute_s, 2) + " s (tetrahedra included); " +
-               std::to_string(reachable.size()) + " contacts, " + Num(bytes / 1048576.0, 3) + " MB";
+    ContactTableRow(cfg, response, o.surface, reachable, o.scene.region.reduced.max_force, top,
+                    markers, reference, t0, row);
     out.rows.push_back(row);
     progress.Step("organ reduced " + Num(1000 * size, 3) + " mm");
   }

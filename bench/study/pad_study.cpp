@@ -147,32 +147,8 @@ void PadReducedRows(const Config& cfg, const Pad& p, const Reference& reference,
                                                                  PadGrid(p, scale));
     auto response = in.ok() ? tissue::FemStaticResponse::Create(in->mesh, in->material, in->fixed)
                             : Expected<tissue::FemStaticResponse>(in.error());
-    tissue::ContactResponseParams cp;
-    cp.footprint_radius = kCapRadius;
-    auto table = response.ok()
-                     ? tissue::PrecomputeContactResponse(*response, in->display, in->reachable, cp)
-                     : Expected<tissue::ContactResponse>(response.error());
-    const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
-    const int64_t bytes = table.ok() ? table->Bytes() : 0;
-    auto model = table.ok() ? tissue::ReducedContactModel::Create(
-                                  std::make_shared<tissue::ContactResponse>(std::move(*table)),
-                                  p.rest.positions, p.scene.region.reduced.max_force)
-                            : Expected<tissue::ReducedContactModel>(table.error());
-    if (!model.ok()) {
-      row.note = model.error().message;
-      out.rows.push_back(row);
-      progress.Step("pad reduced");
-      continue;
-    }
-    row.size = model->VertexCount();
-    row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
-      model->Press(top, Vec3(0, 0, -kPressForce * ((i % 2) ? 1.0 : 0.97)));
-    });
-    model->Press(top, Vec3(0, 0, -kPressForce));
-    Score(row, p.rest.positions, model->positions(), markers, reference);
-    row.note = "precomputed in " + Num(precompute_s, 2) + " s; " +
-               std::to_string(in->reachable.size()) + " contacts, " + Num(bytes / 1048576.0, 3) +
-               " MB";
+    ContactTableRow(cfg, response, p.rest, in.ok() ? in->reachable : std::vector<int>{},
+                    p.scene.region.reduced.max_force, top, markers, reference, t0, row);
     out.rows.push_back(row);
     progress.Step("pad reduced " + Times(scale));
   }

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <tuple>
 
 #include "common/sim/scene.h"
+#include "common/tissue/reduced.h"
 
 namespace vsurg::bench::study {
 
@@ -85,6 +87,34 @@ double StabilityLimit(tissue::Integrator integrator) {
     default:
       return 0.5;
   }
+}
+
+void ContactTableRow(const Config& cfg, const Expected<tissue::FemStaticResponse>& response,
+                     const geometry::TriMesh& display, const std::vector<int>& reachable,
+                     double max_force, int top, const std::vector<int>& markers,
+                     const Reference& reference, Clock::time_point t0, Row& row) {
+  tissue::ContactResponseParams cp;
+  cp.footprint_radius = kCapRadius;
+  auto table = response.ok() ? tissue::PrecomputeContactResponse(*response, display, reachable, cp)
+                             : Expected<tissue::ContactResponse>(response.error());
+  const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const int64_t bytes = table.ok() ? table->Bytes() : 0;
+  auto model = table.ok() ? tissue::ReducedContactModel::Create(
+                                std::make_shared<tissue::ContactResponse>(std::move(*table)),
+                                display.positions, max_force)
+                          : Expected<tissue::ReducedContactModel>(table.error());
+  if (!model.ok()) {
+    row.note = model.error().message;
+    return;
+  }
+  row.size = model->VertexCount();
+  row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+    model->Press(top, Vec3(0, 0, -kPressForce * ((i % 2) ? 1.0 : 0.97)));
+  });
+  model->Press(top, Vec3(0, 0, -kPressForce));
+  Score(row, display.positions, model->positions(), markers, reference);
+  row.note = "precomputed in " + Num(precompute_s, 2) + " s (tetrahedra included); " +
+             std::to_string(reachable.size()) + " contacts, " + Num(bytes / 1048576.0, 3) + " MB";
 }
 
 SceneOut NewSceneOut(std::string scene, std::string scene_file) {

@@ -15,6 +15,7 @@
 #include "common/core/expected.h"
 #include "common/geometry/mesh.h"
 #include "common/geometry/tet_embedding.h"
+#include "common/tissue/fem.h"
 #include "common/tissue/mass_spring.h"
 
 namespace vsurg::bench::study {
@@ -126,6 +127,16 @@ double StabilityLimit(tissue::Integrator integrator);
 
 // The error budget and the model family a scenes/ file declares.
 std::pair<double, std::string> SceneBudget(const std::string& file);
+
+// A contact table's row (the palpation scenes): the table of `response` over the `reachable`
+// vertices of `display` with the press's 1 cm footprint, timed pressing `top` by 0.2 N
+// (alternately 0.97 of it), then pressed and scored at `markers` against `reference`; the note
+// gives the time since `t0` (what built the response counted) and the table's size. An error
+// on the way is the row's note.
+void ContactTableRow(const Config& cfg, const Expected<tissue::FemStaticResponse>& response,
+                     const geometry::TriMesh& display, const std::vector<int>& reachable,
+                     double max_force, int top, const std::vector<int>& markers,
+                     const Reference& reference, Clock::time_point t0, Row& row);
 
 // The halves of the study.
 std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // arm ×2, calf
