@@ -98,7 +98,11 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # under ASan on the coarse pad (PalpationTest.OnTheCoarsestPad…), the bank on a small pad
   # (CaseBankTest), the metrics in PalpationScoringTest.
   long+='|PalpationTest.AnExpertFinds|PalpationTest.AnExpertMarksNothing'
-  long+='|PalpationTest.DrawnCases|PalpationSessionTest'
+  long+='|PalpationTest.DrawnCases|PalpationSessionTest|PalpationTest.TheGoodHesitantAndRough'
+  # The FEM against Hertz: factorisations of 12k-66k-tetrahedron graded blocks (32 s unsanitised);
+  # the same solvers run under ASan in the FEM tests of tissue_test (Lamé's sphere's smaller
+  # cases, the series bar, the static responses of the reduced tables).
+  long+='|HertzTest'
   # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
   # not after them, with a PostgreSQL of its own: the ctest fixture's server lives in one folder
   # of the build, and a second run's fixture would stop the first run's server under its tests.
