@@ -39,15 +39,12 @@ Expected<std::vector<haptics::StylusSample>> SearchPlan(const sim::Scene& scene,
   auto search = sim::PalpationSearch::Create((*simulation)->rest_mesh(),
                                              (*simulation)->held_vertices(), StyleOf(style));
   if (!search.ok()) return search.error();
-  // The whole search, closed on the tissue's answers without a network (the deformation
-  // stepped every fourth sample, as the reduced contact is quasi-static).
+  // The whole search, closed on the tissue's answers without a network.
   std::vector<haptics::StylusSample> samples;
-  haptics::ForceCommand c;
-  for (int i = 0; !search->done() && i < 1'000'000; ++i) {
-    samples.push_back(search->Next(i * 1e-3, i == 0 ? nullptr : &c));
-    c = (*simulation)->OnStylus(samples.back());
-    if (i % 4 == 0) (*simulation)->StepDeformation();
-  }
+  sim::SearchThrough(**simulation, *search,
+                     [&samples](const haptics::StylusSample& s, const haptics::ForceCommand&) {
+                       samples.push_back(s);
+                     });
   // The stretch centred on the deepest press nearest the lump's top (what the examiner came to
   // find), the mark buttons cleared: the grid measures touch, not marking.
   const Vec3 above = scene.inclusions.empty() ? Vec3::Zero() : scene.inclusions.front().centre;

@@ -22,17 +22,6 @@ double SecondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The examiner's search through the case's simulation, one sample per millisecond of the
-// search's own time, the quasi-static contact following every fourth.
-scoring::TrialMetrics SearchCase(sim::Simulation& simulation, sim::PalpationSearch& search) {
-  haptics::ForceCommand c;
-  for (int i = 0; !search.done() && i < 10'000'000; ++i) {
-    c = simulation.OnStylus(search.Next(i * 1e-3, i == 0 ? nullptr : &c));
-    if (i % 4 == 0) simulation.StepDeformation();
-  }
-  return simulation.Metrics();
-}
-
 }  // namespace
 
 int Search(const Args& args, std::ostream& out, std::ostream& err) {
@@ -67,7 +56,8 @@ int Search(const Args& args, std::ostream& out, std::ostream& err) {
                                              (*simulation)->held_vertices(), *search_style);
   if (!search.ok()) return UsageError(err, p.command(), search.error());
   const auto t1 = std::chrono::steady_clock::now();
-  const scoring::TrialMetrics m = SearchCase(**simulation, *search);
+  sim::SearchThrough(**simulation, *search);
+  const scoring::TrialMetrics m = (*simulation)->Metrics();
   const double search_s = SecondsSince(t1);
   if (p.Flag("json")) {
     nlohmann::json lumps = nlohmann::json::array();

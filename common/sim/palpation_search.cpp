@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include "common/sim/palpation_case.h"
+#include "common/sim/simulation.h"
 
 namespace vsurg::sim {
 
@@ -51,6 +52,18 @@ SearchStyle RoughSearch() {
   s.threshold = 0.01;
   s.max_marks = 4;
   return s;
+}
+
+void SearchThrough(
+    Simulation& simulation, PalpationSearch& search,
+    const std::function<void(const haptics::StylusSample&, const haptics::ForceCommand&)>& each) {
+  haptics::ForceCommand c;
+  for (int i = 0; !search.done() && i < 10'000'000; ++i) {
+    const haptics::StylusSample s = search.Next(i * 1e-3, i == 0 ? nullptr : &c);
+    c = simulation.OnStylus(s);
+    if (each) each(s, c);
+    if (i % 4 == 0) simulation.StepDeformation();
+  }
 }
 
 Expected<SearchStyle> SearchStyleByName(const std::string& name, const std::string& field) {

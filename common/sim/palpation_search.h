@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,16 @@ SearchStyle RoughSearch();
 // By name: good (= expert), hesitant, rough, expert or novice; the error names `field`.
 Expected<SearchStyle> SearchStyleByName(const std::string& name, const std::string& field);
 inline constexpr const char* kSearchStyleNames = "good, hesitant, rough, expert or novice";
+
+class Simulation;
+class PalpationSearch;
+
+// Runs `search` through `simulation` to its end, closed on its answers: one sample per
+// millisecond of the search's own time, the quasi-static contact stepped after every fourth.
+// `each` (optional) sees every sample and its answer. At most 10⁷ samples (2.8 h).
+void SearchThrough(Simulation& simulation, PalpationSearch& search,
+                   const std::function<void(const haptics::StylusSample&,
+                                            const haptics::ForceCommand&)>& each = {});
 
 class PalpationSearch {
  public:

@@ -28,13 +28,9 @@ Searched Search(const Scene& scene, const SearchStyle& style, const std::string&
   if (!sim.ok()) return {};
   auto search = PalpationSearch::Create((*sim)->rest_mesh(), (*sim)->held_vertices(), style);
   EXPECT_TRUE(search.ok());
-  haptics::ForceCommand c;
-  int i = 0;
-  for (; !search->done() && i < 1'000'000; ++i) {
-    c = (*sim)->OnStylus(search->Next(i * 1e-3, i == 0 ? nullptr : &c));
+  SearchThrough(**sim, *search, [](const haptics::StylusSample&, const haptics::ForceCommand& c) {
     EXPECT_TRUE(c.force.allFinite());
-    if (i % 4 == 0) (*sim)->StepDeformation();
-  }
+  });
   EXPECT_TRUE(search->done());
   Searched out{(*sim)->Metrics(), search->spots().size(), 0};
   for (double e : search->excess()) out.max_excess = std::max(out.max_excess, e);
