@@ -160,9 +160,9 @@ void TrialPanel(const Guidance& g, int width, int height) {
 
 // The end-of-trial summary, centred: the score coloured by its band, then the summary's lines.
 void SummaryPanel(const TrialSummary& summary, int width, int height) {
-  ImGui::SetNextWindowPos(
-      ImVec2(static_cast<float>(width) * 0.5f, static_cast<float>(height) * 0.4f), ImGuiCond_Always,
-      ImVec2(0.5f, 0.5f));
+  const float w = static_cast<float>(width), h = static_cast<float>(height);
+  ImGui::SetNextWindowPos(summary.low ? ImVec2(w * 0.5f, h - 10.0f) : ImVec2(w * 0.5f, h * 0.4f),
+                          ImGuiCond_Always, summary.low ? ImVec2(0.5f, 1.0f) : ImVec2(0.5f, 0.5f));
   ImGui::SetNextWindowBgAlpha(0.85f);
   ImGui::Begin("summary", nullptr, kPanel);
   ImGui::TextColored(ImVec4(0.55f, 0.85f, 1.0f, 1.0f), "Trial complete");

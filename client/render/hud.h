@@ -34,6 +34,7 @@ struct TrialSummary {
   bool show = false;
   double score = 0;                // 0–10
   std::vector<std::string> lines;  // what lowered the score (or that nothing did)
+  bool low = false;  // at the bottom of the view, leaving the tissue clear (findings drawn on it)
 };
 
 class Hud {

@@ -40,6 +40,25 @@ namespace gl {
 struct Part;
 }  // namespace gl
 
+// What a search found, drawn over the tissue once it is over (the end-of-trial summary of a
+// palpation): a ring on the surface above each lump, as wide as the lump (green when found, red
+// when missed), and a pin at each mark (green on the lump it found, joined to the ring's centre;
+// orange when it found none). m.
+struct Findings {
+  struct Ring {
+    Eigen::Vector3d surface = Eigen::Vector3d::Zero();  // the surface point above the lump
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();   // the lump's centre (its depth)
+    double radius = 0;
+    bool found = false;
+  };
+  struct Pin {
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();
+    int ring = -1;  // the ring it found, -1: none
+  };
+  std::vector<Ring> rings;
+  std::vector<Pin> pins;
+};
+
 struct Overlay {
   bool show_stylus = false;
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();  // m
@@ -49,6 +68,7 @@ struct Overlay {
   std::vector<std::string> hud;  // the panel's lines, top left: a title line, then the figures
   Guidance guidance;             // the trial's gauges and the target drawn in the scene
   TrialSummary summary;          // the end-of-trial panel
+  Findings findings;             // a search's lumps and marks, in the summary only
   bool albedo_only = false;      // tests: the surface pattern without lighting or overlays
 };
 
@@ -141,6 +161,7 @@ class MeshView {
   void TissuePass(const Frame& f);
   void TableShadowPass(const Frame& f);
   void GuidancePass(const Frame& f);
+  void FindingsMarks(const Findings& findings);
   void DrawPart(const Frame& f, const gl::Part& part, const Eigen::Affine3d& pose, int material,
                 const Eigen::Vector3d& albedo, double roughness, double scale, double bump,
                 int part_taps);

@@ -447,6 +447,7 @@ void MeshView::GuidancePass(const Frame& f) {
                          : Eigen::Vector4f(1.0f, 0.70f, 0.15f, 1.0f));
     }
   }
+  FindingsMarks(f.overlay.findings);
   if (f.stylus && f.overlay.force.allFinite() && f.overlay.force.norm() > 0.05) {
     const Eigen::Vector3d head = f.overlay.tip + 0.02 * f.overlay.force;
     const Eigen::Vector3d neck = f.overlay.tip + 0.75 * (head - f.overlay.tip);
@@ -467,6 +468,37 @@ void MeshView::GuidancePass(const Frame& f) {
     glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(g.marks.vertices()));
     glDepthMask(GL_TRUE);
     glDisable(GL_BLEND);
+  }
+}
+
+// A search's findings (Findings): rings lifted a millimetre off the surface along the normal
+// there (from the lump's centre to the point above it; the table's up for a lump at the surface),
+// pins standing 6 mm off it. Bad values are skipped, never drawn.
+void MeshView::FindingsMarks(const Findings& findings) {
+  Gpu& g = *gpu_;
+  const Eigen::Vector4f green(0.25f, 0.9f, 0.45f, 0.95f), red(0.95f, 0.22f, 0.2f, 0.95f),
+      orange(1.0f, 0.62f, 0.1f, 0.95f);
+  const auto normal_at = [&](const Findings::Ring& r) {
+    const Eigen::Vector3d n = r.surface - r.centre;
+    return n.norm() > 1e-4 ? Eigen::Vector3d(n.normalized()) : world_up_;
+  };
+  for (const Findings::Ring& r : findings.rings) {
+    if (!r.surface.allFinite() || !r.centre.allFinite() || !(r.radius > 0 && r.radius < radius_))
+      continue;
+    const Eigen::Vector3d n = normal_at(r);
+    g.marks.Arc(r.surface + 0.001 * n, n, n.unitOrthogonal(), r.radius, 0,
+                2 * std::numbers::pi * 0.999, std::max(0.0012, r.radius * 0.18),
+                r.found ? green : red);
+  }
+  for (const Findings::Pin& p : findings.pins) {
+    if (!p.at.allFinite()) continue;
+    const bool hit = p.ring >= 0 && p.ring < static_cast<int>(findings.rings.size());
+    const Eigen::Vector3d n = hit ? normal_at(findings.rings[p.ring]) : world_up_;
+    const Eigen::Vector4f colour = hit ? green : orange;
+    g.marks.Tube(p.at, p.at + 0.006 * n, 0.0006, colour);
+    g.marks.Cone(p.at + 0.006 * n, p.at + 0.0095 * n, 0.0018, colour);
+    if (hit && findings.rings[p.ring].surface.allFinite())
+      g.marks.Tube(p.at + 0.001 * n, findings.rings[p.ring].surface + 0.001 * n, 0.0005, colour);
   }
 }
 

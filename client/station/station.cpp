@@ -47,6 +47,7 @@ SessionSummary SummaryOf(const v1::Session& session) {
   out.end_reason = session.end_reason();
   out.has_metrics = session.has_metrics();
   out.metrics = convert::FromProto(session.metrics());
+  if (session.has_palpation()) out.palpation = convert::FromProto(session.palpation());
   return out;
 }
 

@@ -48,6 +48,7 @@
 #include "common/core/expected.h"
 #include "common/core/range.h"
 #include "common/core/session_state.h"
+#include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/guidance.h"
 
@@ -134,6 +135,8 @@ struct SessionSummary {
   };
   std::vector<TargetCheck> targets;
   bool targets_passed = false;
+  // A palpation: where the lumps were and the trainee's marks (the summary draws them).
+  std::optional<scoring::PalpationOutcome> palpation;
 };
 
 // The exercise a trainee's station runs when it follows their course (TrainingService/Next):

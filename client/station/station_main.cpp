@@ -595,6 +595,22 @@ vsurg::Expected<Screen> OpenScreen(const ArgParser& p, const sim::Scene& scene,
   return screen;
 }
 
+// A search's outcome drawn on the tissue (the lumps it hid, the marks made), the panel below it.
+void ShowFindings(const vsurg::scoring::PalpationOutcome& outcome, client::Overlay& last) {
+  for (size_t i = 0; i < outcome.lumps.size(); ++i) {
+    const vsurg::scoring::Lump& l = outcome.lumps[i];
+    last.findings.rings.push_back(
+        {l.surface, l.centre, l.radius, i < outcome.found.size() && outcome.found[i]});
+  }
+  for (const auto& m : outcome.marks) last.findings.pins.push_back({m.position, m.lump});
+  last.summary.low = true;
+  last.summary.lines.push_back(outcome.lumps.empty()
+                                   ? "No lump was hidden in this pad"
+                                   : "Rings: where the lumps were (green found, red missed)");
+  if (!outcome.marks.empty())
+    last.summary.lines.push_back("Pins: your marks (orange: no lump there)");
+}
+
 // The end-of-trial summary on screen: the score and what lowered it (a window keeps it until
 // closed, or 15 s). A panel's size settles over its first frames (ImGui fits it to its text):
 // the screenshot is of the third.
@@ -610,6 +626,7 @@ vsurg::Status ShowSummary(const ArgParser& p, const sim::Scene& scene, Screen& s
   last.summary.lines = vsurg::scoring::ExplainScore(summary.metrics, scene.task);
   if (last.summary.lines.empty()) last.summary.lines = {"Nothing lowered it: expert level"};
   for (const TargetLine& line : TargetLines(summary)) last.summary.lines.push_back(line.text);
+  if (summary.palpation) ShowFindings(*summary.palpation, last);
   const auto shown_at = std::chrono::steady_clock::now();
   for (int frames = 1;; ++frames) {
     screen.view->Draw(gl.width(), gl.height(), last);

@@ -88,17 +88,18 @@ bool PalpationRecorder::Mark(double time, const Eigen::Vector3d& point) {
   return true;
 }
 
-// Marks and lumps paired closest first (at most 16 × 16 pairs, no allocation), then the score.
-void PalpationRecorder::Complete(TrialMetrics& m, const TaskSpec& task) const {
+// Marks and lumps paired closest first (at most 16 × 16 pairs, no allocation).
+int PalpationRecorder::Pair(int* lump_of, double* error_sum) const {
   const int lumps = std::min(static_cast<int>(lumps_.size()), kMaxMarks);
-  bool mark_used[kMaxMarks] = {}, lump_used[kMaxMarks] = {};
+  bool lump_used[kMaxMarks] = {};
+  std::fill(lump_of, lump_of + marks_, -1);
   int found = 0;
-  double error_sum = 0;
+  *error_sum = 0;
   for (;;) {
     int best_mark = -1, best_lump = -1;
     double best = 0;
     for (int i = 0; i < marks_; ++i) {
-      if (mark_used[i]) continue;
+      if (lump_of[i] >= 0) continue;
       for (int j = 0; j < lumps; ++j) {
         if (lump_used[j]) continue;
         const double d = (mark_[i] - lumps_[j].surface).norm();
@@ -106,11 +107,31 @@ void PalpationRecorder::Complete(TrialMetrics& m, const TaskSpec& task) const {
         if (best_mark < 0 || d < best) best_mark = i, best_lump = j, best = d;
       }
     }
-    if (best_mark < 0) break;
-    mark_used[best_mark] = lump_used[best_lump] = true;
+    if (best_mark < 0) return found;
+    lump_of[best_mark] = best_lump;
+    lump_used[best_lump] = true;
     ++found;
-    error_sum += best;
+    *error_sum += best;
   }
+}
+
+PalpationOutcome PalpationRecorder::Outcome() const {
+  int lump_of[kMaxMarks];
+  double error_sum = 0;
+  Pair(lump_of, &error_sum);
+  PalpationOutcome out{lumps_, std::vector<bool>(lumps_.size(), false), {}};
+  for (int i = 0; i < marks_; ++i) {
+    out.marks.push_back({mark_[i], mark_time_[i], lump_of[i]});
+    if (lump_of[i] >= 0) out.found[static_cast<size_t>(lump_of[i])] = true;
+  }
+  return out;
+}
+
+// The pairs, then the score.
+void PalpationRecorder::Complete(TrialMetrics& m, const TaskSpec& task) const {
+  int lump_of[kMaxMarks];
+  double error_sum = 0;
+  const int found = Pair(lump_of, &error_sum);
   m.lumps = static_cast<int>(lumps_.size());
   m.lumps_found = found;
   m.false_marks = marks_ - found;

@@ -48,6 +48,20 @@ struct Lump {
   Eigen::Vector3d surface = Eigen::Vector3d::Zero();  // m, the palpable surface's nearest point
 };
 
+// A palpation's outcome as the trainee sees it afterwards (the station's summary draws it over the
+// tissue): the lumps that were hidden, each found or not, and the marks, each with the lump it
+// found (-1: a false mark).
+struct PalpationOutcome {
+  struct Placed {
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();  // m
+    double time = 0;                                     // s into the trial
+    int lump = -1;
+  };
+  std::vector<Lump> lumps;
+  std::vector<bool> found;  // per lump
+  std::vector<Placed> marks;
+};
+
 struct PalpationSpec {
   double match_margin = 0.005;  // m, beyond the lump's radius
   double press_force = 0.3;     // N, a press this firm examines the surface under it
@@ -81,6 +95,10 @@ class PalpationRecorder {
   const Eigen::Vector3d& mark(int i) const { return mark_[i]; }
   double mark_time(int i) const { return mark_time_[i]; }
   const std::vector<Lump>& lumps() const { return lumps_; }
+  // Which lump each mark found (closest first, each used once; -1: none), into `lump_of` (at
+  // least marks() long); returns how many were found and the sum of their distances (m).
+  int Pair(int* lump_of, double* error_sum) const;
+  PalpationOutcome Outcome() const;
 
   // The state a session moved to another node goes on from (state_archive.h); the lumps, the
   // surface and the spec are rebuilt from the scene.

@@ -1,5 +1,7 @@
 #include "proto/convert/services.h"
 
+#include <cmath>
+
 namespace vsurg::convert {
 
 v1::SessionState ToProto(SessionState s) {
@@ -293,6 +295,44 @@ Expected<std::shared_ptr<const haptics::NeedleTissueSpec>> FromProto(const v1::S
   spec.max_entry_angle = s.max_entry_angle();
   if (Status st = haptics::CheckNeedleTissue(spec); !st.ok()) return st.error();
   return std::make_shared<const haptics::NeedleTissueSpec>(std::move(spec));
+}
+
+void ToProto(const scoring::PalpationOutcome& o, v1::PalpationOutcome* out) {
+  for (size_t i = 0; i < o.lumps.size(); ++i) {
+    v1::PalpationOutcome::Lump* l = out->add_lumps();
+    PutVec(o.lumps[i].centre, l->mutable_centre());
+    l->set_radius(o.lumps[i].radius);
+    PutVec(o.lumps[i].surface, l->mutable_surface());
+    l->set_found(i < o.found.size() && o.found[i]);
+  }
+  for (const scoring::PalpationOutcome::Placed& m : o.marks) {
+    v1::PalpationOutcome::Mark* w = out->add_marks();
+    PutVec(m.position, w->mutable_position());
+    w->set_time_s(m.time);
+    w->set_lump(m.lump);
+  }
+}
+
+scoring::PalpationOutcome FromProto(const v1::PalpationOutcome& o) {
+  scoring::PalpationOutcome out;
+  std::vector<int> index(static_cast<size_t>(o.lumps_size()), -1);  // wire index → kept index
+  for (int i = 0; i < o.lumps_size(); ++i) {
+    const v1::PalpationOutcome::Lump& l = o.lumps(i);
+    const scoring::Lump lump{GetVec(l.centre()), l.radius(), GetVec(l.surface())};
+    if (!lump.centre.allFinite() || !lump.surface.allFinite() || !(lump.radius > 0) ||
+        !std::isfinite(lump.radius))
+      continue;
+    index[static_cast<size_t>(i)] = static_cast<int>(out.lumps.size());
+    out.lumps.push_back(lump);
+    out.found.push_back(l.found());
+  }
+  for (const v1::PalpationOutcome::Mark& m : o.marks()) {
+    const Eigen::Vector3d at = GetVec(m.position());
+    if (!at.allFinite() || !std::isfinite(m.time_s())) continue;
+    const int lump = m.lump() >= 0 && m.lump() < o.lumps_size() ? index[m.lump()] : -1;
+    out.marks.push_back({at, m.time_s(), lump});
+  }
+  return out;
 }
 
 }  // namespace vsurg::convert

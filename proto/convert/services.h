@@ -11,6 +11,7 @@
 #include "common/haptics/needle.h"
 #include "common/haptics/tissue_surface.h"
 #include "common/scoring/metrics.h"
+#include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/sim/telemetry.h"
 #include "vsurg/v1/services.pb.h"
@@ -26,6 +27,11 @@ std::string StateName(v1::SessionState s);
 
 void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out);
 scoring::TrialMetrics FromProto(const v1::TrialMetrics& m);
+
+// A palpation's outcome; from the wire, lumps and marks that are not finite are left out and a
+// mark's lump index out of range reads as a false mark (-1).
+void ToProto(const scoring::PalpationOutcome& o, v1::PalpationOutcome* out);
+scoring::PalpationOutcome FromProto(const v1::PalpationOutcome& o);
 
 // An exercise's task settings; a kind other than twist or press reads as none given.
 void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out);

@@ -63,7 +63,9 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   ServerUnaryReactor* Stop(CallbackServerContext* ctx, const v1::StopSessionRequest* req,
                            v1::Session* resp) override {
     return Unary(d_, pool_, ctx, Method::kSessionStop, [=, this](const db::Principal& p) {
-      return Answer(StopSession(d_, p, req->id(), req->reason()), resp);
+      if (Status s = Answer(StopSession(d_, p, req->id(), req->reason()), resp); !s.ok()) return s;
+      AddPalpation(p, resp);
+      return Status::Ok();
     });
   }
 
@@ -84,6 +86,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
         }
         resp->set_targets_passed(checks->passed);
       }
+      AddPalpation(p, resp);
       return Status::Ok();
     });
   }
@@ -118,6 +121,17 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   }
 
  private:
+  // An ended palpation's lumps and marks (the station's summary draws them). A record that cannot
+  // be read leaves them out: the answer is the session's, the drawing an extra.
+  void AddPalpation(const db::Principal& p, v1::Session* resp) {
+    if (!resp->has_metrics() ||
+        (resp->metrics().lumps() == 0 && resp->metrics().false_marks() == 0))
+      return;
+    auto outcome = SessionPalpation(d_, p, resp->id());
+    if (outcome.ok() && outcome->has_value())
+      convert::ToProto(**outcome, resp->mutable_palpation());
+  }
+
   // Four-handed training: an instructor's station's credentials for its own channel.
   ServerUnaryReactor* JoinInstructor(CallbackServerContext* ctx, const v1::JoinRequest* req,
                                      v1::CreateSessionResponse* resp) {

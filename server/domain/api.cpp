@@ -7,6 +7,7 @@
 #include "common/scoring/evaluation.h"
 #include "common/scoring/report_json.h"
 #include "server/domain/scene_catalog.h"
+#include "server/session/trace_recorder.h"
 
 namespace vsurg::server {
 namespace {
@@ -238,6 +239,23 @@ Expected<std::string> SessionTrace(Domain& d, const db::Principal& p, uint64_t i
     // It ended between the two reads: the store has it now.
   }
   return d.store.GetSessionTrace(static_cast<int64_t>(id));
+}
+
+Expected<std::optional<scoring::PalpationOutcome>> SessionPalpation(Domain& d,
+                                                                    const db::Principal& p,
+                                                                    uint64_t id) {
+  if (Status s = Permit(p, Method::kSessionGet); !s.ok()) return s.error();
+  auto r = d.store.GetSession(static_cast<int64_t>(id));
+  if (!r.ok()) return r.error();
+  if (Status s = OwnSession(p, *r); !s.ok()) return s.error();
+  if (IsLive(r->state)) return std::optional<scoring::PalpationOutcome>();
+  auto trace = d.store.GetSessionTrace(static_cast<int64_t>(id));
+  if (!trace.ok()) {
+    if (trace.error().code == ErrorCode::kNotFound)
+      return std::optional<scoring::PalpationOutcome>();
+    return trace.error();
+  }
+  return TraceRecorder::PalpationOf(*trace);
 }
 
 Expected<std::vector<db::SubmittedRow>> SessionFeedback(Domain& d, const db::Principal& p,

@@ -18,6 +18,7 @@
 
 #include "common/core/expected.h"
 #include "common/scoring/metrics.h"
+#include "common/scoring/palpation.h"
 #include "db/store.h"
 #include "server/domain/auth.h"
 #include "server/session/sessions.h"
@@ -85,6 +86,11 @@ Expected<db::SessionPage> FindSessions(Domain& d, const db::Principal& p, db::Se
 // A session's record (server/session/trace_recorder.h, JSON text): so far while it is live, as
 // kept once it ended. Whoever may read the session (a trainee their own).
 Expected<std::string> SessionTrace(Domain& d, const db::Principal& p, uint64_t id);
+// An ended palpation's lumps and marks, from its stored record (the station's summary draws
+// them); nullopt while live or for a record without them. The same readers as SessionTrace.
+Expected<std::optional<scoring::PalpationOutcome>> SessionPalpation(Domain& d,
+                                                                    const db::Principal& p,
+                                                                    uint64_t id);
 // The ratings of one session, oldest first: all of them for its trainee (without the raters'
 // names), instructors and administrators; an evaluator sees only their own, so that ratings
 // stay independent (the coil-spring paper's reliability needs raters who did not see each other's).

@@ -93,15 +93,53 @@ void TraceRecorder::SetPalpation(const scoring::PalpationRecorder& palpation) {
     return nlohmann::json::array(
         {Round(p.x() * 1e3, 2), Round(p.y() * 1e3, 2), Round(p.z() * 1e3, 2)});
   };
+  const scoring::PalpationOutcome outcome = palpation.Outcome();
   nlohmann::json lumps = nlohmann::json::array(), marks = nlohmann::json::array();
-  for (const scoring::Lump& l : palpation.lumps())
+  for (size_t i = 0; i < outcome.lumps.size(); ++i) {
+    const scoring::Lump& l = outcome.lumps[i];
     lumps.push_back({{"centre_mm", mm(l.centre)},
                      {"radius_mm", Round(l.radius * 1e3, 2)},
-                     {"surface_mm", mm(l.surface)}});
-  for (int i = 0; i < palpation.marks(); ++i)
+                     {"surface_mm", mm(l.surface)},
+                     {"found", static_cast<bool>(outcome.found[i])}});
+  }
+  for (const scoring::PalpationOutcome::Placed& m : outcome.marks)
     marks.push_back(
-        {{"time_s", Round(palpation.mark_time(i), 3)}, {"position_mm", mm(palpation.mark(i))}});
+        {{"time_s", Round(m.time, 3)}, {"position_mm", mm(m.position)}, {"lump", m.lump}});
   palpation_ = nlohmann::json{{"lumps", std::move(lumps)}, {"marks", std::move(marks)}}.dump();
+}
+
+std::optional<scoring::PalpationOutcome> TraceRecorder::PalpationOf(
+    const std::string& record_json) {
+  // Only the palpation member is kept as the record is parsed (a record is mostly its frames).
+  const auto keep = [](int depth, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    return depth != 1 || event != nlohmann::json::parse_event_t::key || parsed == "palpation";
+  };
+  const nlohmann::json record = nlohmann::json::parse(record_json, keep, false);
+  if (record.is_discarded() || !record.is_object() || !record.contains("palpation"))
+    return std::nullopt;
+  const auto metres = [](const nlohmann::json& v) -> Eigen::Vector3d {
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
+        !v[2].is_number())
+      throw nlohmann::json::type_error::create(302, "not a point", nullptr);
+    return Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>()) * 1e-3;
+  };
+  try {
+    const nlohmann::json& p = record.at("palpation");
+    scoring::PalpationOutcome out;
+    for (const nlohmann::json& l : p.at("lumps")) {
+      out.lumps.push_back({metres(l.at("centre_mm")), l.at("radius_mm").get<double>() * 1e-3,
+                           metres(l.at("surface_mm"))});
+      out.found.push_back(l.value("found", false));
+    }
+    for (const nlohmann::json& m : p.at("marks")) {
+      const int lump = m.value("lump", -1);
+      out.marks.push_back({metres(m.at("position_mm")), m.at("time_s").get<double>(),
+                           lump >= 0 && lump < static_cast<int>(out.lumps.size()) ? lump : -1});
+    }
+    return out;
+  } catch (const nlohmann::json::exception&) {
+    return std::nullopt;
+  }
 }
 
 void TraceRecorder::SetNeedle(const haptics::NeedleModel& needle) {

@@ -25,6 +25,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,9 +52,13 @@ class TraceRecorder {
                   const std::vector<geometry::Vec3>& positions);
   // A palpation's lumps and the trainee's marks, shown with the record once the search is over
   // (the station never shows the lumps during it): "palpation": {"lumps": [{"centre_mm",
-  // "radius_mm", "surface_mm"}], "marks": [{"time_s", "position_mm"}]} in the record. Set at the
+  // "radius_mm", "surface_mm", "found"}], "marks": [{"time_s", "position_mm", "lump"}]} in the
+  // record (a mark's lump: the index of the lump it found, -1 for a false mark). Set at the
   // session's end; not part of the moved state (the receiver's own simulation has it).
   void SetPalpation(const scoring::PalpationRecorder& palpation);
+  // That member read back from a record's JSON (the station's summary draws it); nullopt when the
+  // record has none or it is malformed.
+  static std::optional<scoring::PalpationOutcome> PalpationOf(const std::string& record_json);
   // A needle insertion's target and the tracts the needle left (the record's "needle" member):
   // the replay draws them beside the tool's path.
   void SetNeedle(const haptics::NeedleModel& needle);

@@ -582,6 +582,58 @@ TEST(MeshViewTest, AToolOnlyMoveDrawsWhatAFreshViewDraws) {
   }
 }
 
+// Colour (r, g, b, 0–255) at a pixel.
+Eigen::Vector3i ColourAt(const RgbImage& image, Eigen::Vector2d at) {
+  const size_t i = (static_cast<size_t>(at.y()) * image.width + static_cast<size_t>(at.x())) * 3;
+  return {image.rgb[i], image.rgb[i + 1], image.rgb[i + 2]};
+}
+
+// A search's summary draws where the lumps were over the pad (a ring as wide as each lump, green
+// found, red missed) and the trainee's marks (pins: green on a lump, orange on none); nothing
+// else of the image changes, and values that are not finite draw nothing.
+TEST(MeshViewTest, ASearchsFindingsAreDrawnOverThePadAtTheLumpsAndTheMarks) {
+  auto surface = GlSurface::CreateHeadless(kWidth, kHeight);
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  SceneView s("lump-search");
+  s.view->SetQuality(Quality::kLow);
+  s.view->Draw(kWidth, kHeight, {});
+  const RgbImage plain = (*surface)->ReadPixels();
+  const double top = Bounds(s.mesh.surface.positions).second.z();
+  const Eigen::Vector3d found(0.02, 0.015, top), missed(-0.03, 0.0, top), stray(0.0, -0.035, top);
+  Overlay o;
+  o.findings.rings = {{found, found - Eigen::Vector3d(0, 0, 0.015), 0.006, true},
+                      {missed, missed - Eigen::Vector3d(0, 0, 0.01), 0.005, false},
+                      {Eigen::Vector3d::Constant(std::nan("")), found, 0.005, false}};
+  o.findings.pins = {{found + Eigen::Vector3d(0.002, 0.001, 0), 0},
+                     {stray, -1},
+                     {Eigen::Vector3d(std::nan(""), 0, 0), -1}};
+  s.view->Draw(kWidth, kHeight, o);
+  const RgbImage drawn = (*surface)->ReadPixels();
+  Keep(drawn, "findings");
+  const auto project = [&](const Eigen::Vector3d& p) {
+    return s.view->Project(p, kWidth, kHeight);
+  };
+  // Each ring's near edge (toward the camera, which looks from -y) in its colour.
+  const Eigen::Vector3i green = ColourAt(drawn, project(found + Eigen::Vector3d(0, -0.006, 0.001)));
+  const Eigen::Vector3i red = ColourAt(drawn, project(missed + Eigen::Vector3d(0, -0.005, 0.001)));
+  EXPECT_GT(green.y(), green.x() + 60) << green.transpose();
+  EXPECT_GT(red.x(), red.y() + 80) << red.transpose();
+  // The false mark's pin, its head 8 mm up, orange.
+  const Eigen::Vector3i orange = ColourAt(drawn, project(stray + Eigen::Vector3d(0, 0, 0.008)));
+  EXPECT_GT(orange.x(), 200) << orange.transpose();
+  EXPECT_GT(orange.x(), orange.z() + 120) << orange.transpose();
+  // What changed lies around the marks: within the box of the rings and pins.
+  Eigen::Vector2d lo(1e9, 1e9), hi(-1e9, -1e9);
+  for (const Eigen::Vector3d& c : {found, missed, stray})
+    for (const Eigen::Vector3d& d :
+         {Eigen::Vector3d(0.009, 0, 0), Eigen::Vector3d(-0.009, 0, 0), Eigen::Vector3d(0, 0.009, 0),
+          Eigen::Vector3d(0, -0.009, 0), Eigen::Vector3d(0, 0, 0.011)})
+      lo = lo.cwiseMin(project(c + d)), hi = hi.cwiseMax(project(c + d));
+  const Diff d = Compare(plain, drawn, Eigen::Vector4d(lo.x(), lo.y(), hi.x(), hi.y()));
+  EXPECT_GT(d.changed, 150);
+  EXPECT_EQ(d.inside, d.changed);
+}
+
 TEST(QualityGovernorTest, StepsDownWhenFramesRunLongAndNeverBackToALevelTooSlow) {
   QualityGovernor g(Quality::kHigh, 16.7);
   for (int i = 0; i < 30; ++i) g.Update(25);

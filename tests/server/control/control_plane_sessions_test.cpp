@@ -355,6 +355,111 @@ TEST_F(ControlPlaneTest, BackupWritesOnlyIntoTheBackupDirectory) {
   EXPECT_FALSE(fs::exists(dir_ / "target.db"));
 }
 
+// A search's samples on the coarse pad (top at z = 30 mm): a press over `at`, 3 mm in, the mark
+// button held for 50 ms while in, then lifted; 1.6 s a press.
+void PressAndMark(std::vector<haptics::StylusSample>& out, const Eigen::Vector2d& at) {
+  for (int k = 0; k < 1600; ++k) {
+    haptics::StylusSample s;
+    const double in = k < 500 ? k / 500.0 : k < 1200 ? 1.0 : std::max(0.0, 1 - (k - 1200) / 300.0);
+    s.position = Eigen::Vector3d(at.x(), at.y(), 0.040 - 0.013 * in);
+    if (k >= 900 && k < 950) s.buttons = haptics::kButtonMark;
+    out.push_back(s);
+  }
+}
+
+// The station's end-of-trial summary draws where the lumps were and the trainee's marks: Stop's
+// and Get's answers for an ended search carry them, each mark paired with the lump it found as
+// the score pairs them; a record without them (another task) answers without.
+TEST_F(ControlPlaneTest, AnEndedSearchAnswersWithWhereItsLumpsWereAndItsMarks) {
+  const fs::path scenes = dir_ / "scenes";
+  fs::create_directories(scenes);
+  std::ofstream(scenes / "pad-one-lump.json") << R"({"name": "pad-one-lump",
+      "mesh": {"type": "block", "size": [0.1, 0.1, 0.03], "cells": [10, 10, 3]},
+      "tissue": {"shear_modulus": 1100, "poisson_ratio": 0.47,
+                 "inclusions": [{"centre": [0.004, 0.002, 0.018], "radius": 0.006,
+                                 "contrast": 5}]},
+      "regions": [{"name": "r", "model": {"type": "reduced", "mode": "contact",
+                   "footprint_radius": 0.009, "support": {"plane": {"point": [0, 0, 0.001],
+                   "normal": [0, 0, 1]}}}}],
+      "task": {"type": "palpate", "time_limit_s": 300},
+      "error_budget": {"rms": 0.2}})";
+  ::setenv("VSURG_SCENES", scenes.c_str(), 1);
+  auto sessions = v1::SessionService::NewStub(channel_);
+  v1::CreateSessionResponse created;
+  const grpc::Status made = sessions->Create(Ctx(role_tokens_[db::Role::kTrainee], 120).get(),
+                                             CreateFor("", "pad-one-lump"), &created);
+  ::unsetenv("VSURG_SCENES");
+  ASSERT_TRUE(made.ok()) << made.error_message();
+  const uint64_t id = created.session().id();
+  v1::SessionRef ref;
+  ref.set_id(id);
+  v1::Session s;
+  ASSERT_TRUE(sessions->Start(Ctx(db::Role::kTrainee).get(), ref, &s).ok());
+
+  std::vector<haptics::StylusSample> search;
+  PressAndMark(search, {0.004, 0.002});  // over the lump
+  PressAndMark(search, {-0.03, -0.03});  // 40 mm aside: a false mark
+  client::ReplayDevice device(search);
+  client::StationOptions so;
+  so.server_port = endpoint_->port();
+  so.session = id;
+  std::copy(created.session_key().begin(), created.session_key().end(), so.key.begin());
+  auto station = client::StationChannel::Create(so, &device);
+  ASSERT_TRUE(station.ok()) << station.error().message;
+  // Until the server has answered past the second mark (its press lifts 0.6 s after it).
+  ASSERT_TRUE(test::Eventually(60, [&] { return (*station)->stats().received > 1600 + 1300; }));
+  (*station)->Stop();
+
+  v1::StopSessionRequest stop;
+  stop.set_id(id);
+  stop.set_reason("done");
+  ASSERT_TRUE(sessions->Stop(Ctx(db::Role::kTrainee).get(), stop, &s).ok());
+  for (int asked = 0; asked < 2; ++asked) {  // Stop's answer, then Get's
+    if (asked == 1) {
+      ASSERT_TRUE(sessions->Get(Ctx(db::Role::kTrainee).get(), ref, &s).ok());
+    }
+    ASSERT_TRUE(s.has_palpation()) << asked;
+    EXPECT_EQ(s.metrics().lumps(), 1);
+    EXPECT_EQ(s.metrics().lumps_found(), 1);
+    EXPECT_EQ(s.metrics().false_marks(), 1);
+    ASSERT_EQ(s.palpation().lumps_size(), 1);
+    const v1::PalpationOutcome::Lump& lump = s.palpation().lumps(0);
+    EXPECT_NEAR(lump.centre().z(), 0.018, 1e-6);
+    EXPECT_NEAR(lump.radius(), 0.006, 1e-6);
+    EXPECT_NEAR(lump.surface().z(), 0.03, 1e-3) << "the point above it, on the top";
+    EXPECT_TRUE(lump.found());
+    ASSERT_EQ(s.palpation().marks_size(), 2);
+    EXPECT_EQ(s.palpation().marks(0).lump(), 0);
+    EXPECT_EQ(s.palpation().marks(1).lump(), -1);
+    EXPECT_NEAR(s.palpation().marks(0).position().x(), 0.004, 0.003);
+    EXPECT_NEAR(s.palpation().marks(1).position().x(), -0.03, 0.003);
+    EXPECT_LT(s.palpation().marks(0).time_s(), s.palpation().marks(1).time_s());
+  }
+  // The station reads the same, in the core's types.
+  const scoring::PalpationOutcome read = convert::FromProto(s.palpation());
+  ASSERT_EQ(read.lumps.size(), 1u);
+  EXPECT_EQ(read.found, std::vector<bool>{true});
+  ASSERT_EQ(read.marks.size(), 2u);
+  EXPECT_EQ(read.marks[1].lump, -1);
+
+  // Another task's ended session answers without one; so does a search whose record's member is
+  // not what it should be (the store holds only valid JSON): the session's answer stands, the
+  // drawing is what is left out.
+  scoring::TrialMetrics searched;
+  searched.lumps = 1;
+  for (const auto& [metrics, record] : {std::pair{scoring::TrialMetrics{}, std::string("{}")},
+                                        std::pair{searched, std::string("{\"palpation\": 3}")}}) {
+    auto other = store_->CreateSession("tina", "sphere-palpation-256");
+    ASSERT_TRUE(other.ok());
+    const Status ended = store_->EndSession(other->id, SessionState::kEnded, db::NowUs(), "done",
+                                            metrics, {}, record);
+    ASSERT_TRUE(ended.ok()) << ended.error().message;
+    ref.set_id(static_cast<uint64_t>(other->id));
+    ASSERT_TRUE(sessions->Get(Ctx(db::Role::kTrainee).get(), ref, &s).ok()) << record;
+    EXPECT_FALSE(s.has_palpation()) << record;
+  }
+}
+
 // A scene whose description was a number made ListScenes and Create fail for everyone.
 TEST_F(ControlPlaneTest, ABadSceneFileIsSkippedAndReportedAndTheOthersStayAvailable) {
   const fs::path scenes = dir_ / "scenes";

@@ -147,20 +147,48 @@ TEST(TraceRecorderTest, APalpationsRecordCarriesTheLumpsAndTheMarks) {
   r.AddSample(Sample(0.1));
   scoring::PalpableSurface surface{{Eigen::Vector3d(0.003, 0.003, 0)}, {5e-5}};
   scoring::PalpationRecorder palpation(
-      {{Eigen::Vector3d(0.004, 0.002, -0.015), 0.005, Eigen::Vector3d(0.004, 0.002, 0)}}, surface,
-      {});
+      {{Eigen::Vector3d(0.004, 0.002, -0.015), 0.005, Eigen::Vector3d(0.004, 0.002, 0)},
+       {Eigen::Vector3d(0.04, 0.03, -0.01), 0.004, Eigen::Vector3d(0.04, 0.03, 0)}},
+      surface, {});
   palpation.Mark(1.25, Eigen::Vector3d(0.0045, 0.002, 0));
+  palpation.Mark(2.5, Eigen::Vector3d(0.02, 0.03, 0));  // 20 mm from the second: false
   r.SetPalpation(palpation);
   const json record = json::parse(r.Json());
   ASSERT_TRUE(record.contains("palpation"));
   const json& p = record["palpation"];
-  ASSERT_EQ(p["lumps"].size(), 1u);
+  ASSERT_EQ(p["lumps"].size(), 2u);
   EXPECT_DOUBLE_EQ(p["lumps"][0]["radius_mm"].get<double>(), 5);
   EXPECT_DOUBLE_EQ(p["lumps"][0]["centre_mm"][2].get<double>(), -15);
   EXPECT_DOUBLE_EQ(p["lumps"][0]["surface_mm"][0].get<double>(), 4);
-  ASSERT_EQ(p["marks"].size(), 1u);
+  EXPECT_TRUE(p["lumps"][0]["found"].get<bool>());
+  EXPECT_FALSE(p["lumps"][1]["found"].get<bool>());
+  ASSERT_EQ(p["marks"].size(), 2u);
   EXPECT_DOUBLE_EQ(p["marks"][0]["time_s"].get<double>(), 1.25);
   EXPECT_DOUBLE_EQ(p["marks"][0]["position_mm"][0].get<double>(), 4.5);
+  EXPECT_EQ(p["marks"][0]["lump"].get<int>(), 0);
+  EXPECT_EQ(p["marks"][1]["lump"].get<int>(), -1);
+  // Read back as the station's summary draws it: in metres, each mark with the lump it found.
+  const auto outcome = TraceRecorder::PalpationOf(r.Json());
+  ASSERT_TRUE(outcome.has_value());
+  ASSERT_EQ(outcome->lumps.size(), 2u);
+  EXPECT_NEAR(outcome->lumps[0].centre.z(), -0.015, 1e-9);
+  EXPECT_NEAR(outcome->lumps[1].radius, 0.004, 1e-9);
+  EXPECT_EQ(outcome->found, (std::vector<bool>{true, false}));
+  ASSERT_EQ(outcome->marks.size(), 2u);
+  EXPECT_NEAR(outcome->marks[1].position.x(), 0.02, 1e-9);
+  EXPECT_DOUBLE_EQ(outcome->marks[1].time, 2.5);
+  EXPECT_EQ(outcome->marks[0].lump, 0);
+  EXPECT_EQ(outcome->marks[1].lump, -1);
+  // A record without the member, or not a record, reads as none; a malformed member too.
+  EXPECT_FALSE(TraceRecorder::PalpationOf("{\"samples\": []}").has_value());
+  EXPECT_FALSE(TraceRecorder::PalpationOf("not json").has_value());
+  EXPECT_FALSE(TraceRecorder::PalpationOf(
+                   R"({"palpation": {"lumps": [{"centre_mm": [1, 2]}], "marks": []}})")
+                   .has_value());
+  const auto odd = TraceRecorder::PalpationOf(
+      R"({"palpation": {"lumps": [], "marks": [{"time_s": 1, "position_mm": [1, 2, 3], "lump": 7}]}})");
+  ASSERT_TRUE(odd.has_value());
+  EXPECT_EQ(odd->marks[0].lump, -1);  // a lump index out of range is no lump
   // Other tasks' records have none.
   TraceRecorder plain;
   plain.SetRest(rest);
