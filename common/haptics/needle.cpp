@@ -137,8 +137,10 @@ NeedleForce NeedleModel::Step(const Vec3& tip, const Vec3& axis, double dt) {
   if (state_.phase == NeedleState::Phase::kTouching) out = Touching(tip, u);
   if (state_.phase == NeedleState::Phase::kInserted) {
     const bool popped = out.popped;  // one boundary gives way per step: the next one after it
+    const bool redirected = !popped && Redirect(tip, u);
     out = Inserted(tip, dt, !popped);
     out.popped = out.popped || popped;
+    out.redirected = redirected;
   }
   last_tip_ = tip;
   has_last_tip_ = true;
@@ -157,19 +159,7 @@ bool NeedleModel::Touch(const Vec3& tip, const Vec3& u) {
   if (std::abs(at.x() - spec_.centre_x) > spec_.half_x ||
       std::abs(at.y() - spec_.centre_y) > spec_.half_y)
     return false;
-  for (uint32_t i = 0; i < memory_count_; ++i) {
-    const NeedleState& m = memory_[i];
-    if ((m.entry - at).norm() <= kReuseRadius && m.direction.dot(u) >= std::cos(kReuseAngle)) {
-      const uint32_t begun = state_.begun;
-      state_ = m;
-      state_.begun = begun;
-      state_.phase = NeedleState::Phase::kInserted;
-      state_.anchor = state_.last_depth = (tip - m.entry).dot(m.direction);
-      state_.velocity = 0;
-      FindBoundaries();
-      return true;
-    }
-  }
+  if (Follow(at, u, tip)) return true;
   const bool steep = -u.z() >= std::cos(spec_.max_entry_angle);
   state_.phase = NeedleState::Phase::kTouching;
   state_.tract = ++state_.begun;
@@ -178,6 +168,56 @@ bool NeedleModel::Touch(const Vec3& tip, const Vec3& u) {
   state_.passed = 0;
   state_.cut = state_.anchor = state_.last_depth = state_.velocity = 0;
   FindBoundaries();
+  return true;
+}
+
+// An earlier tract leaving from `entry` along `u` (within kReuseRadius and kReuseAngle), taken up
+// again with the tip at `tip`: inserted, its punctures and its cut as they were left.
+bool NeedleModel::Follow(const Vec3& entry, const Vec3& u, const Vec3& tip) {
+  for (uint32_t i = 0; i < memory_count_; ++i) {
+    const NeedleState& m = memory_[i];
+    if (m.tract == state_.tract && state_.phase != NeedleState::Phase::kFree) continue;
+    if ((m.entry - entry).norm() > kReuseRadius || m.direction.dot(u) < std::cos(kReuseAngle))
+      continue;
+    const uint32_t begun = state_.begun;
+    const double velocity = state_.phase == NeedleState::Phase::kFree ? 0.0 : state_.velocity;
+    state_ = m;
+    state_.begun = begun;
+    state_.phase = NeedleState::Phase::kInserted;
+    state_.anchor = state_.last_depth = (tip - m.entry).dot(m.direction);
+    state_.velocity = velocity;
+    FindBoundaries();
+    return true;
+  }
+  return false;
+}
+
+// Redirection without leaving the skin (needle.h): the tract turns about the skin's hole when the
+// tip is shallow enough and the needle, turned far enough with its tip from the line, advances.
+bool NeedleModel::Redirect(const Vec3& tip, const Vec3& u) {
+  const Vec3 d = state_.direction;
+  if (u.dot(d) >= std::cos(kRedirectAngle) || -u.z() < std::cos(spec_.max_entry_angle))
+    return false;
+  const double s = (tip - state_.entry).dot(d);
+  const double shallow = count_ > 2 ? bounds_[2].depth : 1e9;
+  if (s <= 0 || s >= shallow || ((tip - state_.entry) - s * d).norm() < kRedirectOffset)
+    return false;
+  // Only advancing: a needle turned in place has cut nothing new yet.
+  if (!has_last_tip_ || (tip - last_tip_).dot(u) < kRedirectAdvance) return false;
+  const uint32_t was_open = state_.passed;
+  Remember();
+  if (Follow(state_.entry, u, tip)) return true;
+  state_.tract = ++state_.begun;
+  state_.direction = u;
+  FindBoundaries();
+  // Open already: the skin, and the boundary under it when the old tract had punctured it and the
+  // tip is past it on the new line (the skin's underside, pierced at the same hole); a target's
+  // wall is never opened this way.
+  const double s_new = (tip - state_.entry).dot(u);
+  state_.passed = 1;
+  if (was_open >= 2 && count_ > 1 && bounds_[1].role == 0 && bounds_[1].depth < s_new)
+    state_.passed = 2;
+  state_.cut = state_.anchor = state_.last_depth = std::max(s_new, 0.0);
   return true;
 }
 

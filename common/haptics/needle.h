@@ -33,6 +33,17 @@
 // kReuseRadius of that entry and kReuseAngle of its direction follows it, feeling only the
 // friction up to the depth cut before; any other entry is a new path and punctures afresh.
 //
+// Redirection without leaving the skin (what a clinician does after a miss: draw back into the
+// subcutaneous layer, angle, advance again): with its tip drawn back above the second boundary
+// under the skin (in the skin or the layer right under it, where only those hold the shaft), a
+// needle turned more than kRedirectAngle from its tract, its tip carried off the old line by at
+// least kRedirectOffset, pivots about the skin's hole as soon as it advances (a step of at least
+// kRedirectAdvance along its axis: turned in place, it has cut nothing new). The tract is left
+// (remembered as a withdrawn one is) and a new one begins at the same entry along the needle's
+// axis, the skin and the layer the tip is in already open, every boundary beyond punctured afresh;
+// turned back onto an earlier tract from that entry, the needle follows it again. Deeper, the
+// tissue holds the needle on its tract (the lateral spring) and turning it only strains the tissue.
+//
 // The same model runs at the server (authoritative) and at the station (sent with the join;
 // the server's answers carry NeedleState), so a pop is felt on the cycle the hand's force
 // crosses the puncture force whatever the delay.
@@ -120,16 +131,20 @@ struct NeedleForce {
   double lateral = 0;        // m, the tip's distance from its tract
   double strain = 0;         // the tract's lateral strain: lateral over the shaft held (≥ 0)
   bool in_target = false;    // the tip inside the target's lumen
+  bool redirected = false;   // the tract turned about the skin's hole at this step
   double cutting_force = 0;  // N, the cutting part (≥ 0), for records
 };
 
 class NeedleModel {
  public:
   static constexpr int kMaxBoundaries = kMaxNeedleLayers + 2;
-  static constexpr int kMaxTracts = 8;            // earlier tracts remembered for reinsertion
-  static constexpr double kReuseRadius = 1.5e-3;  // m
-  static constexpr double kReuseAngle = 0.0873;   // rad, 5°
-  static constexpr double kVelocityTau = 0.01;    // s, the velocity's low pass
+  static constexpr int kMaxTracts = 8;               // earlier tracts remembered for reinsertion
+  static constexpr double kReuseRadius = 1.5e-3;     // m
+  static constexpr double kReuseAngle = 0.0873;      // rad, 5°
+  static constexpr double kVelocityTau = 0.01;       // s, the velocity's low pass
+  static constexpr double kRedirectAngle = 0.1745;   // rad, 10°
+  static constexpr double kRedirectOffset = 0.5e-3;  // m
+  static constexpr double kRedirectAdvance = 1e-6;   // m per step
 
   static Expected<NeedleModel> Create(NeedleTissueSpec spec);
 
@@ -174,6 +189,8 @@ class NeedleModel {
   bool Touch(const Vec3& tip, const Vec3& axis);
   NeedleForce Touching(const Vec3& tip, const Vec3& u);
   NeedleForce Inserted(const Vec3& tip, double dt, bool may_pop);
+  bool Redirect(const Vec3& tip, const Vec3& u);
+  bool Follow(const Vec3& entry, const Vec3& u, const Vec3& tip);
   double ShaftLaws(double held, double& lateral_k, double& coulomb, double& viscous) const;
   double Friction(double depth, double held, double dt, double& lateral_k);
   void Remember();

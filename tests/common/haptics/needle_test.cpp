@@ -181,6 +181,109 @@ TEST(NeedleTest, AReinsertionAlongTheTractEntersWithoutAPopAndANewPathPuncturesA
   EXPECT_EQ(m->punctures(), 4u);
 }
 
+// Turns the needle about the skin's hole at `entry`, its tip `depth` along it, from `from` to `to`
+// (unit axes) over `steps` steps at 1 kHz; calls `each` after every step.
+template <class F>
+void Pivot(NeedleModel& m, const Vec3& entry, double depth, const Vec3& from, const Vec3& to,
+           int steps, F each) {
+  for (int i = 1; i <= steps; ++i) {
+    const Vec3 u = from + (to - from) * (static_cast<double>(i) / steps);
+    each(m.Step(entry + depth * u.normalized(), u.normalized(), 1e-3));
+  }
+}
+
+// Advances the needle along `u` from `depth` to `to` at 10 mm/s, 1 kHz.
+template <class F>
+void Advance(NeedleModel& m, const Vec3& entry, const Vec3& u, double depth, double to, F each) {
+  const int n = static_cast<int>(std::round((to - depth) / 1e-5));
+  for (int i = 1; i <= n; ++i) each(m.Step(entry + (depth + i * 1e-5) * u, u, 1e-3));
+}
+
+// A miss corrected as a clinician does: drawn back into the fat, angled toward the vessel and
+// advanced, the needle pivots about the skin's hole. No new pop at the skin; the fascia and the
+// vessel's wall on the new line pop; the first tract is kept; the new one aims at the vessel.
+TEST(NeedleTest, ANeedleDrawnBackUnderTheSkinIsRedirectedAboutItsHoleToTheTarget) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  const Vec3 entry(-0.012, 0, 0);
+  m->Step(entry + Vec3(0, 0, 0.005), kDown, 1e-3);
+  Descend(
+      *m, 0.005, -0.019, 0.01, [](const NeedleForce&) {}, kDown, entry.x());
+  ASSERT_EQ(m->punctures(),
+            3u);  // skin, fat, the muscle's fascia (popped 17.6 mm down): 12 mm beside the vessel
+  double middle = 0, deviation = 0;
+  int needed = 0;
+  ASSERT_TRUE(m->TargetOnTract(middle, deviation, needed));
+  EXPECT_NEAR(deviation, 0.012, 1e-9);
+  Descend(
+      *m, -0.019, -0.006, 0.01, [](const NeedleForce&) {}, kDown, entry.x());  // into the fat
+  const Vec3 aim = (Vec3(0, 0, -0.020) - entry).normalized();  // 31° from the normal
+  int redirects = 0, pops = 0;
+  Pivot(*m, entry, 0.006, kDown, aim, 300, [&](const NeedleForce& f) {
+    redirects += f.redirected;
+    EXPECT_TRUE(f.force.allFinite());
+    EXPECT_LT(f.force.norm(), 0.2);  // skin and fat hold a shallow needle lightly
+  });
+  EXPECT_EQ(redirects, 0) << "turned in place: nothing new cut yet";
+  EXPECT_EQ(m->state().tract, 1u);
+  Advance(*m, entry, aim, 0.006, 0.0235, [&](const NeedleForce& f) {
+    redirects += f.redirected, pops += f.popped;
+    EXPECT_TRUE(f.force.allFinite());
+  });
+  EXPECT_EQ(redirects, 1);
+  EXPECT_EQ(m->state().tract, 2u);
+  EXPECT_LT((m->state().entry - entry).norm(), 1e-6) << "the same hole in the skin";
+  EXPECT_GT(m->state().direction.dot(aim), std::cos(0.01));
+  ASSERT_TRUE(m->TargetOnTract(middle, deviation, needed));
+  EXPECT_LT(deviation, 0.0005) << "the new tract aims at the vessel";
+  EXPECT_EQ(pops, 2) << "the fascia on the new line and the vessel's front wall";
+  EXPECT_EQ(m->punctures(), 5u);
+  EXPECT_TRUE(m->Step(entry + 0.0235 * aim, aim, 1e-3).in_target);
+  const std::vector<NeedleState> tracts = m->Tracts();
+  ASSERT_EQ(tracts.size(), 2u);
+  EXPECT_NEAR(tracts[0].direction.dot(kDown), 1, 1e-9);
+  EXPECT_EQ(tracts[1].tract, 2u);
+}
+
+// Deeper than the layer under the skin the tissue holds the needle on its tract: turning it there
+// strains the tissue (the lateral spring) and never turns the tract. Turned back onto the first
+// tract from the fat, the needle follows it again without a pop.
+TEST(NeedleTest, ADeepNeedleIsHeldOnItsTractAndTurnedBackFollowsTheFirstTract) {
+  auto m = NeedleModel::Create(Layered());
+  ASSERT_TRUE(m.ok());
+  const Vec3 entry(-0.012, 0, 0);
+  m->Step(entry + Vec3(0, 0, 0.005), kDown, 1e-3);
+  Descend(
+      *m, 0.005, -0.019, 0.01, [](const NeedleForce&) {}, kDown, entry.x());
+  const Vec3 tilted = Vec3(std::sin(0.35), 0, -std::cos(0.35));  // 20°
+  int redirects = 0;
+  double strain = 0;
+  Pivot(*m, entry, 0.019, kDown, tilted, 200, [&](const NeedleForce& f) { strain = f.strain; });
+  Advance(*m, entry, tilted, 0.019, 0.021, [&](const NeedleForce& f) {
+    redirects += f.redirected;
+    strain = f.strain;
+  });
+  EXPECT_EQ(redirects, 0);
+  EXPECT_EQ(m->state().tract, 1u);
+  EXPECT_GT(strain, 0.2) << "the tissue was levered";
+  // Back into the fat, angled and advanced: a second tract; then turned back to vertical and
+  // advanced, the first tract again (no pop: its fascia was punctured before).
+  Advance(*m, entry, tilted, 0.021, 0.006, [](const NeedleForce&) {});
+  Pivot(*m, entry, 0.006, kDown, tilted, 100, [](const NeedleForce&) {});
+  Advance(*m, entry, tilted, 0.006, 0.008,
+          [&](const NeedleForce& f) { redirects += f.redirected; });
+  ASSERT_EQ(redirects, 1);
+  ASSERT_EQ(m->state().tract, 2u);
+  Pivot(*m, entry, 0.008, tilted, kDown, 100, [](const NeedleForce&) {});
+  int pops = 0;
+  Advance(*m, entry, kDown, 0.008, 0.015,
+          [&](const NeedleForce& f) { redirects += f.redirected, pops += f.popped; });
+  EXPECT_EQ(redirects, 2);
+  EXPECT_EQ(m->state().tract, 1u);
+  EXPECT_EQ(pops, 0);
+  EXPECT_EQ(m->state().passed, 3u);
+}
+
 TEST(NeedleTest, TheTissueHoldsTheNeedleAcrossItsTract) {
   auto m = NeedleModel::Create(Layered());
   ASSERT_TRUE(m.ok());
