@@ -596,13 +596,26 @@ vsurg::Expected<Screen> OpenScreen(const ArgParser& p, const sim::Scene& scene,
 }
 
 // A search's outcome drawn on the tissue (the lumps it hid, the marks made), the panel below it.
-void ShowFindings(const vsurg::scoring::PalpationOutcome& outcome, client::Overlay& last) {
+// A mark is where the tool pressed the surface in, often millimetres under its rest: its pin
+// stands where the rest surface is above it (the first face up the view's vertical, else the
+// nearest), so that it shows on the tissue the summary draws at rest.
+void ShowFindings(const vsurg::scoring::PalpationOutcome& outcome, const Screen& screen,
+                  client::Overlay& last) {
   for (size_t i = 0; i < outcome.lumps.size(); ++i) {
     const vsurg::scoring::Lump& l = outcome.lumps[i];
     last.findings.rings.push_back(
         {l.surface, l.centre, l.radius, i < outcome.found.size() && outcome.found[i]});
   }
-  for (const auto& m : outcome.marks) last.findings.pins.push_back({m.position, m.lump});
+  const Eigen::Vector3d up = screen.view->visual().up.normalized();
+  const auto& rest = screen.rest->positions;
+  for (const auto& m : outcome.marks) {
+    Eigen::Vector3d at = m.position;
+    if (const auto hit = screen.rest_bvh->FirstHit(rest, at, at + 0.1 * up); hit.triangle >= 0)
+      at = hit.point;
+    else if (const auto near = screen.rest_bvh->Closest(rest, at); near.triangle >= 0)
+      at = near.point;
+    last.findings.pins.push_back({at, m.lump});
+  }
   last.summary.low = true;
   last.summary.lines.push_back(outcome.lumps.empty()
                                    ? "No lump was hidden in this pad"
@@ -626,7 +639,7 @@ vsurg::Status ShowSummary(const ArgParser& p, const sim::Scene& scene, Screen& s
   last.summary.lines = vsurg::scoring::ExplainScore(summary.metrics, scene.task);
   if (last.summary.lines.empty()) last.summary.lines = {"Nothing lowered it: expert level"};
   for (const TargetLine& line : TargetLines(summary)) last.summary.lines.push_back(line.text);
-  if (summary.palpation) ShowFindings(*summary.palpation, last);
+  if (summary.palpation) ShowFindings(*summary.palpation, screen, last);
   const auto shown_at = std::chrono::steady_clock::now();
   for (int frames = 1;; ++frames) {
     screen.view->Draw(gl.width(), gl.height(), last);

@@ -124,8 +124,10 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   // An ended palpation's lumps and marks (the station's summary draws them). A record that cannot
   // be read leaves them out: the answer is the session's, the drawing an extra.
   void AddPalpation(const db::Principal& p, v1::Session* resp) {
+    // A palpation's own figures (0 for the other tasks): no record is read for the others.
+    const v1::TrialMetrics& m = resp->metrics();
     if (!resp->has_metrics() ||
-        (resp->metrics().lumps() == 0 && resp->metrics().false_marks() == 0))
+        (m.lumps() == 0 && m.false_marks() == 0 && m.coverage() == 0 && m.mean_force_n() == 0))
       return;
     auto outcome = SessionPalpation(d_, p, resp->id());
     if (outcome.ok() && outcome->has_value())
