@@ -3,9 +3,13 @@
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
 
+#include <algorithm>
 #include <cmath>
+#include <iostream>  // Eigen's METIS bridge writes to std::cerr without including it itself
 #include <limits>
 #include <string>
+
+#include <Eigen/MetisSupport>
 
 namespace vsurg::tissue {
 namespace {
@@ -83,6 +87,18 @@ Expected<HyperelasticFem> HyperelasticFem::Create(const geometry::TetMesh& rest,
     e.dm_inv = dm.inverse();
     m.elements_.push_back(e);
   }
+  if (p.nodal_volume) {
+    const size_t n = rest.positions.size();
+    m.node_volume_.assign(n, 0.0);
+    m.node_start_.assign(n + 1, 0);
+    for (const Element& e : m.elements_)
+      for (int v : e.v) m.node_volume_[v] += e.volume / 4, ++m.node_start_[v + 1];
+    for (size_t v = 0; v < n; ++v) m.node_start_[v + 1] += m.node_start_[v];
+    m.node_elements_.resize(m.elements_.size() * 4);
+    std::vector<int> fill(m.node_start_.begin(), m.node_start_.end() - 1);
+    for (size_t e = 0; e < m.elements_.size(); ++e)
+      for (int v : m.elements_[e].v) m.node_elements_[fill[v]++] = static_cast<int>(e);
+  }
   return m;
 }
 
@@ -107,14 +123,81 @@ double HyperelasticFem::StrainEnergy() const {
   double energy = 0;
   for (const Element& e : elements_)
     energy += e.volume * ElementDensity(&e - elements_.data(), Deformation(e, x_));
+  if (node_volume_.empty() || !std::isfinite(energy)) return energy;
+  std::vector<double> j;
+  return NodalJacobians(x_, j) ? energy + NodalEnergy(j) : kInf;
+}
+
+bool HyperelasticFem::NodalJacobians(const std::vector<Vec3>& x, std::vector<double>& j) const {
+  j.assign(x.size(), 0.0);
+  for (const Element& e : elements_) {
+    const double je = Deformation(e, x).determinant();
+    if (!(je > 0)) return false;
+    for (int v : e.v) j[v] += e.volume * je / 4;
+  }
+  for (size_t v = 0; v < j.size(); ++v) j[v] = node_volume_[v] > 0 ? j[v] / node_volume_[v] : 1.0;
+  return true;
+}
+
+std::vector<double> HyperelasticFem::ElementPressures(const std::vector<double>& j) const {
+  std::vector<double> out(elements_.size(), 0.0);
+  for (size_t e = 0; e < elements_.size(); ++e)
+    for (int v : elements_[e].v) out[e] += 0.25 * lambda_ * std::log(j[v]) / j[v];
+  return out;
+}
+
+double HyperelasticFem::NodalEnergy(const std::vector<double>& j) const {
+  double energy = 0;
+  for (size_t v = 0; v < j.size(); ++v) {
+    const double ln_j = std::log(j[v]);
+    energy += node_volume_[v] * 0.5 * lambda_ * ln_j * ln_j;
+  }
   return energy;
+}
+
+// Σ_n V_n·Φ''(J_n)·∇J_n ∇J_nᵀ, ∇J_n = Σ_{e ∋ n} ∇v_e / (4·V_n), ∇v_e = −NodalForces(J·F⁻ᵀ) (the
+// gradient of the element's current volume V·J).
+void HyperelasticFem::NodalTangent(const std::vector<double>& j,
+                                   std::vector<Eigen::Triplet<double>>& out) const {
+  std::vector<int> verts;
+  std::vector<Vec3> grad;
+  for (size_t n = 0; n < node_volume_.size(); ++n) {
+    if (!(node_volume_[n] > 0)) continue;
+    verts.clear();
+    grad.clear();
+    for (int k = node_start_[n]; k < node_start_[n + 1]; ++k) {
+      const Element& e = elements_[node_elements_[k]];
+      const Mat3 f = Deformation(e, x_);
+      const auto dv = NodalForces(f.determinant() * f.inverse().transpose(), e.dm_inv, e.volume);
+      for (int a = 0; a < 4; ++a) {
+        const auto at = std::find(verts.begin(), verts.end(), e.v[a]) - verts.begin();
+        if (at == static_cast<long>(verts.size()))
+          verts.push_back(e.v[a]), grad.push_back(Vec3::Zero());
+        grad[at] -= dv[a] / (4 * node_volume_[n]);
+      }
+    }
+    const double ln_j = std::log(j[n]);
+    const double weight = node_volume_[n] * lambda_ * (1 - ln_j) / (j[n] * j[n]);
+    for (size_t a = 0; a < verts.size(); ++a)
+      for (size_t b = 0; b < verts.size(); ++b) {
+        const Mat3 block = weight * grad[a] * grad[b].transpose();
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c)
+            out.emplace_back(3 * verts[a] + r, 3 * verts[b] + c, block(r, c));
+      }
+  }
 }
 
 Eigen::VectorXd HyperelasticFem::InternalForces() const {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(x_.size()));
+  std::vector<double> j, pressure;
+  if (!node_volume_.empty() && NodalJacobians(x_, j)) pressure = ElementPressures(j);
   for (const Element& e : elements_) {
-    const auto nodal =
-        NodalForces(ElementStress(&e - elements_.data(), Deformation(e, x_)), e.dm_inv, e.volume);
+    const size_t i = &e - elements_.data();
+    const Mat3 def = Deformation(e, x_);
+    Mat3 p = ElementStress(i, def);
+    if (!pressure.empty()) p += pressure[i] * def.determinant() * def.inverse().transpose();
+    const auto nodal = NodalForces(p, e.dm_inv, e.volume);
     for (int a = 0; a < 4; ++a) f.segment<3>(3 * e.v[a]) += nodal[a];
   }
   return f;
@@ -125,11 +208,16 @@ Eigen::VectorXd HyperelasticFem::InternalForces() const {
 Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
   std::vector<Eigen::Triplet<double>> entries;
   entries.reserve(elements_.size() * 144);
+  const bool nodal = !node_volume_.empty();
+  const double lambda = nodal ? 0.0 : lambda_;  // the elements' own volumetric stiffness
+  std::vector<double> j, pressure(elements_.size(), 0.0);
+  if (nodal && NodalJacobians(x_, j)) pressure = ElementPressures(j);
   for (const Element& e : elements_) {
     const Mat3 f = Deformation(e, x_);
     const Mat3 f_inv = f.inverse(), f_inv_t = f_inv.transpose();
-    const double ln_j = std::log(f.determinant());
+    const double det = f.determinant(), ln_j = std::log(det);
     const double factor = Law{mu_, lambda_, b_}.Factor(f);
+    const double pj = pressure[&e - elements_.data()] * det;  // p̄·J
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c) {
         Mat3 d_ds = Mat3::Zero();
@@ -139,8 +227,8 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
           d_ds(c, a - 1) = 1;
         const Mat3 df = d_ds * e.dm_inv;
         Mat3 dp = mu_ * factor * (df + 2 * b_ * (f.array() * df.array()).sum() * f) +
-                  (mu_ - lambda_ * ln_j) * f_inv_t * df.transpose() * f_inv_t +
-                  lambda_ * (f_inv * df).trace() * f_inv_t;
+                  (mu_ - lambda * ln_j - pj) * f_inv_t * df.transpose() * f_inv_t +
+                  (lambda + pj) * (f_inv * df).trace() * f_inv_t;
         if (!s_hist_.empty()) dp = scale_ * dp + df * s_hist_[&e - elements_.data()];
         const auto dforces = NodalForces(dp, e.dm_inv, e.volume);
         for (int b = 0; b < 4; ++b)
@@ -148,6 +236,7 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
             entries.emplace_back(3 * e.v[b] + r, 3 * e.v[a] + c, -dforces[b][r]);
       }
   }
+  if (!j.empty()) NodalTangent(j, entries);
   const auto n = 3 * static_cast<Eigen::Index>(x_.size());
   Eigen::SparseMatrix<double> k(n, n);
   k.setFromTriplets(entries.begin(), entries.end());
@@ -155,18 +244,21 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
 }
 
 double HyperelasticFem::ElementDensity(size_t e, const Mat3& f) const {
-  const double psi = Density(f, {mu_, lambda_, b_});
+  const double psi = Density(f, {mu_, node_volume_.empty() ? lambda_ : 0.0, b_});
   if (s_hist_.empty() || !std::isfinite(psi)) return psi;
   const Mat3 strain = f.transpose() * f - Mat3::Identity();
   return scale_ * psi + 0.5 * (s_hist_[e].array() * strain.array()).sum();
 }
 
 Mat3 HyperelasticFem::ElementStress(size_t e, const Mat3& f) const {
-  const Mat3 p = Stress(f, {mu_, lambda_, b_});
+  const Mat3 p = Stress(f, {mu_, node_volume_.empty() ? lambda_ : 0.0, b_});
   return s_hist_.empty() ? p : Mat3(scale_ * p + f * s_hist_[e]);
 }
 
 Status HyperelasticFem::SetRelaxation(std::vector<PronyTerm> terms) {
+  if (!node_volume_.empty() && !terms.empty())
+    return InvalidArgument("relaxation",
+                           "not with nodal_volume: the relaxation's history is kept per element");
   double sum = 0;
   for (size_t i = 0; i < terms.size(); ++i) {
     const PronyTerm& t = terms[i];
@@ -224,6 +316,11 @@ double HyperelasticFem::Potential(const std::vector<Vec3>& x) const {
     if (!std::isfinite(psi)) return kInf;
     potential += e.volume * psi;
   }
+  if (!node_volume_.empty()) {
+    std::vector<double> j;
+    if (!NodalJacobians(x, j)) return kInf;
+    potential += NodalEnergy(j);
+  }
   for (size_t i = 0; i < x.size(); ++i) potential -= f_ext_[i].dot(x[i]);
   return potential;
 }
@@ -257,7 +354,10 @@ HyperelasticSolve HyperelasticFem::SolveStatic(int max_iterations, double tolera
     for (int col = 0; col < k.outerSize(); ++col)
       for (Eigen::SparseMatrix<double>::InnerIterator it(k, col); it; ++it)
         if (held_[it.row()] || held_[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(k);
+    // Nested dissection (METIS) as the linear FEM's solves: a fraction of the fill of the
+    // minimum-degree ordering on these 3D meshes, and of the time.
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
+        solver(k);
     Eigen::VectorXd d = solver.info() == Eigen::Success ? solver.solve(r) : r;
     if (!(d.allFinite() && r.dot(d) > 0)) d = r;  // not a descent: the steepest one
     // Backtracking on the potential (Armijo), never into an inverted element.

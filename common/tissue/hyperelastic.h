@@ -25,6 +25,19 @@
 // S_hist = Σ (β_i·H_i − g_i·γ_i·S_e,prev), which derives from the energy c·ψ + ½·S_hist:(FᵀF − I):
 // each step is a static solve (Step), quasi-static (no inertia).
 //
+// Near incompressibility (ν → 0.5) linear tetrahedra lock: one volume constraint per element is
+// more than the nodes' motions can meet, and the mesh answers far too stiff. With `nodal_volume`
+// the volumetric energy λ/2·(ln J)² is integrated at the vertices instead (the nodally averaged
+// volume of Bonet & Burton, Commun. Numer. Meth. Eng. 1998, in energy form): each vertex n carries
+// the rest volume V_n = Σ V_e/4 of its elements and their current volume as J_n = Σ v_e/4 / V_n,
+//   E = Σ_e V_e·[ψ(F_e) less its λ term] + Σ_n V_n·λ/2·(ln J_n)²,
+// so an element's stress takes the mean of its vertices' Φ'(J_n) = λ·ln J_n / J_n in place of its
+// own: P = μ·e·F − μ·F⁻ᵀ + p̄·J·F⁻ᵀ, p̄ = ¼·Σ_vertices Φ'(J_n). The tangent adds, per vertex,
+// V_n·Φ''(J_n)·∇J_n ∇J_nᵀ (Φ'' = λ·(1 − ln J)/J²) over its elements' vertices, and per element
+// p̄·∂²v_e/∂x². One volume constraint per vertex (about a fifth of the elements' count) is what
+// the motions can meet: the mesh does not lock (HyperelasticTest: Rivlin's torsion at ν = 0.499).
+// A uniform deformation gives every J_n = J_e: the two forms agree there.
+//
 // The static solve is Newton's method on the total potential (strain energy less the external
 // forces' work) with a backtracking line search: a step is halved until the potential falls and
 // no element inverts (ψ → ∞ as J → 0⁺, so an inverted configuration is never accepted); a Newton
@@ -44,9 +57,10 @@
 namespace vsurg::tissue {
 
 struct HyperelasticParams {
-  double young = 30e3;    // Pa
-  double poisson = 0.45;  // in (−1, 0.5)
-  double stiffening = 0;  // b ≥ 0, dimensionless: 0 neo-Hookean, > 0 the exponential law
+  double young = 30e3;        // Pa
+  double poisson = 0.45;      // in (−1, 0.5)
+  double stiffening = 0;      // b ≥ 0, dimensionless: 0 neo-Hookean, > 0 the exponential law
+  bool nodal_volume = false;  // the volumetric energy at the vertices (no locking; elastic only)
 };
 
 struct PronyTerm {
@@ -77,7 +91,8 @@ class HyperelasticFem {
 
   HyperelasticSolve SolveStatic(int max_iterations = 50, double tolerance = 1e-10);
 
-  // The relaxation's Prony terms (none: elastic); each g ≥ 0, Σ g < 1, each τ > 0, finite.
+  // The relaxation's Prony terms (none: elastic); each g ≥ 0, Σ g < 1, each τ > 0, finite. Not
+  // with nodal_volume (refused: the history is kept per element).
   Status SetRelaxation(std::vector<PronyTerm> terms);
   // One quasi-static step of `dt` s (the held coordinates and loads as set now): the static solve
   // with the step's stress, then the internal stresses carried forward. Elastic: SolveStatic.
@@ -101,11 +116,21 @@ class HyperelasticFem {
   Eigen::VectorXd FreeResidual() const;  // internal + external forces, zero on held coordinates
   double ElementDensity(size_t e, const Eigen::Matrix3d& f) const;          // the step's, Pa
   Eigen::Matrix3d ElementStress(size_t e, const Eigen::Matrix3d& f) const;  // the step's P, Pa
+  // nodal_volume: each vertex's J_n at `x` (false when an element is inverted or flat), and each
+  // element's mean of its vertices' Φ'(J_n) (Pa).
+  bool NodalJacobians(const std::vector<Eigen::Vector3d>& x, std::vector<double>& j) const;
+  std::vector<double> ElementPressures(const std::vector<double>& j) const;
+  double NodalEnergy(const std::vector<double>& j) const;  // Σ V_n·λ/2·(ln J_n)², J
+  void NodalTangent(const std::vector<double>& j, std::vector<Eigen::Triplet<double>>& out) const;
 
   std::vector<Element> elements_;
   std::vector<Eigen::Vector3d> x_, f_ext_;
   std::vector<unsigned char> held_;  // per coordinate
   double mu_ = 0, lambda_ = 0, b_ = 0;
+  // nodal_volume: each vertex's rest volume share (empty: the volumetric energy per element) and
+  // its elements (node_elements_[node_start_[n] .. node_start_[n + 1]]).
+  std::vector<double> node_volume_;
+  std::vector<int> node_start_, node_elements_;
   // Viscoelasticity: the terms, the step's stiffness scale c and history stress per element, the
   // elastic stress at the last step's end and each term's internal stress (element-major).
   std::vector<PronyTerm> prony_;

@@ -48,27 +48,30 @@ std::pair<double, double> UniaxialClosedForm(double mu, double lambda, double b,
 }
 
 TEST(HyperelasticTest, RestAndRigidRotationsHoldNoEnergyAndNoForce) {
-  const auto bar = NeoHookeanBar();
-  auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45});
-  ASSERT_TRUE(fem.ok()) << fem.error().message;
-  EXPECT_NEAR(fem->StrainEnergy(), 0, 1e-15);
-  EXPECT_LT(fem->InternalForces().lpNorm<Eigen::Infinity>(), 1e-12);
-  const Eigen::Matrix3d rot =
-      Eigen::AngleAxisd(1.1, Vec3(0.3, -0.5, 0.8).normalized()).toRotationMatrix();
-  std::vector<Vec3> x;
-  for (const Vec3& p : bar.mesh.positions) x.push_back(rot * p + Vec3(0.2, -0.1, 0.05));
-  fem->SetPositions(x);
-  EXPECT_NEAR(fem->StrainEnergy(), 0, 1e-12);
-  EXPECT_LT(fem->InternalForces().lpNorm<Eigen::Infinity>(), 1e-9);  // N, at 30 kPa
+  for (bool nodal : {false, true}) {
+    SCOPED_TRACE(nodal ? "the volume at the vertices" : "the volume per element");
+    const auto bar = NeoHookeanBar();
+    auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45, 0, nodal});
+    ASSERT_TRUE(fem.ok()) << fem.error().message;
+    EXPECT_NEAR(fem->StrainEnergy(), 0, 1e-15);
+    EXPECT_LT(fem->InternalForces().lpNorm<Eigen::Infinity>(), 1e-12);
+    const Eigen::Matrix3d rot =
+        Eigen::AngleAxisd(1.1, Vec3(0.3, -0.5, 0.8).normalized()).toRotationMatrix();
+    std::vector<Vec3> x;
+    for (const Vec3& p : bar.mesh.positions) x.push_back(rot * p + Vec3(0.2, -0.1, 0.05));
+    fem->SetPositions(x);
+    EXPECT_NEAR(fem->StrainEnergy(), 0, 1e-12);
+    EXPECT_LT(fem->InternalForces().lpNorm<Eigen::Infinity>(), 1e-9);  // N, at 30 kPa
+  }
 }
 
 // A large random deformation: forces against central differences of the energy, the tangent
 // against central differences of the forces, and its symmetry.
 TEST(HyperelasticTest, ForcesAndTangentAreTheEnergysExactDerivatives) {
-  for (double b : {0.0, 2.0}) {
-    SCOPED_TRACE("b " + std::to_string(b));
+  for (const auto& [b, nodal] : {std::pair{0.0, false}, {2.0, false}, {0.0, true}, {2.0, true}}) {
+    SCOPED_TRACE("b " + std::to_string(b) + (nodal ? ", the volume at the vertices" : ""));
     const auto bar = NeoHookeanBar();
-    auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45, b}).value();
+    auto fem = HyperelasticFem::Create(bar.mesh, {30e3, 0.45, b, nodal}).value();
     std::mt19937 rng(7);
     std::normal_distribution<double> noise(0, 1.5e-3);  // m, against 5–10 mm elements
     std::vector<Vec3> x;
