@@ -129,7 +129,8 @@ TEST(FourHandsTest, ModesSwitchLiveAsRampsAndTheTraineesChannelLosesNothing) {
 // the trainee's own tip at every sample, nothing is guided, and the record is the one the
 // trainee makes alone within what two runs alone differ by (a real-time loop: the score but its
 // smoothness by up to 0.04, the path by 0.3% and by over 1% beside CPU hogs, the peak, a
-// contact's impact, 0.65-0.70 N): held to 0.1, 5%, 0.15 N. The smoothness part is left out
+// contact's impact, 0.65-0.70 N): held to 0.1, 5%, 0.15 N (the peak by the median of three pairs
+// when the first misses). The smoothness part is left out
 // (scoring::ScoreButSmoothness): on a loaded host it reads late servo cycles as jerk, and a CI
 // run scored the same trial alone 3.22 and observed 3.55 on it.
 TEST(FourHandsTest, AnObserverJoiningAndLeavingChangesNothingOfTheTraineesRecord) {
@@ -154,7 +155,18 @@ TEST(FourHandsTest, AnObserverJoiningAndLeavingChangesNothingOfTheTraineesRecord
   EXPECT_EQ(mw.guided_share, 0);
   EXPECT_EQ(mw.completed, ma.completed);
   EXPECT_NEAR(w->score_but_smoothness, a->score_but_smoothness, 0.1);
-  EXPECT_NEAR(mw.peak_force, ma.peak_force, 0.15);
+  // The peak is one contact's impact, the moment the tissue's deformation thread catches the tool:
+  // beside a loaded host one pair read 0.66 and 0.81 N. A first pair apart by more than the bound
+  // is judged by the median of three pairs' differences, as the network tests judge their presses.
+  std::vector<double> peak_apart = {std::abs(mw.peak_force - ma.peak_force)};
+  while (peak_apart.front() > 0.15 && peak_apart.size() < 3) {
+    auto a2 = RunFourHands(alone), w2 = RunFourHands(watched);
+    ASSERT_TRUE(a2.ok() && w2.ok());
+    peak_apart.push_back(std::abs(w2->metrics.peak_force - a2->metrics.peak_force));
+    std::printf("peak force apart %.4f N in another pair\n", peak_apart.back());
+    if (peak_apart.size() == 3) std::sort(peak_apart.begin(), peak_apart.end());
+  }
+  EXPECT_LE(peak_apart.size() == 3 ? peak_apart[1] : peak_apart.front(), 0.15);
   EXPECT_NEAR(mw.path_length, ma.path_length, 5e-2 * ma.path_length);
   double apart = 0;
   for (const ToolSample& t : w->tool) apart = std::max(apart, (t.tool - t.tip).norm());

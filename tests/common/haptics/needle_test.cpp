@@ -400,5 +400,50 @@ TEST(NeedleContactTest, AStationPopsOnItsOwnAndTakesOnlyANewerAnswersWord) {
   EXPECT_EQ(station.model()->state().passed, 1u);
 }
 
+// A redirection seen a round trip late: the station turns its tract about the skin's hole on the
+// cycle the needle advances at its new angle, the server does the same a round trip later, and
+// the station never takes the older answers' tract for a contradiction; both end on the same
+// tract with the same punctures.
+TEST(NeedleContactTest, ARedirectionIsTheStationsOwnAndTheServerAgreesARoundTripLater) {
+  auto spec = std::make_shared<const NeedleTissueSpec>(Layered());
+  NeedleContact station(spec);
+  auto server = NeedleModel::Create(*spec);
+  ASSERT_TRUE(station.active() && server.ok());
+  // Vertical into the fat 12 mm beside the vessel, back to 6 mm, turned 31° toward it, advanced.
+  const Vec3 entry(-0.012, 0, 0), aim = (Vec3(0, 0, -0.020) - entry).normalized();
+  std::vector<std::pair<Vec3, Vec3>> path;  // tip, axis
+  for (int i = 0; i <= 1000; ++i) path.push_back({entry + Vec3(0, 0, 0.002 - 1e-5 * i), kDown});
+  for (int i = 1; i <= 200; ++i) path.push_back({entry + Vec3(0, 0, -0.008 + 1e-5 * i), kDown});
+  for (int i = 1; i <= 300; ++i) {
+    const Vec3 u = (kDown + (aim - kDown) * (i / 300.0)).normalized();
+    path.push_back({entry + 0.006 * u, u});
+  }
+  for (int i = 1; i <= 1200; ++i) path.push_back({entry + (0.006 + 1e-5 * i) * aim, aim});
+  LocalModel answer;
+  answer.kind = LocalModel::Kind::kNeedle;
+  std::vector<NeedleState> server_states;
+  uint64_t seq = 0;
+  int redirected_at = -1;
+  for (const auto& [tip, axis] : path) {
+    ++seq;
+    server->Step(tip, axis, 1e-3);
+    server_states.push_back(server->state());
+    if (seq > 300) {
+      answer.needle = server_states[seq - 301];
+      station.Answer(answer, seq - 300);
+    }
+    const uint32_t tract = station.model()->state().tract;
+    EXPECT_TRUE(station.Render(tip, axis, seq).allFinite());
+    if (redirected_at < 0 && tract == 1 && station.model()->state().tract == 2)
+      redirected_at = static_cast<int>(seq);
+  }
+  EXPECT_GT(redirected_at, 1500) << "not before the needle advanced at its new angle";
+  EXPECT_EQ(station.corrections(), 0u);
+  EXPECT_EQ(station.model()->state().tract, server->state().tract);
+  EXPECT_EQ(station.model()->state().tract, 2u);
+  EXPECT_EQ(station.model()->state().passed, server->state().passed);
+  EXPECT_EQ(station.local_pops(), static_cast<uint64_t>(server->punctures()));
+}
+
 }  // namespace
 }  // namespace vsurg::haptics
