@@ -564,6 +564,9 @@ def main():
             "return Number(document.getElementById('view3d').dataset.tools);")
         want = 1 + pm.get("lumps", 0) + pm.get("lumps_found", 0) + pm.get("false_marks", 0)
         check(drawn == want, f"at the end the replay draws the tool, every lump and every mark ({drawn} of {want})")
+        found = driver.execute_script("return Number(document.getElementById('view3d').dataset.found);")
+        check(found == pm.get("lumps_found", 0),
+              f"the lumps its marks found are drawn found ({found} of {pm.get('lumps_found')})")
         trail = driver.execute_script("return Number(document.getElementById('view3d').dataset.trail || 0);")
         check(trail > 10, f"the replay draws the search's path ({trail} points)")
         shot("palpation")

@@ -85,13 +85,17 @@ const taskText = (scene) => scene.task === 'press' ? `press to ${fmt(scene.targe
   : scene.task === 'palpate' ? 'search for hidden lumps and mark them'
   : scene.task === 'insert' ? 'place a needle in the target under the skin'
     : `twist to ${fmt(scene.target, 0)}° ± ${fmt(scene.tolerance, 0)}°`;
-// An ended search's lumps (red, over the surface above each) and the trainee's marks (green, the
-// marks placed by the time shown), for the replay; during the search nobody sees the lumps.
-const LUMP = [0.95, 0.3, 0.25], MARK = [0.3, 0.9, 0.45];
+// An ended search's lumps (over the surface above each: red, green once a mark placed by the time
+// shown found it) and the trainee's marks placed by then (green on a lump, orange on none; a
+// record from before marks carried their lump draws them green), as the station's summary draws
+// them; during the search nobody sees the lumps.
+const LUMP = [0.95, 0.3, 0.25], MARK = [0.3, 0.9, 0.45], FALSE_MARK = [1.0, 0.62, 0.1];
 function palpationMarkers(p, t) {
   if (!p) return [];
-  return p.lumps.map((l) => ({ p: l.surface_mm, colour: LUMP, size: 10 + 2 * l.radius_mm }))
-    .concat(p.marks.filter((k) => k.time_s <= t).map((k) => ({ p: k.position_mm, colour: MARK, size: 12 })));
+  const placed = p.marks.filter((k) => k.time_s <= t);
+  const found = new Set(placed.filter((k) => k.lump >= 0).map((k) => k.lump));
+  return p.lumps.map((l, i) => ({ p: l.surface_mm, colour: found.has(i) ? MARK : LUMP, size: 10 + 2 * l.radius_mm, found: found.has(i) }))
+    .concat(placed.map((k) => ({ p: k.position_mm, colour: k.lump === -1 ? FALSE_MARK : MARK, size: 12 })));
 }
 // An ended insertion's target (red, at its centre, sized by it) and the tracts the needle left
 // (green: where each entered the skin; darker: the deepest point it cut).
@@ -116,7 +120,8 @@ function trailOf(series, t) {
   return new Float32Array(out);
 }
 const palpationLegend = () => el('p', { class: 'tool-legend muted', id: 'palpation-legend' }, el('span', { class: 'dot lump' }),
-  ' a hidden lump (over its centre, sized by it) ', el('span', { class: 'dot mark' }), ' the trainee\'s marks; the blue line: the search\'s path');
+  ' a hidden lump (over its centre, sized by it; ', el('span', { class: 'dot mark' }), ' once a mark found it) ',
+  el('span', { class: 'dot mark' }), ' the trainee\'s marks (', el('span', { class: 'dot false-mark' }), ' where there was no lump); the blue line: the search\'s path');
 
 export async function pageSession(main) {
   const id = location.pathname.split('/')[2];
@@ -184,7 +189,9 @@ export async function pageSession(main) {
       const replay = await Replay.load(record, view3d, (t) => {
         traces.cursor(t);
         if (!view3d) return;
-        view3d.tools = toolsOf(seriesAt(record.series, t)).concat(palpationMarkers(record.palpation, t), needleMarkers(record.needle));
+        const searched = palpationMarkers(record.palpation, t);
+        view3d.tools = toolsOf(seriesAt(record.series, t)).concat(searched, needleMarkers(record.needle));
+        view3d.canvas.dataset.found = searched.filter((k) => k.found).length;
         if (record.palpation || record.needle) view3d.setTrail(trailOf(record.series, t));
       });
       tissue.append(replay.controls);
