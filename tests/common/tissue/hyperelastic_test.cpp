@@ -124,45 +124,46 @@ TEST(HyperelasticTest, TheExponentialLawStiffensAsTheTissueStretches) {
 // linear tetrahedra represent exactly, so the solve meets the closed form to its tolerance; from
 // a first guess stretched along the axis, Newton finds the lateral contraction.
 TEST(HyperelasticTest, UniaxialStretchAndCompressionMeetTheClosedForm) {
-  for (double b : {0.0, 2.0})
-    for (double nu : {0.3, 0.45, 0.49}) {
-      for (double l1 : {1.5, 1.1, 0.7}) {
-        SCOPED_TRACE("b " + std::to_string(b) + " nu " + std::to_string(nu) + " stretch " +
-                     std::to_string(l1));
-        const auto bar = NeoHookeanBar();
-        auto fem = HyperelasticFem::Create(bar.mesh, {30e3, nu, b}).value();
-        // The first guess: stretched along the axis alone (the end's move spread over the bar).
-        std::vector<Vec3> guess = bar.mesh.positions;
-        for (Vec3& p : guess) p.z() *= l1;
-        fem.SetPositions(guess);
-        int centre = -1, on_x = -1;
-        for (int v : bar.base) {
-          const Vec3& p = bar.mesh.positions[v];
-          if (p.head<2>().norm() < 1e-12) centre = v;
-          if (std::abs(p.y()) < 1e-12 && p.x() > 0.019) on_x = v;
-          fem.Hold(v, 2, 0.0);
+  for (bool nodal : {false, true})  // a uniform state: the volume at the vertices is the same
+    for (double b : {0.0, 2.0})
+      for (double nu : {0.3, 0.45, 0.49}) {
+        for (double l1 : {1.5, 1.1, 0.7}) {
+          SCOPED_TRACE("b " + std::to_string(b) + " nu " + std::to_string(nu) + " stretch " +
+                       std::to_string(l1) + (nodal ? ", the volume at the vertices" : ""));
+          const auto bar = NeoHookeanBar();
+          auto fem = HyperelasticFem::Create(bar.mesh, {30e3, nu, b, nodal}).value();
+          // The first guess: stretched along the axis alone (the end's move spread over the bar).
+          std::vector<Vec3> guess = bar.mesh.positions;
+          for (Vec3& p : guess) p.z() *= l1;
+          fem.SetPositions(guess);
+          int centre = -1, on_x = -1;
+          for (int v : bar.base) {
+            const Vec3& p = bar.mesh.positions[v];
+            if (p.head<2>().norm() < 1e-12) centre = v;
+            if (std::abs(p.y()) < 1e-12 && p.x() > 0.019) on_x = v;
+            fem.Hold(v, 2, 0.0);
+          }
+          ASSERT_GE(centre, 0);
+          ASSERT_GE(on_x, 0);
+          fem.Hold(centre, 0, 0.0);
+          fem.Hold(centre, 1, 0.0);
+          fem.Hold(on_x, 1, 0.0);
+          for (int v : bar.tip) fem.Hold(v, 2, l1 * bar.params.length);
+          const HyperelasticSolve s = fem.SolveStatic(60, 1e-10);
+          ASSERT_TRUE(s.converged) << s.iterations << " iterations, residual " << s.residual;
+          const auto [l2, stress] = UniaxialClosedForm(fem.mu(), fem.lambda(), b, l1);
+          const Vec3 tip_edge = fem.positions()[on_x];
+          EXPECT_NEAR(tip_edge.x() / bar.mesh.positions[on_x].x(), l2, 1e-8);
+          const Eigen::VectorXd f = fem.InternalForces();
+          double reaction = 0, area = 0;
+          for (size_t i = 0; i < bar.tip.size(); ++i) {
+            reaction -= f[3 * bar.tip[i] + 2];
+            area += bar.tip_area[i];
+          }
+          EXPECT_NEAR(reaction / area, stress, 1e-7 * std::abs(stress));
+          EXPECT_LE(s.iterations, 8);  // Newton with the exact tangent: 3–5 here
         }
-        ASSERT_GE(centre, 0);
-        ASSERT_GE(on_x, 0);
-        fem.Hold(centre, 0, 0.0);
-        fem.Hold(centre, 1, 0.0);
-        fem.Hold(on_x, 1, 0.0);
-        for (int v : bar.tip) fem.Hold(v, 2, l1 * bar.params.length);
-        const HyperelasticSolve s = fem.SolveStatic(60, 1e-10);
-        ASSERT_TRUE(s.converged) << s.iterations << " iterations, residual " << s.residual;
-        const auto [l2, stress] = UniaxialClosedForm(fem.mu(), fem.lambda(), b, l1);
-        const Vec3 tip_edge = fem.positions()[on_x];
-        EXPECT_NEAR(tip_edge.x() / bar.mesh.positions[on_x].x(), l2, 1e-8);
-        const Eigen::VectorXd f = fem.InternalForces();
-        double reaction = 0, area = 0;
-        for (size_t i = 0; i < bar.tip.size(); ++i) {
-          reaction -= f[3 * bar.tip[i] + 2];
-          area += bar.tip_area[i];
-        }
-        EXPECT_NEAR(reaction / area, stress, 1e-7 * std::abs(stress));
-        EXPECT_LE(s.iterations, 8);  // Newton with the exact tangent: 3–5 here
       }
-    }
 }
 
 // The bar on rollers as above, its end held at `l1` (m/m) or loaded by `load` (N) spread by area.
@@ -270,6 +271,12 @@ TEST(HyperelasticTest, BadMaterialsAndElementsAreRefusedByName) {
   for (Vec3& p : x) p.z() = -p.z();
   fem.SetPositions(x);
   EXPECT_FALSE(std::isfinite(fem.StrainEnergy()));
+  auto nodal = HyperelasticFem::Create(bar.mesh, {1e4, 0.3, 0, true}).value();
+  nodal.SetPositions(x);
+  EXPECT_FALSE(std::isfinite(nodal.StrainEnergy()));
+  // The relaxation's history is per element: not with the volume at the vertices.
+  EXPECT_EQ(nodal.SetRelaxation({{0.3, 1.0}}).error().field, "relaxation");
+  EXPECT_TRUE(nodal.SetRelaxation({}).ok());
 }
 
 }  // namespace
