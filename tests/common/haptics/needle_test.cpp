@@ -284,6 +284,39 @@ TEST(NeedleTest, ADeepNeedleIsHeldOnItsTractAndTurnedBackFollowsTheFirstTract) {
   EXPECT_EQ(m->state().passed, 3u);
 }
 
+// A hard case on purpose: the needle driven at a hand's top speed (1 and 3 m/s: 1 to 3 mm per
+// servo cycle) straight through every layer, the vessel and its back wall, and drawn out as fast.
+// Every boundary still gives way once, in order (one per step), the force stays finite and below
+// what the laws allow (the largest puncture force, the shaft's whole friction at that speed and
+// the cutting force together), and the tract is left when the needle is out.
+TEST(NeedleTest, AtAHandsTopSpeedEveryBoundaryPopsOnceAndTheForceStaysBounded) {
+  for (double speed : {1.0, 3.0}) {
+    SCOPED_TRACE("speed " + std::to_string(speed) + " m/s");
+    auto m = NeedleModel::Create(Layered());
+    ASSERT_TRUE(m.ok());
+    m->Step({0, 0, 0.005}, kDown, 1e-3);
+    // Shaft held at most 60 mm: skin 2, fat 10, muscle 48 (N/m per metre of shaft), at `speed`.
+    const double friction =
+        0.002 * (20 + 100 * speed) + 0.010 * (4 + 40 * speed) + 0.048 * (14 + 100 * speed);
+    const double bound = 1.5 + friction + 0.8;  // the skin's puncture, the friction, the cutting
+    int pops = 0;
+    double largest = 0;
+    const auto each = [&](const NeedleForce& f) {
+      ASSERT_TRUE(f.force.allFinite());
+      pops += f.popped;
+      largest = std::max(largest, f.force.norm());
+    };
+    Descend(*m, 0.005, -0.040, speed, each);
+    EXPECT_EQ(pops, 5);
+    EXPECT_EQ(m->punctures(), 5u);
+    Descend(*m, -0.040, 0.005, speed, each);
+    EXPECT_EQ(m->state().phase, NeedleState::Phase::kFree);
+    EXPECT_EQ(m->Tracts().size(), 1u);
+    std::printf("%.0f m/s: largest force %.2f N (bound %.2f N)\n", speed, largest, bound);
+    EXPECT_LT(largest, bound);
+  }
+}
+
 TEST(NeedleTest, TheTissueHoldsTheNeedleAcrossItsTract) {
   auto m = NeedleModel::Create(Layered());
   ASSERT_TRUE(m.ok());
