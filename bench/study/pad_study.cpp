@@ -98,7 +98,11 @@ SolvedPad SolvePad(const Pad& p, double scale) {
                                                                PadGrid(p, scale));
   auto response = in.ok() ? tissue::FemStaticResponse::Create(in->mesh, in->material, in->fixed)
                           : Expected<tissue::FemStaticResponse>(in.error());
-  auto fem = in.ok() ? tissue::FemModel::Create(in->mesh, in->material, in->fixed)
+  // The corotational model keeps its volume per element (only the static answers take the
+  // scene's choice; the timing is the same).
+  tissue::FemParams dynamic = in.ok() ? in->material : tissue::FemParams{};
+  dynamic.nodal_volume = false;
+  auto fem = in.ok() ? tissue::FemModel::Create(in->mesh, dynamic, in->fixed)
                      : Expected<tissue::FemModel>(in.error());
   if (!response.ok() || !fem.ok()) {
     s.note = (response.ok() ? fem.error() : response.error()).message;

@@ -396,6 +396,21 @@ Status ParseTissue(const Reader& r, Scene& s) {
 // "radius": m, "contrast": E ratio}]): carried by the FEM a reduced model is built from, so only
 // a reduced contact or surface-twist region has them. A sphere's centre must lie in the ball; a
 // mesh file's is checked against its tetrahedra when the model is built.
+// Where the tissue's volume constraint is integrated ("tissue.volume"): "element" (the default)
+// or "vertices" (tissue::FemParams::nodal_volume: linear tetrahedra do not lock as ν → 0.5). Only
+// a reduced model's tables are built so (their static responses); the FEM regions keep theirs.
+Status ParseVolume(const Reader& r, Scene& s) {
+  if (!r.Has("tissue") || !r.raw()["tissue"].contains("volume")) return Status::Ok();
+  const Reader t(r.raw()["tissue"], "tissue");
+  VSURG_TRY(volume, t.StringOr("volume", "element"));
+  if (volume != "element" && volume != "vertices")
+    return t.Bad("volume", "must be \"element\" or \"vertices\"");
+  s.volume_at_vertices = volume == "vertices";
+  if (s.volume_at_vertices && s.region.kind != ModelKind::kReduced)
+    return t.Bad("volume", "\"vertices\" is for a reduced model's tables (their static responses)");
+  return Status::Ok();
+}
+
 Status ParseInclusions(const Reader& r, Scene& s) {
   if (!r.Has("tissue") || !r.raw()["tissue"].contains("inclusions")) return Status::Ok();
   const Reader t(r.raw()["tissue"], "tissue");
@@ -590,6 +605,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if (Status st = ParseTissue(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseRegion(root, r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseInclusions(r, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseVolume(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseNeedle(root, s); !st.ok()) return with_source(st.error());
   if (r.Has("haptics")) {
     auto h = r.Object("haptics");

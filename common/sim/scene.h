@@ -165,6 +165,9 @@ struct Scene {
   std::string source;  // the file it was read from
   MeshSpec mesh;
   double shear_modulus = 12e3, poisson_ratio = 0.47, density = 1050;
+  // "tissue.volume": "vertices": a reduced model's tables integrate the volume constraint at the
+  // vertices (tissue::FemParams::nodal_volume); "element" (false), the default.
+  bool volume_at_vertices = false;
   std::vector<tissue::Inclusion> inclusions;  // lumps of another stiffness (inclusions.h)
   // A palpation's cases: each attempt draws its own lumps (DrawInclusions) into `inclusions`
   // (DrawCase); unset: the scene's own inclusions are the case.

@@ -7,6 +7,7 @@
 #include <iostream>  // Eigen's METIS bridge writes to std::cerr without including it itself
 #include <thread>
 #include <type_traits>
+#include <utility>
 
 #include <Eigen/MetisSupport>
 #include <Eigen/Sparse>
@@ -274,6 +275,10 @@ FemModel::~FemModel() = default;
 
 Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemParams& params,
                                     const std::vector<int>& fixed) {
+  if (params.nodal_volume)
+    return InvalidArgument("nodal_volume",
+                           "the volume at the vertices is for a static response's K₀ "
+                           "(FemStaticResponse); the corotational model keeps it per element");
   if (!(params.young > 0) || !std::isfinite(params.young))
     return InvalidArgument("young", "Young's modulus must be > 0 Pa");
   if (!(params.poisson > -1.0 && params.poisson < 0.5))
@@ -579,6 +584,58 @@ int FemModel::InvertedCount() const {
   return n;
 }
 
+namespace {
+
+// FemParams::nodal_volume's stiffness: per vertex n, (L_n / V_n²)·c_n c_nᵀ with c_n = Σ_{e ∋ n}
+// (V_e/4)·(g_a^e at vertex a's coordinates), L_n = Σ_{e ∋ n} V_e·λ_e / 4 and V_n = Σ V_e/4; the
+// fixed vertices' rows and columns left out (they are identity rows).
+void NodalVolumeStiffness(const geometry::TetMesh& mesh,
+                          const std::vector<std::array<Vec3, 4>>& grad,
+                          const std::vector<double>& v_lambda, const std::vector<uint8_t>& is_fixed,
+                          std::vector<Eigen::Triplet<double>>& out) {
+  const int nv = mesh.VertexCount();
+  std::vector<std::vector<int>> star(nv);
+  std::vector<double> volume(mesh.tetrahedra.size());
+  for (size_t e = 0; e < mesh.tetrahedra.size(); ++e) {
+    const auto& t = mesh.tetrahedra[e];
+    Mat3 dm;
+    for (int c = 0; c < 3; ++c) dm.col(c) = mesh.positions[t[c + 1]] - mesh.positions[t[0]];
+    volume[e] = dm.determinant() / 6.0;
+    for (int a : t) star[a].push_back(static_cast<int>(e));
+  }
+  std::vector<int> verts;
+  std::vector<Vec3> c;
+  for (int n = 0; n < nv; ++n) {
+    double vn = 0, ln = 0;
+    verts.clear();
+    c.clear();
+    for (int e : star[n]) {
+      vn += volume[e] / 4, ln += v_lambda[e] / 4;
+      const auto& t = mesh.tetrahedra[e];
+      for (int a = 0; a < 4; ++a) {
+        const auto at = std::find(verts.begin(), verts.end(), t[a]) - verts.begin();
+        if (at == static_cast<std::ptrdiff_t>(verts.size()))
+          verts.push_back(t[a]), c.push_back(Vec3::Zero());
+        c[at] += volume[e] / 4 * grad[e][a];
+      }
+    }
+    if (!(vn > 0)) continue;
+    const double w = ln / (vn * vn);
+    for (size_t a = 0; a < verts.size(); ++a) {
+      if (is_fixed[verts[a]]) continue;
+      for (size_t b = 0; b < verts.size(); ++b) {
+        if (is_fixed[verts[b]]) continue;
+        const Mat3 block = w * c[a] * c[b].transpose();
+        for (int r = 0; r < 3; ++r)
+          for (int q = 0; q < 3; ++q)
+            out.emplace_back(3 * verts[a] + r, 3 * verts[b] + q, block(r, q));
+      }
+    }
+  }
+}
+
+}  // namespace
+
 struct FemStaticResponse::Impl {
   explicit Impl(FemModel m) : model(std::move(m)) {}
   FemModel model;
@@ -642,12 +699,17 @@ Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& m
                                                       const FemParams& params,
                                                       const std::vector<int>& fixed,
                                                       FillOrdering ordering) {
-  auto model = FemModel::Create(mesh, params, fixed);
+  FemParams per_element = params;
+  per_element.nodal_volume = false;
+  auto model = FemModel::Create(mesh, per_element, fixed);
   if (!model.ok()) return model.error();
   if (fixed.empty())
     return InvalidArgument("fixed", "a static response needs fixed vertices (else K is singular)");
   auto impl = std::make_unique<Impl>(std::move(*model));
   FemModel::Impl& m = *impl->model.impl_;
+  std::vector<double> v_lambda;  // the elements' V·λ, taken out of their blocks to the vertices
+  if (params.nodal_volume)
+    v_lambda = std::exchange(m.v_lambda, std::vector<double>(m.v_lambda.size(), 0.0));
   m.Assemble();  // at rest: R = I, so these are K₀'s blocks
   const int nv = m.n();
   std::vector<Eigen::Triplet<double>> triplets;
@@ -664,6 +726,7 @@ Expected<FemStaticResponse> FemStaticResponse::Create(const geometry::TetMesh& m
         for (int c = 0; c < 3; ++c) triplets.emplace_back(3 * i + a, 3 * j + c, m.blocks[s](a, c));
     }
   }
+  if (!v_lambda.empty()) NodalVolumeStiffness(m.rest, m.grad, v_lambda, m.is_fixed, triplets);
   Eigen::SparseMatrix<double> k(3 * nv, 3 * nv);
   k.setFromTriplets(triplets.begin(), triplets.end());
   // Factorised, the factor copied out (SolveBlock reads it), the solver released.

@@ -54,6 +54,13 @@ struct FemParams {
   double mass_damping = 5.0;         // α, 1/s
   double stiffness_damping = 0.001;  // β, s
   bool corotational = true;          // false: small-strain linear FEM (R = I)
+  // The λ term of the energy integrated at the vertices instead of per element (a static
+  // response's K₀ only; FemModel refuses it): vertex n carries V_n = Σ V_e/4 and the volume
+  // strain θ_n = Σ_e (V_e/4)·div u_e / V_n, the energy Σ_n ½·Λ_n·V_n·θ_n² with Λ_n the volume-
+  // weighted λ of its elements. One volume constraint per vertex instead of per element: linear
+  // tetrahedra no longer lock as ν → 0.5 (the hyperelastic reference's nodal_volume at small
+  // strain; DESIGN.md "The FEM against Hertz's contact").
+  bool nodal_volume = false;
   int max_cg_iterations = 400;
   double cg_tolerance = 1e-4;  // relative residual ‖r‖/‖b‖ of each step's Δv
   // Highest degree (1 to 3) of the extrapolation from the last steps' Δv that starts each

@@ -122,6 +122,7 @@ void PutCommon(Writer& w, const char* kind, const geometry::TetMesh& mesh, const
     w.PutString("element stiffness scale");
     w.PutVector(p.element_stiffness_scale);
   }
+  if (p.nodal_volume) w.PutString("volume at the vertices");  // other keys as they always were
 }
 
 bool ValidName(const std::string& name) {

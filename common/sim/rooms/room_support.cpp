@@ -16,6 +16,7 @@ tissue::FemParams SceneMaterial(const Scene& scene) {
   p.poisson = scene.poisson_ratio;
   p.young = 2 * scene.shear_modulus * (1 + scene.poisson_ratio);
   p.density = scene.density;
+  p.nodal_volume = scene.volume_at_vertices;
   return p;
 }
 

@@ -15,6 +15,7 @@
 
 #include "common/geometry/mesh_generators.h"
 #include "common/sim/limb_scene.h"
+#include "common/sim/rooms/room_support.h"
 #include "common/sim/simulation.h"
 #include "tests/support/temp_dir.h"
 
@@ -430,6 +431,31 @@ TEST(SceneTest, InclusionsAreReadForAReducedModelAndBadOnesNamed) {
   // A model without an FEM behind it has no inclusions to carry.
   EXPECT_NE(Field(with(R"([{"centre": [0, 0, 0], "radius": 0.01, "contrast": 5}])", Minimal()))
                 .find("tissue.inclusions: only a reduced contact or surface-twist model"),
+            std::string::npos);
+}
+
+// Where the volume constraint is integrated: "element" (the default) or "vertices", for a reduced
+// model's tables only; anything else refused by name.
+TEST(SceneTest, TheVolumeAtTheVerticesIsAReducedModelsChoiceNamedWhenWrong) {
+  const std::string reduced =
+      Replace(Minimal(), R"("type": "mass-spring", "structural_stiffness": 50)",
+              R"("type": "reduced", "fem_cells": 12)");
+  const auto with = [&](const std::string& volume, const std::string& base) {
+    return Replace(base, R"("error_budget")",
+                   R"("tissue": {"volume": )" + volume + R"(}, "error_budget")");
+  };
+  auto plain = ParseScene(reduced, "x.json");
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  EXPECT_FALSE(plain->volume_at_vertices);
+  auto vertices = ParseScene(with(R"("vertices")", reduced), "x.json");
+  ASSERT_TRUE(vertices.ok()) << vertices.error().message;
+  EXPECT_TRUE(vertices->volume_at_vertices);
+  EXPECT_TRUE(SceneMaterial(*vertices).nodal_volume);
+  EXPECT_NE(Field(with(R"("nodes")", reduced)).find("tissue.volume: must be"), std::string::npos);
+  EXPECT_NE(Field(with("1", reduced)).find("tissue.volume"), std::string::npos);
+  EXPECT_NE(Field(with(R"("vertices")", Minimal()))
+                .find("tissue.volume: \"vertices\" is for a "
+                      "reduced model"),
             std::string::npos);
 }
 
