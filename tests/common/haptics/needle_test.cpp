@@ -199,16 +199,25 @@ void Advance(NeedleModel& m, const Vec3& entry, const Vec3& u, double depth, dou
   for (int i = 1; i <= n; ++i) each(m.Step(entry + (depth + i * 1e-5) * u, u, 1e-3));
 }
 
+// A miss: vertical 12 mm beside the vessel's axis, down to 19 mm (skin, fat and the muscle's
+// fascia punctured, the vessel passed by).
+const Vec3 kBesideTheVessel(-0.012, 0, 0);
+Expected<NeedleModel> InsertedBesideTheVessel() {
+  auto m = NeedleModel::Create(Layered());
+  if (!m.ok()) return m;
+  m->Step(kBesideTheVessel + Vec3(0, 0, 0.005), kDown, 1e-3);
+  Descend(
+      *m, 0.005, -0.019, 0.01, [](const NeedleForce&) {}, kDown, kBesideTheVessel.x());
+  return m;
+}
+
 // A miss corrected as a clinician does: drawn back into the fat, angled toward the vessel and
 // advanced, the needle pivots about the skin's hole. No new pop at the skin; the fascia and the
 // vessel's wall on the new line pop; the first tract is kept; the new one aims at the vessel.
 TEST(NeedleTest, ANeedleDrawnBackUnderTheSkinIsRedirectedAboutItsHoleToTheTarget) {
-  auto m = NeedleModel::Create(Layered());
+  const Vec3 entry = kBesideTheVessel;
+  auto m = InsertedBesideTheVessel();
   ASSERT_TRUE(m.ok());
-  const Vec3 entry(-0.012, 0, 0);
-  m->Step(entry + Vec3(0, 0, 0.005), kDown, 1e-3);
-  Descend(
-      *m, 0.005, -0.019, 0.01, [](const NeedleForce&) {}, kDown, entry.x());
   ASSERT_EQ(m->punctures(),
             3u);  // skin, fat, the muscle's fascia (popped 17.6 mm down): 12 mm beside the vessel
   double middle = 0, deviation = 0;
@@ -249,12 +258,9 @@ TEST(NeedleTest, ANeedleDrawnBackUnderTheSkinIsRedirectedAboutItsHoleToTheTarget
 // strains the tissue (the lateral spring) and never turns the tract. Turned back onto the first
 // tract from the fat, the needle follows it again without a pop.
 TEST(NeedleTest, ADeepNeedleIsHeldOnItsTractAndTurnedBackFollowsTheFirstTract) {
-  auto m = NeedleModel::Create(Layered());
+  const Vec3 entry = kBesideTheVessel;
+  auto m = InsertedBesideTheVessel();
   ASSERT_TRUE(m.ok());
-  const Vec3 entry(-0.012, 0, 0);
-  m->Step(entry + Vec3(0, 0, 0.005), kDown, 1e-3);
-  Descend(
-      *m, 0.005, -0.019, 0.01, [](const NeedleForce&) {}, kDown, entry.x());
   const Vec3 tilted = Vec3(std::sin(0.35), 0, -std::cos(0.35));  // 20°
   int redirects = 0;
   double strain = 0;

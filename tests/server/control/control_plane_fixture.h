@@ -40,6 +40,15 @@ namespace vsurg::server::test_control {
 namespace fs = std::filesystem;
 using grpc::StatusCode;
 
+// A station's channel options: the endpoint's port, the id its datagrams carry, the key.
+inline client::StationOptions StationFor(uint16_t port, uint64_t wire_id, const std::string& key) {
+  client::StationOptions so;
+  so.server_port = port;
+  so.session = wire_id;
+  std::copy(key.begin(), key.end(), so.key.begin());
+  return so;
+}
+
 class ControlPlaneTest : public test::SiteTest {
  protected:
   void SetUp() override {

@@ -9,14 +9,6 @@ namespace {
 using namespace test_control;  // the fixture and its names
 using test::PressAndHold;
 
-client::StationOptions StationFor(uint16_t port, uint64_t wire_id, const std::string& key) {
-  client::StationOptions so;
-  so.server_port = port;
-  so.session = wire_id;
-  std::copy(key.begin(), key.end(), so.key.begin());
-  return so;
-}
-
 TEST_F(ControlPlaneTest, AnInstructorJoinsALiveSessionOnItsOwnChannelAndGuidesIt) {
   auto sessions = v1::SessionService::NewStub(channel_);
   v1::CreateSessionRequest create;

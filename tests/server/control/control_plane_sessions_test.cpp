@@ -46,11 +46,8 @@ TEST_F(ControlPlaneTest, ATraineeRunsASessionOverUdpWhileAnInstructorWatches) {
   auto reader = monitor->Watch(watch_ctx.get(), watch);
 
   client::ReplayDevice device(PressAndHold(1.5));
-  client::StationOptions so;
-  so.server_port = endpoint_->port();
-  so.session = id;
-  std::copy(created.session_key().begin(), created.session_key().end(), so.key.begin());
-  auto station = client::StationChannel::Create(so, &device);
+  auto station = client::StationChannel::Create(
+      StationFor(endpoint_->port(), id, created.session_key()), &device);
   ASSERT_TRUE(station.ok()) << station.error().message;
 
   v1::Telemetry t, best;
@@ -400,11 +397,8 @@ TEST_F(ControlPlaneTest, AnEndedSearchAnswersWithWhereItsLumpsWereAndItsMarks) {
   PressAndMark(search, {0.004, 0.002});  // over the lump
   PressAndMark(search, {-0.03, -0.03});  // 40 mm aside: a false mark
   client::ReplayDevice device(search);
-  client::StationOptions so;
-  so.server_port = endpoint_->port();
-  so.session = id;
-  std::copy(created.session_key().begin(), created.session_key().end(), so.key.begin());
-  auto station = client::StationChannel::Create(so, &device);
+  auto station = client::StationChannel::Create(
+      StationFor(endpoint_->port(), id, created.session_key()), &device);
   ASSERT_TRUE(station.ok()) << station.error().message;
   // Until the server has answered past the second mark (its press lifts 0.6 s after it).
   ASSERT_TRUE(test::Eventually(60, [&] { return (*station)->stats().received > 1600 + 1300; }));
