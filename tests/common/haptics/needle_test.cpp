@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "common/haptics/needle_contact.h"
@@ -400,28 +401,39 @@ TEST(NeedleTest, ATissueOutOfRangeIsRefusedByName) {
 namespace vsurg::haptics {
 namespace {
 
+// The station's server a round trip (300 datagrams) behind: it steps every sample as it comes and
+// the station hears, with each new sample, the answer about the one 300 before.
+struct ServerBehind {
+  explicit ServerBehind(NeedleModel m) : model(std::move(m)) {
+    answer.kind = LocalModel::Kind::kNeedle;
+  }
+  NeedleModel model;
+  std::vector<NeedleState> states;
+  LocalModel answer;
+  // The server steps sample `seq` (1, 2, …); the station gets the answer about seq − 300.
+  void Step(NeedleContact& station, uint64_t seq, const Vec3& tip, const Vec3& axis) {
+    model.Step(tip, axis, 1e-3);
+    states.push_back(model.state());
+    if (seq > 300) {
+      answer.needle = states[seq - 301];
+      station.Answer(answer, seq - 300);
+    }
+  }
+};
+
 // The station's needle (needle_contact.h): its own model pops on the crossing cycle; an answer
 // about a datagram before that change does not undo it; a later one that disagrees is taken.
 TEST(NeedleContactTest, AStationPopsOnItsOwnAndTakesOnlyANewerAnswersWord) {
   auto spec = std::make_shared<const NeedleTissueSpec>(Layered());
   NeedleContact station(spec);
-  auto server = NeedleModel::Create(*spec);
-  ASSERT_TRUE(station.active() && server.ok());
+  auto model = NeedleModel::Create(*spec);
+  ASSERT_TRUE(station.active() && model.ok());
+  ServerBehind server(std::move(*model));
   uint64_t seq = 0;
-  LocalModel answer;
-  answer.kind = LocalModel::Kind::kNeedle;
-  // The server is a round trip (300 datagrams) behind: it answers sample k − 300.
-  std::vector<NeedleState> server_states;
   double before = 0, after = 0;
   for (int i = 0; i <= 1200; ++i) {
     const Vec3 tip(0, 0, 0.002 - 1e-5 * i);  // down at 10 mm/s to 10 mm deep
-    ++seq;
-    server->Step(tip, kDown, 1e-3);
-    server_states.push_back(server->state());
-    if (seq > 300) {
-      answer.needle = server_states[seq - 301];
-      station.Answer(answer, seq - 300);
-    }
+    server.Step(station, ++seq, tip, kDown);
     const Vec3 f = station.Render(tip, kDown, seq);
     if (station.local_pops() == 0) before = f.z();
     if (station.local_pops() == 1 && after == 0) after = f.z();
@@ -430,11 +442,12 @@ TEST(NeedleContactTest, AStationPopsOnItsOwnAndTakesOnlyANewerAnswersWord) {
   EXPECT_LT(after, 0.5);   // and the pop on the same cycle as the server's (no answer yet)
   EXPECT_EQ(station.local_pops(), 2u);   // skin, fat
   EXPECT_EQ(station.corrections(), 0u);  // the answers agreed once they caught up
-  EXPECT_EQ(station.model()->state().passed, server->state().passed);
+  EXPECT_EQ(station.model()->state().passed, server.model.state().passed);
   // A server that says otherwise about a datagram after the station's change is believed.
-  answer.needle = server->state();
-  answer.needle.passed = 1;
-  station.Answer(answer, seq);
+  LocalModel otherwise = server.answer;
+  otherwise.needle = server.model.state();
+  otherwise.needle.passed = 1;
+  station.Answer(otherwise, seq);
   EXPECT_EQ(station.corrections(), 1u);
   EXPECT_EQ(station.model()->state().passed, 1u);
 }
@@ -446,8 +459,9 @@ TEST(NeedleContactTest, AStationPopsOnItsOwnAndTakesOnlyANewerAnswersWord) {
 TEST(NeedleContactTest, ARedirectionIsTheStationsOwnAndTheServerAgreesARoundTripLater) {
   auto spec = std::make_shared<const NeedleTissueSpec>(Layered());
   NeedleContact station(spec);
-  auto server = NeedleModel::Create(*spec);
-  ASSERT_TRUE(station.active() && server.ok());
+  auto model = NeedleModel::Create(*spec);
+  ASSERT_TRUE(station.active() && model.ok());
+  ServerBehind server(std::move(*model));
   // Vertical into the fat 12 mm beside the vessel, back to 6 mm, turned 31° toward it, advanced.
   const Vec3 entry(-0.012, 0, 0), aim = (Vec3(0, 0, -0.020) - entry).normalized();
   std::vector<std::pair<Vec3, Vec3>> path;  // tip, axis
@@ -458,19 +472,10 @@ TEST(NeedleContactTest, ARedirectionIsTheStationsOwnAndTheServerAgreesARoundTrip
     path.push_back({entry + 0.006 * u, u});
   }
   for (int i = 1; i <= 1200; ++i) path.push_back({entry + (0.006 + 1e-5 * i) * aim, aim});
-  LocalModel answer;
-  answer.kind = LocalModel::Kind::kNeedle;
-  std::vector<NeedleState> server_states;
   uint64_t seq = 0;
   int redirected_at = -1;
   for (const auto& [tip, axis] : path) {
-    ++seq;
-    server->Step(tip, axis, 1e-3);
-    server_states.push_back(server->state());
-    if (seq > 300) {
-      answer.needle = server_states[seq - 301];
-      station.Answer(answer, seq - 300);
-    }
+    server.Step(station, ++seq, tip, axis);
     const uint32_t tract = station.model()->state().tract;
     EXPECT_TRUE(station.Render(tip, axis, seq).allFinite());
     if (redirected_at < 0 && tract == 1 && station.model()->state().tract == 2)
@@ -478,10 +483,10 @@ TEST(NeedleContactTest, ARedirectionIsTheStationsOwnAndTheServerAgreesARoundTrip
   }
   EXPECT_GT(redirected_at, 1500) << "not before the needle advanced at its new angle";
   EXPECT_EQ(station.corrections(), 0u);
-  EXPECT_EQ(station.model()->state().tract, server->state().tract);
+  EXPECT_EQ(station.model()->state().tract, server.model.state().tract);
   EXPECT_EQ(station.model()->state().tract, 2u);
-  EXPECT_EQ(station.model()->state().passed, server->state().passed);
-  EXPECT_EQ(station.local_pops(), static_cast<uint64_t>(server->punctures()));
+  EXPECT_EQ(station.model()->state().passed, server.model.state().passed);
+  EXPECT_EQ(station.local_pops(), static_cast<uint64_t>(server.model.punctures()));
 }
 
 }  // namespace
