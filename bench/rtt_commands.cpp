@@ -2,6 +2,7 @@
 // at 1 kHz against a real UDP endpoint on loopback, and the same stations against a plain echo.
 #include "bench/rtt_commands.h"
 #include "bench/rtt_server_stack.h"
+#include "bench/udp_echo.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -90,13 +91,6 @@ vsurg::wire::SessionKey BenchKey(int i) {
 constexpr double kWarmupS = 0.5;
 // haptic-rtt --twist-deg: when each station grasps (in the warm-up, after its approach).
 constexpr double kTwistGraspS = 0.3;
-
-// The calling thread's CPU time so far, s.
-double ThreadCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 // What a station's answers are: the server's force datagrams, or its own stylus datagrams
 // echoed back unchanged (the bare-UDP floor).
@@ -588,6 +582,11 @@ struct HapticRttRun {
     const double span = (kWarmupS + seconds) * n;
     j["server_cpu_per_station"] = cpu / span;
     j["server_process_cpu_per_station"] = server_cpu / span;
+    // Per answered datagram, µs: the I/O threads' CPU and the whole node's (every thread but the
+    // driver's), over the datagrams the endpoint answered in the same span.
+    const double answered = static_cast<double>(residence.answered - counters0.answered);
+    j["server_io_cpu_per_datagram_us"] = answered > 0 ? 1e6 * cpu / answered : 0.0;
+    j["server_process_cpu_per_datagram_us"] = answered > 0 ? 1e6 * server_cpu / answered : 0.0;
     // Bare sessions only (with --dashboard-clients the session manager holds them): -1 there.
     j["deformations_per_station_s"] = sims.empty() ? -1.0 : static_cast<double>(deformed) / span;
     j["server_residence_mean_us"] =
@@ -667,94 +666,6 @@ int HapticRtt(const std::vector<std::string>& args) {
   return 0;
 }
 
-namespace {
-
-// The floor a UDP round trip allows on this machine: a plain echo on loopback, one thread on a
-// blocking socket answering each datagram with itself (no authentication, no decoding, no
-// physics, no event loop). POSIX calls, not Asio: the floor should carry nothing of ours.
-class UdpEcho {
- public:
-  // busy_poll_us > 0: before it blocks the echo polls for up to that long, while the last 50 ms
-  // brought at least one datagram per window (the rule of vsurg-server's --busy-poll-us).
-  static vsurg::Expected<std::unique_ptr<UdpEcho>> Start(int priority, int busy_poll_us = 0) {
-    auto e = std::unique_ptr<UdpEcho>(new UdpEcho);
-    e->fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
-    if (e->fd_ < 0) return vsurg::Error{vsurg::ErrorCode::kIoError, "socket() failed", "socket"};
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t len = sizeof a;
-    timeval timeout{0, 50000};  // wakes to see a stop request
-    if (::bind(e->fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
-        ::getsockname(e->fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0 ||
-        ::setsockopt(e->fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout) != 0)
-      return vsurg::Error{vsurg::ErrorCode::kIoError, "cannot bind the echo socket", "socket"};
-    e->port_ = ntohs(a.sin_port);
-    e->thread_ = std::thread([p = e.get(), priority, busy_poll_us] {
-      if (priority > 0) vsurg::TrySetRealtimePriority(priority);
-      std::array<uint8_t, 2048> buf{};
-      using Steady = std::chrono::steady_clock;
-      const std::chrono::microseconds window(busy_poll_us);
-      const std::chrono::milliseconds tick(50);
-      bool poll = false;
-      uint64_t count = 0, count_at_tick = 0;
-      Steady::time_point next_tick = Steady::now() + tick;
-      while (!p->stop_.load(std::memory_order_relaxed)) {
-        sockaddr_in from{};
-        socklen_t from_len = sizeof from;
-        ssize_t got = -1;
-        if (poll) {
-          const Steady::time_point until = Steady::now() + window;
-          do {
-            from_len = sizeof from;
-            got = ::recvfrom(p->fd_, buf.data(), buf.size(), MSG_DONTWAIT,
-                             reinterpret_cast<sockaddr*>(&from), &from_len);
-          } while (got <= 0 && Steady::now() < until);
-        }
-        if (got <= 0) {
-          from_len = sizeof from;
-          got = ::recvfrom(p->fd_, buf.data(), buf.size(), 0, reinterpret_cast<sockaddr*>(&from),
-                           &from_len);
-        }
-        if (got > 0) {
-          ++count;
-          ::sendto(p->fd_, buf.data(), static_cast<size_t>(got), 0,
-                   reinterpret_cast<sockaddr*>(&from), from_len);
-        }
-        if (busy_poll_us > 0 && Steady::now() >= next_tick) {
-          const double elapsed =
-              std::chrono::duration<double>(Steady::now() - (next_tick - tick)).count();
-          poll = static_cast<double>(count - count_at_tick) * busy_poll_us * 1e-6 >= elapsed;
-          count_at_tick = count;
-          next_tick = Steady::now() + tick;
-        }
-      }
-      p->cpu_s_ = ThreadCpuSeconds();
-    });
-    return e;
-  }
-  ~UdpEcho() {
-    Stop();
-    if (fd_ >= 0) ::close(fd_);
-  }
-  void Stop() {
-    stop_ = true;
-    if (thread_.joinable()) thread_.join();
-  }
-  uint16_t port() const { return port_; }
-  double cpu_seconds() const { return cpu_s_; }  // the echo thread's, after Stop
-
- private:
-  UdpEcho() = default;
-  int fd_ = -1;
-  uint16_t port_ = 0;
-  std::atomic<bool> stop_{false};
-  double cpu_s_ = 0;
-  std::thread thread_;
-};
-
-}  // namespace
-
 int UdpFloor(const std::vector<std::string>& args) {
   ArgParser p("vsurg-bench udp-floor",
               "The bare-UDP floor under haptic-rtt: the same stations, pacing and statistics "
@@ -767,14 +678,24 @@ int UdpFloor(const std::vector<std::string>& args) {
            "blocking echo, the floor)",
            false, "0")
       .Within(vsurg::server::EndpointOptions::kBusyPollUs)
+      .Option("batch", ArgParser::Kind::kInt,
+              "datagrams the echo takes in one recvmmsg and answers in one sendmmsg, as the "
+              "server's I/O thread does (1: one recvfrom and one sendto each, the plain echo)",
+              false, "1")
+      .Within({1, static_cast<double>(UdpEcho::kMaxBatch)})
       .Option("json", ArgParser::Kind::kFlag, "print one JSON object");
   if (auto rc = vsurg::cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
+  if (p.Int("batch") > 1 && p.Int("busy-poll-us") > 0)
+    return std::cerr << p.command() << ": --busy-poll-us is the plain echo's (--batch 1)\n", 2;
   const int n = p.Int("stations");
   const double seconds = p.Double("seconds");
   const int period_ms = p.Int("period-ms");
   const int per_socket = p.Int("stations-per-socket");
   const int priority = p.Int("realtime-priority");
-  auto echo = UdpEcho::Start(priority, static_cast<int>(p.Int("busy-poll-us")));
+  const int batch = p.Int("batch");
+  auto echo = UdpEcho::Start({.priority = priority,
+                              .busy_poll_us = static_cast<int>(p.Int("busy-poll-us")),
+                              .batch = batch});
   if (!echo.ok()) return std::cerr << p.command() << ": " << echo.error().message << "\n", 1;
   asio::io_context io;
   std::vector<std::unique_ptr<Station>> stations;
@@ -786,7 +707,12 @@ int UdpFloor(const std::vector<std::string>& args) {
       per_socket);
   (*echo)->Stop();
   nlohmann::json j = run.Summary(n, seconds);
-  j["server"] = "udp-echo";
+  j["server"] = batch > 1 ? "udp-echo-batched" : "udp-echo";
+  j["batch"] = batch;
+  const double answered = static_cast<double>((*echo)->answered());
+  j["server_cpu_per_datagram_us"] = answered > 0 ? 1e6 * (*echo)->cpu_seconds() / answered : 0.0;
+  j["datagrams_per_receive"] =
+      (*echo)->calls() ? answered / static_cast<double>((*echo)->calls()) : 0.0;
   j["busy_poll_us"] = p.Int("busy-poll-us");
   j["period_ms"] = period_ms;
   j["stations_per_socket"] = per_socket;

@@ -10,10 +10,12 @@
 //     --stations-per-socket K: the driver's stations share sockets, K to a batch (both commands).
 //
 //   vsurg-bench udp-floor --stations N --seconds S [--realtime-priority P] [--busy-poll-us U]
-//                         [--json]
+//                         [--batch B] [--json]
 //     the floor under haptic-rtt: the same stations, pacing and statistics against a plain UDP
 //     echo (one thread, a blocking socket); report haptic-rtt's figures as ratios to it. With
-//     --busy-poll-us the echo polls before it blocks, by the endpoint's rule (for comparison).
+//     --busy-poll-us the echo polls before it blocks, by the endpoint's rule (for comparison);
+//     with --batch B it takes up to B datagrams a recvmmsg and answers them in one sendmmsg.
+//     Both print the CPU per answered datagram (server_*cpu_per_datagram_us).
 //
 //   vsurg-bench grpc-submit [--clients 32] [--seconds 5] [--batches 1,1024] [--json]
 //     durable evaluation submissions per second through gRPC, per writer batch limit.
