@@ -475,6 +475,7 @@ struct StationChannel::Impl {
     v.m.rendered_peak_n = v.rendered_peak;
     v.m.rendered_over_limit_s = v.rendered_over_limit;
     v.m.jitter_us = reported_jitter_us.load(std::memory_order_relaxed);
+    v.m.twist_shape_key = options.twist_shape_key;
     const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kStylusState, options.session,
                          ++v.sequence};
     const size_t size = tx_codec.EncodeStylus(v.m, h, auth, tx);

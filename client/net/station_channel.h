@@ -84,6 +84,9 @@ struct StationOptions {
   // every cycle: an impact is where the tissue's answer changes fastest and the station knows
   // least of it (its tissue model is fitted from the contact itself).
   double deadband = 0;
+  // The coil limb whose twist frames this station remakes (sim::CoilLimbKey), declared in every
+  // stylus datagram; 0: it takes vertices.
+  uint64_t twist_shape_key = 0;
   double deadband_position_m = 0.5e-3;
   double deadband_angle_rad = 0.0175;  // 1°
   double deadband_onset_s = 0.05;

@@ -292,6 +292,7 @@ Status Station::Connect() {
   options.passivity_mode = config_.passivity;
   options.force_log = config_.force_log;
   options.deadband = config_.deadband;
+  options.twist_shape_key = config_.twist_shape_key;
   options.model_hold_s = config_.model_hold_s;
   options.force_limit_n = config_.force_limit_n;
   options.surface = StationSurfaceOf(created);

@@ -99,10 +99,11 @@ struct StationConfig {
   int realtime_priority = 20;  // SCHED_FIFO for the haptic threads when permitted (0: off)
   LocalRendering rendering = LocalRendering::kModel;  // between the server's answers
   PassivityMode passivity = PassivityMode::kLocal;    // the station's passivity control
-  std::string force_log;      // non-empty: the rendered force per servo cycle (StationOptions)
-  double deadband = 0;        // StationOptions::deadband
-  double model_hold_s = 1.0;  // StationOptions::model_hold_s
-  double force_limit_n = 0;   // StationOptions::force_limit_n (the scene task's)
+  std::string force_log;         // non-empty: the rendered force per servo cycle (StationOptions)
+  double deadband = 0;           // StationOptions::deadband
+  uint64_t twist_shape_key = 0;  // StationOptions::twist_shape_key (the view's coil limb)
+  double model_hold_s = 1.0;     // StationOptions::model_hold_s
+  double force_limit_n = 0;      // StationOptions::force_limit_n (the scene task's)
 };
 
 enum class StationState { kConnecting, kLive, kReconnecting, kFinished, kFailed };

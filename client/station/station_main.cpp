@@ -25,6 +25,7 @@
 #include "client/net/remote.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
+#include "client/station/coil_twist_view.h"
 #include "client/station/instructor_controls.h"
 #include "client/station/station.h"
 #include "common/core/args.h"
@@ -359,6 +360,10 @@ struct Screen {
   std::unique_ptr<client::QualityGovernor> governor;
   const vsurg::geometry::TriMesh* rest = nullptr;
   std::unique_ptr<vsurg::geometry::Bvh> rest_bvh;
+  // A coil limb's twist frames remade into the surface (the scene's own deformer), or none.
+  std::optional<client::CoilTwistView> twist;
+  std::vector<int32_t> twist_indices;
+  std::vector<vsurg::geometry::Vec3> twist_positions;
 };
 
 // The frame loop's state: what the trial showed so far and when it is over.
@@ -411,7 +416,14 @@ struct Trial {
       generation = channel_generation;
       screen.view->ResetToRest();  // a new session starts from the tissue at rest
     }
-    for (const auto& chunk : chunks) screen.view->Apply(chunk.indices, chunk.positions);
+    for (const auto& chunk : chunks) {
+      if (!chunk.twist) {
+        screen.view->Apply(chunk.indices, chunk.positions);
+      } else if (screen.twist &&
+                 screen.twist->Shape(*chunk.twist, screen.twist_indices, screen.twist_positions)) {
+        screen.view->Apply(screen.twist_indices, screen.twist_positions);
+      }
+    }
     if (refresh_hud) {
       // A new session's channel counts from zero again.
       rate_hz = last_rate_at > 0 && hud_stats.sent >= last_sent
@@ -591,6 +603,7 @@ vsurg::Expected<Screen> OpenScreen(const ArgParser& p, const sim::Scene& scene,
       screen.fixed_quality.value_or(client::Quality::kHigh));
   screen.view->SetQuality(screen.governor->level());
   screen.rest = &mesh.surface;
+  screen.twist = client::CoilTwistView::For(scene, mesh);
   screen.rest_bvh = std::make_unique<vsurg::geometry::Bvh>(mesh.surface);
   return screen;
 }
@@ -771,6 +784,7 @@ int Run(const std::vector<std::string>& args) {
   auto* replay = dynamic_cast<client::ReplayDevice*>(device->get());
   auto* hand = dynamic_cast<client::VirtualHandDevice*>(device->get());
   auto* searcher = dynamic_cast<client::SearchingHandDevice*>(device->get());
+  config->twist_shape_key = screen->twist ? screen->twist->key() : 0;
   client::Station station(*remote, device->get(), *config);
 
   struct sigaction action {};

@@ -190,7 +190,8 @@ void Simulation::PublishInput() {
   input_version_.notify_one();
 }
 
-void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model) {
+void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model,
+                         const std::optional<CoilTwistShape>& twist) {
   const size_t n = rest_.positions.size();
   Snapshot& back = surface_.Back();
   // The largest vertex move since the last surface published (a NaN counts as a reset).
@@ -210,13 +211,14 @@ void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool
   VisualPositions& v = visual_.Back();
   std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
   v.id = publish_id_;
+  v.twist = twist;
   visual_.Publish();
   updates_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void Simulation::Deform(const DeformInput& in) {
   const std::optional<Deformed> d = std::visit([&](auto& room) { return room.Deform(in); }, room_);
-  if (d) Publish(*d->positions, d->overload, d->outside_model);
+  if (d) Publish(*d->positions, d->overload, d->outside_model, d->twist);
 }
 
 void Simulation::Replay(
@@ -471,6 +473,7 @@ bool Simulation::TakeVisualFrame(VisualFrame& out) {
   if (!visual_.Acquire()) return false;
   const VisualPositions& v = visual_.Front();
   out.frame_id = v.id;
+  out.twist = v.twist;
   out.indices.clear();
   out.positions.clear();
   constexpr double kMoved2 = 1e-12;  // (1 µm)²: below that a vertex did not move

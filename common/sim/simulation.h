@@ -105,6 +105,9 @@ struct VisualFrame {
   uint64_t frame_id = 0;                  // counts published deformations
   std::vector<int32_t> indices;           // vertices that moved since the previous frame taken
   std::vector<geometry::Vec3> positions;  // their positions, m
+  // The whole surface of this frame as a coil limb's twist (a viewer with the scene remakes it
+  // from these three numbers), when the room made it so; the moved vertices are given as well.
+  std::optional<CoilTwistShape> twist;
 };
 
 class Simulation final : private DeformationPool::Member {
@@ -212,6 +215,7 @@ class Simulation final : private DeformationPool::Member {
   struct VisualPositions {
     std::vector<geometry::Vec3> positions;
     uint64_t id = 0;
+    std::optional<CoilTwistShape> twist;
   };
 
   static Expected<std::unique_ptr<Simulation>> CreateChecked(const Scene& scene,
@@ -225,7 +229,8 @@ class Simulation final : private DeformationPool::Member {
   DeformationPool::Clock::time_point StepDue(DeformationPool::Clock::time_point now) override;
   void Deform(const DeformInput& in);
   void Publish(const std::vector<geometry::Vec3>& positions, bool overload,
-               bool outside_model = false);
+               bool outside_model = false,
+               const std::optional<CoilTwistShape>& twist = std::nullopt);
   void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
   // The haptic path's stages (simulation_stylus.cpp), one sample's work in progress in `step`.

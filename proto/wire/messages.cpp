@@ -75,6 +75,7 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
   s.set_rendered_peak_n(static_cast<float>(m.rendered_peak_n));
   s.set_rendered_over_limit_s(static_cast<float>(m.rendered_over_limit_s));
   s.set_jitter_us(static_cast<float>(m.jitter_us));
+  s.set_twist_shape_key(m.twist_shape_key);
   size_t n = 0;
   if (!impl_->Serialize(s, n)) return 0;
   Header header = h;
@@ -239,10 +240,44 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
   return Seal(h, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
 }
 
+size_t Codec::EncodeTwistFrame(uint64_t frame_id, const CoilTwist& twist, const Header& base,
+                               const Authenticator& auth, std::span<uint8_t> out) {
+  if (!std::isfinite(twist.arc) || !std::isfinite(twist.torque)) return 0;
+  v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
+  m.set_frame_id(frame_id);
+  m.set_chunk_index(0);
+  m.set_chunk_count(1);
+  v1::SceneFrame::CoilTwist& t = *m.mutable_coil_twist();
+  t.set_grasp(twist.grasp);
+  t.set_arc_m(twist.arc);
+  t.set_torque_nm(twist.torque);
+  t.set_key(twist.key);
+  size_t n = 0;
+  if (!impl_->Serialize(m, n)) return 0;
+  Header h = base;
+  h.type = PayloadType::kSceneFrame;
+  return Seal(h, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+}
+
 DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out) {
   v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
   if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
     return DropReason::kBadPayload;
+  out.twist.reset();
+  if (m.has_coil_twist()) {
+    const v1::SceneFrame::CoilTwist& t = m.coil_twist();
+    if (m.indices_size() > 0 || m.index_deltas_size() > 0 || m.positions_um_size() > 0 ||
+        m.position_deltas_um_size() > 0 || m.chunk_count() != 1 || m.chunk_index() != 0 ||
+        !std::isfinite(t.arc_m()) || !std::isfinite(t.torque_nm()))
+      return DropReason::kBadPayload;
+    out.frame_id = m.frame_id();
+    out.chunk_index = 0;
+    out.chunk_count = 1;
+    out.indices.clear();
+    out.positions.clear();
+    out.twist = CoilTwist{t.key(), t.grasp(), t.arc_m(), t.torque_nm()};
+    return DropReason::kNone;
+  }
   const bool deltas = m.index_deltas_size() > 0 || m.position_deltas_um_size() > 0;
   if (m.positions_um_size() != 3 * m.indices_size() ||
       m.position_deltas_um_size() != 3 * m.index_deltas_size() ||
@@ -292,6 +327,7 @@ DropReason Codec::DecodeStylus(std::span<const uint8_t> payload, StylusMessage& 
   out.rendered_peak_n = figure(s.rendered_peak_n());
   out.rendered_over_limit_s = figure(s.rendered_over_limit_s());
   out.jitter_us = figure(s.jitter_us());
+  out.twist_shape_key = s.twist_shape_key();
   // Non-finite values are passed on: the simulation's safety turns them into zero force and an
   // event, which the station then sees.
   return DropReason::kNone;

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,7 @@ struct StylusMessage {
   // The station's rendering so far (haptic.proto StylusState); 0: not reported. Decoding maps
   // anything non-finite or negative to 0.
   double rendered_peak_n = 0, rendered_over_limit_s = 0, jitter_us = 0;
+  uint64_t twist_shape_key = 0;  // the coil limb whose twist frames it remakes; 0: none
 };
 
 struct ForceMessage {
@@ -31,6 +33,14 @@ struct ForceMessage {
   haptics::ForceCommand command;
 };
 
+// A coil limb's twist, the frame's whole surface (SceneFrame.coil_twist).
+struct CoilTwist {
+  uint64_t key = 0;  // the limb's CoilLimbKey
+  uint64_t grasp = 0;
+  double arc = 0;     // m
+  double torque = 0;  // N·m
+};
+
 // A visual frame's moved vertices, as the simulation produces them.
 struct SceneFrameView {
   uint64_t frame_id = 0;
@@ -38,12 +48,14 @@ struct SceneFrameView {
   std::span<const Eigen::Vector3d> positions;  // m, one per index
 };
 
-// One received chunk of a frame: positions back in metres (quantised to 1 µm on the wire).
+// One received chunk of a frame: positions back in metres (quantised to 1 µm on the wire), or a
+// coil limb's twist (no vertices).
 struct SceneChunk {
   uint64_t frame_id = 0;
   uint32_t chunk_index = 0, chunk_count = 0;
   std::vector<int32_t> indices;
   std::vector<Eigen::Vector3d> positions;
+  std::optional<CoilTwist> twist;
 };
 
 class Codec {
@@ -74,6 +86,12 @@ class Codec {
     }
     return chunks;
   }
+  // A coil limb's twist as one sealed chunk (SceneFrame.coil_twist); 0 when its numbers are not
+  // finite.
+  size_t EncodeTwistFrame(uint64_t frame_id, const CoilTwist& twist, const Header& h,
+                          const Authenticator& auth, std::span<uint8_t> out);
+  // A chunk of vertices or a twist; a twist with vertices, of more than one chunk or with a
+  // number that is not finite is kBadPayload.
   DropReason DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out);
 
   // Parse an opened payload. kBadPayload when it does not parse. A force whose force or local

@@ -111,8 +111,9 @@ struct UdpEndpoint::Impl {
     double tokens = 0;
     double refill;  // s
     udp::endpoint source;
-    double moved_until = -1;  // s; ≥ 0: moved away (no simulation): answered with a notice
-    bool instructor = false;  // an instructor's channel (Simulation::OnInstructorStylus)
+    uint64_t twist_shape_key = 0;  // the coil limb the station says it remakes (visual frames)
+    double moved_until = -1;       // s; ≥ 0: moved away (no simulation): answered with a notice
+    bool instructor = false;       // an instructor's channel (Simulation::OnInstructorStylus)
   };
 
   // One I/O thread, its socket and the sessions steered to it. Everything here but the atomics
@@ -351,10 +352,12 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int
   s.last_sequence = header.sequence;
   s.last_seen = now;
   s.seen = true;
-  if (sender != s.source) {  // first datagram, or the station moved (NAT rebinding): rare
+  if (sender != s.source || stylus.twist_shape_key != s.twist_shape_key) {
+    // First datagram, the station moved (NAT rebinding) or says another limb: rare.
     s.source = sender;
+    s.twist_shape_key = stylus.twist_shape_key;
     if (owner->visual && s.moved_until < 0 && !s.instructor)
-      owner->visual->SetDestination(header.session, sender);
+      owner->visual->SetDestination(header.session, sender, stylus.twist_shape_key);
   }
   if (s.moved_until >= 0) {  // moved away: say so, compute nothing
     force.command = haptics::ForceCommand{};

@@ -35,7 +35,10 @@ VisualSender::~VisualSender() {
 void VisualSender::Add(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation) {
   std::lock_guard<std::mutex> lock(mutex_);
   std::erase_if(sessions_, [id](const Session& s) { return s.id == id; });
-  sessions_.push_back({id, wire::Authenticator(key), simulation, {}, false, 0, {}, {}, 0, 0});
+  Session s{
+      id, wire::Authenticator(key), simulation, {}, false, 0, 0, {}, {}, 0, 0, std::nullopt, 0, 0,
+      {}};
+  sessions_.push_back(std::move(s));
 }
 
 void VisualSender::Remove(uint64_t id) {
@@ -43,17 +46,16 @@ void VisualSender::Remove(uint64_t id) {
   std::erase_if(sessions_, [id](const Session& s) { return s.id == id; });
 }
 
-void VisualSender::SetDestination(uint64_t id, const udp::endpoint& dest) {
+void VisualSender::SetDestination(uint64_t id, const udp::endpoint& dest,
+                                  uint64_t twist_shape_key) {
   std::lock_guard<std::mutex> lock(mutex_);
   for (Session& s : sessions_)
-    if (s.id == id) s.dest = dest, s.has_dest = true;
+    if (s.id == id) s.dest = dest, s.has_dest = true, s.shape_key = twist_shape_key;
 }
 
 void VisualSender::Loop() {
   using SteadyTime = std::chrono::steady_clock;
   sim::VisualFrame frame;
-  wire::Codec codec;
-  std::array<uint8_t, wire::kMaxDatagram> out{};
   const auto period =
       std::chrono::duration_cast<SteadyTime::duration>(std::chrono::duration<double>(1.0 / hz_));
   constexpr auto kTick = std::chrono::milliseconds(1);
@@ -67,38 +69,10 @@ void VisualSender::Loop() {
       for (Session& s : sessions_) {
         // A new frame only when the last has all gone out (else it waits: nothing is lost).
         if (frame_due && s.next == s.sizes.size() && s.has_dest &&
-            s.simulation->TakeVisualFrame(frame) && !frame.indices.empty()) {
-          s.queued.clear();
-          s.sizes.clear();
-          s.next = 0;
-          const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id,
-                                  s.sequence + 1};
-          const size_t chunks =
-              codec.EncodeSceneFrame({frame.frame_id, frame.indices, frame.positions}, base, s.auth,
-                                     out, [&](std::span<const uint8_t> d) {
-                                       s.queued.insert(s.queued.end(), d.begin(), d.end());
-                                       s.sizes.push_back(static_cast<uint16_t>(d.size()));
-                                     });
-          s.sequence += chunks;
-          s.per_tick = std::max<size_t>(kMinPerTick, (chunks + kSpreadMs - 1) / kSpreadMs);
-          frames_.fetch_add(1, std::memory_order_relaxed);
-        }
-        // This tick's share of the frame going out.
-        size_t sent = 0, offset = 0;
-        for (size_t k = 0; k < s.next; ++k) offset += s.sizes[k];
-        while (s.next < s.sizes.size() && sent < s.per_tick) {
-          boost::system::error_code ec;
-          if (s.has_dest)
-            socket_.send_to(asio::buffer(s.queued.data() + offset, s.sizes[s.next]), s.dest, 0, ec);
-          offset += s.sizes[s.next];
-          ++s.next;
-          ++sent;
-        }
-        if (sent > 0) {
-          chunks_.fetch_add(sent, std::memory_order_relaxed);
-          if (sent > largest_burst_.load(std::memory_order_relaxed))
-            largest_burst_.store(sent, std::memory_order_relaxed);
-        }
+            s.simulation->TakeVisualFrame(frame))
+          QueueFrame(s, frame, now);
+        if (frame_due && s.next == s.sizes.size() && s.has_dest) RepeatTwist(s, now);
+        SendShare(s);
         queued = queued || s.next < s.sizes.size();
       }
     }
@@ -108,6 +82,81 @@ void VisualSender::Loop() {
     }
     // The next tick while chunks wait, else the next frame.
     std::this_thread::sleep_until(queued ? std::min(now + kTick, next_frame) : next_frame);
+  }
+}
+
+// A new frame: a coil limb's twist as one chunk, else its moved vertices in as many as they take.
+void VisualSender::QueueFrame(Session& s, const sim::VisualFrame& frame,
+                              std::chrono::steady_clock::time_point now) {
+  if (frame.twist && frame.twist->key == s.shape_key) {
+    s.twist = wire::CoilTwist{frame.twist->key, frame.twist->grasp, frame.twist->arc,
+                              frame.twist->torque};
+    s.twist_frame = frame.frame_id;
+    s.twist_repeats = kTwistRepeats;
+    s.twist_due = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(kTwistRepeatS));
+    QueueTwist(s, frame.frame_id);
+    return;
+  }
+  if (frame.indices.empty()) return;
+  s.twist.reset();  // vertices from now on (a surface not made by a twist)
+  s.queued.clear();
+  s.sizes.clear();
+  s.next = 0;
+  const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id,
+                          s.sequence + 1};
+  const size_t chunks =
+      codec_.EncodeSceneFrame({frame.frame_id, frame.indices, frame.positions}, base, s.auth, out_,
+                              [&](std::span<const uint8_t> d) {
+                                s.queued.insert(s.queued.end(), d.begin(), d.end());
+                                s.sizes.push_back(static_cast<uint16_t>(d.size()));
+                              });
+  s.sequence += chunks;
+  s.per_tick = std::max<size_t>(kMinPerTick, (chunks + kSpreadMs - 1) / kSpreadMs);
+  frames_.fetch_add(1, std::memory_order_relaxed);
+}
+
+// The last twist again, when it is due and repeats are owed: nothing newer came since.
+void VisualSender::RepeatTwist(Session& s, std::chrono::steady_clock::time_point now) {
+  if (!s.twist || s.twist_repeats <= 0 || now < s.twist_due) return;
+  --s.twist_repeats;
+  s.twist_due = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                          std::chrono::duration<double>(kTwistRepeatS));
+  QueueTwist(s, s.twist_frame);
+}
+
+void VisualSender::QueueTwist(Session& s, uint64_t frame_id) {
+  s.queued.clear();
+  s.sizes.clear();
+  s.next = 0;
+  const wire::Header h{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id,
+                       s.sequence + 1};
+  const size_t n = codec_.EncodeTwistFrame(frame_id, *s.twist, h, s.auth, out_);
+  if (n == 0) return;
+  s.queued.assign(out_.begin(), out_.begin() + static_cast<ptrdiff_t>(n));
+  s.sizes.push_back(static_cast<uint16_t>(n));
+  s.sequence += 1;
+  s.per_tick = kMinPerTick;
+  frames_.fetch_add(1, std::memory_order_relaxed);
+}
+
+// This tick's share of the frame going out.
+void VisualSender::SendShare(Session& s) {
+  size_t sent = 0, offset = 0;
+  for (size_t k = 0; k < s.next; ++k) offset += s.sizes[k];
+  while (s.next < s.sizes.size() && sent < s.per_tick) {
+    boost::system::error_code ec;
+    if (s.has_dest)
+      socket_.send_to(boost::asio::buffer(s.queued.data() + offset, s.sizes[s.next]), s.dest, 0,
+                      ec);
+    offset += s.sizes[s.next];
+    ++s.next;
+    ++sent;
+  }
+  if (sent > 0) {
+    chunks_.fetch_add(sent, std::memory_order_relaxed);
+    if (sent > largest_burst_.load(std::memory_order_relaxed))
+      largest_burst_.store(sent, std::memory_order_relaxed);
   }
 }
 

@@ -1,7 +1,10 @@
 #include "proto/wire/datagram.h"
 
 #include <array>
+#include <bit>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -401,10 +404,22 @@ TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
   EXPECT_EQ(codec.EncodeSceneFrame({2, two, far}, {}, auth, buf, [](auto) {}), 0u);
 }
 
-// A SceneFrame payload written by hand (protobuf's wire format): varint fields, and packed
-// fields of unsigned or zigzag varints.
+// A SceneFrame payload written by hand (protobuf's wire format): varint fields, packed fields of
+// unsigned or zigzag varints, 64-bit fields and embedded messages.
 struct FrameBytes {
   std::vector<uint8_t> bytes;
+  FrameBytes& Fixed64(int number, uint64_t v) {
+    Varint(bytes, (static_cast<uint64_t>(number) << 3) | 1);
+    for (int k = 0; k < 8; ++k) bytes.push_back(static_cast<uint8_t>(v >> (8 * k)));
+    return *this;
+  }
+  FrameBytes& Double(int number, double v) { return Fixed64(number, std::bit_cast<uint64_t>(v)); }
+  FrameBytes& Bytes(int number, const std::vector<uint8_t>& body) {
+    Varint(bytes, (static_cast<uint64_t>(number) << 3) | 2);
+    Varint(bytes, body.size());
+    bytes.insert(bytes.end(), body.begin(), body.end());
+    return *this;
+  }
   static void Varint(std::vector<uint8_t>& out, uint64_t v) {
     for (; v >= 0x80; v >>= 7) out.push_back(static_cast<uint8_t>(v | 0x80));
     out.push_back(static_cast<uint8_t>(v));
@@ -457,6 +472,65 @@ TEST(DatagramTest, SceneChunksDecodeEitherCodingAndRefuseWhatNoEncoderWrites) {
   FrameBytes short_positions = header();
   short_positions.Packed(6, {1, 1}, true).Packed(7, {0, 0, 0, 0, 0}, true);
   EXPECT_EQ(codec.DecodeSceneChunk(short_positions.bytes, c), DropReason::kBadPayload);
+}
+
+// A coil limb's twist is one sealed chunk of its four numbers, read back exactly; a vertex chunk
+// read after it has no twist. A twist that is not finite is not sent, and one that comes with
+// vertices, or as one chunk of several, is refused.
+TEST(DatagramTest, ACoilTwistFrameIsOneChunkOfItsNumbersAndNothingElse) {
+  Codec codec;
+  const Authenticator auth(Key(4));
+  std::array<uint8_t, kMaxDatagram> out{};
+  const CoilTwist twist{0x1234567890abcdefull, 7, 0.1234567890123, -0.0123456789};
+  const Header h{kProtocolVersion, PayloadType::kSceneFrame, 9, 41};
+  const size_t n = codec.EncodeTwistFrame(12, twist, h, auth, out);
+  ASSERT_GT(n, 0u);
+  EXPECT_LT(n, 100u) << "a limb's whole frame in a small datagram";
+  Opened o;
+  ASSERT_EQ(Open(std::span<const uint8_t>(out.data(), n), &auth, o), DropReason::kNone);
+  EXPECT_EQ(o.header.type, PayloadType::kSceneFrame);
+  EXPECT_EQ(o.header.sequence, 41u);
+  SceneChunk c;
+  ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+  ASSERT_TRUE(c.twist.has_value());
+  EXPECT_EQ(c.frame_id, 12u);
+  EXPECT_EQ(c.chunk_count, 1u);
+  EXPECT_TRUE(c.indices.empty());
+  EXPECT_EQ(c.twist->key, twist.key);
+  EXPECT_EQ(c.twist->grasp, twist.grasp);
+  EXPECT_EQ(c.twist->arc, twist.arc);
+  EXPECT_EQ(c.twist->torque, twist.torque);
+
+  FrameBytes vertices = FrameBytes().Field(1, 9).Field(2, 0).Field(3, 1);
+  vertices.Packed(6, {5}, true).Packed(7, {1, 2, 3}, true);
+  ASSERT_EQ(codec.DecodeSceneChunk(vertices.bytes, c), DropReason::kNone);
+  EXPECT_FALSE(c.twist.has_value());
+
+  for (const double bad : {std::nan(""), std::numeric_limits<double>::infinity()}) {
+    EXPECT_EQ(codec.EncodeTwistFrame(12, {1, 7, bad, 0.01}, h, auth, out), 0u);
+    EXPECT_EQ(codec.EncodeTwistFrame(12, {1, 7, 0.1, bad}, h, auth, out), 0u);
+  }
+  // Hand-made: the twist beside vertices, as chunk 0 of 2, with a NaN torque.
+  const auto twist_field = [](double torque) {
+    FrameBytes t;
+    t.Field(1, 7).Fixed64(4, 1);
+    t.Double(2, 0.1).Double(3, torque);
+    return t.bytes;
+  };
+  FrameBytes with_vertices = FrameBytes().Field(1, 9).Field(2, 0).Field(3, 1);
+  with_vertices.Packed(6, {5}, true).Packed(7, {1, 2, 3}, true).Bytes(8, twist_field(0.01));
+  EXPECT_EQ(codec.DecodeSceneChunk(with_vertices.bytes, c), DropReason::kBadPayload);
+  FrameBytes of_two = FrameBytes().Field(1, 9).Field(2, 0).Field(3, 2);
+  of_two.Bytes(8, twist_field(0.01));
+  EXPECT_EQ(codec.DecodeSceneChunk(of_two.bytes, c), DropReason::kBadPayload);
+  FrameBytes nan_torque = FrameBytes().Field(1, 9).Field(2, 0).Field(3, 1);
+  nan_torque.Bytes(8, twist_field(std::nan("")));
+  EXPECT_EQ(codec.DecodeSceneChunk(nan_torque.bytes, c), DropReason::kBadPayload);
+  FrameBytes whole = FrameBytes().Field(1, 9).Field(2, 0).Field(3, 1);
+  whole.Bytes(8, twist_field(0.01));
+  ASSERT_EQ(codec.DecodeSceneChunk(whole.bytes, c), DropReason::kNone);
+  EXPECT_EQ(c.twist->torque, 0.01);
+  EXPECT_EQ(c.twist->key, 1u);
 }
 
 }  // namespace

@@ -8,6 +8,39 @@
 
 namespace vsurg::sim {
 
+namespace {
+
+struct Fnv1a {
+  uint64_t h = 1469598103934665603ull;
+  void Bytes(const void* p, size_t n) {
+    const auto* b = static_cast<const unsigned char*>(p);
+    for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  }
+  template <class T>
+  void Value(const T& v) {
+    Bytes(&v, sizeof v);
+  }
+  void Points(const std::vector<geometry::Vec3>& points) {
+    Value(points.size());
+    for (const geometry::Vec3& p : points) Value(p.x()), Value(p.y()), Value(p.z());
+  }
+};
+
+}  // namespace
+
+uint64_t CoilLimbKey(const tissue::CoilSpringParams& model, const std::vector<geometry::Vec3>& rest,
+                     const std::vector<geometry::Vec3>& centreline) {
+  Fnv1a f;
+  f.Value(model.core_radius), f.Value(model.thickness), f.Value(model.width);
+  f.Value(model.coils), f.Value(model.modulus), f.Value(model.max_force);
+  f.Value(model.friction);
+  f.Value(model.coil_rigidity.size());
+  for (double r : model.coil_rigidity) f.Value(r);
+  f.Points(rest);
+  f.Points(centreline);
+  return f.h == 0 ? 1 : f.h;  // 0 means "none" on the wire
+}
+
 Expected<CoilRoom> CoilRoom::Build(const RoomInputs& in) {
   const RegionSpec& region = in.scene.region;
   auto coil = tissue::CoilSpringModel::Create(region.coil);
@@ -20,6 +53,8 @@ Expected<CoilRoom> CoilRoom::Build(const RoomInputs& in) {
   room.mode_ = region.coil_mode;
   room.rest_ = &in.rest;
   room.centreline_ = &in.centreline;
+  if (room.mode_ == tissue::TwistMode::kLimb)
+    room.key_ = CoilLimbKey(region.coil, in.rest.positions, in.centreline);
   return room;
 }
 
@@ -44,8 +79,9 @@ std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {
     // A new grasp: bind a deformer around it (set-up work, on this thread).
     seen_grasp_ = in.grasp_id;
     Expected<tissue::CoilDeformer> d = InvalidArgument("grasp", "no grasp");
+    double arc = 0;
     if (mode_ == tissue::TwistMode::kLimb) {
-      const double arc = geometry::ProjectPointOntoPolyline(*centreline_, in.grasp_point).s;
+      arc = geometry::ProjectPointOntoPolyline(*centreline_, in.grasp_point).s;
       d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_->positions, *centreline_, arc);
     } else {
       auto sp = geometry::ClosestSurfacePoint(*rest_, in.grasp_point);
@@ -56,6 +92,7 @@ std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {
     if (d.ok()) {
       if (deformer_) deformer_->Update(0.0);
       deformer_ = std::make_unique<tissue::CoilDeformer>(std::move(*d));
+      bound_ = {in.grasp_id, arc};
       applied_torque_ = NAN;
     }
   }
@@ -65,7 +102,10 @@ std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {
   const tissue::DeformStats stats = deformer_->Update(torque);
   applied_torque_ = torque;
   applied_grasp_ = in.grasping;
-  return Deformed{&deformer_->positions(), stats.overload, false};
+  std::optional<CoilTwistShape> shape;
+  if (mode_ == tissue::TwistMode::kLimb)
+    shape = CoilTwistShape{key_, bound_.first, bound_.second, torque};
+  return Deformed{&deformer_->positions(), stats.overload, false, shape};
 }
 
 }  // namespace vsurg::sim

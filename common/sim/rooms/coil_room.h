@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "common/core/expected.h"
@@ -30,7 +31,7 @@ class CoilRoom {
   static bool SameRequest(const DeformInput& a, const DeformInput& b) {
     return SameGraspRequest(a, b);
   }
-  // Deformation thread.
+  // Deformation thread. In limb mode each update is also described as its CoilTwistShape.
   std::optional<Deformed> Deform(const DeformInput& in);
 
  private:
@@ -40,9 +41,12 @@ class CoilRoom {
   tissue::TwistMode mode_ = tissue::TwistMode::kLimb;
   const geometry::TriMesh* rest_ = nullptr;
   const std::vector<geometry::Vec3>* centreline_ = nullptr;
+  uint64_t key_ = 0;  // limb mode: CoilLimbKey of the model, rest surface and centreline
   // Deformation thread.
   std::unique_ptr<tissue::CoilDeformer> deformer_;
   uint64_t seen_grasp_ = 0;
+  // The grasp the deformer is bound to, and (limb mode) its arc length along the centreline, m.
+  std::pair<uint64_t, double> bound_{0, 0.0};
   double applied_torque_ = 0;
   bool applied_grasp_ = false;
 };

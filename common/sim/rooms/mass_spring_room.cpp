@@ -41,7 +41,7 @@ std::optional<Deformed> MassSpringRoom::Deform(const DeformInput& in) {
                         in.barycentric[k] * coupling_d_);
   }
   if (!model_->Step(dt_)) model_->Reset();  // a divergence is reset to rest, never NaN
-  return Deformed{&model_->positions(), false, false};
+  return Deformed{&model_->positions(), false, false, std::nullopt};
 }
 
 void MassSpringRoom::Save(StateWriter& w) const {

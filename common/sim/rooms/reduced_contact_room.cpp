@@ -57,7 +57,7 @@ std::optional<Deformed> ReducedContactRoom::Deform(const DeformInput& in) {
   } else {
     model_->Release();
   }
-  return Deformed{&model_->positions(), overload, outside_model};
+  return Deformed{&model_->positions(), overload, outside_model, std::nullopt};
 }
 
 }  // namespace vsurg::sim

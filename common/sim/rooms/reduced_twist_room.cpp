@@ -54,7 +54,7 @@ std::optional<Deformed> ReducedTwistRoom::Deform(const DeformInput& in) {
   const tissue::ReducedStats st = model_->Update(torque);
   applied_torque_ = torque;
   applied_grasp_ = in.grasping;
-  return Deformed{&model_->positions(), st.saturated, false};
+  return Deformed{&model_->positions(), st.saturated, false, std::nullopt};
 }
 
 }  // namespace vsurg::sim

@@ -26,7 +26,7 @@ std::optional<Deformed> RingLayerRoom::Deform(const DeformInput& in) {
                              : 0.0);
   ring_->Step(dt_);
   ring_->Apply();
-  return Deformed{&ring_->positions(), false, false};
+  return Deformed{&ring_->positions(), false, false, std::nullopt};
 }
 
 void RingLayerRoom::BuildRings(int triangle, const geometry::Vec3& barycentric) {

@@ -91,11 +91,29 @@ struct ContactQuery {
   double proxy_stiffness = 0;  // N/m
 };
 
+// A limb turned by the coil-spring model, in the numbers that make its whole surface: a viewer
+// with the same scene binds the same deformer at the grasp's arc length along the centreline and
+// turns it by the torque (tissue::CoilDeformer::CreateForLimb, Update), as the room did.
+struct CoilTwistShape {
+  uint64_t key = 0;    // CoilLimbKey of the room's model, mesh and centreline
+  uint64_t grasp = 0;  // the grasp it is bound to (DeformInput::grasp_id)
+  double arc = 0;      // m along the centreline
+  double torque = 0;   // N·m
+};
+
+// What a viewer must share with a coil limb's room to remake its twist: the model's parameters,
+// the rest surface (every vertex, in order) and the centreline, hashed (64-bit FNV-1a over their
+// bytes). Equal keys: the same deformer; a viewer whose scene differs in any of them has another
+// key and is sent vertices instead.
+uint64_t CoilLimbKey(const tissue::CoilSpringParams& model, const std::vector<geometry::Vec3>& rest,
+                     const std::vector<geometry::Vec3>& centreline);
+
 // One deformation update to publish. `positions` is the room's own (valid until its next Deform).
 struct Deformed {
   const std::vector<geometry::Vec3>* positions = nullptr;
   bool overload = false;
   bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
+  std::optional<CoilTwistShape> twist;  // these positions as a coil limb's twist, when they are
 };
 
 }  // namespace vsurg::sim

@@ -50,7 +50,7 @@ std::optional<Deformed> SurfaceTwistRoom::Deform(const DeformInput& in) {
   if (!in.grasping) {
     if (!grasp_) return std::nullopt;
     grasp_.reset();
-    return Deformed{&rest_->positions, false, false};
+    return Deformed{&rest_->positions, false, false, std::nullopt};
   }
   if (!grasp_ || in.grasp_id != grasp_id_) {
     const tissue::TwistField field =
@@ -64,7 +64,7 @@ std::optional<Deformed> SurfaceTwistRoom::Deform(const DeformInput& in) {
   if (in.torque == applied_torque_) return std::nullopt;  // nothing new
   const tissue::ReducedStats st = grasp_->Update(in.torque);
   applied_torque_ = in.torque;
-  return Deformed{&grasp_->positions(), st.saturated, fallback_};
+  return Deformed{&grasp_->positions(), st.saturated, fallback_, std::nullopt};
 }
 
 }  // namespace vsurg::sim

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <random>
@@ -11,6 +12,7 @@
 
 #include <set>
 
+#include "client/station/coil_twist_view.h"
 #include "common/core/clock.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/sim/simulation.h"
@@ -321,41 +323,109 @@ TEST(StationChannelTest, StopFadesTheForceOutInsteadOfCuttingIt) {
   }
 }
 
-TEST(StationChannelTest, SceneFramesCarryTheTwistedVerticesToTheStation) {
-  auto scene = sim::LoadSceneByName("arm-torsion");
-  auto simulation = *sim::Simulation::Create(*scene, {true});
-  auto endpoint = *server::UdpEndpoint::Create({});
-  endpoint->AddSession(11, Key(), simulation.get());
-  auto trajectory = *sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
-  trajectory.resize(3000);  // approach, grasp and twist to 45°
-  ReplayDevice device(trajectory);
-  auto station = StationChannel::Create(Options(endpoint->port()), &device);
-  ASSERT_TRUE(station.ok());
-  WaitFor(device);
-  // The device holds the twist's last pose: frames keep coming while the deformation settles.
-  // Collect them until they show the twisted wrist (over 1 000 vertices moved) or 10 s pass; how
-  // soon depends on how fast this machine deforms (slowly under ASan with the other core busy),
-  // so the wait is a liveness bound, not a timing assertion.
+// The arm twisted to 45° by a scripted trainee, its frames collected by a station that says it
+// holds the arm's coil limb (`key`, or 0 for none) until `done` says they show enough or 10 s
+// pass (how soon depends on how fast this machine deforms: a liveness bound, not a timing one).
+struct TwistedArm {
+  std::unique_ptr<sim::Simulation> simulation;
+  std::unique_ptr<server::UdpEndpoint> endpoint;
   std::vector<wire::SceneChunk> chunks;
-  std::set<int> seen;
-  for (auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-       seen.size() <= 1000 && std::chrono::steady_clock::now() < until;) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    for (auto& c : (*station)->TakeSceneChunks()) {
-      seen.insert(c.indices.begin(), c.indices.end());
-      chunks.push_back(std::move(c));
+  StationStats stats;
+
+  TwistedArm(uint64_t key,
+             const std::function<bool(const wire::SceneChunk&, sim::Simulation&)>& done) {
+    auto scene = sim::LoadSceneByName("arm-torsion");
+    simulation = *sim::Simulation::Create(*scene, {true});
+    endpoint = *server::UdpEndpoint::Create({});
+    endpoint->AddSession(11, Key(), simulation.get());
+    auto trajectory = *sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+    trajectory.resize(3000);  // approach, grasp and twist to 45°
+    ReplayDevice device(trajectory);
+    StationOptions o = Options(endpoint->port());
+    o.twist_shape_key = key;
+    auto station = StationChannel::Create(o, &device);
+    EXPECT_TRUE(station.ok());
+    if (!station.ok()) return;
+    WaitFor(device);
+    bool finished = false;
+    for (auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+         !finished && std::chrono::steady_clock::now() < until;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      for (auto& c : (*station)->TakeSceneChunks()) {
+        finished = finished || done(c, *simulation);
+        chunks.push_back(std::move(c));
+      }
     }
+    (*station)->Stop();
+    stats = (*station)->stats();
   }
-  (*station)->Stop();
-  ASSERT_FALSE(chunks.empty()) << "frames sent " << endpoint->counters().frames << ", station saw "
-                               << (*station)->stats().scene_chunks << " chunks, dropped "
-                               << (*station)->stats().dropped << ", deformation updates "
-                               << simulation->deformation_updates();
+  std::string Why() const {
+    return "frames sent " + std::to_string(endpoint->counters().frames) + ", chunks " +
+           std::to_string(chunks.size()) + ", dropped " + std::to_string(stats.dropped) +
+           ", deformation updates " + std::to_string(simulation->deformation_updates());
+  }
+};
+
+// A station holding the same arm is sent each frame as the twist that made it, one small chunk,
+// and remakes from it the surface the server shows, to the last bit; a twist about the limb's
+// axis, every vertex at its own height and distance from the axis.
+TEST(StationChannelTest, AStationWithTheArmRemakesItsTwistFromThreeNumbers) {
+  auto scene = sim::LoadSceneByName("arm-torsion");
+  auto mesh = sim::BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok());
+  auto view = CoilTwistView::For(*scene, *mesh);
+  ASSERT_TRUE(view.has_value());
+  std::vector<int32_t> indices, shown_indices;
+  std::vector<Eigen::Vector3d> remade, shown;
+  TwistedArm arm(view->key(), [&](const wire::SceneChunk& c, sim::Simulation& server) {
+    // Done when the station has the frame the server shows now (the hand holds still).
+    return c.twist && c.frame_id == server.ShownSurface(shown_indices, shown);
+  });
+  ASSERT_FALSE(arm.chunks.empty()) << arm.Why();
+  for (const auto& c : arm.chunks) {
+    ASSERT_TRUE(c.twist.has_value()) << "a vertex chunk for a station holding the arm";
+    EXPECT_EQ(c.chunk_count, 1u);
+  }
+  EXPECT_EQ(arm.endpoint->counters().frame_chunks, arm.endpoint->counters().frames);
+  // The last frame remade, beside the surface the server shows.
+  const wire::CoilTwist& last = *arm.chunks.back().twist;
+  EXPECT_GT(std::abs(last.torque), 0.0);
+  ASSERT_TRUE(view->Shape(last, indices, remade));
+  arm.simulation->ShownSurface(shown_indices, shown);
+  const auto& rest = mesh->surface.positions;
+  ASSERT_EQ(remade.size(), rest.size());
+  std::vector<Eigen::Vector3d> server_surface = rest;
+  for (size_t i = 0; i < shown_indices.size(); ++i) server_surface[shown_indices[i]] = shown[i];
+  size_t moved = 0;
+  for (size_t i = 0; i < rest.size(); ++i) {
+    ASSERT_LE((remade[i] - server_surface[i]).norm(), 1e-6) << i;  // ShownSurface's own µm
+    EXPECT_NEAR(remade[i].z(), rest[i].z(), 1e-9);
+    EXPECT_NEAR(std::hypot(remade[i].x(), remade[i].y()), std::hypot(rest[i].x(), rest[i].y()),
+                1e-9);
+    if ((remade[i] - rest[i]).norm() > 1e-6) ++moved;
+  }
+  EXPECT_GT(moved, 1000u) << arm.Why();
+  EXPECT_LT(moved, rest.size());  // the elbow end never moves
+  // A twist of another limb (another key) shapes nothing.
+  wire::CoilTwist other = last;
+  other.key ^= 1;
+  EXPECT_FALSE(view->Shape(other, indices, remade));
+}
+
+// A station that holds no coil limb (or says so with no key) is sent the moved vertices.
+TEST(StationChannelTest, SceneFramesCarryTheTwistedVerticesToAStationWithoutTheArm) {
+  std::set<int> seen;
+  TwistedArm arm(0, [&](const wire::SceneChunk& c, sim::Simulation&) {
+    seen.insert(c.indices.begin(), c.indices.end());
+    return seen.size() > 1000;
+  });
+  ASSERT_FALSE(arm.chunks.empty()) << arm.Why();
   // What the frames carry is the test; the frame rate is a benchmark's.
-  EXPECT_GE(endpoint->counters().frames, 1u);
+  EXPECT_GE(arm.endpoint->counters().frames, 1u);
   const auto rest = geometry::MakeLimb(geometry::ForearmPreset())->surface.positions;
   std::set<int> moved;
-  for (const auto& c : chunks) {
+  for (const auto& c : arm.chunks) {
+    EXPECT_FALSE(c.twist.has_value());
     for (size_t i = 0; i < c.indices.size(); ++i) {
       ASSERT_LT(c.indices[i], static_cast<int>(rest.size()));
       const auto& p0 = rest[c.indices[i]];
@@ -366,9 +436,7 @@ TEST(StationChannelTest, SceneFramesCarryTheTwistedVerticesToTheStation) {
       moved.insert(c.indices[i]);
     }
   }
-  EXPECT_GT(moved.size(), 1000u) << "frames sent " << endpoint->counters().frames << ", chunks "
-                                 << chunks.size() << ", deformation updates "
-                                 << simulation->deformation_updates();
+  EXPECT_GT(moved.size(), 1000u) << arm.Why();
   EXPECT_LT(moved.size(), rest.size());  // the elbow end never moves
 }
 

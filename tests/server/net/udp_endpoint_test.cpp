@@ -559,6 +559,71 @@ TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
   EXPECT_GE((*sender)->largest_burst(), 1u);
 }
 
+// A station that holds the same arm (its key) is sent a coil twist as one chunk of its numbers,
+// then the same frame kTwistRepeats times more, kTwistRepeatS apart (a lost one is made good),
+// and nothing after that while the arm stays still; a station of another key gets the vertices.
+TEST(VisualSenderTest, ATwistGoesOutAsItsNumbersRepeatedAFewTimesAndVerticesToAnotherLimb) {
+  auto scene = sim::LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok());
+  auto samples = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
+  ASSERT_TRUE(samples.ok());
+  auto simulation = sim::Simulation::Create(*scene, {false});
+  ASSERT_TRUE(simulation.ok());
+  size_t next = 0;
+  const auto twist_until = [&](double t) {
+    for (; next < samples->size() && (*samples)[next].time <= t; ++next)
+      (*simulation)->OnStylus((*samples)[next]);
+    (*simulation)->StepDeformation();
+  };
+  twist_until(1.9);  // mid-twist
+  auto mesh = sim::BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok());
+  const uint64_t key =
+      sim::CoilLimbKey(scene->region.coil, mesh->surface.positions, mesh->centreline);
+  auto sender = VisualSender::Create(asio::ip::make_address("127.0.0.1"), 60);
+  ASSERT_TRUE(sender.ok());
+  RawClient station(1);
+  (*sender)->Add(5, Key(3), simulation->get());
+  (*sender)->SetDestination(5, station.socket.local_endpoint(), key);
+  wire::Codec codec;
+  const wire::Authenticator auth(Key(3));
+  const auto next_chunk = [&](int ms) -> std::optional<wire::SceneChunk> {
+    const auto d = station.Receive(ms);
+    if (!d) return std::nullopt;
+    wire::Opened o;
+    EXPECT_EQ(wire::Open(*d, &auth, o), DropReason::kNone);
+    wire::SceneChunk c;
+    EXPECT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+    return c;
+  };
+  std::vector<wire::SceneChunk> got;
+  for (int i = 0; i <= VisualSender::kTwistRepeats; ++i) {
+    auto c = next_chunk(30000);  // generous: a sanitizer build is slow
+    ASSERT_TRUE(c.has_value()) << "frame " << i;
+    got.push_back(*c);
+  }
+  for (const wire::SceneChunk& c : got) {
+    ASSERT_TRUE(c.twist.has_value());
+    EXPECT_EQ(c.twist->key, key);
+    EXPECT_EQ(c.frame_id, got[0].frame_id);
+    EXPECT_EQ(c.twist->torque, got[0].twist->torque);
+    EXPECT_TRUE(c.indices.empty());
+  }
+  EXPECT_GT(std::abs(got[0].twist->torque), 0.0);
+  // The repeats are over: nothing more while the arm stays still.
+  EXPECT_FALSE(station.Receive(static_cast<int>(3000 * VisualSender::kTwistRepeatS)).has_value());
+  EXPECT_EQ((*sender)->chunks(), static_cast<uint64_t>(VisualSender::kTwistRepeats + 1));
+
+  // A station of another limb: the next frame as the moved vertices.
+  (*sender)->SetDestination(5, station.socket.local_endpoint(), key ^ 1);
+  twist_until(2.2);
+  auto c = next_chunk(30000);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_FALSE(c->twist.has_value());
+  EXPECT_GT(c->indices.size(), 100u);
+  EXPECT_GT(c->frame_id, got[0].frame_id);
+}
+
 // The endpoint's whole receive path on its I/O thread (peek, verify, decode, the simulation's
 // haptic update, encode, seal, send) allocates nothing once warm, for good and bad datagrams.
 TEST(UdpEndpointTest, TheReceivePathNeverAllocates) {

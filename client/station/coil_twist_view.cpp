@@ -1,0 +1,48 @@
+#include "client/station/coil_twist_view.h"
+
+#include <cmath>
+#include <numeric>
+
+#include "common/sim/rooms/room_types.h"
+
+namespace vsurg::client {
+
+std::optional<CoilTwistView> CoilTwistView::For(const sim::Scene& scene,
+                                                const sim::SceneMesh& mesh) {
+  const sim::RegionSpec& region = scene.region;
+  if (region.kind != sim::ModelKind::kCoil || region.coil_mode != tissue::TwistMode::kLimb ||
+      mesh.centreline.size() < 2)
+    return std::nullopt;
+  auto model = tissue::CoilSpringModel::Create(region.coil);
+  if (!model.ok()) return std::nullopt;
+  CoilTwistView v;
+  v.model_ = std::make_shared<const tissue::CoilSpringModel>(std::move(*model));
+  v.rest_ = std::make_shared<const std::vector<geometry::Vec3>>(mesh.surface.positions);
+  v.centreline_ = std::make_shared<const std::vector<geometry::Vec3>>(mesh.centreline);
+  for (size_t i = 1; i < mesh.centreline.size(); ++i)
+    v.length_ += (mesh.centreline[i] - mesh.centreline[i - 1]).norm();
+  v.key_ = sim::CoilLimbKey(region.coil, mesh.surface.positions, mesh.centreline);
+  return v;
+}
+
+bool CoilTwistView::Shape(const wire::CoilTwist& twist, std::vector<int32_t>& indices,
+                          std::vector<geometry::Vec3>& positions) {
+  if (twist.key != key_ || !std::isfinite(twist.arc) || !std::isfinite(twist.torque) ||
+      twist.arc < 0 || twist.arc > length_)
+    return false;
+  if (!deformer_ || twist.grasp != grasp_ || twist.arc != arc_) {
+    auto d = tissue::CoilDeformer::CreateForLimb(*model_, *rest_, *centreline_, twist.arc);
+    if (!d.ok()) return false;
+    deformer_ = std::make_shared<tissue::CoilDeformer>(std::move(*d));
+    grasp_ = twist.grasp;
+    arc_ = twist.arc;
+  }
+  deformer_->Update(twist.torque);
+  const std::vector<geometry::Vec3>& p = deformer_->positions();
+  indices.resize(p.size());
+  std::iota(indices.begin(), indices.end(), 0);
+  positions.assign(p.begin(), p.end());
+  return true;
+}
+
+}  // namespace vsurg::client
