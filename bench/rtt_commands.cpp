@@ -51,6 +51,7 @@ struct Station {
   vsurg::wire::Authenticator auth;
   uint64_t session;
   uint64_t sequence = 0;
+  uint64_t twist_shape_key = 0;          // the coil limb it says it remakes twists of (0: vertices)
   uint64_t first_measured = UINT64_MAX;  // the first sequence number sent in the measured window
   Station(uint64_t id, const vsurg::wire::SessionKey& key) : auth(key), session(id) {}
 };
@@ -359,6 +360,7 @@ RttRun DriveStations(asio::io_context& io, std::vector<std::unique_ptr<Station>>
           vsurg::wire::StylusMessage msg;
           msg.sample = motion.At(t, k, n);
           msg.sample.time = now_s();
+          msg.twist_shape_key = st.twist_shape_key;
           const auto b = static_cast<size_t>(batch);
           const size_t size = codec.EncodeStylus(
               msg,
@@ -455,6 +457,9 @@ void DeclareHapticRtt(ArgParser& p) {
       .Within(vsurg::server::SessionManagerOptions::kQuasiStaticIntervalS.Scaled(1e3))
       .Option("visual-hz", ArgParser::Kind::kDouble,
               "the sessions' scene frames per second, sent to the stations (0: none)", false, "60")
+      .Option("vertex-frames", ArgParser::Kind::kFlag,
+              "the stations say they hold no coil limb, so a twisted limb's frames come as its "
+              "moved vertices (as before twist frames; for comparison)")
       .Option("tree-queries", ArgParser::Kind::kFlag,
               "the haptic path's closest-face queries walk the tree every time instead of "
               "answering from kept lists (for comparison)")
@@ -502,6 +507,18 @@ struct HapticRttRun {
 
   // The endpoint and the driven sessions with a station each: through the session manager (its
   // sampler feeding telemetry) and the dashboard, as vsurg-server runs them, or bare.
+  // What a vsurg-station with this scene declares (CoilTwistView): the coil limb's key, unless
+  // --vertex-frames.
+  uint64_t TwistShapeKey(const vsurg::sim::Scene& scene) const {
+    if (p.Flag("vertex-frames") || scene.region.kind != vsurg::sim::ModelKind::kCoil ||
+        scene.region.coil_mode != vsurg::tissue::TwistMode::kLimb)
+      return 0;
+    auto mesh = vsurg::sim::BuildSceneMesh(scene.mesh);
+    return mesh.ok() ? vsurg::sim::CoilLimbKey(scene.region.coil, mesh->surface.positions,
+                                               mesh->centreline)
+                     : 0;
+  }
+
   vsurg::Status StartDriven(const vsurg::sim::Scene& scene) {
     n = p.Int("stations");
     dashboard_clients = p.Int("dashboard-clients");
@@ -522,6 +539,8 @@ struct HapticRttRun {
       for (int i = 0; i < n; ++i)
         stations.push_back(std::make_unique<Station>(stack->ids[i], stack->keys[i]));
       stack->Follow(dashboard_clients);
+      const uint64_t shape_key = TwistShapeKey(scene);
+      for (auto& st : stations) st->twist_shape_key = shape_key;
       return vsurg::Status::Ok();
     }
     for (int i = 0; i < n; ++i) {
@@ -537,6 +556,8 @@ struct HapticRttRun {
       endpoint->AddSession(1000 + i, key, sims.back().get());
       stations.push_back(std::make_unique<Station>(1000 + i, key));
     }
+    const uint64_t shape_key = TwistShapeKey(scene);
+    for (auto& st : stations) st->twist_shape_key = shape_key;
     return vsurg::Status::Ok();
   }
 
@@ -589,6 +610,11 @@ struct HapticRttRun {
     j["server_process_cpu_per_datagram_us"] = answered > 0 ? 1e6 * server_cpu / answered : 0.0;
     // Bare sessions only (with --dashboard-clients the session manager holds them): -1 there.
     j["deformations_per_station_s"] = sims.empty() ? -1.0 : static_cast<double>(deformed) / span;
+    // The scene frames' traffic to each station, per second of the run.
+    j["frame_chunks_per_station_s"] =
+        static_cast<double>(residence.frame_chunks - counters0.frame_chunks) / span;
+    j["frame_bytes_per_station_s"] =
+        static_cast<double>(residence.frame_bytes - counters0.frame_bytes) / span;
     j["server_residence_mean_us"] =
         timed ? 1e6 * residence.residence_seconds / static_cast<double>(timed) : 0.0;
     j["server_residence_p50_le_us"] = 1e6 * residence.ResidenceQuantile(0.5);

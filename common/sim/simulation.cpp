@@ -191,7 +191,21 @@ void Simulation::PublishInput() {
 }
 
 void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model,
-                         const std::optional<CoilTwistShape>& twist) {
+                         const std::optional<CoilTwistShape>& twist, bool surface) {
+  const size_t n = rest_.positions.size();
+  if (surface) PublishSurface(positions, overload, outside_model);
+  VisualPositions& v = visual_.Back();
+  std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
+  v.id = ++publish_id_;
+  v.twist = twist;
+  visual_.Publish();
+  updates_.fetch_add(1, std::memory_order_relaxed);
+}
+
+// The surface the haptic path answers from: positions, their bounding boxes refitted, and the
+// bound on how far it has moved (its id is the next visual frame's).
+void Simulation::PublishSurface(const std::vector<Vec3>& positions, bool overload,
+                                bool outside_model) {
   const size_t n = rest_.positions.size();
   Snapshot& back = surface_.Back();
   // The largest vertex move since the last surface published (a NaN counts as a reset).
@@ -204,21 +218,19 @@ void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool
   surface_motion_ += std::isfinite(moved2) ? std::sqrt(moved2) : kSurfaceReset;
   back.motion = surface_motion_;
   back.bvh.Refit(back.positions);
-  back.id = ++publish_id_;
+  back.id = publish_id_ + 1;
   back.overload = overload;
   back.outside_model = outside_model;
   surface_.Publish();
-  VisualPositions& v = visual_.Back();
-  std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
-  v.id = publish_id_;
-  v.twist = twist;
-  visual_.Publish();
-  updates_.fetch_add(1, std::memory_order_relaxed);
+  surface_updates_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void Simulation::Deform(const DeformInput& in) {
   const std::optional<Deformed> d = std::visit([&](auto& room) { return room.Deform(in); }, room_);
-  if (d) Publish(*d->positions, d->overload, d->outside_model, d->twist);
+  // While a hand grasps, the haptic path answers from the grasp's own law and never reads the
+  // surface: only the view is published (no copy, no refit), and the surface it answers from
+  // stays the one from before the grasp, consistent with its boxes, until the grasp ends.
+  if (d) Publish(*d->positions, d->overload, d->outside_model, d->twist, !in.grasping);
 }
 
 void Simulation::Replay(

@@ -180,6 +180,8 @@ class Simulation final : private DeformationPool::Member {
   uint64_t clock_jumps() const { return clock_jumps_; }
   // Deformation updates published so far (any thread).
   uint64_t deformation_updates() const { return updates_.load(std::memory_order_relaxed); }
+  // Of those, the ones published to the haptic path as its surface (all but a grasp's: Deform).
+  uint64_t surface_updates() const { return surface_updates_.load(std::memory_order_relaxed); }
   // Requests handed to the deformation so far: each wakes it (any thread).
   uint64_t deformation_requests() const { return input_version_.load(std::memory_order_relaxed); }
 
@@ -228,9 +230,12 @@ class Simulation final : private DeformationPool::Member {
   // As a pool's member: one deformation when due (paced: every dt; quasi-static: a new request).
   DeformationPool::Clock::time_point StepDue(DeformationPool::Clock::time_point now) override;
   void Deform(const DeformInput& in);
+  // A deformation published to the view and (unless `surface` is false) to the haptic path.
   void Publish(const std::vector<geometry::Vec3>& positions, bool overload,
                bool outside_model = false,
-               const std::optional<CoilTwistShape>& twist = std::nullopt);
+               const std::optional<CoilTwistShape>& twist = std::nullopt, bool surface = true);
+  void PublishSurface(const std::vector<geometry::Vec3>& positions, bool overload,
+                      bool outside_model);
   void PublishInput();
   haptics::ForceCommand Zero(const haptics::StylusSample& s, uint32_t events);
   // The haptic path's stages (simulation_stylus.cpp), one sample's work in progress in `step`.
@@ -373,7 +378,7 @@ class Simulation final : private DeformationPool::Member {
   // Deformation side: the surface last published and Snapshot::motion so far.
   std::vector<geometry::Vec3> last_published_;
   double surface_motion_ = 0;
-  std::atomic<uint64_t> updates_{0};
+  std::atomic<uint64_t> updates_{0}, surface_updates_{0};
   // Coil scenes: the deformation thread sleeps on this until the haptic path asks for something
   // new (C++20 atomic wait: no lock; the haptic side's notify is a no-op without a waiter).
   std::atomic<uint64_t> input_version_{0};

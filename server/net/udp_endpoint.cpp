@@ -643,6 +643,7 @@ EndpointCounters UdpEndpoint::counters() const {
   }
   c.frames = impl_->visual ? impl_->visual->frames() : 0;
   c.frame_chunks = impl_->visual ? impl_->visual->chunks() : 0;
+  c.frame_bytes = impl_->visual ? impl_->visual->bytes() : 0;
   return c;
 }
 

@@ -109,6 +109,7 @@ struct EndpointCounters {
   uint64_t answered = 0;
   uint64_t frames = 0;        // visual frames sent
   uint64_t frame_chunks = 0;  // their datagrams
+  uint64_t frame_bytes = 0;   // and those datagrams' bytes
   uint64_t busy_polls = 0;    // times an I/O thread polled before it slept (busy_poll_us)
   uint64_t busy_polled = 0;   // of which found datagrams (the rest ended in a sleep)
   std::array<uint64_t, static_cast<size_t>(wire::DropReason::kCount)> dropped{};

@@ -144,6 +144,7 @@ void VisualSender::QueueTwist(Session& s, uint64_t frame_id) {
 void VisualSender::SendShare(Session& s) {
   size_t sent = 0, offset = 0;
   for (size_t k = 0; k < s.next; ++k) offset += s.sizes[k];
+  const size_t from = offset;
   while (s.next < s.sizes.size() && sent < s.per_tick) {
     boost::system::error_code ec;
     if (s.has_dest)
@@ -155,6 +156,7 @@ void VisualSender::SendShare(Session& s) {
   }
   if (sent > 0) {
     chunks_.fetch_add(sent, std::memory_order_relaxed);
+    bytes_.fetch_add(offset - from, std::memory_order_relaxed);
     if (sent > largest_burst_.load(std::memory_order_relaxed))
       largest_burst_.store(sent, std::memory_order_relaxed);
   }

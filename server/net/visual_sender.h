@@ -56,6 +56,7 @@ class VisualSender {
                       uint64_t twist_shape_key = 0);
   uint64_t frames() const { return frames_.load(std::memory_order_relaxed); }
   uint64_t chunks() const { return chunks_.load(std::memory_order_relaxed); }
+  uint64_t bytes() const { return bytes_.load(std::memory_order_relaxed); }  // of those chunks
   // The most chunks one session was sent in one millisecond's tick, so far.
   uint64_t largest_burst() const { return largest_burst_.load(std::memory_order_relaxed); }
 
@@ -104,7 +105,7 @@ class VisualSender {
   boost::asio::ip::udp::socket socket_{io_};
   std::thread thread_;
   std::atomic<bool> stop_{false};
-  std::atomic<uint64_t> frames_{0}, chunks_{0}, largest_burst_{0};
+  std::atomic<uint64_t> frames_{0}, chunks_{0}, bytes_{0}, largest_burst_{0};
 };
 
 }  // namespace vsurg::server

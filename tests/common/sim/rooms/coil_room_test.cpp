@@ -36,5 +36,45 @@ TEST(RoomTest, ScriptedTraineesOnTheArmGiveTheExpectedMetrics) {
   EXPECT_LE(peak, 3.3 + 1e-9);  // the device limit holds whatever the trainee does
 }
 
+// While the hand grasps, the haptic path answers from the twist's own law and never reads the
+// surface: each update goes to the view (its frames show the arm turning, as the twist's numbers)
+// and the surface the path would touch stays the one from before the grasp, consistent with its
+// bounding boxes; the release publishes the released surface again, back at rest.
+TEST(RoomTest, WhileTheArmIsGraspedOnlyItsViewMovesAndTheReleaseRestoresTheSurface) {
+  auto scene = LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok());
+  auto samples = ScriptedTrainee(*scene, TraineeStyle::kGood);
+  ASSERT_TRUE(samples.ok());
+  auto sim = Simulation::Create(*scene, {false});
+  ASSERT_TRUE(sim.ok());
+  Simulation& s = **sim;
+  VisualFrame frame;
+  size_t next = 0;
+  uint64_t updates = 0, surfaces = 0;
+  bool grasped = false, released = false;
+  for (; next < samples->size() && !released; ++next) {
+    const haptics::ForceCommand cmd = s.OnStylus((*samples)[next]);
+    s.StepDeformation();
+    if (cmd.grasping && !grasped) {
+      grasped = true;
+      updates = s.deformation_updates();
+      surfaces = s.surface_updates();
+    }
+    released = grasped && !cmd.grasping;
+  }
+  ASSERT_TRUE(grasped && released);
+  // The grasp's updates (before the release's own) reached the view only.
+  EXPECT_GT(s.deformation_updates(), updates + 100);
+  EXPECT_EQ(s.surface_updates(), surfaces + 1) << "only the release's";
+  // The view after the release: the arm back at rest, described as the limb's twist at zero.
+  ASSERT_TRUE(s.TakeVisualFrame(frame));
+  ASSERT_TRUE(frame.twist.has_value());
+  EXPECT_EQ(frame.twist->torque, 0.0);
+  std::vector<int32_t> indices;
+  std::vector<geometry::Vec3> positions;
+  s.ShownSurface(indices, positions);
+  EXPECT_TRUE(indices.empty()) << indices.size() << " vertices away from rest";
+}
+
 }  // namespace
 }  // namespace vsurg::sim
