@@ -193,7 +193,12 @@ void Simulation::PublishInput() {
 void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model,
                          const std::optional<CoilTwistShape>& twist, bool surface) {
   const size_t n = rest_.positions.size();
-  if (surface) PublishSurface(positions, overload, outside_model);
+  if (surface) {
+    PublishSurface(positions, overload, outside_model);
+  } else {
+    grasp_overload_.store(overload, std::memory_order_relaxed);
+    grasp_outside_model_.store(outside_model, std::memory_order_relaxed);
+  }
   VisualPositions& v = visual_.Back();
   std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
   v.id = ++publish_id_;

@@ -379,6 +379,9 @@ class Simulation final : private DeformationPool::Member {
   std::vector<geometry::Vec3> last_published_;
   double surface_motion_ = 0;
   std::atomic<uint64_t> updates_{0}, surface_updates_{0};
+  // A grasp's latest update's flags (it reaches the view only, not the surface's snapshot): what
+  // the haptic path reports while grasping, as a snapshot's flags otherwise.
+  std::atomic<bool> grasp_overload_{false}, grasp_outside_model_{false};
   // Coil scenes: the deformation thread sleeps on this until the haptic path asks for something
   // new (C++20 atomic wait: no lock; the haptic side's notify is a no-op without a waiter).
   std::atomic<uint64_t> input_version_{0};

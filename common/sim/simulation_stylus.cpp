@@ -33,7 +33,7 @@ using haptics::StylusSample;
   const Snapshot& snap = surface_.Front();
   const bool button = (s.buttons & haptics::kButtonGrasp) != 0;
   step.cmd.time = s.time;
-  step.overload = snap.overload;
+  step.overload = grasping_ ? grasp_overload_.load(std::memory_order_relaxed) : snap.overload;
   if (grasping_ && !button) EndGrasp(step.events);
   if (needle_.model) {
     NeedleStep(snap, s, step);
@@ -290,7 +290,9 @@ Vec3 Simulation::Answer(const Snapshot& snap, const StylusSample& s, StylusStep&
   cmd.local.jacobian = step.jacobian;
   safety_.LimitLocalModel(cmd.local, out, step.events);
   if (step.overload) step.events |= haptics::kEventOverload;
-  if (snap.outside_model && cmd.contact) step.events |= haptics::kEventOutsideModel;
+  const bool outside =
+      cmd.grasping ? grasp_outside_model_.load(std::memory_order_relaxed) : snap.outside_model;
+  if (outside && cmd.contact) step.events |= haptics::kEventOutsideModel;
   cmd.events = step.events;
   return out;
 }
