@@ -5,7 +5,9 @@
 # haptic-rtt (the server's endpoint, sessions and physics; pressing stations, or twisting ones
 # with TWIST_DEG), alternating in each round at each station count. Each figure is CPU time read
 # from the thread or process itself (CLOCK_THREAD_CPUTIME_ID, getrusage), divided by the
-# datagrams answered; the ratios are each round's own.
+# datagrams answered; the ratios are each round's own. Beside them, each datagram's residence
+# (kernel arrival stamp to its answer's send): the batched echo's p99, exact, and the node's
+# (the endpoint's histogram: the p99's bucket bound, "le").
 #   usage: [ROUNDS=3] [SECONDS_EACH=5] [TWIST_DEG=0] bench/cpu_per_datagram.sh [BIN_DIR] N...
 #   e.g.   bench/cpu_per_datagram.sh build/bin 64 128
 set -euo pipefail
@@ -28,6 +30,8 @@ floor = min(p, b)
 print(f'n={n} round={r} plain={p:.2f}us batched={b:.2f}us ({batched["datagrams_per_receive"]:.2f}/call) '
       f'node_io={io:.2f}us node_process={proc:.2f}us ratio_io={io / floor:.2f} '
       f'ratio_process={proc / floor:.2f} loss plain/batched/node='
-      f'{plain["loss"]:.4f}/{batched["loss"]:.4f}/{node["loss"]:.4f}')
+      f'{plain["loss"]:.4f}/{batched["loss"]:.4f}/{node["loss"]:.4f} '
+      f'residence_p99 echo={batched.get("echo_residence_p99_us", 0):.0f}us '
+      f'(le {batched.get("echo_residence_p99_le_us", 0):.0f}) node_le={node["server_residence_p99_le_us"]:.0f}us')
 PY
 done; done

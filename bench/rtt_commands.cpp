@@ -739,6 +739,17 @@ int UdpFloor(const std::vector<std::string>& args) {
   j["server_cpu_per_datagram_us"] = answered > 0 ? 1e6 * (*echo)->cpu_seconds() / answered : 0.0;
   j["datagrams_per_receive"] =
       (*echo)->calls() ? answered / static_cast<double>((*echo)->calls()) : 0.0;
+  if (std::vector<double> r = (*echo)->residences_us(); !r.empty()) {
+    std::sort(r.begin(), r.end());
+    j["echo_residence_p50_us"] = RttRun::Percentile(r, 0.5);
+    j["echo_residence_p99_us"] = RttRun::Percentile(r, 0.99);
+    // In the node's histogram's terms (haptic-rtt's server_residence_p99_le_us): the bound of the
+    // bucket the p99 falls in.
+    const auto& bounds = vsurg::server::EndpointCounters::kResidenceBounds;
+    const double p99 = 1e-6 * RttRun::Percentile(r, 0.99);
+    const auto b = std::lower_bound(bounds.begin(), bounds.end(), p99);
+    j["echo_residence_p99_le_us"] = b == bounds.end() ? -1.0 : 1e6 * *b;  // -1: above all
+  }
   j["busy_poll_us"] = p.Int("busy-poll-us");
   j["period_ms"] = period_ms;
   j["stations_per_socket"] = per_socket;

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <chrono>
+#include <cstring>
 #include <ctime>
 
 #include "common/core/realtime.h"
@@ -94,6 +95,11 @@ void UdpEcho::Plain(const Options& options) {
 // Blocks for the first datagram, takes what else is queued (up to `batch`) in the same call and
 // answers every one in one sendmmsg, each to its sender.
 void UdpEcho::Batched(int batch) {
+  const int on = 1;
+  const bool stamped = ::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) == 0;
+  residences_us_.reserve(kMaxResidences);
+  constexpr size_t kControl = CMSG_SPACE(sizeof(timespec));
+  std::array<std::array<uint8_t, kControl>, kMaxBatch> control{};
   std::array<std::array<uint8_t, 2048>, kMaxBatch> bufs{};
   std::array<sockaddr_in, kMaxBatch> from{};
   std::array<iovec, kMaxBatch> rx_iov{}, tx_iov{};
@@ -108,7 +114,11 @@ void UdpEcho::Batched(int batch) {
     tx[i].msg_hdr.msg_name = &from[i];
   }
   while (!stop_.load(std::memory_order_relaxed)) {
-    for (int i = 0; i < batch; ++i) rx[i].msg_hdr.msg_namelen = sizeof(sockaddr_in);
+    for (int i = 0; i < batch; ++i) {
+      rx[i].msg_hdr.msg_namelen = sizeof(sockaddr_in);
+      rx[i].msg_hdr.msg_control = control[i].data();
+      rx[i].msg_hdr.msg_controllen = kControl;
+    }
     const int n = ::recvmmsg(fd_, rx.data(), static_cast<unsigned>(batch), MSG_WAITFORONE, nullptr);
     if (n <= 0) continue;  // the timeout: look at the stop flag
     for (int i = 0; i < n; ++i) {
@@ -120,8 +130,25 @@ void UdpEcho::Batched(int batch) {
       if (k <= 0) break;  // a full send buffer: the rest are lost, as any UDP answer may be
       sent += k;
     }
+    if (stamped) Residences(rx.data(), n);
     answered_ += static_cast<uint64_t>(n);
     ++calls_;
+  }
+}
+
+// Each datagram's time from its kernel arrival stamp to now (its answer just sent).
+void UdpEcho::Residences(mmsghdr* rx, int n) {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  for (int i = 0; i < n && residences_us_.size() < kMaxResidences; ++i) {
+    for (cmsghdr* c = CMSG_FIRSTHDR(&rx[i].msg_hdr); c != nullptr;
+         c = CMSG_NXTHDR(&rx[i].msg_hdr, c)) {
+      if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
+      timespec at{};
+      std::memcpy(&at, CMSG_DATA(c), sizeof at);
+      residences_us_.push_back(1e6 * static_cast<double>(now.tv_sec - at.tv_sec) +
+                               1e-3 * static_cast<double>(now.tv_nsec - at.tv_nsec));
+    }
   }
 }
 

@@ -3,10 +3,13 @@
 // event loop). POSIX calls, not Asio: the floor should carry nothing of ours.
 #pragma once
 
+#include <sys/socket.h>
+
 #include <atomic>
 #include <cstdint>
 #include <memory>
 #include <thread>
+#include <vector>
 
 #include "common/core/expected.h"
 
@@ -34,17 +37,24 @@ class UdpEcho {
   double cpu_seconds() const { return cpu_s_; }  // the echo thread's, after Stop
   uint64_t answered() const { return answered_; }
   uint64_t calls() const { return calls_; }  // receive calls that brought datagrams
+  // The batched echo's residence per datagram, µs: from the kernel's arrival stamp
+  // (SO_TIMESTAMPNS) to the return of the sendmmsg that answered it, as the endpoint's
+  // vsurg_udp_residence_seconds; the first kMaxResidences, after Stop. Empty for the plain echo.
+  const std::vector<double>& residences_us() const { return residences_us_; }
+  static constexpr size_t kMaxResidences = 4'000'000;
 
  private:
   UdpEcho() = default;
   void Plain(const Options& options);
   void Batched(int batch);
+  void Residences(mmsghdr* rx, int n);
 
   int fd_ = -1;
   uint16_t port_ = 0;
   std::atomic<bool> stop_{false};
   double cpu_s_ = 0;
   uint64_t answered_ = 0, calls_ = 0;
+  std::vector<double> residences_us_;
   std::thread thread_;
 };
 
