@@ -47,7 +47,9 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   EXPECT_TRUE(station["metrics"]["completed"].get<bool>());
   EXPECT_LT(station["metrics"]["task_error"].get<double>(), 0.0873);  // within 5°
   EXPECT_GT(station["received"].get<double>(), 0.95 * station["sent"].get<double>());
-  EXPECT_GT(station["scene_chunks"].get<int>(), 100);
+  // The arm's frames reached the station while it turned: each one chunk (the twist's numbers, as
+  // the station holds the same arm), some 60 a second while it changes on an idle machine.
+  EXPECT_GE(station["scene_chunks"].get<int>(), 20);
 
   // Four hands: the instructor's station joined the trainee's second trial and left it to her;
   // her record says how much of it was guided (observe, guide at 0.5, take over, hand back).
