@@ -41,7 +41,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       VSURG_FUZZ_CHECK(Same(back.sample.time, m.sample.time) &&
                        Same(back.sample.position.x(), m.sample.position.x()) &&
                        Same(back.sample.position.z(), m.sample.position.z()) &&
-                       back.sample.buttons == m.sample.buttons);
+                       back.sample.buttons == m.sample.buttons &&
+                       back.twist_shape_key == m.twist_shape_key);
       break;
     }
     case 1: {
@@ -61,6 +62,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (codec.DecodeSceneChunk(payload, c) != DropReason::kNone) return 0;
       VSURG_FUZZ_CHECK(c.indices.size() == c.positions.size());
       VSURG_FUZZ_CHECK(c.chunk_index < c.chunk_count);
+      if (c.twist) {  // a coil limb's twist: whole, finite, and the same after a round trip
+        VSURG_FUZZ_CHECK(c.indices.empty() && c.chunk_count == 1);
+        VSURG_FUZZ_CHECK(std::isfinite(c.twist->arc) && std::isfinite(c.twist->torque));
+        const size_t n = codec.EncodeTwistFrame(c.frame_id, *c.twist,
+                                                {.type = PayloadType::kSceneFrame}, Auth(), out);
+        VSURG_FUZZ_CHECK(n > 0);
+        VSURG_FUZZ_CHECK(Open(std::span<const uint8_t>(out, n), &Auth(), o) == DropReason::kNone);
+        SceneChunk back;
+        VSURG_FUZZ_CHECK(codec.DecodeSceneChunk(o.payload, back) == DropReason::kNone);
+        VSURG_FUZZ_CHECK(back.twist && back.twist->key == c.twist->key &&
+                         back.twist->grasp == c.twist->grasp && back.twist->arc == c.twist->arc &&
+                         back.twist->torque == c.twist->torque && back.frame_id == c.frame_id);
+      }
       break;
     }
   }
