@@ -53,6 +53,15 @@ struct Codec::Impl {
     return static_cast<size_t>(m.SerializeWithCachedSizesToArray(payload.data()) -
                                payload.data()) == n;
   }
+  // `m` serialized and sealed as a datagram of `type` with `h`'s other fields; 0 when it does
+  // not fit.
+  size_t Sealed(const google::protobuf::MessageLite& m, Header h, PayloadType type,
+                const Authenticator& auth, std::span<uint8_t> out) {
+    size_t n = 0;
+    if (!Serialize(m, n)) return 0;
+    h.type = type;
+    return Seal(h, std::span<const uint8_t>(payload.data(), n), auth, out);
+  }
 };
 
 Codec::Codec() : impl_(std::make_unique<Impl>()) {}
@@ -76,11 +85,7 @@ size_t Codec::EncodeStylus(const StylusMessage& m, const Header& h, const Authen
   s.set_rendered_over_limit_s(static_cast<float>(m.rendered_over_limit_s));
   s.set_jitter_us(static_cast<float>(m.jitter_us));
   s.set_twist_shape_key(m.twist_shape_key);
-  size_t n = 0;
-  if (!impl_->Serialize(s, n)) return 0;
-  Header header = h;
-  header.type = PayloadType::kStylusState;
-  return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+  return impl_->Sealed(s, h, PayloadType::kStylusState, auth, out);
 }
 
 size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenticator& auth,
@@ -146,11 +151,7 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
   f.set_guide_mode(c.guide_mode);
   f.set_guide_alpha(static_cast<float>(c.guide_alpha));
   f.set_shared(c.shared);
-  size_t n = 0;
-  if (!impl_->Serialize(f, n)) return 0;
-  Header header = h;
-  header.type = PayloadType::kForceFeedback;
-  return Seal(header, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+  return impl_->Sealed(f, h, PayloadType::kForceFeedback, auth, out);
 }
 
 namespace {
@@ -232,12 +233,9 @@ size_t Codec::EncodeSceneChunk(const SceneFrameView& f, size_t chunk, size_t chu
       previous[k] = um;
     }
   }
-  size_t n = 0;
-  if (!impl_->Serialize(m, n)) return 0;
   Header h = base;
-  h.type = PayloadType::kSceneFrame;
   h.sequence = base.sequence + chunk;
-  return Seal(h, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+  return impl_->Sealed(m, h, PayloadType::kSceneFrame, auth, out);
 }
 
 size_t Codec::EncodeTwistFrame(uint64_t frame_id, const CoilTwist& twist, const Header& base,
@@ -252,11 +250,7 @@ size_t Codec::EncodeTwistFrame(uint64_t frame_id, const CoilTwist& twist, const 
   t.set_arc_m(twist.arc);
   t.set_torque_nm(twist.torque);
   t.set_key(twist.key);
-  size_t n = 0;
-  if (!impl_->Serialize(m, n)) return 0;
-  Header h = base;
-  h.type = PayloadType::kSceneFrame;
-  return Seal(h, std::span<const uint8_t>(impl_->payload.data(), n), auth, out);
+  return impl_->Sealed(m, base, PayloadType::kSceneFrame, auth, out);
 }
 
 DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out) {

@@ -505,20 +505,34 @@ TEST(UdpEndpointTest, AnIoThreadPollsOnlyWhileDatagramsComeFasterThanItsWindow) 
   EXPECT_EQ(f.endpoint->counters().busy_polls, polls) << "still polling after the traffic stopped";
 }
 
+// The arm driven by the good scripted trainee, unthreaded: TwistUntil(t) plays its samples up to
+// t s and then one deformation step.
+struct ScriptedArm {
+  Expected<sim::Scene> scene = sim::LoadSceneByName("arm-torsion");
+  Expected<std::vector<haptics::StylusSample>> samples =
+      scene.ok() ? sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood)
+                 : Expected<std::vector<haptics::StylusSample>>(scene.error());
+  Expected<std::unique_ptr<sim::Simulation>> simulation =
+      scene.ok() ? sim::Simulation::Create(*scene, {false})
+                 : Expected<std::unique_ptr<sim::Simulation>>(scene.error());
+  size_t next = 0;
+  bool ok() const { return scene.ok() && samples.ok() && simulation.ok(); }
+  void TwistUntil(double t) {
+    for (; next < samples->size() && (*samples)[next].time <= t; ++next)
+      (*simulation)->OnStylus((*samples)[next]);
+    (*simulation)->StepDeformation();
+  }
+};
+
 // A twisted arm moves nearly every vertex, so its frame is a score of chunks even delta-coded
 // (22 at mid-twist; 39 with absolute coordinates). They go out paced,
 // at most a kSpreadMs-th of them a millisecond, so a force answer sent meanwhile never queues
 // behind the whole frame; and they all arrive, in order, each vertex once.
 TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
-  auto scene = sim::LoadSceneByName("arm-torsion");
-  ASSERT_TRUE(scene.ok());
-  auto samples = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
-  ASSERT_TRUE(samples.ok());
-  auto simulation = sim::Simulation::Create(*scene, {false});
-  ASSERT_TRUE(simulation.ok());
-  for (const auto& s : *samples)
-    if (s.time <= 1.9) (*simulation)->OnStylus(s);  // mid-twist
-  (*simulation)->StepDeformation();
+  ScriptedArm arm;
+  ASSERT_TRUE(arm.ok());
+  auto& simulation = arm.simulation;
+  arm.TwistUntil(1.9);  // mid-twist
   auto sender = VisualSender::Create(asio::ip::make_address("127.0.0.1"), 60);
   ASSERT_TRUE(sender.ok());
   RawClient station(1);  // only its socket: the sender sends to it
@@ -563,19 +577,11 @@ TEST(VisualSenderTest, ATwistedArmsFrameGoesOutPacedWholeAndInOrder) {
 // then the same frame kTwistRepeats times more, kTwistRepeatS apart (a lost one is made good),
 // and nothing after that while the arm stays still; a station of another key gets the vertices.
 TEST(VisualSenderTest, ATwistGoesOutAsItsNumbersRepeatedAFewTimesAndVerticesToAnotherLimb) {
-  auto scene = sim::LoadSceneByName("arm-torsion");
-  ASSERT_TRUE(scene.ok());
-  auto samples = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
-  ASSERT_TRUE(samples.ok());
-  auto simulation = sim::Simulation::Create(*scene, {false});
-  ASSERT_TRUE(simulation.ok());
-  size_t next = 0;
-  const auto twist_until = [&](double t) {
-    for (; next < samples->size() && (*samples)[next].time <= t; ++next)
-      (*simulation)->OnStylus((*samples)[next]);
-    (*simulation)->StepDeformation();
-  };
-  twist_until(1.9);  // mid-twist
+  ScriptedArm arm;
+  ASSERT_TRUE(arm.ok());
+  auto& scene = arm.scene;
+  auto& simulation = arm.simulation;
+  arm.TwistUntil(1.9);  // mid-twist
   auto mesh = sim::BuildSceneMesh(scene->mesh);
   ASSERT_TRUE(mesh.ok());
   const uint64_t key =
@@ -616,7 +622,7 @@ TEST(VisualSenderTest, ATwistGoesOutAsItsNumbersRepeatedAFewTimesAndVerticesToAn
 
   // A station of another limb: the next frame as the moved vertices.
   (*sender)->SetDestination(5, station.socket.local_endpoint(), key ^ 1);
-  twist_until(2.2);
+  arm.TwistUntil(2.2);
   auto c = next_chunk(30000);
   ASSERT_TRUE(c.has_value());
   EXPECT_FALSE(c->twist.has_value());
