@@ -17,8 +17,8 @@ std::optional<CoilTwistView> CoilTwistView::For(const sim::Scene& scene,
   if (!model.ok()) return std::nullopt;
   CoilTwistView v;
   v.model_ = std::make_shared<const tissue::CoilSpringModel>(std::move(*model));
-  v.rest_ = std::make_shared<const std::vector<geometry::Vec3>>(mesh.surface.positions);
-  v.centreline_ = std::make_shared<const std::vector<geometry::Vec3>>(mesh.centreline);
+  v.rest_ = mesh.surface.positions;
+  v.centreline_ = mesh.centreline;
   for (size_t i = 1; i < mesh.centreline.size(); ++i)
     v.length_ += (mesh.centreline[i] - mesh.centreline[i - 1]).norm();
   v.key_ = sim::CoilLimbKey(region.coil, mesh.surface.positions, mesh.centreline);
@@ -31,9 +31,9 @@ bool CoilTwistView::Shape(const wire::CoilTwist& twist, std::vector<int32_t>& in
       twist.arc < 0 || twist.arc > length_)
     return false;
   if (!deformer_ || twist.grasp != grasp_ || twist.arc != arc_) {
-    auto d = tissue::CoilDeformer::CreateForLimb(*model_, *rest_, *centreline_, twist.arc);
+    auto d = tissue::CoilDeformer::CreateForLimb(*model_, rest_, centreline_, twist.arc);
     if (!d.ok()) return false;
-    deformer_ = std::make_shared<tissue::CoilDeformer>(std::move(*d));
+    deformer_ = std::make_unique<tissue::CoilDeformer>(std::move(*d));
     grasp_ = twist.grasp;
     arc_ = twist.arc;
   }

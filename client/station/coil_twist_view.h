@@ -32,19 +32,18 @@ class CoilTwistView {
   bool Shape(const wire::CoilTwist& twist, std::vector<int32_t>& indices,
              std::vector<geometry::Vec3>& positions);
 
-  // The grasp bound last (0: none yet).
-  uint64_t bound_grasp() const { return grasp_; }
   // The limb's key (sim::CoilLimbKey), which the station declares in its stylus datagrams: the
   // server sends twists only when it is its own, and a twist of another key shapes nothing.
   uint64_t key() const { return key_; }
 
  private:
   CoilTwistView() = default;
-  std::shared_ptr<const tissue::CoilSpringModel> model_;
-  std::shared_ptr<const std::vector<geometry::Vec3>> rest_, centreline_;
+  std::shared_ptr<const tissue::CoilSpringModel> model_;  // immutable (as the room holds it)
+  std::vector<geometry::Vec3> rest_, centreline_;
   double length_ = 0;  // the centreline's arc length, m
   uint64_t key_ = 0;
-  std::shared_ptr<tissue::CoilDeformer> deformer_;
+  // The deformer bound last, to this grasp at this arc length.
+  std::unique_ptr<tissue::CoilDeformer> deformer_;
   uint64_t grasp_ = 0;
   double arc_ = 0;
 };
