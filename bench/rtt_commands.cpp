@@ -505,20 +505,16 @@ struct HapticRttRun {
     return vsurg::Status::Ok();
   }
 
-  // The endpoint and the driven sessions with a station each: through the session manager (its
-  // sampler feeding telemetry) and the dashboard, as vsurg-server runs them, or bare.
   // What a vsurg-station with this scene declares (CoilTwistView): the coil limb's key, unless
   // --vertex-frames.
   uint64_t TwistShapeKey(const vsurg::sim::Scene& scene) const {
-    if (p.Flag("vertex-frames") || scene.region.kind != vsurg::sim::ModelKind::kCoil ||
-        scene.region.coil_mode != vsurg::tissue::TwistMode::kLimb)
-      return 0;
+    if (p.Flag("vertex-frames")) return 0;
     auto mesh = vsurg::sim::BuildSceneMesh(scene.mesh);
-    return mesh.ok() ? vsurg::sim::CoilLimbKey(scene.region.coil, mesh->surface.positions,
-                                               mesh->centreline)
-                     : 0;
+    return mesh.ok() ? vsurg::sim::CoilLimbKeyOf(scene, *mesh) : 0;
   }
 
+  // The endpoint and the driven sessions with a station each: through the session manager (its
+  // sampler feeding telemetry) and the dashboard, as vsurg-server runs them, or bare.
   vsurg::Status StartDriven(const vsurg::sim::Scene& scene) {
     n = p.Int("stations");
     dashboard_clients = p.Int("dashboard-clients");

@@ -9,11 +9,9 @@ namespace vsurg::client {
 
 std::optional<CoilTwistView> CoilTwistView::For(const sim::Scene& scene,
                                                 const sim::SceneMesh& mesh) {
-  const sim::RegionSpec& region = scene.region;
-  if (region.kind != sim::ModelKind::kCoil || region.coil_mode != tissue::TwistMode::kLimb ||
-      mesh.centreline.size() < 2)
-    return std::nullopt;
-  auto model = tissue::CoilSpringModel::Create(region.coil);
+  const uint64_t key = sim::CoilLimbKeyOf(scene, mesh);
+  if (key == 0) return std::nullopt;
+  auto model = tissue::CoilSpringModel::Create(scene.region.coil);
   if (!model.ok()) return std::nullopt;
   CoilTwistView v;
   v.model_ = std::make_shared<const tissue::CoilSpringModel>(std::move(*model));
@@ -21,7 +19,7 @@ std::optional<CoilTwistView> CoilTwistView::For(const sim::Scene& scene,
   v.centreline_ = mesh.centreline;
   for (size_t i = 1; i < mesh.centreline.size(); ++i)
     v.length_ += (mesh.centreline[i] - mesh.centreline[i - 1]).norm();
-  v.key_ = sim::CoilLimbKey(region.coil, mesh.surface.positions, mesh.centreline);
+  v.key_ = key;
   return v;
 }
 

@@ -41,6 +41,14 @@ uint64_t CoilLimbKey(const tissue::CoilSpringParams& model, const std::vector<ge
   return f.h == 0 ? 1 : f.h;  // 0 means "none" on the wire
 }
 
+uint64_t CoilLimbKeyOf(const Scene& scene, const SceneMesh& mesh) {
+  const RegionSpec& region = scene.region;
+  if (region.kind != ModelKind::kCoil || region.coil_mode != tissue::TwistMode::kLimb ||
+      mesh.centreline.size() < 2)
+    return 0;
+  return CoilLimbKey(region.coil, mesh.surface.positions, mesh.centreline);
+}
+
 Expected<CoilRoom> CoilRoom::Build(const RoomInputs& in) {
   const RegionSpec& region = in.scene.region;
   auto coil = tissue::CoilSpringModel::Create(region.coil);

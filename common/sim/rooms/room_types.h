@@ -107,6 +107,9 @@ struct CoilTwistShape {
 // key and is sent vertices instead.
 uint64_t CoilLimbKey(const tissue::CoilSpringParams& model, const std::vector<geometry::Vec3>& rest,
                      const std::vector<geometry::Vec3>& centreline);
+// A scene's own: its CoilLimbKey when its tissue is the coil model in limb mode on a limb (a
+// centreline), else 0 (no twist frames).
+uint64_t CoilLimbKeyOf(const Scene& scene, const SceneMesh& mesh);
 
 // One deformation update to publish. `positions` is the room's own (valid until its next Deform).
 struct Deformed {

@@ -584,8 +584,7 @@ TEST(VisualSenderTest, ATwistGoesOutAsItsNumbersRepeatedAFewTimesAndVerticesToAn
   arm.TwistUntil(1.9);  // mid-twist
   auto mesh = sim::BuildSceneMesh(scene->mesh);
   ASSERT_TRUE(mesh.ok());
-  const uint64_t key =
-      sim::CoilLimbKey(scene->region.coil, mesh->surface.positions, mesh->centreline);
+  const uint64_t key = sim::CoilLimbKeyOf(*scene, *mesh);
   auto sender = VisualSender::Create(asio::ip::make_address("127.0.0.1"), 60);
   ASSERT_TRUE(sender.ok());
   RawClient station(1);
