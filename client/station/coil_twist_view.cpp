@@ -15,10 +15,11 @@ std::optional<CoilTwistView> CoilTwistView::For(const sim::Scene& scene,
   if (!model.ok()) return std::nullopt;
   CoilTwistView v;
   v.model_ = std::make_shared<const tissue::CoilSpringModel>(std::move(*model));
+  auto projection = geometry::ProjectOntoPolyline(mesh.surface.positions, mesh.centreline);
+  if (!projection.ok()) return std::nullopt;
   v.rest_ = mesh.surface.positions;
-  v.centreline_ = mesh.centreline;
-  for (size_t i = 1; i < mesh.centreline.size(); ++i)
-    v.length_ += (mesh.centreline[i] - mesh.centreline[i - 1]).norm();
+  v.projection_ = std::move(*projection);
+  v.length_ = geometry::ArcLengths(mesh.centreline).back();
   v.key_ = key;
   return v;
 }
@@ -29,7 +30,7 @@ bool CoilTwistView::Shape(const wire::CoilTwist& twist, std::vector<int32_t>& in
       twist.arc < 0 || twist.arc > length_)
     return false;
   if (!deformer_ || twist.grasp != grasp_ || twist.arc != arc_) {
-    auto d = tissue::CoilDeformer::CreateForLimb(*model_, rest_, centreline_, twist.arc);
+    auto d = tissue::CoilDeformer::CreateForLimb(*model_, rest_, projection_, length_, twist.arc);
     if (!d.ok()) return false;
     deformer_ = std::make_unique<tissue::CoilDeformer>(std::move(*d));
     grasp_ = twist.grasp;

@@ -4,7 +4,8 @@
 // the same deformer at the grasp's arc length and turn it by the torque to the same vertices: a
 // frame of three numbers instead of every vertex of the limb (server/net/visual_sender.h).
 //
-// A new grasp binds anew (a few milliseconds for a limb's thousands of vertices); a twist whose
+// A new grasp binds anew (the vertices' projections onto the centreline are made once, at For;
+// a binding sorts the limb's thousands of vertices by their distance from the grasp); a twist whose
 // arc lies off the centreline, or that arrives for a scene without a coil limb, shapes nothing.
 // Threads: the station's render thread.
 #pragma once
@@ -39,8 +40,9 @@ class CoilTwistView {
  private:
   CoilTwistView() = default;
   std::shared_ptr<const tissue::CoilSpringModel> model_;  // immutable (as the room holds it)
-  std::vector<geometry::Vec3> rest_, centreline_;
-  double length_ = 0;  // the centreline's arc length, m
+  std::vector<geometry::Vec3> rest_;
+  std::vector<geometry::CentrelineProjection> projection_;  // each rest vertex's on the centreline
+  double length_ = 0;                                       // the centreline's arc length, m
   uint64_t key_ = 0;
   // The deformer bound last, to this grasp at this arc length.
   std::unique_ptr<tissue::CoilDeformer> deformer_;

@@ -201,7 +201,8 @@ void DeclareOptions(ArgParser& p) {
       .Option("screenshot", Kind::kString, "PNG of the last frame (or at --screenshot-at)")
       .Option("screenshot-at", Kind::kDouble, "seconds after the session starts for --screenshot")
       .Within({0, 86400})
-      .Option("screenshot-before", Kind::kString, "PNG of the first frame, before any input")
+      .Option("screenshot-before", Kind::kString,
+              "PNG of the first frame: the tissue at rest, drawn before the session is joined")
       .Option("screenshot-summary", Kind::kString,
               "PNG of the end-of-trial summary (the score and what lowered it)")
       .Option("render-threads", Kind::kInt,
@@ -379,7 +380,8 @@ struct Trial {
   std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
   double live_now = 0;  // seconds live, summed over sessions
   double last_tick = 0;
-  bool screenshot_taken = false, before_taken = false, ended_by_replay = false;
+  bool was_live = false;  // at the last tick
+  bool screenshot_taken = false, ended_by_replay = false;
   double replay_done_at = -1;
   uint64_t generation = 0, last_sent = 0;
   double rate_hz = 0, last_rate_at = 0;
@@ -509,13 +511,24 @@ struct Trial {
     if (!screen.fixed_quality) screen.view->SetQuality(screen.governor->Update(draw_ms.back()));
   }
 
-  // --screenshot-before at the first live frame, --screenshot at --screenshot-at.
+  // The first frame, drawn before the session is joined: the renderer's one-off costs (a software
+  // renderer compiles its shaders at its first draw, seconds on a busy machine) are paid before
+  // the trial's clock runs, and --screenshot-before is the tissue at rest before any input. Not
+  // counted in the frame times, nor shown to the quality governor.
+  vsurg::Status FirstFrame() {
+    client::GlSurface& gl = *screen.gl;
+    const client::Overlay overlay = Compose(station.status(), 0);
+    screen.view->Draw(gl.width(), gl.height(), overlay);
+    gl.Finish();
+    if (p.Has("screenshot-before"))
+      if (auto s = gl.SaveScreenshot(p.String("screenshot-before")); !s.ok()) return s;
+    gl.EndFrame();
+    return vsurg::Status::Ok();
+  }
+
+  // --screenshot at --screenshot-at.
   vsurg::Status Screenshots(bool live) {
     client::GlSurface& gl = *screen.gl;
-    if (live && !before_taken && p.Has("screenshot-before")) {
-      before_taken = true;
-      if (auto s = gl.SaveScreenshot(p.String("screenshot-before")); !s.ok()) return s;
-    }
     const bool at_time = p.Has("screenshot-at") && live && live_now >= p.Double("screenshot-at");
     if (p.Has("screenshot") && !screenshot_taken && at_time) {
       screenshot_taken = true;
@@ -559,8 +572,9 @@ struct Trial {
                             "no session within --connect-timeout: " + st.last_error, ""};
       const bool live = st.state == client::StationState::kLive;
       const double tick = Seconds(started);
-      if (live) live_now += tick - last_tick;
+      if (live && was_live) live_now += tick - last_tick;  // between two live ticks only
       last_tick = tick;
+      was_live = live;
       if (controls && live)
         if (auto asked = controls->Next(live_now, screen.gl->Input())) station.RequestGuide(*asked);
       const client::Overlay overlay = Compose(st, tick);
@@ -791,17 +805,18 @@ int Run(const std::vector<std::string>& args) {
   action.sa_handler = OnSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
-  // The session's life on its own thread: a frame that takes seconds (a first frame on a
-  // software renderer, a driver's stall) does not delay noticing a lost server.
+  Trial trial{p, *scene, *screen, station, [&] {
+                return (replay && replay->finished()) || (hand && hand->finished()) ||
+                       (searcher && searcher->finished());
+              }};
+  if (vsurg::Status s = trial.FirstFrame(); !s.ok()) return Fail(s.error().message);
+  // The session's life on its own thread: a frame that takes seconds (a driver's stall) does not
+  // delay noticing a lost server.
   station.StartSupervisor([](const client::StationStatus& st) {
     vsurg::LogFields fields{{"state", client::StationStateName(st.state)}, {"session", st.session}};
     if (!st.last_error.empty()) fields.emplace_back("reason", st.last_error);
     vsurg::LogEvent("vsurg-station", "state", fields);
   });
-  Trial trial{p, *scene, *screen, station, [&] {
-                return (replay && replay->finished()) || (hand && hand->finished()) ||
-                       (searcher && searcher->finished());
-              }};
   if (config->instruct != 0)
     trial.controls.emplace(*client::ParseGuidePlan(p.String("guide-plan")), p.Double("alpha"));
   if (vsurg::Status s = trial.Run(); !s.ok()) return Fail(s.error().message);

@@ -124,7 +124,20 @@ Expected<CoilDeformer> CoilDeformer::CreateForLimb(const CoilSpringModel& model,
   if (rest.empty()) return InvalidArgument("mesh", "mesh has no vertices");
   auto proj = geometry::ProjectOntoPolyline(rest, centreline);
   if (!proj.ok()) return proj.error();
-  const double length = geometry::ArcLengths(centreline).back();
+  return CreateForLimb(model, rest, *proj, geometry::ArcLengths(centreline).back(),
+                       grasp_arc_length);
+}
+
+Expected<CoilDeformer> CoilDeformer::CreateForLimb(
+    const CoilSpringModel& model, const std::vector<Vec3>& rest,
+    const std::vector<geometry::CentrelineProjection>& projection, double centreline_length,
+    double grasp_arc_length) {
+  if (rest.empty()) return InvalidArgument("mesh", "mesh has no vertices");
+  if (projection.size() != rest.size())
+    return InvalidArgument("centreline", "one projection per vertex is needed (" +
+                                             std::to_string(projection.size()) + " for " +
+                                             std::to_string(rest.size()) + ")");
+  const double length = centreline_length;
   if (!std::isfinite(grasp_arc_length) || grasp_arc_length < 0 || grasp_arc_length > length) {
     return InvalidArgument("grasp", "grasp position along the centreline must be in [0, " +
                                         std::to_string(length) + "] m");
@@ -135,9 +148,9 @@ Expected<CoilDeformer> CoilDeformer::CreateForLimb(const CoilSpringModel& model,
   for (int v = 0; v < n; ++v) {
     if (!rest[v].allFinite())
       return InvalidArgument("mesh", "vertex " + std::to_string(v) + " is not finite");
-    rho[v] = std::abs((*proj)[v].s - grasp_arc_length);
-    foot[v] = (*proj)[v].point;
-    axis[v] = (*proj)[v].tangent;
+    rho[v] = std::abs(projection[v].s - grasp_arc_length);
+    foot[v] = projection[v].point;
+    axis[v] = projection[v].tangent;
   }
   CoilDeformer d(model, TwistMode::kLimb);
   d.Bind(rest, rho, foot, axis);

@@ -55,6 +55,13 @@ class CoilDeformer {
                                               const std::vector<geometry::Vec3>& rest,
                                               const std::vector<geometry::Vec3>& centreline,
                                               double grasp_arc_length);
+  // Limb, with the rest vertices' projections onto the centreline (ProjectOntoPolyline) made once
+  // for the mesh: a new grasp then costs the binding alone, not the O(vertices × segments)
+  // projection (a room or a view that binds a deformer per grasp keeps them).
+  static Expected<CoilDeformer> CreateForLimb(
+      const CoilSpringModel& model, const std::vector<geometry::Vec3>& rest,
+      const std::vector<geometry::CentrelineProjection>& projection, double centreline_length,
+      double grasp_arc_length);
   // Surface: the mesh at rest, the grasp point on it and the geodesic method.
   static Expected<CoilDeformer> CreateForSurface(const CoilSpringModel& model,
                                                  const geometry::TriMesh& rest,

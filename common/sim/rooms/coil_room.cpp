@@ -61,8 +61,14 @@ Expected<CoilRoom> CoilRoom::Build(const RoomInputs& in) {
   room.mode_ = region.coil_mode;
   room.rest_ = &in.rest;
   room.centreline_ = &in.centreline;
-  if (room.mode_ == tissue::TwistMode::kLimb)
+  if (room.mode_ == tissue::TwistMode::kLimb) {
     room.key_ = CoilLimbKey(region.coil, in.rest.positions, in.centreline);
+    auto projection = geometry::ProjectOntoPolyline(in.rest.positions, in.centreline);
+    if (!projection.ok()) return projection.error();
+    room.projection_ =
+        std::make_shared<const std::vector<geometry::CentrelineProjection>>(std::move(*projection));
+    room.length_ = geometry::ArcLengths(in.centreline).back();
+  }
   return room;
 }
 
@@ -90,7 +96,7 @@ std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {
     double arc = 0;
     if (mode_ == tissue::TwistMode::kLimb) {
       arc = geometry::ProjectPointOntoPolyline(*centreline_, in.grasp_point).s;
-      d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_->positions, *centreline_, arc);
+      d = tissue::CoilDeformer::CreateForLimb(*coil_, rest_->positions, *projection_, length_, arc);
     } else {
       auto sp = geometry::ClosestSurfacePoint(*rest_, in.grasp_point);
       if (sp.ok())

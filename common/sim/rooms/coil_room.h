@@ -42,6 +42,10 @@ class CoilRoom {
   const geometry::TriMesh* rest_ = nullptr;
   const std::vector<geometry::Vec3>* centreline_ = nullptr;
   uint64_t key_ = 0;  // limb mode: CoilLimbKey of the model, rest surface and centreline
+  // Limb mode: each rest vertex's projection onto the centreline and the centreline's length (m),
+  // made once: a new grasp binds its deformer without projecting the mesh again.
+  std::shared_ptr<const std::vector<geometry::CentrelineProjection>> projection_;
+  double length_ = 0;
   // Deformation thread.
   std::unique_ptr<tissue::CoilDeformer> deformer_;
   uint64_t seen_grasp_ = 0;

@@ -401,7 +401,7 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
   // The tissue's frames reached the station through the trial. How many depends on the pace of
   // the server's deformation thread: over a hundred on an idle machine, a few dozen under a
   // sanitizer beside other suites; the pictures below show what they moved.
-  EXPECT_GE(summary["scene_chunks"].get<int>(), 5);
+  EXPECT_GE(summary["scene_chunks"].get<int>(), 5) << station.out;
 
   auto a = ReadRgbPng(before), b = ReadRgbPng(after);
   ASSERT_TRUE(a.ok() && b.ok());

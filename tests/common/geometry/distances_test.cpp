@@ -24,6 +24,29 @@ TEST(CentrelineTest, ProjectionGivesArcLengthFootAndTangent) {
   EXPECT_DOUBLE_EQ((*p)[2].s, 0.0);  // clamped to the first end
 }
 
+// Many points at once (segments made ahead) land where one point at a time does: a bent, unevenly
+// sampled centreline with a repeated direction, points on both sides, past both ends and on it.
+TEST(CentrelineTest, ManyPointsProjectAsOnePointAtATime) {
+  std::vector<Vec3> line;
+  double t = 0;
+  for (int i = 0; i <= 40; ++i, t += i % 3 == 0 ? 0.021 : 0.017)
+    line.push_back(Vec3(0.1 * std::sin(4 * t), 0.05 * t * t, t));
+  std::vector<Vec3> points;
+  for (int k = 0; k < 2000; ++k) {
+    const double z = -0.1 + 0.9 * k / 1999.0, a = 0.37 * k;
+    points.push_back(
+        Vec3(0.1 * std::sin(4 * z) + 0.03 * std::cos(a), 0.05 * z * z + 0.03 * std::sin(a), z));
+  }
+  auto p = ProjectOntoPolyline(points, line);
+  ASSERT_TRUE(p.ok());
+  for (size_t k = 0; k < points.size(); ++k) {
+    const CentrelineProjection one = ProjectPointOntoPolyline(line, points[k]);
+    EXPECT_NEAR((*p)[k].s, one.s, 1e-12) << k;
+    EXPECT_LT(((*p)[k].point - one.point).norm(), 1e-12) << k;
+    EXPECT_LT(((*p)[k].tangent - one.tangent).norm(), 1e-12) << k;
+  }
+}
+
 TEST(CentrelineTest, DegeneratePolylinesAreRejected) {
   EXPECT_FALSE(ProjectOntoPolyline({Vec3::Zero()}, {Vec3::Zero()}).ok());
   EXPECT_FALSE(ProjectOntoPolyline({Vec3::Zero()}, {Vec3::Zero(), Vec3::Zero()}).ok());

@@ -162,6 +162,30 @@ TEST(CoilDeformationTest, SurfaceModeTurnsAboutTheGraspNormalWithinTheGeodesicCu
   }
 }
 
+// A room binds each grasp from projections made once: the same deformer as projecting anew.
+TEST(CoilDeformationTest, ABindingFromProjectionsMadeOnceIsTheSameDeformer) {
+  LimbFixture f = MakeLimbFixture();
+  const auto& rest = f.limb.surface.positions;
+  const auto projection = geometry::ProjectOntoPolyline(rest, f.limb.centreline);
+  ASSERT_TRUE(projection.ok());
+  const double length = geometry::ArcLengths(f.limb.centreline).back();
+  for (double arc : {0.0, 0.4 * length, length}) {
+    auto once = CoilDeformer::CreateForLimb(f.model, rest, *projection, length, arc);
+    auto anew = CoilDeformer::CreateForLimb(f.model, rest, f.limb.centreline, arc);
+    ASSERT_TRUE(once.ok() && anew.ok());
+    once->Update(1.3), anew->Update(1.3);
+    EXPECT_EQ(once->positions(), anew->positions()) << arc;
+    EXPECT_EQ(once->distances(), anew->distances()) << arc;
+  }
+  // The projections must be the mesh's, one per vertex.
+  std::vector<geometry::CentrelineProjection> short_by_one(projection->begin(),
+                                                           projection->end() - 1);
+  const auto refused = CoilDeformer::CreateForLimb(f.model, rest, short_by_one, length, 0.1);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("one projection per vertex"), std::string::npos);
+  EXPECT_FALSE(CoilDeformer::CreateForLimb(f.model, rest, *projection, length, length * 1.01).ok());
+}
+
 TEST(CoilDeformationTest, BadBindingsAreRejected) {
   LimbFixture f = MakeLimbFixture();
   EXPECT_FALSE(CoilDeformer::CreateForLimb(f.model, {}, f.limb.centreline, 0).ok());
