@@ -73,6 +73,29 @@ BENCHMARK(BM_CoilDeformArmPerVertexBaseline)
     ->Arg(330)
     ->Unit(benchmark::kMicrosecond);
 
+// A new grasp's binding on the default arm, side by side: projecting every vertex onto the
+// centreline at each grasp (Arg 0: CreateForLimb from the centreline) against the projections
+// made once per scene (Arg 1: what the coil room and the station's twist view do).
+void BM_CoilBindArm(benchmark::State& state) {
+  auto inst = Instantiate(*BuiltinLimbScene("arm"));
+  const auto& rest = inst->limb.surface.positions;
+  const auto& centreline = inst->limb.centreline;
+  const auto projection = vsurg::geometry::ProjectOntoPolyline(rest, centreline);
+  const double length = vsurg::geometry::ArcLengths(centreline).back();
+  const bool once = state.range(0) == 1;
+  size_t k = 0;
+  for (auto _ : state) {
+    const double arc = length * (0.5 + 0.4 * static_cast<double>(k++ % 16) / 16);
+    auto d = once ? vsurg::tissue::CoilDeformer::CreateForLimb(inst->model, rest, *projection,
+                                                               length, arc)
+                  : vsurg::tissue::CoilDeformer::CreateForLimb(inst->model, rest, centreline, arc);
+    benchmark::DoNotOptimize(d->positions().data());
+  }
+  state.counters["vertices"] = static_cast<double>(rest.size());
+  state.counters["centreline_points"] = static_cast<double>(centreline.size());
+}
+BENCHMARK(BM_CoilBindArm)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
 // Surface mode on the 1026-vertex sphere (geodesic distances, one angle per vertex).
 void BM_CoilDeformSphereSurface(benchmark::State& state) {
   auto sphere =
