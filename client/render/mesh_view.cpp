@@ -33,11 +33,13 @@ Quality QualityGovernor::Update(double frame_ms) {
   window_.push_back(frame_ms);
   if (window_.size() < 30) return level_;
   std::vector<double> sorted = window_;
+  std::nth_element(sorted.begin(), sorted.begin() + 28, sorted.end());
+  const double second_slowest = sorted[28];
   std::nth_element(sorted.begin(), sorted.begin() + 27, sorted.end());
   const double p90 = sorted[27];
   window_.clear();
   int level = static_cast<int>(level_);
-  if (p90 > budget_ms_ && level > 0) {
+  if (second_slowest > budget_ms_ && level > 0) {
     ceiling_ = level - 1;  // this level was too slow: never again
     --level;
     fast_frames_ = 0;
@@ -49,6 +51,18 @@ Quality QualityGovernor::Update(double frame_ms) {
   }
   level_ = static_cast<Quality>(level);
   return level_;
+}
+
+Quality StartingQuality(const std::array<std::vector<double>, 3>& probe_ms, double budget_ms,
+                        double share) {
+  for (Quality q : {Quality::kHigh, Quality::kMedium}) {
+    std::vector<double> t = probe_ms[static_cast<size_t>(q)];
+    if (t.empty()) continue;
+    const size_t k = std::min(t.size() - 1, (t.size() * 9) / 10);
+    std::nth_element(t.begin(), t.begin() + static_cast<ptrdiff_t>(k), t.end());
+    if (t[k] <= share * budget_ms) return q;
+  }
+  return Quality::kLow;
 }
 
 MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)

@@ -81,13 +81,15 @@ struct Overlay {
 enum class Quality { kLow, kMedium, kHigh };
 const char* QualityName(Quality q);
 
-// Chooses the level from measured frame times: down a level when the 90th percentile of the
-// last 30 frames is over the budget, up again only after 120 frames at under 45% of it, and
-// never back up to a level that was already too slow.
+// Chooses the level from measured frame times: down a level when the second-slowest of the last
+// 30 frames (about the 97th percentile) is over the budget, up again only after 120 frames at
+// under 45% of it, never back up to a level that was already too slow, and never above
+// `ceiling` (the level the station chose before the trial, StartingQuality).
 class QualityGovernor {
  public:
-  explicit QualityGovernor(Quality start = Quality::kHigh, double budget_ms = 16.7)
-      : level_(start), budget_ms_(budget_ms) {}
+  explicit QualityGovernor(Quality start = Quality::kHigh, double budget_ms = 16.7,
+                           Quality ceiling = Quality::kHigh)
+      : level_(start), budget_ms_(budget_ms), ceiling_(static_cast<int>(ceiling)) {}
   Quality Update(double frame_ms);
   Quality level() const { return level_; }
 
@@ -96,8 +98,17 @@ class QualityGovernor {
   double budget_ms_;
   std::vector<double> window_;
   int fast_frames_ = 0;
-  int ceiling_ = static_cast<int>(Quality::kHigh);
+  int ceiling_;
 };
+
+// The level to start a trial at, from frames drawn before it (the tissue at rest): the highest
+// level whose probe frames' 90th percentile is within `share` of the budget, else low. A level
+// not probed (empty) counts as too slow. The trial's frames cost more than a frame at rest (the
+// moved surface's mapping, normals and upload; the server and the haptic loop beside the
+// renderer), hence the share: a level chosen at 60% held its p99 within the budget on every scene
+// (docs/BENCHMARKS.md, "Station").
+Quality StartingQuality(const std::array<std::vector<double>, 3>& probe_ms, double budget_ms,
+                        double share = 0.6);
 
 class MeshView {
  public:

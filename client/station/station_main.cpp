@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -212,8 +213,9 @@ void DeclareOptions(ArgParser& p) {
               false, "-1")
       .Within({-1, 32})
       .Option("quality", Kind::kString,
-              "auto (from measured frame times), low (no shadows or detail), medium or high", false,
-              "auto")
+              "auto (the highest level whose frames before the trial fit the budget, lowered while "
+              "frames run over it), low (no shadows or detail), medium or high",
+              false, "auto")
       .Option("duration", Kind::kDouble, "stop after this many seconds live (0: replay end)", false,
               "0")
       .Option("settle", Kind::kDouble, "seconds to run on after the replay ends", false, "0.5")
@@ -387,9 +389,11 @@ struct Trial {
   double rate_hz = 0, last_rate_at = 0;
   client::StationStats hud_stats;  // the HUD's figures, refreshed twice a second
   client::StationView shown;
-  double held_s = 0, last_frame_at = 0;  // the task's quantity within tolerance, so far
-  double confirmed_at = -1;              // a needle's confirmation, live time
-  std::vector<double> draw_ms;           // per frame: draw and finish, ms
+  double held_s = 0, last_frame_at = 0;         // the task's quantity within tolerance, so far
+  double confirmed_at = -1;                     // a needle's confirmation, live time
+  std::vector<double> draw_ms;                  // per frame: draw and finish, ms
+  std::array<std::vector<double>, 3> probe_ms;  // --quality auto: the frames before the trial, ms
+  client::Quality started_at = client::Quality::kHigh;  // the level the trial started at
   // An instructor's station: the mode's switches (scripted and from the keys).
   std::optional<client::InstructorControls> controls;
 
@@ -462,7 +466,9 @@ struct Trial {
     overlay.grasping = shown.command.grasping;
     const bool palpate = scene.task.kind == vsurg::scoring::TaskKind::kPalpate;
     const bool needle = scene.task.kind == vsurg::scoring::TaskKind::kInsert;
-    overlay.hud = {"vsurg station  " + scene.name + "  session " + std::to_string(session),
+    overlay.hud = {"vsurg station  " + scene.name + "  session " + std::to_string(session) +
+                       "  view " + client::QualityName(screen.view->quality()) +
+                       (screen.fixed_quality ? "" : " (auto)"),
                    sim::LinkStatus(rate_hz, s.rtt_p50_us, s.loss),
                    needle ? "needle depth " + Fixed(overlay.guidance.current * 1e3, 1) +
                                 " mm   force " + Fixed(shown.force.norm(), 2) + " N"
@@ -523,7 +529,34 @@ struct Trial {
     if (p.Has("screenshot-before"))
       if (auto s = gl.SaveScreenshot(p.String("screenshot-before")); !s.ok()) return s;
     gl.EndFrame();
+    started_at = screen.fixed_quality.value_or(client::Quality::kHigh);
+    if (!screen.fixed_quality) ChooseQuality(overlay);
     return vsurg::Status::Ok();
+  }
+
+  // --quality auto, before the trial: kProbeFrames frames of the tissue at rest at high, then at
+  // medium if high was too slow (each level's first frame uncounted: it compiles that level's
+  // shaders). The trial starts at the level client::StartingQuality picks, and the governor never
+  // takes it higher: no slow frames in the trial while it decides.
+  void ChooseQuality(const client::Overlay& overlay) {
+    constexpr int kProbeFrames = 12;
+    client::GlSurface& gl = *screen.gl;
+    const double budget_ms = 1e3 / p.Double("fps");
+    for (client::Quality q : {client::Quality::kHigh, client::Quality::kMedium}) {
+      screen.view->SetQuality(q);
+      for (int i = 0; i <= kProbeFrames; ++i) {
+        const auto start = std::chrono::steady_clock::now();
+        screen.view->Draw(gl.width(), gl.height(), overlay);
+        gl.Finish();
+        if (i > 0) probe_ms[static_cast<size_t>(q)].push_back(1e3 * Seconds(start));
+        gl.EndFrame();
+      }
+      if (client::StartingQuality(probe_ms, budget_ms) == q) break;
+    }
+    const client::Quality chosen = client::StartingQuality(probe_ms, budget_ms);
+    screen.governor = std::make_unique<client::QualityGovernor>(chosen, budget_ms, chosen);
+    screen.view->SetQuality(chosen);
+    started_at = chosen;
   }
 
   // --screenshot at --screenshot-at.
@@ -614,7 +647,7 @@ vsurg::Expected<Screen> OpenScreen(const ArgParser& p, const sim::Scene& scene,
   screen.gl = std::move(surface).value();
   screen.view = std::make_unique<client::MeshView>(mesh.surface, std::move(visual));
   screen.governor = std::make_unique<client::QualityGovernor>(
-      screen.fixed_quality.value_or(client::Quality::kHigh));
+      screen.fixed_quality.value_or(client::Quality::kHigh), 1e3 / p.Double("fps"));
   screen.view->SetQuality(screen.governor->level());
   screen.rest = &mesh.surface;
   screen.twist = client::CoilTwistView::For(scene, mesh);
@@ -680,6 +713,16 @@ vsurg::Status ShowSummary(const ArgParser& p, const sim::Scene& scene, Screen& s
 }
 
 // The trial's figures as one JSON object (--json).
+// --quality auto's probe: each probed level's 90th percentile (ms); levels not probed are absent.
+nlohmann::json ProbeJson(const std::array<std::vector<double>, 3>& probe_ms) {
+  nlohmann::json j = nlohmann::json::object();
+  for (client::Quality q : {client::Quality::kHigh, client::Quality::kMedium}) {
+    const std::vector<double>& t = probe_ms[static_cast<size_t>(q)];
+    if (!t.empty()) j[client::QualityName(q)] = Percentile(t, 0.9);
+  }
+  return j;
+}
+
 nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::StationStatus& st,
                            const client::StationStats& stats, const Trial& trial,
                            int render_threads,
@@ -718,6 +761,9 @@ nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::
                       {"loop_hz_min_1s", stats.loop_hz_min},
                       {"loop_hz_max_1s", stats.loop_hz_max},
                       {"frames", trial.draw_ms.size()},
+                      {"quality_start", client::QualityName(trial.started_at)},
+                      {"quality_end", client::QualityName(trial.screen.view->quality())},
+                      {"quality_probe_p90_ms", ProbeJson(trial.probe_ms)},
                       {"draw_ms_p50", Percentile(trial.draw_ms, 0.5)},
                       {"render_threads", render_threads},
                       {"draw_ms_p99", Percentile(trial.draw_ms, 0.99)},

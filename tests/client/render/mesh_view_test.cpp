@@ -651,6 +651,40 @@ TEST(QualityGovernorTest, StepsDownWhenFramesRunLongAndNeverBackToALevelTooSlow)
   EXPECT_EQ(up.level(), Quality::kLow) << "up only after 120 fast frames";
   for (int i = 0; i < 90; ++i) up.Update(3);
   EXPECT_EQ(up.level(), Quality::kMedium);
+  // The tail decides: two slow frames in thirty step down (a p90 rule would keep the level and
+  // its p99 over the budget); one does not (a single hitch).
+  QualityGovernor tail(Quality::kMedium, 16.7);
+  for (int i = 0; i < 30; ++i) tail.Update(i == 7 ? 30 : 9);
+  EXPECT_EQ(tail.level(), Quality::kMedium);
+  for (int i = 0; i < 30; ++i) tail.Update(i == 7 || i == 20 ? 30 : 9);
+  EXPECT_EQ(tail.level(), Quality::kLow);
+  // Never above the level chosen before the trial, however fast the frames.
+  QualityGovernor capped(Quality::kMedium, 16.7, Quality::kMedium);
+  for (int i = 0; i < 600; ++i) capped.Update(2);
+  EXPECT_EQ(capped.level(), Quality::kMedium);
+}
+
+// The level a trial starts at, from frames drawn before it: the highest whose p90 is within the
+// share of the budget; a level not probed counts as too slow; low when nothing fits.
+TEST(QualityGovernorTest, TheTrialStartsAtTheHighestLevelWhoseProbeFitsItsShare) {
+  const auto probe = [](std::vector<double> high, std::vector<double> medium) {
+    std::array<std::vector<double>, 3> p;
+    p[static_cast<size_t>(Quality::kHigh)] = std::move(high);
+    p[static_cast<size_t>(Quality::kMedium)] = std::move(medium);
+    return p;
+  };
+  const std::vector<double> fast(12, 6.0), slow(12, 14.0);
+  EXPECT_EQ(StartingQuality(probe(fast, {}), 16.7), Quality::kHigh);
+  EXPECT_EQ(StartingQuality(probe(slow, fast), 16.7), Quality::kMedium);
+  EXPECT_EQ(StartingQuality(probe(slow, slow), 16.7), Quality::kLow);
+  EXPECT_EQ(StartingQuality(probe(slow, {}), 16.7), Quality::kLow) << "medium not probed";
+  EXPECT_EQ(StartingQuality(probe(slow, {}), 16.7, 0.9), Quality::kHigh) << "a wider share";
+  // The 90th percentile, not the mean: two slow frames in twelve are the tail.
+  std::vector<double> tail(12, 4.0);
+  tail[3] = tail[9] = 15.0;
+  EXPECT_EQ(StartingQuality(probe(tail, fast), 16.7), Quality::kMedium);
+  tail[9] = 4.0;  // one: the p90 of twelve is the second-slowest
+  EXPECT_EQ(StartingQuality(probe(tail, fast), 16.7), Quality::kHigh);
 }
 
 // In a fresh process (a death test's child, re-run from the start): the rasterizer threads

@@ -402,6 +402,16 @@ TEST(StationBinaryTest, HeadlessScreenshotsShowTheTwistAndAMonitorNeedsAnInstruc
   // the server's deformation thread: over a hundred on an idle machine, a few dozen under a
   // sanitizer beside other suites; the pictures below show what they moved.
   EXPECT_GE(summary["scene_chunks"].get<int>(), 5) << station.out;
+  // --quality auto chose the trial's level from frames drawn before it (high probed first), and
+  // the trial never went above that level.
+  const auto level = [](const std::string& q) {
+    return q == "low" ? 0 : q == "medium" ? 1 : q == "high" ? 2 : -1;
+  };
+  EXPECT_TRUE(summary["quality_probe_p90_ms"].contains("high")) << station.out;
+  const int start = level(summary["quality_start"].get<std::string>());
+  const int end = level(summary["quality_end"].get<std::string>());
+  EXPECT_GE(end, 0);
+  EXPECT_LE(end, start) << station.out;
 
   auto a = ReadRgbPng(before), b = ReadRgbPng(after);
   ASSERT_TRUE(a.ok() && b.ok());
