@@ -531,6 +531,7 @@ struct Trial {
     gl.EndFrame();
     started_at = screen.fixed_quality.value_or(client::Quality::kHigh);
     if (!screen.fixed_quality) ChooseQuality(overlay);
+    started = std::chrono::steady_clock::now();  // --connect-timeout counts from the join
     return vsurg::Status::Ok();
   }
 
