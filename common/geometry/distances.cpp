@@ -163,69 +163,54 @@ std::vector<double> ArcLengths(const std::vector<Vec3>& polyline) {
   return s;
 }
 
-CentrelineProjection ProjectPointOntoPolyline(const std::vector<Vec3>& polyline, const Vec3& p) {
-  CentrelineProjection best;
-  double best_d2 = kInf, arc = 0;
-  for (size_t i = 0; i + 1 < polyline.size(); ++i) {
-    const Vec3 seg = polyline[i + 1] - polyline[i];
-    const double len = seg.norm();
-    if (!(len > 0)) continue;
-    const Vec3 dir = seg / len;
-    const double along = std::clamp((p - polyline[i]).dot(dir), 0.0, len);
-    const Vec3 c = polyline[i] + along * dir;
-    const double d2 = (p - c).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best = CentrelineProjection{arc + along, c, dir};
-    }
-    arc += len;
-  }
-  return best;
-}
-
 namespace {
-// A polyline's segments of non-zero length as plain numbers, made once for many points: the
-// start, the unit direction, the length and the arc length at the start (m).
+// One segment of a polyline with non-zero length: its start, unit direction, length and the arc
+// length at its start (m).
 struct PolylineSegment {
-  double a[3], dir[3], len, arc;
+  Vec3 a = Vec3::Zero();
+  Vec3 dir = Vec3::UnitZ();
+  double len = 0, arc = 0;
 };
 
-std::vector<PolylineSegment> SegmentsOf(const std::vector<Vec3>& polyline) {
-  std::vector<PolylineSegment> out;
+// Calls f(segment) for each segment of non-zero length, in order.
+template <typename F>
+void ForEachSegment(const std::vector<Vec3>& polyline, F f) {
   double arc = 0;
   for (size_t i = 0; i + 1 < polyline.size(); ++i) {
     const Vec3 seg = polyline[i + 1] - polyline[i];
     const double len = seg.norm();
     if (!(len > 0)) continue;
-    const Vec3 dir = seg / len;
-    out.push_back({{polyline[i].x(), polyline[i].y(), polyline[i].z()},
-                   {dir.x(), dir.y(), dir.z()},
-                   len,
-                   arc});
+    f(PolylineSegment{polyline[i], seg / len, len, arc});
     arc += len;
   }
-  return out;
 }
 
-// ProjectPointOntoPolyline over segments made ahead: the same answer, without a square root and a
-// division per segment and point.
-CentrelineProjection ProjectOntoSegments(const std::vector<PolylineSegment>& segments,
-                                         const Vec3& p) {
-  double best_d2 = kInf, best_along = 0;
-  const PolylineSegment* best = nullptr;
-  for (const PolylineSegment& s : segments) {
-    const double w[3] = {p.x() - s.a[0], p.y() - s.a[1], p.z() - s.a[2]};
-    const double along =
-        std::clamp(w[0] * s.dir[0] + w[1] * s.dir[1] + w[2] * s.dir[2], 0.0, s.len);
-    const double e[3] = {w[0] - along * s.dir[0], w[1] - along * s.dir[1], w[2] - along * s.dir[2]};
-    const double d2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
-    if (d2 < best_d2) best_d2 = d2, best_along = along, best = &s;
+// The nearest point to p over the segments offered, the first of equals kept.
+class NearestOnPolyline {
+ public:
+  explicit NearestOnPolyline(const Vec3& p) : p_(p) {}
+  void Offer(const PolylineSegment& s) {
+    const Vec3 w = p_ - s.a;
+    const double along = std::clamp(w.dot(s.dir), 0.0, s.len);
+    const double d2 = (w - along * s.dir).squaredNorm();
+    if (d2 < best_d2_) best_d2_ = d2, along_ = along, best_ = s;
   }
-  if (!best) return {};
-  const Vec3 dir(best->dir[0], best->dir[1], best->dir[2]);
-  return {best->arc + best_along, Vec3(best->a[0], best->a[1], best->a[2]) + best_along * dir, dir};
-}
+  CentrelineProjection Result() const {
+    return {best_.arc + along_, best_.a + along_ * best_.dir, best_.dir};
+  }
+
+ private:
+  Vec3 p_;
+  double best_d2_ = kInf, along_ = 0;
+  PolylineSegment best_;
+};
 }  // namespace
+
+CentrelineProjection ProjectPointOntoPolyline(const std::vector<Vec3>& polyline, const Vec3& p) {
+  NearestOnPolyline nearest(p);
+  ForEachSegment(polyline, [&](const PolylineSegment& s) { nearest.Offer(s); });
+  return nearest.Result();
+}
 
 Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vector<Vec3>& points,
                                                                 const std::vector<Vec3>& polyline) {
@@ -237,9 +222,16 @@ Expected<std::vector<CentrelineProjection>> ProjectOntoPolyline(const std::vecto
           "centreline", "centreline point " + std::to_string(i + 1) + " repeats the one before it");
     }
   }
-  const std::vector<PolylineSegment> segments = SegmentsOf(polyline);
+  // The segments made once for every point (not a square root and a division per segment and
+  // point).
+  std::vector<PolylineSegment> segments;
+  ForEachSegment(polyline, [&](const PolylineSegment& s) { segments.push_back(s); });
   std::vector<CentrelineProjection> out(points.size());
-  for (size_t k = 0; k < points.size(); ++k) out[k] = ProjectOntoSegments(segments, points[k]);
+  for (size_t k = 0; k < points.size(); ++k) {
+    NearestOnPolyline nearest(points[k]);
+    for (const PolylineSegment& s : segments) nearest.Offer(s);
+    out[k] = nearest.Result();
+  }
   return out;
 }
 
