@@ -103,8 +103,10 @@ echo "session $guided, the trainee's record: guided share $share"
 step "Palpation: a scripted novice searches a pad for the lumps drawn for this attempt (search device)"
 # The lumps are drawn for the session from a random seed; the station never shows them, and the
 # score and what the search found come at the end (the dashboard's replay shows where they were).
+# Its session waits for its case's table (built ahead at nice 10: about 7 s of a core, a minute on
+# a busy machine), hence the longer --connect-timeout.
 "$bin/vsurg-station" --server "$server" --token "$trainee_token" --scene lump-search \
-  --device search --search-style novice --headless --width 960 --height 600 \
+  --device search --search-style novice --headless --width 960 --height 600 --connect-timeout 120 \
   --screenshot-summary "$shots/station-palpation-novice.png" --json \
   > "$out/station-palpation.json" 2> "$out/station-palpation.log"
 lumps="$(sed -n 's/.*"lumps":\([0-9]*\).*/\1/p' "$out/station-palpation.json")"
