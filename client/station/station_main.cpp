@@ -506,14 +506,18 @@ struct Trial {
                             "% lost (limits 300 ms, 10%)");
   }
 
-  // The frame drawn and finished (its whole cost, not just the commands queued); the quality
-  // follows the measured times unless fixed.
-  void Draw(const client::Overlay& overlay) {
+  // The frame drawn and finished: its whole cost in ms, not just the commands queued.
+  double DrawFinished(const client::Overlay& overlay) {
     client::GlSurface& gl = *screen.gl;
     const auto draw_start = std::chrono::steady_clock::now();
     screen.view->Draw(gl.width(), gl.height(), overlay);
     gl.Finish();
-    draw_ms.push_back(1e3 * Seconds(draw_start));
+    return 1e3 * Seconds(draw_start);
+  }
+
+  // A trial's frame, its time kept; the quality follows the measured times unless fixed.
+  void Draw(const client::Overlay& overlay) {
+    draw_ms.push_back(DrawFinished(overlay));
     if (!screen.fixed_quality) screen.view->SetQuality(screen.governor->Update(draw_ms.back()));
   }
 
@@ -524,13 +528,11 @@ struct Trial {
   vsurg::Status FirstFrame() {
     client::GlSurface& gl = *screen.gl;
     const client::Overlay overlay = Compose(station.status(), 0);
-    screen.view->Draw(gl.width(), gl.height(), overlay);
-    gl.Finish();
+    DrawFinished(overlay);
     if (p.Has("screenshot-before"))
       if (auto s = gl.SaveScreenshot(p.String("screenshot-before")); !s.ok()) return s;
     gl.EndFrame();
-    started_at = screen.fixed_quality.value_or(client::Quality::kHigh);
-    if (!screen.fixed_quality) ChooseQuality(overlay);
+    started_at = screen.fixed_quality ? *screen.fixed_quality : ChooseQuality(overlay);
     started = std::chrono::steady_clock::now();  // --connect-timeout counts from the join
     return vsurg::Status::Ok();
   }
@@ -539,25 +541,22 @@ struct Trial {
   // medium if high was too slow (each level's first frame uncounted: it compiles that level's
   // shaders). The trial starts at the level client::StartingQuality picks, and the governor never
   // takes it higher: no slow frames in the trial while it decides.
-  void ChooseQuality(const client::Overlay& overlay) {
+  client::Quality ChooseQuality(const client::Overlay& overlay) {
     constexpr int kProbeFrames = 12;
-    client::GlSurface& gl = *screen.gl;
     const double budget_ms = 1e3 / p.Double("fps");
     for (client::Quality q : {client::Quality::kHigh, client::Quality::kMedium}) {
       screen.view->SetQuality(q);
       for (int i = 0; i <= kProbeFrames; ++i) {
-        const auto start = std::chrono::steady_clock::now();
-        screen.view->Draw(gl.width(), gl.height(), overlay);
-        gl.Finish();
-        if (i > 0) probe_ms[static_cast<size_t>(q)].push_back(1e3 * Seconds(start));
-        gl.EndFrame();
+        const double ms = DrawFinished(overlay);
+        if (i > 0) probe_ms[static_cast<size_t>(q)].push_back(ms);
+        screen.gl->EndFrame();
       }
       if (client::StartingQuality(probe_ms, budget_ms) == q) break;
     }
     const client::Quality chosen = client::StartingQuality(probe_ms, budget_ms);
     screen.governor = std::make_unique<client::QualityGovernor>(chosen, budget_ms, chosen);
     screen.view->SetQuality(chosen);
-    started_at = chosen;
+    return chosen;
   }
 
   // --screenshot at --screenshot-at.
@@ -713,7 +712,6 @@ vsurg::Status ShowSummary(const ArgParser& p, const sim::Scene& scene, Screen& s
   }
 }
 
-// The trial's figures as one JSON object (--json).
 // --quality auto's probe: each probed level's 90th percentile (ms); levels not probed are absent.
 nlohmann::json ProbeJson(const std::array<std::vector<double>, 3>& probe_ms) {
   nlohmann::json j = nlohmann::json::object();
@@ -724,6 +722,7 @@ nlohmann::json ProbeJson(const std::array<std::vector<double>, 3>& probe_ms) {
   return j;
 }
 
+// The trial's figures as one JSON object (--json).
 nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::StationStatus& st,
                            const client::StationStats& stats, const Trial& trial,
                            int render_threads,
