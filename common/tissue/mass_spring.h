@@ -146,6 +146,20 @@ class MassSpringModel {
   void ClearAnchors();
   void SetIntegrator(Integrator integrator);
 
+  // Topology changes (a cut: tissue/cut_membrane.h, mass_spring_topology.cpp). Set-up: room for
+  // `capacity` particles in all, so that SplitParticle never allocates.
+  void ReserveParticles(int capacity);
+  // A new particle, a copy of particle `of` (its rest and current position, velocity and role;
+  // no external force), of `mass` kg (> 0): a cut separates a node into copies, one per side.
+  // Returns its index, or -1 when the reserved room is full or the mass is not > 0. The
+  // implicit solve's warm start begins afresh. Never allocates within the reserved room.
+  int SplitParticle(int of, double mass);
+  void SetMass(int particle, double mass);  // kg, finite and > 0; else ignored
+  // Spring s's ends and rest length (m): a cut moves a spring from a node to its copy, and
+  // node snapping changes the rest lengths around a moved node. Ignored when out of range.
+  void SetSpring(size_t s, int i, int j, double rest_length);
+  void SetRestPosition(int particle, const Vec3& rest);  // m; finite
+
   // Advances by dt seconds in `substeps` equal steps. Returns false, leaves the state at rest
   // and sets diverged() when the motion diverged (non-finite or beyond divergence_distance).
   bool Step(double dt, int substeps = 1);

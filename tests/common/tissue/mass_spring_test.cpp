@@ -602,3 +602,39 @@ TEST(MassSpringTest, ImplicitFirstGuessDegreeFollowsTheDriveAndLeavesTheSolution
 
 }  // namespace
 }  // namespace vsurg::tissue
+
+namespace vsurg::tissue {
+namespace {
+
+// A particle split in two (a cut): each copy takes the springs moved to it, the two ends then move
+// apart under their own springs, and no copy is made beyond the room reserved.
+TEST(MassSpringTopologyTest, ASplitParticleSeparatesItsSpringsWithinTheRoomReserved) {
+  MassSpringSystem s;
+  s.rest_positions = {Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0.2, 0, 0)};
+  s.masses = {1.0, 1.0, 1.0};
+  s.springs = {{0, 1, 100, 0.1, 0.05}, {1, 2, 100, 0.1, 0.05}};  // stretched: rest 0.05 m
+  MassSpringStepParams p;
+  p.integrator = Integrator::kImplicitEuler;
+  auto m = MassSpringModel::Create(s, p);
+  ASSERT_TRUE(m.ok());
+  m->SetFixed(0, true), m->SetFixed(2, true);
+  m->ReserveParticles(4);
+  for (int i = 0; i < 50; ++i) ASSERT_TRUE(m->Step(1e-3));
+  EXPECT_NEAR(m->positions()[1].x(), 0.1, 1e-9) << "balanced between its two springs";
+  const int copy = m->SplitParticle(1, 0.5);
+  ASSERT_EQ(copy, 3);
+  m->SetMass(1, 0.5);
+  size_t right = 0;
+  for (size_t k = 0; k < m->system().springs.size(); ++k)
+    if (m->system().springs[k].j == 2 || m->system().springs[k].i == 2) right = k;
+  m->SetSpring(right, copy, 2, 0.05);
+  EXPECT_EQ(m->SplitParticle(1, 0.5), -1) << "beyond the room reserved";
+  EXPECT_EQ(m->SplitParticle(1, 0.0), -1) << "a mass must be > 0";
+  for (int i = 0; i < 3000; ++i) ASSERT_TRUE(m->Step(1e-3));
+  // Each half is pulled to its own fixed end's rest length: the cut opens.
+  EXPECT_NEAR(m->positions()[1].x(), 0.05, 1e-4);
+  EXPECT_NEAR(m->positions()[copy].x(), 0.15, 1e-4);
+}
+
+}  // namespace
+}  // namespace vsurg::tissue

@@ -1,0 +1,155 @@
+// A cuttable membrane: a thin patch of tissue (skin, or the gauze of a pattern-cutting drill) held
+// taut in a frame, as triangles of springs, whose topology a blade changes while it deforms
+// (DESIGN.md "Cutting").
+//
+// Model. The patch is a rectangle in the plane z = 0 (normal +z) meshed as a triangular lattice
+// (equilateral triangles of side size_x / cells, the rows closed at the sides by half
+// triangles), its rim held by the frame. Each triangle
+// T carries its own three edge springs, k = E t A_T / |e|² (the triangulated-membrane stiffness in
+// the form of Van Gelder, "Approximate simulation of elastic membranes by triangulated spring
+// meshes", J. Graphics Tools 1998), so an interior edge gets one spring from each side; rest
+// lengths are the mesh's shortened by the frame's pre-strain, which gives the patch its
+// out-of-plane stiffness. Masses lumped, ρ t A_T / 3 per corner. The solver is MassSpringModel's
+// implicit Euler.
+//
+// Cutting by node snapping (Nienhuys & van der Stappen, "A surgery simulation supporting cuts and
+// finite element deformation", MICCAI 2001): the cut runs along mesh edges; the node ahead of the
+// cut's front is first moved, in the rest state, onto the blade's path when that moves it by at
+// most snap_fraction of the edge and leaves every triangle around it with angles of at least
+// min_angle (else the cut follows the edge as it is). Cutting an edge separates the triangles on
+// its two sides at both its ends: each node is given one particle per wedge of its triangles that
+// uncut edges still join (MassSpringModel::SplitParticle, the springs of a wedge's triangles moved
+// to its particle, the masses shared again). Why this method: it makes no new triangles, so no
+// sliver and no T-junction can arise (element splitting makes both), the springs of a triangle
+// never change but for their ends and, after a snap, their rest lengths, and the cost per cut
+// edge is a constant (two fans of at most eight triangles); its price is that a cut can only pass
+// through nodes, which snapping makes good to a fraction of an edge. The virtual node algorithm
+// (Molino, Bao & Fedkiw 2004) cuts inside elements without snapping, at the cost of duplicated
+// elements and embedded surfaces, which a patch meshed at the blade's resolution does not need.
+//
+// A cut that closes a loop frees the piece inside: its triangles are removed from the patch (the
+// piece is taken out, as in the drill), its particles held still, and the piece counted.
+//
+// Units: m, kg, s, N, Pa. Threads: one (the deformation thread); Cut and Step never allocate
+// within the room reserved at Create (max_particles).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/core/expected.h"
+#include "common/tissue/mass_spring.h"
+
+namespace vsurg::tissue {
+
+using Vec2 = Eigen::Vector2d;
+
+struct CutMembraneParams {
+  double size_x = 0.08, size_y = 0.08;  // m, the frame's inner rectangle, centred on the origin
+  int cells = 32;                       // triangles' edges across size_x
+  double thickness = 1.2e-3;            // m
+  double youngs_modulus = 0.5e6;        // Pa, in-plane
+  double density = 1100;                // kg/m³
+  double damping = 0.02;                // N·s/m, every spring
+  double pretension = 0.02;             // the frame's pre-strain (rest lengths shortened by it)
+  double snap_fraction = 0.5;  // a node moves onto the cut by at most this share of an edge
+  double min_angle_deg = 20;   // no snap that leaves a triangle angle below this
+  // A cut advances to the node ahead when the blade has passed this share of the edge to it.
+  double advance_fraction = 0.6;
+  int max_particles = 0;  // room for the copies cuts make; 0: twice the nodes
+};
+
+// Checks each field by name ("thickness: must be > 0 m").
+Status CheckCutMembrane(const CutMembraneParams& p);
+
+class CutMembrane {
+ public:
+  static Expected<CutMembrane> Create(const CutMembraneParams& params);
+
+  // Carves the cut from `from` toward `to` (points in the patch's rest plane, m): starts at the
+  // cut node nearest `from` within an edge's length (a cut continued, or a branch off it), else
+  // at the node nearest `from` (a new cut, that node snapped onto `from`), and walks node to
+  // node while `to` is past advance_fraction of the next edge. Returns the edges cut. A segment
+  // outside the patch or not finite cuts nothing.
+  int Cut(const Vec2& from, const Vec2& to);
+  // One implicit step of dt s; false when the model diverged (it is then back at rest).
+  bool Step(double dt);
+  // A force (N) on the particle nearest `at` (rest plane) that lies on the side of the cut the
+  // point is on; zero clears it. Held until changed.
+  void Load(const Vec2& at, const Vec3& force);
+
+  // The patch drawn: its triangles (particles), the removed ones left out.
+  struct Face {
+    std::array<int32_t, 3> v;
+  };
+  int FaceCount() const { return static_cast<int>(tris_.size()); }
+  bool Removed(int face) const { return tris_[face].removed; }
+  Face face(int f) const { return {tris_[f].v}; }
+  const std::vector<Vec3>& positions() const { return model_->positions(); }
+  const MassSpringModel& model() const { return *model_; }
+  const CutMembraneParams& params() const { return p_; }
+  int node_count() const { return static_cast<int>(node_rest_.size()); }
+  // The rest-plane position of particle i (after snapping).
+  Vec2 Rest(int particle) const;
+  // The original node a particle is a copy of.
+  int NodeOf(int particle) const { return node_of_[particle]; }
+
+  // The cut so far: its edges (pairs of nodes), in the order they were cut.
+  const std::vector<std::array<int32_t, 2>>& cut_edges() const { return cut_; }
+  bool EdgeCut(int a, int b) const;
+  int freed_pieces() const { return freed_; }
+  int snaps() const { return snaps_; }
+  // The in-plane stiffness at a node along `direction` (the diagonal of its springs' stiffness,
+  // N/m), and out of plane from the frame's tension: what a blade pressing there first meets.
+  double InPlaneStiffness(int node, const Vec2& direction) const;
+  double NormalStiffness() const;
+  double EdgeLength() const { return h_; }  // m, the lattice's edge
+
+ private:
+  struct Tri {
+    std::array<int32_t, 3> v;       // particles
+    std::array<int32_t, 3> n;       // their nodes
+    std::array<int32_t, 3> spring;  // spring k joins v[k] and v[(k + 1) % 3]
+    std::array<int32_t, 3> across;  // the triangle across edge k (-1: the rim)
+    bool removed = false;
+  };
+  static constexpr int kMaxFan = 8;  // triangles around a node (six inside), and neighbours
+
+  CutMembrane() = default;
+  void BuildGrid();
+  Status BuildModel();
+  int NearestNode(const Vec2& p, bool on_cut_only, double within) const;
+  int NextNode(int a, const Vec2& to, const Vec2& on, const Vec2& dir) const;
+  void Snap(int node, const Vec2& a, const Vec2& to);
+  void SnapTo(int node, const Vec2& at);
+  void MoveCorner(int t, int corner, int particle);
+  bool SnapKeepsQuality(int node, const Vec2& at) const;
+  void CutEdge(int a, int b);
+  void SeparateFan(int node);
+  void ShareMasses(int node);
+  void FreeLoosePieces();
+  void FreePiece(int label);
+  double RestLength(const Tri& t, int k) const;
+
+  CutMembraneParams p_;
+  std::optional<MassSpringModel> model_;  // set by Create
+  double h_ = 0;
+  std::vector<Vec2> node_rest_;  // per node
+  std::vector<bool> node_fixed_, node_on_cut_;
+  std::vector<std::array<int32_t, kMaxFan>> fan_;  // triangles around each node (-1: none)
+  std::vector<std::array<int32_t, kMaxFan>> adj_;  // neighbours of each node (-1: none)
+  std::vector<std::array<uint8_t, kMaxFan>> adj_cut_;
+  std::vector<Tri> tris_;
+  std::vector<int32_t> node_of_;  // per particle
+  std::vector<std::array<int32_t, 2>> cut_;
+  std::vector<int32_t> label_, stack_;  // flood fill, per triangle (sized at Create)
+  int freed_ = 0, snaps_ = 0;
+  int32_t loaded_ = -1;
+  int32_t front_ = -1;  // the node the last cut ended at
+};
+
+}  // namespace vsurg::tissue
