@@ -22,6 +22,7 @@ const char* kTopHelp =
     "  trainee       write a scripted trainee's trajectory (good, hesitant, rough)\n"
     "  contact-law   press a scene as the good trainee and print its contact's tissue law\n"
     "  search        draw a palpation's case and search it with a scripted examiner\n"
+    "  cut           run the pattern-cutting drill with a scripted hand\n"
     "  score         weighted evaluation report (the coil-spring paper eq. 9-11) with rater "
     "reliability\n\n"
     "`vsurg-sim <command> --help` describes each command's options.\n";
@@ -31,7 +32,7 @@ const char* kTopHelp =
 int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   if (args.empty()) {
     err << "vsurg-sim: a command is required (coil, coil-inverse, deform, calibrate, msm, run, "
-           "trainee, contact-law, search, score; see --help)\n";
+           "trainee, contact-law, search, score, cut; see --help)\n";
     return kExitUsage;
   }
   const std::string& cmd = args[0];
@@ -50,8 +51,10 @@ int RunVsurgSim(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cmd == "contact-law") return commands::ContactLaw(rest, out, err);
   if (cmd == "search") return commands::Search(rest, out, err);
   if (cmd == "score") return commands::Score(rest, out, err);
+  if (cmd == "cut") return commands::Cut(rest, out, err);
   err << "vsurg-sim: unknown command '" << cmd
-      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, search, score; "
+      << "' (coil, coil-inverse, deform, calibrate, msm, run, trainee, contact-law, search, score, "
+         "cut; "
          "see "
          "--help)\n";
   return kExitUsage;

@@ -47,6 +47,10 @@ double BladeModel::CuttingForce() const {
   return p_.toughness * p_.thickness;
 }
 
+double BladeModel::Reach() const {
+  return CuttingForce() / p_.in_plane_stiffness + 0.5 * p_.width;
+}
+
 BladeForce BladeModel::Step(const Vec3& tip) {
   if (!tip.allFinite()) return {};
   const bool over = std::abs(tip.x()) > p_.half_x || std::abs(tip.y()) > p_.half_y;
@@ -62,8 +66,8 @@ BladeForce BladeModel::Step(const Vec3& tip) {
 BladeForce BladeModel::Press(const Vec3& tip) {
   BladeForce out;
   double qx = 0, qy = 0;
-  const bool in_slit =
-      Nearest(tip.x(), tip.y(), qx, qy) && std::hypot(tip.x() - qx, tip.y() - qy) <= 0.5 * p_.width;
+  const bool in_slit = Nearest(tip.x(), tip.y(), qx, qy) >= 0 &&
+                       std::hypot(tip.x() - qx, tip.y() - qy) <= 0.5 * p_.width;
   const double f = p_.normal_stiffness * -tip.z();
   if (!in_slit && f < PunctureForce()) {
     out.force = Vec3(0, 0, f);
@@ -81,10 +85,20 @@ BladeForce BladeModel::Draw(const Vec3& tip) {
   BladeForce out;
   out.through = true;
   double qx = 0, qy = 0;
-  if (!Nearest(tip.x(), tip.y(), qx, qy)) return out;
+  const int seg = Nearest(tip.x(), tip.y(), qx, qy);
+  if (seg < 0) return out;
+  if (std::hypot(tip.x() - qx, tip.y() - qy) <= 0.5 * p_.width) {  // in a slit
+    CutLigament(tip, seg, qx, qy);
+    return out;
+  }
+  // A blade still at its front goes on from there; one pushed out of its slit elsewhere begins
+  // from the nearest point of the cut (a branch).
+  const Segment& last = segments_[count_ - 1];
+  // (The front lags the crack by up to min_segment on a curve: a blade that far more is at it.)
+  if (std::hypot(tip.x() - last.bx, tip.y() - last.by) <= Reach() + 2 * p_.min_segment)
+    qx = last.bx, qy = last.by;
   const double dx = tip.x() - qx, dy = tip.y() - qy, dist = std::hypot(dx, dy);
   const double d = dist - 0.5 * p_.width;
-  if (d <= 0) return out;
   const double ux = dx / dist, uy = dy / dist;
   const double fc = CuttingForce(), k = p_.in_plane_stiffness;
   double f = k * d;
@@ -100,17 +114,31 @@ BladeForce BladeModel::Draw(const Vec3& tip) {
   return out;
 }
 
-bool BladeModel::Nearest(double x, double y, double& qx, double& qy) const {
+// The blade reached another part of its cut (a circle closing on its start) while it was still
+// loading its front: the ligament between the front and that part, shorter than the distance the
+// tissue ahead of a front stretches before it gives (f_c / k_t), is cut through.
+void BladeModel::CutLigament(const Vec3& tip, int seg, double qx, double qy) {
+  if (count_ == 0 || seg == count_ - 1 || count_ >= kMaxSegments) return;
+  const Segment& last = segments_[count_ - 1];
+  if (std::hypot(tip.x() - last.bx, tip.y() - last.by) > Reach() + 2 * p_.min_segment) return;
+  const double len = std::hypot(qx - last.bx, qy - last.by);
+  if (len < p_.min_segment || len > Reach() + 0.5 * p_.width + 2 * p_.min_segment) return;
+  segments_[count_++] = {last.bx, last.by, qx, qy};
+  length_ += len;
+}
+
+int BladeModel::Nearest(double x, double y, double& qx, double& qy) const {
   double best = INFINITY;
+  int at = -1;
   for (int i = 0; i < count_; ++i) {
     const Segment& s = segments_[i];
     const double ex = s.bx - s.ax, ey = s.by - s.ay, e2 = ex * ex + ey * ey;
     const double u = e2 > 0 ? std::clamp(((x - s.ax) * ex + (y - s.ay) * ey) / e2, 0.0, 1.0) : 0;
     const double px = s.ax + u * ex, py = s.ay + u * ey;
     const double d2 = (x - px) * (x - px) + (y - py) * (y - py);
-    if (d2 < best) best = d2, qx = px, qy = py;
+    if (d2 < best) best = d2, qx = px, qy = py, at = i;
   }
-  return count_ > 0;
+  return at;
 }
 
 // The crack grown from (qx, qy) to (cx, cy): the last segment extended when this continues it in

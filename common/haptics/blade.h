@@ -22,7 +22,9 @@
 // crack area per metre whatever its inclination (the slice-push reduction of Atkins, Xu &
 // Jeronimidis 2004 comes from friction, which this model does not render). The crack's path is
 // kept as segments (at least min_segment long; a straight run is one segment), so the blade
-// back in its own slit meets no force, and pushed sideways out of it begins a branch at f_c.
+// back in its own slit meets no force, and pushed sideways out of it begins a branch at f_c. A
+// blade that reaches another part of its cut while loading its front (a circle closing on its
+// start) cuts the ligament left between them.
 //
 // Parameters (scenes/pattern-cut.json): J_c = 1.7 kJ/m² (rat skin, scissors cutting test:
 // Pereira, Lucas & Swee-Hin, J. Biomech. 30(1), 1997), t = 1.2 mm; k_t and k_n are the patch's
@@ -75,6 +77,9 @@ class BladeModel {
 
   double PunctureForce() const;  // N, f_p
   double CuttingForce() const;   // N, f_c
+  // m: how far ahead of its front a cutting blade runs (the tissue's stretch at f_c, and the
+  // slit's half width).
+  double Reach() const;
   double CrackLength() const { return length_; }
   int segment_count() const { return count_; }
   const Segment& segment(int i) const { return segments_[i]; }
@@ -83,8 +88,9 @@ class BladeModel {
 
  private:
   explicit BladeModel(const BladeParams& p) : p_(p) {}
-  // The crack's point nearest (x, y); false when there is no crack yet.
-  bool Nearest(double x, double y, double& qx, double& qy) const;
+  // The crack's point nearest (x, y) and its segment; -1 when there is no crack yet.
+  int Nearest(double x, double y, double& qx, double& qy) const;
+  void CutLigament(const Vec3& tip, int seg, double qx, double qy);
   void Grow(double qx, double qy, double cx, double cy);
   BladeForce Press(const Vec3& tip);
   BladeForce Draw(const Vec3& tip);

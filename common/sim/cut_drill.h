@@ -1,0 +1,73 @@
+// The pattern-cutting drill, run whole on one thread (DESIGN.md "Cutting"): a blade driven by a
+// scripted trainee through a cuttable patch at the haptic rate, the blade's fracture-mechanics
+// force (haptics/blade.h), the patch cut and deformed at the same rate (tissue/cut_membrane.h),
+// and the cut scored (scoring/cut.h). What the drill measures: the cost of each stage per step,
+// the force against the fracture model's prediction, and the trainee's metrics.
+//
+// Drill files (scenes/drills/*.json, mm and N as people read them):
+//   { "name": "pattern-cut", "description": "…",
+//     "tissue":  { "size_mm": [80, 80], "cells": 32, "thickness_mm": 1.2,
+//                  "youngs_modulus": 5e5, "density": 1100, "pretension": 0.02 },
+//     "blade":   { "toughness": 1700, "angle_deg": 0, "width_mm": 0.3 },
+//     "pattern": { "type": "circle", "centre_mm": [0, 0], "radius_mm": 15, "band_mm": 2 }
+//              | { "type": "line", "from_mm": [x, y], "to_mm": [x, y], "band_mm": 2 },
+//     "task":    { "force_limit_n": 3, "time_limit_s": 120, "expert_time_s": 25 } }
+// Every value is checked by name ("blade.toughness: must be in […]"); the blade's and the
+// patch's own checks follow (haptics::CheckBlade, tissue::CheckCutMembrane).
+//
+// Set-up allocates; the loop does not but for what the recorder's report keeps.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "common/core/expected.h"
+#include "common/haptics/blade.h"
+#include "common/scoring/cut.h"
+#include "common/tissue/cut_membrane.h"
+
+namespace vsurg::sim {
+
+struct CutDrillSpec {
+  std::string name, description, source;
+  tissue::CutMembraneParams tissue;
+  haptics::BladeParams blade;  // its stiffnesses are the patch's, set by RunCutDrill
+  scoring::CutTask task;
+};
+
+Expected<CutDrillSpec> ParseCutDrill(const std::string& json_text, const std::string& source);
+Expected<CutDrillSpec> LoadCutDrill(const std::string& path);
+
+// A scripted trainee's hand: along the pattern at `speed` with a lateral wobble of `wobble` m
+// (two sines of random phase), lifting the blade out `lifts` times on the way.
+struct CutHand {
+  double speed = 0.005;  // m/s
+  double wobble = 0.0003;
+  int lifts = 0;
+  uint32_t seed = 1;
+  static CutHand Expert(uint32_t seed);
+  static CutHand Novice(uint32_t seed);
+};
+
+struct StageTimes {
+  double p50_us = 0, p99_us = 0, max_us = 0;
+};
+
+struct CutDrillResult {
+  scoring::CutMetrics metrics;
+  double cutting_force = 0;    // N, J_c t: the fracture model's prediction
+  double force_rms_error = 0;  // relative to it, over the steps the cut advanced
+  int cutting_steps = 0;
+  double puncture_force = 0;  // N, the model's f_p, and the largest press before it
+  double peak_press = 0;
+  StageTimes blade, tissue;  // per 1 ms step: the blade's force; the cut and the step
+  double max_cut_us = 0;     // the dearest single topology update
+  int cut_edges = 0, particles = 0, freed = 0, steps = 0;
+  bool diverged = false;
+};
+
+// Runs the drill at 1 kHz until the hand's path ends (or the time limit). Deterministic but for
+// the times.
+Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& hand);
+
+}  // namespace vsurg::sim
