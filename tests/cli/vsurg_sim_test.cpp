@@ -425,3 +425,31 @@ TEST(VsurgSimBinaryTest, ExitCodesAndStreams) {
 
 }  // namespace
 }  // namespace vsurg::cli
+
+namespace vsurg::cli {
+namespace {
+
+// vsurg-sim cut: the straight drill by the expert hand, its JSON's figures consistent with each
+// other; a bad hand and a missing drill refused by name.
+TEST(VsurgSimCutTest, TheStraightDrillRunsAndBadArgumentsAreRefused) {
+  const std::string drill = sim::ScenesDirectory() + "/drills/straight-cut.json";
+  const SimRun r = Sim({"cut", "--drill", drill, "--hand", "expert"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j["drill"], "straight-cut");
+  EXPECT_TRUE(j["completed"].get<bool>());
+  EXPECT_NEAR(j["cutting_force_n"].get<double>(), 1700 * 1.2e-3, 1e-9);
+  EXPECT_LT(j["force_rms_error"].get<double>(), 0.1);
+  EXPECT_LE(j["deviation_rms_mm"].get<double>(), j["deviation_max_mm"].get<double>());
+  EXPECT_GT(j["cut_edges"].get<int>(), 10);
+  EXPECT_GE(j["tissue_step"]["p99_us"].get<double>(), j["tissue_step"]["p50_us"].get<double>());
+  const SimRun bad = Sim({"cut", "--drill", drill, "--hand", "surgeon"});
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.err.find("--hand"), std::string::npos) << bad.err;
+  const SimRun missing = Sim({"cut", "--drill", "/nonexistent/drill.json"});
+  EXPECT_NE(missing.code, 0);
+  EXPECT_NE(missing.err.find("drill"), std::string::npos) << missing.err;
+}
+
+}  // namespace
+}  // namespace vsurg::cli

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 namespace vsurg::haptics {
 namespace {
@@ -130,6 +131,34 @@ TEST(BladeTest, BadParametersAreRefusedByName) {
   EXPECT_EQ(field([](BladeParams& p) { p.angle = 1.5; }), "angle");
   EXPECT_EQ(field([](BladeParams& p) { p.in_plane_stiffness = 0; }), "in_plane_stiffness");
   EXPECT_EQ(field([](BladeParams&) {}), "ok");
+}
+
+}  // namespace
+}  // namespace vsurg::haptics
+
+namespace vsurg::haptics {
+namespace {
+
+// A circle cut all the way round: the blade reaches the start of its own cut while still loading
+// its front, and the ligament between them is cut, so the cut is one closed loop.
+TEST(BladeTest, ACircleClosesOnItsStart) {
+  auto m = BladeModel::Create(Skin());
+  ASSERT_TRUE(m.ok());
+  const double r = 0.015;
+  PressThrough(*m, r, 0);
+  const int n = 20000;
+  for (int i = 0; i <= n; ++i) {
+    const double a = 2 * std::numbers::pi * 1.05 * i / n;
+    m->Step(Vec3(r * std::cos(a), r * std::sin(a), -1e-3));
+  }
+  bool closed = false;
+  for (int i = 1; i < m->segment_count(); ++i) {
+    const auto& s = m->segment(i);
+    closed = closed || std::hypot(s.bx - r, s.by) < 0.5 * Skin().width + 1e-9;
+  }
+  EXPECT_TRUE(closed) << "no segment reaches the cut's start";
+  EXPECT_NEAR(m->CrackLength(), 2 * std::numbers::pi * r, 0.05 * 2 * std::numbers::pi * r);
+  EXPECT_LT(m->segment_count(), 400);
 }
 
 }  // namespace
