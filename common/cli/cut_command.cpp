@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/cli/commands.h"
+#include "common/cli/cut_figure.h"
 #include "common/core/args.h"
 #include "common/sim/cut_drill.h"
 
@@ -65,7 +66,8 @@ int Cut(const Args& args, std::ostream& out, std::ostream& err) {
       "Prints the cut's metrics and score, the force against J_c t, and each stage's cost.");
   p.Option("drill", Kind::kString, "drill file (scenes/drills/*.json)", true)
       .Option("hand", Kind::kString, "expert or novice (default expert)")
-      .Option("seed", Kind::kInt, "the hand's wobble (default 1)");
+      .Option("seed", Kind::kInt, "the hand's wobble (default 1)")
+      .Option("figure", Kind::kString, "write DIR/cut.png: the patch as cut, the force (gnuplot)");
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   auto spec = sim::LoadCutDrill(p.String("drill"));
   if (!spec.ok()) return UsageError(err, p.command(), spec.error());
@@ -74,9 +76,15 @@ int Cut(const Args& args, std::ostream& out, std::ostream& err) {
     return UsageError(err, p.command(),
                       InvalidArgument("--hand", "--hand: expert or novice, got '" + hand + "'"));
   const auto seed = static_cast<uint32_t>(p.Has("seed") ? p.Int("seed") : 1);
+  sim::CutDrillTrace trace;
   auto r = sim::RunCutDrill(
-      *spec, hand == "expert" ? sim::CutHand::Expert(seed) : sim::CutHand::Novice(seed));
+      *spec, hand == "expert" ? sim::CutHand::Expert(seed) : sim::CutHand::Novice(seed),
+      p.Has("figure") ? &trace : nullptr);
   if (!r.ok()) return UsageError(err, p.command(), r.error());
+  if (p.Has("figure")) {
+    if (Status st = WriteCutFigure(p.String("figure"), *spec, *r, trace, hand); !st.ok())
+      return UsageError(err, p.command(), st.error());
+  }
   out << ToJson(*spec, *r, hand).dump() << "\n";
   return r->diverged ? 1 : 0;
 }

@@ -59,7 +59,7 @@ void CutRecorder::AddSample(double t, double x, double y, bool through, double f
       if (through) along_through_ += d;
     }
   }
-  if (started_ && was_through_ && !through) ++lifts_;
+  if (started_ && was_through_ && !through && complete_at_ < 0) ++lifts_;  // mid-cut only
   started_ = started_ || through;
   was_through_ = through;
   last_t_ = t, last_x_ = x, last_y_ = y, has_last_ = true;

@@ -7,7 +7,8 @@
 //   - outside: the length of cut farther from the pattern than the band's half width (m);
 //   - coverage: the share of the pattern with cut within the band beside it;
 //   - depth consistency: the share of the blade's travel along the pattern, once started, made
-//     through the tissue (a blade lifted mid-cut and put in again scores lower), and the lifts;
+//     through the tissue (a blade lifted mid-cut and put in again scores lower), and the lifts
+//     before the drill was complete;
 //   - the time, peak force and time over the force limit, as every task.
 // The drill completes when the cut covers 95% of the pattern (and, for a circle, the piece comes
 // free) before the time limit.

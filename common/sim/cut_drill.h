@@ -18,8 +18,10 @@
 // Set-up allocates; the loop does not but for what the recorder's report keeps.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "common/core/expected.h"
 #include "common/haptics/blade.h"
@@ -66,8 +68,22 @@ struct CutDrillResult {
   bool diverged = false;
 };
 
+// What a figure of the drill needs: per step the time (s), the tip (m), the force on the hand
+// (N) and whether the blade was through; at the end, the patch's triangles as they lie (m, the
+// freed piece left out) and the blade's cut (segments, m).
+struct CutDrillTrace {
+  struct Sample {
+    double t, x, y, z, force;
+    bool through, cutting;
+  };
+  std::vector<Sample> samples;
+  std::vector<std::array<geometry::Vec3, 3>> faces;
+  std::vector<haptics::BladeModel::Segment> cut;
+};
+
 // Runs the drill at 1 kHz until the hand's path ends (or the time limit). Deterministic but for
-// the times.
-Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& hand);
+// the times. `trace`, when given, is filled for a figure.
+Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& hand,
+                                     CutDrillTrace* trace = nullptr);
 
 }  // namespace vsurg::sim

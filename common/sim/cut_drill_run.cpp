@@ -33,15 +33,19 @@ StageTimes Summarise(std::vector<double>& v) {
 }
 
 // The scripted hand: above the pattern's start, pressed down until the blade is through, drawn
-// along the pattern (a line a millimetre past its end, a circle a twentieth of a turn past its
-// start) with its wobble, lifted out and put back in `lifts` times, and lifted at the end.
+// along the pattern (a line a millimetre and the blade's reach past its end, a circle a twentieth
+// of a turn past its start) with its wobble, lifted out and put back in `lifts` times, and lifted
+// at the end for the patch to settle.
 class ScriptedCut {
  public:
-  ScriptedCut(const scoring::CutPattern& p, const CutHand& h) : p_(p), h_(h) {
+  // `reach`: how far the blade runs ahead of its cut (BladeModel::Reach), which a line's end needs
+  // beyond it.
+  ScriptedCut(const scoring::CutPattern& p, const CutHand& h, double reach) : p_(p), h_(h) {
     std::mt19937 rng(h.seed);
     std::uniform_real_distribution<double> phase(0, 2 * std::numbers::pi);
     phi1_ = phase(rng), phi2_ = phase(rng);
-    total_ = p.kind == scoring::CutPattern::Kind::kCircle ? 1.05 * p.Length() : p.Length() + 1e-3;
+    total_ = p.kind == scoring::CutPattern::Kind::kCircle ? 1.05 * p.Length()
+                                                          : p.Length() + reach + 1e-3;
   }
   bool done() const { return phase_ == Phase::kDone; }
   // The tip after one step, told whether the blade is through now.
@@ -59,6 +63,9 @@ class ScriptedCut {
       case Phase::kLift:
         if ((t_ += kDt) > 0.3) phase_ = Phase::kPress, z_ = 0.0;
         return Tip(0.001);
+      case Phase::kEnd:  // lifted out, the patch left to settle
+        if ((t_ += kDt) > 0.3) phase_ = Phase::kDone;
+        return Tip(0.002);
       case Phase::kDone:
         break;
     }
@@ -66,7 +73,7 @@ class ScriptedCut {
   }
 
  private:
-  enum class Phase { kApproach, kPress, kDraw, kLift, kDone };
+  enum class Phase { kApproach, kPress, kDraw, kLift, kEnd, kDone };
   Vec3 Draw(bool through) {
     s_ += h_.speed * kDt;
     const double lift_every = total_ / (h_.lifts + 1);
@@ -74,7 +81,7 @@ class ScriptedCut {
       ++lifted_, t_ = 0, phase_ = Phase::kLift;
       return Tip(0.001);
     }
-    if (s_ >= total_) phase_ = Phase::kDone;
+    if (s_ >= total_) phase_ = Phase::kEnd, t_ = 0;
     (void)through;
     return Tip(z_);
   }
@@ -125,18 +132,34 @@ struct CrackFeed {
 
 }  // namespace
 
-Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& hand) {
+namespace {
+
+void KeepShape(const tissue::CutMembrane& patch, const haptics::BladeModel& blade,
+               CutDrillTrace& trace) {
+  for (int f = 0; f < patch.FaceCount(); ++f) {
+    if (patch.Removed(f)) continue;
+    const auto v = patch.face(f).v;
+    trace.faces.push_back(
+        {patch.positions()[v[0]], patch.positions()[v[1]], patch.positions()[v[2]]});
+  }
+  for (int i = 0; i < blade.segment_count(); ++i) trace.cut.push_back(blade.segment(i));
+}
+
+}  // namespace
+
+Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& hand,
+                                     CutDrillTrace* trace) {
   auto patch = tissue::CutMembrane::Create(spec.tissue);
   if (!patch.ok()) return patch.error();
   haptics::BladeParams bp = spec.blade;
-  bp.in_plane_stiffness = patch->InPlaneStiffness(patch->node_count() / 2, Vec2(1, 0));
+  bp.in_plane_stiffness = patch->InPlaneStiffness();
   bp.normal_stiffness = patch->NormalStiffness();
   auto blade = haptics::BladeModel::Create(bp);
   if (!blade.ok()) return blade.error();
   CutDrillResult r;
   r.cutting_force = blade->CuttingForce(), r.puncture_force = blade->PunctureForce();
   scoring::CutRecorder rec(spec.task.pattern);
-  ScriptedCut script(spec.task.pattern, hand);
+  ScriptedCut script(spec.task.pattern, hand, blade->Reach());
   const int max_steps = static_cast<int>(spec.task.time_limit / kDt);
   std::vector<double> blade_us, tissue_us;
   blade_us.reserve(max_steps), tissue_us.reserve(max_steps);
@@ -165,6 +188,9 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
       err2 += e * e, ++r.cutting_steps;
     }
     rec.AddSample(t, tip.x(), tip.y(), f.through, f.force.norm(), spec.task.force_limit);
+    if (trace)
+      trace->samples.push_back(
+          {t, tip.x(), tip.y(), tip.z(), f.force.norm(), f.through, f.cutting});
     if (patch->freed_pieces() > freed) freed = patch->freed_pieces(), rec.PieceFreed(t);
     r.steps = step + 1;
   }
@@ -173,6 +199,7 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
   r.blade = Summarise(blade_us), r.tissue = Summarise(tissue_us);
   r.particles = static_cast<int>(patch->positions().size());
   r.freed = patch->freed_pieces();
+  if (trace) KeepShape(*patch, *blade, *trace);
   return r;
 }
 

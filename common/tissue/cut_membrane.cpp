@@ -480,19 +480,15 @@ void CutMembrane::Load(const Vec2& at, const Vec3& force) {
   loaded_ = particle;
 }
 
-double CutMembrane::InPlaneStiffness(int node, const Vec2& direction) const {
-  const Vec2 d = direction.normalized();
-  double k = 0;
-  for (int f = 0; f < kMaxFan && fan_[node][f] >= 0; ++f) {
-    const Tri& t = tris_[fan_[node][f]];
-    if (t.removed) continue;
-    for (int e = 0; e < 3; ++e) {
-      if (t.n[e] != node && t.n[(e + 1) % 3] != node) continue;
-      const Vec2 u = (node_rest_[t.n[(e + 1) % 3]] - node_rest_[t.n[e]]).normalized();
-      k += model_->system().springs[t.spring[e]].stiffness * u.dot(d) * u.dot(d);
-    }
-  }
-  return k;
+// A point force in the plane of a sheet (plane stress, Kelvin's solution) displaces its point of
+// application, relative to a rim at R, by u = F (1 + ν)(3 − ν) ln(R / r₀) / (4π E t), with r₀ half
+// an edge (the load's spread) and ν = 1/3, the Poisson ratio of a lattice of equal central springs
+// on equilateral triangles.
+double CutMembrane::InPlaneStiffness() const {
+  constexpr double nu = 1.0 / 3;
+  const double radius = 0.5 * std::min(p_.size_x, p_.size_y);
+  return 4 * kPi * p_.youngs_modulus * p_.thickness /
+         ((1 + nu) * (3 - nu) * std::log(radius / (0.5 * h_)));
 }
 
 // A point load on a taut membrane of tension T (N/m) and radius R: w = F ln(R / r₀) / (2π T),

@@ -103,9 +103,10 @@ class CutMembrane {
   bool EdgeCut(int a, int b) const;
   int freed_pieces() const { return freed_; }
   int snaps() const { return snaps_; }
-  // The in-plane stiffness at a node along `direction` (the diagonal of its springs' stiffness,
-  // N/m), and out of plane from the frame's tension: what a blade pressing there first meets.
-  double InPlaneStiffness(int node, const Vec2& direction) const;
+  // What a blade pressing on the patch first meets (N/m): a point force's stiffness in the plane
+  // (plane stress) and out of it (the frame's tension), both with the load spread over half an
+  // edge and the rim at half the patch's smaller side.
+  double InPlaneStiffness() const;
   double NormalStiffness() const;
   double EdgeLength() const { return h_; }  // m, the lattice's edge
 

@@ -60,6 +60,7 @@ TEST(CutDrillTest, AnExpertCutsTheCircleOutWithinItsBandAndANoviceScoresLess) {
   EXPECT_TRUE(e.piece_freed);
   EXPECT_EQ(expert->freed, 1);
   EXPECT_GT(e.coverage, 0.95);
+  // The tissue the blade drags along pulls a curved cut a few tenths of a millimetre inside.
   EXPECT_LT(e.deviation_rms, 0.25 * spec->task.pattern.band);
   EXPECT_EQ(e.outside_length, 0.0);
   EXPECT_EQ(e.lifts, 0);
@@ -68,7 +69,7 @@ TEST(CutDrillTest, AnExpertCutsTheCircleOutWithinItsBandAndANoviceScoresLess) {
   ASSERT_TRUE(novice.ok());
   EXPECT_FALSE(novice->diverged);
   EXPECT_EQ(novice->metrics.lifts, 2);
-  EXPECT_GT(novice->metrics.deviation_rms, 2 * e.deviation_rms);
+  EXPECT_GT(novice->metrics.deviation_rms, 1.3 * e.deviation_rms);
   EXPECT_LT(novice->metrics.score, e.score - 1.0);
 }
 
