@@ -21,7 +21,7 @@ Status ParseTissue(const Reader& r, tissue::CutMembraneParams& p) {
   VSURG_TRY(size, r.NumbersOr("size_mm", 2, 10, 500));
   VSURG_TRY(cells, r.IntegerOr("cells", 32, 4, 128));
   VSURG_TRY(thickness, r.Number("thickness_mm", 0.05, 20));
-  VSURG_TRY(modulus, r.NumberOr("youngs_modulus", 5e5, 1e3, 1e9));
+  VSURG_TRY(modulus, r.NumberOr("youngs_modulus", 1.18e6, 1e3, 1e9));
   VSURG_TRY(density, r.NumberOr("density", 1100, 100, 5000));
   VSURG_TRY(pretension, r.NumberOr("pretension", 0.02, 0.001, 0.3));
   if (!size.empty()) p.size_x = size[0] * 1e-3, p.size_y = size[1] * 1e-3;

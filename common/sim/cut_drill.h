@@ -7,7 +7,8 @@
 // Drill files (scenes/drills/*.json, mm and N as people read them):
 //   { "name": "pattern-cut", "description": "…",
 //     "tissue":  { "size_mm": [80, 80], "cells": 32, "thickness_mm": 1.2,
-//                  "youngs_modulus": 5e5, "density": 1100, "pretension": 0.02 },
+//                  "youngs_modulus": 1.18e6, "density": 1100, "pretension": 0.02,
+//                  "failure_strain": 0.54 },
 //     "blade":   { "toughness": 1700, "angle_deg": 0, "width_mm": 0.3 },
 //     "pattern": { "type": "circle", "centre_mm": [0, 0], "radius_mm": 15, "band_mm": 2 }
 //              | { "type": "line", "from_mm": [x, y], "to_mm": [x, y], "band_mm": 2 },

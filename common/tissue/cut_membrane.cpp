@@ -56,6 +56,8 @@ Status CheckCutMembrane(const CutMembraneParams& p) {
     return InvalidArgument("min_angle_deg", "min_angle_deg: must be in [0, 40]");
   if (!(p.advance_fraction > 0 && p.advance_fraction <= 1))
     return InvalidArgument("advance_fraction", "advance_fraction: must be in (0, 1]");
+  if (!(p.failure_strain > 0 && p.failure_strain <= 10))
+    return InvalidArgument("failure_strain", "failure_strain: must be in (0, 10]");
   if (p.max_particles < 0 || p.max_particles > 1 << 22)
     return InvalidArgument("max_particles", "max_particles: must be 0 to 4194304");
   return Status::Ok();
@@ -449,6 +451,7 @@ void CutMembrane::FreePiece(int label) {
     for (int p : tris_[t].v) {
       model_->SetFixed(p, true);
       if (p == loaded_) model_->SetExternalForce(p, Vec3::Zero()), loaded_ = -1;
+      if (p == held_) Release();
     }
   }
   ++freed_;
@@ -458,26 +461,84 @@ bool CutMembrane::Step(double dt) {
   return model_->Step(dt);
 }
 
-void CutMembrane::Load(const Vec2& at, const Vec3& force) {
-  if (loaded_ >= 0) model_->SetExternalForce(loaded_, Vec3::Zero());
-  loaded_ = -1;
+// The particle of the node nearest `at` on the side of any cut that `at` lies on (the wedge of
+// triangles that holds it); -1 on the rim or off the patch.
+int CutMembrane::ParticleUnder(const Vec2& at) const {
   const int node = NearestNode(at, false, 2 * h_);
-  if (node < 0 || node_fixed_[node] || !force.allFinite() || force.isZero()) return;
+  if (node < 0 || node_fixed_[node]) return -1;
   int particle = -1;
-  for (int k = 0; k < kMaxFan && fan_[node][k] >= 0; ++k) {  // the wedge `at` lies in
+  for (int k = 0; k < kMaxFan && fan_[node][k] >= 0; ++k) {
     const Tri& t = tris_[fan_[node][k]];
     if (t.removed) continue;
     const Vec2 a = node_rest_[t.n[0]], b = node_rest_[t.n[1]], c = node_rest_[t.n[2]];
     const int corner = static_cast<int>(std::find(t.n.begin(), t.n.end(), node) - t.n.begin());
     if (particle < 0) particle = t.v[corner];
-    if (Cross(b - a, at - a) >= 0 && Cross(c - b, at - b) >= 0 && Cross(a - c, at - c) >= 0) {
-      particle = t.v[corner];
-      break;
-    }
+    if (Cross(b - a, at - a) >= 0 && Cross(c - b, at - b) >= 0 && Cross(a - c, at - c) >= 0)
+      return t.v[corner];
   }
+  return particle;
+}
+
+void CutMembrane::Load(const Vec2& at, const Vec3& force) {
+  if (loaded_ >= 0) model_->SetExternalForce(loaded_, Vec3::Zero());
+  loaded_ = -1;
+  if (!at.allFinite() || !force.allFinite() || force.isZero()) return;
+  const int particle = ParticleUnder(at);
   if (particle < 0) return;
   model_->SetExternalForce(particle, force);
   loaded_ = particle;
+}
+
+void CutMembrane::Hold(const Vec2& at, const Vec3& target, double stiffness) {
+  Release();
+  if (!at.allFinite() || !target.allFinite() || !(stiffness > 0 && std::isfinite(stiffness)))
+    return;
+  const int particle = ParticleUnder(at);
+  if (particle < 0) return;
+  const double damping = 2 * std::sqrt(stiffness * model_->system().masses[particle]);
+  model_->SetAnchor(particle, target, stiffness, damping);
+  held_ = particle, hold_target_ = target, hold_k_ = stiffness;
+}
+
+void CutMembrane::Release() {
+  if (held_ >= 0) model_->ClearAnchors();
+  held_ = -1;
+}
+
+Vec3 CutMembrane::HoldForce() const {
+  return held_ < 0 ? Vec3::Zero() : Vec3(hold_k_ * (model_->positions()[held_] - hold_target_));
+}
+
+// An interior edge has a spring on each side; it tears when both have failed (a rim edge, its
+// one). Strain over the spring's unloaded length.
+int CutMembrane::Tear() {
+  const auto& springs = model_->system().springs;
+  const auto& x = model_->positions();
+  const auto failed = [&](int s) {
+    const Spring& sp = springs[s];
+    return sp.rest_length > 0 &&
+           (x[sp.i] - x[sp.j]).norm() > (1 + p_.failure_strain) * sp.rest_length;
+  };
+  int tore = 0;
+  for (int t = 0; t < FaceCount(); ++t) {
+    const Tri& tri = tris_[t];
+    if (tri.removed) continue;
+    for (int e = 0; e < 3; ++e) {
+      const int a = tri.n[e], b = tri.n[(e + 1) % 3], o = tri.across[e];
+      if (o >= 0 && o < t) continue;  // each edge once, from its lower triangle
+      if (EdgeCut(a, b) || !failed(tri.spring[e])) continue;
+      if (o >= 0) {
+        const Tri& other = tris_[o];
+        int k = 0;
+        while (k < 3 && !(other.n[k] == b && other.n[(k + 1) % 3] == a)) ++k;
+        if (k < 3 && !other.removed && !failed(other.spring[k])) continue;
+      }
+      CutEdge(a, b);
+      ++tore;
+    }
+  }
+  torn_ += tore;
+  return tore;
 }
 
 // A point force in the plane of a sheet (plane stress, Kelvin's solution) displaces its point of

@@ -52,7 +52,7 @@ struct CutMembraneParams {
   double size_x = 0.08, size_y = 0.08;  // m, the frame's inner rectangle, centred on the origin
   int cells = 32;                       // triangles' edges across size_x
   double thickness = 1.2e-3;            // m
-  double youngs_modulus = 0.5e6;        // Pa, in-plane
+  double youngs_modulus = 1.18e6;       // Pa, in-plane
   double density = 1100;                // kg/m³
   double damping = 0.02;                // N·s/m, every spring
   double pretension = 0.02;             // the frame's pre-strain (rest lengths shortened by it)
@@ -60,6 +60,10 @@ struct CutMembraneParams {
   double min_angle_deg = 20;   // no snap that leaves a triangle angle below this
   // A cut advances to the node ahead when the blade has passed this share of the edge to it.
   double advance_fraction = 0.6;
+  // A spring stretched past this strain (over its unloaded length) has failed: an edge whose
+  // springs have all failed tears as a cut would (Tear). Skin: 0.54, the mean failure strain of
+  // excised human back skin (Ní Annaidh et al., J. Mech. Behav. Biomed. Mater. 5, 2012).
+  double failure_strain = 0.54;
   int max_particles = 0;  // room for the copies cuts make; 0: twice the nodes
 };
 
@@ -81,6 +85,17 @@ class CutMembrane {
   // A force (N) on the particle nearest `at` (rest plane) that lies on the side of the cut the
   // point is on; zero clears it. Held until changed.
   void Load(const Vec2& at, const Vec3& force);
+
+  // A grasper's jaws on the patch: the particle under `at` (rest plane) held toward `target` (m)
+  // by a spring-damper of `stiffness` N/m (inside the implicit solve). Replaces the last hold;
+  // Release lets go. The force on the jaws (N) is HoldForce.
+  void Hold(const Vec2& at, const Vec3& target, double stiffness);
+  void Release();
+  Vec3 HoldForce() const;
+  // Tears every edge whose springs are all past failure_strain (after a step); returns how many
+  // tore. Torn edges are cut edges too, counted apart (torn_edges).
+  int Tear();
+  int torn_edges() const { return torn_; }
 
   // The patch drawn: its triangles (particles), the removed ones left out.
   struct Face {
@@ -150,6 +165,11 @@ class CutMembrane {
   std::vector<int32_t> label_, stack_;  // flood fill, per triangle (sized at Create)
   int freed_ = 0, snaps_ = 0;
   int32_t loaded_ = -1;
+  int32_t held_ = -1;
+  Vec3 hold_target_ = Vec3::Zero();
+  double hold_k_ = 0;
+  int torn_ = 0;
+  int ParticleUnder(const Vec2& at) const;
   int32_t front_ = -1;  // the node the last cut ended at
 };
 

@@ -150,6 +150,34 @@ TEST(CutMembraneTest, APointForceMovesThePatchAsItsClosedFormsSay) {
   }
 }
 
+// A grasper pulling the patch in its plane: a small pull holds (the jaws feel the patch pull
+// back), a large one stretches the springs at the jaws past the failure strain and the patch
+// tears there, its topology sound and its state finite.
+TEST(CutMembraneTest, AGraspPulledTooFarTearsThePatch) {
+  for (const double pull : {0.002, 0.03}) {
+    CutMembraneParams p;
+    p.cells = 16;
+    auto m = CutMembrane::Create(p);
+    ASSERT_TRUE(m.ok());
+    for (int i = 1; i <= 1500; ++i) {
+      const double x = pull * std::min(1.0, i / 1000.0);
+      m->Hold(Vec2(0, 0), Vec3(x, 0, 0), 2000);
+      ASSERT_TRUE(m->Step(1e-3));
+      m->Tear();
+    }
+    ExpectSound(*m);
+    if (pull < 0.01) {
+      EXPECT_EQ(m->torn_edges(), 0);
+      EXPECT_LT(m->HoldForce().x(), -0.1) << "the patch pulls the jaws back";
+    } else {
+      EXPECT_GT(m->torn_edges(), 0);
+      EXPECT_EQ(m->cut_edges().size(), static_cast<size_t>(m->torn_edges()));
+    }
+    m->Release();
+    EXPECT_EQ(m->HoldForce().norm(), 0.0);
+  }
+}
+
 TEST(CutMembraneTest, ACutClosingALoopFreesThePieceInside) {
   CutMembrane m = Patch();
   const double r = 0.012;
@@ -249,6 +277,7 @@ TEST(CutMembraneTest, BadParametersAreRefusedByName) {
   EXPECT_EQ(field([](CutMembraneParams& p) { p.cells = 1; }), "cells");
   EXPECT_EQ(field([](CutMembraneParams& p) { p.pretension = 0.7; }), "pretension");
   EXPECT_EQ(field([](CutMembraneParams& p) { p.density = NAN; }), "density");
+  EXPECT_EQ(field([](CutMembraneParams& p) { p.failure_strain = 0; }), "failure_strain");
   EXPECT_EQ(field([](CutMembraneParams&) {}), "ok");
 }
 
