@@ -39,6 +39,8 @@ json ToJson(const sim::CutDrillSpec& spec, const sim::CutDrillResult& r, const s
           {"piece_freed", m.piece_freed},
           {"peak_force_n", m.peak_force},
           {"time_over_limit_s", m.time_over_limit},
+          {"torn_length_mm", m.torn_length * 1e3},
+          {"peak_grasp_force_n", r.peak_grasp_force},
           {"why", why},
           {"cutting_force_n", r.cutting_force},
           {"force_rms_error", r.force_rms_error},

@@ -110,12 +110,13 @@ CutMetrics CutRecorder::Complete(const CutTask& task) const {
   m.completion_time = m.completed ? complete_at_ : 0;
   m.peak_force = peak_;
   m.time_over_limit = over_;
+  m.torn_length = torn_;
   const double band = task.pattern.band > 0 ? task.pattern.band : 0.002;
   const double accuracy = length_ > 0 ? Clamp01(1 - m.deviation_rms / band) : 0;
   const double efficiency =
       m.completed ? Clamp01(task.expert_time / std::max(m.completion_time, 1e-3)) : 0;
-  const double care = Clamp01(1 - outside_ / std::max(task.pattern.Length(), 1e-3) - 0.1 * lifts_ -
-                              over_ / std::max(t_, 1e-3));
+  const double care = Clamp01(1 - (outside_ + torn_) / std::max(task.pattern.Length(), 1e-3) -
+                              0.1 * lifts_ - over_ / std::max(t_, 1e-3));
   m.score = 10 * (0.4 * accuracy + 0.3 * m.coverage + 0.15 * efficiency + 0.15 * care);
   return m;
 }
@@ -131,6 +132,8 @@ std::vector<std::string> ExplainCut(const CutMetrics& m, const CutTask& task) {
   if (m.coverage < 0.95)
     why.push_back("the pattern was cut for " + std::to_string(static_cast<int>(m.coverage * 100)) +
                   "% of its length");
+  if (m.torn_length > 0)
+    why.push_back(std::to_string(m.torn_length * 1e3) + " mm torn by pulling instead of cut");
   if (m.lifts > 0) why.push_back("the blade was lifted out " + std::to_string(m.lifts) + " times");
   if (m.time_over_limit > 0) why.push_back("pressed harder than the force limit");
   if (m.completed && m.completion_time > 2 * task.expert_time) why.push_back("slow");

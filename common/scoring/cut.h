@@ -9,13 +9,16 @@
 //   - depth consistency: the share of the blade's travel along the pattern, once started, made
 //     through the tissue (a blade lifted mid-cut and put in again scores lower), and the lifts
 //     before the drill was complete;
+//   - tissue torn by pulling instead of cutting (the grasping hand's pull past the tissue's failure
+//     strain), m;
 //   - the time, peak force and time over the force limit, as every task.
 // The drill completes when the cut covers 95% of the pattern (and, for a circle, the piece comes
 // free) before the time limit.
 //
 // Score, 0-10: accuracy 0.4 (1 − RMS deviation / band), completeness 0.3 (coverage), efficiency
 // 0.15 (expert time / time, when completed), care 0.15 (1 − outside length / pattern length −
-// 0.1 per lift − the share of time over the force limit).
+// 0.1 per lift − the share of time over the force limit), where the torn length counts as cut
+// outside the band.
 //
 // Units: m, s, N. The recorder does not allocate per sample.
 #pragma once
@@ -50,6 +53,7 @@ struct CutMetrics {
   bool completed = false;
   double completion_time = 0, duration = 0;    // s
   double peak_force = 0, time_over_limit = 0;  // N, s
+  double torn_length = 0;                      // m, torn by pulling instead of cut
   double score = 0;                            // 0-10
 };
 
@@ -70,6 +74,10 @@ class CutRecorder {
   // The cut grown from (ax, ay) to (bx, by).
   void AddCut(double ax, double ay, double bx, double by);
   void PieceFreed(double t);
+  // Tissue torn by pulling (m of edges past the failure strain), not cut.
+  void Torn(double length) {
+    if (length > 0) torn_ += length;
+  }
 
   CutMetrics Complete(const CutTask& task) const;
 
@@ -81,7 +89,7 @@ class CutRecorder {
   bool has_last_ = false, was_through_ = false, started_ = false;
   double along_ = 0, along_through_ = 0;
   int lifts_ = 0;
-  double peak_ = 0, over_ = 0, freed_at_ = -1, complete_at_ = -1, t_ = 0;
+  double peak_ = 0, over_ = 0, freed_at_ = -1, complete_at_ = -1, t_ = 0, torn_ = 0;
 };
 
 // What lowered a cut's score, in the trainee's words.

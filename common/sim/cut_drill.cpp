@@ -24,9 +24,10 @@ Status ParseTissue(const Reader& r, tissue::CutMembraneParams& p) {
   VSURG_TRY(modulus, r.NumberOr("youngs_modulus", 1.18e6, 1e3, 1e9));
   VSURG_TRY(density, r.NumberOr("density", 1100, 100, 5000));
   VSURG_TRY(pretension, r.NumberOr("pretension", 0.02, 0.001, 0.3));
+  VSURG_TRY(failure, r.NumberOr("failure_strain", 0.54, 0.01, 10));
   if (!size.empty()) p.size_x = size[0] * 1e-3, p.size_y = size[1] * 1e-3;
   p.cells = cells, p.thickness = thickness * 1e-3, p.youngs_modulus = modulus;
-  p.density = density, p.pretension = pretension;
+  p.density = density, p.pretension = pretension, p.failure_strain = failure;
   return tissue::CheckCutMembrane(p);
 }
 
@@ -112,10 +113,10 @@ Expected<CutDrillSpec> LoadCutDrill(const std::string& path) {
 }
 
 CutHand CutHand::Expert(uint32_t seed) {
-  return {0.006, 0.0002, 0, seed};
+  return {0.006, 0.0002, 0, seed, 0.003, 0.0};
 }
 CutHand CutHand::Novice(uint32_t seed) {
-  return {0.003, 0.0015, 2, seed};
+  return {0.003, 0.0015, 2, seed, 0.003, 0.004};
 }
 
 }  // namespace vsurg::sim

@@ -41,13 +41,17 @@ struct CutDrillSpec {
 Expected<CutDrillSpec> ParseCutDrill(const std::string& json_text, const std::string& source);
 Expected<CutDrillSpec> LoadCutDrill(const std::string& path);
 
-// A scripted trainee's hand: along the pattern at `speed` with a lateral wobble of `wobble` m
-// (two sines of random phase), lifting the blade out `lifts` times on the way.
+// A scripted trainee's two hands. The right draws the blade along the pattern at `speed` with a
+// lateral wobble of `wobble` m (two sines of random phase), lifting the blade out `lifts` times on
+// the way. The left holds the patch with a grasper beside the cut (a circle's piece at its middle,
+// a line 6 mm to its left at its middle) before the blade goes in, lifting it by `grasp_lift` m
+// for counter-traction and pulling it `grasp_pull` m away from the cut, over a second.
 struct CutHand {
   double speed = 0.005;  // m/s
   double wobble = 0.0003;
   int lifts = 0;
   uint32_t seed = 1;
+  double grasp_lift = 0.003, grasp_pull = 0;
   static CutHand Expert(uint32_t seed);
   static CutHand Novice(uint32_t seed);
 };
@@ -63,8 +67,10 @@ struct CutDrillResult {
   int cutting_steps = 0;
   double puncture_force = 0;  // N, the model's f_p, and the largest press before it
   double peak_press = 0;
-  StageTimes blade, tissue;  // per 1 ms step: the blade's force; the cut and the step
-  double max_cut_us = 0;     // the dearest single topology update
+  StageTimes blade, tissue;     // per 1 ms step: the blade's force; the cut and the step
+  double max_cut_us = 0;        // the dearest single topology update
+  double peak_grasp_force = 0;  // N, on the left hand's jaws
+  double torn_length = 0;       // m, torn by pulling (edges past the failure strain)
   int cut_edges = 0, particles = 0, freed = 0, steps = 0;
   bool diverged = false;
 };

@@ -145,6 +145,27 @@ void KeepShape(const tissue::CutMembrane& patch, const haptics::BladeModel& blad
   for (int i = 0; i < blade.segment_count(); ++i) trace.cut.push_back(blade.segment(i));
 }
 
+// The left hand's grasper: where it holds (rest plane) and the way it pulls (unit, away from the
+// cut), and its jaws' stiffness.
+struct Grasp {
+  Vec2 at = Vec2::Zero(), away = Vec2::UnitX();
+  static constexpr double kStiffness = 2000;  // N/m
+  explicit Grasp(const scoring::CutPattern& p) {
+    if (p.kind == scoring::CutPattern::Kind::kCircle) {
+      at = Vec2(p.cx, p.cy), away = Vec2(-1, 0);  // the piece, pulled toward its far side
+    } else {
+      const Vec2 a(p.ax, p.ay), b(p.bx, p.by), d = (b - a).normalized();
+      away = Vec2(-d.y(), d.x());
+      at = 0.5 * (a + b) + 0.006 * away;
+    }
+  }
+  Vec3 Target(const CutHand& h, double t) const {
+    const double ramp = std::min(1.0, t);
+    const Vec2 xy = at + ramp * h.grasp_pull * away;
+    return Vec3(xy.x(), xy.y(), ramp * h.grasp_lift);
+  }
+};
+
 }  // namespace
 
 Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& hand,
@@ -164,6 +185,7 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
   std::vector<double> blade_us, tissue_us;
   blade_us.reserve(max_steps), tissue_us.reserve(max_steps);
   CrackFeed feed;
+  const Grasp grasp(spec.task.pattern);
   double err2 = 0;
   int freed = 0;
   for (int step = 0; step < max_steps && !script.done(); ++step) {
@@ -179,7 +201,12 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
       rec.AddCut(ax, ay, bx, by);
     });
     patch->Load(Vec2(tip.x(), tip.y()), -f.force);
+    patch->Hold(grasp.at, grasp.Target(hand, t), Grasp::kStiffness);
     if (!patch->Step(kDt)) r.diverged = true;
+    const double spare = blade->Reach() + 2 * patch->EdgeLength();
+    if (const int tore = patch->Tear(Vec2(tip.x(), tip.y()), spare); tore > 0)
+      rec.Torn(tore * patch->EdgeLength());
+    r.peak_grasp_force = std::max(r.peak_grasp_force, patch->HoldForce().norm());
     tissue_us.push_back(Us(t1, Clock::now()));
     blade_us.push_back(Us(t0, t1));
     if (!f.through) r.peak_press = std::max(r.peak_press, f.force.norm());
@@ -199,6 +226,7 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
   r.blade = Summarise(blade_us), r.tissue = Summarise(tissue_us);
   r.particles = static_cast<int>(patch->positions().size());
   r.freed = patch->freed_pieces();
+  r.torn_length = patch->torn_edges() * patch->EdgeLength();
   if (trace) KeepShape(*patch, *blade, *trace);
   return r;
 }

@@ -511,7 +511,7 @@ Vec3 CutMembrane::HoldForce() const {
 
 // An interior edge has a spring on each side; it tears when both have failed (a rim edge, its
 // one). Strain over the spring's unloaded length.
-int CutMembrane::Tear() {
+int CutMembrane::Tear(const Vec2& blade, double spare) {
   const auto& springs = model_->system().springs;
   const auto& x = model_->positions();
   const auto failed = [&](int s) {
@@ -527,6 +527,8 @@ int CutMembrane::Tear() {
       const int a = tri.n[e], b = tri.n[(e + 1) % 3], o = tri.across[e];
       if (o >= 0 && o < t) continue;  // each edge once, from its lower triangle
       if (EdgeCut(a, b) || !failed(tri.spring[e])) continue;
+      if ((node_rest_[a] - blade).norm() < spare || (node_rest_[b] - blade).norm() < spare)
+        continue;
       if (o >= 0) {
         const Tri& other = tris_[o];
         int k = 0;

@@ -93,8 +93,11 @@ class CutMembrane {
   void Release();
   Vec3 HoldForce() const;
   // Tears every edge whose springs are all past failure_strain (after a step); returns how many
-  // tore. Torn edges are cut edges too, counted apart (torn_edges).
-  int Tear();
+  // tore. Torn edges are cut edges too, counted apart (torn_edges). Edges with a node within
+  // `spare` m of `blade` (rest plane) are left to the blade: at its front the tissue is cut, its
+  // fracture the blade's model (haptics/blade.h), and a point load's strain there is the
+  // lattice's, not the tissue's.
+  int Tear(const Vec2& blade = Vec2::Constant(1e9), double spare = 0);
   int torn_edges() const { return torn_; }
 
   // The patch drawn: its triangles (particles), the removed ones left out.

@@ -97,3 +97,26 @@ TEST(CutDrillTest, AStraightCutIsDrawnAtTheFractureModelsForceForItsTissue) {
 
 }  // namespace
 }  // namespace vsurg::sim
+
+namespace vsurg::sim {
+namespace {
+
+// The left hand pulling the piece hard away from the cut tears the skin at its jaws: the tear is
+// measured apart from the cut, lowers the score, and nothing diverges.
+TEST(CutDrillTest, AGraspThatPullsTooHardTearsTheTissue) {
+  auto spec = LoadCutDrill(Drill("straight-cut.json"));
+  ASSERT_TRUE(spec.ok());
+  CutHand gentle = CutHand::Expert(2), rough = CutHand::Expert(2);
+  rough.grasp_pull = 0.015;
+  auto a = RunCutDrill(*spec, gentle), b = RunCutDrill(*spec, rough);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->metrics.torn_length, 0.0);
+  EXPECT_GT(b->metrics.torn_length, 0.0);
+  EXPECT_NEAR(b->torn_length, b->metrics.torn_length, 1e-12);
+  EXPECT_GT(b->peak_grasp_force, a->peak_grasp_force);
+  EXPECT_LT(b->metrics.score, a->metrics.score);
+  EXPECT_FALSE(a->diverged || b->diverged);
+}
+
+}  // namespace
+}  // namespace vsurg::sim
