@@ -69,7 +69,9 @@ int Cut(const Args& args, std::ostream& out, std::ostream& err) {
   p.Option("drill", Kind::kString, "drill file (scenes/drills/*.json)", true)
       .Option("hand", Kind::kString, "expert or novice (default expert)")
       .Option("seed", Kind::kInt, "the hand's wobble (default 1)")
-      .Option("figure", Kind::kString, "write DIR/cut.png: the patch as cut, the force (gnuplot)");
+      .Option("figure", Kind::kString, "write DIR/cut.png: the patch as cut, the force (gnuplot)")
+      .Option("grasp-pull", Kind::kDouble,
+              "the left hand pulls the patch this far from the cut (mm)");
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   auto spec = sim::LoadCutDrill(p.String("drill"));
   if (!spec.ok()) return UsageError(err, p.command(), spec.error());
@@ -78,13 +80,23 @@ int Cut(const Args& args, std::ostream& out, std::ostream& err) {
     return UsageError(err, p.command(),
                       InvalidArgument("--hand", "--hand: expert or novice, got '" + hand + "'"));
   const auto seed = static_cast<uint32_t>(p.Has("seed") ? p.Int("seed") : 1);
+  sim::CutHand cut_hand =
+      hand == "expert" ? sim::CutHand::Expert(seed) : sim::CutHand::Novice(seed);
+  if (p.Has("grasp-pull")) {
+    const double pull = p.Double("grasp-pull");
+    if (!(pull >= 0 && pull <= 30))
+      return UsageError(err, p.command(),
+                        InvalidArgument("--grasp-pull", "--grasp-pull: 0 to 30 mm"));
+    cut_hand.grasp_pull = pull * 1e-3;
+  }
   sim::CutDrillTrace trace;
-  auto r = sim::RunCutDrill(
-      *spec, hand == "expert" ? sim::CutHand::Expert(seed) : sim::CutHand::Novice(seed),
-      p.Has("figure") ? &trace : nullptr);
+  auto r = sim::RunCutDrill(*spec, cut_hand, p.Has("figure") ? &trace : nullptr);
   if (!r.ok()) return UsageError(err, p.command(), r.error());
   if (p.Has("figure")) {
-    if (Status st = WriteCutFigure(p.String("figure"), *spec, *r, trace, hand); !st.ok())
+    const std::string who =
+        hand + " hand" +
+        (p.Has("grasp-pull") ? ", grasp pulled " + p.String("grasp-pull") + " mm" : "");
+    if (Status st = WriteCutFigure(p.String("figure"), *spec, *r, trace, who); !st.ok())
       return UsageError(err, p.command(), st.error());
   }
   out << ToJson(*spec, *r, hand).dump() << "\n";

@@ -50,7 +50,7 @@ std::string Script(const sim::CutDrillSpec& spec, const sim::CutDrillResult& r,
   std::string s =
       "set terminal pngcairo noenhanced size 1200,560 font 'DejaVu Sans,10'\n"
       "set output 'cut.png'\nset multiplot layout 1,2 title '" +
-      spec.name + ", " + hand + " hand: score " + std::to_string(r.metrics.score).substr(0, 4) +
+      spec.name + ", " + hand + ": score " + std::to_string(r.metrics.score).substr(0, 4) +
       ", deviation " + std::to_string(r.metrics.deviation_rms * 1e3).substr(0, 4) + " mm RMS, " +
       (r.metrics.completed ? "completed" : "not completed") + "'\n";
   s += "set size ratio -1\nset xrange [" + std::to_string(-hx) + ":" + std::to_string(hx) +
