@@ -7,16 +7,9 @@
 #include <string>
 #include <tuple>
 
+#include "common/core/require.h"
+
 namespace vsurg::haptics {
-
-namespace {
-
-Status Positive(const char* field, double v, const char* unit) {
-  if (std::isfinite(v) && v > 0) return Status::Ok();
-  return InvalidArgument(field, std::string(field) + ": must be > 0 " + unit);
-}
-
-}  // namespace
 
 Status CheckBlade(const BladeParams& p) {
   for (const auto& [field, v, unit] :
@@ -26,7 +19,7 @@ Status CheckBlade(const BladeParams& p) {
         std::tuple{"normal_stiffness", p.normal_stiffness, "N/m"},
         std::tuple{"half_x", p.half_x, "m"}, std::tuple{"half_y", p.half_y, "m"},
         std::tuple{"min_segment", p.min_segment, "m"}}) {
-    if (Status st = Positive(field, v, unit); !st.ok()) return st;
+    if (Status st = RequirePositive(field, v, unit); !st.ok()) return st;
   }
   if (!(p.angle >= 0 && p.angle < 1.3963))
     return InvalidArgument("angle", "angle: the edge's inclination must be in [0°, 80°)");

@@ -10,6 +10,8 @@
 #include <tuple>
 #include <utility>
 
+#include "common/core/require.h"
+
 namespace vsurg::tissue {
 
 namespace {
@@ -30,11 +32,6 @@ double MinAngle(const Vec2& a, const Vec2& b, const Vec2& c) {
   return std::min({angle(a, b, c), angle(b, c, a), angle(c, a, b)});
 }
 
-Status Positive(const char* field, double v, const char* unit) {
-  if (std::isfinite(v) && v > 0) return Status::Ok();
-  return InvalidArgument(field, std::string(field) + ": must be > 0 " + unit);
-}
-
 }  // namespace
 
 Status CheckCutMembrane(const CutMembraneParams& p) {
@@ -43,7 +40,7 @@ Status CheckCutMembrane(const CutMembraneParams& p) {
         std::tuple{"thickness", p.thickness, "m"},
         std::tuple{"youngs_modulus", p.youngs_modulus, "Pa"},
         std::tuple{"density", p.density, "kg/m³"}}) {
-    if (Status st = Positive(field, v, unit); !st.ok()) return st;
+    if (Status st = RequirePositive(field, v, unit); !st.ok()) return st;
   }
   if (p.cells < 2 || p.cells > 256) return InvalidArgument("cells", "cells: must be 2 to 256");
   if (!(std::isfinite(p.damping) && p.damping >= 0))
@@ -490,11 +487,13 @@ void CutMembrane::Load(const Vec2& at, const Vec3& force) {
 }
 
 void CutMembrane::Hold(const Vec2& at, const Vec3& target, double stiffness) {
+  const int kept = held_ >= 0 && at == hold_at_ ? held_ : -1;  // the same jaws, moved
   Release();
   if (!at.allFinite() || !target.allFinite() || !(stiffness > 0 && std::isfinite(stiffness)))
     return;
-  const int particle = ParticleUnder(at);
+  const int particle = kept >= 0 ? kept : ParticleUnder(at);
   if (particle < 0) return;
+  hold_at_ = at;
   const double damping = 2 * std::sqrt(stiffness * model_->system().masses[particle]);
   model_->SetAnchor(particle, target, stiffness, damping);
   held_ = particle, hold_target_ = target, hold_k_ = stiffness;

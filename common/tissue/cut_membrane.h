@@ -87,8 +87,9 @@ class CutMembrane {
   void Load(const Vec2& at, const Vec3& force);
 
   // A grasper's jaws on the patch: the particle under `at` (rest plane) held toward `target` (m)
-  // by a spring-damper of `stiffness` N/m (inside the implicit solve). Replaces the last hold;
-  // Release lets go. The force on the jaws (N) is HoldForce.
+  // by a spring-damper of `stiffness` N/m (inside the implicit solve). Replaces the last hold; the
+  // same `at` keeps the same particle (jaws that stay closed while the hand moves). Release lets
+  // go. The force on the jaws (N) is HoldForce.
   void Hold(const Vec2& at, const Vec3& target, double stiffness);
   void Release();
   Vec3 HoldForce() const;
@@ -170,6 +171,7 @@ class CutMembrane {
   int32_t loaded_ = -1;
   int32_t held_ = -1;
   Vec3 hold_target_ = Vec3::Zero();
+  Vec2 hold_at_ = Vec2::Zero();
   double hold_k_ = 0;
   int torn_ = 0;
   int ParticleUnder(const Vec2& at) const;
