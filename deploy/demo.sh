@@ -57,6 +57,13 @@ echo "== Weighted evaluation offline (the coil-spring paper eq. 9-11): 40 raters
 "$sim" score --input "$root/deploy/samples/ratings-coil-spring.csv"
 
 echo
+echo "== Pattern cutting, as a drill: a scripted trainee's two hands cut a marked circle out of a taut skin patch =="
+for hand in expert novice; do
+  "$sim" cut --drill "$root/scenes/drills/pattern-cut.json" --hand "$hand" --figure "$out/cut-$hand" |
+    /usr/bin/python3 -c 'import json, sys; d = json.load(sys.stdin); print("%s: score %.1f, %.2f mm RMS from the line, %d lifts, the piece out in %.1f s (figure: %s)" % (d["hand"], d["score"], d["deviation_rms_mm"], d["lifts"], d["completion_time_s"], sys.argv[1]))' "$out/cut-$hand/cut.png"
+done
+
+echo
 echo "==== The platform end to end: server, a trainee's station, an instructor's monitor, evaluators, administrator ===="
 "$root/deploy/demo_flow.sh" "$root/build/bin" "$out/flow" "$root/docs"
 

@@ -62,9 +62,10 @@ json ToJson(const sim::CutDrillSpec& spec, const sim::CutDrillResult& r, const s
 int Cut(const Args& args, std::ostream& out, std::ostream& err) {
   ArgParser p(
       "vsurg-sim cut",
-      "Runs the pattern-cutting drill: a scripted hand presses a blade through a taut\n"
-      "patch and draws it along the marked line or circle at 1 kHz; the blade's force is\n"
-      "the fracture-mechanics model, the patch is cut and deformed at the same rate.\n"
+      "Runs the pattern-cutting drill: a scripted trainee's grasper holds a taut patch\n"
+      "while the other hand presses a blade through it and draws it along the marked line\n"
+      "or circle at 1 kHz; the blade's force is the fracture-mechanics model, the patch\n"
+      "is cut, held, torn and deformed at the same rate.\n"
       "Prints the cut's metrics and score, the force against J_c t, and each stage's cost.");
   p.Option("drill", Kind::kString, "drill file (scenes/drills/*.json)", true)
       .Option("hand", Kind::kString, "expert or novice (default expert)")
