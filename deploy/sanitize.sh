@@ -114,7 +114,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # drill's loop runs under ASan in VsurgSimCutTest (the straight drill by the expert's hands),
   # the patch's cuts, grasp and tear in CutMembraneTest, the blade in BladeTest.
   long+='|CutDrillTest.AnExpertCutsTheCircle|CutDrillTest.AStraightCutIsDrawn'
-  long+='|CutDrillTest.AGraspThatPullsTooHard'
+  long+='|CutDrillTest.AGraspThatPullsTooHard|CutDrillTest.TargetsFromExpertRuns'
   # The OpenGL group (software rendering, a minute; and the mTLS tests) runs beside the others,
   # not after them, with a PostgreSQL of its own: the ctest fixture's server lives in one folder
   # of the build, and a second run's fixture would stop the first run's server under its tests.

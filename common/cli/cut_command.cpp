@@ -57,6 +57,28 @@ json ToJson(const sim::CutDrillSpec& spec, const sim::CutDrillResult& r, const s
           {"diverged", r.diverged}};
 }
 
+// Targets from `n` expert runs of the drill (seeds 1..n), and `m` checked against them.
+Expected<json> CheckAgainstExperts(const sim::CutDrillSpec& spec, int n,
+                                   const scoring::CutMetrics& m) {
+  if (n < 2 || n > 20) return InvalidArgument("--experts", "--experts: 2 to 20 runs");
+  std::vector<scoring::CutMetrics> experts;
+  for (int seed = 1; seed <= n; ++seed) {
+    auto e = sim::RunCutDrill(spec, sim::CutHand::Expert(static_cast<uint32_t>(seed)));
+    if (!e.ok()) return e.error();
+    experts.push_back(e->metrics);
+  }
+  auto targets = scoring::CutTargetsFromExperts(experts);
+  if (!targets.ok()) return targets.error();
+  json checks = json::array();
+  bool passed = true;
+  for (const scoring::CutCheck& c : scoring::CheckCut(m, *targets)) {
+    checks.push_back(
+        {{"metric", c.metric}, {"value", c.value}, {"target", c.target}, {"met", c.met}});
+    passed = passed && c.met;
+  }
+  return json{{"experts", n}, {"checks", checks}, {"passed", passed}};
+}
+
 }  // namespace
 
 int Cut(const Args& args, std::ostream& out, std::ostream& err) {
@@ -72,7 +94,9 @@ int Cut(const Args& args, std::ostream& out, std::ostream& err) {
       .Option("seed", Kind::kInt, "the hand's wobble (default 1)")
       .Option("figure", Kind::kString, "write DIR/cut.png: the patch as cut, the force (gnuplot)")
       .Option("grasp-pull", Kind::kDouble,
-              "the left hand pulls the patch this far from the cut (mm)");
+              "the left hand pulls the patch this far from the cut (mm)")
+      .Option("experts", Kind::kInt,
+              "targets from this many expert runs (seeds 1..N), the run checked against them");
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   auto spec = sim::LoadCutDrill(p.String("drill"));
   if (!spec.ok()) return UsageError(err, p.command(), spec.error());
@@ -100,7 +124,13 @@ int Cut(const Args& args, std::ostream& out, std::ostream& err) {
     if (Status st = WriteCutFigure(p.String("figure"), *spec, *r, trace, who); !st.ok())
       return UsageError(err, p.command(), st.error());
   }
-  out << ToJson(*spec, *r, hand).dump() << "\n";
+  json j = ToJson(*spec, *r, hand);
+  if (p.Has("experts")) {
+    auto checked = CheckAgainstExperts(*spec, p.Int("experts"), r->metrics);
+    if (!checked.ok()) return UsageError(err, p.command(), checked.error());
+    j["proficiency"] = *checked;
+  }
+  out << j.dump() << "\n";
   return r->diverged ? 1 : 0;
 }
 

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/scoring/proficiency.h"
+
 namespace vsurg::scoring {
 
 namespace {
@@ -119,6 +121,57 @@ CutMetrics CutRecorder::Complete(const CutTask& task) const {
                               0.1 * lifts_ - over_ / std::max(t_, 1e-3));
   m.score = 10 * (0.4 * accuracy + 0.3 * m.coverage + 0.15 * efficiency + 0.15 * care);
   return m;
+}
+
+namespace {
+
+struct CutMetricDef {
+  const char* name;
+  bool lower_is_better;
+  double (*value)(const CutMetrics&);
+};
+
+constexpr CutMetricDef kCutMetrics[] = {
+    {"deviation_rms_m", true, [](const CutMetrics& m) { return m.deviation_rms; }},
+    {"deviation_max_m", true, [](const CutMetrics& m) { return m.deviation_max; }},
+    {"outside_length_m", true, [](const CutMetrics& m) { return m.outside_length; }},
+    {"torn_length_m", true, [](const CutMetrics& m) { return m.torn_length; }},
+    {"lifts", true, [](const CutMetrics& m) { return static_cast<double>(m.lifts); }},
+    {"completion_time_s", true,
+     [](const CutMetrics& m) { return m.completed ? m.completion_time : INFINITY; }},
+    {"coverage", false, [](const CutMetrics& m) { return m.coverage; }},
+};
+
+}  // namespace
+
+Expected<std::vector<CutTarget>> CutTargetsFromExperts(const std::vector<CutMetrics>& experts,
+                                                       double k) {
+  if (experts.size() < 2)
+    return InvalidArgument("experts", "experts: targets need at least two expert runs");
+  for (const CutMetrics& e : experts)
+    if (!e.completed) return InvalidArgument("experts", "experts: every expert run must complete");
+  std::vector<CutTarget> targets;
+  for (const CutMetricDef& d : kCutMetrics) {
+    std::vector<double> values;
+    for (const CutMetrics& e : experts) values.push_back(d.value(e));
+    auto v = ExpertBenchmark(values, d.lower_is_better ? Better::kLower : Better::kHigher,
+                             BenchmarkMode::kMeanSd, k);
+    if (!v.ok()) return v.error();
+    targets.push_back({d.name, d.lower_is_better, *v});
+  }
+  return targets;
+}
+
+std::vector<CutCheck> CheckCut(const CutMetrics& m, const std::vector<CutTarget>& targets) {
+  std::vector<CutCheck> checks;
+  for (const CutTarget& t : targets) {
+    for (const CutMetricDef& d : kCutMetrics) {
+      if (t.metric != d.name) continue;
+      const double v = d.value(m);
+      checks.push_back({t.metric, v, t.value, t.lower_is_better ? v <= t.value : v >= t.value});
+    }
+  }
+  return checks;
 }
 
 std::vector<std::string> ExplainCut(const CutMetrics& m, const CutTask& task) {

@@ -27,6 +27,8 @@
 #include <string>
 #include <vector>
 
+#include "common/core/expected.h"
+
 namespace vsurg::scoring {
 
 struct CutPattern {
@@ -94,5 +96,24 @@ class CutRecorder {
 
 // What lowered a cut's score, in the trainee's words.
 std::vector<std::string> ExplainCut(const CutMetrics& m, const CutTask& task);
+
+// Proficiency targets for the drill from the experts' own runs (proficiency.h's ExpertBenchmark,
+// mean ± k·SD), on the metrics a cut is judged by: deviation RMS and maximum, outside and torn
+// length, lifts, completion time (lower is better) and coverage (higher). An attempt passes when
+// it meets every one (non-compensatory).
+struct CutTarget {
+  std::string metric;
+  bool lower_is_better = true;
+  double value = 0;
+};
+struct CutCheck {
+  std::string metric;
+  double value = 0, target = 0;
+  bool met = false;
+};
+// At least two experts, each completed; else kInvalidArgument naming "experts".
+Expected<std::vector<CutTarget>> CutTargetsFromExperts(const std::vector<CutMetrics>& experts,
+                                                       double k = 2.0);
+std::vector<CutCheck> CheckCut(const CutMetrics& m, const std::vector<CutTarget>& targets);
 
 }  // namespace vsurg::scoring

@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <string>
+#include <vector>
 
 #include "common/sim/scene.h"
 
@@ -116,6 +118,37 @@ TEST(CutDrillTest, AGraspThatPullsTooHardTearsTheTissue) {
   EXPECT_GT(b->peak_grasp_force, a->peak_grasp_force);
   EXPECT_LT(b->metrics.score, a->metrics.score);
   EXPECT_FALSE(a->diverged || b->diverged);
+}
+
+}  // namespace
+}  // namespace vsurg::sim
+
+namespace vsurg::sim {
+namespace {
+
+// Proficiency targets from three experts' runs of the straight drill: each expert meets every
+// target set from their own runs; the novice misses the deviation and the lifts.
+TEST(CutDrillTest, TargetsFromExpertRunsPassTheExpertsAndFailTheNovice) {
+  auto spec = LoadCutDrill(Drill("straight-cut.json"));
+  ASSERT_TRUE(spec.ok());
+  std::vector<scoring::CutMetrics> experts;
+  for (uint32_t seed = 1; seed <= 3; ++seed) {
+    auto e = RunCutDrill(*spec, CutHand::Expert(seed));
+    ASSERT_TRUE(e.ok());
+    experts.push_back(e->metrics);
+  }
+  auto targets = scoring::CutTargetsFromExperts(experts);
+  ASSERT_TRUE(targets.ok()) << targets.error().message;
+  EXPECT_EQ(targets->size(), 7u);
+  for (const auto& e : experts)
+    for (const auto& c : scoring::CheckCut(e, *targets)) EXPECT_TRUE(c.met) << c.metric;
+  auto novice = RunCutDrill(*spec, CutHand::Novice(1));
+  ASSERT_TRUE(novice.ok());
+  std::map<std::string, bool> met;
+  for (const auto& c : scoring::CheckCut(novice->metrics, *targets)) met[c.metric] = c.met;
+  EXPECT_FALSE(met.at("deviation_rms_m"));
+  EXPECT_FALSE(met.at("lifts"));
+  EXPECT_FALSE(scoring::CutTargetsFromExperts({experts[0]}).ok()) << "one run is no benchmark";
 }
 
 }  // namespace
