@@ -133,12 +133,6 @@ TEST(BladeTest, BadParametersAreRefusedByName) {
   EXPECT_EQ(field([](BladeParams&) {}), "ok");
 }
 
-}  // namespace
-}  // namespace vsurg::haptics
-
-namespace vsurg::haptics {
-namespace {
-
 // A circle cut all the way round: the blade reaches the start of its own cut while still loading
 // its front, and the ligament between them is cut, so the cut is one closed loop.
 TEST(BladeTest, ACircleClosesOnItsStart) {

@@ -97,12 +97,6 @@ TEST(CutDrillTest, AStraightCutIsDrawnAtTheFractureModelsForceForItsTissue) {
   }
 }
 
-}  // namespace
-}  // namespace vsurg::sim
-
-namespace vsurg::sim {
-namespace {
-
 // The left hand pulling the piece hard away from the cut tears the skin at its jaws: the tear is
 // measured apart from the cut, lowers the score, and nothing diverges.
 TEST(CutDrillTest, AGraspThatPullsTooHardTearsTheTissue) {
@@ -119,12 +113,6 @@ TEST(CutDrillTest, AGraspThatPullsTooHardTearsTheTissue) {
   EXPECT_LT(b->metrics.score, a->metrics.score);
   EXPECT_FALSE(a->diverged || b->diverged);
 }
-
-}  // namespace
-}  // namespace vsurg::sim
-
-namespace vsurg::sim {
-namespace {
 
 // Proficiency targets from three experts' runs of the straight drill: each expert meets every
 // target set from their own runs; the novice misses the deviation and the lifts.
