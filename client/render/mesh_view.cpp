@@ -67,6 +67,11 @@ Quality StartingQuality(const std::array<std::vector<double>, 3>& probe_ms, doub
 
 MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
     : rest_(physics), positions_(physics.positions), visual_(std::move(visual)), moved_(physics) {
+  if (visual_.physics_drawn) {
+    rest_faces_ = visual_.surface.triangles;
+    placed_.assign(rest_.positions.size(), 0);
+    MarkRestPlaced();
+  }
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
   for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   if (rest_.positions.empty()) lo = hi = Eigen::Vector3d::Zero();
@@ -144,6 +149,7 @@ int ApplyMoved(std::vector<geometry::Vec3>& positions, const std::vector<int32_t
 int MeshView::Apply(const std::vector<int32_t>& indices,
                     const std::vector<Eigen::Vector3f>& positions) {
   const int applied = ApplyMoved(positions_, indices, positions);
+  MarkPlaced(indices);
   dirty_ = dirty_ || applied > 0;
   return applied;
 }
@@ -151,13 +157,55 @@ int MeshView::Apply(const std::vector<int32_t>& indices,
 int MeshView::Apply(const std::vector<int32_t>& indices,
                     const std::vector<geometry::Vec3>& positions) {
   const int applied = ApplyMoved(positions_, indices, positions);
+  MarkPlaced(indices);
   dirty_ = dirty_ || applied > 0;
   return applied;
+}
+
+void MeshView::MarkPlaced(const std::vector<int32_t>& indices) {
+  for (int32_t i : indices)
+    if (i >= 0 && static_cast<size_t>(i) < placed_.size()) placed_[i] = 1;
+}
+
+int MeshView::ApplyFaces(const std::vector<int32_t>& indices,
+                         const std::vector<std::array<int32_t, 3>>& faces) {
+  if (!visual_.physics_drawn) return 0;
+  std::vector<geometry::Triangle>& drawn = visual_.surface.triangles;
+  const size_t n = std::min(indices.size(), faces.size());
+  int taken = 0;
+  for (size_t k = 0; k < n; ++k) {
+    const int32_t f = indices[k];
+    if (f < 0 || static_cast<size_t>(f) >= drawn.size()) continue;
+    const geometry::Triangle face{faces[k][0], faces[k][1], faces[k][2]};
+    const bool removed = face == geometry::Triangle{0, 0, 0};
+    bool placed = true;
+    for (int v : face) placed = placed && v >= 0 && static_cast<size_t>(v) < placed_.size() && placed_[v];
+    if (!removed && !placed) continue;
+    // A copy's rest position is its original's (the tissue's tone and detail are read there).
+    for (int c = 0; c < 3 && !removed; ++c)
+      if (face[c] != rest_faces_[f][c])
+        visual_.surface.positions[face[c]] = rest_.positions[rest_faces_[f][c]];
+    if (drawn[f] != face) drawn[f] = face, ++taken;
+  }
+  faces_dirty_ = faces_dirty_ || taken > 0;
+  dirty_ = dirty_ || taken > 0;
+  return taken;
 }
 
 void MeshView::ResetToRest() {
   positions_ = rest_.positions;
   dirty_ = true;
+  if (visual_.physics_drawn && visual_.surface.triangles != rest_faces_) {
+    visual_.surface.triangles = rest_faces_;
+    visual_.surface.positions = rest_.positions;
+    faces_dirty_ = true;
+  }
+  if (visual_.physics_drawn) std::fill(placed_.begin(), placed_.end(), 0), MarkRestPlaced();
+}
+
+void MeshView::MarkRestPlaced() {
+  for (const geometry::Triangle& t : rest_faces_)
+    for (int v : t) placed_[v] = 1;
 }
 
 Eigen::Matrix4d MeshView::Projection(int width, int height) const {
@@ -188,8 +236,14 @@ void MeshView::UpdateVisual() {
   // The physics surface's vertex normals, then the visual surface mapped from it and its own
   // normals: only when a vertex moved.
   moved_.positions = positions_;
+  if (visual_.physics_drawn) moved_.triangles = visual_.surface.triangles;  // a cut's faces
   geometry::ComputeVertexNormals(moved_);
-  visual_.mapping.Apply(moved_.positions, moved_.normals, fine_);
+  if (visual_.physics_drawn) {
+    fine_.resize(positions_.size());
+    for (size_t i = 0; i < positions_.size(); ++i) fine_[i] = positions_[i].cast<float>();
+  } else {
+    visual_.mapping.Apply(moved_.positions, moved_.normals, fine_);
+  }
   geometry::VertexNormals(visual_.surface.triangles, fine_, fine_normals_, world_up_.cast<float>());
   dirty_ = false;
 }
@@ -216,6 +270,8 @@ void MeshView::Prepare(const Overlay& overlay) {
     g.shadow = Link(shaders::kShadowVertex, shaders::kShadowFragment);
     g.flat = Link(shaders::kFlatVertex, shaders::kFlatFragment);
   }
+  remake_tissue = remake_tissue || faces_dirty_;  // a cut changed the faces drawn
+  faces_dirty_ = false;
   if (remake_tissue) MakeTissueVertices();
   if (first) MakeResources();
   if (dirty_) UploadMoved(remake_tissue);

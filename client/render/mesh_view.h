@@ -124,6 +124,13 @@ class MeshView {
   // range and non-finite positions are ignored. Returns how many were applied.
   int Apply(const std::vector<int32_t>& indices, const std::vector<Eigen::Vector3f>& positions);
   int Apply(const std::vector<int32_t>& indices, const std::vector<geometry::Vec3>& positions);
+  // A cut's faces (a SceneFrame's topology: each face of the physics surface as it is now, a
+  // removed one {0, 0, 0}); only where the physics surface is drawn as it is
+  // (VisualModel::physics_drawn). A face is taken once each of its vertices has had a position
+  // (a copy a cut made is sent as a moved vertex), so none is ever drawn to a vertex not yet
+  // placed; a face out of range is ignored. Returns how many were taken.
+  int ApplyFaces(const std::vector<int32_t>& indices,
+                 const std::vector<std::array<int32_t, 3>>& faces);
   void ResetToRest();
   const std::vector<geometry::Vec3>& positions() const { return positions_; }
   // The visual surface as last drawn (mapped from positions()); visual().surface is that surface
@@ -178,6 +185,8 @@ class MeshView {
                 int part_taps);
   Eigen::Affine3d JawPose(const Frame& f, int side) const;
   void UpdateVisual();
+  void MarkPlaced(const std::vector<int32_t>& indices);
+  void MarkRestPlaced();
   Eigen::Matrix4d Projection(int width, int height) const;
   Eigen::Matrix4d View() const;
   Eigen::Matrix4d LightViewProjection() const;
@@ -185,6 +194,9 @@ class MeshView {
   geometry::TriMesh rest_;
   std::vector<geometry::Vec3> positions_;
   sim::VisualModel visual_;
+  std::vector<geometry::Triangle> rest_faces_;  // physics_drawn: the surface's faces at rest
+  std::vector<uint8_t> placed_;                 // physics_drawn: a vertex has had a position
+  bool faces_dirty_ = false;                    // the drawn faces changed since the upload
   bool dirty_ = true;
   bool moved_since_shadow_ = true;  // the tissue moved since the shadow map was drawn
   std::vector<Eigen::Vector3f> fine_, fine_normals_;

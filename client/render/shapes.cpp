@@ -135,6 +135,13 @@ InstrumentParts MakeInstrument(sim::Instrument kind) {
       AddCylinder(parts.handle, 0.0070f, 0.0070f, 0.085f, 0.145f, kSides);
       AddCylinder(parts.handle, 0.0110f, 0.0110f, 0.145f, 0.148f, kSides);
       break;
+    case sim::Instrument::kScalpel:
+      // A number 11 blade (its point at the tip, 0.4 mm thick, 6 mm at its back) on a No. 3
+      // handle, 125 mm long.
+      AddBox(parts.steel, {-0.0002f, -0.0010f, 0.0f}, {0.0002f, 0.0010f, 0.006f});
+      AddBox(parts.steel, {-0.0002f, -0.0030f, 0.006f}, {0.0002f, 0.0030f, 0.040f});
+      AddBox(parts.handle, {-0.0012f, -0.0040f, 0.040f}, {0.0012f, 0.0040f, 0.165f});
+      break;
     case sim::Instrument::kGrip:
       // A twisting grip: two broad padded jaws that close on the wrist, a shaft and a T-bar.
       parts.has_jaws = true;

@@ -423,7 +423,9 @@ struct Trial {
       screen.view->ResetToRest();  // a new session starts from the tissue at rest
     }
     for (const auto& chunk : chunks) {
-      if (!chunk.twist) {
+      if (chunk.topology) {
+        screen.view->ApplyFaces(chunk.face_indices, chunk.faces);
+      } else if (!chunk.twist) {
         screen.view->Apply(chunk.indices, chunk.positions);
       } else if (screen.twist &&
                  screen.twist->Shape(*chunk.twist, screen.twist_indices, screen.twist_positions)) {

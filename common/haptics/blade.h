@@ -102,4 +102,32 @@ class BladeModel {
   double length_ = 0;
 };
 
+// What a blade's crack grew by since it was last asked, each piece once and in order: the
+// pieces a cuttable tissue is to carve. The last segment may grow again, so it is resumed from
+// where it was left. `grow(ax, ay, bx, by)` returns false to stop; that piece is offered again
+// next time (a full queue loses nothing).
+class CrackFeed {
+ public:
+  template <class F>
+  void Take(const BladeModel& blade, F&& grow) {
+    while (segment_ < blade.segment_count()) {
+      const BladeModel::Segment& s = blade.segment(segment_);
+      const double ax = resumed_ ? x_ : s.ax, ay = resumed_ ? y_ : s.ay;
+      const bool last = segment_ + 1 == blade.segment_count();
+      if ((ax != s.bx || ay != s.by) && !grow(ax, ay, s.bx, s.by)) return;
+      x_ = s.bx, y_ = s.by;
+      if (last) {
+        resumed_ = true;
+        return;
+      }
+      ++segment_, resumed_ = false;
+    }
+  }
+
+ private:
+  int segment_ = 0;
+  double x_ = 0, y_ = 0;  // m, where the last segment was left
+  bool resumed_ = false;
+};
+
 }  // namespace vsurg::haptics

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "common/core/expected.h"
+#include "common/scoring/trial_metrics.h"
 
 namespace vsurg::scoring {
 
@@ -96,6 +97,17 @@ class CutRecorder {
 
 // What lowered a cut's score, in the trainee's words.
 std::vector<std::string> ExplainCut(const CutMetrics& m, const CutTask& task);
+
+// A cut as a session's trial (the trial record every task shares, trial_metrics.h): the cut's
+// figures into `m` (task_error its RMS deviation, coverage the pattern's share cut, the cut's own
+// fields), its completion, and the score in the platform's four parts with the gates every task
+// applies: accuracy ½(1 − RMS/band) + ½·coverage, efficiency and force control as every task,
+// and the tissue's care in the fourth part's place: 1 − (outside + torn)/pattern length −
+// 0.1 per lift. `task` is the session's: its target is the pattern's length (m), its tolerance
+// the band's half width.
+void CompleteCutTrial(const CutMetrics& cut, const TaskSpec& task, TrialMetrics& m);
+ScoreParts CutScoreParts(const TrialMetrics& m, const TaskSpec& task);
+std::vector<std::string> ExplainCutTrial(const TrialMetrics& m, const TaskSpec& task);
 
 // Proficiency targets for the drill from the experts' own runs (proficiency.h's ExpertBenchmark,
 // mean ± k·SD), on the metrics a cut is judged by: deviation RMS and maximum, outside and torn

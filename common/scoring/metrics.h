@@ -58,6 +58,12 @@ struct TrialMetrics {
   // of the tract. Zero for the other tasks.
   double depth_error = 0, path_deviation = 0, lateral_strain = 0;
   int punctures = 0, extra_punctures = 0, back_wall_breaches = 0;
+  // A pattern cut (cut.h): the cut's largest distance from the marked pattern (its RMS is
+  // task_error, the share of the pattern cut within the band is coverage), the length cut outside
+  // the band and the length torn by pulling instead of cut (m), and the blade's lifts mid-cut.
+  // Zero for the other tasks.
+  double cut_deviation_max = 0, cut_outside = 0, torn_length = 0;
+  int cut_lifts = 0;
   LinkFigures link;  // filled by the server that ran the session (not by the recorder)
 };
 

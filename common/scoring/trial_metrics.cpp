@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "common/scoring/cut.h"
 #include "common/scoring/needle.h"
 #include "common/scoring/palpation.h"
 
@@ -19,6 +20,8 @@ const char* TaskKindName(TaskKind kind) {
       return "palpate";
     case TaskKind::kInsert:
       return "insert";
+    case TaskKind::kCut:
+      return "cut";
   }
   return "twist";
 }
@@ -110,7 +113,8 @@ void TrialRecorder::Add(double time, const Eigen::Vector3d& tip, double quantity
   if (!ok) in_window_ = false;
   if (!completed_ && in_window_ && time - window_start_ >= task_.hold_s &&
       task_.kind != TaskKind::kPalpate &&  // a palpation completes when the search ends,
-      task_.kind != TaskKind::kInsert) {   // a needle when its tip is confirmed in the target
+      task_.kind != TaskKind::kInsert &&   // a needle when its tip is confirmed in the target,
+      task_.kind != TaskKind::kCut) {      // a cut when it covers the pattern (cut.h)
     completed_ = true;
     completion_ = time - t0_;
     error_at_completion_ = error;
@@ -192,6 +196,9 @@ Expected<TaskSpec> ApplyTaskSettings(TaskSpec t, const TaskSettings& s) {
   if (t.kind == TaskKind::kInsert && (s.kind || s.target || s.tolerance))
     return bad(s.tolerance && !s.target ? "tolerance" : "target",
                "the scene's task is a needle insertion: its target is the scene's");
+  if (t.kind == TaskKind::kCut && (s.kind || s.target || s.tolerance))
+    return bad(s.tolerance && !s.target ? "tolerance" : "target",
+               "the scene's task is a cut: its pattern and band are the scene's");
   if (s.kind && *s.kind != t.kind)
     return bad(target_name, std::string("the scene's task is a ") + (twist ? "twist" : "press") +
                                 ": give " + target_name + " and " + tolerance_name);
@@ -267,6 +274,7 @@ std::vector<std::string> ExplainLosses(const TrialMetrics& m, const TaskSpec& ta
 std::vector<std::string> ExplainScore(const TrialMetrics& m, const TaskSpec& task) {
   if (task.kind == TaskKind::kPalpate) return ExplainPalpation(m, task);
   if (task.kind == TaskKind::kInsert) return ExplainNeedle(m, task);
+  if (task.kind == TaskKind::kCut) return ExplainCutTrial(m, task);
   const bool twist = task.kind == TaskKind::kTwist;
   const double unit = twist ? 180 / 3.14159265358979 : 1e3;
   return ExplainLosses(

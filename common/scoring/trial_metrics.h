@@ -41,10 +41,11 @@ namespace vsurg::scoring {
 
 // kPalpate: search the tissue for hidden lumps and mark them (palpation.h); it has no target or
 // tolerance of its own. kInsert: place a needle's tip in a target under the skin (needle.h); its
-// target is the target's middle, its tolerance a distance (m).
-enum class TaskKind { kTwist, kPress, kPalpate, kInsert };
+// target is the target's middle, its tolerance a distance (m). kCut: cut along a marked line or
+// circle (cut.h); its target is the pattern, its tolerance the band's half width (m).
+enum class TaskKind { kTwist, kPress, kPalpate, kInsert, kCut };
 
-// As scene files and the wire spell it: "twist", "press", "palpate", "insert".
+// As scene files and the wire spell it: "twist", "press", "palpate", "insert", "cut".
 const char* TaskKindName(TaskKind kind);
 
 // How people read a task's target and tolerance: degrees for a twist, millimetres for a press

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/sim/cut_drill.h"
+#include "common/sim/cut_trainee.h"
 
 namespace vsurg::sim {
 
@@ -32,107 +33,6 @@ StageTimes Summarise(std::vector<double>& v) {
   return s;
 }
 
-// The scripted hand: above the pattern's start, pressed down until the blade is through, drawn
-// along the pattern (a line a millimetre and the blade's reach past its end, a circle a twentieth
-// of a turn past its start) with its wobble, lifted out and put back in `lifts` times, and lifted
-// at the end for the patch to settle.
-class ScriptedCut {
- public:
-  // `reach`: how far the blade runs ahead of its cut (BladeModel::Reach), which a line's end needs
-  // beyond it.
-  ScriptedCut(const scoring::CutPattern& p, const CutHand& h, double reach) : p_(p), h_(h) {
-    std::mt19937 rng(h.seed);
-    std::uniform_real_distribution<double> phase(0, 2 * std::numbers::pi);
-    phi1_ = phase(rng), phi2_ = phase(rng);
-    total_ = p.kind == scoring::CutPattern::Kind::kCircle ? 1.05 * p.Length()
-                                                          : p.Length() + reach + 1e-3;
-  }
-  bool done() const { return phase_ == Phase::kDone; }
-  // The tip after one step, told whether the blade is through now.
-  Vec3 Next(bool through) {
-    switch (phase_) {
-      case Phase::kApproach:
-        if ((t_ += kDt) > 0.3) phase_ = Phase::kPress;
-        return Tip(0.002);
-      case Phase::kPress:
-        if (through) phase_ = Phase::kDraw;
-        z_ = std::max(z_ - 0.02 * kDt, -0.02);
-        return Tip(z_);
-      case Phase::kDraw:
-        return Draw(through);
-      case Phase::kLift:
-        if ((t_ += kDt) > 0.3) phase_ = Phase::kPress, z_ = 0.0;
-        return Tip(0.001);
-      case Phase::kEnd:  // lifted out, the patch left to settle
-        if ((t_ += kDt) > 0.3) phase_ = Phase::kDone;
-        return Tip(0.002);
-      case Phase::kDone:
-        break;
-    }
-    return Tip(0.002);
-  }
-
- private:
-  enum class Phase { kApproach, kPress, kDraw, kLift, kEnd, kDone };
-  Vec3 Draw(bool through) {
-    s_ += h_.speed * kDt;
-    const double lift_every = total_ / (h_.lifts + 1);
-    if (h_.lifts > 0 && lifted_ < h_.lifts && s_ > (lifted_ + 1) * lift_every) {
-      ++lifted_, t_ = 0, phase_ = Phase::kLift;
-      return Tip(0.001);
-    }
-    if (s_ >= total_) phase_ = Phase::kEnd, t_ = 0;
-    (void)through;
-    return Tip(z_);
-  }
-  Vec3 Tip(double z) const {
-    const double u = s_ / p_.Length();
-    double x = 0, y = 0, x2 = 0, y2 = 0;
-    const double e = 1e-4 / p_.Length();
-    if (p_.kind == scoring::CutPattern::Kind::kLine) {
-      const double dx = (p_.bx - p_.ax) / p_.Length(), dy = (p_.by - p_.ay) / p_.Length();
-      x = p_.ax + s_ * dx, y = p_.ay + s_ * dy, x2 = x + dx, y2 = y + dy;
-    } else {
-      p_.At(u, x, y), p_.At(u + e, x2, y2);
-    }
-    const double tx = x2 - x, ty = y2 - y, tl = std::hypot(tx, ty);
-    const double w = h_.wobble *
-                     (std::sin(2 * std::numbers::pi * s_ / 0.02 + phi1_) +
-                      0.5 * std::sin(2 * std::numbers::pi * s_ / 0.007 + phi2_)) /
-                     1.5;
-    return Vec3(x - w * ty / tl, y + w * tx / tl, z);
-  }
-
-  scoring::CutPattern p_;
-  CutHand h_;
-  Phase phase_ = Phase::kApproach;
-  double t_ = 0, z_ = 0, s_ = 0, total_ = 0, phi1_ = 0, phi2_ = 0;
-  int lifted_ = 0;
-};
-
-// What the blade's crack grew by since the last step, handed to the patch and the recorder.
-struct CrackFeed {
-  int segment = 0;  // the segment fed up to `x, y`
-  double x = 0, y = 0;
-  bool started = false;
-  template <class F>
-  void Take(const haptics::BladeModel& blade, F&& grow) {
-    for (; segment < blade.segment_count(); ++segment) {
-      const auto& s = blade.segment(segment);
-      const double ax = started ? x : s.ax, ay = started ? y : s.ay;
-      grow(ax, ay, s.bx, s.by);
-      x = s.bx, y = s.by, started = false;
-      if (segment + 1 == blade.segment_count()) {
-        started = true;  // the last segment may grow further: resume from its end
-        break;
-      }
-    }
-  }
-};
-
-}  // namespace
-
-namespace {
 
 void KeepShape(const tissue::CutMembrane& patch, const haptics::BladeModel& blade,
                CutDrillTrace& trace) {
@@ -180,11 +80,11 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
   CutDrillResult r;
   r.cutting_force = blade->CuttingForce(), r.puncture_force = blade->PunctureForce();
   scoring::CutRecorder rec(spec.task.pattern);
-  ScriptedCut script(spec.task.pattern, hand, blade->Reach());
+  CutScript script(spec.task.pattern, hand, blade->Reach());
   const int max_steps = static_cast<int>(spec.task.time_limit / kDt);
   std::vector<double> blade_us, tissue_us;
   blade_us.reserve(max_steps), tissue_us.reserve(max_steps);
-  CrackFeed feed;
+  haptics::CrackFeed feed;
   const Grasp grasp(spec.task.pattern);
   double err2 = 0;
   int freed = 0;
@@ -199,6 +99,7 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
       r.cut_edges += patch->Cut(Vec2(ax, ay), Vec2(bx, by));
       r.max_cut_us = std::max(r.max_cut_us, Us(c0, Clock::now()));
       rec.AddCut(ax, ay, bx, by);
+      return true;
     });
     patch->Load(Vec2(tip.x(), tip.y()), -f.force);
     patch->Hold(grasp.at, grasp.Target(hand, t), Grasp::kStiffness);

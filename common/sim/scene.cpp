@@ -83,8 +83,10 @@ Status ParseMesh(const Reader& r, const std::string& scene_dir, MeshSpec& m) {
       m.block.size[a] = size[a];
       m.block.cells[a] = static_cast<int>(cells[a]);
     }
+  } else if (type == "membrane") {
+    m.kind = MeshKind::kMembrane;  // the patch is the scene's "cut" (scene_cut.cpp)
   } else {
-    return r.Bad("type", "must be limb, sphere, file or block, got '" + type + "'");
+    return r.Bad("type", "must be limb, sphere, file, block or membrane, got '" + type + "'");
   }
   return Status::Ok();
 }
@@ -213,8 +215,14 @@ Status ParseRingLayer(const Reader& r, RegionSpec& g) {
 Status ParseModel(const Reader& r, RegionSpec& g) {
   VSURG_TRY(type, r.String("type"));
   if (type == "coil") return ParseCoil(r, g);
+  if (type == "cut-membrane") {  // the patch, its frame and its step are the scene's "cut"
+    g.kind = ModelKind::kCutMembrane;
+    g.support = Support::kNone;
+    return Status::Ok();
+  }
   if (type != "mass-spring" && type != "ring-layer" && type != "reduced")
-    return r.Bad("type", "must be coil, mass-spring, ring-layer or reduced, got '" + type + "'");
+    return r.Bad("type", "must be coil, mass-spring, ring-layer, reduced or cut-membrane, got '" +
+                             type + "'");
   VSURG_TRY(dt, r.NumberOr("dt", 1e-3, 1e-6, 0.1));
   g.dt = dt;
   if (Status st = ParseSupport(r, g); !st.ok()) return st;
@@ -285,11 +293,14 @@ Status ParseTask(const Reader& r, scoring::TaskSpec& t) {
     VSURG_TRY(tol, r.NumberOr("tolerance_mm", 2, 0.1, 50));
     t.target = 0;
     t.tolerance = tol * 1e-3;
+  } else if (type == "cut") {
+    t.kind = scoring::TaskKind::kCut;  // the pattern and band are the scene's cut (ParseSceneTask)
   } else {
-    return r.Bad("type", "must be twist, press, palpate or insert, got '" + type + "'");
+    return r.Bad("type", "must be twist, press, palpate, insert or cut, got '" + type + "'");
   }
   const bool palpate = t.kind == scoring::TaskKind::kPalpate ||
-                       t.kind == scoring::TaskKind::kInsert;  // neither holds anything
+                       t.kind == scoring::TaskKind::kInsert ||
+                       t.kind == scoring::TaskKind::kCut;  // none holds anything
   VSURG_TRY(hold, r.NumberOr("hold_s", palpate ? 0.0 : 2.0, 0, 600));
   VSURG_TRY(limit, r.NumberOr("force_limit_n", 3.0, 0, 1000));
   VSURG_TRY(time_limit, r.NumberOr("time_limit_s", 60.0, 1e-3, 86400));
@@ -315,6 +326,8 @@ const char* ModelKindName(ModelKind kind) {
       return "ring-layer";
     case ModelKind::kReduced:
       return "reduced";
+    case ModelKind::kCutMembrane:
+      return "cut-membrane";
   }
   return "unknown";
 }
@@ -329,6 +342,7 @@ size_t EstimatedSessionBytes(ModelKind model, size_t surface_vertices, bool redu
       per_vertex = kCoilBytesPerVertex;
       break;
     case ModelKind::kMassSpring:
+    case ModelKind::kCutMembrane:
       per_vertex = kMassSpringBytesPerVertex;
       break;
     case ModelKind::kRingLayer:
@@ -511,7 +525,8 @@ Status ParseRegion(const json& root, const Reader& r, Scene& s) {
       s.region.support == Support::kBottom) {
     s.region.support = Support::kEnds;  // a limb rests on its ends
   }
-  if (s.mesh.kind == MeshKind::kFile) return Status::Ok();  // its size is known once it is read
+  // A file's size is known once it is read, a membrane's once its cut is (ParseCut).
+  if (s.mesh.kind == MeshKind::kFile || s.mesh.kind == MeshKind::kMembrane) return Status::Ok();
   const auto& c = s.mesh.block.cells;  // a block's boundary: all its grid's nodes less the inside
   const size_t vertices =
       s.mesh.kind == MeshKind::kLimb
@@ -539,6 +554,15 @@ Status ParseSceneTask(const Reader& r, Scene& s) {
     return InvalidArgument("task.type",
                            "task.type: an insert task needs a needle with a target, "
                            "and a needle scene's task is insert");
+  const bool cut = s.task.kind == scoring::TaskKind::kCut;
+  if (cut != s.cut.has_value())
+    return InvalidArgument("task.type",
+                           "task.type: a cut task needs the scene's cut, and a cut scene's task is "
+                           "cut");
+  if (cut) {  // the pattern is the target: its length (m); the band's half width the tolerance
+    s.task.target = s.cut->pattern.Length();
+    s.task.tolerance = s.cut->pattern.band;
+  }
   if ((s.task.kind == scoring::TaskKind::kTwist) != twists)
     return InvalidArgument("task.type",
                            "task.type: a twist task needs a coil or reduced (surface-)twist model, "
@@ -607,6 +631,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if (Status st = ParseInclusions(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseVolume(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseNeedle(root, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseCut(root, s); !st.ok()) return with_source(st.error());
   if (r.Has("haptics")) {
     auto h = r.Object("haptics");
     if (!h.ok()) return with_source(h.error());
@@ -662,6 +687,12 @@ Expected<SceneMesh> BuildSceneMesh(const MeshSpec& spec) {
       auto box = geometry::MakeTetBox(spec.block);
       if (!box.ok()) return box.error();
       out.surface = geometry::CompactBoundarySurface(*box);
+      break;
+    }
+    case MeshKind::kMembrane: {
+      auto patch = MembraneSurface(spec.membrane);
+      if (!patch.ok()) return patch.error();
+      out.surface = std::move(*patch);
       break;
     }
     case MeshKind::kFile: {

@@ -35,22 +35,26 @@
 #include "common/core/expected.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/tet_generators.h"
+#include "common/haptics/blade.h"
 #include "common/haptics/needle.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
+#include "common/scoring/cut.h"
 #include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
 #include "common/tissue/coil_deformation.h"
 #include "common/tissue/coil_spring.h"
+#include "common/tissue/cut_membrane.h"
 #include "common/tissue/inclusions.h"
 #include "common/tissue/mass_spring.h"
 #include "common/tissue/ring_layer.h"
 
 namespace vsurg::sim {
 
-enum class MeshKind { kLimb, kSphere, kFile, kBlock };
-enum class ModelKind { kCoil, kMassSpring, kRingLayer, kReduced };
-// As scene files spell it: "coil", "mass-spring", "ring-layer", "reduced".
+// kMembrane: a cuttable patch in its frame (scene_cut.cpp, tissue/cut_membrane.h).
+enum class MeshKind { kLimb, kSphere, kFile, kBlock, kMembrane };
+enum class ModelKind { kCoil, kMassSpring, kRingLayer, kReduced, kCutMembrane };
+// As scene files spell it: "coil", "mass-spring", "ring-layer", "reduced", "cut-membrane".
 const char* ModelKindName(ModelKind kind);
 // What is fixed: nothing, the bottom fifth, limb ends, everything on the far side of a plane
 // ("support": {"plane": {"point": [x, y, z], "normal": [x, y, z]}}, metres in the scene's frame,
@@ -68,6 +72,9 @@ struct MeshSpec {
   // block: a pad on a table ("size": [x, y, z] m, "cells": [nx, ny, nz]); its surface is its FEM
   // grid's boundary (geometry::MakeTetBox), so a reduced model's FEM is the same grid.
   geometry::TetBoxParams block;
+  // membrane: the patch (a scene's "cut"."tissue"); its surface is the patch's lattice with room
+  // for the particles cuts add (MembraneSurface).
+  tissue::CutMembraneParams membrane;
 };
 
 // A reduced model precomputed from the scene's own FEM (common/tissue/reduced.h). "contact": the
@@ -178,6 +185,13 @@ struct Scene {
   // A needle's tissue (haptics/needle.h; scene files: "needle", scene_needle.cpp): its layers
   // under the block's top and its target. Set: the tool is a needle, whatever touches the skin.
   std::optional<haptics::NeedleTissueSpec> needle;
+  // A cut scene's blade and marked pattern (scene_cut.cpp; the patch is mesh.membrane). Set: the
+  // tool is a blade and the task a cut.
+  struct CutSpec {
+    haptics::BladeParams blade;  // its stiffnesses the patch's own (set when a session builds)
+    scoring::CutPattern pattern;
+  };
+  std::optional<CutSpec> cut;
   scoring::TaskSpec task;
   VisualSpec visual;
   double error_budget_rms = 0.1;  // relative RMS displacement error the model meets
@@ -200,6 +214,13 @@ Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::s
 Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
 // The scene file's "needle" object into `s.needle` (scene_needle.cpp); nothing when absent.
 Status ParseNeedle(const nlohmann::json& root, Scene& s);
+// The scene file's "cut" object into `s.cut` and `s.mesh.membrane` (scene_cut.cpp); nothing when
+// absent. A membrane mesh, the cut-membrane model and a cut task go together.
+Status ParseCut(const nlohmann::json& root, Scene& s);
+// A membrane's surface: the patch's lattice at rest, then as many spare vertices (at the origin,
+// in no triangle) as cuts may add, so a cut scene's vertex count never changes and each particle
+// of the patch is the vertex of its index.
+Expected<geometry::TriMesh> MembraneSurface(const tissue::CutMembraneParams& params);
 Expected<Scene> LoadScene(const std::string& path);
 
 // A scene's mesh made concrete: the surface, and the centreline for limbs (empty otherwise).

@@ -10,6 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include "common/core/expected.h"
+#include "common/haptics/blade.h"
+#include "common/scoring/cut.h"
+#include "common/tissue/cut_membrane.h"
 
 namespace vsurg::sim::scene_detail {
 
@@ -116,5 +119,11 @@ class Reader {
   auto var##_result = (expr);                          \
   if (!var##_result.ok()) return var##_result.error(); \
   auto var = std::move(*var##_result)
+
+// A cut's patch, blade and pattern from the object `r` holds ("tissue", "blade", "pattern"), in
+// people's units (mm, N, J/m²), each checked by name, the pattern inside the patch
+// (scene_cut.cpp): a cut scene's "cut" object and a drill file's top level alike.
+Status ParseCutParts(const Reader& r, tissue::CutMembraneParams& patch, haptics::BladeParams& blade,
+                     scoring::CutPattern& pattern);
 
 }  // namespace vsurg::sim::scene_detail

@@ -146,6 +146,7 @@ Status Simulation::Build() {
   station_surface_ = MakeStationSurface();
   if (Status s = BuildPalpation(); !s.ok()) return s;
   if (Status s = BuildNeedle(); !s.ok()) return s;
+  if (Status s = BuildCut(); !s.ok()) return s;
   const geometry::Bvh bvh(rest_);
   // A surface back at rest: any list a query kept is void (Build also runs on a failed restore).
   surface_motion_ += kSurfaceReset;
@@ -190,8 +191,9 @@ void Simulation::PublishInput() {
   input_version_.notify_one();
 }
 
-void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool outside_model,
-                         const std::optional<CoilTwistShape>& twist, bool surface) {
+void Simulation::Publish(const Deformed& d, bool surface) {
+  const std::vector<Vec3>& positions = *d.positions;
+  const bool overload = d.overload, outside_model = d.outside_model;
   const size_t n = rest_.positions.size();
   if (surface) {
     PublishSurface(positions, overload, outside_model);
@@ -202,7 +204,12 @@ void Simulation::Publish(const std::vector<Vec3>& positions, bool overload, bool
   VisualPositions& v = visual_.Back();
   std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
   v.id = ++publish_id_;
-  v.twist = twist;
+  v.twist = d.twist;
+  if (d.faces && d.topology != published_topology_) published_topology_ = d.topology;
+  if (d.faces && v.topology != published_topology_) {  // each slot once per change
+    v.faces.assign(d.faces->begin(), d.faces->end());
+    v.topology = published_topology_;
+  }
   visual_.Publish();
   updates_.fetch_add(1, std::memory_order_relaxed);
 }
@@ -235,7 +242,7 @@ void Simulation::Deform(const DeformInput& in) {
   // While a hand grasps, the haptic path answers from the grasp's own law and never reads the
   // surface: only the view is published (no copy, no refit), and the surface it answers from
   // stays the one from before the grasp, consistent with its boxes, until the grasp ends.
-  if (d) Publish(*d->positions, d->overload, d->outside_model, d->twist, !in.grasping);
+  if (d) Publish(*d, !in.grasping);
 }
 
 void Simulation::Replay(
@@ -405,7 +412,7 @@ Status Simulation::RestoreState(std::string_view bytes) {
   rest_normal_ = rest_normal;
   last_contact_ = last_contact;
   grasp_query_ = grasp_query;
-  Publish(positions, overload, outside_model);
+  Publish(Deformed{&positions, overload, outside_model, std::nullopt});
   surface_.Acquire();
   PublishInput();  // the deformation goes on from the carried input
   return Status::Ok();
@@ -501,12 +508,30 @@ bool Simulation::TakeVisualFrame(VisualFrame& out) {
       last_sent_[i] = v.positions[i];
     }
   }
+  TakeTopology(v, out);
   if (!out.indices.empty()) {
     std::lock_guard lock(shown_mutex_);
     shown_.positions = last_sent_;
     shown_.id = v.id;
   }
   return true;
+}
+
+// A cut's faces that differ from the rest mesh, when the topology changed since the last frame
+// taken and in the kTopologyRepeats frames after (a datagram lost on the way is sent again).
+void Simulation::TakeTopology(const VisualPositions& v, VisualFrame& out) {
+  out.topology = 0;
+  out.face_indices.clear();
+  out.faces.clear();
+  if (v.topology != sent_topology_) sent_topology_ = v.topology, topology_repeats_ = kTopologyRepeats;
+  if (topology_repeats_ <= 0 || v.faces.size() != rest_.triangles.size()) return;
+  --topology_repeats_;
+  out.topology = v.topology;
+  for (size_t f = 0; f < v.faces.size(); ++f)
+    if (v.faces[f] != rest_.triangles[f]) {
+      out.face_indices.push_back(static_cast<int32_t>(f));
+      out.faces.push_back(v.faces[f]);
+    }
 }
 
 uint64_t Simulation::ShownSurface(std::vector<int32_t>& indices,

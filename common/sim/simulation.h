@@ -48,6 +48,7 @@
 
 #include "common/core/expected.h"
 #include "common/geometry/bvh.h"
+#include "common/haptics/blade.h"
 #include "common/haptics/needle.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
@@ -108,6 +109,14 @@ struct VisualFrame {
   // The whole surface of this frame as a coil limb's twist (a viewer with the scene remakes it
   // from these three numbers), when the room made it so; the moved vertices are given as well.
   std::optional<CoilTwistShape> twist;
+  // A cut scene's topology (rooms/cut_room.h), when it changed since the previous frame taken or
+  // in the kTopologyRepeats frames after: every face that differs from the rest mesh's, as it is
+  // now (a removed face is {0, 0, 0}), and the count of changes so far. Whole, not a change from
+  // the last frame, so a frame lost on the way is made good by any later one, and a face never
+  // shows a cut the tissue has not made. Empty for the other scenes.
+  uint64_t topology = 0;
+  std::vector<int32_t> face_indices;
+  std::vector<geometry::Triangle> faces;
 };
 
 class Simulation final : private DeformationPool::Member {
@@ -218,6 +227,9 @@ class Simulation final : private DeformationPool::Member {
     std::vector<geometry::Vec3> positions;
     uint64_t id = 0;
     std::optional<CoilTwistShape> twist;
+    // A cut's faces (Deformed::faces), copied when its topology changed; empty for the others.
+    std::vector<geometry::Triangle> faces;
+    uint64_t topology = 0;
   };
 
   static Expected<std::unique_ptr<Simulation>> CreateChecked(const Scene& scene,
@@ -231,9 +243,10 @@ class Simulation final : private DeformationPool::Member {
   DeformationPool::Clock::time_point StepDue(DeformationPool::Clock::time_point now) override;
   void Deform(const DeformInput& in);
   // A deformation published to the view and (unless `surface` is false) to the haptic path.
-  void Publish(const std::vector<geometry::Vec3>& positions, bool overload,
-               bool outside_model = false,
-               const std::optional<CoilTwistShape>& twist = std::nullopt, bool surface = true);
+  void Publish(const Deformed& d, bool surface = true);
+  // Visual thread: a cut's faces into a frame (VisualFrame::faces).
+  void TakeTopology(const VisualPositions& v, VisualFrame& out);
+  static constexpr int kTopologyRepeats = 3;
   void PublishSurface(const std::vector<geometry::Vec3>& positions, bool overload,
                       bool outside_model);
   void PublishInput();
@@ -280,6 +293,11 @@ class Simulation final : private DeformationPool::Member {
   void NeedleRecord(const haptics::NeedleForce& f, const haptics::StylusSample& trainee,
                     StylusStep& step);
   Status BuildNeedle();
+  // A cut scene's stages (simulation_cut.cpp): the blade instead of the proxy's contact, its
+  // crack handed to the patch's room, the blade's load for the deformation, the trial's cut.
+  Status BuildCut();
+  void CutStep(const haptics::StylusSample& s, StylusStep& step);
+  void CutRecord(const haptics::BladeForce& f, const haptics::StylusSample& s);
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
   std::shared_ptr<const haptics::TissueSurface> MakeStationSurface() const;
@@ -318,6 +336,16 @@ class Simulation final : private DeformationPool::Member {
     }
   };
   NeedleSide needle_;
+  // A cut scene's (haptic thread): the blade, the feed of its crack to the room (CutRoom), the
+  // trial's cut record, the room's tears and freed pieces as last recorded.
+  struct CutSide {
+    std::optional<haptics::BladeModel> blade;
+    haptics::CrackFeed feed;
+    std::optional<scoring::CutRecorder> record;
+    double torn = 0;  // m
+    int freed = 0;
+  };
+  CutSide cut_;
   uint64_t samples_ = 0;
   // The server's port energies (haptics::ForceCommand::released_j): the force answered last, held
   // until the next sample, against the motion to it.
@@ -372,6 +400,9 @@ class Simulation final : private DeformationPool::Member {
   TripleBuffer<DeformInput> inputs_;
   TripleBuffer<VisualPositions> visual_;
   std::vector<geometry::Vec3> last_sent_;  // visual thread
+  uint64_t sent_topology_ = 0;             // visual thread: the topology last sent
+  int topology_repeats_ = 0;               // visual thread: frames still owed it
+  uint64_t published_topology_ = 0;        // deformation side: the last copied to the view
   mutable std::mutex shown_mutex_;         // guards shown_
   VisualPositions shown_;                  // what the visual thread last sent
   uint64_t publish_id_ = 0;

@@ -61,6 +61,12 @@ void Simulation::PalpationStep(const haptics::StylusSample& trainee, StylusStep&
 scoring::TrialMetrics Simulation::Metrics() const {
   scoring::TrialMetrics m = recorder_.Finish();
   if (scene_.task.kind == scoring::TaskKind::kPalpate) palpation_.Complete(m, scene_.task);
+  if (scene_.task.kind == scoring::TaskKind::kCut && cut_.record) {
+    const scoring::TaskSpec& t = scene_.task;
+    scoring::CompleteCutTrial(
+        cut_.record->Complete({scene_.cut->pattern, t.force_limit, t.time_limit, t.expert_time}), t,
+        m);
+  }
   if (scene_.task.kind == scoring::TaskKind::kInsert && needle_.model)
     needle_.record.Complete(m, scene_.task, static_cast<int>(needle_.model->punctures()),
                             static_cast<int>(needle_.breaches));

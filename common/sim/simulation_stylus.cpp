@@ -37,6 +37,8 @@ using haptics::StylusSample;
   if (grasping_ && !button) EndGrasp(step.events);
   if (needle_.model) {
     NeedleStep(snap, s, step);
+  } else if (cut_.blade) {
+    CutStep(s, step);
   } else if (grasping_) {
     GraspStep(s, step);
   } else {

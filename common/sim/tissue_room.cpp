@@ -21,6 +21,8 @@ Expected<TissueRoom> BuildRoom(const RoomInputs& in) {
       return Built(MassSpringRoom::Build(in));
     case ModelKind::kRingLayer:
       return Built(RingLayerRoom::Build(in));
+    case ModelKind::kCutMembrane:
+      return Built(CutRoom::Build(in));
     case ModelKind::kReduced:
       switch (region.reduced.mode) {
         case ReducedMode::kContact:

@@ -31,6 +31,7 @@
 
 #include "common/core/expected.h"
 #include "common/sim/rooms/coil_room.h"
+#include "common/sim/rooms/cut_room.h"
 #include "common/sim/rooms/mass_spring_room.h"
 #include "common/sim/rooms/reduced_contact_room.h"
 #include "common/sim/rooms/reduced_twist_room.h"
@@ -40,7 +41,7 @@
 namespace vsurg::sim {
 
 using TissueRoom = std::variant<CoilRoom, MassSpringRoom, RingLayerRoom, ReducedContactRoom,
-                                ReducedTwistRoom, SurfaceTwistRoom>;
+                                ReducedTwistRoom, SurfaceTwistRoom, CutRoom>;
 
 // The room the scene's region names, built (the reduced models' precomputation from the cache,
 // or computed and cached).

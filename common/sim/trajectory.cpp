@@ -10,6 +10,7 @@
 
 #include "common/geometry/bvh.h"
 #include "common/geometry/mesh_generators.h"
+#include "common/sim/cut_trainee.h"
 #include "common/sim/needle_trainee.h"
 
 namespace vsurg::sim {
@@ -194,6 +195,7 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
   if (!(rate_hz >= 10 && rate_hz <= 100000))
     return InvalidArgument("rate", "rate must be in 10..100000 Hz");
   if (scene.task.kind == scoring::TaskKind::kInsert) return NeedleTrainee(scene, style, rate_hz);
+  if (scene.task.kind == scoring::TaskKind::kCut) return CutTrainee(scene, style, rate_hz, seed);
   if (scene.task.kind == scoring::TaskKind::kPalpate)
     return Error{ErrorCode::kFailedPrecondition,
                  "a palpation's scripted trainees search closed on the forces they feel "

@@ -18,6 +18,8 @@ const char* InstrumentName(Instrument i) {
       return "grip";
     case Instrument::kNeedle:
       return "needle";
+    case Instrument::kScalpel:
+      return "scalpel";
   }
   return "probe";
 }
@@ -50,6 +52,10 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     auto coarse = geometry::MakeLimbSkin(p, std::max(24, around / 2), std::max(8, along / 2));
     if (!coarse.ok()) return coarse.error();
     v.coarse_surface = std::move(*coarse);
+  } else if (scene.mesh.kind == MeshKind::kMembrane) {
+    v.surface = physics;
+    geometry::ComputeVertexNormals(v.surface);
+    v.physics_drawn = true;
   } else {
     int levels = 0;
     while (levels < 4 && physics.TriangleCount() << (2 * levels) < scene.visual.min_triangles)
@@ -57,7 +63,7 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     v.surface = geometry::PhongRefine(physics, levels);
     if (levels > 0) v.coarse_surface = geometry::PhongRefine(physics, levels - 1);
   }
-  v.mapping = geometry::SurfaceMapping::Build(physics, v.surface.positions);
+  if (!v.physics_drawn) v.mapping = geometry::SurfaceMapping::Build(physics, v.surface.positions);
   if (!v.coarse_surface.positions.empty())
     v.coarse_mapping = geometry::SurfaceMapping::Build(physics, v.coarse_surface.positions);
   // A limb lies along z with its back (+y) up; everything else rests on its bottom (−z).
@@ -72,6 +78,8 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
   v.table_height = lowest;
   if (scene.task.kind == scoring::TaskKind::kInsert) {
     v.instrument = Instrument::kNeedle;
+  } else if (scene.task.kind == scoring::TaskKind::kCut) {
+    v.instrument = Instrument::kScalpel;
   } else if (scene.task.kind == scoring::TaskKind::kPress ||
              scene.task.kind == scoring::TaskKind::kPalpate) {
     v.instrument = Instrument::kProbe;

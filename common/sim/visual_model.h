@@ -17,13 +17,17 @@ namespace vsurg::sim {
 
 // The instrument: a blunt probe for palpation (press tasks), a grasper whose jaws close with
 // the button for a twist anywhere on a surface (forceps), a grip for twisting a limb, a needle
-// on a syringe for a needle insertion.
-enum class Instrument { kProbe, kGrasper, kGrip, kNeedle };
+// on a syringe for a needle insertion, a scalpel for a cut.
+enum class Instrument { kProbe, kGrasper, kGrip, kNeedle, kScalpel };
 const char* InstrumentName(Instrument i);
 
 struct VisualModel {
   geometry::TriMesh surface;         // the fine surface at rest (normals included)
   geometry::SurfaceMapping mapping;  // physics surface → `surface`
+  // The physics surface drawn as it is (a cut's patch, whose faces a cut changes: a finer surface
+  // mapped over it would not open along the cut): `surface` is the physics surface, `mapping`
+  // unused.
+  bool physics_drawn = false;
   // The same surface at about a quarter of the triangles (a limb's skin at half the vertices
   // around and along, an organ refined one level less), for the levels a software renderer draws
   // (client::Quality below high): silhouettes stay within a fraction of a pixel at the station's

@@ -185,9 +185,8 @@ Status CutMembrane::BuildModel() {
   if (!model.ok()) return model.error();
   model_ = std::move(*model);
   const int nodes = static_cast<int>(node_rest_.size());
-  const int room = p_.max_particles > 0 ? p_.max_particles : 2 * nodes;
-  model_->ReserveParticles(std::max(room, nodes));
-  node_of_.reserve(std::max(room, nodes));
+  model_->ReserveParticles(ParticleRoom());
+  node_of_.reserve(ParticleRoom());
   for (int i = 0; i < nodes; ++i) {
     node_of_.push_back(i);
     if (node_fixed_[i]) model_->SetFixed(i, true);
@@ -207,6 +206,11 @@ Status CutMembrane::BuildModel() {
     }
   }
   return Status::Ok();
+}
+
+int CutMembrane::ParticleRoom() const {
+  const int nodes = static_cast<int>(node_rest_.size());
+  return std::max(p_.max_particles > 0 ? p_.max_particles : 2 * nodes, nodes);
 }
 
 Vec2 CutMembrane::Rest(int particle) const {

@@ -112,6 +112,8 @@ class CutMembrane {
   const MassSpringModel& model() const { return *model_; }
   const CutMembraneParams& params() const { return p_; }
   int node_count() const { return static_cast<int>(node_rest_.size()); }
+  // The particles the patch has room for (max_particles, or twice the nodes).
+  int ParticleRoom() const;
   // The rest-plane position of particle i (after snapping).
   Vec2 Rest(int particle) const;
   // The original node a particle is a copy of.

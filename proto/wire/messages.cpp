@@ -167,6 +167,7 @@ constexpr double kMicro = 1e6;
 constexpr double kMaxMetres = 1000.0;
 constexpr int64_t kMaxMicro = 1'000'000'000;
 constexpr size_t kFrameOverhead = 48;  // frame id, chunk fields, two packed-field headers
+constexpr int64_t kMaxTopologyIndex = 1 << 24;  // faces and vertices of a cut's patch
 
 }  // namespace
 
@@ -253,11 +254,76 @@ size_t Codec::EncodeTwistFrame(uint64_t frame_id, const CoilTwist& twist, const 
   return impl_->Sealed(m, base, PayloadType::kSceneFrame, auth, out);
 }
 
+size_t Codec::EncodeTopologyChunk(const TopologyView& t, size_t chunk, size_t chunks,
+                                  const Header& base, const Authenticator& auth,
+                                  std::span<uint8_t> out) {
+  v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
+  m.set_frame_id(t.frame_id);
+  m.set_chunk_index(static_cast<uint32_t>(chunk));
+  m.set_chunk_count(static_cast<uint32_t>(chunks));
+  m.set_topology(t.topology);
+  const size_t first = chunk * kTopologyChunkFaces;
+  const size_t last = std::min(t.faces.size(), first + kTopologyChunkFaces);
+  int32_t previous_face = 0, previous_vertex = 0;
+  for (size_t i = first; i < last; ++i) {
+    if (t.face_indices[i] < 0 || t.face_indices[i] > kMaxTopologyIndex) return 0;
+    m.add_face_index_deltas(t.face_indices[i] - previous_face);
+    previous_face = t.face_indices[i];
+    for (int v : t.faces[i]) {
+      if (v < 0 || v > kMaxTopologyIndex) return 0;
+      m.add_face_vertex_deltas(v - previous_vertex);
+      previous_vertex = v;
+    }
+  }
+  Header h = base;
+  h.sequence = base.sequence + chunk;
+  return impl_->Sealed(m, h, PayloadType::kSceneFrame, auth, out);
+}
+
+namespace {
+
+// A chunk of a cut's faces: nothing else in it, every index within [0, 2²⁴].
+DropReason DecodeTopologyChunk(const v1::SceneFrame& m, SceneChunk& out) {
+  if (m.indices_size() > 0 || m.index_deltas_size() > 0 || m.has_coil_twist() ||
+      m.face_vertex_deltas_size() != 3 * m.face_index_deltas_size() || m.chunk_count() == 0 ||
+      m.chunk_index() >= m.chunk_count())
+    return DropReason::kBadPayload;
+  out.frame_id = m.frame_id();
+  out.chunk_index = m.chunk_index();
+  out.chunk_count = m.chunk_count();
+  out.topology = m.topology();
+  out.indices.clear();
+  out.positions.clear();
+  const int count = m.face_index_deltas_size();
+  out.face_indices.resize(count);
+  out.faces.resize(count);
+  int64_t face = 0, vertex = 0;  // sums of at most 2²⁰ deltas of at most 2³¹: no overflow
+  for (int i = 0; i < count; ++i) {
+    face += m.face_index_deltas(i);
+    if (face < 0 || face > kMaxTopologyIndex) return DropReason::kBadPayload;
+    out.face_indices[i] = static_cast<int32_t>(face);
+    for (int k = 0; k < 3; ++k) {
+      vertex += m.face_vertex_deltas(3 * i + k);
+      if (vertex < 0 || vertex > kMaxTopologyIndex) return DropReason::kBadPayload;
+      out.faces[i][k] = static_cast<int32_t>(vertex);
+    }
+  }
+  return DropReason::kNone;
+}
+
+}  // namespace
+
 DropReason Codec::DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out) {
   v1::SceneFrame& m = impl_->Fresh<v1::SceneFrame>();
   if (!m.ParseFromArray(payload.data(), static_cast<int>(payload.size())))
     return DropReason::kBadPayload;
   out.twist.reset();
+  out.topology = 0;
+  out.face_indices.clear();
+  out.faces.clear();
+  if (m.topology() != 0) return DecodeTopologyChunk(m, out);
+  if (m.face_index_deltas_size() > 0 || m.face_vertex_deltas_size() > 0)
+    return DropReason::kBadPayload;
   if (m.has_coil_twist()) {
     const v1::SceneFrame::CoilTwist& t = m.coil_twist();
     if (m.indices_size() > 0 || m.index_deltas_size() > 0 || m.positions_um_size() > 0 ||

@@ -6,6 +6,7 @@
 // encoding and decoding do not allocate after the first message of each kind).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -56,6 +57,17 @@ struct SceneChunk {
   std::vector<int32_t> indices;
   std::vector<Eigen::Vector3d> positions;
   std::optional<CoilTwist> twist;
+  // A cut's faces (SceneFrame.topology): each face index and its three corners; topology 0: none.
+  uint64_t topology = 0;
+  std::vector<int32_t> face_indices;
+  std::vector<std::array<int32_t, 3>> faces;
+};
+
+// A cut's faces that differ from the rest mesh, as the simulation gives them.
+struct TopologyView {
+  uint64_t frame_id = 0, topology = 0;
+  std::span<const int32_t> face_indices;
+  std::span<const std::array<int, 3>> faces;
 };
 
 class Codec {
@@ -90,6 +102,23 @@ class Codec {
   // finite.
   size_t EncodeTwistFrame(uint64_t frame_id, const CoilTwist& twist, const Header& h,
                           const Authenticator& auth, std::span<uint8_t> out);
+  // A cut's faces in as many chunks as they take (kTopologyChunkFaces each), each sealed and
+  // handed to `sink`. Returns the chunk count; 0 when there is nothing to send or an index is
+  // negative or past 2²⁴.
+  static constexpr size_t kTopologyChunkFaces = 48;  // ≤ 20 bytes each, whatever the deltas
+  template <class Sink>
+  size_t EncodeTopologyFrame(const TopologyView& t, const Header& base, const Authenticator& auth,
+                             std::span<uint8_t> out, Sink&& sink) {
+    if (t.face_indices.empty() || t.face_indices.size() != t.faces.size() || t.topology == 0)
+      return 0;
+    const size_t chunks = (t.faces.size() + kTopologyChunkFaces - 1) / kTopologyChunkFaces;
+    for (size_t c = 0; c < chunks; ++c) {
+      const size_t n = EncodeTopologyChunk(t, c, chunks, base, auth, out);
+      if (n == 0) return 0;
+      sink(std::span<const uint8_t>(out.data(), n));
+    }
+    return chunks;
+  }
   // A chunk of vertices or a twist; a twist with vertices, of more than one chunk or with a
   // number that is not finite is kBadPayload.
   DropReason DecodeSceneChunk(std::span<const uint8_t> payload, SceneChunk& out);
@@ -105,6 +134,9 @@ class Codec {
   size_t PlanSceneChunks(const SceneFrameView& frame);  // fills the chunk boundaries
   size_t EncodeSceneChunk(const SceneFrameView& frame, size_t chunk, size_t chunks,
                           const Header& base, const Authenticator& auth, std::span<uint8_t> out);
+  size_t EncodeTopologyChunk(const TopologyView& t, size_t chunk, size_t chunks,
+                             const Header& base, const Authenticator& auth,
+                             std::span<uint8_t> out);
   std::vector<size_t> chunk_start_;
   std::vector<int32_t> quantized_;  // the planned frame's positions in µm, three per vertex
   struct Impl;

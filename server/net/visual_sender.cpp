@@ -98,19 +98,22 @@ void VisualSender::QueueFrame(Session& s, const sim::VisualFrame& frame,
     QueueTwist(s, frame.frame_id);
     return;
   }
-  if (frame.indices.empty()) return;
+  if (frame.indices.empty() && frame.faces.empty()) return;
   s.twist.reset();  // vertices from now on (a surface not made by a twist)
   s.queued.clear();
   s.sizes.clear();
   s.next = 0;
-  const wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id,
-                          s.sequence + 1};
-  const size_t chunks =
-      codec_.EncodeSceneFrame({frame.frame_id, frame.indices, frame.positions}, base, s.auth, out_,
-                              [&](std::span<const uint8_t> d) {
-                                s.queued.insert(s.queued.end(), d.begin(), d.end());
-                                s.sizes.push_back(static_cast<uint16_t>(d.size()));
-                              });
+  const auto sink = [&](std::span<const uint8_t> d) {
+    s.queued.insert(s.queued.end(), d.begin(), d.end());
+    s.sizes.push_back(static_cast<uint16_t>(d.size()));
+  };
+  wire::Header base{wire::kProtocolVersion, wire::PayloadType::kSceneFrame, s.id, s.sequence + 1};
+  size_t chunks = codec_.EncodeSceneFrame({frame.frame_id, frame.indices, frame.positions}, base,
+                                          s.auth, out_, sink);
+  // A cut's faces after the vertices, so the copies a face uses have usually arrived before it.
+  base.sequence += chunks;
+  chunks += codec_.EncodeTopologyFrame(
+      {frame.frame_id, frame.topology, frame.face_indices, frame.faces}, base, s.auth, out_, sink);
   s.sequence += chunks;
   s.per_tick = std::max<size_t>(kMinPerTick, (chunks + kSpreadMs - 1) / kSpreadMs);
   frames_.fetch_add(1, std::memory_order_relaxed);

@@ -117,6 +117,11 @@ struct Deformed {
   bool overload = false;
   bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
   std::optional<CoilTwistShape> twist;  // these positions as a coil limb's twist, when they are
+  // A model whose topology changes (a cut): its faces now, as the rest mesh's triangles re-pointed
+  // at the particles a cut made (a removed face is {0, 0, 0}), and how many times they changed.
+  // Null for the others: their faces are the rest mesh's.
+  const std::vector<geometry::Triangle>* faces = nullptr;
+  uint64_t topology = 0;
 };
 
 }  // namespace vsurg::sim

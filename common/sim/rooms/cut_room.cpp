@@ -1,0 +1,103 @@
+#include "common/sim/rooms/cut_room.h"
+
+#include <boost/lockfree/spsc_queue.hpp>
+
+#include "common/core/state_archive.h"
+
+namespace vsurg::sim {
+
+struct CutRoom::Shared {
+  boost::lockfree::spsc_queue<CutSegment, boost::lockfree::capacity<kQueue>> queue;
+  std::atomic<int> torn{0}, freed{0};
+  double edge = 0;
+};
+
+CutRoom::CutRoom(CutRoom&&) noexcept = default;
+CutRoom& CutRoom::operator=(CutRoom&&) noexcept = default;
+CutRoom::~CutRoom() = default;
+
+Expected<CutRoom> CutRoom::Build(const RoomInputs& in) {
+  if (!in.scene.cut || in.scene.mesh.kind != MeshKind::kMembrane)
+    return InvalidArgument("regions[0].model.type",
+                           "regions[0].model.type: the cut-membrane model needs a cut scene");
+  auto patch = tissue::CutMembrane::Create(in.scene.mesh.membrane);
+  if (!patch.ok()) return patch.error();
+  if (static_cast<size_t>(patch->ParticleRoom()) != in.rest.positions.size() ||
+      static_cast<size_t>(patch->FaceCount()) != in.rest.triangles.size())
+    return InvalidArgument("mesh", "mesh: not the cut's membrane");
+  CutRoom room;
+  room.patch_ = std::make_unique<tissue::CutMembrane>(std::move(*patch));
+  room.shared_ = std::make_unique<Shared>();
+  room.shared_->edge = room.patch_->EdgeLength();
+  room.positions_ = in.rest.positions;
+  room.faces_ = in.rest.triangles;
+  room.dt_ = in.scene.region.dt;
+  room.in_plane_stiffness_ = room.patch_->InPlaneStiffness();
+  room.normal_stiffness_ = room.patch_->NormalStiffness();
+  room.edge_ = room.patch_->EdgeLength();
+  // The blade's own front: its reach (the stretch at the cutting force, the slit's half width)
+  // and two edges, where the lattice's point-load strain is not the tissue's.
+  haptics::BladeParams bp = in.scene.cut->blade;
+  bp.in_plane_stiffness = room.in_plane_stiffness_;
+  bp.normal_stiffness = room.normal_stiffness_;
+  auto blade = haptics::BladeModel::Create(bp);
+  if (!blade.ok()) return blade.error();
+  room.spare_ = blade->Reach() + 2 * room.edge_;
+  return room;
+}
+
+bool CutRoom::PushCut(const CutSegment& s) {
+  return shared_->queue.push(s);
+}
+
+double CutRoom::TornLength() const {
+  return shared_->torn.load(std::memory_order_relaxed) * shared_->edge;
+}
+
+int CutRoom::FreedPieces() const {
+  return shared_->freed.load(std::memory_order_relaxed);
+}
+
+std::optional<Deformed> CutRoom::Deform(const DeformInput& in) {
+  const int edges_before = cut_edges_, freed_before = patch_->freed_pieces();
+  shared_->queue.consume_all([&](const CutSegment& s) {
+    cut_edges_ += patch_->Cut({s.ax, s.ay}, {s.bx, s.by});
+  });
+  const tissue::Vec2 tip(in.hip.x(), in.hip.y());
+  patch_->Load(tip, in.triangle >= 0 ? in.force_on_tissue : geometry::Vec3::Zero());
+  if (!patch_->Step(dt_)) patch_->Load(tip, geometry::Vec3::Zero());  // back at rest, unloaded
+  const int tore = patch_->Tear(in.triangle >= 0 ? tip : tissue::Vec2::Constant(1e9), spare_);
+  torn_ += tore;
+  shared_->torn.store(torn_, std::memory_order_relaxed);
+  shared_->freed.store(patch_->freed_pieces(), std::memory_order_relaxed);
+  const bool topology = cut_edges_ != edges_before || tore > 0 ||
+                        patch_->freed_pieces() != freed_before;
+  if (topology) ++topology_;
+  CopyOut(topology);
+  return Deformed{&positions_, false, false, std::nullopt, &faces_, topology_};
+}
+
+// The patch's particles over the rest mesh's first vertices (the spare room stays where it is),
+// and, after a topology change, its faces (a removed face collapsed to vertex 0).
+void CutRoom::CopyOut(bool faces) {
+  const auto& x = patch_->positions();
+  std::copy(x.begin(), x.end(), positions_.begin());
+  if (!faces) return;
+  for (int f = 0; f < patch_->FaceCount(); ++f) {
+    const auto v = patch_->face(f).v;
+    faces_[static_cast<size_t>(f)] =
+        patch_->Removed(f) ? geometry::Triangle{0, 0, 0} : geometry::Triangle{v[0], v[1], v[2]};
+  }
+}
+
+void CutRoom::Save(StateWriter& w) const {
+  w(cut_edges_);
+}
+
+bool CutRoom::Load(StateReader& r) {
+  int edges = 0;
+  r(edges);
+  return false;  // a cut patch's topology is not carried: the session stays where it is
+}
+
+}  // namespace vsurg::sim
