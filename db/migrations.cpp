@@ -243,6 +243,14 @@ ALTER TABLE trial_metrics ADD COLUMN extra_punctures INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE trial_metrics ADD COLUMN back_wall_breaches INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE trial_metrics ADD COLUMN lateral_strain REAL NOT NULL DEFAULT 0;
 )sql",
+      // 11: pattern cutting (scoring::TrialMetrics::cut_deviation_max … cut_lifts; 0 for the
+      // other tasks).
+      R"sql(
+ALTER TABLE trial_metrics ADD COLUMN cut_deviation_max_m REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN cut_outside_m REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN torn_length_m REAL NOT NULL DEFAULT 0;
+ALTER TABLE trial_metrics ADD COLUMN cut_lifts INTEGER NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }

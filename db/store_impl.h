@@ -105,7 +105,8 @@ inline constexpr const char* kTrialMetricColumns =
     "station_peak_force_n, station_time_over_limit_s, link_rtt_ms, link_jitter_ms, "
     "link_loss_ratio, link_rate_hz, guided_share, guided_alpha, lumps, lumps_found, false_marks, "
     "localisation_error_m, coverage, mean_force_n, depth_error_m, path_deviation_m, punctures, "
-    "extra_punctures, back_wall_breaches, lateral_strain";
+    "extra_punctures, back_wall_breaches, lateral_strain, cut_deviation_max_m, cut_outside_m, "
+    "torn_length_m, cut_lifts";
 // A row's trial metrics from column `first` on (kTrialMetricColumns).
 scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first);
 

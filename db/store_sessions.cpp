@@ -202,9 +202,11 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
         "station_time_over_limit_s, link_rtt_ms, link_jitter_ms, link_loss_ratio, link_rate_hz, "
         "guided_share, guided_alpha, lumps, lumps_found, false_marks, localisation_error_m, "
         "coverage, mean_force_n, depth_error_m, path_deviation_m, punctures, extra_punctures, "
-        "back_wall_breaches, lateral_strain) "
+        "back_wall_breaches, lateral_strain, cut_deviation_max_m, cut_outside_m, torn_length_m, "
+        "cut_lifts) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
-        "?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34)",
+        "?19, ?20, ?21, ?22, ?23, ?24, ?25, ?26, ?27, ?28, ?29, ?30, ?31, ?32, ?33, ?34, ?35, ?36, "
+        "?37, ?38)",
         [&](Statement& st) {
           st.Bind(1, id).Bind(2, int64_t{m.completed ? 1 : 0});
           st.Bind(3, m.completion_time).Bind(4, m.task_error).Bind(5, m.peak_force);
@@ -219,7 +221,8 @@ Status Store::EndSession(int64_t id, SessionState state, int64_t at_us, const st
           st.Bind(27, m.coverage).Bind(28, m.mean_force).Bind(29, m.depth_error);
           st.Bind(30, m.path_deviation).Bind(31, int64_t{m.punctures});
           st.Bind(32, int64_t{m.extra_punctures}).Bind(33, int64_t{m.back_wall_breaches});
-          st.Bind(34, m.lateral_strain);
+          st.Bind(34, m.lateral_strain).Bind(35, m.cut_deviation_max).Bind(36, m.cut_outside);
+          st.Bind(37, m.torn_length).Bind(38, int64_t{m.cut_lifts});
         });
     if (!s.ok() || trace_json.empty()) return s;
     return RunSql(c, "INSERT INTO session_traces(session_id, trace_json) VALUES (?1, ?2)",

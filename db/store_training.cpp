@@ -42,6 +42,10 @@ scoring::TrialMetrics ReadTrialMetrics(const Statement& q, int first) {
   m.extra_punctures = static_cast<int>(q.Int(first + 29));
   m.back_wall_breaches = static_cast<int>(q.Int(first + 30));
   m.lateral_strain = q.Double(first + 31);
+  m.cut_deviation_max = q.Double(first + 32);
+  m.cut_outside = q.Double(first + 33);
+  m.torn_length = q.Double(first + 34);
+  m.cut_lifts = static_cast<int>(q.Int(first + 35));
   return m;
 }
 
@@ -182,11 +186,12 @@ Expected<std::vector<CohortRecord>> ReadCohorts(Connection& c, int64_t id) {
 // can name (scoring::ProficiencyMetrics; the rest of a trial's figures are not read).
 // VSURG_PROFICIENCY_COLUMNS: every metric a target can name (scoring::ProficiencyMetrics), in
 // ReadProficiencyMetrics' order. A macro, so that the two queries below join it at compile time.
-#define VSURG_PROFICIENCY_COLUMNS                                                               \
-  "m.completed, m.completion_time_s, m.task_error, m.peak_force_n, m.time_over_force_limit_s, " \
-  "m.path_length_m, m.rms_jerk, m.overload_events, m.score, m.guided_share, m.lumps, "          \
-  "m.lumps_found, m.false_marks, m.localisation_error_m, m.coverage, m.depth_error_m, "         \
-  "m.path_deviation_m, m.extra_punctures, m.back_wall_breaches, m.lateral_strain, m.punctures "
+#define VSURG_PROFICIENCY_COLUMNS                                                                \
+  "m.completed, m.completion_time_s, m.task_error, m.peak_force_n, m.time_over_force_limit_s, "  \
+  "m.path_length_m, m.rms_jerk, m.overload_events, m.score, m.guided_share, m.lumps, "           \
+  "m.lumps_found, m.false_marks, m.localisation_error_m, m.coverage, m.depth_error_m, "          \
+  "m.path_deviation_m, m.extra_punctures, m.back_wall_breaches, m.lateral_strain, m.punctures, " \
+  "m.cut_deviation_max_m, m.cut_outside_m, m.torn_length_m, m.cut_lifts "
 constexpr const char* kAttemptColumns =
     "SELECT s.id, t.name, s.exercise_id, s.ended_us, " VSURG_PROFICIENCY_COLUMNS;
 
@@ -213,6 +218,10 @@ void ReadProficiencyMetrics(const Statement& q, int first, scoring::TrialMetrics
   m.back_wall_breaches = static_cast<int>(q.Int(first + 18));
   m.lateral_strain = q.Double(first + 19);
   m.punctures = static_cast<int>(q.Int(first + 20));  // no puncture: no placement to credit
+  m.cut_deviation_max = q.Double(first + 21);
+  m.cut_outside = q.Double(first + 22);
+  m.torn_length = q.Double(first + 23);
+  m.cut_lifts = static_cast<int>(q.Int(first + 24));
 }
 
 void ReadAttempt(const Statement& q, std::vector<AttemptRow>& out) {

@@ -179,7 +179,8 @@ int MeshView::ApplyFaces(const std::vector<int32_t>& indices,
     const geometry::Triangle face{faces[k][0], faces[k][1], faces[k][2]};
     const bool removed = face == geometry::Triangle{0, 0, 0};
     bool placed = true;
-    for (int v : face) placed = placed && v >= 0 && static_cast<size_t>(v) < placed_.size() && placed_[v];
+    for (int v : face)
+      placed = placed && v >= 0 && static_cast<size_t>(v) < placed_.size() && placed_[v];
     if (!removed && !placed) continue;
     // A copy's rest position is its original's (the tissue's tone and detail are read there).
     for (int c = 0; c < 3 && !removed; ++c)

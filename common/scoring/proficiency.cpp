@@ -8,7 +8,7 @@
 namespace vsurg::scoring {
 namespace {
 
-constexpr std::array<MetricDef, 18> kMetrics = {{
+constexpr std::array<MetricDef, 22> kMetrics = {{
     {"completion_time_s", "s", Better::kLower, "completion time"},
     {"task_error", "rad or m", Better::kLower, "task error"},
     {"peak_force_n", "N", Better::kLower, "peak force"},
@@ -31,6 +31,11 @@ constexpr std::array<MetricDef, 18> kMetrics = {{
     {"extra_punctures", "", Better::kLower, "punctures beyond the path's own"},
     {"back_wall_breaches", "", Better::kLower, "back-wall breaches"},
     {"lateral_strain", "", Better::kLower, "lateral tissue strain"},
+    // A pattern cut's (cut.h): how far it strayed, what it cut or tore off the line, its lifts.
+    {"cut_deviation_max_m", "m", Better::kLower, "largest deviation from the line"},
+    {"cut_outside_m", "m", Better::kLower, "length cut outside the band"},
+    {"torn_length_m", "m", Better::kLower, "length torn by pulling"},
+    {"cut_lifts", "", Better::kLower, "blade lifts mid-cut"},
 }};
 
 // Equal within rounding counts as met: a benchmark from experts who all reached the same value
@@ -87,6 +92,10 @@ double MetricValue(const TrialMetrics& m, const MetricDef& metric) {
   if (n == "extra_punctures") return m.extra_punctures;
   if (n == "back_wall_breaches") return m.back_wall_breaches;
   if (n == "lateral_strain") return m.lateral_strain;
+  if (n == "cut_deviation_max_m") return m.cut_deviation_max;
+  if (n == "cut_outside_m") return m.cut_outside;
+  if (n == "torn_length_m") return m.torn_length;
+  if (n == "cut_lifts") return m.cut_lifts;
   return m.score;
 }
 

@@ -33,7 +33,6 @@ StageTimes Summarise(std::vector<double>& v) {
   return s;
 }
 
-
 void KeepShape(const tissue::CutMembrane& patch, const haptics::BladeModel& blade,
                CutDrillTrace& trace) {
   for (int f = 0; f < patch.FaceCount(); ++f) {

@@ -28,8 +28,7 @@ CutHand HandOf(TraineeStyle style, unsigned seed) {
 
 Expected<std::vector<haptics::StylusSample>> CutTrainee(const Scene& scene, TraineeStyle style,
                                                         double rate_hz, unsigned seed) {
-  if (!scene.cut)
-    return Error{ErrorCode::kFailedPrecondition, "the scene has no cut", "scene"};
+  if (!scene.cut) return Error{ErrorCode::kFailedPrecondition, "the scene has no cut", "scene"};
   if (!(rate_hz >= 10 && rate_hz <= 100000))
     return InvalidArgument("rate", "rate must be in 10..100000 Hz");
   auto patch = tissue::CutMembrane::Create(scene.mesh.membrane);

@@ -96,13 +96,11 @@ class CutScript {
   int lifted_ = 0;
 };
 
-
 // A cut scene's scripted trainee (trajectory.h): good and steady cut as the drill's expert,
 // hesitant as its novice, rough as the novice at twice the speed with a wider wobble. The hand is
 // open-loop: it presses the blade 1 mm past the depth at which the blade's model punctures the
 // patch (f_p / k_n), then draws. kFailedPrecondition unless the scene is a cut.
 Expected<std::vector<haptics::StylusSample>> CutTrainee(const Scene& scene, TraineeStyle style,
-                                                        double rate_hz = 1000.0,
-                                                        unsigned seed = 1);
+                                                        double rate_hz = 1000.0, unsigned seed = 1);
 
 }  // namespace vsurg::sim

@@ -523,7 +523,8 @@ void Simulation::TakeTopology(const VisualPositions& v, VisualFrame& out) {
   out.topology = 0;
   out.face_indices.clear();
   out.faces.clear();
-  if (v.topology != sent_topology_) sent_topology_ = v.topology, topology_repeats_ = kTopologyRepeats;
+  if (v.topology != sent_topology_)
+    sent_topology_ = v.topology, topology_repeats_ = kTopologyRepeats;
   if (topology_repeats_ <= 0 || v.faces.size() != rest_.triangles.size()) return;
   --topology_repeats_;
   out.topology = v.topology;

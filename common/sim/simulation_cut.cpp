@@ -55,7 +55,8 @@ void Simulation::CutRecord(const haptics::BladeForce& f, const haptics::StylusSa
   scoring::CutRecorder& rec = *cut_.record;
   rec.AddSample(trial_time_, s.position.x(), s.position.y(), f.through, f.force.norm(),
                 scene_.task.force_limit);
-  if (const double torn = room.TornLength(); torn > cut_.torn) rec.Torn(torn - cut_.torn), cut_.torn = torn;
+  if (const double torn = room.TornLength(); torn > cut_.torn)
+    rec.Torn(torn - cut_.torn), cut_.torn = torn;
   if (const int freed = room.FreedPieces(); freed > cut_.freed) {
     cut_.freed = freed;
     rec.PieceFreed(trial_time_);

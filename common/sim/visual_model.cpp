@@ -75,7 +75,8 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     lo = lo.cwiseMin(q);
     hi = hi.cwiseMax(q);
   }
-  v.table_height = lowest;
+  // A cut's patch is held in a frame above the table (the blade goes through it).
+  v.table_height = scene.mesh.kind == MeshKind::kMembrane ? lowest - 0.04 : lowest;
   if (scene.task.kind == scoring::TaskKind::kInsert) {
     v.instrument = Instrument::kNeedle;
   } else if (scene.task.kind == scoring::TaskKind::kCut) {

@@ -50,6 +50,10 @@ void ToProto(const scoring::TrialMetrics& m, v1::TrialMetrics* out) {
   out->set_extra_punctures(m.extra_punctures);
   out->set_back_wall_breaches(m.back_wall_breaches);
   out->set_lateral_strain(m.lateral_strain);
+  out->set_cut_deviation_max_m(m.cut_deviation_max);
+  out->set_cut_outside_m(m.cut_outside);
+  out->set_torn_length_m(m.torn_length);
+  out->set_cut_lifts(m.cut_lifts);
 }
 
 void ToProto(const scoring::TaskSettings& t, v1::TaskSettings* out) {
@@ -109,6 +113,10 @@ scoring::TrialMetrics FromProto(const v1::TrialMetrics& m) {
   out.extra_punctures = m.extra_punctures();
   out.back_wall_breaches = m.back_wall_breaches();
   out.lateral_strain = m.lateral_strain();
+  out.cut_deviation_max = m.cut_deviation_max_m();
+  out.cut_outside = m.cut_outside_m();
+  out.torn_length = m.torn_length_m();
+  out.cut_lifts = m.cut_lifts();
   return out;
 }
 

@@ -166,7 +166,7 @@ constexpr double kMicro = 1e6;
 // A coordinate within ±1 km, so that a delta between two (±2·10⁹ µm) fits a sint32.
 constexpr double kMaxMetres = 1000.0;
 constexpr int64_t kMaxMicro = 1'000'000'000;
-constexpr size_t kFrameOverhead = 48;  // frame id, chunk fields, two packed-field headers
+constexpr size_t kFrameOverhead = 48;           // frame id, chunk fields, two packed-field headers
 constexpr int64_t kMaxTopologyIndex = 1 << 24;  // faces and vertices of a cut's patch
 
 }  // namespace

@@ -134,9 +134,8 @@ class Codec {
   size_t PlanSceneChunks(const SceneFrameView& frame);  // fills the chunk boundaries
   size_t EncodeSceneChunk(const SceneFrameView& frame, size_t chunk, size_t chunks,
                           const Header& base, const Authenticator& auth, std::span<uint8_t> out);
-  size_t EncodeTopologyChunk(const TopologyView& t, size_t chunk, size_t chunks,
-                             const Header& base, const Authenticator& auth,
-                             std::span<uint8_t> out);
+  size_t EncodeTopologyChunk(const TopologyView& t, size_t chunk, size_t chunks, const Header& base,
+                             const Authenticator& auth, std::span<uint8_t> out);
   std::vector<size_t> chunk_start_;
   std::vector<int32_t> quantized_;  // the planned frame's positions in µm, three per vertex
   struct Impl;

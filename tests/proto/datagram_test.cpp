@@ -404,6 +404,49 @@ TEST(DatagramTest, SceneFramesAreChunkedToFitAndRoundTripToTheMicrometre) {
   EXPECT_EQ(codec.EncodeSceneFrame({2, two, far}, {}, auth, buf, [](auto) {}), 0u);
 }
 
+TEST(DatagramTest, ACutsFacesRoundTripInChunksThatStandAlone) {
+  const Authenticator auth(Key(7));
+  Codec codec;
+  std::vector<int32_t> faces;
+  std::vector<std::array<int, 3>> corners;
+  for (int f = 0; f < 300; ++f) {  // a freed piece's removed faces and the cut's re-pointed ones
+    faces.push_back(40 + 3 * f);
+    corners.push_back(f % 2 ? std::array<int, 3>{0, 0, 0}
+                            : std::array<int, 3>{700 + f, 20 + f, (1 << 24) - f});
+  }
+  std::array<uint8_t, kMaxDatagram> buf;
+  std::vector<SceneChunk> chunks;
+  const size_t count = codec.EncodeTopologyFrame(
+      {9, 17, faces, corners}, {kProtocolVersion, PayloadType::kSceneFrame, 3, 1}, auth, buf,
+      [&](std::span<const uint8_t> d) {
+        ASSERT_LE(d.size(), kMaxDatagram);
+        Opened o;
+        ASSERT_EQ(Open(d, &auth, o), DropReason::kNone);
+        SceneChunk c;
+        ASSERT_EQ(codec.DecodeSceneChunk(o.payload, c), DropReason::kNone);
+        chunks.push_back(c);
+      });
+  ASSERT_EQ(count, (300 + Codec::kTopologyChunkFaces - 1) / Codec::kTopologyChunkFaces);
+  size_t k = 0;
+  for (const SceneChunk& c : chunks) {
+    EXPECT_EQ(c.topology, 17u);
+    EXPECT_TRUE(c.indices.empty());
+    EXPECT_FALSE(c.twist.has_value());
+    for (size_t i = 0; i < c.face_indices.size(); ++i, ++k) {
+      EXPECT_EQ(c.face_indices[i], faces[k]);
+      EXPECT_EQ(c.faces[i][0], corners[k][0]);
+      EXPECT_EQ(c.faces[i][2], corners[k][2]);
+    }
+  }
+  EXPECT_EQ(k, faces.size());
+  // Out of range either way: refused, never sent.
+  std::vector<int32_t> one = {1};
+  std::vector<std::array<int, 3>> negative = {{0, -1, 2}}, past = {{0, 1, (1 << 24) + 1}};
+  EXPECT_EQ(codec.EncodeTopologyFrame({1, 1, one, negative}, {}, auth, buf, [](auto) {}), 0u);
+  EXPECT_EQ(codec.EncodeTopologyFrame({1, 1, one, past}, {}, auth, buf, [](auto) {}), 0u);
+  EXPECT_EQ(codec.EncodeTopologyFrame({1, 0, one, corners}, {}, auth, buf, [](auto) {}), 0u);
+}
+
 // A SceneFrame payload written by hand (protobuf's wire format): varint fields, packed fields of
 // unsigned or zigzag varints, 64-bit fields and embedded messages.
 struct FrameBytes {
@@ -472,6 +515,29 @@ TEST(DatagramTest, SceneChunksDecodeEitherCodingAndRefuseWhatNoEncoderWrites) {
   FrameBytes short_positions = header();
   short_positions.Packed(6, {1, 1}, true).Packed(7, {0, 0, 0, 0, 0}, true);
   EXPECT_EQ(codec.DecodeSceneChunk(short_positions.bytes, c), DropReason::kBadPayload);
+  // A cut's faces: a face index or corner led below zero, a corner short, faces beside vertices,
+  // or faces without a topology: refused.
+  FrameBytes faces = header();
+  faces.Field(9, 3).Packed(10, {4, 1}, true).Packed(11, {7, 1, 1, 0, 0, 0}, true);
+  ASSERT_EQ(codec.DecodeSceneChunk(faces.bytes, c), DropReason::kNone);
+  EXPECT_EQ(c.face_indices, (std::vector<int32_t>{4, 5}));
+  EXPECT_EQ(c.faces[1], (std::array<int32_t, 3>{9, 9, 9}));
+  FrameBytes face_below = header();
+  face_below.Field(9, 3).Packed(10, {4, -5}, true).Packed(11, {7, 1, 1, 0, 0, 0}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(face_below.bytes, c), DropReason::kBadPayload);
+  FrameBytes corner_below = header();
+  corner_below.Field(9, 3).Packed(10, {4}, true).Packed(11, {7, -8, 1}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(corner_below.bytes, c), DropReason::kBadPayload);
+  FrameBytes corner_short = header();
+  corner_short.Field(9, 3).Packed(10, {4}, true).Packed(11, {7, 1}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(corner_short.bytes, c), DropReason::kBadPayload);
+  FrameBytes with_vertices = header();
+  with_vertices.Field(9, 3).Packed(10, {4}, true).Packed(11, {7, 1, 1}, true);
+  with_vertices.Packed(6, {5}, true).Packed(7, {1, 2, 3}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(with_vertices.bytes, c), DropReason::kBadPayload);
+  FrameBytes no_topology = header();
+  no_topology.Packed(10, {4}, true).Packed(11, {7, 1, 1}, true);
+  EXPECT_EQ(codec.DecodeSceneChunk(no_topology.bytes, c), DropReason::kBadPayload);
 }
 
 // A coil limb's twist is one sealed chunk of its four numbers, read back exactly; a vertex chunk

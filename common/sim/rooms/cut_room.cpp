@@ -70,8 +70,8 @@ std::optional<Deformed> CutRoom::Deform(const DeformInput& in) {
   torn_ += tore;
   shared_->torn.store(torn_, std::memory_order_relaxed);
   shared_->freed.store(patch_->freed_pieces(), std::memory_order_relaxed);
-  const bool topology = cut_edges_ != edges_before || tore > 0 ||
-                        patch_->freed_pieces() != freed_before;
+  const bool topology =
+      cut_edges_ != edges_before || tore > 0 || patch_->freed_pieces() != freed_before;
   if (topology) ++topology_;
   CopyOut(topology);
   return Deformed{&positions_, false, false, std::nullopt, &faces_, topology_};

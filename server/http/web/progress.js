@@ -18,6 +18,8 @@ const METRICS = {
   depth_error_m: ['needle depth error', 'm', 4], path_deviation_m: ['needle path deviation', 'm', 4],
   extra_punctures: ['punctures beyond the path\'s own', '', 0], back_wall_breaches: ['back-wall breaches', '', 0],
   lateral_strain: ['lateral tissue strain', '', 3],
+  cut_deviation_max_m: ['largest deviation from the line', 'm', 4], cut_outside_m: ['length cut outside the band', 'm', 4],
+  torn_length_m: ['length torn by pulling', 'm', 4], cut_lifts: ['blade lifts mid-cut', '', 0],
 };
 export function metricName(m) { return (METRICS[m] || [m])[0]; }
 export function metricValue(m, v) {

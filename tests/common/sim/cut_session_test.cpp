@@ -51,7 +51,7 @@ TEST(CutSessionTest, TheSceneIsAMembraneWithRoomForTheCopiesCutsMake) {
   ASSERT_TRUE(scene.cut.has_value());
   EXPECT_EQ(scene.task.kind, scoring::TaskKind::kCut);
   EXPECT_NEAR(scene.task.target, 2 * 3.14159265 * 0.015, 1e-6);  // the circle's length
-  EXPECT_DOUBLE_EQ(scene.task.tolerance, 0.002);                  // the band
+  EXPECT_DOUBLE_EQ(scene.task.tolerance, 0.002);                 // the band
   auto mesh = BuildSceneMesh(scene.mesh);
   ASSERT_TRUE(mesh.ok());
   auto patch = tissue::CutMembrane::Create(scene.mesh.membrane);
@@ -85,8 +85,7 @@ TEST(CutSessionTest, PartsThatDoNotGoTogetherAreRefusedByName) {
                        cut_task, cut)),
             "regions[0].model.type");
   EXPECT_EQ(field(text(membrane, cut_model,
-                       R"({"type": "press", "target_depth_m": 0.005, "tolerance_m": 0.001})",
-                       cut)),
+                       R"({"type": "press", "target_depth_m": 0.005, "tolerance_m": 0.001})", cut)),
             "task.type");
   std::string far = text(membrane, cut_model, cut_task, cut);
   far.replace(far.find("[10, 0]"), 7, "[60, 0]");  // past the 80 mm patch's frame

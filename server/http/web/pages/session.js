@@ -38,6 +38,12 @@ function metricsList(m, palpation, needle) {
       ['Punctures', `${m.punctures}` + (m.extra_punctures ? ` (${m.extra_punctures} beyond the path's own)` : '')],
       ['Back-wall breaches', m.back_wall_breaches], ['Lateral tissue strain (peak)', `${fmt(100 * m.lateral_strain, 1)}%`]);
   }
+  if (m.cut_deviation_max > 0 || m.cut_lifts > 0 || m.torn_length > 0) {  // a pattern cut
+    rows.push(['Deviation from the line (mm, RMS / largest)', `${fmt(1e3 * m.task_error, 2)} / ${fmt(1e3 * m.cut_deviation_max, 2)}`],
+      ['Share of the pattern cut within the band', `${fmt(100 * m.coverage, 0)}%`],
+      ['Cut outside the band (mm)', fmt(1e3 * m.cut_outside, 1)], ['Torn by pulling (mm)', fmt(1e3 * m.torn_length, 1)],
+      ['Blade lifts mid-cut', m.cut_lifts]);
+  }
   // Four-handed training: how much of the trial an instructor's hand weighed in, and how much.
   rows.push(['Share of the trial guided', m.guided_share > 0 ? `${fmt(100 * m.guided_share, 0)}% at a mean α of ${fmt(m.guided_alpha, 2)}` : 'none: the trainee alone']);
   const l = m.link;  // what the station rendered and how the link held (0 when not reported)

@@ -1,0 +1,86 @@
+// The station's view of a cut (MeshView::ApplyFaces): a scripted good hand cuts the circle out of
+// scenes/pattern-cut.json through the simulation, and its visual frames (moved vertices and the
+// cut's faces) are applied to the view as the station applies its SceneFrames. The freed piece
+// leaves a hole the table shows through; the patch outside the cut is drawn as before.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <string>
+
+#include "client/render/gl_surface.h"
+#include "client/render/mesh_view.h"
+#include "common/core/image.h"
+#include "common/sim/cut_trainee.h"
+#include "common/sim/scene.h"
+#include "common/sim/simulation.h"
+#include "common/sim/visual_model.h"
+
+namespace vsurg::client {
+namespace {
+
+constexpr int kSize = 320;
+
+void KeepImage(const RgbImage& image, const std::string& name) {
+  if (const char* dir = std::getenv("VSURG_RENDER_OUT"))
+    (void)WriteRgbPng(std::string(dir) + "/" + name + ".png", image.width, image.height, image.rgb);
+}
+
+// The mean colour difference over the pixels within `radius` of `at`.
+double MeanDifference(const RgbImage& a, const RgbImage& b, const Eigen::Vector2d& at,
+                      double radius) {
+  double sum = 0;
+  int n = 0;
+  for (int y = 0; y < a.height; ++y)
+    for (int x = 0; x < a.width; ++x) {
+      if ((Eigen::Vector2d(x, y) - at).norm() > radius) continue;
+      const size_t i = (static_cast<size_t>(y) * a.width + x) * 3;
+      for (int k = 0; k < 3; ++k) sum += std::abs(int(a.rgb[i + k]) - int(b.rgb[i + k]));
+      ++n;
+    }
+  return n ? sum / n : 0;
+}
+
+TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
+  auto surface = GlSurface::CreateHeadless(kSize, kSize);
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  auto scene = sim::LoadSceneByName("pattern-cut");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  auto mesh = sim::BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok());
+  auto visual = sim::BuildVisualModel(*scene, mesh->surface);
+  ASSERT_TRUE(visual.ok());
+  ASSERT_TRUE(visual->physics_drawn);
+  MeshView view(mesh->surface, std::move(*visual));
+  view.SetCamera({0.0, -0.09, 0.11}, {0, 0, 0}, {0, 0, 1});
+  Overlay overlay;
+  overlay.show_stylus = false;
+  view.Draw(kSize, kSize, overlay);
+  const RgbImage uncut = (*surface)->ReadPixels();
+
+  auto sim = sim::Simulation::Create(*scene, {.threaded = false});
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  auto plan = sim::CutTrainee(*scene, sim::TraineeStyle::kGood);
+  ASSERT_TRUE(plan.ok());
+  sim::VisualFrame frame;
+  int n = 0, faces = 0;
+  (*sim)->Replay(*plan, [&](const haptics::StylusSample&, const haptics::ForceCommand&) {
+    if (++n % 16 != 0 || !(*sim)->TakeVisualFrame(frame)) return;
+    view.Apply(frame.indices, frame.positions);  // the vertices first, as the server sends them
+    std::vector<std::array<int32_t, 3>> corners(frame.faces.begin(), frame.faces.end());
+    faces += view.ApplyFaces(frame.face_indices, corners);
+  });
+  EXPECT_GT(faces, 100);
+  view.Draw(kSize, kSize, overlay);
+  const RgbImage cut = (*surface)->ReadPixels();
+  KeepImage(uncut, "cut-patch-before");
+  KeepImage(cut, "cut-patch-after");
+  for (const auto& p : view.visual_positions()) ASSERT_TRUE(p.allFinite());
+  // The piece's middle shows the table 4 cm below; the patch's far corner is as it was.
+  const Eigen::Vector2d middle = view.Project({0, 0, 0}, kSize, kSize);
+  const Eigen::Vector2d corner = view.Project({-0.034, 0.034, 0}, kSize, kSize);
+  EXPECT_GT(MeanDifference(uncut, cut, middle, 8), 20.0);
+  EXPECT_LT(MeanDifference(uncut, cut, corner, 6), 6.0);
+}
+
+}  // namespace
+}  // namespace vsurg::client
