@@ -78,6 +78,10 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   long+='|FourHandsTest.AnExpertGuidingAtHalfDominance|FourHandsTest.EveryModeStaysPassive'
   long+='|FourHandsTest.AnObserverJoiningAndLeaving'
   long+='|WanTest.TheNetworkPassivityHoldsItsAccountAtAPressScenesOwnFeel'
+  # A cut's whole trials through a session (17-33 s of scripted hand each, 5-13 s here): the
+  # blade, the queue, the room and the frames run under ASan in the good hand's frames test.
+  long+='|CutSessionTest.AGoodHandCutsTheCircleOutThroughTheSession'
+  long+='|CutSessionTest.AHesitantHandLiftsTheBladeAndScoresLower|CutViewTest.TheCutPiece'
   long+='|WanTest.TheLinearModelSticksToTheToolAcrossTheSameNetwork'
   long+='|WanTest.TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental'
   long+='|WanTest.AWiFiRoamIsHeldByTheTissuesModel'
