@@ -312,7 +312,8 @@ TEST(SceneTest, BadScenesNameTheField) {
                 .find("haptics.contact_model: must be viscoelastic, fitted or proxy"),
             std::string::npos);
   EXPECT_NE(Field(Replace(Minimal(), R"("type": "mass-spring")", R"("type": "magic")"))
-                .find("regions[0].model.type: must be coil, mass-spring, ring-layer or reduced"),
+                .find("regions[0].model.type: must be coil, mass-spring, ring-layer, reduced or "
+                      "cut-membrane"),
             std::string::npos);
   // Reduced models: odd or out-of-range FEM cells, an unknown mode, a mesh that is no sphere.
   const std::string reduced =
