@@ -29,6 +29,13 @@ Expected<CutDrillSpec> ParseCutDrill(const std::string& json_text, const std::st
   return s;
 }
 
+Expected<haptics::BladeModel> BladeOnPatch(haptics::BladeParams blade,
+                                           const tissue::CutMembrane& patch) {
+  blade.in_plane_stiffness = patch.InPlaneStiffness();
+  blade.normal_stiffness = patch.NormalStiffness();
+  return haptics::BladeModel::Create(blade);
+}
+
 Expected<CutDrillSpec> LoadCutDrill(const std::string& path) {
   auto text = ReadTextFile(path, "drill");
   if (!text.ok()) return text.error();

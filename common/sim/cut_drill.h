@@ -38,6 +38,11 @@ struct CutDrillSpec {
   scoring::CutTask task;
 };
 
+// The blade as `patch` meets it: `blade` with the patch's own in-plane and out-of-plane
+// stiffnesses (CutMembrane::InPlaneStiffness, NormalStiffness).
+Expected<haptics::BladeModel> BladeOnPatch(haptics::BladeParams blade,
+                                           const tissue::CutMembrane& patch);
+
 Expected<CutDrillSpec> ParseCutDrill(const std::string& json_text, const std::string& source);
 Expected<CutDrillSpec> LoadCutDrill(const std::string& path);
 

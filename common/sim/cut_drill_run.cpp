@@ -71,10 +71,7 @@ Expected<CutDrillResult> RunCutDrill(const CutDrillSpec& spec, const CutHand& ha
                                      CutDrillTrace* trace) {
   auto patch = tissue::CutMembrane::Create(spec.tissue);
   if (!patch.ok()) return patch.error();
-  haptics::BladeParams bp = spec.blade;
-  bp.in_plane_stiffness = patch->InPlaneStiffness();
-  bp.normal_stiffness = patch->NormalStiffness();
-  auto blade = haptics::BladeModel::Create(bp);
+  auto blade = BladeOnPatch(spec.blade, *patch);
   if (!blade.ok()) return blade.error();
   CutDrillResult r;
   r.cutting_force = blade->CuttingForce(), r.puncture_force = blade->PunctureForce();

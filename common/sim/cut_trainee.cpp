@@ -33,12 +33,10 @@ Expected<std::vector<haptics::StylusSample>> CutTrainee(const Scene& scene, Trai
     return InvalidArgument("rate", "rate must be in 10..100000 Hz");
   auto patch = tissue::CutMembrane::Create(scene.mesh.membrane);
   if (!patch.ok()) return patch.error();
-  haptics::BladeParams bp = scene.cut->blade;
-  bp.in_plane_stiffness = patch->InPlaneStiffness();
-  bp.normal_stiffness = patch->NormalStiffness();
-  auto blade = haptics::BladeModel::Create(bp);
+  auto blade = BladeOnPatch(scene.cut->blade, *patch);
   if (!blade.ok()) return blade.error();
-  const double through_at = blade->PunctureForce() / bp.normal_stiffness + 1e-3;  // m deep
+  const double through_at =
+      blade->PunctureForce() / blade->params().normal_stiffness + 1e-3;  // m deep
   CutScript script(scene.cut->pattern, HandOf(style, seed), blade->Reach());
   std::vector<haptics::StylusSample> out;
   const double period = 1.0 / rate_hz;

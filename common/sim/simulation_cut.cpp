@@ -4,6 +4,7 @@
 // the tip at the cutting force. Each piece the crack grows by goes to the patch's room, which
 // carves it on the deformation side; the blade's force loads the patch at its tip; the trial
 // records the cut against the marked pattern.
+#include "common/sim/cut_drill.h"
 #include "common/sim/simulation.h"
 
 namespace vsurg::sim {
@@ -14,10 +15,7 @@ Status Simulation::BuildCut() {
   if (!scene_.cut) return Status::Ok();
   const CutRoom* room = std::get_if<CutRoom>(&room_);
   if (!room) return InvalidArgument("regions[0].model.type", "a cut scene needs the cut room");
-  haptics::BladeParams bp = scene_.cut->blade;
-  bp.in_plane_stiffness = room->in_plane_stiffness();
-  bp.normal_stiffness = room->normal_stiffness();
-  auto blade = haptics::BladeModel::Create(bp);
+  auto blade = BladeOnPatch(scene_.cut->blade, room->patch());
   if (!blade.ok()) return blade.error();
   cut_.blade = std::move(*blade);
   cut_.record.emplace(scene_.cut->pattern);

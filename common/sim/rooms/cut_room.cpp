@@ -3,13 +3,13 @@
 #include <boost/lockfree/spsc_queue.hpp>
 
 #include "common/core/state_archive.h"
+#include "common/sim/cut_drill.h"
 
 namespace vsurg::sim {
 
 struct CutRoom::Shared {
   boost::lockfree::spsc_queue<CutSegment, boost::lockfree::capacity<kQueue>> queue;
   std::atomic<int> torn{0}, freed{0};
-  double edge = 0;
 };
 
 CutRoom::CutRoom(CutRoom&&) noexcept = default;
@@ -28,19 +28,13 @@ Expected<CutRoom> CutRoom::Build(const RoomInputs& in) {
   CutRoom room;
   room.patch_ = std::make_unique<tissue::CutMembrane>(std::move(*patch));
   room.shared_ = std::make_unique<Shared>();
-  room.shared_->edge = room.patch_->EdgeLength();
   room.positions_ = in.rest.positions;
   room.faces_ = in.rest.triangles;
   room.dt_ = in.scene.region.dt;
-  room.in_plane_stiffness_ = room.patch_->InPlaneStiffness();
-  room.normal_stiffness_ = room.patch_->NormalStiffness();
   room.edge_ = room.patch_->EdgeLength();
   // The blade's own front: its reach (the stretch at the cutting force, the slit's half width)
   // and two edges, where the lattice's point-load strain is not the tissue's.
-  haptics::BladeParams bp = in.scene.cut->blade;
-  bp.in_plane_stiffness = room.in_plane_stiffness_;
-  bp.normal_stiffness = room.normal_stiffness_;
-  auto blade = haptics::BladeModel::Create(bp);
+  auto blade = BladeOnPatch(in.scene.cut->blade, *room.patch_);
   if (!blade.ok()) return blade.error();
   room.spare_ = blade->Reach() + 2 * room.edge_;
   return room;
@@ -51,7 +45,7 @@ bool CutRoom::PushCut(const CutSegment& s) {
 }
 
 double CutRoom::TornLength() const {
-  return shared_->torn.load(std::memory_order_relaxed) * shared_->edge;
+  return shared_->torn.load(std::memory_order_relaxed) * edge_;
 }
 
 int CutRoom::FreedPieces() const {
@@ -90,13 +84,7 @@ void CutRoom::CopyOut(bool faces) {
   }
 }
 
-void CutRoom::Save(StateWriter& w) const {
-  w(cut_edges_);
-}
-
-bool CutRoom::Load(StateReader& r) {
-  int edges = 0;
-  r(edges);
+bool CutRoom::Load(StateReader&) {
   return false;  // a cut patch's topology is not carried: the session stays where it is
 }
 

@@ -42,16 +42,14 @@ class CutRoom {
   // m and pieces, as the deformation last left them.
   double TornLength() const;
   int FreedPieces() const;
-  // Immutable after Build: what the blade first meets (N/m), and the lattice's edge (m).
-  double in_plane_stiffness() const { return in_plane_stiffness_; }
-  double normal_stiffness() const { return normal_stiffness_; }
-  double edge_length() const { return edge_; }
+  // Set-up only (Simulation::Build, before the deformation runs): the patch, whose stiffnesses
+  // the blade meets.
+  const tissue::CutMembrane& patch() const { return *patch_; }
 
   // Deformation thread: the queued cuts, the blade's load, one step of dt, the tears.
   std::optional<Deformed> Deform(const DeformInput& in);
   // Live migration: a cut patch is not carried (its topology would have to be); Load refuses, so
   // a draining node keeps its cut sessions until they end.
-  void Save(StateWriter& w) const;
   bool Load(StateReader& r);
 
  private:
@@ -67,7 +65,7 @@ class CutRoom {
   uint64_t topology_ = 0;
   int cut_edges_ = 0, freed_ = 0, torn_ = 0;
   double dt_ = 1e-3, spare_ = 0;  // s; m around the blade a pull does not tear (its own front)
-  double in_plane_stiffness_ = 0, normal_stiffness_ = 0, edge_ = 0;
+  double edge_ = 0;               // m, the lattice's (immutable after Build)
 };
 
 }  // namespace vsurg::sim
