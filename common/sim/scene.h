@@ -190,6 +190,14 @@ struct Scene {
   struct CutSpec {
     haptics::BladeParams blade;  // its stiffnesses the patch's own (set when a session builds)
     scoring::CutPattern pattern;
+    // The second hand's grasper ("grasper"; unset: the blade alone): its jaws take the particle
+    // under them when they close within `reach` m of the patch, and hold it toward themselves by
+    // a spring of `stiffness` N/m (the station's second device; simulation.h OnSecondHandStylus).
+    struct Grasper {
+      double stiffness = 2000;  // N/m
+      double reach = 0.004;     // m
+    };
+    std::optional<Grasper> grasper;
   };
   std::optional<CutSpec> cut;
   scoring::TaskSpec task;

@@ -6,7 +6,9 @@
 //                         "failure_strain": 0.54 },
 //            "blade":   { "toughness": 1700, "angle_deg": 0, "width_mm": 0.3 },
 //            "pattern": { "type": "circle", "centre_mm": [0, 0], "radius_mm": 15, "band_mm": 2 }
-//                     | { "type": "line", "from_mm": [x, y], "to_mm": [x, y], "band_mm": 2 } }
+//                     | { "type": "line", "from_mm": [x, y], "to_mm": [x, y], "band_mm": 2 },
+//            "grasper": { "jaw_stiffness": 2000, "reach_mm": 4 } }      (the second hand's;
+//            optional)
 //
 // A scene with a "cut" has the mesh {"type": "membrane"}, the model {"type": "cut-membrane"} and
 // the task {"type": "cut"}; each is refused by name without the others. The patch lies in the
@@ -124,6 +126,12 @@ Status ParseCut(const json& root, Scene& s) {
   Scene::CutSpec cut;
   if (Status st = scene_detail::ParseCutParts(c, s.mesh.membrane, cut.blade, cut.pattern); !st.ok())
     return st;
+  if (c.Has("grasper")) {
+    VSURG_TRY(g, c.Object("grasper"));
+    VSURG_TRY(stiffness, g.NumberOr("jaw_stiffness", 2000, 100, 20000));
+    VSURG_TRY(reach, g.NumberOr("reach_mm", 4, 0.5, 20));
+    cut.grasper = Scene::CutSpec::Grasper{stiffness, reach * 1e-3};
+  }
   s.cut = cut;
   // The lattice's nodes (rows of equilateral triangles across the frame) and their copies.
   const tissue::CutMembraneParams& m = s.mesh.membrane;

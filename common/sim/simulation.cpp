@@ -69,6 +69,7 @@ Simulation::Simulation(const Scene& scene, geometry::TriMesh rest, const Simulat
       proxy_(*haptics::ProxyContact::Create({})),
       safety_(*haptics::SafetyFilter::Create(haptics::TouchLimits())),
       recorder_(scene.task),
+      second_{*haptics::SafetyFilter::Create(haptics::TouchLimits())},
       instructor_safety_(*haptics::SafetyFilter::Create(haptics::TouchLimits())),
       quasi_static_interval_(std::chrono::duration_cast<DeformationPool::Clock::duration>(
           std::chrono::duration<double>(options.quasi_static_interval_s))) {}
@@ -125,6 +126,9 @@ Status Simulation::Build() {
       {.gate_force = std::numeric_limits<double>::infinity(), .gate_cycles = 0, .ramp_time = 0.5});
   if (!instructor_safety.ok()) return instructor_safety.error();
   instructor_safety_ = *instructor_safety;
+  auto second_safety = haptics::SafetyFilter::Create(scene_.haptics.limits);
+  if (!second_safety.ok()) return second_safety.error();
+  second_.safety = *second_safety;
   const RoomInputs in{scene_,
                       rest_,
                       held_,
@@ -270,8 +274,8 @@ namespace {
 // the receiver must have built the same way.
 constexpr uint32_t kStateMagic = 0x4D495356;  // "VSIM"
 // 2: the contact's stiffness fit; 3: the viscoelastic fit; 4: a palpation's marks and coverage;
-// 5: a needle's state, tracts and record.
-constexpr uint32_t kStateVersion = 5;
+// 5: a needle's state, tracts and record; 6: the second hand's hold in the deformation's input.
+constexpr uint32_t kStateVersion = 6;
 
 }  // namespace
 

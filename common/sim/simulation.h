@@ -134,6 +134,17 @@ class Simulation final : private DeformationPool::Member {
   // them. The answer is the instructor's share of the tool; the trial advances only with the
   // trainee's samples. Never allocates, never blocks.
   haptics::ForceCommand OnInstructorStylus(const haptics::StylusSample& sample);
+  // Two hands: the station's second device, a cut scene's grasper (Scene::CutSpec::grasper), on
+  // the same haptic thread as the first hand's (the endpoint steers its channel to the session's
+  // lane). Its jaws close (kButtonGrasp) on the patch within reach and hold the particle under
+  // them toward themselves; the answer is the patch's pull on them, through their own safety
+  // filter. Silent for kSecondHandSilenceS of trial time (its device or link lost), its hold
+  // fades out over kSecondHandFadeS while the first hand goes on. Never allocates or blocks.
+  haptics::ForceCommand OnSecondHandStylus(const haptics::StylusSample& sample);
+  static constexpr double kSecondHandSilenceS = 0.1, kSecondHandFadeS = 0.5;
+  // The second hand's grasps so far and its peak pull (N); haptic thread, or after it stopped.
+  int second_hand_grasps() const { return second_.grasps; }
+  double second_hand_peak_force() const { return second_.peak_force; }
   // Any thread: the instructor's mode and dominance, checked first (CheckGuideRequest); the
   // haptic thread ramps to it. {kNone}: the instructor left.
   void RequestGuidance(const GuideRequest& r) { guidance_.Request(r); }
@@ -298,6 +309,25 @@ class Simulation final : private DeformationPool::Member {
   Status BuildCut();
   void CutStep(const haptics::StylusSample& s, StylusStep& step);
   void CutRecord(const haptics::BladeForce& f, const haptics::StylusSample& s);
+  // The second hand's stages (simulation_second_hand.cpp): its jaws on the patch, and (on the
+  // first hand's samples, which keep the trial's clock) the fade of a hold whose hand fell silent.
+  void SecondHandJaws(const haptics::StylusSample& s, uint32_t& events);
+  void SecondHandStep(double dt);
+  void CountSecondHandEnergy(const haptics::StylusSample& s);
+  // The second hand's state (haptic thread): its filter and clock, its jaws (`at` the rest-plane
+  // point they took, `target` where they are), the hold's weight (1 held, fading to 0 once its
+  // hand is silent), when its hand was last heard (trial time; < 0 never), its port energies.
+  struct SecondHand {
+    haptics::SafetyFilter safety;
+    bool closed = false, fading = false;
+    geometry::Vec3 at = geometry::Vec3::Zero(), target = geometry::Vec3::Zero();
+    double weight = 0, last_seen = -1, time = 0;
+    bool has_time = false;
+    geometry::Vec3 force = geometry::Vec3::Zero(), x = geometry::Vec3::Zero();
+    bool has_x = false;
+    double released_j = 0, absorbed_j = 0, peak_force = 0;
+    int grasps = 0;
+  };
   // Haptic thread: a free tip's local model, the surface ahead of it (see simulation.cpp).
   double ContactStiffness(const ContactQuery& q) const;
   std::shared_ptr<const haptics::TissueSurface> MakeStationSurface() const;
@@ -346,6 +376,7 @@ class Simulation final : private DeformationPool::Member {
     int freed = 0;
   };
   CutSide cut_;
+  SecondHand second_;
   uint64_t samples_ = 0;
   // The server's port energies (haptics::ForceCommand::released_j): the force answered last, held
   // until the next sample, against the motion to it.

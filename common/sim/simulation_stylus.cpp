@@ -39,6 +39,7 @@ using haptics::StylusSample;
     NeedleStep(snap, s, step);
   } else if (cut_.blade) {
     CutStep(s, step);
+    SecondHandStep(step.dt);
   } else if (grasping_) {
     GraspStep(s, step);
   } else {

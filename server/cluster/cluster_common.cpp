@@ -332,6 +332,10 @@ CreatedSession FromProto(const v1::NodeSession& s) {
   c.udp_port = static_cast<uint16_t>(s.udp_port());
   const std::string& key = s.session_key();
   std::copy_n(key.begin(), std::min(key.size(), c.key.size()), c.key.begin());
+  if (s.second_channel() != 0 && s.second_key().size() == c.second_key.size()) {
+    c.second_channel = s.second_channel();
+    std::copy_n(s.second_key().begin(), c.second_key.size(), c.second_key.begin());
+  }
   if (s.has_surface()) {
     // A node's surface is checked as a station checks it; one that does not read is left out
     // (the station then renders the surface ahead from the answers alone).
@@ -350,6 +354,10 @@ void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out) {
   out->set_udp_host(c.udp_host);
   out->set_udp_port(c.udp_port);
   if (with_key) out->set_session_key(std::string(c.key.begin(), c.key.end()));
+  if (with_key && c.second_channel != 0) {
+    out->set_second_channel(c.second_channel);
+    out->set_second_key(std::string(c.second_key.begin(), c.second_key.end()));
+  }
   if (c.surface) convert::ToProto(*c.surface, out->mutable_surface());
   if (c.needle) convert::ToProto(*c.needle, out->mutable_needle());
 }

@@ -173,6 +173,10 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     if (c.surface) convert::ToProto(*c.surface, resp->mutable_surface());
     if (c.needle) convert::ToProto(*c.needle, resp->mutable_needle());
     resp->set_channel(c.channel);
+    if (c.second_channel != 0) {
+      resp->set_second_channel(c.second_channel);
+      resp->set_second_key(std::string(c.second_key.begin(), c.second_key.end()));
+    }
   }
   static Status Answer(const Expected<SessionView>& v, v1::Session* resp) {
     if (!v.ok()) return v.error();

@@ -113,7 +113,7 @@ struct UdpEndpoint::Impl {
     udp::endpoint source;
     uint64_t twist_shape_key = 0;  // the coil limb the station says it remakes (visual frames)
     double moved_until = -1;       // s; ≥ 0: moved away (no simulation): answered with a notice
-    bool instructor = false;       // an instructor's channel (Simulation::OnInstructorStylus)
+    ChannelRole role = ChannelRole::kTrainee;  // whose haptic path answers it
   };
 
   // One I/O thread, its socket and the sessions steered to it. Everything here but the atomics
@@ -356,7 +356,7 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int
     // First datagram, the station moved (NAT rebinding) or says another limb: rare.
     s.source = sender;
     s.twist_shape_key = stylus.twist_shape_key;
-    if (owner->visual && s.moved_until < 0 && !s.instructor)
+    if (owner->visual && s.moved_until < 0 && s.role == ChannelRole::kTrainee)
       owner->visual->SetDestination(header.session, sender, stylus.twist_shape_key);
   }
   if (s.moved_until >= 0) {  // moved away: say so, compute nothing
@@ -366,10 +366,12 @@ void UdpEndpoint::Impl::Lane::Handle(int slot, size_t n, int64_t arrival_ns, int
   } else {
     if (s.state != SessionState::kRunning) {
       s.state = SessionState::kRunning;
-      if (!s.instructor) owner->Record(header.session, SessionState::kRunning);
+      if (s.role == ChannelRole::kTrainee) owner->Record(header.session, SessionState::kRunning);
     }
-    force.command = s.instructor ? s.simulation->OnInstructorStylus(stylus.sample)
-                                 : s.simulation->OnStylus(stylus.sample);
+    force.command = s.role == ChannelRole::kTrainee ? s.simulation->OnStylus(stylus.sample)
+                    : s.role == ChannelRole::kInstructor
+                        ? s.simulation->OnInstructorStylus(stylus.sample)
+                        : s.simulation->OnSecondHandStylus(stylus.sample);
   }
   force.echo_sequence = header.sequence;
   force.echo_time = stylus.sample.time;
@@ -434,9 +436,9 @@ void UdpEndpoint::Impl::Lane::CheckTimeouts() {
     return e.second.moved_until >= 0 && now > e.second.moved_until;
   });
   for (auto& [id, s] : sessions) {
-    // No events of a session that moved away; an instructor's channel's silence is theirs (the
+    // No events of a session that moved away; a second channel's silence is its hand's (the
     // simulation hands the tool back), not the session's.
-    if (s.moved_until >= 0 || s.instructor) continue;
+    if (s.moved_until >= 0 || s.role != ChannelRole::kTrainee) continue;
     const double quiet = now - s.last_seen;
     SessionState next = s.state;
     if (quiet > opts.disconnect_after_s) {
@@ -584,13 +586,13 @@ void UdpEndpoint::AddSession(uint64_t id, const wire::SessionKey& key, sim::Simu
   });
 }
 
-void UdpEndpoint::AddInstructorChannel(uint64_t channel, const wire::SessionKey& key,
-                                       sim::Simulation* simulation, LinkStats* link) {
+void UdpEndpoint::AddChannel(uint64_t channel, ChannelRole role, const wire::SessionKey& key,
+                             sim::Simulation* simulation, LinkStats* link) {
   Impl* p = impl_.get();
   Impl::Lane& lane = p->LaneOf(channel);
-  lane.Run([p, &lane, channel, &key, simulation, link] {
+  lane.Run([p, &lane, channel, role, &key, simulation, link] {
     Impl::Session s(key, simulation, link, p->options.max_packets_per_s * 0.1, p->Now());
-    s.instructor = true;
+    s.role = role;
     lane.sessions.insert_or_assign(channel, std::move(s));
   });
 }

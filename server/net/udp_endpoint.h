@@ -165,6 +165,16 @@ inline constexpr uint64_t kChannelSlotShift = 56;
 constexpr uint64_t InstructorChannel(uint64_t session, uint64_t slot = 1) {
   return session | (slot << kChannelSlotShift);
 }
+// Two hands: the wire id of a station's second device's channel into its own session (the same
+// lane, the slot after the instructor's).
+constexpr uint64_t SecondHandChannel(uint64_t session) {
+  return InstructorChannel(session, 2);
+}
+
+// Who sends on a channel into a session: its trainee's station (the session's own id), an
+// instructor's (Simulation::OnInstructorStylus) or the trainee's second device
+// (Simulation::OnSecondHandStylus).
+enum class ChannelRole { kTrainee, kInstructor, kSecondHand };
 
 class UdpEndpoint {
  public:
@@ -185,12 +195,17 @@ class UdpEndpoint {
   // (RemoveSession waits for it).
   void AddSession(uint64_t id, const wire::SessionKey& key, sim::Simulation* simulation,
                   LinkStats* link = nullptr);
-  // Four-handed training: an instructor's channel into a live session (InstructorChannel's id,
-  // so it shares the session's lane and thread); its datagrams are answered by
-  // Simulation::OnInstructorStylus. It records no session events and gets no visual frames.
-  // Removed by RemoveSession(channel).
+  // A second channel into a live session: an instructor's (four-handed training,
+  // InstructorChannel's id) or the trainee's second device's (SecondHandChannel's), so it shares
+  // the session's lane and thread; its datagrams are answered by the role's haptic path. It
+  // records no session events (its silence is the simulation's to handle) and gets no visual
+  // frames. Removed by RemoveSession(channel).
+  void AddChannel(uint64_t channel, ChannelRole role, const wire::SessionKey& key,
+                  sim::Simulation* simulation, LinkStats* link = nullptr);
   void AddInstructorChannel(uint64_t channel, const wire::SessionKey& key,
-                            sim::Simulation* simulation, LinkStats* link = nullptr);
+                            sim::Simulation* simulation, LinkStats* link = nullptr) {
+    AddChannel(channel, ChannelRole::kInstructor, key, simulation, link);
+  }
   void RemoveSession(uint64_t id);
   // The session has moved to another node (live migration) and is no longer here: for
   // `for_s` seconds its station's datagrams (authenticated with `key`, within the rate limit)

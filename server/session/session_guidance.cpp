@@ -43,6 +43,11 @@ Expected<SessionManager::Live*> SessionManager::LiveSession(uint64_t id) const {
   return it->second.get();
 }
 
+void SessionManager::RemoveChannels(uint64_t id, const Live& l) {
+  endpoint_->RemoveSession(id);
+  if (l.two_hands) endpoint_->RemoveSession(SecondHandChannel(id));
+}
+
 void SessionManager::CloseInstructor(uint64_t id, Live& l) {
   if (l.instructor.empty()) return;
   if (endpoint_) endpoint_->RemoveSession(InstructorChannel(id));

@@ -154,6 +154,10 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   CreatedSession out;
   if (RAND_bytes(out.key.data(), static_cast<int>(out.key.size())) != 1)
     return Error{ErrorCode::kIoError, "the system random generator failed", "key"};
+  const sim::Scene& scene = (*simulation)->scene();
+  const bool two_hands = scene.cut && scene.cut->grasper;
+  if (two_hands && RAND_bytes(out.second_key.data(), static_cast<int>(out.second_key.size())) != 1)
+    return Error{ErrorCode::kIoError, "the system random generator failed", "key"};
   const int64_t epoch = options_.lease ? options_.lease->epoch() : 0;
   if (options_.lease && !(options_.lease->Valid() && epoch > 0))
     return Error{ErrorCode::kUnavailable,
@@ -165,6 +169,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   out.udp_port = AdvertisedUdpPort();
   out.surface = (*simulation)->station_surface();
   out.needle = (*simulation)->station_needle();
+  if (two_hands) out.second_channel = SecondHandChannel(static_cast<uint64_t>(record->id));
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
   live->trace.SetRest(live->simulation->rest_mesh());
@@ -173,6 +178,8 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   live->latest.id = static_cast<uint64_t>(record->id);
   live->latest.state = SessionState::kCreated;
   live->key = out.key;
+  live->two_hands = two_hands;
+  live->second_key = out.second_key;
   live->created_s = clock_.Now();
   live->epoch = epoch;
   live->task = task;
@@ -290,6 +297,7 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   sim::Simulation* simulation = nullptr;
   LinkStats* link = nullptr;
   wire::SessionKey key{};
+  std::optional<std::pair<wire::SessionKey, LinkStats*>> second;
   int64_t epoch = 0;
   {
     std::lock_guard lock(mutex_);
@@ -313,10 +321,14 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
       link = &l.link;
       key = l.key;
       epoch = l.epoch;
+      if (l.two_hands) second.emplace(l.second_key, &l.second_link);
     }
   }
   if (!simulation) return Get(id);  // already started: idempotent
   endpoint_->AddSession(id, key, simulation, link);
+  if (second)
+    endpoint_->AddChannel(SecondHandChannel(id), ChannelRole::kSecondHand, second->first,
+                          simulation, second->second);
   if (Status s = store_.SetSessionState(static_cast<int64_t>(id), SessionState::kRunning,
                                         db::NowUs(), "", {options_.node, epoch});
       !s.ok())
@@ -372,7 +384,7 @@ Status SessionManager::End(uint64_t id, SessionState state, const std::string& r
     live = std::move(it->second);
     live_.erase(it);
   }
-  if (endpoint_ && live->state != SessionState::kCreated) endpoint_->RemoveSession(id);
+  if (endpoint_ && live->state != SessionState::kCreated) RemoveChannels(id, *live);
   CloseInstructor(id, *live);
   scoring::TrialMetrics metrics = live->simulation->Metrics();  // the haptic path is off
   metrics.link = LinkFiguresOf(live->link);
@@ -416,7 +428,7 @@ int SessionManager::AbandonAll(const std::string& reason) {
   }
   for (auto& [id, live] : dropped) {
     if (endpoint_ && live->state != SessionState::kCreated && !live->moving)
-      endpoint_->RemoveSession(id);
+      RemoveChannels(id, *live);
     if (!live->moving) CloseInstructor(id, *live);
     live->simulation.reset();
     NotifyEnded(id);
@@ -454,6 +466,10 @@ Expected<CreatedSession> SessionManager::Join(uint64_t id, bool /*with_surface: 
   out.record = it->second->record;
   out.record.state = it->second->state;
   out.key = it->second->key;
+  if (it->second->two_hands) {
+    out.second_channel = SecondHandChannel(id);
+    out.second_key = it->second->second_key;
+  }
   out.udp_host = options_.udp_host;
   out.udp_port = AdvertisedUdpPort();
   out.surface = it->second->simulation->station_surface();

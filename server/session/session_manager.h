@@ -228,6 +228,11 @@ class SessionManager final : public Sessions {
     std::string instructor;
     wire::SessionKey instructor_key{};
     LinkStats instructor_link;
+    // Two hands: the station's second device's channel (SecondHandChannel), its key and link;
+    // in the endpoint from Start on.
+    bool two_hands = false;
+    wire::SessionKey second_key{};
+    LinkStats second_link;
   };
   void KeepCases();
   // The live session `id` (under mutex_), or kNotFound / kUnavailable (moving).
@@ -235,6 +240,8 @@ class SessionManager final : public Sessions {
   // Closes the instructor's channel of a live session taken out of service (no lock needed:
   // the caller owns `l`, or holds mutex_).
   void CloseInstructor(uint64_t id, Live& l);
+  // Takes a started session's station channels (both hands') out of the endpoint.
+  void RemoveChannels(uint64_t id, const Live& l);
   // The scene by name with the task settings applied, its simulation built (not driven). A scene
   // that draws palpation cases takes `case_seed`'s case, or else a ready one from the bank (a new
   // one when none is ready), and says which in `case_seed`.

@@ -117,6 +117,12 @@ Expected<SessionHandoff> SessionManager::BeginMove(uint64_t id) {
     if (it->second->moving)
       return Error{ErrorCode::kFailedPrecondition,
                    "session " + std::to_string(id) + " is moving already", "id"};
+    // A cut's patch is not carried (rooms/cut_room.h), nor a second hand's channel: a draining
+    // node keeps such a session until it ends.
+    if (it->second->two_hands)
+      return Error{ErrorCode::kFailedPrecondition,
+                   "session " + std::to_string(id) + " holds two hands: it stays on its node",
+                   "id"};
     it->second->moving = true;  // from here Pump, Start and End leave it alone (invariant 7)
     // An instructor's channel does not move: they join the session again where it runs.
     CloseInstructor(id, *it->second);

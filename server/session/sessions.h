@@ -32,6 +32,10 @@ struct CreatedSession {
   // The wire id the station's datagrams carry: the session's, or an instructor's channel into it
   // (server/net/udp_endpoint.h InstructorChannel). 0: the session's id.
   uint64_t channel = 0;
+  // Two hands: the station's second device's channel (SecondHandChannel) and key, for a scene
+  // with a second tool (0: none).
+  uint64_t second_channel = 0;
+  wire::SessionKey second_key{};
 };
 
 // Four-handed training (common/sim/guidance.h): who is in a live session and what the

@@ -1,5 +1,7 @@
 #include "common/sim/rooms/cut_room.h"
 
+#include <array>
+
 #include <boost/lockfree/spsc_queue.hpp>
 
 #include "common/core/state_archive.h"
@@ -10,6 +12,7 @@ namespace vsurg::sim {
 struct CutRoom::Shared {
   boost::lockfree::spsc_queue<CutSegment, boost::lockfree::capacity<kQueue>> queue;
   std::atomic<int> torn{0}, freed{0};
+  std::array<std::atomic<double>, 3> hold{};  // N, the pull on the jaws
 };
 
 CutRoom::CutRoom(CutRoom&&) noexcept = default;
@@ -52,6 +55,20 @@ int CutRoom::FreedPieces() const {
   return shared_->freed.load(std::memory_order_relaxed);
 }
 
+geometry::Vec3 CutRoom::HoldForce() const {
+  const auto& h = shared_->hold;
+  return {h[0].load(std::memory_order_relaxed), h[1].load(std::memory_order_relaxed),
+          h[2].load(std::memory_order_relaxed)};
+}
+
+// The jaws' spring at its (faded) stiffness, or none; a hold at the same point keeps its particle.
+void CutRoom::Hold(const DeformInput& in) {
+  if (in.hold_stiffness > 0)
+    patch_->Hold({in.hold_at.x(), in.hold_at.y()}, in.hold_target, in.hold_stiffness);
+  else
+    patch_->Release();
+}
+
 std::optional<Deformed> CutRoom::Deform(const DeformInput& in) {
   const int edges_before = cut_edges_, freed_before = patch_->freed_pieces();
   shared_->queue.consume_all([&](const CutSegment& s) {
@@ -59,7 +76,13 @@ std::optional<Deformed> CutRoom::Deform(const DeformInput& in) {
   });
   const tissue::Vec2 tip(in.hip.x(), in.hip.y());
   patch_->Load(tip, in.triangle >= 0 ? in.force_on_tissue : geometry::Vec3::Zero());
-  if (!patch_->Step(dt_)) patch_->Load(tip, geometry::Vec3::Zero());  // back at rest, unloaded
+  Hold(in);
+  if (!patch_->Step(dt_)) {  // back at rest, unloaded and let go
+    patch_->Load(tip, geometry::Vec3::Zero());
+    patch_->Release();
+  }
+  const geometry::Vec3 pull = patch_->HoldForce();
+  for (int k = 0; k < 3; ++k) shared_->hold[k].store(pull[k], std::memory_order_relaxed);
   const int tore = patch_->Tear(in.triangle >= 0 ? tip : tissue::Vec2::Constant(1e9), spare_);
   torn_ += tore;
   shared_->torn.store(torn_, std::memory_order_relaxed);

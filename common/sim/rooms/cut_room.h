@@ -8,7 +8,7 @@
 // fill), so the haptic path, the view and a station's mesh all count vertices alike.
 //
 // The blade's contact in DeformInput: `triangle` ≥ 0 while the blade loads the patch, `hip` its
-// tip (m), `force_on_tissue` its force on the patch (N).
+// tip (m), `force_on_tissue` its force on the patch (N). The second hand's grasper: `hold_*`.
 #pragma once
 
 #include <atomic>
@@ -42,6 +42,9 @@ class CutRoom {
   // m and pieces, as the deformation last left them.
   double TornLength() const;
   int FreedPieces() const;
+  // N, the patch's pull on the second hand's jaws as the deformation last left it (zero while
+  // nothing is held). Its components are stored one by one: a reader may mix two steps' (1 ms).
+  geometry::Vec3 HoldForce() const;
   // Set-up only (Simulation::Build, before the deformation runs): the patch, whose stiffnesses
   // the blade meets.
   const tissue::CutMembrane& patch() const { return *patch_; }
@@ -55,6 +58,7 @@ class CutRoom {
  private:
   CutRoom() = default;
   void CopyOut(bool faces);  // the patch's particles and faces into the room's fixed-size arrays
+  void Hold(const DeformInput& in);  // the second hand's jaws, before the step
 
   struct Shared;  // the queue and the counters both threads touch
   std::unique_ptr<Shared> shared_;

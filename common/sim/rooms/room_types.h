@@ -39,11 +39,17 @@ struct DeformInput {
   geometry::Vec3 force_on_tissue = geometry::Vec3::Zero();  // N
   geometry::Vec3 hip = geometry::Vec3::Zero();              // m, the tip, while in contact
   uint64_t contact_id = 0;                                  // changes at every new contact
+  // A second hand's grasper on a cut patch (rooms/cut_room.h): while `hold_stiffness` > 0, the
+  // particle under `hold_at` (rest plane, m) is held toward `hold_target` (m) by a spring of that
+  // stiffness (N/m; it fades to 0 when the hand lets go or its device goes silent).
+  geometry::Vec3 hold_at = geometry::Vec3::Zero();
+  geometry::Vec3 hold_target = geometry::Vec3::Zero();
+  double hold_stiffness = 0;
   bool operator==(const DeformInput&) const = default;
   template <class A>
   void Persist(A& a) {  // common/core/state_archive.h
     a(grasp_id, grasping, grasp_vertex, torque, grasp_point, triangle, barycentric, force_on_tissue,
-      hip, contact_id);
+      hip, contact_id, hold_at, hold_target, hold_stiffness);
   }
 };
 
