@@ -100,6 +100,39 @@ Station::Station(Remote remote, HapticDevice* device, StationConfig config)
 Station::~Station() {
   StopSupervisor();
   if (channel_) channel_->Stop();
+  if (second_channel_) second_channel_->Stop();
+}
+
+void Station::DropSecondHand() {
+  std::unique_ptr<StationChannel> second;
+  {
+    std::lock_guard lock(mutex_);
+    second = std::move(second_channel_);
+  }
+  if (second) second->Stop();  // its device at zero force; the server fades its tool out
+}
+
+bool Station::WithSecondChannel(const std::function<void(StationChannel&)>& fn) {
+  std::lock_guard lock(mutex_);
+  if (!second_channel_) return false;
+  fn(*second_channel_);
+  return true;
+}
+
+Expected<std::unique_ptr<StationChannel>> Station::OpenSecondHand(
+    const v1::CreateSessionResponse& created, const StationOptions& first) {
+  if (!second_device_ || created.second_channel() == 0) return std::unique_ptr<StationChannel>();
+  if (created.second_key().size() != 32)
+    return Error{ErrorCode::kUnavailable, "the server sent no usable key for the second hand",
+                 "session"};
+  StationOptions options = first;  // the same server, rate, passivity and deadband
+  options.session = created.second_channel();
+  std::copy(created.second_key().begin(), created.second_key().end(), options.key.begin());
+  options.surface = nullptr;  // its tool is a grasper: the answers' own local model
+  options.needle = nullptr;
+  options.force_log.clear();
+  options.twist_shape_key = 0;
+  return StationChannel::Create(options, second_device_);
 }
 
 void Station::StartSupervisor(std::function<void(const StationStatus&)> on_change) {
@@ -299,10 +332,14 @@ Status Station::Connect() {
   options.needle = StationNeedleOf(created);
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
+  Expected<std::unique_ptr<StationChannel>> second =
+      instructing ? std::unique_ptr<StationChannel>() : OpenSecondHand(created, options);
+  if (!second.ok()) return second.error();
   channel_options_ = options;
   {
     std::lock_guard lock(mutex_);
     channel_ = std::move(*channel);
+    second_channel_ = std::move(*second);
     status_.session = created.session().id();
     if (instructing) guide_ = config_.guide;
     ++status_.generation;
@@ -317,6 +354,7 @@ Status Station::Connect() {
 
 void Station::StopChannel() {
   std::lock_guard lock(mutex_);
+  if (second_channel_) second_channel_->Stop(), second_channel_.reset();
   if (!channel_) return;
   channel_->Stop();  // the device is left at zero force
   Add(finished_stats_, channel_->stats());

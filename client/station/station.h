@@ -21,6 +21,12 @@
 // recorded it; the station starts a new one (a new session id and key), and the render side resets
 // the tissue (generation()).
 //
+// Two hands: a station given a second device (SetSecondDevice) drives it on a second channel of
+// its own when the scene has a second tool (a cut scene's grasper: the session's Create and Join
+// give its channel and key), with its own device thread, safety and local model. A second device
+// that is lost (DropSecondHand) stops its channel alone: the server fades its tool out and the
+// first hand's trial goes on. Two-handed sessions stay on their node (they are not followed).
+//
 // An instructor's station (StationConfig::instruct) joins another trainee's live session on a
 // channel of its own (four-handed training, common/sim/guidance.h): connecting is that join
 // alone, a lost server or an ended session is not followed by a session of its own (it ends the
@@ -161,6 +167,14 @@ class Station {
   Station(const Station&) = delete;
   Station& operator=(const Station&) = delete;
 
+  // Two hands, before the first Tick (the owner's thread): the second device, driven when the
+  // scene has a second tool. DropSecondHand (any thread): the second device is lost; its channel
+  // stops until the next session.
+  void SetSecondDevice(HapticDevice* device) { second_device_ = device; }
+  void DropSecondHand();
+  // Runs `fn` on the second hand's running channel; false while there is none.
+  bool WithSecondChannel(const std::function<void(StationChannel&)>& fn);
+
   void Tick();
   // Ticks on a thread of the station's own until Finish (or StopSupervisor); `on_change` is
   // called on that thread with the first status and at every change of state or session.
@@ -198,7 +212,10 @@ class Station {
   void Probe(double now);
   // The session is live: when it now runs at another UDP address, a channel there. True: moved.
   Expected<bool> Follow();
-  void StopChannel();  // keeps its statistics in finished_stats_
+  void StopChannel();  // both hands'; keeps the first's statistics in finished_stats_
+  // The second hand's channel for a session whose scene has a second tool (null: none).
+  Expected<std::unique_ptr<StationChannel>> OpenSecondHand(const v1::CreateSessionResponse& created,
+                                                           const StationOptions& first);
   void Drop(const std::string& why);
   double Now() const;
 
@@ -208,7 +225,9 @@ class Station {
   mutable std::mutex mutex_;  // status_, channel_, finished_stats_ (written by the ticking thread)
   StationStatus status_;
   std::unique_ptr<StationChannel> channel_;
-  StationStats finished_stats_;  // of the channels already dropped
+  HapticDevice* second_device_ = nullptr;
+  std::unique_ptr<StationChannel> second_channel_;  // under mutex_
+  StationStats finished_stats_;                     // of the channels already dropped
   std::mutex supervisor_mutex_;
   std::condition_variable supervisor_cv_;
   bool supervising_ = false;

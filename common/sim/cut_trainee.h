@@ -103,4 +103,16 @@ class CutScript {
 Expected<std::vector<haptics::StylusSample>> CutTrainee(const Scene& scene, TraineeStyle style,
                                                         double rate_hz = 1000.0, unsigned seed = 1);
 
+// The second hand of a cut scene with a grasper (Scene::CutSpec::grasper), scripted as FLS's
+// counter-traction: from 1 cm above the pattern's middle down onto the patch, the jaws closed at
+// 0.15 s, then over a second lifted `lift` m and pulled `pull` m away from the cut (a circle's
+// piece toward −x, a line's side away from it), held so for `duration` s. kFailedPrecondition
+// unless the scene has a grasper.
+struct GrasperHold {
+  double lift = 0.003, pull = 0, duration = 30;  // m, m, s
+};
+Expected<std::vector<haptics::StylusSample>> GrasperTrainee(const Scene& scene,
+                                                            const GrasperHold& hold = {},
+                                                            double rate_hz = 1000.0);
+
 }  // namespace vsurg::sim

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "common/core/image.h"
+#include "common/sim/cut_trainee.h"
 #include "db/store.h"
 #include "tests/support/press_and_hold.h"
 #include "tests/support/processes.h"
@@ -341,6 +342,55 @@ TEST(StationTest, AnInstructorsStationJoinsGuidesAndLeavesTheTraineesSession) {
   EXPECT_TRUE(TickUntil(late, 10, [&] { return late.status().state == StationState::kFailed; }));
   EXPECT_NE(late.status().last_error.find("as its instructor"), std::string::npos)
       << late.status().last_error;
+  server.Signal(SIGTERM);
+}
+
+// Two hands at one station, one session: the blade's device cuts the circle while the second
+// device's grasper holds the piece up on a channel of its own; the second device lost mid-cut
+// stops its channel alone and the cut goes on to the end.
+TEST(StationTest, TwoDevicesCutWithOneHandAndHoldWithTheOtherInOneSession) {
+  Site site("vsurg_station_two_hands");
+  auto& [dir, db, tokens, server] = site;
+  ASSERT_GT(server.grpc_port, 0);
+  auto scene = sim::LoadScene(sim::ScenesDirectory() + "/pattern-cut.json");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  auto blade_plan = sim::CutTrainee(*scene, sim::TraineeStyle::kGood);
+  auto grasp_plan = sim::GrasperTrainee(*scene);
+  ASSERT_TRUE(blade_plan.ok() && grasp_plan.ok());
+  ReplayDevice blade_hand(*blade_plan), grasper_hand(*grasp_plan);
+  StationConfig config;
+  config.scene = "pattern-cut";
+  Station station(RemoteTo(server.grpc_port, tokens.trainee), &blade_hand, config);
+  station.SetSecondDevice(&grasper_hand);
+  station.StartSupervisor();
+  const auto second_received = [&] {
+    uint64_t n = 0;
+    station.WithSecondChannel([&](StationChannel& c) { n = c.stats().received; });
+    return n;
+  };
+  ASSERT_TRUE(test::Eventually(30, [&] { return second_received() > 1500; }))
+      << station.status().last_error;
+  const auto peak = [](const ReplayDevice& d) {
+    double f = 0;
+    for (const Eigen::Vector3d& v : d.forces()) f = std::max(f, v.norm());
+    return f;
+  };
+  // The jaws took the piece and lifted it: the patch pulls them back.
+  ASSERT_TRUE(test::Eventually(20, [&] { return peak(grasper_hand) > 0.2; }))
+      << "grasper's peak " << peak(grasper_hand) << " N";
+  EXPECT_LT(peak(grasper_hand), scene->haptics.limits.max_force);
+
+  // Mid-cut the second device is lost: its channel stops, the first hand's goes on.
+  ASSERT_TRUE(test::Eventually(30, [&] { return blade_hand.position() > 4000; }));
+  station.DropSecondHand();
+  EXPECT_FALSE(station.WithSecondChannel([](StationChannel&) {}));
+  ASSERT_TRUE(test::Eventually(60, [&] { return blade_hand.finished(); }));
+  EXPECT_EQ(station.status().generation, 1u) << "one session, one first-hand channel";
+  auto summary = station.Finish("test over");
+  ASSERT_TRUE(summary.ok()) << summary.error().message;
+  EXPECT_EQ(summary->state, SessionState::kEnded);
+  EXPECT_TRUE(summary->metrics.completed);
+  EXPECT_GT(summary->metrics.coverage, 0.9);
   server.Signal(SIGTERM);
 }
 

@@ -20,18 +20,23 @@ Scene GraspedCutScene() {
   return *scene;
 }
 
-// The second hand's script: down onto the piece's middle, jaws closed, lifted `lift` m and pulled
-// `pull` m toward −x over a second, held there; silent from `silent_at` s on (its device lost),
-// sending a NaN tip from `garbage_at` s on, or opening its jaws at `open_at` s.
+// The second hand: the scene's scripted grasper (GrasperTrainee: onto the piece's middle, jaws
+// closed, lifted `lift` m and pulled `pull` m toward −x), silent from `silent_at` s on (its device
+// lost), sending a NaN tip from `garbage_at` s on, or opening its jaws at `open_at` s.
 struct GrasperHand {
   double lift = 0.003, pull = 0, silent_at = 1e9, garbage_at = 1e9, open_at = 1e9;
+  std::vector<haptics::StylusSample> script;
+  void Plan(const Scene& scene) {
+    auto planned = GrasperTrainee(scene, {.lift = lift, .pull = pull, .duration = 60});
+    ASSERT_TRUE(planned.ok()) << planned.error().message;
+    script = std::move(*planned);
+  }
   std::optional<haptics::StylusSample> At(double t) const {
-    if (t >= silent_at) return std::nullopt;
-    haptics::StylusSample s;
+    if (t >= silent_at || script.empty()) return std::nullopt;
+    const auto i = std::min(script.size() - 1, static_cast<size_t>(std::lround(t * 1000)));
+    haptics::StylusSample s = script[i];
     s.time = t;
-    const double ramp = std::clamp(t - 0.2, 0.0, 1.0);
-    s.position = geometry::Vec3(-ramp * pull, 0, t < 0.1 ? 0.01 : ramp * lift);
-    s.buttons = t >= 0.15 && t < open_at ? uint32_t{haptics::kButtonGrasp} : 0u;
+    if (t >= open_at) s.buttons = 0;
     if (t >= garbage_at) s.position.x() = std::nan("");
     return s;
   }
@@ -46,7 +51,8 @@ struct TwoHandsPlayed {
   int grasps = 0;
 };
 
-TwoHandsPlayed PlayTwoHands(const Scene& scene, const GrasperHand& hand, double watch_from = 0) {
+TwoHandsPlayed PlayTwoHands(const Scene& scene, GrasperHand hand, double watch_from = 0) {
+  hand.Plan(scene);
   auto plan = CutTrainee(scene, TraineeStyle::kGood, 1000.0, 1);
   EXPECT_TRUE(plan.ok());
   auto sim = Simulation::Create(scene, {.threaded = false});
