@@ -128,6 +128,20 @@ depth_error="$(sed -n 's/.*"depth_error":\([0-9.e-]*\).*/\1/p' "$out/station-nee
 echo "the hesitant insertion: $punctures punctures, the tip placed $depth_error m from the vein's middle"
 [ -n "$punctures" ] && [ "$punctures" -ge 4 ] || { echo "demo: the insertion was not scored" >&2; exit 1; }
 
+step "Pattern cutting with both hands: the blade from a recording, the scene's grasper on a second device"
+# The station drives two devices on two channels into one session: the right hand's blade cuts
+# the marked circle while the left hand's grasper lifts the piece for counter-traction and feels
+# its pull; the piece comes free when the circle closes.
+"$bin/vsurg-sim" trainee --scene pattern-cut --style good --out "$tmp/cut.csv" > /dev/null
+"$bin/vsurg-station" --server "$server" --token "$trainee_token" --scene pattern-cut \
+  --trajectory "$tmp/cut.csv" --second-device grasper --headless --width 960 --height 600 \
+  --screenshot-at 9 --screenshot "$shots/station-cut-two-hands.png" --json \
+  > "$out/station-cut.json" 2> "$out/station-cut.log"
+coverage="$(sed -n 's/.*"coverage":\([0-9.e-]*\).*/\1/p' "$out/station-cut.json")"
+grasp="$(sed -n 's/.*"second_hand":{[^}]*"max_force_n":\([0-9.e-]*\).*/\1/p' "$out/station-cut.json")"
+echo "the cut: $coverage of the circle cut, the grasper's peak pull $grasp N"
+[ -n "$coverage" ] && [ -n "$grasp" ] || { echo "demo: the two-handed cut was not scored" >&2; exit 1; }
+
 step "Evaluators: three groups score session $session (9 indexes, 0-10), each with their own token"
 header="evaluator_id,group,i1,i2,i3,i4,i5,i6,i7,i8,i9"
 printf '%s\ndr-intern,intern,8,8.5,9,8.5,8,7.5,8,7,6.5\n' "$header" > "$tmp/intern.csv"

@@ -138,6 +138,7 @@ Expected<Run> RunOnce(const RunOptions& o) {
   if (o.station_surface) {  // the tissue the station holds from its join
     co.surface = (*simulation)->station_surface();
     co.needle = (*simulation)->station_needle();
+    co.blade = (*simulation)->station_blade();
   }
   const auto start = std::chrono::steady_clock::now();
   auto station = client::StationChannel::Create(co, hand->get());

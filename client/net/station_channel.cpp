@@ -182,6 +182,7 @@ struct StationChannel::Impl {
   std::atomic<uint64_t> moved_notices{0};  // answers saying the session moved (not forces)
   std::atomic<uint64_t> marks{0};          // answers saying a palpation's mark was placed
   std::atomic<uint64_t> needle_pops{0}, needle_corrections{0};  // the device thread's needle
+  std::atomic<uint64_t> blade_punctures{0};                     // the device thread's blade
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
       newest_answered{0}, scene_chunks{0};
   uint64_t last_frame_sequence = 0;
@@ -342,12 +343,16 @@ struct StationChannel::Impl {
           surface(o.surface, 1.0 / o.rate_hz),
           needle(o.needle, 1.0 / o.rate_hz),
           // Always observing; controlling only when asked.
-          passivity(o.passivity ? o.max_damping : 0.0, 1e-4, o.passivity_mode) {}
+          passivity(o.passivity ? o.max_damping : 0.0, 1e-4, o.passivity_mode) {
+      if (o.blade)
+        if (auto b = haptics::BladeModel::Create(*o.blade); b.ok()) blade.emplace(std::move(*b));
+    }
     haptics::SafetyFilter safety;
     Deadband deadband;
     TissueContact tissue;
     haptics::SurfaceContact surface;
     haptics::NeedleContact needle;
+    std::optional<haptics::BladeModel> blade;  // 2048 segments: made once, with the channel
     PassivityController passivity;
     uint64_t sequence = 0;
     bool fading = false;
@@ -408,6 +413,13 @@ struct StationChannel::Impl {
       needle_pops.store(v.needle.local_pops(), std::memory_order_relaxed);
       needle_corrections.store(v.needle.corrections(), std::memory_order_relaxed);
       return f;
+    }
+    // A blade: the station's own fracture model from its own tip.
+    if (v.blade) {
+      held = true;
+      const haptics::BladeForce b = v.blade->Step(s.position);
+      if (b.punctured) blade_punctures.fetch_add(1, std::memory_order_relaxed);
+      return b.force;
     }
     // The server's contact or grasp is the tissue as it is; a free answer is a round trip old,
     // and the station's own surface (when it has one) says where the tissue begins now.
@@ -651,6 +663,7 @@ StationStats StationChannel::stats() const {
   s.marks = impl_->marks.load();
   s.needle_local_pops = impl_->needle_pops.load();
   s.needle_corrections = impl_->needle_corrections.load();
+  s.blade_local_punctures = impl_->blade_punctures.load();
   s.passivity_energy_dissipated = impl_->dissipated.load();
   s.max_force = impl_->max_force.load();
   s.loop_iterations = impl_->loop_iterations.load();

@@ -25,6 +25,7 @@
 #include "client/net/passivity.h"
 #include "common/core/clock.h"
 #include "common/core/expected.h"
+#include "common/haptics/blade.h"
 #include "common/haptics/needle_contact.h"
 #include "common/haptics/tissue_surface.h"
 #include "proto/wire/datagram.h"
@@ -114,6 +115,11 @@ struct StationOptions {
   // punctures (haptics/needle_contact.h), so a layer's pop is felt on time at any delay. Null: not
   // a needle scene.
   std::shared_ptr<const haptics::NeedleTissueSpec> needle;
+  // A cut scene's blade, from the join (haptics/blade.h): with kModel the station renders the
+  // blade with its own fracture model from its own tip (the server's sees the same tips, so the
+  // two cracks follow one path), so the puncture, the cutting force and a crossing of the cut are
+  // felt on time at any delay. Null: not a cut scene.
+  std::shared_ptr<const haptics::BladeParams> blade;
   // The station clock (sample times, round trips, the watchdog and its fade); null: the steady
   // clock. The device loop itself is paced by real time at rate_hz whatever this clock says.
   const Clock* clock = nullptr;
@@ -139,6 +145,8 @@ struct StationStats {
   // A needle scene: pops the station rendered from its own model before the server's answers
   // said so, and times it took the server's word over its own (haptics/needle_contact.h).
   uint64_t needle_local_pops = 0, needle_corrections = 0;
+  // A cut scene: punctures the station rendered from its own blade model.
+  uint64_t blade_local_punctures = 0;
   double passivity_energy_dissipated = 0;  // J the controller removed
   // The passivity observer's record of the force held over each servo interval against that
   // interval's motion: positive work on the hand, and work the hand put in (J). Their difference

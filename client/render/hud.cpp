@@ -100,6 +100,16 @@ void TrialGauges(const Guidance& g, float gauge_w) {
     ImGui::TextUnformatted("Enter: done");
     return;
   }
+  if (g.cut) {  // how far the blade is from the marked line, against the band
+    const bool within = g.current <= g.tolerance;
+    Gauge("Off the line", Printf("%.1f mm  (band ± %.0f mm)", g.current * 1e3, g.tolerance * 1e3),
+          g.current, 3 * g.tolerance, 0, g.tolerance, 3 * g.tolerance, within ? kGood : kWarn,
+          gauge_w);
+    ImGui::TextUnformatted(g.through ? "Blade: through, cutting" : "Blade: press it through");
+    if (g.grasp >= 0)
+      ImGui::TextUnformatted(g.grasp ? "Grasper: holding" : "Grasper: open (button 1 grasps)");
+    return;
+  }
   if (g.palpate) {  // where the lumps are is the question: nothing here gives it away
     ImGui::Text("Lumps marked: %d", g.marks);
     ImGui::TextUnformatted("M or button 2: mark a lump");

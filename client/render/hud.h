@@ -21,6 +21,11 @@ struct Guidance {
   // boundaries its tract has punctured; `marks` the confirmations the server took.
   bool needle = false;
   int passed = 0;
+  // A cut: `current` is the blade's distance from the marked line (m), `tolerance` the band's
+  // half width; `through` the blade is through the tissue; `grasp` the second hand's jaws
+  // (-1: no second hand, 0 open, 1 holding).
+  bool cut = false, through = false;
+  int grasp = -1;
   int marks = 0;
   double target = 0, tolerance = 0, current = 0;
   double held_s = 0, hold_s = 0;  // within tolerance so far, and as long as the task asks

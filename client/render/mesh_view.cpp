@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "client/render/gl_resources.h"
@@ -346,10 +347,17 @@ void MeshView::MakeResources() {
   }
   table.indices = {0, 1, 2, 0, 2, 3};
   g.table.Upload(Interleave(table), table.indices, GL_STATIC_DRAW);
-  g.instrument = MakeInstrument(visual_.instrument);
-  g.steel.Upload(Interleave(g.instrument.steel), g.instrument.steel.indices, GL_STATIC_DRAW);
-  g.handle.Upload(Interleave(g.instrument.handle), g.instrument.handle.indices, GL_STATIC_DRAW);
-  g.jaw.Upload(Interleave(g.instrument.jaw), g.instrument.jaw.indices, GL_STATIC_DRAW);
+  const std::array<std::optional<sim::Instrument>, 2> kinds = {visual_.instrument,
+                                                               visual_.second_instrument};
+  for (size_t k = 0; k < g.tools.size(); ++k) {
+    if (!kinds[k]) continue;
+    Gpu::Tool& tool = g.tools[k];
+    tool.shape = MakeInstrument(*kinds[k]);
+    tool.steel.Upload(Interleave(tool.shape.steel), tool.shape.steel.indices, GL_STATIC_DRAW);
+    tool.handle.Upload(Interleave(tool.shape.handle), tool.shape.handle.indices, GL_STATIC_DRAW);
+    tool.jaw.Upload(Interleave(tool.shape.jaw), tool.shape.jaw.indices, GL_STATIC_DRAW);
+    tool.made = true;
+  }
   glGenVertexArrays(1, &g.flat_vao);
   glGenBuffers(1, &g.flat_vbo);
   glBindVertexArray(g.flat_vao);

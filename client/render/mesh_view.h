@@ -39,6 +39,7 @@ namespace vsurg::client {
 namespace gl {
 struct Part;
 }  // namespace gl
+struct InstrumentParts;  // shapes.h
 
 // What a search found, drawn over the tissue once it is over (the end-of-trial summary of a
 // palpation): a ring on the surface above each lump, as wide as the lump (green when found, red
@@ -65,6 +66,12 @@ struct Overlay {
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  // N, drawn from the tip
   bool grasping = false, contact = false;
+  // Two hands: the second device's instrument (VisualModel::second_instrument), posed from its
+  // stylus, its jaws closed while it grasps.
+  bool show_second = false;
+  Eigen::Vector3d second_tip = Eigen::Vector3d::Zero();  // m
+  Eigen::Quaterniond second_orientation = Eigen::Quaterniond::Identity();
+  bool second_grasping = false;
   std::vector<std::string> hud;  // the panel's lines, top left: a title line, then the figures
   Guidance guidance;             // the trial's gauges and the target drawn in the scene
   TrialSummary summary;          // the end-of-trial panel
@@ -180,10 +187,22 @@ class MeshView {
   void TableShadowPass(const Frame& f);
   void GuidancePass(const Frame& f);
   void FindingsMarks(const Findings& findings);
+  // A cut's marked pattern on the tissue as it is (VisualModel::marked_line): each point rides
+  // the physics face it lies in at rest (barycentric, found once), so it moves with the patch and
+  // goes with a face a cut removed.
+  void PatternMarks();
+  struct MarkPoint {
+    int face = -1;
+    Eigen::Vector3d bary = Eigen::Vector3d::Zero();
+  };
+  std::vector<MarkPoint> mark_points_;  // made at the first PatternMarks
   void DrawPart(const Frame& f, const gl::Part& part, const Eigen::Affine3d& pose, int material,
                 const Eigen::Vector3d& albedo, double roughness, double scale, double bump,
                 int part_taps);
-  Eigen::Affine3d JawPose(const Frame& f, int side) const;
+  // An instrument's jaw (side 0 or 1) about its hinge, opened by `open` rad, posed at `tool`.
+  static Eigen::Affine3d JawPose(const Eigen::Affine3d& tool, float open,
+                                 const InstrumentParts& shape, int side);
+  void DrawTool(const Frame& f, int k);  // the k-th hand's instrument (InstrumentPass)
   void UpdateVisual();
   void MarkPlaced(const std::vector<int32_t>& indices);
   void MarkRestPlaced();

@@ -63,6 +63,13 @@ struct MeshView::Frame {
   bool stylus = false;
   Eigen::Affine3d tool = Eigen::Affine3d::Identity();  // the instrument's pose
   float open = 0;                                      // its jaws' opening, rad
+  // Two hands: the second hand's instrument, when shown (Overlay::show_second).
+  bool second = false;
+  Eigen::Affine3d tool2 = Eigen::Affine3d::Identity();
+  float open2 = 0;
+  bool Shown(int k) const { return k == 0 ? stylus : second; }
+  const Eigen::Affine3d& Pose(int k) const { return k == 0 ? tool : tool2; }
+  float Open(int k) const { return k == 0 ? open : open2; }
   Quality q = Quality::kHigh;
   bool shadows = false;
   Eigen::Matrix4d light = Eigen::Matrix4d::Identity(), view_projection = light;
@@ -84,7 +91,7 @@ void MeshView::Draw(int width, int height, const Overlay& overlay) {
   ScenePass(f);
   // The instrument first: it is nearer than the tissue where they overlap, so the tissue's
   // pixels behind it fail the depth test before they are shaded.
-  if (f.stylus && !overlay.albedo_only) InstrumentPass(f);
+  if ((f.stylus || f.second) && !overlay.albedo_only) InstrumentPass(f);
   TissuePass(f);
   if (!overlay.albedo_only) {
     if (f.shadows) TableShadowPass(f);
@@ -108,7 +115,12 @@ MeshView::Frame MeshView::BeginFrame(int width, int height, const Overlay& overl
   f.stylus = overlay.show_stylus && overlay.tip.allFinite() &&
              overlay.orientation.coeffs().allFinite() && !overlay.albedo_only;
   if (f.stylus) f.tool = Eigen::Translation3d(overlay.tip) * overlay.orientation.normalized();
-  f.open = overlay.grasping ? 0.0f : g.instrument.open_rad;
+  f.open = overlay.grasping ? 0.0f : g.tools[0].shape.open_rad;
+  f.second = g.tools[1].made && overlay.show_second && overlay.second_tip.allFinite() &&
+             overlay.second_orientation.coeffs().allFinite() && !overlay.albedo_only;
+  if (f.second)
+    f.tool2 = Eigen::Translation3d(overlay.second_tip) * overlay.second_orientation.normalized();
+  f.open2 = overlay.second_grasping ? 0.0f : g.tools[1].shape.open_rad;
   f.q = quality_;
   f.shadows = f.q != Quality::kLow && !overlay.albedo_only;
   f.light = LightViewProjection();
@@ -121,14 +133,14 @@ MeshView::Frame MeshView::BeginFrame(int width, int height, const Overlay& overl
   return f;
 }
 
-// An instrument's jaw (side 0 or 1) about its hinge, opened by the frame's angle, in the scene.
-Eigen::Affine3d MeshView::JawPose(const Frame& f, int side) const {
-  const Eigen::Vector3f hinge = gpu_->instrument.hinge;
+Eigen::Affine3d MeshView::JawPose(const Eigen::Affine3d& tool, float open,
+                                  const InstrumentParts& shape, int side) {
+  const Eigen::Vector3f hinge = shape.hinge;
   Eigen::Affine3f local = Eigen::Translation3f(hinge) *
-                          Eigen::AngleAxisf(side ? -f.open : f.open, Eigen::Vector3f::UnitX()) *
+                          Eigen::AngleAxisf(side ? -open : open, Eigen::Vector3f::UnitX()) *
                           Eigen::Translation3f(-hinge);
   if (side) local = local * Eigen::AngleAxisf(std::numbers::pi_v<float>, Eigen::Vector3f::UnitZ());
-  return Eigen::Affine3d(f.tool.matrix() * local.matrix().cast<double>());
+  return Eigen::Affine3d(tool.matrix() * local.matrix().cast<double>());
 }
 
 void MeshView::CasterBoxes(Frame& f) {
@@ -155,9 +167,10 @@ void MeshView::CasterBoxes(Frame& f) {
   for (int c = 0; c < 8; ++c) {
     f.tissue_box.emplace_back(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(),
                               c & 4 ? hi.z() : lo.z());
-    if (f.stylus)
-      f.tool_box.push_back(f.tool * Eigen::Vector3d(c & 1 ? 0.05 : -0.05, c & 2 ? 0.05 : -0.05,
-                                                    c & 4 ? 0.21 : -0.01));
+    for (int k = 0; k < 2; ++k)
+      if (f.Shown(k))
+        f.tool_box.push_back(f.Pose(k) * Eigen::Vector3d(c & 1 ? 0.05 : -0.05, c & 2 ? 0.05 : -0.05,
+                                                         c & 4 ? 0.21 : -0.01));
   }
 }
 
@@ -165,20 +178,20 @@ void MeshView::ShadowPass(const Frame& f) {
   Gpu& g = *gpu_;
   // 1. The shadow map: depth from the key light of the tissue and the instrument; drawn again
   // only when one of them or the light moved (a trainee holding still costs no shadow pass).
-  std::array<double, 34> shadow_key{};
-  {
-    const Eigen::Matrix4d pose = f.stylus ? f.tool.matrix() : Eigen::Matrix4d::Zero();
-    std::copy(pose.data(), pose.data() + 16, shadow_key.begin());
-    shadow_key[16] = f.open;
-    shadow_key[17] = static_cast<double>(f.q);
-    std::copy(f.light.data(), f.light.data() + 16, shadow_key.begin() + 18);
+  std::array<double, 51> shadow_key{};
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Matrix4d pose = f.Shown(k) ? f.Pose(k).matrix() : Eigen::Matrix4d::Zero();
+    std::copy(pose.data(), pose.data() + 16, shadow_key.begin() + 17 * k);
+    shadow_key[17 * k + 16] = f.Open(k);
   }
+  shadow_key[34] = static_cast<double>(f.q);
+  std::copy(f.light.data(), f.light.data() + 16, shadow_key.begin() + 35);
   if (!(moved_since_shadow_ || shadow_key != g.shadow_key)) return;
   // The tissue's casters are drawn again when it or the light moved (SetCamera moves the light
   // with the centre), else its kept depth is copied back (below).
   const bool tissue_moved =
       moved_since_shadow_ ||
-      !std::equal(shadow_key.begin() + 18, shadow_key.end(), g.shadow_key.begin() + 18);
+      !std::equal(shadow_key.begin() + 35, shadow_key.end(), g.shadow_key.begin() + 35);
   moved_since_shadow_ = false;
   g.shadow_key = shadow_key;
   const int size = f.q == Quality::kHigh ? 2048 : 1024;
@@ -236,6 +249,7 @@ void MeshView::DrawCasters(const Frame& f, bool tissue_moved,
       glDrawElements(GL_TRIANGLES, g.caster_count, GL_UNSIGNED_INT, nullptr);
     } else {
       glCullFace(GL_BACK);
+      if (visual_.physics_drawn) glDisable(GL_CULL_FACE);  // an open sheet casts from both sides
       g.tissue.Draw();
     }
     glDisable(GL_CULL_FACE);
@@ -245,14 +259,16 @@ void MeshView::DrawCasters(const Frame& f, bool tissue_moved,
       g.tissue_written = tissue_rect;
     }
   }
-  if (f.stylus) {
-    SetMatrix(g.shadow, "uModel", f.tool.matrix());
-    g.steel.Draw();
-    g.handle.Draw();
-    if (g.instrument.has_jaws)
+  for (int k = 0; k < 2; ++k) {
+    if (!f.Shown(k)) continue;
+    const Gpu::Tool& t = g.tools[static_cast<size_t>(k)];
+    SetMatrix(g.shadow, "uModel", f.Pose(k).matrix());
+    t.steel.Draw();
+    t.handle.Draw();
+    if (t.shape.has_jaws)
       for (int side = 0; side < 2; ++side) {
-        SetMatrix(g.shadow, "uModel", JawPose(f, side).matrix());
-        g.jaw.Draw();
+        SetMatrix(g.shadow, "uModel", JawPose(f.Pose(k), f.Open(k), t.shape, side).matrix());
+        t.jaw.Draw();
       }
   }
 }
@@ -342,24 +358,34 @@ void MeshView::ScenePass(const Frame& f) {
 }
 
 void MeshView::InstrumentPass(const Frame& f) {
-  Gpu& g = *gpu_;
+  for (int k = 0; k < 2; ++k)
+    if (f.Shown(k)) DrawTool(f, k);
+}
+
+void MeshView::DrawTool(const Frame& f, int k) {
+  const Gpu::Tool& t = gpu_->tools[static_cast<size_t>(k)];
+  const Eigen::Affine3d& pose = f.Pose(k);
   const Eigen::Vector3d steel(0.78, 0.78, 0.80);
-  DrawPart(f, g.steel, f.tool, shaders::kMetal, steel, 0.28, 1, 0, f.taps);
-  DrawPart(f, g.handle, f.tool, shaders::kPlastic, Eigen::Vector3d(0.035, 0.04, 0.05), 0.45, 1, 0,
+  DrawPart(f, t.steel, pose, shaders::kMetal, steel, 0.28, 1, 0, f.taps);
+  DrawPart(f, t.handle, pose, shaders::kPlastic, Eigen::Vector3d(0.035, 0.04, 0.05), 0.45, 1, 0,
            f.taps);
-  if (g.instrument.has_jaws)
+  if (t.shape.has_jaws)
     for (int side = 0; side < 2; ++side)
-      DrawPart(f, g.jaw, JawPose(f, side), shaders::kMetal, Eigen::Vector3d(0.70, 0.71, 0.73), 0.38,
-               1, 0, f.taps);
+      DrawPart(f, t.jaw, JawPose(pose, f.Open(k), t.shape, side), shaders::kMetal,
+               Eigen::Vector3d(0.70, 0.71, 0.73), 0.38, 1, 0, f.taps);
 }
 
 void MeshView::TissuePass(const Frame& f) {
   Gpu& g = *gpu_;
   const MaterialLook look = LookOf(visual_.material);
   // The visual surface is closed and wound outward (tested): its back half is culled, which on a
-  // software renderer halves the triangles set up.
-  glEnable(GL_CULL_FACE);
-  glCullFace(GL_BACK);
+  // software renderer halves the triangles set up. An open sheet drawn as its physics surface (a
+  // cut's patch) shows both sides: a flap the cut freed may fold over (the shader lights the side
+  // it sees).
+  if (!visual_.physics_drawn) {
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_BACK);
+  }
   DrawPart(f, g.tissue, Eigen::Affine3d::Identity(), look.shader, look.albedo, look.roughness,
            look.detail_scale, look.bump_depth, f.taps);
   glDisable(GL_CULL_FACE);
@@ -400,16 +426,19 @@ void MeshView::TableShadowPass(const Frame& f) {
                          centre.y() + (c >= 2 ? t.half : -t.half));
   // The table's own level.
   add_catcher(catchers_cover_table_ && !f.stylus ? table : g.tissue_shadow, 0.0005);
-  if (f.stylus) {
+  for (int k = 0; k < 2; ++k) {
+    if (!f.Shown(k)) continue;
+    const Gpu::Tool& tool = g.tools[static_cast<size_t>(k)];
     ShadowBound bound(key_dir_, world_up_, visual_.table_height, t.e1, t.e2);
     const auto add = [&](const ShapeMesh& part, const Eigen::Affine3d& pose) {
       for (const Eigen::Vector3f& p : part.positions) bound.Add(pose * p.cast<double>());
     };
-    add(g.instrument.steel, f.tool);
-    add(g.instrument.handle, f.tool);
-    if (g.instrument.has_jaws)
-      for (int side = 0; side < 2; ++side) add(g.instrument.jaw, JawPose(f, side));
-    add_catcher(catchers_cover_table_ ? table : bound.Corners(radius_ * 0.03), 0.0006);
+    add(tool.shape.steel, f.Pose(k));
+    add(tool.shape.handle, f.Pose(k));
+    if (tool.shape.has_jaws)
+      for (int side = 0; side < 2; ++side)
+        add(tool.shape.jaw, JawPose(f.Pose(k), f.Open(k), tool.shape, side));
+    add_catcher(catchers_cover_table_ ? table : bound.Corners(radius_ * 0.03), 0.0006 + 1e-4 * k);
   }
   if (!catcher.indices.empty()) {
     g.catcher.Upload(Interleave(catcher), catcher.indices, GL_STREAM_DRAW);
@@ -448,6 +477,7 @@ void MeshView::GuidancePass(const Frame& f) {
     }
   }
   FindingsMarks(f.overlay.findings);
+  PatternMarks();
   if (f.stylus && f.overlay.force.allFinite() && f.overlay.force.norm() > 0.05) {
     const Eigen::Vector3d head = f.overlay.tip + 0.02 * f.overlay.force;
     const Eigen::Vector3d neck = f.overlay.tip + 0.75 * (head - f.overlay.tip);
@@ -469,6 +499,45 @@ void MeshView::GuidancePass(const Frame& f) {
     glDepthMask(GL_TRUE);
     glDisable(GL_BLEND);
   }
+}
+
+void MeshView::PatternMarks() {
+  const std::vector<Eigen::Vector3d>& line = visual_.marked_line;
+  if (line.size() < 2 || !visual_.physics_drawn) return;
+  const std::vector<geometry::Triangle>& faces = visual_.surface.triangles;
+  if (mark_points_.empty()) {  // once: the rest face under each point (the patch's rest plane)
+    for (const Eigen::Vector3d& p : line) {
+      MarkPoint m;
+      for (size_t t = 0; t < rest_faces_.size() && m.face < 0; ++t) {
+        const auto& [a, b, c] = rest_faces_[t];
+        const Eigen::Vector2d pa = rest_.positions[a].head<2>(), pb = rest_.positions[b].head<2>(),
+                              pc = rest_.positions[c].head<2>();
+        const Eigen::Vector2d e1 = pb - pa, e2 = pc - pa, d = p.head<2>() - pa;
+        const double det = e1.x() * e2.y() - e1.y() * e2.x();
+        if (std::abs(det) < 1e-18) continue;
+        const double u = (d.x() * e2.y() - d.y() * e2.x()) / det;
+        const double v = (e1.x() * d.y() - e1.y() * d.x()) / det;
+        if (u >= -1e-9 && v >= -1e-9 && u + v <= 1 + 1e-9)
+          m.face = static_cast<int>(t), m.bary = Eigen::Vector3d(1 - u - v, u, v);
+      }
+      mark_points_.push_back(m);
+    }
+  }
+  const auto at = [&](const MarkPoint& m, Eigen::Vector3d& out) {
+    if (m.face < 0) return false;
+    const geometry::Triangle& t = faces[static_cast<size_t>(m.face)];
+    if (t == geometry::Triangle{0, 0, 0}) return false;  // cut away with its piece
+    out = m.bary[0] * positions_[t[0]] + m.bary[1] * positions_[t[1]] +
+          m.bary[2] * positions_[t[2]] + 0.0003 * world_up_;
+    return out.allFinite();
+  };
+  const Eigen::Vector4f marker(0.30f, 0.16f, 0.62f, 0.9f);  // a surgical skin marker's violet
+  // Two neighbours the cut parted (one on its piece, one beside it) are not joined across the gap.
+  Eigen::Vector3d a, b;
+  for (size_t i = 0; i + 1 < mark_points_.size(); ++i)
+    if (at(mark_points_[i], a) && at(mark_points_[i + 1], b) &&
+        (b - a).norm() < 2 * (line[i + 1] - line[i]).norm() + 0.0005)
+      gpu_->marks.Tube(a, b, 0.00035, marker);
 }
 
 // A search's findings (Findings): rings lifted a millimetre off the surface along the normal

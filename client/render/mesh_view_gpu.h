@@ -34,9 +34,15 @@ struct MeshView::Gpu {
     scene.emplace(key, program);
     return program;
   }
-  gl::Part tissue, table, steel, handle, jaw;
+  gl::Part tissue, table;
   gl::Part catcher;  // the polygons on the table that its shadows can fall in, made every frame
-  InstrumentParts instrument;
+  // The instruments: the first hand's, and the second hand's when the scene has one (`made`).
+  struct Tool {
+    InstrumentParts shape;
+    gl::Part steel, handle, jaw;
+    bool made = false;
+  };
+  std::array<Tool, 2> tools;
   GLuint flat_vao = 0, flat_vbo = 0;
   GLuint detail = 0;
   GLuint shadow_fbo = 0, shadow_map = 0;
@@ -55,8 +61,9 @@ struct MeshView::Gpu {
   // the quality stay), drawn once and copied into every frame.
   GLuint background_fbo = 0, background_colour = 0, background_depth = 0;
   std::array<double, 9> background_key{};  // width, height, quality, eye, centre
-  std::array<double, 34> shadow_key{};     // the tool's pose, its jaws, the quality, the light
-  std::vector<float> upload;               // the tissue's interleaved vertices, reused every frame
+  // Both tools' poses and jaws (17 each), the quality, the light (16: the last).
+  std::array<double, 51> shadow_key{};
+  std::vector<float> upload;  // the tissue's interleaved vertices, reused every frame
   std::vector<uint32_t> indices;
   // What casts the tissue's shadow at high: the physics surface as moved (positions only), its
   // faces turned away from the light (`caster_cull` culls the others). A fraction of the visual
@@ -79,7 +86,9 @@ struct MeshView::Gpu {
   std::vector<Eigen::Vector2d> tissue_shadow;
 
   ~Gpu() {
-    for (gl::Part* p : {&tissue, &table, &steel, &handle, &jaw}) p->Release();
+    for (gl::Part* p : {&tissue, &table}) p->Release();
+    for (Tool& t : tools)
+      for (gl::Part* p : {&t.steel, &t.handle, &t.jaw}) p->Release();
     for (const auto& [key, program] : scene) glDeleteProgram(program);
     for (GLuint program : {shadow, flat})
       if (program) glDeleteProgram(program);

@@ -109,7 +109,15 @@ void Station::DropSecondHand() {
     std::lock_guard lock(mutex_);
     second = std::move(second_channel_);
   }
-  if (second) second->Stop();  // its device at zero force; the server fades its tool out
+  if (!second) return;
+  second->Stop();  // its device at zero force; the server fades its tool out
+  std::lock_guard lock(mutex_);
+  second_stopped_stats_ = second->stats();
+}
+
+StationStats Station::second_hand_stats() const {
+  std::lock_guard lock(mutex_);
+  return second_channel_ ? second_channel_->stats() : second_stopped_stats_;
 }
 
 bool Station::WithSecondChannel(const std::function<void(StationChannel&)>& fn) {
@@ -130,6 +138,7 @@ Expected<std::unique_ptr<StationChannel>> Station::OpenSecondHand(
   std::copy(created.second_key().begin(), created.second_key().end(), options.key.begin());
   options.surface = nullptr;  // its tool is a grasper: the answers' own local model
   options.needle = nullptr;
+  options.blade = nullptr;
   options.force_log.clear();
   options.twist_shape_key = 0;
   return StationChannel::Create(options, second_device_);
@@ -250,6 +259,16 @@ std::shared_ptr<const haptics::NeedleTissueSpec> Station::StationNeedleOf(
   return nullptr;
 }
 
+std::shared_ptr<const haptics::BladeParams> Station::StationBladeOf(
+    const v1::CreateSessionResponse& created) {
+  if (!created.has_blade()) return nullptr;
+  auto blade = convert::FromProto(created.blade());
+  if (blade.ok()) return *blade;
+  std::lock_guard lock(mutex_);
+  status_.last_error = "the server's blade was refused: " + blade.error().message;
+  return nullptr;
+}
+
 Expected<v1::CreateSessionResponse> Station::OpenSession(bool join) {
   auto stub = v1::SessionService::NewStub(remote_.channel);
   v1::CreateSessionResponse created;
@@ -330,6 +349,7 @@ Status Station::Connect() {
   options.force_limit_n = config_.force_limit_n;
   options.surface = StationSurfaceOf(created);
   options.needle = StationNeedleOf(created);
+  options.blade = StationBladeOf(created);
   auto channel = StationChannel::Create(options, device_);
   if (!channel.ok()) return channel.error();
   Expected<std::unique_ptr<StationChannel>> second =
@@ -354,7 +374,11 @@ Status Station::Connect() {
 
 void Station::StopChannel() {
   std::lock_guard lock(mutex_);
-  if (second_channel_) second_channel_->Stop(), second_channel_.reset();
+  if (second_channel_) {
+    second_channel_->Stop();
+    second_stopped_stats_ = second_channel_->stats();
+    second_channel_.reset();
+  }
   if (!channel_) return;
   channel_->Stop();  // the device is left at zero force
   Add(finished_stats_, channel_->stats());

@@ -174,6 +174,8 @@ class Station {
   void DropSecondHand();
   // Runs `fn` on the second hand's running channel; false while there is none.
   bool WithSecondChannel(const std::function<void(StationChannel&)>& fn);
+  // The second hand's channel statistics: the running one's, else the last one stopped.
+  StationStats second_hand_stats() const;
 
   void Tick();
   // Ticks on a thread of the station's own until Finish (or StopSupervisor); `on_change` is
@@ -209,6 +211,8 @@ class Station {
       const v1::CreateSessionResponse& created);
   std::shared_ptr<const haptics::NeedleTissueSpec> StationNeedleOf(
       const v1::CreateSessionResponse& created);
+  std::shared_ptr<const haptics::BladeParams> StationBladeOf(
+      const v1::CreateSessionResponse& created);
   void Probe(double now);
   // The session is live: when it now runs at another UDP address, a channel there. True: moved.
   Expected<bool> Follow();
@@ -227,6 +231,7 @@ class Station {
   std::unique_ptr<StationChannel> channel_;
   HapticDevice* second_device_ = nullptr;
   std::unique_ptr<StationChannel> second_channel_;  // under mutex_
+  StationStats second_stopped_stats_;               // under mutex_: the last one stopped
   StationStats finished_stats_;                     // of the channels already dropped
   std::mutex supervisor_mutex_;
   std::condition_variable supervisor_cv_;

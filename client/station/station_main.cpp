@@ -87,6 +87,13 @@ client::Guidance Guidance(const vsurg::sim::Scene& scene, const client::StationV
     g.current = std::max(0.0, (shown.sample.position - n.entry).dot(n.direction));
     g.passed = static_cast<int>(n.passed);
   }
+  if (scene.cut) {
+    g.cut = true;
+    g.current = scene.cut->pattern.Distance(shown.sample.position.x(), shown.sample.position.y());
+    // The answer's local model is the patch's out-of-plane spring while the blade presses on it,
+    // none once it is through (Simulation::CutStep).
+    g.through = shown.command.contact && shown.command.local.jacobian.isZero();
+  }
   g.force_n = shown.force.norm();
   g.force_limit_n = scene.task.force_limit;
   g.device_limit_n = scene.haptics.limits.max_force;
@@ -243,9 +250,11 @@ struct Trial {
   double rate_hz = 0, last_rate_at = 0;
   client::StationStats hud_stats;  // the HUD's figures, refreshed twice a second
   client::StationView shown;
-  double held_s = 0, last_frame_at = 0;         // the task's quantity within tolerance, so far
-  double confirmed_at = -1;                     // a needle's confirmation, live time
-  std::vector<double> draw_ms;                  // per frame: draw and finish, ms
+  client::StationView shown_second;      // two hands: the second device's, while its channel runs
+  client::StationStats second_stats;     // two hands: the second channel's, read at the end
+  double held_s = 0, last_frame_at = 0;  // the task's quantity within tolerance, so far
+  double confirmed_at = -1;              // a needle's confirmation, live time
+  std::vector<double> draw_ms;           // per frame: draw and finish, ms
   std::array<std::vector<double>, 3> probe_ms;  // --quality auto: the frames before the trial, ms
   client::Quality started_at = client::Quality::kHigh;  // the level the trial started at
   // An instructor's station: the mode's switches (scripted and from the keys).
@@ -296,14 +305,26 @@ struct Trial {
     }
     Gauges(overlay, tick);
     Hud(overlay, channel_session);
+    SecondHand(overlay);
     return overlay;
+  }
+
+  // Two hands: the second device's instrument where it is, while its channel runs.
+  void SecondHand(client::Overlay& overlay) {
+    overlay.show_second = station.WithSecondChannel(
+        [&](client::StationChannel& second) { second.TakeView(shown_second); });
+    overlay.second_tip = shown_second.sample.position;
+    overlay.second_orientation = shown_second.sample.orientation;
+    overlay.second_grasping = shown_second.command.grasping;
+    if (scene.cut && scene.cut->grasper)
+      overlay.guidance.grasp = overlay.show_second ? (overlay.second_grasping ? 1 : 0) : -1;
   }
 
   // The task's gauges, and how long the task's quantity has been held within tolerance.
   void Gauges(client::Overlay& overlay, double tick) {
     overlay.guidance = Guidance(scene, shown, hud_stats, live_now);
     client::Guidance& g = overlay.guidance;
-    if (!g.twist && !g.palpate && !g.needle)
+    if (!g.twist && !g.palpate && !g.needle && !g.cut)
       g.current = PressDepth(*screen.rest_bvh, *screen.rest, shown);
     const bool within =
         std::abs(std::abs(g.current) - g.target) <= g.tolerance && g.force_n <= g.force_limit_n;
@@ -330,8 +351,11 @@ struct Trial {
                                 " mm   force " + Fixed(shown.force.norm(), 2) + " N"
                    : palpate ? "force " + Fixed(shown.force.norm(), 2) + " N   lumps marked " +
                                    std::to_string(s.marks)
-                             : "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) +
-                                   " deg   force " + Fixed(shown.force.norm(), 2) + " N",
+                   : overlay.guidance.cut
+                       ? "blade force " + Fixed(shown.force.norm(), 2) + " N   off the line " +
+                             Fixed(overlay.guidance.current * 1e3, 1) + " mm"
+                       : "twist " + Fixed(shown.command.twist * 180 / M_PI, 1) + " deg   force " +
+                             Fixed(shown.force.norm(), 2) + " N",
                    // A palpation's score tells whether the marks found the lumps, a needle's
                    // whether the tip is where it should be: at the end.
                    palpate  ? std::string("search the tissue; the score comes at the end")
@@ -583,48 +607,51 @@ nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::
                            const client::StationStats& stats, const Trial& trial,
                            int render_threads,
                            const std::optional<client::CourseExercise>& exercise) {
-  nlohmann::json j = {{"session", summary.id},
-                      {"state", SessionStateName(summary.state)},
-                      {"end_reason", summary.end_reason},
-                      {"reconnects", st.reconnects},
-                      {"drops", st.drops},
-                      {"sessions", st.generation - static_cast<uint64_t>(st.moves)},
-                      {"moves", st.moves},
-                      {"longest_gap_ms", 1e3 * st.longest_gap_s},
-                      {"sent", stats.sent},
-                      {"received", stats.received},
-                      {"loss", stats.loss},
-                      {"lost", stats.lost},
-                      {"stale", stats.stale},
-                      {"duplicates", stats.duplicates},
-                      {"late", stats.late},
-                      {"dropped", stats.dropped},
-                      {"rtt_p50_us", stats.rtt_p50_us},
-                      {"rtt_p99_us", stats.rtt_p99_us},
-                      {"rtt_p999_us", stats.rtt_p999_us},
-                      {"jitter_us", stats.jitter_us},
-                      {"energy_to_hand_j", stats.energy_to_hand},
-                      {"energy_from_hand_j", stats.energy_from_hand},
-                      {"passivity_dissipated_j", stats.passivity_energy_dissipated},
-                      {"tissue_released_j", stats.tissue_released},
-                      {"network_balance_min_j", stats.network_balance_min},
-                      {"force_log_rows", stats.force_log_rows},
-                      {"force_log_dropped", stats.force_log_dropped},
-                      {"watchdog_fades", stats.watchdog_fades},
-                      {"scene_chunks", stats.scene_chunks},
-                      {"max_force_n", stats.max_force},
-                      {"loop_hz", stats.loop_hz},
-                      {"loop_hz_min_1s", stats.loop_hz_min},
-                      {"loop_hz_max_1s", stats.loop_hz_max},
-                      {"frames", trial.draw_ms.size()},
-                      {"quality_start", client::QualityName(trial.started_at)},
-                      {"quality_end", client::QualityName(trial.screen.view->quality())},
-                      {"quality_probe_p90_ms", ProbeJson(trial.probe_ms)},
-                      {"draw_ms_p50", Percentile(trial.draw_ms, 0.5)},
-                      {"render_threads", render_threads},
-                      {"draw_ms_p99", Percentile(trial.draw_ms, 0.99)},
-                      {"metrics_recorded", summary.has_metrics},
-                      {"metrics", vsurg::scoring::TrialMetricsToJson(summary.metrics)}};
+  nlohmann::json j = {
+      {"session", summary.id},
+      {"state", SessionStateName(summary.state)},
+      {"end_reason", summary.end_reason},
+      {"reconnects", st.reconnects},
+      {"drops", st.drops},
+      {"sessions", st.generation - static_cast<uint64_t>(st.moves)},
+      {"moves", st.moves},
+      {"longest_gap_ms", 1e3 * st.longest_gap_s},
+      {"sent", stats.sent},
+      {"received", stats.received},
+      {"loss", stats.loss},
+      {"lost", stats.lost},
+      {"stale", stats.stale},
+      {"duplicates", stats.duplicates},
+      {"late", stats.late},
+      {"dropped", stats.dropped},
+      {"rtt_p50_us", stats.rtt_p50_us},
+      {"rtt_p99_us", stats.rtt_p99_us},
+      {"rtt_p999_us", stats.rtt_p999_us},
+      {"jitter_us", stats.jitter_us},
+      {"energy_to_hand_j", stats.energy_to_hand},
+      {"energy_from_hand_j", stats.energy_from_hand},
+      {"passivity_dissipated_j", stats.passivity_energy_dissipated},
+      {"tissue_released_j", stats.tissue_released},
+      {"network_balance_min_j", stats.network_balance_min},
+      {"force_log_rows", stats.force_log_rows},
+      {"force_log_dropped", stats.force_log_dropped},
+      {"watchdog_fades", stats.watchdog_fades},
+      {"scene_chunks", stats.scene_chunks},
+      {"max_force_n", stats.max_force},
+      {"loop_hz", stats.loop_hz},
+      {"loop_hz_min_1s", stats.loop_hz_min},
+      {"loop_hz_max_1s", stats.loop_hz_max},
+      {"frames", trial.draw_ms.size()},
+      {"quality_start", client::QualityName(trial.started_at)},
+      {"quality_end", client::QualityName(trial.screen.view->quality())},
+      {"quality_probe_p90_ms", ProbeJson(trial.probe_ms)},
+      {"draw_ms_p50", Percentile(trial.draw_ms, 0.5)},
+      {"render_threads", render_threads},
+      {"draw_ms_p99", Percentile(trial.draw_ms, 0.99)},
+      {"second_hand",
+       {{"received", trial.second_stats.received}, {"max_force_n", trial.second_stats.max_force}}},
+      {"metrics_recorded", summary.has_metrics},
+      {"metrics", vsurg::scoring::TrialMetricsToJson(summary.metrics)}};
   if (exercise) {
     nlohmann::json targets = nlohmann::json::array();
     for (const auto& t : summary.targets)
@@ -735,6 +762,7 @@ int Run(const std::vector<std::string>& args) {
 
   const client::StationStatus st = station.status();
   const client::StationStats stats = station.total_stats();
+  trial.second_stats = station.second_hand_stats();
   auto summary = station.Finish(trial.ended_by_replay ? "completed"
                                 : g_interrupted       ? "interrupted"
                                                       : "stopped");

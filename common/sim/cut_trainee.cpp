@@ -86,6 +86,7 @@ Expected<std::vector<haptics::StylusSample>> GrasperTrainee(const Scene& scene,
     const Vec2 xy = at + ramp * hold.pull * away;
     s.position = geometry::Vec3(xy.x(), xy.y(), s.time < 0.1 ? 0.01 : ramp * hold.lift);
     s.buttons = s.time >= 0.15 ? uint32_t{haptics::kButtonGrasp} : 0u;
+    s.orientation = Eigen::AngleAxisd(-0.6, Eigen::Vector3d::UnitY());  // in from the left
     out.push_back(s);
   }
   return out;

@@ -194,6 +194,9 @@ class Simulation final : private DeformationPool::Member {
   std::shared_ptr<const haptics::NeedleTissueSpec> station_needle() const {
     return station_needle_;
   }
+  // Any thread: a cut scene's blade with the patch's stiffnesses (haptics/blade.h), as a station
+  // renders the blade with its own fracture model; null for other scenes. With the join.
+  std::shared_ptr<const haptics::BladeParams> station_blade() const { return station_blade_; }
   // The haptic thread's trial clock (s since the first sample; see kMaxClockStepS) and how many
   // samples jumped. Not concurrently with OnStylus.
   double trial_time() const { return trial_time_; }
@@ -346,6 +349,7 @@ class Simulation final : private DeformationPool::Member {
   haptics::ProxyContact proxy_;
   std::shared_ptr<const haptics::TissueSurface> station_surface_;    // set by Build
   std::shared_ptr<const haptics::NeedleTissueSpec> station_needle_;  // set by Build (needle scenes)
+  std::shared_ptr<const haptics::BladeParams> station_blade_;        // set by Build (cut scenes)
   haptics::SafetyFilter safety_;
   scoring::TrialRecorder recorder_;
   scoring::PalpationRecorder palpation_;  // a palpation task's marks and coverage

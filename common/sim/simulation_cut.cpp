@@ -18,6 +18,7 @@ Status Simulation::BuildCut() {
   auto blade = BladeOnPatch(scene_.cut->blade, room->patch());
   if (!blade.ok()) return blade.error();
   cut_.blade = std::move(*blade);
+  station_blade_ = std::make_shared<const haptics::BladeParams>(cut_.blade->params());
   cut_.record.emplace(scene_.cut->pattern);
   return Status::Ok();
 }

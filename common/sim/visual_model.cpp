@@ -81,6 +81,15 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     v.instrument = Instrument::kNeedle;
   } else if (scene.task.kind == scoring::TaskKind::kCut) {
     v.instrument = Instrument::kScalpel;
+    if (scene.cut && scene.cut->grasper) v.second_instrument = Instrument::kGrasper;
+    if (scene.cut) {
+      constexpr int kPoints = 160;  // 0.6 mm apart on the 30 mm circle
+      for (int i = 0; i <= kPoints; ++i) {
+        double x = 0, y = 0;
+        scene.cut->pattern.At(static_cast<double>(i) / kPoints, x, y);
+        v.marked_line.emplace_back(x, y, 0.0);
+      }
+    }
   } else if (scene.task.kind == scoring::TaskKind::kPress ||
              scene.task.kind == scoring::TaskKind::kPalpate) {
     v.instrument = Instrument::kProbe;

@@ -6,6 +6,8 @@
 // reads; nothing of it crosses the network. Units: metres.
 #pragma once
 
+#include <optional>
+
 #include <Eigen/Core>
 
 #include "common/core/expected.h"
@@ -37,6 +39,12 @@ struct VisualModel {
   geometry::SurfaceMapping coarse_mapping;  // physics surface → `coarse_surface`
   VisualMaterial material = VisualMaterial::kSkin;
   Instrument instrument = Instrument::kProbe;
+  // Two hands: the second hand's instrument (a cut scene's grasper), drawn where the station's
+  // second device is; unset when the scene has one tool.
+  std::optional<Instrument> second_instrument;
+  // A cut scene's marked pattern (the line or circle to cut along), as points on the patch at
+  // rest (m); the view draws it on the tissue as it moves. Empty for the other scenes.
+  std::vector<Eigen::Vector3d> marked_line;
   // The table under the tissue: its upward normal (the world's up) and its height along it.
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   double table_height = 0;  // m, along `up`

@@ -305,6 +305,28 @@ Expected<std::shared_ptr<const haptics::NeedleTissueSpec>> FromProto(const v1::S
   return std::make_shared<const haptics::NeedleTissueSpec>(std::move(spec));
 }
 
+void ToProto(const haptics::BladeParams& b, v1::StationBlade* out) {
+  out->set_toughness(b.toughness);
+  out->set_thickness(b.thickness);
+  out->set_angle(b.angle);
+  out->set_width(b.width);
+  out->set_in_plane_stiffness(b.in_plane_stiffness);
+  out->set_normal_stiffness(b.normal_stiffness);
+  out->set_half_x(b.half_x);
+  out->set_half_y(b.half_y);
+  out->set_min_segment(b.min_segment);
+}
+
+Expected<std::shared_ptr<const haptics::BladeParams>> FromProto(const v1::StationBlade& s) {
+  haptics::BladeParams b;
+  b.toughness = s.toughness(), b.thickness = s.thickness(), b.angle = s.angle();
+  b.width = s.width(), b.in_plane_stiffness = s.in_plane_stiffness();
+  b.normal_stiffness = s.normal_stiffness(), b.half_x = s.half_x(), b.half_y = s.half_y();
+  b.min_segment = s.min_segment();
+  if (Status st = haptics::CheckBlade(b); !st.ok()) return st.error();
+  return std::make_shared<const haptics::BladeParams>(b);
+}
+
 void ToProto(const scoring::PalpationOutcome& o, v1::PalpationOutcome* out) {
   for (size_t i = 0; i < o.lumps.size(); ++i) {
     v1::PalpationOutcome::Lump* l = out->add_lumps();

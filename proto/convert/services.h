@@ -8,6 +8,7 @@
 
 #include "common/core/expected.h"
 #include "common/core/session_state.h"
+#include "common/haptics/blade.h"
 #include "common/haptics/needle.h"
 #include "common/haptics/tissue_surface.h"
 #include "common/scoring/metrics.h"
@@ -50,6 +51,9 @@ void ToProto(const haptics::TissueSurface& s, v1::StationSurface* out);
 // (haptics::CheckNeedleTissue): a refusal, never a model that renders out of its ranges.
 void ToProto(const haptics::NeedleTissueSpec& s, v1::StationNeedle* out);
 Expected<std::shared_ptr<const haptics::NeedleTissueSpec>> FromProto(const v1::StationNeedle& s);
+// A cut scene's blade; FromProto checks it as the scene's was (haptics::CheckBlade).
+void ToProto(const haptics::BladeParams& b, v1::StationBlade* out);
+Expected<std::shared_ptr<const haptics::BladeParams>> FromProto(const v1::StationBlade& s);
 Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::StationSurface& s);
 
 }  // namespace vsurg::convert

@@ -346,6 +346,10 @@ CreatedSession FromProto(const v1::NodeSession& s) {
     auto needle = convert::FromProto(s.needle());
     if (needle.ok()) c.needle = *needle;
   }
+  if (s.has_blade()) {  // and a blade
+    auto blade = convert::FromProto(s.blade());
+    if (blade.ok()) c.blade = *blade;
+  }
   return c;
 }
 
@@ -360,6 +364,7 @@ void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out) {
   }
   if (c.surface) convert::ToProto(*c.surface, out->mutable_surface());
   if (c.needle) convert::ToProto(*c.needle, out->mutable_needle());
+  if (c.blade) convert::ToProto(*c.blade, out->mutable_blade());
 }
 
 }  // namespace vsurg::server::cluster

@@ -172,6 +172,7 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
     resp->set_session_key(std::string(c.key.begin(), c.key.end()));
     if (c.surface) convert::ToProto(*c.surface, resp->mutable_surface());
     if (c.needle) convert::ToProto(*c.needle, resp->mutable_needle());
+    if (c.blade) convert::ToProto(*c.blade, resp->mutable_blade());
     resp->set_channel(c.channel);
     if (c.second_channel != 0) {
       resp->set_second_channel(c.second_channel);

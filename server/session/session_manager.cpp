@@ -169,6 +169,7 @@ Expected<CreatedSession> SessionManager::Create(const std::string& trainee,
   out.udp_port = AdvertisedUdpPort();
   out.surface = (*simulation)->station_surface();
   out.needle = (*simulation)->station_needle();
+  out.blade = (*simulation)->station_blade();
   if (two_hands) out.second_channel = SecondHandChannel(static_cast<uint64_t>(record->id));
   auto live = std::make_unique<Live>();
   live->simulation = std::move(simulation).value();
@@ -474,6 +475,7 @@ Expected<CreatedSession> SessionManager::Join(uint64_t id, bool /*with_surface: 
   out.udp_port = AdvertisedUdpPort();
   out.surface = it->second->simulation->station_surface();
   out.needle = it->second->simulation->station_needle();
+  out.blade = it->second->simulation->station_blade();
   return out;
 }
 

@@ -29,6 +29,8 @@ struct CreatedSession {
   std::shared_ptr<const haptics::TissueSurface> surface;
   // A needle scene's tissue for the station's own needle model (null: not a needle scene).
   std::shared_ptr<const haptics::NeedleTissueSpec> needle;
+  // A cut scene's blade for the station's own fracture model (null: not a cut scene).
+  std::shared_ptr<const haptics::BladeParams> blade;
   // The wire id the station's datagrams carry: the session's, or an instructor's channel into it
   // (server/net/udp_endpoint.h InstructorChannel). 0: the session's id.
   uint64_t channel = 0;

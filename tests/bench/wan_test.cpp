@@ -447,5 +447,35 @@ TEST_F(WanTest, ANeedlesPopsAreFeltOnTimeAtIntercontinental) {
   EXPECT_GT(late.pop_delay_cycles, 100) << "the answers alone came in time: no case shown";
 }
 
+// A blade across an ocean: the good trainee's pattern cut through the relay at 150 ± 10 ms each
+// way, over its first five seconds (the approach, the dimple, the puncture and the cut's first
+// centimetres). With the blade from its join the station runs the fracture model from its own
+// tip, so the dimple's give and the cutting force are felt as without delay; with the answers
+// alone the dimple's spring is rendered a round trip past the puncture and the cut's force comes
+// late.
+TEST_F(WanTest, ABladesPunctureAndCutAreFeltOnTimeAtIntercontinental) {
+  RunOptions o;
+  OptionsFor("pattern-cut", o);
+  o.plan.resize(std::min<size_t>(o.plan.size(), 5000));
+  o.profile = *relay::ProfileByName("none");
+  auto ref = RunOnce(o);
+  ASSERT_TRUE(ref.ok()) << ref.error().message;
+  o.profile = *relay::ProfileByName("intercontinental");
+  auto with = RunOnce(o);
+  o.station_surface = false;
+  auto without = RunOnce(o);
+  ASSERT_TRUE(with.ok() && without.ok());
+  const Figures f = Compare(*with, *ref, false), late = Compare(*without, *ref, false);
+  std::printf("error %.1f%% (answers alone %.1f%%), peak %.2f N (%.2f N), station punctures %llu\n",
+              f.rms_error_pct, late.rms_error_pct, f.peak_force_n, late.peak_force_n,
+              static_cast<unsigned long long>(with->station.blade_local_punctures));
+  EXPECT_LE(f.peak_force_n, options_->scene.haptics.limits.max_force + 1e-9);
+  EXPECT_EQ(with->station.blade_local_punctures, 1u);
+  EXPECT_LT(f.energy_excess_mj, 1.0);
+  if (!kFiguresMeaningful) return;
+  EXPECT_LT(f.rms_error_pct, 5.0);
+  EXPECT_GT(late.rms_error_pct, 2 * f.rms_error_pct) << "the answers alone came in time: no case";
+}
+
 }  // namespace
 }  // namespace vsurg::bench::wan

@@ -62,6 +62,15 @@ TEST(DemoFlowTest, TraineeInstructorEvaluatorsAndAdministratorEndToEnd) {
   EXPECT_LT(guided["metrics"]["guided_share"].get<double>(), 0.9);
   EXPECT_GT(guided["metrics"]["guided_alpha"].get<double>(), 0.3);
 
+  // Two hands at one station: the blade cut the circle out while the second device's grasper
+  // held the piece on its own channel and felt its pull.
+  const auto cut = nlohmann::json::parse(Slurp(out / "station-cut.json"));
+  EXPECT_EQ(cut["state"], "ended");
+  EXPECT_TRUE(cut["metrics"]["completed"].get<bool>());
+  EXPECT_GT(cut["metrics"]["coverage"].get<double>(), 0.9);
+  EXPECT_GT(cut["second_hand"]["received"].get<double>(), 1000);
+  EXPECT_GT(cut["second_hand"]["max_force_n"].get<double>(), 0.2);
+
   // The instructor's terminal: live lines while twisting, then the end of the session.
   const std::string monitor = Slurp(out / "monitor.log");
   EXPECT_GT(Count(monitor, "state=running"), 5u) << monitor;

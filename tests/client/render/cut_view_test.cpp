@@ -1,7 +1,9 @@
 // The station's view of a cut (MeshView::ApplyFaces): a scripted good hand cuts the circle out of
 // scenes/pattern-cut.json through the simulation, and its visual frames (moved vertices and the
 // cut's faces) are applied to the view as the station applies its SceneFrames. The freed piece
-// leaves a hole the table shows through; the patch outside the cut is drawn as before.
+// leaves a hole the table shows through; the patch outside the cut is drawn as before; the marked
+// circle is drawn on the skin. Two hands:
+// the second device's grasper is drawn where it is, beside the first hand's scalpel.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -56,6 +58,15 @@ TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
   overlay.show_stylus = false;
   view.Draw(kSize, kSize, overlay);
   const RgbImage uncut = (*surface)->ReadPixels();
+  // The marked circle is drawn on the skin in a marker's violet (blue over red; skin is the other
+  // way round), and the skin between it and the middle is not.
+  const auto blue_over_red = [&](const RgbImage& im, const Eigen::Vector2d& at) {
+    const size_t i =
+        (static_cast<size_t>(std::lround(at.y())) * im.width + std::lround(at.x())) * 3;
+    return int(im.rgb[i + 2]) - int(im.rgb[i]);
+  };
+  EXPECT_GT(blue_over_red(uncut, view.Project({0, -0.015, 0}, kSize, kSize)), 30);
+  EXPECT_LT(blue_over_red(uncut, view.Project({0, -0.0075, 0}, kSize, kSize)), 0);
 
   auto sim = sim::Simulation::Create(*scene, {.threaded = false});
   ASSERT_TRUE(sim.ok()) << sim.error().message;
@@ -80,6 +91,46 @@ TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
   const Eigen::Vector2d corner = view.Project({-0.034, 0.034, 0}, kSize, kSize);
   EXPECT_GT(MeanDifference(uncut, cut, middle, 8), 20.0);
   EXPECT_LT(MeanDifference(uncut, cut, corner, 6), 6.0);
+}
+
+TEST(CutViewTest, BothHandsInstrumentsAreDrawnWhereTheirDevicesAre) {
+  constexpr int kWide = 480, kHigh = 320;
+  auto surface = GlSurface::CreateHeadless(kWide, kHigh);
+  ASSERT_TRUE(surface.ok()) << surface.error().message;
+  auto scene = sim::LoadSceneByName("pattern-cut");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  auto mesh = sim::BuildSceneMesh(scene->mesh);
+  ASSERT_TRUE(mesh.ok());
+  auto visual = sim::BuildVisualModel(*scene, mesh->surface);
+  ASSERT_TRUE(visual.ok());
+  ASSERT_EQ(visual->second_instrument, sim::Instrument::kGrasper);
+  MeshView view(mesh->surface, std::move(*visual));
+  view.SetCamera({0.0, -0.12, 0.13}, {0, 0, 0.01}, {0, 0, 1});
+  // The scalpel at the circle's start, leaning in from the right; the grasper on the piece's
+  // middle, 3 mm up, jaws closed, leaning in from the left.
+  Overlay both;
+  both.show_stylus = true;
+  both.tip = {0.015, 0, -0.001};
+  both.orientation = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitY());
+  both.show_second = true;
+  both.second_tip = {0, 0, 0.003};
+  both.second_orientation = Eigen::AngleAxisd(-0.6, Eigen::Vector3d::UnitY());
+  both.second_grasping = true;
+  Overlay one = both;
+  one.show_second = false;
+  view.Draw(kWide, kHigh, one);
+  const RgbImage blade_only = (*surface)->ReadPixels();
+  view.Draw(kWide, kHigh, both);
+  const RgbImage two_hands = (*surface)->ReadPixels();
+  KeepImage(two_hands, "cut-two-hands");
+  // The grasper's jaws at its tip (and its shaft above-left of them) are drawn; the scalpel's
+  // tip is as it was, and so is the patch's far corner.
+  const Eigen::Vector2d jaws = view.Project({-0.004, 0, 0.01}, kWide, kHigh);
+  const Eigen::Vector2d blade = view.Project({0.018, 0, 0.006}, kWide, kHigh);
+  const Eigen::Vector2d corner = view.Project({0.034, 0.034, 0}, kWide, kHigh);
+  EXPECT_GT(MeanDifference(blade_only, two_hands, jaws, 6), 20.0);
+  EXPECT_LT(MeanDifference(blade_only, two_hands, blade, 3), 4.0);
+  EXPECT_LT(MeanDifference(blade_only, two_hands, corner, 6), 4.0);
 }
 
 }  // namespace

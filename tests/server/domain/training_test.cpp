@@ -405,6 +405,49 @@ TEST_F(TrainingTest, ANeedleExerciseIsJudgedOnItsPlacementAndItsBackWall) {
   EXPECT_EQ(state(), CellState::kProficient);
 }
 
+TEST_F(TrainingTest, ACutExerciseIsJudgedOnItsLineAndTheSkinItTore) {
+  for (const char* e : {"exa", "exb"}) ASSERT_TRUE(store_->SetExpert(e, true).ok());
+  // Every cut figure through the store: what a trial wrote is what the targets read.
+  const auto cut = [&](const std::string& trainee, int64_t exercise, double deviation_max,
+                       double torn, int lifts) {
+    auto s = store_->CreateSession(trainee, "pattern-cut");
+    EXPECT_TRUE(s.ok());
+    if (exercise) {
+      EXPECT_TRUE(store_->SetSessionExercise(s->id, exercise).ok());
+    }
+    scoring::TrialMetrics m;
+    m.completed = true;
+    m.completion_time = m.duration = 18;
+    m.task_error = 0.3 * deviation_max;
+    m.coverage = 0.99;
+    m.cut_deviation_max = deviation_max;
+    m.cut_outside = 0;
+    m.torn_length = torn;
+    m.cut_lifts = lifts;
+    m.score = torn > 0 ? 5 : 9;
+    EXPECT_TRUE(store_->EndSession(s->id, SessionState::kEnded, NowUs(), "done", m).ok());
+  };
+  cut("exa", 0, 0.0008, 0, 0);
+  cut("exb", 0, 0.0012, 0, 0);
+  auto c = CreateCourse(
+      *domain_, As("ian"), "Basic skills", "pattern cutting",
+      {{"Cut the circle out", "pattern-cut",
+        Spec({{"cut_deviation_max_m", std::nullopt}, {"torn_length_m", 0.0}, {"cut_lifts", 1.0}},
+             1)}});
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  const ExerciseView& ex = c->exercises[0];
+  ASSERT_EQ(ex.targets.size(), 3u);
+  EXPECT_EQ(ex.targets[0].expert_trials, 2);
+  EXPECT_GT(*ex.targets[0].value, 0.001);  // the experts' mean + SD of 0.8 and 1.2 mm
+  int64_t cohort = 0;
+  ASSERT_NO_FATAL_FAILURE(EnrolTinaAlone("Skills 2026", c->record.id, cohort));
+  const auto state = [&] { return FirstExerciseState(cohort, c->record.id); };
+  cut("tina", ex.record.id, 0.0009, 0.0033, 0);  // on the line, but the grasp tore the skin
+  EXPECT_EQ(state(), CellState::kTraining);
+  cut("tina", ex.record.id, 0.0009, 0, 1);
+  EXPECT_EQ(state(), CellState::kProficient);
+}
+
 TEST_F(TrainingTest, ProgressExportsAsCsvJsonLinesAndXapi) {
   ASSERT_NO_FATAL_FAILURE(Programme());
   Trial("tina", kScene, Ex(0), 25, 1.2);
