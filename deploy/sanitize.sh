@@ -30,7 +30,7 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # without the leak check: the driver is unloaded before LeakSanitizer looks, so its blocks show
   # as "<unknown module>" and cannot be told from ours or suppressed. Their memory errors are
   # still caught; the same code without OpenGL is leak-checked by the other suites.
-  gl='MeshViewTest|GlSurfaceDeathTest|StationBinaryTest'
+  gl='MeshViewTest|GlSurfaceDeathTest|StationBinaryTest|CutViewTest.BothHands'
   # The site's mTLS tests renew certificates under running processes, on purpose through a moment
   # with a mismatched certificate and key. gRPC's watcher that reads that pair leaks OpenSSL's
   # objects on its error path (one run in several, when the read lands in that moment). Their
