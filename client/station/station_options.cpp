@@ -15,6 +15,10 @@ namespace vsurg::client {
 using Kind = cli::ArgParser::Kind;
 using cli::ArgParser;
 
+namespace {
+void DeclareScreenOptions(ArgParser& p);
+}  // namespace
+
 void DeclareOptions(ArgParser& p) {
   using vsurg::NumberText;
   using Config = StationConfig;
@@ -83,8 +87,19 @@ void DeclareOptions(ArgParser& p) {
       .Within(Config::kModelHoldS)
       .Option("force-log", Kind::kString,
               "CSV of the force sent to the device per servo cycle: t_s,x_m,y_m,z_m,fx_n,fy_n,fz_n")
-      .Option("rate", Kind::kDouble, "haptic rate, Hz", false, NumberText(defaults.rate_hz))
-      .Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
+      .Option("rate", Kind::kDouble, "haptic rate, Hz", false, NumberText(defaults.rate_hz));
+  DeclareScreenOptions(p);
+}
+
+namespace {
+
+// The view's options: the window or offscreen surface, the frame rate, screenshots, quality, and
+// how the trial runs out.
+void DeclareScreenOptions(ArgParser& p) {
+  using vsurg::NumberText;
+  using Config = StationConfig;
+  const Config defaults;
+  p.Option("headless", Kind::kFlag, "render offscreen (EGL), no window")
       .Option("width", Kind::kInt, "image width, px", false, "960")
       .Within({16, 8192})
       .Option("height", Kind::kInt, "image height, px", false, "600")
@@ -120,6 +135,8 @@ void DeclareOptions(ArgParser& p) {
       .Within(Config::kRealtimePriority)
       .Option("json", Kind::kFlag, "print the summary as one JSON object");
 }
+
+}  // namespace
 
 int Usage(const std::string& option, const std::string& message) {
   std::cerr << "vsurg-station: " << (option.empty() ? "" : "--" + option + ": ") << message << "\n";
