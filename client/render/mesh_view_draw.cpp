@@ -10,6 +10,7 @@
 #include "client/render/mesh_view.h"
 #include "client/render/mesh_view_gpu.h"
 #include "client/render/shaders.h"
+#include "common/geometry/bvh.h"
 
 namespace vsurg::client {
 
@@ -505,22 +506,11 @@ void MeshView::PatternMarks() {
   const std::vector<Eigen::Vector3d>& line = visual_.marked_line;
   if (line.size() < 2 || !visual_.physics_drawn) return;
   const std::vector<geometry::Triangle>& faces = visual_.surface.triangles;
-  if (mark_points_.empty()) {  // once: the rest face under each point (the patch's rest plane)
+  if (mark_points_.empty()) {  // once: the rest face under each point (within 0.1 mm of it)
+    const geometry::Bvh rest(rest_);
     for (const Eigen::Vector3d& p : line) {
-      MarkPoint m;
-      for (size_t t = 0; t < rest_faces_.size() && m.face < 0; ++t) {
-        const auto& [a, b, c] = rest_faces_[t];
-        const Eigen::Vector2d pa = rest_.positions[a].head<2>(), pb = rest_.positions[b].head<2>(),
-                              pc = rest_.positions[c].head<2>();
-        const Eigen::Vector2d e1 = pb - pa, e2 = pc - pa, d = p.head<2>() - pa;
-        const double det = e1.x() * e2.y() - e1.y() * e2.x();
-        if (std::abs(det) < 1e-18) continue;
-        const double u = (d.x() * e2.y() - d.y() * e2.x()) / det;
-        const double v = (e1.x() * d.y() - e1.y() * d.x()) / det;
-        if (u >= -1e-9 && v >= -1e-9 && u + v <= 1 + 1e-9)
-          m.face = static_cast<int>(t), m.bary = Eigen::Vector3d(1 - u - v, u, v);
-      }
-      mark_points_.push_back(m);
+      const geometry::ClosestHit hit = rest.Closest(rest_.positions, p, 1e-4);
+      mark_points_.push_back({hit.triangle, hit.barycentric});
     }
   }
   const auto at = [&](const MarkPoint& m, Eigen::Vector3d& out) {
