@@ -373,12 +373,8 @@ Status Station::Connect() {
 }
 
 void Station::StopChannel() {
+  DropSecondHand();
   std::lock_guard lock(mutex_);
-  if (second_channel_) {
-    second_channel_->Stop();
-    second_stopped_stats_ = second_channel_->stats();
-    second_channel_.reset();
-  }
   if (!channel_) return;
   channel_->Stop();  // the device is left at zero force
   Add(finished_stats_, channel_->stats());
