@@ -121,6 +121,26 @@ class WanTest : public ::testing::Test {
     return c;
   }
 
+  // The plan through the relay unimpaired (the reference), then at intercontinental with the
+  // tissue the station holds from its join and without it (the answers alone), each compared with
+  // the reference.
+  struct OceanRuns {
+    wan::Run ref, with, without;
+    Figures f, late;  // with and without the join's tissue, against the reference
+  };
+  static void RunAcrossAnOcean(RunOptions o, bool press_scene, OceanRuns& out) {
+    o.profile = *relay::ProfileByName("none");
+    auto ref = RunOnce(o);
+    ASSERT_TRUE(ref.ok()) << ref.error().message;
+    o.profile = *relay::ProfileByName("intercontinental");
+    auto with = RunOnce(o);
+    o.station_surface = false;
+    auto without = RunOnce(o);
+    ASSERT_TRUE(with.ok() && without.ok());
+    out.f = Compare(*with, *ref, press_scene), out.late = Compare(*without, *ref, press_scene);
+    out.ref = std::move(*ref), out.with = std::move(*with), out.without = std::move(*without);
+  }
+
   // The suite's options on another scene, with its good scripted trainee and the local model.
   static void OptionsFor(const std::string& scene_name, RunOptions& o) {
     auto scene = GridScene(scene_name);
@@ -189,15 +209,9 @@ TEST_F(WanTest, TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental) {
   o.rendering = client::LocalRendering::kModel;
   // The product's contact model: the station's surface carries the scene's tissue law with it.
   o.scene.haptics.contact_model = sim::HapticsSpec::ContactModel::kViscoelastic;
-  o.profile = *relay::ProfileByName("none");
-  auto ref = RunOnce(o);
-  ASSERT_TRUE(ref.ok()) << ref.error().message;
-  o.profile = *relay::ProfileByName("intercontinental");
-  auto with = RunOnce(o);
-  o.station_surface = false;
-  auto without = RunOnce(o);
-  ASSERT_TRUE(with.ok() && without.ok());
-  const Figures f = Compare(*with, *ref, true), late = Compare(*without, *ref, true);
+  OceanRuns runs;
+  ASSERT_NO_FATAL_FAILURE(RunAcrossAnOcean(o, true, runs));
+  const Figures &f = runs.f, &late = runs.late;
   std::printf(
       "onset +%.0f cycles %+.2f mm (without the surface +%.0f, %+.2f mm); error %.1f%% "
       "(%.1f%%), phantom %.3f N\n",
@@ -208,7 +222,7 @@ TEST_F(WanTest, TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental) {
   // CPU hogs about one press in seven still ends 0.08-0.2 N late: the server's deformation thread
   // starved, the tissue's fitted damping comes out low and the station lets the tissue follow the
   // withdrawing tool (the fit no longer takes a negative damping, which made it 0.2-0.6 N).
-  if (f.phantom_n >= 0.05) PrintAfterContact(*with, *ref, f);
+  if (f.phantom_n >= 0.05) PrintAfterContact(runs.with, runs.ref, f);
   std::vector<double> phantom = {f.phantom_n};
   o.station_surface = true;
   for (int more = 0; more < 2 && phantom.front() >= 0.05; ++more) {
@@ -420,27 +434,21 @@ TEST_F(WanTest, TheTissuesOwnContactModelIsSafeAcrossTheNetworkWhateverTheLoad) 
 TEST_F(WanTest, ANeedlesPopsAreFeltOnTimeAtIntercontinental) {
   RunOptions o;
   OptionsFor("needle-vessel", o);
-  o.profile = *relay::ProfileByName("none");
-  auto ref = RunOnce(o);
-  ASSERT_TRUE(ref.ok()) << ref.error().message;
-  o.profile = *relay::ProfileByName("intercontinental");
-  auto with = RunOnce(o);
-  o.station_surface = false;
-  auto without = RunOnce(o);
-  ASSERT_TRUE(with.ok() && without.ok());
-  const Figures f = Compare(*with, *ref, false), late = Compare(*without, *ref, false);
+  OceanRuns runs;
+  ASSERT_NO_FATAL_FAILURE(RunAcrossAnOcean(o, false, runs));
+  const Figures &f = runs.f, &late = runs.late;
   std::printf(
       "pops %d (reference %d), the latest %.0f cycles off (answers alone: %d pops, %.0f cycles); "
       "error %.1f%% (%.1f%%), peak %.2f N, station pops %llu, corrections %llu\n",
       f.pops, f.reference_pops, f.pop_delay_cycles, late.pops, late.pop_delay_cycles,
       f.rms_error_pct, late.rms_error_pct, f.peak_force_n,
-      static_cast<unsigned long long>(with->station.needle_local_pops),
-      static_cast<unsigned long long>(with->station.needle_corrections));
+      static_cast<unsigned long long>(runs.with.station.needle_local_pops),
+      static_cast<unsigned long long>(runs.with.station.needle_corrections));
   EXPECT_LE(f.peak_force_n, options_->scene.haptics.limits.max_force + 1e-9);
   // Skin, the fascia, the vein's wall (the fat's follows the skin's within a few cycles).
   EXPECT_GE(f.reference_pops, 3);
   EXPECT_EQ(f.pops, f.reference_pops);
-  EXPECT_GE(with->station.needle_local_pops, 3u);
+  EXPECT_GE(runs.with.station.needle_local_pops, 3u);
   EXPECT_LT(f.energy_excess_mj, 1.0);
   if (!kFiguresMeaningful) return;
   EXPECT_LE(f.pop_delay_cycles, 5);
@@ -457,20 +465,14 @@ TEST_F(WanTest, ABladesPunctureAndCutAreFeltOnTimeAtIntercontinental) {
   RunOptions o;
   OptionsFor("pattern-cut", o);
   o.plan.resize(std::min<size_t>(o.plan.size(), 5000));
-  o.profile = *relay::ProfileByName("none");
-  auto ref = RunOnce(o);
-  ASSERT_TRUE(ref.ok()) << ref.error().message;
-  o.profile = *relay::ProfileByName("intercontinental");
-  auto with = RunOnce(o);
-  o.station_surface = false;
-  auto without = RunOnce(o);
-  ASSERT_TRUE(with.ok() && without.ok());
-  const Figures f = Compare(*with, *ref, false), late = Compare(*without, *ref, false);
+  OceanRuns runs;
+  ASSERT_NO_FATAL_FAILURE(RunAcrossAnOcean(o, false, runs));
+  const Figures &f = runs.f, &late = runs.late;
   std::printf("error %.1f%% (answers alone %.1f%%), peak %.2f N (%.2f N), station punctures %llu\n",
               f.rms_error_pct, late.rms_error_pct, f.peak_force_n, late.peak_force_n,
-              static_cast<unsigned long long>(with->station.blade_local_punctures));
+              static_cast<unsigned long long>(runs.with.station.blade_local_punctures));
   EXPECT_LE(f.peak_force_n, options_->scene.haptics.limits.max_force + 1e-9);
-  EXPECT_EQ(with->station.blade_local_punctures, 1u);
+  EXPECT_EQ(runs.with.station.blade_local_punctures, 1u);
   EXPECT_LT(f.energy_excess_mj, 1.0);
   if (!kFiguresMeaningful) return;
   EXPECT_LT(f.rms_error_pct, 5.0);

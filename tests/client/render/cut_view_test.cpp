@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <memory>
+#include <optional>
 #include <string>
 
 #include "client/render/gl_surface.h"
@@ -42,22 +44,39 @@ double MeanDifference(const RgbImage& a, const RgbImage& b, const Eigen::Vector2
   return n ? sum / n : 0;
 }
 
-TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
-  auto surface = GlSurface::CreateHeadless(kSize, kSize);
+// scenes/pattern-cut.json's patch in a MeshView on a headless width × height surface, seen from
+// `eye` toward `centre`.
+struct CutView {
+  std::unique_ptr<GlSurface> surface;
+  sim::Scene scene;
+  std::optional<MeshView> view;
+};
+void OpenCutView(int width, int height, const Eigen::Vector3d& eye, const Eigen::Vector3d& centre,
+                 CutView& out) {
+  auto surface = GlSurface::CreateHeadless(width, height);
   ASSERT_TRUE(surface.ok()) << surface.error().message;
+  out.surface = std::move(*surface);
   auto scene = sim::LoadSceneByName("pattern-cut");
   ASSERT_TRUE(scene.ok()) << scene.error().message;
+  out.scene = *scene;
   auto mesh = sim::BuildSceneMesh(scene->mesh);
   ASSERT_TRUE(mesh.ok());
   auto visual = sim::BuildVisualModel(*scene, mesh->surface);
   ASSERT_TRUE(visual.ok());
   ASSERT_TRUE(visual->physics_drawn);
-  MeshView view(mesh->surface, std::move(*visual));
-  view.SetCamera({0.0, -0.09, 0.11}, {0, 0, 0}, {0, 0, 1});
+  ASSERT_EQ(visual->second_instrument, sim::Instrument::kGrasper);
+  out.view.emplace(mesh->surface, std::move(*visual));
+  out.view->SetCamera(eye, centre, {0, 0, 1});
+}
+
+TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
+  CutView v;
+  ASSERT_NO_FATAL_FAILURE(OpenCutView(kSize, kSize, {0.0, -0.09, 0.11}, {0, 0, 0}, v));
+  MeshView& view = *v.view;
   Overlay overlay;
   overlay.show_stylus = false;
   view.Draw(kSize, kSize, overlay);
-  const RgbImage uncut = (*surface)->ReadPixels();
+  const RgbImage uncut = v.surface->ReadPixels();
   // The marked circle is drawn on the skin in a marker's violet (blue over red; skin is the other
   // way round), and the skin between it and the middle is not.
   const auto blue_over_red = [&](const RgbImage& im, const Eigen::Vector2d& at) {
@@ -68,9 +87,9 @@ TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
   EXPECT_GT(blue_over_red(uncut, view.Project({0, -0.015, 0}, kSize, kSize)), 30);
   EXPECT_LT(blue_over_red(uncut, view.Project({0, -0.0075, 0}, kSize, kSize)), 0);
 
-  auto sim = sim::Simulation::Create(*scene, {.threaded = false});
+  auto sim = sim::Simulation::Create(v.scene, {.threaded = false});
   ASSERT_TRUE(sim.ok()) << sim.error().message;
-  auto plan = sim::CutTrainee(*scene, sim::TraineeStyle::kGood);
+  auto plan = sim::CutTrainee(v.scene, sim::TraineeStyle::kGood);
   ASSERT_TRUE(plan.ok());
   sim::VisualFrame frame;
   int n = 0, faces = 0;
@@ -82,7 +101,7 @@ TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
   });
   EXPECT_GT(faces, 100);
   view.Draw(kSize, kSize, overlay);
-  const RgbImage cut = (*surface)->ReadPixels();
+  const RgbImage cut = v.surface->ReadPixels();
   KeepImage(uncut, "cut-patch-before");
   KeepImage(cut, "cut-patch-after");
   for (const auto& p : view.visual_positions()) ASSERT_TRUE(p.allFinite());
@@ -95,17 +114,9 @@ TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
 
 TEST(CutViewTest, BothHandsInstrumentsAreDrawnWhereTheirDevicesAre) {
   constexpr int kWide = 480, kHigh = 320;
-  auto surface = GlSurface::CreateHeadless(kWide, kHigh);
-  ASSERT_TRUE(surface.ok()) << surface.error().message;
-  auto scene = sim::LoadSceneByName("pattern-cut");
-  ASSERT_TRUE(scene.ok()) << scene.error().message;
-  auto mesh = sim::BuildSceneMesh(scene->mesh);
-  ASSERT_TRUE(mesh.ok());
-  auto visual = sim::BuildVisualModel(*scene, mesh->surface);
-  ASSERT_TRUE(visual.ok());
-  ASSERT_EQ(visual->second_instrument, sim::Instrument::kGrasper);
-  MeshView view(mesh->surface, std::move(*visual));
-  view.SetCamera({0.0, -0.12, 0.13}, {0, 0, 0.01}, {0, 0, 1});
+  CutView v;
+  ASSERT_NO_FATAL_FAILURE(OpenCutView(kWide, kHigh, {0.0, -0.12, 0.13}, {0, 0, 0.01}, v));
+  MeshView& view = *v.view;
   // The scalpel at the circle's start, leaning in from the right; the grasper on the piece's
   // middle, 3 mm up, jaws closed, leaning in from the left.
   Overlay both;
@@ -119,9 +130,9 @@ TEST(CutViewTest, BothHandsInstrumentsAreDrawnWhereTheirDevicesAre) {
   Overlay one = both;
   one.show_second = false;
   view.Draw(kWide, kHigh, one);
-  const RgbImage blade_only = (*surface)->ReadPixels();
+  const RgbImage blade_only = v.surface->ReadPixels();
   view.Draw(kWide, kHigh, both);
-  const RgbImage two_hands = (*surface)->ReadPixels();
+  const RgbImage two_hands = v.surface->ReadPixels();
   KeepImage(two_hands, "cut-two-hands");
   // The grasper's jaws at its tip (and its shaft above-left of them) are drawn; the scalpel's
   // tip is as it was, and so is the patch's far corner.
