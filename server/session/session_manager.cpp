@@ -295,11 +295,8 @@ int SessionManager::EndSessionsOf(const std::string& user, const std::string& re
 Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
   if (!endpoint_)
     return Error{ErrorCode::kFailedPrecondition, "this server has no haptic channel", "id"};
-  sim::Simulation* simulation = nullptr;
-  LinkStats* link = nullptr;
-  wire::SessionKey key{};
-  std::optional<std::pair<wire::SessionKey, LinkStats*>> second;
   int64_t epoch = 0;
+  bool started = false;
   {
     std::lock_guard lock(mutex_);
     auto it = live_.find(id);
@@ -315,21 +312,21 @@ Expected<db::SessionRecord> SessionManager::Start(uint64_t id) {
     if (l.moving)
       return Error{ErrorCode::kUnavailable,
                    "session " + std::to_string(id) + " is moving to another node", "id"};
-    if (l.state == SessionState::kCreated) {
+    started = l.state != SessionState::kCreated;
+    if (!started) {
       l.state = SessionState::kRunning;
       l.latest.state = SessionState::kRunning;
-      simulation = l.simulation.get();
-      link = &l.link;
-      key = l.key;
       epoch = l.epoch;
-      if (l.two_hands) second.emplace(l.second_key, &l.second_link);
+      // The channels open under the lock: an End that takes the session after it is released
+      // finds them open and removes them before the simulation goes. The endpoint's lanes
+      // never take this lock, so waiting for them here cannot deadlock.
+      endpoint_->AddSession(id, l.key, l.simulation.get(), &l.link);
+      if (l.two_hands)
+        endpoint_->AddChannel(SecondHandChannel(id), ChannelRole::kSecondHand, l.second_key,
+                              l.simulation.get(), &l.second_link);
     }
   }
-  if (!simulation) return Get(id);  // already started: idempotent
-  endpoint_->AddSession(id, key, simulation, link);
-  if (second)
-    endpoint_->AddChannel(SecondHandChannel(id), ChannelRole::kSecondHand, second->first,
-                          simulation, second->second);
+  if (started) return Get(id);  // already started: idempotent
   if (Status s = store_.SetSessionState(static_cast<int64_t>(id), SessionState::kRunning,
                                         db::NowUs(), "", {options_.node, epoch});
       !s.ok())

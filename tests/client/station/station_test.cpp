@@ -176,9 +176,11 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
   ReplayDevice device(std::vector<haptics::StylusSample>(60000, test::PressAndHold(1).front()));
   StationConfig config;
   config.scene = "sphere-palpation-256";
-  Station station(RemoteTo(grpc_port, tokens.trainee), &device, config);
+  // Declared before the station, so the supervisor (stopped by the station's destructor)
+  // never reports into a vector that is gone, whichever way the test ends.
   std::mutex seen_mutex;
   std::vector<std::pair<StationState, uint64_t>> seen;  // what on_change reported, in order
+  Station station(RemoteTo(grpc_port, tokens.trainee), &device, config);
   station.StartSupervisor([&](const StationStatus& st) {
     std::lock_guard lock(seen_mutex);
     seen.emplace_back(st.state, st.session);
@@ -194,10 +196,15 @@ TEST(StationTest, ItsSupervisorReconnectsWhileTheOwnerThreadIsBusy) {
   ASSERT_EQ(server.grpc_port, grpc_port);
   // Within 5 s, while the owner is busy (as a stalled render thread would be): live again and
   // forces arriving on the new channel (live comes first: the first reply follows a tick later).
+  // The supervisor reports a change after its tick has made it, so the wait includes the
+  // report of the new session.
   const bool back = test::Eventually(5, [&] {
     const StationStatus st = station.status();
-    return st.state == StationState::kLive && st.reconnects == 1 &&
-           OnChannel(station, [](StationChannel& c) { return c.stats().received > 0; });
+    if (st.state != StationState::kLive || st.reconnects != 1 ||
+        !OnChannel(station, [](StationChannel& c) { return c.stats().received > 0; }))
+      return false;
+    std::lock_guard lock(seen_mutex);
+    return !seen.empty() && seen.back() == std::make_pair(StationState::kLive, st.session);
   });
   const StationStatus now = station.status();
   EXPECT_TRUE(back) << "state " << static_cast<int>(now.state) << ": " << now.last_error;

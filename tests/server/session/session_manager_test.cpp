@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -409,6 +410,52 @@ TEST_F(SessionManagerTest, StopEndsACreatedOrRunningSession) {
          std::chrono::steady_clock::now() < deadline)
     std::this_thread::yield();
   EXPECT_EQ(endpoint_->counters().Dropped(wire::DropReason::kUnknownSession), 1u);
+}
+
+// A station's Start and an instructor's Stop that arrive together: whichever wins, the
+// session ends with no channel left in the endpoint (a channel opened after the End removed
+// them would point at the freed simulation). Every ended session's datagram is then refused
+// as unknown, none answered.
+TEST_F(SessionManagerTest, AStartRacingAStopLeavesNoChannelBehind) {
+  constexpr int kRounds = 40;
+  std::vector<CreatedSession> ended;
+  for (int round = 0; round < kRounds; ++round) {
+    auto s = sessions_->Create("tina", "arm-torsion");
+    ASSERT_TRUE(s.ok()) << s.error().message;
+    const uint64_t id = static_cast<uint64_t>(s->record.id);
+    std::atomic<bool> go{false};
+    std::thread starter([&] {
+      while (!go.load()) std::this_thread::yield();
+      (void)sessions_->Start(id);  // refused when the Stop came first: that is fine
+    });
+    go.store(true);
+    if (round % 2 == 1) std::this_thread::yield();  // either order, both tried
+    ASSERT_TRUE(sessions_->Stop(id, "raced").ok());
+    starter.join();
+    ASSERT_FALSE(sessions_->IsLive(id));
+    ended.push_back(*s);
+  }
+  socket_.non_blocking(true);
+  for (const CreatedSession& s : ended) {
+    wire::StylusMessage m;
+    m.sample.position = Eigen::Vector3d(0, 0, 0.2);
+    std::array<uint8_t, wire::kMaxDatagram> buf{};
+    const uint64_t id = static_cast<uint64_t>(s.record.id);
+    const size_t n =
+        codec_.EncodeStylus(m, {wire::kProtocolVersion, wire::PayloadType::kStylusState, id, 1},
+                            wire::Authenticator(s.key), buf);
+    socket_.send_to(asio::buffer(buf.data(), n), udp::endpoint(loopback_, s.udp_port));
+  }
+  const auto unknown = [&] {
+    return endpoint_->counters().Dropped(wire::DropReason::kUnknownSession);
+  };
+  EXPECT_TRUE(test::Eventually(10, [&] { return unknown() >= kRounds; }));
+  EXPECT_EQ(unknown(), static_cast<uint64_t>(kRounds));
+  std::array<uint8_t, 2048> in{};
+  udp::endpoint from;
+  boost::system::error_code ec;
+  socket_.receive_from(asio::buffer(in), from, 0, ec);
+  EXPECT_EQ(ec, asio::error::would_block) << "an ended session's datagram was answered";
 }
 
 TEST_F(SessionManagerTest, ASessionNeverStartedExpiresAsAborted) {
