@@ -82,10 +82,11 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
   # blade, the queue, the room and the frames run under ASan in the good hand's frames test.
   long+='|CutSessionTest.AGoodHandCutsTheCircleOutThroughTheSession'
   long+='|CutSessionTest.AHesitantHandLiftsTheBladeAndScoresLower|CutViewTest.TheCutPiece'
-  # Two hands' whole cuts (eight trials, 4-13 s each here): the second hand's jaws, the room's hold
+  # Two hands' whole cuts (twelve trials, 4-13 s each here): the second hand's jaws, the room's hold
   # and the fade run under ASan in TwoHandsTest.JawsClosedAway… and through a real server in
   # StationTest.TwoDevicesCut… (its grasp, then its device lost mid-cut).
   long+='|TwoHandsTest.TheGrasperHolds|TwoHandsTest.AGrasperPulling|TwoHandsTest.ASecondDevice'
+  long+='|TwoHandsTest.APieceLetGoOf'
   long+='|WanTest.TheLinearModelSticksToTheToolAcrossTheSameNetwork'
   long+='|WanTest.TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental'
   long+='|WanTest.AWiFiRoamIsHeldByTheTissuesModel'

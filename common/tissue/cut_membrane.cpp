@@ -451,7 +451,9 @@ void CutMembrane::FreePiece(int label) {
     tris_[t].removed = true;
     for (int p : tris_[t].v) {
       model_->SetFixed(p, true);
-      if (p == loaded_) model_->SetExternalForce(p, Vec3::Zero()), loaded_ = -1;
+      if (std::find(loaded_.begin(), loaded_.begin() + loaded_count_, p) !=
+          loaded_.begin() + loaded_count_)
+        ClearLoad();
       if (p == held_) Release();
     }
   }
@@ -480,14 +482,33 @@ int CutMembrane::ParticleUnder(const Vec2& at) const {
   return particle;
 }
 
+void CutMembrane::ClearLoad() {
+  for (int i = 0; i < loaded_count_; ++i) model_->SetExternalForce(loaded_[i], Vec3::Zero());
+  loaded_count_ = 0;
+}
+
 void CutMembrane::Load(const Vec2& at, const Vec3& force) {
-  if (loaded_ >= 0) model_->SetExternalForce(loaded_, Vec3::Zero());
-  loaded_ = -1;
+  ClearLoad();
   if (!at.allFinite() || !force.allFinite() || force.isZero()) return;
   const int particle = ParticleUnder(at);
   if (particle < 0) return;
-  model_->SetExternalForce(particle, force);
-  loaded_ = particle;
+  const auto taken = [&](int q) {
+    return std::find(loaded_.begin(), loaded_.begin() + loaded_count_, q) !=
+           loaded_.begin() + loaded_count_;
+  };
+  loaded_[loaded_count_++] = particle;
+  const int node = node_of_[particle];
+  for (int k = 0; k < kMaxFan && fan_[node][k] >= 0; ++k) {  // the wedge's triangles
+    const Tri& t = tris_[fan_[node][k]];
+    if (t.removed || std::find(t.v.begin(), t.v.end(), particle) == t.v.end()) continue;
+    for (int c = 0; c < 3; ++c)
+      if (!node_fixed_[t.n[c]] && !taken(t.v[c]) && loaded_count_ < kMaxFan + 1)
+        loaded_[loaded_count_++] = t.v[c];
+  }
+  const int around = loaded_count_ - 1;
+  model_->SetExternalForce(particle, around > 0 ? Vec3(0.5 * force) : force);
+  for (int i = 1; i < loaded_count_; ++i)
+    model_->SetExternalForce(loaded_[i], Vec3(0.5 * force / around));
 }
 
 void CutMembrane::Hold(const Vec2& at, const Vec3& target, double stiffness) {

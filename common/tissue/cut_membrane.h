@@ -82,8 +82,11 @@ class CutMembrane {
   int Cut(const Vec2& from, const Vec2& to);
   // One implicit step of dt s; false when the model diverged (it is then back at rest).
   bool Step(double dt);
-  // A force (N) on the particle nearest `at` (rest plane) that lies on the side of the cut the
-  // point is on; zero clears it. Held until changed.
+  // A force (N) at `at` (rest plane), on the side of the cut the point is on: half on the particle
+  // nearest it, half shared by that particle's neighbours in its wedge (a blade's edge bears on
+  // about an edge's length of tissue, not on one node; a point load would strain the lattice
+  // around it past the tissue's failure strain where the real tissue is not). Zero clears it.
+  // Held until changed.
   void Load(const Vec2& at, const Vec3& force);
 
   // A grasper's jaws on the patch: the particle under `at` (rest plane) held toward `target` (m)
@@ -170,7 +173,9 @@ class CutMembrane {
   std::vector<std::array<int32_t, 2>> cut_;
   std::vector<int32_t> label_, stack_;  // flood fill, per triangle (sized at Create)
   int freed_ = 0, snaps_ = 0;
-  int32_t loaded_ = -1;
+  void ClearLoad();
+  std::array<int32_t, kMaxFan + 1> loaded_{};  // the particles the load is spread over
+  int loaded_count_ = 0;
   int32_t held_ = -1;
   Vec3 hold_target_ = Vec3::Zero();
   Vec2 hold_at_ = Vec2::Zero();
