@@ -513,10 +513,11 @@ bool Simulation::TakeVisualFrame(VisualFrame& out) {
     }
   }
   TakeTopology(v, out);
-  if (!out.indices.empty()) {
+  if (!out.indices.empty() || (out.topology != 0 && out.topology != shown_.topology)) {
     std::lock_guard lock(shown_mutex_);
     shown_.positions = last_sent_;
     shown_.id = v.id;
+    if (out.topology != 0) shown_.faces = v.faces, shown_.topology = v.topology;
   }
   return true;
 }
@@ -552,6 +553,20 @@ uint64_t Simulation::ShownSurface(std::vector<int32_t>& indices,
       positions.push_back(shown_.positions[i]);
     }
   return shown_.id;
+}
+
+uint64_t Simulation::ShownTopology(std::vector<int32_t>& face_indices,
+                                   std::vector<geometry::Triangle>& faces) const {
+  face_indices.clear();
+  faces.clear();
+  std::lock_guard lock(shown_mutex_);
+  if (shown_.faces.size() != rest_.triangles.size()) return 0;
+  for (size_t f = 0; f < shown_.faces.size(); ++f)
+    if (shown_.faces[f] != rest_.triangles[f]) {
+      face_indices.push_back(static_cast<int32_t>(f));
+      faces.push_back(shown_.faces[f]);
+    }
+  return shown_.topology;
 }
 
 }  // namespace vsurg::sim

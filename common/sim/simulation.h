@@ -171,6 +171,11 @@ class Simulation final : private DeformationPool::Member {
   // yet). Copies under a lock the visual thread takes only when a frame moved something.
   uint64_t ShownSurface(std::vector<int32_t>& indices,
                         std::vector<geometry::Vec3>& positions) const;
+  // Any thread, as ShownSurface: a cut scene's topology as the visual thread last sent it (the
+  // faces that differ from the rest mesh's, as VisualFrame has them). Returns its count of
+  // changes (0: uncut, or not a cut scene).
+  uint64_t ShownTopology(std::vector<int32_t>& face_indices,
+                         std::vector<geometry::Triangle>& faces) const;
   // The haptic thread's own view, or after it stopped (not concurrently with OnStylus).
   scoring::TrialMetrics Metrics() const;
   // A palpation's marks and lumps (the haptic thread's, or after it stopped): what the trial's

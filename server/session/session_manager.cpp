@@ -610,6 +610,8 @@ void SessionManager::UpdateHapticRate(Live& l, SessionTelemetry& t) {
 void SessionManager::SamplerLoop() {
   const auto period = std::chrono::duration<double>(1.0 / options_.telemetry_hz);
   std::vector<SessionTelemetry> all;
+  std::vector<int32_t> face_indices;  // a cut's topology, for its record
+  std::vector<geometry::Triangle> faces;
   for (uint64_t tick = 0;; ++tick) {
     {
       std::unique_lock lock(stop_mutex_);
@@ -639,6 +641,10 @@ void SessionManager::SamplerLoop() {
         l->trace.AddSample(t);
         if (t.has_surface && t.surface_frame != 0)
           l->trace.AddSurface(t.sim.time, t.surface_indices, t.surface_positions);
+        if (t.has_surface && l->simulation->scene().cut) {
+          const uint64_t topology = l->simulation->ShownTopology(face_indices, faces);
+          l->trace.AddTopology(t.sim.time, topology, face_indices, faces);
+        }
         all.push_back(t);
       }
     }

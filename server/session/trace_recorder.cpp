@@ -88,6 +88,69 @@ void TraceRecorder::AddSurface(double time_s, const std::vector<int32_t>& indice
   Offer(frames_, frames_seen_, frame_stride_, kMaxFrames, std::move(f));
 }
 
+void TraceRecorder::AddTopology(double time_s, uint64_t topology,
+                                const std::vector<int32_t>& face_indices,
+                                const std::vector<geometry::Triangle>& faces) {
+  const size_t n = triangles_.size() / 3;
+  if (topology == 0 || topology == topology_seen_ || n == 0 || !std::isfinite(time_s)) return;
+  topology_seen_ = topology;
+  std::vector<geometry::Triangle> shown(n);
+  for (size_t f = 0; f < n; ++f)
+    for (int k = 0; k < 3; ++k) shown[f][k] = triangles_[3 * f + static_cast<size_t>(k)];
+  const size_t given = std::min(face_indices.size(), faces.size());
+  for (size_t k = 0; k < given; ++k) {
+    const auto f = static_cast<size_t>(face_indices[k]);
+    if (f >= n) continue;
+    bool inside = true;  // a face naming a vertex the record has not is left as it was
+    for (int c = 0; c < 3; ++c)
+      inside = inside && faces[k][c] >= 0 && static_cast<size_t>(faces[k][c]) < rest_.size();
+    if (inside) shown[f] = faces[k];
+  }
+  if (faces_now_.size() != n) {  // the first change: from the rest triangles
+    faces_now_.resize(n);
+    for (size_t f = 0; f < n; ++f)
+      for (int k = 0; k < 3; ++k) faces_now_[f][k] = triangles_[3 * f + static_cast<size_t>(k)];
+  }
+  TopologyChange change{time_s, {}};
+  for (size_t f = 0; f < n; ++f) {
+    if (shown[f] == faces_now_[f]) continue;
+    change.faces.insert(change.faces.end(),
+                        {static_cast<int32_t>(f), shown[f][0], shown[f][1], shown[f][2]});
+    faces_now_[f] = shown[f];
+  }
+  if (change.faces.empty()) return;
+  topology_faces_ += change.faces.size() / 4;
+  topology_.push_back(std::move(change));
+  while (topology_faces_ > kMaxTopologyFaces && topology_.size() > 1) MergeTopologyChanges();
+}
+
+// Each two neighbouring changes into one at the later's time, a face set by both kept once with
+// the later's value.
+void TraceRecorder::MergeTopologyChanges() {
+  std::vector<TopologyChange> merged;
+  std::vector<bool> by_later(triangles_.size() / 3, false);
+  topology_faces_ = 0;
+  for (size_t i = 0; i < topology_.size(); i += 2) {
+    if (i + 1 == topology_.size()) {
+      merged.push_back(std::move(topology_[i]));
+    } else {
+      TopologyChange both{topology_[i + 1].time_s, std::move(topology_[i + 1].faces)};
+      const std::vector<int32_t>& earlier = topology_[i].faces;
+      const size_t later_end = both.faces.size();
+      for (size_t j = 0; j < later_end; j += 4) by_later[static_cast<size_t>(both.faces[j])] = true;
+      for (size_t k = 0; k < earlier.size(); k += 4)
+        if (!by_later[static_cast<size_t>(earlier[k])])
+          both.faces.insert(both.faces.end(), earlier.begin() + static_cast<long>(k),
+                            earlier.begin() + static_cast<long>(k) + 4);
+      for (size_t j = 0; j < later_end; j += 4)
+        by_later[static_cast<size_t>(both.faces[j])] = false;
+      merged.push_back(std::move(both));
+    }
+    topology_faces_ += merged.back().faces.size() / 4;
+  }
+  topology_ = std::move(merged);
+}
+
 void TraceRecorder::SetPalpation(const scoring::PalpationRecorder& palpation) {
   const auto mm = [](const Eigen::Vector3d& p) {
     return nlohmann::json::array(
@@ -204,6 +267,14 @@ std::string TraceRecorder::Json() const {
         {"unit_mm", kFrameUnitM * 1e3},
         {"vertices", rest_.size()},
         {"deflated", Base64(Deflate(all, 6))}}}};
+  if (!topology_.empty()) {
+    nlohmann::json change_times = nlohmann::json::array(), changes = nlohmann::json::array();
+    for (const TopologyChange& c : topology_) {
+      change_times.push_back(Round(c.time_s, 3));
+      changes.push_back(c.faces);
+    }
+    record["topology"] = {{"time_s", std::move(change_times)}, {"faces", std::move(changes)}};
+  }
   if (!palpation_.empty()) record["palpation"] = nlohmann::json::parse(palpation_);
   if (!needle_.empty()) record["needle"] = nlohmann::json::parse(needle_);
   return record.dump();

@@ -50,6 +50,16 @@ class TraceRecorder {
   // rest) at the station's time `time_s`.
   void AddSurface(double time_s, const std::vector<int32_t>& indices,
                   const std::vector<geometry::Vec3>& positions);
+  // A cut scene's topology as the frames last showed it (sim::Simulation::ShownTopology: every
+  // face that differs from the rest mesh's, a removed one {0, 0, 0}), `topology` the count of
+  // changes so far: kept as the faces that differ from the topology kept before, at `time_s`, so
+  // the replay shows the cut growing. Bounded: past kMaxTopologyChanges faces in all, each two
+  // neighbouring changes merge into one (the later), so a long cut keeps its whole span at a
+  // coarser step; all merged into one, the changes are at most the mesh's faces.
+  void AddTopology(double time_s, uint64_t topology, const std::vector<int32_t>& face_indices,
+                   const std::vector<geometry::Triangle>& faces);
+  size_t topology_changes() const { return topology_.size(); }
+  static constexpr size_t kMaxTopologyFaces = 65536;
   // A palpation's lumps and the trainee's marks, shown with the record once the search is over
   // (the station never shows the lumps during it): "palpation": {"lumps": [{"centre_mm",
   // "radius_mm", "surface_mm", "found"}], "marks": [{"time_s", "position_mm", "lump"}]} in the
@@ -66,7 +76,9 @@ class TraceRecorder {
   size_t frames() const { return frames_.size(); }
   // {"series": {"time_s": [...], "force_n": [...], ...}, "rest": {"positions_mm": [...],
   //  "triangles": [...]}, "frames": {"time_s": [...], "unit_mm": 0.01, "vertices": V,
-  //  "deflated": "b64 of deflate(frame 0, frame 1 − frame 0, …)"}}
+  //  "deflated": "b64 of deflate(frame 0, frame 1 − frame 0, …)"}}, and for a cut
+  //  "topology": {"time_s": [...], "faces": [[face, a, b, c, face, a, b, c, ...], ...]}: each
+  //  change the faces it set, applied in turn to the rest triangles.
   std::string Json() const;
   // The record so far (common/core/state_archive.h; live migration), not the rest surface: the
   // receiver sets that from its own simulation first. Loaded series are checked against it.
@@ -95,6 +107,11 @@ class TraceRecorder {
       a(time_s, displacement);
     }
   };
+  struct TopologyChange {
+    double time_s;
+    std::vector<int32_t> faces;  // face, a, b, c for each face the change set
+  };
+  void MergeTopologyChanges();
   // Appends `x` (the `seen`-th offered) when it falls on the stride; halves a full series.
   template <typename T>
   static void Offer(std::vector<T>& v, uint64_t& seen, uint64_t& stride, size_t max, T&& x);
@@ -105,6 +122,12 @@ class TraceRecorder {
   uint64_t samples_seen_ = 0, sample_stride_ = 1;
   double last_time_ = -1;
   std::vector<Frame> frames_;
+  // A cut's changes (not part of the moved state: a cut session is never moved), the faces as
+  // the last change left them, the topology count kept last and the face entries in all.
+  std::vector<TopologyChange> topology_;
+  std::vector<geometry::Triangle> faces_now_;
+  uint64_t topology_seen_ = 0;
+  size_t topology_faces_ = 0;
   std::string palpation_;  // the "palpation" member's JSON, or empty
   std::string needle_;     // the "needle" member's JSON, or empty
   double last_frame_time_ = -1;

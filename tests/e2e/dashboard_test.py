@@ -16,6 +16,7 @@ It walks each user's task end to end, as they do it:
   the training effect per group;
 - the instructor finds past sessions by filter;
 - the trainee reads her score and the evaluator's comment on a phone-sized window;
+- the replays of a palpation, a needle insertion and a two-handed cut (the cut growing);
 - the administrator downloads the CSV export (equal to the store's), a <script> name stays text,
   a POST without the CSRF token is refused, a bad export range is said in place, revoking asks.
 axe-core (npm, tests/e2e/package-lock.json) checks every page: no serious or critical violation.
@@ -604,6 +605,36 @@ def main():
         trail = driver.execute_script("return Number(document.getElementById('view3d').dataset.trail || 0);")
         check(trail > 10, f"the replay draws the needle tip's path ({trail} points)")
         shot("needle")
+
+        # --- a two-handed cut: the blade cuts the marked circle while the grasper holds the
+        # piece; the ended session's replay shows the cut growing along the timeline ---
+        plan = os.path.join(tmp, "cut-good.csv")
+        subprocess.run([f"{BIN}/vsurg-sim", "trainee", "--scene", "pattern-cut", "--style", "good",
+                        "--out", plan], check=True, stdout=subprocess.DEVNULL, env=env, timeout=60)
+        cut_out = os.path.join(tmp, "station-cut.json")
+        cut_run = subprocess.run(
+            [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["rory"],
+             "--scene", "pattern-cut", "--trajectory", plan, "--second-device", "grasper",
+             "--headless", "--width", "160", "--height", "100", "--fps", "4", "--quality", "low",
+             "--json", "--realtime-priority", "0"],
+            stdout=open(cut_out, "w"), stderr=open(os.path.join(tmp, "station-cut.log"), "w"),
+            env=env, timeout=600)
+        check(cut_run.returncode == 0, "the scripted two-handed cut ran to its end at the station")
+        cut = json.load(open(cut_out))
+        check(cut.get("metrics", {}).get("coverage", 0) > 0.9,
+              f"the circle was cut ({cut.get('metrics', {}).get('coverage')})")
+        driver.get(f"{base}/session/{cut['session']}")
+        wait.until(lambda d: d.find_elements(By.ID, "timeline"))
+        faces_at = ("const s = document.getElementById('timeline'); s.value = {};"
+                    "s.dispatchEvent(new Event('input'));"
+                    "return Number(document.getElementById('view3d').dataset.cut || 0);")
+        at_start = driver.execute_script(faces_at.format("s.min"))
+        at_end = driver.execute_script(faces_at.format("s.max"))
+        midway = driver.execute_script(faces_at.format("(Number(s.min) + Number(s.max)) / 2"))
+        check(at_start == 0 and 0 < midway < at_end,
+              f"the replay shows the cut growing (faces cut: {at_start} at the start, "
+              f"{midway} midway, {at_end} at the end)")
+        shot("cut")  # midway: half the circle cut
     finally:
         if sys.exc_info()[0] is not None:  # failing: what the page itself said
             print("page at", driver.current_url, flush=True)

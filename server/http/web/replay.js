@@ -1,6 +1,7 @@
 // A recorded session played back: the tissue's surface frames (server/session/trace_recorder.h:
 // int16 displacements from rest, each frame sent as its difference from the one before, deflated,
-// base64) interpolated on a timeline, with the traces' cursor. Keyboard: the timeline is a range
+// base64) interpolated on a timeline, a cut's faces as they were at each moment (the record's
+// topology changes), with the traces' cursor. Keyboard: the timeline is a range
 // input (arrows step, Home/End), the button plays and pauses.
 import { el } from './dom.js';
 
@@ -30,6 +31,9 @@ export class Replay {
     const f = record.frames || { time_s: [] };
     this.times = f.time_s; this.unit = f.unit_mm || 0.01;
     this.frames = frames;
+    this.topology = record.topology && record.topology.time_s ? record.topology : null;
+    this.restTris = record.rest && record.rest.triangles ? Uint32Array.from(record.rest.triangles) : null;
+    this.changesShown = 0;
     const series = record.series && record.series.time_s ? record.series.time_s : [];
     this.t0 = Math.min(series.length ? series[0] : 0, this.times.length ? this.times[0] : Infinity);
     this.t1 = Math.max(series.length ? series[series.length - 1] : 0, this.times.length ? this.times[this.times.length - 1] : 0);
@@ -50,7 +54,30 @@ export class Replay {
     this.label.textContent = text;
     this.slider.setAttribute('aria-valuetext', text);
     if (this.onTime) this.onTime(this.time);  // first: it may set what the view draws with the frame
+    if (this.view && this.topology) this.showTopology(this.time);
     if (this.view && this.frames.length) this.view.setDisplacement(this.at(this.time), this.unit);
+  }
+  // A cut's faces as they were at `t`: the rest triangles with every change up to then applied in
+  // turn (a removed face is 0, 0, 0 and draws nothing). Rebuilt only when `t` crossed a change.
+  showTopology(t) {
+    const T = this.topology.time_s;
+    let k = 0;
+    while (k < T.length && T[k] <= t) ++k;
+    if (k === this.changesShown && this.view.canvas.dataset.cut !== undefined) return;
+    const tris = Uint32Array.from(this.restTris);
+    const faces = new Set();
+    for (let c = 0; c < k; ++c) {
+      const F = this.topology.faces[c];
+      for (let i = 0; i + 3 < F.length; i += 4) {
+        const f = F[i];
+        if (3 * f + 2 >= tris.length) continue;
+        tris[3 * f] = F[i + 1]; tris[3 * f + 1] = F[i + 2]; tris[3 * f + 2] = F[i + 3];
+        faces.add(f);
+      }
+    }
+    this.changesShown = k;
+    this.view.setTriangles(tris);
+    this.view.canvas.dataset.cut = String(faces.size);  // faces the cut has changed by then
   }
   // The displacement at `t`, linear between the two frames around it (before the first: rest).
   at(t) {

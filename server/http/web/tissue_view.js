@@ -121,9 +121,10 @@ export class TissueView {
     const attribute = (loc, buf, size) => { gl.bindBuffer(gl.ARRAY_BUFFER, buf); gl.enableVertexAttribArray(loc); gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 0, 0); };
     attribute(0, this.buf.p, 3); attribute(1, this.buf.n, 3);
     attribute(2, buffer(this.rest, gl.STATIC_DRAW), 3); attribute(3, buffer(this.broad, gl.STATIC_DRAW), 2);
-    const ebo = gl.createBuffer(); gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ebo); gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, this.tris, gl.STATIC_DRAW);
-    // The table: a square of drape under the tissue's lowest point.
-    this.tableHeight = Math.min(...[0, 1, 2].map((a) => this.up[a] ? lo[a] : Infinity));
+    this.ebo = gl.createBuffer(); gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.ebo); gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, this.tris, gl.DYNAMIC_DRAW);
+    // The table: a square of drape just under the tissue's lowest point (a flat patch at rest
+    // would otherwise share its plane and fight it for depth).
+    this.tableHeight = Math.min(...[0, 1, 2].map((a) => this.up[a] ? lo[a] : Infinity)) - 0.02 * this.radius;
     const e1 = this.up[2] ? [1, 0, 0] : [1, 0, 0], e2 = this.up[2] ? [0, 1, 0] : [0, 0, 1], half = this.radius * 6;
     const corner = (s1, s2) => [0, 1, 2].map((a) => this.centre[a] * (1 - this.up[a]) + this.tableHeight * this.up[a] + s1 * half * e1[a] + s2 * half * e2[a]);
     const table = new Float32Array([...corner(-1, -1), ...corner(1, -1), ...corner(1, 1), ...corner(-1, 1)]);
@@ -250,6 +251,15 @@ export class TissueView {
     const n = Math.min(d.length, this.rest.length);
     for (let i = 0; i < n; ++i) this.pos[i] = this.rest[i] + d[i] * unit;
     this.draw();
+  }
+  // A cut's triangles (as many as the rest's: a removed one is 0, 0, 0), drawn from the next draw.
+  setTriangles(tris) {
+    if (tris.length !== this.tris.length) return;
+    this.tris = tris;
+    const gl = this.gl;
+    gl.bindVertexArray(this.vao);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.ebo); gl.bufferSubData(gl.ELEMENT_ARRAY_BUFFER, 0, this.tris);
+    gl.bindVertexArray(null);
   }
   computeNormals() {
     const P = this.pos, N = this.normals, T = this.tris;

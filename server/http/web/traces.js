@@ -7,7 +7,8 @@ import { el } from './dom.js';
 
 export function traceCharts(scene, live) {
   const press = scene && scene.task === 'press', span = live ? 60 : undefined;
-  const palpate = scene && scene.task === 'palpate';  // a search: its force and link, no quantity
+  // A search or a cut: its force and link (a cut's line, depth and tearing are its metrics).
+  const palpate = scene && (scene.task === 'palpate' || scene.task === 'cut');
   const needle = scene && scene.task === 'insert';  // the needle's depth along its tract
   const limit = [];
   if (scene && scene.force_limit_n) limit.push({ y: scene.force_limit_n, label: 'task force limit', colour: '#f3c13a' });

@@ -196,5 +196,87 @@ TEST(TraceRecorderTest, APalpationsRecordCarriesTheLumpsAndTheMarks) {
   EXPECT_FALSE(json::parse(plain.Json()).contains("palpation"));
 }
 
+// A strip of `faces` triangles over faces + 2 vertices, and as many spare ones (a cut's copies).
+geometry::TriMesh Strip(int faces) {
+  geometry::TriMesh m;
+  for (int i = 0; i < 2 * (faces + 2); ++i) m.positions.push_back({1e-3 * i, 1e-3 * (i % 2), 0});
+  for (int f = 0; f < faces; ++f) m.triangles.push_back({f, f + 1, f + 2});
+  return m;
+}
+
+// The faces the record's topology gives at `t`: the rest's with each change up to then applied.
+std::vector<geometry::Triangle> FacesAt(const json& record, double t) {
+  std::vector<geometry::Triangle> out;
+  const auto& tris = record["rest"]["triangles"];
+  for (size_t i = 0; i + 2 < tris.size(); i += 3)
+    out.push_back({tris[i].get<int>(), tris[i + 1].get<int>(), tris[i + 2].get<int>()});
+  const auto& times = record["topology"]["time_s"];
+  for (size_t c = 0; c < times.size() && times[c].get<double>() <= t; ++c) {
+    const auto& f = record["topology"]["faces"][c];
+    for (size_t i = 0; i + 3 < f.size(); i += 4)
+      out[f[i].get<size_t>()] = {f[i + 1].get<int>(), f[i + 2].get<int>(), f[i + 3].get<int>()};
+  }
+  return out;
+}
+
+// A cut's topology as it grows: each change kept as the faces it set, so that the record played
+// to any time gives the faces shown then; nothing for an unchanged count, a face naming a vertex
+// the record has not is left as it was, and a long cut stays bounded with its last state whole.
+TEST(TraceRecorderTest, ACutsTopologyReplaysAsItGrewAndStaysBounded) {
+  constexpr int kFaces = 1000;
+  const geometry::TriMesh rest = Strip(kFaces);
+  const int spare = kFaces + 2;
+  TraceRecorder r;
+  r.SetRest(rest);
+  std::vector<geometry::Triangle> shown = rest.triangles;
+  const auto cut = [&](double t, uint64_t count, int upto) {
+    std::vector<int32_t> indices;
+    std::vector<geometry::Triangle> faces;
+    for (int f = 0; f < upto; ++f) {
+      shown[f] = f % 3 == 0 ? geometry::Triangle{0, 0, 0} : geometry::Triangle{spare + f, f + 1, f};
+      indices.push_back(f), faces.push_back(shown[f]);
+    }
+    r.AddTopology(t, count, indices, faces);
+  };
+  cut(0.5, 1, 10);
+  const std::vector<geometry::Triangle> at_half = shown;
+  cut(0.6, 1, 20);  // the same count: nothing new
+  cut(1.0, 2, 30);
+  {  // the same faces and one naming a vertex out of the record's: that one is ignored
+    std::vector<int32_t> indices;
+    std::vector<geometry::Triangle> faces;
+    for (int f = 0; f < 30; ++f) indices.push_back(f), faces.push_back(shown[f]);
+    indices.push_back(40), faces.push_back({0, 1, 99999});
+    r.AddTopology(1.5, 3, indices, faces);
+  }
+  EXPECT_EQ(r.topology_changes(), 2u);
+  json record = json::parse(r.Json());
+  EXPECT_EQ(FacesAt(record, 0.4), rest.triangles);
+  EXPECT_EQ(FacesAt(record, 0.7), at_half);
+  EXPECT_EQ(FacesAt(record, 2.0), shown);
+  EXPECT_EQ(record["topology"]["faces"][1].size(), 4u * 20) << "only what changed since";
+
+  // A long cut, every change rewriting 100 faces: 2000 changes, 200,000 faces set in all.
+  for (uint64_t k = 0; k < 2000; ++k) {
+    std::vector<int32_t> indices;
+    std::vector<geometry::Triangle> faces;
+    for (int i = 0; i < 100; ++i) {
+      const int f = static_cast<int>((k * 37 + static_cast<uint64_t>(i) * 7) % kFaces);
+      shown[f] = {spare + static_cast<int>((k + static_cast<uint64_t>(i)) % spare), f + 1, f};
+    }
+    for (int f = 0; f < kFaces; ++f)
+      if (shown[f] != rest.triangles[f]) indices.push_back(f), faces.push_back(shown[f]);
+    r.AddTopology(2.0 + 0.01 * static_cast<double>(k), 10 + k, indices, faces);
+  }
+  record = json::parse(r.Json());
+  size_t kept = 0;
+  for (const auto& f : record["topology"]["faces"]) kept += f.size() / 4;
+  EXPECT_LE(kept, TraceRecorder::kMaxTopologyFaces);
+  EXPECT_GT(record["topology"]["time_s"].size(), 16u);
+  EXPECT_EQ(FacesAt(record, 1e9), shown);
+  EXPECT_NEAR(record["topology"]["time_s"].back().get<double>(), 2.0 + 0.01 * 1999, 1e-3);
+  EXPECT_FALSE(json::parse(TraceRecorder{}.Json()).contains("topology"));
+}
+
 }  // namespace
 }  // namespace vsurg::server

@@ -90,6 +90,7 @@ const legend = () => el('p', { class: 'tool-legend muted' }, el('span', { class:
 const taskText = (scene) => scene.task === 'press' ? `press to ${fmt(scene.target, 0)} mm`
   : scene.task === 'palpate' ? 'search for hidden lumps and mark them'
   : scene.task === 'insert' ? 'place a needle in the target under the skin'
+  : scene.task === 'cut' ? 'hold the tissue with one hand, cut out the marked pattern with the other'
     : `twist to ${fmt(scene.target, 0)}° ± ${fmt(scene.tolerance, 0)}°`;
 // An ended search's lumps (over the surface above each: red, green once a mark placed by the time
 // shown found it) and the trainee's marks placed by then (green on a lump, orange on none; a
