@@ -184,7 +184,7 @@ struct StationChannel::Impl {
   std::atomic<uint64_t> needle_pops{0}, needle_corrections{0};  // the device thread's needle
   std::atomic<uint64_t> blade_punctures{0};                     // the device thread's blade
   std::atomic<uint64_t> received{0}, dropped{0}, stale{0}, duplicates{0}, lost{0}, late{0},
-      newest_answered{0}, scene_chunks{0};
+      newest_answered{0}, scene_chunks{0}, scene_bytes{0}, topology_bytes{0};
   uint64_t last_frame_sequence = 0;
   wire::SceneChunk chunk;
   std::mutex scene_mutex;  // network thread and the render thread, never the device thread
@@ -244,6 +244,8 @@ struct StationChannel::Impl {
       }
       last_frame_sequence = o.header.sequence;
       scene_chunks.fetch_add(1, std::memory_order_relaxed);
+      scene_bytes.fetch_add(n, std::memory_order_relaxed);
+      if (chunk.topology != 0) topology_bytes.fetch_add(n, std::memory_order_relaxed);
       std::lock_guard<std::mutex> lock(scene_mutex);
       if (scene.size() >= 4096) scene.pop_front();
       scene.push_back(chunk);
@@ -660,6 +662,8 @@ StationStats StationChannel::stats() const {
   s.force_log_dropped = impl_->log_dropped.load();
   s.watchdog_fades = impl_->fades.load();
   s.scene_chunks = impl_->scene_chunks.load();
+  s.scene_bytes = impl_->scene_bytes.load();
+  s.topology_bytes = impl_->topology_bytes.load();
   s.marks = impl_->marks.load();
   s.needle_local_pops = impl_->needle_pops.load();
   s.needle_corrections = impl_->needle_corrections.load();

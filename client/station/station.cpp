@@ -65,6 +65,8 @@ void Add(StationStats& sum, const StationStats& s) {
   sum.force_log_dropped += s.force_log_dropped;
   sum.watchdog_fades += s.watchdog_fades;
   sum.scene_chunks += s.scene_chunks;
+  sum.scene_bytes += s.scene_bytes;
+  sum.topology_bytes += s.topology_bytes;
   sum.passivity_energy_dissipated += s.passivity_energy_dissipated;
   sum.max_force = std::max(sum.max_force, s.max_force);
   sum.loop_iterations += s.loop_iterations;

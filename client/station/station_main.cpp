@@ -637,6 +637,8 @@ nlohmann::json SummaryJson(const client::SessionSummary& summary, const client::
       {"force_log_dropped", stats.force_log_dropped},
       {"watchdog_fades", stats.watchdog_fades},
       {"scene_chunks", stats.scene_chunks},
+      {"scene_bytes", stats.scene_bytes},
+      {"topology_bytes", stats.topology_bytes},
       {"max_force_n", stats.max_force},
       {"loop_hz", stats.loop_hz},
       {"loop_hz_min_1s", stats.loop_hz_min},
