@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "client/render/cut_walls.h"
 #include "client/render/gl_resources.h"
 #include "client/render/mesh_view_gpu.h"
 #include "client/render/shaders.h"
@@ -72,6 +73,7 @@ MeshView::MeshView(const geometry::TriMesh& physics, sim::VisualModel visual)
     rest_faces_ = visual_.surface.triangles;
     placed_.assign(rest_.positions.size(), 0);
     MarkRestPlaced();
+    if (visual_.sheet_thickness > 0) walls_ = std::make_unique<CutWalls>(rest_faces_);
   }
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
   for (const auto& p : rest_.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
@@ -402,6 +404,10 @@ void MeshView::UploadMoved(bool remake_tissue) {
     glBindBuffer(GL_ARRAY_BUFFER, g.tissue.vbo);
     glBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(g.upload.size() * sizeof(float)),
                     g.upload.data());
+  }
+  if (walls_) {  // a cut sheet's walls, where its vertices now are
+    walls_->Build(moved_, visual_.sheet_thickness, g.wall_mesh);
+    g.walls.Upload(gl::Interleave(g.wall_mesh), g.wall_mesh.indices, GL_DYNAMIC_DRAW);
   }
   if (g.caster_vao) {
     for (size_t i = 0; i < moved_.positions.size(); ++i)

@@ -40,6 +40,7 @@ namespace gl {
 struct Part;
 }  // namespace gl
 struct InstrumentParts;  // shapes.h
+class CutWalls;          // cut_walls.h
 
 // What a search found, drawn over the tissue once it is over (the end-of-trial summary of a
 // palpation): a ring on the surface above each lump, as wide as the lump (green when found, red
@@ -215,6 +216,7 @@ class MeshView {
   sim::VisualModel visual_;
   std::vector<geometry::Triangle> rest_faces_;  // physics_drawn: the surface's faces at rest
   std::vector<uint8_t> placed_;                 // physics_drawn: a vertex has had a position
+  std::unique_ptr<CutWalls> walls_;             // a sheet with a thickness: its cut walls
   bool faces_dirty_ = false;                    // the drawn faces changed since the upload
   bool dirty_ = true;
   bool moved_since_shadow_ = true;  // the tissue moved since the shadow map was drawn

@@ -20,6 +20,9 @@ namespace {
 
 using Rect = std::array<int, 4>;  // texels x0, y0, x1, y1
 
+// The colour of the tissue a cut exposes (linear RGB): dermis, red from its blood supply.
+const Eigen::Vector3d kCutInterior(0.42, 0.07, 0.06);
+
 bool NoRect(const Rect& r) {
   return r[2] <= r[0] || r[3] <= r[1];
 }
@@ -390,6 +393,10 @@ void MeshView::TissuePass(const Frame& f) {
   DrawPart(f, g.tissue, Eigen::Affine3d::Identity(), look.shader, look.albedo, look.roughness,
            look.detail_scale, look.bump_depth, f.taps);
   glDisable(GL_CULL_FACE);
+  // A cut's walls: the dermis it exposed, a deep red from its blood supply, wetter than the skin.
+  if (g.walls.count > 0)
+    DrawPart(f, g.walls, Eigen::Affine3d::Identity(), look.shader, kCutInterior, 0.35,
+             look.detail_scale, 0, f.taps);
 }
 
 // The shadows on the table: blended over the background's table, only where the tissue's and the

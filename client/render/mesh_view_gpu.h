@@ -36,6 +36,8 @@ struct MeshView::Gpu {
   }
   gl::Part tissue, table;
   gl::Part catcher;  // the polygons on the table that its shadows can fall in, made every frame
+  gl::Part walls;    // a cut sheet's walls (cut_walls.h), made again when the tissue moves
+  ShapeMesh wall_mesh;
   // The instruments: the first hand's, and the second hand's when the scene has one (`made`).
   struct Tool {
     InstrumentParts shape;
@@ -86,7 +88,7 @@ struct MeshView::Gpu {
   std::vector<Eigen::Vector2d> tissue_shadow;
 
   ~Gpu() {
-    for (gl::Part* p : {&tissue, &table}) p->Release();
+    for (gl::Part* p : {&tissue, &table, &walls}) p->Release();
     for (Tool& t : tools)
       for (gl::Part* p : {&t.steel, &t.handle, &t.jaw}) p->Release();
     for (const auto& [key, program] : scene) glDeleteProgram(program);

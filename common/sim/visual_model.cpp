@@ -56,6 +56,7 @@ Expected<VisualModel> BuildVisualModel(const Scene& scene, const geometry::TriMe
     v.surface = physics;
     geometry::ComputeVertexNormals(v.surface);
     v.physics_drawn = true;
+    v.sheet_thickness = scene.mesh.membrane.thickness;
   } else {
     int levels = 0;
     while (levels < 4 && physics.TriangleCount() << (2 * levels) < scene.visual.min_triangles)

@@ -45,6 +45,9 @@ struct VisualModel {
   // A cut scene's marked pattern (the line or circle to cut along), as points on the patch at
   // rest (m); the view draws it on the tissue as it moves. Empty for the other scenes.
   std::vector<Eigen::Vector3d> marked_line;
+  // A cut scene's sheet thickness (m): the height of the walls a cut opens, drawn in the
+  // tissue's interior colour. 0 for the other scenes.
+  double sheet_thickness = 0;
   // The table under the tissue: its upward normal (the world's up) and its height along it.
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   double table_height = 0;  // m, along `up`

@@ -2,15 +2,18 @@
 // scenes/pattern-cut.json through the simulation, and its visual frames (moved vertices and the
 // cut's faces) are applied to the view as the station applies its SceneFrames. The freed piece
 // leaves a hole the table shows through; the patch outside the cut is drawn as before; the marked
-// circle is drawn on the skin. Two hands:
+// circle is drawn on the skin, and the hole's rim shows its wall in the dermis' red. Two hands:
 // the second device's grasper is drawn where it is, beside the first hand's scalpel.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 
+#include "client/render/cut_walls.h"
 #include "client/render/gl_surface.h"
 #include "client/render/mesh_view.h"
 #include "common/core/image.h"
@@ -18,6 +21,7 @@
 #include "common/sim/scene.h"
 #include "common/sim/simulation.h"
 #include "common/sim/visual_model.h"
+#include "common/tissue/cut_membrane.h"
 
 namespace vsurg::client {
 namespace {
@@ -110,6 +114,61 @@ TEST(CutViewTest, TheCutPieceLeavesAHoleAndThePatchAroundItStays) {
   const Eigen::Vector2d corner = view.Project({-0.034, 0.034, 0}, kSize, kSize);
   EXPECT_GT(MeanDifference(uncut, cut, middle, 8), 20.0);
   EXPECT_LT(MeanDifference(uncut, cut, corner, 6), 6.0);
+  // The hole's far half faces the camera: its wall shows the dermis' deep red (green and blue
+  // under 40% of the red; the skin's are over two thirds of it, the marked line's blue over it).
+  const auto dermis = [](const RgbImage& im, const Eigen::Vector2d& at) {
+    const size_t i =
+        (static_cast<size_t>(std::lround(at.y())) * im.width + std::lround(at.x())) * 3;
+    const double r = im.rgb[i], g = im.rgb[i + 1], b = im.rgb[i + 2];
+    return r > 60 && g < 0.4 * r && b < 0.4 * r;
+  };
+  const double t = v.scene.mesh.membrane.thickness;
+  std::set<std::pair<long, long>> red;       // pixels, each once
+  for (double a = 0.15; a < 3.0; a += 0.01)  // the far half of the circle, from +x round to −x
+    for (double r = 0.012; r <= 0.018; r += 2.5e-4) {
+      const Eigen::Vector2d at =
+          view.Project({r * std::cos(a), r * std::sin(a), -0.25 * t}, kSize, kSize);
+      if (dermis(cut, at)) red.emplace(std::lround(at.x()), std::lround(at.y()));
+    }
+  EXPECT_GT(red.size(), 40u) << "the hole's wall: " << red.size() << " pixels";
+  EXPECT_FALSE(dermis(cut, corner));
+}
+
+// The walls of a cut sheet, without OpenGL: a straight cut across the middle opens a wall on each
+// side of each edge it cut, as tall as the sheet; the frame's rim is none; an uncut sheet none.
+TEST(CutWallsTest, ACutOpensAWallOnEachSideAndTheRimNone) {
+  tissue::CutMembraneParams p;
+  p.cells = 12;
+  auto m = tissue::CutMembrane::Create(p);
+  ASSERT_TRUE(m.ok()) << m.error().message;
+  const auto mesh_of = [&] {
+    geometry::TriMesh t;
+    t.positions = m->positions();
+    for (int f = 0; f < m->FaceCount(); ++f) {
+      const auto v = m->face(f).v;
+      t.triangles.push_back(m->Removed(f) ? geometry::Triangle{0, 0, 0}
+                                          : geometry::Triangle{v[0], v[1], v[2]});
+    }
+    geometry::ComputeVertexNormals(t);
+    return t;
+  };
+  const geometry::TriMesh rest = mesh_of();
+  CutWalls walls(rest.triangles);
+  ShapeMesh out;
+  walls.Build(rest, p.thickness, out);
+  EXPECT_EQ(walls.edges(), 0);
+  EXPECT_TRUE(out.indices.empty());
+  const int cut = m->Cut({-0.02, 0.0}, {0.02, 0.0});
+  ASSERT_GT(cut, 4);
+  walls.Build(mesh_of(), p.thickness, out);
+  EXPECT_EQ(walls.edges(), 2 * cut);
+  ASSERT_EQ(out.positions.size(), 4u * static_cast<size_t>(walls.edges()));
+  for (size_t q = 0; q < out.positions.size(); q += 4) {
+    EXPECT_NEAR((out.positions[q] - out.positions[q + 1]).norm(), p.thickness, 1e-6);
+    EXPECT_NEAR(out.normals[q].z(), 0, 1e-6);  // across the flat sheet, in its plane
+  }
+  walls.Build(mesh_of(), 0, out);  // no thickness: nothing to draw
+  EXPECT_TRUE(out.indices.empty());
 }
 
 TEST(CutViewTest, BothHandsInstrumentsAreDrawnWhereTheirDevicesAre) {
