@@ -10,32 +10,15 @@
 #                the dashboard's listener (its I/O thread, event streams, exports).
 #
 # Clang, not GCC: the same checks, and the project builds in 8 minutes instead of 17 here.
-# Usage: deploy/sanitize.sh [asan|tsan|all|build]   (default all). Exits non-zero on any report.
-# `build` only configures and builds both folders (deploy/test.sh runs it at the lowest CPU
-# priority beside the main build's tests); the others build what is missing, then test.
+# Usage: deploy/sanitize.sh [asan|tsan|all]   (default all). Exits non-zero on any report.
 set -euo pipefail
 source "$(dirname "$0")/lib.sh"
 root="$(vsurg_root)"
 which="${1:-all}"
-case "$which" in asan|tsan|all|build) ;;
-  *) echo "usage: deploy/sanitize.sh [asan|tsan|all|build]" >&2; exit 2 ;; esac
+case "$which" in asan|tsan|all) ;; *) echo "usage: deploy/sanitize.sh [asan|tsan|all]" >&2; exit 2 ;; esac
 vsurg_install_packages
 vsurg_install_packages_of VSURG_FUZZ_PACKAGES
 supp="$root/tests/sanitizers"
-tsan_suites=(simulation_test server_net_test station_channel_test db_test http_server_test
-             call_pool_test)
-build_tsan() {
-  CC=clang CXX=clang++ cmake -S "$root" -B "$root/build-tsan" -G Ninja \
-    -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
-    -DVSURG_BENCH=OFF -DVSURG_TSAN=ON -DVSURG_WERROR=OFF >/dev/null
-  cmake --build "$root/build-tsan" -j2 --target "${tsan_suites[@]}"
-}
-if [ "$which" = build ]; then
-  vsurg_configure_asan
-  cmake --build "$root/build-asan" -j2
-  build_tsan
-  exit 0
-fi
 
 if [ "$which" = asan ] || [ "$which" = all ]; then
   vsurg_configure_asan
@@ -165,8 +148,12 @@ if [ "$which" = asan ] || [ "$which" = all ]; then
 fi
 
 if [ "$which" = tsan ] || [ "$which" = all ]; then
-  suites=("${tsan_suites[@]}")
-  build_tsan
+  suites=(simulation_test server_net_test station_channel_test db_test http_server_test
+          call_pool_test)
+  CC=clang CXX=clang++ cmake -S "$root" -B "$root/build-tsan" -G Ninja \
+    -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" \
+    -DVSURG_BENCH=OFF -DVSURG_TSAN=ON -DVSURG_WERROR=OFF >/dev/null
+  cmake --build "$root/build-tsan" -j2 --target "${suites[@]}"
   # Only those suites were built: run them directly (gtest), not through ctest's whole list.
   # In simulation_test only the tests with threads (the deformation thread, the triple buffer,
   # clock jumps with it running, reduced scenes built side by side behind the cache's lock): the
