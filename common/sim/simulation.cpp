@@ -504,9 +504,13 @@ bool Simulation::TakeVisualFrame(VisualFrame& out) {
   out.twist = v.twist;
   out.indices.clear();
   out.positions.clear();
-  constexpr double kMoved2 = 1e-12;  // (1 µm)²: below that a vertex did not move
+  // A vertex is sent once it moved this far from where it was last sent: 1 µm, the wire's
+  // quantum; a cut's patch 10 µm, an eighth of a pixel of a station's view of it (the session's
+  // record keeps 10 µm units): the blade's cutting force moves the whole sheet by microns as it
+  // travels, which would otherwise send most of the patch every frame (docs/BENCHMARKS.md).
+  const double moved = scene_.cut ? 1e-5 : 1e-6;
   for (size_t i = 0; i < v.positions.size(); ++i) {
-    if ((v.positions[i] - last_sent_[i]).squaredNorm() > kMoved2) {
+    if ((v.positions[i] - last_sent_[i]).squaredNorm() > moved * moved) {
       out.indices.push_back(static_cast<int32_t>(i));
       out.positions.push_back(v.positions[i]);
       last_sent_[i] = v.positions[i];
