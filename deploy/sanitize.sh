@@ -173,6 +173,8 @@ if [ "$which" = tsan ] || [ "$which" = all ]; then
   # Whole searches of the pad, unthreaded (threaded = false); the bank's thread stays (CaseBankTest).
   single+=':PalpationTest.*'
   single+=':NeedleSessionTest.*'  # whole needle trials, unthreaded (threaded = false)
+  # Whole cuts, one and two hands, unthreaded (threaded = false): ten minutes under TSan.
+  single+=':CutSessionTest.*:TwoHandsTest.*'
   declare -A filter=([simulation_test]="-$single")
   # The simulation's threaded tests (a minute) run beside the other suites (half a minute, one
   # after another), each suite's output kept apart and shown whole.
