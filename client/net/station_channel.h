@@ -140,10 +140,10 @@ struct StationStats {
   // Times the force was faded for want of answers: the watchdog began to fade it, or the
   // channel was stopped while its server was silent (a held model faded by Stop).
   uint64_t watchdog_fades = 0;
-  uint64_t scene_chunks = 0;  // SceneFrame datagrams received
-  uint64_t scene_bytes = 0;   // and their bytes, as sent (header and tag included)
+  uint64_t scene_chunks = 0;    // SceneFrame datagrams received
+  uint64_t scene_bytes = 0;     // and their bytes, as sent (header and tag included)
   uint64_t topology_bytes = 0;  // of which a cut's faces' chunks
-  uint64_t marks = 0;         // a palpation's marks the server placed
+  uint64_t marks = 0;           // a palpation's marks the server placed
   // A needle scene: pops the station rendered from its own model before the server's answers
   // said so, and times it took the server's word over its own (haptics/needle_contact.h).
   uint64_t needle_local_pops = 0, needle_corrections = 0;
