@@ -10,13 +10,10 @@
 # second of trial, and the coverage.
 # usage: [RUNS=3] [PRESS_MM=3.5] [LIFT_MM=10] bench/cut_frames.sh [BIN_DIR]
 set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); trap 'kill $spid 2>/dev/null; rm -rf $d' EXIT
 cd "$d"
-$B/vsurg-server init --db vs.db > admin.out 2>/dev/null
-$B/vsurg-server --db vs.db --listen 127.0.0.1:0 --udp-port 0 --ready-file ready.json 2>/dev/null & spid=$!
-for _ in $(seq 100); do [ -s ready.json ] && break; sleep 0.1; done
-PORT=$(python3 -c "import json;print(json.load(open('ready.json'))['grpc_port'])")
-$B/vsurg-admin user-add --server 127.0.0.1:$PORT --token $(head -1 admin.out) --name ana --role trainee --issue-token | tail -1 > t.tok
+source "$here/local_server.sh"
 $B/vsurg-sim trainee --scene pattern-cut --style good --out cut.csv > /dev/null
 # The same path raised: the z column (metres) by PRESS_MM and by LIFT_MM.
 python3 - "${PRESS_MM:-3.5}" "${LIFT_MM:-10}" <<'PY'

@@ -13,16 +13,13 @@
 # usage: [SCENES="arm-torsion ..."] [QUALITIES="high medium low"] [STYLE=hesitant]
 #        [SHOTS=DIR] [BASE_BIN=DIR [BASE_QUALITIES="medium ..."]] bench/station_view.sh [BIN_DIR]
 set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
 B="$(cd "${1:-build/bin}" && pwd)"; d=$(mktemp -d); trap 'kill $spid 2>/dev/null; rm -rf $d' EXIT
 SCENES=${SCENES:-"arm-torsion organ-surface-twist kidney-palpation sphere-palpation-256"}
 QUALITIES=${QUALITIES:-"high"}
 [ -n "${SHOTS:-}" ] && mkdir -p "$SHOTS" && SHOTS="$(cd "$SHOTS" && pwd)"
 cd "$d"
-$B/vsurg-server init --db vs.db > admin.out 2>/dev/null
-$B/vsurg-server --db vs.db --listen 127.0.0.1:0 --udp-port 0 --ready-file ready.json 2>/dev/null & spid=$!
-for _ in $(seq 100); do [ -s ready.json ] && break; sleep 0.1; done
-PORT=$(python3 -c "import json;print(json.load(open('ready.json'))['grpc_port'])")
-$B/vsurg-admin user-add --server 127.0.0.1:$PORT --token $(head -1 admin.out) --name ana --role trainee --issue-token | tail -1 > t.tok
+source "$here/local_server.sh"
 for scene in $SCENES; do
   $B/vsurg-sim trainee --scene $scene --style "${STYLE:-hesitant}" --out $scene.csv > /dev/null
   if [ -n "${BASE_BIN:-}" ]; then
