@@ -574,19 +574,23 @@ def main():
 
         # --- a needle insertion: the scripted hesitant trainee misses the vein first and enters
         # again above it; the ended session's replay shows the vein beside both tracts ---
-        plan = os.path.join(tmp, "needle-hesitant.csv")
-        subprocess.run([f"{BIN}/vsurg-sim", "trainee", "--scene", "needle-vessel", "--style", "hesitant",
-                        "--out", plan], check=True, stdout=subprocess.DEVNULL, env=env, timeout=60)
-        needle_out = os.path.join(tmp, "station-needle.json")
-        inserted = subprocess.run(
-            [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["rory"],
-             "--scene", "needle-vessel", "--trajectory", plan, "--headless",
-             "--width", "160", "--height", "100", "--fps", "4", "--quality", "low", "--json",
-             "--realtime-priority", "0"],
-            stdout=open(needle_out, "w"), stderr=open(os.path.join(tmp, "station-needle.log"), "w"),
-            env=env, timeout=600)
-        check(inserted.returncode == 0, "the scripted insertion ran to its end at the station")
-        needle = json.load(open(needle_out))
+        # One scripted trial at rory's headless station (its summary JSON, or {} when it failed).
+        def scripted_trial(scene, style, name, what, extra=()):
+            plan = os.path.join(tmp, f"{name}-{style}.csv")
+            subprocess.run([f"{BIN}/vsurg-sim", "trainee", "--scene", scene, "--style", style,
+                            "--out", plan], check=True, stdout=subprocess.DEVNULL, env=env, timeout=60)
+            out = os.path.join(tmp, f"station-{name}.json")
+            run = subprocess.run(
+                [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["rory"],
+                 "--scene", scene, "--trajectory", plan, *extra, "--headless",
+                 "--width", "160", "--height", "100", "--fps", "4", "--quality", "low", "--json",
+                 "--realtime-priority", "0"],
+                stdout=open(out, "w"), stderr=open(os.path.join(tmp, f"station-{name}.log"), "w"),
+                env=env, timeout=600)
+            check(run.returncode == 0, f"the scripted {what} ran to its end at the station")
+            return json.load(open(out))
+
+        needle = scripted_trial("needle-vessel", "hesitant", "needle", "insertion")
         nm = needle.get("metrics", {})
         check(nm.get("punctures", 0) >= 4 and nm.get("extra_punctures", 0) >= 3,
               f"the insertion is scored as one: {nm.get('punctures')} punctures, "
@@ -608,19 +612,8 @@ def main():
 
         # --- a two-handed cut: the blade cuts the marked circle while the grasper holds the
         # piece; the ended session's replay shows the cut growing along the timeline ---
-        plan = os.path.join(tmp, "cut-good.csv")
-        subprocess.run([f"{BIN}/vsurg-sim", "trainee", "--scene", "pattern-cut", "--style", "good",
-                        "--out", plan], check=True, stdout=subprocess.DEVNULL, env=env, timeout=60)
-        cut_out = os.path.join(tmp, "station-cut.json")
-        cut_run = subprocess.run(
-            [f"{BIN}/vsurg-station", "--server", f"127.0.0.1:{grpc}", "--token", tokens["rory"],
-             "--scene", "pattern-cut", "--trajectory", plan, "--second-device", "grasper",
-             "--headless", "--width", "160", "--height", "100", "--fps", "4", "--quality", "low",
-             "--json", "--realtime-priority", "0"],
-            stdout=open(cut_out, "w"), stderr=open(os.path.join(tmp, "station-cut.log"), "w"),
-            env=env, timeout=600)
-        check(cut_run.returncode == 0, "the scripted two-handed cut ran to its end at the station")
-        cut = json.load(open(cut_out))
+        cut = scripted_trial("pattern-cut", "good", "cut", "two-handed cut",
+                             ("--second-device", "grasper"))
         check(cut.get("metrics", {}).get("coverage", 0) > 0.9,
               f"the circle was cut ({cut.get('metrics', {}).get('coverage')})")
         driver.get(f"{base}/session/{cut['session']}")
