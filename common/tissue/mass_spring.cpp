@@ -223,6 +223,10 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
   if (!(params.cg_max_iterations >= 1 && Finite(params.cg_tolerance) && params.cg_tolerance > 0)) {
     return InvalidArgument("cg", "conjugate gradient needs ≥ 1 iteration and a tolerance > 0");
   }
+  if (!(Finite(params.cg_energy_floor) && params.cg_energy_floor >= 0)) {
+    return InvalidArgument("cg_energy_floor", "the solve's energy floor must be finite and ≥ 0 J, got " +
+                                                  Num(params.cg_energy_floor));
+  }
   if (!(params.cg_extrapolation >= 1 && params.cg_extrapolation <= 3)) {
     return InvalidArgument("cg_extrapolation", "the first guess's degree must be 1 to 3, got " +
                                                    std::to_string(params.cg_extrapolation));

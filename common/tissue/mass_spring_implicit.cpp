@@ -324,7 +324,8 @@ int MassSpringModel::ImplicitSolve(double h) {
   const double tol2 = params_.cg_tolerance * params_.cg_tolerance * rhs_norm2;
   int it = 0;
   double beta = 0;
-  for (; it < params_.cg_max_iterations && r2 > tol2; ++it) {
+  const double rz_floor = 2 * params_.cg_energy_floor;  // rz is twice the error's energy
+  for (; it < params_.cg_max_iterations && r2 > tol2 && rz > rz_floor; ++it) {
     const double pq = ImplicitProduct(h, it > 0, beta);
     if (!(pq > 0)) break;
     const double step = rz / pq;
