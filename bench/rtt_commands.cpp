@@ -563,14 +563,33 @@ struct HapticRttRun {
     return d;
   }
 
+  // The top of any other scene's surface: of its vertices within a millimetre of the highest, the
+  // one nearest the middle of its extent across (a sphere's pole, a block's or a patch's middle).
+  static Eigen::Vector3d TopOf(const vsurg::sim::Scene& scene) {
+    auto mesh = vsurg::sim::BuildSceneMesh(scene.mesh);
+    if (!mesh.ok() || mesh->surface.positions.empty()) return Eigen::Vector3d::Zero();
+    const auto& v = mesh->surface.positions;
+    Eigen::Vector3d lo = v[0], hi = v[0];
+    for (const auto& p : v) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    const Eigen::Vector2d middle = 0.5 * (lo + hi).head<2>();
+    Eigen::Vector3d best = v[0];
+    double best_d = 1e300;
+    for (const auto& p : v) {
+      const double d = (p.head<2>() - middle).squaredNorm();
+      if (p.z() > hi.z() - 1e-3 && d < best_d) best = p, best_d = d;
+    }
+    return best;
+  }
+
   // The drive, with the server's CPU, deformations and residence read around it. The stylus
-  // rests 3 mm inside the limb's side (or the sphere's top): every answer runs the full contact
-  // path. It approaches from outside during the warm-up so the proxy enters through the surface.
+  // rests 4 mm inside the limb's side (or the top of another surface): every answer runs the full
+  // contact path. It approaches from outside during the warm-up so the proxy enters through the
+  // surface.
   nlohmann::json Drive(const vsurg::sim::Scene& scene) {
     const bool limb = scene.mesh.kind == vsurg::sim::MeshKind::kLimb;
     const Eigen::Vector3d rest = limb ? Eigen::Vector3d(scene.mesh.limb.radius_distal - 0.004,
                                                         0.0005, scene.mesh.limb.length - 0.03)
-                                      : Eigen::Vector3d(0.0005, 0.0005, scene.mesh.radius - 0.004);
+                                      : TopOf(scene) + Eigen::Vector3d(0.0005, 0.0005, -0.004);
     const Eigen::Vector3d outward = limb ? Eigen::Vector3d(1, 0, 0) : Eigen::Vector3d(0, 0, 1);
     const udp::endpoint server(asio::ip::make_address("127.0.0.1"), endpoint->port());
     const double seconds = p.Double("seconds"), cpu0 = endpoint->io_cpu_seconds();

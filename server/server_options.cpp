@@ -8,7 +8,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/sim/scene.h"
 #include "db/store.h"
+#include "server/cluster/node_cost.h"
 
 namespace vsurg::server {
 namespace {
@@ -87,9 +89,11 @@ void DeclareCluster(ArgParser& p) {
       .Option("advertise", Kind::kString,
               "sim: host:port the control plane reaches this node's internal API at "
               "(default: --cluster-listen's host with its bound port)")
-      .Option("capacity", Kind::kInt, "sim: live sessions this node takes", false,
-              Num(d.node.capacity))
-      .Within(NodeOptions::kCapacity)
+      .Option("capacity", Kind::kInt,
+              "sim: live sessions this node takes (0: what 70% of its cores hold at the dearest "
+              "cost per station its scenes state, else 24)",
+              false, "0")
+      .Within({0, NodeOptions::kCapacity.hi})
       .Option("drain-timeout", Kind::kDouble,
               "sim: on SIGTERM, seconds the live sessions may take to finish", false,
               Num(d.drain_timeout_s))
@@ -247,6 +251,21 @@ Status ReadCluster(const cli::ArgParser& p, ServerSettings& s) {
   return Status::Ok();
 }
 
+// --capacity 0: what 70% of the node's cores hold at the dearest cost per station its scenes
+// state (docs/SCALING.md), else the pressing stations' measured 24.
+void DeriveCapacity(NodeOptions& n) {
+  const double cores = NodeCores();
+  const DearestScene dearest = FindDearestScene(sim::ScenesDirectory());
+  n.capacity = CapacityAtCost(cores, dearest.core_per_station);
+  if (n.capacity == 0) {
+    n.capacity = 24;
+    n.capacity_from = "no scene states its cost: the pressing stations' 24";
+    return;
+  }
+  n.capacity_from = "70% of " + Num(cores) + " cores at " + dearest.name + "'s " +
+                    Num(dearest.core_per_station) + " core per station";
+}
+
 void ReadSessions(const cli::ArgParser& p, ServerSettings& s) {
   EndpointOptions& e = s.endpoint;
   e.address = p.String("udp-address");
@@ -275,6 +294,7 @@ void ReadSessions(const cli::ArgParser& p, ServerSettings& s) {
   n.udp_host = so.udp_host;
   n.udp_port = so.udp_port;  // 0: the endpoint's, once bound
   n.capacity = p.Int("capacity");
+  if (n.capacity == 0) DeriveCapacity(n);
   n.migrate_on_drain = !p.Flag("drain-wait");
 }
 

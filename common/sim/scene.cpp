@@ -603,6 +603,11 @@ Status ParseBudget(const Reader& r, Scene& s) {
   s.error_budget_rms = rms;
   VSURG_TRY(reference, budget.StringOr("reference", "fem"));
   s.error_reference = reference;
+  if (r.Has("cost")) {
+    VSURG_TRY(cost, r.Object("cost"));
+    VSURG_TRY(core, cost.Number("core_per_station", 1e-4, 64));
+    s.core_per_station = core;
+  }
   return Status::Ok();
 }
 

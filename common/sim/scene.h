@@ -204,6 +204,10 @@ struct Scene {
   VisualSpec visual;
   double error_budget_rms = 0.1;  // relative RMS displacement error the model meets
   std::string error_reference;    // what that error is measured against
+  // What one full-rate station on this scene costs its node, in cores ("cost": {"core_per_station":
+  // x}, measured by bench/scene_cost.sh on a 2-core node; 0: not stated). A node's default
+  // capacity is what 70% of its cores hold at the dearest of its scenes (docs/SCALING.md).
+  double core_per_station = 0;
 };
 
 // One user can never deny the others service: a scene may not ask for more memory per session

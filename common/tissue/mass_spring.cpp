@@ -224,8 +224,9 @@ Expected<MassSpringModel> MassSpringModel::Create(MassSpringSystem sys,
     return InvalidArgument("cg", "conjugate gradient needs ≥ 1 iteration and a tolerance > 0");
   }
   if (!(Finite(params.cg_energy_floor) && params.cg_energy_floor >= 0)) {
-    return InvalidArgument("cg_energy_floor", "the solve's energy floor must be finite and ≥ 0 J, got " +
-                                                  Num(params.cg_energy_floor));
+    return InvalidArgument(
+        "cg_energy_floor",
+        "the solve's energy floor must be finite and ≥ 0 J, got " + Num(params.cg_energy_floor));
   }
   if (!(params.cg_extrapolation >= 1 && params.cg_extrapolation <= 3)) {
     return InvalidArgument("cg_extrapolation", "the first guess's degree must be 1 to 3, got " +

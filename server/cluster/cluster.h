@@ -143,6 +143,8 @@ struct NodeOptions {
   std::string udp_host;   // what stations are told to send to
   int udp_port = 0;
   int capacity = 24;  // live sessions this node takes
+  // How capacity was reached: "set" (--capacity), or the cost it was derived from (node_cost.h).
+  std::string capacity_from = "set";
   // On Drain, hand the live sessions to other nodes (live migration) before waiting for the
   // rest to finish; false: wait for all of them (--drain-wait).
   bool migrate_on_drain = true;

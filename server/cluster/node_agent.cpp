@@ -507,7 +507,8 @@ Expected<std::unique_ptr<NodeAgent>> NodeAgent::Start(SessionManager& sessions,
   Log(options.name, "node_started",
       {{"internal", p->options.advertise},
        {"udp", options.udp_host + ":" + std::to_string(options.udp_port)},
-       {"capacity", options.capacity}});
+       {"capacity", options.capacity},
+       {"capacity_from", options.capacity_from}});
   return std::unique_ptr<NodeAgent>(new NodeAgent(std::move(impl)));
 }
 
