@@ -77,6 +77,7 @@ int Fail(const std::string& option, const std::string& message, int code) {
 }
 int Fail(const vsurg::Error& e, const std::string& option_if_none, int code) {
   std::string flag = e.field.empty() ? option_if_none : e.field;  // the option, as typed
+  if (flag.starts_with("--")) flag.erase(0, 2);  // the parser's own fields say it already
   std::replace(flag.begin(), flag.end(), '_', '-');
   return Fail(flag, e.message, code);
 }

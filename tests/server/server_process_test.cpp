@@ -333,10 +333,15 @@ TEST(ServerRolesCliTest, BadRoleSettingsExitTwoNamingTheFlag) {
             "--quasi-static-interval-ms: must be within 0..100"},
            {"--db " + (dir / "x.db").string() + " --quasi-static-interval-ms nan",
             "--quasi-static-interval-ms: 'nan' is not a finite number"},
+           {"--role sim" + pg + " --control 127.0.0.1:7000 --cluster-token-file " + token +
+                " --capacity -1",
+            "--capacity: must be within 0..4096"},
+           {"--role sim --control 127.0.0.1:7000", "vsurg-server: --db: is required"},
        }) {
     const ShellRun r = Shell(server + c.args + " 2>&1");
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.out;
     EXPECT_NE(r.out.find(c.says), std::string::npos) << c.args << "\n" << r.out;
+    EXPECT_EQ(r.out.find("----"), std::string::npos) << "the flag's dashes once: " << r.out;
   }
   EXPECT_FALSE(fs::exists(dir / "x.db")) << "nothing was created";
   fs::remove_all(dir);
