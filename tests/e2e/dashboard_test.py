@@ -627,6 +627,8 @@ def main():
         check(at_start == 0 and 0 < midway < at_end,
               f"the replay shows the cut growing (faces cut: {at_start} at the start, "
               f"{midway} midway, {at_end} at the end)")
+        copies = driver.execute_script("return Number(document.getElementById('view3d').dataset.copies || 0);")
+        check(copies > 0, f"the cut's copies are drawn with their originals' skin ({copies} copies)")
         shot("cut")  # midway: half the circle cut
     finally:
         if sys.exc_info()[0] is not None:  # failing: what the page itself said

@@ -49,6 +49,10 @@ export class TissueView {
     this.rest = new Float32Array(surface.positions_mm);
     this.pos = new Float32Array(this.rest);
     this.tris = new Uint32Array(surface.triangles);
+    this.restTris = new Uint32Array(surface.triangles);
+    // Where each vertex reads the tissue's tone and detail: its rest position, and a cut's copy
+    // its original's (setTriangles), as the station's view does.
+    this.material = new Float32Array(this.rest);
     const n = this.rest.length / 3;
     let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
     for (let i = 0; i < n; ++i) for (let a = 0; a < 3; ++a) {
@@ -120,7 +124,8 @@ export class TissueView {
     this.buf = { p: buffer(this.pos, gl.DYNAMIC_DRAW), n: buffer(this.normals, gl.DYNAMIC_DRAW) };
     const attribute = (loc, buf, size) => { gl.bindBuffer(gl.ARRAY_BUFFER, buf); gl.enableVertexAttribArray(loc); gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 0, 0); };
     attribute(0, this.buf.p, 3); attribute(1, this.buf.n, 3);
-    attribute(2, buffer(this.rest, gl.STATIC_DRAW), 3); attribute(3, buffer(this.broad, gl.STATIC_DRAW), 2);
+    this.buf.r = buffer(this.material, gl.DYNAMIC_DRAW); this.buf.b = buffer(this.broad, gl.DYNAMIC_DRAW);
+    attribute(2, this.buf.r, 3); attribute(3, this.buf.b, 2);
     this.ebo = gl.createBuffer(); gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.ebo); gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, this.tris, gl.DYNAMIC_DRAW);
     // The table: a square of drape just under the tissue's lowest point (a flat patch at rest
     // would otherwise share its plane and fight it for depth).
@@ -257,6 +262,20 @@ export class TissueView {
     if (tris.length !== this.tris.length) return;
     this.tris = tris;
     const gl = this.gl;
+    // A copy a cut made takes its original's material, so the skin is continuous at the lips.
+    const copies = new Set();
+    for (let k = 0; k < tris.length; ++k) {
+      const v = tris[k], o = this.restTris[k];
+      if (v === o || 3 * v >= this.material.length || (tris[k - k % 3] === 0 && tris[k - k % 3 + 1] === 0)) continue;
+      for (let a = 0; a < 3; ++a) this.material[3 * v + a] = this.rest[3 * o + a];
+      for (let a = 0; a < 2; ++a) this.broad[2 * v + a] = this.broad[2 * o + a];
+      copies.add(v);
+    }
+    this.canvas.dataset.copies = String(copies.size);  // copies drawn with their original's skin
+    if (copies.size) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.buf.r); gl.bufferSubData(gl.ARRAY_BUFFER, 0, this.material);
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.buf.b); gl.bufferSubData(gl.ARRAY_BUFFER, 0, this.broad);
+    }
     gl.bindVertexArray(this.vao);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.ebo); gl.bufferSubData(gl.ELEMENT_ARRAY_BUFFER, 0, this.tris);
     gl.bindVertexArray(null);
