@@ -92,8 +92,8 @@ void DeclareCluster(ArgParser& p) {
       .Option("capacity", Kind::kInt,
               "sim: live sessions this node takes (0: what 70% of its cores hold at the dearest "
               "cost per station its scenes state, else 24)",
-              false, "0")
-      .Within({0, NodeOptions::kCapacity.hi})
+              false, Num(NodeOptions::kDeriveCapacity))
+      .Within(NodeOptions::kCapacityOption)
       .Option("drain-timeout", Kind::kDouble,
               "sim: on SIGTERM, seconds the live sessions may take to finish", false,
               Num(d.drain_timeout_s))
@@ -294,7 +294,7 @@ void ReadSessions(const cli::ArgParser& p, ServerSettings& s) {
   n.udp_host = so.udp_host;
   n.udp_port = so.udp_port;  // 0: the endpoint's, once bound
   n.capacity = p.Int("capacity");
-  if (n.capacity == 0) DeriveCapacity(n);
+  if (n.capacity == NodeOptions::kDeriveCapacity) DeriveCapacity(n);
   n.migrate_on_drain = !p.Flag("drain-wait");
 }
 

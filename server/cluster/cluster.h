@@ -137,6 +137,10 @@ class ClusterSessions final : public Sessions {
 
 struct NodeOptions {
   static constexpr Range kCapacity{1, 4096};
+  // --capacity's own: kDeriveCapacity (0, its default) asks for what the node's cores hold at its
+  // scenes' cost (node_cost.h).
+  static constexpr int kDeriveCapacity = 0;
+  static constexpr Range kCapacityOption{kDeriveCapacity, kCapacity.hi};
   std::string name;       // unique in the site
   std::string advertise;  // host:port the control plane reaches NodeService at
   std::string control;    // the control plane's internal API: host:port[,host:port…]

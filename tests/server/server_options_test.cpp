@@ -60,7 +60,7 @@ TEST(ServerOptionsTest, EveryBoundAndDefaultIsTheComponentsOwn) {
             cluster.heartbeat_period_s},
            {"cluster-heartbeat-timeout", ClusterOptions::kHeartbeatTimeoutS,
             cluster.heartbeat_timeout_s},
-           {"capacity", NodeOptions::kCapacity, static_cast<double>(NodeOptions{}.capacity)},
+           {"capacity", NodeOptions::kCapacityOption, NodeOptions::kDeriveCapacity},
        }) {
     EXPECT_TRUE(Same(p.RangeOf(c.option), c.range)) << c.option;
     EXPECT_EQ(p.DefaultOf(c.option), NumberText(c.default_value)) << c.option;
