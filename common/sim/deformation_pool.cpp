@@ -81,8 +81,10 @@ void DeformationPool::Work() {
     }
     const Clock::time_point now = Clock::now();
     if (next->due > now) {
-      // Nothing due yet: sleep until it is (an Add wakes us sooner).
-      wake_.wait_until(lock, next->due);
+      // Nothing due yet: sleep until it is (an Add wakes us sooner). By value: wait_until reads
+      // its time again after the wait, when an Add may have moved the entries.
+      const Clock::time_point until = next->due;
+      wake_.wait_until(lock, until);
       continue;
     }
     next->running = true;

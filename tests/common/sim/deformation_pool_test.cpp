@@ -83,7 +83,7 @@ TEST(DeformationPoolTest, EveryMemberIsSteppedByOneWorkerAtATimeAndNotAfterItsRe
 
 // The arm's twist played as fast as possible into two simulations, one on its own deformation
 // thread and one in a pool: the coil model follows the newest torque, so once both have caught
-// up they show the same surface.
+// up they show the same surface (within the frames' quantum).
 TEST(DeformationPoolTest, ASimulationInAPoolDeformsAsOnItsOwnThread) {
   auto scene = LoadSceneByName("arm-torsion");
   ASSERT_TRUE(scene.ok());
@@ -128,7 +128,10 @@ TEST(DeformationPoolTest, ASimulationInAPoolDeformsAsOnItsOwnThread) {
     diff = std::max(diff, (shown_pooled[i] - shown_own[i]).norm());
   }
   EXPECT_GT(moved, 1e-3);  // the twist moved the wrist end by millimetres
-  EXPECT_LT(diff, 1e-12);
+  // Both surfaces are the same; what each shows is its frames', and a frame sends a vertex once
+  // it moved 1 µm from where it was last sent: two histories of frames (a loaded machine paces
+  // them differently) show it within twice that.
+  EXPECT_LT(diff, 2e-6);
   (*pooled)->SetDeformationRunning(false);
   EXPECT_FALSE((*pooled)->deformation_running());
   EXPECT_EQ(pool.members(), 0u);
