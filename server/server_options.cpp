@@ -258,8 +258,8 @@ void DeriveCapacity(NodeOptions& n) {
   const DearestScene dearest = FindDearestScene(sim::ScenesDirectory());
   n.capacity = CapacityAtCost(cores, dearest.core_per_station);
   if (n.capacity == 0) {
-    n.capacity = 24;
-    n.capacity_from = "no scene states its cost: the pressing stations' 24";
+    n.capacity = NodeOptions{}.capacity;
+    n.capacity_from = "no scene states its cost: the pressing stations' " + Num(n.capacity);
     return;
   }
   n.capacity_from = "70% of " + Num(cores) + " cores at " + dearest.name + "'s " +
