@@ -52,6 +52,7 @@ using study::Progress;
 using study::RunLimbScenes;
 using study::RunOrgan;
 using study::RunPad;
+using study::RunPatch;
 using study::RunSphere;
 using study::RunSurfaceTwist;
 using study::SceneOut;
@@ -93,21 +94,24 @@ int SpeedVsError(const std::vector<std::string>& args) {
   const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 2;
   const int organ = cfg.quick ? 3 + 5 : 6 + 7;
   const int pad = cfg.quick ? 3 : 6;
+  const int patch = cfg.quick ? 2 : 14;  // the quick run: the uncut lift, the scene's own lattice
   const std::string only = p.Has("only") ? p.String("only") : "";
   const auto run = [&only](const std::string& part) { return only.empty() || only == part; };
   if (!only.empty() && !run("limbs") && !run("sphere") && !run("kidney") && !run("organ-twist") &&
-      !run("pad")) {
-    std::cerr << p.command() << ": --only: limbs, sphere, kidney, organ-twist or pad\n";
+      !run("pad") && !run("patch")) {
+    std::cerr << p.command() << ": --only: limbs, sphere, kidney, organ-twist, pad or patch\n";
     return 2;
   }
   Progress progress((run("limbs") ? 3 * per_limb : 0) + (run("sphere") ? sphere : 0) +
-                    (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0));
+                    (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0) +
+                    (run("patch") ? patch : 0));
   std::vector<SceneOut> scenes;
   if (run("limbs")) scenes = RunLimbScenes(cfg, progress);
   if (run("sphere")) scenes.push_back(RunSphere(cfg, progress));
   if (run("kidney")) scenes.push_back(RunOrgan(cfg, progress));
   if (run("organ-twist")) scenes.push_back(RunSurfaceTwist(cfg, progress));
   if (run("pad")) scenes.push_back(RunPad(cfg, progress));
+  if (run("patch")) scenes.push_back(RunPatch(cfg, progress));
   for (SceneOut& s : scenes) ChooseCheapest(s);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 

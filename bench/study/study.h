@@ -144,6 +144,7 @@ SceneOut RunSphere(const Config& cfg, Progress& progress);
 SceneOut RunOrgan(const Config& cfg, Progress& progress);         // kidney-palpation (imported)
 SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress);  // organ-surface-twist
 SceneOut RunPad(const Config& cfg, Progress& progress);           // lump-search (a lump)
+SceneOut RunPatch(const Config& cfg, Progress& progress);         // pattern-cut (the patch)
 
 // The report.
 void ChooseCheapest(SceneOut& s);

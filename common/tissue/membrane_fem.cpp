@@ -73,7 +73,12 @@ Expected<MembraneFem> MembraneFem::Create(const MembraneMesh& mesh, const Membra
   }
   for (const Eigen::Vector2d& r : mesh.rest) m.x_.emplace_back(r.x(), r.y(), 0.0);
   m.load_.assign(n, Vec3::Zero());
+  // A vertex no face uses (a copy a cut made and left, a freed piece's) carries nothing: held.
   m.fixed_ = mesh.fixed;
+  std::vector<bool> used(n, false);
+  for (const auto& f : mesh.faces)
+    for (int32_t v : f) used[v] = true;
+  for (int i = 0; i < n; ++i) m.fixed_[i] = m.fixed_[i] || !used[i];
   int free = 0;
   for (int i = 0; i < n; ++i) m.dof_.push_back(m.fixed_[i] ? -1 : 3 * free++);
   return m;
@@ -207,11 +212,20 @@ Expected<double> MembraneFem::NewtonStep() {
     for (int i = 0; i < 3; ++i) triplets.emplace_back(dof_[held_] + i, dof_[held_] + i, hold_k_);
   Eigen::SparseMatrix<double> kt(unknowns, unknowns);
   kt.setFromTriplets(triplets.begin(), triplets.end());
+  // A vertex whose every triangle is slack (a corner a cut left on one triangle, folded) has no
+  // stiffness in some direction: the tangent is then shifted by a small multiple of its mean
+  // diagonal, growing until it factors (a damped Newton step; the search below keeps it downhill).
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>> ldlt;
-  ldlt.compute(kt);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0))
-    return Error{ErrorCode::kNumerical,
-                 "membrane: the tangent is singular (a vertex joined to nothing)", ""};
+  ldlt.analyzePattern(kt);
+  const double mean = kt.diagonal().sum() / std::max(1, unknowns);
+  Eigen::SparseMatrix<double> shift(unknowns, unknowns);
+  shift.setIdentity();
+  for (double lm = 0;; lm = lm == 0 ? 1e-9 : 100 * lm) {
+    ldlt.factorize(lm == 0 ? kt : Eigen::SparseMatrix<double>(kt + lm * mean * shift));
+    if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 0) break;
+    if (lm > 1e-2)
+      return Error{ErrorCode::kNumerical, "membrane: the tangent is singular (a loose vertex)", ""};
+  }
   const Eigen::VectorXd dx = ldlt.solve(rhs);
   // Armijo on the energy along the step (a descent direction: the tangent is positive definite).
   const double w0 = Energy(), slope = -rhs.dot(dx);
@@ -223,17 +237,21 @@ Expected<double> MembraneFem::NewtonStep() {
       if (dof_[i] >= 0) trial[i] = x_[i] + step * dx.segment<3>(dof_[i]);
     if (!resolvable || EnergyAt(trial) <= w0 + 1e-4 * step * slope) break;
   }
+  last_move_ = 0;
+  for (int i = 0; i < n; ++i) last_move_ = std::max(last_move_, (trial[i] - x_[i]).norm());
   x_ = trial;
   return residual;
 }
 
-Expected<MembraneFem::Solve> MembraneFem::SolveStatic(double tolerance, int max_iterations) {
+Expected<MembraneFem::Solve> MembraneFem::SolveStatic(double tolerance, int max_iterations,
+                                                      double move_tolerance) {
   Solve out;
   for (;;) {
     std::vector<Vec3> f = Forces();
     out.residual = 0;
     for (const Vec3& v : f) out.residual = std::max(out.residual, v.norm());
-    if (out.residual <= tolerance) {
+    out.last_move = out.iterations > 0 ? last_move_ : 0;
+    if (out.residual <= tolerance || (out.iterations > 0 && last_move_ <= move_tolerance)) {
       out.converged = true;
       return out;
     }

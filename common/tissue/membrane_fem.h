@@ -60,7 +60,8 @@ MembraneMesh MeshOf(const CutMembrane& patch);
 class MembraneFem {
  public:
   // Refuses a mesh whose faces are out of range or not counter-clockwise with a positive area,
-  // and bad parameters, by name. Starts flat at the rest plane (z = 0).
+  // and bad parameters, by name. Starts flat at the rest plane (z = 0). A vertex no face uses is
+  // held where it is.
   static Expected<MembraneFem> Create(const MembraneMesh& mesh, const MembraneFemParams& p);
 
   void SetLoad(int vertex, const geometry::Vec3& force);  // N, a dead load; zero clears it
@@ -69,13 +70,18 @@ class MembraneFem {
 
   struct Solve {
     int iterations = 0;
-    double residual = 0;  // N, the largest free vertex's net force at the end
+    double residual = 0;   // N, the largest free vertex's net force at the end
+    double last_move = 0;  // m, the largest move of a vertex in the last step
     bool converged = false;
   };
   // Newton from the current positions until every free vertex's net force is below `tolerance`
-  // N. A load that would need more than `max_iterations` steps returns not converged (positions
-  // where it stopped); a singular system (a vertex joined to nothing) is an error.
-  Expected<Solve> SolveStatic(double tolerance = 1e-9, int max_iterations = 100);
+  // N, or a step moved no vertex more than `move_tolerance` m. The second ends a solve whose
+  // patch has slack (compressed) triangles: their folds have no stiffness in a membrane, and the
+  // residual there falls only linearly while the shape no longer changes. A load that would need
+  // more than `max_iterations` steps returns not converged (positions where it stopped); a
+  // tangent that will not factor is an error.
+  Expected<Solve> SolveStatic(double tolerance = 1e-9, int max_iterations = 100,
+                              double move_tolerance = 0);
   // One Newton iteration (assembly, factorisation, solve, line search): what an implicit step of
   // this FEM costs at least; returns the residual before it, N.
   Expected<double> NewtonStep();
@@ -110,6 +116,7 @@ class MembraneFem {
   int held_ = -1;
   geometry::Vec3 hold_target_ = geometry::Vec3::Zero();
   double hold_k_ = 0;
+  double last_move_ = 0;  // m, NewtonStep's largest vertex move
 };
 
 }  // namespace vsurg::tissue

@@ -68,10 +68,11 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
       best = best == 0 ? v : std::min(best, v);
     }
   }
-  EXPECT_EQ(scenes,
-            (std::set<std::string>{"arm-ramp", "arm-haptic", "calf-ramp", "sphere-palpation",
-                                   "kidney-palpation", "organ-twist", "lump-search"}));
-  for (const char* m : {"coil-paper", "coil-per-ring", "fem", "mass-spring", "ring-layer"})
+  EXPECT_EQ(scenes, (std::set<std::string>{"arm-ramp", "arm-haptic", "calf-ramp",
+                                           "sphere-palpation", "kidney-palpation", "organ-twist",
+                                           "lump-search", "pattern-cut"}));
+  for (const char* m :
+       {"coil-paper", "coil-per-ring", "fem", "mass-spring", "ring-layer", "cut-membrane"})
     EXPECT_TRUE(models.count(m)) << m;
   // The per-ring calibration goes beyond the paper: closer to Saint-Venant on every limb scene.
   for (const char* scene : {"arm-ramp", "arm-haptic", "calf-ramp"})
@@ -97,7 +98,7 @@ TEST(SpeedVsErrorTest, QuickRunWritesTheCsvThePlotsAndNamesAModelPerScene) {
   }
   for (const char* file : {"arm-torsion.json", "sphere-palpation-256.json", "kidney-palpation.json",
                            "calf-torsion.json", "sphere-palpation-rings.json",
-                           "organ-surface-twist.json", "lump-search.json"}) {
+                           "organ-surface-twist.json", "lump-search.json", "pattern-cut.json"}) {
     EXPECT_NE(verdict[file].find("| within |"), std::string::npos) << verdict[file];
   }
   EXPECT_NE(verdict["arm-torsion.json"].find("coil-scene, scene parameters"), std::string::npos);
