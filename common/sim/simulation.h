@@ -165,6 +165,9 @@ class Simulation final : private DeformationPool::Member {
   // Visual thread: fills `out` with the vertices that moved since the previous call; false when
   // nothing new was published. Reuses out's capacity.
   bool TakeVisualFrame(VisualFrame& out);
+  // Every vertex as the last TakeVisualFrame read it (what its frame was made from); only from
+  // the thread that takes the frames, until its next call.
+  const std::vector<geometry::Vec3>& LastFramePositions() const { return visual_.Front().positions; }
 
   // Any thread (the control plane's sampler, for monitors): the surface as the visual thread
   // last sent it, as the vertices more than 1 µm from rest. Returns that frame's id (0: none
@@ -249,6 +252,7 @@ class Simulation final : private DeformationPool::Member {
     // A cut's faces (Deformed::faces), copied when its topology changed; empty for the others.
     std::vector<geometry::Triangle> faces;
     uint64_t topology = 0;
+    std::optional<geometry::Vec3> focus;  // Deformed::focus
   };
 
   static Expected<std::unique_ptr<Simulation>> CreateChecked(const Scene& scene,

@@ -91,7 +91,9 @@ std::optional<Deformed> CutRoom::Deform(const DeformInput& in) {
       cut_edges_ != edges_before || tore > 0 || patch_->freed_pieces() != freed_before;
   if (topology) ++topology_;
   CopyOut(topology);
-  return Deformed{&positions_, false, false, std::nullopt, &faces_, topology_};
+  Deformed d{&positions_, false, false, std::nullopt, &faces_, topology_};
+  if (in.triangle >= 0) d.focus = in.hip;  // the blade on the patch
+  return d;
 }
 
 // The patch's particles over the rest mesh's first vertices (the spare room stays where it is),

@@ -128,6 +128,9 @@ struct Deformed {
   // Null for the others: their faces are the rest mesh's.
   const std::vector<geometry::Triangle>* faces = nullptr;
   uint64_t topology = 0;
+  // Where a tool works the tissue now (m, the scene's frame; a cut's blade on the patch): the
+  // frames send the vertices near it at the finest threshold (Simulation::TakeVisualFrame).
+  std::optional<geometry::Vec3> focus = std::nullopt;
 };
 
 }  // namespace vsurg::sim
