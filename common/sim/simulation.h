@@ -167,7 +167,9 @@ class Simulation final : private DeformationPool::Member {
   bool TakeVisualFrame(VisualFrame& out);
   // Every vertex as the last TakeVisualFrame read it (what its frame was made from); only from
   // the thread that takes the frames, until its next call.
-  const std::vector<geometry::Vec3>& LastFramePositions() const { return visual_.Front().positions; }
+  const std::vector<geometry::Vec3>& LastFramePositions() const {
+    return visual_.Front().positions;
+  }
 
   // Any thread (the control plane's sampler, for monitors): the surface as the visual thread
   // last sent it, as the vertices more than 1 µm from rest. Returns that frame's id (0: none
