@@ -32,7 +32,9 @@ inline const char* MsmSceneName(int which) {
   return which == 0 ? "sphere258" : which == 1 ? "sphere1026" : "arm6182";
 }
 
-inline MsmScene MakeMsmScene(int which, tissue::Integrator integrator, double cg_tolerance = 1e-3) {
+inline MsmScene MakeMsmScene(
+    int which, tissue::Integrator integrator, double cg_tolerance = 1e-3,
+    double cg_energy_floor = tissue::MassSpringStepParams{}.cg_energy_floor) {
   geometry::TriMesh mesh;
   if (which < 2) {
     mesh = *geometry::MakeSubdividedSphere(
@@ -46,6 +48,7 @@ inline MsmScene MakeMsmScene(int which, tissue::Integrator integrator, double cg
   tissue::MassSpringStepParams sp;
   sp.integrator = integrator;
   sp.cg_tolerance = cg_tolerance;
+  sp.cg_energy_floor = cg_energy_floor;
   auto model = tissue::MassSpringModel::Create(*sys, sp);
   MsmScene s{std::move(*model), {}, {}, std::vector<bool>(mesh.positions.size(), false)};
   const double length = which == 2 ? geometry::ForearmPreset().length : 0;

@@ -64,6 +64,10 @@ int MsmStep(const std::vector<std::string>& args) {
   p.Option("steps", cli::ArgParser::Kind::kInt, "timed steps per scene", false, "2000")
       .Option("tolerance", cli::ArgParser::Kind::kDouble,
               "the conjugate gradient's relative residual", false, "1e-3")
+      .Option("energy-floor", cli::ArgParser::Kind::kDouble,
+              "the solve also ends when its error's kinetic energy is below this, J (0: the "
+              "relative residual alone, as a peer iterating to a tolerance)",
+              false, "1e-13")
       .Option("export", cli::ArgParser::Kind::kString, "write the scenes' files here")
       .Option("json", cli::ArgParser::Kind::kFlag, "print one JSON line per scene");
   if (auto rc = cli::ParseOrExit(p, args, std::cout, std::cerr)) return *rc;
@@ -77,10 +81,16 @@ int MsmStep(const std::vector<std::string>& args) {
     std::cerr << p.command() << ": --tolerance: must be within 1e-12..0.1\n";
     return 2;
   }
-  char method[64];
-  std::snprintf(method, sizeof method, "implicit Euler, CG %g", tolerance);
+  const double floor = p.Double("energy-floor");
+  if (!(floor >= 0 && floor <= 1)) {
+    std::cerr << p.command() << ": --energy-floor: must be within 0..1 J\n";
+    return 2;
+  }
+  char method[96];
+  std::snprintf(method, sizeof method, "implicit Euler, CG %g%s", tolerance,
+                floor > 0 ? "" : ", no energy floor");
   for (int which : {1, 2}) {
-    MsmScene s = MakeMsmScene(which, tissue::Integrator::kImplicitEuler, tolerance);
+    MsmScene s = MakeMsmScene(which, tissue::Integrator::kImplicitEuler, tolerance, floor);
     if (p.Has("export")) {
       std::filesystem::create_directories(p.String("export"));
       const std::string path = p.String("export") + "/" + MsmSceneName(which) + ".msm";
