@@ -21,6 +21,24 @@ bool Finite(double v) {
   return std::isfinite(v);
 }
 
+// F = Ds·Dm⁻¹ of the triangle with corners `v` at `x`.
+Mat32 DeformationGradient(const std::array<int32_t, 3>& v, const Eigen::Matrix2d& dm_inv,
+                          const std::vector<Vec3>& x) {
+  Mat32 ds;
+  ds.col(0) = x[v[1]] - x[v[0]];
+  ds.col(1) = x[v[2]] - x[v[0]];
+  return ds * dm_inv;
+}
+
+Eigen::Matrix2d GreenStrain(const Mat32& f) {
+  return 0.5 * (f.transpose() * f - Eigen::Matrix2d::Identity());
+}
+
+// S = λ*·tr(E)·I + 2μ·E; linear, so it also maps a strain's change dE to the stress's dS.
+Eigen::Matrix2d Stress(double lambda, double mu, const Eigen::Matrix2d& strain) {
+  return lambda * strain.trace() * Eigen::Matrix2d::Identity() + 2 * mu * strain;
+}
+
 }  // namespace
 
 Status CheckMembraneFem(const MembraneFemParams& p) {
@@ -38,12 +56,9 @@ Status CheckMembraneFem(const MembraneFemParams& p) {
 MembraneMesh MeshOf(const CutMembrane& patch) {
   MembraneMesh m;
   const int n = static_cast<int>(patch.positions().size());
-  const double hx = 0.5 * patch.params().size_x, hy = 0.5 * patch.params().size_y;
-  const double eps = 1e-9 * patch.EdgeLength();
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector2d r = patch.Rest(i);
-    m.rest.push_back(r);
-    m.fixed.push_back(std::abs(r.x()) >= hx - eps || std::abs(r.y()) >= hy - eps);
+    m.rest.push_back(patch.Rest(i));
+    m.fixed.push_back(patch.OnFrame(i));
   }
   for (int f = 0; f < patch.FaceCount(); ++f)
     if (!patch.Removed(f)) m.faces.push_back(patch.face(f).v);
@@ -104,23 +119,14 @@ double MembraneFem::Tension() const {
 }
 
 double MembraneFem::ElementEnergy(const Element& e, const std::vector<Vec3>& x) const {
-  Mat32 ds;
-  ds.col(0) = x[e.v[1]] - x[e.v[0]];
-  ds.col(1) = x[e.v[2]] - x[e.v[0]];
-  const Mat32 f = ds * e.dm_inv;
-  const Eigen::Matrix2d strain = 0.5 * (f.transpose() * f - Eigen::Matrix2d::Identity());
+  const Eigen::Matrix2d strain = GreenStrain(DeformationGradient(e.v, e.dm_inv, x));
   const double tr = strain.trace();
   return e.volume * (mu_ * strain.squaredNorm() + 0.5 * lambda_ * tr * tr);
 }
 
 Eigen::Matrix3d MembraneFem::ElementGradient(const Element& e) const {
-  Mat32 ds;
-  ds.col(0) = x_[e.v[1]] - x_[e.v[0]];
-  ds.col(1) = x_[e.v[2]] - x_[e.v[0]];
-  const Mat32 f = ds * e.dm_inv;
-  const Eigen::Matrix2d strain = 0.5 * (f.transpose() * f - Eigen::Matrix2d::Identity());
-  const Eigen::Matrix2d s =
-      lambda_ * strain.trace() * Eigen::Matrix2d::Identity() + 2 * mu_ * strain;
+  const Mat32 f = DeformationGradient(e.v, e.dm_inv, x_);
+  const Eigen::Matrix2d s = Stress(lambda_, mu_, GreenStrain(f));
   const Mat32 h = e.volume * f * s * e.dm_inv.transpose();  // ∂W/∂Ds
   Eigen::Matrix3d g;
   g.col(1) = h.col(0);
@@ -132,13 +138,8 @@ Eigen::Matrix3d MembraneFem::ElementGradient(const Element& e) const {
 // Column (3a + c) is the change of every ∂W/∂x_k for a unit move of vertex a along axis c:
 // dDs, dF = dDs·Dm⁻¹, dE = ½(dFᵀF + FᵀdF), dS = λ*·tr(dE)·I + 2μ·dE, dP = dF·S + F·dS.
 Eigen::Matrix<double, 9, 9> MembraneFem::ElementHessian(const Element& e) const {
-  Mat32 ds;
-  ds.col(0) = x_[e.v[1]] - x_[e.v[0]];
-  ds.col(1) = x_[e.v[2]] - x_[e.v[0]];
-  const Mat32 f = ds * e.dm_inv;
-  const Eigen::Matrix2d strain = 0.5 * (f.transpose() * f - Eigen::Matrix2d::Identity());
-  const Eigen::Matrix2d s =
-      lambda_ * strain.trace() * Eigen::Matrix2d::Identity() + 2 * mu_ * strain;
+  const Mat32 f = DeformationGradient(e.v, e.dm_inv, x_);
+  const Eigen::Matrix2d s = Stress(lambda_, mu_, GreenStrain(f));
   Eigen::Matrix<double, 9, 9> k;
   for (int a = 0; a < 3; ++a) {
     for (int c = 0; c < 3; ++c) {
@@ -147,7 +148,7 @@ Eigen::Matrix<double, 9, 9> MembraneFem::ElementHessian(const Element& e) const 
       if (a > 0) dds(c, a - 1) = 1;
       const Mat32 df = dds * e.dm_inv;
       const Eigen::Matrix2d de = 0.5 * (df.transpose() * f + f.transpose() * df);
-      const Eigen::Matrix2d dse = lambda_ * de.trace() * Eigen::Matrix2d::Identity() + 2 * mu_ * de;
+      const Eigen::Matrix2d dse = Stress(lambda_, mu_, de);
       const Mat32 dh = e.volume * (df * s + f * dse) * e.dm_inv.transpose();
       k.block<3, 1>(3, 3 * a + c) = dh.col(0);
       k.block<3, 1>(6, 3 * a + c) = dh.col(1);
