@@ -121,6 +121,8 @@ class CutMembrane {
   Vec2 Rest(int particle) const;
   // The original node a particle is a copy of.
   int NodeOf(int particle) const { return node_of_[particle]; }
+  // Whether the frame holds the particle (its node is on the rim).
+  bool OnFrame(int particle) const { return node_fixed_[node_of_[particle]]; }
 
   // The cut so far: its edges (pairs of nodes), in the order they were cut.
   const std::vector<std::array<int32_t, 2>>& cut_edges() const { return cut_; }
