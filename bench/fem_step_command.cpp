@@ -77,13 +77,17 @@ Status Export(const Bar& bar, const tissue::FemParams& p, double dt, const std::
 
 int FemStep(const std::vector<std::string>& args) {
   cli::ArgParser p("vsurg-bench fem-step",
-                   "One corotational implicit FEM step (h = 1 ms, one Newton step, block-Jacobi "
-                   "CG warm-started) on the twisted bar of BM_FemStep, timed over --steps steps "
+                   "One corotational implicit FEM step (h = 1 ms, one Newton step, CG "
+                   "warm-started) on the twisted bar of BM_FemStep, timed over --steps steps "
                    "after 20 in motion.");
   p.Option("rings", cli::ArgParser::Kind::kInt, "rings of the bar (4: 5760 tets, 5: 11250)", false,
            "5")
       .Option("steps", cli::ArgParser::Kind::kInt, "timed steps", false, "50")
       .Option("tolerance", cli::ArgParser::Kind::kDouble, "CG relative residual", false, "1e-4")
+      .Option("preconditioner", cli::ArgParser::Kind::kString,
+              "the CG's preconditioner: gauss-seidel (symmetric block Gauss-Seidel) or jacobi "
+              "(block Jacobi)",
+              false, "gauss-seidel")
       .Option("export", cli::ArgParser::Kind::kString,
               "write the bar, its fixed vertices, tip forces and settings into this folder for a "
               "peer (bench/peers/fem.sh) and exit")
@@ -99,10 +103,15 @@ int FemStep(const std::vector<std::string>& args) {
   if (steps < 1 || steps > 100000) return std::cerr << p.command() << ": --steps: 1..100000\n", 2;
   if (!(tolerance > 0 && tolerance < 1))
     return std::cerr << p.command() << ": --tolerance: must be in (0, 1)\n", 2;
+  const std::string preconditioner = p.String("preconditioner");
+  if (preconditioner != "gauss-seidel" && preconditioner != "jacobi")
+    return std::cerr << p.command() << ": --preconditioner: gauss-seidel or jacobi\n", 2;
   auto bar = MakeBar(rings);
   if (!bar.ok()) return std::cerr << bar.error().message << "\n", 1;
   tissue::FemParams params;
   params.cg_tolerance = tolerance;
+  params.preconditioner = preconditioner == "jacobi" ? tissue::Preconditioner::kBlockJacobi
+                                                     : tissue::Preconditioner::kGaussSeidel;
   constexpr double kDt = 1e-3;
   if (p.Has("export")) {
     if (Status s = Export(*bar, params, kDt, p.String("export")); !s.ok())
@@ -133,6 +142,7 @@ int FemStep(const std::vector<std::string>& args) {
                       {"tets", fem->TetCount()},
                       {"steps", steps},
                       {"tolerance", tolerance},
+                      {"preconditioner", preconditioner},
                       {"ms_median", ms[ms.size() / 2]},
                       {"ms_min", ms.front()},
                       {"cg_iterations", static_cast<double>(iterations) / steps},
@@ -141,9 +151,9 @@ int FemStep(const std::vector<std::string>& args) {
     std::cout << j.dump() << "\n";
   } else {
     std::printf(
-        "vsurg: %d tets, %.3f ms per step (median of %d), %.1f CG iterations, tolerance %g\n",
+        "vsurg: %d tets, %.3f ms per step (median of %d), %.1f CG iterations, tolerance %g, %s\n",
         fem->TetCount(), ms[ms.size() / 2], steps, static_cast<double>(iterations) / steps,
-        tolerance);
+        tolerance, preconditioner.c_str());
   }
   return 0;
 }

@@ -13,6 +13,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 
+#include "common/tissue/block_cg.h"
 #include "common/tissue/extrapolation.h"
 #include "common/tissue/simd.h"
 
@@ -33,7 +34,8 @@ using Mat3 = Eigen::Matrix3d;
 // (q ← q + ½·(0, ω)·q, then normalised), saving the sine and cosine of the axis–angle form.
 // `r` receives q's matrix (the one the last iteration tested, when it converged: no second
 // conversion).
-void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations, Mat3& r) {
+[[gnu::always_inline]] inline void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q,
+                                                   int max_iterations, Mat3& r) {
   for (int it = 0; it < max_iterations; ++it) {
     r = q.toRotationMatrix();
     const Vec3 g = r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) + r.col(2).cross(a.col(2));
@@ -43,9 +45,8 @@ void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations, M
     h.diagonal().array() += tr;
     // Positive definite (Sylvester): Newton; otherwise Müller's scalar step.
     const double minor2 = h(0, 0) * h(1, 1) - h(0, 1) * h(1, 0), det = h.determinant();
-    const Vec3 omega = tr > 0 && h(0, 0) > 0 && minor2 > 0 && det > 1e-12 * tr * tr * tr
-                           ? Vec3(h.inverse() * g)
-                           : Vec3(g * (1.0 / (std::abs(tr) + 1e-9)));
+    const bool newton = tr > 0 && h(0, 0) > 0 && minor2 > 0 && det > 1e-12 * tr * tr * tr;
+    const Vec3 omega = newton ? Vec3(h.inverse() * g) : Vec3(g * (1.0 / (std::abs(tr) + 1e-9)));
     const double w = omega.norm();
     if (!(w > 1e-6)) return;  // converged (1e-6 rad); also stops on a non-finite input
     if (w < 1e-2) {
@@ -55,37 +56,11 @@ void ExtractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_iterations, M
       q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * q;
     }
     q.normalize();
+    // Newton's error after a step of w is of order w² (its convergence is quadratic): below
+    // 1e-3 rad the next step would be below the 1e-6 rad test, so q is taken untested.
+    if (newton && w < 1e-3) break;
   }
-  r = q.toRotationMatrix();  // the iteration limit: the last update untested
-}
-
-// y_i = c_m·m_i·x_i + c_k·Σ_k B_k·x_col[k] over the block CSR, fixed rows 0: each 3×3 block
-// (column-major, 9 doubles) is three column loads and three multiply-adds of four lanes (the
-// fourth reads the next block's first entry and is dropped; the array has one block of padding
-// past its last).
-VSURG_SIMD_CLONES
-void BlockProduct(int nv, double c_m, double c_k, const int* row_start, const int* col,
-                  const double* blocks, const double* mass, const uint8_t* is_fixed,
-                  const double* in, double* out) {
-  using simd::V4;
-  for (int i = 0; i < nv; ++i) {
-    double* o = out + 3 * i;
-    if (is_fixed[i]) {
-      o[0] = o[1] = o[2] = 0.0;
-      continue;
-    }
-    V4 acc{};
-    for (int k = row_start[i]; k < row_start[i + 1]; ++k) {
-      const double* b = blocks + 9 * static_cast<ptrdiff_t>(k);
-      const double* x = in + 3 * col[k];
-      V4 c0, c1, c2;
-      simd::Load(c0, b), simd::Load(c1, b + 3), simd::Load(c2, b + 6);
-      acc += c0 * x[0] + c1 * x[1] + c2 * x[2];
-    }
-    const double* x = in + 3 * i;
-    const double cm = c_m * mass[i];
-    for (int c = 0; c < 3; ++c) o[c] = cm * x[c] + c_k * acc[c];
-  }
+  r = q.toRotationMatrix();  // the last update untested (converged, or the iteration limit)
 }
 
 }  // namespace
@@ -109,19 +84,19 @@ struct FemModel::Impl {
   std::vector<Mat3> blocks;  // K (corotated), assembled each step; one block of padding at the end
   std::vector<int> diag_slot;             // slot of (r, r)
   std::vector<std::array<int, 16>> slot;  // element (a, b) → block index
-  // CG scratch.
-  std::vector<Vec3> dv, rhs, r, z, p, ap, tmp;
+  std::vector<Vec3> dv, rhs, tmp;
+  BlockCg cg;
   // The last four steps' Δv, history[newest] the newest (rotating), and the degree of the next
   // step's first guess (extrapolation.h).
   std::array<std::vector<Vec3>, 4> history;
   int newest = 0, extrapolation = 1;
-  std::vector<Mat3> precond;
   int inverted = 0;
 
   int n() const { return static_cast<int>(x.size()); }
 
   // `iterations`: the rotation iteration's limit; warm-started, a dynamic step usually needs one
   // or two, a sudden large rotation more.
+  VSURG_SIMD_CLONES
   void UpdateRotations(int iterations = 20) {
     inverted = 0;
     const int te = static_cast<int>(rest.tetrahedra.size());
@@ -204,67 +179,21 @@ struct FemModel::Impl {
   void Forces(std::vector<Vec3>& out) { ForcesAndStiffness(out, false); }
   void Assemble() { ForcesAndStiffness(tmp, true); }
 
+  // A = c_m·M + c_k·K over the block CSR (block_cg.h).
+  BlockMatrix Matrix(double c_m, double c_k) const {
+    return {n(),
+            c_m,
+            c_k,
+            row_start.data(),
+            col.data(),
+            diag_slot.data(),
+            blocks.data(),
+            mass.data(),
+            is_fixed.data()};
+  }
   // out = (c_m·M + c_k·K)·in on free vertices; fixed rows are zero.
   void Apply(double c_m, double c_k, const std::vector<Vec3>& in, std::vector<Vec3>& out) const {
-    static_assert(sizeof(Mat3) == 9 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double));
-    BlockProduct(n(), c_m, c_k, row_start.data(), col.data(), blocks.data()->data(), mass.data(),
-                 is_fixed.data(), in.data()->data(), out.data()->data());
-  }
-
-  // Block-Jacobi PCG on (c_m·M + c_k·K)·sol = b, warm-started from sol.
-  std::pair<int, double> Solve(double c_m, double c_k, const std::vector<Vec3>& b,
-                               std::vector<Vec3>& sol) {
-    const int nv = n();
-    for (int i = 0; i < nv; ++i) {
-      if (is_fixed[i]) {
-        precond[i].setZero();
-        sol[i].setZero();
-        continue;
-      }
-      const Mat3 d = c_m * mass[i] * Mat3::Identity() + c_k * blocks[diag_slot[i]];
-      precond[i] = d.inverse();
-      if (!precond[i].allFinite()) precond[i] = Mat3::Identity() / std::max(1e-12, d.trace() / 3);
-    }
-    double bnorm = 0;
-    for (int i = 0; i < nv; ++i)
-      if (!is_fixed[i]) bnorm += b[i].squaredNorm();
-    bnorm = std::sqrt(bnorm);
-    if (!(bnorm > 0)) {
-      std::fill(sol.begin(), sol.end(), Vec3::Zero());
-      return {0, 0.0};
-    }
-    Apply(c_m, c_k, sol, ap);
-    double rz = 0;
-    for (int i = 0; i < nv; ++i) {
-      r[i] = is_fixed[i] ? Vec3::Zero() : Vec3(b[i] - ap[i]);
-      z[i] = precond[i] * r[i];
-      p[i] = z[i];
-      rz += r[i].dot(z[i]);
-    }
-    int it = 0;
-    double rel = 1;
-    for (; it < params.max_cg_iterations; ++it) {
-      double rn = 0;
-      for (int i = 0; i < nv; ++i) rn += r[i].squaredNorm();
-      rel = std::sqrt(rn) / bnorm;
-      if (rel < params.cg_tolerance) break;
-      Apply(c_m, c_k, p, ap);
-      double pap = 0;
-      for (int i = 0; i < nv; ++i) pap += p[i].dot(ap[i]);
-      if (!(pap > 0)) break;  // not positive definite along p (should not happen): stop
-      const double alpha = rz / pap;
-      double rz_new = 0;
-      for (int i = 0; i < nv; ++i) {
-        sol[i] += alpha * p[i];
-        r[i] -= alpha * ap[i];
-        z[i] = precond[i] * r[i];
-        rz_new += r[i].dot(z[i]);
-      }
-      const double beta = rz_new / rz;
-      rz = rz_new;
-      for (int i = 0; i < nv; ++i) p[i] = z[i] + beta * p[i];
-    }
-    return {it, rel};
+    Multiply(Matrix(c_m, c_k), in, out);
   }
 };
 
@@ -356,7 +285,7 @@ Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemPara
     m.row_start[i + 1] = m.row_start[i] + static_cast<int>(row.size());
     m.col.insert(m.col.end(), row.begin(), row.end());
   }
-  m.blocks.assign(m.col.size() + 1, Mat3::Zero());  // + BlockProduct's padding
+  m.blocks.assign(m.col.size() + 1, Mat3::Zero());  // + the block product's padding
   auto find_slot = [&](int r, int c) {
     const auto first = m.col.begin() + m.row_start[r], last = m.col.begin() + m.row_start[r + 1];
     return static_cast<int>(std::lower_bound(first, last, c) - m.col.begin());
@@ -368,10 +297,10 @@ Expected<FemModel> FemModel::Create(const geometry::TetMesh& mesh, const FemPara
     for (int a = 0; a < 4; ++a)
       for (int b = 0; b < 4; ++b)
         m.slot[e][a * 4 + b] = find_slot(mesh.tetrahedra[e][a], mesh.tetrahedra[e][b]);
-  for (auto* s : {&m.dv, &m.rhs, &m.r, &m.z, &m.p, &m.ap, &m.tmp, &m.history[0], &m.history[1],
-                  &m.history[2], &m.history[3]})
+  for (auto* s :
+       {&m.dv, &m.rhs, &m.tmp, &m.history[0], &m.history[1], &m.history[2], &m.history[3]})
     s->assign(nv, Vec3::Zero());
-  m.precond.assign(nv, Mat3::Identity());
+  m.cg.Resize(nv);
   return FemModel(std::move(impl));
 }
 
@@ -423,10 +352,12 @@ FemStepStats FemModel::StepImplicit(double h) {
     }
     m.extrapolation = BestDegree(miss[0], miss[1], miss[2], m.params.cg_extrapolation);
   }
-  const auto [iterations, residual] = m.Solve(1.0 + h * alpha, h * beta + h * h, m.rhs, m.dv);
-  stats.cg_iterations = iterations;
-  stats.residual = residual;
-  stats.converged = residual < m.params.cg_tolerance;
+  const CgResult cg =
+      m.cg.Solve(m.Matrix(1.0 + h * alpha, h * beta + h * h), m.params.preconditioner, m.rhs, m.dv,
+                 m.params.max_cg_iterations, m.params.cg_tolerance);
+  stats.cg_iterations = cg.iterations;
+  stats.residual = cg.residual;
+  stats.converged = cg.residual < m.params.cg_tolerance;
   bool finite = true;
   for (int i = 0; i < nv; ++i) finite = finite && m.dv[i].allFinite();
   if (!finite) {  // never let a NaN into the state: drop this step's change

@@ -20,8 +20,9 @@
 // Implicit Euler, linearised (one Newton step, Baraff & Witkin 1998):
 //   (M + h·D + h²·K)·Δv = h·(f(x) + f_ext − D·v − h·K·v),  v ← v + Δv,  x ← x + h·v.
 // The matrix is assembled each step into a block-CSR of 3×3 blocks whose pattern and element →
-// slot map are precomputed, then solved by block-Jacobi preconditioned CG started from Δv
-// extrapolated from the last two steps'. Fixed vertices are Dirichlet: their rows are projected out
+// slot map are precomputed, then solved by CG preconditioned by symmetric block Gauss–Seidel in
+// Eisenstat's form (block_cg.h; block Jacobi on request) started from Δv extrapolated from the
+// last steps'. Fixed vertices are Dirichlet: their rows are projected out
 // of the CG.
 //
 // Static: K(x)·Δx = f(x) + f_ext, repeated (corotated quasi-Newton) until the residual is below
@@ -39,6 +40,7 @@
 
 #include "common/core/expected.h"
 #include "common/geometry/mesh.h"
+#include "common/tissue/block_cg.h"
 
 namespace vsurg::tissue {
 
@@ -62,6 +64,9 @@ struct FemParams {
   // strain; DESIGN.md "The FEM against Hertz's contact").
   bool nodal_volume = false;
   int max_cg_iterations = 400;
+  // Symmetric block Gauss–Seidel: about half block Jacobi's iterations at the same cost each
+  // (docs/BENCHMARKS.md, the FEM step against VegaFEM's).
+  Preconditioner preconditioner = Preconditioner::kGaussSeidel;
   double cg_tolerance = 1e-4;  // relative residual ‖r‖/‖b‖ of each step's Δv
   // Highest degree (1 to 3) of the extrapolation from the last steps' Δv that starts each
   // step's CG; each step takes the degree that guessed the last step best (extrapolation.h).

@@ -355,5 +355,35 @@ TEST(FemTest, FirstGuessDegreeFollowsTheDriveAndLeavesTheSolutionUnchanged) {
     EXPECT_LT((linear.fem.positions()[i] - adaptive.fem.positions()[i]).norm(), 1e-9) << i;
 }
 
+// The step's CG preconditioned by symmetric block Gauss–Seidel and by block Jacobi: the same bar,
+// twisted to and fro, to the same state; Gauss–Seidel in under 0.55 of the iterations (0.38
+// measured).
+TEST(FemTest, GaussSeidelAndJacobiStepTheBarAlikeAndGaussSeidelInFewerIterations) {
+  auto run = [](Preconditioner preconditioner, long* iterations) {
+    FemParams p = Tissue(0.45);
+    p.cg_tolerance = 1e-10;
+    p.preconditioner = preconditioner;
+    Bar bar = MakeBar(0.02, 0.1, 3, 10, p);
+    *iterations = 0;
+    for (int k = 0; k < 200; ++k) {
+      const double torque = 4e-3 * std::sin(0.05 * k);  // N·m
+      const auto f = TorqueNodalForces(bar.fem.positions(), bar.cylinder.tip, bar.cylinder.tip_area,
+                                       Vec3(0, 0, 0.1), Vec3::UnitZ(), torque);
+      for (size_t i = 0; i < f.size(); ++i) bar.fem.SetExternalForce(bar.cylinder.tip[i], f[i]);
+      const FemStepStats s = bar.fem.StepImplicit(1e-3);
+      EXPECT_TRUE(s.converged) << k;
+      *iterations += s.cg_iterations;
+    }
+    return bar;
+  };
+  long jacobi_its = 0, gauss_its = 0;
+  const Bar jacobi = run(Preconditioner::kBlockJacobi, &jacobi_its);
+  const Bar gauss = run(Preconditioner::kGaussSeidel, &gauss_its);
+  EXPECT_GT(std::abs(LayerTwist(jacobi, 10)), 1e-3);
+  EXPECT_LT(gauss_its, 0.55 * jacobi_its) << gauss_its << " vs " << jacobi_its;
+  for (size_t i = 0; i < jacobi.fem.positions().size(); ++i)
+    EXPECT_LT((jacobi.fem.positions()[i] - gauss.fem.positions()[i]).norm(), 1e-9) << i;
+}
+
 }  // namespace
 }  // namespace vsurg::tissue
