@@ -1,7 +1,7 @@
 // FEM micro-benchmarks: one corotational implicit Euler step (h = 1 ms,
-// warm-started block-Jacobi CG, tolerance 1e-4) on a twisted bar of 5760 and 11250 tetrahedra —
-// the sizes VegaFEM reports 64 ms and 158 ms per step for — and the coil deformation of the
-// default arm in the same run.
+// warm-started CG, symmetric block Gauss-Seidel, tolerance 1e-4) on a twisted bar of 5760 and 11250
+// tetrahedra — the sizes VegaFEM reports 64 ms and 158 ms per step for — and the coil deformation
+// of the default arm in the same run.
 //
 //   build/bin/vsurg-microbench --benchmark_filter='FemStep|CoilDeformArm/207'
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true   (one line)

@@ -64,7 +64,7 @@ struct FemParams {
   // strain; DESIGN.md "The FEM against Hertz's contact").
   bool nodal_volume = false;
   int max_cg_iterations = 400;
-  // Symmetric block Gauss–Seidel: about half block Jacobi's iterations at the same cost each
+  // Symmetric block Gauss–Seidel: 0.4× block Jacobi's iterations at about the same cost each
   // (docs/BENCHMARKS.md, the FEM step against VegaFEM's).
   Preconditioner preconditioner = Preconditioner::kGaussSeidel;
   double cg_tolerance = 1e-4;  // relative residual ‖r‖/‖b‖ of each step's Δv
