@@ -34,21 +34,57 @@ struct Law {
   }
 };
 
-// ψ(F) per rest volume, Pa; +∞ for J ≤ 0.
+// The law's volumetric terms g(J) = −a·ln J + (c/2)·(ln J)² (a = μ, c = λ per element; a = 0,
+// c = λ at the vertices), continued below kInvertedJ by their second-order Taylor expansion
+// there: finite for a flat or inverted element (J ≤ 0), C² at the join, and falling as J rises
+// (g' < 0 below it), so an inverted element is pushed back towards positive volume.
+struct LogTerms {
+  static constexpr double kInvertedJ = 0.1;
+  double a, c;
+  double Value(double j) const {
+    if (j >= kInvertedJ) {
+      const double l = std::log(j);
+      return -a * l + 0.5 * c * l * l;
+    }
+    const double d = j - kInvertedJ;
+    return Value(kInvertedJ) + First(kInvertedJ) * d + 0.5 * Second(kInvertedJ) * d * d;
+  }
+  double First(double j) const {  // g'(J), Pa
+    if (j >= kInvertedJ) return (-a + c * std::log(j)) / j;
+    return First(kInvertedJ) + Second(kInvertedJ) * (j - kInvertedJ);
+  }
+  double Second(double j) const {  // g''(J), Pa
+    const double at = std::max(j, kInvertedJ);
+    return (a + c * (1 - std::log(at))) / (at * at);
+  }
+};
+
+// cof F = ∂J/∂F = J·F⁻ᵀ, defined for every F: its columns are f₂ × f₃, f₃ × f₁, f₁ × f₂.
+Mat3 Cofactor(const Mat3& f) {
+  Mat3 c;
+  c << f.col(1).cross(f.col(2)), f.col(2).cross(f.col(0)), f.col(0).cross(f.col(1));
+  return c;
+}
+// Its change along dF.
+Mat3 CofactorChange(const Mat3& f, const Mat3& df) {
+  Mat3 c;
+  c << df.col(1).cross(f.col(2)) + f.col(1).cross(df.col(2)),
+      df.col(2).cross(f.col(0)) + f.col(2).cross(df.col(0)),
+      df.col(0).cross(f.col(1)) + f.col(0).cross(df.col(1));
+  return c;
+}
+
+// ψ(F) per rest volume, Pa: the isochoric part and g(J).
 double Density(const Mat3& f, const Law& m) {
-  const double j = f.determinant();
-  if (!(j > 0)) return kInf;
-  const double ln_j = std::log(j);
   const double i1 = (f.transpose() * f).trace();
   const double isochoric =
       m.b > 0 ? m.mu / (2 * m.b) * std::expm1(m.b * (i1 - 3)) : 0.5 * m.mu * (i1 - 3);
-  return isochoric - m.mu * ln_j + 0.5 * m.lambda * ln_j * ln_j;
+  return isochoric + LogTerms{m.mu, m.lambda}.Value(f.determinant());
 }
 
-// P(F) = μ·e·F − μ·F⁻ᵀ + λ·ln J·F⁻ᵀ.
+// P(F) = μ·e·F + g'(J)·cof F (= μ·e·F − μ·F⁻ᵀ + λ·ln J·F⁻ᵀ for J ≥ kInvertedJ).
 Mat3 Stress(const Mat3& f, const Law& m) {
-  const Mat3 f_inv_t = f.inverse().transpose();
-  return m.mu * m.Factor(f) * f - m.mu * f_inv_t + m.lambda * std::log(f.determinant()) * f_inv_t;
+  return m.mu * m.Factor(f) * f + LogTerms{m.mu, m.lambda}.First(f.determinant()) * Cofactor(f);
 }
 
 // The element's nodal forces for a stress P: f_{1..3} = −V·P·Dm⁻ᵀ, f_0 = −Σ.
@@ -132,7 +168,7 @@ bool HyperelasticFem::NodalJacobians(const std::vector<Vec3>& x, std::vector<dou
   j.assign(x.size(), 0.0);
   for (const Element& e : elements_) {
     const double je = Deformation(e, x).determinant();
-    if (!(je > 0)) return false;
+    if (!std::isfinite(je)) return false;
     for (int v : e.v) j[v] += e.volume * je / 4;
   }
   for (size_t v = 0; v < j.size(); ++v) j[v] = node_volume_[v] > 0 ? j[v] / node_volume_[v] : 1.0;
@@ -142,16 +178,14 @@ bool HyperelasticFem::NodalJacobians(const std::vector<Vec3>& x, std::vector<dou
 std::vector<double> HyperelasticFem::ElementPressures(const std::vector<double>& j) const {
   std::vector<double> out(elements_.size(), 0.0);
   for (size_t e = 0; e < elements_.size(); ++e)
-    for (int v : elements_[e].v) out[e] += 0.25 * lambda_ * std::log(j[v]) / j[v];
+    for (int v : elements_[e].v) out[e] += 0.25 * LogTerms{0, lambda_}.First(j[v]);
   return out;
 }
 
 double HyperelasticFem::NodalEnergy(const std::vector<double>& j) const {
   double energy = 0;
-  for (size_t v = 0; v < j.size(); ++v) {
-    const double ln_j = std::log(j[v]);
-    energy += node_volume_[v] * 0.5 * lambda_ * ln_j * ln_j;
-  }
+  for (size_t v = 0; v < j.size(); ++v)
+    energy += node_volume_[v] * LogTerms{0, lambda_}.Value(j[v]);
   return energy;
 }
 
@@ -168,7 +202,7 @@ void HyperelasticFem::NodalTangent(const std::vector<double>& j,
     for (int k = node_start_[n]; k < node_start_[n + 1]; ++k) {
       const Element& e = elements_[node_elements_[k]];
       const Mat3 f = Deformation(e, x_);
-      const auto dv = NodalForces(f.determinant() * f.inverse().transpose(), e.dm_inv, e.volume);
+      const auto dv = NodalForces(Cofactor(f), e.dm_inv, e.volume);
       for (int a = 0; a < 4; ++a) {
         const auto at = std::find(verts.begin(), verts.end(), e.v[a]) - verts.begin();
         if (at == static_cast<long>(verts.size()))
@@ -176,8 +210,7 @@ void HyperelasticFem::NodalTangent(const std::vector<double>& j,
         grad[at] -= dv[a] / (4 * node_volume_[n]);
       }
     }
-    const double ln_j = std::log(j[n]);
-    const double weight = node_volume_[n] * lambda_ * (1 - ln_j) / (j[n] * j[n]);
+    const double weight = node_volume_[n] * LogTerms{0, lambda_}.Second(j[n]);
     for (size_t a = 0; a < verts.size(); ++a)
       for (size_t b = 0; b < verts.size(); ++b) {
         const Mat3 block = weight * grad[a] * grad[b].transpose();
@@ -196,7 +229,7 @@ Eigen::VectorXd HyperelasticFem::InternalForces() const {
     const size_t i = &e - elements_.data();
     const Mat3 def = Deformation(e, x_);
     Mat3 p = ElementStress(i, def);
-    if (!pressure.empty()) p += pressure[i] * def.determinant() * def.inverse().transpose();
+    if (!pressure.empty()) p += pressure[i] * Cofactor(def);
     const auto nodal = NodalForces(p, e.dm_inv, e.volume);
     for (int a = 0; a < 4; ++a) f.segment<3>(3 * e.v[a]) += nodal[a];
   }
@@ -213,11 +246,11 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
   std::vector<double> j, pressure(elements_.size(), 0.0);
   if (nodal && NodalJacobians(x_, j)) pressure = ElementPressures(j);
   for (const Element& e : elements_) {
-    const Mat3 f = Deformation(e, x_);
-    const Mat3 f_inv = f.inverse(), f_inv_t = f_inv.transpose();
-    const double det = f.determinant(), ln_j = std::log(det);
-    const double factor = Law{mu_, lambda_, b_}.Factor(f);
-    const double pj = pressure[&e - elements_.data()] * det;  // p̄·J
+    // dP = μ·e·(dF + 2b·(F:dF)·F) + g''(J)·(cof F : dF)·cof F + (g'(J) + p̄)·d(cof F).
+    const Mat3 f = Deformation(e, x_), cof = Cofactor(f);
+    const LogTerms g{mu_, lambda};
+    const double det = f.determinant(), factor = Law{mu_, lambda_, b_}.Factor(f);
+    const double g2 = g.Second(det), g1 = g.First(det) + pressure[&e - elements_.data()];
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c) {
         Mat3 d_ds = Mat3::Zero();
@@ -227,8 +260,7 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
           d_ds(c, a - 1) = 1;
         const Mat3 df = d_ds * e.dm_inv;
         Mat3 dp = mu_ * factor * (df + 2 * b_ * (f.array() * df.array()).sum() * f) +
-                  (mu_ - lambda * ln_j - pj) * f_inv_t * df.transpose() * f_inv_t +
-                  (lambda + pj) * (f_inv * df).trace() * f_inv_t;
+                  g2 * (cof.array() * df.array()).sum() * cof + g1 * CofactorChange(f, df);
         if (!s_hist_.empty()) dp = scale_ * dp + df * s_hist_[&e - elements_.data()];
         const auto dforces = NodalForces(dp, e.dm_inv, e.volume);
         for (int b = 0; b < 4; ++b)
@@ -360,7 +392,7 @@ HyperelasticSolve HyperelasticFem::SolveStatic(int max_iterations, double tolera
         solver(k);
     Eigen::VectorXd d = solver.info() == Eigen::Success ? solver.solve(r) : r;
     if (!(d.allFinite() && r.dot(d) > 0)) d = r;  // not a descent: the steepest one
-    // Backtracking on the potential (Armijo), never into an inverted element.
+    // Backtracking on the potential (Armijo); an inverted element pays the continued g(J).
     const double p0 = Potential(x_), slope = r.dot(d);
     bool accepted = false;
     for (double alpha = 1; alpha > 1e-12 && !accepted; alpha *= 0.5) {

@@ -13,7 +13,8 @@
 // With e = e^{b(I1−3)} (1 for neo-Hookean), the first Piola–Kirchhoff stress
 //   P = ∂ψ/∂F = μ·e·F − μ·F⁻ᵀ + λ·ln J·F⁻ᵀ,
 // the nodal forces f_{1..3} = −V·P·Dm⁻ᵀ (columns), f_0 = −(f_1 + f_2 + f_3), and the exact tangent
-//   dP = μ·e·(dF + 2b·(F:dF)·F) + (μ − λ·ln J)·F⁻ᵀ·dFᵀ·F⁻ᵀ + λ·tr(F⁻¹dF)·F⁻ᵀ.
+//   dP = μ·e·(dF + 2b·(F:dF)·F) + (μ − λ·ln J)·F⁻ᵀ·dFᵀ·F⁻ᵀ + λ·tr(F⁻¹dF)·F⁻ᵀ
+//      = μ·e·(dF + 2b·(F:dF)·F) + g''(J)·(cof F : dF)·cof F + g'(J)·d(cof F)  (g below).
 // Units: m, Pa, N, J, s.
 //
 // Viscoelasticity (Fung's quasi-linear viscoelasticity): the second Piola–Kirchhoff stress is the
@@ -38,11 +39,21 @@
 // the motions can meet: the mesh does not lock (HyperelasticTest: Rivlin's torsion at ν = 0.499).
 // A uniform deformation gives every J_n = J_e: the two forms agree there.
 //
+// Inversion (what Irving, Teran & Fedkiw 2004 make an element survive): ln J has no value for a
+// flat or inverted element, so the volumetric terms g(J) = −μ·ln J + λ/2·(ln J)² (and λ/2·(ln J_n)²
+// at the vertices) are continued below J_c = 0.1 by their second-order Taylor expansion there,
+//   g(J) = g(J_c) + g'(J_c)·(J − J_c) + ½·g''(J_c)·(J − J_c)²,
+// with P = μ·e·F + g'(J)·cof F (cof F = ∂J/∂F, defined for every F). Unlike Irving's clamped
+// singular values, which give a force but no energy, this keeps one energy, so the Newton solve
+// and its line search work through inverted states: finite, C², and g' < 0 below J_c, so the
+// energy falls as an inverted element turns back. No tissue is compressed to a tenth of its
+// volume, so the law is unchanged wherever it describes tissue.
+//
 // The static solve is Newton's method on the total potential (strain energy less the external
-// forces' work) with a backtracking line search: a step is halved until the potential falls and
-// no element inverts (ψ → ∞ as J → 0⁺, so an inverted configuration is never accepted); a Newton
-// direction that does not descend (the tangent indefinite far from equilibrium) is replaced by
-// the steepest descent. Constraints are per coordinate: a vertex's x, y or z held at a value.
+// forces' work) with a backtracking line search: a step is halved until the potential falls; a
+// Newton direction that does not descend (the tangent indefinite far from equilibrium) is
+// replaced by the steepest descent. Constraints are per coordinate: a vertex's x, y or z held at a
+// value.
 #pragma once
 
 #include <Eigen/Core>
@@ -84,7 +95,7 @@ class HyperelasticFem {
   void SetExternalForce(int vertex, const Eigen::Vector3d& f);  // N
   void SetPositions(const std::vector<Eigen::Vector3d>& x);     // m; a state to evaluate
 
-  double StrainEnergy() const;  // J; +∞ when an element is inverted or flat
+  double StrainEnergy() const;  // J; finite for inverted elements too (the continued g(J))
   // −∂E/∂x, N per coordinate (3 per vertex); on held coordinates the negative reaction.
   Eigen::VectorXd InternalForces() const;
   Eigen::SparseMatrix<double> Tangent() const;  // ∂²E/∂x², N/m, symmetric

@@ -1,7 +1,7 @@
 // The neo-Hookean reference (common/tissue/hyperelastic.h): its invariants (nothing at rest or
 // under a rigid rotation, forces the energy's exact gradient, the tangent the forces' exact
 // derivative), uniaxial stretch and compression against the closed form of a compressible
-// neo-Hookean bar, near incompressibility, and the refusals.
+// neo-Hookean bar, near incompressibility, an element pushed inside out, and the refusals.
 #include "common/tissue/hyperelastic.h"
 
 #include <gtest/gtest.h>
@@ -265,18 +265,79 @@ TEST(HyperelasticTest, BadMaterialsAndElementsAreRefusedByName) {
   geometry::TetMesh flipped = bar.mesh;
   std::swap(flipped.tetrahedra[3][0], flipped.tetrahedra[3][1]);
   EXPECT_EQ(HyperelasticFem::Create(flipped, {1e4, 0.3}).error().field.rfind("tetrahedra", 0), 0u);
-  // An inverted state has infinite energy: no solve ever accepts one.
-  auto fem = HyperelasticFem::Create(bar.mesh, {1e4, 0.3}).value();
-  std::vector<Vec3> x = bar.mesh.positions;
-  for (Vec3& p : x) p.z() = -p.z();
-  fem.SetPositions(x);
-  EXPECT_FALSE(std::isfinite(fem.StrainEnergy()));
-  auto nodal = HyperelasticFem::Create(bar.mesh, {1e4, 0.3, 0, true}).value();
-  nodal.SetPositions(x);
-  EXPECT_FALSE(std::isfinite(nodal.StrainEnergy()));
   // The relaxation's history is per element: not with the volume at the vertices.
+  auto nodal = HyperelasticFem::Create(bar.mesh, {1e4, 0.3, 0, true}).value();
   EXPECT_EQ(nodal.SetRelaxation({{0.3, 1.0}}).error().field, "relaxation");
   EXPECT_TRUE(nodal.SetRelaxation({}).ok());
+}
+
+// One tetrahedron, its apex pushed down through its base and beyond (J from 1 through 0 to −0.5):
+// the energy stays finite and falls as the apex rises, the apex is always pushed up, the forces
+// and the tangent stay the energy's exact derivatives in the inverted state, and a solve from it
+// (the base held) brings the apex back to rest; for both volume forms, ν up to 0.499. The bar
+// turned inside out (every element inverted) has a finite energy too.
+TEST(HyperelasticTest, AnElementPushedInsideOutIsPushedBackAndTheSolveUntanglesIt) {
+  const double h = 0.01;  // m
+  geometry::TetMesh tet;
+  tet.positions = {Vec3(0, 0, 0), Vec3(h, 0, 0), Vec3(0, h, 0), Vec3(0.2 * h, 0.2 * h, h)};
+  tet.tetrahedra = {{0, 1, 2, 3}};
+  for (const auto& [nu, nodal] : {std::pair{0.3, false}, {0.499, false}, {0.45, true}}) {
+    SCOPED_TRACE("nu " + std::to_string(nu) + (nodal ? ", the volume at the vertices" : ""));
+    auto fem = HyperelasticFem::Create(tet, {30e3, nu, 0, nodal}).value();
+    std::vector<Vec3> x = tet.positions;
+    double last_energy = -1;
+    for (double z : {0.5, 0.1, 0.0, -0.2, -0.5}) {  // the apex's height, h
+      x[3].z() = z * h;
+      fem.SetPositions(x);
+      const double e = fem.StrainEnergy();
+      ASSERT_TRUE(std::isfinite(e)) << z;
+      EXPECT_GT(e, last_energy) << z << ": deeper in, more energy";
+      last_energy = e;
+      EXPECT_GT(fem.InternalForces()[11], 0) << z << ": the apex pushed up";
+    }
+    // Exact derivatives in the inverted state (J = −0.3, the apex off its line).
+    x[3] = Vec3(0.25 * h, 0.15 * h, -0.3 * h);
+    fem.SetPositions(x);
+    const Eigen::VectorXd f = fem.InternalForces();
+    const Eigen::MatrixXd k(fem.Tangent());
+    EXPECT_LT((k - k.transpose()).lpNorm<Eigen::Infinity>(), 1e-9 * k.lpNorm<Eigen::Infinity>());
+    const double step = 1e-8;
+    for (int dof : {0, 4, 9, 10, 11}) {
+      std::vector<Vec3> plus = x, minus = x;
+      plus[dof / 3][dof % 3] += step;
+      minus[dof / 3][dof % 3] -= step;
+      fem.SetPositions(plus);
+      const double e_plus = fem.StrainEnergy();
+      const Eigen::VectorXd f_plus = fem.InternalForces();
+      fem.SetPositions(minus);
+      const double e_minus = fem.StrainEnergy();
+      const Eigen::VectorXd f_minus = fem.InternalForces();
+      EXPECT_NEAR(-(e_plus - e_minus) / (2 * step), f[dof], 1e-6 * f.lpNorm<Eigen::Infinity>())
+          << dof;
+      const Eigen::VectorXd column = -(f_plus - f_minus) / (2 * step);
+      EXPECT_LT((column - k.col(dof)).lpNorm<Eigen::Infinity>(), 1e-5 * k.lpNorm<Eigen::Infinity>())
+          << dof;
+    }
+    // From the inverted state back to rest, the base held.
+    fem.SetPositions(x);
+    for (int v = 0; v < 3; ++v)
+      for (int c = 0; c < 3; ++c) fem.Hold(v, c, tet.positions[v][c]);
+    const HyperelasticSolve solve = fem.SolveStatic(100, 1e-10);
+    ASSERT_TRUE(solve.converged) << solve.residual;
+    EXPECT_LT((fem.positions()[3] - tet.positions[3]).norm(), 1e-9);
+    std::printf("nu %.3f%s: inverted apex back at rest in %d Newton steps\n", nu,
+                nodal ? " (at the vertices)" : "", solve.iterations);
+  }
+  const auto bar = NeoHookeanBar();
+  for (bool nodal : {false, true}) {
+    auto fem = HyperelasticFem::Create(bar.mesh, {1e4, 0.3, 0, nodal}).value();
+    std::vector<Vec3> x = bar.mesh.positions;
+    for (Vec3& p : x) p.z() = -p.z();
+    fem.SetPositions(x);
+    EXPECT_TRUE(std::isfinite(fem.StrainEnergy())) << nodal;
+    EXPECT_GT(fem.StrainEnergy(), 0) << nodal;
+    EXPECT_TRUE(fem.InternalForces().allFinite()) << nodal;
+  }
 }
 
 }  // namespace
