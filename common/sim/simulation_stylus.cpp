@@ -265,8 +265,16 @@ void Simulation::ContactModel(const haptics::ProxyState& ps, double depth, Stylu
   haptics::LocalModel& local = step.cmd.local;
   local.kind = haptics::LocalModel::Kind::kContact;
   local.normal = ps.normal;
-  if (const haptics::ViscoelasticParams& v = viscoelastic_fit_.params();
-      model == HapticsSpec::ContactModel::kViscoelastic && v.ok()) {
+  // Until this contact's own fit stands (its first tens of milliseconds), the scene's calibrated
+  // law, which the station's surface renders the contact's first round trip with: a first
+  // answer without a tissue would be rendered as the proxy's spring alone from its sample, and a
+  // round trip into a tap that is millimetres (and a newton) too much.
+  const haptics::ViscoelasticParams v =
+      viscoelastic_fit_.params().ok()
+          ? viscoelastic_fit_.params()
+          : haptics::ViscoelasticParams{scene_.haptics.tissue_stiffness,
+                                        scene_.haptics.tissue_damping, 0};
+  if (model == HapticsSpec::ContactModel::kViscoelastic && v.ok()) {
     local.tissue_stiffness = v.stiffness;
     local.tissue_damping = v.damping;
     // The tissue's elastic force now: the force along the model's normal (the one the station
