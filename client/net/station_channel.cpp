@@ -359,6 +359,7 @@ struct StationChannel::Impl {
     uint64_t sequence = 0;
     bool fading = false;
     Vec3 last_tip = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // none yet
+    double surface_since = -1;  // station clock: when the surface's own contact began (-1: none)
     double rendered_peak = 0, rendered_over_limit = 0;  // this session's, reported uplink
     wire::StylusMessage m;
     SteadyTime::time_point loop_start = SteadyTime::now(), second_start = loop_start;
@@ -424,16 +425,40 @@ struct StationChannel::Impl {
       return b.force;
     }
     // The server's contact or grasp is the tissue as it is; a free answer is a round trip old,
-    // and the station's own surface (when it has one) says where the tissue begins now.
+    // and the station's own surface (when it has one) says where the tissue begins now. Except
+    // for an answer about the impact of a contact the station's own surface began, older than the
+    // impact itself (OwnImpact): the station keeps rendering that contact.
+    if (answer.contact && OwnImpact(v, l, s.time) && v.surface.Render(s.position, velocity, f)) {
+      held = true;
+      return f;
+    }
     if (answer.contact || answer.grasping) {
       v.surface.Yield();
+      v.surface_since = -1;
     } else if (v.surface.Render(s.position, velocity, f)) {
       held = held || v.surface.in_contact();
+      if (!v.surface.in_contact())
+        v.surface_since = -1;
+      else if (v.surface_since < 0)
+        v.surface_since = s.time;
       return f;
     }
     if (!v.tissue.Render(answer, l.message.echo_sequence, l.message.echo_time, s.position, f))
       f = answer.local.Render(s.position, s.orientation, s.buttons, velocity);
     return f;
+  }
+
+  // A tissue struck by a tap rings for about kImpactS (the spheres' mass-spring transients settle
+  // in 120-150 ms). An answer about a sample in that time carries the transient, which no
+  // first-order tissue model can carry a round trip forward: one older than kFreshS, about a
+  // contact the station's own surface began, is not rendered; the station's contact goes on until
+  // an answer about the settled tissue arrives. A fresh answer (a round trip within kFreshS, a
+  // lab's or a city's network) is the impact as it is, and takes over at once.
+  static constexpr double kImpactS = 0.15, kFreshS = 0.03;
+  static bool OwnImpact(const Servo& v, const Latest& l, double now) {
+    const double sampled = l.message.echo_time;
+    return v.surface.in_contact() && v.surface_since >= 0 && sampled < v.surface_since + kImpactS &&
+           now - sampled > kFreshS;
   }
 
   // The watchdog: a model older than its patience fades out over fade_s.
