@@ -453,12 +453,14 @@ struct StationChannel::Impl {
   // first-order tissue model can carry a round trip forward: one older than kFreshS, about a
   // contact the station's own surface began, is not rendered; the station's contact goes on until
   // an answer about the settled tissue arrives. A fresh answer (a round trip within kFreshS, a
-  // lab's or a city's network) is the impact as it is, and takes over at once.
+  // lab's or a city's network) is the impact as it is, and takes over at once. Only where the
+  // surface carries the tissue's law (the viscoelastic contact); the proxy's rigid spring is no
+  // model of an impact either way.
   static constexpr double kImpactS = 0.15, kFreshS = 0.03;
   static bool OwnImpact(const Servo& v, const Latest& l, double now) {
     const double sampled = l.message.echo_time;
-    return v.surface.in_contact() && v.surface_since >= 0 && sampled < v.surface_since + kImpactS &&
-           now - sampled > kFreshS;
+    return v.surface.has_tissue() && v.surface.in_contact() && v.surface_since >= 0 &&
+           sampled < v.surface_since + kImpactS && now - sampled > kFreshS;
   }
 
   // The watchdog: a model older than its patience fades out over fade_s.

@@ -73,8 +73,10 @@ class ViscoelasticFit {
   void BeginContact() { count_ = 0, rate_ = 0, has_rate_ = false; }
 
   // One sample in contact at time t (s): the surface's yield (m) and the force (N) along the
-  // contact's rest normal. Non-finite values are ignored. `max_stiffness` bounds k_t (N/m).
-  void Add(double t_s, double yield_m, double force_n, double max_stiffness) {
+  // contact's rest normal. Non-finite values are ignored. k_t must lie in [min_stiffness,
+  // max_stiffness] (N/m) for a fit to stand.
+  void Add(double t_s, double yield_m, double force_n, double max_stiffness,
+           double min_stiffness = 0) {
     if (!std::isfinite(t_s) || !std::isfinite(yield_m) || !std::isfinite(force_n)) return;
     if (count_ > 0 && !(t_s > ring_[(count_ - 1) % kRing].t)) return;  // time must advance
     // The newest earlier sample at least a window back (a copy: its slot may be the one this
@@ -103,7 +105,7 @@ class ViscoelasticFit {
       xy_[p] = keep * xy_[p] + x[p] * y;
       for (int q = 0; q < 3; ++q) xx_[p][q] = keep * xx_[p][q] + x[p] * x[q];
     }
-    Solve(max_stiffness);
+    Solve(max_stiffness, min_stiffness);
   }
 
   // The last fit (stiffness 0 before any).
@@ -128,7 +130,7 @@ class ViscoelasticFit {
   };
   static constexpr uint32_t kRing = 64;
 
-  void Solve(double max_stiffness) {
+  void Solve(double max_stiffness, double min_stiffness) {
     const double w = xx_[0][0];
     if (!(w > 8)) return;
     // The weighted spreads of S and Ṡ: both must show, or the fit is a guess.
@@ -159,7 +161,11 @@ class ViscoelasticFit {
     // b = 0 it told the station a tissue with no viscosity that springs back with the tool
     // (beside two CPU hogs one press in ten read k_t ≈ 8 N/m, b = 0, and the station pushed
     // 0.2-0.6 N on a tool 10 mm off the surface).
-    if (!p.ok() || p.stiffness > max_stiffness || p.damping > 1000) return;
+    // So is a tissue with next to no stiffness: a yield that creeps under a steady force (the
+    // mass-spring ball held after a tap read k_t = 0.4 N/m, b = 1.7 N·s/m), which would tell the
+    // station a tissue that follows the withdrawing tool with its whole force.
+    if (!p.ok() || p.stiffness > max_stiffness || p.stiffness < min_stiffness || p.damping > 1000)
+      return;
     fit_ = p;
   }
 

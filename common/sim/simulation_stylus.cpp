@@ -15,6 +15,12 @@ using geometry::Vec3;
 using haptics::ForceCommand;
 using haptics::StylusSample;
 
+namespace {
+// How far a contact's fitted tissue may stand from the scene's calibrated law (either way, in
+// k_t and in b) and still be the tissue rather than a transient (ContactModel).
+constexpr double kLawSpread = 4.0;
+}  // namespace
+
 // The haptic path, one sample: reject bad input; count the port's energy; advance the trial
 // clock and the guidance's ramps; then, on the tool (the trainee's, or shared with an instructor:
 // guidance.h), the needle in its tissue, the grasp's twist or the proxy's contact (or the surface
@@ -259,7 +265,7 @@ void Simulation::ContactModel(const haptics::ProxyState& ps, double depth, Stylu
   const double yield = (rest_contact_ - ps.scp).dot(rest_normal_);
   if (model == HapticsSpec::ContactModel::kViscoelastic) {
     if (!last_contact_) viscoelastic_fit_.BeginContact();
-    viscoelastic_fit_.Add(trial_time_, yield, ps.force.dot(rest_normal_), 100 * k_p);
+    viscoelastic_fit_.Add(trial_time_, yield, ps.force.dot(rest_normal_), 100 * k_p, 0.05 * k_p);
   }
   if (k_p > 0) step.jacobian *= ContactStiffness({tri, ps.barycentric, rest_normal_, k_p}) / k_p;
   haptics::LocalModel& local = step.cmd.local;
@@ -268,12 +274,18 @@ void Simulation::ContactModel(const haptics::ProxyState& ps, double depth, Stylu
   // Until this contact's own fit stands (its first tens of milliseconds), the scene's calibrated
   // law, which the station's surface renders the contact's first round trip with: a first
   // answer without a tissue would be rendered as the proxy's spring alone from its sample, and a
-  // round trip into a tap that is millimetres (and a newton) too much.
-  const haptics::ViscoelasticParams v =
-      viscoelastic_fit_.params().ok()
-          ? viscoelastic_fit_.params()
-          : haptics::ViscoelasticParams{scene_.haptics.tissue_stiffness,
+  // round trip into a tap that is millimetres (and a newton) too much. So too for a fit more
+  // than kLawSpread from that law: the ringing of a tap's first 50 ms read k_t 16.9 N/m and
+  // b 1.13 N·s/m on the ball calibrated at 133 and 13, and such a tissue follows a withdrawing
+  // tool at the station with its whole force.
+  const haptics::ViscoelasticParams& fit = viscoelastic_fit_.params();
+  const haptics::ViscoelasticParams law{scene_.haptics.tissue_stiffness,
                                         scene_.haptics.tissue_damping, 0};
+  const auto near = [](double a, double b) {
+    return !(b > 0) || (a >= b / kLawSpread && a <= b * kLawSpread);
+  };
+  const haptics::ViscoelasticParams v =
+      fit.ok() && near(fit.stiffness, law.stiffness) && near(fit.damping, law.damping) ? fit : law;
   if (model == HapticsSpec::ContactModel::kViscoelastic && v.ok()) {
     local.tissue_stiffness = v.stiffness;
     local.tissue_damping = v.damping;

@@ -202,6 +202,35 @@ TEST(ViscoelasticFitTest, AStarvedYieldThatStallsAndCatchesUpIsNoTissue) {
   EXPECT_EQ(undamped, 0);
 }
 
+// A tissue fitted from a press, then held: the yield creeps back and forth under a force that
+// hardly follows it (k_t 0.4 N/m, b 1.7 N·s/m, as the mass-spring ball held after a tap read).
+// Below the floor (here 5% of a 300 N/m proxy) that is creep, not a tissue: the fit never
+// goes under it. Without the floor the creep's fit replaces the press's.
+TEST(ViscoelasticFitTest, AYieldCreepingUnderASteadyForceIsNoTissueWithoutStiffness) {
+  for (const double floor : {0.0, 15.0}) {
+    Solid solid{300, 130, 12, 0.05};
+    ViscoelasticFit fit;
+    fit.BeginContact();
+    double f = 0, s = 0;
+    for (int i = 0; i < 2400; ++i) {
+      s = solid.Step(Depth(i), kServoS, f);
+      fit.Add(i * kServoS, s, f, 3e4, floor);
+    }
+    ASSERT_NEAR(fit.params().stiffness, 130, 0.05 * 130);
+    for (int i = 2400; i < 8400; ++i) {
+      const double t = i * kServoS;
+      const double creep = s + 0.5e-3 * std::sin(2 * M_PI * 2 * t);  // 0.5 mm at 2 Hz
+      const double rate = 0.5e-3 * 2 * M_PI * 2 * std::cos(2 * M_PI * 2 * t);
+      fit.Add(t, creep, f + 0.4 * (creep - s) + 1.7 * rate, 3e4, floor);
+    }
+    if (floor > 0) {
+      EXPECT_GE(fit.params().stiffness, floor) << "never a tissue softer than the floor";
+    } else {
+      EXPECT_LT(fit.params().stiffness, 2) << "the creep's fit, without the floor";
+    }
+  }
+}
+
 // With no damping the model is the series spring k_p·k_t/(k_p + k_t) at once; with a stiff
 // tissue, the proxy's spring. Passive: around a closed path it takes at least what it gives.
 TEST(ViscoelasticContactTest, LimitsAndPassivity) {
