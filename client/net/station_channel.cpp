@@ -426,8 +426,8 @@ struct StationChannel::Impl {
     }
     // The server's contact or grasp is the tissue as it is; a free answer is a round trip old,
     // and the station's own surface (when it has one) says where the tissue begins now. Except
-    // for an answer about the impact of a contact the station's own surface began, older than the
-    // impact itself (OwnImpact): the station keeps rendering that contact.
+    // for an answer about the impact of a contact the station's own surface began, a round trip
+    // older than kFreshS (OwnImpact): the station keeps rendering that contact.
     if (answer.contact && OwnImpact(v, l, s.time) && v.surface.Render(s.position, velocity, f)) {
       held = true;
       return f;
