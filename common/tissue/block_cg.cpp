@@ -154,24 +154,31 @@ void BlockCg::BackwardSweep(const BlockMatrix& a, const std::vector<Vec3>& v) {
   }
 }
 
-// out = Â·v = Sᵀ·(t + w), t and w as in the header; returns v·out.
+template <class Row>
+[[gnu::always_inline]] inline void BlockCg::ForwardSweep(const BlockMatrix& a, Row&& row) {
+  const double* blocks = a.blocks->data();
+  const double* w = Data(w_);
+  for (int i = 0; i < a.n; ++i) {
+    if (a.is_fixed[i]) {
+      w_[i].setZero();
+    } else {
+      V4 acc{};
+      RowSum(acc, blocks, a.col, a.row_start[i], a.diag_slot[i], w);
+      w_[i] = d_inverse_[i] * (w_[i] - a.c_k * Three(acc));
+    }
+    row(i);
+  }
+}
+
+// out = Â·v = Sᵀ·(t + w), t and w as in the header (S is 0 on fixed rows); returns v·out.
 VSURG_SIMD_CLONES
 double BlockCg::ApplyHat(const BlockMatrix& a, const std::vector<Vec3>& v, std::vector<Vec3>& out) {
   BackwardSweep(a, v);
-  const double* blocks = a.blocks->data();
-  const double* w = Data(w_);
   double dot = 0;
-  for (int i = 0; i < a.n; ++i) {
-    if (a.is_fixed[i]) {
-      out[i].setZero();
-      continue;
-    }
-    V4 acc{};
-    RowSum(acc, blocks, a.col, a.row_start[i], a.diag_slot[i], w);
-    w_[i] = d_inverse_[i] * (w_[i] - a.c_k * Three(acc));
+  ForwardSweep(a, [&](int i) {
     out[i] = s_[i].transpose() * (t_[i] + w_[i]);
     dot += v[i].dot(out[i]);
-  }
+  });
   return dot;
 }
 
@@ -203,19 +210,15 @@ CgResult BlockCg::GaussSeidel(const BlockMatrix& a, std::vector<Vec3>& x, double
   const double rel0 = FreeNorm(a, r_) / bnorm;
   out.residual = rel0;
   if (rel0 < tolerance) return out;
-  // r̂₀ = Sᵀ·(D + L)⁻¹·r₀ into z_: the forward sweep of Â·v with w_ = r₀ and t_ = 0.
-  const double* blocks = a.blocks->data();
-  const double* w = Data(w_);
+  // r̂₀ = Sᵀ·(D + L)⁻¹·r₀ into z_: the forward sweep of Â·v from w_ = r₀.
+  std::copy(r_.begin(), r_.end(), w_.begin());
   double rr = 0;
-  for (int i = 0; i < a.n; ++i) {
-    V4 acc{};
-    RowSum(acc, blocks, a.col, a.row_start[i], a.diag_slot[i], w);
-    w_[i] = a.is_fixed[i] ? Vec3::Zero() : Vec3(d_inverse_[i] * (r_[i] - a.c_k * Three(acc)));
+  ForwardSweep(a, [&](int i) {
     z_[i] = s_[i].transpose() * w_[i];
     p_[i] = z_[i];
     r_[i].setZero();  // δ̂ from here on
     rr += z_[i].squaredNorm();
-  }
+  });
   const double rr0 = rr;
   double calibration = 1;  // the true relative residual over the estimate, at the last check
   bool checked = false;

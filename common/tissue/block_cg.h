@@ -72,6 +72,9 @@ class BlockCg {
                        double tolerance);
   double ApplyHat(const BlockMatrix& a, const std::vector<Vec3>& v, std::vector<Vec3>& out);
   void BackwardSweep(const BlockMatrix& a, const std::vector<Vec3>& v);  // t_ = (D + Lᵀ)⁻¹·S·v
+  // w_ ← (D + L)⁻¹·w_ in place (fixed rows 0), calling row(i) as soon as row i is done.
+  template <class Row>
+  void ForwardSweep(const BlockMatrix& a, Row&& row);
   double TrueResidual(const BlockMatrix& a, const std::vector<Vec3>& r_hat);  // ‖C·r̂‖
 
   std::vector<Mat3> d_, d_inverse_, s_;
