@@ -19,6 +19,7 @@
 #include "common/geometry/obj_io.h"
 #include "common/scoring/ratings_csv.h"
 #include "common/scoring/report_json.h"
+#include "common/sim/contact_law.h"
 #include "common/sim/limb_scene.h"
 #include "common/sim/scene.h"
 #include "common/sim/simulation.h"
@@ -162,45 +163,44 @@ int Trainee(const Args& args, std::ostream& out, std::ostream& err) {
   return 0;
 }
 
-// The tissue's law under the proxy as the server fits it (haptics::ViscoelasticFit): the good
-// scripted trainee's press replayed, and the fit its last contact answer carried. A scene file's
-// haptics "tissue_stiffness" and "tissue_damping" take these, for the station's own surface to
-// render a contact's first round trip as the tissue (haptics/tissue_surface.h).
+// The tissue's law under the proxy (sim::MeasureContactLaw): the viscoelastic fit at the good
+// scripted trainee's press and the static curve, for the scene file's haptics
+// "tissue_stiffness", "tissue_damping" and "tissue_curve", which a
+// station's own surface renders a contact's first round trip with (haptics/tissue_surface.h).
 int ContactLaw(const Args& args, std::ostream& out, std::ostream& err) {
   ArgParser p("vsurg-sim contact-law",
-              "Presses a scene as the good scripted trainee and prints the contact's tissue law\n"
-              "as the server fits it (k_t, N/m; b, N*s/m), for the scene file's haptics\n"
-              "\"tissue_stiffness\" and \"tissue_damping\".");
-  p.Option("scene", Kind::kString, "scene name in scenes/ or a .json path (a press scene)", true);
+              "Presses a scene as the server's tissue and prints the contact's tissue law: the\n"
+              "viscoelastic fit at the good scripted trainee's press (k_t, N/m; b, N*s/m) and the\n"
+              "tissue's static curve (yield m, force N), for the scene file's haptics.");
+  p.Option("scene", Kind::kString, "scene name in scenes/ or a .json path (a press scene)", true)
+      .Option("curve", Kind::kFlag, "also print the static curve (depth, yield, force)");
   if (auto rc = ParseOrExit(p, args, out, err)) return *rc;
   auto scene = SceneOption(p);
   if (!scene.ok()) return UsageError(err, p.command(), scene.error());
   if (scene->task.kind != scoring::TaskKind::kPress)
     return UsageError(err, p.command(), InvalidArgument("--scene", "not a press scene"));
-  scene->haptics.contact_model = sim::HapticsSpec::ContactModel::kViscoelastic;
-  auto samples = sim::ScriptedTrainee(*scene, sim::TraineeStyle::kGood);
-  if (!samples.ok()) return UsageError(err, p.command(), samples.error());
-  auto simulation = sim::Simulation::Create(*scene, {.threaded = false});
-  if (!simulation.ok()) {
-    err << p.command() << ": cannot build scene '" << scene->name
-        << "': " << simulation.error().message << "\n";
+  auto law = sim::MeasureContactLaw(*scene);
+  if (!law.ok()) {
+    err << p.command() << ": " << scene->name << ": " << law.error().message << "\n";
     return kExitRuntime;
   }
-  double k_t = 0, b = 0;
-  (*simulation)
-      ->Replay(*samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
-        if (c.contact && c.local.tissue_stiffness > 0)
-          k_t = c.local.tissue_stiffness, b = c.local.tissue_damping;
-      });
-  if (!(k_t > 0)) {
-    err << p.command() << ": the scene's contact has no tissue law of its own (a reduced "
-        << "contact sends its series stiffness instead)\n";
-    return kExitRuntime;
+  char line[240];
+  if (p.Flag("curve")) {
+    out << "depth_mm,yield_mm,force_n\n";
+    for (const auto& c : law->curve) {
+      std::snprintf(line, sizeof line, "%.3f,%.4f,%.5f\n", c.depth * 1e3, c.yield * 1e3, c.force);
+      out << line;
+    }
   }
-  char line[160];
-  std::snprintf(line, sizeof line, "\"tissue_stiffness\": %.4g, \"tissue_damping\": %.4g\n", k_t,
-                b);
-  out << line;
+  std::snprintf(line, sizeof line, "\"tissue_stiffness\": %.4g, \"tissue_damping\": %.4g,",
+                law->stiffness, law->damping);
+  out << line << "\n\"tissue_curve\": [";
+  for (int i = 0; i < law->tissue.count; ++i) {
+    std::snprintf(line, sizeof line, "%s[%.4g, %.4g]", i ? ", " : "", law->tissue.yield[i],
+                  law->tissue.force[i]);
+    out << line;
+  }
+  out << "]\n";
   return 0;
 }
 

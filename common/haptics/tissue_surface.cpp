@@ -40,6 +40,9 @@ Status Check(const SurfaceSpec& s) {
   if (!(s.tissue_stiffness >= 0 && s.tissue_stiffness <= TissueSurface::kMaxStiffness) ||
       !(s.tissue_damping >= 0 && s.tissue_damping <= TissueSurface::kMaxDamping))
     return InvalidArgument("surface", "the tissue's stiffness or damping is out of bounds");
+  if (s.tissue_curve.count != 0 && !s.tissue_curve.Valid())
+    return InvalidArgument("surface",
+                           "the tissue's curve must rise strictly from (0, 0) in 1..16 points");
   return Status::Ok();
 }
 
@@ -82,6 +85,23 @@ bool TissueSurface::Ahead(const Vec3& x, LocalModel& out, int& start) const {
   return true;
 }
 
+Vec3 TissueSurface::YieldedNormal(int triangle, const Vec3& point, double yield) const {
+  const geometry::Triangle& tri = spec_.triangles[triangle];
+  const Vec3 &a = spec_.positions[tri[0]], &b = spec_.positions[tri[1]],
+             &c = spec_.positions[tri[2]];
+  const Vec3 n = (b - a).cross(c - a);
+  const double area2 = n.squaredNorm();
+  if (!(area2 > 0) || !std::isfinite(yield)) return n.normalized();
+  const Vec3 w((c - b).cross(point - b).dot(n) / area2, (a - c).cross(point - c).dot(n) / area2,
+               (b - a).cross(point - a).dot(n) / area2);
+  const Vec3 unit = n / std::sqrt(area2);
+  const Vec3 sink = yield / w.squaredNorm() * w;  // each corner's yield, m
+  const Vec3 t = ((b - sink[1] * unit) - (a - sink[0] * unit))
+                     .cross((c - sink[2] * unit) - (a - sink[0] * unit))
+                     .normalized();
+  return t.allFinite() && t.dot(unit) > 0 ? t : unit;
+}
+
 // In contact through the held plane: the proxy's spring alone, or in series with the tissue
 // (integrated one servo period a call); either with the proxy's damping, never pulling.
 Vec3 SurfaceContact::InContact(const Vec3& x, const Vec3& v) {
@@ -90,7 +110,11 @@ Vec3 SurfaceContact::InContact(const Vec3& x, const Vec3& v) {
   const Vec3& n = plane_.normal;
   double fn = tissue_.Step(Depth(plane_, x), period_);
   if (v.allFinite()) fn -= plane_.contact_damping * v.dot(n);
-  const Vec3 f = fn > 0 ? Vec3(fn * n) : Vec3::Zero();
+  // Along the face as the tissue's yield has tilted it, where it does (the depth stays along n).
+  const Vec3 along = surface_->spec().corners_yield
+                         ? surface_->YieldedNormal(face_, plane_.position0, tissue_.sigma())
+                         : n;
+  const Vec3 f = fn > 0 ? Vec3(fn * along) : Vec3::Zero();
   return f.allFinite() ? f : Vec3::Zero();
 }
 
@@ -111,6 +135,7 @@ bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
   if (surface_->Ahead(x, ahead, start_)) {
     state_ = State::kOutside;
     plane_ = ahead;
+    face_ = start_;
     have_plane_ = true;
     return true;  // outside, within reach: nothing to feel yet
   }
@@ -121,7 +146,7 @@ bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
       state_ = State::kIn;
       const double k = -plane_.normal.dot(plane_.jacobian * plane_.normal);
       const SurfaceSpec& spec = surface_->spec();
-      tissue_.Begin(0, k, spec.tissue_stiffness, spec.tissue_damping, 0);
+      tissue_.Begin(0, k, spec.tissue_stiffness, spec.tissue_damping, 0, &spec.tissue_curve);
       force = InContact(x, v);
     }
     return true;

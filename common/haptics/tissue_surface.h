@@ -41,6 +41,13 @@ struct SurfaceSpec {
   // depths, as the server's contact answers are rendered. 0: the proxy's spring alone.
   double tissue_stiffness = 0;  // N/m
   double tissue_damping = 0;    // N·s/m
+  // Where the scene measured it, the tissue's static curve (count 0: none): the contact from the
+  // surface then yields along it, not along k_t·S, which is the tangent at a press's depth and
+  // no line through the rest surface (the 256-particle ball's curve is 19% above it at 4 mm).
+  TissueCurve tissue_curve;
+  // The tissue's contact loads the face's corners (a mass-spring surface's: the face tilts as
+  // they yield, YieldedNormal); else it yields about the contact point and keeps its normal.
+  bool corners_yield = false;
 };
 
 class TissueSurface {
@@ -57,6 +64,13 @@ class TissueSurface {
   // from the face's vertices at the nearest point. False when nothing is within reach or x is
   // behind the nearest face. `start` is the caller's previous face (−1: none), updated.
   bool Ahead(const Vec3& x, LocalModel& out, int& start) const;
+
+  // The normal of face `triangle` once the tissue has yielded `yield` (m) under `point` (on the
+  // face at rest): each corner pushed in along the rest normal by w_i·yield/Σw_j², w the point's
+  // barycentric coordinates. That is the load spread over the corners by w, as the server's
+  // contact spreads it, each corner yielding in proportion; its interpolation at the point is
+  // the yield. A press off a corner tilts the face towards the corner that yields most. Unit.
+  Vec3 YieldedNormal(int triangle, const Vec3& point, double yield) const;
 
   const SurfaceSpec& spec() const { return spec_; }
 
@@ -94,6 +108,7 @@ class SurfaceContact {
   LocalModel plane_;  // the last outside cycle's surface ahead, held while in
   bool have_plane_ = false;
   int start_ = -1;
+  int face_ = -1;  // plane_'s face
 };
 
 }  // namespace vsurg::haptics

@@ -41,6 +41,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 
@@ -179,24 +180,80 @@ class ViscoelasticFit {
   ViscoelasticParams fit_;
 };
 
+// The tissue's static curve under the proxy, where the scene measured it (`vsurg-sim
+// contact-law`): the elastic force e(S) (N) at the yield S (m), piecewise linear through (0, 0)
+// and up to kMaxPoints points of strictly rising yield and force, extended beyond both ends by
+// the end segments' slopes. A ball's surface first yields stiffly and then at the ball's own
+// slope, an elastic half-space stiffens (Hertz): neither is one line through the origin.
+struct TissueCurve {
+  static constexpr int kMaxPoints = 16;
+  std::array<double, kMaxPoints> yield{}, force{};  // m, N
+  int count = 0;                                    // 0: no curve
+
+  // Strictly rising from (0, 0), finite, at most kMaxPoints: what a scene or a server may give.
+  bool Valid() const {
+    if (count < 1 || count > kMaxPoints) return false;
+    double x = 0, f = 0;
+    for (int i = 0; i < count; ++i) {
+      if (!(yield[i] > x && force[i] > f && std::isfinite(yield[i]) && std::isfinite(force[i])))
+        return false;
+      x = yield[i], f = force[i];
+    }
+    return true;
+  }
+  // e(s), N.
+  double Elastic(double s) const {
+    int i = 0;
+    while (i < count - 1 && s > yield[i]) ++i;
+    const Segment g = SegmentOf(i);
+    return g.force + g.slope * (s - g.yield);
+  }
+  // The yield σ (m) at which a·σ + e(σ) = rhs (a ≥ 0, N/m; rhs, N): h(σ) = a·σ + e(σ) rises
+  // strictly, so the first segment whose end h passes rhs holds it.
+  double Solve(double a, double rhs) const {
+    int i = 0;
+    while (i < count - 1 && a * yield[i] + force[i] <= rhs) ++i;
+    const Segment g = SegmentOf(i);
+    return g.yield + (rhs - a * g.yield - g.force) / (a + g.slope);
+  }
+
+ private:
+  struct Segment {
+    double yield, force, slope;  // its start (m, N) and slope (N/m)
+  };
+  // Segment i runs from point i − 1 ((0, 0) for i = 0) to point i; the first and the last also
+  // extend beyond.
+  Segment SegmentOf(int i) const {
+    const double x = i == 0 ? 0 : yield[i - 1], f = i == 0 ? 0 : force[i - 1];
+    return {x, f, (force[i] - f) / (yield[i] - x)};
+  }
+};
+
 class ViscoelasticContact {
  public:
   // Starts from an answer: its force along n (f₀, N), the proxy's spring (k_p, N/m), the tissue
   // (k_t, b) and its elastic force then (e₀, N). σ = 0 at the answered sample.
   // The viscous force the answer starts with, f₀ − e₀, is taken at most as half the force: the
   // station does not trust a rate that a starved server measured over a jump.
-  void Begin(double f0, double kp, double kt, double b, double e0) {
+  // With a curve (valid, outliving the contact) the tissue's elastic force is e₀ + e(σ) in place
+  // of e₀ + k_t·σ: a contact begun at the rest surface (f₀ = e₀ = 0) follows the static curve.
+  void Begin(double f0, double kp, double kt, double b, double e0,
+             const TissueCurve* curve = nullptr) {
     const double viscous = std::clamp(f0 - e0, -0.5 * std::abs(f0), 0.5 * std::abs(f0));
     f0_ = f0, kp_ = kp, kt_ = kt, b_ = b, e0_ = f0 - viscous, sigma_ = 0;
+    curve_ = curve && curve->Valid() ? curve : nullptr;
   }
   // One step of dt (s) to the tool's advance u (m along −n since the answered sample); returns
   // the force along n (N, ≥ 0).
   double Step(double u, double dt) {
     if (!(dt > 0) || !std::isfinite(u)) return Force(u);
     const double c = b_ / dt;
-    // In contact: b(σ' − σ)/dt = f₀ + k_p(u − σ') − e₀ − k_t σ'.
-    double next = (c * sigma_ + f0_ + kp_ * u - e0_) / (c + kp_ + kt_);
-    if (f0_ + kp_ * (u - next) <= 0) next = (c * sigma_ - e0_) / (c + kt_);  // free: recovers
+    // In contact: b(σ' − σ)/dt = f₀ + k_p(u − σ') − e₀ − e(σ'), e(σ) = k_t·σ or the curve's.
+    const auto solve = [&](double a, double rhs) {
+      return curve_ ? curve_->Solve(a, rhs) : rhs / (a + kt_);
+    };
+    double next = solve(c + kp_, c * sigma_ + f0_ + kp_ * u - e0_);
+    if (f0_ + kp_ * (u - next) <= 0) next = solve(c, c * sigma_ - e0_);  // free: recovers
     if (std::isfinite(next)) sigma_ = next;
     return Force(u);
   }
@@ -214,6 +271,7 @@ class ViscoelasticContact {
 
  private:
   double f0_ = 0, kp_ = 0, kt_ = 0, b_ = 0, e0_ = 0, sigma_ = 0;
+  const TissueCurve* curve_ = nullptr;
 };
 
 }  // namespace vsurg::haptics

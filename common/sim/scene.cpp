@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -231,6 +232,23 @@ Status ParseModel(const Reader& r, RegionSpec& g) {
   return ParseRingLayer(r, g);
 }
 
+// "tissue_curve": [[yield_m, force_n], ...] (`vsurg-sim contact-law`), strictly rising from (0, 0).
+Status ParseTissueCurve(const Reader& r, haptics::TissueCurve& c) {
+  if (!r.Has("tissue_curve")) return Status::Ok();
+  const json& a = r.raw()["tissue_curve"];
+  const auto pair = [](const json& p) {
+    return p.is_array() && p.size() == 2 && p[0].is_number() && p[1].is_number();
+  };
+  if (!a.is_array() || a.empty() || a.size() > haptics::TissueCurve::kMaxPoints ||
+      !std::all_of(a.begin(), a.end(), pair))
+    return r.Bad("tissue_curve", "must be 1..16 pairs [yield_m, force_n]");
+  for (size_t i = 0; i < a.size(); ++i)
+    c.yield[i] = a[i][0].get<double>(), c.force[i] = a[i][1].get<double>();
+  c.count = static_cast<int>(a.size());
+  if (!c.Valid()) return r.Bad("tissue_curve", "must rise strictly in yield and force from (0, 0)");
+  return Status::Ok();
+}
+
 Status ParseHaptics(const Reader& r, HapticsSpec& h) {
   VSURG_TRY(device, r.StringOr("device", "touch"));
   auto limits = haptics::DeviceLimitsByName(device);
@@ -251,6 +269,7 @@ Status ParseHaptics(const Reader& r, HapticsSpec& h) {
   h.station_surface = station_surface;
   h.tissue_stiffness = tissue_k;
   h.tissue_damping = tissue_b;
+  if (Status st = ParseTissueCurve(r, h.tissue_curve); !st.ok()) return st;
   if (contact_model == "viscoelastic")
     h.contact_model = HapticsSpec::ContactModel::kViscoelastic;
   else if (contact_model == "fitted")

@@ -39,6 +39,7 @@
 #include "common/haptics/needle.h"
 #include "common/haptics/proxy.h"
 #include "common/haptics/safety.h"
+#include "common/haptics/viscoelastic.h"
 #include "common/scoring/cut.h"
 #include "common/scoring/palpation.h"
 #include "common/scoring/trial_metrics.h"
@@ -141,6 +142,10 @@ struct HapticsSpec {
   // surface. 0: not known (the proxy's spring). Scene files: "tissue_stiffness",
   // "tissue_damping".
   double tissue_stiffness = 0, tissue_damping = 0;
+  // The tissue's static curve under the proxy (`vsurg-sim contact-law`): the station's surface
+  // renders a contact's first round trip along it, where k_t·S is the tangent at one depth
+  // (haptics::TissueCurve). Scene files: "tissue_curve": [[yield_m, force_n], ...].
+  haptics::TissueCurve tissue_curve;
   // The tissue's surface sent with a station's join (haptics/tissue_surface.h). Model only what a
   // scene needs: a press scene's task is the contact, so by default it has it; a twist scene's
   // is the grasp, whose model comes with the answers, and a limb's surface (12 k triangles, a

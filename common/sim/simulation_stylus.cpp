@@ -416,6 +416,9 @@ std::shared_ptr<const haptics::TissueSurface> Simulation::MakeStationSurface() c
       scene_.haptics.contact_model == HapticsSpec::ContactModel::kViscoelastic) {
     spec.tissue_stiffness = scene_.haptics.tissue_stiffness;
     spec.tissue_damping = scene_.haptics.tissue_damping;
+    spec.tissue_curve = scene_.haptics.tissue_curve;
+    // The mass-spring contact anchors the face's corners, each by its barycentric weight.
+    spec.corners_yield = std::holds_alternative<MassSpringRoom>(room_);
   }
   for (int t = 0; t < rest_.TriangleCount(); ++t) {
     const geometry::Triangle& tri = rest_.triangles[t];

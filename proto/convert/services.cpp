@@ -215,6 +215,11 @@ void ToProto(const haptics::TissueSurface& s, v1::StationSurface* out) {
   out->set_reach(spec.reach);
   out->set_tissue_stiffness(spec.tissue_stiffness);
   out->set_tissue_damping(spec.tissue_damping);
+  for (int i = 0; i < spec.tissue_curve.count; ++i) {
+    out->add_tissue_curve_yield(spec.tissue_curve.yield[i]);
+    out->add_tissue_curve_force(spec.tissue_curve.force[i]);
+  }
+  out->set_corners_yield(spec.corners_yield);
 }
 
 Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::StationSurface& s) {
@@ -235,6 +240,14 @@ Expected<std::shared_ptr<const haptics::TissueSurface>> FromProto(const v1::Stat
   spec.reach = s.reach();
   spec.tissue_stiffness = s.tissue_stiffness();
   spec.tissue_damping = s.tissue_damping();
+  const int points = s.tissue_curve_yield_size();
+  if (points != s.tissue_curve_force_size() || points > haptics::TissueCurve::kMaxPoints)
+    return InvalidArgument("surface", "the tissue's curve needs as many forces as yields, ≤ 16");
+  for (int i = 0; i < points; ++i)
+    spec.tissue_curve.yield[i] = s.tissue_curve_yield(i),
+    spec.tissue_curve.force[i] = s.tissue_curve_force(i);
+  spec.tissue_curve.count = points;
+  spec.corners_yield = s.corners_yield();
   return haptics::TissueSurface::Create(std::move(spec));
 }
 

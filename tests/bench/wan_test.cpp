@@ -261,6 +261,10 @@ TEST_F(WanTest, TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental) {
   // proxy's spring on a rigid surface, nor as nothing: the force follows the reference closer.
   // (6-8 points apart beside two CPU hogs, 8 on a quiet machine; a point is asked.)
   EXPECT_LT(f.rms_error_pct, late.rms_error_pct - 1);
+  // And within the goal's 5%: the contact from the surface follows the tissue's static curve and
+  // pushes along its face as the corners' yield tilts it (1.9-2.0% on a quiet machine, where the
+  // tangent law through the rest surface read 6.3-6.5%).
+  EXPECT_LT(f.rms_error_pct, 5.0);
   // No kick when the answers about the impact arrive a round trip later: the station goes on
   // with its own contact until an answer about the settled tissue comes.
   EXPECT_LT(kick, 2.0);

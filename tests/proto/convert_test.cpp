@@ -130,5 +130,40 @@ TEST(ConvertTest, EveryFieldIsNamedWithItsUnitAndConvertedToIt) {
   EXPECT_EQ(sim::LinkStatus(998, 412, 0.0125), "haptic 998 Hz   RTT 412 µs   loss 1.2%");
 }
 
+// A station's surface from its join, the tissue's static curve and its corners' yield with it;
+// a curve whose yields and forces do not pair, or that falls, is refused by name.
+TEST(ConvertTest, AStationSurfaceCarriesTheTissuesCurve) {
+  haptics::SurfaceSpec spec;
+  spec.positions = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}};
+  spec.triangles = {{0, 1, 2}};
+  spec.stiffness = {300, 300, 300};
+  spec.tissue_stiffness = 132.9, spec.tissue_damping = 13;
+  spec.tissue_curve.count = 3;
+  spec.tissue_curve.yield = {0.2e-3, 1e-3, 5e-3};
+  spec.tissue_curve.force = {0.088, 0.288, 0.897};
+  spec.corners_yield = true;
+  auto surface = haptics::TissueSurface::Create(spec);
+  ASSERT_TRUE(surface.ok());
+  v1::StationSurface wire;
+  convert::ToProto(**surface, &wire);
+  auto back = convert::FromProto(wire);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  const haptics::SurfaceSpec& b = (*back)->spec();
+  EXPECT_EQ(b.tissue_curve.count, 3);
+  EXPECT_EQ(b.tissue_curve.yield, spec.tissue_curve.yield);
+  EXPECT_EQ(b.tissue_curve.force, spec.tissue_curve.force);
+  EXPECT_TRUE(b.corners_yield);
+  EXPECT_EQ(b.tissue_stiffness, 132.9);
+  v1::StationSurface odd = wire;
+  odd.add_tissue_curve_yield(6e-3);
+  EXPECT_EQ(convert::FromProto(odd).error().field, "surface");
+  v1::StationSurface falling = wire;
+  falling.set_tissue_curve_force(2, 0.1);
+  EXPECT_EQ(convert::FromProto(falling).error().field, "surface");
+  v1::StationSurface many = wire;
+  for (int i = 0; i < 20; ++i) many.add_tissue_curve_yield(1), many.add_tissue_curve_force(1);
+  EXPECT_EQ(convert::FromProto(many).error().field, "surface");
+}
+
 }  // namespace
 }  // namespace vsurg

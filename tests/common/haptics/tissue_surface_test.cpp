@@ -147,6 +147,50 @@ TEST(TissueSurfaceTest, WithTheTissuesLawAHeldPressRelaxesToTheSeriesSpring) {
   EXPECT_FALSE(TissueSurface::Create(spec).ok());
 }
 
+// A face whose corners yield under a press: at its centroid the face sinks flat (its normal
+// kept); off the centroid the corner nearest the point sinks most and the face tilts towards it,
+// more the deeper; no yield, no tilt. SurfaceContact renders along that normal only where the
+// surface says its corners yield (a mass-spring surface), else along the face's rest normal.
+TEST(TissueSurfaceTest, AFaceWhoseCornersYieldTiltsTowardsTheCornerPressed) {
+  SurfaceSpec spec;
+  spec.positions = {Vec3(0, 0, 0), Vec3(0.01, 0, 0), Vec3(0, 0.01, 0)};
+  spec.triangles = {{0, 1, 2}};
+  spec.stiffness.assign(3, kStiffness);
+  auto flat = TissueSurface::Create(spec);
+  ASSERT_TRUE(flat.ok());
+  const Vec3 centroid(0.01 / 3, 0.01 / 3, 0), near_a(0.002, 0.002, 0);
+  EXPECT_NEAR((*flat)->YieldedNormal(0, centroid, 0.003).z(), 1, 1e-12);
+  EXPECT_NEAR((*flat)->YieldedNormal(0, near_a, 0).z(), 1, 1e-12);
+  const Vec3 shallow = (*flat)->YieldedNormal(0, near_a, 0.001),
+             deep = (*flat)->YieldedNormal(0, near_a, 0.003);
+  EXPECT_NEAR(shallow.norm(), 1, 1e-12);
+  // Corner 0 (the origin) sinks most: the face's normal leans towards it, −x and −y alike.
+  EXPECT_LT(shallow.x(), -0.01);
+  EXPECT_NEAR(shallow.x(), shallow.y(), 1e-12);
+  EXPECT_LT(deep.x(), shallow.x());
+  // The sinks reproduce the yield at the point: w = (0.6, 0.2, 0.2), each corner w_i·y/Σw².
+  const double y = 0.003, w2 = 0.36 + 0.04 + 0.04;
+  const Vec3 a(0, 0, -0.6 * y / w2), b(0.01, 0, -0.2 * y / w2), c(0, 0.01, -0.2 * y / w2);
+  EXPECT_NEAR(0.6 * a.z() + 0.2 * b.z() + 0.2 * c.z(), -y, 1e-15);
+  EXPECT_NEAR((b - a).cross(c - a).normalized().dot(deep), 1, 1e-12);
+
+  // Rendered: a press near a vertex of the sphere's top face, with the tissue's law.
+  SurfaceSpec ball = Sphere();
+  ball.tissue_stiffness = 100, ball.tissue_damping = 10, ball.damping = 0;
+  const auto press = [&](bool corners) {
+    ball.corners_yield = corners;
+    SurfaceContact contact(*TissueSurface::Create(ball), 1e-3);
+    Vec3 f;
+    const Vec3 at(0.003, 0.002, kRadius + 0.001);
+    contact.Render(at, Vec3::Zero(), f);
+    for (int k = 0; k < 500; ++k) contact.Render(at - Vec3(0, 0, 0.004), Vec3::Zero(), f);
+    return f;
+  };
+  const Vec3 plain = press(false), tilted = press(true);
+  EXPECT_NEAR(plain.norm(), tilted.norm(), 1e-9) << "the tilt turns the force, not its size";
+  EXPECT_GT((plain.normalized() - tilted.normalized()).norm(), 0.01);
+}
+
 TEST(TissueSurfaceTest, ABrokenOrHostileSurfaceIsRefusedByName) {
   const auto refused = [](SurfaceSpec s) {
     auto r = TissueSurface::Create(std::move(s));
@@ -182,6 +226,11 @@ TEST(TissueSurfaceTest, ABrokenOrHostileSurfaceIsRefusedByName) {
   EXPECT_EQ(refused(s), "surface");
   s = Sphere();
   s.triangles.clear();
+  EXPECT_EQ(refused(s), "surface");
+  s = Sphere();  // a tissue curve that falls
+  s.tissue_curve.count = 2;
+  s.tissue_curve.yield = {1e-3, 2e-3};
+  s.tissue_curve.force = {0.3, 0.2};
   EXPECT_EQ(refused(s), "surface");
   EXPECT_TRUE(TissueSurface::Create(Sphere()).ok());
   // A contact on no surface gives nothing.

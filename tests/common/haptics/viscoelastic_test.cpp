@@ -252,5 +252,85 @@ TEST(ViscoelasticContactTest, LimitsAndPassivity) {
   EXPECT_GT(work, 0) << "the model gave the hand energy around a closed path";
 }
 
+// The ball's static curve as `vsurg-sim contact-law` measures it: stiff over its first 0.2 mm,
+// then near the ball's own slope (yield m, force N).
+TissueCurve BallCurve() {
+  TissueCurve c;
+  const double points[][2] = {
+      {0.21e-3, 0.088}, {0.45e-3, 0.164}, {1.04e-3, 0.288}, {2.43e-3, 0.470}, {5.01e-3, 0.897}};
+  for (const auto& p : points) c.yield[c.count] = p[0], c.force[c.count++] = p[1];
+  return c;
+}
+
+// e(S) through (0, 0) and the points, the end segments' slopes beyond; Solve inverts
+// a·S + e(S) exactly on every segment, below zero and beyond the last point.
+TEST(TissueCurveTest, InterpolatesThroughTheOriginAndInvertsExactly) {
+  const TissueCurve c = BallCurve();
+  ASSERT_TRUE(c.Valid());
+  EXPECT_NEAR(c.Elastic(0), 0, 1e-15);
+  EXPECT_NEAR(c.Elastic(0.105e-3), 0.044, 1e-12);                               // half the first
+  EXPECT_NEAR(c.Elastic(1.04e-3), 0.288, 1e-12);                                // a point
+  EXPECT_NEAR(c.Elastic(-0.21e-3), -0.088, 1e-12);                              // the first, below
+  EXPECT_NEAR(c.Elastic(6.0e-3), 0.897 + (0.897 - 0.470) / 2.58 * 0.99, 1e-9);  // beyond
+  for (const double a : {0.0, 300.0, 13000.0})
+    for (double s = -1e-3; s < 8e-3; s += 0.17e-3)
+      EXPECT_NEAR(c.Solve(a, a * s + c.Elastic(s)), s, 1e-12) << "a " << a << " S " << s;
+  // Refused: not rising in yield or force, a point at the origin, too many, not finite.
+  TissueCurve bad = c;
+  bad.force[2] = bad.force[1];
+  EXPECT_FALSE(bad.Valid());
+  bad = c, bad.yield[0] = 0;
+  EXPECT_FALSE(bad.Valid());
+  bad = c, bad.count = TissueCurve::kMaxPoints + 1;
+  EXPECT_FALSE(bad.Valid());
+  bad = c, bad.force[4] = std::nan("");
+  EXPECT_FALSE(bad.Valid());
+  bad.count = 0;
+  EXPECT_FALSE(bad.Valid());
+}
+
+// A contact begun at the rest surface with the curve: a held depth settles where the proxy's
+// spring meets the curve, k_p·(d − S) = e(S), whatever the depth; with k_t·S instead (the tangent
+// at the press, 133 N/m) the same depths settle 19% lower at 4 mm. Passive around a closed path.
+TEST(ViscoelasticContactTest, FromTheRestSurfaceItFollowsTheTissuesCurve) {
+  const TissueCurve c = BallCurve();
+  constexpr double kp = 300, kt = 132.9, b = 13;
+  for (const double depth : {0.5e-3, 2e-3, 4e-3, 7e-3}) {
+    ViscoelasticContact curve, line;
+    curve.Begin(0, kp, kt, b, 0, &c);
+    line.Begin(0, kp, kt, b, 0);
+    double f = 0, g = 0;
+    for (int i = 0; i < 5000; ++i) f = curve.Step(depth, kServoS), g = line.Step(depth, kServoS);
+    // The settled yield by bisection on k_p·(d − S) − e(S), independent of Solve.
+    double lo = 0, hi = depth;
+    for (int i = 0; i < 100; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (kp * (depth - mid) > c.Elastic(mid) ? lo : hi) = mid;
+    }
+    EXPECT_NEAR(f, kp * (depth - lo), 1e-6) << depth;
+    EXPECT_NEAR(g, kp * kt / (kp + kt) * depth, 1e-6) << depth;
+    if (depth == 4e-3) {
+      EXPECT_GT(f, 1.15 * g) << "the tangent through the origin is too soft";
+    }
+  }
+  ViscoelasticContact loop;
+  loop.Begin(0, kp, kt, b, 0, &c);
+  double work = 0, last_u = 0, last_f = 0;
+  for (int i = 1; i <= 2000; ++i) {  // 2 s of 0..4 mm at 2 Hz, back where it began
+    const double u = 2e-3 * (1 - std::cos(2 * M_PI * 2 * i * kServoS));
+    const double fn = loop.Step(u, kServoS);
+    work += last_f * (u - last_u);
+    last_u = u, last_f = fn;
+  }
+  EXPECT_GT(work, 0) << "the model gave the hand energy around a closed path";
+  // An invalid curve is not used: the line.
+  TissueCurve bad = c;
+  bad.yield[1] = bad.yield[0];
+  ViscoelasticContact fallback, line;
+  fallback.Begin(0, kp, kt, b, 0, &bad);
+  line.Begin(0, kp, kt, b, 0);
+  EXPECT_EQ(fallback.Step(3e-3, kServoS), line.Step(3e-3, kServoS));
+}
+
 }  // namespace
 }  // namespace vsurg::haptics

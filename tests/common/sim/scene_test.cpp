@@ -394,6 +394,33 @@ TEST(SceneTest, BadScenesNameTheField) {
 // A description that was a number escaped as a JSON type_error ("internal error", exit 1) and in
 // the server's scenes folder broke ListScenes and Create for everyone. Every field is checked.
 // Inclusions: read into the scene for a reduced contact model, refused by name otherwise.
+// The tissue's static curve under the proxy (`vsurg-sim contact-law`): read in metres and
+// newtons; one that does not rise from (0, 0), has too many points or is no list of pairs is
+// refused by name. The shipped sphere's curve is the one its station's surface carries.
+TEST(SceneTest, TheTissueCurveIsReadAndABadOneNamed) {
+  const auto with_curve = [](const std::string& value) {
+    return Replace(Minimal(), R"("error_budget")",
+                   R"("haptics": {"tissue_curve": )" + value + R"(}, "error_budget")");
+  };
+  auto parsed = ParseScene(with_curve("[[0.0002, 0.09], [0.001, 0.29]]"), "x.json");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_EQ(parsed->haptics.tissue_curve.count, 2);
+  EXPECT_EQ(parsed->haptics.tissue_curve.yield[1], 0.001);
+  EXPECT_EQ(parsed->haptics.tissue_curve.force[0], 0.09);
+  EXPECT_EQ(ParseScene(Minimal(), "x.json")->haptics.tissue_curve.count, 0);
+  std::string many = "[";
+  for (int i = 1; i <= 17; ++i)
+    many += (i > 1 ? ", [" : "[") + std::to_string(i * 1e-4) + ", " + std::to_string(i * 0.1) + "]";
+  for (const std::string& bad :
+       {std::string("[[0.001, 0.3], [0.002, 0.2]]"), std::string("[[0, 0], [0.001, 0.3]]"),
+        std::string("[0.001, 0.3]"), std::string("[[0.001]]"), std::string("[]"),
+        std::string("\"steep\""), many + "]"})
+    EXPECT_NE(Field(with_curve(bad)).find("haptics.tissue_curve: must"), std::string::npos) << bad;
+  auto sphere = LoadSceneByName("sphere-palpation-256");
+  ASSERT_TRUE(sphere.ok());
+  EXPECT_TRUE(sphere->haptics.tissue_curve.Valid());
+}
+
 TEST(SceneTest, InclusionsAreReadForAReducedModelAndBadOnesNamed) {
   const std::string reduced =
       Replace(Minimal(), R"("type": "mass-spring", "structural_stiffness": 50)",
