@@ -24,7 +24,16 @@
 // step of length h: H_i ← β_i·H_i + g_i·γ_i·ΔS_e, β_i = e^{−h/τ_i}, γ_i = (1 − β_i)/(h/τ_i). Over
 // the step the stress is S = c·S_e + S_hist with c = g∞ + Σ g_i·γ_i and the history
 // S_hist = Σ (β_i·H_i − g_i·γ_i·S_e,prev), which derives from the energy c·ψ + ½·S_hist:(FᵀF − I):
-// each step is a static solve (Step), quasi-static (no inertia).
+// each step is a static solve (Step), quasi-static unless the tissue has a density (below).
+//
+// Inertia (SetDensity): each step of length h is implicit (backward) Euler, taken as the minimum
+// of the incremental potential
+//   Φ(x) = E(x) − f·x + Σ_i m_i/(2h²)·|x_i − x̂_i|²,   x̂_i = x_i,n + h·v_i,n,
+// m_i = ρ·Σ V_e/4 the vertex's lumped mass (kg); its stationarity is m·(x − x̂)/h² = f + f_int(x),
+// and v_n+1 = (x_n+1 − x_n)/h. The same Newton solve and line search minimise it; it is unique
+// for a step short enough, and the scheme is stable at any step and dissipates: for an E convex
+// along the step, E + ½·Σ m·|v|² − f·x never rises (HyperelasticTest: a step load).
+// First order in h.
 //
 // Near incompressibility (ν → 0.5) linear tetrahedra lock: one volume constraint per element is
 // more than the nodes' motions can meet, and the mesh answers far too stiff. With `nodal_volume`
@@ -108,6 +117,13 @@ class HyperelasticFem {
   // One quasi-static step of `dt` s (the held coordinates and loads as set now): the static solve
   // with the step's stress, then the internal stresses carried forward. Elastic: SolveStatic.
   HyperelasticSolve Step(double dt);
+  // The tissue's density (kg/m³, finite, ≥ 0; 0: quasi-static, the default): each Step is then
+  // implicit dynamics from the present state at rest or the last step's velocity.
+  Status SetDensity(double density);
+  double KineticEnergy() const;  // J, ½·Σ m_i·|v_i|²; 0 quasi-static
+  // The external forces' potential, −Σ f_i·x_i (J): with the strain and kinetic energies, the
+  // total a dynamic step under constant loads never raises.
+  double LoadPotential() const;
   double time() const { return time_; }  // s, the steps' sum
 
   const std::vector<Eigen::Vector3d>& positions() const { return x_; }
@@ -124,7 +140,8 @@ class HyperelasticFem {
   HyperelasticFem() = default;
   Eigen::Matrix3d Deformation(const Element& e, const std::vector<Eigen::Vector3d>& x) const;
   double Potential(const std::vector<Eigen::Vector3d>& x) const;
-  Eigen::VectorXd FreeResidual() const;  // internal + external forces, zero on held coordinates
+  Eigen::VectorXd FreeResidual() const;  // internal + external (+ inertial) forces, 0 where held
+  HyperelasticSolve RelaxingStep(double dt);  // the solve with the relaxation carried over dt
   double ElementDensity(size_t e, const Eigen::Matrix3d& f) const;          // the step's, Pa
   Eigen::Matrix3d ElementStress(size_t e, const Eigen::Matrix3d& f) const;  // the step's P, Pa
   // nodal_volume: each vertex's J_n at `x` (false when an element is inverted or flat), and each
@@ -147,6 +164,11 @@ class HyperelasticFem {
   std::vector<PronyTerm> prony_;
   double scale_ = 1, time_ = 0;
   std::vector<Eigen::Matrix3d> s_hist_, s_prev_, h_;
+  // Inertia: each vertex's lumped mass (empty: quasi-static), velocity and the step's predicted
+  // position x̂, and 1/h² while a dynamic step is solved (0 otherwise).
+  std::vector<double> mass_;
+  std::vector<Eigen::Vector3d> velocity_, predicted_;
+  double inertia_ = 0;
 };
 
 }  // namespace vsurg::tissue
