@@ -14,30 +14,18 @@
 #include "common/tissue/fem.h"
 
 namespace vsurg::bench {
-namespace {
 
-// The bar and its load, exactly as BM_FemStep builds them: 20 cm long, radius 2 cm, `rings`
-// rings and 5·rings layers (4: 5 760 tetrahedra; 5: 11 250), the base fixed, 2 mN·m of torque
-// about the axis spread over the tip face (z = 0.2 m) as Saint-Venant's shear traction.
-struct Bar {
-  geometry::TetCylinder cylinder;
-  std::vector<Eigen::Vector3d> tip_forces;  // on cylinder.tip, N
-};
-
-Expected<Bar> MakeBar(int rings) {
+Expected<Bar> MakeBar(int rings, double torque) {
   auto c = geometry::MakeTetCylinder({0.2, 0.02, 0.02, rings, 5 * rings});
   if (!c.ok()) return c.error();
   Bar b{std::move(c).value(), {}};
   b.tip_forces =
       tissue::TorqueNodalForces(b.cylinder.mesh.positions, b.cylinder.tip, b.cylinder.tip_area,
-                                Eigen::Vector3d(0, 0, 0.2), Eigen::Vector3d::UnitZ(), 2e-3);
+                                Eigen::Vector3d(0, 0, 0.2), Eigen::Vector3d::UnitZ(), torque);
   return b;
 }
 
-// The files a peer reads (bench/peers/vegafem/vega_fem_step.cpp): the mesh and its material in
-// VegaFEM's .veg text format (1-based), the fixed vertices and the tip forces (0-based), and the
-// step's settings.
-Status Export(const Bar& bar, const tissue::FemParams& p, double dt, const std::string& dir) {
+Status ExportBar(const Bar& bar, const tissue::FemParams& p, double dt, const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Error{ErrorCode::kIoError, "cannot create " + dir + ": " + ec.message(), "export"};
@@ -72,8 +60,6 @@ Status Export(const Bar& bar, const tissue::FemParams& p, double dt, const std::
     return Error{ErrorCode::kIoError, "cannot write the bar's files in " + dir, "export"};
   return Status::Ok();
 }
-
-}  // namespace
 
 int FemStep(const std::vector<std::string>& args) {
   cli::ArgParser p("vsurg-bench fem-step",
@@ -114,7 +100,7 @@ int FemStep(const std::vector<std::string>& args) {
                                                      : tissue::Preconditioner::kGaussSeidel;
   constexpr double kDt = 1e-3;
   if (p.Has("export")) {
-    if (Status s = Export(*bar, params, kDt, p.String("export")); !s.ok())
+    if (Status s = ExportBar(*bar, params, kDt, p.String("export")); !s.ok())
       return std::cerr << p.command() << ": " << s.error().message << "\n", 1;
     return 0;
   }

@@ -24,6 +24,9 @@
 //   vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] [--export DIR] [--json]
 //     one corotational implicit FEM step on BM_FemStep's twisted bar (fem_step_command.h); with
 //     --export, the bar written as files VegaFEM reads (bench/peers/fem.sh).
+//   vsurg-bench hyper-step [--rings 4] [--steps 20] [--tolerance 1e-6] [--export DIR] [--json]
+//     one implicit-Euler step of the neo-Hookean FEM on that bar twisted harder (bench/peers/
+//     hyper.sh runs VegaFEM's beside it).
 //   vsurg-bench speed-vs-error [--quick] [--out docs]
 //     every model against the same references: time per update vs marker error (see
 //     speed_vs_error.h).
@@ -59,6 +62,8 @@ int main(int argc, char** argv) {
                  "       vsurg-bench speed-vs-error [--quick] [--out DIR]\n"
                  "       vsurg-bench fem-step [--rings 5] [--steps 50] [--tolerance 1e-4] "
                  "[--export DIR] [--json]\n"
+                 "       vsurg-bench hyper-step [--rings 4] [--steps 20] [--tolerance 1e-6] "
+                 "[--export DIR] [--json]\n"
                  "       vsurg-bench wan [--profiles P,..] [--scenes S,..] [--methods "
                  "server,linear,model] [--grip tensed] [--runs N] [--out DIR]\n"
                  "       vsurg-bench four-hands [--profiles P,..] [--scene S] [--out DIR]\n";
@@ -76,6 +81,7 @@ int main(int argc, char** argv) {
     if (args[0] == "speed-vs-error")
       return vsurg::bench::SpeedVsError({args.begin() + 1, args.end()});
     if (args[0] == "fem-step") return vsurg::bench::FemStep({args.begin() + 1, args.end()});
+    if (args[0] == "hyper-step") return vsurg::bench::HyperStep({args.begin() + 1, args.end()});
     if (args[0] == "wan") return vsurg::bench::Wan({args.begin() + 1, args.end()});
     if (args[0] == "four-hands") return vsurg::bench::FourHands({args.begin() + 1, args.end()});
   } catch (const std::exception& e) {
@@ -86,6 +92,6 @@ int main(int argc, char** argv) {
             << "' (haptic-rtt, udp-floor, grpc-submit, placement, heartbeats, telemetry, msm-step, "
                "export, "
                "speed-vs-error, "
-               "fem-step, wan, four-hands)\n";
+               "fem-step, hyper-step, wan, four-hands)\n";
   return 2;
 }

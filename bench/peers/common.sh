@@ -36,7 +36,8 @@ peers_outside() {  # NAME CHECKOUT: exits unless the checkout is outside this re
 # CHECKOUT-harness, unless both are there already.
 peers_build_vega() {  # NAME CHECKOUT
   local harness="$2-harness"
-  [ -x "$harness/vega_fem_step" ] && [ -x "$harness/vega_msm_step" ] && return 0
+  [ -x "$harness/vega_fem_step" ] && [ -x "$harness/vega_msm_step" ] &&
+    [ -x "$harness/vega_hyper_step" ] && return 0
   echo "$1: building the harness with VegaFEM's sources in $harness" >&2
   cmake -S "$here/vegafem" -B "$harness" -G Ninja -DCMAKE_BUILD_TYPE=Release \
     "-DVEGA_SOURCE=$2" >/dev/null

@@ -1,5 +1,6 @@
 #include "common/tissue/hyperelastic.h"
 
+#include <Eigen/IterativeLinearSolvers>
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
 
@@ -236,21 +237,19 @@ Eigen::VectorXd HyperelasticFem::InternalForces() const {
   return f;
 }
 
-// Column (a, c) of the element's 12×12 tangent: the forces' change for a unit move of vertex a
-// along axis c, negated (K = −∂f/∂x).
-Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
-  std::vector<Eigen::Triplet<double>> entries;
-  entries.reserve(elements_.size() * 144);
-  const bool nodal = !node_volume_.empty();
-  const double lambda = nodal ? 0.0 : lambda_;  // the elements' own volumetric stiffness
-  std::vector<double> j, pressure(elements_.size(), 0.0);
-  if (nodal && NodalJacobians(x_, j)) pressure = ElementPressures(j);
+// Column (a, c) of each element's 12×12 tangent: the forces' change for a unit move of vertex a
+// along axis c, negated (K = −∂f/∂x); `add(e, slot, row, col, value)` takes each entry, slot its
+// place among the element's 144 ((a·3 + c)·12 + b·3 + r).
+template <class Add>
+void HyperelasticFem::ElementTangents(const std::vector<double>& pressure, Add&& add) const {
+  const double lambda = node_volume_.empty() ? lambda_ : 0.0;  // the elements' own volumetric part
   for (const Element& e : elements_) {
+    const size_t i = &e - elements_.data();
     // dP = μ·e·(dF + 2b·(F:dF)·F) + g''(J)·(cof F : dF)·cof F + (g'(J) + p̄)·d(cof F).
     const Mat3 f = Deformation(e, x_), cof = Cofactor(f);
     const LogTerms g{mu_, lambda};
     const double det = f.determinant(), factor = Law{mu_, lambda_, b_}.Factor(f);
-    const double g2 = g.Second(det), g1 = g.First(det) + pressure[&e - elements_.data()];
+    const double g2 = g.Second(det), g1 = g.First(det) + pressure[i];
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c) {
         Mat3 d_ds = Mat3::Zero();
@@ -261,17 +260,65 @@ Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
         const Mat3 df = d_ds * e.dm_inv;
         Mat3 dp = mu_ * factor * (df + 2 * b_ * (f.array() * df.array()).sum() * f) +
                   g2 * (cof.array() * df.array()).sum() * cof + g1 * CofactorChange(f, df);
-        if (!s_hist_.empty()) dp = scale_ * dp + df * s_hist_[&e - elements_.data()];
+        if (!s_hist_.empty()) dp = scale_ * dp + df * s_hist_[i];
         const auto dforces = NodalForces(dp, e.dm_inv, e.volume);
         for (int b = 0; b < 4; ++b)
           for (int r = 0; r < 3; ++r)
-            entries.emplace_back(3 * e.v[b] + r, 3 * e.v[a] + c, -dforces[b][r]);
+            add(i, (a * 3 + c) * 12 + b * 3 + r, 3 * e.v[b] + r, 3 * e.v[a] + c, -dforces[b][r]);
       }
   }
-  if (!j.empty()) NodalTangent(j, entries);
+}
+
+// The elements' stencil, once: the matrix's pattern and each element entry's place in its values,
+// so that each Newton step adds into it (assembling from triplets took a third of a dynamic step).
+void HyperelasticFem::BuildPattern() const {
   const auto n = 3 * static_cast<Eigen::Index>(x_.size());
-  Eigen::SparseMatrix<double> k(n, n);
-  k.setFromTriplets(entries.begin(), entries.end());
+  std::vector<Eigen::Triplet<double>> entries;
+  entries.reserve(elements_.size() * 144);
+  for (const Element& e : elements_)
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int c = 0; c < 3; ++c)
+          for (int r = 0; r < 3; ++r) entries.emplace_back(3 * e.v[b] + r, 3 * e.v[a] + c, 0.0);
+  pattern_.resize(n, n);
+  pattern_.setFromTriplets(entries.begin(), entries.end());
+  pattern_.makeCompressed();
+  slot_.resize(elements_.size() * 144);
+  const int* outer = pattern_.outerIndexPtr();
+  const int* inner = pattern_.innerIndexPtr();
+  for (const Element& e : elements_)
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 3; ++c)
+        for (int b = 0; b < 4; ++b)
+          for (int r = 0; r < 3; ++r) {
+            const int col = 3 * e.v[a] + c, row = 3 * e.v[b] + r;
+            const int* at = std::lower_bound(inner + outer[col], inner + outer[col + 1], row);
+            slot_[(&e - elements_.data()) * 144 + (a * 3 + c) * 12 + b * 3 + r] =
+                static_cast<int>(at - inner);
+          }
+}
+
+Eigen::SparseMatrix<double> HyperelasticFem::Tangent() const {
+  std::vector<double> j, pressure(elements_.size(), 0.0);
+  if (!node_volume_.empty()) {  // a wider stencil (the vertices' volumes): assembled each time
+    if (NodalJacobians(x_, j)) pressure = ElementPressures(j);
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(elements_.size() * 144);
+    ElementTangents(pressure, [&](size_t, int, int row, int col, double v) {
+      entries.emplace_back(row, col, v);
+    });
+    if (!j.empty()) NodalTangent(j, entries);
+    const auto n = 3 * static_cast<Eigen::Index>(x_.size());
+    Eigen::SparseMatrix<double> k(n, n);
+    k.setFromTriplets(entries.begin(), entries.end());
+    return k;
+  }
+  if (pattern_.nonZeros() == 0) BuildPattern();
+  Eigen::SparseMatrix<double> k = pattern_;
+  double* values = k.valuePtr();
+  ElementTangents(pressure, [&](size_t e, int slot, int, int, double v) {
+    values[slot_[e * 144 + static_cast<size_t>(slot)]] += v;
+  });
   return k;
 }
 
@@ -337,9 +384,9 @@ double HyperelasticFem::LoadPotential() const {
   return p;
 }
 
-HyperelasticSolve HyperelasticFem::Step(double dt) {
+HyperelasticSolve HyperelasticFem::Step(double dt, double tolerance) {
   time_ += dt;
-  if (mass_.empty()) return RelaxingStep(dt);
+  if (mass_.empty()) return RelaxingStep(dt, tolerance);
   // x̂ = x_n + h·v_n on the free coordinates; a held one is where Hold put it. Newton starts from
   // x̂ or x_n, whichever has the lower incremental potential: a fast bar's x̂ can be stretched
   // past what the exponential law can count (e^{b(I1−3)} overflows), x_n never is.
@@ -350,14 +397,14 @@ HyperelasticSolve HyperelasticFem::Step(double dt) {
       if (!held_[3 * i + c]) predicted_[i][c] += dt * velocity_[i][c];
   inertia_ = 1 / (dt * dt);
   if (Potential(predicted_) < Potential(start)) x_ = predicted_;
-  const HyperelasticSolve out = RelaxingStep(dt);
+  const HyperelasticSolve out = RelaxingStep(dt, tolerance);
   inertia_ = 0;
   for (size_t i = 0; i < x_.size(); ++i) velocity_[i] = (x_[i] - start[i]) / dt;
   return out;
 }
 
-HyperelasticSolve HyperelasticFem::RelaxingStep(double dt) {
-  if (prony_.empty()) return SolveStatic();
+HyperelasticSolve HyperelasticFem::RelaxingStep(double dt, double tolerance) {
+  if (prony_.empty()) return SolveStatic(50, tolerance);
   const size_t terms = prony_.size();
   std::vector<double> beta(terms), gamma(terms);
   scale_ = 1;
@@ -372,7 +419,7 @@ HyperelasticSolve HyperelasticFem::RelaxingStep(double dt) {
     for (size_t i = 0; i < terms; ++i)
       s_hist_[e] += beta[i] * h_[e * terms + i] - prony_[i].g * gamma[i] * s_prev_[e];
   }
-  const HyperelasticSolve out = SolveStatic();
+  const HyperelasticSolve out = SolveStatic(50, tolerance);
   for (size_t e = 0; e < elements_.size(); ++e) {
     const Mat3 f = Deformation(elements_[e], x_);
     const Mat3 s_e = f.inverse() * Stress(f, {mu_, lambda_, b_});
@@ -415,6 +462,26 @@ Eigen::VectorXd HyperelasticFem::FreeResidual() const {
   return r;
 }
 
+// A dynamic step's system K + M/h² is well conditioned (the masses' term is of the stiffness's
+// size at h = 1 ms): conjugate gradients preconditioned by its diagonal, as VegaFEM's implicit
+// integrators solve it, to a residual of a fraction of what Newton must reach (`target`, N),
+// in a ninth of the factorisation's time on hyper-step's bar. A static one (K alone, ill
+// conditioned near incompressibility) and a CG that fails are factorised: nested dissection
+// (METIS) as the linear FEM's solves, a fraction of the minimum-degree ordering's fill and time.
+Eigen::VectorXd HyperelasticFem::NewtonDirection(const Eigen::SparseMatrix<double>& k,
+                                                 const Eigen::VectorXd& r, double target) const {
+  if (inertia_ > 0) {
+    Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg(k);
+    cg.setTolerance(std::clamp(0.5 * target / r.norm(), 1e-12, 0.1));
+    cg.setMaxIterations(static_cast<Eigen::Index>(std::max<size_t>(1000, x_.size())));
+    Eigen::VectorXd d = cg.solve(r);
+    if (cg.info() == Eigen::Success && d.allFinite()) return d;
+  }
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
+      solver(k);
+  return solver.info() == Eigen::Success ? Eigen::VectorXd(solver.solve(r)) : r;
+}
+
 HyperelasticSolve HyperelasticFem::SolveStatic(int max_iterations, double tolerance) {
   HyperelasticSolve out;
   for (; out.iterations <= max_iterations; ++out.iterations) {
@@ -441,11 +508,7 @@ HyperelasticSolve HyperelasticFem::SolveStatic(int max_iterations, double tolera
     for (int col = 0; col < k.outerSize(); ++col)
       for (Eigen::SparseMatrix<double>::InnerIterator it(k, col); it; ++it)
         if (held_[it.row()] || held_[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
-    // Nested dissection (METIS) as the linear FEM's solves: a fraction of the fill of the
-    // minimum-degree ordering on these 3D meshes, and of the time.
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::MetisOrdering<int>>
-        solver(k);
-    Eigen::VectorXd d = solver.info() == Eigen::Success ? solver.solve(r) : r;
+    Eigen::VectorXd d = NewtonDirection(k, r, tolerance * scale);
     if (!(d.allFinite() && r.dot(d) > 0)) d = r;  // not a descent: the steepest one
     // Backtracking on the potential (Armijo); an inverted element pays the continued g(J).
     const double p0 = Potential(x_), slope = r.dot(d);

@@ -116,7 +116,7 @@ class HyperelasticFem {
   Status SetRelaxation(std::vector<PronyTerm> terms);
   // One quasi-static step of `dt` s (the held coordinates and loads as set now): the static solve
   // with the step's stress, then the internal stresses carried forward. Elastic: SolveStatic.
-  HyperelasticSolve Step(double dt);
+  HyperelasticSolve Step(double dt, double tolerance = 1e-10);  // SolveStatic's tolerance
   // The tissue's density (kg/m³, finite, ≥ 0; 0: quasi-static, the default): each Step is then
   // implicit dynamics from the present state at rest or the last step's velocity.
   Status SetDensity(double density);
@@ -141,7 +141,14 @@ class HyperelasticFem {
   Eigen::Matrix3d Deformation(const Element& e, const std::vector<Eigen::Vector3d>& x) const;
   double Potential(const std::vector<Eigen::Vector3d>& x) const;
   Eigen::VectorXd FreeResidual() const;  // internal + external (+ inertial) forces, 0 where held
-  HyperelasticSolve RelaxingStep(double dt);  // the solve with the relaxation carried over dt
+  template <class Add>
+  void ElementTangents(const std::vector<double>& pressure, Add&& add) const;
+  void BuildPattern() const;
+  // Newton's direction d with K·d = r (held rows an identity), K + M/h² in a dynamic step.
+  Eigen::VectorXd NewtonDirection(const Eigen::SparseMatrix<double>& k, const Eigen::VectorXd& r,
+                                  double target) const;
+  // The solve with the relaxation carried over dt.
+  HyperelasticSolve RelaxingStep(double dt, double tolerance);
   double ElementDensity(size_t e, const Eigen::Matrix3d& f) const;          // the step's, Pa
   Eigen::Matrix3d ElementStress(size_t e, const Eigen::Matrix3d& f) const;  // the step's P, Pa
   // nodal_volume: each vertex's J_n at `x` (false when an element is inverted or flat), and each
@@ -169,6 +176,10 @@ class HyperelasticFem {
   std::vector<double> mass_;
   std::vector<Eigen::Vector3d> velocity_, predicted_;
   double inertia_ = 0;
+  // The elements' tangent stencil (BuildPattern, on the first Tangent without nodal_volume): the
+  // pattern with zero values, and each element entry's index into its values (144 an element).
+  mutable Eigen::SparseMatrix<double> pattern_;
+  mutable std::vector<int> slot_;
 };
 
 }  // namespace vsurg::tissue

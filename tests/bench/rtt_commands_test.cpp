@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -145,6 +146,57 @@ TEST(FemStepCommandTest, BadArgumentsAreRefusedWithTheirName) {
   for (const std::string bad : {"--rings 0", "--steps 0", "--tolerance 2", "--bogus 1"}) {
     const test::ShellRun r =
         test::Shell(std::string(VSURG_BENCH_BINARY) + " fem-step " + bad + " 2>&1");
+    EXPECT_EQ(r.code, 2) << bad;
+    EXPECT_NE(r.out.find(bad.substr(0, bad.find(' '))), std::string::npos) << r.out;
+  }
+}
+
+// The neo-Hookean step with inertia on the same bar under 20 mN·m: every step converges, a tighter
+// Newton tolerance takes at least as many iterations and moves the bar alike, and what VegaFEM
+// reads (bench/peers/hyper.sh) is that bar, that torque and no damping.
+TEST(HyperStepCommandTest, StepsTheBarAndExportsItUndamped) {
+  const nlohmann::json loose = RunBench("hyper-step --rings 2 --steps 3 --json");
+  const nlohmann::json tight = RunBench("hyper-step --rings 2 --steps 3 --tolerance 1e-9 --json");
+  ASSERT_TRUE(loose.contains("converged") && tight.contains("converged"));
+  EXPECT_TRUE(loose["converged"].get<bool>());
+  EXPECT_TRUE(tight["converged"].get<bool>());
+  EXPECT_GE(loose["newton_iterations"].get<double>(), 1.0);
+  EXPECT_GE(tight["newton_iterations"].get<double>(), loose["newton_iterations"].get<double>());
+  const double moved = loose["max_displacement_m"];
+  EXPECT_GT(moved, 1e-4);  // 23 ms under ten times fem-step's torque: millimetres
+  EXPECT_LT(moved, 2e-2);
+  EXPECT_NEAR(tight["max_displacement_m"].get<double>(), moved, 1e-3 * moved);
+  const test::TempDir tmp("hyper_export");
+  const std::string dir = (tmp / "out").string();
+  ASSERT_EQ(
+      test::Shell(std::string(VSURG_BENCH_BINARY) + " hyper-step --rings 2 --export " + dir).code,
+      0);
+  std::ifstream settings(dir + "/settings.txt");
+  std::map<std::string, double> values;
+  std::string key;
+  double value;
+  while (settings >> key >> value) values[key] = value;
+  EXPECT_EQ(values["dt"], 1e-3);
+  EXPECT_EQ(values["mass_damping"], 0.0);
+  EXPECT_EQ(values["stiffness_damping"], 0.0);
+  std::ifstream veg(dir + "/mesh.veg"), forces(dir + "/forces.txt");
+  std::string line;
+  std::vector<Eigen::Vector3d> x;
+  while (std::getline(veg, line) && line != "*VERTICES") {
+  }
+  int n = 0, index;
+  veg >> n;
+  std::getline(veg, line);  // the rest of the count's line
+  for (Eigen::Vector3d p;
+       static_cast<int>(x.size()) < n && veg >> index >> p.x() >> p.y() >> p.z();)
+    x.push_back(p);
+  ASSERT_EQ(static_cast<int>(x.size()), n);
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero(), f;
+  while (forces >> index >> f.x() >> f.y() >> f.z()) torque += x[index].cross(f);
+  EXPECT_NEAR(torque.z(), 20e-3, 1e-9);
+  for (const std::string bad : {"--rings 0", "--steps 0", "--tolerance 2", "--bogus 1"}) {
+    const test::ShellRun r =
+        test::Shell(std::string(VSURG_BENCH_BINARY) + " hyper-step " + bad + " 2>&1");
     EXPECT_EQ(r.code, 2) << bad;
     EXPECT_NE(r.out.find(bad.substr(0, bad.find(' '))), std::string::npos) << r.out;
   }
