@@ -61,6 +61,22 @@ Status ExportBar(const Bar& bar, const tissue::FemParams& p, double dt, const st
   return Status::Ok();
 }
 
+std::optional<int> ParseBarRun(cli::ArgParser& p, const std::vector<std::string>& args,
+                               BarRun& out) {
+  if (Status s = p.Parse(args); !s.ok()) {
+    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
+    return 2;
+  }
+  if (p.HelpRequested()) return std::cout << p.Help(), 0;
+  out = {p.Int("rings"), p.Int("steps"), p.Double("tolerance")};
+  if (out.rings < 1 || out.rings > 12) return std::cerr << p.command() << ": --rings: 1..12\n", 2;
+  if (out.steps < 1 || out.steps > 100000)
+    return std::cerr << p.command() << ": --steps: 1..100000\n", 2;
+  if (!(out.tolerance > 0 && out.tolerance < 1))
+    return std::cerr << p.command() << ": --tolerance: must be in (0, 1)\n", 2;
+  return std::nullopt;
+}
+
 int FemStep(const std::vector<std::string>& args) {
   cli::ArgParser p("vsurg-bench fem-step",
                    "One corotational implicit FEM step (h = 1 ms, one Newton step, CG "
@@ -78,17 +94,10 @@ int FemStep(const std::vector<std::string>& args) {
               "write the bar, its fixed vertices, tip forces and settings into this folder for a "
               "peer (bench/peers/fem.sh) and exit")
       .Option("json", cli::ArgParser::Kind::kFlag, "print one JSON object");
-  if (Status s = p.Parse(args); !s.ok()) {
-    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
-    return 2;
-  }
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
-  const int rings = p.Int("rings"), steps = p.Int("steps");
-  const double tolerance = p.Double("tolerance");
-  if (rings < 1 || rings > 12) return std::cerr << p.command() << ": --rings: 1..12\n", 2;
-  if (steps < 1 || steps > 100000) return std::cerr << p.command() << ": --steps: 1..100000\n", 2;
-  if (!(tolerance > 0 && tolerance < 1))
-    return std::cerr << p.command() << ": --tolerance: must be in (0, 1)\n", 2;
+  BarRun run;
+  if (auto rc = ParseBarRun(p, args, run)) return *rc;
+  const int rings = run.rings, steps = run.steps;
+  const double tolerance = run.tolerance;
   const std::string preconditioner = p.String("preconditioner");
   if (preconditioner != "gauss-seidel" && preconditioner != "jacobi")
     return std::cerr << p.command() << ": --preconditioner: gauss-seidel or jacobi\n", 2;

@@ -3,11 +3,13 @@
 // the bar written out as files the peer reads.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "common/core/args.h"
 #include "common/core/expected.h"
 #include "common/geometry/tet_generators.h"
 #include "common/tissue/fem.h"
@@ -27,6 +29,16 @@ Expected<Bar> MakeBar(int rings, double torque = 2e-3);
 // format (1-based), the fixed vertices and the tip forces (0-based), and the step's settings
 // (dt and the Rayleigh damping).
 Status ExportBar(const Bar& bar, const tissue::FemParams& p, double dt, const std::string& dir);
+
+// The options both bar commands take, parsed and checked: --rings (1..12), --steps (1..100000),
+// --tolerance in (0, 1). Returns the exit code when the command should end here (a refusal, 2;
+// help, 0), else nothing.
+struct BarRun {
+  int rings = 0, steps = 0;
+  double tolerance = 0;
+};
+std::optional<int> ParseBarRun(cli::ArgParser& p, const std::vector<std::string>& args,
+                               BarRun& out);
 
 int FemStep(const std::vector<std::string>& args);
 // vsurg-bench hyper-step: one implicit-Euler step of the neo-Hookean FEM (hyper_step_command.cpp).

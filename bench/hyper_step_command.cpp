@@ -58,18 +58,11 @@ int HyperStep(const std::vector<std::string>& args) {
               "write the bar, its fixed vertices, tip forces and settings into this folder for a "
               "peer (bench/peers/hyper.sh) and exit")
       .Option("json", cli::ArgParser::Kind::kFlag, "print one JSON object");
-  if (Status s = p.Parse(args); !s.ok()) {
-    std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
-    return 2;
-  }
-  if (p.HelpRequested()) return std::cout << p.Help(), 0;
-  const int rings = p.Int("rings"), steps = p.Int("steps");
-  const double tolerance = p.Double("tolerance");
-  if (rings < 1 || rings > 12) return std::cerr << p.command() << ": --rings: 1..12\n", 2;
-  if (steps < 1 || steps > 100000) return std::cerr << p.command() << ": --steps: 1..100000\n", 2;
-  if (!(tolerance > 0 && tolerance < 1))
-    return std::cerr << p.command() << ": --tolerance: must be in (0, 1)\n", 2;
-  auto bar = MakeBar(rings, kTorque);
+  BarRun run;
+  if (auto rc = ParseBarRun(p, args, run)) return *rc;
+  const int steps = run.steps;
+  const double tolerance = run.tolerance;
+  auto bar = MakeBar(run.rings, kTorque);
   if (!bar.ok()) return std::cerr << bar.error().message << "\n", 1;
   tissue::FemParams material;  // the tissue's E, ν and ρ; no damping (none in the hyperelastic)
   material.mass_damping = material.stiffness_damping = 0;
