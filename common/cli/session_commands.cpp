@@ -194,7 +194,12 @@ int ContactLaw(const Args& args, std::ostream& out, std::ostream& err) {
   }
   std::snprintf(line, sizeof line, "\"tissue_stiffness\": %.4g, \"tissue_damping\": %.4g,",
                 law->stiffness, law->damping);
-  out << line << "\n\"tissue_curve\": [";
+  out << line << "\n";
+  if (law->tissue.count == 0) {  // never settled in contact: nothing the scene file could take
+    err << p.command() << ": " << scene->name << ": no depth settled in contact: no tissue_curve\n";
+    return 0;
+  }
+  out << "\"tissue_curve\": [";
   for (int i = 0; i < law->tissue.count; ++i) {
     std::snprintf(line, sizeof line, "%s[%.4g, %.4g]", i ? ", " : "", law->tissue.yield[i],
                   law->tissue.force[i]);

@@ -34,7 +34,8 @@ struct ContactLaw {
   haptics::TissueCurve tissue;         // the curve's strictly rising points
 };
 
-// The scene must be a press scene with the viscoelastic contact model; errors name "scene".
+// A press scene (measured with the viscoelastic contact model whatever it renders); errors name
+// "scene". `tissue` is empty when no depth settled in contact.
 Expected<ContactLaw> MeasureContactLaw(Scene scene);
 
 }  // namespace vsurg::sim
