@@ -263,7 +263,7 @@ TEST_F(WanTest, TheSurfaceFromTheJoinBeginsAContactOnTimeAtIntercontinental) {
   EXPECT_LT(f.rms_error_pct, late.rms_error_pct - 1);
   // And within the goal's 5%: the contact from the surface follows the tissue's static curve and
   // pushes along its face as the corners' yield tilts it (1.9-2.0% on a quiet machine, where the
-  // tangent law through the rest surface read 6.3-6.5%).
+  // tangent law through the rest surface read 6.3-6.7%).
   EXPECT_LT(f.rms_error_pct, 5.0);
   // No kick when the answers about the impact arrive a round trip later: the station goes on
   // with its own contact until an answer about the settled tissue comes.
