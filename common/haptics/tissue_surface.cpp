@@ -64,7 +64,7 @@ TissueSurface::TissueSurface(SurfaceSpec spec) : spec_(std::move(spec)) {
   bvh_ = geometry::Bvh(mesh);
 }
 
-bool TissueSurface::Ahead(const Vec3& x, LocalModel& out, int& start) const {
+bool TissueSurface::Ahead(const Vec3& x, LocalModel& out, int& start, Vec3* barycentric) const {
   if (!x.allFinite()) return false;
   const geometry::ClosestHit c =
       bvh_.Closest(spec_.positions, x, spec_.reach, Vec3::Zero(), -2.0, start);
@@ -82,19 +82,16 @@ bool TissueSurface::Ahead(const Vec3& x, LocalModel& out, int& start) const {
   out.position0 = c.point;
   out.jacobian = -k * n * n.transpose();
   out.contact_damping = spec_.damping;
+  if (barycentric) *barycentric = c.barycentric;
   return true;
 }
 
-Vec3 TissueSurface::YieldedNormal(int triangle, const Vec3& point, double yield) const {
+Vec3 TissueSurface::YieldedNormal(int triangle, const Vec3& w, double yield) const {
   const geometry::Triangle& tri = spec_.triangles[triangle];
   const Vec3 &a = spec_.positions[tri[0]], &b = spec_.positions[tri[1]],
              &c = spec_.positions[tri[2]];
-  const Vec3 n = (b - a).cross(c - a);
-  const double area2 = n.squaredNorm();
-  if (!(area2 > 0) || !std::isfinite(yield)) return n.normalized();
-  const Vec3 w((c - b).cross(point - b).dot(n) / area2, (a - c).cross(point - c).dot(n) / area2,
-               (b - a).cross(point - a).dot(n) / area2);
-  const Vec3 unit = n / std::sqrt(area2);
+  const Vec3 unit = (b - a).cross(c - a).normalized();
+  if (!std::isfinite(yield) || !(w.squaredNorm() > 0)) return unit;
   const Vec3 sink = yield / w.squaredNorm() * w;  // each corner's yield, m
   const Vec3 t = ((b - sink[1] * unit) - (a - sink[0] * unit))
                      .cross((c - sink[2] * unit) - (a - sink[0] * unit))
@@ -112,7 +109,7 @@ Vec3 SurfaceContact::InContact(const Vec3& x, const Vec3& v) {
   if (v.allFinite()) fn -= plane_.contact_damping * v.dot(n);
   // Along the face as the tissue's yield has tilted it, where it does (the depth stays along n).
   const Vec3 along = surface_->spec().corners_yield
-                         ? surface_->YieldedNormal(face_, plane_.position0, tissue_.sigma())
+                         ? surface_->YieldedNormal(face_, weights_, tissue_.sigma())
                          : n;
   const Vec3 f = fn > 0 ? Vec3(fn * along) : Vec3::Zero();
   return f.allFinite() ? f : Vec3::Zero();
@@ -132,7 +129,7 @@ bool SurfaceContact::Render(const Vec3& x, const Vec3& v, Vec3& force) {
     state_ = State::kOutside;  // back out through the plane it went in by
   }
   LocalModel ahead;
-  if (surface_->Ahead(x, ahead, start_)) {
+  if (surface_->Ahead(x, ahead, start_, &weights_)) {
     state_ = State::kOutside;
     plane_ = ahead;
     face_ = start_;

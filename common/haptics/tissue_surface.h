@@ -62,15 +62,16 @@ class TissueSurface {
   // The surface ahead of a free tip x (outside, within reach): a contact model of the nearest
   // face's plane, F = k·((p − x)·n)·n − c·(v·n)·n on the penetrating side only, k interpolated
   // from the face's vertices at the nearest point. False when nothing is within reach or x is
-  // behind the nearest face. `start` is the caller's previous face (−1: none), updated.
-  bool Ahead(const Vec3& x, LocalModel& out, int& start) const;
+  // behind the nearest face. `start` is the caller's previous face (−1: none), updated; with
+  // `barycentric`, the nearest point's weights on that face.
+  bool Ahead(const Vec3& x, LocalModel& out, int& start, Vec3* barycentric = nullptr) const;
 
-  // The normal of face `triangle` once the tissue has yielded `yield` (m) under `point` (on the
-  // face at rest): each corner pushed in along the rest normal by w_i·yield/Σw_j², w the point's
-  // barycentric coordinates. That is the load spread over the corners by w, as the server's
-  // contact spreads it, each corner yielding in proportion; its interpolation at the point is
-  // the yield. A press off a corner tilts the face towards the corner that yields most. Unit.
-  Vec3 YieldedNormal(int triangle, const Vec3& point, double yield) const;
+  // The normal of face `triangle` once the tissue has yielded `yield` (m) under the point of
+  // barycentric weights w on it: each corner pushed in along the rest normal by w_i·yield/Σw_j².
+  // That is the load spread over the corners by w, as the server's contact spreads it, each corner
+  // yielding in proportion; its interpolation at the point is the yield. A press off a corner
+  // tilts the face towards the corner that yields most. Unit.
+  Vec3 YieldedNormal(int triangle, const Vec3& w, double yield) const;
 
   const SurfaceSpec& spec() const { return spec_; }
 
@@ -108,7 +109,8 @@ class SurfaceContact {
   LocalModel plane_;  // the last outside cycle's surface ahead, held while in
   bool have_plane_ = false;
   int start_ = -1;
-  int face_ = -1;  // plane_'s face
+  int face_ = -1;                // plane_'s face
+  Vec3 weights_ = Vec3::Zero();  // plane_.position0's barycentric weights on it
 };
 
 }  // namespace vsurg::haptics

@@ -158,7 +158,8 @@ TEST(TissueSurfaceTest, AFaceWhoseCornersYieldTiltsTowardsTheCornerPressed) {
   spec.stiffness.assign(3, kStiffness);
   auto flat = TissueSurface::Create(spec);
   ASSERT_TRUE(flat.ok());
-  const Vec3 centroid(0.01 / 3, 0.01 / 3, 0), near_a(0.002, 0.002, 0);
+  // The centroid's weights, and those of (2 mm, 2 mm) near corner 0.
+  const Vec3 centroid(1.0 / 3, 1.0 / 3, 1.0 / 3), near_a(0.6, 0.2, 0.2);
   EXPECT_NEAR((*flat)->YieldedNormal(0, centroid, 0.003).z(), 1, 1e-12);
   EXPECT_NEAR((*flat)->YieldedNormal(0, near_a, 0).z(), 1, 1e-12);
   const Vec3 shallow = (*flat)->YieldedNormal(0, near_a, 0.001),
