@@ -67,28 +67,23 @@ Expected<sim::Scene> GridScene(const std::string& name) {
 Expected<std::vector<haptics::StylusSample>> TapPlan(const sim::Scene& scene) {
   if (scene.task.kind != scoring::TaskKind::kPress)
     return InvalidArgument("scene", "a palpation needs a press scene");
-  // The good trainee's plan comes down the normal from 2 cm above to 2 mm below the surface
-  // point in its first 0.4 s (common/sim/trajectory.cpp): read the point and normal from it.
-  auto good = sim::ScriptedTrainee(scene, sim::TraineeStyle::kGood);
-  if (!good.ok()) return good.error();
-  const Vec3 start = good->front().position, inside = (*good)[400].position;
-  const Vec3 normal = (start - inside).normalized();
-  const Vec3 surface = inside + 0.002 * normal;
+  // Where the good trainee presses (common/sim/trajectory.h).
+  auto touch = sim::ScriptedTouch(scene);
+  if (!touch.ok()) return touch.error();
+  const Vec3 &surface = touch->surface, &normal = touch->normal;
   const Vec3 above = surface + 0.06 * normal, deep = surface - 0.005 * normal;
-  const auto min_jerk = [](double u) { return u * u * u * (10 - 15 * u + 6 * u * u); };
   std::vector<haptics::StylusSample> plan;
   const double down = 0.35, hold = 1.0, up = 0.4;
   for (int k = 0; k <= static_cast<int>((down + hold + up) * 1000); ++k) {
     const double t = k * 1e-3;
-    haptics::StylusSample s = good->front();
+    haptics::StylusSample s;
     s.time = t;
-    s.buttons = 0;
     if (t < down) {
-      s.position = above + (deep - above) * min_jerk(t / down);
+      s.position = above + (deep - above) * sim::MinJerk(t / down);
     } else if (t < down + hold) {
       s.position = deep;
     } else {
-      s.position = deep + (above - deep) * min_jerk(std::min(1.0, (t - down - hold) / up));
+      s.position = deep + (above - deep) * sim::MinJerk((t - down - hold) / up);
     }
     plan.push_back(s);
   }

@@ -11,23 +11,6 @@ namespace {
 constexpr double kRampS = 0.3, kHoldS = 1.5;  // per depth: the move, then the settling
 constexpr double kDepthsMm[] = {0.5, 1, 1.5, 2, 3, 4, 5, 6, 8};
 
-struct Approach {
-  haptics::StylusSample first;  // the good trainee's first sample (its orientation)
-  Vec3 surface = Vec3::Zero();  // m, the rest surface point it presses
-  Vec3 normal = Vec3::UnitZ();  // outward
-};
-
-// The good trainee's plan comes down the normal from 2 cm above to 2 mm below the surface point
-// in its first 0.4 s (trajectory.cpp): the point and the normal read from it.
-Approach ApproachOf(const std::vector<haptics::StylusSample>& good) {
-  Approach a;
-  a.first = good.front();
-  const Vec3 inside = good[400].position;
-  a.normal = (a.first.position - inside).normalized();
-  a.surface = inside + 0.002 * a.normal;
-  return a;
-}
-
 // The fit the server's last contact answer carried over the good trainee's press.
 Status FitAtThePress(const Scene& scene, const std::vector<haptics::StylusSample>& good,
                      ContactLaw& law) {
@@ -46,21 +29,20 @@ Status FitAtThePress(const Scene& scene, const std::vector<haptics::StylusSample
 
 // The stylus from 1 cm above down the normal, each depth approached by a minimum-jerk move and
 // held; the sample indices where each hold ends.
-std::vector<haptics::StylusSample> StaircasePlan(const Approach& a, std::vector<size_t>& ends) {
-  const auto min_jerk = [](double u) { return u * u * u * (10 - 15 * u + 6 * u * u); };
+std::vector<haptics::StylusSample> StaircasePlan(const Touch& a, std::vector<size_t>& ends) {
   std::vector<haptics::StylusSample> plan;
   Vec3 from = a.surface + 0.01 * a.normal;
   double t = 0;
   const auto add = [&](const Vec3& x) {
-    haptics::StylusSample s = a.first;
-    s.time = t, s.buttons = 0, s.position = x;
+    haptics::StylusSample s;
+    s.time = t, s.position = x;
     plan.push_back(s);
     t += 1e-3;
   };
   for (const double mm : kDepthsMm) {
     const Vec3 to = a.surface - 1e-3 * mm * a.normal;
     for (int k = 0; k < static_cast<int>(kRampS * 1000); ++k)
-      add(from + (to - from) * min_jerk(k / (kRampS * 1000)));
+      add(from + (to - from) * MinJerk(k / (kRampS * 1000)));
     for (int k = 0; k < static_cast<int>(kHoldS * 1000); ++k) add(to);
     ends.push_back(plan.size() - 1);
     from = to;
@@ -68,7 +50,7 @@ std::vector<haptics::StylusSample> StaircasePlan(const Approach& a, std::vector<
   return plan;
 }
 
-Status StaticCurve(const Scene& scene, const Approach& a, ContactLaw& law) {
+Status StaticCurve(const Scene& scene, const Touch& a, ContactLaw& law) {
   std::vector<size_t> ends;
   const auto plan = StaircasePlan(a, ends);
   auto simulation = Simulation::Create(scene, {.threaded = false});
@@ -107,7 +89,9 @@ Expected<ContactLaw> MeasureContactLaw(Scene scene) {
   if (!good.ok()) return good.error();
   ContactLaw law;
   if (Status s = FitAtThePress(scene, *good, law); !s.ok()) return s.error();
-  if (Status s = StaticCurve(scene, ApproachOf(*good), law); !s.ok()) return s.error();
+  auto touch = ScriptedTouch(scene);  // where the good trainee presses
+  if (!touch.ok()) return touch.error();
+  if (Status s = StaticCurve(scene, *touch, law); !s.ok()) return s.error();
   TakeCurve(law);
   return law;
 }

@@ -7,6 +7,7 @@
 
 #include "common/sim/palpation_case.h"
 #include "common/sim/simulation.h"
+#include "common/sim/trajectory.h"
 
 namespace vsurg::sim {
 
@@ -174,8 +175,7 @@ haptics::StylusSample PalpationSearch::Next(double t, const haptics::ForceComman
   }
   const Move& m = plan_[current_];
   const double u = std::clamp((t - m.t0) / std::max(1e-9, m.t1 - m.t0), 0.0, 1.0);
-  const double w = u * u * u * (10 - 15 * u + 6 * u * u);  // minimum jerk
-  s.position = m.from + w * (m.to - m.from);
+  s.position = m.from + MinJerk(u) * (m.to - m.from);
   s.buttons = m.buttons;
   return s;
 }

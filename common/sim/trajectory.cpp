@@ -23,12 +23,6 @@ namespace {
 constexpr const char* kHeader = "t,x,y,z,qw,qx,qy,qz,buttons";
 constexpr size_t kMaxSamples = 50'000'000;
 
-// Minimum-jerk profile from 0 to 1 over [0, 1].
-double MinJerk(double u) {
-  u = std::clamp(u, 0.0, 1.0);
-  return u * u * u * (10 - 15 * u + 6 * u * u);
-}
-
 // A piecewise plan: each phase moves a scalar from `from` to `to` over `duration` seconds.
 struct Phase {
   double duration, from, to;
@@ -187,22 +181,15 @@ static std::vector<Phase> StylePhases(TraineeStyle style, double target, double 
   return plan;
 }
 
-// The trainee approaches the surface along its normal, sinks 2 mm in, then either twists about
-// the task's axis with the grasp held (twist tasks) or presses along the normal (press tasks),
-// holds, and leaves.
-Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeStyle style,
-                                                    double rate_hz, unsigned seed) {
-  if (!(rate_hz >= 10 && rate_hz <= 100000))
-    return InvalidArgument("rate", "rate must be in 10..100000 Hz");
-  if (scene.task.kind == scoring::TaskKind::kInsert) return NeedleTrainee(scene, style, rate_hz);
-  if (scene.task.kind == scoring::TaskKind::kCut) return CutTrainee(scene, style, rate_hz, seed);
-  if (scene.task.kind == scoring::TaskKind::kPalpate)
-    return Error{ErrorCode::kFailedPrecondition,
-                 "a palpation's scripted trainees search closed on the forces they feel "
-                 "(sim::PalpationSearch; vsurg-sim search): no trajectory is written ahead",
-                 "scene"};
-  // Where to touch: a limb's side 3 cm from the distal end, or a sphere's top.
-  Vec3 surface_point, normal, axis_point, axis;
+double MinJerk(double u) {
+  u = std::clamp(u, 0.0, 1.0);
+  return u * u * u * (10 - 15 * u + 6 * u * u);
+}
+
+// A limb's side 3 cm from the distal end, a sphere's top, or a mesh's surface above its middle.
+Expected<Touch> ScriptedTouch(const Scene& scene) {
+  Touch t;
+  Vec3 &surface_point = t.surface, &normal = t.normal, &axis_point = t.axis_point, &axis = t.axis;
   if (scene.mesh.kind == MeshKind::kLimb) {
     const double z = scene.mesh.limb.length - 0.03;
     const double a = scene.mesh.limb.radius_proximal +
@@ -244,6 +231,27 @@ Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeS
     axis_point = surface_point;
     axis = normal;
   }
+  return t;
+}
+
+// The trainee approaches the surface along its normal, sinks 2 mm in, then either twists about
+// the task's axis with the grasp held (twist tasks) or presses along the normal (press tasks),
+// holds, and leaves.
+Expected<std::vector<StylusSample>> ScriptedTrainee(const Scene& scene, TraineeStyle style,
+                                                    double rate_hz, unsigned seed) {
+  if (!(rate_hz >= 10 && rate_hz <= 100000))
+    return InvalidArgument("rate", "rate must be in 10..100000 Hz");
+  if (scene.task.kind == scoring::TaskKind::kInsert) return NeedleTrainee(scene, style, rate_hz);
+  if (scene.task.kind == scoring::TaskKind::kCut) return CutTrainee(scene, style, rate_hz, seed);
+  if (scene.task.kind == scoring::TaskKind::kPalpate)
+    return Error{ErrorCode::kFailedPrecondition,
+                 "a palpation's scripted trainees search closed on the forces they feel "
+                 "(sim::PalpationSearch; vsurg-sim search): no trajectory is written ahead",
+                 "scene"};
+  auto touch = ScriptedTouch(scene);
+  if (!touch.ok()) return touch.error();
+  const Vec3 &surface_point = touch->surface, &normal = touch->normal;
+  const Vec3 &axis_point = touch->axis_point, &axis = touch->axis;
   const bool twist = scene.task.kind == scoring::TaskKind::kTwist;
   const double target = scene.task.target, hold = scene.task.hold_s;
   const double sink = 0.002;  // m below the surface while grasping

@@ -30,6 +30,18 @@ Status WriteTrajectoryCsv(const std::vector<haptics::StylusSample>& samples,
 enum class TraineeStyle { kGood, kHesitant, kRough, kSteady };
 Expected<TraineeStyle> ParseTraineeStyle(const std::string& name);  // good, hesitant, rough, steady
 
+// Minimum-jerk profile from 0 to 1 over u in [0, 1] (clamped outside).
+double MinJerk(double u);
+
+// Where the scripted trainees touch a scene (m, in the scene's frame): a point on the rest surface
+// inside one face, its outward unit normal, and the twist's axis through axis_point. Errors name
+// "scene" (a mesh with no surface above its middle).
+struct Touch {
+  geometry::Vec3 surface = geometry::Vec3::Zero(), normal = geometry::Vec3::UnitZ();
+  geometry::Vec3 axis_point = geometry::Vec3::Zero(), axis = geometry::Vec3::UnitZ();
+};
+Expected<Touch> ScriptedTouch(const Scene& scene);
+
 // A trajectory at rate_hz samples per second that performs the scene's task. `seed` varies the
 // tremor of the rough trainee; the others are deterministic.
 Expected<std::vector<haptics::StylusSample>> ScriptedTrainee(const Scene& scene, TraineeStyle style,
