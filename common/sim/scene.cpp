@@ -168,6 +168,8 @@ Status ParseReduced(const Reader& r, RegionSpec& g) {
   VSURG_TRY(footprint, r.NumberOr("footprint_radius", 0.005, 1e-4, 0.1));
   VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
   VSURG_TRY(max_twist_deg, r.NumberOr("max_twist_deg", 90.0, 1.0, 180.0));
+  VSURG_TRY(levels, r.IntegerOr("levels", 6, 1, 32));
+  g.reduced.levels = levels;
   g.reduced.fem_cells = cells;
   g.reduced.fem_rings = rings;
   g.reduced.fem_size = fem_size;
@@ -654,6 +656,7 @@ Expected<Scene> ParseSceneObject(const json& root, const std::string& source) {
   if (Status st = ParseRegion(root, r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseInclusions(r, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseVolume(r, s); !st.ok()) return with_source(st.error());
+  if (Status st = ParseLaw(root, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseNeedle(root, s); !st.ok()) return with_source(st.error());
   if (Status st = ParseCut(root, s); !st.ok()) return with_source(st.error());
   if (r.Has("haptics")) {

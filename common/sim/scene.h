@@ -94,6 +94,7 @@ struct ReducedSpec {
   double footprint_radius = 0.005;  // m, contact: the tool's contact disc
   double max_force = 10;            // N, contact: the capacity; a larger press is clamped
   double max_twist = 1.5707963267948966;  // rad, twist: the largest turn any vertex may take
+  int levels = 6;  // twist with a hyperelastic law: the table's load levels on each side
   double jaw_radius = 0.009;              // m, surface twist: the disc the forceps hold
 };
 
@@ -180,6 +181,13 @@ struct Scene {
   // "tissue.volume": "vertices": a reduced model's tables integrate the volume constraint at the
   // vertices (tissue::FemParams::nodal_volume); "element" (false), the default.
   bool volume_at_vertices = false;
+  // "tissue.law" (scene_law.cpp): the tissue's constitutive law. "linear" (the default): small
+  // strains, the corotational FEM and every table built from it. "neo-hookean" or "exponential"
+  // (with "stiffening" b > 0): the hyperelastic FEM's law (tissue/hyperelastic.h), which a reduced
+  // twist region carries in load levels (tissue/twist_table.h); no other model has it yet.
+  enum class Law { kLinear, kNeoHookean, kExponential };
+  Law law = Law::kLinear;
+  double stiffening = 0;  // b, dimensionless: the exponential law's
   std::vector<tissue::Inclusion> inclusions;  // lumps of another stiffness (inclusions.h)
   // A palpation's cases: each attempt draws its own lumps (DrawInclusions) into `inclusions`
   // (DrawCase); unset: the scene's own inclusions are the case.
@@ -231,6 +239,9 @@ Status CheckSessionMemory(ModelKind model, size_t surface_vertices, const std::s
 Expected<Scene> ParseScene(const std::string& json_text, const std::string& source);
 // The scene file's "needle" object into `s.needle` (scene_needle.cpp); nothing when absent.
 Status ParseNeedle(const nlohmann::json& root, Scene& s);
+// The scene file's "tissue.law" and "tissue.stiffening" into `s.law` (scene_law.cpp), after the
+// region (only a reduced twist region carries a law other than linear).
+Status ParseLaw(const nlohmann::json& root, Scene& s);
 // The scene file's "cut" object into `s.cut` and `s.mesh.membrane` (scene_cut.cpp); nothing when
 // absent. A membrane mesh, the cut-membrane model and a cut task go together.
 Status ParseCut(const nlohmann::json& root, Scene& s);

@@ -66,6 +66,7 @@
 // Threads: a model belongs to one thread; Update/Press do not allocate.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -115,29 +116,73 @@ struct ReducedStats {
 // reference the vectorised loop is tested against. w in rad (held at |w| ≤ π/2), u in m.
 Eigen::Vector3d WarpedDisplacement(const Eigen::Vector3d& w, const Eigen::Vector3d& u);
 
+// A twist at several load levels (the nonlinear table, common/tissue/twist_table.h, or a linear
+// field as three levels): level k is the state of the grasp turned by twist[k] (rad) and held by
+// torque[k] (N·m), both strictly rising, one level at rest (0, 0); its fields are absolute, per
+// display vertex: angle (rad) about the axis, warp (m) along it, radial (1: the offset from the
+// axis grown by 1 + radial), lateral (m ⊥ the axis, for vertices on the axis only). Between two
+// levels a vertex takes the fields interpolated linearly in the torque; past the end levels the
+// end segments are extended (the linear field's is its whole law).
+struct TwistTable {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+  std::vector<double> twist, torque;  // per level: rad at the grasp, N·m
+  std::vector<double> axial;          // per level: N along the axis the grasp holds (Poynting)
+  int vertices = 0;
+  std::vector<float> angle, warp, radial;  // [level·vertices + i]
+  std::vector<Eigen::Vector3d> lateral;    // [level·vertices + i]
+  double max_distance = 0;                 // m: the display vertex farthest outside the FEM mesh
+  int Levels() const { return static_cast<int>(twist.size()); }
+};
+
+// The linear field as a table: levels at −1, 0 and 1 N·m, the grasp at ∓/± its compliance.
+TwistTable LinearTwistTable(const TwistField& field);
+// Sizes, finiteness, a unit axis, a level at rest and both curves strictly rising (a table read
+// from disk is checked before use).
+Status ValidateTwistTable(const TwistTable& table, size_t display_vertices);
+
 class ReducedTwistModel {
  public:
-  // `max_twist`: the largest angle any vertex may turn (rad, ≤ π); the torque capacity follows
-  // from the field (max_twist / max |a|).
+  // `max_twist`: the largest angle any vertex may turn (rad, ≤ π); the torque capacity on each
+  // side follows from the table (the torque at which its largest vertex angle reaches max_twist;
+  // for a linear field max_twist / max |a|).
   static Expected<ReducedTwistModel> Create(const TwistField& field,
+                                            const std::vector<Eigen::Vector3d>& display_rest,
+                                            double max_twist);
+  static Expected<ReducedTwistModel> Create(const TwistTable& table,
                                             const std::vector<Eigen::Vector3d>& display_rest,
                                             double max_twist);
   ReducedStats Update(double torque);  // N·m; no allocation
   const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
-  double torque_capacity() const { return capacity_; }                // N·m
-  double grasp_stiffness() const { return 1.0 / grasp_compliance_; }  // N·m/rad, dT/dΦ
-  double grasp_twist(double torque) const { return torque * grasp_compliance_; }  // rad
+  // N·m: the smaller of the two sides' capacities (equal for a linear field).
+  double torque_capacity() const { return std::min(capacity_lo_, capacity_hi_); }
+  double grasp_stiffness() const;                // N·m/rad, dT/dΦ at rest
+  double grasp_twist(double torque) const;       // rad at the grasp for a torque
+  // The torque the tissue holds at a twist Φ of the grasp (rad), dT/dΦ there, and whether Φ is
+  // past the capacity (the torque then clamped to it, the stiffness 0). No allocation.
+  struct Answer {
+    double torque = 0, stiffness = 0;
+    bool overload = false;
+  };
+  Answer TorqueAt(double twist) const;
   int VertexCount() const { return static_cast<int>(positions_.size()); }
+  int Levels() const { return static_cast<int>(level_torque_.size()); }
 
  private:
   ReducedTwistModel() = default;
+  // The segment [k, k+1] of the levels' `curve` that holds x (the end ones extended).
+  int Segment(const std::vector<double>& curve, double x) const;
   Eigen::Vector3d origin_, e1_, e2_, axis_;
+  int nv_ = 0;
   // Per vertex (structure of arrays, float): the rest offset from the axis in its frame (r1,
-  // r2), the field (angle, warp, radial, lateral l1, l2); rest and output positions in double.
+  // r2); per level and vertex ([level·nv + i]) the fields (angle, warp, radial, lateral l1, l2);
+  // rest and output positions in double.
   std::vector<float> r1_, r2_, angle_, warp_, radial_, l1_, l2_;
+  std::vector<double> level_twist_, level_torque_;
+  int rest_level_ = 0;
   std::vector<Eigen::Vector3d> rest_, positions_;
   std::vector<float> dx_, dy_, dz_;  // scratch: the displacement in the axis frame
-  double capacity_ = 0, grasp_compliance_ = 0;
+  double capacity_lo_ = 0, capacity_hi_ = 0;  // N·m, each side's (both > 0)
 };
 
 // ---- 2. Contact responses ---------------------------------------------------------------------

@@ -393,6 +393,50 @@ Expected<TwistField> ReducedCache::TwistFieldFor(const std::string& name,
   return Cached<TwistField>(dir_, name, key.bytes(), report, decode, compute, encode);
 }
 
+Expected<TwistTable> ReducedCache::TwistTableFor(const std::string& name,
+                                                 const TwistTableInputs& in,
+                                                 CacheReport* report) const {
+  Writer key;
+  FemParams material;  // the common part's material fields, then the hyperelastic law's own
+  material.young = in.material.young;
+  material.poisson = in.material.poisson;
+  material.nodal_volume = in.material.nodal_volume;
+  PutCommon(key, "hyperelastic twist table", in.mesh, material, in.fixed);
+  key.Put(in.material.stiffening);
+  key.PutVector(in.face);
+  key.Put(in.origin);
+  key.Put(in.axis);
+  key.PutVector(in.display);
+  key.Put(in.max_twist);
+  key.Put(static_cast<int64_t>(in.levels));
+  const uint64_t n = in.display.size();
+  auto decode = [&](const std::string& payload, TwistTable& t) {
+    Reader r(payload);
+    uint64_t levels = 0;
+    if (!(r.Get(t.origin) && r.Get(t.axis) && r.Get(t.max_distance) && r.Get(levels) &&
+          levels >= 2 && levels <= 65))
+      return false;
+    t.vertices = static_cast<int>(n);
+    return r.GetVector(t.twist, levels) && r.GetVector(t.torque, levels) &&
+           r.GetVector(t.axial, levels) && r.GetVector(t.angle, levels * n) &&
+           r.GetVector(t.warp, levels * n) && r.GetVector(t.radial, levels * n) &&
+           r.GetVector(t.lateral, levels * n) && r.AtEnd() && ValidateTwistTable(t, n).ok();
+  };
+  auto compute = [&]() { return PrecomputeTwistTable(in); };
+  auto encode = [](const TwistTable& t) {
+    Writer w;
+    w.Put(t.origin);
+    w.Put(t.axis);
+    w.Put(t.max_distance);
+    w.Put(static_cast<uint64_t>(t.twist.size()));
+    for (const auto* v : {&t.twist, &t.torque, &t.axial}) w.PutVector(*v);
+    for (const auto* v : {&t.angle, &t.warp, &t.radial}) w.PutVector(*v);
+    w.PutVector(t.lateral);
+    return w.bytes();
+  };
+  return Cached<TwistTable>(dir_, name, key.bytes(), report, decode, compute, encode);
+}
+
 Expected<ContactResponse> ReducedCache::ContactResponseFor(const std::string& name,
                                                            const ContactInputs& in,
                                                            CacheReport* report) const {

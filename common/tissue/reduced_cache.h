@@ -24,6 +24,7 @@
 #include "common/geometry/mesh.h"
 #include "common/tissue/fem.h"
 #include "common/tissue/reduced.h"
+#include "common/tissue/twist_table.h"
 
 namespace vsurg::tissue {
 
@@ -77,6 +78,9 @@ class ReducedCache {
   explicit ReducedCache(std::string dir) : dir_(std::move(dir)) {}
   // `name`: the scene model's file name stem (letters, digits, '-', '_', '.'; else refused).
   Expected<TwistField> TwistFieldFor(const std::string& name, const TwistFieldInputs& in,
+                                     CacheReport* report = nullptr) const;
+  // The hyperelastic twist's load levels (twist_table.h).
+  Expected<TwistTable> TwistTableFor(const std::string& name, const TwistTableInputs& in,
                                      CacheReport* report = nullptr) const;
   Expected<ContactResponse> ContactResponseFor(const std::string& name, const ContactInputs& in,
                                                CacheReport* report = nullptr) const;

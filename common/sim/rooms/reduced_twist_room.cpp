@@ -6,8 +6,52 @@
 #include "common/geometry/distances.h"
 #include "common/geometry/tet_generators.h"
 #include "common/sim/rooms/room_support.h"
+#include "common/tissue/reduced_cache.h"
 
 namespace vsurg::sim {
+namespace {
+
+// The linear law: the FEM's twist field per unit torque (one static solve).
+Expected<tissue::ReducedTwistModel> LinearModel(const RoomInputs& in,
+                                                const geometry::TetCylinder& cylinder,
+                                                const tissue::ReducedCache& cache) {
+  tissue::TwistFieldInputs inputs;
+  inputs.mesh = cylinder.mesh;
+  inputs.material = SceneMaterial(in.scene);
+  inputs.fixed = cylinder.base;
+  inputs.face = cylinder.tip;
+  inputs.face_area = cylinder.tip_area;
+  inputs.origin = geometry::Vec3::Zero();
+  inputs.axis = geometry::Vec3::UnitZ();
+  inputs.display = in.rest.positions;
+  auto field = cache.TwistFieldFor(in.scene.name + "-twist", inputs);
+  if (!field.ok()) return field.error();
+  return tissue::ReducedTwistModel::Create(*field, in.rest.positions,
+                                           in.scene.region.reduced.max_twist);
+}
+
+// A hyperelastic law: the grasp turned to the table's levels up to max_twist on each side.
+Expected<tissue::ReducedTwistModel> TableModel(const RoomInputs& in,
+                                               const geometry::TetCylinder& cylinder,
+                                               const tissue::ReducedCache& cache) {
+  const Scene& scene = in.scene;
+  tissue::TwistTableInputs inputs;
+  inputs.mesh = cylinder.mesh;
+  inputs.material.poisson = scene.poisson_ratio;
+  inputs.material.young = 2 * scene.shear_modulus * (1 + scene.poisson_ratio);
+  inputs.material.stiffening = scene.law == Scene::Law::kExponential ? scene.stiffening : 0.0;
+  inputs.material.nodal_volume = scene.volume_at_vertices;
+  inputs.fixed = cylinder.base;
+  inputs.face = cylinder.tip;
+  inputs.display = in.rest.positions;
+  inputs.max_twist = scene.region.reduced.max_twist;
+  inputs.levels = scene.region.reduced.levels;
+  auto table = cache.TwistTableFor(scene.name + "-twist-table", inputs);
+  if (!table.ok()) return table.error();
+  return tissue::ReducedTwistModel::Create(*table, in.rest.positions, scene.region.reduced.max_twist);
+}
+
+}  // namespace
 
 Expected<ReducedTwistRoom> ReducedTwistRoom::Build(const RoomInputs& in) {
   // The FEM: the limb's tapered cylinder (its proximal end fixed at z = 0, the torque on the
@@ -18,20 +62,9 @@ Expected<ReducedTwistRoom> ReducedTwistRoom::Build(const RoomInputs& in) {
   auto cylinder = geometry::MakeTetCylinder(geometry::TorsionCylinder(
       limb.length, limb.radius_proximal, limb.radius_distal, in.scene.region.reduced.fem_rings));
   if (!cylinder.ok()) return cylinder.error();
-  tissue::TwistFieldInputs inputs;
-  inputs.mesh = cylinder->mesh;
-  inputs.material = SceneMaterial(in.scene);
-  inputs.fixed = cylinder->base;
-  inputs.face = cylinder->tip;
-  inputs.face_area = cylinder->tip_area;
-  inputs.origin = geometry::Vec3::Zero();
-  inputs.axis = geometry::Vec3::UnitZ();
-  inputs.display = in.rest.positions;
   const tissue::ReducedCache cache(in.cache_dir);
-  auto field = cache.TwistFieldFor(in.scene.name + "-twist", inputs);
-  if (!field.ok()) return field.error();
-  auto model = tissue::ReducedTwistModel::Create(*field, in.rest.positions,
-                                                 in.scene.region.reduced.max_twist);
+  auto model = in.scene.law == Scene::Law::kLinear ? LinearModel(in, *cylinder, cache)
+                                                   : TableModel(in, *cylinder, cache);
   if (!model.ok()) return model.error();
   ReducedTwistRoom room;
   room.model_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
@@ -45,7 +78,8 @@ bool ReducedTwistRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
 }
 
 TwistAnswer ReducedTwistRoom::Twist(double twist) const {
-  return LinearTwist(twist, model_->grasp_stiffness(), model_->torque_capacity());
+  const tissue::ReducedTwistModel::Answer a = model_->TorqueAt(twist);
+  return {a.torque, a.stiffness, a.overload};
 }
 
 std::optional<Deformed> ReducedTwistRoom::Deform(const DeformInput& in) {

@@ -487,6 +487,43 @@ TEST(SceneTest, TheVolumeAtTheVerticesIsAReducedModelsChoiceNamedWhenWrong) {
             std::string::npos);
 }
 
+TEST(SceneTest, TheTissuesLawIsAReducedTwistsChoiceNamedWhenWrong) {
+  const std::string twist = R"({"name": "t", "mesh": {"type": "limb", "preset": "forearm"},
+    "regions": [{"name": "r", "model": {"type": "reduced", "mode": "twist", "levels": 4}}],
+    "task": {"type": "twist", "target_deg": 45, "tolerance_deg": 5},
+    "error_budget": {"rms": 0.05}})";
+  const auto with = [](const std::string& tissue, const std::string& base) {
+    return Replace(base, R"("error_budget")", R"("tissue": {)" + tissue + R"(}, "error_budget")");
+  };
+  auto plain = ParseScene(twist, "x.json");
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  EXPECT_EQ(plain->law, Scene::Law::kLinear);
+  EXPECT_EQ(plain->region.reduced.levels, 4);
+  auto neo = ParseScene(with(R"("law": "neo-hookean")", twist), "x.json");
+  ASSERT_TRUE(neo.ok()) << neo.error().message;
+  EXPECT_EQ(neo->law, Scene::Law::kNeoHookean);
+  auto expo = ParseScene(with(R"("law": "exponential", "stiffening": 5)", twist), "x.json");
+  ASSERT_TRUE(expo.ok()) << expo.error().message;
+  EXPECT_EQ(expo->law, Scene::Law::kExponential);
+  EXPECT_EQ(expo->stiffening, 5);
+  const std::pair<std::string, const char*> bad[] = {
+      {R"("law": "ogden")", "tissue.law: must be"},
+      {R"("law": "exponential")", "tissue.stiffening: is required"},
+      {R"("law": "exponential", "stiffening": 0)", "tissue.stiffening"},
+      {R"("law": "exponential", "stiffening": -1)", "tissue.stiffening"},
+      {R"("law": "neo-hookean", "stiffening": 2)", "tissue.stiffening: is the exponential law's"},
+      {R"("stiffening": 2)", "tissue.stiffening: is the exponential law's"},
+      {R"("law": 3)", "tissue.law"}};
+  for (const auto& [tissue, field] : bad)
+    EXPECT_NE(Field(with(tissue, twist)).find(field), std::string::npos) << tissue;
+  // Only the reduced twist region carries a hyperelastic law; a press scene says so.
+  EXPECT_NE(Field(with(R"("law": "neo-hookean")", Minimal()))
+                .find("tissue.law: \"neo-hookean\" is carried only by a reduced twist region"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(twist, R"("levels": 4)", R"("levels": 40)")).find("levels"),
+            std::string::npos);
+}
+
 TEST(SceneTest, EveryFieldsTypeIsCheckedNamingIt) {
   EXPECT_NE(Field(Replace(Minimal(), R"("name": "t", )", R"("name": "t", "description": 5, )"))
                 .find("x.json: description: must be a string"),

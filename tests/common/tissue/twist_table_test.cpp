@@ -1,0 +1,190 @@
+// The nonlinear twist table (common/tissue/twist_table.h) and the reduced twist model reading it
+// (reduced.h): at its levels the model is the hyperelastic FEM's state, between them it is close
+// to a solve of its own, the torque curve stiffens with the exponential law, the linear field as
+// a table is the linear model, and half a turn on the coarsest mesh is bounded.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <numbers>
+#include <vector>
+
+#include "common/geometry/tet_embedding.h"
+#include "common/geometry/tet_generators.h"
+#include "common/tissue/twist_table.h"
+
+namespace vsurg::tissue {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+// A bar of radius 10 mm and length 60 mm (`rings` across), its base fixed, its end grasped.
+TwistTableInputs BarInputs(int rings, double stiffening, double max_twist, int levels) {
+  const geometry::TetCylinder c =
+      geometry::MakeTetCylinder(geometry::TorsionCylinder(0.06, 0.01, 0.01, rings)).value();
+  TwistTableInputs in;
+  in.mesh = c.mesh;
+  in.material = {30e3, 0.45, stiffening, false};
+  in.fixed = c.base;
+  in.face = c.tip;
+  in.display = c.mesh.positions;  // the FEM's own vertices: the fields are its state exactly
+  in.max_twist = max_twist;
+  in.levels = levels;
+  return in;
+}
+
+double MaxGap(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, (a[i] - b[i]).norm());
+  return worst;
+}
+
+double LargestMotion(const std::vector<Vec3>& x, const std::vector<Vec3>& rest) {
+  return MaxGap(x, rest);
+}
+
+TEST(TwistTableTest, AtItsLevelsTheModelIsTheFemsStateAndBetweenThemClose) {
+  const TwistTableInputs in = BarInputs(2, 0, std::numbers::pi / 2, 3);
+  TwistTableReport report;
+  auto table = PrecomputeTwistTable(in, &report);
+  ASSERT_TRUE(table.ok()) << table.error().message;
+  ASSERT_EQ(table->Levels(), 7);
+  EXPECT_LT(report.worst_residual, 1e-9);
+  auto model = ReducedTwistModel::Create(*table, in.display, std::numbers::pi);
+  ASSERT_TRUE(model.ok()) << model.error().message;
+  // Level by level the model rebuilds the FEM's positions (float fields: well under a micron).
+  for (int k = 0; k < table->Levels(); ++k) {
+    auto state = SolveTwisted(in, table->twist[k], nullptr, 1 + 2 * std::abs(k - 3));
+    ASSERT_TRUE(state.ok()) << state.error().message;
+    EXPECT_NEAR(state->torque, table->torque[k], 1e-6 * std::abs(table->torque.back()));
+    model->Update(table->torque[k]);
+    EXPECT_LT(MaxGap(model->positions(), state->positions), 1e-6) << "level " << k;
+  }
+  // Half-way between levels, against a solve of its own at the model's twist for that torque:
+  // the interpolation error, a small part of the motion.
+  for (const double twist : {0.25, 0.8, -1.3}) {
+    auto state = SolveTwisted(in, twist, nullptr, 4);
+    ASSERT_TRUE(state.ok());
+    const ReducedTwistModel::Answer a = model->TorqueAt(twist);
+    EXPECT_NEAR(a.torque, state->torque, 0.01 * std::abs(state->torque)) << twist;
+    model->Update(a.torque);
+    EXPECT_LT(MaxGap(model->positions(), state->positions),
+              0.02 * LargestMotion(state->positions, in.mesh.positions))
+        << twist;
+    EXPECT_NEAR(model->grasp_twist(a.torque), twist, 1e-9);
+  }
+}
+
+TEST(TwistTableTest, TheExponentialLawStiffensWhereNeoHookesTorqueStaysNearlyLinear) {
+  // Rivlin: a neo-Hookean cylinder's torque is linear in the twist; the exponential law's
+  // rises faster (its shear stiffness grows with I1 − 3 = (ψr)²).
+  auto curve = [](double b) {
+    auto t = PrecomputeTwistTable(BarInputs(2, b, std::numbers::pi / 2, 2));
+    EXPECT_TRUE(t.ok());
+    return t.ok() ? t->torque : std::vector<double>(5, 0.0);
+  };
+  const std::vector<double> neo = curve(0), expo = curve(4);
+  // Levels −π/2, −π/4, 0, π/4, π/2: the secant at π/2 against the one at π/4.
+  const double neo_ratio = neo[4] / (2 * neo[3]), expo_ratio = expo[4] / (2 * expo[3]);
+  EXPECT_NEAR(neo_ratio, 1.0, 0.05);
+  EXPECT_GT(expo_ratio, neo_ratio + 0.05);
+  // The mesh's tetrahedra have a handedness: the two directions differ by a few %.
+  EXPECT_NEAR(neo[3], -neo[1], 0.05 * neo[3]);
+  EXPECT_NEAR(expo[0], -expo[4], 0.05 * expo[4]);
+  EXPECT_NEAR(expo[3] / neo[3], 1.0, 0.12);  // the same small-strain stiffness
+}
+
+TEST(TwistTableTest, TheLinearFieldAsATableIsTheLinearModel) {
+  TwistField f;
+  const std::vector<Vec3> rest = {{0.01, 0, 0}, {0, 0.02, 0.05}, {0, 0, 0.1}};
+  f.angle = {0.1f, 0.3f, 0.0f};
+  f.warp = {0.0f, 1e-4f, 2e-4f};
+  f.radial = {0.0f, 0.01f, 0.0f};
+  f.lateral = {Vec3::Zero(), Vec3::Zero(), Vec3(1e-4, 0, 0)};
+  f.grasp_compliance = 0.3;
+  auto model = ReducedTwistModel::Create(f, rest, 1.0);
+  ASSERT_TRUE(model.ok());
+  EXPECT_EQ(model->Levels(), 3);
+  EXPECT_NEAR(model->torque_capacity(), 1.0 / 0.3, 1e-6);  // the field in float
+  EXPECT_NEAR(model->grasp_stiffness(), 1 / 0.3, 1e-12);
+  for (const double t : {-2.0, -0.5, 0.7, 3.0}) {
+    model->Update(t);
+    const Vec3& x = model->positions()[1];
+    const double angle = std::atan2(-x.x(), x.y());
+    EXPECT_NEAR(angle, 0.3 * t, 1e-5) << t;
+    EXPECT_NEAR(std::hypot(x.x(), x.y()), 0.02 * (1 + 0.01 * t), 1e-7) << t;
+    EXPECT_NEAR(x.z(), 0.05 + 1e-4 * t, 1e-9) << t;
+    EXPECT_NEAR(model->positions()[2].x(), 1e-4 * t, 1e-9) << t;
+    const ReducedTwistModel::Answer a = model->TorqueAt(0.3 * t);
+    EXPECT_NEAR(a.torque, t, 1e-12);
+    EXPECT_FALSE(a.overload);
+  }
+  const ReducedTwistModel::Answer past = model->TorqueAt(-2.0);
+  EXPECT_TRUE(past.overload);
+  EXPECT_NEAR(past.torque, -1.0 / 0.3, 1e-6);
+  EXPECT_EQ(past.stiffness, 0);
+}
+
+TEST(TwistTableTest, HalfATurnOnTheCoarsestMeshIsBoundedAndABadTableRefused) {
+  const TwistTableInputs in = BarInputs(1, 2, std::numbers::pi, 2);
+  auto table = PrecomputeTwistTable(in);
+  ASSERT_TRUE(table.ok()) << table.error().message;
+  auto model = ReducedTwistModel::Create(*table, in.display, std::numbers::pi);
+  ASSERT_TRUE(model.ok());
+  for (double t = -1.2 * model->torque_capacity(); t <= 1.2 * model->torque_capacity();
+       t += 0.05 * model->torque_capacity()) {
+    const ReducedStats s = model->Update(t);
+    EXPECT_TRUE(s.ok);
+    for (const Vec3& x : model->positions()) ASSERT_TRUE(x.allFinite());
+  }
+  EXPECT_FALSE(model->Update(std::numeric_limits<double>::quiet_NaN()).ok);
+  // The grasp's face turns by the level's angle: at the last level, half a turn.
+  model->Update(table->torque.back());
+  int rim = in.face[0];
+  for (int v : in.face)
+    if (in.display[v].head<2>().norm() > in.display[rim].head<2>().norm()) rim = v;
+  const Vec3& far = model->positions()[rim];
+  const Vec3& far0 = in.display[rim];
+  EXPECT_NEAR(std::abs(std::atan2(far0.x() * far.y() - far0.y() * far.x(),
+                                  far0.x() * far.x() + far0.y() * far.y())),
+              std::numbers::pi, 1e-4);
+  // Refused: levels that do not rise, a table without rest, a NaN field, bad inputs.
+  TwistTable bad = *table;
+  std::swap(bad.torque[0], bad.torque[1]);
+  EXPECT_FALSE(ReducedTwistModel::Create(bad, in.display, 1.0).ok());
+  bad = *table;
+  bad.twist[2] = 0.01;
+  EXPECT_FALSE(ValidateTwistTable(bad, in.display.size()).ok());
+  bad = *table;
+  bad.angle[7] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(ValidateTwistTable(bad, in.display.size()).ok());
+  TwistTableInputs wrong = in;
+  wrong.max_twist = 4;
+  EXPECT_FALSE(PrecomputeTwistTable(wrong).ok());
+  wrong = in;
+  wrong.face = {-1};
+  EXPECT_FALSE(PrecomputeTwistTable(wrong).ok());
+}
+
+}  // namespace
+}  // namespace vsurg::tissue
+namespace vsurg::tissue {
+TEST(TwistTableTiming, DISABLED_Forearm) {
+  const int rings = std::getenv("R") ? std::atoi(std::getenv("R")) : 4;
+  const geometry::TetCylinder c = geometry::MakeTetCylinder(geometry::TorsionCylinder(0.25, 0.04, 0.03, rings)).value();
+  TwistTableInputs in;
+  in.mesh = c.mesh;
+  const double g = 224700, nu = 0.47;
+  in.material = {2 * g * (1 + nu), nu, std::getenv("B") ? std::atof(std::getenv("B")) : 0.0, false};
+  in.fixed = c.base; in.face = c.tip; in.display = c.mesh.positions;
+  in.max_twist = std::numbers::pi / 2; in.levels = std::getenv("L") ? std::atoi(std::getenv("L")) : 4;
+  TwistTableReport r;
+  auto t0 = std::chrono::steady_clock::now();
+  auto table = PrecomputeTwistTable(in, &r);
+  ASSERT_TRUE(table.ok()) << table.error().message;
+  printf("tets %zu time %.1f s newton %d incr %d\n", c.mesh.tetrahedra.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), r.newton_iterations, r.increments);
+  for (int k = 0; k < table->Levels(); ++k) printf("%8.4f %9.4f %9.4f\n", table->twist[k], table->torque[k], table->axial[k]);
+}
+}
