@@ -60,20 +60,6 @@ std::vector<Vec3> LimbMarkers(const tissue::TaperedShaft& s) {
   return m;
 }
 
-// Nearest vertex on the outer surface (radius within 2% of the limb's at that z).
-std::vector<int> MarkerVertices(const std::vector<Vec3>& rest, const tissue::TaperedShaft& s) {
-  std::vector<Vec3> outer;
-  std::vector<int> index;
-  for (int i = 0; i < static_cast<int>(rest.size()); ++i) {
-    const double z = std::clamp(rest[i].z(), 0.0, s.length);
-    const double a = s.radius_proximal + (s.radius_distal - s.radius_proximal) * z / s.length;
-    if (rest[i].head<2>().norm() > 0.98 * a) outer.push_back(rest[i]), index.push_back(i);
-  }
-  std::vector<int> out;
-  for (const Vec3& m : LimbMarkers(s)) out.push_back(index[Nearest(outer, m)]);
-  return out;
-}
-
 void CoilRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& progress) {
   auto limb = geometry::MakeLimb(c.limb.limb);
   if (!limb.ok()) return;
@@ -105,7 +91,7 @@ void CoilRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& pro
                    Error{ErrorCode::kInvalidArgument, "the scene file has no coil", "region"})});
   }
   const double grasp = geometry::ArcLengths(limb->centreline).back();
-  const std::vector<int> markers = MarkerVertices(limb->surface.positions, c.shaft);
+  const std::vector<int> markers = LimbMarkerVertices(limb->surface.positions, c.shaft);
   const Reference ref = [&](const Vec3& x) {
     return SaintVenantDisplacement(c.shaft, c.torque, x);
   };
@@ -216,7 +202,7 @@ void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& prog
       ApplyTorque(*fem, m, c.torque * std::min(k, increments) / increments);
       converged = fem->SolveStatic(40, 1e-6).converged;
     }
-    const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
+    const auto markers = LimbMarkerVertices(m.cylinder.mesh.positions, c.shaft);
     Score(row, m.cylinder.mesh.positions, fem->positions(), markers, ref);
     if (!converged) row.note = "static solve not converged";
     // Time per update: implicit steps from the loaded equilibrium.
@@ -228,7 +214,7 @@ void FemRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& prog
   const TetLimb m = MakeTetLimb(c.shaft, cfg.quick ? 1 : 2);
   auto fem = tissue::FemModel::Create(m.cylinder.mesh, FemFor(c.shaft, poisson), m.cylinder.base);
   if (!fem.ok()) return;
-  const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
+  const auto markers = LimbMarkerVertices(m.cylinder.mesh.positions, c.shaft);
   Trajectory tr{"fem level " + std::to_string(m.level) + " (implicit, 1 ms)", {}, {}};
   const int steps = cfg.quick ? 600 : 3000;
   for (int k = 0; k <= steps; ++k) {
@@ -251,7 +237,7 @@ void ReducedRows(const LimbCase& c, const Config& cfg, SceneOut& out, Progress& 
   auto limb = geometry::MakeLimb(c.limb.limb);
   if (!limb.ok()) return;
   const auto& display = limb->surface.positions;
-  const std::vector<int> markers = MarkerVertices(display, c.shaft);
+  const std::vector<int> markers = LimbMarkerVertices(display, c.shaft);
   const Reference ref = [&](const Vec3& x) {
     return SaintVenantDisplacement(c.shaft, c.torque, x);
   };
@@ -398,7 +384,7 @@ void MassSpringLimbRows(const LimbCase& c, const Config& cfg, SceneOut& out, Pro
   const Reference ref = [&](const Vec3& x) {
     return SaintVenantDisplacement(c.shaft, c.torque, x);
   };
-  const auto markers = MarkerVertices(m.cylinder.mesh.positions, c.shaft);
+  const auto markers = LimbMarkerVertices(m.cylinder.mesh.positions, c.shaft);
   const LimbMassSpring limb(c, m);
   const double k = limb.FitStiffness(markers[9], ref(m.cylinder.mesh.positions[markers[9]]).norm());
   // Damping per spring c = 0.002·k: about ζ = 0.02 on the first torsion mode (ω ≈ 20 rad/s);
@@ -457,5 +443,19 @@ std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress) {
           RunLimb(MakeLimbCase("arm-haptic", "arm", "arm-torsion", 0.02, false), cfg, progress),
           RunLimb(MakeLimbCase("calf-ramp", "calf", "calf-torsion", 2.07, true), cfg, progress)};
 }
+
+std::vector<int> LimbMarkerVertices(const std::vector<Vec3>& rest, const tissue::TaperedShaft& s) {
+  std::vector<Vec3> outer;
+  std::vector<int> index;
+  for (int i = 0; i < static_cast<int>(rest.size()); ++i) {
+    const double z = std::clamp(rest[i].z(), 0.0, s.length);
+    const double a = s.radius_proximal + (s.radius_distal - s.radius_proximal) * z / s.length;
+    if (rest[i].head<2>().norm() > 0.98 * a) outer.push_back(rest[i]), index.push_back(i);
+  }
+  std::vector<int> out;
+  for (const Vec3& m : LimbMarkers(s)) out.push_back(index[Nearest(outer, m)]);
+  return out;
+}
+
 
 }  // namespace vsurg::bench::study

@@ -17,6 +17,7 @@
 #include "common/geometry/tet_embedding.h"
 #include "common/tissue/fem.h"
 #include "common/tissue/mass_spring.h"
+#include "common/tissue/torsion_reference.h"
 
 namespace vsurg::bench::study {
 
@@ -138,8 +139,15 @@ void ContactTableRow(const Config& cfg, const Expected<tissue::FemStaticResponse
                      double max_force, int top, const std::vector<int>& markers,
                      const Reference& reference, Clock::time_point t0, Row& row);
 
+// The ten marker vertices on a limb's outer surface `rest` (radius within 2% of the shaft's at
+// that z): the nearest to (0, a(z), z) at z = (k − ½)/10 of the length.
+std::vector<int> LimbMarkerVertices(const std::vector<Vec3>& rest, const tissue::TaperedShaft& s);
+
 // The halves of the study.
 std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // arm ×2, calf
+// The forearm under a hyperelastic law, one scene per law and grasp angle (law_study.cpp).
+std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress);
+int ArmLawSteps(const Config& cfg);  // the progress steps RunArmLaws takes
 SceneOut RunSphere(const Config& cfg, Progress& progress);
 SceneOut RunOrgan(const Config& cfg, Progress& progress);         // kidney-palpation (imported)
 SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress);  // organ-surface-twist

@@ -1,0 +1,164 @@
+// The study's load axis for the limb (DESIGN.md "Speed against error"): the forearm of
+// scenes/arm-torsion-reduced.json (its FEM cylinder, its display surface, its material) under a
+// hyperelastic law, the neo-Hookean one and the exponential one (b = 5), turned at the grasp to
+// 22.5°, 45°, 67.5° and 90° (twice the task's 45°). The reference at each angle is the
+// hyperelastic FEM's static state, the grasp held rigidly there (tissue/twist_table.h,
+// SolveTwisted). Rated against it: the linear twist field the scene runs (driven at the torque its
+// own law gives for that angle) and the table of load levels (levels every 15°, so 22.5° and
+// 67.5° fall between two). Each row's note gives the torque it answers against the FEM's: what
+// the trainee's hand feels, and its error is the larger of the markers' RMS and the torque's
+// relative error.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "bench/study/study.h"
+#include "common/geometry/mesh_generators.h"
+#include "common/geometry/tet_generators.h"
+#include "common/sim/scene.h"
+#include "common/tissue/reduced.h"
+#include "common/tissue/twist_table.h"
+
+namespace vsurg::bench::study {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180;
+
+std::vector<double> Angles(const Config& cfg) {  // rad at the grasp
+  return cfg.quick ? std::vector<double>{45 * kDeg, 90 * kDeg}
+                   : std::vector<double>{22.5 * kDeg, 45 * kDeg, 67.5 * kDeg, 90 * kDeg};
+}
+
+struct Law {
+  std::string name;
+  double stiffening;
+};
+
+// What every law's rows share: the scene, its FEM, its display surface and markers, the linear
+// model.
+struct ArmSetting {
+  sim::Scene scene;
+  geometry::TetCylinder cylinder;
+  std::vector<Vec3> display;
+  std::vector<int> markers;
+  tissue::TwistTableInputs inputs;  // the law set per law
+};
+
+Expected<ArmSetting> Setting(const Config& cfg) {
+  auto scene = sim::LoadSceneByName("arm-torsion-reduced");
+  if (!scene.ok()) return scene.error();
+  const geometry::LimbParams& limb = scene->mesh.limb;
+  const int rings = cfg.quick ? 2 : scene->region.reduced.fem_rings;
+  auto cylinder = geometry::MakeTetCylinder(
+      geometry::TorsionCylinder(limb.length, limb.radius_proximal, limb.radius_distal, rings));
+  if (!cylinder.ok()) return cylinder.error();
+  auto surface = geometry::MakeLimb(limb);
+  if (!surface.ok()) return surface.error();
+  ArmSetting s{*scene, *cylinder, surface->surface.positions, {}, {}};
+  s.markers = LimbMarkerVertices(
+      s.display, {limb.length, limb.radius_proximal, limb.radius_distal, scene->shear_modulus});
+  s.inputs.mesh = cylinder->mesh;
+  s.inputs.material.poisson = scene->poisson_ratio;
+  s.inputs.material.young = 2 * scene->shear_modulus * (1 + scene->poisson_ratio);
+  s.inputs.fixed = cylinder->base;
+  s.inputs.face = cylinder->tip;
+  s.inputs.display = s.display;
+  s.inputs.max_twist = std::numbers::pi / 2;
+  s.inputs.levels = scene->region.reduced.levels;
+  return s;
+}
+
+// The scene's linear model: the corotational FEM's twist field per unit torque.
+Expected<tissue::ReducedTwistModel> LinearModel(const ArmSetting& s) {
+  tissue::FemParams material;
+  material.young = s.inputs.material.young;
+  material.poisson = s.inputs.material.poisson;
+  auto fem = tissue::FemStaticResponse::Create(s.cylinder.mesh, material, s.cylinder.base);
+  if (!fem.ok()) return fem.error();
+  auto field = tissue::PrecomputeTwistField(*fem, s.cylinder.tip, s.cylinder.tip_area,
+                                            Vec3::Zero(), Vec3::UnitZ(), s.display);
+  if (!field.ok()) return field.error();
+  return tissue::ReducedTwistModel::Create(*field, s.display, std::numbers::pi);
+}
+
+// A model's row at one angle: driven at the torque its own law answers there, timed, scored.
+Row RateAt(tissue::ReducedTwistModel& model, const std::string& name, const std::string& setting,
+           const std::string& scene, double twist, const tissue::TwistedState& ref,
+           const ArmSetting& s, const Config& cfg) {
+  Row row{name, scene, setting};
+  const double torque = model.TorqueAt(twist).torque;
+  row.size = model.VertexCount();
+  row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+    model.Update(torque * (0.5 + 0.5 * ((i % 2) ? 1.0 : 0.97)));
+  });
+  model.Update(torque);
+  std::vector<Vec3> u(ref.positions.size());
+  for (size_t v = 0; v < u.size(); ++v) u[v] = ref.positions[v] - s.inputs.mesh.positions[v];
+  Score(row, s.display, model.positions(), s.markers,
+        InterpolatedReference(s.inputs.mesh, std::move(u)));
+  // The hand feels the torque: a row's error is the larger of its markers' RMS and its torque's.
+  const double torque_error = (torque - ref.torque) / ref.torque;
+  row.note = "markers " + Num(100 * row.rms, 3) + "% RMS; torque " + Num(torque, 4) +
+             " N·m against the FEM's " + Num(ref.torque, 4) + " (" + Num(100 * torque_error, 2) +
+             "%)";
+  if (std::isfinite(row.rms)) {
+    row.rms = std::max(row.rms, std::abs(torque_error));
+    row.max = std::max(row.max, std::abs(torque_error));
+  }
+  return row;
+}
+
+}  // namespace
+
+int ArmLawSteps(const Config& cfg) { return 1 + 2 * (1 + static_cast<int>(Angles(cfg).size())); }
+
+std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
+  std::vector<SceneOut> out;
+  auto setting = Setting(cfg);
+  auto linear = setting.ok() ? LinearModel(*setting)
+                             : Expected<tissue::ReducedTwistModel>(setting.error());
+  progress.Step("arm laws: the linear field");
+  for (const Law& law : {Law{"neo-Hookean", 0.0}, Law{"exponential b = 5", 5.0}}) {
+    tissue::TwistTableInputs in = setting.ok() ? setting->inputs : tissue::TwistTableInputs{};
+    in.material.stiffening = law.stiffening;
+    const auto t0 = Clock::now();
+    auto table = setting.ok() ? tissue::PrecomputeTwistTable(in)
+                              : Expected<tissue::TwistTable>(setting.error());
+    const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    auto model = table.ok() ? tissue::ReducedTwistModel::Create(*table, in.display, std::numbers::pi)
+                            : Expected<tissue::ReducedTwistModel>(table.error());
+    progress.Step("arm laws: " + law.name + " table");
+    tissue::TwistedState last;  // each angle solved from the one before
+    last.positions = in.mesh.positions;
+    for (const double twist : Angles(cfg)) {
+      const std::string scene = "arm " + law.name + " " + Num(twist / kDeg, 3) + "°";
+      SceneOut s = NewSceneOut(scene, "arm-torsion-reduced");
+      auto ref = setting.ok() ? tissue::SolveTwisted(in, twist, &last, 2)
+                              : Expected<tissue::TwistedState>(setting.error());
+      if (!ref.ok() || !linear.ok() || !model.ok()) {
+        const std::string why = !ref.ok()      ? ref.error().message
+                                : !linear.ok() ? linear.error().message
+                                               : model.error().message;
+        s.rows.push_back(Row{"reduced", scene, "", 0, kInf, kInf, 0, why});
+      } else {
+        last = *ref;
+        s.rows.push_back(
+            RateAt(*linear, "reduced", "linear twist field", scene, twist, *ref, *setting, cfg));
+        Row row = RateAt(*model, "reduced-table",
+                         std::to_string(in.levels) + " levels a side (" +
+                             std::to_string(in.mesh.TetCount()) + " tets)",
+                         scene, twist, *ref, *setting, cfg);
+        row.note += "; built in " + Num(precompute_s, 3) + " s";
+        s.rows.push_back(row);
+      }
+      out.push_back(std::move(s));
+      progress.Step(scene);
+    }
+  }
+  return out;
+}
+
+}  // namespace vsurg::bench::study
