@@ -63,6 +63,38 @@ TEST_F(ReducedCacheTest, MissThenHitGivesTheSameField) {
   EXPECT_EQ(first->grasp_compliance, second->grasp_compliance);
 }
 
+// The hyperelastic twist's table of load levels: cached like the field, its law in the key.
+TEST_F(ReducedCacheTest, ATwistTableIsCachedAndItsLawIsInTheKey) {
+  ReducedCache cache(dir_.string());
+  TwistTableInputs in;
+  in.mesh = twist_.mesh;
+  in.material = {twist_.material.young, twist_.material.poisson, 0, false};
+  in.fixed = twist_.fixed;
+  in.face = twist_.face;
+  in.display = twist_.display;
+  in.max_twist = 0.8;
+  in.levels = 2;
+  CacheReport r;
+  auto first = cache.TwistTableFor("bar", in, &r);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  EXPECT_EQ(r.outcome, CacheOutcome::kMiss);
+  auto second = cache.TwistTableFor("bar", in, &r);
+  ASSERT_TRUE(second.ok());
+  EXPECT_EQ(r.outcome, CacheOutcome::kHit) << r.message;
+  EXPECT_EQ(first->torque, second->torque);
+  EXPECT_EQ(first->angle, second->angle);
+  EXPECT_EQ(first->lateral, second->lateral);
+  in.material.stiffening = 3;  // the exponential law: another table, stiffer at the ends
+  auto stiffer = cache.TwistTableFor("bar", in, &r);
+  ASSERT_TRUE(stiffer.ok());
+  EXPECT_EQ(r.outcome, CacheOutcome::kStale);
+  EXPECT_GT(stiffer->torque.back(), first->torque.back());
+  const std::string whole = Contents();
+  Overwrite(whole.substr(0, whole.size() - 8));
+  ASSERT_TRUE(cache.TwistTableFor("bar", in, &r).ok());
+  EXPECT_EQ(r.outcome, CacheOutcome::kCorrupt);
+}
+
 TEST_F(ReducedCacheTest, AChangedMaterialOrMeshIsStaleAndRebuilt) {
   ReducedCache cache(dir_.string());
   CacheReport r;

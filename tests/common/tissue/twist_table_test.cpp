@@ -4,9 +4,7 @@
 // a table is the linear model, and half a turn on the coarsest mesh is bounded.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <numbers>
 #include <vector>
@@ -170,21 +168,3 @@ TEST(TwistTableTest, HalfATurnOnTheCoarsestMeshIsBoundedAndABadTableRefused) {
 
 }  // namespace
 }  // namespace vsurg::tissue
-namespace vsurg::tissue {
-TEST(TwistTableTiming, DISABLED_Forearm) {
-  const int rings = std::getenv("R") ? std::atoi(std::getenv("R")) : 4;
-  const geometry::TetCylinder c = geometry::MakeTetCylinder(geometry::TorsionCylinder(0.25, 0.04, 0.03, rings)).value();
-  TwistTableInputs in;
-  in.mesh = c.mesh;
-  const double g = 224700, nu = 0.47;
-  in.material = {2 * g * (1 + nu), nu, std::getenv("B") ? std::atof(std::getenv("B")) : 0.0, false};
-  in.fixed = c.base; in.face = c.tip; in.display = c.mesh.positions;
-  in.max_twist = std::numbers::pi / 2; in.levels = std::getenv("L") ? std::atoi(std::getenv("L")) : 4;
-  TwistTableReport r;
-  auto t0 = std::chrono::steady_clock::now();
-  auto table = PrecomputeTwistTable(in, &r);
-  ASSERT_TRUE(table.ok()) << table.error().message;
-  printf("tets %zu time %.1f s newton %d incr %d\n", c.mesh.tetrahedra.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), r.newton_iterations, r.increments);
-  for (int k = 0; k < table->Levels(); ++k) printf("%8.4f %9.4f %9.4f\n", table->twist[k], table->torque[k], table->axial[k]);
-}
-}
