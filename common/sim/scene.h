@@ -46,6 +46,7 @@
 #include "common/tissue/coil_deformation.h"
 #include "common/tissue/coil_spring.h"
 #include "common/tissue/cut_membrane.h"
+#include "common/tissue/hyperelastic.h"
 #include "common/tissue/inclusions.h"
 #include "common/tissue/mass_spring.h"
 #include "common/tissue/ring_layer.h"
@@ -188,6 +189,10 @@ struct Scene {
   enum class Law { kLinear, kNeoHookean, kExponential };
   Law law = Law::kLinear;
   double stiffening = 0;  // b, dimensionless: the exponential law's
+  // "tissue.relaxation": [{"g": share, "tau_s": s}, ...] (scene_law.cpp): the torque of a reduced
+  // twist region relaxes by G(t) = g∞ + Σ g_i·e^{−t/τ_i} while the twist is held
+  // (tissue::TorqueRelaxation); empty: elastic.
+  std::vector<tissue::PronyTerm> relaxation;
   std::vector<tissue::Inclusion> inclusions;  // lumps of another stiffness (inclusions.h)
   // A palpation's cases: each attempt draws its own lumps (DrawInclusions) into `inclusions`
   // (DrawCase); unset: the scene's own inclusions are the case.

@@ -291,6 +291,8 @@ class Simulation final : private DeformationPool::Member {
   double AdvanceClock(const haptics::StylusSample& s, uint32_t& events);
   void EndGrasp(uint32_t& events);
   TwistAnswer TwistAt(double phi);
+  enum class TwistPhase { kBegin, kEnd, kRelease };
+  void RoomTwistStep(TwistPhase phase, double dt, double twist = 0);
   void GraspStep(const haptics::StylusSample& s, StylusStep& step);
   void GraspModel(const haptics::StylusSample& s, double twist, const TwistAnswer& answer,
                   const geometry::Vec3& tangent, const geometry::Vec3& radial,

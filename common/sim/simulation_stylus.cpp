@@ -40,7 +40,10 @@ constexpr double kLawSpread = 4.0;
   const bool button = (s.buttons & haptics::kButtonGrasp) != 0;
   step.cmd.time = s.time;
   step.overload = grasping_ ? grasp_overload_.load(std::memory_order_relaxed) : snap.overload;
-  if (grasping_ && !button) EndGrasp(step.events);
+  if (grasping_ && !button) {
+    EndGrasp(step.events);
+    RoomTwistStep(TwistPhase::kRelease, step.dt);
+  }
   if (needle_.model) {
     NeedleStep(snap, s, step);
   } else if (cut_.blade) {
@@ -65,7 +68,10 @@ constexpr double kLawSpread = 4.0;
 // Input the safety filter refused (NaN, outside the workspace): zero force, let go of
 // everything; the next good sample passes the start-up gate again.
 ForceCommand Simulation::RejectInput(const StylusSample& s, uint32_t events) {
-  if (grasping_) events |= haptics::kEventGraspEnd;
+  if (grasping_) {
+    events |= haptics::kEventGraspEnd;
+    RoomTwistStep(TwistPhase::kRelease, 1e-3);
+  }
   grasping_ = false;
   last_contact_ = false;
   proxy_.Reset();
@@ -129,12 +135,27 @@ TwistAnswer Simulation::TwistAt(double phi) {
       room_);
 }
 
+// A room whose torque relaxes (rooms/reduced_twist_room.h) around one sample's twist: the step
+// begins (its length and the trial's time), ends at a twist, or the grasp is let go.
+void Simulation::RoomTwistStep(TwistPhase phase, double dt, double twist) {
+  std::visit(
+      [&](auto& room) {
+        if constexpr (requires { room.EndTwistStep(0.0); }) {
+          if (phase == TwistPhase::kBegin) room.BeginTwistStep(dt, trial_time_);
+          if (phase == TwistPhase::kEnd) room.EndTwistStep(twist);
+          if (phase == TwistPhase::kRelease) room.ReleaseTwist(dt, trial_time_);
+        }
+      },
+      room_);
+}
+
 // A held grasp: the twist about the axis is the twist part of the rotation since the grasp
 // (swing–twist); the room's torque answers it, the hold spring keeps the grasped point.
 void Simulation::GraspStep(const StylusSample& s, StylusStep& step) {
   const Eigen::Quaterniond rel = s.orientation.normalized() * grasp_q0_.conjugate();
   const double twist =
       std::remainder(2.0 * std::atan2(rel.vec().dot(axis_), rel.w()), 2.0 * std::numbers::pi);
+  RoomTwistStep(TwistPhase::kBegin, step.dt);
   const TwistAnswer answer = TwistAt(twist);
   step.overload = step.overload || answer.overload;
   const Vec3 arm = input_.grasp_point - axis_point_;
@@ -150,7 +171,8 @@ void Simulation::GraspStep(const StylusSample& s, StylusStep& step) {
   step.force = s_f * (-answer.torque / lever_) * tangent + hold * (turned - s.position);
   step.jacobian = -hold * Eigen::Matrix3d::Identity();
   GraspModel(s, twist, answer, tangent, on_axis ? Vec3::Zero() : Vec3(radial), step.cmd.local);
-  input_.torque = answer.torque;
+  RoomTwistStep(TwistPhase::kEnd, step.dt, twist);
+  input_.torque = std::isnan(answer.shape) ? answer.torque : answer.shape;  // the shape's
   step.quantity = twist;
   ForceCommand& cmd = step.cmd;
   cmd.grasping = true;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <utility>
 
 #include <Eigen/Geometry>
 
@@ -187,6 +188,64 @@ Expected<TwistTable> PrecomputeTwistTable(const TwistTableInputs& in, TwistTable
                  "the hyperelastic twist does not give a usable table: " + ok.error().message,
                  "fem"};
   return t;
+}
+
+Expected<TorqueRelaxation> TorqueRelaxation::Create(std::vector<PronyTerm> terms) {
+  double sum = 0;
+  for (size_t i = 0; i < terms.size(); ++i) {
+    const PronyTerm& t = terms[i];
+    if (!(t.g >= 0 && t.g < 1) || !(t.tau > 0) || !std::isfinite(t.tau))
+      return InvalidArgument("relaxation", "term " + std::to_string(i) +
+                                               ": g must be in [0, 1) and τ > 0 s, finite");
+    sum += t.g;
+  }
+  if (!(sum < 1)) return InvalidArgument("relaxation", "the terms' g sum to 1 or more");
+  TorqueRelaxation r;
+  r.terms_ = std::move(terms);
+  r.h_.assign(r.terms_.size(), 0.0);
+  return r;
+}
+
+namespace {
+// β = e^{−h/τ} and γ = (1 − β)/(h/τ) of a term over a step of h.
+std::pair<double, double> Decay(const PronyTerm& t, double dt) {
+  const double x = std::max(dt, 0.0) / t.tau;
+  return {std::exp(-x), x > 1e-12 ? -std::expm1(-x) / x : 1.0};
+}
+}  // namespace
+
+double TorqueRelaxation::Scale(double dt) const {
+  double c = 1;
+  for (const PronyTerm& t : terms_) c += t.g * (Decay(t, dt).second - 1);
+  return c;
+}
+
+double TorqueRelaxation::Torque(double elastic, double dt) const {
+  double torque = Scale(dt) * elastic;
+  for (size_t i = 0; i < terms_.size(); ++i) {
+    const auto [beta, gamma] = Decay(terms_[i], dt);
+    torque += beta * h_[i] - terms_[i].g * gamma * previous_;
+  }
+  return torque;
+}
+
+void TorqueRelaxation::Commit(double elastic, double dt) {
+  for (size_t i = 0; i < terms_.size(); ++i) {
+    const auto [beta, gamma] = Decay(terms_[i], dt);
+    h_[i] = beta * h_[i] + terms_[i].g * gamma * (elastic - previous_);
+  }
+  previous_ = elastic;
+}
+
+void TorqueRelaxation::Reset() {
+  std::fill(h_.begin(), h_.end(), 0.0);
+  previous_ = 0;
+}
+
+double TorqueRelaxation::relaxed_share() const {
+  double g = 1;
+  for (const PronyTerm& t : terms_) g -= t.g;
+  return g;
 }
 
 }  // namespace vsurg::tissue

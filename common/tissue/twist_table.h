@@ -77,4 +77,38 @@ Expected<TwistedState> SolveTwisted(const TwistTableInputs& in, double twist,
                                     const TwistedState* from = nullptr, int increments = 1,
                                     TwistTableReport* report = nullptr);
 
+// The grasp's torque relaxing under Fung's quasi-linear viscoelasticity, carried to the torque:
+// the hyperelastic FEM convolves each element's elastic stress with G(t) = g∞ + Σ g_i·e^{−t/τ_i}
+// (hyperelastic.h); a reduced model convolves the elastic torque T_e(Φ) of its table with the
+// same G, a few internal torques in place of a stress per element and term. Over a step of h
+// with T_e linear in it, exactly as the FEM's history:
+//   H_i ← β_i·H_i + g_i·γ_i·ΔT_e,  β_i = e^{−h/τ_i},  γ_i = (1 − β_i)/(h/τ_i),
+//   T = c·T_e + Σ (β_i·H_i − g_i·γ_i·T_e,prev),  c = g∞ + Σ g_i·γ_i
+// (T = g∞·T_e + Σ H_i after the step). Exact for the torque of a small twist; at large twists
+// the FEM's stress history is carried in each element's own frame, the torque's in the grasp's
+// (TwistTableTest bounds the difference). Units: N·m, s. No allocation after Create.
+class TorqueRelaxation {
+ public:
+  // The Prony terms as HyperelasticFem::SetRelaxation takes them (each g ≥ 0, Σ g < 1, τ > 0).
+  static Expected<TorqueRelaxation> Create(std::vector<PronyTerm> terms);
+  // The torque at the end of a step of `dt` s whose elastic torque ends at `elastic` (N·m), and
+  // dT/dT_e over the step (c): what a twist within this step answers. Nothing is carried.
+  double Torque(double elastic, double dt) const;
+  double Scale(double dt) const;
+  // Carries the internal torques over the step that ended at `elastic`.
+  void Commit(double elastic, double dt);
+  void Hold(double dt) { Commit(previous_, dt); }  // the elastic torque held for dt s
+  void Reset();  // at rest, no history
+  double relaxed_share() const;  // g∞
+  template <class A>
+  void Persist(A& a) {  // common/core/state_archive.h
+    a(h_, previous_);
+  }
+
+ private:
+  std::vector<PronyTerm> terms_;
+  std::vector<double> h_;  // N·m, one per term
+  double previous_ = 0;    // the last step's elastic torque, N·m
+};
+
 }  // namespace vsurg::tissue

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/core/state_archive.h"
 #include "common/geometry/distances.h"
 #include "common/geometry/tet_generators.h"
 #include "common/sim/rooms/room_support.h"
@@ -69,6 +70,11 @@ Expected<ReducedTwistRoom> ReducedTwistRoom::Build(const RoomInputs& in) {
   ReducedTwistRoom room;
   room.model_ = std::make_unique<tissue::ReducedTwistModel>(std::move(*model));
   room.centreline_ = &in.centreline;
+  if (!in.scene.relaxation.empty()) {
+    auto relax = tissue::TorqueRelaxation::Create(in.scene.relaxation);
+    if (!relax.ok()) return Error{relax.error().code, relax.error().message, "tissue.relaxation"};
+    room.relax_ = std::move(*relax);
+  }
   return room;
 }
 
@@ -79,7 +85,42 @@ bool ReducedTwistRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
 
 TwistAnswer ReducedTwistRoom::Twist(double twist) const {
   const tissue::ReducedTwistModel::Answer a = model_->TorqueAt(twist);
-  return {a.torque, a.stiffness, a.overload};
+  if (!relax_) return {a.torque, a.stiffness, a.overload};
+  return {relax_->Torque(a.torque, step_dt_), relax_->Scale(step_dt_) * a.stiffness, a.overload,
+          a.torque};
+}
+
+void ReducedTwistRoom::BeginTwistStep(double dt, double now) {
+  if (!relax_) return;
+  if (const double gap = now - dt - last_end_; gap > 0) relax_->Hold(gap);
+  step_dt_ = dt;
+  step_end_ = now;
+}
+
+void ReducedTwistRoom::EndTwistStep(double twist) {
+  if (!relax_) return;
+  relax_->Commit(model_->TorqueAt(twist).torque, step_dt_);
+  last_end_ = step_end_;
+}
+
+void ReducedTwistRoom::ReleaseTwist(double dt, double now) {
+  if (!relax_) return;
+  BeginTwistStep(dt, now);
+  relax_->Commit(0.0, dt);
+  last_end_ = now;
+}
+
+void ReducedTwistRoom::Save(StateWriter& w) const {
+  w(relax_.has_value(), step_dt_, step_end_, last_end_);
+  if (relax_) w(*relax_);
+}
+
+bool ReducedTwistRoom::Load(StateReader& r) {
+  bool relaxes = false;
+  r(relaxes, step_dt_, step_end_, last_end_);
+  if (!r.ok() || relaxes != relax_.has_value()) return false;
+  if (relax_) r(*relax_);
+  return r.ok();
 }
 
 std::optional<Deformed> ReducedTwistRoom::Deform(const DeformInput& in) {

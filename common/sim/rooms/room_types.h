@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -87,6 +88,9 @@ struct TwistAnswer {
   double torque = 0;     // N·m
   double stiffness = 0;  // N·m/rad, dT/dΦ there (the station's local model); 0 past capacity
   bool overload = false;
+  // N·m: the elastic torque the shape answers, where a relaxing tissue's held torque falls below
+  // it (the grasp holds the twist, the deformation stays); NaN: the torque itself.
+  double shape = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The contact the local model is asked about (haptic thread).

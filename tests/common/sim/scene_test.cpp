@@ -506,6 +506,12 @@ TEST(SceneTest, TheTissuesLawIsAReducedTwistsChoiceNamedWhenWrong) {
   ASSERT_TRUE(expo.ok()) << expo.error().message;
   EXPECT_EQ(expo->law, Scene::Law::kExponential);
   EXPECT_EQ(expo->stiffening, 5);
+  auto relaxing = ParseScene(
+      with(R"("relaxation": [{"g": 0.3, "tau_s": 0.2}, {"g": 0.2, "tau_s": 5}])", twist), "x.json");
+  ASSERT_TRUE(relaxing.ok()) << relaxing.error().message;
+  ASSERT_EQ(relaxing->relaxation.size(), 2u);
+  EXPECT_EQ(relaxing->relaxation[1].g, 0.2);
+  EXPECT_EQ(relaxing->relaxation[1].tau, 5);
   const std::pair<std::string, const char*> bad[] = {
       {R"("law": "ogden")", "tissue.law: must be"},
       {R"("law": "exponential")", "tissue.stiffening: is required"},
@@ -513,12 +519,22 @@ TEST(SceneTest, TheTissuesLawIsAReducedTwistsChoiceNamedWhenWrong) {
       {R"("law": "exponential", "stiffening": -1)", "tissue.stiffening"},
       {R"("law": "neo-hookean", "stiffening": 2)", "tissue.stiffening: is the exponential law's"},
       {R"("stiffening": 2)", "tissue.stiffening: is the exponential law's"},
-      {R"("law": 3)", "tissue.law"}};
+      {R"("law": 3)", "tissue.law"},
+      {R"("relaxation": [])", "tissue.relaxation: must be"},
+      {R"("relaxation": [{"g": 1.2, "tau_s": 1}])", "tissue.relaxation[0].g"},
+      {R"("relaxation": [{"g": 0.2, "tau_s": 0}])", "tissue.relaxation[0].tau_s"},
+      {R"("relaxation": [{"g": 0.2}])", "tissue.relaxation[0].tau_s"},
+      {R"("relaxation": [{"g": 0.6, "tau_s": 1}, {"g": 0.5, "tau_s": 2}])",
+       "tissue.relaxation: the terms' g sum to 1"},
+      {R"("relaxation": [3])", "tissue.relaxation[0]: must be an object"}};
   for (const auto& [tissue, field] : bad)
     EXPECT_NE(Field(with(tissue, twist)).find(field), std::string::npos) << tissue;
   // Only the reduced twist region carries a hyperelastic law; a press scene says so.
   EXPECT_NE(Field(with(R"("law": "neo-hookean")", Minimal()))
                 .find("tissue.law: \"neo-hookean\" is carried only by a reduced twist region"),
+            std::string::npos);
+  EXPECT_NE(Field(with(R"("relaxation": [{"g": 0.3, "tau_s": 1}])", Minimal()))
+                .find("tissue.relaxation: is carried only by a reduced twist region"),
             std::string::npos);
   EXPECT_NE(Field(Replace(twist, R"("levels": 4)", R"("levels": 40)")).find("levels"),
             std::string::npos);

@@ -4,10 +4,13 @@
 // a table is the linear model, and half a turn on the coarsest mesh is bounded.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "common/geometry/tet_embedding.h"
 #include "common/geometry/tet_generators.h"
@@ -164,6 +167,63 @@ TEST(TwistTableTest, HalfATurnOnTheCoarsestMeshIsBoundedAndABadTableRefused) {
   wrong = in;
   wrong.face = {-1};
   EXPECT_FALSE(PrecomputeTwistTable(wrong).ok());
+}
+
+// The relaxation carried to the torque against the FEM's own, per element: the bar turned to
+// 60° in 0.1 s and held for 1.5 s (two Prony terms, 0.2 and 1 s), the reduced model's elastic
+// torque from its table convolved by TorqueRelaxation; and the closed form of a step held, the
+// standard linear solid's T(t) = T_e·G(t).
+TEST(TwistTableTest, TheTorqueRelaxesAsTheFemsStressDoes) {
+  const std::vector<PronyTerm> terms = {{0.3, 0.2}, {0.2, 1.0}};
+  const TwistTableInputs in = BarInputs(1, 2, std::numbers::pi / 3, 4);
+  auto table = PrecomputeTwistTable(in);
+  ASSERT_TRUE(table.ok()) << table.error().message;
+  auto model = ReducedTwistModel::Create(*table, in.display, std::numbers::pi);
+  ASSERT_TRUE(model.ok());
+  auto relax = TorqueRelaxation::Create(terms);
+  ASSERT_TRUE(relax.ok());
+  EXPECT_NEAR(relax->relaxed_share(), 0.5, 1e-15);
+  auto fem = HyperelasticFem::Create(in.mesh, in.material);
+  ASSERT_TRUE(fem.ok());
+  ASSERT_TRUE(fem->SetRelaxation(terms).ok());
+  for (int v : in.fixed)
+    for (int a = 0; a < 3; ++a) fem->Hold(v, a, in.mesh.positions[v][a]);
+  const Vec3 axis = Vec3::UnitZ();
+  double sum2 = 0, norm2 = 0, peak = 0, last_fem = 0, last_reduced = 0;
+  for (double t = 0; t < 1.6 - 1e-9;) {
+    const double dt = t < 0.1 - 1e-9 ? 0.01 : 0.05;
+    t += dt;
+    const double twist = std::numbers::pi / 3 * std::min(t / 0.1, 1.0);
+    for (int v : in.face) {
+      const Vec3 p = Eigen::AngleAxisd(twist, axis) * in.mesh.positions[v];
+      for (int a = 0; a < 3; ++a) fem->Hold(v, a, p[a]);
+    }
+    ASSERT_TRUE(fem->Step(dt, 1e-9).converged) << t;
+    const Eigen::VectorXd f = fem->InternalForces();
+    double torque = 0;
+    for (int v : in.face) torque += fem->positions()[v].cross(Vec3(-f.segment<3>(3 * v))).dot(axis);
+    const double elastic = model->TorqueAt(twist).torque;
+    const double reduced = relax->Torque(elastic, dt);
+    relax->Commit(elastic, dt);
+    sum2 += (reduced - torque) * (reduced - torque), norm2 += torque * torque;
+    peak = std::max(peak, torque), last_fem = torque, last_reduced = reduced;
+  }
+  EXPECT_LT(std::sqrt(sum2 / norm2), 0.01) << "RMS over the ramp and hold";  // 0.07% here
+  EXPECT_LT(last_fem, 0.75 * peak);  // it relaxed
+  EXPECT_NEAR(last_reduced, last_fem, 0.02 * last_fem);
+  // A step of the elastic torque held: T(t) = T_e·G(t) at any step size.
+  for (const double h : {1e-3, 0.05}) {
+    relax->Reset();
+    relax->Commit(1.0, 1e-9);
+    double t = 0;
+    for (int k = 0; k < 40; ++k) t += h, relax->Commit(1.0, h);
+    const double g = 0.5 + 0.3 * std::exp(-t / 0.2) + 0.2 * std::exp(-t / 1.0);
+    EXPECT_NEAR(relax->Torque(1.0, 0.0), g, 1e-9) << h;
+  }
+  EXPECT_FALSE(TorqueRelaxation::Create({{0.6, 1.0}, {0.5, 1.0}}).ok());
+  EXPECT_FALSE(TorqueRelaxation::Create({{0.2, 0.0}}).ok());
+  EXPECT_FALSE(TorqueRelaxation::Create({{-0.1, 1.0}}).ok());
+  EXPECT_FALSE(TorqueRelaxation::Create({{0.2, std::numeric_limits<double>::infinity()}}).ok());
 }
 
 }  // namespace

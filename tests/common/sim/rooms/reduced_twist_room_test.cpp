@@ -1,8 +1,10 @@
 // The reduced twist room (common/sim/rooms/reduced_twist_room.h): the limb twisted by its
 // precomputed twist field.
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -70,6 +72,51 @@ TEST(RoomTest, AHyperelasticArmIsTwistedByItsTableAndTheExponentialLawStiffens) 
   EXPECT_GT(neo_torque, 1.0);  // N·m: the forearm held at 45°
   EXPECT_GT(expo_torque, 1.01 * neo_torque);
   EXPECT_LT(expo_torque, 1.2 * neo_torque);
+}
+
+// A relaxing arm ("tissue.relaxation"): while the good trainee holds the wrist at 45° for its 2 s
+// the torque it feels falls towards g∞ of the elastic one (e^{−2/0.5} of the rest is left), while
+// the elastic arm's holds; the arm keeps its shape (the grasp holds the twist), so the task
+// completes alike. A twist again later starts from a history that has relaxed back.
+TEST(RoomTest, ARelaxingArmsTorqueFallsWhileTheTwistIsHeld) {
+  const test::TempDir dir("arm_relax_cache");
+  setenv("VSURG_CACHE_DIR", dir.string().c_str(), 1);
+  auto arm = LoadSceneByName("arm-torsion-reduced");
+  ASSERT_TRUE(arm.ok());
+  auto run = [&](bool relaxing, std::vector<double>* torque) {
+    Scene s = *arm;
+    if (relaxing) s.relaxation = {{0.4, 0.5}};
+    auto samples = ScriptedTrainee(s, TraineeStyle::kGood);
+    EXPECT_TRUE(samples.ok());
+    auto sim = Simulation::Create(s, {false});
+    EXPECT_TRUE(sim.ok()) << (sim.ok() ? "" : sim.error().message);
+    (*sim)->Replay(*samples, [&](const haptics::StylusSample&, const haptics::ForceCommand& c) {
+      if (c.grasping) torque->push_back(std::abs(c.torque));
+    });
+    return (*sim)->Metrics();
+  };
+  std::vector<double> elastic, relaxing;
+  const scoring::TrialMetrics a = run(false, &elastic), b = run(true, &relaxing);
+  unsetenv("VSURG_CACHE_DIR");
+  ASSERT_TRUE(a.completed && b.completed);
+  EXPECT_NEAR(b.task_error, a.task_error, 1e-9);  // the same twist held: the same shape
+  ASSERT_EQ(elastic.size(), relaxing.size());
+  ASSERT_GT(elastic.size(), 2000u);  // the turn and the 2 s hold
+  const double e_peak = *std::max_element(elastic.begin(), elastic.end());
+  const double r_peak = *std::max_element(relaxing.begin(), relaxing.end());
+  // The hold: the samples where the elastic arm is within 5% of its peak (the trainee then turns
+  // back before letting go). Held, the relaxing arm's torque falls to about 0.6 of the elastic.
+  size_t first = 0, last = 0;
+  for (size_t i = 0; i < elastic.size(); ++i) {
+    if (elastic[i] < 0.95 * e_peak) continue;
+    if (first == 0) first = i;
+    last = i;
+  }
+  EXPECT_GT(last - first, 1500u) << "a hold of at least 1.5 s";
+  EXPECT_LT(relaxing[last], 0.7 * elastic[last]);
+  EXPECT_GT(relaxing[last], 0.55 * elastic[last]);
+  EXPECT_LT(relaxing[last], relaxing[first]);
+  EXPECT_LT(r_peak, e_peak);  // already relaxing during the turn
 }
 
 }  // namespace
