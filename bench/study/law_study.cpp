@@ -1,24 +1,27 @@
 // The study's load axis for the limb (DESIGN.md "Speed against error"): the forearm of
 // scenes/arm-torsion-reduced.json (its FEM cylinder, its display surface, its material) under a
 // hyperelastic law, the neo-Hookean one and the exponential one (b = 5), turned at the grasp to
-// 22.5°, 45°, 67.5° and 90° (twice the task's 45°). The reference at each angle is the
-// hyperelastic FEM's static state, the grasp held rigidly there (tissue/twist_table.h,
-// SolveTwisted). Rated against it: the linear twist field the scene runs (driven at the torque its
-// own law gives for that angle) and the table of load levels (levels every 15°, so 22.5° and
-// 67.5° fall between two). Each row's note gives the torque it answers against the FEM's: what
-// the trainee's hand feels, and its error is the larger of the markers' RMS and the torque's
-// relative error.
+// 22.5°, 45°, 67.5° and 90° (twice the task's 45°). The reference at each angle is the hyperelastic
+// FEM's static state, the grasp held rigidly there (tissue/twist_table.h, SolveTwisted). Rated
+// against it: the coil model of scenes/arm-torsion.json and the linear twist field
+// arm-torsion-reduced runs (each driven at the torque its own law gives for that angle), and the
+// table of load levels (levels every 15°, so 22.5° and 67.5° fall between two). Each row's note
+// gives the torque it answers against the FEM's: what the trainee's hand feels, and its error is
+// the larger of the markers' RMS and the torque's relative error.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <string>
 #include <vector>
 
 #include "bench/study/study.h"
+#include "common/geometry/distances.h"
 #include "common/geometry/mesh_generators.h"
 #include "common/geometry/tet_generators.h"
 #include "common/sim/scene.h"
+#include "common/tissue/coil_deformation.h"
 #include "common/tissue/reduced.h"
 #include "common/tissue/twist_table.h"
 
@@ -78,23 +81,31 @@ Expected<tissue::ReducedTwistModel> LinearModel(const ArmSetting& s) {
   material.poisson = s.inputs.material.poisson;
   auto fem = tissue::FemStaticResponse::Create(s.cylinder.mesh, material, s.cylinder.base);
   if (!fem.ok()) return fem.error();
-  auto field = tissue::PrecomputeTwistField(*fem, s.cylinder.tip, s.cylinder.tip_area,
-                                            Vec3::Zero(), Vec3::UnitZ(), s.display);
+  auto field = tissue::PrecomputeTwistField(*fem, s.cylinder.tip, s.cylinder.tip_area, Vec3::Zero(),
+                                            Vec3::UnitZ(), s.display);
   if (!field.ok()) return field.error();
   return tissue::ReducedTwistModel::Create(*field, s.display, std::numbers::pi);
 }
 
+// What a row drives: the torque its own law answers at a twist, an update to a torque, and the
+// surface it leaves.
+struct Driven {
+  std::function<double(double)> torque_at;
+  std::function<void(double)> update;
+  std::function<const std::vector<Vec3>&()> positions;
+  int size = 0;
+};
+
 // A model's row at one angle: driven at the torque its own law answers there, timed, scored.
-Row RateAt(tissue::ReducedTwistModel& model, const std::string& name, const std::string& setting,
+Row RateAt(const Driven& model, const std::string& name, const std::string& setting,
            const std::string& scene, double twist, const tissue::TwistedState& ref,
            const ArmSetting& s, const Config& cfg) {
   Row row{name, scene, setting};
-  const double torque = model.TorqueAt(twist).torque;
-  row.size = model.VertexCount();
-  row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
-    model.Update(torque * (0.5 + 0.5 * ((i % 2) ? 1.0 : 0.97)));
-  });
-  model.Update(torque);
+  const double torque = model.torque_at(twist);
+  row.size = model.size;
+  row.time_us = TimeUs(cfg.repeats * 5,
+                       [&](int i) { model.update(torque * (0.5 + 0.5 * ((i % 2) ? 1.0 : 0.97))); });
+  model.update(torque);
   std::vector<Vec3> u(ref.positions.size());
   for (size_t v = 0; v < u.size(); ++v) u[v] = ref.positions[v] - s.inputs.mesh.positions[v];
   Score(row, s.display, model.positions(), s.markers,
@@ -111,16 +122,53 @@ Row RateAt(tissue::ReducedTwistModel& model, const std::string& name, const std:
   return row;
 }
 
+Driven Drive(tissue::ReducedTwistModel& m) {
+  return {[&m](double twist) { return m.TorqueAt(twist).torque; },
+          [&m](double torque) { m.Update(torque); },
+          [&m]() -> const std::vector<Vec3>& { return m.positions(); }, m.VertexCount()};
+}
+
+// scenes/arm-torsion.json's coil model on the same surface: its inverse gives the torque for the
+// twist, its deformer the surface (the grasp at the wrist).
+struct Coil {
+  tissue::CoilSpringModel model;
+  tissue::CoilDeformer deformer;
+};
+Expected<Coil> CoilModel(const ArmSetting& s) {
+  auto file = sim::LoadSceneByName("arm-torsion");
+  if (!file.ok()) return file.error();
+  auto limb = geometry::MakeLimb(file->mesh.limb);
+  if (!limb.ok()) return limb.error();
+  if (limb->surface.positions.size() != s.display.size())
+    return InvalidArgument("arm-torsion", "its limb is not the reduced arm's surface");
+  auto model = tissue::CoilSpringModel::Create(file->region.coil);
+  if (!model.ok()) return model.error();
+  auto deformer = tissue::CoilDeformer::CreateForLimb(
+      *model, s.display, limb->centreline, geometry::ArcLengths(limb->centreline).back());
+  if (!deformer.ok()) return deformer.error();
+  return Coil{std::move(*model), std::move(*deformer)};
+}
+
+Driven Drive(Coil& c) {
+  return {[&c](double twist) { return c.model.Inverse(twist).torque; },
+          [&c](double torque) { c.deformer.Update(torque); },
+          [&c]() -> const std::vector<Vec3>& { return c.deformer.positions(); },
+          static_cast<int>(c.deformer.positions().size())};
+}
+
 }  // namespace
 
-int ArmLawSteps(const Config& cfg) { return 1 + 2 * (1 + static_cast<int>(Angles(cfg).size())); }
+int ArmLawSteps(const Config& cfg) {
+  return 1 + 2 * (1 + static_cast<int>(Angles(cfg).size()));
+}
 
 std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
   std::vector<SceneOut> out;
   auto setting = Setting(cfg);
-  auto linear = setting.ok() ? LinearModel(*setting)
-                             : Expected<tissue::ReducedTwistModel>(setting.error());
-  progress.Step("arm laws: the linear field");
+  auto linear =
+      setting.ok() ? LinearModel(*setting) : Expected<tissue::ReducedTwistModel>(setting.error());
+  auto coil = setting.ok() ? CoilModel(*setting) : Expected<Coil>(setting.error());
+  progress.Step("arm laws: the linear field and the coil");
   for (const Law& law : {Law{"neo-Hookean", 0.0}, Law{"exponential b = 5", 5.0}}) {
     tissue::TwistTableInputs in = setting.ok() ? setting->inputs : tissue::TwistTableInputs{};
     in.material.stiffening = law.stiffening;
@@ -128,8 +176,9 @@ std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
     auto table = setting.ok() ? tissue::PrecomputeTwistTable(in)
                               : Expected<tissue::TwistTable>(setting.error());
     const double precompute_s = std::chrono::duration<double>(Clock::now() - t0).count();
-    auto model = table.ok() ? tissue::ReducedTwistModel::Create(*table, in.display, std::numbers::pi)
-                            : Expected<tissue::ReducedTwistModel>(table.error());
+    auto model = table.ok()
+                     ? tissue::ReducedTwistModel::Create(*table, in.display, std::numbers::pi)
+                     : Expected<tissue::ReducedTwistModel>(table.error());
     progress.Step("arm laws: " + law.name + " table");
     tissue::TwistedState last;  // each angle solved from the one before
     last.positions = in.mesh.positions;
@@ -145,9 +194,12 @@ std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
         s.rows.push_back(Row{"reduced", scene, "", 0, kInf, kInf, 0, why});
       } else {
         last = *ref;
-        s.rows.push_back(
-            RateAt(*linear, "reduced", "linear twist field", scene, twist, *ref, *setting, cfg));
-        Row row = RateAt(*model, "reduced-table",
+        if (coil.ok())
+          s.rows.push_back(RateAt(Drive(*coil), "coil-scene", "arm-torsion's coil", scene, twist,
+                                  *ref, *setting, cfg));
+        s.rows.push_back(RateAt(Drive(*linear), "reduced", "linear twist field", scene, twist, *ref,
+                                *setting, cfg));
+        Row row = RateAt(Drive(*model), "reduced-table",
                          std::to_string(in.levels) + " levels a side (" +
                              std::to_string(in.mesh.TetCount()) + " tets)",
                          scene, twist, *ref, *setting, cfg);

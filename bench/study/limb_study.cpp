@@ -457,5 +457,4 @@ std::vector<int> LimbMarkerVertices(const std::vector<Vec3>& rest, const tissue:
   return out;
 }
 
-
 }  // namespace vsurg::bench::study

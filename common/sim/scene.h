@@ -95,8 +95,8 @@ struct ReducedSpec {
   double footprint_radius = 0.005;  // m, contact: the tool's contact disc
   double max_force = 10;            // N, contact: the capacity; a larger press is clamped
   double max_twist = 1.5707963267948966;  // rad, twist: the largest turn any vertex may take
-  int levels = 6;  // twist with a hyperelastic law: the table's load levels on each side
-  double jaw_radius = 0.009;              // m, surface twist: the disc the forceps hold
+  int levels = 6;             // twist with a hyperelastic law: the table's load levels on each side
+  double jaw_radius = 0.009;  // m, surface twist: the disc the forceps hold
 };
 
 struct RegionSpec {

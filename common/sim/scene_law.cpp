@@ -1,7 +1,7 @@
 // A scene's tissue law (scene.h, Scene::law): "tissue": { "law": "linear" | "neo-hookean" |
-// "exponential", "stiffening": b, "relaxation": [{"g": 0.3, "tau_s": 0.5}, ...] }. A law other than linear is carried only by a reduced twist
-// region (its hyperelastic load levels, tissue/twist_table.h); elsewhere it is refused by name
-// rather than silently modelled as linear.
+// "exponential", "stiffening": b, "relaxation": [{"g": 0.3, "tau_s": 0.5}, ...] }. A law other than
+// linear is carried only by a reduced twist region (its hyperelastic load levels,
+// tissue/twist_table.h); elsewhere it is refused by name rather than silently modelled as linear.
 #include <cmath>
 
 #include "common/sim/scene.h"

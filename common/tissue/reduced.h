@@ -156,8 +156,8 @@ class ReducedTwistModel {
   const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
   // N·m: the smaller of the two sides' capacities (equal for a linear field).
   double torque_capacity() const { return std::min(capacity_lo_, capacity_hi_); }
-  double grasp_stiffness() const;                // N·m/rad, dT/dΦ at rest
-  double grasp_twist(double torque) const;       // rad at the grasp for a torque
+  double grasp_stiffness() const;           // N·m/rad, dT/dΦ at rest
+  double grasp_twist(double torque) const;  // rad at the grasp for a torque
   // The torque the tissue holds at a twist Φ of the grasp (rad), dT/dΦ there, and whether Φ is
   // past the capacity (the torque then clamped to it, the stiffness 0). No allocation.
   struct Answer {
@@ -181,7 +181,7 @@ class ReducedTwistModel {
   std::vector<double> level_twist_, level_torque_;
   int rest_level_ = 0;
   std::vector<Eigen::Vector3d> rest_, positions_;
-  std::vector<float> dx_, dy_, dz_;  // scratch: the displacement in the axis frame
+  std::vector<float> dx_, dy_, dz_;           // scratch: the displacement in the axis frame
   double capacity_lo_ = 0, capacity_hi_ = 0;  // N·m, each side's (both > 0)
 };
 

@@ -113,8 +113,8 @@ Status ValidateTwistTable(const TwistTable& t, size_t display_vertices) {
       t.lateral.size() != levels * n)
     return InvalidArgument("table", "the twist table does not match the surface (" +
                                         std::to_string(t.vertices) + " against " +
-                                        std::to_string(n) + " vertices, " +
-                                        std::to_string(levels) + " levels)");
+                                        std::to_string(n) + " vertices, " + std::to_string(levels) +
+                                        " levels)");
   if (!t.origin.allFinite() || !t.axis.allFinite() || std::abs(t.axis.norm() - 1) > 1e-6)
     return InvalidArgument("table", "the twist axis is not a finite unit vector");
   bool rest = false;
@@ -122,8 +122,8 @@ Status ValidateTwistTable(const TwistTable& t, size_t display_vertices) {
     if (!std::isfinite(t.twist[k]) || !std::isfinite(t.torque[k]) || !std::isfinite(t.axial[k]))
       return InvalidArgument("table", "level " + std::to_string(k) + " is not finite");
     if (k > 0 && !(t.twist[k] > t.twist[k - 1] && t.torque[k] > t.torque[k - 1]))
-      return InvalidArgument("table", "the levels' twist and torque must rise (level " +
-                                          std::to_string(k) + ")");
+      return InvalidArgument(
+          "table", "the levels' twist and torque must rise (level " + std::to_string(k) + ")");
     rest = rest || (t.twist[k] == 0 && t.torque[k] == 0);
   }
   if (!rest) return InvalidArgument("table", "no level at rest (0 rad, 0 N·m)");
@@ -185,8 +185,8 @@ Expected<ReducedTwistModel> ReducedTwistModel::Create(const TwistTable& table,
     }
   m.level_twist_ = table.twist;
   m.level_torque_ = table.torque;
-  m.rest_level_ = static_cast<int>(
-      std::find(table.twist.begin(), table.twist.end(), 0.0) - table.twist.begin());
+  m.rest_level_ = static_cast<int>(std::find(table.twist.begin(), table.twist.end(), 0.0) -
+                                   table.twist.begin());
   // Each side's capacity: walking out from rest, the torque at which the largest vertex angle
   // reaches max_twist, along the last segment extended when no level does.
   auto side = [&](int step) {
@@ -231,8 +231,7 @@ ReducedTwistModel::Answer ReducedTwistModel::TorqueAt(double twist) const {
   if (!std::isfinite(twist)) return a;
   const int k = Segment(level_twist_, twist);
   a.torque = Along(level_twist_, level_torque_, k, twist);
-  a.stiffness =
-      (level_torque_[k + 1] - level_torque_[k]) / (level_twist_[k + 1] - level_twist_[k]);
+  a.stiffness = (level_torque_[k + 1] - level_torque_[k]) / (level_twist_[k + 1] - level_twist_[k]);
   if (a.torque > capacity_hi_ || a.torque < -capacity_lo_) {
     a.torque = std::clamp(a.torque, -capacity_lo_, capacity_hi_);
     a.stiffness = 0;
@@ -259,8 +258,8 @@ ReducedStats ReducedTwistModel::Update(double torque) {
   const double s = (torque - level_torque_[k]) / (level_torque_[k + 1] - level_torque_[k]);
   auto fields = [&](int level) {
     const size_t at = static_cast<size_t>(level) * nv_;
-    return LevelFields{angle_.data() + at, warp_.data() + at, radial_.data() + at,
-                       l1_.data() + at, l2_.data() + at};
+    return LevelFields{angle_.data() + at, warp_.data() + at, radial_.data() + at, l1_.data() + at,
+                       l2_.data() + at};
   };
   float t0 = static_cast<float>(1 - s), t1 = static_cast<float>(s);
   LevelFields f0 = fields(k), f1 = fields(k + 1);

@@ -85,8 +85,8 @@ Expected<TwistedState> Increment(const TwistTableInputs& in, const std::vector<V
 }
 
 // From `x` at `from` to `to`, halving a step that does not converge (at most `depth` times).
-Expected<TwistedState> Approach(const TwistTableInputs& in, const std::vector<Vec3>& x,
-                                double from, double to, int depth, TwistTableReport* report) {
+Expected<TwistedState> Approach(const TwistTableInputs& in, const std::vector<Vec3>& x, double from,
+                                double to, int depth, TwistTableReport* report) {
   auto s = Increment(in, x, from, to);
   if (report) ++report->increments;
   if (s.ok() || depth == 0) {
@@ -150,8 +150,8 @@ Expected<TwistedState> SolveTwisted(const TwistTableInputs& in, double twist,
   }
   const double start = at.twist;
   for (int k = 1; k <= increments; ++k) {
-    auto next = Approach(in, at.positions, at.twist,
-                         start + (twist - start) * k / increments, 4, report);
+    auto next =
+        Approach(in, at.positions, at.twist, start + (twist - start) * k / increments, 4, report);
     if (!next.ok()) return next.error();
     at = std::move(next).value();
   }
@@ -177,7 +177,8 @@ Expected<TwistTable> PrecomputeTwistTable(const TwistTableInputs& in, TwistTable
   t.origin = in.origin;
   t.axis = in.axis.normalized();
   t.vertices = static_cast<int>(in.display.size());
-  for (auto it = negative.rbegin(); it != negative.rend(); ++it) AppendLevel(in, *embedding, *it, t);
+  for (auto it = negative.rbegin(); it != negative.rend(); ++it)
+    AppendLevel(in, *embedding, *it, t);
   TwistedState rest;
   rest.positions = in.mesh.positions;
   AppendLevel(in, *embedding, rest, t);
@@ -195,8 +196,8 @@ Expected<TorqueRelaxation> TorqueRelaxation::Create(std::vector<PronyTerm> terms
   for (size_t i = 0; i < terms.size(); ++i) {
     const PronyTerm& t = terms[i];
     if (!(t.g >= 0 && t.g < 1) || !(t.tau > 0) || !std::isfinite(t.tau))
-      return InvalidArgument("relaxation", "term " + std::to_string(i) +
-                                               ": g must be in [0, 1) and τ > 0 s, finite");
+      return InvalidArgument(
+          "relaxation", "term " + std::to_string(i) + ": g must be in [0, 1) and τ > 0 s, finite");
     sum += t.g;
   }
   if (!(sum < 1)) return InvalidArgument("relaxation", "the terms' g sum to 1 or more");

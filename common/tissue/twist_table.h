@@ -48,7 +48,7 @@ struct TwistTableInputs {
   std::vector<int> face;   // the grasped face: turned rigidly about (origin, axis) and held
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
-  std::vector<Eigen::Vector3d> display;  // the display surface's rest positions
+  std::vector<Eigen::Vector3d> display;   // the display surface's rest positions
   double max_twist = 1.5707963267948966;  // rad at the grasp, each side; in (0, π]
   int levels = 8;                         // per side, 1..32
 };
@@ -98,8 +98,8 @@ class TorqueRelaxation {
   // Carries the internal torques over the step that ended at `elastic`.
   void Commit(double elastic, double dt);
   void Hold(double dt) { Commit(previous_, dt); }  // the elastic torque held for dt s
-  void Reset();  // at rest, no history
-  double relaxed_share() const;  // g∞
+  void Reset();                                    // at rest, no history
+  double relaxed_share() const;                    // g∞
   template <class A>
   void Persist(A& a) {  // common/core/state_archive.h
     a(h_, previous_);

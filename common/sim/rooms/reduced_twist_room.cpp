@@ -49,7 +49,8 @@ Expected<tissue::ReducedTwistModel> TableModel(const RoomInputs& in,
   inputs.levels = scene.region.reduced.levels;
   auto table = cache.TwistTableFor(scene.name + "-twist-table", inputs);
   if (!table.ok()) return table.error();
-  return tissue::ReducedTwistModel::Create(*table, in.rest.positions, scene.region.reduced.max_twist);
+  return tissue::ReducedTwistModel::Create(*table, in.rest.positions,
+                                           scene.region.reduced.max_twist);
 }
 
 }  // namespace

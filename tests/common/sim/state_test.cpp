@@ -115,12 +115,12 @@ TEST_P(StateTest, ATrialCarriedToANewSimulationGoesOnAsIfItHadNotMoved) {
 
 INSTANTIATE_TEST_SUITE_P(
     EveryModel, StateTest,
-    ::testing::Values(Case{"arm-torsion", 1e-9},              // coil spring, limb twist
-                      Case{"arm-torsion-reduced", 1e-9},      // reduced twist
+    ::testing::Values(Case{"arm-torsion", 1e-9},                // coil spring, limb twist
+                      Case{"arm-torsion-reduced", 1e-9},        // reduced twist
                       Case{"arm-torsion-reduced", 1e-9, true},  // relaxing
-                      Case{"organ-surface-twist", 1e-9},      // surface twist (the jaws' grasp)
-                      Case{"sphere-palpation-256", 1e-3},     // mass-spring, implicit
-                      Case{"sphere-palpation-rings", 1e-9}),  // ring layer
+                      Case{"organ-surface-twist", 1e-9},        // surface twist (the jaws' grasp)
+                      Case{"sphere-palpation-256", 1e-3},       // mass-spring, implicit
+                      Case{"sphere-palpation-rings", 1e-9}),    // ring layer
     [](const ::testing::TestParamInfo<Case>& param) {
       std::string name = std::string(param.param.scene) + (param.param.relaxing ? "-relaxing" : "");
       for (char& c : name)

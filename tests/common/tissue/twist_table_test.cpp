@@ -209,7 +209,7 @@ TEST(TwistTableTest, TheTorqueRelaxesAsTheFemsStressDoes) {
     peak = std::max(peak, torque), last_fem = torque, last_reduced = reduced;
   }
   EXPECT_LT(std::sqrt(sum2 / norm2), 0.01) << "RMS over the ramp and hold";  // 0.07% here
-  EXPECT_LT(last_fem, 0.75 * peak);  // it relaxed
+  EXPECT_LT(last_fem, 0.75 * peak);                                          // it relaxed
   EXPECT_NEAR(last_reduced, last_fem, 0.02 * last_fem);
   // A step of the elastic torque held: T(t) = T_e·G(t) at any step size.
   for (const double h : {1e-3, 0.05}) {
