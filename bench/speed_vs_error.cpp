@@ -72,7 +72,7 @@ int SpeedVsError(const std::vector<std::string>& args) {
       .Option("benchmarks", cli::ArgParser::Kind::kString,
               "Markdown file to update (default: BENCHMARKS.md in --out when --out is docs)")
       .Option("only", cli::ArgParser::Kind::kString,
-              "one part of the study: limbs, arm-laws, sphere, kidney, organ-twist, pad or patch "
+              "one part of the study: limbs, laws, sphere, kidney, organ-twist, pad or patch "
               "(the table is printed, no Markdown file is updated)");
   if (Status s = p.Parse(args); !s.ok()) {
     std::cerr << p.command() << ": " << s.error().field << ": " << s.error().message << "\n";
@@ -97,20 +97,23 @@ int SpeedVsError(const std::vector<std::string>& args) {
   const int patch = cfg.quick ? 2 : 14;  // the quick run: the uncut lift, the scene's own lattice
   const std::string only = p.Has("only") ? p.String("only") : "";
   const auto run = [&only](const std::string& part) { return only.empty() || only == part; };
-  if (!only.empty() && !run("limbs") && !run("arm-laws") && !run("sphere") && !run("kidney") &&
+  if (!only.empty() && !run("limbs") && !run("laws") && !run("sphere") && !run("kidney") &&
       !run("organ-twist") && !run("pad") && !run("patch")) {
     std::cerr << p.command()
-              << ": --only: limbs, arm-laws, sphere, kidney, organ-twist, pad or patch\n";
+              << ": --only: limbs, laws, sphere, kidney, organ-twist, pad or patch\n";
     return 2;
   }
   Progress progress((run("limbs") ? 3 * per_limb : 0) +
-                    (run("arm-laws") ? study::ArmLawSteps(cfg) : 0) + (run("sphere") ? sphere : 0) +
+                    (run("laws") ? study::ArmLawSteps(cfg) + study::BallLawSteps(cfg) : 0) +
+                    (run("sphere") ? sphere : 0) +
                     (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0) +
                     (run("patch") ? patch : 0));
   std::vector<SceneOut> scenes;
   if (run("limbs")) scenes = RunLimbScenes(cfg, progress);
-  if (run("arm-laws"))
+  if (run("laws")) {
     for (SceneOut& s : study::RunArmLaws(cfg, progress)) scenes.push_back(std::move(s));
+    for (SceneOut& s : study::RunBallLaws(cfg, progress)) scenes.push_back(std::move(s));
+  }
   if (run("sphere")) scenes.push_back(RunSphere(cfg, progress));
   if (run("kidney")) scenes.push_back(RunOrgan(cfg, progress));
   if (run("organ-twist")) scenes.push_back(RunSurfaceTwist(cfg, progress));

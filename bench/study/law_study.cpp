@@ -12,7 +12,9 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <memory>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,6 +24,8 @@
 #include "common/geometry/tet_generators.h"
 #include "common/sim/scene.h"
 #include "common/tissue/coil_deformation.h"
+#include "common/tissue/fem.h"
+#include "common/tissue/hyperelastic.h"
 #include "common/tissue/reduced.h"
 #include "common/tissue/twist_table.h"
 
@@ -206,6 +210,153 @@ std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
         row.note += "; built in " + Num(precompute_s, 3) + " s";
         s.rows.push_back(row);
       }
+      out.push_back(std::move(s));
+      progress.Step(scene);
+    }
+  }
+  return out;
+}
+
+namespace {
+
+std::vector<double> BallLoads(const Config& cfg) {  // N on the top cap
+  return cfg.quick ? std::vector<double>{0.2, 2.0} : std::vector<double>{0.2, 2.0, 5.0, 10.0};
+}
+
+// The ball under the press of `force` (N) and the law (b), statically, from `start` (its
+// positions at a smaller press): the hyperelastic FEM's positions.
+Expected<std::vector<Vec3>> PressedBall(const geometry::TetMesh& mesh, double stiffening,
+                                        double force, const std::vector<Vec3>& start) {
+  const tissue::FemParams tissue = BallTissue();
+  auto fem = tissue::HyperelasticFem::Create(
+      mesh, {tissue.young, tissue.poisson, stiffening, tissue.nodal_volume});
+  if (!fem.ok()) return fem.error();
+  fem->SetPositions(start);
+  for (int v : BottomCap(mesh.positions))
+    for (int a = 0; a < 3; ++a) fem->Hold(v, a, mesh.positions[v][a]);
+  for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(mesh), force))
+    fem->SetExternalForce(i, f);
+  const tissue::HyperelasticSolve solve = fem->SolveStatic(60, 1e-9);
+  if (!solve.converged)
+    return Error{ErrorCode::kNumerical, "the press of " + Num(force, 3) + " N did not converge",
+                 "fem"};
+  return fem->positions();
+}
+
+// The models the ball's scenes run from the FEM: the contact table (the press at the pole) and,
+// beside it, the corotational FEM on the reference's own mesh (the linear law's answer).
+struct BallModels {
+  std::vector<Vec3> display;
+  int pole = 0;
+  std::optional<tissue::ReducedContactModel> table;
+  int table_cells = 0;
+  std::string why;  // when the table could not be built
+};
+
+BallModels BuildBallModels(const Config& cfg) {
+  BallModels m;
+  auto display = geometry::MakeSubdividedSphere({kBallRadius, 4});
+  if (!display.ok()) {
+    m.why = display.error().message;
+    return m;
+  }
+  m.display = display->positions;
+  m.pole = Nearest(m.display, Vec3(0, 0, kBallRadius));
+  std::vector<uint8_t> fixed(m.display.size(), 0);
+  for (int i : BottomCap(m.display)) fixed[i] = 1;
+  std::vector<int> reachable;
+  for (int i = 0; i < display->VertexCount(); ++i)
+    if (!fixed[i]) reachable.push_back(i);
+  m.table_cells = cfg.quick ? 4 : 8;
+  auto mesh = geometry::MakeTetBall({kBallRadius, m.table_cells});
+  if (!mesh.ok()) {
+    m.why = mesh.error().message;
+    return m;
+  }
+  auto response =
+      tissue::FemStaticResponse::Create(*mesh, BallTissue(), BottomCap(mesh->positions));
+  tissue::ContactResponseParams cp;
+  cp.footprint_radius = kCapRadius;
+  auto table = response.ok() ? tissue::PrecomputeContactResponse(*response, *display, reachable, cp)
+                             : Expected<tissue::ContactResponse>(response.error());
+  auto model = table.ok() ? tissue::ReducedContactModel::Create(
+                                std::make_shared<tissue::ContactResponse>(std::move(*table)),
+                                m.display, 20.0)
+                          : Expected<tissue::ReducedContactModel>(table.error());
+  if (!model.ok()) {
+    m.why = model.error().message;
+    return m;
+  }
+  m.table = std::move(*model);
+  return m;
+}
+
+}  // namespace
+
+int BallLawSteps(const Config& cfg) {
+  return 1 + 2 * static_cast<int>(BallLoads(cfg).size());
+}
+
+// The ball of the sphere scenes pressed by 0.2 N (the study's press) up to 10 N (about 15 mm at
+// the pole) against the hyperelastic FEM at 12 cells (6 quick), each law: the contact table
+// (8 cells) and the corotational FEM on the reference's mesh (the linear law itself).
+std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress) {
+  std::vector<SceneOut> out;
+  BallModels models = BuildBallModels(cfg);
+  const int ref_cells = cfg.quick ? 6 : 12;
+  auto ref_mesh = geometry::MakeTetBall({kBallRadius, ref_cells});
+  progress.Step("ball laws: the contact table");
+  for (const Law& law : {Law{"neo-Hookean", 0.0}, Law{"exponential b = 5", 5.0}}) {
+    std::vector<Vec3> last = ref_mesh.ok() ? ref_mesh->positions : std::vector<Vec3>{};
+    auto corotational = ref_mesh.ok() ? tissue::FemModel::Create(*ref_mesh, BallTissue(),
+                                                                 BottomCap(ref_mesh->positions))
+                                      : Expected<tissue::FemModel>(ref_mesh.error());
+    for (const double force : BallLoads(cfg)) {
+      const std::string scene = "ball " + law.name + " " + Num(force, 3) + " N";
+      SceneOut s = NewSceneOut(scene, "sphere-palpation-1024");
+      auto ref = ref_mesh.ok() ? PressedBall(*ref_mesh, law.stiffening, force, last)
+                               : Expected<std::vector<Vec3>>(ref_mesh.error());
+      if (!ref.ok() || !models.table) {
+        s.rows.push_back(Row{"reduced", scene, "", 0, kInf, kInf, 0,
+                             !ref.ok() ? ref.error().message : models.why});
+        out.push_back(std::move(s));
+        progress.Step(scene);
+        continue;
+      }
+      last = *ref;
+      std::vector<Vec3> u(last.size());
+      for (size_t v = 0; v < u.size(); ++v) u[v] = last[v] - ref_mesh->positions[v];
+      const Reference reference = InterpolatedReference(*ref_mesh, std::move(u));
+      const double pole = reference(Vec3(0, 0, kBallRadius)).norm();
+      Row table{"reduced", scene, "contact table, FEM cells " + std::to_string(models.table_cells)};
+      table.size = models.table->VertexCount();
+      table.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+        models.table->Press(models.pole, Vec3(0, 0, -force * ((i % 2) ? 1.0 : 0.97)));
+      });
+      models.table->Press(models.pole, Vec3(0, 0, -force));
+      Score(table, models.display, models.table->positions(), SphereMarkerVertices(models.display),
+            reference);
+      table.note = "the pole " + Num(1e3 * pole, 3) + " mm down in the FEM";
+      s.rows.push_back(table);
+      // The linear law on the same mesh: how far the law alone moves the answer (solved from
+      // the last press's state, as the reference is).
+      Row linear{"fem", scene, "corotational, cells " + std::to_string(ref_cells)};
+      if (corotational.ok()) {
+        for (const auto& [i, f] : CapLoad(geometry::BoundarySurface(*ref_mesh), force))
+          corotational->SetExternalForce(i, f);
+        const auto t0 = Clock::now();
+        const tissue::FemStaticStats st = corotational->SolveStatic(60, 1e-8);
+        linear.time_us = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+        linear.size = corotational->VertexCount();
+        Score(linear, ref_mesh->positions, corotational->positions(),
+              SphereMarkerVertices(ref_mesh->positions), reference);
+        linear.note =
+            "a static solve, " + std::to_string(st.iterations) + " Newton steps" +
+            (st.converged ? "" : ", not converged (residual " + Num(st.residual, 3) + ")");
+      } else {
+        linear.note = corotational.error().message;
+      }
+      s.rows.push_back(linear);
       out.push_back(std::move(s));
       progress.Step(scene);
     }

@@ -35,8 +35,6 @@
 namespace vsurg::bench::study {
 namespace {
 
-constexpr double kBallRadius = 0.05;
-
 std::vector<Vec3> SphereMarkers() {
   std::vector<Vec3> m;
   for (int k = 0; k < 10; ++k) {
@@ -45,6 +43,8 @@ std::vector<Vec3> SphereMarkers() {
   }
   return m;
 }
+
+}  // namespace
 
 std::vector<int> SphereMarkerVertices(const std::vector<Vec3>& rest) {
   std::vector<Vec3> outer;
@@ -104,6 +104,8 @@ tissue::FemParams BallTissue() {
   p.young = 2 * 12000 * 1.45;
   return p;
 }
+
+namespace {
 
 // The reference: the finest FEM (16 cells; 8 quick), static under the press.
 Reference SphereReference(const Config& cfg) {

@@ -143,11 +143,23 @@ void ContactTableRow(const Config& cfg, const Expected<tissue::FemStaticResponse
 // that z): the nearest to (0, a(z), z) at z = (k − ½)/10 of the length.
 std::vector<int> LimbMarkerVertices(const std::vector<Vec3>& rest, const tissue::TaperedShaft& s);
 
+// The sphere scenes' ball (5 cm, G = 12 kPa, ν = 0.45, its bottom cap below z = −0.7·R held):
+// its ten markers' vertices among `rest`, the press's nodal forces on its top cap (F straight
+// down, spread over the 1 cm cap) and its material.
+inline constexpr double kBallRadius = 0.05;  // m
+std::vector<int> SphereMarkerVertices(const std::vector<Vec3>& rest);
+std::vector<std::pair<int, Vec3>> CapLoad(const geometry::TriMesh& surface, double force);
+std::vector<int> BottomCap(const std::vector<Vec3>& rest);
+tissue::FemParams BallTissue();
+
 // The halves of the study.
 std::vector<SceneOut> RunLimbScenes(const Config& cfg, Progress& progress);  // arm ×2, calf
 // The forearm under a hyperelastic law, one scene per law and grasp angle (law_study.cpp).
 std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress);
 int ArmLawSteps(const Config& cfg);  // the progress steps RunArmLaws takes
+// The sphere scenes' ball pressed harder and harder under a hyperelastic law (law_study.cpp).
+std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress);
+int BallLawSteps(const Config& cfg);
 SceneOut RunSphere(const Config& cfg, Progress& progress);
 SceneOut RunOrgan(const Config& cfg, Progress& progress);         // kidney-palpation (imported)
 SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress);  // organ-surface-twist
