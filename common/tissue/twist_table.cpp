@@ -158,6 +158,21 @@ Expected<TwistedState> SolveTwisted(const TwistTableInputs& in, double twist,
   return at;
 }
 
+void ContinuousAngles(TwistTable& t) {
+  const size_t n = static_cast<size_t>(t.vertices);
+  const int rest =
+      static_cast<int>(std::find(t.twist.begin(), t.twist.end(), 0.0) - t.twist.begin());
+  auto unwrap = [&](int level, int inner) {
+    for (size_t i = 0; i < n; ++i) {
+      const float a = t.angle[inner * n + i];
+      float& b = t.angle[level * n + i];
+      b = a + static_cast<float>(std::remainder(b - a, 2 * std::numbers::pi));
+    }
+  };
+  for (int k = rest + 1; k < t.Levels(); ++k) unwrap(k, k - 1);
+  for (int k = rest - 1; k >= 0; --k) unwrap(k, k + 1);
+}
+
 Expected<TwistTable> PrecomputeTwistTable(const TwistTableInputs& in, TwistTableReport* report) {
   if (Status ok = CheckInputs(in); !ok.ok()) return ok.error();
   auto embedding = geometry::EmbedPoints(in.mesh, in.display);
@@ -183,6 +198,7 @@ Expected<TwistTable> PrecomputeTwistTable(const TwistTableInputs& in, TwistTable
   rest.positions = in.mesh.positions;
   AppendLevel(in, *embedding, rest, t);
   for (const TwistedState& s : positive) AppendLevel(in, *embedding, s, t);
+  ContinuousAngles(t);
   for (const auto& e : *embedding) t.max_distance = std::max(t.max_distance, e.distance);
   if (Status ok = ValidateTwistTable(t, in.display.size()); !ok.ok())
     return Error{ErrorCode::kNumerical,

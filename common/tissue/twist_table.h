@@ -23,10 +23,12 @@
 // elements by their linear shape functions, geometry::EmbedPoints): the angle it turned about the
 // axis (atan2, so any angle up to π is exact), its offset's growth from the axis (radial) and its
 // motion along the axis (warp); a vertex on the axis keeps its motion across it (lateral). The
-// model rebuilds every vertex exactly at each level and interpolates in between.
+// model rebuilds every vertex exactly at each level and interpolates in between. The angles are
+// made continuous from level to level outward from rest (atan2 alone would read a vertex turned
+// by π as −π).
 //
 // Cost: one sparse LDLᵀ factorisation per Newton iteration, 3–6 iterations per level (the
-// forearm's 4-ring FEM, 25,344 tetrahedra: the figures in docs/DESIGN.md "Model 4"); cached on
+// forearm's 4-ring FEM, 25,344 tetrahedra, 12 levels: about 30 s, docs/BENCHMARKS.md); cached on
 // disk like every reduced model (reduced_cache.h).
 #pragma once
 
@@ -61,6 +63,11 @@ struct TwistTableReport {
 
 Expected<TwistTable> PrecomputeTwistTable(const TwistTableInputs& in,
                                           TwistTableReport* report = nullptr);
+
+// atan2 gives each level's angles in (−π, π]: a vertex turned by about π may read −π on the
+// positive side. Each level's angle is taken nearest its neighbour's toward rest (no level step
+// turns a vertex by π), so the fields interpolate through the turn, not back across zero.
+void ContinuousAngles(TwistTable& table);
 
 // One solved state of the grasp turned by `twist` (rad): the FEM's positions, the torque and
 // axial force the grasp holds. The reference a reduced model is rated against (the study) and the

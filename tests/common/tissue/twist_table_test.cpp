@@ -151,6 +151,22 @@ TEST(TwistTableTest, HalfATurnOnTheCoarsestMeshIsBoundedAndABadTableRefused) {
   EXPECT_NEAR(std::abs(std::atan2(far0.x() * far.y() - far0.y() * far.x(),
                                   far0.x() * far.x() + far0.y() * far.y())),
               std::numbers::pi, 1e-4);
+  // Between the last two levels (a quarter and half a turn) the rim turns on through 3π/4.
+  const int n = table->Levels();
+  model->Update(0.5 * (table->torque[n - 2] + table->torque[n - 1]));
+  EXPECT_NEAR(
+      std::atan2(far0.x() * far.y() - far0.y() * far.x(), far0.x() * far.x() + far0.y() * far.y()),
+      0.75 * std::numbers::pi, 0.1);
+  // A level whose atan2 read a turn past π as its negative is made continuous with the level
+  // inside it, on both sides of rest.
+  TwistTable wrapped = *table;
+  const size_t nv = in.display.size();
+  wrapped.angle[(n - 1) * nv + rim] = static_cast<float>(-std::numbers::pi + 0.04);
+  wrapped.angle[rim] = static_cast<float>(std::numbers::pi - 0.04);
+  ContinuousAngles(wrapped);
+  EXPECT_NEAR(wrapped.angle[(n - 1) * nv + rim], std::numbers::pi + 0.04, 1e-5);
+  EXPECT_NEAR(wrapped.angle[rim], -std::numbers::pi - 0.04, 1e-5);
+  EXPECT_EQ(wrapped.angle[(n - 2) * nv + rim], table->angle[(n - 2) * nv + rim]);
   // Refused: levels that do not rise, a table without rest, a NaN field, bad inputs.
   TwistTable bad = *table;
   std::swap(bad.torque[0], bad.torque[1]);
