@@ -6,4 +6,4 @@ set xlabel 'time per update (µs)'
 set ylabel 'RMS marker error (relative)'
 set key outside right top
 set grid
-plot for [i=0:9] 'speed-vs-error.dat' index i using 1:2 title columnheader(1) with points pointsize 1.3
+plot for [i=0:11] 'speed-vs-error.dat' index i using 1:2 title columnheader(1) with points pointsize 1.3
