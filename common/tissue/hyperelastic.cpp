@@ -334,10 +334,7 @@ Mat3 HyperelasticFem::ElementStress(size_t e, const Mat3& f) const {
   return s_hist_.empty() ? p : Mat3(scale_ * p + f * s_hist_[e]);
 }
 
-Status HyperelasticFem::SetRelaxation(std::vector<PronyTerm> terms) {
-  if (!node_volume_.empty() && !terms.empty())
-    return InvalidArgument("relaxation",
-                           "not with nodal_volume: the relaxation's history is kept per element");
+Status CheckPronyTerms(const std::vector<PronyTerm>& terms) {
   double sum = 0;
   for (size_t i = 0; i < terms.size(); ++i) {
     const PronyTerm& t = terms[i];
@@ -347,6 +344,19 @@ Status HyperelasticFem::SetRelaxation(std::vector<PronyTerm> terms) {
     sum += t.g;
   }
   if (!(sum < 1)) return InvalidArgument("relaxation", "the terms' g must sum to less than 1");
+  return Status::Ok();
+}
+
+PronyDecay DecayOver(const PronyTerm& term, double h) {
+  const double x = std::max(h, 0.0) / term.tau;
+  return {std::exp(-x), x > 1e-12 ? -std::expm1(-x) / x : 1.0};
+}
+
+Status HyperelasticFem::SetRelaxation(std::vector<PronyTerm> terms) {
+  if (!node_volume_.empty() && !terms.empty())
+    return InvalidArgument("relaxation",
+                           "not with nodal_volume: the relaxation's history is kept per element");
+  if (Status ok = CheckPronyTerms(terms); !ok.ok()) return ok;
   prony_ = std::move(terms);
   const size_t n = elements_.size();
   s_hist_.assign(prony_.empty() ? 0 : n, Mat3::Zero());
@@ -409,9 +419,9 @@ HyperelasticSolve HyperelasticFem::RelaxingStep(double dt, double tolerance) {
   std::vector<double> beta(terms), gamma(terms);
   scale_ = 1;
   for (size_t i = 0; i < terms; ++i) {
-    const double x = dt / prony_[i].tau;
-    beta[i] = std::exp(-x);
-    gamma[i] = x > 1e-12 ? -std::expm1(-x) / x : 1.0;
+    const PronyDecay d = DecayOver(prony_[i], dt);
+    beta[i] = d.beta;
+    gamma[i] = d.gamma;
     scale_ += prony_[i].g * (gamma[i] - 1);  // g∞ + Σ g_i·γ_i, with g∞ = 1 − Σ g_i
   }
   for (size_t e = 0; e < elements_.size(); ++e) {

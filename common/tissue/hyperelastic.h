@@ -88,6 +88,16 @@ struct PronyTerm {
   double tau = 1;  // s
 };
 
+// The Prony terms' rules, named by field: each g ≥ 0 and τ > 0 s, both finite, and Σ g < 1.
+Status CheckPronyTerms(const std::vector<PronyTerm>& terms);
+
+// A term over a step of h s, exact for a stress (or torque) linear over the step:
+// β = e^{−h/τ}, γ = (1 − β)/(h/τ) (1 as h → 0).
+struct PronyDecay {
+  double beta = 1, gamma = 1;
+};
+PronyDecay DecayOver(const PronyTerm& term, double h);
+
 struct HyperelasticSolve {
   int iterations = 0;
   double residual = 0;  // ‖free forces‖∞ / the largest |external or reaction force| (N/N)

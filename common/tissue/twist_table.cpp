@@ -208,49 +208,34 @@ Expected<TwistTable> PrecomputeTwistTable(const TwistTableInputs& in, TwistTable
 }
 
 Expected<TorqueRelaxation> TorqueRelaxation::Create(std::vector<PronyTerm> terms) {
-  double sum = 0;
-  for (size_t i = 0; i < terms.size(); ++i) {
-    const PronyTerm& t = terms[i];
-    if (!(t.g >= 0 && t.g < 1) || !(t.tau > 0) || !std::isfinite(t.tau))
-      return InvalidArgument(
-          "relaxation", "term " + std::to_string(i) + ": g must be in [0, 1) and τ > 0 s, finite");
-    sum += t.g;
-  }
-  if (!(sum < 1)) return InvalidArgument("relaxation", "the terms' g sum to 1 or more");
+  if (Status ok = CheckPronyTerms(terms); !ok.ok()) return ok.error();
+  if (terms.size() > kMaxTerms)
+    return InvalidArgument("relaxation", "at most " + std::to_string(kMaxTerms) + " terms");
   TorqueRelaxation r;
   r.terms_ = std::move(terms);
   r.h_.assign(r.terms_.size(), 0.0);
   return r;
 }
 
-namespace {
-// β = e^{−h/τ} and γ = (1 − β)/(h/τ) of a term over a step of h.
-std::pair<double, double> Decay(const PronyTerm& t, double dt) {
-  const double x = std::max(dt, 0.0) / t.tau;
-  return {std::exp(-x), x > 1e-12 ? -std::expm1(-x) / x : 1.0};
-}
-}  // namespace
-
-double TorqueRelaxation::Scale(double dt) const {
-  double c = 1;
-  for (const PronyTerm& t : terms_) c += t.g * (Decay(t, dt).second - 1);
-  return c;
-}
-
-double TorqueRelaxation::Torque(double elastic, double dt) const {
-  double torque = Scale(dt) * elastic;
+TorqueRelaxation::Step TorqueRelaxation::Over(double dt) const {
+  Step step;
   for (size_t i = 0; i < terms_.size(); ++i) {
-    const auto [beta, gamma] = Decay(terms_[i], dt);
-    torque += beta * h_[i] - terms_[i].g * gamma * previous_;
+    step.decay[i] = DecayOver(terms_[i], dt);
+    step.scale += terms_[i].g * (step.decay[i].gamma - 1);
   }
+  return step;
+}
+
+double TorqueRelaxation::Torque(double elastic, const Step& step) const {
+  double torque = step.scale * elastic;
+  for (size_t i = 0; i < terms_.size(); ++i)
+    torque += step.decay[i].beta * h_[i] - terms_[i].g * step.decay[i].gamma * previous_;
   return torque;
 }
 
-void TorqueRelaxation::Commit(double elastic, double dt) {
-  for (size_t i = 0; i < terms_.size(); ++i) {
-    const auto [beta, gamma] = Decay(terms_[i], dt);
-    h_[i] = beta * h_[i] + terms_[i].g * gamma * (elastic - previous_);
-  }
+void TorqueRelaxation::Commit(double elastic, const Step& step) {
+  for (size_t i = 0; i < terms_.size(); ++i)
+    h_[i] = step.decay[i].beta * h_[i] + terms_[i].g * step.decay[i].gamma * (elastic - previous_);
   previous_ = elastic;
 }
 

@@ -32,6 +32,7 @@
 // disk like every reduced model (reduced_cache.h).
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include <Eigen/Core>
@@ -96,14 +97,23 @@ Expected<TwistedState> SolveTwisted(const TwistTableInputs& in, double twist,
 // (TwistTableTest bounds the difference). Units: N·m, s. No allocation after Create.
 class TorqueRelaxation {
  public:
-  // The Prony terms as HyperelasticFem::SetRelaxation takes them (each g ≥ 0, Σ g < 1, τ > 0).
+  static constexpr int kMaxTerms = 8;
+  // The Prony terms as HyperelasticFem::SetRelaxation takes them (CheckPronyTerms), at most
+  // kMaxTerms.
   static Expected<TorqueRelaxation> Create(std::vector<PronyTerm> terms);
-  // The torque at the end of a step of `dt` s whose elastic torque ends at `elastic` (N·m), and
-  // dT/dT_e over the step (c): what a twist within this step answers. Nothing is carried.
-  double Torque(double elastic, double dt) const;
-  double Scale(double dt) const;
+  // One step's decay (each term's β, γ and c): computed once a step, read by every Torque of it.
+  struct Step {
+    std::array<PronyDecay, kMaxTerms> decay{};
+    double scale = 1;  // c
+  };
+  Step Over(double dt) const;
+  // The torque at the end of a step whose elastic torque ends at `elastic` (N·m); dT/dT_e over
+  // the step is its scale. Nothing is carried.
+  double Torque(double elastic, const Step& step) const;
+  double Torque(double elastic, double dt) const { return Torque(elastic, Over(dt)); }
   // Carries the internal torques over the step that ended at `elastic`.
-  void Commit(double elastic, double dt);
+  void Commit(double elastic, const Step& step);
+  void Commit(double elastic, double dt) { Commit(elastic, Over(dt)); }
   void Hold(double dt) { Commit(previous_, dt); }  // the elastic torque held for dt s
   void Reset();                                    // at rest, no history
   double relaxed_share() const;                    // g∞

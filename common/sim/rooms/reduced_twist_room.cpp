@@ -87,8 +87,7 @@ bool ReducedTwistRoom::StartGrasp(const GraspQuery& q, GraspFrame& f) const {
 TwistAnswer ReducedTwistRoom::Twist(double twist) const {
   const tissue::ReducedTwistModel::Answer a = model_->TorqueAt(twist);
   if (!relax_) return {a.torque, a.stiffness, a.overload};
-  return {relax_->Torque(a.torque, step_dt_), relax_->Scale(step_dt_) * a.stiffness, a.overload,
-          a.torque};
+  return {relax_->Torque(a.torque, step_), step_.scale * a.stiffness, a.overload, a.torque};
 }
 
 void ReducedTwistRoom::BeginTwistStep(double dt, double now) {
@@ -96,18 +95,19 @@ void ReducedTwistRoom::BeginTwistStep(double dt, double now) {
   if (const double gap = now - dt - last_end_; gap > 0) relax_->Hold(gap);
   step_dt_ = dt;
   step_end_ = now;
+  step_ = relax_->Over(dt);
 }
 
 void ReducedTwistRoom::EndTwistStep(double twist) {
   if (!relax_) return;
-  relax_->Commit(model_->TorqueAt(twist).torque, step_dt_);
+  relax_->Commit(model_->TorqueAt(twist).torque, step_);
   last_end_ = step_end_;
 }
 
 void ReducedTwistRoom::ReleaseTwist(double dt, double now) {
   if (!relax_) return;
   BeginTwistStep(dt, now);
-  relax_->Commit(0.0, dt);
+  relax_->Commit(0.0, step_);
   last_end_ = now;
 }
 
@@ -120,7 +120,10 @@ bool ReducedTwistRoom::Load(StateReader& r) {
   bool relaxes = false;
   r(relaxes, step_dt_, step_end_, last_end_);
   if (!r.ok() || relaxes != relax_.has_value()) return false;
-  if (relax_) r(*relax_);
+  if (relax_) {
+    r(*relax_);
+    step_ = relax_->Over(step_dt_);
+  }
   return r.ok();
 }
 

@@ -48,6 +48,7 @@ class ReducedTwistRoom {
   // end (s, trial time).
   std::optional<tissue::TorqueRelaxation> relax_;
   double step_dt_ = 1e-3, step_end_ = 0, last_end_ = 0;
+  tissue::TorqueRelaxation::Step step_;  // the step's decay: relax_->Over(step_dt_)
   // Deformation thread.
   double applied_torque_ = 0;
   bool applied_grasp_ = false;
