@@ -32,10 +32,12 @@
 // (2 s) at 1 kHz, so lag and ringing count against them; a diverged run is reported as such.
 #include "bench/speed_vs_error.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <iterator>
 #include <map>
 
 #include "bench/study/study.h"
@@ -59,6 +61,61 @@ using study::SceneOut;
 using study::UpdateBenchmarks;
 using study::WriteCsv;
 using study::WriteFigures;
+
+namespace {
+
+const char* const kParts[] = {"limbs", "laws", "sphere", "kidney", "organ-twist", "pad", "patch"};
+
+bool KnownPart(const std::string& part) {
+  return std::find(std::begin(kParts), std::end(kParts), part) != std::end(kParts);
+}
+
+// The study's parts (all, or the one `only` names), each scene's cheapest model within its budget
+// chosen, with a progress bar of their steps.
+std::vector<SceneOut> RunParts(const Config& cfg, const std::string& only) {
+  const auto run = [&only](const std::string& part) { return only.empty() || only == part; };
+  const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
+  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 2;
+  const int organ = cfg.quick ? 3 + 5 : 6 + 7;
+  const int pad = cfg.quick ? 3 : 6;
+  const int patch = cfg.quick ? 2 : 14;  // the quick run: the uncut lift, the scene's own lattice
+  Progress progress((run("limbs") ? 3 * per_limb : 0) +
+                    (run("laws") ? study::ArmLawSteps(cfg) + study::BallLawSteps(cfg) : 0) +
+                    (run("sphere") ? sphere : 0) +
+                    (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0) +
+                    (run("patch") ? patch : 0));
+  std::vector<SceneOut> scenes;
+  if (run("limbs")) scenes = RunLimbScenes(cfg, progress);
+  if (run("laws")) {
+    for (SceneOut& s : study::RunArmLaws(cfg, progress)) scenes.push_back(std::move(s));
+    for (SceneOut& s : study::RunBallLaws(cfg, progress)) scenes.push_back(std::move(s));
+  }
+  if (run("sphere")) scenes.push_back(RunSphere(cfg, progress));
+  if (run("kidney")) scenes.push_back(RunOrgan(cfg, progress));
+  if (run("organ-twist")) scenes.push_back(RunSurfaceTwist(cfg, progress));
+  if (run("pad")) scenes.push_back(RunPad(cfg, progress));
+  if (run("patch")) scenes.push_back(RunPatch(cfg, progress));
+  for (SceneOut& s : scenes) ChooseCheapest(s);
+  return scenes;
+}
+
+// A scene file whose own model misses its own budget fails the study, loudly (a --quick run's
+// coarse levels only warn): each is named on stderr; returns how many.
+int ReportOverBudget(const std::string& command, const Config& cfg,
+                     const std::vector<study::BudgetVerdict>& verdicts) {
+  int over = 0;
+  for (const study::BudgetVerdict& v : verdicts) {
+    if (!v.in_study || v.meets) continue;
+    ++over;
+    std::cerr << command << ": " << (cfg.quick ? "warning" : "FAILED") << ": scenes/" << v.file
+              << ".json: its model (" << (v.model.empty() ? "row missing" : v.setting) << ") is "
+              << Num(100 * v.rms, 3) << "% RMS from the reference, over its budget of "
+              << Num(100 * v.budget, 3) << "%\n";
+  }
+  return over;
+}
+
+}  // namespace
 
 int SpeedVsError(const std::vector<std::string>& args) {
   cli::ArgParser p("vsurg-bench speed-vs-error",
@@ -90,36 +147,13 @@ int SpeedVsError(const std::vector<std::string>& args) {
   cfg.quick = p.Flag("quick");
   cfg.repeats = cfg.quick ? 5 : 9;
   const auto t0 = Clock::now();
-  const int per_limb = 3 + (cfg.quick ? 1 : 2) + (cfg.quick ? 2 : 4) + 1 + 6;
-  const int sphere = 1 + (cfg.quick ? 1 : 4) + (cfg.quick ? 1 : 2) + 1 + (cfg.quick ? 6 : 12) + 2;
-  const int organ = cfg.quick ? 3 + 5 : 6 + 7;
-  const int pad = cfg.quick ? 3 : 6;
-  const int patch = cfg.quick ? 2 : 14;  // the quick run: the uncut lift, the scene's own lattice
   const std::string only = p.Has("only") ? p.String("only") : "";
-  const auto run = [&only](const std::string& part) { return only.empty() || only == part; };
-  if (!only.empty() && !run("limbs") && !run("laws") && !run("sphere") && !run("kidney") &&
-      !run("organ-twist") && !run("pad") && !run("patch")) {
+  if (!only.empty() && !KnownPart(only)) {
     std::cerr << p.command()
               << ": --only: limbs, laws, sphere, kidney, organ-twist, pad or patch\n";
     return 2;
   }
-  Progress progress((run("limbs") ? 3 * per_limb : 0) +
-                    (run("laws") ? study::ArmLawSteps(cfg) + study::BallLawSteps(cfg) : 0) +
-                    (run("sphere") ? sphere : 0) +
-                    (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0) +
-                    (run("patch") ? patch : 0));
-  std::vector<SceneOut> scenes;
-  if (run("limbs")) scenes = RunLimbScenes(cfg, progress);
-  if (run("laws")) {
-    for (SceneOut& s : study::RunArmLaws(cfg, progress)) scenes.push_back(std::move(s));
-    for (SceneOut& s : study::RunBallLaws(cfg, progress)) scenes.push_back(std::move(s));
-  }
-  if (run("sphere")) scenes.push_back(RunSphere(cfg, progress));
-  if (run("kidney")) scenes.push_back(RunOrgan(cfg, progress));
-  if (run("organ-twist")) scenes.push_back(RunSurfaceTwist(cfg, progress));
-  if (run("pad")) scenes.push_back(RunPad(cfg, progress));
-  if (run("patch")) scenes.push_back(RunPatch(cfg, progress));
-  for (SceneOut& s : scenes) ChooseCheapest(s);
+  std::vector<SceneOut> scenes = RunParts(cfg, only);
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 
   const std::string csv = (std::filesystem::path(dir) / "speed-vs-error.csv").string();
@@ -145,17 +179,7 @@ int SpeedVsError(const std::vector<std::string>& args) {
       std::cerr << p.command() << ": " << s.error().message << "\n";
   }
   std::cout << table;
-  // A scene file whose own model misses its own budget fails the study, loudly (a --quick run's
-  // coarse levels only warn).
-  int over = 0;
-  for (const study::BudgetVerdict& v : verdicts) {
-    if (!v.in_study || v.meets) continue;
-    ++over;
-    std::cerr << p.command() << ": " << (cfg.quick ? "warning" : "FAILED") << ": scenes/" << v.file
-              << ".json: its model (" << (v.model.empty() ? "row missing" : v.setting) << ") is "
-              << Num(100 * v.rms, 3) << "% RMS from the reference, over its budget of "
-              << Num(100 * v.budget, 3) << "%\n";
-  }
+  const int over = ReportOverBudget(p.command(), cfg, verdicts);
   std::cout << "speed-vs-error: " << Num(seconds, 3) << " s; wrote " << csv << ", "
             << (std::filesystem::path(dir) / "speed-vs-error.png").string() << ", "
             << (std::filesystem::path(dir) / "marker8.png").string()
