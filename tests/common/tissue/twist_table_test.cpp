@@ -42,10 +42,6 @@ double MaxGap(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
   return worst;
 }
 
-double LargestMotion(const std::vector<Vec3>& x, const std::vector<Vec3>& rest) {
-  return MaxGap(x, rest);
-}
-
 TEST(TwistTableTest, AtItsLevelsTheModelIsTheFemsStateAndBetweenThemClose) {
   const TwistTableInputs in = BarInputs(2, 0, std::numbers::pi / 2, 3);
   TwistTableReport report;
@@ -72,7 +68,7 @@ TEST(TwistTableTest, AtItsLevelsTheModelIsTheFemsStateAndBetweenThemClose) {
     EXPECT_NEAR(a.torque, state->torque, 0.01 * std::abs(state->torque)) << twist;
     model->Update(a.torque);
     EXPECT_LT(MaxGap(model->positions(), state->positions),
-              0.02 * LargestMotion(state->positions, in.mesh.positions))
+              0.02 * MaxGap(state->positions, in.mesh.positions))
         << twist;
     EXPECT_NEAR(model->grasp_twist(a.torque), twist, 1e-9);
   }
