@@ -6,6 +6,19 @@
 
 namespace vsurg::haptics {
 
+Vec3 CouplingPull(const Vec3& d) {
+  const Vec3 f = kCouplingStiffness * d;
+  const double n = f.norm();
+  return n > kMaxPull ? Vec3(f * (kMaxPull / n)) : f;
+}
+
+Vec3 LocalModel::ForceAt(const Vec3& x) const {
+  Vec3 f = force0 + jacobian * (x - position0);
+  if (pull_gain > 0)
+    f += pull_gain * (CouplingPull(pull_target - x) - CouplingPull(pull_target - position0));
+  return f;
+}
+
 Vec3 LocalModel::Render(const Vec3& x, const Eigen::Quaterniond& q, uint32_t buttons,
                         const Vec3& v) const {
   if (!x.allFinite()) return Vec3::Zero();

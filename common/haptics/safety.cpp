@@ -142,6 +142,13 @@ void SafetyFilter::LimitLocalModel(LocalModel& local, const Vec3& output, uint32
     local.contact_damping = 0;
     events |= kEventNonFiniteInput;
   }
+  if (!local.pull_target.allFinite() || !std::isfinite(local.pull_gain) ||
+      !(local.pull_gain >= 0)) {
+    local.pull_target.setZero();
+    local.pull_gain = 0;
+    events |= kEventNonFiniteInput;
+  }
+  local.pull_gain = std::min(local.pull_gain, 1.0) * ramp_;
   j *= ramp_;  // gated: no stiffness either; ramping: as much as the force
   local.dforce_dtwist *= ramp_;
   local.force_per_torque *= ramp_;  // the exact model's tissue part; its hold part is J's

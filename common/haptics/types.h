@@ -108,8 +108,15 @@ struct LocalModel {
   // the server's damping at its sample.
   double contact_damping = 0;
   NeedleState needle;  // kNeedle
+  // A shared tool's coupling (four-handed training, sim/guidance.h): the other hand's tool
+  // `pull_target` (m) pulls this one by pull_gain·c(pull_target − x), c = CouplingPull, which J
+  // leaves out: its cap is not linear, and a hand a round trip behind would feel k_c times its
+  // own lag on top of a pull the server held at the cap. 0: no coupling.
+  Vec3 pull_target = Vec3::Zero();
+  double pull_gain = 0;
 
-  Vec3 ForceAt(const Vec3& x) const { return force0 + jacobian * (x - position0); }
+  // force0 + J·(x − x₀), plus the coupling's change from x₀ to x when it has one.
+  Vec3 ForceAt(const Vec3& x) const;
   // The force the model gives a stylus at x, moving at v (m/s, the station's own estimate), turned
   // to q, with `buttons` held (the kinds above). Any thread; no allocation; a non-finite result
   // is zero.
@@ -125,6 +132,12 @@ struct LocalModel {
   // (0, 0) and the samples, extended by the end segments' slopes. N·m.
   double TorqueStep(double dphi) const;
 };
+
+// The coupling between two hands on a shared tool (four-handed training): c(d) = k_c·d up to a
+// pull of kMaxPull (a hand far from the tool is led, not yanked: 1 cm reaches it). N for d in m.
+inline constexpr double kCouplingStiffness = 150;  // N/m, k_c: soft beside a Touch's 400
+inline constexpr double kMaxPull = 1.5;            // N
+Vec3 CouplingPull(const Vec3& d);
 
 // Safety and interaction events, as bits (several may be set by one sample).
 enum HapticEvent : uint32_t {

@@ -89,29 +89,20 @@ StylusSample Guidance::Tool(const StylusSample& t) const {
   return v;
 }
 
-Vec3 Guidance::Pull(const Vec3& d) {
-  const Vec3 f = kCouplingStiffness * d;
-  const double n = f.norm();
-  return n > kMaxPull ? Vec3(f * (kMaxPull / n)) : f;
-}
-
 Vec3 Guidance::TraineeForce(const Vec3& tissue, const Vec3& x_t) const {
-  return (1 - alpha_) * tissue + alpha_ * Pull(instructor_.position - x_t);
+  return (1 - alpha_) * tissue + alpha_ * haptics::CouplingPull(instructor_.position - x_t);
 }
 
 Vec3 Guidance::InstructorForce(const Vec3& tissue, const Vec3& x_t, const Vec3& x_i) const {
-  const double led = alpha_ + follow_ * (1 - alpha_);
-  return led * (tissue + Pull(x_t - x_i));
+  return InstructorGain() * (tissue + haptics::CouplingPull(x_t - x_i));
 }
 
 Eigen::Matrix3d Guidance::TraineeSlope(const Eigen::Matrix3d& tissue) const {
-  return (1 - alpha_) * (1 - alpha_) * tissue -
-         alpha_ * kCouplingStiffness * Eigen::Matrix3d::Identity();
+  return (1 - alpha_) * (1 - alpha_) * tissue;
 }
 
 Eigen::Matrix3d Guidance::InstructorSlope(const Eigen::Matrix3d& tissue) const {
-  const double led = alpha_ + follow_ * (1 - alpha_);
-  return led * alpha_ * tissue - led * kCouplingStiffness * Eigen::Matrix3d::Identity();
+  return InstructorGain() * alpha_ * tissue;
 }
 
 }  // namespace vsurg::sim

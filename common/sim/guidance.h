@@ -61,12 +61,10 @@ Status CheckGuideRequest(const GuideRequest& r);
 
 class Guidance {
  public:
-  static constexpr double kCouplingStiffness = 150;  // N/m, k_c: soft beside a Touch's 400
-  // N: the coupling's pull at most (a hand far from the tool is led, not yanked: 1 cm of
-  // separation reaches it).
-  static constexpr double kMaxPull = 1.5;
-  static constexpr double kRampPerS = 2.0;  // α and f, per second
-  static constexpr double kStaleS = 0.25;   // s of the trainee's clock
+  static constexpr double kCouplingStiffness = haptics::kCouplingStiffness;  // N/m, k_c
+  static constexpr double kMaxPull = haptics::kMaxPull;  // N, the coupling's pull at most
+  static constexpr double kRampPerS = 2.0;               // α and f, per second
+  static constexpr double kStaleS = 0.25;                // s of the trainee's clock
 
   // Any thread: what the instructor asked for (kNone when they left).
   void Request(const GuideRequest& r);
@@ -91,17 +89,19 @@ class Guidance {
 
   // The tool the tissue meets for the trainee's sample `t` (t itself while α = 0).
   haptics::StylusSample Tool(const haptics::StylusSample& t) const;
-  // The hands' forces for the tissue's force F on the tool (formulas above), and their slopes
-  // about the samples for the stations' linear models: ∂F_t/∂x_t = (1 − α)²·J − α·k_c·I,
-  // ∂F_i/∂x_i = (α² + …)·J − (α + f(1 − α))·k_c·I with J the tissue's ∂F/∂x at the tool.
+  // The hands' forces for the tissue's force F on the tool (formulas above), and what the
+  // stations' local models need: the tissue's share of the slope, ∂F_t/∂x_t = (1 − α)²·J and
+  // ∂F_i/∂x_i = (α + f(1 − α))·α·J with J the tissue's ∂F/∂x at the tool, and the coupling, which
+  // a station evaluates itself (haptics::LocalModel::pull_target, its gain: α for the trainee,
+  // α + f(1 − α) for the instructor).
   haptics::Vec3 TraineeForce(const haptics::Vec3& tissue, const haptics::Vec3& x_t) const;
   haptics::Vec3 InstructorForce(const haptics::Vec3& tissue, const haptics::Vec3& x_t,
                                 const haptics::Vec3& x_i) const;
   Eigen::Matrix3d TraineeSlope(const Eigen::Matrix3d& tissue) const;
   Eigen::Matrix3d InstructorSlope(const Eigen::Matrix3d& tissue) const;
+  double InstructorGain() const { return alpha_ + follow_ * (1 - alpha_); }
 
  private:
-  static haptics::Vec3 Pull(const haptics::Vec3& d);  // c(d)
   static uint64_t Pack(const GuideRequest& r);
   static GuideRequest Unpack(uint64_t word);
 

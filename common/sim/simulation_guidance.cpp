@@ -27,7 +27,9 @@ void Simulation::ShareTool(const StylusSample& trainee, StylusStep& step) {
   if (!guidance_.shared()) return;
   step.force = guidance_.TraineeForce(step.force, trainee.position);
   step.jacobian = guidance_.TraineeSlope(tool_slope_);
-  cmd.local = haptics::LocalModel{};  // linear
+  cmd.local = haptics::LocalModel{};  // linear, and the coupling to the instructor's hand
+  cmd.local.pull_target = guidance_.instructor().position;
+  cmd.local.pull_gain = guidance_.alpha();
   cmd.shared = true;
 }
 
@@ -81,6 +83,8 @@ ForceCommand Simulation::OnInstructorStylus(const StylusSample& s) {
   if (guidance_.engaged()) {
     f = guidance_.InstructorForce(tool_force_, trainee_x_, s.position);
     cmd.local.jacobian = guidance_.InstructorSlope(tool_slope_);
+    cmd.local.pull_target = trainee_x_;
+    cmd.local.pull_gain = guidance_.InstructorGain();
   }
   const Vec3 out = instructor_safety_.Filter(f, dt, cmd.events);
   instructor_force_ = out;

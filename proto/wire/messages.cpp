@@ -120,6 +120,13 @@ size_t Codec::EncodeForce(const ForceMessage& m, const Header& h, const Authenti
     local->clear_tissue_stiffness(), local->clear_tissue_damping(), local->clear_tissue_elastic0();
     local->clear_contact_damping();
   }
+  if (c.local.pull_gain > 0) {
+    Put(c.local.pull_target, local->mutable_pull_target());
+    local->set_pull_gain(c.local.pull_gain);
+  } else {  // Clear keeps the submessage's allocation (2 bytes on the wire once it was used)
+    if (local->has_pull_target()) local->mutable_pull_target()->Clear();
+    local->clear_pull_gain();
+  }
   if (c.local.kind == haptics::LocalModel::Kind::kGrasp) {
     Put(c.local.axis, local->mutable_axis());
     Put(c.local.dforce_dtwist, local->mutable_dforce_dtwist());
@@ -437,6 +444,11 @@ DropReason ReadLocalKind(const v1::LocalModel& w, haptics::LocalModel& l) {
   l.tissue_stiffness = l.tissue_damping = l.tissue_elastic0 = 0;
   l.contact_damping = 0;
   l.needle = {};
+  // The coupling: a gain outside [0, 1] or a target that is not finite is refused, not guessed.
+  l.pull_target = Get(w.pull_target());
+  l.pull_gain = w.pull_gain();
+  if (!(l.pull_gain >= 0 && l.pull_gain <= 1) || !l.pull_target.allFinite())
+    return DropReason::kBadPayload;
   const auto unit = [](const Eigen::Vector3d& v, Eigen::Vector3d& unit_out) {
     const double n = v.norm();
     if (!(n > 1e-9) || !std::isfinite(n)) return false;

@@ -284,6 +284,34 @@ TEST(DatagramTest, TheServersPortEnergiesCrossAndAreRefusedWhenNotEnergies) {
   }
 }
 
+// A shared tool's coupling (four-handed training) crosses as the station must evaluate it, and
+// an answer that stops carrying it leaves nothing of it behind; a gain outside [0, 1] or a
+// target that is not finite is refused.
+TEST(DatagramTest, ASharedToolsCouplingCrossesAndIsRefusedWhenNotOne) {
+  const Authenticator auth(Key(4));
+  Codec codec;
+  ForceMessage m, back;
+  m.command.shared = true;
+  m.command.local.pull_target = Eigen::Vector3d(0.01, -0.02, 0.03);
+  m.command.local.pull_gain = 0.75;
+  ASSERT_EQ(ForceRoundTrip(codec, auth, m, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.pull_target, m.command.local.pull_target);
+  EXPECT_EQ(back.command.local.pull_gain, 0.75);
+  ForceMessage plain;
+  ASSERT_EQ(ForceRoundTrip(codec, auth, plain, back), DropReason::kNone);
+  EXPECT_EQ(back.command.local.pull_gain, 0);
+  EXPECT_TRUE(back.command.local.pull_target.isZero(0));
+  // (The encoder sends a gain only when it is > 0: a negative or NaN one crosses as none.)
+  for (const double bad : {1.5, double(INFINITY)}) {
+    ForceMessage b = m;
+    b.command.local.pull_gain = bad;
+    EXPECT_EQ(ForceRoundTrip(codec, auth, b, back), DropReason::kBadPayload) << bad;
+  }
+  ForceMessage far = m;
+  far.command.local.pull_target.x() = INFINITY;
+  EXPECT_EQ(ForceRoundTrip(codec, auth, far, back), DropReason::kBadPayload);
+}
+
 TEST(DatagramTest, WrongKeyEveryFlippedByteTruncationAndOversizeAreRejected) {
   const Authenticator auth(Key(3)), other(Key(4));
   Codec codec;

@@ -67,10 +67,44 @@ TEST(GuidanceTest, GuideSharesTheToolAndTheForcesSumToTheTissuesOnIt) {
   // The coupling is one spring between the hands: equal and opposite; the rest is the tissue's.
   const Vec3 sum = g.TraineeForce(tissue, x_t) + g.InstructorForce(tissue, x_t, x_i);
   EXPECT_TRUE((sum - tissue).norm() < 1e-12);
-  // Slopes: (1 − α)²·J − α·k_c for the trainee.
+  // The tissue's share of the slope: (1 − α)²·J for the trainee; the coupling is the stations'.
   const Eigen::Matrix3d j = -300 * Eigen::Matrix3d::Identity();
-  EXPECT_NEAR(g.TraineeSlope(j)(0, 0), 0.75 * 0.75 * -300 - 0.25 * Guidance::kCouplingStiffness,
-              1e-9);
+  EXPECT_NEAR(g.TraineeSlope(j)(0, 0), 0.75 * 0.75 * -300, 1e-9);
+}
+
+// A station's model of its answer (the force at its sample, the tissue's slope, the coupling it
+// evaluates itself) is each hand's force wherever the hand has moved since, below the coupling's
+// cap and past it. A slope k_c·I through the cap instead gave a hand a round trip behind k_c
+// times its lag on top of a pull the server held at 1.5 N.
+TEST(GuidanceTest, TheStationsModelsAreTheHandsForcesOnBothSidesOfTheCap) {
+  for (const GuideRequest r : {GuideRequest{GuideMode::kObserve, 0}, {GuideMode::kGuide, 0.4}})
+    for (const double gap : {0.004, 0.03}) {
+      Guidance g;
+      g.Request(r);
+      const Vec3 x_t(0.001, -0.002, 0.0), x_i = x_t + Vec3(gap, 0.3 * gap, -0.5 * gap);
+      Settle(g, x_i);
+      const Vec3 tissue(0.1, 0.2, 0.9);  // J = 0: a constant tissue force, the coupling alone
+      haptics::LocalModel mi;
+      mi.force0 = g.InstructorForce(tissue, x_t, x_i);
+      mi.position0 = x_i;
+      mi.jacobian = g.InstructorSlope(Eigen::Matrix3d::Zero());
+      mi.pull_target = x_t;
+      mi.pull_gain = g.InstructorGain();
+      haptics::LocalModel mt;
+      mt.force0 = g.TraineeForce(tissue, x_t);
+      mt.position0 = x_t;
+      mt.pull_target = x_i;
+      mt.pull_gain = g.alpha();
+      // The instructor catching up (the lag gone, the gap's half, past the trainee) and the
+      // trainee moving away from the instructor.
+      for (const double s : {1.0, 0.5, -0.3}) {
+        const Vec3 xi = x_t + s * (x_i - x_t);
+        EXPECT_LT((mi.ForceAt(xi) - g.InstructorForce(tissue, x_t, xi)).norm(), 1e-12)
+            << "gap " << gap << ", at " << s;
+        const Vec3 xt = x_t - (1 - s) * (x_i - x_t);
+        EXPECT_LT((mt.ForceAt(xt) - g.TraineeForce(tissue, xt)).norm(), 1e-12) << "gap " << gap;
+      }
+    }
 }
 
 // Without delay the shared tool is as passive as the tissue: two hands moving round closed loops
