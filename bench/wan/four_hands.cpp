@@ -54,7 +54,7 @@ struct Hand {
 
   static Expected<Hand> Start(const FourHandsOptions& o, uint16_t server_port, uint64_t channel,
                               const wire::SessionKey& key, const relay::Profile& profile,
-                              const std::vector<haptics::StylusSample>& plan,
+                              const std::vector<haptics::StylusSample>& plan, double lead_in_s,
                               const client::HandImpedance& grip, uint64_t seed) {
     Hand h;
     relay::RelayOptions ro;
@@ -66,7 +66,7 @@ struct Hand {
     h.relay = std::move(*relay);
     client::DeviceModel device;
     device.limits = o.scene.haptics.limits;
-    auto hand = client::VirtualHandDevice::Create(WithLeadIn(plan, o.lead_in_s), grip, device);
+    auto hand = client::VirtualHandDevice::Create(WithLeadIn(plan, lead_in_s), grip, device);
     if (!hand.ok()) return hand.error();
     h.device = std::move(*hand);
     client::StationOptions co;
@@ -192,12 +192,12 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
     hostile = std::make_unique<HostileSender>(port, channel, Key(o.seed, 5), o.seed + 200);
   } else if (o.instructor) {
     auto h = Hand::Start(o, port, channel, Key(o.seed, 5), o.instructor_profile, o.instructor_plan,
-                         o.instructor_grip, o.seed + 100);
+                         o.lead_in_s + o.instructor_lag_s, o.instructor_grip, o.seed + 100);
     if (!h.ok()) return h.error();
     instructor = std::move(*h);
   }
   auto trainee = Hand::Start(o, port, kSession, Key(o.seed, 3), o.trainee_profile, o.trainee_plan,
-                             o.trainee_grip, o.seed);
+                             o.lead_in_s, o.trainee_grip, o.seed);
   if (!trainee.ok()) return trainee.error();
   FourHandsRun run;
   Follow(o, **simulation, *trainee->device, run);

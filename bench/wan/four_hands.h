@@ -39,6 +39,9 @@ struct FourHandsOptions {
   // malicious station could send; the trainee must not notice beyond the guidance itself).
   bool hostile_instructor = false;
   double lead_in_s = 1.0;
+  // The instructor's plan begins this much later than the trainee's (s): an observing hand that
+  // follows the trainee's path as it reaches it over the two links, not one that knows it ahead.
+  double instructor_lag_s = 0;
   double settle_s = 0.5;
   uint64_t seed = 1;
   std::string cache_dir;

@@ -5,10 +5,12 @@
 //                 from the loop beside the no-delay trainee alone's, the peak forces against the
 //                 device's limit, the fastest α change;
 //   playback.csv  observe with the trainee on the lab's LAN and the instructor on each profile:
-//                 the instructor's rendered force against the trainee's (ObserverError);
+//                 the instructor's rendered force against the trainee's (ObserverError), for a
+//                 hand that follows the trainee's path as it reaches it and one that anticipates;
 //   guidance.csv  the rough trainee alone and guided at α = 0.5 by the expert, at lan and
 //                 continental: path error from the expert's own path and the peak force.
 // docs/BENCHMARKS.md "Four-handed training".
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -97,26 +99,35 @@ int Modes(const Plans& p, const std::vector<std::string>& profiles, const fs::pa
 
 int Playback(const Plans& p, const std::vector<std::string>& profiles, const fs::path& dir) {
   std::ofstream csv(dir / "playback.csv");
-  csv << "trainee,instructor,rms_ratio,raw_ratio,lag_ms,cycles\n";
+  csv << "trainee,instructor,hand,instructor_lag_ms,rms_ratio,raw_ratio,lag_ms,cycles\n";
   std::cout << "observe (the trainee on lan): the instructor's force against the trainee's\n";
-  // The instructor's hand as the trainee's (the same plan, the same relaxed grip): led by the
-  // coupling to where the trainee's tool is, it feels there what the trainee feels, so what
-  // differs is what the two links and the two stations' rendering add.
-  for (const std::string& i : profiles) {
-    FourHandsOptions o = Options(p, "lan", i);
-    o.trainee_plan = p.steady;
-    o.instructor_plan = p.steady;
-    o.instructor_grip = client::RelaxedGrip();
-    o.guide = {sim::GuideMode::kObserve, 0};
-    auto r = Run(o, "observe at " + i);
-    if (!r.ok()) return 1;
-    const wan::PlaybackError e = wan::ObserverError(*r);
-    csv << "lan," << i << "," << e.rms_ratio << "," << e.raw_ratio << "," << 1e3 * e.lag_s << ","
-        << e.cycles << "\n";
-    std::cout << "  instructor " << i << ": " << Fixed(100 * e.rms_ratio, 1) << "% RMS at a lag of "
-              << Fixed(1e3 * e.lag_s, 0) << " ms (" << Fixed(100 * e.raw_ratio, 1)
-              << "% unaligned), " << e.cycles << " cycles in contact\n";
-  }
+  // The instructor's hand as the trainee's (the same plan, the same relaxed grip), led by the
+  // coupling to where the trainee's tool is, so what differs is what the two links and the two
+  // stations' rendering add. Two hands: one that follows the trainee's path as it reaches it
+  // (its plan later by the two links' mean one-way delay, trainee → server → instructor), and
+  // one that anticipates it by that delay (the same plan at the same time), whose lead the
+  // coupling pulls back: k_c·v·delay on top of the tissue's force.
+  for (const std::string& i : profiles)
+    for (const bool follows : {true, false}) {
+      FourHandsOptions o = Options(p, "lan", i);
+      o.trainee_plan = p.steady;
+      o.instructor_plan = p.steady;
+      o.instructor_grip = client::RelaxedGrip();
+      o.guide = {sim::GuideMode::kObserve, 0};
+      if (follows)
+        o.instructor_lag_s =
+            1e-3 * (o.trainee_profile.up.base_ms + o.instructor_profile.down.base_ms);
+      const char* hand = follows ? "follows" : "anticipates";
+      auto r = Run(o, std::string("observe at ") + i);
+      if (!r.ok()) return 1;
+      const wan::PlaybackError e = wan::ObserverError(*r);
+      csv << "lan," << i << "," << hand << "," << 1e3 * o.instructor_lag_s << "," << e.rms_ratio
+          << "," << e.raw_ratio << "," << 1e3 * e.lag_s << "," << e.cycles << "\n";
+      std::cout << "  instructor " << i << ", a hand that " << hand << ": "
+                << Fixed(100 * e.rms_ratio, 1) << "% RMS at a lag of " << Fixed(1e3 * e.lag_s, 0)
+                << " ms (" << Fixed(100 * e.raw_ratio, 1) << "% unaligned), " << e.cycles
+                << " cycles in contact\n";
+    }
   return 0;
 }
 
@@ -168,6 +179,8 @@ int FourHands(const std::vector<std::string>& args) {
       .Option("profiles", Kind::kString, "relay profiles, comma-separated", false,
               "lan,metro,regional,continental,intercontinental")
       .Option("scene", Kind::kString, "a grid scene", false, "sphere-palpation-256")
+      .Option("tables", Kind::kString, "which tables, comma-separated", false,
+              "modes,playback,guidance")
       .Option("out", Kind::kString, "directory for the CSV files", false, "four-hands");
   if (auto rc = cli::ParseOrExit(parser, args, std::cout, std::cerr)) return *rc;
   Plans p;
@@ -180,11 +193,21 @@ int FourHands(const std::vector<std::string>& args) {
   for (const std::string& name : profiles)
     if (auto known = relay::ProfileByName(name); !known.ok())
       return cli::UsageError(std::cerr, parser.command(), known.error());
+  const std::vector<std::string> tables = parser.List("tables");
+  const auto wants = [&](const std::string& t) {
+    return std::find(tables.begin(), tables.end(), t) != tables.end();
+  };
+  for (const std::string& t : tables)
+    if (t != "modes" && t != "playback" && t != "guidance")
+      return cli::UsageError(
+          std::cerr, parser.command(),
+          Error{ErrorCode::kInvalidArgument,
+                "--tables: \"" + t + "\" is not modes, playback or guidance", "cli"});
   const fs::path dir = parser.String("out");
   fs::create_directories(dir);
-  if (int rc = Modes(p, profiles, dir); rc != 0) return rc;
-  if (int rc = Playback(p, profiles, dir); rc != 0) return rc;
-  return Guidance(p, dir);
+  if (int rc = wants("modes") ? Modes(p, profiles, dir) : 0; rc != 0) return rc;
+  if (int rc = wants("playback") ? Playback(p, profiles, dir) : 0; rc != 0) return rc;
+  return wants("guidance") ? Guidance(p, dir) : 0;
 }
 
 }  // namespace vsurg::bench
