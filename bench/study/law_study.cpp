@@ -243,18 +243,19 @@ Expected<std::vector<Vec3>> PressedBall(const geometry::TetMesh& mesh, double st
   return fem->positions();
 }
 
-// The models the ball's scenes run from the FEM: the contact table (the press at the pole) and,
-// beside it, the corotational FEM on the reference's own mesh (the linear law's answer).
-struct BallModels {
+// A contact table the ball's scenes run (the press at the pole), from the linear FEM at `cells`.
+struct BallTable {
   std::vector<Vec3> display;
   int pole = 0;
-  std::optional<tissue::ReducedContactModel> table;
-  int table_cells = 0;
-  std::string why;  // when the table could not be built
+  int cells = 0;
+  bool rotation = true;  // the table's rotation correction (reduced.h, 3.)
+  std::optional<tissue::ReducedContactModel> model;
+  std::string why;  // when it could not be built
 };
 
-BallModels BuildBallModels(const Config& cfg) {
-  BallModels m;
+BallTable BuildBallTable(int cells) {
+  BallTable m;
+  m.cells = cells;
   auto display = geometry::MakeSubdividedSphere({kBallRadius, 4});
   if (!display.ok()) {
     m.why = display.error().message;
@@ -267,8 +268,7 @@ BallModels BuildBallModels(const Config& cfg) {
   std::vector<int> reachable;
   for (int i = 0; i < display->VertexCount(); ++i)
     if (!fixed[i]) reachable.push_back(i);
-  m.table_cells = cfg.quick ? 4 : 8;
-  auto mesh = geometry::MakeTetBall({kBallRadius, m.table_cells});
+  auto mesh = geometry::MakeTetBall({kBallRadius, cells});
   if (!mesh.ok()) {
     m.why = mesh.error().message;
     return m;
@@ -287,8 +287,57 @@ BallModels BuildBallModels(const Config& cfg) {
     m.why = model.error().message;
     return m;
   }
-  m.table = std::move(*model);
+  m.model = std::move(*model);
   return m;
+}
+
+// The same table without its rotation correction (the displacement responses alone).
+BallTable WithoutRotation(const BallTable& t) {
+  BallTable m;
+  m.display = t.display, m.pole = t.pole, m.cells = t.cells, m.rotation = false, m.why = t.why;
+  if (!t.model) return m;
+  auto response = std::make_shared<tissue::ContactResponse>(t.model->response());
+  response->w.clear();
+  auto model = tissue::ReducedContactModel::Create(std::move(response), m.display, 20.0);
+  if (model.ok())
+    m.model = std::move(*model);
+  else
+    m.why = model.error().message;
+  return m;
+}
+
+// The scene's table (8 cells) and, in the whole study, one on the reference's own mesh, each
+// also without the rotation correction: what is left there is the linear table itself against the
+// law, not its mesh, and what its rotation correction does at a deep press.
+std::vector<BallTable> BuildBallTables(const Config& cfg, int ref_cells) {
+  std::vector<BallTable> out;
+  out.push_back(BuildBallTable(cfg.quick ? 4 : 8));
+  if (cfg.quick) return out;
+  out.push_back(WithoutRotation(out.back()));
+  out.push_back(BuildBallTable(ref_cells));
+  out.push_back(WithoutRotation(out.back()));
+  return out;
+}
+
+Row BallTableRow(const Config& cfg, BallTable& t, const std::string& scene, double force,
+                 const Reference& reference) {
+  Row row{"reduced", scene,
+          "contact table, FEM cells " + std::to_string(t.cells) +
+              (t.rotation ? "" : ", without the rotation correction")};
+  if (!t.model) {
+    row.rms = row.max = kInf;
+    row.note = t.why;
+    return row;
+  }
+  row.size = t.model->VertexCount();
+  row.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
+    t.model->Press(t.pole, Vec3(0, 0, -force * ((i % 2) ? 1.0 : 0.97)));
+  });
+  t.model->Press(t.pole, Vec3(0, 0, -force));
+  Score(row, t.display, t.model->positions(), SphereMarkerVertices(t.display), reference);
+  row.note =
+      "the pole " + Num(1e3 * reference(Vec3(0, 0, kBallRadius)).norm(), 3) + " mm down in the FEM";
+  return row;
 }
 
 }  // namespace
@@ -299,11 +348,12 @@ int BallLawSteps(const Config& cfg) {
 
 // The ball of the sphere scenes pressed by 0.2 N (the study's press) up to 10 N (about 15 mm at
 // the pole) against the hyperelastic FEM at 12 cells (6 quick), each law: the contact table
-// (8 cells) and the corotational FEM on the reference's mesh (the linear law itself).
+// (the scene's 8 cells, and one on the reference's mesh) and the corotational FEM on the
+// reference's mesh (the linear law itself).
 std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress) {
   std::vector<SceneOut> out;
-  BallModels models = BuildBallModels(cfg);
   const int ref_cells = cfg.quick ? 6 : 12;
+  std::vector<BallTable> tables = BuildBallTables(cfg, ref_cells);
   auto ref_mesh = geometry::MakeTetBall({kBallRadius, ref_cells});
   progress.Step("ball laws: the contact table");
   for (const Law& law : {Law{"neo-Hookean", 0.0}, Law{"exponential b = 5", 5.0}}) {
@@ -316,9 +366,8 @@ std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress) {
       SceneOut s = NewSceneOut(scene, "sphere-palpation-1024");
       auto ref = ref_mesh.ok() ? PressedBall(*ref_mesh, law.stiffening, force, last)
                                : Expected<std::vector<Vec3>>(ref_mesh.error());
-      if (!ref.ok() || !models.table) {
-        s.rows.push_back(Row{"reduced", scene, "", 0, kInf, kInf, 0,
-                             !ref.ok() ? ref.error().message : models.why});
+      if (!ref.ok()) {
+        s.rows.push_back(Row{"reduced", scene, "", 0, kInf, kInf, 0, ref.error().message});
         out.push_back(std::move(s));
         progress.Step(scene);
         continue;
@@ -327,17 +376,7 @@ std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress) {
       std::vector<Vec3> u(last.size());
       for (size_t v = 0; v < u.size(); ++v) u[v] = last[v] - ref_mesh->positions[v];
       const Reference reference = InterpolatedReference(*ref_mesh, std::move(u));
-      const double pole = reference(Vec3(0, 0, kBallRadius)).norm();
-      Row table{"reduced", scene, "contact table, FEM cells " + std::to_string(models.table_cells)};
-      table.size = models.table->VertexCount();
-      table.time_us = TimeUs(cfg.repeats * 5, [&](int i) {
-        models.table->Press(models.pole, Vec3(0, 0, -force * ((i % 2) ? 1.0 : 0.97)));
-      });
-      models.table->Press(models.pole, Vec3(0, 0, -force));
-      Score(table, models.display, models.table->positions(), SphereMarkerVertices(models.display),
-            reference);
-      table.note = "the pole " + Num(1e3 * pole, 3) + " mm down in the FEM";
-      s.rows.push_back(table);
+      for (BallTable& t : tables) s.rows.push_back(BallTableRow(cfg, t, scene, force, reference));
       // The linear law on the same mesh: how far the law alone moves the answer (solved from
       // the last press's state, as the reference is).
       Row linear{"fem", scene, "corotational, cells " + std::to_string(ref_cells)};
