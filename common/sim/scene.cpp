@@ -169,6 +169,10 @@ Status ParseReduced(const Reader& r, RegionSpec& g) {
   VSURG_TRY(max_force, r.NumberOr("max_force", 10.0, 1e-3, 1e3));
   VSURG_TRY(max_twist_deg, r.NumberOr("max_twist_deg", 90.0, 1.0, 180.0));
   VSURG_TRY(levels, r.IntegerOr("levels", 6, 1, 32));
+  VSURG_TRY(rotation, r.OptionalBool("rotation"));
+  if (rotation && g.reduced.mode != ReducedMode::kContact)
+    return r.Bad("rotation", "is the contact table's correction (mode contact)");
+  g.reduced.rotation = rotation.value_or(true);
   g.reduced.levels = levels;
   g.reduced.fem_cells = cells;
   g.reduced.fem_rings = rings;

@@ -94,6 +94,9 @@ struct ReducedSpec {
   int fem_rings = 4;                // twist: rings in the FEM cylinder's cross-section (1..8)
   double footprint_radius = 0.005;  // m, contact: the tool's contact disc
   double max_force = 10;            // N, contact: the capacity; a larger press is clamped
+  // Contact: the table's rotation correction (tissue/reduced.h, 3.): right for the corotational
+  // law, worse against a hyperelastic press past a few mm and five times the cost per press.
+  bool rotation = true;
   double max_twist = 1.5707963267948966;  // rad, twist: the largest turn any vertex may take
   int levels = 6;             // twist with a hyperelastic law: the table's load levels on each side
   double jaw_radius = 0.009;  // m, surface twist: the disc the forceps hold

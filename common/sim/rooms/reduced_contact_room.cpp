@@ -13,6 +13,7 @@ Expected<ReducedContactRoom> ReducedContactRoom::Build(const RoomInputs& in) {
   if (!made.ok()) return made.error();
   tissue::TableInputs<tissue::ContactResponseParams>& inputs = *made;
   inputs.params.footprint_radius = region.reduced.footprint_radius;
+  inputs.params.rotation = region.reduced.rotation;
   Status status = Status::Ok();
   const tissue::ReducedCache cache(in.cache_dir);
   auto table = SharedContactTable(

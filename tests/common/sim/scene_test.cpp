@@ -487,6 +487,28 @@ TEST(SceneTest, TheVolumeAtTheVerticesIsAReducedModelsChoiceNamedWhenWrong) {
             std::string::npos);
 }
 
+// A contact table's rotation correction is on unless the scene leaves it out; anything but a
+// boolean, or the key on another mode, is refused by name.
+TEST(SceneTest, TheContactTablesRotationCorrectionIsAChoiceNamedWhenWrong) {
+  const std::string reduced =
+      Replace(Minimal(), R"("type": "mass-spring", "structural_stiffness": 50)",
+              R"("type": "reduced", "fem_cells": 12)");
+  auto plain = ParseScene(reduced, "x.json");
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  EXPECT_TRUE(plain->region.reduced.rotation);
+  auto straight = ParseScene(
+      Replace(reduced, R"("fem_cells": 12)", R"("fem_cells": 12, "rotation": false)"), "x.json");
+  ASSERT_TRUE(straight.ok()) << straight.error().message;
+  EXPECT_FALSE(straight->region.reduced.rotation);
+  EXPECT_NE(Field(Replace(reduced, R"("fem_cells": 12)", R"("fem_cells": 12, "rotation": 0)"))
+                .find("rotation: must be true or false"),
+            std::string::npos);
+  EXPECT_NE(Field(Replace(reduced, R"("fem_cells": 12)",
+                          R"("fem_cells": 12, "mode": "surface-twist", "rotation": false)"))
+                .find("rotation: is the contact table's correction"),
+            std::string::npos);
+}
+
 TEST(SceneTest, TheTissuesLawIsAReducedTwistsChoiceNamedWhenWrong) {
   const std::string twist = R"({"name": "t", "mesh": {"type": "limb", "preset": "forearm"},
     "regions": [{"name": "r", "model": {"type": "reduced", "mode": "twist", "levels": 4}}],

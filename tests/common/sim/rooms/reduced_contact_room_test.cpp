@@ -19,6 +19,49 @@ TEST(RoomTest, ScriptedTraineesPalpateTheReducedSphere) {
   ExpectPalpatedByScriptedTrainees("sphere-palpation-1024");
 }
 
+// A scene may leave out the table's rotation correction ("rotation": false): the same press
+// feels the same within 1% (the force is the contact's compliance, which the correction does not
+// touch) and the surface's shape differs, each point moved along its response without turning.
+TEST(RoomTest, ATableWithoutItsRotationCorrectionFeelsTheSameAndMovesItsSurfaceStraight) {
+  const test::TempDir dir("sim_rotation");
+  auto base = LoadSceneByName("sphere-palpation-1024");
+  ASSERT_TRUE(base.ok());
+  base->mesh.particles = 256;
+  const auto pressed = [&](bool rotation, std::vector<geometry::Vec3>& surface) {
+    Scene scene = *base;
+    scene.name = rotation ? "rotation" : "straight";
+    scene.region.reduced.rotation = rotation;
+    auto sim = Simulation::Create(scene, {.threaded = false, .cache_dir = dir.string()});
+    EXPECT_TRUE(sim.ok()) << sim.error().message;
+    haptics::StylusSample s;
+    haptics::ForceCommand c;
+    const Eigen::Vector3d top(0.0005, 0.0003, 0.05);
+    for (int i = 0; i < 400; ++i) {
+      s.time = i * 1e-3;
+      s.position = top - std::clamp((i - 100) * 1e-4, -0.01, 0.012) * Eigen::Vector3d::UnitZ();
+      c = (*sim)->OnStylus(s);
+      (*sim)->StepDeformation();
+    }
+    VisualFrame frame;
+    EXPECT_TRUE((*sim)->TakeVisualFrame(frame));
+    surface = (*sim)->LastFramePositions();
+    EXPECT_TRUE(c.contact);
+    return c.force;
+  };
+  std::vector<geometry::Vec3> turned, straight;
+  const Eigen::Vector3d f_turned = pressed(true, turned), f_straight = pressed(false, straight);
+  EXPECT_GT(f_turned.z(), 1.0);
+  // The proxy meets the surface where the table puts it: the contact point's own turn moves it a
+  // little (0.3% at 1.8 N on this press).
+  EXPECT_LT((f_turned - f_straight).norm(), 0.01 * f_turned.norm());
+  ASSERT_EQ(turned.size(), straight.size());
+  double apart = 0;
+  for (size_t i = 0; i < turned.size(); ++i)
+    apart = std::max(apart, (turned[i] - straight[i]).norm());
+  EXPECT_GT(apart, 1e-5) << "the correction turned nothing";
+  EXPECT_LT(apart, 3e-3);
+}
+
 // A hidden lump (10 mm across, five times as stiff, its centre 15 mm under the top) in a reduced
 // sphere: pressed at the top the same 4 mm, the tissue pushes back harder than without it, and
 // the same press 30 mm aside feels hardly any of that difference.
