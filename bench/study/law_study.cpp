@@ -243,6 +243,9 @@ Expected<std::vector<Vec3>> PressedBall(const geometry::TetMesh& mesh, double st
   return fem->positions();
 }
 
+// N: the ball's tables' capacity, past the study's largest press (10 N).
+constexpr double kBallTableCapacity = 20.0;
+
 // A contact table the ball's scenes run (the press at the pole), from the linear FEM at `cells`.
 struct BallTable {
   std::vector<Vec3> display;
@@ -281,7 +284,7 @@ BallTable BuildBallTable(int cells) {
                              : Expected<tissue::ContactResponse>(response.error());
   auto model = table.ok() ? tissue::ReducedContactModel::Create(
                                 std::make_shared<tissue::ContactResponse>(std::move(*table)),
-                                m.display, 20.0)
+                                m.display, kBallTableCapacity)
                           : Expected<tissue::ReducedContactModel>(table.error());
   if (!model.ok()) {
     m.why = model.error().message;
@@ -298,7 +301,8 @@ BallTable WithoutRotation(const BallTable& t) {
   if (!t.model) return m;
   auto response = std::make_shared<tissue::ContactResponse>(t.model->response());
   response->w.clear();
-  auto model = tissue::ReducedContactModel::Create(std::move(response), m.display, 20.0);
+  auto model =
+      tissue::ReducedContactModel::Create(std::move(response), m.display, kBallTableCapacity);
   if (model.ok())
     m.model = std::move(*model);
   else

@@ -94,5 +94,11 @@ struct PlaybackError {
   size_t cycles = 0;  // in contact
 };
 PlaybackError ObserverError(const FourHandsRun& run, double max_lag_s = 0.5);
+// The lag (s) of an observing hand that follows the trainee's path as it reaches it: the
+// trainee's link up and the instructor's down, each profile's base one-way delay
+// (FourHandsOptions::instructor_lag_s).
+inline double FollowingLag(const FourHandsOptions& o) {
+  return 1e-3 * (o.trainee_profile.up.base_ms + o.instructor_profile.down.base_ms);
+}
 
 }  // namespace vsurg::bench::wan

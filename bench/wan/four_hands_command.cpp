@@ -114,9 +114,7 @@ int Playback(const Plans& p, const std::vector<std::string>& profiles, const fs:
       o.instructor_plan = p.steady;
       o.instructor_grip = client::RelaxedGrip();
       o.guide = {sim::GuideMode::kObserve, 0};
-      if (follows)
-        o.instructor_lag_s =
-            1e-3 * (o.trainee_profile.up.base_ms + o.instructor_profile.down.base_ms);
+      if (follows) o.instructor_lag_s = wan::FollowingLag(o);
       const char* hand = follows ? "follows" : "anticipates";
       auto r = Run(o, std::string("observe at ") + i);
       if (!r.ok()) return 1;

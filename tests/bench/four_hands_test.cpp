@@ -195,7 +195,7 @@ TEST(FourHandsTest, AnObserverOnAnotherContinentFeelsTheTraineesForce) {
   o.trainee_plan = p.steady;
   o.instructor_grip = client::RelaxedGrip();
   o.guide = {sim::GuideMode::kObserve, 0};
-  o.instructor_lag_s = 1e-3 * (o.trainee_profile.up.base_ms + o.instructor_profile.down.base_ms);
+  o.instructor_lag_s = FollowingLag(o);
   double best = std::numeric_limits<double>::infinity();
   for (int run = 0; run < 4 && best > 0.075; ++run) {
     auto r = RunFourHands(o);
