@@ -114,6 +114,11 @@ class ClusterSessions final : public Sessions {
   Expected<db::SessionRecord> Stop(uint64_t id, const std::string& reason) override;
   Expected<db::SessionRecord> Get(uint64_t id) override;
   Expected<CreatedSession> Join(uint64_t id, bool with_surface) override;
+  Expected<CreatedSession> JoinInstructor(uint64_t id, const std::string& instructor) override;
+  Status LeaveInstructor(uint64_t id, const std::string& instructor) override;
+  Expected<SessionGuidance> Guide(uint64_t id, const std::string& instructor,
+                                  const sim::GuideRequest& request) override;
+  Expected<SessionGuidance> Guidance(uint64_t id) const override;
   Status RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                      std::vector<int32_t>& triangles) const override;
   Expected<std::string> Trace(uint64_t id) const override;

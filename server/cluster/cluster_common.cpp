@@ -336,6 +336,7 @@ CreatedSession FromProto(const v1::NodeSession& s) {
     c.second_channel = s.second_channel();
     std::copy_n(s.second_key().begin(), c.second_key.size(), c.second_key.begin());
   }
+  c.channel = s.channel();
   if (s.has_surface()) {
     // A node's surface is checked as a station checks it; one that does not read is left out
     // (the station then renders the surface ahead from the answers alone).
@@ -358,6 +359,7 @@ void ToProto(const CreatedSession& c, bool with_key, v1::NodeSession* out) {
   out->set_udp_host(c.udp_host);
   out->set_udp_port(c.udp_port);
   if (with_key) out->set_session_key(std::string(c.key.begin(), c.key.end()));
+  out->set_channel(c.channel);
   if (with_key && c.second_channel != 0) {
     out->set_second_channel(c.second_channel);
     out->set_second_key(std::string(c.second_key.begin(), c.second_key.end()));

@@ -122,6 +122,73 @@ Expected<CreatedSession> ClusterSessions::Join(uint64_t id, bool with_surface) {
   return out;
 }
 
+namespace {
+
+// A guidance call on the session's node: its answer, or the node's refusal named by `what`.
+template <class Call>
+Expected<SessionGuidance> GuidanceOnNode(ClusterSessions::Impl& impl, uint64_t id, const char* what,
+                                         Call&& call) {
+  auto at = impl.NodeOf(id);
+  if (!at.ok()) return at.error();
+  if (!vsurg::IsLive(at->first.state)) return ClusterSessions::Impl::NotLive(id);
+  v1::Guidance reply;
+  auto ctx = CallContext(impl.options.token, impl.options.call_timeout_s);
+  const grpc::Status s = call(impl.StubFor(at->second), ctx.get(), &reply);
+  if (!s.ok()) return FromGrpc(s, std::string(what) + " on node " + at->second.name);
+  return grpcapi::FromProto(reply);
+}
+
+}  // namespace
+
+// Four-handed training runs where the session runs: the control plane (which checked who may)
+// asks the session's node, and the instructor's station is sent there, as the trainee's is.
+Expected<CreatedSession> ClusterSessions::JoinInstructor(uint64_t id,
+                                                         const std::string& instructor) {
+  auto at = impl_->NodeOf(id);
+  if (!at.ok()) return at.error();
+  if (!vsurg::IsLive(at->first.state)) return Impl::NotLive(id);
+  v1::NodeGuideRequest req;
+  req.set_id(id);
+  req.set_instructor(instructor);
+  v1::NodeSession reply;
+  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
+  const grpc::Status s = impl_->StubFor(at->second).JoinInstructor(ctx.get(), req, &reply);
+  if (!s.ok()) return FromGrpc(s, "instructor's join on node " + at->second.name);
+  CreatedSession out = FromProto(reply);
+  out.record.node = at->second.name;
+  return out;
+}
+
+Status ClusterSessions::LeaveInstructor(uint64_t id, const std::string& instructor) {
+  v1::NodeGuideRequest req;
+  req.set_id(id);
+  req.set_instructor(instructor);
+  auto left = GuidanceOnNode(
+      *impl_, id, "instructor's leave",
+      [&](auto& stub, auto* ctx, auto* out) { return stub.LeaveInstructor(ctx, req, out); });
+  return left.ok() ? Status::Ok() : Status(left.error());
+}
+
+Expected<SessionGuidance> ClusterSessions::Guide(uint64_t id, const std::string& instructor,
+                                                 const sim::GuideRequest& request) {
+  v1::NodeGuideRequest req;
+  req.set_id(id);
+  req.set_instructor(instructor);
+  req.set_mode(static_cast<v1::GuideMode>(static_cast<int>(request.mode)));
+  req.set_alpha(request.alpha);
+  return GuidanceOnNode(*impl_, id, "guide", [&](auto& stub, auto* ctx, auto* out) {
+    return stub.Guide(ctx, req, out);
+  });
+}
+
+Expected<SessionGuidance> ClusterSessions::Guidance(uint64_t id) const {
+  v1::SessionRef req;
+  req.set_id(id);
+  return GuidanceOnNode(*impl_, id, "guidance", [&](auto& stub, auto* ctx, auto* out) {
+    return stub.GetGuidance(ctx, req, out);
+  });
+}
+
 Status ClusterSessions::RestSurface(uint64_t id, std::vector<geometry::Vec3>& positions,
                                     std::vector<int32_t>& triangles) const {
   auto at = impl_->NodeOf(id);

@@ -309,6 +309,39 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     ToProto(*c, true, out);
     return grpc::Status::OK;
   }
+  // Four-handed training where the session runs; the control plane decided who may.
+  grpc::Status JoinInstructor(grpc::ServerContext* ctx, const v1::NodeGuideRequest* req,
+                              v1::NodeSession* out) override {
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
+    auto c = sessions.JoinInstructor(req->id(), req->instructor());
+    if (!c.ok()) return grpcapi::ToGrpcStatus(c.error());
+    ToProto(*c, true, out);
+    return grpc::Status::OK;
+  }
+  grpc::Status LeaveInstructor(grpc::ServerContext* ctx, const v1::NodeGuideRequest* req,
+                               v1::Guidance* out) override {
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
+    if (Status s = sessions.LeaveInstructor(req->id(), req->instructor()); !s.ok())
+      return grpcapi::ToGrpcStatus(s.error());
+    return AnswerGuidance(sessions.Guidance(req->id()), out);
+  }
+  grpc::Status Guide(grpc::ServerContext* ctx, const v1::NodeGuideRequest* req,
+                     v1::Guidance* out) override {
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
+    return AnswerGuidance(sessions.Guide(req->id(), req->instructor(),
+                                         {grpcapi::GuideModeFromProto(req->mode()), req->alpha()}),
+                          out);
+  }
+  grpc::Status GetGuidance(grpc::ServerContext* ctx, const v1::SessionRef* req,
+                           v1::Guidance* out) override {
+    if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
+    return AnswerGuidance(sessions.Guidance(req->id()), out);
+  }
+  static grpc::Status AnswerGuidance(const Expected<SessionGuidance>& g, v1::Guidance* out) {
+    if (!g.ok()) return grpcapi::ToGrpcStatus(g.error());
+    grpcapi::ToProto(*g, out);
+    return grpc::Status::OK;
+  }
   grpc::Status RestSurface(grpc::ServerContext* ctx, const v1::SessionRef* req,
                            v1::NodeSurface* out) override {
     if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;

@@ -106,4 +106,32 @@ void ToProto(const db::UserRecord& u, v1::User* out) {
   out->set_disabled(u.disabled);
 }
 
+sim::GuideMode GuideModeFromProto(v1::GuideMode m) {
+  switch (m) {
+    case v1::GUIDE_MODE_OBSERVE:
+      return sim::GuideMode::kObserve;
+    case v1::GUIDE_MODE_GUIDE:
+      return sim::GuideMode::kGuide;
+    default:
+      return sim::GuideMode::kNone;
+  }
+}
+
+void ToProto(const SessionGuidance& g, v1::Guidance* out) {
+  out->set_trainee(g.trainee);
+  out->set_instructor(g.instructor);
+  out->set_mode(static_cast<v1::GuideMode>(static_cast<int>(g.requested.mode)));
+  out->set_alpha(g.requested.alpha);
+  out->set_alpha_now(g.alpha);
+}
+
+SessionGuidance FromProto(const v1::Guidance& g) {
+  SessionGuidance out;
+  out.trainee = g.trainee();
+  out.instructor = g.instructor();
+  out.requested = {GuideModeFromProto(g.mode()), g.alpha()};
+  out.alpha = g.alpha_now();
+  return out;
+}
+
 }  // namespace vsurg::server::grpcapi

@@ -51,6 +51,11 @@ void ToProto(const SessionView& v, v1::Session* out);
 std::optional<db::Role> RoleFromProto(v1::Role r);
 v1::Role RoleToProto(db::Role r);
 void ToProto(const db::UserRecord& u, v1::User* out);
+// Four-handed training: the mode (GUIDE_MODE_NONE and values this build does not know: kNone)
+// and who is in a session with what they asked for, both ways (the public API and the nodes').
+sim::GuideMode GuideModeFromProto(v1::GuideMode m);
+void ToProto(const SessionGuidance& g, v1::Guidance* out);
+SessionGuidance FromProto(const v1::Guidance& g);
 
 // The services, registered by ControlPlane::Start; each lives as long as `d`.
 // Their unary calls run on `pool`, which outlives them.

@@ -41,8 +41,8 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   ServerUnaryReactor* Guide(CallbackServerContext* ctx, const v1::GuideRequest* req,
                             v1::Guidance* resp) override {
     return Unary(d_, pool_, ctx, Method::kSessionGuide, [=, this](const db::Principal& p) {
-      return AnswerGuidance(GuideSession(d_, p, req->id(), {FromProto(req->mode()), req->alpha()}),
-                            resp);
+      return AnswerGuidance(
+          GuideSession(d_, p, req->id(), {GuideModeFromProto(req->mode()), req->alpha()}), resp);
     });
   }
 
@@ -137,32 +137,18 @@ class SessionServiceImpl final : public v1::SessionService::CallbackService {
   // Four-handed training: an instructor's station's credentials for its own channel.
   ServerUnaryReactor* JoinInstructor(CallbackServerContext* ctx, const v1::JoinRequest* req,
                                      v1::CreateSessionResponse* resp) {
-    return Unary(
-        d_, pool_, ctx, Method::kSessionJoinInstructor,
-        [=, this](const db::Principal& p) -> Status {
-          auto joined = JoinAsInstructor(d_, p, req->id(), {FromProto(req->mode()), req->alpha()});
-          if (!joined.ok()) return joined.error();
-          Credentials(*joined, resp);
-          return Status::Ok();
-        });
-  }
-  static sim::GuideMode FromProto(v1::GuideMode m) {
-    switch (m) {
-      case v1::GUIDE_MODE_OBSERVE:
-        return sim::GuideMode::kObserve;
-      case v1::GUIDE_MODE_GUIDE:
-        return sim::GuideMode::kGuide;
-      default:
-        return sim::GuideMode::kNone;
-    }
+    return Unary(d_, pool_, ctx, Method::kSessionJoinInstructor,
+                 [=, this](const db::Principal& p) -> Status {
+                   auto joined = JoinAsInstructor(d_, p, req->id(),
+                                                  {GuideModeFromProto(req->mode()), req->alpha()});
+                   if (!joined.ok()) return joined.error();
+                   Credentials(*joined, resp);
+                   return Status::Ok();
+                 });
   }
   static Status AnswerGuidance(const Expected<SessionGuidance>& g, v1::Guidance* resp) {
     if (!g.ok()) return g.error();
-    resp->set_trainee(g->trainee);
-    resp->set_instructor(g->instructor);
-    resp->set_mode(static_cast<v1::GuideMode>(static_cast<int>(g->requested.mode)));
-    resp->set_alpha(g->requested.alpha);
-    resp->set_alpha_now(g->alpha);
+    ToProto(*g, resp);
     return Status::Ok();
   }
   static void Credentials(const CreatedSession& c, v1::CreateSessionResponse* resp) {

@@ -72,7 +72,8 @@ class Sessions {
   // another is refused (kFailedPrecondition). kNotFound once the session left the live states.
   // Leaving hands the tool back (ramped) and closes the channel. Guide sets the mode and the
   // dominance (sim::CheckGuideRequest) of the instructor in the session, `instructor`.
-  // Implementations that do not run sessions in process answer kFailedPrecondition.
+  // SessionManager runs them; ClusterSessions asks the session's node (NodeService.JoinInstructor,
+  // LeaveInstructor, Guide, GetGuidance). The defaults answer kFailedPrecondition.
   virtual Expected<CreatedSession> JoinInstructor(uint64_t id, const std::string& instructor);
   virtual Status LeaveInstructor(uint64_t id, const std::string& instructor);
   virtual Expected<SessionGuidance> Guide(uint64_t id, const std::string& instructor,

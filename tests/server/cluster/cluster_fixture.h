@@ -43,6 +43,7 @@
 #include "server/session/caller_deadline.h"
 #include "server/session/session_manager.h"
 #include "tests/support/postgres.h"
+#include "tests/support/press_and_hold.h"
 #include "tests/support/temp_dir.h"
 #include "tests/support/wait.h"
 #include "vsurg/v1/cluster.grpc.pb.h"

@@ -1,5 +1,5 @@
-// Placement over a site's nodes: spread, capacity, bursts, drain, and live migration of a
-// draining node's sessions.
+// Placement over a site's nodes: spread, capacity, bursts, drain, live migration of a draining
+// node's sessions, and an instructor's join reaching the session's node.
 #include "tests/server/cluster/cluster_fixture.h"
 
 namespace vsurg::server::cluster {
@@ -362,6 +362,68 @@ TEST_F(ClusterTest, ASessionNoOtherNodeTakesStaysAndIsServedWhereItWas) {
 
 // A node's process gone (its gRPC port closed, as after a crash): the first late heartbeat
 // finds its port refusing connections, and the node is down without waiting out the timeout.
+
+// Four-handed training on a site: the control replica sends an instructor's join to the node the
+// session runs on, which opens the instructor's own channel there; the mode, and who is in the
+// session, go and come back through the replica; both stations are answered on the node, the
+// guidance reaches the trainee's haptic path, and leaving closes the instructor's channel.
+TEST_F(ClusterTest, AnInstructorJoinsASessionOnItsNodeThroughTheControlPlane) {
+  Node& a = AddNode("sim-a", 4);
+  Node& b = AddNode("sim-b", 4);
+  WaitForNodes(2);
+  auto created = control_->Create("trainee-0", "sphere-palpation-256");
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  const uint64_t id = created->record.id;
+  ASSERT_TRUE(control_->Start(id).ok());
+  const Node& at = created->record.node == "sim-a" ? a : b;
+
+  auto joined = control_->JoinInstructor(id, "instructor-0");
+  ASSERT_TRUE(joined.ok()) << joined.error().message;
+  EXPECT_EQ(joined->channel, InstructorChannel(id));
+  EXPECT_EQ(joined->record.node, created->record.node);
+  EXPECT_EQ(joined->udp_port, at.endpoint->port());
+  EXPECT_NE(joined->key, created->key);
+  EXPECT_EQ(control_->JoinInstructor(id, "instructor-1").error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(control_->Guide(id, "instructor-1", {sim::GuideMode::kGuide, 0.5}).error().code,
+            ErrorCode::kFailedPrecondition);
+  EXPECT_EQ(control_->Guide(id, "instructor-0", {sim::GuideMode::kGuide, 1.5}).error().code,
+            ErrorCode::kInvalidArgument);
+  auto g = control_->Guide(id, "instructor-0", {sim::GuideMode::kGuide, 0.5});
+  ASSERT_TRUE(g.ok()) << g.error().message;
+  EXPECT_EQ(g->trainee, "trainee-0");
+  EXPECT_EQ(g->instructor, "instructor-0");
+  EXPECT_EQ(g->requested.mode, sim::GuideMode::kGuide);
+  EXPECT_DOUBLE_EQ(g->requested.alpha, 0.5);
+
+  // Both hands press the sphere, each station on its own channel to the node; the dominance
+  // ramps on the node's haptic path while the instructor's samples are fresh.
+  UdpStation trainee(id, created->key, created->udp_port);
+  UdpStation instructor(joined->channel, joined->key, joined->udp_port);
+  const auto press = test::PressAndHold(8.0);
+  size_t answered_trainee = 0, answered_instructor = 0;
+  double alpha_now = 0;
+  for (size_t k = 0; k < press.size() && alpha_now <= 0.45; ++k) {
+    haptics::StylusSample s = press[k];
+    s.time = 1e-3 * static_cast<double>(k);
+    answered_trainee += trainee.AnswerTo(trainee.Send(s), 5).has_value();
+    answered_instructor += instructor.AnswerTo(instructor.Send(s), 5).has_value();
+    if (k % 50 == 49) alpha_now = control_->Guidance(id).value().alpha;
+  }
+  EXPECT_GT(alpha_now, 0.45);
+  EXPECT_GT(answered_trainee, 0u);
+  EXPECT_GT(answered_instructor, 0u);
+
+  // Leaving hands the tool back and closes the instructor's channel on the node.
+  ASSERT_TRUE(control_->LeaveInstructor(id, "instructor-0").ok());
+  EXPECT_EQ(control_->Guidance(id).value().instructor, "");
+  EXPECT_FALSE(instructor.AnswerTo(instructor.Send(press.back()), 0.3).has_value());
+  EXPECT_TRUE(trainee.AnswerTo(trainee.Send(press.back()), 5).has_value());
+  EXPECT_EQ(control_->LeaveInstructor(id, "instructor-0").error().code,
+            ErrorCode::kFailedPrecondition);
+  ASSERT_TRUE(control_->Stop(id, "done").ok());
+  EXPECT_EQ(control_->JoinInstructor(id, "instructor-0").error().code, ErrorCode::kNotFound);
+}
 
 }  // namespace
 }  // namespace vsurg::server::cluster
