@@ -149,10 +149,64 @@ class HostileSender {
   std::thread thread_;
 };
 
+// The correcting instructor's eyes and hand (FourHandsOptions::correct_towards): each tool the
+// simulation publishes is seen a down link's delay later, and the hand's intent moves by what
+// the controller makes of the shortfalls seen so far.
+class Corrector {
+ public:
+  Corrector(const FourHandsOptions& o, client::VirtualHandDevice* hand)
+      : o_(o),
+        hand_(hand),
+        delay_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double, std::milli>(o.instructor_profile.down.base_ms))) {}
+  bool active() const { return hand_ != nullptr && o_.correct_towards.size() > 1; }
+
+  void See(const sim::Telemetry& t) {
+    if (!active()) return;
+    const auto& ref = o_.correct_towards;
+    auto it = std::lower_bound(ref.begin(), ref.end(), t.time,
+                               [](const ToolSample& s, double v) { return s.time < v; });
+    if (it == ref.end()) it = std::prev(it);
+    seen_.push_back({std::chrono::steady_clock::now() + delay_, t.time, it->tool - t.tool});
+  }
+  void Act() {
+    if (!active()) return;
+    const auto now = std::chrono::steady_clock::now();
+    bool moved = false;
+    while (!seen_.empty() && seen_.front().at <= now) {
+      const Seen e = seen_.front();
+      seen_.erase(seen_.begin());
+      if (last_time_ >= 0 && e.time > last_time_)
+        integral_ = Clamped(integral_ + o_.correction_ki * (e.time - last_time_) * e.shortfall);
+      last_time_ = e.time;
+      offset_ = Clamped(o_.correction_kp * e.shortfall + integral_);
+      moved = true;
+    }
+    if (moved) hand_->Correct(offset_);
+  }
+
+ private:
+  struct Seen {
+    std::chrono::steady_clock::time_point at;
+    double time;  // s, the trainee's clock
+    Vec3 shortfall;
+  };
+  static Vec3 Clamped(const Vec3& v) {
+    const double n = v.norm();
+    return n > FourHandsOptions::kMaxCorrection ? v * (FourHandsOptions::kMaxCorrection / n) : v;
+  }
+  const FourHandsOptions& o_;
+  client::VirtualHandDevice* hand_;
+  std::chrono::steady_clock::duration delay_;
+  std::vector<Seen> seen_;
+  double last_time_ = -1;
+  Vec3 integral_ = Vec3::Zero(), offset_ = Vec3::Zero();
+};
+
 // Reads the simulation's telemetry (the one reader, as the server's sampler is) until the trainee's
 // hand has played its plan and settled, applying the mode changes on the way.
 void Follow(const FourHandsOptions& o, sim::Simulation& simulation,
-            const client::VirtualHandDevice& trainee, FourHandsRun& run) {
+            const client::VirtualHandDevice& trainee, Corrector& corrector, FourHandsRun& run) {
   size_t next_change = 0;
   sim::Telemetry t;
   size_t settle_until = std::numeric_limits<size_t>::max();
@@ -163,8 +217,11 @@ void Follow(const FourHandsOptions& o, sim::Simulation& simulation,
     if (cycle >= settle_until) break;
     while (next_change < o.changes.size() && o.changes[next_change].first <= cycle)
       simulation.RequestGuidance(o.changes[next_change++].second);
-    if (simulation.TakeTelemetry(t))
+    if (simulation.TakeTelemetry(t)) {
       run.tool.push_back({t.tool, t.tip, t.tool_force, t.guide_alpha, t.guide_mode, cycle, t.time});
+      corrector.See(t);
+    }
+    corrector.Act();
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
 }
@@ -200,7 +257,8 @@ Expected<FourHandsRun> RunFourHands(const FourHandsOptions& o) {
                              o.lead_in_s, o.trainee_grip, o.seed);
   if (!trainee.ok()) return trainee.error();
   FourHandsRun run;
-  Follow(o, **simulation, *trainee->device, run);
+  Corrector corrector(o, instructor.device.get());
+  Follow(o, **simulation, *trainee->device, corrector, run);
   trainee->Stop();
   if (hostile) run.hostile_sent = hostile->Stop();
   if (instructor.station) instructor.Stop();

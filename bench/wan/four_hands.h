@@ -21,6 +21,17 @@
 
 namespace vsurg::bench::wan {
 
+// The tool as the simulation published it (every 8th trainee sample).
+struct ToolSample {
+  haptics::Vec3 tool = haptics::Vec3::Zero();   // m
+  haptics::Vec3 tip = haptics::Vec3::Zero();    // m, the trainee's own tip of that sample
+  haptics::Vec3 force = haptics::Vec3::Zero();  // N, the tissue's on the tool
+  double alpha = 0;
+  uint32_t mode = 0;
+  size_t cycle = 0;  // the trainee hand's servo cycle when it was read
+  double time = 0;   // s, the trainee station's clock of the sample it was published with
+};
+
 struct FourHandsOptions {
   sim::Scene scene;
   // Each hand's intended trajectory, held at its first pose for lead_in_s first (the stations'
@@ -42,20 +53,18 @@ struct FourHandsOptions {
   // The instructor's plan begins this much later than the trainee's (s): an observing hand that
   // follows the trainee's path as it reaches it over the two links, not one that knows it ahead.
   double instructor_lag_s = 0;
+  // An instructor who corrects what they see: the tool, shown at their station a down link's
+  // delay after the simulation published it, against `correct_towards` (the tool's path as the
+  // expert alone made it, at the same time of the trainee's clock). Their hand's intent moves
+  // from its plan by kp·e + ki·∫e dt, e the tool's shortfall, at most kMaxCorrection. Empty: the
+  // instructor plays the plan as it is.
+  std::vector<ToolSample> correct_towards;
+  double correction_kp = 1.5;                      // 1
+  double correction_ki = 8.0;                      // 1/s
+  static constexpr double kMaxCorrection = 0.005;  // m
   double settle_s = 0.5;
   uint64_t seed = 1;
   std::string cache_dir;
-};
-
-// The tool as the simulation published it (every 8th trainee sample).
-struct ToolSample {
-  haptics::Vec3 tool = haptics::Vec3::Zero();   // m
-  haptics::Vec3 tip = haptics::Vec3::Zero();    // m, the trainee's own tip of that sample
-  haptics::Vec3 force = haptics::Vec3::Zero();  // N, the tissue's on the tool
-  double alpha = 0;
-  uint32_t mode = 0;
-  size_t cycle = 0;  // the trainee hand's servo cycle when it was read
-  double time = 0;   // s, the trainee station's clock of the sample it was published with
 };
 
 struct FourHandsRun {

@@ -7,8 +7,9 @@
 //   playback.csv  observe with the trainee on the lab's LAN and the instructor on each profile:
 //                 the instructor's rendered force against the trainee's (ObserverError), for a
 //                 hand that follows the trainee's path as it reaches it and one that anticipates;
-//   guidance.csv  the rough trainee alone and guided at α = 0.5 by the expert, at lan and
-//                 continental: path error from the expert's own path and the peak force.
+//   guidance.csv  the rough trainee alone and guided at α = 0.5 by the expert, who plays the
+//                 plan or corrects the tool it sees (FourHandsOptions::correct_towards), at lan
+//                 and continental: path error from the expert's own path and the peak force.
 // docs/BENCHMARKS.md "Four-handed training".
 #include <algorithm>
 #include <filesystem>
@@ -142,10 +143,10 @@ int Guidance(const Plans& p, const fs::path& dir) {
   // hands' randomness, the tissue's response to a hand that is never quite the same).
   const double floor = wan::PathError(*again, *expert, kLead);
   std::ofstream csv(dir / "guidance.csv");
-  csv << "profile,path_alone_mm,path_guided_mm,path_floor_mm,peak_alone_n,peak_guided_n,"
-         "peak_expert_n\n";
-  std::cout << "guidance (rough trainee, steady expert at alpha 0.5); the expert against its own "
-               "second run: "
+  csv << "profile,path_alone_mm,path_guided_mm,path_correcting_mm,path_floor_mm,peak_alone_n,"
+         "peak_guided_n,peak_correcting_n,peak_expert_n\n";
+  std::cout << "guidance (rough trainee, steady expert at alpha 0.5: playing the plan, and "
+               "correcting the tool it sees); the expert against its own second run: "
             << Fixed(1e3 * floor, 2) << " mm\n";
   for (const char* profile : {"lan", "continental"}) {
     FourHandsOptions o = Options(p, profile, profile);
@@ -153,16 +154,22 @@ int Guidance(const Plans& p, const fs::path& dir) {
     auto alone = Run(o, std::string("alone at ") + profile);
     o.instructor = true;
     auto guided = Run(o, std::string("guided at ") + profile);
-    if (!alone.ok() || !guided.ok()) return 1;
+    o.correct_towards = expert->tool;
+    auto correcting = Run(o, std::string("guided, correcting, at ") + profile);
+    if (!alone.ok() || !guided.ok() || !correcting.ok()) return 1;
     const double a = wan::PathError(*alone, *expert, kLead);
     const double g = wan::PathError(*guided, *expert, kLead);
-    csv << profile << "," << 1e3 * a << "," << 1e3 * g << "," << 1e3 * floor << ","
-        << wan::PeakToolForce(*alone) << "," << wan::PeakToolForce(*guided) << ","
-        << wan::PeakToolForce(*expert) << "\n";
+    const double c = wan::PathError(*correcting, *expert, kLead);
+    const double pe = wan::PeakToolForce(*expert);
+    csv << profile << "," << 1e3 * a << "," << 1e3 * g << "," << 1e3 * c << "," << 1e3 * floor
+        << "," << wan::PeakToolForce(*alone) << "," << wan::PeakToolForce(*guided) << ","
+        << wan::PeakToolForce(*correcting) << "," << pe << "\n";
     std::cout << "  " << profile << ": path error " << Fixed(1e3 * a, 2) << " mm alone, "
-              << Fixed(1e3 * g, 2) << " guided; peak " << Fixed(wan::PeakToolForce(*alone), 2)
-              << " N alone, " << Fixed(wan::PeakToolForce(*guided), 2) << " guided (the expert's "
-              << Fixed(wan::PeakToolForce(*expert), 2) << ")\n";
+              << Fixed(1e3 * g, 2) << " guided, " << Fixed(1e3 * c, 2) << " correcting; peak "
+              << Fixed(wan::PeakToolForce(*alone), 2) << " N alone, "
+              << Fixed(wan::PeakToolForce(*guided), 2) << " guided, "
+              << Fixed(wan::PeakToolForce(*correcting), 2) << " correcting (the expert's "
+              << Fixed(pe, 2) << ")\n";
   }
   return 0;
 }

@@ -71,7 +71,7 @@ haptics::StylusSample VirtualHandDevice::Read() {
     const double m = hand_.mass + device_.mass;
     for (int k = 0; k < substeps_; ++k) {
       const double t = t_ + k * h;
-      const Eigen::Vector3d xp = PlanAt(t).position;
+      const Eigen::Vector3d xp = PlanAt(t).position + offset_;
       const Eigen::Vector3d vp = (PlanAt(t + 1e-3).position - PlanAt(t - 1e-3).position) / 2e-3;
       Eigen::Vector3d f = hand_.stiffness * (xp - x_) + hand_.damping * (vp - v_) + held_;
       for (int a = 0; a < 3; ++a) f[a] -= device_.friction * std::tanh(v_[a] / 0.002);
@@ -88,7 +88,7 @@ haptics::StylusSample VirtualHandDevice::Read() {
     for (int a = 0; a < 3; ++a)
       s.position[a] = std::round(x_[a] / device_.resolution) * device_.resolution;
   if (trace_.size() < trace_.capacity())
-    trace_.push_back({t_, x_, PlanAt(t_).position, held_, s.buttons});
+    trace_.push_back({t_, x_, PlanAt(t_).position + offset_, held_, s.buttons});
   return s;
 }
 
@@ -99,6 +99,11 @@ void VirtualHandDevice::WriteForce(const Eigen::Vector3d& force) {
   if (n > device_.limits.max_force) f *= device_.limits.max_force / n;  // the motors saturate
   held_ = f;
   if (!trace_.empty()) trace_.back().force = f;
+}
+
+void VirtualHandDevice::Correct(const Eigen::Vector3d& offset) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (offset.allFinite()) offset_ = offset;
 }
 
 bool VirtualHandDevice::finished() const {

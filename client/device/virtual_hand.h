@@ -76,6 +76,10 @@ class VirtualHandDevice : public HapticDevice {
   haptics::DeviceLimits limits() const override { return device_.limits; }
   DeviceInfo info() const override { return {"virtual-hand", 6, 3, device_.limits, rate_hz_}; }
 
+  // The hand's intent moved by `offset` (m) from its plan from now on: a hand correcting what it
+  // sees (an instructor putting a shared tool back on the path). Any thread.
+  void Correct(const Eigen::Vector3d& offset);
+
   bool finished() const;                  // the plan has been played out
   std::vector<HandSample> trace() const;  // every cycle so far
   size_t cycles() const;                  // how many: trace().size() without the copy
@@ -96,6 +100,7 @@ class VirtualHandDevice : public HapticDevice {
   bool started_ = false;
   Eigen::Vector3d x_ = Eigen::Vector3d::Zero(), v_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d held_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();  // Correct's
   std::vector<HandSample> trace_;
 };
 
