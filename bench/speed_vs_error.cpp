@@ -79,16 +79,19 @@ std::vector<SceneOut> RunParts(const Config& cfg, const std::string& only) {
   const int organ = cfg.quick ? 3 + 5 : 6 + 7;
   const int pad = cfg.quick ? 3 : 6;
   const int patch = cfg.quick ? 2 : 14;  // the quick run: the uncut lift, the scene's own lattice
-  Progress progress((run("limbs") ? 3 * per_limb : 0) +
-                    (run("laws") ? study::ArmLawSteps(cfg) + study::BallLawSteps(cfg) : 0) +
-                    (run("sphere") ? sphere : 0) +
-                    (run("kidney") || run("organ-twist") ? organ : 0) + (run("pad") ? pad : 0) +
-                    (run("patch") ? patch : 0));
+  Progress progress(
+      (run("limbs") ? 3 * per_limb : 0) +
+      (run("laws")
+           ? study::ArmLawSteps(cfg) + study::BallLawSteps(cfg) + study::OrganTwistLawSteps(cfg)
+           : 0) +
+      (run("sphere") ? sphere : 0) + (run("kidney") || run("organ-twist") ? organ : 0) +
+      (run("pad") ? pad : 0) + (run("patch") ? patch : 0));
   std::vector<SceneOut> scenes;
   if (run("limbs")) scenes = RunLimbScenes(cfg, progress);
   if (run("laws")) {
     for (SceneOut& s : study::RunArmLaws(cfg, progress)) scenes.push_back(std::move(s));
     for (SceneOut& s : study::RunBallLaws(cfg, progress)) scenes.push_back(std::move(s));
+    for (SceneOut& s : study::RunOrganTwistLaws(cfg, progress)) scenes.push_back(std::move(s));
   }
   if (run("sphere")) scenes.push_back(RunSphere(cfg, progress));
   if (run("kidney")) scenes.push_back(RunOrgan(cfg, progress));

@@ -100,10 +100,18 @@ struct Driven {
   int size = 0;
 };
 
+// Where a twist's rows are scored: the display surface at rest, its markers, the FEM mesh the
+// reference's positions belong to.
+struct Scored {
+  const std::vector<Vec3>& display;
+  const std::vector<int>& markers;
+  const geometry::TetMesh& mesh;
+};
+
 // A model's row at one angle: driven at the torque its own law answers there, timed, scored.
 Row RateAt(const Driven& model, const std::string& name, const std::string& setting,
-           const std::string& scene, double twist, const tissue::TwistedState& ref,
-           const ArmSetting& s, const Config& cfg) {
+           const std::string& scene, double twist, const tissue::TwistedState& ref, const Scored& s,
+           const Config& cfg) {
   Row row{name, scene, setting};
   const double torque = model.torque_at(twist);
   row.size = model.size;
@@ -111,9 +119,8 @@ Row RateAt(const Driven& model, const std::string& name, const std::string& sett
                        [&](int i) { model.update(torque * (0.5 + 0.5 * ((i % 2) ? 1.0 : 0.97))); });
   model.update(torque);
   std::vector<Vec3> u(ref.positions.size());
-  for (size_t v = 0; v < u.size(); ++v) u[v] = ref.positions[v] - s.inputs.mesh.positions[v];
-  Score(row, s.display, model.positions(), s.markers,
-        InterpolatedReference(s.inputs.mesh, std::move(u)));
+  for (size_t v = 0; v < u.size(); ++v) u[v] = ref.positions[v] - s.mesh.positions[v];
+  Score(row, s.display, model.positions(), s.markers, InterpolatedReference(s.mesh, std::move(u)));
   // The hand feels the torque: a row's error is the larger of its markers' RMS and its torque's.
   const double torque_error = (torque - ref.torque) / ref.torque;
   row.note = "markers " + Num(100 * row.rms, 3) + "% RMS; torque " + Num(torque, 4) +
@@ -169,6 +176,12 @@ int ArmLawSteps(const Config& cfg) {
 std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
   std::vector<SceneOut> out;
   auto setting = Setting(cfg);
+  const std::vector<Vec3> no_display;
+  const std::vector<int> no_markers;
+  const geometry::TetMesh no_mesh;
+  const Scored scored = setting.ok()
+                            ? Scored{setting->display, setting->markers, setting->inputs.mesh}
+                            : Scored{no_display, no_markers, no_mesh};
   auto linear =
       setting.ok() ? LinearModel(*setting) : Expected<tissue::ReducedTwistModel>(setting.error());
   auto coil = setting.ok() ? CoilModel(*setting) : Expected<Coil>(setting.error());
@@ -200,13 +213,13 @@ std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
         last = *ref;
         if (coil.ok())
           s.rows.push_back(RateAt(Drive(*coil), "coil-scene", "arm-torsion's coil", scene, twist,
-                                  *ref, *setting, cfg));
+                                  *ref, scored, cfg));
         s.rows.push_back(RateAt(Drive(*linear), "reduced", "linear twist field", scene, twist, *ref,
-                                *setting, cfg));
+                                scored, cfg));
         Row row = RateAt(Drive(*model), "reduced-table",
                          std::to_string(in.levels) + " levels a side (" +
                              std::to_string(in.mesh.TetCount()) + " tets)",
-                         scene, twist, *ref, *setting, cfg);
+                         scene, twist, *ref, scored, cfg);
         row.note += "; built in " + Num(precompute_s, 3) + " s";
         s.rows.push_back(row);
       }
@@ -400,6 +413,132 @@ std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress) {
         linear.note = corotational.error().message;
       }
       s.rows.push_back(linear);
+      out.push_back(std::move(s));
+      progress.Step(scene);
+    }
+  }
+  return out;
+}
+
+namespace {
+
+// organ-surface-twist's setting under a law: its display surface and grasp (the top), the
+// meridian's markers, and the hyperelastic FEM's inputs (the ball of 12 cells, 6 quick, resting
+// on its lower fifth; the jaws' disc on it, turned rigidly about the normal at the grasp).
+struct OrganTwistSetting {
+  sim::Scene scene;
+  std::vector<Vec3> display;
+  std::vector<int> markers;
+  tissue::TwistTableInputs inputs;  // the law set per law
+};
+
+Expected<OrganTwistSetting> OrganTwist(const Config& cfg) {
+  auto scene = sim::LoadSceneByName("organ-surface-twist");
+  if (!scene.ok()) return scene.error();
+  if (scene->mesh.kind != sim::MeshKind::kSphere)
+    return InvalidArgument("organ-surface-twist", "the scene is not a sphere");
+  auto display = sim::BuildSceneMesh(scene->mesh);
+  if (!display.ok()) return display.error();
+  OrganTwistSetting o;
+  o.scene = *scene;
+  o.display = display->surface.positions;
+  const double r = scene->mesh.radius;
+  const int grasp = Nearest(o.display, Vec3(0, 0, r));
+  for (int k = 0; k < 10; ++k) {  // along a meridian from the grasp, 5° apart
+    const double a = 5.0 * k * kDeg;
+    o.markers.push_back(Nearest(o.display, Vec3(r * std::sin(a), 0.0, r * std::cos(a))));
+  }
+  auto ball = geometry::MakeTetBall({r, cfg.quick ? 6 : 12});
+  if (!ball.ok()) return ball.error();
+  tissue::TwistTableInputs& in = o.inputs;
+  in.mesh = std::move(*ball);
+  in.material.young = 2 * scene->shear_modulus * (1 + scene->poisson_ratio);
+  in.material.poisson = scene->poisson_ratio;
+  in.fixed = BottomCap(in.mesh.positions);
+  in.origin = o.display[grasp];
+  in.axis = in.origin.normalized();
+  in.face = tissue::JawFace(in.mesh, tissue::BoundaryAreas(in.mesh), in.origin,
+                            scene->region.reduced.jaw_radius);
+  in.display = o.display;
+  in.max_twist = 2 * scene->task.target;
+  return o;
+}
+
+}  // namespace
+
+int OrganTwistLawSteps(const Config&) {
+  return 2 * 4;
+}
+
+// A model of one grasp's twist for the rows below: the law's table over `levels` a side up to
+// `max_twist` (rad), and the time it took (s).
+struct OrganTwistModel {
+  Expected<tissue::ReducedTwistModel> model = Error{};
+  double precompute_s = 0;
+  int levels = 0;
+};
+OrganTwistModel OrganTwistTable(const Expected<OrganTwistSetting>& setting, double stiffening,
+                                double max_twist, int levels) {
+  if (!setting.ok()) return {setting.error()};
+  tissue::TwistTableInputs in = setting->inputs;
+  in.material.stiffening = stiffening;
+  in.max_twist = max_twist;
+  in.levels = levels;
+  const auto t0 = Clock::now();
+  auto table = tissue::PrecomputeTwistTable(in);
+  OrganTwistModel out{table.ok()
+                          ? tissue::ReducedTwistModel::Create(*table, in.display, std::numbers::pi)
+                          : Expected<tissue::ReducedTwistModel>(table.error()),
+                      std::chrono::duration<double>(Clock::now() - t0).count(), levels};
+  return out;
+}
+
+// The forceps' twist on organ-surface-twist to the task's angle and twice it, against the
+// hyperelastic FEM of each law, the jaws' disc held rigidly turned. Rated: the law's own answer
+// at a tenth of the task's angle, carried on linearly (a table of one level a side, extended):
+// the linear model of the same load, so its error is the law's nonlinearity alone; and a table
+// of 5 levels a side to 2.2 times the task's angle (13.2° apart at 30°: both angles rated fall
+// between two levels). (The scene's own field is precomputed for a torque spread on the disc, not a
+// rigid disc: the organ-twist rows rate it against the linear FEM of that load.)
+std::vector<SceneOut> RunOrganTwistLaws(const Config& cfg, Progress& progress) {
+  std::vector<SceneOut> out;
+  auto setting = OrganTwist(cfg);
+  const double target = setting.ok() ? setting->scene.task.target : 0.0;
+  const std::string tets =
+      setting.ok() ? std::to_string(setting->inputs.mesh.TetCount()) + " tets" : "";
+  for (const Law& law : {Law{"neo-Hookean", 0.0}, Law{"exponential b = 5", 5.0}}) {
+    OrganTwistModel small = OrganTwistTable(setting, law.stiffening, 0.1 * target, 1);
+    progress.Step("organ twist laws: " + law.name + " at " + Num(0.1 * target / kDeg, 2) + "°");
+    OrganTwistModel levels = OrganTwistTable(setting, law.stiffening, 2.2 * target, 5);
+    progress.Step("organ twist laws: " + law.name + " table");
+    tissue::TwistTableInputs in = setting.ok() ? setting->inputs : tissue::TwistTableInputs{};
+    in.material.stiffening = law.stiffening;
+    tissue::TwistedState last;
+    last.positions = in.mesh.positions;
+    for (const double twist : {target, 2 * target}) {
+      const std::string scene = "organ twist " + law.name + " " + Num(twist / kDeg, 3) + "°";
+      SceneOut s = NewSceneOut(scene, "organ-surface-twist");
+      auto ref = setting.ok() ? tissue::SolveTwisted(in, twist, &last, 4)
+                              : Expected<tissue::TwistedState>(setting.error());
+      if (!ref.ok() || !small.model.ok() || !levels.model.ok()) {
+        s.rows.push_back(Row{"reduced", scene, "", 0, kInf, kInf, 0,
+                             !ref.ok()           ? ref.error().message
+                             : !small.model.ok() ? small.model.error().message
+                                                 : levels.model.error().message});
+      } else {
+        last = *ref;
+        const Scored scored{setting->display, setting->markers, in.mesh};
+        s.rows.push_back(RateAt(
+            Drive(*small.model), "reduced",
+            "the law at " + Num(0.1 * target / kDeg, 2) + "°, carried on linearly (" + tets + ")",
+            scene, twist, *ref, scored, cfg));
+        Row row = RateAt(Drive(*levels.model), "reduced-table",
+                         std::to_string(levels.levels) + " levels a side to " +
+                             Num(2.2 * target / kDeg, 3) + "° (" + tets + ")",
+                         scene, twist, *ref, scored, cfg);
+        row.note += "; built in " + Num(levels.precompute_s, 3) + " s for one grasp";
+        s.rows.push_back(row);
+      }
       out.push_back(std::move(s));
       progress.Step(scene);
     }

@@ -160,6 +160,9 @@ int ArmLawSteps(const Config& cfg);  // the progress steps RunArmLaws takes
 // The sphere scenes' ball pressed harder and harder under a hyperelastic law (law_study.cpp).
 std::vector<SceneOut> RunBallLaws(const Config& cfg, Progress& progress);
 int BallLawSteps(const Config& cfg);
+// organ-surface-twist's jaws turned to the task's twist and twice it under each law.
+std::vector<SceneOut> RunOrganTwistLaws(const Config& cfg, Progress& progress);
+int OrganTwistLawSteps(const Config& cfg);
 SceneOut RunSphere(const Config& cfg, Progress& progress);
 SceneOut RunOrgan(const Config& cfg, Progress& progress);         // kidney-palpation (imported)
 SceneOut RunSurfaceTwist(const Config& cfg, Progress& progress);  // organ-surface-twist
