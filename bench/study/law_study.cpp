@@ -46,12 +46,14 @@ struct Law {
 
 // What every law's rows share: the scene, its FEM, its display surface and markers, the linear
 // model.
-struct ArmSetting {
+struct TwistSetting {
   sim::Scene scene;
-  geometry::TetCylinder cylinder;
   std::vector<Vec3> display;
   std::vector<int> markers;
   tissue::TwistTableInputs inputs;  // the law set per law
+};
+struct ArmSetting : TwistSetting {
+  geometry::TetCylinder cylinder;
 };
 
 Expected<ArmSetting> Setting(const Config& cfg) {
@@ -64,7 +66,10 @@ Expected<ArmSetting> Setting(const Config& cfg) {
   if (!cylinder.ok()) return cylinder.error();
   auto surface = geometry::MakeLimb(limb);
   if (!surface.ok()) return surface.error();
-  ArmSetting s{*scene, *cylinder, surface->surface.positions, {}, {}};
+  ArmSetting s;
+  s.scene = *scene;
+  s.cylinder = *cylinder;
+  s.display = surface->surface.positions;
   s.markers = LimbMarkerVertices(
       s.display, {limb.length, limb.radius_proximal, limb.radius_distal, scene->shear_modulus});
   s.inputs.mesh = cylinder->mesh;
@@ -425,21 +430,14 @@ namespace {
 // organ-surface-twist's setting under a law: its display surface and grasp (the top), the
 // meridian's markers, and the hyperelastic FEM's inputs (the ball of 12 cells, 6 quick, resting
 // on its lower fifth; the jaws' disc on it, turned rigidly about the normal at the grasp).
-struct OrganTwistSetting {
-  sim::Scene scene;
-  std::vector<Vec3> display;
-  std::vector<int> markers;
-  tissue::TwistTableInputs inputs;  // the law set per law
-};
-
-Expected<OrganTwistSetting> OrganTwist(const Config& cfg) {
+Expected<TwistSetting> OrganTwist(const Config& cfg) {
   auto scene = sim::LoadSceneByName("organ-surface-twist");
   if (!scene.ok()) return scene.error();
   if (scene->mesh.kind != sim::MeshKind::kSphere)
     return InvalidArgument("organ-surface-twist", "the scene is not a sphere");
   auto display = sim::BuildSceneMesh(scene->mesh);
   if (!display.ok()) return display.error();
-  OrganTwistSetting o;
+  TwistSetting o;
   o.scene = *scene;
   o.display = display->surface.positions;
   const double r = scene->mesh.radius;
@@ -477,7 +475,7 @@ struct OrganTwistModel {
   double precompute_s = 0;
   int levels = 0;
 };
-OrganTwistModel OrganTwistTable(const Expected<OrganTwistSetting>& setting, double stiffening,
+OrganTwistModel OrganTwistTable(const Expected<TwistSetting>& setting, double stiffening,
                                 double max_twist, int levels) {
   if (!setting.ok()) return {setting.error()};
   tissue::TwistTableInputs in = setting->inputs;

@@ -106,20 +106,34 @@ Expected<db::SessionRecord> ClusterSessions::Get(uint64_t id) {
   return impl_->store.GetSession(static_cast<int64_t>(id));
 }
 
-Expected<CreatedSession> ClusterSessions::Join(uint64_t id, bool with_surface) {
-  auto at = impl_->NodeOf(id);
+namespace {
+
+// A station's credentials from the session's node (Join, JoinInstructor): the node's answer with
+// its name, or its refusal named by `what`.
+template <class Call>
+Expected<CreatedSession> CredentialsOnNode(ClusterSessions::Impl& impl, uint64_t id,
+                                           const std::string& what,
+                                           std::unique_ptr<grpc::ClientContext> ctx, Call&& call) {
+  auto at = impl.NodeOf(id);
   if (!at.ok()) return at.error();
-  if (!vsurg::IsLive(at->first.state)) return Impl::NotLive(id);
-  v1::JoinRequest req;
-  req.set_id(id);
-  req.set_with_surface(with_surface);
+  if (!vsurg::IsLive(at->first.state)) return ClusterSessions::Impl::NotLive(id);
   v1::NodeSession reply;
-  auto ctx = impl_->ReadContext();
-  const grpc::Status s = impl_->StubFor(at->second).Join(ctx.get(), req, &reply);
-  if (!s.ok()) return FromGrpc(s, "join on node " + at->second.name);
+  const grpc::Status s = call(impl.StubFor(at->second), ctx.get(), &reply);
+  if (!s.ok()) return FromGrpc(s, what + " on node " + at->second.name);
   CreatedSession out = FromProto(reply);
   out.record.node = at->second.name;
   return out;
+}
+
+}  // namespace
+
+Expected<CreatedSession> ClusterSessions::Join(uint64_t id, bool with_surface) {
+  v1::JoinRequest req;
+  req.set_id(id);
+  req.set_with_surface(with_surface);
+  return CredentialsOnNode(
+      *impl_, id, "join", impl_->ReadContext(),
+      [&](auto& stub, auto* ctx, auto* out) { return stub.Join(ctx, req, out); });
 }
 
 namespace {
@@ -144,19 +158,13 @@ Expected<SessionGuidance> GuidanceOnNode(ClusterSessions::Impl& impl, uint64_t i
 // asks the session's node, and the instructor's station is sent there, as the trainee's is.
 Expected<CreatedSession> ClusterSessions::JoinInstructor(uint64_t id,
                                                          const std::string& instructor) {
-  auto at = impl_->NodeOf(id);
-  if (!at.ok()) return at.error();
-  if (!vsurg::IsLive(at->first.state)) return Impl::NotLive(id);
   v1::NodeGuideRequest req;
   req.set_id(id);
   req.set_instructor(instructor);
-  v1::NodeSession reply;
-  auto ctx = CallContext(impl_->options.token, impl_->options.call_timeout_s);
-  const grpc::Status s = impl_->StubFor(at->second).JoinInstructor(ctx.get(), req, &reply);
-  if (!s.ok()) return FromGrpc(s, "instructor's join on node " + at->second.name);
-  CreatedSession out = FromProto(reply);
-  out.record.node = at->second.name;
-  return out;
+  return CredentialsOnNode(
+      *impl_, id, "instructor's join",
+      CallContext(impl_->options.token, impl_->options.call_timeout_s),
+      [&](auto& stub, auto* ctx, auto* out) { return stub.JoinInstructor(ctx, req, out); });
 }
 
 Status ClusterSessions::LeaveInstructor(uint64_t id, const std::string& instructor) {
