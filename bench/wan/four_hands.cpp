@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <thread>
@@ -175,7 +176,7 @@ class Corrector {
     bool moved = false;
     while (!seen_.empty() && seen_.front().at <= now) {
       const Seen e = seen_.front();
-      seen_.erase(seen_.begin());
+      seen_.pop_front();
       if (last_time_ >= 0 && e.time > last_time_)
         integral_ = Clamped(integral_ + o_.correction_ki * (e.time - last_time_) * e.shortfall);
       last_time_ = e.time;
@@ -198,7 +199,7 @@ class Corrector {
   const FourHandsOptions& o_;
   client::VirtualHandDevice* hand_;
   std::chrono::steady_clock::duration delay_;
-  std::vector<Seen> seen_;
+  std::deque<Seen> seen_;
   double last_time_ = -1;
   Vec3 integral_ = Vec3::Zero(), offset_ = Vec3::Zero();
 };

@@ -54,6 +54,28 @@ TEST(VirtualHandTest, AHeldForceDisplacesTheGripByForceOverStiffness) {
   }
 }
 
+TEST(VirtualHandTest, ACorrectionMovesTheIntentAndANonFiniteOneIsIgnored) {
+  // A hand told to correct by 2 mm settles there with no force on it (its plan stays put), the
+  // trace's plan shows where it meant to be, and a NaN correction leaves the last one in place.
+  DeviceModel device;
+  device.friction = 0;
+  device.resolution = 0;
+  auto hand = VirtualHandDevice::Create(StillPlan(Vec3::Zero(), 3.0), TensedGrip(), device);
+  ASSERT_TRUE(hand.ok());
+  haptics::StylusSample s;
+  for (int k = 0; k < 3000; ++k) {
+    if (k == 100) (*hand)->Correct(Vec3(0.002, 0, 0));
+    if (k == 1500) (*hand)->Correct(Vec3(std::nan(""), 0, 0));
+    s = (*hand)->Read();
+    (*hand)->WriteForce(Vec3::Zero());
+  }
+  EXPECT_NEAR(s.position.x(), 0.002, 1e-6);
+  EXPECT_NEAR(s.position.y(), 0.0, 1e-9);
+  const auto trace = (*hand)->trace();
+  EXPECT_NEAR(trace.front().plan.x(), 0.0, 1e-12);
+  EXPECT_NEAR(trace.back().plan.x(), 0.002, 1e-12);
+}
+
 TEST(VirtualHandTest, TheDeviceSaturatesAndReadsInEncoderCounts) {
   DeviceModel device;  // Touch-class: 3.3 N, 0.055 mm counts
   auto hand = VirtualHandDevice::Create(StillPlan(Vec3::Zero(), 1.0), TensedGrip(), device);
