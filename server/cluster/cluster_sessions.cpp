@@ -182,7 +182,7 @@ Expected<SessionGuidance> ClusterSessions::Guide(uint64_t id, const std::string&
   v1::NodeGuideRequest req;
   req.set_id(id);
   req.set_instructor(instructor);
-  req.set_mode(static_cast<v1::GuideMode>(static_cast<int>(request.mode)));
+  req.set_mode(grpcapi::GuideModeToProto(request.mode));
   req.set_alpha(request.alpha);
   return GuidanceOnNode(*impl_, id, "guide", [&](auto& stub, auto* ctx, auto* out) {
     return stub.Guide(ctx, req, out);

@@ -319,11 +319,11 @@ struct NodeAgent::Impl final : public v1::NodeService::Service {
     return grpc::Status::OK;
   }
   grpc::Status LeaveInstructor(grpc::ServerContext* ctx, const v1::NodeGuideRequest* req,
-                               v1::Guidance* out) override {
+                               v1::Guidance*) override {
     if (grpc::Status s = Allowed(*ctx); !s.ok()) return s;
     if (Status s = sessions.LeaveInstructor(req->id(), req->instructor()); !s.ok())
       return grpcapi::ToGrpcStatus(s.error());
-    return AnswerGuidance(sessions.Guidance(req->id()), out);
+    return grpc::Status::OK;
   }
   grpc::Status Guide(grpc::ServerContext* ctx, const v1::NodeGuideRequest* req,
                      v1::Guidance* out) override {

@@ -117,10 +117,14 @@ sim::GuideMode GuideModeFromProto(v1::GuideMode m) {
   }
 }
 
+v1::GuideMode GuideModeToProto(sim::GuideMode m) {
+  return static_cast<v1::GuideMode>(static_cast<int>(m));
+}
+
 void ToProto(const SessionGuidance& g, v1::Guidance* out) {
   out->set_trainee(g.trainee);
   out->set_instructor(g.instructor);
-  out->set_mode(static_cast<v1::GuideMode>(static_cast<int>(g.requested.mode)));
+  out->set_mode(GuideModeToProto(g.requested.mode));
   out->set_alpha(g.requested.alpha);
   out->set_alpha_now(g.alpha);
 }

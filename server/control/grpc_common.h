@@ -54,6 +54,7 @@ void ToProto(const db::UserRecord& u, v1::User* out);
 // Four-handed training: the mode (GUIDE_MODE_NONE and values this build does not know: kNone)
 // and who is in a session with what they asked for, both ways (the public API and the nodes').
 sim::GuideMode GuideModeFromProto(v1::GuideMode m);
+v1::GuideMode GuideModeToProto(sim::GuideMode m);  // the same wire values
 void ToProto(const SessionGuidance& g, v1::Guidance* out);
 SessionGuidance FromProto(const v1::Guidance& g);
 
