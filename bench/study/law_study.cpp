@@ -105,18 +105,10 @@ struct Driven {
   int size = 0;
 };
 
-// Where a twist's rows are scored: the display surface at rest, its markers, the FEM mesh the
-// reference's positions belong to.
-struct Scored {
-  const std::vector<Vec3>& display;
-  const std::vector<int>& markers;
-  const geometry::TetMesh& mesh;
-};
-
 // A model's row at one angle: driven at the torque its own law answers there, timed, scored.
 Row RateAt(const Driven& model, const std::string& name, const std::string& setting,
-           const std::string& scene, double twist, const tissue::TwistedState& ref, const Scored& s,
-           const Config& cfg) {
+           const std::string& scene, double twist, const tissue::TwistedState& ref,
+           const TwistSetting& s, const Config& cfg) {
   Row row{name, scene, setting};
   const double torque = model.torque_at(twist);
   row.size = model.size;
@@ -124,8 +116,9 @@ Row RateAt(const Driven& model, const std::string& name, const std::string& sett
                        [&](int i) { model.update(torque * (0.5 + 0.5 * ((i % 2) ? 1.0 : 0.97))); });
   model.update(torque);
   std::vector<Vec3> u(ref.positions.size());
-  for (size_t v = 0; v < u.size(); ++v) u[v] = ref.positions[v] - s.mesh.positions[v];
-  Score(row, s.display, model.positions(), s.markers, InterpolatedReference(s.mesh, std::move(u)));
+  for (size_t v = 0; v < u.size(); ++v) u[v] = ref.positions[v] - s.inputs.mesh.positions[v];
+  Score(row, s.display, model.positions(), s.markers,
+        InterpolatedReference(s.inputs.mesh, std::move(u)));
   // The hand feels the torque: a row's error is the larger of its markers' RMS and its torque's.
   const double torque_error = (torque - ref.torque) / ref.torque;
   row.note = "markers " + Num(100 * row.rms, 3) + "% RMS; torque " + Num(torque, 4) +
@@ -181,12 +174,6 @@ int ArmLawSteps(const Config& cfg) {
 std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
   std::vector<SceneOut> out;
   auto setting = Setting(cfg);
-  const std::vector<Vec3> no_display;
-  const std::vector<int> no_markers;
-  const geometry::TetMesh no_mesh;
-  const Scored scored = setting.ok()
-                            ? Scored{setting->display, setting->markers, setting->inputs.mesh}
-                            : Scored{no_display, no_markers, no_mesh};
   auto linear =
       setting.ok() ? LinearModel(*setting) : Expected<tissue::ReducedTwistModel>(setting.error());
   auto coil = setting.ok() ? CoilModel(*setting) : Expected<Coil>(setting.error());
@@ -218,13 +205,13 @@ std::vector<SceneOut> RunArmLaws(const Config& cfg, Progress& progress) {
         last = *ref;
         if (coil.ok())
           s.rows.push_back(RateAt(Drive(*coil), "coil-scene", "arm-torsion's coil", scene, twist,
-                                  *ref, scored, cfg));
+                                  *ref, *setting, cfg));
         s.rows.push_back(RateAt(Drive(*linear), "reduced", "linear twist field", scene, twist, *ref,
-                                scored, cfg));
+                                *setting, cfg));
         Row row = RateAt(Drive(*model), "reduced-table",
                          std::to_string(in.levels) + " levels a side (" +
                              std::to_string(in.mesh.TetCount()) + " tets)",
-                         scene, twist, *ref, scored, cfg);
+                         scene, twist, *ref, *setting, cfg);
         row.note += "; built in " + Num(precompute_s, 3) + " s";
         s.rows.push_back(row);
       }
@@ -458,14 +445,7 @@ Expected<TwistSetting> OrganTwist(const Config& cfg) {
   in.face = tissue::JawFace(in.mesh, tissue::BoundaryAreas(in.mesh), in.origin,
                             scene->region.reduced.jaw_radius);
   in.display = o.display;
-  in.max_twist = 2 * scene->task.target;
   return o;
-}
-
-}  // namespace
-
-int OrganTwistLawSteps(const Config&) {
-  return 2 * 4;
 }
 
 // A model of one grasp's twist for the rows below: the law's table over `levels` a side up to
@@ -489,6 +469,12 @@ OrganTwistModel OrganTwistTable(const Expected<TwistSetting>& setting, double st
                           : Expected<tissue::ReducedTwistModel>(table.error()),
                       std::chrono::duration<double>(Clock::now() - t0).count(), levels};
   return out;
+}
+
+}  // namespace
+
+int OrganTwistLawSteps(const Config&) {
+  return 2 * 4;
 }
 
 // The forceps' twist on organ-surface-twist to the task's angle and twice it, against the
@@ -525,15 +511,14 @@ std::vector<SceneOut> RunOrganTwistLaws(const Config& cfg, Progress& progress) {
                                                  : levels.model.error().message});
       } else {
         last = *ref;
-        const Scored scored{setting->display, setting->markers, in.mesh};
         s.rows.push_back(RateAt(
             Drive(*small.model), "reduced",
             "the law at " + Num(0.1 * target / kDeg, 2) + "°, carried on linearly (" + tets + ")",
-            scene, twist, *ref, scored, cfg));
+            scene, twist, *ref, *setting, cfg));
         Row row = RateAt(Drive(*levels.model), "reduced-table",
                          std::to_string(levels.levels) + " levels a side to " +
                              Num(2.2 * target / kDeg, 3) + "° (" + tets + ")",
-                         scene, twist, *ref, scored, cfg);
+                         scene, twist, *ref, *setting, cfg);
         row.note += "; built in " + Num(levels.precompute_s, 3) + " s for one grasp";
         s.rows.push_back(row);
       }

@@ -160,16 +160,14 @@ int Guidance(const Plans& p, const fs::path& dir) {
     const double a = wan::PathError(*alone, *expert, kLead);
     const double g = wan::PathError(*guided, *expert, kLead);
     const double c = wan::PathError(*correcting, *expert, kLead);
-    const double pe = wan::PeakToolForce(*expert);
+    const double pa = wan::PeakToolForce(*alone), pg = wan::PeakToolForce(*guided);
+    const double pc = wan::PeakToolForce(*correcting), pe = wan::PeakToolForce(*expert);
     csv << profile << "," << 1e3 * a << "," << 1e3 * g << "," << 1e3 * c << "," << 1e3 * floor
-        << "," << wan::PeakToolForce(*alone) << "," << wan::PeakToolForce(*guided) << ","
-        << wan::PeakToolForce(*correcting) << "," << pe << "\n";
+        << "," << pa << "," << pg << "," << pc << "," << pe << "\n";
     std::cout << "  " << profile << ": path error " << Fixed(1e3 * a, 2) << " mm alone, "
               << Fixed(1e3 * g, 2) << " guided, " << Fixed(1e3 * c, 2) << " correcting; peak "
-              << Fixed(wan::PeakToolForce(*alone), 2) << " N alone, "
-              << Fixed(wan::PeakToolForce(*guided), 2) << " guided, "
-              << Fixed(wan::PeakToolForce(*correcting), 2) << " correcting (the expert's "
-              << Fixed(pe, 2) << ")\n";
+              << Fixed(pa, 2) << " N alone, " << Fixed(pg, 2) << " guided, " << Fixed(pc, 2)
+              << " correcting (the expert's " << Fixed(pe, 2) << ")\n";
   }
   return 0;
 }
