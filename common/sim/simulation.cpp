@@ -160,8 +160,9 @@ Status Simulation::Build() {
     s.bvh = bvh;
     s.motion = surface_motion_;
   });
-  visual_.ForEachSlot([&](VisualPositions& v) { v.positions = rest_.positions; });
+  visual_.ForEachSlot([&](VisualPositions& v) { v.positions = rest_.positions, v.turn.reset(); });
   last_sent_ = rest_.positions;
+  sent_turn_.reset();
   return Status::Ok();
 }
 
@@ -196,17 +197,23 @@ void Simulation::PublishInput() {
 }
 
 void Simulation::Publish(const Deformed& d, bool surface) {
-  const std::vector<Vec3>& positions = *d.positions;
   const bool overload = d.overload, outside_model = d.outside_model;
   const size_t n = rest_.positions.size();
   if (surface) {
-    PublishSurface(positions, overload, outside_model);
+    if (!d.positions) tissue::CoilDeformer::TurnFromRest(*d.turn, *d.turn_state, made_);
+    PublishSurface(d.positions ? *d.positions : made_, overload, outside_model);
   } else {
     grasp_overload_.store(overload, std::memory_order_relaxed);
     grasp_outside_model_.store(outside_model, std::memory_order_relaxed);
   }
   VisualPositions& v = visual_.Back();
-  std::copy(positions.begin(), positions.begin() + n, v.positions.begin());
+  if (d.positions) {
+    std::copy(d.positions->begin(), d.positions->begin() + n, v.positions.begin());
+    v.turn.reset();
+  } else {  // the view makes them if it needs them (TakeVisualFrame)
+    v.turn = d.turn;
+    v.turn_state = *d.turn_state;  // same sizes after the first: no allocation
+  }
   v.id = ++publish_id_;
   v.twist = d.twist;
   v.focus = d.focus;
@@ -498,13 +505,34 @@ DeformationPool::Clock::time_point Simulation::StepDue(DeformationPool::Clock::t
   return now + options_.pool->poll();
 }
 
-bool Simulation::TakeVisualFrame(VisualFrame& out) {
+void Simulation::MakeVertices(VisualPositions& v) {
+  if (!v.turn) return;
+  tissue::CoilDeformer::TurnFromRest(*v.turn, v.turn_state, v.positions);
+  v.turn.reset();
+}
+
+bool Simulation::TakeVisualFrame(VisualFrame& out, uint64_t twist_key) {
   if (!visual_.Acquire()) return false;
-  const VisualPositions& v = visual_.Front();
+  VisualPositions& v = visual_.Front();
   out.frame_id = v.id;
   out.twist = v.twist;
   out.indices.clear();
   out.positions.clear();
+  if (v.turn && v.twist && twist_key != 0 && v.twist->key == twist_key) {
+    // The station remakes this twist from its numbers: nothing to make or compare here. What it
+    // shows is now this twist, which last_sent_ becomes when a frame next needs vertices.
+    sent_turn_ = v.turn;
+    sent_turn_state_ = v.turn_state;
+    TakeTopology(v, out);
+    std::lock_guard lock(shown_mutex_);
+    shown_.turn = v.turn, shown_.turn_state = v.turn_state, shown_.id = v.id;
+    return true;
+  }
+  MakeVertices(v);
+  if (sent_turn_) {
+    tissue::CoilDeformer::TurnFromRest(*sent_turn_, sent_turn_state_, last_sent_);
+    sent_turn_.reset();
+  }
   // A vertex is sent once it moved this far from where it was last sent: 1 µm, the wire's
   // quantum; a cut's patch 10 µm, an eighth of a pixel of a station's view of it (the session's
   // record keeps 10 µm units): the blade's cutting force moves the whole sheet by microns as it
@@ -530,6 +558,7 @@ bool Simulation::TakeVisualFrame(VisualFrame& out) {
   if (!out.indices.empty() || (out.topology != 0 && out.topology != shown_.topology)) {
     std::lock_guard lock(shown_mutex_);
     shown_.positions = last_sent_;
+    shown_.turn.reset();
     shown_.id = v.id;
     if (out.topology != 0) shown_.faces = v.faces, shown_.topology = v.topology;
   }
@@ -559,6 +588,7 @@ uint64_t Simulation::ShownSurface(std::vector<int32_t>& indices,
   indices.clear();
   positions.clear();
   std::lock_guard lock(shown_mutex_);
+  MakeVertices(shown_);
   if (shown_.positions.size() != rest_.positions.size()) return shown_.id;
   constexpr double kMoved2 = 1e-12;  // (1 µm)², as for visual frames
   for (size_t i = 0; i < shown_.positions.size(); ++i)

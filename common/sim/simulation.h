@@ -107,7 +107,8 @@ struct VisualFrame {
   std::vector<int32_t> indices;           // vertices that moved since the previous frame taken
   std::vector<geometry::Vec3> positions;  // their positions, m
   // The whole surface of this frame as a coil limb's twist (a viewer with the scene remakes it
-  // from these three numbers), when the room made it so; the moved vertices are given as well.
+  // from these three numbers), when the room made it so; the moved vertices are given as well,
+  // unless the frame was taken for a viewer that remakes it (TakeVisualFrame's twist_key).
   std::optional<CoilTwistShape> twist;
   // A cut scene's topology (rooms/cut_room.h), when it changed since the previous frame taken or
   // in the kTopologyRepeats frames after: every face that differs from the rest mesh's, as it is
@@ -163,10 +164,12 @@ class Simulation final : private DeformationPool::Member {
               const std::function<void(const haptics::StylusSample&, const haptics::ForceCommand&)>&
                   on_command);
   // Visual thread: fills `out` with the vertices that moved since the previous call; false when
-  // nothing new was published. Reuses out's capacity.
-  bool TakeVisualFrame(VisualFrame& out);
-  // Every vertex as the last TakeVisualFrame read it (what its frame was made from); only from
-  // the thread that takes the frames, until its next call.
+  // nothing new was published. Reuses out's capacity. A coil limb's twist whose CoilTwistShape
+  // key is `twist_key` (a station that remakes the twist from its numbers) comes as that shape
+  // alone, its vertices not made: a later frame that needs vertices sends them against it.
+  bool TakeVisualFrame(VisualFrame& out, uint64_t twist_key = 0);
+  // Every vertex as the last TakeVisualFrame that made them read them (what its frame was made
+  // from); only from the thread that takes the frames, until its next call.
   const std::vector<geometry::Vec3>& LastFramePositions() const {
     return visual_.Front().positions;
   }
@@ -255,7 +258,12 @@ class Simulation final : private DeformationPool::Member {
     std::vector<geometry::Triangle> faces;
     uint64_t topology = 0;
     std::optional<geometry::Vec3> focus;  // Deformed::focus
+    // A coil twist whose vertices are not made yet (Deformed::turn): `positions` are older until
+    // MakeVertices turns them.
+    std::shared_ptr<const tissue::CoilTurnTable> turn;
+    tissue::CoilState turn_state;
   };
+  static void MakeVertices(VisualPositions& v);
 
   static Expected<std::unique_ptr<Simulation>> CreateChecked(const Scene& scene,
                                                              const SimulationOptions& options);
@@ -448,14 +456,19 @@ class Simulation final : private DeformationPool::Member {
   TripleBuffer<DeformInput> inputs_;
   TripleBuffer<VisualPositions> visual_;
   std::vector<geometry::Vec3> last_sent_;  // visual thread
-  uint64_t sent_topology_ = 0;             // visual thread: the topology last sent
-  int topology_repeats_ = 0;               // visual thread: frames still owed it
-  uint64_t published_topology_ = 0;        // deformation side: the last copied to the view
-  mutable std::mutex shown_mutex_;         // guards shown_
-  VisualPositions shown_;                  // what the visual thread last sent
+  // Visual thread: the twist last sent as its shape alone, while last_sent_ is older than it.
+  std::shared_ptr<const tissue::CoilTurnTable> sent_turn_;
+  tissue::CoilState sent_turn_state_;
+  uint64_t sent_topology_ = 0;       // visual thread: the topology last sent
+  int topology_repeats_ = 0;         // visual thread: frames still owed it
+  uint64_t published_topology_ = 0;  // deformation side: the last copied to the view
+  mutable std::mutex shown_mutex_;   // guards shown_
+  // What the visual thread last sent (a twist sent as its shape made into vertices on demand).
+  mutable VisualPositions shown_;
   uint64_t publish_id_ = 0;
   // Deformation side: the surface last published and Snapshot::motion so far.
   std::vector<geometry::Vec3> last_published_;
+  std::vector<geometry::Vec3> made_;  // a deferred update's vertices, when the surface needs them
   double surface_motion_ = 0;
   std::atomic<uint64_t> updates_{0}, surface_updates_{0};
   // A grasp's latest update's flags (it reaches the view only, not the surface's snapshot): what

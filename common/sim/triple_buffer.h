@@ -30,6 +30,7 @@ class TripleBuffer {
     return true;
   }
   const T& Front() const { return slots_[front_]; }
+  T& Front() { return slots_[front_]; }  // the consumer's own until its next Acquire
 
   // Set-up only (no thread running): the same value in every slot.
   template <class F>

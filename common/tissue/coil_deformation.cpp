@@ -47,73 +47,107 @@ void TurnGroups(int groups, const double* angles, const Rows& rows, double* __re
     }
   }
 }
+
+// The rows' order (vertices by ascending ρ), cut into groups of equal ρ and, within a group, runs
+// of consecutive mesh indices (a limb's group is a ring or two, so its runs are long).
+std::vector<int32_t> BindGroups(const std::vector<double>& rho, CoilTurnTable& t) {
+  const int n = static_cast<int>(rho.size());
+  std::vector<int32_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return rho[a] < rho[b]; });
+  for (int row = 0; row < n; ++row) {
+    if (t.group_rho.empty() || !(rho[order[row]] - t.group_rho.back() <= kGroupTolerance)) {
+      t.group_rho.push_back(rho[order[row]]);
+      t.group_begin.push_back(row);
+    }
+  }
+  t.group_begin.push_back(n);
+  for (size_t g = 0; g + 1 < t.group_begin.size(); ++g) {
+    std::sort(order.begin() + t.group_begin[g], order.begin() + t.group_begin[g + 1]);
+    t.group_run.push_back(static_cast<int32_t>(t.run_row.size()));
+    for (int row = t.group_begin[g]; row < t.group_begin[g + 1]; ++row) {
+      if (row == t.group_begin[g] || order[row] != order[row - 1] + 1) {
+        t.run_row.push_back(row);
+        t.run_vertex.push_back(order[row]);
+      }
+    }
+  }
+  t.group_run.push_back(static_cast<int32_t>(t.run_row.size()));
+  t.run_row.push_back(n);
+  return order;
+}
+
+// Each group's coil and place in it, as TwistAt finds them (the state changes only the boundary
+// angles; a group inside the cutoff R_P is in a coil k <= P), and the groups inside each R_P.
+void BindCoils(const CoilSpringModel& model, CoilTurnTable& t) {
+  const CoilSpringParams& cp = model.params();
+  const int coils = model.coils();
+  t.group_ring.resize(t.group_rho.size());
+  t.group_t.resize(t.group_rho.size());
+  for (size_t g = 0; g < t.group_rho.size(); ++g) {
+    const double r = std::abs(t.group_rho[g]);
+    if (r <= cp.core_radius) {
+      t.group_ring[g] = 1, t.group_t[g] = 0;  // the core turns with Θ_0
+      continue;
+    }
+    const int k =
+        std::clamp(static_cast<int>(std::ceil((r - cp.core_radius) / cp.thickness)), 1, coils);
+    t.group_ring[g] = k;
+    t.group_t[g] = std::clamp((r - model.RingRadius(k - 1)) / cp.thickness, 0.0, 1.0);
+  }
+  t.groups_within.assign(coils + 1, 0);
+  for (int p = 1; p <= coils; ++p)
+    t.groups_within[p] = static_cast<int32_t>(
+        std::lower_bound(t.group_rho.begin(), t.group_rho.end(), model.RingRadius(p)) -
+        t.group_rho.begin());
+}
+
+Rows RowsOf(const CoilTurnTable& t) {
+  return {t.group_ring.data(), t.group_run.data(), t.run_row.data(), t.run_vertex.data(),
+          t.group_t.data(),    t.rest_rows.data(), t.d_rows.data(),  t.q_rows.data()};
+}
+
+// The groups a state turns: those strictly inside R_P (θ(R_P) = 0); a zero twist moves nothing.
+int TurnedGroups(const CoilTurnTable& t, const CoilState& state) {
+  if (state.cutoff <= 0 || state.total_twist == 0) return 0;
+  return t.groups_within[std::min<size_t>(state.cutoff, t.groups_within.size() - 1)];
+}
+
+DeformStats StatsOf(const CoilState& state, int moved_vertices) {
+  DeformStats stats;
+  stats.cutoff = state.cutoff;
+  stats.overload = state.overload;
+  stats.torque = state.torque;
+  stats.total_twist = state.total_twist;
+  stats.moved_vertices = moved_vertices;
+  stats.touched_vertices = moved_vertices;
+  return stats;
+}
 }  // namespace
 
 void CoilDeformer::Bind(const std::vector<Vec3>& rest, const std::vector<double>& rho,
                         const std::vector<Vec3>& foot, const std::vector<Vec3>& axis) {
   const int n = static_cast<int>(rest.size());
-  rest_ = rest;
+  CoilTurnTable t;
+  t.rest = rest;
+  t.rho_by_vertex = rho;
   deformed_ = rest;
-  rho_by_vertex_ = rho;
   state_ = model_.MakeState();
-  std::vector<int32_t> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return rho[a] < rho[b]; });
-  group_rho_.clear();
-  group_begin_.clear();
-  for (int row = 0; row < n; ++row) {
-    if (group_rho_.empty() || !(rho[order[row]] - group_rho_.back() <= kGroupTolerance)) {
-      group_rho_.push_back(rho[order[row]]);
-      group_begin_.push_back(row);
-    }
-  }
-  group_begin_.push_back(n);
-  // Within a group the vertices in mesh order, cut into runs of consecutive indices: a limb's
-  // group is a ring or two, so its runs are long.
-  run_row_.clear();
-  run_vertex_.clear();
-  group_run_.clear();
-  for (size_t g = 0; g + 1 < group_begin_.size(); ++g) {
-    std::sort(order.begin() + group_begin_[g], order.begin() + group_begin_[g + 1]);
-    group_run_.push_back(static_cast<int32_t>(run_row_.size()));
-    for (int row = group_begin_[g]; row < group_begin_[g + 1]; ++row) {
-      if (row == group_begin_[g] || order[row] != order[row - 1] + 1) {
-        run_row_.push_back(row);
-        run_vertex_.push_back(order[row]);
-      }
-    }
-  }
-  group_run_.push_back(static_cast<int32_t>(run_row_.size()));
-  run_row_.push_back(n);
-  for (auto* v : {&rest_rows_, &d_rows_, &q_rows_}) v->resize(3 * static_cast<size_t>(n));
+  const std::vector<int32_t> order = BindGroups(rho, t);
+  for (auto* v : {&t.rest_rows, &t.d_rows, &t.q_rows}) v->resize(3 * static_cast<size_t>(n));
   for (int row = 0; row < n; ++row) {
     const int v = order[row];
     Vec3 d = rest[v] - foot[v];
     d -= d.dot(axis[v]) * axis[v];  // keep only the part ⊥ axis: the rotation preserves |d|
     const Vec3 q = axis[v].cross(d);
     for (int c = 0; c < 3; ++c) {
-      rest_rows_[3 * row + c] = rest[v][c];
-      d_rows_[3 * row + c] = d[c];
-      q_rows_[3 * row + c] = q[c];
+      t.rest_rows[3 * row + c] = rest[v][c];
+      t.d_rows[3 * row + c] = d[c];
+      t.q_rows[3 * row + c] = q[c];
     }
   }
-  // Each group's coil and place in it, as TwistAt finds them (the state changes only the
-  // boundary angles; a group inside the cutoff R_P is in a coil k <= P).
-  const CoilSpringParams& cp = model_.params();
-  const int coils = model_.coils();
-  group_ring_.resize(group_rho_.size());
-  group_t_.resize(group_rho_.size());
-  for (size_t g = 0; g < group_rho_.size(); ++g) {
-    const double r = std::abs(group_rho_[g]);
-    if (r <= cp.core_radius) {
-      group_ring_[g] = 1, group_t_[g] = 0;  // the core turns with Θ_0
-      continue;
-    }
-    const int k =
-        std::clamp(static_cast<int>(std::ceil((r - cp.core_radius) / cp.thickness)), 1, coils);
-    group_ring_[g] = k;
-    group_t_[g] = std::clamp((r - model_.RingRadius(k - 1)) / cp.thickness, 0.0, 1.0);
-  }
+  BindCoils(model_, t);
+  table_ = std::make_shared<const CoilTurnTable>(std::move(t));
   moved_groups_ = 0;
 }
 
@@ -183,32 +217,31 @@ DeformStats CoilDeformer::Update(double torque) {
 
 DeformStats CoilDeformer::Apply(const CoilState& state) {
   if (&state != &state_) state_ = state;  // same sizes: no allocation
-  const int p = state.cutoff;
-  const double cutoff_radius = p > 0 ? model_.RingRadius(p) : 0.0;
-  // Groups strictly inside R_P turn (θ(R_P) = 0); a zero twist moves nothing.
-  int groups = 0;
-  if (p > 0 && state.total_twist != 0) {
-    groups = static_cast<int>(
-        std::lower_bound(group_rho_.begin(), group_rho_.end(), cutoff_radius) - group_rho_.begin());
-  }
+  const CoilTurnTable& t = *table_;
+  const int groups = TurnedGroups(t, state);
   double* out = deformed_.data()->data();
-  const Rows rows{group_ring_.data(), group_run_.data(), run_row_.data(), run_vertex_.data(),
-                  group_t_.data(),    rest_rows_.data(), d_rows_.data(),  q_rows_.data()};
-  TurnGroups(groups, state.boundary_angles.data(), rows, out);
+  TurnGroups(groups, state.boundary_angles.data(), RowsOf(t), out);
   // Put back at rest what the previous update moved and this one does not.
-  for (int r = group_run_[groups]; r < group_run_[std::max(groups, moved_groups_)]; ++r) {
-    std::copy(rest_rows_.begin() + 3 * run_row_[r], rest_rows_.begin() + 3 * run_row_[r + 1],
-              out + 3 * static_cast<ptrdiff_t>(run_vertex_[r]));
+  for (int r = t.group_run[groups]; r < t.group_run[std::max(groups, moved_groups_)]; ++r) {
+    std::copy(t.rest_rows.begin() + 3 * t.run_row[r], t.rest_rows.begin() + 3 * t.run_row[r + 1],
+              out + 3 * static_cast<ptrdiff_t>(t.run_vertex[r]));
   }
-  DeformStats stats;
-  stats.cutoff = p;
-  stats.overload = state.overload;
-  stats.torque = state.torque;
-  stats.total_twist = state.total_twist;
-  stats.moved_vertices = group_begin_[groups];
-  stats.touched_vertices = group_begin_[std::max(groups, moved_groups_)];
+  DeformStats stats = StatsOf(state, t.group_begin[groups]);
+  stats.touched_vertices = t.group_begin[std::max(groups, moved_groups_)];
   moved_groups_ = groups;
   return stats;
+}
+
+DeformStats CoilDeformer::Evaluate(double torque) {
+  model_.Forward(torque, state_);
+  return StatsOf(state_, table_->group_begin[TurnedGroups(*table_, state_)]);
+}
+
+void CoilDeformer::TurnFromRest(const CoilTurnTable& table, const CoilState& state,
+                                std::vector<Vec3>& out) {
+  out.assign(table.rest.begin(), table.rest.end());
+  TurnGroups(TurnedGroups(table, state), state.boundary_angles.data(), RowsOf(table),
+             out.data()->data());
 }
 
 }  // namespace vsurg::tissue

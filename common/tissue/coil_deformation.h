@@ -24,10 +24,14 @@
 // angles with an axis–angle rotation (16× slower on the default arm, bench/coil_bench.cpp).
 //
 // Threads: one deformer belongs to one thread (the deformation thread); Update writes its own
-// position buffer, which a reader copies or double-buffers.
+// position buffer, which a reader copies or double-buffers. What binding made is one immutable
+// CoilTurnTable the deformer shares (table()): a reader that needs the vertices less often than
+// the model updates takes the table and a copy of the state and makes them when it needs them
+// (TurnFromRest), while the deformer only evaluates the model (Evaluate).
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "common/core/expected.h"
@@ -46,6 +50,26 @@ struct DeformStats {
   double total_twist = 0;    // Φ, rad
   int moved_vertices = 0;    // vertices with a non-zero rotation after this update
   int touched_vertices = 0;  // vertices written by this update (moved plus put back at rest)
+};
+
+// What a binding makes, immutable afterwards. Rows in ascending ρ, x y z interleaved: the rest
+// position, the offset d from the axis (⊥ axis) and axis × d, m.
+struct CoilTurnTable {
+  std::vector<geometry::Vec3> rest;   // mesh order
+  std::vector<double> rho_by_vertex;  // ρ per vertex, m
+  std::vector<double> rest_rows, d_rows, q_rows;
+  // Groups of rows with equal ρ: rows [group_begin[g], group_begin[g+1]).
+  std::vector<double> group_rho;
+  std::vector<int32_t> group_begin;
+  // Runs: rows [run_row[r], run_row[r+1]) are the vertices run_vertex[r], +1, …; group g's runs
+  // are [group_run[g], group_run[g+1]).
+  std::vector<int32_t> run_row, run_vertex, group_run;
+  // Where each group sits among the coils, fixed at binding: θ_g = Θ_{k−1} + t·(Θ_k − Θ_{k−1})
+  // (CoilSpringModel::TwistAt for a group inside the cutoff, without its per-call search).
+  std::vector<int32_t> group_ring;  // k, 1..S
+  std::vector<double> group_t;      // t, 0..1 (0 in the core)
+  // By P = 0..S: the groups strictly inside R_P (the first groups_within[P] turn).
+  std::vector<int32_t> groups_within;
 };
 
 class CoilDeformer {
@@ -72,10 +96,19 @@ class CoilDeformer {
   DeformStats Update(double torque);
   // Deforms for a state already evaluated by the same model (e.g. by the haptic path).
   DeformStats Apply(const CoilState& state);
+  // Evaluates the model for a new torque (N·m) and turns no vertex: state() is the new one,
+  // positions() stay as the last Update or Apply left them (a reader makes the vertices from
+  // table() and state() with TurnFromRest). Deformation thread; no allocation.
+  DeformStats Evaluate(double torque);
+  // Any thread: `out` = the table's rest mesh turned as `state` says (a state of the model the
+  // table was bound with). Reuses out's capacity.
+  static void TurnFromRest(const CoilTurnTable& table, const CoilState& state,
+                           std::vector<geometry::Vec3>& out);
 
+  const std::shared_ptr<const CoilTurnTable>& table() const { return table_; }
   const std::vector<geometry::Vec3>& positions() const { return deformed_; }
-  const std::vector<geometry::Vec3>& rest_positions() const { return rest_; }
-  const std::vector<double>& distances() const { return rho_by_vertex_; }  // ρ per vertex, m
+  const std::vector<geometry::Vec3>& rest_positions() const { return table_->rest; }
+  const std::vector<double>& distances() const { return table_->rho_by_vertex; }  // ρ, m
   const CoilState& state() const { return state_; }
   TwistMode mode() const { return mode_; }
   const CoilSpringModel& model() const { return model_; }
@@ -89,24 +122,9 @@ class CoilDeformer {
   CoilSpringModel model_;
   TwistMode mode_;
   CoilState state_;
-  std::vector<geometry::Vec3> rest_;
+  std::shared_ptr<const CoilTurnTable> table_;
   std::vector<geometry::Vec3> deformed_;
-  std::vector<double> rho_by_vertex_;
-
-  // Rows in ascending ρ, x y z interleaved: the rest position, the offset d from the axis (⊥ axis)
-  // and axis × d, m.
-  std::vector<double> rest_rows_, d_rows_, q_rows_;
-  // Groups of rows with equal ρ: rows [group_begin_[g], group_begin_[g+1]).
-  std::vector<double> group_rho_;
-  std::vector<int32_t> group_begin_;
-  // Runs: rows [run_row_[r], run_row_[r+1]) are the vertices run_vertex_[r], +1, …; group g's
-  // runs are [group_run_[g], group_run_[g+1]).
-  std::vector<int32_t> run_row_, run_vertex_, group_run_;
-  // Where each group sits among the coils, fixed at binding: θ_g = Θ_{k−1} + t·(Θ_k − Θ_{k−1})
-  // (CoilSpringModel::TwistAt for a group inside the cutoff, without its per-call search).
-  std::vector<int32_t> group_ring_;  // k, 1..S
-  std::vector<double> group_t_;      // t, 0..1 (0 in the core)
-  int moved_groups_ = 0;             // groups written with a non-zero angle by the last update
+  int moved_groups_ = 0;  // groups written with a non-zero angle by the last Update or Apply
 };
 
 }  // namespace vsurg::tissue

@@ -69,7 +69,7 @@ void VisualSender::Loop() {
       for (Session& s : sessions_) {
         // A new frame only when the last has all gone out (else it waits: nothing is lost).
         if (frame_due && s.next == s.sizes.size() && s.has_dest &&
-            s.simulation->TakeVisualFrame(frame))
+            s.simulation->TakeVisualFrame(frame, s.shape_key))
           QueueFrame(s, frame, now);
         if (frame_due && s.next == s.sizes.size() && s.has_dest) RepeatTwist(s, now);
         SendShare(s);

@@ -113,13 +113,21 @@ std::optional<Deformed> CoilRoom::Deform(const DeformInput& in) {
   if (!deformer_) return std::nullopt;
   const double torque = in.grasping ? in.torque : 0.0;
   if (torque == applied_torque_ && in.grasping == applied_grasp_) return std::nullopt;
-  const tissue::DeformStats stats = deformer_->Update(torque);
+  // While the hand grasps, the haptic path answers from the model's inverse and the view is the
+  // only reader of the vertices, at its own frame rate or not at all (a station that remakes the
+  // twist itself): the update evaluates the model and leaves the turning to the view. The release
+  // turns them here, for the surface the haptic path answers from next.
+  const tissue::DeformStats stats =
+      in.grasping ? deformer_->Evaluate(torque) : deformer_->Update(torque);
   applied_torque_ = torque;
   applied_grasp_ = in.grasping;
-  std::optional<CoilTwistShape> shape;
+  Deformed d;
+  d.positions = in.grasping ? nullptr : &deformer_->positions();
+  d.overload = stats.overload;
+  if (in.grasping) d.turn = deformer_->table(), d.turn_state = &deformer_->state();
   if (mode_ == tissue::TwistMode::kLimb)
-    shape = CoilTwistShape{key_, bound_.first, bound_.second, torque};
-  return Deformed{&deformer_->positions(), stats.overload, false, shape};
+    d.twist = CoilTwistShape{key_, bound_.first, bound_.second, torque};
+  return d;
 }
 
 }  // namespace vsurg::sim

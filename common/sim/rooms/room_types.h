@@ -3,12 +3,14 @@
 
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "common/geometry/mesh.h"
 #include "common/sim/scene.h"
+#include "common/tissue/coil_deformation.h"
 
 namespace vsurg {
 class StateWriter;
@@ -123,6 +125,8 @@ uint64_t CoilLimbKeyOf(const Scene& scene, const SceneMesh& mesh);
 
 // One deformation update to publish. `positions` is the room's own (valid until its next Deform).
 struct Deformed {
+  // Null when the update's vertices are left to be made: then they are `turn`'s rest mesh turned
+  // as `turn_state` says (tissue::CoilDeformer::TurnFromRest), for whoever needs them.
   const std::vector<geometry::Vec3>* positions = nullptr;
   bool overload = false;
   bool outside_model = false;  // the reduced contact used a neighbour's precomputed response
@@ -135,6 +139,8 @@ struct Deformed {
   // Where a tool works the tissue now (m, the scene's frame; a cut's blade on the patch): the
   // frames send the vertices near it at the finest threshold (Simulation::TakeVisualFrame).
   std::optional<geometry::Vec3> focus = std::nullopt;
+  std::shared_ptr<const tissue::CoilTurnTable> turn = nullptr;
+  const tissue::CoilState* turn_state = nullptr;  // the room's own, as `positions`
 };
 
 }  // namespace vsurg::sim

@@ -1,6 +1,7 @@
 #include "common/tissue/coil_deformation.h"
 
 #include <cmath>
+#include <memory>
 #include <numbers>
 
 #include <gtest/gtest.h>
@@ -115,6 +116,35 @@ TEST(CoilDeformationTest, RepeatedUpdatesDoNotDrift) {
   for (int k = 0; k < 1000; ++k) f.deformer.Update(k % 2 ? -2.9 : 0.7);
   f.deformer.Update(1.3);
   EXPECT_EQ(f.deformer.positions(), first);  // always from rest: bit-identical
+}
+
+// The deferred path: Evaluate moves the model and no vertex, and the vertices a reader makes from
+// the table and the state are the ones Update writes, to the bit, however the cutoff moves
+// (growing, shrinking, through zero, overloaded) and on a copy of the table that outlives the
+// deformer's next binding.
+TEST(CoilDeformationTest, VerticesMadeFromTheTableAndStateAreTheUpdatesOwn) {
+  LimbFixture f = MakeLimbFixture();
+  LimbFixture eager = MakeLimbFixture();
+  const std::shared_ptr<const CoilTurnTable> table = f.deformer.table();
+  std::vector<Vec3> made;
+  for (const double torque : {0.4, 2.5, 0.2, -1.7, 0.0, 50.0, -0.05}) {
+    const DeformStats lazy = f.deformer.Evaluate(torque);
+    const DeformStats full = eager.deformer.Update(torque);
+    EXPECT_EQ(f.deformer.positions(), f.limb.surface.positions) << "Evaluate turned a vertex";
+    EXPECT_EQ(lazy.cutoff, full.cutoff);
+    EXPECT_EQ(lazy.moved_vertices, full.moved_vertices);
+    EXPECT_EQ(lazy.overload, full.overload);
+    CoilDeformer::TurnFromRest(*table, f.deformer.state(), made);
+    EXPECT_EQ(made, eager.deformer.positions()) << "at " << torque << " N·m";
+  }
+  // Update after Evaluates puts back what it last wrote (nothing) and turns the state's groups.
+  f.deformer.Update(1.1);
+  eager.deformer.Update(1.1);
+  EXPECT_EQ(f.deformer.positions(), eager.deformer.positions());
+  f.deformer = *CoilDeformer::CreateForLimb(f.model, f.limb.surface.positions, f.limb.centreline,
+                                            0.5 * f.limb.params.length);
+  CoilDeformer::TurnFromRest(*table, eager.deformer.state(), made);
+  EXPECT_EQ(made, eager.deformer.positions()) << "the old binding's table still makes its twist";
 }
 
 TEST(CoilDeformationTest, OverloadedTorqueDeformsAsTheCapacity) {

@@ -76,5 +76,68 @@ TEST(RoomTest, WhileTheArmIsGraspedOnlyItsViewMovesAndTheReleaseRestoresTheSurfa
   EXPECT_TRUE(indices.empty()) << indices.size() << " vertices away from rest";
 }
 
+// A station that remakes the limb's twist from its numbers (frames taken with the limb's key) is
+// sent the shape alone, and no vertex is made or compared for it while the hand grasps. The
+// monitors still read the twisted arm (ShownSurface, as a station sent vertices sees it), and a
+// frame that needs vertices later (the release) is made against the twist the station was shown.
+TEST(RoomTest, FramesAsTheTwistMakeNoVerticesYetTheArmIsShownTwisted) {
+  auto scene = LoadSceneByName("arm-torsion");
+  ASSERT_TRUE(scene.ok());
+  auto samples = ScriptedTrainee(*scene, TraineeStyle::kGood);
+  ASSERT_TRUE(samples.ok());
+  auto twist_sim = Simulation::Create(*scene, {false});
+  auto vertex_sim = Simulation::Create(*scene, {false});
+  ASSERT_TRUE(twist_sim.ok() && vertex_sim.ok());
+  Simulation &a = **twist_sim, &b = **vertex_sim;
+  VisualFrame fa, fb;
+  uint64_t key = 0;
+  int shape_only = 0, compared = 0;
+  std::vector<int32_t> ia, ib;
+  std::vector<geometry::Vec3> pa, pb;
+  // Every vertex from a ShownSurface (the others at rest).
+  const auto whole = [&](const std::vector<int32_t>& idx, const std::vector<geometry::Vec3>& pos) {
+    std::vector<geometry::Vec3> all = b.rest_mesh().positions;
+    for (size_t k = 0; k < idx.size(); ++k) all[idx[k]] = pos[k];
+    return all;
+  };
+  bool grasped = false;
+  for (size_t k = 0; k < samples->size(); ++k) {
+    const bool grasping = a.OnStylus((*samples)[k]).grasping;
+    b.OnStylus((*samples)[k]);
+    a.StepDeformation(), b.StepDeformation();
+    grasped = grasped || grasping;
+    if (k % 16 != 0) continue;  // a frame every 16 ms
+    const bool took = a.TakeVisualFrame(fa, key);
+    ASSERT_EQ(took, b.TakeVisualFrame(fb));
+    if (!took) continue;
+    if (!key && fb.twist) key = fb.twist->key;
+    if (grasping && fa.twist && fa.twist->key == key) {
+      EXPECT_TRUE(fa.indices.empty()) << "a shape-only frame carried vertices";
+      EXPECT_EQ(fa.twist->torque, fb.twist->torque);
+      ++shape_only;
+    }
+    if (grasping && shape_only > 0 && k % 256 == 0) {  // the monitors' view of both
+      a.ShownSurface(ia, pa);
+      b.ShownSurface(ib, pb);
+      const std::vector<geometry::Vec3> shown_a = whole(ia, pa), shown_b = whole(ib, pb);
+      double worst = 0;
+      for (size_t v = 0; v < shown_a.size(); ++v)
+        worst = std::max(worst, (shown_a[v] - shown_b[v]).norm());
+      EXPECT_LT(worst, 1.01e-6) << "the vertex frames' own 1 µm";
+      compared += !ib.empty();  // the arm turned
+    }
+  }
+  ASSERT_TRUE(grasped);
+  EXPECT_GT(shape_only, 100);
+  EXPECT_GT(compared, 3);
+  // Released: the station sent vertices is told which went back to rest; so would be the one
+  // that was sent the twist, had its frame needed vertices (taken without the key).
+  a.TakeVisualFrame(fa, 0);
+  b.TakeVisualFrame(fb);
+  EXPECT_EQ(a.LastFramePositions(), b.LastFramePositions());
+  a.ShownSurface(ia, pa);
+  EXPECT_TRUE(ia.empty()) << ia.size() << " vertices away from rest after the release";
+}
+
 }  // namespace
 }  // namespace vsurg::sim
