@@ -27,6 +27,32 @@ namespace {
 using Vec3 = Eigen::Vector3d;
 constexpr uint64_t kSession = 7;
 
+// The point of segment ab closest to p.
+Vec3 ClosestOnSegment(const Vec3& a, const Vec3& b, const Vec3& p) {
+  const Vec3 ab = b - a;
+  const double len2 = ab.squaredNorm();
+  return a + (len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0) * ab;
+}
+
+// The point of the path's stretch within kPathWindowS of `time` (s, the trainee's clock) closest
+// to `tool`.
+constexpr double kPathWindowS = 1.0;
+Vec3 ClosestOnPath(const std::vector<ToolSample>& path, double time, const Vec3& tool) {
+  const auto at = [&](double v) {
+    return std::lower_bound(path.begin(), path.end(), v,
+                            [](const ToolSample& s, double x) { return s.time < x; });
+  };
+  auto lo = at(time - kPathWindowS), hi = at(time + kPathWindowS);
+  if (hi == path.end()) --hi;
+  if (lo == hi) lo = hi == path.begin() ? hi : std::prev(hi);
+  Vec3 best = lo->tool;
+  for (auto k = lo; k != hi; ++k) {
+    const Vec3 c = ClosestOnSegment(k->tool, std::next(k)->tool, tool);
+    if ((c - tool).squaredNorm() < (best - tool).squaredNorm()) best = c;
+  }
+  return best;
+}
+
 wire::SessionKey Key(uint64_t seed, uint8_t salt) {
   wire::SessionKey k{};
   for (size_t i = 0; i < k.size(); ++i) k[i] = static_cast<uint8_t>(11 * i + salt + seed);
@@ -152,7 +178,10 @@ class HostileSender {
 
 // The correcting instructor's eyes and hand (FourHandsOptions::correct_towards): each tool the
 // simulation publishes is seen a down link's delay later, and the hand's intent moves by what
-// the controller makes of the shortfalls seen so far.
+// the controller makes of the shortfalls seen so far. A shortfall is where the tool strays from
+// the expert's path (its closest point within kPathWindowS of the same moment), not how far it
+// runs behind the plan's clock: pushing a slow approach on to catch up with the plan arrives a
+// round trip late, at the surface, and deepens the impact it should have softened.
 class Corrector {
  public:
   Corrector(const FourHandsOptions& o, client::VirtualHandDevice* hand)
@@ -164,11 +193,8 @@ class Corrector {
 
   void See(const sim::Telemetry& t) {
     if (!active()) return;
-    const auto& ref = o_.correct_towards;
-    auto it = std::lower_bound(ref.begin(), ref.end(), t.time,
-                               [](const ToolSample& s, double v) { return s.time < v; });
-    if (it == ref.end()) it = std::prev(it);
-    seen_.push_back({std::chrono::steady_clock::now() + delay_, t.time, it->tool - t.tool});
+    seen_.push_back({std::chrono::steady_clock::now() + delay_, t.time,
+                     ClosestOnPath(o_.correct_towards, t.time, t.tool) - t.tool});
   }
   void Act() {
     if (!active()) return;
@@ -297,12 +323,9 @@ double PathError(const FourHandsRun& run, const FourHandsRun& reference, size_t 
   for (const ToolSample& s : run.tool) {
     if (s.cycle < lead_cycles || path.size() < 2) continue;
     double best = std::numeric_limits<double>::infinity();
-    for (size_t k = 0; k + 1 < path.size(); ++k) {
-      const Vec3 ab = path[k + 1] - path[k];
-      const double len2 = ab.squaredNorm();
-      const double u = len2 > 0 ? std::clamp((s.tool - path[k]).dot(ab) / len2, 0.0, 1.0) : 0.0;
-      best = std::min(best, (s.tool - (path[k] + u * ab)).squaredNorm());
-    }
+    for (size_t k = 0; k + 1 < path.size(); ++k)
+      best =
+          std::min(best, (s.tool - ClosestOnSegment(path[k], path[k + 1], s.tool)).squaredNorm());
     sum += best;
     ++n;
   }

@@ -55,9 +55,9 @@ struct FourHandsOptions {
   double instructor_lag_s = 0;
   // An instructor who corrects what they see: the tool, shown at their station a down link's
   // delay after the simulation published it, against `correct_towards` (the tool's path as the
-  // expert alone made it, at the same time of the trainee's clock). Their hand's intent moves
-  // from its plan by kp·e + ki·∫e dt, e the tool's shortfall, at most kMaxCorrection. Empty: the
-  // instructor plays the plan as it is.
+  // expert alone made it). Their hand's intent moves from its plan by kp·e + ki·∫e dt, e from the
+  // tool to the path's closest point within a second of the same moment of the trainee's clock,
+  // at most kMaxCorrection. Empty: the instructor plays the plan as it is.
   std::vector<ToolSample> correct_towards;
   double correction_kp = 1.5;                      // 1
   double correction_ki = 8.0;                      // 1/s

@@ -8,8 +8,9 @@
 //                 the instructor's rendered force against the trainee's (ObserverError), for a
 //                 hand that follows the trainee's path as it reaches it and one that anticipates;
 //   guidance.csv  the rough trainee alone and guided at α = 0.5 by the expert, who plays the
-//                 plan or corrects the tool it sees (FourHandsOptions::correct_towards), at lan
-//                 and continental: path error from the expert's own path and the peak force.
+//                 plan or corrects where it sees the tool stray from its path
+//                 (FourHandsOptions::correct_towards), at lan and continental: path error from
+//                 the expert's own path and the peak force.
 // docs/BENCHMARKS.md "Four-handed training".
 #include <algorithm>
 #include <filesystem>

@@ -91,13 +91,15 @@ TEST(FourHandsTest, AnExpertGuidingAtHalfDominanceKeepsARoughTraineesToolOnTheEx
         PeakToolForce(*guided), PeakToolForce(*correcting), expert_peak,
         guided->metrics.guided_share, guided->metrics.guided_alpha);
     // Guided, the tool keeps nearer the expert's own path (0.41 → 0.28 mm at lan, 0.42 → 0.23
-    // at continental in the run this bound was set by), and nearer still when the expert
-    // corrects the tool it sees (0.15 at lan, 0.18-0.19 at continental: less than half). The
-    // bounds leave room for a loaded machine, whose stalls put the hands' servo time and the
-    // correction's wall-clock delay out of step. The peak's excess over the expert's is printed,
-    // not bounded: a relaxed hand's overshoot adds 0.1-0.2 N, within the run's spread.
+    // at continental in the run these bounds were set by), and nearer still when the expert
+    // corrects where it sees the tool stray from its path (0.12 at lan, 0.14 at continental: a
+    // third). The bounds leave room for a loaded machine, whose stalls put the hands' servo time
+    // and the correction's wall-clock delay out of step. The correcting expert also takes most
+    // of the rough hand's impact (the peak's excess over the expert's own 0.15 → 0.05 N on a
+    // quiet machine), printed, not bounded: beside two CPU hogs one run in a few peaks at 1-18 N
+    // (the expert alone too), where the path error stays as quiet.
     EXPECT_LE(e_guided, 0.75 * e_alone) << profile;
-    EXPECT_LE(e_correcting, 0.6 * e_alone) << profile;
+    EXPECT_LE(e_correcting, 0.5 * e_alone) << profile;
     EXPECT_LT(e_correcting, e_guided) << profile;
     // The record says the trial was guided, and by how much.
     EXPECT_GT(guided->metrics.guided_share, 0.8) << profile;
