@@ -35,19 +35,20 @@ Vec3 ClosestOnSegment(const Vec3& a, const Vec3& b, const Vec3& p) {
 }
 
 // The point of the path's stretch within kPathWindowS of `time` (s, the trainee's clock) closest
-// to `tool`.
+// to `tool`: one segment at least, however far `time` is outside the path's (it has two points).
 constexpr double kPathWindowS = 1.0;
 Vec3 ClosestOnPath(const std::vector<ToolSample>& path, double time, const Vec3& tool) {
-  const auto at = [&](double v) {
-    return std::lower_bound(path.begin(), path.end(), v,
-                            [](const ToolSample& s, double x) { return s.time < x; });
+  const auto index = [&](double v) {
+    return static_cast<size_t>(
+        std::lower_bound(path.begin(), path.end(), v,
+                         [](const ToolSample& s, double x) { return s.time < x; }) -
+        path.begin());
   };
-  auto lo = at(time - kPathWindowS), hi = at(time + kPathWindowS);
-  if (hi == path.end()) --hi;
-  if (lo == hi) lo = hi == path.begin() ? hi : std::prev(hi);
-  Vec3 best = lo->tool;
-  for (auto k = lo; k != hi; ++k) {
-    const Vec3 c = ClosestOnSegment(k->tool, std::next(k)->tool, tool);
+  const size_t hi = std::clamp<size_t>(index(time + kPathWindowS), 1, path.size() - 1);
+  const size_t lo = std::min(index(time - kPathWindowS), hi - 1);
+  Vec3 best = path[lo].tool;
+  for (size_t k = lo; k < hi; ++k) {
+    const Vec3 c = ClosestOnSegment(path[k].tool, path[k + 1].tool, tool);
     if ((c - tool).squaredNorm() < (best - tool).squaredNorm()) best = c;
   }
   return best;

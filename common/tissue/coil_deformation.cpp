@@ -119,8 +119,7 @@ DeformStats StatsOf(const CoilState& state, int moved_vertices) {
   stats.overload = state.overload;
   stats.torque = state.torque;
   stats.total_twist = state.total_twist;
-  stats.moved_vertices = moved_vertices;
-  stats.touched_vertices = moved_vertices;
+  stats.moved_vertices = moved_vertices;  // touched_vertices 0: Apply's to say
   return stats;
 }
 }  // namespace

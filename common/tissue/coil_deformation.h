@@ -96,9 +96,10 @@ class CoilDeformer {
   DeformStats Update(double torque);
   // Deforms for a state already evaluated by the same model (e.g. by the haptic path).
   DeformStats Apply(const CoilState& state);
-  // Evaluates the model for a new torque (N·m) and turns no vertex: state() is the new one,
-  // positions() stay as the last Update or Apply left them (a reader makes the vertices from
-  // table() and state() with TurnFromRest). Deformation thread; no allocation.
+  // Evaluates the model for a new torque (N·m) and turns no vertex (touched_vertices 0,
+  // moved_vertices those the state turns): state() is the new one, positions() stay as the last
+  // Update or Apply left them (a reader makes the vertices from table() and state() with
+  // TurnFromRest). Deformation thread; no allocation.
   DeformStats Evaluate(double torque);
   // Any thread: `out` = the table's rest mesh turned as `state` says (a state of the model the
   // table was bound with). Reuses out's capacity.

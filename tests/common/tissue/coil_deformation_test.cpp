@@ -134,6 +134,7 @@ TEST(CoilDeformationTest, VerticesMadeFromTheTableAndStateAreTheUpdatesOwn) {
     EXPECT_EQ(lazy.cutoff, full.cutoff);
     EXPECT_EQ(lazy.moved_vertices, full.moved_vertices);
     EXPECT_EQ(lazy.overload, full.overload);
+    EXPECT_EQ(lazy.touched_vertices, 0);
     CoilDeformer::TurnFromRest(*table, f.deformer.state(), made);
     EXPECT_EQ(made, eager.deformer.positions()) << "at " << torque << " N·m";
   }
